@@ -1,0 +1,64 @@
+"""Occupancy-grid conventions shared by every stage.
+
+Grids follow ROS ``nav_msgs/OccupancyGrid``: a 2D ``int8`` array of shape ``(rows, cols)``, row 0 at the
+map origin (the bottom of the map when drawn with y up), ``-1`` unknown, ``0..100`` occupancy probability
+in percent. Boolean arrays are accepted as occupied masks.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+from rose.errors import RoseError
+
+__all__ = ["FREE", "OCCUPIED", "UNKNOWN", "as_occupancy_grid", "occupied_mask"]
+
+UNKNOWN = -1
+FREE = 0
+OCCUPIED = 100
+
+
+def as_occupancy_grid(grid: npt.ArrayLike) -> npt.NDArray[np.int8]:
+    """Return ``grid`` as an ``int8`` occupancy grid of the same shape (a copy when converted).
+
+    A boolean array becomes ``100`` where True and ``0`` elsewhere. Integer or float arrays must hold
+    values in ``-1..100``.
+
+    Raises
+    ------
+    RoseError
+        If ``grid`` is not 2D or holds values outside ``-1..100``.
+    """
+    array = np.asarray(grid)
+    if array.ndim != 2:
+        msg = f"The input grid must be 2D, got an array of shape {array.shape}."
+        raise RoseError(msg)
+    if array.dtype == np.bool_:
+        return np.where(array, np.int8(OCCUPIED), np.int8(FREE))
+    if not (np.issubdtype(array.dtype, np.integer) or np.issubdtype(array.dtype, np.floating)):
+        msg = f"The input grid must be boolean or numeric, got dtype {array.dtype}."
+        raise RoseError(msg)
+    if array.size and (array.min() < UNKNOWN or array.max() > OCCUPIED):
+        msg = (
+            "The input grid must hold -1 (unknown) or 0..100 (occupancy), "
+            f"got values in [{array.min()}, {array.max()}]."
+        )
+        raise RoseError(msg)
+    return array.astype(np.int8, copy=False)
+
+
+def occupied_mask(grid: npt.NDArray[np.int8], *, occupied_threshold: int) -> npt.NDArray[np.bool_]:
+    """Boolean mask of occupied cells: occupancy ``>= occupied_threshold`` (unknown cells are never occupied).
+
+    Parameters
+    ----------
+    grid : ndarray of int8, shape (rows, cols)
+        Occupancy grid in ROS convention.
+    occupied_threshold : int
+        Smallest occupancy (percent, 1..100) that counts as occupied.
+    """
+    if not 1 <= occupied_threshold <= OCCUPIED:
+        msg = f"occupied_threshold must be in 1..100, got {occupied_threshold}."
+        raise RoseError(msg)
+    return grid >= occupied_threshold

@@ -1,0 +1,293 @@
+"""ROS map_server map files: YAML + PGM/PNG, and bare images.
+
+Reading follows ROS 1 ``map_server`` (``image_loader.cpp``) exactly: the grey value of a pixel is the
+mean of its colour channels (alpha excluded); with ``negate`` it is inverted; ``occ = (255 - grey) / 255``;
+``occ > occupied_thresh`` is occupied (100), ``occ < free_thresh`` free (0), anything between unknown
+(-1) in ``trinary`` mode, or ``1 + 98 * ratio`` in ``scale`` mode (unknown where the pixel is not fully
+opaque); ``raw`` mode stores the grey value itself. Image row 0 is the top of the picture, grid row 0
+the map origin, so rows are flipped at this boundary.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+import cv2
+import numpy as np
+import numpy.typing as npt
+import yaml
+
+from rose.errors import MapFileError
+from rose.grid import OCCUPIED, UNKNOWN, as_occupancy_grid
+
+__all__ = ["MapMode", "OccupancyMap", "load_map", "save_map", "write_atomically"]
+
+MapMode = Literal["trinary", "scale", "raw"]
+
+DEFAULT_RESOLUTION_M = 0.05
+DEFAULT_OCCUPIED_THRESH = 0.65
+DEFAULT_FREE_THRESH = 0.196
+IMAGE_SUFFIXES = frozenset({".pgm", ".png", ".ppm", ".pbm", ".bmp", ".jpg", ".jpeg", ".tif", ".tiff"})
+YAML_SUFFIXES = frozenset({".yaml", ".yml"})
+
+# Grey values ROS map_saver writes in trinary mode.
+SAVED_FREE = 254
+SAVED_OCCUPIED = 0
+SAVED_UNKNOWN = 205
+
+
+@dataclass(frozen=True, eq=False)
+class OccupancyMap:
+    """An occupancy grid with its placement in the world.
+
+    Attributes
+    ----------
+    grid : ndarray of int8, shape (rows, cols)
+        ROS convention: row 0 at the origin, -1 unknown, 0..100 occupancy.
+    resolution_m : float
+        Cell size in metres.
+    origin_xy_m : tuple of float
+        Map-frame position, in metres, of the corner of cell (0, 0).
+    origin_yaw_rad : float
+        Rotation of the grid in the map frame, in radians.
+    source : Path or None
+        File the map was read from.
+    """
+
+    grid: npt.NDArray[np.int8]
+    resolution_m: float = DEFAULT_RESOLUTION_M
+    origin_xy_m: tuple[float, float] = (0.0, 0.0)
+    origin_yaw_rad: float = 0.0
+    source: Path | None = None
+
+
+def load_map(path: str | os.PathLike[str]) -> OccupancyMap:
+    """Read a map_server YAML (with its image) or a bare image as an :class:`OccupancyMap`.
+
+    A bare image is read in trinary mode with map_server's default thresholds, resolution 0.05 m and
+    origin (0, 0).
+
+    Raises
+    ------
+    MapFileError
+        If the file is missing or unreadable, or the YAML lacks or mistypes a field.
+    """
+    path = Path(path)
+    if not path.is_file():
+        msg = f"{path}: no such file"
+        raise MapFileError(msg)
+    if path.suffix.lower() in YAML_SUFFIXES:
+        return _load_yaml_map(path)
+    grid = image_to_grid(
+        _read_image(path),
+        mode="trinary",
+        negate=False,
+        occupied_thresh=DEFAULT_OCCUPIED_THRESH,
+        free_thresh=DEFAULT_FREE_THRESH,
+    )
+    return OccupancyMap(grid=grid, source=path)
+
+
+def _load_yaml_map(path: Path) -> OccupancyMap:
+    try:
+        meta = yaml.safe_load(path.read_text())
+    except (OSError, UnicodeDecodeError, yaml.YAMLError) as err:
+        msg = f"{path}: not a readable YAML file ({_first_line(err)})"
+        raise MapFileError(msg) from err
+    if not isinstance(meta, dict):
+        msg = f"{path}: expected a YAML mapping with 'image', 'resolution' and 'origin'"
+        raise MapFileError(msg)
+    image_name = _field(meta, "image", str, path)
+    resolution = _field(meta, "resolution", float, path)
+    origin = meta.get("origin", [0.0, 0.0, 0.0])
+    if (
+        not isinstance(origin, list)
+        or len(origin) != 3
+        or not all(isinstance(v, int | float) and not isinstance(v, bool) for v in origin)
+    ):
+        msg = f"{path}: 'origin' must be a list of three numbers [x, y, yaw], got {origin!r}"
+        raise MapFileError(msg)
+    mode = meta.get("mode", "trinary")
+    if mode not in ("trinary", "scale", "raw"):
+        msg = f"{path}: 'mode' must be trinary, scale or raw, got {mode!r}"
+        raise MapFileError(msg)
+    negate = _field(meta, "negate", int, path, default=0)
+    occupied_thresh = _field(meta, "occupied_thresh", float, path, default=DEFAULT_OCCUPIED_THRESH)
+    free_thresh = _field(meta, "free_thresh", float, path, default=DEFAULT_FREE_THRESH)
+    if resolution <= 0 or not math.isfinite(resolution):
+        msg = f"{path}: 'resolution' must be a positive number of metres, got {resolution}"
+        raise MapFileError(msg)
+    if not 0.0 <= free_thresh < occupied_thresh <= 1.0:
+        msg = (
+            f"{path}: need 0 <= free_thresh < occupied_thresh <= 1, "
+            f"got free_thresh={free_thresh}, occupied_thresh={occupied_thresh}"
+        )
+        raise MapFileError(msg)
+    image_path = Path(image_name)
+    if not image_path.is_absolute():
+        image_path = path.parent / image_path
+    grid = image_to_grid(
+        _read_image(image_path),
+        mode=mode,
+        negate=bool(negate),
+        occupied_thresh=occupied_thresh,
+        free_thresh=free_thresh,
+    )
+    return OccupancyMap(
+        grid=grid,
+        resolution_m=resolution,
+        origin_xy_m=(float(origin[0]), float(origin[1])),
+        origin_yaw_rad=float(origin[2]),
+        source=path,
+    )
+
+
+def _field(meta: dict[str, Any], key: str, kind: type, path: Path, default: Any = None) -> Any:
+    if key not in meta:
+        if default is None:
+            msg = f"{path}: missing required field '{key}'"
+            raise MapFileError(msg)
+        return default
+    value = meta[key]
+    numeric = kind in (int, float)
+    if isinstance(value, bool) and kind is int:
+        return int(value)
+    if (numeric and (isinstance(value, bool) or not isinstance(value, int | float))) or (
+        not numeric and not isinstance(value, kind)
+    ):
+        msg = f"{path}: '{key}' must be a {kind.__name__}, got {value!r}"
+        raise MapFileError(msg)
+    return kind(value)
+
+
+def _read_image(path: Path) -> npt.NDArray[np.uint8]:
+    """Read any image as ``(rows, cols, channels)`` uint8 with colour channels first, alpha last."""
+    if not path.is_file():
+        msg = f"{path}: no such image file"
+        raise MapFileError(msg)
+    data = np.fromfile(path, dtype=np.uint8)
+    image = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
+    if image is None:
+        msg = f"{path}: not a readable image"
+        raise MapFileError(msg)
+    if image.dtype == np.uint16:
+        image = (image >> 8).astype(np.uint8)
+    elif image.dtype != np.uint8:
+        msg = f"{path}: unsupported pixel type {image.dtype}"
+        raise MapFileError(msg)
+    if image.ndim == 2:
+        image = image[:, :, np.newaxis]
+    return image
+
+
+def image_to_grid(
+    image: npt.NDArray[np.uint8],
+    *,
+    mode: MapMode,
+    negate: bool,
+    occupied_thresh: float,
+    free_thresh: float,
+) -> npt.NDArray[np.int8]:
+    """Convert an image (rows, cols, channels; top row first) to an occupancy grid (origin row first)."""
+    channels = image.shape[2]
+    has_alpha = channels in (2, 4)
+    colour = image[:, :, : channels - 1] if has_alpha else image
+    grey = colour.mean(axis=2) if colour.shape[2] > 1 else colour[:, :, 0].astype(np.float64)
+    if negate:
+        grey = 255.0 - grey
+    if mode == "raw":
+        # map_server stores the (possibly negated) grey value as a signed byte.
+        return np.flipud(grey.astype(np.uint8).view(np.int8)).copy()
+    occ = (255.0 - grey) / 255.0
+    grid = np.full(grey.shape, UNKNOWN, dtype=np.int8)
+    if mode == "scale":
+        opaque = image[:, :, -1] == 255 if has_alpha else np.ones(grey.shape, dtype=bool)
+        ratio = (occ - free_thresh) / (occupied_thresh - free_thresh)
+        scaled = (1.0 + 98.0 * ratio).astype(np.int8)
+        between = opaque & (occ <= occupied_thresh) & (occ >= free_thresh)
+        grid[between] = scaled[between]
+    grid[occ > occupied_thresh] = OCCUPIED
+    grid[occ < free_thresh] = 0
+    return np.flipud(grid).copy()
+
+
+def grid_to_image(grid: npt.NDArray[np.int8], *, occupied_threshold: int = 65) -> npt.NDArray[np.uint8]:
+    """Trinary map_saver image (top row first): free 254, occupied 0, everything else 205."""
+    image = np.full(grid.shape, SAVED_UNKNOWN, dtype=np.uint8)
+    image[grid == 0] = SAVED_FREE
+    image[grid >= occupied_threshold] = SAVED_OCCUPIED
+    return np.flipud(image)
+
+
+def save_map(path: str | os.PathLike[str], occupancy_map: OccupancyMap) -> Path:
+    """Write ``occupancy_map`` as map_server YAML plus a trinary PGM beside it; return the image path.
+
+    ``path`` names the YAML file; the image gets the same stem with ``.pgm``. Both files are written to
+    temporary names and renamed, so an existing map is never left half-overwritten.
+
+    Raises
+    ------
+    MapFileError
+        If the directory does not exist or is not writable.
+    """
+    path = Path(path)
+    if path.suffix.lower() not in YAML_SUFFIXES:
+        msg = f"{path}: the output map must be a .yaml file"
+        raise MapFileError(msg)
+    grid = as_occupancy_grid(occupancy_map.grid)
+    image_path = path.with_suffix(".pgm")
+    ok, encoded = cv2.imencode(".pgm", grid_to_image(grid))
+    if not ok:
+        msg = f"{image_path}: could not encode the map image"
+        raise MapFileError(msg)
+    x, y = occupancy_map.origin_xy_m
+    meta = {
+        "image": image_path.name,
+        "mode": "trinary",
+        "resolution": float(occupancy_map.resolution_m),
+        "origin": [float(x), float(y), float(occupancy_map.origin_yaw_rad)],
+        "negate": 0,
+        "occupied_thresh": DEFAULT_OCCUPIED_THRESH,
+        "free_thresh": DEFAULT_FREE_THRESH,
+    }
+    text = yaml.safe_dump(meta, sort_keys=False, default_flow_style=None)
+    write_atomically(image_path, lambda f: f.write(encoded.tobytes()))
+    write_atomically(path, lambda f: f.write(text.encode()))
+    return image_path
+
+
+def write_atomically(path: Path, write: Callable[[Any], object]) -> None:
+    """Call ``write(file)`` on a temporary file beside ``path``, then rename it to ``path``.
+
+    Raises
+    ------
+    MapFileError
+        If the file cannot be created or written; nothing is left behind.
+    """
+    directory = path.parent if str(path.parent) else Path()
+    try:
+        fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
+    except OSError as err:
+        msg = f"{path}: cannot write here ({err.strerror})"
+        raise MapFileError(msg) from err
+    try:
+        with os.fdopen(fd, "wb") as file:
+            write(file)
+        Path(tmp_name).replace(path)
+    except BaseException as err:
+        Path(tmp_name).unlink(missing_ok=True)
+        if isinstance(err, OSError):
+            msg = f"{path}: cannot write ({err.strerror})"
+            raise MapFileError(msg) from err
+        raise
+
+
+def _first_line(err: BaseException) -> str:
+    text = str(err).strip()
+    return text.splitlines()[0] if text else type(err).__name__

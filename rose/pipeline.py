@@ -1,0 +1,152 @@
+"""``analyze``: the ROSE stages in order."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from rose.directions import find_direction_peaks, refine_peak_positions, structure_score
+from rose.errors import RoseError
+from rose.grid import FREE, UNKNOWN, as_occupancy_grid, occupied_mask
+from rose.result import RoseParams, RoseResult
+from rose.scoring import nominal_reference_map, structure_mask
+from rose.spectrum import half_spectrum, padded_shape
+from rose.threshold import gmm_threshold
+from rose.unfold import cumulative_amplitude, direction_bins
+
+__all__ = ["analyze", "make_params"]
+
+
+def make_params(params: RoseParams | None = None, **overrides: Any) -> RoseParams:
+    """``params`` (or the defaults) with ``overrides`` applied and every value checked.
+
+    Raises
+    ------
+    RoseError
+        On an unknown parameter name or a value out of range.
+    """
+    base = params if params is not None else RoseParams()
+    try:
+        merged = dataclasses.replace(base, **overrides)
+    except TypeError as err:
+        known = ", ".join(f.name for f in dataclasses.fields(RoseParams))
+        msg = f"unknown ROSE parameter in {sorted(overrides)}; known: {known}"
+        raise RoseError(msg) from err
+    _check(merged)
+    return merged
+
+
+def _check(p: RoseParams) -> None:
+    problems = []
+    if not 0.0 < p.peak_prominence <= 1.0:
+        problems.append(f"peak_prominence must be in (0, 1], got {p.peak_prominence}")
+    if not 0.01 <= p.angular_resolution_deg <= 30.0:
+        problems.append(f"angular_resolution_deg must be in [0.01, 30], got {p.angular_resolution_deg}")
+    if not 0.0 <= p.smoothing_deg <= 30.0:
+        problems.append(f"smoothing_deg must be in [0, 30], got {p.smoothing_deg}")
+    if p.min_radius_px < 0:
+        problems.append(f"min_radius_px must be >= 0, got {p.min_radius_px}")
+    if p.mask_half_width_px <= 0:
+        problems.append(f"mask_half_width_px must be > 0, got {p.mask_half_width_px}")
+    if not 1 <= p.occupied_threshold <= 100:
+        problems.append(f"occupied_threshold must be in 1..100, got {p.occupied_threshold}")
+    if p.threshold_mode not in ("gmm", "fixed"):
+        problems.append(f"threshold_mode must be 'gmm' or 'fixed', got {p.threshold_mode!r}")
+    if not 0.0 <= p.fixed_threshold <= 1.0:
+        problems.append(f"fixed_threshold must be in [0, 1], got {p.fixed_threshold}")
+    if p.clutter_value not in ("free", "unknown"):
+        problems.append(f"clutter_value must be 'free' or 'unknown', got {p.clutter_value!r}")
+    if p.max_gmm_samples < 10:
+        problems.append(f"max_gmm_samples must be >= 10, got {p.max_gmm_samples}")
+    if problems:
+        raise RoseError("; ".join(problems))
+
+
+def analyze(grid: npt.ArrayLike, params: RoseParams | None = None, **overrides: Any) -> RoseResult:
+    """Run ROSE on one occupancy grid.
+
+    Parameters
+    ----------
+    grid : array_like, shape (rows, cols)
+        ROS occupancy grid (int8: -1 unknown, 0..100; row 0 at the map origin) or a boolean occupied
+        mask. Not modified.
+    params : RoseParams, optional
+        Parameters; the defaults of :class:`RoseParams` if omitted.
+    **overrides
+        Any :class:`RoseParams` field by name, e.g. ``peak_prominence=0.2``.
+
+    Returns
+    -------
+    RoseResult
+
+    Raises
+    ------
+    RoseError
+        If ``grid`` is not a 2D boolean or numeric array in -1..100, or a parameter is invalid.
+    """
+    p = make_params(params, **overrides)
+    occupancy = as_occupancy_grid(grid)
+    occupied = occupied_mask(occupancy, occupied_threshold=p.occupied_threshold)
+    shape = padded_shape(occupancy.shape)
+
+    spectrum = half_spectrum(occupied, shape)
+    amplitude = np.abs(spectrum)
+    bins = direction_bins(
+        shape, angular_resolution_deg=p.angular_resolution_deg, min_radius_px=p.min_radius_px
+    )
+    step_deg = 180.0 / bins.centres.size
+    cumulative = cumulative_amplitude(amplitude, bins, smoothing_bins=p.smoothing_deg / step_deg)
+    peaks = find_direction_peaks(cumulative, prominence_fraction=p.peak_prominence)
+    directions = np.mod(refine_peak_positions(cumulative, peaks.indices) * (math.pi / bins.centres.size), math.pi)
+    score = structure_score(cumulative, peaks.indices)
+    has_structure = peaks.indices.size > 0 and bool(occupied.any())
+
+    if has_structure:
+        mask = structure_mask(shape, directions, half_width_px=p.mask_half_width_px)
+        reference = nominal_reference_map(spectrum, mask, occupancy.shape)
+        cell_scores, threshold = _scale_and_threshold(reference, occupied, p)
+        structure = occupied & (cell_scores > threshold)
+        clutter = occupied & ~structure
+    else:
+        cell_scores = np.zeros(occupancy.shape, dtype=np.float32)
+        threshold = math.nan
+        structure = np.zeros(occupancy.shape, dtype=bool)
+        clutter = structure.copy()
+
+    cleaned = occupancy.copy()
+    cleaned[clutter] = FREE if p.clutter_value == "free" else UNKNOWN
+    return RoseResult(
+        structure_score=score,
+        dominant_directions=directions,
+        direction_bins=bins.centres,
+        cumulative_amplitude=cumulative,
+        peak_indices=peaks.indices,
+        peak_prominences=peaks.prominences,
+        cell_scores=cell_scores,
+        threshold=threshold,
+        occupied=occupied,
+        structure=structure,
+        clutter=clutter,
+        cleaned=cleaned,
+        has_structure=has_structure,
+        spectrum_half=amplitude,
+        params=p,
+    )
+
+
+def _scale_and_threshold(
+    reference: npt.NDArray[np.float32], occupied: npt.NDArray[np.bool_], p: RoseParams
+) -> tuple[npt.NDArray[np.float32], float]:
+    """Scale the nominal reference map so the best occupied cell scores 1; pick the threshold."""
+    occupied_scores = reference[occupied]
+    top = float(occupied_scores.max())
+    scale = 1.0 / top if top > 0 else 1.0
+    cell_scores = reference * np.float32(scale)
+    if p.threshold_mode == "fixed":
+        return cell_scores, p.fixed_threshold
+    threshold = gmm_threshold(occupied_scores * np.float32(scale), max_samples=p.max_gmm_samples, seed=p.seed)
+    return cell_scores, threshold

@@ -1,0 +1,150 @@
+"""Parameters and results of a ROSE run, as frozen dataclasses."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+import numpy.typing as npt
+
+__all__ = ["ClutterValue", "RoseParams", "RoseResult", "ThresholdMode"]
+
+ThresholdMode = Literal["gmm", "fixed"]
+ClutterValue = Literal["free", "unknown"]
+
+
+@dataclass(frozen=True)
+class RoseParams:
+    """Tuning parameters of :func:`rose.analyze`, with the defaults used everywhere.
+
+    Attributes
+    ----------
+    peak_prominence : float
+        A direction is dominant when its peak prominence in the cumulative amplitude is at least this
+        fraction of ``max - min`` (the paper's ``t``; 0.5 in the paper).
+    angular_resolution_deg : float
+        Width of one direction bin, in degrees; directions cover ``[0, 180)``.
+    smoothing_deg : float
+        Standard deviation, in degrees, of the circular Gaussian smoothing of the cumulative amplitude
+        (0 disables it).
+    min_radius_px : float
+        Spectrum cells closer than this to DC (in cells of the longer padded side) carry no direction
+        information and are left out of the cumulative amplitude.
+    mask_half_width_px : float
+        Half-width of the strip kept along each dominant direction in the spectrum, in cells of the
+        longer padded side (the authors' strip is about 5 cells wide).
+    occupied_threshold : int
+        Occupancy (percent) from which a cell counts as occupied; unknown cells never do.
+    threshold_mode : {"gmm", "fixed"}
+        ``"gmm"``: threshold where the two weighted Gaussians of a mixture fitted to the occupied cells'
+        scores intersect (the paper). ``"fixed"``: ``fixed_threshold`` on scores scaled to max 1.
+    fixed_threshold : float
+        Threshold of the fixed mode, as a fraction of the largest occupied cell score.
+    clutter_value : {"free", "unknown"}
+        What clutter cells become in :attr:`RoseResult.cleaned`.
+    max_gmm_samples : int
+        The mixture is fitted on at most this many occupied cells' scores (an evenly spaced subsample of
+        the sorted scores, so the result is deterministic and the cost bounded).
+    seed : int
+        Seed of the mixture's initialisation.
+    """
+
+    peak_prominence: float = 0.5
+    angular_resolution_deg: float = 0.5
+    smoothing_deg: float = 0.5
+    min_radius_px: float = 4.0
+    mask_half_width_px: float = 2.5
+    occupied_threshold: int = 65
+    threshold_mode: ThresholdMode = "gmm"
+    fixed_threshold: float = 0.18
+    clutter_value: ClutterValue = "free"
+    max_gmm_samples: int = 20_000
+    seed: int = 0
+
+
+@dataclass(frozen=True, eq=False)
+class RoseResult:
+    """Everything ROSE computed for one map.
+
+    Angles are in radians, counter-clockwise from the map's +x axis (along columns) towards +y (along
+    rows); row 0 is the map origin, as in the input grid. Directions are line orientations in ``[0, pi)``.
+
+    Attributes
+    ----------
+    structure_score : float
+        The paper's global score W: near 0 for strong structure, 1 when no dominant direction exists.
+    dominant_directions : ndarray of float64, shape (K,)
+        Orientation of the wall lines of each dominant direction, in ``[0, pi)``, strongest first.
+    direction_bins : ndarray of float64, shape (B,)
+        Centre of every direction bin (wall orientation), in ``[0, pi)``.
+    cumulative_amplitude : ndarray of float64, shape (B,)
+        Amplitude summed along the spectrum line of each direction bin (the paper's ``A_p^C``).
+    peak_indices : ndarray of intp, shape (K,)
+        Indices into ``direction_bins`` of the dominant directions, in the order of ``dominant_directions``.
+    peak_prominences : ndarray of float64, shape (K,)
+        Prominence of each peak as a fraction of ``max - min`` of the cumulative amplitude.
+    cell_scores : ndarray of float32, shape (rows, cols)
+        Nominal reference map (the structure-only reconstruction), scaled so that the largest occupied
+        cell scores 1. Defined on every cell; only occupied cells are classified.
+    threshold : float
+        Score above which an occupied cell is structure (same scale as ``cell_scores``); NaN when no
+        cell was classified.
+    occupied : ndarray of bool, shape (rows, cols)
+        Occupied cells of the input.
+    structure, clutter : ndarray of bool, shape (rows, cols)
+        Partition of the occupied cells. Both are empty when ``has_structure`` is False.
+    cleaned : ndarray of int8, shape (rows, cols)
+        The input grid with clutter cells set to ``params.clutter_value``.
+    has_structure : bool
+        False when no dominant direction was found (the paper's ``|Phi| = 0``): W is 1, nothing is
+        labelled and ``cleaned`` equals the input.
+    spectrum_half : ndarray of float32, shape (rows_padded, cols_padded // 2 + 1)
+        Amplitude of the real FFT of the padded occupied mask (unshifted half-plane).
+    params : RoseParams
+        The parameters used.
+    """
+
+    structure_score: float
+    dominant_directions: npt.NDArray[np.float64]
+    direction_bins: npt.NDArray[np.float64]
+    cumulative_amplitude: npt.NDArray[np.float64]
+    peak_indices: npt.NDArray[np.intp]
+    peak_prominences: npt.NDArray[np.float64]
+    cell_scores: npt.NDArray[np.float32]
+    threshold: float
+    occupied: npt.NDArray[np.bool_]
+    structure: npt.NDArray[np.bool_]
+    clutter: npt.NDArray[np.bool_]
+    cleaned: npt.NDArray[np.int8]
+    has_structure: bool
+    spectrum_half: npt.NDArray[np.float32] = field(repr=False)
+    params: RoseParams = field(default_factory=RoseParams)
+
+    @property
+    def occupied_count(self) -> int:
+        """Number of occupied cells."""
+        return int(np.count_nonzero(self.occupied))
+
+    @property
+    def clutter_count(self) -> int:
+        """Number of occupied cells labelled clutter."""
+        return int(np.count_nonzero(self.clutter))
+
+    @property
+    def amplitude_spectrum(self) -> npt.NDArray[np.float32]:
+        """Full amplitude spectrum, fftshifted so DC is at the centre, for display.
+
+        Shape ``(rows_padded, cols_padded)``, float32. Rebuilt from the half-plane by point symmetry
+        (the spectrum of a real image), so it costs nothing until asked for.
+        """
+        from rose.spectrum import full_amplitude_spectrum
+
+        return full_amplitude_spectrum(self.spectrum_half, self.padded_shape)
+
+    @property
+    def padded_shape(self) -> tuple[int, int]:
+        """Shape ``(rows, cols)`` of the zero-padded map that was transformed."""
+        # The padded column count is always even, so the half-plane width determines it.
+        rows, half_cols = self.spectrum_half.shape
+        return rows, 2 * (half_cols - 1)

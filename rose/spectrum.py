@@ -1,0 +1,56 @@
+"""Fourier transform of the occupied mask.
+
+The amplitude spectrum of a real image is point-symmetric, so only the half-plane computed by
+``rfft2`` is kept; every stage downstream works on it. Frequencies are expressed in cycles per cell,
+which makes spectrum angles equal image angles on non-square maps without padding to a square.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+import scipy.fft
+
+__all__ = ["full_amplitude_spectrum", "half_spectrum", "padded_shape"]
+
+
+def padded_shape(shape: tuple[int, int]) -> tuple[int, int]:
+    """Shape ``(rows, cols)`` the map is zero-padded to: fast FFT lengths, with an even column count.
+
+    The even column count lets the half-plane width determine the full width.
+    """
+    rows = scipy.fft.next_fast_len(max(shape[0], 1), real=True)
+    cols = scipy.fft.next_fast_len(max(shape[1], 2), real=True)
+    while cols % 2:
+        cols = scipy.fft.next_fast_len(cols + 1, real=True)
+    return rows, cols
+
+
+def half_spectrum(
+    occupied: npt.NDArray[np.bool_], shape: tuple[int, int]
+) -> npt.NDArray[np.complex64]:
+    """Real FFT of ``occupied`` zero-padded to ``shape``.
+
+    Returns
+    -------
+    ndarray of complex64, shape (shape[0], shape[1] // 2 + 1)
+        Unshifted half-plane spectrum: row ``k`` holds vertical frequency ``fftfreq(rows)[k]``,
+        column ``j`` horizontal frequency ``j / cols`` (cycles per cell).
+    """
+    return scipy.fft.rfft2(occupied.astype(np.float32), s=shape)
+
+
+def full_amplitude_spectrum(
+    amplitude_half: npt.NDArray[np.float32], shape: tuple[int, int]
+) -> npt.NDArray[np.float32]:
+    """Rebuild the full, fftshifted amplitude spectrum of shape ``shape`` from its half-plane.
+
+    Uses ``|F(-k)| = |F(k)|`` for real images; DC ends up at ``(rows // 2, cols // 2)``.
+    """
+    rows, cols = shape
+    half_cols = amplitude_half.shape[1]
+    full = np.empty((rows, cols), dtype=np.float32)
+    full[:, :half_cols] = amplitude_half
+    mirrored_rows = (-np.arange(rows)) % rows
+    full[:, half_cols:] = amplitude_half[mirrored_rows, 1 : cols // 2][:, ::-1]
+    return np.fft.fftshift(full)
