@@ -59,7 +59,7 @@ class RoseParams:
     threshold_mode: ThresholdMode = "gmm"
     fixed_threshold: float = 0.18
     clutter_value: ClutterValue = "free"
-    max_gmm_samples: int = 20_000
+    max_gmm_samples: int = 2_000
     seed: int = 0
 
 

@@ -1,0 +1,611 @@
+"""Wall segments from occupancy grids: a probabilistic-Hough baseline and the ROSE variant.
+
+Both pipelines share every step but two (the paper's Section 4.1):
+
+1. *Wall pixels*: occupied cells (occupancy ``>= occupied_threshold``). With ``faces_only`` (the
+   default) only the occupied cells that touch a non-occupied cell (8-neighbourhood) are kept, so a
+   map whose outside is filled black (e.g. ``lab_ipa``) yields its inner outline instead of a mat of
+   lines through the solid region; a thick wall yields its two faces, which step 3 merges.
+2. *Segments*: OpenCV's probabilistic Hough transform (``cv2.HoughLinesP``; deterministic, OpenCV seeds
+   its generator on every call) on the wall pixels.
+3. *Merging*: segments that are collinear (orientations within ``merge_angle_deg``, every endpoint
+   within ``merge_distance_px`` of the other's line) and overlap or leave a gap of at most
+   ``merge_gap_px`` are replaced by one segment: length-weighted axial mean orientation, through the
+   length-weighted centroid of their midpoints, spanning all their endpoints. Repeated until stable.
+4. Segments shorter than ``min_wall_length_px`` are dropped.
+
+:func:`extract_walls_hough` (the baseline) runs this on the raw map. :func:`extract_walls` (ROSE) keeps
+only the wall pixels that ROSE labels structure, and rotates every segment about its midpoint onto the
+nearest dominant direction before and after merging, so parallel near-duplicates collapse.
+
+Coordinates
+-----------
+Cell coordinates are ``(col, row)`` in the grid's index space: integer values are cell centres, row 0 is
+the map origin (ROS convention), and angles in cell space are counter-clockwise from +col towards +row.
+Map-frame coordinates are metres: the centre of cell ``(c, r)`` is at
+``origin_xy_m + R(origin_yaw_rad) @ ((c + 0.5) * resolution_m, (r + 0.5) * resolution_m)``, exactly as
+``nav_msgs/OccupancyGrid`` places cells, so segments in metres can be drawn over the map in RViz,
+Foxglove or Rerun without further transforms.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from typing import Literal
+
+import cv2
+import numpy as np
+import numpy.typing as npt
+from scipy.ndimage import binary_erosion
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+
+from rose.errors import RoseError
+from rose.grid import as_occupancy_grid, occupied_mask
+from rose.mapfile import DEFAULT_RESOLUTION_M, OccupancyMap
+from rose.pipeline import analyze
+from rose.result import RoseResult
+
+__all__ = [
+    "WallMethod",
+    "WallParams",
+    "WallSegment",
+    "WallSet",
+    "extract_walls",
+    "extract_walls_hough",
+    "segment_orientations",
+]
+
+logger = logging.getLogger(__name__)
+
+WallMethod = Literal["hough", "rose"]
+_MAX_MERGE_ROUNDS = 8
+_PAIR_BLOCK = 256
+
+
+@dataclass(frozen=True)
+class WallParams:
+    """Tuning parameters of :func:`extract_walls_hough` and :func:`extract_walls`.
+
+    Lengths are in cells (``_px``), angles in degrees. The defaults suit maps of about 5 cm per cell.
+
+    Attributes
+    ----------
+    occupied_threshold : int
+        Occupancy (percent, 1..100) from which a cell counts as occupied.
+    faces_only : bool
+        Keep only occupied cells with a non-occupied 8-neighbour (wall faces) as Hough input.
+    hough_rho_px : float
+        Distance resolution of the Hough accumulator, in cells.
+    hough_theta_deg : float
+        Angle resolution of the Hough accumulator, in degrees.
+    hough_votes : int
+        Accumulator threshold: the fewest wall pixels on a line for it to be considered.
+    hough_min_length_px : float
+        Shortest segment ``cv2.HoughLinesP`` reports, in cells.
+    hough_max_gap_px : float
+        Largest gap between wall pixels that ``cv2.HoughLinesP`` bridges within one segment, in cells.
+    merge_angle_deg : float
+        Largest orientation difference of two segments that may merge, in degrees.
+    merge_distance_px : float
+        Largest distance of either segment's endpoints from the other's line for a merge, in cells.
+        Should exceed the wall thickness so that the two faces of a wall merge.
+    merge_gap_px : float
+        Largest gap along the line between two segments that may merge, in cells.
+    min_wall_length_px : float
+        Merged segments shorter than this are dropped, in cells.
+    snap_tolerance_deg : float
+        ROSE variant only: a segment within this angle of a dominant direction is rotated onto it;
+        segments further from every dominant direction keep their own orientation.
+    """
+
+    occupied_threshold: int = 65
+    faces_only: bool = True
+    hough_rho_px: float = 1.0
+    hough_theta_deg: float = 0.5
+    hough_votes: int = 15
+    hough_min_length_px: float = 8.0
+    hough_max_gap_px: float = 3.0
+    merge_angle_deg: float = 3.0
+    merge_distance_px: float = 4.0
+    merge_gap_px: float = 6.0
+    min_wall_length_px: float = 10.0
+    snap_tolerance_deg: float = 15.0
+
+    def __post_init__(self) -> None:
+        problems = []
+        if not 1 <= self.occupied_threshold <= 100:
+            problems.append(f"occupied_threshold must be in 1..100, got {self.occupied_threshold}")
+        for name in ("hough_rho_px", "hough_theta_deg"):
+            if not getattr(self, name) > 0:
+                problems.append(f"{name} must be > 0, got {getattr(self, name)}")
+        if self.hough_votes < 1:
+            problems.append(f"hough_votes must be >= 1, got {self.hough_votes}")
+        for name in (
+            "hough_min_length_px",
+            "hough_max_gap_px",
+            "merge_angle_deg",
+            "merge_distance_px",
+            "merge_gap_px",
+            "min_wall_length_px",
+        ):
+            if not getattr(self, name) >= 0:
+                problems.append(f"{name} must be >= 0, got {getattr(self, name)}")
+        if not 0 <= self.snap_tolerance_deg <= 90:
+            problems.append(f"snap_tolerance_deg must be in [0, 90], got {self.snap_tolerance_deg}")
+        if problems:
+            raise RoseError("; ".join(problems))
+
+
+@dataclass(frozen=True)
+class WallSegment:
+    """One wall segment, in cells and in the map frame.
+
+    Attributes
+    ----------
+    start_px, end_px : tuple of float
+        Endpoints ``(col, row)`` in cell coordinates (integer = cell centre, row 0 = map origin).
+    start_m, end_m : tuple of float
+        Endpoints ``(x, y)`` in the map frame, in metres.
+    length_m : float
+        Length in metres.
+    orientation_rad : float
+        Orientation of the line in the map frame, in ``[0, pi)``, counter-clockwise from +x.
+    """
+
+    start_px: tuple[float, float]
+    end_px: tuple[float, float]
+    start_m: tuple[float, float]
+    end_m: tuple[float, float]
+    length_m: float
+    orientation_rad: float
+
+
+@dataclass(frozen=True, eq=False)
+class WallSet:
+    """Wall segments of one map, with the map placement needed to express them in metres.
+
+    Endpoints are ordered so that ``end - start`` points along the segment's orientation.
+
+    Attributes
+    ----------
+    endpoints_px : ndarray of float64, shape (N, 2, 2)
+        ``endpoints_px[i, 0]`` is the start and ``endpoints_px[i, 1]`` the end of segment ``i``, each
+        ``(col, row)`` in cell coordinates.
+    shape : tuple of int
+        ``(rows, cols)`` of the grid the walls were found in.
+    resolution_m : float
+        Cell size in metres.
+    origin_xy_m : tuple of float
+        Map-frame position, in metres, of the outer corner of cell (0, 0).
+    origin_yaw_rad : float
+        Rotation of the grid in the map frame, in radians.
+    method : {"hough", "rose"}
+        Which pipeline produced the walls.
+    dominant_directions : ndarray of float64, shape (K,)
+        ROSE's dominant directions in cell space, radians in ``[0, pi)`` (empty for ``"hough"``).
+    """
+
+    endpoints_px: npt.NDArray[np.float64]
+    shape: tuple[int, int]
+    resolution_m: float = DEFAULT_RESOLUTION_M
+    origin_xy_m: tuple[float, float] = (0.0, 0.0)
+    origin_yaw_rad: float = 0.0
+    method: WallMethod = "hough"
+    dominant_directions: npt.NDArray[np.float64] = field(default_factory=lambda: np.empty(0))
+
+    def __post_init__(self) -> None:
+        endpoints = np.asarray(self.endpoints_px, dtype=np.float64)
+        if endpoints.size == 0:
+            endpoints = endpoints.reshape(0, 2, 2)
+        if endpoints.ndim != 3 or endpoints.shape[1:] != (2, 2):
+            msg = f"endpoints_px must have shape (N, 2, 2), got {endpoints.shape}"
+            raise RoseError(msg)
+        if not self.resolution_m > 0 or not math.isfinite(self.resolution_m):
+            msg = f"resolution_m must be a positive number of metres, got {self.resolution_m}"
+            raise RoseError(msg)
+        endpoints.setflags(write=False)
+        object.__setattr__(self, "endpoints_px", endpoints)
+
+    def __len__(self) -> int:
+        return int(self.endpoints_px.shape[0])
+
+    def __iter__(self) -> Iterator[WallSegment]:
+        return iter(self.segments)
+
+    @property
+    def endpoints_m(self) -> npt.NDArray[np.float64]:
+        """Endpoints in the map frame, metres, shape (N, 2, 2), float64 (same layout as ``endpoints_px``)."""
+        return cells_to_metres(
+            self.endpoints_px,
+            resolution_m=self.resolution_m,
+            origin_xy_m=self.origin_xy_m,
+            origin_yaw_rad=self.origin_yaw_rad,
+        )
+
+    @property
+    def line_list_m(self) -> npt.NDArray[np.float64]:
+        """Endpoints as consecutive pairs, shape (2N, 2), metres, map frame (a LINE_LIST's points)."""
+        return self.endpoints_m.reshape(-1, 2)
+
+    @property
+    def lengths_px(self) -> npt.NDArray[np.float64]:
+        """Segment lengths in cells, shape (N,)."""
+        return np.hypot(*(self.endpoints_px[:, 1] - self.endpoints_px[:, 0]).T)
+
+    @property
+    def lengths_m(self) -> npt.NDArray[np.float64]:
+        """Segment lengths in metres, shape (N,)."""
+        return self.lengths_px * self.resolution_m
+
+    @property
+    def orientations_rad(self) -> npt.NDArray[np.float64]:
+        """Line orientations in the map frame, radians in ``[0, pi)``, shape (N,)."""
+        return np.mod(segment_orientations(self.endpoints_px) + self.origin_yaw_rad, math.pi)
+
+    @property
+    def segments(self) -> tuple[WallSegment, ...]:
+        """The walls as :class:`WallSegment` records, longest first order preserved from the set."""
+        px, m = self.endpoints_px, self.endpoints_m
+        lengths, angles = self.lengths_m, self.orientations_rad
+        return tuple(
+            WallSegment(
+                start_px=(float(px[i, 0, 0]), float(px[i, 0, 1])),
+                end_px=(float(px[i, 1, 0]), float(px[i, 1, 1])),
+                start_m=(float(m[i, 0, 0]), float(m[i, 0, 1])),
+                end_m=(float(m[i, 1, 0]), float(m[i, 1, 1])),
+                length_m=float(lengths[i]),
+                orientation_rad=float(angles[i]),
+            )
+            for i in range(len(self))
+        )
+
+
+def cells_to_metres(
+    points_px: npt.ArrayLike,
+    *,
+    resolution_m: float,
+    origin_xy_m: tuple[float, float],
+    origin_yaw_rad: float,
+) -> npt.NDArray[np.float64]:
+    """Map cell coordinates ``(col, row)`` (integer = cell centre) to map-frame metres ``(x, y)``.
+
+    Parameters
+    ----------
+    points_px : array_like, shape (..., 2)
+        Points in cell coordinates.
+    resolution_m, origin_xy_m, origin_yaw_rad
+        The map's placement, as in ``nav_msgs/MapMetaData``.
+
+    Returns
+    -------
+    ndarray of float64, shape (..., 2)
+    """
+    local = (np.asarray(points_px, dtype=np.float64) + 0.5) * resolution_m
+    c, s = math.cos(origin_yaw_rad), math.sin(origin_yaw_rad)
+    rotation = np.array([[c, -s], [s, c]])
+    return local @ rotation.T + np.asarray(origin_xy_m, dtype=np.float64)
+
+
+def segment_orientations(endpoints: npt.ArrayLike) -> npt.NDArray[np.float64]:
+    """Line orientation of each segment, radians in ``[0, pi)``.
+
+    Parameters
+    ----------
+    endpoints : array_like, shape (N, 2, 2)
+        Segments as ``[start, end]`` points ``(x, y)`` in any Cartesian frame.
+
+    Returns
+    -------
+    ndarray of float64, shape (N,)
+    """
+    e = np.asarray(endpoints, dtype=np.float64)
+    d = e[:, 1] - e[:, 0]
+    return np.mod(np.arctan2(d[:, 1], d[:, 0]), math.pi)
+
+
+def extract_walls_hough(
+    grid: npt.ArrayLike | OccupancyMap,
+    *,
+    params: WallParams | None = None,
+    resolution_m: float | None = None,
+    origin_xy_m: tuple[float, float] | None = None,
+    origin_yaw_rad: float | None = None,
+) -> WallSet:
+    """Baseline wall segments: probabilistic Hough on the raw map, collinear segments merged.
+
+    Parameters
+    ----------
+    grid : array_like, shape (rows, cols), or OccupancyMap
+        ROS occupancy grid (int8, -1 unknown, 0..100; row 0 at the map origin) or boolean occupied
+        mask. An :class:`~rose.OccupancyMap` also supplies the placement. Not modified.
+    params : WallParams, optional
+        Tuning parameters; :class:`WallParams` defaults if omitted.
+    resolution_m, origin_xy_m, origin_yaw_rad : optional
+        Map placement used for the metre coordinates. Default: the map's own when ``grid`` is an
+        ``OccupancyMap``, else 0.05 m, (0, 0) and 0.
+
+    Returns
+    -------
+    WallSet
+        With ``method="hough"``, longest segments first.
+
+    Raises
+    ------
+    RoseError
+        If the grid is not a 2D grid in ROS convention or a parameter is out of range.
+    """
+    p = params if params is not None else WallParams()
+    occupancy, placement = _grid_and_placement(grid, resolution_m, origin_xy_m, origin_yaw_rad)
+    pixels = wall_pixels(occupancy, occupied_threshold=p.occupied_threshold, faces_only=p.faces_only)
+    segments = _merge_collinear(hough_segments(pixels, params=p), params=p, directions=None)
+    return _wall_set(segments, occupancy.shape, placement, p, method="hough")
+
+
+def extract_walls(
+    grid: npt.ArrayLike | OccupancyMap,
+    result: RoseResult | None = None,
+    *,
+    params: WallParams | None = None,
+    resolution_m: float | None = None,
+    origin_xy_m: tuple[float, float] | None = None,
+    origin_yaw_rad: float | None = None,
+) -> WallSet:
+    """ROSE wall segments: Hough on the structure cells, snapped to the dominant directions, merged.
+
+    Parameters
+    ----------
+    grid : array_like, shape (rows, cols), or OccupancyMap
+        As in :func:`extract_walls_hough`. Not modified.
+    result : RoseResult, optional
+        ROSE's result for ``grid``; computed with :func:`rose.analyze` defaults if omitted. When it
+        found no structure (``has_structure`` False) there is nothing to snap to and the walls equal
+        the baseline's (a warning is logged).
+    params, resolution_m, origin_xy_m, origin_yaw_rad
+        As in :func:`extract_walls_hough`.
+
+    Returns
+    -------
+    WallSet
+        With ``method="rose"`` and ``dominant_directions`` from ``result``, longest segments first.
+
+    Raises
+    ------
+    RoseError
+        As :func:`extract_walls_hough`, or if ``result`` was computed on a grid of another shape.
+    """
+    p = params if params is not None else WallParams()
+    occupancy, placement = _grid_and_placement(grid, resolution_m, origin_xy_m, origin_yaw_rad)
+    if result is None:
+        result = analyze(occupancy, occupied_threshold=p.occupied_threshold)
+    if result.structure.shape != occupancy.shape:
+        msg = f"the ROSE result is for a grid of shape {result.structure.shape}, not {occupancy.shape}"
+        raise RoseError(msg)
+    pixels = wall_pixels(occupancy, occupied_threshold=p.occupied_threshold, faces_only=p.faces_only)
+    directions = np.asarray(result.dominant_directions, dtype=np.float64)
+    if result.has_structure:
+        pixels &= result.structure
+    else:
+        logger.warning("ROSE found no dominant direction: wall segments are not snapped")
+        directions = np.empty(0)
+    segments = hough_segments(pixels, params=p)
+    segments = _snap(segments, directions, tolerance_rad=math.radians(p.snap_tolerance_deg))
+    segments = _merge_collinear(segments, params=p, directions=directions)
+    return _wall_set(segments, occupancy.shape, placement, p, method="rose", directions=directions)
+
+
+def wall_pixels(
+    grid: npt.NDArray[np.int8], *, occupied_threshold: int = 65, faces_only: bool = True
+) -> npt.NDArray[np.bool_]:
+    """Cells that can be part of a wall line.
+
+    Parameters
+    ----------
+    grid : ndarray of int8, shape (rows, cols)
+        Occupancy grid in ROS convention.
+    occupied_threshold : int
+        Occupancy (percent) from which a cell is occupied.
+    faces_only : bool
+        Keep only occupied cells with at least one non-occupied cell among their 8 neighbours (cells
+        beyond the border count as non-occupied).
+
+    Returns
+    -------
+    ndarray of bool, shape (rows, cols)
+    """
+    occupied = occupied_mask(grid, occupied_threshold=occupied_threshold)
+    if not faces_only:
+        return occupied
+    interior = binary_erosion(occupied, structure=np.ones((3, 3), dtype=bool), border_value=0)
+    return occupied & ~interior
+
+
+def hough_segments(pixels: npt.NDArray[np.bool_], *, params: WallParams) -> npt.NDArray[np.float64]:
+    """Raw probabilistic-Hough segments of a pixel mask.
+
+    Parameters
+    ----------
+    pixels : ndarray of bool, shape (rows, cols)
+        Wall pixels (row 0 = map origin; no flip is needed since OpenCV's x, y are column, row).
+    params : WallParams
+        Uses the ``hough_*`` fields.
+
+    Returns
+    -------
+    ndarray of float64, shape (N, 2, 2)
+        Segments ``[start, end]`` as ``(col, row)`` cell coordinates, ordered along their orientation.
+    """
+    if not pixels.any():
+        return np.empty((0, 2, 2))
+    lines = cv2.HoughLinesP(
+        pixels.astype(np.uint8),
+        rho=params.hough_rho_px,
+        theta=math.radians(params.hough_theta_deg),
+        threshold=params.hough_votes,
+        minLineLength=params.hough_min_length_px,
+        maxLineGap=params.hough_max_gap_px,
+    )
+    if lines is None:
+        return np.empty((0, 2, 2))
+    return _ordered(lines.reshape(-1, 2, 2).astype(np.float64))
+
+
+def _grid_and_placement(
+    grid: npt.ArrayLike | OccupancyMap,
+    resolution_m: float | None,
+    origin_xy_m: tuple[float, float] | None,
+    origin_yaw_rad: float | None,
+) -> tuple[npt.NDArray[np.int8], tuple[float, tuple[float, float], float]]:
+    if isinstance(grid, OccupancyMap):
+        defaults = (grid.resolution_m, grid.origin_xy_m, grid.origin_yaw_rad)
+        occupancy = as_occupancy_grid(grid.grid)
+    else:
+        defaults = (DEFAULT_RESOLUTION_M, (0.0, 0.0), 0.0)
+        occupancy = as_occupancy_grid(grid)
+    placement = (
+        float(resolution_m if resolution_m is not None else defaults[0]),
+        tuple(float(v) for v in (origin_xy_m if origin_xy_m is not None else defaults[1])),
+        float(origin_yaw_rad if origin_yaw_rad is not None else defaults[2]),
+    )
+    if len(placement[1]) != 2:
+        msg = f"origin_xy_m must be two numbers (x, y), got {origin_xy_m!r}"
+        raise RoseError(msg)
+    return occupancy, placement  # type: ignore[return-value]
+
+
+def _wall_set(
+    segments: npt.NDArray[np.float64],
+    shape: tuple[int, int],
+    placement: tuple[float, tuple[float, float], float],
+    p: WallParams,
+    *,
+    method: WallMethod,
+    directions: npt.NDArray[np.float64] | None = None,
+) -> WallSet:
+    lengths = np.hypot(*(segments[:, 1] - segments[:, 0]).T) if len(segments) else np.empty(0)
+    keep = lengths >= p.min_wall_length_px
+    order = np.argsort(-lengths[keep], kind="stable")
+    resolution, origin, yaw = placement
+    return WallSet(
+        endpoints_px=segments[keep][order],
+        shape=(int(shape[0]), int(shape[1])),
+        resolution_m=resolution,
+        origin_xy_m=origin,
+        origin_yaw_rad=yaw,
+        method=method,
+        dominant_directions=directions if directions is not None else np.empty(0),
+    )
+
+
+def _ordered(segments: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+    """Swap endpoints where needed so that ``end - start`` points along the orientation in [0, pi)."""
+    theta = segment_orientations(segments)
+    u = np.stack([np.cos(theta), np.sin(theta)], axis=1)
+    flip = np.einsum("ij,ij->i", segments[:, 1] - segments[:, 0], u) < 0
+    out = segments.copy()
+    out[flip] = out[flip, ::-1]
+    return out
+
+
+def _axial_difference(a: npt.ArrayLike, b: npt.ArrayLike) -> npt.NDArray[np.float64]:
+    """Smallest angle between line orientations, radians in [0, pi/2] (broadcasting)."""
+    d = np.mod(np.asarray(a, dtype=np.float64) - np.asarray(b, dtype=np.float64), math.pi)
+    return np.minimum(d, math.pi - d)
+
+
+def _snap(
+    segments: npt.NDArray[np.float64], directions: npt.NDArray[np.float64], *, tolerance_rad: float
+) -> npt.NDArray[np.float64]:
+    """Rotate each segment about its midpoint onto the nearest direction within ``tolerance_rad``."""
+    if len(segments) == 0 or directions.size == 0:
+        return segments
+    theta = segment_orientations(segments)
+    gaps = _axial_difference(theta[:, None], directions[None, :])
+    nearest = np.argmin(gaps, axis=1)
+    snapped = np.where(gaps[np.arange(theta.size), nearest] <= tolerance_rad, directions[nearest], theta)
+    mid = segments.mean(axis=1)
+    half = 0.5 * np.hypot(*(segments[:, 1] - segments[:, 0]).T)
+    u = np.stack([np.cos(snapped), np.sin(snapped)], axis=1)
+    return _ordered(np.stack([mid - half[:, None] * u, mid + half[:, None] * u], axis=1))
+
+
+def _merge_collinear(
+    segments: npt.NDArray[np.float64],
+    *,
+    params: WallParams,
+    directions: npt.NDArray[np.float64] | None,
+) -> npt.NDArray[np.float64]:
+    """Merge collinear, overlapping or nearly touching segments until nothing changes."""
+    tolerance = math.radians(params.snap_tolerance_deg)
+    for _ in range(_MAX_MERGE_ROUNDS):
+        if len(segments) < 2:
+            break
+        count, labels = _collinear_components(segments, params=params)
+        if count == len(segments):
+            break
+        segments = _fit_components(segments, labels, count)
+        if directions is not None and directions.size:
+            segments = _snap(segments, directions, tolerance_rad=tolerance)
+    return segments
+
+
+def _collinear_components(
+    segments: npt.NDArray[np.float64], *, params: WallParams
+) -> tuple[int, npt.NDArray[np.intp]]:
+    """Label the connected components of the 'may merge' relation between segments."""
+    n = len(segments)
+    theta = segment_orientations(segments)
+    u = np.stack([np.cos(theta), np.sin(theta)], axis=1)
+    normal = np.stack([-u[:, 1], u[:, 0]], axis=1)
+    mid = segments.mean(axis=1)
+    half = 0.5 * np.hypot(*(segments[:, 1] - segments[:, 0]).T)
+    angle_tol = math.radians(params.merge_angle_deg)
+    rows, cols = [], []
+    for start in range(0, n, _PAIR_BLOCK):
+        i = np.arange(start, min(start + _PAIR_BLOCK, n))
+        # Offsets of every segment's endpoints from the block segments' midpoints: (b, n, 2, 2).
+        rel = segments[None, :, :, :] - mid[i, None, None, :]
+        along = np.einsum("bnkd,bd->bnk", rel, u[i])
+        across = np.abs(np.einsum("bnkd,bd->bnk", rel, normal[i])).max(axis=2)
+        gap = np.maximum(along.min(axis=2) - half[i, None], -half[i, None] - along.max(axis=2))
+        ok = (
+            (_axial_difference(theta[i, None], theta[None, :]) <= angle_tol)
+            & (across <= params.merge_distance_px)
+            & (gap <= params.merge_gap_px)
+        )
+        bi, j = np.nonzero(ok)
+        rows.append(i[bi])
+        cols.append(j)
+    r, c = np.concatenate(rows), np.concatenate(cols)
+    # Distance is tested from each side's line; keep a pair only if both directions agree.
+    graph = coo_matrix((np.ones(r.size, dtype=np.int8), (r, c)), shape=(n, n)).tocsr()
+    mutual = graph.multiply(graph.T)
+    count, labels = connected_components(mutual, directed=False)
+    return int(count), labels.astype(np.intp)
+
+
+def _fit_components(
+    segments: npt.NDArray[np.float64], labels: npt.NDArray[np.intp], count: int
+) -> npt.NDArray[np.float64]:
+    """One segment per component: length-weighted axial mean orientation and centroid, full extent."""
+    theta = segment_orientations(segments)
+    weight = np.maximum(np.hypot(*(segments[:, 1] - segments[:, 0]).T), 1e-9)
+    total = np.bincount(labels, weight, minlength=count)
+    s2 = np.bincount(labels, weight * np.sin(2 * theta), minlength=count)
+    c2 = np.bincount(labels, weight * np.cos(2 * theta), minlength=count)
+    phi = 0.5 * np.arctan2(s2, c2)
+    u = np.stack([np.cos(phi), np.sin(phi)], axis=1)
+    mid = segments.mean(axis=1)
+    centre = np.stack(
+        [np.bincount(labels, weight * mid[:, k], minlength=count) / total for k in range(2)], axis=1
+    )
+    along = np.einsum("nkd,nd->nk", segments - centre[labels, None, :], u[labels])
+    lo = np.full(count, np.inf)
+    hi = np.full(count, -np.inf)
+    np.minimum.at(lo, labels, along.min(axis=1))
+    np.maximum.at(hi, labels, along.max(axis=1))
+    merged = np.stack([centre + lo[:, None] * u, centre + hi[:, None] * u], axis=1)
+    return _ordered(merged)
