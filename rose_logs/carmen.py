@@ -1,0 +1,283 @@
+"""CARMEN laser logs: ``FLASER`` lines to laser scans with poses and timestamps.
+
+The old CARMEN ``FLASER`` line is::
+
+    FLASER n r_1 ... r_n x y theta odom_x odom_y odom_theta timestamp hostname logger_timestamp
+
+with ranges in metres, poses in metres and radians in the log's world frame (``x y theta`` is the laser
+pose, ``odom_*`` the odometry pose) and timestamps in seconds. The beams cover a 180 degree field of
+view centred on the laser's +x axis, counter-clockwise from -pi/2: with an odd ``n`` (181, 361) the
+first and the last beam sit at -pi/2 and +pi/2, with an even ``n`` (180, 360) the increment is pi / n.
+
+Every other line type (``ODOM``, ``PARAM``, ``NEFF``, ``SYNC``, comments...) is ignored and counted;
+``FLASER`` lines that cannot be parsed are skipped and counted, so a damaged log still yields the scans
+it holds. ``.gz`` files are read transparently.
+"""
+
+from __future__ import annotations
+
+import gzip
+import logging
+import math
+from collections import Counter
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+
+__all__ = [
+    "CarmenFormatError",
+    "CarmenLog",
+    "FlaserScan",
+    "beam_angles",
+    "parse_flaser_line",
+    "read_carmen_log",
+]
+
+_LOG = logging.getLogger(__name__)
+_GZIP_MAGIC = b"\x1f\x8b"
+#: Values after the ranges: six pose values, timestamp, hostname, logger timestamp.
+_TRAILER_FIELDS = 9
+
+
+class CarmenFormatError(ValueError):
+    """A CARMEN log or one of its lines cannot be read; the message names the file or the problem."""
+
+
+@dataclass(frozen=True, eq=False)
+class FlaserScan:
+    """One front-laser scan of a CARMEN log.
+
+    Attributes
+    ----------
+    stamp_ns : int
+        Timestamp of the scan (the line's ``timestamp`` field), in nanoseconds.
+    ranges_m : ndarray of float32, shape (n,)
+        Measured ranges in metres, beam ``i`` at ``angle_min_rad + i * angle_increment_rad``.
+    angle_min_rad, angle_increment_rad : float
+        First beam angle and beam spacing in radians, counter-clockwise in the laser frame.
+    laser_pose : tuple of float
+        ``(x_m, y_m, theta_rad)`` of the laser in the log's world frame.
+    odom_pose : tuple of float
+        ``(x_m, y_m, theta_rad)`` odometry pose of the robot, world frame of the odometry.
+    line_number : int
+        1-based line of the log the scan came from.
+    """
+
+    stamp_ns: int
+    ranges_m: npt.NDArray[np.float32] = field(repr=False)
+    angle_min_rad: float
+    angle_increment_rad: float
+    laser_pose: tuple[float, float, float]
+    odom_pose: tuple[float, float, float]
+    line_number: int = 0
+
+    @property
+    def angles_rad(self) -> npt.NDArray[np.float64]:
+        """Beam angles in the laser frame, radians, shape (n,)."""
+        return beam_angles(self.ranges_m.size)
+
+
+@dataclass(frozen=True, eq=False)
+class CarmenLog:
+    """The scans of a CARMEN log and an account of what was not used.
+
+    Attributes
+    ----------
+    path : Path
+        The file read.
+    scans : tuple of FlaserScan
+        Every well-formed ``FLASER`` scan, in file order.
+    ignored : dict of str to int
+        Lines of other types that were skipped, per first token (``"#"`` for comments, ``""`` for
+        blank lines).
+    malformed : int
+        ``FLASER`` lines that could not be parsed and were skipped.
+    first_errors : tuple of str
+        Up to five messages describing the first malformed lines (with line numbers).
+    """
+
+    path: Path
+    scans: tuple[FlaserScan, ...]
+    ignored: dict[str, int]
+    malformed: int
+    first_errors: tuple[str, ...] = ()
+
+    @property
+    def stamps_ns(self) -> npt.NDArray[np.int64]:
+        """Scan timestamps in nanoseconds, shape (N,)."""
+        return np.array([s.stamp_ns for s in self.scans], dtype=np.int64)
+
+    @property
+    def laser_poses(self) -> npt.NDArray[np.float64]:
+        """Laser poses ``(x_m, y_m, theta_rad)``, shape (N, 3), world frame."""
+        return np.array([s.laser_pose for s in self.scans], dtype=np.float64).reshape(-1, 3)
+
+    @property
+    def odom_poses(self) -> npt.NDArray[np.float64]:
+        """Odometry poses ``(x_m, y_m, theta_rad)``, shape (N, 3)."""
+        return np.array([s.odom_pose for s in self.scans], dtype=np.float64).reshape(-1, 3)
+
+    @property
+    def duration_s(self) -> float:
+        """Time from the first to the last scan, in seconds (0 for fewer than two scans)."""
+        if len(self.scans) < 2:
+            return 0.0
+        return (self.scans[-1].stamp_ns - self.scans[0].stamp_ns) / 1e9
+
+
+def beam_angles(n: int) -> npt.NDArray[np.float64]:
+    """Beam angles of an ``n``-beam CARMEN front laser, radians, shape (n,), laser frame.
+
+    A 180 degree field of view from -pi/2: odd ``n`` includes both ends (increment pi / (n - 1)),
+    even ``n`` has increment pi / n.
+    """
+    if n < 1:
+        msg = f"the number of beams `n` must be >= 1, got {n}"
+        raise CarmenFormatError(msg)
+    increment = math.pi / (n - 1) if n % 2 == 1 and n > 1 else math.pi / n
+    return -math.pi / 2 + increment * np.arange(n, dtype=np.float64)
+
+
+def parse_flaser_line(line: str, *, line_number: int = 0) -> FlaserScan:
+    """Parse one ``FLASER`` line.
+
+    Parameters
+    ----------
+    line : str
+        The line, with or without its newline.
+    line_number : int
+        Recorded in the scan and in error messages.
+
+    Returns
+    -------
+    FlaserScan
+
+    Raises
+    ------
+    CarmenFormatError
+        When the line is not a complete, numeric ``FLASER`` record.
+    """
+    tokens = line.split()
+    where = f"line {line_number}"
+    if not tokens or tokens[0] != "FLASER":
+        msg = f"{where}: not a FLASER line"
+        raise CarmenFormatError(msg)
+    try:
+        n = int(tokens[1])
+    except (IndexError, ValueError) as err:
+        msg = f"{where}: bad beam count {tokens[1:2]}"
+        raise CarmenFormatError(msg) from err
+    if n < 1 or len(tokens) < 2 + n + _TRAILER_FIELDS - 2:
+        msg = f"{where}: {n} beams announced but only {len(tokens)} fields"
+        raise CarmenFormatError(msg)
+    try:
+        ranges = np.array(tokens[2 : 2 + n], dtype=np.float32)
+        values = [float(v) for v in tokens[2 + n : 2 + n + 7]]
+    except ValueError as err:
+        msg = f"{where}: non-numeric value ({err})"
+        raise CarmenFormatError(msg) from err
+    if len(values) < 7:
+        msg = f"{where}: pose or timestamp missing"
+        raise CarmenFormatError(msg)
+    if not (np.all(np.isfinite(ranges)) and all(math.isfinite(v) for v in values)):
+        msg = f"{where}: non-finite value"
+        raise CarmenFormatError(msg)
+    if np.any(ranges < 0):
+        msg = f"{where}: negative range"
+        raise CarmenFormatError(msg)
+    angles = beam_angles(n)
+    return FlaserScan(
+        stamp_ns=round(values[6] * 1e9),
+        ranges_m=ranges,
+        angle_min_rad=float(angles[0]),
+        angle_increment_rad=float(angles[1] - angles[0]) if n > 1 else math.pi,
+        laser_pose=(values[0], values[1], values[2]),
+        odom_pose=(values[3], values[4], values[5]),
+        line_number=line_number,
+    )
+
+
+def _open_lines(path: Path) -> Iterator[str]:
+    with path.open("rb") as probe:
+        magic = probe.read(2)
+    if magic == _GZIP_MAGIC:
+        with gzip.open(path, "rt", encoding="utf-8", errors="replace") as fh:
+            yield from fh
+    else:
+        with path.open("rt", encoding="utf-8", errors="replace") as fh:
+            yield from fh
+
+
+def parse_carmen_lines(
+    lines: Iterable[str], *, path: Path | None = None, max_scans: int | None = None
+) -> CarmenLog:
+    """Parse CARMEN log lines (see :func:`read_carmen_log`)."""
+    scans: list[FlaserScan] = []
+    ignored: Counter[str] = Counter()
+    errors: list[str] = []
+    malformed = 0
+    for number, line in enumerate(lines, start=1):
+        head = line.split(maxsplit=1)
+        kind = head[0] if head else ""
+        if kind != "FLASER":
+            ignored["#" if kind.startswith("#") else kind] += 1
+            continue
+        try:
+            scans.append(parse_flaser_line(line, line_number=number))
+        except CarmenFormatError as err:
+            malformed += 1
+            if len(errors) < 5:
+                errors.append(str(err))
+            continue
+        if max_scans is not None and len(scans) >= max_scans:
+            break
+    return CarmenLog(
+        path=path if path is not None else Path("<lines>"),
+        scans=tuple(scans),
+        ignored=dict(ignored),
+        malformed=malformed,
+        first_errors=tuple(errors),
+    )
+
+
+def read_carmen_log(path: str | Path, *, max_scans: int | None = None) -> CarmenLog:
+    """Read the ``FLASER`` scans of a CARMEN log (plain text or gzip).
+
+    Parameters
+    ----------
+    path : str or Path
+        The log file; gzip is detected from the file's magic bytes.
+    max_scans : int, optional
+        Stop after this many scans.
+
+    Returns
+    -------
+    CarmenLog
+        Scans in file order plus counts of ignored and malformed lines.
+
+    Raises
+    ------
+    CarmenFormatError
+        When the file cannot be opened or decompressed, or holds no ``FLASER`` scan at all.
+    """
+    path = Path(path)
+    try:
+        log = parse_carmen_lines(_open_lines(path), path=path, max_scans=max_scans)
+    except (OSError, EOFError) as err:
+        msg = f"{path}: cannot read CARMEN log ({err})"
+        raise CarmenFormatError(msg) from err
+    if not log.scans:
+        msg = f"{path}: no FLASER scan found ({log.malformed} malformed FLASER lines)"
+        raise CarmenFormatError(msg)
+    if log.malformed:
+        _LOG.warning(
+            "%s: skipped %d malformed FLASER lines, first: %s",
+            path,
+            log.malformed,
+            log.first_errors[0],
+        )
+    _LOG.info("%s: %d scans over %.1f s", path, len(log.scans), log.duration_s)
+    return log

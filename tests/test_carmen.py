@@ -1,0 +1,119 @@
+"""CARMEN log parsing on real log excerpts and on damaged lines."""
+
+from __future__ import annotations
+
+import gzip
+import itertools
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from rose_logs.carmen import (
+    CarmenFormatError,
+    beam_angles,
+    parse_carmen_lines,
+    parse_flaser_line,
+    read_carmen_log,
+)
+
+LOGS = Path(__file__).resolve().parents[2] / "shared" / "maps" / "radish_carmen_corrected_logs"
+if not LOGS.is_dir():
+    LOGS = Path("/work/shared/maps/radish_carmen_corrected_logs")
+needs_logs = pytest.mark.skipif(not LOGS.is_dir(), reason="Radish CARMEN logs not available")
+
+
+def _excerpt(name: str, n_lines: int) -> list[str]:
+    with gzip.open(LOGS / f"{name}-corrected.log.gz", "rt") as fh:
+        return list(itertools.islice(fh, n_lines))
+
+
+@needs_logs
+@pytest.mark.parametrize(("name", "beams"), [("aces", 180), ("csail", 361), ("freiburg-079", 360)])
+def test_real_excerpt_parses_every_flaser_line(name: str, beams: int) -> None:
+    lines = _excerpt(name, 400)
+    log = parse_carmen_lines(lines)
+    n_flaser = sum(line.startswith("FLASER") for line in lines)
+    assert n_flaser > 0
+    assert len(log.scans) == n_flaser
+    assert log.malformed == 0
+    assert sum(log.ignored.values()) == len(lines) - n_flaser
+    scan = log.scans[0]
+    assert scan.ranges_m.shape == (beams,)
+    assert scan.ranges_m.dtype == np.float32
+    # The corrected logs store the corrected pose twice: laser pose == odometry pose.
+    assert_allclose(scan.laser_pose, scan.odom_pose)
+    assert np.all(np.diff(log.stamps_ns) >= 0)
+
+
+@needs_logs
+def test_first_aces_scan_values() -> None:
+    # First FLASER line of aces: "FLASER 180 6.66 6.86 ... 0.89706 -0.180771 -0.454003 ... 21.0199 ..."
+    log = parse_carmen_lines(_excerpt("aces", 400))
+    scan = log.scans[0]
+    assert scan.ranges_m[0] == pytest.approx(6.66)
+    assert scan.ranges_m[1] == pytest.approx(6.86)
+    assert scan.stamp_ns == 21_019_900_000
+    assert scan.line_number > 1
+
+
+@needs_logs
+def test_read_gz_file_and_max_scans() -> None:
+    log = read_carmen_log(LOGS / "freiburg-101-corrected.log.gz", max_scans=5)
+    assert len(log.scans) == 5
+    assert log.laser_poses.shape == (5, 3)
+    assert log.duration_s > 0
+
+
+def test_plain_text_file_and_malformed_lines(tmp_path: Path) -> None:
+    good = "FLASER 3 1.0 2.0 3.0 0.5 -0.5 0.1 0.5 -0.5 0.1 12.5 host 12.5\n"
+    lines = [
+        "# comment\n",
+        "PARAM robot_use_laser on nohost 0\n",
+        good,
+        "FLASER 3 1.0 2.0\n",  # truncated
+        "FLASER x 1 2 3\n",  # bad count
+        "FLASER 3 1.0 nan 3.0 0 0 0 0 0 0 1 h 1\n",  # non-finite
+        "FLASER 3 1.0 abc 3.0 0 0 0 0 0 0 1 h 1\n",  # non-numeric
+        "FLASER 3 1.0 -2 3.0 0 0 0 0 0 0 1 h 1\n",  # negative range
+        "ODOM 0 0 0 0 0 0 1 h 1\n",
+        "\n",
+        good.replace("12.5", "13.0"),
+    ]
+    path = tmp_path / "log.txt"
+    path.write_text("".join(lines))
+    log = read_carmen_log(path)
+    assert len(log.scans) == 2
+    assert log.malformed == 5
+    assert len(log.first_errors) == 5
+    assert "line 4" in log.first_errors[0]
+    assert log.ignored == {"#": 1, "PARAM": 1, "ODOM": 1, "": 1}
+    assert log.scans[0].laser_pose == (0.5, -0.5, 0.1)
+    assert log.scans[1].stamp_ns - log.scans[0].stamp_ns == 500_000_000
+
+
+def test_no_scan_is_an_error(tmp_path: Path) -> None:
+    path = tmp_path / "empty.log"
+    path.write_text("ODOM 0 0 0 0 0 0 1 h 1\nFLASER 2 1\n")
+    with pytest.raises(CarmenFormatError, match="no FLASER scan"):
+        read_carmen_log(path)
+
+
+def test_missing_file_is_an_error(tmp_path: Path) -> None:
+    with pytest.raises(CarmenFormatError, match="cannot read"):
+        read_carmen_log(tmp_path / "nope.log.gz")
+
+
+def test_not_flaser_line() -> None:
+    with pytest.raises(CarmenFormatError, match="not a FLASER"):
+        parse_flaser_line("ODOM 0 0 0", line_number=7)
+
+
+@pytest.mark.parametrize(("n", "increment_deg"), [(180, 1.0), (181, 1.0), (360, 0.5), (361, 0.5)])
+def test_beam_angles(n: int, increment_deg: float) -> None:
+    angles = beam_angles(n)
+    assert angles.shape == (n,)
+    assert angles[0] == pytest.approx(-math.pi / 2)
+    assert_allclose(np.diff(angles), math.radians(increment_deg), rtol=1e-12)
