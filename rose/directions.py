@@ -34,11 +34,13 @@ def find_direction_peaks(
 
     Prominence follows ``scipy.signal.peak_prominences``. Directions wrap around at pi, so the signal is
     tripled and only peaks in the middle copy are kept: a peak at 0 or near pi is found once, with its
-    true prominence. A constant signal has no peaks.
+    true prominence. A constant signal has no peaks, and neither has one whose spread is below
+    ``1e-4`` of its level: that is float rounding (a single occupied cell has a flat spectrum).
     """
     n = cumulative.size
     span = float(cumulative.max() - cumulative.min()) if n else 0.0
-    if n < 3 or not np.isfinite(span) or span <= 0.0:
+    level = float(np.abs(cumulative).max()) if n else 0.0
+    if n < 3 or not np.isfinite(span) or span <= 1e-4 * level:
         return DirectionPeaks(np.empty(0, dtype=np.intp), np.empty(0))
     tripled = np.concatenate([cumulative, cumulative, cumulative])
     peaks, properties = find_peaks(tripled, prominence=prominence_fraction * span)
@@ -63,7 +65,9 @@ def refine_peak_positions(
     return indices + np.clip(offset, -0.5, 0.5)
 
 
-def structure_score(cumulative: npt.NDArray[np.float64], peak_indices: npt.NDArray[np.intp]) -> float:
+def structure_score(
+    cumulative: npt.NDArray[np.float64], peak_indices: npt.NDArray[np.intp]
+) -> float:
     """The paper's W: mean of the min-max scaled cumulative amplitude over its mean at the peaks.
 
     Near 0 for maps with strong structure, near 1 without; exactly 1 when there is no peak.

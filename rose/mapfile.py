@@ -33,7 +33,9 @@ MapMode = Literal["trinary", "scale", "raw"]
 DEFAULT_RESOLUTION_M = 0.05
 DEFAULT_OCCUPIED_THRESH = 0.65
 DEFAULT_FREE_THRESH = 0.196
-IMAGE_SUFFIXES = frozenset({".pgm", ".png", ".ppm", ".pbm", ".bmp", ".jpg", ".jpeg", ".tif", ".tiff"})
+IMAGE_SUFFIXES = frozenset(
+    {".pgm", ".png", ".ppm", ".pbm", ".bmp", ".jpg", ".jpeg", ".tif", ".tiff"}
+)
 YAML_SUFFIXES = frozenset({".yaml", ".yml"})
 
 # Grey values ROS map_saver writes in trinary mode.
@@ -217,7 +219,9 @@ def image_to_grid(
     return np.flipud(grid).copy()
 
 
-def grid_to_image(grid: npt.NDArray[np.int8], *, occupied_threshold: int = 65) -> npt.NDArray[np.uint8]:
+def grid_to_image(
+    grid: npt.NDArray[np.int8], *, occupied_threshold: int = 65
+) -> npt.NDArray[np.uint8]:
     """Trinary map_saver image (top row first): free 254, occupied 0, everything else 205."""
     image = np.full(grid.shape, SAVED_UNKNOWN, dtype=np.uint8)
     image[grid == 0] = SAVED_FREE
@@ -271,6 +275,9 @@ def write_atomically(path: Path, write: Callable[[Any], object]) -> None:
         If the file cannot be created or written; nothing is left behind.
     """
     directory = path.parent if str(path.parent) else Path()
+    if not directory.is_dir():
+        msg = f"{path}: directory {directory} does not exist"
+        raise MapFileError(msg)
     try:
         fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
     except OSError as err:

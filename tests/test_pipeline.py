@@ -1,0 +1,177 @@
+"""ROSE on synthetic maps with known answers, and the edge cases of analyze()."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from synthetic import add_clutter, floor_plan
+
+import rose
+from rose import RoseError
+
+
+def angular_error_deg(found: np.ndarray, expected: list[float]) -> float:
+    """Largest distance, in degrees modulo 180, from each expected direction to the nearest found one."""
+    found_deg = np.degrees(found)
+    worst = 0.0
+    for e in expected:
+        diff = np.abs((found_deg - e + 90.0) % 180.0 - 90.0)
+        worst = max(worst, float(diff.min()))
+    return worst
+
+
+@pytest.mark.parametrize("angle_deg", [0.0, 7.0, 22.5, 33.0, 45.0, 61.0, 87.0])
+def test_rotated_floor_plan_directions_within_one_degree(angle_deg: float) -> None:
+    result = rose.analyze(floor_plan(angle_deg=angle_deg))
+    assert result.dominant_directions.size == 2
+    assert angular_error_deg(result.dominant_directions, [angle_deg, angle_deg + 90]) < 1.0
+
+
+@pytest.mark.parametrize("size", [(400, 500), (301, 301), (257, 640)])
+def test_directions_on_odd_and_non_square_shapes(size: tuple[int, int]) -> None:
+    result = rose.analyze(floor_plan(size=size, angle_deg=13.0))
+    assert angular_error_deg(result.dominant_directions, [13.0, 103.0]) < 1.0
+
+
+@pytest.mark.parametrize(("angle_deg", "seed"), [(0.0, 1), (17.0, 2), (33.0, 3), (52.0, 4)])
+def test_blobs_and_specks_are_labelled_clutter(angle_deg: float, seed: int) -> None:
+    cluttered, truth = add_clutter(floor_plan(angle_deg=angle_deg), blobs=40, specks=300, seed=seed)
+    result = rose.analyze(cluttered)
+    caught = np.count_nonzero(result.clutter & truth)
+    precision = caught / np.count_nonzero(result.clutter)
+    recall = caught / np.count_nonzero(truth)
+    assert precision >= 0.9
+    assert recall >= 0.5
+    # Clutter is gone from the cleaned map, walls are kept.
+    assert not np.any(result.cleaned[truth & result.clutter] == 100)
+    assert np.count_nonzero(result.structure & ~truth) > 0.9 * np.count_nonzero(cluttered & ~truth)
+
+
+def test_structure_score_separates_plan_from_noise() -> None:
+    rng = np.random.default_rng(0)
+    assert rose.analyze(floor_plan(angle_deg=20.0)).structure_score < 0.2
+    for density in (0.01, 0.05, 0.2):
+        assert rose.analyze(rng.random((300, 400)) < density).structure_score > 0.5
+
+
+def test_rotating_the_map_by_90_degrees_shifts_directions_by_90() -> None:
+    plan = floor_plan(size=(360, 360), angle_deg=20.0)
+    before = rose.analyze(plan).dominant_directions
+    after = rose.analyze(np.rot90(plan)).dominant_directions
+    # np.rot90 turns rows into columns: a line at theta becomes one at theta + 90 degrees.
+    assert angular_error_deg(after, list(np.degrees(before) + 90.0)) < 0.5
+
+
+def test_results_identical_across_runs() -> None:
+    cluttered, _ = add_clutter(floor_plan(angle_deg=11.0), blobs=30, specks=200, seed=5)
+    first, second = rose.analyze(cluttered), rose.analyze(cluttered.copy())
+    assert first.structure_score == second.structure_score
+    assert first.threshold == second.threshold
+    np.testing.assert_array_equal(first.cell_scores, second.cell_scores)
+    np.testing.assert_array_equal(first.cleaned, second.cleaned)
+
+
+def test_input_grid_is_not_modified() -> None:
+    grid = np.where(floor_plan(), 100, 0).astype(np.int8)
+    grid[:5] = -1
+    before = grid.copy()
+    rose.analyze(grid)
+    np.testing.assert_array_equal(grid, before)
+
+
+def test_result_shapes_and_types_follow_the_input() -> None:
+    grid = np.where(floor_plan(size=(123, 321)), 100, 0).astype(np.int8)
+    result = rose.analyze(grid)
+    for mask in (result.occupied, result.structure, result.clutter):
+        assert mask.shape == grid.shape and mask.dtype == bool
+    assert result.cell_scores.shape == grid.shape and result.cell_scores.dtype == np.float32
+    assert result.cleaned.shape == grid.shape and result.cleaned.dtype == np.int8
+    assert not np.any(result.structure & result.clutter)
+    np.testing.assert_array_equal(result.structure | result.clutter, result.occupied)
+    assert result.cumulative_amplitude.shape == result.direction_bins.shape
+    assert np.all((result.dominant_directions >= 0) & (result.dominant_directions < math.pi))
+    rows, cols = result.padded_shape
+    assert result.amplitude_spectrum.shape == (rows, cols) and rows >= 123 and cols >= 321
+
+
+@pytest.mark.parametrize(
+    "grid",
+    [
+        np.zeros((50, 60), dtype=np.int8),
+        np.full((50, 60), -1, dtype=np.int8),
+        np.zeros((1, 1), dtype=np.int8),
+        np.full((1, 1), 100, dtype=np.int8),
+        np.zeros((0, 0), dtype=np.int8),
+    ],
+    ids=["empty", "all-unknown", "1x1-free", "1x1-occupied", "zero-area"],
+)
+def test_maps_without_structure_are_left_unchanged(grid: np.ndarray) -> None:
+    result = rose.analyze(grid)
+    assert not result.has_structure
+    assert result.structure_score == 1.0
+    assert result.dominant_directions.size == 0
+    assert not result.structure.any() and not result.clutter.any()
+    assert math.isnan(result.threshold)
+    np.testing.assert_array_equal(result.cleaned, grid)
+
+
+def test_single_occupied_cell() -> None:
+    grid = np.zeros((64, 64), dtype=np.int8)
+    grid[10, 20] = 100
+    result = rose.analyze(grid)
+    # A point has a flat spectrum: no direction stands out.
+    assert not result.has_structure
+    assert result.structure_score == 1.0
+
+
+@pytest.mark.parametrize("shape", [(3, 2000), (2000, 3)])
+def test_very_elongated_maps(shape: tuple[int, int]) -> None:
+    grid = np.zeros(shape, dtype=np.int8)
+    if shape[0] < shape[1]:
+        grid[1, 100:1900] = 100
+    else:
+        grid[100:1900, 1] = 100
+    result = rose.analyze(grid)
+    assert result.cleaned.shape == shape
+    assert result.has_structure
+    expected = 0.0 if shape[0] < shape[1] else 90.0
+    assert angular_error_deg(result.dominant_directions, [expected]) < 1.0
+
+
+def test_clutter_value_unknown_marks_removed_cells_unknown() -> None:
+    cluttered, truth = add_clutter(floor_plan(), blobs=20, specks=100, seed=7)
+    result = rose.analyze(cluttered, clutter_value="unknown")
+    assert np.all(result.cleaned[result.clutter] == -1)
+    assert np.all(result.cleaned[result.structure] == 100)
+
+
+def test_fixed_threshold_mode() -> None:
+    cluttered, _ = add_clutter(floor_plan(), blobs=20, specks=100, seed=7)
+    result = rose.analyze(cluttered, threshold_mode="fixed", fixed_threshold=0.3)
+    assert result.threshold == 0.3
+    scores = result.cell_scores
+    assert np.all(scores[result.clutter] <= 0.3) and np.all(scores[result.structure] > 0.3)
+
+
+def test_unknown_cells_are_never_occupied() -> None:
+    grid = np.where(floor_plan(), 100, -1).astype(np.int8)
+    result = rose.analyze(grid)
+    assert result.occupied_count == np.count_nonzero(grid == 100)
+
+
+@pytest.mark.parametrize(
+    ("grid", "overrides", "match"),
+    [
+        (np.zeros((4, 4, 2)), {}, "must be 2D"),
+        (np.full((4, 4), 101), {}, "-1 \\(unknown\\) or 0..100"),
+        (np.array([["a"]]), {}, "boolean or numeric"),
+        (np.zeros((4, 4)), {"peak_prominence": 0.0}, "peak_prominence"),
+        (np.zeros((4, 4)), {"threshold_mode": "otsu"}, "threshold_mode"),
+        (np.zeros((4, 4)), {"no_such_param": 1}, "unknown ROSE parameter"),
+    ],
+)
+def test_invalid_input_raises_rose_error(grid: np.ndarray, overrides: dict, match: str) -> None:
+    with pytest.raises(RoseError, match=match):
+        rose.analyze(grid, **overrides)
