@@ -340,7 +340,9 @@ def extract_walls_hough(
     """
     p = params if params is not None else WallParams()
     occupancy, placement = _grid_and_placement(grid, resolution_m, origin_xy_m, origin_yaw_rad)
-    pixels = wall_pixels(occupancy, occupied_threshold=p.occupied_threshold, faces_only=p.faces_only)
+    pixels = wall_pixels(
+        occupancy, occupied_threshold=p.occupied_threshold, faces_only=p.faces_only
+    )
     segments = _merge_collinear(hough_segments(pixels, params=p), params=p, directions=None)
     return _wall_set(segments, occupancy.shape, placement, p, method="hough")
 
@@ -384,7 +386,9 @@ def extract_walls(
     if result.structure.shape != occupancy.shape:
         msg = f"the ROSE result is for a grid of shape {result.structure.shape}, not {occupancy.shape}"
         raise RoseError(msg)
-    pixels = wall_pixels(occupancy, occupied_threshold=p.occupied_threshold, faces_only=p.faces_only)
+    pixels = wall_pixels(
+        occupancy, occupied_threshold=p.occupied_threshold, faces_only=p.faces_only
+    )
     directions = np.asarray(result.dominant_directions, dtype=np.float64)
     if result.has_structure:
         pixels &= result.structure
@@ -525,7 +529,9 @@ def _snap(
     theta = segment_orientations(segments)
     gaps = _axial_difference(theta[:, None], directions[None, :])
     nearest = np.argmin(gaps, axis=1)
-    snapped = np.where(gaps[np.arange(theta.size), nearest] <= tolerance_rad, directions[nearest], theta)
+    snapped = np.where(
+        gaps[np.arange(theta.size), nearest] <= tolerance_rad, directions[nearest], theta
+    )
     mid = segments.mean(axis=1)
     half = 0.5 * np.hypot(*(segments[:, 1] - segments[:, 0]).T)
     u = np.stack([np.cos(snapped), np.sin(snapped)], axis=1)
