@@ -134,6 +134,9 @@ def _load_yaml_map(path: Path) -> OccupancyMap:
     image_path = Path(image_name)
     if not image_path.is_absolute():
         image_path = path.parent / image_path
+    if not image_path.is_file():
+        msg = f"{path}: its image {image_path} does not exist (no such image file)"
+        raise MapFileError(msg)
     grid = image_to_grid(
         _read_image(image_path),
         mode=mode,

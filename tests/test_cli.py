@@ -1,0 +1,84 @@
+"""The ``rose`` command: outputs, summaries and one-line errors."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from synthetic import add_clutter, floor_plan
+
+import rose
+from rose.cli import main
+
+
+@pytest.fixture
+def cluttered_map(tmp_path: Path) -> Path:
+    cluttered, _ = add_clutter(floor_plan(angle_deg=15.0), blobs=30, specks=200, seed=1)
+    grid = np.where(cluttered, 100, 0).astype(np.int8)
+    path = tmp_path / "in.yaml"
+    rose.save_map(path, rose.OccupancyMap(grid=grid, resolution_m=0.05, origin_xy_m=(-1.0, -2.0)))
+    return path
+
+
+def test_clean_writes_map_and_report(cluttered_map: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "out" / "clean.yaml"
+    out.parent.mkdir()
+    assert main(["clean", str(cluttered_map), "-o", str(out), "--json", str(tmp_path / "r.json")]) == 0
+    cleaned = rose.load_map(out)
+    expected = rose.analyze(rose.load_map(cluttered_map).grid).cleaned
+    np.testing.assert_array_equal(cleaned.grid, expected)
+    assert cleaned.origin_xy_m == (-1.0, -2.0)
+    report = json.loads((tmp_path / "r.json").read_text())
+    assert report["clutter_cells"] > 0
+    assert len(report["dominant_directions_deg"]) == 2
+    printed = capsys.readouterr().out
+    assert "W " in printed and "directions" in printed and "clutter" in printed
+
+
+def test_clean_parameters_reach_the_algorithm(cluttered_map: Path, tmp_path: Path) -> None:
+    out = tmp_path / "unknown.yaml"
+    assert main(["clean", str(cluttered_map), "-o", str(out), "--clutter-value", "unknown"]) == 0
+    original = rose.load_map(cluttered_map).grid
+    cleaned = rose.load_map(out).grid
+    removed = (original == 100) & (cleaned != 100)
+    assert removed.any() and np.all(cleaned[removed] == -1)
+
+
+def test_score_prints_a_table_and_json(cluttered_map: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["score", str(cluttered_map)]) == 0
+    assert str(cluttered_map) in capsys.readouterr().out
+    assert main(["score", "--json", str(cluttered_map)]) == 0
+    records = json.loads(capsys.readouterr().out)
+    assert records[0]["structure_score"] < 0.2
+
+
+@pytest.mark.parametrize(
+    "make_args",
+    [
+        lambda d, m: ["clean", str(d / "missing.yaml"), "-o", str(d / "o.yaml")],
+        lambda d, m: ["clean", str(m), "-o", str(d / "no" / "dir" / "o.yaml")],
+        lambda d, m: ["clean", str(m), "-o", str(m)],
+        lambda d, m: ["clean", str(m), "-o", str(d / "o.txt")],
+        lambda d, m: ["clean", str(m), "-o", str(d / "o.yaml"), "--peak-prominence", "7"],
+        lambda d, m: ["score", str(d / "junk.png")],
+    ],
+    ids=["missing-input", "missing-dir", "overwrite-input", "not-yaml", "bad-param", "bad-image"],
+)
+def test_errors_are_one_line_with_exit_1(
+    make_args, cluttered_map: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    (tmp_path / "junk.png").write_bytes(b"junk")
+    before = cluttered_map.read_bytes()
+    assert main(make_args(tmp_path, cluttered_map)) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and err.count("\n") == 1
+    assert cluttered_map.read_bytes() == before
+    assert not (tmp_path / "o.yaml").exists()
+
+
+def test_usage_error_exits_2() -> None:
+    with pytest.raises(SystemExit) as info:
+        main(["clean"])
+    assert info.value.code == 2

@@ -1,0 +1,155 @@
+"""map_server map files: exact loading semantics, colour types, round trip, errors."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+import rose
+from rose import MapFileError, OccupancyMap
+
+SHARED_MAPS = Path(__file__).resolve().parents[2] / "shared" / "maps"
+
+
+def write_yaml(path: Path, text: str) -> Path:
+    path.write_text(text)
+    return path
+
+
+def test_trinary_round_trip_is_lossless(tmp_path: Path) -> None:
+    rng = np.random.default_rng(3)
+    grid = rng.choice(np.array([-1, 0, 100], dtype=np.int8), size=(37, 53))
+    original = OccupancyMap(grid=grid, resolution_m=0.025, origin_xy_m=(-3.5, 2.25), origin_yaw_rad=0.1)
+    rose.save_map(tmp_path / "m.yaml", original)
+    loaded = rose.load_map(tmp_path / "m.yaml")
+    np.testing.assert_array_equal(loaded.grid, grid)
+    assert loaded.resolution_m == 0.025
+    assert loaded.origin_xy_m == (-3.5, 2.25)
+    assert loaded.origin_yaw_rad == pytest.approx(0.1)
+
+
+def test_real_map_round_trip(tmp_path: Path) -> None:
+    source = rose.load_map(SHARED_MAPS / "rose2_aislabunimi/Freiburg_Building_079_partial/map5.yaml")
+    rose.save_map(tmp_path / "copy.yaml", source)
+    again = rose.load_map(tmp_path / "copy.yaml")
+    np.testing.assert_array_equal(again.grid, source.grid)
+    assert again.origin_xy_m == source.origin_xy_m
+
+
+def test_row_zero_is_the_bottom_of_the_image(tmp_path: Path) -> None:
+    image = np.full((4, 3), 254, dtype=np.uint8)
+    image[-1, 0] = 0  # bottom-left pixel occupied
+    cv2.imwrite(str(tmp_path / "m.pgm"), image)
+    grid = rose.load_map(tmp_path / "m.pgm").grid
+    assert grid[0, 0] == 100
+    assert np.count_nonzero(grid == 100) == 1
+
+
+def test_trinary_thresholds_and_negate(tmp_path: Path) -> None:
+    image = np.array([[0, 100, 205, 230, 254]], dtype=np.uint8)
+    cv2.imwrite(str(tmp_path / "m.pgm"), image)
+    base = "image: m.pgm\nresolution: 0.05\norigin: [0, 0, 0]\noccupied_thresh: 0.65\nfree_thresh: 0.196\n"
+    grid = rose.load_map(write_yaml(tmp_path / "a.yaml", base + "negate: 0\n")).grid
+    # occ = (255 - v) / 255: 1.0, 0.61, 0.196 (just above free_thresh), 0.098, 0.004
+    np.testing.assert_array_equal(grid[0], [100, -1, -1, 0, 0])
+    negated = rose.load_map(write_yaml(tmp_path / "b.yaml", base + "negate: 1\n")).grid
+    np.testing.assert_array_equal(negated[0], [0, -1, 100, 100, 100])
+
+
+def test_scale_and_raw_modes(tmp_path: Path) -> None:
+    image = np.array([[0, 100, 254]], dtype=np.uint8)
+    cv2.imwrite(str(tmp_path / "m.pgm"), image)
+    common = "image: m.pgm\nresolution: 0.1\norigin: [1, 2, 0]\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n"
+    scale = rose.load_map(write_yaml(tmp_path / "s.yaml", common + "mode: scale\n")).grid
+    ratio = ((255 - 100) / 255 - 0.196) / (0.65 - 0.196)
+    np.testing.assert_array_equal(scale[0], [100, int(1 + 98 * ratio), 0])
+    raw = rose.load_map(write_yaml(tmp_path / "r.yaml", common + "mode: raw\n")).grid
+    np.testing.assert_array_equal(raw[0].view(np.uint8), [0, 100, 254])
+
+
+def test_image_path_is_relative_to_the_yaml(tmp_path: Path) -> None:
+    (tmp_path / "img").mkdir()
+    cv2.imwrite(str(tmp_path / "img" / "m.png"), np.full((5, 5), 254, np.uint8))
+    yaml_path = write_yaml(tmp_path / "m.yaml", "image: img/m.png\nresolution: 0.05\norigin: [0, 0, 0]\n")
+    assert rose.load_map(yaml_path).grid.shape == (5, 5)
+
+
+@pytest.mark.parametrize("channels", ["grey", "grey+alpha", "rgb", "rgba", "palette"])
+def test_png_colour_types_read_alike(tmp_path: Path, channels: str) -> None:
+    grey = np.full((6, 8), 254, dtype=np.uint8)
+    grey[2, 3] = 0
+    grey[4, 5] = 205
+    path = tmp_path / "m.png"
+    if channels == "palette":
+        pil_image = pytest.importorskip("PIL.Image")
+        pil_image.fromarray(grey).convert("P").save(path)
+    else:
+        arrays = {
+            "grey": grey,
+            "grey+alpha": np.dstack([grey, np.full_like(grey, 255)]),
+            "rgb": np.dstack([grey] * 3),
+            "rgba": np.dstack([grey] * 3 + [np.full_like(grey, 255)]),
+        }
+        if channels == "grey+alpha":
+            # OpenCV cannot write two-channel PNGs; Pillow can.
+            pil_image = pytest.importorskip("PIL.Image")
+            pil_image.fromarray(arrays[channels], mode="LA").save(path)
+        else:
+            cv2.imwrite(str(path), arrays[channels])
+    grid = rose.load_map(path).grid
+    expected = rose.mapfile.image_to_grid(
+        grey[:, :, np.newaxis], mode="trinary", negate=False, occupied_thresh=0.65, free_thresh=0.196
+    )
+    np.testing.assert_array_equal(grid, expected)
+
+
+@pytest.mark.parametrize("name", ["bormann_ipa_room_segmentation/lab_ipa.png", "aws_small_warehouse_005/map_rotated.png"])
+def test_real_png_maps_load(name: str) -> None:
+    grid = rose.load_map(SHARED_MAPS / name).grid
+    assert grid.ndim == 2 and grid.dtype == np.int8
+    assert np.count_nonzero(grid == 100) > 0
+
+
+@pytest.mark.parametrize(
+    ("yaml_text", "match"),
+    [
+        ("resolution: 0.05\norigin: [0, 0, 0]\n", "missing required field 'image'"),
+        ("image: m.pgm\nresolution: fast\norigin: [0, 0, 0]\n", "'resolution' must be a float"),
+        ("image: m.pgm\nresolution: 0.05\norigin: [0, 0]\n", "'origin' must be a list of three"),
+        ("image: m.pgm\nresolution: 0.05\norigin: [0, 0, 0]\nmode: fancy\n", "'mode' must be"),
+        ("image: m.pgm\nresolution: -1\norigin: [0, 0, 0]\n", "'resolution' must be a positive"),
+        ("image: missing.pgm\nresolution: 0.05\norigin: [0, 0, 0]\n", "no such image file"),
+        ("just a string\n", "expected a YAML mapping"),
+        ("image: [unclosed\n", "not a readable YAML"),
+    ],
+)
+def test_bad_yaml_raises_one_line_error(tmp_path: Path, yaml_text: str, match: str) -> None:
+    cv2.imwrite(str(tmp_path / "m.pgm"), np.full((3, 3), 254, np.uint8))
+    path = write_yaml(tmp_path / "bad.yaml", yaml_text)
+    with pytest.raises(MapFileError, match=match) as info:
+        rose.load_map(path)
+    assert str(path) in str(info.value)
+    assert "\n" not in str(info.value)
+
+
+def test_unreadable_image_and_missing_file(tmp_path: Path) -> None:
+    (tmp_path / "junk.png").write_bytes(b"not an image at all")
+    with pytest.raises(MapFileError, match="not a readable image"):
+        rose.load_map(tmp_path / "junk.png")
+    with pytest.raises(MapFileError, match="no such file"):
+        rose.load_map(tmp_path / "nothing.yaml")
+
+
+def test_save_into_missing_directory_fails_cleanly(tmp_path: Path) -> None:
+    occupancy = OccupancyMap(grid=np.zeros((3, 3), np.int8))
+    with pytest.raises(MapFileError, match="does not exist"):
+        rose.save_map(tmp_path / "nowhere" / "m.yaml", occupancy)
+    assert not (tmp_path / "nowhere").exists()
+
+
+def test_save_leaves_no_temporary_files(tmp_path: Path) -> None:
+    rose.save_map(tmp_path / "m.yaml", OccupancyMap(grid=np.zeros((3, 3), np.int8)))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m.pgm", "m.yaml"]
