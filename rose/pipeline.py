@@ -45,7 +45,9 @@ def _check(p: RoseParams) -> None:
     if not 0.0 < p.peak_prominence <= 1.0:
         problems.append(f"peak_prominence must be in (0, 1], got {p.peak_prominence}")
     if not 0.01 <= p.angular_resolution_deg <= 30.0:
-        problems.append(f"angular_resolution_deg must be in [0.01, 30], got {p.angular_resolution_deg}")
+        problems.append(
+            f"angular_resolution_deg must be in [0.01, 30], got {p.angular_resolution_deg}"
+        )
     if not 0.0 <= p.smoothing_deg <= 30.0:
         problems.append(f"smoothing_deg must be in [0, 30], got {p.smoothing_deg}")
     if p.min_radius_px < 0:
@@ -101,7 +103,9 @@ def analyze(grid: npt.ArrayLike, params: RoseParams | None = None, **overrides: 
     step_deg = 180.0 / bins.centres.size
     cumulative = cumulative_amplitude(amplitude, bins, smoothing_bins=p.smoothing_deg / step_deg)
     peaks = find_direction_peaks(cumulative, prominence_fraction=p.peak_prominence)
-    directions = np.mod(refine_peak_positions(cumulative, peaks.indices) * (math.pi / bins.centres.size), math.pi)
+    directions = np.mod(
+        refine_peak_positions(cumulative, peaks.indices) * (math.pi / bins.centres.size), math.pi
+    )
     score = structure_score(cumulative, peaks.indices)
     has_structure = peaks.indices.size > 0 and bool(occupied.any())
 
@@ -148,5 +152,7 @@ def _scale_and_threshold(
     cell_scores = reference * np.float32(scale)
     if p.threshold_mode == "fixed":
         return cell_scores, p.fixed_threshold
-    threshold = gmm_threshold(occupied_scores * np.float32(scale), max_samples=p.max_gmm_samples, seed=p.seed)
+    threshold = gmm_threshold(
+        occupied_scores * np.float32(scale), max_samples=p.max_gmm_samples, seed=p.seed
+    )
     return cell_scores, threshold
