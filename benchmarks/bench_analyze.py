@@ -24,7 +24,10 @@ MAPS = Path(__file__).resolve().parents[2] / "shared" / "maps"
 CASES = [
     ("willow 566x608", MAPS / "willow_turtlebot_apps" / "willow-2010-02-18-0.10.yaml"),
     ("fr079 1152x736", MAPS / "rose2_aislabunimi" / "Freiburg_Building_079_partial" / "map15.yaml"),
-    ("Freiburg101 1344x800", MAPS / "bormann_ipa_room_segmentation" / "Freiburg101_scan_furnitures.png"),
+    (
+        "Freiburg101 1344x800",
+        MAPS / "bormann_ipa_room_segmentation" / "Freiburg101_scan_furnitures.png",
+    ),
     ("warehouse 1006x1674", MAPS / "nav2_bringup" / "warehouse.yaml"),
     ("office_g 2050x2314", MAPS / "bormann_ipa_room_segmentation" / "office_g_furnitures.png"),
 ]
@@ -46,7 +49,9 @@ def stage_ms(grid: np.ndarray, repeat: int) -> dict[str, float]:
     shape = spectrum.padded_shape(grid.shape)
     half = spectrum.half_spectrum(occupied, shape)
     amplitude = np.abs(half)
-    bins = unfold.direction_bins(shape, angular_resolution_deg=p.angular_resolution_deg, min_radius_px=p.min_radius_px)
+    bins = unfold.direction_bins(
+        shape, angular_resolution_deg=p.angular_resolution_deg, min_radius_px=p.min_radius_px
+    )
     cumulative = unfold.cumulative_amplitude(amplitude, bins, smoothing_bins=1.0)
     peaks = directions.find_direction_peaks(cumulative, prominence_fraction=p.peak_prominence)
     angles = peaks.indices * (math.pi / bins.centres.size)
@@ -55,10 +60,17 @@ def stage_ms(grid: np.ndarray, repeat: int) -> dict[str, float]:
     scores = reference[occupied]
     return {
         "rfft2": best_ms(lambda: spectrum.half_spectrum(occupied, shape), repeat),
-        "unfold": best_ms(lambda: unfold.cumulative_amplitude(np.abs(half), bins, smoothing_bins=1.0), repeat),
-        "mask": best_ms(lambda: scoring.structure_mask(shape, angles, half_width_px=p.mask_half_width_px), repeat),
+        "unfold": best_ms(
+            lambda: unfold.cumulative_amplitude(np.abs(half), bins, smoothing_bins=1.0), repeat
+        ),
+        "mask": best_ms(
+            lambda: scoring.structure_mask(shape, angles, half_width_px=p.mask_half_width_px),
+            repeat,
+        ),
         "irfft2": best_ms(lambda: scoring.nominal_reference_map(half, mask, grid.shape), repeat),
-        "gmm": best_ms(lambda: threshold.gmm_threshold(scores, max_samples=p.max_gmm_samples, seed=0), repeat),
+        "gmm": best_ms(
+            lambda: threshold.gmm_threshold(scores, max_samples=p.max_gmm_samples, seed=0), repeat
+        ),
     }
 
 
@@ -66,7 +78,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=7)
     args = parser.parse_args()
-    print(f"{'map':<22} {'padded':>11} {'fft2 ms':>8} {'analyze ms':>10} {'ratio':>6}   stages (ms)")
+    print(
+        f"{'map':<22} {'padded':>11} {'fft2 ms':>8} {'analyze ms':>10} {'ratio':>6}   stages (ms)"
+    )
     for label, path in CASES:
         if not path.exists():
             print(f"{label:<22} missing: {path}")
@@ -74,10 +88,14 @@ def main() -> None:
         grid = rose.load_map(path).grid
         shape = spectrum.padded_shape(grid.shape)
         occupied = grid >= 65
-        fft_ms = best_ms(lambda o=occupied, s=shape: scipy.fft.fft2(o.astype(np.float64), s=s), args.repeat)
+        fft_ms = best_ms(
+            lambda o=occupied, s=shape: scipy.fft.fft2(o.astype(np.float64), s=s), args.repeat
+        )
         analyze_ms = best_ms(lambda g=grid: rose.analyze(g), args.repeat)
         stages = " ".join(f"{k}={v:.1f}" for k, v in stage_ms(grid, args.repeat).items())
-        print(f"{label:<22} {shape[1]:>5}x{shape[0]:<5} {fft_ms:8.1f} {analyze_ms:10.1f} {analyze_ms / fft_ms:6.2f}   {stages}")
+        print(
+            f"{label:<22} {shape[1]:>5}x{shape[0]:<5} {fft_ms:8.1f} {analyze_ms:10.1f} {analyze_ms / fft_ms:6.2f}   {stages}"
+        )
 
 
 if __name__ == "__main__":

@@ -22,10 +22,14 @@ def cluttered_map(tmp_path: Path) -> Path:
     return path
 
 
-def test_clean_writes_map_and_report(cluttered_map: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_clean_writes_map_and_report(
+    cluttered_map: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     out = tmp_path / "out" / "clean.yaml"
     out.parent.mkdir()
-    assert main(["clean", str(cluttered_map), "-o", str(out), "--json", str(tmp_path / "r.json")]) == 0
+    assert (
+        main(["clean", str(cluttered_map), "-o", str(out), "--json", str(tmp_path / "r.json")]) == 0
+    )
     cleaned = rose.load_map(out)
     expected = rose.analyze(rose.load_map(cluttered_map).grid).cleaned
     np.testing.assert_array_equal(cleaned.grid, expected)
@@ -46,7 +50,9 @@ def test_clean_parameters_reach_the_algorithm(cluttered_map: Path, tmp_path: Pat
     assert removed.any() and np.all(cleaned[removed] == -1)
 
 
-def test_score_prints_a_table_and_json(cluttered_map: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_score_prints_a_table_and_json(
+    cluttered_map: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     assert main(["score", str(cluttered_map)]) == 0
     assert str(cluttered_map) in capsys.readouterr().out
     assert main(["score", "--json", str(cluttered_map)]) == 0

@@ -22,7 +22,9 @@ def write_yaml(path: Path, text: str) -> Path:
 def test_trinary_round_trip_is_lossless(tmp_path: Path) -> None:
     rng = np.random.default_rng(3)
     grid = rng.choice(np.array([-1, 0, 100], dtype=np.int8), size=(37, 53))
-    original = OccupancyMap(grid=grid, resolution_m=0.025, origin_xy_m=(-3.5, 2.25), origin_yaw_rad=0.1)
+    original = OccupancyMap(
+        grid=grid, resolution_m=0.025, origin_xy_m=(-3.5, 2.25), origin_yaw_rad=0.1
+    )
     rose.save_map(tmp_path / "m.yaml", original)
     loaded = rose.load_map(tmp_path / "m.yaml")
     np.testing.assert_array_equal(loaded.grid, grid)
@@ -32,7 +34,9 @@ def test_trinary_round_trip_is_lossless(tmp_path: Path) -> None:
 
 
 def test_real_map_round_trip(tmp_path: Path) -> None:
-    source = rose.load_map(SHARED_MAPS / "rose2_aislabunimi/Freiburg_Building_079_partial/map5.yaml")
+    source = rose.load_map(
+        SHARED_MAPS / "rose2_aislabunimi/Freiburg_Building_079_partial/map5.yaml"
+    )
     rose.save_map(tmp_path / "copy.yaml", source)
     again = rose.load_map(tmp_path / "copy.yaml")
     np.testing.assert_array_equal(again.grid, source.grid)
@@ -73,7 +77,9 @@ def test_scale_and_raw_modes(tmp_path: Path) -> None:
 def test_image_path_is_relative_to_the_yaml(tmp_path: Path) -> None:
     (tmp_path / "img").mkdir()
     cv2.imwrite(str(tmp_path / "img" / "m.png"), np.full((5, 5), 254, np.uint8))
-    yaml_path = write_yaml(tmp_path / "m.yaml", "image: img/m.png\nresolution: 0.05\norigin: [0, 0, 0]\n")
+    yaml_path = write_yaml(
+        tmp_path / "m.yaml", "image: img/m.png\nresolution: 0.05\norigin: [0, 0, 0]\n"
+    )
     assert rose.load_map(yaml_path).grid.shape == (5, 5)
 
 
@@ -101,12 +107,18 @@ def test_png_colour_types_read_alike(tmp_path: Path, channels: str) -> None:
             cv2.imwrite(str(path), arrays[channels])
     grid = rose.load_map(path).grid
     expected = rose.mapfile.image_to_grid(
-        grey[:, :, np.newaxis], mode="trinary", negate=False, occupied_thresh=0.65, free_thresh=0.196
+        grey[:, :, np.newaxis],
+        mode="trinary",
+        negate=False,
+        occupied_thresh=0.65,
+        free_thresh=0.196,
     )
     np.testing.assert_array_equal(grid, expected)
 
 
-@pytest.mark.parametrize("name", ["bormann_ipa_room_segmentation/lab_ipa.png", "aws_small_warehouse_005/map_rotated.png"])
+@pytest.mark.parametrize(
+    "name", ["bormann_ipa_room_segmentation/lab_ipa.png", "aws_small_warehouse_005/map_rotated.png"]
+)
 def test_real_png_maps_load(name: str) -> None:
     grid = rose.load_map(SHARED_MAPS / name).grid
     assert grid.ndim == 2 and grid.dtype == np.int8

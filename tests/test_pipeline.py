@@ -141,7 +141,7 @@ def test_very_elongated_maps(shape: tuple[int, int]) -> None:
 
 
 def test_clutter_value_unknown_marks_removed_cells_unknown() -> None:
-    cluttered, truth = add_clutter(floor_plan(), blobs=20, specks=100, seed=7)
+    cluttered, _ = add_clutter(floor_plan(), blobs=20, specks=100, seed=7)
     result = rose.analyze(cluttered, clutter_value="unknown")
     assert np.all(result.cleaned[result.clutter] == -1)
     assert np.all(result.cleaned[result.structure] == 100)

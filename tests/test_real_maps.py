@@ -51,7 +51,10 @@ def test_furniture_is_labelled_clutter_more_often_than_walls() -> None:
 
 
 def test_growing_slam_map_is_structured_throughout() -> None:
-    scores = [rose.analyze(rose.load_map(FR079 / f"map{i}.yaml").grid).structure_score for i in range(2, 16)]
+    scores = [
+        rose.analyze(rose.load_map(FR079 / f"map{i}.yaml").grid).structure_score
+        for i in range(2, 16)
+    ]
     # Paper: 0.17 for the final Freiburg 079 map; a correct SLAM map stays below the 0.2 trust level.
     assert max(scores) < 0.2
 
@@ -62,5 +65,7 @@ def test_distorted_map_scores_worse() -> None:
     # Scatter the occupied cells: the same amount of "wall" with no structure left.
     occupied = np.argwhere(grid == 100)
     scattered = np.zeros_like(grid)
-    scattered[rng.integers(0, grid.shape[0], len(occupied)), rng.integers(0, grid.shape[1], len(occupied))] = 100
+    scattered[
+        rng.integers(0, grid.shape[0], len(occupied)), rng.integers(0, grid.shape[1], len(occupied))
+    ] = 100
     assert rose.analyze(scattered).structure_score > 0.4 > rose.analyze(grid).structure_score
