@@ -22,6 +22,7 @@ from rose.errors import RoseError
 from rose.mapfile import OccupancyMap, load_map, save_map, write_atomically
 from rose.pipeline import analyze
 from rose.result import RoseParams, RoseResult
+from rose.walls_cli import add_walls_parser
 
 __all__ = ["add_param_arguments", "main", "params_from_args", "result_summary"]
 
@@ -214,24 +215,16 @@ def build_parser() -> argparse.ArgumentParser:
     )
     clean.add_argument("--json", type=Path, metavar="REPORT", help="also write a JSON report")
     add_param_arguments(clean)
-    clean.set_defaults(handler=_run_clean)
+    clean.set_defaults(func=_run_clean)
 
     score = commands.add_parser("score", help="W and dominant directions of maps")
     score.add_argument("maps", type=Path, nargs="+", metavar="MAP")
     score.add_argument("--json", action="store_true", help="print JSON instead of a table")
     add_param_arguments(score)
-    score.set_defaults(handler=_run_score)
+    score.set_defaults(func=_run_score)
 
-    _add_optional_commands(commands)
-    return parser
-
-
-def _add_optional_commands(commands: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    try:
-        from rose.walls_cli import add_walls_parser
-    except ImportError:
-        return
     add_walls_parser(commands)
+    return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -240,7 +233,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s: %(message)s")
     try:
-        return int(args.handler(args))
+        return int(args.func(args))
     except RoseError as err:
         if args.debug:
             raise
