@@ -1,0 +1,108 @@
+"""``rose-bag evaluate``: argument parser and entry point (wired into ``rose_logs.cli``)."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import logging
+import sys
+from pathlib import Path
+from typing import Any
+
+from rose_logs.evaluation.config import DEFAULT_MAPS_DIR, EvaluationConfig
+
+__all__ = ["add_evaluate_parser", "main", "run_evaluate"]
+
+
+def _csv(value: str) -> tuple[str, ...]:
+    return tuple(v.strip() for v in value.split(",") if v.strip())
+
+
+def _ints(value: str) -> tuple[int, ...]:
+    try:
+        return tuple(int(v) for v in _csv(value))
+    except ValueError as err:
+        msg = f"expected comma-separated integers, got {value!r}"
+        raise argparse.ArgumentTypeError(msg) from err
+
+
+def _configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("out_dir", type=Path, help="report folder (created; files overwritten)")
+    parser.add_argument(
+        "--config",
+        choices=("small", "full"),
+        default="small",
+        help="small: 1 log + 1 benchmark map, 12 clutter maps each (seconds); "
+        "full: 5 logs + 19 benchmark maps, 243 clutter maps each, 3 drift levels x 3 seeds",
+    )
+    parser.add_argument("--seed", type=int, default=None, help="base seed (default 2021)")
+    parser.add_argument(
+        "--maps-dir",
+        type=Path,
+        default=None,
+        help=f"folder with radish_carmen_corrected_logs/ and bormann_ipa_room_segmentation/ "
+        f"(default {DEFAULT_MAPS_DIR})",
+    )
+    parser.add_argument("--logs", type=_csv, default=None, help="comma-separated Radish logs")
+    parser.add_argument("--maps", type=_csv, default=None, help="comma-separated benchmark maps")
+    parser.add_argument("--sizes", type=_ints, default=None, help="obstacle sizes in px")
+    parser.add_argument("--counts", type=_ints, default=None, help="obstacle counts per map")
+    parser.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
+
+
+def add_evaluate_parser(subparsers: Any) -> None:
+    """Add the ``evaluate`` sub-command to an ``argparse`` sub-parser collection."""
+    parser = subparsers.add_parser(
+        "evaluate",
+        help="reproduce the paper's experiments on real maps and logs",
+        description="Run the clutter-sensitivity, broken-map and confidence experiments and "
+        "write a markdown report with CSV tables and PNG figures.",
+    )
+    _configure(parser)
+    parser.set_defaults(func=run_evaluate)
+
+
+def config_from_args(args: argparse.Namespace) -> EvaluationConfig:
+    """The :class:`EvaluationConfig` an ``evaluate`` command line asks for."""
+    changes: dict[str, object] = {}
+    for attr, field in (
+        ("seed", "seed"),
+        ("maps_dir", "maps_dir"),
+        ("logs", "logs"),
+        ("maps", "benchmark_maps"),
+        ("sizes", "sizes_px"),
+        ("counts", "counts"),
+    ):
+        value = getattr(args, attr, None)
+        if value is not None:
+            changes[field] = value
+    if getattr(args, "no_plots", False):
+        changes["plots"] = False
+    base = EvaluationConfig.full() if args.config == "full" else EvaluationConfig.small()
+    return dataclasses.replace(base, **changes)  # type: ignore[arg-type]
+
+
+def run_evaluate(args: argparse.Namespace) -> int:
+    """Run the evaluation the parsed arguments ask for; print the report path. Returns 0."""
+    from rose_logs.evaluation.report import run_evaluation
+
+    config = config_from_args(args)
+    report = run_evaluation(config, args.out_dir, progress=lambda m: print(m, file=sys.stderr))
+    print(report.markdown_path)
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m rose_logs.evaluation``: the ``evaluate`` command on its own."""
+    parser = argparse.ArgumentParser(prog="python -m rose_logs.evaluation")
+    _configure(parser)
+    parser.add_argument("--debug", action="store_true", help="log progress and show tracebacks")
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.INFO if args.debug else logging.WARNING)
+    try:
+        return run_evaluate(args)
+    except (OSError, ValueError) as err:
+        if args.debug:
+            raise
+        print(f"error: {err}", file=sys.stderr)
+        return 1

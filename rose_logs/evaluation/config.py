@@ -1,0 +1,128 @@
+"""Configurations of the evaluation: a small one for tests, the full one for the benchmark."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from rose import RoseParams
+from rose_logs.evaluation.clutter import SHAPES, ClutterShape
+
+__all__ = [
+    "BORMANN_MAPS",
+    "DEFAULT_MAPS_DIR",
+    "PAPER_W",
+    "RADISH_LOGS",
+    "EvaluationConfig",
+]
+
+DEFAULT_MAPS_DIR = Path("/work/shared/maps")
+RADISH_LOGS: tuple[str, ...] = ("aces", "csail", "intel", "freiburg-079", "freiburg-101")
+#: Benchmark maps with a clean and a ``_furnitures`` version. Left out: ``intel_map.png`` (no black
+#: walls, no furniture version; the Intel lab comes from its log instead) and ``lab_ipa`` (its exterior
+#: is drawn black: 82 % of the image would be "structure").
+BORMANN_MAPS: tuple[str, ...] = (
+    "Freiburg101_scan",
+    "Freiburg52_scan",
+    "Freiburg79_scan",
+    "NLB",
+    "lab_a_scan",
+    "lab_b_scan",
+    "lab_c_scan",
+    "lab_d_scan",
+    "lab_f_scan",
+    "lab_intel",
+    "office_a",
+    "office_b",
+    "office_c",
+    "office_d",
+    "office_e",
+    "office_f",
+    "office_g",
+    "office_h",
+    "office_i",
+)
+#: The paper's W (Fig. gen_struc_score): (correct SLAM map, odometry-only map), by our log names.
+PAPER_W: dict[str, tuple[float, float]] = {
+    "aces": (0.07, 0.47),
+    "csail": (0.28, 0.72),
+    "freiburg-101": (0.12, 0.64),
+    "freiburg-079": (0.17, 0.55),
+    "edmonton": (0.07, 0.52),
+    "fhw": (0.21, 0.70),
+}
+
+
+@dataclass(frozen=True)
+class EvaluationConfig:
+    """Everything that determines an evaluation run.
+
+    Attributes
+    ----------
+    name : str
+        ``"small"``, ``"full"`` or a custom label, printed in the report.
+    seed : int
+        Base seed; every clutter map and drifted trajectory derives its seed from it.
+    maps_dir : Path
+        Folder holding ``radish_carmen_corrected_logs/`` and ``bormann_ipa_room_segmentation/``.
+    logs : tuple of str
+        Radish logs rasterised for experiments 1 and 2.
+    benchmark_maps : tuple of str
+        Bormann maps for experiment 1 and for the furniture case.
+    resolution_m : float
+        Cell size of the rasterised logs, metres.
+    shapes, sizes_px, counts : tuples
+        Experiment 1 grid: every combination runs once per map.
+    drift_levels : tuple of float
+        Experiment 2 drift levels (multipliers of :class:`rose_logs.drift.DriftParams`), besides 0.
+    drift_seeds : int
+        Drifted maps per log and level.
+    rose_params : RoseParams
+        ROSE parameters used for every map.
+    plots : bool
+        Write PNG figures (needs matplotlib).
+    """
+
+    name: str = "small"
+    seed: int = 2021
+    maps_dir: Path = DEFAULT_MAPS_DIR
+    logs: tuple[str, ...] = ("freiburg-101",)
+    benchmark_maps: tuple[str, ...] = ("Freiburg79_scan",)
+    resolution_m: float = 0.05
+    shapes: tuple[ClutterShape, ...] = SHAPES
+    sizes_px: tuple[int, ...] = (4, 20)
+    counts: tuple[int, ...] = (20, 100)
+    drift_levels: tuple[float, ...] = (1.0,)
+    drift_seeds: int = 1
+    rose_params: RoseParams = field(default_factory=RoseParams)
+    plots: bool = True
+
+    @classmethod
+    def small(cls, **changes: object) -> EvaluationConfig:
+        """A few maps and settings: seconds, for the test suite."""
+        return dataclasses.replace(cls(), **changes)  # type: ignore[arg-type]
+
+    @classmethod
+    def full(cls, **changes: object) -> EvaluationConfig:
+        """Every log and benchmark map, the paper's ranges of clutter (benchmark)."""
+        full = cls(
+            name="full",
+            logs=RADISH_LOGS,
+            benchmark_maps=BORMANN_MAPS,
+            sizes_px=(2, 6, 10, 15, 20, 25, 30, 35, 39),
+            counts=(20, 40, 60, 80, 100, 120, 140, 160, 180),
+            drift_levels=(0.5, 1.0, 2.0),
+            drift_seeds=3,
+        )
+        return dataclasses.replace(full, **changes)  # type: ignore[arg-type]
+
+    @property
+    def logs_dir(self) -> Path:
+        """Folder of the Radish CARMEN logs."""
+        return self.maps_dir / "radish_carmen_corrected_logs"
+
+    @property
+    def benchmark_dir(self) -> Path:
+        """Folder of the Bormann et al. benchmark maps."""
+        return self.maps_dir / "bormann_ipa_room_segmentation"
