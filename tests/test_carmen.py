@@ -117,3 +117,69 @@ def test_beam_angles(n: int, increment_deg: float) -> None:
     assert angles.shape == (n,)
     assert angles[0] == pytest.approx(-math.pi / 2)
     assert_allclose(np.diff(angles), math.radians(increment_deg), rtol=1e-12)
+
+
+# -- sessions written from a log (rose_logs.carmen_session) -------------------------------------
+@needs_logs
+@pytest.mark.parametrize(("name", "fmt"), [("s.bag", "ros1"), ("s_db3", "db3"), ("s.mcap", "mcap")])
+def test_session_write_then_read(tmp_path: Path, name: str, fmt: str) -> None:
+    from rosbags.highlevel import AnyReader
+
+    from rose_logs.carmen_session import format_from_path, write_carmen_session
+    from rose_logs.occupancy_builder import BuilderParams
+
+    log = read_carmen_log(LOGS / "freiburg-101-corrected.log.gz", max_scans=40)
+    out = tmp_path / name
+    assert format_from_path(out) == fmt
+    summary = write_carmen_session(
+        log,
+        out,
+        builder_params=BuilderParams(resolution_m=0.2, grow_margin_m=2.0),
+        map_period_s=20.0,
+        pose_output="both",
+    )
+    assert summary.scans == 40
+    with AnyReader([out]) as reader:
+        counts = {c.topic: c.msgcount for c in reader.connections}
+        assert counts["/scan"] == 40 and counts["/tf"] == 40 and counts["/odom"] == 40
+        assert counts["/map"] == summary.maps >= 2
+        maps = [c for c in reader.connections if c.topic == "/map"]
+        last = None
+        for conn, _, raw in reader.messages(connections=maps):
+            last = reader.deserialize(raw, conn.msgtype)
+        assert last is not None
+        grid = np.asarray(last.data, dtype=np.int8).reshape(last.info.height, last.info.width)
+        np.testing.assert_array_equal(grid, summary.final_grid)
+        assert last.info.resolution == pytest.approx(0.2)
+        scans = [c for c in reader.connections if c.topic == "/scan"]
+        conn, t_ns, raw = next(iter(reader.messages(connections=scans)))
+        scan = reader.deserialize(raw, conn.msgtype)
+        assert t_ns == log.scans[0].stamp_ns
+        np.testing.assert_allclose(scan.ranges, log.scans[0].ranges_m)
+    with pytest.raises(FileExistsError, match="exists already"):
+        write_carmen_session(log, out)
+
+
+@needs_logs
+def test_convert_command(tmp_path: Path) -> None:
+    import argparse
+
+    from rose_logs.carmen_session import add_convert_parser
+
+    parser = argparse.ArgumentParser()
+    add_convert_parser(parser.add_subparsers())
+    out = tmp_path / "drifted.bag"
+    args = parser.parse_args(
+        [
+            "convert",
+            str(LOGS / "freiburg-101-corrected.log.gz"),
+            str(out),
+            "--max-scans", "20",
+            "--resolution", "0.25",
+            "--drift-level", "1",
+            "--map-file", str(tmp_path / "final.yaml"),
+        ]
+    )  # fmt: skip
+    assert args.func(args) == 0
+    assert out.is_file()
+    assert (tmp_path / "final.yaml").is_file()

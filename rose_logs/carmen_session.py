@@ -1,0 +1,476 @@
+"""A CARMEN log as a ROS mapping session: ``/scan``, the pose, ``/map`` snapshots.
+
+Messages, all stamped with the scan time (log time = header stamp, nanoseconds):
+
+- ``/scan``: ``sensor_msgs/LaserScan`` in ``base_frame`` (the laser is the robot's reference point);
+- ``/tf`` (``tf2_msgs/TFMessage``, ``world_frame -> base_frame``) and/or ``/odom``
+  (``nav_msgs/Odometry``), from the log's poses, optionally drifted (:mod:`rose_logs.drift`);
+- ``/map``: ``nav_msgs/OccupancyGrid`` in ``world_frame`` built incrementally from the scans so far
+  (:mod:`rose_logs.occupancy_builder`), every ``map_period_s`` seconds of log time and after the last scan.
+
+Timestamps that go backwards in the log (a few in the Intel log) are moved 1 ns after their
+predecessor so every output topic is time-ordered. Writing goes through :func:`_open_sink`, a thin
+adapter over rosbags' writers kept apart so it can be swapped for the project's bag writer.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import math
+import sys
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+import numpy.typing as npt
+
+from rose_logs.carmen import CarmenLog, beam_angles, read_carmen_log
+from rose_logs.drift import apply_drift
+from rose_logs.occupancy_builder import BuilderParams, OccupancyGridBuilder, ScanBatch
+
+__all__ = [
+    "SessionFormat",
+    "SessionSummary",
+    "add_convert_parser",
+    "format_from_path",
+    "run_convert",
+    "write_carmen_session",
+]
+
+_LOG = logging.getLogger(__name__)
+
+SessionFormat = Literal["ros1", "db3", "mcap"]
+PoseOutput = Literal["tf", "odom", "both"]
+
+
+@dataclass(frozen=True)
+class SessionSummary:
+    """What :func:`write_carmen_session` wrote.
+
+    Attributes
+    ----------
+    path : Path
+        Output bag (file for ROS 1, folder for ROS 2).
+    format : str
+        ``"ros1"``, ``"db3"`` or ``"mcap"``.
+    scans : int
+        ``/scan`` messages.
+    maps : int
+        ``/map`` messages.
+    start_ns, end_ns : int
+        First and last message time, nanoseconds.
+    final_grid : ndarray of int8, shape (rows, cols)
+        The last ``/map`` grid (ROS convention).
+    final_origin_xy_m : tuple of float
+        Its origin in ``world_frame``, metres.
+    resolution_m : float
+        Its cell size, metres.
+    skipped_lines : int
+        Malformed ``FLASER`` lines the parser skipped.
+    """
+
+    path: Path
+    format: str
+    scans: int
+    maps: int
+    start_ns: int
+    end_ns: int
+    final_grid: npt.NDArray[np.int8]
+    final_origin_xy_m: tuple[float, float]
+    resolution_m: float
+    skipped_lines: int
+
+
+def format_from_path(path: Path) -> SessionFormat:
+    """``ros1`` for ``*.bag``, ``mcap`` for ``*.mcap``, otherwise ``db3`` (a ROS 2 bag folder)."""
+    suffix = path.suffix.lower()
+    if suffix == ".bag":
+        return "ros1"
+    if suffix == ".mcap":
+        return "mcap"
+    return "db3"
+
+
+# -- the writer adapter (rosbags) -----------------------------------------------------------
+class _Sink:
+    """Typestore, connections and serialisation for one output bag (rosbags writers)."""
+
+    def __init__(self, path: Path, fmt: SessionFormat) -> None:
+        from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+        self.ros1 = fmt == "ros1"
+        self.typestore = get_typestore(Stores.ROS1_NOETIC if self.ros1 else Stores.ROS2_HUMBLE)
+        if "tf2_msgs/msg/TFMessage" not in self.typestore.types:
+            self.typestore.register(
+                get_types_from_msg(
+                    "geometry_msgs/TransformStamped[] transforms", "tf2_msgs/msg/TFMessage"
+                )
+            )
+        if self.ros1:
+            from rosbags.rosbag1 import Writer as Ros1Writer
+
+            self.writer: Any = Ros1Writer(path)
+        else:
+            from rosbags.rosbag2 import StoragePlugin
+            from rosbags.rosbag2 import Writer as Ros2Writer
+
+            plugin = StoragePlugin.MCAP if fmt == "mcap" else StoragePlugin.SQLITE3
+            self.writer = Ros2Writer(path, version=9, storage_plugin=plugin)
+        self.connections: dict[str, Any] = {}
+        self.seq = 0
+
+    def __enter__(self) -> _Sink:
+        self.writer.open()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.writer.close()
+
+    def add(self, topic: str, msgtype: str) -> None:
+        self.connections[topic] = self.writer.add_connection(
+            topic, msgtype, typestore=self.typestore
+        )
+
+    def write(self, topic: str, time_ns: int, msg: Any) -> None:
+        msgtype = msg.__msgtype__
+        if self.ros1:
+            data = self.typestore.serialize_ros1(msg, msgtype)
+        else:
+            data = self.typestore.serialize_cdr(msg, msgtype)
+        self.writer.write(self.connections[topic], time_ns, data)
+
+    def header(self, time_ns: int, frame_id: str) -> Any:
+        types = self.typestore.types
+        stamp = types["builtin_interfaces/msg/Time"](
+            sec=time_ns // 1_000_000_000, nanosec=time_ns % 1_000_000_000
+        )
+        if self.ros1:
+            self.seq += 1
+            return types["std_msgs/msg/Header"](seq=self.seq, stamp=stamp, frame_id=frame_id)
+        return types["std_msgs/msg/Header"](stamp=stamp, frame_id=frame_id)
+
+
+def _open_sink(path: Path, fmt: SessionFormat) -> _Sink:
+    return _Sink(path, fmt)
+
+
+# -- messages -----------------------------------------------------------------------------------
+def _quaternion(types: dict[str, Any], yaw: float) -> Any:
+    return types["geometry_msgs/msg/Quaternion"](
+        x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2)
+    )
+
+
+def _scan_msg(
+    sink: _Sink, t_ns: int, frame: str, ranges: npt.NDArray[np.float32], max_m: float
+) -> Any:
+    angles = beam_angles(ranges.size)
+    return sink.typestore.types["sensor_msgs/msg/LaserScan"](
+        header=sink.header(t_ns, frame),
+        angle_min=float(angles[0]),
+        angle_max=float(angles[-1]),
+        angle_increment=float(angles[1] - angles[0]) if ranges.size > 1 else 0.0,
+        time_increment=0.0,
+        scan_time=0.0,
+        range_min=0.0,
+        range_max=float(max_m),
+        ranges=np.asarray(ranges, dtype=np.float32),
+        intensities=np.zeros(0, dtype=np.float32),
+    )
+
+
+def _pose_msgs(
+    sink: _Sink, t_ns: int, pose: npt.NDArray[np.float64], world: str, base: str
+) -> tuple[Any, Any]:
+    types = sink.typestore.types
+    x, y, yaw = (float(v) for v in pose)
+    q = _quaternion(types, yaw)
+    transform = types["geometry_msgs/msg/TransformStamped"](
+        header=sink.header(t_ns, world),
+        child_frame_id=base,
+        transform=types["geometry_msgs/msg/Transform"](
+            translation=types["geometry_msgs/msg/Vector3"](x=x, y=y, z=0.0), rotation=q
+        ),
+    )
+    tf = types["tf2_msgs/msg/TFMessage"](transforms=[transform])
+    point = types["geometry_msgs/msg/Point"](x=x, y=y, z=0.0)
+    zeros36 = np.zeros(36, dtype=np.float64)
+    odom = types["nav_msgs/msg/Odometry"](
+        header=sink.header(t_ns, world),
+        child_frame_id=base,
+        pose=types["geometry_msgs/msg/PoseWithCovariance"](
+            pose=types["geometry_msgs/msg/Pose"](position=point, orientation=q), covariance=zeros36
+        ),
+        twist=types["geometry_msgs/msg/TwistWithCovariance"](
+            twist=types["geometry_msgs/msg/Twist"](
+                linear=types["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0),
+                angular=types["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0),
+            ),
+            covariance=zeros36,
+        ),
+    )
+    return tf, odom
+
+
+def _map_msg(sink: _Sink, t_ns: int, world: str, builder: OccupancyGridBuilder) -> Any:
+    types = sink.typestore.types
+    grid = builder.grid()
+    ox, oy = builder.origin_xy_m
+    rows, cols = grid.shape
+    time_type = types["builtin_interfaces/msg/Time"]
+    info = types["nav_msgs/msg/MapMetaData"](
+        map_load_time=time_type(sec=t_ns // 1_000_000_000, nanosec=t_ns % 1_000_000_000),
+        resolution=float(builder.params.resolution_m),
+        width=cols,
+        height=rows,
+        origin=types["geometry_msgs/msg/Pose"](
+            position=types["geometry_msgs/msg/Point"](x=ox, y=oy, z=0.0),
+            orientation=_quaternion(types, 0.0),
+        ),
+    )
+    return types["nav_msgs/msg/OccupancyGrid"](
+        header=sink.header(t_ns, world), info=info, data=grid.reshape(-1).astype(np.int8)
+    )
+
+
+def _integrate(
+    builder: OccupancyGridBuilder,
+    log: CarmenLog,
+    poses: npt.NDArray[np.float64],
+    start: int,
+    stop: int,
+) -> None:
+    """Integrate scans ``start:stop`` (consecutive scans with equal beam counts are batched)."""
+    i = start
+    while i < stop:
+        n = log.scans[i].ranges_m.size
+        j = i
+        while j < stop and log.scans[j].ranges_m.size == n:
+            j += 1
+        ranges = np.stack([s.ranges_m for s in log.scans[i:j]])
+        builder.integrate(ScanBatch(ranges, beam_angles(n), poses[i:j]))
+        i = j
+
+
+def _monotonic(stamps: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
+    out = stamps.astype(np.int64).copy()
+    for i in range(1, out.size):  # a handful of fixes at most; clarity over vectorising
+        if out[i] <= out[i - 1]:
+            out[i] = out[i - 1] + 1
+    return out
+
+
+def write_carmen_session(
+    log: CarmenLog,
+    path: str | Path,
+    *,
+    fmt: SessionFormat | None = None,
+    builder_params: BuilderParams | None = None,
+    map_period_s: float = 10.0,
+    pose_output: PoseOutput = "tf",
+    world_frame: str = "map",
+    base_frame: str = "base_link",
+    drift_level: float = 0.0,
+    drift_seed: int = 0,
+    drift_start_s: float = 0.0,
+    progress: Callable[[int, int], None] | None = None,
+) -> SessionSummary:
+    """Write a CARMEN log as a ROS session (see module notes for topics and frames).
+
+    Parameters
+    ----------
+    log : CarmenLog
+        Parsed log (:func:`rose_logs.carmen.read_carmen_log`).
+    path : str or Path
+        Output: ``*.bag`` file (ROS 1) or ROS 2 bag folder; must not exist.
+    fmt : {"ros1", "db3", "mcap"}, optional
+        Output format; from the path when omitted (:func:`format_from_path`).
+    builder_params : BuilderParams, optional
+        Grid resolution, ranges and log-odds of the ``/map`` snapshots.
+    map_period_s : float
+        Log time between ``/map`` snapshots, seconds (> 0).
+    pose_output : {"tf", "odom", "both"}
+        Pose topic(s).
+    world_frame, base_frame : str
+        Frame ids of the map/pose parent and of the robot (laser).
+    drift_level, drift_seed : float, int
+        Odometry drift applied to the poses (0: the log's corrected poses).
+    drift_start_s : float
+        Drift starts this many seconds after the first scan.
+    progress : callable, optional
+        Called with ``(scans_done, scans_total)``.
+
+    Returns
+    -------
+    SessionSummary
+
+    Raises
+    ------
+    FileExistsError
+        When ``path`` exists.
+    ValueError
+        On a bad period or pose output.
+    """
+    out = Path(path)
+    if out.exists():
+        msg = f"{out} exists already, not overwriting"
+        raise FileExistsError(msg)
+    if not map_period_s > 0:
+        msg = f"map_period_s must be > 0, got {map_period_s}"
+        raise ValueError(msg)
+    if pose_output not in ("tf", "odom", "both"):
+        msg = f"pose_output must be 'tf', 'odom' or 'both', got {pose_output!r}"
+        raise ValueError(msg)
+    fmt = fmt if fmt is not None else format_from_path(out)
+    params = builder_params if builder_params is not None else BuilderParams()
+    stamps = _monotonic(log.stamps_ns)
+    poses = apply_drift(
+        log.laser_poses,
+        stamps_ns=stamps,
+        start_ns=int(stamps[0] + drift_start_s * 1e9),
+        level=drift_level,
+        seed=drift_seed,
+    )
+    builder = OccupancyGridBuilder(params)
+    period_ns = round(map_period_s * 1e9)
+    next_map_ns = int(stamps[0]) + period_ns
+    maps = 0
+    total = len(log.scans)
+    with _open_sink(out, fmt) as sink:
+        sink.add("/scan", "sensor_msgs/msg/LaserScan")
+        if pose_output in ("tf", "both"):
+            sink.add("/tf", "tf2_msgs/msg/TFMessage")
+        if pose_output in ("odom", "both"):
+            sink.add("/odom", "nav_msgs/msg/Odometry")
+        sink.add("/map", "nav_msgs/msg/OccupancyGrid")
+        pending = 0  # scans written but not yet in the grid: integrated in batches, before a map
+        for i, scan in enumerate(log.scans):
+            t_ns = int(stamps[i])
+            if t_ns >= next_map_ns and i > 0:
+                _integrate(builder, log, poses, i - pending, i)
+                pending = 0
+                sink.write("/map", t_ns, _map_msg(sink, t_ns, world_frame, builder))
+                maps += 1
+                next_map_ns = t_ns + period_ns
+            tf, odom = _pose_msgs(sink, t_ns, poses[i], world_frame, base_frame)
+            if pose_output in ("tf", "both"):
+                sink.write("/tf", t_ns, tf)
+            if pose_output in ("odom", "both"):
+                sink.write("/odom", t_ns, odom)
+            sink.write(
+                "/scan", t_ns, _scan_msg(sink, t_ns, base_frame, scan.ranges_m, params.max_range_m)
+            )
+            pending += 1
+            if progress is not None:
+                progress(i + 1, total)
+        _integrate(builder, log, poses, total - pending, total)
+        end_ns = int(stamps[-1]) + 1
+        sink.write("/map", end_ns, _map_msg(sink, end_ns, world_frame, builder))
+        maps += 1
+    _LOG.info("%s: %d scans, %d maps", out, total, maps)
+    return SessionSummary(
+        path=out,
+        format=fmt,
+        scans=total,
+        maps=maps,
+        start_ns=int(stamps[0]),
+        end_ns=end_ns,
+        final_grid=builder.grid(),
+        final_origin_xy_m=builder.origin_xy_m,
+        resolution_m=params.resolution_m,
+        skipped_lines=log.malformed,
+    )
+
+
+# -- `rose-bag convert` ----------------------------------------------------------------------
+def add_convert_parser(subparsers: Any) -> None:
+    """Add the ``convert`` sub-command (CARMEN log -> ROS session) to argparse sub-parsers."""
+    parser = subparsers.add_parser(
+        "convert",
+        help="turn a CARMEN laser log into a ROS mapping session (/scan, /tf or /odom, /map)",
+        description="Parse a CARMEN log (.log or .log.gz), build occupancy-grid snapshots by ray "
+        "casting, optionally add odometry drift, and write a ROS 1 bag, ROS 2 db3 or MCAP bag.",
+    )
+    parser.add_argument("log", type=Path, help="CARMEN log, plain or gzip")
+    parser.add_argument("output", type=Path, help="*.bag (ROS 1), *.mcap or a folder (ROS 2 db3)")
+    parser.add_argument(
+        "--format",
+        choices=("ros1", "db3", "mcap"),
+        default=None,
+        dest="fmt",
+        help="output format (default: from the output name)",
+    )
+    parser.add_argument("--resolution", type=float, default=0.05, help="map cell size, m (0.05)")
+    parser.add_argument(
+        "--max-range",
+        type=float,
+        default=30.0,
+        help="readings at or beyond this are 'no return', m (30)",
+    )
+    parser.add_argument(
+        "--map-period", type=float, default=10.0, help="log seconds between /map snapshots (10)"
+    )
+    parser.add_argument(
+        "--pose",
+        choices=("tf", "odom", "both"),
+        default="tf",
+        help="pose output: /tf, /odom or both (tf)",
+    )
+    parser.add_argument(
+        "--drift-level",
+        type=float,
+        default=0.0,
+        help="odometry drift level, 0 = corrected poses (see rose_logs.drift)",
+    )
+    parser.add_argument("--drift-seed", type=int, default=0, help="seed of the drift (0)")
+    parser.add_argument(
+        "--drift-start",
+        type=float,
+        default=0.0,
+        help="seconds after the first scan when drift starts (0)",
+    )
+    parser.add_argument("--max-scans", type=int, default=None, help="use only the first N scans")
+    parser.add_argument(
+        "--map-file",
+        type=Path,
+        default=None,
+        help="also save the final map as map_server YAML + PGM at this path",
+    )
+    parser.set_defaults(func=run_convert)
+
+
+def run_convert(args: argparse.Namespace) -> int:
+    """Run ``convert`` from parsed arguments; prints a one-line summary to stdout. Returns 0."""
+    log = read_carmen_log(args.log, max_scans=args.max_scans)
+    if log.malformed:
+        print(f"warning: skipped {log.malformed} malformed FLASER lines", file=sys.stderr)
+    summary = write_carmen_session(
+        log,
+        args.output,
+        fmt=args.fmt,
+        builder_params=BuilderParams(resolution_m=args.resolution, max_range_m=args.max_range),
+        map_period_s=args.map_period,
+        pose_output=args.pose,
+        drift_level=args.drift_level,
+        drift_seed=args.drift_seed,
+        drift_start_s=args.drift_start,
+    )
+    if args.map_file is not None:
+        import rose
+
+        rose.save_map(
+            args.map_file,
+            rose.OccupancyMap(
+                grid=summary.final_grid,
+                resolution_m=summary.resolution_m,
+                origin_xy_m=summary.final_origin_xy_m,
+            ),
+        )
+    print(
+        f"{summary.path}: {summary.format}, {summary.scans} scans, {summary.maps} maps, "
+        f"{(summary.end_ns - summary.start_ns) / 1e9:.1f} s"
+    )
+    return 0
