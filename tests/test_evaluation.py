@@ -119,6 +119,12 @@ def test_small_evaluation_writes_every_artefact(tmp_path: Path) -> None:
         "Pearson R",
     ):
         assert needle in markdown
+    try:
+        import rose_logs.evaluation.walls  # noqa: F401
+    except ImportError:
+        pass
+    else:
+        assert "Wall extraction" in markdown
     w_ok, w_drift = report.w_by_log["freiburg-101"]
     assert w_ok < w_drift
     assert math.isfinite(report.r_all)
