@@ -7,11 +7,13 @@ compared with, about which point it is rotated, nor how walls that were missed o
 Here:
 
 Matching
-    Each detected segment is matched to the reference segment at the smallest *matching distance*:
-    the Simpson-weighted mean distance of the detected segment's points to the reference segment,
-    ``(d(start) + 4 d(mid) + d(end)) / 6`` (metres), which is zero exactly when the detected segment
-    lies on the reference segment and grows with both offset and rotation. Several detected segments
-    may share one reference segment (a wall found in pieces).
+    Each detected segment is matched to the reference segment with the smallest Simpson-weighted
+    mean distance of the detected segment's points to it, ``(d(start) + 4 d(mid) + d(end)) / 6``
+    (metres), which is zero exactly when the detected segment lies on the reference segment and grows
+    with both offset and rotation. Several detected segments may share one reference segment (a wall
+    found in pieces). The *matching distance* used for spurious walls is the same mean, but of the
+    distances to the nearest reference segment of each point, so a detection that spans two collinear
+    reference segments (a wall split at a junction) is not called spurious.
 Transform
     ``theta`` is the smallest rotation that makes the two lines parallel (radians, ``[0, pi/2]``),
     applied about the detected segment's midpoint; ``T`` moves that midpoint to the nearest point of
@@ -61,7 +63,7 @@ class WallError:
     translation_m : ndarray of float64, shape (N,)
         ``|T|`` per detected segment, metres.
     match_distance_m : ndarray of float64, shape (N,)
-        Matching distance to the matched reference segment, metres (inf without reference segments).
+        Matching distance to the reference set, metres (inf without reference segments).
     matched : ndarray of intp, shape (N,)
         Index of the matched reference segment (-1 when there is none).
     spurious : ndarray of bool, shape (N,)
@@ -257,7 +259,8 @@ def _match(
         dist = segment_distances(probes, ref).reshape(len(block), 3, len(ref))
         mean = (dist[:, 0] + 4.0 * dist[:, 1] + dist[:, 2]) / 6.0
         matched[start : start + rows] = np.argmin(mean, axis=1)
-        best[start : start + rows] = mean.min(axis=1)
+        nearest = dist.min(axis=2)
+        best[start : start + rows] = (nearest[:, 0] + 4.0 * nearest[:, 1] + nearest[:, 2]) / 6.0
     return matched, best
 
 

@@ -100,6 +100,15 @@ class WallParams:
     snap_tolerance_deg : float
         ROSE variant only: a segment within this angle of a dominant direction is rotated onto it;
         segments further from every dominant direction keep their own orientation.
+    extend_on_raw : bool
+        ROSE variant only: extend each segment along its (snapped) line over the raw map's wall
+        pixels, within ``extend_band_px`` of the line and bridging gaps up to ``hough_max_gap_px``.
+        ROSE's threshold often labels the cells near wall ends and junctions as clutter, which
+        leaves walls short; the extension follows only the wall's own line, so clutter off that line
+        cannot add walls. A deviation from the paper (which uses the cleaned map alone), on by
+        default.
+    extend_band_px : float
+        Half-width, in cells, of the band along a segment's line searched for raw wall pixels.
     """
 
     occupied_threshold: int = 65
@@ -114,6 +123,8 @@ class WallParams:
     merge_gap_px: float = 6.0
     min_wall_length_px: float = 10.0
     snap_tolerance_deg: float = 15.0
+    extend_on_raw: bool = True
+    extend_band_px: float = 2.0
 
     def __post_init__(self) -> None:
         problems = []
@@ -131,6 +142,7 @@ class WallParams:
             "merge_distance_px",
             "merge_gap_px",
             "min_wall_length_px",
+            "extend_band_px",
         ):
             if not getattr(self, name) >= 0:
                 problems.append(f"{name} must be >= 0, got {getattr(self, name)}")
@@ -390,14 +402,20 @@ def extract_walls(
         occupancy, occupied_threshold=p.occupied_threshold, faces_only=p.faces_only
     )
     directions = np.asarray(result.dominant_directions, dtype=np.float64)
-    if result.has_structure:
-        pixels &= result.structure
-    else:
+    if not result.has_structure:
         logger.warning("ROSE found no dominant direction: wall segments are not snapped")
         directions = np.empty(0)
+    raw_pixels = pixels.copy()
+    if result.has_structure:
+        pixels &= result.structure
     segments = hough_segments(pixels, params=p)
     segments = _snap(segments, directions, tolerance_rad=math.radians(p.snap_tolerance_deg))
     segments = _merge_collinear(segments, params=p, directions=directions)
+    if p.extend_on_raw:
+        segments = _extend_along(
+            segments, raw_pixels, band_px=p.extend_band_px, max_gap_px=p.hough_max_gap_px
+        )
+        segments = _merge_collinear(segments, params=p, directions=directions)
     return _wall_set(segments, occupancy.shape, placement, p, method="rose", directions=directions)
 
 
@@ -556,6 +574,50 @@ def _merge_collinear(
         if directions is not None and directions.size:
             segments = _snap(segments, directions, tolerance_rad=tolerance)
     return segments
+
+
+def _extend_along(
+    segments: npt.NDArray[np.float64],
+    pixels: npt.NDArray[np.bool_],
+    *,
+    band_px: float,
+    max_gap_px: float,
+) -> npt.NDArray[np.float64]:
+    """Grow each segment at both ends while ``pixels`` continue along its line (gaps bridged)."""
+    if len(segments) == 0:
+        return segments
+    rows, cols = pixels.shape
+    reach = int(math.hypot(rows, cols)) + 1
+    steps = np.arange(1, reach + 1, dtype=np.float64)
+    offsets = np.arange(-math.floor(band_px), math.floor(band_px) + 1, dtype=np.float64)
+    out = segments.copy()
+    for k, (a, b) in enumerate(segments):
+        length = math.hypot(*(b - a))
+        if length == 0:
+            continue
+        u = (b - a) / length
+        normal = np.array([-u[1], u[0]])
+        for end, sign in ((1, 1.0), (0, -1.0)):
+            centre = out[k, end][None, :] + sign * steps[:, None] * u[None, :]
+            probe = centre[:, None, :] + offsets[None, :, None] * normal[None, None, :]
+            c = np.rint(probe[..., 0]).astype(np.intp)
+            r = np.rint(probe[..., 1]).astype(np.intp)
+            inside = (c >= 0) & (c < cols) & (r >= 0) & (r < rows)
+            hit = np.zeros(c.shape, dtype=bool)
+            hit[inside] = pixels[r[inside], c[inside]]
+            found = hit.any(axis=1)
+            out[k, end] += sign * _run_length(found, max_gap=int(max_gap_px)) * u
+    return out
+
+
+def _run_length(found: npt.NDArray[np.bool_], *, max_gap: int) -> float:
+    """Distance to the last ``True`` before the first run of more than ``max_gap`` ``False``."""
+    idx = np.flatnonzero(found)
+    if idx.size == 0 or idx[0] > max_gap:
+        return 0.0
+    breaks = np.flatnonzero(np.diff(idx) > max_gap + 1)
+    last = idx[breaks[0]] if breaks.size else idx[-1]
+    return float(last + 1)
 
 
 def _collinear_components(

@@ -247,7 +247,7 @@ def _plot(path: Path, rows: tuple[WallRow, ...]) -> Path | None:
     base = np.array([max(r.baseline.mean_cost, floor) for r in rows])
     rose = np.array([max(r.rose.mean_cost, floor) for r in rows])
     fixed = np.array([max(r.rose_fixed.mean_cost, floor) for r in rows])
-    fig, ax = plt.subplots(figsize=(10, 4.5))
+    fig, ax = plt.subplots(figsize=(13, 4.8))
     ax.scatter(x, base, color="tab:red", label="Hough on the furnished map (no ROSE)")
     ax.scatter(
         x, rose, color="tab:green", label="ROSE: cleaned map, snapped to dominant directions"
@@ -258,7 +258,7 @@ def _plot(path: Path, rows: tuple[WallRow, ...]) -> Path | None:
     ax.set_ylabel("mean wall error θ·|T|/2 (rad·m)")
     ax.set_title(f"Wall-line error per building (values below {floor:g} drawn at {floor:g})")
     ax.grid(axis="y", which="major", alpha=0.3)
-    ax.legend(loc="lower left", fontsize=8)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
