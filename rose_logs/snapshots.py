@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["MapSnapshot"]
+__all__ = ["GridUpdate", "MapSnapshot", "apply_update"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -35,6 +35,8 @@ class MapSnapshot:
         ``info.origin.orientation`` quaternion.
     map_load_time_ns : int
         ``info.map_load_time`` in nanoseconds.
+    header_seq : int
+        ROS 1 ``header.seq`` (0 for ROS 2), kept so derived messages repeat it.
     """
 
     topic: str
@@ -46,6 +48,7 @@ class MapSnapshot:
     origin_position_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
     origin_orientation_xyzw: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 1.0)
     map_load_time_ns: int = 0
+    header_seq: int = 0
 
     @property
     def origin_yaw_rad(self) -> float:
@@ -57,3 +60,67 @@ class MapSnapshot:
     def shape(self) -> tuple[int, int]:
         """``(height, width)`` in cells."""
         return self.grid.shape[0], self.grid.shape[1]
+
+
+@dataclass(frozen=True, eq=False)
+class GridUpdate:
+    """One ``map_msgs/OccupancyGridUpdate``: a rectangular patch of a full map.
+
+    Attributes
+    ----------
+    topic : str
+        Topic of the update message (usually ``<map>_updates``).
+    log_time_ns, stamp_ns : int
+        Log time and ``header.stamp`` of the update, nanoseconds.
+    frame_id : str
+        ``header.frame_id``.
+    x_px, y_px : int
+        Column and row of the patch's first cell in the full grid.
+    patch : ndarray of int8, shape (height, width)
+        New cell values, ROS convention (row 0 towards the origin). Read-only.
+    """
+
+    topic: str
+    log_time_ns: int
+    stamp_ns: int
+    frame_id: str
+    x_px: int
+    y_px: int
+    patch: npt.NDArray[np.int8]
+
+
+def apply_update(snapshot: MapSnapshot, update: GridUpdate) -> MapSnapshot:
+    """The snapshot that results from writing ``update.patch`` into ``snapshot.grid``.
+
+    The result keeps the topic and map metadata (resolution, origin, load time, frame) of ``snapshot``
+    and takes the log time and stamp of the update. Neither input is modified.
+
+    Raises
+    ------
+    ValueError
+        If the patch does not lie inside the grid.
+    """
+    rows, cols = snapshot.shape
+    h, w = update.patch.shape
+    x, y = update.x_px, update.y_px
+    if x < 0 or y < 0 or x + w > cols or y + h > rows:
+        msg = (
+            f"{update.topic}: update patch {w} x {h} at ({x}, {y}) does not fit the "
+            f"{cols} x {rows} map of {snapshot.topic}"
+        )
+        raise ValueError(msg)
+    grid = snapshot.grid.copy()
+    grid[y : y + h, x : x + w] = update.patch
+    grid.setflags(write=False)
+    return MapSnapshot(
+        topic=snapshot.topic,
+        log_time_ns=update.log_time_ns,
+        stamp_ns=update.stamp_ns,
+        frame_id=snapshot.frame_id,
+        grid=grid,
+        resolution_m=snapshot.resolution_m,
+        origin_position_m=snapshot.origin_position_m,
+        origin_orientation_xyzw=snapshot.origin_orientation_xyzw,
+        map_load_time_ns=snapshot.map_load_time_ns,
+        header_seq=snapshot.header_seq,
+    )
