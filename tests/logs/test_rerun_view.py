@@ -296,9 +296,19 @@ def test_display_spectrum_is_bounded_and_centred(
     assert image[rows // 2 // factor, cols // 2 // factor] == 255
 
 
-def test_quantise_scores_range() -> None:
-    scores = np.array([[-2.0, rv.SCORE_DISPLAY_MIN, 0.25, 1.0, np.nan]], dtype=np.float32)
-    assert_array_equal(rv.quantise_scores(scores), [[0, 0, 127, 255, 0]])
+def test_quantise_scores_range_and_levels() -> None:
+    scores = np.array([[-2.0, rv.SCORE_DISPLAY_MIN, 0.25, 1.0, 3.0, np.nan]], dtype=np.float32)
+    before = scores.copy()
+    assert_array_equal(rv.quantise_scores(scores, levels=256), [[0, 0, 128, 255, 255, 0]])
+    assert_array_equal(scores, before)  # input untouched
+    ramp = np.linspace(-1.0, 1.5, 10_000, dtype=np.float32).reshape(100, 100)
+    quantised = rv.quantise_scores(ramp)
+    assert quantised.dtype == np.uint8
+    assert len(np.unique(quantised)) == rv.DISPLAY_LEVELS
+    assert (quantised.min(), quantised.max()) == (0, 255)
+    assert np.all(np.diff(quantised.ravel().astype(int)) >= 0)  # monotonic
+    with pytest.raises(ValueError, match="levels"):
+        rv.quantise_scores(ramp, levels=1)
 
 
 def test_open_recording_rejects_missing_sink_and_directory(tmp_path: Path) -> None:
