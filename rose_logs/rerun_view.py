@@ -20,7 +20,7 @@ Time
 Entities (``<root>`` is ``entity_root``, one per map topic; paths are lowercase)
     ``<root>/metric/grid``
         :class:`rerun.GridMap` of the occupancy grid (RViz map colours), placed in the map frame in
-        metres with the grid's resolution and origin pose. Shown in a 3D view seen from above.
+        metres with the grid's resolution and origin pose. Shown in a 3D view (z up).
     ``<root>/metric/directions``
         :class:`rerun.LineStrips3D`, the dominant wall directions as lines through the grid centre,
         map frame, metres.
@@ -146,6 +146,21 @@ _W_COLOR: Final = (30, 100, 230)
 _TRUST_COLOR: Final = (60, 170, 60)
 _FAILURE_COLOR: Final = (220, 50, 50)
 _METRIC_LINE_HEIGHT_M: Final = 0.01
+
+# Static archetypes, built once (never modified): building them costs more than logging them.
+_STATIC_CLASSES: Final = rr.AnnotationContext(
+    [
+        rr.AnnotationInfo(id=class_id, label=label, color=color)
+        for class_id, label, color in _CLASS_INFO
+    ]
+)
+_STATIC_W_STYLE: Final = rr.SeriesLines(colors=_W_COLOR, names="W", widths=2.0)
+_STATIC_TRUST_STYLE: Final = rr.SeriesLines(
+    colors=_TRUST_COLOR, names=f"trust ({TRUST_LEVEL})", widths=1.0
+)
+_STATIC_FAILURE_STYLE: Final = rr.SeriesLines(
+    colors=_FAILURE_COLOR, names=f"failure ({FAILURE_LEVEL})", widths=1.0
+)
 
 
 class EntityPaths:
@@ -340,28 +355,11 @@ def log_static(recording: rr.RecordingStream, *, entity_root: str = "map") -> No
     (static data is replaced, not accumulated, so repeating it is harmless and cheap).
     """
     paths = EntityPaths(entity_root)
-    recording.log(
-        paths.cells,
-        rr.AnnotationContext(
-            [
-                rr.AnnotationInfo(id=class_id, label=label, color=color)
-                for class_id, label, color in _CLASS_INFO
-            ]
-        ),
-        static=True,
-    )
+    recording.log(paths.cells, _STATIC_CLASSES, static=True)
     recording.log(paths.metric, rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
-    recording.log(paths.w, rr.SeriesLines(colors=_W_COLOR, names="W", widths=2.0), static=True)
-    recording.log(
-        paths.trust,
-        rr.SeriesLines(colors=_TRUST_COLOR, names=f"trust ({TRUST_LEVEL})", widths=1.0),
-        static=True,
-    )
-    recording.log(
-        paths.failure,
-        rr.SeriesLines(colors=_FAILURE_COLOR, names=f"failure ({FAILURE_LEVEL})", widths=1.0),
-        static=True,
-    )
+    recording.log(paths.w, _STATIC_W_STYLE, static=True)
+    recording.log(paths.trust, _STATIC_TRUST_STYLE, static=True)
+    recording.log(paths.failure, _STATIC_FAILURE_STYLE, static=True)
 
 
 # --------------------------------------------------------------------------------------------------
@@ -526,14 +524,17 @@ def direction_segments_cells(
     -------
     ndarray of float64, shape (K, 2, 2)
         ``[k, end, (x, y)]`` in cells of the grid frame: x along columns, y along rows (row 0 at
-        y in [0, 1)); the centre is ``(cols / 2, rows / 2)`` and each segment is as long as the
-        grid's diagonal.
+        y in [0, 1)); the centre is ``(cols / 2, rows / 2)`` and both ends lie on the grid's border
+        (so the lines never widen a view's bounds beyond the map).
     """
     rows, cols = shape
     centre = np.array([cols / 2.0, rows / 2.0])
-    half_length = 0.5 * math.hypot(rows, cols)
     theta = np.asarray(directions_rad, dtype=np.float64)
     unit = np.stack([np.cos(theta), np.sin(theta)], axis=-1)  # (K, 2)
+    # Distance from the centre to the border along each line: the nearer of the two walls hit.
+    with np.errstate(divide="ignore"):
+        reach = centre / np.abs(unit)  # (K, 2), inf along an axis the line is parallel to
+    half_length = reach.min(axis=1, keepdims=True)
     return np.stack([centre - half_length * unit, centre + half_length * unit], axis=1)
 
 

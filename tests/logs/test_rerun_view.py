@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 import pytest
+import rerun.blueprint as rrb
 from numpy.testing import assert_allclose, assert_array_equal
 
 import rose
@@ -243,9 +244,11 @@ def test_direction_segments_in_pixels_point_up_for_positive_angles() -> None:
     segments = rv.direction_segments_cells(np.array([0.0, math.pi / 2, math.pi / 6]), (rows, cols))
     assert segments.shape == (3, 2, 2)
     assert_allclose(segments.mean(axis=1), [[100.0, 50.0]] * 3, atol=1e-9)
-    # Horizontal line: constant y. Vertical line: constant x.
-    assert_allclose(segments[0, :, 1], [50.0, 50.0], atol=1e-9)
-    assert_allclose(segments[1, :, 0], [100.0, 100.0], atol=1e-9)
+    # Horizontal line: constant y, across the width. Vertical line: constant x, across the height.
+    assert_allclose(segments[0], [[0.0, 50.0], [200.0, 50.0]], atol=1e-9)
+    assert_allclose(segments[1], [[100.0, 0.0], [100.0, 100.0]], atol=1e-9)
+    # 30 deg on a 200 x 100 grid leaves through the top and bottom borders.
+    assert_allclose(np.sort(segments[2, :, 1]), [0.0, 100.0], atol=1e-9)
     # In displayed pixels (v = rows - y), a line at +30 deg rises to the right: v decreases as u grows.
     start, end = segments[2]
     u0, v0, u1, v1 = start[0], rows - start[1], end[0], rows - end[1]
@@ -343,6 +346,18 @@ def test_empty_map_logs_without_directions(tmp_path: Path) -> None:
     assert f"/{paths.grid}" in content.temporal_paths
     assert f"/{paths.w}" in content.temporal_paths
     assert {t for ts in content.times_by_path.values() for t in ts} == {T0_NS}
+
+
+def test_blueprint_for_several_map_topics(tmp_path: Path) -> None:
+    assert isinstance(rv.default_blueprint("map"), rrb.Blueprint)
+    path = tmp_path / "two.rrd"
+    recording = rv.open_recording(
+        rrd_path=path, spawn=False, entity_roots=("map", "local_map"), recording_id="two"
+    )
+    rv.close_recording(recording)
+    content = _read_rrd(path)
+    assert content.blueprint_count >= 1
+    assert {"/map/cells", "/local_map/cells"} <= content.static_paths
 
 
 def test_entity_root_must_not_be_empty() -> None:
