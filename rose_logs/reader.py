@@ -15,7 +15,7 @@ byte and memory stays flat in the number of messages. Decoding map messages is :
 from __future__ import annotations
 
 import logging
-from collections.abc import Iterator, Mapping
+from collections.abc import Collection, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import TracebackType
@@ -287,8 +287,8 @@ class LogReader:
             return "ros1"
         return "cdr"
 
-    def messages(self) -> Iterator[RawMessage]:
-        """Every message, in log-time order.
+    def messages(self, *, topics: Collection[str] | None = None) -> Iterator[RawMessage]:
+        """Every message (or those on ``topics``), in log-time order.
 
         Raises
         ------
@@ -297,7 +297,7 @@ class LogReader:
         """
         backend = self._open_backend
         try:
-            yield from backend.messages()
+            yield from backend.messages(None if topics is None else set(topics))
         except LogError:
             raise
         except Exception as err:
@@ -355,9 +355,14 @@ class _RosbagsBackend:
             # rosbags reports the end as "1 ns after the last message"
             self.end_ns = max(self.start_ns, int(self.reader.end_time) - 1)
 
-    def messages(self) -> Iterator[RawMessage]:
+    def messages(self, topics: set[str] | None) -> Iterator[RawMessage]:
         by_conn = self._by_conn
-        for conn, timestamp, data in self.reader.messages():
+        conns = None
+        if topics is not None:
+            conns = [c for c in self.reader.connections if c.topic in topics]
+            if not conns:
+                return
+        for conn, timestamp, data in self.reader.messages(connections=conns or ()):
             yield RawMessage(by_conn[id(conn)], int(timestamp), data, int(timestamp))
 
     def close(self) -> None:
@@ -426,9 +431,9 @@ class _McapBackend:
             self.start_ns = int(summary.statistics.message_start_time)
             self.end_ns = int(summary.statistics.message_end_time)
 
-    def messages(self) -> Iterator[RawMessage]:
+    def messages(self, topics: set[str] | None) -> Iterator[RawMessage]:
         by_id = self._by_id
-        for _schema, ch, msg in self.reader.iter_messages(log_time_order=True):
+        for _schema, ch, msg in self.reader.iter_messages(topics=topics, log_time_order=True):
             yield RawMessage(by_id[ch.id], msg.log_time, msg.data, msg.publish_time, msg.sequence)
 
     def close(self) -> None:
