@@ -24,6 +24,9 @@ Entities (``<root>`` is ``entity_root``, one per map topic; paths are lowercase)
     ``<root>/metric/directions``
         :class:`rerun.LineStrips3D`, the dominant wall directions as lines through the grid centre,
         map frame, metres.
+    ``<root>/metric/walls``
+        :class:`rerun.LineStrips3D`, wall segments (``rose.extract_walls``), map frame, metres; only
+        when the caller passes walls.
     ``<root>/cells`` (static :class:`rerun.AnnotationContext`)
         Class ids and colours of the segmentation: free, unknown, occupied (occupied but not
         classified, when ROSE found no structure), structure, clutter.
@@ -32,6 +35,8 @@ Entities (``<root>`` is ``entity_root``, one per map topic; paths are lowercase)
     ``<root>/cells/directions``
         :class:`rerun.LineStrips2D`, the dominant directions over the segmentation, in pixels of the
         displayed image.
+    ``<root>/cells/walls``
+        :class:`rerun.LineStrips2D`, the wall segments over the segmentation, in pixels.
     ``<root>/cell_scores``
         :class:`rerun.DepthImage` (colour-mapped) of the cell scores quantised to
         ``DISPLAY_LEVELS`` uint8 levels over ``[SCORE_DISPLAY_MIN, 1]``, north up.
@@ -69,6 +74,7 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from rose.result import RoseResult
+from rose.walls import WallSet
 from rose_logs.snapshots import MapSnapshot
 
 __all__ = [
@@ -141,6 +147,7 @@ _CLASS_INFO: Final = (
     (CLASS_CLUTTER, "clutter", (235, 60, 40)),
 )
 _DIRECTION_COLOR: Final = (255, 170, 0)
+_WALL_COLOR: Final = (0, 200, 255)
 _PEAK_COLOR: Final = (235, 60, 40)
 _W_COLOR: Final = (30, 100, 230)
 _TRUST_COLOR: Final = (60, 170, 60)
@@ -181,9 +188,11 @@ class EntityPaths:
         self.metric = f"{root}/metric"
         self.grid = f"{root}/metric/grid"
         self.metric_directions = f"{root}/metric/directions"
+        self.metric_walls = f"{root}/metric/walls"
         self.cells = f"{root}/cells"
         self.segmentation = f"{root}/cells/segmentation"
         self.cell_directions = f"{root}/cells/directions"
+        self.cell_walls = f"{root}/cells/walls"
         self.cell_scores = f"{root}/cell_scores"
         self.spectrum = f"{root}/spectrum/log_amplitude"
         self.cumulative_amplitude = f"{root}/cumulative_amplitude/per_direction_deg"
@@ -574,6 +583,7 @@ def log_snapshot(
     *,
     entity_root: str = "map",
     snapshot_index: int | None = None,
+    walls: WallSet | None = None,
 ) -> None:
     """Log every stream of one analysed snapshot at its log time.
 
@@ -589,6 +599,8 @@ def log_snapshot(
         Entity root of this map topic (see the module docstring for the paths below it).
     snapshot_index : int or None
         Index of the snapshot in the session, logged on the ``snapshot`` sequence timeline.
+    walls : WallSet or None
+        Wall segments found in this snapshot (``rose.extract_walls``); not logged when None.
 
     Raises
     ------
@@ -612,6 +624,37 @@ def log_snapshot(
     log_spectrum(recording, result, paths=paths)
     log_cumulative_amplitude(recording, result, paths=paths)
     log_structure_score(recording, result, paths=paths)
+    if walls is not None:
+        log_walls(recording, snapshot, walls, paths=paths)
+
+
+def log_walls(
+    recording: rr.RecordingStream, snapshot: MapSnapshot, walls: WallSet, *, paths: EntityPaths
+) -> None:
+    """Log wall segments in the map frame (metres, above the grid map) and over the segmentation.
+
+    ``walls`` must come from this snapshot's grid placed with its resolution and origin, so that
+    ``walls.endpoints_m`` is in the map frame. No walls: both entities are cleared.
+    """
+    if len(walls) == 0:
+        recording.log(paths.metric_walls, rr.Clear(recursive=False))
+        recording.log(paths.cell_walls, rr.Clear(recursive=False))
+        return
+    ends_m = walls.endpoints_m
+    height_m = float(snapshot.origin_position_m[2]) + _METRIC_LINE_HEIGHT_M
+    metric = np.concatenate([ends_m, np.full((*ends_m.shape[:2], 1), height_m)], axis=-1)
+    recording.log(
+        paths.metric_walls,
+        rr.LineStrips3D(metric, colors=_WALL_COLOR, radii=rr.Radius.ui_points(1.5)),
+    )
+    rows = snapshot.grid.shape[0]
+    # Cell centres, in pixels of the north-up segmentation image.
+    centres = walls.endpoints_px + 0.5
+    pixels = np.stack([centres[..., 0], rows - centres[..., 1]], axis=-1)
+    recording.log(
+        paths.cell_walls,
+        rr.LineStrips2D(pixels, colors=_WALL_COLOR, radii=rr.Radius.ui_points(1.5)),
+    )
 
 
 def log_grid_map(

@@ -363,3 +363,25 @@ def test_blueprint_for_several_map_topics(tmp_path: Path) -> None:
 def test_entity_root_must_not_be_empty() -> None:
     with pytest.raises(ValueError, match="entity_root"):
         rv.entity_paths("/")
+
+
+def test_walls_are_logged_in_metres_and_pixels(tmp_path: Path) -> None:
+    grid = np.zeros((60, 80), dtype=np.int8)
+    grid[10:12, 5:75] = 100
+    grid[10:50, 5:7] = 100
+    snapshot = _snapshot(grid, 0)
+    walls = rose.extract_walls(
+        rose.OccupancyMap(grid=grid, resolution_m=0.05, origin_xy_m=(-12.5, -7.25))
+    )
+    assert len(walls) >= 2
+    path = tmp_path / "walls.rrd"
+    recording = rv.open_recording(rrd_path=path, spawn=False, recording_id="walls")
+    rv.log_snapshot(recording, snapshot, rose.analyze(grid), walls=walls)
+    rv.close_recording(recording)
+    content = _read_rrd(path)
+    paths = rv.entity_paths("map")
+    assert {f"/{paths.metric_walls}", f"/{paths.cell_walls}"} <= content.temporal_paths
+    row = content.rows_by_path[f"/{paths.metric_walls}"][0]
+    strips = next(v for k, v in row.items() if k.endswith(":strips"))
+    logged = np.array([np.array(strip)[:, :2] for strip in strips])
+    assert_allclose(logged, walls.endpoints_m, atol=1e-5)
