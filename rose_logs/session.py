@@ -42,7 +42,7 @@ from rose_logs.messages import (
 )
 from rose_logs.reader import Channel, LogFormat, LogReader
 from rose_logs.snapshots import MapSnapshot, apply_update
-from rose_logs.writer import LogWriter, format_from_path
+from rose_logs.writer import LogWriter, format_from_path, offered_qos
 
 __all__ = [
     "FAILURE_LEVEL",
@@ -534,15 +534,18 @@ def _prepare_output(
                 msg = f"{writer.path}: the input has topic {name} already (processed before?)"
                 raise LogWriteError(msg)
         source = next(c for c in channels if c.topic == topic)
-        latched = bool(source.latching) or any(
-            q.durability.name == "TRANSIENT_LOCAL" for q in source.offered_qos_profiles
+        qos = offered_qos(source)
+        latched = (
+            bool(source.latching)
+            or any(q.durability.name == "TRANSIENT_LOCAL" for q in qos)
+            or "transient_local" in source.metadata.get("offered_qos_profiles", "")
         )
         derived[topic] = (
             writer.add_topic(
                 names.cleaned,
                 MAP_TYPE,
                 latching=latched,
-                qos=source.offered_qos_profiles or None,
+                qos=qos or None,
                 callerid=source.callerid,
             ),
             writer.add_topic(names.structure_score, FLOAT32_TYPE, callerid=source.callerid),

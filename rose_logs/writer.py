@@ -48,6 +48,7 @@ __all__ = [
     "FORMATS",
     "LogWriter",
     "format_from_path",
+    "offered_qos",
     "open_output",
     "transient_local_qos",
 ]
@@ -154,7 +155,10 @@ class LogWriter:
             msg = f"{self.path}: folder {parent} is not writable"
             raise LogWriteError(msg)
         self.force = force
-        self.tmp_path = parent / f".{self.path.name}.rose-tmp-{os.getpid()}"
+        # A hidden staging folder next to the output holds the log under its final name (ROS 2 writers
+        # name the storage file after the folder), then one rename moves it into place.
+        self.stage_path = parent / f".{self.path.name}.rose-tmp-{os.getpid()}"
+        self.tmp_path = self.stage_path / self.path.name
         self._backend: _Backend | None = None
         self._topics: dict[str, int] = {}
 
@@ -167,7 +171,12 @@ class LogWriter:
         LogWriteError
             If it cannot be created.
         """
-        _remove(self.tmp_path)
+        _remove(self.stage_path)
+        try:
+            self.stage_path.mkdir()
+        except OSError as err:
+            msg = f"{self.path}: cannot write in {self.stage_path.parent} ({err.strerror})"
+            raise LogWriteError(msg) from err
         backend: _Backend
         if self.format == "ros1":
             backend = _Ros1Backend(self.tmp_path)
@@ -179,7 +188,7 @@ class LogWriter:
             backend.open()
         except Exception as err:
             backend.abort()
-            _remove(self.tmp_path)
+            _remove(self.stage_path)
             msg = f"{self.path}: cannot create output ({err})"
             raise LogWriteError(msg) from err
         self._backend = backend
@@ -205,15 +214,17 @@ class LogWriter:
                     self.path.rename(backup)
                     self.tmp_path.rename(self.path)
                     shutil.rmtree(backup)
+                    _remove(self.stage_path)
                     return
                 if self.tmp_path.is_dir():
                     self.path.unlink()
             self.tmp_path.replace(self.path)
+            _remove(self.stage_path)
         except LogWriteError:
-            _remove(self.tmp_path)
+            _remove(self.stage_path)
             raise
         except Exception as err:
-            _remove(self.tmp_path)
+            _remove(self.stage_path)
             msg = f"{self.path}: cannot finish output ({err})"
             raise LogWriteError(msg) from err
 
@@ -222,7 +233,7 @@ class LogWriter:
         if self._backend is not None:
             self._backend.abort()
             self._backend = None
-        _remove(self.tmp_path)
+        _remove(self.stage_path)
 
     def __enter__(self) -> Self:
         self.open()
@@ -450,7 +461,8 @@ def _qos_yaml(profiles: Sequence[Qos]) -> str:
     return stream.getvalue().strip()
 
 
-def _qos_of(channel: Channel) -> list[Qos]:
+def offered_qos(channel: Channel) -> list[Qos]:
+    """ROS 2 QoS profiles of ``channel``, from a ROS 2 bag or parsed from MCAP channel metadata."""
     if channel.offered_qos_profiles:
         return list(channel.offered_qos_profiles)
     text = channel.metadata.get("offered_qos_profiles", "")
@@ -560,7 +572,7 @@ class _Ros2Backend(_RosbagsBackendBase):
                 msgdef=msgdef,
                 rihs01=rihs01 or "RIHS01_" + "0" * 64,
                 serialization_format=channel.message_encoding,
-                offered_qos_profiles=_qos_of(channel),
+                offered_qos_profiles=offered_qos(channel),
             ),
         )
 
@@ -606,7 +618,7 @@ class _McapBackend(_Backend):
                 if channel.digest:
                     metadata["md5sum"] = channel.digest
             else:
-                qos = _qos_yaml(_qos_of(channel))
+                qos = _qos_yaml(offered_qos(channel))
                 if qos:
                     metadata["offered_qos_profiles"] = qos
         channel_id = self.writer.register_channel(

@@ -1,0 +1,207 @@
+"""Round trip per format: every input message copied unchanged, derived topics right, cleaned == ROSE."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import (
+    FORMATS,
+    START_NS,
+    MapMsg,
+    build_log,
+    log_path,
+    read_all,
+    session_maps,
+    tree_bytes,
+)
+
+import rose
+from rose_logs.messages import MAP_TYPE, decode_map, typestore_for
+from rose_logs.reader import LogReader
+from rose_logs.session import process_log
+
+
+@pytest.mark.parametrize("kind", list(FORMATS))
+def test_round_trip_copies_everything_and_adds_derived_topics(
+    tmp_path: Path, kind: str, fr079
+) -> None:
+    built = build_log(log_path(tmp_path, kind), kind, session_maps(fr079))
+    before = tree_bytes(built.path)
+    out = log_path(tmp_path, kind, "out")
+    report = process_log(built.path, output_path=out)
+
+    assert tree_bytes(built.path) == before  # input untouched
+    with LogReader(out) as reader:
+        assert reader.format == built.fmt
+        assert reader.serialization == built.serialization
+    inp, got = read_all(built.path), read_all(out)
+    for topic, messages in inp.items():
+        assert got[topic] == messages  # same count, times and bytes, in order
+    assert set(got) == set(inp) | {
+        "/map/rose/cleaned",
+        "/map/rose/structure_score",
+        "/map/rose/walls",
+    }
+
+    store = typestore_for(built.serialization)
+    deser = store.deserialize_ros1 if built.serialization == "ros1" else store.deserialize_cdr
+    assert len(report.records) == len(fr079) == len(got["/map/rose/cleaned"])
+    for grid, (t_map, raw_map), (t_clean, raw_clean), (t_w, raw_w), (_, raw_walls) in zip(
+        fr079,
+        got["/map"],
+        got["/map/rose/cleaned"],
+        got["/map/rose/structure_score"],
+        got["/map/rose/walls"],
+        strict=True,
+    ):
+        assert t_map == t_clean == t_w
+        expected = rose.analyze(grid)
+        source = deser(raw_map, MAP_TYPE)
+        cleaned = deser(raw_clean, MAP_TYPE)
+        assert cleaned.header == source.header
+        assert cleaned.info == source.info
+        np.testing.assert_array_equal(
+            np.asarray(cleaned.data).reshape(grid.shape), expected.cleaned
+        )
+        score = deser(raw_w, "std_msgs/msg/Float32").data
+        np.testing.assert_allclose(score, expected.structure_score, rtol=1e-6)
+        walls = deser(raw_walls, "visualization_msgs/msg/MarkerArray")
+        assert [m.type for m in walls.markers] == [5, 9]
+        assert len(walls.markers[0].points) == 2 * expected.dominant_directions.size
+        assert walls.markers[0].header.frame_id == "map"
+
+
+@pytest.mark.parametrize("kind", ["ros1", "db3", "mcap-ros2", "mcap-ros1"])
+def test_connection_metadata_is_kept(tmp_path: Path, kind: str, fr079) -> None:
+    built = build_log(log_path(tmp_path, kind), kind, session_maps(fr079[:1]))
+    out = log_path(tmp_path, kind, "out")
+    process_log(built.path, output_path=out)
+    with LogReader(built.path) as a, LogReader(out) as b:
+        before = {c.topic: c for c in a.channels}
+        after = {c.topic: c for c in b.channels}
+    for topic, c in before.items():
+        d = after[topic]
+        assert (d.msgtype, d.message_encoding, d.msgdef, d.digest) == (
+            c.msgtype,
+            c.message_encoding,
+            c.msgdef,
+            c.digest,
+        )
+        assert (d.callerid, d.latching) == (c.callerid, c.latching)
+        assert d.offered_qos_profiles == c.offered_qos_profiles
+        assert dict(d.metadata) == dict(c.metadata)
+    cleaned = after["/map/rose/cleaned"]
+    assert (
+        bool(cleaned.latching)
+        or any(q.durability.name == "TRANSIENT_LOCAL" for q in cleaned.offered_qos_profiles)
+        or "transient_local" in cleaned.metadata.get("offered_qos_profiles", "")
+    )
+
+
+def test_mcap_publish_time_and_sequence_kept(tmp_path: Path, fr079) -> None:
+    from mcap.reader import make_reader
+
+    built = build_log(log_path(tmp_path, "mcap-ros2"), "mcap-ros2", session_maps(fr079[:2]))
+    out = tmp_path / "out.mcap"
+    process_log(built.path, output_path=out)
+
+    def stamps(path: Path, skip: str = "/rose/") -> list[tuple[str, int, int, int]]:
+        with path.open("rb") as f:
+            return [
+                (c.topic, m.log_time, m.publish_time, m.sequence)
+                for _, c, m in make_reader(f).iter_messages(log_time_order=True)
+                if skip not in c.topic
+            ]
+
+    assert stamps(out) == stamps(built.path)
+
+
+@pytest.mark.parametrize("kind", ["ros1", "db3", "mcap-ros2"])
+def test_output_is_deterministic(tmp_path: Path, kind: str, fr079) -> None:
+    built = build_log(log_path(tmp_path, kind), kind, session_maps(fr079[:2]))
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    first, second = log_path(tmp_path / "a", kind, "out"), log_path(tmp_path / "b", kind, "out")
+    process_log(built.path, output_path=first)
+    process_log(built.path, output_path=second)
+    assert tree_bytes(first) == tree_bytes(second)
+
+
+@pytest.mark.parametrize(
+    ("src", "fmt", "suffix"),
+    [("mcap-ros2", "db3", ""), ("db3", "mcap", ".mcap"), ("ros1", "mcap", ".mcap")],
+)
+def test_format_conversion_keeps_messages(
+    tmp_path: Path, src: str, fmt: str, suffix: str, fr079
+) -> None:
+    built = build_log(log_path(tmp_path, src), src, session_maps(fr079[:1]))
+    out = tmp_path / f"out{suffix}"
+    process_log(built.path, output_path=out, output_format=fmt)
+    inp, got = read_all(built.path), read_all(out)
+    for topic, messages in inp.items():
+        assert got[topic] == messages
+
+
+def test_grid_updates_are_applied_to_the_last_full_map(tmp_path: Path, fr079) -> None:
+    base = fr079[0]
+    patch = fr079[2][50:150, 100:300]
+    maps = [
+        MapMsg(START_NS + 1_000_000_000, base),
+        MapMsg(START_NS + 2_000_000_000, patch, topic="/map_updates", xy=(100, 50)),
+    ]
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps)
+    out = tmp_path / "out.mcap"
+    report = process_log(built.path, output_path=out)
+    assert [r.from_update for r in report.records] == [False, True]
+    patched = base.copy()
+    patched[50:150, 100:300] = patch
+    cleaned = read_all(out)["/map/rose/cleaned"]
+    assert [t for t, _ in cleaned] == [START_NS + 1_000_000_000, START_NS + 2_000_000_000]
+    snap = decode_map(cleaned[1][1], serialization="cdr", topic="/x", log_time_ns=0)
+    np.testing.assert_array_equal(snap.grid, rose.analyze(patched).cleaned)
+
+
+def test_unchanged_grid_reuses_result_and_metadata_changes_are_followed(
+    tmp_path: Path, fr079
+) -> None:
+    g = fr079[1]
+    maps = [
+        MapMsg(START_NS + 1_000_000_000, g),
+        MapMsg(START_NS + 2_000_000_000, g),
+        MapMsg(
+            START_NS + 3_000_000_000,
+            g[:200, :500].copy(),
+            resolution_m=0.1,
+            origin_xy_m=(3.0, -2.0),
+        ),
+    ]
+    built = build_log(tmp_path / "in.bag", "ros1", maps)
+    report = process_log(built.path, output_path=tmp_path / "out.bag")
+    assert [r.reused for r in report.records] == [False, True, False]
+    assert [(r.height, r.width) for r in report.records] == [g.shape, g.shape, (200, 500)]
+    np.testing.assert_allclose(
+        [r.resolution_m for r in report.records], [0.05, 0.05, 0.1], rtol=1e-6
+    )
+    cleaned = read_all(tmp_path / "out.bag")["/map/rose/cleaned"]
+    last = decode_map(cleaned[2][1], serialization="ros1", topic="/x", log_time_ns=0)
+    assert last.shape == (200, 500)
+    assert last.origin_position_m[:2] == (3.0, -2.0)
+    np.testing.assert_array_equal(last.grid, rose.analyze(g[:200, :500]).cleaned)
+
+
+def test_break_is_reported_at_the_first_distorted_snapshot(
+    tmp_path: Path, fr079, broken_grid
+) -> None:
+    grids = [*fr079, broken_grid, broken_grid]
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", session_maps(grids))
+    report = process_log(built.path, output_path=None)
+    scores = [r.structure_score for r in report.records]
+    assert max(scores[:3]) < 0.4 < scores[3]
+    first = report.first_break("/map")
+    assert first is not None
+    assert first.index == 3
+    assert first.log_time_ns == START_NS + 20_000_000_000
+    assert len(report.breaks) == 1  # staying broken is not a new break
+    assert report.records[4].reused
