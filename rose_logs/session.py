@@ -660,9 +660,19 @@ class _Loop:
     def _analyse(self, snapshot: MapSnapshot, *, from_update: bool) -> None:
         t0 = time.perf_counter()
         topic = snapshot.topic
+        try:
+            result, reused = self.analyser(snapshot)
+        except rose.RoseError as err:  # e.g. cell values outside -1..100
+            self.skipped += 1
+            _LOG.warning(
+                "%s: map at %d ns not analysed (%s), copied unprocessed",
+                topic,
+                snapshot.log_time_ns,
+                err,
+            )
+            return
         index = self.count.get(topic, 0)
         self.count[topic] = index + 1
-        result, reused = self.analyser(snapshot)
         score = float(result.structure_score)
         if self.writer is not None:
             cleaned_h, score_h, walls_h = self.derived[topic]

@@ -1,0 +1,226 @@
+"""Errors and safety: one-line errors, non-zero exit, no partial output, input untouched."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+from conftest import START_NS, MapMsg, build_log, log_path, read_all, session_maps, tree_bytes
+
+from rose_logs.cli import main
+from rose_logs.errors import LogReadError, LogWriteError
+from rose_logs.session import process_log
+
+
+def _run(capsys: pytest.CaptureFixture[str], *argv: object) -> tuple[int, str, str]:
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def _assert_one_line_error(err: str, *needles: str) -> None:
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith("error: ")
+    assert "Traceback" not in err
+    for needle in needles:
+        assert needle in lines[0]
+
+
+def _leftovers(folder: Path, keep: set[str]) -> list[str]:
+    return sorted(p.name for p in folder.iterdir() if p.name not in keep)
+
+
+@pytest.fixture
+def mcap_log(tmp_path: Path, fr079) -> Path:
+    return build_log(tmp_path / "in.mcap", "mcap-ros2", session_maps(fr079[:2])).path
+
+
+def test_missing_file(tmp_path: Path, capsys) -> None:
+    code, _, err = _run(capsys, "process", tmp_path / "nope.bag", "-o", tmp_path / "o.bag")
+    assert code == 1
+    _assert_one_line_error(err, "nope.bag", "no such file")
+    assert _leftovers(tmp_path, set()) == []
+
+
+@pytest.mark.parametrize("content", [b"", b"hello, not a bag at all\n" * 10])
+def test_unrecognised_file(tmp_path: Path, capsys, content: bytes) -> None:
+    bad = tmp_path / "bad.mcap"
+    bad.write_bytes(content)
+    code, _, err = _run(capsys, "process", bad, "-o", tmp_path / "o.mcap")
+    assert code == 1
+    _assert_one_line_error(err, "bad.mcap", "not a ROS 1 bag")
+    assert _leftovers(tmp_path, {"bad.mcap"}) == []
+
+
+@pytest.mark.parametrize("kind", ["ros1", "mcap-ros2", "mcap-ros1", "db3"])
+@pytest.mark.parametrize("damage", ["truncate", "corrupt"])
+def test_truncated_or_corrupt_log(tmp_path: Path, capsys, fr079, kind: str, damage: str) -> None:
+    built = build_log(log_path(tmp_path, kind), kind, session_maps(fr079[:2]))
+    target = next(built.path.glob("*.db3")) if built.path.is_dir() else built.path
+    data = bytearray(target.read_bytes())
+    if damage == "truncate":
+        data = data[: len(data) // 2]
+    else:
+        start = len(data) // 3
+        data[start : start + 4096] = bytes(range(256)) * 16
+    target.write_bytes(bytes(data))
+    before = tree_bytes(built.path)
+    out = log_path(tmp_path, kind, "out")
+    code, _, err = _run(capsys, "process", built.path, "-o", out)
+    assert tree_bytes(built.path) == before
+    if code == 0:  # damage inside a map's cells: that snapshot is skipped with a warning
+        assert "warning: " in err
+        assert "not analysed" in err
+        return
+    assert code == 1
+    _assert_one_line_error(err, built.path.name)
+    assert not out.exists()
+    assert _leftovers(tmp_path, {built.path.name}) == []
+
+
+def test_no_map_topic(tmp_path: Path, capsys, fr079) -> None:
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", [MapMsg(START_NS, fr079[0], topic="/map")])
+    code, _, err = _run(
+        capsys, "process", built.path, "--topic", "/scan", "-o", tmp_path / "o.mcap"
+    )
+    assert code == 1
+    _assert_one_line_error(err, "/scan", "not nav_msgs/OccupancyGrid")
+
+
+def test_no_map_topic_at_all(tmp_path: Path, capsys) -> None:
+    from rose_logs.writer import open_output
+
+    path = tmp_path / "scans.mcap"
+    with open_output(path, "mcap") as out:
+        out.add_topic("/chatter", "std_msgs/msg/String")
+        out.write("/chatter", START_NS, out.typestore.types["std_msgs/msg/String"](data="hi"))
+    code, _, err = _run(capsys, "process", path, "-o", tmp_path / "o.mcap")
+    assert code == 1
+    _assert_one_line_error(err, "no nav_msgs/OccupancyGrid topic", "/chatter")
+    assert not (tmp_path / "o.mcap").exists()
+
+
+@pytest.mark.parametrize("kind", ["ros1", "mcap-ros2"])
+def test_malformed_map_message_is_copied_with_a_warning(
+    tmp_path: Path, capsys, fr079, kind
+) -> None:
+    maps = [
+        MapMsg(START_NS + 1_000_000_000, fr079[0]),
+        MapMsg(START_NS + 2_000_000_000, fr079[1], bad_length=True),
+        MapMsg(START_NS + 3_000_000_000, fr079[2][:0, :]),  # zero-area map
+        MapMsg(START_NS + 4_000_000_000, fr079[2]),
+    ]
+    built = build_log(log_path(tmp_path, kind), kind, maps)
+    out = log_path(tmp_path, kind, "out")
+    code, stdout, err = _run(capsys, "process", built.path, "-o", out, "--quiet")
+    assert code == 0
+    warnings = [line for line in err.splitlines() if line.startswith("warning: ")]
+    assert len(warnings) == 2
+    assert any("width x height" in w for w in warnings)
+    assert any("zero-area" in w for w in warnings)
+    assert "2 malformed" in stdout
+    got = read_all(out)
+    assert got["/map"] == read_all(built.path)["/map"]  # copied through, unprocessed
+    assert len(got["/map/rose/cleaned"]) == 2
+
+
+def test_only_malformed_maps_is_an_error_without_output(tmp_path: Path, capsys, fr079) -> None:
+    built = build_log(
+        tmp_path / "in.mcap", "mcap-ros2", [MapMsg(START_NS, fr079[0], bad_length=True)]
+    )
+    code, _, err = _run(capsys, "process", built.path, "-o", tmp_path / "o.mcap")
+    assert code == 1
+    assert "no map message on /map could be analysed" in err.splitlines()[-1]
+    assert _leftovers(tmp_path, {"in.mcap"}) == []
+
+
+def test_existing_output_needs_force(tmp_path: Path, capsys, mcap_log: Path) -> None:
+    out = tmp_path / "out.mcap"
+    out.write_bytes(b"precious")
+    code, _, err = _run(capsys, "process", mcap_log, "-o", out)
+    assert code == 1
+    _assert_one_line_error(err, "out.mcap", "exists already", "--force")
+    assert out.read_bytes() == b"precious"
+    code, _, _ = _run(capsys, "process", mcap_log, "-o", out, "--force", "--quiet")
+    assert code == 0
+    assert "/map/rose/cleaned" in read_all(out)
+    assert _leftovers(tmp_path, {"in.mcap", "out.mcap"}) == []
+
+
+def test_existing_folder_output_replaced_with_force(tmp_path: Path, capsys, fr079) -> None:
+    built = build_log(tmp_path / "in", "db3", session_maps(fr079[:1]))
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "old.txt").write_text("old")
+    assert _run(capsys, "process", built.path, "-o", out)[0] == 1
+    assert (out / "old.txt").exists()
+    assert _run(capsys, "process", built.path, "-o", out, "-f")[0] == 0
+    assert not (out / "old.txt").exists()
+    assert "/map/rose/cleaned" in read_all(out)
+
+
+def test_output_never_replaces_the_input(tmp_path: Path, capsys, mcap_log: Path) -> None:
+    before = mcap_log.read_bytes()
+    code, _, err = _run(capsys, "process", mcap_log, "-o", mcap_log, "--force")
+    assert code == 1
+    _assert_one_line_error(err, "refusing to write over the input")
+    assert mcap_log.read_bytes() == before
+
+
+def test_missing_output_folder(tmp_path: Path, capsys, mcap_log: Path) -> None:
+    code, _, err = _run(capsys, "process", mcap_log, "-o", tmp_path / "no" / "such" / "o.mcap")
+    assert code == 1
+    _assert_one_line_error(err, "does not exist")
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root ignores directory permissions")
+def test_unwritable_folder_by_permissions(tmp_path: Path, capsys, mcap_log: Path) -> None:
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    locked.chmod(0o500)
+    try:
+        code, _, err = _run(capsys, "process", mcap_log, "-o", locked / "o.mcap")
+    finally:
+        locked.chmod(0o700)
+    assert code == 1
+    _assert_one_line_error(err, "not writable")
+
+
+def test_unwritable_folder(tmp_path: Path, capsys, mcap_log: Path) -> None:
+    # /proc refuses new files even for root
+    code, _, err = _run(capsys, "process", mcap_log, "-o", "/proc/rose-out.mcap")
+    assert code == 1
+    _assert_one_line_error(err, "rose-out.mcap")
+    assert not Path("/proc/rose-out.mcap").exists()
+
+
+def test_format_mismatch_is_an_error(tmp_path: Path, fr079) -> None:
+    built = build_log(tmp_path / "in.bag", "ros1", session_maps(fr079[:1]))
+    with pytest.raises(LogWriteError, match="cannot store ROS 1 messages"):
+        process_log(built.path, output_path=tmp_path / "out", output_format="db3")
+    assert _leftovers(tmp_path, {"in.bag"}) == []
+
+
+def test_interrupted_run_leaves_nothing(tmp_path: Path, mcap_log: Path) -> None:
+    def stop(*_: object) -> None:
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        process_log(
+            mcap_log, output_path=tmp_path / "o.mcap", rrd_path=tmp_path / "s.rrd", on_snapshot=stop
+        )
+    assert _leftovers(tmp_path, {"in.mcap"}) == []
+
+
+def test_reader_error_names_the_file(tmp_path: Path) -> None:
+    from rose_logs.reader import LogReader
+
+    with pytest.raises(LogReadError, match=r"x\.bag: no such file"):
+        LogReader(tmp_path / "x.bag")
+
+
+def test_debug_shows_traceback(tmp_path: Path) -> None:
+    with pytest.raises(LogReadError):
+        main(["--debug", "process", str(tmp_path / "nope.mcap")])
