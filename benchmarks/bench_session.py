@@ -1,0 +1,189 @@
+"""Benchmark ``rose-bag process`` on a long synthetic-timeline session of a growing real map.
+
+The session: ``--snapshots`` maps (default 720, one hour at one map every 5 s) of ``--size`` x ``--size``
+cells, cut from the Freiburg 079 exploration stages map2 .. map15 in order (each snapshot differs from
+the previous one, so no result is reused), plus ``sensor_msgs/LaserScan`` traffic at ``--scan-hz``.
+
+Reports, in the same run: the time of a plain raw copy of the log (read + write every message, no ROSE),
+the time of ``process_log`` (copy + ROSE + derived topics, optionally + Rerun), snapshots per second and
+their ratio. Prints numbers, asserts nothing.
+
+Usage::
+
+    python benchmarks/bench_session.py [--snapshots 720] [--size 1000] [--rrd] [--format mcap] [--keep DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+import rose
+from rose_logs.messages import encode_cleaned
+from rose_logs.reader import LogReader
+from rose_logs.session import process_log
+from rose_logs.snapshots import MapSnapshot
+from rose_logs.writer import LogWriter, open_output
+
+MAPS = (
+    Path(__file__).resolve().parents[2]
+    / "shared"
+    / "maps"
+    / "rose2_aislabunimi"
+    / "Freiburg_Building_079_partial"
+)
+START_NS = 1_700_000_000 * 1_000_000_000
+
+
+def stages(size: int) -> list[np.ndarray]:
+    """The 14 exploration stages, centre-cropped / padded with unknown to ``size`` x ``size``."""
+    out = []
+    for n in range(2, 16):
+        grid = rose.load_map(MAPS / f"map{n}.yaml").grid
+        canvas = np.full((size, size), -1, dtype=np.int8)
+        h, w = grid.shape
+        gy, gx = max((h - size) // 2, 0), max((w - size) // 2, 0)
+        cy, cx = max((size - h) // 2, 0), max((size - w) // 2, 0)
+        hh, ww = min(h, size), min(w, size)
+        canvas[cy : cy + hh, cx : cx + ww] = grid[gy : gy + hh, gx : gx + ww]
+        out.append(canvas)
+    return out
+
+
+def build(
+    path: Path, fmt: str, *, snapshots: int, size: int, period_s: float, scan_hz: float
+) -> int:
+    """Write the session; returns the number of messages."""
+    maps = stages(size)
+    period_ns = round(period_s * 1e9)
+    scan_ns = round(1e9 / scan_hz) if scan_hz > 0 else 0
+    rng = np.random.default_rng(0)
+    count = 0
+    with open_output(path, fmt, force=True) as out:
+        types = out.typestore.types
+        out.add_topic("/map", "nav_msgs/msg/OccupancyGrid", latching=True)
+        if scan_ns:
+            out.add_topic("/scan", "sensor_msgs/msg/LaserScan")
+        ranges = rng.uniform(0.5, 20.0, (64, 360)).astype(np.float32)
+        for i in range(snapshots):
+            t_map = START_NS + (i + 1) * period_ns
+            grid = maps[min(i * len(maps) // snapshots, len(maps) - 1)].copy()
+            grid[i % size, 0] = 0  # every snapshot differs: no reuse in the benchmark
+            snap = MapSnapshot("/map", t_map, t_map, "map", grid, 0.05, (-25.0, -25.0, 0.0))
+            out.write("/map", t_map, encode_cleaned(snap, grid, serialization=out.serialization))
+            count += 1
+            if scan_ns:
+                for t in range(t_map - period_ns + scan_ns, t_map, scan_ns):
+                    stamp = types["builtin_interfaces/msg/Time"](
+                        sec=t // 1_000_000_000, nanosec=t % 1_000_000_000
+                    )
+                    header = types["std_msgs/msg/Header"](stamp=stamp, frame_id="laser")
+                    if out.serialization == "ros1":
+                        header = types["std_msgs/msg/Header"](seq=0, stamp=stamp, frame_id="laser")
+                    scan = types["sensor_msgs/msg/LaserScan"](
+                        header=header,
+                        angle_min=-np.pi,
+                        angle_max=np.pi,
+                        angle_increment=2 * np.pi / 360,
+                        time_increment=0.0,
+                        scan_time=0.1,
+                        range_min=0.1,
+                        range_max=30.0,
+                        ranges=ranges[count % 64],
+                        intensities=np.zeros(0, dtype=np.float32),
+                    )
+                    out.write("/scan", t, scan)
+                    count += 1
+    return count
+
+
+def raw_copy(src: Path, dst: Path, fmt: str) -> float:
+    """Seconds to copy every message of ``src`` to ``dst`` unchanged (the session's copy path alone)."""
+    t0 = time.perf_counter()
+    with LogReader(src) as reader:
+        with LogWriter(dst, fmt, serialization=reader.serialization, force=True) as writer:
+            handles = {c.id: writer.add_channel(c) for c in reader.channels}
+            for m in reader.messages():
+                writer.write_raw(
+                    handles[m.channel.id],
+                    m.log_time_ns,
+                    m.data,
+                    publish_time_ns=m.publish_time_ns,
+                    sequence=m.sequence,
+                )
+    return time.perf_counter() - t0
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--snapshots", type=int, default=720)
+    parser.add_argument("--size", type=int, default=1000)
+    parser.add_argument("--period", type=float, default=5.0, help="seconds between maps")
+    parser.add_argument("--scan-hz", type=float, default=10.0)
+    parser.add_argument("--format", default="mcap", choices=("ros1", "db3", "mcap", "mcap-dir"))
+    parser.add_argument("--rrd", action="store_true", help="also save a Rerun recording")
+    parser.add_argument("--keep", type=Path, default=None, help="work here and keep the files")
+    args = parser.parse_args(argv)
+
+    work = args.keep or Path(tempfile.mkdtemp(prefix="rose-bench-"))
+    work.mkdir(parents=True, exist_ok=True)
+    suffix = {"ros1": ".bag", "mcap": ".mcap"}.get(args.format, "")
+    src, copy, out = (work / f"{n}{suffix}" for n in ("session", "copy", "processed"))
+    try:
+        t0 = time.perf_counter()
+        messages = build(
+            src,
+            args.format,
+            snapshots=args.snapshots,
+            size=args.size,
+            period_s=args.period,
+            scan_hz=args.scan_hz,
+        )
+        build_s = time.perf_counter() - t0
+        size_mb = sum(p.stat().st_size for p in ([src] if src.is_file() else src.iterdir())) / 1e6
+        copy_s = raw_copy(src, copy, args.format)
+        t0 = time.perf_counter()
+        report = process_log(
+            src,
+            output_path=out,
+            output_format=args.format,
+            force=True,
+            rrd_path=work / "session.rrd" if args.rrd else None,
+        )
+        process_s = time.perf_counter() - t0
+        n = len(report.records)
+        analysed = sum(not r.reused for r in report.records)
+        print(f"cpu cores          {os.cpu_count()}")
+        print(
+            f"session            {args.format}, {n} snapshots of {args.size} x {args.size}, "
+            f"{messages} messages, {size_mb:.1f} MB, {args.snapshots * args.period / 60:.0f} min of log "
+            f"(built in {build_s:.1f} s)"
+        )
+        print(f"raw copy           {copy_s:.2f} s")
+        print(
+            f"process            {process_s:.2f} s ({'with' if args.rrd else 'without'} Rerun; "
+            f"{analysed} analysed, {n - analysed} reused)"
+        )
+        print(f"snapshots/s        {n / process_s:.1f}")
+        print(f"process / copy     {process_s / copy_s:.1f}x")
+        per = sorted(r.seconds for r in report.records)
+        print(
+            f"per snapshot       median {1e3 * per[len(per) // 2]:.0f} ms, "
+            f"max {1e3 * per[-1]:.0f} ms"
+        )
+        print(f"one-hour estimate  {720 / (n / process_s):.0f} s for 720 snapshots (target < 60 s)")
+    finally:
+        if args.keep is None:
+            shutil.rmtree(work, ignore_errors=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
