@@ -75,7 +75,9 @@ def build(
         for i in range(snapshots):
             t_map = START_NS + (i + 1) * period_ns
             grid = maps[min(i * len(maps) // snapshots, len(maps) - 1)].copy()
-            grid[i % size, 0] = 0  # every snapshot differs: no reuse in the benchmark
+            grid[i % size, 0] = (
+                100 - grid[i % size, 0] if grid[i % size, 0] >= 0 else 0
+            )  # always differs
             snap = MapSnapshot("/map", t_map, t_map, "map", grid, 0.05, (-25.0, -25.0, 0.0))
             out.write("/map", t_map, encode_cleaned(snap, grid, serialization=out.serialization))
             count += 1
@@ -107,17 +109,20 @@ def build(
 def raw_copy(src: Path, dst: Path, fmt: str) -> float:
     """Seconds to copy every message of ``src`` to ``dst`` unchanged (the session's copy path alone)."""
     t0 = time.perf_counter()
-    with LogReader(src) as reader:
-        with LogWriter(dst, fmt, serialization=reader.serialization, force=True) as writer:
-            handles = {c.id: writer.add_channel(c) for c in reader.channels}
-            for m in reader.messages():
-                writer.write_raw(
-                    handles[m.channel.id],
-                    m.log_time_ns,
-                    m.data,
-                    publish_time_ns=m.publish_time_ns,
-                    sequence=m.sequence,
-                )
+    reader = LogReader(src)
+    with (
+        reader,
+        LogWriter(dst, fmt, serialization="ros1" if fmt == "ros1" else "cdr", force=True) as writer,
+    ):
+        handles = {c.id: writer.add_channel(c) for c in reader.channels}
+        for m in reader.messages():
+            writer.write_raw(
+                handles[m.channel.id],
+                m.log_time_ns,
+                m.data,
+                publish_time_ns=m.publish_time_ns,
+                sequence=m.sequence,
+            )
     return time.perf_counter() - t0
 
 
