@@ -586,9 +586,6 @@ def _extend_along(
     """Grow each segment at both ends while ``pixels`` continue along its line (gaps bridged)."""
     if len(segments) == 0:
         return segments
-    rows, cols = pixels.shape
-    reach = int(math.hypot(rows, cols)) + 1
-    steps = np.arange(1, reach + 1, dtype=np.float64)
     offsets = np.arange(-math.floor(band_px), math.floor(band_px) + 1, dtype=np.float64)
     out = segments.copy()
     for k, (a, b) in enumerate(segments):
@@ -598,16 +595,46 @@ def _extend_along(
         u = (b - a) / length
         normal = np.array([-u[1], u[0]])
         for end, sign in ((1, 1.0), (0, -1.0)):
-            centre = out[k, end][None, :] + sign * steps[:, None] * u[None, :]
-            probe = centre[:, None, :] + offsets[None, :, None] * normal[None, None, :]
-            c = np.rint(probe[..., 0]).astype(np.intp)
-            r = np.rint(probe[..., 1]).astype(np.intp)
-            inside = (c >= 0) & (c < cols) & (r >= 0) & (r < rows)
-            hit = np.zeros(c.shape, dtype=bool)
-            hit[inside] = pixels[r[inside], c[inside]]
-            found = hit.any(axis=1)
+            found = _probe_line(
+                pixels, out[k, end], sign * u, normal * 1.0, offsets, int(max_gap_px)
+            )
             out[k, end] += sign * _run_length(found, max_gap=int(max_gap_px)) * u
     return out
+
+
+def _probe_line(
+    pixels: npt.NDArray[np.bool_],
+    start: npt.NDArray[np.float64],
+    step: npt.NDArray[np.float64],
+    normal: npt.NDArray[np.float64],
+    offsets: npt.NDArray[np.float64],
+    max_gap: int,
+) -> npt.NDArray[np.bool_]:
+    """Whether ``pixels`` has a cell within the band at each step beyond ``start`` along ``step``.
+
+    Probes in growing chunks and stops once the last ``max_gap + 1`` steps found nothing (the run
+    has ended) or the line has left the grid: walls end long before the map's diagonal.
+    """
+    rows, cols = pixels.shape
+    reach = int(math.hypot(rows, cols)) + 1
+    found: list[npt.NDArray[np.bool_]] = []
+    done, chunk = 0, 64
+    while done < reach:
+        steps = np.arange(done + 1, min(done + chunk, reach) + 1, dtype=np.float64)
+        centre = start[None, :] + steps[:, None] * step[None, :]
+        probe = centre[:, None, :] + offsets[None, :, None] * normal[None, None, :]
+        c = np.rint(probe[..., 0]).astype(np.intp)
+        r = np.rint(probe[..., 1]).astype(np.intp)
+        inside = (c >= 0) & (c < cols) & (r >= 0) & (r < rows)
+        hit = np.zeros(c.shape, dtype=bool)
+        hit[inside] = pixels[r[inside], c[inside]]
+        found.append(hit.any(axis=1))
+        done += steps.size
+        tail = np.concatenate(found)[-(max_gap + 1) :]
+        if not inside.any() or (tail.size == max_gap + 1 and not tail.any()):
+            break
+        chunk *= 2
+    return np.concatenate(found)
 
 
 def _run_length(found: npt.NDArray[np.bool_], *, max_gap: int) -> float:
