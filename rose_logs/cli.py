@@ -140,6 +140,11 @@ def _add_process_parser(subparsers: Any) -> None:
     parser.add_argument("--rrd", type=Path, default=None, help="save a Rerun recording here")
     parser.add_argument("--spawn", action="store_true", help="stream to a new Rerun viewer")
     parser.add_argument(
+        "--walls",
+        action="store_true",
+        help="also extract wall segments per snapshot (marker in <map>/rose/walls, Rerun lines)",
+    )
+    parser.add_argument(
         "--json", type=Path, default=None, dest="json_path", help="write a JSON report here"
     )
     parser.add_argument(
@@ -299,6 +304,7 @@ def _run_process(args: argparse.Namespace) -> int:
         rrd_path=args.rrd,
         spawn=args.spawn,
         progress=progress,
+        walls=args.walls,
     )
     if args.json_path is not None:
         _write_json(args.json_path, report.to_json())

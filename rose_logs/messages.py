@@ -26,6 +26,7 @@ import numpy.typing as npt
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from rose.result import RoseResult
+from rose.walls import WallSet
 from rose_logs.errors import MapMessageError
 from rose_logs.snapshots import GridUpdate, MapSnapshot
 
@@ -327,11 +328,19 @@ def _marker(types: Any, serialization: str, snapshot: MapSnapshot, **fields: Any
     return types["visualization_msgs/msg/Marker"](**common)
 
 
-def encode_walls(snapshot: MapSnapshot, result: RoseResult, *, serialization: str) -> bytes:
-    """Serialise the dominant directions as a ``visualization_msgs/MarkerArray`` in the map frame.
+def encode_walls(
+    snapshot: MapSnapshot,
+    result: RoseResult,
+    walls: WallSet | None = None,
+    *,
+    serialization: str,
+) -> bytes:
+    """Serialise the dominant directions (and wall segments) as a ``visualization_msgs/MarkerArray``.
 
-    Marker 0 (``LINE_LIST``): a line through the grid centre along each dominant direction (none when
-    the map has no structure). Marker 1 (``TEXT_VIEW_FACING``): ``"W = 0.123"`` at the grid centre.
+    All markers are in the map's frame. Marker 0 (``LINE_LIST``): a line through the grid centre
+    along each dominant direction (none when the map has no structure). Marker 1
+    (``TEXT_VIEW_FACING``): ``"W = 0.123"`` at the grid centre. Marker 2 (``LINE_LIST``, only when
+    ``walls`` is given): the wall segments, ``walls.line_list_m``.
     """
     types = typestore_for(serialization).types
     lines = wall_line_endpoints(snapshot, result)
@@ -368,5 +377,20 @@ def encode_walls(snapshot: MapSnapshot, result: RoseResult, *, serialization: st
         points=[],
         text=f"W = {result.structure_score:.3f}",
     )
-    array = types[MARKER_ARRAY_TYPE](markers=[lines_marker, text_marker])
+    markers = [lines_marker, text_marker]
+    if walls is not None:
+        wall_points = [point(x=float(x), y=float(y), z=0.05) for x, y in walls.line_list_m]
+        markers.append(
+            _marker(
+                types,
+                serialization,
+                snapshot,
+                id=2,
+                type=5,  # LINE_LIST
+                scale=vec(x=width_m, y=0.0, z=0.0),
+                color=rgba(r=0.0, g=0.8, b=1.0, a=0.9),
+                points=wall_points,
+            )
+        )
+    array = types[MARKER_ARRAY_TYPE](markers=markers)
     return _serialize(array, MARKER_ARRAY_TYPE, serialization)

@@ -1,0 +1,67 @@
+"""``process_log(walls=True)``: wall segments in the output bag's marker array."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+import pytest
+from conftest import build_log, log_path, session_maps
+
+import rose
+from rose_logs.messages import typestore_for
+from rose_logs.reader import LogReader
+from rose_logs.session import process_log
+
+
+@pytest.mark.parametrize("kind", ["ros1", "mcap-ros2"])
+def test_wall_segments_are_written_as_a_line_list(
+    tmp_path: Path, kind: str, fr079: list[npt.NDArray[np.int8]]
+) -> None:
+    maps = session_maps(fr079[1:])
+    built = build_log(log_path(tmp_path, kind), kind, maps)
+    out = log_path(tmp_path, kind, "out")
+    process_log(built.path, output_path=out, walls=True)
+
+    store = typestore_for(built.serialization)
+    deserialize = store.deserialize_ros1 if built.serialization == "ros1" else store.deserialize_cdr
+    msgtype = "visualization_msgs/msg/MarkerArray"
+    arrays = []
+    with LogReader(out) as reader:
+        for message in reader.messages():
+            if message.channel.topic == "/map/rose/walls":
+                arrays.append(deserialize(bytes(message.data), msgtype))
+    assert len(arrays) == len(maps)
+    for array, m in zip(arrays, maps, strict=True):
+        wall_marker = next(marker for marker in array.markers if marker.id == 2)
+        assert wall_marker.type == 5  # LINE_LIST
+        assert wall_marker.header.frame_id == "map"
+        points = np.array([(p.x, p.y) for p in wall_marker.points])
+        placed = rose.OccupancyMap(
+            grid=m.grid, resolution_m=m.resolution_m, origin_xy_m=m.origin_xy_m
+        )
+        expected = rose.extract_walls(placed, rose.analyze(m.grid)).line_list_m
+        assert len(expected) > 0
+        np.testing.assert_allclose(points, expected, atol=1e-9)
+
+
+def test_without_walls_flag_no_wall_marker(
+    tmp_path: Path, fr079: list[npt.NDArray[np.int8]]
+) -> None:
+    built = build_log(log_path(tmp_path, "mcap-ros2"), "mcap-ros2", session_maps(fr079[:1]))
+    out = log_path(tmp_path, "mcap-ros2", "out")
+    process_log(built.path, output_path=out)
+    store = typestore_for(built.serialization)
+    with LogReader(out) as reader:
+        ids = [
+            [
+                marker.id
+                for marker in store.deserialize_cdr(
+                    bytes(m.data), "visualization_msgs/msg/MarkerArray"
+                ).markers
+            ]
+            for m in reader.messages()
+            if m.channel.topic == "/map/rose/walls"
+        ]
+    assert ids == [[0, 1]]
