@@ -27,6 +27,8 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
+from rose_logs.errors import LogReadError
+
 __all__ = [
     "CarmenFormatError",
     "CarmenLog",
@@ -42,7 +44,7 @@ _GZIP_MAGIC = b"\x1f\x8b"
 _TRAILER_FIELDS = 9
 
 
-class CarmenFormatError(ValueError):
+class CarmenFormatError(LogReadError, ValueError):
     """A CARMEN log or one of its lines cannot be read; the message names the file or the problem."""
 
 

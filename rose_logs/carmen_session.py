@@ -9,8 +9,9 @@ Messages, all stamped with the scan time (log time = header stamp, nanoseconds):
   (:mod:`rose_logs.occupancy_builder`), every ``map_period_s`` seconds of log time and after the last scan.
 
 Timestamps that go backwards in the log (a few in the Intel log) are moved 1 ns after their
-predecessor so every output topic is time-ordered. Writing goes through :func:`_open_sink`, a thin
-adapter over rosbags' writers kept apart so it can be swapped for the project's bag writer.
+predecessor so every output topic is time-ordered. Writing goes through the project's writer
+(:func:`rose_logs.writer.open_output`): written to a temporary path and renamed at the end; ``.mcap``
+is a bare MCAP file, as ``rose-bag process`` writes it.
 """
 
 from __future__ import annotations
@@ -29,7 +30,9 @@ import numpy.typing as npt
 
 from rose_logs.carmen import CarmenLog, beam_angles, read_carmen_log
 from rose_logs.drift import apply_drift
+from rose_logs.errors import LogWriteError
 from rose_logs.occupancy_builder import BuilderParams, OccupancyGridBuilder, ScanBatch
+from rose_logs.writer import open_output
 
 __all__ = [
     "SessionFormat",
@@ -94,53 +97,30 @@ def format_from_path(path: Path) -> SessionFormat:
     return "db3"
 
 
-# -- the writer adapter (rosbags) -----------------------------------------------------------
+# -- the writer adapter ---------------------------------------------------------------------
 class _Sink:
-    """Typestore, connections and serialisation for one output bag (rosbags writers)."""
+    """Output session through :func:`rose_logs.writer.open_output` (atomic; any of our formats),
+    plus the headers the converter needs (ROS 1 headers carry a sequence number)."""
 
-    def __init__(self, path: Path, fmt: SessionFormat) -> None:
-        from rosbags.typesys import Stores, get_types_from_msg, get_typestore
-
+    def __init__(self, path: Path, fmt: SessionFormat, *, force: bool) -> None:
         self.ros1 = fmt == "ros1"
-        self.typestore = get_typestore(Stores.ROS1_NOETIC if self.ros1 else Stores.ROS2_HUMBLE)
-        if "tf2_msgs/msg/TFMessage" not in self.typestore.types:
-            self.typestore.register(
-                get_types_from_msg(
-                    "geometry_msgs/TransformStamped[] transforms", "tf2_msgs/msg/TFMessage"
-                )
-            )
-        if self.ros1:
-            from rosbags.rosbag1 import Writer as Ros1Writer
-
-            self.writer: Any = Ros1Writer(path)
-        else:
-            from rosbags.rosbag2 import StoragePlugin
-            from rosbags.rosbag2 import Writer as Ros2Writer
-
-            plugin = StoragePlugin.MCAP if fmt == "mcap" else StoragePlugin.SQLITE3
-            self.writer = Ros2Writer(path, version=9, storage_plugin=plugin)
-        self.connections: dict[str, Any] = {}
+        self.writer = open_output(path, fmt, force=force)
+        self.typestore = self.writer.typestore
         self.seq = 0
 
     def __enter__(self) -> _Sink:
-        self.writer.open()
+        self.writer.__enter__()
         return self
 
-    def __exit__(self, *exc: object) -> None:
-        self.writer.close()
+    def __exit__(self, *exc: Any) -> None:
+        self.writer.__exit__(*exc)
 
     def add(self, topic: str, msgtype: str) -> None:
-        self.connections[topic] = self.writer.add_connection(
-            topic, msgtype, typestore=self.typestore
-        )
+        # Maps are latched, as map_server and SLAM nodes publish them.
+        self.writer.add_topic(topic, msgtype, latching=msgtype.endswith("OccupancyGrid"))
 
     def write(self, topic: str, time_ns: int, msg: Any) -> None:
-        msgtype = msg.__msgtype__
-        if self.ros1:
-            data = self.typestore.serialize_ros1(msg, msgtype)
-        else:
-            data = self.typestore.serialize_cdr(msg, msgtype)
-        self.writer.write(self.connections[topic], time_ns, data)
+        self.writer.write(topic, time_ns, msg)
 
     def header(self, time_ns: int, frame_id: str) -> Any:
         types = self.typestore.types
@@ -153,8 +133,8 @@ class _Sink:
         return types["std_msgs/msg/Header"](stamp=stamp, frame_id=frame_id)
 
 
-def _open_sink(path: Path, fmt: SessionFormat) -> _Sink:
-    return _Sink(path, fmt)
+def _open_sink(path: Path, fmt: SessionFormat, *, force: bool) -> _Sink:
+    return _Sink(path, fmt, force=force)
 
 
 # -- messages -----------------------------------------------------------------------------------
@@ -277,6 +257,7 @@ def write_carmen_session(
     drift_seed: int = 0,
     drift_start_s: float = 0.0,
     progress: Callable[[int, int], None] | None = None,
+    force: bool = False,
 ) -> SessionSummary:
     """Write a CARMEN log as a ROS session (see module notes for topics and frames).
 
@@ -309,15 +290,12 @@ def write_carmen_session(
 
     Raises
     ------
-    FileExistsError
-        When ``path`` exists.
+    LogWriteError
+        When ``path`` exists (and ``force`` is False) or cannot be written; nothing is left behind.
     ValueError
         On a bad period or pose output.
     """
     out = Path(path)
-    if out.exists():
-        msg = f"{out} exists already, not overwriting"
-        raise FileExistsError(msg)
     if not map_period_s > 0:
         msg = f"map_period_s must be > 0, got {map_period_s}"
         raise ValueError(msg)
@@ -339,7 +317,7 @@ def write_carmen_session(
     next_map_ns = int(stamps[0]) + period_ns
     maps = 0
     total = len(log.scans)
-    with _open_sink(out, fmt) as sink:
+    with _open_sink(out, fmt, force=force) as sink:
         sink.add("/scan", "sensor_msgs/msg/LaserScan")
         if pose_output in ("tf", "both"):
             sink.add("/tf", "tf2_msgs/msg/TFMessage")
@@ -433,6 +411,7 @@ def add_convert_parser(subparsers: Any) -> None:
         help="seconds after the first scan when drift starts (0)",
     )
     parser.add_argument("--max-scans", type=int, default=None, help="use only the first N scans")
+    parser.add_argument("--force", action="store_true", help="replace an existing output")
     parser.add_argument(
         "--map-file",
         type=Path,
@@ -447,17 +426,22 @@ def run_convert(args: argparse.Namespace) -> int:
     log = read_carmen_log(args.log, max_scans=args.max_scans)
     if log.malformed:
         print(f"warning: skipped {log.malformed} malformed FLASER lines", file=sys.stderr)
-    summary = write_carmen_session(
-        log,
-        args.output,
-        fmt=args.fmt,
-        builder_params=BuilderParams(resolution_m=args.resolution, max_range_m=args.max_range),
-        map_period_s=args.map_period,
-        pose_output=args.pose,
-        drift_level=args.drift_level,
-        drift_seed=args.drift_seed,
-        drift_start_s=args.drift_start,
-    )
+    try:
+        summary = write_carmen_session(
+            log,
+            args.output,
+            fmt=args.fmt,
+            builder_params=BuilderParams(resolution_m=args.resolution, max_range_m=args.max_range),
+            map_period_s=args.map_period,
+            pose_output=args.pose,
+            drift_level=args.drift_level,
+            drift_seed=args.drift_seed,
+            drift_start_s=args.drift_start,
+            force=args.force,
+        )
+    except ValueError as err:  # a parameter out of range: one line, like every other error
+        msg = f"{args.output}: {err}"
+        raise LogWriteError(msg) from err
     if args.map_file is not None:
         import rose
 
