@@ -18,6 +18,7 @@ from rose_logs.carmen import (
     parse_flaser_line,
     read_carmen_log,
 )
+from rose_logs.errors import LogWriteError
 
 LOGS = Path(__file__).resolve().parents[2] / "shared" / "maps" / "radish_carmen_corrected_logs"
 if not LOGS.is_dir():
@@ -156,7 +157,7 @@ def test_session_write_then_read(tmp_path: Path, name: str, fmt: str) -> None:
         scan = reader.deserialize(raw, conn.msgtype)
         assert t_ns == log.scans[0].stamp_ns
         np.testing.assert_allclose(scan.ranges, log.scans[0].ranges_m)
-    with pytest.raises(FileExistsError, match="exists already"):
+    with pytest.raises(LogWriteError, match="exists already"):
         write_carmen_session(log, out)
 
 
