@@ -24,7 +24,54 @@ from rose.pipeline import analyze
 from rose.result import RoseParams, RoseResult
 from rose.walls_cli import add_walls_parser
 
-__all__ = ["add_param_arguments", "main", "params_from_args", "result_summary"]
+__all__ = [
+    "add_param_arguments",
+    "fraction",
+    "main",
+    "non_negative_float",
+    "params_from_args",
+    "positive_float",
+    "result_summary",
+]
+
+
+def _number(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError as err:
+        msg = f"expected a number, got {text!r}"
+        raise argparse.ArgumentTypeError(msg) from err
+    if not math.isfinite(value):
+        msg = f"expected a finite number, got {text!r}"
+        raise argparse.ArgumentTypeError(msg)
+    return value
+
+
+def positive_float(text: str) -> float:
+    """argparse type: a finite number > 0 (usage error otherwise)."""
+    value = _number(text)
+    if value <= 0:
+        msg = f"expected a positive number, got {text!r}"
+        raise argparse.ArgumentTypeError(msg)
+    return value
+
+
+def non_negative_float(text: str) -> float:
+    """argparse type: a finite number >= 0."""
+    value = _number(text)
+    if value < 0:
+        msg = f"expected a number >= 0, got {text!r}"
+        raise argparse.ArgumentTypeError(msg)
+    return value
+
+
+def fraction(text: str) -> float:
+    """argparse type: a number in (0, 1]."""
+    value = positive_float(text)
+    if value > 1:
+        msg = f"expected a number in (0, 1], got {text!r}"
+        raise argparse.ArgumentTypeError(msg)
+    return value
 
 
 def add_param_arguments(parser: argparse.ArgumentParser) -> None:
@@ -33,28 +80,28 @@ def add_param_arguments(parser: argparse.ArgumentParser) -> None:
     group = parser.add_argument_group("ROSE parameters")
     group.add_argument(
         "--peak-prominence",
-        type=float,
+        type=fraction,
         default=d.peak_prominence,
         metavar="F",
         help="dominant-direction prominence as a fraction of max-min (default %(default)s)",
     )
     group.add_argument(
         "--angular-resolution",
-        type=float,
+        type=positive_float,
         default=d.angular_resolution_deg,
         metavar="DEG",
         help="direction bin width in degrees (default %(default)s)",
     )
     group.add_argument(
         "--smoothing",
-        type=float,
+        type=non_negative_float,
         default=d.smoothing_deg,
         metavar="DEG",
         help="angular smoothing of the cumulative amplitude (default %(default)s)",
     )
     group.add_argument(
         "--mask-half-width",
-        type=float,
+        type=positive_float,
         default=d.mask_half_width_px,
         metavar="PX",
         help="half-width of the spectrum strip kept per direction (default %(default)s)",
@@ -74,7 +121,7 @@ def add_param_arguments(parser: argparse.ArgumentParser) -> None:
     )
     group.add_argument(
         "--fixed-threshold",
-        type=float,
+        type=fraction,
         default=d.fixed_threshold,
         metavar="F",
         help="score threshold of the fixed mode, fraction of the top score (default %(default)s)",

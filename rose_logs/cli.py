@@ -9,15 +9,14 @@ from __future__ import annotations
 import argparse
 import json
 import logging
-import math
 import statistics
 import sys
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
+from rose.cli import add_param_arguments, params_from_args, positive_float
 from rose.errors import RoseError
-from rose.result import RoseParams
 from rose_logs.errors import LogError
 
 __all__ = ["build_parser", "main"]
@@ -27,78 +26,6 @@ EXIT_GATE = 3
 
 
 # -- parser --------------------------------------------------------------------------------------
-def _positive_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError as err:
-        msg = f"expected a number, got {text!r}"
-        raise argparse.ArgumentTypeError(msg) from err
-    if not math.isfinite(value) or value <= 0:
-        msg = f"expected a positive number, got {text!r}"
-        raise argparse.ArgumentTypeError(msg)
-    return value
-
-
-def _fraction(text: str) -> float:
-    value = _positive_float(text)
-    if value > 1:
-        msg = f"expected a number in (0, 1], got {text!r}"
-        raise argparse.ArgumentTypeError(msg)
-    return value
-
-
-def _add_rose_options(parser: argparse.ArgumentParser) -> None:
-    group = parser.add_argument_group("ROSE parameters (defaults: rose.RoseParams)")
-    defaults = RoseParams()
-    group.add_argument(
-        "--peak-prominence",
-        type=_fraction,
-        default=defaults.peak_prominence,
-        help="dominant-direction prominence as a fraction of max-min (%(default)s)",
-    )
-    group.add_argument(
-        "--angular-resolution",
-        type=_positive_float,
-        default=defaults.angular_resolution_deg,
-        help="direction bin width, degrees (%(default)s)",
-    )
-    group.add_argument(
-        "--threshold-mode",
-        choices=("gmm", "fixed"),
-        default=defaults.threshold_mode,
-        help="structure/clutter threshold: Gaussian mixture or fixed (%(default)s)",
-    )
-    group.add_argument(
-        "--fixed-threshold",
-        type=_fraction,
-        default=defaults.fixed_threshold,
-        help="threshold of --threshold-mode fixed, fraction of the top score (%(default)s)",
-    )
-    group.add_argument(
-        "--occupied-threshold",
-        type=int,
-        default=defaults.occupied_threshold,
-        help="occupancy (percent) from which a cell is occupied (%(default)s)",
-    )
-    group.add_argument(
-        "--clutter-value",
-        choices=("free", "unknown"),
-        default=defaults.clutter_value,
-        help="what clutter cells become in the cleaned map (%(default)s)",
-    )
-
-
-def _params(args: argparse.Namespace) -> RoseParams:
-    return RoseParams(
-        peak_prominence=args.peak_prominence,
-        angular_resolution_deg=args.angular_resolution,
-        threshold_mode=args.threshold_mode,
-        fixed_threshold=args.fixed_threshold,
-        occupied_threshold=args.occupied_threshold,
-        clutter_value=args.clutter_value,
-    )
-
-
 def _add_process_parser(subparsers: Any) -> None:
     parser = subparsers.add_parser(
         "process",
@@ -149,19 +76,19 @@ def _add_process_parser(subparsers: Any) -> None:
     )
     parser.add_argument(
         "--failure-level",
-        type=_positive_float,
+        type=positive_float,
         default=0.4,
         help="W above which a map counts as broken (%(default)s, the paper's)",
     )
     parser.add_argument(
         "--fail-above",
-        type=_positive_float,
+        type=positive_float,
         default=None,
         metavar="W",
         help=f"exit {EXIT_GATE} if any snapshot's W exceeds this (map-quality gate)",
     )
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
-    _add_rose_options(parser)
+    add_param_arguments(parser)
     parser.set_defaults(func=_run_process)
 
 
@@ -299,7 +226,7 @@ def _run_process(args: argparse.Namespace) -> int:
         output_format=args.fmt,
         force=args.force,
         topics=args.topics,
-        params=_params(args),
+        params=params_from_args(args),
         failure_level=args.failure_level,
         rrd_path=args.rrd,
         spawn=args.spawn,

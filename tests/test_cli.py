@@ -67,7 +67,22 @@ def test_score_prints_a_table_and_json(
         lambda d, m: ["clean", str(m), "-o", str(d / "no" / "dir" / "o.yaml")],
         lambda d, m: ["clean", str(m), "-o", str(m)],
         lambda d, m: ["clean", str(m), "-o", str(d / "o.txt")],
-        lambda d, m: ["clean", str(m), "-o", str(d / "o.yaml"), "--peak-prominence", "7"],
+        lambda d, m: [
+            "clean",
+            str(m),
+            "-o",
+            str(d / "o.yaml"),
+            "--seed",
+            "1",
+            "--threshold-mode",
+            "fixed",
+            "--fixed-threshold",
+            "1.0",
+            "--peak-prominence",
+            "1.0",
+            "--occupied-threshold",
+            "0",
+        ],
         lambda d, m: ["score", str(d / "junk.png")],
     ],
     ids=["missing-input", "missing-dir", "overwrite-input", "not-yaml", "bad-param", "bad-image"],
@@ -84,7 +99,15 @@ def test_errors_are_one_line_with_exit_1(
     assert not (tmp_path / "o.yaml").exists()
 
 
-def test_usage_error_exits_2() -> None:
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["clean"],
+        ["score", "m.yaml", "--peak-prominence", "7"],
+        ["score", "m.yaml", "--smoothing", "-1"],
+    ],
+)
+def test_usage_error_exits_2(argv: list[str]) -> None:
     with pytest.raises(SystemExit) as info:
-        main(["clean"])
+        main(argv)
     assert info.value.code == 2
