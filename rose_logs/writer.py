@@ -488,9 +488,23 @@ class _Backend:
 
 
 class _RosbagsBackendBase(_Backend):
-    def __init__(self) -> None:
+    ros_version: int
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
         self.writer: Any = None
         self.connections: list[Any] = []
+
+    def add(self, channel: Channel) -> int:
+        msgdef, digest = _definitions(channel, self.ros_version)
+        return self._dedup(
+            (channel.topic, channel.msgtype),
+            lambda: self._add_connection(channel, msgdef, digest),
+        )
+
+    def _add_connection(self, channel: Channel, msgdef: str, digest: str) -> Any:
+        """Register ``channel`` with the rosbags writer; return the new connection."""
+        raise NotImplementedError
 
     def _dedup(self, conn_args: tuple[Any, ...], create: Any) -> int:
         try:
@@ -524,9 +538,7 @@ class _RosbagsBackendBase(_Backend):
 
 
 class _Ros1Backend(_RosbagsBackendBase):
-    def __init__(self, path: Path) -> None:
-        super().__init__()
-        self.path = path
+    ros_version = 1
 
     def open(self) -> None:
         from rosbags.rosbag1 import Writer
@@ -534,25 +546,22 @@ class _Ros1Backend(_RosbagsBackendBase):
         self.writer = Writer(self.path)
         self.writer.open()
 
-    def add(self, channel: Channel) -> int:
-        msgdef, md5sum = _definitions(channel, 1)
-        return self._dedup(
-            (channel.topic, channel.msgtype),
-            lambda: self.writer.add_connection(
-                channel.topic,
-                channel.msgtype,
-                msgdef=msgdef,
-                md5sum=md5sum,
-                callerid=channel.callerid,
-                latching=channel.latching,
-            ),
+    def _add_connection(self, channel: Channel, msgdef: str, digest: str) -> Any:
+        return self.writer.add_connection(
+            channel.topic,
+            channel.msgtype,
+            msgdef=msgdef,
+            md5sum=digest,
+            callerid=channel.callerid,
+            latching=channel.latching,
         )
 
 
 class _Ros2Backend(_RosbagsBackendBase):
+    ros_version = 2
+
     def __init__(self, path: Path, fmt: LogFormat) -> None:
-        super().__init__()
-        self.path = path
+        super().__init__(path)
         self.format = fmt
 
     def open(self) -> None:
@@ -562,18 +571,14 @@ class _Ros2Backend(_RosbagsBackendBase):
         self.writer = Writer(self.path, version=9, storage_plugin=plugin)
         self.writer.open()
 
-    def add(self, channel: Channel) -> int:
-        msgdef, rihs01 = _definitions(channel, 2)
-        return self._dedup(
-            (channel.topic, channel.msgtype),
-            lambda: self.writer.add_connection(
-                channel.topic,
-                channel.msgtype,
-                msgdef=msgdef,
-                rihs01=rihs01 or "RIHS01_" + "0" * 64,
-                serialization_format=channel.message_encoding,
-                offered_qos_profiles=offered_qos(channel),
-            ),
+    def _add_connection(self, channel: Channel, msgdef: str, digest: str) -> Any:
+        return self.writer.add_connection(
+            channel.topic,
+            channel.msgtype,
+            msgdef=msgdef,
+            rihs01=digest or "RIHS01_" + "0" * 64,
+            serialization_format=channel.message_encoding,
+            offered_qos_profiles=offered_qos(channel),
         )
 
 
