@@ -328,6 +328,34 @@ def _marker(types: Any, serialization: str, snapshot: MapSnapshot, **fields: Any
     return types["visualization_msgs/msg/Marker"](**common)
 
 
+def _line_list_marker(
+    types: Any,
+    serialization: str,
+    snapshot: MapSnapshot,
+    *,
+    marker_id: int,
+    points_xy_m: npt.NDArray[np.float64],
+    color: Any,
+) -> Any:
+    """A ``LINE_LIST`` marker through ``points_xy_m`` (shape (2N, 2), metres, map frame), at z 0.05 m.
+
+    The line width is three cells, at least 0.05 m.
+    """
+    point = types["geometry_msgs/msg/Point"]
+    return _marker(
+        types,
+        serialization,
+        snapshot,
+        id=marker_id,
+        type=5,  # LINE_LIST
+        scale=types["geometry_msgs/msg/Vector3"](
+            x=max(3.0 * snapshot.resolution_m, 0.05), y=0.0, z=0.0
+        ),
+        color=color,
+        points=[point(x=float(x), y=float(y), z=0.05) for x, y in points_xy_m],
+    )
+
+
 def encode_walls(
     snapshot: MapSnapshot,
     result: RoseResult,
@@ -344,9 +372,6 @@ def encode_walls(
     """
     types = typestore_for(serialization).types
     lines = wall_line_endpoints(snapshot, result)
-    point = types["geometry_msgs/msg/Point"]
-    points = [point(x=float(x), y=float(y), z=0.05) for x, y in lines.reshape(-1, 2)]
-    width_m = max(3.0 * snapshot.resolution_m, 0.05)
     height, width = snapshot.shape
     yaw = snapshot.origin_yaw_rad
     res = snapshot.resolution_m
@@ -355,15 +380,13 @@ def encode_walls(
     cy = snapshot.origin_position_m[1] + math.sin(yaw) * cx_g + math.cos(yaw) * cy_g
     rgba = types["std_msgs/msg/ColorRGBA"]
     vec = types["geometry_msgs/msg/Vector3"]
-    lines_marker = _marker(
+    lines_marker = _line_list_marker(
         types,
         serialization,
         snapshot,
-        id=0,
-        type=5,  # LINE_LIST
-        scale=vec(x=width_m, y=0.0, z=0.0),
+        marker_id=0,
+        points_xy_m=lines.reshape(-1, 2),
         color=rgba(r=1.0, g=0.55, b=0.0, a=0.9),
-        points=points,
     )
     text_marker = _marker(
         types,
@@ -379,17 +402,14 @@ def encode_walls(
     )
     markers = [lines_marker, text_marker]
     if walls is not None:
-        wall_points = [point(x=float(x), y=float(y), z=0.05) for x, y in walls.line_list_m]
         markers.append(
-            _marker(
+            _line_list_marker(
                 types,
                 serialization,
                 snapshot,
-                id=2,
-                type=5,  # LINE_LIST
-                scale=vec(x=width_m, y=0.0, z=0.0),
+                marker_id=2,
+                points_xy_m=walls.line_list_m,
                 color=rgba(r=0.0, g=0.8, b=1.0, a=0.9),
-                points=wall_points,
             )
         )
     array = types[MARKER_ARRAY_TYPE](markers=markers)
