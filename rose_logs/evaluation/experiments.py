@@ -138,16 +138,41 @@ def source_maps(config: EvaluationConfig) -> dict[str, tuple[str, npt.NDArray[np
     return maps
 
 
-def _run(
+def _clutter_run(
     grid: npt.NDArray[np.int8],
     structure: npt.NDArray[np.bool_],
     clutter: npt.NDArray[np.bool_],
     params: rose.RoseParams,
-) -> tuple[rose.RoseResult, LabelScores, float]:
+    *,
+    map_name: str,
+    source: str,
+    shape: str,
+    size_px: int,
+    count: int,
+    seed: int,
+) -> ClutterRun:
+    """Analyse ``grid`` (timing only :func:`rose.analyze`) and score it against the truth masks."""
     start = time.perf_counter()
     result = rose.analyze(grid, params)
     elapsed = time.perf_counter() - start
-    return result, label_scores(result, structure, clutter), elapsed
+    scores = label_scores(result, structure, clutter)
+    return ClutterRun(
+        map_name=map_name,
+        source=source,
+        shape=shape,
+        size_px=size_px,
+        count=count,
+        seed=seed,
+        structure_cells=int(np.count_nonzero(structure)),
+        clutter_cells=int(np.count_nonzero(clutter)),
+        structure_score=result.structure_score,
+        directions=int(result.dominant_directions.size),
+        precision=scores.precision,
+        recall=scores.recall,
+        clutter_precision=scores.clutter_precision,
+        clutter_recall=scores.clutter_recall,
+        rose_s=elapsed,
+    )
 
 
 def run_clutter_experiment(
@@ -170,26 +195,18 @@ def run_clutter_experiment(
                         seed=seed,
                         occupied_threshold=threshold,
                     )
-                    result, scores, elapsed = _run(
-                        cluttered.grid, cluttered.structure, cluttered.clutter, config.rose_params
-                    )
                     runs.append(
-                        ClutterRun(
+                        _clutter_run(
+                            cluttered.grid,
+                            cluttered.structure,
+                            cluttered.clutter,
+                            config.rose_params,
                             map_name=map_name,
                             source=source,
                             shape=shape,
                             size_px=size,
                             count=count,
                             seed=seed,
-                            structure_cells=int(np.count_nonzero(cluttered.structure)),
-                            clutter_cells=int(np.count_nonzero(cluttered.clutter)),
-                            structure_score=result.structure_score,
-                            directions=int(result.dominant_directions.size),
-                            precision=scores.precision,
-                            recall=scores.recall,
-                            clutter_precision=scores.clutter_precision,
-                            clutter_recall=scores.clutter_recall,
-                            rose_s=elapsed,
                         )
                     )
         _LOG.info("experiment 1: %s done in %.1f s", map_name, time.perf_counter() - start)
@@ -204,24 +221,18 @@ def run_furniture_experiment(config: EvaluationConfig) -> list[ClutterRun]:
         if not furnished.is_file():
             continue
         grid, structure, clutter = furniture_pair(config.benchmark_dir / f"{name}.png", furnished)
-        result, scores, elapsed = _run(grid, structure, clutter, config.rose_params)
         runs.append(
-            ClutterRun(
+            _clutter_run(
+                grid,
+                structure,
+                clutter,
+                config.rose_params,
                 map_name=name,
                 source="bormann furniture",
                 shape="furniture",
                 size_px=0,
                 count=0,
                 seed=0,
-                structure_cells=int(np.count_nonzero(structure)),
-                clutter_cells=int(np.count_nonzero(clutter)),
-                structure_score=result.structure_score,
-                directions=int(result.dominant_directions.size),
-                precision=scores.precision,
-                recall=scores.recall,
-                clutter_precision=scores.clutter_precision,
-                clutter_recall=scores.clutter_recall,
-                rose_s=elapsed,
             )
         )
     return runs
