@@ -62,6 +62,10 @@ class _Recording:
     blueprint_count: int
     recording_ids: list[str]
 
+    def rows_in_time_order(self, entity: str) -> list[dict[str, object]]:
+        """The rows logged to ``entity`` (a path without the leading ``/``), by ``ros_time``."""
+        return sorted(self.rows_by_path[f"/{entity}"], key=lambda r: r[rv.TIMELINE])
+
 
 def _read_rrd(path: Path) -> _Recording:
     reader = rerun_chunk.RrdReader(path)
@@ -148,7 +152,7 @@ def test_structure_score_series_and_guide_levels(
     paths = rv.entity_paths("map")
 
     def series(entity: str) -> list[float]:
-        rows = sorted(content.rows_by_path[f"/{entity}"], key=lambda r: r[rv.TIMELINE])
+        rows = content.rows_in_time_order(entity)
         return [r["Scalars:scalars"][0] for r in rows]
 
     assert_allclose(series(paths.w), [r.structure_score for _, r in analysed], rtol=1e-12)
@@ -162,9 +166,7 @@ def test_grid_map_bytes_are_flipped_and_placed(
 ) -> None:
     _, content = session_rrd
     snapshot, _ = analysed[0]
-    rows = sorted(
-        content.rows_by_path[f"/{rv.entity_paths('map').grid}"], key=lambda r: r[rv.TIMELINE]
-    )
+    rows = content.rows_in_time_order(rv.entity_paths("map").grid)
     row = rows[0]
     height, width = snapshot.grid.shape
     (fmt,) = row["GridMap:format"]
@@ -186,10 +188,7 @@ def test_segmentation_image_is_flipped(
 ) -> None:
     _, content = session_rrd
     snapshot, result = analysed[0]
-    rows = sorted(
-        content.rows_by_path[f"/{rv.entity_paths('map').segmentation}"],
-        key=lambda r: r[rv.TIMELINE],
-    )
+    rows = content.rows_in_time_order(rv.entity_paths("map").segmentation)
     height, width = snapshot.grid.shape
     image = np.frombuffer(bytes(rows[0]["SegmentationImage:buffer"][0]), dtype=np.uint8).reshape(
         height, width
@@ -262,10 +261,7 @@ def test_metric_directions_pass_through_the_map_centre(
 ) -> None:
     _, content = session_rrd
     snapshot, result = analysed[0]
-    rows = sorted(
-        content.rows_by_path[f"/{rv.entity_paths('map').metric_directions}"],
-        key=lambda r: r[rv.TIMELINE],
-    )
+    rows = content.rows_in_time_order(rv.entity_paths("map").metric_directions)
     strips = np.asarray(rows[0]["LineStrips3D:strips"], dtype=np.float64)
     assert strips.shape == (result.dominant_directions.size, 2, 3)
     height, width = snapshot.grid.shape
