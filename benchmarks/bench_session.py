@@ -10,7 +10,7 @@ their ratio. Prints numbers, asserts nothing.
 
 Usage::
 
-    python benchmarks/bench_session.py [--snapshots 720] [--size 1000] [--rrd] [--format mcap] [--keep DIR]
+    python benchmarks/bench_session.py [--snapshots 720] [--size 1000] [--rrd] [--walls] [--format mcap] [--keep DIR]
 """
 
 from __future__ import annotations
@@ -134,6 +134,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--scan-hz", type=float, default=10.0)
     parser.add_argument("--format", default="mcap", choices=("ros1", "db3", "mcap", "mcap-dir"))
     parser.add_argument("--rrd", action="store_true", help="also save a Rerun recording")
+    parser.add_argument("--walls", action="store_true", help="also extract wall segments")
     parser.add_argument("--keep", type=Path, default=None, help="work here and keep the files")
     args = parser.parse_args(argv)
 
@@ -161,6 +162,7 @@ def main(argv: list[str] | None = None) -> int:
             output_format=args.format,
             force=True,
             rrd_path=work / "session.rrd" if args.rrd else None,
+            walls=args.walls,
         )
         process_s = time.perf_counter() - t0
         n = len(report.records)
