@@ -20,7 +20,7 @@ import numpy as np
 
 from rose.errors import RoseError
 from rose.mapfile import OccupancyMap, load_map, save_map, write_atomically
-from rose.pipeline import analyze
+from rose.pipeline import analyze, make_params
 from rose.result import RoseParams, RoseResult
 from rose.walls_cli import add_walls_parser
 
@@ -137,8 +137,6 @@ def add_param_arguments(parser: argparse.ArgumentParser) -> None:
 
 def params_from_args(args: argparse.Namespace) -> RoseParams:
     """The :class:`RoseParams` given by the options of :func:`add_param_arguments`."""
-    from rose.pipeline import make_params
-
     return make_params(
         peak_prominence=args.peak_prominence,
         angular_resolution_deg=args.angular_resolution,
