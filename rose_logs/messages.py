@@ -276,6 +276,17 @@ def encode_score(score: float, *, serialization: str) -> bytes:
     return _serialize(types[FLOAT32_TYPE](data=float(score)), FLOAT32_TYPE, serialization)
 
 
+def grid_centre_m(snapshot: MapSnapshot) -> tuple[float, float]:
+    """Centre of the grid in the map frame, metres: the grid's half extent turned by the origin yaw."""
+    height, width = snapshot.shape
+    res = snapshot.resolution_m
+    yaw = snapshot.origin_yaw_rad
+    c, s = math.cos(yaw), math.sin(yaw)
+    cx_g, cy_g = 0.5 * width * res, 0.5 * height * res
+    ox, oy = snapshot.origin_position_m[0], snapshot.origin_position_m[1]
+    return ox + c * cx_g - s * cy_g, oy + s * cx_g + c * cy_g
+
+
 def wall_line_endpoints(snapshot: MapSnapshot, result: RoseResult) -> npt.NDArray[np.float64]:
     """End points of one line per dominant direction through the grid centre, in the map frame.
 
@@ -286,14 +297,9 @@ def wall_line_endpoints(snapshot: MapSnapshot, result: RoseResult) -> npt.NDArra
         Grid angles (counter-clockwise from the grid's +x, the column axis) are turned by the origin yaw.
     """
     height, width = snapshot.shape
-    res = snapshot.resolution_m
-    yaw = snapshot.origin_yaw_rad
-    c, s = math.cos(yaw), math.sin(yaw)
-    cx_g, cy_g = 0.5 * width * res, 0.5 * height * res
-    ox, oy = snapshot.origin_position_m[0], snapshot.origin_position_m[1]
-    centre = np.array([ox + c * cx_g - s * cy_g, oy + s * cx_g + c * cy_g])
-    half = 0.5 * math.hypot(width, height) * res
-    angles = np.asarray(result.dominant_directions, dtype=np.float64) + yaw
+    centre = np.array(grid_centre_m(snapshot))
+    half = 0.5 * math.hypot(width, height) * snapshot.resolution_m
+    angles = np.asarray(result.dominant_directions, dtype=np.float64) + snapshot.origin_yaw_rad
     unit = np.stack([np.cos(angles), np.sin(angles)], axis=-1)
     return np.stack([centre - half * unit, centre + half * unit], axis=1)
 
@@ -372,12 +378,8 @@ def encode_walls(
     """
     types = typestore_for(serialization).types
     lines = wall_line_endpoints(snapshot, result)
-    height, width = snapshot.shape
-    yaw = snapshot.origin_yaw_rad
     res = snapshot.resolution_m
-    cx_g, cy_g = 0.5 * width * res, 0.5 * height * res
-    cx = snapshot.origin_position_m[0] + math.cos(yaw) * cx_g - math.sin(yaw) * cy_g
-    cy = snapshot.origin_position_m[1] + math.sin(yaw) * cx_g + math.cos(yaw) * cy_g
+    cx, cy = grid_centre_m(snapshot)
     rgba = types["std_msgs/msg/ColorRGBA"]
     vec = types["geometry_msgs/msg/Vector3"]
     lines_marker = _line_list_marker(
