@@ -2,17 +2,25 @@
 
 ``analyze`` runs the whole method on one grid; the stage functions are public in ``rose.spectrum``,
 ``rose.unfold``, ``rose.directions``, ``rose.scoring`` and ``rose.threshold``. Wall segments with and
-without ROSE come from ``extract_walls`` / ``extract_walls_hough``, scored by ``wall_error``.
+without ROSE come from ``extract_walls`` / ``extract_walls_hough`` (:mod:`rose.walls`), scored by
+``wall_error``. The wall names load OpenCV on first use, so ``import rose`` stays light.
 """
 
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+from rose.directions import FAILURE_LEVEL, TRUST_LEVEL
 from rose.errors import MapFileError, RoseError
 from rose.mapfile import OccupancyMap, load_map, save_map
+from rose.params import RoseParams, make_params
 from rose.pipeline import analyze
-from rose.result import RoseParams, RoseResult
-from rose.wall_error import WallError, wall_error
-from rose.walls import WallParams, WallSegment, WallSet, extract_walls, extract_walls_hough
+from rose.result import RoseResult
 
 __all__ = [
+    "FAILURE_LEVEL",
+    "TRUST_LEVEL",
     "MapFileError",
     "OccupancyMap",
     "RoseError",
@@ -26,7 +34,26 @@ __all__ = [
     "extract_walls",
     "extract_walls_hough",
     "load_map",
+    "make_params",
     "save_map",
     "wall_error",
 ]
 __version__ = "0.1.0"
+
+# Names served lazily by __getattr__, with the module that defines them.
+_LAZY = {
+    "WallError": "rose.walls",
+    "WallParams": "rose.walls",
+    "WallSegment": "rose.walls",
+    "WallSet": "rose.walls",
+    "extract_walls": "rose.walls",
+    "extract_walls_hough": "rose.walls",
+    "wall_error": "rose.walls",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    msg = f"module 'rose' has no attribute {name!r}"
+    raise AttributeError(msg)

@@ -8,7 +8,20 @@ import numpy as np
 import numpy.typing as npt
 from scipy.signal import find_peaks
 
-__all__ = ["DirectionPeaks", "find_direction_peaks", "refine_peak_positions", "structure_score"]
+__all__ = [
+    "FAILURE_LEVEL",
+    "TRUST_LEVEL",
+    "DirectionPeaks",
+    "find_direction_peaks",
+    "refine_peak_positions",
+    "structure_score",
+]
+
+# The paper's rule of thumb for reading W; the one definition every command, report and view uses.
+TRUST_LEVEL = 0.2
+"""W below which the paper trusts a map's decluttering."""
+FAILURE_LEVEL = 0.4
+"""W above which the paper considers the decluttering (and the map) failed."""
 
 
 @dataclass(frozen=True, eq=False)

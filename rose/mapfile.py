@@ -18,7 +18,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
-import cv2
 import numpy as np
 import numpy.typing as npt
 import yaml
@@ -177,6 +176,8 @@ def _read_image(path: Path) -> npt.NDArray[np.uint8]:
         msg = f"{path}: no such image file"
         raise MapFileError(msg)
     data = np.fromfile(path, dtype=np.uint8)
+    import cv2  # OpenCV loads on first image use, not with `import rose`
+
     image = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
     if image is None:
         msg = f"{path}: not a readable image"
@@ -249,6 +250,8 @@ def save_map(path: str | os.PathLike[str], occupancy_map: OccupancyMap) -> Path:
         raise MapFileError(msg)
     grid = as_occupancy_grid(occupancy_map.grid)
     image_path = path.with_suffix(".pgm")
+    import cv2
+
     ok, encoded = cv2.imencode(".pgm", grid_to_image(grid))
     if not ok:
         msg = f"{image_path}: could not encode the map image"

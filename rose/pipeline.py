@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from typing import Any
 
@@ -10,62 +9,15 @@ import numpy as np
 import numpy.typing as npt
 
 from rose.directions import find_direction_peaks, refine_peak_positions, structure_score
-from rose.errors import RoseError
 from rose.grid import FREE, UNKNOWN, as_occupancy_grid, occupied_mask
-from rose.result import RoseParams, RoseResult
+from rose.params import RoseParams, make_params
+from rose.result import RoseResult
 from rose.scoring import nominal_reference_map, structure_mask
 from rose.spectrum import half_spectrum, padded_shape
 from rose.threshold import gmm_threshold
 from rose.unfold import cumulative_amplitude, direction_bins
 
-__all__ = ["analyze", "make_params"]
-
-
-def make_params(params: RoseParams | None = None, **overrides: Any) -> RoseParams:
-    """``params`` (or the defaults) with ``overrides`` applied and every value checked.
-
-    Raises
-    ------
-    RoseError
-        On an unknown parameter name or a value out of range.
-    """
-    base = params if params is not None else RoseParams()
-    try:
-        merged = dataclasses.replace(base, **overrides)
-    except TypeError as err:
-        known = ", ".join(f.name for f in dataclasses.fields(RoseParams))
-        msg = f"unknown ROSE parameter in {sorted(overrides)}; known: {known}"
-        raise RoseError(msg) from err
-    _check(merged)
-    return merged
-
-
-def _check(p: RoseParams) -> None:
-    problems = []
-    if not 0.0 < p.peak_prominence <= 1.0:
-        problems.append(f"peak_prominence must be in (0, 1], got {p.peak_prominence}")
-    if not 0.01 <= p.angular_resolution_deg <= 30.0:
-        problems.append(
-            f"angular_resolution_deg must be in [0.01, 30], got {p.angular_resolution_deg}"
-        )
-    if not 0.0 <= p.smoothing_deg <= 30.0:
-        problems.append(f"smoothing_deg must be in [0, 30], got {p.smoothing_deg}")
-    if p.min_radius_px < 0:
-        problems.append(f"min_radius_px must be >= 0, got {p.min_radius_px}")
-    if p.mask_half_width_px <= 0:
-        problems.append(f"mask_half_width_px must be > 0, got {p.mask_half_width_px}")
-    if not 1 <= p.occupied_threshold <= 100:
-        problems.append(f"occupied_threshold must be in 1..100, got {p.occupied_threshold}")
-    if p.threshold_mode not in ("gmm", "fixed"):
-        problems.append(f"threshold_mode must be 'gmm' or 'fixed', got {p.threshold_mode!r}")
-    if not 0.0 <= p.fixed_threshold <= 1.0:
-        problems.append(f"fixed_threshold must be in [0, 1], got {p.fixed_threshold}")
-    if p.clutter_value not in ("free", "unknown"):
-        problems.append(f"clutter_value must be 'free' or 'unknown', got {p.clutter_value!r}")
-    if p.max_gmm_samples < 10:
-        problems.append(f"max_gmm_samples must be >= 10, got {p.max_gmm_samples}")
-    if problems:
-        raise RoseError("; ".join(problems))
+__all__ = ["analyze"]
 
 
 def analyze(grid: npt.ArrayLike, params: RoseParams | None = None, **overrides: Any) -> RoseResult:

@@ -1,66 +1,15 @@
-"""Parameters and results of a ROSE run, as frozen dataclasses."""
+"""The result of a ROSE run, as a frozen dataclass."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Literal
 
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["ClutterValue", "RoseParams", "RoseResult", "ThresholdMode"]
+from rose.params import RoseParams
 
-ThresholdMode = Literal["gmm", "fixed"]
-ClutterValue = Literal["free", "unknown"]
-
-
-@dataclass(frozen=True)
-class RoseParams:
-    """Tuning parameters of :func:`rose.analyze`, with the defaults used everywhere.
-
-    Attributes
-    ----------
-    peak_prominence : float
-        A direction is dominant when its peak prominence in the cumulative amplitude is at least this
-        fraction of ``max - min`` (the paper's ``t``; 0.5 in the paper).
-    angular_resolution_deg : float
-        Width of one direction bin, in degrees; directions cover ``[0, 180)``.
-    smoothing_deg : float
-        Standard deviation, in degrees, of the circular Gaussian smoothing of the cumulative amplitude
-        (0 disables it).
-    min_radius_px : float
-        Spectrum cells closer than this to DC (in cells of the longer padded side) carry no direction
-        information and are left out of the cumulative amplitude.
-    mask_half_width_px : float
-        Half-width of the strip kept along each dominant direction in the spectrum, in cells of the
-        longer padded side (the authors' strip is about 5 cells wide).
-    occupied_threshold : int
-        Occupancy (percent) from which a cell counts as occupied; unknown cells never do.
-    threshold_mode : {"gmm", "fixed"}
-        ``"gmm"``: threshold where the two weighted Gaussians of a mixture fitted to the occupied cells'
-        scores intersect (the paper). ``"fixed"``: ``fixed_threshold`` on scores scaled to max 1.
-    fixed_threshold : float
-        Threshold of the fixed mode, as a fraction of the largest occupied cell score.
-    clutter_value : {"free", "unknown"}
-        What clutter cells become in :attr:`RoseResult.cleaned`.
-    max_gmm_samples : int
-        The mixture is fitted on at most this many occupied cells' scores (an evenly spaced subsample of
-        the sorted scores, so the result is deterministic and the cost bounded).
-    seed : int
-        Seed of the mixture's initialisation.
-    """
-
-    peak_prominence: float = 0.5
-    angular_resolution_deg: float = 0.5
-    smoothing_deg: float = 0.5
-    min_radius_px: float = 4.0
-    mask_half_width_px: float = 2.5
-    occupied_threshold: int = 65
-    threshold_mode: ThresholdMode = "gmm"
-    fixed_threshold: float = 0.18
-    clutter_value: ClutterValue = "free"
-    max_gmm_samples: int = 2_000
-    seed: int = 0
+__all__ = ["RoseResult"]
 
 
 @dataclass(frozen=True, eq=False)

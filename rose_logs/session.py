@@ -27,7 +27,8 @@ from typing import Any
 import numpy as np
 
 import rose
-from rose.result import RoseParams, RoseResult
+from rose.params import RoseParams
+from rose.result import RoseResult
 from rose.walls import WallSet
 from rose_logs.errors import LogReadError, LogWriteError, MapMessageError
 from rose_logs.messages import (

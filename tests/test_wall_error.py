@@ -9,7 +9,7 @@ import numpy.typing as npt
 import pytest
 
 from rose import RoseError
-from rose.wall_error import wall_error
+from rose.walls import wall_error
 
 REFERENCE = np.array(
     [

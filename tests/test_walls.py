@@ -15,16 +15,20 @@ import numpy.typing as npt
 import pytest
 
 import rose
-from rose.wall_error import segment_distances, wall_error
-from rose.wall_export import walls_to_geojson, write_walls_geojson, write_walls_svg
+from rose.cli.walls import add_parser as add_walls_parser
+from rose.cli.walls import run as run_walls
 from rose.walls import (
     WallParams,
     WallSet,
     extract_walls,
     extract_walls_hough,
+    segment_distances,
     segment_orientations,
+    wall_error,
+    walls_to_geojson,
+    write_walls_geojson,
+    write_walls_svg,
 )
-from rose.walls_cli import add_walls_parser, run_walls
 
 # Walls in a local frame centred on the map, (x0, y0, x1, y1) in cells: outline, a corridor wall
 # and three room walls (T-junctions).

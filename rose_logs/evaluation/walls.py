@@ -23,8 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from rose import RoseParams, analyze, load_map
-from rose.wall_error import WallError, wall_error
-from rose.walls import WallParams, extract_walls, extract_walls_hough
+from rose.walls import WallError, WallParams, extract_walls, extract_walls_hough, wall_error
 
 __all__ = ["WallReport", "WallRow", "WallScore", "wall_experiment"]
 

@@ -18,7 +18,7 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 
 from rose.mapfile import write_atomically
-from rose.walls import WallSet
+from rose.walls.segments import WallSet
 
 __all__ = ["walls_to_geojson", "walls_to_svg", "write_walls_geojson", "write_walls_svg"]
 

@@ -1,12 +1,4 @@
-"""The ``rose walls`` subcommand: wall segments of a map file, printed and optionally exported.
-
-Wiring (in ``rose/cli.py``)::
-
-    subparsers = parser.add_subparsers(dest="command", required=True)
-    add_walls_parser(subparsers)          # sets ``func=run_walls`` on its namespace
-    ...
-    return args.func(args)                # RoseError -> "error: ..." and exit 1 in one handler
-"""
+"""``rose walls MAP``: wall segments of a map file, printed and optionally exported (GeoJSON / SVG)."""
 
 from __future__ import annotations
 
@@ -19,16 +11,16 @@ from typing import Any, TextIO
 from rose.errors import RoseError
 from rose.mapfile import load_map
 from rose.pipeline import analyze
-from rose.wall_export import write_walls_geojson, write_walls_svg
 from rose.walls import WallParams, WallSet, extract_walls, extract_walls_hough
+from rose.walls.export import write_walls_geojson, write_walls_svg
 
-__all__ = ["add_walls_parser", "format_walls_table", "run_walls"]
+__all__ = ["add_parser", "format_walls_table", "run"]
 
 
-def add_walls_parser(subparsers: Any) -> None:
+def add_parser(subparsers: Any) -> None:
     """Add the ``walls`` subcommand to an ``argparse`` subparsers object.
 
-    The subparser's defaults set ``func=run_walls``.
+    The subparser's defaults set ``func=run``.
     """
     parser = subparsers.add_parser(
         "walls",
@@ -53,10 +45,10 @@ def add_walls_parser(subparsers: Any) -> None:
         metavar="M",
         help="drop walls shorter than M metres (default: 10 cells)",
     )
-    parser.set_defaults(func=run_walls)
+    parser.set_defaults(func=run)
 
 
-def run_walls(args: argparse.Namespace, *, stdout: TextIO | None = None) -> int:
+def run(args: argparse.Namespace, *, stdout: TextIO | None = None) -> int:
     """Run ``rose walls``: print a table of segments, write GeoJSON or SVG if asked; return 0.
 
     Raises

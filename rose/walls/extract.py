@@ -18,23 +18,13 @@ Both pipelines share every step but two (the paper's Section 4.1):
 only the wall pixels that ROSE labels structure, and rotates every segment about its midpoint onto the
 nearest dominant direction before and after merging, so parallel near-duplicates collapse.
 
-Coordinates
------------
-Cell coordinates are ``(col, row)`` in the grid's index space: integer values are cell centres, row 0 is
-the map origin (ROS convention), and angles in cell space are counter-clockwise from +col towards +row.
-Map-frame coordinates are metres: the centre of cell ``(c, r)`` is at
-``origin_xy_m + R(origin_yaw_rad) @ ((c + 0.5) * resolution_m, (r + 0.5) * resolution_m)``, exactly as
-``nav_msgs/OccupancyGrid`` places cells, so segments in metres can be drawn over the map in RViz,
-Foxglove or Rerun without further transforms.
 """
 
 from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Iterator
-from dataclasses import dataclass, field
-from typing import Literal
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
@@ -48,20 +38,12 @@ from rose.grid import as_occupancy_grid, occupied_mask
 from rose.mapfile import DEFAULT_RESOLUTION_M, OccupancyMap
 from rose.pipeline import analyze
 from rose.result import RoseResult
+from rose.walls.segments import WallMethod, WallSet, axial_difference, segment_orientations
 
-__all__ = [
-    "WallMethod",
-    "WallParams",
-    "WallSegment",
-    "WallSet",
-    "extract_walls",
-    "extract_walls_hough",
-    "segment_orientations",
-]
+__all__ = ["WallParams", "extract_walls", "extract_walls_hough", "hough_segments", "wall_pixels"]
 
 logger = logging.getLogger(__name__)
 
-WallMethod = Literal["hough", "rose"]
 _MAX_MERGE_ROUNDS = 8
 _PAIR_BLOCK = 256
 
@@ -150,173 +132,6 @@ class WallParams:
             problems.append(f"snap_tolerance_deg must be in [0, 90], got {self.snap_tolerance_deg}")
         if problems:
             raise RoseError("; ".join(problems))
-
-
-@dataclass(frozen=True)
-class WallSegment:
-    """One wall segment, in cells and in the map frame.
-
-    Attributes
-    ----------
-    start_px, end_px : tuple of float
-        Endpoints ``(col, row)`` in cell coordinates (integer = cell centre, row 0 = map origin).
-    start_m, end_m : tuple of float
-        Endpoints ``(x, y)`` in the map frame, in metres.
-    length_m : float
-        Length in metres.
-    orientation_rad : float
-        Orientation of the line in the map frame, in ``[0, pi)``, counter-clockwise from +x.
-    """
-
-    start_px: tuple[float, float]
-    end_px: tuple[float, float]
-    start_m: tuple[float, float]
-    end_m: tuple[float, float]
-    length_m: float
-    orientation_rad: float
-
-
-@dataclass(frozen=True, eq=False)
-class WallSet:
-    """Wall segments of one map, with the map placement needed to express them in metres.
-
-    Endpoints are ordered so that ``end - start`` points along the segment's orientation.
-
-    Attributes
-    ----------
-    endpoints_px : ndarray of float64, shape (N, 2, 2)
-        ``endpoints_px[i, 0]`` is the start and ``endpoints_px[i, 1]`` the end of segment ``i``, each
-        ``(col, row)`` in cell coordinates.
-    shape : tuple of int
-        ``(rows, cols)`` of the grid the walls were found in.
-    resolution_m : float
-        Cell size in metres.
-    origin_xy_m : tuple of float
-        Map-frame position, in metres, of the outer corner of cell (0, 0).
-    origin_yaw_rad : float
-        Rotation of the grid in the map frame, in radians.
-    method : {"hough", "rose"}
-        Which pipeline produced the walls.
-    dominant_directions : ndarray of float64, shape (K,)
-        ROSE's dominant directions in cell space, radians in ``[0, pi)`` (empty for ``"hough"``).
-    """
-
-    endpoints_px: npt.NDArray[np.float64]
-    shape: tuple[int, int]
-    resolution_m: float = DEFAULT_RESOLUTION_M
-    origin_xy_m: tuple[float, float] = (0.0, 0.0)
-    origin_yaw_rad: float = 0.0
-    method: WallMethod = "hough"
-    dominant_directions: npt.NDArray[np.float64] = field(default_factory=lambda: np.empty(0))
-
-    def __post_init__(self) -> None:
-        endpoints = np.asarray(self.endpoints_px, dtype=np.float64)
-        if endpoints.size == 0:
-            endpoints = endpoints.reshape(0, 2, 2)
-        if endpoints.ndim != 3 or endpoints.shape[1:] != (2, 2):
-            msg = f"endpoints_px must have shape (N, 2, 2), got {endpoints.shape}"
-            raise RoseError(msg)
-        if not self.resolution_m > 0 or not math.isfinite(self.resolution_m):
-            msg = f"resolution_m must be a positive number of metres, got {self.resolution_m}"
-            raise RoseError(msg)
-        endpoints.setflags(write=False)
-        object.__setattr__(self, "endpoints_px", endpoints)
-
-    def __len__(self) -> int:
-        return int(self.endpoints_px.shape[0])
-
-    def __iter__(self) -> Iterator[WallSegment]:
-        return iter(self.segments)
-
-    @property
-    def endpoints_m(self) -> npt.NDArray[np.float64]:
-        """Endpoints in the map frame, metres, shape (N, 2, 2), float64 (same layout as ``endpoints_px``)."""
-        return cells_to_metres(
-            self.endpoints_px,
-            resolution_m=self.resolution_m,
-            origin_xy_m=self.origin_xy_m,
-            origin_yaw_rad=self.origin_yaw_rad,
-        )
-
-    @property
-    def line_list_m(self) -> npt.NDArray[np.float64]:
-        """Endpoints as consecutive pairs, shape (2N, 2), metres, map frame (a LINE_LIST's points)."""
-        return self.endpoints_m.reshape(-1, 2)
-
-    @property
-    def lengths_px(self) -> npt.NDArray[np.float64]:
-        """Segment lengths in cells, shape (N,)."""
-        return np.hypot(*(self.endpoints_px[:, 1] - self.endpoints_px[:, 0]).T)
-
-    @property
-    def lengths_m(self) -> npt.NDArray[np.float64]:
-        """Segment lengths in metres, shape (N,)."""
-        return self.lengths_px * self.resolution_m
-
-    @property
-    def orientations_rad(self) -> npt.NDArray[np.float64]:
-        """Line orientations in the map frame, radians in ``[0, pi)``, shape (N,)."""
-        return np.mod(segment_orientations(self.endpoints_px) + self.origin_yaw_rad, math.pi)
-
-    @property
-    def segments(self) -> tuple[WallSegment, ...]:
-        """The walls as :class:`WallSegment` records, longest first order preserved from the set."""
-        px, m = self.endpoints_px, self.endpoints_m
-        lengths, angles = self.lengths_m, self.orientations_rad
-        return tuple(
-            WallSegment(
-                start_px=(float(px[i, 0, 0]), float(px[i, 0, 1])),
-                end_px=(float(px[i, 1, 0]), float(px[i, 1, 1])),
-                start_m=(float(m[i, 0, 0]), float(m[i, 0, 1])),
-                end_m=(float(m[i, 1, 0]), float(m[i, 1, 1])),
-                length_m=float(lengths[i]),
-                orientation_rad=float(angles[i]),
-            )
-            for i in range(len(self))
-        )
-
-
-def cells_to_metres(
-    points_px: npt.ArrayLike,
-    *,
-    resolution_m: float,
-    origin_xy_m: tuple[float, float],
-    origin_yaw_rad: float,
-) -> npt.NDArray[np.float64]:
-    """Map cell coordinates ``(col, row)`` (integer = cell centre) to map-frame metres ``(x, y)``.
-
-    Parameters
-    ----------
-    points_px : array_like, shape (..., 2)
-        Points in cell coordinates.
-    resolution_m, origin_xy_m, origin_yaw_rad
-        The map's placement, as in ``nav_msgs/MapMetaData``.
-
-    Returns
-    -------
-    ndarray of float64, shape (..., 2)
-    """
-    local = (np.asarray(points_px, dtype=np.float64) + 0.5) * resolution_m
-    c, s = math.cos(origin_yaw_rad), math.sin(origin_yaw_rad)
-    rotation = np.array([[c, -s], [s, c]])
-    return local @ rotation.T + np.asarray(origin_xy_m, dtype=np.float64)
-
-
-def segment_orientations(endpoints: npt.ArrayLike) -> npt.NDArray[np.float64]:
-    """Line orientation of each segment, radians in ``[0, pi)``.
-
-    Parameters
-    ----------
-    endpoints : array_like, shape (N, 2, 2)
-        Segments as ``[start, end]`` points ``(x, y)`` in any Cartesian frame.
-
-    Returns
-    -------
-    ndarray of float64, shape (N,)
-    """
-    e = np.asarray(endpoints, dtype=np.float64)
-    d = e[:, 1] - e[:, 0]
-    return np.mod(np.arctan2(d[:, 1], d[:, 0]), math.pi)
 
 
 def extract_walls_hough(
@@ -532,12 +347,6 @@ def _ordered(segments: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
     return out
 
 
-def _axial_difference(a: npt.ArrayLike, b: npt.ArrayLike) -> npt.NDArray[np.float64]:
-    """Smallest angle between line orientations, radians in [0, pi/2] (broadcasting)."""
-    d = np.mod(np.asarray(a, dtype=np.float64) - np.asarray(b, dtype=np.float64), math.pi)
-    return np.minimum(d, math.pi - d)
-
-
 def _snap(
     segments: npt.NDArray[np.float64], directions: npt.NDArray[np.float64], *, tolerance_rad: float
 ) -> npt.NDArray[np.float64]:
@@ -545,7 +354,7 @@ def _snap(
     if len(segments) == 0 or directions.size == 0:
         return segments
     theta = segment_orientations(segments)
-    gaps = _axial_difference(theta[:, None], directions[None, :])
+    gaps = axial_difference(theta[:, None], directions[None, :])
     nearest = np.argmin(gaps, axis=1)
     snapped = np.where(
         gaps[np.arange(theta.size), nearest] <= tolerance_rad, directions[nearest], theta
@@ -667,7 +476,7 @@ def _collinear_components(
         across = np.abs(np.einsum("bnkd,bd->bnk", rel, normal[i])).max(axis=2)
         gap = np.maximum(along.min(axis=2) - half[i, None], -half[i, None] - along.max(axis=2))
         ok = (
-            (_axial_difference(theta[i, None], theta[None, :]) <= angle_tol)
+            (axial_difference(theta[i, None], theta[None, :]) <= angle_tol)
             & (across <= params.merge_distance_px)
             & (gap <= params.merge_gap_px)
         )

@@ -40,7 +40,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rose.errors import RoseError
-from rose.walls import WallSet, segment_orientations
+from rose.walls.segments import WallSet, axial_difference, segment_orientations
 
 __all__ = ["WallError", "segment_distances", "wall_error"]
 
@@ -176,7 +176,7 @@ def wall_error(
     mid = det.mean(axis=1)
     foot = _closest_points(mid, ref[matched])
     translation = np.hypot(*(foot - mid).T)
-    rotation = _axial_difference(segment_orientations(det), segment_orientations(ref)[matched])
+    rotation = axial_difference(segment_orientations(det), segment_orientations(ref)[matched])
     cost = rotation * translation / 2.0
     spurious = distance > match_distance_m
     coverage = _coverage(
@@ -230,11 +230,6 @@ def _as_segments(segments: WallSet | npt.ArrayLike, name: str) -> npt.NDArray[np
     return array
 
 
-def _axial_difference(a: npt.ArrayLike, b: npt.ArrayLike) -> npt.NDArray[np.float64]:
-    d = np.mod(np.asarray(a, dtype=np.float64) - np.asarray(b, dtype=np.float64), math.pi)
-    return np.minimum(d, math.pi - d)
-
-
 def _closest_points(
     points: npt.NDArray[np.float64], segments: npt.NDArray[np.float64]
 ) -> npt.NDArray[np.float64]:
@@ -282,7 +277,7 @@ def _coverage(
     t = (offsets + 0.5) / counts[owner]
     samples = ref[owner, 0] + t[:, None] * (ref[owner, 1] - ref[owner, 0])
     parallel = (
-        _axial_difference(segment_orientations(ref)[:, None], segment_orientations(det)[None, :])
+        axial_difference(segment_orientations(ref)[:, None], segment_orientations(det)[None, :])
         <= angle_rad
     )
     covered = np.zeros(owner.size, dtype=bool)

@@ -1,0 +1,66 @@
+"""The ``rose`` command: ROSE on single map files.
+
+``rose clean MAP -o OUT.yaml`` writes the decluttered map; ``rose score MAP...`` prints W and the
+dominant directions; ``rose walls MAP`` prints wall segments. One module per command, the shared ROSE
+options in :mod:`rose.cli.options`; errors are one line on stderr with exit code 1 (2 for usage errors).
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+from collections.abc import Sequence
+
+from rose.cli import clean, score, walls
+from rose.cli.options import (
+    add_param_arguments,
+    directions_deg,
+    fraction,
+    non_negative_float,
+    params_from_args,
+    positive_float,
+    result_summary,
+)
+from rose.errors import RoseError
+
+__all__ = [
+    "add_param_arguments",
+    "build_parser",
+    "directions_deg",
+    "fraction",
+    "main",
+    "non_negative_float",
+    "params_from_args",
+    "positive_float",
+    "result_summary",
+]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``rose`` argument parser."""
+    parser = argparse.ArgumentParser(
+        prog="rose", description="ROSE structure extraction and decluttering for map files."
+    )
+    parser.add_argument("--debug", action="store_true", help="show tracebacks")
+    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for command in (clean, score, walls):
+        command.add_parser(commands)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the ``rose`` command; return the exit code."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.WARNING, format="%(levelname)s: %(message)s")
+    try:
+        return int(args.func(args))
+    except RoseError as err:
+        if args.debug:
+            raise
+        print(f"error: {err}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("error: interrupted", file=sys.stderr)
+        return 130

@@ -1,0 +1,170 @@
+"""Options and summaries shared by every ``rose`` and ``rose-bag`` command: one definition of the ROSE
+tuning options (argparse types with range checks, so bad values are usage errors, exit 2)."""
+
+from __future__ import annotations
+
+import argparse
+import math
+from typing import Any
+
+import numpy as np
+
+from rose.directions import FAILURE_LEVEL, TRUST_LEVEL
+from rose.params import RoseParams, make_params
+from rose.result import RoseResult
+
+__all__ = [
+    "add_param_arguments",
+    "directions_deg",
+    "fraction",
+    "non_negative_float",
+    "params_from_args",
+    "positive_float",
+    "result_summary",
+    "verdict",
+]
+
+
+def _number(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError as err:
+        msg = f"expected a number, got {text!r}"
+        raise argparse.ArgumentTypeError(msg) from err
+    if not math.isfinite(value):
+        msg = f"expected a finite number, got {text!r}"
+        raise argparse.ArgumentTypeError(msg)
+    return value
+
+
+def positive_float(text: str) -> float:
+    """argparse type: a finite number > 0 (usage error otherwise)."""
+    value = _number(text)
+    if value <= 0:
+        msg = f"expected a positive number, got {text!r}"
+        raise argparse.ArgumentTypeError(msg)
+    return value
+
+
+def non_negative_float(text: str) -> float:
+    """argparse type: a finite number >= 0."""
+    value = _number(text)
+    if value < 0:
+        msg = f"expected a number >= 0, got {text!r}"
+        raise argparse.ArgumentTypeError(msg)
+    return value
+
+
+def fraction(text: str) -> float:
+    """argparse type: a number in (0, 1]."""
+    value = positive_float(text)
+    if value > 1:
+        msg = f"expected a number in (0, 1], got {text!r}"
+        raise argparse.ArgumentTypeError(msg)
+    return value
+
+
+def add_param_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the ROSE tuning options (defaults from :class:`RoseParams`) to ``parser``."""
+    d = RoseParams()
+    group = parser.add_argument_group("ROSE parameters")
+    group.add_argument(
+        "--peak-prominence",
+        type=fraction,
+        default=d.peak_prominence,
+        metavar="F",
+        help="dominant-direction prominence as a fraction of max-min (default %(default)s)",
+    )
+    group.add_argument(
+        "--angular-resolution",
+        type=positive_float,
+        default=d.angular_resolution_deg,
+        metavar="DEG",
+        help="direction bin width in degrees (default %(default)s)",
+    )
+    group.add_argument(
+        "--smoothing",
+        type=non_negative_float,
+        default=d.smoothing_deg,
+        metavar="DEG",
+        help="angular smoothing of the cumulative amplitude (default %(default)s)",
+    )
+    group.add_argument(
+        "--mask-half-width",
+        type=positive_float,
+        default=d.mask_half_width_px,
+        metavar="PX",
+        help="half-width of the spectrum strip kept per direction (default %(default)s)",
+    )
+    group.add_argument(
+        "--occupied-threshold",
+        type=int,
+        default=d.occupied_threshold,
+        metavar="P",
+        help="occupancy (percent) from which a cell is occupied (default %(default)s)",
+    )
+    group.add_argument(
+        "--threshold-mode",
+        choices=("gmm", "fixed"),
+        default=d.threshold_mode,
+        help="gmm: Gaussian-mixture intersection (paper); fixed: --fixed-threshold",
+    )
+    group.add_argument(
+        "--fixed-threshold",
+        type=fraction,
+        default=d.fixed_threshold,
+        metavar="F",
+        help="score threshold of the fixed mode, fraction of the top score (default %(default)s)",
+    )
+    group.add_argument(
+        "--clutter-value",
+        choices=("free", "unknown"),
+        default=d.clutter_value,
+        help="what clutter cells become in the cleaned map (default %(default)s)",
+    )
+    group.add_argument("--seed", type=int, default=d.seed, help="mixture seed (default %(default)s)")  # fmt: skip
+
+
+def params_from_args(args: argparse.Namespace) -> RoseParams:
+    """The :class:`RoseParams` given by the options of :func:`add_param_arguments`."""
+    return make_params(
+        peak_prominence=args.peak_prominence,
+        angular_resolution_deg=args.angular_resolution,
+        smoothing_deg=args.smoothing,
+        mask_half_width_px=args.mask_half_width,
+        occupied_threshold=args.occupied_threshold,
+        threshold_mode=args.threshold_mode,
+        fixed_threshold=args.fixed_threshold,
+        clutter_value=args.clutter_value,
+        seed=args.seed,
+    )
+
+
+def directions_deg(result: RoseResult) -> list[float]:
+    """Dominant directions in degrees, rounded to 0.01 and folded into [0, 180)."""
+    return [round(float(np.degrees(a)), 2) % 180.0 for a in result.dominant_directions]
+
+
+def result_summary(result: RoseResult, *, seconds: float | None = None) -> dict[str, Any]:
+    """JSON-ready summary of a result: W, directions (degrees), threshold, counts."""
+    summary: dict[str, Any] = {
+        "structure_score": round(result.structure_score, 6),
+        "has_structure": result.has_structure,
+        "dominant_directions_deg": directions_deg(result),
+        "threshold": None if math.isnan(result.threshold) else round(result.threshold, 6),
+        "occupied_cells": result.occupied_count,
+        "clutter_cells": result.clutter_count,
+        "shape": list(result.occupied.shape),
+    }
+    if seconds is not None:
+        summary["seconds"] = round(seconds, 4)
+    return summary
+
+
+def verdict(score: float) -> str:
+    """The paper's reading of W: trusted below TRUST_LEVEL, failed above FAILURE_LEVEL."""
+    if score < TRUST_LEVEL:
+        return "structured: decluttering can be trusted"
+    if score <= FAILURE_LEVEL:
+        return "weak structure: check the result"
+    return "little structure: decluttering has likely failed"

@@ -1,0 +1,128 @@
+"""ROSE's tuning parameters: :class:`RoseParams`, validated on construction."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any, Literal
+
+from rose.errors import RoseError
+
+__all__ = ["ClutterValue", "RoseParams", "ThresholdMode", "make_params"]
+
+ThresholdMode = Literal["gmm", "fixed"]
+ClutterValue = Literal["free", "unknown"]
+
+
+@dataclass(frozen=True)
+class RoseParams:
+    """Tuning parameters of :func:`rose.analyze`, with the defaults used everywhere.
+
+    Attributes
+    ----------
+    peak_prominence : float
+        A direction is dominant when its peak prominence in the cumulative amplitude is at least this
+        fraction of ``max - min`` (the paper's ``t``; 0.5 in the paper).
+    angular_resolution_deg : float
+        Width of one direction bin, in degrees; directions cover ``[0, 180)``.
+    smoothing_deg : float
+        Standard deviation, in degrees, of the circular Gaussian smoothing of the cumulative amplitude
+        (0 disables it).
+    min_radius_px : float
+        Spectrum cells closer than this to DC (in cells of the longer padded side) carry no direction
+        information and are left out of the cumulative amplitude.
+    mask_half_width_px : float
+        Half-width of the strip kept along each dominant direction in the spectrum, in cells of the
+        longer padded side (the authors' strip is about 5 cells wide).
+    occupied_threshold : int
+        Occupancy (percent) from which a cell counts as occupied; unknown cells never do.
+    threshold_mode : {"gmm", "fixed"}
+        ``"gmm"``: threshold where the two weighted Gaussians of a mixture fitted to the occupied cells'
+        scores intersect (the paper). ``"fixed"``: ``fixed_threshold`` on scores scaled to max 1.
+    fixed_threshold : float
+        Threshold of the fixed mode, as a fraction of the largest occupied cell score.
+    clutter_value : {"free", "unknown"}
+        What clutter cells become in :attr:`RoseResult.cleaned`.
+    max_gmm_samples : int
+        The mixture is fitted on at most this many occupied cells' scores (an evenly spaced subsample of
+        the sorted scores, so the result is deterministic and the cost bounded).
+    seed : int
+        Seed of the mixture's initialisation.
+    """
+
+    peak_prominence: float = 0.5
+    angular_resolution_deg: float = 0.5
+    smoothing_deg: float = 0.5
+    min_radius_px: float = 4.0
+    mask_half_width_px: float = 2.5
+    occupied_threshold: int = 65
+    threshold_mode: ThresholdMode = "gmm"
+    fixed_threshold: float = 0.18
+    clutter_value: ClutterValue = "free"
+    max_gmm_samples: int = 2_000
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        problems = _problems(self)
+        if problems:
+            raise RoseError("; ".join(problems))
+
+
+def make_params(params: RoseParams | None = None, **overrides: Any) -> RoseParams:
+    """``params`` (or the defaults) with ``overrides`` applied and every value checked.
+
+    Raises
+    ------
+    RoseError
+        On an unknown parameter name or a value out of range.
+    """
+    base = params if params is not None else RoseParams()
+    try:
+        merged = dataclasses.replace(base, **overrides)
+    except TypeError as err:
+        known = ", ".join(f.name for f in dataclasses.fields(RoseParams))
+        msg = f"unknown ROSE parameter in {sorted(overrides)}; known: {known}"
+        raise RoseError(msg) from err
+    return merged
+
+
+def _problems(p: RoseParams) -> list[str]:
+    numbers = [
+        f.name for f in dataclasses.fields(p) if f.name not in ("threshold_mode", "clutter_value")
+    ]
+    wrong_type = [
+        f"{name} must be a number, got {getattr(p, name)!r}"
+        for name in numbers
+        if isinstance(getattr(p, name), bool) or not isinstance(getattr(p, name), int | float)
+    ]
+    if wrong_type:
+        return wrong_type
+    problems = []
+    for name in ("occupied_threshold", "max_gmm_samples", "seed"):
+        if not isinstance(getattr(p, name), int):
+            problems.append(f"{name} must be an integer, got {getattr(p, name)!r}")
+    if not 0.0 < p.peak_prominence <= 1.0:
+        problems.append(f"peak_prominence must be in (0, 1], got {p.peak_prominence}")
+    if not 0.01 <= p.angular_resolution_deg <= 30.0:
+        problems.append(
+            f"angular_resolution_deg must be in [0.01, 30], got {p.angular_resolution_deg}"
+        )
+    if not 0.0 <= p.smoothing_deg <= 30.0:
+        problems.append(f"smoothing_deg must be in [0, 30], got {p.smoothing_deg}")
+    if not p.min_radius_px >= 0:
+        problems.append(f"min_radius_px must be >= 0, got {p.min_radius_px}")
+    if not p.mask_half_width_px > 0:
+        problems.append(f"mask_half_width_px must be > 0, got {p.mask_half_width_px}")
+    if not 1 <= p.occupied_threshold <= 100:
+        problems.append(f"occupied_threshold must be in 1..100, got {p.occupied_threshold}")
+    if p.threshold_mode not in ("gmm", "fixed"):
+        problems.append(f"threshold_mode must be 'gmm' or 'fixed', got {p.threshold_mode!r}")
+    if not 0.0 <= p.fixed_threshold <= 1.0:
+        problems.append(f"fixed_threshold must be in [0, 1], got {p.fixed_threshold}")
+    if p.clutter_value not in ("free", "unknown"):
+        problems.append(f"clutter_value must be 'free' or 'unknown', got {p.clutter_value!r}")
+    if not p.max_gmm_samples >= 10:
+        problems.append(f"max_gmm_samples must be >= 10, got {p.max_gmm_samples}")
+    if isinstance(p.seed, int) and not 0 <= p.seed < 2**32:
+        problems.append(f"seed must be in 0..2**32-1, got {p.seed}")
+    return problems
