@@ -1,0 +1,290 @@
+"""The rules of the ``"walls"`` cleaning (:func:`rose.clean.clean`): runs, open unknown, topology guard.
+
+Everything works on boolean masks of shape ``(rows, cols)`` in the grid's cell space (row 0 at the map
+origin); lengths are in cells here, converted from metres by the caller. OpenCV does the morphology
+and labelling (imported lazily, like the wall extraction).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+import numpy.typing as npt
+
+from rose.grid import UNKNOWN
+
+if TYPE_CHECKING:
+    from rose.clean import CleanParams
+    from rose.result import RoseResult
+
+__all__ = ["directional_runs", "open_unknown", "passable", "topology_guard", "wall_cells"]
+
+#: Directions closer than this to a right angle of each other share one rotated frame.
+_PAIR_TOLERANCE_RAD = math.radians(3.0)
+
+
+def wall_cells(
+    occupancy: npt.NDArray[np.int8],
+    result: RoseResult,
+    *,
+    resolution_m: float,
+    params: CleanParams,
+) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
+    """Occupied cells the ``"walls"`` cleaning keeps, and those among them only the guard keeps.
+
+    Returns
+    -------
+    walls : ndarray of bool, shape (rows, cols)
+        Kept cells (including the paper's structure).
+    guarded : ndarray of bool, shape (rows, cols)
+        Cells restored by the topology guard.
+    """
+    p = params
+    occupied = result.occupied
+    res = resolution_m
+    tol = p.run_tolerance_px
+    long_runs = directional_runs(
+        occupied, result.dominant_directions, min_length_px=p.min_run_m / res, tolerance_px=tol
+    )
+    short_runs = directional_runs(
+        occupied,
+        result.dominant_directions,
+        min_length_px=p.boundary_run_m / res,
+        tolerance_px=tol,
+    )
+    outside = open_unknown(occupancy, min_area_px=p.min_region_m2 / res**2)
+    near_outside = _dilate(outside, round(p.unknown_margin_m / res))
+    keep = occupied & (result.structure | long_runs | (short_runs & near_outside))
+    guarded = topology_guard(
+        occupied,
+        keep,
+        radius_px=p.robot_radius_m / res,
+        window_px=max(1, round(p.guard_window_m / res)),
+        min_region_px=p.min_region_m2 / res**2,
+    )
+    return keep | guarded, guarded
+
+
+def _dilate(mask: npt.NDArray[np.bool_], radius_px: int) -> npt.NDArray[np.bool_]:
+    import cv2
+
+    if radius_px <= 0:
+        return mask.copy()
+    size = 2 * radius_px + 1
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (size, size))
+    return cv2.dilate(mask.view(np.uint8), kernel).astype(bool)
+
+
+def open_unknown(occupancy: npt.NDArray[np.int8], *, min_area_px: float) -> npt.NDArray[np.bool_]:
+    """Unknown cells of components (8-connected) that touch the map border or cover ``min_area_px``.
+
+    Parameters
+    ----------
+    occupancy : ndarray of int8, shape (rows, cols)
+        ROS grid.
+    min_area_px : float
+        Smallest area of an enclosed unknown component that still counts as open, cells.
+    """
+    import cv2
+
+    unknown = occupancy == UNKNOWN
+    if not unknown.any():
+        return unknown
+    count, labels, stats, _ = cv2.connectedComponentsWithStats(
+        unknown.view(np.uint8), connectivity=8
+    )
+    rows, cols = unknown.shape
+    x, y, w, h, area = (stats[:, i] for i in range(5))
+    border = (x == 0) | (y == 0) | (x + w == cols) | (y + h == rows)
+    is_open = border | (area >= min_area_px)
+    is_open[0] = False
+    return is_open[labels]
+
+
+def directional_runs(
+    mask: npt.NDArray[np.bool_],
+    directions: npt.NDArray[np.float64],
+    *,
+    min_length_px: float,
+    tolerance_px: int = 1,
+) -> npt.NDArray[np.bool_]:
+    """Cells of ``mask`` on straight runs at least ``min_length_px`` long along any direction.
+
+    ``mask`` is rotated so that a direction lies along the columns, dilated by ``tolerance_px`` (so a
+    run may step sideways and skip up to ``2 * tolerance_px`` cells), opened with a line of
+    ``min_length_px`` cells along the rows and the columns (the direction at right angles comes for
+    free when the map has one), and rotated back.
+
+    Parameters
+    ----------
+    mask : ndarray of bool, shape (rows, cols)
+    directions : ndarray of float64, shape (K,)
+        Line orientations in radians, counter-clockwise from +col towards +row, in ``[0, pi)``.
+    min_length_px : float
+        Shortest run, cells.
+    tolerance_px : int
+        Cells of tolerance across and along a run.
+
+    Returns
+    -------
+    ndarray of bool, shape (rows, cols)
+        A subset of ``mask``.
+    """
+    out = np.zeros(mask.shape, dtype=bool)
+    rows_any = np.flatnonzero(mask.any(axis=1))
+    if rows_any.size == 0 or directions.size == 0:
+        return out
+    cols_any = np.flatnonzero(mask.any(axis=0))
+    r0, r1 = int(rows_any[0]), int(rows_any[-1]) + 1
+    c0, c1 = int(cols_any[0]), int(cols_any[-1]) + 1
+    crop = mask[r0:r1, c0:c1]
+    length = max(2, round(min_length_px))
+    for angle in _frames(directions):
+        out[r0:r1, c0:c1] |= _runs_in_frame(crop, angle, length, tolerance_px)
+    return out & mask
+
+
+def _frames(directions: npt.NDArray[np.float64]) -> list[float]:
+    """One rotation per group of directions at right angles to each other, in ``[0, pi/2)``."""
+    frames: list[float] = []
+    for angle in np.mod(directions, math.pi / 2).tolist():
+        if all(
+            min(abs(angle - f), math.pi / 2 - abs(angle - f)) > _PAIR_TOLERANCE_RAD for f in frames
+        ):
+            frames.append(angle)
+    return frames
+
+
+def _runs_in_frame(
+    crop: npt.NDArray[np.bool_], angle: float, length: int, tolerance_px: int
+) -> npt.NDArray[np.bool_]:
+    import cv2
+
+    rows, cols = crop.shape
+    source = crop.view(np.uint8)
+    near_axis = min(angle, math.pi / 2 - angle) < math.radians(0.5)
+    if near_axis:
+        rotated, matrix, size = source, None, (cols, rows)
+    else:
+        c, s = math.cos(angle), math.sin(angle)
+        # Forward map (col, row) -> (u, v) with u along the direction.
+        corners = np.array([[0, 0], [cols, 0], [0, rows], [cols, rows]], dtype=np.float64)
+        u = corners[:, 0] * c + corners[:, 1] * s
+        v = -corners[:, 0] * s + corners[:, 1] * c
+        matrix = np.array([[c, s, -u.min()], [-s, c, -v.min()]], dtype=np.float64)
+        size = (math.ceil(u.max() - u.min()) + 1, math.ceil(v.max() - v.min()) + 1)
+        rotated = cv2.warpAffine(source, matrix, size, flags=cv2.INTER_NEAREST)
+    if tolerance_px > 0:
+        box = np.ones((2 * tolerance_px + 1, 2 * tolerance_px + 1), np.uint8)
+        rotated = cv2.dilate(rotated, box)
+    runs = cv2.morphologyEx(rotated, cv2.MORPH_OPEN, np.ones((1, length), np.uint8))
+    runs |= cv2.morphologyEx(rotated, cv2.MORPH_OPEN, np.ones((length, 1), np.uint8))
+    if matrix is not None:
+        runs = cv2.warpAffine(
+            runs, matrix, (cols, rows), flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP
+        )
+        runs = cv2.dilate(runs, np.ones((3, 3), np.uint8))
+    return runs.astype(bool)
+
+
+def passable(obstacles: npt.NDArray[np.bool_], radius_px: float) -> npt.NDArray[np.bool_]:
+    """Cells farther than ``radius_px`` (centre to centre) from every obstacle cell."""
+    import cv2
+
+    if not obstacles.any():
+        return np.ones(obstacles.shape, dtype=bool)
+    free = (~obstacles).view(np.uint8)
+    distance = cv2.distanceTransform(free, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+    return distance > radius_px
+
+
+def topology_guard(
+    occupied: npt.NDArray[np.bool_],
+    keep: npt.NDArray[np.bool_],
+    *,
+    radius_px: float,
+    window_px: int,
+    min_region_px: float,
+) -> npt.NDArray[np.bool_]:
+    """Removed cells to restore so that no robot-sized passage opens between separate regions.
+
+    Removing ``occupied & ~keep`` makes some cells passable for a disc of ``radius_px``. Each
+    connected patch of them is checked in a window of ``window_px`` cells around it: if the cells that
+    were passable before and touch the patch belong to two or more regions of the window that are not
+    small enclosed pockets (a region is a pocket when it does not reach the window's edge and covers
+    less than ``min_region_px``), every removed piece (8-connected) within ``radius_px + 1`` of the
+    patch is restored. Patches surrounded by formerly passable cells (a free-standing object) are
+    skipped without labelling.
+
+    Returns
+    -------
+    ndarray of bool, shape (rows, cols)
+        Cells of ``occupied & ~keep`` to restore.
+    """
+    import cv2
+
+    removal = occupied & ~keep
+    restore = np.zeros(occupied.shape, dtype=bool)
+    if not removal.any():
+        return restore
+    before = passable(occupied, radius_px)
+    opened = passable(occupied & keep, radius_px) & ~before
+    if not opened.any():
+        return restore
+    count, patches, stats, _ = cv2.connectedComponentsWithStats(
+        opened.view(np.uint8), connectivity=8
+    )
+    # Patches whose ring is all formerly passable: free-standing objects, nothing to check.
+    spread = cv2.dilate(patches.astype(np.float32), np.ones((3, 3), np.uint8)).astype(np.int64)
+    ring = (spread > 0) & ~opened
+    blocked = np.bincount(spread[ring & ~before], minlength=count)
+    suspects = np.flatnonzero(blocked[1:] > 0) + 1
+    if suspects.size == 0:
+        return restore
+    _, pieces = cv2.connectedComponents(removal.view(np.uint8), connectivity=8)
+    reach = math.ceil(radius_px) + 1
+    reach_kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach + 1, 2 * reach + 1))
+    ring_kernel = np.ones((3, 3), np.uint8)
+    rows, cols = occupied.shape
+    to_restore: list[npt.NDArray[np.int32]] = []
+    for index in suspects.tolist():
+        x, y, w, h = stats[index, :4].tolist()
+        r0, c0 = max(y - window_px, 0), max(x - window_px, 0)
+        r1, c1 = min(y + h + window_px, rows), min(x + w + window_px, cols)
+        patch = patches[r0:r1, c0:c1] == index
+        window = before[r0:r1, c0:c1]
+        if not _separates(patch, window, ring_kernel, min_region_px):
+            continue
+        zone = cv2.dilate(patch.view(np.uint8), reach_kernel).astype(bool)
+        to_restore.append(np.unique(pieces[r0:r1, c0:c1][zone]))
+    if to_restore:
+        ids = np.unique(np.concatenate(to_restore))
+        ids = ids[ids > 0]
+        restore = np.isin(pieces, ids) & removal
+    return restore
+
+
+def _separates(
+    patch: npt.NDArray[np.bool_],
+    window: npt.NDArray[np.bool_],
+    ring_kernel: npt.NDArray[np.uint8],
+    min_region_px: float,
+) -> bool:
+    """Whether ``patch`` touches two or more regions of ``window`` that are not small pockets."""
+    import cv2
+
+    count, regions, stats, _ = cv2.connectedComponentsWithStats(
+        window.view(np.uint8), connectivity=8
+    )
+    ring = cv2.dilate(patch.view(np.uint8), ring_kernel).astype(bool) & ~patch
+    touching = np.unique(regions[ring & window])
+    touching = touching[touching > 0]
+    if touching.size < 2:
+        return False
+    rows, cols = window.shape
+    x, y, w, h, area = (stats[touching, i] for i in range(5))
+    edge = (x == 0) | (y == 0) | (x + w == cols) | (y + h == rows)
+    significant = edge | (area >= min_region_px)
+    return int(np.count_nonzero(significant)) >= 2
