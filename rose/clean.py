@@ -10,13 +10,13 @@ Two methods, chosen by name:
 ``"walls"`` (the default)
     Starts from the paper's structure and keeps, in addition, every occupied cell that
 
-    1. lies on a straight run of at least ``min_run_m`` along a dominant direction (walls are long,
-       furniture faces are short; a one-cell tolerance across and along the run absorbs the stair
-       steps and dropouts of a scanned wall), or
-    2. lies within ``unknown_margin_m`` of *open* unknown space, and on a run of at least
-       ``boundary_run_m`` along a dominant direction. Walls separate the known building from the
-       unknown outside; the unknown pockets inside furniture, and the shadows behind it that stay
-       small, are not open (open: touches the map border or covers at least ``min_region_m2``).
+    1. lies on a straight run of at least ``min_run_m``, along a dominant direction (a one-cell
+       tolerance across and along the run absorbs the stair steps and dropouts of a scanned wall) or
+       at any angle (probabilistic Hough): walls are long, furniture faces short; or
+    2. lies within ``unknown_margin_m`` of *wide* unknown space: unknown cells a disc of diameter
+       ``open_unknown_width_m`` fits in. Walls separate the known building from the unknown outside
+       and from unexplored rooms; the narrow shadows a scanner leaves behind furniture, and the
+       insides of scanned objects, are not wide.
 
     Finally a topology guard restores every removed piece whose removal would let a disc of
     ``robot_radius_m`` pass between two regions that the input kept apart (locally, within
@@ -57,14 +57,14 @@ class CleanParams:
     Attributes
     ----------
     min_run_m : float
-        Occupied runs along a dominant direction at least this long are walls.
-    boundary_run_m : float
-        Occupied cells next to open unknown space are walls when their run is at least this long.
+        Straight occupied runs at least this long are walls.
+    open_unknown_width_m : float
+        Unknown space is wide (the outside, unexplored rooms) where a disc of this diameter fits in it.
     unknown_margin_m : float
-        Distance from open unknown space within which an occupied cell counts as next to it.
+        Distance from wide unknown space within which an occupied cell is a wall.
     min_region_m2 : float
-        Unknown components (and regions of the guard) smaller than this and not touching the map border
-        are enclosed pockets (inside furniture, its shadows), not the outside of the building.
+        Regions of the guard smaller than this that do not reach the guard's window edge are
+        enclosed pockets (the inside of a piece of furniture), not places a robot could reach.
     robot_radius_m : float
         Radius of the disc the topology guard keeps out of every wall, metres.
     guard_window_m : float
@@ -74,9 +74,9 @@ class CleanParams:
     """
 
     min_run_m: float = 2.0
-    boundary_run_m: float = 0.6
+    open_unknown_width_m: float = 1.0
     unknown_margin_m: float = 0.15
-    min_region_m2: float = 2.0
+    min_region_m2: float = 1.0
     robot_radius_m: float = 0.15
     guard_window_m: float = 1.0
     run_tolerance_px: int = 1
@@ -86,7 +86,7 @@ class CleanParams:
             f"{name} must be > 0, got {getattr(self, name)}"
             for name in (
                 "min_run_m",
-                "boundary_run_m",
+                "open_unknown_width_m",
                 "min_region_m2",
                 "robot_radius_m",
                 "guard_window_m",

@@ -19,7 +19,14 @@ if TYPE_CHECKING:
     from rose.clean import CleanParams
     from rose.result import RoseResult
 
-__all__ = ["directional_runs", "open_unknown", "passable", "topology_guard", "wall_cells"]
+__all__ = [
+    "directional_runs",
+    "passable",
+    "straight_lines",
+    "topology_guard",
+    "wall_cells",
+    "wide_unknown",
+]
 
 #: Directions closer than this to a right angle of each other share one rotated frame.
 _PAIR_TOLERANCE_RAD = math.radians(3.0)
@@ -44,19 +51,14 @@ def wall_cells(
     p = params
     occupied = result.occupied
     res = resolution_m
-    tol = p.run_tolerance_px
-    long_runs = directional_runs(
-        occupied, result.dominant_directions, min_length_px=p.min_run_m / res, tolerance_px=tol
+    directions = result.dominant_directions
+    runs = directional_runs(
+        occupied, directions, min_length_px=p.min_run_m / res, tolerance_px=p.run_tolerance_px
     )
-    short_runs = directional_runs(
-        occupied,
-        result.dominant_directions,
-        min_length_px=p.boundary_run_m / res,
-        tolerance_px=tol,
-    )
-    outside = open_unknown(occupancy, min_area_px=p.min_region_m2 / res**2)
+    runs |= straight_lines(occupied, min_length_px=p.min_run_m / res)
+    outside = wide_unknown(occupancy, radius_px=p.open_unknown_width_m / (2 * res))
     near_outside = _dilate(outside, round(p.unknown_margin_m / res))
-    keep = occupied & (result.structure | long_runs | (short_runs & near_outside))
+    keep = occupied & (result.structure | runs | near_outside)
     guarded = topology_guard(
         occupied,
         keep,
@@ -77,30 +79,30 @@ def _dilate(mask: npt.NDArray[np.bool_], radius_px: int) -> npt.NDArray[np.bool_
     return cv2.dilate(mask.view(np.uint8), kernel).astype(bool)
 
 
-def open_unknown(occupancy: npt.NDArray[np.int8], *, min_area_px: float) -> npt.NDArray[np.bool_]:
-    """Unknown cells of components (8-connected) that touch the map border or cover ``min_area_px``.
+def wide_unknown(occupancy: npt.NDArray[np.int8], *, radius_px: float) -> npt.NDArray[np.bool_]:
+    """Unknown cells covered by a disc of ``radius_px`` that lies wholly in unknown space.
+
+    The morphological opening of the unknown cells by a disc: the outside of a building and unexplored
+    rooms stay, the narrow shadows behind furniture and the insides of scanned objects go.
 
     Parameters
     ----------
     occupancy : ndarray of int8, shape (rows, cols)
         ROS grid.
-    min_area_px : float
-        Smallest area of an enclosed unknown component that still counts as open, cells.
+    radius_px : float
+        Disc radius, cells.
     """
     import cv2
 
     unknown = occupancy == UNKNOWN
     if not unknown.any():
         return unknown
-    count, labels, stats, _ = cv2.connectedComponentsWithStats(
-        unknown.view(np.uint8), connectivity=8
-    )
-    rows, cols = unknown.shape
-    x, y, w, h, area = (stats[:, i] for i in range(5))
-    border = (x == 0) | (y == 0) | (x + w == cols) | (y + h == rows)
-    is_open = border | (area >= min_area_px)
-    is_open[0] = False
-    return is_open[labels]
+    depth = cv2.distanceTransform(unknown.view(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+    core = depth > radius_px
+    if not core.any():
+        return np.zeros(unknown.shape, dtype=bool)
+    reach = cv2.distanceTransform((~core).view(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+    return (reach <= radius_px) & unknown
 
 
 def directional_runs(
@@ -133,12 +135,9 @@ def directional_runs(
         A subset of ``mask``.
     """
     out = np.zeros(mask.shape, dtype=bool)
-    rows_any = np.flatnonzero(mask.any(axis=1))
-    if rows_any.size == 0 or directions.size == 0:
+    if not mask.any() or directions.size == 0:
         return out
-    cols_any = np.flatnonzero(mask.any(axis=0))
-    r0, r1 = int(rows_any[0]), int(rows_any[-1]) + 1
-    c0, c1 = int(cols_any[0]), int(cols_any[-1]) + 1
+    r0, r1, c0, c1 = _bounds(mask)
     crop = mask[r0:r1, c0:c1]
     length = max(2, round(min_length_px))
     for angle in _frames(directions):
@@ -163,19 +162,7 @@ def _runs_in_frame(
     import cv2
 
     rows, cols = crop.shape
-    source = crop.view(np.uint8)
-    near_axis = min(angle, math.pi / 2 - angle) < math.radians(0.5)
-    if near_axis:
-        rotated, matrix, size = source, None, (cols, rows)
-    else:
-        c, s = math.cos(angle), math.sin(angle)
-        # Forward map (col, row) -> (u, v) with u along the direction.
-        corners = np.array([[0, 0], [cols, 0], [0, rows], [cols, rows]], dtype=np.float64)
-        u = corners[:, 0] * c + corners[:, 1] * s
-        v = -corners[:, 0] * s + corners[:, 1] * c
-        matrix = np.array([[c, s, -u.min()], [-s, c, -v.min()]], dtype=np.float64)
-        size = (math.ceil(u.max() - u.min()) + 1, math.ceil(v.max() - v.min()) + 1)
-        rotated = cv2.warpAffine(source, matrix, size, flags=cv2.INTER_NEAREST)
+    rotated, matrix = _rotate(crop.view(np.uint8), angle)
     if tolerance_px > 0:
         box = np.ones((2 * tolerance_px + 1, 2 * tolerance_px + 1), np.uint8)
         rotated = cv2.dilate(rotated, box)
@@ -187,6 +174,60 @@ def _runs_in_frame(
         )
         runs = cv2.dilate(runs, np.ones((3, 3), np.uint8))
     return runs.astype(bool)
+
+
+def _bounds(mask: npt.NDArray[np.bool_]) -> tuple[int, int, int, int]:
+    """``r0, r1, c0, c1`` of the bounding box of the True cells (``mask`` must have one)."""
+    rows_any = np.flatnonzero(mask.any(axis=1))
+    cols_any = np.flatnonzero(mask.any(axis=0))
+    return int(rows_any[0]), int(rows_any[-1]) + 1, int(cols_any[0]), int(cols_any[-1]) + 1
+
+
+def _rotate(
+    source: npt.NDArray[np.uint8], angle: float
+) -> tuple[npt.NDArray[np.uint8], npt.NDArray[np.float64] | None]:
+    """``source`` rotated so that ``angle`` lies along the columns, and the forward affine matrix
+    (None when ``angle`` is within half a degree of an axis and nothing was rotated)."""
+    import cv2
+
+    if min(angle, math.pi / 2 - angle) < math.radians(0.5):
+        return source, None
+    rows, cols = source.shape
+    c, s = math.cos(angle), math.sin(angle)
+    corners = np.array([[0, 0], [cols, 0], [0, rows], [cols, rows]], dtype=np.float64)
+    u = corners[:, 0] * c + corners[:, 1] * s
+    v = -corners[:, 0] * s + corners[:, 1] * c
+    matrix = np.array([[c, s, -u.min()], [-s, c, -v.min()]], dtype=np.float64)
+    size = (math.ceil(u.max() - u.min()) + 1, math.ceil(v.max() - v.min()) + 1)
+    return cv2.warpAffine(source, matrix, size, flags=cv2.INTER_NEAREST), matrix
+
+
+def straight_lines(
+    mask: npt.NDArray[np.bool_], *, min_length_px: float, max_gap_px: int = 2
+) -> npt.NDArray[np.bool_]:
+    """Cells of ``mask`` on straight segments at least ``min_length_px`` long, at any angle.
+
+    OpenCV's probabilistic Hough transform (deterministic) finds the segments, with gaps of up to
+    ``max_gap_px`` cells; they are drawn three cells wide and intersected with ``mask``.
+    """
+    import cv2
+
+    out = np.zeros(mask.shape, dtype=np.uint8)
+    if not mask.any():
+        return out.astype(bool)
+    length = max(2, round(min_length_px))
+    segments = cv2.HoughLinesP(
+        mask.view(np.uint8) * np.uint8(255),
+        1.0,
+        math.pi / 360,
+        threshold=max(2, length // 2),
+        minLineLength=length,
+        maxLineGap=max_gap_px,
+    )
+    if segments is not None:
+        lines = segments.reshape(-1, 1, 2, 2).astype(np.int32)
+        cv2.polylines(out, list(lines), isClosed=False, color=1, thickness=3)
+    return out.astype(bool) & mask
 
 
 def passable(obstacles: npt.NDArray[np.bool_], radius_px: float) -> npt.NDArray[np.bool_]:

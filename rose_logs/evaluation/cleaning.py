@@ -201,6 +201,7 @@ def score_cleaning(
     clean_s: float,
     robot_radius_m: float = 0.15,
     gap_margin_m: float = 0.5,
+    pocket_m2: float = 1.0,
 ) -> CleaningRun:
     """Score the occupied cells ``kept`` by a cleaning against the case's ground truth."""
     walls, clutter = case.walls, case.clutter
@@ -213,6 +214,7 @@ def score_cleaning(
         kept,
         radius_px=robot_radius_m / case.resolution_m,
         margin_px=max(1, round(gap_margin_m / case.resolution_m)),
+        pocket_px=pocket_m2 / case.resolution_m**2,
     )
     return CleaningRun(
         name=case.name,

@@ -8,6 +8,9 @@ cells that became passable is a gap when, inside a window of ``margin_px`` cells
 passable before that touch the patch belong to two or more regions: the erased wall lets the disc
 cross from one side to the other where it could not before, at least not within the window (a doorway
 closer than the margin does not make a hole in the wall harmless to a planner, but we are lenient).
+A region of the window that does not reach the window's edge and covers less than ``pocket_px`` cells
+is an enclosed pocket (the inside of a thick wall or of a piece of furniture scanned from all sides):
+opening it lets no robot anywhere, so it does not count.
 """
 
 from __future__ import annotations
@@ -35,6 +38,7 @@ def robot_gaps(
     *,
     radius_px: float,
     margin_px: int,
+    pocket_px: float,
 ) -> int:
     """Number of robot-sized gaps the cleaning opened in ``walls``.
 
@@ -48,6 +52,8 @@ def robot_gaps(
         Robot radius, cells.
     margin_px : int
         Half-size of the window around each patch in which regions are told apart, cells.
+    pocket_px : float
+        Enclosed regions smaller than this (cells) are pockets, not regions.
 
     Returns
     -------
@@ -72,9 +78,14 @@ def robot_gaps(
         r1, c1 = min(y + h + margin_px, rows), min(x + w + margin_px, cols)
         patch = patches[r0:r1, c0:c1] == index
         window = before[r0:r1, c0:c1]
-        _, regions = cv2.connectedComponents(window.astype(np.uint8), connectivity=8)
+        _, regions, region_stats, _ = cv2.connectedComponentsWithStats(
+            window.astype(np.uint8), connectivity=8
+        )
         ring = cv2.dilate(patch.astype(np.uint8), ring_kernel).astype(bool) & ~patch
         touching = np.unique(regions[ring & window])
-        if touching.size >= 2:
+        touching = touching[touching > 0]
+        wx, wy, ww, wh, area = (region_stats[touching, i] for i in range(5))
+        edge = (wx == 0) | (wy == 0) | (wx + ww == window.shape[1]) | (wy + wh == window.shape[0])
+        if int(np.count_nonzero(edge | (area >= pocket_px))) >= 2:
             gaps += 1
     return gaps

@@ -5,7 +5,7 @@ The map built from the original scans gives the walls; seeded objects
 meets, and the map is built again from the cut beams with the same log-odds ray casting. Walls are
 the cells occupied in both maps and outside the objects; clutter the occupied cells of the furnished
 map on an object (its footprint grown by one cell, where the cut beams end). The logs' maps hold real
-clutter too; occupied components of the original map less than 1 m across are left out of the walls
+clutter too (people, chairs, desks); occupied components of the original map less than 3 m across are left out of the walls
 (and of every metric).
 """
 
@@ -32,7 +32,7 @@ _M2_PER_OBJECT = 12.0
 _MIN_OBJECTS, _MAX_OBJECTS = 20, 150
 #: The logs' own maps hold real clutter (people, chairs): small occupied components of the map built
 #: from the original scans are neither wall nor clutter and stay out of the metrics.
-_MIN_WALL_EXTENT_M = 1.0
+_MIN_WALL_EXTENT_M = 3.0
 
 
 def _build(
