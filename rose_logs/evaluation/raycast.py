@@ -18,11 +18,11 @@ import numpy as np
 import numpy.typing as npt
 
 import rose
-from rose_logs.carmen import beam_angles
+from rose_logs.carmen.parse import beam_angles
 from rose_logs.evaluation.cleaning import CleaningCase
 from rose_logs.evaluation.maps import read_log
-from rose_logs.furniture import place_furniture, rasterise_furniture, shorten_ranges
-from rose_logs.occupancy_builder import BuilderParams, OccupancyGridBuilder, ScanBatch
+from rose_logs.carmen.furniture import place_furniture, rasterise_furniture, shorten_ranges
+from rose_logs.carmen.raycast import BuilderParams, OccupancyGridBuilder, ScanBatch
 
 __all__ = ["raycast_case"]
 

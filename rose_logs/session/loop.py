@@ -18,11 +18,13 @@ import math
 import time
 import uuid
 from collections.abc import Callable, Sequence
+from typing import Any
 from pathlib import Path
 
 import numpy as np
 
 import rose
+from rose.clean import CleanMethod, CleanResult
 from rose.directions import FAILURE_LEVEL
 from rose.params import RoseParams
 from rose.result import RoseResult
@@ -61,6 +63,7 @@ def process_log(
     progress: bool = False,
     on_snapshot: Callable[[MapSnapshot, RoseResult, SnapshotRecord], None] | None = None,
     walls: bool = False,
+    clean_method: CleanMethod = "walls",
 ) -> SessionReport:
     """Run ROSE over every map snapshot of a log; write the output log and Rerun recording.
 
@@ -90,6 +93,9 @@ def process_log(
     walls : bool, default False
         Also extract wall segments (``rose.extract_walls``) per snapshot: a ``LINE_LIST`` marker in
         ``<map>/rose/walls`` and line strips in Rerun. Costs about 20-45 ms per 1000 x 1000 snapshot.
+    clean_method : {"walls", "paper"}, default "walls"
+        How ``<map>/rose/cleaned`` is made (:func:`rose.clean.clean`): walls kept and no robot-sized
+        gap opened, or the paper's labelling as it is.
     on_snapshot : callable, optional
         Called with ``(snapshot, result, record)`` after each snapshot.
 
@@ -147,7 +153,7 @@ def process_log(
                 derived=derived,
                 map_topics=map_topics,
                 updates=updates,
-                analyser=SnapshotAnalyser(params, walls=walls),
+                analyser=SnapshotAnalyser(params, walls=walls, clean_method=clean_method),
                 failure_level=failure_level,
                 rerun=rerun,
                 on_snapshot=on_snapshot,
@@ -347,8 +353,9 @@ class _Loop:
             cleaned_h, score_h, walls_h = self.derived[topic]
             t = snapshot.log_time_ns
             ser = self.serialization
+            cleaned = analysis.cleaning.cleaned if analysis.cleaning else result.cleaned
             self.writer.write_raw(
-                cleaned_h, t, encode_cleaned(snapshot, result.cleaned, serialization=ser)
+                cleaned_h, t, encode_cleaned(snapshot, cleaned, serialization=ser)
             )
             self.writer.write_raw(score_h, t, encode_score(score, serialization=ser))
             self.writer.write_raw(
@@ -383,7 +390,19 @@ class _Loop:
             seconds=time.perf_counter() - t0,
             reused=reused,
             from_update=from_update,
+            **_cleaning_counts(analysis.cleaning),
         )
         self.records.append(record)
         if self.on_snapshot is not None:
             self.on_snapshot(snapshot, result, record)
+
+
+def _cleaning_counts(cleaning: CleanResult | None) -> dict[str, Any]:
+    if cleaning is None:
+        return {}
+    return {
+        "clean_method": cleaning.method,
+        "removed_count": cleaning.removed_count,
+        "kept_count": cleaning.kept_count,
+        "rescued_count": cleaning.rescued_count,
+    }
