@@ -204,7 +204,9 @@ def clean(
     if result is None:
         result = analyze(occupancy)
     if result.occupied.shape != occupancy.shape:
-        msg = f"the ROSE result is for a grid of shape {result.occupied.shape}, not {occupancy.shape}"
+        msg = (
+            f"the ROSE result is for a grid of shape {result.occupied.shape}, not {occupancy.shape}"
+        )
         raise RoseError(msg)
     occupied = result.occupied
     nothing = np.zeros(occupancy.shape, dtype=bool)

@@ -49,16 +49,50 @@ def wall_cells(
         Cells restored by the topology guard.
     """
     p = params
-    occupied = result.occupied
     res = resolution_m
-    directions = result.dominant_directions
+    walls = np.zeros(occupancy.shape, dtype=bool)
+    guarded = walls.copy()
+    if not result.occupied.any():
+        return walls, guarded
+    # Everything happens near known cells: work on their bounding box, padded so that every window
+    # and disc that matters fits (outside it all cells are unknown).
+    pad = 2 + max(
+        round(p.guard_window_m / res) + math.ceil(p.robot_radius_m / res),
+        math.ceil(p.open_unknown_width_m / res) + round(p.unknown_margin_m / res),
+    )
+    r0, r1, c0, c1 = _bounds(occupancy >= 0)
+    r0, c0 = max(r0 - pad, 0), max(c0 - pad, 0)
+    r1, c1 = min(r1 + pad, occupancy.shape[0]), min(c1 + pad, occupancy.shape[1])
+    window = (slice(r0, r1), slice(c0, c1))
+    kept, restored = _wall_cells(
+        occupancy[window],
+        result.occupied[window],
+        result.structure[window],
+        result.dominant_directions,
+        res=res,
+        p=p,
+    )
+    walls[window] = kept
+    guarded[window] = restored
+    return walls, guarded
+
+
+def _wall_cells(
+    occupancy: npt.NDArray[np.int8],
+    occupied: npt.NDArray[np.bool_],
+    structure: npt.NDArray[np.bool_],
+    directions: npt.NDArray[np.float64],
+    *,
+    res: float,
+    p: CleanParams,
+) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
     runs = directional_runs(
         occupied, directions, min_length_px=p.min_run_m / res, tolerance_px=p.run_tolerance_px
     )
     runs |= straight_lines(occupied, min_length_px=p.min_run_m / res)
     outside = wide_unknown(occupancy, radius_px=p.open_unknown_width_m / (2 * res))
     near_outside = _dilate(outside, round(p.unknown_margin_m / res))
-    keep = occupied & (result.structure | runs | near_outside)
+    keep = occupied & (structure | runs | near_outside)
     guarded = topology_guard(
         occupied,
         keep,
@@ -97,11 +131,11 @@ def wide_unknown(occupancy: npt.NDArray[np.int8], *, radius_px: float) -> npt.ND
     unknown = occupancy == UNKNOWN
     if not unknown.any():
         return unknown
-    depth = cv2.distanceTransform(unknown.view(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+    depth = cv2.distanceTransform(unknown.view(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_5)
     core = depth > radius_px
     if not core.any():
         return np.zeros(unknown.shape, dtype=bool)
-    reach = cv2.distanceTransform((~core).view(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+    reach = cv2.distanceTransform((~core).view(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_5)
     return (reach <= radius_px) & unknown
 
 
@@ -237,7 +271,7 @@ def passable(obstacles: npt.NDArray[np.bool_], radius_px: float) -> npt.NDArray[
     if not obstacles.any():
         return np.ones(obstacles.shape, dtype=bool)
     free = (~obstacles).view(np.uint8)
-    distance = cv2.distanceTransform(free, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+    distance = cv2.distanceTransform(free, cv2.DIST_L2, cv2.DIST_MASK_5)
     return distance > radius_px
 
 
@@ -316,9 +350,7 @@ def _separates(
     """Whether ``patch`` touches two or more regions of ``window`` that are not small pockets."""
     import cv2
 
-    count, regions, stats, _ = cv2.connectedComponentsWithStats(
-        window.view(np.uint8), connectivity=8
-    )
+    _, regions, stats, _ = cv2.connectedComponentsWithStats(window.view(np.uint8), connectivity=8)
     ring = cv2.dilate(patch.view(np.uint8), ring_kernel).astype(bool) & ~patch
     touching = np.unique(regions[ring & window])
     touching = touching[touching > 0]

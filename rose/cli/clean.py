@@ -75,7 +75,9 @@ def run(args: argparse.Namespace) -> int:
     print(f"threshold    {summary['threshold'] if summary['threshold'] is not None else 'n/a'}")
     print(f"occupied     {result.occupied_count} cells")
     print(f"method       {cleaning.method}")
-    print(f"removed      {cleaning.removed_count} cells ({share:.1%}), set to {params.clutter_value}")
+    print(
+        f"removed      {cleaning.removed_count} cells ({share:.1%}), set to {params.clutter_value}"
+    )
     print(
         f"kept         {cleaning.kept_count} cells ({cleaning.rescued_count} of them against "
         f"the paper's labelling, {cleaning.guarded_count} by the gap guard)"

@@ -20,6 +20,7 @@ the new ranges shows faces only, with unknown shadows behind.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -69,27 +70,50 @@ def _circle_cells(
 
 
 def rasterise_furniture(
-    furniture: Furniture, shape: tuple[int, int], *, origin_xy_m: tuple[float, float], resolution_m: float
+    furniture: Furniture,
+    shape: tuple[int, int],
+    *,
+    origin_xy_m: tuple[float, float],
+    resolution_m: float,
 ) -> npt.NDArray[np.bool_]:
     """Cells whose centre lies inside an object, shape ``shape``, ROS grid placement (row 0 at ``y0``)."""
     out = np.zeros(shape, dtype=bool)
     for rect in furniture.rects:
         radius = math.hypot(rect[2], rect[3])
-        _paint(out, rect[:2], radius, origin_xy_m, resolution_m, lambda x, y, r=rect: _rect_cells(r, x, y))
+        _paint(
+            out,
+            rect[:2],
+            radius,
+            origin_xy_m,
+            resolution_m,
+            lambda x, y, r=rect: _rect_cells(r, x, y),
+        )
     for circle in furniture.circles:
         _paint(
-            out, circle[:2], circle[2], origin_xy_m, resolution_m,
+            out,
+            circle[:2],
+            circle[2],
+            origin_xy_m,
+            resolution_m,
             lambda x, y, c=circle: _circle_cells(c, x, y),
         )
     return out
 
 
-def _paint(out, centre, radius, origin, res, inside) -> None:  # type: ignore[no-untyped-def]
+def _paint(
+    out: npt.NDArray[np.bool_],
+    centre: npt.NDArray[np.float64],
+    radius: float,
+    origin: tuple[float, float],
+    res: float,
+    inside: Callable[[npt.NDArray[np.float64], npt.NDArray[np.float64]], npt.NDArray[np.bool_]],
+) -> None:
+    """OR the cells of ``out`` whose centre is ``inside`` a shape within ``radius`` of ``centre``."""
     rows, cols = out.shape
-    c0 = max(int(math.floor((centre[0] - radius - origin[0]) / res)), 0)
-    c1 = min(int(math.ceil((centre[0] + radius - origin[0]) / res)) + 1, cols)
-    r0 = max(int(math.floor((centre[1] - radius - origin[1]) / res)), 0)
-    r1 = min(int(math.ceil((centre[1] + radius - origin[1]) / res)) + 1, rows)
+    c0 = max(math.floor((centre[0] - radius - origin[0]) / res), 0)
+    c1 = min(math.ceil((centre[0] + radius - origin[0]) / res) + 1, cols)
+    r0 = max(math.floor((centre[1] - radius - origin[1]) / res), 0)
+    r1 = min(math.ceil((centre[1] + radius - origin[1]) / res) + 1, rows)
     if r1 <= r0 or c1 <= c0:
         return
     ys, xs = np.mgrid[r0:r1, c0:c1].astype(np.float64)
@@ -146,7 +170,6 @@ def place_furniture(
     wall_m, nearest = distance_transform_edt(~occupied, return_indices=True)
     wall_m = wall_m * res
     allowed = free & (path_m > clearance_m)
-    ys, xs = np.mgrid[0:rows, 0:cols]
     rng = np.random.default_rng(seed)
     directions = np.asarray(directions, dtype=np.float64)
     if directions.size == 0:
@@ -223,7 +246,18 @@ def place_furniture(
     )
 
 
-def _top_fits(x, y, hl, hw, angle, allowed, taken, origin, res) -> bool:  # type: ignore[no-untyped-def]
+def _top_fits(
+    x: float,
+    y: float,
+    hl: float,
+    hw: float,
+    angle: float,
+    allowed: npt.NDArray[np.bool_],
+    taken: npt.NDArray[np.bool_],
+    origin: tuple[float, float],
+    res: float,
+) -> bool:
+    """Whether a table top lies wholly on allowed, untaken cells."""
     top = Furniture(np.array([[x, y, hl, hw, angle]]), np.zeros((0, 3)), ())
     cells = rasterise_furniture(top, allowed.shape, origin_xy_m=origin, resolution_m=res)
     return bool(cells.any()) and bool(np.all((allowed & ~taken)[cells]))
@@ -262,13 +296,13 @@ def shorten_ranges(
     limit = np.where(out >= max_range_m, np.float32(max_range_m), out).astype(np.float64)
     valid = out >= min_range_m
     step = float(angles_rad[1] - angles_rad[0]) if angles_rad.size > 1 else math.pi
-    prims = [("rect", row) for row in furniture.rects] + [("circle", row) for row in furniture.circles]
+    prims = [("rect", row) for row in furniture.rects] + [
+        ("circle", row) for row in furniture.circles
+    ]
     if not prims:
         return out
     centres = np.array([p[1][:2] for p in prims])
-    radii = np.array(
-        [math.hypot(p[1][2], p[1][3]) if p[0] == "rect" else p[1][2] for p in prims]
-    )
+    radii = np.array([math.hypot(p[1][2], p[1][3]) if p[0] == "rect" else p[1][2] for p in prims])
     hit_t = np.full(out.shape, np.inf)
     for start in range(0, poses.shape[0], 512):
         sl = slice(start, start + 512)
@@ -281,11 +315,21 @@ def shorten_ranges(
         if s_idx.size == 0:
             continue
         d = dist[s_idx, p_idx]
-        half = np.where(d > radii[p_idx], np.arcsin(np.clip(radii[p_idx] / np.maximum(d, 1e-9), 0, 1)), math.pi)
+        half = np.where(
+            d > radii[p_idx], np.arcsin(np.clip(radii[p_idx] / np.maximum(d, 1e-9), 0, 1)), math.pi
+        )
         bearing = np.arctan2(dy[s_idx, p_idx], dx[s_idx, p_idx]) - pose[s_idx, 2]
         bearing = np.mod(bearing + math.pi, 2 * math.pi) - math.pi
-        lo = np.ceil((bearing - half - angles_rad[0]) / step).astype(np.int64).clip(0, angles_rad.size)
-        hi = np.floor((bearing + half - angles_rad[0]) / step).astype(np.int64).clip(-1, angles_rad.size - 1)
+        lo = (
+            np.ceil((bearing - half - angles_rad[0]) / step)
+            .astype(np.int64)
+            .clip(0, angles_rad.size)
+        )
+        hi = (
+            np.floor((bearing + half - angles_rad[0]) / step)
+            .astype(np.int64)
+            .clip(-1, angles_rad.size - 1)
+        )
         n = (hi - lo + 1).clip(min=0)
         total = int(n.sum())
         if total == 0:
@@ -302,9 +346,15 @@ def shorten_ranges(
     return out
 
 
-def _intersect(prims, prim, ox, oy, dx, dy):  # type: ignore[no-untyped-def]
+def _intersect(
+    prims: list[tuple[str, npt.NDArray[np.float64]]],
+    prim: npt.NDArray[np.intp],
+    ox: npt.NDArray[np.float64],
+    oy: npt.NDArray[np.float64],
+    dx: npt.NDArray[np.float64],
+    dy: npt.NDArray[np.float64],
+) -> npt.NDArray[np.float64]:
     """Entry distance of each ray into its primitive (inf when it misses or starts inside)."""
-    t = np.full(prim.size, np.inf)
     kinds = np.array([p[0] == "rect" for p in prims])
     params = np.zeros((len(prims), 5))
     for i, (_, row) in enumerate(prims):

@@ -18,11 +18,11 @@ import numpy as np
 import numpy.typing as npt
 
 import rose
+from rose_logs.carmen.furniture import place_furniture, rasterise_furniture, shorten_ranges
 from rose_logs.carmen.parse import beam_angles
+from rose_logs.carmen.raycast import BuilderParams, OccupancyGridBuilder, ScanBatch
 from rose_logs.evaluation.cleaning import CleaningCase
 from rose_logs.evaluation.maps import read_log
-from rose_logs.carmen.furniture import place_furniture, rasterise_furniture, shorten_ranges
-from rose_logs.carmen.raycast import BuilderParams, OccupancyGridBuilder, ScanBatch
 
 __all__ = ["raycast_case"]
 
@@ -69,9 +69,7 @@ def _large_components(
     """Occupied cells of 8-connected components at least ``_MIN_WALL_EXTENT_M`` across (bounding box)."""
     import cv2
 
-    count, labels, stats, _ = cv2.connectedComponentsWithStats(
-        occupied.view(np.uint8), connectivity=8
-    )
+    _, labels, stats, _ = cv2.connectedComponentsWithStats(occupied.view(np.uint8), connectivity=8)
     extent = np.hypot(stats[:, 2], stats[:, 3]) * resolution_m
     large = extent >= _MIN_WALL_EXTENT_M
     large[0] = False
@@ -122,13 +120,19 @@ def raycast_case(
         seed=seed,
     )
     cut = shorten_ranges(
-        ranges, angles, poses, furniture, max_range_m=params.max_range_m, min_range_m=params.min_range_m
+        ranges,
+        angles,
+        poses,
+        furniture,
+        max_range_m=params.max_range_m,
+        min_range_m=params.min_range_m,
     )
     furnished, furnished_origin = _build(cut, angles, poses, params)
     # One window holding the known cells of both maps.
     lo = np.minimum(clean_origin, furnished_origin)
     hi = np.maximum(
-        clean_origin + np.array(clean.shape[::-1]), furnished_origin + np.array(furnished.shape[::-1])
+        clean_origin + np.array(clean.shape[::-1]),
+        furnished_origin + np.array(furnished.shape[::-1]),
     )
     shape = (int(hi[1] - lo[1]), int(hi[0] - lo[0]))
     clean_w = _in_frame(clean, clean_origin, lo, shape)

@@ -17,6 +17,7 @@ import numpy as np
 
 import rose
 import rose_logs
+from rose_logs.evaluation.cleaning_report import cleaning_experiment
 from rose_logs.evaluation.config import PAPER_W, EvaluationConfig
 from rose_logs.evaluation.experiments import (
     ClutterRun,
@@ -206,6 +207,11 @@ def run_evaluation(
     timings["figures"] = time.perf_counter() - t
 
     wall_md, _ = _walls_section(out, list(config.benchmark_maps))
+    t = time.perf_counter()
+    cleaning = cleaning_experiment(config, out, seeds=config.drift_seeds)
+    files.extend(cleaning.files)
+    timings["cleaning"] = time.perf_counter() - t
+    say(f"cleaning: {len(cleaning.runs)} runs in {timings['cleaning']:.1f} s")
     run_s = time.perf_counter() - t0
     median_by_map = {
         name: (
@@ -228,6 +234,7 @@ def run_evaluation(
         timings=timings,
         run_s=run_s,
         wall_md=wall_md,
+        cleaning_md=cleaning.markdown,
     )
     md_path = out / "report.md"
     md_path.write_text(markdown)
@@ -291,6 +298,7 @@ def _markdown(
     timings: dict[str, float],
     run_s: float,
     wall_md: str,
+    cleaning_md: str = "",
 ) -> str:
     p = config.rose_params
     lines = [
@@ -421,6 +429,8 @@ def _markdown(
         lines += ["![W vs precision](exp3_w_vs_precision.png)", ""]
     if wall_md:
         lines += [wall_md.rstrip(), ""]
+    if cleaning_md:
+        lines += [cleaning_md.rstrip(), ""]
     if not figures:
         lines += ["Figures were not written (plots disabled or matplotlib missing).", ""]
     lines += [
