@@ -173,7 +173,7 @@ def directional_runs(
         return out
     r0, r1, c0, c1 = _bounds(mask)
     crop = mask[r0:r1, c0:c1]
-    length = max(2, round(min_length_px))
+    length = max(3, round(min_length_px)) | 1  # odd: an even line is off by one cell after opening
     for angle in _frames(directions):
         out[r0:r1, c0:c1] |= _runs_in_frame(crop, angle, length, tolerance_px)
     return out & mask
@@ -200,8 +200,10 @@ def _runs_in_frame(
     if tolerance_px > 0:
         box = np.ones((2 * tolerance_px + 1, 2 * tolerance_px + 1), np.uint8)
         rotated = cv2.dilate(rotated, box)
-    runs = cv2.morphologyEx(rotated, cv2.MORPH_OPEN, np.ones((1, length), np.uint8))
-    runs |= cv2.morphologyEx(rotated, cv2.MORPH_OPEN, np.ones((length, 1), np.uint8))
+    # Outside the image is empty (OpenCV's default border would count it as occupied for erosion).
+    border = {"borderType": cv2.BORDER_CONSTANT, "borderValue": 0}
+    runs = cv2.morphologyEx(rotated, cv2.MORPH_OPEN, np.ones((1, length), np.uint8), **border)
+    runs |= cv2.morphologyEx(rotated, cv2.MORPH_OPEN, np.ones((length, 1), np.uint8), **border)
     if matrix is not None:
         runs = cv2.warpAffine(
             runs, matrix, (cols, rows), flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP
