@@ -63,7 +63,9 @@ def closed_building(
     return grid, walls & (grid == 100), clutter & ~walls
 
 
-def separated_pairs(obstacles: npt.NDArray[np.bool_], a: tuple[int, int], b: tuple[int, int]) -> bool:
+def separated_pairs(
+    obstacles: npt.NDArray[np.bool_], a: tuple[int, int], b: tuple[int, int]
+) -> bool:
     """Whether a 3-cell disc at cell ``a`` cannot reach cell ``b``."""
     free = passable(obstacles, 3.0)
     _, labels = cv2.connectedComponents(free.view(np.uint8), connectivity=8)

@@ -39,6 +39,7 @@ __all__ = [
     "CleaningRun",
     "CleaningSummary",
     "bormann_cases",
+    "furnish_grid",
     "run_cleaning",
     "score_cleaning",
     "slam_like_pair",
@@ -190,6 +191,67 @@ def bormann_cases(folder: Path, *, names: Sequence[str] | None = None) -> list[C
             continue
         cases.append(case)
     return cases
+
+
+def furnish_grid(
+    grid: npt.NDArray[np.int8],
+    *,
+    count: int,
+    seed: int,
+    resolution_m: float,
+    name: str = "furnished",
+    min_wall_extent_m: float = 3.0,
+) -> CleaningCase:
+    """A SLAM map with scanned-looking furniture painted in: a quick case that needs no log.
+
+    Objects (hollow boxes 0.3..1.2 m with unknown insides, four-legged tables, round bins drawn as
+    rings) go on free cells at least 0.3 m from occupied and unknown cells; there are no shadows (the
+    ray-cast cases have them). Walls are the occupied cells of ``grid`` in 8-connected components at
+    least ``min_wall_extent_m`` across (the bounding box diagonal), so a map's own small clutter is
+    left out of the metrics; clutter is the painted cells.
+    """
+    import cv2
+
+    rng = np.random.default_rng(seed)
+    res = resolution_m
+    occupied = grid >= 65
+    free = (grid >= 0) & ~occupied
+    clear = cv2.distanceTransform(free.view(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE) * res
+    out = grid.copy()
+    clutter = np.zeros(grid.shape, dtype=bool)
+    candidates = np.flatnonzero(clear > 0.3 + 0.7)
+    for _ in range(count if candidates.size else 0):
+        row, col = divmod(int(candidates[rng.integers(candidates.size)]), grid.shape[1])
+        kind = rng.integers(3)
+        stamp = np.zeros(grid.shape, np.uint8)
+        if kind == 0:
+            half = rng.uniform(0.15, 0.6, size=2) / res
+            angle = float(rng.uniform(0, 180))
+            box = cv2.boxPoints(((col, row), (2 * half[0], 2 * half[1]), angle))
+            inside = np.zeros_like(stamp)
+            cv2.fillPoly(inside, [np.round(box).astype(np.int32)], 1)
+            cv2.polylines(stamp, [np.round(box).astype(np.int32)], True, 1, 1)
+            out[inside.astype(bool) & ~stamp.astype(bool) & free] = -1
+        elif kind == 1:
+            du, dv = (round(v / res) for v in rng.uniform(0.3, 0.8, size=2))
+            for dr, dc in ((-dv, -du), (-dv, du), (dv, -du), (dv, du)):
+                stamp[row + dr, col + dc] = 1
+        else:
+            cv2.circle(stamp, (col, row), max(2, round(rng.uniform(0.12, 0.25) / res)), 1, 1)
+        cells = stamp.astype(bool) & free
+        out[cells] = 100
+        clutter |= cells
+    _, labels, stats, _ = cv2.connectedComponentsWithStats(occupied.view(np.uint8), connectivity=8)
+    large = np.hypot(stats[:, 2], stats[:, 3]) * res >= min_wall_extent_m
+    large[0] = False
+    return CleaningCase(
+        name=name,
+        kind="painted",
+        grid=out,
+        walls=large[labels] & occupied,
+        clutter=clutter & (out >= 65),
+        resolution_m=res,
+    )
 
 
 def score_cleaning(
