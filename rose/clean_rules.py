@@ -89,10 +89,11 @@ def _wall_cells(
     runs = directional_runs(
         occupied, directions, min_length_px=p.min_run_m / res, tolerance_px=p.run_tolerance_px
     )
-    runs |= straight_lines(occupied, min_length_px=p.min_run_m / res)
     outside = wide_unknown(occupancy, radius_px=p.open_unknown_width_m / (2 * res))
     near_outside = _dilate(outside, round(p.unknown_margin_m / res))
     keep = occupied & (structure | runs | near_outside)
+    # Straight lines at any angle (walls off the dominant directions, curved walls in pieces).
+    keep |= straight_lines(occupied, min_length_px=p.min_run_m / res)
     guarded = topology_guard(
         occupied,
         keep,
@@ -131,12 +132,20 @@ def wide_unknown(occupancy: npt.NDArray[np.int8], *, radius_px: float) -> npt.ND
     unknown = occupancy == UNKNOWN
     if not unknown.any():
         return unknown
-    depth = cv2.distanceTransform(unknown.view(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_5)
-    core = depth > radius_px
+    # On a grid of 2 x 2 blocks (a block is unknown when all its cells are): a quarter of the work,
+    # and only ever less unknown space, never more.
+    rows, cols = unknown.shape
+    padded = np.zeros((rows + rows % 2, cols + cols % 2), dtype=bool)
+    padded[:rows, :cols] = unknown
+    blocks = padded.reshape(padded.shape[0] // 2, 2, padded.shape[1] // 2, 2).all(axis=(1, 3))
+    radius = radius_px / 2
+    depth = cv2.distanceTransform(blocks.view(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_5)
+    core = depth > radius
     if not core.any():
         return np.zeros(unknown.shape, dtype=bool)
     reach = cv2.distanceTransform((~core).view(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_5)
-    return (reach <= radius_px) & unknown
+    wide = np.repeat(np.repeat(reach <= radius, 2, axis=0), 2, axis=1)[:rows, :cols]
+    return wide & unknown
 
 
 def directional_runs(
@@ -272,9 +281,10 @@ def passable(obstacles: npt.NDArray[np.bool_], radius_px: float) -> npt.NDArray[
 
     if not obstacles.any():
         return np.ones(obstacles.shape, dtype=bool)
-    free = (~obstacles).view(np.uint8)
-    distance = cv2.distanceTransform(free, cv2.DIST_L2, cv2.DIST_MASK_5)
-    return distance > radius_px
+    reach = math.floor(radius_px)
+    offsets = np.arange(-reach, reach + 1)
+    disc = (offsets[:, None] ** 2 + offsets[None, :] ** 2 <= radius_px**2).astype(np.uint8)
+    return ~cv2.dilate(obstacles.view(np.uint8), disc).astype(bool)
 
 
 def topology_guard(
