@@ -71,6 +71,12 @@ def main() -> None:
     parser.add_argument("--bormann", default=None, help="Bormann maps (default: all)")
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--figure", type=Path, default=None, help="before/after PNG of one case")
+    parser.add_argument(
+        "--figure-window",
+        default=None,
+        help="top,bottom,left,right crop of the figure, fractions of the occupied box",
+    )
+    parser.add_argument("--figure-width", type=int, default=1400)
     args = parser.parse_args()
     logging.basicConfig(level=logging.WARNING)
 
@@ -94,10 +100,13 @@ def main() -> None:
     print("median (worst):")
     print("\n".join(summary_markdown(summarise_cleaning(runs))))
     if args.figure is not None and cases:
-        from rose_logs.evaluation.cleaning_report import _figure
+        from rose_logs.evaluation.cleaning_report import cleaning_figure
 
         shown = next((c for c in cases if c.kind == "raycast"), cases[0])
-        _figure(shown, args.figure)
+        window = (
+            tuple(float(v) for v in args.figure_window.split(",")) if args.figure_window else None
+        )
+        cleaning_figure(shown, args.figure, width_px=args.figure_width, window=window)  # type: ignore[arg-type]
         print(f"figure: {args.figure}")
 
 

@@ -25,7 +25,14 @@ from rose_logs.evaluation.cleaning import (
 )
 from rose_logs.evaluation.config import EvaluationConfig
 
-__all__ = ["CleaningReport", "cleaning_cases", "cleaning_experiment", "render_cleaning"]
+__all__ = [
+    "CleaningReport",
+    "cleaning_cases",
+    "cleaning_experiment",
+    "cleaning_figure",
+    "render_cleaning",
+    "summary_markdown",
+]
 
 _LOG = logging.getLogger(__name__)
 
@@ -84,8 +91,18 @@ def render_cleaning(
     return image[::-1].copy()
 
 
-def _figure(case: CleaningCase, path: Path, *, width_px: int = 1400) -> Path:
-    """Input / paper / walls side by side, labelled, scaled to ``width_px``."""
+def cleaning_figure(
+    case: CleaningCase,
+    path: Path,
+    *,
+    width_px: int = 1400,
+    window: tuple[float, float, float, float] | None = None,
+) -> Path:
+    """Input / paper / walls side by side (or stacked, for wide maps), labelled, ``width_px`` wide.
+
+    ``window`` ``(top, bottom, left, right)`` crops the picture to fractions of the occupied cells'
+    bounding box (image rows top first); the whole box when None.
+    """
     import cv2
 
     result = rose.analyze(case.grid)
@@ -100,6 +117,10 @@ def _figure(case: CleaningCase, path: Path, *, width_px: int = 1400) -> Path:
         n = case.grid.shape[0]
         r0, r1 = max(n - 1 - int(rows[-1]) - 5, 0), min(n - int(rows[0]) + 5, n)
         c0, c1 = max(int(cols[0]) - 5, 0), int(cols[-1]) + 6
+        if window is not None:
+            top, bottom, left, right = window
+            r0, r1 = r0 + round(top * (r1 - r0)), r0 + round(bottom * (r1 - r0))
+            c0, c1 = c0 + round(left * (c1 - c0)), c0 + round(right * (c1 - c0))
         panels = [(label, image[r0:r1, c0:c1]) for label, image in panels]
     height, width = panels[0][1].shape[:2]
     stacked = width > 1.5 * height
@@ -163,7 +184,7 @@ def cleaning_experiment(
     figure = None
     shown = next((c for c in cases if c.kind == "raycast"), cases[0] if cases else None)
     if shown is not None:
-        figure = _figure(shown, out / "cleaning_before_after.png")
+        figure = cleaning_figure(shown, out / "cleaning_before_after.png")
         files.append(figure)
     lines = [
         "## Cleaning: walls kept, clutter removed, no gaps (`rose.clean`)",
