@@ -364,7 +364,8 @@ class _Loop:
         broke = score > self.failure_level and not self.above.get(topic, False)
         self.above[topic] = score > self.failure_level
         if self.rerun is not None:
-            self.rerun.snapshot(snapshot, result, index, analysis.walls)
+            rescued = analysis.cleaning.rescued if analysis.cleaning is not None else None
+            self.rerun.snapshot(snapshot, result, index, analysis.walls, rescued)
         if broke:
             text = (
                 f"{topic}: W = {score:.3f} rose above the failure level {self.failure_level:g} "
