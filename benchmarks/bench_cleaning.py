@@ -58,6 +58,7 @@ def measure(case: CleaningCase, repeat: int) -> list[CleaningRun]:
                 method=method,
                 analyze_s=analyze_s,
                 clean_s=clean_s,
+                completed=cleaned.completed,  # type: ignore[attr-defined]
             )
         )
     return runs

@@ -18,7 +18,12 @@ Two methods, chosen by name:
        and from unexplored rooms; the narrow shadows a scanner leaves behind furniture, and the
        insides of scanned objects, are not wide.
 
-    Finally a topology guard restores every removed piece whose removal would let a disc of
+    Furniture against a wall hides the wall behind it; so that removing it does not open the wall,
+    unknown cells on the straight line between two kept walls along a dominant direction, at most
+    ``max_bridge_m`` apart and next to a removed piece, become walls (``completed``; thin lines only,
+    never the space between two parallel walls).
+
+    Finally a topology guard (counting the completed walls) restores every removed piece whose removal would let a disc of
     ``robot_radius_m`` pass between two regions that the input kept apart (locally, within
     ``guard_window_m``), unless one of them is a small enclosed pocket (less than
     ``min_region_m2``: the inside of a piece of furniture).
@@ -38,7 +43,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rose.errors import RoseError
-from rose.grid import FREE, UNKNOWN, as_occupancy_grid
+from rose.grid import FREE, OCCUPIED, UNKNOWN, as_occupancy_grid
 from rose.pipeline import analyze
 from rose.result import RoseResult
 
@@ -71,6 +76,9 @@ class CleanParams:
         Margin of the window around each opened patch in which the guard tells regions apart.
     run_tolerance_px : int
         Cells of tolerance across and along a run (stair steps, dropouts).
+    max_bridge_m : float
+        Longest hidden wall completed behind removed furniture: unknown cells on the straight line
+        between two kept walls along a dominant direction, at most this far apart (0: never).
     """
 
     min_run_m: float = 2.0
@@ -78,6 +86,7 @@ class CleanParams:
     unknown_margin_m: float = 0.15
     min_region_m2: float = 1.0
     robot_radius_m: float = 0.15
+    max_bridge_m: float = 2.0
     guard_window_m: float = 1.0
     run_tolerance_px: int = 1
 
@@ -93,6 +102,8 @@ class CleanParams:
             )
             if not getattr(self, name) > 0
         ]
+        if not self.max_bridge_m >= 0:
+            problems.append(f"max_bridge_m must be >= 0, got {self.max_bridge_m}")
         if not self.unknown_margin_m >= 0:
             problems.append(f"unknown_margin_m must be >= 0, got {self.unknown_margin_m}")
         if not 0 <= self.run_tolerance_px <= 5:
@@ -119,6 +130,10 @@ class CleanResult:
         Kept cells that the paper's labelling calls clutter (subset of ``kept``; empty for "paper").
     guarded : ndarray of bool, shape (rows, cols)
         Rescued cells kept only by the topology guard (subset of ``rescued``).
+    completed : ndarray of bool, shape (rows, cols)
+        Cells unknown in the input that ``cleaned`` makes walls (100): the straight wall line hidden
+        behind removed furniture (a cabinet against a wall hides the wall behind it), so that removing
+        the furniture does not open the wall. Empty for "paper".
     resolution_m : float
         Cell size the metric parameters were converted with.
     params : CleanParams
@@ -133,6 +148,7 @@ class CleanResult:
     removed: npt.NDArray[np.bool_]
     rescued: npt.NDArray[np.bool_]
     guarded: npt.NDArray[np.bool_]
+    completed: npt.NDArray[np.bool_]
     resolution_m: float
     params: CleanParams
     result: RoseResult = field(repr=False)
@@ -151,6 +167,11 @@ class CleanResult:
     def rescued_count(self) -> int:
         """Cells kept against the paper's labelling."""
         return int(np.count_nonzero(self.rescued))
+
+    @property
+    def completed_count(self) -> int:
+        """Unknown cells made walls."""
+        return int(np.count_nonzero(self.completed))
 
     @property
     def guarded_count(self) -> int:
@@ -219,17 +240,19 @@ def clean(
             removed=result.clutter.copy(),
             rescued=nothing,
             guarded=nothing.copy(),
+            completed=nothing.copy(),
             resolution_m=float(resolution_m),
             params=p,
             result=result,
         )
     from rose.clean_rules import wall_cells
 
-    walls, guarded = wall_cells(occupancy, result, resolution_m=resolution_m, params=p)
+    walls, guarded, completed = wall_cells(occupancy, result, resolution_m=resolution_m, params=p)
     kept = occupied & (walls | result.structure)
     removed = occupied & ~kept
     cleaned = occupancy.copy()
     cleaned[removed] = FREE if result.params.clutter_value == "free" else UNKNOWN
+    cleaned[completed] = OCCUPIED
     return CleanResult(
         cleaned=cleaned,
         method=method,
@@ -237,6 +260,7 @@ def clean(
         removed=removed,
         rescued=kept & result.clutter,
         guarded=guarded & result.clutter,
+        completed=completed,
         resolution_m=float(resolution_m),
         params=p,
         result=result,

@@ -47,13 +47,16 @@ def wall_cells(
         Kept cells (including the paper's structure).
     guarded : ndarray of bool, shape (rows, cols)
         Cells restored by the topology guard.
+    completed : ndarray of bool, shape (rows, cols)
+        Unknown cells to make walls: the wall line hidden behind removed furniture.
     """
     p = params
     res = resolution_m
     walls = np.zeros(occupancy.shape, dtype=bool)
     guarded = walls.copy()
+    completed = walls.copy()
     if not result.occupied.any():
-        return walls, guarded
+        return walls, guarded, completed
     # Everything happens near known cells: work on their bounding box, padded so that every window
     # and disc that matters fits (outside it all cells are unknown).
     pad = 2 + max(
@@ -64,7 +67,7 @@ def wall_cells(
     r0, c0 = max(r0 - pad, 0), max(c0 - pad, 0)
     r1, c1 = min(r1 + pad, occupancy.shape[0]), min(c1 + pad, occupancy.shape[1])
     window = (slice(r0, r1), slice(c0, c1))
-    kept, restored = _wall_cells(
+    kept, restored, added = _wall_cells(
         occupancy[window],
         result.occupied[window],
         result.structure[window],
@@ -74,7 +77,8 @@ def wall_cells(
     )
     walls[window] = kept
     guarded[window] = restored
-    return walls, guarded
+    completed[window] = added
+    return walls, guarded, completed
 
 
 def _wall_cells(
@@ -85,7 +89,7 @@ def _wall_cells(
     *,
     res: float,
     p: CleanParams,
-) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
+) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
     runs = directional_runs(
         occupied, directions, min_length_px=_px(p.min_run_m, res), tolerance_px=p.run_tolerance_px
     )
@@ -94,14 +98,35 @@ def _wall_cells(
     keep = occupied & (structure | runs | near_outside)
     # Straight lines at any angle (walls off the dominant directions, curved walls in pieces).
     keep |= straight_lines(occupied, min_length_px=_px(p.min_run_m, res))
+    completed = np.zeros(occupied.shape, dtype=bool)
+    if p.max_bridge_m > 0:
+        # The wall line hidden behind furniture: unknown cells between collinear kept walls.
+        bridges = bridge_gaps(
+            keep, occupancy == UNKNOWN, directions, max_gap_px=_px(p.max_bridge_m, res)
+        )
+        completed = _touching(bridges, occupied & ~keep)
     guarded = topology_guard(
         occupied,
         keep,
+        added=completed,
         radius_px=_px(p.robot_radius_m, res),
         window_px=max(1, round(_px(p.guard_window_m, res))),
         min_region_px=_px(p.min_region_m2, res**2),
     )
-    return keep | guarded, guarded
+    kept = keep | guarded
+    return kept, guarded, completed
+
+
+def _touching(pieces: npt.NDArray[np.bool_], other: npt.NDArray[np.bool_]) -> npt.NDArray[np.bool_]:
+    """The 8-connected components of ``pieces`` within two cells of ``other``."""
+    import cv2
+
+    if not pieces.any() or not other.any():
+        return np.zeros(pieces.shape, dtype=bool)
+    _, labels = cv2.connectedComponents(pieces.view(np.uint8), connectivity=8)
+    near = _dilate(other, 2)
+    ids = np.unique(labels[near & pieces])
+    return np.isin(labels, ids[ids > 0])
 
 
 def _px(length_m: float, res: float) -> float:
@@ -253,6 +278,56 @@ def _rotate(
     return cv2.warpAffine(source, matrix, size, flags=cv2.INTER_NEAREST), matrix
 
 
+def bridge_gaps(
+    walls: npt.NDArray[np.bool_],
+    fillable: npt.NDArray[np.bool_],
+    directions: npt.NDArray[np.float64],
+    *,
+    max_gap_px: float,
+) -> npt.NDArray[np.bool_]:
+    """Cells of ``fillable`` on the straight line between two wall cells along a dominant direction.
+
+    A morphological closing of ``walls`` with a line of ``max_gap_px`` cells along every direction
+    (in the rotated frames of :func:`directional_runs`) joins collinear wall pieces across gaps
+    shorter than the line; only ``fillable`` cells are filled.
+
+    Returns
+    -------
+    ndarray of bool, shape (rows, cols)
+        A subset of ``fillable & ~walls``.
+    """
+    import cv2
+
+    out = np.zeros(walls.shape, dtype=bool)
+    if not walls.any() or directions.size == 0:
+        return out
+    length = max(3, round(max_gap_px)) | 1
+    r0, r1, c0, c1 = _bounds(walls)
+    crop = walls[r0:r1, c0:c1]
+    rows, cols = crop.shape
+    for angle in _frames(directions):
+        rotated, matrix = _rotate(crop.view(np.uint8), angle)
+        closed = np.zeros_like(rotated)
+        for along, across in (((1, length), (4, 1)), ((length, 1), (1, 4))):
+            fill = cv2.morphologyEx(rotated, cv2.MORPH_CLOSE, np.ones(along, np.uint8)) & ~rotated
+            # A wall line is thin: drop fills four or more cells thick across the line (the space
+            # between two parallel walls, not a wall).
+            thick = cv2.morphologyEx(
+                fill,
+                cv2.MORPH_OPEN,
+                np.ones(across, np.uint8),
+                borderType=cv2.BORDER_CONSTANT,
+                borderValue=0,
+            )
+            closed |= fill & ~thick
+        if matrix is not None:
+            closed = cv2.warpAffine(
+                closed, matrix, (cols, rows), flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP
+            )
+        out[r0:r1, c0:c1] |= closed.astype(bool)
+    return out & fillable & ~walls
+
+
 def straight_lines(
     mask: npt.NDArray[np.bool_], *, min_length_px: float, max_gap_px: int = 2
 ) -> npt.NDArray[np.bool_]:
@@ -298,6 +373,7 @@ def topology_guard(
     keep: npt.NDArray[np.bool_],
     *,
     radius_px: float,
+    added: npt.NDArray[np.bool_] | None = None,
     window_px: int,
     min_region_px: float,
 ) -> npt.NDArray[np.bool_]:
@@ -323,7 +399,8 @@ def topology_guard(
     if not removal.any():
         return restore
     before = passable(occupied, radius_px)
-    opened = passable(occupied & keep, radius_px) & ~before
+    after = occupied & keep if added is None else (occupied & keep) | added
+    opened = passable(after, radius_px) & ~before
     if not opened.any():
         return restore
     count, patches, stats, _ = cv2.connectedComponentsWithStats(

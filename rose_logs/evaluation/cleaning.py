@@ -261,11 +261,16 @@ def score_cleaning(
     method: str,
     analyze_s: float,
     clean_s: float,
+    completed: npt.NDArray[np.bool_] | None = None,
     robot_radius_m: float = 0.15,
     gap_margin_m: float = 0.5,
     pocket_m2: float = 1.0,
 ) -> CleaningRun:
-    """Score the occupied cells ``kept`` by a cleaning against the case's ground truth."""
+    """Score the occupied cells ``kept`` by a cleaning against the case's ground truth.
+
+    ``completed`` (cells the cleaning made walls that were not occupied) count as obstacles for the
+    robot-gap metric; recall, removal and precision are about the input's occupied cells only.
+    """
     walls, clutter = case.walls, case.clutter
     wall_n = int(np.count_nonzero(walls))
     clutter_n = int(np.count_nonzero(clutter))
@@ -277,6 +282,7 @@ def score_cleaning(
         radius_px=robot_radius_m / case.resolution_m,
         margin_px=max(1, round(gap_margin_m / case.resolution_m)),
         pocket_px=pocket_m2 / case.resolution_m**2,
+        added=completed,
     )
     return CleaningRun(
         name=case.name,
@@ -309,7 +315,12 @@ def run_cleaning(
             cleaned = clean(case.grid, result, method=method, resolution_m=case.resolution_m)
             clean_s = time.perf_counter() - started
             run = score_cleaning(
-                case, cleaned.kept, method=method, analyze_s=analyze_s, clean_s=clean_s
+                case,
+                cleaned.kept,
+                method=method,
+                analyze_s=analyze_s,
+                clean_s=clean_s,
+                completed=cleaned.completed,
             )
             _LOG.info(
                 "%s %s: walls %.3f clutter %.3f precision %.3f gaps %d time x%.2f",

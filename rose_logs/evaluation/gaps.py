@@ -39,6 +39,7 @@ def robot_gaps(
     radius_px: float,
     margin_px: int,
     pocket_px: float,
+    added: npt.NDArray[np.bool_] | None = None,
 ) -> int:
     """Number of robot-sized gaps the cleaning opened in ``walls``.
 
@@ -54,6 +55,8 @@ def robot_gaps(
         Half-size of the window around each patch in which regions are told apart, cells.
     pocket_px : float
         Enclosed regions smaller than this (cells) are pockets, not regions.
+    added : ndarray of bool, shape (rows, cols), optional
+        Cells the cleaning made occupied that were not (completed walls): obstacles after cleaning.
 
     Returns
     -------
@@ -62,7 +65,7 @@ def robot_gaps(
     import cv2
 
     before = passable(walls, radius_px)
-    after = passable(walls & kept, radius_px)
+    after = passable(walls & kept if added is None else (walls & kept) | added, radius_px)
     opened = after & ~before
     if not opened.any():
         return 0
