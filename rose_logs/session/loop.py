@@ -127,6 +127,7 @@ def process_log(
                 serialization=reader.serialization,
                 force=force,
                 protected=(input_path,),
+                qos_style=reader.qos_style,
             )
         rerun: RerunSink | None = None
         try:
