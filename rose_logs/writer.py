@@ -303,10 +303,8 @@ class LogWriter:
             msg = f"{self.path}: unknown message type {msgtype} for topic {topic}"
             raise LogWriteError(msg) from err
         ros1 = self.serialization == "ros1"
-        if qos:
-            profiles = tuple(qos)
-        else:
-            profiles = (transient_local_qos() if latching else default_qos(),)
+        own = transient_local_qos() if latching else default_qos()
+        profiles = tuple(qos) if qos else (own,)
         channel = Channel(
             id=-1,
             topic=topic,
