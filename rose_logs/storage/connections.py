@@ -72,8 +72,8 @@ def definitions(channel: Channel, ros_version: int) -> tuple[str, str]:
             store = get_typestore(Stores.EMPTY)
             for name, text in _split_msgdef(channel.msgtype, channel.msgdef):
                 store.register(get_types_from_msg(text, name))
-            if ros_version == 1:
-                return store.generate_msgdef(channel.msgtype)
+            if ros_version == 1:  # keep the input's text as is, only its md5sum is computed
+                return channel.msgdef, store.generate_msgdef(channel.msgtype)[1]
             return channel.msgdef, store.hash_rihs01(channel.msgtype)
         except Exception:  # fall back to the built-in definitions below
             _LOG.debug("could not hash the definition of %s", channel.msgtype, exc_info=True)

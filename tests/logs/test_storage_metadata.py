@@ -1,4 +1,4 @@
-"""Connection metadata across formats: ROS 1 latching spellings, ROS 2 QoS spellings, required MCAP keys.
+"""Connection metadata across formats: ROS 1 latching and definitions, ROS 2 QoS spellings, MCAP keys.
 
 Input logs are written with the ``mcap`` package and rosbags directly (never ``rose_logs.writer``); the
 map is a small drawn floor plan, so these tests need no data set.
@@ -20,6 +20,8 @@ from rose_logs.reader import LogReader
 from rose_logs.session import process_log
 from rose_logs.storage.connections import qos_style, qos_yaml, transient_local_qos
 from rose_logs.storage.records import parse_latching
+from rose_logs.storage.ros1_definitions import ROS1_FULL_TEXT
+from rose_logs.storage.typesys import msgdef_for, typestore_for
 
 T0_NS = 1_700_000_000_000_000_000
 MAP_TYPE = "nav_msgs/msg/OccupancyGrid"
@@ -225,3 +227,82 @@ def test_bag_folder_output_follows_the_input_qos_style(
     assert styles["/map"] == expected
     for topic in ("/map/rose/cleaned", "/map/rose/structure_score", "/map/rose/walls"):
         assert styles[topic] == expected, topic
+
+
+# -- ROS 1 message definitions -------------------------------------------------------------------
+def _fields(text: str) -> list[str]:
+    """Definition lines without comments and blanks, types without package (``std_msgs/Header`` ->
+    ``Header``): what the md5sum depends on, whichever way the text qualifies names."""
+    lines = (line.split("#", 1)[0].split() for line in text.splitlines())
+    return [" ".join([words[0].rsplit("/", 1)[-1], *words[1:]]) for words in lines if words]
+
+
+@pytest.mark.parametrize("msgtype", sorted(ROS1_FULL_TEXT))
+def test_canonical_ros1_text_has_the_standard_md5_and_fields(msgtype: str) -> None:
+    from rosbags.typesys import get_types_from_msg
+
+    text = ROS1_FULL_TEXT[msgtype]
+    noetic = get_typestore(Stores.ROS1_NOETIC)
+    ours = typestore_for("ros1")
+    generated, md5 = (noetic if msgtype in noetic.types else ours).generate_msgdef(msgtype)
+    assert "#" in text or msgtype == "std_msgs/msg/Float32"  # comments kept
+    assert _fields(text) == _fields(generated)  # same types, in the same order
+    store = get_typestore(Stores.EMPTY)
+    parts = text.split("=" * 80 + "\n")
+    store.register(get_types_from_msg(parts[0], msgtype))
+    for part in parts[1:]:
+        header, body = part.split("\n", 1)
+        store.register(get_types_from_msg(body, header.removeprefix("MSG: ").replace("/", "/msg/")))
+    assert store.generate_msgdef(msgtype)[1] == md5
+    assert msgdef_for(msgtype, "ros1") == (text, md5)
+
+
+def test_ros1_output_stores_canonical_texts_and_keeps_the_inputs(tmp_path: Path) -> None:
+    from rosbags.rosbag1 import Writer
+
+    src = tmp_path / "in.bag"
+    store = get_typestore(Stores.ROS1_NOETIC)
+    with Writer(src) as writer:  # rosbags stores its comment-free definitions
+        conns = {
+            topic: writer.add_connection(topic, msgtype, typestore=store, callerid="/slam")
+            for topic, msgtype in (("/map", MAP_TYPE), ("/scan", SCAN_TYPE))
+        }
+        for t_ns, topic, data in _messages("ros1"):
+            writer.write(conns[topic], t_ns, data)
+    out = tmp_path / "out.bag"
+    process_log(src, output_path=out)
+    with LogReader(src) as a, LogReader(out) as b:
+        before = {c.topic: c for c in a.channels}
+        after = {c.topic: c for c in b.channels}
+    for topic, channel in before.items():  # input texts kept as they are
+        assert (after[topic].msgdef, after[topic].digest) == (channel.msgdef, channel.digest)
+    for topic, msgtype in (
+        ("/map/rose/cleaned", MAP_TYPE),
+        ("/map/rose/structure_score", "std_msgs/msg/Float32"),
+        ("/map/rose/walls", "visualization_msgs/msg/MarkerArray"),
+    ):
+        assert after[topic].msgdef == ROS1_FULL_TEXT[msgtype], topic
+        assert after[topic].digest == typestore_for("ros1").generate_msgdef(msgtype)[1]
+
+
+def test_ros1_input_text_without_md5_is_kept(tmp_path: Path) -> None:
+    """A ros1-profile MCAP channel without ``md5sum``: its text is copied, only the md5 computed."""
+    from mcap.writer import Writer
+
+    src = tmp_path / "in.mcap"
+    text = ROS1_FULL_TEXT[MAP_TYPE]  # comments and all, as recorded by ROS
+    with src.open("wb") as f:
+        writer = Writer(f)
+        writer.start(profile="ros1", library="tests")
+        schema = writer.register_schema("nav_msgs/OccupancyGrid", "ros1msg", text.encode())
+        channel = writer.register_channel("/map", "ros1", schema, {"latching": "true"})
+        for seq, (t_ns, topic, data) in enumerate(_messages("ros1")):
+            if topic == "/map":
+                writer.add_message(channel, t_ns, data, t_ns, seq)
+        writer.finish()
+    out = tmp_path / "out.bag"
+    process_log(src, output_path=out)
+    with LogReader(out) as reader:
+        copied = next(c for c in reader.channels if c.topic == "/map")
+    assert copied.msgdef == text
+    assert copied.digest == "3381f2d731d4076ec5c71b0759edbe4e"  # nav_msgs/OccupancyGrid in ROS 1
