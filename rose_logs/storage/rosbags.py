@@ -5,7 +5,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 from rose_logs.formats import LogFormat
 from rose_logs.storage.base import WriteBackend
@@ -42,7 +42,7 @@ class RosbagsReadBackend:
 
             self.reader = Reader2(self.path)
         self.reader.open()
-        channels = []
+        channels: list[Channel] = []
         for conn in self.reader.connections:
             ext = conn.ext
             ros1 = self.format == "ros1"
@@ -191,7 +191,7 @@ class Ros2WriteBackend(_RosbagsWriteBackend):
 
         plugin = StoragePlugin.MCAP if self.format == "mcap-dir" else StoragePlugin.SQLITE3
         # rosbag2 format 8 spells QoS policies as integers (what Humble reads), format 9 as names.
-        version = 8 if self.qos_style == "v8" else 9
+        version: Literal[8, 9] = 8 if self.qos_style == "v8" else 9
         self.writer = Writer(self.path, version=version, storage_plugin=plugin)
         self.writer.open()
 

@@ -7,7 +7,7 @@ map is a small drawn floor plan, so these tests need no data set.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import numpy.typing as npt
@@ -197,7 +197,7 @@ def test_bare_mcap_added_topics_follow_the_input_qos_style(tmp_path: Path, style
 @pytest.mark.parametrize("version", [8, 9])
 @pytest.mark.parametrize("plugin", ["SQLITE3", "MCAP"])
 def test_bag_folder_output_follows_the_input_qos_style(
-    tmp_path: Path, version: int, plugin: str
+    tmp_path: Path, version: Literal[8, 9], plugin: str
 ) -> None:
     from rosbags.rosbag2 import StoragePlugin, Writer
 
