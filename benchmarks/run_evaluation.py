@@ -19,10 +19,10 @@ from pathlib import Path
 
 import numpy as np
 
-from rose_logs.carmen import beam_angles, read_carmen_log
+from rose_logs.carmen.parse import beam_angles, read_carmen_log
+from rose_logs.carmen.raycast import OccupancyGridBuilder, ScanBatch
 from rose_logs.evaluation import EvaluationConfig, run_evaluation
 from rose_logs.evaluation.config import DEFAULT_MAPS_DIR, RADISH_LOGS
-from rose_logs.occupancy_builder import OccupancyGridBuilder, ScanBatch
 
 
 def rasterisation_timings(maps_dir: Path) -> None:

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from rose_logs.carmen import (
+from rose_logs.carmen.parse import (
     CarmenFormatError,
     beam_angles,
     parse_carmen_lines,
@@ -120,18 +120,17 @@ def test_beam_angles(n: int, increment_deg: float) -> None:
     assert_allclose(np.diff(angles), math.radians(increment_deg), rtol=1e-12)
 
 
-# -- sessions written from a log (rose_logs.carmen_session) -------------------------------------
+# -- sessions written from a log (rose_logs.carmen.session) -------------------------------------
 @needs_logs
 @pytest.mark.parametrize(("name", "fmt"), [("s.bag", "ros1"), ("s_db3", "db3"), ("s.mcap", "mcap")])
 def test_session_write_then_read(tmp_path: Path, name: str, fmt: str) -> None:
     from rosbags.highlevel import AnyReader
 
-    from rose_logs.carmen_session import format_from_path, write_carmen_session
-    from rose_logs.occupancy_builder import BuilderParams
+    from rose_logs.carmen.raycast import BuilderParams
+    from rose_logs.carmen.session import write_carmen_session
 
     log = read_carmen_log(LOGS / "freiburg-101-corrected.log.gz", max_scans=40)
     out = tmp_path / name
-    assert format_from_path(out) == fmt
     summary = write_carmen_session(
         log,
         out,
@@ -140,6 +139,7 @@ def test_session_write_then_read(tmp_path: Path, name: str, fmt: str) -> None:
         pose_output="both",
     )
     assert summary.scans == 40
+    assert summary.format == fmt
     with AnyReader([out]) as reader:
         counts = {c.topic: c.msgcount for c in reader.connections}
         assert counts["/scan"] == 40 and counts["/tf"] == 40 and counts["/odom"] == 40
@@ -165,7 +165,7 @@ def test_session_write_then_read(tmp_path: Path, name: str, fmt: str) -> None:
 def test_convert_command(tmp_path: Path) -> None:
     import argparse
 
-    from rose_logs.carmen_session import add_convert_parser
+    from rose_logs.cli.convert import add_parser as add_convert_parser
 
     parser = argparse.ArgumentParser()
     add_convert_parser(parser.add_subparsers())

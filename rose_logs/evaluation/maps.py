@@ -12,9 +12,9 @@ import numpy as np
 import numpy.typing as npt
 
 from rose import load_map
-from rose_logs.carmen import CarmenLog, beam_angles, read_carmen_log
-from rose_logs.drift import apply_drift
-from rose_logs.occupancy_builder import (
+from rose_logs.carmen.drift import apply_drift
+from rose_logs.carmen.parse import CarmenLog, beam_angles, read_carmen_log
+from rose_logs.carmen.raycast import (
     BuilderParams,
     OccupancyGridBuilder,
     ScanBatch,
@@ -62,7 +62,7 @@ class LogMap:
 
 @functools.lru_cache(maxsize=8)
 def read_log(path: Path) -> CarmenLog:
-    """:func:`rose_logs.carmen.read_carmen_log`, cached per path."""
+    """:func:`rose_logs.carmen.parse.read_carmen_log`, cached per path."""
     return read_carmen_log(path)
 
 

@@ -372,7 +372,7 @@ def _markdown(
         "## Experiment 2: W separates correct from broken maps (paper section 4.3)",
         "",
         "Broken maps: the same scans at poses perturbed with seeded accumulated odometry drift "
-        "(`rose_logs.drift`, level 1 = 2 % turn error, 0.2 deg/m heading bias, 0.5 deg/sqrt(m) heading "
+        "(`rose_logs.carmen.drift`, level 1 = 2 % turn error, 0.2 deg/m heading bias, 0.5 deg/sqrt(m) heading "
         "noise, 1 % scale error, 1 cm/sqrt(m) position noise). Paper: correct 0.07..0.28, "
         "odometry-only 0.47..0.72.",
         "",

@@ -18,9 +18,10 @@ from conftest import (
 )
 
 import rose
-from rose_logs.messages import MAP_TYPE, decode_map, typestore_for
 from rose_logs.reader import LogReader
 from rose_logs.session import process_log
+from rose_logs.snapshots import decode_map
+from rose_logs.storage.typesys import MAP_TYPE, typestore_for
 
 
 @pytest.mark.parametrize("kind", list(FORMATS))

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from rose_logs.carmen import beam_angles
+from rose_logs.carmen.parse import beam_angles
 
 __all__ = ["BuilderParams", "OccupancyGridBuilder", "ScanBatch", "crop_to_known"]
 
@@ -208,7 +208,7 @@ class OccupancyGridBuilder:
             self._integrate_chunk(ranges[start : start + step], poses[start : start + step], angles)
 
     def integrate_scans(self, scans: Sequence[object]) -> None:
-        """Add :class:`rose_logs.carmen.FlaserScan`-like scans (``ranges_m``, ``laser_pose``).
+        """Add :class:`rose_logs.carmen.parse.FlaserScan`-like scans (``ranges_m``, ``laser_pose``).
 
         Consecutive scans with the same beam count are batched together.
         """

@@ -4,9 +4,9 @@ Messages, all stamped with the scan time (log time = header stamp, nanoseconds):
 
 - ``/scan``: ``sensor_msgs/LaserScan`` in ``base_frame`` (the laser is the robot's reference point);
 - ``/tf`` (``tf2_msgs/TFMessage``, ``world_frame -> base_frame``) and/or ``/odom``
-  (``nav_msgs/Odometry``), from the log's poses, optionally drifted (:mod:`rose_logs.drift`);
+  (``nav_msgs/Odometry``), from the log's poses, optionally drifted (:mod:`rose_logs.carmen.drift`);
 - ``/map``: ``nav_msgs/OccupancyGrid`` in ``world_frame`` built incrementally from the scans so far
-  (:mod:`rose_logs.occupancy_builder`), every ``map_period_s`` seconds of log time and after the last scan.
+  (:mod:`rose_logs.carmen.raycast`), every ``map_period_s`` seconds of log time and after the last scan.
 
 Timestamps that go backwards in the log (a few in the Intel log) are moved 1 ns after their
 predecessor so every output topic is time-ordered. Writing goes through the project's writer
@@ -16,10 +16,8 @@ is a bare MCAP file, as ``rose-bag process`` writes it.
 
 from __future__ import annotations
 
-import argparse
 import logging
 import math
-import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,18 +26,16 @@ from typing import Any, Literal
 import numpy as np
 import numpy.typing as npt
 
-from rose_logs.carmen import CarmenLog, beam_angles, read_carmen_log
-from rose_logs.drift import apply_drift
+from rose_logs.carmen.drift import apply_drift
+from rose_logs.carmen.parse import CarmenLog, beam_angles
+from rose_logs.carmen.raycast import BuilderParams, OccupancyGridBuilder, ScanBatch
 from rose_logs.errors import LogWriteError
-from rose_logs.occupancy_builder import BuilderParams, OccupancyGridBuilder, ScanBatch
+from rose_logs.formats import format_from_path
 from rose_logs.writer import open_output
 
 __all__ = [
     "SessionFormat",
     "SessionSummary",
-    "add_convert_parser",
-    "format_from_path",
-    "run_convert",
     "write_carmen_session",
 ]
 
@@ -87,14 +83,12 @@ class SessionSummary:
     skipped_lines: int
 
 
-def format_from_path(path: Path) -> SessionFormat:
-    """``ros1`` for ``*.bag``, ``mcap`` for ``*.mcap``, otherwise ``db3`` (a ROS 2 bag folder)."""
-    suffix = path.suffix.lower()
-    if suffix == ".bag":
-        return "ros1"
-    if suffix == ".mcap":
-        return "mcap"
-    return "db3"
+def _session_format(path: Path) -> SessionFormat:
+    fmt = format_from_path(path) or "db3"
+    if fmt not in ("ros1", "db3", "mcap"):
+        msg = f"{path}: a session cannot be written as {fmt}"
+        raise LogWriteError(msg)
+    return fmt  # type: ignore[return-value]
 
 
 # -- the writer adapter ---------------------------------------------------------------------
@@ -264,11 +258,12 @@ def write_carmen_session(
     Parameters
     ----------
     log : CarmenLog
-        Parsed log (:func:`rose_logs.carmen.read_carmen_log`).
+        Parsed log (:func:`rose_logs.carmen.parse.read_carmen_log`).
     path : str or Path
         Output: ``*.bag`` file (ROS 1) or ROS 2 bag folder; must not exist.
     fmt : {"ros1", "db3", "mcap"}, optional
-        Output format; from the path when omitted (:func:`format_from_path`).
+        Output format; from the path when omitted (:func:`rose_logs.formats.format_from_path`;
+        a name without a known suffix is a ROS 2 db3 bag folder).
     builder_params : BuilderParams, optional
         Grid resolution, ranges and log-odds of the ``/map`` snapshots.
     map_period_s : float
@@ -302,7 +297,7 @@ def write_carmen_session(
     if pose_output not in ("tf", "odom", "both"):
         msg = f"pose_output must be 'tf', 'odom' or 'both', got {pose_output!r}"
         raise ValueError(msg)
-    fmt = fmt if fmt is not None else format_from_path(out)
+    fmt = fmt if fmt is not None else _session_format(out)
     params = builder_params if builder_params is not None else BuilderParams()
     stamps = _monotonic(log.stamps_ns)
     poses = apply_drift(
@@ -361,100 +356,3 @@ def write_carmen_session(
         resolution_m=params.resolution_m,
         skipped_lines=log.malformed,
     )
-
-
-# -- `rose-bag convert` ----------------------------------------------------------------------
-def add_convert_parser(subparsers: Any) -> None:
-    """Add the ``convert`` sub-command (CARMEN log -> ROS session) to argparse sub-parsers."""
-    parser = subparsers.add_parser(
-        "convert",
-        help="turn a CARMEN laser log into a ROS mapping session (/scan, /tf or /odom, /map)",
-        description="Parse a CARMEN log (.log or .log.gz), build occupancy-grid snapshots by ray "
-        "casting, optionally add odometry drift, and write a ROS 1 bag, ROS 2 db3 or MCAP bag.",
-    )
-    parser.add_argument("log", type=Path, help="CARMEN log, plain or gzip")
-    parser.add_argument("output", type=Path, help="*.bag (ROS 1), *.mcap or a folder (ROS 2 db3)")
-    parser.add_argument(
-        "--format",
-        choices=("ros1", "db3", "mcap"),
-        default=None,
-        dest="fmt",
-        help="output format (default: from the output name)",
-    )
-    parser.add_argument("--resolution", type=float, default=0.05, help="map cell size, m (0.05)")
-    parser.add_argument(
-        "--max-range",
-        type=float,
-        default=30.0,
-        help="readings at or beyond this are 'no return', m (30)",
-    )
-    parser.add_argument(
-        "--map-period", type=float, default=10.0, help="log seconds between /map snapshots (10)"
-    )
-    parser.add_argument(
-        "--pose",
-        choices=("tf", "odom", "both"),
-        default="tf",
-        help="pose output: /tf, /odom or both (tf)",
-    )
-    parser.add_argument(
-        "--drift-level",
-        type=float,
-        default=0.0,
-        help="odometry drift level, 0 = corrected poses (see rose_logs.drift)",
-    )
-    parser.add_argument("--drift-seed", type=int, default=0, help="seed of the drift (0)")
-    parser.add_argument(
-        "--drift-start",
-        type=float,
-        default=0.0,
-        help="seconds after the first scan when drift starts (0)",
-    )
-    parser.add_argument("--max-scans", type=int, default=None, help="use only the first N scans")
-    parser.add_argument("--force", action="store_true", help="replace an existing output")
-    parser.add_argument(
-        "--map-file",
-        type=Path,
-        default=None,
-        help="also save the final map as map_server YAML + PGM at this path",
-    )
-    parser.set_defaults(func=run_convert)
-
-
-def run_convert(args: argparse.Namespace) -> int:
-    """Run ``convert`` from parsed arguments; prints a one-line summary to stdout. Returns 0."""
-    log = read_carmen_log(args.log, max_scans=args.max_scans)
-    if log.malformed:
-        print(f"warning: skipped {log.malformed} malformed FLASER lines", file=sys.stderr)
-    try:
-        summary = write_carmen_session(
-            log,
-            args.output,
-            fmt=args.fmt,
-            builder_params=BuilderParams(resolution_m=args.resolution, max_range_m=args.max_range),
-            map_period_s=args.map_period,
-            pose_output=args.pose,
-            drift_level=args.drift_level,
-            drift_seed=args.drift_seed,
-            drift_start_s=args.drift_start,
-            force=args.force,
-        )
-    except ValueError as err:  # a parameter out of range: one line, like every other error
-        msg = f"{args.output}: {err}"
-        raise LogWriteError(msg) from err
-    if args.map_file is not None:
-        import rose
-
-        rose.save_map(
-            args.map_file,
-            rose.OccupancyMap(
-                grid=summary.final_grid,
-                resolution_m=summary.resolution_m,
-                origin_xy_m=summary.final_origin_xy_m,
-            ),
-        )
-    print(
-        f"{summary.path}: {summary.format}, {summary.scans} scans, {summary.maps} maps, "
-        f"{(summary.end_ns - summary.start_ns) / 1e9:.1f} s"
-    )
-    return 0
