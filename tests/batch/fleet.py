@@ -37,9 +37,10 @@ def copy_recording(
     """
     destination.parent.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(0)
-    with LogReader(source) as reader, open_output(
-        destination, fmt, serialization=reader.serialization
-    ) as out:
+    with (
+        LogReader(source) as reader,
+        open_output(destination, fmt, serialization=reader.serialization) as out,
+    ):
         handles = {c.id: out.add_channel(c) for c in reader.channels}
         maps = 0
         span_ns = reader.end_ns - reader.start_ns + 1_000_000_000

@@ -55,12 +55,16 @@ def test_globs_files_lists_and_duplicates(fleet: Path, tmp_path: Path) -> None:
     listing = tmp_path / "inputs.txt"
     listing.write_text(f"# two robots\n{fleet / 'robot_a'}\n\n{fleet / 'robot_b' / 'run.mcap'}\n")
     inputs = read_list(str(listing))
-    assert [r.name for r in discover(inputs)] == ["robot_a/later.db3", "robot_a/run.mcap", "run.mcap"]
+    assert [r.name for r in discover(inputs)] == [
+        "robot_a/later.db3",
+        "robot_a/run.mcap",
+        "run.mcap",
+    ]
 
 
 @pytest.mark.parametrize("bad", ["missing.mcap", "robot_*/*.bag"])
 def test_an_input_that_names_nothing_is_an_error(fleet: Path, bad: str) -> None:
-    with pytest.raises(BatchError, match="no such file|matches no"):
+    with pytest.raises(BatchError, match=r"no such file|matches no"):
         discover([str(fleet / bad)])
 
 
