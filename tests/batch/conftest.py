@@ -29,3 +29,11 @@ def fleet(tmp_path: Path, fleet_dir: Path) -> Path:
 def long_recording(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The whole sample session logged four times in a row (56 maps): a task that takes a while."""
     return copy_recording(tmp_path_factory.mktemp("long") / "long.mcap", "mcap", repeat=4)
+
+
+@pytest.fixture(scope="session")
+def big_recording(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """One 6000 x 6000 map: its FFTs need several hundred MB."""
+    from fleet import big_map_recording
+
+    return big_map_recording(tmp_path_factory.mktemp("big") / "big.mcap", side=6000)

@@ -74,3 +74,26 @@ def make_fleet(root: Path) -> list[Path]:
         copy_recording(root / "robot_b" / "bag_dir", "mcap-dir", max_maps=2),
         copy_recording(root / "robot_b" / "nested" / "small.mcap", "mcap", max_maps=1),
     ]
+
+
+def big_map_recording(destination: Path, *, side: int) -> Path:
+    """One ``side`` x ``side`` map (walls every 40 cells) in an MCAP file: analysing it needs memory."""
+    from rose_logs.snapshots import MapSnapshot
+
+    grid = np.zeros((side, side), dtype=np.int8)
+    grid[::40, :] = 100
+    grid[:, ::40] = 100
+    start_ns = 1_700_000_000_000_000_000
+    snapshot = MapSnapshot(
+        topic=MAP_TOPIC,
+        log_time_ns=start_ns,
+        stamp_ns=start_ns,
+        frame_id="map",
+        grid=grid,
+        resolution_m=0.05,
+    )
+    destination.parent.mkdir(parents=True, exist_ok=True)
+    with open_output(destination, "mcap", serialization="cdr") as out:
+        out.add_topic(MAP_TOPIC, "nav_msgs/msg/OccupancyGrid", latching=True)
+        out.write(MAP_TOPIC, start_ns, encode_cleaned(snapshot, grid, serialization="cdr"))
+    return destination
