@@ -45,6 +45,7 @@ RECORDING_SCHEMA = pa.schema(
         ("first_break_index", pa.int64()),
         ("first_break_ns", pa.int64()),
         ("seconds", pa.float64()),
+        ("cpu_seconds", pa.float64()),
         ("cleaned", pa.string()),
         ("rrd", pa.string()),
     ]

@@ -113,6 +113,8 @@ class RecordingResult:
         W above which a snapshot counted as broken.
     seconds : float
         Wall time spent on the recording, seconds (fetch and upload included).
+    cpu_seconds : float
+        CPU time of the process doing it (user + system), seconds.
     worker : str
         ``host:pid`` of the process that did the work.
     cleaned_uri, rrd_uri : str or None
@@ -131,6 +133,7 @@ class RecordingResult:
     snapshots: tuple[dict[str, Any], ...] = ()
     failure_level: float = 0.4
     seconds: float = 0.0
+    cpu_seconds: float = 0.0
     worker: str = ""
     cleaned_uri: str | None = None
     rrd_uri: str | None = None
@@ -157,6 +160,7 @@ class RecordingResult:
             "first_break_index": None if first is None else first["index"],
             "first_break_ns": None if first is None else first["log_time_ns"],
             "seconds": round(self.seconds, 6),
+            "cpu_seconds": round(self.cpu_seconds, 6),
             "cleaned": self.cleaned_uri,
             "rrd": self.rrd_uri,
         }
@@ -245,6 +249,7 @@ def process_recording(
     store = OutputStore(out, storage_options)
     key = result_key(recording, options)
     started = time.perf_counter()
+    cpu_started = time.process_time()
     attempts = max(0, options.retries) + 1
     for attempt in range(1, attempts + 1):
         try:
@@ -265,7 +270,7 @@ def process_recording(
             _LOG.exception("%s: unexpected error", recording.uri)
             result = error_result(recording, key, options, f"{type(err).__name__}: {err}")
             break
-    result = _with_seconds(result, time.perf_counter() - started)
+    result = _with_seconds(result, time.perf_counter() - started, time.process_time() - cpu_started)
     store_result(store, result)
     return result
 
@@ -307,9 +312,10 @@ def load_result(store: OutputStore, key: str) -> RecordingResult | None:
         return None
 
 
-def _with_seconds(result: RecordingResult, seconds: float) -> RecordingResult:
+def _with_seconds(result: RecordingResult, seconds: float, cpu_seconds: float) -> RecordingResult:
     data = result.to_json()
     data["seconds"] = seconds
+    data["cpu_seconds"] = cpu_seconds
     return RecordingResult.from_json(data)
 
 
