@@ -116,12 +116,14 @@ def figure_png(report: BatchReport) -> bytes | None:
         scores = [s["structure_score"] for s in rows]
         first = next((s for s in rows if s["broken"]), None)
         if first is None:
-            ax.plot(times, scores, color="0.7", linewidth=0.8, zorder=1)
+            ax.plot(times, scores, ".-", color="0.65", linewidth=0.8, markersize=3, zorder=1)
             continue
         broken_count += 1
         shown = broken_count <= _LEGEND_MAX
         (line,) = ax.plot(times, scores, linewidth=1.6, zorder=3, label=label if shown else None)
         ax.plot(first["time_s"], first["structure_score"], "o", color=line.get_color(), zorder=4)
+    if len(series) > broken_count:
+        ax.plot([], [], ".-", color="0.65", label=f"{len(series) - broken_count} below the level")
     ax.axhline(
         level, color="tab:red", linestyle="--", linewidth=1, label=f"failure level {level:g}"
     )
