@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import os
 import signal
+import socket
 import subprocess
 import sys
 import threading
@@ -31,18 +32,25 @@ def rows_without_timing(path: Path) -> list[dict[str, Any]]:
     ]
 
 
-def test_local_cluster_of_two_workers_equals_in_process(fleet: Path, tmp_path: Path) -> None:
-    serial = run_batch([fleet], tmp_path / "serial")
-    parallel = run_batch([fleet], tmp_path / "parallel", workers=2)
+@pytest.fixture(scope="module")
+def serial_out(fleet_dir: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The fleet processed in this process: the reference of the Dask runs."""
+    out = tmp_path_factory.mktemp("serial") / "out"
+    report = run_batch([fleet_dir], out)
+    assert {r.worker for r in report.results} == {f"{socket.gethostname()}:{os.getpid()}"}
+    return out
+
+
+def test_local_cluster_of_two_workers_equals_in_process(
+    fleet_dir: Path, tmp_path: Path, serial_out: Path
+) -> None:
+    parallel = run_batch([fleet_dir], tmp_path / "parallel", workers=2)
     for table in ("recordings.parquet", "snapshots.parquet"):
         assert rows_without_timing(tmp_path / "parallel" / table) == rows_without_timing(
-            tmp_path / "serial" / table
+            serial_out / table
         )
     for name in ("summary.json", "report.md"):
-        assert (tmp_path / "parallel" / name).read_bytes() == (
-            tmp_path / "serial" / name
-        ).read_bytes()
-    assert {r.worker for r in serial.results} == {serial.results[0].worker}
+        assert (tmp_path / "parallel" / name).read_bytes() == (serial_out / name).read_bytes()
     workers = {r.worker for r in parallel.results}
     assert len(workers) == 2  # two distinct worker processes did work...
     assert not any(w.endswith(f":{os.getpid()}") for w in workers)  # ... none of them this one
@@ -96,14 +104,14 @@ def external_cluster(tmp_path: Path) -> Iterator[str]:
                 process.wait()
 
 
-def test_existing_cluster_by_address(fleet: Path, tmp_path: Path, external_cluster: str) -> None:
+def test_existing_cluster_by_address(
+    fleet_dir: Path, tmp_path: Path, external_cluster: str, serial_out: Path
+) -> None:
     out = tmp_path / "out"
-    code = main(["batch", str(fleet), "-o", str(out), "-q", "--scheduler", external_cluster])
+    code = main(["batch", str(fleet_dir), "-o", str(out), "-q", "--scheduler", external_cluster])
     assert code == 0
-    serial = tmp_path / "serial"
-    run_batch([fleet], serial)
     assert rows_without_timing(out / "recordings.parquet") == rows_without_timing(
-        serial / "recordings.parquet"
+        serial_out / "recordings.parquet"
     )
     results = [json.loads(p.read_text()) for p in sorted((out / "results").glob("*.json"))]
     assert len({r["worker"] for r in results}) == 2
