@@ -10,14 +10,18 @@ worker) and the load average (the machine may be shared).
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import shutil
+import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
 
 from rose_logs.batch import run_batch
 from rose_logs.batch.cluster import local_client
+from rose_logs.batch.workerenv import MALLOC_ENV
 from rose_logs.reader import LogReader
 from rose_logs.writer import open_output
 
@@ -76,10 +80,42 @@ def measure(fleet: Path, out: Path, workers: int) -> tuple[float, int, int, floa
     return elapsed, len(report.results), snapshots, task_s
 
 
+_CPU_RUN = """
+import json, sys
+from rose_logs.batch import run_batch
+report = run_batch([sys.argv[1]], sys.argv[2], force=True, write_tables=False)
+print(json.dumps(sum(r.cpu_seconds for r in report.results)))
+"""
+
+
+def malloc_comparison(fleet: Path, work: Path) -> None:
+    """Task CPU of the fleet, in-process, under three malloc settings (each in a fresh process)."""
+    settings = {
+        "glibc default": {},
+        "Dask's MALLOC_TRIM_THRESHOLD_=65536": {"MALLOC_TRIM_THRESHOLD_": "65536"},
+        "ours (rose_logs.batch.workerenv)": MALLOC_ENV,
+    }
+    base = {k: v for k, v in os.environ.items() if not k.startswith("MALLOC_")}
+    for label, extra in settings.items():
+        out = work / f"malloc-{len(extra)}"
+        result = subprocess.run(
+            [sys.executable, "-c", _CPU_RUN, str(fleet), str(out)],
+            env={**base, **extra},
+            capture_output=True,
+            text=True,
+            check=True,
+        )
+        cpu_s = json.loads(result.stdout.strip().splitlines()[-1])
+        print(f"  task CPU with {label:<38} {cpu_s:6.2f} s")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--recordings", type=int, default=40)
     parser.add_argument("--keep", type=Path, default=None, help="build the fleet here and keep it")
+    parser.add_argument(
+        "--malloc", action="store_true", help="also compare malloc settings (task CPU, in-process)"
+    )
     args = parser.parse_args()
     work = Path(tempfile.mkdtemp(prefix="bench-batch-"))
     try:
@@ -99,6 +135,9 @@ def main() -> None:
             )
         print(f"speed-up with 2 workers: {rows[1] / rows[2]:.2f}x")
         print(f"local cluster start-up (2 workers, code imported): {startup_s(2):.2f} s")
+        if args.malloc:
+            print("malloc settings, the same fleet in-process:")
+            malloc_comparison(fleet, work)
         print(f"load average after: {os.getloadavg()}")
     finally:
         shutil.rmtree(work, ignore_errors=True)

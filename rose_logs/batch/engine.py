@@ -160,7 +160,15 @@ def run_batch(
     interrupted = False
     bar = _Progress(total=len(todo), enabled=progress)
     try:
-        with _executor(client, workers, scheduler, scheduler_file, memory_limit, options) as run:
+        with _executor(
+            client if todo else None,
+            workers if todo else 1,  # nothing to do: no cluster to start or connect to
+            scheduler if todo else None,
+            scheduler_file if todo else None,
+            memory_limit,
+            options,
+        ) as run:
+            bar.slots = getattr(run, "slots", 1)
             for result in run(todo, store, options, storage_options, keys):
                 finished[result.uri] = result
                 bar.update(result)
@@ -248,7 +256,7 @@ def _in_process(
 def _dask_runner(client: Any, memory_limit: str | float | None) -> Runner:
     from rose_logs.batch.workerenv import tune_worker_process
 
-    client.run(tune_worker_process)  # workers we did not start: malloc thresholds, 1-thread pools
+    slots = len(client.run(tune_worker_process))  # workers we did not start: malloc, 1-thread pools
 
     def run(
         todo: Sequence[Recording],
@@ -261,7 +269,7 @@ def _dask_runner(client: Any, memory_limit: str | float | None) -> Runner:
 
         futures = {
             client.submit(
-                process_recording,
+                _dask_task,
                 rec,
                 out=store.root,
                 options=options,
@@ -280,7 +288,22 @@ def _dask_runner(client: Any, memory_limit: str | float | None) -> Runner:
             if pending:
                 client.cancel(pending)
 
+    run.slots = slots  # type: ignore[attr-defined]
     return run
+
+
+def _dask_task(
+    recording: Recording,
+    *,
+    out: str,
+    options: RecordingOptions,
+    storage_options: Mapping[str, Any] | None,
+) -> RecordingResult:
+    """:func:`process_recording` in a Dask worker, tuned first (a restarted worker needs it again)."""
+    from rose_logs.batch.workerenv import tune_worker_process
+
+    tune_worker_process()
+    return process_recording(recording, out=out, options=options, storage_options=storage_options)
 
 
 def _collect(
@@ -312,8 +335,9 @@ def _collect(
 class _Progress:
     """tqdm bar over the recordings of this run: finished / failed / running."""
 
-    def __init__(self, *, total: int, enabled: bool) -> None:
+    def __init__(self, *, total: int, enabled: bool, slots: int = 1) -> None:
         self.total = total
+        self.slots = slots
         self.done = 0
         self.ok = 0
         self.failed = 0
@@ -330,7 +354,10 @@ class _Progress:
         else:
             self.failed += 1
         if self.bar is not None:
-            self.bar.set_postfix_str(f"ok {self.ok}, failed {self.failed}", refresh=False)
+            running = min(self.slots, self.total - self.done)
+            self.bar.set_postfix_str(
+                f"ok {self.ok}, failed {self.failed}, running {running}", refresh=False
+            )
             self.bar.update(1)
 
     def close(self) -> None:

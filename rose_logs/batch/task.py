@@ -26,7 +26,6 @@ from rose.errors import RoseError
 from rose.params import RoseParams
 from rose_logs.batch.sources import Recording
 from rose_logs.batch.store import OutputStore, is_local
-from rose_logs.batch.workerenv import tune_worker_process
 from rose_logs.errors import LogError
 
 __all__ = [
@@ -245,7 +244,6 @@ def process_recording(
     -------
     RecordingResult
     """
-    tune_worker_process()
     store = OutputStore(out, storage_options)
     key = result_key(recording, options)
     started = time.perf_counter()
