@@ -234,3 +234,44 @@ def test_ctrl_c_keeps_finished_recordings_and_exits_130(
     monkeypatch.setattr(engine, "process_recording", real)
     resumed = run_batch([fleet], out)
     assert (resumed.processed, resumed.skipped) == (3, 2)
+
+
+def test_two_robots_run_mcap_get_separate_rrd_files_and_recording_ids(
+    fleet: Path, tmp_path: Path
+) -> None:
+    inputs = [fleet / "robot_a" / "run.mcap", fleet / "robot_b" / "run.mcap"]
+    report = run_batch(inputs, tmp_path / "out", options=RecordingOptions(rrd=True))
+    paths = [Path(r.rrd_uri) for r in report.results]
+    assert len(set(paths)) == 2
+    ids = [recording_id(r.uri).encode() for r in report.results]
+    assert ids[0] != ids[1]
+    for path, own, other in ((paths[0], ids[0], ids[1]), (paths[1], ids[1], ids[0])):
+        data = path.read_bytes()
+        assert own in data
+        assert other not in data
+
+
+def test_os_errors_are_retried_then_reported(
+    fleet: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import rose_logs.session
+
+    real = rose_logs.session.process_log
+    failures = {"left": 1}
+
+    def flaky(*args: object, **kwargs: object) -> object:
+        if failures["left"]:
+            failures["left"] -= 1
+            raise ConnectionResetError(104, "connection reset by peer")
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(rose_logs.session, "process_log", flaky)
+    recording = discover([fleet / "robot_a" / "run.mcap"])[0]
+    out = str(tmp_path / "out")
+    ok = process_recording(recording, out=out, options=RecordingOptions(retries=1))
+    assert ok.status == "ok"
+    failures["left"] = 3
+    failed = process_recording(recording, out=out, options=RecordingOptions(retries=1))
+    assert failed.status == "error"
+    assert "connection reset" in failed.error
+    assert failures["left"] == 1  # tried twice: once plus one retry
