@@ -85,7 +85,7 @@ def recordings_table(report: BatchReport) -> pa.Table:
 
 def snapshots_table(report: BatchReport) -> pa.Table:
     """``snapshots.parquet`` as a pyarrow table."""
-    rows = []
+    rows: list[dict[str, Any]] = []
     for result in report.results:
         ordered = sorted(result.snapshots, key=lambda s: (s["topic"], s["index"]))
         rows.extend({"uri": result.uri, **s} for s in ordered)
