@@ -35,6 +35,29 @@ def _positive_int(text: str) -> int:
     return value
 
 
+def _memory_limit(text: str) -> str | float:
+    """``auto``, a fraction of RAM (0 < f <= 1) or a size such as ``2GB`` / ``512MiB``."""
+    from dask.utils import parse_bytes
+
+    if text == "auto":
+        return text
+    try:
+        value = float(text)
+    except ValueError:
+        pass
+    else:
+        if 0 < value <= 1:
+            return value
+        msg = f"a fraction must be in (0, 1], got {text!r}"
+        raise argparse.ArgumentTypeError(msg)
+    try:
+        parse_bytes(text)
+    except ValueError:
+        msg = f"expected a size such as 2GB, a fraction of RAM or 'auto', got {text!r}"
+        raise argparse.ArgumentTypeError(msg) from None
+    return text
+
+
 def _storage_option(text: str) -> tuple[str, Any]:
     key, sep, value = text.partition("=")
     if not sep or not key:
@@ -77,6 +100,7 @@ def add_parser(subparsers: Any) -> None:
     engine.add_argument("--scheduler-file", default=None, help="existing Dask cluster's file")
     engine.add_argument(
         "--memory-limit",
+        type=_memory_limit,
         default=None,
         help="per-worker memory limit of the local cluster, e.g. 2GB (default: RAM / workers)",
     )
