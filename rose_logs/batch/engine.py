@@ -143,8 +143,8 @@ def run_batch(
     if workers < 1:
         msg = f"workers must be >= 1, got {workers}"
         raise BatchError(msg)
-    recordings = discover(inputs, storage_options=storage_options)
     store = OutputStore(str(out), storage_options)
+    recordings = _outside(discover(inputs, storage_options=storage_options), store)
     store.prepare()
     keys = {rec.uri: result_key(rec, options) for rec in recordings}
     finished: dict[str, RecordingResult] = {}
@@ -194,6 +194,19 @@ def run_batch(
 
         write_outputs(store, report, options)
     return report
+
+
+def _outside(recordings: tuple[Recording, ...], store: OutputStore) -> tuple[Recording, ...]:
+    """The recordings not inside the output root (its cleaned logs are no inputs of a re-run)."""
+    root = store.root.removeprefix("file://")
+    if store.local:
+        root = str(Path(root).expanduser().absolute())
+    prefix = root.rstrip("/") + "/"
+    kept = tuple(r for r in recordings if not r.uri.startswith(prefix))
+    if not kept:
+        msg = f"no recording found outside the output folder {store.root}"
+        raise BatchError(msg)
+    return kept
 
 
 Runner = Callable[

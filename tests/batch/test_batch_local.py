@@ -275,3 +275,12 @@ def test_os_errors_are_retried_then_reported(
     assert failed.status == "error"
     assert "connection reset" in failed.error
     assert failures["left"] == 1  # tried twice: once plus one retry
+
+
+def test_an_output_folder_inside_the_inputs_is_not_read_back(fleet: Path) -> None:
+    out = fleet / "health"
+    first = run_batch([fleet], out, options=RecordingOptions(cleaned=True))
+    assert (out / "cleaned" / "fleet" / "robot_a" / "run.mcap").is_file()
+    again = run_batch([fleet], out, options=RecordingOptions(cleaned=True))
+    assert [r.uri for r in again.results] == [r.uri for r in first.results]
+    assert (again.processed, again.skipped) == (0, 5)
