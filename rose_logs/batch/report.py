@@ -18,6 +18,10 @@ def _fmt(value: float | None) -> str:
     return "-" if value is None else f"{value:.3f}"
 
 
+def _count(n: int, noun: str) -> str:
+    return f"{n} {noun}" + ("" if n == 1 else "s")
+
+
 def _cell(text: str) -> str:
     return text.replace("|", "\\|").replace("\n", " ")
 
@@ -29,9 +33,9 @@ def markdown(report: BatchReport, summary: dict[str, Any], *, figure: bool) -> s
     lines = [
         "# rose-bag batch report",
         "",
-        f"{summary['recordings']} recordings: {summary['ok']} processed, {summary['errors']} failed, "
-        f"{summary['broken']} with a map that broke (W > {level:g}); "
-        f"{summary['snapshots']} map snapshots.",
+        f"{_count(summary['recordings'], 'recording')}: {summary['ok']} processed, "
+        f"{summary['errors']} failed, {summary['broken']} with a map that broke (W > {level:g}); "
+        f"{_count(summary['snapshots'], 'map snapshot')}.",
         "",
     ]
     if report.interrupted:

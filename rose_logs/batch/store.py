@@ -45,8 +45,11 @@ class OutputStore:
     """
 
     def __init__(self, root: str, storage_options: Mapping[str, Any] | None = None) -> None:
-        self.root = str(root)
-        self.local = is_local(self.root)
+        self.local = is_local(str(root))
+        # Absolute, so that workers with another working directory write to the same place.
+        self.root = (
+            str(Path(_strip_file(str(root))).expanduser().absolute()) if self.local else str(root)
+        )
         self.storage_options = dict(storage_options or {})
         if self.local:
             self.fs: Any = None
