@@ -60,8 +60,8 @@ def test_local_cluster_of_two_workers_equals_in_process(
 
 
 @pytest.fixture
-def external_cluster(tmp_path: Path) -> Iterator[str]:
-    """``dask scheduler`` and two ``dask worker`` processes on 127.0.0.1; yields the address."""
+def external_cluster(tmp_path: Path) -> Iterator[tuple[str, Path]]:
+    """``dask scheduler`` and two ``dask worker`` processes on 127.0.0.1: (address, scheduler file)."""
     env = {
         **os.environ,
         "PYTHONPATH": os.pathsep.join([str(REPO), os.environ.get("PYTHONPATH", "")]),
@@ -92,7 +92,7 @@ def external_cluster(tmp_path: Path) -> Iterator[str]:
         ]  # fmt: skip
         with distributed.Client(address, timeout="30s") as client:
             client.wait_for_workers(2, timeout=90)
-        yield address
+        yield address, scheduler_file
     finally:
         for process in reversed(processes):
             os.kill(process.pid, signal.SIGTERM)
@@ -104,17 +104,32 @@ def external_cluster(tmp_path: Path) -> Iterator[str]:
                 process.wait()
 
 
-def test_existing_cluster_by_address(
-    fleet_dir: Path, tmp_path: Path, external_cluster: str, serial_out: Path
+def test_existing_cluster_by_address_and_scheduler_file(
+    fleet_dir: Path, tmp_path: Path, external_cluster: tuple[str, Path], serial_out: Path
 ) -> None:
+    address, scheduler_file = external_cluster
     out = tmp_path / "out"
-    code = main(["batch", str(fleet_dir), "-o", str(out), "-q", "--scheduler", external_cluster])
+    code = main(["batch", str(fleet_dir), "-o", str(out), "-q", "--scheduler", address])
     assert code == 0
     assert rows_without_timing(out / "recordings.parquet") == rows_without_timing(
         serial_out / "recordings.parquet"
     )
     results = [json.loads(p.read_text()) for p in sorted((out / "results").glob("*.json"))]
     assert len({r["worker"] for r in results}) == 2
+    one = fleet_dir / "robot_a" / "run.mcap"
+    argv = [
+        "batch",
+        str(one),
+        "-o",
+        str(tmp_path / "one"),
+        "-q",
+        "--scheduler-file",
+        str(scheduler_file),
+    ]
+    assert main(argv) == 0
+    (result,) = [json.loads(p.read_text()) for p in (tmp_path / "one" / "results").glob("*.json")]
+    assert result["status"] == "ok"
+    assert result["worker"] in {r["worker"] for r in results}
 
 
 # ---- faults: a worker killed mid-task, a memory limit exceeded -------------------------------------
