@@ -2,8 +2,9 @@
 
 Dask's nanny starts workers with ``MALLOC_TRIM_THRESHOLD_=65536``. Setting any malloc threshold turns
 off glibc's dynamic mmap threshold, so every array above 128 KiB is mmapped and page-faulted afresh on
-each allocation: ROSE's large temporary arrays then cost nearly twice the CPU (8 recordings: 10.1 s of
-task CPU vs 5.6 s serial). We set both thresholds to values that keep arrays of a few MB on the heap
+each allocation: ROSE's large temporary arrays then cost about twice the CPU (``bench_batch.py
+--malloc``, 40 recordings: 11.3 s of task CPU with Dask's setting, 5.9 s with glibc's defaults, 4.4 s
+with ours). We set both thresholds to values that keep arrays of a few MB on the heap
 and still give memory back to the system beyond 64 MiB of free heap top. Workers share the cores, so
 BLAS / OpenMP pools get one thread each.
 """
