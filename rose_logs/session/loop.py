@@ -61,6 +61,7 @@ def process_log(
     progress: bool = False,
     on_snapshot: Callable[[MapSnapshot, RoseResult, SnapshotRecord], None] | None = None,
     walls: bool = False,
+    recording_id: str | None = None,
 ) -> SessionReport:
     """Run ROSE over every map snapshot of a log; write the output log and Rerun recording.
 
@@ -92,6 +93,9 @@ def process_log(
         ``<map>/rose/walls`` and line strips in Rerun. Costs about 20-45 ms per 1000 x 1000 snapshot.
     on_snapshot : callable, optional
         Called with ``(snapshot, result, record)`` after each snapshot.
+    recording_id : str, optional
+        Rerun recording id; default: derived from the input's file name. ``rose-bag batch`` passes
+        one derived from the full URI, so that two robots' ``run.mcap`` stay separate recordings.
 
     Returns
     -------
@@ -125,7 +129,9 @@ def process_log(
                 writer.open()
             handles, derived = _prepare_output(writer, channels, map_topics)
             if rrd_path is not None or spawn:
-                rerun = _rerun_sink(input_path, rrd_path, map_topics, spawn=spawn)
+                rerun = _rerun_sink(
+                    input_path, rrd_path, map_topics, spawn=spawn, recording_id=recording_id
+                )
             loop = _Loop(
                 reader=reader,
                 writer=writer,
@@ -191,14 +197,20 @@ def _output_writer(
 
 
 def _rerun_sink(
-    input_path: Path, rrd_path: Path | None, map_topics: Sequence[str], *, spawn: bool
+    input_path: Path,
+    rrd_path: Path | None,
+    map_topics: Sequence[str],
+    *,
+    spawn: bool,
+    recording_id: str | None,
 ) -> RerunSink:
-    """The Rerun recording of a session: one entity root per map topic."""
+    """The Rerun recording of a session: one entity root per map topic; the id ``recording_id``, else
+    derived from the input's file name."""
     return RerunSink(
         rrd_path=None if rrd_path is None else Path(rrd_path),
         spawn=spawn,
         roots=tuple(entity_root(t) for t in map_topics),
-        recording_id=str(uuid.uuid5(uuid.NAMESPACE_URL, input_path.name)),
+        recording_id=recording_id or str(uuid.uuid5(uuid.NAMESPACE_URL, input_path.name)),
     )
 
 
