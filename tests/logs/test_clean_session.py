@@ -56,3 +56,18 @@ def test_cli_clean_method_option(tmp_path: Path, fr079: list[npt.NDArray[np.int8
     with pytest.raises(SystemExit) as exit_info:
         main([*argv, "--clean-method", "tidy"])
     assert exit_info.value.code == 2
+
+
+def test_rescued_cells_have_their_own_rerun_class(fr079: list[npt.NDArray[np.int8]]) -> None:
+    from rose_logs.rerun_view import CLASS_CLUTTER, CLASS_RESCUED, segmentation_classes
+
+    grid = fr079[-1]
+    result = rose.analyze(grid)
+    cleaning = rose.clean(grid, result, resolution_m=0.05)
+    assert cleaning.rescued.any()
+    classes = segmentation_classes(grid, result, cleaning.rescued)
+    assert np.all(classes[cleaning.rescued] == CLASS_RESCUED)
+    assert np.all(classes[result.clutter & ~cleaning.rescued] == CLASS_CLUTTER)
+    np.testing.assert_array_equal(
+        segmentation_classes(grid, result)[~cleaning.rescued], classes[~cleaning.rescued]
+    )
