@@ -41,6 +41,7 @@ _FREE, _UNKNOWN = (255, 255, 255), (200, 200, 200)
 _WALL_KEPT, _WALL_LOST = (0, 0, 0), (255, 0, 255)
 _CLUTTER_KEPT, _CLUTTER_GONE = (40, 40, 230), (150, 225, 150)
 _OTHER = (120, 120, 120)
+_COMPLETED = (230, 140, 30)
 
 
 @dataclass(frozen=True)
@@ -71,10 +72,13 @@ def cleaning_cases(config: EvaluationConfig, *, seeds: int = 1) -> list[Cleaning
 
 
 def render_cleaning(
-    case: CleaningCase, kept: npt.NDArray[np.bool_] | None
+    case: CleaningCase,
+    kept: npt.NDArray[np.bool_] | None,
+    completed: npt.NDArray[np.bool_] | None = None,
 ) -> npt.NDArray[np.uint8]:
     """BGR picture of a case (image rows top first): free white, unknown grey, and per occupied cell
-    kept / removed wall and clutter colours (``kept`` None: the input, walls black, clutter red)."""
+    kept / removed wall and clutter colours (``kept`` None: the input, walls black, clutter red);
+    ``completed`` walls (unknown cells the cleaning made walls) in blue."""
     grid = case.grid
     image = np.empty((*grid.shape, 3), dtype=np.uint8)
     image[:] = _UNKNOWN
@@ -88,6 +92,8 @@ def render_cleaning(
         image[case.walls & ~kept] = _WALL_LOST
         image[case.clutter & kept] = _CLUTTER_KEPT
         image[case.clutter & ~kept] = _CLUTTER_GONE
+    if completed is not None:
+        image[completed] = _COMPLETED
     return image[::-1].copy()
 
 
@@ -108,8 +114,8 @@ def cleaning_figure(
     result = rose.analyze(case.grid)
     panels = [("input: walls black, clutter red", render_cleaning(case, None))]
     for method in ("paper", "walls"):
-        kept = clean(case.grid, result, method=method, resolution_m=case.resolution_m).kept
-        panels.append((f"{method}", render_cleaning(case, kept)))
+        cleaned = clean(case.grid, result, method=method, resolution_m=case.resolution_m)
+        panels.append((f"{method}", render_cleaning(case, cleaned.kept, cleaned.completed)))
     # Crop to the occupied cells (image rows are flipped: row 0 of the image is the last grid row).
     rows = np.flatnonzero(case.grid.max(axis=1) >= 65)
     cols = np.flatnonzero(case.grid.max(axis=0) >= 65)
@@ -202,7 +208,7 @@ def cleaning_experiment(
     if figure is not None and shown is not None:
         lines += [
             f"Before / after on `{shown.name}` (walls kept black, walls lost magenta, clutter kept "
-            "red, clutter removed green):",
+            "red, clutter removed green, hidden walls completed blue):",
             "",
             f"![cleaning before and after]({figure.name})",
             "",
