@@ -379,13 +379,13 @@ def topology_guard(
 ) -> npt.NDArray[np.bool_]:
     """Removed cells to restore so that no robot-sized passage opens between separate regions.
 
-    Removing ``occupied & ~keep`` makes some cells passable for a disc of ``radius_px``. Each
-    connected patch of them is checked in a window of ``window_px`` cells around it: if the cells that
-    were passable before and touch the patch belong to two or more regions of the window that are not
-    small enclosed pockets (a region is a pocket when it does not reach the window's edge and covers
-    less than ``min_region_px``), every removed piece (8-connected) within ``radius_px + 1`` of the
-    patch is restored. Patches surrounded by formerly passable cells (a free-standing object) are
-    skipped without labelling.
+    Removing ``occupied & ~keep`` (and adding the obstacles ``added``) makes some cells passable for
+    a disc of ``radius_px``. Each connected patch of them is checked in a window of ``window_px``
+    cells around it: if the cells that were passable before and touch the patch belong to two or more
+    regions of the window that are not small enclosed pockets (a pocket does not reach the window's
+    edge and covers less than ``min_region_px``), every removed piece (8-connected) within
+    ``radius_px + 1`` of the patch is restored. Patches surrounded by formerly passable cells (a
+    free-standing object) are skipped without labelling; the rest cost one small labelling each.
 
     Returns
     -------
@@ -406,53 +406,58 @@ def topology_guard(
     count, patches, stats, _ = cv2.connectedComponentsWithStats(
         opened.view(np.uint8), connectivity=8
     )
-    # Patches whose ring is all formerly passable: free-standing objects, nothing to check.
     spread = cv2.dilate(patches.astype(np.float32), np.ones((3, 3), np.uint8)).astype(np.int64)
-    ring = (spread > 0) & ~opened
-    blocked = np.bincount(spread[ring & ~before], minlength=count)
-    suspects = np.flatnonzero(blocked[1:] > 0) + 1
-    if suspects.size == 0:
+    rim = (spread > 0) & ~opened
+    # Patches whose ring is all formerly passable are free-standing objects: nothing to check.
+    blocked = np.bincount(spread[rim & ~before], minlength=count) > 0
+    blocked[0] = False
+    if not blocked.any():
         return restore
-    _, pieces = cv2.connectedComponents(removal.view(np.uint8), connectivity=8)
-    reach = math.ceil(radius_px) + 1
-    reach_kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach + 1, 2 * reach + 1))
-    ring_kernel = np.ones((3, 3), np.uint8)
+    # The formerly passable ring cells of every patch, grouped by patch (flat indices).
+    ring_idx = np.flatnonzero(rim & before)
+    ring_patch = spread.reshape(-1)[ring_idx]
+    order = np.argsort(ring_patch, kind="stable")
+    ring_idx = ring_idx[order]
+    ends = np.cumsum(np.bincount(ring_patch, minlength=count))
     rows, cols = occupied.shape
-    to_restore: list[npt.NDArray[np.int32]] = []
-    for index in suspects.tolist():
+    separating = np.zeros(count, dtype=bool)
+    for index in np.flatnonzero(blocked).tolist():
+        cells = ring_idx[ends[index - 1] if index else 0 : ends[index]]
+        if cells.size < 2:
+            continue
         x, y, w, h = stats[index, :4].tolist()
         r0, c0 = max(y - window_px, 0), max(x - window_px, 0)
         r1, c1 = min(y + h + window_px, rows), min(x + w + window_px, cols)
-        patch = patches[r0:r1, c0:c1] == index
-        window = before[r0:r1, c0:c1]
-        if not _separates(patch, window, ring_kernel, min_region_px):
-            continue
-        zone = cv2.dilate(patch.view(np.uint8), reach_kernel).astype(bool)
-        to_restore.append(np.unique(pieces[r0:r1, c0:c1][zone]))
-    if to_restore:
-        ids = np.unique(np.concatenate(to_restore))
-        ids = ids[ids > 0]
-        restore = np.isin(pieces, ids) & removal
-    return restore
+        separating[index] = _separates(
+            before[r0:r1, c0:c1], cells // cols - r0, cells % cols - c0, min_region_px
+        )
+    if not separating.any():
+        return restore
+    reach = math.ceil(radius_px) + 1
+    reach_kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach + 1, 2 * reach + 1))
+    zone = cv2.dilate(separating[patches].view(np.uint8), reach_kernel).astype(bool)
+    n_pieces, pieces = cv2.connectedComponents(removal.view(np.uint8), connectivity=8)
+    wanted = np.zeros(n_pieces, dtype=bool)
+    wanted[pieces[zone & removal]] = True
+    wanted[0] = False
+    return wanted[pieces] & removal
 
 
 def _separates(
-    patch: npt.NDArray[np.bool_],
     window: npt.NDArray[np.bool_],
-    ring_kernel: npt.NDArray[np.uint8],
+    ring_rows: npt.NDArray[np.int64],
+    ring_cols: npt.NDArray[np.int64],
     min_region_px: float,
 ) -> bool:
-    """Whether ``patch`` touches two or more regions of ``window`` that are not small pockets."""
+    """Whether the ring cells touch two or more regions of ``window`` that are not small pockets."""
     import cv2
 
     _, regions, stats, _ = cv2.connectedComponentsWithStats(window.view(np.uint8), connectivity=8)
-    ring = cv2.dilate(patch.view(np.uint8), ring_kernel).astype(bool) & ~patch
-    touching = np.unique(regions[ring & window])
+    touching = np.unique(regions[ring_rows, ring_cols])
     touching = touching[touching > 0]
     if touching.size < 2:
         return False
     rows, cols = window.shape
     x, y, w, h, area = (stats[touching, i] for i in range(5))
     edge = (x == 0) | (y == 0) | (x + w == cols) | (y + h == rows)
-    significant = edge | (area >= min_region_px)
-    return int(np.count_nonzero(significant)) >= 2
+    return int(np.count_nonzero(edge | (area >= min_region_px))) >= 2
