@@ -345,7 +345,7 @@ def straight_lines(
     segments = cv2.HoughLinesP(
         mask.view(np.uint8) * np.uint8(255),
         1.0,
-        math.pi / 360,
+        math.pi / 180,
         threshold=max(2, length // 2),
         minLineLength=length,
         maxLineGap=max_gap_px,
@@ -411,6 +411,12 @@ def topology_guard(
     # Patches whose ring is all formerly passable are free-standing objects: nothing to check.
     blocked = np.bincount(spread[rim & ~before], minlength=count) > 0
     blocked[0] = False
+    # A patch whose formerly passable ring cells are one connected arc joins nothing (it opens into
+    # one region only): only patches with two or more arcs need a labelled window.
+    arcs_count, arcs = cv2.connectedComponents((rim & before).view(np.uint8), connectivity=8)
+    touched = rim & before
+    pairs = np.unique(spread[touched] * arcs_count + arcs[touched])
+    blocked &= np.bincount(pairs // arcs_count, minlength=count) >= 2
     if not blocked.any():
         return restore
     # The formerly passable ring cells of every patch, grouped by patch (flat indices).
