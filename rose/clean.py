@@ -23,10 +23,13 @@ Two methods, chosen by name:
     ``max_bridge_m`` apart and next to a removed piece, become walls (``completed``; thin lines only,
     never the space between two parallel walls).
 
-    Finally a topology guard (counting the completed walls) restores every removed piece whose removal would let a disc of
-    ``robot_radius_m`` pass between two regions that the input kept apart (locally, within
-    ``guard_window_m``), unless one of them is a small enclosed pocket (less than
+    Finally a topology guard (counting the completed walls) restores every removed piece whose
+    removal would let a disc of ``robot_radius_m`` pass between two regions that the input kept apart
+    (locally, within ``guard_window_m``), unless one of them is a small enclosed pocket (less than
     ``min_region_m2``: the inside of a piece of furniture).
+
+Everything is deterministic (OpenCV morphology, labelling and its probabilistic Hough transform,
+which seeds itself) and never modifies the input.
 
 Both return a :class:`CleanResult`; the paper's structure / clutter masks stay in the
 :class:`rose.RoseResult`.
@@ -253,6 +256,14 @@ def clean(
     cleaned = occupancy.copy()
     cleaned[removed] = FREE if result.params.clutter_value == "free" else UNKNOWN
     cleaned[completed] = OCCUPIED
+    _LOG.debug(
+        "walls cleaning: %d cells kept (%d rescued, %d by the guard), %d removed, %d completed",
+        int(np.count_nonzero(kept)),
+        int(np.count_nonzero(kept & result.clutter)),
+        int(np.count_nonzero(guarded & result.clutter)),
+        int(np.count_nonzero(removed)),
+        int(np.count_nonzero(completed)),
+    )
     return CleanResult(
         cleaned=cleaned,
         method=method,
