@@ -7,11 +7,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from real_data import FR079_DIR, repo_data
 
 import rose
 from rose import MapFileError, OccupancyMap
-
-SHARED_MAPS = Path(__file__).resolve().parents[2] / "shared" / "maps"
 
 
 def write_yaml(path: Path, text: str) -> Path:
@@ -34,9 +33,7 @@ def test_trinary_round_trip_is_lossless(tmp_path: Path) -> None:
 
 
 def test_real_map_round_trip(tmp_path: Path) -> None:
-    source = rose.load_map(
-        SHARED_MAPS / "rose2_aislabunimi/Freiburg_Building_079_partial/map5.yaml"
-    )
+    source = rose.load_map(repo_data(f"{FR079_DIR}/map5.yaml"))
     rose.save_map(tmp_path / "copy.yaml", source)
     again = rose.load_map(tmp_path / "copy.yaml")
     np.testing.assert_array_equal(again.grid, source.grid)
@@ -120,7 +117,7 @@ def test_png_colour_types_read_alike(tmp_path: Path, channels: str) -> None:
     "name", ["bormann_ipa_room_segmentation/lab_ipa.png", "aws_small_warehouse_005/map_rotated.png"]
 )
 def test_real_png_maps_load(name: str) -> None:
-    grid = rose.load_map(SHARED_MAPS / name).grid
+    grid = rose.load_map(repo_data(name)).grid
     assert grid.ndim == 2 and grid.dtype == np.int8
     assert np.count_nonzero(grid == 100) > 0
 
