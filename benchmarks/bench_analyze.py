@@ -1,8 +1,6 @@
 """Time rose.analyze on real maps against one scipy.fft.fft2 of the same padded map.
 
-Run: python benchmarks/bench_analyze.py [--repeat N] [--data-dir DIR]. The maps come from the real data set
-(``--data-dir``, default ``$ROSE_DATA_DIR`` or ``../shared/maps`` beside the checkout); Freiburg 079 falls back
-to the copy in ``tests/data``. Prints milliseconds and the ratio; the target is
+Run: python benchmarks/bench_analyze.py [--repeat N]. Prints milliseconds and the ratio; the target is
 analyze within 5x of that single FFT. Stage timings show where the time goes.
 """
 
@@ -21,25 +19,18 @@ import scipy.fft
 import rose
 from rose import directions, scoring, spectrum, threshold, unfold
 from rose.grid import occupied_mask
-from rose_logs.datasets import data_dir
 
-REPO_DATA = Path(__file__).resolve().parents[1] / "tests" / "data"
-#: (label, path inside the data set)
+MAPS = Path(__file__).resolve().parents[2] / "shared" / "maps"
 CASES = [
-    ("willow 566x608", "willow_turtlebot_apps/willow-2010-02-18-0.10.yaml"),
-    ("fr079 1152x736", "rose2_aislabunimi/Freiburg_Building_079_partial/map15.yaml"),
-    ("Freiburg101 1344x800", "bormann_ipa_room_segmentation/Freiburg101_scan_furnitures.png"),
-    ("warehouse 1006x1674", "nav2_bringup/warehouse.yaml"),
-    ("office_g 2050x2314", "bormann_ipa_room_segmentation/office_g_furnitures.png"),
+    ("willow 566x608", MAPS / "willow_turtlebot_apps" / "willow-2010-02-18-0.10.yaml"),
+    ("fr079 1152x736", MAPS / "rose2_aislabunimi" / "Freiburg_Building_079_partial" / "map15.yaml"),
+    (
+        "Freiburg101 1344x800",
+        MAPS / "bormann_ipa_room_segmentation" / "Freiburg101_scan_furnitures.png",
+    ),
+    ("warehouse 1006x1674", MAPS / "nav2_bringup" / "warehouse.yaml"),
+    ("office_g 2050x2314", MAPS / "bormann_ipa_room_segmentation" / "office_g_furnitures.png"),
 ]
-
-
-def find_map(relative: str, root: Path | None) -> Path | None:
-    """``relative`` in the data set, else in ``tests/data``, else None."""
-    for base in (root, REPO_DATA):
-        if base is not None and (base / relative).is_file():
-            return base / relative
-    return None
 
 
 def best_ms(func: Callable[[], object], repeat: int) -> float:
@@ -86,21 +77,13 @@ def stage_ms(grid: np.ndarray, repeat: int) -> dict[str, float]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=7)
-    parser.add_argument(
-        "--data-dir",
-        type=Path,
-        default=None,
-        help="the real data set (default: $ROSE_DATA_DIR, else ../shared/maps beside the checkout)",
-    )
     args = parser.parse_args()
-    root = args.data_dir if args.data_dir is not None else data_dir()
     print(
         f"{'map':<22} {'padded':>11} {'fft2 ms':>8} {'analyze ms':>10} {'ratio':>6}   stages (ms)"
     )
-    for label, relative in CASES:
-        path = find_map(relative, root)
-        if path is None:
-            print(f"{label:<22} missing: {relative} (data set: {root})")
+    for label, path in CASES:
+        if not path.exists():
+            print(f"{label:<22} missing: {path}")
             continue
         grid = rose.load_map(path).grid
         shape = spectrum.padded_shape(grid.shape)
