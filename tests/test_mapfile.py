@@ -40,6 +40,18 @@ def test_real_map_round_trip(tmp_path: Path) -> None:
     assert again.origin_xy_m == source.origin_xy_m
 
 
+def test_sixteen_bit_image_uses_the_high_byte(tmp_path: Path) -> None:
+    high = np.array([[0, 100, 205, 230, 254]], dtype=np.uint8)
+    low = np.array([[255, 17, 0, 255, 128]], dtype=np.uint8)
+    cv2.imwrite(str(tmp_path / "m16.png"), high.astype(np.uint16) * 256 + low)
+    cv2.imwrite(str(tmp_path / "m8.png"), high)
+    image16 = cv2.imread(str(tmp_path / "m16.png"), cv2.IMREAD_UNCHANGED)
+    assert image16.dtype == np.uint16  # really a 16-bit file
+    np.testing.assert_array_equal(
+        rose.load_map(tmp_path / "m16.png").grid, rose.load_map(tmp_path / "m8.png").grid
+    )
+
+
 def test_row_zero_is_the_bottom_of_the_image(tmp_path: Path) -> None:
     image = np.full((4, 3), 254, dtype=np.uint8)
     image[-1, 0] = 0  # bottom-left pixel occupied

@@ -44,7 +44,7 @@ class McapReadBackend:
             )
             raise LogReadError(msg)
         counts = summary.statistics.channel_message_counts if summary.statistics else {}
-        channels = []
+        channels: list[Channel] = []
         for channel_id in sorted(summary.channels):
             ch = summary.channels[channel_id]
             schema = summary.schemas.get(ch.schema_id)

@@ -41,7 +41,7 @@ class RosbagsReadBackend:
 
             self.reader = Reader2(self.path)
         self.reader.open()
-        channels = []
+        channels: list[Channel] = []
         for conn in self.reader.connections:
             ext = conn.ext
             ros1 = self.format == "ros1"
