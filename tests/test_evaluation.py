@@ -215,6 +215,7 @@ def test_without_a_data_set_the_defaults_say_how_to_get_it(
     assert not (tmp_path / "out").exists()
     with pytest.raises(DataSetError, match=ENV_VAR):
         run_evaluation(EvaluationConfig.small(plots=False), tmp_path / "report")
+    assert not (tmp_path / "report").exists()
     assert EvaluationConfig.small(maps_dir=tmp_path).benchmark_dir == tmp_path / BENCHMARK_SUBDIR
 
 
@@ -255,3 +256,17 @@ def test_evaluate_parser_builds_config() -> None:
     assert config.logs == ("aces", "intel")
     assert config.seed == 5
     assert args.func.__module__ == "rose_logs.cli.evaluate"
+
+
+def test_evaluate_command_without_data_set_is_a_one_line_error(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from rose_logs.cli import main
+
+    monkeypatch.setenv(ENV_VAR, str(tmp_path / "missing"))
+    assert main(["evaluate", str(tmp_path / "report"), "--no-plots"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith(
+        f"error: {tmp_path / 'missing'}: data-set folder ({ENV_VAR}) does not exist"
+    )
+    assert err.count("\n") == 1

@@ -176,6 +176,9 @@ def run_evaluation(
         If a benchmark map or a log is missing or unreadable.
     """
     out = Path(out_dir)
+    if config.logs or config.benchmark_maps:
+        # Finds the data set (or raises DataSetError) before anything is written.
+        _LOG.info("data: %s", config.data_root)
     out.mkdir(parents=True, exist_ok=True)
     say = progress if progress is not None else _LOG.info
     t0 = time.perf_counter()
