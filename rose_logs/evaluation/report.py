@@ -114,7 +114,6 @@ def _group_table(runs: Sequence[ClutterRun], key: str, title: str) -> list[str]:
 
 def _versions() -> str:
     import scipy
-    import sklearn
 
     parts = [
         f"rose {rose.__version__}",
@@ -122,7 +121,6 @@ def _versions() -> str:
         f"python {platform.python_version()}",
         f"numpy {np.__version__}",
         f"scipy {scipy.__version__}",
-        f"scikit-learn {sklearn.__version__}",
     ]
     if have_matplotlib():
         import matplotlib

@@ -61,6 +61,7 @@ def process_log(
     progress: bool = False,
     on_snapshot: Callable[[MapSnapshot, RoseResult, SnapshotRecord], None] | None = None,
     walls: bool = False,
+    recording_id: str | None = None,
 ) -> SessionReport:
     """Run ROSE over every map snapshot of a log; write the output log and Rerun recording.
 
@@ -92,6 +93,9 @@ def process_log(
         ``<map>/rose/walls`` and line strips in Rerun. Costs about 20-45 ms per 1000 x 1000 snapshot.
     on_snapshot : callable, optional
         Called with ``(snapshot, result, record)`` after each snapshot.
+    recording_id : str, optional
+        Rerun recording id; default: derived from the input's file name. ``rose-bag batch`` passes
+        one derived from the full URI, so that two robots' ``run.mcap`` stay separate recordings.
 
     Returns
     -------
@@ -138,7 +142,8 @@ def process_log(
                     rrd_path=None if rrd_path is None else Path(rrd_path),
                     spawn=spawn,
                     roots=tuple(entity_root(t) for t in map_topics),
-                    recording_id=str(uuid.uuid5(uuid.NAMESPACE_URL, input_path.name)),
+                    recording_id=recording_id
+                    or str(uuid.uuid5(uuid.NAMESPACE_URL, input_path.name)),
                 )
             loop = _Loop(
                 reader=reader,
