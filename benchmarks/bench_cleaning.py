@@ -18,6 +18,7 @@ from pathlib import Path
 
 import rose
 from rose.clean import clean
+from rose_logs.datasets import require_data_dir
 from rose_logs.evaluation.cleaning import (
     CleaningCase,
     CleaningRun,
@@ -28,8 +29,6 @@ from rose_logs.evaluation.cleaning import (
 from rose_logs.evaluation.cleaning_report import summary_markdown
 from rose_logs.evaluation.config import RADISH_LOGS
 from rose_logs.evaluation.raycast import raycast_case
-
-MAPS = Path(__file__).resolve().parents[2] / "shared" / "maps"
 
 
 def _best(func, repeat: int) -> tuple[object, float]:  # type: ignore[no-untyped-def]
@@ -66,7 +65,9 @@ def measure(case: CleaningCase, repeat: int) -> list[CleaningRun]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--maps-dir", type=Path, default=MAPS)
+    parser.add_argument(
+        "--maps-dir", type=Path, default=None, help="data set (default: rose_logs.datasets)"
+    )
     parser.add_argument("--seeds", type=int, default=2, help="ray-cast furniture seeds per log")
     parser.add_argument("--logs", default=",".join(RADISH_LOGS))
     parser.add_argument("--bormann", default=None, help="Bormann maps (default: all)")
@@ -81,6 +82,8 @@ def main() -> None:
     args = parser.parse_args()
     logging.basicConfig(level=logging.WARNING)
 
+    if args.maps_dir is None:
+        args.maps_dir = require_data_dir()
     names = args.bormann.split(",") if args.bormann else None
     cases = bormann_cases(args.maps_dir / "bormann_ipa_room_segmentation", names=names)
     logs = [s for s in args.logs.split(",") if s]

@@ -15,6 +15,7 @@ from rose_logs.carmen.furniture import (
     rasterise_furniture,
     shorten_ranges,
 )
+from rose_logs.datasets import data_dir
 from rose_logs.evaluation.cleaning import (
     furnish_grid,
     run_cleaning,
@@ -22,13 +23,13 @@ from rose_logs.evaluation.cleaning import (
     slam_like_pair,
     summarise_cleaning,
 )
-from rose_logs.evaluation.config import DEFAULT_MAPS_DIR
 from rose_logs.evaluation.gaps import robot_gaps
 from rose_logs.snapshots import decode_map
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_data" / "fr079_session.mcap"
-BORMANN = DEFAULT_MAPS_DIR / "bormann_ipa_room_segmentation"
-LOGS = DEFAULT_MAPS_DIR / "radish_carmen_corrected_logs"
+DATA = data_dir() or Path("/nonexistent")
+BORMANN = DATA / "bormann_ipa_room_segmentation"
+LOGS = DATA / "radish_carmen_corrected_logs"
 needs_maps = pytest.mark.skipif(not BORMANN.is_dir(), reason="shared maps not available")
 needs_logs = pytest.mark.skipif(not LOGS.is_dir(), reason="shared CARMEN logs not available")
 
