@@ -166,16 +166,17 @@ def wide_unknown(occupancy: npt.NDArray[np.int8], *, radius_px: float) -> npt.ND
     # On a grid of 2 x 2 blocks (a block is unknown when all its cells are): a quarter of the work,
     # and only ever less unknown space, never more.
     rows, cols = unknown.shape
-    padded = np.zeros((rows + rows % 2, cols + cols % 2), dtype=bool)
-    padded[:rows, :cols] = unknown
-    blocks = padded.reshape(padded.shape[0] // 2, 2, padded.shape[1] // 2, 2).all(axis=(1, 3))
+    padded = np.pad(unknown, ((0, rows % 2), (0, cols % 2)), mode="edge")
+    blocks = padded[0::2, 0::2] & padded[1::2, 0::2] & padded[0::2, 1::2] & padded[1::2, 1::2]
     radius = radius_px / 2
     depth = cv2.distanceTransform(blocks.view(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_5)
     core = depth > radius
     if not core.any():
         return np.zeros(unknown.shape, dtype=bool)
     reach = cv2.distanceTransform((~core).view(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_5)
-    wide = np.repeat(np.repeat(reach <= radius, 2, axis=0), 2, axis=1)[:rows, :cols]
+    near = (reach <= radius).view(np.uint8)
+    wide = cv2.resize(near, (padded.shape[1], padded.shape[0]), interpolation=cv2.INTER_NEAREST)
+    wide = wide[:rows, :cols].astype(bool)
     return wide & unknown
 
 
