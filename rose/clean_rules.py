@@ -38,8 +38,9 @@ def wall_cells(
     *,
     resolution_m: float,
     params: CleanParams,
-) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
-    """Occupied cells the ``"walls"`` cleaning keeps, and those among them only the guard keeps.
+) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
+    """Occupied cells the ``"walls"`` cleaning keeps, those among them only the guard keeps, and the
+    unknown cells completed as hidden walls.
 
     Returns
     -------
@@ -240,17 +241,26 @@ def _runs_in_frame(
     rotated, matrix = _rotate(crop.view(np.uint8), angle)
     if tolerance_px > 0:
         box = np.ones((2 * tolerance_px + 1, 2 * tolerance_px + 1), np.uint8)
-        rotated = cv2.dilate(rotated, box)
+        rotated = np.asarray(cv2.dilate(rotated, box), dtype=np.uint8)
     # Outside the image is empty (OpenCV's default border would count it as occupied for erosion).
-    border = {"borderType": cv2.BORDER_CONSTANT, "borderValue": 0}
-    runs = cv2.morphologyEx(rotated, cv2.MORPH_OPEN, np.ones((1, length), np.uint8), **border)
-    runs |= cv2.morphologyEx(rotated, cv2.MORPH_OPEN, np.ones((length, 1), np.uint8), **border)
-    if matrix is not None:
-        runs = cv2.warpAffine(
-            runs, matrix, (cols, rows), flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP
-        )
-        runs = cv2.dilate(runs, np.ones((3, 3), np.uint8))
-    return runs.astype(bool)
+    runs = _open(rotated, (1, length)) | _open(rotated, (length, 1))
+    if matrix is None:
+        return runs.astype(bool)
+    back = cv2.warpAffine(
+        runs, matrix, (cols, rows), flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP
+    )
+    return np.asarray(cv2.dilate(back, np.ones((3, 3), np.uint8)), dtype=bool)
+
+
+def _open(image: npt.NDArray[np.uint8], kernel_shape: tuple[int, int]) -> npt.NDArray[np.uint8]:
+    """Morphological opening with a ``kernel_shape`` box; outside the image counts as empty."""
+    import cv2
+
+    kernel = np.ones(kernel_shape, np.uint8)
+    opened = cv2.morphologyEx(
+        image, cv2.MORPH_OPEN, kernel, borderType=cv2.BORDER_CONSTANT, borderValue=0
+    )
+    return np.asarray(opened, dtype=np.uint8)
 
 
 def _bounds(mask: npt.NDArray[np.bool_]) -> tuple[int, int, int, int]:
@@ -276,7 +286,8 @@ def _rotate(
     v = -corners[:, 0] * s + corners[:, 1] * c
     matrix = np.array([[c, s, -u.min()], [-s, c, -v.min()]], dtype=np.float64)
     size = (math.ceil(u.max() - u.min()) + 1, math.ceil(v.max() - v.min()) + 1)
-    return cv2.warpAffine(source, matrix, size, flags=cv2.INTER_NEAREST), matrix
+    rotated = cv2.warpAffine(source, matrix, size, flags=cv2.INTER_NEAREST)
+    return np.asarray(rotated, dtype=np.uint8), matrix
 
 
 def bridge_gaps(
@@ -310,21 +321,16 @@ def bridge_gaps(
         rotated, matrix = _rotate(crop.view(np.uint8), angle)
         closed = np.zeros_like(rotated)
         for along, across in (((1, length), (4, 1)), ((length, 1), (1, 4))):
-            fill = cv2.morphologyEx(rotated, cv2.MORPH_CLOSE, np.ones(along, np.uint8)) & ~rotated
+            closing = cv2.morphologyEx(rotated, cv2.MORPH_CLOSE, np.ones(along, np.uint8))
+            fill = np.asarray(closing, dtype=np.uint8) & ~rotated
             # A wall line is thin: drop fills four or more cells thick across the line (the space
             # between two parallel walls, not a wall).
-            thick = cv2.morphologyEx(
-                fill,
-                cv2.MORPH_OPEN,
-                np.ones(across, np.uint8),
-                borderType=cv2.BORDER_CONSTANT,
-                borderValue=0,
-            )
-            closed |= fill & ~thick
+            closed |= fill & ~_open(fill, across)
         if matrix is not None:
-            closed = cv2.warpAffine(
+            back = cv2.warpAffine(
                 closed, matrix, (cols, rows), flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP
             )
+            closed = np.asarray(back, dtype=np.uint8)
         out[r0:r1, c0:c1] |= closed.astype(bool)
     return out & fillable & ~walls
 

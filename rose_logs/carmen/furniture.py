@@ -19,6 +19,7 @@ the new ranges shows faces only, with unknown shadows behind.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -86,7 +87,7 @@ def rasterise_furniture(
             radius,
             origin_xy_m,
             resolution_m,
-            lambda x, y, r=rect: _rect_cells(r, x, y),
+            functools.partial(_rect_cells, rect),
         )
     for circle in furniture.circles:
         _paint(
@@ -95,7 +96,7 @@ def rasterise_furniture(
             circle[2],
             origin_xy_m,
             resolution_m,
-            lambda x, y, c=circle: _circle_cells(c, x, y),
+            functools.partial(_circle_cells, circle),
         )
     return out
 

@@ -134,10 +134,12 @@ def cleaning_figure(
     for label, image in panels:
         scale = width_px / width if stacked else width_px / (len(panels) * width)
         interpolation = cv2.INTER_NEAREST if scale >= 1 else cv2.INTER_AREA
-        image = cv2.resize(image, None, fx=scale, fy=scale, interpolation=interpolation)
-        band = np.full((26, image.shape[1], 3), 255, np.uint8)
+        resized = np.asarray(
+            cv2.resize(image, None, fx=scale, fy=scale, interpolation=interpolation), np.uint8
+        )
+        band = np.full((26, resized.shape[1], 3), 255, np.uint8)
         cv2.putText(band, label, (6, 19), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (0, 0, 0), 1)
-        labelled.append(np.vstack([band, image]))
+        labelled.append(np.vstack([band, resized]))
     if stacked:
         picture = np.vstack(labelled)
     else:
