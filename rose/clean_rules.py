@@ -413,7 +413,11 @@ def topology_guard(
     count, patches, stats, _ = cv2.connectedComponentsWithStats(
         opened.view(np.uint8), connectivity=8
     )
-    spread = cv2.dilate(patches.astype(np.float32), np.ones((3, 3), np.uint8)).astype(np.int64)
+    # Each cell next to a patch gets the patch's label (the highest, where two meet).
+    label_type = np.uint16 if count <= np.iinfo(np.uint16).max else np.float32
+    spread = np.asarray(cv2.dilate(patches.astype(label_type), np.ones((3, 3), np.uint8)))
+    if spread.dtype != np.uint16:
+        spread = spread.astype(np.int64)
     rim = (spread > 0) & ~opened
     # Patches whose ring is all formerly passable are free-standing objects: nothing to check.
     blocked = np.bincount(spread[rim & ~before], minlength=count) > 0
@@ -422,28 +426,13 @@ def topology_guard(
     # one region only): only patches with two or more arcs need a labelled window.
     arcs_count, arcs = cv2.connectedComponents((rim & before).view(np.uint8), connectivity=8)
     touched = rim & before
-    pairs = np.unique(spread[touched] * arcs_count + arcs[touched])
+    pairs = np.unique(spread[touched].astype(np.int64) * arcs_count + arcs[touched])
     blocked &= np.bincount(pairs // arcs_count, minlength=count) >= 2
     if not blocked.any():
         return restore
-    # The formerly passable ring cells of every patch, grouped by patch (flat indices).
-    ring_idx = np.flatnonzero(rim & before)
-    ring_patch = spread.reshape(-1)[ring_idx]
-    order = np.argsort(ring_patch, kind="stable")
-    ring_idx = ring_idx[order]
-    ends = np.cumsum(np.bincount(ring_patch, minlength=count))
-    rows, cols = occupied.shape
-    separating = np.zeros(count, dtype=bool)
-    for index in np.flatnonzero(blocked).tolist():
-        cells = ring_idx[ends[index - 1] if index else 0 : ends[index]]
-        if cells.size < 2:
-            continue
-        x, y, w, h = stats[index, :4].tolist()
-        r0, c0 = max(y - window_px, 0), max(x - window_px, 0)
-        r1, c1 = min(y + h + window_px, rows), min(x + w + window_px, cols)
-        separating[index] = _separates(
-            before[r0:r1, c0:c1], cells // cols - r0, cells % cols - c0, min_region_px
-        )
+    separating = _separating_patches(
+        before, stats, blocked, rim & before, spread, window_px, min_region_px
+    )
     if not separating.any():
         return restore
     reach = math.ceil(radius_px) + 1
@@ -456,21 +445,73 @@ def topology_guard(
     return wanted[pieces] & removal
 
 
-def _separates(
-    window: npt.NDArray[np.bool_],
-    ring_rows: npt.NDArray[np.int64],
-    ring_cols: npt.NDArray[np.int64],
+def _separating_patches(
+    before: npt.NDArray[np.bool_],
+    stats: npt.NDArray[np.int32],
+    blocked: npt.NDArray[np.bool_],
+    ring: npt.NDArray[np.bool_],
+    spread: npt.NDArray[np.integer],
+    window_px: int,
     min_region_px: float,
-) -> bool:
-    """Whether the ring cells touch two or more regions of ``window`` that are not small pockets."""
+) -> npt.NDArray[np.bool_]:
+    """Which ``blocked`` patches touch, with their ``ring`` cells, two or more regions of ``before``
+    (in a window of ``window_px`` cells around the patch) that are not small enclosed pockets (a
+    pocket does not reach the window's edge and covers less than ``min_region_px``).
+
+    All windows are copied into one mosaic, one empty cell apart, and labelled in one call.
+    """
     import cv2
 
-    _, regions, stats, _ = cv2.connectedComponentsWithStats(window.view(np.uint8), connectivity=8)
-    touching = np.unique(regions[ring_rows, ring_cols])
-    touching = touching[touching > 0]
-    if touching.size < 2:
-        return False
-    rows, cols = window.shape
-    x, y, w, h, area = (stats[touching, i] for i in range(5))
-    edge = (x == 0) | (y == 0) | (x + w == cols) | (y + h == rows)
-    return int(np.count_nonzero(edge | (area >= min_region_px))) >= 2
+    count = stats.shape[0]
+    separating = np.zeros(count, dtype=bool)
+    rows, cols = before.shape
+    # The ring cells of every blocked patch, grouped by patch (flat indices).
+    ring_idx = np.flatnonzero(ring)
+    ring_patch = spread.reshape(-1)[ring_idx].astype(np.int64)
+    wanted = blocked[ring_patch]
+    ring_idx, ring_patch = ring_idx[wanted], ring_patch[wanted]
+    sizes = np.bincount(ring_patch, minlength=count)
+    ids = np.flatnonzero(blocked & (sizes >= 2))
+    if ids.size == 0:
+        return separating
+    x, y, w, h = (stats[ids, i].astype(np.int64) for i in range(4))
+    r0, c0 = np.maximum(y - window_px, 0), np.maximum(x - window_px, 0)
+    r1, c1 = np.minimum(y + h + window_px, rows), np.minimum(x + w + window_px, cols)
+    heights, widths = r1 - r0, c1 - c0
+    # Shelf packing: windows left to right in rows of the mosaic, one empty cell between them.
+    width = max(int(widths.max()) + 1, 1024)
+    ox = np.zeros(ids.size, dtype=np.int64)
+    oy = np.zeros(ids.size, dtype=np.int64)
+    cursor_x = cursor_y = shelf = 0
+    for i in range(ids.size):
+        if cursor_x + int(widths[i]) + 1 > width:
+            cursor_x, cursor_y, shelf = 0, cursor_y + shelf + 1, 0
+        ox[i], oy[i] = cursor_x, cursor_y
+        cursor_x += int(widths[i]) + 1
+        shelf = max(shelf, int(heights[i]))
+    mosaic = np.zeros((cursor_y + shelf + 1, width), dtype=np.uint8)
+    view = before.view(np.uint8)
+    for i in range(ids.size):
+        mosaic[oy[i] : oy[i] + heights[i], ox[i] : ox[i] + widths[i]] = view[
+            r0[i] : r1[i], c0[i] : c1[i]
+        ]
+    _, regions, region_stats, _ = cv2.connectedComponentsWithStats(mosaic, connectivity=8)
+    slot = np.full(count, -1, dtype=np.int64)
+    slot[ids] = np.arange(ids.size)
+    where = slot[ring_patch]
+    keep = where >= 0
+    where, cells = where[keep], ring_idx[keep]
+    labels = regions[cells // cols - r0[where] + oy[where], cells % cols - c0[where] + ox[where]]
+    touched = labels > 0
+    pairs = np.unique(where[touched] * (region_stats.shape[0]) + labels[touched])
+    window_of, label = pairs // region_stats.shape[0], pairs % region_stats.shape[0]
+    rx, ry, rw, rh, area = (region_stats[label, i].astype(np.int64) for i in range(5))
+    edge = (
+        (rx == ox[window_of])
+        | (ry == oy[window_of])
+        | (rx + rw == ox[window_of] + widths[window_of])
+        | (ry + rh == oy[window_of] + heights[window_of])
+    )
+    open_regions = np.bincount(window_of[edge | (area >= min_region_px)], minlength=ids.size)
+    separating[ids] = open_regions >= 2
+    return separating
