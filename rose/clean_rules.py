@@ -292,6 +292,16 @@ def _open(image: npt.NDArray[np.uint8], kernel_shape: tuple[int, int]) -> npt.ND
     return np.asarray(opened, dtype=np.uint8)
 
 
+def _padded_box(mask: npt.NDArray[np.bool_], pad: int) -> tuple[slice, slice]:
+    """The bounding box of the True cells of ``mask`` (it must have one), ``pad`` cells wider on
+    every side, clipped to ``mask``."""
+    r0, r1, c0, c1 = _bounds(mask)
+    rows, cols = mask.shape
+    return slice(max(r0 - pad, 0), min(r1 + pad, rows)), slice(
+        max(c0 - pad, 0), min(c1 + pad, cols)
+    )
+
+
 def _bounds(mask: npt.NDArray[np.bool_]) -> tuple[int, int, int, int]:
     """``r0, r1, c0, c1`` of the bounding box of the True cells (``mask`` must have one)."""
     rows_any = np.flatnonzero(mask.any(axis=1))
@@ -439,6 +449,11 @@ def topology_guard(
     opened = passable(after, radius_px) & ~before
     if not opened.any():
         return restore
+    # Everything the guard looks at lies within a window (plus the restoring reach) of an opened
+    # patch: work on their bounding box (windows clipped by it are clipped as by the map).
+    reach = math.ceil(radius_px) + 1
+    box = _padded_box(opened, window_px + reach + 2)
+    before, opened = before[box], opened[box]
     count, patches, stats = _components_with_stats(opened)
     # Each cell next to a patch gets the patch's label (the highest, where two meet).
     label_type = np.uint16 if count <= np.iinfo(np.uint16).max else np.float32
@@ -464,12 +479,15 @@ def topology_guard(
     )
     if not separating.any():
         return restore
-    reach = math.ceil(radius_px) + 1
+    # The removed pieces within reach of a separating patch (dilated on the patches' box only).
     reach_kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach + 1, 2 * reach + 1))
-    zone = cv2.dilate(separating[patches].view(np.uint8), reach_kernel).astype(bool)
+    seeds = separating[patches]
+    near = _padded_box(seeds, reach)
+    zone = np.zeros(seeds.shape, dtype=bool)
+    zone[near] = cv2.dilate(seeds[near].view(np.uint8), reach_kernel).astype(bool)
     n_pieces, pieces = _components(removal)
     wanted = np.zeros(n_pieces, dtype=bool)
-    wanted[pieces[zone & removal]] = True
+    wanted[pieces[box][zone & removal[box]]] = True
     wanted[0] = False
     return wanted[pieces] & removal
 
