@@ -121,12 +121,16 @@ def _wall_cells(
 def _touching(pieces: npt.NDArray[np.bool_], other: npt.NDArray[np.bool_]) -> npt.NDArray[np.bool_]:
     """The 8-connected components of ``pieces`` within two cells of ``other``."""
 
+    out = np.zeros(pieces.shape, dtype=bool)
     if not pieces.any() or not other.any():
-        return np.zeros(pieces.shape, dtype=bool)
-    _, labels = _components(pieces)
-    near = _dilate(other, 2)
-    ids = np.unique(labels[near & pieces])
-    return np.isin(labels, ids[ids > 0])
+        return out
+    # Only the pieces' bounding box matters (plus two cells for the reach of ``other``).
+    box = _padded_box(pieces, 2)
+    _, labels = _components(pieces[box])
+    near = _dilate(other[box], 2)
+    ids = np.unique(labels[near & pieces[box]])
+    out[box] = np.isin(labels, ids[ids > 0])
+    return out
 
 
 def _label_type(mask: npt.NDArray[np.bool_] | npt.NDArray[np.uint8]) -> int:
