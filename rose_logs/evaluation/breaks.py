@@ -41,11 +41,19 @@ from rose_logs.session.breaks import BreakDetector, BreakParams
 from rose_logs.snapshots import MapSnapshot
 
 __all__ = [
+    "DELAY_TARGET_S",
     "BreakCase",
     "BreakOutcome",
+    "CostSummary",
+    "GroupRow",
+    "HeldOutRow",
     "SessionScores",
     "break_cases",
+    "cost_summary",
+    "group_table",
+    "leave_one_log_out",
     "outcome",
+    "quiet_threshold",
     "roc",
     "score_case",
     "score_cases",
@@ -350,3 +358,172 @@ def roc(
             )
         )
     return rows
+
+
+@dataclass(frozen=True)
+class GroupRow:
+    """Outcomes of one group of sessions (a drift level and start fraction) at one threshold.
+
+    Attributes
+    ----------
+    level, start_fraction : float
+        Drift level and start (0, 0: the correct sessions).
+    sessions : int
+    false_alarms : int
+        Sessions with an alarm before the drift start (every alarm, for correct sessions).
+    detected : int
+        Drifted sessions whose first alarm came after the start.
+    within_target : int
+        Of those, detected within :data:`DELAY_TARGET_S`.
+    median_delay_s, max_delay_s : float
+        Over the detected sessions (NaN when none).
+    region_hits : int
+        Detections whose region holds mostly (>= 50 %) walls the correct map keeps.
+    """
+
+    level: float
+    start_fraction: float
+    sessions: int
+    false_alarms: int
+    detected: int
+    within_target: int
+    median_delay_s: float
+    max_delay_s: float
+    region_hits: int
+
+
+def _values(s: SessionScores, use_w: bool) -> npt.NDArray[np.float64]:
+    return s.structure_scores if use_w else s.break_scores_m
+
+
+def group_table(
+    sessions: Sequence[SessionScores], threshold: float, *, use_w: bool = False
+) -> list[GroupRow]:
+    """One :class:`GroupRow` per (level, start fraction), correct sessions first."""
+    keys = sorted({(s.case.spec.drift_level, s.case.start_fraction) for s in sessions})
+    rows = []
+    for level, fraction in keys:
+        group = [
+            s
+            for s in sessions
+            if (s.case.spec.drift_level, s.case.start_fraction) == (level, fraction)
+        ]
+        outs = [(s, outcome(s, threshold, values=_values(s, use_w))) for s in group]
+        delays = [o.delay_s for _, o in outs if o.detected]
+        hits = sum(
+            1
+            for s, o in outs
+            if o.detected and o.index is not None and s.region_hits[o.index] >= 0.5
+        )
+        rows.append(
+            GroupRow(
+                level=level,
+                start_fraction=fraction,
+                sessions=len(group),
+                false_alarms=sum(o.false_alarm for _, o in outs),
+                detected=len(delays),
+                within_target=sum(d <= DELAY_TARGET_S for d in delays),
+                median_delay_s=float(np.median(delays)) if delays else math.nan,
+                max_delay_s=float(np.max(delays)) if delays else math.nan,
+                region_hits=0 if use_w else hits,
+            )
+        )
+    return rows
+
+
+def quiet_threshold(sessions: Sequence[SessionScores], *, use_w: bool = False) -> float:
+    """The smallest threshold that raises no false alarm on ``sessions`` (just above the largest
+    score of a correct session or of a drifted one before its start)."""
+    top = 0.0
+    for s in sessions:
+        v = _values(s, use_w)[1:]
+        if not s.case.correct:
+            v = v[s.times_s[1:] < s.case.spec.drift_start_s]
+        if v.size:
+            top = max(top, float(v.max()))
+    return float(np.nextafter(top, math.inf))
+
+
+@dataclass(frozen=True)
+class HeldOutRow:
+    """Leave-one-log-out: the threshold chosen on the other logs, applied to one log.
+
+    Attributes
+    ----------
+    log : str
+    threshold : float
+        :func:`quiet_threshold` of the other logs' sessions.
+    false_alarms : int
+        Sessions of this log with a false alarm at that threshold.
+    drifted, detected, within_target : int
+        Drifted sessions of this log, detected, detected within :data:`DELAY_TARGET_S`.
+    """
+
+    log: str
+    threshold: float
+    false_alarms: int
+    drifted: int
+    detected: int
+    within_target: int
+
+
+def leave_one_log_out(
+    sessions: Sequence[SessionScores], *, use_w: bool = False
+) -> list[HeldOutRow]:
+    """For each log: the quiet threshold of the other logs, and what it does on this log."""
+    logs = list(dict.fromkeys(s.case.spec.name for s in sessions))
+    rows = []
+    for log in logs:
+        train = [s for s in sessions if s.case.spec.name != log]
+        test = [s for s in sessions if s.case.spec.name == log]
+        if not train:
+            continue
+        threshold = quiet_threshold(train, use_w=use_w)
+        outs = [(s, outcome(s, threshold, values=_values(s, use_w))) for s in test]
+        rows.append(
+            HeldOutRow(
+                log=log,
+                threshold=threshold,
+                false_alarms=sum(o.false_alarm for _, o in outs),
+                drifted=sum(not s.case.correct for s, _ in outs),
+                detected=sum(o.detected for _, o in outs),
+                within_target=sum(o.delay_s <= DELAY_TARGET_S for _, o in outs),
+            )
+        )
+    return rows
+
+
+@dataclass(frozen=True)
+class CostSummary:
+    """What the detector costs beside ROSE, CPU seconds per snapshot (snapshot 0 excluded).
+
+    Attributes
+    ----------
+    snapshots : int
+    detector_median_s, rose_median_s : float
+        Median CPU time per snapshot.
+    ratio_of_totals : float
+        Total detector time / total ROSE time.
+    ratio_p90 : float
+        90th percentile of the per-snapshot ratio.
+    """
+
+    snapshots: int
+    detector_median_s: float
+    rose_median_s: float
+    ratio_of_totals: float
+    ratio_p90: float
+
+
+def cost_summary(sessions: Sequence[SessionScores]) -> CostSummary:
+    """:class:`CostSummary` over every scored snapshot."""
+    det = np.concatenate([s.detector_s[1:] for s in sessions])
+    ros = np.concatenate([s.rose_s[1:] for s in sessions])
+    ratio = det / np.maximum(ros, 1e-9)
+    return CostSummary(
+        snapshots=int(det.size),
+        detector_median_s=float(np.median(det)),
+        rose_median_s=float(np.median(ros)),
+        ratio_of_totals=float(det.sum() / max(ros.sum(), 1e-12)),
+        ratio_p90=float(np.percentile(ratio, 90)),
+    )
