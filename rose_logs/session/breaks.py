@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from rose.breaks import WallContradiction, contradicted_walls
 from rose_logs.snapshots import MapSnapshot
 
-__all__ = ["BreakDetector", "BreakParams", "BreakScore"]
+__all__ = ["BreakDetector", "BreakParams", "BreakScore", "DetectedBreak"]
 
 _LOG = logging.getLogger(__name__)
 
@@ -99,6 +99,61 @@ class BreakScore:
     reference_index: int | None
     region_m: tuple[float, float, float, float] | None
     erased_m: float
+
+
+@dataclass(frozen=True)
+class DetectedBreak:
+    """A break the detector found: the first broken snapshot after a trusted one.
+
+    Attributes
+    ----------
+    topic : str
+        Map topic.
+    index : int
+        Snapshot index on the topic.
+    log_time_ns : int
+        Log time of that snapshot, nanoseconds.
+    score_m : float
+        Its break score, metres.
+    region_m : tuple of float or None
+        ``(x_min, y_min, x_max, y_max)`` of the erased walls, map frame, metres.
+    reference_index : int or None
+        The last trusted snapshot it was compared with.
+    text : str
+        One line for people (event logs, summaries).
+    """
+
+    topic: str
+    index: int
+    log_time_ns: int
+    score_m: float
+    region_m: tuple[float, float, float, float] | None
+    reference_index: int | None
+    text: str
+
+    @classmethod
+    def from_score(
+        cls, snapshot: MapSnapshot, index: int, verdict: BreakScore, threshold_m: float
+    ) -> DetectedBreak:
+        """The event of a snapshot whose verdict ``started`` a break."""
+        where = ""
+        if verdict.region_m is not None:
+            x0, y0, x1, y1 = verdict.region_m
+            where = f" around x {x0:.1f}..{x1:.1f} m, y {y0:.1f}..{y1:.1f} m"
+        text = (
+            f"{snapshot.topic}: map breaks at snapshot {index}: {verdict.score_m:.2f} m of "
+            f"established wall erased (threshold {threshold_m:g} m) since snapshot "
+            f"{verdict.reference_index}{where}"
+        )
+        return cls(
+            topic=snapshot.topic,
+            index=index,
+            log_time_ns=snapshot.log_time_ns,
+            score_m=verdict.score_m,
+            region_m=verdict.region_m,
+            reference_index=verdict.reference_index,
+            text=text,
+        )
 
 
 _CLEAR = BreakScore(0.0, False, False, None, None, 0.0)
