@@ -108,6 +108,30 @@ def _check(earlier: npt.NDArray[np.generic], later: npt.NDArray[np.generic], tol
         raise RoseError(msg)
 
 
+def _long_walls(walls: npt.NDArray[np.bool_], min_extent_px: int, bridge_px: int) -> npt.NDArray[np.bool_]:
+    """Wall cells whose connected wall (gaps up to ``bridge_px`` cells bridged) spans at least
+    ``min_extent_px`` cells along rows or columns."""
+    joined = walls
+    if bridge_px > 0:
+        joined = ndimage.binary_dilation(walls, np.ones((bridge_px + 1, bridge_px + 1), dtype=bool))
+    labels, count = ndimage.label(joined, structure=np.ones((3, 3), dtype=bool))
+    if count == 0:
+        return np.zeros_like(walls)
+    flat = labels.ravel()
+    cells = np.flatnonzero(flat)
+    order = np.argsort(flat[cells], kind="stable")
+    cells = cells[order]
+    starts = np.flatnonzero(np.diff(flat[cells], prepend=0))
+    rows, cols = np.divmod(cells, labels.shape[1])
+    extent = np.maximum(
+        np.maximum.reduceat(rows, starts) - np.minimum.reduceat(rows, starts),
+        np.maximum.reduceat(cols, starts) - np.minimum.reduceat(cols, starts),
+    ) + 1
+    keep = np.zeros(count + 1, dtype=bool)
+    keep[flat[cells[starts]]] = extent >= min_extent_px
+    return walls & keep[labels]
+
+
 def _erased_box(
     earlier: npt.NDArray[np.integer],
     later: npt.NDArray[np.integer],
@@ -115,23 +139,31 @@ def _erased_box(
     tolerance_px: int,
     occupied_threshold: int,
     free_threshold: int,
+    min_extent_px: int = 0,
+    bridge_px: int = 0,
 ) -> tuple[npt.NDArray[np.bool_], int, int]:
     """Erased cells within their bounding box: ``(mask, row0, col0)`` in ``later``'s cells."""
     placed = _place(earlier.astype(np.int8, copy=False), later.shape, offset_px)
-    candidates = (placed >= occupied_threshold) & (later >= 0) & (later <= free_threshold)
+    walls = placed >= occupied_threshold
+    candidates = walls & (later >= 0) & (later <= free_threshold)
     rows = np.flatnonzero(candidates.any(axis=1))
     if rows.size == 0:
         return np.zeros((0, 0), dtype=bool), 0, 0
     cols = np.flatnonzero(candidates.any(axis=0))
-    # Only candidates can be erased: work in their bounding box plus the tolerance.
-    r0, r1 = max(int(rows[0]) - tolerance_px, 0), int(rows[-1]) + tolerance_px + 1
-    c0, c1 = max(int(cols[0]) - tolerance_px, 0), int(cols[-1]) + tolerance_px + 1
+    # Only candidates can be erased: work in their bounding box plus the tolerance (and plus the
+    # wall extent when walls must be long, so that the walls through the box are seen whole).
+    margin = max(tolerance_px, min_extent_px + bridge_px)
+    r0, r1 = max(int(rows[0]) - margin, 0), int(rows[-1]) + margin + 1
+    c0, c1 = max(int(cols[0]) - margin, 0), int(cols[-1]) + margin + 1
     near_wall = ndimage.maximum_filter(
         (later[r0:r1, c0:c1] >= occupied_threshold).astype(np.uint8),
         size=2 * tolerance_px + 1,
         mode="constant",
     ).astype(bool)
-    return candidates[r0:r1, c0:c1] & ~near_wall, r0, c0
+    erased = candidates[r0:r1, c0:c1] & ~near_wall
+    if min_extent_px > 1 and erased.any():
+        erased &= _long_walls(walls[r0:r1, c0:c1], min_extent_px, bridge_px)
+    return erased, r0, c0
 
 
 def erased_walls(
