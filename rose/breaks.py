@@ -5,8 +5,9 @@ where it believes they are, and log-odds mapping, instead of adding a second, in
 walls, erases the established walls it now sees through. The signal measured here is that erasure:
 an *established wall cell* (occupied in the earlier grid) that the later grid holds free, with no
 occupied cell within ``tolerance_px`` in the later grid (so a wall that moved by a cell or two, as
-walls do between two correct snapshots, does not count). People, chairs and opened doors erase
-cells too, but in one or two places; a break erases along whole walls. So erased cells are counted
+walls do between two correct snapshots, does not count). Only *walls* count: established occupied
+cells whose connected piece (small gaps bridged) is at least ``min_extent_px`` long, so people,
+chairs and furniture blobs that come and go do not. A break erases along whole walls. So erased cells are counted
 by the tiles of ``tile_px`` cells they touch (a length along the erased walls, in tile sides), the
 score is the most such tiles inside one square window of ``window_px`` cells, and the region is
 where that window's erased cells lie.
@@ -99,12 +100,21 @@ def _densest_window(tiles: npt.NDArray[np.bool_], side: int) -> tuple[int, int, 
     return int(sums[i, j]), int(i), int(j)
 
 
-def _check(earlier: npt.NDArray[np.generic], later: npt.NDArray[np.generic], tolerance_px: int) -> None:
+def _check(
+    earlier: npt.NDArray[np.generic],
+    later: npt.NDArray[np.generic],
+    tolerance_px: int,
+    min_extent_px: int = 0,
+    bridge_px: int = 0,
+) -> None:
     if earlier.ndim != 2 or later.ndim != 2:
         msg = f"grids must be 2-D, got shapes {earlier.shape} and {later.shape}"
         raise RoseError(msg)
     if tolerance_px < 0:
         msg = f"tolerance_px must be >= 0, got {tolerance_px}"
+        raise RoseError(msg)
+    if min_extent_px < 0 or bridge_px < 0:
+        msg = f"min_extent_px and bridge_px must be >= 0, got {min_extent_px} and {bridge_px}"
         raise RoseError(msg)
 
 
@@ -172,6 +182,8 @@ def erased_walls(
     *,
     offset_px: tuple[int, int] = (0, 0),
     tolerance_px: int = 6,
+    min_extent_px: int = 20,
+    bridge_px: int = 2,
     occupied_threshold: int = 65,
     free_threshold: int = 50,
 ) -> npt.NDArray[np.bool_]:
@@ -182,13 +194,20 @@ def erased_walls(
     Returns
     -------
     ndarray of bool, shape of ``later``
-        Occupied in ``earlier``, confidently free in ``later``, no occupied cell of ``later`` within
-        ``tolerance_px`` (chessboard distance).
+        Occupied in ``earlier`` and part of a wall at least ``min_extent_px`` long there, free in
+        ``later``, no occupied cell of ``later`` within ``tolerance_px`` (chessboard distance).
     """
     earlier, later = np.asarray(earlier), np.asarray(later)
-    _check(earlier, later, tolerance_px)
+    _check(earlier, later, tolerance_px, min_extent_px, bridge_px)
     box, r0, c0 = _erased_box(
-        earlier, later, offset_px, tolerance_px, occupied_threshold, free_threshold
+        earlier,
+        later,
+        offset_px,
+        tolerance_px,
+        occupied_threshold,
+        free_threshold,
+        min_extent_px,
+        bridge_px,
     )
     out = np.zeros(later.shape, dtype=bool)
     out[r0 : r0 + box.shape[0], c0 : c0 + box.shape[1]] = box
@@ -201,6 +220,8 @@ def contradicted_walls(
     *,
     offset_px: tuple[int, int] = (0, 0),
     tolerance_px: int = 6,
+    min_extent_px: int = 20,
+    bridge_px: int = 2,
     tile_px: int = 5,
     window_px: int = 200,
     occupied_threshold: int = 65,
@@ -218,9 +239,16 @@ def contradicted_walls(
     tolerance_px : int
         A wall cell still counts as present when ``later`` has an occupied cell within this many
         cells (chessboard distance).
+    min_extent_px : int
+        Only walls of ``earlier`` whose connected cells span at least this many cells (along rows or
+        columns, after bridging gaps) count: people, chair legs and furniture blobs do not.
+        0 or 1: every occupied cell counts.
+    bridge_px : int
+        Gaps of up to this many cells along a wall are bridged before measuring its extent (walls
+        of log-odds maps are broken into pieces where few beams hit them).
     tile_px : int
         Side of the tiles erased cells are counted in, cells: a wall erased along its length
-        touches many tiles, a person or a chair leg one or two.
+        touches many tiles.
     window_px : int
         Side of the square window the score counts tiles in, cells.
     occupied_threshold : int
@@ -238,13 +266,20 @@ def contradicted_walls(
         On grids that are not 2-D or a non-positive window / negative tolerance.
     """
     earlier, later = np.asarray(earlier), np.asarray(later)
-    _check(earlier, later, tolerance_px)
+    _check(earlier, later, tolerance_px, min_extent_px, bridge_px)
     if window_px < 1 or tile_px < 1:
         msg = f"window_px and tile_px must be >= 1, got {window_px} and {tile_px}"
         raise RoseError(msg)
     established = int(np.count_nonzero(earlier >= occupied_threshold))
     erased, r0, c0 = _erased_box(
-        earlier, later, offset_px, tolerance_px, occupied_threshold, free_threshold
+        earlier,
+        later,
+        offset_px,
+        tolerance_px,
+        occupied_threshold,
+        free_threshold,
+        min_extent_px,
+        bridge_px,
     )
     count = int(np.count_nonzero(erased))
     if count == 0:

@@ -50,18 +50,29 @@ def test_rotated_wing_is_found_where_it_broke(plan: npt.NDArray[np.int8]) -> Non
     assert int(erased.sum()) == found.erased_px
 
 
-def test_small_blobs_count_little(plan: npt.NDArray[np.int8]) -> None:
-    # Four 3 x 3 "people" in the established map, gone later: one tile each at most.
+def test_blobs_are_not_walls_but_long_walls_are(plan: npt.NDArray[np.int8]) -> None:
+    # Four 3 x 3 "people" in the established map, gone later.
     earlier = plan.copy()
     for r, c in ((100, 100), (120, 200), (200, 150), (180, 250)):
         earlier[r : r + 3, c : c + 3] = 100
-    found = contradicted_walls(earlier, plan, tolerance_px=4, tile_px=5, window_px=400)
-    assert found.erased_px == 36
-    assert 4 <= found.erased_tiles <= 16
-    # A wall the same cell count long erased along its length touches more tiles.
+    kwargs = {"tolerance_px": 4, "tile_px": 5, "window_px": 400}
+    assert contradicted_walls(earlier, plan, min_extent_px=20, **kwargs).erased_px == 0
+    every = contradicted_walls(earlier, plan, min_extent_px=0, **kwargs)
+    assert every.erased_px == 36
+    assert 4 <= every.erased_tiles <= 16
+    # A 36-cell wall erased along its length counts, and touches more tiles than the blobs.
     wall = plan.copy()
     wall[150, 60:96] = 100
-    assert contradicted_walls(wall, plan, tile_px=5, window_px=400).peak_tiles >= 7
+    found = contradicted_walls(wall, plan, min_extent_px=20, **kwargs)
+    assert found.erased_px == contradicted_walls(wall, plan, min_extent_px=0, **kwargs).erased_px
+    assert found.erased_px >= 30  # a cell or two lie within the tolerance of a standing wall
+    assert found.peak_tiles >= 7
+    # Pieces of a wall with one-cell gaps are one wall once the gaps are bridged.
+    dashed = plan.copy()
+    dashed[150, 60:96:2] = 100
+    assert contradicted_walls(dashed, plan, min_extent_px=20, bridge_px=0, **kwargs).erased_px == 0
+    bridged = contradicted_walls(dashed, plan, min_extent_px=20, bridge_px=2, **kwargs).erased_px
+    assert bridged == contradicted_walls(dashed, plan, min_extent_px=0, **kwargs).erased_px >= 15
 
 
 def test_offset_places_the_earlier_grid(plan: npt.NDArray[np.int8]) -> None:
@@ -95,6 +106,7 @@ def test_inputs_are_not_modified(plan: npt.NDArray[np.int8]) -> None:
         ({"window_px": 0}, "window_px"),
         ({"tile_px": 0}, "tile_px"),
         ({"tolerance_px": -1}, "tolerance_px"),
+        ({"min_extent_px": -1}, "min_extent_px"),
     ],
 )
 def test_bad_parameters(plan: npt.NDArray[np.int8], kwargs: dict, match: str) -> None:

@@ -81,7 +81,7 @@ def add_parser(subparsers: Any) -> None:
         default=None,
         metavar="M",
         help="break detector: metres of established wall a snapshot must erase to count as a "
-        "break (default 2.5)",
+        "break (default 1.25)",
     )
     parser.add_argument(
         "--fail-on-break",

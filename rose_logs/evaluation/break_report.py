@@ -271,6 +271,7 @@ def run_break_experiment(
         f"them: the correct session of each log and drift levels {', '.join(f'{x:g}' for x in levels)} "
         f"starting at {', '.join(f'{x:g}' for x in start_fractions)} of the log, {seeds} seed(s) each "
         f"({len(sessions)} sessions). Break detector: tolerance {params.tolerance_m:g} m, "
+        f"walls >= {params.min_wall_m:g} m (gaps <= {params.bridge_m:g} m bridged), "
         f"tiles {params.tile_m:g} m, window {params.window_m:g} m, threshold {threshold:g} m. "
         "A false alarm is an alarm on a correct session or before the drift starts; delays are from "
         f"the drift start to the first alarm (target: level >= 2 within {DELAY_TARGET_S:g} s). "

@@ -228,6 +228,8 @@ def _region_hit(
     res = current.resolution_m
     kwargs = {
         "tolerance_px": round(p.tolerance_m / res),
+        "min_extent_px": round(p.min_wall_m / res),
+        "bridge_px": round(p.bridge_m / res),
         "occupied_threshold": p.occupied_threshold,
         "free_threshold": p.free_threshold,
     }

@@ -37,6 +37,11 @@ class BreakParams:
         Erased wall length (metres, in one window) from which a snapshot is broken.
     tolerance_m : float
         A wall that moved by at most this much (metres) is not erased.
+    min_wall_m : float
+        Only established walls at least this long (connected occupied cells, gaps up to
+        ``bridge_m`` bridged) count; people and furniture blobs do not.
+    bridge_m : float
+        Gaps along a wall up to this long are bridged before measuring it, metres.
     tile_m : float
         Erased walls are measured in pieces of this length (tiles of this side), metres.
     window_m : float
@@ -47,8 +52,10 @@ class BreakParams:
         Occupancy (percent) up to which a known cell counts as free.
     """
 
-    threshold_m: float = 2.5
+    threshold_m: float = 1.25
     tolerance_m: float = 0.3
+    min_wall_m: float = 1.0
+    bridge_m: float = 0.1
     tile_m: float = 0.25
     window_m: float = 10.0
     occupied_threshold: int = 65
@@ -56,11 +63,17 @@ class BreakParams:
 
     def __post_init__(self) -> None:
         if not (
-            self.threshold_m > 0 and self.window_m > 0 and self.tile_m > 0 and self.tolerance_m >= 0
+            self.threshold_m > 0
+            and self.window_m > 0
+            and self.tile_m > 0
+            and self.tolerance_m >= 0
+            and self.min_wall_m >= 0
+            and self.bridge_m >= 0
         ):
             msg = (
-                "break parameters need threshold_m, window_m, tile_m > 0 and tolerance_m >= 0, got "
-                f"{self.threshold_m}, {self.window_m}, {self.tile_m}, {self.tolerance_m}"
+                "break parameters need threshold_m, window_m, tile_m > 0 and tolerance_m, "
+                f"min_wall_m, bridge_m >= 0, got {self.threshold_m}, {self.window_m}, "
+                f"{self.tile_m}, {self.tolerance_m}, {self.min_wall_m}, {self.bridge_m}"
             )
             raise ValueError(msg)
         if not 0 <= self.free_threshold < self.occupied_threshold <= 100:
@@ -243,6 +256,8 @@ class BreakDetector:
             snapshot.grid,
             offset_px=offset_px,
             tolerance_px=round(p.tolerance_m / res),
+            min_extent_px=round(p.min_wall_m / res),
+            bridge_px=round(p.bridge_m / res),
             tile_px=max(round(p.tile_m / res), 1),
             window_px=max(round(p.window_m / res), 1),
             occupied_threshold=p.occupied_threshold,
