@@ -38,7 +38,9 @@ LOGS = ("aces", "csail", "intel", "freiburg-079", "freiburg-101")
 
 def _table(sessions: list, threshold: float, *, use_w: bool, title: str) -> None:
     print(f"\n{title} (threshold {threshold:.4g})")
-    print("level start  sessions  false-alarms  detected  <=150s  median-delay-s  max-delay-s  region")
+    print(
+        "level start  sessions  false-alarms  detected  <=150s  median-delay-s  max-delay-s  region"
+    )
     for row in group_table(sessions, threshold, use_w=use_w):
         print(
             f"{row.level:5g} {row.start_fraction:5g}  {row.sessions:8d}  {row.false_alarms:12d}  "
@@ -49,7 +51,9 @@ def _table(sessions: list, threshold: float, *, use_w: bool, title: str) -> None
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--maps-dir", type=Path, default=Path(__file__).parents[1] / "../shared/maps")
+    parser.add_argument(
+        "--maps-dir", type=Path, default=Path(__file__).parents[1] / "../shared/maps"
+    )
     parser.add_argument("--logs", default=",".join(LOGS))
     parser.add_argument("--seeds", type=int, default=3)
     parser.add_argument("--workers", type=int, default=2)
@@ -58,7 +62,7 @@ def main() -> int:
     args = parser.parse_args()
     if args.load is not None:
         with args.load.open("rb") as fh:
-            sessions = pickle.load(fh)  # noqa: S301 - our own file
+            sessions = pickle.load(fh)
     else:
         folder = args.maps_dir / "radish_carmen_corrected_logs"
         paths = [folder / f"{name}-corrected.log.gz" for name in args.logs.split(",")]

@@ -118,7 +118,9 @@ def _check(
         raise RoseError(msg)
 
 
-def _long_walls(walls: npt.NDArray[np.bool_], min_extent_px: int, bridge_px: int) -> npt.NDArray[np.bool_]:
+def _long_walls(
+    walls: npt.NDArray[np.bool_], min_extent_px: int, bridge_px: int
+) -> npt.NDArray[np.bool_]:
     """Wall cells whose connected wall (gaps up to ``bridge_px`` cells bridged) spans at least
     ``min_extent_px`` cells along rows or columns."""
     joined = walls
@@ -133,10 +135,13 @@ def _long_walls(walls: npt.NDArray[np.bool_], min_extent_px: int, bridge_px: int
     cells = cells[order]
     starts = np.flatnonzero(np.diff(flat[cells], prepend=0))
     rows, cols = np.divmod(cells, labels.shape[1])
-    extent = np.maximum(
-        np.maximum.reduceat(rows, starts) - np.minimum.reduceat(rows, starts),
-        np.maximum.reduceat(cols, starts) - np.minimum.reduceat(cols, starts),
-    ) + 1
+    extent = (
+        np.maximum(
+            np.maximum.reduceat(rows, starts) - np.minimum.reduceat(rows, starts),
+            np.maximum.reduceat(cols, starts) - np.minimum.reduceat(cols, starts),
+        )
+        + 1
+    )
     keep = np.zeros(count + 1, dtype=bool)
     keep[flat[cells[starts]]] = extent >= min_extent_px
     return walls & keep[labels]
@@ -300,6 +305,4 @@ def contradicted_walls(
         r0 + br0 + int(rr[-1]),
         c0 + bc0 + int(cc[-1]),
     )
-    return WallContradiction(
-        count, int(tiles.sum()), peak, established, region, tile_px, window_px
-    )
+    return WallContradiction(count, int(tiles.sum()), peak, established, region, tile_px, window_px)

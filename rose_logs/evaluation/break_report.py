@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from rose.directions import FAILURE_LEVEL
-from rose_logs.evaluation.break_sessions import SessionSpec, session_grids
+from rose_logs.evaluation.break_sessions import session_grids
 from rose_logs.evaluation.breaks import (
     DELAY_TARGET_S,
     GroupRow,
@@ -145,7 +145,9 @@ def _roc_figure(path: Path, sessions: Sequence[SessionScores], threshold: float)
         )
     o = [outcome(s, threshold) for s in sessions if not s.case.correct]
     fa_default = np.mean([outcome(s, threshold).false_alarm for s in sessions if s.case.correct])
-    ax.plot([fa_default], [np.mean([x.detected for x in o])], "ko", label=f"default {threshold:g} m")
+    ax.plot(
+        [fa_default], [np.mean([x.detected for x in o])], "ko", label=f"default {threshold:g} m"
+    )
     ax.set_xlabel("false-alarm rate (correct sessions)")
     ax.set_ylabel("detection rate (drifted sessions)")
     ax.set_xlim(-0.02, 1.02)
@@ -177,12 +179,19 @@ def _example_figure(path: Path, scores: SessionScores, threshold: float) -> Path
     image = np.where(snap.grid < 0, 0.75, 1.0 - snap.grid / 100.0)
     fig, (ax_map, ax_t) = plt.subplots(1, 2, figsize=(12, 5.5), width_ratios=(1.1, 1.0))
     ax_map.imshow(
-        image, origin="lower", cmap="gray", vmin=0, vmax=1, extent=(ox, ox + cols * res, oy, oy + rows * res)
+        image,
+        origin="lower",
+        cmap="gray",
+        vmin=0,
+        vmax=1,
+        extent=(ox, ox + cols * res, oy, oy + rows * res),
     )
     x0, y0, x1, y1 = scores.regions_m[o.index]
     pad = 0.5
     ax_map.add_patch(
-        Rectangle((x0 - pad, y0 - pad), x1 - x0 + 2 * pad, y1 - y0 + 2 * pad, fill=False, ec="red", lw=2)
+        Rectangle(
+            (x0 - pad, y0 - pad), x1 - x0 + 2 * pad, y1 - y0 + 2 * pad, fill=False, ec="red", lw=2
+        )
     )
     ax_map.set_title(
         f"{scores.case.label}: snapshot {o.index} at {scores.times_s[o.index]:.0f} s "
@@ -196,7 +205,9 @@ def _example_figure(path: Path, scores: SessionScores, threshold: float) -> Path
         ax_map.set_ylim(oy + r0 * res - 1, oy + (r1 + 1) * res + 1)
     ax_map.set_xlabel("x, m")
     ax_map.set_ylabel("y, m")
-    ax_t.plot(scores.times_s, scores.break_scores_m, "C3.-", label="break score vs previous snapshot")
+    ax_t.plot(
+        scores.times_s, scores.break_scores_m, "C3.-", label="break score vs previous snapshot"
+    )
     ax_t.axhline(threshold, color="C3", ls=":", label=f"threshold {threshold:g} m")
     ax_t.axvline(spec.drift_start_s, color="k", ls="--", label="drift starts")
     ax_t.set_xlabel("session time, s")
@@ -219,9 +230,14 @@ def _pick_example(sessions: Sequence[SessionScores], threshold: float) -> Sessio
     """A level-4 session started at half time, detected, with the region right (first such)."""
     for s in sessions:
         o = outcome(s, threshold)
-        if s.case.spec.drift_level >= 4 and o.detected and o.index is not None:
-            if s.region_hits[o.index] >= 0.5 and s.case.start_fraction >= 0.5:
-                return s
+        if (
+            s.case.spec.drift_level >= 4
+            and o.detected
+            and o.index is not None
+            and s.region_hits[o.index] >= 0.5
+            and s.case.start_fraction >= 0.5
+        ):
+            return s
     return next((s for s in sessions if outcome(s, threshold).detected), None)
 
 

@@ -36,7 +36,12 @@ import rose
 from rose.breaks import erased_walls
 from rose.params import RoseParams
 from rose_logs.carmen.parse import CarmenLog, read_carmen_log
-from rose_logs.evaluation.break_sessions import SessionGrid, SessionSpec, scan_clock_ns, session_grids
+from rose_logs.evaluation.break_sessions import (
+    SessionGrid,
+    SessionSpec,
+    scan_clock_ns,
+    session_grids,
+)
 from rose_logs.session.breaks import BreakDetector, BreakParams
 from rose_logs.snapshots import MapSnapshot
 

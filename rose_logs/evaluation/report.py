@@ -200,7 +200,9 @@ def run_evaluation(
         break_md = section.markdown
         files.extend(section.files)
         timings["experiment 4 (breaks)"] = time.perf_counter() - t
-        say(f"experiment 4: {len(section.sessions)} sessions in {timings['experiment 4 (breaks)']:.1f} s")
+        say(
+            f"experiment 4: {len(section.sessions)} sessions in {timings['experiment 4 (breaks)']:.1f} s"
+        )
 
     files.append(_write_csv(out / "exp1_clutter_runs.csv", clutter_runs))
     files.append(_write_csv(out / "exp1_furniture.csv", furniture_runs))

@@ -243,7 +243,9 @@ class BreakDetector:
         if not broken:
             self._trusted[topic] = (index, snapshot)
         region = None if found.region_px is None else _region_m(snapshot, found.region_px)
-        return BreakScore(score, broken, started, trusted[0], region, found.erased_tiles * found.tile_px * res)
+        return BreakScore(
+            score, broken, started, trusted[0], region, found.erased_tiles * found.tile_px * res
+        )
 
     def compare(
         self, trusted: MapSnapshot, snapshot: MapSnapshot, offset_px: tuple[int, int]

@@ -101,7 +101,9 @@ class SnapshotRecord:
 def _region_json(region: tuple[float, float, float, float] | None) -> dict[str, float] | None:
     if region is None:
         return None
-    return dict(zip(("x_min", "y_min", "x_max", "y_max"), (round(v, 6) for v in region), strict=True))
+    return dict(
+        zip(("x_min", "y_min", "x_max", "y_max"), (round(v, 6) for v in region), strict=True)
+    )
 
 
 @dataclass(frozen=True)

@@ -49,7 +49,7 @@ def test_score_threshold_and_region_are_logged(tmp_path: Path) -> None:
     ]
     # The region: cleared on the quiet snapshot, a closed rectangle on the broken one.
     region_rows = sorted(rows[region], key=lambda r: r[rv.TIMELINE])
-    strips = [v for k, v in region_rows[-1].items() if k.endswith("strips")][0]
+    strips = next(v for k, v in region_rows[-1].items() if k.endswith("strips"))
     corners = np.array(strips[0])
     assert corners.shape == (5, 3)
     np.testing.assert_allclose(corners[:, :2].min(axis=0), (1.0, 2.0))

@@ -63,7 +63,9 @@ def test_gate_and_json_break(tmp_path: Path, capsys, fr079, broken_grid) -> None
     assert main(["process", str(built.path), "--no-output", "--fail-above", "0.9", "-q"]) == 0
 
 
-def test_fail_on_break_gate_and_json_first_break(tmp_path: Path, capsys, fr079, broken_grid) -> None:
+def test_fail_on_break_gate_and_json_first_break(
+    tmp_path: Path, capsys, fr079, broken_grid
+) -> None:
     built = build_log(tmp_path / "in.mcap", "mcap-ros2", session_maps([*fr079, broken_grid]))
     report = tmp_path / "r.json"
     args = ["process", str(built.path), "--no-output", "-q", "--json", str(report)]
