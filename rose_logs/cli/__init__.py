@@ -1,4 +1,4 @@
-"""The ``rose-bag`` command: ``process``, ``info``, ``convert`` and ``evaluate``, one module each.
+"""The ``rose-bag`` command: ``process``, ``info``, ``convert``, ``evaluate`` and ``batch``, one module each.
 
 Exit codes: 0 success, 1 error (one line ``error: <file>: <problem>`` on stderr), 2 usage error,
 3 ``--fail-above`` or ``--fail-on-break`` gate failed. Tracebacks only with ``--debug``.
@@ -11,7 +11,7 @@ import logging
 import sys
 
 from rose.errors import RoseError
-from rose_logs.cli import convert, evaluate, info, process
+from rose_logs.cli import batch, convert, evaluate, info, process
 from rose_logs.cli.options import EXIT_GATE, UsageError
 from rose_logs.errors import LogError
 
@@ -28,7 +28,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--debug", action="store_true", help="debug logging and tracebacks on errors"
     )
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
-    for command in (process, info, convert, evaluate):
+    for command in (process, info, convert, evaluate, batch):
         command.add_parser(subparsers)
     return parser
 

@@ -9,7 +9,7 @@ from typing import Any
 
 from rose_logs.carmen.parse import read_carmen_log
 from rose_logs.carmen.raycast import BuilderParams
-from rose_logs.carmen.session import write_carmen_session
+from rose_logs.carmen.session import SessionOptions, write_carmen_session
 from rose_logs.errors import LogWriteError
 
 __all__ = ["add_parser", "run"]
@@ -78,17 +78,16 @@ def run(args: argparse.Namespace) -> int:
     if log.malformed:
         print(f"warning: skipped {log.malformed} malformed FLASER lines", file=sys.stderr)
     try:
-        summary = write_carmen_session(
-            log,
-            args.output,
-            fmt=args.fmt,
+        options = SessionOptions(
             builder_params=BuilderParams(resolution_m=args.resolution, max_range_m=args.max_range),
             map_period_s=args.map_period,
             pose_output=args.pose,
             drift_level=args.drift_level,
             drift_seed=args.drift_seed,
             drift_start_s=args.drift_start,
-            force=args.force,
+        )
+        summary = write_carmen_session(
+            log, args.output, fmt=args.fmt, options=options, force=args.force
         )
     except ValueError as err:  # a parameter out of range: one line, like every other error
         msg = f"{args.output}: {err}"

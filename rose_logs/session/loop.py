@@ -65,6 +65,7 @@ def process_log(
     progress: bool = False,
     on_snapshot: Callable[[MapSnapshot, RoseResult, SnapshotRecord], None] | None = None,
     walls: bool = False,
+    recording_id: str | None = None,
     break_params: BreakParams | None = None,
 ) -> SessionReport:
     """Run ROSE over every map snapshot of a log; write the output log and Rerun recording.
@@ -97,6 +98,9 @@ def process_log(
         ``<map>/rose/walls`` and line strips in Rerun. Costs about 20-45 ms per 1000 x 1000 snapshot.
     on_snapshot : callable, optional
         Called with ``(snapshot, result, record)`` after each snapshot.
+    recording_id : str, optional
+        Rerun recording id; default: derived from the input's file name. ``rose-bag batch`` passes
+        one derived from the full URI, so that two robots' ``run.mcap`` stay separate recordings.
     break_params : BreakParams, optional
         Break detector parameters (defaults of :class:`rose_logs.session.breaks.BreakParams`).
 
@@ -126,27 +130,15 @@ def process_log(
         channels = reader.channels
         map_topics = select_topics(input_path, channels, topics)
         updates = update_targets(channels, map_topics)
-        writer: LogWriter | None = None
-        if output_path is not None:
-            fmt = output_format or format_from_path(output_path) or reader.format
-            writer = LogWriter(
-                output_path,
-                fmt,
-                serialization=reader.serialization,
-                force=force,
-                protected=(input_path,),
-            )
+        writer = _output_writer(reader, input_path, output_path, output_format, force=force)
         rerun: RerunSink | None = None
         try:
             if writer is not None:
                 writer.open()
             handles, derived = _prepare_output(writer, channels, map_topics)
             if rrd_path is not None or spawn:
-                rerun = RerunSink(
-                    rrd_path=None if rrd_path is None else Path(rrd_path),
-                    spawn=spawn,
-                    roots=tuple(entity_root(t) for t in map_topics),
-                    recording_id=str(uuid.uuid5(uuid.NAMESPACE_URL, input_path.name)),
+                rerun = _rerun_sink(
+                    input_path, rrd_path, map_topics, spawn=spawn, recording_id=recording_id
                 )
             loop = _Loop(
                 reader=reader,
@@ -178,24 +170,92 @@ def process_log(
             if rerun is not None:
                 rerun.abort()
             raise
-        return SessionReport(
+        return _session_report(
+            reader,
+            loop,
             input_path=input_path,
-            input_format=reader.format,
             output_path=None if writer is None else writer.path,
-            rrd_path=None if rrd_path is None else Path(rrd_path),
+            rrd_path=rrd_path,
             map_topics=map_topics,
-            records=tuple(loop.records),
-            breaks=tuple(loop.breaks),
             failure_level=failure_level,
-            message_count=reader.message_count,
-            start_ns=reader.start_ns,
-            end_ns=reader.end_ns,
-            skipped_messages=loop.skipped,
-            elapsed_s=time.perf_counter() - started,
             params=params,
-            detected_breaks=tuple(loop.detected),
+            started=started,
             break_threshold_m=break_params.threshold_m,
         )
+
+
+def _output_writer(
+    reader: LogReader,
+    input_path: Path,
+    output_path: Path | None,
+    output_format: LogFormat | None,
+    *,
+    force: bool,
+) -> LogWriter | None:
+    """The (unopened) output log: the input's serialisation and QoS spelling, the input protected."""
+    if output_path is None:
+        return None
+    fmt = output_format or format_from_path(output_path) or reader.format
+    return LogWriter(
+        output_path,
+        fmt,
+        serialization=reader.serialization,
+        force=force,
+        protected=(input_path,),
+        qos_style=reader.qos_style,
+    )
+
+
+def _rerun_sink(
+    input_path: Path,
+    rrd_path: Path | None,
+    map_topics: Sequence[str],
+    *,
+    spawn: bool,
+    recording_id: str | None,
+) -> RerunSink:
+    """The Rerun recording of a session: one entity root per map topic; the id ``recording_id``, else
+    derived from the input's file name."""
+    return RerunSink(
+        rrd_path=None if rrd_path is None else Path(rrd_path),
+        spawn=spawn,
+        roots=tuple(entity_root(t) for t in map_topics),
+        recording_id=recording_id or str(uuid.uuid5(uuid.NAMESPACE_URL, input_path.name)),
+    )
+
+
+def _session_report(
+    reader: LogReader,
+    loop: _Loop,
+    *,
+    input_path: Path,
+    output_path: Path | None,
+    rrd_path: Path | None,
+    map_topics: Sequence[str],
+    failure_level: float,
+    params: RoseParams,
+    started: float,
+    break_threshold_m: float,
+) -> SessionReport:
+    """What one pass found, with the input's counts and time range."""
+    return SessionReport(
+        input_path=input_path,
+        input_format=reader.format,
+        output_path=output_path,
+        rrd_path=None if rrd_path is None else Path(rrd_path),
+        map_topics=tuple(map_topics),
+        records=tuple(loop.records),
+        breaks=tuple(loop.breaks),
+        failure_level=failure_level,
+        message_count=reader.message_count,
+        start_ns=reader.start_ns,
+        end_ns=reader.end_ns,
+        skipped_messages=loop.skipped,
+        elapsed_s=time.perf_counter() - started,
+        params=params,
+        detected_breaks=tuple(loop.detected),
+        break_threshold_m=break_threshold_m,
+    )
 
 
 def _prepare_output(
