@@ -237,7 +237,8 @@ class BreakDetector:
         found = self.compare(trusted[1], snapshot, offset)
         res = snapshot.resolution_m
         score = found.peak_tiles * found.tile_px * res
-        broken = score >= self.params.threshold_m
+        # Scores are whole tiles times the tile side: compare without float noise in the product.
+        broken = score >= self.params.threshold_m * (1.0 - 1e-9)
         started = broken and not self._broken.get(topic, False)
         self._broken[topic] = broken
         if not broken:
