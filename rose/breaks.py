@@ -87,7 +87,10 @@ def _tiles(
     hp, wp = -(-h // tile_px) * tile_px, -(-w // tile_px) * tile_px
     padded = np.zeros((hp, wp), dtype=bool)
     padded[r0 - tr : r0 - tr + mask.shape[0], c0 - tc : c0 - tc + mask.shape[1]] = mask
-    return padded.reshape(hp // tile_px, tile_px, wp // tile_px, tile_px).any(axis=(1, 3)), tr, tc
+    flags = np.asarray(
+        padded.reshape(hp // tile_px, tile_px, wp // tile_px, tile_px).any(axis=(1, 3))
+    )
+    return flags, tr, tc
 
 
 def _densest_window(tiles: npt.NDArray[np.bool_], side: int) -> tuple[int, int, int]:

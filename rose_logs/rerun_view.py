@@ -66,7 +66,7 @@ from __future__ import annotations
 import logging
 import math
 from pathlib import Path
-from typing import Final
+from typing import Final, TypeVar
 
 import numpy as np
 import numpy.typing as npt
@@ -76,6 +76,8 @@ import rerun.blueprint as rrb
 from rose.result import RoseResult
 from rose.walls import WallSet
 from rose_logs.snapshots import MapSnapshot
+
+_Cell = TypeVar("_Cell", bound=np.generic)
 
 __all__ = [
     "CLASS_CLUTTER",
@@ -377,7 +379,7 @@ def log_static(recording: rr.RecordingStream, *, entity_root: str = "map") -> No
 # --------------------------------------------------------------------------------------------------
 
 
-def grid_to_image_rows(grid: npt.NDArray[np.generic]) -> npt.NDArray[np.generic]:
+def grid_to_image_rows(grid: npt.NDArray[_Cell]) -> npt.NDArray[_Cell]:
     """Reorder a ROS-convention grid's rows for an image buffer (top row first).
 
     Parameters
@@ -749,7 +751,7 @@ def log_directions(
     recording.log(
         paths.metric_directions,
         rr.LineStrips3D(
-            map_m,
+            map_m.astype(np.float32),  # Rerun stores float32 positions
             colors=_DIRECTION_COLOR,
             radii=rr.Radius.ui_points(2.0),
             labels=labels,

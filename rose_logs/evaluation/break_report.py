@@ -166,7 +166,8 @@ def _example_figure(path: Path, scores: SessionScores, threshold: float) -> Path
     from matplotlib.patches import Rectangle
 
     o = outcome(scores, threshold)
-    if o.index is None or scores.regions_m[o.index] is None:
+    region = None if o.index is None else scores.regions_m[o.index]
+    if o.index is None or region is None:
         return None
     spec = scores.case.spec
     from rose_logs.evaluation.breaks import _log  # the cached parsed log
@@ -186,7 +187,7 @@ def _example_figure(path: Path, scores: SessionScores, threshold: float) -> Path
         vmax=1,
         extent=(ox, ox + cols * res, oy, oy + rows * res),
     )
-    x0, y0, x1, y1 = scores.regions_m[o.index]
+    x0, y0, x1, y1 = region
     pad = 0.5
     ax_map.add_patch(
         Rectangle(

@@ -12,6 +12,7 @@ import numpy.typing as npt
 import pytest
 import rerun.blueprint as rrb
 from numpy.testing import assert_allclose, assert_array_equal
+from real_data import FR079_DIR, repo_data
 
 import rose
 from rose_logs import rerun_view as rv
@@ -19,12 +20,8 @@ from rose_logs.snapshots import MapSnapshot
 
 rerun_chunk = pytest.importorskip("rerun.chunk")
 
-MAP_DIR = Path(__file__).resolve().parents[3] / "shared" / "maps" / "rose2_aislabunimi"
-FREIBURG = MAP_DIR / "Freiburg_Building_079_partial"
 T0_NS = 1_700_000_000_000_000_000
 PERIOD_NS = 5_000_000_000
-
-pytestmark = pytest.mark.skipif(not FREIBURG.is_dir(), reason=f"{FREIBURG} not available")
 
 
 def _snapshot(grid: npt.NDArray[np.int8], index: int, *, yaw_rad: float = 0.0) -> MapSnapshot:
@@ -45,7 +42,7 @@ def analysed() -> list[tuple[MapSnapshot, rose.RoseResult]]:
     """Three consecutive exploration snapshots of Freiburg 079 (the map grows between them)."""
     pairs = []
     for index, name in enumerate(("map5.yaml", "map6.yaml", "map7.yaml")):
-        grid = rose.load_map(FREIBURG / name).grid
+        grid = rose.load_map(repo_data(f"{FR079_DIR}/{name}")).grid
         grid.setflags(write=False)
         pairs.append((_snapshot(grid, index, yaw_rad=0.1), rose.analyze(grid)))
     return pairs
