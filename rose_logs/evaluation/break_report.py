@@ -172,7 +172,7 @@ def _example_figure(path: Path, scores: SessionScores, threshold: float) -> Path
     spec = scores.case.spec
     from rose_logs.evaluation.breaks import _log  # the cached parsed log
 
-    grids = list(session_grids(_log(spec.log_path), spec))
+    grids = list(session_grids(_log(spec.log_path, spec.max_scans), spec))
     snap = grids[o.index]
     res = snap.resolution_m
     rows, cols = snap.grid.shape

@@ -60,6 +60,8 @@ class SessionSpec:
         Seed of the drift.
     map_period_s : float
         Seconds between snapshots.
+    max_scans : int, optional
+        Only the first scans of the log (for a quick run); the whole log when None.
     """
 
     log_path: Path
@@ -67,6 +69,7 @@ class SessionSpec:
     drift_start_s: float = 0.0
     drift_seed: int = 0
     map_period_s: float = 30.0
+    max_scans: int | None = None
 
     @property
     def name(self) -> str:

@@ -161,14 +161,16 @@ class BreakOutcome:
 
 
 @functools.lru_cache(maxsize=2)
-def _log(path: Path) -> CarmenLog:
-    return read_carmen_log(path)
+def _log(path: Path, max_scans: int | None = None) -> CarmenLog:
+    return read_carmen_log(path, max_scans=max_scans)
 
 
 @functools.lru_cache(maxsize=1)
-def _correct_session(path: Path, map_period_s: float) -> tuple[SessionGrid, ...]:
-    spec = SessionSpec(path, map_period_s=map_period_s)
-    return tuple(session_grids(_log(path), spec))
+def _correct_session(
+    path: Path, map_period_s: float, max_scans: int | None
+) -> tuple[SessionGrid, ...]:
+    spec = SessionSpec(path, map_period_s=map_period_s, max_scans=max_scans)
+    return tuple(session_grids(_log(path, max_scans), spec))
 
 
 def break_cases(
@@ -178,13 +180,16 @@ def break_cases(
     start_fractions: Sequence[float] = (0.25, 0.5),
     seeds: Sequence[int] = (0, 1, 2),
     map_period_s: float = 30.0,
+    max_scans: int | None = None,
 ) -> list[BreakCase]:
-    """The correct session and every drifted session of each log, in a fixed order."""
+    """The correct session and every drifted session of each log, in a fixed order (``max_scans``:
+    only the first scans of each log)."""
     cases = []
     for path in log_paths:
-        clock, _ = scan_clock_ns(_log(Path(path)))
+        clock, _ = scan_clock_ns(_log(Path(path), max_scans))
         duration = float(clock[-1]) / 1e9
-        cases.append(BreakCase(SessionSpec(Path(path), map_period_s=map_period_s), 0.0, duration))
+        correct = SessionSpec(Path(path), map_period_s=map_period_s, max_scans=max_scans)
+        cases.append(BreakCase(correct, 0.0, duration))
         for level in levels:
             for fraction in start_fractions:
                 for seed in seeds:
@@ -194,6 +199,7 @@ def break_cases(
                         drift_start_s=round(duration * fraction, 3),
                         drift_seed=int(seed),
                         map_period_s=map_period_s,
+                        max_scans=max_scans,
                     )
                     cases.append(BreakCase(spec, float(fraction), duration))
     return cases
@@ -256,30 +262,36 @@ def score_case(
     *,
     break_params: BreakParams | None = None,
     rose_params: RoseParams | None = None,
+    structure_scores: bool = True,
 ) -> SessionScores:
-    """Replay one session and score every snapshot (see module notes)."""
-    log = _log(case.spec.log_path)
+    """Replay one session and score every snapshot (see module notes).
+
+    ``structure_scores=False`` skips ROSE: W is NaN and ``rose_s`` 0.
+    """
+    log = _log(case.spec.log_path, case.spec.max_scans)
     params = break_params if break_params is not None else BreakParams()
     # An infinite threshold keeps the previous snapshot trusted: every score is against it.
     detector = BreakDetector(dataclasses.replace(params, threshold_m=math.inf))
     rose_params = rose_params if rose_params is not None else RoseParams()
     truth: tuple[SessionGrid, ...] = ()
     if not case.correct:
-        truth = _correct_session(case.spec.log_path, case.spec.map_period_s)
+        truth = _correct_session(case.spec.log_path, case.spec.map_period_s, case.spec.max_scans)
     times, scores, w, regions, hits, det_s, rose_s, cells = [], [], [], [], [], [], [], []
     previous: SessionGrid | None = None
     for i, grid in enumerate(session_grids(log, case.spec)):
         t0 = time.process_time()  # CPU time: wall time is meaningless on a shared machine
         verdict = detector.update(_snapshot(grid))
         t1 = time.process_time()
-        result = rose.analyze(grid.grid, rose_params)
+        w_i = math.nan
+        if structure_scores:
+            w_i = float(rose.analyze(grid.grid, rose_params).structure_score)
         t2 = time.process_time()
         hit = math.nan
         if verdict.region_m is not None and previous is not None and i < len(truth):
             hit = _region_hit(detector, previous, grid, truth[i], verdict.region_m)
         times.append(grid.time_ns / 1e9)
         scores.append(verdict.score_m)
-        w.append(float(result.structure_score))
+        w.append(w_i)
         regions.append(verdict.region_m)
         hits.append(hit)
         det_s.append(t1 - t0)
