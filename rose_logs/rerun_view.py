@@ -140,6 +140,7 @@ CLASS_UNKNOWN: Final = 2
 CLASS_OCCUPIED: Final = 3
 CLASS_STRUCTURE: Final = 4
 CLASS_CLUTTER: Final = 5
+CLASS_RESCUED: Final = 6
 
 _CLASS_INFO: Final = (
     (CLASS_FREE, "free", (245, 245, 245)),
@@ -147,6 +148,7 @@ _CLASS_INFO: Final = (
     (CLASS_OCCUPIED, "occupied", (40, 40, 40)),
     (CLASS_STRUCTURE, "structure", (30, 100, 230)),
     (CLASS_CLUTTER, "clutter", (235, 60, 40)),
+    (CLASS_RESCUED, "wall kept by the cleaning", (40, 190, 90)),
 )
 _DIRECTION_COLOR: Final = (255, 170, 0)
 _WALL_COLOR: Final = (0, 200, 255)
@@ -395,7 +397,11 @@ def grid_to_image_rows(grid: npt.NDArray[_Cell]) -> npt.NDArray[_Cell]:
     return np.ascontiguousarray(grid[::-1])
 
 
-def segmentation_classes(grid: npt.NDArray[np.int8], result: RoseResult) -> npt.NDArray[np.uint8]:
+def segmentation_classes(
+    grid: npt.NDArray[np.int8],
+    result: RoseResult,
+    rescued: npt.NDArray[np.bool_] | None = None,
+) -> npt.NDArray[np.uint8]:
     """Class id of every cell, in grid (ROS) row order.
 
     Parameters
@@ -404,13 +410,16 @@ def segmentation_classes(grid: npt.NDArray[np.int8], result: RoseResult) -> npt.
         The analysed grid (ROS convention, -1 unknown).
     result : RoseResult
         ROSE's result for ``grid``.
+    rescued : ndarray of bool, shape (rows, cols), optional
+        Cells the cleaning kept although the paper calls them clutter (:attr:`rose.CleanResult.rescued`):
+        :data:`CLASS_RESCUED` instead of :data:`CLASS_CLUTTER`.
 
     Returns
     -------
     ndarray of uint8, shape (rows, cols)
         :data:`CLASS_FREE` for known, non-occupied cells, :data:`CLASS_UNKNOWN`, then
-        :data:`CLASS_STRUCTURE` / :data:`CLASS_CLUTTER` for classified occupied cells and
-        :data:`CLASS_OCCUPIED` for occupied cells ROSE did not classify (no structure).
+        :data:`CLASS_STRUCTURE` / :data:`CLASS_CLUTTER` / :data:`CLASS_RESCUED` for classified occupied
+        cells and :data:`CLASS_OCCUPIED` for occupied cells ROSE did not classify (no structure).
     """
     # The ids are chosen so the class is a sum of the cell's flags (no lookup, no Python loop):
     # free 1, unknown 1 + 1, occupied 1 + 2, structure 1 + 2 + 1, clutter 1 + 2 + 2.
@@ -419,6 +428,8 @@ def segmentation_classes(grid: npt.NDArray[np.int8], result: RoseResult) -> npt.
     if result.has_structure:
         classes += result.structure.view(np.uint8)
         classes += result.clutter.view(np.uint8) << 1
+    if rescued is not None:
+        classes[rescued] = CLASS_RESCUED
     return classes
 
 
@@ -587,6 +598,7 @@ def log_snapshot(
     entity_root: str = "map",
     snapshot_index: int | None = None,
     walls: WallSet | None = None,
+    rescued: npt.NDArray[np.bool_] | None = None,
 ) -> None:
     """Log every stream of one analysed snapshot at its log time.
 
@@ -604,6 +616,8 @@ def log_snapshot(
         Index of the snapshot in the session, logged on the ``snapshot`` sequence timeline.
     walls : WallSet or None
         Wall segments found in this snapshot (``rose.extract_walls``); not logged when None.
+    rescued : ndarray of bool, shape (rows, cols), optional
+        Cells the cleaning kept against the paper's labelling, shown as their own class.
 
     Raises
     ------
@@ -621,7 +635,7 @@ def log_snapshot(
     log_static(recording, entity_root=entity_root)
     _set_time(recording, snapshot, snapshot_index)
     log_grid_map(recording, snapshot, paths=paths)
-    log_segmentation(recording, snapshot, result, paths=paths)
+    log_segmentation(recording, snapshot, result, paths=paths, rescued=rescued)
     log_cell_scores(recording, result, paths=paths)
     log_directions(recording, snapshot, result, paths=paths)
     log_spectrum(recording, result, paths=paths)
@@ -693,9 +707,11 @@ def log_segmentation(
     result: RoseResult,
     *,
     paths: EntityPaths,
+    rescued: npt.NDArray[np.bool_] | None = None,
 ) -> None:
-    """Log the free / unknown / occupied / structure / clutter classes as a segmentation image."""
-    classes = grid_to_image_rows(segmentation_classes(snapshot.grid, result))
+    """Log the free / unknown / occupied / structure / clutter (/ rescued) classes as a segmentation
+    image."""
+    classes = grid_to_image_rows(segmentation_classes(snapshot.grid, result, rescued))
     recording.log(paths.segmentation, rr.SegmentationImage(classes))
 
 

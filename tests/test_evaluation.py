@@ -115,6 +115,8 @@ def test_small_evaluation_writes_every_artefact(tmp_path: Path) -> None:
         "exp3_w_vs_precision.png",
         "maps_from_logs.png",
         "map_freiburg-101.png",
+        "cleaning_runs.csv",
+        "cleaning_before_after.png",
         "wall_error.csv",
         "wall_error.png",
     }

@@ -17,6 +17,7 @@ import numpy as np
 
 import rose
 import rose_logs
+from rose_logs.evaluation.cleaning_report import cleaning_experiment
 from rose_logs.evaluation.config import PAPER_W, EvaluationConfig
 from rose_logs.evaluation.experiments import (
     ClutterRun,
@@ -239,6 +240,11 @@ def run_evaluation(
     timings["wall extraction"] = time.perf_counter() - t
     if wall_report is not None:
         files.extend(wall_report.files)
+    t = time.perf_counter()
+    cleaning = cleaning_experiment(config, out, seeds=config.drift_seeds)
+    files.extend(cleaning.files)
+    timings["cleaning"] = time.perf_counter() - t
+    say(f"cleaning: {len(cleaning.runs)} runs in {timings['cleaning']:.1f} s")
     run_s = time.perf_counter() - t0
     median_by_map = {
         name: (
@@ -261,6 +267,7 @@ def run_evaluation(
         timings=timings,
         run_s=run_s,
         wall_md=wall_report.markdown if wall_report is not None else "",
+        cleaning_md=cleaning.markdown,
     )
     md_path = out / "report.md"
     md_path.write_text(markdown + ("\n" + break_md if break_md else ""))
@@ -494,8 +501,10 @@ def _markdown(
     timings: dict[str, float],
     run_s: float,
     wall_md: str,
+    cleaning_md: str = "",
 ) -> str:
-    """The report: setup, the three experiments, the wall section (``wall_md``), the file list."""
+    """The report: setup, the three experiments, the wall section (``wall_md``), the cleaning section
+    (``cleaning_md``), the file list."""
     lines = [
         *_setup_section(config, timings=timings, run_s=run_s, map_images=map_images),
         *_clutter_section(clutter_runs, median_by_map, figures),
@@ -505,6 +514,8 @@ def _markdown(
     ]
     if wall_md:
         lines += [wall_md.rstrip(), ""]
+    if cleaning_md:
+        lines += [cleaning_md.rstrip(), ""]
     if not figures:
         lines += ["Figures were not written (plots disabled or matplotlib missing).", ""]
     lines += _files_section()

@@ -54,6 +54,12 @@ class SnapshotRecord:
         snapshot erased in one window compared with the last trusted snapshot.
     break_region_m : tuple of float or None
         ``(x_min, y_min, x_max, y_max)`` of those erased walls, map frame, metres.
+    clean_method : str
+        How ``<map>/rose/cleaned`` was made (``"walls"`` or ``"paper"``, see :func:`rose.clean.clean`).
+    removed_count, kept_count : int
+        Occupied cells the cleaning removed / kept.
+    rescued_count : int
+        Kept cells the paper's labelling calls clutter.
     """
 
     topic: str
@@ -73,6 +79,10 @@ class SnapshotRecord:
     from_update: bool
     break_score_m: float = 0.0
     break_region_m: tuple[float, float, float, float] | None = None
+    clean_method: str = "paper"
+    removed_count: int = 0
+    kept_count: int = 0
+    rescued_count: int = 0
 
     def to_json(self, *, start_ns: int) -> dict[str, Any]:
         """JSON-ready dict; ``time_s`` is seconds since ``start_ns``; NaN becomes null."""
@@ -95,6 +105,10 @@ class SnapshotRecord:
             "from_update": self.from_update,
             "break_score_m": round(self.break_score_m, 6),
             "break_region_m": _region_json(self.break_region_m),
+            "clean_method": self.clean_method,
+            "removed": self.removed_count,
+            "kept": self.kept_count,
+            "rescued": self.rescued_count,
         }
 
 

@@ -5,6 +5,9 @@ from __future__ import annotations
 import logging
 from pathlib import Path
 
+import numpy as np
+import numpy.typing as npt
+
 from rose.result import RoseResult
 from rose.walls.segments import WallSet
 from rose_logs.errors import LogWriteError
@@ -46,7 +49,12 @@ class RerunSink:
             raise LogWriteError(msg) from err
 
     def snapshot(
-        self, snapshot: MapSnapshot, result: RoseResult, index: int, walls: WallSet | None
+        self,
+        snapshot: MapSnapshot,
+        result: RoseResult,
+        index: int,
+        walls: WallSet | None,
+        rescued: npt.NDArray[np.bool_] | None = None,
     ) -> None:
         self.view.log_snapshot(
             self.recording,
@@ -55,6 +63,7 @@ class RerunSink:
             entity_root=entity_root(snapshot.topic),
             snapshot_index=index,
             walls=walls,
+            rescued=rescued,
         )
 
     def break_score(
