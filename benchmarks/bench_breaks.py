@@ -22,6 +22,7 @@ import time
 from pathlib import Path
 
 from rose.directions import FAILURE_LEVEL
+from rose_logs.datasets import require_data_dir
 from rose_logs.evaluation.breaks import (
     DELAY_TARGET_S,
     break_cases,
@@ -64,7 +65,8 @@ def main() -> int:
         with args.load.open("rb") as fh:
             sessions = pickle.load(fh)
     else:
-        folder = args.maps_dir / "radish_carmen_corrected_logs"
+        maps_dir = args.maps_dir if args.maps_dir is not None else require_data_dir()
+        folder = maps_dir / "radish_carmen_corrected_logs"
         paths = [folder / f"{name}-corrected.log.gz" for name in args.logs.split(",")]
         missing = [p for p in paths if not p.exists()]
         if missing:
