@@ -355,6 +355,7 @@ def _blueprint_container(paths: EntityPaths) -> rrb.Container:
                 origin=f"/{paths.score}",
                 axis_y=rrb.ScalarAxis(range=(0.0, 1.0)),
             ),
+            rrb.TimeSeriesView(name=f"{root}: break score (m)", origin=f"/{root}/break_score"),
             rrb.TextLogView(name=f"{root}: events", origin=f"/{paths.events}"),
         ),
         name=root,

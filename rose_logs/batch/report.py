@@ -34,7 +34,7 @@ def markdown(report: BatchReport, summary: dict[str, Any], *, figure: bool) -> s
         "# rose-bag batch report",
         "",
         f"{_count(summary['recordings'], 'recording')}: {summary['ok']} processed, "
-        f"{summary['errors']} failed, {summary['broken']} with a map that broke (W > {level:g}); "
+        f"{summary['errors']} failed, {summary['broken']} with a map that broke (break detector, or W > {level:g}); "
         f"{_count(summary['snapshots'], 'map snapshot')}.",
         "",
     ]
@@ -44,8 +44,9 @@ def markdown(report: BatchReport, summary: dict[str, Any], *, figure: bool) -> s
         lines += [
             "![W over time per recording; broken ones in colour](w_over_time.png)",
             "",
-            "W over time since each recording's first message; grey: maps that stayed below "
-            f"{level:g}; in colour: maps that broke (dot: first snapshot above the level).",
+            "W over time since each recording's first message; grey: maps that did not break; "
+            f"in colour: maps that broke (the break detector fired or W rose above {level:g}; "
+            "dot: the first broken snapshot).",
             "",
         ]
     broken = [r for r in rows if r["broke"]]

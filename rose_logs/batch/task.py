@@ -107,7 +107,8 @@ class RecordingResult:
     start_ns, end_ns : int or None
         Log time of the first and last message, ns.
     snapshots : tuple of dict
-        One JSON-ready dict per snapshot (``SnapshotRecord.to_json`` plus ``broken``).
+        One JSON-ready dict per snapshot (``SnapshotRecord.to_json`` plus ``break_detected`` (the
+        break detector fired), ``w_above_failure`` (W > ``failure_level``) and ``broken`` (either)).
     failure_level : float
         W above which a snapshot counted as broken.
     seconds : float
@@ -346,10 +347,15 @@ def _attempt(
         cleaned_uri = None if cleaned is None else store.put(cleaned, f"cleaned/{recording.name}")
         rrd_uri = None if rrd is None else store.put(rrd, f"rrd/{recording.name}.rrd")
     level = options.failure_level
+    detected = {(b.topic, b.index) for b in report.detected_breaks}
     snapshots = []
     for record in report.records:
         row = record.to_json(start_ns=report.start_ns)
-        row["broken"] = bool(record.structure_score > level)
+        # A map breaks where the break detector fires or where W rises above the paper's level;
+        # both reasons stay visible as their own columns.
+        row["break_detected"] = (record.topic, record.index) in detected
+        row["w_above_failure"] = bool(record.structure_score > level)
+        row["broken"] = row["break_detected"] or row["w_above_failure"]
         snapshots.append(row)
     return RecordingResult(
         uri=recording.uri,

@@ -1,7 +1,7 @@
 """The ``rose-bag`` command: ``process``, ``info``, ``convert``, ``evaluate`` and ``batch``, one module each.
 
 Exit codes: 0 success, 1 error (one line ``error: <file>: <problem>`` on stderr), 2 usage error,
-3 ``--fail-above`` gate failed. Tracebacks only with ``--debug``.
+3 ``--fail-above`` or ``--fail-on-break`` gate failed. Tracebacks only with ``--debug``.
 """
 
 from __future__ import annotations

@@ -47,6 +47,13 @@ def _configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--maps", type=_csv, default=None, help="comma-separated benchmark maps")
     parser.add_argument("--sizes", type=_ints, default=None, help="obstacle sizes in px")
     parser.add_argument("--counts", type=_ints, default=None, help="obstacle counts per map")
+    parser.add_argument(
+        "--break-seeds",
+        type=int,
+        default=None,
+        help="experiment 4 (break detection on replayed sessions): seeds per log, drift level "
+        "and start (small: 0 = skipped, full: 3)",
+    )
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
 
 
@@ -72,6 +79,7 @@ def config_from_args(args: argparse.Namespace) -> EvaluationConfig:
         ("maps", "benchmark_maps"),
         ("sizes", "sizes_px"),
         ("counts", "counts"),
+        ("break_seeds", "break_seeds"),
     ):
         value = getattr(args, attr, None)
         if value is not None:

@@ -82,6 +82,19 @@ def add_parser(subparsers: Any) -> None:
         metavar="W",
         help=f"exit {EXIT_GATE} if any snapshot's W exceeds this (map-quality gate)",
     )
+    parser.add_argument(
+        "--break-threshold",
+        type=positive_float,
+        default=None,
+        metavar="M",
+        help="break detector: metres of established wall a snapshot must erase to count as a "
+        "break (default 1.25)",
+    )
+    parser.add_argument(
+        "--fail-on-break",
+        action="store_true",
+        help=f"exit {EXIT_GATE} if the break detector finds a break (map-quality gate)",
+    )
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     add_param_arguments(parser)
     parser.set_defaults(func=run)
@@ -137,7 +150,8 @@ def _print_summary(report: Any) -> None:
             f"max {max(scores):.3f}",
             file=out,
         )
-        first = report.first_break(topic)
+        _print_break(report, topic, out)
+        first = report.first_w_above(topic)
         level = f"{report.failure_level:g}"
         if first is None:
             print(f"  W > {level:<8} never", file=out)
@@ -155,8 +169,32 @@ def _print_summary(report: Any) -> None:
     print(f"\nelapsed      {report.elapsed_s:.2f} s", file=out)
 
 
+def _print_break(report: Any, topic: str, out: Any) -> None:
+    start = report.start_ns
+    top = max(r.break_score_m for r in report.records_of(topic))
+    first = report.first_break(topic)
+    if first is None:
+        print(
+            f"  break        none (largest score {top:.2f} m, threshold "
+            f"{report.break_threshold_m:g} m)",
+            file=out,
+        )
+        return
+    where = ""
+    if first.region_m is not None:
+        x0, y0, x1, y1 = first.region_m
+        where = f", x {x0:.1f}..{x1:.1f} m, y {y0:.1f}..{y1:.1f} m"
+    print(
+        f"  break        first at snapshot {first.index}, "
+        f"+{duration_text(first.log_time_ns - start)} ({first.score_m:.2f} m of wall erased since "
+        f"snapshot {first.reference_index}{where})",
+        file=out,
+    )
+
+
 def run(args: argparse.Namespace) -> int:
     from rose_logs.session import default_output_path, process_log
+    from rose_logs.session.breaks import BreakParams
 
     if args.no_output and args.output is not None:
         msg = "--no-output and --output exclude each other"
@@ -175,6 +213,9 @@ def run(args: argparse.Namespace) -> int:
         spawn=args.spawn,
         progress=progress,
         walls=args.walls,
+        break_params=BreakParams()
+        if args.break_threshold is None
+        else BreakParams(threshold_m=args.break_threshold),
         clean_method=args.clean_method,
     )
     if args.json_path is not None:
@@ -187,5 +228,9 @@ def run(args: argparse.Namespace) -> int:
             f"{worst.index} exceeds --fail-above {args.fail_above:g}",
             file=sys.stderr,
         )
+        return EXIT_GATE
+    first = report.first_break()
+    if args.fail_on_break and first is not None:
+        print(f"error: {args.input}: {first.text} (--fail-on-break)", file=sys.stderr)
         return EXIT_GATE
     return 0

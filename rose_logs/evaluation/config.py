@@ -88,6 +88,10 @@ class EvaluationConfig:
         ROSE parameters used for every map.
     plots : bool
         Write PNG figures (needs matplotlib).
+    break_seeds : int
+        Experiment 4 (break detection): seeds per log, drift level and start; 0 skips it.
+    break_workers : int
+        Processes experiment 4 runs its sessions in.
     """
 
     name: str = "small"
@@ -103,6 +107,8 @@ class EvaluationConfig:
     drift_seeds: int = 1
     rose_params: RoseParams = field(default_factory=RoseParams)
     plots: bool = True
+    break_seeds: int = 0
+    break_workers: int = 1
 
     @classmethod
     def small(cls, **changes: object) -> EvaluationConfig:
@@ -120,6 +126,8 @@ class EvaluationConfig:
             counts=(20, 40, 60, 80, 100, 120, 140, 160, 180),
             drift_levels=(0.5, 1.0, 2.0),
             drift_seeds=3,
+            break_seeds=3,
+            break_workers=2,
         )
         return dataclasses.replace(full, **changes)  # type: ignore[arg-type]
 

@@ -197,6 +197,24 @@ def run_evaluation(
     timings["experiment 2 (drift)"] = time.perf_counter() - t
     say(f"experiment 2: {len(drift_runs)} maps in {timings['experiment 2 (drift)']:.1f} s")
     exp3 = correlation(clutter_runs)
+    break_md = ""
+    if config.break_seeds > 0:
+        from rose_logs.evaluation.break_report import run_break_experiment
+
+        t = time.perf_counter()
+        section = run_break_experiment(
+            [config.logs_dir / f"{name}-corrected.log.gz" for name in config.logs],
+            out,
+            seeds=config.break_seeds,
+            workers=config.break_workers,
+            plots=config.plots and have_matplotlib(),
+        )
+        break_md = section.markdown
+        files.extend(section.files)
+        timings["experiment 4 (breaks)"] = time.perf_counter() - t
+        say(
+            f"experiment 4: {len(section.sessions)} sessions in {timings['experiment 4 (breaks)']:.1f} s"
+        )
 
     files.append(_write_csv(out / "exp1_clutter_runs.csv", clutter_runs))
     files.append(_write_csv(out / "exp1_furniture.csv", furniture_runs))
@@ -252,7 +270,7 @@ def run_evaluation(
         cleaning_md=cleaning.markdown,
     )
     md_path = out / "report.md"
-    md_path.write_text(markdown)
+    md_path.write_text(markdown + ("\n" + break_md if break_md else ""))
     files.insert(0, md_path)
     say(f"report written to {md_path} in {run_s:.1f} s")
     return EvaluationReport(

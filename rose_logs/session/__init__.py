@@ -5,6 +5,7 @@ and writes, :mod:`.analysis` the per-snapshot ROSE run with reuse, :mod:`.rerun_
 """
 
 from rose.directions import FAILURE_LEVEL, TRUST_LEVEL
+from rose_logs.session.breaks import BreakDetector, BreakParams, BreakScore, DetectedBreak
 from rose_logs.session.loop import process_log
 from rose_logs.session.report import BreakEvent, SessionReport, SnapshotRecord
 from rose_logs.session.topics import default_output_path, find_map_topics, is_derived_topic
@@ -12,7 +13,11 @@ from rose_logs.session.topics import default_output_path, find_map_topics, is_de
 __all__ = [
     "FAILURE_LEVEL",
     "TRUST_LEVEL",
+    "BreakDetector",
     "BreakEvent",
+    "BreakParams",
+    "BreakScore",
+    "DetectedBreak",
     "SessionReport",
     "SnapshotRecord",
     "default_output_path",

@@ -7,8 +7,11 @@ the last full map of their topic) become :class:`~rose_logs.snapshots.MapSnapsho
 and the results go to the output log (derived topics, :mod:`rose_logs.derived`), to Rerun
 (:mod:`rose_logs.rerun_view`) and to the :class:`SessionReport`.
 
-A *break* is a snapshot where W rises above ``failure_level`` (the paper's 0.4) after being at or below
-it (or on the first snapshot of a topic); each one is a :class:`BreakEvent`.
+Breaks: every snapshot also goes through the break detector (:mod:`rose_logs.session.breaks`), which
+scores it against the last trusted snapshot of its topic; the start of each run of broken snapshots
+is a :class:`~rose_logs.session.breaks.DetectedBreak`. Separately, a snapshot where W rises above
+``failure_level`` (the paper's 0.4) after being at or below it (or on the first snapshot of a topic)
+is a :class:`BreakEvent`.
 """
 
 from __future__ import annotations
@@ -33,6 +36,7 @@ from rose_logs.errors import LogReadError, LogWriteError, MapMessageError
 from rose_logs.formats import LogFormat, format_from_path
 from rose_logs.reader import LogReader
 from rose_logs.session.analysis import SnapshotAnalyser
+from rose_logs.session.breaks import BreakDetector, BreakParams, DetectedBreak
 from rose_logs.session.report import BreakEvent, SessionReport, SnapshotRecord
 from rose_logs.session.rerun_sink import RerunSink, entity_root
 from rose_logs.session.topics import select_topics, update_targets
@@ -65,6 +69,7 @@ def process_log(
     walls: bool = False,
     clean_method: CleanMethod = "walls",
     recording_id: str | None = None,
+    break_params: BreakParams | None = None,
 ) -> SessionReport:
     """Run ROSE over every map snapshot of a log; write the output log and Rerun recording.
 
@@ -102,6 +107,8 @@ def process_log(
     recording_id : str, optional
         Rerun recording id; default: derived from the input's file name. ``rose-bag batch`` passes
         one derived from the full URI, so that two robots' ``run.mcap`` stay separate recordings.
+    break_params : BreakParams, optional
+        Break detector parameters (defaults of :class:`rose_logs.session.breaks.BreakParams`).
 
     Returns
     -------
@@ -117,6 +124,7 @@ def process_log(
     started = time.perf_counter()
     input_path = Path(input_path)
     params = params or RoseParams()
+    break_params = break_params or BreakParams()
     if not math.isfinite(failure_level):
         msg = f"failure level must be finite, got {failure_level}"
         raise ValueError(msg)
@@ -149,6 +157,7 @@ def process_log(
                 failure_level=failure_level,
                 rerun=rerun,
                 on_snapshot=on_snapshot,
+                detector=BreakDetector(break_params),
             )
             loop.run(progress=progress)
             if not loop.records:
@@ -177,6 +186,7 @@ def process_log(
             failure_level=failure_level,
             params=params,
             started=started,
+            break_threshold_m=break_params.threshold_m,
         )
 
 
@@ -231,6 +241,7 @@ def _session_report(
     failure_level: float,
     params: RoseParams,
     started: float,
+    break_threshold_m: float,
 ) -> SessionReport:
     """What one pass found, with the input's counts and time range."""
     return SessionReport(
@@ -248,6 +259,8 @@ def _session_report(
         skipped_messages=loop.skipped,
         elapsed_s=time.perf_counter() - started,
         params=params,
+        detected_breaks=tuple(loop.detected),
+        break_threshold_m=break_threshold_m,
     )
 
 
@@ -304,8 +317,11 @@ class _Loop:
         failure_level: float,
         rerun: RerunSink | None,
         on_snapshot: Callable[[MapSnapshot, RoseResult, SnapshotRecord], None] | None,
+        detector: BreakDetector,
     ) -> None:
         self.reader = reader
+        self.detector = detector
+        self.detected: list[DetectedBreak] = []
         self.writer = writer
         self.handles = handles
         self.derived = derived
@@ -421,9 +437,18 @@ class _Loop:
             )
         broke = score > self.failure_level and not self.above.get(topic, False)
         self.above[topic] = score > self.failure_level
+        verdict = self.detector.update(snapshot)
+        threshold_m = self.detector.params.threshold_m
         if self.rerun is not None:
             rescued = analysis.cleaning.rescued if analysis.cleaning is not None else None
             self.rerun.snapshot(snapshot, result, index, analysis.walls, rescued)
+            self.rerun.break_score(snapshot, verdict, index, threshold_m)
+        if verdict.started:
+            event = DetectedBreak.from_score(snapshot, index, verdict, threshold_m)
+            self.detected.append(event)
+            _LOG.info("%s", event.text)
+            if self.rerun is not None:
+                self.rerun.event(snapshot, event.text, index)
         if broke:
             text = (
                 f"{topic}: W = {score:.3f} rose above the failure level {self.failure_level:g} "
@@ -449,6 +474,8 @@ class _Loop:
             seconds=time.perf_counter() - t0,
             reused=reused,
             from_update=from_update,
+            break_score_m=verdict.score_m,
+            break_region_m=verdict.region_m,
             **_cleaning_counts(analysis.cleaning),
         )
         self.records.append(record)

@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from rose.params import RoseParams
+from rose_logs.session.breaks import DetectedBreak
 
 __all__ = ["BreakEvent", "SessionReport", "SnapshotRecord"]
 
@@ -48,6 +49,11 @@ class SnapshotRecord:
         True when the grid equalled the previous one and its result was reused.
     from_update : bool
         True when the snapshot came from an ``OccupancyGridUpdate``.
+    break_score_m : float
+        Break score (:mod:`rose_logs.session.breaks`): established wall length, metres, that this
+        snapshot erased in one window compared with the last trusted snapshot.
+    break_region_m : tuple of float or None
+        ``(x_min, y_min, x_max, y_max)`` of those erased walls, map frame, metres.
     clean_method : str
         How ``<map>/rose/cleaned`` was made (``"walls"`` or ``"paper"``, see :func:`rose.clean.clean`).
     removed_count, kept_count : int
@@ -71,6 +77,8 @@ class SnapshotRecord:
     seconds: float
     reused: bool
     from_update: bool
+    break_score_m: float = 0.0
+    break_region_m: tuple[float, float, float, float] | None = None
     clean_method: str = "paper"
     removed_count: int = 0
     kept_count: int = 0
@@ -95,6 +103,8 @@ class SnapshotRecord:
             "seconds": round(self.seconds, 6),
             "reused": self.reused,
             "from_update": self.from_update,
+            "break_score_m": round(self.break_score_m, 6),
+            "break_region_m": _region_json(self.break_region_m),
             "clean_method": self.clean_method,
             "removed": self.removed_count,
             "kept": self.kept_count,
@@ -102,9 +112,18 @@ class SnapshotRecord:
         }
 
 
+def _region_json(region: tuple[float, float, float, float] | None) -> dict[str, float] | None:
+    if region is None:
+        return None
+    return dict(
+        zip(("x_min", "y_min", "x_max", "y_max"), (round(v, 6) for v in region), strict=True)
+    )
+
+
 @dataclass(frozen=True)
 class BreakEvent:
-    """A snapshot where W rose above the failure level."""
+    """A snapshot where W rose above the failure level (the paper's score; see
+    :class:`~rose_logs.session.breaks.DetectedBreak` for the break detector's breaks)."""
 
     topic: str
     index: int
@@ -133,6 +152,10 @@ class SessionReport:
         One per snapshot, in log-time order.
     breaks : tuple of BreakEvent
         Every rise of W above ``failure_level``.
+    detected_breaks : tuple of DetectedBreak
+        Every break the break detector found (start of a run of broken snapshots), per topic.
+    break_threshold_m : float
+        The break detector's threshold, metres.
     failure_level : float
         The level used.
     message_count : int
@@ -159,13 +182,22 @@ class SessionReport:
     skipped_messages: int
     elapsed_s: float
     params: RoseParams = field(default_factory=RoseParams)
+    detected_breaks: tuple[DetectedBreak, ...] = ()
+    break_threshold_m: float = math.nan
 
     def records_of(self, topic: str) -> tuple[SnapshotRecord, ...]:
         """The records of one map topic."""
         return tuple(r for r in self.records if r.topic == topic)
 
-    def first_break(self, topic: str | None = None) -> BreakEvent | None:
-        """The first break (of ``topic``, or of any topic), None if W never crossed the level."""
+    def first_break(self, topic: str | None = None) -> DetectedBreak | None:
+        """The break detector's first break (of ``topic``, or of any topic), None if none."""
+        for event in self.detected_breaks:
+            if topic is None or event.topic == topic:
+                return event
+        return None
+
+    def first_w_above(self, topic: str | None = None) -> BreakEvent | None:
+        """The first rise of W above the failure level (of ``topic`` or any), None if never."""
         for event in self.breaks:
             if topic is None or event.topic == topic:
                 return event
@@ -181,18 +213,34 @@ class SessionReport:
         topics = {}
         for topic in self.map_topics:
             scores = [r.structure_score for r in self.records_of(topic)]
+            above = self.first_w_above(topic)
             first = self.first_break(topic)
             topics[topic] = {
                 "snapshots": len(scores),
                 "w_min": min(scores, default=None),
                 "w_median": statistics.median(scores) if scores else None,
                 "w_max": max(scores, default=None),
+                "break_score_max_m": max(
+                    (r.break_score_m for r in self.records_of(topic)), default=None
+                ),
                 "first_break": None
                 if first is None
                 else {
                     "index": first.index,
                     "log_time_ns": first.log_time_ns,
-                    "structure_score": first.structure_score,
+                    "time_s": round((first.log_time_ns - self.start_ns) / 1e9, 9),
+                    "break_score_m": round(first.score_m, 6),
+                    "region_m": _region_json(first.region_m),
+                    "trusted_index": first.reference_index,
+                },
+                "breaks": sum(1 for b in self.detected_breaks if b.topic == topic),
+                "first_w_above": None
+                if above is None
+                else {
+                    "index": above.index,
+                    "log_time_ns": above.log_time_ns,
+                    "time_s": round((above.log_time_ns - self.start_ns) / 1e9, 9),
+                    "structure_score": above.structure_score,
                 },
             }
         return {
@@ -201,6 +249,9 @@ class SessionReport:
             "output": None if self.output_path is None else str(self.output_path),
             "rrd": None if self.rrd_path is None else str(self.rrd_path),
             "failure_level": self.failure_level,
+            "break_threshold_m": None
+            if math.isnan(self.break_threshold_m)
+            else self.break_threshold_m,
             "message_count": self.message_count,
             "start_ns": self.start_ns,
             "end_ns": self.end_ns,

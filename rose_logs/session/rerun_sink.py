@@ -11,6 +11,7 @@ import numpy.typing as npt
 from rose.result import RoseResult
 from rose.walls.segments import WallSet
 from rose_logs.errors import LogWriteError
+from rose_logs.session.breaks import BreakScore
 from rose_logs.snapshots import MapSnapshot
 
 __all__ = ["RerunSink", "entity_root"]
@@ -63,6 +64,20 @@ class RerunSink:
             snapshot_index=index,
             walls=walls,
             rescued=rescued,
+        )
+
+    def break_score(
+        self, snapshot: MapSnapshot, verdict: BreakScore, index: int, threshold_m: float
+    ) -> None:
+        from rose_logs.session.rerun_breaks import log_break_score
+
+        log_break_score(
+            self.recording,
+            snapshot,
+            verdict,
+            threshold_m=threshold_m,
+            entity_root=entity_root(snapshot.topic),
+            snapshot_index=index,
         )
 
     def event(self, snapshot: MapSnapshot, text: str, index: int) -> None:

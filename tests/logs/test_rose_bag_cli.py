@@ -82,14 +82,37 @@ def test_gate_and_json_break(tmp_path: Path, capsys, fr079, broken_grid) -> None
     assert code == EXIT_GATE
     assert "exceeds --fail-above 0.4" in err
     data = json.loads(report.read_text())
-    first_break = data["topics"]["/map"]["first_break"]
-    assert first_break["index"] == 1
+    first_w = data["topics"]["/map"]["first_w_above"]
+    assert first_w["index"] == 1
     # The summary names the same snapshot, 5 s after the log's first message (the first map).
     assert (
-        f"  W > 0.4      first at snapshot 1, +5.0 s (W = {first_break['structure_score']:.3f})"
+        f"  W > 0.4      first at snapshot 1, +5.0 s (W = {first_w['structure_score']:.3f})"
         in out.splitlines()
     )
     assert main(["process", str(built.path), "--no-output", "--fail-above", "0.9", "-q"]) == 0
+
+
+def test_fail_on_break_gate_and_json_first_break(
+    tmp_path: Path, capsys, fr079, broken_grid
+) -> None:
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", session_maps([*fr079, broken_grid]))
+    report = tmp_path / "r.json"
+    args = ["process", str(built.path), "--no-output", "-q", "--json", str(report)]
+    assert main(args) == 0  # no gate asked for
+    assert main([*args, "--force", "--fail-on-break"]) == EXIT_GATE
+    out, err = capsys.readouterr()
+    assert "map breaks at snapshot 3" in err and "--fail-on-break" in err
+    assert "break        first at snapshot 3" in out
+    data = json.loads(report.read_text())
+    first = data["topics"]["/map"]["first_break"]
+    assert first["index"] == 3 and first["trusted_index"] == 2
+    assert first["log_time_ns"] == data["snapshots"][3]["log_time_ns"]
+    assert first["time_s"] == data["snapshots"][3]["time_s"]
+    region = first["region_m"]
+    assert region["x_min"] < region["x_max"] and region["y_min"] < region["y_max"]
+    scores = [s["break_score_m"] for s in data["snapshots"]]
+    assert max(scores[:3]) < data["break_threshold_m"] <= scores[3]
+    assert data["topics"]["/map"]["first_w_above"]["index"] == 3
 
 
 def test_topic_selection_and_rose_params(tmp_path: Path, capsys, fr079) -> None:

@@ -208,9 +208,20 @@ def test_break_is_reported_at_the_first_distorted_snapshot(
     report = process_log(built.path, output_path=None)
     scores = [r.structure_score for r in report.records]
     assert max(scores[:3]) < 0.4 < scores[3]
-    first = report.first_break("/map")
+    first = report.first_w_above("/map")
     assert first is not None
     assert first.index == 3
     assert first.log_time_ns == START_NS + 20_000_000_000
     assert len(report.breaks) == 1  # staying broken is not a new break
+    detected = report.first_break("/map")  # the break detector agrees on this one
+    assert detected is not None
+    assert (detected.index, detected.reference_index) == (3, 2)
+    assert len(report.detected_breaks) == 1
+    assert [r.break_score_m >= report.break_threshold_m for r in report.records] == [
+        False,
+        False,
+        False,
+        True,
+        True,
+    ]
     assert report.records[4].reused

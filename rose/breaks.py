@@ -1,0 +1,311 @@
+"""What a map alone says about a break: walls of an earlier map that a later map contradicts.
+
+A map *breaks* mid-session when the pose estimate goes wrong: from then on the robot writes walls
+where it believes they are, and log-odds mapping, instead of adding a second, inconsistent set of
+walls, erases the established walls it now sees through. The signal measured here is that erasure:
+an *established wall cell* (occupied in the earlier grid) that the later grid holds free, with no
+occupied cell within ``tolerance_px`` in the later grid (so a wall that moved by a cell or two, as
+walls do between two correct snapshots, does not count). Only *walls* count: established occupied
+cells whose connected piece (small gaps bridged) is at least ``min_extent_px`` long, so people,
+chairs and furniture blobs that come and go do not. A break erases along whole walls. So erased cells are counted
+by the tiles of ``tile_px`` cells they touch (a length along the erased walls, in tile sides), the
+score is the most such tiles inside one square window of ``window_px`` cells, and the region is
+where that window's erased cells lie.
+
+Global W (:mod:`rose.directions`) stays the paper's score of the whole map; on maps that break
+mid-session it barely moves, because the intact part of the map dominates the spectrum.
+
+Conventions: ROS grids (row 0 at the map origin, -1 unknown, 0..100); both grids share a resolution
+and orientation, ``offset_px`` places the earlier grid in the later one.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+from scipy import ndimage
+
+from rose.errors import RoseError
+
+__all__ = ["WallContradiction", "contradicted_walls", "erased_walls"]
+
+
+@dataclass(frozen=True)
+class WallContradiction:
+    """Established walls that a later grid contradicts.
+
+    Attributes
+    ----------
+    erased_px : int
+        Established wall cells that the later grid holds free, far from any wall.
+    erased_tiles : int
+        Tiles of ``tile_px`` x ``tile_px`` cells holding at least one of them.
+    peak_tiles : int
+        The most such tiles in one window of ``window_px`` x ``window_px`` cells: the break score in
+        tiles (times ``tile_px`` times the resolution it is a wall length in metres).
+    established_px : int
+        Occupied cells of the earlier grid.
+    region_px : tuple of int or None
+        ``(row_min, col_min, row_max, col_max)`` (inclusive) of the erased cells in that window, in
+        the later grid's cells; None when nothing was erased.
+    tile_px, window_px : int
+        Tile and window sides, cells.
+    """
+
+    erased_px: int
+    erased_tiles: int
+    peak_tiles: int
+    established_px: int
+    region_px: tuple[int, int, int, int] | None
+    tile_px: int
+    window_px: int
+
+
+def _place(
+    earlier: npt.NDArray[np.int8], shape: tuple[int, int], offset_px: tuple[int, int]
+) -> npt.NDArray[np.int8]:
+    """``earlier`` in a grid of ``shape`` with its cell (0, 0) at ``offset_px``; -1 elsewhere."""
+    out = np.full(shape, -1, dtype=np.int8)
+    r0, c0 = offset_px
+    h, w = earlier.shape
+    rs, cs = max(r0, 0), max(c0, 0)
+    re, ce = min(r0 + h, shape[0]), min(c0 + w, shape[1])
+    if rs < re and cs < ce:
+        out[rs:re, cs:ce] = earlier[rs - r0 : re - r0, cs - c0 : ce - c0]
+    return out
+
+
+def _tiles(
+    mask: npt.NDArray[np.bool_], r0: int, c0: int, tile_px: int
+) -> tuple[npt.NDArray[np.bool_], int, int]:
+    """Which tiles of the later grid's tile lattice hold a ``True`` cell of ``mask`` (placed at
+    ``(r0, c0)``); returns the tile flags and the later-grid cell of tile (0, 0)."""
+    tr, tc = r0 - r0 % tile_px, c0 - c0 % tile_px
+    h, w = mask.shape[0] + r0 - tr, mask.shape[1] + c0 - tc
+    hp, wp = -(-h // tile_px) * tile_px, -(-w // tile_px) * tile_px
+    padded = np.zeros((hp, wp), dtype=bool)
+    padded[r0 - tr : r0 - tr + mask.shape[0], c0 - tc : c0 - tc + mask.shape[1]] = mask
+    flags = np.asarray(
+        padded.reshape(hp // tile_px, tile_px, wp // tile_px, tile_px).any(axis=(1, 3))
+    )
+    return flags, tr, tc
+
+
+def _densest_window(tiles: npt.NDArray[np.bool_], side: int) -> tuple[int, int, int]:
+    """Most flagged tiles in a ``side`` x ``side`` window of tiles: ``(count, row, col)`` of its
+    first tile (the first such window in row-major order)."""
+    side_r, side_c = min(side, tiles.shape[0]), min(side, tiles.shape[1])
+    c = np.pad(tiles.astype(np.int32).cumsum(axis=0).cumsum(axis=1), ((1, 0), (1, 0)))
+    sums = c[side_r:, side_c:] - c[:-side_r, side_c:] - c[side_r:, :-side_c] + c[:-side_r, :-side_c]
+    i, j = np.unravel_index(int(np.argmax(sums)), sums.shape)
+    return int(sums[i, j]), int(i), int(j)
+
+
+def _check(
+    earlier: npt.NDArray[np.generic],
+    later: npt.NDArray[np.generic],
+    tolerance_px: int,
+    min_extent_px: int = 0,
+    bridge_px: int = 0,
+) -> None:
+    if earlier.ndim != 2 or later.ndim != 2:
+        msg = f"grids must be 2-D, got shapes {earlier.shape} and {later.shape}"
+        raise RoseError(msg)
+    if tolerance_px < 0:
+        msg = f"tolerance_px must be >= 0, got {tolerance_px}"
+        raise RoseError(msg)
+    if min_extent_px < 0 or bridge_px < 0:
+        msg = f"min_extent_px and bridge_px must be >= 0, got {min_extent_px} and {bridge_px}"
+        raise RoseError(msg)
+
+
+def _long_walls(
+    walls: npt.NDArray[np.bool_], min_extent_px: int, bridge_px: int
+) -> npt.NDArray[np.bool_]:
+    """Wall cells whose connected wall (gaps up to ``bridge_px`` cells bridged) spans at least
+    ``min_extent_px`` cells along rows or columns."""
+    joined = walls
+    if bridge_px > 0:
+        joined = ndimage.binary_dilation(walls, np.ones((bridge_px + 1, bridge_px + 1), dtype=bool))
+    labels, count = ndimage.label(joined, structure=np.ones((3, 3), dtype=bool))
+    if count == 0:
+        return np.zeros_like(walls)
+    flat = labels.ravel()
+    cells = np.flatnonzero(flat)
+    order = np.argsort(flat[cells], kind="stable")
+    cells = cells[order]
+    starts = np.flatnonzero(np.diff(flat[cells], prepend=0))
+    rows, cols = np.divmod(cells, labels.shape[1])
+    extent = (
+        np.maximum(
+            np.maximum.reduceat(rows, starts) - np.minimum.reduceat(rows, starts),
+            np.maximum.reduceat(cols, starts) - np.minimum.reduceat(cols, starts),
+        )
+        + 1
+    )
+    keep = np.zeros(count + 1, dtype=bool)
+    keep[flat[cells[starts]]] = extent >= min_extent_px
+    return walls & keep[labels]
+
+
+def _erased_box(
+    earlier: npt.NDArray[np.integer],
+    later: npt.NDArray[np.integer],
+    offset_px: tuple[int, int],
+    tolerance_px: int,
+    occupied_threshold: int,
+    free_threshold: int,
+    min_extent_px: int = 0,
+    bridge_px: int = 0,
+) -> tuple[npt.NDArray[np.bool_], int, int]:
+    """Erased cells within their bounding box: ``(mask, row0, col0)`` in ``later``'s cells."""
+    placed = _place(earlier.astype(np.int8, copy=False), later.shape, offset_px)
+    walls = placed >= occupied_threshold
+    candidates = walls & (later >= 0) & (later <= free_threshold)
+    rows = np.flatnonzero(candidates.any(axis=1))
+    if rows.size == 0:
+        return np.zeros((0, 0), dtype=bool), 0, 0
+    cols = np.flatnonzero(candidates.any(axis=0))
+    # Only candidates can be erased: work in their bounding box plus the tolerance (and plus the
+    # wall extent when walls must be long, so that the walls through the box are seen whole).
+    margin = max(tolerance_px, min_extent_px + bridge_px)
+    r0, r1 = max(int(rows[0]) - margin, 0), int(rows[-1]) + margin + 1
+    c0, c1 = max(int(cols[0]) - margin, 0), int(cols[-1]) + margin + 1
+    near_wall = ndimage.maximum_filter(
+        (later[r0:r1, c0:c1] >= occupied_threshold).astype(np.uint8),
+        size=2 * tolerance_px + 1,
+        mode="constant",
+    ).astype(bool)
+    erased = candidates[r0:r1, c0:c1] & ~near_wall
+    if min_extent_px > 1 and erased.any():
+        erased &= _long_walls(walls[r0:r1, c0:c1], min_extent_px, bridge_px)
+    return erased, r0, c0
+
+
+def erased_walls(
+    earlier: npt.NDArray[np.integer],
+    later: npt.NDArray[np.integer],
+    *,
+    offset_px: tuple[int, int] = (0, 0),
+    tolerance_px: int = 6,
+    min_extent_px: int = 20,
+    bridge_px: int = 2,
+    occupied_threshold: int = 65,
+    free_threshold: int = 50,
+) -> npt.NDArray[np.bool_]:
+    """Cells of ``later`` where ``earlier`` had a wall that ``later`` erased.
+
+    Parameters are those of :func:`contradicted_walls`.
+
+    Returns
+    -------
+    ndarray of bool, shape of ``later``
+        Occupied in ``earlier`` and part of a wall at least ``min_extent_px`` long there, free in
+        ``later``, no occupied cell of ``later`` within ``tolerance_px`` (chessboard distance).
+    """
+    earlier, later = np.asarray(earlier), np.asarray(later)
+    _check(earlier, later, tolerance_px, min_extent_px, bridge_px)
+    box, r0, c0 = _erased_box(
+        earlier,
+        later,
+        offset_px,
+        tolerance_px,
+        occupied_threshold,
+        free_threshold,
+        min_extent_px,
+        bridge_px,
+    )
+    out = np.zeros(later.shape, dtype=bool)
+    out[r0 : r0 + box.shape[0], c0 : c0 + box.shape[1]] = box
+    return out
+
+
+def contradicted_walls(
+    earlier: npt.NDArray[np.integer],
+    later: npt.NDArray[np.integer],
+    *,
+    offset_px: tuple[int, int] = (0, 0),
+    tolerance_px: int = 6,
+    min_extent_px: int = 20,
+    bridge_px: int = 2,
+    tile_px: int = 5,
+    window_px: int = 200,
+    occupied_threshold: int = 65,
+    free_threshold: int = 50,
+) -> WallContradiction:
+    """Established walls of ``earlier`` that ``later`` erased (see the module notes).
+
+    Parameters
+    ----------
+    earlier, later : ndarray of int8, shape (rows, cols)
+        Two grids of one map (ROS convention), same resolution and orientation. Not modified.
+    offset_px : tuple of int
+        ``(row, col)`` of ``earlier``'s cell (0, 0) in ``later`` (a growing map moves its origin by
+        whole cells); cells of ``earlier`` outside ``later`` are ignored.
+    tolerance_px : int
+        A wall cell still counts as present when ``later`` has an occupied cell within this many
+        cells (chessboard distance).
+    min_extent_px : int
+        Only walls of ``earlier`` whose connected cells span at least this many cells (along rows or
+        columns, after bridging gaps) count: people, chair legs and furniture blobs do not.
+        0 or 1: every occupied cell counts.
+    bridge_px : int
+        Gaps of up to this many cells along a wall are bridged before measuring its extent (walls
+        of log-odds maps are broken into pieces where few beams hit them).
+    tile_px : int
+        Side of the tiles erased cells are counted in, cells: a wall erased along its length
+        touches many tiles.
+    window_px : int
+        Side of the square window the score counts tiles in, cells.
+    occupied_threshold : int
+        Occupancy (percent) from which a cell is a wall.
+    free_threshold : int
+        Occupancy (percent) up to which a known cell counts as free.
+
+    Returns
+    -------
+    WallContradiction
+
+    Raises
+    ------
+    RoseError
+        On grids that are not 2-D or a non-positive window / negative tolerance.
+    """
+    earlier, later = np.asarray(earlier), np.asarray(later)
+    _check(earlier, later, tolerance_px, min_extent_px, bridge_px)
+    if window_px < 1 or tile_px < 1:
+        msg = f"window_px and tile_px must be >= 1, got {window_px} and {tile_px}"
+        raise RoseError(msg)
+    established = int(np.count_nonzero(earlier >= occupied_threshold))
+    erased, r0, c0 = _erased_box(
+        earlier,
+        later,
+        offset_px,
+        tolerance_px,
+        occupied_threshold,
+        free_threshold,
+        min_extent_px,
+        bridge_px,
+    )
+    count = int(np.count_nonzero(erased))
+    if count == 0:
+        return WallContradiction(0, 0, 0, established, None, tile_px, window_px)
+    tiles, tr, tc = _tiles(erased, r0, c0, tile_px)
+    side = max(-(-window_px // tile_px), 1)
+    peak, wi, wj = _densest_window(tiles, side)
+    # The erased cells inside the window, in later-grid cells.
+    wr0, wc0 = tr + wi * tile_px, tc + wj * tile_px
+    br0, bc0 = max(wr0 - r0, 0), max(wc0 - c0, 0)
+    br1, bc1 = wr0 + side * tile_px - r0, wc0 + side * tile_px - c0
+    inside = erased[br0:br1, bc0:bc1]
+    rr = np.flatnonzero(inside.any(axis=1))
+    cc = np.flatnonzero(inside.any(axis=0))
+    region = (
+        r0 + br0 + int(rr[0]),
+        c0 + bc0 + int(cc[0]),
+        r0 + br0 + int(rr[-1]),
+        c0 + bc0 + int(cc[-1]),
+    )
+    return WallContradiction(count, int(tiles.sum()), peak, established, region, tile_px, window_px)

@@ -1,0 +1,184 @@
+"""Mapping sessions from CARMEN logs, in memory: the ``/map`` snapshots ``rose-bag convert`` would write.
+
+:func:`session_grids` replays a log exactly as :func:`rose_logs.carmen.session.write_carmen_session`
+does (same drift, same snapshot times, same ray casting) but keeps only the grids, so the break
+evaluation can run dozens of sessions without writing and re-reading log files.
+
+Clock: a log whose timestamps do not resolve the scans (the CSAIL log writes them with six significant
+digits, so all but one scan share a stamp) gets a replacement clock: every scan takes the time the
+robot needs to move to it at :data:`NOMINAL_SPEED_M_S` and turn at :data:`NOMINAL_TURN_RAD_S`, at
+least :data:`MIN_SCAN_PERIOD_S`. ``SessionSpec.clock`` says which clock a session used.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+
+from rose_logs.carmen.drift import apply_drift
+from rose_logs.carmen.parse import CarmenLog, beam_angles
+from rose_logs.carmen.raycast import BuilderParams, OccupancyGridBuilder, ScanBatch
+
+__all__ = [
+    "MIN_SCAN_PERIOD_S",
+    "NOMINAL_SPEED_M_S",
+    "NOMINAL_TURN_RAD_S",
+    "SessionGrid",
+    "SessionSpec",
+    "scan_clock_ns",
+    "session_grids",
+]
+
+_LOG = logging.getLogger(__name__)
+
+NOMINAL_SPEED_M_S = 0.3
+"""Robot speed of the replacement clock, metres per second."""
+NOMINAL_TURN_RAD_S = 0.5
+"""Turn rate of the replacement clock, radians per second."""
+MIN_SCAN_PERIOD_S = 0.25
+"""Shortest scan period of the replacement clock, seconds."""
+
+
+@dataclass(frozen=True)
+class SessionSpec:
+    """One session to replay.
+
+    Attributes
+    ----------
+    log_path : Path
+        CARMEN log.
+    drift_level : float
+        Odometry drift level (0: the corrected poses, a correct session).
+    drift_start_s : float
+        Seconds after the first scan when drift starts.
+    drift_seed : int
+        Seed of the drift.
+    map_period_s : float
+        Seconds between snapshots.
+    max_scans : int, optional
+        Only the first scans of the log (for a quick run); the whole log when None.
+    """
+
+    log_path: Path
+    drift_level: float = 0.0
+    drift_start_s: float = 0.0
+    drift_seed: int = 0
+    map_period_s: float = 30.0
+    max_scans: int | None = None
+
+    @property
+    def name(self) -> str:
+        """Log name (``aces``, ``freiburg-079``...)."""
+        return self.log_path.name.split("-corrected")[0]
+
+
+@dataclass(frozen=True, eq=False)
+class SessionGrid:
+    """One snapshot of a replayed session.
+
+    Attributes
+    ----------
+    time_ns : int
+        Snapshot time, nanoseconds since the first scan.
+    grid : ndarray of int8, shape (rows, cols)
+        ROS convention (-1 unknown, 0..100, row 0 at the origin).
+    origin_xy_m : tuple of float
+        World position of cell (0, 0)'s outer corner, metres.
+    resolution_m : float
+        Cell size, metres.
+    scans : int
+        Scans integrated so far.
+    """
+
+    time_ns: int
+    grid: npt.NDArray[np.int8]
+    origin_xy_m: tuple[float, float]
+    resolution_m: float
+    scans: int
+
+
+def scan_clock_ns(log: CarmenLog) -> tuple[npt.NDArray[np.int64], str]:
+    """Scan times in nanoseconds since the first scan, strictly increasing, and the clock's name.
+
+    Returns the log's own stamps (``"log"``) unless fewer than half of the scan-to-scan steps are
+    positive; then the replacement clock of the module notes (``"nominal-speed"``).
+    """
+    stamps = log.stamps_ns.astype(np.int64)
+    steps = np.diff(stamps)
+    if steps.size and np.count_nonzero(steps > 0) >= steps.size / 2:
+        out = stamps - stamps[0]
+        for i in range(1, out.size):  # a handful of backward stamps at most (Intel)
+            if out[i] <= out[i - 1]:
+                out[i] = out[i - 1] + 1
+        return out, "log"
+    poses = log.laser_poses
+    dist = np.hypot(*np.diff(poses[:, :2], axis=0).T)
+    turn = np.abs((np.diff(poses[:, 2]) + np.pi) % (2 * np.pi) - np.pi)
+    dt = np.maximum.reduce(
+        [dist / NOMINAL_SPEED_M_S, turn / NOMINAL_TURN_RAD_S, np.full(dist.size, MIN_SCAN_PERIOD_S)]
+    )
+    return np.concatenate([[0], np.cumsum(np.round(dt * 1e9).astype(np.int64))]), "nominal-speed"
+
+
+def _integrate(
+    builder: OccupancyGridBuilder, log: CarmenLog, poses: npt.NDArray[np.float64], a: int, b: int
+) -> None:
+    i = a
+    while i < b:
+        n = log.scans[i].ranges_m.size
+        j = i
+        while j < b and log.scans[j].ranges_m.size == n:
+            j += 1
+        ranges = np.stack([s.ranges_m for s in log.scans[i:j]])
+        builder.integrate(ScanBatch(ranges, beam_angles(n), poses[i:j]))
+        i = j
+
+
+def session_grids(
+    log: CarmenLog,
+    spec: SessionSpec,
+    *,
+    builder_params: BuilderParams | None = None,
+) -> Iterator[SessionGrid]:
+    """Yield the snapshots of one session, in time order.
+
+    A snapshot is taken at the first scan at or after every ``map_period_s`` (before that scan is
+    integrated), and after the last scan, as ``rose-bag convert`` does.
+
+    Parameters
+    ----------
+    log : CarmenLog
+        Parsed log.
+    spec : SessionSpec
+        Drift and period.
+    builder_params : BuilderParams, optional
+        Ray-casting parameters (defaults: 5 cm cells).
+    """
+    clock, _ = scan_clock_ns(log)
+    params = builder_params if builder_params is not None else BuilderParams()
+    poses = apply_drift(
+        log.laser_poses,
+        stamps_ns=clock,
+        start_ns=round(spec.drift_start_s * 1e9),
+        level=spec.drift_level,
+        seed=spec.drift_seed,
+    )
+    builder = OccupancyGridBuilder(params)
+    period_ns = round(spec.map_period_s * 1e9)
+    next_ns = period_ns
+    done = 0
+    for i in range(1, len(log.scans)):
+        t = int(clock[i])
+        if t >= next_ns:
+            _integrate(builder, log, poses, done, i)
+            done = i
+            yield SessionGrid(t, builder.grid(), builder.origin_xy_m, params.resolution_m, i)
+            next_ns = t + period_ns
+    _integrate(builder, log, poses, done, len(log.scans))
+    end = int(clock[-1]) + 1
+    yield SessionGrid(end, builder.grid(), builder.origin_xy_m, params.resolution_m, len(log.scans))

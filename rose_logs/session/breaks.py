@@ -1,0 +1,268 @@
+"""Break detection over a session: every snapshot against the last snapshot that was trusted.
+
+Per map topic, :class:`BreakDetector` keeps the *last trusted snapshot* (the latest one whose break
+score stayed below the threshold). Every new snapshot is compared with it by
+:func:`rose.breaks.contradicted_walls`: the break score is the length of established wall, in metres,
+that the new snapshot erased inside the densest ``window_m`` square (counted in pieces of
+``tile_m``: a person or a chair leg erases one or two, a break whole walls). A score at or above
+``threshold_m`` marks the snapshot broken, and the trusted snapshot stays where it was, so the
+score of every later snapshot is measured against the map as it was before the break. The first
+broken snapshot after a trusted one starts a break (:attr:`BreakScore.started`).
+
+Snapshots that cannot be compared with the trusted one (another resolution, a rotated origin, an
+origin shifted by a fraction of a cell) restart the comparison: score 0, and they become trusted.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+
+from rose.breaks import WallContradiction, contradicted_walls
+from rose_logs.snapshots import MapSnapshot
+
+__all__ = ["BreakDetector", "BreakParams", "BreakScore", "DetectedBreak"]
+
+_LOG = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class BreakParams:
+    """Parameters of :class:`BreakDetector`.
+
+    Attributes
+    ----------
+    threshold_m : float
+        Erased wall length (metres, in one window) from which a snapshot is broken.
+    tolerance_m : float
+        A wall that moved by at most this much (metres) is not erased.
+    min_wall_m : float
+        Only established walls at least this long (connected occupied cells, gaps up to
+        ``bridge_m`` bridged) count; people and furniture blobs do not.
+    bridge_m : float
+        Gaps along a wall up to this long are bridged before measuring it, metres.
+    tile_m : float
+        Erased walls are measured in pieces of this length (tiles of this side), metres.
+    window_m : float
+        Side of the square window the erased length is counted in, metres.
+    occupied_threshold : int
+        Occupancy (percent) from which a cell is a wall.
+    free_threshold : int
+        Occupancy (percent) up to which a known cell counts as free.
+    """
+
+    threshold_m: float = 1.25
+    tolerance_m: float = 0.3
+    min_wall_m: float = 1.0
+    bridge_m: float = 0.1
+    tile_m: float = 0.25
+    window_m: float = 10.0
+    occupied_threshold: int = 65
+    free_threshold: int = 50
+
+    def __post_init__(self) -> None:
+        if not (
+            self.threshold_m > 0
+            and self.window_m > 0
+            and self.tile_m > 0
+            and self.tolerance_m >= 0
+            and self.min_wall_m >= 0
+            and self.bridge_m >= 0
+        ):
+            msg = (
+                "break parameters need threshold_m, window_m, tile_m > 0 and tolerance_m, "
+                f"min_wall_m, bridge_m >= 0, got {self.threshold_m}, {self.window_m}, "
+                f"{self.tile_m}, {self.tolerance_m}, {self.min_wall_m}, {self.bridge_m}"
+            )
+            raise ValueError(msg)
+        if not 0 <= self.free_threshold < self.occupied_threshold <= 100:
+            msg = (
+                "need 0 <= free_threshold < occupied_threshold <= 100, got "
+                f"{self.free_threshold}, {self.occupied_threshold}"
+            )
+            raise ValueError(msg)
+
+
+@dataclass(frozen=True)
+class BreakScore:
+    """The break detector's verdict on one snapshot.
+
+    Attributes
+    ----------
+    score_m : float
+        Erased established wall length in the densest window, metres (0 when not compared).
+    broken : bool
+        ``score_m >= threshold_m``.
+    started : bool
+        Broken while the previous snapshot of the topic was not: the start of a break.
+    reference_index : int or None
+        Snapshot index (on the topic) of the trusted snapshot compared with; None for the first
+        snapshot and after a restart.
+    region_m : tuple of float or None
+        ``(x_min, y_min, x_max, y_max)`` of the erased walls in the densest window, map frame,
+        metres (cell outer edges); None when nothing was erased.
+    erased_m : float
+        Erased established wall length over the whole map, metres (same measure as ``score_m``).
+    """
+
+    score_m: float
+    broken: bool
+    started: bool
+    reference_index: int | None
+    region_m: tuple[float, float, float, float] | None
+    erased_m: float
+
+
+@dataclass(frozen=True)
+class DetectedBreak:
+    """A break the detector found: the first broken snapshot after a trusted one.
+
+    Attributes
+    ----------
+    topic : str
+        Map topic.
+    index : int
+        Snapshot index on the topic.
+    log_time_ns : int
+        Log time of that snapshot, nanoseconds.
+    score_m : float
+        Its break score, metres.
+    region_m : tuple of float or None
+        ``(x_min, y_min, x_max, y_max)`` of the erased walls, map frame, metres.
+    reference_index : int or None
+        The last trusted snapshot it was compared with.
+    text : str
+        One line for people (event logs, summaries).
+    """
+
+    topic: str
+    index: int
+    log_time_ns: int
+    score_m: float
+    region_m: tuple[float, float, float, float] | None
+    reference_index: int | None
+    text: str
+
+    @classmethod
+    def from_score(
+        cls, snapshot: MapSnapshot, index: int, verdict: BreakScore, threshold_m: float
+    ) -> DetectedBreak:
+        """The event of a snapshot whose verdict ``started`` a break."""
+        where = ""
+        if verdict.region_m is not None:
+            x0, y0, x1, y1 = verdict.region_m
+            where = f" around x {x0:.1f}..{x1:.1f} m, y {y0:.1f}..{y1:.1f} m"
+        text = (
+            f"{snapshot.topic}: map breaks at snapshot {index}: {verdict.score_m:.2f} m of "
+            f"established wall erased (threshold {threshold_m:g} m) since snapshot "
+            f"{verdict.reference_index}{where}"
+        )
+        return cls(
+            topic=snapshot.topic,
+            index=index,
+            log_time_ns=snapshot.log_time_ns,
+            score_m=verdict.score_m,
+            region_m=verdict.region_m,
+            reference_index=verdict.reference_index,
+            text=text,
+        )
+
+
+_CLEAR = BreakScore(0.0, False, False, None, None, 0.0)
+
+
+def _offset_px(trusted: MapSnapshot, snapshot: MapSnapshot) -> tuple[int, int] | None:
+    """``(row, col)`` of the trusted grid's cell (0, 0) in the new grid; None if not comparable."""
+    res = snapshot.resolution_m
+    if trusted.resolution_m != res or not res > 0:
+        return None
+    if trusted.origin_orientation_xyzw != snapshot.origin_orientation_xyzw:
+        return None
+    yaw = snapshot.origin_yaw_rad
+    dx = trusted.origin_position_m[0] - snapshot.origin_position_m[0]
+    dy = trusted.origin_position_m[1] - snapshot.origin_position_m[1]
+    c, s = math.cos(yaw), math.sin(yaw)  # the shift in the grid's own axes
+    col, row = (c * dx + s * dy) / res, (-s * dx + c * dy) / res
+    if abs(col - round(col)) > 0.01 or abs(row - round(row)) > 0.01:
+        return None
+    return round(row), round(col)
+
+
+def _region_m(
+    snapshot: MapSnapshot, region_px: tuple[int, int, int, int]
+) -> tuple[float, float, float, float]:
+    """A cell box (inclusive) as a map-frame box in metres (outer cell edges)."""
+    r0, c0, r1, c1 = region_px
+    res = snapshot.resolution_m
+    yaw = snapshot.origin_yaw_rad
+    ox, oy = snapshot.origin_position_m[0], snapshot.origin_position_m[1]
+    c, s = math.cos(yaw), math.sin(yaw)
+    xs, ys = [], []
+    for col, row in ((c0, r0), (c1 + 1, r0), (c0, r1 + 1), (c1 + 1, r1 + 1)):
+        u, v = col * res, row * res
+        xs.append(ox + c * u - s * v)
+        ys.append(oy + s * u + c * v)
+    return min(xs), min(ys), max(xs), max(ys)
+
+
+class BreakDetector:
+    """Break scores for the snapshots of one or more map topics, in log-time order.
+
+    Parameters
+    ----------
+    params : BreakParams, optional
+        Threshold, tolerance, window; defaults when omitted.
+    """
+
+    def __init__(self, params: BreakParams | None = None) -> None:
+        self.params = params if params is not None else BreakParams()
+        self._trusted: dict[str, tuple[int, MapSnapshot]] = {}
+        self._broken: dict[str, bool] = {}
+        self._count: dict[str, int] = {}
+
+    def update(self, snapshot: MapSnapshot) -> BreakScore:
+        """Score the next snapshot of ``snapshot.topic`` and update the topic's state."""
+        topic = snapshot.topic
+        index = self._count.get(topic, 0)
+        self._count[topic] = index + 1
+        trusted = self._trusted.get(topic)
+        offset = None if trusted is None else _offset_px(trusted[1], snapshot)
+        if trusted is None or offset is None:
+            if trusted is not None:
+                _LOG.info("%s: snapshot %d not comparable with the trusted one", topic, index)
+            self._trusted[topic] = (index, snapshot)
+            self._broken[topic] = False
+            return _CLEAR
+        found = self.compare(trusted[1], snapshot, offset)
+        res = snapshot.resolution_m
+        score = found.peak_tiles * found.tile_px * res
+        # Scores are whole tiles times the tile side: compare without float noise in the product.
+        broken = score >= self.params.threshold_m * (1.0 - 1e-9)
+        started = broken and not self._broken.get(topic, False)
+        self._broken[topic] = broken
+        if not broken:
+            self._trusted[topic] = (index, snapshot)
+        region = None if found.region_px is None else _region_m(snapshot, found.region_px)
+        return BreakScore(
+            score, broken, started, trusted[0], region, found.erased_tiles * found.tile_px * res
+        )
+
+    def compare(
+        self, trusted: MapSnapshot, snapshot: MapSnapshot, offset_px: tuple[int, int]
+    ) -> WallContradiction:
+        """:func:`rose.breaks.contradicted_walls` with this detector's parameters in cells."""
+        p = self.params
+        res = snapshot.resolution_m
+        return contradicted_walls(
+            trusted.grid,
+            snapshot.grid,
+            offset_px=offset_px,
+            tolerance_px=round(p.tolerance_m / res),
+            min_extent_px=round(p.min_wall_m / res),
+            bridge_px=round(p.bridge_m / res),
+            tile_px=max(round(p.tile_m / res), 1),
+            window_px=max(round(p.window_m / res), 1),
+            occupied_threshold=p.occupied_threshold,
+            free_threshold=p.free_threshold,
+        )

@@ -1,0 +1,106 @@
+"""rose_logs.session.breaks: the break detector over a sequence of snapshots."""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+import pytest
+from scipy import ndimage
+
+from rose_logs.session.breaks import BreakDetector, BreakParams, DetectedBreak
+from rose_logs.snapshots import MapSnapshot
+from tests.synthetic import floor_plan
+
+RES = 0.05
+
+
+def _snap(
+    grid: npt.NDArray[np.int8],
+    t: int,
+    *,
+    origin: tuple[float, float] = (-5.0, -3.0),
+    res: float = RES,
+    topic: str = "/map",
+) -> MapSnapshot:
+    return MapSnapshot(
+        topic=topic,
+        log_time_ns=t,
+        stamp_ns=t,
+        frame_id="map",
+        grid=grid,
+        resolution_m=res,
+        origin_position_m=(origin[0], origin[1], 0.0),
+    )
+
+
+@pytest.fixture(scope="module")
+def plan() -> npt.NDArray[np.int8]:
+    return np.where(floor_plan(size=(300, 360)), 100, 0).astype(np.int8)
+
+
+@pytest.fixture(scope="module")
+def broken(plan: npt.NDArray[np.int8]) -> npt.NDArray[np.int8]:
+    """The right half redrawn 4 degrees rotated: walls there move by up to ~0.6 m."""
+    out = plan.copy()
+    out[:, 180:] = ndimage.rotate(plan, 4.0, reshape=False, order=0, cval=0)[:, 180:]
+    return out
+
+
+def test_break_starts_once_and_keeps_the_trusted_snapshot(plan, broken) -> None:
+    detector = BreakDetector(BreakParams(threshold_m=1.0))
+    verdicts = [detector.update(_snap(g, i)) for i, g in enumerate([plan, plan, broken, broken])]
+    assert [v.broken for v in verdicts] == [False, False, True, True]
+    assert [v.started for v in verdicts] == [False, False, True, False]
+    assert [v.reference_index for v in verdicts] == [None, 0, 1, 1]  # still the pre-break map
+    x0, y0, x1, y1 = verdicts[2].region_m
+    # The region lies in the rotated half: x from -5 m + 180 cells * 0.05 m = 4 m on.
+    assert x0 >= -5.0 + (180 - 6) * RES
+    assert x1 <= -5.0 + 360 * RES
+    assert -3.0 <= y0 < y1 <= -3.0 + 300 * RES
+    event = DetectedBreak.from_score(_snap(broken, 2), 2, verdicts[2], 1.0)
+    assert event.index == 2 and "since snapshot 1" in event.text
+
+
+def test_a_grown_map_is_compared_in_place(plan, broken) -> None:
+    # The map grows by 40 rows and 30 columns towards negative x / y: origin moves by whole cells.
+    grown = np.full((plan.shape[0] + 40, plan.shape[1] + 30), -1, dtype=np.int8)
+    grown[40:, 30:] = plan
+    detector = BreakDetector()
+    detector.update(_snap(plan, 0))
+    same = detector.update(_snap(grown.copy(), 1, origin=(-5.0 - 30 * RES, -3.0 - 40 * RES)))
+    assert same.score_m == 0.0 and same.reference_index == 0
+    grown[40:, 30:] = broken
+    moved = detector.update(_snap(grown, 2, origin=(-5.0 - 30 * RES, -3.0 - 40 * RES)))
+    assert moved.score_m > 0.0
+
+
+def test_snapshots_that_cannot_be_compared_restart(plan, broken) -> None:
+    detector = BreakDetector(BreakParams(threshold_m=0.5))
+    detector.update(_snap(plan, 0))
+    other_res = detector.update(_snap(broken, 1, res=0.1))
+    assert (other_res.score_m, other_res.reference_index) == (0.0, None)
+    half_cell = detector.update(_snap(broken, 2, origin=(-5.0 + 0.5 * 0.1, -3.0), res=0.1))
+    assert half_cell.reference_index is None
+
+
+def test_topics_are_independent(plan, broken) -> None:
+    detector = BreakDetector(BreakParams(threshold_m=1.0))
+    detector.update(_snap(plan, 0, topic="/a"))
+    detector.update(_snap(broken, 1, topic="/b"))
+    assert detector.update(_snap(broken, 2, topic="/a")).started
+    assert not detector.update(_snap(broken, 3, topic="/b")).broken
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {"threshold_m": 0.0},
+        {"window_m": -1.0},
+        {"tile_m": 0.0},
+        {"tolerance_m": -0.1},
+        {"free_threshold": 70},
+    ],
+)
+def test_bad_parameters(kwargs: dict) -> None:
+    with pytest.raises(ValueError, match="need"):
+        BreakParams(**kwargs)

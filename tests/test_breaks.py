@@ -1,0 +1,119 @@
+"""rose.breaks: established walls a later grid erased, on synthetic floor plans with known answers."""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+import pytest
+from scipy import ndimage
+
+from rose.breaks import contradicted_walls, erased_walls
+from rose.errors import RoseError
+from tests.synthetic import floor_plan
+
+
+def _grid(plan: npt.NDArray[np.bool_]) -> npt.NDArray[np.int8]:
+    """Known free everywhere, walls occupied (ROS values)."""
+    return np.where(plan, 100, 0).astype(np.int8)
+
+
+@pytest.fixture(scope="module")
+def plan() -> npt.NDArray[np.int8]:
+    return _grid(floor_plan(size=(300, 360)))
+
+
+def test_same_grid_erases_nothing(plan: npt.NDArray[np.int8]) -> None:
+    found = contradicted_walls(plan, plan)
+    assert (found.erased_px, found.peak_tiles, found.region_px) == (0, 0, None)
+    assert found.established_px == int(np.count_nonzero(plan >= 65))
+
+
+def test_walls_moved_within_the_tolerance_are_not_erased(plan: npt.NDArray[np.int8]) -> None:
+    shifted = np.roll(plan, 3, axis=1)
+    assert contradicted_walls(plan, shifted, tolerance_px=3).erased_px == 0
+    assert contradicted_walls(plan, shifted, tolerance_px=2).erased_px > 0
+
+
+def test_rotated_wing_is_found_where_it_broke(plan: npt.NDArray[np.int8]) -> None:
+    # The right half of the building redrawn 4 degrees rotated about the middle of the map:
+    # its walls move by up to ~12 cells, the left half stays.
+    later = plan.copy()
+    rotated = ndimage.rotate(plan, 4.0, reshape=False, order=0, cval=0)
+    later[:, 180:] = rotated[:, 180:]
+    found = contradicted_walls(plan, later, tolerance_px=4, tile_px=5, window_px=100)
+    assert found.peak_tiles >= 10
+    r0, c0, r1, c1 = found.region_px
+    assert c0 >= 180 - 4  # inside the rotated half (tolerance at the seam)
+    assert (r0 <= r1) and (c0 <= c1)
+    erased = erased_walls(plan, later, tolerance_px=4)
+    assert not erased[:, :170].any()
+    assert int(erased.sum()) == found.erased_px
+
+
+def test_blobs_are_not_walls_but_long_walls_are(plan: npt.NDArray[np.int8]) -> None:
+    # Four 3 x 3 "people" in the established map, gone later.
+    earlier = plan.copy()
+    for r, c in ((100, 100), (120, 200), (200, 150), (180, 250)):
+        earlier[r : r + 3, c : c + 3] = 100
+    kwargs = {"tolerance_px": 4, "tile_px": 5, "window_px": 400}
+    assert contradicted_walls(earlier, plan, min_extent_px=20, **kwargs).erased_px == 0
+    every = contradicted_walls(earlier, plan, min_extent_px=0, **kwargs)
+    assert every.erased_px == 36
+    assert 4 <= every.erased_tiles <= 16
+    # A 36-cell wall erased along its length counts, and touches more tiles than the blobs.
+    wall = plan.copy()
+    wall[150, 60:96] = 100
+    found = contradicted_walls(wall, plan, min_extent_px=20, **kwargs)
+    assert found.erased_px == contradicted_walls(wall, plan, min_extent_px=0, **kwargs).erased_px
+    assert found.erased_px >= 30  # a cell or two lie within the tolerance of a standing wall
+    assert found.peak_tiles >= 7
+    # Pieces of a wall with one-cell gaps are one wall once the gaps are bridged.
+    dashed = plan.copy()
+    dashed[150, 60:96:2] = 100
+    assert contradicted_walls(dashed, plan, min_extent_px=20, bridge_px=0, **kwargs).erased_px == 0
+    bridged = contradicted_walls(dashed, plan, min_extent_px=20, bridge_px=2, **kwargs).erased_px
+    assert bridged == contradicted_walls(dashed, plan, min_extent_px=0, **kwargs).erased_px >= 15
+
+
+def test_offset_places_the_earlier_grid(plan: npt.NDArray[np.int8]) -> None:
+    later = plan.copy()
+    later[:, 180:] = ndimage.rotate(plan, 4.0, reshape=False, order=0, cval=0)[:, 180:]
+    grown = np.full((plan.shape[0] + 40, plan.shape[1] + 30), -1, dtype=np.int8)
+    grown[40:, 30:] = later
+    direct = contradicted_walls(plan, later)
+    placed = contradicted_walls(plan, grown, offset_px=(40, 30))
+    assert (placed.erased_px, placed.peak_tiles) == (direct.erased_px, direct.peak_tiles)
+    r0, c0, r1, c1 = direct.region_px
+    assert placed.region_px == (r0 + 40, c0 + 30, r1 + 40, c1 + 30)
+
+
+def test_unknown_later_cells_are_not_contradictions(plan: npt.NDArray[np.int8]) -> None:
+    later = np.full_like(plan, -1)
+    assert contradicted_walls(plan, later).erased_px == 0
+
+
+def test_inputs_are_not_modified(plan: npt.NDArray[np.int8]) -> None:
+    earlier, later = plan.copy(), np.roll(plan, 20, axis=0)
+    before = (earlier.copy(), later.copy())
+    contradicted_walls(earlier, later)
+    np.testing.assert_array_equal(earlier, before[0])
+    np.testing.assert_array_equal(later, before[1])
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"window_px": 0}, "window_px"),
+        ({"tile_px": 0}, "tile_px"),
+        ({"tolerance_px": -1}, "tolerance_px"),
+        ({"min_extent_px": -1}, "min_extent_px"),
+    ],
+)
+def test_bad_parameters(plan: npt.NDArray[np.int8], kwargs: dict, match: str) -> None:
+    with pytest.raises(RoseError, match=match):
+        contradicted_walls(plan, plan, **kwargs)
+
+
+def test_grids_must_be_2d(plan: npt.NDArray[np.int8]) -> None:
+    with pytest.raises(RoseError, match="2-D"):
+        contradicted_walls(plan.ravel(), plan)
