@@ -188,3 +188,25 @@ def test_wide_unknown_drops_narrow_shadows() -> None:
     wide = wide_unknown(grid, radius_px=5)
     assert wide[:, :30].all()
     assert not wide[50:53, 40:90].any()
+
+
+def test_topology_guard_restores_only_pieces_that_join_regions() -> None:
+    from rose.clean_rules import topology_guard
+
+    occupied = np.zeros((60, 160), dtype=bool)
+    occupied[30, :] = True  # a wall from edge to edge: above and below are two regions
+    occupied[10:16, 80:86] = True  # a free-standing box
+    occupied[45:55, 120:130] = True  # a box in the corner of the lower region, removed too
+    keep = occupied.copy()
+    keep[30, 20:30] = False  # a wall piece the cleaning would remove
+    keep[10:16, 80:86] = False
+    keep[45:55, 120:130] = False
+    restore = topology_guard(occupied, keep, radius_px=3.0, window_px=20, min_region_px=400.0)
+    assert restore[30, 20:30].all()
+    assert not restore[10:16, 80:86].any()
+    assert not restore[45:55, 120:130].any()
+    # Without the wall piece's removal nothing opens between the regions: nothing to restore.
+    keep[30, 20:30] = True
+    assert not topology_guard(
+        occupied, keep, radius_px=3.0, window_px=20, min_region_px=400.0
+    ).any()
