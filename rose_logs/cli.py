@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from rose.cli import add_param_arguments, params_from_args, positive_float
+from rose.directions import FAILURE_LEVEL
 from rose.errors import RoseError
 from rose_logs.errors import LogError
 
@@ -65,7 +66,14 @@ def _add_process_parser(subparsers: Any) -> None:
         help="map topic to analyse (repeatable; default: every OccupancyGrid topic)",
     )
     parser.add_argument("--rrd", type=Path, default=None, help="save a Rerun recording here")
-    parser.add_argument("--spawn", action="store_true", help="stream to a new Rerun viewer")
+    parser.add_argument(
+        "--spawn", action="store_true", help="stream to a new Rerun viewer as the session runs"
+    )
+    parser.add_argument(
+        "--connect",
+        metavar="ADDR",
+        help="stream to a running Rerun viewer (PORT, HOST:PORT or rerun+http://HOST:PORT/proxy)",
+    )
     parser.add_argument(
         "--walls",
         action="store_true",
@@ -77,7 +85,7 @@ def _add_process_parser(subparsers: Any) -> None:
     parser.add_argument(
         "--failure-level",
         type=positive_float,
-        default=0.4,
+        default=FAILURE_LEVEL,
         help="W above which a map counts as broken (%(default)s, the paper's)",
     )
     parser.add_argument(
@@ -230,6 +238,7 @@ def _run_process(args: argparse.Namespace) -> int:
         failure_level=args.failure_level,
         rrd_path=args.rrd,
         spawn=args.spawn,
+        connect=args.connect,
         progress=progress,
         walls=args.walls,
     )

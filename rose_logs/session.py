@@ -5,7 +5,7 @@ map messages (``nav_msgs/OccupancyGrid``) and grid updates (``map_msgs/Occupancy
 the last full map of their topic) become :class:`~rose_logs.snapshots.MapSnapshot` s, each analysed with
 :func:`rose.analyze` on its own grid (a grid equal to the previous one of its topic reuses that result),
 and the results go to the output log (derived topics, :mod:`rose_logs.messages`), to Rerun
-(:mod:`rose_logs.rerun_view`) and to the :class:`SessionReport`.
+(:mod:`rose_logs.rerun`) and to the :class:`SessionReport`.
 
 A *break* is a snapshot where W rises above ``failure_level`` (the paper's 0.4) after being at or below
 it (or on the first snapshot of a topic); each one is a :class:`BreakEvent`.
@@ -18,15 +18,15 @@ import logging
 import math
 import statistics
 import time
-import uuid
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 import rose
+from rose.directions import FAILURE_LEVEL, TRUST_LEVEL
 from rose.params import RoseParams
 from rose.result import RoseResult
 from rose.walls import WallSet
@@ -58,12 +58,11 @@ __all__ = [
     "process_log",
 ]
 
+if TYPE_CHECKING:
+    from rose_logs.rerun.sink import RerunSink
+
 _LOG = logging.getLogger(__name__)
 
-FAILURE_LEVEL = 0.4
-"""W above which the paper considers a map broken."""
-TRUST_LEVEL = 0.2
-"""W below which the paper trusts a map."""
 
 _DECODABLE = {"ros1", "cdr"}
 
@@ -291,10 +290,6 @@ def default_output_path(input_path: Path) -> Path:
     return path.with_name(f"{path.stem}.rose{path.suffix}")
 
 
-def _entity_root(topic: str) -> str:
-    return topic.strip("/").lower() or "map"
-
-
 @dataclass(frozen=True)
 class _Analysis:
     """What the session computes for one snapshot."""
@@ -342,61 +337,32 @@ def _same_placed_grid(a: MapSnapshot, b: MapSnapshot) -> bool:
     )
 
 
-class _RerunSink:
-    """Rerun recording through :mod:`rose_logs.rerun_view`, saved via a temporary ``.rrd``."""
+def _open_rerun(
+    input_path: Path,
+    *,
+    rrd_path: Path | None,
+    spawn: bool,
+    connect: str | None,
+    topics: Sequence[str],
+    start_ns: int,
+    failure_level: float,
+) -> RerunSink:
+    """The session's Rerun recording; its id names the input (full path and content)."""
+    from rose_logs.rerun.sink import RerunSink, recording_id_for  # rerun loads only when used
 
-    def __init__(
-        self, *, rrd_path: Path | None, spawn: bool, roots: tuple[str, ...], recording_id: str
-    ) -> None:
-        from rose_logs import rerun_view
-
-        self.view = rerun_view
-        self.rrd_path = rrd_path
-        self.tmp = None if rrd_path is None else rrd_path.with_name(f".{rrd_path.name}.rose-tmp")
-        try:
-            self.recording = rerun_view.open_recording(
-                rrd_path=self.tmp,
-                spawn=spawn,
-                application_id="rose_bag",
-                recording_id=recording_id,
-                entity_roots=roots,
-            )
-        except (ValueError, OSError, RuntimeError) as err:
-            msg = f"{rrd_path}: cannot open the Rerun recording ({err})"
-            raise LogWriteError(msg) from err
-
-    def snapshot(
-        self, snapshot: MapSnapshot, result: RoseResult, index: int, walls: WallSet | None
-    ) -> None:
-        self.view.log_snapshot(
-            self.recording,
-            snapshot,
-            result,
-            entity_root=_entity_root(snapshot.topic),
-            snapshot_index=index,
-            walls=walls,
+    try:
+        return RerunSink(
+            rrd_path=rrd_path,
+            spawn=spawn,
+            connect=connect,
+            topics=topics,
+            recording_id=recording_id_for(input_path),
+            start_ns=start_ns,
+            failure_level=failure_level,
         )
-
-    def event(self, snapshot: MapSnapshot, text: str, index: int) -> None:
-        self.view.log_break_event(
-            self.recording,
-            snapshot,
-            text,
-            entity_root=_entity_root(snapshot.topic),
-            snapshot_index=index,
-        )
-
-    def close(self) -> None:
-        self.view.close_recording(self.recording)
-        if self.tmp is not None and self.rrd_path is not None:
-            self.tmp.replace(self.rrd_path)
-
-    def abort(self) -> None:
-        try:
-            self.view.close_recording(self.recording)
-        finally:
-            if self.tmp is not None:
-                self.tmp.unlink(missing_ok=True)
+    except (ValueError, OSError, RuntimeError) as err:
+        msg = f"{rrd_path or connect or 'viewer'}: cannot open the Rerun recording ({err})"
+        raise LogWriteError(msg) from err
 
 
 def _select_topics(
@@ -431,6 +397,7 @@ def process_log(
     failure_level: float = FAILURE_LEVEL,
     rrd_path: Path | None = None,
     spawn: bool = False,
+    connect: str | None = None,
     progress: bool = False,
     on_snapshot: Callable[[MapSnapshot, RoseResult, SnapshotRecord], None] | None = None,
     walls: bool = False,
@@ -458,6 +425,9 @@ def process_log(
         Save a Rerun recording here.
     spawn : bool, default False
         Stream the recording to a new Rerun viewer.
+    connect : str, optional
+        Stream the recording to a running Rerun viewer at this address (``PORT``, ``HOST:PORT`` or
+        a ``rerun+http://`` URL), as the session is processed.
     progress : bool, default False
         Show a tqdm progress bar on stderr.
     walls : bool, default False
@@ -501,17 +471,20 @@ def process_log(
                 force=force,
                 protected=(input_path,),
             )
-        rerun: _RerunSink | None = None
+        rerun: RerunSink | None = None
         try:
             if writer is not None:
                 writer.open()
             handles, derived = _prepare_output(writer, channels, map_topics)
-            if rrd_path is not None or spawn:
-                rerun = _RerunSink(
+            if rrd_path is not None or spawn or connect is not None:
+                rerun = _open_rerun(
+                    input_path,
                     rrd_path=None if rrd_path is None else Path(rrd_path),
                     spawn=spawn,
-                    roots=tuple(_entity_root(t) for t in map_topics),
-                    recording_id=str(uuid.uuid5(uuid.NAMESPACE_URL, input_path.name)),
+                    connect=connect,
+                    topics=map_topics,
+                    start_ns=reader.start_ns,
+                    failure_level=failure_level,
                 )
             loop = _Loop(
                 reader=reader,
@@ -611,7 +584,7 @@ class _Loop:
         updates: dict[str, str],
         analyser: _Analyser,
         failure_level: float,
-        rerun: _RerunSink | None,
+        rerun: RerunSink | None,
         on_snapshot: Callable[[MapSnapshot, RoseResult, SnapshotRecord], None] | None,
     ) -> None:
         self.reader = reader
@@ -738,7 +711,7 @@ class _Loop:
             )
             self.breaks.append(BreakEvent(topic, index, snapshot.log_time_ns, score, text))
             if self.rerun is not None:
-                self.rerun.event(snapshot, text, index)
+                self.rerun.event(snapshot, text, index, score)
         height, width = snapshot.shape
         record = SnapshotRecord(
             topic=topic,
