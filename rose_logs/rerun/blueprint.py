@@ -94,11 +94,17 @@ def _topic_container(layout: TopicLayout) -> rrb.Container:
         name=f"{root}: structure score W over session time",
         origin=f"/{paths.score}",
         plot_legend=rrb.PlotLegend(rrb.Corner2D.LeftTop),
+        # The whole session on any timeline (the default follows the time cursor).
+        axis_x=rrb.TimeAxis(
+            view_range=rrb.TimeRange(
+                start=rrb.TimeRangeBoundary.infinite(), end=rrb.TimeRangeBoundary.infinite()
+            )
+        ),
     )
     amplitude = rrb.Spatial2DView(
         name=f"{root}: cumulative amplitude s per wall direction, peaks, threshold",
         origin=f"/{paths.amplitude_view}",
-        visual_bounds=rrb.VisualBounds2D(x_range=(-22.0, 198.0), y_range=(-1.28 * h, 32.0)),
+        visual_bounds=rrb.VisualBounds2D(x_range=(-22.0, 198.0), y_range=(-1.28 * h, 36.0)),
     )
     spectrum = rrb.Spatial2DView(
         name=f"{root}: log amplitude spectrum, kept strips (magenta)",

@@ -161,7 +161,7 @@ class TopicLogger:
         )
         positions = [(x, 9.0) for x in _AXIS_TICKS_DEG] + [(-9.0, -h * s) for s in _AXIS_TICKS_S]
         labels = [f"{x:g}°" for x in _AXIS_TICKS_DEG] + [f"{s:g}" for s in _AXIS_TICKS_S]
-        positions += [(90.0, 24.0), (-9.0, -h * 1.18)]
+        positions += [(90.0, 22.0), (-9.0, -h * 1.18)]
         labels += ["wall direction (deg)", "s"]
         rec.log(
             paths.amplitude_axis_labels,
@@ -315,7 +315,7 @@ class TopicLogger:
         positions = [(u_of(style.SCORE_DISPLAY_MIN), below), (u_of(1.0), below)]
         labels = [f"score {style.SCORE_DISPLAY_MIN:g}", "1 (best cell)"]
         if math.isfinite(result.threshold):
-            positions.append((u_of(result.threshold), top - 0.05 * rows))
+            positions.append((u_of(result.threshold), top - 0.07 * rows))
             labels.append(f"threshold {result.threshold:.2f}")
         rec.log(
             paths.score_legend_labels,

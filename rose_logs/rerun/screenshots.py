@@ -27,6 +27,7 @@ import urllib.parse
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from rose_logs.rerun.paths import SESSION_TIMELINE
 
@@ -161,7 +162,15 @@ def _viewer_url(web_port: int, grpc_port: int) -> str:
 
 
 _SETTLE_MS = 4000  # time for the viewer to redraw after the time cursor moved
-_KEY_GAP_MS = 300
+_NEXT_FRAMES_JS = "() => new Promise(r => requestAnimationFrame(() => requestAnimationFrame(r)))"
+
+
+def _press(page: Any, key: str) -> None:
+    """Press ``key`` and wait two animation frames: the viewer handles input once per frame, and
+    on a software rasteriser a frame can take long, so keys sent faster would be merged or lost."""
+    page.keyboard.press(key)
+    page.evaluate(_NEXT_FRAMES_JS)
+    page.evaluate(_NEXT_FRAMES_JS)
 
 
 def take_screenshots(
@@ -236,11 +245,9 @@ def take_screenshots(
             for name, step in steps:
                 if step is not None:
                     page.locator("canvas").first.focus()
-                    page.keyboard.press("Home")
+                    _press(page, "Home")
                     for _ in range(step):
-                        # One key per frame: the viewer handles at most one step per frame.
-                        page.wait_for_timeout(_KEY_GAP_MS)
-                        page.keyboard.press("Control+ArrowRight")
+                        _press(page, "Control+ArrowRight")
                     page.wait_for_timeout(_SETTLE_MS)
                 path = out_dir / f"{prefix}{name}.png"
                 page.screenshot(path=str(path))
