@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 import rose
-from rose_logs.messages import encode_cleaned
+from rose_logs.derived import encode_cleaned
 from rose_logs.reader import LogReader
 from rose_logs.session import process_log
 from rose_logs.snapshots import MapSnapshot

@@ -1,14 +1,24 @@
-"""Map snapshots: one decoded occupancy grid at one point of a log."""
+"""Map snapshots: one decoded occupancy grid at one point of a log, and decoding map messages into them.
+
+The ``int8[] data`` of a grid is decoded by rosbags straight into a numpy array (no Python lists);
+``map_msgs/OccupancyGridUpdate`` patches are applied to the last full map of their topic.
+"""
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["GridUpdate", "MapSnapshot", "apply_update"]
+from rose_logs.errors import MapMessageError
+from rose_logs.frames import quaternion_to_yaw
+from rose_logs.storage.typesys import MAP_TYPE, UPDATE_TYPE, typestore_for
+
+__all__ = ["GridUpdate", "MapSnapshot", "apply_update", "decode_map", "decode_update"]
+
+_NS_PER_S = 1_000_000_000
 
 
 @dataclass(frozen=True, eq=False)
@@ -53,8 +63,7 @@ class MapSnapshot:
     @property
     def origin_yaw_rad(self) -> float:
         """Yaw of the grid in the map frame, in radians (from the origin quaternion)."""
-        x, y, z, w = self.origin_orientation_xyzw
-        return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+        return quaternion_to_yaw(self.origin_orientation_xyzw)
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -123,4 +132,97 @@ def apply_update(snapshot: MapSnapshot, update: GridUpdate) -> MapSnapshot:
         origin_orientation_xyzw=snapshot.origin_orientation_xyzw,
         map_load_time_ns=snapshot.map_load_time_ns,
         header_seq=snapshot.header_seq,
+    )
+
+
+# -- decoding map messages ------------------------------------------------------------------------------------
+def _time_ns(stamp: Any) -> int:
+    return int(stamp.sec) * _NS_PER_S + int(stamp.nanosec)
+
+
+def _deserialize(data: bytes | memoryview, msgtype: str, serialization: str, topic: str) -> Any:
+    store = typestore_for(serialization)
+    try:
+        if serialization == "ros1":
+            return store.deserialize_ros1(data, msgtype)
+        return store.deserialize_cdr(data, msgtype)
+    except Exception as err:  # rosbags raises struct/index/value errors on short or garbled data
+        msg = f"{topic}: cannot decode {msgtype} message ({type(err).__name__}: {err})"
+        raise MapMessageError(msg) from err
+
+
+def _grid_from(data: Any, width: int, height: int, topic: str, what: str) -> npt.NDArray[np.int8]:
+    flat = np.asarray(data)
+    if flat.dtype != np.int8:
+        flat = flat.astype(np.int8)
+    if width * height == 0:
+        msg = f"{topic}: zero-area {what} ({width} x {height} cells)"
+        raise MapMessageError(msg)
+    if flat.size != width * height:
+        msg = f"{topic}: {what} data has {flat.size} cells, width x height is {width} x {height} = {width * height}"
+        raise MapMessageError(msg)
+    grid = flat.reshape(height, width).copy()
+    grid.setflags(write=False)
+    return grid
+
+
+def decode_map(
+    data: bytes | memoryview, *, serialization: str, topic: str, log_time_ns: int
+) -> MapSnapshot:
+    """Decode one serialised ``nav_msgs/OccupancyGrid`` into a :class:`MapSnapshot`.
+
+    Parameters
+    ----------
+    data : bytes or memoryview
+        Serialised message (ROS 1 or CDR).
+    serialization : {"ros1", "cdr"}
+        Its serialisation.
+    topic : str
+        Topic, for the snapshot and error messages.
+    log_time_ns : int
+        Log time of the message, ns.
+
+    Raises
+    ------
+    MapMessageError
+        If the bytes do not decode, the map has zero area or ``len(data) != width * height``.
+    """
+    msg = _deserialize(data, MAP_TYPE, serialization, topic)
+    info = msg.info
+    grid = _grid_from(msg.data, int(info.width), int(info.height), topic, "map")
+    pos, ori = info.origin.position, info.origin.orientation
+    return MapSnapshot(
+        topic=topic,
+        log_time_ns=int(log_time_ns),
+        stamp_ns=_time_ns(msg.header.stamp),
+        frame_id=str(msg.header.frame_id),
+        grid=grid,
+        resolution_m=float(info.resolution),
+        origin_position_m=(float(pos.x), float(pos.y), float(pos.z)),
+        origin_orientation_xyzw=(float(ori.x), float(ori.y), float(ori.z), float(ori.w)),
+        map_load_time_ns=_time_ns(info.map_load_time),
+        header_seq=int(getattr(msg.header, "seq", 0)),
+    )
+
+
+def decode_update(
+    data: bytes | memoryview, *, serialization: str, topic: str, log_time_ns: int
+) -> GridUpdate:
+    """Decode one serialised ``map_msgs/OccupancyGridUpdate`` into a :class:`GridUpdate`.
+
+    Raises
+    ------
+    MapMessageError
+        If the bytes do not decode or ``len(data) != width * height``.
+    """
+    msg = _deserialize(data, UPDATE_TYPE, serialization, topic)
+    patch = _grid_from(msg.data, int(msg.width), int(msg.height), topic, "update")
+    return GridUpdate(
+        topic=topic,
+        log_time_ns=int(log_time_ns),
+        stamp_ns=_time_ns(msg.header.stamp),
+        frame_id=str(msg.header.frame_id),
+        x_px=int(msg.x),
+        y_px=int(msg.y),
+        patch=patch,
     )

@@ -33,53 +33,24 @@ import logging
 import os
 import shutil
 from collections.abc import Sequence
-from io import StringIO
 from pathlib import Path
 from types import TracebackType
-from typing import Any, BinaryIO, Self
+from typing import Any, Self
 
 from rosbags.interfaces import Qos
 
 from rose_logs.errors import LogWriteError
-from rose_logs.messages import msgdef_for, typestore_for
-from rose_logs.reader import Channel, LogFormat, ros1_msgtype
+from rose_logs.formats import FORMATS, LogFormat
+from rose_logs.storage.base import WriteBackend
+from rose_logs.storage.connections import QosStyle, default_qos, offered_qos, transient_local_qos
+from rose_logs.storage.mcap import McapWriteBackend
+from rose_logs.storage.records import Channel
+from rose_logs.storage.rosbags import Ros1WriteBackend, Ros2WriteBackend
+from rose_logs.storage.typesys import msgdef_for, typestore_for
 
-__all__ = [
-    "FORMATS",
-    "LogWriter",
-    "format_from_path",
-    "offered_qos",
-    "open_output",
-    "transient_local_qos",
-]
+__all__ = ["LogWriter", "offered_qos", "open_output", "transient_local_qos"]
 
 _LOG = logging.getLogger(__name__)
-
-FORMATS: tuple[LogFormat, ...] = ("ros1", "db3", "mcap", "mcap-dir")
-_SEPARATOR = "=" * 80
-
-
-def format_from_path(path: Path) -> LogFormat | None:
-    """Format implied by an output name: ``.bag`` -> ros1, ``.mcap`` -> mcap, ``.db3`` -> db3, else None."""
-    return {".bag": "ros1", ".mcap": "mcap", ".db3": "db3"}.get(Path(path).suffix.lower())  # type: ignore[return-value]
-
-
-def transient_local_qos(depth: int = 1) -> Qos:
-    """The QoS a latched ROS 2 map publisher offers (reliable, transient local, keep last ``depth``)."""
-    from rosbags.interfaces import QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
-
-    zero = QosTime(sec=0, nsec=0)
-    return Qos(
-        history=QosHistory.KEEP_LAST,
-        depth=depth,
-        reliability=QosReliability.RELIABLE,
-        durability=QosDurability.TRANSIENT_LOCAL,
-        deadline=zero,
-        lifespan=zero,
-        liveliness=QosLiveliness.AUTOMATIC,
-        liveliness_lease_duration=zero,
-        avoid_ros_namespace_conventions=False,
-    )
 
 
 def _is_within(a: Path, b: Path) -> bool:
@@ -103,6 +74,10 @@ class LogWriter:
     protected : sequence of Path, default ()
         Paths that must never be written or replaced (the input log); ``path`` may not equal, contain or
         lie inside any of them.
+    qos_style : {"v8", "v9"}, optional
+        How ROS 2 QoS policies are spelled in the metadata written (``"v8"`` integers, which Humble needs,
+        ``"v9"`` names); pass the input's (:attr:`LogReader.qos_style`) so that added topics match copied
+        ones. Default ``"v9"``. For ``db3`` / ``mcap-dir`` it also picks the rosbag2 format version (8 or 9).
 
     Raises
     ------
@@ -119,6 +94,7 @@ class LogWriter:
         serialization: str | None = None,
         force: bool = False,
         protected: Sequence[Path] = (),
+        qos_style: QosStyle | None = None,
     ) -> None:
         self.path = Path(path)
         if fmt not in FORMATS:
@@ -138,6 +114,10 @@ class LogWriter:
             raise LogWriteError(msg)
         self.format: LogFormat = fmt
         self.serialization = serialization
+        if qos_style not in {None, "v8", "v9"}:
+            msg = f"{self.path}: qos_style must be 'v8' or 'v9', got {qos_style!r}"
+            raise LogWriteError(msg)
+        self.qos_style: QosStyle = qos_style or "v9"
         resolved = self.path.resolve()
         for other in protected:
             other_resolved = Path(other).resolve()
@@ -159,7 +139,7 @@ class LogWriter:
         # name the storage file after the folder), then one rename moves it into place.
         self.stage_path = parent / f".{self.path.name}.rose-tmp-{os.getpid()}"
         self.tmp_path = self.stage_path / self.path.name
-        self._backend: _Backend | None = None
+        self._backend: WriteBackend | None = None
         self._topics: dict[str, int] = {}
 
     # -- lifecycle -------------------------------------------------------------------------------
@@ -177,13 +157,13 @@ class LogWriter:
         except OSError as err:
             msg = f"{self.path}: cannot write in {self.stage_path.parent} ({err.strerror})"
             raise LogWriteError(msg) from err
-        backend: _Backend
+        backend: WriteBackend
         if self.format == "ros1":
-            backend = _Ros1Backend(self.tmp_path)
+            backend = Ros1WriteBackend(self.tmp_path)
         elif self.format == "mcap":
-            backend = _McapBackend(self.tmp_path, self.serialization)
+            backend = McapWriteBackend(self.tmp_path, self.serialization, self.qos_style)
         else:
-            backend = _Ros2Backend(self.tmp_path, self.format)
+            backend = Ros2WriteBackend(self.tmp_path, self.format, self.qos_style)
         try:
             backend.open()
         except Exception as err:
@@ -250,7 +230,7 @@ class LogWriter:
         else:
             self.abort()
 
-    def _require_open(self) -> _Backend:
+    def _require_open(self) -> WriteBackend:
         if self._backend is None:
             msg = f"{self.path}: writer is not open"
             raise LogWriteError(msg)
@@ -305,11 +285,13 @@ class LogWriter:
         latching : bool, default False
             ROS 1: latched connection. ROS 2: offer transient-local QoS (unless ``qos`` is given).
         qos : sequence of Qos, optional
-            ROS 2 offered QoS profiles.
+            ROS 2 offered QoS profiles; default transient local when ``latching``, else a default
+            publisher's (:func:`~rose_logs.storage.connections.default_qos`), so that every ROS 2
+            topic written carries a profile.
         callerid : str, optional
             ROS 1 publishing node.
         """
-        from rose_logs.reader import normalize_msgtype
+        from rose_logs.storage.records import normalize_msgtype
 
         if topic in self._topics:
             msg = f"{self.path}: topic {topic} exists already in the output"
@@ -321,7 +303,8 @@ class LogWriter:
             msg = f"{self.path}: unknown message type {msgtype} for topic {topic}"
             raise LogWriteError(msg) from err
         ros1 = self.serialization == "ros1"
-        profiles = tuple(qos) if qos is not None else ((transient_local_qos(),) if latching else ())
+        own = transient_local_qos() if latching else default_qos()
+        profiles = tuple(qos) if qos else (own,)
         channel = Channel(
             id=-1,
             topic=topic,
@@ -392,9 +375,17 @@ def open_output(
     serialization: str | None = None,
     force: bool = False,
     protected: Sequence[Path] = (),
+    qos_style: QosStyle | None = None,
 ) -> LogWriter:
     """A :class:`LogWriter` to use as a context manager (see the module docstring for an example)."""
-    return LogWriter(path, fmt, serialization=serialization, force=force, protected=protected)
+    return LogWriter(
+        path,
+        fmt,
+        serialization=serialization,
+        force=force,
+        protected=protected,
+        qos_style=qos_style,
+    )
 
 
 def _remove(path: Path) -> None:
@@ -405,246 +396,3 @@ def _remove(path: Path) -> None:
             path.unlink()
     except OSError:
         _LOG.warning("could not remove temporary output %s", path)
-
-
-# -- message definitions -------------------------------------------------------------------------
-def _definitions(channel: Channel, ros_version: int) -> tuple[str, str]:
-    """``(msgdef, digest)`` for an output connection of ``channel``; computed when the input lacked one."""
-    serialization = "ros1" if ros_version == 1 else "cdr"
-    wanted = "ros1msg" if ros_version == 1 else "ros2"
-    if channel.msgdef and channel.digest and channel.msgdef_encoding.startswith(wanted):
-        return channel.msgdef, channel.digest
-    if channel.msgdef and channel.msgdef_encoding.startswith(wanted):
-        try:
-            from rosbags.typesys import Stores, get_types_from_msg, get_typestore
-
-            store = get_typestore(Stores.EMPTY)
-            for name, text in _split_msgdef(channel.msgtype, channel.msgdef):
-                store.register(get_types_from_msg(text, name))
-            if ros_version == 1:
-                return store.generate_msgdef(channel.msgtype)
-            return channel.msgdef, store.hash_rihs01(channel.msgtype)
-        except Exception:  # fall back to the built-in definitions below
-            _LOG.debug("could not hash the definition of %s", channel.msgtype, exc_info=True)
-    try:
-        return msgdef_for(channel.msgtype, serialization)
-    except Exception as err:
-        msg = f"no usable message definition for {channel.msgtype} on {channel.topic}"
-        raise LogWriteError(msg) from err
-
-
-def _split_msgdef(msgtype: str, text: str) -> list[tuple[str, str]]:
-    from rose_logs.reader import normalize_msgtype
-
-    parts = [(msgtype, "")]
-    for line in text.splitlines():
-        if line.strip() == _SEPARATOR:
-            parts.append(("", ""))
-        elif line.startswith("MSG: ") and not parts[-1][0]:
-            parts[-1] = (normalize_msgtype(line[5:].strip()), "")
-        else:
-            name, body = parts[-1]
-            parts[-1] = (name, body + line + "\n")
-    return [(n, b) for n, b in parts if n]
-
-
-def _qos_yaml(profiles: Sequence[Qos]) -> str:
-    from rosbags.rosbag2.metadata import dump_qos_v9
-    from ruamel.yaml import YAML
-
-    if not profiles:
-        return ""
-    stream = StringIO()
-    yaml = YAML(typ="safe")
-    yaml.default_flow_style = False
-    yaml.dump(dump_qos_v9(list(profiles)), stream)
-    return stream.getvalue().strip()
-
-
-def offered_qos(channel: Channel) -> list[Qos]:
-    """ROS 2 QoS profiles of ``channel``, from a ROS 2 bag or parsed from MCAP channel metadata."""
-    if channel.offered_qos_profiles:
-        return list(channel.offered_qos_profiles)
-    text = channel.metadata.get("offered_qos_profiles", "")
-    if text:
-        from rosbags.rosbag2.metadata import parse_qos
-
-        try:
-            return parse_qos(text)
-        except Exception:  # QoS is metadata; a bad string must not stop the copy
-            _LOG.warning("%s: unreadable offered_qos_profiles, not copied", channel.topic)
-    return []
-
-
-# -- backends ------------------------------------------------------------------------------------
-class _Backend:
-    def open(self) -> None: ...
-    def add(self, channel: Channel) -> int: ...  # type: ignore[empty-body]
-    def write(
-        self, handle: int, log_time_ns: int, data: bytes | memoryview, publish_ns: int, seq: int
-    ) -> None: ...
-    def close(self) -> None: ...
-    def abort(self) -> None: ...
-
-
-class _RosbagsBackendBase(_Backend):
-    ros_version: int
-
-    def __init__(self, path: Path) -> None:
-        self.path = path
-        self.writer: Any = None
-        self.connections: list[Any] = []
-
-    def add(self, channel: Channel) -> int:
-        msgdef, digest = _definitions(channel, self.ros_version)
-        return self._dedup(
-            (channel.topic, channel.msgtype),
-            lambda: self._add_connection(channel, msgdef, digest),
-        )
-
-    def _add_connection(self, channel: Channel, msgdef: str, digest: str) -> Any:
-        """Register ``channel`` with the rosbags writer; return the new connection."""
-        raise NotImplementedError
-
-    def _dedup(self, conn_args: tuple[Any, ...], create: Any) -> int:
-        try:
-            self.connections.append(create())
-        except Exception as err:
-            if "once" not in str(err):
-                raise
-            # The same connection twice (a ROS 1 node that reconnected): share the existing one.
-            for existing in list(self.connections):
-                if (existing.topic, existing.msgtype) == conn_args:
-                    self.connections.append(existing)
-                    return len(self.connections) - 1
-            raise
-        return len(self.connections) - 1
-
-    def write(
-        self, handle: int, log_time_ns: int, data: bytes | memoryview, publish_ns: int, seq: int
-    ) -> None:
-        self.writer.write(self.connections[handle], log_time_ns, data)
-
-    def close(self) -> None:
-        self.writer.close()
-
-    def abort(self) -> None:
-        if self.writer is not None:
-            try:
-                self.writer.close()
-            except Exception:  # the output is deleted anyway
-                _LOG.debug("closing an aborted writer failed", exc_info=True)
-            self.writer = None
-
-
-class _Ros1Backend(_RosbagsBackendBase):
-    ros_version = 1
-
-    def open(self) -> None:
-        from rosbags.rosbag1 import Writer
-
-        self.writer = Writer(self.path)
-        self.writer.open()
-
-    def _add_connection(self, channel: Channel, msgdef: str, digest: str) -> Any:
-        return self.writer.add_connection(
-            channel.topic,
-            channel.msgtype,
-            msgdef=msgdef,
-            md5sum=digest,
-            callerid=channel.callerid,
-            latching=channel.latching,
-        )
-
-
-class _Ros2Backend(_RosbagsBackendBase):
-    ros_version = 2
-
-    def __init__(self, path: Path, fmt: LogFormat) -> None:
-        super().__init__(path)
-        self.format = fmt
-
-    def open(self) -> None:
-        from rosbags.rosbag2 import StoragePlugin, Writer
-
-        plugin = StoragePlugin.MCAP if self.format == "mcap-dir" else StoragePlugin.SQLITE3
-        self.writer = Writer(self.path, version=9, storage_plugin=plugin)
-        self.writer.open()
-
-    def _add_connection(self, channel: Channel, msgdef: str, digest: str) -> Any:
-        return self.writer.add_connection(
-            channel.topic,
-            channel.msgtype,
-            msgdef=msgdef,
-            rihs01=digest or "RIHS01_" + "0" * 64,
-            serialization_format=channel.message_encoding,
-            offered_qos_profiles=offered_qos(channel),
-        )
-
-
-class _McapBackend(_Backend):
-    def __init__(self, path: Path, serialization: str) -> None:
-        self.path = path
-        self.serialization = serialization
-        self.stream: BinaryIO | None = None
-        self.writer: Any = None
-        self.schemas: dict[tuple[str, str, str], int] = {}
-        self.channels: list[int] = []
-
-    def open(self) -> None:
-        from mcap.writer import Writer
-
-        self.stream = self.path.open("wb")
-        self.writer = Writer(self.stream)
-        self.writer.start(
-            profile="ros1" if self.serialization == "ros1" else "ros2", library="rose-bag"
-        )
-
-    def add(self, channel: Channel) -> int:
-        ros1 = channel.message_encoding == "ros1"
-        if channel.schema_name or channel.message_encoding not in {"ros1", "cdr"}:
-            name, encoding, data = channel.schema_name, channel.msgdef_encoding, channel.msgdef
-        else:
-            data, _digest = _definitions(channel, 1 if ros1 else 2)
-            name = ros1_msgtype(channel.msgtype) if ros1 else channel.msgtype
-            encoding = "ros1msg" if ros1 else (channel.msgdef_encoding or "ros2msg")
-        key = (name, encoding, data)
-        schema_id = self.schemas.get(key)
-        if schema_id is None:
-            schema_id = self.writer.register_schema(name, encoding, data.encode("utf-8"))
-            self.schemas[key] = schema_id
-        metadata = dict(channel.metadata)
-        if not metadata:
-            if ros1:
-                if channel.callerid is not None:
-                    metadata["callerid"] = channel.callerid
-                if channel.latching is not None:
-                    metadata["latching"] = str(int(channel.latching))
-                if channel.digest:
-                    metadata["md5sum"] = channel.digest
-            else:
-                qos = _qos_yaml(offered_qos(channel))
-                if qos:
-                    metadata["offered_qos_profiles"] = qos
-        channel_id = self.writer.register_channel(
-            channel.topic, channel.message_encoding, schema_id, metadata
-        )
-        self.channels.append(channel_id)
-        return len(self.channels) - 1
-
-    def write(
-        self, handle: int, log_time_ns: int, data: bytes | memoryview, publish_ns: int, seq: int
-    ) -> None:
-        self.writer.add_message(self.channels[handle], log_time_ns, data, publish_ns, seq)
-
-    def close(self) -> None:
-        self.writer.finish()
-        if self.stream is not None:
-            self.stream.close()
-            self.stream = None
-
-    def abort(self) -> None:
-        if self.stream is not None:
-            self.stream.close()
-            self.stream = None
-        self.writer = None

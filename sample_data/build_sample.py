@@ -17,7 +17,7 @@ import sys
 from pathlib import Path
 
 import rose
-from rose_logs.messages import encode_cleaned
+from rose_logs.derived import encode_cleaned
 from rose_logs.snapshots import MapSnapshot
 from rose_logs.writer import open_output
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from rose_logs.carmen import (
+from rose_logs.carmen.parse import (
     CarmenFormatError,
     beam_angles,
     parse_carmen_lines,
@@ -120,26 +120,25 @@ def test_beam_angles(n: int, increment_deg: float) -> None:
     assert_allclose(np.diff(angles), math.radians(increment_deg), rtol=1e-12)
 
 
-# -- sessions written from a log (rose_logs.carmen_session) -------------------------------------
+# -- sessions written from a log (rose_logs.carmen.session) -------------------------------------
 @needs_logs
 @pytest.mark.parametrize(("name", "fmt"), [("s.bag", "ros1"), ("s_db3", "db3"), ("s.mcap", "mcap")])
 def test_session_write_then_read(tmp_path: Path, name: str, fmt: str) -> None:
     from rosbags.highlevel import AnyReader
 
-    from rose_logs.carmen_session import format_from_path, write_carmen_session
-    from rose_logs.occupancy_builder import BuilderParams
+    from rose_logs.carmen.raycast import BuilderParams
+    from rose_logs.carmen.session import SessionOptions, write_carmen_session
 
     log = read_carmen_log(LOGS / "freiburg-101-corrected.log.gz", max_scans=40)
     out = tmp_path / name
-    assert format_from_path(out) == fmt
-    summary = write_carmen_session(
-        log,
-        out,
+    options = SessionOptions(
         builder_params=BuilderParams(resolution_m=0.2, grow_margin_m=2.0),
         map_period_s=20.0,
         pose_output="both",
     )
+    summary = write_carmen_session(log, out, options=options)
     assert summary.scans == 40
+    assert summary.format == fmt
     with AnyReader([out]) as reader:
         counts = {c.topic: c.msgcount for c in reader.connections}
         assert counts["/scan"] == 40 and counts["/tf"] == 40 and counts["/odom"] == 40
@@ -165,7 +164,7 @@ def test_session_write_then_read(tmp_path: Path, name: str, fmt: str) -> None:
 def test_convert_command(tmp_path: Path) -> None:
     import argparse
 
-    from rose_logs.carmen_session import add_convert_parser
+    from rose_logs.cli.convert import add_parser as add_convert_parser
 
     parser = argparse.ArgumentParser()
     add_convert_parser(parser.add_subparsers())

@@ -10,9 +10,9 @@ import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
 import rose
-from rose_logs.carmen import beam_angles, read_carmen_log
-from rose_logs.drift import DriftParams, apply_drift
-from rose_logs.occupancy_builder import OccupancyGridBuilder, ScanBatch, crop_to_known
+from rose_logs.carmen.drift import DriftParams, apply_drift
+from rose_logs.carmen.parse import beam_angles, read_carmen_log
+from rose_logs.carmen.raycast import OccupancyGridBuilder, ScanBatch, crop_to_known
 
 LOG = Path("/work/shared/maps/radish_carmen_corrected_logs/aces-corrected.log.gz")
 

@@ -11,7 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rose_logs.evaluation import EvaluationConfig, add_clutter, add_evaluate_parser, run_evaluation
+from rose_logs.cli.evaluate import add_parser as add_evaluate_parser
+from rose_logs.evaluation import EvaluationConfig, add_clutter, run_evaluation
 from rose_logs.evaluation.clutter import SHAPES, obstacle_stamp
 from rose_logs.evaluation.config import DEFAULT_MAPS_DIR
 from rose_logs.evaluation.experiments import correlation, label_scores
@@ -146,7 +147,7 @@ def test_correlation_of_perfectly_anticorrelated_runs() -> None:
 
 
 def test_evaluate_parser_builds_config() -> None:
-    from rose_logs.evaluation.cli import config_from_args
+    from rose_logs.cli.evaluate import config_from_args
 
     parser = argparse.ArgumentParser()
     add_evaluate_parser(parser.add_subparsers())
@@ -157,4 +158,4 @@ def test_evaluate_parser_builds_config() -> None:
     assert config.name == "full"
     assert config.logs == ("aces", "intel")
     assert config.seed == 5
-    assert args.func.__name__ == "run_evaluate"
+    assert args.func.__module__ == "rose_logs.cli.evaluate"

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from rose_logs.occupancy_builder import (
+from rose_logs.carmen.raycast import (
     BuilderParams,
     OccupancyGridBuilder,
     ScanBatch,

@@ -122,7 +122,7 @@ def add_param_arguments(parser: argparse.ArgumentParser) -> None:
         default=d.clutter_value,
         help="what clutter cells become in the cleaned map (default %(default)s)",
     )
-    group.add_argument("--seed", type=int, default=d.seed, help="mixture seed (default %(default)s)")  # fmt: skip
+    group.add_argument("--seed", type=int, default=d.seed, help="no effect since the mixture fit is deterministic; kept for compatibility")  # fmt: skip
 
 
 def params_from_args(args: argparse.Namespace) -> RoseParams:

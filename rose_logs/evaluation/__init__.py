@@ -4,7 +4,6 @@
 ``python -m rose_logs.evaluation OUT_DIR --config full`` runs the benchmark configuration.
 """
 
-from rose_logs.evaluation.cli import add_evaluate_parser, run_evaluate
 from rose_logs.evaluation.clutter import ClutteredMap, add_clutter
 from rose_logs.evaluation.config import EvaluationConfig
 from rose_logs.evaluation.report import EvaluationReport, run_evaluation
@@ -14,7 +13,5 @@ __all__ = [
     "EvaluationConfig",
     "EvaluationReport",
     "add_clutter",
-    "add_evaluate_parser",
-    "run_evaluate",
     "run_evaluation",
 ]

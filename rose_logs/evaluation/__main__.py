@@ -1,5 +1,7 @@
-"""``python -m rose_logs.evaluation OUT_DIR [--config small|full]``."""
+"""``python -m rose_logs.evaluation OUT_DIR [--config small|full]``: same as ``rose-bag evaluate``."""
 
-from rose_logs.evaluation.cli import main
+import sys
 
-raise SystemExit(main())
+from rose_logs.cli import main
+
+raise SystemExit(main(["evaluate", *sys.argv[1:]]))

@@ -75,7 +75,7 @@ class EvaluationConfig:
     shapes, sizes_px, counts : tuples
         Experiment 1 grid: every combination runs once per map.
     drift_levels : tuple of float
-        Experiment 2 drift levels (multipliers of :class:`rose_logs.drift.DriftParams`), besides 0.
+        Experiment 2 drift levels (multipliers of :class:`rose_logs.carmen.drift.DriftParams`), besides 0.
     drift_seeds : int
         Drifted maps per log and level.
     rose_params : RoseParams

@@ -265,29 +265,37 @@ def display_spectrum(
 
 
 def direction_segments_cells(
-    directions_rad: npt.NDArray[np.float64], shape: tuple[int, int]
+    directions_rad: npt.NDArray[np.float64],
+    shape: tuple[int, int],
+    *,
+    bounds: tuple[float, float, float, float] | None = None,
 ) -> npt.NDArray[np.float64]:
-    """Segments through the grid centre along each direction, in continuous cell coordinates.
+    """Segments through the centre of a box along each direction, in continuous cell coordinates.
 
     Parameters
     ----------
     directions_rad : ndarray of float64, shape (K,)
         Line orientations in radians, counter-clockwise from the grid's +x (columns) axis.
     shape : tuple of int
-        Grid ``(rows, cols)``.
+        Grid ``(rows, cols)``; the box when ``bounds`` is None.
+    bounds : tuple of float, optional
+        ``(x_min, y_min, x_max, y_max)`` in cells, e.g. the known part of the map
+        (:func:`known_bounds_cells`): the lines cross what was mapped, not the empty grid around it.
 
     Returns
     -------
     ndarray of float64, shape (K, 2, 2)
-        ``[k, end, (x, y)]`` in cells of the grid frame; both ends on the grid's border, the second
+        ``[k, end, (x, y)]`` in cells of the grid frame; both ends on the box's border, the second
         one in the direction ``(cos, sin)`` of the angle.
     """
     rows, cols = shape
-    centre = np.array([cols / 2.0, rows / 2.0])
+    x0, y0, x1, y1 = (0.0, 0.0, float(cols), float(rows)) if bounds is None else bounds
+    centre = np.array([(x0 + x1) / 2.0, (y0 + y1) / 2.0])
+    half_box = np.array([(x1 - x0) / 2.0, (y1 - y0) / 2.0])
     theta = np.asarray(directions_rad, dtype=np.float64)
     unit = np.stack([np.cos(theta), np.sin(theta)], axis=-1)  # (K, 2)
     with np.errstate(divide="ignore"):
-        reach = centre / np.abs(unit)  # inf along an axis the line is parallel to
+        reach = half_box / np.abs(unit)  # inf along an axis the line is parallel to
     half_length = reach.min(axis=1, keepdims=True)
     return np.stack([centre - half_length * unit, centre + half_length * unit], axis=1)
 

@@ -220,7 +220,7 @@ class TopicLogger:
         self.recording.log(self.paths.segmentation, rr.SegmentationImage(image))
 
     def log_directions(self, snapshot: MapSnapshot, result: RoseResult) -> None:
-        """Dominant directions through the grid centre over the segmentation and in metres.
+        """Dominant directions across the known part of the map, over the segmentation and in metres.
 
         Each direction is labelled once, near its line's end (all lines cross at the centre).
         """
@@ -231,7 +231,9 @@ class TopicLogger:
             rec.log(paths.metric_directions, rr.Clear(recursive=False))
             return
         rows, cols = snapshot.grid.shape
-        segments = conv.direction_segments_cells(directions, (rows, cols))
+        segments = conv.direction_segments_cells(
+            directions, (rows, cols), bounds=conv.known_bounds_cells(snapshot.grid)
+        )
         anchors = conv.direction_label_positions(segments)
         labels = [f"walls {math.degrees(angle):.1f}°" for angle in directions]
         radius = rr.Radius.ui_points(1.5)

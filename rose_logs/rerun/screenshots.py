@@ -5,8 +5,9 @@
 Serves the recording with ``rerun REC.rrd --serve-web`` bound to 127.0.0.1 only (free ports), opens the
 web viewer in Chromium (Debian's ``/usr/bin/chromium`` driven by Playwright, software WebGL through
 SwiftShader, a fresh profile, no network beyond loopback), and saves one PNG of the default layout per
-requested snapshot (the page loads once; the time cursor is moved with the viewer's own keys: Home for
-the first time point, Ctrl+Right for the next one, so every shot shows exactly a snapshot). Needs the
+requested snapshot (the page loads once; the time cursor is moved with the viewer's own keys: End for
+the last time point, Ctrl+Right for the next one, wrapping to the first, so every shot shows exactly a
+snapshot). Needs the
 ``screenshots`` extra (``pip install '.[screenshots]'``) and ``apt-get install chromium``.
 """
 
@@ -245,8 +246,9 @@ def take_screenshots(
             for name, step in steps:
                 if step is not None:
                     page.locator("canvas").first.focus()
-                    _press(page, "Home")
-                    for _ in range(step):
+                    # End: the last time point; one step forward wraps to the first one.
+                    _press(page, "End")
+                    for _ in range(step + 1):
                         _press(page, "Control+ArrowRight")
                     page.wait_for_timeout(_SETTLE_MS)
                 path = out_dir / f"{prefix}{name}.png"

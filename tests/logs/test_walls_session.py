@@ -10,9 +10,9 @@ import pytest
 from conftest import build_log, log_path, session_maps
 
 import rose
-from rose_logs.messages import typestore_for
 from rose_logs.reader import LogReader
 from rose_logs.session import process_log
+from rose_logs.storage.typesys import typestore_for
 
 
 @pytest.mark.parametrize("kind", ["ros1", "mcap-ros2"])

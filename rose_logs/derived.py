@@ -1,10 +1,4 @@
-"""Decode map messages into snapshots and build the derived output messages, for ROS 1 and ROS 2.
-
-Serialisation goes through rosbags typestores (``ROS1_NOETIC`` for ``"ros1"``, ``ROS2_HUMBLE`` for
-``"cdr"``), extended with ``map_msgs/msg/OccupancyGridUpdate`` and ``tf2_msgs/msg/TFMessage``. The
-``int8[] data`` of a grid is decoded by rosbags straight into a numpy array (no Python lists).
-
-Derived messages per map topic (see :func:`derived_topics`):
+"""The messages rose-bag adds to a log, for ROS 1 and ROS 2 (see :func:`derived_topics`).
 
 - ``<map>/rose/cleaned``: ``nav_msgs/msg/OccupancyGrid``, the header and info of the snapshot and the
   cleaned grid;
@@ -16,83 +10,34 @@ Derived messages per map topic (see :func:`derived_topics`):
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
-from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from rose.result import RoseResult
-from rose.walls import WallSet
-from rose_logs.errors import MapMessageError
-from rose_logs.snapshots import GridUpdate, MapSnapshot
+from rose.walls.segments import WallSet
+from rose_logs.snapshots import MapSnapshot
+from rose_logs.storage.typesys import (
+    FLOAT32_TYPE,
+    MAP_TYPE,
+    MARKER_ARRAY_TYPE,
+    typestore_for,
+)
+
+_NS_PER_S = 1_000_000_000
 
 __all__ = [
-    "FLOAT32_TYPE",
-    "MAP_TYPE",
-    "MARKER_ARRAY_TYPE",
-    "UPDATE_TYPE",
     "DerivedTopics",
-    "decode_map",
-    "decode_update",
     "derived_topics",
     "encode_cleaned",
     "encode_score",
     "encode_walls",
-    "msgdef_for",
-    "typestore_for",
+    "grid_centre_m",
+    "wall_line_endpoints",
 ]
-
-MAP_TYPE = "nav_msgs/msg/OccupancyGrid"
-UPDATE_TYPE = "map_msgs/msg/OccupancyGridUpdate"
-FLOAT32_TYPE = "std_msgs/msg/Float32"
-MARKER_ARRAY_TYPE = "visualization_msgs/msg/MarkerArray"
-
-_UPDATE_MSGDEF = """std_msgs/Header header
-int32 x
-int32 y
-uint32 width
-uint32 height
-int8[] data
-"""
-_TF_MSGDEF = "geometry_msgs/TransformStamped[] transforms\n"
-_NS_PER_S = 1_000_000_000
-
-
-@functools.cache
-def typestore_for(serialization: str) -> Any:
-    """rosbags typestore for ``"ros1"`` (Noetic) or ``"cdr"`` (Humble), with ``map_msgs`` and ``tf2_msgs``.
-
-    Cached: one typestore per serialisation and process.
-    """
-    if serialization not in {"ros1", "cdr"}:
-        msg = f"serialization must be 'ros1' or 'cdr', got {serialization!r}"
-        raise ValueError(msg)
-    store = get_typestore(Stores.ROS1_NOETIC if serialization == "ros1" else Stores.ROS2_HUMBLE)
-    extra: dict[str, Any] = {}
-    if UPDATE_TYPE not in store.types:
-        extra.update(get_types_from_msg(_UPDATE_MSGDEF, UPDATE_TYPE))
-    if "tf2_msgs/msg/TFMessage" not in store.types:
-        extra.update(get_types_from_msg(_TF_MSGDEF, "tf2_msgs/msg/TFMessage"))
-    if extra:
-        store.register(extra)
-    return store
-
-
-@functools.cache
-def msgdef_for(msgtype: str, serialization: str) -> tuple[str, str]:
-    """``(message definition, digest)`` of ``msgtype`` for a new output connection.
-
-    The digest is the md5sum for ``"ros1"`` and the RIHS01 hash for ``"cdr"``.
-    """
-    store = typestore_for(serialization)
-    if serialization == "ros1":
-        return store.generate_msgdef(msgtype)
-    msgdef, _ = store.generate_msgdef(msgtype, ros_version=2)
-    return msgdef, store.hash_rihs01(msgtype)
 
 
 @dataclass(frozen=True)
@@ -110,97 +55,8 @@ def derived_topics(map_topic: str) -> DerivedTopics:
     return DerivedTopics(f"{base}/cleaned", f"{base}/structure_score", f"{base}/walls")
 
 
-# -- decoding ------------------------------------------------------------------------------------
 def _time_ns(stamp: Any) -> int:
     return int(stamp.sec) * _NS_PER_S + int(stamp.nanosec)
-
-
-def _deserialize(data: bytes | memoryview, msgtype: str, serialization: str, topic: str) -> Any:
-    store = typestore_for(serialization)
-    try:
-        if serialization == "ros1":
-            return store.deserialize_ros1(data, msgtype)
-        return store.deserialize_cdr(data, msgtype)
-    except Exception as err:  # rosbags raises struct/index/value errors on short or garbled data
-        msg = f"{topic}: cannot decode {msgtype} message ({type(err).__name__}: {err})"
-        raise MapMessageError(msg) from err
-
-
-def _grid_from(data: Any, width: int, height: int, topic: str, what: str) -> npt.NDArray[np.int8]:
-    flat = np.asarray(data)
-    if flat.dtype != np.int8:
-        flat = flat.astype(np.int8)
-    if width * height == 0:
-        msg = f"{topic}: zero-area {what} ({width} x {height} cells)"
-        raise MapMessageError(msg)
-    if flat.size != width * height:
-        msg = f"{topic}: {what} data has {flat.size} cells, width x height is {width} x {height} = {width * height}"
-        raise MapMessageError(msg)
-    grid = flat.reshape(height, width).copy()
-    grid.setflags(write=False)
-    return grid
-
-
-def decode_map(
-    data: bytes | memoryview, *, serialization: str, topic: str, log_time_ns: int
-) -> MapSnapshot:
-    """Decode one serialised ``nav_msgs/OccupancyGrid`` into a :class:`MapSnapshot`.
-
-    Parameters
-    ----------
-    data : bytes or memoryview
-        Serialised message (ROS 1 or CDR).
-    serialization : {"ros1", "cdr"}
-        Its serialisation.
-    topic : str
-        Topic, for the snapshot and error messages.
-    log_time_ns : int
-        Log time of the message, ns.
-
-    Raises
-    ------
-    MapMessageError
-        If the bytes do not decode, the map has zero area or ``len(data) != width * height``.
-    """
-    msg = _deserialize(data, MAP_TYPE, serialization, topic)
-    info = msg.info
-    grid = _grid_from(msg.data, int(info.width), int(info.height), topic, "map")
-    pos, ori = info.origin.position, info.origin.orientation
-    return MapSnapshot(
-        topic=topic,
-        log_time_ns=int(log_time_ns),
-        stamp_ns=_time_ns(msg.header.stamp),
-        frame_id=str(msg.header.frame_id),
-        grid=grid,
-        resolution_m=float(info.resolution),
-        origin_position_m=(float(pos.x), float(pos.y), float(pos.z)),
-        origin_orientation_xyzw=(float(ori.x), float(ori.y), float(ori.z), float(ori.w)),
-        map_load_time_ns=_time_ns(info.map_load_time),
-        header_seq=int(getattr(msg.header, "seq", 0)),
-    )
-
-
-def decode_update(
-    data: bytes | memoryview, *, serialization: str, topic: str, log_time_ns: int
-) -> GridUpdate:
-    """Decode one serialised ``map_msgs/OccupancyGridUpdate`` into a :class:`GridUpdate`.
-
-    Raises
-    ------
-    MapMessageError
-        If the bytes do not decode or ``len(data) != width * height``.
-    """
-    msg = _deserialize(data, UPDATE_TYPE, serialization, topic)
-    patch = _grid_from(msg.data, int(msg.width), int(msg.height), topic, "update")
-    return GridUpdate(
-        topic=topic,
-        log_time_ns=int(log_time_ns),
-        stamp_ns=_time_ns(msg.header.stamp),
-        frame_id=str(msg.header.frame_id),
-        x_px=int(msg.x),
-        y_px=int(msg.y),
-        patch=patch,
-    )
 
 
 # -- encoding ------------------------------------------------------------------------------------

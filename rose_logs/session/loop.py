@@ -4,7 +4,7 @@ One pass over the input in log-time order. Every message is copied byte for byte
 map messages (``nav_msgs/OccupancyGrid``) and grid updates (``map_msgs/OccupancyGridUpdate``, applied to
 the last full map of their topic) become :class:`~rose_logs.snapshots.MapSnapshot` s, each analysed with
 :func:`rose.analyze` on its own grid (a grid equal to the previous one of its topic reuses that result),
-and the results go to the output log (derived topics, :mod:`rose_logs.messages`), to Rerun
+and the results go to the output log (derived topics, :mod:`rose_logs.derived`), to Rerun
 (:mod:`rose_logs.rerun`) and to the :class:`SessionReport`.
 
 A *break* is a snapshot where W rises above ``failure_level`` (the paper's 0.4) after being at or below
@@ -13,377 +13,40 @@ it (or on the first snapshot of a topic); each one is a :class:`BreakEvent`.
 
 from __future__ import annotations
 
-import dataclasses
 import logging
 import math
-import statistics
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 import rose
-from rose.directions import FAILURE_LEVEL, TRUST_LEVEL
+from rose.directions import FAILURE_LEVEL
 from rose.params import RoseParams
 from rose.result import RoseResult
-from rose.walls import WallSet
+from rose_logs.derived import derived_topics, encode_cleaned, encode_score, encode_walls
 from rose_logs.errors import LogReadError, LogWriteError, MapMessageError
-from rose_logs.messages import (
-    FLOAT32_TYPE,
-    MAP_TYPE,
-    MARKER_ARRAY_TYPE,
-    UPDATE_TYPE,
-    decode_map,
-    decode_update,
-    derived_topics,
-    encode_cleaned,
-    encode_score,
-    encode_walls,
-)
-from rose_logs.reader import Channel, LogFormat, LogReader
-from rose_logs.snapshots import MapSnapshot, apply_update
-from rose_logs.writer import LogWriter, format_from_path, offered_qos
+from rose_logs.formats import LogFormat, format_from_path
+from rose_logs.reader import LogReader
+from rose_logs.session.analysis import SnapshotAnalyser
+from rose_logs.session.report import BreakEvent, SessionReport, SnapshotRecord
+from rose_logs.session.topics import select_topics, update_targets
+from rose_logs.snapshots import MapSnapshot, apply_update, decode_map, decode_update
+from rose_logs.storage.connections import offered_qos
+from rose_logs.storage.records import Channel
+from rose_logs.storage.typesys import FLOAT32_TYPE, MAP_TYPE, MARKER_ARRAY_TYPE
+from rose_logs.writer import LogWriter
 
-__all__ = [
-    "FAILURE_LEVEL",
-    "TRUST_LEVEL",
-    "BreakEvent",
-    "SessionReport",
-    "SnapshotRecord",
-    "default_output_path",
-    "find_map_topics",
-    "process_log",
-]
+__all__ = ["process_log"]
 
 if TYPE_CHECKING:
-    from rose_logs.rerun.sink import RerunSink
+    from rose_logs.rerun import RerunSink
 
 _LOG = logging.getLogger(__name__)
 
-
 _DECODABLE = {"ros1", "cdr"}
-
-
-@dataclass(frozen=True)
-class SnapshotRecord:
-    """What one snapshot was and what ROSE found (one line of the JSON report).
-
-    Attributes
-    ----------
-    topic : str
-        Map topic.
-    index : int
-        Position of the snapshot on its topic, from 0.
-    log_time_ns, stamp_ns : int
-        Log time of the message and ``header.stamp``, ns.
-    width, height : int
-        Grid size in cells.
-    resolution_m : float
-        Cell size, metres.
-    structure_score : float
-        W.
-    directions_deg : tuple of float
-        Dominant wall orientations in degrees in ``[0, 180)``, grid frame (CCW from the column axis).
-    threshold : float
-        Cell-score threshold (NaN when nothing was classified).
-    occupied_count, clutter_count : int
-        Occupied cells and those labelled clutter.
-    seconds : float
-        Wall time spent on this snapshot (analysis and every sink), seconds.
-    reused : bool
-        True when the grid equalled the previous one and its result was reused.
-    from_update : bool
-        True when the snapshot came from an ``OccupancyGridUpdate``.
-    """
-
-    topic: str
-    index: int
-    log_time_ns: int
-    stamp_ns: int
-    width: int
-    height: int
-    resolution_m: float
-    structure_score: float
-    directions_deg: tuple[float, ...]
-    threshold: float
-    occupied_count: int
-    clutter_count: int
-    seconds: float
-    reused: bool
-    from_update: bool
-
-    def to_json(self, *, start_ns: int) -> dict[str, Any]:
-        """JSON-ready dict; ``time_s`` is seconds since ``start_ns``; NaN becomes null."""
-        return {
-            "topic": self.topic,
-            "index": self.index,
-            "log_time_ns": self.log_time_ns,
-            "stamp_ns": self.stamp_ns,
-            "time_s": round((self.log_time_ns - start_ns) / 1e9, 9),
-            "width": self.width,
-            "height": self.height,
-            "resolution_m": self.resolution_m,
-            "structure_score": self.structure_score,
-            "directions_deg": list(self.directions_deg),
-            "threshold": None if math.isnan(self.threshold) else self.threshold,
-            "occupied": self.occupied_count,
-            "clutter": self.clutter_count,
-            "seconds": round(self.seconds, 6),
-            "reused": self.reused,
-            "from_update": self.from_update,
-        }
-
-
-@dataclass(frozen=True)
-class BreakEvent:
-    """A snapshot where W rose above the failure level."""
-
-    topic: str
-    index: int
-    log_time_ns: int
-    structure_score: float
-    text: str
-
-
-@dataclass(frozen=True)
-class SessionReport:
-    """Everything a session produced except the output files.
-
-    Attributes
-    ----------
-    input_path : Path
-        The log read.
-    input_format : str
-        Its format (see :data:`rose_logs.reader.LogFormat`).
-    output_path : Path or None
-        The log written, if any.
-    rrd_path : Path or None
-        The Rerun recording saved, if any.
-    map_topics : tuple of str
-        Map topics analysed.
-    records : tuple of SnapshotRecord
-        One per snapshot, in log-time order.
-    breaks : tuple of BreakEvent
-        Every rise of W above ``failure_level``.
-    failure_level : float
-        The level used.
-    message_count : int
-        Messages in the input.
-    start_ns, end_ns : int
-        Log time of the first and last input message, ns.
-    skipped_messages : int
-        Map or update messages that could not be analysed (copied through unprocessed).
-    elapsed_s : float
-        Wall time of the whole session, seconds.
-    """
-
-    input_path: Path
-    input_format: str
-    output_path: Path | None
-    rrd_path: Path | None
-    map_topics: tuple[str, ...]
-    records: tuple[SnapshotRecord, ...]
-    breaks: tuple[BreakEvent, ...]
-    failure_level: float
-    message_count: int
-    start_ns: int
-    end_ns: int
-    skipped_messages: int
-    elapsed_s: float
-    params: RoseParams = field(default_factory=RoseParams)
-
-    def records_of(self, topic: str) -> tuple[SnapshotRecord, ...]:
-        """The records of one map topic."""
-        return tuple(r for r in self.records if r.topic == topic)
-
-    def first_break(self, topic: str | None = None) -> BreakEvent | None:
-        """The first break (of ``topic``, or of any topic), None if W never crossed the level."""
-        for event in self.breaks:
-            if topic is None or event.topic == topic:
-                return event
-        return None
-
-    @property
-    def max_score(self) -> float:
-        """Largest W of the session (NaN without snapshots)."""
-        return max((r.structure_score for r in self.records), default=math.nan)
-
-    def to_json(self) -> dict[str, Any]:
-        """JSON-ready report: session summary plus one record per snapshot."""
-        topics = {}
-        for topic in self.map_topics:
-            scores = [r.structure_score for r in self.records_of(topic)]
-            first = self.first_break(topic)
-            topics[topic] = {
-                "snapshots": len(scores),
-                "w_min": min(scores, default=None),
-                "w_median": statistics.median(scores) if scores else None,
-                "w_max": max(scores, default=None),
-                "first_break": None
-                if first is None
-                else {
-                    "index": first.index,
-                    "log_time_ns": first.log_time_ns,
-                    "structure_score": first.structure_score,
-                },
-            }
-        return {
-            "input": str(self.input_path),
-            "input_format": self.input_format,
-            "output": None if self.output_path is None else str(self.output_path),
-            "rrd": None if self.rrd_path is None else str(self.rrd_path),
-            "failure_level": self.failure_level,
-            "message_count": self.message_count,
-            "start_ns": self.start_ns,
-            "end_ns": self.end_ns,
-            "skipped_messages": self.skipped_messages,
-            "elapsed_s": round(self.elapsed_s, 6),
-            "params": {k: getattr(self.params, k) for k in self.params.__dataclass_fields__},
-            "topics": topics,
-            "snapshots": [r.to_json(start_ns=self.start_ns) for r in self.records],
-        }
-
-
-def is_derived_topic(topic: str) -> bool:
-    """Whether ``topic`` is one of our own outputs (``.../rose/...``), never analysed again."""
-    return "/rose/" in topic
-
-
-def find_map_topics(channels: Sequence[Channel]) -> tuple[str, ...]:
-    """Topics of type ``nav_msgs/OccupancyGrid`` (ROS 1 or ROS 2), sorted, without our derived topics."""
-    return tuple(
-        sorted(
-            {
-                c.topic
-                for c in channels
-                if c.msgtype == MAP_TYPE
-                and c.message_encoding in _DECODABLE
-                and not is_derived_topic(c.topic)
-            }
-        )
-    )
-
-
-def _update_targets(channels: Sequence[Channel], map_topics: Sequence[str]) -> dict[str, str]:
-    """Update topic -> map topic: ``<map>_updates`` by name, else the only map topic."""
-    targets = {}
-    for c in channels:
-        if c.msgtype != UPDATE_TYPE or c.message_encoding not in _DECODABLE:
-            continue
-        if c.topic.endswith("_updates") and c.topic[: -len("_updates")] in map_topics:
-            targets[c.topic] = c.topic[: -len("_updates")]
-        elif len(map_topics) == 1:
-            targets[c.topic] = map_topics[0]
-        else:
-            _LOG.warning("%s: grid updates for an unknown map topic, not applied", c.topic)
-    return targets
-
-
-def default_output_path(input_path: Path) -> Path:
-    """``run.mcap`` -> ``run.rose.mcap``, ``run.bag`` -> ``run.rose.bag``, folder ``run`` -> ``run.rose``."""
-    path = Path(input_path)
-    if path.is_dir() or path.suffix.lower() == ".db3":
-        return path.with_name(f"{path.stem if path.is_file() else path.name}.rose")
-    return path.with_name(f"{path.stem}.rose{path.suffix}")
-
-
-@dataclass(frozen=True)
-class _Analysis:
-    """What the session computes for one snapshot."""
-
-    result: RoseResult
-    walls: WallSet | None
-    reused: bool
-
-
-class _Analyser:
-    """rose.analyze (and optionally wall extraction) per snapshot, reusing the previous analysis of a
-    topic when its grid and placement are unchanged."""
-
-    def __init__(self, params: RoseParams, *, walls: bool) -> None:
-        self.params = params
-        self.walls = walls
-        self.previous: dict[str, tuple[MapSnapshot, _Analysis]] = {}
-
-    def __call__(self, snapshot: MapSnapshot) -> _Analysis:
-        prev = self.previous.get(snapshot.topic)
-        if prev is not None and _same_placed_grid(prev[0], snapshot):
-            return dataclasses.replace(prev[1], reused=True)
-        result = rose.analyze(snapshot.grid, self.params)
-        walls = None
-        if self.walls:
-            placed = rose.OccupancyMap(
-                grid=snapshot.grid,
-                resolution_m=snapshot.resolution_m,
-                origin_xy_m=(snapshot.origin_position_m[0], snapshot.origin_position_m[1]),
-                origin_yaw_rad=snapshot.origin_yaw_rad,
-            )
-            walls = rose.extract_walls(placed, result)
-        analysis = _Analysis(result, walls, reused=False)
-        self.previous[snapshot.topic] = (snapshot, analysis)
-        return analysis
-
-
-def _same_placed_grid(a: MapSnapshot, b: MapSnapshot) -> bool:
-    # Walls are in metres, so a reused analysis also needs the same placement.
-    return (
-        a.resolution_m == b.resolution_m
-        and a.origin_position_m == b.origin_position_m
-        and a.origin_orientation_xyzw == b.origin_orientation_xyzw
-        and np.array_equal(a.grid, b.grid)
-    )
-
-
-def _open_rerun(
-    input_path: Path,
-    *,
-    rrd_path: Path | None,
-    spawn: bool,
-    connect: str | None,
-    topics: Sequence[str],
-    start_ns: int,
-    failure_level: float,
-) -> RerunSink:
-    """The session's Rerun recording; its id names the input (full path and content)."""
-    from rose_logs.rerun.sink import RerunSink, recording_id_for  # rerun loads only when used
-
-    try:
-        return RerunSink(
-            rrd_path=rrd_path,
-            spawn=spawn,
-            connect=connect,
-            topics=topics,
-            recording_id=recording_id_for(input_path),
-            start_ns=start_ns,
-            failure_level=failure_level,
-        )
-    except (ValueError, OSError, RuntimeError) as err:
-        msg = f"{rrd_path or connect or 'viewer'}: cannot open the Rerun recording ({err})"
-        raise LogWriteError(msg) from err
-
-
-def _select_topics(
-    path: Path, channels: Sequence[Channel], topics: Sequence[str] | None
-) -> tuple[str, ...]:
-    found = find_map_topics(channels)
-    if topics:
-        known = {c.topic: c for c in channels}
-        for topic in topics:
-            if topic not in known:
-                msg = f"{path}: no topic {topic} (map topics: {', '.join(found) or 'none'})"
-                raise LogReadError(msg)
-            if topic not in found:
-                msg = f"{path}: topic {topic} is {known[topic].msgtype}, not nav_msgs/OccupancyGrid"
-                raise LogReadError(msg)
-        return tuple(dict.fromkeys(topics))
-    if not found:
-        names = ", ".join(sorted({c.topic for c in channels})) or "none"
-        msg = f"{path}: no nav_msgs/OccupancyGrid topic (topics: {names})"
-        raise LogReadError(msg)
-    return found
 
 
 def process_log(
@@ -401,6 +64,7 @@ def process_log(
     progress: bool = False,
     on_snapshot: Callable[[MapSnapshot, RoseResult, SnapshotRecord], None] | None = None,
     walls: bool = False,
+    recording_id: str | None = None,
 ) -> SessionReport:
     """Run ROSE over every map snapshot of a log; write the output log and Rerun recording.
 
@@ -424,7 +88,7 @@ def process_log(
     rrd_path : Path, optional
         Save a Rerun recording here.
     spawn : bool, default False
-        Stream the recording to a new Rerun viewer.
+        Stream the recording to a new Rerun viewer as the session is processed.
     connect : str, optional
         Stream the recording to a running Rerun viewer at this address (``PORT``, ``HOST:PORT`` or
         a ``rerun+http://`` URL), as the session is processed.
@@ -435,6 +99,9 @@ def process_log(
         ``<map>/rose/walls`` and line strips in Rerun. Costs about 20-45 ms per 1000 x 1000 snapshot.
     on_snapshot : callable, optional
         Called with ``(snapshot, result, record)`` after each snapshot.
+    recording_id : str, optional
+        Rerun recording id; default: derived from the input's file name. ``rose-bag batch`` passes
+        one derived from the full URI, so that two robots' ``run.mcap`` stay separate recordings.
 
     Returns
     -------
@@ -459,30 +126,22 @@ def process_log(
         raise LogWriteError(msg)
     with reader:
         channels = reader.channels
-        map_topics = _select_topics(input_path, channels, topics)
-        updates = _update_targets(channels, map_topics)
-        writer: LogWriter | None = None
-        if output_path is not None:
-            fmt = output_format or format_from_path(output_path) or reader.format
-            writer = LogWriter(
-                output_path,
-                fmt,
-                serialization=reader.serialization,
-                force=force,
-                protected=(input_path,),
-            )
+        map_topics = select_topics(input_path, channels, topics)
+        updates = update_targets(channels, map_topics)
+        writer = _output_writer(reader, input_path, output_path, output_format, force=force)
         rerun: RerunSink | None = None
         try:
             if writer is not None:
                 writer.open()
             handles, derived = _prepare_output(writer, channels, map_topics)
             if rrd_path is not None or spawn or connect is not None:
-                rerun = _open_rerun(
+                rerun = _rerun_sink(
                     input_path,
-                    rrd_path=None if rrd_path is None else Path(rrd_path),
+                    rrd_path,
+                    map_topics,
                     spawn=spawn,
                     connect=connect,
-                    topics=map_topics,
+                    recording_id=recording_id,
                     start_ns=reader.start_ns,
                     failure_level=failure_level,
                 )
@@ -493,7 +152,7 @@ def process_log(
                 derived=derived,
                 map_topics=map_topics,
                 updates=updates,
-                analyser=_Analyser(params, walls=walls),
+                analyser=SnapshotAnalyser(params, walls=walls),
                 failure_level=failure_level,
                 rerun=rerun,
                 on_snapshot=on_snapshot,
@@ -515,22 +174,100 @@ def process_log(
             if rerun is not None:
                 rerun.abort()
             raise
-        return SessionReport(
+        return _session_report(
+            reader,
+            loop,
             input_path=input_path,
-            input_format=reader.format,
             output_path=None if writer is None else writer.path,
-            rrd_path=None if rrd_path is None else Path(rrd_path),
+            rrd_path=rrd_path,
             map_topics=map_topics,
-            records=tuple(loop.records),
-            breaks=tuple(loop.breaks),
             failure_level=failure_level,
-            message_count=reader.message_count,
-            start_ns=reader.start_ns,
-            end_ns=reader.end_ns,
-            skipped_messages=loop.skipped,
-            elapsed_s=time.perf_counter() - started,
             params=params,
+            started=started,
         )
+
+
+def _output_writer(
+    reader: LogReader,
+    input_path: Path,
+    output_path: Path | None,
+    output_format: LogFormat | None,
+    *,
+    force: bool,
+) -> LogWriter | None:
+    """The (unopened) output log: the input's serialisation and QoS spelling, the input protected."""
+    if output_path is None:
+        return None
+    fmt = output_format or format_from_path(output_path) or reader.format
+    return LogWriter(
+        output_path,
+        fmt,
+        serialization=reader.serialization,
+        force=force,
+        protected=(input_path,),
+        qos_style=reader.qos_style,
+    )
+
+
+def _rerun_sink(
+    input_path: Path,
+    rrd_path: Path | None,
+    map_topics: Sequence[str],
+    *,
+    spawn: bool,
+    connect: str | None,
+    recording_id: str | None,
+    start_ns: int,
+    failure_level: float,
+) -> RerunSink:
+    """The Rerun recording of a session: one entity root per map topic; the id ``recording_id``, else
+    derived from the input's full path and content (:func:`rose_logs.rerun.recording_id_for`)."""
+    from rose_logs.rerun import RerunSink, recording_id_for  # rerun loads only when used
+
+    try:
+        return RerunSink(
+            rrd_path=None if rrd_path is None else Path(rrd_path),
+            spawn=spawn,
+            connect=connect,
+            topics=map_topics,
+            recording_id=recording_id or recording_id_for(input_path),
+            start_ns=start_ns,
+            failure_level=failure_level,
+        )
+    except (ValueError, OSError, RuntimeError) as err:
+        msg = f"{rrd_path or connect or 'Rerun viewer'}: cannot open the Rerun recording ({err})"
+        raise LogWriteError(msg) from err
+
+
+def _session_report(
+    reader: LogReader,
+    loop: _Loop,
+    *,
+    input_path: Path,
+    output_path: Path | None,
+    rrd_path: Path | None,
+    map_topics: Sequence[str],
+    failure_level: float,
+    params: RoseParams,
+    started: float,
+) -> SessionReport:
+    """What one pass found, with the input's counts and time range."""
+    return SessionReport(
+        input_path=input_path,
+        input_format=reader.format,
+        output_path=output_path,
+        rrd_path=None if rrd_path is None else Path(rrd_path),
+        map_topics=tuple(map_topics),
+        records=tuple(loop.records),
+        breaks=tuple(loop.breaks),
+        failure_level=failure_level,
+        message_count=reader.message_count,
+        start_ns=reader.start_ns,
+        end_ns=reader.end_ns,
+        skipped_messages=loop.skipped,
+        elapsed_s=time.perf_counter() - started,
+        params=params,
+    )
 
 
 def _prepare_output(
@@ -582,7 +319,7 @@ class _Loop:
         derived: dict[str, tuple[int, int, int]],
         map_topics: Sequence[str],
         updates: dict[str, str],
-        analyser: _Analyser,
+        analyser: SnapshotAnalyser,
         failure_level: float,
         rerun: RerunSink | None,
         on_snapshot: Callable[[MapSnapshot, RoseResult, SnapshotRecord], None] | None,

@@ -1,17 +1,16 @@
-"""``rose-bag evaluate``: argument parser and entry point (wired into ``rose_logs.cli``)."""
+"""``rose-bag evaluate OUT_DIR``: the paper's experiments (and ours) as a report with tables and figures."""
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
-import logging
 import sys
 from pathlib import Path
 from typing import Any
 
 from rose_logs.evaluation.config import DEFAULT_MAPS_DIR, EvaluationConfig
 
-__all__ = ["add_evaluate_parser", "main", "run_evaluate"]
+__all__ = ["add_parser", "config_from_args", "run"]
 
 
 def _csv(value: str) -> tuple[str, ...]:
@@ -50,7 +49,7 @@ def _configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
 
 
-def add_evaluate_parser(subparsers: Any) -> None:
+def add_parser(subparsers: Any) -> None:
     """Add the ``evaluate`` sub-command to an ``argparse`` sub-parser collection."""
     parser = subparsers.add_parser(
         "evaluate",
@@ -59,7 +58,7 @@ def add_evaluate_parser(subparsers: Any) -> None:
         "write a markdown report with CSV tables and PNG figures.",
     )
     _configure(parser)
-    parser.set_defaults(func=run_evaluate)
+    parser.set_defaults(func=run)
 
 
 def config_from_args(args: argparse.Namespace) -> EvaluationConfig:
@@ -82,7 +81,7 @@ def config_from_args(args: argparse.Namespace) -> EvaluationConfig:
     return dataclasses.replace(base, **changes)  # type: ignore[arg-type]
 
 
-def run_evaluate(args: argparse.Namespace) -> int:
+def run(args: argparse.Namespace) -> int:
     """Run the evaluation the parsed arguments ask for; print the report path. Returns 0."""
     from rose_logs.evaluation.report import run_evaluation
 
@@ -90,19 +89,3 @@ def run_evaluate(args: argparse.Namespace) -> int:
     report = run_evaluation(config, args.out_dir, progress=lambda m: print(m, file=sys.stderr))
     print(report.markdown_path)
     return 0
-
-
-def main(argv: list[str] | None = None) -> int:
-    """``python -m rose_logs.evaluation``: the ``evaluate`` command on its own."""
-    parser = argparse.ArgumentParser(prog="python -m rose_logs.evaluation")
-    _configure(parser)
-    parser.add_argument("--debug", action="store_true", help="log progress and show tracebacks")
-    args = parser.parse_args(argv)
-    logging.basicConfig(level=logging.INFO if args.debug else logging.WARNING)
-    try:
-        return run_evaluate(args)
-    except (OSError, ValueError) as err:
-        if args.debug:
-            raise
-        print(f"error: {err}", file=sys.stderr)
-        return 1

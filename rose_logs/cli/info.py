@@ -1,0 +1,85 @@
+"""``rose-bag info LOG``: map topics, message counts, grid sizes and the time range of a log."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+from rose_logs.cli.options import duration_text, utc_text
+
+__all__ = ["add_parser", "run"]
+
+
+def add_parser(subparsers: Any) -> None:
+    parser = subparsers.add_parser(
+        "info",
+        help="map topics, message counts, grid sizes and resolutions, time range of a log",
+    )
+    parser.add_argument("input", type=Path, help="ROS 1 .bag, ROS 2 bag folder / .db3, or .mcap")
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from rose_logs.errors import MapMessageError
+    from rose_logs.reader import LogReader
+    from rose_logs.session import find_map_topics
+    from rose_logs.snapshots import decode_map
+
+    with LogReader(args.input) as reader:
+        channels = reader.channels
+        map_topics = find_map_topics(channels)
+        print(f"file         {args.input}")
+        print(f"format       {reader.format} ({reader.serialization})")
+        print(f"messages     {reader.message_count}")
+        if reader.message_count:
+            print(
+                f"time range   {utc_text(reader.start_ns)} .. {utc_text(reader.end_ns)} UTC "
+                f"({duration_text(reader.end_ns - reader.start_ns)})"
+            )
+        counts: dict[str, int] = {}
+        types: dict[str, str] = {}
+        for c in channels:
+            counts[c.topic] = counts.get(c.topic, 0) + c.message_count
+            types[c.topic] = c.msgtype
+        width = max((len(t) for t in counts), default=5)
+        print("\ntopics")
+        for topic in sorted(counts):
+            mark = "  [map]" if topic in map_topics else ""
+            print(f"  {topic:<{width}}  {counts[topic]:>8}  {types[topic]}{mark}")
+        stats: dict[str, dict[str, Any]] = {
+            t: {"sizes": set(), "res": set(), "frames": set(), "bad": 0} for t in map_topics
+        }
+        for message in reader.messages(topics=map_topics):
+            topic = message.channel.topic
+            if message.channel.msgtype != "nav_msgs/msg/OccupancyGrid":
+                continue
+            try:
+                snap = decode_map(
+                    message.data,
+                    serialization=message.channel.message_encoding,
+                    topic=topic,
+                    log_time_ns=message.log_time_ns,
+                )
+            except MapMessageError:
+                stats[topic]["bad"] += 1
+                continue
+            stats[topic]["sizes"].add((snap.shape[1], snap.shape[0]))
+            stats[topic]["res"].add(round(snap.resolution_m, 6))
+            stats[topic]["frames"].add(snap.frame_id)
+        for topic in map_topics:
+            s = stats[topic]
+            print(f"\nmap topic    {topic}")
+            sizes = sorted(s["sizes"])
+            if sizes:
+                print(
+                    f"  grid sizes   {', '.join(f'{w} x {h}' for w, h in sizes[:6])}"
+                    + (" ..." if len(sizes) > 6 else "")
+                )
+                print(f"  resolution   {', '.join(f'{r:g}' for r in sorted(s['res']))} m")
+                print(f"  frame        {', '.join(sorted(s['frames']))}")
+            if s["bad"]:
+                print(f"  malformed    {s['bad']}")
+        if not map_topics:
+            print("\nno nav_msgs/OccupancyGrid topic")
+    return 0

@@ -1,0 +1,192 @@
+"""``rose-bag process LOG``: ROSE on every map snapshot; output log, Rerun recording, report, gate."""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+from pathlib import Path
+from typing import Any
+
+from rose.cli.options import add_param_arguments, params_from_args, positive_float
+from rose.directions import FAILURE_LEVEL
+from rose_logs.cli.options import EXIT_GATE, UsageError, duration_text, utc_text, write_json
+
+__all__ = ["add_parser", "run"]
+
+
+def add_parser(subparsers: Any) -> None:
+    parser = subparsers.add_parser(
+        "process",
+        help="run ROSE on every map snapshot of a log; write a cleaned log, Rerun, a report",
+        description="Replay a ROS 1 bag, ROS 2 bag (folder or .db3) or MCAP file, run ROSE on every "
+        "nav_msgs/OccupancyGrid snapshot (and map_msgs/OccupancyGridUpdate), write every input message "
+        "unchanged plus <map>/rose/cleaned, <map>/rose/structure_score and <map>/rose/walls to a new "
+        "log, and print a summary.",
+    )
+    parser.add_argument("input", type=Path, help="ROS 1 .bag, ROS 2 bag folder / .db3, or .mcap")
+    parser.add_argument(
+        "-o",
+        "--output",
+        type=Path,
+        default=None,
+        help="output log (default: <input>.rose.<ext> next to the input)",
+    )
+    parser.add_argument(
+        "--no-output", action="store_true", help="write no output log (report / Rerun only)"
+    )
+    parser.add_argument(
+        "--format",
+        choices=("ros1", "db3", "mcap", "mcap-dir"),
+        default=None,
+        dest="fmt",
+        help="output format (default: from the output suffix, else the input's)",
+    )
+    parser.add_argument(
+        "-f", "--force", action="store_true", help="replace an existing output / recording"
+    )
+    parser.add_argument(
+        "-t",
+        "--topic",
+        action="append",
+        default=None,
+        dest="topics",
+        help="map topic to analyse (repeatable; default: every OccupancyGrid topic)",
+    )
+    parser.add_argument("--rrd", type=Path, default=None, help="save a Rerun recording here")
+    parser.add_argument(
+        "--spawn", action="store_true", help="stream to a new Rerun viewer as the session runs"
+    )
+    parser.add_argument(
+        "--connect",
+        metavar="ADDR",
+        help="stream to a running Rerun viewer (PORT, HOST:PORT or rerun+http://HOST:PORT/proxy)",
+    )
+    parser.add_argument(
+        "--walls",
+        action="store_true",
+        help="also extract wall segments per snapshot (marker in <map>/rose/walls, Rerun lines)",
+    )
+    parser.add_argument(
+        "--json", type=Path, default=None, dest="json_path", help="write a JSON report here"
+    )
+    parser.add_argument(
+        "--failure-level",
+        type=positive_float,
+        default=FAILURE_LEVEL,
+        help="W above which a map counts as broken (%(default)s, the paper's)",
+    )
+    parser.add_argument(
+        "--fail-above",
+        type=positive_float,
+        default=None,
+        metavar="W",
+        help=f"exit {EXIT_GATE} if any snapshot's W exceeds this (map-quality gate)",
+    )
+    parser.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    add_param_arguments(parser)
+    parser.set_defaults(func=run)
+
+
+# -- output helpers ------------------------------------------------------------------------------
+def _print_summary(report: Any) -> None:
+    start = report.start_ns
+    out = sys.stdout
+    print(
+        f"input        {report.input_path} ({report.input_format}, {report.message_count} messages)",
+        file=out,
+    )
+    print(
+        f"time range   {utc_text(report.start_ns)} .. {utc_text(report.end_ns)} UTC "
+        f"({duration_text(report.end_ns - report.start_ns)})",
+        file=out,
+    )
+    if report.output_path is not None:
+        print(f"output       {report.output_path}", file=out)
+    if report.rrd_path is not None:
+        print(f"rerun        {report.rrd_path}", file=out)
+    for topic in report.map_topics:
+        records = report.records_of(topic)
+        print(f"\nmap topic    {topic}", file=out)
+        if not records:
+            print("  snapshots    0", file=out)
+            continue
+        scores = [r.structure_score for r in records]
+        reused = sum(r.reused for r in records)
+        updates = sum(r.from_update for r in records)
+        extra = ", ".join(
+            part
+            for part in (
+                f"{reused} unchanged" if reused else "",
+                f"{updates} from updates" if updates else "",
+            )
+            if part
+        )
+        print(f"  snapshots    {len(records)}" + (f" ({extra})" if extra else ""), file=out)
+        print(
+            f"  time range   +{duration_text(records[0].log_time_ns - start)} .. "
+            f"+{duration_text(records[-1].log_time_ns - start)}",
+            file=out,
+        )
+        sizes = sorted({(r.width, r.height) for r in records})
+        size_text = f"{sizes[0][0]} x {sizes[0][1]}" + (
+            f" .. {sizes[-1][0]} x {sizes[-1][1]}" if len(sizes) > 1 else ""
+        )
+        print(f"  grid         {size_text} cells", file=out)
+        print(
+            f"  W            min {min(scores):.3f}  median {statistics.median(scores):.3f}  "
+            f"max {max(scores):.3f}",
+            file=out,
+        )
+        first = report.first_break(topic)
+        level = f"{report.failure_level:g}"
+        if first is None:
+            print(f"  W > {level:<8} never", file=out)
+        else:
+            print(
+                f"  W > {level:<8} first at snapshot {first.index}, +{duration_text(first.log_time_ns - start)} "
+                f"(W = {first.structure_score:.3f})",
+                file=out,
+            )
+    if report.skipped_messages:
+        print(
+            f"\nskipped      {report.skipped_messages} malformed map message(s), copied unprocessed",
+            file=out,
+        )
+    print(f"\nelapsed      {report.elapsed_s:.2f} s", file=out)
+
+
+def run(args: argparse.Namespace) -> int:
+    from rose_logs.session import default_output_path, process_log
+
+    if args.no_output and args.output is not None:
+        msg = "--no-output and --output exclude each other"
+        raise UsageError(msg)
+    output = None if args.no_output else (args.output or default_output_path(args.input))
+    progress = not args.quiet and sys.stderr.isatty()
+    report = process_log(
+        args.input,
+        output_path=output,
+        output_format=args.fmt,
+        force=args.force,
+        topics=args.topics,
+        params=params_from_args(args),
+        failure_level=args.failure_level,
+        rrd_path=args.rrd,
+        spawn=args.spawn,
+        connect=args.connect,
+        progress=progress,
+        walls=args.walls,
+    )
+    if args.json_path is not None:
+        write_json(args.json_path, report.to_json())
+    _print_summary(report)
+    if args.fail_above is not None and report.max_score > args.fail_above:
+        worst = max(report.records, key=lambda r: r.structure_score)
+        print(
+            f"error: {args.input}: W = {worst.structure_score:.3f} on {worst.topic} snapshot "
+            f"{worst.index} exceeds --fail-above {args.fail_above:g}",
+            file=sys.stderr,
+        )
+        return EXIT_GATE
+    return 0

@@ -1,0 +1,198 @@
+"""What a session found, as records: one per snapshot, one per break, and the whole report (JSON-ready)."""
+
+from __future__ import annotations
+
+import logging
+import math
+import statistics
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from rose.params import RoseParams
+
+__all__ = ["BreakEvent", "SessionReport", "SnapshotRecord"]
+
+_LOG = logging.getLogger(__name__)
+
+_DECODABLE = {"ros1", "cdr"}
+
+
+@dataclass(frozen=True)
+class SnapshotRecord:
+    """What one snapshot was and what ROSE found (one line of the JSON report).
+
+    Attributes
+    ----------
+    topic : str
+        Map topic.
+    index : int
+        Position of the snapshot on its topic, from 0.
+    log_time_ns, stamp_ns : int
+        Log time of the message and ``header.stamp``, ns.
+    width, height : int
+        Grid size in cells.
+    resolution_m : float
+        Cell size, metres.
+    structure_score : float
+        W.
+    directions_deg : tuple of float
+        Dominant wall orientations in degrees in ``[0, 180)``, grid frame (CCW from the column axis).
+    threshold : float
+        Cell-score threshold (NaN when nothing was classified).
+    occupied_count, clutter_count : int
+        Occupied cells and those labelled clutter.
+    seconds : float
+        Wall time spent on this snapshot (analysis and every sink), seconds.
+    reused : bool
+        True when the grid equalled the previous one and its result was reused.
+    from_update : bool
+        True when the snapshot came from an ``OccupancyGridUpdate``.
+    """
+
+    topic: str
+    index: int
+    log_time_ns: int
+    stamp_ns: int
+    width: int
+    height: int
+    resolution_m: float
+    structure_score: float
+    directions_deg: tuple[float, ...]
+    threshold: float
+    occupied_count: int
+    clutter_count: int
+    seconds: float
+    reused: bool
+    from_update: bool
+
+    def to_json(self, *, start_ns: int) -> dict[str, Any]:
+        """JSON-ready dict; ``time_s`` is seconds since ``start_ns``; NaN becomes null."""
+        return {
+            "topic": self.topic,
+            "index": self.index,
+            "log_time_ns": self.log_time_ns,
+            "stamp_ns": self.stamp_ns,
+            "time_s": round((self.log_time_ns - start_ns) / 1e9, 9),
+            "width": self.width,
+            "height": self.height,
+            "resolution_m": self.resolution_m,
+            "structure_score": self.structure_score,
+            "directions_deg": list(self.directions_deg),
+            "threshold": None if math.isnan(self.threshold) else self.threshold,
+            "occupied": self.occupied_count,
+            "clutter": self.clutter_count,
+            "seconds": round(self.seconds, 6),
+            "reused": self.reused,
+            "from_update": self.from_update,
+        }
+
+
+@dataclass(frozen=True)
+class BreakEvent:
+    """A snapshot where W rose above the failure level."""
+
+    topic: str
+    index: int
+    log_time_ns: int
+    structure_score: float
+    text: str
+
+
+@dataclass(frozen=True)
+class SessionReport:
+    """Everything a session produced except the output files.
+
+    Attributes
+    ----------
+    input_path : Path
+        The log read.
+    input_format : str
+        Its format (see :data:`rose_logs.reader.LogFormat`).
+    output_path : Path or None
+        The log written, if any.
+    rrd_path : Path or None
+        The Rerun recording saved, if any.
+    map_topics : tuple of str
+        Map topics analysed.
+    records : tuple of SnapshotRecord
+        One per snapshot, in log-time order.
+    breaks : tuple of BreakEvent
+        Every rise of W above ``failure_level``.
+    failure_level : float
+        The level used.
+    message_count : int
+        Messages in the input.
+    start_ns, end_ns : int
+        Log time of the first and last input message, ns.
+    skipped_messages : int
+        Map or update messages that could not be analysed (copied through unprocessed).
+    elapsed_s : float
+        Wall time of the whole session, seconds.
+    """
+
+    input_path: Path
+    input_format: str
+    output_path: Path | None
+    rrd_path: Path | None
+    map_topics: tuple[str, ...]
+    records: tuple[SnapshotRecord, ...]
+    breaks: tuple[BreakEvent, ...]
+    failure_level: float
+    message_count: int
+    start_ns: int
+    end_ns: int
+    skipped_messages: int
+    elapsed_s: float
+    params: RoseParams = field(default_factory=RoseParams)
+
+    def records_of(self, topic: str) -> tuple[SnapshotRecord, ...]:
+        """The records of one map topic."""
+        return tuple(r for r in self.records if r.topic == topic)
+
+    def first_break(self, topic: str | None = None) -> BreakEvent | None:
+        """The first break (of ``topic``, or of any topic), None if W never crossed the level."""
+        for event in self.breaks:
+            if topic is None or event.topic == topic:
+                return event
+        return None
+
+    @property
+    def max_score(self) -> float:
+        """Largest W of the session (NaN without snapshots)."""
+        return max((r.structure_score for r in self.records), default=math.nan)
+
+    def to_json(self) -> dict[str, Any]:
+        """JSON-ready report: session summary plus one record per snapshot."""
+        topics = {}
+        for topic in self.map_topics:
+            scores = [r.structure_score for r in self.records_of(topic)]
+            first = self.first_break(topic)
+            topics[topic] = {
+                "snapshots": len(scores),
+                "w_min": min(scores, default=None),
+                "w_median": statistics.median(scores) if scores else None,
+                "w_max": max(scores, default=None),
+                "first_break": None
+                if first is None
+                else {
+                    "index": first.index,
+                    "log_time_ns": first.log_time_ns,
+                    "structure_score": first.structure_score,
+                },
+            }
+        return {
+            "input": str(self.input_path),
+            "input_format": self.input_format,
+            "output": None if self.output_path is None else str(self.output_path),
+            "rrd": None if self.rrd_path is None else str(self.rrd_path),
+            "failure_level": self.failure_level,
+            "message_count": self.message_count,
+            "start_ns": self.start_ns,
+            "end_ns": self.end_ns,
+            "skipped_messages": self.skipped_messages,
+            "elapsed_s": round(self.elapsed_s, 6),
+            "params": {k: getattr(self.params, k) for k in self.params.__dataclass_fields__},
+            "topics": topics,
+            "snapshots": [r.to_json(start_ns=self.start_ns) for r in self.records],
+        }

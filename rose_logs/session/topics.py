@@ -1,0 +1,87 @@
+"""Which topics a session analyses (map topics, their updates, our own derived topics) and output names."""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from pathlib import Path
+
+from rose_logs.errors import LogReadError
+from rose_logs.storage.records import Channel
+from rose_logs.storage.typesys import MAP_TYPE, UPDATE_TYPE
+
+__all__ = [
+    "default_output_path",
+    "find_map_topics",
+    "is_derived_topic",
+    "select_topics",
+    "update_targets",
+]
+
+_LOG = logging.getLogger(__name__)
+
+_DECODABLE = {"ros1", "cdr"}
+
+
+def is_derived_topic(topic: str) -> bool:
+    """Whether ``topic`` is one of our own outputs (``.../rose/...``), never analysed again."""
+    return "/rose/" in topic
+
+
+def find_map_topics(channels: Sequence[Channel]) -> tuple[str, ...]:
+    """Topics of type ``nav_msgs/OccupancyGrid`` (ROS 1 or ROS 2), sorted, without our derived topics."""
+    return tuple(
+        sorted(
+            {
+                c.topic
+                for c in channels
+                if c.msgtype == MAP_TYPE
+                and c.message_encoding in _DECODABLE
+                and not is_derived_topic(c.topic)
+            }
+        )
+    )
+
+
+def update_targets(channels: Sequence[Channel], map_topics: Sequence[str]) -> dict[str, str]:
+    """Update topic -> map topic: ``<map>_updates`` by name, else the only map topic."""
+    targets = {}
+    for c in channels:
+        if c.msgtype != UPDATE_TYPE or c.message_encoding not in _DECODABLE:
+            continue
+        if c.topic.endswith("_updates") and c.topic[: -len("_updates")] in map_topics:
+            targets[c.topic] = c.topic[: -len("_updates")]
+        elif len(map_topics) == 1:
+            targets[c.topic] = map_topics[0]
+        else:
+            _LOG.warning("%s: grid updates for an unknown map topic, not applied", c.topic)
+    return targets
+
+
+def default_output_path(input_path: Path) -> Path:
+    """``run.mcap`` -> ``run.rose.mcap``, ``run.bag`` -> ``run.rose.bag``, folder ``run`` -> ``run.rose``."""
+    path = Path(input_path)
+    if path.is_dir() or path.suffix.lower() == ".db3":
+        return path.with_name(f"{path.stem if path.is_file() else path.name}.rose")
+    return path.with_name(f"{path.stem}.rose{path.suffix}")
+
+
+def select_topics(
+    path: Path, channels: Sequence[Channel], topics: Sequence[str] | None
+) -> tuple[str, ...]:
+    found = find_map_topics(channels)
+    if topics:
+        known = {c.topic: c for c in channels}
+        for topic in topics:
+            if topic not in known:
+                msg = f"{path}: no topic {topic} (map topics: {', '.join(found) or 'none'})"
+                raise LogReadError(msg)
+            if topic not in found:
+                msg = f"{path}: topic {topic} is {known[topic].msgtype}, not nav_msgs/OccupancyGrid"
+                raise LogReadError(msg)
+        return tuple(dict.fromkeys(topics))
+    if not found:
+        names = ", ".join(sorted({c.topic for c in channels})) or "none"
+        msg = f"{path}: no nav_msgs/OccupancyGrid topic (topics: {names})"
+        raise LogReadError(msg)
+    return found

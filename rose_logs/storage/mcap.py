@@ -1,0 +1,174 @@
+"""Bare MCAP files (ros1 or ros2 profile) through the ``mcap`` package: reading and writing."""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any, BinaryIO
+
+from rose_logs.errors import LogReadError
+from rose_logs.storage.base import WriteBackend
+from rose_logs.storage.connections import (
+    QosStyle,
+    default_qos,
+    definitions,
+    offered_qos,
+    qos_style,
+    qos_yaml,
+)
+from rose_logs.storage.records import (
+    Channel,
+    RawMessage,
+    normalize_msgtype,
+    parse_latching,
+    ros1_msgtype,
+)
+
+__all__ = ["McapReadBackend", "McapWriteBackend"]
+
+_LOG = logging.getLogger(__name__)
+
+
+class McapReadBackend:
+    """Bare MCAP files (ros1 or ros2 profile) through the ``mcap`` package."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self.stream: BinaryIO | None = None
+        self.reader: Any = None
+        self.channels: tuple[Channel, ...] = ()
+        self._by_id: dict[int, Channel] = {}
+        self.start_ns = 0
+        self.end_ns = 0
+        self.profile = ""
+        self.qos_style: QosStyle | None = None
+
+    def open(self) -> None:
+        from mcap.reader import make_reader
+
+        self.stream = self.path.open("rb")
+        self.reader = make_reader(self.stream)
+        self.profile = self.reader.get_header().profile
+        summary = self.reader.get_summary()
+        if summary is None:
+            msg = (
+                f"{self.path}: MCAP file without summary (truncated or still being recorded?); "
+                "try `mcap recover`"
+            )
+            raise LogReadError(msg)
+        counts = summary.statistics.channel_message_counts if summary.statistics else {}
+        channels: list[Channel] = []
+        for channel_id in sorted(summary.channels):
+            ch = summary.channels[channel_id]
+            schema = summary.schemas.get(ch.schema_id)
+            name = schema.name if schema is not None else ""
+            encoding = schema.encoding if schema is not None else ""
+            data = bytes(schema.data) if schema is not None else b""
+            channel = Channel(
+                id=len(channels),
+                topic=ch.topic,
+                msgtype=normalize_msgtype(name) if ch.message_encoding in {"ros1", "cdr"} else name,
+                message_encoding=ch.message_encoding,
+                msgdef=data.decode("utf-8", errors="replace"),
+                msgdef_encoding=encoding,
+                digest=ch.metadata.get("md5sum", "") or ch.metadata.get("type_hash", ""),
+                message_count=int(counts.get(channel_id, 0)),
+                callerid=ch.metadata.get("callerid"),
+                latching=parse_latching(ch.metadata.get("latching")),
+                metadata=dict(ch.metadata),
+                schema_name=name,
+            )
+            channels.append(channel)
+            self._by_id[channel_id] = channel
+            if self.qos_style is None and ch.message_encoding == "cdr":
+                self.qos_style = qos_style(ch.metadata.get("offered_qos_profiles", ""))
+        self.channels = tuple(channels)
+        if summary.statistics and summary.statistics.message_count:
+            self.start_ns = int(summary.statistics.message_start_time)
+            self.end_ns = int(summary.statistics.message_end_time)
+
+    def messages(self, topics: set[str] | None) -> Iterator[RawMessage]:
+        by_id = self._by_id
+        for _schema, ch, msg in self.reader.iter_messages(topics=topics, log_time_order=True):
+            yield RawMessage(by_id[ch.id], msg.log_time, msg.data, msg.publish_time, msg.sequence)
+
+    def close(self) -> None:
+        if self.stream is not None:
+            self.stream.close()
+            self.stream = None
+        self.reader = None
+
+
+class McapWriteBackend(WriteBackend):
+    """Bare MCAP output, ``ros1`` or ``ros2`` profile.
+
+    Every ``cdr`` channel gets the ``offered_qos_profiles`` metadata the ``ros2`` profile requires: the
+    input's text when copied from an MCAP file that has it, else the channel's profiles (a default
+    publisher's when it has none), spelled in ``qos_style``.
+    """
+
+    def __init__(self, path: Path, serialization: str, qos_style: QosStyle = "v9") -> None:
+        self.path = path
+        self.serialization = serialization
+        self.qos_style = qos_style
+        self.stream: BinaryIO | None = None
+        self.writer: Any = None
+        self.schemas: dict[tuple[str, str, str], int] = {}
+        self.channels: list[int] = []
+
+    def open(self) -> None:
+        from mcap.writer import Writer
+
+        self.stream = self.path.open("wb")
+        self.writer = Writer(self.stream)
+        self.writer.start(
+            profile="ros1" if self.serialization == "ros1" else "ros2", library="rose-bag"
+        )
+
+    def add(self, channel: Channel) -> int:
+        ros1 = channel.message_encoding == "ros1"
+        if channel.schema_name or channel.message_encoding not in {"ros1", "cdr"}:
+            name, encoding, data = channel.schema_name, channel.msgdef_encoding, channel.msgdef
+        else:
+            data, _digest = definitions(channel, 1 if ros1 else 2)
+            name = ros1_msgtype(channel.msgtype) if ros1 else channel.msgtype
+            encoding = "ros1msg" if ros1 else (channel.msgdef_encoding or "ros2msg")
+        key = (name, encoding, data)
+        schema_id = self.schemas.get(key)
+        if schema_id is None:
+            schema_id = self.writer.register_schema(name, encoding, data.encode("utf-8"))
+            self.schemas[key] = schema_id
+        metadata = dict(channel.metadata)
+        if not metadata and ros1:
+            if channel.callerid is not None:
+                metadata["callerid"] = channel.callerid
+            if channel.latching is not None:
+                metadata["latching"] = str(int(channel.latching))
+            if channel.digest:
+                metadata["md5sum"] = channel.digest
+        elif channel.message_encoding == "cdr" and "offered_qos_profiles" not in metadata:
+            profiles = offered_qos(channel) or [default_qos()]
+            metadata["offered_qos_profiles"] = qos_yaml(profiles, style=self.qos_style)
+        channel_id = self.writer.register_channel(
+            channel.topic, channel.message_encoding, schema_id, metadata
+        )
+        self.channels.append(channel_id)
+        return len(self.channels) - 1
+
+    def write(
+        self, handle: int, log_time_ns: int, data: bytes | memoryview, publish_ns: int, seq: int
+    ) -> None:
+        self.writer.add_message(self.channels[handle], log_time_ns, data, publish_ns, seq)
+
+    def close(self) -> None:
+        self.writer.finish()
+        if self.stream is not None:
+            self.stream.close()
+            self.stream = None
+
+    def abort(self) -> None:
+        if self.stream is not None:
+            self.stream.close()
+            self.stream = None
+        self.writer = None

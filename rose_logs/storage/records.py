@@ -1,0 +1,121 @@
+"""What storage backends exchange: channels (topic, type, definition, QoS, metadata) and raw messages.
+
+Also the two spellings of a ROS message type name (ROS 1 ``pkg/Name``, ROS 2 ``pkg/msg/Name``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+from rosbags.interfaces import Qos
+
+__all__ = ["Channel", "RawMessage", "normalize_msgtype", "parse_latching", "ros1_msgtype"]
+
+
+def normalize_msgtype(name: str) -> str:
+    """Message type in rosbags' form ``pkg/msg/Name`` (ROS 1 names ``pkg/Name`` gain ``/msg/``)."""
+    parts = name.split("/")
+    if len(parts) == 2:
+        return f"{parts[0]}/msg/{parts[1]}"
+    return name
+
+
+def ros1_msgtype(name: str) -> str:
+    """Message type in ROS 1 form ``pkg/Name`` (``pkg/msg/Name`` loses ``/msg/``)."""
+    parts = name.split("/")
+    if len(parts) == 3 and parts[1] == "msg":
+        return f"{parts[0]}/{parts[2]}"
+    return name
+
+
+def parse_latching(text: str | None) -> int | None:
+    """ROS 1 latching flag from connection-header / MCAP metadata text: 1, 0 or None when unknown.
+
+    Both spellings in use are accepted: ``"1"`` / ``"0"`` (the ROS 1 connection header, and MCAP files
+    converted from bags) and ``"true"`` / ``"false"`` (the MCAP registry's ``ros1`` profile), in any case
+    and with surrounding blanks.
+    """
+    if text is None:
+        return None
+    value = text.strip().lower()
+    if value in {"1", "true"}:
+        return 1
+    if value in {"0", "false"}:
+        return 0
+    return None
+
+
+@dataclass(frozen=True, eq=False)
+class Channel:
+    """One connection (ROS 1) / topic (ROS 2) / channel (MCAP) of a log, with everything needed to copy it.
+
+    Attributes
+    ----------
+    id : int
+        Reader-local id, unique within one :class:`LogReader`.
+    topic : str
+        Topic name.
+    msgtype : str
+        Message type, normalised to ``pkg/msg/Name`` for ROS 1 and ROS 2 alike.
+    message_encoding : str
+        ``"ros1"`` or ``"cdr"`` for ROS data; MCAP may hold others (copied, never decoded).
+    msgdef : str
+        Message definition text as stored in the log ("" when the log has none).
+    msgdef_encoding : str
+        ``"ros1msg"``, ``"ros2msg"``, ``"ros2idl"`` or ``""``.
+    digest : str
+        ROS 1 md5sum or ROS 2 RIHS01 hash, ``""`` when unknown.
+    message_count : int
+        Messages on this channel (from the log's index).
+    callerid : str or None
+        ROS 1 publishing node.
+    latching : int or None
+        ROS 1 latching flag (1 latched, 0 not, None unknown).
+    offered_qos_profiles : tuple of rosbags.interfaces.Qos
+        ROS 2 QoS offered by the publishers (ROS 2 bag folders and .db3 files).
+    metadata : mapping of str to str
+        Raw MCAP channel metadata (for example ``offered_qos_profiles`` as YAML, ``latching``); empty for
+        other formats.
+    schema_name : str
+        MCAP schema name as stored (``pkg/Name`` or ``pkg/msg/Name``); ``""`` for other formats.
+    """
+
+    id: int
+    topic: str
+    msgtype: str
+    message_encoding: str
+    msgdef: str = ""
+    msgdef_encoding: str = ""
+    digest: str = ""
+    message_count: int = 0
+    callerid: str | None = None
+    latching: int | None = None
+    offered_qos_profiles: tuple[Qos, ...] = ()
+    metadata: Mapping[str, str] = field(default_factory=dict)
+    schema_name: str = ""
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class RawMessage:
+    """One serialised message.
+
+    Attributes
+    ----------
+    channel : Channel
+        Where it was recorded.
+    log_time_ns : int
+        Receive time, nanoseconds since the epoch (the bag timestamp).
+    data : bytes or memoryview
+        Serialised message, exactly as stored.
+    publish_time_ns : int
+        MCAP publish time; the log time for formats without one.
+    sequence : int
+        MCAP sequence number; 0 for formats without one.
+    """
+
+    channel: Channel
+    log_time_ns: int
+    data: bytes | memoryview
+    publish_time_ns: int
+    sequence: int = 0
