@@ -19,6 +19,7 @@ import contextlib
 import logging
 import os
 import shutil
+import signal
 import socket
 import subprocess
 import sys
@@ -141,20 +142,33 @@ def _serve(rrd_path: Path) -> Iterator[tuple[int, int]]:
         str(grpc_port),
     ]
     env = {**os.environ, "RERUN_ANALYTICS": "0"}
+    # `rerun` on PATH is a Python launcher that starts the viewer binary as its child: give them a
+    # process group of their own and end the group, or the server outlives us.
     process = subprocess.Popen(
-        command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env
+        command,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        env=env,
+        start_new_session=True,
     )
     try:
-        _wait_for_port(web_port, process, 30.0)
-        _wait_for_port(grpc_port, process, 30.0)
+        _wait_for_port(web_port, process, 60.0)
+        _wait_for_port(grpc_port, process, 60.0)
         yield web_port, grpc_port
     finally:
-        process.terminate()
+        _end_group(process)
+
+
+def _end_group(process: subprocess.Popen[bytes]) -> None:
+    """Terminate ``process`` and its children (its own process group), kill them if they linger."""
+    for sig, wait_s in ((signal.SIGTERM, 10.0), (signal.SIGKILL, 5.0)):
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(process.pid, sig)
         try:
-            process.wait(timeout=10)
+            process.wait(timeout=wait_s)
+            return
         except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait()
+            continue
 
 
 def _viewer_url(web_port: int, grpc_port: int) -> str:
@@ -242,10 +256,13 @@ def take_screenshots(
         try:
             page = context.new_page()
             page.goto(_viewer_url(web_port, grpc_port))
+            # The viewer's canvas exists once its WebAssembly started; then give it time to load
+            # the recording and draw (slow on a software rasteriser, slower on a busy machine).
+            page.wait_for_selector("canvas", state="attached", timeout=4 * load_s * 1000)
             page.wait_for_timeout(load_s * 1000)
             for name, step in steps:
                 if step is not None:
-                    page.locator("canvas").first.focus()
+                    page.locator("canvas").first.focus(timeout=4 * load_s * 1000)
                     # End: the last time point; one step forward wraps to the first one.
                     _press(page, "End")
                     for _ in range(step + 1):
