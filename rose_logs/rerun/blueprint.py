@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import rerun as rr
 import rerun.blueprint as rrb
 
 from rose_logs.rerun import style
@@ -21,6 +22,7 @@ __all__ = ["TopicLayout", "default_blueprint"]
 
 _FOV_Y_RAD = math.radians(55.0)  # the 3D view's default vertical field of view
 _ASSUMED_ASPECT = 1.3  # width / height of the metric view in the default layout
+_GRID_HEIGHT_M = 0.05  # the metric grid's plane, just above the map (z = 0 in the map frame)
 
 
 @dataclass(frozen=True)
@@ -45,6 +47,17 @@ class TopicLayout:
     bounds_m: tuple[float, float, float, float] | None = None
     bounds_px: tuple[float, float, float, float] | None = None
     has_events: bool = False
+
+
+def _grid_spacing_m(bounds_m: tuple[float, float, float, float] | None) -> float:
+    """A round grid spacing giving at most about 15 lines across the map (1 m without a map)."""
+    if bounds_m is None:
+        return 1.0
+    span = max(bounds_m[2] - bounds_m[0], bounds_m[3] - bounds_m[1])
+    for spacing in (0.5, 1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0):
+        if span / spacing <= 15:
+            return spacing
+    return 200.0
 
 
 def _metric_eye(bounds_m: tuple[float, float, float, float] | None) -> rrb.EyeControls3D | None:
@@ -80,10 +93,18 @@ def _topic_container(layout: TopicLayout) -> rrb.Container:
         origin=f"/{paths.cells}",
         visual_bounds=visual_bounds,
     )
+    spacing = _grid_spacing_m(layout.bounds_m)
     metric = rrb.Spatial3DView(
-        name=f"{root}: map from above, metres (1 m grid)",
+        name=f"{root}: map from above, metres (grid {spacing:g} m)",
         origin=f"/{paths.metric}",
-        line_grid=rrb.LineGrid3D(visible=True, spacing=1.0, stroke_width=1.0),
+        # Just above the map (an opaque grid map would hide a grid in its own plane).
+        line_grid=rrb.LineGrid3D(
+            visible=True,
+            spacing=spacing,
+            plane=rr.components.Plane3D((0.0, 0.0, 1.0), distance=_GRID_HEIGHT_M),
+            stroke_width=1.0,
+            color=(90, 90, 90, 110),
+        ),
         eye_controls=_metric_eye(layout.bounds_m),
     )
     scores = rrb.Spatial2DView(

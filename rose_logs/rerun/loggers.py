@@ -16,6 +16,7 @@ import rerun as rr
 from rose.directions import FAILURE_LEVEL, TRUST_LEVEL
 from rose.result import RoseResult
 from rose.walls import WallSet
+from rose.walls.segments import cells_to_metres
 from rose_logs.rerun import conversions as conv
 from rose_logs.rerun import style
 from rose_logs.rerun.paths import SEQUENCE_TIMELINE, SESSION_TIMELINE, TIMELINE, EntityPaths
@@ -39,32 +40,17 @@ def set_snapshot_time(
         recording.set_time(SEQUENCE_TIMELINE, sequence=int(index))
 
 
-def _rotation_matrix_xyzw(quaternion: tuple[float, float, float, float]) -> npt.NDArray[np.float64]:
-    x, y, z, w = quaternion
-    norm = math.sqrt(x * x + y * y + z * z + w * w)
-    if norm == 0.0:
-        return np.eye(3)
-    x, y, z, w = x / norm, y / norm, z / norm, w / norm
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ]
+def cells_to_map_m(snapshot: MapSnapshot, cells: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+    """Continuous grid-frame cells ``(..., 2)`` (0 = a cell's corner) -> map-frame metres ``(..., 3)``,
+    just above the grid (ROS maps are planar: the origin's yaw places them)."""
+    xy = cells_to_metres(
+        np.asarray(cells, dtype=np.float64) - 0.5,  # cells_to_metres counts from cell centres
+        resolution_m=float(snapshot.resolution_m),
+        origin_xy_m=(float(snapshot.origin_position_m[0]), float(snapshot.origin_position_m[1])),
+        origin_yaw_rad=snapshot.origin_yaw_rad,
     )
-
-
-def cells_to_map_m(
-    snapshot: MapSnapshot, cells: npt.NDArray[np.float64]
-) -> npt.NDArray[np.float64]:
-    """Grid-frame cell coordinates ``(..., 2)`` -> map-frame metres ``(..., 3)`` just above the grid."""
-    grid_m = np.concatenate(
-        [cells * float(snapshot.resolution_m), np.zeros((*cells.shape[:-1], 1))], axis=-1
-    )
-    rotation = _rotation_matrix_xyzw(snapshot.origin_orientation_xyzw)
-    map_m = grid_m @ rotation.T + np.asarray(snapshot.origin_position_m, dtype=np.float64)
-    map_m[..., 2] += _METRIC_LINE_HEIGHT_M
-    return map_m
+    height = float(snapshot.origin_position_m[2]) + _METRIC_LINE_HEIGHT_M
+    return np.concatenate([xy, np.full((*xy.shape[:-1], 1), height)], axis=-1)
 
 
 class TopicLogger:
