@@ -40,7 +40,9 @@ def set_snapshot_time(
         recording.set_time(SEQUENCE_TIMELINE, sequence=int(index))
 
 
-def cells_to_map_m(snapshot: MapSnapshot, cells: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+def cells_to_map_m(
+    snapshot: MapSnapshot, cells: npt.NDArray[np.float64]
+) -> npt.NDArray[np.float64]:
     """Continuous grid-frame cells ``(..., 2)`` (0 = a cell's corner) -> map-frame metres ``(..., 3)``,
     just above the grid (ROS maps are planar: the origin's yaw places them)."""
     xy = cells_to_metres(

@@ -177,6 +177,7 @@ def _viewer_url(web_port: int, grpc_port: int) -> str:
 
 
 _SETTLE_MS = 4000  # time for the viewer to redraw after the time cursor moved
+_KEY_GAP_MS = 200
 _NEXT_FRAMES_JS = "() => new Promise(r => requestAnimationFrame(() => requestAnimationFrame(r)))"
 
 
@@ -185,6 +186,7 @@ def _press(page: Any, key: str) -> None:
     on a software rasteriser a frame can take long, so keys sent faster would be merged or lost."""
     page.keyboard.press(key)
     page.evaluate(_NEXT_FRAMES_JS)
+    page.wait_for_timeout(_KEY_GAP_MS)
     page.evaluate(_NEXT_FRAMES_JS)
 
 
@@ -209,7 +211,7 @@ def take_screenshots(
         Created if needed; PNGs are named ``<prefix><name>.png``.
     steps : sequence of (str, int or None)
         Name of each shot and the index of the time point (snapshot) it shows, counted from the first
-        time point of the ``session_time`` timeline; None leaves the cursor where the viewer opens.
+        time point of the ``session_time`` timeline; None: the last time point.
     width, height : int
         Browser viewport, CSS pixels.
     load_s : float
@@ -261,13 +263,13 @@ def take_screenshots(
             page.wait_for_selector("canvas", state="attached", timeout=4 * load_s * 1000)
             page.wait_for_timeout(load_s * 1000)
             for name, step in steps:
+                page.locator("canvas").first.focus(timeout=4 * load_s * 1000)
+                # End: the last time point; one step forward wraps to the first one.
+                _press(page, "End")
                 if step is not None:
-                    page.locator("canvas").first.focus(timeout=4 * load_s * 1000)
-                    # End: the last time point; one step forward wraps to the first one.
-                    _press(page, "End")
                     for _ in range(step + 1):
                         _press(page, "Control+ArrowRight")
-                    page.wait_for_timeout(_SETTLE_MS)
+                page.wait_for_timeout(_SETTLE_MS)
                 path = out_dir / f"{prefix}{name}.png"
                 page.screenshot(path=str(path))
                 shots.append(Shot(name, step, path))
@@ -299,7 +301,7 @@ def _steps(
         return [
             (f"t{ns / 1e9:g}s", max(bisect.bisect_right(snapshots, ns) - 1, 0)) for ns in times_ns
         ]
-    index = {"start": 0, "middle": (len(snapshots) - 1) // 2, "end": len(snapshots) - 1}
+    index = {"start": 0, "middle": (len(snapshots) - 1) // 2, "end": None}
     return [(name, index[name]) for name in at]
 
 

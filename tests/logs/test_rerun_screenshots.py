@@ -37,8 +37,8 @@ def screenshot(tmp_path_factory: pytest.TempPathFactory) -> tuple[npt.NDArray[np
     tmp = tmp_path_factory.mktemp("viewer")
     rrd = tmp / "fr079.rrd"
     report = process_log(SAMPLE, rrd_path=rrd)
-    last = len(session_times_ns(rrd)) - 1
-    (shot,) = take_screenshots(rrd, tmp, steps=[("last", last)], width=WIDTH, height=HEIGHT)
+    assert len(session_times_ns(rrd)) == len(report.records)
+    (shot,) = take_screenshots(rrd, tmp, steps=[("last", None)], width=WIDTH, height=HEIGHT)
     image = np.asarray(Image.open(shot.path).convert("RGB"))
     assert image.shape == (HEIGHT, WIDTH, 3)
     return image, report
@@ -76,4 +76,4 @@ def test_w_plot_and_spectrum_are_drawn(screenshot) -> None:
     spectrum = _region(image, (0.66, 0.94), (0.68, 0.95))
     luminance = spectrum.mean(axis=-1)
     assert np.median(luminance) < 60  # dark noise floor (inferno) ...
-    assert (luminance > 150).sum() > 50  # ... with bright spectral lines
+    assert (luminance > 100).sum() > 100  # ... with bright spectral lines
