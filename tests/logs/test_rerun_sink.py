@@ -225,3 +225,72 @@ def test_logging_errors_reach_the_session(tmp_path: Path) -> None:
         sink.close()
     sink.abort()
     assert not (tmp_path / "x.rrd").exists()
+
+
+def test_grid_map_is_sent_top_row_first_and_placed(tmp_path: Path) -> None:
+    """GridMap takes an image buffer (top row first) placed by its lower-left corner: the ROS grid's
+    rows are reversed once, and the origin pose is the translation."""
+    import rerun as rr
+
+    from rose_logs.rerun import TopicLogger, set_snapshot_time
+    from rose_logs.snapshots import MapSnapshot
+
+    grid = np.arange(12, dtype=np.int8).reshape(3, 4)
+    snapshot = MapSnapshot("/map", 5, 5, "map", grid, 0.5, (1.0, 2.0, 0.0))
+    path = tmp_path / "grid.rrd"
+    recording = rr.RecordingStream("t")
+    recording.save(path)
+    set_snapshot_time(recording, log_time_ns=5, start_ns=0, index=0)
+    TopicLogger(recording, PATHS).log_grid_map(snapshot)
+    recording.flush()
+    recording.disconnect()
+    (row,) = _read(path).rows(PATHS.grid)
+    assert bytes(row["GridMap:data"][0]) == grid[::-1].tobytes()
+    assert row["GridMap:translation"][0] == pytest.approx([1.0, 2.0, 0.0])
+    assert row["GridMap:cell_size"][0] == pytest.approx(0.5)
+
+
+def test_walls_are_logged_in_pixels_and_metres(tmp_path: Path) -> None:
+    import rerun as rr
+
+    import rose
+    from rose_logs.rerun import TopicLogger, set_snapshot_time
+    from rose_logs.snapshots import MapSnapshot
+
+    grid = np.zeros((60, 80), dtype=np.int8)
+    grid[10, 5:75] = grid[50, 5:75] = 100
+    grid[10:51, 5] = grid[10:51, 74] = 100
+    snapshot = MapSnapshot("/map", 5, 5, "map", grid, 0.1, (-3.0, -2.0, 0.0))
+    occupancy = rose.OccupancyMap(grid=grid, resolution_m=0.1, origin_xy_m=(-3.0, -2.0))
+    result = rose.analyze(grid)
+    walls = rose.extract_walls(occupancy, result)
+    assert len(walls) >= 4
+    path = tmp_path / "walls.rrd"
+    recording = rr.RecordingStream("t")
+    recording.save(path)
+    set_snapshot_time(recording, log_time_ns=5, start_ns=0, index=0)
+    TopicLogger(recording, PATHS).log_snapshot(snapshot, result, walls)
+    recording.flush()
+    recording.disconnect()
+    content = _read(path)
+    (metric,) = content.rows(PATHS.metric_walls)
+    (pixels,) = content.rows(PATHS.cell_walls)
+    metric_strips = np.array(metric["LineStrips3D:strips"], dtype=float)
+    pixel_strips = np.array(pixels["LineStrips2D:strips"], dtype=float)
+    assert metric_strips.shape == (len(walls), 2, 3) and pixel_strips.shape == (len(walls), 2, 2)
+    assert_xy = metric_strips[..., :2]
+    np.testing.assert_allclose(assert_xy, walls.endpoints_m, atol=1e-4)
+    # Pixels: north up, v = rows - (row + 0.5).
+    np.testing.assert_allclose(pixel_strips[..., 0], walls.endpoints_px[..., 0] + 0.5, atol=1e-4)
+    np.testing.assert_allclose(
+        pixel_strips[..., 1], 60 - walls.endpoints_px[..., 1] - 0.5, atol=1e-4
+    )
+
+
+def test_blueprint_has_a_tab_per_map_topic() -> None:
+    from rose_logs.rerun import TopicLayout, default_blueprint
+
+    blueprint = default_blueprint((TopicLayout("map"), TopicLayout("robot2/map", has_events=True)))
+    assert blueprint is not None
+    with pytest.raises(ValueError, match="at least one"):
+        default_blueprint(())
