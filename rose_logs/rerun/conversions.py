@@ -44,6 +44,7 @@ _VIRIDIS = np.array(
 
 __all__ = [
     "AmplitudePlot",
+    "OccupiedCells",
     "amplitude_plot",
     "colour_levels",
     "direction_label_positions",
@@ -52,6 +53,7 @@ __all__ = [
     "grid_to_image_rows",
     "known_bounds_cells",
     "masked_score_image",
+    "occupied_cells",
     "quantise_unit",
     "score_classes",
     "score_levels",
@@ -66,17 +68,38 @@ def grid_to_image_rows(grid: npt.NDArray[np.generic]) -> npt.NDArray[np.generic]
     return np.ascontiguousarray(grid[::-1])
 
 
-def _occupied_image_indices(
-    result: RoseResult,
-) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.intp]]:
-    """Flat indices of the occupied cells in grid order and in image (row-reversed) order."""
+@dataclass(frozen=True)
+class OccupiedCells:
+    """The occupied cells of a result, found once per snapshot and shared by the conversions.
+
+    Attributes
+    ----------
+    grid_index, image_index : ndarray of intp, shape (N,)
+        Flat indices in grid (ROS) row order and in image (north-up) row order.
+    bounds : tuple of int or None
+        ``(x_min, y_min, x_max, y_max)`` in cells (exclusive max) around the occupied cells, None
+        when there are none: the walls bound what was mapped.
+    """
+
+    grid_index: npt.NDArray[np.intp]
+    image_index: npt.NDArray[np.intp]
+    bounds: tuple[int, int, int, int] | None
+
+
+def occupied_cells(result: RoseResult) -> OccupiedCells:
+    """:class:`OccupiedCells` of ``result`` (one pass over the occupied mask)."""
     rows, cols = result.occupied.shape
     grid_index = np.flatnonzero(result.occupied)
     row, col = np.divmod(grid_index, cols)
-    return grid_index, (rows - 1 - row) * cols + col
+    bounds = None
+    if grid_index.size:
+        bounds = (int(col.min()), int(row[0]), int(col.max()) + 1, int(row[-1]) + 1)
+    return OccupiedCells(grid_index, (rows - 1 - row) * cols + col, bounds)
 
 
-def segmentation_image(grid: npt.NDArray[np.int8], result: RoseResult) -> npt.NDArray[np.uint8]:
+def segmentation_image(
+    grid: npt.NDArray[np.int8], result: RoseResult, occupied: OccupiedCells | None = None
+) -> npt.NDArray[np.uint8]:
     """Class id of every cell, image row order (north up).
 
     Parameters
@@ -95,7 +118,8 @@ def segmentation_image(grid: npt.NDArray[np.int8], result: RoseResult) -> npt.ND
     # Comparing the row-reversed view writes the image rows directly: free 1, unknown 1 + 1.
     classes = (grid[::-1] < 0).view(np.uint8)
     classes += np.uint8(CLASS_FREE)
-    grid_index, image_index = _occupied_image_indices(result)
+    cells = occupied or occupied_cells(result)
+    grid_index, image_index = cells.grid_index, cells.image_index
     if result.has_structure:
         # structure 4, clutter 5: the occupied cells are partitioned into the two.
         values = np.uint8(CLASS_CLUTTER) - result.structure.ravel()[grid_index].view(np.uint8)
@@ -143,7 +167,7 @@ def score_levels(
 
 
 def masked_score_image(
-    result: RoseResult, *, levels: int = DISPLAY_LEVELS
+    result: RoseResult, occupied: OccupiedCells | None = None, *, levels: int = DISPLAY_LEVELS
 ) -> npt.NDArray[np.uint8]:
     """Occupied cells' score level as class ids ``1 .. levels``; every other cell 0 (transparent).
 
@@ -156,7 +180,8 @@ def masked_score_image(
         msg = f"levels must be in 2..255, got {levels}"
         raise ValueError(msg)
     image = np.zeros(result.occupied.shape, dtype=np.uint8)
-    grid_index, image_index = _occupied_image_indices(result)
+    cells = occupied or occupied_cells(result)
+    grid_index, image_index = cells.grid_index, cells.image_index
     image.ravel()[image_index] = (
         score_levels(result.cell_scores.ravel()[grid_index], levels=levels) + 1
     )
@@ -280,7 +305,7 @@ def direction_segments_cells(
         Grid ``(rows, cols)``; the box when ``bounds`` is None.
     bounds : tuple of float, optional
         ``(x_min, y_min, x_max, y_max)`` in cells, e.g. the known part of the map
-        (:func:`known_bounds_cells`): the lines cross what was mapped, not the empty grid around it.
+        (:class:`OccupiedCells`): the lines cross what was mapped, not the empty grid around it.
 
     Returns
     -------

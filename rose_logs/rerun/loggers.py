@@ -171,10 +171,11 @@ class TopicLogger:
                 f"{snapshot.grid.shape} (topic {snapshot.topic}, log time {snapshot.log_time_ns} ns)"
             )
             raise ValueError(msg)
+        occupied = conv.occupied_cells(result)
         self.log_grid_map(snapshot)
-        self.log_segmentation(snapshot, result)
-        self.log_directions(snapshot, result)
-        self.log_cell_scores(result)
+        self.log_segmentation(snapshot, result, occupied)
+        self.log_directions(snapshot, result, occupied)
+        self.log_cell_scores(result, occupied)
         self.log_spectrum(result)
         self.log_amplitude(result)
         self.log_structure_score(result)
@@ -202,13 +203,24 @@ class TopicLogger:
             ),
         )
 
-    def log_segmentation(self, snapshot: MapSnapshot, result: RoseResult) -> None:
+    def log_segmentation(
+        self,
+        snapshot: MapSnapshot,
+        result: RoseResult,
+        occupied: conv.OccupiedCells | None = None,
+    ) -> None:
         """Free / unknown / occupied / structure / clutter as a segmentation image (classes static)."""
-        image = conv.segmentation_image(snapshot.grid, result)
+        image = conv.segmentation_image(snapshot.grid, result, occupied)
         self.recording.log(self.paths.segmentation, rr.SegmentationImage(image))
 
-    def log_directions(self, snapshot: MapSnapshot, result: RoseResult) -> None:
-        """Dominant directions across the known part of the map, over the segmentation and in metres.
+    def log_directions(
+        self,
+        snapshot: MapSnapshot,
+        result: RoseResult,
+        occupied: conv.OccupiedCells | None = None,
+    ) -> None:
+        """Dominant directions across the mapped area (the occupied cells' box), over the
+        segmentation and in metres.
 
         Each direction is labelled once, near its line's end (all lines cross at the centre).
         """
@@ -219,9 +231,8 @@ class TopicLogger:
             rec.log(paths.metric_directions, rr.Clear(recursive=False))
             return
         rows, cols = snapshot.grid.shape
-        segments = conv.direction_segments_cells(
-            directions, (rows, cols), bounds=conv.known_bounds_cells(snapshot.grid)
-        )
+        bounds = (occupied or conv.occupied_cells(result)).bounds
+        segments = conv.direction_segments_cells(directions, (rows, cols), bounds=bounds)
         anchors = conv.direction_label_positions(segments)
         labels = [f"walls {math.degrees(angle):.1f}°" for angle in directions]
         radius = rr.Radius.ui_points(1.5)
@@ -272,16 +283,11 @@ class TopicLogger:
         pixels = conv.cells_to_pixels(centres, snapshot.grid.shape[0])
         rec.log(paths.cell_walls, rr.LineStrips2D(pixels, colors=style.WALL_COLOR, radii=radius))
 
-    def log_cell_scores(self, result: RoseResult) -> None:
-        """Occupied cells' scores, colour-mapped (other cells transparent), with a colour bar below."""
-        self.recording.log(
-            self.paths.cell_scores,
-            rr.SegmentationImage(conv.masked_score_image(result), opacity=1.0),
-        )
-        self._log_score_legend(result)
-
-    def _log_score_legend(self, result: RoseResult) -> None:
-        """Colour bar under the map (re-sent only when the map's shape changes) and its labels."""
+    def log_cell_scores(
+        self, result: RoseResult, occupied: conv.OccupiedCells | None = None
+    ) -> None:
+        """Occupied cells' scores, colour-mapped (other cells transparent), with a colour bar below
+        (re-sent only when the map's shape changes) labelled with the scale and the threshold."""
         rec, paths = self.recording, self.paths
         rows, cols = result.occupied.shape
         levels = style.DISPLAY_LEVELS
@@ -308,43 +314,38 @@ class TopicLogger:
             positions.append((u_of(result.threshold), top - 0.07 * rows))
             labels.append(f"threshold {result.threshold:.2f}")
         rec.log(
-            paths.score_legend_labels,
+            paths.cell_scores,
+            rr.SegmentationImage(conv.masked_score_image(result, occupied), opacity=1.0),
             rr.Points2D(
                 positions, labels=labels, colors=style.AXIS_COLOR, radii=0.0, show_labels=True
             ),
         )
 
     def log_spectrum(self, result: RoseResult) -> None:
-        """The log amplitude spectrum (display resolution) and the kept strip of every direction."""
-        rec, paths = self.recording, self.paths
+        """The log amplitude spectrum (display resolution) with the kept strip of every direction."""
         size = style.SPECTRUM_DISPLAY_PX
         image = conv.display_spectrum(result.spectrum_half, result.padded_shape, size=size)
-        rec.log(
-            paths.spectrum,
+        directions = np.asarray(result.dominant_directions, dtype=np.float64)
+        half_width = result.params.mask_half_width_px * size / max(result.padded_shape)
+        self.recording.log(
+            self.paths.spectrum,
             rr.DepthImage(
                 image, meter=1.0, colormap=style.SPECTRUM_COLORMAP_NAME, depth_range=(1.0, 255.0)
             ),
-        )
-        directions = np.asarray(result.dominant_directions, dtype=np.float64)
-        if directions.size == 0:
-            rec.log(paths.spectrum_kept, rr.Clear(recursive=False))
-            return
-        half_width = result.params.mask_half_width_px * size / max(result.padded_shape)
-        rec.log(
-            paths.spectrum_kept,
+            # The strips' width is the kept half-width at display scale (at least a line).
             rr.LineStrips2D(
                 conv.spectrum_strip_segments(directions, size=size),
                 colors=(*style.DIRECTION_COLOR, 150),
                 radii=max(half_width, 0.75),
-                labels=[f"kept ⟂ walls {math.degrees(d):.1f}°" for d in directions],
-                show_labels=False,
             ),
         )
 
     def log_amplitude(self, result: RoseResult) -> None:
         """The scaled cumulative amplitude ``s`` per direction, its peaks and prominences.
 
-        The prominence threshold is a parameter of the session: drawn once, as static data.
+        One entity: the curve and a vertical bar per peak (its prominence, down from the peak) as
+        line strips, the labelled peaks as points. The prominence threshold is a parameter of the
+        session: drawn once, as static data.
         """
         rec, paths = self.recording, self.paths
         plot = conv.amplitude_plot(result)
@@ -362,17 +363,13 @@ class TopicLogger:
                 static=True,
             )
             self._threshold_logged = True
+        peaks = len(plot.peak_labels)
         rec.log(
             paths.amplitude_curve,
-            rr.LineStrips2D([plot.curve], colors=style.CURVE_COLOR, radii=rr.Radius.ui_points(1.5)),
-        )
-        if plot.peaks.size == 0:
-            rec.log(paths.amplitude_peaks, rr.Clear(recursive=False))
-            return
-        rec.log(
-            paths.amplitude_peaks,
             rr.LineStrips2D(
-                plot.prominence_bars, colors=style.PEAK_COLOR, radii=rr.Radius.ui_points(1.0)
+                [plot.curve, *plot.prominence_bars],
+                colors=[style.CURVE_COLOR] + [style.PEAK_COLOR] * peaks,
+                radii=rr.Radius.ui_points([1.5] + [1.0] * peaks),
             ),
             rr.Points2D(
                 plot.peaks,

@@ -12,15 +12,16 @@ Paths are lowercase and live below one root per map topic (``/map`` -> ``map``):
     <root>/metric/directions         LineStrips3D + Points3D labels of the directions, map frame, metres
     <root>/metric/walls              LineStrips3D, wall segments, metres
     <root>/cell_scores               AnnotationContext of the score levels (static)
-    <root>/cell_scores/scores        SegmentationImage of the occupied cells' score levels, others transparent
-    <root>/cell_scores/legend        colour bar under the map; legend_labels: its labels
+    <root>/cell_scores/scores        SegmentationImage of the occupied cells' score levels, others
+                                     transparent, and Points2D: the colour bar's labels
+    <root>/cell_scores/legend        the colour bar under the map (sent when the map's shape changes)
     <root>/spectrum/log_amplitude    DepthImage (colour-mapped) of the log amplitude spectrum, DC at the
-                                     centre, both axes -1/2 .. 1/2 cycles per cell (physical angles)
-    <root>/spectrum/kept             LineStrips2D, the kept spectrum strips (one per dominant direction)
+                                     centre, both axes -1/2 .. 1/2 cycles per cell (physical angles),
+                                     and LineStrips2D, the kept strip of each dominant direction
     <root>/amplitude/axes, axis_labels          static axes of the plot below (x: deg, y: -90 s)
-    <root>/amplitude/curve                      the scaled cumulative amplitude s per direction
+    <root>/amplitude/curve                      s per direction, a bar per peak (its prominence),
+                                                Points2D: the dominant peaks, labelled
     <root>/amplitude/prominence_threshold       the threshold t (static: a session parameter)
-    <root>/amplitude/peaks                      the dominant peaks (labelled) and their prominences
     <root>/structure_score/w         Scalars: W, trust level, failure level (three series, static styles)
     <root>/structure_score/breaks    Scalars: W at every break (point markers)
     <root>/events                    TextLog of break events
@@ -119,20 +120,12 @@ class EntityPaths:
         return self._below("cell_scores/legend")
 
     @property
-    def score_legend_labels(self) -> str:
-        return self._below("cell_scores/legend_labels")
-
-    @property
     def spectrum_view(self) -> str:
         return self._below("spectrum")
 
     @property
     def spectrum(self) -> str:
         return self._below("spectrum/log_amplitude")
-
-    @property
-    def spectrum_kept(self) -> str:
-        return self._below("spectrum/kept")
 
     @property
     def amplitude_view(self) -> str:
@@ -153,10 +146,6 @@ class EntityPaths:
     @property
     def amplitude_threshold(self) -> str:
         return self._below("amplitude/prominence_threshold")
-
-    @property
-    def amplitude_peaks(self) -> str:
-        return self._below("amplitude/peaks")
 
     @property
     def score(self) -> str:

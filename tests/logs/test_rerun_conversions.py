@@ -178,3 +178,22 @@ def test_known_bounds_cells() -> None:
     assert conv.known_bounds_cells(grid) is None
     grid[4:9, 10:25] = 0
     assert conv.known_bounds_cells(grid) == (10, 4, 25, 9)
+
+
+def test_occupied_cells_indices_and_bounds(plan) -> None:
+    grid, result = plan
+    cells = conv.occupied_cells(result)
+    assert_array_equal(cells.grid_index, np.flatnonzero(result.occupied))
+    assert_array_equal(np.sort(cells.image_index), np.flatnonzero(result.occupied[::-1]))
+    ys, xs = np.nonzero(result.occupied)
+    assert cells.bounds == (xs.min(), ys.min(), xs.max() + 1, ys.max() + 1)
+    empty = conv.occupied_cells(rose.analyze(np.zeros((5, 5), dtype=np.int8)))
+    assert empty.bounds is None and empty.grid_index.size == 0
+
+
+def test_direction_segments_span_the_given_box() -> None:
+    segments = conv.direction_segments_cells(
+        np.radians([0.0, 90.0]), (100, 200), bounds=(20, 10, 60, 30)
+    )
+    assert_allclose(segments[0], [[20.0, 20.0], [60.0, 20.0]], atol=1e-9)
+    assert_allclose(segments[1], [[40.0, 10.0], [40.0, 30.0]], atol=1e-9)
