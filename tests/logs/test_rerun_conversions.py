@@ -181,7 +181,7 @@ def test_known_bounds_cells() -> None:
 
 
 def test_occupied_cells_indices_and_bounds(plan) -> None:
-    grid, result = plan
+    _, result = plan
     cells = conv.occupied_cells(result)
     assert_array_equal(cells.grid_index, np.flatnonzero(result.occupied))
     assert_array_equal(np.sort(cells.image_index), np.flatnonzero(result.occupied[::-1]))
