@@ -5,9 +5,9 @@
 Serves the recording with ``rerun REC.rrd --serve-web`` bound to 127.0.0.1 only (free ports), opens the
 web viewer in Chromium (Debian's ``/usr/bin/chromium`` driven by Playwright, software WebGL through
 SwiftShader, a fresh profile, no network beyond loopback), and saves one PNG of the default layout per
-requested snapshot (the page loads once; the time cursor is moved with the viewer's own keys: End for
-the last time point, Ctrl+Right for the next one, wrapping to the first, so every shot shows exactly a
-snapshot). Needs the
+requested snapshot (the page loads once and opens on the first time point; the time cursor is moved
+with the viewer's own key, Ctrl+Right for the next time point, wrapping from the last to the first, so
+every shot shows exactly a snapshot). Needs the
 ``screenshots`` extra (``pip install '.[screenshots]'``) and ``apt-get install chromium``.
 """
 
@@ -195,6 +195,7 @@ def take_screenshots(
     out_dir: Path,
     *,
     steps: Sequence[tuple[str, int | None]] = (("end", None),),
+    time_points: int | None = None,
     width: int = 1600,
     height: int = 1000,
     load_s: float = DEFAULT_LOAD_S,
@@ -212,6 +213,8 @@ def take_screenshots(
     steps : sequence of (str, int or None)
         Name of each shot and the index of the time point (snapshot) it shows, counted from the first
         time point of the ``session_time`` timeline; None: the last time point.
+    time_points : int, optional
+        Number of time points of the recording (default: its snapshots, :func:`session_times_ns`).
     width, height : int
         Browser viewport, CSS pixels.
     load_s : float
@@ -236,6 +239,11 @@ def take_screenshots(
         raise ScreenshotError(msg)
     if not Path(rrd_path).is_file():
         msg = f"{rrd_path}: no such recording"
+        raise ScreenshotError(msg)
+    if time_points is None:
+        time_points = len(session_times_ns(Path(rrd_path)))
+    if time_points < 1:
+        msg = f"{rrd_path}: no snapshot on the {SESSION_TIMELINE} timeline"
         raise ScreenshotError(msg)
     out_dir.mkdir(parents=True, exist_ok=True)
     shots: list[Shot] = []
@@ -262,13 +270,18 @@ def take_screenshots(
             # the recording and draw (slow on a software rasteriser, slower on a busy machine).
             page.wait_for_selector("canvas", state="attached", timeout=4 * load_s * 1000)
             page.wait_for_timeout(load_s * 1000)
+            position = 0
             for name, step in steps:
-                page.locator("canvas").first.focus(timeout=4 * load_s * 1000)
-                # End: the last time point; one step forward wraps to the first one.
-                _press(page, "End")
-                if step is not None:
-                    for _ in range(step + 1):
+                target = time_points - 1 if step is None else step
+                # The viewer opens a recording at its first time point; Ctrl+Right steps to the
+                # next one and wraps from the last to the first (Home / End do not reach the web
+                # viewer's time panel).
+                moves = (target - position) % time_points
+                if moves:
+                    page.locator("canvas").first.focus(timeout=4 * load_s * 1000)
+                    for _ in range(moves):
                         _press(page, "Control+ArrowRight")
+                    position = target
                 page.wait_for_timeout(_SETTLE_MS)
                 path = out_dir / f"{prefix}{name}.png"
                 page.screenshot(path=str(path))
