@@ -4,7 +4,8 @@ Run: python benchmarks/bench_analyze.py [--repeat N] [--busy K]. Prints millisec
 target is analyze within 1.5x of that single FFT. The FFT and analyze runs alternate, so that both see the
 same load and the ratio stays meaningful on a busy machine; ``--busy K`` starts K busy-looping processes
 for the measurement ("under load"), and the load average is printed. Stage timings show where the time
-goes. ROSE_DATA_DIR overrides the default ../shared/maps next to the repository.
+goes. The maps come from the data set: ROSE_DATA_DIR, else ../shared/maps next to the repository
+(:func:`rose_logs.datasets.data_dir`).
 """
 
 from __future__ import annotations
@@ -24,11 +25,10 @@ import scipy.fft
 import rose
 from rose import directions, scoring, spectrum, threshold, unfold
 from rose.grid import occupied_mask
+from rose_logs.datasets import data_dir
 
-# ROSE_DATA_DIR overrides the default ../shared/maps next to the repository (e.g. from a worktree).
-MAPS = Path(
-    os.environ.get("ROSE_DATA_DIR", Path(__file__).resolve().parents[2] / "shared" / "maps")
-)
+# ROSE_DATA_DIR, else ../shared/maps next to the repository (a path that exists nowhere when neither).
+MAPS = data_dir() or Path("ROSE_DATA_DIR-not-set")
 CASES = [
     ("willow 566x608", MAPS / "willow_turtlebot_apps" / "willow-2010-02-18-0.10.yaml"),
     ("fr079 1152x736", MAPS / "rose2_aislabunimi" / "Freiburg_Building_079_partial" / "map15.yaml"),

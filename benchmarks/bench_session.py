@@ -36,10 +36,11 @@ from rose_logs.session import process_log
 from rose_logs.snapshots import MapSnapshot
 from rose_logs.writer import LogWriter, open_output
 
+#: The Freiburg 079 stages committed with the tests (see tests/data/README.md).
 MAPS = (
-    Path(__file__).resolve().parents[2]
-    / "shared"
-    / "maps"
+    Path(__file__).resolve().parents[1]
+    / "tests"
+    / "data"
     / "rose2_aislabunimi"
     / "Freiburg_Building_079_partial"
 )

@@ -2,7 +2,10 @@
 
 Usage::
 
-    python benchmarks/run_evaluation.py OUT_DIR [--config full|small] [--skip-evaluation]
+    python benchmarks/run_evaluation.py OUT_DIR [--config full|small] [--skip-evaluation] [--maps-dir DIR]
+
+The logs and maps come from ``--maps-dir`` (default: the data set, ``$ROSE_DATA_DIR`` or
+``../shared/maps`` beside the checkout; see :mod:`rose_logs.datasets`).
 
 Prints one line per log (scans, cells, parse and build seconds) and the evaluation's stage timings;
 the report lands in OUT_DIR/report.md. The full configuration is 5 logs + 19 benchmark maps x 243
@@ -12,6 +15,7 @@ cluttered maps each, 19 furnished maps, 5 logs x (1 + 3 drift levels x 3 seeds) 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import logging
 import sys
 import time
@@ -20,13 +24,13 @@ from pathlib import Path
 from rose_logs.carmen.parse import read_carmen_log
 from rose_logs.carmen.raycast import OccupancyGridBuilder
 from rose_logs.evaluation import EvaluationConfig, run_evaluation
-from rose_logs.evaluation.config import DEFAULT_MAPS_DIR, RADISH_LOGS
+from rose_logs.evaluation.config import LOGS_SUBDIR, RADISH_LOGS
 
 
 def rasterisation_timings(maps_dir: Path) -> None:
     """Parse and rasterise every log at 0.05 m; print the timings."""
     for name in RADISH_LOGS:
-        path = maps_dir / "radish_carmen_corrected_logs" / f"{name}-corrected.log.gz"
+        path = maps_dir / LOGS_SUBDIR / f"{name}-corrected.log.gz"
         t0 = time.perf_counter()
         log = read_carmen_log(path)
         t1 = time.perf_counter()
@@ -46,12 +50,15 @@ def main() -> int:
     parser.add_argument("out_dir", type=Path)
     parser.add_argument("--config", choices=("small", "full"), default="full")
     parser.add_argument("--skip-evaluation", action="store_true")
+    parser.add_argument("--maps-dir", type=Path, default=None, help="the data set (default: found)")
     args = parser.parse_args()
     logging.basicConfig(level=logging.WARNING)
-    rasterisation_timings(DEFAULT_MAPS_DIR)
+    config = EvaluationConfig.full() if args.config == "full" else EvaluationConfig.small()
+    if args.maps_dir is not None:
+        config = dataclasses.replace(config, maps_dir=args.maps_dir)
+    rasterisation_timings(config.data_root)
     if args.skip_evaluation:
         return 0
-    config = EvaluationConfig.full() if args.config == "full" else EvaluationConfig.small()
     report = run_evaluation(config, args.out_dir, progress=lambda m: sys.stdout.write(m + "\n"))
     sys.stdout.write(f"total {report.run_s:.1f} s, R = {report.r_all:.3f}\n")
     return 0

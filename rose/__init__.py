@@ -3,7 +3,9 @@
 ``analyze`` runs the whole method on one grid; the stage functions are public in ``rose.spectrum``,
 ``rose.unfold``, ``rose.directions``, ``rose.scoring`` and ``rose.threshold``. Wall segments with and
 without ROSE come from ``extract_walls`` / ``extract_walls_hough`` (:mod:`rose.walls`), scored by
-``wall_error``. The wall names load OpenCV on first use, so ``import rose`` stays light.
+``wall_error``. ``clean`` gives the cleaned map users get (walls kept, no robot-sized gap opened) or,
+by name, the paper's labelling. The wall and cleaning code load OpenCV on first use, so ``import rose``
+stays light.
 """
 
 from __future__ import annotations
@@ -11,6 +13,7 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
+from rose.clean import CleanParams, CleanResult, clean
 from rose.directions import FAILURE_LEVEL, TRUST_LEVEL
 from rose.errors import MapFileError, RoseError
 from rose.mapfile import OccupancyMap, load_map, save_map
@@ -21,6 +24,8 @@ from rose.result import RoseResult
 __all__ = [
     "FAILURE_LEVEL",
     "TRUST_LEVEL",
+    "CleanParams",
+    "CleanResult",
     "MapFileError",
     "OccupancyMap",
     "RoseError",
@@ -31,6 +36,7 @@ __all__ = [
     "WallSegment",
     "WallSet",
     "analyze",
+    "clean",
     "extract_walls",
     "extract_walls_hough",
     "load_map",

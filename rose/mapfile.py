@@ -183,13 +183,12 @@ def _read_image(path: Path) -> npt.NDArray[np.uint8]:
         msg = f"{path}: not a readable image"
         raise MapFileError(msg)
     if image.dtype == np.uint16:
-        image = (image >> 8).astype(np.uint8)
+        image = (image // 256).astype(np.uint8)  # the high byte
     elif image.dtype != np.uint8:
         msg = f"{path}: unsupported pixel type {image.dtype}"
         raise MapFileError(msg)
-    if image.ndim == 2:
-        image = image[:, :, np.newaxis]
-    return image
+    pixels = np.asarray(image, dtype=np.uint8)  # typed; no copy, the dtype is uint8 here
+    return pixels[:, :, np.newaxis] if pixels.ndim == 2 else pixels
 
 
 def image_to_grid(

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -98,6 +99,13 @@ def _problems(p: RoseParams) -> list[str]:
     ]
     if wrong_type:
         return wrong_type
+    not_finite = [
+        f"{name} must be finite, got {getattr(p, name)!r}"
+        for name in numbers
+        if not math.isfinite(getattr(p, name))
+    ]
+    if not_finite:
+        return not_finite
     problems = []
     for name in ("occupied_threshold", "max_gmm_samples", "seed"):
         if not isinstance(getattr(p, name), int):

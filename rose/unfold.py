@@ -85,7 +85,7 @@ def direction_bins(
     bin_index = np.rint(wall_angle / step).astype(np.intp) % n_bins
     counts = np.bincount(bin_index, minlength=n_bins).astype(np.float64)
     return DirectionBins(
-        centres=np.arange(n_bins) * step,
+        centres=np.arange(n_bins, dtype=np.float64) * step,
         cell_index=cell_index,
         bin_index=bin_index,
         counts=counts,

@@ -22,8 +22,9 @@ from rose_logs.snapshots import MapSnapshot
 from rose_logs.writer import open_output
 
 HERE = Path(__file__).resolve().parent
+#: The same maps as committed with the tests (tests/data/README.md: sources and licences).
 DEFAULT_MAPS = (
-    HERE.parent.parent / "shared" / "maps" / "rose2_aislabunimi" / "Freiburg_Building_079_partial"
+    HERE.parent / "tests" / "data" / "rose2_aislabunimi" / "Freiburg_Building_079_partial"
 )
 START_NS = 1_700_000_000 * 1_000_000_000  # 2023-11-14 22:13:20 UTC, an arbitrary fixed start
 CLOCK_PERIOD_NS = 100_000_000

@@ -1,4 +1,4 @@
-"""CARMEN log parsing on real log excerpts and on damaged lines."""
+"""CARMEN log parsing on real logs and excerpts (``tests/data``) and on damaged lines."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
+from real_data import CARMEN_DIR, repo_data
 
 from rose_logs.carmen.parse import (
     CarmenFormatError,
@@ -20,21 +21,27 @@ from rose_logs.carmen.parse import (
 )
 from rose_logs.errors import LogWriteError
 
-LOGS = Path(__file__).resolve().parents[2] / "shared" / "maps" / "radish_carmen_corrected_logs"
-if not LOGS.is_dir():
-    LOGS = Path("/work/shared/maps/radish_carmen_corrected_logs")
-needs_logs = pytest.mark.skipif(not LOGS.is_dir(), reason="Radish CARMEN logs not available")
+#: Whole logs in tests/data, and the first 400 lines of two more (``*.head400.log.gz``).
+ACES = f"{CARMEN_DIR}/aces-corrected.log.gz"
+FR101 = f"{CARMEN_DIR}/freiburg-101-corrected.log.gz"
 
 
-def _excerpt(name: str, n_lines: int) -> list[str]:
-    with gzip.open(LOGS / f"{name}-corrected.log.gz", "rt") as fh:
+def _excerpt(file_name: str, n_lines: int) -> list[str]:
+    with gzip.open(repo_data(f"{CARMEN_DIR}/{file_name}"), "rt") as fh:
         return list(itertools.islice(fh, n_lines))
 
 
-@needs_logs
-@pytest.mark.parametrize(("name", "beams"), [("aces", 180), ("csail", 361), ("freiburg-079", 360)])
-def test_real_excerpt_parses_every_flaser_line(name: str, beams: int) -> None:
-    lines = _excerpt(name, 400)
+@pytest.mark.parametrize(
+    ("file_name", "beams"),
+    [
+        ("aces-corrected.log.gz", 180),
+        ("csail-corrected.head400.log.gz", 361),
+        ("freiburg-079-corrected.head400.log.gz", 360),
+    ],
+)
+def test_real_excerpt_parses_every_flaser_line(file_name: str, beams: int) -> None:
+    lines = _excerpt(file_name, 400)
+    assert len(lines) == 400
     log = parse_carmen_lines(lines)
     n_flaser = sum(line.startswith("FLASER") for line in lines)
     assert n_flaser > 0
@@ -49,10 +56,9 @@ def test_real_excerpt_parses_every_flaser_line(name: str, beams: int) -> None:
     assert np.all(np.diff(log.stamps_ns) >= 0)
 
 
-@needs_logs
 def test_first_aces_scan_values() -> None:
     # First FLASER line of aces: "FLASER 180 6.66 6.86 ... 0.89706 -0.180771 -0.454003 ... 21.0199 ..."
-    log = parse_carmen_lines(_excerpt("aces", 400))
+    log = parse_carmen_lines(_excerpt("aces-corrected.log.gz", 400))
     scan = log.scans[0]
     assert scan.ranges_m[0] == pytest.approx(6.66)
     assert scan.ranges_m[1] == pytest.approx(6.86)
@@ -60,9 +66,8 @@ def test_first_aces_scan_values() -> None:
     assert scan.line_number > 1
 
 
-@needs_logs
 def test_read_gz_file_and_max_scans() -> None:
-    log = read_carmen_log(LOGS / "freiburg-101-corrected.log.gz", max_scans=5)
+    log = read_carmen_log(repo_data(FR101), max_scans=5)
     assert len(log.scans) == 5
     assert log.laser_poses.shape == (5, 3)
     assert log.duration_s > 0
@@ -121,7 +126,6 @@ def test_beam_angles(n: int, increment_deg: float) -> None:
 
 
 # -- sessions written from a log (rose_logs.carmen.session) -------------------------------------
-@needs_logs
 @pytest.mark.parametrize(("name", "fmt"), [("s.bag", "ros1"), ("s_db3", "db3"), ("s.mcap", "mcap")])
 def test_session_write_then_read(tmp_path: Path, name: str, fmt: str) -> None:
     from rosbags.highlevel import AnyReader
@@ -129,7 +133,7 @@ def test_session_write_then_read(tmp_path: Path, name: str, fmt: str) -> None:
     from rose_logs.carmen.raycast import BuilderParams
     from rose_logs.carmen.session import SessionOptions, write_carmen_session
 
-    log = read_carmen_log(LOGS / "freiburg-101-corrected.log.gz", max_scans=40)
+    log = read_carmen_log(repo_data(FR101), max_scans=40)
     out = tmp_path / name
     options = SessionOptions(
         builder_params=BuilderParams(resolution_m=0.2, grow_margin_m=2.0),
@@ -160,7 +164,6 @@ def test_session_write_then_read(tmp_path: Path, name: str, fmt: str) -> None:
         write_carmen_session(log, out)
 
 
-@needs_logs
 def test_convert_command(tmp_path: Path) -> None:
     import argparse
 
@@ -172,7 +175,7 @@ def test_convert_command(tmp_path: Path) -> None:
     args = parser.parse_args(
         [
             "convert",
-            str(LOGS / "freiburg-101-corrected.log.gz"),
+            str(repo_data(FR101)),
             str(out),
             "--max-scans", "20",
             "--resolution", "0.25",

@@ -31,14 +31,32 @@ def test_clean_writes_map_and_report(
         main(["clean", str(cluttered_map), "-o", str(out), "--json", str(tmp_path / "r.json")]) == 0
     )
     cleaned = rose.load_map(out)
-    expected = rose.analyze(rose.load_map(cluttered_map).grid).cleaned
+    source = rose.load_map(cluttered_map)
+    expected = rose.clean(source.grid, resolution_m=source.resolution_m).cleaned
     np.testing.assert_array_equal(cleaned.grid, expected)
     assert cleaned.origin_xy_m == (-1.0, -2.0)
     report = json.loads((tmp_path / "r.json").read_text())
     assert report["clutter_cells"] > 0
+    assert report["method"] == "walls"
+    assert report["removed_cells"] > 0
+    assert report["kept_cells"] + report["removed_cells"] == report["occupied_cells"]
     assert len(report["dominant_directions_deg"]) == 2
     printed = capsys.readouterr().out
-    assert "W " in printed and "directions" in printed and "clutter" in printed
+    assert "W " in printed and "directions" in printed and "removed" in printed
+
+
+def test_clean_method_paper_is_the_papers_labelling(cluttered_map: Path, tmp_path: Path) -> None:
+    paper, walls = tmp_path / "paper.yaml", tmp_path / "walls.yaml"
+    assert main(["clean", str(cluttered_map), "-o", str(paper), "--method", "paper"]) == 0
+    assert main(["clean", str(cluttered_map), "-o", str(walls), "--method", "walls"]) == 0
+    grid = rose.load_map(cluttered_map).grid
+    np.testing.assert_array_equal(rose.load_map(paper).grid, rose.analyze(grid).cleaned)
+    kept_paper = np.count_nonzero(rose.load_map(paper).grid == 100)
+    kept_walls = np.count_nonzero(rose.load_map(walls).grid == 100)
+    assert kept_walls >= kept_paper
+    with pytest.raises(SystemExit) as exit_info:
+        main(["clean", str(cluttered_map), "-o", str(paper), "--method", "tidy"])
+    assert exit_info.value.code == 2
 
 
 def test_clean_parameters_reach_the_algorithm(cluttered_map: Path, tmp_path: Path) -> None:

@@ -3,18 +3,16 @@
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose, assert_array_equal
+from real_data import CARMEN_DIR, repo_data
 
 import rose
 from rose_logs.carmen.drift import DriftParams, apply_drift
 from rose_logs.carmen.parse import beam_angles, read_carmen_log
 from rose_logs.carmen.raycast import OccupancyGridBuilder, ScanBatch, crop_to_known
-
-LOG = Path("/work/shared/maps/radish_carmen_corrected_logs/aces-corrected.log.gz")
 
 
 def _square_path(n: int = 400) -> np.ndarray:
@@ -75,9 +73,8 @@ def test_straight_line_without_noise_keeps_length_scale() -> None:
     assert_allclose(out[:, 1], 0.0, atol=1e-12)
 
 
-@pytest.mark.skipif(not LOG.is_file(), reason="Radish CARMEN logs not available")
 def test_drift_changes_the_map_and_raises_w() -> None:
-    log = read_carmen_log(LOG)
+    log = read_carmen_log(repo_data(f"{CARMEN_DIR}/aces-corrected.log.gz"))
     ranges = np.stack([s.ranges_m for s in log.scans])
     angles = beam_angles(ranges.shape[1])
 

@@ -10,14 +10,21 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from real_data import REPO_DATA, dataset
 
+import rose
 from rose_logs.cli.evaluate import add_parser as add_evaluate_parser
+from rose_logs.datasets import ENV_VAR, DataSetError
 from rose_logs.evaluation import EvaluationConfig, add_clutter, run_evaluation
+from rose_logs.evaluation import walls as wall_module
 from rose_logs.evaluation.clutter import SHAPES, obstacle_stamp
-from rose_logs.evaluation.config import DEFAULT_MAPS_DIR
+from rose_logs.evaluation.config import (
+    BENCHMARK_SUBDIR,
+    BORMANN_MAPS,
+    LOGS_SUBDIR,
+    RADISH_LOGS,
+)
 from rose_logs.evaluation.experiments import correlation, label_scores
-
-needs_maps = pytest.mark.skipif(not DEFAULT_MAPS_DIR.is_dir(), reason="shared maps not available")
 
 
 def _room(rows: int = 120, cols: int = 150) -> np.ndarray:
@@ -72,8 +79,6 @@ def test_clutter_rejects_bad_input() -> None:
 
 
 def test_label_scores_counts() -> None:
-    import rose
-
     cluttered = add_clutter(_room(), shape="square", count=10, size_px=6, seed=3)
     result = rose.analyze(cluttered.grid)
     scores = label_scores(result, cluttered.structure, cluttered.clutter)
@@ -86,10 +91,19 @@ def test_label_scores_counts() -> None:
     assert 0 <= scores.clutter_recall <= 1
 
 
-@needs_maps
+def _small_config(**changes: object) -> EvaluationConfig:
+    """The small configuration on the repository's test data (freiburg-101 log, Freiburg79_scan)."""
+    settings: dict[str, object] = {
+        "maps_dir": REPO_DATA,
+        "sizes_px": (4, 20),
+        "counts": (20, 100),
+        "shapes": ("square", "random"),
+    }
+    return EvaluationConfig.small(**(settings | changes))
+
+
 def test_small_evaluation_writes_every_artefact(tmp_path: Path) -> None:
-    config = EvaluationConfig.small(sizes_px=(4, 20), counts=(20, 100), shapes=("square", "random"))
-    report = run_evaluation(config, tmp_path)
+    report = run_evaluation(_small_config(), tmp_path)
     expected = {
         "report.md",
         "exp1_clutter_runs.csv",
@@ -101,6 +115,10 @@ def test_small_evaluation_writes_every_artefact(tmp_path: Path) -> None:
         "exp3_w_vs_precision.png",
         "maps_from_logs.png",
         "map_freiburg-101.png",
+        "cleaning_runs.csv",
+        "cleaning_before_after.png",
+        "wall_error.csv",
+        "wall_error.png",
     }
     names = {p.name for p in tmp_path.iterdir()}
     assert expected <= names
@@ -120,17 +138,98 @@ def test_small_evaluation_writes_every_artefact(tmp_path: Path) -> None:
         "Pearson R",
     ):
         assert needle in markdown
-    try:
-        import rose_logs.evaluation.walls  # noqa: F401
-    except ImportError:
-        pass
-    else:
-        assert "Wall extraction" in markdown
+    # The wall section holds the row of the one benchmark map, with the numbers of wall_error.csv.
+    with (tmp_path / "wall_error.csv").open() as fh:
+        wall_rows = list(csv.DictReader(fh))
+    assert [r["name"] for r in wall_rows] == ["Freiburg79_scan"]
+    n_reference = int(wall_rows[0]["n_reference"])
+    assert n_reference > 0
+    section = markdown[markdown.index("## Wall extraction") :]
+    assert f"| Freiburg79_scan | {n_reference} | {wall_rows[0]['baseline_n_detected']} |" in section
     w_ok, w_drift = report.w_by_log["freiburg-101"]
     assert w_ok < w_drift
     assert math.isfinite(report.r_all)
     prec, _ = report.median_by_map["freiburg-101"]
     assert prec > 0.9
+
+
+def test_wall_experiment_gets_the_maps_dir_and_rose_params(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # No data set anywhere: everything must come from the configuration.
+    monkeypatch.setenv(ENV_VAR, str(tmp_path / "no-data-set-here"))
+    calls: list[dict[str, object]] = []
+    real = wall_module.wall_experiment
+
+    def spy(out_dir: Path, **kwargs: object) -> wall_module.WallReport:
+        calls.append(kwargs)
+        return real(out_dir, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(wall_module, "wall_experiment", spy)
+    monkeypatch.setattr("rose_logs.evaluation.report.wall_experiment", spy, raising=False)
+    params = rose.RoseParams(threshold_mode="fixed", fixed_threshold=0.3)
+    config = _small_config(rose_params=params, plots=False, logs=(), counts=(20,), sizes_px=(4,))
+    run_evaluation(config, tmp_path)
+    assert len(calls) == 1
+    assert calls[0]["maps_dir"] == REPO_DATA / BENCHMARK_SUBDIR
+    assert calls[0]["rose_params"] == params
+    assert calls[0]["names"] == ["Freiburg79_scan"]
+
+
+def test_wall_experiment_errors_are_not_swallowed(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    def broken(out_dir: Path, **kwargs: object) -> wall_module.WallReport:
+        msg = "cannot load the benchmark map"
+        raise rose.MapFileError(msg)
+
+    monkeypatch.setattr(wall_module, "wall_experiment", broken)
+    monkeypatch.setattr("rose_logs.evaluation.report.wall_experiment", broken, raising=False)
+    config = _small_config(plots=False, logs=(), counts=(20,), sizes_px=(4,))
+    with pytest.raises(rose.MapFileError, match="cannot load the benchmark map"):
+        run_evaluation(config, tmp_path)
+    assert not (tmp_path / "report.md").exists()
+
+
+def test_wall_experiment_runs_with_rose_params_on_a_maps_dir(tmp_path: Path) -> None:
+    maps_dir = REPO_DATA / BENCHMARK_SUBDIR
+    gmm = wall_module.wall_experiment(tmp_path / "a", names=["Freiburg52_scan"], maps_dir=maps_dir)
+    strict = wall_module.wall_experiment(
+        tmp_path / "b",
+        names=["Freiburg52_scan"],
+        maps_dir=maps_dir,
+        rose_params=rose.RoseParams(peak_prominence=1.0, mask_half_width_px=0.5),
+    )
+    assert [r.name for r in gmm.rows] == ["Freiburg52_scan"]
+    # The ROSE parameters reach the ROSE variant: a narrower structure strip keeps fewer walls.
+    assert strict.rows[0].rose != gmm.rows[0].rose
+    # The Hough baseline and the reference do not depend on ROSE's parameters.
+    assert strict.rows[0].baseline == gmm.rows[0].baseline
+    assert strict.rows[0].n_reference == gmm.rows[0].n_reference
+
+
+def test_without_a_data_set_the_defaults_say_how_to_get_it(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv(ENV_VAR, str(tmp_path / "missing"))
+    with pytest.raises(DataSetError, match=ENV_VAR):
+        wall_module.wall_experiment(tmp_path / "out", names=["Freiburg52_scan"])
+    assert not (tmp_path / "out").exists()
+    with pytest.raises(DataSetError, match=ENV_VAR):
+        run_evaluation(EvaluationConfig.small(plots=False), tmp_path / "report")
+    assert not (tmp_path / "report").exists()
+    assert EvaluationConfig.small(maps_dir=tmp_path).benchmark_dir == tmp_path / BENCHMARK_SUBDIR
+
+
+@pytest.mark.dataset(LOGS_SUBDIR, BENCHMARK_SUBDIR)
+def test_data_set_holds_every_input_of_the_full_evaluation() -> None:
+    config = EvaluationConfig.full()
+    assert config.data_root == dataset(".")
+    for log in RADISH_LOGS:
+        assert (config.logs_dir / f"{log}-corrected.log.gz").is_file(), log
+    for name in BORMANN_MAPS:
+        assert (config.benchmark_dir / f"{name}.png").is_file(), name
+        assert (config.benchmark_dir / f"{name}_furnitures.png").is_file(), name
 
 
 def test_correlation_of_perfectly_anticorrelated_runs() -> None:
@@ -159,3 +258,17 @@ def test_evaluate_parser_builds_config() -> None:
     assert config.logs == ("aces", "intel")
     assert config.seed == 5
     assert args.func.__module__ == "rose_logs.cli.evaluate"
+
+
+def test_evaluate_command_without_data_set_is_a_one_line_error(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from rose_logs.cli import main
+
+    monkeypatch.setenv(ENV_VAR, str(tmp_path / "missing"))
+    assert main(["evaluate", str(tmp_path / "report"), "--no-plots"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith(
+        f"error: {tmp_path / 'missing'}: data-set folder ({ENV_VAR}) does not exist"
+    )
+    assert err.count("\n") == 1

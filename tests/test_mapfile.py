@@ -7,11 +7,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from real_data import FR079_DIR, repo_data
 
 import rose
 from rose import MapFileError, OccupancyMap
-
-SHARED_MAPS = Path(__file__).resolve().parents[2] / "shared" / "maps"
 
 
 def write_yaml(path: Path, text: str) -> Path:
@@ -34,13 +33,23 @@ def test_trinary_round_trip_is_lossless(tmp_path: Path) -> None:
 
 
 def test_real_map_round_trip(tmp_path: Path) -> None:
-    source = rose.load_map(
-        SHARED_MAPS / "rose2_aislabunimi/Freiburg_Building_079_partial/map5.yaml"
-    )
+    source = rose.load_map(repo_data(f"{FR079_DIR}/map5.yaml"))
     rose.save_map(tmp_path / "copy.yaml", source)
     again = rose.load_map(tmp_path / "copy.yaml")
     np.testing.assert_array_equal(again.grid, source.grid)
     assert again.origin_xy_m == source.origin_xy_m
+
+
+def test_sixteen_bit_image_uses_the_high_byte(tmp_path: Path) -> None:
+    high = np.array([[0, 100, 205, 230, 254]], dtype=np.uint8)
+    low = np.array([[255, 17, 0, 255, 128]], dtype=np.uint8)
+    cv2.imwrite(str(tmp_path / "m16.png"), high.astype(np.uint16) * 256 + low)
+    cv2.imwrite(str(tmp_path / "m8.png"), high)
+    image16 = cv2.imread(str(tmp_path / "m16.png"), cv2.IMREAD_UNCHANGED)
+    assert image16.dtype == np.uint16  # really a 16-bit file
+    np.testing.assert_array_equal(
+        rose.load_map(tmp_path / "m16.png").grid, rose.load_map(tmp_path / "m8.png").grid
+    )
 
 
 def test_row_zero_is_the_bottom_of_the_image(tmp_path: Path) -> None:
@@ -120,7 +129,7 @@ def test_png_colour_types_read_alike(tmp_path: Path, channels: str) -> None:
     "name", ["bormann_ipa_room_segmentation/lab_ipa.png", "aws_small_warehouse_005/map_rotated.png"]
 )
 def test_real_png_maps_load(name: str) -> None:
-    grid = rose.load_map(SHARED_MAPS / name).grid
+    grid = rose.load_map(repo_data(name)).grid
     assert grid.ndim == 2 and grid.dtype == np.int8
     assert np.count_nonzero(grid == 100) > 0
 

@@ -1,27 +1,21 @@
-"""ROSE on real maps from ../shared/maps: furniture as clutter, W of real SLAM maps."""
+"""ROSE on real maps: furniture as clutter (full data set), W of a real growing SLAM map (in the repo)."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
+from real_data import BORMANN_DIR, FR079_DIR, dataset, repo_data
 
 import rose
-
-SHARED_MAPS = Path(__file__).resolve().parents[2] / "shared" / "maps"
-BENCHMARK = SHARED_MAPS / "bormann_ipa_room_segmentation"
-FR079 = SHARED_MAPS / "rose2_aislabunimi" / "Freiburg_Building_079_partial"
-
-pytestmark = pytest.mark.skipif(not BENCHMARK.is_dir(), reason="shared maps not available")
 
 
 def furniture_scores() -> list[tuple[str, float, float, float]]:
     """(name, precision, recall, furniture share of occupied cells) per building with furniture."""
+    benchmark = dataset(BORMANN_DIR)
     rows = []
-    for clean_path in sorted(BENCHMARK.glob("*.png")):
+    for clean_path in sorted(benchmark.glob("*.png")):
         name = clean_path.stem
-        furnished_path = BENCHMARK / f"{name}_furnitures.png"
+        furnished_path = benchmark / f"{name}_furnitures.png"
         if name.endswith(("_furnitures", "_gt_segmentation")) or not furnished_path.exists():
             continue
         clean = rose.load_map(clean_path).grid >= 65
@@ -38,6 +32,7 @@ def furniture_scores() -> list[tuple[str, float, float, float]]:
     return rows
 
 
+@pytest.mark.dataset(BORMANN_DIR)
 def test_furniture_is_labelled_clutter_more_often_than_walls() -> None:
     rows = furniture_scores()
     assert len(rows) >= 15
@@ -52,7 +47,7 @@ def test_furniture_is_labelled_clutter_more_often_than_walls() -> None:
 
 def test_growing_slam_map_is_structured_throughout() -> None:
     scores = [
-        rose.analyze(rose.load_map(FR079 / f"map{i}.yaml").grid).structure_score
+        rose.analyze(rose.load_map(repo_data(f"{FR079_DIR}/map{i}.yaml")).grid).structure_score
         for i in range(2, 16)
     ]
     # Paper: 0.17 for the final Freiburg 079 map; a correct SLAM map stays below the 0.2 trust level.
@@ -60,7 +55,7 @@ def test_growing_slam_map_is_structured_throughout() -> None:
 
 
 def test_distorted_map_scores_worse() -> None:
-    grid = rose.load_map(FR079 / "map15.yaml").grid
+    grid = rose.load_map(repo_data(f"{FR079_DIR}/map15.yaml")).grid
     rng = np.random.default_rng(0)
     # Scatter the occupied cells: the same amount of "wall" with no structure left.
     occupied = np.argwhere(grid == 100)

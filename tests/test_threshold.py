@@ -3,21 +3,17 @@
 from __future__ import annotations
 
 import math
-import os
 import warnings
 from pathlib import Path
 
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
+from real_data import dataset
 from scipy.stats import norm
 
 import rose
 from rose.threshold import fit_two_gaussians, gaussian_intersection, gmm_threshold
-
-SHARED_MAPS = Path(
-    os.environ.get("ROSE_DATA_DIR", Path(__file__).resolve().parents[2] / "shared" / "maps")
-)
 
 
 def weighted_pdf(s: float, mean: float, var: float, weight: float) -> float:
@@ -157,25 +153,23 @@ def _sklearn_threshold(scores: np.ndarray, max_samples: int) -> float:
     )
 
 
-def _real_maps() -> list[Path]:
-    if not SHARED_MAPS.is_dir():
-        return []
-    paths = sorted(SHARED_MAPS.rglob("*.yaml"))
+def _real_maps(root: Path) -> list[Path]:
+    paths = sorted(root.rglob("*.yaml"))
     yaml_images = {p.with_suffix(s) for p in paths for s in (".png", ".pgm")}
     images = [
         p
-        for p in sorted(SHARED_MAPS.rglob("*.png"))
+        for p in sorted(root.rglob("*.png"))
         if p not in yaml_images and not p.stem.endswith("_gt_segmentation")  # label images
     ]
     return paths + images
 
 
-@pytest.mark.skipif(not SHARED_MAPS.is_dir(), reason=f"shared maps not available at {SHARED_MAPS}")
 def test_em_threshold_matches_scikit_learn_on_every_real_map() -> None:
     pytest.importorskip("sklearn")
+    root = dataset(".")  # every map of the full data set
     compared = 0
     worst = 0.0
-    for path in _real_maps():
+    for path in _real_maps(root):
         try:
             grid = rose.load_map(path).grid
         except rose.RoseError:

@@ -437,7 +437,7 @@ def _probe_line(
         inside = (c >= 0) & (c < cols) & (r >= 0) & (r < rows)
         hit = np.zeros(c.shape, dtype=bool)
         hit[inside] = pixels[r[inside], c[inside]]
-        found.append(hit.any(axis=1))
+        found.append(np.asarray(hit.any(axis=1)))
         done += steps.size
         tail = np.concatenate(found)[-(max_gap + 1) :]
         if not inside.any() or (tail.size == max_gap + 1 and not tail.any()):

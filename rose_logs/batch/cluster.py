@@ -22,7 +22,8 @@ def local_client(
 
     Workers get one thread each, :func:`worker_environment` (malloc thresholds instead of Dask's
     ``MALLOC_TRIM_THRESHOLD_=65536``, one-thread BLAS) through ``distributed.nanny.pre-spawn-environ``,
-    no dashboard, and ``allowed-failures = retries``: a recording whose worker dies more often than
+    no dashboard, one queued recording per worker (``worker-saturation = 1.0``), and
+    ``allowed-failures = retries``: a recording whose worker dies more often than
     that is reported as failed instead of being retried forever.
     """
     import dask
@@ -32,6 +33,9 @@ def local_client(
     settings = {
         "distributed.nanny.pre-spawn-environ": environ,
         "distributed.scheduler.allowed-failures": max(0, retries),
+        # One recording per worker at a time (the default 1.1 queues a second one on a 1-thread
+        # worker), so a worker killed by one recording's memory takes no bystander with it.
+        "distributed.scheduler.worker-saturation": 1.0,
     }
     with dask.config.set(settings):
         cluster = LocalCluster(

@@ -89,7 +89,7 @@ def _session_format(path: Path) -> SessionFormat:
     if fmt not in ("ros1", "db3", "mcap"):
         msg = f"{path}: a session cannot be written as {fmt}"
         raise LogWriteError(msg)
-    return fmt  # type: ignore[return-value]
+    return fmt
 
 
 # -- the writer adapter ---------------------------------------------------------------------

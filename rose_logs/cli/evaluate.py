@@ -8,7 +8,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from rose_logs.evaluation.config import DEFAULT_MAPS_DIR, EvaluationConfig
+from rose_logs.datasets import ENV_VAR
+from rose_logs.evaluation.config import BENCHMARK_SUBDIR, LOGS_SUBDIR, EvaluationConfig
 
 __all__ = ["add_parser", "config_from_args", "run"]
 
@@ -39,8 +40,8 @@ def _configure(parser: argparse.ArgumentParser) -> None:
         "--maps-dir",
         type=Path,
         default=None,
-        help=f"folder with radish_carmen_corrected_logs/ and bormann_ipa_room_segmentation/ "
-        f"(default {DEFAULT_MAPS_DIR})",
+        help=f"folder with {LOGS_SUBDIR}/ and {BENCHMARK_SUBDIR}/ "
+        f"(default: ${ENV_VAR}, else ../shared/maps beside the source checkout)",
     )
     parser.add_argument("--logs", type=_csv, default=None, help="comma-separated Radish logs")
     parser.add_argument("--maps", type=_csv, default=None, help="comma-separated benchmark maps")

@@ -68,6 +68,13 @@ def add_parser(subparsers: Any) -> None:
         help="also extract wall segments per snapshot (marker in <map>/rose/walls, Rerun lines)",
     )
     parser.add_argument(
+        "--clean-method",
+        choices=("walls", "paper"),
+        default="walls",
+        help="how <map>/rose/cleaned is made: walls = clutter removed, every wall kept, no "
+        "robot-sized gap opened (default); paper = the paper's labelling as it is",
+    )
+    parser.add_argument(
         "--json", type=Path, default=None, dest="json_path", help="write a JSON report here"
     )
     parser.add_argument(
@@ -177,6 +184,7 @@ def run(args: argparse.Namespace) -> int:
         connect=args.connect,
         progress=progress,
         walls=args.walls,
+        clean_method=args.clean_method,
     )
     if args.json_path is not None:
         write_json(args.json_path, report.to_json())

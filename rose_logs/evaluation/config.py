@@ -7,17 +7,21 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from rose import RoseParams
+from rose_logs.datasets import require_data_dir
 from rose_logs.evaluation.clutter import SHAPES, ClutterShape
 
 __all__ = [
+    "BENCHMARK_SUBDIR",
     "BORMANN_MAPS",
-    "DEFAULT_MAPS_DIR",
+    "LOGS_SUBDIR",
     "PAPER_W",
     "RADISH_LOGS",
     "EvaluationConfig",
 ]
 
-DEFAULT_MAPS_DIR = Path("/work/shared/maps")
+#: Folders inside the data set (:mod:`rose_logs.datasets`) the evaluation reads.
+LOGS_SUBDIR = "radish_carmen_corrected_logs"
+BENCHMARK_SUBDIR = "bormann_ipa_room_segmentation"
 RADISH_LOGS: tuple[str, ...] = ("aces", "csail", "intel", "freiburg-079", "freiburg-101")
 #: Benchmark maps with a clean and a ``_furnitures`` version. Left out: ``intel_map.png`` (no black
 #: walls, no furniture version; the Intel lab comes from its log instead) and ``lab_ipa`` (its exterior
@@ -64,8 +68,10 @@ class EvaluationConfig:
         ``"small"``, ``"full"`` or a custom label, printed in the report.
     seed : int
         Base seed; every clutter map and drifted trajectory derives its seed from it.
-    maps_dir : Path
+    maps_dir : Path or None
         Folder holding ``radish_carmen_corrected_logs/`` and ``bormann_ipa_room_segmentation/``.
+        None (default): the data set, ``$ROSE_DATA_DIR`` or ``../shared/maps`` beside the checkout
+        (:func:`rose_logs.datasets.require_data_dir`), looked up when the folders are first needed.
     logs : tuple of str
         Radish logs rasterised for experiments 1 and 2.
     benchmark_maps : tuple of str
@@ -86,7 +92,7 @@ class EvaluationConfig:
 
     name: str = "small"
     seed: int = 2021
-    maps_dir: Path = DEFAULT_MAPS_DIR
+    maps_dir: Path | None = None
     logs: tuple[str, ...] = ("freiburg-101",)
     benchmark_maps: tuple[str, ...] = ("Freiburg79_scan",)
     resolution_m: float = 0.05
@@ -118,11 +124,22 @@ class EvaluationConfig:
         return dataclasses.replace(full, **changes)  # type: ignore[arg-type]
 
     @property
+    def data_root(self) -> Path:
+        """``maps_dir``, or the data set's folder when it is None.
+
+        Raises
+        ------
+        rose_logs.datasets.DataSetError
+            When ``maps_dir`` is None and the data set is not available.
+        """
+        return Path(self.maps_dir) if self.maps_dir is not None else require_data_dir()
+
+    @property
     def logs_dir(self) -> Path:
         """Folder of the Radish CARMEN logs."""
-        return self.maps_dir / "radish_carmen_corrected_logs"
+        return self.data_root / LOGS_SUBDIR
 
     @property
     def benchmark_dir(self) -> Path:
         """Folder of the Bormann et al. benchmark maps."""
-        return self.maps_dir / "bormann_ipa_room_segmentation"
+        return self.data_root / BENCHMARK_SUBDIR

@@ -113,7 +113,8 @@ def _grey(path: Path) -> npt.NDArray[np.uint8]:
     if image is None:
         msg = f"{path}: cannot read image"
         raise OSError(msg)
-    return image[::-1].copy()  # image rows are top first; ROS grids start at the bottom
+    # Image rows are top first; ROS grids start at the bottom.
+    return np.ascontiguousarray(image[::-1], dtype=np.uint8)
 
 
 def furniture_pair(

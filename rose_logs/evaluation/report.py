@@ -17,6 +17,7 @@ import numpy as np
 
 import rose
 import rose_logs
+from rose_logs.evaluation.cleaning_report import cleaning_experiment
 from rose_logs.evaluation.config import PAPER_W, EvaluationConfig
 from rose_logs.evaluation.experiments import (
     ClutterRun,
@@ -29,6 +30,7 @@ from rose_logs.evaluation.experiments import (
     source_maps,
 )
 from rose_logs.evaluation.figures import have_matplotlib, plot_all, render_grid
+from rose_logs.evaluation.walls import WallReport, wall_experiment
 
 __all__ = ["EvaluationReport", "run_evaluation"]
 
@@ -128,18 +130,20 @@ def _versions() -> str:
     return ", ".join(parts)
 
 
-def _walls_section(out_dir: Path, names: list[str]) -> tuple[str, Exception | None]:
-    """The wall-extraction experiment (issue 5), if its module is installed. The only coupling."""
-    try:
-        from rose_logs.evaluation import walls  # type: ignore[attr-defined]
-    except ImportError:
-        return "", None
-    try:
-        wall_report = walls.wall_experiment(out_dir, names=names or None)
-    except Exception as err:  # keep the rest of the report when the optional part fails
-        _LOG.exception("wall experiment failed")
-        return f"## Wall extraction\n\nThe wall experiment failed: {err}\n", err
-    return str(wall_report.markdown), None
+def _walls_section(out_dir: Path, config: EvaluationConfig) -> WallReport | None:
+    """The wall-extraction experiment on ``config``'s benchmark maps, with its ROSE parameters.
+
+    None when the configuration has no benchmark map. Errors propagate: a report without its wall
+    section must not look like a finished run.
+    """
+    if not config.benchmark_maps:
+        return None
+    return wall_experiment(
+        out_dir,
+        names=list(config.benchmark_maps),
+        maps_dir=config.benchmark_dir,
+        rose_params=config.rose_params,
+    )
 
 
 def run_evaluation(
@@ -148,7 +152,7 @@ def run_evaluation(
     *,
     progress: Callable[[str], None] | None = None,
 ) -> EvaluationReport:
-    """Run experiments 1-3 (and the wall experiment when available) and write the report.
+    """Run experiments 1-3 and the wall experiment and write the report.
 
     Parameters
     ----------
@@ -162,8 +166,18 @@ def run_evaluation(
     Returns
     -------
     EvaluationReport
+
+    Raises
+    ------
+    rose_logs.datasets.DataSetError
+        If ``config.maps_dir`` is None and the data set is not available.
+    rose.MapFileError, rose_logs.carmen.parse.CarmenFormatError
+        If a benchmark map or a log is missing or unreadable.
     """
     out = Path(out_dir)
+    if config.logs or config.benchmark_maps:
+        # Finds the data set (or raises DataSetError) before anything is written.
+        _LOG.info("data: %s", config.data_root)
     out.mkdir(parents=True, exist_ok=True)
     say = progress if progress is not None else _LOG.info
     t0 = time.perf_counter()
@@ -203,7 +217,16 @@ def run_evaluation(
         files.extend(figures)
     timings["figures"] = time.perf_counter() - t
 
-    wall_md, _ = _walls_section(out, list(config.benchmark_maps))
+    t = time.perf_counter()
+    wall_report = _walls_section(out, config)
+    timings["wall extraction"] = time.perf_counter() - t
+    if wall_report is not None:
+        files.extend(wall_report.files)
+    t = time.perf_counter()
+    cleaning = cleaning_experiment(config, out, seeds=config.drift_seeds)
+    files.extend(cleaning.files)
+    timings["cleaning"] = time.perf_counter() - t
+    say(f"cleaning: {len(cleaning.runs)} runs in {timings['cleaning']:.1f} s")
     run_s = time.perf_counter() - t0
     median_by_map = {
         name: (
@@ -225,7 +248,8 @@ def run_evaluation(
         map_images=[p.name for p in files if p.name.startswith("map_")],
         timings=timings,
         run_s=run_s,
-        wall_md=wall_md,
+        wall_md=wall_report.markdown if wall_report is not None else "",
+        cleaning_md=cleaning.markdown,
     )
     md_path = out / "report.md"
     md_path.write_text(markdown)
@@ -459,8 +483,10 @@ def _markdown(
     timings: dict[str, float],
     run_s: float,
     wall_md: str,
+    cleaning_md: str = "",
 ) -> str:
-    """The report: setup, the three experiments, the wall section (``wall_md``), the file list."""
+    """The report: setup, the three experiments, the wall section (``wall_md``), the cleaning section
+    (``cleaning_md``), the file list."""
     lines = [
         *_setup_section(config, timings=timings, run_s=run_s, map_images=map_images),
         *_clutter_section(clutter_runs, median_by_map, figures),
@@ -470,6 +496,8 @@ def _markdown(
     ]
     if wall_md:
         lines += [wall_md.rstrip(), ""]
+    if cleaning_md:
+        lines += [cleaning_md.rstrip(), ""]
     if not figures:
         lines += ["Figures were not written (plots disabled or matplotlib missing).", ""]
     lines += _files_section()

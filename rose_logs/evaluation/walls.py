@@ -24,11 +24,12 @@ import numpy as np
 
 from rose import RoseParams, analyze, load_map
 from rose.walls import WallError, WallParams, extract_walls, extract_walls_hough, wall_error
+from rose_logs.datasets import require_data_dir
+from rose_logs.evaluation.config import BENCHMARK_SUBDIR
 
 __all__ = ["WallReport", "WallRow", "WallScore", "wall_experiment"]
 
 _LOG = logging.getLogger(__name__)
-DEFAULT_MAPS_DIR = Path("/work/shared/maps/bormann_ipa_room_segmentation")
 CSV_NAME = "wall_error.csv"
 PLOT_NAME = "wall_error.png"
 
@@ -137,7 +138,7 @@ def wall_experiment(
     out_dir: Path,
     *,
     names: list[str] | None = None,
-    maps_dir: Path = DEFAULT_MAPS_DIR,
+    maps_dir: Path | None = None,
     wall_params: WallParams | None = None,
     rose_params: RoseParams | None = None,
 ) -> WallReport:
@@ -149,8 +150,10 @@ def wall_experiment(
         Created if missing; receives ``wall_error.csv`` and ``wall_error.png``.
     names : list of str, optional
         Map names; default every ``<name>_furnitures.png`` in ``maps_dir`` that has ``<name>.png``.
-    maps_dir : Path
-        Directory of the Bormann et al. room-segmentation benchmark maps.
+    maps_dir : Path, optional
+        Directory of the Bormann et al. room-segmentation benchmark maps; default
+        ``bormann_ipa_room_segmentation/`` of the data set (``$ROSE_DATA_DIR`` or ``../shared/maps``
+        beside the checkout, :func:`rose_logs.datasets.require_data_dir`).
     wall_params : WallParams, optional
         Wall-extraction parameters, the same for reference, baseline and ROSE.
     rose_params : RoseParams, optional
@@ -164,10 +167,12 @@ def wall_experiment(
     ------
     rose.MapFileError
         If a named map is missing or unreadable.
+    rose_logs.datasets.DataSetError
+        If ``maps_dir`` is None and the data set is not available.
     """
     out_dir = Path(out_dir)
+    maps_dir = Path(maps_dir) if maps_dir is not None else require_data_dir() / BENCHMARK_SUBDIR
     out_dir.mkdir(parents=True, exist_ok=True)
-    maps_dir = Path(maps_dir)
     if names is None:
         names = sorted(
             p.name.removesuffix("_furnitures.png")
@@ -322,13 +327,19 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m rose_logs.evaluation.walls")
     parser.add_argument("out_dir", type=Path)
     parser.add_argument("names", nargs="*", help="map names (default: all 20)")
-    parser.add_argument("--maps-dir", type=Path, default=DEFAULT_MAPS_DIR)
+    parser.add_argument(
+        "--maps-dir",
+        type=Path,
+        default=None,
+        help=f"benchmark folder (default: {BENCHMARK_SUBDIR}/ of $ROSE_DATA_DIR or ../shared/maps)",
+    )
     args = parser.parse_args(argv)
     from rose import RoseError
+    from rose_logs.errors import LogError
 
     try:
         report = wall_experiment(args.out_dir, names=args.names or None, maps_dir=args.maps_dir)
-    except RoseError as err:
+    except (RoseError, LogError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 1
     sys.stdout.write(report.markdown)

@@ -21,6 +21,7 @@ from rose_logs.rerun.style import (
     CLASS_CLUTTER,
     CLASS_FREE,
     CLASS_OCCUPIED,
+    CLASS_RESCUED,
     DISPLAY_LEVELS,
     SCORE_DISPLAY_MIN,
     SPECTRUM_DISPLAY_PX,
@@ -98,7 +99,11 @@ def occupied_cells(result: RoseResult) -> OccupiedCells:
 
 
 def segmentation_image(
-    grid: npt.NDArray[np.int8], result: RoseResult, occupied: OccupiedCells | None = None
+    grid: npt.NDArray[np.int8],
+    result: RoseResult,
+    occupied: OccupiedCells | None = None,
+    *,
+    rescued: npt.NDArray[np.bool_] | None = None,
 ) -> npt.NDArray[np.uint8]:
     """Class id of every cell, image row order (north up).
 
@@ -108,12 +113,18 @@ def segmentation_image(
         The analysed grid (ROS convention, -1 unknown).
     result : RoseResult
         ROSE's result for ``grid``.
+    occupied : OccupiedCells, optional
+        ``occupied_cells(result)``, when the caller has it already.
+    rescued : ndarray of bool, shape (rows, cols), optional
+        Grid order: clutter cells the cleaning kept as walls (:attr:`rose.clean.CleanResult.rescued`),
+        shown as ``CLASS_RESCUED``.
 
     Returns
     -------
     ndarray of uint8, shape (rows, cols)
         ``CLASS_FREE`` for known cells that are not occupied, ``CLASS_UNKNOWN``, and for occupied cells
-        ``CLASS_STRUCTURE`` / ``CLASS_CLUTTER``, or ``CLASS_OCCUPIED`` when ROSE found no structure.
+        ``CLASS_STRUCTURE`` / ``CLASS_CLUTTER`` (``CLASS_RESCUED``), or ``CLASS_OCCUPIED`` when ROSE
+        found no structure.
     """
     # Comparing the row-reversed view writes the image rows directly: free 1, unknown 1 + 1.
     classes = (grid[::-1] < 0).view(np.uint8)
@@ -126,6 +137,8 @@ def segmentation_image(
     else:
         values = np.uint8(CLASS_OCCUPIED)
     classes.ravel()[image_index] = values
+    if rescued is not None:
+        classes[rescued[::-1]] = np.uint8(CLASS_RESCUED)
     return classes
 
 

@@ -162,9 +162,16 @@ class TopicLogger:
     # ------------------------------------------------------------------------------------------
 
     def log_snapshot(
-        self, snapshot: MapSnapshot, result: RoseResult, walls: WallSet | None
+        self,
+        snapshot: MapSnapshot,
+        result: RoseResult,
+        walls: WallSet | None,
+        rescued: npt.NDArray[np.bool_] | None = None,
     ) -> None:
-        """Every stream of one analysed snapshot, at the time set by :func:`set_snapshot_time`."""
+        """Every stream of one analysed snapshot, at the time set by :func:`set_snapshot_time`.
+
+        ``rescued`` (grid order): clutter cells the cleaning kept as walls, their own class.
+        """
         if result.cell_scores.shape != snapshot.grid.shape:
             msg = (
                 f"result shape {result.cell_scores.shape} does not match snapshot grid shape "
@@ -173,7 +180,7 @@ class TopicLogger:
             raise ValueError(msg)
         occupied = conv.occupied_cells(result)
         self.log_grid_map(snapshot)
-        self.log_segmentation(snapshot, result, occupied)
+        self.log_segmentation(snapshot, result, occupied, rescued=rescued)
         self.log_directions(snapshot, result, occupied)
         self.log_cell_scores(result, occupied)
         self.log_spectrum(result)
@@ -208,9 +215,12 @@ class TopicLogger:
         snapshot: MapSnapshot,
         result: RoseResult,
         occupied: conv.OccupiedCells | None = None,
+        *,
+        rescued: npt.NDArray[np.bool_] | None = None,
     ) -> None:
-        """Free / unknown / occupied / structure / clutter as a segmentation image (classes static)."""
-        image = conv.segmentation_image(snapshot.grid, result, occupied)
+        """Free / unknown / occupied / structure / clutter (/ kept by the cleaning) as a
+        segmentation image (the class table is static)."""
+        image = conv.segmentation_image(snapshot.grid, result, occupied, rescued=rescued)
         self.recording.log(self.paths.segmentation, rr.SegmentationImage(image))
 
     def log_directions(

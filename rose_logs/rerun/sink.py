@@ -19,6 +19,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
+import numpy.typing as npt
 import rerun as rr
 
 from rose.directions import FAILURE_LEVEL, TRUST_LEVEL
@@ -226,9 +227,15 @@ class RerunSink:
     # -- session interface ---------------------------------------------------------------------
 
     def snapshot(
-        self, snapshot: MapSnapshot, result: RoseResult, index: int, walls: WallSet | None
+        self,
+        snapshot: MapSnapshot,
+        result: RoseResult,
+        index: int,
+        walls: WallSet | None,
+        rescued: npt.NDArray[np.bool_] | None = None,
     ) -> None:
-        """Log every stream of an analysed snapshot (at its log time)."""
+        """Log every stream of an analysed snapshot (at its log time); ``rescued``: clutter cells
+        the cleaning kept as walls (grid order)."""
         topic_logger = self.loggers[snapshot.topic]
         first = snapshot.topic not in self._latest
         self._latest[snapshot.topic] = snapshot
@@ -240,7 +247,7 @@ class RerunSink:
                 start_ns=self.start_ns,
                 index=index,
             )
-            topic_logger.log_snapshot(snapshot, result, walls)
+            topic_logger.log_snapshot(snapshot, result, walls, rescued)
 
         self._submit(job)
         if self.live and first:

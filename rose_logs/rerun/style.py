@@ -15,6 +15,7 @@ __all__ = [
     "CLASS_FREE",
     "CLASS_INFO",
     "CLASS_OCCUPIED",
+    "CLASS_RESCUED",
     "CLASS_STRUCTURE",
     "CLASS_UNKNOWN",
     "DIRECTION_COLOR",
@@ -33,6 +34,7 @@ CLASS_UNKNOWN: Final = 2
 CLASS_OCCUPIED: Final = 3
 CLASS_STRUCTURE: Final = 4
 CLASS_CLUTTER: Final = 5
+CLASS_RESCUED: Final = 6
 
 CLASS_INFO: Final = (
     (CLASS_FREE, "free", (250, 250, 250)),
@@ -40,6 +42,7 @@ CLASS_INFO: Final = (
     (CLASS_OCCUPIED, "occupied (no structure found)", (40, 40, 40)),
     (CLASS_STRUCTURE, "structure", (20, 90, 220)),
     (CLASS_CLUTTER, "clutter", (245, 130, 0)),
+    (CLASS_RESCUED, "clutter kept as wall by the cleaning", (0, 170, 170)),
 )
 """``(class id, label, RGB)`` of the segmentation classes, logged once as an AnnotationContext."""
 

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 import rose
+from rose.clean import CleanMethod, CleanResult, clean
 from rose.params import RoseParams
 from rose.result import RoseResult
 from rose.walls.segments import WallSet
@@ -28,15 +29,19 @@ class SnapshotAnalysis:
     result: RoseResult
     walls: WallSet | None
     reused: bool
+    cleaning: CleanResult | None = None
 
 
 class SnapshotAnalyser:
     """rose.analyze (and optionally wall extraction) per snapshot, reusing the previous analysis of a
     topic when its grid and placement are unchanged."""
 
-    def __init__(self, params: RoseParams, *, walls: bool) -> None:
+    def __init__(
+        self, params: RoseParams, *, walls: bool, clean_method: CleanMethod = "walls"
+    ) -> None:
         self.params = params
         self.walls = walls
+        self.clean_method = clean_method
         self.previous: dict[str, tuple[MapSnapshot, SnapshotAnalysis]] = {}
 
     def __call__(self, snapshot: MapSnapshot) -> SnapshotAnalysis:
@@ -53,7 +58,10 @@ class SnapshotAnalyser:
                 origin_yaw_rad=snapshot.origin_yaw_rad,
             )
             walls = rose.extract_walls(placed, result)
-        analysis = SnapshotAnalysis(result, walls, reused=False)
+        cleaning = clean(
+            snapshot.grid, result, method=self.clean_method, resolution_m=snapshot.resolution_m
+        )
+        analysis = SnapshotAnalysis(result, walls, reused=False, cleaning=cleaning)
         self.previous[snapshot.topic] = (snapshot, analysis)
         return analysis
 

@@ -18,11 +18,12 @@ import math
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 import rose
+from rose.clean import CleanMethod, CleanResult
 from rose.directions import FAILURE_LEVEL
 from rose.params import RoseParams
 from rose.result import RoseResult
@@ -64,6 +65,7 @@ def process_log(
     progress: bool = False,
     on_snapshot: Callable[[MapSnapshot, RoseResult, SnapshotRecord], None] | None = None,
     walls: bool = False,
+    clean_method: CleanMethod = "walls",
     recording_id: str | None = None,
 ) -> SessionReport:
     """Run ROSE over every map snapshot of a log; write the output log and Rerun recording.
@@ -97,6 +99,9 @@ def process_log(
     walls : bool, default False
         Also extract wall segments (``rose.extract_walls``) per snapshot: a ``LINE_LIST`` marker in
         ``<map>/rose/walls`` and line strips in Rerun. Costs about 20-45 ms per 1000 x 1000 snapshot.
+    clean_method : {"walls", "paper"}, default "walls"
+        How ``<map>/rose/cleaned`` is made (:func:`rose.clean.clean`): walls kept and no robot-sized
+        gap opened, or the paper's labelling as it is.
     on_snapshot : callable, optional
         Called with ``(snapshot, result, record)`` after each snapshot.
     recording_id : str, optional
@@ -152,7 +157,7 @@ def process_log(
                 derived=derived,
                 map_topics=map_topics,
                 updates=updates,
-                analyser=SnapshotAnalyser(params, walls=walls),
+                analyser=SnapshotAnalyser(params, walls=walls, clean_method=clean_method),
                 failure_level=failure_level,
                 rerun=rerun,
                 on_snapshot=on_snapshot,
@@ -430,8 +435,9 @@ class _Loop:
             cleaned_h, score_h, walls_h = self.derived[topic]
             t = snapshot.log_time_ns
             ser = self.serialization
+            cleaned = analysis.cleaning.cleaned if analysis.cleaning else result.cleaned
             self.writer.write_raw(
-                cleaned_h, t, encode_cleaned(snapshot, result.cleaned, serialization=ser)
+                cleaned_h, t, encode_cleaned(snapshot, cleaned, serialization=ser)
             )
             self.writer.write_raw(score_h, t, encode_score(score, serialization=ser))
             self.writer.write_raw(
@@ -440,7 +446,8 @@ class _Loop:
         broke = score > self.failure_level and not self.above.get(topic, False)
         self.above[topic] = score > self.failure_level
         if self.rerun is not None:
-            self.rerun.snapshot(snapshot, result, index, analysis.walls)
+            rescued = analysis.cleaning.rescued if analysis.cleaning is not None else None
+            self.rerun.snapshot(snapshot, result, index, analysis.walls, rescued)
         if broke:
             text = (
                 f"{topic}: W = {score:.3f} rose above the failure level {self.failure_level:g} "
@@ -466,7 +473,19 @@ class _Loop:
             seconds=time.perf_counter() - t0,
             reused=reused,
             from_update=from_update,
+            **_cleaning_counts(analysis.cleaning),
         )
         self.records.append(record)
         if self.on_snapshot is not None:
             self.on_snapshot(snapshot, result, record)
+
+
+def _cleaning_counts(cleaning: CleanResult | None) -> dict[str, Any]:
+    if cleaning is None:
+        return {}
+    return {
+        "clean_method": cleaning.method,
+        "removed_count": cleaning.removed_count,
+        "kept_count": cleaning.kept_count,
+        "rescued_count": cleaning.rescued_count,
+    }

@@ -48,6 +48,12 @@ class SnapshotRecord:
         True when the grid equalled the previous one and its result was reused.
     from_update : bool
         True when the snapshot came from an ``OccupancyGridUpdate``.
+    clean_method : str
+        How ``<map>/rose/cleaned`` was made (``"walls"`` or ``"paper"``, see :func:`rose.clean.clean`).
+    removed_count, kept_count : int
+        Occupied cells the cleaning removed / kept.
+    rescued_count : int
+        Kept cells the paper's labelling calls clutter.
     """
 
     topic: str
@@ -65,6 +71,10 @@ class SnapshotRecord:
     seconds: float
     reused: bool
     from_update: bool
+    clean_method: str = "paper"
+    removed_count: int = 0
+    kept_count: int = 0
+    rescued_count: int = 0
 
     def to_json(self, *, start_ns: int) -> dict[str, Any]:
         """JSON-ready dict; ``time_s`` is seconds since ``start_ns``; NaN becomes null."""
@@ -85,6 +95,10 @@ class SnapshotRecord:
             "seconds": round(self.seconds, 6),
             "reused": self.reused,
             "from_update": self.from_update,
+            "clean_method": self.clean_method,
+            "removed": self.removed_count,
+            "kept": self.kept_count,
+            "rescued": self.rescued_count,
         }
 
 

@@ -1,4 +1,4 @@
-"""Fixtures: real Freiburg 079 maps and logs built from them with the libraries' own writers.
+"""Fixtures: real Freiburg 079 maps (``tests/data``) and logs built from them with the libraries' own writers.
 
 Logs are written with rosbags (ROS 1 bag, ROS 2 db3 / mcap folders) and the ``mcap`` package (bare MCAP,
 ros2 and ros1 profiles), never with ``rose_logs.writer``, so the reader is tested against independent
@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 import pytest
+from real_data import FR079_DIR, repo_data
 from rosbags.interfaces import (
     Qos,
     QosDurability,
@@ -27,13 +28,6 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 import rose
 
-MAPS_DIR = (
-    Path(__file__).resolve().parents[3]
-    / "shared"
-    / "maps"
-    / "rose2_aislabunimi"
-    / "Freiburg_Building_079_partial"
-)
 START_NS = 1_700_000_000_000_000_000
 # Bounding box of the explored building in map15, a few cells of margin: 326 x 895 cells.
 CROP = (slice(205, 531), slice(59, 954))
@@ -77,7 +71,7 @@ def _qos_yaml(profiles: list[Qos]) -> str:
 
 def load_crop(name: str) -> npt.NDArray[np.int8]:
     """``map<N>`` of the fr079 exploration, cropped to the building (326 x 895 cells)."""
-    return np.ascontiguousarray(rose.load_map(MAPS_DIR / f"{name}.yaml").grid[CROP])
+    return np.ascontiguousarray(rose.load_map(repo_data(f"{FR079_DIR}/{name}.yaml")).grid[CROP])
 
 
 @pytest.fixture(scope="session")

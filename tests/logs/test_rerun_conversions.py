@@ -197,3 +197,13 @@ def test_direction_segments_span_the_given_box() -> None:
     )
     assert_allclose(segments[0], [[20.0, 20.0], [60.0, 20.0]], atol=1e-9)
     assert_allclose(segments[1], [[40.0, 10.0], [40.0, 30.0]], atol=1e-9)
+
+
+def test_rescued_cells_get_their_own_class(plan) -> None:
+    grid, result = plan
+    rescued = np.zeros(grid.shape, dtype=bool)
+    clutter_cells = np.argwhere(result.clutter)[:3]
+    rescued[tuple(clutter_cells.T)] = True
+    image = conv.segmentation_image(grid, result, rescued=rescued)[::-1]
+    assert_array_equal(image[rescued], style.CLASS_RESCUED)
+    assert_array_equal(image[result.clutter & ~rescued], style.CLASS_CLUTTER)

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import re
+import statistics
 from pathlib import Path
 
 import pytest
@@ -20,10 +22,18 @@ def test_process_sample_with_rerun_and_json(tmp_path: Path, capsys) -> None:
     stdout = capsys.readouterr().out
     assert code == 0
     assert out.is_file() and rrd.is_file()
-    assert "snapshots    14" in stdout
-    assert "W > 0.4" in stdout
+    assert re.search(r"^  snapshots    14$", stdout, re.M)
     data = json.loads(report.read_text())
     assert len(data["snapshots"]) == 14
+    # The summary's W line and break line say what the JSON report says.
+    scores = [s["structure_score"] for s in data["snapshots"]]
+    expected_w = (
+        f"  W            min {min(scores):.3f}  median {statistics.median(scores):.3f}  "
+        f"max {max(scores):.3f}"
+    )
+    assert expected_w in stdout.splitlines()
+    assert max(scores) < 0.4
+    assert "  W > 0.4      never" in stdout.splitlines()
     first = data["snapshots"][0]
     assert {
         "stamp_ns",
@@ -41,12 +51,25 @@ def test_process_sample_with_rerun_and_json(tmp_path: Path, capsys) -> None:
 
 
 def test_info(capsys) -> None:
+    from mcap.reader import make_reader
+
     assert main(["info", str(SAMPLE)]) == 0
     out = capsys.readouterr().out
-    assert "/map" in out and "[map]" in out
-    assert "1152 x 736" in out
-    assert "0.05 m" in out
-    assert "715" in out
+    # Counts from the MCAP's own summary section, read with the mcap package (not rose_logs).
+    with SAMPLE.open("rb") as fh:
+        summary = make_reader(fh).get_summary()
+    assert summary is not None and summary.statistics is not None
+    per_topic = {
+        summary.channels[cid].topic: n
+        for cid, n in summary.statistics.channel_message_counts.items()
+    }
+    assert re.search(rf"^messages     {summary.statistics.message_count}$", out, re.M)
+    assert re.search(rf"^  /clock +{per_topic['/clock']}  rosgraph_msgs/msg/Clock$", out, re.M)
+    assert re.search(
+        rf"^  /map +{per_topic['/map']}  nav_msgs/msg/OccupancyGrid  \[map\]$", out, re.M
+    )
+    assert "  grid sizes   1152 x 736" in out.splitlines()
+    assert "  resolution   0.05 m" in out.splitlines()
 
 
 def test_gate_and_json_break(tmp_path: Path, capsys, fr079, broken_grid) -> None:
@@ -55,11 +78,17 @@ def test_gate_and_json_break(tmp_path: Path, capsys, fr079, broken_grid) -> None
     code = main(
         ["process", str(built.path), "--no-output", "--json", str(report), "--fail-above", "0.4"]
     )
-    _, err = capsys.readouterr()
+    out, err = capsys.readouterr()
     assert code == EXIT_GATE
     assert "exceeds --fail-above 0.4" in err
     data = json.loads(report.read_text())
-    assert data["topics"]["/map"]["first_break"]["index"] == 1
+    first_break = data["topics"]["/map"]["first_break"]
+    assert first_break["index"] == 1
+    # The summary names the same snapshot, 5 s after the log's first message (the first map).
+    assert (
+        f"  W > 0.4      first at snapshot 1, +5.0 s (W = {first_break['structure_score']:.3f})"
+        in out.splitlines()
+    )
     assert main(["process", str(built.path), "--no-output", "--fail-above", "0.9", "-q"]) == 0
 
 

@@ -64,7 +64,8 @@ def test_round_trip_copies_everything_and_adds_derived_topics(
         assert cleaned.header == source.header
         assert cleaned.info == source.info
         np.testing.assert_array_equal(
-            np.asarray(cleaned.data).reshape(grid.shape), expected.cleaned
+            np.asarray(cleaned.data).reshape(grid.shape),
+            rose.clean(grid, expected, resolution_m=0.05).cleaned,
         )
         score = deser(raw_w, "std_msgs/msg/Float32").data
         np.testing.assert_allclose(score, expected.structure_score, rtol=1e-6)
@@ -168,7 +169,7 @@ def test_grid_updates_are_applied_to_the_last_full_map(tmp_path: Path, fr079) ->
     cleaned = read_all(out)["/map/rose/cleaned"]
     assert [t for t, _ in cleaned] == [START_NS + 1_000_000_000, START_NS + 2_000_000_000]
     snap = decode_map(cleaned[1][1], serialization="cdr", topic="/x", log_time_ns=0)
-    np.testing.assert_array_equal(snap.grid, rose.analyze(patched).cleaned)
+    np.testing.assert_array_equal(snap.grid, rose.clean(patched, resolution_m=0.05).cleaned)
 
 
 def test_unchanged_grid_reuses_result_and_metadata_changes_are_followed(
@@ -196,7 +197,7 @@ def test_unchanged_grid_reuses_result_and_metadata_changes_are_followed(
     last = decode_map(cleaned[2][1], serialization="ros1", topic="/x", log_time_ns=0)
     assert last.shape == (200, 500)
     assert last.origin_position_m[:2] == (3.0, -2.0)
-    np.testing.assert_array_equal(last.grid, rose.analyze(g[:200, :500]).cleaned)
+    np.testing.assert_array_equal(last.grid, rose.clean(g[:200, :500], resolution_m=0.1).cleaned)
 
 
 def test_break_is_reported_at_the_first_distorted_snapshot(

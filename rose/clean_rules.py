@@ -1,0 +1,476 @@
+"""The rules of the ``"walls"`` cleaning (:func:`rose.clean.clean`): runs, open unknown, topology guard.
+
+Everything works on boolean masks of shape ``(rows, cols)`` in the grid's cell space (row 0 at the map
+origin); lengths are in cells here, converted from metres by the caller. OpenCV does the morphology
+and labelling (imported lazily, like the wall extraction).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+import numpy.typing as npt
+
+from rose.grid import UNKNOWN
+
+if TYPE_CHECKING:
+    from rose.clean import CleanParams
+    from rose.result import RoseResult
+
+__all__ = [
+    "directional_runs",
+    "passable",
+    "straight_lines",
+    "topology_guard",
+    "wall_cells",
+    "wide_unknown",
+]
+
+#: Directions closer than this to a right angle of each other share one rotated frame.
+_PAIR_TOLERANCE_RAD = math.radians(3.0)
+
+
+def wall_cells(
+    occupancy: npt.NDArray[np.int8],
+    result: RoseResult,
+    *,
+    resolution_m: float,
+    params: CleanParams,
+) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
+    """Occupied cells the ``"walls"`` cleaning keeps, those among them only the guard keeps, and the
+    unknown cells completed as hidden walls.
+
+    Returns
+    -------
+    walls : ndarray of bool, shape (rows, cols)
+        Kept cells (including the paper's structure).
+    guarded : ndarray of bool, shape (rows, cols)
+        Cells restored by the topology guard.
+    completed : ndarray of bool, shape (rows, cols)
+        Unknown cells to make walls: the wall line hidden behind removed furniture.
+    """
+    p = params
+    res = resolution_m
+    walls = np.zeros(occupancy.shape, dtype=bool)
+    guarded = walls.copy()
+    completed = walls.copy()
+    if not result.occupied.any():
+        return walls, guarded, completed
+    # Everything happens near known cells: work on their bounding box, padded so that every window
+    # and disc that matters fits (outside it all cells are unknown).
+    pad = 2 + max(
+        round(_px(p.guard_window_m, res)) + math.ceil(_px(p.robot_radius_m, res)),
+        math.ceil(_px(p.open_unknown_width_m, res)) + round(_px(p.unknown_margin_m, res)),
+    )
+    r0, r1, c0, c1 = _bounds(occupancy >= 0)
+    r0, c0 = max(r0 - pad, 0), max(c0 - pad, 0)
+    r1, c1 = min(r1 + pad, occupancy.shape[0]), min(c1 + pad, occupancy.shape[1])
+    window = (slice(r0, r1), slice(c0, c1))
+    kept, restored, added = _wall_cells(
+        occupancy[window],
+        result.occupied[window],
+        result.structure[window],
+        result.dominant_directions,
+        res=res,
+        p=p,
+    )
+    walls[window] = kept
+    guarded[window] = restored
+    completed[window] = added
+    return walls, guarded, completed
+
+
+def _wall_cells(
+    occupancy: npt.NDArray[np.int8],
+    occupied: npt.NDArray[np.bool_],
+    structure: npt.NDArray[np.bool_],
+    directions: npt.NDArray[np.float64],
+    *,
+    res: float,
+    p: CleanParams,
+) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
+    runs = directional_runs(
+        occupied, directions, min_length_px=_px(p.min_run_m, res), tolerance_px=p.run_tolerance_px
+    )
+    outside = wide_unknown(occupancy, radius_px=_px(p.open_unknown_width_m, 2 * res))
+    near_outside = _dilate(outside, round(_px(p.unknown_margin_m, res)))
+    keep = occupied & (structure | runs | near_outside)
+    # Straight lines at any angle (walls off the dominant directions, curved walls in pieces).
+    keep |= straight_lines(occupied, min_length_px=_px(p.min_run_m, res))
+    completed = np.zeros(occupied.shape, dtype=bool)
+    if p.max_bridge_m > 0:
+        # The wall line hidden behind furniture: unknown cells between collinear kept walls.
+        bridges = bridge_gaps(
+            keep, occupancy == UNKNOWN, directions, max_gap_px=_px(p.max_bridge_m, res)
+        )
+        completed = _touching(bridges, occupied & ~keep)
+    guarded = topology_guard(
+        occupied,
+        keep,
+        added=completed,
+        radius_px=_px(p.robot_radius_m, res),
+        window_px=max(1, round(_px(p.guard_window_m, res))),
+        min_region_px=_px(p.min_region_m2, res**2),
+    )
+    kept = keep | guarded
+    return kept, guarded, completed
+
+
+def _touching(pieces: npt.NDArray[np.bool_], other: npt.NDArray[np.bool_]) -> npt.NDArray[np.bool_]:
+    """The 8-connected components of ``pieces`` within two cells of ``other``."""
+    import cv2
+
+    if not pieces.any() or not other.any():
+        return np.zeros(pieces.shape, dtype=bool)
+    _, labels = cv2.connectedComponents(pieces.view(np.uint8), connectivity=8)
+    near = _dilate(other, 2)
+    ids = np.unique(labels[near & pieces])
+    return np.isin(labels, ids[ids > 0])
+
+
+def _px(length_m: float, res: float) -> float:
+    """``length_m`` in cells, rounded to 1e-6 so that a resolution stored as float32 (0.05 ->
+    0.0500000007) converts exactly like the decimal one."""
+    return round(length_m / res, 6)
+
+
+def _dilate(mask: npt.NDArray[np.bool_], radius_px: int) -> npt.NDArray[np.bool_]:
+    import cv2
+
+    if radius_px <= 0:
+        return mask.copy()
+    size = 2 * radius_px + 1
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (size, size))
+    return cv2.dilate(mask.view(np.uint8), kernel).astype(bool)
+
+
+def wide_unknown(occupancy: npt.NDArray[np.int8], *, radius_px: float) -> npt.NDArray[np.bool_]:
+    """Unknown cells covered by a disc of ``radius_px`` that lies wholly in unknown space.
+
+    The morphological opening of the unknown cells by a disc: the outside of a building and unexplored
+    rooms stay, the narrow shadows behind furniture and the insides of scanned objects go.
+
+    Parameters
+    ----------
+    occupancy : ndarray of int8, shape (rows, cols)
+        ROS grid.
+    radius_px : float
+        Disc radius, cells.
+    """
+    import cv2
+
+    unknown = occupancy == UNKNOWN
+    if not unknown.any():
+        return unknown
+    # On a grid of 2 x 2 blocks (a block is unknown when all its cells are): a quarter of the work,
+    # and only ever less unknown space, never more.
+    rows, cols = unknown.shape
+    padded = np.pad(unknown, ((0, rows % 2), (0, cols % 2)), mode="edge")
+    blocks = padded[0::2, 0::2] & padded[1::2, 0::2] & padded[0::2, 1::2] & padded[1::2, 1::2]
+    radius = radius_px / 2
+    depth = cv2.distanceTransform(blocks.view(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_5)
+    core = depth > radius
+    if not core.any():
+        return np.zeros(unknown.shape, dtype=bool)
+    reach = cv2.distanceTransform((~core).view(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_5)
+    near = (reach <= radius).view(np.uint8)
+    wide = cv2.resize(near, (padded.shape[1], padded.shape[0]), interpolation=cv2.INTER_NEAREST)
+    wide = wide[:rows, :cols].astype(bool)
+    return wide & unknown
+
+
+def directional_runs(
+    mask: npt.NDArray[np.bool_],
+    directions: npt.NDArray[np.float64],
+    *,
+    min_length_px: float,
+    tolerance_px: int = 1,
+) -> npt.NDArray[np.bool_]:
+    """Cells of ``mask`` on straight runs at least ``min_length_px`` long along any direction.
+
+    ``mask`` is rotated so that a direction lies along the columns, dilated by ``tolerance_px`` (so a
+    run may step sideways and skip up to ``2 * tolerance_px`` cells), opened with a line of
+    ``min_length_px`` cells along the rows and the columns (the direction at right angles comes for
+    free when the map has one), and rotated back.
+
+    Parameters
+    ----------
+    mask : ndarray of bool, shape (rows, cols)
+    directions : ndarray of float64, shape (K,)
+        Line orientations in radians, counter-clockwise from +col towards +row, in ``[0, pi)``.
+    min_length_px : float
+        Shortest run, cells.
+    tolerance_px : int
+        Cells of tolerance across and along a run.
+
+    Returns
+    -------
+    ndarray of bool, shape (rows, cols)
+        A subset of ``mask``.
+    """
+    out = np.zeros(mask.shape, dtype=bool)
+    if not mask.any() or directions.size == 0:
+        return out
+    r0, r1, c0, c1 = _bounds(mask)
+    crop = mask[r0:r1, c0:c1]
+    length = max(3, round(min_length_px)) | 1  # odd: an even line is off by one cell after opening
+    for angle in _frames(directions):
+        out[r0:r1, c0:c1] |= _runs_in_frame(crop, angle, length, tolerance_px)
+    return out & mask
+
+
+def _frames(directions: npt.NDArray[np.float64]) -> list[float]:
+    """One rotation per group of directions at right angles to each other, in ``[0, pi/2)``."""
+    frames: list[float] = []
+    for angle in np.mod(directions, math.pi / 2).tolist():
+        if all(
+            min(abs(angle - f), math.pi / 2 - abs(angle - f)) > _PAIR_TOLERANCE_RAD for f in frames
+        ):
+            frames.append(angle)
+    return frames
+
+
+def _runs_in_frame(
+    crop: npt.NDArray[np.bool_], angle: float, length: int, tolerance_px: int
+) -> npt.NDArray[np.bool_]:
+    import cv2
+
+    rows, cols = crop.shape
+    rotated, matrix = _rotate(crop.view(np.uint8), angle)
+    if tolerance_px > 0:
+        box = np.ones((2 * tolerance_px + 1, 2 * tolerance_px + 1), np.uint8)
+        rotated = np.asarray(cv2.dilate(rotated, box), dtype=np.uint8)
+    # Outside the image is empty (OpenCV's default border would count it as occupied for erosion).
+    runs = _open(rotated, (1, length)) | _open(rotated, (length, 1))
+    if matrix is None:
+        return runs.astype(bool)
+    back = cv2.warpAffine(
+        runs, matrix, (cols, rows), flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP
+    )
+    return np.asarray(cv2.dilate(back, np.ones((3, 3), np.uint8)), dtype=bool)
+
+
+def _open(image: npt.NDArray[np.uint8], kernel_shape: tuple[int, int]) -> npt.NDArray[np.uint8]:
+    """Morphological opening with a ``kernel_shape`` box; outside the image counts as empty."""
+    import cv2
+
+    kernel = np.ones(kernel_shape, np.uint8)
+    opened = cv2.morphologyEx(
+        image, cv2.MORPH_OPEN, kernel, borderType=cv2.BORDER_CONSTANT, borderValue=0
+    )
+    return np.asarray(opened, dtype=np.uint8)
+
+
+def _bounds(mask: npt.NDArray[np.bool_]) -> tuple[int, int, int, int]:
+    """``r0, r1, c0, c1`` of the bounding box of the True cells (``mask`` must have one)."""
+    rows_any = np.flatnonzero(mask.any(axis=1))
+    cols_any = np.flatnonzero(mask.any(axis=0))
+    return int(rows_any[0]), int(rows_any[-1]) + 1, int(cols_any[0]), int(cols_any[-1]) + 1
+
+
+def _rotate(
+    source: npt.NDArray[np.uint8], angle: float
+) -> tuple[npt.NDArray[np.uint8], npt.NDArray[np.float64] | None]:
+    """``source`` rotated so that ``angle`` lies along the columns, and the forward affine matrix
+    (None when ``angle`` is within half a degree of an axis and nothing was rotated)."""
+    import cv2
+
+    if min(angle, math.pi / 2 - angle) < math.radians(0.5):
+        return source, None
+    rows, cols = source.shape
+    c, s = math.cos(angle), math.sin(angle)
+    corners = np.array([[0, 0], [cols, 0], [0, rows], [cols, rows]], dtype=np.float64)
+    u = corners[:, 0] * c + corners[:, 1] * s
+    v = -corners[:, 0] * s + corners[:, 1] * c
+    matrix = np.array([[c, s, -u.min()], [-s, c, -v.min()]], dtype=np.float64)
+    size = (math.ceil(u.max() - u.min()) + 1, math.ceil(v.max() - v.min()) + 1)
+    rotated = cv2.warpAffine(source, matrix, size, flags=cv2.INTER_NEAREST)
+    return np.asarray(rotated, dtype=np.uint8), matrix
+
+
+def bridge_gaps(
+    walls: npt.NDArray[np.bool_],
+    fillable: npt.NDArray[np.bool_],
+    directions: npt.NDArray[np.float64],
+    *,
+    max_gap_px: float,
+) -> npt.NDArray[np.bool_]:
+    """Cells of ``fillable`` on the straight line between two wall cells along a dominant direction.
+
+    A morphological closing of ``walls`` with a line of ``max_gap_px`` cells along every direction
+    (in the rotated frames of :func:`directional_runs`) joins collinear wall pieces across gaps
+    shorter than the line; only ``fillable`` cells are filled.
+
+    Returns
+    -------
+    ndarray of bool, shape (rows, cols)
+        A subset of ``fillable & ~walls``.
+    """
+    import cv2
+
+    out = np.zeros(walls.shape, dtype=bool)
+    if not walls.any() or directions.size == 0:
+        return out
+    length = max(3, round(max_gap_px)) | 1
+    r0, r1, c0, c1 = _bounds(walls)
+    crop = walls[r0:r1, c0:c1]
+    rows, cols = crop.shape
+    for angle in _frames(directions):
+        rotated, matrix = _rotate(crop.view(np.uint8), angle)
+        closed = np.zeros_like(rotated)
+        for along, across in (((1, length), (4, 1)), ((length, 1), (1, 4))):
+            closing = cv2.morphologyEx(rotated, cv2.MORPH_CLOSE, np.ones(along, np.uint8))
+            fill = np.asarray(closing, dtype=np.uint8) & ~rotated
+            # A wall line is thin: drop fills four or more cells thick across the line (the space
+            # between two parallel walls, not a wall).
+            closed |= fill & ~_open(fill, across)
+        if matrix is not None:
+            back = cv2.warpAffine(
+                closed, matrix, (cols, rows), flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP
+            )
+            closed = np.asarray(back, dtype=np.uint8)
+        out[r0:r1, c0:c1] |= closed.astype(bool)
+    return out & fillable & ~walls
+
+
+def straight_lines(
+    mask: npt.NDArray[np.bool_], *, min_length_px: float, max_gap_px: int = 2
+) -> npt.NDArray[np.bool_]:
+    """Cells of ``mask`` on straight segments at least ``min_length_px`` long, at any angle.
+
+    OpenCV's probabilistic Hough transform (deterministic) finds the segments, with gaps of up to
+    ``max_gap_px`` cells; they are drawn three cells wide and intersected with ``mask``.
+    """
+    import cv2
+
+    out = np.zeros(mask.shape, dtype=np.uint8)
+    if not mask.any():
+        return out.astype(bool)
+    length = max(2, round(min_length_px))
+    segments = cv2.HoughLinesP(
+        mask.view(np.uint8) * np.uint8(255),
+        1.0,
+        math.pi / 180,
+        threshold=max(2, length // 2),
+        minLineLength=length,
+        maxLineGap=max_gap_px,
+    )
+    if segments is not None:
+        lines = segments.reshape(-1, 1, 2, 2).astype(np.int32)
+        cv2.polylines(out, list(lines), isClosed=False, color=1, thickness=3)
+    return out.astype(bool) & mask
+
+
+def passable(obstacles: npt.NDArray[np.bool_], radius_px: float) -> npt.NDArray[np.bool_]:
+    """Cells farther than ``radius_px`` (centre to centre) from every obstacle cell."""
+    import cv2
+
+    if not obstacles.any():
+        return np.ones(obstacles.shape, dtype=bool)
+    reach = math.floor(radius_px)
+    offsets = np.arange(-reach, reach + 1)
+    disc = (offsets[:, None] ** 2 + offsets[None, :] ** 2 <= radius_px**2).astype(np.uint8)
+    return ~cv2.dilate(obstacles.view(np.uint8), disc).astype(bool)
+
+
+def topology_guard(
+    occupied: npt.NDArray[np.bool_],
+    keep: npt.NDArray[np.bool_],
+    *,
+    radius_px: float,
+    added: npt.NDArray[np.bool_] | None = None,
+    window_px: int,
+    min_region_px: float,
+) -> npt.NDArray[np.bool_]:
+    """Removed cells to restore so that no robot-sized passage opens between separate regions.
+
+    Removing ``occupied & ~keep`` (and adding the obstacles ``added``) makes some cells passable for
+    a disc of ``radius_px``. Each connected patch of them is checked in a window of ``window_px``
+    cells around it: if the cells that were passable before and touch the patch belong to two or more
+    regions of the window that are not small enclosed pockets (a pocket does not reach the window's
+    edge and covers less than ``min_region_px``), every removed piece (8-connected) within
+    ``radius_px + 1`` of the patch is restored. Patches surrounded by formerly passable cells (a
+    free-standing object) are skipped without labelling; the rest cost one small labelling each.
+
+    Returns
+    -------
+    ndarray of bool, shape (rows, cols)
+        Cells of ``occupied & ~keep`` to restore.
+    """
+    import cv2
+
+    removal = occupied & ~keep
+    restore = np.zeros(occupied.shape, dtype=bool)
+    if not removal.any():
+        return restore
+    before = passable(occupied, radius_px)
+    after = occupied & keep if added is None else (occupied & keep) | added
+    opened = passable(after, radius_px) & ~before
+    if not opened.any():
+        return restore
+    count, patches, stats, _ = cv2.connectedComponentsWithStats(
+        opened.view(np.uint8), connectivity=8
+    )
+    spread = cv2.dilate(patches.astype(np.float32), np.ones((3, 3), np.uint8)).astype(np.int64)
+    rim = (spread > 0) & ~opened
+    # Patches whose ring is all formerly passable are free-standing objects: nothing to check.
+    blocked = np.bincount(spread[rim & ~before], minlength=count) > 0
+    blocked[0] = False
+    # A patch whose formerly passable ring cells are one connected arc joins nothing (it opens into
+    # one region only): only patches with two or more arcs need a labelled window.
+    arcs_count, arcs = cv2.connectedComponents((rim & before).view(np.uint8), connectivity=8)
+    touched = rim & before
+    pairs = np.unique(spread[touched] * arcs_count + arcs[touched])
+    blocked &= np.bincount(pairs // arcs_count, minlength=count) >= 2
+    if not blocked.any():
+        return restore
+    # The formerly passable ring cells of every patch, grouped by patch (flat indices).
+    ring_idx = np.flatnonzero(rim & before)
+    ring_patch = spread.reshape(-1)[ring_idx]
+    order = np.argsort(ring_patch, kind="stable")
+    ring_idx = ring_idx[order]
+    ends = np.cumsum(np.bincount(ring_patch, minlength=count))
+    rows, cols = occupied.shape
+    separating = np.zeros(count, dtype=bool)
+    for index in np.flatnonzero(blocked).tolist():
+        cells = ring_idx[ends[index - 1] if index else 0 : ends[index]]
+        if cells.size < 2:
+            continue
+        x, y, w, h = stats[index, :4].tolist()
+        r0, c0 = max(y - window_px, 0), max(x - window_px, 0)
+        r1, c1 = min(y + h + window_px, rows), min(x + w + window_px, cols)
+        separating[index] = _separates(
+            before[r0:r1, c0:c1], cells // cols - r0, cells % cols - c0, min_region_px
+        )
+    if not separating.any():
+        return restore
+    reach = math.ceil(radius_px) + 1
+    reach_kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach + 1, 2 * reach + 1))
+    zone = cv2.dilate(separating[patches].view(np.uint8), reach_kernel).astype(bool)
+    n_pieces, pieces = cv2.connectedComponents(removal.view(np.uint8), connectivity=8)
+    wanted = np.zeros(n_pieces, dtype=bool)
+    wanted[pieces[zone & removal]] = True
+    wanted[0] = False
+    return wanted[pieces] & removal
+
+
+def _separates(
+    window: npt.NDArray[np.bool_],
+    ring_rows: npt.NDArray[np.int64],
+    ring_cols: npt.NDArray[np.int64],
+    min_region_px: float,
+) -> bool:
+    """Whether the ring cells touch two or more regions of ``window`` that are not small pockets."""
+    import cv2
+
+    _, regions, stats, _ = cv2.connectedComponentsWithStats(window.view(np.uint8), connectivity=8)
+    touching = np.unique(regions[ring_rows, ring_cols])
+    touching = touching[touching > 0]
+    if touching.size < 2:
+        return False
+    rows, cols = window.shape
+    x, y, w, h, area = (stats[touching, i] for i in range(5))
+    edge = (x == 0) | (y == 0) | (x + w == cols) | (y + h == rows)
+    return int(np.count_nonzero(edge | (area >= min_region_px))) >= 2

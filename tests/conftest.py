@@ -1,0 +1,26 @@
+"""Suite-wide hooks: the ``dataset`` marker for tests that need the full real data set.
+
+``@pytest.mark.dataset("bormann_ipa_room_segmentation")`` (or ``pytestmark = ...`` on a module) skips
+the test when that path is not in the data set (``ROSE_DATA_DIR``, see :mod:`rose_logs.datasets`), with
+a reason saying how to get it; with ``ROSE_REQUIRE_DATA=1`` (CI) it fails instead. Helpers are in
+``tests/real_data.py``.
+"""
+
+from __future__ import annotations
+
+import pytest
+from real_data import dataset
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    config.addinivalue_line(
+        "markers",
+        "dataset(*paths): needs these paths inside the full real data set (ROSE_DATA_DIR); "
+        "skipped without it, failed under ROSE_REQUIRE_DATA=1",
+    )
+
+
+def pytest_runtest_setup(item: pytest.Item) -> None:
+    for marker in item.iter_markers("dataset"):
+        for relative in marker.args:
+            dataset(relative)

@@ -1,0 +1,73 @@
+"""``process_log(clean_method=...)``: how ``<map>/rose/cleaned`` is made, and the counts in the report."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+import pytest
+from conftest import build_log, session_maps
+
+import rose
+from rose_logs.cli import main
+from rose_logs.reader import LogReader
+from rose_logs.session import process_log
+from rose_logs.snapshots import decode_map
+
+
+def _cleaned(path: Path) -> list[npt.NDArray[np.int8]]:
+    with LogReader(path) as reader:
+        ser = reader.serialization
+        return [
+            decode_map(bytes(m.data), serialization=ser, topic="/x", log_time_ns=0).grid
+            for m in reader.messages(topics=["/map/rose/cleaned"])
+        ]
+
+
+@pytest.mark.parametrize("method", ["walls", "paper"])
+def test_cleaned_topic_follows_the_method(
+    tmp_path: Path, method: str, fr079: list[npt.NDArray[np.int8]]
+) -> None:
+    maps = session_maps(fr079[-1:])
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps)
+    out = tmp_path / "out.mcap"
+    report = process_log(built.path, output_path=out, clean_method=method)  # type: ignore[arg-type]
+    grid = maps[0].grid
+    expected = rose.clean(grid, method=method, resolution_m=0.05)  # type: ignore[arg-type]
+    (cleaned,) = _cleaned(out)
+    np.testing.assert_array_equal(cleaned, expected.cleaned)
+    record = report.to_json()["snapshots"][0]
+    assert record["clean_method"] == method
+    assert record["removed"] == expected.removed_count
+    assert record["kept"] == expected.kept_count
+    assert record["kept"] + record["removed"] == record["occupied"]
+
+
+def test_cli_clean_method_option(tmp_path: Path, fr079: list[npt.NDArray[np.int8]]) -> None:
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", session_maps(fr079[-1:]))
+    report = tmp_path / "r.json"
+    argv = ["process", str(built.path), "--no-output", "--json", str(report), "-q"]
+    assert main([*argv, "--clean-method", "paper"]) == 0
+    assert json.loads(report.read_text())["snapshots"][0]["rescued"] == 0
+    assert main(argv) == 0
+    assert json.loads(report.read_text())["snapshots"][0]["rescued"] > 0
+    with pytest.raises(SystemExit) as exit_info:
+        main([*argv, "--clean-method", "tidy"])
+    assert exit_info.value.code == 2
+
+
+def test_rescued_cells_have_their_own_rerun_class(fr079: list[npt.NDArray[np.int8]]) -> None:
+    from rose_logs.rerun_view import CLASS_CLUTTER, CLASS_RESCUED, segmentation_classes
+
+    grid = fr079[-1]
+    result = rose.analyze(grid)
+    cleaning = rose.clean(grid, result, resolution_m=0.05)
+    assert cleaning.rescued.any()
+    classes = segmentation_classes(grid, result, cleaning.rescued)
+    assert np.all(classes[cleaning.rescued] == CLASS_RESCUED)
+    assert np.all(classes[result.clutter & ~cleaning.rescued] == CLASS_CLUTTER)
+    np.testing.assert_array_equal(
+        segmentation_classes(grid, result)[~cleaning.rescued], classes[~cleaning.rescued]
+    )

@@ -1,0 +1,94 @@
+"""rose_logs.formats: a log's format from its content, and the format an output name implies."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from conftest import FORMATS, MapMsg, build_log, log_path
+
+from rose_logs.errors import LogReadError
+from rose_logs.formats import FORMATS as LOG_FORMATS
+from rose_logs.formats import detect_format, format_from_path
+
+
+@pytest.mark.parametrize("kind", ["ros1", "ros1-bz2", "db3", "mcap-dir", "mcap-ros2", "mcap-ros1"])
+def test_detects_every_format_written_by_other_libraries(tmp_path: Path, kind: str) -> None:
+    import numpy as np
+
+    grid = np.zeros((4, 5), dtype=np.int8)
+    built = build_log(log_path(tmp_path, kind), kind, [MapMsg(10**18, grid)], scans_per_map=0)
+    expected = FORMATS[kind][0]
+    assert detect_format(built.path) == expected
+    assert expected in LOG_FORMATS
+    if kind in ("db3", "mcap-dir"):
+        # The storage file inside a ROS 2 bag folder is recognised on its own too.
+        (storage,) = [p for p in built.path.iterdir() if p.suffix in (".db3", ".mcap")]
+        assert detect_format(storage) == ("db3" if kind == "db3" else "mcap")
+
+
+def test_content_decides_not_the_name(tmp_path: Path) -> None:
+    import numpy as np
+
+    built = build_log(tmp_path / "x.mcap", "mcap-ros2", [MapMsg(10**18, np.zeros((2, 2), np.int8))])
+    renamed = built.path.rename(tmp_path / "misnamed.bag")
+    assert detect_format(renamed) == "mcap"
+
+
+@pytest.mark.parametrize(
+    ("content", "problem"),
+    [
+        (b"", "empty file"),
+        (b"#ROSBAG V1.2\n", "unrecognised header"),  # ROS 1 bag version 1.2: unsupported
+        (b"hello, world", "unrecognised header"),
+        (b"\x89MCAP", "unrecognised header"),  # truncated magic
+    ],
+)
+def test_unsupported_files_are_one_line_errors(
+    tmp_path: Path, content: bytes, problem: str
+) -> None:
+    path = tmp_path / "run.bag"
+    path.write_bytes(content)
+    with pytest.raises(LogReadError, match=problem) as info:
+        detect_format(path)
+    assert str(info.value).startswith(f"{path}: not a ROS 1 bag, ROS 2 bag or MCAP file")
+    assert "\n" not in str(info.value)
+
+
+def test_missing_paths_and_folders_without_metadata(tmp_path: Path) -> None:
+    with pytest.raises(LogReadError, match="no such file or directory"):
+        detect_format(tmp_path / "nothing.mcap")
+    (tmp_path / "folder").mkdir()
+    with pytest.raises(LogReadError, match=r"folder without metadata\.yaml"):
+        detect_format(tmp_path / "folder")
+
+
+def test_bag_folder_storage_comes_from_metadata(tmp_path: Path) -> None:
+    folder = tmp_path / "bag"
+    folder.mkdir()
+    (folder / "metadata.yaml").write_text(
+        "rosbag2_bagfile_information:\n  storage_identifier: mcap\n"
+    )
+    assert detect_format(folder) == "mcap-dir"
+    (folder / "metadata.yaml").write_text(
+        "rosbag2_bagfile_information:\n  storage_identifier: sqlite3\n"
+    )
+    assert detect_format(folder) == "db3"
+
+
+@pytest.mark.parametrize(
+    ("name", "expected"),
+    [
+        ("out.bag", "ros1"),
+        ("out.BAG", "ros1"),
+        ("out.mcap", "mcap"),
+        ("dir/out.Mcap", "mcap"),
+        ("out.db3", "db3"),
+        ("out", None),
+        ("out.bag.tmp", None),
+        ("out.rrd", None),
+        ("archive.mcap.zst", None),
+    ],
+)
+def test_format_from_output_name(name: str, expected: str | None) -> None:
+    assert format_from_path(Path(name)) == expected

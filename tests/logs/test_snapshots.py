@@ -1,0 +1,105 @@
+"""rose_logs.snapshots.apply_update: patches written into the last full map, and patches that do not fit."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from numpy.testing import assert_array_equal
+
+from rose_logs.snapshots import GridUpdate, MapSnapshot, apply_update
+
+ROWS, COLS = 6, 9
+
+
+def _snapshot() -> MapSnapshot:
+    grid = np.arange(ROWS * COLS, dtype=np.int8).reshape(ROWS, COLS) % 101
+    grid.setflags(write=False)
+    return MapSnapshot(
+        topic="/map",
+        log_time_ns=1_000,
+        stamp_ns=900,
+        frame_id="map",
+        grid=grid,
+        resolution_m=0.05,
+        origin_position_m=(-1.0, 2.0, 0.0),
+        map_load_time_ns=500,
+        header_seq=7,
+    )
+
+
+def _update(x: int, y: int, h: int, w: int, value: int = -1) -> GridUpdate:
+    patch = np.full((h, w), value, dtype=np.int8)
+    patch.setflags(write=False)
+    return GridUpdate(
+        topic="/map_updates",
+        log_time_ns=2_000,
+        stamp_ns=1_900,
+        frame_id="map",
+        x_px=x,
+        y_px=y,
+        patch=patch,
+    )
+
+
+@pytest.mark.parametrize(
+    ("x", "y", "h", "w"),
+    [(0, 0, 1, 1), (COLS - 3, ROWS - 2, 2, 3), (0, 0, ROWS, COLS), (4, 1, 3, 2)],
+)
+def test_patch_inside_the_grid_is_written_there(x: int, y: int, h: int, w: int) -> None:
+    snapshot = _snapshot()
+    before = snapshot.grid.copy()
+    result = apply_update(snapshot, _update(x, y, h, w, value=42))
+    expected = before.copy()
+    expected[y : y + h, x : x + w] = 42  # x is the column, y the row (ROS: row 0 at the origin)
+    assert_array_equal(result.grid, expected)
+    assert_array_equal(snapshot.grid, before)  # input untouched
+    assert not result.grid.flags.writeable
+    # Map metadata from the snapshot, time from the update.
+    assert (result.topic, result.frame_id, result.resolution_m) == ("/map", "map", 0.05)
+    assert result.origin_position_m == (-1.0, 2.0, 0.0)
+    assert (result.map_load_time_ns, result.header_seq) == (500, 7)
+    assert (result.log_time_ns, result.stamp_ns) == (2_000, 1_900)
+
+
+@pytest.mark.parametrize(
+    ("x", "y", "h", "w"),
+    [
+        (-1, 0, 1, 1),  # left of the grid
+        (0, -1, 1, 1),  # below row 0
+        (COLS - 2, 0, 1, 3),  # one column past the right edge
+        (0, ROWS - 1, 2, 1),  # one row past the top
+        (COLS, ROWS, 1, 1),  # entirely outside
+        (0, 0, ROWS + 1, COLS + 1),  # larger than the grid
+    ],
+)
+def test_patch_out_of_bounds_is_an_error_naming_both_topics(x: int, y: int, h: int, w: int) -> None:
+    snapshot = _snapshot()
+    before = snapshot.grid.copy()
+    with pytest.raises(ValueError, match="does not fit") as info:
+        apply_update(snapshot, _update(x, y, h, w))
+    message = str(info.value)
+    assert message.startswith("/map_updates: update patch")
+    assert f"{w} x {h} at ({x}, {y})" in message
+    assert f"the {COLS} x {ROWS} map of /map" in message
+    assert_array_equal(snapshot.grid, before)
+
+
+def test_out_of_bounds_update_in_a_session_is_skipped_and_copied(tmp_path, fr079) -> None:
+    from conftest import START_NS, MapMsg, build_log, read_all
+
+    from rose_logs.session import process_log
+
+    base = fr079[0]
+    patch = fr079[2][:20, :30]
+    cols = base.shape[1]
+    maps = [
+        MapMsg(START_NS + 1_000_000_000, base),
+        MapMsg(START_NS + 2_000_000_000, patch, topic="/map_updates", xy=(cols - 10, 0)),
+        MapMsg(START_NS + 3_000_000_000, patch, topic="/map_updates", xy=(0, 0)),
+    ]
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps)
+    out = tmp_path / "out.mcap"
+    report = process_log(built.path, output_path=out)
+    assert report.skipped_messages == 1
+    assert [r.from_update for r in report.records] == [False, True]
+    assert read_all(out)["/map_updates"] == read_all(built.path)["/map_updates"]

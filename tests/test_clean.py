@@ -1,0 +1,190 @@
+"""rose.clean: the wall-preserving default and the paper's labelling by name."""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+import numpy.typing as npt
+import pytest
+
+import rose
+from rose.clean import CleanParams, clean
+from rose.clean_rules import directional_runs, passable, wide_unknown
+from rose.errors import RoseError
+
+RES = 0.05
+
+
+def closed_building(
+    angle_deg: float = 0.0, *, size: int = 260
+) -> tuple[npt.NDArray[np.int8], npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
+    """A scanned building: unknown outside, 2-cell walls, three rooms joined by doors, and clutter as a
+    scanner sees it (hollow boxes with unknown insides, table legs, a cabinet against a wall).
+
+    Returns ``(grid, walls, clutter)``.
+    """
+    image = np.full((size, size), 205, np.uint8)  # unknown
+    c, s = math.cos(math.radians(angle_deg)), math.sin(math.radians(angle_deg))
+    centre = size / 2
+
+    def pt(x: float, y: float) -> tuple[int, int]:
+        return round(centre + c * x - s * y), round(centre + s * x + c * y)
+
+    half = 0.36 * size
+    corners = [pt(-half, -half), pt(half, -half), pt(half, half), pt(-half, half)]
+    cv2.fillPoly(image, [np.array(corners, np.int32)], 254)
+    walls_img = np.zeros_like(image)
+    for a, b in zip(corners, corners[1:] + corners[:1], strict=True):
+        cv2.line(walls_img, a, b, 1, 2)
+    # Inner walls with 20-cell doors.
+    cv2.line(walls_img, pt(0, -half), pt(0, -20), 1, 2)
+    cv2.line(walls_img, pt(0, 0), pt(0, half), 1, 2)
+    cv2.line(walls_img, pt(0, 10), pt(half - 25, 10), 1, 2)
+    walls = walls_img.astype(bool)
+    grid = np.where(image == 254, 0, -1).astype(np.int8)
+    grid[walls] = 100
+    clutter = np.zeros(grid.shape, dtype=bool)
+    # Hollow boxes (faces only, unknown inside), in room interiors.
+    for x, y, w, h in ((-60, -60, 16, 12), (-55, 40, 10, 14), (40, -50, 14, 14)):
+        box = np.zeros_like(image)
+        quad = [pt(x, y), pt(x + w, y), pt(x + w, y + h), pt(x, y + h)]
+        cv2.polylines(box, [np.array(quad, np.int32)], True, 1, 1)
+        inside = np.zeros_like(image)
+        cv2.fillPoly(inside, [np.array(quad, np.int32)], 1)
+        grid[inside.astype(bool) & ~box.astype(bool)] = -1
+        clutter |= box.astype(bool)
+    # Table legs: single cells.
+    for x, y in ((50, 40), (70, 40), (50, 55), (70, 55)):
+        col, row = pt(x, y)
+        clutter[row, col] = True
+    grid[clutter] = 100
+    return grid, walls & (grid == 100), clutter & ~walls
+
+
+def separated_pairs(
+    obstacles: npt.NDArray[np.bool_], a: tuple[int, int], b: tuple[int, int]
+) -> bool:
+    """Whether a 3-cell disc at cell ``a`` cannot reach cell ``b``."""
+    free = passable(obstacles, 3.0)
+    _, labels = cv2.connectedComponents(free.view(np.uint8), connectivity=8)
+    return bool(labels[a] == 0 or labels[a] != labels[b])
+
+
+@pytest.mark.parametrize("angle", [0.0, 23.0])
+def test_walls_method_keeps_the_building_closed_and_removes_clutter(angle: float) -> None:
+    grid, walls, clutter = closed_building(angle)
+    result = rose.analyze(grid)
+    cleaned = clean(grid, result, resolution_m=RES)
+    kept = cleaned.kept
+    assert np.count_nonzero(kept & walls) / np.count_nonzero(walls) >= 0.97
+    assert np.count_nonzero(~kept & clutter) / np.count_nonzero(clutter) >= 0.9
+    # Inside and outside stay apart for a 0.15 m robot.
+    inside, outside = (grid.shape[0] // 2 + 30, grid.shape[1] // 2 + 30), (3, 3)
+    assert separated_pairs(grid >= 65, inside, outside)
+    assert separated_pairs(cleaned.cleaned >= 65, inside, outside)
+
+
+def test_walls_method_never_opens_a_gap_when_walls_are_weak() -> None:
+    grid, walls, _ = closed_building()
+    # Break the outer wall's straightness: short zig-zag pieces no run rule keeps.
+    rows = grid.shape[0]
+    bottom = int(np.flatnonzero(walls.any(axis=1))[0])
+    grid = grid.copy()
+    segment = slice(rows // 2 - 20, rows // 2 + 20)
+    grid[bottom : bottom + 2, segment] = 0
+    for k, col in enumerate(range(rows // 2 - 20, rows // 2 + 20)):
+        grid[bottom + (k // 4) % 2, col] = 100
+    result = rose.analyze(grid)
+    cleaned = clean(grid, result, resolution_m=RES)
+    inside, outside = (rows // 2 - 20, rows // 2), (2, rows // 2)
+    assert separated_pairs(grid >= 65, inside, outside)
+    assert separated_pairs(cleaned.cleaned >= 65, inside, outside)
+
+
+def test_result_shapes_partition_and_counts() -> None:
+    grid, _, _ = closed_building()
+    result = rose.analyze(grid)
+    cleaned = clean(grid, result, resolution_m=RES)
+    assert cleaned.cleaned.shape == grid.shape
+    assert cleaned.cleaned.dtype == np.int8
+    assert np.array_equal(cleaned.kept | cleaned.removed, result.occupied)
+    assert not np.any(cleaned.kept & cleaned.removed)
+    assert not np.any(cleaned.rescued & ~cleaned.kept)
+    assert not np.any(cleaned.guarded & ~cleaned.rescued)
+    assert cleaned.kept_count + cleaned.removed_count == result.occupied_count
+    assert np.all(cleaned.cleaned[cleaned.removed] == 0)
+    unchanged = ~cleaned.removed
+    assert np.array_equal(cleaned.cleaned[unchanged], grid[unchanged])
+
+
+def test_deterministic_and_input_untouched() -> None:
+    grid, _, _ = closed_building(17.0)
+    before = grid.copy()
+    first = clean(grid, resolution_m=RES)
+    second = clean(grid, resolution_m=RES)
+    assert np.array_equal(grid, before)
+    assert first.cleaned.tobytes() == second.cleaned.tobytes()
+    assert np.array_equal(first.kept, second.kept)
+
+
+def test_paper_method_equals_analyze_cleaned() -> None:
+    grid, _, _ = closed_building()
+    result = rose.analyze(grid, clutter_value="unknown")
+    paper = clean(grid, result, method="paper")
+    assert np.array_equal(paper.cleaned, result.cleaned)
+    assert np.array_equal(paper.removed, result.clutter)
+    assert paper.rescued_count == 0
+
+
+def test_clutter_value_unknown_is_honoured() -> None:
+    grid, _, _ = closed_building()
+    result = rose.analyze(grid, clutter_value="unknown")
+    cleaned = clean(grid, result, resolution_m=RES)
+    assert cleaned.removed_count > 0
+    assert np.all(cleaned.cleaned[cleaned.removed] == -1)
+
+
+@pytest.mark.parametrize(
+    "grid",
+    [
+        np.full((40, 30), -1, np.int8),
+        np.zeros((31, 17), np.int8),
+        np.zeros((1, 1), np.int8),
+    ],
+)
+def test_maps_without_structure_are_returned_unchanged(grid: npt.NDArray[np.int8]) -> None:
+    cleaned = clean(grid, resolution_m=RES)
+    assert np.array_equal(cleaned.cleaned, grid)
+    assert cleaned.removed_count == 0
+
+
+def test_errors_name_the_problem() -> None:
+    grid, _, _ = closed_building()
+    with pytest.raises(RoseError, match="method"):
+        clean(grid, method="tidy")  # type: ignore[arg-type]
+    with pytest.raises(RoseError, match="resolution_m"):
+        clean(grid, resolution_m=0.0)
+    with pytest.raises(RoseError, match="shape"):
+        clean(grid[:-1], rose.analyze(grid))
+    with pytest.raises(RoseError, match="min_run_m"):
+        CleanParams(min_run_m=-1.0)
+
+
+def test_directional_runs_keep_long_lines_only() -> None:
+    mask = np.zeros((80, 120), dtype=bool)
+    mask[10, 5:105] = True  # 100 cells
+    mask[40, 5:25] = True  # 20 cells
+    runs = directional_runs(mask, np.array([0.0]), min_length_px=40)
+    assert runs[10, 5:105].all()
+    assert not runs[40].any()
+
+
+def test_wide_unknown_drops_narrow_shadows() -> None:
+    grid = np.zeros((100, 100), np.int8)
+    grid[:, :30] = -1  # wide unknown
+    grid[50:53, 40:90] = -1  # a 3-cell shadow
+    wide = wide_unknown(grid, radius_px=5)
+    assert wide[:, :30].all()
+    assert not wide[50:53, 40:90].any()

@@ -1,0 +1,46 @@
+"""Both command packages import their sub-commands plainly: a broken import is an error, not a lost command."""
+
+from __future__ import annotations
+
+import importlib
+import sys
+
+import pytest
+
+
+@pytest.mark.parametrize(
+    ("package", "command"),
+    [
+        ("rose_logs.cli", "process"),
+        ("rose_logs.cli", "info"),
+        ("rose_logs.cli", "convert"),
+        ("rose_logs.cli", "evaluate"),
+        ("rose.cli", "clean"),
+        ("rose.cli", "score"),
+        ("rose.cli", "walls"),
+    ],
+)
+def test_broken_subcommand_import_is_not_hidden(
+    monkeypatch: pytest.MonkeyPatch, package: str, command: str
+) -> None:
+    importlib.import_module(package)
+    # ``None`` in sys.modules makes ``import package.command`` raise ImportError.
+    monkeypatch.setitem(sys.modules, f"{package}.{command}", None)
+    monkeypatch.delitem(sys.modules, package)
+    with pytest.raises(ImportError, match=f"{package}.{command}"):
+        importlib.import_module(package)
+
+
+@pytest.mark.parametrize(
+    ("package", "commands"),
+    [
+        ("rose_logs.cli", {"process", "info", "convert", "evaluate"}),
+        ("rose.cli", {"clean", "score", "walls"}),
+    ],
+)
+def test_every_subcommand_is_registered(package: str, commands: set[str]) -> None:
+    import argparse
+
+    parser = importlib.import_module(package).build_parser()
+    (subparsers,) = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+    assert commands <= set(subparsers.choices)
