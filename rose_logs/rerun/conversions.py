@@ -133,7 +133,9 @@ def segmentation_image(
     grid_index, image_index = cells.grid_index, cells.image_index
     if result.has_structure:
         # structure 4, clutter 5: the occupied cells are partitioned into the two.
-        values = np.uint8(CLASS_CLUTTER) - result.structure.ravel()[grid_index].view(np.uint8)
+        values: npt.NDArray[np.uint8] | np.uint8 = np.uint8(
+            CLASS_CLUTTER
+        ) - result.structure.ravel()[grid_index].view(np.uint8)
     else:
         values = np.uint8(CLASS_OCCUPIED)
     classes.ravel()[image_index] = values
@@ -217,7 +219,8 @@ def score_classes(levels: int = DISPLAY_LEVELS) -> list[tuple[int, str, tuple[in
             label = f"score <= {high:.2f}"
         elif level == levels - 1:
             label = f"score >= {low:.2f}"
-        classes.append((level + 1, label, tuple(int(c) for c in colours[level])))
+        r, g, b, a = (int(c) for c in colours[level])
+        classes.append((level + 1, label, (r, g, b, a)))
     return classes
 
 

@@ -29,6 +29,11 @@ _AXIS_TICKS_DEG = (0.0, 45.0, 90.0, 135.0, 180.0)
 _AXIS_TICKS_S = (0.0, 0.5, 1.0)
 
 
+def _f32(points: npt.NDArray[np.float64]) -> npt.NDArray[np.float32]:
+    """Positions as float32, Rerun's position type (and what its type hints accept)."""
+    return np.asarray(points, dtype=np.float32)
+
+
 def set_snapshot_time(
     recording: rr.RecordingStream, *, log_time_ns: int, start_ns: int, index: int | None
 ) -> None:
@@ -249,7 +254,9 @@ class TopicLogger:
         rec.log(
             paths.cell_directions,
             rr.LineStrips2D(
-                conv.cells_to_pixels(segments, rows), colors=style.DIRECTION_COLOR, radii=radius
+                _f32(conv.cells_to_pixels(segments, rows)),
+                colors=style.DIRECTION_COLOR,
+                radii=radius,
             ),
             rr.Points2D(
                 conv.cells_to_pixels(anchors, rows),
@@ -262,7 +269,7 @@ class TopicLogger:
         rec.log(
             paths.metric_directions,
             rr.LineStrips3D(
-                cells_to_map_m(snapshot, segments), colors=style.DIRECTION_COLOR, radii=radius
+                _f32(cells_to_map_m(snapshot, segments)), colors=style.DIRECTION_COLOR, radii=radius
             ),
             rr.Points3D(
                 cells_to_map_m(snapshot, anchors),
@@ -291,7 +298,9 @@ class TopicLogger:
         rec.log(paths.metric_walls, rr.LineStrips3D(metric, colors=style.WALL_COLOR, radii=radius))
         centres = walls.endpoints_px + 0.5  # cell centres
         pixels = conv.cells_to_pixels(centres, snapshot.grid.shape[0])
-        rec.log(paths.cell_walls, rr.LineStrips2D(pixels, colors=style.WALL_COLOR, radii=radius))
+        rec.log(
+            paths.cell_walls, rr.LineStrips2D(_f32(pixels), colors=style.WALL_COLOR, radii=radius)
+        )
 
     def log_cell_scores(
         self, result: RoseResult, occupied: conv.OccupiedCells | None = None
@@ -344,7 +353,7 @@ class TopicLogger:
             ),
             # The strips' width is the kept half-width at display scale (at least a line).
             rr.LineStrips2D(
-                conv.spectrum_strip_segments(directions, size=size),
+                _f32(conv.spectrum_strip_segments(directions, size=size)),
                 colors=(*style.DIRECTION_COLOR, 150),
                 radii=max(half_width, 0.75),
             ),

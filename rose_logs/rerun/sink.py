@@ -149,10 +149,11 @@ class RerunSink:
         if rrd_path is not None and not Path(rrd_path).parent.is_dir():
             msg = f"cannot write Rerun recording {rrd_path}: directory {Path(rrd_path).parent} does not exist"
             raise ValueError(msg)
-        self.rrd_path = None if rrd_path is None else Path(rrd_path)
-        self.tmp = (
-            None if rrd_path is None else self.rrd_path.with_name(f".{self.rrd_path.name}.rose-tmp")
-        )
+        self.rrd_path: Path | None = None
+        self.tmp: Path | None = None
+        if rrd_path is not None:
+            self.rrd_path = Path(rrd_path)
+            self.tmp = self.rrd_path.with_name(f".{self.rrd_path.name}.rose-tmp")
         self.live = spawn or connect is not None
         self.start_ns = int(start_ns)
         self.recording = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id)
