@@ -35,7 +35,7 @@ __all__ = ["APPLICATION_ID", "RerunSink", "grpc_url", "recording_id_for"]
 _LOG = logging.getLogger(__name__)
 
 APPLICATION_ID = "rose_bag"
-_QUEUE_DEPTH = 3
+_QUEUE_DEPTH = 2
 _IDENTITY_BYTES = 1 << 20
 
 
