@@ -11,12 +11,16 @@ their ratio. Prints numbers, asserts nothing.
 Usage::
 
     python benchmarks/bench_session.py [--snapshots 720] [--size 1000] [--rrd] [--walls] [--format mcap] [--keep DIR]
+
+With ``--rrd`` it also prints the recording's size and the Rerun loggers' own cost per snapshot.
 """
 
 from __future__ import annotations
 
 import argparse
+import multiprocessing
 import os
+import resource
 import shutil
 import sys
 import tempfile
@@ -127,6 +131,43 @@ def raw_copy(src: Path, dst: Path, fmt: str) -> float:
     return time.perf_counter() - t0
 
 
+def rerun_logging_cost(size: int, *, count: int = 14) -> tuple[float, float, float]:
+    """Cost of the Rerun loggers on ``count`` analysed ``size`` x ``size`` snapshots, in one thread.
+
+    Returns ``(wall ms, cpu ms, rrd kB)`` per snapshot: the time of ``TopicLogger.log_snapshot`` (the
+    conversions and the log calls; Rerun encodes, compresses and writes on its own threads, which
+    the flush at the end waits for) and the saved recording's size.
+    """
+    import rerun as rr
+
+    from rose_logs.rerun import EntityPaths, TopicLogger, set_snapshot_time
+
+    maps = stages(size)
+    snapshots = [
+        MapSnapshot("/map", START_NS + i, START_NS + i, "map", maps[i % len(maps)], 0.05)
+        for i in range(count)
+    ]
+    results = [rose.analyze(s.grid) for s in snapshots]
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "cost.rrd"
+        recording = rr.RecordingStream("rose_bag_bench")
+        recording.set_log_time_enabled(False)
+        recording.save(path)
+        topic = TopicLogger(recording, EntityPaths("map"))
+        topic.log_static()
+        wall0, cpu0 = time.perf_counter(), time.thread_time()
+        for i, (snapshot, result) in enumerate(zip(snapshots, results, strict=True)):
+            set_snapshot_time(
+                recording, log_time_ns=snapshot.log_time_ns, start_ns=START_NS, index=i
+            )
+            topic.log_snapshot(snapshot, result, None)
+        wall, cpu = time.perf_counter() - wall0, time.thread_time() - cpu0
+        recording.flush()
+        recording.disconnect()
+        size_kb = path.stat().st_size / 1e3
+    return 1e3 * wall / count, 1e3 * cpu / count, size_kb / count
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--snapshots", type=int, default=720)
@@ -145,14 +186,18 @@ def main(argv: list[str] | None = None) -> int:
     src, copy, out = (work / f"{n}{suffix}" for n in ("session", "copy", "processed"))
     try:
         t0 = time.perf_counter()
-        messages = build(
-            src,
-            args.format,
-            snapshots=args.snapshots,
-            size=args.size,
-            period_s=args.period,
-            scan_hz=args.scan_hz,
-        )
+        # Built in a child process, so the peak memory below is the session's own.
+        with multiprocessing.get_context("fork").Pool(1) as pool:
+            messages = pool.apply(
+                build,
+                (src, args.format),
+                {
+                    "snapshots": args.snapshots,
+                    "size": args.size,
+                    "period_s": args.period,
+                    "scan_hz": args.scan_hz,
+                },
+            )
         build_s = time.perf_counter() - t0
         size_mb = sum(p.stat().st_size for p in ([src] if src.is_file() else src.iterdir())) / 1e6
         copy_s = raw_copy(src, copy, args.format)
@@ -186,7 +231,22 @@ def main(argv: list[str] | None = None) -> int:
             f"per snapshot       median {1e3 * per[len(per) // 2]:.0f} ms, "
             f"max {1e3 * per[-1]:.0f} ms"
         )
-        print(f"one-hour estimate  {720 / (n / process_s):.0f} s for 720 snapshots (target < 60 s)")
+        print(f"one-hour estimate  {720 / (n / process_s):.0f} s for 720 snapshots")
+        peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e3
+        print(f"peak memory        {peak_mb:.0f} MB (raw copy + process, this process)")
+        if args.rrd:
+            rrd_mb = (work / "session.rrd").stat().st_size / 1e6
+            print(
+                f"recording          {rrd_mb:.1f} MB, {1e3 * rrd_mb / n:.0f} kB per snapshot, "
+                f"{720 * rrd_mb / n:.0f} MB for 720 snapshots"
+            )
+            wall_ms, cpu_ms, kb = rerun_logging_cost(args.size)
+            print(
+                f"rerun logging      {wall_ms:.1f} ms wall, {cpu_ms:.1f} ms cpu per {args.size} x "
+                f"{args.size} snapshot (loggers alone, 14 distinct maps; {kb:.0f} kB each)"
+            )
+        load = os.getloadavg()
+        print(f"load average       {load[0]:.1f} {load[1]:.1f} {load[2]:.1f} (shared machine)")
     finally:
         if args.keep is None:
             shutil.rmtree(work, ignore_errors=True)

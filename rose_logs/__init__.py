@@ -2,7 +2,7 @@
 
 ``process_log`` runs a whole session (read -> snapshots -> ``rose.analyze`` -> output log, Rerun,
 report); ``LogReader`` and ``open_output`` read and write any supported log format. The Rerun view is
-in ``rose_logs.rerun_view``, the CARMEN converter in ``rose_logs.carmen`` and the paper's
+in ``rose_logs.rerun``, the CARMEN converter in ``rose_logs.carmen`` and the paper's
 evaluation in ``rose_logs.evaluation``; they are imported on demand.
 """
 

@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from rose.cli.options import add_param_arguments, params_from_args, positive_float
+from rose.directions import FAILURE_LEVEL
 from rose_logs.cli.options import EXIT_GATE, UsageError, duration_text, utc_text, write_json
 
 __all__ = ["add_parser", "run"]
@@ -53,7 +54,14 @@ def add_parser(subparsers: Any) -> None:
         help="map topic to analyse (repeatable; default: every OccupancyGrid topic)",
     )
     parser.add_argument("--rrd", type=Path, default=None, help="save a Rerun recording here")
-    parser.add_argument("--spawn", action="store_true", help="stream to a new Rerun viewer")
+    parser.add_argument(
+        "--spawn", action="store_true", help="stream to a new Rerun viewer as the session runs"
+    )
+    parser.add_argument(
+        "--connect",
+        metavar="ADDR",
+        help="stream to a running Rerun viewer (PORT, HOST:PORT or rerun+http://HOST:PORT/proxy)",
+    )
     parser.add_argument(
         "--walls",
         action="store_true",
@@ -72,7 +80,7 @@ def add_parser(subparsers: Any) -> None:
     parser.add_argument(
         "--failure-level",
         type=positive_float,
-        default=0.4,
+        default=FAILURE_LEVEL,
         help="W above which a map counts as broken (%(default)s, the paper's)",
     )
     parser.add_argument(
@@ -211,6 +219,7 @@ def run(args: argparse.Namespace) -> int:
         failure_level=args.failure_level,
         rrd_path=args.rrd,
         spawn=args.spawn,
+        connect=args.connect,
         progress=progress,
         walls=args.walls,
         break_params=BreakParams()

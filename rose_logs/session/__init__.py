@@ -1,7 +1,7 @@
 """A session: one pass over a log (log -> snapshots -> ROSE -> sinks: output log, Rerun, report).
 
 :func:`process_log` is the loop; :mod:`.report` holds what it finds, :mod:`.topics` which topics it reads
-and writes, :mod:`.analysis` the per-snapshot ROSE run with reuse, :mod:`.rerun_sink` the Rerun output.
+and writes, :mod:`.analysis` the per-snapshot ROSE run with reuse, :mod:`rose_logs.rerun` the Rerun output.
 """
 
 from rose.directions import FAILURE_LEVEL, TRUST_LEVEL

@@ -5,7 +5,7 @@ map messages (``nav_msgs/OccupancyGrid``) and grid updates (``map_msgs/Occupancy
 the last full map of their topic) become :class:`~rose_logs.snapshots.MapSnapshot` s, each analysed with
 :func:`rose.analyze` on its own grid (a grid equal to the previous one of its topic reuses that result),
 and the results go to the output log (derived topics, :mod:`rose_logs.derived`), to Rerun
-(:mod:`rose_logs.rerun_view`) and to the :class:`SessionReport`.
+(:mod:`rose_logs.rerun`) and to the :class:`SessionReport`.
 
 Breaks: every snapshot also goes through the break detector (:mod:`rose_logs.session.breaks`), which
 scores it against the last trusted snapshot of its topic; the start of each run of broken snapshots
@@ -19,10 +19,9 @@ from __future__ import annotations
 import logging
 import math
 import time
-import uuid
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -38,7 +37,6 @@ from rose_logs.reader import LogReader
 from rose_logs.session.analysis import SnapshotAnalyser
 from rose_logs.session.breaks import BreakDetector, BreakParams, DetectedBreak
 from rose_logs.session.report import BreakEvent, SessionReport, SnapshotRecord
-from rose_logs.session.rerun_sink import RerunSink, entity_root
 from rose_logs.session.topics import select_topics, update_targets
 from rose_logs.snapshots import MapSnapshot, apply_update, decode_map, decode_update
 from rose_logs.storage.connections import offered_qos
@@ -47,6 +45,9 @@ from rose_logs.storage.typesys import FLOAT32_TYPE, MAP_TYPE, MARKER_ARRAY_TYPE
 from rose_logs.writer import LogWriter
 
 __all__ = ["process_log"]
+
+if TYPE_CHECKING:
+    from rose_logs.rerun import RerunSink
 
 _LOG = logging.getLogger(__name__)
 
@@ -64,6 +65,7 @@ def process_log(
     failure_level: float = FAILURE_LEVEL,
     rrd_path: Path | None = None,
     spawn: bool = False,
+    connect: str | None = None,
     progress: bool = False,
     on_snapshot: Callable[[MapSnapshot, RoseResult, SnapshotRecord], None] | None = None,
     walls: bool = False,
@@ -93,7 +95,10 @@ def process_log(
     rrd_path : Path, optional
         Save a Rerun recording here.
     spawn : bool, default False
-        Stream the recording to a new Rerun viewer.
+        Stream the recording to a new Rerun viewer as the session is processed.
+    connect : str, optional
+        Stream the recording to a running Rerun viewer at this address (``PORT``, ``HOST:PORT`` or
+        a ``rerun+http://`` URL), as the session is processed.
     progress : bool, default False
         Show a tqdm progress bar on stderr.
     walls : bool, default False
@@ -142,9 +147,16 @@ def process_log(
             if writer is not None:
                 writer.open()
             handles, derived = _prepare_output(writer, channels, map_topics)
-            if rrd_path is not None or spawn:
+            if rrd_path is not None or spawn or connect is not None:
                 rerun = _rerun_sink(
-                    input_path, rrd_path, map_topics, spawn=spawn, recording_id=recording_id
+                    input_path,
+                    rrd_path,
+                    map_topics,
+                    spawn=spawn,
+                    connect=connect,
+                    recording_id=recording_id,
+                    start_ns=reader.start_ns,
+                    failure_level=failure_level,
                 )
             loop = _Loop(
                 reader=reader,
@@ -218,16 +230,28 @@ def _rerun_sink(
     map_topics: Sequence[str],
     *,
     spawn: bool,
+    connect: str | None,
     recording_id: str | None,
+    start_ns: int,
+    failure_level: float,
 ) -> RerunSink:
     """The Rerun recording of a session: one entity root per map topic; the id ``recording_id``, else
-    derived from the input's file name."""
-    return RerunSink(
-        rrd_path=None if rrd_path is None else Path(rrd_path),
-        spawn=spawn,
-        roots=tuple(entity_root(t) for t in map_topics),
-        recording_id=recording_id or str(uuid.uuid5(uuid.NAMESPACE_URL, input_path.name)),
-    )
+    derived from the input's full path and content (:func:`rose_logs.rerun.recording_id_for`)."""
+    from rose_logs.rerun import RerunSink, recording_id_for  # rerun loads only when used
+
+    try:
+        return RerunSink(
+            rrd_path=None if rrd_path is None else Path(rrd_path),
+            spawn=spawn,
+            connect=connect,
+            topics=map_topics,
+            recording_id=recording_id or recording_id_for(input_path),
+            start_ns=start_ns,
+            failure_level=failure_level,
+        )
+    except (ValueError, OSError, RuntimeError) as err:
+        msg = f"{rrd_path or connect or 'Rerun viewer'}: cannot open the Rerun recording ({err})"
+        raise LogWriteError(msg) from err
 
 
 def _session_report(
@@ -448,7 +472,7 @@ class _Loop:
             self.detected.append(event)
             _LOG.info("%s", event.text)
             if self.rerun is not None:
-                self.rerun.event(snapshot, event.text, index)
+                self.rerun.event(snapshot, event.text, index, score)
         if broke:
             text = (
                 f"{topic}: W = {score:.3f} rose above the failure level {self.failure_level:g} "
@@ -456,7 +480,7 @@ class _Loop:
             )
             self.breaks.append(BreakEvent(topic, index, snapshot.log_time_ns, score, text))
             if self.rerun is not None:
-                self.rerun.event(snapshot, text, index)
+                self.rerun.event(snapshot, text, index, score)
         height, width = snapshot.shape
         record = SnapshotRecord(
             topic=topic,

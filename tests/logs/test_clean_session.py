@@ -59,15 +59,17 @@ def test_cli_clean_method_option(tmp_path: Path, fr079: list[npt.NDArray[np.int8
 
 
 def test_rescued_cells_have_their_own_rerun_class(fr079: list[npt.NDArray[np.int8]]) -> None:
-    from rose_logs.rerun_view import CLASS_CLUTTER, CLASS_RESCUED, segmentation_classes
+    from rose_logs.rerun.conversions import segmentation_image
+    from rose_logs.rerun.style import CLASS_CLUTTER, CLASS_RESCUED
 
     grid = fr079[-1]
     result = rose.analyze(grid)
     cleaning = rose.clean(grid, result, resolution_m=0.05)
     assert cleaning.rescued.any()
-    classes = segmentation_classes(grid, result, cleaning.rescued)
+    # The classes come in image row order (top row first): flip back to grid order.
+    classes = segmentation_image(grid, result, rescued=cleaning.rescued)[::-1]
     assert np.all(classes[cleaning.rescued] == CLASS_RESCUED)
     assert np.all(classes[result.clutter & ~cleaning.rescued] == CLASS_CLUTTER)
     np.testing.assert_array_equal(
-        segmentation_classes(grid, result)[~cleaning.rescued], classes[~cleaning.rescued]
+        segmentation_image(grid, result)[::-1][~cleaning.rescued], classes[~cleaning.rescued]
     )

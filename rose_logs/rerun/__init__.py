@@ -1,0 +1,39 @@
+"""Rerun recordings of ROSE sessions: entity paths, layout, loggers, the session sink, screenshots.
+
+- :mod:`~rose_logs.rerun.paths`: entity paths and timelines (the one definition).
+- :mod:`~rose_logs.rerun.style`: colours, class ids, display constants.
+- :mod:`~rose_logs.rerun.conversions`: numpy conversions to what the viewer draws (tested directly).
+- :mod:`~rose_logs.rerun.loggers`: one logger per stream; static data logged once.
+- :mod:`~rose_logs.rerun.blueprint`: the default layout.
+- :mod:`~rose_logs.rerun.sink`: :class:`RerunSink`, the session's recording (file and/or live viewer).
+- :mod:`~rose_logs.rerun.screenshots`: PNGs of a recording in Rerun's web viewer (headless Chromium).
+"""
+
+from __future__ import annotations
+
+from rose_logs.rerun.blueprint import TopicLayout, default_blueprint
+from rose_logs.rerun.loggers import TopicLogger, set_snapshot_time
+from rose_logs.rerun.paths import (
+    SEQUENCE_TIMELINE,
+    SESSION_TIMELINE,
+    TIMELINE,
+    EntityPaths,
+    entity_root_for_topic,
+)
+from rose_logs.rerun.sink import APPLICATION_ID, RerunSink, grpc_url, recording_id_for
+
+__all__ = [
+    "APPLICATION_ID",
+    "SEQUENCE_TIMELINE",
+    "SESSION_TIMELINE",
+    "TIMELINE",
+    "EntityPaths",
+    "RerunSink",
+    "TopicLayout",
+    "TopicLogger",
+    "default_blueprint",
+    "entity_root_for_topic",
+    "grpc_url",
+    "recording_id_for",
+    "set_snapshot_time",
+]

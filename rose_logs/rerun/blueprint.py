@@ -1,0 +1,188 @@
+"""The default layout: "when does my map break, and what does ROSE see there?"
+
+Left, large: the segmentation (structure blue, clutter orange) with the dominant directions; below it the
+map from above in metres on a 1 m grid, and the occupied cells' scores. Right: W over session time
+with the trust and failure levels and the breaks marked, the cumulative amplitude per direction with
+its peaks and prominence threshold, the spectrum with the kept strips, and the events (only when the
+session has any). Panels are collapsed so the views get the window.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import rerun as rr
+import rerun.blueprint as rrb
+
+from rose_logs.rerun import style
+from rose_logs.rerun.paths import SESSION_TIMELINE, EntityPaths
+
+__all__ = ["TopicLayout", "default_blueprint"]
+
+_FOV_Y_RAD = math.radians(55.0)  # the 3D view's default vertical field of view
+_ASSUMED_ASPECT = 1.3  # width / height of the metric view in the default layout
+_GRID_HEIGHT_M = 0.05  # the metric grid's plane, just above the map (z = 0 in the map frame)
+
+
+@dataclass(frozen=True)
+class TopicLayout:
+    """What the layout of one map topic depends on.
+
+    Attributes
+    ----------
+    root : str
+        Entity root of the topic.
+    bounds_m : tuple of float or None
+        ``(x_min, y_min, x_max, y_max)`` of the known part of the map in the map frame, metres (None
+        before any map): the metric view looks at it from above.
+    bounds_px : tuple of float or None
+        ``(u_min, v_min, u_max, v_max)`` of the known part in pixels of the north-up images: the
+        segmentation view shows this region.
+    has_events : bool
+        Whether the topic has break events (the events view is shown only then).
+    """
+
+    root: str
+    bounds_m: tuple[float, float, float, float] | None = None
+    bounds_px: tuple[float, float, float, float] | None = None
+    has_events: bool = False
+
+
+def _grid_spacing_m(bounds_m: tuple[float, float, float, float] | None) -> float:
+    """A round grid spacing giving at most about 15 lines across the map (1 m without a map)."""
+    if bounds_m is None:
+        return 1.0
+    span = max(bounds_m[2] - bounds_m[0], bounds_m[3] - bounds_m[1])
+    for spacing in (0.5, 1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0):
+        if span / spacing <= 15:
+            return spacing
+    return 200.0
+
+
+def _metric_eye(bounds_m: tuple[float, float, float, float] | None) -> rrb.EyeControls3D | None:
+    """A camera straight above the map centre, high enough for the map to fill the view."""
+    if bounds_m is None:
+        return None
+    x_min, y_min, x_max, y_max = bounds_m
+    cx, cy = (x_min + x_max) / 2, (y_min + y_max) / 2
+    half_x, half_y = max((x_max - x_min) / 2, 0.5), max((y_max - y_min) / 2, 0.5)
+    tan_half = math.tan(_FOV_Y_RAD / 2)
+    height = 1.05 * max(half_y / tan_half, half_x / (tan_half * _ASSUMED_ASPECT))
+    return rrb.EyeControls3D(
+        kind=rrb.Eye3DKind.Orbital,
+        position=[cx, cy, height],
+        look_target=[cx, cy, 0.0],
+        eye_up=[0.0, 1.0, 0.0],
+    )
+
+
+def _topic_container(layout: TopicLayout) -> rrb.Container:
+    paths = EntityPaths(layout.root)
+    root = paths.root
+    h = style.AMPLITUDE_PLOT_HEIGHT
+    visual_bounds = None
+    if layout.bounds_px is not None:
+        u0, v0, u1, v1 = layout.bounds_px
+        margin = 0.03 * max(u1 - u0, v1 - v0)
+        visual_bounds = rrb.VisualBounds2D(
+            x_range=(u0 - margin, u1 + margin), y_range=(v0 - margin, v1 + margin)
+        )
+    segmentation = rrb.Spatial2DView(
+        name=f"{root}: segmentation, structure (blue) / clutter (orange), cells",
+        origin=f"/{paths.cells}",
+        visual_bounds=visual_bounds,
+    )
+    spacing = _grid_spacing_m(layout.bounds_m)
+    metric = rrb.Spatial3DView(
+        name=f"{root}: map from above, metres (grid {spacing:g} m)",
+        origin=f"/{paths.metric}",
+        # Just above the map (an opaque grid map would hide a grid in its own plane).
+        line_grid=rrb.LineGrid3D(
+            visible=True,
+            spacing=spacing,
+            plane=rr.components.Plane3D((0.0, 0.0, 1.0), distance=_GRID_HEIGHT_M),
+            stroke_width=1.0,
+            color=(90, 90, 90, 110),
+        ),
+        eye_controls=_metric_eye(layout.bounds_m),
+    )
+    scores = rrb.Spatial2DView(
+        name=f"{root}: scores of occupied cells",
+        origin=f"/{paths.scores_view}",
+    )
+    w_plot = rrb.TimeSeriesView(
+        name=f"{root}: structure score W over session time",
+        origin=f"/{paths.score}",
+        plot_legend=rrb.PlotLegend(rrb.Corner2D.LeftTop),
+        # The whole session on any timeline (the default follows the time cursor).
+        axis_x=rrb.TimeAxis(
+            view_range=rrb.TimeRange(
+                start=rrb.TimeRangeBoundary.infinite(), end=rrb.TimeRangeBoundary.infinite()
+            )
+        ),
+    )
+    break_plot = rrb.TimeSeriesView(
+        name=f"{root}: break score (m of established wall erased) and threshold",
+        origin=f"/{paths.break_score_view}",
+        plot_legend=rrb.PlotLegend(rrb.Corner2D.LeftTop),
+        axis_x=rrb.TimeAxis(
+            view_range=rrb.TimeRange(
+                start=rrb.TimeRangeBoundary.infinite(), end=rrb.TimeRangeBoundary.infinite()
+            )
+        ),
+    )
+    amplitude = rrb.Spatial2DView(
+        name=f"{root}: cumulative amplitude s per wall direction, peaks, threshold",
+        origin=f"/{paths.amplitude_view}",
+        visual_bounds=rrb.VisualBounds2D(x_range=(-22.0, 198.0), y_range=(-1.28 * h, 36.0)),
+    )
+    spectrum = rrb.Spatial2DView(
+        name=f"{root}: log amplitude spectrum, kept strips (magenta)",
+        origin=f"/{paths.spectrum_view}",
+        background=[0, 0, 0],
+    )
+    right: list[rrb.View] = [w_plot, break_plot, amplitude, spectrum]
+    shares = [2.5, 1.8, 2.3, 3.0]
+    if layout.has_events:
+        right.append(rrb.TextLogView(name=f"{root}: events", origin=f"/{paths.events}"))
+        shares.append(1.2)
+    return rrb.Horizontal(
+        rrb.Vertical(
+            segmentation,
+            rrb.Horizontal(metric, scores),
+            row_shares=[3.0, 2.0],
+        ),
+        rrb.Vertical(*right, row_shares=shares),
+        column_shares=[3.0, 2.0],
+        name=root,
+    )
+
+
+def default_blueprint(layouts: tuple[TopicLayout, ...], *, live: bool = False) -> rrb.Blueprint:
+    """The layout for the map topics of ``layouts`` (tabs when there are several).
+
+    Parameters
+    ----------
+    layouts : tuple of TopicLayout
+        One per map topic, in tab order.
+    live : bool
+        Streaming to a viewer as the session is processed: the time cursor follows the newest data.
+        Otherwise (a saved recording) playback starts paused.
+    """
+    if not layouts:
+        msg = "default_blueprint needs at least one topic layout"
+        raise ValueError(msg)
+    containers = [_topic_container(layout) for layout in layouts]
+    body = containers[0] if len(containers) == 1 else rrb.Tabs(*containers)
+    return rrb.Blueprint(
+        body,
+        rrb.BlueprintPanel(state="collapsed"),
+        rrb.SelectionPanel(state="collapsed"),
+        rrb.TimePanel(
+            state="collapsed",
+            timeline=SESSION_TIMELINE,
+            play_state="following" if live else "paused",
+        ),
+        collapse_panels=False,
+    )

@@ -1,0 +1,445 @@
+"""Pure numpy conversions from a snapshot and its ROSE result to what the viewer draws.
+
+No Rerun here, so everything is tested directly. Conventions: ROS grids store row 0 at the map origin
+(the bottom row on screen) while image buffers store the top row first; every image made here is in
+image row order (north up) and every 2D position is in pixels of such an image, ``u`` right and
+``v`` down, a pixel ``(i, j)`` covering ``[j, j + 1] x [i, i + 1]``. Cells ``(x, y)`` of the grid
+frame (x along columns, y along rows) become pixels ``(x, rows - y)``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from rose.result import RoseResult
+from rose_logs.rerun.style import (
+    AMPLITUDE_PLOT_HEIGHT,
+    CLASS_CLUTTER,
+    CLASS_FREE,
+    CLASS_OCCUPIED,
+    CLASS_RESCUED,
+    DISPLAY_LEVELS,
+    SCORE_DISPLAY_MIN,
+    SPECTRUM_DISPLAY_PX,
+)
+
+# Viridis (matplotlib's, public domain) at 9 evenly spaced points: perceptually uniform, readable in grey.
+_VIRIDIS = np.array(
+    [
+        (68, 1, 84),
+        (71, 44, 122),
+        (59, 81, 139),
+        (44, 113, 142),
+        (33, 145, 140),
+        (39, 173, 129),
+        (92, 200, 99),
+        (170, 220, 50),
+        (253, 231, 37),
+    ],
+    dtype=np.float64,
+)
+
+__all__ = [
+    "AmplitudePlot",
+    "OccupiedCells",
+    "amplitude_plot",
+    "colour_levels",
+    "direction_label_positions",
+    "direction_segments_cells",
+    "display_spectrum",
+    "grid_to_image_rows",
+    "known_bounds_cells",
+    "masked_score_image",
+    "occupied_cells",
+    "quantise_unit",
+    "score_classes",
+    "score_levels",
+    "score_to_unit",
+    "segmentation_image",
+    "spectrum_strip_segments",
+]
+
+
+def grid_to_image_rows(grid: npt.NDArray[np.generic]) -> npt.NDArray[np.generic]:
+    """Contiguous copy of a ROS-convention grid in image row order (its last row first)."""
+    return np.ascontiguousarray(grid[::-1])
+
+
+@dataclass(frozen=True)
+class OccupiedCells:
+    """The occupied cells of a result, found once per snapshot and shared by the conversions.
+
+    Attributes
+    ----------
+    grid_index, image_index : ndarray of intp, shape (N,)
+        Flat indices in grid (ROS) row order and in image (north-up) row order.
+    bounds : tuple of int or None
+        ``(x_min, y_min, x_max, y_max)`` in cells (exclusive max) around the occupied cells, None
+        when there are none: the walls bound what was mapped.
+    """
+
+    grid_index: npt.NDArray[np.intp]
+    image_index: npt.NDArray[np.intp]
+    bounds: tuple[int, int, int, int] | None
+
+
+def occupied_cells(result: RoseResult) -> OccupiedCells:
+    """:class:`OccupiedCells` of ``result`` (one pass over the occupied mask)."""
+    rows, cols = result.occupied.shape
+    grid_index = np.flatnonzero(result.occupied)
+    row, col = np.divmod(grid_index, cols)
+    bounds = None
+    if grid_index.size:
+        bounds = (int(col.min()), int(row[0]), int(col.max()) + 1, int(row[-1]) + 1)
+    return OccupiedCells(grid_index, (rows - 1 - row) * cols + col, bounds)
+
+
+def segmentation_image(
+    grid: npt.NDArray[np.int8],
+    result: RoseResult,
+    occupied: OccupiedCells | None = None,
+    *,
+    rescued: npt.NDArray[np.bool_] | None = None,
+) -> npt.NDArray[np.uint8]:
+    """Class id of every cell, image row order (north up).
+
+    Parameters
+    ----------
+    grid : ndarray of int8, shape (rows, cols)
+        The analysed grid (ROS convention, -1 unknown).
+    result : RoseResult
+        ROSE's result for ``grid``.
+    occupied : OccupiedCells, optional
+        ``occupied_cells(result)``, when the caller has it already.
+    rescued : ndarray of bool, shape (rows, cols), optional
+        Grid order: clutter cells the cleaning kept as walls (:attr:`rose.clean.CleanResult.rescued`),
+        shown as ``CLASS_RESCUED``.
+
+    Returns
+    -------
+    ndarray of uint8, shape (rows, cols)
+        ``CLASS_FREE`` for known cells that are not occupied, ``CLASS_UNKNOWN``, and for occupied cells
+        ``CLASS_STRUCTURE`` / ``CLASS_CLUTTER`` (``CLASS_RESCUED``), or ``CLASS_OCCUPIED`` when ROSE
+        found no structure.
+    """
+    # Comparing the row-reversed view writes the image rows directly: free 1, unknown 1 + 1.
+    classes = (grid[::-1] < 0).view(np.uint8)
+    classes += np.uint8(CLASS_FREE)
+    cells = occupied or occupied_cells(result)
+    grid_index, image_index = cells.grid_index, cells.image_index
+    if result.has_structure:
+        # structure 4, clutter 5: the occupied cells are partitioned into the two.
+        values: npt.NDArray[np.uint8] | np.uint8 = np.uint8(
+            CLASS_CLUTTER
+        ) - result.structure.ravel()[grid_index].view(np.uint8)
+    else:
+        values = np.uint8(CLASS_OCCUPIED)
+    classes.ravel()[image_index] = values
+    if rescued is not None:
+        classes[rescued[::-1]] = np.uint8(CLASS_RESCUED)
+    return classes
+
+
+def score_to_unit(scores: npt.NDArray[np.floating]) -> npt.NDArray[np.float32]:
+    """Cell scores mapped to the colour map's ``[0, 1]``: ``SCORE_DISPLAY_MIN`` -> 0, 1 -> 1 (clipped)."""
+    unit = (np.asarray(scores, dtype=np.float32) - np.float32(SCORE_DISPLAY_MIN)) * np.float32(
+        1.0 / (1.0 - SCORE_DISPLAY_MIN)
+    )
+    return np.clip(np.nan_to_num(unit, nan=0.0), 0.0, 1.0)
+
+
+def quantise_unit(
+    unit: npt.NDArray[np.float32], *, levels: int = DISPLAY_LEVELS
+) -> npt.NDArray[np.uint8]:
+    """Values in ``[0, 1]`` as ``levels`` uint8 values evenly spaced over ``1..255``.
+
+    0 is never produced: depth images treat 0 as "no data", which is how masked cells are shown.
+    """
+    if not 2 <= levels <= 255:
+        msg = f"levels must be in 2..255, got {levels}"
+        raise ValueError(msg)
+    steps = np.rint(np.clip(unit, 0.0, 1.0) * np.float32(levels - 1))
+    return (np.rint(steps * np.float32(254.0 / (levels - 1))) + 1).astype(np.uint8)
+
+
+def colour_levels(levels: int = DISPLAY_LEVELS) -> npt.NDArray[np.uint8]:
+    """The score colour map (viridis) at ``levels`` evenly spaced values, RGBA, shape (levels, 4)."""
+    positions = np.linspace(0.0, 1.0, len(_VIRIDIS))
+    at = np.linspace(0.0, 1.0, levels)
+    rgb = np.stack([np.interp(at, positions, _VIRIDIS[:, c]) for c in range(3)], axis=-1)
+    return np.concatenate([np.rint(rgb), np.full((levels, 1), 255.0)], axis=-1).astype(np.uint8)
+
+
+def score_levels(
+    scores: npt.NDArray[np.floating], *, levels: int = DISPLAY_LEVELS
+) -> npt.NDArray[np.intp]:
+    """Index ``0 .. levels - 1`` of each score's colour (``SCORE_DISPLAY_MIN`` -> 0, 1 -> top)."""
+    return np.rint(score_to_unit(scores) * np.float32(levels - 1)).astype(np.intp)
+
+
+def masked_score_image(
+    result: RoseResult, occupied: OccupiedCells | None = None, *, levels: int = DISPLAY_LEVELS
+) -> npt.NDArray[np.uint8]:
+    """Occupied cells' score level as class ids ``1 .. levels``; every other cell 0 (transparent).
+
+    Returns
+    -------
+    ndarray of uint8, shape (rows, cols)
+        Image row order; ``1 + score_levels(score)`` on occupied cells (see :func:`score_classes`).
+    """
+    if not 2 <= levels <= 255:
+        msg = f"levels must be in 2..255, got {levels}"
+        raise ValueError(msg)
+    image = np.zeros(result.occupied.shape, dtype=np.uint8)
+    cells = occupied or occupied_cells(result)
+    grid_index, image_index = cells.grid_index, cells.image_index
+    image.ravel()[image_index] = (
+        score_levels(result.cell_scores.ravel()[grid_index], levels=levels) + 1
+    )
+    return image
+
+
+def score_classes(levels: int = DISPLAY_LEVELS) -> list[tuple[int, str, tuple[int, int, int, int]]]:
+    """``(class id, label, RGBA)`` of the score levels: id 0 transparent, ids ``1 .. levels`` viridis.
+
+    The label is the range of scores the level stands for, shown when hovering a cell.
+    """
+    colours = colour_levels(levels)
+    step = (1.0 - SCORE_DISPLAY_MIN) / (levels - 1)
+    classes = [(0, "not occupied", (0, 0, 0, 0))]
+    for level in range(levels):
+        centre = SCORE_DISPLAY_MIN + level * step
+        low, high = max(centre - step / 2, SCORE_DISPLAY_MIN), min(centre + step / 2, 1.0)
+        label = f"score {low:.2f} .. {high:.2f}"
+        if level == 0:
+            label = f"score <= {high:.2f}"
+        elif level == levels - 1:
+            label = f"score >= {low:.2f}"
+        r, g, b, a = (int(c) for c in colours[level])
+        classes.append((level + 1, label, (r, g, b, a)))
+    return classes
+
+
+def _pooled_rows(array: npt.NDArray[np.float32], factor: int) -> npt.NDArray[np.float32]:
+    """Maximum over blocks of ``factor`` consecutive rows (the last block may be shorter)."""
+    if factor == 1:
+        return array
+    n = array.shape[0]
+    full = n // factor * factor
+    pooled = array[:full].reshape(n // factor, factor, *array.shape[1:]).max(axis=1)
+    if full < n:
+        pooled = np.concatenate([pooled, array[full:].max(axis=0, keepdims=True)])
+    return pooled
+
+
+def display_spectrum(
+    spectrum_half: npt.NDArray[np.float32],
+    padded_shape: tuple[int, int],
+    *,
+    size: int = SPECTRUM_DISPLAY_PX,
+    levels: int = DISPLAY_LEVELS,
+) -> npt.NDArray[np.uint8]:
+    """Log-amplitude spectrum at display resolution, square, DC at the centre pixel.
+
+    Both frequency axes are resampled to ``size + 1`` pixels spanning ``[-1/2, 1/2]`` cycles per cell
+    (block maximum, so thin spectral lines survive), which keeps angles physical on non-square maps:
+    a spectral line of walls at angle ``theta`` is drawn at ``theta + pi/2``. The vertical frequency
+    grows upwards, like the north-up map images. Built from the half-plane (no full spectrum).
+
+    Parameters
+    ----------
+    spectrum_half : ndarray of float32, shape (rows_padded, cols_padded // 2 + 1)
+        :attr:`RoseResult.spectrum_half` (unshifted real-FFT amplitude).
+    padded_shape : tuple of int
+        ``(rows_padded, cols_padded)``.
+    size : int
+        Even display size; the image is ``size + 1`` pixels square.
+    levels : int
+        Grey levels, see :func:`quantise_unit`. The log amplitude is stretched from its median (the
+        noise floor, shown darkest) to its maximum.
+
+    Returns
+    -------
+    ndarray of uint8, shape (size + 1, size + 1)
+        Values in ``1..255`` (0 is never used).
+    """
+    if size < 2 or size % 2:
+        msg = f"size must be even and >= 2, got {size}"
+        raise ValueError(msg)
+    rows_p, cols_p = padded_shape
+    half, half_rows = size // 2, rows_p // 2
+    bins = np.arange(half + 1)
+    # Max-pool by the integer number of spectrum cells per display pixel (thin spectral lines
+    # survive), then take the pooled cell of each display pixel's frequency (nearest): display
+    # pixel b from the centre is b / size cycles per cell on either axis.
+    f_rows = max(1, rows_p // size)
+    # Rows: v = r / rows_p for r <= rows_p / 2 (v >= 0), else (r - rows_p) / rows_p (v < 0).
+    positive = _pooled_rows(spectrum_half[: half_rows + 1], f_rows)
+    m_pos = np.minimum(np.rint(bins * rows_p / size).astype(np.intp), half_rows)
+    negative = _pooled_rows(spectrum_half[half_rows:], f_rows)
+    m_neg = np.clip(np.rint(bins[1:] * rows_p / size).astype(np.intp), 1, rows_p - half_rows)
+    # Display row i holds v = (half - i) / size: +v up.
+    rows_binned = np.concatenate(
+        [positive[m_pos // f_rows][::-1], negative[(rows_p - m_neg - half_rows) // f_rows]]
+    )  # (size + 1, cols_p // 2 + 1)
+    # Columns, on the small transpose: u = k / cols_p -> display columns half .. size.
+    f_cols = max(1, cols_p // size)
+    columns = _pooled_rows(np.ascontiguousarray(rows_binned.T), f_cols)
+    k = np.minimum(np.rint(bins * cols_p / size).astype(np.intp), spectrum_half.shape[1] - 1)
+    right = columns[k // f_cols].T
+    image = np.empty((size + 1, size + 1), dtype=np.float32)
+    image[:, half:] = right
+    # Left half (u < 0) by point symmetry about the centre pixel.
+    image[:, :half] = image[::-1, :half:-1]
+    np.log1p(image, out=image)
+    floor = float(np.median(image[::3, ::3]))  # the noise floor; a subsample is plenty
+    top = float(image.max())
+    if not math.isfinite(top) or top <= floor:
+        return np.full(image.shape, 1, dtype=np.uint8)
+    image -= np.float32(floor)
+    image *= np.float32(1.0 / (top - floor))
+    return quantise_unit(image, levels=levels)
+
+
+def direction_segments_cells(
+    directions_rad: npt.NDArray[np.float64],
+    shape: tuple[int, int],
+    *,
+    bounds: tuple[float, float, float, float] | None = None,
+) -> npt.NDArray[np.float64]:
+    """Segments through the centre of a box along each direction, in continuous cell coordinates.
+
+    Parameters
+    ----------
+    directions_rad : ndarray of float64, shape (K,)
+        Line orientations in radians, counter-clockwise from the grid's +x (columns) axis.
+    shape : tuple of int
+        Grid ``(rows, cols)``; the box when ``bounds`` is None.
+    bounds : tuple of float, optional
+        ``(x_min, y_min, x_max, y_max)`` in cells, e.g. the known part of the map
+        (:class:`OccupiedCells`): the lines cross what was mapped, not the empty grid around it.
+
+    Returns
+    -------
+    ndarray of float64, shape (K, 2, 2)
+        ``[k, end, (x, y)]`` in cells of the grid frame; both ends on the box's border, the second
+        one in the direction ``(cos, sin)`` of the angle.
+    """
+    rows, cols = shape
+    x0, y0, x1, y1 = (0.0, 0.0, float(cols), float(rows)) if bounds is None else bounds
+    centre = np.array([(x0 + x1) / 2.0, (y0 + y1) / 2.0])
+    half_box = np.array([(x1 - x0) / 2.0, (y1 - y0) / 2.0])
+    theta = np.asarray(directions_rad, dtype=np.float64)
+    unit = np.stack([np.cos(theta), np.sin(theta)], axis=-1)  # (K, 2)
+    with np.errstate(divide="ignore"):
+        reach = half_box / np.abs(unit)  # inf along an axis the line is parallel to
+    half_length = reach.min(axis=1, keepdims=True)
+    return np.stack([centre - half_length * unit, centre + half_length * unit], axis=1)
+
+
+def direction_label_positions(
+    segments: npt.NDArray[np.float64], *, fraction: float = 0.8
+) -> npt.NDArray[np.float64]:
+    """Where to put each direction's label: ``fraction`` of the way from the centre to its second end.
+
+    Labels at the centre would all overlap (every line passes through it).
+
+    Returns
+    -------
+    ndarray of float64, shape (K, 2)
+    """
+    centre = segments.mean(axis=1)
+    return centre + fraction * (segments[:, 1] - centre)
+
+
+def known_bounds_cells(grid: npt.NDArray[np.int8]) -> tuple[int, int, int, int] | None:
+    """``(x_min, y_min, x_max, y_max)`` in cells (exclusive max) of the known cells; None if none.
+
+    Grid frame: x along columns, y along rows (row 0 at the origin).
+    """
+    known = grid >= 0
+    cols_any = np.flatnonzero(known.any(axis=0))
+    if cols_any.size == 0:
+        return None
+    rows_any = np.flatnonzero(known.any(axis=1))
+    return int(cols_any[0]), int(rows_any[0]), int(cols_any[-1]) + 1, int(rows_any[-1]) + 1
+
+
+def cells_to_pixels(points: npt.NDArray[np.float64], rows: int) -> npt.NDArray[np.float64]:
+    """Grid-frame cell coordinates ``(..., (x, y))`` -> image pixels ``(..., (u, v))``, ``v = rows - y``."""
+    return np.stack([points[..., 0], rows - points[..., 1]], axis=-1)
+
+
+def spectrum_strip_segments(
+    directions_rad: npt.NDArray[np.float64], *, size: int = SPECTRUM_DISPLAY_PX
+) -> npt.NDArray[np.float64]:
+    """The kept spectrum strips as segments through DC in :func:`display_spectrum` pixels.
+
+    Walls at ``theta`` give the spectral line at ``theta + pi/2``; on screen ``v`` points down.
+
+    Returns
+    -------
+    ndarray of float64, shape (K, 2, 2)
+        ``[k, end, (u, v)]``, ends on the image border, centred on the DC pixel's centre.
+    """
+    centre = size / 2 + 0.5
+    theta = np.asarray(directions_rad, dtype=np.float64) + math.pi / 2
+    unit = np.stack([np.cos(theta), -np.sin(theta)], axis=-1)
+    reach = (size / 2 + 0.5) / np.maximum(np.abs(unit).max(axis=1, keepdims=True), 1e-12)
+    return np.stack([centre - reach * unit, centre + reach * unit], axis=1)
+
+
+@dataclass(frozen=True)
+class AmplitudePlot:
+    """The scaled cumulative amplitude as plot geometry (x: degrees, y: ``-AMPLITUDE_PLOT_HEIGHT * s``).
+
+    Attributes
+    ----------
+    curve : ndarray of float64, shape (B + 1, 2)
+        ``s`` over the direction bins, closed at 180 degrees (= 0).
+    peaks : ndarray of float64, shape (K, 2)
+        Each dominant direction at its refined angle and its bin's ``s``.
+    prominence_bars : ndarray of float64, shape (K, 2, 2)
+        Vertical segments from each peak down by its prominence (to its base).
+    peak_labels : list of str
+    threshold : float
+        The prominence threshold ``t`` (a fraction of max - min, so a level of ``s``).
+    """
+
+    curve: npt.NDArray[np.float64]
+    peaks: npt.NDArray[np.float64]
+    prominence_bars: npt.NDArray[np.float64]
+    peak_labels: list[str]
+    threshold: float
+
+
+def amplitude_plot(result: RoseResult) -> AmplitudePlot:
+    """Plot geometry of the paper's scaled scores ``s = (A - min) / (max - min)`` per direction."""
+    amplitude = np.asarray(result.cumulative_amplitude, dtype=np.float64)
+    low, high = (float(amplitude.min()), float(amplitude.max())) if amplitude.size else (0.0, 0.0)
+    span = high - low
+    scaled = (amplitude - low) / span if span > 0 else np.zeros_like(amplitude)
+    degrees = np.degrees(np.asarray(result.direction_bins, dtype=np.float64))
+    height = AMPLITUDE_PLOT_HEIGHT
+    curve = np.stack([np.append(degrees, 180.0), -height * np.append(scaled, scaled[:1])], axis=-1)
+    peaks_idx = np.asarray(result.peak_indices, dtype=np.intp)
+    peak_s = scaled[peaks_idx]
+    peak_deg = np.degrees(np.asarray(result.dominant_directions, dtype=np.float64))
+    peaks = np.stack([peak_deg, -height * peak_s], axis=-1)
+    prominence = np.asarray(result.peak_prominences, dtype=np.float64)
+    bars = np.stack([peaks, np.stack([peak_deg, -height * (peak_s - prominence)], axis=-1)], axis=1)
+    labels = [
+        f"{deg:.1f}° (prominence {prom:.2f})"
+        for deg, prom in zip(peak_deg, prominence, strict=True)
+    ]
+    return AmplitudePlot(
+        curve=curve,
+        peaks=peaks,
+        prominence_bars=bars,
+        peak_labels=labels,
+        threshold=float(result.params.peak_prominence),
+    )

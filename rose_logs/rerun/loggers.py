@@ -1,0 +1,447 @@
+"""One ``log_<stream>()`` per stream of a map topic, and the static data, logged once.
+
+:class:`TopicLogger` holds what must not be re-sent (static data, the score legend of the current map
+shape) for one map topic; :mod:`rose_logs.rerun.sink` drives one per topic. Every image-like buffer is
+converted by :mod:`rose_logs.rerun.conversions` (north up, image row order).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import numpy.typing as npt
+import rerun as rr
+
+from rose.directions import FAILURE_LEVEL, TRUST_LEVEL
+from rose.result import RoseResult
+from rose.walls import WallSet
+from rose.walls.segments import cells_to_metres
+from rose_logs.rerun import conversions as conv
+from rose_logs.rerun import style
+from rose_logs.rerun.paths import SEQUENCE_TIMELINE, SESSION_TIMELINE, TIMELINE, EntityPaths
+from rose_logs.session.breaks import BreakScore
+from rose_logs.snapshots import MapSnapshot
+
+__all__ = ["TopicLogger", "set_snapshot_time"]
+
+_METRIC_LINE_HEIGHT_M = 0.02
+_AXIS_TICKS_DEG = (0.0, 45.0, 90.0, 135.0, 180.0)
+_AXIS_TICKS_S = (0.0, 0.5, 1.0)
+
+
+def _f32(points: npt.NDArray[np.float64]) -> npt.NDArray[np.float32]:
+    """Positions as float32, Rerun's position type (and what its type hints accept)."""
+    return np.asarray(points, dtype=np.float32)
+
+
+def set_snapshot_time(
+    recording: rr.RecordingStream, *, log_time_ns: int, start_ns: int, index: int | None
+) -> None:
+    """Put the recording's time at a snapshot: session time, ROS log time and snapshot index."""
+    recording.reset_time()
+    recording.set_time(SESSION_TIMELINE, duration=np.timedelta64(int(log_time_ns - start_ns), "ns"))
+    recording.set_time(TIMELINE, timestamp=np.datetime64(int(log_time_ns), "ns"))
+    if index is not None:
+        recording.set_time(SEQUENCE_TIMELINE, sequence=int(index))
+
+
+def cells_to_map_m(
+    snapshot: MapSnapshot, cells: npt.NDArray[np.float64]
+) -> npt.NDArray[np.float64]:
+    """Continuous grid-frame cells ``(..., 2)`` (0 = a cell's corner) -> map-frame metres ``(..., 3)``,
+    just above the grid (ROS maps are planar: the origin's yaw places them)."""
+    xy = cells_to_metres(
+        np.asarray(cells, dtype=np.float64) - 0.5,  # cells_to_metres counts from cell centres
+        resolution_m=float(snapshot.resolution_m),
+        origin_xy_m=(float(snapshot.origin_position_m[0]), float(snapshot.origin_position_m[1])),
+        origin_yaw_rad=snapshot.origin_yaw_rad,
+    )
+    height = float(snapshot.origin_position_m[2]) + _METRIC_LINE_HEIGHT_M
+    return np.concatenate([xy, np.full((*xy.shape[:-1], 1), height)], axis=-1)
+
+
+class TopicLogger:
+    """Loggers of one map topic's streams below ``paths``.
+
+    Parameters
+    ----------
+    recording : rerun.RecordingStream
+        Where to log.
+    paths : EntityPaths
+        Entity paths of the topic.
+    failure_level, trust_level : float
+        Guide lines of the W plot (the failure level is the session's ``--failure-level``).
+    """
+
+    def __init__(
+        self,
+        recording: rr.RecordingStream,
+        paths: EntityPaths,
+        *,
+        failure_level: float = FAILURE_LEVEL,
+        trust_level: float = TRUST_LEVEL,
+    ) -> None:
+        self.recording = recording
+        self.paths = paths
+        self.failure_level = float(failure_level)
+        self.trust_level = float(trust_level)
+        self._legend_shape: tuple[int, int] | None = None
+        self._threshold_logged = False
+
+    # ------------------------------------------------------------------------------------------
+    # Static data: sent once per recording (the web viewer drops a class table sent again)
+    # ------------------------------------------------------------------------------------------
+
+    def log_static(self) -> None:
+        """Segmentation classes, axes, series styles and the amplitude plot's axes, once."""
+        rec, paths = self.recording, self.paths
+        rec.log(
+            paths.cells,
+            rr.AnnotationContext(
+                [
+                    rr.AnnotationInfo(id=class_id, label=label, color=color)
+                    for class_id, label, color in style.CLASS_INFO
+                ]
+            ),
+            static=True,
+        )
+        rec.log(paths.metric, rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+        rec.log(
+            paths.scores_view,
+            rr.AnnotationContext(
+                [
+                    rr.AnnotationInfo(id=class_id, label=label, color=color)
+                    for class_id, label, color in conv.score_classes()
+                ]
+            ),
+            static=True,
+        )
+        rec.log(
+            paths.w,
+            rr.SeriesLines(
+                colors=[style.W_COLOR, style.TRUST_COLOR, style.FAILURE_COLOR],
+                names=[
+                    "W",
+                    f"trust level {self.trust_level:g}",
+                    f"failure level {self.failure_level:g}",
+                ],
+                widths=[2.5, 1.5, 1.5],
+            ),
+            static=True,
+        )
+        rec.log(
+            paths.breaks,
+            rr.SeriesPoints(
+                colors=style.FAILURE_COLOR,
+                names="break",
+                markers="Cross",
+                marker_sizes=10.0,
+            ),
+            static=True,
+        )
+        rec.log(
+            paths.break_score,
+            rr.SeriesLines(colors=style.BREAK_COLOR, names="break score (m)", widths=2.0),
+            static=True,
+        )
+        rec.log(
+            paths.break_threshold,
+            rr.SeriesLines(colors=style.FAILURE_COLOR, names="break threshold (m)", widths=1.5),
+            static=True,
+        )
+        self._log_amplitude_axes()
+
+    def _log_amplitude_axes(self) -> None:
+        rec, paths = self.recording, self.paths
+        h = style.AMPLITUDE_PLOT_HEIGHT
+        ticks = [[(x, 0.0), (x, 3.0)] for x in _AXIS_TICKS_DEG]
+        ticks += [[(0.0, -h * s), (-3.0, -h * s)] for s in _AXIS_TICKS_S]
+        ticks += [[(0.0, 0.0), (180.0, 0.0)], [(0.0, 0.0), (0.0, -h * 1.05)]]
+        rec.log(
+            paths.amplitude_axes,
+            rr.LineStrips2D(ticks, colors=style.AXIS_COLOR, radii=rr.Radius.ui_points(1.0)),
+            static=True,
+        )
+        positions = [(x, 9.0) for x in _AXIS_TICKS_DEG] + [(-9.0, -h * s) for s in _AXIS_TICKS_S]
+        labels = [f"{x:g}°" for x in _AXIS_TICKS_DEG] + [f"{s:g}" for s in _AXIS_TICKS_S]
+        positions += [(90.0, 22.0), (-9.0, -h * 1.18)]
+        labels += ["wall direction (deg)", "s"]
+        rec.log(
+            paths.amplitude_axis_labels,
+            rr.Points2D(positions, labels=labels, colors=style.AXIS_COLOR, radii=0.0),
+            static=True,
+        )
+
+    # ------------------------------------------------------------------------------------------
+    # Per snapshot
+    # ------------------------------------------------------------------------------------------
+
+    def log_snapshot(
+        self,
+        snapshot: MapSnapshot,
+        result: RoseResult,
+        walls: WallSet | None,
+        rescued: npt.NDArray[np.bool_] | None = None,
+    ) -> None:
+        """Every stream of one analysed snapshot, at the time set by :func:`set_snapshot_time`.
+
+        ``rescued`` (grid order): clutter cells the cleaning kept as walls, their own class.
+        """
+        if result.cell_scores.shape != snapshot.grid.shape:
+            msg = (
+                f"result shape {result.cell_scores.shape} does not match snapshot grid shape "
+                f"{snapshot.grid.shape} (topic {snapshot.topic}, log time {snapshot.log_time_ns} ns)"
+            )
+            raise ValueError(msg)
+        occupied = conv.occupied_cells(result)
+        self.log_grid_map(snapshot)
+        self.log_segmentation(snapshot, result, occupied, rescued=rescued)
+        self.log_directions(snapshot, result, occupied)
+        self.log_cell_scores(result, occupied)
+        self.log_spectrum(result)
+        self.log_amplitude(result)
+        self.log_structure_score(result)
+        if walls is not None:
+            self.log_walls(snapshot, walls)
+
+    def log_grid_map(self, snapshot: MapSnapshot) -> None:
+        """The occupancy grid as a GridMap in the map frame, metres, RViz map colours.
+
+        The int8 cells go as their uint8 bit pattern (-1 unknown -> 255), the convention of
+        :attr:`rerun.components.Colormap.RvizMap`; the image's lower-left corner is the grid origin.
+        """
+        rows, cols = snapshot.grid.shape
+        self.recording.log(
+            self.paths.grid,
+            rr.GridMap(
+                data=snapshot.grid.view(np.uint8)[::-1].tobytes(),
+                format=rr.components.ImageFormat(
+                    width=cols, height=rows, color_model="L", channel_datatype="U8"
+                ),
+                cell_size=float(snapshot.resolution_m),
+                translation=[float(v) for v in snapshot.origin_position_m],
+                quaternion=rr.Quaternion(xyzw=[float(v) for v in snapshot.origin_orientation_xyzw]),
+                colormap=rr.components.Colormap.RvizMap,
+            ),
+        )
+
+    def log_segmentation(
+        self,
+        snapshot: MapSnapshot,
+        result: RoseResult,
+        occupied: conv.OccupiedCells | None = None,
+        *,
+        rescued: npt.NDArray[np.bool_] | None = None,
+    ) -> None:
+        """Free / unknown / occupied / structure / clutter (/ kept by the cleaning) as a
+        segmentation image (the class table is static)."""
+        image = conv.segmentation_image(snapshot.grid, result, occupied, rescued=rescued)
+        self.recording.log(self.paths.segmentation, rr.SegmentationImage(image))
+
+    def log_directions(
+        self,
+        snapshot: MapSnapshot,
+        result: RoseResult,
+        occupied: conv.OccupiedCells | None = None,
+    ) -> None:
+        """Dominant directions across the mapped area (the occupied cells' box), over the
+        segmentation and in metres.
+
+        Each direction is labelled once, near its line's end (all lines cross at the centre).
+        """
+        rec, paths = self.recording, self.paths
+        directions = np.asarray(result.dominant_directions, dtype=np.float64)
+        if directions.size == 0:
+            rec.log(paths.cell_directions, rr.Clear(recursive=False))
+            rec.log(paths.metric_directions, rr.Clear(recursive=False))
+            return
+        rows, cols = snapshot.grid.shape
+        bounds = (occupied or conv.occupied_cells(result)).bounds
+        segments = conv.direction_segments_cells(directions, (rows, cols), bounds=bounds)
+        anchors = conv.direction_label_positions(segments)
+        labels = [f"walls {math.degrees(angle):.1f}°" for angle in directions]
+        radius = rr.Radius.ui_points(1.5)
+        rec.log(
+            paths.cell_directions,
+            rr.LineStrips2D(
+                _f32(conv.cells_to_pixels(segments, rows)),
+                colors=style.DIRECTION_COLOR,
+                radii=radius,
+            ),
+            rr.Points2D(
+                conv.cells_to_pixels(anchors, rows),
+                labels=labels,
+                colors=style.DIRECTION_COLOR,
+                radii=rr.Radius.ui_points(3.0),
+                show_labels=True,
+            ),
+        )
+        rec.log(
+            paths.metric_directions,
+            rr.LineStrips3D(
+                _f32(cells_to_map_m(snapshot, segments)), colors=style.DIRECTION_COLOR, radii=radius
+            ),
+            rr.Points3D(
+                cells_to_map_m(snapshot, anchors),
+                labels=labels,
+                colors=style.DIRECTION_COLOR,
+                radii=rr.Radius.ui_points(3.0),
+                show_labels=True,
+            ),
+        )
+
+    def log_walls(self, snapshot: MapSnapshot, walls: WallSet) -> None:
+        """Wall segments over the segmentation (pixels) and in the map frame (metres).
+
+        ``walls`` must come from this snapshot's grid placed with its resolution and origin. No walls:
+        both entities are cleared.
+        """
+        rec, paths = self.recording, self.paths
+        if len(walls) == 0:
+            rec.log(paths.metric_walls, rr.Clear(recursive=False))
+            rec.log(paths.cell_walls, rr.Clear(recursive=False))
+            return
+        ends_m = walls.endpoints_m
+        height_m = float(snapshot.origin_position_m[2]) + 2 * _METRIC_LINE_HEIGHT_M
+        metric = np.concatenate([ends_m, np.full((*ends_m.shape[:2], 1), height_m)], axis=-1)
+        radius = rr.Radius.ui_points(1.0)
+        rec.log(paths.metric_walls, rr.LineStrips3D(metric, colors=style.WALL_COLOR, radii=radius))
+        centres = walls.endpoints_px + 0.5  # cell centres
+        pixels = conv.cells_to_pixels(centres, snapshot.grid.shape[0])
+        rec.log(
+            paths.cell_walls, rr.LineStrips2D(_f32(pixels), colors=style.WALL_COLOR, radii=radius)
+        )
+
+    def log_cell_scores(
+        self, result: RoseResult, occupied: conv.OccupiedCells | None = None
+    ) -> None:
+        """Occupied cells' scores, colour-mapped (other cells transparent), with a colour bar below
+        (re-sent only when the map's shape changes) labelled with the scale and the threshold."""
+        rec, paths = self.recording, self.paths
+        rows, cols = result.occupied.shape
+        levels = style.DISPLAY_LEVELS
+        left, width = 0.2 * cols, 0.6 * cols
+        top, height = rows + 0.04 * rows, max(0.035 * rows, 2.0)
+        if self._legend_shape != (rows, cols):
+            bar = np.repeat(np.arange(1, levels + 1, dtype=np.uint8)[np.newaxis], 2, axis=0)
+            rec.log(
+                paths.score_legend,
+                rr.SegmentationImage(bar, opacity=1.0),
+                rr.Transform3D(
+                    translation=[left, top, 0.0], scale=[width / levels, height / 2, 1.0]
+                ),
+            )
+            self._legend_shape = (rows, cols)
+
+        def u_of(score: float) -> float:
+            return left + width * float(conv.score_to_unit(np.array([score]))[0])
+
+        below = top + height + 0.05 * rows
+        positions = [(u_of(style.SCORE_DISPLAY_MIN), below), (u_of(1.0), below)]
+        labels = [f"score {style.SCORE_DISPLAY_MIN:g}", "1 (best cell)"]
+        if math.isfinite(result.threshold):
+            positions.append((u_of(result.threshold), top - 0.07 * rows))
+            labels.append(f"threshold {result.threshold:.2f}")
+        rec.log(
+            paths.cell_scores,
+            rr.SegmentationImage(conv.masked_score_image(result, occupied), opacity=1.0),
+            rr.Points2D(
+                positions, labels=labels, colors=style.AXIS_COLOR, radii=0.0, show_labels=True
+            ),
+        )
+
+    def log_spectrum(self, result: RoseResult) -> None:
+        """The log amplitude spectrum (display resolution) with the kept strip of every direction."""
+        size = style.SPECTRUM_DISPLAY_PX
+        image = conv.display_spectrum(result.spectrum_half, result.padded_shape, size=size)
+        directions = np.asarray(result.dominant_directions, dtype=np.float64)
+        half_width = result.params.mask_half_width_px * size / max(result.padded_shape)
+        self.recording.log(
+            self.paths.spectrum,
+            rr.DepthImage(
+                image, meter=1.0, colormap=style.SPECTRUM_COLORMAP_NAME, depth_range=(1.0, 255.0)
+            ),
+            # The strips' width is the kept half-width at display scale (at least a line).
+            rr.LineStrips2D(
+                _f32(conv.spectrum_strip_segments(directions, size=size)),
+                colors=(*style.DIRECTION_COLOR, 150),
+                radii=max(half_width, 0.75),
+            ),
+        )
+
+    def log_amplitude(self, result: RoseResult) -> None:
+        """The scaled cumulative amplitude ``s`` per direction, its peaks and prominences.
+
+        One entity: the curve and a vertical bar per peak (its prominence, down from the peak) as
+        line strips, the labelled peaks as points. The prominence threshold is a parameter of the
+        session: drawn once, as static data.
+        """
+        rec, paths = self.recording, self.paths
+        plot = conv.amplitude_plot(result)
+        if not self._threshold_logged:
+            level = -style.AMPLITUDE_PLOT_HEIGHT * plot.threshold
+            rec.log(
+                paths.amplitude_threshold,
+                rr.LineStrips2D(
+                    [[(0.0, level), (180.0, level)]],
+                    colors=style.THRESHOLD_COLOR,
+                    radii=rr.Radius.ui_points(1.0),
+                    labels=[f"prominence threshold t = {plot.threshold:g}"],
+                    show_labels=True,
+                ),
+                static=True,
+            )
+            self._threshold_logged = True
+        peaks = len(plot.peak_labels)
+        rec.log(
+            paths.amplitude_curve,
+            rr.LineStrips2D(
+                [plot.curve, *plot.prominence_bars],
+                colors=[style.CURVE_COLOR] + [style.PEAK_COLOR] * peaks,
+                radii=rr.Radius.ui_points([1.5] + [1.0] * peaks),
+            ),
+            rr.Points2D(
+                plot.peaks,
+                labels=plot.peak_labels,
+                colors=style.PEAK_COLOR,
+                radii=rr.Radius.ui_points(4.0),
+                show_labels=True,
+            ),
+        )
+
+    def log_structure_score(self, result: RoseResult) -> None:
+        """W and the trust / failure guide lines (three series of one entity, one log call)."""
+        self.recording.log(
+            self.paths.w,
+            rr.Scalars([float(result.structure_score), self.trust_level, self.failure_level]),
+        )
+
+    def log_break_score(
+        self, snapshot: MapSnapshot, verdict: BreakScore, threshold_m: float
+    ) -> None:
+        """The break detector's score and threshold, and its region while the snapshot is broken
+        (a rectangle in the map frame, metres, just above the grid map; cleared otherwise)."""
+        rec, paths = self.recording, self.paths
+        rec.log(paths.break_score, rr.Scalars(float(verdict.score_m)))
+        rec.log(paths.break_threshold, rr.Scalars(float(threshold_m)))
+        if not verdict.broken or verdict.region_m is None:
+            rec.log(paths.break_region, rr.Clear(recursive=False))
+            return
+        x0, y0, x1, y1 = verdict.region_m
+        z = float(snapshot.origin_position_m[2]) + style.BREAK_REGION_HEIGHT_M
+        corners = [[x0, y0, z], [x1, y0, z], [x1, y1, z], [x0, y1, z], [x0, y0, z]]
+        rec.log(
+            paths.break_region,
+            rr.LineStrips3D(
+                [corners],
+                colors=style.BREAK_COLOR,
+                radii=rr.Radius.ui_points(2.5),
+                labels=[f"break: {verdict.score_m:.1f} m of wall erased"],
+            ),
+        )
+
+    def log_break(self, score: float, text: str) -> None:
+        """A break: a marker on the W plot and a WARN event (time set by the caller)."""
+        self.recording.log(self.paths.breaks, rr.Scalars(float(score)))
+        self.recording.log(self.paths.events, rr.TextLog(text, level=rr.TextLogLevel.WARN))

@@ -1,0 +1,337 @@
+"""The Rerun side of a session: open the recording, log snapshots in a background thread, close.
+
+:class:`RerunSink` is what :func:`rose_logs.process_log` talks to. Logging runs on its own thread
+(bounded queue, so memory stays flat) while the session loop decodes and analyses the next snapshot;
+Rerun encodes, compresses and writes on its own threads too. Static data is logged once when the
+recording opens; the layout (:mod:`rose_logs.rerun.blueprint`) is sent when it is known: at the end of
+a saved recording (so it can frame the final map and show the events view only when there are events),
+and to a live viewer as soon as the first map arrives and again when the first break does.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import logging
+import queue
+import threading
+import uuid
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+import rerun as rr
+
+from rose.directions import FAILURE_LEVEL, TRUST_LEVEL
+from rose.result import RoseResult
+from rose.walls import WallSet
+from rose_logs.rerun.blueprint import TopicLayout, default_blueprint
+from rose_logs.rerun.loggers import TopicLogger, set_snapshot_time
+from rose_logs.rerun.paths import EntityPaths, entity_root_for_topic
+from rose_logs.session.breaks import BreakScore
+from rose_logs.snapshots import MapSnapshot
+
+__all__ = ["APPLICATION_ID", "RerunSink", "grpc_url", "recording_id_for"]
+
+_LOG = logging.getLogger(__name__)
+
+APPLICATION_ID = "rose_bag"
+_QUEUE_DEPTH = 2
+_IDENTITY_BYTES = 1 << 20
+
+
+def recording_id_for(input_path: Path) -> str:
+    """A recording id that names this input: its absolute path and its content's identity.
+
+    The identity is the size and a SHA-256 of the first and last MiB of every file (a ROS 2 bag folder:
+    of each file in it, by relative name), so the same log gives the same id wherever it is read from
+    the same place, and a different log at the same path (re-recorded, edited) a different one.
+    """
+    path = Path(input_path).resolve()
+    digest = hashlib.sha256(str(path).encode())
+    files = sorted(p for p in path.rglob("*") if p.is_file()) if path.is_dir() else [path]
+    for file in files:
+        size = file.stat().st_size
+        digest.update(f"\0{file.relative_to(path) if path.is_dir() else ''}\0{size}\0".encode())
+        with file.open("rb") as handle:
+            digest.update(handle.read(_IDENTITY_BYTES))
+            if size > _IDENTITY_BYTES:
+                handle.seek(max(size - _IDENTITY_BYTES, _IDENTITY_BYTES))
+                digest.update(handle.read(_IDENTITY_BYTES))
+    return str(uuid.UUID(bytes=digest.digest()[:16], version=5))
+
+
+def grpc_url(address: str) -> str:
+    """A viewer address as Rerun's gRPC proxy URL.
+
+    ``9876`` -> ``rerun+http://127.0.0.1:9876/proxy``; ``host:port`` -> ``rerun+http://host:port/proxy``;
+    a full ``rerun+http(s)://...`` URL is kept.
+    """
+    text = address.strip()
+    if text.startswith(("rerun://", "rerun+http://", "rerun+https://")):
+        return text
+    if text.isdigit():
+        return f"rerun+http://127.0.0.1:{text}/proxy"
+    if not text or "/" in text:
+        msg = f"viewer address must be PORT, HOST:PORT or a rerun+http:// URL, got {address!r}"
+        raise ValueError(msg)
+    return f"rerun+http://{text}/proxy"
+
+
+def _layout_of(root: str, snapshot: MapSnapshot | None, *, has_events: bool) -> TopicLayout:
+    """Layout of a topic framed on the known part of its latest map."""
+    from rose_logs.rerun.conversions import known_bounds_cells
+    from rose_logs.rerun.loggers import cells_to_map_m
+
+    known = None if snapshot is None else known_bounds_cells(snapshot.grid)
+    if snapshot is None or known is None:
+        return TopicLayout(root, has_events=has_events)
+    x0, y0, x1, y1 = known
+    rows = snapshot.grid.shape[0]
+    corners = cells_to_map_m(snapshot, np.array([[x0, y0], [x1, y0], [x0, y1], [x1, y1]], float))
+    bounds_m = (
+        float(corners[:, 0].min()),
+        float(corners[:, 1].min()),
+        float(corners[:, 0].max()),
+        float(corners[:, 1].max()),
+    )
+    return TopicLayout(
+        root,
+        bounds_m=bounds_m,
+        bounds_px=(float(x0), float(rows - y1), float(x1), float(rows - y0)),
+        has_events=has_events,
+    )
+
+
+class RerunSink:
+    """A Rerun recording of one session: a saved ``.rrd`` and/or a live viewer.
+
+    Parameters
+    ----------
+    rrd_path : Path or None
+        Save here (written to a temporary name beside it, renamed by :meth:`close`).
+    spawn : bool
+        Start a Rerun viewer (``rerun`` on ``PATH``) and stream to it.
+    connect : str or None
+        Stream to a running viewer at this address (see :func:`grpc_url`).
+    topics : sequence of str
+        Map topics of the session (one entity root each).
+    recording_id : str
+        Rerun recording id (see :func:`recording_id_for`).
+    start_ns : int
+        Log time of the session's first message: 0 of the ``session_time`` timeline.
+    failure_level, trust_level : float
+        Levels drawn on the W plot.
+    threaded : bool
+        Log on a background thread (default); False logs in the caller's thread.
+
+    Raises
+    ------
+    ValueError
+        If no destination is given or ``rrd_path``'s directory does not exist.
+    """
+
+    def __init__(
+        self,
+        *,
+        rrd_path: Path | None,
+        spawn: bool = False,
+        connect: str | None = None,
+        topics: Sequence[str],
+        recording_id: str,
+        start_ns: int,
+        failure_level: float = FAILURE_LEVEL,
+        trust_level: float = TRUST_LEVEL,
+        threaded: bool = True,
+    ) -> None:
+        if rrd_path is None and not spawn and connect is None:
+            msg = "a Rerun recording needs rrd_path, spawn or connect, got none"
+            raise ValueError(msg)
+        if rrd_path is not None and not Path(rrd_path).parent.is_dir():
+            msg = f"cannot write Rerun recording {rrd_path}: directory {Path(rrd_path).parent} does not exist"
+            raise ValueError(msg)
+        self.rrd_path: Path | None = None
+        self.tmp: Path | None = None
+        if rrd_path is not None:
+            self.rrd_path = Path(rrd_path)
+            self.tmp = self.rrd_path.with_name(f".{self.rrd_path.name}.rose-tmp")
+        self.live = spawn or connect is not None
+        self.start_ns = int(start_ns)
+        self.recording = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id)
+        self.recording.set_log_time_enabled(False)
+        sinks: list[rr.FileSink | rr.GrpcSink] = []
+        if self.tmp is not None:
+            sinks.append(rr.FileSink(str(self.tmp)))
+        if spawn:
+            self.recording.spawn(connect=False)
+            sinks.append(rr.GrpcSink())
+        if connect is not None:
+            sinks.append(rr.GrpcSink(grpc_url(connect)))
+        self.recording.set_sinks(*sinks)
+        self.loggers = {
+            topic: TopicLogger(
+                self.recording,
+                EntityPaths(entity_root_for_topic(topic)),
+                failure_level=failure_level,
+                trust_level=trust_level,
+            )
+            for topic in topics
+        }
+        self._latest: dict[str, MapSnapshot] = {}
+        self._closing = False
+        self._has_events: dict[str, bool] = dict.fromkeys(topics, False)
+        self._sent_key: tuple[tuple[str, bool, bool], ...] | None = None
+        for logger in self.loggers.values():
+            logger.log_static()
+        if self.live:
+            self._send_blueprint()
+        self._error: BaseException | None = None
+        self._queue: queue.Queue[Callable[[], None] | None] | None = None
+        self._thread: threading.Thread | None = None
+        if threaded:
+            self._queue = queue.Queue(maxsize=_QUEUE_DEPTH)
+            self._thread = threading.Thread(
+                target=self._work, args=(self._queue,), name="rose-rerun", daemon=True
+            )
+            self._thread.start()
+        _LOG.debug(
+            "opened Rerun recording (rrd=%s, spawn=%s, connect=%s)", rrd_path, spawn, connect
+        )
+
+    # -- worker ------------------------------------------------------------------------------
+
+    def _work(self, jobs: queue.Queue[Callable[[], None] | None]) -> None:
+        while True:
+            job = jobs.get()
+            try:
+                if job is None:
+                    return
+                if self._error is None:
+                    job()
+            except BaseException as err:  # handed to the session thread by _check
+                self._error = err
+            finally:
+                jobs.task_done()
+
+    def _submit(self, job: Callable[[], None]) -> None:
+        self._check()
+        if self._queue is None:
+            job()
+        else:
+            self._queue.put(job)
+
+    def _check(self) -> None:
+        if self._error is not None:
+            err, self._error = self._error, None
+            msg = f"Rerun logging failed: {err}"
+            raise RuntimeError(msg) from err
+
+    # -- session interface ---------------------------------------------------------------------
+
+    def snapshot(
+        self,
+        snapshot: MapSnapshot,
+        result: RoseResult,
+        index: int,
+        walls: WallSet | None,
+        rescued: npt.NDArray[np.bool_] | None = None,
+    ) -> None:
+        """Log every stream of an analysed snapshot (at its log time); ``rescued``: clutter cells
+        the cleaning kept as walls (grid order)."""
+        topic_logger = self.loggers[snapshot.topic]
+        first = snapshot.topic not in self._latest
+        self._latest[snapshot.topic] = snapshot
+
+        def job() -> None:
+            set_snapshot_time(
+                self.recording,
+                log_time_ns=snapshot.log_time_ns,
+                start_ns=self.start_ns,
+                index=index,
+            )
+            topic_logger.log_snapshot(snapshot, result, walls, rescued)
+
+        self._submit(job)
+        if self.live and first:
+            self._send_blueprint()
+
+    def break_score(
+        self, snapshot: MapSnapshot, verdict: BreakScore, index: int, threshold_m: float
+    ) -> None:
+        """Log the break detector's verdict on ``snapshot`` (score, threshold, region)."""
+        topic_logger = self.loggers[snapshot.topic]
+
+        def job() -> None:
+            set_snapshot_time(
+                self.recording,
+                log_time_ns=snapshot.log_time_ns,
+                start_ns=self.start_ns,
+                index=index,
+            )
+            topic_logger.log_break_score(snapshot, verdict, threshold_m)
+
+        self._submit(job)
+
+    def event(self, snapshot: MapSnapshot, text: str, index: int, score: float) -> None:
+        """Log a break of ``snapshot``'s topic: a marker on the W plot and a WARN event."""
+        topic_logger = self.loggers[snapshot.topic]
+        first = not self._has_events[snapshot.topic]
+        self._has_events[snapshot.topic] = True
+
+        def job() -> None:
+            set_snapshot_time(
+                self.recording,
+                log_time_ns=snapshot.log_time_ns,
+                start_ns=self.start_ns,
+                index=index,
+            )
+            topic_logger.log_break(score, text)
+
+        self._submit(job)
+        if self.live and first:
+            self._send_blueprint()
+
+    def _send_blueprint(self) -> None:
+        """Send the layout for what is known now (skipped when nothing it depends on changed)."""
+        key = tuple(
+            (topic, topic in self._latest, self._has_events[topic]) for topic in self.loggers
+        )
+        if key == self._sent_key and not self._closing:
+            return
+        layouts = tuple(
+            _layout_of(
+                logger.paths.root, self._latest.get(topic), has_events=self._has_events[topic]
+            )
+            for topic, logger in self.loggers.items()
+        )
+        self.recording.send_blueprint(
+            default_blueprint(layouts, live=self.live), make_active=True, make_default=True
+        )
+        self._sent_key = key
+
+    def _drain(self) -> None:
+        if self._queue is not None and self._thread is not None:
+            self._queue.put(None)
+            self._thread.join()
+            self._queue = None
+
+    def close(self) -> None:
+        """Finish logging, send the final layout, flush, and move the ``.rrd`` into place."""
+        self._drain()
+        self._check()
+        self._closing = True  # the final layout frames the final map
+        self._send_blueprint()
+        self.recording.flush()
+        self.recording.disconnect()
+        if self.tmp is not None and self.rrd_path is not None:
+            self.tmp.replace(self.rrd_path)
+
+    def abort(self) -> None:
+        """Stop logging and remove the temporary ``.rrd``; never raises for logging errors."""
+        try:
+            self._error = None
+            self._drain()
+            self.recording.disconnect()
+        finally:
+            if self.tmp is not None:
+                self.tmp.unlink(missing_ok=True)

@@ -1,0 +1,75 @@
+"""Colours, class ids and display constants of the recording (one place for how things look).
+
+Colours are chosen to be told apart on the viewer's light and dark themes and by colour-blind users:
+structure blue against clutter orange (the blue/orange pair survives the common deficiencies), the
+dominant directions magenta and the walls dark green, neither used for a cell class.
+"""
+
+from __future__ import annotations
+
+from typing import Final
+
+__all__ = [
+    "AMPLITUDE_PLOT_HEIGHT",
+    "BREAK_COLOR",
+    "BREAK_REGION_HEIGHT_M",
+    "CLASS_CLUTTER",
+    "CLASS_FREE",
+    "CLASS_INFO",
+    "CLASS_OCCUPIED",
+    "CLASS_RESCUED",
+    "CLASS_STRUCTURE",
+    "CLASS_UNKNOWN",
+    "DIRECTION_COLOR",
+    "DISPLAY_LEVELS",
+    "FAILURE_COLOR",
+    "PEAK_COLOR",
+    "SCORE_DISPLAY_MIN",
+    "SPECTRUM_DISPLAY_PX",
+    "TRUST_COLOR",
+    "WALL_COLOR",
+    "W_COLOR",
+]
+
+CLASS_FREE: Final = 1
+CLASS_UNKNOWN: Final = 2
+CLASS_OCCUPIED: Final = 3
+CLASS_STRUCTURE: Final = 4
+CLASS_CLUTTER: Final = 5
+CLASS_RESCUED: Final = 6
+
+CLASS_INFO: Final = (
+    (CLASS_FREE, "free", (250, 250, 250)),
+    (CLASS_UNKNOWN, "unknown", (176, 176, 184)),
+    (CLASS_OCCUPIED, "occupied (no structure found)", (40, 40, 40)),
+    (CLASS_STRUCTURE, "structure", (20, 90, 220)),
+    (CLASS_CLUTTER, "clutter", (245, 130, 0)),
+    (CLASS_RESCUED, "clutter kept as wall by the cleaning", (0, 170, 170)),
+)
+"""``(class id, label, RGB)`` of the segmentation classes, logged once as an AnnotationContext."""
+
+DIRECTION_COLOR: Final = (200, 0, 160)
+WALL_COLOR: Final = (0, 130, 60)
+PEAK_COLOR: Final = (220, 40, 40)
+W_COLOR: Final = (20, 90, 220)
+BREAK_COLOR: Final = (230, 30, 30)
+"""The break detector: its score series, its region on the map."""
+BREAK_REGION_HEIGHT_M: Final = 0.03
+"""The break region is drawn this far above the grid map, metres."""
+TRUST_COLOR: Final = (40, 160, 60)
+FAILURE_COLOR: Final = (220, 40, 40)
+AXIS_COLOR: Final = (110, 110, 110)
+CURVE_COLOR: Final = (20, 90, 220)
+THRESHOLD_COLOR: Final = (245, 130, 0)
+
+SPECTRUM_COLORMAP_NAME: Final = "Inferno"
+"""Rerun colour map of the log amplitude spectrum."""
+
+DISPLAY_LEVELS: Final = 32
+"""Levels of the score and spectrum images: enough for a colour map, and few levels compress well."""
+SCORE_DISPLAY_MIN: Final = -0.5
+"""Cell score at the bottom of the score colour map (the best occupied cell scores 1)."""
+SPECTRUM_DISPLAY_PX: Final = 256
+"""The spectrum image is ``SPECTRUM_DISPLAY_PX + 1`` pixels square, DC at the centre pixel."""
+AMPLITUDE_PLOT_HEIGHT: Final = 90.0
+"""Height, in plot units, of s = 1 in the cumulative amplitude plot (its width is 180 degrees)."""

@@ -1,0 +1,209 @@
+"""Tests of rose_logs.rerun.conversions: what the viewer draws, computed from synthetic maps."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import numpy.typing as npt
+import pytest
+from numpy.testing import assert_allclose, assert_array_equal
+
+import rose
+from rose_logs.rerun import conversions as conv
+from rose_logs.rerun import style
+
+
+def _plan(shape: tuple[int, int] = (80, 120), *, angle_deg: float = 0.0) -> npt.NDArray[np.int8]:
+    """A floor plan: free inside, unknown outside, walls of rooms, a few clutter blobs."""
+    rows, cols = shape
+    grid = np.full(shape, -1, dtype=np.int8)
+    grid[5 : rows - 5, 5 : cols - 5] = 0
+    grid[5, 5 : cols - 5] = grid[rows - 6, 5 : cols - 5] = 100
+    grid[5 : rows - 5, 5] = grid[5 : rows - 5, cols - 6] = 100
+    for c in range(25, cols - 10, 20):
+        grid[5 : rows - 5, c] = 100
+    grid[30:33, 40:43] = 100
+    grid[50:52, 70:72] = 100
+    if angle_deg:
+        from scipy.ndimage import rotate
+
+        grid = rotate(grid, angle_deg, order=0, reshape=False, cval=-1).astype(np.int8)
+    return grid
+
+
+@pytest.fixture(scope="module")
+def plan() -> tuple[npt.NDArray[np.int8], rose.RoseResult]:
+    grid = _plan()
+    return grid, rose.analyze(grid)
+
+
+def test_segmentation_image_is_north_up_and_partitions_cells(plan) -> None:
+    grid, result = plan
+    image = conv.segmentation_image(grid, result)
+    assert image.shape == grid.shape and image.dtype == np.uint8
+    flipped = image[::-1]  # back to grid rows
+    assert_array_equal(flipped[grid < 0], style.CLASS_UNKNOWN)
+    assert_array_equal(flipped[(grid >= 0) & ~result.occupied], style.CLASS_FREE)
+    assert_array_equal(flipped[result.structure], style.CLASS_STRUCTURE)
+    assert_array_equal(flipped[result.clutter], style.CLASS_CLUTTER)
+    assert result.structure.any() and result.clutter.any()
+
+
+def test_segmentation_without_structure_marks_occupied() -> None:
+    rng = np.random.default_rng(1)
+    grid = np.where(rng.random((40, 40)) < 0.5, 100, 0).astype(np.int8)
+    result = rose.analyze(np.zeros((40, 40), dtype=np.int8))  # no occupied cell: no structure
+    assert not result.has_structure
+    assert_array_equal(
+        conv.segmentation_image(np.zeros((40, 40), np.int8), result), style.CLASS_FREE
+    )
+    grid[:] = 100
+    grid[0, 0] = 0
+    result = rose.analyze(grid)
+    if not result.has_structure:
+        image = conv.segmentation_image(grid, result)
+        assert_array_equal(image[::-1][result.occupied], style.CLASS_OCCUPIED)
+
+
+def test_masked_scores_are_transparent_off_the_occupied_cells(plan) -> None:
+    grid, result = plan
+    image = conv.masked_score_image(result)
+    assert image.shape == grid.shape and image.dtype == np.uint8
+    flipped = image[::-1]
+    assert_array_equal(flipped > 0, result.occupied)
+    assert_array_equal(
+        flipped[result.occupied], conv.score_levels(result.cell_scores[result.occupied]) + 1
+    )
+    best = np.unravel_index(
+        np.argmax(np.where(result.occupied, result.cell_scores, -np.inf)), grid.shape
+    )
+    assert flipped[best] == style.DISPLAY_LEVELS
+    classes = conv.score_classes()
+    assert [c[0] for c in classes] == list(range(style.DISPLAY_LEVELS + 1))
+    assert classes[0][2][3] == 0  # not occupied: transparent
+    assert all(c[2][3] == 255 for c in classes[1:])
+
+
+def test_score_levels_clip_and_order() -> None:
+    scores = np.array([np.nan, -3.0, style.SCORE_DISPLAY_MIN, 0.25, 1.0, 7.0], dtype=np.float32)
+    levels = conv.score_levels(scores, levels=32)
+    assert levels.tolist()[:3] == [0, 0, 0]
+    assert levels[-2] == levels[-1] == 31
+    assert 0 < levels[3] < 31
+
+
+def test_quantise_unit_never_uses_zero() -> None:
+    values = conv.quantise_unit(np.linspace(0, 1, 1000, dtype=np.float32), levels=32)
+    assert values.min() == 1 and values.max() == 255
+    assert np.unique(values).size == 32
+    with pytest.raises(ValueError, match="levels"):
+        conv.quantise_unit(np.zeros(3, np.float32), levels=1)
+
+
+@pytest.mark.parametrize("shape", [(64, 64), (60, 100), (101, 47)])
+def test_display_spectrum_is_centred_and_point_symmetric(shape: tuple[int, int]) -> None:
+    grid = _plan((max(shape[0], 30), max(shape[1], 30)))[: shape[0], : shape[1]]
+    result = rose.analyze(grid)
+    image = conv.display_spectrum(result.spectrum_half, result.padded_shape, size=64)
+    assert image.shape == (65, 65) and image.dtype == np.uint8
+    assert image.min() >= 1
+    assert image[32, 32] == 255  # DC is the largest amplitude
+    assert_array_equal(image, image[::-1, ::-1])
+
+
+@pytest.mark.parametrize("shape", [(128, 128), (96, 200)])
+def test_display_spectrum_angles_are_physical(shape: tuple[int, int]) -> None:
+    """Stripes at 30 degrees (walls along 30 deg) give a spectral line at 120 degrees on screen."""
+    rows, cols = shape
+    y, x = np.mgrid[0:rows, 0:cols]
+    theta = math.radians(30.0)
+    distance = -x * math.sin(theta) + y * math.cos(theta)  # distance across lines at 30 deg
+    grid = np.where(np.mod(distance, 8.0) < 1.5, 100, 0).astype(np.int8)
+    result = rose.analyze(grid)
+    size = 128
+    image = conv.display_spectrum(result.spectrum_half, result.padded_shape, size=size).astype(
+        float
+    )
+    image[size // 2 - 3 : size // 2 + 4, size // 2 - 3 : size // 2 + 4] = 0  # ignore DC
+    v, u = np.unravel_index(np.argmax(image), image.shape)
+    # Screen: u right, v down; the frequency vector is perpendicular to the stripes, +v up.
+    angle = math.degrees(math.atan2(size / 2 - v, u - size / 2)) % 180
+    assert abs(angle - 120.0) < 4.0
+
+
+def test_direction_labels_do_not_meet_at_the_centre() -> None:
+    segments = conv.direction_segments_cells(np.radians([0.0, 90.0, 45.0]), (100, 200))
+    anchors = conv.direction_label_positions(segments)
+    centre = np.array([100.0, 50.0])
+    assert_allclose(segments.mean(axis=1), np.tile(centre, (3, 1)))
+    distances = np.linalg.norm(anchors[:, None] - anchors[None], axis=-1)
+    assert distances[np.triu_indices(3, 1)].min() > 20.0
+    assert np.all(np.linalg.norm(anchors - centre, axis=1) > 30.0)
+
+
+def test_cells_to_pixels_flips_rows() -> None:
+    pixels = conv.cells_to_pixels(np.array([[3.0, 0.0], [3.0, 10.0]]), 10)
+    assert_allclose(pixels, [[3.0, 10.0], [3.0, 0.0]])
+
+
+def test_spectrum_strips_are_perpendicular_to_walls() -> None:
+    strips = conv.spectrum_strip_segments(np.radians([0.0, 90.0]), size=64)
+    centre = 32.5
+    assert_allclose(strips.mean(axis=1), centre)
+    # Walls along x (0 deg): vertical spectral line; walls along y: horizontal.
+    assert_allclose(strips[0, :, 0], centre, atol=1e-9)
+    assert_allclose(strips[1, :, 1], centre, atol=1e-9)
+
+
+def test_amplitude_plot_scales_to_unit_and_marks_peaks(plan) -> None:
+    _, result = plan
+    plot = conv.amplitude_plot(result)
+    height = style.AMPLITUDE_PLOT_HEIGHT
+    s = -plot.curve[:, 1] / height
+    assert s.min() == pytest.approx(0.0) and s.max() == pytest.approx(1.0)
+    assert plot.curve[0, 0] == 0.0 and plot.curve[-1, 0] == 180.0
+    assert len(plot.peak_labels) == len(result.dominant_directions) == plot.peaks.shape[0]
+    assert_allclose(plot.peaks[:, 0], np.degrees(result.dominant_directions))
+    # A prominence bar runs from its peak down by the prominence.
+    assert_allclose(
+        plot.prominence_bars[:, 1, 1] - plot.prominence_bars[:, 0, 1],
+        height * result.peak_prominences,
+    )
+    assert plot.threshold == result.params.peak_prominence
+
+
+def test_known_bounds_cells() -> None:
+    grid = np.full((20, 30), -1, dtype=np.int8)
+    assert conv.known_bounds_cells(grid) is None
+    grid[4:9, 10:25] = 0
+    assert conv.known_bounds_cells(grid) == (10, 4, 25, 9)
+
+
+def test_occupied_cells_indices_and_bounds(plan) -> None:
+    _, result = plan
+    cells = conv.occupied_cells(result)
+    assert_array_equal(cells.grid_index, np.flatnonzero(result.occupied))
+    assert_array_equal(np.sort(cells.image_index), np.flatnonzero(result.occupied[::-1]))
+    ys, xs = np.nonzero(result.occupied)
+    assert cells.bounds == (xs.min(), ys.min(), xs.max() + 1, ys.max() + 1)
+    empty = conv.occupied_cells(rose.analyze(np.zeros((5, 5), dtype=np.int8)))
+    assert empty.bounds is None and empty.grid_index.size == 0
+
+
+def test_direction_segments_span_the_given_box() -> None:
+    segments = conv.direction_segments_cells(
+        np.radians([0.0, 90.0]), (100, 200), bounds=(20, 10, 60, 30)
+    )
+    assert_allclose(segments[0], [[20.0, 20.0], [60.0, 20.0]], atol=1e-9)
+    assert_allclose(segments[1], [[40.0, 10.0], [40.0, 30.0]], atol=1e-9)
+
+
+def test_rescued_cells_get_their_own_class(plan) -> None:
+    grid, result = plan
+    rescued = np.zeros(grid.shape, dtype=bool)
+    clutter_cells = np.argwhere(result.clutter)[:3]
+    rescued[tuple(clutter_cells.T)] = True
+    image = conv.segmentation_image(grid, result, rescued=rescued)[::-1]
+    assert_array_equal(image[rescued], style.CLASS_RESCUED)
+    assert_array_equal(image[result.clutter & ~rescued], style.CLASS_CLUTTER)

@@ -1,0 +1,296 @@
+"""Tests of rose_logs.rerun (sink, loggers, blueprint) on the bundled sample session, read back from
+the .rrd with Rerun's own reader."""
+
+from __future__ import annotations
+
+import shutil
+from collections import Counter, defaultdict
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rose.directions import FAILURE_LEVEL, TRUST_LEVEL
+from rose_logs.rerun import (
+    SESSION_TIMELINE,
+    TIMELINE,
+    EntityPaths,
+    RerunSink,
+    entity_root_for_topic,
+    grpc_url,
+    recording_id_for,
+)
+from rose_logs.session import process_log
+
+rerun_chunk = pytest.importorskip("rerun.chunk")
+
+SAMPLE = Path(__file__).resolve().parents[2] / "sample_data" / "fr079_session.mcap"
+PATHS = EntityPaths("map")
+
+
+@dataclass
+class _Content:
+    static_rows: Counter[str]
+    temporal_rows: dict[str, list[dict[str, object]]]
+    views: list[tuple[str, str]]  # (class identifier, display name), last blueprint sent
+    blueprint_views: list[list[tuple[str, str]]]  # every blueprint sent, in order
+    recording_ids: list[str]
+
+    def rows(self, entity: str) -> list[dict[str, object]]:
+        return sorted(self.temporal_rows[f"/{entity}"], key=lambda r: r[SESSION_TIMELINE])
+
+
+def _read(path: Path) -> _Content:
+    reader = rerun_chunk.RrdReader(path)
+    static_rows: Counter[str] = Counter()
+    temporal: dict[str, list[dict[str, object]]] = defaultdict(list)
+    for chunk in reader.stream().to_chunks():
+        batch = chunk.to_record_batch()
+        if chunk.is_static:
+            static_rows[chunk.entity_path] += batch.num_rows
+            continue
+        columns = {
+            name: (
+                batch.column(name).cast("int64")
+                if name in (SESSION_TIMELINE, TIMELINE)
+                else batch.column(name)
+            ).to_pylist()
+            for name in batch.schema.names
+            if name != "log_time"
+        }
+        for i in range(batch.num_rows):
+            temporal[chunk.entity_path].append({k: v[i] for k, v in columns.items()})
+    sends: dict[int, list[tuple[str, str]]] = defaultdict(list)
+    for store in reader.blueprints():
+        for chunk in reader.stream(store=store).to_chunks():
+            parts = chunk.entity_path.split("/")
+            if len(parts) != 3 or parts[1] != "view":
+                continue
+            batch = chunk.to_record_batch()
+            if "ViewBlueprint:class_identifier" not in batch.schema.names:
+                continue
+            for index, kind, name in zip(
+                batch.column("blueprint").to_pylist(),
+                batch.column("ViewBlueprint:class_identifier").to_pylist(),
+                batch.column("ViewBlueprint:display_name").to_pylist(),
+                strict=True,
+            ):
+                sends[index].append((kind[0], name[0]))
+    blueprint_views = [sends[k] for k in sorted(sends)]
+    return _Content(
+        static_rows=static_rows,
+        temporal_rows=dict(temporal),
+        views=blueprint_views[-1] if blueprint_views else [],
+        blueprint_views=blueprint_views,
+        recording_ids=[entry.recording_id for entry in reader.recordings()],
+    )
+
+
+@pytest.fixture(scope="module")
+def clean_session(tmp_path_factory: pytest.TempPathFactory):
+    rrd = tmp_path_factory.mktemp("clean") / "clean.rrd"
+    report = process_log(SAMPLE, rrd_path=rrd)
+    return report, _read(rrd)
+
+
+@pytest.fixture(scope="module")
+def breaking_session(tmp_path_factory: pytest.TempPathFactory):
+    """The sample with a failure level below its W: every rise above it is a break."""
+    rrd = tmp_path_factory.mktemp("breaking") / "breaking.rrd"
+    report = process_log(SAMPLE, rrd_path=rrd, failure_level=0.1)
+    assert report.breaks, "the sample's W rises above 0.1"
+    return report, _read(rrd)
+
+
+def test_static_data_is_logged_exactly_once(clean_session) -> None:
+    _, content = clean_session
+    for entity in (PATHS.cells, PATHS.metric, PATHS.w, PATHS.breaks, PATHS.scores_view):
+        assert content.static_rows[f"/{entity}"] == 1, entity
+    assert content.static_rows[f"/{PATHS.amplitude_threshold}"] == 1
+    # No static data is logged again under a snapshot (the web viewer drops re-logged class tables).
+    assert f"/{PATHS.cells}" not in content.temporal_rows
+
+
+def test_every_stream_once_per_snapshot_on_session_time(clean_session) -> None:
+    report, content = clean_session
+    expected = [r.log_time_ns - report.start_ns for r in report.records]
+    for entity in (
+        PATHS.grid,
+        PATHS.segmentation,
+        PATHS.cell_directions,
+        PATHS.metric_directions,
+        PATHS.cell_scores,
+        PATHS.spectrum,
+        PATHS.amplitude_curve,
+        PATHS.w,
+    ):
+        rows = content.rows(entity)
+        assert [int(r[SESSION_TIMELINE]) for r in rows] == expected, entity
+        assert [int(r[TIMELINE]) for r in rows] == [r.log_time_ns for r in report.records]
+    assert expected[0] > 0  # the first map arrives after the session's first message
+
+
+def test_w_series_carry_w_and_the_session_levels(breaking_session) -> None:
+    report, content = breaking_session
+    rows = content.rows(PATHS.w)
+    values = [r["Scalars:scalars"] for r in rows]
+    assert [v[0] for v in values] == pytest.approx([r.structure_score for r in report.records])
+    # The failure line follows --failure-level, not the paper's default.
+    assert all(v[1:] == pytest.approx([TRUST_LEVEL, 0.1]) for v in values)
+    assert FAILURE_LEVEL != 0.1
+
+
+def test_breaks_are_marked_on_the_w_plot_and_as_events(breaking_session) -> None:
+    report, content = breaking_session
+    marks = content.rows(PATHS.breaks)
+    events = content.rows(PATHS.events)
+    break_times = [b.log_time_ns - report.start_ns for b in report.breaks]
+    assert [int(r[SESSION_TIMELINE]) for r in marks] == break_times
+    assert [int(r[SESSION_TIMELINE]) for r in events] == break_times
+    assert [r["Scalars:scalars"][0] for r in marks] == pytest.approx(
+        [b.structure_score for b in report.breaks]
+    )
+
+
+def test_events_view_only_when_there_are_events(clean_session, breaking_session) -> None:
+    _, clean = clean_session
+    _, breaking = breaking_session
+    assert "TextLog" not in {kind for kind, _ in clean.views}
+    assert "TextLog" in {kind for kind, _ in breaking.views}
+    for content in (clean, breaking):
+        kinds = Counter(kind for kind, _ in content.views)
+        assert kinds["2D"] == 4 and kinds["3D"] == 1 and kinds["TimeSeries"] == 2  # W, break score
+        assert len(content.blueprint_views) == 1  # a saved recording gets its final layout once
+
+
+def test_recording_id_names_the_full_path_and_content(tmp_path: Path) -> None:
+    first, second = tmp_path / "a" / "run.mcap", tmp_path / "b" / "run.mcap"
+    for path in (first, second):
+        path.parent.mkdir()
+        shutil.copyfile(SAMPLE, path)
+    assert recording_id_for(first) == recording_id_for(first)
+    assert recording_id_for(first) != recording_id_for(second)  # same name, other place
+    assert recording_id_for(tmp_path / "b" / ".." / "a" / "run.mcap") == recording_id_for(first)
+    before = recording_id_for(first)
+    with first.open("r+b") as handle:  # same place, other content
+        handle.seek(100)
+        handle.write(bytes([handle.read(1)[0] ^ 0xFF]))
+    assert recording_id_for(first) != before
+
+
+def test_recording_id_of_the_session_comes_from_the_input(clean_session) -> None:
+    _, content = clean_session
+    assert content.recording_ids == [recording_id_for(SAMPLE)]
+
+
+def test_grpc_url() -> None:
+    assert grpc_url("9876") == "rerun+http://127.0.0.1:9876/proxy"
+    assert grpc_url("10.0.0.2:9000") == "rerun+http://10.0.0.2:9000/proxy"
+    assert grpc_url("rerun+http://host:1/proxy") == "rerun+http://host:1/proxy"
+    with pytest.raises(ValueError, match="viewer address"):
+        grpc_url("http://x/y")
+
+
+def test_entity_roots() -> None:
+    assert entity_root_for_topic("/robot/Map") == "robot/map"
+    assert entity_root_for_topic("/") == "map"
+    with pytest.raises(ValueError, match="entity_root"):
+        EntityPaths("//")
+
+
+def test_sink_needs_a_destination_and_removes_its_file_on_abort(tmp_path: Path) -> None:
+    with pytest.raises(ValueError, match="needs rrd_path"):
+        RerunSink(rrd_path=None, topics=("/map",), recording_id="x", start_ns=0)
+    with pytest.raises(ValueError, match="does not exist"):
+        RerunSink(
+            rrd_path=tmp_path / "no" / "x.rrd", topics=("/map",), recording_id="x", start_ns=0
+        )
+    target = tmp_path / "x.rrd"
+    sink = RerunSink(rrd_path=target, topics=("/map",), recording_id="x", start_ns=0)
+    sink.abort()
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_logging_errors_reach_the_session(tmp_path: Path) -> None:
+    import rose
+    from rose_logs.snapshots import MapSnapshot
+
+    sink = RerunSink(rrd_path=tmp_path / "x.rrd", topics=("/map",), recording_id="x", start_ns=0)
+    grid = np.zeros((20, 20), dtype=np.int8)
+    snapshot = MapSnapshot("/map", 1, 1, "map", grid, 0.05)
+    wrong = rose.analyze(np.zeros((10, 10), dtype=np.int8))
+    sink.snapshot(snapshot, wrong, 0, None)
+    with pytest.raises(RuntimeError, match="Rerun logging failed"):
+        sink.close()
+    sink.abort()
+    assert not (tmp_path / "x.rrd").exists()
+
+
+def test_grid_map_is_sent_top_row_first_and_placed(tmp_path: Path) -> None:
+    """GridMap takes an image buffer (top row first) placed by its lower-left corner: the ROS grid's
+    rows are reversed once, and the origin pose is the translation."""
+    import rerun as rr
+
+    from rose_logs.rerun import TopicLogger, set_snapshot_time
+    from rose_logs.snapshots import MapSnapshot
+
+    grid = np.arange(12, dtype=np.int8).reshape(3, 4)
+    snapshot = MapSnapshot("/map", 5, 5, "map", grid, 0.5, (1.0, 2.0, 0.0))
+    path = tmp_path / "grid.rrd"
+    recording = rr.RecordingStream("t")
+    recording.save(path)
+    set_snapshot_time(recording, log_time_ns=5, start_ns=0, index=0)
+    TopicLogger(recording, PATHS).log_grid_map(snapshot)
+    recording.flush()
+    recording.disconnect()
+    (row,) = _read(path).rows(PATHS.grid)
+    assert bytes(row["GridMap:data"][0]) == grid[::-1].tobytes()
+    assert row["GridMap:translation"][0] == pytest.approx([1.0, 2.0, 0.0])
+    assert row["GridMap:cell_size"][0] == pytest.approx(0.5)
+
+
+def test_walls_are_logged_in_pixels_and_metres(tmp_path: Path) -> None:
+    import rerun as rr
+
+    import rose
+    from rose_logs.rerun import TopicLogger, set_snapshot_time
+    from rose_logs.snapshots import MapSnapshot
+
+    grid = np.zeros((60, 80), dtype=np.int8)
+    grid[10, 5:75] = grid[50, 5:75] = 100
+    grid[10:51, 5] = grid[10:51, 74] = 100
+    snapshot = MapSnapshot("/map", 5, 5, "map", grid, 0.1, (-3.0, -2.0, 0.0))
+    occupancy = rose.OccupancyMap(grid=grid, resolution_m=0.1, origin_xy_m=(-3.0, -2.0))
+    result = rose.analyze(grid)
+    walls = rose.extract_walls(occupancy, result)
+    assert len(walls) >= 4
+    path = tmp_path / "walls.rrd"
+    recording = rr.RecordingStream("t")
+    recording.save(path)
+    set_snapshot_time(recording, log_time_ns=5, start_ns=0, index=0)
+    TopicLogger(recording, PATHS).log_snapshot(snapshot, result, walls)
+    recording.flush()
+    recording.disconnect()
+    content = _read(path)
+    (metric,) = content.rows(PATHS.metric_walls)
+    (pixels,) = content.rows(PATHS.cell_walls)
+    metric_strips = np.array(metric["LineStrips3D:strips"], dtype=float)
+    pixel_strips = np.array(pixels["LineStrips2D:strips"], dtype=float)
+    assert metric_strips.shape == (len(walls), 2, 3) and pixel_strips.shape == (len(walls), 2, 2)
+    assert_xy = metric_strips[..., :2]
+    np.testing.assert_allclose(assert_xy, walls.endpoints_m, atol=1e-4)
+    # Pixels: north up, v = rows - (row + 0.5).
+    np.testing.assert_allclose(pixel_strips[..., 0], walls.endpoints_px[..., 0] + 0.5, atol=1e-4)
+    np.testing.assert_allclose(
+        pixel_strips[..., 1], 60 - walls.endpoints_px[..., 1] - 0.5, atol=1e-4
+    )
+
+
+def test_blueprint_has_a_tab_per_map_topic() -> None:
+    from rose_logs.rerun import TopicLayout, default_blueprint
+
+    blueprint = default_blueprint((TopicLayout("map"), TopicLayout("robot2/map", has_events=True)))
+    assert blueprint is not None
+    with pytest.raises(ValueError, match="at least one"):
+        default_blueprint(())
