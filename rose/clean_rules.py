@@ -8,7 +8,7 @@ and labelling (imported lazily, like the wall extraction).
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 import numpy.typing as npt
@@ -478,8 +478,10 @@ def topology_guard(
     blocked &= np.bincount(pairs // arcs_count, minlength=count) >= 2
     if not blocked.any():
         return restore
+    # spread holds integer labels by now (uint16, or int64 after the float32 dilation).
+    labels = cast("npt.NDArray[np.integer[Any]]", spread)
     separating = _separating_patches(
-        before, stats, blocked, rim & before, spread, window_px, min_region_px
+        before, stats, blocked, rim & before, labels, window_px, min_region_px
     )
     if not separating.any():
         return restore
