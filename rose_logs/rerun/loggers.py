@@ -142,7 +142,7 @@ class TopicLogger:
         )
         rec.log(
             paths.break_score,
-            rr.SeriesLines(colors=style.BREAK_COLOR, names="break score (m)", widths=2.0),
+            rr.SeriesLines(colors=style.BREAK_SCORE_COLOR, names="break score (m)", widths=2.5),
             static=True,
         )
         rec.log(

@@ -13,6 +13,7 @@ __all__ = [
     "AMPLITUDE_PLOT_HEIGHT",
     "BREAK_COLOR",
     "BREAK_REGION_HEIGHT_M",
+    "BREAK_SCORE_COLOR",
     "CLASS_CLUTTER",
     "CLASS_FREE",
     "CLASS_INFO",
@@ -53,7 +54,9 @@ WALL_COLOR: Final = (0, 130, 60)
 PEAK_COLOR: Final = (220, 40, 40)
 W_COLOR: Final = (20, 90, 220)
 BREAK_COLOR: Final = (230, 30, 30)
-"""The break detector: its score series, its region on the map."""
+"""The break detector's region on the map (red, like the levels a map must stay under)."""
+BREAK_SCORE_COLOR: Final = (235, 120, 0)
+"""The break score series (its threshold is drawn in FAILURE_COLOR)."""
 BREAK_REGION_HEIGHT_M: Final = 0.03
 """The break region is drawn this far above the grid map, metres."""
 TRUST_COLOR: Final = (40, 160, 60)
