@@ -23,11 +23,14 @@ from rose.cli.options import (
     result_summary,
 )
 from rose.errors import RoseError
+from rose.limits import short
+from rose.outputs import Terminated, install_signal_handlers
 
 __all__ = [
     "add_param_arguments",
     "build_parser",
     "directions_deg",
+    "error_text",
     "fraction",
     "main",
     "non_negative_float",
@@ -50,17 +53,35 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the ``rose`` command; return the exit code."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    logging.basicConfig(level=logging.WARNING, format="%(levelname)s: %(message)s")
+    """Run the ``rose`` command; return the exit code.
+
+    0 success, 1 error (one line ``error: <file>: <problem>`` on stderr, no output written), 2 usage
+    error, 130 / 143 / 129 interrupted by SIGINT / SIGTERM / SIGHUP (temporary files removed).
+    """
+    install_signal_handlers()
     try:
-        return int(args.func(args))
-    except RoseError as err:
-        if args.debug:
-            raise
-        print(f"error: {err}", file=sys.stderr)
-        return 1
-    except KeyboardInterrupt:
-        print("error: interrupted", file=sys.stderr)
-        return 130
+        parser = build_parser()
+        args = parser.parse_args(argv)
+        logging.basicConfig(level=logging.WARNING, format="%(levelname)s: %(message)s")
+        try:
+            return int(args.func(args))
+        except (RoseError, OSError, MemoryError, RecursionError) as err:
+            if args.debug:
+                raise
+            print(f"error: {error_text(err)}", file=sys.stderr)
+            return 1
+    except KeyboardInterrupt as err:
+        print("error: interrupted, nothing written", file=sys.stderr)
+        return err.exit_code if isinstance(err, Terminated) else 130
+
+
+def error_text(err: BaseException) -> str:
+    """One short line for an error: our messages as they are, OS errors with their file name."""
+    if isinstance(err, OSError) and not isinstance(err, RoseError):
+        where = f"{err.filename}: " if err.filename else ""
+        return short(f"{where}{err.strerror or err}")
+    if isinstance(err, MemoryError):
+        return "out of memory (lower --max-cells?)"
+    if isinstance(err, RecursionError):
+        return "input nested too deeply"
+    return short(err)
