@@ -8,20 +8,12 @@ options in :mod:`rose.cli.options`; errors are one line on stderr with exit code
 from __future__ import annotations
 
 import argparse
+import importlib
 import logging
 import sys
 from collections.abc import Sequence
+from typing import Any
 
-from rose.cli import clean, score, walls
-from rose.cli.options import (
-    add_param_arguments,
-    directions_deg,
-    fraction,
-    non_negative_float,
-    params_from_args,
-    positive_float,
-    result_summary,
-)
 from rose.errors import RoseError
 from rose.limits import short
 from rose.outputs import Terminated, install_signal_handlers
@@ -47,9 +39,30 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--debug", action="store_true", help="show tracebacks")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    # Imported here, inside main's handlers: numpy / scipy take seconds to load on a busy machine.
+    from rose.cli import clean, score, walls
+
     for command in (clean, score, walls):
         command.add_parser(commands)
     return parser
+
+
+_OPTIONS = {
+    "add_param_arguments",
+    "directions_deg",
+    "fraction",
+    "non_negative_float",
+    "params_from_args",
+    "positive_float",
+    "result_summary",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _OPTIONS:
+        return getattr(importlib.import_module("rose.cli.options"), name)
+    msg = f"module 'rose.cli' has no attribute {name!r}"
+    raise AttributeError(msg)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

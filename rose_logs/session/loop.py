@@ -13,8 +13,10 @@ it (or on the first snapshot of a topic); each one is a :class:`BreakEvent`.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
+import struct
 import time
 import uuid
 from collections.abc import Callable, Sequence
@@ -24,6 +26,8 @@ import numpy as np
 
 import rose
 from rose.directions import FAILURE_LEVEL
+from rose.limits import DEFAULT_MAX_CELLS, check_cells, short
+from rose.outputs import OutputSet
 from rose.params import RoseParams
 from rose.result import RoseResult
 from rose_logs.derived import derived_topics, encode_cleaned, encode_score, encode_walls
@@ -34,7 +38,13 @@ from rose_logs.session.analysis import SnapshotAnalyser
 from rose_logs.session.report import BreakEvent, SessionReport, SnapshotRecord
 from rose_logs.session.rerun_sink import RerunSink, entity_root
 from rose_logs.session.topics import select_topics, update_targets
-from rose_logs.snapshots import MapSnapshot, apply_update, decode_map, decode_update
+from rose_logs.snapshots import (
+    MapSnapshot,
+    apply_update,
+    check_log_time,
+    decode_map,
+    decode_update,
+)
 from rose_logs.storage.connections import offered_qos
 from rose_logs.storage.records import Channel
 from rose_logs.storage.typesys import FLOAT32_TYPE, MAP_TYPE, MARKER_ARRAY_TYPE
@@ -61,6 +71,9 @@ def process_log(
     progress: bool = False,
     on_snapshot: Callable[[MapSnapshot, RoseResult, SnapshotRecord], None] | None = None,
     walls: bool = False,
+    outputs: OutputSet | None = None,
+    salvage: bool = False,
+    max_cells: int | None = DEFAULT_MAX_CELLS,
 ) -> SessionReport:
     """Run ROSE over every map snapshot of a log; write the output log and Rerun recording.
 
@@ -92,6 +105,15 @@ def process_log(
         ``<map>/rose/walls`` and line strips in Rerun. Costs about 20-45 ms per 1000 x 1000 snapshot.
     on_snapshot : callable, optional
         Called with ``(snapshot, result, record)`` after each snapshot.
+    outputs : rose.outputs.OutputSet, optional
+        The run's outputs: the log and recording are staged there and the caller commits them together
+        with its own (a JSON report). Default: a set of its own, committed before returning.
+    salvage : bool, default False
+        When messages are lost (corrupt chunk, CRC, fewer than declared): False raises
+        :class:`~rose_logs.reader.MessageLossError` and writes nothing; True keeps what could be read
+        and lists the problems in :attr:`SessionReport.losses`.
+    max_cells : int or None, default :data:`rose.limits.DEFAULT_MAX_CELLS`
+        Larger maps are not analysed (a warning; copied through like malformed maps).
 
     Returns
     -------
@@ -103,6 +125,8 @@ def process_log(
         If the input is missing, corrupt or truncated, or has no (usable) map topic.
     LogWriteError
         If an output cannot be written. Nothing is left under the output names on any error.
+    OutputError
+        If the recording touches the input or another output, or exists without ``force``.
     """
     started = time.perf_counter()
     input_path = Path(input_path)
@@ -110,10 +134,67 @@ def process_log(
     if not math.isfinite(failure_level):
         msg = f"failure level must be finite, got {failure_level}"
         raise ValueError(msg)
-    reader = LogReader(input_path)
-    if rrd_path is not None and Path(rrd_path).exists() and not force:
-        msg = f"{rrd_path}: exists already (use --force to replace it)"
-        raise LogWriteError(msg)
+    own_outputs = outputs is None
+    outputs = OutputSet(force=force) if outputs is None else outputs
+    outputs.add_input(input_path)
+    reader = LogReader(input_path, salvage=salvage)
+    rrd_temp: Path | None = None
+    if rrd_path is not None:
+        staged = outputs.stage(rrd_path)
+        if staged.temp is None:
+            outputs.abort()
+            msg = f"{rrd_path}: a Rerun recording cannot be written to a stream or device"
+            raise LogWriteError(msg)
+        rrd_temp = staged.temp
+    try:
+        report = _run_session(
+            reader,
+            input_path=input_path,
+            output_path=output_path,
+            output_format=output_format,
+            force=force,
+            topics=topics,
+            params=params,
+            failure_level=failure_level,
+            rrd_path=rrd_path,
+            rrd_temp=rrd_temp,
+            spawn=spawn,
+            progress=progress,
+            on_snapshot=on_snapshot,
+            walls=walls,
+            outputs=outputs,
+            max_cells=max_cells,
+        )
+    except BaseException:
+        if own_outputs:
+            outputs.abort()
+        raise
+    if own_outputs:
+        outputs.commit()
+    return dataclasses.replace(report, elapsed_s=time.perf_counter() - started)
+
+
+def _run_session(
+    reader: LogReader,
+    *,
+    input_path: Path,
+    output_path: Path | None,
+    output_format: LogFormat | None,
+    force: bool,
+    topics: Sequence[str] | None,
+    params: RoseParams,
+    failure_level: float,
+    rrd_path: Path | None,
+    rrd_temp: Path | None,
+    spawn: bool,
+    progress: bool,
+    on_snapshot: Callable[[MapSnapshot, RoseResult, SnapshotRecord], None] | None,
+    walls: bool,
+    outputs: OutputSet,
+    max_cells: int | None,
+) -> SessionReport:
+    """The session proper; outputs are staged in ``outputs`` (committed by the caller)."""
+    started = time.perf_counter()
     with reader:
         channels = reader.channels
         map_topics = select_topics(input_path, channels, topics)
@@ -127,6 +208,7 @@ def process_log(
                 serialization=reader.serialization,
                 force=force,
                 protected=(input_path,),
+                outputs=outputs,
             )
         rerun: RerunSink | None = None
         try:
@@ -135,7 +217,7 @@ def process_log(
             handles, derived = _prepare_output(writer, channels, map_topics)
             if rrd_path is not None or spawn:
                 rerun = RerunSink(
-                    rrd_path=None if rrd_path is None else Path(rrd_path),
+                    rrd_path=rrd_temp,
                     spawn=spawn,
                     roots=tuple(entity_root(t) for t in map_topics),
                     recording_id=str(uuid.uuid5(uuid.NAMESPACE_URL, input_path.name)),
@@ -151,6 +233,7 @@ def process_log(
                 failure_level=failure_level,
                 rerun=rerun,
                 on_snapshot=on_snapshot,
+                max_cells=max_cells,
             )
             loop.run(progress=progress)
             if not loop.records:
@@ -178,12 +261,13 @@ def process_log(
             records=tuple(loop.records),
             breaks=tuple(loop.breaks),
             failure_level=failure_level,
-            message_count=reader.message_count,
+            message_count=reader.read_count,
             start_ns=reader.start_ns,
             end_ns=reader.end_ns,
             skipped_messages=loop.skipped,
             elapsed_s=time.perf_counter() - started,
             params=params,
+            losses=tuple(reader.losses),
         )
 
 
@@ -240,7 +324,9 @@ class _Loop:
         failure_level: float,
         rerun: RerunSink | None,
         on_snapshot: Callable[[MapSnapshot, RoseResult, SnapshotRecord], None] | None,
+        max_cells: int | None = DEFAULT_MAX_CELLS,
     ) -> None:
+        self.max_cells = max_cells
         self.reader = reader
         self.writer = writer
         self.handles = handles
@@ -295,8 +381,13 @@ class _Loop:
         finally:
             bar.close()
 
+    def _skip(self, err: Exception, log_time_ns: int) -> None:
+        self.skipped += 1
+        _LOG.warning("%s at %d ns, copied unprocessed", short(err, 240), log_time_ns)
+
     def _on_map(self, data: bytes | memoryview, topic: str, log_time_ns: int) -> None:
         try:
+            check_log_time(topic, log_time_ns)
             snapshot = decode_map(
                 data, serialization=self.serialization, topic=topic, log_time_ns=log_time_ns
             )
@@ -310,6 +401,7 @@ class _Loop:
     def _on_update(self, data: bytes | memoryview, topic: str, log_time_ns: int) -> None:
         target = self.updates[topic]
         try:
+            check_log_time(topic, log_time_ns)
             update = decode_update(
                 data, serialization=self.serialization, topic=topic, log_time_ns=log_time_ns
             )
@@ -328,6 +420,10 @@ class _Loop:
     def _analyse(self, snapshot: MapSnapshot, *, from_update: bool) -> None:
         t0 = time.perf_counter()
         topic = snapshot.topic
+        too_large = check_cells(*snapshot.shape, self.max_cells)
+        if too_large is not None:
+            self._skip(MapMessageError(f"{topic}: map of {too_large}"), snapshot.log_time_ns)
+            return
         try:
             analysis = self.analyser(snapshot)
             result, reused = analysis.result, analysis.reused
@@ -347,13 +443,18 @@ class _Loop:
             cleaned_h, score_h, walls_h = self.derived[topic]
             t = snapshot.log_time_ns
             ser = self.serialization
-            self.writer.write_raw(
-                cleaned_h, t, encode_cleaned(snapshot, result.cleaned, serialization=ser)
-            )
-            self.writer.write_raw(score_h, t, encode_score(score, serialization=ser))
-            self.writer.write_raw(
-                walls_h, t, encode_walls(snapshot, result, analysis.walls, serialization=ser)
-            )
+            try:  # encode all three first: a value that cannot be serialised skips the snapshot
+                encoded = (
+                    encode_cleaned(snapshot, result.cleaned, serialization=ser),
+                    encode_score(score, serialization=ser),
+                    encode_walls(snapshot, result, analysis.walls, serialization=ser),
+                )
+            except (struct.error, OverflowError, ValueError, TypeError) as err:
+                self.count[topic] = index
+                self._skip(MapMessageError(f"{topic}: cannot encode the results ({err})"), t)
+                return
+            for handle, data in zip((cleaned_h, score_h, walls_h), encoded, strict=True):
+                self.writer.write_raw(handle, t, data)
         broke = score > self.failure_level and not self.above.get(topic, False)
         self.above[topic] = score > self.failure_level
         if self.rerun is not None:
