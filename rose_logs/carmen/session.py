@@ -26,6 +26,7 @@ from typing import Any, Literal
 import numpy as np
 import numpy.typing as npt
 
+from rose.outputs import OutputSet
 from rose_logs.carmen.drift import apply_drift
 from rose_logs.carmen.parse import CarmenLog, beam_angles
 from rose_logs.carmen.raycast import BuilderParams, OccupancyGridBuilder, ScanBatch
@@ -96,9 +97,11 @@ class _Sink:
     """Output session through :func:`rose_logs.writer.open_output` (atomic; any of our formats),
     plus the headers the converter needs (ROS 1 headers carry a sequence number)."""
 
-    def __init__(self, path: Path, fmt: SessionFormat, *, force: bool) -> None:
+    def __init__(
+        self, path: Path, fmt: SessionFormat, *, force: bool, outputs: OutputSet | None = None
+    ) -> None:
         self.ros1 = fmt == "ros1"
-        self.writer = open_output(path, fmt, force=force)
+        self.writer = open_output(path, fmt, force=force, outputs=outputs)
         self.typestore = self.writer.typestore
         self.seq = 0
 
@@ -127,8 +130,10 @@ class _Sink:
         return types["std_msgs/msg/Header"](stamp=stamp, frame_id=frame_id)
 
 
-def _open_sink(path: Path, fmt: SessionFormat, *, force: bool) -> _Sink:
-    return _Sink(path, fmt, force=force)
+def _open_sink(
+    path: Path, fmt: SessionFormat, *, force: bool, outputs: OutputSet | None = None
+) -> _Sink:
+    return _Sink(path, fmt, force=force, outputs=outputs)
 
 
 # -- messages -----------------------------------------------------------------------------------
@@ -252,6 +257,7 @@ def write_carmen_session(
     drift_start_s: float = 0.0,
     progress: Callable[[int, int], None] | None = None,
     force: bool = False,
+    outputs: OutputSet | None = None,
 ) -> SessionSummary:
     """Write a CARMEN log as a ROS session (see module notes for topics and frames).
 
@@ -278,6 +284,8 @@ def write_carmen_session(
         Drift starts this many seconds after the first scan.
     progress : callable, optional
         Called with ``(scans_done, scans_total)``.
+    outputs : rose.outputs.OutputSet, optional
+        Stage the session there (the caller commits it with its other outputs, and protects inputs).
 
     Returns
     -------
@@ -312,7 +320,7 @@ def write_carmen_session(
     next_map_ns = int(stamps[0]) + period_ns
     maps = 0
     total = len(log.scans)
-    with _open_sink(out, fmt, force=force) as sink:
+    with _open_sink(out, fmt, force=force, outputs=outputs) as sink:
         sink.add("/scan", "sensor_msgs/msg/LaserScan")
         if pose_output in ("tf", "both"):
             sink.add("/tf", "tf2_msgs/msg/TFMessage")
