@@ -322,13 +322,17 @@ class LogWriter:
         ``publish_time_ns`` and ``sequence`` are kept by MCAP only (publish time defaults to the log time).
         """
         backend = self._require_open()
-        backend.write(
-            handle,
-            int(log_time_ns),
-            data,
-            int(log_time_ns if publish_time_ns is None else publish_time_ns),
-            sequence,
-        )
+        try:
+            backend.write(
+                handle,
+                int(log_time_ns),
+                data,
+                int(log_time_ns if publish_time_ns is None else publish_time_ns),
+                sequence,
+            )
+        except OSError as err:  # a full disk, an I/O error: name the output, not the temporary
+            msg = f"{self.path}: cannot write ({err.strerror or short(err, 160)})"
+            raise LogWriteError(msg) from err
 
     def write(self, topic: str, log_time_ns: int, message: Any) -> None:
         """Write a message on ``topic``: serialised bytes as they are, a typestore object serialised.

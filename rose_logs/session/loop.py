@@ -245,7 +245,11 @@ def _run_session(
             if writer is not None:
                 writer.close()
             if rerun is not None:
-                rerun.close()
+                try:
+                    rerun.close()
+                except (RuntimeError, OSError) as err:  # e.g. the disk filled up
+                    msg = f"{rrd_path}: cannot write the Rerun recording ({short(err, 160)})"
+                    raise LogWriteError(msg) from err
         except BaseException:
             if writer is not None:
                 writer.abort()

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import logging
 from pathlib import Path
 
@@ -73,6 +74,9 @@ class RerunSink:
     def abort(self) -> None:
         try:
             self.view.close_recording(self.recording)
+        except (RuntimeError, OSError):  # the file sink already failed (full disk): drop it
+            with contextlib.suppress(RuntimeError, OSError):
+                self.recording.disconnect()
         finally:
             if self.tmp is not None:
                 self.tmp.unlink(missing_ok=True)
