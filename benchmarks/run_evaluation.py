@@ -17,10 +17,8 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
-from rose_logs.carmen.parse import beam_angles, read_carmen_log
-from rose_logs.carmen.raycast import OccupancyGridBuilder, ScanBatch
+from rose_logs.carmen.parse import read_carmen_log
+from rose_logs.carmen.raycast import OccupancyGridBuilder
 from rose_logs.evaluation import EvaluationConfig, run_evaluation
 from rose_logs.evaluation.config import DEFAULT_MAPS_DIR, RADISH_LOGS
 
@@ -32,13 +30,13 @@ def rasterisation_timings(maps_dir: Path) -> None:
         t0 = time.perf_counter()
         log = read_carmen_log(path)
         t1 = time.perf_counter()
-        ranges = np.stack([s.ranges_m for s in log.scans])
         builder = OccupancyGridBuilder()
-        builder.integrate(ScanBatch(ranges, beam_angles(ranges.shape[1]), log.laser_poses))
+        builder.integrate_scans(log.scans)
         grid = builder.grid()
         t2 = time.perf_counter()
+        beams = "/".join(str(b) for b in sorted({s.ranges_m.size for s in log.scans}))
         sys.stdout.write(
-            f"{name:14s} {len(log.scans):5d} scans x {ranges.shape[1]} beams -> {grid.shape} cells: "
+            f"{name:14s} {len(log.scans):5d} scans x {beams} beams -> {grid.shape} cells: "
             f"parse {t1 - t0:.2f} s, build {t2 - t1:.2f} s\n"
         )
 

@@ -47,7 +47,8 @@ class RoseParams:
         The mixture is fitted on at most this many occupied cells' scores (an evenly spaced subsample of
         the sorted scores, so the result is deterministic and the cost bounded).
     seed : int
-        Seed of the mixture's initialisation.
+        No effect since the mixture's initialisation became deterministic (k-means from the 25 % and
+        75 % quantiles); kept so that existing code, options and reports stay valid.
     """
 
     peak_prominence: float = 0.5

@@ -104,7 +104,5 @@ def _scale_and_threshold(
     cell_scores = reference * np.float32(scale)
     if p.threshold_mode == "fixed":
         return cell_scores, p.fixed_threshold
-    threshold = gmm_threshold(
-        occupied_scores * np.float32(scale), max_samples=p.max_gmm_samples, seed=p.seed
-    )
+    threshold = gmm_threshold(occupied_scores * np.float32(scale), max_samples=p.max_gmm_samples)
     return cell_scores, threshold

@@ -1,44 +1,181 @@
-"""Splitting occupied cells into structure and clutter by their score."""
+"""Splitting occupied cells into structure and clutter by their score.
+
+The paper fits a 2-component Gaussian mixture to the occupied cells' scores with EM and puts the
+threshold where the two weighted Gaussians intersect. The mixture is one-dimensional and fitted on at
+most a few thousand samples, so it is a few vectorised numpy lines here: no scikit-learn and no thread
+pools (scikit-learn's fit took 130-250 ms per map whenever other processes kept the cores busy, this
+one takes 1-2 ms), and a deterministic initialisation from the data's quantiles instead of a random one.
+"""
 
 from __future__ import annotations
 
 import math
-import warnings
+from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
-from sklearn.exceptions import ConvergenceWarning
-from sklearn.mixture import GaussianMixture
+from scipy.special import expit
 
-__all__ = ["gaussian_intersection", "gmm_threshold"]
+__all__ = ["TwoGaussians", "fit_two_gaussians", "gaussian_intersection", "gmm_threshold"]
+
+#: Added to both variances, as scikit-learn's ``reg_covar``: keeps a component from collapsing onto
+#: repeated values.
+_REG_VAR = 1e-6
 
 
-def gmm_threshold(scores: npt.NDArray[np.float32], *, max_samples: int, seed: int) -> float:
+@dataclass(frozen=True)
+class TwoGaussians:
+    """A fitted 1-D mixture of two Gaussians, component 0 the one with the lower mean.
+
+    Attributes
+    ----------
+    means, variances, weights : tuple of float, length 2
+        Component parameters, in the units of the fitted values (variances squared); weights sum to 1.
+    iterations : int
+        EM iterations run.
+    converged : bool
+        Whether the mean log-likelihood per sample changed by less than the tolerance before the limit.
+    """
+
+    means: tuple[float, float]
+    variances: tuple[float, float]
+    weights: tuple[float, float]
+    iterations: int
+    converged: bool
+
+
+def gmm_threshold(scores: npt.ArrayLike, *, max_samples: int) -> float:
     """Threshold where the two weighted Gaussians of a 2-component mixture of ``scores`` intersect.
 
-    The paper's rule: ``tau * N_structure(s) = (1 - tau) * N_clutter(s)``, solved analytically. The
-    mixture (EM, seeded) is fitted on at most ``max_samples`` scores taken evenly from the sorted scores,
-    which keeps their distribution, bounds the cost and makes the result deterministic.
+    The paper's rule: ``tau * N_structure(s) = (1 - tau) * N_clutter(s)``, solved analytically (see
+    :func:`gaussian_intersection`). The mixture (:func:`fit_two_gaussians`) is fitted on at most
+    ``max_samples`` scores taken evenly from the sorted scores, which keeps their distribution and
+    bounds the cost.
 
-    Returns ``-inf`` (everything is structure) when the scores are (nearly) constant.
+    Parameters
+    ----------
+    scores : array_like of float, any shape
+        Scores of the occupied cells (flattened).
+    max_samples : int
+        Largest number of scores the mixture is fitted on.
+
+    Returns
+    -------
+    float
+        The threshold; ``-inf`` (everything is structure) when the scores are (nearly) constant.
     """
-    values = np.sort(np.asarray(scores, dtype=np.float64).ravel())
-    if values.size < 2 or values[-1] - values[0] <= 1e-9 * max(1.0, abs(values[-1])):
-        return -math.inf
+    values = np.sort(np.asarray(scores).ravel())  # in the input's precision: float32 sorts faster
     if values.size > max_samples:
         values = values[np.linspace(0, values.size - 1, max_samples).round().astype(np.intp)]
-    mixture = GaussianMixture(n_components=2, random_state=seed, reg_covar=1e-6)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", ConvergenceWarning)
-        mixture.fit(values[:, np.newaxis])
-    means = mixture.means_.ravel()
-    variances = mixture.covariances_.ravel()
-    weights = mixture.weights_.ravel()
-    structure, clutter = (1, 0) if means[1] >= means[0] else (0, 1)
-    return gaussian_intersection(
-        means[structure], variances[structure], weights[structure],
-        means[clutter], variances[clutter], weights[clutter],
-    )  # fmt: skip
+    values = values.astype(np.float64)
+    if values.size < 2 or values[-1] - values[0] <= 1e-9 * max(1.0, abs(values[-1])):
+        return -math.inf
+    fit = fit_two_gaussians(values)
+    (mean_lo, mean_hi), (var_lo, var_hi), (weight_lo, weight_hi) = (
+        fit.means,
+        fit.variances,
+        fit.weights,
+    )
+    return gaussian_intersection(mean_hi, var_hi, weight_hi, mean_lo, var_lo, weight_lo)
+
+
+def fit_two_gaussians(
+    sorted_values: npt.NDArray[np.float64], *, max_iter: int = 100, tol: float = 1e-3
+) -> TwoGaussians:
+    """Fit a 2-component 1-D Gaussian mixture by expectation-maximisation.
+
+    Initialisation is deterministic: a few rounds of 1-D k-means (2 clusters) started from the 25 %
+    and 75 % quantiles split the sorted values in two, whose means, variances and shares start EM
+    (scikit-learn's default initialisation, without the randomness). EM then runs until the mean
+    log-likelihood per sample changes by less than ``tol`` or ``max_iter`` iterations. The defaults
+    are scikit-learn's (``tol=1e-3``, ``max_iter=100``), which ROSE's thresholds were calibrated with:
+    on real maps EM typically stops after 5-15 iterations, well before the likelihood's optimum, and
+    running it to full convergence moved thresholds by up to 0.3 on the shared real maps.
+
+    Parameters
+    ----------
+    sorted_values : ndarray of float64, shape (N,)
+        The samples, sorted ascending, N >= 2, not all equal.
+    max_iter : int
+        Iteration limit of EM.
+    tol : float
+        Convergence tolerance on the mean log-likelihood per sample (nats).
+
+    Returns
+    -------
+    TwoGaussians
+        Component 0 has the lower mean.
+    """
+    x = sorted_values
+    x2 = x * x
+    n = x.size
+    mean, var, weight = _kmeans_init(x)
+    previous = -math.inf
+    converged = False
+    iterations = 0
+    for iterations in range(1, max_iter + 1):  # noqa: B007 - the count is reported
+        # E step: log(w_k N_k(x)) = alpha_k x^2 + beta_k x + gamma_k, for k = 0, 1.
+        alpha = -0.5 / var
+        beta = mean / var
+        gamma = np.log(weight) - 0.5 * np.log(2 * math.pi * var) - 0.5 * mean * mean / var
+        log_p0 = alpha[0] * x2 + beta[0] * x + gamma[0]
+        log_p1 = alpha[1] * x2 + beta[1] * x + gamma[1]
+        log_likelihood = float(np.logaddexp(log_p0, log_p1).sum()) / n
+        resp1 = expit(log_p1 - log_p0)  # responsibility of component 1
+        # M step from the sums of the responsibilities and their first and second moments.
+        r1 = float(resp1.sum())
+        s1 = float((resp1 * x).sum())
+        q1 = float((resp1 * x2).sum())
+        mean, var, weight = _m_step(r1, s1, q1, n, float(x.sum()), float(x2.sum()))
+        if abs(log_likelihood - previous) < tol:
+            converged = True
+            break
+        previous = log_likelihood
+    order = (0, 1) if mean[0] <= mean[1] else (1, 0)
+    return TwoGaussians(
+        means=(float(mean[order[0]]), float(mean[order[1]])),
+        variances=(float(var[order[0]]), float(var[order[1]])),
+        weights=(float(weight[order[0]]), float(weight[order[1]])),
+        iterations=iterations,
+        converged=converged,
+    )
+
+
+def _m_step(
+    r1: float, s1: float, q1: float, n: int, total: float, total_sq: float
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    """Component parameters from the responsibility-weighted count, sum and sum of squares."""
+    counts = np.array([n - r1, r1])
+    counts = np.maximum(counts, 10 * np.finfo(np.float64).eps * n)
+    sums = np.array([total - s1, s1])
+    squares = np.array([total_sq - q1, q1])
+    mean = sums / counts
+    var = np.maximum(squares / counts - mean * mean, 0.0) + _REG_VAR
+    return mean, var, counts / n
+
+
+def _kmeans_init(
+    x: npt.NDArray[np.float64], *, rounds: int = 20
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    """Means, variances and weights of a 2-cluster 1-D k-means split of the sorted values ``x``."""
+    n = x.size
+    cum = np.concatenate(([0.0], np.cumsum(x)))
+    cum_sq = np.concatenate(([0.0], np.cumsum(x * x)))
+    centres = np.quantile(x, [0.25, 0.75])
+    split = -1
+    for _ in range(rounds):
+        # Values above the midpoint of the centres go to the upper cluster; keep both non-empty.
+        new_split = int(np.clip(np.searchsorted(x, 0.5 * (centres[0] + centres[1])), 1, n - 1))
+        if new_split == split:
+            break
+        split = new_split
+        centres = np.array([cum[split] / split, (cum[n] - cum[split]) / (n - split)])
+    counts = np.array([split, n - split], dtype=np.float64)
+    sums = np.array([cum[split], cum[n] - cum[split]])
+    squares = np.array([cum_sq[split], cum_sq[n] - cum_sq[split]])
+    mean = sums / counts
+    var = np.maximum(squares / counts - mean * mean, 0.0) + _REG_VAR
+    return mean, var, counts / n
 
 
 def gaussian_intersection(

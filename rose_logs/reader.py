@@ -23,6 +23,7 @@ from typing import Self
 from rose.limits import short
 from rose_logs.errors import LogError, LogReadError
 from rose_logs.formats import LogFormat, detect_format
+from rose_logs.storage.connections import QosStyle
 from rose_logs.storage.mcap import McapReadBackend
 from rose_logs.storage.records import Channel, RawMessage
 from rose_logs.storage.rosbags import RosbagsReadBackend
@@ -143,6 +144,11 @@ class LogReader:
     def end_ns(self) -> int:
         """Log time of the last message, ns (0 for an empty log)."""
         return self._open_backend.end_ns
+
+    @property
+    def qos_style(self) -> QosStyle | None:
+        """How the input spells ROS 2 QoS policies (``"v8"`` integers, ``"v9"`` names); None if unknown."""
+        return self._open_backend.qos_style
 
     @property
     def serialization(self) -> str:

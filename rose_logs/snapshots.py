@@ -14,6 +14,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rose_logs.errors import MapMessageError
+from rose_logs.frames import quaternion_to_yaw
 from rose_logs.storage.typesys import MAP_TYPE, UPDATE_TYPE, typestore_for
 
 __all__ = [
@@ -75,8 +76,7 @@ class MapSnapshot:
     @property
     def origin_yaw_rad(self) -> float:
         """Yaw of the grid in the map frame, in radians (from the origin quaternion)."""
-        x, y, z, w = self.origin_orientation_xyzw
-        return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+        return quaternion_to_yaw(self.origin_orientation_xyzw)
 
     @property
     def shape(self) -> tuple[int, int]:

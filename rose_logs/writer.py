@@ -45,7 +45,7 @@ from rose.outputs import OutputSet
 from rose_logs.errors import LogWriteError
 from rose_logs.formats import FORMATS, LogFormat
 from rose_logs.storage.base import WriteBackend
-from rose_logs.storage.connections import offered_qos, transient_local_qos
+from rose_logs.storage.connections import QosStyle, default_qos, offered_qos, transient_local_qos
 from rose_logs.storage.mcap import McapWriteBackend
 from rose_logs.storage.records import Channel
 from rose_logs.storage.rosbags import Ros1WriteBackend, Ros2WriteBackend
@@ -76,6 +76,10 @@ class LogWriter:
     outputs : rose.outputs.OutputSet, optional
         The run's other outputs: the log is staged there and committed with them by the caller.
         Default: a set of its own, committed by :meth:`close`.
+    qos_style : {"v8", "v9"}, optional
+        How ROS 2 QoS policies are spelled in the metadata written (``"v8"`` integers, which Humble needs,
+        ``"v9"`` names); pass the input's (:attr:`LogReader.qos_style`) so that added topics match copied
+        ones. Default ``"v9"``. For ``db3`` / ``mcap-dir`` it also picks the rosbag2 format version (8 or 9).
 
     Raises
     ------
@@ -93,6 +97,7 @@ class LogWriter:
         force: bool = False,
         protected: Sequence[Path] = (),
         outputs: OutputSet | None = None,
+        qos_style: QosStyle | None = None,
     ) -> None:
         self.path = Path(path)
         if fmt not in FORMATS:
@@ -112,6 +117,10 @@ class LogWriter:
             raise LogWriteError(msg)
         self.format: LogFormat = fmt
         self.serialization = serialization
+        if qos_style not in {None, "v8", "v9"}:
+            msg = f"{self.path}: qos_style must be 'v8' or 'v9', got {qos_style!r}"
+            raise LogWriteError(msg)
+        self.qos_style: QosStyle = qos_style or "v9"
         self.force = force
         self._directory = fmt in ("db3", "mcap-dir")
         self._own_outputs = outputs is None
@@ -154,9 +163,9 @@ class LogWriter:
         if self.format == "ros1":
             backend = Ros1WriteBackend(self.tmp_path)
         elif self.format == "mcap":
-            backend = McapWriteBackend(self.tmp_path, self.serialization)
+            backend = McapWriteBackend(self.tmp_path, self.serialization, self.qos_style)
         else:
-            backend = Ros2WriteBackend(self.tmp_path, self.format)
+            backend = Ros2WriteBackend(self.tmp_path, self.format, self.qos_style)
         try:
             backend.open()
         except Exception as err:
@@ -272,7 +281,9 @@ class LogWriter:
         latching : bool, default False
             ROS 1: latched connection. ROS 2: offer transient-local QoS (unless ``qos`` is given).
         qos : sequence of Qos, optional
-            ROS 2 offered QoS profiles.
+            ROS 2 offered QoS profiles; default transient local when ``latching``, else a default
+            publisher's (:func:`~rose_logs.storage.connections.default_qos`), so that every ROS 2
+            topic written carries a profile.
         callerid : str, optional
             ROS 1 publishing node.
         """
@@ -288,7 +299,8 @@ class LogWriter:
             msg = f"{self.path}: unknown message type {msgtype} for topic {topic}"
             raise LogWriteError(msg) from err
         ros1 = self.serialization == "ros1"
-        profiles = tuple(qos) if qos is not None else ((transient_local_qos(),) if latching else ())
+        own = transient_local_qos() if latching else default_qos()
+        profiles = tuple(qos) if qos else (own,)
         channel = Channel(
             id=-1,
             topic=topic,
@@ -364,10 +376,17 @@ def open_output(
     force: bool = False,
     protected: Sequence[Path] = (),
     outputs: OutputSet | None = None,
+    qos_style: QosStyle | None = None,
 ) -> LogWriter:
     """A :class:`LogWriter` to use as a context manager (see the module docstring for an example)."""
     return LogWriter(
-        path, fmt, serialization=serialization, force=force, protected=protected, outputs=outputs
+        path,
+        fmt,
+        serialization=serialization,
+        force=force,
+        protected=protected,
+        outputs=outputs,
+        qos_style=qos_style,
     )
 
 

@@ -127,17 +127,16 @@ def test_session_write_then_read(tmp_path: Path, name: str, fmt: str) -> None:
     from rosbags.highlevel import AnyReader
 
     from rose_logs.carmen.raycast import BuilderParams
-    from rose_logs.carmen.session import write_carmen_session
+    from rose_logs.carmen.session import SessionOptions, write_carmen_session
 
     log = read_carmen_log(LOGS / "freiburg-101-corrected.log.gz", max_scans=40)
     out = tmp_path / name
-    summary = write_carmen_session(
-        log,
-        out,
+    options = SessionOptions(
         builder_params=BuilderParams(resolution_m=0.2, grow_margin_m=2.0),
         map_period_s=20.0,
         pose_output="both",
     )
+    summary = write_carmen_session(log, out, options=options)
     assert summary.scans == 40
     assert summary.format == fmt
     with AnyReader([out]) as reader:

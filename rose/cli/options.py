@@ -168,7 +168,7 @@ def add_param_arguments(parser: argparse.ArgumentParser) -> None:
         "--seed",
         type=int_in_range(0, 2**32 - 1),
         default=d.seed,
-        help="mixture seed, 0..2**32-1 (default %(default)s)",
+        help="0..2**32-1; no effect since the mixture fit is deterministic; kept for compatibility",
     )
 
 

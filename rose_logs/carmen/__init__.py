@@ -8,7 +8,7 @@ odometry drift, and write the session (scans, poses, map snapshots) as a log.
 from rose_logs.carmen.drift import DriftParams, apply_drift
 from rose_logs.carmen.parse import CarmenLog, FlaserScan, beam_angles, read_carmen_log
 from rose_logs.carmen.raycast import BuilderParams, OccupancyGridBuilder, ScanBatch, crop_to_known
-from rose_logs.carmen.session import SessionSummary, write_carmen_session
+from rose_logs.carmen.session import SessionOptions, SessionSummary, write_carmen_session
 
 __all__ = [
     "BuilderParams",
@@ -17,6 +17,7 @@ __all__ = [
     "FlaserScan",
     "OccupancyGridBuilder",
     "ScanBatch",
+    "SessionOptions",
     "SessionSummary",
     "apply_drift",
     "beam_angles",

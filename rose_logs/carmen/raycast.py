@@ -216,11 +216,24 @@ class OccupancyGridBuilder:
         for start in range(0, ranges.shape[0], step):
             self._integrate_chunk(ranges[start : start + step], poses[start : start + step], angles)
 
-    def integrate_scans(self, scans: Sequence[object]) -> None:
-        """Add :class:`rose_logs.carmen.parse.FlaserScan`-like scans (``ranges_m``, ``laser_pose``).
+    def integrate_scans(self, scans: Sequence[object], poses: npt.ArrayLike | None = None) -> None:
+        """Add :class:`rose_logs.carmen.parse.FlaserScan`-like scans (``ranges_m``, ``laser_pose``), in order.
 
-        Consecutive scans with the same beam count are batched together.
+        The one way from parsed scans to the grid (conversion, evaluation, benchmarks): consecutive
+        scans with the same beam count are batched together.
+
+        Parameters
+        ----------
+        scans : sequence of FlaserScan
+            Scans; their ``ranges_m`` (B,) metres may differ in length B from group to group.
+        poses : array_like of float, shape (len(scans), 3), optional
+            Laser poses ``(x_m, y_m, theta_rad)`` to use instead of the scans' own ``laser_pose``
+            (e.g. drifted odometry).
         """
+        override = None if poses is None else np.asarray(poses, dtype=np.float64)
+        if override is not None and override.shape != (len(scans), 3):
+            msg = f"poses must have shape ({len(scans)}, 3), got {override.shape}"
+            raise ValueError(msg)
         i = 0
         while i < len(scans):
             n = scans[i].ranges_m.size  # type: ignore[attr-defined]
@@ -232,7 +245,9 @@ class OccupancyGridBuilder:
                 ScanBatch(
                     ranges_m=np.stack([s.ranges_m for s in group]),  # type: ignore[attr-defined]
                     angles_rad=beam_angles(n),
-                    poses=np.array([s.laser_pose for s in group], dtype=np.float64),  # type: ignore[attr-defined]
+                    poses=np.array([s.laser_pose for s in group], dtype=np.float64)  # type: ignore[attr-defined]
+                    if override is None
+                    else override[i:j],
                 )
             )
             i = j

@@ -17,9 +17,8 @@ is a bare MCAP file, as ``rose-bag process`` writes it.
 from __future__ import annotations
 
 import logging
-import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
@@ -29,13 +28,15 @@ import numpy.typing as npt
 from rose.outputs import OutputSet
 from rose_logs.carmen.drift import apply_drift
 from rose_logs.carmen.parse import CarmenLog, beam_angles
-from rose_logs.carmen.raycast import BuilderParams, OccupancyGridBuilder, ScanBatch
+from rose_logs.carmen.raycast import BuilderParams, OccupancyGridBuilder
 from rose_logs.errors import LogWriteError
 from rose_logs.formats import format_from_path
+from rose_logs.frames import yaw_to_quaternion
 from rose_logs.writer import open_output
 
 __all__ = [
     "SessionFormat",
+    "SessionOptions",
     "SessionSummary",
     "write_carmen_session",
 ]
@@ -138,9 +139,8 @@ def _open_sink(
 
 # -- messages -----------------------------------------------------------------------------------
 def _quaternion(types: dict[str, Any], yaw: float) -> Any:
-    return types["geometry_msgs/msg/Quaternion"](
-        x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2)
-    )
+    x, y, z, w = yaw_to_quaternion(yaw)
+    return types["geometry_msgs/msg/Quaternion"](x=x, y=y, z=z, w=w)
 
 
 def _scan_msg(
@@ -215,25 +215,6 @@ def _map_msg(sink: _Sink, t_ns: int, world: str, builder: OccupancyGridBuilder) 
     )
 
 
-def _integrate(
-    builder: OccupancyGridBuilder,
-    log: CarmenLog,
-    poses: npt.NDArray[np.float64],
-    start: int,
-    stop: int,
-) -> None:
-    """Integrate scans ``start:stop`` (consecutive scans with equal beam counts are batched)."""
-    i = start
-    while i < stop:
-        n = log.scans[i].ranges_m.size
-        j = i
-        while j < stop and log.scans[j].ranges_m.size == n:
-            j += 1
-        ranges = np.stack([s.ranges_m for s in log.scans[i:j]])
-        builder.integrate(ScanBatch(ranges, beam_angles(n), poses[i:j]))
-        i = j
-
-
 def _monotonic(stamps: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
     out = stamps.astype(np.int64).copy()
     for i in range(1, out.size):  # a handful of fixes at most; clarity over vectorising
@@ -242,19 +223,72 @@ def _monotonic(stamps: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
     return out
 
 
+@dataclass(frozen=True)
+class SessionOptions:
+    """How :func:`write_carmen_session` turns a CARMEN log into a ROS session.
+
+    Attributes
+    ----------
+    builder_params : BuilderParams
+        Grid resolution, ranges and log-odds of the ``/map`` snapshots.
+    map_period_s : float, default 10.0
+        Log time between ``/map`` snapshots, seconds (> 0).
+    pose_output : {"tf", "odom", "both"}, default "tf"
+        Pose topic(s).
+    world_frame, base_frame : str, default "map", "base_link"
+        Frame ids of the map/pose parent and of the robot (laser).
+    drift_level : float, default 0.0
+        Odometry drift applied to the poses (0: the log's corrected poses; see
+        :mod:`rose_logs.carmen.drift`).
+    drift_seed : int, default 0
+        Seed of the drift.
+    drift_start_s : float, default 0.0
+        Drift starts this many seconds after the first scan.
+
+    Raises
+    ------
+    ValueError
+        On a period that is not > 0 or an unknown pose output.
+    """
+
+    builder_params: BuilderParams = field(default_factory=BuilderParams)
+    map_period_s: float = 10.0
+    pose_output: PoseOutput = "tf"
+    world_frame: str = "map"
+    base_frame: str = "base_link"
+    drift_level: float = 0.0
+    drift_seed: int = 0
+    drift_start_s: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not self.map_period_s > 0:
+            msg = f"map_period_s must be > 0, got {self.map_period_s}"
+            raise ValueError(msg)
+        if self.pose_output not in ("tf", "odom", "both"):
+            msg = f"pose_output must be 'tf', 'odom' or 'both', got {self.pose_output!r}"
+            raise ValueError(msg)
+
+    @property
+    def topics(self) -> tuple[tuple[str, str], ...]:
+        """``(topic, message type)`` of the session, in the order they are added."""
+        poses = []
+        if self.pose_output in ("tf", "both"):
+            poses.append(("/tf", "tf2_msgs/msg/TFMessage"))
+        if self.pose_output in ("odom", "both"):
+            poses.append(("/odom", "nav_msgs/msg/Odometry"))
+        return (
+            ("/scan", "sensor_msgs/msg/LaserScan"),
+            *poses,
+            ("/map", "nav_msgs/msg/OccupancyGrid"),
+        )
+
+
 def write_carmen_session(
     log: CarmenLog,
     path: str | Path,
     *,
     fmt: SessionFormat | None = None,
-    builder_params: BuilderParams | None = None,
-    map_period_s: float = 10.0,
-    pose_output: PoseOutput = "tf",
-    world_frame: str = "map",
-    base_frame: str = "base_link",
-    drift_level: float = 0.0,
-    drift_seed: int = 0,
-    drift_start_s: float = 0.0,
+    options: SessionOptions | None = None,
     progress: Callable[[int, int], None] | None = None,
     force: bool = False,
     outputs: OutputSet | None = None,
@@ -270,22 +304,14 @@ def write_carmen_session(
     fmt : {"ros1", "db3", "mcap"}, optional
         Output format; from the path when omitted (:func:`rose_logs.formats.format_from_path`;
         a name without a known suffix is a ROS 2 db3 bag folder).
-    builder_params : BuilderParams, optional
-        Grid resolution, ranges and log-odds of the ``/map`` snapshots.
-    map_period_s : float
-        Log time between ``/map`` snapshots, seconds (> 0).
-    pose_output : {"tf", "odom", "both"}
-        Pose topic(s).
-    world_frame, base_frame : str
-        Frame ids of the map/pose parent and of the robot (laser).
-    drift_level, drift_seed : float, int
-        Odometry drift applied to the poses (0: the log's corrected poses).
-    drift_start_s : float
-        Drift starts this many seconds after the first scan.
+    options : SessionOptions, optional
+        Grid, map period, pose topics, frames and drift; defaults of :class:`SessionOptions`.
     progress : callable, optional
         Called with ``(scans_done, scans_total)``.
     outputs : rose.outputs.OutputSet, optional
         Stage the session there (the caller commits it with its other outputs, and protects inputs).
+    force : bool, default False
+        Replace an existing output (once the new one is complete).
 
     Returns
     -------
@@ -295,72 +321,76 @@ def write_carmen_session(
     ------
     LogWriteError
         When ``path`` exists (and ``force`` is False) or cannot be written; nothing is left behind.
-    ValueError
-        On a bad period or pose output.
     """
     out = Path(path)
-    if not map_period_s > 0:
-        msg = f"map_period_s must be > 0, got {map_period_s}"
-        raise ValueError(msg)
-    if pose_output not in ("tf", "odom", "both"):
-        msg = f"pose_output must be 'tf', 'odom' or 'both', got {pose_output!r}"
-        raise ValueError(msg)
+    options = options if options is not None else SessionOptions()
     fmt = fmt if fmt is not None else _session_format(out)
-    params = builder_params if builder_params is not None else BuilderParams()
     stamps = _monotonic(log.stamps_ns)
     poses = apply_drift(
         log.laser_poses,
         stamps_ns=stamps,
-        start_ns=int(stamps[0] + drift_start_s * 1e9),
-        level=drift_level,
-        seed=drift_seed,
+        start_ns=int(stamps[0] + options.drift_start_s * 1e9),
+        level=options.drift_level,
+        seed=options.drift_seed,
     )
-    builder = OccupancyGridBuilder(params)
-    period_ns = round(map_period_s * 1e9)
-    next_map_ns = int(stamps[0]) + period_ns
-    maps = 0
-    total = len(log.scans)
+    builder = OccupancyGridBuilder(options.builder_params)
     with _open_sink(out, fmt, force=force, outputs=outputs) as sink:
-        sink.add("/scan", "sensor_msgs/msg/LaserScan")
-        if pose_output in ("tf", "both"):
-            sink.add("/tf", "tf2_msgs/msg/TFMessage")
-        if pose_output in ("odom", "both"):
-            sink.add("/odom", "nav_msgs/msg/Odometry")
-        sink.add("/map", "nav_msgs/msg/OccupancyGrid")
-        pending = 0  # scans written but not yet in the grid: integrated in batches, before a map
-        for i, scan in enumerate(log.scans):
-            t_ns = int(stamps[i])
-            if t_ns >= next_map_ns and i > 0:
-                _integrate(builder, log, poses, i - pending, i)
-                pending = 0
-                sink.write("/map", t_ns, _map_msg(sink, t_ns, world_frame, builder))
-                maps += 1
-                next_map_ns = t_ns + period_ns
-            tf, odom = _pose_msgs(sink, t_ns, poses[i], world_frame, base_frame)
-            if pose_output in ("tf", "both"):
-                sink.write("/tf", t_ns, tf)
-            if pose_output in ("odom", "both"):
-                sink.write("/odom", t_ns, odom)
-            sink.write(
-                "/scan", t_ns, _scan_msg(sink, t_ns, base_frame, scan.ranges_m, params.max_range_m)
-            )
-            pending += 1
-            if progress is not None:
-                progress(i + 1, total)
-        _integrate(builder, log, poses, total - pending, total)
-        end_ns = int(stamps[-1]) + 1
-        sink.write("/map", end_ns, _map_msg(sink, end_ns, world_frame, builder))
-        maps += 1
-    _LOG.info("%s: %d scans, %d maps", out, total, maps)
+        for topic, msgtype in options.topics:
+            sink.add(topic, msgtype)
+        maps, end_ns = _write_messages(sink, log, stamps, poses, builder, options, progress)
+    _LOG.info("%s: %d scans, %d maps", out, len(log.scans), maps)
     return SessionSummary(
         path=out,
         format=fmt,
-        scans=total,
+        scans=len(log.scans),
         maps=maps,
         start_ns=int(stamps[0]),
         end_ns=end_ns,
         final_grid=builder.grid(),
         final_origin_xy_m=builder.origin_xy_m,
-        resolution_m=params.resolution_m,
+        resolution_m=options.builder_params.resolution_m,
         skipped_lines=log.malformed,
     )
+
+
+def _write_messages(
+    sink: _Sink,
+    log: CarmenLog,
+    stamps: npt.NDArray[np.int64],
+    poses: npt.NDArray[np.float64],
+    builder: OccupancyGridBuilder,
+    options: SessionOptions,
+    progress: Callable[[int, int], None] | None,
+) -> tuple[int, int]:
+    """Scans and poses in log order, a ``/map`` every ``map_period_s`` and one after the last scan.
+
+    Scans go into the grid in batches, just before each map. Returns ``(maps written, last time ns)``.
+    """
+    world, base = options.world_frame, options.base_frame
+    period_ns = round(options.map_period_s * 1e9)
+    next_map_ns = int(stamps[0]) + period_ns
+    maps = 0
+    total = len(log.scans)
+    pending = 0  # scans written but not yet in the grid
+    for i, scan in enumerate(log.scans):
+        t_ns = int(stamps[i])
+        if t_ns >= next_map_ns and i > 0:
+            builder.integrate_scans(log.scans[i - pending : i], poses[i - pending : i])
+            pending = 0
+            sink.write("/map", t_ns, _map_msg(sink, t_ns, world, builder))
+            maps += 1
+            next_map_ns = t_ns + period_ns
+        tf, odom = _pose_msgs(sink, t_ns, poses[i], world, base)
+        if options.pose_output in ("tf", "both"):
+            sink.write("/tf", t_ns, tf)
+        if options.pose_output in ("odom", "both"):
+            sink.write("/odom", t_ns, odom)
+        max_m = options.builder_params.max_range_m
+        sink.write("/scan", t_ns, _scan_msg(sink, t_ns, base, scan.ranges_m, max_m))
+        pending += 1
+        if progress is not None:
+            progress(i + 1, total)
+    builder.integrate_scans(log.scans[total - pending :], poses[total - pending :])
+    end_ns = int(stamps[-1]) + 1
+    sink.write("/map", end_ns, _map_msg(sink, end_ns, world, builder))
+    return maps + 1, end_ns

@@ -1,4 +1,4 @@
-"""The ``rose-bag`` command: ``process``, ``info``, ``convert`` and ``evaluate``, one module each.
+"""The ``rose-bag`` command: ``process``, ``info``, ``convert``, ``evaluate`` and ``batch``, one module each.
 
 Exit codes: 0 success, 1 error (one line ``error: <file>: <problem>`` on stderr), 2 usage error,
 3 ``--fail-above`` gate failed. Tracebacks only with ``--debug``.
@@ -40,9 +40,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     # Imported here, inside main's handlers: the libraries take seconds to load on a busy machine.
-    from rose_logs.cli import convert, evaluate, info, process
+    from rose_logs.cli import batch, convert, evaluate, info, process
 
-    for command in (process, info, convert, evaluate):
+    for command in (process, info, convert, evaluate, batch):
         command.add_parser(subparsers)
     return parser
 

@@ -17,7 +17,7 @@ from rose.cli.options import (
 from rose.outputs import OutputSet
 from rose_logs.carmen.parse import CarmenLog, read_carmen_log
 from rose_logs.carmen.raycast import BuilderParams
-from rose_logs.carmen.session import write_carmen_session
+from rose_logs.carmen.session import SessionOptions, write_carmen_session
 from rose_logs.errors import LogReadError, LogWriteError
 from rose_logs.formats import format_from_path
 
@@ -113,10 +113,7 @@ def run(args: argparse.Namespace) -> int:
     _check_extent(log, args)
     with outputs:
         try:
-            summary = write_carmen_session(
-                log,
-                args.output,
-                fmt=args.fmt,
+            options = SessionOptions(
                 builder_params=BuilderParams(
                     resolution_m=args.resolution,
                     max_range_m=args.max_range,
@@ -127,8 +124,9 @@ def run(args: argparse.Namespace) -> int:
                 drift_level=args.drift_level,
                 drift_seed=args.drift_seed,
                 drift_start_s=args.drift_start,
-                force=args.force,
-                outputs=outputs,
+            )
+            summary = write_carmen_session(
+                log, args.output, fmt=args.fmt, options=options, force=args.force, outputs=outputs
             )
         except ValueError as err:  # a parameter out of range: one line, like every other error
             msg = f"{args.output}: {err}"

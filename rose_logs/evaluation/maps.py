@@ -13,11 +13,10 @@ import numpy.typing as npt
 
 from rose import load_map
 from rose_logs.carmen.drift import apply_drift
-from rose_logs.carmen.parse import CarmenLog, beam_angles, read_carmen_log
+from rose_logs.carmen.parse import CarmenLog, read_carmen_log
 from rose_logs.carmen.raycast import (
     BuilderParams,
     OccupancyGridBuilder,
-    ScanBatch,
     crop_to_known,
 )
 
@@ -77,10 +76,9 @@ def rasterise_log(
     """Build the occupancy grid of a CARMEN log, optionally with odometry drift on the poses."""
     log = read_log(Path(path))
     start = time.perf_counter()
-    ranges = np.stack([s.ranges_m for s in log.scans])
     poses = apply_drift(log.laser_poses, level=drift_level, seed=drift_seed)
     builder = OccupancyGridBuilder(BuilderParams(resolution_m=resolution_m))
-    builder.integrate(ScanBatch(ranges, beam_angles(ranges.shape[1]), poses))
+    builder.integrate_scans(log.scans, poses)
     grid, _ = crop_to_known(builder.grid(), margin_px=10)
     elapsed = time.perf_counter() - start
     label = name if name is not None else Path(path).name.split("-corrected")[0]

@@ -113,7 +113,6 @@ def _group_table(runs: Sequence[ClutterRun], key: str, title: str) -> list[str]:
 
 def _versions() -> str:
     import scipy
-    import sklearn
 
     parts = [
         f"rose {rose.__version__}",
@@ -121,7 +120,6 @@ def _versions() -> str:
         f"python {platform.python_version()}",
         f"numpy {np.__version__}",
         f"scipy {scipy.__version__}",
-        f"scikit-learn {sklearn.__version__}",
     ]
     if have_matplotlib():
         import matplotlib
@@ -277,21 +275,10 @@ def _w_by_log(drift_runs: Sequence[DriftRun]) -> dict[str, tuple[float, float]]:
     return result
 
 
-def _markdown(
-    config: EvaluationConfig,
-    *,
-    clutter_runs: Sequence[ClutterRun],
-    furniture_runs: Sequence[ClutterRun],
-    drift_runs: Sequence[DriftRun],
-    exp3: Experiment3,
-    median_by_map: dict[str, tuple[float, float]],
-    w_by_log: dict[str, tuple[float, float]],
-    figures: list[str],
-    map_images: list[str],
-    timings: dict[str, float],
-    run_s: float,
-    wall_md: str,
-) -> str:
+def _setup_section(
+    config: EvaluationConfig, *, timings: dict[str, float], run_s: float, map_images: list[str]
+) -> list[str]:
+    """Title, setup (seed, versions, run time, data, parameters) and ground-truth notes."""
     p = config.rose_params
     lines = [
         f"# ROSE evaluation ({config.name} configuration)",
@@ -322,8 +309,16 @@ def _markdown(
     ]
     if map_images:
         lines += ["Rasterised maps: " + ", ".join(f"[{m}]({m})" for m in map_images), ""]
+    return lines
 
-    lines += ["## Experiment 1: clutter sensitivity (paper section 4.2)", ""]
+
+def _clutter_section(
+    clutter_runs: Sequence[ClutterRun],
+    median_by_map: dict[str, tuple[float, float]],
+    figures: list[str],
+) -> list[str]:
+    """Experiment 1: clutter sensitivity per map, shape, size and count."""
+    lines = ["## Experiment 1: clutter sensitivity (paper section 4.2)", ""]
     lines += [
         "Paper: median precision > 95 % for every map except csail; recall about 30 %; precision "
         "drops past about 80 obstacles or obstacles larger than 15 px.",
@@ -345,8 +340,12 @@ def _markdown(
     lines += [f"Runs where ROSE found no dominant direction (metrics n/a): {no_dirs}.", ""]
     if "exp1_precision_recall_boxplots.png" in figures:
         lines += ["![precision and recall](exp1_precision_recall_boxplots.png)", ""]
+    return lines
 
-    lines += [
+
+def _furniture_section(furniture_runs: Sequence[ClutterRun]) -> list[str]:
+    """Experiment 1 on real furniture: one row per furnished / clean map pair, and the medians."""
+    lines = [
         "### Real furniture (`<name>_furnitures.png` against `<name>.png`)",
         "",
         "Furniture cells: free in the clean map and darker than grey 250 in the furnished image.",
@@ -369,8 +368,17 @@ def _markdown(
             f"{_pct(_median([r.clutter_recall for r in furniture_runs]))} |"
         ]
     lines += [""]
+    return lines
 
-    lines += [
+
+def _drift_section(
+    config: EvaluationConfig,
+    drift_runs: Sequence[DriftRun],
+    w_by_log: dict[str, tuple[float, float]],
+    figures: list[str],
+) -> list[str]:
+    """Experiment 2: W of the correct and the drifted maps of each log."""
+    lines = [
         "## Experiment 2: W separates correct from broken maps (paper section 4.3)",
         "",
         "Broken maps: the same scans at poses perturbed with seeded accumulated odometry drift "
@@ -401,8 +409,12 @@ def _markdown(
     lines += [""]
     if "exp2_structure_score.png" in figures:
         lines += ["![W correct vs drifted](exp2_structure_score.png)", ""]
+    return lines
 
-    lines += [
+
+def _confidence_section(exp3: Experiment3, figures: list[str]) -> list[str]:
+    """Experiment 3: correlation of W with precision."""
+    lines = [
         "## Experiment 3: W as a confidence measure (paper section 4.4)",
         "",
         f"Pearson R between W and precision over {exp3.n_all} experiment-1 runs: **{_fmt(exp3.r_all)}** "
@@ -419,15 +431,46 @@ def _markdown(
     ]
     if "exp3_w_vs_precision.png" in figures:
         lines += ["![W vs precision](exp3_w_vs_precision.png)", ""]
-    if wall_md:
-        lines += [wall_md.rstrip(), ""]
-    if not figures:
-        lines += ["Figures were not written (plots disabled or matplotlib missing).", ""]
-    lines += [
+    return lines
+
+
+def _files_section() -> list[str]:
+    """The list of files written next to the report."""
+    return [
         "## Files",
         "",
         "`exp1_clutter_runs.csv` (one row per cluttered map), `exp1_furniture.csv`, `exp2_drift.csv`, "
         "`exp3_correlation.csv`, `map_*.png` (rasterised logs, map_server greys), figures above.",
         "",
     ]
+
+
+def _markdown(
+    config: EvaluationConfig,
+    *,
+    clutter_runs: Sequence[ClutterRun],
+    furniture_runs: Sequence[ClutterRun],
+    drift_runs: Sequence[DriftRun],
+    exp3: Experiment3,
+    median_by_map: dict[str, tuple[float, float]],
+    w_by_log: dict[str, tuple[float, float]],
+    figures: list[str],
+    map_images: list[str],
+    timings: dict[str, float],
+    run_s: float,
+    wall_md: str,
+) -> str:
+    """The report: setup, the three experiments, the wall section (``wall_md``), the file list."""
+    lines = [
+        *_setup_section(config, timings=timings, run_s=run_s, map_images=map_images),
+        *_clutter_section(clutter_runs, median_by_map, figures),
+        *_furniture_section(furniture_runs),
+        *_drift_section(config, drift_runs, w_by_log, figures),
+        *_confidence_section(exp3, figures),
+    ]
+    if wall_md:
+        lines += [wall_md.rstrip(), ""]
+    if not figures:
+        lines += ["Figures were not written (plots disabled or matplotlib missing).", ""]
+    lines += _files_section()
     return "\n".join(lines)

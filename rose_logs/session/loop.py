@@ -71,6 +71,7 @@ def process_log(
     progress: bool = False,
     on_snapshot: Callable[[MapSnapshot, RoseResult, SnapshotRecord], None] | None = None,
     walls: bool = False,
+    recording_id: str | None = None,
     outputs: OutputSet | None = None,
     salvage: bool = False,
     max_cells: int | None = DEFAULT_MAX_CELLS,
@@ -105,6 +106,9 @@ def process_log(
         ``<map>/rose/walls`` and line strips in Rerun. Costs about 20-45 ms per 1000 x 1000 snapshot.
     on_snapshot : callable, optional
         Called with ``(snapshot, result, record)`` after each snapshot.
+    recording_id : str, optional
+        Rerun recording id; default: derived from the input's file name. ``rose-bag batch`` passes
+        one derived from the full URI, so that two robots' ``run.mcap`` stay separate recordings.
     outputs : rose.outputs.OutputSet, optional
         The run's outputs: the log and recording are staged there and the caller commits them together
         with its own (a JSON report). Default: a set of its own, committed before returning.
@@ -162,6 +166,7 @@ def process_log(
             progress=progress,
             on_snapshot=on_snapshot,
             walls=walls,
+            recording_id=recording_id,
             outputs=outputs,
             max_cells=max_cells,
         )
@@ -190,6 +195,7 @@ def _run_session(
     progress: bool,
     on_snapshot: Callable[[MapSnapshot, RoseResult, SnapshotRecord], None] | None,
     walls: bool,
+    recording_id: str | None,
     outputs: OutputSet,
     max_cells: int | None,
 ) -> SessionReport:
@@ -199,28 +205,17 @@ def _run_session(
         channels = reader.channels
         map_topics = select_topics(input_path, channels, topics)
         updates = update_targets(channels, map_topics)
-        writer: LogWriter | None = None
-        if output_path is not None:
-            fmt = output_format or format_from_path(output_path) or reader.format
-            writer = LogWriter(
-                output_path,
-                fmt,
-                serialization=reader.serialization,
-                force=force,
-                protected=(input_path,),
-                outputs=outputs,
-            )
+        writer = _output_writer(
+            reader, input_path, output_path, output_format, force=force, outputs=outputs
+        )
         rerun: RerunSink | None = None
         try:
             if writer is not None:
                 writer.open()
             handles, derived = _prepare_output(writer, channels, map_topics)
             if rrd_path is not None or spawn:
-                rerun = RerunSink(
-                    rrd_path=rrd_temp,
-                    spawn=spawn,
-                    roots=tuple(entity_root(t) for t in map_topics),
-                    recording_id=str(uuid.uuid5(uuid.NAMESPACE_URL, input_path.name)),
+                rerun = _rerun_sink(
+                    input_path, rrd_temp, map_topics, spawn=spawn, recording_id=recording_id
                 )
             loop = _Loop(
                 reader=reader,
@@ -256,23 +251,91 @@ def _run_session(
             if rerun is not None:
                 rerun.abort()
             raise
-        return SessionReport(
+        return _session_report(
+            reader,
+            loop,
             input_path=input_path,
-            input_format=reader.format,
             output_path=None if writer is None else writer.path,
-            rrd_path=None if rrd_path is None else Path(rrd_path),
+            rrd_path=rrd_path,
             map_topics=map_topics,
-            records=tuple(loop.records),
-            breaks=tuple(loop.breaks),
             failure_level=failure_level,
-            message_count=reader.read_count,
-            start_ns=reader.start_ns,
-            end_ns=reader.end_ns,
-            skipped_messages=loop.skipped,
-            elapsed_s=time.perf_counter() - started,
             params=params,
-            losses=tuple(reader.losses),
+            started=started,
         )
+
+
+def _output_writer(
+    reader: LogReader,
+    input_path: Path,
+    output_path: Path | None,
+    output_format: LogFormat | None,
+    *,
+    force: bool,
+    outputs: OutputSet | None = None,
+) -> LogWriter | None:
+    """The (unopened) output log: the input's serialisation and QoS spelling, the input protected."""
+    if output_path is None:
+        return None
+    fmt = output_format or format_from_path(output_path) or reader.format
+    return LogWriter(
+        output_path,
+        fmt,
+        serialization=reader.serialization,
+        force=force,
+        protected=(input_path,),
+        qos_style=reader.qos_style,
+        outputs=outputs,
+    )
+
+
+def _rerun_sink(
+    input_path: Path,
+    rrd_path: Path | None,
+    map_topics: Sequence[str],
+    *,
+    spawn: bool,
+    recording_id: str | None,
+) -> RerunSink:
+    """The Rerun recording of a session: one entity root per map topic; the id ``recording_id``, else
+    derived from the input's file name."""
+    return RerunSink(
+        rrd_path=None if rrd_path is None else Path(rrd_path),
+        spawn=spawn,
+        roots=tuple(entity_root(t) for t in map_topics),
+        recording_id=recording_id or str(uuid.uuid5(uuid.NAMESPACE_URL, input_path.name)),
+    )
+
+
+def _session_report(
+    reader: LogReader,
+    loop: _Loop,
+    *,
+    input_path: Path,
+    output_path: Path | None,
+    rrd_path: Path | None,
+    map_topics: Sequence[str],
+    failure_level: float,
+    params: RoseParams,
+    started: float,
+) -> SessionReport:
+    """What one pass found, with the input's counts and time range."""
+    return SessionReport(
+        input_path=input_path,
+        input_format=reader.format,
+        output_path=output_path,
+        rrd_path=None if rrd_path is None else Path(rrd_path),
+        map_topics=tuple(map_topics),
+        records=tuple(loop.records),
+        breaks=tuple(loop.breaks),
+        failure_level=failure_level,
+        message_count=reader.read_count,
+        start_ns=reader.start_ns,
+        end_ns=reader.end_ns,
+        skipped_messages=loop.skipped,
+        elapsed_s=time.perf_counter() - started,
+        params=params,
+        losses=tuple(reader.losses),
+    )
 
 
 def _prepare_output(

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Sequence
-from io import StringIO
+from typing import Any, Literal
 
 from rosbags.interfaces import Qos
 
@@ -12,7 +12,20 @@ from rose_logs.errors import LogWriteError
 from rose_logs.storage.records import Channel, normalize_msgtype
 from rose_logs.storage.typesys import msgdef_for
 
-__all__ = ["definitions", "offered_qos", "qos_yaml", "transient_local_qos"]
+__all__ = [
+    "QosStyle",
+    "default_qos",
+    "definitions",
+    "offered_qos",
+    "qos_style",
+    "qos_yaml",
+    "transient_local_qos",
+]
+
+QosStyle = Literal["v8", "v9"]
+"""How QoS policies are spelled in rosbag2 metadata: ``"v8"`` integers (rosbag2 format <= 8, what Humble
+and Iron write and the only form Humble reads), ``"v9"`` lower-case names (format 9, Jazzy and later)."""
+_POLICIES = ("history", "reliability", "durability", "liveliness")
 
 _LOG = logging.getLogger(__name__)
 _SEPARATOR = "=" * 80
@@ -20,6 +33,15 @@ _SEPARATOR = "=" * 80
 
 def transient_local_qos(depth: int = 1) -> Qos:
     """The QoS a latched ROS 2 map publisher offers (reliable, transient local, keep last ``depth``)."""
+    return _reliable_qos(depth, transient_local=True)
+
+
+def default_qos(depth: int = 10) -> Qos:
+    """The QoS of a default ROS 2 publisher (``rmw_qos_profile_default``: reliable, volatile, keep last 10)."""
+    return _reliable_qos(depth, transient_local=False)
+
+
+def _reliable_qos(depth: int, *, transient_local: bool) -> Qos:
     from rosbags.interfaces import QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
 
     zero = QosTime(sec=0, nsec=0)
@@ -27,7 +49,7 @@ def transient_local_qos(depth: int = 1) -> Qos:
         history=QosHistory.KEEP_LAST,
         depth=depth,
         reliability=QosReliability.RELIABLE,
-        durability=QosDurability.TRANSIENT_LOCAL,
+        durability=QosDurability.TRANSIENT_LOCAL if transient_local else QosDurability.VOLATILE,
         deadline=zero,
         lifespan=zero,
         liveliness=QosLiveliness.AUTOMATIC,
@@ -50,8 +72,8 @@ def definitions(channel: Channel, ros_version: int) -> tuple[str, str]:
             store = get_typestore(Stores.EMPTY)
             for name, text in _split_msgdef(channel.msgtype, channel.msgdef):
                 store.register(get_types_from_msg(text, name))
-            if ros_version == 1:
-                return store.generate_msgdef(channel.msgtype)
+            if ros_version == 1:  # keep the input's text as is, only its md5sum is computed
+                return channel.msgdef, store.generate_msgdef(channel.msgtype)[1]
             return channel.msgdef, store.hash_rihs01(channel.msgtype)
         except Exception:  # fall back to the built-in definitions below
             _LOG.debug("could not hash the definition of %s", channel.msgtype, exc_info=True)
@@ -75,17 +97,48 @@ def _split_msgdef(msgtype: str, text: str) -> list[tuple[str, str]]:
     return [(n, b) for n, b in parts if n]
 
 
-def qos_yaml(profiles: Sequence[Qos]) -> str:
+def qos_yaml(profiles: Sequence[Qos], *, style: QosStyle = "v9") -> str:
+    """``offered_qos_profiles`` text of rosbag2 / MCAP channel metadata: a YAML list, one dict per profile.
+
+    ``style`` picks the spelling of the policies (see :data:`QosStyle`); ``""`` for no profiles.
+    """
+    import yaml
     from rosbags.rosbag2.metadata import dump_qos_v9
-    from ruamel.yaml import YAML
 
     if not profiles:
         return ""
-    stream = StringIO()
-    yaml = YAML(typ="safe")
-    yaml.default_flow_style = False
-    yaml.dump(dump_qos_v9(list(profiles)), stream)
-    return stream.getvalue().strip()
+    dicts: list[Any] = list(dump_qos_v9(list(profiles)))
+    if style == "v8":
+        for dct, profile in zip(dicts, profiles, strict=True):
+            for policy in _POLICIES:
+                dct[policy] = int(getattr(profile, policy).value)
+    return str(yaml.safe_dump(dicts, default_flow_style=False)).strip()
+
+
+def qos_style(text: str | Sequence[Any]) -> QosStyle | None:
+    """Spelling of the QoS policies in ``offered_qos_profiles`` (YAML text or parsed list); None if unknown."""
+    import yaml
+
+    items: Any = text
+    if isinstance(text, str):
+        try:
+            items = yaml.safe_load(text)
+        except yaml.YAMLError:
+            return None
+    if not isinstance(items, list):
+        return None
+    for item in items:
+        if not isinstance(item, dict):
+            continue
+        for policy in _POLICIES:
+            value = item.get(policy)
+            if isinstance(value, bool):
+                continue
+            if isinstance(value, int):
+                return "v8"
+            if isinstance(value, str):
+                return "v9"
+    return None
 
 
 def offered_qos(channel: Channel) -> list[Qos]:

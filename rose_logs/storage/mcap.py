@@ -9,8 +9,21 @@ from typing import Any, BinaryIO
 
 from rose_logs.errors import LogReadError
 from rose_logs.storage.base import WriteBackend
-from rose_logs.storage.connections import definitions, offered_qos, qos_yaml
-from rose_logs.storage.records import Channel, RawMessage, normalize_msgtype, ros1_msgtype
+from rose_logs.storage.connections import (
+    QosStyle,
+    default_qos,
+    definitions,
+    offered_qos,
+    qos_style,
+    qos_yaml,
+)
+from rose_logs.storage.records import (
+    Channel,
+    RawMessage,
+    normalize_msgtype,
+    parse_latching,
+    ros1_msgtype,
+)
 
 __all__ = ["McapReadBackend", "McapWriteBackend"]
 
@@ -29,6 +42,7 @@ class McapReadBackend:
         self.start_ns = 0
         self.end_ns = 0
         self.profile = ""
+        self.qos_style: QosStyle | None = None
 
     def open(self) -> None:
         from mcap.reader import SeekingReader
@@ -49,7 +63,7 @@ class McapReadBackend:
         counts = summary.statistics.channel_message_counts if summary.statistics else None
         if counts is None:  # no statistics record: count what the file holds
             counts = self._count_messages()
-        channels = []
+        channels: list[Channel] = []
         for channel_id in sorted(summary.channels):
             ch = summary.channels[channel_id]
             schema = summary.schemas.get(ch.schema_id)
@@ -66,14 +80,14 @@ class McapReadBackend:
                 digest=ch.metadata.get("md5sum", "") or ch.metadata.get("type_hash", ""),
                 message_count=int(counts.get(channel_id, 0)),
                 callerid=ch.metadata.get("callerid"),
-                latching=int(ch.metadata["latching"])
-                if ch.metadata.get("latching", "").isdigit()
-                else None,
+                latching=parse_latching(ch.metadata.get("latching")),
                 metadata=dict(ch.metadata),
                 schema_name=name,
             )
             channels.append(channel)
             self._by_id[channel_id] = channel
+            if self.qos_style is None and ch.message_encoding == "cdr":
+                self.qos_style = qos_style(ch.metadata.get("offered_qos_profiles", ""))
         self.channels = tuple(channels)
         if summary.statistics and summary.statistics.message_count:
             self.start_ns = int(summary.statistics.message_start_time)
@@ -108,9 +122,17 @@ class McapReadBackend:
 
 
 class McapWriteBackend(WriteBackend):
-    def __init__(self, path: Path, serialization: str) -> None:
+    """Bare MCAP output, ``ros1`` or ``ros2`` profile.
+
+    Every ``cdr`` channel gets the ``offered_qos_profiles`` metadata the ``ros2`` profile requires: the
+    input's text when copied from an MCAP file that has it, else the channel's profiles (a default
+    publisher's when it has none), spelled in ``qos_style``.
+    """
+
+    def __init__(self, path: Path, serialization: str, qos_style: QosStyle = "v9") -> None:
         self.path = path
         self.serialization = serialization
+        self.qos_style = qos_style
         self.stream: BinaryIO | None = None
         self.writer: Any = None
         self.schemas: dict[tuple[str, str, str], int] = {}
@@ -139,18 +161,16 @@ class McapWriteBackend(WriteBackend):
             schema_id = self.writer.register_schema(name, encoding, data.encode("utf-8"))
             self.schemas[key] = schema_id
         metadata = dict(channel.metadata)
-        if not metadata:
-            if ros1:
-                if channel.callerid is not None:
-                    metadata["callerid"] = channel.callerid
-                if channel.latching is not None:
-                    metadata["latching"] = str(int(channel.latching))
-                if channel.digest:
-                    metadata["md5sum"] = channel.digest
-            else:
-                qos = qos_yaml(offered_qos(channel))
-                if qos:
-                    metadata["offered_qos_profiles"] = qos
+        if not metadata and ros1:
+            if channel.callerid is not None:
+                metadata["callerid"] = channel.callerid
+            if channel.latching is not None:
+                metadata["latching"] = str(int(channel.latching))
+            if channel.digest:
+                metadata["md5sum"] = channel.digest
+        elif channel.message_encoding == "cdr" and "offered_qos_profiles" not in metadata:
+            profiles = offered_qos(channel) or [default_qos()]
+            metadata["offered_qos_profiles"] = qos_yaml(profiles, style=self.qos_style)
         channel_id = self.writer.register_channel(
             channel.topic, channel.message_encoding, schema_id, metadata
         )

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 
 from rosbags.interfaces import Qos
 
-__all__ = ["Channel", "RawMessage", "normalize_msgtype", "ros1_msgtype"]
+__all__ = ["Channel", "RawMessage", "normalize_msgtype", "parse_latching", "ros1_msgtype"]
 
 
 def normalize_msgtype(name: str) -> str:
@@ -27,6 +27,23 @@ def ros1_msgtype(name: str) -> str:
     if len(parts) == 3 and parts[1] == "msg":
         return f"{parts[0]}/{parts[2]}"
     return name
+
+
+def parse_latching(text: str | None) -> int | None:
+    """ROS 1 latching flag from connection-header / MCAP metadata text: 1, 0 or None when unknown.
+
+    Both spellings in use are accepted: ``"1"`` / ``"0"`` (the ROS 1 connection header, and MCAP files
+    converted from bags) and ``"true"`` / ``"false"`` (the MCAP registry's ``ros1`` profile), in any case
+    and with surrounding blanks.
+    """
+    if text is None:
+        return None
+    value = text.strip().lower()
+    if value in {"1", "true"}:
+        return 1
+    if value in {"0", "false"}:
+        return 0
+    return None
 
 
 @dataclass(frozen=True, eq=False)

@@ -5,12 +5,12 @@ from __future__ import annotations
 import logging
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 from rose_logs.errors import LogReadError
 from rose_logs.formats import LogFormat
 from rose_logs.storage.base import WriteBackend
-from rose_logs.storage.connections import definitions, offered_qos
+from rose_logs.storage.connections import QosStyle, definitions, offered_qos, qos_style
 from rose_logs.storage.records import Channel, RawMessage, normalize_msgtype
 
 __all__ = ["Ros1WriteBackend", "Ros2WriteBackend", "RosbagsReadBackend"]
@@ -31,6 +31,7 @@ class RosbagsReadBackend:
         self._by_conn: dict[int, Channel] = {}
         self.start_ns = 0
         self.end_ns = 0
+        self.qos_style: QosStyle | None = None
 
     def open(self) -> None:
         if self.format == "ros1":
@@ -42,7 +43,7 @@ class RosbagsReadBackend:
 
             self.reader = Reader2(self.path)
         self.reader.open()
-        channels = []
+        channels: list[Channel] = []
         for conn in self.reader.connections:
             ext = conn.ext
             ros1 = self.format == "ros1"
@@ -63,6 +64,8 @@ class RosbagsReadBackend:
             channels.append(channel)
             self._by_conn[id(conn)] = channel
         self.channels = tuple(channels)
+        if self.format != "ros1":
+            self.qos_style = _bag_qos_style(self.path)
         if self.format != "ros1" and self.path.is_dir():
             self._check_types()
         if sum(c.message_count for c in channels):
@@ -99,6 +102,25 @@ class RosbagsReadBackend:
             except Exception:  # closing a half-open reader must not mask the real error
                 _LOG.debug("closing %s failed", self.path, exc_info=True)
             self.reader = None
+
+
+def _bag_qos_style(path: Path) -> QosStyle | None:
+    """How ``metadata.yaml`` of the ROS 2 bag folder ``path`` spells QoS (None: no folder / no QoS).
+
+    From the first topic with offered QoS profiles, else from the format version (<= 8: integers).
+    """
+    import yaml
+
+    try:
+        info = yaml.safe_load((path / "metadata.yaml").read_text(encoding="utf-8"))
+        info = info["rosbag2_bagfile_information"]
+        for topic in info.get("topics_with_message_count") or ():
+            style = qos_style(topic["topic_metadata"].get("offered_qos_profiles") or "")
+            if style is not None:
+                return style
+        return "v8" if int(info["version"]) <= 8 else "v9"
+    except (OSError, yaml.YAMLError, KeyError, TypeError, ValueError):
+        return None
 
 
 class _RosbagsWriteBackend(WriteBackend):
@@ -174,15 +196,18 @@ class Ros1WriteBackend(_RosbagsWriteBackend):
 class Ros2WriteBackend(_RosbagsWriteBackend):
     ros_version = 2
 
-    def __init__(self, path: Path, fmt: LogFormat) -> None:
+    def __init__(self, path: Path, fmt: LogFormat, qos_style: QosStyle = "v9") -> None:
         super().__init__(path)
         self.format = fmt
+        self.qos_style = qos_style
 
     def open(self) -> None:
         from rosbags.rosbag2 import StoragePlugin, Writer
 
         plugin = StoragePlugin.MCAP if self.format == "mcap-dir" else StoragePlugin.SQLITE3
-        self.writer = Writer(self.path, version=9, storage_plugin=plugin)
+        # rosbag2 format 8 spells QoS policies as integers (what Humble reads), format 9 as names.
+        version: Literal[8, 9] = 8 if self.qos_style == "v8" else 9
+        self.writer = Writer(self.path, version=version, storage_plugin=plugin)
         self.writer.open()
 
     def _add_connection(self, channel: Channel, msgdef: str, digest: str) -> Any:

@@ -60,10 +60,16 @@ def typestore_for(serialization: str) -> Any:
 def msgdef_for(msgtype: str, serialization: str) -> tuple[str, str]:
     """``(message definition, digest)`` of ``msgtype`` for a new output connection.
 
-    The digest is the md5sum for ``"ros1"`` and the RIHS01 hash for ``"cdr"``.
+    The digest is the md5sum for ``"ros1"`` and the RIHS01 hash for ``"cdr"``. ROS 1 definitions are
+    the canonical full texts of :mod:`rose_logs.storage.ros1_definitions` for the types rose-bag adds
+    (what ``rosbag record`` stores; rosbags would drop the comments), else rosbags' generated text.
     """
     store = typestore_for(serialization)
     if serialization == "ros1":
-        return store.generate_msgdef(msgtype)
+        from rose_logs.storage.ros1_definitions import ROS1_FULL_TEXT
+
+        msgdef, md5 = store.generate_msgdef(msgtype)
+        # ROS's own full text (comments and all) where we have it, as a bag recorded by ROS stores it.
+        return ROS1_FULL_TEXT.get(msgtype, msgdef), md5
     msgdef, _ = store.generate_msgdef(msgtype, ros_version=2)
     return msgdef, store.hash_rihs01(msgtype)

@@ -92,7 +92,14 @@ def test_connection_metadata_is_kept(tmp_path: Path, kind: str, fr079) -> None:
         )
         assert (d.callerid, d.latching) == (c.callerid, c.latching)
         assert d.offered_qos_profiles == c.offered_qos_profiles
-        assert dict(d.metadata) == dict(c.metadata)
+        added = {k: v for k, v in d.metadata.items() if k not in c.metadata}
+        assert {k: d.metadata[k] for k in c.metadata} == dict(c.metadata)  # kept as is
+        # ... and the ros2 profile's required offered_qos_profiles added where the input lacked it
+        if c.message_encoding == "cdr" and kind.startswith("mcap"):
+            assert set(added) <= {"offered_qos_profiles"}
+            assert "offered_qos_profiles" in d.metadata
+        else:
+            assert added == {}
     cleaned = after["/map/rose/cleaned"]
     assert (
         bool(cleaned.latching)

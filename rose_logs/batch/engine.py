@@ -1,0 +1,378 @@
+"""Running a batch: find the recordings, skip finished ones, run the rest (in-process or Dask)."""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import time
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from rose_logs.batch.errors import BatchError
+from rose_logs.batch.sources import Recording, discover
+from rose_logs.batch.store import OutputStore
+from rose_logs.batch.task import (
+    RecordingOptions,
+    RecordingResult,
+    error_result,
+    load_result,
+    process_recording,
+    result_key,
+    store_result,
+)
+
+__all__ = ["BatchReport", "run_batch"]
+
+_LOG = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class BatchReport:
+    """What a batch did.
+
+    Attributes
+    ----------
+    out : str
+        Output root.
+    results : tuple of RecordingResult
+        One per recording found (finished ones), sorted by URI; recordings not finished because of an
+        interruption are missing.
+    processed : int
+        Recordings processed by this run (the others were skipped: finished before).
+    skipped : int
+        Recordings whose stored result was reused.
+    interrupted : bool
+        The batch was stopped (Ctrl-C) before every recording finished.
+    failure_level : float
+        W above which a snapshot counts as broken.
+    elapsed_s : float
+        Wall time of the run, seconds.
+    """
+
+    out: str
+    results: tuple[RecordingResult, ...]
+    processed: int
+    skipped: int
+    interrupted: bool
+    failure_level: float
+    elapsed_s: float
+
+    @property
+    def errors(self) -> tuple[RecordingResult, ...]:
+        """Recordings that failed."""
+        return tuple(r for r in self.results if r.status == "error")
+
+    @property
+    def broken(self) -> tuple[RecordingResult, ...]:
+        """Recordings with a snapshot above the failure level."""
+        return tuple(r for r in self.results if r.row()["broke"])
+
+    def max_score(self) -> float:
+        """Largest W over every snapshot of every recording (NaN without snapshots)."""
+        scores = [s["structure_score"] for r in self.results for s in r.snapshots]
+        return max(scores, default=float("nan"))
+
+
+ResultCallback = Callable[[RecordingResult, int, int], None]
+
+
+def run_batch(
+    inputs: Sequence[str | Path],
+    out: str | Path,
+    *,
+    client: Any = None,
+    workers: int = 1,
+    scheduler: str | None = None,
+    scheduler_file: str | Path | None = None,
+    memory_limit: str | float | None = None,
+    options: RecordingOptions | None = None,
+    storage_options: Mapping[str, Any] | None = None,
+    force: bool = False,
+    retry_errors: bool = False,
+    progress: bool = False,
+    on_result: ResultCallback | None = None,
+    write_tables: bool = True,
+) -> BatchReport:
+    """Process every recording of ``inputs``; write the tables and report to ``out``.
+
+    Parameters
+    ----------
+    inputs : sequence of str or Path
+        Files, folders, glob patterns or fsspec URLs (see :func:`rose_logs.batch.discover`).
+    out : str or Path
+        Output folder or fsspec URL (``s3://bucket/prefix``).
+    client : distributed.Client, optional
+        Run on this Dask client's cluster. Otherwise ``scheduler`` / ``scheduler_file`` name an
+        existing cluster, ``workers > 1`` starts a local one (processes, one thread each) and
+        ``workers == 1`` runs in this process without Dask.
+    workers : int, default 1
+        Worker processes of the local cluster.
+    scheduler, scheduler_file : optional
+        Address (``tcp://host:8786``) or scheduler file of an existing Dask cluster.
+    memory_limit : str or float, optional
+        Per-worker memory limit of the local cluster (``"2GB"``, bytes, or a fraction of RAM);
+        a worker that exceeds it is restarted and its recording reported as an error.
+    options : RecordingOptions, optional
+        Per-recording options (ROSE parameters, topics, outputs, retries).
+    storage_options : mapping, optional
+        fsspec options for remote inputs and ``out``.
+    force : bool, default False
+        Redo every recording, even those finished before.
+    retry_errors : bool, default False
+        Redo the recordings that failed before (finished ones are still skipped).
+    progress : bool, default False
+        Show a progress bar on stderr.
+    on_result : callable, optional
+        Called with ``(result, done, total)`` after each recording processed by this run.
+    write_tables : bool, default True
+        Write ``recordings.parquet``, ``snapshots.parquet``, ``summary.json`` and ``report.md``.
+
+    Returns
+    -------
+    BatchReport
+
+    Raises
+    ------
+    BatchError
+        If an input does not exist or matches nothing, or ``out`` cannot be created.
+    """
+    started = time.perf_counter()
+    options = options or RecordingOptions()
+    if workers < 1:
+        msg = f"workers must be >= 1, got {workers}"
+        raise BatchError(msg)
+    store = OutputStore(str(out), storage_options)
+    recordings = _outside(discover(inputs, storage_options=storage_options), store)
+    store.prepare()
+    keys = {rec.uri: result_key(rec, options) for rec in recordings}
+    finished: dict[str, RecordingResult] = {}
+    todo: list[Recording] = []
+    for rec in recordings:
+        previous = None if force else load_result(store, keys[rec.uri])
+        if previous is None or (retry_errors and previous.status == "error"):
+            todo.append(rec)
+        else:
+            finished[rec.uri] = previous
+    skipped = len(finished)
+    _LOG.info("%d recordings, %d finished before, %d to do", len(recordings), skipped, len(todo))
+    interrupted = False
+    bar = _Progress(total=len(todo), enabled=progress)
+    try:
+        with _executor(
+            client if todo else None,
+            workers if todo else 1,  # nothing to do: no cluster to start or connect to
+            scheduler if todo else None,
+            scheduler_file if todo else None,
+            memory_limit,
+            options,
+        ) as run:
+            bar.slots = getattr(run, "slots", 1)
+            for result in run(todo, store, options, storage_options, keys):
+                finished[result.uri] = result
+                bar.update(result)
+                if on_result is not None:
+                    on_result(result, bar.done, len(todo))
+    except KeyboardInterrupt:
+        interrupted = True
+        _LOG.warning("interrupted: %d of %d recordings finished", bar.done, len(todo))
+    finally:
+        bar.close()
+        store.remove_staging()
+    report = BatchReport(
+        out=store.root,
+        results=tuple(finished[r.uri] for r in recordings if r.uri in finished),
+        processed=bar.done,
+        skipped=skipped,
+        interrupted=interrupted,
+        failure_level=options.failure_level,
+        elapsed_s=time.perf_counter() - started,
+    )
+    if write_tables:
+        from rose_logs.batch.tables import write_outputs
+
+        write_outputs(store, report, options)
+    return report
+
+
+def _outside(recordings: tuple[Recording, ...], store: OutputStore) -> tuple[Recording, ...]:
+    """The recordings not inside the output root (its cleaned logs are no inputs of a re-run)."""
+    root = store.root.removeprefix("file://")
+    if store.local:
+        root = str(Path(root).expanduser().absolute())
+    prefix = root.rstrip("/") + "/"
+    kept = tuple(r for r in recordings if not r.uri.startswith(prefix))
+    if not kept:
+        msg = f"no recording found outside the output folder {store.root}"
+        raise BatchError(msg)
+    return kept
+
+
+Runner = Callable[
+    [Sequence[Recording], OutputStore, RecordingOptions, Mapping[str, Any] | None, dict[str, str]],
+    Iterator[RecordingResult],
+]
+
+
+@contextlib.contextmanager
+def _executor(
+    client: Any,
+    workers: int,
+    scheduler: str | None,
+    scheduler_file: str | Path | None,
+    memory_limit: str | float | None,
+    options: RecordingOptions,
+) -> Iterator[Runner]:
+    """A function running recordings: in-process, or on a (local or existing) Dask cluster."""
+    if client is not None:
+        yield _dask_runner(client, memory_limit)
+        return
+    if scheduler is not None or scheduler_file is not None:
+        from distributed import Client
+
+        try:
+            own = (
+                Client(scheduler_file=str(scheduler_file), timeout="10s")
+                if scheduler_file is not None
+                else Client(scheduler, timeout="10s")
+            )
+        except (OSError, TimeoutError, ValueError) as err:
+            msg = f"cannot connect to the Dask scheduler {scheduler or scheduler_file}: {err}"
+            raise BatchError(msg) from err
+        with own:
+            yield _dask_runner(own, memory_limit)
+        return
+    if workers == 1:
+        yield _in_process
+        return
+    from rose_logs.batch.cluster import local_client
+
+    with local_client(workers, memory_limit=memory_limit, retries=options.retries) as own:
+        yield _dask_runner(own, memory_limit)
+
+
+def _in_process(
+    todo: Sequence[Recording],
+    store: OutputStore,
+    options: RecordingOptions,
+    storage_options: Mapping[str, Any] | None,
+    keys: dict[str, str],
+) -> Iterator[RecordingResult]:
+    del keys
+    for rec in todo:
+        yield process_recording(
+            rec, out=store.root, options=options, storage_options=storage_options
+        )
+
+
+def _dask_runner(client: Any, memory_limit: str | float | None) -> Runner:
+    from rose_logs.batch.workerenv import tune_worker_process
+
+    slots = len(client.run(tune_worker_process))  # workers we did not start: malloc, 1-thread pools
+
+    def run(
+        todo: Sequence[Recording],
+        store: OutputStore,
+        options: RecordingOptions,
+        storage_options: Mapping[str, Any] | None,
+        keys: dict[str, str],
+    ) -> Iterator[RecordingResult]:
+        from distributed import as_completed
+
+        futures = {
+            client.submit(
+                _dask_task,
+                rec,
+                out=store.root,
+                options=options,
+                storage_options=storage_options,
+                key=f"rose-bag-{keys[rec.uri]}",
+                pure=False,
+            ): rec
+            for rec in todo
+        }
+        try:
+            for future in as_completed(futures):
+                rec = futures[future]
+                yield _collect(future, rec, keys[rec.uri], store, options, memory_limit)
+        finally:
+            pending = [f for f in futures if not f.done()]
+            if pending:
+                client.cancel(pending)
+
+    run.slots = slots  # type: ignore[attr-defined]
+    return run
+
+
+def _dask_task(
+    recording: Recording,
+    *,
+    out: str,
+    options: RecordingOptions,
+    storage_options: Mapping[str, Any] | None,
+) -> RecordingResult:
+    """:func:`process_recording` in a Dask worker, tuned first (a restarted worker needs it again)."""
+    from rose_logs.batch.workerenv import tune_worker_process
+
+    tune_worker_process()
+    return process_recording(recording, out=out, options=options, storage_options=storage_options)
+
+
+def _collect(
+    future: Any,
+    rec: Recording,
+    key: str,
+    store: OutputStore,
+    options: RecordingOptions,
+    memory_limit: str | float | None,
+) -> RecordingResult:
+    """A finished future's result; a worker death or task failure becomes (and is stored as) an error."""
+    from distributed import KilledWorker
+
+    try:
+        return future.result()
+    except KilledWorker as err:
+        limit = f" (memory limit {memory_limit})" if memory_limit is not None else ""
+        message = f"the worker processing it died{limit}, out of memory or killed: {err}"
+    except Exception as err:  # the task itself never raises for a bad recording
+        message = f"{type(err).__name__}: {err}"
+    result = error_result(rec, key, options, message)
+    try:
+        store_result(store, result)
+    except OSError as err:
+        _LOG.warning("%s: cannot store the error result (%s)", rec.uri, err)
+    return result
+
+
+class _Progress:
+    """tqdm bar over the recordings of this run: finished / failed / running."""
+
+    def __init__(self, *, total: int, enabled: bool, slots: int = 1) -> None:
+        self.total = total
+        self.slots = slots
+        self.done = 0
+        self.ok = 0
+        self.failed = 0
+        self.bar: Any = None
+        if enabled and total:
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=total, unit="rec", desc="recordings", dynamic_ncols=True)
+
+    def update(self, result: RecordingResult) -> None:
+        self.done += 1
+        if result.status == "ok":
+            self.ok += 1
+        else:
+            self.failed += 1
+        if self.bar is not None:
+            running = min(self.slots, self.total - self.done)
+            self.bar.set_postfix_str(
+                f"ok {self.ok}, failed {self.failed}, running {running}", refresh=False
+            )
+            self.bar.update(1)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()

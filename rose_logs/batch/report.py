@@ -1,0 +1,146 @@
+"""``report.md`` of a batch and its figure: W over time per recording, broken ones highlighted."""
+
+from __future__ import annotations
+
+import io
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from rose_logs.batch.engine import BatchReport
+
+__all__ = ["figure_png", "markdown"]
+
+#: Broken recordings named in the figure's legend (the rest are counted).
+_LEGEND_MAX = 12
+
+
+def _fmt(value: float | None) -> str:
+    return "-" if value is None else f"{value:.3f}"
+
+
+def _count(n: int, noun: str) -> str:
+    return f"{n} {noun}" + ("" if n == 1 else "s")
+
+
+def _cell(text: str) -> str:
+    return text.replace("|", "\\|").replace("\n", " ")
+
+
+def markdown(report: BatchReport, summary: dict[str, Any], *, figure: bool) -> str:
+    """The report: counts, the figure, broken recordings, failed recordings, every recording."""
+    rows = [r.row() for r in report.results]
+    level = report.failure_level
+    lines = [
+        "# rose-bag batch report",
+        "",
+        f"{_count(summary['recordings'], 'recording')}: {summary['ok']} processed, "
+        f"{summary['errors']} failed, {summary['broken']} with a map that broke (W > {level:g}); "
+        f"{_count(summary['snapshots'], 'map snapshot')}.",
+        "",
+    ]
+    if report.interrupted:
+        lines += ["**Interrupted:** recordings not finished are missing from this report.", ""]
+    if figure:
+        lines += [
+            "![W over time per recording; broken ones in colour](w_over_time.png)",
+            "",
+            "W over time since each recording's first message; grey: maps that stayed below "
+            f"{level:g}; in colour: maps that broke (dot: first snapshot above the level).",
+            "",
+        ]
+    broken = [r for r in rows if r["broke"]]
+    lines += ["## Broken maps", ""]
+    if broken:
+        lines += [
+            "| recording | topic | first break (s) | snapshot | W max |",
+            "|---|---|---|---|---|",
+        ]
+        for r in broken:
+            seconds = (r["first_break_ns"] - r["start_ns"]) / 1e9
+            lines.append(
+                f"| {_cell(r['name'])} | {_cell(r['first_break_topic'])} | {seconds:.1f} | "
+                f"{r['first_break_index']} | {_fmt(r['w_max'])} |"
+            )
+    else:
+        lines.append("None.")
+    lines += ["", "## Failed recordings", ""]
+    failed = [r for r in rows if r["status"] == "error"]
+    if failed:
+        lines += ["| recording | error |", "|---|---|"]
+        lines += [f"| {_cell(r['name'])} | {_cell(r['error'] or '')} |" for r in failed]
+    else:
+        lines.append("None.")
+    lines += [
+        "",
+        "## All recordings",
+        "",
+        "| recording | format | status | snapshots | W min | W median | W max | broke |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        lines.append(
+            f"| {_cell(r['name'])} | {r['format'] or '-'} | {r['status']} | {r['snapshots']} | "
+            f"{_fmt(r['w_min'])} | {_fmt(r['w_median'])} | {_fmt(r['w_max'])} | "
+            f"{'yes' if r['broke'] else 'no'} |"
+        )
+    lines += [
+        "",
+        "Tables: `recordings.parquet` (one row per recording), `snapshots.parquet` (one row per "
+        "snapshot); `summary.json`.",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+def figure_png(report: BatchReport) -> bytes | None:
+    """PNG of W over time per recording and map topic; None without matplotlib or snapshots."""
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        return None
+    series = []
+    for result in report.results:
+        topics = sorted({s["topic"] for s in result.snapshots})
+        for topic in topics:
+            rows = sorted(
+                (s for s in result.snapshots if s["topic"] == topic), key=lambda s: s["index"]
+            )
+            label = result.name if len(topics) == 1 else f"{result.name} {topic}"
+            series.append((label, rows))
+    if not series:
+        return None
+    level = report.failure_level
+    fig, ax = plt.subplots(figsize=(9, 4.5), dpi=100)
+    broken_count = 0
+    for label, rows in series:
+        times = [s["time_s"] for s in rows]
+        scores = [s["structure_score"] for s in rows]
+        first = next((s for s in rows if s["broken"]), None)
+        if first is None:
+            ax.plot(times, scores, ".-", color="0.65", linewidth=0.8, markersize=3, zorder=1)
+            continue
+        broken_count += 1
+        shown = broken_count <= _LEGEND_MAX
+        (line,) = ax.plot(times, scores, linewidth=1.6, zorder=3, label=label if shown else None)
+        ax.plot(first["time_s"], first["structure_score"], "o", color=line.get_color(), zorder=4)
+    if len(series) > broken_count:
+        ax.plot([], [], ".-", color="0.65", label=f"{len(series) - broken_count} below the level")
+    ax.axhline(
+        level, color="tab:red", linestyle="--", linewidth=1, label=f"failure level {level:g}"
+    )
+    ax.set_xlabel("time since the recording's first message (s)")
+    ax.set_ylabel("structure score W")
+    ax.set_ylim(0, 1.02)
+    ax.set_title(f"W over time: {len(series)} map series, {broken_count} broken")
+    if broken_count > _LEGEND_MAX:
+        ax.plot([], [], " ", label=f"... and {broken_count - _LEGEND_MAX} more broken")
+    ax.legend(loc="upper left", fontsize=7, framealpha=0.9)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", metadata={"Software": None})
+    plt.close(fig)
+    return buffer.getvalue()

@@ -1,0 +1,183 @@
+"""Finding the recordings of a batch: files, folders, globs, object-store prefixes, lists."""
+
+from __future__ import annotations
+
+import hashlib
+import posixpath
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import fsspec
+
+from rose_logs.batch.errors import BatchError
+from rose_logs.batch.store import is_local
+
+__all__ = ["LOG_SUFFIXES", "Recording", "discover", "read_list"]
+
+#: File suffixes searched for in folders (a folder with ``metadata.yaml`` is one ROS 2 bag).
+LOG_SUFFIXES = (".bag", ".mcap", ".db3")
+_GLOB_CHARS = "*?["
+
+
+@dataclass(frozen=True, order=True)
+class Recording:
+    """One recording to process.
+
+    Attributes
+    ----------
+    uri : str
+        Full location: an absolute local path, or an fsspec URL (``s3://bucket/key``). Identifies the
+        recording everywhere (tables, resume keys, Rerun recording id).
+    name : str
+        ``/``-separated name relative to the input it was found under (the input's own base name
+        first), used to mirror outputs (``cleaned/<name>``, ``rrd/<name>.rrd``).
+    is_dir : bool
+        A ROS 2 bag folder (``metadata.yaml`` plus its storage files).
+    size : int
+        Bytes (all files of a folder).
+    version : str
+        Modification time in ns (local) or the ETag(s) (object stores): with ``size``, what tells a
+        changed recording from the one already processed.
+    """
+
+    uri: str
+    name: str
+    is_dir: bool
+    size: int
+    version: str
+
+
+def read_list(path: str, storage_options: Mapping[str, Any] | None = None) -> list[str]:
+    """Inputs listed in a text file, one per line; blank lines and ``#`` comments are skipped."""
+    try:
+        with fsspec.open(path, "rt", encoding="utf-8", **_options(path, storage_options)) as f:
+            lines = f.read().splitlines()
+    except (OSError, UnicodeDecodeError) as err:
+        msg = f"{path}: cannot read the list of inputs ({err})"
+        raise BatchError(msg) from err
+    return [s for s in (line.strip() for line in lines) if s and not s.startswith("#")]
+
+
+def discover(
+    inputs: Sequence[str | Path], *, storage_options: Mapping[str, Any] | None = None
+) -> tuple[Recording, ...]:
+    """Every recording named by ``inputs``, sorted by URI, each once.
+
+    Parameters
+    ----------
+    inputs : sequence of str or Path
+        Log files (taken as they are, whatever their suffix), folders (searched recursively for
+        ``*.bag``, ``*.mcap``, ``*.db3`` and ROS 2 bag folders; a bag folder is one recording), glob
+        patterns, and fsspec URLs of any of these (``s3://bucket/prefix/``).
+    storage_options : mapping, optional
+        fsspec options of remote inputs (``endpoint_url``, ``key``, ``secret``, ``anon``...).
+
+    Raises
+    ------
+    BatchError
+        If an input does not exist, a pattern matches nothing, or nothing at all is found.
+    """
+    found: dict[str, Recording] = {}
+    names: dict[str, str] = {}
+    for item in inputs:
+        for recording in _expand(str(item), storage_options):
+            if recording.uri in found:
+                continue
+            name = recording.name
+            if name in names:  # two inputs with the same relative name: keep both, distinguishable
+                digest = hashlib.sha256(recording.uri.encode()).hexdigest()[:8]
+                stem, dot, ext = name.rpartition(".")
+                name = (
+                    f"{stem}-{digest}.{ext}" if dot and not recording.is_dir else f"{name}-{digest}"
+                )
+            names[name] = recording.uri
+            found[recording.uri] = Recording(
+                recording.uri, name, recording.is_dir, recording.size, recording.version
+            )
+    if not found:
+        msg = f"no recording found in {', '.join(str(i) for i in inputs) or 'the inputs'}"
+        raise BatchError(msg)
+    return tuple(sorted(found.values()))
+
+
+def _options(uri: str, storage_options: Mapping[str, Any] | None) -> dict[str, Any]:
+    return {} if is_local(uri) else dict(storage_options or {})
+
+
+def _expand(item: str, storage_options: Mapping[str, Any] | None) -> Iterable[Recording]:
+    local = is_local(item)
+    if local:
+        item = str(Path(item.removeprefix("file://")).expanduser().absolute())
+    fs, path = fsspec.core.url_to_fs(item, **_options(item, storage_options))
+    protocol = None if local else fsspec.utils.get_protocol(item)
+    try:
+        if any(c in path for c in _GLOB_CHARS):
+            matches = sorted(fs.glob(path))
+            if not matches:
+                msg = f"{item}: matches no file or folder"
+                raise BatchError(msg)
+            base = _glob_base(path)
+            for match in matches:
+                yield from _expand_path(fs, match, protocol, base)
+            return
+        if not fs.exists(path):
+            msg = f"{item}: no such file or folder"
+            raise BatchError(msg)
+        yield from _expand_path(fs, path, protocol, posixpath.dirname(path.rstrip("/")))
+    except OSError as err:
+        msg = f"{item}: cannot list ({err})"
+        raise BatchError(msg) from err
+
+
+def _glob_base(pattern: str) -> str:
+    """The folder above the first path component holding a glob character."""
+    parts = pattern.split("/")
+    for i, part in enumerate(parts):
+        if any(c in part for c in _GLOB_CHARS):
+            return "/".join(parts[:i])
+    return posixpath.dirname(pattern)
+
+
+def _expand_path(fs: Any, path: str, protocol: str | None, base: str) -> Iterable[Recording]:
+    path = path.rstrip("/")
+    if not fs.isdir(path):
+        yield _recording(fs, path, protocol, base, is_dir=False)
+        return
+    if fs.isfile(posixpath.join(path, "metadata.yaml")):
+        yield _recording(fs, path, protocol, base, is_dir=True)
+        return
+    files = sorted(fs.find(path))
+    bag_dirs = sorted(
+        {posixpath.dirname(f) for f in files if posixpath.basename(f) == "metadata.yaml"}
+    )
+    for bag in bag_dirs:
+        yield _recording(fs, bag, protocol, base, is_dir=True)
+    for f in files:
+        if f.lower().endswith(LOG_SUFFIXES) and not any(f.startswith(b + "/") for b in bag_dirs):
+            yield _recording(fs, f, protocol, base, is_dir=False)
+
+
+def _recording(fs: Any, path: str, protocol: str | None, base: str, *, is_dir: bool) -> Recording:
+    uri = path if protocol is None else f"{protocol}://{path}"
+    name = posixpath.relpath(path, base) if base else path
+    infos = [fs.info(f) for f in sorted(fs.find(path))] if is_dir else [fs.info(path)]
+    size = sum(int(i.get("size") or 0) for i in infos)
+    return Recording(uri=uri, name=name, is_dir=is_dir, size=size, version=_version(infos))
+
+
+def _version(infos: Sequence[Mapping[str, Any]]) -> str:
+    """Modification time (local, ns) or ETag (object stores) of a file, or of a folder's files."""
+    parts = []
+    for info in infos:
+        etag = info.get("ETag") or info.get("etag")
+        if etag:
+            parts.append(str(etag).strip('"'))
+        elif "mtime" in info:
+            parts.append(str(round(float(info["mtime"]) * 1e9)))
+        else:
+            parts.append(str(info.get("LastModified", "")))
+    if len(parts) == 1:
+        return parts[0]
+    return hashlib.sha256("\n".join(parts).encode()).hexdigest()

@@ -1,0 +1,144 @@
+"""The batch's outputs: two Parquet tables, a JSON summary and a markdown report with a figure."""
+
+from __future__ import annotations
+
+import io
+import json
+import logging
+from typing import TYPE_CHECKING, Any
+
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from rose_logs.batch.store import OutputStore
+from rose_logs.batch.task import RecordingOptions, package_version
+
+if TYPE_CHECKING:
+    from rose_logs.batch.engine import BatchReport
+
+__all__ = [
+    "RECORDING_SCHEMA",
+    "SNAPSHOT_SCHEMA",
+    "recordings_table",
+    "snapshots_table",
+    "write_outputs",
+]
+
+_LOG = logging.getLogger(__name__)
+
+RECORDING_SCHEMA = pa.schema(
+    [
+        ("uri", pa.string()),
+        ("name", pa.string()),
+        ("format", pa.string()),
+        ("status", pa.string()),
+        ("error", pa.string()),
+        ("map_topics", pa.list_(pa.string())),
+        ("snapshots", pa.int64()),
+        ("start_ns", pa.int64()),
+        ("end_ns", pa.int64()),
+        ("w_min", pa.float64()),
+        ("w_median", pa.float64()),
+        ("w_max", pa.float64()),
+        ("broke", pa.bool_()),
+        ("first_break_topic", pa.string()),
+        ("first_break_index", pa.int64()),
+        ("first_break_ns", pa.int64()),
+        ("seconds", pa.float64()),
+        ("cpu_seconds", pa.float64()),
+        ("cleaned", pa.string()),
+        ("rrd", pa.string()),
+    ]
+)
+"""``recordings.parquet``: one row per recording, sorted by URI."""
+
+SNAPSHOT_SCHEMA = pa.schema(
+    [
+        ("uri", pa.string()),
+        ("topic", pa.string()),
+        ("index", pa.int64()),
+        ("log_time_ns", pa.int64()),
+        ("stamp_ns", pa.int64()),
+        ("time_s", pa.float64()),
+        ("width", pa.int64()),
+        ("height", pa.int64()),
+        ("resolution_m", pa.float64()),
+        ("structure_score", pa.float64()),
+        ("broken", pa.bool_()),
+        ("directions_deg", pa.list_(pa.float64())),
+        ("threshold", pa.float64()),
+        ("occupied", pa.int64()),
+        ("clutter", pa.int64()),
+        ("seconds", pa.float64()),
+        ("reused", pa.bool_()),
+        ("from_update", pa.bool_()),
+    ]
+)
+"""``snapshots.parquet``: one row per snapshot (the JSON report's records), by URI, topic, index."""
+
+
+def recordings_table(report: BatchReport) -> pa.Table:
+    """``recordings.parquet`` as a pyarrow table."""
+    rows = [r.row() for r in report.results]
+    return pa.Table.from_pylist(rows, schema=RECORDING_SCHEMA)
+
+
+def snapshots_table(report: BatchReport) -> pa.Table:
+    """``snapshots.parquet`` as a pyarrow table."""
+    rows: list[dict[str, Any]] = []
+    for result in report.results:
+        ordered = sorted(result.snapshots, key=lambda s: (s["topic"], s["index"]))
+        rows.extend({"uri": result.uri, **s} for s in ordered)
+    names = SNAPSHOT_SCHEMA.names
+    return pa.Table.from_pylist(
+        [{k: row.get(k) for k in names} for row in rows], schema=SNAPSHOT_SCHEMA
+    )
+
+
+def _parquet_bytes(table: pa.Table) -> bytes:
+    sink = io.BytesIO()
+    pq.write_table(table, sink, compression="zstd")
+    return sink.getvalue()
+
+
+def summary(report: BatchReport, options: RecordingOptions) -> dict[str, Any]:
+    """``summary.json``: counts, broken recordings and errors (no timings: same inputs, same bytes)."""
+    rows = [r.row() for r in report.results]
+    return {
+        "rose_bag": package_version(),
+        "failure_level": report.failure_level,
+        "options": options.key_fields(),
+        "recordings": len(rows),
+        "ok": sum(r["status"] == "ok" for r in rows),
+        "errors": sum(r["status"] == "error" for r in rows),
+        "broken": sum(bool(r["broke"]) for r in rows),
+        "snapshots": sum(r["snapshots"] for r in rows),
+        "interrupted": report.interrupted,
+        "broken_recordings": [
+            {
+                "uri": r["uri"],
+                "w_max": r["w_max"],
+                "first_break_topic": r["first_break_topic"],
+                "first_break_index": r["first_break_index"],
+                "first_break_ns": r["first_break_ns"],
+            }
+            for r in rows
+            if r["broke"]
+        ],
+        "failed_recordings": [{"uri": r["uri"], "error": r["error"]} for r in rows if r["error"]],
+    }
+
+
+def write_outputs(store: OutputStore, report: BatchReport, options: RecordingOptions) -> None:
+    """Write the tables, ``summary.json``, ``report.md`` and its figure to the output root."""
+    from rose_logs.batch.report import figure_png, markdown
+
+    store.write_bytes("recordings.parquet", _parquet_bytes(recordings_table(report)))
+    store.write_bytes("snapshots.parquet", _parquet_bytes(snapshots_table(report)))
+    payload = summary(report, options)
+    text = json.dumps(payload, indent=2, sort_keys=True, allow_nan=False) + "\n"
+    store.write_bytes("summary.json", text.encode())
+    png = figure_png(report)
+    if png is not None:
+        store.write_bytes("w_over_time.png", png)
+    store.write_bytes("report.md", markdown(report, payload, figure=png is not None).encode())

@@ -1,0 +1,387 @@
+"""One recording of a batch: fetch, ``process_log``, store outputs and the result. No Dask here.
+
+:func:`process_recording` is a plain function: the engine runs it in-process or as a Dask task, and
+tests call it directly. It never raises for a bad recording: the result then has ``status="error"``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import os
+import socket
+import statistics
+import tempfile
+import time
+import uuid
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+import fsspec
+
+from rose.errors import RoseError
+from rose.params import RoseParams
+from rose_logs.batch.sources import Recording
+from rose_logs.batch.store import OutputStore, is_local
+from rose_logs.errors import LogError
+
+__all__ = [
+    "RESULTS_DIR",
+    "RecordingOptions",
+    "RecordingResult",
+    "process_recording",
+    "result_key",
+]
+
+_LOG = logging.getLogger(__name__)
+
+#: Folder under the output root holding one JSON result per recording, named by its key.
+RESULTS_DIR = "results"
+
+Status = Literal["ok", "error"]
+
+
+@dataclass(frozen=True)
+class RecordingOptions:
+    """What is done to every recording (the options of ``rose-bag process``).
+
+    Attributes
+    ----------
+    params : RoseParams
+        ROSE parameters.
+    topics : tuple of str, optional
+        Map topics to analyse; None: every ``nav_msgs/OccupancyGrid`` topic.
+    failure_level : float
+        W above which a snapshot counts as broken.
+    walls : bool
+        Also extract wall segments (markers in the cleaned log, lines in Rerun).
+    cleaned : bool
+        Write each cleaned log to ``cleaned/<name>`` (same format as the input).
+    rrd : bool
+        Write each Rerun recording to ``rrd/<name>.rrd``.
+    retries : int
+        How many times an ``OSError`` (network, storage) is retried before the recording fails.
+    """
+
+    params: RoseParams = field(default_factory=RoseParams)
+    topics: tuple[str, ...] | None = None
+    failure_level: float = 0.4
+    walls: bool = False
+    cleaned: bool = False
+    rrd: bool = False
+    retries: int = 2
+
+    def key_fields(self) -> dict[str, Any]:
+        """Everything that changes a result (not ``retries``), JSON-ready."""
+        return {
+            "params": asdict(self.params),
+            "topics": None if self.topics is None else list(self.topics),
+            "failure_level": self.failure_level,
+            "walls": self.walls,
+            "cleaned": self.cleaned,
+            "rrd": self.rrd,
+        }
+
+
+@dataclass(frozen=True)
+class RecordingResult:
+    """What one recording gave: its summary row, its snapshot rows, or the error.
+
+    Attributes
+    ----------
+    uri, name : str
+        The recording (see :class:`Recording`).
+    key : str
+        Its resume key (see :func:`result_key`).
+    status : {"ok", "error"}
+        ``error``: the recording could not be processed; ``error`` holds why.
+    error : str or None
+        One-line message.
+    format : str or None
+        Log format (``ros1``, ``db3``, ``mcap``, ``mcap-dir``).
+    map_topics : tuple of str
+        Map topics analysed.
+    start_ns, end_ns : int or None
+        Log time of the first and last message, ns.
+    snapshots : tuple of dict
+        One JSON-ready dict per snapshot (``SnapshotRecord.to_json`` plus ``broken``).
+    failure_level : float
+        W above which a snapshot counted as broken.
+    seconds : float
+        Wall time spent on the recording, seconds (fetch and upload included).
+    cpu_seconds : float
+        CPU time of the process doing it (user + system), seconds.
+    worker : str
+        ``host:pid`` of the process that did the work.
+    cleaned_uri, rrd_uri : str or None
+        Outputs written.
+    """
+
+    uri: str
+    name: str
+    key: str
+    status: Status
+    error: str | None = None
+    format: str | None = None
+    map_topics: tuple[str, ...] = ()
+    start_ns: int | None = None
+    end_ns: int | None = None
+    snapshots: tuple[dict[str, Any], ...] = ()
+    failure_level: float = 0.4
+    seconds: float = 0.0
+    cpu_seconds: float = 0.0
+    worker: str = ""
+    cleaned_uri: str | None = None
+    rrd_uri: str | None = None
+
+    def row(self) -> dict[str, Any]:
+        """The recording's row of ``recordings.parquet``."""
+        scores = [s["structure_score"] for s in self.snapshots]
+        first = next((s for s in self.snapshots if s["broken"]), None)
+        return {
+            "uri": self.uri,
+            "name": self.name,
+            "format": self.format,
+            "status": self.status,
+            "error": self.error,
+            "map_topics": list(self.map_topics),
+            "snapshots": len(scores),
+            "start_ns": self.start_ns,
+            "end_ns": self.end_ns,
+            "w_min": min(scores) if scores else None,
+            "w_median": statistics.median(scores) if scores else None,
+            "w_max": max(scores) if scores else None,
+            "broke": first is not None,
+            "first_break_topic": None if first is None else first["topic"],
+            "first_break_index": None if first is None else first["index"],
+            "first_break_ns": None if first is None else first["log_time_ns"],
+            "seconds": round(self.seconds, 6),
+            "cpu_seconds": round(self.cpu_seconds, 6),
+            "cleaned": self.cleaned_uri,
+            "rrd": self.rrd_uri,
+        }
+
+    def to_json(self) -> dict[str, Any]:
+        """Everything, JSON-ready (what the results folder stores)."""
+        payload = asdict(self)
+        payload["map_topics"] = list(self.map_topics)
+        payload["snapshots"] = list(self.snapshots)
+        return payload
+
+    @classmethod
+    def from_json(cls, payload: Mapping[str, Any]) -> RecordingResult:
+        """Inverse of :meth:`to_json`."""
+        data = dict(payload)
+        data["map_topics"] = tuple(data.get("map_topics", ()))
+        data["snapshots"] = tuple(data.get("snapshots", ()))
+        return cls(**data)
+
+
+def package_version() -> str:
+    """Version of rose-bag recorded in every resume key."""
+    from rose_logs import __version__
+
+    return __version__
+
+
+def result_key(recording: Recording, options: RecordingOptions) -> str:
+    """Resume key: SHA-256 of the URI, size, version (mtime / ETag), package version and options."""
+    payload = {
+        "uri": recording.uri,
+        "size": recording.size,
+        "version": recording.version,
+        "rose_bag": package_version(),
+        "options": options.key_fields(),
+    }
+    text = json.dumps(payload, sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:32]
+
+
+def result_path(key: str) -> str:
+    """Relative path of a result in the output store."""
+    return f"{RESULTS_DIR}/{key}.json"
+
+
+def recording_id(uri: str) -> str:
+    """Rerun recording id of a recording: from its full URI (two robots' ``run.mcap`` stay apart)."""
+    return str(uuid.uuid5(uuid.NAMESPACE_URL, uri))
+
+
+def worker_name() -> str:
+    """``host:pid`` of this process."""
+    return f"{socket.gethostname()}:{os.getpid()}"
+
+
+def process_recording(
+    recording: Recording,
+    *,
+    out: str,
+    options: RecordingOptions,
+    storage_options: Mapping[str, Any] | None = None,
+) -> RecordingResult:
+    """Process one recording and store its result under ``out``; never raises for a bad recording.
+
+    The recording is read in place (local) or downloaded to a temporary folder (remote); its cleaned
+    log and Rerun recording, if asked for, go to ``<out>/cleaned/<name>`` and ``<out>/rrd/<name>.rrd``.
+    ``OSError`` s are retried ``options.retries`` times. The result is written atomically to
+    ``<out>/results/<key>.json`` before it is returned, so that a later batch can skip the recording.
+
+    Parameters
+    ----------
+    recording : Recording
+        What to process.
+    out : str
+        Output root (folder or fsspec URL).
+    options : RecordingOptions
+        Per-recording options.
+    storage_options : mapping, optional
+        fsspec options for remote inputs and outputs.
+
+    Returns
+    -------
+    RecordingResult
+    """
+    store = OutputStore(out, storage_options)
+    key = result_key(recording, options)
+    started = time.perf_counter()
+    cpu_started = time.process_time()
+    attempts = max(0, options.retries) + 1
+    for attempt in range(1, attempts + 1):
+        try:
+            result = _attempt(recording, store, options, storage_options, key)
+            break
+        except OSError as err:
+            if attempt == attempts:
+                result = error_result(recording, key, options, f"I/O error: {err}")
+                break
+            _LOG.warning(
+                "%s: %s (attempt %d of %d, retrying)", recording.uri, err, attempt, attempts
+            )
+            time.sleep(min(0.2 * 2**attempt, 5.0))
+        except (LogError, RoseError, ValueError) as err:
+            result = error_result(recording, key, options, str(err))
+            break
+        except Exception as err:  # never crash a batch on one recording
+            _LOG.exception("%s: unexpected error", recording.uri)
+            result = error_result(recording, key, options, f"{type(err).__name__}: {err}")
+            break
+    result = _with_seconds(result, time.perf_counter() - started, time.process_time() - cpu_started)
+    store_result(store, result)
+    return result
+
+
+def error_result(
+    recording: Recording, key: str, options: RecordingOptions, message: str
+) -> RecordingResult:
+    """A result saying that ``recording`` failed with ``message`` (one line)."""
+    line = " ".join(str(message).split()) or "unknown error"
+    return RecordingResult(
+        uri=recording.uri,
+        name=recording.name,
+        key=key,
+        status="error",
+        error=line,
+        failure_level=options.failure_level,
+        worker=worker_name(),
+    )
+
+
+def store_result(store: OutputStore, result: RecordingResult) -> None:
+    """Write ``result`` atomically under its key."""
+    data = json.dumps(result.to_json(), sort_keys=True)
+    store.write_bytes(result_path(result.key), data.encode())
+
+
+def load_result(store: OutputStore, key: str) -> RecordingResult | None:
+    """The stored result of ``key``, None if there is none (or it is unreadable)."""
+    try:
+        data = store.read_bytes(result_path(key))
+    except OSError:
+        return None
+    if data is None:
+        return None
+    try:
+        return RecordingResult.from_json(json.loads(data))
+    except (ValueError, TypeError):
+        _LOG.warning("%s: unreadable stored result, redoing the recording", result_path(key))
+        return None
+
+
+def _with_seconds(result: RecordingResult, seconds: float, cpu_seconds: float) -> RecordingResult:
+    data = result.to_json()
+    data["seconds"] = seconds
+    data["cpu_seconds"] = cpu_seconds
+    return RecordingResult.from_json(data)
+
+
+def _attempt(
+    recording: Recording,
+    store: OutputStore,
+    options: RecordingOptions,
+    storage_options: Mapping[str, Any] | None,
+    key: str,
+) -> RecordingResult:
+    from rose_logs.session import process_log
+
+    with tempfile.TemporaryDirectory(prefix="rose-batch-", dir=store.staging_dir()) as tmp:
+        work = Path(tmp)
+        local = _fetch(recording, work / "input", storage_options)
+        cleaned = work / "cleaned" / Path(recording.name).name if options.cleaned else None
+        rrd = work / "recording.rrd" if options.rrd else None
+        if cleaned is not None:
+            cleaned.parent.mkdir()
+        report = process_log(
+            local,
+            output_path=cleaned,
+            topics=options.topics,
+            params=options.params,
+            failure_level=options.failure_level,
+            rrd_path=rrd,
+            walls=options.walls,
+            recording_id=recording_id(recording.uri),
+        )
+        cleaned_uri = None if cleaned is None else store.put(cleaned, f"cleaned/{recording.name}")
+        rrd_uri = None if rrd is None else store.put(rrd, f"rrd/{recording.name}.rrd")
+    level = options.failure_level
+    snapshots = []
+    for record in report.records:
+        row = record.to_json(start_ns=report.start_ns)
+        row["broken"] = bool(record.structure_score > level)
+        snapshots.append(row)
+    return RecordingResult(
+        uri=recording.uri,
+        name=recording.name,
+        key=key,
+        status="ok",
+        format=report.input_format,
+        map_topics=tuple(report.map_topics),
+        start_ns=report.start_ns,
+        end_ns=report.end_ns,
+        snapshots=tuple(snapshots),
+        failure_level=level,
+        worker=worker_name(),
+        cleaned_uri=cleaned_uri,
+        rrd_uri=rrd_uri,
+    )
+
+
+def _fetch(recording: Recording, target: Path, storage_options: Mapping[str, Any] | None) -> Path:
+    """Local path of the recording: itself when local, else a download into ``target``."""
+    if is_local(recording.uri):
+        return Path(recording.uri.removeprefix("file://"))
+    fs, path = fsspec.core.url_to_fs(recording.uri, **dict(storage_options or {}))
+    local = target / Path(recording.name).name
+    target.mkdir(parents=True, exist_ok=True)
+    if recording.is_dir:
+        local.mkdir()
+        for remote in sorted(fs.find(path)):
+            relative = remote[len(path.rstrip("/")) + 1 :]
+            destination = local / relative
+            destination.parent.mkdir(parents=True, exist_ok=True)
+            fs.get_file(remote, str(destination))
+    else:
+        fs.get_file(path, str(local))
+    return local

@@ -1,0 +1,256 @@
+"""``rose-bag batch INPUT... -o OUT``: every recording of a fleet, one table of map health."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import Any
+
+from rose.cli.options import add_param_arguments, params_from_args, positive_float
+from rose_logs.cli.options import EXIT_GATE, UsageError
+
+__all__ = ["EXIT_INTERRUPTED", "add_parser", "run"]
+
+EXIT_INTERRUPTED = 130
+"""Exit code after Ctrl-C (finished recordings are kept; a re-run resumes)."""
+
+
+def _non_negative_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        msg = f"expected a whole number, got {text!r}"
+        raise argparse.ArgumentTypeError(msg) from None
+    if value < 0:
+        msg = f"must be >= 0, got {value}"
+        raise argparse.ArgumentTypeError(msg)
+    return value
+
+
+def _positive_int(text: str) -> int:
+    value = _non_negative_int(text)
+    if value < 1:
+        msg = f"must be >= 1, got {value}"
+        raise argparse.ArgumentTypeError(msg)
+    return value
+
+
+def _memory_limit(text: str) -> str | float:
+    """``auto``, a fraction of RAM (0 < f <= 1) or a size such as ``2GB`` / ``512MiB``."""
+    from dask.utils import parse_bytes
+
+    if text == "auto":
+        return text
+    try:
+        value = float(text)
+    except ValueError:
+        pass
+    else:
+        if 0 < value <= 1:
+            return value
+        msg = f"a fraction must be in (0, 1], got {text!r}"
+        raise argparse.ArgumentTypeError(msg)
+    try:
+        parse_bytes(text)
+    except ValueError:
+        msg = f"expected a size such as 2GB, a fraction of RAM or 'auto', got {text!r}"
+        raise argparse.ArgumentTypeError(msg) from None
+    return text
+
+
+def _storage_option(text: str) -> tuple[str, Any]:
+    key, sep, value = text.partition("=")
+    if not sep or not key:
+        msg = f"expected KEY=VALUE, got {text!r}"
+        raise argparse.ArgumentTypeError(msg)
+    lowered = value.lower()
+    if lowered in ("true", "false"):
+        return key, lowered == "true"
+    return key, value
+
+
+def add_parser(subparsers: Any) -> None:
+    parser = subparsers.add_parser(
+        "batch",
+        help="process many recordings (folders, globs, s3://) locally or on a Dask cluster",
+        description="Run `process` on every recording found in the inputs (files, folders searched "
+        "recursively for .bag / .mcap / .db3 and ROS 2 bag folders, glob patterns, s3:// prefixes) and "
+        "write recordings.parquet, snapshots.parquet, summary.json and report.md to OUT. Recordings "
+        "finished by an earlier run with the same options are skipped.",
+    )
+    parser.add_argument("inputs", nargs="*", metavar="INPUT", help="file, folder, glob or URL")
+    parser.add_argument(
+        "-o", "--out", required=True, help="output folder or URL (e.g. s3://bucket/prefix)"
+    )
+    parser.add_argument(
+        "--from-list",
+        action="append",
+        default=[],
+        metavar="FILE",
+        help="read more inputs from FILE, one per line (# comments)",
+    )
+    engine = parser.add_argument_group("engine")
+    engine.add_argument(
+        "--workers",
+        type=_positive_int,
+        default=1,
+        help="local worker processes, one thread each (default 1: in this process, no Dask)",
+    )
+    engine.add_argument("--scheduler", default=None, help="existing Dask cluster, tcp://host:port")
+    engine.add_argument("--scheduler-file", default=None, help="existing Dask cluster's file")
+    engine.add_argument(
+        "--memory-limit",
+        type=_memory_limit,
+        default=None,
+        help="per-worker memory limit of the local cluster, e.g. 2GB (default: RAM / workers)",
+    )
+    engine.add_argument(
+        "--retries",
+        type=_non_negative_int,
+        default=2,
+        help="retries of a recording after an I/O error or a dead worker (default %(default)s)",
+    )
+    engine.add_argument(
+        "--storage-option",
+        type=_storage_option,
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="fsspec option for remote inputs and OUT, e.g. endpoint_url=http://host:9000",
+    )
+    work = parser.add_argument_group("per recording (as `process`)")
+    work.add_argument(
+        "-t", "--topic", action="append", default=None, dest="topics", help="map topic (repeatable)"
+    )
+    work.add_argument("--walls", action="store_true", help="also extract wall segments")
+    work.add_argument(
+        "--cleaned", action="store_true", help="write each cleaned log to OUT/cleaned/<name>"
+    )
+    work.add_argument(
+        "--rrd", action="store_true", help="write each Rerun recording to OUT/rrd/<name>.rrd"
+    )
+    work.add_argument(
+        "--failure-level",
+        type=positive_float,
+        default=0.4,
+        help="W above which a map counts as broken (%(default)s)",
+    )
+    gates = parser.add_argument_group("resume and gates")
+    gates.add_argument("-f", "--force", action="store_true", help="redo every recording")
+    gates.add_argument(
+        "--retry-errors", action="store_true", help="redo the recordings that failed before"
+    )
+    gates.add_argument(
+        "--fail-above",
+        type=positive_float,
+        default=None,
+        metavar="W",
+        help=f"exit {EXIT_GATE} if any recording's W exceeds this",
+    )
+    gates.add_argument(
+        "--max-errors",
+        type=_non_negative_int,
+        default=0,
+        metavar="N",
+        help="exit 1 if more than N recordings failed (default 0: any failure); wins over "
+        "--fail-above",
+    )
+    parser.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    add_param_arguments(parser)
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from rose_logs.batch import RecordingOptions, read_list, run_batch
+
+    if args.scheduler and args.scheduler_file:
+        msg = "--scheduler and --scheduler-file exclude each other"
+        raise UsageError(msg)
+    if (args.scheduler or args.scheduler_file) and args.workers != 1:
+        msg = "--workers starts a local cluster; it cannot be combined with --scheduler"
+        raise UsageError(msg)
+    storage_options = dict(args.storage_option)
+    inputs = list(args.inputs)
+    for path in args.from_list:
+        inputs += read_list(path, storage_options)
+    if not inputs:
+        msg = "no INPUT given (and no --from-list)"
+        raise UsageError(msg)
+    options = RecordingOptions(
+        params=params_from_args(args),
+        topics=None if args.topics is None else tuple(args.topics),
+        failure_level=args.failure_level,
+        walls=args.walls,
+        cleaned=args.cleaned,
+        rrd=args.rrd,
+        retries=args.retries,
+    )
+    report = run_batch(
+        inputs,
+        args.out,
+        workers=args.workers,
+        scheduler=args.scheduler,
+        scheduler_file=args.scheduler_file,
+        memory_limit=args.memory_limit,
+        options=options,
+        storage_options=storage_options,
+        force=args.force,
+        retry_errors=args.retry_errors,
+        progress=not args.quiet and sys.stderr.isatty(),
+    )
+    _print_summary(report)
+    return _exit_code(report, args)
+
+
+def _print_summary(report: Any) -> None:
+    rows = [r.row() for r in report.results]
+    out = sys.stdout
+    ok = sum(r["status"] == "ok" for r in rows)
+    print(
+        f"recordings   {len(rows)} ({report.processed} processed, {report.skipped} finished before)",
+        file=out,
+    )
+    print(f"ok           {ok}", file=out)
+    print(f"failed       {len(rows) - ok}", file=out)
+    print(f"broken maps  {sum(bool(r['broke']) for r in rows)}", file=out)
+    print(f"snapshots    {sum(r['snapshots'] for r in rows)}", file=out)
+    print(f"output       {report.out}", file=out)
+    print(f"elapsed      {report.elapsed_s:.2f} s", file=out)
+
+
+def _exit_code(report: Any, args: argparse.Namespace) -> int:
+    if report.interrupted:
+        print(
+            f"error: interrupted; {len(report.results)} finished recordings kept in {report.out} "
+            "(run again to resume)",
+            file=sys.stderr,
+        )
+        return EXIT_INTERRUPTED
+    errors = report.errors
+    if len(errors) > args.max_errors:
+        first = errors[0]
+        what = (
+            first.error
+            if first.error and first.uri in first.error
+            else f"{first.uri}: {first.error}"
+        )
+        print(
+            f"error: {len(errors)} recording(s) failed (more than --max-errors {args.max_errors}); "
+            f"first: {what}",
+            file=sys.stderr,
+        )
+        return 1
+    if args.fail_above is not None:
+        worst = max(
+            (r for r in report.results if r.snapshots),
+            key=lambda r: r.row()["w_max"],
+            default=None,
+        )
+        if worst is not None and worst.row()["w_max"] > args.fail_above:
+            print(
+                f"error: {worst.uri}: W = {worst.row()['w_max']:.3f} exceeds --fail-above "
+                f"{args.fail_above:g}",
+                file=sys.stderr,
+            )
+            return EXIT_GATE
+    return 0

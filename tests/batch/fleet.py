@@ -1,0 +1,99 @@
+"""Small recordings for the batch tests, made from the bundled sample session with our own writer.
+
+The sample (``sample_data/fr079_session.mcap``: 14 growing Freiburg 079 maps on ``/map`` plus
+``/clock``, ROS 2 CDR) is copied into other formats and sizes; a "broken" copy replaces the maps from
+some index on with the same grids scrambled (no structure left, W far above 0.4).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from rose_logs.derived import encode_cleaned
+from rose_logs.reader import LogReader
+from rose_logs.snapshots import decode_map
+from rose_logs.writer import open_output
+
+SAMPLE = Path(__file__).resolve().parents[2] / "sample_data" / "fr079_session.mcap"
+MAP_TOPIC = "/map"
+
+
+def copy_recording(
+    destination: Path,
+    fmt: str,
+    *,
+    source: Path = SAMPLE,
+    max_maps: int | None = None,
+    break_from: int | None = None,
+    repeat: int = 1,
+) -> Path:
+    """Copy ``source`` to ``destination`` in ``fmt`` (``db3``, ``mcap``, ``mcap-dir``).
+
+    ``max_maps`` keeps the first maps only (and what was logged before the next one); ``break_from``
+    scrambles every map from that index on, so the map "breaks" there; ``repeat`` logs the whole
+    session that many times in a row (a longer recording).
+    """
+    destination.parent.mkdir(parents=True, exist_ok=True)
+    rng = np.random.default_rng(0)
+    with (
+        LogReader(source) as reader,
+        open_output(destination, fmt, serialization=reader.serialization) as out,
+    ):
+        handles = {c.id: out.add_channel(c) for c in reader.channels}
+        maps = 0
+        span_ns = reader.end_ns - reader.start_ns + 1_000_000_000
+        for message, offset_ns in (
+            (m, i * span_ns) for i in range(repeat) for m in reader.messages()
+        ):
+            data = message.data
+            if message.channel.topic == MAP_TOPIC:
+                if max_maps is not None and maps >= max_maps:
+                    break
+                if break_from is not None and maps >= break_from:
+                    snapshot = decode_map(
+                        data,
+                        serialization=reader.serialization,
+                        topic=MAP_TOPIC,
+                        log_time_ns=message.log_time_ns,
+                    )
+                    scrambled = rng.permutation(snapshot.grid.ravel()).reshape(snapshot.grid.shape)
+                    data = encode_cleaned(snapshot, scrambled, serialization=reader.serialization)
+                maps += 1
+            out.write_raw(handles[message.channel.id], message.log_time_ns + offset_ns, data)
+    return destination
+
+
+def make_fleet(root: Path) -> list[Path]:
+    """Five recordings in three formats under ``root`` (two robots), one of them broken."""
+    return [
+        copy_recording(root / "robot_a" / "run.mcap", "mcap", max_maps=4),
+        copy_recording(root / "robot_a" / "later.db3", "db3", max_maps=3),
+        copy_recording(root / "robot_b" / "run.mcap", "mcap", max_maps=5, break_from=3),
+        copy_recording(root / "robot_b" / "bag_dir", "mcap-dir", max_maps=2),
+        copy_recording(root / "robot_b" / "nested" / "small.mcap", "mcap", max_maps=1),
+    ]
+
+
+def big_map_recording(destination: Path, *, side: int) -> Path:
+    """One ``side`` x ``side`` map (walls every 40 cells) in an MCAP file: analysing it needs memory."""
+    from rose_logs.snapshots import MapSnapshot
+
+    grid = np.zeros((side, side), dtype=np.int8)
+    grid[::40, :] = 100
+    grid[:, ::40] = 100
+    start_ns = 1_700_000_000_000_000_000
+    snapshot = MapSnapshot(
+        topic=MAP_TOPIC,
+        log_time_ns=start_ns,
+        stamp_ns=start_ns,
+        frame_id="map",
+        grid=grid,
+        resolution_m=0.05,
+    )
+    destination.parent.mkdir(parents=True, exist_ok=True)
+    with open_output(destination, "mcap", serialization="cdr") as out:
+        out.add_topic(MAP_TOPIC, "nav_msgs/msg/OccupancyGrid", latching=True)
+        out.write(MAP_TOPIC, start_ns, encode_cleaned(snapshot, grid, serialization="cdr"))
+    return destination

@@ -1,0 +1,286 @@
+"""rose_logs.batch without Dask: discovery, the per-recording function, tables, resume, CLI gates."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import pyarrow.parquet as pq
+import pytest
+
+from rose_logs.batch import (
+    BatchError,
+    RecordingOptions,
+    discover,
+    process_recording,
+    read_list,
+    result_key,
+    run_batch,
+)
+from rose_logs.batch.task import recording_id
+from rose_logs.cli import main
+
+FLEET_NAMES = [
+    "fleet/robot_a/later.db3",
+    "fleet/robot_a/run.mcap",
+    "fleet/robot_b/bag_dir",
+    "fleet/robot_b/nested/small.mcap",
+    "fleet/robot_b/run.mcap",
+]
+
+
+def read_rows(path: Path) -> list[dict]:
+    return pq.read_table(path).to_pylist()
+
+
+# ---- discovery ------------------------------------------------------------------------------------
+
+
+def test_folders_are_searched_recursively_and_a_bag_folder_is_one_recording(fleet: Path) -> None:
+    recordings = discover([fleet])
+    assert [r.name for r in recordings] == FLEET_NAMES
+    assert [r.uri for r in recordings] == sorted(r.uri for r in recordings)
+    by_name = {r.name: r for r in recordings}
+    assert by_name["fleet/robot_b/bag_dir"].is_dir
+    assert not by_name["fleet/robot_a/run.mcap"].is_dir
+    assert by_name["fleet/robot_b/bag_dir"].size == sum(
+        f.stat().st_size for f in (fleet / "robot_b" / "bag_dir").iterdir()
+    )
+
+
+def test_globs_files_lists_and_duplicates(fleet: Path, tmp_path: Path) -> None:
+    recordings = discover([str(fleet / "robot_*" / "run.mcap"), fleet / "robot_a" / "run.mcap"])
+    assert [r.name for r in recordings] == ["robot_a/run.mcap", "robot_b/run.mcap"]
+    listing = tmp_path / "inputs.txt"
+    listing.write_text(f"# two robots\n{fleet / 'robot_a'}\n\n{fleet / 'robot_b' / 'run.mcap'}\n")
+    inputs = read_list(str(listing))
+    assert [r.name for r in discover(inputs)] == [
+        "robot_a/later.db3",
+        "robot_a/run.mcap",
+        "run.mcap",
+    ]
+
+
+@pytest.mark.parametrize("bad", ["missing.mcap", "robot_*/*.bag"])
+def test_an_input_that_names_nothing_is_an_error(fleet: Path, bad: str) -> None:
+    with pytest.raises(BatchError, match=r"no such file|matches no"):
+        discover([str(fleet / bad)])
+
+
+# ---- one recording, no Dask -------------------------------------------------------------------------
+
+
+def test_process_recording_ok_and_truncated(fleet: Path, tmp_path: Path) -> None:
+    truncated = fleet / "robot_a" / "cut.mcap"
+    data = (fleet / "robot_a" / "run.mcap").read_bytes()
+    truncated.write_bytes(data[: len(data) // 2])
+    out = str(tmp_path / "out")
+    options = RecordingOptions()
+    good, bad = (
+        next(r for r in discover([fleet]) if r.name.endswith(name))
+        for name in ("robot_a/run.mcap", "cut.mcap")
+    )
+    ok = process_recording(good, out=out, options=options)
+    assert ok.status == "ok"
+    assert ok.format == "mcap"
+    assert len(ok.snapshots) == 4
+    assert ok.worker.endswith(f":{os.getpid()}")
+    error = process_recording(bad, out=out, options=options)
+    assert error.status == "error"
+    assert str(truncated) in error.error
+    assert "\n" not in error.error
+    assert truncated.read_bytes() == data[: len(data) // 2]  # input untouched
+    stored = json.loads((tmp_path / "out" / "results" / f"{error.key}.json").read_text())
+    assert stored["status"] == "error"
+
+
+# ---- a whole batch in-process ------------------------------------------------------------------------
+
+
+def test_batch_tables_report_and_breaks(fleet: Path, tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    report = run_batch([fleet], out)
+    assert report.processed == 5
+    assert report.skipped == 0
+    recordings = read_rows(out / "recordings.parquet")
+    assert [r["name"] for r in recordings] == FLEET_NAMES
+    assert [r["format"] for r in recordings] == ["db3", "mcap", "mcap-dir", "mcap", "mcap"]
+    assert [r["snapshots"] for r in recordings] == [3, 4, 2, 1, 5]
+    broken = [r for r in recordings if r["broke"]]
+    assert [r["name"] for r in broken] == ["fleet/robot_b/run.mcap"]
+    assert broken[0]["first_break_index"] == 3  # the maps were scrambled from index 3 on
+    assert broken[0]["w_max"] > 0.4
+    snapshots = read_rows(out / "snapshots.parquet")
+    assert len(snapshots) == 15
+    keys = [(s["uri"], s["topic"], s["index"]) for s in snapshots]
+    assert keys == sorted(keys)
+    assert [s["broken"] for s in snapshots if s["uri"].endswith("robot_b/run.mcap")] == [
+        False,
+        False,
+        False,
+        True,
+        True,
+    ]
+    summary = json.loads((out / "summary.json").read_text())
+    assert (summary["recordings"], summary["ok"], summary["errors"], summary["broken"]) == (
+        5,
+        5,
+        0,
+        1,
+    )
+    text = (out / "report.md").read_text()
+    assert "fleet/robot_b/run.mcap" in text
+    assert "w_over_time.png" in text
+    assert (out / "w_over_time.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert not (out / ".staging").exists()
+
+
+def test_rerun_skips_finished_recordings_and_outputs_are_identical(
+    fleet: Path, tmp_path: Path
+) -> None:
+    out = tmp_path / "out"
+    run_batch([fleet], out)
+    tables = {n: (out / n).read_bytes() for n in ("snapshots.parquet", "summary.json", "report.md")}
+    again = run_batch([fleet], out)
+    assert (again.processed, again.skipped) == (0, 5)
+    assert {n: (out / n).read_bytes() for n in tables} == tables
+    # A changed recording (new mtime) is processed again, the others are not.
+    changed = fleet / "robot_a" / "run.mcap"
+    os.utime(changed, ns=(changed.stat().st_atime_ns, changed.stat().st_mtime_ns + 10**9))
+    assert run_batch([fleet], out).processed == 1
+    # Other options -> other keys -> everything again; --force redoes everything.
+    assert run_batch([fleet], out, options=RecordingOptions(failure_level=0.3)).processed == 5
+    assert run_batch([fleet], out, force=True).processed == 5
+
+
+def test_retry_errors_redoes_only_the_failures(fleet: Path, tmp_path: Path) -> None:
+    bad = fleet / "robot_a" / "broken.mcap"
+    bad.write_bytes(b"\x89MCAP0\r\n" + b"\x00" * 40)
+    out = tmp_path / "out"
+    first = run_batch([fleet], out)
+    assert [r.status for r in first.results].count("error") == 1
+    assert run_batch([fleet], out).processed == 0
+    retried = run_batch([fleet], out, retry_errors=True)
+    assert retried.processed == 1
+    assert retried.errors[0].uri == str(bad)
+
+
+def test_keys_depend_on_uri_size_version_and_options(fleet: Path) -> None:
+    a, b = discover([fleet])[:2]
+    options = RecordingOptions()
+    assert result_key(a, options) != result_key(b, options)
+    assert result_key(a, options) != result_key(a, RecordingOptions(walls=True))
+    assert result_key(a, options) == result_key(a, RecordingOptions(retries=5))
+    assert recording_id("/robots/a/run.mcap") != recording_id("/robots/b/run.mcap")
+
+
+def test_cleaned_and_rrd_outputs_mirror_the_input_names(fleet: Path, tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    inputs = [fleet / "robot_a" / "run.mcap", fleet / "robot_b" / "bag_dir"]
+    report = run_batch(inputs, out, options=RecordingOptions(cleaned=True, rrd=True))
+    assert all(r.status == "ok" for r in report.results)
+    assert (out / "cleaned" / "run.mcap").is_file()
+    assert (out / "cleaned" / "bag_dir" / "metadata.yaml").is_file()
+    assert (out / "rrd" / "run.mcap.rrd").stat().st_size > 0
+    assert (out / "rrd" / "bag_dir.rrd").stat().st_size > 0
+    rows = read_rows(out / "recordings.parquet")
+    assert [r["cleaned"] for r in rows] == [  # rows sorted by URI: robot_a/... first
+        str(out / "cleaned" / "run.mcap"),
+        str(out / "cleaned" / "bag_dir"),
+    ]
+
+
+# ---- CLI: exit codes ------------------------------------------------------------------------------
+
+
+def test_cli_gates_errors_win_over_fail_above(
+    fleet: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = str(tmp_path / "out")
+    assert main(["batch", str(fleet), "-o", out, "-q"]) == 0
+    assert main(["batch", str(fleet), "-o", out, "-q", "--fail-above", "0.4"]) == 3
+    assert "robot_b/run.mcap" in capsys.readouterr().err
+    (fleet / "robot_a" / "zero.mcap").write_bytes(b"")
+    assert main(["batch", str(fleet), "-o", out, "-q", "--fail-above", "0.4"]) == 1
+    assert main(["batch", str(fleet), "-o", out, "-q", "--max-errors", "1"]) == 0
+    code = main(["batch", str(fleet), "-o", out, "-q", "--max-errors", "1", "--fail-above", "0.4"])
+    assert code == 3
+    err = capsys.readouterr().err
+    assert "zero.mcap" in err
+    assert main(["batch", str(tmp_path / "nothing"), "-o", out]) == 1
+    assert "no such file" in capsys.readouterr().err
+
+
+def test_ctrl_c_keeps_finished_recordings_and_exits_130(
+    fleet: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import rose_logs.batch.engine as engine
+
+    real = engine.process_recording
+    calls = []
+
+    def interrupted_on_third(*args: object, **kwargs: object) -> object:
+        calls.append(1)
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(engine, "process_recording", interrupted_on_third)
+    out = tmp_path / "out"
+    assert main(["batch", str(fleet), "-o", str(out), "-q"]) == 130
+    assert len(read_rows(out / "recordings.parquet")) == 2
+    assert json.loads((out / "summary.json").read_text())["interrupted"] is True
+    monkeypatch.setattr(engine, "process_recording", real)
+    resumed = run_batch([fleet], out)
+    assert (resumed.processed, resumed.skipped) == (3, 2)
+
+
+def test_two_robots_run_mcap_get_separate_rrd_files_and_recording_ids(
+    fleet: Path, tmp_path: Path
+) -> None:
+    inputs = [fleet / "robot_a" / "run.mcap", fleet / "robot_b" / "run.mcap"]
+    report = run_batch(inputs, tmp_path / "out", options=RecordingOptions(rrd=True))
+    paths = [Path(r.rrd_uri) for r in report.results]
+    assert len(set(paths)) == 2
+    ids = [recording_id(r.uri).encode() for r in report.results]
+    assert ids[0] != ids[1]
+    for path, own, other in ((paths[0], ids[0], ids[1]), (paths[1], ids[1], ids[0])):
+        data = path.read_bytes()
+        assert own in data
+        assert other not in data
+
+
+def test_os_errors_are_retried_then_reported(
+    fleet: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import rose_logs.session
+
+    real = rose_logs.session.process_log
+    failures = {"left": 1}
+
+    def flaky(*args: object, **kwargs: object) -> object:
+        if failures["left"]:
+            failures["left"] -= 1
+            raise ConnectionResetError(104, "connection reset by peer")
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(rose_logs.session, "process_log", flaky)
+    recording = discover([fleet / "robot_a" / "run.mcap"])[0]
+    out = str(tmp_path / "out")
+    ok = process_recording(recording, out=out, options=RecordingOptions(retries=1))
+    assert ok.status == "ok"
+    failures["left"] = 3
+    failed = process_recording(recording, out=out, options=RecordingOptions(retries=1))
+    assert failed.status == "error"
+    assert "connection reset" in failed.error
+    assert failures["left"] == 1  # tried twice: once plus one retry
+
+
+def test_an_output_folder_inside_the_inputs_is_not_read_back(fleet: Path) -> None:
+    out = fleet / "health"
+    first = run_batch([fleet], out, options=RecordingOptions(cleaned=True))
+    assert (out / "cleaned" / "fleet" / "robot_a" / "run.mcap").is_file()
+    again = run_batch([fleet], out, options=RecordingOptions(cleaned=True))
+    assert [r.uri for r in again.results] == [r.uri for r in first.results]
+    assert (again.processed, again.skipped) == (0, 5)

@@ -1,0 +1,127 @@
+"""rose_logs.batch against S3: a moto server on 127.0.0.1 holds the inputs and the outputs."""
+
+from __future__ import annotations
+
+import io
+import json
+import socket
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pyarrow.parquet as pq
+import pytest
+
+from rose_logs.batch import RecordingOptions, run_batch
+from rose_logs.cli import main
+
+pytest.importorskip("s3fs")
+moto_server = pytest.importorskip("moto.server")
+
+BUCKET = "fleet-logs"
+
+
+def free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return int(sock.getsockname()[1])
+
+
+@pytest.fixture
+def s3(monkeypatch: pytest.MonkeyPatch) -> Iterator[dict[str, Any]]:
+    """Storage options of an empty bucket on a moto server (a fresh server per test)."""
+    import s3fs
+
+    for name in ("AWS_PROFILE", "AWS_CONFIG_FILE", "AWS_SHARED_CREDENTIALS_FILE"):
+        monkeypatch.delenv(name, raising=False)
+    port = free_port()
+    server = moto_server.ThreadedMotoServer(ip_address="127.0.0.1", port=port)
+    server.start()
+    options = {
+        "endpoint_url": f"http://127.0.0.1:{port}",
+        "key": "testing",
+        "secret": "testing",
+        "client_kwargs": {"region_name": "us-east-1"},
+    }
+    try:
+        import boto3
+
+        boto3.client(
+            "s3",
+            endpoint_url=options["endpoint_url"],
+            aws_access_key_id="testing",
+            aws_secret_access_key="testing",
+            region_name="us-east-1",
+        ).create_bucket(Bucket=BUCKET)
+        yield options
+    finally:
+        s3fs.S3FileSystem.clear_instance_cache()
+        server.stop()
+
+
+def test_inputs_and_outputs_in_a_bucket(fleet: Path, s3: dict[str, Any]) -> None:
+    import s3fs
+
+    fs = s3fs.S3FileSystem(**s3)
+    fs.put(str(fleet) + "/", f"{BUCKET}/robots/", recursive=True)
+    out = f"s3://{BUCKET}/health"
+    report = run_batch(
+        [f"s3://{BUCKET}/robots/"], out, storage_options=s3, options=RecordingOptions(cleaned=True)
+    )
+    uris = [r.uri for r in report.results]
+    assert uris == [
+        f"s3://{BUCKET}/robots/robot_a/later.db3",
+        f"s3://{BUCKET}/robots/robot_a/run.mcap",
+        f"s3://{BUCKET}/robots/robot_b/bag_dir",
+        f"s3://{BUCKET}/robots/robot_b/nested/small.mcap",
+        f"s3://{BUCKET}/robots/robot_b/run.mcap",
+    ]
+    assert [r.status for r in report.results] == ["ok"] * 5
+    recordings = pq.read_table(io.BytesIO(fs.cat_file(f"{BUCKET}/health/recordings.parquet")))
+    assert recordings.column("uri").to_pylist() == uris
+    assert recordings.column("broke").to_pylist() == [False, False, False, False, True]
+    snapshots = pq.read_table(io.BytesIO(fs.cat_file(f"{BUCKET}/health/snapshots.parquet")))
+    assert snapshots.num_rows == 15
+    summary = json.loads(fs.cat_file(f"{BUCKET}/health/summary.json"))
+    assert summary["broken"] == 1
+    assert fs.exists(f"{BUCKET}/health/report.md")
+    # Cleaned logs mirror the input names under the output prefix, bag folders included.
+    assert fs.exists(f"{BUCKET}/health/cleaned/robots/robot_a/run.mcap")
+    assert fs.exists(f"{BUCKET}/health/cleaned/robots/robot_b/bag_dir/metadata.yaml")
+    # A second run finds every result by its key (URI, size, ETag, options) and skips it.
+    again = run_batch(
+        [f"s3://{BUCKET}/robots/"], out, storage_options=s3, options=RecordingOptions(cleaned=True)
+    )
+    assert (again.processed, again.skipped) == (0, 5)
+
+
+def test_cli_storage_options_and_a_corrupt_object(
+    fleet: Path, s3: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    import s3fs
+
+    fs = s3fs.S3FileSystem(**s3)
+    fs.put(str(fleet / "robot_a" / "run.mcap"), f"{BUCKET}/in/run.mcap")
+    fs.pipe_file(f"{BUCKET}/in/cut.mcap", (fleet / "robot_a" / "run.mcap").read_bytes()[:5000])
+    argv = [
+        "batch",
+        f"s3://{BUCKET}/in/",
+        "-o",
+        f"s3://{BUCKET}/out",
+        "-q",
+        "--storage-option",
+        f"endpoint_url={s3['endpoint_url']}",
+        "--storage-option",
+        "key=testing",
+        "--storage-option",
+        "secret=testing",
+        "--max-errors",
+        "1",
+    ]
+    assert main(argv) == 0
+    rows = pq.read_table(io.BytesIO(fs.cat_file(f"{BUCKET}/out/recordings.parquet"))).to_pylist()
+    assert [(r["name"], r["status"]) for r in rows] == [
+        ("in/cut.mcap", "error"),
+        ("in/run.mcap", "ok"),
+    ]
+    assert f"s3://{BUCKET}/in/cut.mcap" in rows[0]["error"] or "cut.mcap" in rows[0]["error"]

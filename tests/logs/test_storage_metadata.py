@@ -1,0 +1,308 @@
+"""Connection metadata across formats: ROS 1 latching and definitions, ROS 2 QoS spellings, MCAP keys.
+
+Input logs are written with the ``mcap`` package and rosbags directly (never ``rose_logs.writer``); the
+map is a small drawn floor plan, so these tests need no data set.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+import numpy.typing as npt
+import pytest
+import yaml
+from rosbags.rosbag2.metadata import dump_qos_v8
+from rosbags.typesys import Stores, get_typestore
+
+from rose_logs.reader import LogReader
+from rose_logs.session import process_log
+from rose_logs.storage.connections import qos_style, qos_yaml, transient_local_qos
+from rose_logs.storage.records import parse_latching
+from rose_logs.storage.ros1_definitions import ROS1_FULL_TEXT
+from rose_logs.storage.typesys import msgdef_for, typestore_for
+
+T0_NS = 1_700_000_000_000_000_000
+MAP_TYPE = "nav_msgs/msg/OccupancyGrid"
+SCAN_TYPE = "sensor_msgs/msg/LaserScan"
+
+
+def _floor_plan() -> npt.NDArray[np.int8]:
+    """Two rooms and a corridor wall in a 120 x 160 grid, unknown outside (W about 0.06)."""
+    grid = np.full((120, 160), -1, np.int8)
+    grid[10:110, 10:150] = 0
+    grid[[10, 109], 10:150] = 100
+    grid[10:110, [10, 149]] = 100
+    grid[60, 10:100] = 100
+    grid[10:60, 80] = 100
+    return grid
+
+
+def _messages(serialization: str) -> list[tuple[int, str, bytes]]:
+    """(log time, topic, bytes): two maps and a scan, serialised with rosbags' own typestore."""
+    store = get_typestore(Stores.ROS1_NOETIC if serialization == "ros1" else Stores.ROS2_HUMBLE)
+    t = store.types
+    ser = store.serialize_ros1 if serialization == "ros1" else store.serialize_cdr
+    grid = _floor_plan()
+    out = []
+    for k in range(2):
+        t_ns = T0_NS + k * 1_000_000_000
+        stamp = t["builtin_interfaces/msg/Time"](sec=t_ns // 10**9, nanosec=0)
+        header_kw: dict[str, Any] = {"stamp": stamp, "frame_id": "map"}
+        if serialization == "ros1":
+            header_kw["seq"] = k
+        header = t["std_msgs/msg/Header"](**header_kw)
+        pose = t["geometry_msgs/msg/Pose"](
+            position=t["geometry_msgs/msg/Point"](x=-4.0, y=-3.0, z=0.0),
+            orientation=t["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
+        )
+        info = t["nav_msgs/msg/MapMetaData"](
+            map_load_time=stamp, resolution=0.05, width=160, height=120, origin=pose
+        )
+        msg = t[MAP_TYPE](header=header, info=info, data=grid.ravel())
+        out.append((t_ns, "/map", bytes(ser(msg, MAP_TYPE))))
+        scan = t[SCAN_TYPE](
+            header=header,
+            angle_min=-1.0,
+            angle_max=1.0,
+            angle_increment=0.5,
+            time_increment=0.0,
+            scan_time=0.1,
+            range_min=0.1,
+            range_max=10.0,
+            ranges=np.ones(5, np.float32),
+            intensities=np.zeros(0, np.float32),
+        )
+        out.append((t_ns + 1000, "/scan", bytes(ser(scan, SCAN_TYPE))))
+    return out
+
+
+def _write_mcap(path: Path, serialization: str, metadata: dict[str, dict[str, str]]) -> None:
+    from mcap.writer import Writer
+
+    store = get_typestore(Stores.ROS1_NOETIC if serialization == "ros1" else Stores.ROS2_HUMBLE)
+    ros1 = serialization == "ros1"
+    with path.open("wb") as f:
+        writer = Writer(f)
+        writer.start(profile="ros1" if ros1 else "ros2", library="tests")
+        channels = {}
+        for topic, msgtype in (("/map", MAP_TYPE), ("/scan", SCAN_TYPE)):
+            if ros1:
+                msgdef, md5 = store.generate_msgdef(msgtype)
+                schema = writer.register_schema(
+                    msgtype.replace("/msg/", "/"), "ros1msg", msgdef.encode()
+                )
+                meta = {"md5sum": md5, **metadata[topic]}
+            else:
+                msgdef, _ = store.generate_msgdef(msgtype, ros_version=2)
+                schema = writer.register_schema(msgtype, "ros2msg", msgdef.encode())
+                meta = dict(metadata[topic])
+            channels[topic] = writer.register_channel(topic, serialization, schema, meta)
+        for seq, (t_ns, topic, data) in enumerate(_messages(serialization)):
+            writer.add_message(channels[topic], t_ns, data, t_ns, seq)
+        writer.finish()
+
+
+def _mcap_channels(path: Path) -> dict[str, dict[str, str]]:
+    from mcap.reader import make_reader
+
+    with path.open("rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None
+    return {c.topic: dict(c.metadata) for c in summary.channels.values()}
+
+
+# -- ROS 1 latching ----------------------------------------------------------------------------
+@pytest.mark.parametrize(
+    ("text", "expected"),
+    [
+        ("1", 1),
+        ("0", 0),
+        ("true", 1),
+        ("false", 0),
+        (" True ", 1),
+        ("FALSE", 0),
+        ("yes", None),
+        ("", None),
+        (None, None),
+    ],
+)
+def test_parse_latching_accepts_both_spellings(text: str | None, expected: int | None) -> None:
+    assert parse_latching(text) == expected
+
+
+@pytest.mark.parametrize("spelling", [("true", "false"), ("1", "0")])
+def test_ros1_mcap_latching_is_read_and_kept(tmp_path: Path, spelling: tuple[str, str]) -> None:
+    latched, volatile = spelling
+    src = tmp_path / "in.mcap"
+    _write_mcap(
+        src,
+        "ros1",
+        {
+            "/map": {"callerid": "/slam", "latching": latched},
+            "/scan": {"callerid": "/laser", "latching": volatile},
+        },
+    )
+    with LogReader(src) as reader:
+        assert {c.topic: c.latching for c in reader.channels} == {"/map": 1, "/scan": 0}
+
+    out = tmp_path / "out.bag"  # ROS 1 bag: latching lives in the connection header
+    process_log(src, output_path=out)
+    with LogReader(out) as reader:
+        latching = {c.topic: c.latching for c in reader.channels}
+    assert latching["/map"] == 1
+    assert latching["/scan"] == 0
+    assert latching["/map/rose/cleaned"] == 1  # follows the latched map
+    assert latching["/map/rose/structure_score"] == 0
+
+
+# -- ROS 2 QoS ---------------------------------------------------------------------------------
+def test_qos_yaml_styles_round_trip() -> None:
+    from rosbags.rosbag2.metadata import parse_qos
+
+    profiles = [transient_local_qos(), transient_local_qos(5)]
+    v8, v9 = qos_yaml(profiles, style="v8"), qos_yaml(profiles, style="v9")
+    assert qos_style(v8) == "v8"
+    assert qos_style(v9) == "v9"
+    assert yaml.safe_load(v8)[0]["durability"] == 1  # RMW_QOS_POLICY_DURABILITY_TRANSIENT_LOCAL
+    assert yaml.safe_load(v9)[0]["durability"] == "transient_local"
+    assert parse_qos(v8) == parse_qos(v9) == profiles
+    assert qos_style(dump_qos_v8(profiles)) == "v8"  # rosbags' own (flow-style) v8 text
+    assert qos_style("") is None
+    assert qos_style("{not: a list}") is None
+
+
+@pytest.mark.parametrize("style", ["v8", "v9"])
+def test_bare_mcap_added_topics_follow_the_input_qos_style(tmp_path: Path, style: str) -> None:
+    src = tmp_path / "in.mcap"
+    latched = qos_yaml([transient_local_qos()], style=style)  # type: ignore[arg-type]
+    _write_mcap(src, "cdr", {"/map": {"offered_qos_profiles": latched}, "/scan": {}})
+    with LogReader(src) as reader:
+        assert reader.qos_style == style
+
+    out = tmp_path / "out.mcap"
+    process_log(src, output_path=out)
+    channels = _mcap_channels(out)
+    assert channels["/map"] == {"offered_qos_profiles": latched}  # copied as is
+    # The ros2 profile requires offered_qos_profiles on every channel, ours and the input's.
+    for topic, metadata in channels.items():
+        assert qos_style(metadata["offered_qos_profiles"]) == style, topic
+    cleaned = yaml.safe_load(channels["/map/rose/cleaned"]["offered_qos_profiles"])
+    assert cleaned[0]["durability"] in {1, "transient_local"}
+    score = yaml.safe_load(channels["/map/rose/structure_score"]["offered_qos_profiles"])
+    assert score[0]["durability"] in {2, "volatile"}
+
+
+@pytest.mark.parametrize("version", [8, 9])
+@pytest.mark.parametrize("plugin", ["SQLITE3", "MCAP"])
+def test_bag_folder_output_follows_the_input_qos_style(
+    tmp_path: Path, version: Literal[8, 9], plugin: str
+) -> None:
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    src = tmp_path / "in"
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    with Writer(src, version=version, storage_plugin=StoragePlugin[plugin]) as writer:
+        conns = {
+            "/map": writer.add_connection(
+                "/map", MAP_TYPE, typestore=store, offered_qos_profiles=[transient_local_qos()]
+            ),
+            "/scan": writer.add_connection("/scan", SCAN_TYPE, typestore=store),
+        }
+        for t_ns, topic, data in _messages("cdr"):
+            writer.write(conns[topic], t_ns, data)
+    expected = "v8" if version == 8 else "v9"
+    with LogReader(src) as reader:
+        assert reader.qos_style == expected
+
+    out = tmp_path / "out"
+    process_log(src, output_path=out)
+    info = yaml.safe_load((out / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    assert info["version"] == version
+    styles = {
+        t["topic_metadata"]["name"]: qos_style(t["topic_metadata"]["offered_qos_profiles"])
+        for t in info["topics_with_message_count"]
+    }
+    assert styles["/map"] == expected
+    for topic in ("/map/rose/cleaned", "/map/rose/structure_score", "/map/rose/walls"):
+        assert styles[topic] == expected, topic
+
+
+# -- ROS 1 message definitions -------------------------------------------------------------------
+def _fields(text: str) -> list[str]:
+    """Definition lines without comments and blanks, types without package (``std_msgs/Header`` ->
+    ``Header``): what the md5sum depends on, whichever way the text qualifies names."""
+    lines = (line.split("#", 1)[0].split() for line in text.splitlines())
+    return [" ".join([words[0].rsplit("/", 1)[-1], *words[1:]]) for words in lines if words]
+
+
+@pytest.mark.parametrize("msgtype", sorted(ROS1_FULL_TEXT))
+def test_canonical_ros1_text_has_the_standard_md5_and_fields(msgtype: str) -> None:
+    from rosbags.typesys import get_types_from_msg
+
+    text = ROS1_FULL_TEXT[msgtype]
+    noetic = get_typestore(Stores.ROS1_NOETIC)
+    ours = typestore_for("ros1")
+    generated, md5 = (noetic if msgtype in noetic.types else ours).generate_msgdef(msgtype)
+    assert "#" in text or msgtype == "std_msgs/msg/Float32"  # comments kept
+    assert _fields(text) == _fields(generated)  # same types, in the same order
+    store = get_typestore(Stores.EMPTY)
+    parts = text.split("=" * 80 + "\n")
+    store.register(get_types_from_msg(parts[0], msgtype))
+    for part in parts[1:]:
+        header, body = part.split("\n", 1)
+        store.register(get_types_from_msg(body, header.removeprefix("MSG: ").replace("/", "/msg/")))
+    assert store.generate_msgdef(msgtype)[1] == md5
+    assert msgdef_for(msgtype, "ros1") == (text, md5)
+
+
+def test_ros1_output_stores_canonical_texts_and_keeps_the_inputs(tmp_path: Path) -> None:
+    from rosbags.rosbag1 import Writer
+
+    src = tmp_path / "in.bag"
+    store = get_typestore(Stores.ROS1_NOETIC)
+    with Writer(src) as writer:  # rosbags stores its comment-free definitions
+        conns = {
+            topic: writer.add_connection(topic, msgtype, typestore=store, callerid="/slam")
+            for topic, msgtype in (("/map", MAP_TYPE), ("/scan", SCAN_TYPE))
+        }
+        for t_ns, topic, data in _messages("ros1"):
+            writer.write(conns[topic], t_ns, data)
+    out = tmp_path / "out.bag"
+    process_log(src, output_path=out)
+    with LogReader(src) as a, LogReader(out) as b:
+        before = {c.topic: c for c in a.channels}
+        after = {c.topic: c for c in b.channels}
+    for topic, channel in before.items():  # input texts kept as they are
+        assert (after[topic].msgdef, after[topic].digest) == (channel.msgdef, channel.digest)
+    for topic, msgtype in (
+        ("/map/rose/cleaned", MAP_TYPE),
+        ("/map/rose/structure_score", "std_msgs/msg/Float32"),
+        ("/map/rose/walls", "visualization_msgs/msg/MarkerArray"),
+    ):
+        assert after[topic].msgdef == ROS1_FULL_TEXT[msgtype], topic
+        assert after[topic].digest == typestore_for("ros1").generate_msgdef(msgtype)[1]
+
+
+def test_ros1_input_text_without_md5_is_kept(tmp_path: Path) -> None:
+    """A ros1-profile MCAP channel without ``md5sum``: its text is copied, only the md5 computed."""
+    from mcap.writer import Writer
+
+    src = tmp_path / "in.mcap"
+    text = ROS1_FULL_TEXT[MAP_TYPE]  # comments and all, as recorded by ROS
+    with src.open("wb") as f:
+        writer = Writer(f)
+        writer.start(profile="ros1", library="tests")
+        schema = writer.register_schema("nav_msgs/OccupancyGrid", "ros1msg", text.encode())
+        channel = writer.register_channel("/map", "ros1", schema, {"latching": "true"})
+        for seq, (t_ns, topic, data) in enumerate(_messages("ros1")):
+            if topic == "/map":
+                writer.add_message(channel, t_ns, data, t_ns, seq)
+        writer.finish()
+    out = tmp_path / "out.bag"
+    process_log(src, output_path=out)
+    with LogReader(out) as reader:
+        copied = next(c for c in reader.channels if c.topic == "/map")
+    assert copied.msgdef == text
+    assert copied.digest == "3381f2d731d4076ec5c71b0759edbe4e"  # nav_msgs/OccupancyGrid in ROS 1
