@@ -24,6 +24,7 @@ __all__ = [
     "directions_deg",
     "error_text",
     "fraction",
+    "input_name",
     "main",
     "non_negative_float",
     "params_from_args",
@@ -81,20 +82,33 @@ def main(argv: Sequence[str] | None = None) -> int:
         except (RoseError, OSError, MemoryError, RecursionError) as err:
             if args.debug:
                 raise
-            print(f"error: {error_text(err)}", file=sys.stderr)
+            print(f"error: {error_text(err, where=input_name(args))}", file=sys.stderr)
             return 1
     except KeyboardInterrupt as err:
         print("error: interrupted, nothing written", file=sys.stderr)
         return err.exit_code if isinstance(err, Terminated) else 130
 
 
-def error_text(err: BaseException) -> str:
-    """One short line for an error: our messages as they are, OS errors with their file name."""
+def input_name(args: object) -> str | None:
+    """The input a command was given (``input``, ``map``, ``log`` or the first of ``maps``), for errors."""
+    for name in ("input", "map", "log"):
+        value = getattr(args, name, None)
+        if value is not None:
+            return str(value)
+    maps = getattr(args, "maps", None)
+    return str(maps[0]) if maps else None
+
+
+def error_text(err: BaseException, *, where: str | None = None) -> str:
+    """One short line for an error: our messages as they are (they name their file), OS errors with
+    their file name, anything else prefixed with ``where`` (the command's input)."""
+    prefix = f"{where}: " if where else ""
     if isinstance(err, OSError) and not isinstance(err, RoseError):
-        where = f"{err.filename}: " if err.filename else ""
-        return short(f"{where}{err.strerror or err}")
+        if err.filename:
+            prefix = f"{err.filename}: "
+        return short(f"{prefix}{err.strerror or err}")
     if isinstance(err, MemoryError):
-        return "out of memory (lower --max-cells?)"
+        return short(f"{prefix}out of memory (lower --max-cells?)")
     if isinstance(err, RecursionError):
-        return "input nested too deeply"
+        return short(f"{prefix}input nested too deeply")
     return short(err)

@@ -11,7 +11,7 @@ import logging
 import sys
 from typing import Any
 
-from rose.cli import error_text
+from rose.cli import error_text, input_name
 from rose.errors import RoseError
 from rose.outputs import Terminated, install_signal_handlers
 from rose_logs.errors import LogError
@@ -81,7 +81,7 @@ def main(argv: list[str] | None = None) -> int:
         except (LogError, RoseError, OSError, MemoryError, RecursionError) as err:
             if args.debug:
                 raise
-            print(f"error: {error_text(err)}", file=sys.stderr)
+            print(f"error: {error_text(err, where=input_name(args))}", file=sys.stderr)
             return 1
     except KeyboardInterrupt as err:
         print("error: interrupted, nothing written", file=sys.stderr)
