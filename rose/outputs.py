@@ -285,7 +285,7 @@ class OutputSet:
             if given is None:
                 continue
             path = Path(given)
-            target = self._target(path, directory=directory)
+            target = self._target(path)
             for other, other_target in seen:
                 if str(path) == str(other) == STDOUT or (
                     STDOUT not in (str(path), str(other)) and _conflict(target, other_target)
@@ -321,7 +321,7 @@ class OutputSet:
             missing or not writable.
         """
         path = Path(path)
-        target = self._target(path, directory=directory)
+        target = self._target(path)
         stream = _is_stdout(path) or (
             target.exists() and not directory and not _is_regular_or_dir(target)
         )
@@ -350,7 +350,7 @@ class OutputSet:
         self._outputs.append(staged)
         return staged
 
-    def _target(self, path: Path, *, directory: bool) -> Path:
+    def _target(self, path: Path) -> Path:
         if str(path) == STDOUT:
             return path
         try:
@@ -374,7 +374,6 @@ class OutputSet:
             ):
                 msg = f"{path}: used for two outputs (also {other.path})"
                 raise OutputError(msg)
-        del directory
         return target
 
     def _check_existing(self, path: Path, target: Path, *, directory: bool) -> None:
