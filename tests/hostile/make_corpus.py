@@ -1201,6 +1201,8 @@ def _digest(path: Path) -> str:
 def _limit() -> None:
     resource.setrlimit(resource.RLIMIT_AS, (ADDRESS_LIMIT, ADDRESS_LIMIT))
     os.setsid()
+    # A background job inherits SIGINT ignored, and Python then keeps ignoring it: restore the default.
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def _spawn(case: Case, index: int) -> tuple[int, str, str, int, bool]:
