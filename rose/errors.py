@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-__all__ = ["MapFileError", "RoseError"]
+__all__ = ["MapFileError", "OutputError", "RoseError"]
 
 
 class RoseError(Exception):
@@ -11,3 +11,7 @@ class RoseError(Exception):
 
 class MapFileError(RoseError):
     """A map file (YAML, PGM, PNG) is missing, unreadable or malformed, or cannot be written."""
+
+
+class OutputError(RoseError):
+    """An output cannot be written: it touches an input or another output, exists, or its folder fails."""

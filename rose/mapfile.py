@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 import os
-import tempfile
+import stat
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,6 +24,15 @@ import yaml
 
 from rose.errors import MapFileError
 from rose.grid import OCCUPIED, UNKNOWN, as_occupancy_grid
+from rose.limits import (
+    DEFAULT_MAX_CELLS,
+    MAX_YAML_BYTES,
+    check_cells,
+    image_shape,
+    load_yaml,
+    short,
+)
+from rose.outputs import OutputSet
 
 __all__ = ["MapMode", "OccupancyMap", "load_map", "save_map", "write_atomically"]
 
@@ -42,6 +51,9 @@ SAVED_FREE = 254
 SAVED_OCCUPIED = 0
 SAVED_UNKNOWN = 205
 
+MAX_RESOLUTION_M = 1e4
+"""Largest cell size accepted (metres); anything larger is a corrupt value, not a map."""
+
 
 @dataclass(frozen=True, eq=False)
 class OccupancyMap:
@@ -59,6 +71,8 @@ class OccupancyMap:
         Rotation of the grid in the map frame, in radians.
     source : Path or None
         File the map was read from.
+    image_path : Path or None
+        The image file of a map_server YAML (``source`` itself for a bare image).
     """
 
     grid: npt.NDArray[np.int8]
@@ -66,40 +80,82 @@ class OccupancyMap:
     origin_xy_m: tuple[float, float] = (0.0, 0.0)
     origin_yaw_rad: float = 0.0
     source: Path | None = None
+    image_path: Path | None = None
+
+    @property
+    def input_files(self) -> tuple[Path, ...]:
+        """The files this map was read from (YAML and image), for output checks."""
+        return tuple(p for p in dict.fromkeys((self.source, self.image_path)) if p is not None)
 
 
-def load_map(path: str | os.PathLike[str]) -> OccupancyMap:
+def load_map(
+    path: str | os.PathLike[str], *, max_cells: int | None = DEFAULT_MAX_CELLS
+) -> OccupancyMap:
     """Read a map_server YAML (with its image) or a bare image as an :class:`OccupancyMap`.
 
     A bare image is read in trinary mode with map_server's default thresholds, resolution 0.05 m and
     origin (0, 0).
 
+    Parameters
+    ----------
+    path : path-like
+        YAML or image file. Never modified.
+    max_cells : int or None, default :data:`rose.limits.DEFAULT_MAX_CELLS`
+        Refuse images with more pixels than this (checked on the header, before decoding).
+
     Raises
     ------
     MapFileError
-        If the file is missing or unreadable, or the YAML lacks or mistypes a field.
+        If the file is missing, not a regular file, unreadable, too large, or the YAML lacks or
+        mistypes a field.
     """
     path = Path(path)
-    if not path.is_file():
-        msg = f"{path}: no such file"
-        raise MapFileError(msg)
+    _require_regular(path, "no such file")
     if path.suffix.lower() in YAML_SUFFIXES:
-        return _load_yaml_map(path)
+        return _load_yaml_map(path, max_cells)
     grid = image_to_grid(
-        _read_image(path),
+        _read_image(path, max_cells),
         mode="trinary",
         negate=False,
         occupied_thresh=DEFAULT_OCCUPIED_THRESH,
         free_thresh=DEFAULT_FREE_THRESH,
     )
-    return OccupancyMap(grid=grid, source=path)
+    return OccupancyMap(grid=grid, source=path, image_path=path)
 
 
-def _load_yaml_map(path: Path) -> OccupancyMap:
+def _require_regular(path: Path, missing: str) -> None:
+    """Raise MapFileError unless ``path`` is a regular file (a FIFO or device would block or never end)."""
     try:
-        meta = yaml.safe_load(path.read_text())
-    except (OSError, UnicodeDecodeError, yaml.YAMLError) as err:
-        msg = f"{path}: not a readable YAML file ({_first_line(err)})"
+        mode = path.stat().st_mode
+    except FileNotFoundError as err:
+        msg = f"{short(path, 200)}: {missing}"
+        raise MapFileError(msg) from err
+    except OSError as err:
+        msg = f"{short(path, 200)}: cannot read ({err.strerror or err})"
+        raise MapFileError(msg) from err
+    if not stat.S_ISREG(mode):
+        msg = f"{path}: not a regular file"
+        raise MapFileError(msg)
+
+
+def _read_bytes(path: Path, limit: int | None = None) -> bytes:
+    try:
+        with path.open("rb") as file:
+            data = file.read() if limit is None else file.read(limit + 1)
+    except OSError as err:
+        msg = f"{path}: cannot read ({err.strerror or err})"
+        raise MapFileError(msg) from err
+    if limit is not None and len(data) > limit:
+        msg = f"{path}: larger than {limit} bytes, not a map YAML"
+        raise MapFileError(msg)
+    return data
+
+
+def _load_yaml_map(path: Path, max_cells: int | None) -> OccupancyMap:
+    try:
+        meta = load_yaml(_read_bytes(path, MAX_YAML_BYTES))
+    except ValueError as err:
+        msg = f"{path}: not a readable YAML file ({err})"
         raise MapFileError(msg) from err
     if not isinstance(meta, dict):
         msg = f"{path}: expected a YAML mapping with 'image', 'resolution' and 'origin'"
@@ -112,17 +168,22 @@ def _load_yaml_map(path: Path) -> OccupancyMap:
         or len(origin) != 3
         or not all(isinstance(v, int | float) and not isinstance(v, bool) for v in origin)
     ):
-        msg = f"{path}: 'origin' must be a list of three numbers [x, y, yaw], got {origin!r}"
+        msg = (
+            f"{path}: 'origin' must be a list of three numbers [x, y, yaw], got {short(origin, 80)}"
+        )
+        raise MapFileError(msg)
+    if not all(_finite(v) for v in origin):
+        msg = f"{path}: 'origin' must be finite, got {origin!r}"
         raise MapFileError(msg)
     mode = meta.get("mode", "trinary")
     if mode not in ("trinary", "scale", "raw"):
-        msg = f"{path}: 'mode' must be trinary, scale or raw, got {mode!r}"
+        msg = f"{path}: 'mode' must be trinary, scale or raw, got {short(repr(mode), 80)}"
         raise MapFileError(msg)
     negate = _field(meta, "negate", int, path, default=0)
     occupied_thresh = _field(meta, "occupied_thresh", float, path, default=DEFAULT_OCCUPIED_THRESH)
     free_thresh = _field(meta, "free_thresh", float, path, default=DEFAULT_FREE_THRESH)
-    if resolution <= 0 or not math.isfinite(resolution):
-        msg = f"{path}: 'resolution' must be a positive number of metres, got {resolution}"
+    if not math.isfinite(resolution) or not 0 < resolution <= MAX_RESOLUTION_M:
+        msg = f"{path}: 'resolution' must be a positive number of metres up to {MAX_RESOLUTION_M:g}, got {resolution}"
         raise MapFileError(msg)
     if not 0.0 <= free_thresh < occupied_thresh <= 1.0:
         msg = (
@@ -130,14 +191,19 @@ def _load_yaml_map(path: Path) -> OccupancyMap:
             f"got free_thresh={free_thresh}, occupied_thresh={occupied_thresh}"
         )
         raise MapFileError(msg)
+    if not image_name or "\0" in image_name:
+        msg = f"{path}: 'image' must name a file"
+        raise MapFileError(msg)
     image_path = Path(image_name)
     if not image_path.is_absolute():
         image_path = path.parent / image_path
-    if not image_path.is_file():
-        msg = f"{path}: its image {image_path} does not exist (no such image file)"
-        raise MapFileError(msg)
+    try:
+        _require_regular(image_path, "no such image file")
+    except MapFileError as err:
+        msg = f"{path}: its image {short(err, 240)}"
+        raise MapFileError(msg) from err
     grid = image_to_grid(
-        _read_image(image_path),
+        _read_image(image_path, max_cells),
         mode=mode,
         negate=bool(negate),
         occupied_thresh=occupied_thresh,
@@ -149,7 +215,15 @@ def _load_yaml_map(path: Path) -> OccupancyMap:
         origin_xy_m=(float(origin[0]), float(origin[1])),
         origin_yaw_rad=float(origin[2]),
         source=path,
+        image_path=image_path,
     )
+
+
+def _finite(value: float) -> bool:
+    try:
+        return math.isfinite(float(value))
+    except OverflowError:
+        return False
 
 
 def _field(meta: dict[str, Any], key: str, kind: type, path: Path, default: Any = None) -> Any:
@@ -165,20 +239,39 @@ def _field(meta: dict[str, Any], key: str, kind: type, path: Path, default: Any 
     if (numeric and (isinstance(value, bool) or not isinstance(value, int | float))) or (
         not numeric and not isinstance(value, kind)
     ):
-        msg = f"{path}: '{key}' must be a {kind.__name__}, got {value!r}"
+        msg = f"{path}: '{key}' must be a {kind.__name__}, got {short(repr(value), 80)}"
         raise MapFileError(msg)
-    return kind(value)
+    try:
+        return kind(value)
+    except (OverflowError, ValueError) as err:
+        msg = f"{path}: '{key}' is out of range ({short(repr(value), 80)})"
+        raise MapFileError(msg) from err
 
 
-def _read_image(path: Path) -> npt.NDArray[np.uint8]:
-    """Read any image as ``(rows, cols, channels)`` uint8 with colour channels first, alpha last."""
-    if not path.is_file():
-        msg = f"{path}: no such image file"
-        raise MapFileError(msg)
-    data = np.fromfile(path, dtype=np.uint8)
+def _read_image(path: Path, max_cells: int | None = DEFAULT_MAX_CELLS) -> npt.NDArray[np.uint8]:
+    """Read any image as ``(rows, cols, channels)`` uint8 with colour channels first, alpha last.
+
+    The size its header declares is checked against ``max_cells`` before decoding.
+    """
+    _require_regular(path, "no such image file")
+    raw = _read_bytes(path)
+    shape = image_shape(raw)
+    if shape is not None:
+        problem = check_cells(*shape, max_cells)
+        if problem is not None:
+            msg = f"{path}: image of {problem}"
+            raise MapFileError(msg)
+    data = np.frombuffer(raw, dtype=np.uint8)
     import cv2  # OpenCV loads on first image use, not with `import rose`
 
-    image = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
+    try:
+        image = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
+    except (cv2.error, MemoryError) as err:
+        msg = f"{path}: not a readable image ({short(err, 120)})"
+        raise MapFileError(msg) from err
+    if image is not None and max_cells is not None and image.shape[0] * image.shape[1] > max_cells:
+        msg = f"{path}: image of {check_cells(image.shape[0], image.shape[1], max_cells)}"
+        raise MapFileError(msg)
     if image is None:
         msg = f"{path}: not a readable image"
         raise MapFileError(msg)
@@ -232,16 +325,25 @@ def grid_to_image(
     return np.flipud(image)
 
 
-def save_map(path: str | os.PathLike[str], occupancy_map: OccupancyMap) -> Path:
+def save_map(
+    path: str | os.PathLike[str],
+    occupancy_map: OccupancyMap,
+    *,
+    outputs: OutputSet | None = None,
+) -> Path:
     """Write ``occupancy_map`` as map_server YAML plus a trinary PGM beside it; return the image path.
 
-    ``path`` names the YAML file; the image gets the same stem with ``.pgm``. Both files are written to
-    temporary names and renamed, so an existing map is never left half-overwritten.
+    ``path`` names the YAML file; the image gets the same stem with ``.pgm``. Both files are staged
+    in ``outputs`` (committed by its owner together with the run's other outputs); without
+    ``outputs`` they are committed together here, replacing an existing map, so an existing map is
+    never left half-overwritten.
 
     Raises
     ------
     MapFileError
-        If the directory does not exist or is not writable.
+        If the path is not a ``.yaml`` name or the image cannot be encoded.
+    OutputError
+        If an output is refused by ``outputs`` (an input, exists without force) or cannot be written.
     """
     path = Path(path)
     if path.suffix.lower() not in YAML_SUFFIXES:
@@ -266,40 +368,34 @@ def save_map(path: str | os.PathLike[str], occupancy_map: OccupancyMap) -> Path:
         "free_thresh": DEFAULT_FREE_THRESH,
     }
     text = yaml.safe_dump(meta, sort_keys=False, default_flow_style=None)
-    write_atomically(image_path, lambda f: f.write(encoded.tobytes()))
-    write_atomically(path, lambda f: f.write(text.encode()))
+    own = outputs is None
+    target = OutputSet(force=True) if outputs is None else outputs
+    try:
+        target.write_bytes(image_path, encoded.tobytes())
+        target.write_bytes(path, text.encode())
+    except BaseException:
+        if own:
+            target.abort()
+        raise
+    if own:
+        target.commit()
     return image_path
 
 
 def write_atomically(path: Path, write: Callable[[Any], object]) -> None:
     """Call ``write(file)`` on a temporary file beside ``path``, then rename it to ``path``.
 
+    Replaces an existing file (not a directory); ``-`` / ``/dev/stdout`` are streamed. For several
+    outputs that belong together use :class:`rose.outputs.OutputSet`.
+
     Raises
     ------
-    MapFileError
+    OutputError
         If the file cannot be created or written; nothing is left behind.
     """
-    directory = path.parent if str(path.parent) else Path()
-    if not directory.is_dir():
-        msg = f"{path}: directory {directory} does not exist"
-        raise MapFileError(msg)
-    try:
-        fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
-    except OSError as err:
-        msg = f"{path}: cannot write here ({err.strerror})"
-        raise MapFileError(msg) from err
-    try:
-        with os.fdopen(fd, "wb") as file:
-            write(file)
-        Path(tmp_name).replace(path)
-    except BaseException as err:
-        Path(tmp_name).unlink(missing_ok=True)
-        if isinstance(err, OSError):
-            msg = f"{path}: cannot write ({err.strerror})"
-            raise MapFileError(msg) from err
-        raise
+    import io
 
-
-def _first_line(err: BaseException) -> str:
-    text = str(err).strip()
-    return text.splitlines()[0] if text else type(err).__name__
+    buffer = io.BytesIO()
+    write(buffer)
+    with OutputSet(force=True) as outputs:
+        outputs.write_bytes(path, buffer.getvalue())

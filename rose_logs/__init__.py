@@ -6,11 +6,17 @@ in ``rose_logs.rerun``, the CARMEN converter in ``rose_logs.carmen`` and the pap
 evaluation in ``rose_logs.evaluation``; they are imported on demand.
 """
 
-from rose_logs.errors import LogError, LogReadError, LogWriteError, MapMessageError
-from rose_logs.reader import LogReader
-from rose_logs.session import BreakEvent, SessionReport, SnapshotRecord, process_log
-from rose_logs.snapshots import MapSnapshot
-from rose_logs.writer import LogWriter, open_output
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from rose_logs.errors import LogError, LogReadError, LogWriteError, MapMessageError
+    from rose_logs.reader import LogReader
+    from rose_logs.session import BreakEvent, SessionReport, SnapshotRecord, process_log
+    from rose_logs.snapshots import MapSnapshot
+    from rose_logs.writer import LogWriter, open_output
 
 __all__ = [
     "BreakEvent",
@@ -27,3 +33,30 @@ __all__ = [
     "process_log",
 ]
 __version__ = "0.1.0"
+
+# Public names are imported on first use (PEP 562), so `import rose_logs.cli` stays light.
+_LAZY = {
+    "BreakEvent": "rose_logs.session",
+    "LogError": "rose_logs.errors",
+    "LogReadError": "rose_logs.errors",
+    "LogReader": "rose_logs.reader",
+    "LogWriteError": "rose_logs.errors",
+    "LogWriter": "rose_logs.writer",
+    "MapMessageError": "rose_logs.errors",
+    "MapSnapshot": "rose_logs.snapshots",
+    "SessionReport": "rose_logs.session",
+    "SnapshotRecord": "rose_logs.session",
+    "open_output": "rose_logs.writer",
+    "process_log": "rose_logs.session",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    msg = f"module 'rose_logs' has no attribute {name!r}"
+    raise AttributeError(msg)
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

@@ -8,9 +8,12 @@
 
 from __future__ import annotations
 
+import os
+import stat
 from pathlib import Path
 from typing import Literal
 
+from rose.limits import MAX_YAML_BYTES, load_yaml, short
 from rose_logs.errors import LogReadError
 
 __all__ = ["FORMATS", "LogFormat", "detect_format", "format_from_path"]
@@ -32,22 +35,12 @@ def detect_format(path: Path) -> LogFormat:
         If ``path`` does not exist, cannot be read or is no supported log.
     """
     path = Path(path)
-    if not path.exists():
-        msg = f"{path}: no such file or directory"
+    mode = _mode(path)
+    if stat.S_ISDIR(mode):
+        return _folder_format(path)
+    if not stat.S_ISREG(mode):
+        msg = f"{path}: not a regular file (a FIFO, device or socket cannot be read as a log)"
         raise LogReadError(msg)
-    if path.is_dir():
-        meta = path / "metadata.yaml"
-        if not meta.is_file():
-            msg = f"{path}: folder without metadata.yaml, not a ROS 2 bag"
-            raise LogReadError(msg)
-        try:
-            text = meta.read_text(encoding="utf-8")
-        except OSError as err:
-            msg = f"{meta}: cannot read ({err.strerror})"
-            raise LogReadError(msg) from err
-        if "storage_identifier: mcap" in text:
-            return "mcap-dir"
-        return "db3"
     try:
         with path.open("rb") as f:
             head = f.read(16)
@@ -63,6 +56,53 @@ def detect_format(path: Path) -> LogFormat:
     what = "empty file" if not head else "unrecognised header"
     msg = f"{path}: not a ROS 1 bag, ROS 2 bag or MCAP file ({what})"
     raise LogReadError(msg)
+
+
+def _mode(path: Path) -> int:
+    try:
+        return path.stat().st_mode
+    except FileNotFoundError as err:
+        msg = f"{short(path, 200)}: no such file or directory"
+        raise LogReadError(msg) from err
+    except OSError as err:
+        msg = f"{short(path, 200)}: cannot read ({err.strerror or err})"
+        raise LogReadError(msg) from err
+
+
+def _folder_format(path: Path) -> LogFormat:
+    """A ROS 2 bag folder: every entry a regular file, ``metadata.yaml`` within the YAML limits."""
+    meta = path / "metadata.yaml"
+    try:
+        entries = list(os.scandir(path))
+    except OSError as err:
+        msg = f"{path}: cannot list the folder ({err.strerror or err})"
+        raise LogReadError(msg) from err
+    if not any(e.name == "metadata.yaml" for e in entries):
+        msg = f"{path}: folder without metadata.yaml, not a ROS 2 bag"
+        raise LogReadError(msg)
+    for entry in entries:
+        if not entry.is_dir() and not entry.is_file():
+            msg = f"{entry.path}: not a regular file (a FIFO, device or socket in a bag folder)"
+            raise LogReadError(msg)
+    if not meta.is_file():
+        msg = f"{meta}: not a regular file"
+        raise LogReadError(msg)
+    try:
+        with meta.open("rb") as file:
+            text = file.read(MAX_YAML_BYTES + 1)
+    except OSError as err:
+        msg = f"{meta}: cannot read ({err.strerror or err})"
+        raise LogReadError(msg) from err
+    try:
+        parsed = load_yaml(text)  # refuses alias bombs and deep nesting before rosbags parses it
+    except ValueError as err:
+        msg = f"{meta}: {err}"
+        raise LogReadError(msg) from err
+    info = parsed.get("rosbag2_bagfile_information") if isinstance(parsed, dict) else None
+    if not isinstance(info, dict):
+        msg = f"{meta}: no rosbag2_bagfile_information mapping, not a ROS 2 bag"
+        raise LogReadError(msg)
+    return "mcap-dir" if info.get("storage_identifier") == "mcap" else "db3"
 
 
 def format_from_path(path: Path) -> LogFormat | None:

@@ -20,6 +20,7 @@ from pathlib import Path
 from types import TracebackType
 from typing import Self
 
+from rose.limits import short
 from rose_logs.errors import LogError, LogReadError
 from rose_logs.formats import LogFormat, detect_format
 from rose_logs.storage.connections import QosStyle
@@ -27,14 +28,18 @@ from rose_logs.storage.mcap import McapReadBackend
 from rose_logs.storage.records import Channel, RawMessage
 from rose_logs.storage.rosbags import RosbagsReadBackend
 
-__all__ = ["Channel", "LogReader", "RawMessage"]
+__all__ = ["Channel", "LogReader", "MessageLossError", "RawMessage"]
 
 _LOG = logging.getLogger(__name__)
 
 
 def _corrupt(path: Path, err: BaseException) -> LogReadError:
-    detail = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
+    detail = short(err, 160) if str(err).strip() else type(err).__name__
     return LogReadError(f"{path}: corrupt or truncated log ({detail})")
+
+
+class MessageLossError(LogReadError):
+    """Fewer messages could be read than the log's index / metadata declares (or a chunk is corrupt)."""
 
 
 class LogReader:
@@ -44,9 +49,16 @@ class LogReader:
     ----------
     path : Path
         Log file or ROS 2 bag folder. Never modified.
+    salvage : bool, default False
+        What to do when messages are lost (a corrupt chunk, a failed MCAP CRC, fewer messages than the
+        index / ``metadata.yaml`` / MCAP statistics declare): False raises :class:`MessageLossError`
+        from :meth:`messages`; True stops reading there, records the problem in :attr:`losses` and
+        ends the iteration normally (the caller must report it).
 
     Notes
     -----
+    Every message read is counted per channel and, once a full pass ends, compared with the count the
+    log declares, so no loss goes unnoticed.
     ``__init__`` only validates; :meth:`open` reads the index. Use as a context manager::
 
         with LogReader(path) as reader:
@@ -54,9 +66,12 @@ class LogReader:
                 ...
     """
 
-    def __init__(self, path: Path) -> None:
+    def __init__(self, path: Path, *, salvage: bool = False) -> None:
         self.path = Path(path)
         self.format: LogFormat = detect_format(self.path)
+        self.salvage = salvage
+        self.losses: list[str] = []
+        self.read_count = 0
         self._backend: RosbagsReadBackend | McapReadBackend | None = None
 
     # -- lifecycle -------------------------------------------------------------------------------
@@ -156,9 +171,53 @@ class LogReader:
             If the log turns out to be truncated or corrupt while reading.
         """
         backend = self._open_backend
+        wanted = None if topics is None else set(topics)
+        counts: dict[int, int] = {}
+        self.read_count = 0
         try:
-            yield from backend.messages(None if topics is None else set(topics))
-        except LogError:
-            raise
-        except Exception as err:
-            raise _corrupt(self.path, err) from err
+            for message in backend.messages(wanted):
+                key = message.channel.id
+                counts[key] = counts.get(key, 0) + 1
+                self.read_count += 1
+                yield message
+        except (LogError, Exception) as err:
+            error = err if isinstance(err, LogError) else _corrupt(self.path, err)
+            if not self.salvage:
+                if isinstance(err, LogError):
+                    raise
+                raise error from err
+            self.losses.append(f"{short(error, 200)}; stopped after {self.read_count} messages")
+            _LOG.warning("%s: stopped reading after %d messages", self.path, self.read_count)
+            return
+        self._check_counts(counts, wanted)
+
+    def _check_counts(self, counts: dict[int, int], topics: set[str] | None) -> None:
+        """Compare messages read per channel with the declared counts; a shortfall is a loss."""
+        short_channels = []
+        for channel in self.channels:
+            if topics is not None and channel.topic not in topics:
+                continue
+            read = counts.get(channel.id, 0)
+            if read < channel.message_count:
+                short_channels.append(f"{channel.topic} {read} of {channel.message_count}")
+            elif read > channel.message_count:
+                _LOG.warning(
+                    "%s: %s has %d messages, its index says %d",
+                    self.path,
+                    channel.topic,
+                    read,
+                    channel.message_count,
+                )
+        if not short_channels:
+            return
+        declared = sum(
+            c.message_count for c in self.channels if topics is None or c.topic in topics
+        )
+        problem = (
+            f"{self.path}: read {self.read_count} of {declared} messages the log declares "
+            f"({short(', '.join(short_channels), 160)}): the log is damaged"
+        )
+        if not self.salvage:
+            raise MessageLossError(problem + " (--salvage keeps what can be read)")
+        self.losses.append(problem)
+        _LOG.warning("%s", problem)

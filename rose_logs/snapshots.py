@@ -6,6 +6,7 @@ The ``int8[] data`` of a grid is decoded by rosbags straight into a numpy array 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -16,9 +17,21 @@ from rose_logs.errors import MapMessageError
 from rose_logs.frames import quaternion_to_yaw
 from rose_logs.storage.typesys import MAP_TYPE, UPDATE_TYPE, typestore_for
 
-__all__ = ["GridUpdate", "MapSnapshot", "apply_update", "decode_map", "decode_update"]
+__all__ = [
+    "MAX_RESOLUTION_M",
+    "GridUpdate",
+    "MapSnapshot",
+    "apply_update",
+    "check_log_time",
+    "decode_map",
+    "decode_update",
+]
 
 _NS_PER_S = 1_000_000_000
+_MAX_TIME_NS = 2**63 - 1
+
+MAX_RESOLUTION_M = 1e4
+"""Largest cell size of a map message taken as a map (metres); larger values are corrupt data."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -136,8 +149,38 @@ def apply_update(snapshot: MapSnapshot, update: GridUpdate) -> MapSnapshot:
 
 
 # -- decoding map messages ------------------------------------------------------------------------------------
-def _time_ns(stamp: Any) -> int:
-    return int(stamp.sec) * _NS_PER_S + int(stamp.nanosec)
+def check_log_time(topic: str, log_time_ns: int) -> None:
+    """Raise MapMessageError unless ``0 <= log_time_ns < 2**63`` (what Rerun and ROS time can hold)."""
+    if not 0 <= log_time_ns <= _MAX_TIME_NS:
+        msg = f"{topic}: log time {log_time_ns} ns is outside 0 .. 2**63 - 1"
+        raise MapMessageError(msg)
+
+
+def _time_ns(stamp: Any, topic: str, what: str) -> int:
+    sec, nanosec = int(stamp.sec), int(stamp.nanosec)
+    if not 0 <= nanosec < _NS_PER_S:
+        msg = f"{topic}: {what} has nanosec = {nanosec}, not in 0 .. 999999999"
+        raise MapMessageError(msg)
+    if sec < 0:
+        msg = f"{topic}: {what} is negative ({sec} s)"
+        raise MapMessageError(msg)
+    return sec * _NS_PER_S + nanosec
+
+
+def _check_placement(
+    topic: str, resolution: float, position: tuple[float, ...], quaternion: tuple[float, ...]
+) -> None:
+    """Raise MapMessageError for a resolution, origin or orientation no real map has."""
+    if not math.isfinite(resolution) or not 0 < resolution <= MAX_RESOLUTION_M:
+        msg = f"{topic}: resolution {resolution} m is not in (0, {MAX_RESOLUTION_M:g}]"
+        raise MapMessageError(msg)
+    if not all(math.isfinite(v) for v in position):
+        msg = f"{topic}: origin position {position} is not finite"
+        raise MapMessageError(msg)
+    norm = math.sqrt(sum(v * v for v in quaternion)) if all(map(math.isfinite, quaternion)) else 0.0
+    if not norm > 1e-6:
+        msg = f"{topic}: origin orientation {quaternion} is not a rotation (zero or not finite)"
+        raise MapMessageError(msg)
 
 
 def _deserialize(data: bytes | memoryview, msgtype: str, serialization: str, topic: str) -> Any:
@@ -185,22 +228,29 @@ def decode_map(
     Raises
     ------
     MapMessageError
-        If the bytes do not decode, the map has zero area or ``len(data) != width * height``.
+        If the bytes do not decode, the map has zero area or ``len(data) != width * height``, the
+        resolution is not in ``(0, MAX_RESOLUTION_M]``, the origin is not finite, the orientation is a
+        zero or non-finite quaternion, or a time has ``nanosec >= 1e9`` or a negative ``sec``.
     """
     msg = _deserialize(data, MAP_TYPE, serialization, topic)
     info = msg.info
-    grid = _grid_from(msg.data, int(info.width), int(info.height), topic, "map")
     pos, ori = info.origin.position, info.origin.orientation
+    position = (float(pos.x), float(pos.y), float(pos.z))
+    quaternion = (float(ori.x), float(ori.y), float(ori.z), float(ori.w))
+    _check_placement(topic, float(info.resolution), position, quaternion)
+    stamp_ns = _time_ns(msg.header.stamp, topic, "header.stamp")
+    load_ns = _time_ns(info.map_load_time, topic, "info.map_load_time")
+    grid = _grid_from(msg.data, int(info.width), int(info.height), topic, "map")
     return MapSnapshot(
         topic=topic,
         log_time_ns=int(log_time_ns),
-        stamp_ns=_time_ns(msg.header.stamp),
+        stamp_ns=stamp_ns,
         frame_id=str(msg.header.frame_id),
         grid=grid,
         resolution_m=float(info.resolution),
-        origin_position_m=(float(pos.x), float(pos.y), float(pos.z)),
-        origin_orientation_xyzw=(float(ori.x), float(ori.y), float(ori.z), float(ori.w)),
-        map_load_time_ns=_time_ns(info.map_load_time),
+        origin_position_m=position,
+        origin_orientation_xyzw=quaternion,
+        map_load_time_ns=load_ns,
         header_seq=int(getattr(msg.header, "seq", 0)),
     )
 
@@ -220,7 +270,7 @@ def decode_update(
     return GridUpdate(
         topic=topic,
         log_time_ns=int(log_time_ns),
-        stamp_ns=_time_ns(msg.header.stamp),
+        stamp_ns=_time_ns(msg.header.stamp, topic, "header.stamp"),
         frame_id=str(msg.header.frame_id),
         x_px=int(msg.x),
         y_px=int(msg.y),

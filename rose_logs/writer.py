@@ -39,6 +39,9 @@ from typing import Any, Self
 
 from rosbags.interfaces import Qos
 
+from rose.errors import OutputError
+from rose.limits import short
+from rose.outputs import OutputSet
 from rose_logs.errors import LogWriteError
 from rose_logs.formats import FORMATS, LogFormat
 from rose_logs.storage.base import WriteBackend
@@ -51,10 +54,6 @@ from rose_logs.storage.typesys import msgdef_for, typestore_for
 __all__ = ["LogWriter", "offered_qos", "open_output", "transient_local_qos"]
 
 _LOG = logging.getLogger(__name__)
-
-
-def _is_within(a: Path, b: Path) -> bool:
-    return a == b or b in a.parents
 
 
 class LogWriter:
@@ -74,6 +73,9 @@ class LogWriter:
     protected : sequence of Path, default ()
         Paths that must never be written or replaced (the input log); ``path`` may not equal, contain or
         lie inside any of them.
+    outputs : rose.outputs.OutputSet, optional
+        The run's other outputs: the log is staged there and committed with them by the caller.
+        Default: a set of its own, committed by :meth:`close`.
     qos_style : {"v8", "v9"}, optional
         How ROS 2 QoS policies are spelled in the metadata written (``"v8"`` integers, which Humble needs,
         ``"v9"`` names); pass the input's (:attr:`LogReader.qos_style`) so that added topics match copied
@@ -94,6 +96,7 @@ class LogWriter:
         serialization: str | None = None,
         force: bool = False,
         protected: Sequence[Path] = (),
+        outputs: OutputSet | None = None,
         qos_style: QosStyle | None = None,
     ) -> None:
         self.path = Path(path)
@@ -118,27 +121,24 @@ class LogWriter:
             msg = f"{self.path}: qos_style must be 'v8' or 'v9', got {qos_style!r}"
             raise LogWriteError(msg)
         self.qos_style: QosStyle = qos_style or "v9"
-        resolved = self.path.resolve()
+        self.force = force
+        self._directory = fmt in ("db3", "mcap-dir")
+        self._own_outputs = outputs is None
+        self._outputs = OutputSet(force=force) if outputs is None else outputs
         for other in protected:
-            other_resolved = Path(other).resolve()
-            if _is_within(resolved, other_resolved) or _is_within(other_resolved, resolved):
-                msg = f"{self.path}: refusing to write over the input {other}"
-                raise LogWriteError(msg)
-        if self.path.exists() and not force:
-            msg = f"{self.path}: exists already (use --force to replace it)"
-            raise LogWriteError(msg)
-        parent = resolved.parent
-        if not parent.is_dir():
-            msg = f"{self.path}: folder {parent} does not exist"
-            raise LogWriteError(msg)
+            self._outputs.add_input(other)
+        try:
+            self._outputs.check(self.path, directory=self._directory)
+        except OutputError as err:
+            raise LogWriteError(str(err)) from err
+        parent = self.path.resolve().parent
         if not os.access(parent, os.W_OK | os.X_OK):
             msg = f"{self.path}: folder {parent} is not writable"
             raise LogWriteError(msg)
-        self.force = force
         # A hidden staging folder next to the output holds the log under its final name (ROS 2 writers
-        # name the storage file after the folder), then one rename moves it into place.
-        self.stage_path = parent / f".{self.path.name}.rose-tmp-{os.getpid()}"
-        self.tmp_path = self.stage_path / self.path.name
+        # name the storage file after the folder); the OutputSet renames it into place.
+        self.stage_path: Path | None = None
+        self.tmp_path: Path | None = None
         self._backend: WriteBackend | None = None
         self._topics: dict[str, int] = {}
 
@@ -151,12 +151,14 @@ class LogWriter:
         LogWriteError
             If it cannot be created.
         """
-        _remove(self.stage_path)
         try:
-            self.stage_path.mkdir()
-        except OSError as err:
-            msg = f"{self.path}: cannot write in {self.stage_path.parent} ({err.strerror})"
-            raise LogWriteError(msg) from err
+            staged = self._outputs.stage(self.path, directory=self._directory)
+        except OutputError as err:
+            raise LogWriteError(str(err)) from err
+        if staged.temp is None:
+            msg = f"{self.path}: a log cannot be written to a stream or device"
+            raise LogWriteError(msg)
+        self.stage_path, self.tmp_path = staged.stage, staged.temp
         backend: WriteBackend
         if self.format == "ros1":
             backend = Ros1WriteBackend(self.tmp_path)
@@ -168,13 +170,13 @@ class LogWriter:
             backend.open()
         except Exception as err:
             backend.abort()
-            _remove(self.stage_path)
-            msg = f"{self.path}: cannot create output ({err})"
+            self._drop_stage()
+            msg = f"{self.path}: cannot create output ({short(err, 160)})"
             raise LogWriteError(msg) from err
         self._backend = backend
 
     def close(self) -> None:
-        """Finish the log and move it to ``path`` (replacing an existing one when ``force``).
+        """Finish the log; move it to ``path`` unless an :class:`OutputSet` given to ``__init__`` commits it.
 
         Raises
         ------
@@ -185,35 +187,29 @@ class LogWriter:
         self._backend = None
         try:
             backend.close()
-            if self.path.exists() or self.path.is_symlink():
-                if not self.force:
-                    msg = f"{self.path}: appeared while writing, not replacing it"
-                    raise LogWriteError(msg)
-                if self.path.is_dir() and not self.path.is_symlink():
-                    backup = self.path.with_name(f".{self.path.name}.rose-old-{os.getpid()}")
-                    self.path.rename(backup)
-                    self.tmp_path.rename(self.path)
-                    shutil.rmtree(backup)
-                    _remove(self.stage_path)
-                    return
-                if self.tmp_path.is_dir():
-                    self.path.unlink()
-            self.tmp_path.replace(self.path)
-            _remove(self.stage_path)
-        except LogWriteError:
-            _remove(self.stage_path)
+            if self._own_outputs:
+                self._outputs.commit()
+        except BaseException as err:
+            self._drop_stage()
+            if isinstance(err, LogWriteError | OutputError):
+                raise LogWriteError(str(err)) from err
+            if isinstance(err, Exception):
+                msg = f"{self.path}: cannot finish output ({short(err, 160)})"
+                raise LogWriteError(msg) from err
             raise
-        except Exception as err:
-            _remove(self.stage_path)
-            msg = f"{self.path}: cannot finish output ({err})"
-            raise LogWriteError(msg) from err
 
     def abort(self) -> None:
         """Drop everything written so far (idempotent); ``path`` is left as it was."""
         if self._backend is not None:
             self._backend.abort()
             self._backend = None
-        _remove(self.stage_path)
+        self._drop_stage()
+
+    def _drop_stage(self) -> None:
+        if self._own_outputs:
+            self._outputs.abort()
+        elif self.stage_path is not None:
+            _remove(self.stage_path)
 
     def __enter__(self) -> Self:
         self.open()
@@ -338,13 +334,17 @@ class LogWriter:
         ``publish_time_ns`` and ``sequence`` are kept by MCAP only (publish time defaults to the log time).
         """
         backend = self._require_open()
-        backend.write(
-            handle,
-            int(log_time_ns),
-            data,
-            int(log_time_ns if publish_time_ns is None else publish_time_ns),
-            sequence,
-        )
+        try:
+            backend.write(
+                handle,
+                int(log_time_ns),
+                data,
+                int(log_time_ns if publish_time_ns is None else publish_time_ns),
+                sequence,
+            )
+        except OSError as err:  # a full disk, an I/O error: name the output, not the temporary
+            msg = f"{self.path}: cannot write ({err.strerror or short(err, 160)})"
+            raise LogWriteError(msg) from err
 
     def write(self, topic: str, log_time_ns: int, message: Any) -> None:
         """Write a message on ``topic``: serialised bytes as they are, a typestore object serialised.
@@ -375,6 +375,7 @@ def open_output(
     serialization: str | None = None,
     force: bool = False,
     protected: Sequence[Path] = (),
+    outputs: OutputSet | None = None,
     qos_style: QosStyle | None = None,
 ) -> LogWriter:
     """A :class:`LogWriter` to use as a context manager (see the module docstring for an example)."""
@@ -384,6 +385,7 @@ def open_output(
         serialization=serialization,
         force=force,
         protected=protected,
+        outputs=outputs,
         qos_style=qos_style,
     )
 

@@ -85,25 +85,9 @@ def test_score_prints_a_table_and_json(
         lambda d, m: ["clean", str(m), "-o", str(d / "no" / "dir" / "o.yaml")],
         lambda d, m: ["clean", str(m), "-o", str(m)],
         lambda d, m: ["clean", str(m), "-o", str(d / "o.txt")],
-        lambda d, m: [
-            "clean",
-            str(m),
-            "-o",
-            str(d / "o.yaml"),
-            "--seed",
-            "1",
-            "--threshold-mode",
-            "fixed",
-            "--fixed-threshold",
-            "1.0",
-            "--peak-prominence",
-            "1.0",
-            "--occupied-threshold",
-            "0",
-        ],
         lambda d, m: ["score", str(d / "junk.png")],
     ],
-    ids=["missing-input", "missing-dir", "overwrite-input", "not-yaml", "bad-param", "bad-image"],
+    ids=["missing-input", "missing-dir", "overwrite-input", "not-yaml", "bad-image"],
 )
 def test_errors_are_one_line_with_exit_1(
     make_args, cluttered_map: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
@@ -123,6 +107,11 @@ def test_errors_are_one_line_with_exit_1(
         ["clean"],
         ["score", "m.yaml", "--peak-prominence", "7"],
         ["score", "m.yaml", "--smoothing", "-1"],
+        ["score", "m.yaml", "--occupied-threshold", "0"],
+        ["score", "m.yaml", "--seed", "-1"],
+        ["score", "m.yaml", "--seed", str(2**33)],
+        ["score", "m.yaml", "--max-cells", "0"],
+        ["clean", "m.yaml", "-o", "o.yaml", "--fixed-threshold", "nan"],
     ],
 )
 def test_usage_error_exits_2(argv: list[str]) -> None:

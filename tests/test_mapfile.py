@@ -166,7 +166,7 @@ def test_unreadable_image_and_missing_file(tmp_path: Path) -> None:
 
 def test_save_into_missing_directory_fails_cleanly(tmp_path: Path) -> None:
     occupancy = OccupancyMap(grid=np.zeros((3, 3), np.int8))
-    with pytest.raises(MapFileError, match="does not exist"):
+    with pytest.raises(rose.RoseError, match="does not exist"):
         rose.save_map(tmp_path / "nowhere" / "m.yaml", occupancy)
     assert not (tmp_path / "nowhere").exists()
 

@@ -8,27 +8,23 @@ options in :mod:`rose.cli.options`; errors are one line on stderr with exit code
 from __future__ import annotations
 
 import argparse
+import importlib
 import logging
 import sys
 from collections.abc import Sequence
+from typing import Any
 
-from rose.cli import clean, score, walls
-from rose.cli.options import (
-    add_param_arguments,
-    directions_deg,
-    fraction,
-    non_negative_float,
-    params_from_args,
-    positive_float,
-    result_summary,
-)
 from rose.errors import RoseError
+from rose.limits import short
+from rose.outputs import Terminated, install_signal_handlers
 
 __all__ = [
     "add_param_arguments",
     "build_parser",
     "directions_deg",
+    "error_text",
     "fraction",
+    "input_name",
     "main",
     "non_negative_float",
     "params_from_args",
@@ -44,23 +40,75 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--debug", action="store_true", help="show tracebacks")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    # Imported here, inside main's handlers: numpy / scipy take seconds to load on a busy machine.
+    from rose.cli import clean, score, walls
+
     for command in (clean, score, walls):
         command.add_parser(commands)
     return parser
 
 
+_OPTIONS = {
+    "add_param_arguments",
+    "directions_deg",
+    "fraction",
+    "non_negative_float",
+    "params_from_args",
+    "positive_float",
+    "result_summary",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _OPTIONS:
+        return getattr(importlib.import_module("rose.cli.options"), name)
+    msg = f"module 'rose.cli' has no attribute {name!r}"
+    raise AttributeError(msg)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the ``rose`` command; return the exit code."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    logging.basicConfig(level=logging.WARNING, format="%(levelname)s: %(message)s")
+    """Run the ``rose`` command; return the exit code.
+
+    0 success, 1 error (one line ``error: <file>: <problem>`` on stderr, no output written), 2 usage
+    error, 130 / 143 / 129 interrupted by SIGINT / SIGTERM / SIGHUP (temporary files removed).
+    """
+    install_signal_handlers()
     try:
-        return int(args.func(args))
-    except RoseError as err:
-        if args.debug:
-            raise
-        print(f"error: {err}", file=sys.stderr)
-        return 1
-    except KeyboardInterrupt:
-        print("error: interrupted", file=sys.stderr)
-        return 130
+        parser = build_parser()
+        args = parser.parse_args(argv)
+        logging.basicConfig(level=logging.WARNING, format="%(levelname)s: %(message)s")
+        try:
+            return int(args.func(args))
+        except (RoseError, OSError, MemoryError, RecursionError) as err:
+            if args.debug:
+                raise
+            print(f"error: {error_text(err, where=input_name(args))}", file=sys.stderr)
+            return 1
+    except KeyboardInterrupt as err:
+        print("error: interrupted, nothing written", file=sys.stderr)
+        return err.exit_code if isinstance(err, Terminated) else 130
+
+
+def input_name(args: object) -> str | None:
+    """The input a command was given (``input``, ``map``, ``log`` or the first of ``maps``), for errors."""
+    for name in ("input", "map", "log"):
+        value = getattr(args, name, None)
+        if value is not None:
+            return str(value)
+    maps = getattr(args, "maps", None)
+    return str(maps[0]) if maps else None
+
+
+def error_text(err: BaseException, *, where: str | None = None) -> str:
+    """One short line for an error: our messages as they are (they name their file), OS errors with
+    their file name, anything else prefixed with ``where`` (the command's input)."""
+    prefix = f"{where}: " if where else ""
+    if isinstance(err, OSError) and not isinstance(err, RoseError):
+        if err.filename:
+            prefix = f"{err.filename}: "
+        return short(f"{prefix}{err.strerror or err}")
+    if isinstance(err, MemoryError):
+        return short(f"{prefix}out of memory (lower --max-cells?)")
+    if isinstance(err, RecursionError):
+        return short(f"{prefix}input nested too deeply")
+    return short(err)

@@ -3,13 +3,15 @@
 from __future__ import annotations
 
 import argparse
-import json
+import math
+import sys
 import time
 from pathlib import Path
 from typing import Any
 
 from rose.clean import CLEAN_METHODS, CleanResult, clean
 from rose.cli.options import (
+    add_limit_arguments,
     add_param_arguments,
     directions_deg,
     params_from_args,
@@ -17,7 +19,8 @@ from rose.cli.options import (
     verdict,
 )
 from rose.errors import RoseError
-from rose.mapfile import OccupancyMap, load_map, save_map, write_atomically
+from rose.mapfile import OccupancyMap, load_map, save_map
+from rose.outputs import OutputSet
 from rose.pipeline import analyze
 
 __all__ = ["add_parser", "cleaning_summary", "run"]
@@ -30,7 +33,11 @@ def add_parser(commands: Any) -> None:
     clean.add_argument(
         "-o", "--output", type=Path, required=True, help="output YAML (PGM beside it)"
     )
-    clean.add_argument("--json", type=Path, metavar="REPORT", help="also write a JSON report")
+    clean.add_argument(
+        "--json", type=Path, metavar="REPORT", help="also write a JSON report ('-': stdout)"
+    )
+    clean.add_argument("-f", "--force", action="store_true", help="replace existing output files")
+    add_limit_arguments(clean)
     clean.add_argument(
         "--method",
         choices=CLEAN_METHODS,
@@ -44,7 +51,14 @@ def add_parser(commands: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     params = params_from_args(args)
-    source = load_map(args.map)
+    source = load_map(args.map, max_cells=args.max_cells)
+    outputs = OutputSet(inputs=source.input_files, force=args.force)
+    output_path = Path(args.output)
+    if output_path.suffix.lower() not in (".yaml", ".yml"):
+        msg = f"{output_path}: the output map must be a .yaml file"
+        raise RoseError(msg)
+    # Refuse bad outputs (an input, the map's image, each other, existing) before computing anything.
+    outputs.check(output_path, output_path.with_suffix(".pgm"), args.json)
     started = time.perf_counter()
     result = analyze(source.grid, params)
     cleaning = clean(source.grid, result, method=args.method, resolution_m=source.resolution_m)
@@ -55,35 +69,32 @@ def run(args: argparse.Namespace) -> int:
         origin_xy_m=source.origin_xy_m,
         origin_yaw_rad=source.origin_yaw_rad,
     )
-    for target in (Path(args.output), Path(args.output).with_suffix(".pgm")):
-        if target.resolve() in _input_files(source):
-            msg = f"{target}: refusing to overwrite the input map"
-            raise RoseError(msg)
-    image_path = save_map(args.output, output)
     summary = result_summary(result, seconds=elapsed)
     summary.update(cleaning_summary(cleaning))
     summary["input"] = str(args.map)
     summary["output"] = str(args.output)
-    if args.json:
-        text = json.dumps(summary, indent=2) + "\n"
-        write_atomically(Path(args.json), lambda f: f.write(text.encode()))
+    with outputs:  # all files or none
+        image_path = save_map(output_path, output, outputs=outputs)
+        if args.json is not None:
+            outputs.write_json(args.json, summary)
+    out = sys.stderr if outputs.uses_stdout else sys.stdout
     rows, cols = result.occupied.shape
     share = cleaning.removed_count / result.occupied_count if result.occupied_count else 0.0
-    print(f"map          {args.map}  ({cols} x {rows} cells, {source.resolution_m:g} m/cell)")
-    print(f"W            {result.structure_score:.3f}  ({verdict(result.structure_score)})")
-    print(f"directions   {', '.join(f'{d:.1f}' for d in directions_deg(result)) or 'none'} deg")
-    print(f"threshold    {summary['threshold'] if summary['threshold'] is not None else 'n/a'}")
-    print(f"occupied     {result.occupied_count} cells")
-    print(f"method       {cleaning.method}")
-    print(
-        f"removed      {cleaning.removed_count} cells ({share:.1%}), set to {params.clutter_value}"
-    )
-    print(
+    threshold = summary["threshold"]
+    lines = [
+        f"map          {args.map}  ({cols} x {rows} cells, {source.resolution_m:g} m/cell)",
+        f"W            {result.structure_score:.3f}  ({verdict(result.structure_score)})",
+        f"directions   {', '.join(f'{d:.1f}' for d in directions_deg(result)) or 'none'} deg",
+        f"threshold    {threshold if threshold is not None and math.isfinite(threshold) else 'n/a'}",
+        f"occupied     {result.occupied_count} cells",
+        f"method       {cleaning.method}",
+        f"removed      {cleaning.removed_count} cells ({share:.1%}), set to {params.clutter_value}",
         f"kept         {cleaning.kept_count} cells ({cleaning.rescued_count} of them against "
-        f"the paper's labelling, {cleaning.guarded_count} by the gap guard)"
-    )
-    print(f"written      {args.output} + {image_path.name}")
-    print(f"time         {elapsed * 1000:.0f} ms")
+        f"the paper's labelling, {cleaning.guarded_count} by the gap guard)",
+        f"written      {args.output} + {image_path.name}",
+        f"time         {elapsed * 1000:.0f} ms",
+    ]
+    print("\n".join(lines), file=out)
     return 0
 
 
@@ -96,12 +107,3 @@ def cleaning_summary(cleaning: CleanResult) -> dict[str, Any]:
         "rescued_cells": cleaning.rescued_count,
         "guarded_cells": cleaning.guarded_count,
     }
-
-
-def _input_files(source: OccupancyMap) -> set[Path]:
-    if source.source is None:
-        return set()
-    files = {source.source.resolve()}
-    if source.source.suffix.lower() in (".yaml", ".yml"):
-        files |= {p.resolve() for p in source.source.parent.glob(source.source.stem + ".*")}
-    return files

@@ -10,13 +10,17 @@ from typing import Any
 import numpy as np
 
 from rose.directions import FAILURE_LEVEL, TRUST_LEVEL
+from rose.limits import DEFAULT_MAX_CELLS
 from rose.params import RoseParams, make_params
 from rose.result import RoseResult
 
 __all__ = [
+    "add_limit_arguments",
     "add_param_arguments",
+    "cell_count",
     "directions_deg",
     "fraction",
+    "int_in_range",
     "non_negative_float",
     "params_from_args",
     "positive_float",
@@ -64,6 +68,44 @@ def fraction(text: str) -> float:
     return value
 
 
+def int_in_range(low: int, high: int) -> Any:
+    """argparse type factory: an integer in ``[low, high]`` (usage error otherwise)."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text, 10) if len(text) <= 40 else None
+        except ValueError:
+            value = None
+        if value is None or not low <= value <= high:
+            msg = f"expected an integer in {low}..{high}, got {text[:40]!r}"
+            raise argparse.ArgumentTypeError(msg)
+        return value
+
+    parse.__name__ = "integer"
+    return parse
+
+
+def cell_count(text: str) -> int:
+    """argparse type: a positive number of cells, integer or float notation (``2e8``)."""
+    value = positive_float(text)
+    if value < 1 or value > 1e15:
+        msg = f"expected a number of cells in 1..1e15, got {text!r}"
+        raise argparse.ArgumentTypeError(msg)
+    return int(value)
+
+
+def add_limit_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add ``--max-cells`` (the largest grid accepted, :data:`rose.limits.DEFAULT_MAX_CELLS`)."""
+    parser.add_argument(
+        "--max-cells",
+        type=cell_count,
+        default=DEFAULT_MAX_CELLS,
+        metavar="N",
+        help="refuse grids of more than N cells, checked before allocating "
+        "(default %(default).0e; ROSE needs about 35 bytes per cell)",
+    )
+
+
 def add_param_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the ROSE tuning options (defaults from :class:`RoseParams`) to ``parser``."""
     d = RoseParams()
@@ -98,7 +140,7 @@ def add_param_arguments(parser: argparse.ArgumentParser) -> None:
     )
     group.add_argument(
         "--occupied-threshold",
-        type=int,
+        type=int_in_range(1, 100),
         default=d.occupied_threshold,
         metavar="P",
         help="occupancy (percent) from which a cell is occupied (default %(default)s)",
@@ -122,7 +164,12 @@ def add_param_arguments(parser: argparse.ArgumentParser) -> None:
         default=d.clutter_value,
         help="what clutter cells become in the cleaned map (default %(default)s)",
     )
-    group.add_argument("--seed", type=int, default=d.seed, help="no effect since the mixture fit is deterministic; kept for compatibility")  # fmt: skip
+    group.add_argument(
+        "--seed",
+        type=int_in_range(0, 2**32 - 1),
+        default=d.seed,
+        help="0..2**32-1; no effect since the mixture fit is deterministic; kept for compatibility",
+    )
 
 
 def params_from_args(args: argparse.Namespace) -> RoseParams:

@@ -3,13 +3,18 @@
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from pathlib import Path
 from typing import Any
 
-from rose.cli.options import add_param_arguments, params_from_args, result_summary
+from rose.cli.options import (
+    add_limit_arguments,
+    add_param_arguments,
+    params_from_args,
+    result_summary,
+)
 from rose.mapfile import load_map
+from rose.outputs import json_text
 from rose.pipeline import analyze
 
 __all__ = ["add_parser", "run"]
@@ -19,7 +24,12 @@ def add_parser(commands: Any) -> None:
     """Register ``score`` on an argparse subparsers object (``func=run``)."""
     score = commands.add_parser("score", help="W and dominant directions of maps")
     score.add_argument("maps", type=Path, nargs="+", metavar="MAP")
-    score.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    score.add_argument(
+        "--json",
+        action="store_true",
+        help="print strict JSON instead of a table (non-finite: null)",
+    )
+    add_limit_arguments(score)
     add_param_arguments(score)
     score.set_defaults(func=run)
 
@@ -28,13 +38,13 @@ def run(args: argparse.Namespace) -> int:
     params = params_from_args(args)
     records = []
     for path in args.maps:
-        source = load_map(path)
+        source = load_map(path, max_cells=args.max_cells)
         started = time.perf_counter()
         result = analyze(source.grid, params)
         summary = result_summary(result, seconds=time.perf_counter() - started)
         records.append({"map": str(path), **summary})
     if args.json:
-        print(json.dumps(records, indent=2))
+        print(json_text(records), end="")
         return 0
     width = max(len("map"), *(len(r["map"]) for r in records))
     print(f"{'map':<{width}}  {'W':>6}  {'directions (deg)':<24}  {'occupied':>9}  {'clutter':>8}")

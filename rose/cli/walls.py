@@ -8,11 +8,12 @@ import sys
 from pathlib import Path
 from typing import Any, TextIO
 
-from rose.errors import RoseError
+from rose.cli.options import add_limit_arguments, non_negative_float
 from rose.mapfile import load_map
+from rose.outputs import OutputSet, json_text
 from rose.pipeline import analyze
 from rose.walls import WallParams, WallSet, extract_walls, extract_walls_hough
-from rose.walls.export import write_walls_geojson, write_walls_svg
+from rose.walls.export import walls_to_geojson, walls_to_svg
 
 __all__ = ["add_parser", "format_walls_table", "run"]
 
@@ -33,14 +34,20 @@ def add_parser(subparsers: Any) -> None:
     )
     parser.add_argument("map", type=Path, metavar="MAP", help="map YAML or image file")
     out = parser.add_mutually_exclusive_group()
-    out.add_argument("--geojson", type=Path, metavar="FILE", help="write the walls as GeoJSON")
-    out.add_argument("--svg", type=Path, metavar="FILE", help="write the walls as SVG")
+    out.add_argument(
+        "--geojson", type=Path, metavar="FILE", help="write the walls as GeoJSON ('-': stdout)"
+    )
+    out.add_argument(
+        "--svg", type=Path, metavar="FILE", help="write the walls as SVG ('-': stdout)"
+    )
+    parser.add_argument("-f", "--force", action="store_true", help="replace an existing file")
+    add_limit_arguments(parser)
     parser.add_argument(
         "--hough", action="store_true", help="baseline: Hough on the raw map, no ROSE"
     )
     parser.add_argument(
         "--min-length",
-        type=float,
+        type=non_negative_float,
         default=None,
         metavar="M",
         help="drop walls shorter than M metres (default: 10 cells)",
@@ -58,25 +65,29 @@ def run(args: argparse.Namespace, *, stdout: TextIO | None = None) -> int:
         messages are one line, for the caller's single error handler.
     """
     out = stdout if stdout is not None else sys.stdout
-    occupancy_map = load_map(args.map)
+    occupancy_map = load_map(args.map, max_cells=args.max_cells)
+    outputs = OutputSet(inputs=occupancy_map.input_files, force=args.force)
+    outputs.check(args.geojson, args.svg)
     params = WallParams()
     if args.min_length is not None:
-        if not math.isfinite(args.min_length) or args.min_length < 0:
-            msg = f"--min-length must be a non-negative number of metres, got {args.min_length}"
-            raise RoseError(msg)
         params = WallParams(min_wall_length_px=args.min_length / occupancy_map.resolution_m)
     if args.hough:
         walls = extract_walls_hough(occupancy_map, params=params)
     else:
         result = analyze(occupancy_map.grid, occupied_threshold=params.occupied_threshold)
         walls = extract_walls(occupancy_map, result, params=params)
+    with outputs:
+        if args.geojson is not None:
+            text = json_text(walls_to_geojson(walls), indent=1)
+            outputs.write_bytes(args.geojson, text.encode("utf-8"))
+        if args.svg is not None:
+            outputs.write_bytes(args.svg, walls_to_svg(walls).encode("utf-8"))
+    if outputs.uses_stdout:
+        out = sys.stderr
     out.write(format_walls_table(walls))
-    if args.geojson is not None:
-        write_walls_geojson(args.geojson, walls)
-        out.write(f"wrote {args.geojson}\n")
-    if args.svg is not None:
-        write_walls_svg(args.svg, walls)
-        out.write(f"wrote {args.svg}\n")
+    for path in (args.geojson, args.svg):
+        if path is not None:
+            out.write(f"wrote {path}\n")
     return 0
 
 

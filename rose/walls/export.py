@@ -8,7 +8,6 @@ at the top of the picture (image convention), so it overlays the map image as ma
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from pathlib import Path
@@ -18,6 +17,7 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 
 from rose.mapfile import write_atomically
+from rose.outputs import json_text
 from rose.walls.segments import WallSet
 
 __all__ = ["walls_to_geojson", "walls_to_svg", "write_walls_geojson", "write_walls_svg"]
@@ -103,7 +103,7 @@ def write_walls_geojson(path: str | os.PathLike[str], walls: WallSet) -> Path:
         If the file cannot be written.
     """
     target = Path(path)
-    text = json.dumps(walls_to_geojson(walls), indent=1)
+    text = json_text(walls_to_geojson(walls), indent=1)
     write_atomically(target, lambda f: f.write(text.encode()))
     return target
 

@@ -19,6 +19,7 @@ from __future__ import annotations
 import gzip
 import logging
 import math
+import stat
 from collections import Counter
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
@@ -40,6 +41,9 @@ __all__ = [
 
 _LOG = logging.getLogger(__name__)
 _GZIP_MAGIC = b"\x1f\x8b"
+#: Latest timestamp a ROS time can hold in both ROS 1 (uint32 s) and ROS 2 (int32 s), seconds.
+MAX_STAMP_S = 2**31
+
 #: Values after the ranges: six pose values, timestamp, hostname, logger timestamp.
 _TRAILER_FIELDS = 9
 
@@ -190,6 +194,9 @@ def parse_flaser_line(line: str, *, line_number: int = 0) -> FlaserScan:
     if np.any(ranges < 0):
         msg = f"{where}: negative range"
         raise CarmenFormatError(msg)
+    if not 0 <= values[6] < MAX_STAMP_S:
+        msg = f"{where}: timestamp {values[6]:g} s is outside 0 .. 2**31 s (ROS time)"
+        raise CarmenFormatError(msg)
     angles = beam_angles(n)
     return FlaserScan(
         stamp_ns=round(values[6] * 1e9),
@@ -267,9 +274,12 @@ def read_carmen_log(path: str | Path, *, max_scans: int | None = None) -> Carmen
     """
     path = Path(path)
     try:
+        if not stat.S_ISREG(path.stat().st_mode):
+            msg = f"{path}: not a regular file"
+            raise CarmenFormatError(msg)
         log = parse_carmen_lines(_open_lines(path), path=path, max_scans=max_scans)
     except (OSError, EOFError) as err:
-        msg = f"{path}: cannot read CARMEN log ({err})"
+        msg = f"{path}: cannot read CARMEN log ({getattr(err, 'strerror', None) or err})"
         raise CarmenFormatError(msg) from err
     if not log.scans:
         msg = f"{path}: no FLASER scan found ({log.malformed} malformed FLASER lines)"

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from rose.limits import DEFAULT_MAX_CELLS, check_cells
 from rose_logs.carmen.parse import beam_angles
 
 __all__ = ["BuilderParams", "OccupancyGridBuilder", "ScanBatch", "crop_to_known"]
@@ -57,6 +58,9 @@ class BuilderParams:
         Extra border added whenever the grid has to grow, in metres.
     chunk_scans : int
         Scans summed per bincount (see module notes).
+    max_cells : int or None
+        Refuse to grow the grid beyond this many cells (None: no limit); the size is checked
+        before allocating (:data:`rose.limits.DEFAULT_MAX_CELLS`).
     """
 
     resolution_m: float = 0.05
@@ -69,6 +73,7 @@ class BuilderParams:
     clamp_max: float = 3.5
     grow_margin_m: float = 10.0
     chunk_scans: int = 16
+    max_cells: int | None = DEFAULT_MAX_CELLS
 
 
 @dataclass(frozen=True, eq=False)
@@ -172,6 +177,10 @@ class OccupancyGridBuilder:
             new_lo = np.where(lo_cell < cur_lo, lo_cell - margin, cur_lo)
             new_hi = np.where(hi_cell > cur_hi, hi_cell + margin, cur_hi)
         new_cols, new_rows = (new_hi - new_lo + 1).tolist()
+        too_large = check_cells(new_rows, new_cols, self.params.max_cells)
+        if too_large is not None:  # checked before allocating (a pose far away, a tiny resolution)
+            msg = f"the map would grow to {too_large}"
+            raise ValueError(msg)
         log_odds = np.zeros((new_rows, new_cols), dtype=np.float32)
         observed = np.zeros((new_rows, new_cols), dtype=bool)
         if rows:

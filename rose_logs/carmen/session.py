@@ -25,6 +25,7 @@ from typing import Any, Literal
 import numpy as np
 import numpy.typing as npt
 
+from rose.outputs import OutputSet
 from rose_logs.carmen.drift import apply_drift
 from rose_logs.carmen.parse import CarmenLog, beam_angles
 from rose_logs.carmen.raycast import BuilderParams, OccupancyGridBuilder
@@ -97,9 +98,11 @@ class _Sink:
     """Output session through :func:`rose_logs.writer.open_output` (atomic; any of our formats),
     plus the headers the converter needs (ROS 1 headers carry a sequence number)."""
 
-    def __init__(self, path: Path, fmt: SessionFormat, *, force: bool) -> None:
+    def __init__(
+        self, path: Path, fmt: SessionFormat, *, force: bool, outputs: OutputSet | None = None
+    ) -> None:
         self.ros1 = fmt == "ros1"
-        self.writer = open_output(path, fmt, force=force)
+        self.writer = open_output(path, fmt, force=force, outputs=outputs)
         self.typestore = self.writer.typestore
         self.seq = 0
 
@@ -128,8 +131,10 @@ class _Sink:
         return types["std_msgs/msg/Header"](stamp=stamp, frame_id=frame_id)
 
 
-def _open_sink(path: Path, fmt: SessionFormat, *, force: bool) -> _Sink:
-    return _Sink(path, fmt, force=force)
+def _open_sink(
+    path: Path, fmt: SessionFormat, *, force: bool, outputs: OutputSet | None = None
+) -> _Sink:
+    return _Sink(path, fmt, force=force, outputs=outputs)
 
 
 # -- messages -----------------------------------------------------------------------------------
@@ -286,6 +291,7 @@ def write_carmen_session(
     options: SessionOptions | None = None,
     progress: Callable[[int, int], None] | None = None,
     force: bool = False,
+    outputs: OutputSet | None = None,
 ) -> SessionSummary:
     """Write a CARMEN log as a ROS session (see module notes for topics and frames).
 
@@ -302,6 +308,8 @@ def write_carmen_session(
         Grid, map period, pose topics, frames and drift; defaults of :class:`SessionOptions`.
     progress : callable, optional
         Called with ``(scans_done, scans_total)``.
+    outputs : rose.outputs.OutputSet, optional
+        Stage the session there (the caller commits it with its other outputs, and protects inputs).
     force : bool, default False
         Replace an existing output (once the new one is complete).
 
@@ -326,7 +334,7 @@ def write_carmen_session(
         seed=options.drift_seed,
     )
     builder = OccupancyGridBuilder(options.builder_params)
-    with _open_sink(out, fmt, force=force) as sink:
+    with _open_sink(out, fmt, force=force, outputs=outputs) as sink:
         for topic, msgtype in options.topics:
             sink.add(topic, msgtype)
         maps, end_ns = _write_messages(sink, log, stamps, poses, builder, options, progress)

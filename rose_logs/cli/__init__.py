@@ -9,13 +9,24 @@ from __future__ import annotations
 import argparse
 import logging
 import sys
+from typing import Any
 
+from rose.cli import error_text, input_name
 from rose.errors import RoseError
-from rose_logs.cli import batch, convert, evaluate, info, process
-from rose_logs.cli.options import EXIT_GATE, UsageError
+from rose.outputs import Terminated, install_signal_handlers
 from rose_logs.errors import LogError
 
-__all__ = ["EXIT_GATE", "build_parser", "main"]
+__all__ = ["EXIT_GATE", "EXIT_SALVAGED", "build_parser", "main"]
+
+EXIT_GATE = 3
+"""Exit code of a failed quality gate (``--fail-above``)."""
+
+EXIT_SALVAGED = 4
+"""Exit code of ``--salvage`` when messages were lost: the outputs hold what could be read."""
+
+
+class UsageError(Exception):
+    """A combination of options that argparse cannot check; exits 2 like argparse's own errors."""
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -28,6 +39,9 @@ def build_parser() -> argparse.ArgumentParser:
         "--debug", action="store_true", help="debug logging and tracebacks on errors"
     )
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    # Imported here, inside main's handlers: the libraries take seconds to load on a busy machine.
+    from rose_logs.cli import batch, convert, evaluate, info, process
+
     for command in (process, info, convert, evaluate, batch):
         command.add_parser(subparsers)
     return parser
@@ -48,27 +62,36 @@ class _LevelFormatter(logging.Formatter):
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run ``rose-bag`` with ``argv`` (default ``sys.argv[1:]``); returns the exit code."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    _configure_logging(args.debug)
+    """Run ``rose-bag`` with ``argv`` (default ``sys.argv[1:]``); returns the exit code.
+
+    0 success, 1 error (one line on stderr, nothing written), 2 usage error, 3 ``--fail-above`` gate,
+    4 ``--salvage`` with messages lost, 130 / 143 / 129 interrupted by SIGINT / SIGTERM / SIGHUP.
+    """
+    install_signal_handlers()
     try:
-        return int(args.func(args))
-    except UsageError as err:
-        parser.print_usage(sys.stderr)
-        print(f"rose-bag: error: {err}", file=sys.stderr)
-        return 2
-    except (LogError, RoseError) as err:
-        if args.debug:
-            raise
-        print(f"error: {err}", file=sys.stderr)
-        return 1
-    except KeyboardInterrupt:
+        parser = build_parser()
+        args = parser.parse_args(argv)
+        _configure_logging(args.debug)
+        try:
+            return int(args.func(args))
+        except UsageError as err:
+            parser.print_usage(sys.stderr)
+            print(f"rose-bag: error: {error_text(err)}", file=sys.stderr)
+            return 2
+        except (LogError, RoseError, OSError, MemoryError, RecursionError) as err:
+            if args.debug:
+                raise
+            print(f"error: {error_text(err, where=input_name(args))}", file=sys.stderr)
+            return 1
+    except KeyboardInterrupt as err:
         print("error: interrupted, nothing written", file=sys.stderr)
-        return 130
-    except OSError as err:
-        if args.debug:
-            raise
-        where = f"{err.filename}: " if err.filename else ""
-        print(f"error: {where}{err.strerror or err}", file=sys.stderr)
-        return 1
+        return err.exit_code if isinstance(err, Terminated) else 130
+
+
+def __getattr__(name: str) -> Any:
+    if name in ("add_param_arguments", "params_from_args"):
+        from rose_logs.cli import options
+
+        return getattr(options, name)
+    msg = f"module 'rose_logs.cli' has no attribute {name!r}"
+    raise AttributeError(msg)

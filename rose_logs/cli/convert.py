@@ -3,14 +3,23 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 from typing import Any
 
-from rose_logs.carmen.parse import read_carmen_log
+from rose.cli.options import (
+    add_limit_arguments,
+    int_in_range,
+    non_negative_float,
+    positive_float,
+)
+from rose.outputs import OutputSet
+from rose_logs.carmen.parse import CarmenLog, read_carmen_log
 from rose_logs.carmen.raycast import BuilderParams
 from rose_logs.carmen.session import SessionOptions, write_carmen_session
-from rose_logs.errors import LogWriteError
+from rose_logs.errors import LogReadError, LogWriteError
+from rose_logs.formats import format_from_path
 
 __all__ = ["add_parser", "run"]
 
@@ -32,15 +41,20 @@ def add_parser(subparsers: Any) -> None:
         dest="fmt",
         help="output format (default: from the output name)",
     )
-    parser.add_argument("--resolution", type=float, default=0.05, help="map cell size, m (0.05)")
+    parser.add_argument(
+        "--resolution", type=positive_float, default=0.05, help="map cell size, m (0.05)"
+    )
     parser.add_argument(
         "--max-range",
-        type=float,
+        type=positive_float,
         default=30.0,
         help="readings at or beyond this are 'no return', m (30)",
     )
     parser.add_argument(
-        "--map-period", type=float, default=10.0, help="log seconds between /map snapshots (10)"
+        "--map-period",
+        type=positive_float,
+        default=10.0,
+        help="log seconds between /map snapshots (10)",
     )
     parser.add_argument(
         "--pose",
@@ -50,19 +64,28 @@ def add_parser(subparsers: Any) -> None:
     )
     parser.add_argument(
         "--drift-level",
-        type=float,
+        type=non_negative_float,
         default=0.0,
         help="odometry drift level, 0 = corrected poses (see rose_logs.carmen.drift)",
     )
-    parser.add_argument("--drift-seed", type=int, default=0, help="seed of the drift (0)")
+    parser.add_argument(
+        "--drift-seed", type=int_in_range(0, 2**32 - 1), default=0, help="seed of the drift (0)"
+    )
     parser.add_argument(
         "--drift-start",
-        type=float,
+        type=non_negative_float,
         default=0.0,
         help="seconds after the first scan when drift starts (0)",
     )
-    parser.add_argument("--max-scans", type=int, default=None, help="use only the first N scans")
-    parser.add_argument("--force", action="store_true", help="replace an existing output")
+    parser.add_argument(
+        "--max-scans",
+        type=int_in_range(1, 2**62),
+        default=None,
+        metavar="N",
+        help="use only the first N scans (N >= 1)",
+    )
+    parser.add_argument("-f", "--force", action="store_true", help="replace existing outputs")
+    add_limit_arguments(parser)
     parser.add_argument(
         "--map-file",
         type=Path,
@@ -73,38 +96,68 @@ def add_parser(subparsers: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run ``convert`` from parsed arguments; prints a one-line summary to stdout. Returns 0."""
+    """Run ``convert`` from parsed arguments; prints a one-line summary to stdout. Returns 0.
+
+    The session and ``--map-file`` (YAML + PGM) are committed together, or nothing is written.
+    """
+    outputs = OutputSet(inputs=[args.log], force=args.force)
+    fmt = args.fmt or format_from_path(args.output) or "db3"
+    map_files = (
+        (args.map_file, args.map_file.with_suffix(".pgm")) if args.map_file is not None else ()
+    )
+    outputs.check(args.output, directory=fmt == "db3")
+    outputs.check(*map_files)
     log = read_carmen_log(args.log, max_scans=args.max_scans)
     if log.malformed:
         print(f"warning: skipped {log.malformed} malformed FLASER lines", file=sys.stderr)
-    try:
-        options = SessionOptions(
-            builder_params=BuilderParams(resolution_m=args.resolution, max_range_m=args.max_range),
-            map_period_s=args.map_period,
-            pose_output=args.pose,
-            drift_level=args.drift_level,
-            drift_seed=args.drift_seed,
-            drift_start_s=args.drift_start,
-        )
-        summary = write_carmen_session(
-            log, args.output, fmt=args.fmt, options=options, force=args.force
-        )
-    except ValueError as err:  # a parameter out of range: one line, like every other error
-        msg = f"{args.output}: {err}"
-        raise LogWriteError(msg) from err
-    if args.map_file is not None:
-        import rose
+    _check_extent(log, args)
+    with outputs:
+        try:
+            options = SessionOptions(
+                builder_params=BuilderParams(
+                    resolution_m=args.resolution,
+                    max_range_m=args.max_range,
+                    max_cells=args.max_cells,
+                ),
+                map_period_s=args.map_period,
+                pose_output=args.pose,
+                drift_level=args.drift_level,
+                drift_seed=args.drift_seed,
+                drift_start_s=args.drift_start,
+            )
+            summary = write_carmen_session(
+                log, args.output, fmt=args.fmt, options=options, force=args.force, outputs=outputs
+            )
+        except ValueError as err:  # a parameter out of range: one line, like every other error
+            msg = f"{args.output}: {err}"
+            raise LogWriteError(msg) from err
+        if args.map_file is not None:
+            import rose
 
-        rose.save_map(
-            args.map_file,
-            rose.OccupancyMap(
-                grid=summary.final_grid,
-                resolution_m=summary.resolution_m,
-                origin_xy_m=summary.final_origin_xy_m,
-            ),
-        )
+            rose.save_map(
+                args.map_file,
+                rose.OccupancyMap(
+                    grid=summary.final_grid,
+                    resolution_m=summary.resolution_m,
+                    origin_xy_m=summary.final_origin_xy_m,
+                ),
+                outputs=outputs,
+            )
     print(
         f"{summary.path}: {summary.format}, {summary.scans} scans, {summary.maps} maps, "
         f"{(summary.end_ns - summary.start_ns) / 1e9:.1f} s"
     )
     return 0
+
+
+def _check_extent(log: CarmenLog, args: argparse.Namespace) -> None:
+    """Refuse, before any allocation, a map larger than ``--max-cells`` (poses far apart, tiny cells)."""
+    poses = log.laser_poses[:, :2]
+    span = poses.max(axis=0) - poses.min(axis=0) + 2 * (args.max_range + 10.0)
+    cells = math.prod(math.ceil(float(v) / args.resolution) for v in span)
+    if cells > args.max_cells:
+        msg = (
+            f"{args.log}: the map would have about {cells:.3g} cells ({span[0]:.4g} x {span[1]:.4g} m "
+            f"at {args.resolution:g} m), more than --max-cells {args.max_cells:,}"
+        )
+        raise LogReadError(msg)

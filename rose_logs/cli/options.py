@@ -5,15 +5,16 @@ The ROSE tuning options themselves are defined once in :mod:`rose.cli.options` a
 
 from __future__ import annotations
 
-import json
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
 from rose.cli.options import add_param_arguments, params_from_args, positive_float
+from rose_logs.cli import EXIT_GATE, EXIT_SALVAGED, UsageError
 
 __all__ = [
     "EXIT_GATE",
+    "EXIT_SALVAGED",
     "UsageError",
     "add_param_arguments",
     "duration_text",
@@ -23,20 +24,13 @@ __all__ = [
     "write_json",
 ]
 
-EXIT_GATE = 3
-"""Exit code of a failed quality gate (``--fail-above``)."""
-
-
-class UsageError(Exception):
-    """A combination of options that argparse cannot check; exits 2 like argparse's own errors."""
-
 
 def write_json(path: Path, payload: dict[str, Any]) -> None:
-    """Write ``payload`` as strict JSON (no NaN / Infinity), atomically."""
-    from rose.mapfile import write_atomically
+    """Write ``payload`` as strict JSON (non-finite numbers as null), atomically, replacing ``path``."""
+    from rose.outputs import OutputSet
 
-    text = json.dumps(payload, indent=2, allow_nan=False, default=float).encode("utf-8")
-    write_atomically(path, lambda f: f.write(text))
+    with OutputSet(force=True) as outputs:
+        outputs.write_json(path, payload)
 
 
 def utc_text(time_ns: int) -> str:

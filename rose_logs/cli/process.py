@@ -6,11 +6,17 @@ import argparse
 import statistics
 import sys
 from pathlib import Path
-from typing import Any
+from typing import Any, TextIO
 
-from rose.cli.options import add_param_arguments, params_from_args, positive_float
+from rose.cli.options import (
+    add_limit_arguments,
+    add_param_arguments,
+    params_from_args,
+    positive_float,
+)
 from rose.directions import FAILURE_LEVEL
-from rose_logs.cli.options import EXIT_GATE, UsageError, duration_text, utc_text, write_json
+from rose.outputs import OutputSet, json_text
+from rose_logs.cli.options import EXIT_GATE, EXIT_SALVAGED, UsageError, duration_text, utc_text
 
 __all__ = ["add_parser", "run"]
 
@@ -75,7 +81,11 @@ def add_parser(subparsers: Any) -> None:
         "robot-sized gap opened (default); paper = the paper's labelling as it is",
     )
     parser.add_argument(
-        "--json", type=Path, default=None, dest="json_path", help="write a JSON report here"
+        "--json",
+        type=Path,
+        default=None,
+        dest="json_path",
+        help="write a JSON report here (strict JSON, non-finite numbers as null; '-': stdout)",
     )
     parser.add_argument(
         "--failure-level",
@@ -104,14 +114,20 @@ def add_parser(subparsers: Any) -> None:
         help=f"exit {EXIT_GATE} if the break detector finds a break (map-quality gate)",
     )
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    parser.add_argument(
+        "--salvage",
+        action="store_true",
+        help=f"on a damaged input, keep what can be read, warn, and exit {EXIT_SALVAGED} "
+        "(default: a damaged input is an error and nothing is written)",
+    )
+    add_limit_arguments(parser)
     add_param_arguments(parser)
     parser.set_defaults(func=run)
 
 
 # -- output helpers ------------------------------------------------------------------------------
-def _print_summary(report: Any) -> None:
+def _print_summary(report: Any, out: TextIO) -> None:
     start = report.start_ns
-    out = sys.stdout
     print(
         f"input        {report.input_path} ({report.input_format}, {report.message_count} messages)",
         file=out,
@@ -201,15 +217,50 @@ def _print_break(report: Any, topic: str, out: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from rose_logs.session import default_output_path, process_log
-    from rose_logs.session.breaks import BreakParams
+    from rose_logs.session import default_output_path
 
     if args.no_output and args.output is not None:
         msg = "--no-output and --output exclude each other"
         raise UsageError(msg)
     output = None if args.no_output else (args.output or default_output_path(args.input))
     progress = not args.quiet and sys.stderr.isatty()
-    report = process_log(
+    outputs = OutputSet(inputs=[args.input], force=args.force)
+    json_out = None if args.json_path is None else outputs.stage(args.json_path)
+    with outputs:  # the log, the recording and the report: all committed, or none
+        report = _process(args, output, progress, outputs)
+        if json_out is not None:
+            outputs.fill(json_out, json_text(report.to_json()).encode("utf-8"))
+    out = sys.stderr if outputs.uses_stdout else sys.stdout
+    _print_summary(report, out)
+    if report.losses:
+        for loss in report.losses:
+            print(f"warning: {loss}", file=sys.stderr)
+        print(
+            f"error: {args.input}: damaged input, outputs hold only what could be read "
+            f"(--salvage, exit {EXIT_SALVAGED})",
+            file=sys.stderr,
+        )
+        return EXIT_SALVAGED
+    if args.fail_above is not None and report.max_score > args.fail_above:
+        worst = max(report.records, key=lambda r: r.structure_score)
+        print(
+            f"error: {args.input}: W = {worst.structure_score:.3f} on {worst.topic} snapshot "
+            f"{worst.index} exceeds --fail-above {args.fail_above:g}",
+            file=sys.stderr,
+        )
+        return EXIT_GATE
+    first = report.first_break()
+    if args.fail_on_break and first is not None:
+        print(f"error: {args.input}: {first.text} (--fail-on-break)", file=sys.stderr)
+        return EXIT_GATE
+    return 0
+
+
+def _process(args: argparse.Namespace, output: Path | None, progress: bool, outputs: Any) -> Any:
+    from rose_logs.session import process_log
+    from rose_logs.session.breaks import BreakParams
+
+    return process_log(
         args.input,
         output_path=output,
         output_format=args.fmt,
@@ -226,20 +277,7 @@ def run(args: argparse.Namespace) -> int:
         if args.break_threshold is None
         else BreakParams(threshold_m=args.break_threshold),
         clean_method=args.clean_method,
+        outputs=outputs,
+        salvage=args.salvage,
+        max_cells=args.max_cells,
     )
-    if args.json_path is not None:
-        write_json(args.json_path, report.to_json())
-    _print_summary(report)
-    if args.fail_above is not None and report.max_score > args.fail_above:
-        worst = max(report.records, key=lambda r: r.structure_score)
-        print(
-            f"error: {args.input}: W = {worst.structure_score:.3f} on {worst.topic} snapshot "
-            f"{worst.index} exceeds --fail-above {args.fail_above:g}",
-            file=sys.stderr,
-        )
-        return EXIT_GATE
-    first = report.first_break()
-    if args.fail_on_break and first is not None:
-        print(f"error: {args.input}: {first.text} (--fail-on-break)", file=sys.stderr)
-        return EXIT_GATE
-    return 0

@@ -16,8 +16,10 @@ is a :class:`BreakEvent`.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
+import struct
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -28,6 +30,8 @@ import numpy as np
 import rose
 from rose.clean import CleanMethod, CleanResult
 from rose.directions import FAILURE_LEVEL
+from rose.limits import DEFAULT_MAX_CELLS, check_cells, short
+from rose.outputs import OutputSet
 from rose.params import RoseParams
 from rose.result import RoseResult
 from rose_logs.derived import derived_topics, encode_cleaned, encode_score, encode_walls
@@ -38,7 +42,13 @@ from rose_logs.session.analysis import SnapshotAnalyser
 from rose_logs.session.breaks import BreakDetector, BreakParams, DetectedBreak
 from rose_logs.session.report import BreakEvent, SessionReport, SnapshotRecord
 from rose_logs.session.topics import select_topics, update_targets
-from rose_logs.snapshots import MapSnapshot, apply_update, decode_map, decode_update
+from rose_logs.snapshots import (
+    MapSnapshot,
+    apply_update,
+    check_log_time,
+    decode_map,
+    decode_update,
+)
 from rose_logs.storage.connections import offered_qos
 from rose_logs.storage.records import Channel
 from rose_logs.storage.typesys import FLOAT32_TYPE, MAP_TYPE, MARKER_ARRAY_TYPE
@@ -72,6 +82,9 @@ def process_log(
     clean_method: CleanMethod = "walls",
     recording_id: str | None = None,
     break_params: BreakParams | None = None,
+    outputs: OutputSet | None = None,
+    salvage: bool = False,
+    max_cells: int | None = DEFAULT_MAX_CELLS,
 ) -> SessionReport:
     """Run ROSE over every map snapshot of a log; write the output log and Rerun recording.
 
@@ -114,6 +127,15 @@ def process_log(
         one derived from the full URI, so that two robots' ``run.mcap`` stay separate recordings.
     break_params : BreakParams, optional
         Break detector parameters (defaults of :class:`rose_logs.session.breaks.BreakParams`).
+    outputs : rose.outputs.OutputSet, optional
+        The run's outputs: the log and recording are staged there and the caller commits them together
+        with its own (a JSON report). Default: a set of its own, committed before returning.
+    salvage : bool, default False
+        When messages are lost (corrupt chunk, CRC, fewer than declared): False raises
+        :class:`~rose_logs.reader.MessageLossError` and writes nothing; True keeps what could be read
+        and lists the problems in :attr:`SessionReport.losses`.
+    max_cells : int or None, default :data:`rose.limits.DEFAULT_MAX_CELLS`
+        Larger maps are not analysed (a warning; copied through like malformed maps).
 
     Returns
     -------
@@ -125,6 +147,8 @@ def process_log(
         If the input is missing, corrupt or truncated, or has no (usable) map topic.
     LogWriteError
         If an output cannot be written. Nothing is left under the output names on any error.
+    OutputError
+        If the recording touches the input or another output, or exists without ``force``.
     """
     started = time.perf_counter()
     input_path = Path(input_path)
@@ -133,15 +157,82 @@ def process_log(
     if not math.isfinite(failure_level):
         msg = f"failure level must be finite, got {failure_level}"
         raise ValueError(msg)
-    reader = LogReader(input_path)
-    if rrd_path is not None and Path(rrd_path).exists() and not force:
-        msg = f"{rrd_path}: exists already (use --force to replace it)"
-        raise LogWriteError(msg)
+    own_outputs = outputs is None
+    outputs = OutputSet(force=force) if outputs is None else outputs
+    outputs.add_input(input_path)
+    reader = LogReader(input_path, salvage=salvage)
+    rrd_temp: Path | None = None
+    if rrd_path is not None:
+        staged = outputs.stage(rrd_path)
+        if staged.temp is None:
+            outputs.abort()
+            msg = f"{rrd_path}: a Rerun recording cannot be written to a stream or device"
+            raise LogWriteError(msg)
+        rrd_temp = staged.temp
+    try:
+        report = _run_session(
+            reader,
+            input_path=input_path,
+            output_path=output_path,
+            output_format=output_format,
+            force=force,
+            topics=topics,
+            params=params,
+            failure_level=failure_level,
+            rrd_path=rrd_path,
+            rrd_temp=rrd_temp,
+            spawn=spawn,
+            connect=connect,
+            progress=progress,
+            on_snapshot=on_snapshot,
+            walls=walls,
+            clean_method=clean_method,
+            recording_id=recording_id,
+            break_params=break_params,
+            outputs=outputs,
+            max_cells=max_cells,
+        )
+    except BaseException:
+        if own_outputs:
+            outputs.abort()
+        raise
+    if own_outputs:
+        outputs.commit()
+    return dataclasses.replace(report, elapsed_s=time.perf_counter() - started)
+
+
+def _run_session(
+    reader: LogReader,
+    *,
+    input_path: Path,
+    output_path: Path | None,
+    output_format: LogFormat | None,
+    force: bool,
+    topics: Sequence[str] | None,
+    params: RoseParams,
+    failure_level: float,
+    rrd_path: Path | None,
+    rrd_temp: Path | None,
+    spawn: bool,
+    connect: str | None,
+    progress: bool,
+    on_snapshot: Callable[[MapSnapshot, RoseResult, SnapshotRecord], None] | None,
+    walls: bool,
+    clean_method: CleanMethod,
+    recording_id: str | None,
+    break_params: BreakParams,
+    outputs: OutputSet,
+    max_cells: int | None,
+) -> SessionReport:
+    """The session proper; outputs are staged in ``outputs`` (committed by the caller)."""
+    started = time.perf_counter()
     with reader:
         channels = reader.channels
         map_topics = select_topics(input_path, channels, topics)
         updates = update_targets(channels, map_topics)
-        writer = _output_writer(reader, input_path, output_path, output_format, force=force)
+        writer = _output_writer(
+            reader, input_path, output_path, output_format, force=force, outputs=outputs
+        )
         rerun: RerunSink | None = None
         try:
             if writer is not None:
@@ -150,7 +241,7 @@ def process_log(
             if rrd_path is not None or spawn or connect is not None:
                 rerun = _rerun_sink(
                     input_path,
-                    rrd_path,
+                    rrd_temp,
                     map_topics,
                     spawn=spawn,
                     connect=connect,
@@ -170,6 +261,7 @@ def process_log(
                 rerun=rerun,
                 on_snapshot=on_snapshot,
                 detector=BreakDetector(break_params),
+                max_cells=max_cells,
             )
             loop.run(progress=progress)
             if not loop.records:
@@ -181,7 +273,11 @@ def process_log(
             if writer is not None:
                 writer.close()
             if rerun is not None:
-                rerun.close()
+                try:
+                    rerun.close()
+                except (RuntimeError, OSError) as err:  # e.g. the disk filled up
+                    msg = f"{rrd_path}: cannot write the Rerun recording ({short(err, 160)})"
+                    raise LogWriteError(msg) from err
         except BaseException:
             if writer is not None:
                 writer.abort()
@@ -209,6 +305,7 @@ def _output_writer(
     output_format: LogFormat | None,
     *,
     force: bool,
+    outputs: OutputSet | None = None,
 ) -> LogWriter | None:
     """The (unopened) output log: the input's serialisation and QoS spelling, the input protected."""
     if output_path is None:
@@ -221,6 +318,7 @@ def _output_writer(
         force=force,
         protected=(input_path,),
         qos_style=reader.qos_style,
+        outputs=outputs,
     )
 
 
@@ -277,7 +375,7 @@ def _session_report(
         records=tuple(loop.records),
         breaks=tuple(loop.breaks),
         failure_level=failure_level,
-        message_count=reader.message_count,
+        message_count=reader.read_count,
         start_ns=reader.start_ns,
         end_ns=reader.end_ns,
         skipped_messages=loop.skipped,
@@ -285,6 +383,7 @@ def _session_report(
         params=params,
         detected_breaks=tuple(loop.detected),
         break_threshold_m=break_threshold_m,
+        losses=tuple(reader.losses),
     )
 
 
@@ -342,7 +441,9 @@ class _Loop:
         rerun: RerunSink | None,
         on_snapshot: Callable[[MapSnapshot, RoseResult, SnapshotRecord], None] | None,
         detector: BreakDetector,
+        max_cells: int | None = DEFAULT_MAX_CELLS,
     ) -> None:
+        self.max_cells = max_cells
         self.reader = reader
         self.detector = detector
         self.detected: list[DetectedBreak] = []
@@ -399,8 +500,13 @@ class _Loop:
         finally:
             bar.close()
 
+    def _skip(self, err: Exception, log_time_ns: int) -> None:
+        self.skipped += 1
+        _LOG.warning("%s at %d ns, copied unprocessed", short(err, 240), log_time_ns)
+
     def _on_map(self, data: bytes | memoryview, topic: str, log_time_ns: int) -> None:
         try:
+            check_log_time(topic, log_time_ns)
             snapshot = decode_map(
                 data, serialization=self.serialization, topic=topic, log_time_ns=log_time_ns
             )
@@ -414,6 +520,7 @@ class _Loop:
     def _on_update(self, data: bytes | memoryview, topic: str, log_time_ns: int) -> None:
         target = self.updates[topic]
         try:
+            check_log_time(topic, log_time_ns)
             update = decode_update(
                 data, serialization=self.serialization, topic=topic, log_time_ns=log_time_ns
             )
@@ -432,6 +539,10 @@ class _Loop:
     def _analyse(self, snapshot: MapSnapshot, *, from_update: bool) -> None:
         t0 = time.perf_counter()
         topic = snapshot.topic
+        too_large = check_cells(*snapshot.shape, self.max_cells)
+        if too_large is not None:
+            self._skip(MapMessageError(f"{topic}: map of {too_large}"), snapshot.log_time_ns)
+            return
         try:
             analysis = self.analyser(snapshot)
             result, reused = analysis.result, analysis.reused
@@ -452,13 +563,18 @@ class _Loop:
             t = snapshot.log_time_ns
             ser = self.serialization
             cleaned = analysis.cleaning.cleaned if analysis.cleaning else result.cleaned
-            self.writer.write_raw(
-                cleaned_h, t, encode_cleaned(snapshot, cleaned, serialization=ser)
-            )
-            self.writer.write_raw(score_h, t, encode_score(score, serialization=ser))
-            self.writer.write_raw(
-                walls_h, t, encode_walls(snapshot, result, analysis.walls, serialization=ser)
-            )
+            try:  # encode all three first: a value that cannot be serialised skips the snapshot
+                encoded = (
+                    encode_cleaned(snapshot, cleaned, serialization=ser),
+                    encode_score(score, serialization=ser),
+                    encode_walls(snapshot, result, analysis.walls, serialization=ser),
+                )
+            except (struct.error, OverflowError, ValueError, TypeError) as err:
+                self.count[topic] = index
+                self._skip(MapMessageError(f"{topic}: cannot encode the results ({err})"), t)
+                return
+            for handle, data in zip((cleaned_h, score_h, walls_h), encoded, strict=True):
+                self.writer.write_raw(handle, t, data)
         broke = score > self.failure_level and not self.above.get(topic, False)
         self.above[topic] = score > self.failure_level
         verdict = self.detector.update(snapshot)

@@ -166,6 +166,11 @@ class SessionReport:
         Map or update messages that could not be analysed (copied through unprocessed).
     elapsed_s : float
         Wall time of the whole session, seconds.
+    params : RoseParams
+        The ROSE parameters used.
+    losses : tuple of str
+        With ``salvage``: what could not be read (a corrupt chunk, fewer messages than declared).
+        Empty otherwise (a loss without ``salvage`` is an error).
     """
 
     input_path: Path
@@ -184,6 +189,7 @@ class SessionReport:
     params: RoseParams = field(default_factory=RoseParams)
     detected_breaks: tuple[DetectedBreak, ...] = ()
     break_threshold_m: float = math.nan
+    losses: tuple[str, ...] = ()
 
     def records_of(self, topic: str) -> tuple[SnapshotRecord, ...]:
         """The records of one map topic."""
@@ -256,6 +262,7 @@ class SessionReport:
             "start_ns": self.start_ns,
             "end_ns": self.end_ns,
             "skipped_messages": self.skipped_messages,
+            "losses": list(self.losses),
             "elapsed_s": round(self.elapsed_s, 6),
             "params": {k: getattr(self.params, k) for k in self.params.__dataclass_fields__},
             "topics": topics,

@@ -45,10 +45,13 @@ class McapReadBackend:
         self.qos_style: QosStyle | None = None
 
     def open(self) -> None:
-        from mcap.reader import make_reader
+        from mcap.reader import SeekingReader
 
         self.stream = self.path.open("rb")
-        self.reader = make_reader(self.stream)
+        size = self.path.stat().st_size
+        # Chunk CRCs are checked on every chunk read; no record can be longer than the file, so a
+        # corrupt length never makes the reader allocate more than the file's size.
+        self.reader = SeekingReader(self.stream, validate_crcs=True, record_size_limit=max(size, 1))
         self.profile = self.reader.get_header().profile
         summary = self.reader.get_summary()
         if summary is None:
@@ -57,7 +60,9 @@ class McapReadBackend:
                 "try `mcap recover`"
             )
             raise LogReadError(msg)
-        counts = summary.statistics.channel_message_counts if summary.statistics else {}
+        counts = summary.statistics.channel_message_counts if summary.statistics else None
+        if counts is None:  # no statistics record: count what the file holds
+            counts = self._count_messages()
         channels: list[Channel] = []
         for channel_id in sorted(summary.channels):
             ch = summary.channels[channel_id]
@@ -87,6 +92,22 @@ class McapReadBackend:
         if summary.statistics and summary.statistics.message_count:
             self.start_ns = int(summary.statistics.message_start_time)
             self.end_ns = int(summary.statistics.message_end_time)
+        elif self._times:
+            self.start_ns, self.end_ns = self._times
+
+    _times: tuple[int, int] | None = None
+
+    def _count_messages(self) -> dict[int, int]:
+        """Messages per channel id and the time range, by reading every message (no statistics)."""
+        counts: dict[int, int] = {}
+        first, last = None, None
+        for _schema, ch, msg in self.reader.iter_messages(log_time_order=False):
+            counts[ch.id] = counts.get(ch.id, 0) + 1
+            first = msg.log_time if first is None else min(first, msg.log_time)
+            last = msg.log_time if last is None else max(last, msg.log_time)
+        if first is not None and last is not None:
+            self._times = (int(first), int(last))
+        return counts
 
     def messages(self, topics: set[str] | None) -> Iterator[RawMessage]:
         by_id = self._by_id

@@ -7,6 +7,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, Literal
 
+from rose_logs.errors import LogReadError
 from rose_logs.formats import LogFormat
 from rose_logs.storage.base import WriteBackend
 from rose_logs.storage.connections import QosStyle, definitions, offered_qos, qos_style
@@ -65,10 +66,24 @@ class RosbagsReadBackend:
         self.channels = tuple(channels)
         if self.format != "ros1":
             self.qos_style = _bag_qos_style(self.path)
+        if self.format != "ros1" and self.path.is_dir():
+            self._check_types()
         if sum(c.message_count for c in channels):
             self.start_ns = int(self.reader.start_time)
             # rosbags reports the end as "1 ns after the last message"
             self.end_ns = max(self.start_ns, int(self.reader.end_time) - 1)
+
+    def _check_types(self) -> None:
+        """Refuse a bag folder whose metadata.yaml declares other types than its storage records."""
+        from rose_logs.storage.integrity import storage_types, type_mismatches
+
+        declared = {c.topic: c.msgtype for c in self.channels}
+        problems = type_mismatches(declared, storage_types(self.path))
+        if problems:
+            msg = (
+                f"{self.path}: metadata.yaml disagrees with the storage ({'; '.join(problems[:3])})"
+            )
+            raise LogReadError(msg)
 
     def messages(self, topics: set[str] | None) -> Iterator[RawMessage]:
         by_conn = self._by_conn

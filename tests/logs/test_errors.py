@@ -152,13 +152,22 @@ def test_existing_output_needs_force(tmp_path: Path, capsys, mcap_log: Path) -> 
 def test_existing_folder_output_replaced_with_force(tmp_path: Path, capsys, fr079) -> None:
     built = build_log(tmp_path / "in", "db3", session_maps(fr079[:1]))
     out = tmp_path / "out"
+    assert _run(capsys, "process", built.path, "-o", out, "-q")[0] == 0
+    assert _run(capsys, "process", built.path, "-o", out)[0] == 1
+    assert _run(capsys, "process", built.path, "-o", out, "-f", "-q")[0] == 0
+    assert "/map/rose/cleaned" in read_all(out)
+    assert _leftovers(tmp_path, {"in", "out"}) == []
+
+
+def test_force_never_deletes_a_folder_that_is_no_bag(tmp_path: Path, capsys, fr079) -> None:
+    built = build_log(tmp_path / "in", "db3", session_maps(fr079[:1]))
+    out = tmp_path / "photos"
     out.mkdir()
     (out / "old.txt").write_text("old")
-    assert _run(capsys, "process", built.path, "-o", out)[0] == 1
-    assert (out / "old.txt").exists()
-    assert _run(capsys, "process", built.path, "-o", out, "-f")[0] == 0
-    assert not (out / "old.txt").exists()
-    assert "/map/rose/cleaned" in read_all(out)
+    code, _, err = _run(capsys, "process", built.path, "-o", out, "-f")
+    assert code == 1
+    _assert_one_line_error(err, "photos", "not a ROS 2 bag")
+    assert (out / "old.txt").read_text() == "old"
 
 
 def test_output_never_replaces_the_input(tmp_path: Path, capsys, mcap_log: Path) -> None:

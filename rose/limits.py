@@ -1,0 +1,148 @@
+"""Limits that keep hostile or unlucky input from costing unbounded memory or time.
+
+- :data:`DEFAULT_MAX_CELLS`: the largest grid analysed by default (``--max-cells``). ``rose.analyze``
+  needs 31-36 bytes per cell at its peak (FFT planes, scores, masks; ``benchmarks/bench_memory.py`` at
+  1-9 million cells), decoding a map image some more, so the default 1e8 cells (10,000 x 10,000) needs
+  about 4 GB. Sizes are checked before anything of
+  that size is allocated: image headers before decoding, width x height of map messages before analysis,
+  the grid extent of ``rose-bag convert`` before ray casting.
+- :func:`load_yaml`: YAML without aliases (a 1 KB "billion laughs" file cannot expand), at most
+  :data:`MAX_YAML_BYTES` long and :data:`MAX_YAML_DEPTH` levels deep.
+- :func:`image_shape`: the size an image header declares (PNG, PNM, BMP), read without decoding.
+- :func:`short`: an error text cut to one line of at most :data:`MAX_MESSAGE_CHARS` characters.
+"""
+
+from __future__ import annotations
+
+import re
+import struct
+from typing import Any
+
+import yaml
+
+__all__ = [
+    "DEFAULT_MAX_CELLS",
+    "MAX_MESSAGE_CHARS",
+    "MAX_YAML_BYTES",
+    "MAX_YAML_DEPTH",
+    "check_cells",
+    "image_shape",
+    "load_yaml",
+    "short",
+]
+
+DEFAULT_MAX_CELLS = 100_000_000
+"""Largest grid (rows x cols) analysed unless ``--max-cells`` says otherwise."""
+
+MAX_YAML_BYTES = 1 << 20
+"""Largest YAML file read (map_server YAML, ROS 2 ``metadata.yaml``): 1 MiB."""
+
+MAX_YAML_DEPTH = 64
+"""Deepest nesting of YAML collections accepted."""
+
+MAX_MESSAGE_CHARS = 300
+"""Longest error message printed (the rest is cut)."""
+
+
+def short(text: object, limit: int = MAX_MESSAGE_CHARS) -> str:
+    """``text`` as one line of at most ``limit`` characters (first line, cut with ``...``)."""
+    line = " ".join(str(text).split())
+    return line if len(line) <= limit else line[: limit - 3] + "..."
+
+
+def check_cells(rows: int, cols: int, max_cells: int | None) -> str | None:
+    """None if a ``rows x cols`` grid is within ``max_cells`` (None: no limit), else the reason."""
+    if max_cells is None or rows * cols <= max_cells:
+        return None
+    return (
+        f"{cols} x {rows} = {rows * cols:,} cells exceeds the limit of {max_cells:,} "
+        "(--max-cells; ROSE needs about 35 bytes per cell)"
+    )
+
+
+# -- YAML ------------------------------------------------------------------------------------------------
+class _StrictLoader(yaml.SafeLoader):
+    """SafeLoader that refuses aliases and limits nesting depth."""
+
+    def __init__(self, stream: Any) -> None:
+        super().__init__(stream)
+        self._depth = 0
+
+    def compose_node(self, parent: Any, index: Any) -> Any:
+        if self.check_event(yaml.AliasEvent):
+            event = self.peek_event()
+            raise yaml.composer.ComposerError(
+                None, None, "YAML aliases are not accepted", event.start_mark
+            )
+        self._depth += 1
+        try:
+            if self._depth > MAX_YAML_DEPTH:
+                raise yaml.composer.ComposerError(
+                    None,
+                    None,
+                    f"nested deeper than {MAX_YAML_DEPTH} levels",
+                    self.peek_event().start_mark,
+                )
+            return super().compose_node(parent, index)
+        finally:
+            self._depth -= 1
+
+
+def load_yaml(text: str | bytes) -> Any:
+    """Parse ``text`` as YAML with the limits above.
+
+    Raises
+    ------
+    ValueError
+        If the text is too long, uses aliases, is nested too deeply, holds an integer too long to
+        convert, or is no valid YAML; the message is one short line (without a file name: add it).
+    """
+    if len(text) > MAX_YAML_BYTES:
+        msg = f"YAML larger than {MAX_YAML_BYTES} bytes"
+        raise ValueError(msg)
+    if isinstance(text, bytes):
+        try:
+            text = text.decode("utf-8")
+        except UnicodeDecodeError as err:
+            msg = "not UTF-8 text"
+            raise ValueError(msg) from err
+    try:
+        return yaml.load(text, Loader=_StrictLoader)
+    except yaml.YAMLError as err:
+        msg = f"invalid YAML ({short(getattr(err, 'problem', None) or err, 120)})"
+        raise ValueError(msg) from err
+    except RecursionError as err:
+        msg = "YAML nested too deeply"
+        raise ValueError(msg) from err
+    except ValueError as err:  # e.g. an integer of more than 4300 digits
+        msg = f"invalid YAML value ({short(err, 120)})"
+        raise ValueError(msg) from err
+
+
+# -- image headers -------------------------------------------------------------------------------------
+_PNM_TOKEN = re.compile(rb"(?:\s|#[^\n]*\n)*(\d+)")
+
+
+def image_shape(data: bytes | memoryview) -> tuple[int, int] | None:
+    """``(rows, cols)`` declared by a PNG, PNM (PBM/PGM/PPM/PAM-less) or BMP header; None otherwise.
+
+    Only the header is read; a truncated header gives None (the decoder reports it).
+    """
+    head = bytes(data[:512])
+    if head.startswith(b"\x89PNG\r\n\x1a\n") and len(head) >= 24 and head[12:16] == b"IHDR":
+        cols, rows = struct.unpack(">II", head[16:24])
+        return rows, cols
+    if len(head) >= 2 and head[:1] == b"P" and head[1:2] in b"123456":
+        pos = 2
+        values = []
+        for _ in range(2):
+            match = _PNM_TOKEN.match(head, pos)
+            if match is None:
+                return None
+            values.append(int(match.group(1)))
+            pos = match.end()
+        return values[1], values[0]
+    if head.startswith(b"BM") and len(head) >= 26:
+        cols, rows = struct.unpack("<ii", head[18:26])
+        return abs(rows), abs(cols)
+    return None

@@ -1,0 +1,539 @@
+"""The output files of one run: checked, staged under temporary names, committed together or not at all.
+
+Every command of ``rose`` and ``rose-bag`` writes its outputs through one :class:`OutputSet`:
+
+- **checks** (:meth:`OutputSet.stage`, before anything is computed): an output may not be, contain or lie
+  inside any input (compared resolved, and by inode when both exist; a map's image counts as an input),
+  nor another output of the same run; an existing output needs ``force``; a file output never replaces
+  a directory, and a folder output (a ROS 2 bag) replaces an existing directory only if that directory
+  is a ROS 2 bag itself (``metadata.yaml`` and no sub-folder), so ``-o SOME_DIR --force`` never deletes
+  an unrelated folder.
+- **staging**: each output is written inside its own hidden folder next to the target,
+  ``.NAME.rose-tmp-<pid>-<random>/NAME``, unique per run (two concurrent runs never share a temporary);
+  an output given as ``-``, or an existing non-regular target such as ``/dev/stdout``, ``/dev/null`` or
+  a FIFO, is a *stream*: its bytes are kept in memory and written to it at commit, never by rename. A
+  symlink to a regular file is followed: its target is replaced and the link kept.
+- **commit** (:meth:`OutputSet.commit`): existing targets (``force``) are moved aside, every staged output
+  is renamed into place, then the old ones are deleted; if any rename fails, the new ones are removed and
+  the old ones restored. Without ``force`` a file is linked into place (``os.link``, which never
+  replaces), so of two concurrent runs one wins and the other fails cleanly.
+- **abort** (:meth:`OutputSet.abort`, also on any exception inside ``with``): every staging folder is
+  removed and the targets are left as they were.
+- **stale temporaries**: staging any output removes ``.*.rose-tmp-<pid>-*`` / ``.*.rose-old-<pid>-*``
+  entries of its directory whose process is gone (a run killed with SIGKILL or a power cut).
+
+:func:`install_signal_handlers` turns SIGTERM and SIGHUP into :class:`Terminated` (a ``KeyboardInterrupt``)
+so the same clean-up runs as for Ctrl-C. :func:`json_text` is the one JSON encoder: strict JSON, every
+non-finite float written as ``null``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import os
+import re
+import secrets
+import shutil
+import signal
+import stat
+import sys
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from types import FrameType, TracebackType
+from typing import Any, Self
+
+from rose.errors import OutputError
+
+__all__ = [
+    "STDOUT",
+    "OutputSet",
+    "StagedOutput",
+    "Terminated",
+    "install_signal_handlers",
+    "json_safe",
+    "json_text",
+    "remove_stale_temporaries",
+    "temporary_name",
+]
+
+STDOUT = "-"
+"""The output name meaning standard output."""
+
+_TEMP_RE = re.compile(r"^\..+\.rose-(?:tmp|old)-(\d+)-[0-9a-f]+$")
+
+
+# -- strict JSON ------------------------------------------------------------------------------------
+def json_safe(value: Any) -> Any:
+    """``value`` with every non-finite float replaced by None and numpy scalars / arrays made plain.
+
+    Dict keys become strings; tuples and sets become lists (sets sorted).
+    """
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, bool | int | str) or value is None:
+        return value
+    if isinstance(value, Mapping):
+        return {str(k): json_safe(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [json_safe(v) for v in value]
+    if isinstance(value, set | frozenset):
+        return [json_safe(v) for v in sorted(value)]
+    if isinstance(value, os.PathLike):
+        return os.fspath(value)
+    tolist = getattr(value, "tolist", None)  # numpy scalars and arrays
+    if tolist is not None:
+        return json_safe(tolist())
+    if isinstance(value, int | float):
+        return json_safe(float(value))
+    msg = f"cannot write {type(value).__name__} as JSON"
+    raise TypeError(msg)
+
+
+def json_text(payload: Any, *, indent: int | None = 2) -> str:
+    """``payload`` as strict JSON (RFC 8259: no NaN / Infinity; those become ``null``), newline-ended."""
+    return json.dumps(json_safe(payload), indent=indent, allow_nan=False) + "\n"
+
+
+# -- signals ------------------------------------------------------------------------------------------
+class Terminated(KeyboardInterrupt):
+    """SIGTERM or SIGHUP arrived; raised in the main thread so every ``finally`` / abort runs."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signum)
+        self.signum = signum
+
+    @property
+    def exit_code(self) -> int:
+        """The shell's convention: 128 + signal number."""
+        return 128 + self.signum
+
+
+def _raise_terminated(signum: int, _frame: FrameType | None) -> None:
+    raise Terminated(signum)
+
+
+def install_signal_handlers() -> None:
+    """Turn SIGTERM and SIGHUP into :class:`Terminated` (main thread only; a no-op elsewhere)."""
+    for name in ("SIGTERM", "SIGHUP"):
+        signum = getattr(signal, name, None)
+        if signum is None:
+            continue
+        with contextlib.suppress(ValueError):  # not the main thread
+            signal.signal(signum, _raise_terminated)
+
+
+# -- temporary names ------------------------------------------------------------------------------------
+def temporary_name(name: str, kind: str = "tmp") -> str:
+    """``.NAME.rose-<kind>-<pid>-<random>``: hidden, unique per run, recognisable by a later run."""
+    return f".{name}.rose-{kind}-{os.getpid()}-{secrets.token_hex(4)}"
+
+
+def _pid_alive(pid: int) -> bool:
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # EPERM: it exists, owned by someone else
+        return True
+    return True
+
+
+def remove_stale_temporaries(directory: Path) -> list[Path]:
+    """Remove ``.*.rose-tmp-<pid>-*`` / ``.*.rose-old-<pid>-*`` entries of ``directory`` whose process is gone.
+
+    Returns the removed paths. Unreadable directories and entries that vanish meanwhile are ignored.
+    """
+    removed: list[Path] = []
+    try:
+        entries = list(os.scandir(directory))
+    except OSError:
+        return removed
+    for entry in entries:
+        match = _TEMP_RE.match(entry.name)
+        if match is None or _pid_alive(int(match.group(1))):
+            continue
+        path = Path(entry.path)
+        _remove_tree(path)
+        if not os.path.lexists(path):
+            removed.append(path)
+    return removed
+
+
+def _remove_tree(path: Path) -> None:
+    with contextlib.suppress(OSError):
+        if path.is_dir() and not path.is_symlink():
+            shutil.rmtree(path)
+        else:
+            path.unlink()
+
+
+# -- one output ------------------------------------------------------------------------------------------
+@dataclass
+class StagedOutput:
+    """One output of an :class:`OutputSet`.
+
+    Attributes
+    ----------
+    path : Path
+        The name the user gave.
+    target : Path
+        Where the output goes (``path`` with symlinks to regular files followed).
+    temp : Path or None
+        Where to write it now (inside ``stage``); None for a stream.
+    stage : Path or None
+        The hidden staging folder holding ``temp``.
+    directory : bool
+        The output is a folder (ROS 2 bag).
+    stream : bool
+        Written in place at commit (``-``, ``/dev/stdout``, a FIFO, a device); the bytes are in ``data``.
+    """
+
+    path: Path
+    target: Path
+    temp: Path | None
+    stage: Path | None
+    directory: bool
+    stream: bool
+    data: bytearray | None = None
+    to_stdout: bool = False
+
+
+def _is_stdout(path: Path) -> bool:
+    if str(path) == STDOUT:
+        return True
+    try:
+        return os.path.samestat(path.stat(), os.fstat(sys.stdout.fileno()))
+    except (OSError, ValueError, AttributeError):
+        return False
+
+
+def _conflict(a: Path, b: Path) -> bool:
+    """Whether ``a`` and ``b`` (resolved) are the same path, or one lies inside the other."""
+    if a == b or a in b.parents or b in a.parents:
+        return True
+    try:
+        return a.samefile(b)
+    except OSError:
+        return False
+
+
+def _is_bag_folder(path: Path) -> bool:
+    """A ROS 2 bag folder we may replace: ``metadata.yaml`` and files only."""
+    try:
+        entries = list(os.scandir(path))
+    except OSError:
+        return False
+    names = {e.name for e in entries}
+    return "metadata.yaml" in names and not any(e.is_dir(follow_symlinks=False) for e in entries)
+
+
+class OutputSet:
+    """The outputs of one run, committed together (see the module docstring).
+
+    Parameters
+    ----------
+    inputs : iterable of Path
+        Files and folders the run reads; no output may touch them.
+    force : bool, default False
+        Replace existing outputs (only at commit, only by complete new ones).
+
+    Examples
+    --------
+    >>> with OutputSet(inputs=[src], force=False) as outputs:  # doctest: +SKIP
+    ...     outputs.write_bytes(Path("a.json"), b"{}")
+    ...     temp = outputs.stage(Path("b.mcap")).temp  # write the log there
+    ... # both renamed into place here, or neither on an exception
+    """
+
+    def __init__(self, *, inputs: Iterable[Path | str] = (), force: bool = False) -> None:
+        self.force = force
+        self._inputs: list[tuple[Path, Path]] = []
+        self._outputs: list[StagedOutput] = []
+        self._done = False
+        for path in inputs:
+            self.add_input(path)
+
+    # -- registration --------------------------------------------------------------------------------
+    def add_input(self, path: Path | str) -> None:
+        """Protect ``path`` (and, if it is a symlink, what it points to) from every output."""
+        path = Path(path)
+        self._inputs.append((path, path.resolve()))
+
+    @property
+    def outputs(self) -> tuple[StagedOutput, ...]:
+        """The staged outputs, in staging order."""
+        return tuple(self._outputs)
+
+    @property
+    def uses_stdout(self) -> bool:
+        """Whether an output goes to standard output (then the caller should print elsewhere)."""
+        return any(o.to_stdout for o in self._outputs)
+
+    def check(self, *paths: Path | str | None, directory: bool = False) -> None:
+        """Raise :class:`OutputError` now if :meth:`stage` would refuse any of ``paths`` (None skipped).
+
+        Also refuses a path named twice. Nothing is created: a command calls this before it spends
+        time computing its outputs.
+        """
+        seen: list[tuple[Path, Path]] = []
+        for given in paths:
+            if given is None:
+                continue
+            path = Path(given)
+            target = self._target(path)
+            for other, other_target in seen:
+                if str(path) == str(other) == STDOUT or (
+                    STDOUT not in (str(path), str(other)) and _conflict(target, other_target)
+                ):
+                    msg = f"{path}: used for two outputs (also {other})"
+                    raise OutputError(msg)
+            seen.append((path, target))
+            if _is_stdout(path) or (target.exists() and not _is_regular_or_dir(target)):
+                if directory:
+                    msg = f"{path}: a folder output cannot go to a stream or device"
+                    raise OutputError(msg)
+                continue
+            self._check_existing(path, target, directory=directory)
+            if not target.parent.is_dir():
+                msg = f"{path}: folder {target.parent} does not exist"
+                raise OutputError(msg)
+
+    def stage(self, path: Path | str, *, directory: bool = False) -> StagedOutput:
+        """Check ``path`` and prepare its temporary; write the output to the returned ``temp``.
+
+        Parameters
+        ----------
+        path : Path
+            The output name; ``-`` is standard output.
+        directory : bool, default False
+            The output is a folder (a ROS 2 bag): ``temp`` does not exist yet, the writer creates it.
+
+        Raises
+        ------
+        OutputError
+            If the output touches an input or another output, exists without ``force``, would replace
+            a directory that is not a ROS 2 bag, is a stream for a folder output, or its folder is
+            missing or not writable.
+        """
+        path = Path(path)
+        target = self._target(path)
+        stream = _is_stdout(path) or (
+            target.exists() and not directory and not _is_regular_or_dir(target)
+        )
+        if stream:
+            if directory:
+                msg = f"{path}: a folder output cannot go to a stream or device"
+                raise OutputError(msg)
+            staged = StagedOutput(
+                path, target, None, None, directory, True, bytearray(), _is_stdout(path)
+            )
+            self._outputs.append(staged)
+            return staged
+        self._check_existing(path, target, directory=directory)
+        parent = target.parent
+        if not parent.is_dir():
+            msg = f"{path}: folder {parent} does not exist"
+            raise OutputError(msg)
+        remove_stale_temporaries(parent)
+        stage_dir = parent / temporary_name(target.name)
+        try:
+            stage_dir.mkdir()
+        except OSError as err:
+            msg = f"{path}: cannot write in {parent} ({err.strerror or err})"
+            raise OutputError(msg) from err
+        staged = StagedOutput(path, target, stage_dir / target.name, stage_dir, directory, False)
+        self._outputs.append(staged)
+        return staged
+
+    def _target(self, path: Path) -> Path:
+        if str(path) == STDOUT:
+            return path
+        try:
+            target = path.resolve()
+        except (OSError, RuntimeError) as err:  # symlink loops, over-long names
+            msg = f"{path}: not a usable output path ({err})"
+            raise OutputError(msg) from err
+        if len(target.name.encode()) > 200:
+            # The staging name adds ~30 characters; most file systems stop at 255 bytes.
+            msg = f"{str(path)[:80]}...: output file name longer than 200 bytes"
+            raise OutputError(msg)
+        for given, resolved in self._inputs:
+            if _conflict(target, resolved):
+                msg = f"{path}: refusing to write over the input {given}"
+                raise OutputError(msg)
+        for other in self._outputs:
+            if other.stream and str(path) != STDOUT:
+                continue
+            if (str(path) == STDOUT and str(other.path) == STDOUT) or (
+                str(path) != STDOUT and not other.stream and _conflict(target, other.target)
+            ):
+                msg = f"{path}: used for two outputs (also {other.path})"
+                raise OutputError(msg)
+        return target
+
+    def _check_existing(self, path: Path, target: Path, *, directory: bool) -> None:
+        if not os.path.lexists(target):
+            return
+        if not self.force:
+            msg = f"{path}: exists already (use --force to replace it)"
+            raise OutputError(msg)
+        is_dir = target.is_dir()
+        if is_dir and not directory:
+            msg = f"{path}: is a directory, not replacing it with a file"
+            raise OutputError(msg)
+        if is_dir and not _is_bag_folder(target):
+            msg = f"{path}: is a directory that is not a ROS 2 bag, not replacing it"
+            raise OutputError(msg)
+        if directory and not is_dir:
+            msg = f"{path}: is a file, not replacing it with a folder"
+            raise OutputError(msg)
+
+    # -- writing -----------------------------------------------------------------------------------------
+    def write_bytes(self, path: Path | str, data: bytes) -> StagedOutput:
+        """Stage ``path`` and write ``data`` to its temporary (or keep it for the stream)."""
+        staged = self.stage(path)
+        self.fill(staged, data)
+        return staged
+
+    def write_json(self, path: Path | str, payload: Any) -> StagedOutput:
+        """Stage ``path`` with ``payload`` as strict JSON (:func:`json_text`)."""
+        return self.write_bytes(path, json_text(payload).encode("utf-8"))
+
+    def fill(self, staged: StagedOutput, data: bytes) -> None:
+        """Write ``data`` as the whole content of an already staged file output.
+
+        Raises
+        ------
+        OutputError
+            If the temporary cannot be written (full disk, I/O error).
+        """
+        if staged.data is not None:
+            staged.data[:] = data
+            return
+        if staged.temp is None:
+            msg = f"{staged.path}: not staged"
+            raise OutputError(msg)
+        try:
+            with staged.temp.open("wb") as file:
+                file.write(data)
+        except OSError as err:
+            msg = f"{staged.path}: cannot write ({err.strerror or err})"
+            raise OutputError(msg) from err
+
+    # -- commit / abort ------------------------------------------------------------------------------------
+    def commit(self) -> None:
+        """Move every staged output into place, all or none (see the module docstring).
+
+        Raises
+        ------
+        OutputError
+            If a staged output is missing or a target cannot be replaced; nothing is changed then
+            (streams aside, which are written last).
+        """
+        if self._done:
+            return
+        files = [o for o in self._outputs if not o.stream]
+        for staged in files:
+            if staged.temp is None or not os.path.lexists(staged.temp):
+                self.abort()
+                msg = f"{staged.path}: the output was not written"
+                raise OutputError(msg)
+        backups: list[tuple[StagedOutput, Path]] = []
+        placed: list[StagedOutput] = []
+        try:
+            for staged in files:
+                if os.path.lexists(staged.target):
+                    if not self.force:
+                        msg = f"{staged.path}: appeared while writing, not replacing it"
+                        raise OutputError(msg)
+                    backup = staged.target.with_name(temporary_name(staged.target.name, "old"))
+                    staged.target.rename(backup)
+                    backups.append((staged, backup))
+                self._place(staged)
+                placed.append(staged)
+        except BaseException as err:
+            for staged in placed:
+                _remove_tree(staged.target)
+            for staged, backup in backups:
+                with contextlib.suppress(OSError):
+                    backup.rename(staged.target)
+            self.abort()
+            if isinstance(err, OSError):
+                msg = (
+                    f"{err.filename or 'output'}: cannot commit the outputs ({err.strerror or err})"
+                )
+                raise OutputError(msg) from err
+            raise
+        for _staged, backup in backups:
+            _remove_tree(backup)
+        for staged in files:
+            if staged.stage is not None:
+                _remove_tree(staged.stage)
+        self._done = True
+        self._write_streams()
+
+    def _place(self, staged: StagedOutput) -> None:
+        if staged.temp is None:
+            return
+        if staged.directory or self.force:
+            staged.temp.rename(staged.target)
+            return
+        try:
+            os.link(staged.temp, staged.target)  # never replaces: one winner among concurrent runs
+        except FileExistsError as err:
+            msg = f"{staged.path}: appeared while writing, not replacing it"
+            raise OutputError(msg) from err
+        except OSError:  # file systems without hard links
+            if os.path.lexists(staged.target):
+                raise
+            staged.temp.rename(staged.target)
+
+    def _write_streams(self) -> None:
+        for staged in self._outputs:
+            if not staged.stream or staged.data is None:
+                continue
+            try:
+                if staged.to_stdout:
+                    sys.stdout.flush()
+                    sys.stdout.buffer.write(staged.data)
+                    sys.stdout.buffer.flush()
+                else:
+                    with staged.target.open("ab") as stream:  # a device or FIFO: never truncated
+                        stream.write(staged.data)
+            except OSError as err:
+                msg = f"{staged.path}: cannot write ({err.strerror or err})"
+                raise OutputError(msg) from err
+
+    def abort(self) -> None:
+        """Remove every staging folder; the targets stay as they were. Idempotent."""
+        for staged in self._outputs:
+            if staged.stage is not None:
+                _remove_tree(staged.stage)
+        self._done = True
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        if exc_type is None:
+            self.commit()
+        else:
+            self.abort()
+
+
+def _is_regular_or_dir(path: Path) -> bool:
+    try:
+        mode = path.stat().st_mode
+    except OSError:
+        return True
+    return stat.S_ISREG(mode) or stat.S_ISDIR(mode)

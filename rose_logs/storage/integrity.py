@@ -1,0 +1,70 @@
+"""Cross-checks of a ROS 2 bag folder: does ``metadata.yaml`` agree with the storage files it describes?
+
+rosbags takes topic names and types from ``metadata.yaml``; a file that declares ``/scan`` as
+``nav_msgs/msg/OccupancyGrid`` would make every scan a malformed map. The storage files record the
+type of each topic themselves (the sqlite3 ``topics`` table, MCAP schemas), so a disagreement is
+detected here and reported as a corrupt log. Storage files are opened read-only (sqlite3
+``immutable=1``: no journal or lock file is created next to the input).
+"""
+
+from __future__ import annotations
+
+import sqlite3
+from pathlib import Path
+from urllib.parse import quote
+
+from rose_logs.storage.records import normalize_msgtype
+
+__all__ = ["storage_types", "type_mismatches"]
+
+
+def _sqlite_types(path: Path) -> dict[str, str]:
+    uri = f"file:{quote(str(path.resolve()))}?mode=ro&immutable=1"
+    conn = sqlite3.connect(uri, uri=True)
+    try:
+        rows = conn.execute("SELECT name, type FROM topics").fetchall()
+    finally:
+        conn.close()
+    return {str(name): normalize_msgtype(str(kind)) for name, kind in rows}
+
+
+def _mcap_types(path: Path) -> dict[str, str]:
+    from mcap.reader import SeekingReader
+
+    with path.open("rb") as stream:
+        size = path.stat().st_size
+        summary = SeekingReader(stream, record_size_limit=max(size, 1)).get_summary()
+    if summary is None:
+        return {}
+    types = {}
+    for channel in summary.channels.values():
+        schema = summary.schemas.get(channel.schema_id)
+        if schema is not None and channel.message_encoding in {"cdr", "ros1"}:
+            types[channel.topic] = normalize_msgtype(schema.name)
+    return types
+
+
+def storage_types(folder: Path) -> dict[str, str]:
+    """Topic -> message type as recorded by the storage files of a ROS 2 bag folder.
+
+    Raises
+    ------
+    sqlite3.Error, OSError, mcap errors
+        If a storage file cannot be read (the caller reports a corrupt log).
+    """
+    types: dict[str, str] = {}
+    for path in sorted(folder.iterdir()):
+        if path.suffix == ".db3":
+            types.update(_sqlite_types(path))
+        elif path.suffix == ".mcap":
+            types.update(_mcap_types(path))
+    return types
+
+
+def type_mismatches(declared: dict[str, str], stored: dict[str, str]) -> list[str]:
+    """``"<topic>: metadata.yaml says A, the storage B"`` for every topic whose types disagree."""
+    return [
+        f"{topic}: metadata.yaml says {kind}, the storage {stored[topic]}"
+        for topic, kind in sorted(declared.items())
+        if topic in stored and normalize_msgtype(kind) != stored[topic]
+    ]

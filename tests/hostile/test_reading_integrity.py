@@ -1,0 +1,195 @@
+"""Reading never loses messages silently: CRCs, counts against the index, --salvage (exit 4), garbage maps."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import threading
+from pathlib import Path
+
+import pytest
+from make_corpus import storage_file, write_session
+
+from rose_logs.cli import EXIT_SALVAGED, main
+from rose_logs.errors import LogReadError
+from rose_logs.reader import LogReader, MessageLossError
+
+
+def _run(capsys: pytest.CaptureFixture[str], *argv: object) -> tuple[int, str, str]:
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def _flip_in_middle(path: Path) -> None:
+    data = bytearray(path.read_bytes())
+    data[len(data) // 3] ^= 0xFF
+    path.write_bytes(bytes(data))
+
+
+def test_mcap_chunk_crc_is_checked(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    log = tmp_path / "in.mcap"
+    write_session(log, "mcap")
+    _flip_in_middle(log)
+    code, _, err = _run(capsys, "process", log, "-o", tmp_path / "o.mcap", "-q")
+    assert code == 1
+    assert str(log) in err and "crc" in err.lower()
+    assert not (tmp_path / "o.mcap").exists()
+
+
+def test_fewer_messages_than_declared_is_an_error(tmp_path: Path) -> None:
+    log = tmp_path / "bag"
+    total = write_session(log, "db3")
+    meta = log / "metadata.yaml"
+    meta.write_text(meta.read_text().replace("message_count: 12", "message_count: 20"))
+    with LogReader(log) as reader, pytest.raises(MessageLossError, match=f"of {total + 8}"):
+        for _ in reader.messages():
+            pass
+
+
+def test_salvage_keeps_what_was_read_and_exits_4(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    log = tmp_path / "bag"
+    write_session(log, "mcap-dir")
+    meta = log / "metadata.yaml"
+    meta.write_text(meta.read_text().replace("message_count: 12", "message_count: 20"))
+    out, report = tmp_path / "o", tmp_path / "r.json"
+    code, _, err = _run(capsys, "process", log, "-o", out, "--json", report, "-q")
+    assert code == 1 and "--salvage" in err
+    assert not out.exists() and not report.exists()
+    code, _, err = _run(capsys, "process", log, "-o", out, "--json", report, "-q", "--salvage")
+    assert code == EXIT_SALVAGED
+    assert "warning:" in err and "damaged" in err
+    assert out.is_dir()
+    data = json.loads(report.read_text())
+    assert data["losses"] and data["message_count"] == 15
+
+
+def test_truncated_mcap_with_salvage_is_never_exit_0(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    log = tmp_path / "bag"
+    write_session(log, "mcap-dir")
+    storage = storage_file(log)
+    storage.write_bytes(storage.read_bytes()[: storage.stat().st_size * 9 // 10])
+    code, _, _ = _run(capsys, "process", log, "--no-output", "--salvage", "-q")
+    assert code in (1, EXIT_SALVAGED)
+
+
+def test_metadata_type_disagreeing_with_storage_is_an_error(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    log = tmp_path / "bag"
+    write_session(log, "db3")
+    meta = log / "metadata.yaml"
+    meta.write_text(
+        meta.read_text().replace("sensor_msgs/msg/LaserScan", "nav_msgs/msg/OccupancyGrid")
+    )
+    code, _, err = _run(capsys, "process", log, "--no-output", "-q")
+    assert code == 1
+    assert "metadata.yaml disagrees with the storage" in err and "/scan" in err
+
+
+def test_info_counts_an_mcap_without_statistics(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from mcap.reader import make_reader
+    from mcap.writer import Writer
+
+    source, log = tmp_path / "s.mcap", tmp_path / "in.mcap"
+    total = write_session(source, "mcap")
+    with source.open("rb") as src, log.open("wb") as dst:
+        reader = make_reader(src)
+        summary = reader.get_summary()
+        writer = Writer(dst, use_statistics=False)
+        writer.start(profile="ros2", library="test")
+        schemas = {
+            i: writer.register_schema(s.name, s.encoding, s.data)
+            for i, s in summary.schemas.items()
+        }
+        channels = {
+            i: writer.register_channel(
+                c.topic, c.message_encoding, schemas[c.schema_id], c.metadata
+            )
+            for i, c in summary.channels.items()
+        }
+        for _, channel, message in reader.iter_messages():
+            writer.add_message(
+                channels[channel.id], message.log_time, message.data, message.publish_time
+            )
+        writer.finish()
+    code, out, _ = _run(capsys, "info", log)
+    assert code == 0
+    assert f"messages     {total}" in out
+
+
+@pytest.mark.parametrize(
+    "overrides",
+    [
+        {"resolution": 0.0},
+        {"resolution": -1.0},
+        {"resolution": 3e38},
+        {"resolution": math.nan},
+        {"position": (math.nan, 0.0, 0.0)},
+        {"quaternion": (0.0, 0.0, 0.0, 0.0)},
+        {"quaternion": (math.nan, 0.0, 0.0, 1.0)},
+        {"stamp": (2**31 - 1, 1_500_000_000)},
+    ],
+    ids=["res0", "res-neg", "res-huge", "res-nan", "origin-nan", "quat0", "quat-nan", "nanosec"],
+)
+@pytest.mark.parametrize("fmt", ["mcap", "ros1"])
+def test_garbage_map_messages_are_skipped_with_a_warning(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], overrides: dict, fmt: str
+) -> None:
+    log = tmp_path / ("in.bag" if fmt == "ros1" else "in.mcap")
+    write_session(log, fmt, maps=[{}, overrides, {}])
+    report = tmp_path / "r.json"
+    code, _, err = _run(capsys, "process", log, "--no-output", "--json", report, "-q")
+    assert code == 0
+    assert "copied unprocessed" in err
+    data = json.loads(report.read_text())
+    assert data["skipped_messages"] == 1 and len(data["snapshots"]) == 2
+
+
+def test_a_fifo_is_refused_without_blocking(tmp_path: Path) -> None:
+    fifo = tmp_path / "pipe.mcap"
+    os.mkfifo(fifo)
+    errors: list[BaseException] = []
+
+    def read() -> None:
+        try:
+            LogReader(fifo)
+        except LogReadError as err:
+            errors.append(err)
+
+    thread = threading.Thread(target=read, daemon=True)
+    thread.start()
+    thread.join(timeout=10)
+    assert not thread.is_alive(), "blocked on a FIFO"
+    assert errors and "not a regular file" in str(errors[0])
+
+
+def test_json_to_stdout_moves_the_summary_to_stderr(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    log = tmp_path / "in.mcap"
+    write_session(log, "mcap")
+    code, out, err = _run(capsys, "process", log, "--no-output", "--json", "-", "-q")
+    assert code == 0
+    assert json.loads(out)["message_count"] == 15
+    assert "map topic" in err
+
+
+def test_existing_json_report_needs_force(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    log = tmp_path / "in.mcap"
+    write_session(log, "mcap")
+    report = tmp_path / "r.json"
+    report.write_text("precious")
+    code, _, err = _run(capsys, "process", log, "-o", tmp_path / "o.mcap", "--json", report, "-q")
+    assert code == 1 and "exists already" in err
+    assert report.read_text() == "precious"
+    assert not (tmp_path / "o.mcap").exists()

@@ -1,0 +1,99 @@
+"""rose.limits: safe YAML, image header sizes, --max-cells before allocating."""
+
+from __future__ import annotations
+
+import struct
+import zlib
+from pathlib import Path
+
+import pytest
+
+import rose
+from rose.limits import check_cells, image_shape, load_yaml, short
+
+
+def _bomb(levels: int = 9) -> str:
+    lines = ["a: &a [" + ",".join(["lol"] * 9) + "]"]
+    for i in range(1, levels):
+        lines.append(f"{chr(97 + i)}: &{chr(97 + i)} [" + ",".join([f"*{chr(96 + i)}"] * 9) + "]")
+    return "\n".join(lines) + "\n"
+
+
+@pytest.mark.parametrize(
+    ("text", "match"),
+    [
+        (_bomb(), "aliases"),
+        ("x: " + "[" * 2000 + "]" * 2000, "nested"),
+        ("x: " + "9" * 5000, "invalid YAML value"),
+        ("x: [unclosed", "invalid YAML"),
+        ("x: 1\n" * 300_000, "larger than"),
+    ],
+)
+def test_hostile_yaml_is_refused_without_expanding(text: str, match: str) -> None:
+    with pytest.raises(ValueError, match=match) as info:
+        load_yaml(text)
+    assert len(str(info.value)) < 200
+
+
+def test_plain_yaml_still_loads() -> None:
+    assert load_yaml("image: m.pgm\norigin: [0, 0, 0]\n") == {"image": "m.pgm", "origin": [0, 0, 0]}
+
+
+def _png(width: int, height: int) -> bytes:
+    body = b"IHDR" + struct.pack(">IIBBBBB", width, height, 8, 0, 0, 0, 0)
+    return b"\x89PNG\r\n\x1a\n" + struct.pack(">I", 13) + body + struct.pack(">I", zlib.crc32(body))
+
+
+def test_image_shape_from_headers() -> None:
+    assert image_shape(_png(300, 200)) == (200, 300)
+    assert image_shape(b"P5\n# comment\n640 480\n255\n") == (480, 640)
+    assert image_shape(b"BM" + bytes(16) + struct.pack("<ii", 7, -9)) == (9, 7)
+    assert image_shape(b"GIF89a") is None
+
+
+def test_check_cells() -> None:
+    assert check_cells(10, 10, 100) is None
+    assert check_cells(10, 10, None) is None
+    assert "exceeds the limit" in (check_cells(10, 11, 100) or "")
+
+
+@pytest.mark.parametrize("data", [_png(40_000, 40_000), b"P5\n50000 50000\n255\n" + bytes(64)])
+def test_huge_image_header_is_refused_before_decoding(tmp_path: Path, data: bytes) -> None:
+    path = tmp_path / "m.png"
+    path.write_bytes(data)
+    with pytest.raises(rose.MapFileError, match="exceeds the limit"):
+        rose.load_map(path)
+
+
+def test_max_cells_is_checked_on_map_files(tmp_path: Path) -> None:
+    import cv2
+    import numpy as np
+
+    cv2.imwrite(str(tmp_path / "m.png"), np.full((20, 30), 254, np.uint8))
+    assert rose.load_map(tmp_path / "m.png", max_cells=600).grid.shape == (20, 30)
+    with pytest.raises(rose.MapFileError, match="600 cells exceeds the limit of 599"):
+        rose.load_map(tmp_path / "m.png", max_cells=599)
+
+
+def test_map_yaml_alias_bomb_is_refused(tmp_path: Path) -> None:
+    path = tmp_path / "m.yaml"
+    path.write_text(_bomb() + "image: m.pgm\nresolution: 0.05\norigin: [0, 0, 0]\n")
+    with pytest.raises(rose.MapFileError, match="aliases"):
+        rose.load_map(path)
+
+
+@pytest.mark.parametrize("origin", ["[.nan, 0, 0]", "[0, 0, .inf]", "[1e400, 0, 0]"])
+def test_non_finite_origin_is_refused(tmp_path: Path, origin: str) -> None:
+    import cv2
+    import numpy as np
+
+    cv2.imwrite(str(tmp_path / "m.pgm"), np.full((3, 3), 254, np.uint8))
+    path = tmp_path / "m.yaml"
+    path.write_text(f"image: m.pgm\nresolution: 0.05\norigin: {origin}\n")
+    with pytest.raises(rose.MapFileError, match="origin"):
+        rose.load_map(path)
+
+
+def test_short_cuts_long_messages() -> None:
+    assert short("a\nb") == "a b"
+    assert len(short("x" * 10_000)) == 300

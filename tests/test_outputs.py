@@ -1,0 +1,229 @@
+"""rose.outputs: output checks, staging, commit all-or-none, streams, stale temporaries, strict JSON."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rose.errors import OutputError
+from rose.outputs import (
+    OutputSet,
+    Terminated,
+    json_text,
+    remove_stale_temporaries,
+    temporary_name,
+)
+
+
+def _leftovers(folder: Path) -> list[str]:
+    return sorted(p.name for p in folder.iterdir() if ".rose-" in p.name)
+
+
+def test_json_is_strict_with_non_finite_as_null() -> None:
+    payload = {"a": math.inf, "b": [-math.inf, math.nan, 1.5], "c": np.float32(np.nan), "d": (1, 2)}
+    text = json_text(payload)
+    assert json.loads(text, parse_constant=lambda c: pytest.fail(c)) == {
+        "a": None,
+        "b": [None, None, 1.5],
+        "c": None,
+        "d": [1, 2],
+    }
+
+
+def test_outputs_are_committed_together(tmp_path: Path) -> None:
+    with OutputSet() as outputs:
+        outputs.write_bytes(tmp_path / "a.json", b"a")
+        outputs.write_bytes(tmp_path / "b.json", b"b")
+        assert not (tmp_path / "a.json").exists()
+    assert (tmp_path / "a.json").read_bytes() == b"a"
+    assert (tmp_path / "b.json").read_bytes() == b"b"
+    assert _leftovers(tmp_path) == []
+
+
+def test_a_failure_commits_nothing(tmp_path: Path) -> None:
+    (tmp_path / "b.json").write_bytes(b"old")
+    with pytest.raises(RuntimeError), OutputSet(force=True) as outputs:
+        outputs.write_bytes(tmp_path / "a.json", b"a")
+        outputs.write_bytes(tmp_path / "b.json", b"b")
+        raise RuntimeError
+    assert not (tmp_path / "a.json").exists()
+    assert (tmp_path / "b.json").read_bytes() == b"old"
+    assert _leftovers(tmp_path) == []
+
+
+def test_a_failing_rename_restores_what_was_replaced(tmp_path: Path) -> None:
+    (tmp_path / "a.json").write_bytes(b"old a")
+    outputs = OutputSet(force=True)
+    outputs.write_bytes(tmp_path / "a.json", b"new a")
+    staged_b = outputs.write_bytes(tmp_path / "b.json", b"new b")
+    staged_b.temp.unlink()  # the second output vanished: commit must undo the first
+    with pytest.raises(OutputError, match="not written"):
+        outputs.commit()
+    assert (tmp_path / "a.json").read_bytes() == b"old a"
+    assert not (tmp_path / "b.json").exists()
+    assert _leftovers(tmp_path) == []
+
+
+@pytest.mark.parametrize("relation", ["same", "inside", "contains", "symlink", "hardlink"])
+def test_an_output_never_touches_an_input(tmp_path: Path, relation: str) -> None:
+    bag = tmp_path / "bag"
+    bag.mkdir()
+    (bag / "metadata.yaml").write_text("x")
+    source = tmp_path / "in.mcap"
+    source.write_bytes(b"input")
+    target = {
+        "same": source,
+        "inside": bag / "out.mcap",
+        "contains": tmp_path,
+        "symlink": tmp_path / "link.mcap",
+        "hardlink": tmp_path / "hard.mcap",
+    }[relation]
+    if relation == "symlink":
+        target.symlink_to(source)
+    if relation == "hardlink":
+        os.link(source, target)
+    with pytest.raises(OutputError, match="refusing to write over the input"):
+        OutputSet(inputs=[source, bag], force=True).stage(target, directory=relation == "contains")
+    assert source.read_bytes() == b"input"
+
+
+def test_one_path_for_two_outputs_is_refused(tmp_path: Path) -> None:
+    outputs = OutputSet()
+    with pytest.raises(OutputError, match="used for two outputs"):
+        outputs.check(tmp_path / "x", tmp_path / "." / "x")
+    outputs.stage(tmp_path / "x")
+    with pytest.raises(OutputError, match="used for two outputs"):
+        outputs.stage(tmp_path / "x")
+    outputs.abort()
+
+
+def test_existing_output_needs_force(tmp_path: Path) -> None:
+    (tmp_path / "r.json").write_text("keep")
+    with pytest.raises(OutputError, match="exists already"):
+        OutputSet().check(tmp_path / "r.json")
+    with OutputSet(force=True) as outputs:
+        outputs.write_bytes(tmp_path / "r.json", b"new")
+    assert (tmp_path / "r.json").read_bytes() == b"new"
+
+
+def test_force_replaces_only_bag_folders(tmp_path: Path) -> None:
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    (photos / "a.jpg").write_bytes(b"jpg")
+    with pytest.raises(OutputError, match="not a ROS 2 bag"):
+        OutputSet(force=True).stage(photos, directory=True)
+    with pytest.raises(OutputError, match="is a directory"):
+        OutputSet(force=True).stage(photos)
+    assert (photos / "a.jpg").read_bytes() == b"jpg"
+    bag = tmp_path / "bag"
+    bag.mkdir()
+    (bag / "metadata.yaml").write_text("old")
+    with OutputSet(force=True) as outputs:
+        staged = outputs.stage(bag, directory=True)
+        staged.temp.mkdir()
+        (staged.temp / "metadata.yaml").write_text("new")
+    assert (bag / "metadata.yaml").read_text() == "new"
+    assert _leftovers(tmp_path) == []
+
+
+def test_symlink_to_a_file_is_followed_and_kept(tmp_path: Path) -> None:
+    real = tmp_path / "real.json"
+    real.write_text("old")
+    link = tmp_path / "link.json"
+    link.symlink_to(real)
+    with OutputSet(force=True) as outputs:
+        outputs.write_bytes(link, b"new")
+    assert link.is_symlink()
+    assert real.read_text() == "new"
+
+
+def test_devices_are_streamed_not_replaced(tmp_path: Path) -> None:
+    with OutputSet(force=False) as outputs:
+        staged = outputs.write_bytes(Path("/dev/null"), b"x")
+        assert staged.stream
+    assert Path("/dev/null").is_char_device()
+
+
+def test_dash_and_dev_stdout_stream_to_stdout(tmp_path: Path) -> None:
+    code = (
+        "import sys; from pathlib import Path; from rose.outputs import OutputSet\n"
+        "with OutputSet() as o:\n"
+        "    o.write_bytes(Path(sys.argv[1]), b'{}')\n"
+    )
+    for target in ("-", "/dev/stdout"):
+        done = subprocess.run(
+            [sys.executable, "-c", code, target],
+            capture_output=True,
+            check=True,
+            env=dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[1])),
+        )
+        assert done.stdout == b"{}"
+    assert Path("/dev/stdout").is_symlink()
+
+
+def test_stale_temporaries_of_dead_processes_are_removed(tmp_path: Path) -> None:
+    dead = tmp_path / ".o.mcap.rose-tmp-999999999-0badc0de"
+    dead.mkdir()
+    (dead / "o.mcap").write_bytes(b"half")
+    alive = tmp_path / temporary_name("o.mcap")  # ours: this process is alive
+    alive.mkdir()
+    unrelated = tmp_path / ".o.mcap.tmp"
+    unrelated.write_bytes(b"not ours")
+    assert remove_stale_temporaries(tmp_path) == [dead]
+    assert alive.exists() and unrelated.exists()
+
+
+def test_temporary_names_are_unique() -> None:
+    names = {temporary_name("o.rrd") for _ in range(100)}
+    assert len(names) == 100
+    assert all(n.startswith(f".o.rrd.rose-tmp-{os.getpid()}-") for n in names)
+
+
+def test_without_force_of_two_commits_one_wins(tmp_path: Path) -> None:
+    first, second = OutputSet(), OutputSet()
+    first.write_bytes(tmp_path / "o.json", b"first")
+    second.write_bytes(tmp_path / "o.json", b"second")
+    first.commit()
+    with pytest.raises(OutputError, match="appeared while writing"):
+        second.commit()
+    assert (tmp_path / "o.json").read_bytes() == b"first"
+    assert _leftovers(tmp_path) == []
+
+
+def test_sigterm_removes_temporaries(tmp_path: Path) -> None:
+    code = (
+        "import sys, time; from pathlib import Path\n"
+        "from rose.outputs import OutputSet, install_signal_handlers\n"
+        "install_signal_handlers()\n"
+        "try:\n"
+        "    with OutputSet() as o:\n"
+        "        o.write_bytes(Path(sys.argv[1]), b'x')\n"
+        "        print('staged', flush=True)\n"
+        "        time.sleep(30)\n"
+        "except KeyboardInterrupt as err:\n"
+        "    sys.exit(err.exit_code)\n"
+    )
+    proc = subprocess.Popen(
+        [sys.executable, "-c", code, str(tmp_path / "o.json")],
+        stdout=subprocess.PIPE,
+        env=dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[1])),
+    )
+    assert proc.stdout is not None
+    assert proc.stdout.readline() == b"staged\n"
+    assert _leftovers(tmp_path)
+    proc.send_signal(signal.SIGTERM)
+    assert proc.wait(timeout=30) == 128 + signal.SIGTERM
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_terminated_is_a_keyboard_interrupt() -> None:
+    assert isinstance(Terminated(signal.SIGHUP), KeyboardInterrupt)
+    assert Terminated(signal.SIGHUP).exit_code == 129
