@@ -43,7 +43,7 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from types import FrameType, TracebackType
-from typing import Any, Self
+from typing import Any, NoReturn, Self
 
 from rose.errors import OutputError
 
@@ -52,6 +52,7 @@ __all__ = [
     "OutputSet",
     "StagedOutput",
     "Terminated",
+    "exit_after",
     "install_signal_handlers",
     "json_safe",
     "json_text",
@@ -113,6 +114,20 @@ class Terminated(KeyboardInterrupt):
 
 def _raise_terminated(signum: int, _frame: FrameType | None) -> None:
     raise Terminated(signum)
+
+
+def exit_after(code: int) -> NoReturn:
+    """Exit a console script with ``code`` once its work is done and its outputs are committed.
+
+    A SIGTERM / SIGHUP arriving from now on (during interpreter shutdown Python restores the default
+    handlers) would turn a finished run into a killed one (exit -15): ignore them.
+    """
+    for name in ("SIGTERM", "SIGHUP"):
+        signum = getattr(signal, name, None)
+        if signum is not None:
+            with contextlib.suppress(ValueError):
+                signal.signal(signum, signal.SIG_IGN)
+    sys.exit(code)
 
 
 def install_signal_handlers() -> None:

@@ -25,6 +25,7 @@ __all__ = [
     "error_text",
     "fraction",
     "input_name",
+    "console",
     "main",
     "non_negative_float",
     "params_from_args",
@@ -112,3 +113,10 @@ def error_text(err: BaseException, *, where: str | None = None) -> str:
     if isinstance(err, RecursionError):
         return short(f"{prefix}input nested too deeply")
     return short(err)
+
+
+def console() -> None:
+    """The console script: :func:`main`, then exit with its code (late signals ignored)."""
+    from rose.outputs import exit_after
+
+    exit_after(main())

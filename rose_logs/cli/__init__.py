@@ -16,7 +16,7 @@ from rose.errors import RoseError
 from rose.outputs import Terminated, install_signal_handlers
 from rose_logs.errors import LogError
 
-__all__ = ["EXIT_GATE", "EXIT_SALVAGED", "build_parser", "main"]
+__all__ = ["EXIT_GATE", "EXIT_SALVAGED", "build_parser", "console", "main"]
 
 EXIT_GATE = 3
 """Exit code of a failed quality gate (``--fail-above``)."""
@@ -95,3 +95,10 @@ def __getattr__(name: str) -> Any:
         return getattr(options, name)
     msg = f"module 'rose_logs.cli' has no attribute {name!r}"
     raise AttributeError(msg)
+
+
+def console() -> None:
+    """The console script: :func:`main`, then exit with its code (late signals ignored)."""
+    from rose.outputs import exit_after
+
+    exit_after(main())

@@ -37,6 +37,8 @@ _LOG = logging.getLogger(__name__)
 
 APPLICATION_ID = "rose_bag"
 _QUEUE_DEPTH = 2
+_FLUSH_STEP_S = 20.0
+"""Longest wait for one flush of the recording, seconds (see :meth:`RerunSink._flush`)."""
 _IDENTITY_BYTES = 1 << 20
 
 
@@ -179,6 +181,7 @@ class RerunSink:
         }
         self._latest: dict[str, MapSnapshot] = {}
         self._closing = False
+        self._flush_failed = False
         self._has_events: dict[str, bool] = dict.fromkeys(topics, False)
         self._sent_key: tuple[tuple[str, bool, bool], ...] | None = None
         for logger in self.loggers.values():
@@ -315,13 +318,39 @@ class RerunSink:
             self._thread.join()
             self._queue = None
 
+    def _flush(self) -> None:
+        """Flush in bounded steps while the file grows; RuntimeError when writing stalls.
+
+        Rerun's unbounded flush waits forever once its file writer has died (a full disk), so every
+        wait has a timeout and a wait without progress is an error.
+        """
+        self._flush_failed = True
+        last_size = -1
+        while True:
+            try:
+                self.recording.flush(timeout_sec=_FLUSH_STEP_S)
+            except RuntimeError:
+                size = self._file_size()
+                if size <= last_size:
+                    raise
+                last_size = size
+                continue
+            self._flush_failed = False
+            return
+
+    def _file_size(self) -> int:
+        try:
+            return 0 if self.tmp is None else self.tmp.stat().st_size
+        except OSError:
+            return 0
+
     def close(self) -> None:
         """Finish logging, send the final layout, flush, and move the ``.rrd`` into place."""
         self._drain()
         self._check()
         self._closing = True  # the final layout frames the final map
         self._send_blueprint()
-        self.recording.flush()
+        self._flush()
         self.recording.disconnect()
         if self.tmp is not None and self.rrd_path is not None:
             self.tmp.replace(self.rrd_path)
@@ -331,7 +360,10 @@ class RerunSink:
         try:
             self._error = None
             self._drain()
-            self.recording.disconnect()
+            if (
+                not self._flush_failed
+            ):  # after a stalled flush (full disk) disconnect would hang too
+                self.recording.disconnect()
         finally:
             if self.tmp is not None:
                 self.tmp.unlink(missing_ok=True)
