@@ -21,11 +21,11 @@ from rose.outputs import Terminated, install_signal_handlers
 __all__ = [
     "add_param_arguments",
     "build_parser",
+    "console",
     "directions_deg",
     "error_text",
     "fraction",
     "input_name",
-    "console",
     "main",
     "non_negative_float",
     "params_from_args",
