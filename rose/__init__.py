@@ -11,25 +11,15 @@ stays light.
 from __future__ import annotations
 
 import importlib
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-if TYPE_CHECKING:
-    from rose.clean import CleanParams, CleanResult, clean
-    from rose.directions import FAILURE_LEVEL, TRUST_LEVEL
-    from rose.errors import MapFileError, RoseError
-    from rose.mapfile import OccupancyMap, load_map, save_map
-    from rose.params import RoseParams, make_params
-    from rose.pipeline import analyze
-    from rose.result import RoseResult
-    from rose.walls import (
-        WallError,
-        WallParams,
-        WallSegment,
-        WallSet,
-        extract_walls,
-        extract_walls_hough,
-        wall_error,
-    )
+from rose.clean import CleanParams, CleanResult, clean
+from rose.directions import FAILURE_LEVEL, TRUST_LEVEL
+from rose.errors import MapFileError, RoseError
+from rose.mapfile import OccupancyMap, load_map, save_map
+from rose.params import RoseParams, make_params
+from rose.pipeline import analyze
+from rose.result import RoseResult
 
 __all__ = [
     "FAILURE_LEVEL",
@@ -56,24 +46,8 @@ __all__ = [
 ]
 __version__ = "0.1.0"
 
-# Every public name is served lazily by __getattr__, with the module that defines it, so that
-# `import rose.limits` (or a CLI's first lines) costs no numpy / scipy import: a Ctrl-C during start-up
-# then reaches the CLI's handler instead of printing a traceback.
+# Names served lazily by __getattr__, with the module that defines them.
 _LAZY = {
-    "FAILURE_LEVEL": "rose.directions",
-    "TRUST_LEVEL": "rose.directions",
-    "MapFileError": "rose.errors",
-    "RoseError": "rose.errors",
-    "OccupancyMap": "rose.mapfile",
-    "load_map": "rose.mapfile",
-    "save_map": "rose.mapfile",
-    "RoseParams": "rose.params",
-    "make_params": "rose.params",
-    "analyze": "rose.pipeline",
-    "RoseResult": "rose.result",
-    "CleanParams": "rose.clean",
-    "CleanResult": "rose.clean",
-    "clean": "rose.clean",
     "WallError": "rose.walls",
     "WallParams": "rose.walls",
     "WallSegment": "rose.walls",
@@ -89,7 +63,3 @@ def __getattr__(name: str) -> Any:
         return getattr(importlib.import_module(_LAZY[name]), name)
     msg = f"module 'rose' has no attribute {name!r}"
     raise AttributeError(msg)
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
