@@ -48,7 +48,7 @@ def test_cleaned_topic_follows_the_method(
 def test_cli_clean_method_option(tmp_path: Path, fr079: list[npt.NDArray[np.int8]]) -> None:
     built = build_log(tmp_path / "in.mcap", "mcap-ros2", session_maps(fr079[-1:]))
     report = tmp_path / "r.json"
-    argv = ["process", str(built.path), "--no-output", "--json", str(report), "-q"]
+    argv = ["process", str(built.path), "--no-output", "--json", str(report), "-q", "--force"]
     assert main([*argv, "--clean-method", "paper"]) == 0
     assert json.loads(report.read_text())["snapshots"][0]["rescued"] == 0
     assert main(argv) == 0
