@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import os
 import sys
 from typing import Any
 
@@ -68,6 +69,9 @@ def main(argv: list[str] | None = None) -> int:
     4 ``--salvage`` with messages lost, 130 / 143 / 129 interrupted by SIGINT / SIGTERM / SIGHUP.
     """
     install_signal_handlers()
+    # Rerun's native logger prints multi-line ERROR records to stderr (e.g. a failed flush on a full
+    # disk) that our one-line errors already report: keep it quiet unless the user set RUST_LOG.
+    os.environ.setdefault("RUST_LOG", "off")
     try:
         parser = build_parser()
         args = parser.parse_args(argv)
