@@ -32,6 +32,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 from collections.abc import Callable, Sequence
@@ -1351,7 +1352,9 @@ def summary(results: Sequence[Result]) -> str:
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("root", type=Path, nargs="?", default=Path("/tmp/rose-hostile-corpus"))
+    parser.add_argument(
+        "root", type=Path, nargs="?", default=Path(tempfile.gettempdir()) / "rose-hostile-corpus"
+    )
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("-k", default=None, help="only cases whose names contain one of A,B,...")
     parser.add_argument("--quick", action="store_true", help="the CI subset (in_quick_set)")
