@@ -17,7 +17,7 @@ import time
 from pathlib import Path
 
 import rose
-from rose.clean import clean
+from rose.cleaning import clean
 from rose_logs.datasets import require_data_dir
 from rose_logs.evaluation.cleaning import (
     CleaningCase,

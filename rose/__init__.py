@@ -11,15 +11,25 @@ stays light.
 from __future__ import annotations
 
 import importlib
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from rose.clean import CleanParams, CleanResult, clean
-from rose.directions import FAILURE_LEVEL, TRUST_LEVEL
-from rose.errors import MapFileError, RoseError
-from rose.mapfile import OccupancyMap, load_map, save_map
-from rose.params import RoseParams, make_params
-from rose.pipeline import analyze
-from rose.result import RoseResult
+if TYPE_CHECKING:
+    from rose.cleaning import CleanParams, CleanResult, clean
+    from rose.directions import FAILURE_LEVEL, TRUST_LEVEL
+    from rose.errors import MapFileError, RoseError
+    from rose.mapfile import OccupancyMap, load_map, save_map
+    from rose.params import RoseParams, make_params
+    from rose.pipeline import analyze
+    from rose.result import RoseResult
+    from rose.walls import (
+        WallError,
+        WallParams,
+        WallSegment,
+        WallSet,
+        extract_walls,
+        extract_walls_hough,
+        wall_error,
+    )
 
 __all__ = [
     "FAILURE_LEVEL",
@@ -46,8 +56,25 @@ __all__ = [
 ]
 __version__ = "0.1.0"
 
-# Names served lazily by __getattr__, with the module that defines them.
+# Every public name is served lazily by __getattr__, with the module that defines it, so that
+# `import rose.cli` costs no numpy / scipy import (over a second): the CLIs install their signal
+# handlers first, and a Ctrl-C during start-up reaches them instead of printing a traceback.
+# (No submodule may share a public name: importing it would replace the attribute; hence rose.cleaning.)
 _LAZY = {
+    "FAILURE_LEVEL": "rose.directions",
+    "TRUST_LEVEL": "rose.directions",
+    "MapFileError": "rose.errors",
+    "RoseError": "rose.errors",
+    "OccupancyMap": "rose.mapfile",
+    "load_map": "rose.mapfile",
+    "save_map": "rose.mapfile",
+    "RoseParams": "rose.params",
+    "make_params": "rose.params",
+    "analyze": "rose.pipeline",
+    "RoseResult": "rose.result",
+    "CleanParams": "rose.cleaning",
+    "CleanResult": "rose.cleaning",
+    "clean": "rose.cleaning",
     "WallError": "rose.walls",
     "WallParams": "rose.walls",
     "WallSegment": "rose.walls",
@@ -63,3 +90,7 @@ def __getattr__(name: str) -> Any:
         return getattr(importlib.import_module(_LAZY[name]), name)
     msg = f"module 'rose' has no attribute {name!r}"
     raise AttributeError(msg)
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

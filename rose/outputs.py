@@ -39,7 +39,7 @@ import shutil
 import signal
 import stat
 import sys
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from types import FrameType, TracebackType
@@ -54,9 +54,12 @@ __all__ = [
     "Terminated",
     "exit_after",
     "install_signal_handlers",
+    "interrupt_behind",
     "json_safe",
     "json_text",
     "remove_stale_temporaries",
+    "report_interrupt",
+    "signals_deferred",
     "temporary_name",
 ]
 
@@ -138,6 +141,54 @@ def install_signal_handlers() -> None:
             continue
         with contextlib.suppress(ValueError):  # not the main thread
             signal.signal(signum, _raise_terminated)
+
+
+@contextlib.contextmanager
+def signals_deferred() -> Iterator[None]:
+    """Hold SIGINT / SIGTERM / SIGHUP for the block, then raise the first (KeyboardInterrupt / Terminated).
+
+    For start-up, while the CLIs import their libraries: an interrupt raised inside a C extension's
+    initialisation surfaces as ``ImportError: initialization failed``, not as the interrupt it was.
+    Outside the main thread the block runs unguarded.
+    """
+    pending: list[int] = []
+
+    def hold(signum: int, _frame: FrameType | None) -> None:
+        pending.append(signum)
+
+    previous: dict[int, Any] = {}
+    for name in ("SIGINT", "SIGTERM", "SIGHUP"):
+        signum = getattr(signal, name, None)
+        if signum is not None:
+            with contextlib.suppress(ValueError):  # not the main thread
+                previous[signum] = signal.signal(signum, hold)
+    try:
+        yield
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+    if pending:
+        if pending[0] == signal.SIGINT:
+            raise KeyboardInterrupt
+        raise Terminated(pending[0])
+
+
+def report_interrupt(err: KeyboardInterrupt) -> int:
+    """Say on stderr that the run was interrupted; return its exit code (130, or 128 + signal)."""
+    print("error: interrupted, nothing written", file=sys.stderr)
+    return err.exit_code if isinstance(err, Terminated) else 130
+
+
+def interrupt_behind(err: BaseException) -> KeyboardInterrupt | None:
+    """The interrupt that caused ``err`` (e.g. an ImportError of an interrupted import), if any."""
+    seen: set[int] = set()
+    cause: BaseException | None = err
+    while cause is not None and id(cause) not in seen:
+        if isinstance(cause, KeyboardInterrupt):
+            return cause
+        seen.add(id(cause))
+        cause = cause.__cause__ or cause.__context__
+    return None
 
 
 # -- temporary names ------------------------------------------------------------------------------------

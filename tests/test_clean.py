@@ -10,8 +10,8 @@ import numpy.typing as npt
 import pytest
 
 import rose
-from rose.clean import CleanParams, clean
-from rose.clean_rules import directional_runs, passable, wide_unknown
+from rose.cleaning import CleanParams, clean
+from rose.cleaning_rules import directional_runs, passable, wide_unknown
 from rose.errors import RoseError
 
 RES = 0.05
@@ -191,7 +191,7 @@ def test_wide_unknown_drops_narrow_shadows() -> None:
 
 
 def test_topology_guard_restores_only_pieces_that_join_regions() -> None:
-    from rose.clean_rules import topology_guard
+    from rose.cleaning_rules import topology_guard
 
     occupied = np.zeros((60, 160), dtype=bool)
     occupied[30, :] = True  # a wall from edge to edge: above and below are two regions

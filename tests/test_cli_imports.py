@@ -45,3 +45,24 @@ def test_every_subcommand_is_registered(package: str, commands: set[str]) -> Non
     parser = importlib.import_module(package).build_parser()
     (subparsers,) = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
     assert commands <= set(subparsers.choices)
+
+
+def test_cli_modules_load_no_numerics_before_main() -> None:
+    """The CLIs install their signal handlers before numpy / scipy load (over a second on a busy
+    machine), so a Ctrl-C during start-up is a clean exit 130 and not a traceback."""
+    import subprocess
+
+    code = (
+        "import sys, rose.cli, rose_logs.cli; "
+        "print(sorted(m for m in ('numpy', 'scipy', 'cv2', 'rerun') if m in sys.modules))"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert done.stdout.strip() == "[]"
+
+
+def test_public_clean_is_the_function_after_its_module_loads() -> None:
+    import rose
+    import rose.cleaning  # a submodule named like a public function would replace it
+
+    assert callable(rose.clean)
+    assert rose.clean is rose.cleaning.clean

@@ -17,6 +17,8 @@ from rose.errors import OutputError
 from rose.outputs import (
     OutputSet,
     Terminated,
+    interrupt_behind,
+    signals_deferred,
     json_text,
     remove_stale_temporaries,
     temporary_name,
@@ -227,3 +229,31 @@ def test_sigterm_removes_temporaries(tmp_path: Path) -> None:
 def test_terminated_is_a_keyboard_interrupt() -> None:
     assert isinstance(Terminated(signal.SIGHUP), KeyboardInterrupt)
     assert Terminated(signal.SIGHUP).exit_code == 129
+
+
+@pytest.mark.parametrize(
+    ("signum", "raised"), [(signal.SIGTERM, Terminated), (signal.SIGINT, KeyboardInterrupt)]
+)
+def test_deferred_signals_arrive_after_the_block(signum: int, raised: type[BaseException]) -> None:
+    """Start-up imports run to the end; the signal is raised once they are done."""
+    finished = False
+    with pytest.raises(raised):
+        with signals_deferred():
+            os.kill(os.getpid(), signum)
+            for _ in range(100):  # the handler runs between bytecodes
+                math.sqrt(2.0)
+            finished = True
+    assert finished
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_an_interrupted_import_is_recognised() -> None:
+    try:
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt:
+            raise ImportError("initialization failed") from None
+    except ImportError as err:
+        # `from None` only hides the context in tracebacks; the chain still leads to the interrupt
+        assert isinstance(interrupt_behind(err), KeyboardInterrupt)
+    assert interrupt_behind(ImportError("no module named x")) is None

@@ -16,7 +16,12 @@ from typing import Any
 
 from rose.errors import RoseError
 from rose.limits import short
-from rose.outputs import Terminated, install_signal_handlers
+from rose.outputs import (
+    install_signal_handlers,
+    interrupt_behind,
+    report_interrupt,
+    signals_deferred,
+)
 
 __all__ = [
     "add_param_arguments",
@@ -75,7 +80,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     """
     install_signal_handlers()
     try:
-        parser = build_parser()
+        with signals_deferred():  # an interrupted import would be an ImportError, not exit 130
+            parser = build_parser()
         args = parser.parse_args(argv)
         logging.basicConfig(level=logging.WARNING, format="%(levelname)s: %(message)s")
         try:
@@ -85,9 +91,13 @@ def main(argv: Sequence[str] | None = None) -> int:
                 raise
             print(f"error: {error_text(err, where=input_name(args))}", file=sys.stderr)
             return 1
+    except ImportError as err:
+        interrupt = interrupt_behind(err)  # a library loaded on demand, interrupted
+        if interrupt is None:
+            raise
+        return report_interrupt(interrupt)
     except KeyboardInterrupt as err:
-        print("error: interrupted, nothing written", file=sys.stderr)
-        return err.exit_code if isinstance(err, Terminated) else 130
+        return report_interrupt(err)
 
 
 def input_name(args: object) -> str | None:

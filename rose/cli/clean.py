@@ -9,7 +9,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from rose.clean import CLEAN_METHODS, CleanResult, clean
+from rose.cleaning import CLEAN_METHODS, CleanResult, clean
 from rose.cli.options import (
     add_limit_arguments,
     add_param_arguments,

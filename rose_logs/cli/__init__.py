@@ -14,7 +14,12 @@ from typing import Any
 
 from rose.cli import error_text, input_name
 from rose.errors import RoseError
-from rose.outputs import Terminated, install_signal_handlers
+from rose.outputs import (
+    install_signal_handlers,
+    interrupt_behind,
+    report_interrupt,
+    signals_deferred,
+)
 from rose_logs.errors import LogError
 
 __all__ = ["EXIT_GATE", "EXIT_SALVAGED", "build_parser", "console", "main"]
@@ -73,7 +78,8 @@ def main(argv: list[str] | None = None) -> int:
     # disk) that our one-line errors already report: keep it quiet unless the user set RUST_LOG.
     os.environ.setdefault("RUST_LOG", "off")
     try:
-        parser = build_parser()
+        with signals_deferred():  # an interrupted import would be an ImportError, not exit 130
+            parser = build_parser()
         args = parser.parse_args(argv)
         _configure_logging(args.debug)
         try:
@@ -87,9 +93,13 @@ def main(argv: list[str] | None = None) -> int:
                 raise
             print(f"error: {error_text(err, where=input_name(args))}", file=sys.stderr)
             return 1
+    except ImportError as err:
+        interrupt = interrupt_behind(err)  # a library loaded on demand, interrupted
+        if interrupt is None:
+            raise
+        return report_interrupt(interrupt)
     except KeyboardInterrupt as err:
-        print("error: interrupted, nothing written", file=sys.stderr)
-        return err.exit_code if isinstance(err, Terminated) else 130
+        return report_interrupt(err)
 
 
 def __getattr__(name: str) -> Any:

@@ -30,7 +30,7 @@ import numpy as np
 import numpy.typing as npt
 
 import rose
-from rose.clean import CleanMethod, clean
+from rose.cleaning import CleanMethod, clean
 from rose_logs.evaluation.gaps import robot_gaps
 from rose_logs.evaluation.maps import _grey, load_benchmark_map
 

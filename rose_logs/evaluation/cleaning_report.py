@@ -14,7 +14,7 @@ import numpy as np
 import numpy.typing as npt
 
 import rose
-from rose.clean import clean
+from rose.cleaning import clean
 from rose_logs.evaluation.cleaning import (
     CleaningCase,
     CleaningRun,

@@ -116,7 +116,7 @@ def segmentation_image(
     occupied : OccupiedCells, optional
         ``occupied_cells(result)``, when the caller has it already.
     rescued : ndarray of bool, shape (rows, cols), optional
-        Grid order: clutter cells the cleaning kept as walls (:attr:`rose.clean.CleanResult.rescued`),
+        Grid order: clutter cells the cleaning kept as walls (:attr:`rose.cleaning.CleanResult.rescued`),
         shown as ``CLASS_RESCUED``.
 
     Returns

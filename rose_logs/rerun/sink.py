@@ -10,9 +10,13 @@ and to a live viewer as soon as the first map arrives and again when the first b
 
 from __future__ import annotations
 
+import atexit
+import contextlib
 import hashlib
 import logging
+import os
 import queue
+import sys
 import threading
 import uuid
 from collections.abc import Callable, Sequence
@@ -37,9 +41,33 @@ _LOG = logging.getLogger(__name__)
 
 APPLICATION_ID = "rose_bag"
 _QUEUE_DEPTH = 2
-_FLUSH_STEP_S = 20.0
+_FLUSH_STEP_S = 5.0
 """Longest wait for one flush of the recording, seconds (see :meth:`RerunSink._flush`)."""
+_STALL_STEPS = 2
+"""Flush waits in a row without the ``.rrd`` growing after which writing counts as stalled."""
+_STALLED: list[rr.RecordingStream] = []
+"""Recordings whose file writer died (a full disk): releasing one blocks forever inside Rerun."""
 _IDENTITY_BYTES = 1 << 20
+
+
+def _keep_stalled(recording: rr.RecordingStream) -> None:
+    """Never release ``recording``, and end the process without releasing it.
+
+    Rerun 0.41 flushes a recording's sinks, without a timeout, when the last reference goes away; with
+    its file writer dead that wait never ends. So the recording stays referenced, and at exit the
+    process leaves before interpreter teardown would drop it (exit status 1: a write failed).
+    """
+    if not _STALLED:
+        atexit.register(_exit_without_release)
+    _STALLED.append(recording)
+
+
+def _exit_without_release() -> None:
+    # Registered after `import rerun`, so it runs before Rerun's own exit hooks (atexit is LIFO).
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(OSError, ValueError):
+            stream.flush()
+    os._exit(1)
 
 
 def recording_id_for(input_path: Path) -> str:
@@ -322,16 +350,17 @@ class RerunSink:
         """Flush in bounded steps while the file grows; RuntimeError when writing stalls.
 
         Rerun's unbounded flush waits forever once its file writer has died (a full disk), so every
-        wait has a timeout and a wait without progress is an error.
+        wait has a timeout and ``_STALL_STEPS`` waits in a row without the file growing are an error.
         """
         self._flush_failed = True
-        last_size = -1
+        last_size, stalled = -1, 0
         while True:
             try:
                 self.recording.flush(timeout_sec=_FLUSH_STEP_S)
             except RuntimeError:
                 size = self._file_size()
-                if size <= last_size:
+                stalled = stalled + 1 if size <= last_size else 0
+                if stalled >= _STALL_STEPS:
                     raise
                 last_size = size
                 continue
@@ -360,9 +389,9 @@ class RerunSink:
         try:
             self._error = None
             self._drain()
-            if (
-                not self._flush_failed
-            ):  # after a stalled flush (full disk) disconnect would hang too
+            if self._flush_failed:  # disconnect or release would wait forever on the dead writer
+                _keep_stalled(self.recording)
+            else:
                 self.recording.disconnect()
         finally:
             if self.tmp is not None:

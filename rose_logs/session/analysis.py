@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 import rose
-from rose.clean import CleanMethod, CleanResult, clean
+from rose.cleaning import CleanMethod, CleanResult, clean
 from rose.params import RoseParams
 from rose.result import RoseResult
 from rose.walls.segments import WallSet

@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 import rose
-from rose.clean import CleanMethod, CleanResult
+from rose.cleaning import CleanMethod, CleanResult
 from rose.directions import FAILURE_LEVEL
 from rose.limits import DEFAULT_MAX_CELLS, check_cells, short
 from rose.outputs import OutputSet
@@ -118,7 +118,7 @@ def process_log(
         Also extract wall segments (``rose.extract_walls``) per snapshot: a ``LINE_LIST`` marker in
         ``<map>/rose/walls`` and line strips in Rerun. Costs about 20-45 ms per 1000 x 1000 snapshot.
     clean_method : {"walls", "paper"}, default "walls"
-        How ``<map>/rose/cleaned`` is made (:func:`rose.clean.clean`): walls kept and no robot-sized
+        How ``<map>/rose/cleaned`` is made (:func:`rose.cleaning.clean`): walls kept and no robot-sized
         gap opened, or the paper's labelling as it is.
     on_snapshot : callable, optional
         Called with ``(snapshot, result, record)`` after each snapshot.

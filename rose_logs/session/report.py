@@ -55,7 +55,7 @@ class SnapshotRecord:
     break_region_m : tuple of float or None
         ``(x_min, y_min, x_max, y_max)`` of those erased walls, map frame, metres.
     clean_method : str
-        How ``<map>/rose/cleaned`` was made (``"walls"`` or ``"paper"``, see :func:`rose.clean.clean`).
+        How ``<map>/rose/cleaned`` was made (``"walls"`` or ``"paper"``, see :func:`rose.cleaning.clean`).
     removed_count, kept_count : int
         Occupied cells the cleaning removed / kept.
     rescued_count : int

@@ -248,7 +248,7 @@ def clean(
             params=p,
             result=result,
         )
-    from rose.clean_rules import wall_cells
+    from rose.cleaning_rules import wall_cells
 
     walls, guarded, completed = wall_cells(occupancy, result, resolution_m=resolution_m, params=p)
     kept = occupied & (walls | result.structure)

@@ -1,4 +1,4 @@
-"""The rules of the ``"walls"`` cleaning (:func:`rose.clean.clean`): runs, open unknown, topology guard.
+"""The rules of the ``"walls"`` cleaning (:func:`rose.cleaning.clean`): runs, open unknown, topology guard.
 
 Everything works on boolean masks of shape ``(rows, cols)`` in the grid's cell space (row 0 at the map
 origin); lengths are in cells here, converted from metres by the caller. OpenCV does the morphology
@@ -16,7 +16,7 @@ import numpy.typing as npt
 from rose.grid import UNKNOWN
 
 if TYPE_CHECKING:
-    from rose.clean import CleanParams
+    from rose.cleaning import CleanParams
     from rose.result import RoseResult
 
 __all__ = [
