@@ -41,12 +41,24 @@ class TopicLayout:
         segmentation view shows this region.
     has_events : bool
         Whether the topic has break events (the events view is shown only then).
+    w_top, break_top : float or None
+        Highest value the W plot / the break-score plot shows (data and guide lines): the plots get
+        headroom above it so a guide line at the top stays visible. None: fit to the data (live).
     """
 
     root: str
     bounds_m: tuple[float, float, float, float] | None = None
     bounds_px: tuple[float, float, float, float] | None = None
     has_events: bool = False
+    w_top: float | None = None
+    break_top: float | None = None
+
+
+def _value_axis(top: float | None) -> rrb.ScalarAxis | None:
+    """A y axis from 0 to ``top`` plus 15 % (None: Rerun fits the data, lines at the top edge hide)."""
+    if top is None or not math.isfinite(top) or top <= 0:
+        return None
+    return rrb.ScalarAxis(range=(0.0, 1.15 * top))
 
 
 def _grid_spacing_m(bounds_m: tuple[float, float, float, float] | None) -> float:
@@ -115,6 +127,7 @@ def _topic_container(layout: TopicLayout) -> rrb.Container:
         name=f"{root}: structure score W over session time",
         origin=f"/{paths.score}",
         plot_legend=rrb.PlotLegend(rrb.Corner2D.LeftTop),
+        axis_y=_value_axis(layout.w_top),
         # The whole session on any timeline (the default follows the time cursor).
         axis_x=rrb.TimeAxis(
             view_range=rrb.TimeRange(
@@ -126,6 +139,7 @@ def _topic_container(layout: TopicLayout) -> rrb.Container:
         name=f"{root}: break score (m of established wall erased) and threshold",
         origin=f"/{paths.break_score_view}",
         plot_legend=rrb.PlotLegend(rrb.Corner2D.LeftTop),
+        axis_y=_value_axis(layout.break_top),
         axis_x=rrb.TimeAxis(
             view_range=rrb.TimeRange(
                 start=rrb.TimeRangeBoundary.infinite(), end=rrb.TimeRangeBoundary.infinite()

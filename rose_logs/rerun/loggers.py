@@ -126,7 +126,7 @@ class TopicLogger:
                     f"trust level {self.trust_level:g}",
                     f"failure level {self.failure_level:g}",
                 ],
-                widths=[2.5, 1.5, 1.5],
+                widths=[2.5, style.GUIDE_LINE_WIDTH, style.GUIDE_LINE_WIDTH],
             ),
             static=True,
         )
@@ -147,7 +147,11 @@ class TopicLogger:
         )
         rec.log(
             paths.break_threshold,
-            rr.SeriesLines(colors=style.FAILURE_COLOR, names="break threshold (m)", widths=1.5),
+            rr.SeriesLines(
+                colors=style.FAILURE_COLOR,
+                names="break threshold (m)",
+                widths=style.GUIDE_LINE_WIDTH,
+            ),
             static=True,
         )
         self._log_amplitude_axes()

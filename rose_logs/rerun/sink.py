@@ -12,8 +12,10 @@ from __future__ import annotations
 
 import atexit
 import contextlib
+import dataclasses
 import hashlib
 import logging
+import math
 import os
 import queue
 import sys
@@ -106,6 +108,11 @@ def grpc_url(address: str) -> str:
         msg = f"viewer address must be PORT, HOST:PORT or a rerun+http:// URL, got {address!r}"
         raise ValueError(msg)
     return f"rerun+http://{text}/proxy"
+
+
+def _top(*values: float) -> float:
+    """The largest finite value of ``values`` (0.0 without any)."""
+    return max((v for v in values if math.isfinite(v)), default=0.0)
 
 
 def _layout_of(root: str, snapshot: MapSnapshot | None, *, has_events: bool) -> TopicLayout:
@@ -211,6 +218,9 @@ class RerunSink:
         self._closing = False
         self._flush_failed = False
         self._has_events: dict[str, bool] = dict.fromkeys(topics, False)
+        # Highest value each topic's W / break-score plot shows, guide lines included (final layout).
+        self._w_top: dict[str, float] = dict.fromkeys(topics, failure_level)
+        self._break_top: dict[str, float] = dict.fromkeys(topics, 0.0)
         self._sent_key: tuple[tuple[str, bool, bool], ...] | None = None
         for logger in self.loggers.values():
             logger.log_static()
@@ -272,6 +282,7 @@ class RerunSink:
         topic_logger = self.loggers[snapshot.topic]
         first = snapshot.topic not in self._latest
         self._latest[snapshot.topic] = snapshot
+        self._w_top[snapshot.topic] = _top(self._w_top[snapshot.topic], result.structure_score)
 
         def job() -> None:
             set_snapshot_time(
@@ -291,6 +302,8 @@ class RerunSink:
     ) -> None:
         """Log the break detector's verdict on ``snapshot`` (score, threshold, region)."""
         topic_logger = self.loggers[snapshot.topic]
+        top = _top(self._break_top[snapshot.topic], verdict.score_m, threshold_m)
+        self._break_top[snapshot.topic] = top
 
         def job() -> None:
             set_snapshot_time(
@@ -335,6 +348,13 @@ class RerunSink:
             )
             for topic, logger in self.loggers.items()
         )
+        if self._closing:  # the plots' value ranges are known: leave headroom above lines and data
+            layouts = tuple(
+                dataclasses.replace(
+                    layout, w_top=self._w_top[topic], break_top=self._break_top[topic] or None
+                )
+                for topic, layout in zip(self.loggers, layouts, strict=True)
+            )
         self.recording.send_blueprint(
             default_blueprint(layouts, live=self.live), make_active=True, make_default=True
         )

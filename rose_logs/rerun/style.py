@@ -24,6 +24,7 @@ __all__ = [
     "DIRECTION_COLOR",
     "DISPLAY_LEVELS",
     "FAILURE_COLOR",
+    "GUIDE_LINE_WIDTH",
     "PEAK_COLOR",
     "SCORE_DISPLAY_MIN",
     "SPECTRUM_DISPLAY_PX",
@@ -60,6 +61,8 @@ BREAK_SCORE_COLOR: Final = (235, 120, 0)
 BREAK_REGION_HEIGHT_M: Final = 0.03
 """The break region is drawn this far above the grid map, metres."""
 TRUST_COLOR: Final = (40, 160, 60)
+GUIDE_LINE_WIDTH: Final = 2.0
+"""Width of the level / threshold lines in the plots, points (thinner lines fade in anti-aliasing)."""
 FAILURE_COLOR: Final = (220, 40, 40)
 AXIS_COLOR: Final = (110, 110, 110)
 CURVE_COLOR: Final = (20, 90, 220)

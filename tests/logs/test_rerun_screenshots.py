@@ -79,9 +79,14 @@ def test_segmentation_shows_the_class_colours(screenshot) -> None:
 
 def test_w_plot_and_spectrum_are_drawn(screenshot) -> None:
     image, _ = screenshot
-    w_view = _region(image, (0.62, 0.98), (0.06, 0.33))
-    assert _colour_count(w_view, style.W_COLOR, tol=30) > 100
-    assert _colour_count(w_view, style.FAILURE_COLOR, tol=30) > 100  # the failure level line
+    w_view = _region(image, (0.62, 0.98), (0.06, 0.27))  # right column, top
+    assert _colour_count(w_view, style.W_COLOR, tol=30) > 300
+    # The level lines, the failure level at the top of the data range, stay visible (headroom).
+    assert _colour_count(w_view, style.TRUST_COLOR, tol=30) > 300
+    assert _colour_count(w_view, style.FAILURE_COLOR, tol=30) > 300
+    break_view = _region(image, (0.62, 0.98), (0.31, 0.44))  # below it: the break score
+    assert _colour_count(break_view, style.BREAK_SCORE_COLOR, tol=30) > 300
+    assert _colour_count(break_view, style.FAILURE_COLOR, tol=30) > 300  # its threshold
     spectrum = _region(image, (0.66, 0.94), (0.68, 0.95))
     luminance = spectrum.mean(axis=-1)
     assert np.median(luminance) < 60  # dark noise floor (inferno) ...
