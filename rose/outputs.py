@@ -39,7 +39,7 @@ import shutil
 import signal
 import stat
 import sys
-from collections.abc import Iterable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from types import FrameType, TracebackType
@@ -340,7 +340,12 @@ class OutputSet:
         """Whether an output goes to standard output (then the caller should print elsewhere)."""
         return any(o.to_stdout for o in self._outputs)
 
-    def check(self, *paths: Path | str | None, directory: bool = False) -> None:
+    def check(
+        self,
+        *paths: Path | str | None,
+        directory: bool = False,
+        replaceable: Callable[[Path], bool] | None = None,
+    ) -> None:
         """Raise :class:`OutputError` now if :meth:`stage` would refuse any of ``paths`` (None skipped).
 
         Also refuses a path named twice. Nothing is created: a command calls this before it spends
@@ -364,12 +369,18 @@ class OutputSet:
                     msg = f"{path}: a folder output cannot go to a stream or device"
                     raise OutputError(msg)
                 continue
-            self._check_existing(path, target, directory=directory)
+            self._check_existing(path, target, directory=directory, replaceable=replaceable)
             if not target.parent.is_dir():
                 msg = f"{path}: folder {target.parent} does not exist"
                 raise OutputError(msg)
 
-    def stage(self, path: Path | str, *, directory: bool = False) -> StagedOutput:
+    def stage(
+        self,
+        path: Path | str,
+        *,
+        directory: bool = False,
+        replaceable: Callable[[Path], bool] | None = None,
+    ) -> StagedOutput:
         """Check ``path`` and prepare its temporary; write the output to the returned ``temp``.
 
         Parameters
@@ -378,6 +389,9 @@ class OutputSet:
             The output name; ``-`` is standard output.
         directory : bool, default False
             The output is a folder (a ROS 2 bag): ``temp`` does not exist yet, the writer creates it.
+        replaceable : callable, optional
+            For a folder output: whether an existing folder is one this command writes and ``--force``
+            may replace (default: a ROS 2 bag folder). Other folders are never replaced.
 
         Raises
         ------
@@ -400,7 +414,7 @@ class OutputSet:
             )
             self._outputs.append(staged)
             return staged
-        self._check_existing(path, target, directory=directory)
+        self._check_existing(path, target, directory=directory, replaceable=replaceable)
         parent = target.parent
         if not parent.is_dir():
             msg = f"{path}: folder {parent} does not exist"
@@ -442,7 +456,14 @@ class OutputSet:
                 raise OutputError(msg)
         return target
 
-    def _check_existing(self, path: Path, target: Path, *, directory: bool) -> None:
+    def _check_existing(
+        self,
+        path: Path,
+        target: Path,
+        *,
+        directory: bool,
+        replaceable: Callable[[Path], bool] | None = None,
+    ) -> None:
         if not os.path.lexists(target):
             return
         if not self.force:
@@ -452,8 +473,11 @@ class OutputSet:
         if is_dir and not directory:
             msg = f"{path}: is a directory, not replacing it with a file"
             raise OutputError(msg)
-        if is_dir and not _is_bag_folder(target):
+        if is_dir and replaceable is None and not _is_bag_folder(target):
             msg = f"{path}: is a directory that is not a ROS 2 bag, not replacing it"
+            raise OutputError(msg)
+        if is_dir and replaceable is not None and not replaceable(target):
+            msg = f"{path}: is a directory this command did not write, not replacing it"
             raise OutputError(msg)
         if directory and not is_dir:
             msg = f"{path}: is a file, not replacing it with a folder"

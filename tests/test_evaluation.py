@@ -272,3 +272,33 @@ def test_evaluate_command_without_data_set_is_a_one_line_error(
         f"error: {tmp_path / 'missing'}: data-set folder ({ENV_VAR}) does not exist"
     )
     assert err.count("\n") == 1
+
+
+def test_evaluate_writes_its_folder_whole_and_replaces_only_its_own_reports(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from rose_logs.cli import main
+
+    empty = [
+        "--logs",
+        "",
+        "--maps",
+        "",
+        "--no-plots",
+    ]  # no experiments: seconds, no data set needed
+    out = tmp_path / "report"
+    assert main(["evaluate", str(out), *empty]) == 0
+    assert capsys.readouterr().out.strip() == str(out / "report.md")
+    assert (out / "report.md").is_file()
+    assert main(["evaluate", str(out), *empty]) == 1  # an existing report needs --force
+    assert "exists already" in capsys.readouterr().err
+    (out / "stale.csv").write_text("old")
+    assert main(["evaluate", str(out), *empty, "--force"]) == 0
+    assert not (out / "stale.csv").exists()  # replaced whole, not merged
+    other = tmp_path / "photos"
+    other.mkdir()
+    (other / "cat.png").write_bytes(b"x")
+    assert main(["evaluate", str(other), *empty, "--force"]) == 1  # not a report: never replaced
+    assert "did not write" in capsys.readouterr().err
+    assert [p.name for p in other.iterdir()] == ["cat.png"]
+    assert not [p for p in tmp_path.iterdir() if ".rose-tmp-" in p.name]

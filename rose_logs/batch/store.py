@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import contextlib
 import os
-import tempfile
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import fsspec
 
+from rose.outputs import temporary_name
 from rose_logs.batch.errors import BatchError
 
 __all__ = ["OutputStore", "is_local", "join_uri"]
@@ -89,14 +89,16 @@ class OutputStore:
             return target
         path = Path(target)
         path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        # Named like every temporary of ours (`rose_logs.batch` never removes others' temporaries
+        # itself: workers on other hosts may share this folder, and their PIDs mean nothing here).
+        tmp = path.with_name(temporary_name(path.name))
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
         try:
             with os.fdopen(fd, "wb") as file:
                 file.write(data)
-            Path(tmp).chmod(0o644)  # mkstemp creates 0600; outputs are ordinary files
-            Path(tmp).replace(path)
+            tmp.replace(path)
         except BaseException:
-            Path(tmp).unlink(missing_ok=True)
+            tmp.unlink(missing_ok=True)
             raise
         return target
 

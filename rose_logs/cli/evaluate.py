@@ -27,7 +27,14 @@ def _ints(value: str) -> tuple[int, ...]:
 
 
 def _configure(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("out_dir", type=Path, help="report folder (created; files overwritten)")
+    parser.add_argument(
+        "out_dir",
+        type=Path,
+        help="report folder (written whole at the end; an earlier report there is replaced with --force)",
+    )
+    parser.add_argument(
+        "-f", "--force", action="store_true", help="replace an earlier report in OUT_DIR"
+    )
     parser.add_argument(
         "--config",
         choices=("small", "full"),
@@ -91,10 +98,27 @@ def config_from_args(args: argparse.Namespace) -> EvaluationConfig:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run the evaluation the parsed arguments ask for; print the report path. Returns 0."""
-    from rose_logs.evaluation.report import run_evaluation
+    """Run the evaluation the parsed arguments ask for; print the report path. Returns 0.
+
+    The report is written in a temporary folder beside ``out_dir`` and moved into place when complete:
+    an interrupted or failed run leaves no half report, and the data set is never written to.
+    """
+    from rose.outputs import OutputSet
+    from rose_logs.evaluation.report import MARKDOWN_NAME, run_evaluation
 
     config = config_from_args(args)
-    report = run_evaluation(config, args.out_dir, progress=lambda m: print(m, file=sys.stderr))
-    print(report.markdown_path)
+    # The data set is read, never written (data_root raises DataSetError, one line, if it is absent).
+    inputs = [config.data_root] if config.logs or config.benchmark_maps else []
+    with OutputSet(inputs=inputs, force=args.force) as outputs:
+        staged = outputs.stage(args.out_dir, directory=True, replaceable=is_report_folder)
+        assert staged.temp is not None  # a folder output is never a stream
+        run_evaluation(config, staged.temp, progress=lambda m: print(m, file=sys.stderr))
+    print(args.out_dir / MARKDOWN_NAME)
     return 0
+
+
+def is_report_folder(path: Path) -> bool:
+    """Whether ``path`` holds an earlier ``evaluate`` report (``--force`` may replace only that)."""
+    from rose_logs.evaluation.report import MARKDOWN_NAME
+
+    return (path / MARKDOWN_NAME).is_file()

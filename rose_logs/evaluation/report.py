@@ -32,9 +32,12 @@ from rose_logs.evaluation.experiments import (
 from rose_logs.evaluation.figures import have_matplotlib, plot_all, render_grid
 from rose_logs.evaluation.walls import WallReport, wall_experiment
 
-__all__ = ["EvaluationReport", "run_evaluation"]
+__all__ = ["MARKDOWN_NAME", "EvaluationReport", "run_evaluation"]
 
 _LOG = logging.getLogger(__name__)
+
+MARKDOWN_NAME = "report.md"
+"""The report's markdown file in its folder (the tables and figures sit beside it)."""
 
 
 @dataclass(frozen=True)
@@ -269,10 +272,10 @@ def run_evaluation(
         wall_md=wall_report.markdown if wall_report is not None else "",
         cleaning_md=cleaning.markdown,
     )
-    md_path = out / "report.md"
+    md_path = out / MARKDOWN_NAME
     md_path.write_text(markdown + ("\n" + break_md if break_md else ""))
     files.insert(0, md_path)
-    say(f"report written to {md_path} in {run_s:.1f} s")
+    say(f"report done in {run_s:.1f} s")
     return EvaluationReport(
         out_dir=out,
         markdown_path=md_path,
