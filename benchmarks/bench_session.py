@@ -91,9 +91,8 @@ def build(
                     stamp = types["builtin_interfaces/msg/Time"](
                         sec=t // 1_000_000_000, nanosec=t % 1_000_000_000
                     )
-                    header = types["std_msgs/msg/Header"](stamp=stamp, frame_id="laser")
-                    if out.serialization == "ros1":
-                        header = types["std_msgs/msg/Header"](seq=0, stamp=stamp, frame_id="laser")
+                    ros1 = {"seq": 0} if out.serialization == "ros1" else {}
+                    header = types["std_msgs/msg/Header"](**ros1, stamp=stamp, frame_id="laser")
                     scan = types["sensor_msgs/msg/LaserScan"](
                         header=header,
                         angle_min=-np.pi,

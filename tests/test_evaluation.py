@@ -279,13 +279,8 @@ def test_evaluate_writes_its_folder_whole_and_replaces_only_its_own_reports(
 ) -> None:
     from rose_logs.cli import main
 
-    empty = [
-        "--logs",
-        "",
-        "--maps",
-        "",
-        "--no-plots",
-    ]  # no experiments: seconds, no data set needed
+    # No experiments (seconds); the committed data stand in for the data set (protected as an input).
+    empty = ["--logs", "", "--maps", "", "--no-plots", "--maps-dir", str(REPO_DATA)]
     out = tmp_path / "report"
     assert main(["evaluate", str(out), *empty]) == 0
     assert capsys.readouterr().out.strip() == str(out / "report.md")

@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
-import dataclasses
 import logging
+import time
+from concurrent.futures import Executor, Future
 from dataclasses import dataclass
 
 import numpy as np
@@ -24,17 +25,18 @@ _DECODABLE = {"ros1", "cdr"}
 
 @dataclass(frozen=True)
 class SnapshotAnalysis:
-    """What the session computes for one snapshot."""
+    """What the session computes for one snapshot (``seconds``: compute time, 0 when reused)."""
 
     result: RoseResult
     walls: WallSet | None
     reused: bool
     cleaning: CleanResult | None = None
+    seconds: float = 0.0
 
 
 class SnapshotAnalyser:
-    """rose.analyze (and optionally wall extraction) per snapshot, reusing the previous analysis of a
-    topic when its grid and placement are unchanged."""
+    """rose.analyze, the cleaning and optionally wall extraction per snapshot, run on an executor;
+    a topic's previous analysis is reused when its grid and placement are unchanged."""
 
     def __init__(
         self, params: RoseParams, *, walls: bool, clean_method: CleanMethod = "walls"
@@ -42,12 +44,23 @@ class SnapshotAnalyser:
         self.params = params
         self.walls = walls
         self.clean_method = clean_method
-        self.previous: dict[str, tuple[MapSnapshot, SnapshotAnalysis]] = {}
+        self.previous: dict[str, tuple[MapSnapshot, Future[SnapshotAnalysis]]] = {}
 
-    def __call__(self, snapshot: MapSnapshot) -> SnapshotAnalysis:
+    def submit(
+        self, snapshot: MapSnapshot, executor: Executor
+    ) -> tuple[Future[SnapshotAnalysis], bool]:
+        """Start analysing ``snapshot``; returns its future and whether it is a reused analysis (then
+        the future is the previous snapshot's: mark its result ``reused`` when taking it)."""
         prev = self.previous.get(snapshot.topic)
         if prev is not None and same_placed_grid(prev[0], snapshot):
-            return dataclasses.replace(prev[1], reused=True)
+            return prev[1], True
+        future = executor.submit(self.analyse, snapshot)
+        self.previous[snapshot.topic] = (snapshot, future)
+        return future, False
+
+    def analyse(self, snapshot: MapSnapshot) -> SnapshotAnalysis:
+        """One snapshot, from scratch. No shared state: safe to run in several threads at once."""
+        started = time.perf_counter()
         result = rose.analyze(snapshot.grid, self.params)
         walls = None
         if self.walls:
@@ -61,9 +74,8 @@ class SnapshotAnalyser:
         cleaning = clean(
             snapshot.grid, result, method=self.clean_method, resolution_m=snapshot.resolution_m
         )
-        analysis = SnapshotAnalysis(result, walls, reused=False, cleaning=cleaning)
-        self.previous[snapshot.topic] = (snapshot, analysis)
-        return analysis
+        seconds = time.perf_counter() - started
+        return SnapshotAnalysis(result, walls, reused=False, cleaning=cleaning, seconds=seconds)
 
 
 def same_placed_grid(a: MapSnapshot, b: MapSnapshot) -> bool:

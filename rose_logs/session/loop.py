@@ -21,7 +21,10 @@ import logging
 import math
 import struct
 import time
+from collections import deque
 from collections.abc import Callable, Sequence
+from concurrent.futures import Executor, Future, ThreadPoolExecutor
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -38,7 +41,7 @@ from rose_logs.derived import derived_topics, encode_cleaned, encode_score, enco
 from rose_logs.errors import LogReadError, LogWriteError, MapMessageError
 from rose_logs.formats import LogFormat, format_from_path
 from rose_logs.reader import LogReader
-from rose_logs.session.analysis import SnapshotAnalyser
+from rose_logs.session.analysis import SnapshotAnalyser, SnapshotAnalysis
 from rose_logs.session.breaks import BreakDetector, BreakParams, DetectedBreak
 from rose_logs.session.report import BreakEvent, SessionReport, SnapshotRecord
 from rose_logs.session.topics import select_topics, update_targets
@@ -50,7 +53,7 @@ from rose_logs.snapshots import (
     decode_update,
 )
 from rose_logs.storage.connections import offered_qos
-from rose_logs.storage.records import Channel
+from rose_logs.storage.records import Channel, RawMessage
 from rose_logs.storage.typesys import FLOAT32_TYPE, MAP_TYPE, MARKER_ARRAY_TYPE
 from rose_logs.writer import LogWriter
 
@@ -424,8 +427,38 @@ def _prepare_output(
     return handles, derived
 
 
+IN_FLIGHT = 2
+"""Snapshots analysed at once, in threads (NumPy's FFT and OpenCV release the GIL): with the reading,
+writing and Rerun logging beside them this keeps two cores busy; each costs one analysis of memory."""
+
+
+@dataclass(frozen=True)
+class _Copy:
+    """An input message to copy to the output log."""
+
+    handle: int
+    log_time_ns: int
+    data: bytes | memoryview
+    publish_time_ns: int
+    sequence: int
+
+
+@dataclass(frozen=True)
+class _Pending:
+    """A snapshot whose analysis runs; its outputs are written when it is at the queue's head."""
+
+    snapshot: MapSnapshot
+    from_update: bool
+    reused: bool
+    future: Future[SnapshotAnalysis]
+
+
 class _Loop:
-    """State of one pass: last full map per topic, per-topic counters, break detection."""
+    """State of one pass: last full map per topic, per-topic counters, break detection.
+
+    Messages are copied and snapshots finished strictly in log order through one queue; analyses run
+    ahead (up to :data:`IN_FLIGHT`), so the output log is byte-identical whatever the timing.
+    """
 
     def __init__(
         self,
@@ -463,6 +496,9 @@ class _Loop:
         self.records: list[SnapshotRecord] = []
         self.breaks: list[BreakEvent] = []
         self.skipped = 0
+        self.queue: deque[_Copy | _Pending] = deque()
+        self.in_flight = 0
+        self.executor: Executor | None = None
 
     def run(self, *, progress: bool) -> None:
         from tqdm import tqdm
@@ -476,29 +512,66 @@ class _Loop:
             leave=False,
         )
         pending = 0
+        pool = ThreadPoolExecutor(IN_FLIGHT, thread_name_prefix="rose-analyse")
+        self.executor = pool
         try:
-            writer, handles = self.writer, self.handles
             for message in self.reader.messages():
                 channel = message.channel
-                if writer is not None:
-                    writer.write_raw(
-                        handles[channel.id],
-                        message.log_time_ns,
-                        message.data,
-                        publish_time_ns=message.publish_time_ns,
-                        sequence=message.sequence,
-                    )
+                self._copy(message)
                 if channel.topic in self.map_topics and channel.msgtype == MAP_TYPE:
                     self._on_map(message.data, channel.topic, message.log_time_ns)
                 elif channel.topic in self.updates:
                     self._on_update(message.data, channel.topic, message.log_time_ns)
+                self._drain(IN_FLIGHT)
                 pending += 1
                 if pending >= 64:
                     bar.update(pending)
                     pending = 0
+            self._drain(0)
             bar.update(pending)
         finally:
+            pool.shutdown(wait=True, cancel_futures=True)
             bar.close()
+
+    def _copy(self, message: RawMessage) -> None:
+        """Copy ``message`` to the output log, after the results of every snapshot before it."""
+        if self.writer is None:
+            return
+        item = _Copy(
+            self.handles[message.channel.id],
+            message.log_time_ns,
+            message.data,
+            message.publish_time_ns,
+            message.sequence,
+        )
+        if self.queue:
+            # Held until the analyses before it are written: the output's order never depends on timing.
+            self.queue.append(dataclasses.replace(item, data=bytes(item.data)))
+        else:
+            self._write(item)
+
+    def _write(self, item: _Copy) -> None:
+        assert self.writer is not None
+        self.writer.write_raw(
+            item.handle,
+            item.log_time_ns,
+            item.data,
+            publish_time_ns=item.publish_time_ns,
+            sequence=item.sequence,
+        )
+
+    def _drain(self, limit: int) -> None:
+        """Write what is ready, in log order; wait for analyses while more than ``limit`` are out."""
+        while self.queue:
+            head = self.queue[0]
+            if isinstance(head, _Copy):
+                self._write(head)
+            elif self.in_flight > limit or head.future.done():
+                self.in_flight -= 1
+                self._finish(head)
+            else:
+                return
+            self.queue.popleft()
 
     def _skip(self, err: Exception, log_time_ns: int) -> None:
         self.skipped += 1
@@ -537,15 +610,24 @@ class _Loop:
         self._analyse(snapshot, from_update=True)
 
     def _analyse(self, snapshot: MapSnapshot, *, from_update: bool) -> None:
-        t0 = time.perf_counter()
+        """Start the analysis of ``snapshot``; :meth:`_finish` takes its result, in order."""
         topic = snapshot.topic
         too_large = check_cells(*snapshot.shape, self.max_cells)
         if too_large is not None:
             self._skip(MapMessageError(f"{topic}: map of {too_large}"), snapshot.log_time_ns)
             return
+        assert self.executor is not None, "snapshots are analysed inside run()"
+        future, reused = self.analyser.submit(snapshot, self.executor)
+        self.queue.append(_Pending(snapshot, from_update, reused, future))
+        self.in_flight += 1
+
+    def _finish(self, pending: _Pending) -> None:
+        """Outputs of one analysed snapshot: derived messages, break detection, Rerun, the record."""
+        t0 = time.perf_counter()
+        snapshot, from_update, reused = pending.snapshot, pending.from_update, pending.reused
+        topic = snapshot.topic
         try:
-            analysis = self.analyser(snapshot)
-            result, reused = analysis.result, analysis.reused
+            analysis = pending.future.result()
         except rose.RoseError as err:  # e.g. cell values outside -1..100
             self.skipped += 1
             _LOG.warning(
@@ -555,6 +637,8 @@ class _Loop:
                 err,
             )
             return
+        result = analysis.result
+        compute_s = 0.0 if reused else analysis.seconds
         index = self.count.get(topic, 0)
         self.count[topic] = index + 1
         score = float(result.structure_score)
@@ -611,7 +695,7 @@ class _Loop:
             threshold=float(result.threshold),
             occupied_count=result.occupied_count,
             clutter_count=result.clutter_count,
-            seconds=time.perf_counter() - t0,
+            seconds=compute_s + time.perf_counter() - t0,
             reused=reused,
             from_update=from_update,
             break_score_m=verdict.score_m,
