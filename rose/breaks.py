@@ -25,7 +25,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
-from scipy import ndimage
 
 from rose.errors import RoseError
 
@@ -121,32 +120,45 @@ def _check(
         raise RoseError(msg)
 
 
+def _dilate_square(mask: npt.NDArray[np.bool_], radius_px: int) -> npt.NDArray[np.bool_]:
+    """``mask`` grown by ``radius_px`` cells in chessboard distance (outside counts as empty)."""
+    import cv2
+
+    if radius_px <= 0:
+        return mask.copy()
+    kernel = np.ones((2 * radius_px + 1, 2 * radius_px + 1), np.uint8)
+    return cv2.dilate(
+        np.ascontiguousarray(mask).view(np.uint8),
+        kernel,
+        borderType=cv2.BORDER_CONSTANT,
+        borderValue=0,
+    ).astype(bool)
+
+
 def _long_walls(
     walls: npt.NDArray[np.bool_], min_extent_px: int, bridge_px: int
 ) -> npt.NDArray[np.bool_]:
     """Wall cells whose connected wall (gaps up to ``bridge_px`` cells bridged) spans at least
     ``min_extent_px`` cells along rows or columns."""
-    joined = walls
+    import cv2  # OpenCV's morphology and labelling: several times scipy.ndimage's speed here
+
+    joined = np.ascontiguousarray(walls).view(np.uint8)
     if bridge_px > 0:
-        joined = ndimage.binary_dilation(walls, np.ones((bridge_px + 1, bridge_px + 1), dtype=bool))
-    labels, count = ndimage.label(joined, structure=np.ones((3, 3), dtype=bool))
-    if count == 0:
-        return np.zeros_like(walls)
-    flat = labels.ravel()
-    cells = np.flatnonzero(flat)
-    order = np.argsort(flat[cells], kind="stable")
-    cells = cells[order]
-    starts = np.flatnonzero(np.diff(flat[cells], prepend=0))
-    rows, cols = np.divmod(cells, labels.shape[1])
-    extent = (
-        np.maximum(
-            np.maximum.reduceat(rows, starts) - np.minimum.reduceat(rows, starts),
-            np.maximum.reduceat(cols, starts) - np.minimum.reduceat(cols, starts),
+        # A (b+1)-square kernel anchored like scipy's binary_dilation (at size // 2, reflected).
+        size = bridge_px + 1
+        anchor = (size - 1 - size // 2, size - 1 - size // 2)
+        joined = np.asarray(
+            cv2.dilate(joined, np.ones((size, size), np.uint8), anchor=anchor), dtype=np.uint8
         )
-        + 1
+    count, labels, stats, _ = cv2.connectedComponentsWithStats(
+        joined, None, None, None, 8, cv2.CV_32S
     )
-    keep = np.zeros(count + 1, dtype=bool)
-    keep[flat[cells[starts]]] = extent >= min_extent_px
+    if count <= 1:  # label 0 is the background
+        return np.zeros_like(walls)
+    # The extent of each (bridged) wall: the longer side of its bounding box, in cells.
+    extent = np.maximum(stats[:, cv2.CC_STAT_WIDTH], stats[:, cv2.CC_STAT_HEIGHT])
+    keep = extent >= min_extent_px
+    keep[0] = False
     return walls & keep[labels]
 
 
@@ -173,11 +185,7 @@ def _erased_box(
     margin = max(tolerance_px, min_extent_px + bridge_px)
     r0, r1 = max(int(rows[0]) - margin, 0), int(rows[-1]) + margin + 1
     c0, c1 = max(int(cols[0]) - margin, 0), int(cols[-1]) + margin + 1
-    near_wall = ndimage.maximum_filter(
-        (later[r0:r1, c0:c1] >= occupied_threshold).astype(np.uint8),
-        size=2 * tolerance_px + 1,
-        mode="constant",
-    ).astype(bool)
+    near_wall = _dilate_square((later[r0:r1, c0:c1] >= occupied_threshold), tolerance_px)
     erased = candidates[r0:r1, c0:c1] & ~near_wall
     if min_extent_px > 1 and erased.any():
         erased &= _long_walls(walls[r0:r1, c0:c1], min_extent_px, bridge_px)
