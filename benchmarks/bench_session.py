@@ -10,7 +10,8 @@ their ratio. Prints numbers, asserts nothing.
 
 Usage::
 
-    python benchmarks/bench_session.py [--snapshots 720] [--size 1000] [--rrd] [--walls] [--format mcap] [--keep DIR]
+    python benchmarks/bench_session.py [--snapshots 720] [--size 1000] [--rrd] [--walls]
+        [--clean-method walls|paper] [--format mcap] [--keep DIR]
 
 With ``--rrd`` it also prints the recording's size and the Rerun loggers' own cost per snapshot.
 """
@@ -176,6 +177,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--format", default="mcap", choices=("ros1", "db3", "mcap", "mcap-dir"))
     parser.add_argument("--rrd", action="store_true", help="also save a Rerun recording")
     parser.add_argument("--walls", action="store_true", help="also extract wall segments")
+    parser.add_argument(
+        "--clean-method", choices=("walls", "paper"), default="walls", help="how maps are cleaned"
+    )
     parser.add_argument("--keep", type=Path, default=None, help="work here and keep the files")
     args = parser.parse_args(argv)
 
@@ -208,6 +212,7 @@ def main(argv: list[str] | None = None) -> int:
             force=True,
             rrd_path=work / "session.rrd" if args.rrd else None,
             walls=args.walls,
+            clean_method=args.clean_method,
         )
         process_s = time.perf_counter() - t0
         n = len(report.records)
@@ -223,7 +228,7 @@ def main(argv: list[str] | None = None) -> int:
             f"process            {process_s:.2f} s ({'with' if args.rrd else 'without'} Rerun; "
             f"{analysed} analysed, {n - analysed} reused)"
         )
-        print(f"snapshots/s        {n / process_s:.1f}")
+        print(f"snapshots/s        {n / process_s:.1f} ({args.clean_method} cleaning)")
         print(f"process / copy     {process_s / copy_s:.1f}x")
         per = sorted(r.seconds for r in report.records)
         print(

@@ -42,7 +42,7 @@ from rose_logs.errors import LogReadError, LogWriteError, MapMessageError
 from rose_logs.formats import LogFormat, format_from_path
 from rose_logs.reader import LogReader
 from rose_logs.session.analysis import SnapshotAnalyser, SnapshotAnalysis
-from rose_logs.session.breaks import BreakDetector, BreakParams, DetectedBreak
+from rose_logs.session.breaks import BreakDetector, BreakParams, BreakScore, DetectedBreak
 from rose_logs.session.report import BreakEvent, SessionReport, SnapshotRecord
 from rose_logs.session.topics import select_topics, update_targets
 from rose_logs.snapshots import (
@@ -451,6 +451,7 @@ class _Pending:
     from_update: bool
     reused: bool
     future: Future[SnapshotAnalysis]
+    verdict: Future[BreakScore | None]
 
 
 class _Loop:
@@ -499,6 +500,7 @@ class _Loop:
         self.queue: deque[_Copy | _Pending] = deque()
         self.in_flight = 0
         self.executor: Executor | None = None
+        self.detection: Executor | None = None
 
     def run(self, *, progress: bool) -> None:
         from tqdm import tqdm
@@ -513,7 +515,9 @@ class _Loop:
         )
         pending = 0
         pool = ThreadPoolExecutor(IN_FLIGHT, thread_name_prefix="rose-analyse")
-        self.executor = pool
+        # One thread, first in first out: the break detector sees the snapshots in log order.
+        detection = ThreadPoolExecutor(1, thread_name_prefix="rose-breaks")
+        self.executor, self.detection = pool, detection
         try:
             for message in self.reader.messages():
                 channel = message.channel
@@ -531,6 +535,7 @@ class _Loop:
             bar.update(pending)
         finally:
             pool.shutdown(wait=True, cancel_futures=True)
+            detection.shutdown(wait=True, cancel_futures=True)
             bar.close()
 
     def _copy(self, message: RawMessage) -> None:
@@ -616,10 +621,19 @@ class _Loop:
         if too_large is not None:
             self._skip(MapMessageError(f"{topic}: map of {too_large}"), snapshot.log_time_ns)
             return
-        assert self.executor is not None, "snapshots are analysed inside run()"
+        assert self.executor is not None and self.detection is not None, "called inside run()"
         future, reused = self.analyser.submit(snapshot, self.executor)
-        self.queue.append(_Pending(snapshot, from_update, reused, future))
+        verdict = self.detection.submit(self._detect, snapshot, future)
+        self.queue.append(_Pending(snapshot, from_update, reused, future, verdict))
         self.in_flight += 1
+
+    def _detect(
+        self, snapshot: MapSnapshot, analysis: Future[SnapshotAnalysis]
+    ) -> BreakScore | None:
+        """The break detector's verdict on an analysed snapshot (None: its analysis failed)."""
+        if analysis.exception() is not None:  # waits for the analysis
+            return None
+        return self.detector.update(snapshot)
 
     def _finish(self, pending: _Pending) -> None:
         """Outputs of one analysed snapshot: derived messages, break detection, Rerun, the record."""
@@ -661,7 +675,8 @@ class _Loop:
                 self.writer.write_raw(handle, t, data)
         broke = score > self.failure_level and not self.above.get(topic, False)
         self.above[topic] = score > self.failure_level
-        verdict = self.detector.update(snapshot)
+        verdict = pending.verdict.result()
+        assert verdict is not None  # the analysis succeeded
         threshold_m = self.detector.params.threshold_m
         if self.rerun is not None:
             rescued = analysis.cleaning.rescued if analysis.cleaning is not None else None

@@ -138,6 +138,36 @@ def test_output_is_deterministic(tmp_path: Path, kind: str, fr079) -> None:
     assert tree_bytes(first) == tree_bytes(second)
 
 
+@pytest.mark.parametrize("kind", ["ros1", "mcap-ros2"])
+def test_output_does_not_depend_on_analysis_timing(
+    tmp_path: Path, kind: str, fr079, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Analyses run ahead in threads; however long each takes, messages and results are written in
+    log order, so the output is the same bytes."""
+    import random
+    import time
+
+    from rose_logs.session.analysis import SnapshotAnalyser
+
+    grids = [*fr079, fr079[0], fr079[2]]  # five snapshots; none equal to the one before it
+    built = build_log(log_path(tmp_path, kind), kind, session_maps(grids), scans_per_map=6)
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    steady, jittered = log_path(tmp_path / "a", kind, "out"), log_path(tmp_path / "b", kind, "out")
+    process_log(built.path, output_path=steady)
+    analyse = SnapshotAnalyser.analyse
+    delays = random.Random(7)
+
+    def slow(self: SnapshotAnalyser, snapshot):  # type: ignore[no-untyped-def]
+        time.sleep(delays.choice([0.0, 0.05, 0.2]))  # later snapshots may finish first
+        return analyse(self, snapshot)
+
+    monkeypatch.setattr(SnapshotAnalyser, "analyse", slow)
+    report = process_log(built.path, output_path=jittered)
+    assert [r.index for r in report.records] == list(range(5))
+    assert tree_bytes(steady) == tree_bytes(jittered)
+
+
 @pytest.mark.parametrize(
     ("src", "fmt", "suffix"),
     [("mcap-ros2", "db3", ""), ("db3", "mcap", ".mcap"), ("ros1", "mcap", ".mcap")],
