@@ -59,6 +59,7 @@ __all__ = [
     "json_text",
     "remove_stale_temporaries",
     "report_interrupt",
+    "run_interruptible",
     "signals_deferred",
     "temporary_name",
 ]
@@ -171,6 +172,20 @@ def signals_deferred() -> Iterator[None]:
         if pending[0] == signal.SIGINT:
             raise KeyboardInterrupt
         raise Terminated(pending[0])
+
+
+def run_interruptible(body: Callable[[], int]) -> int:
+    """Run a command's ``body`` and return its exit code; an interrupt (Ctrl-C, SIGTERM, SIGHUP, or
+    an import one of them broke) ends it with one line on stderr and 130 / 128 + signal."""
+    try:
+        return body()
+    except ImportError as err:
+        interrupt = interrupt_behind(err)  # a library loaded on demand, interrupted
+        if interrupt is None:
+            raise
+        return report_interrupt(interrupt)
+    except KeyboardInterrupt as err:
+        return report_interrupt(err)
 
 
 def report_interrupt(err: KeyboardInterrupt) -> int:

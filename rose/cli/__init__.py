@@ -18,8 +18,7 @@ from rose.errors import RoseError
 from rose.limits import short
 from rose.outputs import (
     install_signal_handlers,
-    interrupt_behind,
-    report_interrupt,
+    run_interruptible,
     signals_deferred,
 )
 
@@ -79,25 +78,21 @@ def main(argv: Sequence[str] | None = None) -> int:
     error, 130 / 143 / 129 interrupted by SIGINT / SIGTERM / SIGHUP (temporary files removed).
     """
     install_signal_handlers()
+    return run_interruptible(lambda: _run(argv))
+
+
+def _run(argv: Sequence[str] | None) -> int:
+    with signals_deferred():  # an interrupted import would be an ImportError, not exit 130
+        parser = build_parser()
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.WARNING, format="%(levelname)s: %(message)s")
     try:
-        with signals_deferred():  # an interrupted import would be an ImportError, not exit 130
-            parser = build_parser()
-        args = parser.parse_args(argv)
-        logging.basicConfig(level=logging.WARNING, format="%(levelname)s: %(message)s")
-        try:
-            return int(args.func(args))
-        except (RoseError, OSError, MemoryError, RecursionError) as err:
-            if args.debug:
-                raise
-            print(f"error: {error_text(err, where=input_name(args))}", file=sys.stderr)
-            return 1
-    except ImportError as err:
-        interrupt = interrupt_behind(err)  # a library loaded on demand, interrupted
-        if interrupt is None:
+        return int(args.func(args))
+    except (RoseError, OSError, MemoryError, RecursionError) as err:
+        if args.debug:
             raise
-        return report_interrupt(interrupt)
-    except KeyboardInterrupt as err:
-        return report_interrupt(err)
+        print(f"error: {error_text(err, where=input_name(args))}", file=sys.stderr)
+        return 1
 
 
 def input_name(args: object) -> str | None:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import logging
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
@@ -280,6 +281,8 @@ def _dask_runner(client: Any, memory_limit: str | float | None) -> Runner:
     ) -> Iterator[RecordingResult]:
         from distributed import as_completed
 
+        # A worker runs one thread: the cluster, not each recording, spreads work over the cores.
+        options = dataclasses.replace(options, analysis_threads=1)
         futures = {
             client.submit(
                 _dask_task,

@@ -64,6 +64,9 @@ class RecordingOptions:
         Write each Rerun recording to ``rrd/<name>.rrd``.
     retries : int
         How many times an ``OSError`` (network, storage) is retried before the recording fails.
+    analysis_threads : int
+        Snapshots of a recording analysed at once, in threads (see ``process_log``); 1 on Dask
+        workers, which run one thread each while the cluster spreads the recordings.
     """
 
     params: RoseParams = field(default_factory=RoseParams)
@@ -73,9 +76,10 @@ class RecordingOptions:
     cleaned: bool = False
     rrd: bool = False
     retries: int = 2
+    analysis_threads: int = 2
 
     def key_fields(self) -> dict[str, Any]:
-        """Everything that changes a result (not ``retries``), JSON-ready."""
+        """Everything that changes a result (not ``retries`` or ``analysis_threads``), JSON-ready."""
         return {
             "params": asdict(self.params),
             "topics": None if self.topics is None else list(self.topics),
@@ -343,6 +347,7 @@ def _attempt(
             rrd_path=rrd,
             walls=options.walls,
             recording_id=recording_id(recording.uri),
+            analysis_threads=options.analysis_threads,
         )
         cleaned_uri = None if cleaned is None else store.put(cleaned, f"cleaned/{recording.name}")
         rrd_uri = None if rrd is None else store.put(rrd, f"rrd/{recording.name}.rrd")

@@ -16,8 +16,7 @@ from rose.cli import error_text, input_name
 from rose.errors import RoseError
 from rose.outputs import (
     install_signal_handlers,
-    interrupt_behind,
-    report_interrupt,
+    run_interruptible,
     signals_deferred,
 )
 from rose_logs.errors import LogError
@@ -77,29 +76,25 @@ def main(argv: list[str] | None = None) -> int:
     # Rerun's native logger prints multi-line ERROR records to stderr (e.g. a failed flush on a full
     # disk) that our one-line errors already report: keep it quiet unless the user set RUST_LOG.
     os.environ.setdefault("RUST_LOG", "off")
+    return run_interruptible(lambda: _run(argv))
+
+
+def _run(argv: list[str] | None) -> int:
+    with signals_deferred():  # an interrupted import would be an ImportError, not exit 130
+        parser = build_parser()
+    args = parser.parse_args(argv)
+    _configure_logging(args.debug)
     try:
-        with signals_deferred():  # an interrupted import would be an ImportError, not exit 130
-            parser = build_parser()
-        args = parser.parse_args(argv)
-        _configure_logging(args.debug)
-        try:
-            return int(args.func(args))
-        except UsageError as err:
-            parser.print_usage(sys.stderr)
-            print(f"rose-bag: error: {error_text(err)}", file=sys.stderr)
-            return 2
-        except (LogError, RoseError, OSError, MemoryError, RecursionError) as err:
-            if args.debug:
-                raise
-            print(f"error: {error_text(err, where=input_name(args))}", file=sys.stderr)
-            return 1
-    except ImportError as err:
-        interrupt = interrupt_behind(err)  # a library loaded on demand, interrupted
-        if interrupt is None:
+        return int(args.func(args))
+    except UsageError as err:
+        parser.print_usage(sys.stderr)
+        print(f"rose-bag: error: {error_text(err)}", file=sys.stderr)
+        return 2
+    except (LogError, RoseError, OSError, MemoryError, RecursionError) as err:
+        if args.debug:
             raise
-        return report_interrupt(interrupt)
-    except KeyboardInterrupt as err:
-        return report_interrupt(err)
+        print(f"error: {error_text(err, where=input_name(args))}", file=sys.stderr)
+        return 1
 
 
 def __getattr__(name: str) -> Any:

@@ -88,6 +88,7 @@ def process_log(
     outputs: OutputSet | None = None,
     salvage: bool = False,
     max_cells: int | None = DEFAULT_MAX_CELLS,
+    analysis_threads: int = 2,
 ) -> SessionReport:
     """Run ROSE over every map snapshot of a log; write the output log and Rerun recording.
 
@@ -139,6 +140,9 @@ def process_log(
         and lists the problems in :attr:`SessionReport.losses`.
     max_cells : int or None, default :data:`rose.limits.DEFAULT_MAX_CELLS`
         Larger maps are not analysed (a warning; copied through like malformed maps).
+    analysis_threads : int, default 2
+        Snapshots analysed at once, in threads, while messages are copied and results written in
+        log order (outputs do not depend on it). Each costs one analysis of memory.
 
     Returns
     -------
@@ -194,6 +198,7 @@ def process_log(
             break_params=break_params,
             outputs=outputs,
             max_cells=max_cells,
+            analysis_threads=analysis_threads,
         )
     except BaseException:
         if own_outputs:
@@ -226,6 +231,7 @@ def _run_session(
     break_params: BreakParams,
     outputs: OutputSet,
     max_cells: int | None,
+    analysis_threads: int,
 ) -> SessionReport:
     """The session proper; outputs are staged in ``outputs`` (committed by the caller)."""
     started = time.perf_counter()
@@ -265,6 +271,7 @@ def _run_session(
                 on_snapshot=on_snapshot,
                 detector=BreakDetector(break_params),
                 max_cells=max_cells,
+                in_flight=analysis_threads,
             )
             loop.run(progress=progress)
             if not loop.records:
@@ -427,11 +434,6 @@ def _prepare_output(
     return handles, derived
 
 
-IN_FLIGHT = 2
-"""Snapshots analysed at once, in threads (NumPy's FFT and OpenCV release the GIL): with the reading,
-writing and Rerun logging beside them this keeps two cores busy; each costs one analysis of memory."""
-
-
 @dataclass(frozen=True)
 class _Copy:
     """An input message to copy to the output log."""
@@ -458,7 +460,7 @@ class _Loop:
     """State of one pass: last full map per topic, per-topic counters, break detection.
 
     Messages are copied and snapshots finished strictly in log order through one queue; analyses run
-    ahead (up to :data:`IN_FLIGHT`), so the output log is byte-identical whatever the timing.
+    ahead (up to ``in_flight``, in threads: NumPy's FFT and OpenCV release the GIL), so the output log is byte-identical whatever the timing.
     """
 
     def __init__(
@@ -476,7 +478,12 @@ class _Loop:
         on_snapshot: Callable[[MapSnapshot, RoseResult, SnapshotRecord], None] | None,
         detector: BreakDetector,
         max_cells: int | None = DEFAULT_MAX_CELLS,
+        in_flight: int = 2,
     ) -> None:
+        if in_flight < 1:
+            msg = f"analysis_threads must be >= 1, got {in_flight}"
+            raise ValueError(msg)
+        self.in_flight_limit = in_flight
         self.max_cells = max_cells
         self.reader = reader
         self.detector = detector
@@ -514,7 +521,7 @@ class _Loop:
             leave=False,
         )
         pending = 0
-        pool = ThreadPoolExecutor(IN_FLIGHT, thread_name_prefix="rose-analyse")
+        pool = ThreadPoolExecutor(self.in_flight_limit, thread_name_prefix="rose-analyse")
         # One thread, first in first out: the break detector sees the snapshots in log order.
         detection = ThreadPoolExecutor(1, thread_name_prefix="rose-breaks")
         self.executor, self.detection = pool, detection
@@ -526,7 +533,7 @@ class _Loop:
                     self._on_map(message.data, channel.topic, message.log_time_ns)
                 elif channel.topic in self.updates:
                     self._on_update(message.data, channel.topic, message.log_time_ns)
-                self._drain(IN_FLIGHT)
+                self._drain(self.in_flight_limit)
                 pending += 1
                 if pending >= 64:
                     bar.update(pending)

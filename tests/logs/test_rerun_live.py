@@ -45,6 +45,7 @@ def _wait_listening(port: int, process: subprocess.Popen[bytes], timeout_s: floa
     pytest.fail(f"nothing listens on port {port} after {timeout_s} s")
 
 
+@pytest.mark.filterwarnings("ignore:RRD file has no footer")  # the receiver writes the stream form
 def test_connect_streams_every_snapshot_to_a_running_viewer(tmp_path: Path) -> None:
     port = _free_port()
     received = tmp_path / "received.rrd"
