@@ -2,7 +2,8 @@
 
 Run: python benchmarks/bench_batch.py [--recordings 40] [--keep DIR]. Builds a fleet from the bundled
 sample session (mcap files, db3 and mcap bag folders; 1 to 14 growing Freiburg 079 maps each), then
-processes it in-process (--workers 1) and on a local Dask cluster of 2 workers, and prints
+processes it in-process (--workers 1, with one and with two analysis threads) and on a local Dask
+cluster of 2 workers (one thread each), and prints
 recordings/s, snapshots/s, the speed-up, the cluster's fixed start-up (start + first task on each
 worker) and the load average (the machine may be shared).
 """
@@ -21,6 +22,7 @@ from pathlib import Path
 
 from rose_logs.batch import run_batch
 from rose_logs.batch.cluster import local_client
+from rose_logs.batch.task import RecordingOptions
 from rose_logs.batch.workerenv import MALLOC_ENV
 from rose_logs.reader import LogReader
 from rose_logs.writer import open_output
@@ -68,9 +70,12 @@ def startup_s(workers: int) -> float:
         return time.perf_counter() - start
 
 
-def measure(fleet: Path, out: Path, workers: int) -> tuple[float, int, int, float]:
+def measure(
+    fleet: Path, out: Path, workers: int, *, analysis_threads: int = 2
+) -> tuple[float, int, int, float]:
     start = time.perf_counter()
-    report = run_batch([fleet], out, workers=workers, force=True)
+    options = RecordingOptions(analysis_threads=analysis_threads)
+    report = run_batch([fleet], out, workers=workers, force=True, options=options)
     elapsed = time.perf_counter() - start
     snapshots = sum(len(r.snapshots) for r in report.results)
     errors = len(report.errors)
@@ -125,15 +130,23 @@ def main() -> None:
         print(f"fleet: {args.recordings} recordings ({', '.join(FORMATS)}), {fleet}")
         print(f"load average before: {os.getloadavg()}, {os.cpu_count()} cores")
         rows = {}
-        for workers in (1, 2):
-            elapsed, count, snapshots, task_s = measure(fleet, work / f"out{workers}", workers)
-            rows[workers] = elapsed
+        # In-process with one analysis thread is the one-core baseline; in-process by default
+        # analyses two snapshots at once; Dask workers run one thread each.
+        runs = {"1, one thread": (1, 1), "1": (1, 2), "2": (2, 1)}
+        for label, (workers, threads) in runs.items():
+            elapsed, count, snapshots, task_s = measure(
+                fleet, work / f"out{len(rows)}", workers, analysis_threads=threads
+            )
+            rows[label] = elapsed
             print(
-                f"--workers {workers}: {elapsed:6.2f} s  {count / elapsed:6.2f} recordings/s  "
+                f"--workers {label:<13} {elapsed:6.2f} s  {count / elapsed:6.2f} recordings/s  "
                 f"{snapshots / elapsed:6.1f} snapshots/s  (task CPU {task_s:.2f} s, "
                 f"{snapshots} snapshots)"
             )
-        print(f"speed-up with 2 workers: {rows[1] / rows[2]:.2f}x")
+        print(
+            f"speed-up with 2 workers: {rows['1, one thread'] / rows['2']:.2f}x over one thread, "
+            f"{rows['1'] / rows['2']:.2f}x over in-process (two analysis threads)"
+        )
         print(f"local cluster start-up (2 workers, code imported): {startup_s(2):.2f} s")
         if args.malloc:
             print("malloc settings, the same fleet in-process:")

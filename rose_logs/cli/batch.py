@@ -94,7 +94,8 @@ def add_parser(subparsers: Any) -> None:
         "--workers",
         type=_positive_int,
         default=1,
-        help="local worker processes, one thread each (default 1: in this process, no Dask)",
+        help="local worker processes, one thread each (default 1: in this process, no Dask, "
+        "two snapshots analysed at once)",
     )
     engine.add_argument("--scheduler", default=None, help="existing Dask cluster, tcp://host:port")
     engine.add_argument("--scheduler-file", default=None, help="existing Dask cluster's file")
