@@ -645,7 +645,7 @@ class _Loop:
     def _finish(self, pending: _Pending) -> None:
         """Outputs of one analysed snapshot: derived messages, break detection, Rerun, the record."""
         t0 = time.perf_counter()
-        snapshot, from_update, reused = pending.snapshot, pending.from_update, pending.reused
+        snapshot = pending.snapshot
         topic = snapshot.topic
         try:
             analysis = pending.future.result()
@@ -658,44 +658,59 @@ class _Loop:
                 err,
             )
             return
-        result = analysis.result
-        compute_s = 0.0 if reused else analysis.seconds
         index = self.count.get(topic, 0)
+        if not self._write_results(snapshot, analysis):
+            return
         self.count[topic] = index + 1
-        score = float(result.structure_score)
-        if self.writer is not None:
-            cleaned_h, score_h, walls_h = self.derived[topic]
-            t = snapshot.log_time_ns
-            ser = self.serialization
-            cleaned = analysis.cleaning.cleaned if analysis.cleaning else result.cleaned
-            try:  # encode all three first: a value that cannot be serialised skips the snapshot
-                encoded = (
-                    encode_cleaned(snapshot, cleaned, serialization=ser),
-                    encode_score(score, serialization=ser),
-                    encode_walls(snapshot, result, analysis.walls, serialization=ser),
-                )
-            except (struct.error, OverflowError, ValueError, TypeError) as err:
-                self.count[topic] = index
-                self._skip(MapMessageError(f"{topic}: cannot encode the results ({err})"), t)
-                return
-            for handle, data in zip((cleaned_h, score_h, walls_h), encoded, strict=True):
-                self.writer.write_raw(handle, t, data)
-        broke = score > self.failure_level and not self.above.get(topic, False)
-        self.above[topic] = score > self.failure_level
         verdict = pending.verdict.result()
         assert verdict is not None  # the analysis succeeded
-        threshold_m = self.detector.params.threshold_m
         if self.rerun is not None:
             rescued = analysis.cleaning.rescued if analysis.cleaning is not None else None
-            self.rerun.snapshot(snapshot, result, index, analysis.walls, rescued)
-            self.rerun.break_score(snapshot, verdict, index, threshold_m)
+            self.rerun.snapshot(snapshot, analysis.result, index, analysis.walls, rescued)
+            self.rerun.break_score(snapshot, verdict, index, self.detector.params.threshold_m)
+        self._report_breaks(snapshot, analysis.result, index, verdict)
+        compute_s = 0.0 if pending.reused else analysis.seconds
+        record = _record(snapshot, analysis, index, verdict, pending)
+        record = dataclasses.replace(record, seconds=compute_s + time.perf_counter() - t0)
+        self.records.append(record)
+        if self.on_snapshot is not None:
+            self.on_snapshot(snapshot, analysis.result, record)
+
+    def _write_results(self, snapshot: MapSnapshot, analysis: SnapshotAnalysis) -> bool:
+        """The derived messages of a snapshot into the output log; False (skipped) if one cannot be
+        encoded (all three are encoded before any is written)."""
+        if self.writer is None:
+            return True
+        result, t, ser = analysis.result, snapshot.log_time_ns, self.serialization
+        cleaned = analysis.cleaning.cleaned if analysis.cleaning else result.cleaned
+        try:
+            encoded = (
+                encode_cleaned(snapshot, cleaned, serialization=ser),
+                encode_score(float(result.structure_score), serialization=ser),
+                encode_walls(snapshot, result, analysis.walls, serialization=ser),
+            )
+        except (struct.error, OverflowError, ValueError, TypeError) as err:
+            self._skip(MapMessageError(f"{snapshot.topic}: cannot encode the results ({err})"), t)
+            return False
+        for handle, data in zip(self.derived[snapshot.topic], encoded, strict=True):
+            self.writer.write_raw(handle, t, data)
+        return True
+
+    def _report_breaks(
+        self, snapshot: MapSnapshot, result: RoseResult, index: int, verdict: BreakScore
+    ) -> None:
+        """The detector's break starts and W's crossings of the failure level: events and logs."""
+        topic, score = snapshot.topic, float(result.structure_score)
         if verdict.started:
-            event = DetectedBreak.from_score(snapshot, index, verdict, threshold_m)
+            event = DetectedBreak.from_score(
+                snapshot, index, verdict, self.detector.params.threshold_m
+            )
             self.detected.append(event)
             _LOG.info("%s", event.text)
             if self.rerun is not None:
                 self.rerun.event(snapshot, event.text, index, score)
-        if broke:
+        above = score > self.failure_level
+        if above and not self.above.get(topic, False):
             text = (
                 f"{topic}: W = {score:.3f} rose above the failure level {self.failure_level:g} "
                 f"at snapshot {index}"
@@ -703,30 +718,39 @@ class _Loop:
             self.breaks.append(BreakEvent(topic, index, snapshot.log_time_ns, score, text))
             if self.rerun is not None:
                 self.rerun.event(snapshot, text, index, score)
-        height, width = snapshot.shape
-        record = SnapshotRecord(
-            topic=topic,
-            index=index,
-            log_time_ns=snapshot.log_time_ns,
-            stamp_ns=snapshot.stamp_ns,
-            width=width,
-            height=height,
-            resolution_m=snapshot.resolution_m,
-            structure_score=score,
-            directions_deg=tuple(float(np.degrees(d)) for d in result.dominant_directions),
-            threshold=float(result.threshold),
-            occupied_count=result.occupied_count,
-            clutter_count=result.clutter_count,
-            seconds=compute_s + time.perf_counter() - t0,
-            reused=reused,
-            from_update=from_update,
-            break_score_m=verdict.score_m,
-            break_region_m=verdict.region_m,
-            **_cleaning_counts(analysis.cleaning),
-        )
-        self.records.append(record)
-        if self.on_snapshot is not None:
-            self.on_snapshot(snapshot, result, record)
+        self.above[topic] = above
+
+
+def _record(
+    snapshot: MapSnapshot,
+    analysis: SnapshotAnalysis,
+    index: int,
+    verdict: BreakScore,
+    pending: _Pending,
+) -> SnapshotRecord:
+    """The report's record of one snapshot (``seconds`` filled in by the caller)."""
+    result = analysis.result
+    height, width = snapshot.shape
+    return SnapshotRecord(
+        topic=snapshot.topic,
+        index=index,
+        log_time_ns=snapshot.log_time_ns,
+        stamp_ns=snapshot.stamp_ns,
+        width=width,
+        height=height,
+        resolution_m=snapshot.resolution_m,
+        structure_score=float(result.structure_score),
+        directions_deg=tuple(float(np.degrees(d)) for d in result.dominant_directions),
+        threshold=float(result.threshold),
+        occupied_count=result.occupied_count,
+        clutter_count=result.clutter_count,
+        seconds=0.0,
+        reused=pending.reused,
+        from_update=pending.from_update,
+        break_score_m=verdict.score_m,
+        break_region_m=verdict.region_m,
+        **_cleaning_counts(analysis.cleaning),
+    )
 
 
 def _cleaning_counts(cleaning: CleanResult | None) -> dict[str, Any]:
