@@ -8,7 +8,7 @@ import logging
 import math
 import platform
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -30,6 +30,7 @@ from rose_logs.evaluation.experiments import (
     source_maps,
 )
 from rose_logs.evaluation.figures import have_matplotlib, plot_all, render_grid
+from rose_logs.evaluation.maps import LogMap
 from rose_logs.evaluation.walls import WallReport, wall_experiment
 
 __all__ = ["MARKDOWN_NAME", "EvaluationReport", "run_evaluation"]
@@ -200,42 +201,17 @@ def run_evaluation(
     timings["experiment 2 (drift)"] = time.perf_counter() - t
     say(f"experiment 2: {len(drift_runs)} maps in {timings['experiment 2 (drift)']:.1f} s")
     exp3 = correlation(clutter_runs)
-    break_md = ""
-    if config.break_seeds > 0:
-        from rose_logs.evaluation.break_report import run_break_experiment
-
-        t = time.perf_counter()
-        section = run_break_experiment(
-            [config.logs_dir / f"{name}-corrected.log.gz" for name in config.logs],
-            out,
-            seeds=config.break_seeds,
-            workers=config.break_workers,
-            plots=config.plots and have_matplotlib(),
-        )
-        break_md = section.markdown
-        files.extend(section.files)
-        timings["experiment 4 (breaks)"] = time.perf_counter() - t
-        say(
-            f"experiment 4: {len(section.sessions)} sessions in {timings['experiment 4 (breaks)']:.1f} s"
-        )
+    break_md, break_files = _break_section(config, out, say, timings)
+    files.extend(break_files)
 
     files.append(_write_csv(out / "exp1_clutter_runs.csv", clutter_runs))
     files.append(_write_csv(out / "exp1_furniture.csv", furniture_runs))
     files.append(_write_csv(out / "exp2_drift.csv", drift_runs))
     files.append(_write_exp3_csv(out / "exp3_correlation.csv", exp3))
     files.extend(_write_map_images(out, kept_maps))
-
-    figures: list[Path] = []
     t = time.perf_counter()
-    if config.plots and have_matplotlib():
-        figures = plot_all(
-            out,
-            clutter_runs=clutter_runs,
-            drift_runs=drift_runs,
-            r_all=exp3.r_all,
-            maps={k.replace("@", " drift "): v.grid for k, v in kept_maps.items()},
-        )
-        files.extend(figures)
+    figures = _figures(config, out, clutter_runs, drift_runs, exp3, kept_maps)
+    files.extend(figures)
     timings["figures"] = time.perf_counter() - t
 
     t = time.perf_counter()
@@ -284,6 +260,50 @@ def run_evaluation(
         median_by_map=median_by_map,
         w_by_log=w_by_log,
         r_all=exp3.r_all,
+    )
+
+
+def _break_section(
+    config: EvaluationConfig, out: Path, say: Callable[[str], None], timings: dict[str, float]
+) -> tuple[str, list[Path]]:
+    """Experiment 4 (break detection on replayed sessions) when ``config.break_seeds`` asks for it:
+    its markdown and files."""
+    if config.break_seeds <= 0:
+        return "", []
+    from rose_logs.evaluation.break_report import run_break_experiment
+
+    t = time.perf_counter()
+    section = run_break_experiment(
+        [config.logs_dir / f"{name}-corrected.log.gz" for name in config.logs],
+        out,
+        seeds=config.break_seeds,
+        workers=config.break_workers,
+        plots=config.plots and have_matplotlib(),
+    )
+    timings["experiment 4 (breaks)"] = time.perf_counter() - t
+    say(
+        f"experiment 4: {len(section.sessions)} sessions in {timings['experiment 4 (breaks)']:.1f} s"
+    )
+    return section.markdown, list(section.files)
+
+
+def _figures(
+    config: EvaluationConfig,
+    out: Path,
+    clutter_runs: Sequence[ClutterRun],
+    drift_runs: Sequence[DriftRun],
+    exp3: Experiment3,
+    kept_maps: Mapping[str, LogMap],
+) -> list[Path]:
+    """The experiments' PNG figures (none without matplotlib or with ``plots`` off)."""
+    if not (config.plots and have_matplotlib()):
+        return []
+    return plot_all(
+        out,
+        clutter_runs=clutter_runs,
+        drift_runs=drift_runs,
+        r_all=exp3.r_all,
+        maps={k.replace("@", " drift "): v.grid for k, v in kept_maps.items()},
     )
 
 
