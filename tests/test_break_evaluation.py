@@ -10,9 +10,10 @@ import numpy as np
 import pytest
 from real_data import CARMEN_DIR, repo_data
 
+from rose_logs.carmen.clock import scan_clock_ns
 from rose_logs.carmen.parse import read_carmen_log
 from rose_logs.carmen.session import SessionOptions, write_carmen_session
-from rose_logs.evaluation.break_sessions import SessionSpec, scan_clock_ns, session_grids
+from rose_logs.evaluation.break_sessions import SessionSpec, session_grids
 from rose_logs.evaluation.breaks import (
     BreakCase,
     SessionScores,

@@ -128,3 +128,25 @@ def test_session_from_options(tmp_path: Path, pose_output: str, topics: list[str
     reference = OccupancyGridBuilder(options.builder_params)
     reference.integrate_scans(log.scans)
     np.testing.assert_array_equal(summary.final_grid, reference.grid())
+
+
+def test_stamps_that_do_not_resolve_the_scans_get_a_nominal_speed_clock(tmp_path: Path) -> None:
+    """A log stamped with six significant digits (CSAIL's) has one stamp for nearly every scan:
+    the session gets a clock from the robot's motion instead of a single snapshot."""
+    path = tmp_path / "coarse.log"
+    _write_log(path, SCANS)
+    lines = []
+    for line in path.read_text().splitlines():
+        parts = line.split()
+        parts[-3] = parts[-1] = "1.13486e+09"  # both stamps of every scan rounded to one value
+        lines.append(" ".join(parts))
+    path.write_text("\n".join(lines) + "\n")
+    log = read_carmen_log(path)
+    assert len(set(log.stamps_ns.tolist())) == 1
+    summary = write_carmen_session(
+        log, tmp_path / "coarse.mcap", options=SessionOptions(map_period_s=0.5)
+    )
+    assert summary.clock == "nominal-speed"
+    # The scans move 0.5 m or turn up to 3 rad: 1-6 s apart at walking pace, never the same time.
+    assert summary.end_ns - summary.start_ns > 4 * 10**9
+    assert summary.maps >= len(SCANS) - 1

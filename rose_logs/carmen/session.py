@@ -26,6 +26,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rose.outputs import OutputSet
+from rose_logs.carmen.clock import ClockName, scan_clock_ns
 from rose_logs.carmen.drift import apply_drift
 from rose_logs.carmen.parse import CarmenLog, beam_angles
 from rose_logs.carmen.raycast import BuilderParams, OccupancyGridBuilder
@@ -71,6 +72,9 @@ class SessionSummary:
         Its cell size, metres.
     skipped_lines : int
         Malformed ``FLASER`` lines the parser skipped.
+    clock : {"log", "nominal-speed"}
+        The session's clock (:mod:`rose_logs.carmen.clock`): the log's stamps, or a replacement
+        when they do not resolve the scans.
     """
 
     path: Path
@@ -83,6 +87,7 @@ class SessionSummary:
     final_origin_xy_m: tuple[float, float]
     resolution_m: float
     skipped_lines: int
+    clock: ClockName = "log"
 
 
 def _session_format(path: Path) -> SessionFormat:
@@ -215,14 +220,6 @@ def _map_msg(sink: _Sink, t_ns: int, world: str, builder: OccupancyGridBuilder) 
     )
 
 
-def _monotonic(stamps: npt.NDArray[np.int64]) -> npt.NDArray[np.int64]:
-    out = stamps.astype(np.int64).copy()
-    for i in range(1, out.size):  # a handful of fixes at most; clarity over vectorising
-        if out[i] <= out[i - 1]:
-            out[i] = out[i - 1] + 1
-    return out
-
-
 @dataclass(frozen=True)
 class SessionOptions:
     """How :func:`write_carmen_session` turns a CARMEN log into a ROS session.
@@ -325,7 +322,14 @@ def write_carmen_session(
     out = Path(path)
     options = options if options is not None else SessionOptions()
     fmt = fmt if fmt is not None else _session_format(out)
-    stamps = _monotonic(log.stamps_ns)
+    offsets, clock = scan_clock_ns(log)
+    stamps = int(log.stamps_ns[0]) + offsets
+    if clock != "log":
+        _LOG.warning(
+            "%s: the log's timestamps do not resolve its scans; using a nominal-speed clock "
+            "(see rose_logs.carmen.clock)",
+            out,
+        )
     poses = apply_drift(
         log.laser_poses,
         stamps_ns=stamps,
@@ -350,6 +354,7 @@ def write_carmen_session(
         final_origin_xy_m=builder.origin_xy_m,
         resolution_m=options.builder_params.resolution_m,
         skipped_lines=log.malformed,
+        clock=clock,
     )
 
 

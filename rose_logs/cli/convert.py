@@ -143,9 +143,10 @@ def run(args: argparse.Namespace) -> int:
                 ),
                 outputs=outputs,
             )
+    clock = "" if summary.clock == "log" else f" ({summary.clock} clock)"
     print(
         f"{summary.path}: {summary.format}, {summary.scans} scans, {summary.maps} maps, "
-        f"{(summary.end_ns - summary.start_ns) / 1e9:.1f} s"
+        f"{(summary.end_ns - summary.start_ns) / 1e9:.1f} s{clock}"
     )
     return 0
 

@@ -4,10 +4,8 @@
 does (same drift, same snapshot times, same ray casting) but keeps only the grids, so the break
 evaluation can run dozens of sessions without writing and re-reading log files.
 
-Clock: a log whose timestamps do not resolve the scans (the CSAIL log writes them with six significant
-digits, so all but one scan share a stamp) gets a replacement clock: every scan takes the time the
-robot needs to move to it at :data:`NOMINAL_SPEED_M_S` and turn at :data:`NOMINAL_TURN_RAD_S`, at
-least :data:`MIN_SCAN_PERIOD_S`. ``SessionSpec.clock`` says which clock a session used.
+Clock: :func:`rose_logs.carmen.clock.scan_clock_ns`, as in ``convert`` (a log whose stamps do not
+resolve the scans, like CSAIL's, gets a nominal-speed clock).
 """
 
 from __future__ import annotations
@@ -20,28 +18,14 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
+from rose_logs.carmen.clock import scan_clock_ns
 from rose_logs.carmen.drift import apply_drift
 from rose_logs.carmen.parse import CarmenLog, beam_angles
 from rose_logs.carmen.raycast import BuilderParams, OccupancyGridBuilder, ScanBatch
 
-__all__ = [
-    "MIN_SCAN_PERIOD_S",
-    "NOMINAL_SPEED_M_S",
-    "NOMINAL_TURN_RAD_S",
-    "SessionGrid",
-    "SessionSpec",
-    "scan_clock_ns",
-    "session_grids",
-]
+__all__ = ["SessionGrid", "SessionSpec", "session_grids"]
 
 _LOG = logging.getLogger(__name__)
-
-NOMINAL_SPEED_M_S = 0.3
-"""Robot speed of the replacement clock, metres per second."""
-NOMINAL_TURN_RAD_S = 0.5
-"""Turn rate of the replacement clock, radians per second."""
-MIN_SCAN_PERIOD_S = 0.25
-"""Shortest scan period of the replacement clock, seconds."""
 
 
 @dataclass(frozen=True)
@@ -100,29 +84,6 @@ class SessionGrid:
     origin_xy_m: tuple[float, float]
     resolution_m: float
     scans: int
-
-
-def scan_clock_ns(log: CarmenLog) -> tuple[npt.NDArray[np.int64], str]:
-    """Scan times in nanoseconds since the first scan, strictly increasing, and the clock's name.
-
-    Returns the log's own stamps (``"log"``) unless fewer than half of the scan-to-scan steps are
-    positive; then the replacement clock of the module notes (``"nominal-speed"``).
-    """
-    stamps = log.stamps_ns.astype(np.int64)
-    steps = np.diff(stamps)
-    if steps.size and np.count_nonzero(steps > 0) >= steps.size / 2:
-        out = stamps - stamps[0]
-        for i in range(1, out.size):  # a handful of backward stamps at most (Intel)
-            if out[i] <= out[i - 1]:
-                out[i] = out[i - 1] + 1
-        return out, "log"
-    poses = log.laser_poses
-    dist = np.hypot(*np.diff(poses[:, :2], axis=0).T)
-    turn = np.abs((np.diff(poses[:, 2]) + np.pi) % (2 * np.pi) - np.pi)
-    dt = np.maximum.reduce(
-        [dist / NOMINAL_SPEED_M_S, turn / NOMINAL_TURN_RAD_S, np.full(dist.size, MIN_SCAN_PERIOD_S)]
-    )
-    return np.concatenate([[0], np.cumsum(np.round(dt * 1e9).astype(np.int64))]), "nominal-speed"
 
 
 def _integrate(

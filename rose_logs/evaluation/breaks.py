@@ -35,13 +35,9 @@ import numpy.typing as npt
 import rose
 from rose.breaks import erased_walls
 from rose.params import RoseParams
+from rose_logs.carmen.clock import scan_clock_ns
 from rose_logs.carmen.parse import CarmenLog, read_carmen_log
-from rose_logs.evaluation.break_sessions import (
-    SessionGrid,
-    SessionSpec,
-    scan_clock_ns,
-    session_grids,
-)
+from rose_logs.evaluation.break_sessions import SessionGrid, SessionSpec, session_grids
 from rose_logs.session.breaks import BreakDetector, BreakParams
 from rose_logs.snapshots import MapSnapshot
 
