@@ -59,6 +59,7 @@ __all__ = [
     "json_text",
     "remove_stale_temporaries",
     "report_interrupt",
+    "reraise_interrupt_behind",
     "run_interruptible",
     "signals_deferred",
     "temporary_name",
@@ -179,8 +180,8 @@ def run_interruptible(body: Callable[[], int]) -> int:
     an import one of them broke) ends it with one line on stderr and 130 / 128 + signal."""
     try:
         return body()
-    except ImportError as err:
-        interrupt = interrupt_behind(err)  # a library loaded on demand, interrupted
+    except Exception as err:  # e.g. ImportError: a library loaded on demand, interrupted
+        interrupt = interrupt_behind(err)
         if interrupt is None:
             raise
         return report_interrupt(interrupt)
@@ -192,6 +193,14 @@ def report_interrupt(err: KeyboardInterrupt) -> int:
     """Say on stderr that the run was interrupted; return its exit code (130, or 128 + signal)."""
     print("error: interrupted, nothing written", file=sys.stderr)
     return err.exit_code if isinstance(err, Terminated) else 130
+
+
+def reraise_interrupt_behind(err: BaseException) -> None:
+    """Raise the interrupt that caused ``err``, if any: a signal that landed inside a library (an
+    import, a class being created) comes back wrapped in that library's error."""
+    interrupt = interrupt_behind(err)
+    if interrupt is not None:
+        raise interrupt
 
 
 def interrupt_behind(err: BaseException) -> KeyboardInterrupt | None:

@@ -21,6 +21,7 @@ from types import TracebackType
 from typing import Self
 
 from rose.limits import short
+from rose.outputs import reraise_interrupt_behind
 from rose_logs.errors import LogError, LogReadError
 from rose_logs.formats import LogFormat, detect_format
 from rose_logs.storage.connections import QosStyle
@@ -96,6 +97,7 @@ class LogReader:
             raise
         except Exception as err:  # library errors of every kind: wrap at the boundary
             backend.close()
+            reraise_interrupt_behind(err)
             raise _corrupt(self.path, err) from err
         self._backend = backend
 
@@ -181,6 +183,7 @@ class LogReader:
                 self.read_count += 1
                 yield message
         except (LogError, Exception) as err:
+            reraise_interrupt_behind(err)  # a signal inside the library, not a corrupt log
             error = err if isinstance(err, LogError) else _corrupt(self.path, err)
             if not self.salvage:
                 if isinstance(err, LogError):

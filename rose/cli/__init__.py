@@ -18,6 +18,7 @@ from rose.errors import RoseError
 from rose.limits import short
 from rose.outputs import (
     install_signal_handlers,
+    reraise_interrupt_behind,
     run_interruptible,
     signals_deferred,
 )
@@ -89,6 +90,7 @@ def _run(argv: Sequence[str] | None) -> int:
     try:
         return int(args.func(args))
     except (RoseError, OSError, MemoryError, RecursionError) as err:
+        reraise_interrupt_behind(err)  # a signal inside a library: exit 130 / 143, not "error"
         if args.debug:
             raise
         print(f"error: {error_text(err, where=input_name(args))}", file=sys.stderr)

@@ -16,6 +16,7 @@ from rose.cli import error_text, input_name
 from rose.errors import RoseError
 from rose.outputs import (
     install_signal_handlers,
+    reraise_interrupt_behind,
     run_interruptible,
     signals_deferred,
 )
@@ -91,6 +92,7 @@ def _run(argv: list[str] | None) -> int:
         print(f"rose-bag: error: {error_text(err)}", file=sys.stderr)
         return 2
     except (LogError, RoseError, OSError, MemoryError, RecursionError) as err:
+        reraise_interrupt_behind(err)  # a signal inside a library: exit 130 / 143, not "error"
         if args.debug:
             raise
         print(f"error: {error_text(err, where=input_name(args))}", file=sys.stderr)

@@ -223,6 +223,31 @@ def test_interrupted_run_leaves_nothing(tmp_path: Path, mcap_log: Path) -> None:
     assert _leftovers(tmp_path, {"in.mcap"}) == []
 
 
+def test_a_signal_inside_the_reading_library_is_an_interrupt_not_a_corrupt_log(
+    tmp_path: Path, mcap_log: Path, monkeypatch: pytest.MonkeyPatch, capsys
+) -> None:
+    """A SIGTERM that lands while the MCAP library creates a class comes back wrapped in its
+    RuntimeError (seen in the hostile corpus): the run must exit 143, not call the log corrupt."""
+    import signal
+
+    from rose.outputs import Terminated
+    from rose_logs.storage.mcap import McapReadBackend
+
+    def interrupted(self: object, topics: object) -> object:
+        try:
+            raise Terminated(signal.SIGTERM)
+        except Terminated as err:
+            msg = "Error calling __set_name__ on 'Field' instance 'data' in 'Chunk'"
+            raise RuntimeError(msg) from err
+        yield  # a generator, like the real one
+
+    monkeypatch.setattr(McapReadBackend, "messages", interrupted)
+    out = tmp_path / "o.mcap"
+    assert main(["process", str(mcap_log), "-o", str(out), "-q"]) == 143
+    assert "interrupted" in capsys.readouterr().err
+    assert _leftovers(tmp_path, {"in.mcap"}) == []
+
+
 def test_reader_error_names_the_file(tmp_path: Path) -> None:
     from rose_logs.reader import LogReader
 
