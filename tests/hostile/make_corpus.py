@@ -1208,6 +1208,38 @@ def _limit() -> None:
     signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
+class _PeakWatcher:
+    """Peak resident memory of a child after it executed our command (``VmHWM``, polled).
+
+    ``ru_maxrss`` would not do: a child forked from a large parent (pytest) starts with the parent's
+    pages resident, and Linux keeps that high-water mark across ``exec``.
+    """
+
+    def __init__(self, pid: int) -> None:
+        self.pid = pid
+        self.peak_bytes = 0
+        self._done = threading.Event()
+        self._thread = threading.Thread(target=self._poll, daemon=True)
+        self._thread.start()
+
+    def _poll(self) -> None:
+        proc = Path(f"/proc/{self.pid}")
+        while not self._done.is_set():
+            try:
+                if b"from rose" in (proc / "cmdline").read_bytes():  # exec done: ENTRY runs
+                    for line in (proc / "status").read_text().splitlines():
+                        if line.startswith("VmHWM:"):
+                            kib = int(line.split()[1])
+                            self.peak_bytes = max(self.peak_bytes, kib * 1024)
+            except (OSError, ValueError):  # gone, or a zombie without memory
+                pass
+            self._done.wait(0.02)
+
+    def stop(self) -> None:
+        self._done.set()
+        self._thread.join()
+
+
 def _spawn(case: Case, index: int) -> tuple[int, str, str, int, bool]:
     env = dict(os.environ, PYTHONPATH=str(REPO), PYTHONDONTWRITEBYTECODE="1")
     env.pop("PYTEST_CURRENT_TEST", None)
@@ -1224,6 +1256,7 @@ def _spawn(case: Case, index: int) -> tuple[int, str, str, int, bool]:
             preexec_fn=_limit,
         )
         timed_out = threading.Event()
+        watcher = _PeakWatcher(proc.pid)
 
         def kill() -> None:
             timed_out.set()
@@ -1240,15 +1273,16 @@ def _spawn(case: Case, index: int) -> tuple[int, str, str, int, bool]:
                 time.sleep(delay)
             with contextlib.suppress(ProcessLookupError):
                 os.kill(proc.pid, signum)
-        _pid, status, usage = os.wait4(proc.pid, 0)
+        _pid, status, _usage = os.wait4(proc.pid, 0)
         proc.returncode = os.waitstatus_to_exitcode(status)
         timer.cancel()
+        watcher.stop()
     code = proc.returncode
     stdout = out_path.read_text(errors="replace")
     stderr = err_path.read_text(errors="replace")
     out_path.unlink()
     err_path.unlink()
-    return code, stdout, stderr, int(usage.ru_maxrss) * 1024, timed_out.is_set()
+    return code, stdout, stderr, watcher.peak_bytes, timed_out.is_set()
 
 
 def _wait_for_temporaries(folder: Path, proc: subprocess.Popen[bytes]) -> None:
