@@ -292,6 +292,8 @@ def _dask_runner(client: Any, memory_limit: str | float | None) -> Runner:
                 storage_options=storage_options,
                 key=f"rose-bag-{keys[rec.uri]}",
                 pure=False,
+                # Largest first: a big recording started last would leave the other workers idle.
+                priority=rec.size,
             ): rec
             for rec in todo
         }
