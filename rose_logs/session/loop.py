@@ -460,7 +460,8 @@ class _Loop:
     """State of one pass: last full map per topic, per-topic counters, break detection.
 
     Messages are copied and snapshots finished strictly in log order through one queue; analyses run
-    ahead (up to ``in_flight``, in threads: NumPy's FFT and OpenCV release the GIL), so the output log is byte-identical whatever the timing.
+    ahead (up to ``in_flight``, in threads: NumPy's FFT and OpenCV release the GIL), so the output
+    log is byte-identical whatever the timing.
     """
 
     def __init__(
