@@ -6,13 +6,14 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
-from scipy.signal import find_peaks
 
 __all__ = [
     "FAILURE_LEVEL",
     "TRUST_LEVEL",
     "DirectionPeaks",
     "find_direction_peaks",
+    "local_maxima",
+    "peak_prominences",
     "refine_peak_positions",
     "structure_score",
 ]
@@ -56,12 +57,58 @@ def find_direction_peaks(
     if n < 3 or not np.isfinite(span) or span <= 1e-4 * level:
         return DirectionPeaks(np.empty(0, dtype=np.intp), np.empty(0))
     tripled = np.concatenate([cumulative, cumulative, cumulative])
-    peaks, properties = find_peaks(tripled, prominence=prominence_fraction * span)
-    middle = (peaks >= n) & (peaks < 2 * n)
-    indices = peaks[middle] - n
-    prominences = properties["prominences"][middle] / span
+    peaks = local_maxima(tripled)
+    peaks = peaks[(peaks >= n) & (peaks < 2 * n)]
+    prominences = peak_prominences(tripled, peaks)
+    keep = prominences >= prominence_fraction * span
+    indices = peaks[keep] - n
+    prominences = prominences[keep] / span
     order = np.argsort(-prominences, kind="stable")
     return DirectionPeaks(indices[order].astype(np.intp), prominences[order])
+
+
+def local_maxima(signal: npt.NDArray[np.float64]) -> npt.NDArray[np.intp]:
+    """Indices of the local maxima of a 1-D signal, as ``scipy.signal.find_peaks`` finds them.
+
+    A flat top counts once, at its middle (rounded down); the first and last samples are never peaks.
+    Written in numpy because importing ``scipy.signal`` costs about 1.5 s, most of every process's
+    start-up (CLI commands, batch workers); ``tests/test_directions.py`` checks it against SciPy.
+    """
+    n = signal.size
+    if n < 3:
+        return np.empty(0, dtype=np.intp)
+    # Runs of equal samples: a run is a peak when both neighbouring runs are lower.
+    starts = np.flatnonzero(np.concatenate([[True], signal[1:] != signal[:-1]]))
+    ends = np.append(starts[1:], n) - 1
+    values = signal[starts]
+    inner = np.zeros(starts.size, dtype=bool)
+    inner[1:-1] = (values[:-2] < values[1:-1]) & (values[2:] < values[1:-1])
+    return ((starts[inner] + ends[inner]) // 2).astype(np.intp)
+
+
+def peak_prominences(
+    signal: npt.NDArray[np.float64], peaks: npt.NDArray[np.intp]
+) -> npt.NDArray[np.float64]:
+    """Prominence of each peak, as ``scipy.signal.peak_prominences`` defines it (no window).
+
+    Each side's base is the lowest sample between the peak and the nearest strictly higher sample (or
+    the signal's end); the prominence is the peak's height above the higher of the two bases.
+    Vectorised over peaks x samples: the signals here have a few hundred samples.
+    """
+    if peaks.size == 0:
+        return np.empty(0)
+    position = np.arange(signal.size)
+    height = signal[peaks][:, None]
+    higher = signal[None, :] > height
+    before = position[None, :] < peaks[:, None]
+    after = position[None, :] > peaks[:, None]
+    # The nearest strictly higher sample on each side bounds the search (-1 / n when there is none).
+    left_stop = np.where(higher & before, position, -1).max(axis=1)
+    right_stop = np.where(higher & after, position, signal.size).min(axis=1)
+    window = (position[None, :] > left_stop[:, None]) & (position[None, :] < right_stop[:, None])
+    left_base = np.where(window & ~after, signal, np.inf).min(axis=1)
+    right_base = np.where(window & ~before, signal, np.inf).min(axis=1)
+    return np.asarray(height[:, 0] - np.maximum(left_base, right_base), dtype=np.float64)
 
 
 def refine_peak_positions(

@@ -75,3 +75,55 @@ def test_refined_position_across_the_wrap(centre: float) -> None:
     # A parabola through three samples of a Gaussian: within a few hundredths of a bin.
     error = (refined - centre + N / 2) % N - N / 2
     assert abs(error) < 0.05
+
+
+def _random_signals() -> list[np.ndarray]:
+    rng = np.random.default_rng(7)
+    signals = [rng.random(n) for n in (3, 4, 5, 17, 360)]
+    # Flat tops and flat valleys of every length, also touching the ends.
+    signals += [np.round(rng.random(n) * 4) for n in (3, 8, 50, 361)]
+    signals += [np.array([1.0, 1, 1]), np.array([0.0, 1, 1, 0]), np.array([2.0, 1, 2, 2, 1, 2])]
+    signals += [np.cumsum(rng.standard_normal(1080)) for _ in range(5)]
+    return signals
+
+
+@pytest.mark.parametrize("index", range(17))
+def test_peaks_and_prominences_match_scipy(index: int) -> None:
+    # Our numpy peak finder replaces scipy.signal.find_peaks (whose import costs ~1.5 s per process):
+    # it must find the same peaks, plateaus included, with the same prominences.
+    from scipy.signal import find_peaks
+    from scipy.signal import peak_prominences as scipy_prominences
+
+    from rose.directions import local_maxima, peak_prominences
+
+    signal = _random_signals()[index]
+    expected, _ = find_peaks(signal)
+    found = local_maxima(signal)
+    assert_array_equal(found, expected)
+    assert_array_equal(peak_prominences(signal, found), scipy_prominences(signal, expected)[0])
+
+
+@pytest.mark.parametrize(
+    "relative",
+    [
+        *(f"rose2_aislabunimi/Freiburg_Building_079_partial/map{i}.yaml" for i in (2, 8, 15)),
+        "bormann_ipa_room_segmentation/Freiburg52_scan_furnitures.png",
+        "aws_small_warehouse_005/map_rotated.png",
+    ],
+)
+def test_direction_peaks_match_scipy_on_real_maps(relative: str) -> None:
+    from real_data import repo_data
+    from scipy.signal import find_peaks
+
+    import rose
+
+    cumulative = rose.analyze(rose.load_map(repo_data(relative)).grid).cumulative_amplitude
+    n = cumulative.size
+    span = cumulative.max() - cumulative.min()
+    peaks, props = find_peaks(np.tile(cumulative, 3), prominence=0.1 * span)
+    middle = (peaks >= n) & (peaks < 2 * n)
+    ours = find_direction_peaks(cumulative, prominence_fraction=0.1)
+    order = np.argsort(-props["prominences"][middle], kind="stable")
+    assert ours.indices.size >= 2  # buildings: at least two directions
+    assert_array_equal(ours.indices, (peaks[middle] - n)[order])
+    assert_allclose(ours.prominences, props["prominences"][middle][order] / span, rtol=0)
