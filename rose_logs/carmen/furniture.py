@@ -156,10 +156,77 @@ def place_furniture(
     clearance_m, gap_m : float
         Distance kept from every pose / from occupied cells (free-standing objects), metres.
     """
+    res = resolution_m
+    space = _placement_space(
+        grid, origin_xy_m=origin_xy_m, res=res, poses=poses, gap_m=gap_m, clearance_m=clearance_m
+    )
+    rng = np.random.default_rng(seed)
+    directions = np.asarray(directions, dtype=np.float64)
+    if directions.size == 0:
+        directions = np.zeros(1)
+    rects: list[list[float]] = []
+    circles: list[list[float]] = []
+    kinds: list[str] = []
+    taken = np.zeros(grid.shape, dtype=bool)
+
+    def fits(parts_r: list[list[float]], parts_c: list[list[float]], *, touching: bool) -> bool:
+        trial = Furniture(np.array(parts_r).reshape(-1, 5), np.array(parts_c).reshape(-1, 3), ())
+        cells = rasterise_furniture(trial, grid.shape, origin_xy_m=origin_xy_m, resolution_m=res)
+        if not cells.any():
+            return False
+        inside = space.allowed & ~taken & (True if touching else space.wall_m > gap_m)
+        if not bool(np.all(inside[cells])):
+            return False
+        taken[cells] = True
+        return True
+
+    for _ in range(count):
+        kind = str(rng.choice(_KINDS, p=_WEIGHTS))
+        pool = space.wall_side if kind == "cabinet" else space.free_cells
+        if pool.size == 0:
+            continue
+        for _attempt in range(_ATTEMPTS):
+            cell = int(pool[rng.integers(pool.size)])
+            r, c = divmod(cell, grid.shape[1])
+            base = float(directions[rng.integers(directions.size)])
+            aligned = rng.random() < 0.7
+            angle = base if aligned else float(rng.uniform(0, math.pi))
+            parts = _object_parts(kind, r, c, base, angle, rng, space, taken, origin_xy_m, res)
+            if parts is not None and fits(*parts, touching=kind == "cabinet"):
+                rects.extend(parts[0])
+                circles.extend(parts[1])
+                kinds.append(kind)
+                break
+    return Furniture(
+        rects=np.array(rects, dtype=np.float64).reshape(-1, 5),
+        circles=np.array(circles, dtype=np.float64).reshape(-1, 3),
+        kinds=tuple(kinds),
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class _Space:
+    """Where objects may go on a grid (all arrays of the grid's shape, or flat cell indices)."""
+
+    allowed: npt.NDArray[np.bool_]  # free and clear of the robot's path
+    wall_m: npt.NDArray[np.float64]  # distance to the nearest occupied cell, metres
+    nearest: npt.NDArray[np.intp]  # (2, rows, cols): row and column of that cell
+    free_cells: npt.NDArray[np.intp]  # allowed cells at least gap_m from any wall
+    wall_side: npt.NDArray[np.intp]  # allowed cells next to a wall (cabinets)
+
+
+def _placement_space(
+    grid: npt.NDArray[np.int8],
+    *,
+    origin_xy_m: tuple[float, float],
+    res: float,
+    poses: npt.NDArray[np.float64],
+    gap_m: float,
+    clearance_m: float,
+) -> _Space:
     from scipy.ndimage import distance_transform_edt
 
     rows, cols = grid.shape
-    res = resolution_m
     free = (grid >= 0) & (grid < 50)
     occupied = grid >= 65
     on_path = np.zeros(grid.shape, dtype=bool)
@@ -171,80 +238,60 @@ def place_furniture(
     wall_m, nearest = distance_transform_edt(~occupied, return_indices=True)
     wall_m = wall_m * res
     allowed = free & (path_m > clearance_m)
-    rng = np.random.default_rng(seed)
-    directions = np.asarray(directions, dtype=np.float64)
-    if directions.size == 0:
-        directions = np.zeros(1)
-    free_cells = np.flatnonzero(allowed & (wall_m > gap_m))
-    wall_side = np.flatnonzero(allowed & (wall_m <= 1.5 * res + 1e-9))
-    rects: list[list[float]] = []
-    circles: list[list[float]] = []
-    kinds: list[str] = []
-    taken = np.zeros(grid.shape, dtype=bool)
-
-    def fits(parts_r: list[list[float]], parts_c: list[list[float]], *, touching: bool) -> bool:
-        trial = Furniture(np.array(parts_r).reshape(-1, 5), np.array(parts_c).reshape(-1, 3), ())
-        cells = rasterise_furniture(trial, grid.shape, origin_xy_m=origin_xy_m, resolution_m=res)
-        if not cells.any():
-            return False
-        inside = allowed & ~taken & (True if touching else wall_m > gap_m)
-        if not bool(np.all(inside[cells])):
-            return False
-        taken[cells] = True
-        return True
-
-    for _ in range(count):
-        kind = str(rng.choice(_KINDS, p=_WEIGHTS))
-        pool = wall_side if kind == "cabinet" else free_cells
-        if pool.size == 0:
-            continue
-        for _attempt in range(_ATTEMPTS):
-            cell = int(pool[rng.integers(pool.size)])
-            r, c = divmod(cell, cols)
-            x = origin_xy_m[0] + (c + 0.5) * res
-            y = origin_xy_m[1] + (r + 0.5) * res
-            base = float(directions[rng.integers(directions.size)])
-            aligned = rng.random() < 0.7
-            angle = base if aligned else float(rng.uniform(0, math.pi))
-            parts_r: list[list[float]] = []
-            parts_c: list[list[float]] = []
-            if kind == "box":
-                parts_r.append([x, y, rng.uniform(0.15, 0.6), rng.uniform(0.15, 0.5), angle])
-            elif kind == "bin":
-                parts_c.append([x, y, rng.uniform(0.12, 0.25)])
-            elif kind == "table":
-                hl, hw = rng.uniform(0.4, 0.9), rng.uniform(0.3, 0.5)
-                leg = rng.uniform(0.025, 0.04)
-                ca, sa = math.cos(angle), math.sin(angle)
-                for u, v in ((hl, hw), (hl, -hw), (-hl, hw), (-hl, -hw)):
-                    lx = x + (u - math.copysign(leg, u)) * ca - (v - math.copysign(leg, v)) * sa
-                    ly = y + (u - math.copysign(leg, u)) * sa + (v - math.copysign(leg, v)) * ca
-                    parts_r.append([lx, ly, leg, leg, angle])
-                # The top must fit too: the robot does not drive under it.
-                if not _top_fits(x, y, hl, hw, angle, allowed, taken, origin_xy_m, res):
-                    continue
-            else:  # cabinet: back against the nearest wall cell, along the wall
-                wr, wc = nearest[0][r, c], nearest[1][r, c]
-                away = math.atan2(r - wr, c - wc)
-                normal = min(
-                    (base, base + math.pi / 2, base + math.pi, base - math.pi / 2),
-                    key=lambda a: abs(math.remainder(a - away, 2 * math.pi)),
-                )
-                depth = rng.uniform(0.35, 0.6)
-                half = rng.uniform(0.3, 1.0)
-                cx = x + (depth / 2 - 0.5 * res) * math.cos(normal)
-                cy = y + (depth / 2 - 0.5 * res) * math.sin(normal)
-                parts_r.append([cx, cy, depth / 2, half, normal])
-            if fits(parts_r, parts_c, touching=kind == "cabinet"):
-                rects.extend(parts_r)
-                circles.extend(parts_c)
-                kinds.append(kind)
-                break
-    return Furniture(
-        rects=np.array(rects, dtype=np.float64).reshape(-1, 5),
-        circles=np.array(circles, dtype=np.float64).reshape(-1, 3),
-        kinds=tuple(kinds),
+    return _Space(
+        allowed=allowed,
+        wall_m=wall_m,
+        nearest=nearest,
+        free_cells=np.flatnonzero(allowed & (wall_m > gap_m)),
+        wall_side=np.flatnonzero(allowed & (wall_m <= 1.5 * res + 1e-9)),
     )
+
+
+def _object_parts(
+    kind: str,
+    r: int,
+    c: int,
+    base: float,
+    angle: float,
+    rng: np.random.Generator,
+    space: _Space,
+    taken: npt.NDArray[np.bool_],
+    origin_xy_m: tuple[float, float],
+    res: float,
+) -> tuple[list[list[float]], list[list[float]]] | None:
+    """Rectangles ``(x, y, half_length, half_width, angle)`` and circles ``(x, y, radius)`` of one
+    object of ``kind`` at cell ``(r, c)``, metres / radians; None when a table's top does not fit."""
+    x = origin_xy_m[0] + (c + 0.5) * res
+    y = origin_xy_m[1] + (r + 0.5) * res
+    if kind == "box":
+        return [[x, y, rng.uniform(0.15, 0.6), rng.uniform(0.15, 0.5), angle]], []
+    if kind == "bin":
+        return [], [[x, y, rng.uniform(0.12, 0.25)]]
+    if kind == "table":
+        hl, hw = rng.uniform(0.4, 0.9), rng.uniform(0.3, 0.5)
+        leg = rng.uniform(0.025, 0.04)
+        ca, sa = math.cos(angle), math.sin(angle)
+        legs = []
+        for u, v in ((hl, hw), (hl, -hw), (-hl, hw), (-hl, -hw)):
+            lx = x + (u - math.copysign(leg, u)) * ca - (v - math.copysign(leg, v)) * sa
+            ly = y + (u - math.copysign(leg, u)) * sa + (v - math.copysign(leg, v)) * ca
+            legs.append([lx, ly, leg, leg, angle])
+        # The top must fit too: the robot does not drive under it.
+        if not _top_fits(x, y, hl, hw, angle, space.allowed, taken, origin_xy_m, res):
+            return None
+        return legs, []
+    # cabinet: back against the nearest wall cell, along the wall
+    wr, wc = space.nearest[0][r, c], space.nearest[1][r, c]
+    away = math.atan2(r - wr, c - wc)
+    normal = min(
+        (base, base + math.pi / 2, base + math.pi, base - math.pi / 2),
+        key=lambda a: abs(math.remainder(a - away, 2 * math.pi)),
+    )
+    depth = rng.uniform(0.35, 0.6)
+    half = rng.uniform(0.3, 1.0)
+    cx = x + (depth / 2 - 0.5 * res) * math.cos(normal)
+    cy = y + (depth / 2 - 0.5 * res) * math.sin(normal)
+    return [[cx, cy, depth / 2, half, normal]], []
 
 
 def _top_fits(
