@@ -123,28 +123,13 @@ def _topic_container(layout: TopicLayout) -> rrb.Container:
         name=f"{root}: scores of occupied cells",
         origin=f"/{paths.scores_view}",
     )
-    w_plot = rrb.TimeSeriesView(
-        name=f"{root}: structure score W over session time",
-        origin=f"/{paths.score}",
-        plot_legend=rrb.PlotLegend(rrb.Corner2D.LeftTop),
-        axis_y=_value_axis(layout.w_top),
-        # The whole session on any timeline (the default follows the time cursor).
-        axis_x=rrb.TimeAxis(
-            view_range=rrb.TimeRange(
-                start=rrb.TimeRangeBoundary.infinite(), end=rrb.TimeRangeBoundary.infinite()
-            )
-        ),
+    w_plot = _session_plot(
+        f"{root}: structure score W over session time", f"/{paths.score}", layout.w_top
     )
-    break_plot = rrb.TimeSeriesView(
-        name=f"{root}: break score (m of established wall erased) and threshold",
-        origin=f"/{paths.break_score_view}",
-        plot_legend=rrb.PlotLegend(rrb.Corner2D.LeftTop),
-        axis_y=_value_axis(layout.break_top),
-        axis_x=rrb.TimeAxis(
-            view_range=rrb.TimeRange(
-                start=rrb.TimeRangeBoundary.infinite(), end=rrb.TimeRangeBoundary.infinite()
-            )
-        ),
+    break_plot = _session_plot(
+        f"{root}: break score (m of established wall erased) and threshold",
+        f"/{paths.break_score_view}",
+        layout.break_top,
     )
     amplitude = rrb.Spatial2DView(
         name=f"{root}: cumulative amplitude s per wall direction, peaks, threshold",
@@ -170,6 +155,21 @@ def _topic_container(layout: TopicLayout) -> rrb.Container:
         rrb.Vertical(*right, row_shares=shares),
         column_shares=[3.0, 2.0],
         name=root,
+    )
+
+
+def _session_plot(name: str, origin: str, top: float | None) -> rrb.TimeSeriesView:
+    """A time series over the whole session (on any timeline; the default follows the time cursor)."""
+    return rrb.TimeSeriesView(
+        name=name,
+        origin=origin,
+        plot_legend=rrb.PlotLegend(rrb.Corner2D.LeftTop),
+        axis_y=_value_axis(top),
+        axis_x=rrb.TimeAxis(
+            view_range=rrb.TimeRange(
+                start=rrb.TimeRangeBoundary.infinite(), end=rrb.TimeRangeBoundary.infinite()
+            )
+        ),
     )
 
 
