@@ -204,7 +204,10 @@ class RerunSink:
             sinks.append(rr.GrpcSink())
         if connect is not None:
             sinks.append(rr.GrpcSink(grpc_url(connect)))
-        self.recording.set_sinks(*sinks)
+        self._error: BaseException | None = None
+        self._queue: queue.Queue[Callable[[], None] | None] | None = None
+        self._thread: threading.Thread | None = None
+        self._flush_failed = False
         self.loggers = {
             topic: TopicLogger(
                 self.recording,
@@ -216,28 +219,35 @@ class RerunSink:
         }
         self._latest: dict[str, MapSnapshot] = {}
         self._closing = False
-        self._flush_failed = False
         self._has_events: dict[str, bool] = dict.fromkeys(topics, False)
         # Highest value each topic's W / break-score plot shows, guide lines included (final layout).
         self._w_top: dict[str, float] = dict.fromkeys(topics, failure_level)
         self._break_top: dict[str, float] = dict.fromkeys(topics, 0.0)
         self._sent_key: tuple[tuple[str, bool, bool], ...] | None = None
+        try:
+            self.recording.set_sinks(*sinks)
+            self._start(threaded=threaded)
+        except BaseException:
+            # A signal or error between here and a returned sink: nobody else can abort it, and
+            # Rerun's writer would create the file after any cleanup of the folder around it.
+            self.abort()
+            raise
+        _LOG.debug(
+            "opened Rerun recording (rrd=%s, spawn=%s, connect=%s)", rrd_path, spawn, connect
+        )
+
+    def _start(self, *, threaded: bool) -> None:
+        """The static data, the first layout (live) and the logging thread."""
         for logger in self.loggers.values():
             logger.log_static()
         if self.live:
             self._send_blueprint()
-        self._error: BaseException | None = None
-        self._queue: queue.Queue[Callable[[], None] | None] | None = None
-        self._thread: threading.Thread | None = None
         if threaded:
             self._queue = queue.Queue(maxsize=_QUEUE_DEPTH)
             self._thread = threading.Thread(
                 target=self._work, args=(self._queue,), name="rose-rerun", daemon=True
             )
             self._thread.start()
-        _LOG.debug(
-            "opened Rerun recording (rrd=%s, spawn=%s, connect=%s)", rrd_path, spawn, connect
-        )
 
     # -- worker ------------------------------------------------------------------------------
 

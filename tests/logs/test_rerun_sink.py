@@ -212,6 +212,23 @@ def test_sink_needs_a_destination_and_removes_its_file_on_abort(tmp_path: Path) 
     assert list(tmp_path.iterdir()) == []
 
 
+def test_a_signal_while_the_sink_opens_leaves_no_file(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # SIGTERM / SIGHUP become exceptions wherever they land; one that lands after the file sink is
+    # set up but before the sink is returned must not leave Rerun writing a file nobody removes
+    # (seen in the hostile corpus as a staging folder left behind).
+    from rose_logs.rerun import TopicLogger
+
+    def interrupted(self: TopicLogger) -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(TopicLogger, "log_static", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        RerunSink(rrd_path=tmp_path / "x.rrd", topics=("/map",), recording_id="x", start_ns=0)
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_logging_errors_reach_the_session(tmp_path: Path) -> None:
     import rose
     from rose_logs.snapshots import MapSnapshot
