@@ -21,6 +21,7 @@ from rose.outputs import (
     signals_deferred,
 )
 from rose_logs.errors import LogError
+from rose_logs.malloc import keep_arrays_on_heap
 
 __all__ = ["EXIT_GATE", "EXIT_SALVAGED", "build_parser", "console", "main"]
 
@@ -74,6 +75,7 @@ def main(argv: list[str] | None = None) -> int:
     4 ``--salvage`` with messages lost, 130 / 143 / 129 interrupted by SIGINT / SIGTERM / SIGHUP.
     """
     install_signal_handlers()
+    keep_arrays_on_heap()  # map-sized arrays stay on the heap: far fewer page faults (module notes)
     # Rerun's native logger prints multi-line ERROR records to stderr (e.g. a failed flush on a full
     # disk) that our one-line errors already report: keep it quiet unless the user set RUST_LOG.
     os.environ.setdefault("RUST_LOG", "off")
