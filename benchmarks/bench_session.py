@@ -32,6 +32,7 @@ import numpy as np
 
 import rose
 from rose_logs.derived import encode_cleaned
+from rose_logs.malloc import keep_arrays_on_heap
 from rose_logs.reader import LogReader
 from rose_logs.session import process_log
 from rose_logs.snapshots import MapSnapshot
@@ -182,6 +183,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--keep", type=Path, default=None, help="work here and keep the files")
     args = parser.parse_args(argv)
+    keep_arrays_on_heap()  # as the rose-bag command does: measure what its users get
 
     work = args.keep or Path(tempfile.mkdtemp(prefix="rose-bench-"))
     work.mkdir(parents=True, exist_ok=True)
