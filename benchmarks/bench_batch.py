@@ -23,7 +23,7 @@ from pathlib import Path
 from rose_logs.batch import run_batch
 from rose_logs.batch.cluster import local_client
 from rose_logs.batch.task import RecordingOptions
-from rose_logs.batch.workerenv import MALLOC_ENV
+from rose_logs.malloc import MALLOC_ENV
 from rose_logs.reader import LogReader
 from rose_logs.writer import open_output
 
@@ -98,7 +98,7 @@ def malloc_comparison(fleet: Path, work: Path) -> None:
     settings = {
         "glibc default": {},
         "Dask's MALLOC_TRIM_THRESHOLD_=65536": {"MALLOC_TRIM_THRESHOLD_": "65536"},
-        "ours (rose_logs.batch.workerenv)": MALLOC_ENV,
+        "ours (rose_logs.malloc)": MALLOC_ENV,
     }
     base = {k: v for k, v in os.environ.items() if not k.startswith("MALLOC_")}
     for label, extra in settings.items():

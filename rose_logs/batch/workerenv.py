@@ -13,7 +13,7 @@ import os
 
 from rose_logs.malloc import MALLOC_ENV, keep_arrays_on_heap
 
-__all__ = ["MALLOC_ENV", "THREAD_ENV", "tune_worker_process", "worker_environment"]
+__all__ = ["THREAD_ENV", "tune_worker_process", "worker_environment"]
 
 _LOG = logging.getLogger(__name__)
 
