@@ -1359,11 +1359,19 @@ def _last_line(text: str) -> str:
 
 
 def run_corpus(corpus: Corpus, *, jobs: int = 2) -> list[Result]:
-    """Run every case, ``jobs`` at a time (signal and concurrency cases alone, for stable timing)."""
+    """Run every case, ``jobs`` folders at a time (signal and concurrency cases alone).
+
+    Cases that share a folder run one after the other: the leftover and partial-output checks look at
+    the whole folder, so a neighbour's temporary file mid-run must not count against a case.
+    """
     solo = [c for c in corpus.cases if c.signal is not None or c.copies > 1]
-    rest = [c for c in corpus.cases if c not in solo]
+    by_folder: dict[Path, list[Case]] = {}
+    for case in corpus.cases:
+        if case not in solo:
+            by_folder.setdefault(case.folder, []).append(case)
     with ThreadPoolExecutor(jobs) as pool:
-        results = list(pool.map(run_case, rest))
+        groups = list(pool.map(lambda cases: [run_case(c) for c in cases], by_folder.values()))
+    results = [r for group in groups for r in group]
     results += [run_case(c) for c in solo]
     return results
 
