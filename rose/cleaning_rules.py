@@ -126,10 +126,16 @@ def _touching(pieces: npt.NDArray[np.bool_], other: npt.NDArray[np.bool_]) -> np
         return out
     # Only the pieces' bounding box matters (plus two cells for the reach of ``other``).
     box = _padded_box(pieces, 2)
-    _, labels = _components(pieces[box])
+    count, labels = _components(pieces[box])
     near = _dilate(other[box], 2)
-    ids = np.unique(labels[near & pieces[box]])
-    out[box] = np.isin(labels, ids[ids > 0])
+    wanted = np.zeros(count, dtype=bool)
+    wanted[labels[near & pieces[box]]] = True
+    wanted[0] = False
+    # Look labels up at the pieces' cells only (few), not over the whole box.
+    cells = np.flatnonzero(pieces[box])
+    inside = np.zeros(labels.shape, dtype=bool)
+    inside.ravel()[cells] = wanted[labels.ravel()[cells]]
+    out[box] = inside
     return out
 
 
@@ -487,7 +493,10 @@ def topology_guard(
         return restore
     # The removed pieces within reach of a separating patch (dilated on the patches' box only).
     reach_kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach + 1, 2 * reach + 1))
-    seeds = separating[patches]
+    # Patch cells are few: look their labels up there only, not over the whole box.
+    patch_cells = np.flatnonzero(opened)
+    seeds = np.zeros(opened.shape, dtype=bool)
+    seeds.ravel()[patch_cells] = separating[patches.ravel()[patch_cells]]
     near = _padded_box(seeds, reach)
     zone = np.zeros(seeds.shape, dtype=bool)
     zone[near] = cv2.dilate(seeds[near].view(np.uint8), reach_kernel).astype(bool)
@@ -495,7 +504,9 @@ def topology_guard(
     wanted = np.zeros(n_pieces, dtype=bool)
     wanted[pieces[box][zone & removal[box]]] = True
     wanted[0] = False
-    return wanted[pieces] & removal
+    removed_cells = np.flatnonzero(removal)
+    restore.ravel()[removed_cells] = wanted[pieces.ravel()[removed_cells]]
+    return restore
 
 
 def _separating_patches(
