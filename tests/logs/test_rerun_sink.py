@@ -32,6 +32,7 @@ PATHS = EntityPaths("map")
 @dataclass
 class _Content:
     static_rows: Counter[str]
+    static_columns: dict[str, set[str]]
     temporal_rows: dict[str, list[dict[str, object]]]
     views: list[tuple[str, str]]  # (class identifier, display name), last blueprint sent
     blueprint_views: list[list[tuple[str, str]]]  # every blueprint sent, in order
@@ -44,11 +45,13 @@ class _Content:
 def _read(path: Path) -> _Content:
     reader = rerun_chunk.RrdReader(path)
     static_rows: Counter[str] = Counter()
+    static_columns: dict[str, set[str]] = defaultdict(set)
     temporal: dict[str, list[dict[str, object]]] = defaultdict(list)
     for chunk in reader.stream().to_chunks():
         batch = chunk.to_record_batch()
         if chunk.is_static:
             static_rows[chunk.entity_path] += batch.num_rows
+            static_columns[chunk.entity_path].update(batch.schema.names)
             continue
         columns = {
             name: (
@@ -80,6 +83,7 @@ def _read(path: Path) -> _Content:
     blueprint_views = [sends[k] for k in sorted(sends)]
     return _Content(
         static_rows=static_rows,
+        static_columns=dict(static_columns),
         temporal_rows=dict(temporal),
         views=blueprint_views[-1] if blueprint_views else [],
         blueprint_views=blueprint_views,
@@ -110,6 +114,26 @@ def test_static_data_is_logged_exactly_once(clean_session) -> None:
     assert content.static_rows[f"/{PATHS.amplitude_threshold}"] == 1
     # No static data is logged again under a snapshot (the web viewer drops re-logged class tables).
     assert f"/{PATHS.cells}" not in content.temporal_rows
+
+
+def test_styles_are_static_and_snapshots_send_only_what_changes(clean_session) -> None:
+    _, content = clean_session
+    styles = {
+        PATHS.grid: {"GridMap:colormap"},
+        PATHS.cell_directions: {"LineStrips2D:colors", "Points2D:colors", "Points2D:show_labels"},
+        PATHS.metric_directions: {"LineStrips3D:colors", "Points3D:colors", "Points3D:show_labels"},
+        PATHS.cell_scores: {"SegmentationImage:opacity", "Points2D:colors"},
+        PATHS.spectrum: {"DepthImage:colormap", "DepthImage:meter", "LineStrips2D:colors"},
+        PATHS.amplitude_curve: {"Points2D:colors", "Points2D:show_labels"},
+    }
+    for entity, columns in styles.items():
+        assert content.static_rows[f"/{entity}"] == 1, entity
+        assert columns <= content.static_columns[f"/{entity}"], entity
+        rows = content.rows(entity)
+        assert rows, entity
+        # Static components win over temporal ones: a style sent again per snapshot would be
+        # ignored, and costs a quarter of the logging time.
+        assert not columns & set(rows[0]), entity
 
 
 def test_every_stream_once_per_snapshot_on_session_time(clean_session) -> None:
