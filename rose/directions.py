@@ -59,8 +59,12 @@ def find_direction_peaks(
     tripled = np.concatenate([cumulative, cumulative, cumulative])
     peaks = local_maxima(tripled)
     peaks = peaks[(peaks >= n) & (peaks < 2 * n)]
+    # A peak's prominence is at most its height above the signal's minimum (rounding is monotonic):
+    # lower peaks cannot pass, and skipping them saves most of the work on noisy signals.
+    threshold = prominence_fraction * span
+    peaks = peaks[tripled[peaks] - float(cumulative.min()) >= threshold]
     prominences = peak_prominences(tripled, peaks)
-    keep = prominences >= prominence_fraction * span
+    keep = prominences >= threshold
     indices = peaks[keep] - n
     prominences = prominences[keep] / span
     order = np.argsort(-prominences, kind="stable")

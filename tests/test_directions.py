@@ -127,3 +127,23 @@ def test_direction_peaks_match_scipy_on_real_maps(relative: str) -> None:
     assert ours.indices.size >= 2  # buildings: at least two directions
     assert_array_equal(ours.indices, (peaks[middle] - n)[order])
     assert_allclose(ours.prominences, props["prominences"][middle][order] / span, rtol=0)
+
+
+@pytest.mark.parametrize("fraction", [0.0, 0.1, 0.5, 0.9])
+@pytest.mark.parametrize("index", range(17))
+def test_direction_peaks_match_scipy_at_every_threshold(index: int, fraction: float) -> None:
+    # Peaks too low to reach the threshold are skipped before their prominence is computed: the
+    # result must stay what SciPy's prominence filter keeps.
+    from scipy.signal import find_peaks
+
+    signal = _random_signals()[index]
+    n = signal.size
+    span = signal.max() - signal.min()
+    if n < 3 or span <= 1e-4 * np.abs(signal).max():
+        return
+    peaks, props = find_peaks(np.tile(signal, 3), prominence=fraction * span)
+    middle = (peaks >= n) & (peaks < 2 * n)
+    order = np.argsort(-props["prominences"][middle], kind="stable")
+    ours = find_direction_peaks(signal, prominence_fraction=fraction)
+    assert_array_equal(ours.indices, (peaks[middle] - n)[order])
+    assert_allclose(ours.prominences, props["prominences"][middle][order] / span, rtol=0)
