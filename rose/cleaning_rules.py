@@ -131,11 +131,18 @@ def _touching(pieces: npt.NDArray[np.bool_], other: npt.NDArray[np.bool_]) -> np
     wanted = np.zeros(count, dtype=bool)
     wanted[labels[near & pieces[box]]] = True
     wanted[0] = False
-    # Look labels up at the pieces' cells only (few), not over the whole box.
-    cells = np.flatnonzero(pieces[box])
-    inside = np.zeros(labels.shape, dtype=bool)
-    inside.ravel()[cells] = wanted[labels.ravel()[cells]]
-    out[box] = inside
+    out[box] = _labels_wanted(wanted, labels, pieces[box])
+    return out
+
+
+def _labels_wanted(
+    wanted: npt.NDArray[np.bool_], labels: npt.NDArray[np.integer], cells: npt.NDArray[np.bool_]
+) -> npt.NDArray[np.bool_]:
+    """``wanted[labels]`` on ``cells`` (False elsewhere), looked up at those cells only: they are few
+    next to the whole image, so this is much cheaper than indexing every label."""
+    at = np.flatnonzero(cells)
+    out = np.zeros(labels.shape, dtype=bool)
+    out.ravel()[at] = wanted[labels.ravel()[at]]
     return out
 
 
@@ -493,10 +500,7 @@ def topology_guard(
         return restore
     # The removed pieces within reach of a separating patch (dilated on the patches' box only).
     reach_kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach + 1, 2 * reach + 1))
-    # Patch cells are few: look their labels up there only, not over the whole box.
-    patch_cells = np.flatnonzero(opened)
-    seeds = np.zeros(opened.shape, dtype=bool)
-    seeds.ravel()[patch_cells] = separating[patches.ravel()[patch_cells]]
+    seeds = _labels_wanted(separating, patches, opened)
     near = _padded_box(seeds, reach)
     zone = np.zeros(seeds.shape, dtype=bool)
     zone[near] = cv2.dilate(seeds[near].view(np.uint8), reach_kernel).astype(bool)
@@ -504,9 +508,7 @@ def topology_guard(
     wanted = np.zeros(n_pieces, dtype=bool)
     wanted[pieces[box][zone & removal[box]]] = True
     wanted[0] = False
-    removed_cells = np.flatnonzero(removal)
-    restore.ravel()[removed_cells] = wanted[pieces.ravel()[removed_cells]]
-    return restore
+    return _labels_wanted(wanted, pieces, removal)
 
 
 def _separating_patches(

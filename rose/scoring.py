@@ -48,24 +48,31 @@ def _strip_candidates(
     longer = max(rows, cols)
     # Frequencies in cells of the longer side: u = j * longer / cols, v = k * longer / rows, with
     # j in 0 .. cols // 2 and k the signed row frequency (row index k mod rows).
-    k_min, k_max = -(rows // 2), (rows - 1) // 2
+    k = np.arange(-(rows // 2), (rows - 1) // 2 + 1)
+    j = np.arange(half_cols)
     if abs(s) >= abs(c):  # a strip closer to the columns: an interval of rows in every column
-        j = np.arange(half_cols)
-        u = j * (longer / cols)
-        ends = np.sort(
-            np.stack([(-half_width_px - u * c) / s, (half_width_px - u * c) / s]), axis=0
-        )
-        low = np.maximum(np.floor(ends[0] * rows / longer).astype(np.intp) - 1, k_min)
-        high = np.minimum(np.ceil(ends[1] * rows / longer).astype(np.intp) + 1, k_max)
-        along, across = _ranges(low, high)
+        along, across = _within(j * (longer / cols), c, s, half_width_px, rows / longer, k)
         return (across % rows) * half_cols + j[along]
-    k = np.arange(k_min, k_max + 1)
-    v = k * (longer / rows)
-    ends = np.sort(np.stack([(-half_width_px - v * s) / c, (half_width_px - v * s) / c]), axis=0)
-    low = np.maximum(np.floor(ends[0] * cols / longer).astype(np.intp) - 1, 0)
-    high = np.minimum(np.ceil(ends[1] * cols / longer).astype(np.intp) + 1, half_cols - 1)
-    along, across = _ranges(low, high)
+    along, across = _within(k * (longer / rows), s, c, half_width_px, cols / longer, j)
     return (k[along] % rows) * half_cols + across
+
+
+def _within(
+    fixed: npt.NDArray[np.floating],
+    fixed_weight: float,
+    weight: float,
+    half_width_px: float,
+    per_unit: float,
+    values: npt.NDArray[np.intp],
+) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.intp]]:
+    """For every frequency ``f`` of ``fixed``: the indices ``i`` (frequency ``i / per_unit``, among
+    ``values``, consecutive) with ``|f * fixed_weight + i / per_unit * weight| <= half_width_px``,
+    one index wider on either side. Returns :func:`_ranges` of the intervals."""
+    bounds = np.stack([-half_width_px - fixed * fixed_weight, half_width_px - fixed * fixed_weight])
+    ends = np.sort(bounds / weight, axis=0) * per_unit
+    low = np.maximum(np.floor(ends[0]).astype(np.intp) - 1, values[0])
+    high = np.minimum(np.ceil(ends[1]).astype(np.intp) + 1, values[-1])
+    return _ranges(low, high)
 
 
 def _ranges(
