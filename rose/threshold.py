@@ -14,9 +14,10 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
-from scipy.special import expit
 
 __all__ = ["TwoGaussians", "fit_two_gaussians", "gaussian_intersection", "gmm_threshold"]
+
+_Pair = tuple[float, float]
 
 #: Added to both variances, as scikit-learn's ``reg_covar``: keeps a component from collapsing onto
 #: repeated values.
@@ -109,33 +110,44 @@ def fit_two_gaussians(
     x = sorted_values
     x2 = x * x
     n = x.size
-    mean, var, weight = _kmeans_init(x)
+    total, total_sq = float(x.sum()), float(x2.sum())
+    (m0, m1), (v0, v1), (w0, w1) = _kmeans_init(x)
     previous = -math.inf
     converged = False
     iterations = 0
     for iterations in range(1, max_iter + 1):  # noqa: B007 - the count is reported
-        # E step: log(w_k N_k(x)) = alpha_k x^2 + beta_k x + gamma_k, for k = 0, 1.
-        alpha = -0.5 / var
-        beta = mean / var
-        gamma = np.log(weight) - 0.5 * np.log(2 * math.pi * var) - 0.5 * mean * mean / var
-        log_p0 = alpha[0] * x2 + beta[0] * x + gamma[0]
-        log_p1 = alpha[1] * x2 + beta[1] * x + gamma[1]
-        log_likelihood = float(np.logaddexp(log_p0, log_p1).sum()) / n
-        resp1 = expit(log_p1 - log_p0)  # responsibility of component 1
+        # E step. log(w_k N_k(x)) = alpha_k x^2 + beta_k x + gamma_k; with d = log p1 - log p0,
+        # the responsibility of component 1 is expit(d) and log(p0 + p1) = log p0 + softplus(d).
+        # Both come from e = exp(-|d|), one exp and one log1p per sample; the sum of log p0 is
+        # closed-form in the sums of x and x^2. The parameters are Python floats: on a few
+        # thousand samples, numpy calls on two-element arrays cost more than the arithmetic.
+        alpha0, alpha1 = -0.5 / v0, -0.5 / v1
+        beta0, beta1 = m0 / v0, m1 / v1
+        gamma0 = math.log(w0) - 0.5 * math.log(2 * math.pi * v0) - 0.5 * m0 * m0 / v0
+        gamma1 = math.log(w1) - 0.5 * math.log(2 * math.pi * v1) - 0.5 * m1 * m1 / v1
+        d = (alpha1 - alpha0) * x2
+        d += (beta1 - beta0) * x
+        d += gamma1 - gamma0
+        e = np.exp(-np.abs(d))
+        softplus = float(np.log1p(e).sum()) + float(np.maximum(d, 0.0).sum())
+        log_likelihood = (alpha0 * total_sq + beta0 * total + gamma0 * n + softplus) / n
+        resp1 = 1.0 / (1.0 + e)
+        np.multiply(resp1, e, out=resp1, where=d < 0)  # expit(d) = e / (1 + e) for d < 0
         # M step from the sums of the responsibilities and their first and second moments.
         r1 = float(resp1.sum())
-        s1 = float((resp1 * x).sum())
-        q1 = float((resp1 * x2).sum())
-        mean, var, weight = _m_step(r1, s1, q1, n, float(x.sum()), float(x2.sum()))
+        (m0, m1), (v0, v1), (w0, w1) = _m_step(
+            r1, float(resp1 @ x), float(resp1 @ x2), n, total, total_sq
+        )
         if abs(log_likelihood - previous) < tol:
             converged = True
             break
         previous = log_likelihood
-    order = (0, 1) if mean[0] <= mean[1] else (1, 0)
+    order = (0, 1) if m0 <= m1 else (1, 0)
+    means, variances, weights = (m0, m1), (v0, v1), (w0, w1)
     return TwoGaussians(
-        means=(float(mean[order[0]]), float(mean[order[1]])),
-        variances=(float(var[order[0]]), float(var[order[1]])),
-        weights=(float(weight[order[0]]), float(weight[order[1]])),
+        means=(means[order[0]], means[order[1]]),
+        variances=(variances[order[0]], variances[order[1]]),
+        weights=(weights[order[0]], weights[order[1]]),
         iterations=iterations,
         converged=converged,
     )
@@ -143,39 +155,40 @@ def fit_two_gaussians(
 
 def _m_step(
     r1: float, s1: float, q1: float, n: int, total: float, total_sq: float
-) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+) -> tuple[_Pair, _Pair, _Pair]:
     """Component parameters from the responsibility-weighted count, sum and sum of squares."""
-    counts = np.array([n - r1, r1])
-    counts = np.maximum(counts, 10 * np.finfo(np.float64).eps * n)
-    sums = np.array([total - s1, s1])
-    squares = np.array([total_sq - q1, q1])
-    mean = sums / counts
-    var = np.maximum(squares / counts - mean * mean, 0.0) + _REG_VAR
-    return mean, var, counts / n
+    floor = 10 * float(np.finfo(np.float64).eps) * n
+    return _moments((max(n - r1, floor), max(r1, floor)), (total - s1, s1), (total_sq - q1, q1), n)
 
 
-def _kmeans_init(
-    x: npt.NDArray[np.float64], *, rounds: int = 20
-) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+def _moments(counts: _Pair, sums: _Pair, squares: _Pair, n: float) -> tuple[_Pair, _Pair, _Pair]:
+    """Means, variances (plus the regularisation) and weights of two groups from their moments."""
+    m0, m1 = sums[0] / counts[0], sums[1] / counts[1]
+    v0 = max(squares[0] / counts[0] - m0 * m0, 0.0) + _REG_VAR
+    v1 = max(squares[1] / counts[1] - m1 * m1, 0.0) + _REG_VAR
+    return (m0, m1), (v0, v1), (counts[0] / n, counts[1] / n)
+
+
+def _kmeans_init(x: npt.NDArray[np.float64], *, rounds: int = 20) -> tuple[_Pair, _Pair, _Pair]:
     """Means, variances and weights of a 2-cluster 1-D k-means split of the sorted values ``x``."""
     n = x.size
     cum = np.concatenate(([0.0], np.cumsum(x)))
     cum_sq = np.concatenate(([0.0], np.cumsum(x * x)))
-    centres = np.quantile(x, [0.25, 0.75])
+    low, high = (float(q) for q in np.quantile(x, [0.25, 0.75]))
     split = -1
     for _ in range(rounds):
         # Values above the midpoint of the centres go to the upper cluster; keep both non-empty.
-        new_split = int(np.clip(np.searchsorted(x, 0.5 * (centres[0] + centres[1])), 1, n - 1))
+        new_split = min(max(int(np.searchsorted(x, 0.5 * (low + high))), 1), n - 1)
         if new_split == split:
             break
         split = new_split
-        centres = np.array([cum[split] / split, (cum[n] - cum[split]) / (n - split)])
-    counts = np.array([split, n - split], dtype=np.float64)
-    sums = np.array([cum[split], cum[n] - cum[split]])
-    squares = np.array([cum_sq[split], cum_sq[n] - cum_sq[split]])
-    mean = sums / counts
-    var = np.maximum(squares / counts - mean * mean, 0.0) + _REG_VAR
-    return mean, var, counts / n
+        low, high = cum[split] / split, (cum[n] - cum[split]) / (n - split)
+    return _moments(
+        (float(split), float(n - split)),
+        (float(cum[split]), float(cum[n] - cum[split])),
+        (float(cum_sq[split]), float(cum_sq[n] - cum_sq[split])),
+        n,
+    )
 
 
 def gaussian_intersection(
