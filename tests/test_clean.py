@@ -210,3 +210,26 @@ def test_topology_guard_restores_only_pieces_that_join_regions() -> None:
     assert not topology_guard(
         occupied, keep, radius_px=3.0, window_px=20, min_region_px=400.0
     ).any()
+
+
+def test_default_guard_restores_a_wall_hole_next_to_a_doorway() -> None:
+    """A hole 0.5 m from a doorway still lets a robot through the wall: the default guard's window
+    is small enough that the doorway does not join the two sides inside it."""
+    from rose.cleaning_rules import topology_guard
+
+    res = 0.05
+    p = CleanParams()
+    occupied = np.zeros((80, 160), dtype=bool)
+    occupied[40, :] = True  # a wall between two rooms ...
+    occupied[40, 36:50] = False  # ... with a 0.7 m doorway
+    keep = occupied.copy()
+    keep[40, 60:66] = False  # a wall piece the cleaning would remove, 0.5 m from the doorway
+    kwargs = {
+        "radius_px": p.robot_radius_m / res,
+        "min_region_px": p.min_region_m2 / res**2,
+    }
+    window_px = round(p.guard_window_m / res)
+    restore = topology_guard(occupied, keep, window_px=window_px, **kwargs)
+    assert restore[40, 60:66].all()
+    # A window reaching the doorway's passable middle (1 m) sees one region and lets the hole be.
+    assert not topology_guard(occupied, keep, window_px=round(1.0 / res), **kwargs).any()
