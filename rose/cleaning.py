@@ -79,8 +79,8 @@ class CleanParams:
         Margin of the window around each opened patch in which the guard tells regions apart. The
         smaller it is, the stricter the guard: two sides of a wall that connect within the window
         (through a doorway nearby) count as one region, so a hole next to a doorway passes unguarded.
-        Half a metre keeps such holes out (1 m let 10 through on the 30 benchmark maps of
-        ``benchmarks/bench_cleaning.py``, half a metre 3) at a small cost in clutter removed.
+        Half a metre keeps such holes out at a small cost in clutter removed (measured with
+        ``benchmarks/bench_cleaning.py``; numbers in the README).
     run_tolerance_px : int
         Cells of tolerance across and along a run (stair steps, dropouts).
     max_bridge_m : float
