@@ -65,7 +65,12 @@ SNAPSHOT_SCHEMA = pa.schema(
         ("resolution_m", pa.float64()),
         ("structure_score", pa.float64()),
         ("break_score_m", pa.float64()),
+        (
+            "break_region_m",
+            pa.struct([(k, pa.float64()) for k in ("x_min", "y_min", "x_max", "y_max")]),
+        ),
         ("break_detected", pa.bool_()),
+        ("break_start", pa.bool_()),
         ("w_above_failure", pa.bool_()),
         ("broken", pa.bool_()),
         ("directions_deg", pa.list_(pa.float64())),
@@ -75,6 +80,10 @@ SNAPSHOT_SCHEMA = pa.schema(
         ("seconds", pa.float64()),
         ("reused", pa.bool_()),
         ("from_update", pa.bool_()),
+        ("clean_method", pa.string()),
+        ("removed", pa.int64()),
+        ("kept", pa.int64()),
+        ("rescued", pa.int64()),
     ]
 )
 """``snapshots.parquet``: one row per snapshot (the JSON report's records), by URI, topic, index."""

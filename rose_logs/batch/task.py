@@ -111,8 +111,9 @@ class RecordingResult:
     start_ns, end_ns : int or None
         Log time of the first and last message, ns.
     snapshots : tuple of dict
-        One JSON-ready dict per snapshot (``SnapshotRecord.to_json`` plus ``break_detected`` (the
-        break detector fired), ``w_above_failure`` (W > ``failure_level``) and ``broken`` (either)).
+        One JSON-ready dict per snapshot: ``SnapshotRecord.to_json`` (``break_detected``: the break
+        detector marks the snapshot broken) plus ``break_start`` (the first broken snapshot of a
+        break), ``w_above_failure`` (W > ``failure_level``) and ``broken`` (detector or W).
     failure_level : float
         W above which a snapshot counted as broken.
     seconds : float
@@ -192,9 +193,17 @@ def package_version() -> str:
     return __version__
 
 
+#: Layout of a stored result; part of the resume key, so results stored in an older layout (2:
+#: ``break_detected`` marks every snapshot the detector calls broken, not only a break's first) are
+#: redone instead of mixed into new tables.
+RESULT_LAYOUT = 2
+
+
 def result_key(recording: Recording, options: RecordingOptions) -> str:
-    """Resume key: SHA-256 of the URI, size, version (mtime / ETag), package version and options."""
+    """Resume key: SHA-256 of the URI, size, version (mtime / ETag), package version, result layout
+    and options."""
     payload = {
+        "layout": RESULT_LAYOUT,
         "uri": recording.uri,
         "size": recording.size,
         "version": recording.version,
@@ -352,13 +361,13 @@ def _attempt(
         cleaned_uri = None if cleaned is None else store.put(cleaned, f"cleaned/{recording.name}")
         rrd_uri = None if rrd is None else store.put(rrd, f"rrd/{recording.name}.rrd")
     level = options.failure_level
-    detected = {(b.topic, b.index) for b in report.detected_breaks}
+    starts = {(b.topic, b.index) for b in report.detected_breaks}
     snapshots = []
     for record in report.records:
         row = record.to_json(start_ns=report.start_ns)
         # A map breaks where the break detector fires or where W rises above the paper's level;
         # both reasons stay visible as their own columns.
-        row["break_detected"] = (record.topic, record.index) in detected
+        row["break_start"] = (record.topic, record.index) in starts
         row["w_above_failure"] = bool(record.structure_score > level)
         row["broken"] = row["break_detected"] or row["w_above_failure"]
         snapshots.append(row)

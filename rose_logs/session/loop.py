@@ -750,6 +750,7 @@ def _record(
         from_update=pending.from_update,
         break_score_m=verdict.score_m,
         break_region_m=verdict.region_m,
+        break_detected=verdict.broken,
         **_cleaning_counts(analysis.cleaning),
     )
 

@@ -54,6 +54,8 @@ class SnapshotRecord:
         snapshot erased in one window compared with the last trusted snapshot.
     break_region_m : tuple of float or None
         ``(x_min, y_min, x_max, y_max)`` of those erased walls, map frame, metres.
+    break_detected : bool
+        The break detector marks this snapshot broken (``break_score_m`` at or above its threshold).
     clean_method : str
         How ``<map>/rose/cleaned`` was made (``"walls"`` or ``"paper"``, see :func:`rose.cleaning.clean`).
     removed_count, kept_count : int
@@ -79,6 +81,7 @@ class SnapshotRecord:
     from_update: bool
     break_score_m: float = 0.0
     break_region_m: tuple[float, float, float, float] | None = None
+    break_detected: bool = False
     clean_method: str = "paper"
     removed_count: int = 0
     kept_count: int = 0
@@ -105,6 +108,7 @@ class SnapshotRecord:
             "from_update": self.from_update,
             "break_score_m": round(self.break_score_m, 6),
             "break_region_m": _region_json(self.break_region_m),
+            "break_detected": self.break_detected,
             "clean_method": self.clean_method,
             "removed": self.removed_count,
             "kept": self.kept_count,

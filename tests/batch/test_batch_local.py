@@ -20,6 +20,7 @@ from rose_logs.batch import (
 )
 from rose_logs.batch.task import recording_id
 from rose_logs.cli import main
+from rose_logs.session import BreakParams
 
 FLEET_NAMES = [
     "fleet/robot_a/later.db3",
@@ -122,6 +123,17 @@ def test_batch_tables_report_and_breaks(fleet: Path, tmp_path: Path) -> None:
         True,
         True,
     ]
+    # Every snapshot the detector scores at or above its threshold is marked, not only the first
+    # of a run; a break starts where the previous snapshot of the topic was not marked.
+    threshold = BreakParams().threshold_m
+    for previous, row in zip([None, *snapshots], snapshots, strict=False):
+        assert row["break_detected"] == (row["break_score_m"] >= threshold)
+        same_run = previous is not None and previous["uri"] == row["uri"]
+        starts = row["break_detected"] and not (same_run and previous["break_detected"])
+        assert row["break_start"] == starts
+    # The JSON report's fields are all there.
+    assert {s["clean_method"] for s in snapshots} == {"walls"}
+    assert all(s["kept"] + s["removed"] == s["occupied"] for s in snapshots)
     summary = json.loads((out / "summary.json").read_text())
     assert (summary["recordings"], summary["ok"], summary["errors"], summary["broken"]) == (
         5,
