@@ -25,7 +25,7 @@ from rose.outputs import reraise_interrupt_behind
 from rose_logs.errors import LogError, LogReadError
 from rose_logs.formats import LogFormat, detect_format
 from rose_logs.storage.connections import QosStyle
-from rose_logs.storage.mcap import McapReadBackend
+from rose_logs.storage.mcap import McapReadBackend, McapStreamReadBackend
 from rose_logs.storage.records import Channel, RawMessage
 from rose_logs.storage.rosbags import RosbagsReadBackend
 
@@ -92,14 +92,45 @@ class LogReader:
         )
         try:
             backend.open()
-        except LogError:
-            backend.close()
-            raise
         except Exception as err:  # library errors of every kind: wrap at the boundary
             backend.close()
             reraise_interrupt_behind(err)
-            raise _corrupt(self.path, err) from err
+            error = err if isinstance(err, LogError) else _corrupt(self.path, err)
+            salvaged = self._salvage_mcap() if self.format == "mcap" and self.salvage else None
+            if salvaged is None:
+                if isinstance(err, LogError):
+                    raise
+                if self.format == "mcap" and not self.salvage:
+                    msg = (
+                        f"{self.path}: corrupt or truncated MCAP file, its index at the end cannot "
+                        f"be read ({short(err, 120)}); --salvage keeps the messages before the damage"
+                    )
+                    raise LogReadError(msg) from err
+                raise error from err
+            backend = salvaged
         self._backend = backend
+
+    def _salvage_mcap(self) -> McapStreamReadBackend | None:
+        """The readable start of an MCAP file whose end is missing or damaged (None when not even
+        that can be read); the damage goes to :attr:`losses`."""
+        backend = McapStreamReadBackend(self.path)
+        try:
+            backend.open()
+        except Exception as err:
+            backend.close()
+            reraise_interrupt_behind(err)
+            return None
+        if not backend.channels:
+            backend.close()
+            return None
+        read = sum(c.message_count for c in backend.channels)
+        problem = (
+            f"{self.path}: the end of the file is missing or damaged ({backend.damage}); "
+            f"kept the {read} messages before it, in file order"
+        )
+        self.losses.append(problem)
+        _LOG.warning("%s", problem)
+        return backend
 
     def close(self) -> None:
         """Close the log (idempotent)."""

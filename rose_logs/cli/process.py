@@ -236,7 +236,7 @@ def run(args: argparse.Namespace) -> int:
         for loss in report.losses:
             print(f"warning: {loss}", file=sys.stderr)
         print(
-            f"error: {args.input}: damaged input, outputs hold only what could be read "
+            f"warning: {args.input}: damaged input, outputs hold only what could be read "
             f"(--salvage, exit {EXIT_SALVAGED})",
             file=sys.stderr,
         )

@@ -7,6 +7,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, BinaryIO
 
+from rose.limits import short
 from rose_logs.errors import LogReadError
 from rose_logs.storage.base import WriteBackend
 from rose_logs.storage.connections import (
@@ -25,7 +26,7 @@ from rose_logs.storage.records import (
     ros1_msgtype,
 )
 
-__all__ = ["McapReadBackend", "McapWriteBackend"]
+__all__ = ["McapReadBackend", "McapStreamReadBackend", "McapWriteBackend"]
 
 _LOG = logging.getLogger(__name__)
 
@@ -63,32 +64,9 @@ class McapReadBackend:
         counts = summary.statistics.channel_message_counts if summary.statistics else None
         if counts is None:  # no statistics record: count what the file holds
             counts = self._count_messages()
-        channels: list[Channel] = []
-        for channel_id in sorted(summary.channels):
-            ch = summary.channels[channel_id]
-            schema = summary.schemas.get(ch.schema_id)
-            name = schema.name if schema is not None else ""
-            encoding = schema.encoding if schema is not None else ""
-            data = bytes(schema.data) if schema is not None else b""
-            channel = Channel(
-                id=len(channels),
-                topic=ch.topic,
-                msgtype=normalize_msgtype(name) if ch.message_encoding in {"ros1", "cdr"} else name,
-                message_encoding=ch.message_encoding,
-                msgdef=data.decode("utf-8", errors="replace"),
-                msgdef_encoding=encoding,
-                digest=ch.metadata.get("md5sum", "") or ch.metadata.get("type_hash", ""),
-                message_count=int(counts.get(channel_id, 0)),
-                callerid=ch.metadata.get("callerid"),
-                latching=parse_latching(ch.metadata.get("latching")),
-                metadata=dict(ch.metadata),
-                schema_name=name,
-            )
-            channels.append(channel)
-            self._by_id[channel_id] = channel
-            if self.qos_style is None and ch.message_encoding == "cdr":
-                self.qos_style = qos_style(ch.metadata.get("offered_qos_profiles", ""))
-        self.channels = tuple(channels)
+        self.channels, self._by_id, self.qos_style = _channels(
+            summary.channels, summary.schemas, counts
+        )
         if summary.statistics and summary.statistics.message_count:
             self.start_ns = int(summary.statistics.message_start_time)
             self.end_ns = int(summary.statistics.message_end_time)
@@ -119,6 +97,115 @@ class McapReadBackend:
             self.stream.close()
             self.stream = None
         self.reader = None
+
+
+def _channels(
+    mcap_channels: dict[int, Any], schemas: dict[int, Any], counts: dict[int, int]
+) -> tuple[tuple[Channel, ...], dict[int, Channel], QosStyle | None]:
+    """Our channels (ids 0..n-1 in MCAP channel id order) from MCAP channel and schema records, the
+    map from MCAP channel id, and the QoS style of the first CDR channel (None without one)."""
+    channels: list[Channel] = []
+    by_id: dict[int, Channel] = {}
+    style: QosStyle | None = None
+    for channel_id in sorted(mcap_channels):
+        ch = mcap_channels[channel_id]
+        schema = schemas.get(ch.schema_id)
+        name = schema.name if schema is not None else ""
+        encoding = schema.encoding if schema is not None else ""
+        data = bytes(schema.data) if schema is not None else b""
+        channel = Channel(
+            id=len(channels),
+            topic=ch.topic,
+            msgtype=normalize_msgtype(name) if ch.message_encoding in {"ros1", "cdr"} else name,
+            message_encoding=ch.message_encoding,
+            msgdef=data.decode("utf-8", errors="replace"),
+            msgdef_encoding=encoding,
+            digest=ch.metadata.get("md5sum", "") or ch.metadata.get("type_hash", ""),
+            message_count=int(counts.get(channel_id, 0)),
+            callerid=ch.metadata.get("callerid"),
+            latching=parse_latching(ch.metadata.get("latching")),
+            metadata=dict(ch.metadata),
+            schema_name=name,
+        )
+        channels.append(channel)
+        by_id[channel_id] = channel
+        if style is None and ch.message_encoding == "cdr":
+            style = qos_style(ch.metadata.get("offered_qos_profiles", ""))
+    return tuple(channels), by_id, style
+
+
+class McapStreamReadBackend(McapReadBackend):
+    """What can be read of a bare MCAP file from its start, when its end (the summary) is missing or
+    damaged: a recording cut off by a crash or a full disk. For ``--salvage`` only.
+
+    The file is read record by record (complete chunks only) up to the first record that cannot be
+    read; :attr:`damage` says where and why. Messages come in file order (recorders write them as they
+    arrive), not sorted by log time.
+    """
+
+    def __init__(self, path: Path) -> None:
+        super().__init__(path)
+        self.damage = ""
+
+    def _records(self) -> Iterator[Any]:
+        """Records from the start of the file up to the first unreadable one (which sets
+        :attr:`damage`)."""
+        from mcap.stream_reader import StreamReader
+
+        assert self.stream is not None
+        self.stream.seek(0)
+        size = self.path.stat().st_size
+        reader = StreamReader(self.stream, validate_crcs=True, record_size_limit=max(size, 1))
+        records = reader.records
+        while True:
+            offset = self.stream.tell()
+            try:
+                record = next(records)
+            except StopIteration:
+                return
+            except Exception as err:  # the damaged end: any library error, stop there
+                reason = str(err) or type(err).__name__
+                self.damage = f"unreadable from byte {offset} of {size}: {short(reason, 120)}"
+                return
+            yield record
+
+    def open(self) -> None:
+        from mcap.records import Channel as McapChannel
+        from mcap.records import Header, Message, Schema
+
+        self.stream = self.path.open("rb")
+        schemas: dict[int, Any] = {}
+        mcap_channels: dict[int, Any] = {}
+        counts: dict[int, int] = {}
+        first = last = None
+        for record in self._records():
+            if isinstance(record, Header):
+                self.profile = record.profile
+            elif isinstance(record, Schema):
+                schemas[record.id] = record
+            elif isinstance(record, McapChannel):
+                mcap_channels[record.id] = record
+            elif isinstance(record, Message):
+                counts[record.channel_id] = counts.get(record.channel_id, 0) + 1
+                first = record.log_time if first is None else min(first, record.log_time)
+                last = record.log_time if last is None else max(last, record.log_time)
+        if not self.damage:
+            self.damage = "no summary at the end"
+        self.channels, self._by_id, self.qos_style = _channels(mcap_channels, schemas, counts)
+        if first is not None and last is not None:
+            self.start_ns, self.end_ns = int(first), int(last)
+
+    def messages(self, topics: set[str] | None) -> Iterator[RawMessage]:
+        from mcap.records import Message
+
+        by_id = self._by_id
+        for record in self._records():
+            if isinstance(record, Message) and record.channel_id in by_id:
+                channel = by_id[record.channel_id]
+                if topics is None or channel.topic in topics:
+                    yield RawMessage(
+                        channel, record.log_time, record.data, record.publish_time, record.sequence
+                    )
 
 
 class McapWriteBackend(WriteBackend):

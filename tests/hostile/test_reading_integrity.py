@@ -78,6 +78,36 @@ def test_truncated_mcap_with_salvage_is_never_exit_0(
     assert code in (1, EXIT_SALVAGED)
 
 
+def test_salvage_keeps_the_readable_start_of_a_truncated_mcap_file(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A recording cut off by a crash has no index at its end: an error without --salvage, and with
+    it every message of the complete chunks before the cut, exit 4."""
+    whole = Path(__file__).resolve().parents[2] / "sample_data" / "fr079_session.mcap"
+    data = whole.read_bytes()
+    log = tmp_path / "cut.mcap"
+    log.write_bytes(data[: len(data) * 6 // 10])
+    out, report = tmp_path / "o.mcap", tmp_path / "r.json"
+    code, _, err = _run(capsys, "process", log, "-o", out, "-q")
+    assert code == 1 and "truncated MCAP" in err and "--salvage" in err
+    assert not out.exists()
+    code, _, err = _run(capsys, "process", log, "-o", out, "--json", report, "-q", "--salvage")
+    assert code == EXIT_SALVAGED
+    assert "end of the file is missing or damaged" in err
+    assert err.count("error:") == 0
+    salvaged = json.loads(report.read_text())
+    with LogReader(whole) as reader:
+        total = reader.message_count
+        maps_before_cut = sum(
+            1 for m in reader.messages(topics={"/map"}) if m.log_time_ns <= salvaged["end_ns"]
+        )
+    assert 0 < salvaged["message_count"] < total
+    assert salvaged["losses"]
+    assert len(salvaged["snapshots"]) == maps_before_cut
+    with LogReader(out) as reader:  # the output is a complete, indexed file
+        assert reader.message_count >= salvaged["message_count"]
+
+
 def test_metadata_type_disagreeing_with_storage_is_an_error(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
