@@ -48,6 +48,7 @@ from typing import Any, NoReturn, Self
 from rose.errors import OutputError
 
 __all__ = [
+    "EXIT_BROKEN_PIPE",
     "STDOUT",
     "OutputSet",
     "StagedOutput",
@@ -62,6 +63,7 @@ __all__ = [
     "reraise_interrupt_behind",
     "run_interruptible",
     "signals_deferred",
+    "stdout_closed",
     "temporary_name",
 ]
 
@@ -119,6 +121,28 @@ class Terminated(KeyboardInterrupt):
 
 def _raise_terminated(signum: int, _frame: FrameType | None) -> None:
     raise Terminated(signum)
+
+
+EXIT_BROKEN_PIPE = 141
+"""Exit code when the reader of standard output went away (``| head``): 128 + SIGPIPE, what a
+shell reports for a program that SIGPIPE ended."""
+
+
+def stdout_closed(err: OSError) -> bool:
+    """Whether ``err`` is a broken pipe on standard output (no file name: not one of our files).
+
+    If so, standard output is pointed at ``/dev/null``, so that Python's flush at exit does not
+    report the same broken pipe again; the caller then exits with :data:`EXIT_BROKEN_PIPE`, quietly.
+    """
+    if not isinstance(err, BrokenPipeError) or err.filename is not None:
+        return False
+    with contextlib.suppress(OSError, ValueError, AttributeError):  # stdout may be no real file
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        try:
+            os.dup2(devnull, sys.stdout.fileno())
+        finally:
+            os.close(devnull)
+    return True
 
 
 def exit_after(code: int) -> NoReturn:

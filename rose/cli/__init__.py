@@ -17,10 +17,12 @@ from typing import Any
 from rose.errors import RoseError
 from rose.limits import short
 from rose.outputs import (
+    EXIT_BROKEN_PIPE,
     install_signal_handlers,
     reraise_interrupt_behind,
     run_interruptible,
     signals_deferred,
+    stdout_closed,
 )
 
 __all__ = [
@@ -91,6 +93,8 @@ def _run(argv: Sequence[str] | None) -> int:
         return int(args.func(args))
     except (RoseError, OSError, MemoryError, RecursionError) as err:
         reraise_interrupt_behind(err)  # a signal inside a library: exit 130 / 143, not "error"
+        if isinstance(err, OSError) and stdout_closed(err):  # `| head`: stop quietly
+            return EXIT_BROKEN_PIPE
         if args.debug:
             raise
         print(f"error: {error_text(err, where=input_name(args))}", file=sys.stderr)

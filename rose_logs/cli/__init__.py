@@ -15,10 +15,12 @@ from typing import Any
 from rose.cli import error_text, input_name
 from rose.errors import RoseError
 from rose.outputs import (
+    EXIT_BROKEN_PIPE,
     install_signal_handlers,
     reraise_interrupt_behind,
     run_interruptible,
     signals_deferred,
+    stdout_closed,
 )
 from rose_logs.errors import LogError
 from rose_logs.malloc import keep_arrays_on_heap
@@ -95,6 +97,8 @@ def _run(argv: list[str] | None) -> int:
         return 2
     except (LogError, RoseError, OSError, MemoryError, RecursionError) as err:
         reraise_interrupt_behind(err)  # a signal inside a library: exit 130 / 143, not "error"
+        if isinstance(err, OSError) and stdout_closed(err):  # `| head`: stop quietly
+            return EXIT_BROKEN_PIPE
         if args.debug:
             raise
         print(f"error: {error_text(err, where=input_name(args))}", file=sys.stderr)

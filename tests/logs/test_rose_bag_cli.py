@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import io
 import json
 import re
 import statistics
+import sys
 from pathlib import Path
 
 import pytest
@@ -14,6 +16,10 @@ from rose_logs.cli import EXIT_GATE, main
 from rose_logs.session import default_output_path
 
 SAMPLE = Path(__file__).resolve().parents[2] / "sample_data" / "fr079_session.mcap"
+MAP15 = (
+    Path(__file__).resolve().parents[2]
+    / "tests/data/rose2_aislabunimi/Freiburg_Building_079_partial/map15.yaml"
+)
 
 
 def test_process_sample_with_rerun_and_json(tmp_path: Path, capsys) -> None:
@@ -165,3 +171,29 @@ def test_usage_errors_exit_2(capsys) -> None:
     with pytest.raises(SystemExit) as exc:
         main(["process", "x.bag", "--peak-prominence", "2"])
     assert exc.value.code == 2
+
+
+class _ClosedPipe(io.StringIO):
+    """Standard output whose reader went away (``| head``)."""
+
+    def write(self, text: str) -> int:
+        raise BrokenPipeError(32, "Broken pipe")
+
+    def fileno(self) -> int:
+        raise io.UnsupportedOperation("no file descriptor")
+
+
+@pytest.mark.parametrize("command", ["rose-bag", "rose"])
+def test_a_closed_standard_output_ends_quietly_with_141(
+    command: str, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`rose-bag info LOG | head -1`: no error line, exit 128 + SIGPIPE, as other tools."""
+    import rose.cli
+
+    monkeypatch.setattr(sys, "stdout", _ClosedPipe())
+    if command == "rose-bag":
+        code = main(["info", str(SAMPLE)])
+    else:
+        code = rose.cli.main(["score", str(MAP15)])
+    assert code == 141
+    assert capsys.readouterr().err == ""
