@@ -246,7 +246,7 @@ def _run_session(
         try:
             if writer is not None:
                 writer.open()
-            handles, derived = _prepare_output(writer, channels, map_topics)
+            handles, derived = _prepare_output(writer, channels, map_topics, input_path)
             if rrd_path is not None or spawn or connect is not None:
                 rerun = _rerun_sink(
                     input_path,
@@ -285,9 +285,8 @@ def _run_session(
             if rerun is not None:
                 try:
                     rerun.close()
-                except (RuntimeError, OSError) as err:  # e.g. the disk filled up
-                    msg = f"{rrd_path}: cannot write the Rerun recording ({short(err, 160)})"
-                    raise LogWriteError(msg) from err
+                except (RuntimeError, OSError) as err:  # e.g. the disk filled up, no viewer
+                    raise LogWriteError(_rerun_failure(rrd_path, spawn, connect, err)) from err
         except BaseException:
             if writer is not None:
                 writer.abort()
@@ -398,7 +397,10 @@ def _session_report(
 
 
 def _prepare_output(
-    writer: LogWriter | None, channels: Sequence[Channel], map_topics: Sequence[str]
+    writer: LogWriter | None,
+    channels: Sequence[Channel],
+    map_topics: Sequence[str],
+    input_path: Path,
 ) -> tuple[dict[int, int], dict[str, tuple[int, int, int]]]:
     """Output connections: input channel id -> handle, and map topic -> derived handles."""
     if writer is None:
@@ -409,7 +411,7 @@ def _prepare_output(
         names = derived_topics(topic)
         for name in (names.cleaned, names.structure_score, names.walls):
             if writer.has_topic(name):
-                msg = f"{writer.path}: the input has topic {name} already (processed before?)"
+                msg = f"{input_path}: has topic {name} already (processed before?)"
                 raise LogWriteError(msg)
         source = next(c for c in channels if c.topic == topic)
         qos = offered_qos(source)
@@ -720,6 +722,16 @@ class _Loop:
             if self.rerun is not None:
                 self.rerun.event(snapshot, text, index, score)
         self.above[topic] = above
+
+
+def _rerun_failure(
+    rrd_path: Path | None, spawn: bool, connect: str | None, err: BaseException
+) -> str:
+    """One line for a Rerun recording that could not be finished, naming where it was going."""
+    if rrd_path is not None:
+        return f"{rrd_path}: cannot write the Rerun recording ({short(err, 160)})"
+    viewer = f"the Rerun viewer at {connect}" if connect is not None else "the spawned Rerun viewer"
+    return f"cannot stream to {viewer}; is it running? ({short(err, 160)})"
 
 
 def _record(

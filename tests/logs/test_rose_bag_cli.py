@@ -197,3 +197,15 @@ def test_a_closed_standard_output_ends_quietly_with_141(
         code = rose.cli.main(["score", str(MAP15)])
     assert code == 141
     assert capsys.readouterr().err == ""
+
+
+def test_processing_a_processed_log_names_the_input(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    once, twice = tmp_path / "once.mcap", tmp_path / "twice.mcap"
+    assert main(["process", str(SAMPLE), "-o", str(once), "-q"]) == 0
+    capsys.readouterr()
+    assert main(["process", str(once), "-o", str(twice), "-q"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith(f"error: {once}: has topic /map/rose/cleaned already")
+    assert not twice.exists()
