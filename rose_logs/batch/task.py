@@ -347,17 +347,24 @@ def _attempt(
         rrd = work / "recording.rrd" if options.rrd else None
         if cleaned is not None:
             cleaned.parent.mkdir()
-        report = process_log(
-            local,
-            output_path=cleaned,
-            topics=options.topics,
-            params=options.params,
-            failure_level=options.failure_level,
-            rrd_path=rrd,
-            walls=options.walls,
-            recording_id=recording_id(recording.uri),
-            analysis_threads=options.analysis_threads,
-        )
+        try:
+            report = process_log(
+                local,
+                output_path=cleaned,
+                topics=options.topics,
+                params=options.params,
+                failure_level=options.failure_level,
+                rrd_path=rrd,
+                walls=options.walls,
+                recording_id=recording_id(recording.uri),
+                analysis_threads=options.analysis_threads,
+            )
+        except (LogError, RoseError) as err:
+            # The message names the downloaded copy, which is gone by the time anyone reads the
+            # row: name the recording instead.
+            if str(local) != recording.uri and len(err.args) == 1:
+                err.args = (str(err).replace(str(local), recording.uri),)
+            raise
         cleaned_uri = None if cleaned is None else store.put(cleaned, f"cleaned/{recording.name}")
         rrd_uri = None if rrd is None else store.put(rrd, f"rrd/{recording.name}.rrd")
     level = options.failure_level
