@@ -81,10 +81,12 @@ def run(args: argparse.Namespace) -> int:
     rows, cols = result.occupied.shape
     share = cleaning.removed_count / result.occupied_count if result.occupied_count else 0.0
     threshold = summary["threshold"]
+    angles = ", ".join(f"{d:.1f}" for d in directions_deg(result))
+    directions = f"{angles} deg" if angles else "none"
     lines = [
         f"map          {args.map}  ({cols} x {rows} cells, {source.resolution_m:g} m/cell)",
         f"W            {result.structure_score:.3f}  ({verdict(result.structure_score)})",
-        f"directions   {', '.join(f'{d:.1f}' for d in directions_deg(result)) or 'none'} deg",
+        f"directions   {directions}",
         f"threshold    {threshold if threshold is not None and math.isfinite(threshold) else 'n/a'}",
         f"occupied     {result.occupied_count} cells",
         f"method       {cleaning.method}",
