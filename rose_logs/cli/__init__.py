@@ -53,6 +53,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     for command in (process, info, convert, evaluate, batch):
         command.add_parser(subparsers)
+    for command_parser in subparsers.choices.values():  # usage errors show the command's usage
+        command_parser.set_defaults(command_parser=command_parser)
     return parser
 
 
@@ -92,7 +94,7 @@ def _run(argv: list[str] | None) -> int:
     try:
         return int(args.func(args))
     except UsageError as err:
-        parser.print_usage(sys.stderr)
+        getattr(args, "command_parser", parser).print_usage(sys.stderr)
         print(f"rose-bag: error: {error_text(err)}", file=sys.stderr)
         return 2
     except (LogError, RoseError, OSError, MemoryError, RecursionError) as err:

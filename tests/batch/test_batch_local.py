@@ -296,3 +296,11 @@ def test_an_output_folder_inside_the_inputs_is_not_read_back(fleet: Path) -> Non
     again = run_batch([fleet], out, options=RecordingOptions(cleaned=True))
     assert [r.uri for r in again.results] == [r.uri for r in first.results]
     assert (again.processed, again.skipped) == (0, 5)
+
+
+def test_usage_errors_show_the_batch_usage(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    assert main(["batch", "-o", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("usage: rose-bag batch ")
