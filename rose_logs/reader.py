@@ -95,20 +95,27 @@ class LogReader:
         except Exception as err:  # library errors of every kind: wrap at the boundary
             backend.close()
             reraise_interrupt_behind(err)
-            error = err if isinstance(err, LogError) else _corrupt(self.path, err)
             salvaged = self._salvage_mcap() if self.format == "mcap" and self.salvage else None
             if salvaged is None:
                 if isinstance(err, LogError):
                     raise
-                if self.format == "mcap" and not self.salvage:
-                    msg = (
-                        f"{self.path}: corrupt or truncated MCAP file, its index at the end cannot "
-                        f"be read ({short(err, 120)}); --salvage keeps the messages before the damage"
-                    )
-                    raise LogReadError(msg) from err
-                raise error from err
+                raise self._unreadable(err) from err
             backend = salvaged
         self._backend = backend
+
+    def _unreadable(self, err: BaseException) -> LogReadError:
+        """The error for a log that cannot be opened (``err``: the library's)."""
+        if self.format != "mcap":
+            return _corrupt(self.path, err)
+        remedy = (
+            "nothing before the damage can be read either"
+            if self.salvage
+            else "--salvage keeps the messages before the damage"
+        )
+        return LogReadError(
+            f"{self.path}: corrupt or truncated MCAP file, its index at the end cannot be read "
+            f"({short(err, 120)}); {remedy}"
+        )
 
     def _salvage_mcap(self) -> McapStreamReadBackend | None:
         """The readable start of an MCAP file whose end is missing or damaged (None when not even
