@@ -140,7 +140,9 @@ class McapStreamReadBackend(McapReadBackend):
 
     The file is read record by record (complete chunks only) up to the first record that cannot be
     read; :attr:`damage` says where and why. Messages come in file order (recorders write them as they
-    arrive), not sorted by log time.
+    arrive), not sorted by log time. The file is read twice: :meth:`open` for the channels and their
+    counts (which the output needs before the first message), :meth:`messages` for the messages, so
+    memory stays that of one chunk.
     """
 
     def __init__(self, path: Path) -> None:
