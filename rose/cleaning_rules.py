@@ -8,7 +8,7 @@ and labelling (imported lazily, like the wall extraction).
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any, cast
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
@@ -472,29 +472,29 @@ def topology_guard(
     box = _padded_box(opened, window_px + reach + 2)
     before, opened = before[box], opened[box]
     count, patches, stats = _components_with_stats(opened)
-    # Each cell next to a patch gets the patch's label (the highest, where two meet).
-    label_type = np.uint16 if count <= np.iinfo(np.uint16).max else np.float32
-    spread = np.asarray(
-        cv2.dilate(patches.astype(label_type, copy=False), np.ones((3, 3), np.uint8))
-    )
-    if spread.dtype != np.uint16:
-        spread = spread.astype(np.int64)
-    rim = (spread > 0) & ~opened
+    ring_cells, ring_patches = _rings(patches, opened, count)
+    formerly = before.reshape(-1)[ring_cells]
     # Patches whose ring is all formerly passable are free-standing objects: nothing to check.
-    blocked = np.bincount(spread[rim & ~before], minlength=count) > 0
+    blocked = np.zeros(count, dtype=bool)
+    blocked[ring_patches[~formerly]] = True
     blocked[0] = False
+    ring_cells, ring_patches = ring_cells[formerly], ring_patches[formerly]
     # A patch whose formerly passable ring cells are one connected arc joins nothing (it opens into
-    # one region only): only patches with two or more arcs need a labelled window.
-    arcs_count, arcs = _components(rim & before)
-    touched = rim & before
-    pairs = np.unique(spread[touched].astype(np.int64) * arcs_count + arcs[touched])
-    blocked &= np.bincount(pairs // arcs_count, minlength=count) >= 2
+    # one region only): only patches with two or more arcs need a labelled window. An arc that
+    # also runs along another patch's ring proves nothing (it may leave this patch's window).
+    touched = np.zeros(opened.shape, dtype=bool)
+    touched.reshape(-1)[ring_cells] = True
+    arcs_count, arcs = _components(touched)
+    pairs = np.unique(ring_patches * arcs_count + arcs.reshape(-1)[ring_cells])
+    arc_of, patch_of = pairs % arcs_count, pairs // arcs_count
+    shared = np.bincount(arc_of, minlength=arcs_count)[arc_of] >= 2
+    several = np.bincount(patch_of, minlength=count) >= 2
+    several[patch_of[shared]] = True
+    blocked &= several
     if not blocked.any():
         return restore
-    # spread holds integer labels by now (uint16, or int64 after the float32 dilation).
-    labels = cast("npt.NDArray[np.integer[Any]]", spread)
     separating = _separating_patches(
-        before, stats, blocked, rim & before, labels, window_px, min_region_px
+        before, stats, blocked, ring_cells, ring_patches, window_px, min_region_px
     )
     if not separating.any():
         return restore
@@ -511,18 +511,70 @@ def topology_guard(
     return _labels_wanted(wanted, pieces, removal)
 
 
+def _rings(
+    patches: npt.NDArray[np.integer], opened: npt.NDArray[np.bool_], count: int
+) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.int64]]:
+    """The ring of every patch (``count`` labels, 0 the background): each cell outside ``opened``
+    with an 8-neighbour in a patch, once per patch it touches (a cell between two patches is in
+    both rings).
+
+    Returns
+    -------
+    cells : ndarray of intp, shape (N,)
+        Flat indices into ``patches``.
+    labels : ndarray of int64, shape (N,)
+        The patch of each entry.
+    """
+    import cv2
+
+    rows, cols = patches.shape
+    grown = cv2.dilate(opened.view(np.uint8), np.ones((3, 3), np.uint8))
+    cells = np.flatnonzero(grown.view(bool) & ~opened)
+    # The labels of every ring cell's 8 neighbours (ring cells are few next to the whole image).
+    # On the border, neighbours are clipped onto the cell's own row or column: that only repeats
+    # a neighbour.
+    row, col = np.divmod(cells, cols)
+    flat = patches.reshape(-1)
+    inner = cells.size == 0 or (
+        row[0] > 0 and row[-1] < rows - 1 and int(col.min()) > 0 and int(col.max()) < cols - 1
+    )
+    offsets = [(dr, dc) for dr in (-1, 0, 1) for dc in (-1, 0, 1) if dr or dc]
+    around = np.stack(
+        [
+            flat[cells + (dr * cols + dc)]
+            if inner
+            else flat[np.clip(row + dr, 0, rows - 1) * cols + np.clip(col + dc, 0, cols - 1)]
+            for dr, dc in offsets
+        ],
+        axis=1,
+    )
+    top = around.max(axis=1)
+    # Cells next to two patches are rare: only they need every (cell, patch) pair sorted out.
+    contested = ((around > 0) & (around != top[:, None])).any(axis=1)
+    top = top.astype(np.int64)
+    if not contested.any():
+        return cells, top
+    shared, labels = cells[contested], around[contested].astype(np.int64)
+    keys = np.unique((shared[:, None] * count + labels)[labels > 0])
+    return (
+        np.concatenate([cells[~contested], keys // count]),
+        np.concatenate([top[~contested], keys % count]),
+    )
+
+
 def _separating_patches(
     before: npt.NDArray[np.bool_],
     stats: npt.NDArray[np.int32],
     blocked: npt.NDArray[np.bool_],
-    ring: npt.NDArray[np.bool_],
-    spread: npt.NDArray[np.integer],
+    ring_cells: npt.NDArray[np.intp],
+    ring_patches: npt.NDArray[np.int64],
     window_px: int,
     min_region_px: float,
 ) -> npt.NDArray[np.bool_]:
-    """Which ``blocked`` patches touch, with their ``ring`` cells, two or more regions of ``before``
-    (in a window of ``window_px`` cells around the patch) that are not small enclosed pockets (a
-    pocket does not reach the window's edge and covers less than ``min_region_px``).
+    """Which ``blocked`` patches touch, with their ring (``ring_cells`` of ``ring_patches``, from
+    :func:`_rings`), two or more regions of ``before`` (in a window of ``window_px`` cells around
+    the patch) that are not small enclosed pockets (a pocket does not reach the window's edge and
+    covers less than ``min_region_px``).
 
     All windows are copied into one mosaic, one empty cell apart, and labelled in one call.
     """
@@ -530,11 +582,9 @@ def _separating_patches(
     count = stats.shape[0]
     separating = np.zeros(count, dtype=bool)
     rows, cols = before.shape
-    # The ring cells of every blocked patch, grouped by patch (flat indices).
-    ring_idx = np.flatnonzero(ring)
-    ring_patch = spread.reshape(-1)[ring_idx].astype(np.int64)
-    wanted = blocked[ring_patch]
-    ring_idx, ring_patch = ring_idx[wanted], ring_patch[wanted]
+    # The ring cells of every blocked patch (flat indices) and their patch.
+    wanted = blocked[ring_patches]
+    ring_idx, ring_patch = ring_cells[wanted], ring_patches[wanted]
     sizes = np.bincount(ring_patch, minlength=count)
     ids = np.flatnonzero(blocked & (sizes >= 2))
     if ids.size == 0:

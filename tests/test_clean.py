@@ -212,6 +212,23 @@ def test_topology_guard_restores_only_pieces_that_join_regions() -> None:
     ).any()
 
 
+def test_topology_guard_restores_a_wall_hole_whose_opening_meets_another() -> None:
+    """A removed box below a wall hole opens a patch of its own that nearly meets the hole's: cells
+    between the two belong to both rings, and the hole must still be seen joining the two rooms."""
+    from rose.cleaning_rules import topology_guard
+
+    occupied = np.zeros((40, 60), dtype=bool)
+    occupied[20, :] = True  # a wall from edge to edge
+    occupied[25:27, 33:35] = True  # a box the cleaning keeps, below the wall
+    occupied[28:31, 38:40] = True  # a box it removes, next to the kept one
+    keep = occupied.copy()
+    keep[20, 32:39] = False  # the wall piece the cleaning would remove
+    keep[28:31, 38:40] = False
+    restore = topology_guard(occupied, keep, radius_px=3.0, window_px=10, min_region_px=400.0)
+    assert restore[20, 32:39].all()
+    assert not restore[28:31, 38:40].any()
+
+
 def test_default_guard_restores_a_wall_hole_next_to_a_doorway() -> None:
     """A hole 0.5 m from a doorway still lets a robot through the wall: the default guard's window
     is small enough that the doorway does not join the two sides inside it."""
