@@ -23,10 +23,11 @@ Two methods, chosen by name:
     ``max_bridge_m`` apart and next to a removed piece, become walls (``completed``; thin lines only,
     never the space between two parallel walls).
 
-    Finally a topology guard (counting the completed walls) restores every removed piece whose
-    removal would let a disc of ``robot_radius_m`` pass between two regions that the input kept apart
-    (locally, within ``guard_window_m``), unless one of them is a small enclosed pocket (less than
-    ``min_region_m2``: the inside of a piece of furniture).
+    Finally a topology guard (counting the completed walls) finds every opening through which a disc
+    of ``robot_radius_m`` would pass between two regions that the input kept apart (locally, within
+    ``guard_window_m``), unless one of them is a small enclosed pocket (less than ``min_region_m2``:
+    the inside of a piece of furniture), and restores the removed cells that blocked it (those
+    within the disc's reach of the opening).
 
 Everything is deterministic (OpenCV morphology, labelling and its probabilistic Hough transform,
 which seeds itself) and never modifies the input.

@@ -446,9 +446,10 @@ def topology_guard(
     a disc of ``radius_px``. Each connected patch of them is checked in a window of ``window_px``
     cells around it: if the cells that were passable before and touch the patch belong to two or more
     regions of the window that are not small enclosed pockets (a pocket does not reach the window's
-    edge and covers less than ``min_region_px``), every removed piece (8-connected) within
-    ``radius_px + 1`` of the patch is restored. Patches surrounded by formerly passable cells (a
-    free-standing object) are skipped without labelling; the rest cost one small labelling each.
+    edge and covers less than ``min_region_px``), every removed cell within ``radius_px + 1`` of the
+    patch is restored: those are the cells that kept the disc out of it. Patches surrounded by
+    formerly passable cells (a free-standing object) are skipped without labelling; the rest cost
+    one small labelling each.
 
     Returns
     -------
@@ -498,17 +499,16 @@ def topology_guard(
     )
     if not separating.any():
         return restore
-    # The removed pieces within reach of a separating patch (dilated on the patches' box only).
+    # The removed cells within reach of a separating patch (dilated on the patches' box only): the
+    # ones that kept the disc out of it. Whole removed pieces would also bring back furniture that
+    # merely touches a wall hole, diagonally, as rasterised walls at an angle often do.
     reach_kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach + 1, 2 * reach + 1))
     seeds = _labels_wanted(separating, patches, opened)
     near = _padded_box(seeds, reach)
     zone = np.zeros(seeds.shape, dtype=bool)
     zone[near] = cv2.dilate(seeds[near].view(np.uint8), reach_kernel).astype(bool)
-    n_pieces, pieces = _components(removal)
-    wanted = np.zeros(n_pieces, dtype=bool)
-    wanted[pieces[box][zone & removal[box]]] = True
-    wanted[0] = False
-    return _labels_wanted(wanted, pieces, removal)
+    restore[box] = zone & removal[box]
+    return restore
 
 
 def _rings(

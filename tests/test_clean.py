@@ -229,6 +229,23 @@ def test_topology_guard_restores_a_wall_hole_whose_opening_meets_another() -> No
     assert not restore[28:31, 38:40].any()
 
 
+def test_topology_guard_restores_the_hole_not_the_whole_removed_piece() -> None:
+    """A removed face running along the wall from a wall hole (8-connected to it) comes back only
+    next to the hole: further along, its removal opens nothing, so it stays removed."""
+    from rose.cleaning_rules import topology_guard
+
+    occupied = np.zeros((60, 90), dtype=bool)
+    occupied[20, :] = True  # the wall
+    occupied[21, 41:80] = True  # a furniture face along it, touching the hole's end diagonally
+    occupied[25, 46:85] = True  # kept furniture: the face's removal opens no passage beside it
+    keep = occupied.copy()
+    keep[20, 30:41] = False
+    keep[21, 41:80] = False
+    restore = topology_guard(occupied, keep, radius_px=3.0, window_px=10, min_region_px=400.0)
+    assert restore[20, 30:41].all()
+    assert not restore[21, 50:80].any()
+
+
 def test_default_guard_restores_a_wall_hole_next_to_a_doorway() -> None:
     """A hole 0.5 m from a doorway still lets a robot through the wall: the default guard's window
     is small enough that the doorway does not join the two sides inside it."""

@@ -12,6 +12,7 @@ clutter too (people, chairs, desks); occupied components of the original map les
 from __future__ import annotations
 
 import logging
+import math
 from pathlib import Path
 
 import numpy as np
@@ -63,6 +64,18 @@ def _in_frame(
     return out
 
 
+def _rotated(poses: npt.NDArray[np.float64], angle: float) -> npt.NDArray[np.float64]:
+    """Poses ``(N, 3)`` (x, y metres, heading radians) rotated by ``angle`` about the world origin."""
+    if angle == 0:
+        return poses
+    c, s = math.cos(angle), math.sin(angle)
+    turned = np.array(poses, dtype=np.float64)
+    turned[:, 0] = c * poses[:, 0] - s * poses[:, 1]
+    turned[:, 1] = s * poses[:, 0] + c * poses[:, 1]
+    turned[:, 2] = poses[:, 2] + angle
+    return turned
+
+
 def _large_components(
     occupied: npt.NDArray[np.bool_], resolution_m: float
 ) -> npt.NDArray[np.bool_]:
@@ -83,6 +96,7 @@ def raycast_case(
     resolution_m: float = 0.05,
     objects: int | None = None,
     name: str | None = None,
+    rotation_deg: float = 0.0,
 ) -> CleaningCase:
     """A furnished ray-cast map of a CARMEN log with exact wall / clutter ground truth.
 
@@ -97,12 +111,16 @@ def raycast_case(
     objects : int, optional
         Objects to place; by default one per 12 m² of free space, 20..150.
     name : str, optional
-        Case name; ``<log>-s<seed>`` by default.
+        Case name; ``<log>-s<seed>`` by default (``<log>-r<angle>-s<seed>`` when rotated).
+    rotation_deg : float
+        Rotate the whole log (every pose about the world origin) counter-clockwise by this angle,
+        degrees: the building's walls then lie at other angles to the grid, as a map whose frame is
+        not aligned with the building has them. Rotated cases are of kind ``raycast-<angle>deg``.
     """
     log = read_log(Path(log_path))
     ranges = np.stack([s.ranges_m for s in log.scans])
     angles = beam_angles(ranges.shape[1])
-    poses = log.laser_poses
+    poses = _rotated(log.laser_poses, math.radians(rotation_deg))
     params = BuilderParams(resolution_m=resolution_m)
     clean, clean_origin = _build(ranges, angles, poses, params)
     if objects is None:
@@ -154,7 +172,8 @@ def raycast_case(
     occupied = furnished_w >= 65
     clutter = occupied & footprint
     walls = occupied & _large_components(clean_w >= 65, resolution_m) & ~footprint
-    label = name if name is not None else f"{Path(log_path).name.split('-corrected')[0]}-s{seed}"
+    turned = f"-r{rotation_deg:g}" if rotation_deg else ""
+    label = name or f"{Path(log_path).name.split('-corrected')[0]}{turned}-s{seed}"
     _LOG.info(
         "%s: %d objects (%s), %d wall cells, %d clutter cells",
         label,
@@ -165,7 +184,7 @@ def raycast_case(
     )
     return CleaningCase(
         name=label,
-        kind="raycast",
+        kind=f"raycast{turned}deg" if turned else "raycast",
         grid=furnished_w,
         walls=walls,
         clutter=clutter,
