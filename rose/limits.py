@@ -88,6 +88,15 @@ class _StrictLoader(yaml.SafeLoader):
             self._depth -= 1
 
 
+# YAML 1.2 (yaml-cpp, which ROS map_server uses) reads 5e-2 and 1.0e5 as numbers; PyYAML's YAML 1.1
+# wants a dot and a signed exponent, and would read them as strings.
+_StrictLoader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:\.[0-9]+|[0-9]+(?:\.[0-9]*)?)[eE][-+]?[0-9]+$"),
+    list("-+.0123456789"),
+)
+
+
 def load_yaml(text: str | bytes) -> Any:
     """Parse ``text`` as YAML with the limits above.
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import stat
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -256,6 +257,11 @@ def _read_image(path: Path, max_cells: int | None = DEFAULT_MAX_CELLS) -> npt.ND
     _require_regular(path, "no such image file")
     raw = _read_bytes(path)
     shape = image_shape(raw)
+    problem = _header_problem(raw, shape)
+    if problem is not None:
+        # Caught here, before the decoder: libpng and OpenCV print such errors to stderr themselves.
+        msg = f"{path}: not a readable image ({problem})"
+        raise MapFileError(msg)
     if shape is not None:
         problem = check_cells(*shape, max_cells)
         if problem is not None:
@@ -264,11 +270,17 @@ def _read_image(path: Path, max_cells: int | None = DEFAULT_MAX_CELLS) -> npt.ND
     data = np.frombuffer(raw, dtype=np.uint8)
     import cv2  # OpenCV loads on first image use, not with `import rose`
 
+    level = cv2.utils.logging.getLogLevel()
+    cv2.utils.logging.setLogLevel(
+        cv2.utils.logging.LOG_LEVEL_SILENT
+    )  # our error says it in one line
     try:
         image = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
     except (cv2.error, MemoryError) as err:
         msg = f"{path}: not a readable image ({short(err, 120)})"
         raise MapFileError(msg) from err
+    finally:
+        cv2.utils.logging.setLogLevel(level)
     if image is not None and max_cells is not None and image.shape[0] * image.shape[1] > max_cells:
         msg = f"{path}: image of {check_cells(image.shape[0], image.shape[1], max_cells)}"
         raise MapFileError(msg)
@@ -282,6 +294,23 @@ def _read_image(path: Path, max_cells: int | None = DEFAULT_MAX_CELLS) -> npt.ND
         raise MapFileError(msg)
     pixels = np.asarray(image, dtype=np.uint8)  # typed; no copy, the dtype is uint8 here
     return pixels[:, :, np.newaxis] if pixels.ndim == 2 else pixels
+
+
+def _header_problem(raw: bytes, shape: tuple[int, int] | None) -> str | None:
+    """What is wrong with the header of a PNG or PNM image, if it is one; None otherwise."""
+    is_png = raw.startswith(b"\x89PNG\r\n\x1a\n")
+    is_pnm = raw[:1] == b"P" and raw[1:2] in (b"1", b"2", b"3", b"4", b"5", b"6")
+    if not (is_png or is_pnm):
+        return None
+    if shape is None:
+        return "truncated or malformed PNG header" if is_png else "malformed PNM header"
+    if 0 in shape:
+        return f"its header declares {shape[1]} x {shape[0]} pixels"
+    if is_pnm and raw[1:2] not in (b"1", b"4"):  # PBM has no maximum value
+        tokens = re.match(rb"P[2356](?:(?:\s|#[^\n]*\n)+(\d+)){3}", raw[:512])
+        if tokens is None or not 1 <= int(tokens.group(1)) <= 65535:
+            return "PNM maximum value must be 1..65535"
+    return None
 
 
 def image_to_grid(

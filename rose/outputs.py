@@ -58,6 +58,7 @@ __all__ = [
     "interrupt_behind",
     "json_safe",
     "json_text",
+    "print_any_file_name",
     "remove_stale_temporaries",
     "report_interrupt",
     "reraise_interrupt_behind",
@@ -126,6 +127,19 @@ def _raise_terminated(signum: int, _frame: FrameType | None) -> None:
 EXIT_BROKEN_PIPE = 141
 """Exit code when the reader of standard output went away (``| head``): 128 + SIGPIPE, what a
 shell reports for a program that SIGPIPE ended."""
+
+
+def print_any_file_name() -> None:
+    """Let standard output print file names that are not UTF-8.
+
+    Linux file names are bytes; Python decodes the undecodable ones with surrogate escapes, which a
+    strict UTF-8 stream refuses to print. Written back as the bytes they came from, they show as
+    ``ls`` shows them. Console scripts call this once; messages on stderr escape them already.
+    """
+    reconfigure = getattr(sys.stdout, "reconfigure", None)
+    if reconfigure is not None:
+        with contextlib.suppress(ValueError, OSError):  # not a text stream we may change
+            reconfigure(errors="surrogateescape")
 
 
 def stdout_closed(err: OSError) -> bool:
@@ -486,7 +500,7 @@ class OutputSet:
         except (OSError, RuntimeError) as err:  # symlink loops, over-long names
             msg = f"{path}: not a usable output path ({err})"
             raise OutputError(msg) from err
-        if len(target.name.encode()) > 200:
+        if len(os.fsencode(target.name)) > 200:
             # The staging name adds ~30 characters; most file systems stop at 255 bytes.
             msg = f"{str(path)[:80]}...: output file name longer than 200 bytes"
             raise OutputError(msg)
@@ -643,6 +657,11 @@ class OutputSet:
                 else:
                     with staged.target.open("ab") as stream:  # a device or FIFO: never truncated
                         stream.write(staged.data)
+            except BrokenPipeError:
+                if staged.to_stdout:  # the reader went away (`| head`): the CLI exits quietly
+                    raise
+                msg = f"{staged.path}: cannot write (the reader closed the pipe)"
+                raise OutputError(msg) from None
             except OSError as err:
                 msg = f"{staged.path}: cannot write ({err.strerror or err})"
                 raise OutputError(msg) from err

@@ -118,3 +118,23 @@ def test_usage_error_exits_2(argv: list[str]) -> None:
     with pytest.raises(SystemExit) as info:
         main(argv)
     assert info.value.code == 2
+
+
+@pytest.mark.parametrize("command", ["score", "clean", "walls"])
+def test_a_raw_map_that_is_no_occupancy_grid_names_the_file(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], command: str
+) -> None:
+    import cv2
+
+    cv2.imwrite(str(tmp_path / "m.pgm"), np.array([[0, 254], [205, 100]], dtype=np.uint8))
+    (tmp_path / "raw.yaml").write_text(
+        "image: m.pgm\nresolution: 0.05\norigin: [0, 0, 0]\nmode: raw\n"
+    )
+    argv = [command, str(tmp_path / "raw.yaml")] + (
+        ["-o", str(tmp_path / "c.yaml")] if command == "clean" else []
+    )
+    assert main(argv) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: ") and "raw.yaml" in err[0], err
+    assert "0..100" in err[0]
+    assert not (tmp_path / "c.yaml").exists()

@@ -83,6 +83,36 @@ def test_scale_and_raw_modes(tmp_path: Path) -> None:
     np.testing.assert_array_equal(raw[0].view(np.uint8), [0, 100, 254])
 
 
+def test_exponent_numbers_read_as_map_server_reads_them(tmp_path: Path) -> None:
+    """YAML 1.2 (yaml-cpp, map_server) reads 5e-2 and 1.0e1 as numbers; YAML 1.1 would not."""
+    cv2.imwrite(str(tmp_path / "m.pgm"), np.array([[0, 254]], dtype=np.uint8))
+    text = "image: m.pgm\nresolution: 5e-2\norigin: [-1e1, 2E+1, 1.0e0]\n"
+    loaded = rose.load_map(write_yaml(tmp_path / "m.yaml", text))
+    assert loaded.resolution_m == 0.05
+    assert loaded.origin_xy_m == (-10.0, 20.0) and loaded.origin_yaw_rad == 1.0
+
+
+@pytest.mark.parametrize(
+    ("content", "problem"),
+    [
+        (b"P5\nxx yy\n255\n" + bytes(6), "malformed PNM header"),
+        (b"P5\n2 3\n70000\n" + bytes(6), "maximum value"),
+        (
+            b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR\x00\x00\x00\x00\x00\x00\x00\x05\x08\x00\x00\x00\x00",
+            "0 x 5 pixels",
+        ),
+    ],
+)
+def test_malformed_image_headers_fail_quietly_in_one_line(
+    tmp_path: Path, capfd: pytest.CaptureFixture[str], content: bytes, problem: str
+) -> None:
+    """The decoders' own messages (libpng, OpenCV) would come before ours on stderr."""
+    (tmp_path / "m.img").write_bytes(content)
+    with pytest.raises(MapFileError, match=problem):
+        rose.load_map(tmp_path / "m.img")
+    assert capfd.readouterr().err == ""
+
+
 def test_image_path_is_relative_to_the_yaml(tmp_path: Path) -> None:
     (tmp_path / "img").mkdir()
     cv2.imwrite(str(tmp_path / "img" / "m.png"), np.full((5, 5), 254, np.uint8))

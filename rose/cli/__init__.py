@@ -19,6 +19,7 @@ from rose.limits import short
 from rose.outputs import (
     EXIT_BROKEN_PIPE,
     install_signal_handlers,
+    print_any_file_name,
     reraise_interrupt_behind,
     run_interruptible,
     signals_deferred,
@@ -53,6 +54,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     for command in (clean, score, walls):
         command.add_parser(commands)
+    for command_parser in commands.choices.values():  # usage errors show the command's usage
+        command_parser.set_defaults(command_parser=command_parser)
     return parser
 
 
@@ -81,6 +84,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     error, 130 / 143 / 129 interrupted by SIGINT / SIGTERM / SIGHUP (temporary files removed).
     """
     install_signal_handlers()
+    print_any_file_name()
     return run_interruptible(lambda: _run(argv))
 
 
@@ -88,6 +92,9 @@ def _run(argv: Sequence[str] | None) -> int:
     with signals_deferred():  # an interrupted import would be an ImportError, not exit 130
         parser = build_parser()
     args = parser.parse_args(argv)
+    from rose.cli.options import check_params  # loaded with the commands already
+
+    check_params(args.command_parser, args)
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s: %(message)s")
     try:
         return int(args.func(args))

@@ -14,12 +14,13 @@ from rose.cli.options import (
     add_limit_arguments,
     add_param_arguments,
     directions_deg,
+    load_grid_map,
     params_from_args,
     result_summary,
     verdict,
 )
 from rose.errors import RoseError
-from rose.mapfile import OccupancyMap, load_map, save_map
+from rose.mapfile import OccupancyMap, save_map
 from rose.outputs import OutputSet
 from rose.pipeline import analyze
 
@@ -51,7 +52,7 @@ def add_parser(commands: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     params = params_from_args(args)
-    source = load_map(args.map, max_cells=args.max_cells)
+    source = load_grid_map(args.map, max_cells=args.max_cells)
     outputs = OutputSet(inputs=source.input_files, force=args.force)
     output_path = Path(args.output)
     if output_path.suffix.lower() not in (".yaml", ".yml"):

@@ -5,12 +5,16 @@ from __future__ import annotations
 
 import argparse
 import math
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from rose.directions import FAILURE_LEVEL, TRUST_LEVEL
+from rose.errors import RoseError
+from rose.grid import as_occupancy_grid
 from rose.limits import DEFAULT_MAX_CELLS
+from rose.mapfile import OccupancyMap, load_map
 from rose.params import RoseParams, make_params
 from rose.result import RoseResult
 
@@ -187,6 +191,20 @@ def params_from_args(args: argparse.Namespace) -> RoseParams:
     )
 
 
+def check_params(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """Reject out-of-range ROSE options as a usage error (exit 2) of ``parser``, before any work.
+
+    argparse checks each option's form; the ranges (and how options combine) are
+    :class:`RoseParams`'s to check, once.
+    """
+    if not hasattr(args, "peak_prominence"):
+        return
+    try:
+        params_from_args(args)
+    except RoseError as err:
+        parser.error(str(err))
+
+
 def directions_deg(result: RoseResult) -> list[float]:
     """Dominant directions in degrees, rounded to 0.01 and folded into [0, 180)."""
     return [round(float(np.degrees(a)), 2) % 180.0 for a in result.dominant_directions]
@@ -215,3 +233,16 @@ def verdict(score: float) -> str:
     if score <= FAILURE_LEVEL:
         return "weak structure: check the result"
     return "little structure: decluttering has likely failed"
+
+
+def load_grid_map(path: str | Path, *, max_cells: int | None) -> OccupancyMap:
+    """:func:`rose.load_map`, with the grid checked as ROSE will read it, so that a map whose values
+    are no occupancy (a ``mode: raw`` image with grey values above 100) fails naming the file."""
+    occupancy_map = load_map(path, max_cells=max_cells)
+    try:
+        as_occupancy_grid(occupancy_map.grid)
+    except RoseError as err:
+        text = str(err).rstrip(".")
+        msg = f"{path}: {text[:1].lower()}{text[1:]}"
+        raise RoseError(msg) from err
+    return occupancy_map

@@ -10,10 +10,10 @@ from typing import Any
 from rose.cli.options import (
     add_limit_arguments,
     add_param_arguments,
+    load_grid_map,
     params_from_args,
     result_summary,
 )
-from rose.mapfile import load_map
 from rose.outputs import json_text
 from rose.pipeline import analyze
 
@@ -38,7 +38,7 @@ def run(args: argparse.Namespace) -> int:
     params = params_from_args(args)
     records = []
     for path in args.maps:
-        source = load_map(path, max_cells=args.max_cells)
+        source = load_grid_map(path, max_cells=args.max_cells)
         started = time.perf_counter()
         result = analyze(source.grid, params)
         summary = result_summary(result, seconds=time.perf_counter() - started)

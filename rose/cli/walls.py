@@ -8,8 +8,7 @@ import sys
 from pathlib import Path
 from typing import Any, TextIO
 
-from rose.cli.options import add_limit_arguments, non_negative_float
-from rose.mapfile import load_map
+from rose.cli.options import add_limit_arguments, load_grid_map, non_negative_float
 from rose.outputs import OutputSet, json_text
 from rose.pipeline import analyze
 from rose.walls import WallParams, WallSet, extract_walls, extract_walls_hough
@@ -65,7 +64,7 @@ def run(args: argparse.Namespace, *, stdout: TextIO | None = None) -> int:
         messages are one line, for the caller's single error handler.
     """
     out = stdout if stdout is not None else sys.stdout
-    occupancy_map = load_map(args.map, max_cells=args.max_cells)
+    occupancy_map = load_grid_map(args.map, max_cells=args.max_cells)
     outputs = OutputSet(inputs=occupancy_map.input_files, force=args.force)
     outputs.check(args.geojson, args.svg)
     params = WallParams()

@@ -17,6 +17,7 @@ from rose.errors import RoseError
 from rose.outputs import (
     EXIT_BROKEN_PIPE,
     install_signal_handlers,
+    print_any_file_name,
     reraise_interrupt_behind,
     run_interruptible,
     signals_deferred,
@@ -79,6 +80,7 @@ def main(argv: list[str] | None = None) -> int:
     4 ``--salvage`` with messages lost, 130 / 143 / 129 interrupted by SIGINT / SIGTERM / SIGHUP.
     """
     install_signal_handlers()
+    print_any_file_name()
     keep_arrays_on_heap()  # map-sized arrays stay on the heap: far fewer page faults (module notes)
     # Rerun's native logger prints multi-line ERROR records to stderr (e.g. a failed flush on a full
     # disk) that our one-line errors already report: keep it quiet unless the user set RUST_LOG.
@@ -90,6 +92,9 @@ def _run(argv: list[str] | None) -> int:
     with signals_deferred():  # an interrupted import would be an ImportError, not exit 130
         parser = build_parser()
     args = parser.parse_args(argv)
+    from rose.cli.options import check_params  # loaded with the commands already
+
+    check_params(getattr(args, "command_parser", parser), args)
     _configure_logging(args.debug)
     try:
         return int(args.func(args))

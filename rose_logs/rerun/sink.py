@@ -80,11 +80,13 @@ def recording_id_for(input_path: Path) -> str:
     the same place, and a different log at the same path (re-recorded, edited) a different one.
     """
     path = Path(input_path).resolve()
-    digest = hashlib.sha256(str(path).encode())
+    # os.fsencode: file names need not be UTF-8 (the same bytes as str.encode for those that are).
+    digest = hashlib.sha256(os.fsencode(path))
     files = sorted(p for p in path.rglob("*") if p.is_file()) if path.is_dir() else [path]
     for file in files:
         size = file.stat().st_size
-        digest.update(f"\0{file.relative_to(path) if path.is_dir() else ''}\0{size}\0".encode())
+        name = os.fsencode(file.relative_to(path)) if path.is_dir() else b""
+        digest.update(b"\0" + name + f"\0{size}\0".encode())
         with file.open("rb") as handle:
             digest.update(handle.read(_IDENTITY_BYTES))
             if size > _IDENTITY_BYTES:

@@ -6,7 +6,8 @@ import logging
 from collections.abc import Sequence
 from pathlib import Path
 
-from rose_logs.errors import LogReadError
+from rose_logs.derived import derived_topics
+from rose_logs.errors import LogReadError, LogWriteError
 from rose_logs.storage.records import Channel
 from rose_logs.storage.typesys import MAP_TYPE, UPDATE_TYPE
 
@@ -21,11 +22,16 @@ __all__ = [
 _LOG = logging.getLogger(__name__)
 
 _DECODABLE = {"ros1", "cdr"}
+#: The map topics we add ourselves end so (only ``<map>/rose/cleaned`` is an OccupancyGrid).
+_DERIVED_MAP_SUFFIX = derived_topics("").cleaned
 
 
 def is_derived_topic(topic: str) -> bool:
-    """Whether ``topic`` is one of our own outputs (``.../rose/...``), never analysed again."""
-    return "/rose/" in topic
+    """Whether ``topic`` is our own cleaned map (``<map>/rose/cleaned``), never analysed again.
+
+    Only the exact suffix counts: ``/rose/map`` (a robot called rose) is a map like any other.
+    """
+    return topic.endswith(_DERIVED_MAP_SUFFIX)
 
 
 def find_map_topics(channels: Sequence[Channel]) -> tuple[str, ...]:
@@ -59,8 +65,16 @@ def update_targets(channels: Sequence[Channel], map_topics: Sequence[str]) -> di
 
 
 def default_output_path(input_path: Path) -> Path:
-    """``run.mcap`` -> ``run.rose.mcap``, ``run.bag`` -> ``run.rose.bag``, folder ``run`` -> ``run.rose``."""
+    """``run.mcap`` -> ``run.rose.mcap``, ``run.bag`` -> ``run.rose.bag``, folder ``run`` -> ``run.rose``.
+
+    A path without a name of its own (``.``, ``bags/..``) is named by its absolute form.
+    """
     path = Path(input_path)
+    if path.name in ("", ".", ".."):
+        path = path.resolve()
+    if not path.name:
+        msg = f"{input_path}: no file name to name the output after; give one with -o"
+        raise LogWriteError(msg)
     if path.is_dir() or path.suffix.lower() == ".db3":
         return path.with_name(f"{path.stem if path.is_file() else path.name}.rose")
     return path.with_name(f"{path.stem}.rose{path.suffix}")
@@ -77,11 +91,26 @@ def select_topics(
                 msg = f"{path}: no topic {topic} (map topics: {', '.join(found) or 'none'})"
                 raise LogReadError(msg)
             if topic not in found:
-                msg = f"{path}: topic {topic} is {known[topic].msgtype}, not nav_msgs/OccupancyGrid"
+                msg = f"{path}: topic {topic} {_why_not_a_map(known[topic])}"
                 raise LogReadError(msg)
         return tuple(dict.fromkeys(topics))
     if not found:
         names = ", ".join(sorted({c.topic for c in channels})) or "none"
         msg = f"{path}: no nav_msgs/OccupancyGrid topic (topics: {names})"
+        unreadable = [c for c in channels if c.msgtype == MAP_TYPE]
+        if unreadable:
+            msg += f"; {unreadable[0].topic} {_why_not_a_map(unreadable[0])}"
         raise LogReadError(msg)
     return found
+
+
+def _why_not_a_map(channel: Channel) -> str:
+    """Why ``channel`` is not analysed, as the end of a sentence that starts with its topic."""
+    if channel.msgtype != MAP_TYPE:
+        return f"is {channel.msgtype}, not nav_msgs/OccupancyGrid"
+    if channel.message_encoding not in _DECODABLE:
+        return (
+            f"is encoded as {channel.message_encoding or 'nothing'}; "
+            f"rose-bag reads {' and '.join(sorted(_DECODABLE))}"
+        )
+    return "is rose-bag's own cleaned map, not analysed again"

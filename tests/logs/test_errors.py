@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import os
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -100,6 +102,70 @@ def test_no_map_topic_at_all(tmp_path: Path, capsys) -> None:
     assert code == 1
     _assert_one_line_error(err, "no nav_msgs/OccupancyGrid topic", "/chatter")
     assert not (tmp_path / "o.mcap").exists()
+
+
+def test_a_robot_namespace_called_rose_is_a_map_like_any_other(
+    tmp_path: Path, capsys, fr079
+) -> None:
+    """Only ``<map>/rose/cleaned`` (our own output) is skipped, not every topic with ``/rose/``."""
+    maps = [MapMsg(START_NS, fr079[0], topic="/rose/map")]
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps)
+    out = tmp_path / "o.mcap"
+    code, _, err = _run(capsys, "process", built.path, "-o", out, "-q")
+    assert code == 0, err
+    assert {"/rose/map", "/rose/map/rose/cleaned"} <= set(read_all(out))
+    # Our own cleaned map is not analysed again, and asking for it says why.
+    code, _, err = _run(capsys, "process", out, "-t", "/rose/map/rose/cleaned", "--no-output")
+    assert code == 1
+    _assert_one_line_error(err, "/rose/map/rose/cleaned", "own cleaned map")
+
+
+def test_a_map_in_an_encoding_we_cannot_read_is_named(tmp_path: Path, capsys) -> None:
+    from mcap.writer import Writer
+
+    path = tmp_path / "json.mcap"
+    with path.open("wb") as stream:
+        writer = Writer(stream)
+        writer.start()
+        schema = writer.register_schema("nav_msgs/msg/OccupancyGrid", "jsonschema", b"{}")
+        channel = writer.register_channel("/map", "json", schema)
+        writer.add_message(channel, START_NS, b"{}", START_NS)
+        writer.finish()
+    code, _, err = _run(capsys, "process", path, "--no-output")
+    assert code == 1
+    _assert_one_line_error(err, "json.mcap", "/map is encoded as json", "cdr and ros1")
+
+
+def test_output_names_need_not_be_utf8(tmp_path: Path, mcap_log: Path) -> None:
+    """Linux file names are bytes: names that are not UTF-8 are read, written and printed (as the
+    bytes they are) like any other, on a strict UTF-8 terminal too."""
+    odd = os.fsdecode(b"o\xfe")
+    (tmp_path / "in").mkdir()
+    log = mcap_log.rename(tmp_path / "in" / os.fsdecode(b"run\xff.mcap"))
+    outputs = [tmp_path / f"{odd}.{suffix}" for suffix in ("mcap", "json", "rrd")]
+    argv = ["process", log, "-o", outputs[0], "--json", outputs[1], "--rrd", outputs[2]]
+    env = {**os.environ, "LC_ALL": "C.UTF-8", "PYTHONIOENCODING": ""}
+    done = subprocess.run(
+        [sys.executable, "-m", "rose_logs.cli", *map(str, argv)],
+        capture_output=True,
+        env=env,
+        check=False,
+        timeout=120,
+    )
+    assert done.returncode == 0, done.stderr.decode(errors="replace")
+    assert all(path.stat().st_size > 0 for path in outputs)
+    assert b"run\xff.mcap" in done.stdout
+
+
+def test_output_named_after_the_current_folder(
+    tmp_path: Path, capsys, fr079, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``rose-bag process .`` inside a ROS 2 bag folder writes the folder's ``.rose`` sibling."""
+    build_log(tmp_path / "run", "db3", session_maps(fr079[:1]))
+    monkeypatch.chdir(tmp_path / "run")
+    code, _, err = _run(capsys, "process", ".", "-q")
+    assert code == 0, err
+    assert "/map/rose/cleaned" in read_all(tmp_path / "run.rose")
 
 
 @pytest.mark.parametrize("kind", ["ros1", "mcap-ros2"])

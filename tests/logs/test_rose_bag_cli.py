@@ -173,8 +173,29 @@ def test_usage_errors_exit_2(capsys) -> None:
     assert exc.value.code == 2
 
 
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["rose-bag", "process", "x.bag", "--smoothing", "1e9"],
+        ["rose", "score", "m.yaml", "--angular-resolution", "1e-9"],
+    ],
+)
+def test_out_of_range_rose_options_are_usage_errors(
+    argv: list[str], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Checked before any file is opened (x.bag and m.yaml do not exist), with the usage."""
+    import rose.cli
+
+    command, *args = argv
+    with pytest.raises(SystemExit) as exc:
+        main(args) if command == "rose-bag" else rose.cli.main(args)
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert err.startswith("usage: ") and f"{command} {args[0]}: error: " in err
+
+
 class _ClosedPipe(io.StringIO):
-    """Standard output whose reader went away (``| head``)."""
+    """Standard output whose reader went away (``| head``), for text and bytes alike."""
 
     def write(self, text: str) -> int:
         raise BrokenPipeError(32, "Broken pipe")
@@ -182,19 +203,34 @@ class _ClosedPipe(io.StringIO):
     def fileno(self) -> int:
         raise io.UnsupportedOperation("no file descriptor")
 
+    @property
+    def buffer(self) -> _ClosedPipe:
+        return self
 
-@pytest.mark.parametrize("command", ["rose-bag", "rose"])
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["rose-bag", "info", "{sample}"],
+        ["rose-bag", "process", "{sample}", "--no-output", "--json", "-"],
+        ["rose", "score", "{map15}"],
+        ["rose", "clean", "{map15}", "-o", "{tmp}/c.yaml", "--json", "-"],
+        ["rose", "walls", "{map15}", "--geojson", "-"],
+    ],
+)
 def test_a_closed_standard_output_ends_quietly_with_141(
-    command: str, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+    argv: list[str],
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
 ) -> None:
-    """`rose-bag info LOG | head -1`: no error line, exit 128 + SIGPIPE, as other tools."""
+    """`rose-bag info LOG | head -1`: no error line, exit 128 + SIGPIPE, as other tools; the same
+    when the report streamed to standard output (``--json -``) finds no reader."""
     import rose.cli
 
     monkeypatch.setattr(sys, "stdout", _ClosedPipe())
-    if command == "rose-bag":
-        code = main(["info", str(SAMPLE)])
-    else:
-        code = rose.cli.main(["score", str(MAP15)])
+    command, *args = (a.format(sample=SAMPLE, map15=MAP15, tmp=tmp_path) for a in argv)
+    code = main(args) if command == "rose-bag" else rose.cli.main(args)
     assert code == 141
     assert capsys.readouterr().err == ""
 
