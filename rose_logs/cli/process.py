@@ -147,7 +147,7 @@ def _print_summary(report: Any, out: TextIO) -> None:
         if not records:
             print("  snapshots    0", file=out)
             continue
-        scores = [r.structure_score for r in records]
+        scores = [r.structure_score for r in records if r.judged]
         reused = sum(r.reused for r in records)
         updates = sum(r.from_update for r in records)
         extra = ", ".join(
@@ -171,7 +171,14 @@ def _print_summary(report: Any, out: TextIO) -> None:
         print(f"  grid         {size_text} cells", file=out)
         print(
             f"  W            min {min(scores):.3f}  median {statistics.median(scores):.3f}  "
-            f"max {max(scores):.3f}",
+            f"max {max(scores):.3f}"
+            + (
+                f"  ({len(records) - len(scores)} empty maps left out)"
+                if len(scores) < len(records)
+                else ""
+            )
+            if scores
+            else "  W            none (no map with occupied cells)",
             file=out,
         )
         _print_break(report, topic, out)
@@ -242,7 +249,7 @@ def run(args: argparse.Namespace) -> int:
         )
         return EXIT_SALVAGED
     if args.fail_above is not None and report.max_score > args.fail_above:
-        worst = max(report.records, key=lambda r: r.structure_score)
+        worst = max((r for r in report.records if r.judged), key=lambda r: r.structure_score)
         print(
             f"error: {args.input}: W = {worst.structure_score:.3f} on {worst.topic} snapshot "
             f"{worst.index} exceeds --fail-above {args.fail_above:g}",

@@ -712,6 +712,9 @@ class _Loop:
             _LOG.info("%s", event.text)
             if self.rerun is not None:
                 self.rerun.event(snapshot, event.text, index, score)
+        # An empty map's W is 1 by convention (SnapshotRecord.judged): no event, nothing changes.
+        if not result.occupied.any():
+            return
         above = score > self.failure_level
         if above and not self.above.get(topic, False):
             text = (

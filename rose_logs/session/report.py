@@ -36,7 +36,7 @@ class SnapshotRecord:
     resolution_m : float
         Cell size, metres.
     structure_score : float
-        W.
+        W (1 by convention for a map without occupied cells: see :attr:`judged`).
     directions_deg : tuple of float
         Dominant wall orientations in degrees in ``[0, 180)``, grid frame (CCW from the column axis).
     threshold : float
@@ -86,6 +86,13 @@ class SnapshotRecord:
     removed_count: int = 0
     kept_count: int = 0
     rescued_count: int = 0
+
+    @property
+    def judged(self) -> bool:
+        """Whether W says something about this snapshot: it has occupied cells. An empty or
+        all-unknown map (a SLAM session's first maps) has W = 1 by convention; it is left out of the
+        W statistics, the W events and the ``--fail-above`` gate."""
+        return self.occupied_count > 0
 
     def to_json(self, *, start_ns: int) -> dict[str, Any]:
         """JSON-ready dict; ``time_s`` is seconds since ``start_ns``; NaN becomes null."""
@@ -215,14 +222,14 @@ class SessionReport:
 
     @property
     def max_score(self) -> float:
-        """Largest W of the session (NaN without snapshots)."""
-        return max((r.structure_score for r in self.records), default=math.nan)
+        """Largest W of the session's judged snapshots (NaN without any)."""
+        return max((r.structure_score for r in self.records if r.judged), default=math.nan)
 
     def to_json(self) -> dict[str, Any]:
         """JSON-ready report: session summary plus one record per snapshot."""
         topics = {}
         for topic in self.map_topics:
-            scores = [r.structure_score for r in self.records_of(topic)]
+            scores = [r.structure_score for r in self.records_of(topic) if r.judged]
             above = self.first_w_above(topic)
             first = self.first_break(topic)
             topics[topic] = {

@@ -245,3 +245,23 @@ def test_processing_a_processed_log_names_the_input(
     err = capsys.readouterr().err
     assert err.startswith(f"error: {once}: has topic /map/rose/cleaned already")
     assert not twice.exists()
+
+
+def test_empty_first_maps_do_not_trip_the_w_gate(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], fr079
+) -> None:
+    """A SLAM session starts with an all-unknown map (W = 1 by convention): it is no failure."""
+    import numpy as np
+
+    empty = np.full_like(fr079[0], -1)
+    log = build_log(tmp_path / "in.mcap", "mcap-ros2", session_maps([empty, fr079[0]])).path
+    report = tmp_path / "r.json"
+    code = main(["process", str(log), "--no-output", "--json", str(report), "--fail-above", "0.4"])
+    assert code == 0, capsys.readouterr().err
+    data = json.loads(report.read_text())
+    first, second = data["snapshots"]
+    assert first["structure_score"] == 1.0 and first["occupied"] == 0
+    topic = data["topics"]["/map"]
+    assert topic["w_max"] == second["structure_score"] < 0.4
+    assert topic["first_w_above"] is None
+    assert "1 empty maps left out" in capsys.readouterr().out
