@@ -443,11 +443,12 @@ class TopicLogger:
         )
 
     def log_structure_score(self, result: RoseResult) -> None:
-        """W and the trust / failure guide lines (three series of one entity, one log call)."""
-        self.recording.log(
-            self.paths.w,
-            rr.Scalars([float(result.structure_score), self.trust_level, self.failure_level]),
-        )
+        """W and the trust / failure guide lines (three series of one entity, one log call).
+
+        A map without occupied cells has W = 1 by convention, which says nothing about it: its W is
+        left out of the plot (NaN, a gap), as out of the report's statistics."""
+        w = float(result.structure_score) if result.occupied.any() else math.nan
+        self.recording.log(self.paths.w, rr.Scalars([w, self.trust_level, self.failure_level]))
 
     def log_break_score(
         self, snapshot: MapSnapshot, verdict: BreakScore, threshold_m: float

@@ -294,7 +294,8 @@ class RerunSink:
         topic_logger = self.loggers[snapshot.topic]
         first = snapshot.topic not in self._latest
         self._latest[snapshot.topic] = snapshot
-        self._w_top[snapshot.topic] = _top(self._w_top[snapshot.topic], result.structure_score)
+        if result.occupied.any():  # an empty map's W (1 by convention) is not plotted
+            self._w_top[snapshot.topic] = _top(self._w_top[snapshot.topic], result.structure_score)
 
         def job() -> None:
             set_snapshot_time(

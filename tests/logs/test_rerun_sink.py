@@ -165,6 +165,18 @@ def test_w_series_carry_w_and_the_session_levels(breaking_session) -> None:
     assert FAILURE_LEVEL != 0.1
 
 
+def test_an_empty_map_leaves_a_gap_in_the_w_plot(tmp_path: Path, fr079) -> None:
+    """An all-unknown first map has W = 1 by convention; plotted, it would squash the real W."""
+    from conftest import build_log, session_maps
+
+    empty = np.full_like(fr079[0], -1)
+    log = build_log(tmp_path / "in.mcap", "mcap-ros2", session_maps([empty, fr079[0]])).path
+    report = process_log(log, rrd_path=tmp_path / "s.rrd")
+    w = [r["Scalars:scalars"][0] for r in _read(tmp_path / "s.rrd").rows(PATHS.w)]
+    assert np.isnan(w[0])
+    assert w[1] == pytest.approx(report.records[1].structure_score) and w[1] < 0.4
+
+
 def test_breaks_are_marked_on_the_w_plot_and_as_events(breaking_session) -> None:
     report, content = breaking_session
     marks = content.rows(PATHS.breaks)
