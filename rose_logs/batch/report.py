@@ -117,8 +117,9 @@ def figure_png(report: BatchReport) -> bytes | None:
     fig, ax = plt.subplots(figsize=(9, 4.5), dpi=100)
     broken_count = 0
     for label, rows in series:
-        times = [s["time_s"] for s in rows]
-        scores = [s["structure_score"] for s in rows]
+        judged = [s for s in rows if s["occupied"] > 0]  # an empty map's W = 1 says nothing
+        times = [s["time_s"] for s in judged]
+        scores = [s["structure_score"] for s in judged]
         first = next((s for s in rows if s["broken"]), None)
         if first is None:
             ax.plot(times, scores, ".-", color="0.65", linewidth=0.8, markersize=3, zorder=1)

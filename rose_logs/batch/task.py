@@ -145,7 +145,8 @@ class RecordingResult:
 
     def row(self) -> dict[str, Any]:
         """The recording's row of ``recordings.parquet``."""
-        scores = [s["structure_score"] for s in self.snapshots]
+        # Maps without occupied cells (W = 1 by convention) say nothing: SnapshotRecord.judged.
+        scores = [s["structure_score"] for s in self.snapshots if s["occupied"] > 0]
         first = next((s for s in self.snapshots if s["broken"]), None)
         return {
             "uri": self.uri,
@@ -154,7 +155,7 @@ class RecordingResult:
             "status": self.status,
             "error": self.error,
             "map_topics": list(self.map_topics),
-            "snapshots": len(scores),
+            "snapshots": len(self.snapshots),
             "start_ns": self.start_ns,
             "end_ns": self.end_ns,
             "w_min": min(scores) if scores else None,
@@ -193,10 +194,11 @@ def package_version() -> str:
     return __version__
 
 
-#: Layout of a stored result; part of the resume key, so results stored in an older layout (2:
-#: ``break_detected`` marks every snapshot the detector calls broken, not only a break's first) are
-#: redone instead of mixed into new tables.
-RESULT_LAYOUT = 2
+#: Layout of a stored result; part of the resume key, so results stored in an older layout are
+#: redone instead of mixed into new tables (2: ``break_detected`` marks every snapshot the detector
+#: calls broken, not only a break's first; 3: maps without occupied cells are never
+#: ``w_above_failure``).
+RESULT_LAYOUT = 3
 
 
 def result_key(recording: Recording, options: RecordingOptions) -> str:
@@ -375,7 +377,7 @@ def _attempt(
         # A map breaks where the break detector fires or where W rises above the paper's level;
         # both reasons stay visible as their own columns.
         row["break_start"] = (record.topic, record.index) in starts
-        row["w_above_failure"] = bool(record.structure_score > level)
+        row["w_above_failure"] = record.judged and record.structure_score > level
         row["broken"] = row["break_detected"] or row["w_above_failure"]
         snapshots.append(row)
     return RecordingResult(

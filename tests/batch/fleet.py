@@ -27,12 +27,14 @@ def copy_recording(
     source: Path = SAMPLE,
     max_maps: int | None = None,
     break_from: int | None = None,
+    empty_first: bool = False,
     repeat: int = 1,
 ) -> Path:
     """Copy ``source`` to ``destination`` in ``fmt`` (``db3``, ``mcap``, ``mcap-dir``).
 
     ``max_maps`` keeps the first maps only (and what was logged before the next one); ``break_from``
-    scrambles every map from that index on, so the map "breaks" there; ``repeat`` logs the whole
+    scrambles every map from that index on, so the map "breaks" there; ``empty_first`` makes the
+    first map all unknown (as a SLAM session starts); ``repeat`` logs the whole
     session that many times in a row (a longer recording).
     """
     destination.parent.mkdir(parents=True, exist_ok=True)
@@ -51,7 +53,16 @@ def copy_recording(
             if message.channel.topic == MAP_TOPIC:
                 if max_maps is not None and maps >= max_maps:
                     break
-                if break_from is not None and maps >= break_from:
+                if empty_first and maps == 0:
+                    snapshot = decode_map(
+                        data,
+                        serialization=reader.serialization,
+                        topic=MAP_TOPIC,
+                        log_time_ns=message.log_time_ns,
+                    )
+                    unknown = np.full_like(snapshot.grid, -1)
+                    data = encode_cleaned(snapshot, unknown, serialization=reader.serialization)
+                elif break_from is not None and maps >= break_from:
                     snapshot = decode_map(
                         data,
                         serialization=reader.serialization,

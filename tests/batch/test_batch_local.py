@@ -38,6 +38,21 @@ def read_rows(path: Path) -> list[dict]:
 # ---- discovery ------------------------------------------------------------------------------------
 
 
+def test_an_empty_first_map_is_no_broken_map(tmp_path: Path) -> None:
+    """A session that starts all unknown (W = 1 by convention) is judged by its real maps."""
+    from fleet import copy_recording
+
+    log = copy_recording(tmp_path / "run.mcap", "mcap", max_maps=3, empty_first=True)
+    recording = discover([log])[0]
+    result = process_recording(recording, out=tmp_path / "out", options=RecordingOptions())
+    first = result.snapshots[0]
+    assert first["occupied"] == 0 and first["structure_score"] == 1.0
+    assert not first["w_above_failure"] and not first["broken"]
+    row = result.row()
+    assert row["snapshots"] == 3 and not row["broke"]
+    assert row["w_max"] == max(s["structure_score"] for s in result.snapshots[1:]) < 0.4
+
+
 def test_folders_are_searched_recursively_and_a_bag_folder_is_one_recording(fleet: Path) -> None:
     recordings = discover([fleet])
     assert [r.name for r in recordings] == FLEET_NAMES
