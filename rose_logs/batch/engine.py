@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import json
 import logging
+import signal
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
@@ -28,6 +30,9 @@ __all__ = ["BatchReport", "run_batch"]
 
 _LOG = logging.getLogger(__name__)
 
+#: Seconds to connect to an existing Dask scheduler before giving up.
+CONNECT_TIMEOUT_S = 10.0
+
 
 @dataclass(frozen=True)
 class BatchReport:
@@ -45,11 +50,13 @@ class BatchReport:
     skipped : int
         Recordings whose stored result was reused.
     interrupted : bool
-        The batch was stopped (Ctrl-C) before every recording finished.
+        The batch was stopped (Ctrl-C, SIGTERM, SIGHUP) before every recording finished.
     failure_level : float
         W above which a snapshot counts as broken.
     elapsed_s : float
         Wall time of the run, seconds.
+    signal : int or None
+        The signal that stopped the batch (``signal.SIGINT`` for Ctrl-C), None if it was not stopped.
     """
 
     out: str
@@ -59,6 +66,7 @@ class BatchReport:
     interrupted: bool
     failure_level: float
     elapsed_s: float
+    signal: int | None = None
 
     @property
     def errors(self) -> tuple[RecordingResult, ...]:
@@ -137,64 +145,107 @@ def run_batch(
     Raises
     ------
     BatchError
-        If an input does not exist or matches nothing, or ``out`` cannot be created.
+        If an input does not exist or matches nothing, ``out`` cannot be created, ``workers`` is
+        out of range, the scheduler file is unusable or the scheduler cannot be reached.
     """
     started = time.perf_counter()
     options = options or RecordingOptions()
     if workers < 1:
         msg = f"workers must be >= 1, got {workers}"
         raise BatchError(msg)
+    if client is None and scheduler is None and scheduler_file is None:
+        from rose_logs.batch.cluster import max_local_workers
+
+        if workers > max_local_workers():
+            msg = f"workers must be <= {max_local_workers()} (4 per CPU), got {workers}"
+            raise BatchError(msg)
+    named_by = None  # the scheduler file, for errors
+    if scheduler_file is not None and client is None:
+        from rose_logs.batch.cluster import scheduler_address
+
+        # Read here, before anything runs: Dask would wait forever for a missing file and fail
+        # with a bare AssertionError on a file that is not one of its own.
+        scheduler = scheduler_address(scheduler_file)
+        named_by = str(scheduler_file)
     store = OutputStore(str(out), storage_options)
     recordings = _outside(discover(inputs, storage_options=storage_options), store)
-    store.prepare()
     keys = {rec.uri: result_key(rec, options) for rec in recordings}
     finished: dict[str, RecordingResult] = {}
     todo: list[Recording] = []
+    before: dict[str, RecordingResult | None] = {}  # stored results of the recordings to do
     for rec in recordings:
-        previous = None if force else load_result(store, keys[rec.uri])
-        if previous is None or (retry_errors and previous.status == "error"):
+        previous = load_result(store, keys[rec.uri])
+        if force or previous is None or (retry_errors and previous.status == "error"):
             todo.append(rec)
+            before[rec.uri] = previous
         else:
             finished[rec.uri] = previous
     skipped = len(finished)
     _LOG.info("%d recordings, %d finished before, %d to do", len(recordings), skipped, len(todo))
-    interrupted = False
+    stopped_by: int | None = None
     bar = _Progress(total=len(todo), enabled=progress)
     try:
         with _executor(
             client if todo else None,
             workers if todo else 1,  # nothing to do: no cluster to start or connect to
             scheduler if todo else None,
-            scheduler_file if todo else None,
+            named_by,
             memory_limit,
             options,
         ) as run:
+            # Created once the engine is ready: a scheduler that cannot be reached leaves no folder.
+            store.prepare()
             bar.slots = getattr(run, "slots", 1)
             for result in run(todo, store, options, storage_options, keys):
                 finished[result.uri] = result
                 bar.update(result)
                 if on_result is not None:
                     on_result(result, bar.done, len(todo))
-    except KeyboardInterrupt:
-        interrupted = True
-        _LOG.warning("interrupted: %d of %d recordings finished", bar.done, len(todo))
+    except KeyboardInterrupt as err:
+        stopped_by = getattr(err, "signum", signal.SIGINT)  # Terminated: SIGTERM / SIGHUP
+        # Workers store each result as they finish it, also those this process had not collected
+        # yet when the signal came (the cluster is closed by now): the tables include them.
+        for rec in todo:
+            if rec.uri not in finished:
+                stored = load_result(store, keys[rec.uri])
+                if stored is not None and not _same(stored, before[rec.uri]):
+                    finished[rec.uri] = stored
+        _LOG.info("interrupted: %d of %d recordings finished", len(finished) - skipped, len(todo))
     finally:
         bar.close()
         store.remove_staging()
     report = BatchReport(
         out=store.root,
         results=tuple(finished[r.uri] for r in recordings if r.uri in finished),
-        processed=bar.done,
+        processed=len(finished) - skipped,
         skipped=skipped,
-        interrupted=interrupted,
+        interrupted=stopped_by is not None,
         failure_level=options.failure_level,
         elapsed_s=time.perf_counter() - started,
+        signal=stopped_by,
     )
     if write_tables:
+        from rose.outputs import signals_deferred
         from rose_logs.batch.tables import write_outputs
 
-        write_outputs(store, report, options)
+        # A signal between two tables would leave them out of step: they are written first (in a
+        # second), and the report then says the batch was stopped.
+        try:
+            with signals_deferred():
+                write_outputs(store, report, options)
+        except KeyboardInterrupt as err:
+            stopped_by = getattr(err, "signum", signal.SIGINT)
+            report = dataclasses.replace(report, interrupted=True, signal=stopped_by)
     return report
+
+
+def _same(result: RecordingResult, other: RecordingResult | None) -> bool:
+    """Whether two results are the same stored result (as JSON: a NaN equals itself there)."""
+    if other is None:
+        return False
+    return json.dumps(result.to_json(), sort_keys=True) == json.dumps(
+        other.to_json(), sort_keys=True
+    )
 
 
 def _outside(recordings: tuple[Recording, ...], store: OutputStore) -> tuple[Recording, ...]:
@@ -221,25 +272,32 @@ def _executor(
     client: Any,
     workers: int,
     scheduler: str | None,
-    scheduler_file: str | Path | None,
+    named_by: str | None,
     memory_limit: str | float | None,
     options: RecordingOptions,
 ) -> Iterator[Runner]:
-    """A function running recordings: in-process, or on a (local or existing) Dask cluster."""
+    """A function running recordings: in-process, or on a (local or existing) Dask cluster.
+
+    ``named_by`` is the scheduler file that gave ``scheduler`` (errors name it).
+    """
     if client is not None:
         yield _dask_runner(client, memory_limit)
         return
-    if scheduler is not None or scheduler_file is not None:
+    if scheduler is not None:
         from distributed import Client
 
+        from rose_logs.batch.cluster import check_scheduler
+
         try:
-            own = (
-                Client(scheduler_file=str(scheduler_file), timeout="10s")
-                if scheduler_file is not None
-                else Client(scheduler, timeout="10s")
-            )
+            check_scheduler(scheduler, timeout_s=CONNECT_TIMEOUT_S)
+            own = Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S:g}s")
         except (OSError, TimeoutError, ValueError) as err:
-            msg = f"cannot connect to the Dask scheduler {scheduler or scheduler_file}: {err}"
+            where = (
+                f"{named_by}: cannot connect to the Dask scheduler {scheduler} it names"
+                if named_by is not None
+                else f"{scheduler or repr(scheduler)}: cannot connect to the Dask scheduler"
+            )
+            msg = f"{where} ({err})"
             raise BatchError(msg) from err
         with own:
             yield _dask_runner(own, memory_limit)

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import hashlib
+import os
 import posixpath
+import stat
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -14,7 +16,7 @@ import fsspec
 from rose_logs.batch.errors import BatchError
 from rose_logs.batch.store import is_local
 
-__all__ = ["LOG_SUFFIXES", "Recording", "discover", "read_list"]
+__all__ = ["LOG_SUFFIXES", "MAX_LIST_BYTES", "Recording", "discover", "read_list"]
 
 #: File suffixes searched for in folders (a folder with ``metadata.yaml`` is one ROS 2 bag).
 LOG_SUFFIXES = (".bag", ".mcap", ".db3")
@@ -49,13 +51,51 @@ class Recording:
     version: str
 
 
+#: Largest ``--from-list`` file read, bytes: millions of lines, and a device such as ``/dev/zero`` is
+#: refused instead of read until memory runs out.
+MAX_LIST_BYTES = 64 * 1024 * 1024
+
+
 def read_list(path: str, storage_options: Mapping[str, Any] | None = None) -> list[str]:
-    """Inputs listed in a text file, one per line; blank lines and ``#`` comments are skipped."""
+    """Inputs listed in a text file, one per line; blank lines and ``#`` comments are skipped.
+
+    Raises
+    ------
+    BatchError
+        If ``path`` is missing, not a regular file, larger than :data:`MAX_LIST_BYTES` or not UTF-8.
+    """
     try:
-        with fsspec.open(path, "rt", encoding="utf-8", **_options(path, storage_options)) as f:
-            lines = f.read().splitlines()
-    except (OSError, UnicodeDecodeError) as err:
-        msg = f"{path}: cannot read the list of inputs ({err})"
+        fs, fs_path = fsspec.core.url_to_fs(path, **_options(path, storage_options))
+        if is_local(path):
+            # stat, not fs.info: a FIFO or device must be refused before open() (which may block).
+            status = Path(fs_path).stat()
+            regular = stat.S_ISREG(status.st_mode)
+            size = status.st_size
+        else:
+            info = fs.info(fs_path)
+            regular = info.get("type") == "file"
+            size = int(info.get("size") or 0)
+        if not regular:
+            msg = f"{path}: the list of inputs is not a regular file"
+            raise BatchError(msg)
+        if size > MAX_LIST_BYTES:
+            msg = f"{path}: the list of inputs is larger than {MAX_LIST_BYTES >> 20} MiB"
+            raise BatchError(msg)
+        with fs.open(fs_path, "rb") as f:
+            data = f.read(MAX_LIST_BYTES + 1)  # bounded even if the file grows meanwhile
+        if len(data) > MAX_LIST_BYTES:
+            msg = f"{path}: the list of inputs is larger than {MAX_LIST_BYTES >> 20} MiB"
+            raise BatchError(msg)
+        try:
+            lines = data.decode("utf-8").splitlines()
+        except UnicodeDecodeError as err:
+            msg = f"{path}: the list of inputs is not UTF-8 text ({err.reason} at byte {err.start})"
+            raise BatchError(msg) from err
+    except FileNotFoundError as err:
+        msg = f"{path}: the list of inputs does not exist"
+        raise BatchError(msg) from err
+    except OSError as err:
+        msg = f"{path}: cannot read the list of inputs ({err.strerror or err})"
         raise BatchError(msg) from err
     return [s for s in (line.strip() for line in lines) if s and not s.startswith("#")]
 
@@ -63,7 +103,7 @@ def read_list(path: str, storage_options: Mapping[str, Any] | None = None) -> li
 def discover(
     inputs: Sequence[str | Path], *, storage_options: Mapping[str, Any] | None = None
 ) -> tuple[Recording, ...]:
-    """Every recording named by ``inputs``, sorted by URI, each once.
+    """Every recording named by ``inputs``, sorted by URI, each once (local files by real path).
 
     Parameters
     ----------
@@ -83,7 +123,10 @@ def discover(
     names: dict[str, str] = {}
     for item in inputs:
         for recording in _expand(str(item), storage_options):
-            if recording.uri in found:
+            # One file under two spellings (``a/../a/x.mcap``, a symlink) is one recording: the
+            # first spelling names it.
+            same = _identity(recording.uri)
+            if same in found:
                 continue
             name = recording.name
             if name in names:  # two inputs with the same relative name: keep both, distinguishable
@@ -93,13 +136,18 @@ def discover(
                     f"{stem}-{digest}.{ext}" if dot and not recording.is_dir else f"{name}-{digest}"
                 )
             names[name] = recording.uri
-            found[recording.uri] = Recording(
+            found[same] = Recording(
                 recording.uri, name, recording.is_dir, recording.size, recording.version
             )
     if not found:
         msg = f"no recording found in {', '.join(str(i) for i in inputs) or 'the inputs'}"
         raise BatchError(msg)
     return tuple(sorted(found.values()))
+
+
+def _identity(uri: str) -> str:
+    """What tells two recordings apart: a local path resolved (symlinks, ``..``), else the URL."""
+    return os.path.realpath(uri.removeprefix("file://")) if is_local(uri) else uri
 
 
 def _options(uri: str, storage_options: Mapping[str, Any] | None) -> dict[str, Any]:

@@ -1,4 +1,4 @@
-"""Process settings for batch workers: glibc malloc thresholds and single-threaded BLAS.
+"""Process settings for batch workers: glibc malloc thresholds, single-threaded BLAS, a tqdm lock.
 
 Dask's nanny starts workers with ``MALLOC_TRIM_THRESHOLD_=65536``, which leaves every array above
 128 KiB mmapped and page-faulted afresh on each allocation: ROSE's map-sized temporaries then cost
@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import logging
 import os
+import threading
 
 from rose_logs.malloc import MALLOC_ENV, keep_arrays_on_heap
 
@@ -45,8 +46,24 @@ def tune_worker_process() -> None:
     for name, value in THREAD_ENV.items():
         os.environ.setdefault(name, value)
     keep_arrays_on_heap()
+    _thread_lock_for_tqdm()
     try:
         from threadpoolctl import threadpool_limits
     except ImportError:
         return
     threadpool_limits(1)
+
+
+def _thread_lock_for_tqdm() -> None:
+    """Give tqdm a thread lock instead of the multiprocessing one it creates by default.
+
+    ``process_log`` makes a (hidden) tqdm bar, and tqdm's first bar creates a named semaphore that
+    the resource tracker counts: a worker stopped by a signal (Ctrl-C of a batch) then makes the
+    tracker warn of "leaked semaphore objects" on stderr. Workers run one task thread, so a
+    thread lock is all tqdm needs.
+    """
+    try:
+        from tqdm import tqdm
+    except ImportError:
+        return
+    tqdm.set_lock(threading.RLock())

@@ -35,6 +35,17 @@ def _positive_int(text: str) -> int:
     return value
 
 
+def _worker_count(text: str) -> int:
+    """``--workers``: 1 .. 4 per CPU (more only add start-up time and memory; far more never start)."""
+    from rose_logs.batch.cluster import max_local_workers
+
+    value = _positive_int(text)
+    if value > max_local_workers():
+        msg = f"must be <= {max_local_workers()} (4 per CPU of this machine), got {value}"
+        raise argparse.ArgumentTypeError(msg)
+    return value
+
+
 def _memory_limit(text: str) -> str | float:
     """``auto``, a fraction of RAM (0 < f <= 1) or a size such as ``2GB`` / ``512MiB``."""
     from dask.utils import parse_bytes
@@ -87,18 +98,24 @@ def add_parser(subparsers: Any) -> None:
         action="append",
         default=[],
         metavar="FILE",
-        help="read more inputs from FILE, one per line (# comments)",
+        help="read more inputs from FILE (a regular file of at most 64 MiB), one per line "
+        "(# comments)",
     )
     engine = parser.add_argument_group("engine")
     engine.add_argument(
         "--workers",
-        type=_positive_int,
+        type=_worker_count,
         default=1,
-        help="local worker processes, one thread each (default 1: in this process, no Dask, "
-        "two snapshots analysed at once)",
+        help="local worker processes, one thread each, at most 4 per CPU (default 1: in this "
+        "process, no Dask, two snapshots analysed at once)",
     )
     engine.add_argument("--scheduler", default=None, help="existing Dask cluster, tcp://host:port")
-    engine.add_argument("--scheduler-file", default=None, help="existing Dask cluster's file")
+    engine.add_argument(
+        "--scheduler-file",
+        default=None,
+        help="existing Dask cluster's scheduler file (JSON with its address; waited for 10 s if "
+        "it does not exist yet)",
+    )
     engine.add_argument(
         "--memory-limit",
         type=_memory_limit,
@@ -162,7 +179,7 @@ def add_parser(subparsers: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from rose_logs.batch import RecordingOptions, read_list, run_batch
+    from rose_logs.batch import BatchError, RecordingOptions, read_list, run_batch
 
     if args.scheduler and args.scheduler_file:
         msg = "--scheduler and --scheduler-file exclude each other"
@@ -174,6 +191,9 @@ def run(args: argparse.Namespace) -> int:
     inputs = list(args.inputs)
     for path in args.from_list:
         inputs += read_list(path, storage_options)
+    if not inputs and args.from_list:
+        msg = f"{', '.join(args.from_list)}: the list of inputs is empty (blank lines and # comments only)"
+        raise BatchError(msg)
     if not inputs:
         msg = "no INPUT given (and no --from-list)"
         raise UsageError(msg)
@@ -226,7 +246,8 @@ def _exit_code(report: Any, args: argparse.Namespace) -> int:
             "(run again to resume)",
             file=sys.stderr,
         )
-        return EXIT_INTERRUPTED
+        # 128 + signal, as a shell reports it: 130 for Ctrl-C, 143 for SIGTERM, 129 for SIGHUP.
+        return EXIT_INTERRUPTED if report.signal is None else 128 + report.signal
     errors = report.errors
     if len(errors) > args.max_errors:
         first = errors[0]

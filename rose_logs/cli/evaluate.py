@@ -5,9 +5,11 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from rose.cli.options import int_in_range
 from rose_logs.datasets import ENV_VAR
 from rose_logs.evaluation.config import BENCHMARK_SUBDIR, LOGS_SUBDIR, EvaluationConfig
 
@@ -18,12 +20,37 @@ def _csv(value: str) -> tuple[str, ...]:
     return tuple(v.strip() for v in value.split(",") if v.strip())
 
 
-def _ints(value: str) -> tuple[int, ...]:
-    try:
-        return tuple(int(v) for v in _csv(value))
-    except ValueError as err:
-        msg = f"expected comma-separated integers, got {value!r}"
-        raise argparse.ArgumentTypeError(msg) from err
+#: Bounds of the experiment options. The paper's ranges (``--config full``) are sizes 2..39 px and
+#: counts 20..180 per map; far larger values only make each map slower to build and analyse (an
+#: obstacle of 100000 px, 1e8 obstacles) without telling anything new.
+MAX_SIZE_PX = 200
+MAX_COUNT = 1000
+MAX_LIST_VALUES = 50
+MAX_BREAK_SEEDS = 20
+MAX_SEED = 2**32 - 1
+
+
+def _ints(low: int, high: int) -> Callable[[str], tuple[int, ...]]:
+    """argparse type: comma-separated integers in ``low..high``, at most :data:`MAX_LIST_VALUES`."""
+
+    def parse(value: str) -> tuple[int, ...]:
+        items = _csv(value)
+        if len(items) > MAX_LIST_VALUES:
+            msg = f"at most {MAX_LIST_VALUES} values, got {len(items)}"
+            raise argparse.ArgumentTypeError(msg)
+        try:
+            numbers = tuple(int(v, 10) for v in items)
+        except ValueError as err:
+            msg = f"expected comma-separated integers, got {value[:40]!r}"
+            raise argparse.ArgumentTypeError(msg) from err
+        bad = [n for n in numbers if not low <= n <= high]
+        if bad:
+            msg = f"each value must be in {low}..{high}, got {bad[0]}"
+            raise argparse.ArgumentTypeError(msg)
+        return numbers
+
+    parse.__name__ = "integers"  # argparse names the type in its messages
+    return parse
 
 
 def _configure(parser: argparse.ArgumentParser) -> None:
@@ -42,7 +69,12 @@ def _configure(parser: argparse.ArgumentParser) -> None:
         help="small: 1 log + 1 benchmark map, 12 clutter maps each (seconds); "
         "full: 5 logs + 19 benchmark maps, 243 clutter maps each, 3 drift levels x 3 seeds",
     )
-    parser.add_argument("--seed", type=int, default=None, help="base seed (default 2021)")
+    parser.add_argument(
+        "--seed",
+        type=int_in_range(0, MAX_SEED),
+        default=None,
+        help="base seed, 0..2**32-1 (default 2021)",
+    )
     parser.add_argument(
         "--maps-dir",
         type=Path,
@@ -52,14 +84,26 @@ def _configure(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--logs", type=_csv, default=None, help="comma-separated Radish logs")
     parser.add_argument("--maps", type=_csv, default=None, help="comma-separated benchmark maps")
-    parser.add_argument("--sizes", type=_ints, default=None, help="obstacle sizes in px")
-    parser.add_argument("--counts", type=_ints, default=None, help="obstacle counts per map")
+    parser.add_argument(
+        "--sizes",
+        type=_ints(1, MAX_SIZE_PX),
+        default=None,
+        help=f"comma-separated obstacle sizes in px, each 1..{MAX_SIZE_PX} (small: 4,20; full: "
+        f"2..39), at most {MAX_LIST_VALUES} values",
+    )
+    parser.add_argument(
+        "--counts",
+        type=_ints(1, MAX_COUNT),
+        default=None,
+        help=f"comma-separated obstacle counts per map, each 1..{MAX_COUNT} (small: 20,100; full: "
+        f"20..180), at most {MAX_LIST_VALUES} values",
+    )
     parser.add_argument(
         "--break-seeds",
-        type=int,
+        type=int_in_range(0, MAX_BREAK_SEEDS),
         default=None,
         help="experiment 4 (break detection on replayed sessions): seeds per log, drift level "
-        "and start (small: 0 = skipped, full: 3)",
+        f"and start, 0..{MAX_BREAK_SEEDS} (small: 0 = skipped, full: 3)",
     )
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
 

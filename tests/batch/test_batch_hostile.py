@@ -1,0 +1,351 @@
+"""rose-bag batch against hostile options and signals: scheduler files, input lists, duplicate
+spellings, worker counts, Ctrl-C and SIGTERM while a local Dask cluster runs."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pyarrow.parquet as pq
+import pytest
+from fleet import SAMPLE
+
+import rose_logs.batch.cluster as cluster
+import rose_logs.batch.engine as engine
+from rose_logs.batch import discover, run_batch
+from rose_logs.cli import main
+
+needs_dask = pytest.mark.skipif(
+    importlib.util.find_spec("distributed") is None, reason="needs dask.distributed"
+)
+
+
+def one_error_line(err: str, culprit: Path | str) -> str:
+    """The single ``error: <culprit>: ...`` line of ``err`` (fails otherwise)."""
+    assert "Traceback" not in err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith(f"error: {culprit}: "), err
+    return lines[0]
+
+
+# ---- --scheduler-file and --scheduler ---------------------------------------------------------------
+
+
+def _write(path: Path, content: bytes | str | None) -> Path:
+    if isinstance(content, str):
+        path.write_text(content)
+    elif isinstance(content, bytes):
+        path.write_bytes(content)
+    return path
+
+
+@pytest.mark.parametrize(
+    ("content", "problem"),
+    [
+        (None, "no such scheduler file"),
+        ("{}", "not a Dask scheduler file"),
+        ("hello, not JSON", "not a Dask scheduler file"),
+        (bytes(range(256)), "not a Dask scheduler file"),
+        ('{"address": 8786}', "not a Dask scheduler file"),
+        ('["tcp://127.0.0.1:8786"]', "not a Dask scheduler file"),
+    ],
+)
+def test_a_bad_scheduler_file_is_a_one_line_error_before_anything_runs(
+    fleet: Path,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+    content: bytes | str | None,
+    problem: str,
+) -> None:
+    monkeypatch.setattr(cluster, "SCHEDULER_FILE_WAIT_S", 0.2)  # a missing file: short wait
+    path = _write(tmp_path / "scheduler.json", content)
+    out = tmp_path / "out"
+    argv = ["batch", str(fleet / "robot_a"), "-o", str(out), "-q", "--scheduler-file", str(path)]
+    started = time.monotonic()
+    assert main(argv) == 1
+    assert time.monotonic() - started < 5
+    assert problem in one_error_line(capsys.readouterr().err, path)
+    assert not out.exists()  # nothing written
+
+
+@pytest.mark.parametrize("kind", ["fifo", "folder"])
+def test_a_scheduler_file_that_is_no_regular_file_is_refused_without_blocking(
+    fleet: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], kind: str
+) -> None:
+    path = tmp_path / "scheduler.json"
+    if kind == "fifo":
+        os.mkfifo(path)  # opening it would wait for a writer forever
+    else:
+        path.mkdir()
+    argv = ["batch", str(fleet), "-o", str(tmp_path / "out"), "-q", "--scheduler-file", str(path)]
+    assert main(argv) == 1
+    assert "not a regular file" in one_error_line(capsys.readouterr().err, path)
+
+
+def test_a_scheduler_file_appearing_late_is_waited_for(tmp_path: Path) -> None:
+    path = tmp_path / "scheduler.json"
+    writer = threading.Timer(0.3, path.write_text, args=('{"address": "tcp://127.0.0.1:8786"}',))
+    writer.start()
+    try:
+        assert cluster.scheduler_address(path, wait_s=10) == "tcp://127.0.0.1:8786"
+    finally:
+        writer.cancel()
+
+
+@pytest.fixture
+def silent_listener() -> Iterator[str]:
+    """A TCP port that accepts connections and never says anything (no Dask scheduler)."""
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen(8)
+    accepted: list[socket.socket] = []
+    stop = threading.Event()
+
+    def accept() -> None:
+        server.settimeout(0.1)
+        while not stop.is_set():
+            try:
+                accepted.append(server.accept()[0])
+            except OSError:
+                continue
+
+    thread = threading.Thread(target=accept, daemon=True)
+    thread.start()
+    try:
+        yield f"tcp://127.0.0.1:{server.getsockname()[1]}"
+    finally:
+        stop.set()
+        thread.join()
+        for conn in accepted:
+            conn.close()
+        server.close()
+
+
+def _unused_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return int(probe.getsockname()[1])
+
+
+@needs_dask
+@pytest.mark.parametrize("peer", ["nobody", "silent"])
+def test_a_scheduler_that_does_not_answer_is_a_one_line_error_in_bounded_time(
+    fleet: Path,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+    silent_listener: str,
+    peer: str,
+) -> None:
+    monkeypatch.setattr(engine, "CONNECT_TIMEOUT_S", 1.0)
+    address = silent_listener if peer == "silent" else f"tcp://127.0.0.1:{_unused_port()}"
+    path = _write(tmp_path / "scheduler.json", json.dumps({"address": address}))
+    out = tmp_path / "out"
+    argv = ["batch", str(fleet / "robot_a"), "-o", str(out), "-q", "--scheduler-file", str(path)]
+    started = time.monotonic()
+    assert main(argv) == 1  # Dask alone waits forever for a silent peer's handshake
+    assert time.monotonic() - started < 15
+    line = one_error_line(capsys.readouterr().err, path)
+    assert f"cannot connect to the Dask scheduler {address}" in line
+    assert not out.exists()
+    assert main(["batch", str(fleet), "-o", str(out), "-q", "--scheduler", address]) == 1
+    one_error_line(capsys.readouterr().err, address)
+
+
+# ---- --from-list ------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("kind", ["device", "fifo", "folder", "huge"])
+def test_an_input_list_that_is_no_reasonable_file_is_refused_unread(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], kind: str
+) -> None:
+    if kind == "device":
+        path = Path("/dev/zero")  # endless: read whole, it ran until the OOM killer came
+    elif kind == "fifo":
+        path = tmp_path / "list.fifo"
+        os.mkfifo(path)
+    elif kind == "folder":
+        path = tmp_path
+    else:
+        path = tmp_path / "list.txt"
+        with path.open("wb") as f:
+            f.truncate(64 * 1024 * 1024 + 1)  # sparse: instant, no disk used
+    assert main(["batch", "--from-list", str(path), "-o", str(tmp_path / "out"), "-q"]) == 1
+    line = one_error_line(capsys.readouterr().err, path)
+    assert ("larger than 64 MiB" if kind == "huge" else "not a regular file") in line
+
+
+def test_an_empty_input_list_is_named(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    empty = tmp_path / "todo.txt"
+    empty.write_text("# nothing yet\n\n")
+    assert main(["batch", "--from-list", str(empty), "-o", str(tmp_path / "out"), "-q"]) == 1
+    assert "is empty" in one_error_line(capsys.readouterr().err, empty)
+
+
+# ---- one file, several spellings --------------------------------------------------------------------
+
+
+def test_one_file_under_several_spellings_is_one_recording(
+    fleet: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.chdir(fleet)
+    (tmp_path / "link.mcap").symlink_to(fleet / "robot_a" / "run.mcap")
+    spellings = ["robot_a/run.mcap", "./robot_a/../robot_a/run.mcap", str(tmp_path / "link.mcap")]
+    (recording,) = discover(spellings)
+    assert recording.uri == str(fleet / "robot_a" / "run.mcap")  # the first spelling names it
+    (linked,) = discover(spellings[::-1])
+    assert linked.uri == str(tmp_path / "link.mcap")
+    # A folder and a symlink to it inside another input: each recording once.
+    (tmp_path / "mirror").symlink_to(fleet / "robot_b")
+    assert len(discover([fleet, tmp_path / "mirror"])) == 5
+    report = run_batch(spellings, tmp_path / "out")
+    assert [r.name for r in report.results] == ["run.mcap"]
+
+
+# ---- --workers --------------------------------------------------------------------------------------
+
+
+def test_a_worker_count_beyond_four_per_cpu_is_a_usage_error(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    limit = 4 * (os.cpu_count() or 1)
+    argv = ["batch", str(SAMPLE), "-o", str(tmp_path / "out"), "--workers", str(limit + 1)]
+    with pytest.raises(SystemExit) as info:
+        main(argv)
+    assert info.value.code == 2
+    assert f"must be <= {limit}" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+
+
+# ---- signals while a local cluster runs (subprocesses, their own process group) ----------------------
+
+
+def _start_batch(inputs: Path, out: Path, *extra: str) -> subprocess.Popen[str]:
+    return subprocess.Popen(
+        [sys.executable, "-m", "rose_logs.cli", "batch", str(inputs), "-o", str(out), "-q", *extra],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,  # the test sends signals to its whole group, as a terminal does
+    )
+
+
+def _finish(process: subprocess.Popen[str], timeout: float = 60) -> tuple[int, str]:
+    try:
+        _, err = process.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        os.killpg(process.pid, signal.SIGKILL)
+        process.communicate()
+        pytest.fail("the batch did not stop")
+    return process.returncode, err
+
+
+def _wait_for(condition: object, process: subprocess.Popen[str], timeout: float = 60) -> None:
+    deadline = time.monotonic() + timeout
+    while not condition():  # type: ignore[operator]
+        if process.poll() is not None or time.monotonic() > deadline:
+            os.killpg(process.pid, signal.SIGKILL)
+            pytest.fail(f"gave up waiting: {process.communicate()[1][-2000:]}")
+        time.sleep(0.05)
+
+
+@needs_dask
+def test_ctrl_c_on_a_local_cluster_keeps_every_finished_result_quietly(tmp_path: Path) -> None:
+    folder = tmp_path / "fleet"
+    folder.mkdir()
+    for i in range(6):
+        shutil.copy(SAMPLE, folder / f"s{i}.mcap")
+    out = tmp_path / "out"
+    process = _start_batch(folder, out, "--workers", "2", "--cleaned")
+    _wait_for(lambda: any((out / "results").glob("*.json")), process)
+    os.killpg(process.pid, signal.SIGINT)  # Ctrl-C at a terminal: every process of the group
+    code, err = _finish(process)
+    assert code == 130
+    assert "Traceback" not in err
+    assert "leaked semaphore" not in err
+    assert err.strip().splitlines() == [
+        line for line in err.strip().splitlines() if line.startswith("error: interrupted")
+    ]
+    results = [json.loads(p.read_text()) for p in (out / "results").glob("*.json")]
+    assert 1 <= len(results) < 6
+    rows = pq.read_table(out / "recordings.parquet").to_pylist()
+    # Every result a worker finished is in the tables, also those not yet collected.
+    assert sorted(r["uri"] for r in rows) == sorted(r["uri"] for r in results)
+    assert all(Path(r["cleaned"]).is_file() for r in rows)
+    assert json.loads((out / "summary.json").read_text())["recordings"] == len(results)
+
+
+def _has_child(pid: int) -> bool:
+    """Whether process ``pid`` has started a child process (Linux)."""
+    try:
+        tasks = list(Path(f"/proc/{pid}/task").iterdir())
+        return any((task / "children").read_text().strip() for task in tasks)
+    except OSError:
+        return False
+
+
+@needs_dask
+@pytest.mark.skipif(not Path("/proc/self/task").is_dir(), reason="needs Linux /proc")
+def test_sigterm_while_the_local_cluster_starts_exits_143_quietly(tmp_path: Path) -> None:
+    process = _start_batch(SAMPLE, tmp_path / "out", "--workers", "2")
+    _wait_for(lambda: _has_child(process.pid), process)  # the cluster is starting its processes
+    os.kill(process.pid, signal.SIGTERM)
+    code, err = _finish(process)
+    assert code == 143
+    assert "Traceback" not in err
+    assert len(err.strip().splitlines()) == 1, err
+
+
+# ---- signals in this process ------------------------------------------------------------------------
+
+
+def test_sigterm_exits_143_and_keeps_the_finished_recordings(
+    fleet: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from rose.outputs import Terminated
+
+    real = engine.process_recording
+    calls: list[int] = []
+
+    def terminated_on_second(*args: object, **kwargs: object) -> object:
+        calls.append(1)
+        if len(calls) == 2:
+            raise Terminated(signal.SIGTERM)
+        return real(*args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(engine, "process_recording", terminated_on_second)
+    out = tmp_path / "out"
+    assert main(["batch", str(fleet), "-o", str(out), "-q"]) == 143  # was 130 for any signal
+    assert len(pq.read_table(out / "recordings.parquet")) == 1
+
+
+def test_a_signal_while_the_tables_are_written_waits_for_them(
+    fleet: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import rose_logs.batch.tables as tables
+
+    real = tables.write_outputs
+
+    def interrupted(*args: object) -> None:
+        os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C just as the tables are being written
+        real(*args)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(tables, "write_outputs", interrupted)
+    out = tmp_path / "out"
+    report = run_batch([fleet / "robot_a"], out)
+    assert (report.interrupted, report.signal) == (True, signal.SIGINT)
+    assert len(report.results) == 2
+    assert len(pq.read_table(out / "recordings.parquet")) == 2
+    assert (out / "report.md").is_file()  # written to the end, after the first table

@@ -1,0 +1,71 @@
+"""``rose-bag evaluate`` option values: out-of-range ones are usage errors before anything runs."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from rose_logs.cli import build_parser, main
+from rose_logs.cli.evaluate import config_from_args
+
+
+@pytest.mark.parametrize(
+    ("option", "value", "problem"),
+    [
+        ("--sizes", "0", "1..200"),  # was a ValueError traceback from the clutter generator
+        ("--sizes", "4,-5", "1..200"),
+        ("--sizes", "100000", "1..200"),  # was accepted: one obstacle of 1e10 cells
+        ("--counts", "-3", "1..1000"),
+        ("--counts", "0", "1..1000"),
+        ("--counts", "100000000", "1..1000"),  # was accepted: 1e8 obstacles per map
+        ("--counts", ",".join(["20"] * 51), "at most 50 values"),
+        ("--sizes", "4,x", "comma-separated integers"),
+        ("--seed", "-1", "0..4294967295"),  # was a traceback after ~10 s of work
+        ("--seed", str(2**32), "0..4294967295"),
+        ("--break-seeds", "-1", "0..20"),
+        ("--break-seeds", "1000", "0..20"),
+    ],
+)
+def test_out_of_range_values_are_usage_errors(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], option: str, value: str, problem: str
+) -> None:
+    out = tmp_path / "report"
+    with pytest.raises(SystemExit) as info:
+        main(["evaluate", str(out), "--no-plots", f"{option}={value}"])
+    assert info.value.code == 2
+    err = capsys.readouterr().err
+    assert f"argument {option}: " in err
+    assert problem in err
+    assert "Traceback" not in err
+    assert not out.exists()
+
+
+def test_values_at_the_bounds_are_accepted() -> None:
+    args = build_parser().parse_args(
+        [
+            "evaluate",
+            "out",
+            "--sizes",
+            "1,200",
+            "--counts",
+            "1,1000",
+            "--seed",
+            str(2**32 - 1),
+            "--break-seeds",
+            "20",
+        ]
+    )
+    config = config_from_args(args)
+    assert config.sizes_px == (1, 200)
+    assert config.counts == (1, 1000)
+    assert config.seed == 2**32 - 1
+    assert config.break_seeds == 20
+
+
+def test_help_states_the_bounds(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit):
+        main(["evaluate", "--help"])
+    help_text = " ".join(capsys.readouterr().out.split())
+    for bound in ("1..200", "1..1000", "0..2**32-1", "0..20", "at most 50 values"):
+        assert bound in help_text
