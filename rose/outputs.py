@@ -162,10 +162,10 @@ def stdout_closed(err: OSError) -> bool:
 def exit_after(code: int) -> NoReturn:
     """Exit a console script with ``code`` once its work is done and its outputs are committed.
 
-    A SIGTERM / SIGHUP arriving from now on (during interpreter shutdown Python restores the default
-    handlers) would turn a finished run into a killed one (exit -15): ignore them.
+    A SIGINT / SIGTERM / SIGHUP arriving from now on (during interpreter shutdown Python restores the
+    default handlers) would turn a finished run into a killed one (exit -2, -15): ignore them.
     """
-    for name in ("SIGTERM", "SIGHUP"):
+    for name in ("SIGINT", "SIGTERM", "SIGHUP"):
         signum = getattr(signal, name, None)
         if signum is not None:
             with contextlib.suppress(ValueError):

@@ -256,3 +256,20 @@ def test_an_interrupted_import_is_recognised() -> None:
         # `from None` only hides the context in tracebacks; the chain still leads to the interrupt
         assert isinstance(interrupt_behind(err), KeyboardInterrupt)
     assert interrupt_behind(ImportError("no module named x")) is None
+
+
+def test_a_ctrl_c_after_the_work_is_done_changes_nothing(tmp_path: Path) -> None:
+    """Outputs committed, the command exits: a late Ctrl-C (here during interpreter shutdown) must
+    neither kill it nor print a traceback."""
+    script = tmp_path / "late.py"
+    script.write_text(
+        "import atexit, os, signal, time\n"
+        "from rose.outputs import exit_after\n"
+        "atexit.register(lambda: (os.kill(os.getpid(), signal.SIGINT), time.sleep(0.2)))\n"
+        "exit_after(0)\n"
+    )
+    done = subprocess.run(
+        [sys.executable, str(script)], capture_output=True, text=True, timeout=60, check=False
+    )
+    assert done.returncode == 0
+    assert done.stderr == ""
