@@ -28,6 +28,7 @@ __all__ = [
     "check_cells",
     "image_shape",
     "load_yaml",
+    "pnm_numbers",
     "short",
 ]
 
@@ -98,7 +99,8 @@ _StrictLoader.add_implicit_resolver(
 
 
 def load_yaml(text: str | bytes) -> Any:
-    """Parse ``text`` as YAML with the limits above.
+    """Parse ``text`` as YAML with the limits above (floats with an exponent, ``5e-2``, as YAML 1.2
+    and ROS's yaml-cpp read them).
 
     Raises
     ------
@@ -130,6 +132,28 @@ def load_yaml(text: str | bytes) -> Any:
 
 # -- image headers -------------------------------------------------------------------------------------
 _PNM_TOKEN = re.compile(rb"(?:\s|#[^\n]*\n)*(\d+)")
+#: PNM header comments may be long; a header is looked for in this many first bytes.
+_PNM_HEADER_BYTES = 65536
+
+
+def pnm_numbers(data: bytes | memoryview) -> list[int] | None:
+    """The numbers of a PNM header: width, height and (but for PBM, P1 / P4) the maximum value.
+
+    Read from the first 64 KiB (comments may come between them); None when they are not all there
+    or ``data`` is no PNM image.
+    """
+    head = bytes(data[:_PNM_HEADER_BYTES])
+    if len(head) < 2 or head[:1] != b"P" or head[1:2] not in (b"1", b"2", b"3", b"4", b"5", b"6"):
+        return None
+    pos = 2
+    values = []
+    for _ in range(2 if head[1:2] in (b"1", b"4") else 3):
+        match = _PNM_TOKEN.match(head, pos)
+        if match is None:
+            return None
+        values.append(int(match.group(1)))
+        pos = match.end()
+    return values
 
 
 def image_shape(data: bytes | memoryview) -> tuple[int, int] | None:
@@ -142,15 +166,8 @@ def image_shape(data: bytes | memoryview) -> tuple[int, int] | None:
         cols, rows = struct.unpack(">II", head[16:24])
         return rows, cols
     if len(head) >= 2 and head[:1] == b"P" and head[1:2] in b"123456":
-        pos = 2
-        values = []
-        for _ in range(2):
-            match = _PNM_TOKEN.match(head, pos)
-            if match is None:
-                return None
-            values.append(int(match.group(1)))
-            pos = match.end()
-        return values[1], values[0]
+        numbers = pnm_numbers(data)
+        return None if numbers is None else (numbers[1], numbers[0])
     if head.startswith(b"BM") and len(head) >= 26:
         cols, rows = struct.unpack("<ii", head[18:26])
         return abs(rows), abs(cols)

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import math
 import os
-import re
 import stat
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -31,6 +30,7 @@ from rose.limits import (
     check_cells,
     image_shape,
     load_yaml,
+    pnm_numbers,
     short,
 )
 from rose.outputs import OutputSet
@@ -298,18 +298,19 @@ def _read_image(path: Path, max_cells: int | None = DEFAULT_MAX_CELLS) -> npt.ND
 
 def _header_problem(raw: bytes, shape: tuple[int, int] | None) -> str | None:
     """What is wrong with the header of a PNG or PNM image, if it is one; None otherwise."""
-    is_png = raw.startswith(b"\x89PNG\r\n\x1a\n")
-    is_pnm = raw[:1] == b"P" and raw[1:2] in (b"1", b"2", b"3", b"4", b"5", b"6")
-    if not (is_png or is_pnm):
-        return None
-    if shape is None:
-        return "truncated or malformed PNG header" if is_png else "malformed PNM header"
-    if 0 in shape:
-        return f"its header declares {shape[1]} x {shape[0]} pixels"
-    if is_pnm and raw[1:2] not in (b"1", b"4"):  # PBM has no maximum value
-        tokens = re.match(rb"P[2356](?:(?:\s|#[^\n]*\n)+(\d+)){3}", raw[:512])
-        if tokens is None or not 1 <= int(tokens.group(1)) <= 65535:
+    if raw.startswith(b"\x89PNG\r\n\x1a\n"):
+        if shape is None:
+            return "truncated or malformed PNG header"
+    elif raw[:1] == b"P" and raw[1:2] in (b"1", b"2", b"3", b"4", b"5", b"6"):
+        numbers = pnm_numbers(raw)
+        if numbers is None:
+            return "malformed PNM header"
+        if len(numbers) == 3 and not 1 <= numbers[2] <= 65535:
             return "PNM maximum value must be 1..65535"
+    else:
+        return None
+    if shape is not None and 0 in shape:
+        return f"its header declares {shape[1]} x {shape[0]} pixels"
     return None
 
 

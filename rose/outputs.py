@@ -134,7 +134,8 @@ def print_any_file_name() -> None:
 
     Linux file names are bytes; Python decodes the undecodable ones with surrogate escapes, which a
     strict UTF-8 stream refuses to print. Written back as the bytes they came from, they show as
-    ``ls`` shows them. Console scripts call this once; messages on stderr escape them already.
+    ``ls`` shows them. The CLIs' ``main`` calls this once (process-wide, like their signal
+    handlers); messages on stderr escape them already.
     """
     reconfigure = getattr(sys.stdout, "reconfigure", None)
     if reconfigure is not None:

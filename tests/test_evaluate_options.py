@@ -21,6 +21,7 @@ from rose_logs.cli.evaluate import config_from_args
         ("--counts", "100000000", "1..1000"),  # was accepted: 1e8 obstacles per map
         ("--counts", ",".join(["20"] * 51), "at most 50 values"),
         ("--sizes", "4,x", "comma-separated integers"),
+        ("--sizes", ",", "at least one integer"),  # was an empty experiment
         ("--seed", "-1", "0..4294967295"),  # was a traceback after ~10 s of work
         ("--seed", str(2**32), "0..4294967295"),
         ("--break-seeds", "-1", "0..20"),

@@ -92,6 +92,14 @@ def test_exponent_numbers_read_as_map_server_reads_them(tmp_path: Path) -> None:
     assert loaded.origin_xy_m == (-10.0, 20.0) and loaded.origin_yaw_rad == 1.0
 
 
+def test_a_long_comment_in_a_pgm_header_is_no_malformed_header(tmp_path: Path) -> None:
+    comment = b"# " + b"x" * 700 + b"\n"
+    (tmp_path / "a.pgm").write_bytes(b"P5\n" + comment + b"2 1\n255\n\x00\xfe")
+    (tmp_path / "b.pgm").write_bytes(b"P5\n2 1\n" + comment + b"255\n\x00\xfe")
+    for name in ("a.pgm", "b.pgm"):
+        np.testing.assert_array_equal(rose.load_map(tmp_path / name).grid, [[100, 0]])
+
+
 @pytest.mark.parametrize(
     ("content", "problem"),
     [

@@ -12,6 +12,7 @@ import signal
 import stat
 import time
 from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -122,7 +123,9 @@ def check_scheduler(address: str, *, timeout_s: float) -> None:
             msg = f"no Dask handshake from {address} within {limit:g} s"
             raise TimeoutError(msg) from None
 
-    asyncio.run(bounded())
+    # On a thread of its own: asyncio.run refuses to run inside a running event loop (a notebook).
+    with ThreadPoolExecutor(1, thread_name_prefix="rose-scheduler-check") as pool:
+        pool.submit(asyncio.run, bounded()).result()
 
 
 @contextlib.contextmanager

@@ -79,9 +79,10 @@ class BatchReport:
         return tuple(r for r in self.results if r.row()["broke"])
 
     def max_score(self) -> float:
-        """Largest W over every snapshot of every recording (NaN without snapshots)."""
-        scores = [s["structure_score"] for r in self.results for s in r.snapshots]
-        return max(scores, default=float("nan"))
+        """Largest W over the judged snapshots of every recording (NaN without any; see
+        :func:`rose_logs.session.report.w_judges`)."""
+        scores = [r.row()["w_max"] for r in self.results]
+        return max((w for w in scores if w is not None), default=float("nan"))
 
 
 ResultCallback = Callable[[RecordingResult, int, int], None]
@@ -154,19 +155,11 @@ def run_batch(
         msg = f"workers must be >= 1, got {workers}"
         raise BatchError(msg)
     if client is None and scheduler is None and scheduler_file is None:
-        from rose_logs.batch.cluster import max_local_workers
+        from rose_logs.batch.cluster import WORKERS_PER_CPU, max_local_workers
 
         if workers > max_local_workers():
-            msg = f"workers must be <= {max_local_workers()} (4 per CPU), got {workers}"
+            msg = f"workers must be <= {max_local_workers()} ({WORKERS_PER_CPU} per CPU), got {workers}"
             raise BatchError(msg)
-    named_by = None  # the scheduler file, for errors
-    if scheduler_file is not None and client is None:
-        from rose_logs.batch.cluster import scheduler_address
-
-        # Read here, before anything runs: Dask would wait forever for a missing file and fail
-        # with a bare AssertionError on a file that is not one of its own.
-        scheduler = scheduler_address(scheduler_file)
-        named_by = str(scheduler_file)
     store = OutputStore(str(out), storage_options)
     recordings = _outside(discover(inputs, storage_options=storage_options), store)
     keys = {rec.uri: result_key(rec, options) for rec in recordings}
@@ -182,6 +175,14 @@ def run_batch(
             finished[rec.uri] = previous
     skipped = len(finished)
     _LOG.info("%d recordings, %d finished before, %d to do", len(recordings), skipped, len(todo))
+    named_by = None  # the scheduler file, for errors
+    if scheduler_file is not None and client is None and todo:
+        from rose_logs.batch.cluster import scheduler_address
+
+        # Read before anything runs (and only when there is something to run): Dask would wait
+        # forever for a missing file and fail with a bare AssertionError on one not its own.
+        scheduler = scheduler_address(scheduler_file)
+        named_by = str(scheduler_file)
     stopped_by: int | None = None
     bar = _Progress(total=len(todo), enabled=progress)
     try:

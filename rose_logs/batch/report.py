@@ -5,6 +5,8 @@ from __future__ import annotations
 import io
 from typing import TYPE_CHECKING, Any
 
+from rose_logs.session.report import w_judges
+
 if TYPE_CHECKING:
     from rose_logs.batch.engine import BatchReport
 
@@ -117,7 +119,7 @@ def figure_png(report: BatchReport) -> bytes | None:
     fig, ax = plt.subplots(figsize=(9, 4.5), dpi=100)
     broken_count = 0
     for label, rows in series:
-        judged = [s for s in rows if s["occupied"] > 0]  # an empty map's W = 1 says nothing
+        judged = [s for s in rows if w_judges(s["occupied"])]
         times = [s["time_s"] for s in judged]
         scores = [s["structure_score"] for s in judged]
         first = next((s for s in rows if s["broken"]), None)

@@ -27,6 +27,7 @@ from rose.params import RoseParams
 from rose_logs.batch.sources import Recording
 from rose_logs.batch.store import OutputStore, is_local
 from rose_logs.errors import LogError
+from rose_logs.session.report import w_judges
 
 __all__ = [
     "RESULTS_DIR",
@@ -145,8 +146,7 @@ class RecordingResult:
 
     def row(self) -> dict[str, Any]:
         """The recording's row of ``recordings.parquet``."""
-        # Maps without occupied cells (W = 1 by convention) say nothing: SnapshotRecord.judged.
-        scores = [s["structure_score"] for s in self.snapshots if s["occupied"] > 0]
+        scores = [s["structure_score"] for s in self.snapshots if w_judges(s["occupied"])]
         first = next((s for s in self.snapshots if s["broken"]), None)
         return {
             "uri": self.uri,

@@ -35,6 +35,9 @@ def _ints(low: int, high: int) -> Callable[[str], tuple[int, ...]]:
 
     def parse(value: str) -> tuple[int, ...]:
         items = _csv(value)
+        if not items:
+            msg = f"expected at least one integer, got {value[:40]!r}"
+            raise argparse.ArgumentTypeError(msg)
         if len(items) > MAX_LIST_VALUES:
             msg = f"at most {MAX_LIST_VALUES} values, got {len(items)}"
             raise argparse.ArgumentTypeError(msg)

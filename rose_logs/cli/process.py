@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import statistics
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, TextIO
 
@@ -147,7 +148,6 @@ def _print_summary(report: Any, out: TextIO) -> None:
         if not records:
             print("  snapshots    0", file=out)
             continue
-        scores = [r.structure_score for r in records if r.judged]
         reused = sum(r.reused for r in records)
         updates = sum(r.from_update for r in records)
         extra = ", ".join(
@@ -169,18 +169,7 @@ def _print_summary(report: Any, out: TextIO) -> None:
             f" .. {sizes[-1][0]} x {sizes[-1][1]}" if len(sizes) > 1 else ""
         )
         print(f"  grid         {size_text} cells", file=out)
-        print(
-            f"  W            min {min(scores):.3f}  median {statistics.median(scores):.3f}  "
-            f"max {max(scores):.3f}"
-            + (
-                f"  ({len(records) - len(scores)} empty maps left out)"
-                if len(scores) < len(records)
-                else ""
-            )
-            if scores
-            else "  W            none (no map with occupied cells)",
-            file=out,
-        )
+        print(f"  W            {_w_text(records)}", file=out)
         _print_break(report, topic, out)
         first = report.first_w_above(topic)
         level = f"{report.failure_level:g}"
@@ -198,6 +187,18 @@ def _print_summary(report: Any, out: TextIO) -> None:
             file=out,
         )
     print(f"\nelapsed      {report.elapsed_s:.2f} s", file=out)
+
+
+def _w_text(records: Sequence[Any]) -> str:
+    """W's min / median / max over the snapshots W judges, and how many empty maps it left out."""
+    scores = [r.structure_score for r in records if r.judged]
+    if not scores:
+        return "none (no map with occupied cells)"
+    text = f"min {min(scores):.3f}  median {statistics.median(scores):.3f}  max {max(scores):.3f}"
+    empty = len(records) - len(scores)
+    if empty:
+        text += f"  ({empty} empty map{'s' if empty > 1 else ''} left out)"
+    return text
 
 
 def _print_break(report: Any, topic: str, out: Any) -> None:

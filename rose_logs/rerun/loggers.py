@@ -21,6 +21,7 @@ from rose_logs.rerun import conversions as conv
 from rose_logs.rerun import style
 from rose_logs.rerun.paths import SEQUENCE_TIMELINE, SESSION_TIMELINE, TIMELINE, EntityPaths
 from rose_logs.session.breaks import BreakScore
+from rose_logs.session.report import w_judges
 from rose_logs.snapshots import MapSnapshot
 
 __all__ = ["TopicLogger", "set_snapshot_time"]
@@ -447,7 +448,7 @@ class TopicLogger:
 
         A map without occupied cells has W = 1 by convention, which says nothing about it: its W is
         left out of the plot (NaN, a gap), as out of the report's statistics."""
-        w = float(result.structure_score) if result.occupied.any() else math.nan
+        w = float(result.structure_score) if w_judges(result.occupied_count) else math.nan
         self.recording.log(self.paths.w, rr.Scalars([w, self.trust_level, self.failure_level]))
 
     def log_break_score(

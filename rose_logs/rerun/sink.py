@@ -35,6 +35,7 @@ from rose_logs.rerun.blueprint import TopicLayout, default_blueprint
 from rose_logs.rerun.loggers import TopicLogger, set_snapshot_time
 from rose_logs.rerun.paths import EntityPaths, entity_root_for_topic
 from rose_logs.session.breaks import BreakScore
+from rose_logs.session.report import w_judges
 from rose_logs.snapshots import MapSnapshot
 
 __all__ = ["APPLICATION_ID", "RerunSink", "grpc_url", "recording_id_for"]
@@ -294,7 +295,7 @@ class RerunSink:
         topic_logger = self.loggers[snapshot.topic]
         first = snapshot.topic not in self._latest
         self._latest[snapshot.topic] = snapshot
-        if result.occupied.any():  # an empty map's W (1 by convention) is not plotted
+        if w_judges(result.occupied_count):  # an empty map's W (1 by convention) is not plotted
             self._w_top[snapshot.topic] = _top(self._w_top[snapshot.topic], result.structure_score)
 
         def job() -> None:

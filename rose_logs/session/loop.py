@@ -43,7 +43,7 @@ from rose_logs.formats import LogFormat, format_from_path
 from rose_logs.reader import LogReader
 from rose_logs.session.analysis import SnapshotAnalyser, SnapshotAnalysis
 from rose_logs.session.breaks import BreakDetector, BreakParams, BreakScore, DetectedBreak
-from rose_logs.session.report import BreakEvent, SessionReport, SnapshotRecord
+from rose_logs.session.report import BreakEvent, SessionReport, SnapshotRecord, w_judges
 from rose_logs.session.topics import select_topics, update_targets
 from rose_logs.snapshots import (
     MapSnapshot,
@@ -712,8 +712,7 @@ class _Loop:
             _LOG.info("%s", event.text)
             if self.rerun is not None:
                 self.rerun.event(snapshot, event.text, index, score)
-        # An empty map's W is 1 by convention (SnapshotRecord.judged): no event, nothing changes.
-        if not result.occupied.any():
+        if not w_judges(result.occupied_count):  # an empty map's W = 1 says nothing: no event
             return
         above = score > self.failure_level
         if above and not self.above.get(topic, False):

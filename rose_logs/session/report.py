@@ -12,11 +12,21 @@ from typing import Any
 from rose.params import RoseParams
 from rose_logs.session.breaks import DetectedBreak
 
-__all__ = ["BreakEvent", "SessionReport", "SnapshotRecord"]
+__all__ = ["BreakEvent", "SessionReport", "SnapshotRecord", "w_judges"]
 
 _LOG = logging.getLogger(__name__)
 
 _DECODABLE = {"ros1", "cdr"}
+
+
+def w_judges(occupied_cells: int) -> bool:
+    """Whether W says something about a map with ``occupied_cells`` occupied cells.
+
+    An empty or all-unknown map (a SLAM session's first maps) has W = 1 by convention, which says
+    nothing about the map: it stays in the per-snapshot records but is left out of W's statistics,
+    the failure-level events, the gates and the W plot.
+    """
+    return occupied_cells > 0
 
 
 @dataclass(frozen=True)
@@ -89,10 +99,8 @@ class SnapshotRecord:
 
     @property
     def judged(self) -> bool:
-        """Whether W says something about this snapshot: it has occupied cells. An empty or
-        all-unknown map (a SLAM session's first maps) has W = 1 by convention; it is left out of the
-        W statistics, the W events and the ``--fail-above`` gate."""
-        return self.occupied_count > 0
+        """Whether W says something about this snapshot (:func:`w_judges`)."""
+        return w_judges(self.occupied_count)
 
     def to_json(self, *, start_ns: int) -> dict[str, Any]:
         """JSON-ready dict; ``time_s`` is seconds since ``start_ns``; NaN becomes null."""
@@ -233,7 +241,7 @@ class SessionReport:
             above = self.first_w_above(topic)
             first = self.first_break(topic)
             topics[topic] = {
-                "snapshots": len(scores),
+                "snapshots": len(self.records_of(topic)),
                 "w_min": min(scores, default=None),
                 "w_median": statistics.median(scores) if scores else None,
                 "w_max": max(scores, default=None),

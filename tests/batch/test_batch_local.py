@@ -51,6 +51,12 @@ def test_an_empty_first_map_is_no_broken_map(tmp_path: Path) -> None:
     row = result.row()
     assert row["snapshots"] == 3 and not row["broke"]
     assert row["w_max"] == max(s["structure_score"] for s in result.snapshots[1:]) < 0.4
+    # A recording of empty maps only has no W at all; the gate passes it (it used to crash).
+    only_empty = copy_recording(tmp_path / "empty.mcap", "mcap", max_maps=1, empty_first=True)
+    out = str(tmp_path / "gate")
+    assert main(["batch", str(log), str(only_empty), "-o", out, "-q", "--fail-above", "0.4"]) == 0
+    rows = {r["uri"]: r for r in read_rows(tmp_path / "gate" / "recordings.parquet")}
+    assert rows[str(only_empty)]["w_max"] is None and not rows[str(only_empty)]["broke"]
 
 
 def test_folders_are_searched_recursively_and_a_bag_folder_is_one_recording(fleet: Path) -> None:

@@ -264,4 +264,5 @@ def test_empty_first_maps_do_not_trip_the_w_gate(
     topic = data["topics"]["/map"]
     assert topic["w_max"] == second["structure_score"] < 0.4
     assert topic["first_w_above"] is None
-    assert "1 empty maps left out" in capsys.readouterr().out
+    assert "(1 empty map left out)" in capsys.readouterr().out
+    assert topic["snapshots"] == 2
