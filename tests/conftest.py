@@ -8,11 +8,17 @@ a reason saying how to get it; with ``ROSE_REQUIRE_DATA=1`` (CI) it fails instea
 
 from __future__ import annotations
 
+import signal
+
 import pytest
 from real_data import dataset
 
 
 def pytest_configure(config: pytest.Config) -> None:
+    # A shell starts a background job (`pytest &`, no job control) with SIGINT ignored, and Python
+    # keeps it so; the tests of Ctrl-C handling (ours and of the commands they start) need it live.
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
     config.addinivalue_line(
         "markers",
         "dataset(*paths): needs these paths inside the full real data set (ROSE_DATA_DIR); "
