@@ -78,12 +78,6 @@ class BatchReport:
         """Recordings with a snapshot above the failure level."""
         return tuple(r for r in self.results if r.row()["broke"])
 
-    def max_score(self) -> float:
-        """Largest W over the judged snapshots of every recording (NaN without any; see
-        :func:`rose_logs.session.report.w_judges`)."""
-        scores = [r.row()["w_max"] for r in self.results]
-        return max((w for w in scores if w is not None), default=float("nan"))
-
 
 ResultCallback = Callable[[RecordingResult, int, int], None]
 
