@@ -484,13 +484,15 @@ class OutputSet:
             raise OutputError(msg)
         remove_stale_temporaries(parent)
         stage_dir = parent / temporary_name(target.name)
+        staged = StagedOutput(path, target, stage_dir / target.name, stage_dir, directory, False)
+        # Registered before the folder exists: a signal right after mkdir must find it to remove it.
+        self._outputs.append(staged)
         try:
             stage_dir.mkdir()
         except OSError as err:
+            self._outputs.remove(staged)
             msg = f"{path}: cannot write in {parent} ({err.strerror or err})"
             raise OutputError(msg) from err
-        staged = StagedOutput(path, target, stage_dir / target.name, stage_dir, directory, False)
-        self._outputs.append(staged)
         return staged
 
     def _target(self, path: Path) -> Path:

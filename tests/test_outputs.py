@@ -226,6 +226,39 @@ def test_sigterm_removes_temporaries(tmp_path: Path) -> None:
     assert list(tmp_path.iterdir()) == []
 
 
+def test_an_interrupt_just_after_the_staging_folder_appears_leaves_nothing(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # A signal handler runs between two bytecodes: the first chance is right after os.mkdir returns.
+    real_mkdir = os.mkdir
+
+    def mkdir_then_interrupt(path: object, *args: object, **kwargs: object) -> None:
+        real_mkdir(path, *args, **kwargs)  # type: ignore[arg-type]
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(os, "mkdir", mkdir_then_interrupt)
+    with pytest.raises(KeyboardInterrupt), OutputSet() as outputs:
+        outputs.stage(tmp_path / "o.rrd")
+    monkeypatch.undo()
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_staging_folder_that_cannot_be_made_is_not_kept_as_an_output(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    def no_space(path: object, *args: object, **kwargs: object) -> None:
+        raise OSError(28, "No space left on device")
+
+    outputs = OutputSet()
+    monkeypatch.setattr(os, "mkdir", no_space)
+    with pytest.raises(OutputError, match="No space left"):
+        outputs.stage(tmp_path / "o.json")
+    monkeypatch.undo()
+    outputs.write_bytes(tmp_path / "o.json", b"{}")  # the same name again: not "used twice"
+    outputs.commit()
+    assert [p.name for p in tmp_path.iterdir()] == ["o.json"]
+
+
 def test_terminated_is_a_keyboard_interrupt() -> None:
     assert isinstance(Terminated(signal.SIGHUP), KeyboardInterrupt)
     assert Terminated(signal.SIGHUP).exit_code == 129

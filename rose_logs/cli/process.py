@@ -233,8 +233,8 @@ def run(args: argparse.Namespace) -> int:
     output = None if args.no_output else (args.output or default_output_path(args.input))
     progress = not args.quiet and sys.stderr.isatty()
     outputs = OutputSet(inputs=[args.input], force=args.force)
-    json_out = None if args.json_path is None else outputs.stage(args.json_path)
     with outputs:  # the log, the recording and the report: all committed, or none
+        json_out = None if args.json_path is None else outputs.stage(args.json_path)
         report = _process(args, output, progress, outputs)
         if json_out is not None:
             outputs.fill(json_out, json_text(report.to_json()).encode("utf-8"))

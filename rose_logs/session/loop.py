@@ -34,7 +34,7 @@ import rose
 from rose.cleaning import CleanMethod, CleanResult
 from rose.directions import FAILURE_LEVEL
 from rose.limits import DEFAULT_MAX_CELLS, check_cells, short
-from rose.outputs import OutputSet
+from rose.outputs import OutputSet, signals_deferred
 from rose.params import RoseParams
 from rose.result import RoseResult
 from rose_logs.derived import derived_topics, encode_cleaned, encode_score, encode_walls
@@ -169,14 +169,12 @@ def process_log(
     outputs.add_input(input_path)
     reader = LogReader(input_path, salvage=salvage)
     rrd_temp: Path | None = None
-    if rrd_path is not None:
-        staged = outputs.stage(rrd_path)
-        if staged.temp is None:
-            outputs.abort()
-            msg = f"{rrd_path}: a Rerun recording cannot be written to a stream or device"
-            raise LogWriteError(msg)
-        rrd_temp = staged.temp
     try:
+        if rrd_path is not None:
+            rrd_temp = outputs.stage(rrd_path).temp
+            if rrd_temp is None:
+                msg = f"{rrd_path}: a Rerun recording cannot be written to a stream or device"
+                raise LogWriteError(msg)
         report = _run_session(
             reader,
             input_path=input_path,
@@ -248,16 +246,19 @@ def _run_session(
                 writer.open()
             handles, derived = _prepare_output(writer, channels, map_topics, input_path)
             if rrd_path is not None or spawn or connect is not None:
-                rerun = _rerun_sink(
-                    input_path,
-                    rrd_temp,
-                    map_topics,
-                    spawn=spawn,
-                    connect=connect,
-                    recording_id=recording_id,
-                    start_ns=reader.start_ns,
-                    failure_level=failure_level,
-                )
+                # Signals held until `rerun` is bound: an interrupt in between would leave Rerun's
+                # writer running, to create its file after the abort removed the folder around it.
+                with signals_deferred():
+                    rerun = _rerun_sink(
+                        input_path,
+                        rrd_temp,
+                        map_topics,
+                        spawn=spawn,
+                        connect=connect,
+                        recording_id=recording_id,
+                        start_ns=reader.start_ns,
+                        failure_level=failure_level,
+                    )
             loop = _Loop(
                 reader=reader,
                 writer=writer,
