@@ -50,6 +50,7 @@ from rose.errors import OutputError
 __all__ = [
     "EXIT_BROKEN_PIPE",
     "STDOUT",
+    "HeldSignals",
     "OutputSet",
     "StagedOutput",
     "Terminated",
@@ -184,34 +185,51 @@ def install_signal_handlers() -> None:
             signal.signal(signum, _raise_terminated)
 
 
+class HeldSignals:
+    """The signals :func:`signals_deferred` holds (numbers, in arrival order); true when any is held."""
+
+    def __init__(self) -> None:
+        self.signals: list[int] = []
+        self._dropping = False
+
+    def __bool__(self) -> bool:
+        return bool(self.signals)
+
+    def hold(self, signum: int, _frame: FrameType | None) -> None:
+        if not self._dropping:
+            self.signals.append(signum)
+
+    def drop(self) -> None:
+        """Forget the held signals, and any that arrives until the block ends (the work is done)."""
+        self._dropping = True
+        self.signals.clear()
+
+
 @contextlib.contextmanager
-def signals_deferred() -> Iterator[None]:
+def signals_deferred() -> Iterator[HeldSignals]:
     """Hold SIGINT / SIGTERM / SIGHUP for the block, then raise the first (KeyboardInterrupt / Terminated).
 
     For start-up, while the CLIs import their libraries: an interrupt raised inside a C extension's
     initialisation surfaces as ``ImportError: initialization failed``, not as the interrupt it was.
-    Outside the main thread the block runs unguarded.
+    Outside the main thread the block runs unguarded. Yields the :class:`HeldSignals`, so a block
+    can see that one is waiting (e.g. to undo its work before it is raised) or drop them.
     """
-    pending: list[int] = []
-
-    def hold(signum: int, _frame: FrameType | None) -> None:
-        pending.append(signum)
-
+    held = HeldSignals()
     previous: dict[int, Any] = {}
     for name in ("SIGINT", "SIGTERM", "SIGHUP"):
         signum = getattr(signal, name, None)
         if signum is not None:
             with contextlib.suppress(ValueError):  # not the main thread
-                previous[signum] = signal.signal(signum, hold)
+                previous[signum] = signal.signal(signum, held.hold)
     try:
-        yield
+        yield held
     finally:
         for signum, handler in previous.items():
             signal.signal(signum, handler)
-    if pending:
-        if pending[0] == signal.SIGINT:
+    if held.signals:
+        if held.signals[0] == signal.SIGINT:
             raise KeyboardInterrupt
-        raise Terminated(pending[0])
+        raise Terminated(held.signals[0])
 
 
 def run_interruptible(body: Callable[[], int]) -> int:
@@ -598,39 +616,51 @@ class OutputSet:
                 self.abort()
                 msg = f"{staged.path}: the output was not written"
                 raise OutputError(msg)
-        backups: list[tuple[StagedOutput, Path]] = []
-        placed: list[StagedOutput] = []
-        try:
+        # Signals held: one landing between a rename and its bookkeeping would leave a half-placed
+        # set, a target moved aside for good, or staging folders. One that came while the outputs
+        # were placed undoes them (as a failure does) and is raised then. Once all are placed the
+        # run is done: a signal during the clean-up is dropped, as one at exit is (exit_after), so
+        # an interrupted run never leaves outputs and a run that leaves outputs is never "interrupted".
+        with signals_deferred() as held:
+            backups: list[tuple[StagedOutput, Path]] = []
+            placed: list[StagedOutput] = []
+            try:
+                for staged in files:
+                    if os.path.lexists(staged.target):
+                        if not self.force:
+                            msg = f"{staged.path}: appeared while writing, not replacing it"
+                            raise OutputError(msg)
+                        backup = staged.target.with_name(temporary_name(staged.target.name, "old"))
+                        staged.target.rename(backup)
+                        backups.append((staged, backup))
+                    self._place(staged)
+                    placed.append(staged)
+            except BaseException as err:
+                self._undo(placed, backups)
+                if isinstance(err, OSError):
+                    target = err.filename or "output"
+                    msg = f"{target}: cannot commit the outputs ({err.strerror or err})"
+                    raise OutputError(msg) from err
+                raise
+            if held:  # interrupted while placing: undo; signals_deferred raises it on exit
+                self._undo(placed, backups)
+                return
+            held.drop()
+            for _staged, backup in backups:
+                _remove_tree(backup)
             for staged in files:
-                if os.path.lexists(staged.target):
-                    if not self.force:
-                        msg = f"{staged.path}: appeared while writing, not replacing it"
-                        raise OutputError(msg)
-                    backup = staged.target.with_name(temporary_name(staged.target.name, "old"))
-                    staged.target.rename(backup)
-                    backups.append((staged, backup))
-                self._place(staged)
-                placed.append(staged)
-        except BaseException as err:
-            for staged in placed:
-                _remove_tree(staged.target)
-            for staged, backup in backups:
-                with contextlib.suppress(OSError):
-                    backup.rename(staged.target)
-            self.abort()
-            if isinstance(err, OSError):
-                msg = (
-                    f"{err.filename or 'output'}: cannot commit the outputs ({err.strerror or err})"
-                )
-                raise OutputError(msg) from err
-            raise
-        for _staged, backup in backups:
-            _remove_tree(backup)
-        for staged in files:
-            if staged.stage is not None:
-                _remove_tree(staged.stage)
-        self._done = True
+                if staged.stage is not None:
+                    _remove_tree(staged.stage)
+            self._done = True
         self._write_streams()
+
+    def _undo(self, placed: list[StagedOutput], backups: list[tuple[StagedOutput, Path]]) -> None:
+        for staged in placed:
+            _remove_tree(staged.target)
+        for staged, backup in backups:
+            with contextlib.suppress(OSError):
+                backup.rename(staged.target)
+        self.abort()
 
     def _place(self, staged: StagedOutput) -> None:
         if staged.temp is None:

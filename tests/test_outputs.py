@@ -8,6 +8,7 @@ import os
 import signal
 import subprocess
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -257,6 +258,68 @@ def test_a_staging_folder_that_cannot_be_made_is_not_kept_as_an_output(
     outputs.write_bytes(tmp_path / "o.json", b"{}")  # the same name again: not "used twice"
     outputs.commit()
     assert [p.name for p in tmp_path.iterdir()] == ["o.json"]
+
+
+def _raise_terminated(signum: int, _frame: object) -> None:
+    raise Terminated(signum)
+
+
+@pytest.fixture
+def sigterm_raises() -> Iterator[None]:
+    """SIGTERM raises Terminated, as under the CLIs' install_signal_handlers."""
+    previous = signal.signal(signal.SIGTERM, _raise_terminated)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _sigterm_after_first(monkeypatch: pytest.MonkeyPatch, owner: object, name: str) -> None:
+    """Send this process SIGTERM right after the first call of ``owner.name`` returns."""
+    real = getattr(owner, name)
+    calls: list[int] = []
+
+    def then_signal(*args: object, **kwargs: object) -> object:
+        result = real(*args, **kwargs)
+        calls.append(1)
+        if len(calls) == 1:
+            os.kill(os.getpid(), signal.SIGTERM)
+        return result
+
+    monkeypatch.setattr(owner, name, then_signal)
+
+
+def test_a_signal_while_outputs_are_placed_restores_every_old_one(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, sigterm_raises: None
+) -> None:
+    for name in ("a.json", "b.json"):
+        (tmp_path / name).write_bytes(b"old")
+    outputs = OutputSet(force=True)
+    for name in ("a.json", "b.json"):
+        outputs.write_bytes(tmp_path / name, b"new")
+    # Right after the old a.json was moved aside, before the commit noted where it went.
+    _sigterm_after_first(monkeypatch, Path, "rename")
+    with pytest.raises(Terminated):
+        outputs.commit()
+    monkeypatch.undo()
+    files = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+    assert files == {"a.json": b"old", "b.json": b"old"}
+
+
+def test_a_signal_once_every_output_is_placed_is_dropped(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, sigterm_raises: None
+) -> None:
+    import rose.outputs
+
+    (tmp_path / "a.json").write_bytes(b"old")
+    outputs = OutputSet(force=True)
+    outputs.write_bytes(tmp_path / "a.json", b"new")
+    outputs.write_bytes(tmp_path / "b.json", b"new")
+    _sigterm_after_first(monkeypatch, rose.outputs, "_remove_tree")  # clean-up after the commit
+    outputs.commit()  # done work is not reported as interrupted, and nothing is left behind
+    monkeypatch.undo()
+    files = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+    assert files == {"a.json": b"new", "b.json": b"new"}
 
 
 def test_terminated_is_a_keyboard_interrupt() -> None:

@@ -84,12 +84,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     error, 130 / 143 / 129 interrupted by SIGINT / SIGTERM / SIGHUP (temporary files removed).
     """
     install_signal_handlers()
-    print_any_file_name()
     return run_interruptible(lambda: _run(argv))
 
 
 def _run(argv: Sequence[str] | None) -> int:
     with signals_deferred():  # an interrupted import would be an ImportError, not exit 130
+        print_any_file_name()
         parser = build_parser()
     args = parser.parse_args(argv)
     from rose.cli.options import check_params  # loaded with the commands already

@@ -1,7 +1,5 @@
-"""``python -m rose.cli``: the ``rose`` command."""
+"""``python -m rose.cli``: the ``rose`` command (as the console script: late signals ignored)."""
 
-import sys
+from rose.cli import console
 
-from rose.cli import main
-
-sys.exit(main())
+console()

@@ -80,16 +80,18 @@ def main(argv: list[str] | None = None) -> int:
     4 ``--salvage`` with messages lost, 130 / 143 / 129 interrupted by SIGINT / SIGTERM / SIGHUP.
     """
     install_signal_handlers()
-    print_any_file_name()
-    keep_arrays_on_heap()  # map-sized arrays stay on the heap: far fewer page faults (module notes)
-    # Rerun's native logger prints multi-line ERROR records to stderr (e.g. a failed flush on a full
-    # disk) that our one-line errors already report: keep it quiet unless the user set RUST_LOG.
-    os.environ.setdefault("RUST_LOG", "off")
     return run_interruptible(lambda: _run(argv))
 
 
 def _run(argv: list[str] | None) -> int:
+    # Inside run_interruptible: keep_arrays_on_heap runs `ldconfig -p` (ctypes.util.find_library),
+    # and a signal landing there must be exit 130 / 143, not a traceback.
     with signals_deferred():  # an interrupted import would be an ImportError, not exit 130
+        print_any_file_name()
+        keep_arrays_on_heap()  # map-sized arrays stay on the heap: far fewer page faults (module notes)
+        # Rerun's native logger prints multi-line ERROR records to stderr (e.g. a failed flush on a
+        # full disk) that our one-line errors already report: keep it quiet unless the user set RUST_LOG.
+        os.environ.setdefault("RUST_LOG", "off")
         parser = build_parser()
     args = parser.parse_args(argv)
     from rose.cli.options import check_params  # loaded with the commands already

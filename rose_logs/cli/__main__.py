@@ -1,7 +1,5 @@
-"""``python -m rose_logs.cli``: the ``rose-bag`` command."""
+"""``python -m rose_logs.cli``: the ``rose-bag`` command (as the console script: late signals ignored)."""
 
-import sys
+from rose_logs.cli import console
 
-from rose_logs.cli import main
-
-sys.exit(main())
+console()

@@ -398,6 +398,11 @@ class RerunSink:
                     raise
                 last_size = size
                 continue
+            except KeyboardInterrupt:
+                # A signal that came during the flush is raised once flush returned (success, not a
+                # dead writer): abort() may disconnect, and the run exits 130 / 143, not 1.
+                self._flush_failed = False
+                raise
             self._flush_failed = False
             return
 

@@ -28,6 +28,18 @@ if os.environ.get("ROSE_REQUIRE_VIEWER") != "1":
     )
 
 
+def _rerun_executable() -> str:
+    """The Rerun binary itself. ``rerun`` on PATH is rerun_cli's Python wrapper, which on SIGINT waits
+    0.25 s for the binary (that never got the signal) and then SIGKILLs it: the receiver would not
+    finish its file, and whatever it had not written yet would be lost."""
+    try:
+        import rerun_cli
+    except ImportError:
+        return "rerun"
+    binary = Path(rerun_cli.__file__).parent / "rerun"
+    return str(binary) if binary.is_file() else "rerun"
+
+
 def _free_port() -> int:
     with socket.socket() as sock:
         sock.bind(("127.0.0.1", 0))
@@ -50,7 +62,7 @@ def test_connect_streams_every_snapshot_to_a_running_viewer(tmp_path: Path) -> N
     port = _free_port()
     received = tmp_path / "received.rrd"
     viewer = subprocess.Popen(
-        ["rerun", "--save", str(received), "--port", str(port)],
+        [_rerun_executable(), "--save", str(received), "--port", str(port)],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
     )
