@@ -39,6 +39,7 @@ import shutil
 import signal
 import stat
 import sys
+import threading
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -64,6 +65,7 @@ __all__ = [
     "report_interrupt",
     "reraise_interrupt_behind",
     "run_interruptible",
+    "signal_handlers_kept",
     "signals_deferred",
     "stdout_closed",
     "temporary_name",
@@ -167,22 +169,67 @@ def exit_after(code: int) -> NoReturn:
     A SIGINT / SIGTERM / SIGHUP arriving from now on (during interpreter shutdown Python restores the
     default handlers) would turn a finished run into a killed one (exit -2, -15): ignore them.
     """
-    for name in ("SIGINT", "SIGTERM", "SIGHUP"):
-        signum = getattr(signal, name, None)
-        if signum is not None:
-            with contextlib.suppress(ValueError):
-                signal.signal(signum, signal.SIG_IGN)
+    _set_handlers(dict.fromkeys(_interrupt_signals(), signal.SIG_IGN))
     sys.exit(code)
 
 
 def install_signal_handlers() -> None:
-    """Turn SIGTERM and SIGHUP into :class:`Terminated` (main thread only; a no-op elsewhere)."""
-    for name in ("SIGTERM", "SIGHUP"):
-        signum = getattr(signal, name, None)
-        if signum is None:
-            continue
-        with contextlib.suppress(ValueError):  # not the main thread
-            signal.signal(signum, _raise_terminated)
+    """Turn SIGTERM and SIGHUP into :class:`Terminated` (main thread only; a no-op elsewhere).
+
+    A signal the caller ignores stays ignored: ``nohup`` (SIGHUP) and a shell's background job.
+    """
+    names = ("SIGTERM", "SIGHUP")
+    signums = [s for s in _interrupt_signals() if signal.Signals(s).name in names]
+    _set_handlers({s: _raise_terminated for s in signums if not _ignored(s)})
+
+
+@contextlib.contextmanager
+def signal_handlers_kept() -> Iterator[None]:
+    """Put the SIGINT / SIGTERM / SIGHUP handlers back as they were when the block ends.
+
+    For a command's ``main`` run in-process (a test, a notebook): it installs its own handlers and,
+    once its outputs are committed, ignores these signals; its caller gets its own handlers back.
+    """
+    previous = {s: h for s in _interrupt_signals() if (h := signal.getsignal(s)) is not None}
+    try:
+        yield
+    finally:
+        _set_handlers(previous)
+
+
+def _interrupt_signals() -> list[int]:
+    """SIGINT, SIGTERM and SIGHUP, those the platform has."""
+    return [getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, n)]
+
+
+def _ignored(signum: int) -> bool:
+    return signal.getsignal(signum) == signal.SIG_IGN
+
+
+def _on_main_thread() -> bool:
+    return threading.current_thread() is threading.main_thread()
+
+
+def _set_handlers(handlers: Mapping[int, Any]) -> None:
+    """Install several handlers as one step: no signal is handled between two of them.
+
+    The signals are blocked meanwhile (one arriving then is delivered after, to the new handler; to
+    nothing if that is SIG_IGN). Only the main thread installs handlers: elsewhere a no-op.
+    """
+    if not handlers or not _on_main_thread():
+        return
+    mask = getattr(signal, "pthread_sigmask", None)
+    previous_mask = None if mask is None else mask(signal.SIG_BLOCK, set(handlers))
+    try:
+        for signum, handler in handlers.items():
+            signal.signal(signum, handler)
+    finally:
+        if mask is not None and previous_mask is not None:
+            mask(signal.SIG_SETMASK, previous_mask)
+
+
+def _interrupt_for(signum: int) -> KeyboardInterrupt:
+    return KeyboardInterrupt() if signum == signal.SIGINT else Terminated(signum)
 
 
 class HeldSignals:
@@ -190,18 +237,19 @@ class HeldSignals:
 
     def __init__(self) -> None:
         self.signals: list[int] = []
-        self._dropping = False
+        self.ignore_after = False
 
     def __bool__(self) -> bool:
         return bool(self.signals)
 
     def hold(self, signum: int, _frame: FrameType | None) -> None:
-        if not self._dropping:
+        if not self.ignore_after:
             self.signals.append(signum)
 
-    def drop(self) -> None:
-        """Forget the held signals, and any that arrives until the block ends (the work is done)."""
-        self._dropping = True
+    def ignore_from_now(self) -> None:
+        """The run's work is done: forget the held signals and ignore these signals from now on,
+        for the rest of the process (as :func:`exit_after` does)."""
+        self.ignore_after = True
         self.signals.clear()
 
 
@@ -211,25 +259,28 @@ def signals_deferred() -> Iterator[HeldSignals]:
 
     For start-up, while the CLIs import their libraries: an interrupt raised inside a C extension's
     initialisation surfaces as ``ImportError: initialization failed``, not as the interrupt it was.
-    Outside the main thread the block runs unguarded. Yields the :class:`HeldSignals`, so a block
-    can see that one is waiting (e.g. to undo its work before it is raised) or drop them.
+    Yields the :class:`HeldSignals`, so a block can see that one is waiting (e.g. to undo its work
+    before it is raised). If the block fails, a held signal is raised instead of the failure (from
+    it): the run was interrupted. Signals the caller ignores stay ignored; outside the main thread
+    the block runs unguarded (Python handles signals in the main thread only).
     """
     held = HeldSignals()
-    previous: dict[int, Any] = {}
-    for name in ("SIGINT", "SIGTERM", "SIGHUP"):
-        signum = getattr(signal, name, None)
-        if signum is not None:
-            with contextlib.suppress(ValueError):  # not the main thread
-                previous[signum] = signal.signal(signum, held.hold)
+    previous = {
+        s: h
+        for s in _interrupt_signals()
+        if (h := signal.getsignal(s)) not in (None, signal.SIG_IGN)
+    }
+    _set_handlers(dict.fromkeys(previous, held.hold))
     try:
         yield held
-    finally:
-        for signum, handler in previous.items():
-            signal.signal(signum, handler)
+    except BaseException as err:
+        _set_handlers(previous)
+        if held.signals and not isinstance(err, KeyboardInterrupt):
+            raise _interrupt_for(held.signals[0]) from err
+        raise
+    _set_handlers(dict.fromkeys(previous, signal.SIG_IGN) if held.ignore_after else previous)
     if held.signals:
-        if held.signals[0] == signal.SIGINT:
-            raise KeyboardInterrupt
-        raise Terminated(held.signals[0])
+        raise _interrupt_for(held.signals[0])
 
 
 def run_interruptible(body: Callable[[], int]) -> int:
@@ -388,6 +439,10 @@ class OutputSet:
         Files and folders the run reads; no output may touch them.
     force : bool, default False
         Replace existing outputs (only at commit, only by complete new ones).
+    ends_run : bool, default False
+        These are a command's outputs, and committing them ends its work: from the commit on,
+        SIGINT / SIGTERM / SIGHUP are ignored (a finished run is not "interrupted"). Otherwise a
+        signal during the commit's clean-up is raised once the outputs stand.
 
     Examples
     --------
@@ -397,8 +452,11 @@ class OutputSet:
     ... # both renamed into place here, or neither on an exception
     """
 
-    def __init__(self, *, inputs: Iterable[Path | str] = (), force: bool = False) -> None:
+    def __init__(
+        self, *, inputs: Iterable[Path | str] = (), force: bool = False, ends_run: bool = False
+    ) -> None:
         self.force = force
+        self.ends_run = ends_run
         self._inputs: list[tuple[Path, Path]] = []
         self._outputs: list[StagedOutput] = []
         self._done = False
@@ -618,9 +676,10 @@ class OutputSet:
                 raise OutputError(msg)
         # Signals held: one landing between a rename and its bookkeeping would leave a half-placed
         # set, a target moved aside for good, or staging folders. One that came while the outputs
-        # were placed undoes them (as a failure does) and is raised then. Once all are placed the
-        # run is done: a signal during the clean-up is dropped, as one at exit is (exit_after), so
-        # an interrupted run never leaves outputs and a run that leaves outputs is never "interrupted".
+        # were placed undoes them (as a failure does) and is raised then. Once all are placed, the
+        # outputs stand: a later signal is raised after the clean-up, or, when this set ends the
+        # run (``ends_run``), ignored from then on, so a run that leaves outputs never exits as
+        # interrupted, and an interrupted one never leaves outputs.
         with signals_deferred() as held:
             backups: list[tuple[StagedOutput, Path]] = []
             placed: list[StagedOutput] = []
@@ -645,7 +704,8 @@ class OutputSet:
             if held:  # interrupted while placing: undo; signals_deferred raises it on exit
                 self._undo(placed, backups)
                 return
-            held.drop()
+            if self.ends_run:  # a late signal must not call a finished run "interrupted"
+                held.ignore_from_now()
             for _staged, backup in backups:
                 _remove_tree(backup)
             for staged in files:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import signal
 from pathlib import Path
 
 import numpy as np
@@ -43,6 +44,17 @@ def test_clean_writes_map_and_report(
     assert len(report["dominant_directions_deg"]) == 2
     printed = capsys.readouterr().out
     assert "W " in printed and "directions" in printed and "removed" in printed
+
+
+def test_main_in_process_leaves_the_callers_signal_handlers(
+    cluttered_map: Path, tmp_path: Path
+) -> None:
+    """Run from a notebook or a test, the command must not leave Ctrl-C ignored (it ignores
+    signals once its outputs are committed) nor its own SIGTERM handler behind."""
+    names = ("SIGINT", "SIGTERM", "SIGHUP")
+    before = {name: signal.getsignal(getattr(signal, name)) for name in names}
+    assert main(["clean", str(cluttered_map), "-o", str(tmp_path / "clean.yaml")]) == 0
+    assert {name: signal.getsignal(getattr(signal, name)) for name in names} == before
 
 
 def test_clean_method_paper_is_the_papers_labelling(cluttered_map: Path, tmp_path: Path) -> None:

@@ -18,6 +18,7 @@ from rose.errors import OutputError
 from rose.outputs import (
     OutputSet,
     Terminated,
+    install_signal_handlers,
     interrupt_behind,
     json_text,
     remove_stale_temporaries,
@@ -266,12 +267,16 @@ def _raise_terminated(signum: int, _frame: object) -> None:
 
 @pytest.fixture
 def sigterm_raises() -> Iterator[None]:
-    """SIGTERM raises Terminated, as under the CLIs' install_signal_handlers."""
-    previous = signal.signal(signal.SIGTERM, _raise_terminated)
+    """SIGTERM raises Terminated, as under the CLIs' install_signal_handlers; every handler this
+    test changes is put back."""
+    names = ("SIGINT", "SIGTERM", "SIGHUP")
+    previous = {name: signal.getsignal(getattr(signal, name)) for name in names}
+    signal.signal(signal.SIGTERM, _raise_terminated)
     try:
         yield
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        for name, handler in previous.items():
+            signal.signal(getattr(signal, name), handler)
 
 
 def _sigterm_after_first(monkeypatch: pytest.MonkeyPatch, owner: object, name: str) -> None:
@@ -306,20 +311,44 @@ def test_a_signal_while_outputs_are_placed_restores_every_old_one(
     assert files == {"a.json": b"old", "b.json": b"old"}
 
 
-def test_a_signal_once_every_output_is_placed_is_dropped(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, sigterm_raises: None
+@pytest.mark.parametrize("ends_run", [True, False])
+def test_a_signal_once_every_output_is_placed_never_undoes_them(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, sigterm_raises: None, ends_run: bool
 ) -> None:
     import rose.outputs
 
     (tmp_path / "a.json").write_bytes(b"old")
-    outputs = OutputSet(force=True)
+    outputs = OutputSet(force=True, ends_run=ends_run)
     outputs.write_bytes(tmp_path / "a.json", b"new")
     outputs.write_bytes(tmp_path / "b.json", b"new")
     _sigterm_after_first(monkeypatch, rose.outputs, "_remove_tree")  # clean-up after the commit
-    outputs.commit()  # done work is not reported as interrupted, and nothing is left behind
+    if ends_run:  # a command's outputs: its work is done, the signal (and any later) is ignored
+        outputs.commit()
+        assert signal.getsignal(signal.SIGTERM) == signal.SIG_IGN
+    else:  # a library caller (a batch looping over recordings) still gets its Ctrl-C
+        with pytest.raises(Terminated):
+            outputs.commit()
     monkeypatch.undo()
     files = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
     assert files == {"a.json": b"new", "b.json": b"new"}
+
+
+def test_a_signal_held_while_the_block_fails_is_not_lost(sigterm_raises: None) -> None:
+    with pytest.raises(Terminated) as caught, signals_deferred():
+        os.kill(os.getpid(), signal.SIGTERM)
+        raise OSError("disk full")
+    assert isinstance(caught.value.__cause__, OSError)
+    assert signal.getsignal(signal.SIGTERM) is _raise_terminated
+
+
+def test_ignored_signals_stay_ignored(sigterm_raises: None) -> None:
+    """nohup ignores SIGHUP, a shell's background job SIGINT: neither may stop the run."""
+    signal.signal(signal.SIGHUP, signal.SIG_IGN)
+    install_signal_handlers()
+    assert signal.getsignal(signal.SIGHUP) == signal.SIG_IGN
+    with signals_deferred():
+        os.kill(os.getpid(), signal.SIGHUP)
+    assert signal.getsignal(signal.SIGHUP) == signal.SIG_IGN
 
 
 def test_terminated_is_a_keyboard_interrupt() -> None:

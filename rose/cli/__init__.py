@@ -22,6 +22,7 @@ from rose.outputs import (
     print_any_file_name,
     reraise_interrupt_behind,
     run_interruptible,
+    signal_handlers_kept,
     signals_deferred,
     stdout_closed,
 )
@@ -83,8 +84,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     0 success, 1 error (one line ``error: <file>: <problem>`` on stderr, no output written), 2 usage
     error, 130 / 143 / 129 interrupted by SIGINT / SIGTERM / SIGHUP (temporary files removed).
     """
-    install_signal_handlers()
-    return run_interruptible(lambda: _run(argv))
+    with signal_handlers_kept():  # an in-process caller keeps its own handlers
+        install_signal_handlers()
+        return run_interruptible(lambda: _run(argv))
 
 
 def _run(argv: Sequence[str] | None) -> int:

@@ -53,7 +53,7 @@ def add_parser(commands: Any) -> None:
 def run(args: argparse.Namespace) -> int:
     params = params_from_args(args)
     source = load_grid_map(args.map, max_cells=args.max_cells)
-    outputs = OutputSet(inputs=source.input_files, force=args.force)
+    outputs = OutputSet(inputs=source.input_files, force=args.force, ends_run=True)
     output_path = Path(args.output)
     if output_path.suffix.lower() not in (".yaml", ".yml"):
         msg = f"{output_path}: the output map must be a .yaml file"

@@ -65,7 +65,7 @@ def run(args: argparse.Namespace, *, stdout: TextIO | None = None) -> int:
     """
     out = stdout if stdout is not None else sys.stdout
     occupancy_map = load_grid_map(args.map, max_cells=args.max_cells)
-    outputs = OutputSet(inputs=occupancy_map.input_files, force=args.force)
+    outputs = OutputSet(inputs=occupancy_map.input_files, force=args.force, ends_run=True)
     outputs.check(args.geojson, args.svg)
     params = WallParams()
     if args.min_length is not None:

@@ -20,6 +20,7 @@ from rose.outputs import (
     print_any_file_name,
     reraise_interrupt_behind,
     run_interruptible,
+    signal_handlers_kept,
     signals_deferred,
     stdout_closed,
 )
@@ -79,8 +80,9 @@ def main(argv: list[str] | None = None) -> int:
     0 success, 1 error (one line on stderr, nothing written), 2 usage error, 3 ``--fail-above`` gate,
     4 ``--salvage`` with messages lost, 130 / 143 / 129 interrupted by SIGINT / SIGTERM / SIGHUP.
     """
-    install_signal_handlers()
-    return run_interruptible(lambda: _run(argv))
+    with signal_handlers_kept():  # an in-process caller keeps its own handlers
+        install_signal_handlers()
+        return run_interruptible(lambda: _run(argv))
 
 
 def _run(argv: list[str] | None) -> int:

@@ -100,7 +100,7 @@ def run(args: argparse.Namespace) -> int:
 
     The session and ``--map-file`` (YAML + PGM) are committed together, or nothing is written.
     """
-    outputs = OutputSet(inputs=[args.log], force=args.force)
+    outputs = OutputSet(inputs=[args.log], force=args.force, ends_run=True)
     fmt = args.fmt or format_from_path(args.output) or "db3"
     map_files = (
         (args.map_file, args.map_file.with_suffix(".pgm")) if args.map_file is not None else ()

@@ -158,7 +158,7 @@ def run(args: argparse.Namespace) -> int:
     config = config_from_args(args)
     # The data set is read, never written (data_root raises DataSetError, one line, if it is absent).
     inputs = [config.data_root] if config.logs or config.benchmark_maps else []
-    with OutputSet(inputs=inputs, force=args.force) as outputs:
+    with OutputSet(inputs=inputs, force=args.force, ends_run=True) as outputs:
         staged = outputs.stage(args.out_dir, directory=True, replaceable=is_report_folder)
         assert staged.temp is not None  # a folder output is never a stream
         run_evaluation(config, staged.temp, progress=lambda m: print(m, file=sys.stderr))

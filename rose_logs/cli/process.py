@@ -232,7 +232,7 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(msg)
     output = None if args.no_output else (args.output or default_output_path(args.input))
     progress = not args.quiet and sys.stderr.isatty()
-    outputs = OutputSet(inputs=[args.input], force=args.force)
+    outputs = OutputSet(inputs=[args.input], force=args.force, ends_run=True)
     with outputs:  # the log, the recording and the report: all committed, or none
         json_out = None if args.json_path is None else outputs.stage(args.json_path)
         report = _process(args, output, progress, outputs)
