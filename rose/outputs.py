@@ -187,8 +187,8 @@ def install_signal_handlers() -> None:
 def signal_handlers_kept() -> Iterator[None]:
     """Put the SIGINT / SIGTERM / SIGHUP handlers back as they were when the block ends.
 
-    For a command's ``main`` run in-process (a test, a notebook): it installs its own handlers and,
-    once its outputs are committed, ignores these signals; its caller gets its own handlers back.
+    For a command's ``main`` run in-process (a test, a notebook): it installs its own handlers
+    (SIGTERM / SIGHUP raise :class:`Terminated`); its caller gets its own handlers back.
     """
     previous = {s: h for s in _interrupt_signals() if (h := signal.getsignal(s)) is not None}
     try:
@@ -237,19 +237,18 @@ class HeldSignals:
 
     def __init__(self) -> None:
         self.signals: list[int] = []
-        self.ignore_after = False
+        self._dropping = False
 
     def __bool__(self) -> bool:
         return bool(self.signals)
 
     def hold(self, signum: int, _frame: FrameType | None) -> None:
-        if not self.ignore_after:
+        if not self._dropping:
             self.signals.append(signum)
 
-    def ignore_from_now(self) -> None:
-        """The run's work is done: forget the held signals and ignore these signals from now on,
-        for the rest of the process (as :func:`exit_after` does)."""
-        self.ignore_after = True
+    def drop(self) -> None:
+        """Forget the held signals, and any that arrives until the block ends (the work is done)."""
+        self._dropping = True
         self.signals.clear()
 
 
@@ -278,7 +277,7 @@ def signals_deferred() -> Iterator[HeldSignals]:
         if held.signals and not isinstance(err, KeyboardInterrupt):
             raise _interrupt_for(held.signals[0]) from err
         raise
-    _set_handlers(dict.fromkeys(previous, signal.SIG_IGN) if held.ignore_after else previous)
+    _set_handlers(previous)
     if held.signals:
         raise _interrupt_for(held.signals[0])
 
@@ -440,9 +439,9 @@ class OutputSet:
     force : bool, default False
         Replace existing outputs (only at commit, only by complete new ones).
     ends_run : bool, default False
-        These are a command's outputs, and committing them ends its work: from the commit on,
-        SIGINT / SIGTERM / SIGHUP are ignored (a finished run is not "interrupted"). Otherwise a
-        signal during the commit's clean-up is raised once the outputs stand.
+        These are a command's outputs, and committing them ends its work: a signal during the
+        commit's clean-up is dropped (a finished run is not "interrupted"). Otherwise it is raised
+        once the outputs stand (a library caller, e.g. a loop over recordings, gets its Ctrl-C).
 
     Examples
     --------
@@ -678,8 +677,8 @@ class OutputSet:
         # set, a target moved aside for good, or staging folders. One that came while the outputs
         # were placed undoes them (as a failure does) and is raised then. Once all are placed, the
         # outputs stand: a later signal is raised after the clean-up, or, when this set ends the
-        # run (``ends_run``), ignored from then on, so a run that leaves outputs never exits as
-        # interrupted, and an interrupted one never leaves outputs.
+        # run (``ends_run``), dropped, so a run that leaves outputs does not exit as interrupted,
+        # and an interrupted one never leaves outputs.
         with signals_deferred() as held:
             backups: list[tuple[StagedOutput, Path]] = []
             placed: list[StagedOutput] = []
@@ -705,7 +704,7 @@ class OutputSet:
                 self._undo(placed, backups)
                 return
             if self.ends_run:  # a late signal must not call a finished run "interrupted"
-                held.ignore_from_now()
+                held.drop()
             for _staged, backup in backups:
                 _remove_tree(backup)
             for staged in files:

@@ -49,8 +49,8 @@ def test_clean_writes_map_and_report(
 def test_main_in_process_leaves_the_callers_signal_handlers(
     cluttered_map: Path, tmp_path: Path
 ) -> None:
-    """Run from a notebook or a test, the command must not leave Ctrl-C ignored (it ignores
-    signals once its outputs are committed) nor its own SIGTERM handler behind."""
+    """Run from a notebook or a test, the command must not leave its own SIGTERM / SIGHUP handlers
+    behind."""
     names = ("SIGINT", "SIGTERM", "SIGHUP")
     before = {name: signal.getsignal(getattr(signal, name)) for name in names}
     assert main(["clean", str(cluttered_map), "-o", str(tmp_path / "clean.yaml")]) == 0

@@ -322,9 +322,9 @@ def test_a_signal_once_every_output_is_placed_never_undoes_them(
     outputs.write_bytes(tmp_path / "a.json", b"new")
     outputs.write_bytes(tmp_path / "b.json", b"new")
     _sigterm_after_first(monkeypatch, rose.outputs, "_remove_tree")  # clean-up after the commit
-    if ends_run:  # a command's outputs: its work is done, the signal (and any later) is ignored
+    if ends_run:  # a command's outputs: its work is done, the signal is dropped
         outputs.commit()
-        assert signal.getsignal(signal.SIGTERM) == signal.SIG_IGN
+        assert signal.getsignal(signal.SIGTERM) is _raise_terminated
     else:  # a library caller (a batch looping over recordings) still gets its Ctrl-C
         with pytest.raises(Terminated):
             outputs.commit()
