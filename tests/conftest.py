@@ -9,6 +9,7 @@ a reason saying how to get it; with ``ROSE_REQUIRE_DATA=1`` (CI) it fails instea
 from __future__ import annotations
 
 import signal
+from collections.abc import Iterator
 
 import pytest
 from real_data import dataset
@@ -24,6 +25,21 @@ def pytest_configure(config: pytest.Config) -> None:
         "dataset(*paths): needs these paths inside the full real data set (ROSE_DATA_DIR); "
         "skipped without it, failed under ROSE_REQUIRE_DATA=1",
     )
+
+
+@pytest.fixture(autouse=True)
+def _signal_state_isolated() -> Iterator[None]:
+    """Each test starts with the signal handlers and mask the previous one found: a test that runs a
+    command in-process and leaves a handler behind must not change how later tests see signals (a
+    child process inherits ignored or blocked signals)."""
+    names = ("SIGINT", "SIGTERM", "SIGHUP")
+    handlers = {name: signal.getsignal(getattr(signal, name)) for name in names}
+    mask = signal.pthread_sigmask(signal.SIG_BLOCK, [])
+    yield
+    for name, handler in handlers.items():
+        if handler is not None:
+            signal.signal(getattr(signal, name), handler)
+    signal.pthread_sigmask(signal.SIG_SETMASK, mask)
 
 
 def pytest_runtest_setup(item: pytest.Item) -> None:
