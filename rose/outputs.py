@@ -178,8 +178,7 @@ def install_signal_handlers() -> None:
 
     A signal the caller ignores stays ignored: ``nohup`` (SIGHUP) and a shell's background job.
     """
-    names = ("SIGTERM", "SIGHUP")
-    signums = [s for s in _interrupt_signals() if signal.Signals(s).name in names]
+    signums = _interrupt_signals("SIGTERM", "SIGHUP")
     _set_handlers({s: _raise_terminated for s in signums if not _ignored(s)})
 
 
@@ -197,9 +196,10 @@ def signal_handlers_kept() -> Iterator[None]:
         _set_handlers(previous)
 
 
-def _interrupt_signals() -> list[int]:
-    """SIGINT, SIGTERM and SIGHUP, those the platform has."""
-    return [getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, n)]
+def _interrupt_signals(*names: str) -> list[int]:
+    """The numbers of ``names`` (default SIGINT, SIGTERM, SIGHUP) that the platform has."""
+    names = names or ("SIGINT", "SIGTERM", "SIGHUP")
+    return [getattr(signal, n) for n in names if hasattr(signal, n)]
 
 
 def _ignored(signum: int) -> bool:
