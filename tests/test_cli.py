@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import signal
 from pathlib import Path
@@ -88,6 +89,81 @@ def test_score_prints_a_table_and_json(
     assert main(["score", "--json", str(cluttered_map)]) == 0
     records = json.loads(capsys.readouterr().out)
     assert records[0]["structure_score"] < 0.2
+
+
+def test_score_scores_every_good_map_and_reports_the_bad_ones(
+    cluttered_map: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`rose score maps/*.yaml` must not lose the table to one bad file: rows for the good maps, one
+    error line per bad one, exit 1; in JSON the bad map is a record with its error."""
+    missing = tmp_path / "missing.yaml"
+    assert main(["score", str(missing), str(cluttered_map)]) == 1
+    captured = capsys.readouterr()
+    assert str(cluttered_map) in captured.out and str(missing) not in captured.out
+    errors = captured.err.strip().splitlines()
+    assert errors[0].startswith(f"error: {missing}: ")
+    assert errors[-1] == "error: 1 of 2 maps could not be scored"
+    assert main(["score", "--json", str(cluttered_map), str(missing)]) == 1
+    records = json.loads(capsys.readouterr().out)
+    assert [r["map"] for r in records] == [str(cluttered_map), str(missing)]
+    assert "structure_score" in records[0] and "error" not in records[0]
+    assert records[1]["error"].startswith(f"{missing}: ")
+
+
+def test_directions_are_reported_in_the_map_frame(
+    cluttered_map: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A map whose origin is rotated has its walls that much further round in the map frame, where
+    `rose walls` reports them too."""
+    source = rose.load_map(cluttered_map)
+    turned = tmp_path / "turned.yaml"
+    rose.save_map(turned, dataclasses.replace(source, origin_yaw_rad=0.5))
+    assert main(["score", "--json", str(cluttered_map), str(turned)]) == 0
+    plain, rotated = (r["dominant_directions_deg"] for r in json.loads(capsys.readouterr().out))
+    expected = sorted((d + np.degrees(0.5)) % 180 for d in plain)
+    np.testing.assert_allclose(sorted(rotated), expected, atol=0.011)
+    assert main(["walls", str(turned)]) == 0
+    angles = [float(line.split()[-1]) for line in capsys.readouterr().out.splitlines()[2:]]
+    # Walls of the rotated floor plan lie along the reported directions (within a degree).
+    assert angles and all(
+        min(abs((a - d + 90) % 180 - 90) for d in rotated) < 1.0 for a in angles
+    ), (angles, rotated)
+
+
+def test_a_bare_image_takes_its_resolution_from_the_option(
+    cluttered_map: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A bare image has no resolution: without --resolution the default is said, with it the output
+    YAML and every metre-based rule use it; a YAML map keeps its own."""
+    image = rose.load_map(cluttered_map).image_path
+    assert main(["clean", str(image), "-o", str(tmp_path / "a.yaml")]) == 0
+    assert "no map YAML, assuming 0.05 m/cell" in capsys.readouterr().err
+    assert rose.load_map(tmp_path / "a.yaml").resolution_m == pytest.approx(0.05)
+    assert main(["clean", str(image), "-o", str(tmp_path / "b.yaml"), "--resolution", "0.1"]) == 0
+    assert "warning" not in capsys.readouterr().err
+    assert rose.load_map(tmp_path / "b.yaml").resolution_m == pytest.approx(0.1)
+    # The cleaning's lengths are metres: at 0.1 m per cell it keeps another set of cells.
+    a, b = (rose.load_map(tmp_path / n).grid for n in ("a.yaml", "b.yaml"))
+    assert not np.array_equal(a, b)
+    assert main(["score", str(cluttered_map), "--resolution", "0.1"]) == 1
+    assert "--resolution is for bare images" in capsys.readouterr().err
+
+
+def test_clean_reports_the_unknown_cells_it_made_walls(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Cells the cleaning adds (a wall line hidden behind removed furniture) are counted, so removed,
+    kept and completed add up to what the output holds."""
+    # A real SLAM map (Freiburg 079, last exploration stage): clutter in front of walls.
+    path = Path(__file__).parent / "data/rose2_aislabunimi/Freiburg_Building_079_partial/map15.yaml"
+    out = tmp_path / "c.yaml"
+    assert main(["clean", str(path), "-o", str(out), "--json", str(tmp_path / "r.json")]) == 0
+    report = json.loads((tmp_path / "r.json").read_text())
+    assert report["completed_cells"] > 0
+    assert f"completed    {report['completed_cells']} " in capsys.readouterr().out
+    cleaned = rose.load_map(out).grid
+    occupied_out = int(np.count_nonzero(cleaned >= 65))
+    assert occupied_out == report["kept_cells"] + report["completed_cells"]
 
 
 @pytest.mark.parametrize(

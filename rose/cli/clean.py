@@ -11,9 +11,10 @@ from typing import Any
 
 from rose.cleaning import CLEAN_METHODS, CleanResult, clean
 from rose.cli.options import (
-    add_limit_arguments,
+    add_map_arguments,
     add_param_arguments,
     directions_deg,
+    fold_deg,
     load_grid_map,
     params_from_args,
     result_summary,
@@ -38,7 +39,7 @@ def add_parser(commands: Any) -> None:
         "--json", type=Path, metavar="REPORT", help="also write a JSON report ('-': stdout)"
     )
     clean.add_argument("-f", "--force", action="store_true", help="replace existing output files")
-    add_limit_arguments(clean)
+    add_map_arguments(clean)
     clean.add_argument(
         "--method",
         choices=CLEAN_METHODS,
@@ -52,7 +53,7 @@ def add_parser(commands: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     params = params_from_args(args)
-    source = load_grid_map(args.map, max_cells=args.max_cells)
+    source = load_grid_map(args.map, max_cells=args.max_cells, resolution_m=args.resolution)
     outputs = OutputSet(inputs=source.input_files, force=args.force, ends_run=True)
     output_path = Path(args.output)
     if output_path.suffix.lower() not in (".yaml", ".yml"):
@@ -70,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
         origin_xy_m=source.origin_xy_m,
         origin_yaw_rad=source.origin_yaw_rad,
     )
-    summary = result_summary(result, seconds=elapsed)
+    summary = result_summary(result, seconds=elapsed, yaw_rad=source.origin_yaw_rad)
     summary.update(cleaning_summary(cleaning))
     summary["input"] = str(args.map)
     summary["output"] = str(args.output)
@@ -82,7 +83,9 @@ def run(args: argparse.Namespace) -> int:
     rows, cols = result.occupied.shape
     share = cleaning.removed_count / result.occupied_count if result.occupied_count else 0.0
     threshold = summary["threshold"]
-    angles = ", ".join(f"{d:.1f}" for d in directions_deg(result))
+    angles = ", ".join(
+        f"{fold_deg(d, 1):.1f}" for d in directions_deg(result, yaw_rad=source.origin_yaw_rad)
+    )
     directions = f"{angles} deg" if angles else "none"
     lines = [
         f"map          {args.map}  ({cols} x {rows} cells, {source.resolution_m:g} m/cell)",
@@ -94,6 +97,8 @@ def run(args: argparse.Namespace) -> int:
         f"removed      {cleaning.removed_count} cells ({share:.1%}), set to {params.clutter_value}",
         f"kept         {cleaning.kept_count} cells ({cleaning.rescued_count} of them against "
         f"the paper's labelling, {cleaning.guarded_count} by the gap guard)",
+        f"completed    {cleaning.completed_count} unknown cells made walls (the wall line hidden "
+        "behind removed clutter)",
         f"written      {args.output} + {image_path.name}",
         f"time         {elapsed * 1000:.0f} ms",
     ]
@@ -102,11 +107,14 @@ def run(args: argparse.Namespace) -> int:
 
 
 def cleaning_summary(cleaning: CleanResult) -> dict[str, Any]:
-    """JSON-ready counts of a cleaning: method, cells removed, kept, rescued, kept by the guard."""
+    """JSON-ready counts of a cleaning: method, cells removed, kept, rescued, kept by the guard, and
+    unknown cells completed as walls (so removed + kept + completed add up to the output's walls
+    plus what was removed)."""
     return {
         "method": cleaning.method,
         "removed_cells": cleaning.removed_count,
         "kept_cells": cleaning.kept_count,
         "rescued_cells": cleaning.rescued_count,
         "guarded_cells": cleaning.guarded_count,
+        "completed_cells": cleaning.completed_count,
     }

@@ -4,7 +4,9 @@ tuning options (argparse types with range checks, so bad values are usage errors
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -14,12 +16,13 @@ from rose.directions import FAILURE_LEVEL, TRUST_LEVEL
 from rose.errors import RoseError
 from rose.grid import as_occupancy_grid
 from rose.limits import DEFAULT_MAX_CELLS
-from rose.mapfile import OccupancyMap, load_map
+from rose.mapfile import DEFAULT_RESOLUTION_M, YAML_SUFFIXES, OccupancyMap, load_map
 from rose.params import RoseParams, make_params
 from rose.result import RoseResult
 
 __all__ = [
     "add_limit_arguments",
+    "add_map_arguments",
     "add_param_arguments",
     "cell_count",
     "directions_deg",
@@ -107,6 +110,19 @@ def add_limit_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="N",
         help="refuse grids of more than N cells, checked before allocating "
         "(default %(default).0e; ROSE needs about 35 bytes per cell)",
+    )
+
+
+def add_map_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the options of a command that reads a map file: ``--max-cells`` and ``--resolution``."""
+    add_limit_arguments(parser)
+    parser.add_argument(
+        "--resolution",
+        type=positive_float,
+        default=None,
+        metavar="M",
+        help=f"metres per cell of a bare image (no YAML; default {DEFAULT_RESOLUTION_M:g}, with a "
+        "warning); a YAML map gives its own",
     )
 
 
@@ -205,17 +221,28 @@ def check_params(parser: argparse.ArgumentParser, args: argparse.Namespace) -> N
         parser.error(str(err))
 
 
-def directions_deg(result: RoseResult) -> list[float]:
-    """Dominant directions in degrees, rounded to 0.01 and folded into [0, 180)."""
-    return [round(float(np.degrees(a)), 2) % 180.0 for a in result.dominant_directions]
+def directions_deg(result: RoseResult, *, yaw_rad: float = 0.0) -> list[float]:
+    """Dominant directions in degrees in the map frame, rounded to 0.01 and folded into [0, 180).
+
+    ROSE measures them in the grid (counter-clockwise from the grid's +x, the column axis); a map
+    whose origin is rotated by ``yaw_rad`` has its walls that much further round in the map frame.
+    """
+    return [fold_deg(float(np.degrees(a + yaw_rad)), 2) for a in result.dominant_directions]
 
 
-def result_summary(result: RoseResult, *, seconds: float | None = None) -> dict[str, Any]:
-    """JSON-ready summary of a result: W, directions (degrees), threshold, counts."""
+def fold_deg(angle_deg: float, digits: int) -> float:
+    """``angle_deg`` rounded to ``digits`` and then folded into [0, 180): 179.996 is 0.0, not 180.0."""
+    return round(angle_deg, digits) % 180.0
+
+
+def result_summary(
+    result: RoseResult, *, seconds: float | None = None, yaw_rad: float = 0.0
+) -> dict[str, Any]:
+    """JSON-ready summary of a result: W, directions (degrees, map frame), threshold, counts."""
     summary: dict[str, Any] = {
         "structure_score": round(result.structure_score, 6),
         "has_structure": result.has_structure,
-        "dominant_directions_deg": directions_deg(result),
+        "dominant_directions_deg": directions_deg(result, yaw_rad=yaw_rad),
         "threshold": None if math.isnan(result.threshold) else round(result.threshold, 6),
         "occupied_cells": result.occupied_count,
         "clutter_cells": result.clutter_count,
@@ -235,9 +262,21 @@ def verdict(score: float) -> str:
     return "little structure: decluttering has likely failed"
 
 
-def load_grid_map(path: str | Path, *, max_cells: int | None) -> OccupancyMap:
+def load_grid_map(
+    path: str | Path, *, max_cells: int | None, resolution_m: float | None = None
+) -> OccupancyMap:
     """:func:`rose.load_map`, with the grid checked as ROSE will read it, so that a map whose values
-    are no occupancy (a ``mode: raw`` image with grey values above 100) fails naming the file."""
+    are no occupancy (a ``mode: raw`` image with grey values above 100) fails naming the file.
+
+    ``resolution_m`` sets the cell size of a bare image (``--resolution``); without it a bare image
+    gets :data:`rose.mapfile.DEFAULT_RESOLUTION_M` and a warning on stderr, because every length in
+    metres (cleaning rules, walls, the output YAML) depends on it. A YAML map sets its own: giving
+    ``resolution_m`` with one is an error rather than a silent override.
+    """
+    bare_image = Path(path).suffix.lower() not in YAML_SUFFIXES
+    if resolution_m is not None and not bare_image:
+        msg = f"{path}: --resolution is for bare images; a YAML map gives its own resolution"
+        raise RoseError(msg)
     occupancy_map = load_map(path, max_cells=max_cells)
     try:
         as_occupancy_grid(occupancy_map.grid)
@@ -245,4 +284,13 @@ def load_grid_map(path: str | Path, *, max_cells: int | None) -> OccupancyMap:
         text = str(err).rstrip(".")
         msg = f"{path}: {text[:1].lower()}{text[1:]}"
         raise RoseError(msg) from err
+    if bare_image:
+        if resolution_m is None:
+            print(
+                f"warning: {path}: no map YAML, assuming {DEFAULT_RESOLUTION_M:g} m/cell "
+                "(set it with --resolution)",
+                file=sys.stderr,
+            )
+        else:
+            occupancy_map = dataclasses.replace(occupancy_map, resolution_m=resolution_m)
     return occupancy_map

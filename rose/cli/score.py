@@ -1,20 +1,28 @@
-"""``rose score MAP...``: W and the dominant directions of map files, as a table or JSON."""
+"""``rose score MAP...``: W and the dominant directions of map files, as a table or JSON.
+
+A map that cannot be read or analysed is reported (one ``error:`` line on stderr, and in ``--json``
+a record with its ``error``) and the others are still scored; the exit code is then 1.
+"""
 
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from pathlib import Path
 from typing import Any
 
 from rose.cli.options import (
-    add_limit_arguments,
+    add_map_arguments,
     add_param_arguments,
+    fold_deg,
     load_grid_map,
     params_from_args,
     result_summary,
 )
-from rose.outputs import json_text
+from rose.errors import RoseError
+from rose.outputs import json_text, reraise_interrupt_behind
+from rose.params import RoseParams
 from rose.pipeline import analyze
 
 __all__ = ["add_parser", "run"]
@@ -29,27 +37,49 @@ def add_parser(commands: Any) -> None:
         action="store_true",
         help="print strict JSON instead of a table (non-finite: null)",
     )
-    add_limit_arguments(score)
+    add_map_arguments(score)
     add_param_arguments(score)
     score.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     params = params_from_args(args)
-    records = []
-    for path in args.maps:
-        source = load_grid_map(path, max_cells=args.max_cells)
-        started = time.perf_counter()
-        result = analyze(source.grid, params)
-        summary = result_summary(result, seconds=time.perf_counter() - started)
-        records.append({"map": str(path), **summary})
+    records = [_score(path, args, params) for path in args.maps]
+    failed = sum("error" in r for r in records)
     if args.json:
         print(json_text(records), end="")
-        return 0
-    width = max(len("map"), *(len(r["map"]) for r in records))
-    print(f"{'map':<{width}}  {'W':>6}  {'directions (deg)':<24}  {'occupied':>9}  {'clutter':>8}")
-    for r in records:
-        dirs = ", ".join(f"{d:.1f}" for d in r["dominant_directions_deg"]) or "none"
-        print(f"{r['map']:<{width}}  {r['structure_score']:6.3f}  {dirs:<24}  "
-              f"{r['occupied_cells']:>9}  {r['clutter_cells']:>8}")  # fmt: skip
-    return 0
+        return 1 if failed else 0
+    scored = [r for r in records if "error" not in r]
+    if scored:
+        width = max(len("map"), *(len(r["map"]) for r in scored))
+        print(
+            f"{'map':<{width}}  {'W':>6}  {'directions (deg)':<24}  {'occupied':>9}  {'clutter':>8}"
+        )
+        for r in scored:
+            dirs = (
+                ", ".join(f"{fold_deg(d, 1):.1f}" for d in r["dominant_directions_deg"]) or "none"
+            )
+            print(f"{r['map']:<{width}}  {r['structure_score']:6.3f}  {dirs:<24}  "
+                  f"{r['occupied_cells']:>9}  {r['clutter_cells']:>8}")  # fmt: skip
+    if failed and len(records) > 1:  # one map: its own error line says it all
+        print(f"error: {failed} of {len(records)} maps could not be scored", file=sys.stderr)
+    return 1 if failed else 0
+
+
+def _score(path: Path, args: argparse.Namespace, params: RoseParams) -> dict[str, Any]:
+    """The summary record of one map, or ``{"map", "error"}`` (also printed) when it fails."""
+    from rose.cli import error_text  # the package imports this module: import at call time
+
+    try:
+        source = load_grid_map(path, max_cells=args.max_cells, resolution_m=args.resolution)
+        started = time.perf_counter()
+        result = analyze(source.grid, params)
+    except (RoseError, OSError, MemoryError) as err:
+        reraise_interrupt_behind(err)  # a signal inside a library: exit 130 / 143, not "error"
+        text = error_text(err, where=str(path))
+        print(f"error: {text}", file=sys.stderr)
+        return {"map": str(path), "error": text}
+    summary = result_summary(
+        result, seconds=time.perf_counter() - started, yaw_rad=source.origin_yaw_rad
+    )
+    return {"map": str(path), **summary}

@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 from typing import Any, TextIO
 
-from rose.cli.options import add_limit_arguments, load_grid_map, non_negative_float
+from rose.cli.options import add_map_arguments, load_grid_map, non_negative_float
 from rose.outputs import OutputSet, json_text
 from rose.pipeline import analyze
 from rose.walls import WallParams, WallSet, extract_walls, extract_walls_hough
@@ -40,7 +40,7 @@ def add_parser(subparsers: Any) -> None:
         "--svg", type=Path, metavar="FILE", help="write the walls as SVG ('-': stdout)"
     )
     parser.add_argument("-f", "--force", action="store_true", help="replace an existing file")
-    add_limit_arguments(parser)
+    add_map_arguments(parser)
     parser.add_argument(
         "--hough", action="store_true", help="baseline: Hough on the raw map, no ROSE"
     )
@@ -64,7 +64,7 @@ def run(args: argparse.Namespace, *, stdout: TextIO | None = None) -> int:
         messages are one line, for the caller's single error handler.
     """
     out = stdout if stdout is not None else sys.stdout
-    occupancy_map = load_grid_map(args.map, max_cells=args.max_cells)
+    occupancy_map = load_grid_map(args.map, max_cells=args.max_cells, resolution_m=args.resolution)
     outputs = OutputSet(inputs=occupancy_map.input_files, force=args.force, ends_run=True)
     outputs.check(args.geojson, args.svg)
     params = WallParams()

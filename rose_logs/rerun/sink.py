@@ -18,8 +18,10 @@ import logging
 import math
 import os
 import queue
+import socket
 import sys
 import threading
+import urllib.parse
 import uuid
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -38,7 +40,7 @@ from rose_logs.session.breaks import BreakScore
 from rose_logs.session.report import w_judges
 from rose_logs.snapshots import MapSnapshot
 
-__all__ = ["APPLICATION_ID", "RerunSink", "grpc_url", "recording_id_for"]
+__all__ = ["APPLICATION_ID", "RerunSink", "grpc_url", "recording_id_for", "viewer_unreachable"]
 
 _LOG = logging.getLogger(__name__)
 
@@ -111,6 +113,30 @@ def grpc_url(address: str) -> str:
         msg = f"viewer address must be PORT, HOST:PORT or a rerun+http:// URL, got {address!r}"
         raise ValueError(msg)
     return f"rerun+http://{text}/proxy"
+
+
+_VIEWER_PROBE_S = 3.0
+"""Longest wait for a viewer to accept a connection before a session starts, seconds."""
+
+
+def viewer_unreachable(address: str) -> str | None:
+    """Why nothing accepts a connection at the viewer ``address`` (see :func:`grpc_url`), or None.
+
+    Rerun's gRPC sink connects lazily and only fails at the final flush, after the whole session
+    was processed; a TCP connection tried first turns a viewer that is not running into an error
+    before any work.
+    """
+    url = urllib.parse.urlsplit(grpc_url(address).replace("rerun+", "", 1))
+    secure = url.scheme == "https"
+    try:
+        host, port = url.hostname or "127.0.0.1", url.port or (443 if secure else 9876)
+    except ValueError as err:  # a port out of range
+        return str(err)
+    try:
+        with socket.create_connection((host, port), timeout=_VIEWER_PROBE_S):
+            return None
+    except OSError as err:
+        return str(err.strerror or err)
 
 
 def _top(*values: float) -> float:

@@ -346,7 +346,15 @@ def _rerun_sink(
     """The Rerun recording of a session: one entity root per map topic; the id ``recording_id``, else
     derived from the input's full path and content (:func:`rose_logs.rerun.recording_id_for`)."""
     from rose_logs.rerun import RerunSink, recording_id_for  # rerun loads only when used
+    from rose_logs.rerun.sink import viewer_unreachable
 
+    if connect is not None:
+        try:
+            reason = viewer_unreachable(connect)
+        except ValueError as err:  # not an address
+            raise LogWriteError(f"{connect}: cannot open the Rerun recording ({err})") from err
+        if reason is not None:
+            raise LogWriteError(_rerun_failure(None, False, connect, OSError(reason)))
     try:
         return RerunSink(
             rrd_path=None if rrd_path is None else Path(rrd_path),
@@ -756,7 +764,11 @@ def _record(
         height=height,
         resolution_m=snapshot.resolution_m,
         structure_score=float(result.structure_score),
-        directions_deg=tuple(float(np.degrees(d)) for d in result.dominant_directions),
+        # ROSE measures directions in the grid; the origin's yaw turns them into the map frame.
+        directions_deg=tuple(
+            float(np.degrees(d + snapshot.origin_yaw_rad)) % 180.0
+            for d in result.dominant_directions
+        ),
         threshold=float(result.threshold),
         occupied_count=result.occupied_count,
         clutter_count=result.clutter_count,
@@ -778,4 +790,5 @@ def _cleaning_counts(cleaning: CleanResult | None) -> dict[str, Any]:
         "removed_count": cleaning.removed_count,
         "kept_count": cleaning.kept_count,
         "rescued_count": cleaning.rescued_count,
+        "completed_count": cleaning.completed_count,
     }

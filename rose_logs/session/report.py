@@ -48,7 +48,8 @@ class SnapshotRecord:
     structure_score : float
         W (1 by convention for a map without occupied cells: see :attr:`judged`).
     directions_deg : tuple of float
-        Dominant wall orientations in degrees in ``[0, 180)``, grid frame (CCW from the column axis).
+        Dominant wall orientations in degrees in ``[0, 180)``, map frame (CCW from the map's x
+        axis: the grid's column axis turned by the origin's yaw).
     threshold : float
         Cell-score threshold (NaN when nothing was classified).
     occupied_count, clutter_count : int
@@ -72,6 +73,8 @@ class SnapshotRecord:
         Occupied cells the cleaning removed / kept.
     rescued_count : int
         Kept cells the paper's labelling calls clutter.
+    completed_count : int
+        Unknown cells the cleaning made walls (the wall line hidden behind removed clutter).
     """
 
     topic: str
@@ -96,6 +99,7 @@ class SnapshotRecord:
     removed_count: int = 0
     kept_count: int = 0
     rescued_count: int = 0
+    completed_count: int = 0
 
     @property
     def judged(self) -> bool:
@@ -128,6 +132,7 @@ class SnapshotRecord:
             "removed": self.removed_count,
             "kept": self.kept_count,
             "rescued": self.rescued_count,
+            "completed": self.completed_count,
         }
 
 

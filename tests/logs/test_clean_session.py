@@ -43,6 +43,9 @@ def test_cleaned_topic_follows_the_method(
     assert record["removed"] == expected.removed_count
     assert record["kept"] == expected.kept_count
     assert record["kept"] + record["removed"] == record["occupied"]
+    # Unknown cells made walls are counted too: the cleaned map's walls are kept + completed.
+    assert record["completed"] == expected.completed_count
+    assert int(np.count_nonzero(cleaned >= 65)) == record["kept"] + record["completed"]
 
 
 def test_cli_clean_method_option(tmp_path: Path, fr079: list[npt.NDArray[np.int8]]) -> None:

@@ -271,6 +271,26 @@ def test_unwritable_folder(tmp_path: Path, capsys, mcap_log: Path) -> None:
     assert not Path("/proc/rose-out.mcap").exists()
 
 
+def test_a_viewer_that_is_not_running_is_an_error_before_any_work(
+    tmp_path: Path, capsys, mcap_log: Path
+) -> None:
+    """Rerun's stream connects lazily: without a check first, the whole session ran and then the
+    run failed at the final flush, its log and report thrown away."""
+    import socket
+
+    with socket.socket() as sock:  # a port nothing listens on once the socket is closed
+        sock.bind(("127.0.0.1", 0))
+        port = sock.getsockname()[1]
+    out, report = tmp_path / "o.mcap", tmp_path / "r.json"
+    code, _, err = _run(
+        capsys, "process", mcap_log, "-o", out, "--json", report, "--connect", f"127.0.0.1:{port}"
+    )
+    assert code == 1
+    _assert_one_line_error(err, f"the Rerun viewer at 127.0.0.1:{port}; is it running?")
+    assert "refused" in err.lower()
+    assert _leftovers(tmp_path, {mcap_log.name}) == []
+
+
 def test_format_mismatch_is_an_error(tmp_path: Path, fr079) -> None:
     built = build_log(tmp_path / "in.bag", "ros1", session_maps(fr079[:1]))
     with pytest.raises(LogWriteError, match="cannot store ROS 1 messages"):
