@@ -108,7 +108,12 @@ def _configure(parser: argparse.ArgumentParser) -> None:
         help="experiment 4 (break detection on replayed sessions): seeds per log, drift level "
         f"and start, 0..{MAX_BREAK_SEEDS} (small: 0 = skipped, full: 3)",
     )
-    parser.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
+    parser.add_argument(
+        "--no-plots",
+        action="store_true",
+        help="write no figures: no plots (matplotlib), no wall_error.png, no "
+        "cleaning_before_after.png; the rasterised logs map_*.png are data and still written",
+    )
 
 
 def add_parser(subparsers: Any) -> None:
@@ -151,8 +156,15 @@ def run(args: argparse.Namespace) -> int:
 
     The report is written in a temporary folder beside ``out_dir`` and moved into place when complete:
     an interrupted or failed run leaves no half report, and the data set is never written to.
+
+    Raises
+    ------
+    rose_logs.evaluation.images.ReportWriteError
+        If a file of the report cannot be written; it names the file in ``out_dir``, not in the
+        temporary folder, and nothing is committed.
     """
     from rose.outputs import OutputSet
+    from rose_logs.evaluation.images import ReportWriteError
     from rose_logs.evaluation.report import MARKDOWN_NAME, run_evaluation
 
     config = config_from_args(args)
@@ -161,7 +173,10 @@ def run(args: argparse.Namespace) -> int:
     with OutputSet(inputs=inputs, force=args.force, ends_run=True) as outputs:
         staged = outputs.stage(args.out_dir, directory=True, replaceable=is_report_folder)
         assert staged.temp is not None  # a folder output is never a stream
-        run_evaluation(config, staged.temp, progress=lambda m: print(m, file=sys.stderr))
+        try:
+            run_evaluation(config, staged.temp, progress=lambda m: print(m, file=sys.stderr))
+        except ReportWriteError as err:  # raised inside `with`: the staged report is removed
+            raise err.relocated(staged.temp, args.out_dir) from err
     print(args.out_dir / MARKDOWN_NAME)
     return 0
 

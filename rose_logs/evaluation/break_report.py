@@ -26,6 +26,7 @@ from rose_logs.evaluation.breaks import (
     roc,
     score_cases,
 )
+from rose_logs.evaluation.images import save_figure
 from rose_logs.session.breaks import BreakParams
 
 __all__ = ["BreakSection", "run_break_experiment"]
@@ -155,9 +156,7 @@ def _roc_figure(path: Path, sessions: Sequence[SessionScores], threshold: float)
     ax.legend(fontsize=7, loc="lower right")
     ax.set_title("ROC over the threshold")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, dpi=110)
 
 
 def _example_figure(path: Path, scores: SessionScores, threshold: float) -> Path | None:
@@ -222,9 +221,7 @@ def _example_figure(path: Path, scores: SessionScores, threshold: float) -> Path
     lines_w = ax_w.get_legend_handles_labels()
     ax_t.legend(lines[0] + lines_w[0], lines[1] + lines_w[1], fontsize=8, loc="upper left")
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, dpi=100)
 
 
 def _pick_example(sessions: Sequence[SessionScores], threshold: float) -> SessionScores | None:

@@ -24,6 +24,7 @@ from rose_logs.evaluation.cleaning import (
     summarise_cleaning,
 )
 from rose_logs.evaluation.config import EvaluationConfig
+from rose_logs.evaluation.images import write_png
 
 __all__ = [
     "CleaningReport",
@@ -145,8 +146,7 @@ def cleaning_figure(
     else:
         height = min(p.shape[0] for p in labelled)
         picture = np.hstack([p[:height] for p in labelled])
-    cv2.imwrite(str(path), picture)
-    return path
+    return write_png(path, picture)
 
 
 def _write_csv(path: Path, runs: Sequence[CleaningRun]) -> Path:
@@ -183,7 +183,8 @@ def summary_markdown(summaries: Sequence[CleaningSummary]) -> list[str]:
 def cleaning_experiment(
     config: EvaluationConfig, out_dir: Path, *, seeds: int = 1
 ) -> CleaningReport:
-    """Run the cleaning benchmark, write ``cleaning_runs.csv`` and ``cleaning_before_after.png``."""
+    """Run the cleaning benchmark, write ``cleaning_runs.csv`` and, unless ``config.plots`` is off,
+    ``cleaning_before_after.png``."""
     out = Path(out_dir)
     cases = cleaning_cases(config, seeds=seeds)
     runs = run_cleaning(cases)
@@ -191,7 +192,7 @@ def cleaning_experiment(
     files = [_write_csv(out / "cleaning_runs.csv", runs)]
     figure = None
     shown = next((c for c in cases if c.kind == "raycast"), cases[0] if cases else None)
-    if shown is not None:
+    if shown is not None and config.plots:
         figure = cleaning_figure(shown, out / "cleaning_before_after.png")
         files.append(figure)
     lines = [

@@ -87,7 +87,8 @@ class EvaluationConfig:
     rose_params : RoseParams
         ROSE parameters used for every map.
     plots : bool
-        Write PNG figures (needs matplotlib).
+        Write the figures: the plots (need matplotlib) and the cleaning before / after picture.
+        The rasterised logs ``map_*.png`` are data, written either way.
     break_seeds : int
         Experiment 4 (break detection): seeds per log, drift level and start; 0 skips it.
     break_workers : int

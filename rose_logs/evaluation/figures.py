@@ -12,6 +12,7 @@ import numpy.typing as npt
 
 from rose_logs.evaluation.config import PAPER_W
 from rose_logs.evaluation.experiments import ClutterRun, DriftRun
+from rose_logs.evaluation.images import save_figure
 
 __all__ = ["have_matplotlib", "plot_all", "render_grid"]
 
@@ -72,8 +73,7 @@ def _boxplots(runs: Sequence[ClutterRun], path: Path) -> None:
         ax.set_title(f"{title}: precision (red), recall (green)")
         ax.grid(axis="y", alpha=0.3)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, dpi=110)
 
 
 def _drift_plot(runs: Sequence[DriftRun], path: Path) -> None:
@@ -110,8 +110,7 @@ def _drift_plot(runs: Sequence[DriftRun], path: Path) -> None:
     ax.legend(fontsize=8, loc="upper left")
     ax.grid(axis="y", alpha=0.3)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, dpi=110)
 
 
 def _scatter(runs: Sequence[ClutterRun], r_all: float, path: Path) -> None:
@@ -136,8 +135,7 @@ def _scatter(runs: Sequence[ClutterRun], r_all: float, path: Path) -> None:
     ax.legend(fontsize=7, ncol=2)
     ax.grid(alpha=0.3)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, dpi=110)
 
 
 def _map_panel(images: dict[str, npt.NDArray[np.int8]], path: Path) -> None:
@@ -153,8 +151,7 @@ def _map_panel(images: dict[str, npt.NDArray[np.int8]], path: Path) -> None:
         ax.imshow(render_grid(grid), cmap="gray", vmin=0, vmax=255, interpolation="nearest")
         ax.set_title(title)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, dpi=110)
 
 
 def plot_all(

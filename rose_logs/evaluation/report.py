@@ -30,6 +30,7 @@ from rose_logs.evaluation.experiments import (
     source_maps,
 )
 from rose_logs.evaluation.figures import have_matplotlib, plot_all, render_grid
+from rose_logs.evaluation.images import write_png
 from rose_logs.evaluation.maps import LogMap
 from rose_logs.evaluation.walls import WallReport, wall_experiment
 
@@ -147,6 +148,7 @@ def _walls_section(out_dir: Path, config: EvaluationConfig) -> WallReport | None
         names=list(config.benchmark_maps),
         maps_dir=config.benchmark_dir,
         rose_params=config.rose_params,
+        plot=config.plots,
     )
 
 
@@ -177,6 +179,8 @@ def run_evaluation(
         If ``config.maps_dir`` is None and the data set is not available.
     rose.MapFileError, rose_logs.carmen.parse.CarmenFormatError
         If a benchmark map or a log is missing or unreadable.
+    rose_logs.evaluation.images.ReportWriteError
+        If a PNG file cannot be written (its message names the file).
     """
     out = Path(out_dir)
     if config.logs or config.benchmark_maps:
@@ -320,15 +324,12 @@ def _write_exp3_csv(path: Path, exp3: Experiment3) -> Path:
 
 
 def _write_map_images(out: Path, kept: dict[str, Any]) -> list[Path]:
-    import cv2
-
-    written = []
-    for key, log_map in kept.items():
-        name = key.replace("@", "_drift")
-        path = out / f"map_{name}.png"
-        cv2.imwrite(str(path), render_grid(log_map.grid))
-        written.append(path)
-    return written
+    """The rasterised logs as map_server-grey PNGs: data the drift experiment scored, not figures,
+    so they are written with or without ``plots``."""
+    return [
+        write_png(out / f"map_{key.replace('@', '_drift')}.png", render_grid(log_map.grid))
+        for key, log_map in kept.items()
+    ]
 
 
 def _w_by_log(drift_runs: Sequence[DriftRun]) -> dict[str, tuple[float, float]]:

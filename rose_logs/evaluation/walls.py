@@ -26,6 +26,7 @@ from rose import RoseParams, analyze, load_map
 from rose.walls import WallError, WallParams, extract_walls, extract_walls_hough, wall_error
 from rose_logs.datasets import require_data_dir
 from rose_logs.evaluation.config import BENCHMARK_SUBDIR
+from rose_logs.evaluation.images import save_figure
 
 __all__ = ["WallReport", "WallRow", "WallScore", "wall_experiment"]
 
@@ -118,7 +119,7 @@ class WallReport:
     rows : tuple of WallRow
     csv_path : Path
     plot_path : Path or None
-        None when matplotlib is not installed.
+        None when matplotlib is not installed or the plot was not asked for.
     markdown : str
         A ``## Wall extraction`` section with the table and a summary.
     """
@@ -141,6 +142,7 @@ def wall_experiment(
     maps_dir: Path | None = None,
     wall_params: WallParams | None = None,
     rose_params: RoseParams | None = None,
+    plot: bool = True,
 ) -> WallReport:
     """Run the wall experiment on the benchmark buildings and write its table and plot.
 
@@ -158,6 +160,8 @@ def wall_experiment(
         Wall-extraction parameters, the same for reference, baseline and ROSE.
     rose_params : RoseParams, optional
         ROSE parameters (:func:`rose.analyze` defaults if omitted).
+    plot : bool, default True
+        Write ``wall_error.png`` (needs matplotlib); False writes the table only.
 
     Returns
     -------
@@ -169,6 +173,8 @@ def wall_experiment(
         If a named map is missing or unreadable.
     rose_logs.datasets.DataSetError
         If ``maps_dir`` is None and the data set is not available.
+    rose_logs.evaluation.images.ReportWriteError
+        If the plot cannot be written.
     """
     out_dir = Path(out_dir)
     maps_dir = Path(maps_dir) if maps_dir is not None else require_data_dir() / BENCHMARK_SUBDIR
@@ -182,7 +188,7 @@ def wall_experiment(
     wp = wall_params if wall_params is not None else WallParams()
     rows = tuple(_run_one(maps_dir, name, wp, rose_params) for name in names)
     csv_path = _write_csv(out_dir / CSV_NAME, rows)
-    plot_path = _plot(out_dir / PLOT_NAME, rows)
+    plot_path = _plot(out_dir / PLOT_NAME, rows) if plot else None
     return WallReport(
         rows=rows, csv_path=csv_path, plot_path=plot_path, markdown=_markdown(rows, plot_path)
     )
@@ -264,9 +270,7 @@ def _plot(path: Path, rows: tuple[WallRow, ...]) -> Path | None:
     ax.grid(axis="y", which="major", alpha=0.3)
     ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, dpi=120)
 
 
 def _markdown(rows: tuple[WallRow, ...], plot_path: Path | None) -> str:

@@ -1,0 +1,144 @@
+"""``rose-bag evaluate``'s figures: a PNG that cannot be written fails the run, ``--no-plots`` writes none.
+
+The runs use the repository's test data without logs (one benchmark map, one clutter setting):
+seconds each.
+"""
+
+from __future__ import annotations
+
+import errno
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from real_data import REPO_DATA
+
+from rose_logs.cli import main
+from rose_logs.evaluation.cleaning import bormann_cases
+from rose_logs.evaluation.cleaning_report import cleaning_figure
+from rose_logs.evaluation.config import BENCHMARK_SUBDIR
+from rose_logs.evaluation.images import ReportWriteError, write_png
+
+#: No logs (no rasterised maps, no drift experiment): the quickest run that still writes figures.
+QUICK = [
+    "--maps-dir",
+    str(REPO_DATA),
+    "--logs",
+    "",
+    "--maps",
+    "Freiburg79_scan",
+    "--sizes",
+    "4",
+    "--counts",
+    "20",
+]
+
+
+def _no_report_left(folder: Path, out: Path) -> None:
+    assert not out.exists()
+    assert not [p.name for p in folder.iterdir() if ".rose-" in p.name]  # no staging folder either
+
+
+def test_an_unwritable_picture_is_a_one_line_error_and_no_report(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # OpenCV fails the way it does on a full disk: no exception, only a False. Whichever of its
+    # calls writes the PNG, the run must notice (it used to report success and link a missing file).
+    import cv2
+
+    monkeypatch.setattr(cv2, "imwrite", lambda *args, **kwargs: False)
+    monkeypatch.setattr(cv2, "imencode", lambda *args, **kwargs: (False, None))
+    out = tmp_path / "report"
+    assert main(["evaluate", str(out), *QUICK]) == 1
+    captured = capsys.readouterr()
+    lines = captured.err.splitlines()
+    errors = [line for line in lines if line.startswith("error:")]
+    # Named as the user asked for it, not inside the (removed) temporary folder.
+    assert errors == [
+        f"error: {out / 'cleaning_before_after.png'}: cannot write (cannot encode the image)"
+    ]
+    assert "report done" not in captured.err
+    assert "Traceback" not in captured.err
+    assert captured.out == ""  # no report path printed
+    _no_report_left(tmp_path, out)
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="needs POSIX resource limits")
+def test_a_full_disk_while_writing_figures_is_a_one_line_error_with_the_os_reason(
+    tmp_path: Path,
+) -> None:
+    # A file-size limit makes the first PNG (tens of kB) fail for real, as a full disk does, while
+    # the CSV tables (under 1 kB) still fit. Before: "libpng error: Write Error", exit 0, a report
+    # linking a missing image (or, for a matplotlib figure, an error naming no file).
+    import resource
+
+    def limit_file_size() -> None:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (20_000, resource.RLIM_INFINITY))
+
+    out = tmp_path / "report"
+    done = subprocess.run(
+        [sys.executable, "-m", "rose_logs.cli", "evaluate", str(out), *QUICK],
+        capture_output=True,
+        text=True,
+        preexec_fn=limit_file_size,  # the limit is the child's only
+        timeout=300,
+        check=False,
+    )
+    assert done.returncode == 1, done.stderr
+    errors = [line for line in done.stderr.splitlines() if line.startswith("error:")]
+    reason = os.strerror(errno.EFBIG)
+    assert len(errors) == 1, done.stderr
+    assert re.fullmatch(
+        rf"error: {re.escape(str(out))}/[\w.-]+\.png: cannot write \({re.escape(reason)}\)",
+        errors[0],
+    ), errors[0]
+    assert "libpng" not in done.stderr
+    assert "Traceback" not in done.stderr
+    assert done.stdout == ""
+    _no_report_left(tmp_path, out)
+
+
+def test_a_picture_that_cannot_be_written_raises_naming_the_file(tmp_path: Path) -> None:
+    case = bormann_cases(REPO_DATA / BENCHMARK_SUBDIR, names=["Freiburg79_scan"])[0]
+    path = tmp_path / "missing-folder" / "cleaning_before_after.png"
+    with pytest.raises(ReportWriteError) as info:
+        cleaning_figure(case, path)
+    assert str(info.value) == f"{path}: cannot write ({os.strerror(errno.ENOENT)})"
+    assert info.value.path == path
+
+
+def test_write_png_writes_a_readable_png(tmp_path: Path) -> None:
+    import cv2
+
+    image = np.arange(12, dtype=np.uint8).reshape(3, 4)
+    path = write_png(tmp_path / "a.png", image)
+    assert np.array_equal(cv2.imread(str(path), cv2.IMREAD_UNCHANGED), image)
+
+
+def test_no_plots_writes_no_figure_and_links_only_written_files(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # --help promises no figures; wall_error.png and cleaning_before_after.png used to be written.
+    out = tmp_path / "report"
+    assert main(["evaluate", str(out), *QUICK, "--no-plots"]) == 0
+    capsys.readouterr()
+    assert sorted(p.name for p in out.glob("*.png")) == []
+    markdown = (out / "report.md").read_text()
+    links = re.findall(r"\]\(([^)]+)\)", markdown)
+    assert [link for link in links if not (out / link).is_file()] == []
+    assert "Figures were not written" in markdown
+    assert (out / "wall_error.csv").is_file()  # the tables are still there
+    assert (out / "cleaning_runs.csv").is_file()
+
+
+def test_help_says_which_pictures_no_plots_keeps(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit):
+        main(["evaluate", "--help"])
+    help_text = " ".join(capsys.readouterr().out.split())
+    assert "wall_error.png" in help_text
+    assert "cleaning_before_after.png" in help_text
+    assert "map_*.png are data and still written" in help_text
