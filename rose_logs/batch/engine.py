@@ -140,8 +140,10 @@ def run_batch(
     Raises
     ------
     BatchError
-        If an input does not exist or matches nothing, ``out`` cannot be created, ``workers`` is
-        out of range, the scheduler file is unusable or the scheduler cannot be reached.
+        If an input does not exist or matches nothing, a URL's scheme is unknown or its fsspec
+        backend not installed, ``out`` cannot be created, ``workers`` is out of range, the
+        scheduler file is unusable, the scheduler cannot be reached, or the tables cannot be written
+        (then none of them is replaced; the results of finished recordings are kept for a re-run).
     """
     started = time.perf_counter()
     options = options or RecordingOptions()

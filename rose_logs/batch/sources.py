@@ -14,7 +14,7 @@ from typing import Any
 import fsspec
 
 from rose_logs.batch.errors import BatchError
-from rose_logs.batch.store import is_local
+from rose_logs.batch.store import filesystem, is_local
 
 __all__ = ["LOG_SUFFIXES", "MAX_LIST_BYTES", "Recording", "discover", "read_list"]
 
@@ -62,10 +62,11 @@ def read_list(path: str, storage_options: Mapping[str, Any] | None = None) -> li
     Raises
     ------
     BatchError
-        If ``path`` is missing, not a regular file, larger than :data:`MAX_LIST_BYTES` or not UTF-8.
+        If ``path`` is missing, not a regular file, larger than :data:`MAX_LIST_BYTES` or not UTF-8,
+        or a URL of an unknown scheme or one whose fsspec backend is not installed.
     """
+    fs, fs_path = filesystem(path, _options(path, storage_options))
     try:
-        fs, fs_path = fsspec.core.url_to_fs(path, **_options(path, storage_options))
         if is_local(path):
             # stat, not fs.info: a FIFO or device must be refused before open() (which may block).
             status = Path(fs_path).stat()
@@ -97,6 +98,8 @@ def read_list(path: str, storage_options: Mapping[str, Any] | None = None) -> li
     except OSError as err:
         msg = f"{path}: cannot read the list of inputs ({err.strerror or err})"
         raise BatchError(msg) from err
+    # The lines are checked by discover(), with the other inputs: a line naming nothing (a missing
+    # file, an unknown URL scheme) stops the whole batch before anything runs, never an error row.
     return [s for s in (line.strip() for line in lines) if s and not s.startswith("#")]
 
 
@@ -117,7 +120,10 @@ def discover(
     Raises
     ------
     BatchError
-        If an input does not exist, a pattern matches nothing, or nothing at all is found.
+        If an input does not exist, a pattern matches nothing, a URL's scheme is unknown or its
+        fsspec backend not installed, or nothing at all is found. Inputs read from a list are
+        inputs like any other: a bad line stops the batch before anything runs, as a missing file
+        does (an error row is for a recording that exists but cannot be processed).
     """
     found: dict[str, Recording] = {}
     names: dict[str, str] = {}
@@ -158,7 +164,7 @@ def _expand(item: str, storage_options: Mapping[str, Any] | None) -> Iterable[Re
     local = is_local(item)
     if local:
         item = str(Path(item.removeprefix("file://")).expanduser().absolute())
-    fs, path = fsspec.core.url_to_fs(item, **_options(item, storage_options))
+    fs, path = filesystem(item, _options(item, storage_options))
     protocol = None if local else fsspec.utils.get_protocol(item)
     try:
         if any(c in path for c in _GLOB_CHARS):

@@ -1,8 +1,13 @@
-"""The batch's output folder (local or any fsspec URL such as ``s3://bucket/prefix``): atomic writes."""
+"""The batch's output folder (local or any fsspec URL such as ``s3://bucket/prefix``): atomic writes.
+
+Also :func:`filesystem`, the one way the batch opens an fsspec URL: an unknown scheme or a missing
+backend package is a one-line :class:`BatchError`, not fsspec's ``ValueError`` / ``ImportError``.
+"""
 
 from __future__ import annotations
 
 import contextlib
+import logging
 import os
 from collections.abc import Mapping
 from pathlib import Path
@@ -10,10 +15,13 @@ from typing import Any
 
 import fsspec
 
-from rose.outputs import temporary_name
+from rose.errors import OutputError
+from rose.outputs import OutputSet, temporary_name
 from rose_logs.batch.errors import BatchError
 
-__all__ = ["OutputStore", "is_local", "join_uri"]
+__all__ = ["OutputStore", "filesystem", "is_local", "join_uri"]
+
+_LOG = logging.getLogger(__name__)
 
 
 def is_local(uri: str) -> bool:
@@ -31,6 +39,52 @@ def join_uri(base: str, *parts: str) -> str:
 
 def _strip_file(uri: str) -> str:
     return uri.removeprefix("file://")
+
+
+def _protocols(uri: str) -> list[str]:
+    """The fsspec protocols of ``uri``, outermost first (``simplecache::s3://b/k``: both)."""
+    parts = uri.split("::")
+    found = []
+    for i, part in enumerate(parts):
+        if "://" in part:
+            found.append(part.split("://", 1)[0])
+        elif i < len(parts) - 1:  # a bare protocol name in a chain; the last part is a path
+            found.append(part)
+    return [p for p in found if p not in ("file", "local")]
+
+
+def _missing_package(err: ImportError) -> str:
+    """What to install for a protocol whose backend fsspec could not import."""
+    # fsspec raises its own ImportError ("Please install gcsfs to access Google Storage") from the
+    # ModuleNotFoundError, which names the module: the pip name of its backends (gcsfs, adlfs...).
+    name = getattr(err.__cause__, "name", None) or err.name
+    if name and "." not in name:
+        return f"needs the {name} package (pip install {name})"
+    return f"needs a package that is not installed ({err})"
+
+
+def filesystem(uri: str, storage_options: Mapping[str, Any] | None = None) -> tuple[Any, str]:
+    """fsspec file system and path of ``uri`` (``storage_options`` passed on).
+
+    Raises
+    ------
+    BatchError
+        If a URL scheme is unknown to fsspec or its backend package is not installed.
+    """
+    for protocol in _protocols(uri):
+        try:
+            fsspec.get_filesystem_class(protocol)
+        except ValueError as err:  # "Protocol not known: foo"
+            msg = f"{uri}: unsupported URL scheme {protocol!r}"
+            raise BatchError(msg) from err
+        except ImportError as err:
+            msg = f"{uri}: {_missing_package(err)}"
+            raise BatchError(msg) from err
+    try:
+        return fsspec.core.url_to_fs(uri, **dict(storage_options or {}))
+    except (ValueError, ImportError) as err:  # e.g. a chain fsspec cannot build
+        msg = f"{uri}: cannot open ({err})"
+        raise BatchError(msg) from err
 
 
 class OutputStore:
@@ -54,7 +108,7 @@ class OutputStore:
         if self.local:
             self.fs: Any = None
         else:
-            self.fs, _ = fsspec.core.url_to_fs(self.root, **self.storage_options)
+            self.fs, _ = filesystem(self.root, self.storage_options)
 
     def uri(self, relative: str) -> str:
         """Full path or URL of ``relative`` (``/``-separated) under the root."""
@@ -82,11 +136,27 @@ class OutputStore:
             return None
 
     def write_bytes(self, relative: str, data: bytes) -> str:
-        """Write ``data`` to ``relative`` atomically; returns its full path or URL."""
+        """Write ``data`` to ``relative`` atomically; returns its full path or URL.
+
+        Raises
+        ------
+        OSError
+            If it cannot be written; the message names the file (``cannot write (No space left on
+            device)``), and the type stays that of the errno (callers retry or report ``OSError`` s).
+        """
         target = self.uri(relative)
+        try:
+            self._write(target, data)
+        except OSError as err:
+            # file.write's ENOSPC carries no file name: without one the user reads only
+            # "error: No space left on device".
+            raise OSError(err.errno, f"cannot write ({err.strerror or err})", target) from err
+        return target
+
+    def _write(self, target: str, data: bytes) -> None:
         if not self.local:
             self.fs.pipe_file(target, data)  # one PUT: readers see the old or the new object
-            return target
+            return
         path = Path(target)
         path.parent.mkdir(parents=True, exist_ok=True)
         # Named like every temporary of ours (`rose_logs.batch` never removes others' temporaries
@@ -100,7 +170,74 @@ class OutputStore:
         except BaseException:
             tmp.unlink(missing_ok=True)
             raise
-        return target
+
+    def write_set(self, files: Mapping[str, bytes]) -> list[str]:
+        """Write every file of ``files`` (relative name: content), all or none; returns their URIs.
+
+        Local roots go through :class:`rose.outputs.OutputSet`: each file is staged beside its target
+        and all are renamed into place together, so a full disk or a signal leaves the previous files
+        as they were. Object stores have no multi-object commit: the files are PUT one by one and,
+        if one fails, those already written are restored from copies read beforehand (best effort:
+        a store that fails again meanwhile is logged).
+
+        Raises
+        ------
+        BatchError
+            If a file cannot be written (the message names it); nothing is replaced then.
+        """
+        if self.local:
+            self._write_set_local(files)
+        else:
+            self._write_set_remote(files)
+        return [self.uri(relative) for relative in files]
+
+    def _write_set_local(self, files: Mapping[str, bytes]) -> None:
+        try:
+            # ends_run: these files end the batch; force: a re-run replaces its own earlier tables.
+            with OutputSet(force=True, ends_run=True) as outputs:
+                for relative, data in files.items():
+                    path = Path(self.uri(relative))
+                    path.parent.mkdir(parents=True, exist_ok=True)
+                    outputs.write_bytes(path, data)
+        except OutputError as err:  # names the file: "<path>: cannot write (No space left ...)"
+            raise BatchError(str(err)) from err
+        except OSError as err:
+            msg = f"{err.filename or self.root}: cannot write ({err.strerror or err})"
+            raise BatchError(msg) from err
+
+    def _write_set_remote(self, files: Mapping[str, bytes]) -> None:
+        target, action = self.root, "read"
+        written: list[str] = []
+        previous: dict[str, bytes | None] = {}
+        try:
+            # Read first: restoring needs the old objects, and a store we cannot read fails here,
+            # before anything is replaced.
+            for relative in files:
+                target = self.uri(relative)
+                previous[relative] = self.read_bytes(relative)
+            action = "write"
+            for relative, data in files.items():
+                target = self.uri(relative)
+                self.fs.pipe_file(target, data)
+                written.append(relative)
+        except BaseException as err:
+            self._restore(written, previous)
+            if isinstance(err, OSError):
+                msg = f"{target}: cannot {action} ({err.strerror or err})"
+                raise BatchError(msg) from err
+            raise
+
+    def _restore(self, written: list[str], previous: Mapping[str, bytes | None]) -> None:
+        """Put back what ``written`` replaced (remote roots; errors are logged, not raised)."""
+        for relative in written:
+            old = previous.get(relative)
+            try:
+                if old is None:
+                    self.fs.rm_file(self.uri(relative))
+                else:
+                    self.fs.pipe_file(self.uri(relative), old)
+            except OSError as err:
+                _LOG.warning("%s: cannot restore the previous file (%s)", self.uri(relative), err)
 
     def put(self, local: Path, relative: str) -> str:
         """Move (local root) or upload (remote root) the file or folder ``local`` to ``relative``."""

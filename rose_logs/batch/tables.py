@@ -142,15 +142,29 @@ def summary(report: BatchReport, options: RecordingOptions) -> dict[str, Any]:
 
 
 def write_outputs(store: OutputStore, report: BatchReport, options: RecordingOptions) -> None:
-    """Write the tables, ``summary.json``, ``report.md`` and its figure to the output root."""
+    """Write the tables, ``summary.json``, ``report.md`` and its figure to the output root, together.
+
+    Everything is rendered first and then committed as one set (:meth:`OutputStore.write_set`): a
+    full disk or a failed upload leaves the previous run's files in place, never a new
+    ``recordings.parquet`` beside an old ``snapshots.parquet``.
+
+    Raises
+    ------
+    BatchError
+        If a file cannot be written (the message names it); none of them is replaced then.
+    """
     from rose_logs.batch.report import figure_png, markdown
 
-    store.write_bytes("recordings.parquet", _parquet_bytes(recordings_table(report)))
-    store.write_bytes("snapshots.parquet", _parquet_bytes(snapshots_table(report)))
     payload = summary(report, options)
-    text = json.dumps(payload, indent=2, sort_keys=True, allow_nan=False) + "\n"
-    store.write_bytes("summary.json", text.encode())
     png = figure_png(report)
+    files = {
+        "recordings.parquet": _parquet_bytes(recordings_table(report)),
+        "snapshots.parquet": _parquet_bytes(snapshots_table(report)),
+        "summary.json": (
+            json.dumps(payload, indent=2, sort_keys=True, allow_nan=False) + "\n"
+        ).encode(),
+    }
     if png is not None:
-        store.write_bytes("w_over_time.png", png)
-    store.write_bytes("report.md", markdown(report, payload, figure=png is not None).encode())
+        files["w_over_time.png"] = png
+    files["report.md"] = markdown(report, payload, figure=png is not None).encode()
+    store.write_set(files)

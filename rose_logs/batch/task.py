@@ -20,12 +20,10 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
-import fsspec
-
 from rose.errors import RoseError
 from rose.params import RoseParams
 from rose_logs.batch.sources import Recording
-from rose_logs.batch.store import OutputStore, is_local
+from rose_logs.batch.store import OutputStore, filesystem, is_local
 from rose_logs.errors import LogError
 from rose_logs.session.report import w_judges
 
@@ -401,7 +399,7 @@ def _fetch(recording: Recording, target: Path, storage_options: Mapping[str, Any
     """Local path of the recording: itself when local, else a download into ``target``."""
     if is_local(recording.uri):
         return Path(recording.uri.removeprefix("file://"))
-    fs, path = fsspec.core.url_to_fs(recording.uri, **dict(storage_options or {}))
+    fs, path = filesystem(recording.uri, storage_options)
     local = target / Path(recording.name).name
     target.mkdir(parents=True, exist_ok=True)
     if recording.is_dir:

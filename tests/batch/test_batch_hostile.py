@@ -15,6 +15,7 @@ import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pyarrow.parquet as pq
 import pytest
@@ -349,3 +350,173 @@ def test_a_signal_while_the_tables_are_written_waits_for_them(
     assert len(report.results) == 2
     assert len(pq.read_table(out / "recordings.parquet")) == 2
     assert (out / "report.md").is_file()  # written to the end, after the first table
+
+
+# ---- URLs fsspec cannot open ------------------------------------------------------------------------
+
+#: A protocol registered for these tests whose backend package does not exist, as for ``gcs://``
+#: without gcsfs (whichever backends happen to be installed here).
+MISSING = "rosetestfs"
+
+
+@pytest.fixture
+def missing_backend(monkeypatch: pytest.MonkeyPatch) -> str:
+    from fsspec.registry import known_implementations
+
+    monkeypatch.setitem(
+        known_implementations,
+        MISSING,
+        {"class": "rose_no_such_backend.FileSystem", "err": "Install rose_no_such_backend"},
+    )
+    return MISSING
+
+
+@pytest.mark.parametrize("where", ["input", "output", "list entry", "list file"])
+@pytest.mark.parametrize(
+    ("scheme", "problem"),
+    [
+        ("foo", "unsupported URL scheme 'foo'"),
+        (MISSING, "needs the rose_no_such_backend package (pip install rose_no_such_backend)"),
+    ],
+)
+def test_a_url_fsspec_cannot_open_is_a_one_line_error_before_anything_runs(
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    missing_backend: str,
+    where: str,
+    scheme: str,
+    problem: str,
+) -> None:
+    url = f"{scheme}://bucket/robots/run.mcap"
+    out = tmp_path / "out"
+    listing = tmp_path / "todo.txt"
+    listing.write_text(f"# one robot\n{url}\n")
+    argv = {
+        "input": [url, "-o", str(out)],
+        "output": [str(SAMPLE), "-o", url],
+        # A bad line is a bad input like a missing file: the whole batch stops, naming the line.
+        "list entry": ["--from-list", str(listing), "-o", str(out)],
+        "list file": ["--from-list", url, "-o", str(out)],
+    }[where]
+    assert main(["batch", *argv, "-q"]) == 1  # was a traceback (ValueError / ImportError)
+    assert one_error_line(capsys.readouterr().err, url) == f"error: {url}: {problem}"
+    assert not out.exists()
+
+
+@pytest.mark.skipif(importlib.util.find_spec("gcsfs") is not None, reason="gcsfs is installed")
+def test_gcs_without_gcsfs_says_what_to_install(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["batch", "gcs://bucket/robots/", "-o", str(tmp_path / "out"), "-q"]) == 1
+    line = one_error_line(capsys.readouterr().err, "gcs://bucket/robots/")
+    assert line.endswith(": needs the gcsfs package (pip install gcsfs)")
+
+
+# ---- a full disk or a failed upload while the tables are written -------------------------------------
+
+TABLES = ("recordings.parquet", "snapshots.parquet", "summary.json", "report.md")
+
+
+def _contents(out: Path) -> dict[str, bytes]:
+    return {name: (out / name).read_bytes() for name in TABLES}
+
+
+@pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs /dev/full")
+def test_a_full_disk_while_the_tables_are_written_replaces_none_of_them(
+    fleet: Path,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    import io
+
+    out = tmp_path / "out"
+    assert main(["batch", str(fleet / "robot_a"), "-o", str(out), "-q"]) == 0
+    before = _contents(out)
+    real_open = io.open
+
+    def full_for_snapshots(file: Any, mode: str = "r", *args: Any, **kwargs: Any) -> Any:
+        """Files opened to write snapshots.parquet (its temporary) go to /dev/full: every write
+        fails with ENOSPC, from the kernel, after recordings.parquet was written."""
+        name = Path(f"/proc/self/fd/{file}").readlink() if isinstance(file, int) else file
+        if "w" in mode and "snapshots.parquet" in os.fsdecode(name):
+            if isinstance(file, int):  # os.fdopen of a temporary created by os.open
+                os.close(file)
+            return real_open("/dev/full", "wb")
+        return real_open(file, mode, *args, **kwargs)
+
+    monkeypatch.setattr(io, "open", full_for_snapshots)
+    # A second robot: the tables would change (two more recordings).
+    assert main(["batch", str(fleet), "-o", str(out), "-q"]) == 1
+    line = one_error_line(capsys.readouterr().err, out / "snapshots.parquet")
+    assert line.endswith(
+        ": cannot write (No space left on device)"
+    )  # was "error: No space left..."
+    assert _contents(out) == before  # recordings.parquet was replaced without its snapshots
+    assert sorted(p.name for p in out.iterdir()) == sorted(
+        [*TABLES, "results", "w_over_time.png"]
+    )  # no temporaries left
+    # The recordings finished before the tables failed are kept: a re-run only writes the tables.
+    monkeypatch.setattr(io, "open", real_open)
+    again = run_batch([fleet], out)
+    assert (again.processed, again.skipped) == (0, 5)
+    assert len(pq.read_table(out / "recordings.parquet")) == 5
+
+
+@pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs /dev/full")
+def test_a_result_that_cannot_be_stored_names_its_file(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import errno
+    import io
+
+    from rose_logs.batch.store import OutputStore
+
+    real_open = io.open
+
+    def full(file: Any, mode: str = "r", *args: Any, **kwargs: Any) -> Any:
+        if isinstance(file, int) or "w" in mode:  # the temporary, whichever way it is opened
+            if isinstance(file, int):
+                os.close(file)
+            return real_open("/dev/full", "wb")
+        return real_open(file, mode, *args, **kwargs)
+
+    store = OutputStore(str(tmp_path / "out"))
+    store.prepare()
+    monkeypatch.setattr(io, "open", full)
+    with pytest.raises(OSError, match=r"cannot write \(No space left on device\)") as info:
+        store.write_bytes("results/key.json", b"{}")
+    monkeypatch.setattr(io, "open", real_open)
+    assert info.value.errno == errno.ENOSPC  # still an OSError: the batch retries or reports it
+    assert info.value.filename == str(tmp_path / "out" / "results" / "key.json")
+    assert list((tmp_path / "out" / "results").iterdir()) == []  # no temporary left
+
+
+def test_a_failed_upload_of_a_table_restores_the_previous_objects(
+    fleet: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import fsspec
+    from fsspec.implementations.memory import MemoryFileSystem
+
+    from rose_logs.batch import BatchError
+
+    out = f"memory://rose-batch-test-{os.getpid()}/health"  # an object store without a server
+    memory = fsspec.filesystem("memory")
+    try:
+        run_batch([fleet / "robot_a"], out)
+        before = {name: memory.cat_file(f"{out}/{name}") for name in TABLES}
+        real_pipe = MemoryFileSystem.pipe_file
+
+        def failing_for_snapshots(self: object, path: str, *args: object, **kwargs: object) -> None:
+            if path.endswith("snapshots.parquet"):
+                raise ConnectionResetError(104, "Connection reset by peer")
+            real_pipe(self, path, *args, **kwargs)  # type: ignore[arg-type]
+
+        monkeypatch.setattr(MemoryFileSystem, "pipe_file", failing_for_snapshots)
+        with pytest.raises(
+            BatchError, match=r"snapshots\.parquet: cannot write \(Connection reset"
+        ):
+            run_batch([fleet], out)
+        assert {name: memory.cat_file(f"{out}/{name}") for name in TABLES} == before
+    finally:
+        memory.rm(f"memory://rose-batch-test-{os.getpid()}", recursive=True)
