@@ -110,7 +110,7 @@ class LogReader:
         remedy = (
             "nothing before the damage can be read either"
             if self.salvage
-            else "--salvage keeps the messages before the damage"
+            else "`rose-bag process --salvage` keeps the messages before the damage"
         )
         return LogReadError(
             f"{self.path}: corrupt or truncated MCAP file, its index at the end cannot be read "
@@ -227,8 +227,9 @@ class LogReader:
                 if isinstance(err, LogError):
                     raise
                 raise error from err
-            self.losses.append(f"{short(error, 200)}; stopped after {self.read_count} messages")
-            _LOG.warning("%s: stopped reading after %d messages", self.path, self.read_count)
+            problem = f"{short(error, 200)}; stopped after {self.read_count} messages"
+            self.losses.append(problem)
+            _LOG.warning("%s", problem)  # as it happens: the command does not repeat it
             return
         self._check_counts(counts, wanted)
 
@@ -259,6 +260,8 @@ class LogReader:
             f"({short(', '.join(short_channels), 160)}): the log is damaged"
         )
         if not self.salvage:
-            raise MessageLossError(problem + " (--salvage keeps what can be read)")
+            raise MessageLossError(
+                problem + " (`rose-bag process --salvage` keeps what can be read)"
+            )
         self.losses.append(problem)
         _LOG.warning("%s", problem)

@@ -100,6 +100,20 @@ def test_plain_text_file_and_malformed_lines(tmp_path: Path) -> None:
     assert log.scans[1].stamp_ns - log.scans[0].stamp_ns == 500_000_000
 
 
+def test_convert_warns_once_of_malformed_lines_naming_the_log(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from rose_logs.cli import main
+
+    good = "FLASER 3 1.0 2.0 3.0 0.5 -0.5 0.1 0.5 -0.5 0.1 12.5 host 12.5\n"
+    path = tmp_path / "log.txt"
+    path.write_text(good + "FLASER x 1 2 3\n" + good.replace("12.5", "13.0"))
+    assert main(["convert", str(path), str(tmp_path / "s.mcap")]) == 0
+    warnings = [w for w in capsys.readouterr().err.splitlines() if w.startswith("warning:")]
+    assert len(warnings) == 1, warnings
+    assert warnings[0].startswith(f"warning: {path}: skipped 1 malformed FLASER lines")
+
+
 def test_no_scan_is_an_error(tmp_path: Path) -> None:
     path = tmp_path / "empty.log"
     path.write_text("ODOM 0 0 0 0 0 0 1 h 1\nFLASER 2 1\n")

@@ -84,6 +84,7 @@ SNAPSHOT_SCHEMA = pa.schema(
         ("removed", pa.int64()),
         ("kept", pa.int64()),
         ("rescued", pa.int64()),
+        ("completed", pa.int64()),
     ]
 )
 """``snapshots.parquet``: one row per snapshot (the JSON report's records), by URI, topic, index."""

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -107,9 +106,7 @@ def run(args: argparse.Namespace) -> int:
     )
     outputs.check(args.output, directory=fmt == "db3")
     outputs.check(*map_files)
-    log = read_carmen_log(args.log, max_scans=args.max_scans)
-    if log.malformed:
-        print(f"warning: skipped {log.malformed} malformed FLASER lines", file=sys.stderr)
+    log = read_carmen_log(args.log, max_scans=args.max_scans)  # warns of malformed lines itself
     _check_extent(log, args)
     with outputs:
         try:

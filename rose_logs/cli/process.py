@@ -183,7 +183,8 @@ def _print_summary(report: Any, out: TextIO) -> None:
             )
     if report.skipped_messages:
         print(
-            f"\nskipped      {report.skipped_messages} malformed map message(s), copied unprocessed",
+            f"\nskipped      {report.skipped_messages} map message(s), copied unprocessed "
+            f"({report.skipped_reasons})",
             file=out,
         )
     print(f"\nelapsed      {report.elapsed_s:.2f} s", file=out)
@@ -241,11 +242,10 @@ def run(args: argparse.Namespace) -> int:
     out = sys.stderr if outputs.uses_stdout else sys.stdout
     _print_summary(report, out)
     if report.losses:
-        for loss in report.losses:
-            print(f"warning: {loss}", file=sys.stderr)
+        # Each loss was warned about when the reader met it (a long session shows it at once).
         print(
-            f"warning: {args.input}: damaged input, outputs hold only what could be read "
-            f"(--salvage, exit {EXIT_SALVAGED})",
+            f"warning: {args.input}: damaged input ({len(report.losses)} problem(s) above), "
+            f"outputs hold only what could be read (--salvage, exit {EXIT_SALVAGED})",
             file=sys.stderr,
         )
         return EXIT_SALVAGED

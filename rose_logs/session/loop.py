@@ -278,7 +278,7 @@ def _run_session(
             if not loop.records:
                 msg = (
                     f"{input_path}: no map message on {', '.join(map_topics)} could be analysed "
-                    f"({loop.skipped} malformed)"
+                    f"({loop.skips.describe()})"
                 )
                 raise LogReadError(msg)
             if writer is not None:
@@ -397,6 +397,7 @@ def _session_report(
         start_ns=reader.start_ns,
         end_ns=reader.end_ns,
         skipped_messages=loop.skipped,
+        skipped_reasons=loop.skips.describe() if loop.skipped else "",
         elapsed_s=time.perf_counter() - started,
         params=params,
         detected_breaks=tuple(loop.detected),
@@ -515,7 +516,7 @@ class _Loop:
         self.above: dict[str, bool] = {}
         self.records: list[SnapshotRecord] = []
         self.breaks: list[BreakEvent] = []
-        self.skipped = 0
+        self.skips = _Skips()
         self.queue: deque[_Copy | _Pending] = deque()
         self.in_flight = 0
         self.executor: Executor | None = None
@@ -552,6 +553,7 @@ class _Loop:
                     pending = 0
             self._drain(0)
             bar.update(pending)
+            self.skips.warn_rest()
         finally:
             pool.shutdown(wait=True, cancel_futures=True)
             detection.shutdown(wait=True, cancel_futures=True)
@@ -597,9 +599,10 @@ class _Loop:
                 return
             self.queue.popleft()
 
-    def _skip(self, err: Exception, log_time_ns: int) -> None:
-        self.skipped += 1
-        _LOG.warning("%s at %d ns, copied unprocessed", short(err, 240), log_time_ns)
+    @property
+    def skipped(self) -> int:
+        """Map messages copied unprocessed."""
+        return self.skips.total
 
     def _on_map(self, data: bytes | memoryview, topic: str, log_time_ns: int) -> None:
         try:
@@ -608,8 +611,7 @@ class _Loop:
                 data, serialization=self.serialization, topic=topic, log_time_ns=log_time_ns
             )
         except MapMessageError as err:
-            self.skipped += 1
-            _LOG.warning("%s at %d ns, copied unprocessed", err, log_time_ns)
+            self.skips.add("malformed", f"{short(err, 240)} at {log_time_ns} ns")
             return
         self.last_map[topic] = snapshot
         self._analyse(snapshot, from_update=False)
@@ -627,8 +629,7 @@ class _Loop:
                 raise MapMessageError(msg)
             snapshot = apply_update(base, update)
         except (MapMessageError, ValueError) as err:
-            self.skipped += 1
-            _LOG.warning("%s at %d ns, copied unprocessed", err, log_time_ns)
+            self.skips.add("malformed", f"{short(err, 240)} at {log_time_ns} ns")
             return
         self.last_map[target] = snapshot
         self._analyse(snapshot, from_update=True)
@@ -638,7 +639,9 @@ class _Loop:
         topic = snapshot.topic
         too_large = check_cells(*snapshot.shape, self.max_cells)
         if too_large is not None:
-            self._skip(MapMessageError(f"{topic}: map of {too_large}"), snapshot.log_time_ns)
+            self.skips.add(
+                "over --max-cells", f"{topic}: map of {too_large} at {snapshot.log_time_ns} ns"
+            )
             return
         assert self.executor is not None and self.detection is not None, "called inside run()"
         future, reused = self.analyser.submit(snapshot, self.executor)
@@ -662,12 +665,8 @@ class _Loop:
         try:
             analysis = pending.future.result()
         except rose.RoseError as err:  # e.g. cell values outside -1..100
-            self.skipped += 1
-            _LOG.warning(
-                "%s: map at %d ns not analysed (%s), copied unprocessed",
-                topic,
-                snapshot.log_time_ns,
-                err,
+            self.skips.add(
+                "not analysable", f"{topic}: map at {snapshot.log_time_ns} ns not analysed ({err})"
             )
             return
         index = self.count.get(topic, 0)
@@ -702,7 +701,9 @@ class _Loop:
                 encode_walls(snapshot, result, analysis.walls, serialization=ser),
             )
         except (struct.error, OverflowError, ValueError, TypeError) as err:
-            self._skip(MapMessageError(f"{snapshot.topic}: cannot encode the results ({err})"), t)
+            self.skips.add(
+                "not encodable", f"{snapshot.topic}: cannot encode the results ({err}) at {t} ns"
+            )
             return False
         for handle, data in zip(self.derived[snapshot.topic], encoded, strict=True):
             self.writer.write_raw(handle, t, data)
@@ -733,6 +734,40 @@ class _Loop:
             if self.rerun is not None:
                 self.rerun.event(snapshot, text, index, score)
         self.above[topic] = above
+
+
+_WARN_FIRST = 3
+"""Map messages skipped for one reason that get a warning each; the rest are counted in one line."""
+
+
+class _Skips:
+    """Map messages copied unprocessed, by reason: the first few of each reason are warned about
+    one by one, the rest in one line (a one-hour session of maps over ``--max-cells`` would
+    otherwise print 720 warnings)."""
+
+    def __init__(self) -> None:
+        self.by_reason: dict[str, int] = {}
+
+    def add(self, reason: str, text: str) -> None:
+        count = self.by_reason.get(reason, 0) + 1
+        self.by_reason[reason] = count
+        if count <= _WARN_FIRST:
+            _LOG.warning("%s, copied unprocessed", text)
+
+    def warn_rest(self) -> None:
+        for reason, count in self.by_reason.items():
+            if count > _WARN_FIRST:
+                _LOG.warning(
+                    "%d more map messages %s, copied unprocessed", count - _WARN_FIRST, reason
+                )
+
+    @property
+    def total(self) -> int:
+        return sum(self.by_reason.values())
+
+    def describe(self) -> str:
+        """``"14 over --max-cells"``, ``"2 malformed, 1 not analysable"``; ``"none"`` when empty."""
+        return ", ".join(f"{n} {reason}" for reason, n in self.by_reason.items()) or "none"
 
 
 def _rerun_failure(

@@ -188,6 +188,8 @@ class SessionReport:
         Log time of the first and last input message, ns.
     skipped_messages : int
         Map or update messages that could not be analysed (copied through unprocessed).
+    skipped_reasons : str
+        Those messages by reason, e.g. ``"2 malformed, 14 over --max-cells"`` (empty when none).
     elapsed_s : float
         Wall time of the whole session, seconds.
     params : RoseParams
@@ -213,6 +215,7 @@ class SessionReport:
     params: RoseParams = field(default_factory=RoseParams)
     detected_breaks: tuple[DetectedBreak, ...] = ()
     break_threshold_m: float = math.nan
+    skipped_reasons: str = ""
     losses: tuple[str, ...] = ()
 
     def records_of(self, topic: str) -> tuple[SnapshotRecord, ...]:
@@ -286,6 +289,7 @@ class SessionReport:
             "start_ns": self.start_ns,
             "end_ns": self.end_ns,
             "skipped_messages": self.skipped_messages,
+            "skipped_reasons": self.skipped_reasons,
             "losses": list(self.losses),
             "elapsed_s": round(self.elapsed_s, 6),
             "params": {k: getattr(self.params, k) for k in self.params.__dataclass_fields__},

@@ -58,7 +58,7 @@ class McapReadBackend:
         if summary is None:
             msg = (
                 f"{self.path}: MCAP file without summary (truncated or still being recorded?); "
-                "--salvage keeps the messages before the end, or try `mcap recover`"
+                "`rose-bag process --salvage` keeps the messages before the end, or try `mcap recover`"
             )
             raise LogReadError(msg)
         counts = summary.statistics.channel_message_counts if summary.statistics else None

@@ -155,6 +155,7 @@ def test_batch_tables_report_and_breaks(fleet: Path, tmp_path: Path) -> None:
     # The JSON report's fields are all there.
     assert {s["clean_method"] for s in snapshots} == {"walls"}
     assert all(s["kept"] + s["removed"] == s["occupied"] for s in snapshots)
+    assert all(s["completed"] >= 0 for s in snapshots)  # unknown cells made walls, counted
     summary = json.loads((out / "summary.json").read_text())
     assert (summary["recordings"], summary["ok"], summary["errors"], summary["broken"]) == (
         5,

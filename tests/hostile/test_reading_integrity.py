@@ -93,7 +93,7 @@ def test_salvage_keeps_the_readable_start_of_a_truncated_mcap_file(
     assert not out.exists()
     code, _, err = _run(capsys, "process", log, "-o", out, "--json", report, "-q", "--salvage")
     assert code == EXIT_SALVAGED
-    assert "end of the file is missing or damaged" in err
+    assert err.count("end of the file is missing or damaged") == 1, err  # said once
     assert err.count("error:") == 0
     salvaged = json.loads(report.read_text())
     with LogReader(whole) as reader:

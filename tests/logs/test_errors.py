@@ -202,6 +202,23 @@ def test_only_malformed_maps_is_an_error_without_output(tmp_path: Path, capsys, 
     assert _leftovers(tmp_path, {"in.mcap"}) == []
 
 
+def test_maps_over_the_cell_limit_are_named_so_and_warned_about_in_one_line(
+    tmp_path: Path, capsys, fr079
+) -> None:
+    """A session of maps over --max-cells is not "malformed"; its warnings must not flood the
+    terminal (a one-hour session has 720 snapshots): the first few one by one, the rest counted."""
+    maps = [MapMsg(START_NS + i * 1_000_000_000, fr079[0]) for i in range(6)]
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps)
+    code, _, err = _run(capsys, "process", built.path, "--no-output", "--max-cells", "1000")
+    assert code == 1
+    lines = err.strip().splitlines()
+    assert len(lines) == 5, err  # 3 warnings, 1 for the other 3, the error
+    assert all("exceeds the limit" in line for line in lines[:3])
+    assert lines[3] == "warning: 3 more map messages over --max-cells, copied unprocessed"
+    assert lines[4].endswith("no map message on /map could be analysed (6 over --max-cells)")
+    assert "malformed" not in err
+
+
 def test_existing_output_needs_force(tmp_path: Path, capsys, mcap_log: Path) -> None:
     out = tmp_path / "out.mcap"
     out.write_bytes(b"precious")
