@@ -15,6 +15,7 @@ byte and memory stays flat in the number of messages. Decoding map messages is :
 from __future__ import annotations
 
 import logging
+import re
 from collections.abc import Collection, Iterator
 from pathlib import Path
 from types import TracebackType
@@ -35,8 +36,14 @@ _LOG = logging.getLogger(__name__)
 
 
 def _corrupt(path: Path, err: BaseException) -> LogReadError:
-    detail = short(err, 160) if str(err).strip() else type(err).__name__
+    # rosbags formats a wrapped error's args tuple into its message ("...: ('Header could not be
+    # read from file.',)"): show the text, not the Python repr.
+    text = _ONE_ITEM_TUPLE.sub(lambda m: m.group(2), str(err))
+    detail = short(text, 160) if text.strip() else type(err).__name__
     return LogReadError(f"{path}: corrupt or truncated log ({detail})")
+
+
+_ONE_ITEM_TUPLE = re.compile(r"""\((['"])(.*?)\1,\)""")
 
 
 class MessageLossError(LogReadError):

@@ -130,7 +130,9 @@ def test_session_from_options(tmp_path: Path, pose_output: str, topics: list[str
     np.testing.assert_array_equal(summary.final_grid, reference.grid())
 
 
-def test_stamps_that_do_not_resolve_the_scans_get_a_nominal_speed_clock(tmp_path: Path) -> None:
+def test_stamps_that_do_not_resolve_the_scans_get_a_nominal_speed_clock(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
     """A log stamped with six significant digits (CSAIL's) has one stamp for nearly every scan:
     the session gets a clock from the robot's motion instead of a single snapshot."""
     path = tmp_path / "coarse.log"
@@ -147,6 +149,9 @@ def test_stamps_that_do_not_resolve_the_scans_get_a_nominal_speed_clock(tmp_path
         log, tmp_path / "coarse.mcap", options=SessionOptions(map_period_s=0.5)
     )
     assert summary.clock == "nominal-speed"
+    # The warning is about the log's stamps: it names the log, not the session being written.
+    (warning,) = [r.getMessage() for r in caplog.records if "nominal-speed" in r.getMessage()]
+    assert warning.startswith(f"{path}: ")
     # The scans move 0.5 m or turn up to 3 rad: 1-6 s apart at walking pace, never the same time.
     assert summary.end_ns - summary.start_ns > 4 * 10**9
     assert summary.maps >= len(SCANS) - 1

@@ -166,6 +166,38 @@ def test_clean_reports_the_unknown_cells_it_made_walls(
     assert occupied_out == report["kept_cells"] + report["completed_cells"]
 
 
+def test_a_map_without_occupied_cells_gets_no_verdict_on_w(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """W = 1 by convention for an empty map: not "decluttering has likely failed"."""
+    path = tmp_path / "empty.yaml"
+    rose.save_map(path, rose.OccupancyMap(grid=np.full((20, 20), -1, np.int8), resolution_m=0.05))
+    assert main(["clean", str(path), "-o", str(tmp_path / "c.yaml")]) == 0
+    out = capsys.readouterr().out
+    assert "no occupied cells" in out and "failed" not in out
+
+
+def test_library_warnings_print_like_the_commands_own(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`warning: ...`, lower case, as everywhere else (Python's default says `WARNING:`)."""
+    import logging
+
+    root = logging.getLogger()
+    handlers, level = root.handlers[:], root.level
+    root.handlers = []  # as in a fresh process: the command sets its own
+    try:
+        grid = np.zeros((40, 40), np.int8)  # all free: ROSE finds no dominant direction
+        path = tmp_path / "speck.yaml"
+        rose.save_map(path, rose.OccupancyMap(grid=grid, resolution_m=0.05))
+        main(["walls", str(path)])
+    finally:
+        root.handlers, root.level = handlers, level
+    err = capsys.readouterr().err
+    assert "warning: ROSE found no dominant direction" in err, err
+    assert "WARNING" not in err
+
+
 @pytest.mark.parametrize(
     "make_args",
     [

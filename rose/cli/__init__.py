@@ -97,7 +97,9 @@ def _run(argv: Sequence[str] | None) -> int:
     from rose.cli.options import check_params  # loaded with the commands already
 
     check_params(args.command_parser, args)
-    logging.basicConfig(level=logging.WARNING, format="%(levelname)s: %(message)s")
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(_LowerLevelFormatter())
+    logging.basicConfig(level=logging.WARNING, handlers=[handler])
     try:
         return int(args.func(args))
     except (RoseError, OSError, MemoryError, RecursionError) as err:
@@ -108,6 +110,13 @@ def _run(argv: Sequence[str] | None) -> int:
             raise
         print(f"error: {error_text(err, where=input_name(args))}", file=sys.stderr)
         return 1
+
+
+class _LowerLevelFormatter(logging.Formatter):
+    """``warning: <message>``, like every other line the commands print."""
+
+    def format(self, record: logging.LogRecord) -> str:
+        return f"{record.levelname.lower()}: {record.getMessage()}"
 
 
 def input_name(args: object) -> str | None:

@@ -89,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
     directions = f"{angles} deg" if angles else "none"
     lines = [
         f"map          {args.map}  ({cols} x {rows} cells, {source.resolution_m:g} m/cell)",
-        f"W            {result.structure_score:.3f}  ({verdict(result.structure_score)})",
+        f"W            {result.structure_score:.3f}  ({verdict(result.structure_score, occupied_cells=result.occupied_count)})",
         f"directions   {directions}",
         f"threshold    {threshold if threshold is not None and math.isfinite(threshold) else 'n/a'}",
         f"occupied     {result.occupied_count} cells",

@@ -253,8 +253,11 @@ def result_summary(
     return summary
 
 
-def verdict(score: float) -> str:
-    """The paper's reading of W: trusted below TRUST_LEVEL, failed above FAILURE_LEVEL."""
+def verdict(score: float, *, occupied_cells: int | None = None) -> str:
+    """The paper's reading of W: trusted below TRUST_LEVEL, failed above FAILURE_LEVEL; a map
+    without occupied cells has W = 1 by convention, which says nothing about it."""
+    if occupied_cells == 0:
+        return "no occupied cells: W says nothing about this map"
     if score < TRUST_LEVEL:
         return "structured: decluttering can be trusted"
     if score <= FAILURE_LEVEL:

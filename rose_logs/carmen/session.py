@@ -328,7 +328,7 @@ def write_carmen_session(
         _LOG.warning(
             "%s: the log's timestamps do not resolve its scans; using a nominal-speed clock "
             "(see rose_logs.carmen.clock)",
-            out,
+            log.path,
         )
     poses = apply_drift(
         log.laser_poses,

@@ -78,6 +78,7 @@ def test_truncated_or_corrupt_log(tmp_path: Path, capsys, fr079, kind: str, dama
         return
     assert code == 1
     _assert_one_line_error(err, built.path.name)
+    assert ",)" not in err  # a library's args tuple is shown as its text, not as a Python repr
     assert not out.exists()
     assert _leftovers(tmp_path, {built.path.name}) == []
 
