@@ -100,6 +100,23 @@ def test_plain_text_file_and_malformed_lines(tmp_path: Path) -> None:
     assert log.scans[1].stamp_ns - log.scans[0].stamp_ns == 500_000_000
 
 
+def test_convert_says_when_the_drift_starts_after_the_log(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A --drift-start past the last scan writes a correct session: the user is told, not misled."""
+    from rose_logs.cli import main
+
+    good = "FLASER 3 1.0 2.0 3.0 0.5 -0.5 0.1 0.5 -0.5 0.1 12.5 host 12.5\n"
+    path = tmp_path / "log.txt"
+    path.write_text(good + good.replace("12.5", "13.0"))
+    argv = ["convert", str(path), str(tmp_path / "s.mcap"), "--drift-level", "2"]
+    assert main([*argv, "--drift-start", "5"]) == 0
+    err = capsys.readouterr().err
+    assert f"warning: {path}: --drift-start 5 s is after the session's last scan" in err
+    assert main([*argv, "--drift-start", "0.2", "--force"]) == 0
+    assert "warning" not in capsys.readouterr().err
+
+
 def test_convert_warns_once_of_malformed_lines_naming_the_log(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

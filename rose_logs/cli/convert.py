@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -140,10 +141,17 @@ def run(args: argparse.Namespace) -> int:
                 ),
                 outputs=outputs,
             )
+    duration_s = (summary.end_ns - summary.start_ns) / 1e9
+    if args.drift_level > 0 and args.drift_start > duration_s:
+        print(
+            f"warning: {args.log}: --drift-start {args.drift_start:g} s is after the session's "
+            f"last scan (+{duration_s:.1f} s): no drift was applied",
+            file=sys.stderr,
+        )
     clock = "" if summary.clock == "log" else f" ({summary.clock} clock)"
     print(
         f"{summary.path}: {summary.format}, {summary.scans} scans, {summary.maps} maps, "
-        f"{(summary.end_ns - summary.start_ns) / 1e9:.1f} s{clock}"
+        f"{duration_s:.1f} s{clock}"
     )
     return 0
 
