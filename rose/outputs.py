@@ -442,6 +442,10 @@ class OutputSet:
         These are a command's outputs, and committing them ends its work: a signal during the
         commit's clean-up is dropped (a finished run is not "interrupted"). Otherwise it is raised
         once the outputs stand (a library caller, e.g. a loop over recordings, gets its Ctrl-C).
+    clean_stale : bool, default True
+        Remove temporaries of dead processes from the outputs' folders when staging. False for a
+        folder that processes on other hosts write too (a batch's OUT on a shared file system):
+        their temporaries cannot be judged by this host's process ids.
 
     Examples
     --------
@@ -452,10 +456,16 @@ class OutputSet:
     """
 
     def __init__(
-        self, *, inputs: Iterable[Path | str] = (), force: bool = False, ends_run: bool = False
+        self,
+        *,
+        inputs: Iterable[Path | str] = (),
+        force: bool = False,
+        ends_run: bool = False,
+        clean_stale: bool = True,
     ) -> None:
         self.force = force
         self.ends_run = ends_run
+        self.clean_stale = clean_stale
         self._inputs: list[tuple[Path, Path]] = []
         self._outputs: list[StagedOutput] = []
         self._done = False
@@ -557,7 +567,8 @@ class OutputSet:
         if not parent.is_dir():
             msg = f"{path}: folder {parent} does not exist"
             raise OutputError(msg)
-        remove_stale_temporaries(parent)
+        if self.clean_stale:
+            remove_stale_temporaries(parent)
         stage_dir = parent / temporary_name(target.name)
         staged = StagedOutput(path, target, stage_dir / target.name, stage_dir, directory, False)
         # Registered before the folder exists: a signal right after mkdir must find it to remove it.

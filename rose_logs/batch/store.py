@@ -193,8 +193,10 @@ class OutputStore:
 
     def _write_set_local(self, files: Mapping[str, bytes]) -> None:
         try:
-            # ends_run: these files end the batch; force: a re-run replaces its own earlier tables.
-            with OutputSet(force=True, ends_run=True) as outputs:
+            # force: a re-run replaces its own earlier tables. Not ends_run: run_batch is a library
+            # call, and a Ctrl-C during the commit must reach it (raised once the tables stand).
+            # Not clean_stale: hosts sharing OUT write their own temporaries there.
+            with OutputSet(force=True, clean_stale=False) as outputs:
                 for relative, data in files.items():
                     path = Path(self.uri(relative))
                     path.parent.mkdir(parents=True, exist_ok=True)

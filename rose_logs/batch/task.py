@@ -195,8 +195,8 @@ def package_version() -> str:
 #: Layout of a stored result; part of the resume key, so results stored in an older layout are
 #: redone instead of mixed into new tables (2: ``break_detected`` marks every snapshot the detector
 #: calls broken, not only a break's first; 3: maps without occupied cells are never
-#: ``w_above_failure``).
-RESULT_LAYOUT = 3
+#: ``w_above_failure``; 4: directions in the map frame, the ``completed`` count).
+RESULT_LAYOUT = 4
 
 
 def result_key(recording: Recording, options: RecordingOptions) -> str:

@@ -352,6 +352,41 @@ def test_a_signal_while_the_tables_are_written_waits_for_them(
     assert (out / "report.md").is_file()  # written to the end, after the first table
 
 
+def test_a_signal_once_the_tables_are_placed_still_reaches_the_caller(
+    fleet: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """run_batch is a library call: a Ctrl-C that lands while the committed tables' temporaries are
+    removed must come back as an interrupted batch, not be dropped as after a command's last write."""
+    import rose.outputs as outputs
+
+    real, sent = outputs._remove_tree, []
+
+    def remove_tree(path: Path) -> None:
+        if ".rose-tmp-" in path.name and not sent and not any(path.iterdir()):
+            sent.append(path)  # the first staging folder emptied by the commit: all files placed
+            os.kill(os.getpid(), signal.SIGINT)
+        real(path)
+
+    monkeypatch.setattr(outputs, "_remove_tree", remove_tree)
+    out = tmp_path / "out"
+    report = run_batch([fleet / "robot_a"], out)
+    assert sent
+    assert (report.interrupted, report.signal) == (True, signal.SIGINT)
+    assert (out / "report.md").is_file()  # the tables stand
+
+
+def test_the_tables_leave_other_hosts_temporaries_alone(fleet: Path, tmp_path: Path) -> None:
+    """Hosts sharing OUT write their own temporaries there; a process id that is not alive here may
+    be alive on another host."""
+    out = tmp_path / "out"
+    out.mkdir()
+    foreign = out / ".snapshots.parquet.rose-tmp-4000000-abcd1234"
+    foreign.mkdir()
+    run_batch([fleet / "robot_a"], out)
+    assert foreign.is_dir()
+    assert (out / "snapshots.parquet").is_file()
+
+
 # ---- URLs fsspec cannot open ------------------------------------------------------------------------
 
 #: A protocol registered for these tests whose backend package does not exist, as for ``gcs://``
