@@ -12,11 +12,25 @@ __all__ = [
     "TRUST_LEVEL",
     "DirectionPeaks",
     "find_direction_peaks",
+    "fold_deg",
     "local_maxima",
     "peak_prominences",
     "refine_peak_positions",
     "structure_score",
 ]
+
+
+def fold_deg(angle_deg: float, digits: int | None = None) -> float:
+    """A line orientation in degrees folded into ``[0, 180)`` (rounded to ``digits`` if given).
+
+    Rounded after folding, and folded again, so that neither 179.996 (at 2 digits) nor a tiny
+    negative angle (whose ``% 180`` is 180.0 in floating point) comes out as 180.0.
+    """
+    folded = angle_deg % 180.0
+    if digits is not None:
+        folded = round(folded, digits) % 180.0
+    return 0.0 if folded >= 180.0 else folded + 0.0  # + 0.0: no -0.0
+
 
 # The paper's rule of thumb for reading W; the one definition every command, report and view uses.
 TRUST_LEVEL = 0.2

@@ -145,8 +145,14 @@ def test_a_bare_image_takes_its_resolution_from_the_option(
     # The cleaning's lengths are metres: at 0.1 m per cell it keeps another set of cells.
     a, b = (rose.load_map(tmp_path / n).grid for n in ("a.yaml", "b.yaml"))
     assert not np.array_equal(a, b)
-    assert main(["score", str(cluttered_map), "--resolution", "0.1"]) == 1
+    assert (
+        main(["clean", str(cluttered_map), "-o", str(tmp_path / "c.yaml"), "--resolution", "1"])
+        == 1
+    )
     assert "--resolution is for bare images" in capsys.readouterr().err
+    # W does not depend on the resolution: rose score neither takes nor warns about one.
+    assert main(["score", str(image)]) == 0
+    assert "warning" not in capsys.readouterr().err
 
 
 def test_clean_reports_the_unknown_cells_it_made_walls(

@@ -147,3 +147,21 @@ def test_direction_peaks_match_scipy_at_every_threshold(index: int, fraction: fl
     ours = find_direction_peaks(signal, prominence_fraction=fraction)
     assert_array_equal(ours.indices, (peaks[middle] - n)[order])
     assert_allclose(ours.prominences, props["prominences"][middle][order] / span, rtol=0)
+
+
+@pytest.mark.parametrize(
+    ("angle", "digits", "folded"),
+    [
+        (-1e-15, None, 0.0),  # % 180 alone gives 180.0 in floating point
+        (179.996, 2, 0.0),  # rounds up to 180
+        (24.80000000000001, 2, 24.8),
+        (-90.0, None, 90.0),
+        (360.5, 1, 0.5),
+    ],
+)
+def test_fold_deg_stays_in_half_open_range(angle: float, digits: int | None, folded: float) -> None:
+    from rose.directions import fold_deg
+
+    value = fold_deg(angle, digits)
+    assert value == pytest.approx(folded, abs=1e-12)
+    assert 0.0 <= value < 180.0

@@ -21,7 +21,7 @@ from rose_logs.cli import main
 from rose_logs.evaluation.cleaning import bormann_cases
 from rose_logs.evaluation.cleaning_report import cleaning_figure
 from rose_logs.evaluation.config import BENCHMARK_SUBDIR
-from rose_logs.evaluation.images import ReportWriteError, write_png
+from rose_logs.evaluation.files import ReportWriteError, write_png
 
 #: No logs (no rasterised maps, no drift experiment): the quickest run that still writes figures.
 QUICK = [
@@ -117,6 +117,23 @@ def test_write_png_writes_a_readable_png(tmp_path: Path) -> None:
     image = np.arange(12, dtype=np.uint8).reshape(3, 4)
     path = write_png(tmp_path / "a.png", image)
     assert np.array_equal(cv2.imread(str(path), cv2.IMREAD_UNCHANGED), image)
+
+
+def test_tables_of_the_report_that_cannot_be_written_name_their_file(tmp_path: Path) -> None:
+    """A CSV or the markdown on a full disk raised an OSError without a file name: "error: No space
+    left on device"."""
+    import csv
+
+    from rose_logs.evaluation.files import text_file
+
+    path = tmp_path / "missing-folder" / "runs.csv"
+    with pytest.raises(ReportWriteError) as info, text_file(path) as fh:
+        csv.writer(fh).writerow(["a", "b"])
+    assert str(info.value) == f"{path}: cannot write ({os.strerror(errno.ENOENT)})"
+    ok = tmp_path / "runs.csv"
+    with text_file(ok) as fh:
+        csv.writer(fh).writerow(["a", "b"])
+    assert ok.read_bytes() == b"a,b\r\n"  # as csv writes through open(path, "w", newline="")
 
 
 def test_no_plots_writes_no_figure_and_links_only_written_files(

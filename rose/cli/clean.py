@@ -14,12 +14,12 @@ from rose.cli.options import (
     add_map_arguments,
     add_param_arguments,
     directions_deg,
-    fold_deg,
     load_grid_map,
     params_from_args,
     result_summary,
     verdict,
 )
+from rose.directions import fold_deg
 from rose.errors import RoseError
 from rose.mapfile import OccupancyMap, save_map
 from rose.outputs import OutputSet

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from rose.directions import FAILURE_LEVEL, TRUST_LEVEL
+from rose.directions import FAILURE_LEVEL, TRUST_LEVEL, fold_deg
 from rose.errors import RoseError
 from rose.grid import as_occupancy_grid
 from rose.limits import DEFAULT_MAX_CELLS
@@ -230,11 +230,6 @@ def directions_deg(result: RoseResult, *, yaw_rad: float = 0.0) -> list[float]:
     return [fold_deg(float(np.degrees(a + yaw_rad)), 2) for a in result.dominant_directions]
 
 
-def fold_deg(angle_deg: float, digits: int) -> float:
-    """``angle_deg`` rounded to ``digits`` and then folded into [0, 180): 179.996 is 0.0, not 180.0."""
-    return round(angle_deg, digits) % 180.0
-
-
 def result_summary(
     result: RoseResult, *, seconds: float | None = None, yaw_rad: float = 0.0
 ) -> dict[str, Any]:
@@ -266,15 +261,19 @@ def verdict(score: float, *, occupied_cells: int | None = None) -> str:
 
 
 def load_grid_map(
-    path: str | Path, *, max_cells: int | None, resolution_m: float | None = None
+    path: str | Path,
+    *,
+    max_cells: int | None,
+    resolution_m: float | None = None,
+    metric: bool = True,
 ) -> OccupancyMap:
     """:func:`rose.load_map`, with the grid checked as ROSE will read it, so that a map whose values
     are no occupancy (a ``mode: raw`` image with grey values above 100) fails naming the file.
 
     ``resolution_m`` sets the cell size of a bare image (``--resolution``); without it a bare image
-    gets :data:`rose.mapfile.DEFAULT_RESOLUTION_M` and a warning on stderr, because every length in
-    metres (cleaning rules, walls, the output YAML) depends on it. A YAML map sets its own: giving
-    ``resolution_m`` with one is an error rather than a silent override.
+    gets :data:`rose.mapfile.DEFAULT_RESOLUTION_M`, and a warning on stderr when the command works
+    in metres (``metric``: cleaning rules, walls, the output YAML; W does not depend on it). A YAML
+    map sets its own: giving ``resolution_m`` with one is an error rather than a silent override.
     """
     bare_image = Path(path).suffix.lower() not in YAML_SUFFIXES
     if resolution_m is not None and not bare_image:
@@ -288,12 +287,12 @@ def load_grid_map(
         msg = f"{path}: {text[:1].lower()}{text[1:]}"
         raise RoseError(msg) from err
     if bare_image:
-        if resolution_m is None:
+        if resolution_m is None and metric:
             print(
                 f"warning: {path}: no map YAML, assuming {DEFAULT_RESOLUTION_M:g} m/cell "
                 "(set it with --resolution)",
                 file=sys.stderr,
             )
-        else:
+        elif resolution_m is not None:
             occupancy_map = dataclasses.replace(occupancy_map, resolution_m=resolution_m)
     return occupancy_map

@@ -13,13 +13,13 @@ from pathlib import Path
 from typing import Any
 
 from rose.cli.options import (
-    add_map_arguments,
+    add_limit_arguments,
     add_param_arguments,
-    fold_deg,
     load_grid_map,
     params_from_args,
     result_summary,
 )
+from rose.directions import fold_deg
 from rose.errors import RoseError
 from rose.outputs import json_text, reraise_interrupt_behind
 from rose.params import RoseParams
@@ -37,7 +37,7 @@ def add_parser(commands: Any) -> None:
         action="store_true",
         help="print strict JSON instead of a table (non-finite: null)",
     )
-    add_map_arguments(score)
+    add_limit_arguments(score)  # no --resolution: W does not depend on it
     add_param_arguments(score)
     score.set_defaults(func=run)
 
@@ -71,7 +71,7 @@ def _score(path: Path, args: argparse.Namespace, params: RoseParams) -> dict[str
     from rose.cli import error_text  # the package imports this module: import at call time
 
     try:
-        source = load_grid_map(path, max_cells=args.max_cells, resolution_m=args.resolution)
+        source = load_grid_map(path, max_cells=args.max_cells, metric=False)
         started = time.perf_counter()
         result = analyze(source.grid, params)
     except (RoseError, OSError, MemoryError) as err:

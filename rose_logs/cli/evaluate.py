@@ -159,12 +159,12 @@ def run(args: argparse.Namespace) -> int:
 
     Raises
     ------
-    rose_logs.evaluation.images.ReportWriteError
+    rose_logs.evaluation.files.ReportWriteError
         If a file of the report cannot be written; it names the file in ``out_dir``, not in the
         temporary folder, and nothing is committed.
     """
     from rose.outputs import OutputSet
-    from rose_logs.evaluation.images import ReportWriteError
+    from rose_logs.evaluation.files import ReportWriteError
     from rose_logs.evaluation.report import MARKDOWN_NAME, run_evaluation
 
     config = config_from_args(args)

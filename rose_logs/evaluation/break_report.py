@@ -26,7 +26,7 @@ from rose_logs.evaluation.breaks import (
     roc,
     score_cases,
 )
-from rose_logs.evaluation.images import save_figure
+from rose_logs.evaluation.files import save_figure, text_file
 from rose_logs.session.breaks import BreakParams
 
 __all__ = ["BreakSection", "run_break_experiment"]
@@ -78,7 +78,7 @@ def _group_lines(rows: Sequence[GroupRow], *, regions: bool) -> list[str]:
 
 
 def _write_sessions_csv(path: Path, sessions: Sequence[SessionScores], threshold: float) -> Path:
-    with path.open("w", newline="") as fh:
+    with text_file(path) as fh:
         writer = csv.writer(fh)
         writer.writerow(
             [
@@ -124,7 +124,7 @@ def _write_sessions_csv(path: Path, sessions: Sequence[SessionScores], threshold
 
 
 def _write_roc_csv(path: Path, sessions: Sequence[SessionScores]) -> Path:
-    with path.open("w", newline="") as fh:
+    with text_file(path) as fh:
         writer = csv.writer(fh)
         writer.writerow(["score", "threshold", "false_alarm_rate", "detection_rate", "within_150s"])
         for use_w, name in ((False, "break_score_m"), (True, "global_w")):

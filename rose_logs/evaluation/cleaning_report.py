@@ -24,7 +24,7 @@ from rose_logs.evaluation.cleaning import (
     summarise_cleaning,
 )
 from rose_logs.evaluation.config import EvaluationConfig
-from rose_logs.evaluation.images import write_png
+from rose_logs.evaluation.files import text_file, write_png
 
 __all__ = [
     "CleaningReport",
@@ -150,7 +150,7 @@ def cleaning_figure(
 
 
 def _write_csv(path: Path, runs: Sequence[CleaningRun]) -> Path:
-    with path.open("w", newline="") as fh:
+    with text_file(path) as fh:
         writer = csv.writer(fh)
         names = [f.name for f in dataclasses.fields(CleaningRun)] + ["time_ratio"]
         writer.writerow(names)

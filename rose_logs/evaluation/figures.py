@@ -12,7 +12,7 @@ import numpy.typing as npt
 
 from rose_logs.evaluation.config import PAPER_W
 from rose_logs.evaluation.experiments import ClutterRun, DriftRun
-from rose_logs.evaluation.images import save_figure
+from rose_logs.evaluation.files import save_figure
 
 __all__ = ["have_matplotlib", "plot_all", "render_grid"]
 

@@ -30,7 +30,7 @@ from rose_logs.evaluation.experiments import (
     source_maps,
 )
 from rose_logs.evaluation.figures import have_matplotlib, plot_all, render_grid
-from rose_logs.evaluation.images import write_png
+from rose_logs.evaluation.files import text_file, write_bytes, write_png
 from rose_logs.evaluation.maps import LogMap
 from rose_logs.evaluation.walls import WallReport, wall_experiment
 
@@ -87,7 +87,7 @@ def _pct(value: float) -> str:
 
 
 def _write_csv(path: Path, rows: Sequence[Any]) -> Path:
-    with path.open("w", newline="") as fh:
+    with text_file(path) as fh:
         if not rows:
             fh.write("")
             return path
@@ -179,7 +179,7 @@ def run_evaluation(
         If ``config.maps_dir`` is None and the data set is not available.
     rose.MapFileError, rose_logs.carmen.parse.CarmenFormatError
         If a benchmark map or a log is missing or unreadable.
-    rose_logs.evaluation.images.ReportWriteError
+    rose_logs.evaluation.files.ReportWriteError
         If a PNG file cannot be written (its message names the file).
     """
     out = Path(out_dir)
@@ -253,7 +253,7 @@ def run_evaluation(
         cleaning_md=cleaning.markdown,
     )
     md_path = out / MARKDOWN_NAME
-    md_path.write_text(markdown + ("\n" + break_md if break_md else ""))
+    write_bytes(md_path, (markdown + ("\n" + break_md if break_md else "")).encode("utf-8"))
     files.insert(0, md_path)
     say(f"report done in {run_s:.1f} s")
     return EvaluationReport(
@@ -312,7 +312,7 @@ def _figures(
 
 
 def _write_exp3_csv(path: Path, exp3: Experiment3) -> Path:
-    with path.open("w", newline="") as fh:
+    with text_file(path) as fh:
         writer = csv.writer(fh)
         writer.writerow(["group", "value", "pearson_r"])
         writer.writerow(["all", "", exp3.r_all])
@@ -500,13 +500,14 @@ def _confidence_section(exp3: Experiment3, figures: list[str]) -> list[str]:
     return lines
 
 
-def _files_section() -> list[str]:
+def _files_section(*, figures: bool) -> list[str]:
     """The list of files written next to the report."""
+    shown = ", figures above" if figures else ""
     return [
         "## Files",
         "",
         "`exp1_clutter_runs.csv` (one row per cluttered map), `exp1_furniture.csv`, `exp2_drift.csv`, "
-        "`exp3_correlation.csv`, `map_*.png` (rasterised logs, map_server greys), figures above.",
+        f"`exp3_correlation.csv`, `map_*.png` (rasterised logs, map_server greys){shown}.",
         "",
     ]
 
@@ -542,5 +543,5 @@ def _markdown(
         lines += [cleaning_md.rstrip(), ""]
     if not figures:
         lines += ["Figures were not written (plots disabled or matplotlib missing).", ""]
-    lines += _files_section()
+    lines += _files_section(figures=bool(figures))
     return "\n".join(lines)

@@ -26,7 +26,7 @@ from rose import RoseParams, analyze, load_map
 from rose.walls import WallError, WallParams, extract_walls, extract_walls_hough, wall_error
 from rose_logs.datasets import require_data_dir
 from rose_logs.evaluation.config import BENCHMARK_SUBDIR
-from rose_logs.evaluation.images import save_figure
+from rose_logs.evaluation.files import save_figure, text_file
 
 __all__ = ["WallReport", "WallRow", "WallScore", "wall_experiment"]
 
@@ -173,7 +173,7 @@ def wall_experiment(
         If a named map is missing or unreadable.
     rose_logs.datasets.DataSetError
         If ``maps_dir`` is None and the data set is not available.
-    rose_logs.evaluation.images.ReportWriteError
+    rose_logs.evaluation.files.ReportWriteError
         If the plot cannot be written.
     """
     out_dir = Path(out_dir)
@@ -229,7 +229,7 @@ def _columns() -> list[str]:
 
 def _write_csv(path: Path, rows: tuple[WallRow, ...]) -> Path:
     score = [f.name for f in fields(WallScore)]
-    with path.open("w", newline="") as file:
+    with text_file(path) as file:
         writer = csv.writer(file)
         writer.writerow(_columns())
         for r in rows:

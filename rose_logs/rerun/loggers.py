@@ -13,7 +13,7 @@ import numpy as np
 import numpy.typing as npt
 import rerun as rr
 
-from rose.directions import FAILURE_LEVEL, TRUST_LEVEL
+from rose.directions import FAILURE_LEVEL, TRUST_LEVEL, fold_deg
 from rose.result import RoseResult
 from rose.walls import WallSet
 from rose.walls.segments import cells_to_metres
@@ -318,20 +318,24 @@ class TopicLogger:
         bounds = (occupied or conv.occupied_cells(result)).bounds
         segments = conv.direction_segments_cells(directions, (rows, cols), bounds=bounds)
         anchors = conv.direction_label_positions(segments)
-        labels = [f"walls {math.degrees(angle):.1f}°" for angle in directions]
+        # The segmentation shows the grid, the metric view the map frame: a map whose origin has a
+        # yaw shows its walls that much further round there (as the JSON report gives them).
+        yaw = snapshot.origin_yaw_rad
+        grid_labels = [f"walls {fold_deg(math.degrees(a), 1):.1f}°" for a in directions]
+        map_labels = [f"walls {fold_deg(math.degrees(a + yaw), 1):.1f}°" for a in directions]
         # Colours, sizes and the label switch are static (log_static).
         rec.log(
             paths.cell_directions,
             rr.LineStrips2D.from_fields(strips=_f32(conv.cells_to_pixels(segments, rows))),
             rr.Points2D.from_fields(
-                positions=_f32(conv.cells_to_pixels(anchors, rows)), labels=labels
+                positions=_f32(conv.cells_to_pixels(anchors, rows)), labels=grid_labels
             ),
         )
         rec.log(
             paths.metric_directions,
             rr.LineStrips3D.from_fields(strips=_f32(cells_to_map_m(snapshot, segments))),
             rr.Points3D.from_fields(
-                positions=_f32(cells_to_map_m(snapshot, anchors)), labels=labels
+                positions=_f32(cells_to_map_m(snapshot, anchors)), labels=map_labels
             ),
         )
 

@@ -125,18 +125,36 @@ def viewer_unreachable(address: str) -> str | None:
     Rerun's gRPC sink connects lazily and only fails at the final flush, after the whole session
     was processed; a TCP connection tried first turns a viewer that is not running into an error
     before any work.
+
+    Raises
+    ------
+    ValueError
+        If ``address`` is no viewer address (a bad port, no host).
     """
-    url = urllib.parse.urlsplit(grpc_url(address).replace("rerun+", "", 1))
-    secure = url.scheme == "https"
-    try:
-        host, port = url.hostname or "127.0.0.1", url.port or (443 if secure else 9876)
-    except ValueError as err:  # a port out of range
-        return str(err)
+    host, port = _viewer_endpoint(address)
     try:
         with socket.create_connection((host, port), timeout=_VIEWER_PROBE_S):
             return None
     except OSError as err:
         return str(err.strerror or err)
+
+
+_LOCAL_HOSTS = frozenset({"localhost", "127.0.0.1", "::1"})
+
+
+def _viewer_endpoint(address: str) -> tuple[str, int]:
+    """Host and TCP port Rerun connects to for ``address``: without a port, a local viewer's 9876,
+    else the scheme's (``rerun+http``: 80; ``rerun`` and ``rerun+https``: 443, TLS), as Rerun does."""
+    scheme, _, rest = grpc_url(address).partition("://")
+    parts = urllib.parse.urlsplit(f"//{rest}")
+    host = parts.hostname
+    port = parts.port  # ValueError for a port out of range
+    if not host or port == 0:
+        msg = f"viewer address needs a host and a port in 1..65535, got {address!r}"
+        raise ValueError(msg)
+    if port is None:
+        port = 9876 if host in _LOCAL_HOSTS else 80 if scheme == "rerun+http" else 443
+    return host, port
 
 
 def _top(*values: float) -> float:

@@ -32,7 +32,7 @@ import numpy as np
 
 import rose
 from rose.cleaning import CleanMethod, CleanResult
-from rose.directions import FAILURE_LEVEL
+from rose.directions import FAILURE_LEVEL, fold_deg
 from rose.limits import DEFAULT_MAX_CELLS, check_cells, short
 from rose.outputs import OutputSet, signals_deferred
 from rose.params import RoseParams
@@ -801,7 +801,7 @@ def _record(
         structure_score=float(result.structure_score),
         # ROSE measures directions in the grid; the origin's yaw turns them into the map frame.
         directions_deg=tuple(
-            float(np.degrees(d + snapshot.origin_yaw_rad)) % 180.0
+            fold_deg(float(np.degrees(d + snapshot.origin_yaw_rad)))
             for d in result.dominant_directions
         ),
         threshold=float(result.threshold),

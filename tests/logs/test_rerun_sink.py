@@ -228,6 +228,34 @@ def test_grpc_url() -> None:
         grpc_url("http://x/y")
 
 
+@pytest.mark.parametrize(
+    ("address", "endpoint"),
+    [
+        ("9876", ("127.0.0.1", 9876)),
+        ("10.0.0.2:9000", ("10.0.0.2", 9000)),
+        ("[::1]:9876", ("::1", 9876)),
+        ("rerun+http://localhost/proxy", ("localhost", 9876)),  # a local viewer's own port
+        ("rerun+http://viewer.example/proxy", ("viewer.example", 80)),  # behind a web proxy
+        ("rerun://viewer.example/proxy", ("viewer.example", 443)),  # TLS
+        ("rerun+https://viewer.example/proxy", ("viewer.example", 443)),
+    ],
+)
+def test_the_viewer_probe_tries_the_port_rerun_connects_to(
+    address: str, endpoint: tuple[str, int]
+) -> None:
+    from rose_logs.rerun.sink import _viewer_endpoint
+
+    assert _viewer_endpoint(address) == endpoint
+
+
+@pytest.mark.parametrize("address", ["host:0", "host:99999", "::1:9876"])
+def test_a_viewer_address_without_a_usable_port_is_refused(address: str) -> None:
+    from rose_logs.rerun.sink import viewer_unreachable
+
+    with pytest.raises(ValueError):
+        viewer_unreachable(address)
+
+
 def test_entity_roots() -> None:
     assert entity_root_for_topic("/robot/Map") == "robot/map"
     assert entity_root_for_topic("/") == "map"
@@ -347,3 +375,38 @@ def test_blueprint_has_a_tab_per_map_topic() -> None:
     assert blueprint is not None
     with pytest.raises(ValueError, match="at least one"):
         default_blueprint(())
+
+
+def test_direction_labels_are_in_each_views_frame(tmp_path: Path, fr079) -> None:
+    """The segmentation shows the grid, the metric view the map frame: with an origin yaw, the
+    metric labels give the walls' map-frame angle (as the JSON report does), the grid labels theirs."""
+    import math
+
+    import rerun as rr
+
+    import rose
+    from rose.directions import fold_deg
+    from rose_logs.rerun import TopicLogger
+    from rose_logs.snapshots import MapSnapshot
+
+    yaw = 0.5
+    grid = fr079[-1]
+    snapshot = MapSnapshot(
+        "/map", 1, 1, "map", grid, 0.05, (0.0, 0.0, 0.0),
+        (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)),
+    )  # fmt: skip
+    result = rose.analyze(grid)
+    rrd = tmp_path / "d.rrd"
+    recording = rr.RecordingStream("test")
+    recording.save(str(rrd))
+    recording.set_time(SESSION_TIMELINE, duration=0.0)
+    TopicLogger(recording, PATHS).log_directions(snapshot, result)
+    recording.flush()
+    recording.disconnect()
+    content = _read(rrd)
+    (cells,) = content.rows(PATHS.cell_directions)
+    (metric,) = content.rows(PATHS.metric_directions)
+    degrees = [math.degrees(a) for a in result.dominant_directions]
+    assert cells["Points2D:labels"] == [f"walls {fold_deg(d, 1):.1f}°" for d in degrees]
+    turned = [f"walls {fold_deg(d + math.degrees(yaw), 1):.1f}°" for d in degrees]
+    assert metric["Points3D:labels"] == turned

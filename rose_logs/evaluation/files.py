@@ -1,14 +1,17 @@
-"""Every PNG of the evaluation report is written here, so that every write is checked.
+"""Every file of the evaluation report is written here, so that every write is checked and named.
 
 ``cv2.imwrite`` reports a failure (a full disk, a read-only folder) only by returning False, after
 libpng has printed ``libpng error: Write Error``; an unchecked call left a report that links a
-missing image. Here the image is encoded in memory and written with Python's file API, which raises
-with the operating system's reason; :class:`ReportWriteError` names the file, one line.
+missing image. A full disk under ``open(...).write`` raises an ``OSError`` without the file's name.
+Here every file (PNG, figure, CSV, markdown) is made in memory and written with one call that raises
+:class:`ReportWriteError`: ``<file>: cannot write (<reason>)``, one line.
 """
 
 from __future__ import annotations
 
+import contextlib
 import io
+from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -20,7 +23,7 @@ from rose.errors import OutputError
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-__all__ = ["ReportWriteError", "save_figure", "write_png"]
+__all__ = ["ReportWriteError", "save_figure", "text_file", "write_bytes", "write_png"]
 
 
 class ReportWriteError(OutputError):
@@ -65,6 +68,23 @@ def write_bytes(path: Path, data: bytes) -> Path:
     except OSError as err:
         raise ReportWriteError(path, err.strerror or str(err)) from err
     return Path(path)
+
+
+@contextlib.contextmanager
+def text_file(path: Path) -> Iterator[io.StringIO]:
+    """A text buffer written to ``path`` (UTF-8) when the block ends without an error.
+
+    For ``csv.writer`` and the like: ``with text_file(p) as fh: csv.writer(fh)...``; newlines are
+    written as given (CSV's ``\\r\\n`` stays, as with ``open(path, "w", newline="")``).
+
+    Raises
+    ------
+    ReportWriteError
+        If the file cannot be written.
+    """
+    buffer = io.StringIO(newline="")
+    yield buffer
+    write_bytes(path, buffer.getvalue().encode("utf-8"))
 
 
 def write_png(path: Path, image: npt.NDArray[np.uint8]) -> Path:
