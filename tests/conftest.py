@@ -8,6 +8,7 @@ a reason saying how to get it; with ``ROSE_REQUIRE_DATA=1`` (CI) it fails instea
 
 from __future__ import annotations
 
+import logging
 import signal
 from collections.abc import Iterator
 
@@ -40,6 +41,27 @@ def _signal_state_isolated() -> Iterator[None]:
         if handler is not None:
             signal.signal(getattr(signal, name), handler)
     signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+
+
+@pytest.fixture(autouse=True)
+def _logging_isolated() -> Iterator[None]:
+    """Each test starts with the logging set-up the previous one found. A command run in-process
+    points the ``rose_logs`` logger at the stderr of that moment (a test's captured stream, closed
+    once the test ends) and stops it propagating: later tests' warnings would go to a closed file,
+    and pytest's ``caplog`` would never see them."""
+    kept = {
+        name: (logger.handlers[:], logger.level, logger.propagate)
+        for name, logger in (
+            ("", logging.getLogger()),
+            ("rose_logs", logging.getLogger("rose_logs")),
+        )
+    }
+    yield
+    for name, (handlers, level, propagate) in kept.items():
+        logger = logging.getLogger(name or None)
+        logger.handlers[:] = handlers
+        logger.setLevel(level)
+        logger.propagate = propagate
 
 
 def pytest_runtest_setup(item: pytest.Item) -> None:
