@@ -7,6 +7,7 @@ output. Messages are serialised with rosbags typestores.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -111,6 +112,7 @@ class MapMsg:
     topic: str = "/map"
     xy: tuple[int, int] | None = None
     bad_length: bool = False
+    yaw_rad: float = 0.0
 
 
 @dataclass
@@ -147,7 +149,9 @@ def _map_message(store: Any, serialization: str, m: MapMsg, seq: int) -> tuple[s
     msgtype = "nav_msgs/msg/OccupancyGrid"
     pose = t["geometry_msgs/msg/Pose"](
         position=t["geometry_msgs/msg/Point"](x=m.origin_xy_m[0], y=m.origin_xy_m[1], z=0.0),
-        orientation=t["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
+        orientation=t["geometry_msgs/msg/Quaternion"](
+            x=0.0, y=0.0, z=math.sin(m.yaw_rad / 2), w=math.cos(m.yaw_rad / 2)
+        ),
     )
     info = t["nav_msgs/msg/MapMetaData"](
         map_load_time=stamp, resolution=m.resolution_m, width=w, height=h, origin=pose

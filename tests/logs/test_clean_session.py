@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 import pytest
-from conftest import build_log, session_maps
+from conftest import START_NS, MapMsg, build_log, session_maps
 
 import rose
 from rose_logs.cli import main
@@ -76,3 +76,16 @@ def test_rescued_cells_have_their_own_rerun_class(fr079: list[npt.NDArray[np.int
     np.testing.assert_array_equal(
         segmentation_image(grid, result)[::-1][~cleaning.rescued], classes[~cleaning.rescued]
     )
+
+
+def test_report_directions_are_in_the_map_frame(
+    tmp_path: Path, fr079: list[npt.NDArray[np.int8]]
+) -> None:
+    """A map whose origin is rotated has its walls that much further round in the map frame, which
+    is the frame of everything else in the report (break regions, walls)."""
+    yaw = 0.5
+    grid = fr079[-1]
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", [MapMsg(START_NS, grid, yaw_rad=yaw)])
+    record = process_log(built.path).to_json()["snapshots"][0]
+    expected = sorted((np.degrees(d + yaw)) % 180.0 for d in rose.analyze(grid).dominant_directions)
+    np.testing.assert_allclose(sorted(record["directions_deg"]), expected, atol=1e-9)
