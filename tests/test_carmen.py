@@ -117,6 +117,20 @@ def test_convert_says_when_the_drift_starts_after_the_log(
     assert "warning" not in capsys.readouterr().err
 
 
+def test_convert_warns_of_an_output_suffix_that_names_no_format(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from rose_logs.cli import main
+
+    path = tmp_path / "log.txt"
+    path.write_text("FLASER 3 1.0 2.0 3.0 0.5 -0.5 0.1 0.5 -0.5 0.1 12.5 host 12.5\n")
+    assert main(["convert", str(path), str(tmp_path / "s.txt")]) == 0
+    assert "'.txt' names no log format" in capsys.readouterr().err
+    assert (tmp_path / "s.txt" / "metadata.yaml").is_file()  # a ROS 2 bag folder, as said
+    assert main(["convert", str(path), str(tmp_path / "s")]) == 0
+    assert "warning" not in capsys.readouterr().err
+
+
 def test_convert_warns_once_of_malformed_lines_naming_the_log(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

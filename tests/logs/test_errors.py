@@ -220,6 +220,19 @@ def test_maps_over_the_cell_limit_are_named_so_and_warned_about_in_one_line(
     assert "malformed" not in err
 
 
+def test_an_output_suffix_that_names_no_format_is_warned_about(
+    tmp_path: Path, capsys, mcap_log: Path
+) -> None:
+    """`-o out.mcpa` (a typo) writes the input's format under that name: said, not silent."""
+    code, _, err = _run(capsys, "process", mcap_log, "-o", tmp_path / "out.mcpa", "-q")
+    assert code == 0
+    assert "warning: " in err and "'.mcpa' names no log format" in err
+    code, _, err = _run(capsys, "process", mcap_log, "-o", tmp_path / "o2.mcpa", "--format", "mcap")
+    assert code == 0 and "warning" not in err
+    code, _, err = _run(capsys, "process", mcap_log, "-o", tmp_path / "o3.mcap", "-q")
+    assert code == 0 and "warning" not in err
+
+
 def test_existing_output_needs_force(tmp_path: Path, capsys, mcap_log: Path) -> None:
     out = tmp_path / "out.mcap"
     out.write_bytes(b"precious")
