@@ -16,7 +16,7 @@ from typing import Literal
 from rose.limits import MAX_YAML_BYTES, load_yaml, short
 from rose_logs.errors import LogReadError
 
-__all__ = ["FORMATS", "LogFormat", "detect_format", "format_from_path", "unknown_suffix"]
+__all__ = ["FORMATS", "LogFormat", "detect_format", "format_from_path", "unknown_suffix_warning"]
 
 LogFormat = Literal["ros1", "db3", "mcap", "mcap-dir"]
 FORMATS: tuple[LogFormat, ...] = ("ros1", "db3", "mcap", "mcap-dir")
@@ -110,10 +110,14 @@ def format_from_path(path: Path) -> LogFormat | None:
     return {".bag": "ros1", ".mcap": "mcap", ".db3": "db3"}.get(Path(path).suffix.lower())  # type: ignore[return-value]
 
 
-def unknown_suffix(path: Path) -> str | None:
-    """The suffix of an output name that names no log format (``out.txt``, the typo ``out.mcpa``),
-    or None: no suffix (a ROS 2 bag folder's usual name) or a known one."""
+def unknown_suffix_warning(path: Path, written_as: str) -> str | None:
+    """A warning line for an output name whose suffix names no log format (``out.txt``, the typo
+    ``out.mcpa``), saying what is written instead; None for no suffix (a ROS 2 bag folder's usual
+    name) or a known one."""
     suffix = Path(path).suffix
     if not suffix or format_from_path(Path(path)) is not None:
         return None
-    return suffix
+    return (
+        f"warning: {path}: '{suffix}' names no log format (.bag, .db3, .mcap): written "
+        f"{written_as} (--format to choose)"
+    )

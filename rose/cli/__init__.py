@@ -28,6 +28,7 @@ from rose.outputs import (
 )
 
 __all__ = [
+    "LevelFormatter",
     "add_param_arguments",
     "build_parser",
     "console",
@@ -98,7 +99,7 @@ def _run(argv: Sequence[str] | None) -> int:
 
     check_params(args.command_parser, args)
     handler = logging.StreamHandler(sys.stderr)
-    handler.setFormatter(_LowerLevelFormatter())
+    handler.setFormatter(LevelFormatter())
     logging.basicConfig(level=logging.WARNING, handlers=[handler])
     try:
         return int(args.func(args))
@@ -112,8 +113,8 @@ def _run(argv: Sequence[str] | None) -> int:
         return 1
 
 
-class _LowerLevelFormatter(logging.Formatter):
-    """``warning: <message>``, like every other line the commands print."""
+class LevelFormatter(logging.Formatter):
+    """``warning: <message>``, like every other line the commands print (``rose`` and ``rose-bag``)."""
 
     def format(self, record: logging.LogRecord) -> str:
         return f"{record.levelname.lower()}: {record.getMessage()}"

@@ -12,7 +12,7 @@ import os
 import sys
 from typing import Any
 
-from rose.cli import error_text, input_name
+from rose.cli import LevelFormatter, error_text, input_name
 from rose.errors import RoseError
 from rose.outputs import (
     EXIT_BROKEN_PIPE,
@@ -62,16 +62,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _configure_logging(debug: bool) -> None:
     handler = logging.StreamHandler(sys.stderr)
-    handler.setFormatter(_LevelFormatter())
+    handler.setFormatter(LevelFormatter())
     root = logging.getLogger("rose_logs")
     root.handlers[:] = [handler]
     root.setLevel(logging.DEBUG if debug else logging.WARNING)
     root.propagate = False
-
-
-class _LevelFormatter(logging.Formatter):
-    def format(self, record: logging.LogRecord) -> str:
-        return f"{record.levelname.lower()}: {record.getMessage()}"
 
 
 def main(argv: list[str] | None = None) -> int:

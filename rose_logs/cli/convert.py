@@ -19,7 +19,7 @@ from rose_logs.carmen.parse import CarmenLog, read_carmen_log
 from rose_logs.carmen.raycast import BuilderParams
 from rose_logs.carmen.session import SessionOptions, write_carmen_session
 from rose_logs.errors import LogReadError, LogWriteError
-from rose_logs.formats import format_from_path, unknown_suffix
+from rose_logs.formats import format_from_path, unknown_suffix_warning
 
 __all__ = ["add_parser", "run"]
 
@@ -102,13 +102,9 @@ def run(args: argparse.Namespace) -> int:
     """
     outputs = OutputSet(inputs=[args.log], force=args.force, ends_run=True)
     fmt = args.fmt or format_from_path(args.output) or "db3"
-    suffix = None if args.fmt else unknown_suffix(args.output)
-    if suffix is not None:  # a typo (out.mcpa) should not pass unnoticed
-        print(
-            f"warning: {args.output}: '{suffix}' names no log format (.bag, .db3, .mcap): written "
-            "as a ROS 2 bag folder (db3; --format to choose)",
-            file=sys.stderr,
-        )
+    warning = None if args.fmt else unknown_suffix_warning(args.output, "as a ROS 2 db3 bag folder")
+    if warning is not None:  # a typo (out.mcpa) should not pass unnoticed
+        print(warning, file=sys.stderr)
     map_files = (
         (args.map_file, args.map_file.with_suffix(".pgm")) if args.map_file is not None else ()
     )

@@ -226,7 +226,7 @@ def _print_break(report: Any, topic: str, out: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from rose_logs.formats import unknown_suffix
+    from rose_logs.formats import unknown_suffix_warning
     from rose_logs.session import default_output_path
 
     if args.no_output and args.output is not None:
@@ -234,13 +234,11 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(msg)
     output = None if args.no_output else (args.output or default_output_path(args.input))
     # Only a name the user typed: the default (input name + .rose) keeps the input's suffix.
-    suffix = None if args.output is None or args.fmt else unknown_suffix(args.output)
-    if suffix is not None:  # a typo (out.mcpa) should not pass unnoticed
-        print(
-            f"warning: {args.output}: '{suffix}' names no log format (.bag, .db3, .mcap): written in "
-            "the input's format (--format to choose)",
-            file=sys.stderr,
-        )
+    warning = None
+    if args.output is not None and not args.fmt:
+        warning = unknown_suffix_warning(args.output, "in the input's format")
+    if warning is not None:  # a typo (out.mcpa) should not pass unnoticed
+        print(warning, file=sys.stderr)
     progress = not args.quiet and sys.stderr.isatty()
     outputs = OutputSet(inputs=[args.input], force=args.force, ends_run=True)
     with outputs:  # the log, the recording and the report: all committed, or none
