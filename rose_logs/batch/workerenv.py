@@ -1,9 +1,12 @@
-"""Process settings for batch workers: glibc malloc thresholds, single-threaded BLAS, a tqdm lock.
+"""Process settings for batch workers: glibc malloc thresholds, one-thread BLAS and OpenCV, a tqdm lock.
 
 Dask's nanny starts workers with ``MALLOC_TRIM_THRESHOLD_=65536``, which leaves every array above
 128 KiB mmapped and page-faulted afresh on each allocation: ROSE's map-sized temporaries then cost
 about twice the CPU. Workers get the thresholds of :mod:`rose_logs.malloc` instead (numbers there).
-Workers share the cores, so BLAS / OpenMP pools get one thread each.
+Workers share the cores, so BLAS / OpenMP pools and OpenCV's own thread pool get one thread each:
+OpenCV otherwise runs every morphology and labelling call of the cleaning on all cores, and two
+workers on two cores then spent 25 s of task CPU on a fleet that takes 18-20 s with one thread
+each (``benchmarks/bench_batch.py``).
 """
 
 from __future__ import annotations
@@ -18,11 +21,12 @@ __all__ = ["THREAD_ENV", "tune_worker_process", "worker_environment"]
 
 _LOG = logging.getLogger(__name__)
 
-#: One thread per worker for BLAS and OpenMP pools.
+#: One thread per worker for BLAS, OpenMP and OpenCV pools.
 THREAD_ENV = {
     "OMP_NUM_THREADS": "1",
     "OPENBLAS_NUM_THREADS": "1",
     "MKL_NUM_THREADS": "1",
+    "OPENCV_FOR_THREADS_NUM": "1",
 }
 
 _tuned = False
@@ -47,6 +51,11 @@ def tune_worker_process() -> None:
         os.environ.setdefault(name, value)
     keep_arrays_on_heap()
     _thread_lock_for_tqdm()
+    # OpenCV reads OPENCV_FOR_THREADS_NUM once, when it is imported: a worker that imported it
+    # already (an existing cluster) is told directly.
+    import cv2
+
+    cv2.setNumThreads(1)
     try:
         from threadpoolctl import threadpool_limits
     except ImportError:

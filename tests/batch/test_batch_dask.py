@@ -14,6 +14,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+import cv2
 import pyarrow.parquet as pq
 import pytest
 
@@ -116,6 +117,9 @@ def test_existing_cluster_by_address_and_scheduler_file(
     )
     results = [json.loads(p.read_text()) for p in sorted((out / "results").glob("*.json"))]
     assert len({r["worker"] for r in results}) == 2
+    with distributed.Client(address, timeout="30s") as client:
+        # Workers we did not start are tuned in place: they share the cores, one OpenCV thread each.
+        assert set(client.run(cv2.getNumThreads).values()) == {1}
     one = fleet_dir / "robot_a" / "run.mcap"
     argv = [
         "batch",
@@ -142,6 +146,12 @@ def fragile_client() -> Iterator[Any]:
 
     with local_client(2, memory_limit="600MB", retries=0) as client:
         yield client
+
+
+def test_local_workers_run_opencv_on_one_thread(fragile_client: Any) -> None:
+    # Before any task: the workers start with it (OpenCV would otherwise use every core in each
+    # worker, and two workers on two cores spent a third more CPU).
+    assert set(fragile_client.run(cv2.getNumThreads).values()) == {1}
 
 
 def _kill_when_running(client: Any, task_key: str, done: threading.Event) -> None:
