@@ -231,3 +231,45 @@ def test_convert_command(tmp_path: Path) -> None:
     assert args.func(args) == 0
     assert out.is_file()
     assert (tmp_path / "final.yaml").is_file()
+
+
+def _on_a_terminal(argv: list[str]) -> str:
+    """What ``rose-bag ARGV`` writes to stderr when stderr is a 100-column terminal."""
+    import fcntl
+    import os
+    import pty
+    import struct
+    import subprocess
+    import sys
+    import termios
+
+    leader, follower = pty.openpty()
+    fcntl.ioctl(follower, termios.TIOCSWINSZ, struct.pack("HHHH", 40, 100, 0, 0))
+    code = "import sys; from rose_logs.cli import console; sys.exit(console())"
+    process = subprocess.Popen(
+        [sys.executable, "-c", code, *argv],
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.DEVNULL,
+        stderr=follower,
+    )
+    os.close(follower)
+    chunks = []
+    while True:
+        try:
+            chunk = os.read(leader, 4096)
+        except OSError:  # the follower side closed
+            break
+        if not chunk:
+            break
+        chunks.append(chunk)
+    os.close(leader)
+    assert process.wait(timeout=120) == 0
+    return b"".join(chunks).decode(errors="replace")
+
+
+def test_convert_shows_progress_over_the_scans_on_a_terminal_unless_quiet(tmp_path: Path) -> None:
+    argv = ["convert", str(repo_data(FR101)), str(tmp_path / "s.mcap"), "--max-scans", "30"]
+    shown = _on_a_terminal(argv)
+    assert "/30 [" in shown  # a bar over the 30 scans
+    assert "scan/s" in shown
+    assert "scan" not in _on_a_terminal([*argv, "--force", "-q"])

@@ -66,3 +66,19 @@ def test_public_clean_is_the_function_after_its_module_loads() -> None:
 
     assert callable(rose.clean)
     assert rose.clean is rose.cleaning.clean
+
+
+@pytest.mark.parametrize(("command", "package"), [("rose-bag", "rose_logs"), ("rose", "rose")])
+def test_version_is_the_installed_distributions(command: str, package: str) -> None:
+    import subprocess
+    import tomllib
+    from pathlib import Path
+
+    pyproject = Path(__file__).resolve().parents[1] / "pyproject.toml"
+    version = tomllib.loads(pyproject.read_text())["project"]["version"]
+    shown = subprocess.run(
+        [sys.executable, "-c", f"import sys; from {package}.cli import console; sys.exit(console())",
+         "--version"],
+        capture_output=True, text=True, check=False,
+    )  # fmt: skip
+    assert (shown.returncode, shown.stdout) == (0, f"{command} {version}\n")

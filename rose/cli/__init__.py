@@ -14,6 +14,7 @@ import sys
 from collections.abc import Sequence
 from typing import Any
 
+from rose import __version__
 from rose.errors import RoseError
 from rose.limits import short
 from rose.outputs import (
@@ -50,6 +51,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="rose", description="ROSE structure extraction and decluttering for map files."
     )
     parser.add_argument("--debug", action="store_true", help="show tracebacks")
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     # Imported here, inside main's handlers: numpy / scipy take seconds to load on a busy machine.
     from rose.cli import clean, score, walls

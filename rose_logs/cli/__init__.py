@@ -24,6 +24,7 @@ from rose.outputs import (
     signals_deferred,
     stdout_closed,
 )
+from rose_logs import __version__
 from rose_logs.errors import LogError
 from rose_logs.malloc import keep_arrays_on_heap
 
@@ -49,6 +50,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--debug", action="store_true", help="debug logging and tracebacks on errors"
     )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     # Imported here, inside main's handlers: the libraries take seconds to load on a busy machine.
     from rose_logs.cli import batch, convert, evaluate, info, process

@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import sys
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -85,6 +87,7 @@ def add_parser(subparsers: Any) -> None:
         help="use only the first N scans (N >= 1)",
     )
     parser.add_argument("-f", "--force", action="store_true", help="replace existing outputs")
+    parser.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     add_limit_arguments(parser)
     parser.add_argument(
         "--map-file",
@@ -126,9 +129,18 @@ def run(args: argparse.Namespace) -> int:
                 drift_seed=args.drift_seed,
                 drift_start_s=args.drift_start,
             )
-            summary = write_carmen_session(
-                log, args.output, fmt=args.fmt, options=options, force=args.force, outputs=outputs
-            )
+            with _scan_progress(
+                len(log.scans), enabled=not args.quiet and sys.stderr.isatty()
+            ) as progress:
+                summary = write_carmen_session(
+                    log,
+                    args.output,
+                    fmt=args.fmt,
+                    options=options,
+                    force=args.force,
+                    outputs=outputs,
+                    progress=progress,
+                )
         except ValueError as err:  # a parameter out of range: one line, like every other error
             msg = f"{args.output}: {err}"
             raise LogWriteError(msg) from err
@@ -157,6 +169,23 @@ def run(args: argparse.Namespace) -> int:
         f"{duration_s:.1f} s{clock}"
     )
     return 0
+
+
+@contextlib.contextmanager
+def _scan_progress(total: int, *, enabled: bool) -> Iterator[Callable[[int, int], None]]:
+    """A progress bar over the ``total`` scans on stderr (ray casting a long log takes a while),
+    gone when done."""
+    from tqdm import tqdm
+
+    with tqdm(
+        total=total, unit="scan", disable=not enabled, dynamic_ncols=True, leave=False
+    ) as bar:
+
+        def update(done: int, total: int) -> None:
+            del total  # known from the start
+            bar.update(done - bar.n)
+
+        yield update
 
 
 def _check_extent(log: CarmenLog, args: argparse.Namespace) -> None:
