@@ -264,3 +264,21 @@ def test_a_raw_map_that_is_no_occupancy_grid_names_the_file(
     assert len(err) == 1 and err[0].startswith("error: ") and "raw.yaml" in err[0], err
     assert "0..100" in err[0]
     assert not (tmp_path / "c.yaml").exists()
+
+
+def test_a_map_without_a_dominant_direction_is_kept_and_said_so(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """One occupied cell: W = 1 by convention, nothing labelled; "decluttering has likely failed"
+    would misread it, and "1 cells" reads badly."""
+    grid = np.zeros((5, 5), np.int8)
+    grid[2, 2] = 100
+    path = tmp_path / "speck.yaml"
+    rose.save_map(path, rose.OccupancyMap(grid=grid, resolution_m=0.05))
+    assert main(["clean", str(path), "-o", str(tmp_path / "c.yaml")]) == 0
+    out = capsys.readouterr().out
+    assert "no dominant direction: nothing labelled" in out and "failed" not in out
+    assert "occupied     1 cell\n" in out
+    assert "kept         1 cell (" in out
+    assert "completed    0 unknown cells made walls" in out
+    assert (rose.load_map(tmp_path / "c.yaml").grid == grid).all()

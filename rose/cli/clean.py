@@ -13,6 +13,7 @@ from rose.cleaning import CLEAN_METHODS, CleanResult, clean
 from rose.cli.options import (
     add_map_arguments,
     add_param_arguments,
+    cells,
     directions_deg,
     load_grid_map,
     params_from_args,
@@ -87,18 +88,23 @@ def run(args: argparse.Namespace) -> int:
         f"{fold_deg(d, 1):.1f}" for d in directions_deg(result, yaw_rad=source.origin_yaw_rad)
     )
     directions = f"{angles} deg" if angles else "none"
+    w_reading = verdict(
+        result.structure_score,
+        occupied_cells=result.occupied_count,
+        has_structure=result.has_structure,
+    )
     lines = [
         f"map          {args.map}  ({cols} x {rows} cells, {source.resolution_m:g} m/cell)",
-        f"W            {result.structure_score:.3f}  ({verdict(result.structure_score, occupied_cells=result.occupied_count)})",
+        f"W            {result.structure_score:.3f}  ({w_reading})",
         f"directions   {directions}",
         f"threshold    {threshold if threshold is not None and math.isfinite(threshold) else 'n/a'}",
-        f"occupied     {result.occupied_count} cells",
+        f"occupied     {cells(result.occupied_count)}",
         f"method       {cleaning.method}",
-        f"removed      {cleaning.removed_count} cells ({share:.1%}), set to {params.clutter_value}",
-        f"kept         {cleaning.kept_count} cells ({cleaning.rescued_count} of them against "
+        f"removed      {cells(cleaning.removed_count)} ({share:.1%}), set to {params.clutter_value}",
+        f"kept         {cells(cleaning.kept_count)} ({cleaning.rescued_count} of them against "
         f"the paper's labelling, {cleaning.guarded_count} by the gap guard)",
-        f"completed    {cleaning.completed_count} unknown cells made walls (the wall line hidden "
-        "behind removed clutter)",
+        f"completed    {cells(cleaning.completed_count, 'unknown')} made walls (the wall line "
+        "hidden behind removed clutter)",
         f"written      {args.output} + {image_path.name}",
         f"time         {elapsed * 1000:.0f} ms",
     ]

@@ -248,16 +248,25 @@ def result_summary(
     return summary
 
 
-def verdict(score: float, *, occupied_cells: int | None = None) -> str:
-    """The paper's reading of W: trusted below TRUST_LEVEL, failed above FAILURE_LEVEL; a map
-    without occupied cells has W = 1 by convention, which says nothing about it."""
+def verdict(score: float, *, occupied_cells: int | None = None, has_structure: bool = True) -> str:
+    """The paper's reading of W: trusted below TRUST_LEVEL, failed above FAILURE_LEVEL. A map
+    without occupied cells, or in which ROSE found no dominant direction, has W = 1 by convention
+    and nothing labelled: W says nothing about decluttering there."""
     if occupied_cells == 0:
         return "no occupied cells: W says nothing about this map"
+    if not has_structure:
+        return "no dominant direction: nothing labelled, the map is kept as it is"
     if score < TRUST_LEVEL:
         return "structured: decluttering can be trusted"
     if score <= FAILURE_LEVEL:
         return "weak structure: check the result"
     return "little structure: decluttering has likely failed"
+
+
+def cells(count: int, kind: str = "") -> str:
+    """``"1 cell"``, ``"3 cells"``; with ``kind``: ``"1 unknown cell"``."""
+    noun = "cell" if count == 1 else "cells"
+    return f"{count} {kind} {noun}" if kind else f"{count} {noun}"
 
 
 def load_grid_map(
