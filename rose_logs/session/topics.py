@@ -49,18 +49,31 @@ def find_map_topics(channels: Sequence[Channel]) -> tuple[str, ...]:
     )
 
 
-def update_targets(channels: Sequence[Channel], map_topics: Sequence[str]) -> dict[str, str]:
-    """Update topic -> map topic: ``<map>_updates`` by name, else the only map topic."""
+def update_targets(
+    channels: Sequence[Channel], map_topics: Sequence[str] | None = None
+) -> dict[str, str]:
+    """Update topic -> map topic, for the updates of the analysed ``map_topics`` (default: all).
+
+    An update topic belongs to ``<map>_updates``'s map by name, else to the log's only map topic. The
+    owner is decided among all the log's map topics, so that picking one map (``--topic``) never
+    hands it another map's patches; updates of maps not analysed are left out.
+    """
+    every_map = find_map_topics(channels)
+    wanted = set(every_map if map_topics is None else map_topics)
     targets = {}
     for c in channels:
         if c.msgtype != UPDATE_TYPE or c.message_encoding not in _DECODABLE:
             continue
-        if c.topic.endswith("_updates") and c.topic[: -len("_updates")] in map_topics:
-            targets[c.topic] = c.topic[: -len("_updates")]
-        elif len(map_topics) == 1:
-            targets[c.topic] = map_topics[0]
+        named = c.topic[: -len("_updates")] if c.topic.endswith("_updates") else None
+        if named in every_map:
+            owner = named
+        elif len(every_map) == 1:
+            owner = every_map[0]
         else:
             _LOG.warning("%s: grid updates for an unknown map topic, not applied", c.topic)
+            continue
+        if owner in wanted:
+            targets[c.topic] = owner
     return targets
 
 

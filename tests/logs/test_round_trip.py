@@ -255,3 +255,28 @@ def test_break_is_reported_at_the_first_distorted_snapshot(
         True,
     ]
     assert report.records[4].reused
+
+
+@pytest.mark.parametrize(("picked", "other"), [("/map", "/robot2/map"), ("/robot2/map", "/map")])
+def test_picking_one_map_never_applies_another_maps_updates(
+    tmp_path: Path, fr079, picked: str, other: str
+) -> None:
+    """Two map topics, updates for one of them: ``--topic`` on the other must not receive them (a
+    patch of another map erased walls and raised a false break)."""
+    base = fr079[0]
+    erase = np.zeros((100, 200), np.int8)  # free space over a stretch of the other map's walls
+    maps = [
+        MapMsg(START_NS + 1_000_000_000, base, topic="/map"),
+        MapMsg(START_NS + 1_000_000_000, base, topic="/robot2/map"),
+        MapMsg(START_NS + 2_000_000_000, erase, topic=f"{other}_updates", xy=(100, 50)),
+    ]
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps)
+    report = process_log(built.path, output_path=None, topics=[picked])
+    assert [(r.topic, r.from_update) for r in report.records] == [(picked, False)]
+    assert report.skipped_messages == 0  # not "malformed": simply not this map's
+    everything = process_log(built.path, output_path=None)
+    assert [(r.topic, r.from_update) for r in everything.records] == [
+        ("/map", False),
+        ("/robot2/map", False),
+        (other, True),
+    ]
