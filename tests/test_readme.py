@@ -33,7 +33,10 @@ def test_a_map_example_runs_and_writes_a_loadable_map(
     index: int, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
     source = repo_data(f"{FR079_DIR}/map15.yaml")
-    shutil.copy(source, tmp_path / "map.yaml")
+    # A rotated origin: an example that rebuilds the map from its parts would lose the yaw.
+    yaml_text = source.read_text().replace("0.000000]", "0.500000]")
+    assert "0.500000]" in yaml_text
+    (tmp_path / "map.yaml").write_text(yaml_text)
     shutil.copy(source.with_name("map15.png"), tmp_path)
     monkeypatch.chdir(tmp_path)
     exec(compile(map_examples()[index], f"README.md python block {index}", "exec"), {})
@@ -42,6 +45,7 @@ def test_a_map_example_runs_and_writes_a_loadable_map(
     original = rose.load_map("map.yaml")
     assert written.grid.shape == original.grid.shape
     assert written.origin_xy_m == original.origin_xy_m
+    assert written.origin_yaw_rad == pytest.approx(original.origin_yaw_rad) == 0.5
     # Cleaning removes occupied cells and never invents free space out of unknown.
     assert (written.grid >= 65).sum() < (original.grid >= 65).sum()
     assert ((original.grid == -1) & (written.grid == 0)).sum() == 0
