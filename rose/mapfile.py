@@ -51,6 +51,9 @@ YAML_SUFFIXES = frozenset({".yaml", ".yml"})
 SAVED_FREE = 254
 SAVED_OCCUPIED = 0
 SAVED_UNKNOWN = 205
+#: Occupancies (percent) ROS map_saver writes as free / occupied by default (``--free 25 --occ 65``).
+SAVED_FREE_AT_MOST = 25
+SAVED_OCCUPIED_FROM = 65
 
 MAX_RESOLUTION_M = 1e4
 """Largest cell size accepted (metres); anything larger is a corrupt value, not a map."""
@@ -346,11 +349,15 @@ def image_to_grid(
 
 
 def grid_to_image(
-    grid: npt.NDArray[np.int8], *, occupied_threshold: int = 65
+    grid: npt.NDArray[np.int8],
+    *,
+    occupied_threshold: int = SAVED_OCCUPIED_FROM,
+    free_threshold: int = SAVED_FREE_AT_MOST,
 ) -> npt.NDArray[np.uint8]:
-    """Trinary map_saver image (top row first): free 254, occupied 0, everything else 205."""
+    """Trinary image as ROS map_saver writes it (top row first): occupancy ``0..free_threshold``
+    free (254), ``occupied_threshold..100`` occupied (0), everything else, unknown included, 205."""
     image = np.full(grid.shape, SAVED_UNKNOWN, dtype=np.uint8)
-    image[grid == 0] = SAVED_FREE
+    image[(grid >= 0) & (grid <= free_threshold)] = SAVED_FREE
     image[grid >= occupied_threshold] = SAVED_OCCUPIED
     return np.flipud(image)
 

@@ -32,6 +32,16 @@ def test_trinary_round_trip_is_lossless(tmp_path: Path) -> None:
     assert loaded.origin_yaw_rad == pytest.approx(0.1)
 
 
+def test_saved_maps_classify_occupancies_as_ros_map_saver_does(tmp_path: Path) -> None:
+    """map_saver's defaults (free <= 25, occupied >= 65): low occupancies of free space (a
+    ``mode: scale`` map, Cartographer's grids) stay free instead of becoming unknown."""
+    values = [-1, 0, 10, 19, 25, 26, 50, 64, 65, 66, 100]
+    grid = np.array([values], dtype=np.int8)
+    rose.save_map(tmp_path / "m.yaml", OccupancyMap(grid=grid, resolution_m=0.05))
+    loaded = rose.load_map(tmp_path / "m.yaml").grid
+    assert loaded[0].tolist() == [-1, 0, 0, 0, 0, -1, -1, -1, 100, 100, 100]
+
+
 def test_real_map_round_trip(tmp_path: Path) -> None:
     source = rose.load_map(repo_data(f"{FR079_DIR}/map5.yaml"))
     rose.save_map(tmp_path / "copy.yaml", source)
