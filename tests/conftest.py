@@ -46,7 +46,7 @@ def _signal_state_isolated() -> Iterator[None]:
 @pytest.fixture(autouse=True)
 def _logging_isolated() -> Iterator[None]:
     """Each test starts with the logging set-up the previous one found. A command run in-process
-    points the ``rose_logs`` logger at the stderr of that moment (a test's captured stream, closed
+    points the ``rose_logs`` and ``rose`` loggers at the stderr of that moment (a test's captured stream, closed
     once the test ends) and stops it propagating: later tests' warnings would go to a closed file,
     and pytest's ``caplog`` would never see them."""
     kept = {
@@ -54,6 +54,7 @@ def _logging_isolated() -> Iterator[None]:
         for name, logger in (
             ("", logging.getLogger()),
             ("rose_logs", logging.getLogger("rose_logs")),
+            ("rose", logging.getLogger("rose")),
         )
     }
     yield

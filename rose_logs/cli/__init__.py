@@ -63,12 +63,35 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _configure_logging(debug: bool) -> None:
-    handler = logging.StreamHandler(sys.stderr)
-    handler.setFormatter(LevelFormatter())
-    root = logging.getLogger("rose_logs")
-    root.handlers[:] = [handler]
-    root.setLevel(logging.DEBUG if debug else logging.WARNING)
-    root.propagate = False
+    """``warning: ...`` lines on stderr for our logs and for the ``rose`` library underneath.
+
+    A session calls the library once per snapshot: its messages (``ROSE found no dominant
+    direction ...``) are said once per run, not once per snapshot.
+    """
+    for name, once in (("rose_logs", False), ("rose", True)):
+        handler = logging.StreamHandler(sys.stderr)
+        handler.setFormatter(LevelFormatter())
+        if once:
+            handler.addFilter(_OncePerMessage())
+        logger = logging.getLogger(name)
+        logger.handlers[:] = [handler]
+        logger.setLevel(logging.DEBUG if debug else logging.WARNING)
+        logger.propagate = False
+
+
+class _OncePerMessage(logging.Filter):
+    """Lets each distinct message through once."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._seen: set[str] = set()
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        message = record.getMessage()
+        if message in self._seen:
+            return False
+        self._seen.add(message)
+        return True
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -164,7 +164,8 @@ def _print_summary(report: Any, out: TextIO) -> None:
             f"+{duration_text(records[-1].log_time_ns - start)}",
             file=out,
         )
-        sizes = sorted({(r.width, r.height) for r in records})
+        # Smallest to largest grid by cells (then width): the range a growing SLAM map spans.
+        sizes = sorted({(r.width, r.height) for r in records}, key=lambda s: (s[0] * s[1], s))
         size_text = f"{sizes[0][0]} x {sizes[0][1]}" + (
             f" .. {sizes[-1][0]} x {sizes[-1][1]}" if len(sizes) > 1 else ""
         )

@@ -266,3 +266,33 @@ def test_empty_first_maps_do_not_trip_the_w_gate(
     assert topic["first_w_above"] is None
     assert "(1 empty map left out)" in capsys.readouterr().out
     assert topic["snapshots"] == 2
+
+
+def test_a_library_warning_repeated_by_every_snapshot_is_said_once(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--walls`` on snapshots without a dominant direction: the library's warning reads like the
+    command's own (``warning: ...``) and comes once, not once per snapshot."""
+    import numpy as np
+
+    grids = []
+    for i in range(3):  # one occupied cell each, in another place: nothing is reused
+        grid = np.zeros((40, 40), np.int8)
+        grid[10 + i, 20] = 100
+        grids.append(grid)
+    log = build_log(tmp_path / "in.mcap", "mcap-ros2", session_maps(grids)).path
+    assert main(["process", str(log), "--no-output", "--walls", "-q"]) == 0
+    err = capsys.readouterr().err
+    assert err.count("warning: ROSE found no dominant direction") == 1, err
+    assert "\nROSE found" not in f"\n{err}"
+
+
+def test_the_grid_range_runs_from_the_smallest_map_to_the_largest(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import numpy as np
+
+    grids = [np.zeros((1, 50), np.int8), np.zeros((40, 3), np.int8)]  # 50 x 1, then 3 x 40 cells
+    log = build_log(tmp_path / "in.mcap", "mcap-ros2", session_maps(grids)).path
+    assert main(["process", str(log), "--no-output", "-q"]) == 0
+    assert "grid         50 x 1 .. 3 x 40 cells" in capsys.readouterr().out
