@@ -28,6 +28,7 @@ from rose_logs.formats import LogFormat, detect_format
 from rose_logs.storage.connections import QosStyle
 from rose_logs.storage.mcap import McapReadBackend, McapStreamReadBackend
 from rose_logs.storage.records import Channel, RawMessage
+from rose_logs.storage.ros1_stream import Ros1StreamReadBackend
 from rose_logs.storage.rosbags import RosbagsReadBackend
 
 __all__ = ["Channel", "LogReader", "MessageLossError", "RawMessage"]
@@ -80,7 +81,7 @@ class LogReader:
         self.salvage = salvage
         self.losses: list[str] = []
         self.read_count = 0
-        self._backend: RosbagsReadBackend | McapReadBackend | None = None
+        self._backend: RosbagsReadBackend | McapReadBackend | Ros1StreamReadBackend | None = None
 
     # -- lifecycle -------------------------------------------------------------------------------
     def open(self) -> None:
@@ -102,7 +103,7 @@ class LogReader:
         except Exception as err:  # library errors of every kind: wrap at the boundary
             backend.close()
             reraise_interrupt_behind(err)
-            salvaged = self._salvage_mcap() if self.format == "mcap" and self.salvage else None
+            salvaged = self._salvage_stream() if self.salvage else None
             if salvaged is None:
                 if isinstance(err, LogError):
                     raise
@@ -112,22 +113,36 @@ class LogReader:
 
     def _unreadable(self, err: BaseException) -> LogReadError:
         """The error for a log that cannot be opened (``err``: the library's)."""
-        if self.format != "mcap":
+        if self.format not in ("mcap", "ros1"):
             return _corrupt(self.path, err)
         remedy = (
             "nothing before the damage can be read either"
             if self.salvage
             else "`rose-bag process --salvage` keeps the messages before the damage"
         )
+        what = (
+            "MCAP file, its index at the end cannot be read"
+            if self.format == "mcap"
+            else "ROS 1 bag, its index cannot be read (a recording that was not closed?)"
+        )
+        detail = _ONE_ITEM_TUPLE.sub(lambda m: m.group(2), str(err))
         return LogReadError(
-            f"{self.path}: corrupt or truncated MCAP file, its index at the end cannot be read "
-            f"({short(err, 120)}); {remedy}"
+            f"{self.path}: corrupt or truncated {what} ({short(detail, 120)}); {remedy}"
         )
 
-    def _salvage_mcap(self) -> McapStreamReadBackend | None:
-        """The readable start of an MCAP file whose end is missing or damaged (None when not even
-        that can be read); the damage goes to :attr:`losses`."""
-        backend = McapStreamReadBackend(self.path)
+    def _salvage_stream(self) -> McapStreamReadBackend | Ros1StreamReadBackend | None:
+        """The readable start of an MCAP file whose end is missing or damaged, or of a ROS 1 bag
+        without a readable index (None for other formats, or when not even that can be read); the
+        damage goes to :attr:`losses`."""
+        backend: McapStreamReadBackend | Ros1StreamReadBackend
+        if self.format == "mcap":
+            backend = McapStreamReadBackend(self.path)
+            where = "the end of the file is missing or damaged"
+        elif self.format == "ros1":
+            backend = Ros1StreamReadBackend(self.path)
+            where = "the bag's index is missing or damaged"
+        else:
+            return None
         try:
             backend.open()
         except Exception as err:
@@ -139,8 +154,8 @@ class LogReader:
             return None
         read = sum(c.message_count for c in backend.channels)
         problem = (
-            f"{self.path}: the end of the file is missing or damaged ({backend.damage}); "
-            f"kept the {read} messages before it, in file order"
+            f"{self.path}: {where} ({backend.damage}); kept the {read} messages before it, "
+            "in file order"
         )
         self.losses.append(problem)
         _LOG.warning("%s", problem)
@@ -166,7 +181,7 @@ class LogReader:
 
     # -- index -----------------------------------------------------------------------------------
     @property
-    def _open_backend(self) -> RosbagsReadBackend | McapReadBackend:
+    def _open_backend(self) -> RosbagsReadBackend | McapReadBackend | Ros1StreamReadBackend:
         if self._backend is None:
             msg = f"{self.path}: reader is not open"
             raise LogReadError(msg)

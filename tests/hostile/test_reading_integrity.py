@@ -108,6 +108,106 @@ def test_salvage_keeps_the_readable_start_of_a_truncated_mcap_file(
         assert reader.message_count >= salvaged["message_count"]
 
 
+@pytest.fixture(scope="module")
+def ros1_bag(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list[tuple[int, int]]]:
+    """A ROS 1 bag of several chunks (a CARMEN session) and each chunk's ``(position, messages)``."""
+    from rosbags.rosbag1 import Reader
+
+    log = Path(__file__).resolve().parents[1] / "data" / "radish_carmen_corrected_logs"
+    bag = tmp_path_factory.mktemp("ros1") / "s.bag"
+    argv = ["convert", str(log / "freiburg-101-corrected.log.gz"), str(bag), "-q"]
+    assert main([*argv, "--resolution", "0.1", "--map-period", "60"]) == 0
+    with Reader(bag) as reader:
+        chunks = [(c.pos, sum(c.connection_counts.values())) for c in reader.chunk_infos]
+    assert len(chunks) >= 4
+    return bag, chunks
+
+
+def _messages(path: Path, *, salvage: bool = False) -> list[tuple[str, int, bytes]]:
+    with LogReader(path, salvage=salvage) as reader:
+        return [(m.channel.topic, m.log_time_ns, bytes(m.data)) for m in reader.messages()]
+
+
+def _in_file_order(bag: Path) -> list[tuple[str, int, bytes]]:
+    """Every message of an intact bag read record by record (the salvage reader), checked against
+    rosbags' indexed reading: the same messages."""
+    from rose_logs.storage.ros1_stream import Ros1StreamReadBackend
+
+    backend = Ros1StreamReadBackend(bag)
+    try:
+        backend.open()
+        streamed = [(m.channel.topic, m.log_time_ns, bytes(m.data)) for m in backend.messages(None)]
+    finally:
+        backend.close()
+    assert sorted(streamed) == sorted(_messages(bag))
+    return streamed
+
+
+def test_salvage_keeps_the_complete_chunks_of_a_truncated_ros1_bag(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], ros1_bag: tuple[Path, list]
+) -> None:
+    bag, chunks = ros1_bag
+    (start, _), (end, _) = chunks[2], chunks[3]
+    cut = tmp_path / "cut.bag"
+    cut.write_bytes(bag.read_bytes()[: (start + end) // 2])  # in the middle of the third chunk
+    out, report = tmp_path / "o.bag", tmp_path / "r.json"
+    code, _, err = _run(capsys, "process", cut, "-o", out, "-q")
+    assert code == 1 and "truncated ROS 1 bag" in err and "--salvage" in err
+    assert not out.exists()
+    code, _, err = _run(capsys, "process", cut, "-o", out, "--json", report, "-q", "--salvage")
+    assert code == EXIT_SALVAGED
+    assert err.count("index is missing or damaged") == 1, err
+    kept = sum(count for _, count in chunks[:2])
+    assert _messages(cut, salvage=True) == _in_file_order(bag)[:kept]
+    assert json.loads(report.read_text())["message_count"] == kept
+    with LogReader(out) as reader:  # a complete, indexed bag: the two chunks and our topics
+        topics = {c.topic for c in reader.channels}
+        assert {"/map", "/scan", "/map/rose/cleaned"} <= topics
+
+
+def test_salvage_reads_a_ros1_bag_that_was_never_closed(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], ros1_bag: tuple[Path, list]
+) -> None:
+    """``rosbag record`` killed: the header's index position is 0 and no index follows the chunks."""
+    bag, chunks = ros1_bag
+    data = bytearray(bag.read_bytes()[: chunks[3][0]])  # three whole chunks
+    at = data.index(b"index_pos=") + len(b"index_pos=")
+    data[at : at + 8] = bytes(8)
+    active = tmp_path / "s.bag.active"
+    active.write_bytes(bytes(data))
+    code, _, err = _run(capsys, "process", active, "--no-output", "-q")
+    assert code == 1 and "not closed?" in err and "--salvage" in err
+    code, _, err = _run(capsys, "process", active, "--no-output", "-q", "--salvage")
+    assert code == EXIT_SALVAGED
+    assert "the recording was not closed" in err
+    kept = sum(count for _, count in chunks[:3])
+    assert _messages(active, salvage=True) == _in_file_order(bag)[:kept]
+
+
+@pytest.mark.parametrize("compression", ["BZ2", "LZ4"])
+def test_the_record_by_record_reader_decompresses_ros1_chunks(
+    tmp_path: Path, compression: str
+) -> None:
+    from rosbags.rosbag1 import Reader, Writer
+
+    plain, packed = tmp_path / "plain.bag", tmp_path / "packed.bag"
+    write_session(plain, "ros1")
+    with Reader(plain) as reader:
+        writer = Writer(packed)
+        writer.set_compression(getattr(Writer.CompressionFormat, compression))
+        with writer:
+            conns = {
+                c.id: writer.add_connection(
+                    c.topic, c.msgtype, msgdef=c.msgdef.data, md5sum=c.digest,
+                    callerid=c.ext.callerid, latching=c.ext.latching,
+                )
+                for c in reader.connections
+            }  # fmt: skip
+            for conn, t, data in reader.messages():
+                writer.write(conns[conn.id], t, data)
+    assert _in_file_order(packed)  # every message, as rosbags reads them
+
+
 def test_metadata_type_disagreeing_with_storage_is_an_error(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
