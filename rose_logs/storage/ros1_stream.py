@@ -133,22 +133,38 @@ def _connection(fields: dict[str, bytes], data: bytes) -> _Connection:
     )
 
 
+#: Largest chunk accepted, uncompressed (rosbag's chunks are 768 KiB by default; a chunk holds one
+#: message at least: a map of --max-cells (1e8 cells) is 100 MB).
+_MAX_CHUNK_BYTES = 256 << 20
+
+
 def _decompress(fields: dict[str, bytes], data: bytes) -> bytes:
+    """A chunk's content: at most the size its header declares, so that a hostile chunk cannot
+    expand without bound (a few KB of bz2 can declare gigabytes)."""
     compression = fields.get("compression", b"none").decode("ascii", "replace")
+    size = _uint(fields, "size", "<I")
+    if size > _MAX_CHUNK_BYTES:
+        msg = f"a chunk of {size} bytes, more than {_MAX_CHUNK_BYTES}"
+        raise _Damage(msg)
     try:
         if compression == "none":
-            return data
-        if compression == "bz2":
-            return bz2.decompress(data)
-        if compression == "lz4":
-            from lz4.frame import decompress  # type: ignore[import-untyped]
+            content = data
+        elif compression == "bz2":
+            content = bz2.BZ2Decompressor().decompress(data, max_length=size)
+        elif compression == "lz4":
+            from lz4.frame import LZ4FrameDecompressor  # type: ignore[import-untyped]
 
-            return bytes(decompress(data))
-    except (OSError, ValueError, RuntimeError) as err:
+            content = bytes(LZ4FrameDecompressor().decompress(data, max_length=size))
+        else:
+            msg = f"a chunk compressed with unknown {compression!r}"
+            raise _Damage(msg)
+    except (OSError, ValueError, RuntimeError, EOFError) as err:
         msg = f"a {compression} chunk that does not decompress ({short(err, 80)})"
         raise _Damage(msg) from err
-    msg = f"a chunk compressed with unknown {compression!r}"
-    raise _Damage(msg)
+    if len(content) != size:
+        msg = f"a {compression} chunk of {len(content)} bytes that declares {size}"
+        raise _Damage(msg)
+    return content
 
 
 class Ros1StreamReadBackend:

@@ -208,6 +208,53 @@ def test_the_record_by_record_reader_decompresses_ros1_chunks(
     assert _in_file_order(packed)  # every message, as rosbags reads them
 
 
+def _ros1_record(fields: dict[str, bytes], data: bytes) -> bytes:
+    import struct
+
+    header = b"".join(
+        struct.pack("<I", len(k) + 1 + len(v)) + k.encode() + b"=" + v for k, v in fields.items()
+    )
+    return struct.pack("<I", len(header)) + header + struct.pack("<I", len(data)) + data
+
+
+@pytest.fixture(scope="module")
+def bz2_bomb() -> bytes:
+    """A few hundred bytes of bz2 that expand to 600 MB (built without holding the 600 MB)."""
+    import bz2
+
+    packer = bz2.BZ2Compressor(9)
+    block = bytes(1 << 20)
+    return b"".join(packer.compress(block) for _ in range(600)) + packer.flush()
+
+
+@pytest.mark.parametrize("declared", [1 << 31, 4096])
+def test_a_bz2_bomb_in_a_salvaged_ros1_bag_never_expands_past_its_declared_size(
+    tmp_path: Path, bz2_bomb: bytes, declared: int
+) -> None:
+    """Refused when the chunk declares more than any real chunk, cut at the declared size otherwise
+    (then its records do not parse): one error line, and memory stays that of the program."""
+    import struct
+    import subprocess
+    import sys
+
+    bag = tmp_path / "bomb.bag.active"
+    header = {"op": b"\x03", "index_pos": bytes(8), "conn_count": bytes(4), "chunk_count": bytes(4)}
+    chunk = {"op": b"\x05", "compression": b"bz2", "size": struct.pack("<I", declared)}
+    records = _ros1_record(header, b" " * 16) + _ros1_record(chunk, bz2_bomb)
+    bag.write_bytes(b"#ROSBAG V2.0\n" + records)
+    code = (
+        "import resource, sys; from rose_logs.cli import main; "
+        "code = main(sys.argv[1:]); "
+        "print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss // 1024); sys.exit(code)"
+    )
+    argv = ["process", str(bag), "--no-output", "-q", "--salvage"]
+    run = subprocess.run(
+        [sys.executable, "-c", code, *argv], capture_output=True, text=True, timeout=120
+    )
+    assert run.returncode == 1 and run.stderr.startswith(f"error: {bag}"), run.stderr
+    assert int(run.stdout.split()[-1]) < 450  # MB; the bomb alone is 600
+
+
 def test_metadata_type_disagreeing_with_storage_is_an_error(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
