@@ -242,10 +242,11 @@ def test_a_bz2_bomb_in_a_salvaged_ros1_bag_never_expands_past_its_declared_size(
     chunk = {"op": b"\x05", "compression": b"bz2", "size": struct.pack("<I", declared)}
     records = _ros1_record(header, b" " * 16) + _ros1_record(chunk, bz2_bomb)
     bag.write_bytes(b"#ROSBAG V2.0\n" + records)
+    # VmHWM: the peak of this program's own memory (ru_maxrss would include the forking parent's).
     code = (
-        "import resource, sys; from rose_logs.cli import main; "
-        "code = main(sys.argv[1:]); "
-        "print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss // 1024); sys.exit(code)"
+        "import re, sys; from rose_logs.cli import main; code = main(sys.argv[1:]); "
+        "status = open('/proc/self/status').read(); "
+        "print(int(re.search(r'VmHWM:\\s+(\\d+)', status).group(1)) // 1024); sys.exit(code)"
     )
     argv = ["process", str(bag), "--no-output", "-q", "--salvage"]
     run = subprocess.run(
