@@ -10,6 +10,10 @@ Supported inputs (:func:`detect_format`):
 
 Messages are never decoded here: :class:`RawMessage` carries the serialised bytes, so copying is byte for
 byte and memory stays flat in the number of messages. Decoding map messages is :mod:`rose_logs.derived`.
+
+With ``salvage``, an MCAP file whose summary is missing and a ROS 1 bag whose index cannot be used are
+read record by record from their start instead (:mod:`rose_logs.storage.mcap`,
+:mod:`rose_logs.storage.ros1_stream`): their messages then come in file order.
 """
 
 from __future__ import annotations
@@ -36,12 +40,15 @@ __all__ = ["Channel", "LogReader", "MessageLossError", "RawMessage"]
 _LOG = logging.getLogger(__name__)
 
 
-def _corrupt(path: Path, err: BaseException) -> LogReadError:
-    # rosbags formats a wrapped error's args tuple into its message ("...: ('Header could not be
-    # read from file.',)"): show the text, not the Python repr.
+def _library_text(err: BaseException) -> str:
+    """A library error as text. rosbags formats a wrapped error's args tuple into its message
+    ("...: ('Header could not be read from file.',)"): show the text, not the Python repr."""
     text = _ONE_ITEM_TUPLE.sub(lambda m: m.group(2), str(err))
-    detail = short(text, 160) if text.strip() else type(err).__name__
-    return LogReadError(f"{path}: corrupt or truncated log ({detail})")
+    return text if text.strip() else type(err).__name__
+
+
+def _corrupt(path: Path, err: BaseException) -> LogReadError:
+    return LogReadError(f"{path}: corrupt or truncated log ({short(_library_text(err), 160)})")
 
 
 _ONE_ITEM_TUPLE = re.compile(r"""\((['"])(.*?)\1,\)""")
@@ -92,7 +99,7 @@ class LogReader:
         LogReadError
             If the log is corrupt, truncated or unsupported.
         """
-        backend: RosbagsReadBackend | McapReadBackend
+        backend: RosbagsReadBackend | McapReadBackend | Ros1StreamReadBackend
         backend = (
             McapReadBackend(self.path)
             if self.format == "mcap"
@@ -125,9 +132,8 @@ class LogReader:
             if self.format == "mcap"
             else "ROS 1 bag, its index cannot be read (a recording that was not closed?)"
         )
-        detail = _ONE_ITEM_TUPLE.sub(lambda m: m.group(2), str(err))
         return LogReadError(
-            f"{self.path}: corrupt or truncated {what} ({short(detail, 120)}); {remedy}"
+            f"{self.path}: corrupt or truncated {what} ({short(_library_text(err), 120)}); {remedy}"
         )
 
     def _salvage_stream(self) -> McapStreamReadBackend | Ros1StreamReadBackend | None:
@@ -153,6 +159,10 @@ class LogReader:
             backend.close()
             return None
         read = sum(c.message_count for c in backend.channels)
+        if isinstance(backend, Ros1StreamReadBackend) and backend.complete:
+            # Only the header's pointer to the index was wrong: nothing is lost.
+            _LOG.warning("%s: %s, read record by record, in file order", self.path, backend.damage)
+            return backend
         problem = (
             f"{self.path}: {where} ({backend.damage}); kept the {read} messages before it, "
             "in file order"
@@ -225,7 +235,8 @@ class LogReader:
         return "cdr"
 
     def messages(self, *, topics: Collection[str] | None = None) -> Iterator[RawMessage]:
-        """Every message (or those on ``topics``), in log-time order.
+        """Every message (or those on ``topics``), in log-time order (in file order for a log
+        salvaged record by record, see the module notes).
 
         Raises
         ------

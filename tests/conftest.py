@@ -45,24 +45,26 @@ def _signal_state_isolated() -> Iterator[None]:
 
 @pytest.fixture(autouse=True)
 def _logging_isolated() -> Iterator[None]:
-    """Each test starts with the logging set-up the previous one found. A command run in-process
-    points the ``rose_logs`` and ``rose`` loggers at the stderr of that moment (a test's captured stream, closed
-    once the test ends) and stops it propagating: later tests' warnings would go to a closed file,
-    and pytest's ``caplog`` would never see them."""
-    kept = {
-        name: (logger.handlers[:], logger.level, logger.propagate)
-        for name, logger in (
-            ("", logging.getLogger()),
-            ("rose_logs", logging.getLogger("rose_logs")),
-            ("rose", logging.getLogger("rose")),
-        )
-    }
+    """Each test starts with our packages' loggers as Python leaves them, and the root logger as the
+    previous test found it. A command run in-process (in a test or in a module-scoped fixture)
+    points the ``rose_logs`` and ``rose`` loggers at the stderr of that moment (a captured stream,
+    closed once the test ends) and stops them propagating: later tests' warnings would go to a
+    closed file, and pytest's ``caplog`` would never see them."""
+
+    def pristine() -> None:
+        for name in ("rose_logs", "rose"):
+            logger = logging.getLogger(name)
+            logger.handlers[:] = []
+            logger.setLevel(logging.NOTSET)
+            logger.propagate = True
+
+    root = logging.getLogger()
+    handlers, level = root.handlers[:], root.level
+    pristine()
     yield
-    for name, (handlers, level, propagate) in kept.items():
-        logger = logging.getLogger(name or None)
-        logger.handlers[:] = handlers
-        logger.setLevel(level)
-        logger.propagate = propagate
+    pristine()
+    root.handlers[:] = handlers
+    root.setLevel(level)
 
 
 def pytest_runtest_setup(item: pytest.Item) -> None:

@@ -69,7 +69,7 @@ def test_public_clean_is_the_function_after_its_module_loads() -> None:
 
 
 @pytest.mark.parametrize(("command", "package"), [("rose-bag", "rose_logs"), ("rose", "rose")])
-def test_version_is_the_installed_distributions(command: str, package: str) -> None:
+def test_version_is_the_one_pyproject_declares(command: str, package: str) -> None:
     import subprocess
     import tomllib
     from pathlib import Path

@@ -181,8 +181,7 @@ def _scan_progress(total: int, *, enabled: bool) -> Iterator[Callable[[int, int]
         total=total, unit="scan", disable=not enabled, dynamic_ncols=True, leave=False
     ) as bar:
 
-        def update(done: int, total: int) -> None:
-            del total  # known from the start
+        def update(done: int, _total: int) -> None:  # the total is known from the start
             bar.update(done - bar.n)
 
         yield update

@@ -22,6 +22,8 @@ __all__ = [
 _LOG = logging.getLogger(__name__)
 
 _DECODABLE = {"ros1", "cdr"}
+#: The name rosbag record gives a bag while it records (left so when it is killed).
+_ACTIVE_BAG = ".bag.active"
 #: The map topics we add ourselves end so (only ``<map>/rose/cleaned`` is an OccupancyGrid).
 _DERIVED_MAP_SUFFIX = derived_topics("").cleaned
 
@@ -54,21 +56,24 @@ def update_targets(
 ) -> dict[str, str]:
     """Update topic -> map topic, for the updates of the analysed ``map_topics`` (default: all).
 
-    An update topic belongs to ``<map>_updates``'s map by name, else to the log's only map topic. The
-    owner is decided among all the log's map topics, so that picking one map (``--topic``) never
-    hands it another map's patches; updates of maps not analysed are left out.
+    An update topic belongs to ``<map>_updates``'s map by name, else to the log's only map topic.
+    The owner is decided among every ``OccupancyGrid`` topic of the log (those we cannot decode
+    too), so that picking one map (``--topic``) never hands it another map's patches; updates of
+    maps not analysed are left out.
     """
-    every_map = find_map_topics(channels)
-    wanted = set(every_map if map_topics is None else map_topics)
+    grids = sorted(
+        {c.topic for c in channels if c.msgtype == MAP_TYPE and not is_derived_topic(c.topic)}
+    )
+    wanted = set(find_map_topics(channels) if map_topics is None else map_topics)
     targets = {}
     for c in channels:
         if c.msgtype != UPDATE_TYPE or c.message_encoding not in _DECODABLE:
             continue
-        named = c.topic[: -len("_updates")] if c.topic.endswith("_updates") else None
-        if named in every_map:
+        named = c.topic.removesuffix("_updates") if c.topic.endswith("_updates") else None
+        if named in grids:
             owner = named
-        elif len(every_map) == 1:
-            owner = every_map[0]
+        elif len(grids) == 1:
+            owner = grids[0]
         else:
             _LOG.warning("%s: grid updates for an unknown map topic, not applied", c.topic)
             continue
@@ -78,7 +83,8 @@ def update_targets(
 
 
 def default_output_path(input_path: Path) -> Path:
-    """``run.mcap`` -> ``run.rose.mcap``, ``run.bag`` -> ``run.rose.bag``, folder ``run`` -> ``run.rose``.
+    """``run.mcap`` -> ``run.rose.mcap``, ``run.bag`` (or ``run.bag.active``) -> ``run.rose.bag``,
+    folder ``run`` -> ``run.rose``.
 
     A path without a name of its own (``.``, ``bags/..``) is named by its absolute form.
     """
@@ -90,6 +96,8 @@ def default_output_path(input_path: Path) -> Path:
         raise LogWriteError(msg)
     if path.is_dir() or path.suffix.lower() == ".db3":
         return path.with_name(f"{path.stem if path.is_file() else path.name}.rose")
+    if path.name.lower().endswith(_ACTIVE_BAG):  # a recording rosbag never closed
+        return path.with_name(f"{path.name[: -len(_ACTIVE_BAG)]}.rose.bag")
     return path.with_name(f"{path.stem}.rose{path.suffix}")
 
 

@@ -148,10 +148,12 @@ class McapStreamReadBackend(McapReadBackend):
     def __init__(self, path: Path) -> None:
         super().__init__(path)
         self.damage = ""
+        self._end: int | None = None  # where open() stopped: messages() stops there too
 
     def _records(self) -> Iterator[Any]:
         """Records from the start of the file up to the first unreadable one (which sets
-        :attr:`damage`)."""
+        :attr:`damage`), or to where :meth:`open` stopped (a recording still being written has
+        more by the second pass, which must hand out what the first one counted)."""
         from mcap.stream_reader import StreamReader
 
         assert self.stream is not None
@@ -161,15 +163,19 @@ class McapStreamReadBackend(McapReadBackend):
         records = reader.records
         while True:
             offset = self.stream.tell()
+            if self._end is not None and offset >= self._end:
+                return
             try:
                 record = next(records)
             except StopIteration:
-                return
+                break
             except Exception as err:  # the damaged end: any library error, stop there
                 reason = str(err) or type(err).__name__
                 self.damage = f"unreadable from byte {offset} of {size}: {short(reason, 120)}"
-                return
+                break
             yield record
+        if self._end is None:
+            self._end = offset
 
     def open(self) -> None:
         from mcap.records import Channel as McapChannel

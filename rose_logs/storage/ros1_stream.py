@@ -32,7 +32,15 @@ __all__ = ["Ros1StreamReadBackend"]
 _MAGIC = b"#ROSBAG V2.0\n"
 _OP_MESSAGE = 0x02
 _OP_CHUNK = 0x05
+_OP_CHUNK_INFO = 0x06
 _OP_CONNECTION = 0x07
+#: More connections than any recording has: a hostile file could otherwise make millions.
+_MAX_CONNECTIONS = 65536
+#: Largest chunk accepted, uncompressed (rosbag's chunks are 768 KiB by default; a chunk holds one
+#: message at least: a map of --max-cells (1e8 cells) is 100 MB).
+_MAX_CHUNK_BYTES = 256 << 20
+#: Largest record read: a chunk of that size, stored, plus room for framing.
+_MAX_RECORD_BYTES = _MAX_CHUNK_BYTES + (16 << 20)
 
 
 class _Damage(Exception):
@@ -73,12 +81,16 @@ def _fields(block: bytes) -> dict[str, bytes]:
 
 
 def _read_block(stream: BinaryIO, end: int, what: str) -> bytes:
-    """A length-prefixed block (a record's header or data) that must end by byte ``end``."""
+    """A length-prefixed block (a record's header or data) that must end by byte ``end`` and hold
+    at most :data:`_MAX_RECORD_BYTES` (checked before it is read)."""
     raw = stream.read(4)
     if len(raw) < 4:
         msg = f"the file ends inside a record's {what} length"
         raise _Damage(msg)
     (length,) = struct.unpack("<I", raw)
+    if length > _MAX_RECORD_BYTES:
+        msg = f"a record's {what} of {length} bytes, more than any chunk"
+        raise _Damage(msg)
     if stream.tell() + length > end:
         msg = f"a record's {what} ({length} bytes) runs past the end"
         raise _Damage(msg)
@@ -125,17 +137,11 @@ def _connection(fields: dict[str, bytes], data: bytes) -> _Connection:
     except (KeyError, UnicodeDecodeError) as err:
         msg = "a connection record without a readable topic or type"
         raise _Damage(msg) from err
-    latching = None
-    if "latching" in info:
-        latching = 1 if info["latching"].strip() in (b"1", b"true") else 0
+    flag = info.get("latching", b"").strip()  # as rosbags reads it: a number, else none
+    latching = int(flag) if flag.isdigit() else None
     return _Connection(
         _uint(fields, "conn", "<I"), topic, msgtype, md5sum, definition, callerid, latching
     )
-
-
-#: Largest chunk accepted, uncompressed (rosbag's chunks are 768 KiB by default; a chunk holds one
-#: message at least: a map of --max-cells (1e8 cells) is 100 MB).
-_MAX_CHUNK_BYTES = 256 << 20
 
 
 def _decompress(fields: dict[str, bytes], data: bytes) -> bytes:
@@ -168,7 +174,16 @@ def _decompress(fields: dict[str, bytes], data: bytes) -> bytes:
 
 
 class Ros1StreamReadBackend:
-    """A ROS 1 bag read from its start without its index (see module notes). For ``--salvage`` only."""
+    """A ROS 1 bag read from its start without its index (see module notes). For ``--salvage`` only.
+
+    Attributes
+    ----------
+    damage : str
+        Where reading stopped and why, once :meth:`open` has run.
+    complete : bool
+        Whether every record could be read and the index records were there (only the bag header's
+        pointer to them was wrong): then nothing was lost.
+    """
 
     profile = ""
     format = "ros1"
@@ -176,39 +191,63 @@ class Ros1StreamReadBackend:
     def __init__(self, path: Path) -> None:
         self.path = path
         self.damage = ""
+        self.complete = False
         self.channels: tuple[Channel, ...] = ()
         self._by_conn: dict[int, Channel] = {}
         self.start_ns = 0
         self.end_ns = 0
         self.qos_style: QosStyle | None = None
         self.stream: BinaryIO | None = None
+        self._end: int | None = None  # where open() stopped: messages() stops there too
 
     def _items(self) -> Iterator[_Connection | tuple[int, int, bytes]]:
         """Connections and ``(conn, time ns, data)`` messages in file order, complete chunks only,
-        up to the first unreadable record (which sets :attr:`damage`)."""
+        up to the first unreadable record (which sets :attr:`damage`) or where :meth:`open` stopped
+        (a recording still growing has more by the second pass)."""
         assert self.stream is not None
         self.stream.seek(0)
-        size = self.path.stat().st_size
+        size = self.path.stat().st_size if self._end is None else self._end
         if self.stream.read(len(_MAGIC)) != _MAGIC:
             self.damage = "not a ROS bag 2.0 file"
             return
+        indexed = False
+        known: set[int] = set()  # connection ids seen
         while True:
             offset = self.stream.tell()
             try:
                 record = _read_record(self.stream, size)
                 if record is None:
-                    return
+                    break
                 fields, data = record
                 op = _op(fields)
                 if op == _OP_CHUNK:
-                    # Parsed whole before anything is handed out: a chunk counts only when complete.
-                    items = list(_chunk_items(_decompress(fields, data)))
+                    content = _decompress(fields, data)
+                    # A chunk counts only when all of it reads: checked before anything is handed
+                    # out, without keeping its records (a chunk may hold millions of tiny ones).
+                    for item in _chunk_items(content):
+                        _count_connection(item, known)
+                    items: Iterator[_Connection | tuple[int, int, bytes]] = _chunk_items(content)
                 else:
-                    items = list(_record_items(op, fields, data))
+                    # Chunk infos come only in the index section after the last chunk (index data
+                    # records follow every chunk, so they prove nothing).
+                    indexed |= op == _OP_CHUNK_INFO
+                    listed = list(_record_items(op, fields, data))
+                    for item in listed:
+                        _count_connection(item, known)
+                    items = iter(listed)
             except _Damage as err:
                 self.damage = f"unreadable from byte {offset} of {size}: {err}"
+                self._end = offset
                 return
             yield from items
+        self._end = size
+        self.complete = indexed
+        if not self.damage:
+            self.damage = (
+                "the bag header's index position is wrong; every record was read"
+                if indexed
+                else "no index at the end (the recording was not closed)"
+            )
 
     def open(self) -> None:
         self.stream = self.path.open("rb")
@@ -223,9 +262,15 @@ class Ros1StreamReadBackend:
                 counts[conn] = counts.get(conn, 0) + 1
                 first = time_ns if first is None else min(first, time_ns)
                 last = time_ns if last is None else max(last, time_ns)
-        if not self.damage:
-            self.damage = "no index at the end (the recording was not closed)"
-        channels = []
+        orphans = {conn: n for conn, n in counts.items() if conn not in connections}
+        if orphans:
+            # Their connection record would have come after the damage (or never did).
+            self.damage += (
+                f"; {sum(orphans.values())} messages on {len(orphans)} connections whose "
+                "connection record is missing, left out"
+            )
+            self.complete = False
+        channels: list[Channel] = []
         for conn, c in connections.items():
             channel = Channel(
                 id=len(channels),
@@ -259,6 +304,15 @@ class Ros1StreamReadBackend:
         if self.stream is not None:
             self.stream.close()
             self.stream = None
+
+
+def _count_connection(item: _Connection | tuple[int, int, bytes], known: set[int]) -> None:
+    """Note a connection record's id; more than :data:`_MAX_CONNECTIONS` ids are damage."""
+    if isinstance(item, _Connection) and item.conn not in known:
+        if len(known) >= _MAX_CONNECTIONS:
+            msg = f"more than {_MAX_CONNECTIONS} connections"
+            raise _Damage(msg)
+        known.add(item.conn)
 
 
 def _record_items(

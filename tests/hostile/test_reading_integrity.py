@@ -256,6 +256,137 @@ def test_a_bz2_bomb_in_a_salvaged_ros1_bag_never_expands_past_its_declared_size(
     assert int(run.stdout.split()[-1]) < 450  # MB; the bomb alone is 600
 
 
+def test_a_ros1_bag_whose_header_misplaces_its_index_is_read_whole_and_loses_nothing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], ros1_bag: tuple[Path, list]
+) -> None:
+    bag, chunks = ros1_bag
+    data = bytearray(bag.read_bytes())
+    at = data.index(b"index_pos=") + len(b"index_pos=")
+    data[at : at + 8] = (chunks[1][0] + 10).to_bytes(8, "little")  # into a chunk
+    odd = tmp_path / "odd.bag"
+    odd.write_bytes(bytes(data))
+    code, _, err = _run(capsys, "process", odd, "--no-output", "-q", "--salvage")
+    assert code == 0, err  # a warning, but no message is lost
+    assert "index position is wrong; every record was read" in err
+    assert _messages(odd, salvage=True) == _in_file_order(bag)
+
+
+def _ros1_file(path: Path, chunk_records: bytes, *, compression: bytes = b"none") -> Path:
+    """A never-closed ROS 1 bag: the bag header, then one chunk holding ``chunk_records``."""
+    import struct
+
+    header = {"op": b"\x03", "index_pos": bytes(8), "conn_count": bytes(4), "chunk_count": bytes(4)}
+    chunk = {
+        "op": b"\x05",
+        "compression": compression,
+        "size": struct.pack("<I", len(chunk_records)),
+    }
+    path.write_bytes(
+        b"#ROSBAG V2.0\n" + _ros1_record(header, b" " * 16) + _ros1_record(chunk, chunk_records)
+    )
+    return path
+
+
+def _connection_record(conn: int, topic: str) -> bytes:
+    import struct
+
+    info = {
+        "topic": topic.encode(),
+        "type": b"std_msgs/String",
+        "md5sum": b"992ce8a1687cec8c8bd883ec73ca41d1",
+    }
+    fields = {"op": b"\x07", "conn": struct.pack("<I", conn), "topic": topic.encode()}
+    body = b"".join(
+        struct.pack("<I", len(k) + 1 + len(v)) + k.encode() + b"=" + v for k, v in info.items()
+    )
+    return _ros1_record(fields, body)
+
+
+def _message_record(conn: int, sec: int) -> bytes:
+    import struct
+
+    fields = {"op": b"\x02", "conn": struct.pack("<I", conn), "time": struct.pack("<II", sec, 0)}
+    return _ros1_record(fields, struct.pack("<I", 2) + b"hi")
+
+
+def test_messages_whose_connection_record_is_missing_are_reported_not_dropped_silently(
+    tmp_path: Path,
+) -> None:
+    records = _connection_record(0, "/a") + _message_record(0, 1) + _message_record(1, 2)
+    bag = _ros1_file(tmp_path / "orphan.bag.active", records)
+    with LogReader(bag, salvage=True) as reader:
+        assert [c.topic for c in reader.channels] == ["/a"]
+        assert len(list(reader.messages())) == 1
+    assert "1 messages on 1 connections whose connection record is missing" in reader.losses[0]
+
+
+def test_a_chunk_of_too_many_connections_is_damage_not_memory(tmp_path: Path) -> None:
+    records = b"".join(_connection_record(i, f"/t{i}") for i in range(70_000))
+    bag = _ros1_file(tmp_path / "many.bag.active", records)
+    with pytest.raises(LogReadError, match="corrupt or truncated ROS 1 bag"):
+        LogReader(bag, salvage=True).open()  # nothing before the damage: no channel at all
+
+
+def test_a_record_longer_than_any_chunk_is_refused_before_it_is_read(tmp_path: Path) -> None:
+    """A damaged length field may cover the rest of a huge file: not read into memory."""
+    import struct
+
+    from rose_logs.storage.ros1_stream import Ros1StreamReadBackend
+
+    bag = tmp_path / "long.bag.active"
+    header = {"op": b"\x03", "index_pos": bytes(8), "conn_count": bytes(4), "chunk_count": bytes(4)}
+    chunk = {"op": b"\x05", "compression": b"none", "size": struct.pack("<I", 4096)}
+    start = b"#ROSBAG V2.0\n" + _ros1_record(header, b" " * 16)
+    fields = _ros1_record(chunk, b"")[:-4]  # the header, then a data length of 300 MiB
+    with bag.open("wb") as out:
+        out.write(start + fields + struct.pack("<I", 300 << 20))
+        out.truncate(len(start) + len(fields) + 4 + (300 << 20))  # sparse: nothing to read for real
+    backend = Ros1StreamReadBackend(bag)
+    try:
+        backend.open()
+    finally:
+        backend.close()
+    assert "more than any chunk" in backend.damage and not backend.channels
+
+
+def test_a_ros1_recording_still_growing_hands_out_what_was_counted(
+    tmp_path: Path, ros1_bag: tuple[Path, list]
+) -> None:
+    from rose_logs.storage.ros1_stream import Ros1StreamReadBackend
+
+    bag, chunks = ros1_bag
+    data = bag.read_bytes()
+    active = tmp_path / "s.bag.active"
+    active.write_bytes(data[: chunks[2][0]])
+    backend = Ros1StreamReadBackend(active)
+    try:
+        backend.open()
+        declared = sum(c.message_count for c in backend.channels)
+        with active.open("ab") as grows:  # the recorder writes one more chunk meanwhile
+            grows.write(data[chunks[2][0] : chunks[3][0]])
+        assert len(list(backend.messages(None))) == declared
+    finally:
+        backend.close()
+
+
+def test_an_mcap_recording_still_growing_hands_out_what_was_counted(tmp_path: Path) -> None:
+    from rose_logs.storage.mcap import McapStreamReadBackend
+
+    whole = Path(__file__).resolve().parents[2] / "sample_data" / "fr079_session.mcap"
+    data = whole.read_bytes()
+    log = tmp_path / "cut.mcap"
+    log.write_bytes(data[: len(data) // 2])
+    backend = McapStreamReadBackend(log)
+    try:
+        backend.open()
+        declared = sum(c.message_count for c in backend.channels)
+        with log.open("ab") as grows:
+            grows.write(data[len(data) // 2 : len(data) * 3 // 4])
+        assert len(list(backend.messages(None))) == declared
+    finally:
+        backend.close()
+
+
 def test_metadata_type_disagreeing_with_storage_is_an_error(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -280,3 +280,27 @@ def test_picking_one_map_never_applies_another_maps_updates(
         ("/robot2/map", False),
         (other, True),
     ]
+
+
+def test_updates_named_after_a_map_we_cannot_decode_go_to_no_other_map() -> None:
+    """``/local_map_updates`` belongs to ``/local_map`` (JSON-encoded here, so not analysed), never to
+    the log's one analysable map."""
+    from rose_logs.session.topics import update_targets
+    from rose_logs.storage.records import Channel
+    from rose_logs.storage.typesys import UPDATE_TYPE
+
+    channels = [
+        Channel(0, "/map", MAP_TYPE, "cdr"),
+        Channel(1, "/local_map", MAP_TYPE, "json"),
+        Channel(2, "/local_map_updates", UPDATE_TYPE, "cdr"),
+        Channel(3, "/map_updates", UPDATE_TYPE, "cdr"),
+    ]
+    assert update_targets(channels) == {"/map_updates": "/map"}
+    assert update_targets(channels[:1] + channels[2:3]) == {"/local_map_updates": "/map"}
+
+
+def test_a_recording_rosbag_never_closed_is_named_like_a_bag_once_processed() -> None:
+    from rose_logs.session import default_output_path
+
+    assert default_output_path(Path("runs/k.bag.active")) == Path("runs/k.rose.bag")
+    assert default_output_path(Path("runs/k.bag")) == Path("runs/k.rose.bag")
