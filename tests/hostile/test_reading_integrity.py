@@ -78,6 +78,19 @@ def test_truncated_mcap_with_salvage_is_never_exit_0(
     assert code in (1, EXIT_SALVAGED)
 
 
+def _refused_then_salvaged(
+    capsys: pytest.CaptureFixture[str], log: Path, out: Path, report: Path, *, refusal: str
+) -> str:
+    """``process`` refuses the damaged ``log`` naming ``--salvage`` (writing nothing), then salvages
+    it with exit 4; returns the second run's stderr."""
+    code, _, err = _run(capsys, "process", log, "-o", out, "-q")
+    assert code == 1 and refusal in err and "--salvage" in err
+    assert not out.exists()
+    code, _, err = _run(capsys, "process", log, "-o", out, "--json", report, "-q", "--salvage")
+    assert code == EXIT_SALVAGED
+    return err
+
+
 def test_salvage_keeps_the_readable_start_of_a_truncated_mcap_file(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -88,11 +101,7 @@ def test_salvage_keeps_the_readable_start_of_a_truncated_mcap_file(
     log = tmp_path / "cut.mcap"
     log.write_bytes(data[: len(data) * 6 // 10])
     out, report = tmp_path / "o.mcap", tmp_path / "r.json"
-    code, _, err = _run(capsys, "process", log, "-o", out, "-q")
-    assert code == 1 and "truncated MCAP" in err and "--salvage" in err
-    assert not out.exists()
-    code, _, err = _run(capsys, "process", log, "-o", out, "--json", report, "-q", "--salvage")
-    assert code == EXIT_SALVAGED
+    err = _refused_then_salvaged(capsys, log, out, report, refusal="truncated MCAP")
     assert err.count("end of the file is missing or damaged") == 1, err  # said once
     assert err.count("error:") == 0
     salvaged = json.loads(report.read_text())
@@ -151,11 +160,7 @@ def test_salvage_keeps_the_complete_chunks_of_a_truncated_ros1_bag(
     cut = tmp_path / "cut.bag"
     cut.write_bytes(bag.read_bytes()[: (start + end) // 2])  # in the middle of the third chunk
     out, report = tmp_path / "o.bag", tmp_path / "r.json"
-    code, _, err = _run(capsys, "process", cut, "-o", out, "-q")
-    assert code == 1 and "truncated ROS 1 bag" in err and "--salvage" in err
-    assert not out.exists()
-    code, _, err = _run(capsys, "process", cut, "-o", out, "--json", report, "-q", "--salvage")
-    assert code == EXIT_SALVAGED
+    err = _refused_then_salvaged(capsys, cut, out, report, refusal="truncated ROS 1 bag")
     assert err.count("index is missing or damaged") == 1, err
     kept = sum(count for _, count in chunks[:2])
     assert _messages(cut, salvage=True) == _in_file_order(bag)[:kept]
