@@ -151,6 +151,8 @@ def fragile_client() -> Iterator[Any]:
 def test_local_workers_run_opencv_on_one_thread(fragile_client: Any) -> None:
     # Before any task: the workers start with it (OpenCV would otherwise use every core in each
     # worker, and two workers on two cores spent a third more CPU).
+    if (os.cpu_count() or 1) < 2:
+        pytest.skip("one core: OpenCV's default is one thread already, nothing to tell apart")
     assert set(fragile_client.run(cv2.getNumThreads).values()) == {1}
 
 
