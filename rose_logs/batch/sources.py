@@ -18,8 +18,10 @@ from rose_logs.batch.store import filesystem, is_local
 
 __all__ = ["LOG_SUFFIXES", "MAX_LIST_BYTES", "Recording", "discover", "read_list"]
 
-#: File suffixes searched for in folders (a folder with ``metadata.yaml`` is one ROS 2 bag).
-LOG_SUFFIXES = (".bag", ".mcap", ".db3")
+#: File suffixes searched for in folders (a folder with ``metadata.yaml`` is one ROS 2 bag). A
+#: ``.bag.active`` is a recording ``rosbag record`` never closed: it shows as an error row (naming
+#: ``rose-bag process --salvage``) instead of going unnoticed.
+LOG_SUFFIXES = (".bag", ".mcap", ".db3", ".bag.active")
 _GLOB_CHARS = "*?["
 
 
@@ -112,7 +114,8 @@ def discover(
     ----------
     inputs : sequence of str or Path
         Log files (taken as they are, whatever their suffix), folders (searched recursively for
-        ``*.bag``, ``*.mcap``, ``*.db3`` and ROS 2 bag folders; a bag folder is one recording), glob
+        ``*.bag``, ``*.bag.active``, ``*.mcap``, ``*.db3`` and ROS 2 bag folders; a bag folder is
+        one recording), glob
         patterns, and fsspec URLs of any of these (``s3://bucket/prefix/``).
     storage_options : mapping, optional
         fsspec options of remote inputs (``endpoint_url``, ``key``, ``secret``, ``anon``...).

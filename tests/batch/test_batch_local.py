@@ -326,3 +326,19 @@ def test_usage_errors_show_the_batch_usage(
     assert main(["batch", "-o", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err
     assert err.startswith("usage: rose-bag batch ")
+
+
+def test_a_recording_rosbag_never_closed_is_found_and_reported(fleet: Path, tmp_path: Path) -> None:
+    """A killed ``rosbag record`` leaves ``x.bag.active`` (no index): an error row that says what to
+    do, never a recording the fleet's table silently lacks."""
+    fields = b"".join(
+        len(f).to_bytes(4, "little") + f for f in (b"op=\x03", b"index_pos=" + bytes(8))
+    )
+    record = len(fields).to_bytes(4, "little") + fields + (16).to_bytes(4, "little") + b" " * 16
+    crashed = fleet / "robot_a" / "crashed.bag.active"
+    crashed.write_bytes(b"#ROSBAG V2.0\n" + record)
+    assert "fleet/robot_a/crashed.bag.active" in [r.name for r in discover([fleet])]
+    report = run_batch([crashed], tmp_path / "out")
+    (row,) = report.results
+    assert row.status == "error"
+    assert "index cannot be read" in row.error and "--salvage" in row.error
