@@ -66,6 +66,9 @@ class RecordingOptions:
     analysis_threads : int
         Snapshots of a recording analysed at once, in threads (see ``process_log``); 1 on Dask
         workers, which run one thread each while the cluster spreads the recordings.
+    salvage : bool
+        Keep what can be read of a damaged recording (``process --salvage``); its row is ``ok``
+        and lists the ``losses``.
     """
 
     params: RoseParams = field(default_factory=RoseParams)
@@ -76,10 +79,11 @@ class RecordingOptions:
     rrd: bool = False
     retries: int = 2
     analysis_threads: int = 2
+    salvage: bool = False
 
     def key_fields(self) -> dict[str, Any]:
         """Everything that changes a result (not ``retries`` or ``analysis_threads``), JSON-ready."""
-        return {
+        fields: dict[str, Any] = {
             "params": asdict(self.params),
             "topics": None if self.topics is None else list(self.topics),
             "failure_level": self.failure_level,
@@ -87,6 +91,9 @@ class RecordingOptions:
             "cleaned": self.cleaned,
             "rrd": self.rrd,
         }
+        if self.salvage:  # only when set: the keys of results stored without it stay valid
+            fields["salvage"] = True
+        return fields
 
 
 @dataclass(frozen=True)
@@ -123,6 +130,8 @@ class RecordingResult:
         ``host:pid`` of the process that did the work.
     cleaned_uri, rrd_uri : str or None
         Outputs written.
+    losses : tuple of str
+        With ``salvage``: what could not be read of a damaged recording (empty when intact).
     """
 
     uri: str
@@ -141,6 +150,7 @@ class RecordingResult:
     worker: str = ""
     cleaned_uri: str | None = None
     rrd_uri: str | None = None
+    losses: tuple[str, ...] = ()
 
     def row(self) -> dict[str, Any]:
         """The recording's row of ``recordings.parquet``."""
@@ -152,6 +162,7 @@ class RecordingResult:
             "format": self.format,
             "status": self.status,
             "error": self.error,
+            "losses": list(self.losses),
             "map_topics": list(self.map_topics),
             "snapshots": len(self.snapshots),
             "start_ns": self.start_ns,
@@ -174,6 +185,7 @@ class RecordingResult:
         payload = asdict(self)
         payload["map_topics"] = list(self.map_topics)
         payload["snapshots"] = list(self.snapshots)
+        payload["losses"] = list(self.losses)
         return payload
 
     @classmethod
@@ -182,6 +194,7 @@ class RecordingResult:
         data = dict(payload)
         data["map_topics"] = tuple(data.get("map_topics", ()))
         data["snapshots"] = tuple(data.get("snapshots", ()))
+        data["losses"] = tuple(data.get("losses", ()))
         return cls(**data)
 
 
@@ -358,6 +371,7 @@ def _attempt(
                 walls=options.walls,
                 recording_id=recording_id(recording.uri),
                 analysis_threads=options.analysis_threads,
+                salvage=options.salvage,
             )
         except (LogError, RoseError) as err:
             # The message names the downloaded copy, which is gone by the time anyone reads the
@@ -392,6 +406,8 @@ def _attempt(
         worker=worker_name(),
         cleaned_uri=cleaned_uri,
         rrd_uri=rrd_uri,
+        # The downloaded copy's path means nothing to the reader of the table: name the recording.
+        losses=tuple(loss.replace(str(local), recording.uri) for loss in report.losses),
     )
 
 

@@ -7,7 +7,7 @@ import sys
 from typing import Any
 
 from rose.cli.options import add_param_arguments, params_from_args, positive_float
-from rose_logs.cli.options import EXIT_GATE, UsageError
+from rose_logs.cli.options import EXIT_GATE, EXIT_SALVAGED, UsageError
 
 __all__ = ["EXIT_INTERRUPTED", "add_parser", "run"]
 
@@ -156,6 +156,12 @@ def add_parser(subparsers: Any) -> None:
     gates = parser.add_argument_group("resume and gates")
     gates.add_argument("-f", "--force", action="store_true", help="redo every recording")
     gates.add_argument(
+        "--salvage",
+        action="store_true",
+        help="keep what can be read of damaged recordings (as process --salvage); their rows list "
+        f"the losses, exit {EXIT_SALVAGED} when any has some",
+    )
+    gates.add_argument(
         "--retry-errors", action="store_true", help="redo the recordings that failed before"
     )
     gates.add_argument(
@@ -205,6 +211,7 @@ def run(args: argparse.Namespace) -> int:
         cleaned=args.cleaned,
         rrd=args.rrd,
         retries=args.retries,
+        salvage=args.salvage,
     )
     report = run_batch(
         inputs,
@@ -233,6 +240,9 @@ def _print_summary(report: Any) -> None:
     )
     print(f"ok           {ok}", file=out)
     print(f"failed       {len(rows) - ok}", file=out)
+    salvaged = sum(bool(r["losses"]) for r in rows)
+    if salvaged:
+        print(f"salvaged     {salvaged} (damaged, kept what could be read)", file=out)
     print(f"broken maps  {sum(bool(r['broke']) for r in rows)}", file=out)
     print(f"snapshots    {sum(r['snapshots'] for r in rows)}", file=out)
     print(f"output       {report.out}", file=out)
@@ -262,6 +272,14 @@ def _exit_code(report: Any, args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 1
+    salvaged = [r for r in report.results if r.losses]
+    if salvaged:  # as process --salvage: lost messages come before the gates
+        print(
+            f"warning: {len(salvaged)} recording(s) damaged, kept what could be read "
+            f"(--salvage, exit {EXIT_SALVAGED}); first: {salvaged[0].losses[0]}",
+            file=sys.stderr,
+        )
+        return EXIT_SALVAGED
     if args.fail_above is not None:
         # w_max is None for a recording without a judged snapshot (only empty maps).
         worst = max(

@@ -19,7 +19,7 @@ from rose_logs.batch import (
     run_batch,
 )
 from rose_logs.batch.task import recording_id
-from rose_logs.cli import main
+from rose_logs.cli import EXIT_SALVAGED, main
 from rose_logs.session import BreakParams
 
 FLEET_NAMES = [
@@ -342,3 +342,31 @@ def test_a_recording_rosbag_never_closed_is_found_and_reported(fleet: Path, tmp_
     (row,) = report.results
     assert row.status == "error"
     assert "index cannot be read" in row.error and "--salvage" in row.error
+
+
+def test_salvage_keeps_the_readable_part_of_a_damaged_recording(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from fleet import SAMPLE
+
+    cut = tmp_path / "in" / "cut.mcap"
+    cut.parent.mkdir()
+    data = SAMPLE.read_bytes()
+    cut.write_bytes(data[: len(data) * 6 // 10])  # a recording cut off: no index at its end
+    assert main(["batch", str(cut), "-o", str(tmp_path / "plain"), "-q"]) == 1
+    (row,) = read_rows(tmp_path / "plain" / "recordings.parquet")
+    assert row["status"] == "error" and "--salvage" in row["error"] and row["losses"] == []
+    capsys.readouterr()
+    out = tmp_path / "salvaged"
+    assert main(["batch", str(cut), "-o", str(out), "-q", "--salvage"]) == EXIT_SALVAGED
+    printed = capsys.readouterr()
+    assert "salvaged     1" in printed.out and "kept what could be read" in printed.err
+    (row,) = read_rows(out / "recordings.parquet")
+    assert row["status"] == "ok" and row["snapshots"] > 0
+    assert len(row["losses"]) == 1 and str(cut) in row["losses"][0]
+    assert json.loads((out / "summary.json").read_text())["salvaged"] == 1
+
+
+def test_salvage_leaves_the_keys_of_results_stored_without_it_alone() -> None:
+    assert "salvage" not in RecordingOptions().key_fields()
+    assert RecordingOptions(salvage=True).key_fields()["salvage"] is True
