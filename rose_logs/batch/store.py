@@ -9,6 +9,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
+import re
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -25,9 +26,20 @@ _LOG = logging.getLogger(__name__)
 
 
 def is_local(uri: str) -> bool:
-    """Whether ``uri`` is a local path (no protocol, or ``file://``)."""
+    """Whether ``uri`` is a local path (no protocol, or ``file://``).
+
+    fsspec reads ``a::b`` as a chain of file systems (``simplecache::s3://...``), so a local name
+    holding ``::`` (``runs/a::b.mcap``) would look like protocol ``runs/a``: a "protocol" that is
+    no URL scheme, or a path that exists here, is local.
+    """
     protocol = fsspec.utils.get_protocol(uri)
-    return protocol in ("file", "local")
+    if protocol in ("file", "local"):
+        return True
+    return "://" not in uri and (_SCHEME.fullmatch(protocol) is None or Path(uri).exists())
+
+
+#: What a URL scheme may be made of (RFC 3986).
+_SCHEME = re.compile(r"[A-Za-z][A-Za-z0-9+.-]*")
 
 
 def join_uri(base: str, *parts: str) -> str:
@@ -71,6 +83,8 @@ def filesystem(uri: str, storage_options: Mapping[str, Any] | None = None) -> tu
     BatchError
         If a URL scheme is unknown to fsspec or its backend package is not installed.
     """
+    if is_local(uri):
+        return fsspec.filesystem("file"), _strip_file(uri)
     for protocol in _protocols(uri):
         try:
             fsspec.get_filesystem_class(protocol)

@@ -370,3 +370,22 @@ def test_salvage_keeps_the_readable_part_of_a_damaged_recording(
 def test_salvage_leaves_the_keys_of_results_stored_without_it_alone() -> None:
     assert "salvage" not in RecordingOptions().key_fields()
     assert RecordingOptions(salvage=True).key_fields()["salvage"] is True
+
+
+def test_a_local_name_holding_a_double_colon_is_a_file_not_a_url(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """fsspec reads ``a::b`` as a chain of file systems; a local file so named is still a file."""
+    from fleet import SAMPLE
+
+    odd = tmp_path / "runs" / "robot::1.mcap"
+    odd.parent.mkdir()
+    odd.write_bytes(SAMPLE.read_bytes())
+    for given in (odd, odd.parent):
+        out = tmp_path / f"out-{given.name}"
+        assert main(["batch", str(given), "-o", str(out), "-q"]) == 0
+        (row,) = read_rows(out / "recordings.parquet")
+        assert row["status"] == "ok" and row["uri"] == str(odd)
+    capsys.readouterr()
+    assert main(["batch", "nosuch::thing", "-o", str(tmp_path / "x"), "-q"]) == 1
+    assert "unsupported URL scheme 'nosuch'" in capsys.readouterr().err
