@@ -58,7 +58,8 @@ class RecordingOptions:
     walls : bool
         Also extract wall segments (markers in the cleaned log, lines in Rerun).
     cleaned : bool
-        Write each cleaned log to ``cleaned/<name>`` (same format as the input).
+        Write each cleaned log to ``cleaned/<name>`` (same format as the input; a salvaged
+        ``x.bag.active`` as ``x.bag``).
     rrd : bool
         Write each Rerun recording to ``rrd/<name>.rrd``.
     retries : int
@@ -356,7 +357,8 @@ def _attempt(
     with tempfile.TemporaryDirectory(prefix="rose-batch-", dir=store.staging_dir()) as tmp:
         work = Path(tmp)
         local = _fetch(recording, work / "input", storage_options)
-        cleaned = work / "cleaned" / Path(recording.name).name if options.cleaned else None
+        cleaned_name = cleaned_log_name(recording.name)
+        cleaned = work / "cleaned" / Path(cleaned_name).name if options.cleaned else None
         rrd = work / "recording.rrd" if options.rrd else None
         if cleaned is not None:
             cleaned.parent.mkdir()
@@ -379,7 +381,7 @@ def _attempt(
             if str(local) != recording.uri and len(err.args) == 1:
                 err.args = (str(err).replace(str(local), recording.uri),)
             raise
-        cleaned_uri = None if cleaned is None else store.put(cleaned, f"cleaned/{recording.name}")
+        cleaned_uri = None if cleaned is None else store.put(cleaned, f"cleaned/{cleaned_name}")
         rrd_uri = None if rrd is None else store.put(rrd, f"rrd/{recording.name}.rrd")
     level = options.failure_level
     starts = {(b.topic, b.index) for b in report.detected_breaks}
@@ -409,6 +411,12 @@ def _attempt(
         # The downloaded copy's path means nothing to the reader of the table: name the recording.
         losses=tuple(loss.replace(str(local), recording.uri) for loss in report.losses),
     )
+
+
+def cleaned_log_name(name: str) -> str:
+    """Name of a recording's cleaned log: its own, except that a ``.bag.active`` (a recording
+    ``rosbag record`` never closed, salvaged) comes out as the complete ``.bag`` it now is."""
+    return name[: -len(".active")] if name.lower().endswith(".bag.active") else name
 
 
 def _fetch(recording: Recording, target: Path, storage_options: Mapping[str, Any] | None) -> Path:

@@ -389,3 +389,26 @@ def test_a_local_name_holding_a_double_colon_is_a_file_not_a_url(
     capsys.readouterr()
     assert main(["batch", "nosuch::thing", "-o", str(tmp_path / "x"), "-q"]) == 1
     assert "unsupported URL scheme 'nosuch'" in capsys.readouterr().err
+
+
+def test_a_salvaged_active_bag_is_cleaned_into_a_complete_bag(tmp_path: Path) -> None:
+    """``x.bag.active`` salvaged with ``--cleaned`` comes out as ``cleaned/.../x.bag``: a complete,
+    indexed bag, named as one."""
+    from rose_logs.reader import LogReader
+
+    carmen = Path(__file__).resolve().parents[1] / "data" / "radish_carmen_corrected_logs"
+    bag = tmp_path / "whole.bag"
+    argv = ["convert", str(carmen / "freiburg-101-corrected.log.gz"), str(bag), "-q"]
+    assert main([*argv, "--resolution", "0.1", "--map-period", "60"]) == 0  # several chunks
+    data = bytearray(bag.read_bytes()[: bag.stat().st_size * 2 // 3])  # killed mid-recording
+    at = data.index(b"index_pos=") + len(b"index_pos=")
+    data[at : at + 8] = bytes(8)
+    active = tmp_path / "robot" / "run.bag.active"
+    active.parent.mkdir()
+    active.write_bytes(bytes(data))
+    out = tmp_path / "out"
+    assert main(["batch", str(active), "-o", str(out), "-q", "--salvage", "--cleaned"]) == 4
+    (row,) = read_rows(out / "recordings.parquet")
+    assert row["status"] == "ok" and row["cleaned"].endswith("run.bag")
+    with LogReader(Path(row["cleaned"])) as reader:
+        assert "/map/rose/cleaned" in {c.topic for c in reader.channels}
