@@ -159,7 +159,7 @@ class LogReader:
             backend.close()
             return None
         read = sum(c.message_count for c in backend.channels)
-        if isinstance(backend, Ros1StreamReadBackend) and backend.complete:
+        if backend.complete:
             # Only the header's pointer to the index was wrong: nothing is lost.
             _LOG.warning("%s: %s, read record by record, in file order", self.path, backend.damage)
             return backend

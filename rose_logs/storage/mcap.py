@@ -148,6 +148,8 @@ class McapStreamReadBackend(McapReadBackend):
     def __init__(self, path: Path) -> None:
         super().__init__(path)
         self.damage = ""
+        #: As :attr:`Ros1StreamReadBackend.complete`; a file read here lost its summary, always.
+        self.complete = False
         self._end: int | None = None  # where open() stopped: messages() stops there too
 
     def _records(self) -> Iterator[Any]:
