@@ -57,6 +57,19 @@ def _wait_listening(port: int, process: subprocess.Popen[bytes], timeout_s: floa
     pytest.fail(f"nothing listens on port {port} after {timeout_s} s")
 
 
+def _wait_received(path: Path, snapshots: int, timeout_s: float = 30.0) -> None:
+    """Until the receiver's file holds ``snapshots`` snapshots (or ``timeout_s``: then the test's
+    assertion says what arrived)."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        try:
+            if len(session_times_ns(path)) >= snapshots:
+                return
+        except Exception:  # not written yet, or cut mid-record: look again
+            pass
+        time.sleep(0.2)
+
+
 @pytest.mark.filterwarnings("ignore:RRD file has no footer")  # the receiver writes the stream form
 def test_connect_streams_every_snapshot_to_a_running_viewer(tmp_path: Path) -> None:
     port = _free_port()
@@ -69,6 +82,9 @@ def test_connect_streams_every_snapshot_to_a_running_viewer(tmp_path: Path) -> N
     try:
         _wait_listening(port, viewer)
         report = process_log(SAMPLE, connect=f"127.0.0.1:{port}")
+        # Our side has flushed; the receiver may still be writing what it got. A Ctrl-C before
+        # that drops it (seen once on a loaded machine): give it time to write every snapshot.
+        _wait_received(received, len(report.records))
     finally:
         viewer.send_signal(signal.SIGINT)  # the receiver finishes its file on Ctrl-C
         try:
