@@ -28,6 +28,7 @@ __all__ = [
     "check_cells",
     "image_shape",
     "load_yaml",
+    "pnm_header",
     "pnm_numbers",
     "short",
 ]
@@ -142,6 +143,13 @@ def pnm_numbers(data: bytes | memoryview) -> list[int] | None:
     Read from the first 64 KiB (comments may come between them); None when they are not all there
     or ``data`` is no PNM image.
     """
+    header = pnm_header(data)
+    return None if header is None else header[0]
+
+
+def pnm_header(data: bytes | memoryview) -> tuple[list[int], int] | None:
+    """:func:`pnm_numbers` and the offset just after the header's last number (the single
+    whitespace byte that ends a binary header comes next)."""
     head = bytes(data[:_PNM_HEADER_BYTES])
     if len(head) < 2 or head[:1] != b"P" or head[1:2] not in (b"1", b"2", b"3", b"4", b"5", b"6"):
         return None
@@ -153,7 +161,7 @@ def pnm_numbers(data: bytes | memoryview) -> list[int] | None:
             return None
         values.append(int(match.group(1)))
         pos = match.end()
-    return values
+    return values, pos
 
 
 def image_shape(data: bytes | memoryview) -> tuple[int, int] | None:

@@ -1,11 +1,15 @@
 """ROS map_server map files: YAML + PGM/PNG, and bare images.
 
-Reading follows ROS 1 ``map_server`` (``image_loader.cpp``) exactly: the grey value of a pixel is the
-mean of its colour channels (alpha excluded); with ``negate`` it is inverted; ``occ = (255 - grey) / 255``;
-``occ > occupied_thresh`` is occupied (100), ``occ < free_thresh`` free (0), anything between unknown
-(-1) in ``trinary`` mode, or ``1 + 98 * ratio`` in ``scale`` mode (unknown where the pixel is not fully
-opaque); ``raw`` mode stores the grey value itself. Image row 0 is the top of the picture, grid row 0
-the map origin, so rows are flipped at this boundary.
+Reading follows ROS 1 ``map_server`` (``image_loader.cpp``) and Nav2's ``map_io.cpp``: a sample is
+scaled to 0..255 by the image's maximum value; the grey value of a pixel is the mean of its red, green
+and blue channels, and for a map YAML's image in ``trinary`` mode of its alpha channel too (both
+servers do so; a bare image's alpha is left out); with
+``negate`` it is inverted; ``occ = (255 - grey) / 255``; ``occ > occupied_thresh`` is occupied (100),
+``occ < free_thresh`` free (0), anything between unknown (-1) in ``trinary`` mode, or ``1 + 98 * ratio``
+in ``scale`` mode (unknown where the pixel is not fully opaque, as Nav2; ROS 1 only where it is fully
+transparent); ``raw`` mode stores the grey value itself. Palette images are read by their colours, as
+Nav2 (ROS 1 reads the palette index). Image row 0 is the top of the picture, grid row 0 the map origin,
+so rows are flipped at this boundary.
 """
 
 from __future__ import annotations
@@ -13,6 +17,7 @@ from __future__ import annotations
 import math
 import os
 import stat
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -30,6 +35,7 @@ from rose.limits import (
     check_cells,
     image_shape,
     load_yaml,
+    pnm_header,
     pnm_numbers,
     short,
 )
@@ -167,6 +173,8 @@ def _load_yaml_map(path: Path, max_cells: int | None) -> OccupancyMap:
     image_name = _field(meta, "image", str, path)
     resolution = _field(meta, "resolution", float, path)
     origin = meta.get("origin", [0.0, 0.0, 0.0])
+    if isinstance(origin, list):
+        origin = [_as_number(v, float) for v in origin]
     if (
         not isinstance(origin, list)
         or len(origin) != 3
@@ -212,6 +220,7 @@ def _load_yaml_map(path: Path, max_cells: int | None) -> OccupancyMap:
         negate=bool(negate),
         occupied_thresh=occupied_thresh,
         free_thresh=free_thresh,
+        as_map_server=True,
     )
     return OccupancyMap(
         grid=grid,
@@ -230,14 +239,25 @@ def _finite(value: float) -> bool:
         return False
 
 
+def _as_number(value: Any, kind: type) -> Any:
+    """A quoted number (``resolution: "0.05"``) as that number, as map_server's yaml-cpp converts
+    it; anything else unchanged (the caller judges it)."""
+    if isinstance(value, str):
+        try:
+            return kind(value.strip())
+        except ValueError:
+            return value
+    return value
+
+
 def _field(meta: dict[str, Any], key: str, kind: type, path: Path, default: Any = None) -> Any:
     if key not in meta:
         if default is None:
             msg = f"{path}: missing required field '{key}'"
             raise MapFileError(msg)
         return default
-    value = meta[key]
     numeric = kind in (int, float)
+    value = _as_number(meta[key], kind) if numeric else meta[key]
     if isinstance(value, bool) and kind is int:
         return int(value)
     if (numeric and (isinstance(value, bool) or not isinstance(value, int | float))) or (
@@ -270,6 +290,68 @@ def _read_image(path: Path, max_cells: int | None = DEFAULT_MAX_CELLS) -> npt.ND
         if problem is not None:
             msg = f"{path}: image of {problem}"
             raise MapFileError(msg)
+    pixels = _decode_pnm(raw, path)
+    if pixels is None:
+        pixels = _decode_other(raw, path, max_cells)
+    return pixels[:, :, np.newaxis] if pixels.ndim == 2 else pixels
+
+
+#: PNM types decoded by :func:`_decode_pnm` (plain and binary PGM / PPM); PBM goes to OpenCV.
+_SCALED_PNM = (b"2", b"3", b"5", b"6")
+
+
+def _decode_pnm(raw: bytes, path: Path) -> npt.NDArray[np.uint8] | None:
+    """A PGM or PPM image (P2, P3, P5, P6) as uint8, each sample scaled by ``255 / maxval``; None for
+    any other file.
+
+    Netpbm defines a sample's brightness as ``value / maxval``, and both map servers read it so.
+    OpenCV does not: it scales the plain formats but not the binary ones and keeps 16-bit samples
+    as they are, so a P5 map with ``maxval`` 100 read as nearly black. The format is a header and
+    an array, decoded here with numpy.
+    """
+    header = pnm_header(raw)
+    if header is None or raw[1:2] not in _SCALED_PNM:
+        return None
+    (cols, rows, maxval), end = header
+    channels = 3 if raw[1:2] in (b"3", b"6") else 1
+    count = rows * cols * channels
+    samples: npt.NDArray[np.integer]
+    if raw[1:2] in (b"5", b"6"):
+        dtype = np.dtype(np.uint8) if maxval < 256 else np.dtype(">u2")
+        body = raw[end + 1 : end + 1 + count * dtype.itemsize]  # one whitespace ends the header
+        if len(body) < count * dtype.itemsize:
+            msg = f"{path}: not a readable image (truncated: {len(body)} of {count * dtype.itemsize} bytes of pixels)"
+            raise MapFileError(msg)
+        samples = np.frombuffer(body, dtype=dtype)
+    else:
+        plain = _plain_samples(raw[end:], count)
+        if plain is None:
+            msg = (
+                f"{path}: not a readable image (expected {count} decimal samples after the header)"
+            )
+            raise MapFileError(msg)
+        samples = plain
+    scaled = np.minimum(samples, maxval) * (255.0 / maxval)  # a sample above maxval is white
+    return np.rint(scaled).astype(np.uint8).reshape(rows, cols, channels)
+
+
+def _plain_samples(text: bytes, count: int) -> npt.NDArray[np.int64] | None:
+    """The first ``count`` whitespace-separated decimal numbers of ``text``; None if there are fewer
+    or anything else is in the way."""
+    with warnings.catch_warnings():
+        # numpy says "could not be read to its end" as a DeprecationWarning: make it an error.
+        warnings.simplefilter("error", DeprecationWarning)
+        try:
+            samples = np.fromstring(text, dtype=np.int64, sep=" ")
+        except (DeprecationWarning, ValueError):
+            return None
+    if samples.size < count or (samples[:count] < 0).any():
+        return None
+    return samples[:count]
+
+
+def _decode_other(raw: bytes, path: Path, max_cells: int | None) -> npt.NDArray[np.uint8]:
+    """Any image OpenCV reads (PNG, PBM, BMP, ...) as uint8, 16-bit samples scaled to 8 bits."""
     data = np.frombuffer(raw, dtype=np.uint8)
     import cv2  # OpenCV loads on first image use, not with `import rose`
 
@@ -291,12 +373,11 @@ def _read_image(path: Path, max_cells: int | None = DEFAULT_MAX_CELLS) -> npt.ND
         msg = f"{path}: not a readable image"
         raise MapFileError(msg)
     if image.dtype == np.uint16:
-        image = (image // 256).astype(np.uint8)  # the high byte
-    elif image.dtype != np.uint8:
+        return np.rint(image * (255.0 / 65535.0)).astype(np.uint8)
+    if image.dtype != np.uint8:
         msg = f"{path}: unsupported pixel type {image.dtype}"
         raise MapFileError(msg)
-    pixels = np.asarray(image, dtype=np.uint8)  # typed; no copy, the dtype is uint8 here
-    return pixels[:, :, np.newaxis] if pixels.ndim == 2 else pixels
+    return np.asarray(image, dtype=np.uint8)  # typed; no copy, the dtype is uint8 here
 
 
 def _header_problem(raw: bytes, shape: tuple[int, int] | None) -> str | None:
@@ -324,12 +405,22 @@ def image_to_grid(
     negate: bool,
     occupied_thresh: float,
     free_thresh: float,
+    as_map_server: bool = False,
 ) -> npt.NDArray[np.int8]:
-    """Convert an image (rows, cols, channels; top row first) to an occupancy grid (origin row first)."""
+    """Convert an image (rows, cols, channels; top row first) to an occupancy grid (origin row first).
+
+    With ``as_map_server`` (a map YAML's image), alpha counts in trinary mode as the map servers count
+    it; a bare image's grey value is that of its colour channels alone (no map server reads it).
+    """
     channels = image.shape[2]
     has_alpha = channels in (2, 4)
     colour = image[:, :, : channels - 1] if has_alpha else image
     grey = colour.mean(axis=2) if colour.shape[2] > 1 else colour[:, :, 0].astype(np.float64)
+    if has_alpha and mode == "trinary" and as_map_server:
+        # Both map servers average alpha in with the red, green and blue channels in trinary mode
+        # ("to preserve existing behavior"; a grey+alpha image is read as RGBA): an opaque 205,
+        # unknown in a grey image, is free in a grey+alpha one.
+        grey = (3.0 * grey + image[:, :, -1]) / 4.0
     if negate:
         grey = 255.0 - grey
     if mode == "raw":

@@ -50,16 +50,89 @@ def test_real_map_round_trip(tmp_path: Path) -> None:
     assert again.origin_xy_m == source.origin_xy_m
 
 
-def test_sixteen_bit_image_uses_the_high_byte(tmp_path: Path) -> None:
+def test_sixteen_bit_image_is_scaled_by_its_range(tmp_path: Path) -> None:
     high = np.array([[0, 100, 205, 230, 254]], dtype=np.uint8)
-    low = np.array([[255, 17, 0, 255, 128]], dtype=np.uint8)
-    cv2.imwrite(str(tmp_path / "m16.png"), high.astype(np.uint16) * 256 + low)
+    cv2.imwrite(str(tmp_path / "m16.png"), high.astype(np.uint16) * 257)  # 255 -> 65535
     cv2.imwrite(str(tmp_path / "m8.png"), high)
     image16 = cv2.imread(str(tmp_path / "m16.png"), cv2.IMREAD_UNCHANGED)
     assert image16.dtype == np.uint16  # really a 16-bit file
     np.testing.assert_array_equal(
         rose.load_map(tmp_path / "m16.png").grid, rose.load_map(tmp_path / "m8.png").grid
     )
+
+
+#: One row of grey values: map_saver's occupied, unknown and free, a dark grey and a light grey.
+_SAVER_ROW = np.array([[0, 205, 254, 80, 240]], dtype=np.uint8)
+
+
+def _pnm(kind: bytes, samples: np.ndarray, maxval: int, *, trailing: bytes = b"\n") -> bytes:
+    header = b"%s\n# a comment\n%d %d\n%d\n" % (kind, samples.shape[1], samples.shape[0], maxval)
+    if kind == b"P2":
+        return header + b" ".join(b"%d" % v for v in samples.ravel()) + trailing
+    dtype = np.uint8 if maxval < 256 else np.dtype(">u2")
+    return header + samples.astype(dtype).tobytes()
+
+
+@pytest.mark.parametrize(
+    ("kind", "maxval"), [(b"P5", 100), (b"P5", 1000), (b"P5", 65535), (b"P2", 15), (b"P2", 1000)]
+)
+def test_pgm_samples_are_scaled_by_the_maximum_value(
+    tmp_path: Path, kind: bytes, maxval: int
+) -> None:
+    """Netpbm (and both map servers): a sample's brightness is value / maxval. OpenCV left binary
+    samples unscaled, so a P5 with maxval 100 read as nearly black."""
+    scaled = np.rint(_SAVER_ROW * (maxval / 255.0)).astype(np.int64)
+    (tmp_path / "m.pgm").write_bytes(_pnm(kind, scaled, maxval))
+    (tmp_path / "ref.pgm").write_bytes(_pnm(b"P5", _SAVER_ROW, 255))
+    reference = rose.load_map(tmp_path / "ref.pgm").grid
+    assert reference.tolist() == [[100, -1, 0, 100, 0]]
+    np.testing.assert_array_equal(rose.load_map(tmp_path / "m.pgm").grid, reference)
+
+
+def test_plain_pgm_without_a_final_newline_and_truncated_binary_pgm(tmp_path: Path) -> None:
+    (tmp_path / "plain.pgm").write_bytes(_pnm(b"P2", _SAVER_ROW, 255, trailing=b""))
+    assert rose.load_map(tmp_path / "plain.pgm").grid.tolist() == [[100, -1, 0, 100, 0]]
+    (tmp_path / "cut.pgm").write_bytes(_pnm(b"P5", _SAVER_ROW, 255)[:-2])
+    with pytest.raises(MapFileError, match=r"cut.pgm: not a readable image \(truncated: 3 of 5"):
+        rose.load_map(tmp_path / "cut.pgm")
+    (tmp_path / "junk.pgm").write_bytes(b"P2\n5 1\n255\n0 205 x 80 210\n")
+    with pytest.raises(MapFileError, match=r"junk.pgm: not a readable image \(expected 5 decimal"):
+        rose.load_map(tmp_path / "junk.pgm")
+
+
+def test_alpha_counts_in_trinary_mode_as_the_map_servers_count_it(tmp_path: Path) -> None:
+    """ROS 1 and Nav2 map_server average alpha in with R, G and B in trinary mode: an opaque 205
+    (unknown in a grey image) is free in an RGBA or grey+alpha one. Scale mode and bare images leave
+    alpha out of the grey value."""
+    grey = np.array([[0, 205, 254]], dtype=np.uint8)
+    opaque = np.full_like(grey, 255)
+    cv2.imwrite(str(tmp_path / "rgba.png"), np.dstack([grey, grey, grey, opaque]))
+    cv2.imwrite(str(tmp_path / "la.png"), np.dstack([grey, grey, grey, opaque]))
+    for image in ("rgba.png", "la.png"):
+        path = write_yaml(tmp_path / f"{image}.yaml", f"image: {image}\nresolution: 0.05\n")
+        assert rose.load_map(path).grid.tolist() == [[100, 0, 0]]
+        assert rose.load_map(tmp_path / image).grid.tolist() == [[100, -1, 0]]  # bare image
+    scale = write_yaml(tmp_path / "s.yaml", "image: rgba.png\nresolution: 0.05\nmode: scale\n")
+    assert rose.load_map(scale).grid[0, 1] == 1  # 205 in scale mode, alpha left out
+
+
+def test_quoted_numbers_are_numbers_as_yaml_cpp_reads_them(tmp_path: Path) -> None:
+    cv2.imwrite(str(tmp_path / "m.pgm"), np.array([[0, 254]], dtype=np.uint8))
+    path = write_yaml(
+        tmp_path / "m.yaml",
+        'image: m.pgm\nresolution: "0.05"\norigin: ["-5.0", "1.5", "0"]\nnegate: "0"\n'
+        "occupied_thresh: '0.65'\n",
+    )
+    loaded = rose.load_map(path)
+    assert (loaded.resolution_m, loaded.origin_xy_m, loaded.origin_yaw_rad) == (
+        0.05,
+        (-5.0, 1.5),
+        0.0,
+    )
+    assert loaded.grid.tolist() == [[100, 0]]
+    bad = write_yaml(tmp_path / "bad.yaml", 'image: m.pgm\nresolution: "five cm"\n')
+    with pytest.raises(MapFileError, match="'resolution' must be a float"):
+        rose.load_map(bad)
 
 
 def test_row_zero_is_the_bottom_of_the_image(tmp_path: Path) -> None:
