@@ -10,9 +10,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from rose.directions import FAILURE_LEVEL, TRUST_LEVEL, fold_deg
+from rose.directions import FAILURE_LEVEL, TRUST_LEVEL, map_frame_deg
 from rose.errors import RoseError
 from rose.grid import as_occupancy_grid
 from rose.limits import DEFAULT_MAX_CELLS
@@ -222,12 +220,8 @@ def check_params(parser: argparse.ArgumentParser, args: argparse.Namespace) -> N
 
 
 def directions_deg(result: RoseResult, *, yaw_rad: float = 0.0) -> list[float]:
-    """Dominant directions in degrees in the map frame, rounded to 0.01 and folded into [0, 180).
-
-    ROSE measures them in the grid (counter-clockwise from the grid's +x, the column axis); a map
-    whose origin is rotated by ``yaw_rad`` has its walls that much further round in the map frame.
-    """
-    return [fold_deg(float(np.degrees(a + yaw_rad)), 2) for a in result.dominant_directions]
+    """:func:`rose.directions.map_frame_deg` of the result's dominant directions."""
+    return map_frame_deg(result.dominant_directions, yaw_rad=yaw_rad)
 
 
 def result_summary(

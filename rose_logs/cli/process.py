@@ -276,22 +276,24 @@ def _process(args: argparse.Namespace, output: Path | None, progress: bool, outp
     from rose_logs.session import process_log
     from rose_logs.session.breaks import BreakParams
 
+    rose_params = params_from_args(args)
     return process_log(
         args.input,
         output_path=output,
         output_format=args.fmt,
         force=args.force,
         topics=args.topics,
-        params=params_from_args(args),
+        params=rose_params,
         failure_level=args.failure_level,
         rrd_path=args.rrd,
         spawn=args.spawn,
         connect=args.connect,
         progress=progress,
         walls=args.walls,
-        break_params=BreakParams()
-        if args.break_threshold is None
-        else BreakParams(threshold_m=args.break_threshold),
+        break_params=BreakParams.following(
+            rose_params.occupied_threshold,
+            **({} if args.break_threshold is None else {"threshold_m": args.break_threshold}),
+        ),
         clean_method=args.clean_method,
         outputs=outputs,
         salvage=args.salvage,

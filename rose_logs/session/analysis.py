@@ -70,7 +70,8 @@ class SnapshotAnalyser:
                 origin_xy_m=(snapshot.origin_position_m[0], snapshot.origin_position_m[1]),
                 origin_yaw_rad=snapshot.origin_yaw_rad,
             )
-            walls = rose.extract_walls(placed, result)
+            wall_params = rose.WallParams(occupied_threshold=self.params.occupied_threshold)
+            walls = rose.extract_walls(placed, result, params=wall_params)
         cleaning = clean(
             snapshot.grid, result, method=self.clean_method, resolution_m=snapshot.resolution_m
         )

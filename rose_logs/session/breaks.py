@@ -18,6 +18,7 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass
+from typing import Any
 
 from rose.breaks import WallContradiction, contradicted_walls
 from rose_logs.snapshots import MapSnapshot
@@ -60,6 +61,14 @@ class BreakParams:
     window_m: float = 10.0
     occupied_threshold: int = 65
     free_threshold: int = 50
+
+    @classmethod
+    def following(cls, occupied_threshold: int, **overrides: Any) -> BreakParams:
+        """The defaults (and ``overrides``) with walls from ``occupied_threshold``, ROSE's own
+        parameter, so that the detector and ROSE agree on what is occupied; free space stays below
+        it."""
+        free = min(cls.free_threshold, occupied_threshold - 1)
+        return cls(occupied_threshold=occupied_threshold, free_threshold=free, **overrides)
 
     def __post_init__(self) -> None:
         if not (
@@ -175,7 +184,7 @@ _CLEAR = BreakScore(0.0, False, False, None, None, 0.0)
 def _offset_px(trusted: MapSnapshot, snapshot: MapSnapshot) -> tuple[int, int] | None:
     """``(row, col)`` of the trusted grid's cell (0, 0) in the new grid; None if not comparable."""
     res = snapshot.resolution_m
-    if trusted.resolution_m != res or not res > 0:
+    if trusted.resolution_m != res or not res > 0 or trusted.frame_id != snapshot.frame_id:
         return None
     if trusted.origin_orientation_xyzw != snapshot.origin_orientation_xyzw:
         return None

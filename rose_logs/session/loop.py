@@ -28,11 +28,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
 import rose
 from rose.cleaning import CleanMethod, CleanResult
-from rose.directions import FAILURE_LEVEL, fold_deg
+from rose.directions import FAILURE_LEVEL, map_frame_deg
 from rose.limits import DEFAULT_MAX_CELLS, check_cells, short
 from rose.outputs import OutputSet, signals_deferred
 from rose.params import RoseParams
@@ -160,7 +158,7 @@ def process_log(
     started = time.perf_counter()
     input_path = Path(input_path)
     params = params or RoseParams()
-    break_params = break_params or BreakParams()
+    break_params = break_params or BreakParams.following(params.occupied_threshold)
     if not math.isfinite(failure_level):
         msg = f"failure level must be finite, got {failure_level}"
         raise ValueError(msg)
@@ -669,12 +667,16 @@ class _Loop:
                 "not analysable", f"{topic}: map at {snapshot.log_time_ns} ns not analysed ({err})"
             )
             return
+        # Numbered among the analysed snapshots, as the break detector (which has seen this one)
+        # numbers them: its trusted index and the records' must name the same snapshot.
         index = self.count.get(topic, 0)
-        if not self._write_results(snapshot, analysis):
-            return
         self.count[topic] = index + 1
         verdict = pending.verdict.result()
         assert verdict is not None  # the analysis succeeded
+        if not self._write_results(snapshot, analysis):
+            # No record, but a break the detector found here is still reported.
+            self._report_breaks(snapshot, analysis.result, index, verdict)
+            return
         if self.rerun is not None:
             rescued = analysis.cleaning.rescued if analysis.cleaning is not None else None
             self.rerun.snapshot(snapshot, analysis.result, index, analysis.walls, rescued)
@@ -799,10 +801,8 @@ def _record(
         height=height,
         resolution_m=snapshot.resolution_m,
         structure_score=float(result.structure_score),
-        # ROSE measures directions in the grid; the origin's yaw turns them into the map frame.
         directions_deg=tuple(
-            fold_deg(float(np.degrees(d + snapshot.origin_yaw_rad)))
-            for d in result.dominant_directions
+            map_frame_deg(result.dominant_directions, yaw_rad=snapshot.origin_yaw_rad)
         ),
         threshold=float(result.threshold),
         occupied_count=result.occupied_count,

@@ -375,3 +375,28 @@ def test_reader_error_names_the_file(tmp_path: Path) -> None:
 def test_debug_shows_traceback(tmp_path: Path) -> None:
     with pytest.raises(LogReadError):
         main(["--debug", "process", str(tmp_path / "nope.mcap")])
+
+
+def test_a_snapshot_whose_results_cannot_be_encoded_keeps_the_numbering(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, fr079, broken_grid
+) -> None:
+    """Snapshot 2's results cannot be written: it has no record, but it keeps its number, so that
+    the break detector's trusted snapshot (which it is) and the records name the same snapshots."""
+    import rose_logs.session.loop as loop
+
+    real = loop.encode_score
+    calls = []
+
+    def fails_on_the_third(*args: object, **kwargs: object) -> bytes:
+        calls.append(1)
+        if len(calls) == 3:
+            raise ValueError("a value out of range")
+        return real(*args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(loop, "encode_score", fails_on_the_third)
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", session_maps([*fr079, broken_grid]))
+    report = process_log(built.path, output_path=tmp_path / "out.mcap").to_json()
+    assert [s["index"] for s in report["snapshots"]] == [0, 1, 3]
+    first = report["topics"]["/map"]["first_break"]
+    assert (first["index"], first["trusted_index"]) == (3, 2)
+    assert report["skipped_reasons"] == "1 not encodable"

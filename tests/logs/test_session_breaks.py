@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import numpy.typing as npt
 import pytest
@@ -104,3 +106,20 @@ def test_topics_are_independent(plan, broken) -> None:
 def test_bad_parameters(kwargs: dict) -> None:
     with pytest.raises(ValueError, match="need"):
         BreakParams(**kwargs)
+
+
+def test_a_snapshot_in_another_frame_is_not_compared(plan, broken) -> None:
+    """The same cells in another ``header.frame_id`` are not the same place: the comparison
+    restarts, as for another resolution, instead of calling the shifted map a break."""
+    detector = BreakDetector(BreakParams(threshold_m=0.5))
+    detector.update(_snap(plan, 0))
+    verdict = detector.update(dataclasses.replace(_snap(broken, 1), frame_id="odom"))
+    assert (verdict.score_m, verdict.reference_index, verdict.broken) == (0.0, None, False)
+    assert detector.update(_snap(broken, 2)).reference_index is None  # back in "map": restart
+
+
+def test_break_parameters_can_follow_roses_occupied_threshold() -> None:
+    assert BreakParams.following(40) == BreakParams(occupied_threshold=40, free_threshold=39)
+    assert BreakParams.following(80, threshold_m=2.0) == BreakParams(
+        threshold_m=2.0, occupied_threshold=80
+    )

@@ -65,3 +65,24 @@ def test_without_walls_flag_no_wall_marker(
             if m.channel.topic == "/map/rose/walls"
         ]
     assert ids == [[0, 1]]
+
+
+def test_walls_follow_the_occupied_threshold_rose_uses(fr079: list[npt.NDArray[np.int8]]) -> None:
+    """``--occupied-threshold 40`` on a map whose walls are 50 % occupied: ROSE sees the walls, and
+    so must the wall extraction (it used its own default, 65, and found none)."""
+    from rose_logs.session.analysis import SnapshotAnalyser
+    from rose_logs.snapshots import MapSnapshot
+
+    grid = np.where(fr079[-1] >= 65, 50, fr079[-1]).astype(np.int8)
+    snapshot = MapSnapshot(
+        topic="/map", log_time_ns=0, stamp_ns=0, frame_id="map", grid=grid, resolution_m=0.05
+    )
+    params = rose.RoseParams(occupied_threshold=40)
+    analysis = SnapshotAnalyser(params, walls=True).analyse(snapshot)
+    expected = rose.extract_walls(
+        rose.OccupancyMap(grid=grid, resolution_m=0.05),
+        analysis.result,
+        params=rose.WallParams(occupied_threshold=40),
+    )
+    assert analysis.walls is not None and len(expected.endpoints_px) > 10
+    np.testing.assert_array_equal(analysis.walls.endpoints_px, expected.endpoints_px)
