@@ -7,6 +7,7 @@ import dataclasses
 import json
 import logging
 import signal
+import sys
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
@@ -193,11 +194,15 @@ def run_batch(
             # Created once the engine is ready: a scheduler that cannot be reached leaves no folder.
             store.prepare()
             bar.slots = getattr(run, "slots", 1)
-            for result in run(todo, store, options, storage_options, keys):
-                finished[result.uri] = result
-                bar.update(result)
-                if on_result is not None:
-                    on_result(result, bar.done, len(todo))
+            with _console_beside(bar):
+                for result in run(todo, store, options, storage_options, keys):
+                    finished[result.uri] = result
+                    bar.update(result)
+                    for line in result.warnings:
+                        named = line.startswith(f"{result.uri}:")
+                        _LOG.warning("%s", line if named else f"{result.uri}: {line}")
+                    if on_result is not None:
+                        on_result(result, bar.done, len(todo))
     except KeyboardInterrupt as err:
         stopped_by = getattr(err, "signum", signal.SIGINT)  # Terminated: SIGTERM / SIGHUP
         # Workers store each result as they finish it, also those this process had not collected
@@ -403,6 +408,28 @@ def _collect(
     except OSError as err:
         _LOG.warning("%s: cannot store the error result (%s)", rec.uri, err)
     return result
+
+
+@contextlib.contextmanager
+def _console_beside(bar: _Progress) -> Iterator[None]:
+    """While the bar is shown, lines logged to the console by ``rose`` and ``rose_logs`` go above
+    it instead of through it."""
+    loggers = [logging.getLogger(name) for name in ("rose", "rose_logs")]
+    on_console = [
+        logger
+        for logger in loggers
+        if any(
+            isinstance(h, logging.StreamHandler) and h.stream in (sys.stdout, sys.stderr)
+            for h in logger.handlers
+        )
+    ]
+    if bar.bar is None or not on_console:
+        yield
+        return
+    from tqdm.contrib.logging import logging_redirect_tqdm
+
+    with logging_redirect_tqdm(loggers=on_console):
+        yield
 
 
 class _Progress:

@@ -6,6 +6,7 @@ tests call it directly. It never raises for a bad recording: the result then has
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import logging
@@ -15,7 +16,7 @@ import statistics
 import tempfile
 import time
 import uuid
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Literal
@@ -133,6 +134,12 @@ class RecordingResult:
         Outputs written.
     losses : tuple of str
         With ``salvage``: what could not be read of a damaged recording (empty when intact).
+    skipped_messages : int
+        Map messages left out (malformed, over the cell limit, not analysable), as ``process``
+        reports them; ``skipped_reasons`` counts them by reason ("2 malformed, 1 over --max-cells").
+    warnings : tuple of str
+        Every warning the recording gave (one line each), in order: kept with the result, and said
+        by the batch with the recording's URI.
     """
 
     uri: str
@@ -152,6 +159,9 @@ class RecordingResult:
     cleaned_uri: str | None = None
     rrd_uri: str | None = None
     losses: tuple[str, ...] = ()
+    skipped_messages: int = 0
+    skipped_reasons: str = ""
+    warnings: tuple[str, ...] = ()
 
     def row(self) -> dict[str, Any]:
         """The recording's row of ``recordings.parquet``."""
@@ -164,6 +174,9 @@ class RecordingResult:
             "status": self.status,
             "error": self.error,
             "losses": list(self.losses),
+            "skipped_messages": self.skipped_messages,
+            "skipped_reasons": self.skipped_reasons,
+            "warnings": list(self.warnings),
             "map_topics": list(self.map_topics),
             "snapshots": len(self.snapshots),
             "start_ns": self.start_ns,
@@ -187,6 +200,7 @@ class RecordingResult:
         payload["map_topics"] = list(self.map_topics)
         payload["snapshots"] = list(self.snapshots)
         payload["losses"] = list(self.losses)
+        payload["warnings"] = list(self.warnings)
         return payload
 
     @classmethod
@@ -196,6 +210,7 @@ class RecordingResult:
         data["map_topics"] = tuple(data.get("map_topics", ()))
         data["snapshots"] = tuple(data.get("snapshots", ()))
         data["losses"] = tuple(data.get("losses", ()))
+        data["warnings"] = tuple(data.get("warnings", ()))
         return cls(**data)
 
 
@@ -209,8 +224,9 @@ def package_version() -> str:
 #: Layout of a stored result; part of the resume key, so results stored in an older layout are
 #: redone instead of mixed into new tables (2: ``break_detected`` marks every snapshot the detector
 #: calls broken, not only a break's first; 3: maps without occupied cells are never
-#: ``w_above_failure``; 4: directions in the map frame, the ``completed`` count).
-RESULT_LAYOUT = 4
+#: ``w_above_failure``; 4: directions in the map frame, the ``completed`` count; 5: skipped
+#: messages and warnings).
+RESULT_LAYOUT = 5
 
 
 def result_key(recording: Recording, options: RecordingOptions) -> str:
@@ -363,18 +379,19 @@ def _attempt(
         if cleaned is not None:
             cleaned.parent.mkdir()
         try:
-            report = process_log(
-                local,
-                output_path=cleaned,
-                topics=options.topics,
-                params=options.params,
-                failure_level=options.failure_level,
-                rrd_path=rrd,
-                walls=options.walls,
-                recording_id=recording_id(recording.uri),
-                analysis_threads=options.analysis_threads,
-                salvage=options.salvage,
-            )
+            with collected_warnings() as said:
+                report = process_log(
+                    local,
+                    output_path=cleaned,
+                    topics=options.topics,
+                    params=options.params,
+                    failure_level=options.failure_level,
+                    rrd_path=rrd,
+                    walls=options.walls,
+                    recording_id=recording_id(recording.uri),
+                    analysis_threads=options.analysis_threads,
+                    salvage=options.salvage,
+                )
         except (LogError, RoseError) as err:
             # The message names the downloaded copy, which is gone by the time anyone reads the
             # row: name the recording instead.
@@ -410,7 +427,55 @@ def _attempt(
         rrd_uri=rrd_uri,
         # The downloaded copy's path means nothing to the reader of the table: name the recording.
         losses=tuple(loss.replace(str(local), recording.uri) for loss in report.losses),
+        skipped_messages=report.skipped_messages,
+        skipped_reasons=report.skipped_reasons,
+        warnings=tuple(line.replace(str(local), recording.uri) for line in said),
     )
+
+
+class _Collector(logging.Handler):
+    """Stands in for a logger's handlers: keeps its warnings (one line each) in ``said`` and passes
+    anything quieter on as the logger would have (its handlers, then its parents' if it
+    propagated)."""
+
+    def __init__(self, logger: logging.Logger, said: list[str]) -> None:
+        super().__init__(logging.NOTSET)
+        self.replaced = logger.handlers[:]
+        self.parent = logger.parent if logger.propagate else None
+        self.said = said
+
+    def emit(self, record: logging.LogRecord) -> None:
+        if record.levelno >= logging.WARNING:
+            self.said.append(" ".join(record.getMessage().split()))
+            return
+        for handler in self.replaced:
+            if record.levelno >= handler.level:
+                handler.handle(record)
+        if self.parent is not None:
+            self.parent.handle(record)
+
+
+@contextlib.contextmanager
+def collected_warnings() -> Iterator[list[str]]:
+    """The warnings of ``rose`` and ``rose_logs`` during the block, kept instead of said.
+
+    A batch reports them with the recording they belong to (its row, and a line naming its URI);
+    said as they came, on a worker's stderr or among other recordings' lines, they named none.
+    """
+    said: list[str] = []
+    saved = []
+    for name in ("rose", "rose_logs"):
+        logger = logging.getLogger(name)
+        saved.append((logger, logger.handlers[:], logger.propagate))
+        collector = _Collector(logger, said)
+        logger.handlers = [collector]
+        logger.propagate = False
+    try:
+        yield said
+    finally:
+        for logger, handlers, propagate in saved:
+            logger.handlers = handlers
+            logger.propagate = propagate
 
 
 def cleaned_log_name(name: str) -> str:

@@ -412,3 +412,46 @@ def test_a_salvaged_active_bag_is_cleaned_into_a_complete_bag(tmp_path: Path) ->
     assert row["status"] == "ok" and row["cleaned"].endswith("run.bag")
     with LogReader(Path(row["cleaned"])) as reader:
         assert "/map/rose/cleaned" in {c.topic for c in reader.channels}
+
+
+def test_skipped_map_messages_and_warnings_are_in_the_row_and_name_the_recording(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A recording whose second and third maps have a NaN resolution: ``process`` skips and
+    reports them; the batch row says so too, and the warnings printed name the recording."""
+    import dataclasses
+    import math
+
+    from fleet import MAP_TOPIC, SAMPLE
+
+    from rose_logs.derived import encode_cleaned
+    from rose_logs.reader import LogReader
+    from rose_logs.snapshots import decode_map
+    from rose_logs.writer import open_output
+
+    log = tmp_path / "robot" / "run.mcap"
+    log.parent.mkdir()
+    with LogReader(SAMPLE) as reader, open_output(log, "mcap", serialization="cdr") as out:
+        handles = {c.id: out.add_channel(c) for c in reader.channels}
+        maps = 0
+        for message in reader.messages():
+            data = message.data
+            if message.channel.topic == MAP_TOPIC:
+                maps += 1
+                if maps > 4:
+                    break
+                if maps in (2, 3):
+                    snap = decode_map(data, serialization="cdr", topic=MAP_TOPIC, log_time_ns=0)
+                    bad = dataclasses.replace(snap, resolution_m=math.nan)
+                    data = encode_cleaned(bad, snap.grid, serialization="cdr")
+            out.write_raw(handles[message.channel.id], message.log_time_ns, data)
+    out_dir = tmp_path / "out"
+    assert main(["batch", str(log), "-o", str(out_dir), "-q"]) == 0
+    (row,) = read_rows(out_dir / "recordings.parquet")
+    assert (row["status"], row["snapshots"], row["skipped_messages"]) == ("ok", 2, 2)
+    assert row["skipped_reasons"] == "2 malformed"
+    assert len(row["warnings"]) >= 1 and all("resolution" in w for w in row["warnings"])
+    said = [line for line in capsys.readouterr().err.splitlines() if line.startswith("warning:")]
+    assert said and all(line.startswith(f"warning: {log}: ") for line in said)
+    summary = json.loads((out_dir / "summary.json").read_text())
+    assert (summary["skipped_messages"], summary["with_warnings"]) == (2, 1)
