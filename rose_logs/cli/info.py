@@ -38,15 +38,17 @@ def run(args: argparse.Namespace) -> int:
                 f"({duration_text(reader.end_ns - reader.start_ns)})"
             )
         counts: dict[str, int] = {}
-        types: dict[str, str] = {}
+        types: dict[str, list[str]] = {}  # a topic may carry several types, one per connection
         for c in channels:
             counts[c.topic] = counts.get(c.topic, 0) + c.message_count
-            types[c.topic] = c.msgtype
+            known = types.setdefault(c.topic, [])
+            if c.msgtype not in known:
+                known.append(c.msgtype)
         width = max((len(t) for t in counts), default=5)
         print("\ntopics")
         for topic in sorted(counts):
             mark = "  [map]" if topic in map_topics else ""
-            print(f"  {topic:<{width}}  {counts[topic]:>8}  {types[topic]}{mark}")
+            print(f"  {topic:<{width}}  {counts[topic]:>8}  {', '.join(sorted(types[topic]))}{mark}")
         stats: dict[str, dict[str, Any]] = {
             t: {"sizes": set(), "res": set(), "frames": set(), "bad": 0} for t in map_topics
         }

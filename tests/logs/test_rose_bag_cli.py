@@ -296,3 +296,24 @@ def test_the_grid_range_runs_from_the_smallest_map_to_the_largest(
     log = build_log(tmp_path / "in.mcap", "mcap-ros2", session_maps(grids)).path
     assert main(["process", str(log), "--no-output", "-q"]) == 0
     assert "grid         50 x 1 .. 3 x 40 cells" in capsys.readouterr().out
+
+
+def test_info_lists_every_type_a_topic_carries(tmp_path: Path, capsys, fr079) -> None:
+    """Two connections on /map, a map and a string: both types are listed, not the last one."""
+    from conftest import _map_message, typestore
+    from rosbags.rosbag2 import Writer
+
+    store = typestore("cdr")
+    bag = tmp_path / "mixed"
+    with Writer(bag, version=8) as writer:
+        grids = writer.add_connection("/map", "nav_msgs/msg/OccupancyGrid", typestore=store)
+        text = writer.add_connection("/map", "std_msgs/msg/String", typestore=store)
+        _, data = _map_message(store, "cdr", MapMsg(START_NS, fr079[0]), 1)
+        writer.write(grids, START_NS, data)
+        hello = store.types["std_msgs/msg/String"](data="hello")
+        writer.write(text, START_NS + 1, bytes(store.serialize_cdr(hello, "std_msgs/msg/String")))
+    assert main(["info", str(bag)]) == 0
+    out = capsys.readouterr().out
+    assert re.search(
+        r"^  /map +2  nav_msgs/msg/OccupancyGrid, std_msgs/msg/String  \[map\]$", out, re.M
+    )
