@@ -28,7 +28,7 @@ from rose_logs.evaluation.cleaning import (
     summarise_cleaning,
 )
 from rose_logs.evaluation.cleaning_report import summary_markdown
-from rose_logs.evaluation.config import RADISH_LOGS
+from rose_logs.evaluation.config import BORMANN_MAPS, RADISH_LOGS
 from rose_logs.evaluation.raycast import raycast_case
 
 
@@ -76,7 +76,11 @@ def main() -> None:
         default="0",
         help="angles (degrees) to rotate the ray-cast logs by, each a kind of its own, e.g. 0,30,45",
     )
-    parser.add_argument("--bormann", default=None, help="Bormann maps (default: all)")
+    parser.add_argument(
+        "--bormann",
+        default=",".join(BORMANN_MAPS),
+        help="Bormann maps (default: the 19 of rose-bag evaluate, config.BORMANN_MAPS)",
+    )
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--figure", type=Path, default=None, help="before/after PNG of one case")
     parser.add_argument(
@@ -90,7 +94,7 @@ def main() -> None:
 
     if args.maps_dir is None:
         args.maps_dir = require_data_dir()
-    names = args.bormann.split(",") if args.bormann else None
+    names = [s for s in args.bormann.split(",") if s]
     cases = bormann_cases(args.maps_dir / "bormann_ipa_room_segmentation", names=names)
     logs = [s for s in args.logs.split(",") if s]
     for log in logs:

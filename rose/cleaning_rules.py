@@ -21,6 +21,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "directional_runs",
+    "length_px",
     "passable",
     "straight_lines",
     "topology_guard",
@@ -61,8 +62,9 @@ def wall_cells(
     # Everything happens near known cells: work on their bounding box, padded so that every window
     # and disc that matters fits (outside it all cells are unknown).
     pad = 2 + max(
-        round(_px(p.guard_window_m, res)) + math.ceil(_px(p.robot_radius_m, res)),
-        math.ceil(_px(p.open_unknown_width_m, res)) + round(_px(p.unknown_margin_m, res)),
+        round(length_px(p.guard_window_m, res)) + math.ceil(length_px(p.robot_radius_m, res)),
+        math.ceil(length_px(p.open_unknown_width_m, res))
+        + round(length_px(p.unknown_margin_m, res)),
     )
     r0, r1, c0, c1 = _bounds(occupancy >= 0)
     r0, c0 = max(r0 - pad, 0), max(c0 - pad, 0)
@@ -92,27 +94,30 @@ def _wall_cells(
     p: CleanParams,
 ) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
     runs = directional_runs(
-        occupied, directions, min_length_px=_px(p.min_run_m, res), tolerance_px=p.run_tolerance_px
+        occupied,
+        directions,
+        min_length_px=length_px(p.min_run_m, res),
+        tolerance_px=p.run_tolerance_px,
     )
-    outside = wide_unknown(occupancy, radius_px=_px(p.open_unknown_width_m, 2 * res))
-    near_outside = _dilate(outside, round(_px(p.unknown_margin_m, res)))
+    outside = wide_unknown(occupancy, radius_px=length_px(p.open_unknown_width_m, 2 * res))
+    near_outside = _dilate(outside, round(length_px(p.unknown_margin_m, res)))
     keep = occupied & (structure | runs | near_outside)
     # Straight lines at any angle (walls off the dominant directions, curved walls in pieces).
-    keep |= straight_lines(occupied, min_length_px=_px(p.min_run_m, res))
+    keep |= straight_lines(occupied, min_length_px=length_px(p.min_run_m, res))
     completed = np.zeros(occupied.shape, dtype=bool)
     if p.max_bridge_m > 0:
         # The wall line hidden behind furniture: unknown cells between collinear kept walls.
         bridges = bridge_gaps(
-            keep, occupancy == UNKNOWN, directions, max_gap_px=_px(p.max_bridge_m, res)
+            keep, occupancy == UNKNOWN, directions, max_gap_px=length_px(p.max_bridge_m, res)
         )
         completed = _touching(bridges, occupied & ~keep)
     guarded = topology_guard(
         occupied,
         keep,
         added=completed,
-        radius_px=_px(p.robot_radius_m, res),
-        window_px=max(1, round(_px(p.guard_window_m, res))),
-        min_region_px=_px(p.min_region_m2, res**2),
+        radius_px=length_px(p.robot_radius_m, res),
+        window_px=max(1, round(length_px(p.guard_window_m, res))),
+        min_region_px=length_px(p.min_region_m2, res**2),
     )
     kept = keep | guarded
     return kept, guarded, completed
@@ -176,7 +181,7 @@ def _components_with_stats(
     return int(count), np.asarray(labels), np.asarray(stats)
 
 
-def _px(length_m: float, res: float) -> float:
+def length_px(length_m: float, res: float) -> float:
     """``length_m`` in cells, rounded to 1e-6 so that a resolution stored as float32 (0.05 ->
     0.0500000007) converts exactly like the decimal one."""
     return round(length_m / res, 6)

@@ -9,7 +9,7 @@ Supported inputs (:func:`detect_format`):
   because rosbags refuses ros1-profile MCAP and the raw reader keeps channel metadata and publish times).
 
 Messages are never decoded here: :class:`RawMessage` carries the serialised bytes, so copying is byte for
-byte and memory stays flat in the number of messages. Decoding map messages is :mod:`rose_logs.derived`.
+byte and memory stays flat in the number of messages. Decoding map messages is :mod:`rose_logs.snapshots`.
 
 With ``salvage``, an MCAP file whose summary is missing and a ROS 1 bag whose index cannot be used are
 read record by record from their start instead (:mod:`rose_logs.storage.mcap`,

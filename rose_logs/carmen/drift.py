@@ -89,7 +89,8 @@ def apply_drift(
     Returns
     -------
     ndarray of float64, shape (N, 3)
-        The drifted trajectory, theta wrapped to ``[-pi, pi)``.
+        The drifted trajectory; theta is wrapped to ``[-pi, pi)`` where drift was added (the
+        poses before the drift starts, or all of them without drift, are returned as given).
 
     Raises
     ------

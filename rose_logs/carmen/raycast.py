@@ -45,7 +45,8 @@ class BuilderParams:
     resolution_m : float
         Cell size in metres.
     max_range_m : float
-        Readings at or beyond this range are treated as "no return" (free space only, up to this range).
+        Readings at or beyond this range are "no return": they mark nothing and clear free space
+        only up to ``no_return_free_m``.
     min_range_m : float
         Readings below this range are dropped.
     no_return_free_m : float

@@ -297,7 +297,7 @@ def write_carmen_session(
     log : CarmenLog
         Parsed log (:func:`rose_logs.carmen.parse.read_carmen_log`).
     path : str or Path
-        Output: ``*.bag`` file (ROS 1) or ROS 2 bag folder; must not exist.
+        Output: ``*.bag`` file (ROS 1), ``*.mcap`` file, or ROS 2 bag folder; must not exist.
     fmt : {"ros1", "db3", "mcap"}, optional
         Output format; from the path when omitted (:func:`rose_logs.formats.format_from_path`;
         a name without a known suffix is a ROS 2 db3 bag folder).

@@ -48,7 +48,9 @@ def run(args: argparse.Namespace) -> int:
         print("\ntopics")
         for topic in sorted(counts):
             mark = "  [map]" if topic in map_topics else ""
-            print(f"  {topic:<{width}}  {counts[topic]:>8}  {', '.join(sorted(types[topic]))}{mark}")
+            print(
+                f"  {topic:<{width}}  {counts[topic]:>8}  {', '.join(sorted(types[topic]))}{mark}"
+            )
         stats: dict[str, dict[str, Any]] = {
             t: {"sizes": set(), "res": set(), "frames": set(), "bad": 0} for t in map_topics
         }

@@ -20,8 +20,8 @@ import numpy.typing as npt
 
 from rose_logs.carmen.clock import scan_clock_ns
 from rose_logs.carmen.drift import apply_drift
-from rose_logs.carmen.parse import CarmenLog, beam_angles
-from rose_logs.carmen.raycast import BuilderParams, OccupancyGridBuilder, ScanBatch
+from rose_logs.carmen.parse import CarmenLog
+from rose_logs.carmen.raycast import BuilderParams, OccupancyGridBuilder
 
 __all__ = ["SessionGrid", "SessionSpec", "session_grids"]
 
@@ -86,20 +86,6 @@ class SessionGrid:
     scans: int
 
 
-def _integrate(
-    builder: OccupancyGridBuilder, log: CarmenLog, poses: npt.NDArray[np.float64], a: int, b: int
-) -> None:
-    i = a
-    while i < b:
-        n = log.scans[i].ranges_m.size
-        j = i
-        while j < b and log.scans[j].ranges_m.size == n:
-            j += 1
-        ranges = np.stack([s.ranges_m for s in log.scans[i:j]])
-        builder.integrate(ScanBatch(ranges, beam_angles(n), poses[i:j]))
-        i = j
-
-
 def session_grids(
     log: CarmenLog,
     spec: SessionSpec,
@@ -136,10 +122,10 @@ def session_grids(
     for i in range(1, len(log.scans)):
         t = int(clock[i])
         if t >= next_ns:
-            _integrate(builder, log, poses, done, i)
+            builder.integrate_scans(log.scans[done:i], poses[done:i])
             done = i
             yield SessionGrid(t, builder.grid(), builder.origin_xy_m, params.resolution_m, i)
             next_ns = t + period_ns
-    _integrate(builder, log, poses, done, len(log.scans))
+    builder.integrate_scans(log.scans[done:], poses[done:])
     end = int(clock[-1]) + 1
     yield SessionGrid(end, builder.grid(), builder.origin_xy_m, params.resolution_m, len(log.scans))

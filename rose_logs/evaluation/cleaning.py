@@ -31,6 +31,7 @@ import numpy.typing as npt
 
 import rose
 from rose.cleaning import CleanMethod, clean
+from rose.cleaning_rules import length_px
 from rose_logs.evaluation.gaps import robot_gaps
 from rose_logs.evaluation.maps import _grey, load_benchmark_map
 
@@ -205,7 +206,7 @@ def furnish_grid(
     """A SLAM map with scanned-looking furniture painted in: a quick case that needs no log.
 
     Objects (hollow boxes 0.3..1.2 m with unknown insides, four-legged tables, round bins drawn as
-    rings) go on free cells at least 0.3 m from occupied and unknown cells; there are no shadows (the
+    rings) go on free cells at least 1 m from occupied and unknown cells; there are no shadows (the
     ray-cast cases have them). Walls are the occupied cells of ``grid`` in 8-connected components at
     least ``min_wall_extent_m`` across (the bounding box diagonal), so a map's own small clutter is
     left out of the metrics; clutter is the painted cells.
@@ -219,7 +220,7 @@ def furnish_grid(
     clear = cv2.distanceTransform(free.view(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE) * res
     out = grid.copy()
     clutter = np.zeros(grid.shape, dtype=bool)
-    candidates = np.flatnonzero(clear > 0.3 + 0.7)
+    candidates = np.flatnonzero(clear > 1.0)
     for _ in range(count if candidates.size else 0):
         row, col = divmod(int(candidates[rng.integers(candidates.size)]), grid.shape[1])
         kind = rng.integers(3)
@@ -279,7 +280,7 @@ def score_cleaning(
     gaps = robot_gaps(
         walls,
         kept,
-        radius_px=robot_radius_m / case.resolution_m,
+        radius_px=length_px(robot_radius_m, case.resolution_m),
         margin_px=max(1, round(gap_margin_m / case.resolution_m)),
         pocket_px=pocket_m2 / case.resolution_m**2,
         added=completed,

@@ -18,18 +18,10 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
+# The cleaning's own test of where the robot fits: the gaps are counted for the robot it protects.
+from rose.cleaning_rules import passable
+
 __all__ = ["passable", "robot_gaps"]
-
-
-def passable(obstacles: npt.NDArray[np.bool_], radius_px: float) -> npt.NDArray[np.bool_]:
-    """Cells farther than ``radius_px`` (cell centre to cell centre) from every obstacle cell."""
-    import cv2
-
-    free = np.where(obstacles, np.uint8(0), np.uint8(1))
-    if not obstacles.any():
-        return np.ones(obstacles.shape, dtype=bool)
-    distance = cv2.distanceTransform(free, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
-    return distance > radius_px
 
 
 def robot_gaps(

@@ -1,7 +1,7 @@
 """Ray-cast furniture cases: CARMEN logs re-rendered with virtual objects in the beams' way.
 
 The map built from the original scans gives the walls; seeded objects
-(:mod:`rose_logs.furniture`) are placed on its free space, every beam is cut at the first object it
+(:mod:`rose_logs.carmen.furniture`) are placed on its free space, every beam is cut at the first object it
 meets, and the map is built again from the cut beams with the same log-odds ray casting. Walls are
 the cells occupied in both maps and outside the objects; clutter the occupied cells of the furnished
 map on an object (its footprint grown by one cell, where the cut beams end). The logs' maps hold real

@@ -2,7 +2,7 @@
 
 For every building: reference walls = the Hough baseline on the clean map ``<name>.png`` (independent of
 ROSE, so the reference cannot favour it); detected walls = the Hough baseline and the ROSE variant on
-``<name>_furnitures.png``; both scored with :func:`rose.wall_error.wall_error`. Writes
+``<name>_furnitures.png``; both scored with :func:`rose.walls.error.wall_error`. Writes
 ``wall_error.csv`` and ``wall_error.png`` (log-scale, like the paper's figure) to ``out_dir``.
 
 Run standalone: ``python -m rose_logs.evaluation.walls OUT_DIR [NAME ...]``.
@@ -62,7 +62,7 @@ class WallScore:
 
     @classmethod
     def from_error(cls, error: WallError) -> WallScore:
-        """Summarise a :class:`~rose.wall_error.WallError`."""
+        """Summarise a :class:`~rose.walls.error.WallError`."""
         return cls(
             n_detected=error.n_detected,
             mean_cost=error.mean_cost,

@@ -125,7 +125,8 @@ def process_log(
     on_snapshot : callable, optional
         Called with ``(snapshot, result, record)`` after each snapshot.
     recording_id : str, optional
-        Rerun recording id; default: derived from the input's file name. ``rose-bag batch`` passes
+        Rerun recording id; default: :func:`rose_logs.rerun.sink.recording_id_for` (the input's
+        absolute path and content, so a re-run of the same file joins it). ``rose-bag batch`` passes
         one derived from the full URI, so that two robots' ``run.mcap`` stay separate recordings.
     break_params : BreakParams, optional
         Break detector parameters (defaults of :class:`rose_logs.session.breaks.BreakParams`).
