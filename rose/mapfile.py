@@ -48,9 +48,6 @@ MapMode = Literal["trinary", "scale", "raw"]
 DEFAULT_RESOLUTION_M = 0.05
 DEFAULT_OCCUPIED_THRESH = 0.65
 DEFAULT_FREE_THRESH = 0.196
-IMAGE_SUFFIXES = frozenset(
-    {".pgm", ".png", ".ppm", ".pbm", ".bmp", ".jpg", ".jpeg", ".tif", ".tiff"}
-)
 YAML_SUFFIXES = frozenset({".yaml", ".yml"})
 
 # Grey values ROS map_saver writes in trinary mode.

@@ -55,11 +55,6 @@ def derived_topics(map_topic: str) -> DerivedTopics:
     return DerivedTopics(f"{base}/cleaned", f"{base}/structure_score", f"{base}/walls")
 
 
-def _time_ns(stamp: Any) -> int:
-    return int(stamp.sec) * _NS_PER_S + int(stamp.nanosec)
-
-
-# -- encoding ------------------------------------------------------------------------------------
 def _serialize(message: Any, msgtype: str, serialization: str) -> bytes:
     store = typestore_for(serialization)
     if serialization == "ros1":

@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from rose.mapfile import MAX_RESOLUTION_M
 from rose_logs.errors import MapMessageError
 from rose_logs.frames import quaternion_to_yaw
 from rose_logs.storage.typesys import MAP_TYPE, UPDATE_TYPE, typestore_for
@@ -29,9 +30,6 @@ __all__ = [
 
 _NS_PER_S = 1_000_000_000
 _MAX_TIME_NS = 2**63 - 1
-
-MAX_RESOLUTION_M = 1e4
-"""Largest cell size of a map message taken as a map (metres); larger values are corrupt data."""
 
 
 @dataclass(frozen=True, eq=False)

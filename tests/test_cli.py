@@ -67,6 +67,10 @@ def test_clean_method_paper_is_the_papers_labelling(cluttered_map: Path, tmp_pat
     kept_paper = np.count_nonzero(rose.load_map(paper).grid == 100)
     kept_walls = np.count_nonzero(rose.load_map(walls).grid == 100)
     assert kept_walls >= kept_paper
+    # rose-bag process's spelling of the option works here too.
+    again = tmp_path / "again.yaml"
+    assert main(["clean", str(cluttered_map), "-o", str(again), "--clean-method", "paper"]) == 0
+    np.testing.assert_array_equal(rose.load_map(again).grid, rose.load_map(paper).grid)
     with pytest.raises(SystemExit) as exit_info:
         main(["clean", str(cluttered_map), "-o", str(paper), "--method", "tidy"])
     assert exit_info.value.code == 2

@@ -43,6 +43,8 @@ def add_parser(commands: Any) -> None:
     add_map_arguments(clean)
     clean.add_argument(
         "--method",
+        "--clean-method",  # rose-bag process's name for the same choice
+        dest="method",
         choices=CLEAN_METHODS,
         default="walls",
         help="walls: remove clutter, keep every wall, open no robot-sized gap (default); "

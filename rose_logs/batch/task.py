@@ -21,6 +21,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
+from rose.directions import FAILURE_LEVEL
 from rose.errors import RoseError
 from rose.params import RoseParams
 from rose_logs.batch.sources import Recording
@@ -75,7 +76,7 @@ class RecordingOptions:
 
     params: RoseParams = field(default_factory=RoseParams)
     topics: tuple[str, ...] | None = None
-    failure_level: float = 0.4
+    failure_level: float = FAILURE_LEVEL
     walls: bool = False
     cleaned: bool = False
     rrd: bool = False
@@ -152,7 +153,7 @@ class RecordingResult:
     start_ns: int | None = None
     end_ns: int | None = None
     snapshots: tuple[dict[str, Any], ...] = ()
-    failure_level: float = 0.4
+    failure_level: float = FAILURE_LEVEL
     seconds: float = 0.0
     cpu_seconds: float = 0.0
     worker: str = ""

@@ -10,7 +10,6 @@ import argparse
 import logging
 import os
 import sys
-from typing import Any
 
 from rose.cli import LevelFormatter, error_text, input_name
 from rose.errors import RoseError
@@ -134,15 +133,6 @@ def _run(argv: list[str] | None) -> int:
             raise
         print(f"error: {error_text(err, where=input_name(args))}", file=sys.stderr)
         return 1
-
-
-def __getattr__(name: str) -> Any:
-    if name in ("add_param_arguments", "params_from_args"):
-        from rose_logs.cli import options
-
-        return getattr(options, name)
-    msg = f"module 'rose_logs.cli' has no attribute {name!r}"
-    raise AttributeError(msg)
 
 
 def console() -> None:

@@ -1,4 +1,4 @@
-"""What every ``rose-bag`` command shares: exit codes, the usage-error type, JSON output.
+"""What every ``rose-bag`` command shares: exit codes, the usage-error type, time formatting.
 
 The ROSE tuning options themselves are defined once in :mod:`rose.cli.options` and shared with ``rose``.
 """
@@ -6,31 +6,16 @@ The ROSE tuning options themselves are defined once in :mod:`rose.cli.options` a
 from __future__ import annotations
 
 from datetime import UTC, datetime
-from pathlib import Path
-from typing import Any
 
-from rose.cli.options import add_param_arguments, params_from_args, positive_float
 from rose_logs.cli import EXIT_GATE, EXIT_SALVAGED, UsageError
 
 __all__ = [
     "EXIT_GATE",
     "EXIT_SALVAGED",
     "UsageError",
-    "add_param_arguments",
     "duration_text",
-    "params_from_args",
-    "positive_float",
     "utc_text",
-    "write_json",
 ]
-
-
-def write_json(path: Path, payload: dict[str, Any]) -> None:
-    """Write ``payload`` as strict JSON (non-finite numbers as null), atomically, replacing ``path``."""
-    from rose.outputs import OutputSet
-
-    with OutputSet(force=True) as outputs:
-        outputs.write_json(path, payload)
 
 
 def utc_text(time_ns: int) -> str:

@@ -107,7 +107,7 @@ def add_parser(subparsers: Any) -> None:
         default=None,
         metavar="M",
         help="break detector: metres of established wall a snapshot must erase to count as a "
-        "break (default 1.25)",
+        "break (default 1.25)",  # BreakParams().threshold_m (tested); imported lazily
     )
     parser.add_argument(
         "--fail-on-break",
@@ -221,7 +221,7 @@ def _print_break(report: Any, topic: str, out: Any) -> None:
     print(
         f"  break        first at snapshot {first.index}, "
         f"+{duration_text(first.log_time_ns - start)} ({first.score_m:.2f} m of wall erased since "
-        f"snapshot {first.reference_index}{where})",
+        f"snapshot {first.trusted_index}{where})",
         file=out,
     )
 

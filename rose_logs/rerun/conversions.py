@@ -51,7 +51,6 @@ __all__ = [
     "direction_label_positions",
     "direction_segments_cells",
     "display_spectrum",
-    "grid_to_image_rows",
     "known_bounds_cells",
     "masked_score_image",
     "occupied_cells",
@@ -62,11 +61,6 @@ __all__ = [
     "segmentation_image",
     "spectrum_strip_segments",
 ]
-
-
-def grid_to_image_rows(grid: npt.NDArray[np.generic]) -> npt.NDArray[np.generic]:
-    """Contiguous copy of a ROS-convention grid in image row order (its last row first)."""
-    return np.ascontiguousarray(grid[::-1])
 
 
 @dataclass(frozen=True)

@@ -20,8 +20,6 @@ __all__ = ["SnapshotAnalyser", "SnapshotAnalysis", "same_placed_grid"]
 
 _LOG = logging.getLogger(__name__)
 
-_DECODABLE = {"ros1", "cdr"}
-
 
 @dataclass(frozen=True)
 class SnapshotAnalysis:

@@ -105,7 +105,7 @@ class BreakScore:
         ``score_m >= threshold_m``.
     started : bool
         Broken while the previous snapshot of the topic was not: the start of a break.
-    reference_index : int or None
+    trusted_index : int or None
         Snapshot index (on the topic) of the trusted snapshot compared with; None for the first
         snapshot and after a restart.
     region_m : tuple of float or None
@@ -118,7 +118,7 @@ class BreakScore:
     score_m: float
     broken: bool
     started: bool
-    reference_index: int | None
+    trusted_index: int | None
     region_m: tuple[float, float, float, float] | None
     erased_m: float
 
@@ -139,7 +139,7 @@ class DetectedBreak:
         Its break score, metres.
     region_m : tuple of float or None
         ``(x_min, y_min, x_max, y_max)`` of the erased walls, map frame, metres.
-    reference_index : int or None
+    trusted_index : int or None
         The last trusted snapshot it was compared with.
     text : str
         One line for people (event logs, summaries).
@@ -150,7 +150,7 @@ class DetectedBreak:
     log_time_ns: int
     score_m: float
     region_m: tuple[float, float, float, float] | None
-    reference_index: int | None
+    trusted_index: int | None
     text: str
 
     @classmethod
@@ -165,7 +165,7 @@ class DetectedBreak:
         text = (
             f"{snapshot.topic}: map breaks at snapshot {index}: {verdict.score_m:.2f} m of "
             f"established wall erased (threshold {threshold_m:g} m) since snapshot "
-            f"{verdict.reference_index}{where}"
+            f"{verdict.trusted_index}{where}"
         )
         return cls(
             topic=snapshot.topic,
@@ -173,7 +173,7 @@ class DetectedBreak:
             log_time_ns=snapshot.log_time_ns,
             score_m=verdict.score_m,
             region_m=verdict.region_m,
-            reference_index=verdict.reference_index,
+            trusted_index=verdict.trusted_index,
             text=text,
         )
 

@@ -62,8 +62,6 @@ if TYPE_CHECKING:
 
 _LOG = logging.getLogger(__name__)
 
-_DECODABLE = {"ros1", "cdr"}
-
 
 def process_log(
     input_path: Path,
@@ -286,7 +284,7 @@ def _run_session(
                 try:
                     rerun.close()
                 except (RuntimeError, OSError) as err:  # e.g. the disk filled up, no viewer
-                    raise LogWriteError(_rerun_failure(rrd_path, spawn, connect, err)) from err
+                    raise LogWriteError(_rerun_failure(rrd_path, connect, err)) from err
         except BaseException:
             if writer is not None:
                 writer.abort()
@@ -353,7 +351,7 @@ def _rerun_sink(
         except ValueError as err:  # not an address
             raise LogWriteError(f"{connect}: cannot open the Rerun recording ({err})") from err
         if reason is not None:
-            raise LogWriteError(_rerun_failure(None, False, connect, OSError(reason)))
+            raise LogWriteError(_rerun_failure(None, connect, OSError(reason)))
     try:
         return RerunSink(
             rrd_path=None if rrd_path is None else Path(rrd_path),
@@ -773,9 +771,7 @@ class _Skips:
         return ", ".join(f"{n} {reason}" for reason, n in self.by_reason.items()) or "none"
 
 
-def _rerun_failure(
-    rrd_path: Path | None, spawn: bool, connect: str | None, err: BaseException
-) -> str:
+def _rerun_failure(rrd_path: Path | None, connect: str | None, err: BaseException) -> str:
     """One line for a Rerun recording that could not be finished, naming where it was going."""
     if rrd_path is not None:
         return f"{rrd_path}: cannot write the Rerun recording ({short(err, 160)})"

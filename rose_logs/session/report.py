@@ -16,8 +16,6 @@ __all__ = ["BreakEvent", "SessionReport", "SnapshotRecord", "w_judges"]
 
 _LOG = logging.getLogger(__name__)
 
-_DECODABLE = {"ros1", "cdr"}
-
 
 def w_judges(occupied_cells: int) -> bool:
     """Whether W says something about a map with ``occupied_cells`` occupied cells.
@@ -264,7 +262,7 @@ class SessionReport:
                     "time_s": round((first.log_time_ns - self.start_ns) / 1e9, 9),
                     "break_score_m": round(first.score_m, 6),
                     "region_m": _region_json(first.region_m),
-                    "trusted_index": first.reference_index,
+                    "trusted_index": first.trusted_index,
                 },
                 "breaks": sum(1 for b in self.detected_breaks if b.topic == topic),
                 "first_w_above": None

@@ -33,7 +33,6 @@ uint32 height
 int8[] data
 """
 _TF_MSGDEF = "geometry_msgs/TransformStamped[] transforms\n"
-_NS_PER_S = 1_000_000_000
 
 
 @functools.cache

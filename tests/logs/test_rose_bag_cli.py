@@ -317,3 +317,12 @@ def test_info_lists_every_type_a_topic_carries(tmp_path: Path, capsys, fr079) ->
     assert re.search(
         r"^  /map +2  nav_msgs/msg/OccupancyGrid, std_msgs/msg/String  \[map\]$", out, re.M
     )
+
+
+def test_process_help_gives_the_break_detectors_own_default(capsys) -> None:
+    from rose_logs.session import BreakParams
+
+    with pytest.raises(SystemExit):
+        main(["process", "--help"])
+    help_text = " ".join(capsys.readouterr().out.split())
+    assert f"break (default {BreakParams().threshold_m:g})" in help_text

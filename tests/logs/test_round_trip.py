@@ -245,7 +245,7 @@ def test_break_is_reported_at_the_first_distorted_snapshot(
     assert len(report.breaks) == 1  # staying broken is not a new break
     detected = report.first_break("/map")  # the break detector agrees on this one
     assert detected is not None
-    assert (detected.index, detected.reference_index) == (3, 2)
+    assert (detected.index, detected.trusted_index) == (3, 2)
     assert len(report.detected_breaks) == 1
     assert [r.break_score_m >= report.break_threshold_m for r in report.records] == [
         False,

@@ -53,7 +53,7 @@ def test_break_starts_once_and_keeps_the_trusted_snapshot(plan, broken) -> None:
     verdicts = [detector.update(_snap(g, i)) for i, g in enumerate([plan, plan, broken, broken])]
     assert [v.broken for v in verdicts] == [False, False, True, True]
     assert [v.started for v in verdicts] == [False, False, True, False]
-    assert [v.reference_index for v in verdicts] == [None, 0, 1, 1]  # still the pre-break map
+    assert [v.trusted_index for v in verdicts] == [None, 0, 1, 1]  # still the pre-break map
     x0, y0, x1, y1 = verdicts[2].region_m
     # The region lies in the rotated half: x from -5 m + 180 cells * 0.05 m = 4 m on.
     assert x0 >= -5.0 + (180 - 6) * RES
@@ -70,7 +70,7 @@ def test_a_grown_map_is_compared_in_place(plan, broken) -> None:
     detector = BreakDetector()
     detector.update(_snap(plan, 0))
     same = detector.update(_snap(grown.copy(), 1, origin=(-5.0 - 30 * RES, -3.0 - 40 * RES)))
-    assert same.score_m == 0.0 and same.reference_index == 0
+    assert same.score_m == 0.0 and same.trusted_index == 0
     grown[40:, 30:] = broken
     moved = detector.update(_snap(grown, 2, origin=(-5.0 - 30 * RES, -3.0 - 40 * RES)))
     assert moved.score_m > 0.0
@@ -80,9 +80,9 @@ def test_snapshots_that_cannot_be_compared_restart(plan, broken) -> None:
     detector = BreakDetector(BreakParams(threshold_m=0.5))
     detector.update(_snap(plan, 0))
     other_res = detector.update(_snap(broken, 1, res=0.1))
-    assert (other_res.score_m, other_res.reference_index) == (0.0, None)
+    assert (other_res.score_m, other_res.trusted_index) == (0.0, None)
     half_cell = detector.update(_snap(broken, 2, origin=(-5.0 + 0.5 * 0.1, -3.0), res=0.1))
-    assert half_cell.reference_index is None
+    assert half_cell.trusted_index is None
 
 
 def test_topics_are_independent(plan, broken) -> None:
@@ -114,8 +114,8 @@ def test_a_snapshot_in_another_frame_is_not_compared(plan, broken) -> None:
     detector = BreakDetector(BreakParams(threshold_m=0.5))
     detector.update(_snap(plan, 0))
     verdict = detector.update(dataclasses.replace(_snap(broken, 1), frame_id="odom"))
-    assert (verdict.score_m, verdict.reference_index, verdict.broken) == (0.0, None, False)
-    assert detector.update(_snap(broken, 2)).reference_index is None  # back in "map": restart
+    assert (verdict.score_m, verdict.trusted_index, verdict.broken) == (0.0, None, False)
+    assert detector.update(_snap(broken, 2)).trusted_index is None  # back in "map": restart
 
 
 def test_break_parameters_can_follow_roses_occupied_threshold() -> None:
