@@ -21,8 +21,10 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
+from rose.cleaning import CleanMethod
 from rose.directions import FAILURE_LEVEL
 from rose.errors import RoseError
+from rose.limits import DEFAULT_MAX_CELLS
 from rose.params import RoseParams
 from rose_logs.batch.sources import Recording
 from rose_logs.batch.store import OutputStore, filesystem, is_local
@@ -72,6 +74,12 @@ class RecordingOptions:
     salvage : bool
         Keep what can be read of a damaged recording (``process --salvage``); its row is ``ok``
         and lists the ``losses``.
+    clean_method : {"walls", "paper"}
+        How the cleaned maps are made (``process --clean-method``).
+    break_threshold_m : float, optional
+        The break detector's threshold, metres of erased wall (default: ``BreakParams``').
+    max_cells : int or None
+        Grids of more cells are skipped (``process --max-cells``; None: no limit).
     """
 
     params: RoseParams = field(default_factory=RoseParams)
@@ -83,6 +91,9 @@ class RecordingOptions:
     retries: int = 2
     analysis_threads: int = 2
     salvage: bool = False
+    clean_method: CleanMethod = "walls"
+    break_threshold_m: float | None = None
+    max_cells: int | None = DEFAULT_MAX_CELLS
 
     def key_fields(self) -> dict[str, Any]:
         """Everything that changes a result (not ``retries`` or ``analysis_threads``), JSON-ready."""
@@ -96,6 +107,13 @@ class RecordingOptions:
         }
         if self.salvage:  # only when set: the keys of results stored without it stay valid
             fields["salvage"] = True
+        # Likewise, only when they differ from process's defaults.
+        if self.clean_method != "walls":
+            fields["clean_method"] = self.clean_method
+        if self.break_threshold_m is not None:
+            fields["break_threshold_m"] = self.break_threshold_m
+        if self.max_cells != DEFAULT_MAX_CELLS:
+            fields["max_cells"] = self.max_cells
         return fields
 
 
@@ -392,6 +410,9 @@ def _attempt(
                     recording_id=recording_id(recording.uri),
                     analysis_threads=options.analysis_threads,
                     salvage=options.salvage,
+                    clean_method=options.clean_method,
+                    break_params=_break_params(options),
+                    max_cells=options.max_cells,
                 )
         except (LogError, RoseError) as err:
             # The message names the downloaded copy, which is gone by the time anyone reads the
@@ -477,6 +498,17 @@ def collected_warnings() -> Iterator[list[str]]:
         for logger, handlers, propagate in saved:
             logger.handlers = handlers
             logger.propagate = propagate
+
+
+def _break_params(options: RecordingOptions) -> Any:
+    """The break detector's parameters for ``options`` (None: process_log's own default)."""
+    if options.break_threshold_m is None:
+        return None
+    from rose_logs.session.breaks import BreakParams
+
+    return BreakParams.following(
+        options.params.occupied_threshold, threshold_m=options.break_threshold_m
+    )
 
 
 def cleaned_log_name(name: str) -> str:

@@ -6,8 +6,14 @@ import argparse
 import sys
 from typing import Any
 
-from rose.cli.options import add_param_arguments, params_from_args, positive_float
-from rose_logs.cli.options import EXIT_GATE, EXIT_SALVAGED, UsageError
+from rose.cli.options import add_param_arguments, params_from_args
+from rose_logs.cli.options import (
+    EXIT_GATE,
+    EXIT_SALVAGED,
+    UsageError,
+    add_gate_arguments,
+    add_session_arguments,
+)
 
 __all__ = ["EXIT_INTERRUPTED", "add_parser", "run"]
 
@@ -140,19 +146,13 @@ def add_parser(subparsers: Any) -> None:
     work.add_argument(
         "-t", "--topic", action="append", default=None, dest="topics", help="map topic (repeatable)"
     )
-    work.add_argument("--walls", action="store_true", help="also extract wall segments")
     work.add_argument(
         "--cleaned", action="store_true", help="write each cleaned log to OUT/cleaned/<name>"
     )
     work.add_argument(
         "--rrd", action="store_true", help="write each Rerun recording to OUT/rrd/<name>.rrd"
     )
-    work.add_argument(
-        "--failure-level",
-        type=positive_float,
-        default=0.4,
-        help="W above which a map counts as broken (%(default)s)",
-    )
+    add_session_arguments(work)
     gates = parser.add_argument_group("resume and gates")
     gates.add_argument("-f", "--force", action="store_true", help="redo every recording")
     gates.add_argument(
@@ -164,20 +164,14 @@ def add_parser(subparsers: Any) -> None:
     gates.add_argument(
         "--retry-errors", action="store_true", help="redo the recordings that failed before"
     )
-    gates.add_argument(
-        "--fail-above",
-        type=positive_float,
-        default=None,
-        metavar="W",
-        help=f"exit {EXIT_GATE} if any recording's W exceeds this",
-    )
+    add_gate_arguments(gates, scope="recording")
     gates.add_argument(
         "--max-errors",
         type=_non_negative_int,
         default=0,
         metavar="N",
         help="exit 1 if more than N recordings failed (default 0: any failure); wins over "
-        "--fail-above",
+        "the gates",
     )
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     add_param_arguments(parser)
@@ -212,6 +206,9 @@ def run(args: argparse.Namespace) -> int:
         rrd=args.rrd,
         retries=args.retries,
         salvage=args.salvage,
+        clean_method=args.clean_method,
+        break_threshold_m=args.break_threshold,
+        max_cells=args.max_cells,
     )
     report = run_batch(
         inputs,
@@ -291,6 +288,17 @@ def _exit_code(report: Any, args: argparse.Namespace) -> int:
             print(
                 f"error: {worst.uri}: W = {worst.row()['w_max']:.3f} exceeds --fail-above "
                 f"{args.fail_above:g}",
+                file=sys.stderr,
+            )
+            return EXIT_GATE
+    if args.fail_on_break:
+        breaks = [(r, s) for r in report.results for s in r.snapshots if s.get("break_start")]
+        if breaks:
+            recording, snapshot = breaks[0]
+            print(
+                f"error: {recording.uri}: the map breaks at {snapshot['topic']} snapshot "
+                f"{snapshot['index']} ({len(breaks)} break(s) in "
+                f"{len({r.uri for r, _ in breaks})} recording(s); --fail-on-break)",
                 file=sys.stderr,
             )
             return EXIT_GATE

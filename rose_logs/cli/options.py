@@ -1,18 +1,25 @@
-"""What every ``rose-bag`` command shares: exit codes, the usage-error type, time formatting.
+"""What every ``rose-bag`` command shares: exit codes, the usage-error type, time formatting, and
+the per-recording options and gates of ``process`` and ``batch``.
 
 The ROSE tuning options themselves are defined once in :mod:`rose.cli.options` and shared with ``rose``.
 """
 
 from __future__ import annotations
 
+import argparse
 from datetime import UTC, datetime
+from typing import Any
 
+from rose.cli.options import add_limit_arguments, positive_float
+from rose.directions import FAILURE_LEVEL
 from rose_logs.cli import EXIT_GATE, EXIT_SALVAGED, UsageError
 
 __all__ = [
     "EXIT_GATE",
     "EXIT_SALVAGED",
     "UsageError",
+    "add_gate_arguments",
+    "add_session_arguments",
     "duration_text",
     "utc_text",
 ]
@@ -26,3 +33,62 @@ def utc_text(time_ns: int) -> str:
 def duration_text(ns: int) -> str:
     """A duration in ns as seconds with one decimal, e.g. ``"12.5 s"``."""
     return f"{ns / 1e9:.1f} s"
+
+
+def w_level(text: str) -> float:
+    """argparse type: a level of W, in (0, 1] (W itself lies in [0, 1])."""
+    value = positive_float(text)
+    if value > 1:
+        msg = f"W lies in [0, 1]: expected a level in (0, 1], got {text!r}"
+        raise argparse.ArgumentTypeError(msg)
+    return value
+
+
+def add_session_arguments(parser: Any) -> None:
+    """What is done to each snapshot of a log, the same in ``process`` and ``batch``:
+    ``--walls``, ``--clean-method``, ``--failure-level``, ``--break-threshold``, ``--max-cells``."""
+    parser.add_argument(
+        "--walls",
+        action="store_true",
+        help="also extract wall segments per snapshot (marker in <map>/rose/walls, Rerun lines)",
+    )
+    parser.add_argument(
+        "--clean-method",
+        choices=("walls", "paper"),
+        default="walls",
+        help="how <map>/rose/cleaned is made: walls = clutter removed, every wall kept, no "
+        "robot-sized gap opened (default); paper = the paper's labelling as it is",
+    )
+    parser.add_argument(
+        "--failure-level",
+        type=w_level,
+        default=FAILURE_LEVEL,
+        help="W above which a map counts as broken (%(default)s, the paper's)",
+    )
+    parser.add_argument(
+        "--break-threshold",
+        type=positive_float,
+        default=None,
+        metavar="M",
+        help="break detector: metres of established wall a snapshot must erase to count as a "
+        "break (default 1.25)",  # BreakParams().threshold_m (tested); imported lazily
+    )
+    add_limit_arguments(parser)
+
+
+def add_gate_arguments(parser: Any, *, scope: str) -> None:
+    """The map-quality gates ``--fail-above`` and ``--fail-on-break`` (exit 3); ``scope`` says
+    what they look at ("snapshot", "recording")."""
+    parser.add_argument(
+        "--fail-above",
+        type=w_level,
+        default=None,
+        metavar="W",
+        help=f"exit {EXIT_GATE} if any {scope}'s W exceeds this (map-quality gate)",
+    )
+    parser.add_argument(
+        "--fail-on-break",
+        action="store_true",
+        help=f"exit {EXIT_GATE} if the break detector finds a break in any {scope} "
+        "(map-quality gate)",
+    )

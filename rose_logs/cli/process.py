@@ -10,14 +10,19 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from rose.cli.options import (
-    add_limit_arguments,
     add_param_arguments,
     params_from_args,
-    positive_float,
 )
-from rose.directions import FAILURE_LEVEL
 from rose.outputs import OutputSet, json_text
-from rose_logs.cli.options import EXIT_GATE, EXIT_SALVAGED, UsageError, duration_text, utc_text
+from rose_logs.cli.options import (
+    EXIT_GATE,
+    EXIT_SALVAGED,
+    UsageError,
+    add_gate_arguments,
+    add_session_arguments,
+    duration_text,
+    utc_text,
+)
 
 __all__ = ["add_parser", "run"]
 
@@ -69,18 +74,7 @@ def add_parser(subparsers: Any) -> None:
         metavar="ADDR",
         help="stream to a running Rerun viewer (PORT, HOST:PORT or rerun+http://HOST:PORT/proxy)",
     )
-    parser.add_argument(
-        "--walls",
-        action="store_true",
-        help="also extract wall segments per snapshot (marker in <map>/rose/walls, Rerun lines)",
-    )
-    parser.add_argument(
-        "--clean-method",
-        choices=("walls", "paper"),
-        default="walls",
-        help="how <map>/rose/cleaned is made: walls = clutter removed, every wall kept, no "
-        "robot-sized gap opened (default); paper = the paper's labelling as it is",
-    )
+    add_session_arguments(parser)
     parser.add_argument(
         "--json",
         type=Path,
@@ -88,32 +82,7 @@ def add_parser(subparsers: Any) -> None:
         dest="json_path",
         help="write a JSON report here (strict JSON, non-finite numbers as null; '-': stdout)",
     )
-    parser.add_argument(
-        "--failure-level",
-        type=positive_float,
-        default=FAILURE_LEVEL,
-        help="W above which a map counts as broken (%(default)s, the paper's)",
-    )
-    parser.add_argument(
-        "--fail-above",
-        type=positive_float,
-        default=None,
-        metavar="W",
-        help=f"exit {EXIT_GATE} if any snapshot's W exceeds this (map-quality gate)",
-    )
-    parser.add_argument(
-        "--break-threshold",
-        type=positive_float,
-        default=None,
-        metavar="M",
-        help="break detector: metres of established wall a snapshot must erase to count as a "
-        "break (default 1.25)",  # BreakParams().threshold_m (tested); imported lazily
-    )
-    parser.add_argument(
-        "--fail-on-break",
-        action="store_true",
-        help=f"exit {EXIT_GATE} if the break detector finds a break (map-quality gate)",
-    )
+    add_gate_arguments(parser, scope="snapshot")
     parser.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     parser.add_argument(
         "--salvage",
@@ -121,7 +90,6 @@ def add_parser(subparsers: Any) -> None:
         help=f"on a damaged input, keep what can be read, warn, and exit {EXIT_SALVAGED} "
         "(default: a damaged input is an error and nothing is written)",
     )
-    add_limit_arguments(parser)
     add_param_arguments(parser)
     parser.set_defaults(func=run)
 
@@ -258,10 +226,14 @@ def run(args: argparse.Namespace) -> int:
         )
         return EXIT_SALVAGED
     if args.fail_above is not None and report.max_score > args.fail_above:
-        worst = max((r for r in report.records if r.judged), key=lambda r: r.structure_score)
+        judged = [r for r in report.records if r.judged]
+        first = next(r for r in judged if r.structure_score > args.fail_above)
+        worst = max(judged, key=lambda r: r.structure_score)
+        when = duration_text(first.log_time_ns - report.start_ns)
         print(
-            f"error: {args.input}: W = {worst.structure_score:.3f} on {worst.topic} snapshot "
-            f"{worst.index} exceeds --fail-above {args.fail_above:g}",
+            f"error: {args.input}: W = {first.structure_score:.3f} on {first.topic} snapshot "
+            f"{first.index} ({when} into the log) exceeds --fail-above {args.fail_above:g} "
+            f"first; highest: W = {worst.structure_score:.3f} on snapshot {worst.index}",
             file=sys.stderr,
         )
         return EXIT_GATE

@@ -455,3 +455,29 @@ def test_skipped_map_messages_and_warnings_are_in_the_row_and_name_the_recording
     assert said and all(line.startswith(f"warning: {log}: ") for line in said)
     summary = json.loads((out_dir / "summary.json").read_text())
     assert (summary["skipped_messages"], summary["with_warnings"]) == (2, 1)
+
+
+def test_process_options_and_the_break_gate_reach_every_recording(
+    fleet: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--fail-on-break``, ``--break-threshold``, ``--clean-method`` and ``--max-cells`` work as in
+    ``process``; a W level outside W's range is a usage error."""
+    out = str(tmp_path / "out")
+    args = ["batch", str(fleet), "-o", out, "-q"]
+    assert main([*args, "--fail-on-break"]) == 3
+    err = capsys.readouterr().err
+    assert "robot_b/run.mcap: the map breaks at /map snapshot 3" in err
+    assert "--fail-on-break" in err
+    assert main([*args, "--fail-on-break", "--break-threshold", "1e6"]) == 0  # nothing that large
+    paper = tmp_path / "paper"
+    assert main(["batch", str(fleet), "-o", str(paper), "-q", "--clean-method", "paper"]) == 0
+    assert {s["clean_method"] for s in read_rows(paper / "snapshots.parquet")} == {"paper"}
+    small = tmp_path / "small"
+    # Every map of the fleet is 1152 x 736: none is analysed, each recording fails saying why.
+    assert main(["batch", str(fleet), "-o", str(small), "-q", "--max-cells", "800000"]) == 1
+    rows = read_rows(small / "recordings.parquet")
+    assert all(r["status"] == "error" and "over --max-cells" in r["error"] for r in rows)
+    for bad in (["--fail-above", "2"], ["--failure-level", "1.5"]):
+        with pytest.raises(SystemExit) as exit_info:
+            main([*args, *bad])
+        assert exit_info.value.code == 2

@@ -101,10 +101,15 @@ def test_gate_and_json_break(tmp_path: Path, capsys, fr079, broken_grid) -> None
     )
     out, err = capsys.readouterr()
     assert code == EXIT_GATE
-    assert "exceeds --fail-above 0.4" in err
     data = json.loads(report.read_text())
     first_w = data["topics"]["/map"]["first_w_above"]
     assert first_w["index"] == 1
+    # The gate names the first snapshot past the level (when the map broke), then the worst.
+    w = first_w["structure_score"]
+    assert (
+        f"W = {w:.3f} on /map snapshot 1 (5.0 s into the log) exceeds --fail-above 0.4 first; "
+        f"highest: W = {w:.3f} on snapshot 1" in err
+    )
     # The summary names the same snapshot, 5 s after the log's first message (the first map).
     assert (
         f"  W > 0.4      first at snapshot 1, +5.0 s (W = {first_w['structure_score']:.3f})"
