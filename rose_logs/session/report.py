@@ -9,6 +9,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from rose.params import RoseParams
 from rose_logs.session.breaks import DetectedBreak
 
@@ -114,7 +116,8 @@ class SnapshotRecord:
             "time_s": round((self.log_time_ns - start_ns) / 1e9, 9),
             "width": self.width,
             "height": self.height,
-            "resolution_m": self.resolution_m,
+            # The message's float32, as its shortest decimal (0.05, not 0.05000000074505806).
+            "resolution_m": float(str(np.float32(self.resolution_m))),
             "structure_score": self.structure_score,
             "directions_deg": list(self.directions_deg),
             "threshold": None if math.isnan(self.threshold) else self.threshold,
@@ -252,7 +255,7 @@ class SessionReport:
                 "w_median": statistics.median(scores) if scores else None,
                 "w_max": max(scores, default=None),
                 "break_score_max_m": max(
-                    (r.break_score_m for r in self.records_of(topic)), default=None
+                    (round(r.break_score_m, 6) for r in self.records_of(topic)), default=None
                 ),
                 "first_break": None
                 if first is None

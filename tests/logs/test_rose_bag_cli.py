@@ -138,6 +138,9 @@ def test_fail_on_break_gate_and_json_first_break(
     assert region["x_min"] < region["x_max"] and region["y_min"] < region["y_max"]
     scores = [s["break_score_m"] for s in data["snapshots"]]
     assert max(scores[:3]) < data["break_threshold_m"] <= scores[3]
+    # Numbers as written in the messages and rounded alike: the float32 0.05 reads 0.05.
+    assert data["topics"]["/map"]["break_score_max_m"] == max(scores)
+    assert {s["resolution_m"] for s in data["snapshots"]} == {0.05}
     assert data["topics"]["/map"]["first_w_above"]["index"] == 3
 
 
