@@ -18,13 +18,21 @@ __all__ = ["full_amplitude_spectrum", "half_spectrum", "padded_shape"]
 _BAND_FRACTION = 0.75
 
 
+#: Shortest padded side of a map whose longer side reaches it. A side of a few cells samples the
+#: spectrum too coarsely to tell directions apart (a 300 x 12 strip read as 0 degrees, a 3 x 200 one
+#: as having no direction while its transpose had one); padding it to this costs next to nothing.
+_MIN_PADDED_SIDE = 16
+
+
 def padded_shape(shape: tuple[int, int]) -> tuple[int, int]:
-    """Shape ``(rows, cols)`` the map is zero-padded to: fast FFT lengths, with an even column count.
+    """Shape ``(rows, cols)`` the map is zero-padded to: fast FFT lengths, with an even column count,
+    and no side under 16 cells unless the whole map is smaller.
 
     The even column count lets the half-plane width determine the full width.
     """
-    rows = scipy.fft.next_fast_len(max(shape[0], 1), real=True)
-    cols = scipy.fft.next_fast_len(max(shape[1], 2), real=True)
+    shortest = _MIN_PADDED_SIDE if max(shape) >= _MIN_PADDED_SIDE else 1
+    rows = scipy.fft.next_fast_len(max(shape[0], shortest), real=True)
+    cols = scipy.fft.next_fast_len(max(shape[1], shortest, 2), real=True)
     while cols % 2:
         cols = scipy.fft.next_fast_len(cols + 1, real=True)
     return rows, cols

@@ -175,3 +175,14 @@ def test_unknown_cells_are_never_occupied() -> None:
 def test_invalid_input_raises_rose_error(grid: np.ndarray, overrides: dict, match: str) -> None:
     with pytest.raises(RoseError, match=match):
         rose.analyze(grid, **overrides)
+
+
+@pytest.mark.parametrize("shape", [(1, 50), (3, 200), (12, 300)])
+def test_a_thin_map_and_its_transpose_agree(shape: tuple[int, int]) -> None:
+    """A strip of occupied cells runs along its long side, whichever way it lies: a 300 x 12 strip
+    read as 0 degrees, a 3 x 200 one as having no direction while its transpose had one."""
+    strip = np.full(shape, 100, dtype=np.int8)
+    along, across = rose.analyze(strip), rose.analyze(strip.T)
+    assert angular_error_deg(along.dominant_directions, [0.0]) < 1.0
+    assert angular_error_deg(across.dominant_directions, [90.0]) < 1.0
+    assert along.structure_score == pytest.approx(across.structure_score, abs=1e-6)
