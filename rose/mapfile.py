@@ -328,19 +328,34 @@ def _decode_pnm(raw: bytes, path: Path) -> npt.NDArray[np.uint8] | None:
             )
             raise MapFileError(msg)
         samples = plain
-    scaled = np.minimum(samples, maxval) * (255.0 / maxval)  # a sample above maxval is white
-    return np.rint(scaled).astype(np.uint8).reshape(rows, cols, channels)
+    return _to_8_bits(samples, maxval).reshape(rows, cols, channels)
+
+
+def _to_8_bits(samples: npt.NDArray[np.integer], maxval: int) -> npt.NDArray[np.uint8]:
+    """Samples of ``0..maxval`` as ``0..255`` (rounded; a sample above maxval is white), through a
+    table of ``maxval + 1`` entries: one byte per sample, however large the image."""
+    if maxval == 255 and samples.dtype == np.uint8:
+        return samples
+    table = np.rint(np.arange(maxval + 1) * (255.0 / maxval)).astype(np.uint8)
+    return table[np.minimum(samples, maxval)]
 
 
 def _plain_samples(text: bytes, count: int) -> npt.NDArray[np.int64] | None:
     """The first ``count`` whitespace-separated decimal numbers of ``text``; None if there are fewer
-    or anything else is in the way."""
-    with warnings.catch_warnings():
-        # numpy says "could not be read to its end" as a DeprecationWarning: make it an error.
-        warnings.simplefilter("error", DeprecationWarning)
-        try:
+    (anything else in their way ends them). What follows them is not read, as by netpbm."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", DeprecationWarning)  # "could not be read to its end"
             samples = np.fromstring(text, dtype=np.int64, sep=" ")
-        except (DeprecationWarning, ValueError):
+    except (DeprecationWarning, ValueError):
+        # Something other than numbers follows (a comment after the last sample, a second image):
+        # take the first ``count`` words, which must all be numbers.
+        words = np.array(text.split(maxsplit=count)[:count])
+        if words.size < count or not np.char.isdigit(words).all():
+            return None
+        try:
+            samples = words.astype(np.int64)
+        except (ValueError, OverflowError):
             return None
     if samples.size < count or (samples[:count] < 0).any():
         return None
@@ -370,7 +385,7 @@ def _decode_other(raw: bytes, path: Path, max_cells: int | None) -> npt.NDArray[
         msg = f"{path}: not a readable image"
         raise MapFileError(msg)
     if image.dtype == np.uint16:
-        return np.rint(image * (255.0 / 65535.0)).astype(np.uint8)
+        return _to_8_bits(image, 65535)
     if image.dtype != np.uint8:
         msg = f"{path}: unsupported pixel type {image.dtype}"
         raise MapFileError(msg)

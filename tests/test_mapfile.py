@@ -92,6 +92,9 @@ def test_pgm_samples_are_scaled_by_the_maximum_value(
 def test_plain_pgm_without_a_final_newline_and_truncated_binary_pgm(tmp_path: Path) -> None:
     (tmp_path / "plain.pgm").write_bytes(_pnm(b"P2", _SAVER_ROW, 255, trailing=b""))
     assert rose.load_map(tmp_path / "plain.pgm").grid.tolist() == [[100, -1, 0, 100, 0]]
+    # What follows the samples is not read (netpbm, OpenCV and SDL read only what they need).
+    (tmp_path / "tail.pgm").write_bytes(_pnm(b"P2", _SAVER_ROW, 255, trailing=b"\n# end\n"))
+    assert rose.load_map(tmp_path / "tail.pgm").grid.tolist() == [[100, -1, 0, 100, 0]]
     (tmp_path / "cut.pgm").write_bytes(_pnm(b"P5", _SAVER_ROW, 255)[:-2])
     with pytest.raises(MapFileError, match=r"cut.pgm: not a readable image \(truncated: 3 of 5"):
         rose.load_map(tmp_path / "cut.pgm")
@@ -106,8 +109,11 @@ def test_alpha_counts_in_trinary_mode_as_the_map_servers_count_it(tmp_path: Path
     alpha out of the grey value."""
     grey = np.array([[0, 205, 254]], dtype=np.uint8)
     opaque = np.full_like(grey, 255)
+    from PIL import Image
+
     cv2.imwrite(str(tmp_path / "rgba.png"), np.dstack([grey, grey, grey, opaque]))
-    cv2.imwrite(str(tmp_path / "la.png"), np.dstack([grey, grey, grey, opaque]))
+    Image.fromarray(np.dstack([grey, opaque]), mode="LA").save(tmp_path / "la.png")
+    assert cv2.imread(str(tmp_path / "la.png"), cv2.IMREAD_UNCHANGED).shape[2] in (2, 4)
     for image in ("rgba.png", "la.png"):
         path = write_yaml(tmp_path / f"{image}.yaml", f"image: {image}\nresolution: 0.05\n")
         assert rose.load_map(path).grid.tolist() == [[100, 0, 0]]

@@ -6,7 +6,7 @@ tests call it directly. It never raises for a bad recording: the result then has
 
 from __future__ import annotations
 
-import contextlib
+import dataclasses
 import hashlib
 import json
 import logging
@@ -16,7 +16,7 @@ import statistics
 import tempfile
 import time
 import uuid
-from collections.abc import Iterator, Mapping
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Literal
@@ -26,6 +26,7 @@ from rose.directions import FAILURE_LEVEL
 from rose.errors import RoseError
 from rose.limits import DEFAULT_MAX_CELLS
 from rose.params import RoseParams
+from rose_logs.batch.recording_log import RecordingWarnings, collecting
 from rose_logs.batch.sources import Recording
 from rose_logs.batch.store import OutputStore, filesystem, is_local
 from rose_logs.errors import LogError
@@ -111,7 +112,11 @@ class RecordingOptions:
         if self.clean_method != "walls":
             fields["clean_method"] = self.clean_method
         if self.break_threshold_m is not None:
-            fields["break_threshold_m"] = self.break_threshold_m
+            from rose_logs.session.breaks import BreakParams
+
+            # 2, 2.0 and the default written out are the same option: one key for each value.
+            if float(self.break_threshold_m) != BreakParams().threshold_m:
+                fields["break_threshold_m"] = float(self.break_threshold_m)
         if self.max_cells != DEFAULT_MAX_CELLS:
             fields["max_cells"] = self.max_cells
         return fields
@@ -244,8 +249,9 @@ def package_version() -> str:
 #: redone instead of mixed into new tables (2: ``break_detected`` marks every snapshot the detector
 #: calls broken, not only a break's first; 3: maps without occupied cells are never
 #: ``w_above_failure``; 4: directions in the map frame, the ``completed`` count; 5: skipped
-#: messages and warnings).
-RESULT_LAYOUT = 5
+#: messages and warnings; 6: thin maps padded to 16 cells, resolution as its float32 reads,
+#: warnings counted once).
+RESULT_LAYOUT = 6
 
 
 def result_key(recording: Recording, options: RecordingOptions) -> str:
@@ -313,8 +319,10 @@ def process_recording(
     cpu_started = time.process_time()
     attempts = max(0, options.retries) + 1
     for attempt in range(1, attempts + 1):
+        said = RecordingWarnings()  # those of the last attempt are the recording's
         try:
-            result = _attempt(recording, store, options, storage_options, key)
+            with collecting(said):
+                result = _attempt(recording, store, options, storage_options, key, said)
             break
         except OSError as err:
             if attempt == attempts:
@@ -331,6 +339,7 @@ def process_recording(
             _LOG.exception("%s: unexpected error", recording.uri)
             result = error_result(recording, key, options, f"{type(err).__name__}: {err}")
             break
+    result = dataclasses.replace(result, warnings=said.lines())  # an error row keeps them too
     result = _with_seconds(result, time.perf_counter() - started, time.process_time() - cpu_started)
     store_result(store, result)
     return result
@@ -386,34 +395,36 @@ def _attempt(
     options: RecordingOptions,
     storage_options: Mapping[str, Any] | None,
     key: str,
+    said: RecordingWarnings,
 ) -> RecordingResult:
     from rose_logs.session import process_log
 
     with tempfile.TemporaryDirectory(prefix="rose-batch-", dir=store.staging_dir()) as tmp:
         work = Path(tmp)
         local = _fetch(recording, work / "input", storage_options)
+        # The downloaded copy's path means nothing to the reader of the row: name the recording.
+        said.aliases[str(local)] = recording.uri
         cleaned_name = cleaned_log_name(recording.name)
         cleaned = work / "cleaned" / Path(cleaned_name).name if options.cleaned else None
         rrd = work / "recording.rrd" if options.rrd else None
         if cleaned is not None:
             cleaned.parent.mkdir()
         try:
-            with collected_warnings() as said:
-                report = process_log(
-                    local,
-                    output_path=cleaned,
-                    topics=options.topics,
-                    params=options.params,
-                    failure_level=options.failure_level,
-                    rrd_path=rrd,
-                    walls=options.walls,
-                    recording_id=recording_id(recording.uri),
-                    analysis_threads=options.analysis_threads,
-                    salvage=options.salvage,
-                    clean_method=options.clean_method,
-                    break_params=_break_params(options),
-                    max_cells=options.max_cells,
-                )
+            report = process_log(
+                local,
+                output_path=cleaned,
+                topics=options.topics,
+                params=options.params,
+                failure_level=options.failure_level,
+                rrd_path=rrd,
+                walls=options.walls,
+                recording_id=recording_id(recording.uri),
+                analysis_threads=options.analysis_threads,
+                salvage=options.salvage,
+                clean_method=options.clean_method,
+                break_params=_break_params(options),
+                max_cells=options.max_cells,
+            )
         except (LogError, RoseError) as err:
             # The message names the downloaded copy, which is gone by the time anyone reads the
             # row: name the recording instead.
@@ -451,53 +462,7 @@ def _attempt(
         losses=tuple(loss.replace(str(local), recording.uri) for loss in report.losses),
         skipped_messages=report.skipped_messages,
         skipped_reasons=report.skipped_reasons,
-        warnings=tuple(line.replace(str(local), recording.uri) for line in said),
     )
-
-
-class _Collector(logging.Handler):
-    """Stands in for a logger's handlers: keeps its warnings (one line each) in ``said`` and passes
-    anything quieter on as the logger would have (its handlers, then its parents' if it
-    propagated)."""
-
-    def __init__(self, logger: logging.Logger, said: list[str]) -> None:
-        super().__init__(logging.NOTSET)
-        self.replaced = logger.handlers[:]
-        self.parent = logger.parent if logger.propagate else None
-        self.said = said
-
-    def emit(self, record: logging.LogRecord) -> None:
-        if record.levelno >= logging.WARNING:
-            self.said.append(" ".join(record.getMessage().split()))
-            return
-        for handler in self.replaced:
-            if record.levelno >= handler.level:
-                handler.handle(record)
-        if self.parent is not None:
-            self.parent.handle(record)
-
-
-@contextlib.contextmanager
-def collected_warnings() -> Iterator[list[str]]:
-    """The warnings of ``rose`` and ``rose_logs`` during the block, kept instead of said.
-
-    A batch reports them with the recording they belong to (its row, and a line naming its URI);
-    said as they came, on a worker's stderr or among other recordings' lines, they named none.
-    """
-    said: list[str] = []
-    saved = []
-    for name in ("rose", "rose_logs"):
-        logger = logging.getLogger(name)
-        saved.append((logger, logger.handlers[:], logger.propagate))
-        collector = _Collector(logger, said)
-        logger.handlers = [collector]
-        logger.propagate = False
-    try:
-        yield said
-    finally:
-        for logger, handlers, propagate in saved:
-            logger.handlers = handlers
-            logger.propagate = propagate
 
 
 def _break_params(options: RecordingOptions) -> Any:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import atexit
 import contextlib
+import contextvars
 import dataclasses
 import hashlib
 import logging
@@ -291,8 +292,12 @@ class RerunSink:
             self._send_blueprint()
         if threaded:
             self._queue = queue.Queue(maxsize=_QUEUE_DEPTH)
+            # In the caller's context, like the session's other threads (see process_log).
             self._thread = threading.Thread(
-                target=self._work, args=(self._queue,), name="rose-rerun", daemon=True
+                target=contextvars.copy_context().run,
+                args=(self._work, self._queue),
+                name="rose-rerun",
+                daemon=True,
             )
             self._thread.start()
 

@@ -16,6 +16,7 @@ is a :class:`BreakEvent`.
 
 from __future__ import annotations
 
+import contextvars
 import dataclasses
 import logging
 import math
@@ -531,9 +532,9 @@ class _Loop:
             leave=False,
         )
         pending = 0
-        pool = ThreadPoolExecutor(self.in_flight_limit, thread_name_prefix="rose-analyse")
+        pool = threads_in_this_context(self.in_flight_limit, "rose-analyse")
         # One thread, first in first out: the break detector sees the snapshots in log order.
-        detection = ThreadPoolExecutor(1, thread_name_prefix="rose-breaks")
+        detection = threads_in_this_context(1, "rose-breaks")
         self.executor, self.detection = pool, detection
         try:
             for message in self.reader.messages():
@@ -672,10 +673,9 @@ class _Loop:
         self.count[topic] = index + 1
         verdict = pending.verdict.result()
         assert verdict is not None  # the analysis succeeded
-        if not self._write_results(snapshot, analysis):
-            # No record, but a break the detector found here is still reported.
-            self._report_breaks(snapshot, analysis.result, index, verdict)
-            return
+        # A snapshot whose results cannot be written to the output log (counted as skipped) is
+        # still analysed: its record, Rerun and break events stay, so every gate sees it.
+        self._write_results(snapshot, analysis)
         if self.rerun is not None:
             rescued = analysis.cleaning.rescued if analysis.cleaning is not None else None
             self.rerun.snapshot(snapshot, analysis.result, index, analysis.walls, rescued)
@@ -688,11 +688,11 @@ class _Loop:
         if self.on_snapshot is not None:
             self.on_snapshot(snapshot, analysis.result, record)
 
-    def _write_results(self, snapshot: MapSnapshot, analysis: SnapshotAnalysis) -> bool:
-        """The derived messages of a snapshot into the output log; False (skipped) if one cannot be
+    def _write_results(self, snapshot: MapSnapshot, analysis: SnapshotAnalysis) -> None:
+        """The derived messages of a snapshot into the output log; none (a skip) if one cannot be
         encoded (all three are encoded before any is written)."""
         if self.writer is None:
-            return True
+            return
         result, t, ser = analysis.result, snapshot.log_time_ns, self.serialization
         cleaned = analysis.cleaning.cleaned if analysis.cleaning else result.cleaned
         try:
@@ -705,10 +705,9 @@ class _Loop:
             self.skips.add(
                 "not encodable", f"{snapshot.topic}: cannot encode the results ({err}) at {t} ns"
             )
-            return False
+            return
         for handle, data in zip(self.derived[snapshot.topic], encoded, strict=True):
             self.writer.write_raw(handle, t, data)
-        return True
 
     def _report_breaks(
         self, snapshot: MapSnapshot, result: RoseResult, index: int, verdict: BreakScore
@@ -777,6 +776,23 @@ def _rerun_failure(rrd_path: Path | None, connect: str | None, err: BaseExceptio
         return f"{rrd_path}: cannot write the Rerun recording ({short(err, 160)})"
     viewer = f"the Rerun viewer at {connect}" if connect is not None else "the spawned Rerun viewer"
     return f"cannot stream to {viewer}; is it running? ({short(err, 160)})"
+
+
+def threads_in_this_context(workers: int, name: str) -> ThreadPoolExecutor:
+    """A thread pool whose threads run in a copy of the caller's :mod:`contextvars` context, so that
+    what they log belongs to the same session (``rose-bag batch`` keeps each recording's warnings
+    apart that way)."""
+    return ThreadPoolExecutor(
+        workers,
+        thread_name_prefix=name,
+        initializer=_enter_context,
+        initargs=(contextvars.copy_context(),),
+    )
+
+
+def _enter_context(context: contextvars.Context) -> None:
+    for variable, value in context.items():
+        variable.set(value)
 
 
 def _record(

@@ -206,6 +206,9 @@ def test_keys_depend_on_uri_size_version_and_options(fleet: Path) -> None:
     assert result_key(a, options) != result_key(b, options)
     assert result_key(a, options) != result_key(a, RecordingOptions(walls=True))
     assert result_key(a, options) == result_key(a, RecordingOptions(retries=5))
+    # One key per value of an option: the default written out, 2 and 2.0 are no new options.
+    keyed = {t: result_key(a, RecordingOptions(break_threshold_m=t)) for t in (None, 1.25, 2, 2.0)}
+    assert keyed[None] == keyed[1.25] and keyed[2] == keyed[2.0] != keyed[None]
     assert recording_id("/robots/a/run.mcap") != recording_id("/robots/b/run.mcap")
 
 
@@ -414,11 +417,9 @@ def test_a_salvaged_active_bag_is_cleaned_into_a_complete_bag(tmp_path: Path) ->
         assert "/map/rose/cleaned" in {c.topic for c in reader.channels}
 
 
-def test_skipped_map_messages_and_warnings_are_in_the_row_and_name_the_recording(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
-    """A recording whose second and third maps have a NaN resolution: ``process`` skips and
-    reports them; the batch row says so too, and the warnings printed name the recording."""
+def _with_nan_resolution(log: Path, bad: set[int], *, maps: int = 4) -> Path:
+    """The first ``maps`` maps of the sample session, those numbered in ``bad`` (from 1) with a NaN
+    resolution (malformed: skipped with a warning that names their log time)."""
     import dataclasses
     import math
 
@@ -429,32 +430,92 @@ def test_skipped_map_messages_and_warnings_are_in_the_row_and_name_the_recording
     from rose_logs.snapshots import decode_map
     from rose_logs.writer import open_output
 
-    log = tmp_path / "robot" / "run.mcap"
-    log.parent.mkdir()
+    log.parent.mkdir(parents=True, exist_ok=True)
     with LogReader(SAMPLE) as reader, open_output(log, "mcap", serialization="cdr") as out:
         handles = {c.id: out.add_channel(c) for c in reader.channels}
-        maps = 0
+        count = 0
         for message in reader.messages():
             data = message.data
             if message.channel.topic == MAP_TOPIC:
-                maps += 1
-                if maps > 4:
+                count += 1
+                if count > maps:
                     break
-                if maps in (2, 3):
+                if count in bad:
                     snap = decode_map(data, serialization="cdr", topic=MAP_TOPIC, log_time_ns=0)
-                    bad = dataclasses.replace(snap, resolution_m=math.nan)
-                    data = encode_cleaned(bad, snap.grid, serialization="cdr")
+                    broken = dataclasses.replace(snap, resolution_m=math.nan)
+                    data = encode_cleaned(broken, snap.grid, serialization="cdr")
             out.write_raw(handles[message.channel.id], message.log_time_ns, data)
+    return log
+
+
+def test_skipped_map_messages_and_warnings_are_in_the_row_and_name_the_recording(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A recording whose second and third maps have a NaN resolution: ``process`` skips and
+    reports them; the batch row says so too, and the warnings printed name the recording."""
+    log = _with_nan_resolution(tmp_path / "robot" / "run.mcap", {2, 3})
     out_dir = tmp_path / "out"
     assert main(["batch", str(log), "-o", str(out_dir), "-q"]) == 0
     (row,) = read_rows(out_dir / "recordings.parquet")
     assert (row["status"], row["snapshots"], row["skipped_messages"]) == ("ok", 2, 2)
     assert row["skipped_reasons"] == "2 malformed"
-    assert len(row["warnings"]) >= 1 and all("resolution" in w for w in row["warnings"])
+    assert len(row["warnings"]) == 2 and all("resolution nan" in w for w in row["warnings"])
     said = [line for line in capsys.readouterr().err.splitlines() if line.startswith("warning:")]
-    assert said and all(line.startswith(f"warning: {log}: ") for line in said)
+    assert said == [f"warning: {log}: {w}" for w in row["warnings"]]
     summary = json.loads((out_dir / "summary.json").read_text())
     assert (summary["skipped_messages"], summary["with_warnings"]) == (2, 1)
+
+
+def test_recordings_processed_side_by_side_keep_their_own_warnings(tmp_path: Path) -> None:
+    """Two recordings at once in one process (threads, as on a Dask worker with several threads):
+    each row holds its own recording's warnings, none of the other's; a failed recording keeps
+    its warnings too; logging is as it was afterwards."""
+    import logging
+    import re
+    from concurrent.futures import ThreadPoolExecutor
+
+    first = _with_nan_resolution(tmp_path / "a" / "run.mcap", {2})
+    second = _with_nan_resolution(tmp_path / "b" / "run.mcap", {3, 4})
+    failed = _with_nan_resolution(tmp_path / "c" / "run.mcap", {1, 2}, maps=2)
+    recordings = discover([first, second, failed])
+    times = {}
+    for rec in recordings:  # the log times of each recording's bad maps, from the logs themselves
+        from rose_logs.reader import LogReader
+
+        with LogReader(Path(rec.uri)) as reader:
+            maps = [m.log_time_ns for m in reader.messages(topics=["/map"])]
+        bad = {"a": {2}, "b": {3, 4}, "c": {1, 2}}[Path(rec.uri).parent.name]
+        times[rec.uri] = {maps[i - 1] for i in bad}
+    before = logging.getLogger("rose_logs").handlers[:], logging.getLogger("rose_logs").propagate
+    options = RecordingOptions()
+    with ThreadPoolExecutor(3) as pool:
+        results = list(
+            pool.map(
+                lambda rec: process_recording(rec, out=tmp_path / "out", options=options),
+                recordings,
+            )
+        )
+    for result in results:
+        said = {int(t) for w in result.warnings for t in re.findall(r"at (\d+) ns", w)}
+        assert said == times[result.uri], result.warnings
+    assert [r.status for r in results] == ["ok", "ok", "error"]
+    assert (logging.getLogger("rose_logs").handlers, logging.getLogger("rose_logs").propagate) == (
+        before[0],
+        before[1],
+    )
+
+
+def test_a_warning_said_on_every_snapshot_is_kept_once_with_its_count(tmp_path: Path) -> None:
+    import logging
+
+    from rose_logs.batch.recording_log import RecordingWarnings, collecting
+
+    said = RecordingWarnings()
+    with collecting(said):
+        for _ in range(14):
+            logging.getLogger("rose.walls").warning("ROSE found no dominant direction")
+        logging.getLogger("rose_logs.session").warning("another")
+    assert said.lines() == ("ROSE found no dominant direction (14 times)", "another")
 
 
 def test_process_options_and_the_break_gate_reach_every_recording(

@@ -380,8 +380,9 @@ def test_debug_shows_traceback(tmp_path: Path) -> None:
 def test_a_snapshot_whose_results_cannot_be_encoded_keeps_the_numbering(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, fr079, broken_grid
 ) -> None:
-    """Snapshot 2's results cannot be written: it has no record, but it keeps its number, so that
-    the break detector's trusted snapshot (which it is) and the records name the same snapshots."""
+    """Snapshot 2's results cannot be written to the output log: it is counted as skipped there,
+    but it is still analysed and recorded, so the break detector's trusted snapshot (which it is)
+    and the records name the same snapshots."""
     import rose_logs.session.loop as loop
 
     real = loop.encode_score
@@ -396,7 +397,7 @@ def test_a_snapshot_whose_results_cannot_be_encoded_keeps_the_numbering(
     monkeypatch.setattr(loop, "encode_score", fails_on_the_third)
     built = build_log(tmp_path / "in.mcap", "mcap-ros2", session_maps([*fr079, broken_grid]))
     report = process_log(built.path, output_path=tmp_path / "out.mcap").to_json()
-    assert [s["index"] for s in report["snapshots"]] == [0, 1, 3]
+    assert [s["index"] for s in report["snapshots"]] == [0, 1, 2, 3]
     first = report["topics"]["/map"]["first_break"]
     assert (first["index"], first["trusted_index"]) == (3, 2)
     assert report["skipped_reasons"] == "1 not encodable"
