@@ -335,7 +335,7 @@ def _to_8_bits(samples: npt.NDArray[np.integer], maxval: int) -> npt.NDArray[np.
     """Samples of ``0..maxval`` as ``0..255`` (rounded; a sample above maxval is white), through a
     table of ``maxval + 1`` entries: one byte per sample, however large the image."""
     if maxval == 255 and samples.dtype == np.uint8:
-        return samples
+        return np.asarray(samples, dtype=np.uint8)  # typed; no copy
     table = np.rint(np.arange(maxval + 1) * (255.0 / maxval)).astype(np.uint8)
     return table[np.minimum(samples, maxval)]
 
@@ -385,7 +385,7 @@ def _decode_other(raw: bytes, path: Path, max_cells: int | None) -> npt.NDArray[
         msg = f"{path}: not a readable image"
         raise MapFileError(msg)
     if image.dtype == np.uint16:
-        return _to_8_bits(image, 65535)
+        return _to_8_bits(np.asarray(image, dtype=np.uint16), 65535)
     if image.dtype != np.uint8:
         msg = f"{path}: unsupported pixel type {image.dtype}"
         raise MapFileError(msg)
