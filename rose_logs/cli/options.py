@@ -6,11 +6,10 @@ The ROSE tuning options themselves are defined once in :mod:`rose.cli.options` a
 
 from __future__ import annotations
 
-import argparse
 from datetime import UTC, datetime
 from typing import Any
 
-from rose.cli.options import add_limit_arguments, positive_float
+from rose.cli.options import add_limit_arguments, fraction, positive_float
 from rose.directions import FAILURE_LEVEL
 from rose_logs.cli import EXIT_GATE, EXIT_SALVAGED, UsageError
 
@@ -35,15 +34,6 @@ def duration_text(ns: int) -> str:
     return f"{ns / 1e9:.1f} s"
 
 
-def w_level(text: str) -> float:
-    """argparse type: a level of W, in (0, 1] (W itself lies in [0, 1])."""
-    value = positive_float(text)
-    if value > 1:
-        msg = f"W lies in [0, 1]: expected a level in (0, 1], got {text!r}"
-        raise argparse.ArgumentTypeError(msg)
-    return value
-
-
 def add_session_arguments(parser: Any) -> None:
     """What is done to each snapshot of a log, the same in ``process`` and ``batch``:
     ``--walls``, ``--clean-method``, ``--failure-level``, ``--break-threshold``, ``--max-cells``."""
@@ -61,7 +51,7 @@ def add_session_arguments(parser: Any) -> None:
     )
     parser.add_argument(
         "--failure-level",
-        type=w_level,
+        type=fraction,  # W lies in [0, 1]
         default=FAILURE_LEVEL,
         help="W above which a map counts as broken (%(default)s, the paper's)",
     )
@@ -81,7 +71,7 @@ def add_gate_arguments(parser: Any, *, scope: str) -> None:
     what they look at ("snapshot", "recording")."""
     parser.add_argument(
         "--fail-above",
-        type=w_level,
+        type=fraction,  # W lies in [0, 1]
         default=None,
         metavar="W",
         help=f"exit {EXIT_GATE} if any {scope}'s W exceeds this (map-quality gate)",
