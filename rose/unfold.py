@@ -1,8 +1,9 @@
 """Unfolding the amplitude spectrum into directions (the paper's polar form, summed over radius).
 
 Instead of resampling the spectrum onto a polar grid pixel by pixel, every half-plane spectrum cell is
-assigned once to a direction bin; the per-direction amplitude is then one ``np.bincount``. The
-assignment depends only on the padded shape and the binning parameters, so it is cached.
+assigned once to a direction bin; the per-direction amplitude is then one ``np.add.reduceat`` over
+the cells grouped by bin. The assignment depends only on the padded shape and the binning parameters,
+so it is cached.
 """
 
 from __future__ import annotations
@@ -27,9 +28,12 @@ class DirectionBins:
     centres : ndarray of float64, shape (B,)
         Wall orientation at the centre of each bin, radians in ``[0, pi)``; bin 0 is centred on 0.
     cell_index : ndarray of intp, shape (M,)
-        Flat indices into the half-plane of the cells that take part (inside the annulus).
+        Flat indices into the half-plane of the cells that take part (inside the annulus), grouped
+        by bin (bin 0's cells first, each bin's in flat order).
     bin_index : ndarray of intp, shape (M,)
-        Bin of each of those cells.
+        Bin of each of those cells (non-decreasing).
+    bin_starts : ndarray of intp, shape (B,)
+        Where each bin's cells start in ``cell_index`` (``M`` for empty bins at the end).
     counts : ndarray of float64, shape (B,)
         Number of cells in each bin (0 for bins no cell falls in, on very small maps).
     radius_span_px : float
@@ -39,6 +43,7 @@ class DirectionBins:
     centres: npt.NDArray[np.float64]
     cell_index: npt.NDArray[np.intp]
     bin_index: npt.NDArray[np.intp]
+    bin_starts: npt.NDArray[np.intp]
     counts: npt.NDArray[np.float64]
     radius_span_px: float
 
@@ -84,10 +89,16 @@ def direction_bins(
     wall_angle = np.arctan2(v.ravel()[cell_index], u.ravel()[cell_index]) + math.pi / 2
     bin_index = np.rint(wall_angle / step).astype(np.intp) % n_bins
     counts = np.bincount(bin_index, minlength=n_bins).astype(np.float64)
+    # Grouped by bin, in flat order within each: a bin's sum is then one contiguous reduction, in
+    # the order np.bincount would add (the same sums, bit for bit, in half the time).
+    order = np.argsort(bin_index, kind="stable")
+    cell_index, bin_index = cell_index[order], bin_index[order]
+    starts = np.searchsorted(bin_index, np.arange(n_bins))
     return DirectionBins(
         centres=np.arange(n_bins, dtype=np.float64) * step,
         cell_index=cell_index,
         bin_index=bin_index,
+        bin_starts=starts,
         counts=counts,
         radius_span_px=max(outer - min_radius_px, 0.0),
     )
@@ -103,12 +114,14 @@ def cumulative_amplitude(
     is then smoothed with a circular Gaussian of ``smoothing_bins`` bins.
     """
     n_bins = bins.centres.size
-    sums = np.bincount(
-        bins.bin_index, weights=amplitude_half.ravel()[bins.cell_index], minlength=n_bins
-    )
     filled = bins.counts > 0
     if not filled.any():
         return np.zeros(n_bins)
+    # One zero past the end: empty bins at the end start there (reduceat needs a valid index),
+    # and the last filled bin ends there. Empty bins' entries are not used.
+    gathered = np.zeros(bins.cell_index.size + 1)
+    gathered[:-1] = amplitude_half.ravel()[bins.cell_index]
+    sums = np.add.reduceat(gathered, bins.bin_starts)
     means = np.zeros(n_bins)
     means[filled] = sums[filled] / bins.counts[filled]
     if not filled.all():
