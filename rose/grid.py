@@ -23,12 +23,12 @@ def as_occupancy_grid(grid: npt.ArrayLike) -> npt.NDArray[np.int8]:
     """Return ``grid`` as an ``int8`` occupancy grid of the same shape (a copy when converted).
 
     A boolean array becomes ``100`` where True and ``0`` elsewhere. Integer or float arrays must hold
-    values in ``-1..100``.
+    values in ``-1..100`` (floats are truncated toward zero, as a cast to int8).
 
     Raises
     ------
     RoseError
-        If ``grid`` is not 2D or holds values outside ``-1..100``.
+        If ``grid`` is not 2D or holds values outside ``-1..100`` (NaN included).
     """
     array = np.asarray(grid)
     if array.ndim != 2:
@@ -38,6 +38,9 @@ def as_occupancy_grid(grid: npt.ArrayLike) -> npt.NDArray[np.int8]:
         return np.where(array, np.int8(OCCUPIED), np.int8(FREE))
     if not (np.issubdtype(array.dtype, np.integer) or np.issubdtype(array.dtype, np.floating)):
         msg = f"The input grid must be boolean or numeric, got dtype {array.dtype}."
+        raise RoseError(msg)
+    if np.issubdtype(array.dtype, np.floating) and array.size and np.isnan(array.max()):
+        msg = "The input grid must hold -1 (unknown) or 0..100 (occupancy), got NaN."
         raise RoseError(msg)
     if array.size and (array.min() < UNKNOWN or array.max() > OCCUPIED):
         msg = (

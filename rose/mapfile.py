@@ -481,7 +481,9 @@ def save_map(
     Raises
     ------
     MapFileError
-        If the path is not a ``.yaml`` name or the image cannot be encoded.
+        If the path is not a ``.yaml`` name, the map is one :func:`load_map` would refuse (an empty
+        grid, a resolution or origin that is not a finite number in range) or the image cannot be
+        encoded.
     OutputError
         If an output is refused by ``outputs`` (an input, exists without force) or cannot be written.
     """
@@ -491,6 +493,20 @@ def save_map(
         raise MapFileError(msg)
     grid = as_occupancy_grid(occupancy_map.grid)
     image_path = path.with_suffix(".pgm")
+    resolution = occupancy_map.resolution_m
+    placement = (*occupancy_map.origin_xy_m, occupancy_map.origin_yaw_rad)
+    problem = (
+        "an empty grid"
+        if grid.size == 0
+        else f"resolution {resolution!r}"
+        if not (_finite(resolution) and 0 < float(resolution) <= MAX_RESOLUTION_M)
+        else f"origin {placement!r}"
+        if not all(_finite(v) for v in placement)
+        else None
+    )
+    if problem is not None:  # written, it could not be read back
+        msg = f"{path}: cannot save a map with {problem}"
+        raise MapFileError(msg)
     import cv2
 
     ok, encoded = cv2.imencode(".pgm", grid_to_image(grid))

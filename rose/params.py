@@ -7,6 +7,8 @@ import math
 from dataclasses import dataclass
 from typing import Any, Literal
 
+import numpy as np
+
 from rose.errors import RoseError
 
 __all__ = ["ClutterValue", "RoseParams", "ThresholdMode", "make_params"]
@@ -65,6 +67,11 @@ class RoseParams:
     seed: int = 0
 
     def __post_init__(self) -> None:
+        # numpy scalars (np.int64(65), np.float32(0.3)) as the Python numbers they stand for.
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            if isinstance(value, np.integer | np.floating):
+                object.__setattr__(self, f.name, value.item())
         problems = _problems(self)
         if problems:
             raise RoseError("; ".join(problems))
@@ -78,6 +85,12 @@ def make_params(params: RoseParams | None = None, **overrides: Any) -> RoseParam
     RoseError
         On an unknown parameter name or a value out of range.
     """
+    if params is not None and not isinstance(params, RoseParams):
+        msg = (
+            f"params must be a RoseParams, got {type(params).__name__}; give single parameters "
+            "by name, e.g. analyze(grid, peak_prominence=0.2)"
+        )
+        raise RoseError(msg)
     base = params if params is not None else RoseParams()
     try:
         merged = dataclasses.replace(base, **overrides)

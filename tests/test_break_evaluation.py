@@ -93,7 +93,7 @@ def test_replay_matches_the_converter(tmp_path: Path) -> None:
     assert len(grids) == written.maps
     np.testing.assert_array_equal(grids[-1].grid, written.final_grid)
     assert grids[-1].origin_xy_m == written.final_origin_xy_m
-    clock, name = scan_clock_ns(log)
+    clock, name, _ = scan_clock_ns(log)
     assert name == "log" and np.all(np.diff(clock) > 0)
 
 

@@ -155,3 +155,43 @@ def test_stamps_that_do_not_resolve_the_scans_get_a_nominal_speed_clock(
     # The scans move 0.5 m or turn up to 3 rad: 1-6 s apart at walking pace, never the same time.
     assert summary.end_ns - summary.start_ns > 4 * 10**9
     assert summary.maps >= len(SCANS) - 1
+
+
+def _restamped(path: Path, stamps: list[str]) -> None:
+    lines = []
+    for line, stamp in zip(path.read_text().splitlines(), stamps, strict=True):
+        parts = line.split()
+        parts[-3] = parts[-1] = stamp
+        lines.append(" ".join(parts))
+    path.write_text("\n".join(lines) + "\n")
+
+
+def test_one_stamp_far_out_of_line_is_placed_between_its_neighbours(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """A stamp wrong by a day (in the middle, or on the first scan) used to drag every later scan
+    to 1 ns steps after it, or shift the whole session: it is interpolated, with a warning."""
+    from rose_logs.carmen.clock import scan_clock_ns
+
+    path = tmp_path / "outlier.log"
+    _write_log(path, SCANS)
+    good = ["1000.0", "1000.1", "1000.2", "1000.3", "1000.4"]
+    for wrong_at in (2, 0):
+        stamps = list(good)
+        stamps[wrong_at] = "87400.0"
+        _restamped(path, stamps)
+        clock = scan_clock_ns(read_carmen_log(path))
+        assert clock.name == "log" and clock.start_ns == 1000 * 10**9
+        np.testing.assert_allclose(clock.offsets_ns, np.arange(5) * 1e8, atol=1)
+    assert "out of line with the rest" in caplog.text
+    _restamped(path, ["1000.0", "1000.1", "999.9", "1000.3", "1000.4"])  # small jitter: nudged
+    assert scan_clock_ns(read_carmen_log(path)).offsets_ns[2] == 10**8 + 1
+
+
+def test_a_session_that_would_run_past_2_31_s_is_refused(tmp_path: Path) -> None:
+    path = tmp_path / "late.log"
+    _write_log(path, SCANS)
+    _restamped(path, ["2147483640"] * len(SCANS))  # one stamp: the nominal clock runs on from it
+    with pytest.raises(ValueError, match=r"past 2\*\*31 s"):
+        write_carmen_session(read_carmen_log(path), tmp_path / "late.mcap")
+    assert not (tmp_path / "late.mcap").exists()

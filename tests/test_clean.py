@@ -267,3 +267,32 @@ def test_default_guard_restores_a_wall_hole_next_to_a_doorway() -> None:
     assert restore[40, 60:66].all()
     # A window reaching the doorway's passable middle (1 m) sees one region and lets the hole be.
     assert not topology_guard(occupied, keep, window_px=round(1.0 / res), **kwargs).any()
+
+
+def test_bad_lengths_and_resolutions_are_rose_errors_before_any_work() -> None:
+    """inf lengths (OverflowError), a fractional tolerance (TypeError), a string resolution, or a
+    resolution so fine that the rules' kernels span thousands of cells (OpenCV asked for 90 GB at
+    1e-6 m) are one-line RoseErrors; the paper's labelling needs no resolution."""
+    for bad in ({"min_run_m": math.inf}, {"run_tolerance_px": 1.5}, {"robot_radius_m": "0.15"}):
+        with pytest.raises(RoseError, match=next(iter(bad))):
+            CleanParams(**bad)
+    grid = np.zeros((40, 40), dtype=np.int8)
+    grid[5, :] = 100
+    with pytest.raises(RoseError, match=r"finer than 0\.001 m"):
+        clean(grid, resolution_m=1e-6)
+    with pytest.raises(RoseError, match="positive number"):
+        clean(grid, resolution_m="0.05")  # type: ignore[arg-type]
+    assert clean(grid, resolution_m=1e-6, method="paper").method == "paper"
+    assert CleanParams(run_tolerance_px=np.int64(2)).run_tolerance_px == 2
+
+
+def test_the_papers_labelling_is_applied_to_the_grid_given() -> None:
+    """``clean(grid, result, method="paper")`` returned ``result.cleaned`` whatever ``grid`` was."""
+    grid = np.zeros((60, 60), dtype=np.int8)
+    grid[10, 5:55] = 100
+    grid[30:33, 30:33] = 100
+    result = rose.analyze(grid)
+    np.testing.assert_array_equal(clean(grid, result, method="paper").cleaned, result.cleaned)
+    other = np.full_like(grid, -1)  # same shape, all unknown: nothing to keep or remove
+    cleaned = clean(other, result, method="paper").cleaned
+    assert not (cleaned == 100).any() and (cleaned[~result.clutter] == -1).all()

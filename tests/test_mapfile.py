@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from pathlib import Path
 
 import cv2
@@ -301,3 +303,22 @@ def test_save_into_missing_directory_fails_cleanly(tmp_path: Path) -> None:
 def test_save_leaves_no_temporary_files(tmp_path: Path) -> None:
     rose.save_map(tmp_path / "m.yaml", OccupancyMap(grid=np.zeros((3, 3), np.int8)))
     assert sorted(p.name for p in tmp_path.iterdir()) == ["m.pgm", "m.yaml"]
+
+
+@pytest.mark.parametrize(
+    ("changes", "problem"),
+    [
+        ({"grid": np.zeros((0, 0), dtype=np.int8)}, "an empty grid"),
+        ({"resolution_m": 0.0}, "resolution 0.0"),
+        ({"resolution_m": math.nan}, "resolution nan"),
+        ({"origin_xy_m": (math.inf, 0.0)}, "origin"),
+        ({"origin_yaw_rad": math.nan}, "origin"),
+    ],
+)
+def test_a_map_load_map_would_refuse_is_not_saved(
+    tmp_path: Path, changes: dict, problem: str
+) -> None:
+    base = OccupancyMap(grid=np.zeros((3, 3), dtype=np.int8), resolution_m=0.05)
+    with pytest.raises(MapFileError, match=f"cannot save a map with {problem}"):
+        rose.save_map(tmp_path / "m.yaml", dataclasses.replace(base, **changes))
+    assert not list(tmp_path.iterdir())

@@ -6,6 +6,7 @@ import dataclasses
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import rose
@@ -100,3 +101,11 @@ def test_analyze_accepts_checked_params() -> None:
     grid[4, 2:14] = 100
     result = rose.analyze(grid, RoseParams(threshold_mode="fixed"))
     assert result.occupied_count == 12
+
+
+def test_numpy_scalars_are_numbers_and_a_dict_of_params_is_named() -> None:
+    params = RoseParams(occupied_threshold=np.int64(60), peak_prominence=np.float32(0.5))
+    assert type(params.occupied_threshold) is int and params.occupied_threshold == 60
+    assert type(params.peak_prominence) is float
+    with pytest.raises(RoseError, match="params must be a RoseParams, got dict"):
+        make_params({"peak_prominence": 0.3})  # type: ignore[arg-type]

@@ -186,3 +186,11 @@ def test_a_thin_map_and_its_transpose_agree(shape: tuple[int, int]) -> None:
     assert angular_error_deg(along.dominant_directions, [0.0]) < 1.0
     assert angular_error_deg(across.dominant_directions, [90.0]) < 1.0
     assert along.structure_score == pytest.approx(across.structure_score, abs=1e-6)
+
+
+def test_nan_in_a_float_grid_is_refused() -> None:
+    """NaN passed the range check (its comparisons are False) and became free space."""
+    grid = np.zeros((20, 20))
+    grid[3, 4] = np.nan
+    with pytest.raises(rose.RoseError, match="got NaN"):
+        rose.analyze(grid)

@@ -215,3 +215,11 @@ def test_walls_cli_module(tmp_path: Path) -> None:
 def test_segment_distances_shape_and_values() -> None:
     d = segment_distances(np.array([[0.0, 1.0], [3.0, 0.0]]), np.array([[[0.0, 0.0], [2.0, 0.0]]]))
     np.testing.assert_allclose(d, [[1.0], [1.0]])
+
+
+def test_a_wall_set_leaves_the_callers_array_writable() -> None:
+    from rose.walls.segments import WallSet
+
+    endpoints = np.zeros((1, 2, 2))
+    walls = WallSet(endpoints_px=endpoints, shape=(10, 10), resolution_m=0.05)
+    assert endpoints.flags.writeable and not walls.endpoints_px.flags.writeable

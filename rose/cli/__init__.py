@@ -133,8 +133,8 @@ def input_name(args: object) -> str | None:
 
 
 def error_text(err: BaseException, *, where: str | None = None) -> str:
-    """One short line for an error: our messages as they are (they name their file), OS errors with
-    their file name, anything else prefixed with ``where`` (the command's input)."""
+    """One short line for an error: OS errors with their file name, any other message prefixed with
+    ``where`` (the command's input) unless it names it already (file errors name their file)."""
     prefix = f"{where}: " if where else ""
     if isinstance(err, OSError) and not isinstance(err, RoseError):
         if err.filename:
@@ -144,7 +144,8 @@ def error_text(err: BaseException, *, where: str | None = None) -> str:
         return short(f"{prefix}out of memory (lower --max-cells?)")
     if isinstance(err, RecursionError):
         return short(f"{prefix}input nested too deeply")
-    return short(err)
+    text = str(err)
+    return short(text if where is None or where in text else f"{prefix}{text}")
 
 
 def console() -> None:

@@ -93,7 +93,8 @@ class WallSet:
     dominant_directions: npt.NDArray[np.float64] = field(default_factory=lambda: np.empty(0))
 
     def __post_init__(self) -> None:
-        endpoints = np.asarray(self.endpoints_px, dtype=np.float64)
+        # A copy: the set is read-only, and the caller's array must stay writable.
+        endpoints = np.array(self.endpoints_px, dtype=np.float64)
         if endpoints.size == 0:
             endpoints = endpoints.reshape(0, 2, 2)
         if endpoints.ndim != 3 or endpoints.shape[1:] != (2, 2):

@@ -1,6 +1,8 @@
 """The session clock of a CARMEN log: its own stamps, or a replacement when they do not resolve the scans.
 
-Most logs stamp every scan (a handful of backward steps are nudged forward by 1 ns). Some do not: the
+Most logs stamp every scan (a handful of backward steps are nudged forward by 1 ns; a stamp far out
+of line with the rest, e.g. one wrong by a day, is placed between its neighbours with a warning, so
+that it does not drag every later scan along). Some do not: the
 CSAIL log writes its stamps with six significant digits, so nearly all scans share one stamp and a
 session cut into map periods would be a single snapshot. Such a log gets a replacement clock: every
 scan takes the time a robot needs to move to it at :data:`NOMINAL_SPEED_M_S` and turn at
@@ -10,7 +12,9 @@ scan takes the time a robot needs to move to it at :data:`NOMINAL_SPEED_M_S` and
 
 from __future__ import annotations
 
-from typing import Literal
+import bisect
+import logging
+from typing import Literal, NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -22,8 +26,14 @@ __all__ = [
     "NOMINAL_SPEED_M_S",
     "NOMINAL_TURN_RAD_S",
     "ClockName",
+    "ScanClock",
     "scan_clock_ns",
 ]
+
+_LOG = logging.getLogger(__name__)
+
+OUT_OF_LINE_S = 10.0
+"""A stamp off the log's ordered stamps by more than this (seconds) is a wrong stamp, not jitter."""
 
 NOMINAL_SPEED_M_S = 0.3
 """Robot speed of the replacement clock, metres per second."""
@@ -35,24 +45,95 @@ MIN_SCAN_PERIOD_S = 0.25
 ClockName = Literal["log", "nominal-speed"]
 
 
-def scan_clock_ns(log: CarmenLog) -> tuple[npt.NDArray[np.int64], ClockName]:
-    """Scan times in nanoseconds since the first scan, strictly increasing, and the clock's name.
+class ScanClock(NamedTuple):
+    """Scan times of a log: ``offsets_ns`` since the first scan (strictly increasing), the clock's
+    ``name``, and ``start_ns``, the first scan's stamp (where its neighbours put it when it is out
+    of line with them)."""
 
-    Returns the log's own stamps (``"log"``) unless fewer than half of the scan-to-scan steps are
-    positive; then the replacement clock of the module notes (``"nominal-speed"``).
+    offsets_ns: npt.NDArray[np.int64]
+    name: ClockName
+    start_ns: int
+
+
+def scan_clock_ns(log: CarmenLog) -> ScanClock:
+    """The session clock of ``log`` (see :class:`ScanClock`).
+
+    The log's own stamps (``"log"``) unless fewer than half of the scan-to-scan steps are positive;
+    then the replacement clock of the module notes (``"nominal-speed"``).
     """
     stamps = log.stamps_ns.astype(np.int64)
     steps = np.diff(stamps)
     if steps.size == 0 or np.count_nonzero(steps > 0) >= steps.size / 2:
+        stamps = _stamps_in_line(stamps, log)
         out = stamps - stamps[0]
         for i in range(1, out.size):  # a handful of backward stamps at most (Intel)
             if out[i] <= out[i - 1]:
                 out[i] = out[i - 1] + 1
-        return out, "log"
+        return ScanClock(out, "log", int(stamps[0]) if stamps.size else 0)
     poses = log.laser_poses
     dist = np.hypot(*np.diff(poses[:, :2], axis=0).T)
     turn = np.abs((np.diff(poses[:, 2]) + np.pi) % (2 * np.pi) - np.pi)
     dt = np.maximum.reduce(
         [dist / NOMINAL_SPEED_M_S, turn / NOMINAL_TURN_RAD_S, np.full(dist.size, MIN_SCAN_PERIOD_S)]
     )
-    return np.concatenate([[0], np.cumsum(np.round(dt * 1e9).astype(np.int64))]), "nominal-speed"
+    offsets = np.concatenate([[0], np.cumsum(np.round(dt * 1e9).astype(np.int64))])
+    return ScanClock(offsets, "nominal-speed", int(stamps[0]))
+
+
+def _stamps_in_line(stamps: npt.NDArray[np.int64], log: CarmenLog) -> npt.NDArray[np.int64]:
+    """``stamps`` with those far out of line with the rest placed between their neighbours.
+
+    The stamps in line are the longest non-decreasing run through the log (not necessarily
+    consecutive scans); a stamp outside it by more than :data:`OUT_OF_LINE_S` from where its
+    neighbours in line put it is interpolated (by scan index) between them, or placed on at the
+    log's median scan period before the first or after the last stamp in line. Small backward steps
+    stay as they are, for the caller's 1 ns nudge.
+    """
+    kept = _longest_non_decreasing(stamps)
+    if kept.size == stamps.size:
+        return stamps
+    index = np.arange(stamps.size)
+    in_line = stamps[kept].astype(np.float64)
+    expected = np.interp(index, kept, in_line)
+    # Before the first and after the last stamp in line: on at the log's usual scan period.
+    period = float(np.median(np.diff(in_line) / np.diff(kept))) if kept.size > 1 else 0.0
+    expected[: kept[0]] = in_line[0] - (kept[0] - index[: kept[0]]) * period
+    expected[kept[-1] + 1 :] = in_line[-1] + (index[kept[-1] + 1 :] - kept[-1]) * period
+    wrong = np.abs(stamps - expected) > OUT_OF_LINE_S * 1e9
+    if not wrong.any():
+        return stamps
+    first = int(np.flatnonzero(wrong)[0])
+    _LOG.warning(
+        "%s: %d scan stamp(s) out of line with the rest by more than %g s (first: scan %d, "
+        "%.3f s): placed between their neighbours",
+        log.path,
+        int(np.count_nonzero(wrong)),
+        OUT_OF_LINE_S,
+        first + 1,
+        stamps[first] / 1e9,
+    )
+    out = stamps.copy()
+    out[wrong] = np.round(expected[wrong]).astype(np.int64)
+    return out
+
+
+def _longest_non_decreasing(values: npt.NDArray[np.int64]) -> npt.NDArray[np.intp]:
+    """Indices of a longest non-decreasing subsequence of ``values`` (patience sorting, n log n)."""
+    tails: list[int] = []  # values of the smallest tail of each length
+    tail_at: list[int] = []  # their indices
+    before = np.full(values.size, -1, dtype=np.intp)
+    for i, value in enumerate(values.tolist()):
+        length = bisect.bisect_right(tails, value)
+        if length == len(tails):
+            tails.append(value)
+            tail_at.append(i)
+        else:
+            tails[length] = value
+            tail_at[length] = i
+        before[i] = tail_at[length - 1] if length > 0 else -1
+    chain = []
+    i = tail_at[-1] if tail_at else -1
+    while i >= 0:
+        chain.append(i)
+        i = int(before[i])
+    return np.array(chain[::-1], dtype=np.intp)

@@ -28,7 +28,7 @@ import numpy.typing as npt
 from rose.outputs import OutputSet
 from rose_logs.carmen.clock import ClockName, scan_clock_ns
 from rose_logs.carmen.drift import apply_drift
-from rose_logs.carmen.parse import CarmenLog, beam_angles
+from rose_logs.carmen.parse import MAX_STAMP_S, CarmenFormatError, CarmenLog, beam_angles
 from rose_logs.carmen.raycast import BuilderParams, OccupancyGridBuilder
 from rose_logs.errors import LogWriteError
 from rose_logs.formats import format_from_path
@@ -322,8 +322,13 @@ def write_carmen_session(
     out = Path(path)
     options = options if options is not None else SessionOptions()
     fmt = fmt if fmt is not None else _session_format(out)
-    offsets, clock = scan_clock_ns(log)
-    stamps = int(log.stamps_ns[0]) + offsets
+    offsets, clock, start_ns = scan_clock_ns(log)
+    stamps = start_ns + offsets
+    end_s = int(stamps[-1]) / 1e9 + 1.0 if stamps.size else 0.0  # the last map comes just after
+    if end_s >= MAX_STAMP_S:
+        # The nominal-speed clock runs on from the first stamp: near 2**31 s it runs past it.
+        msg = f"{log.path}: the session would end at {end_s:.0f} s, past 2**31 s (ROS time)"
+        raise CarmenFormatError(msg)
     if clock != "log":
         _LOG.warning(
             "%s: the log's timestamps do not resolve its scans; using a nominal-speed clock "

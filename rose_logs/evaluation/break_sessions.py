@@ -106,7 +106,7 @@ def session_grids(
     builder_params : BuilderParams, optional
         Ray-casting parameters (defaults: 5 cm cells).
     """
-    clock, _ = scan_clock_ns(log)
+    clock = scan_clock_ns(log).offsets_ns
     params = builder_params if builder_params is not None else BuilderParams()
     poses = apply_drift(
         log.laser_poses,

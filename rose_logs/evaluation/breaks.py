@@ -182,7 +182,7 @@ def break_cases(
     only the first scans of each log)."""
     cases = []
     for path in log_paths:
-        clock, _ = scan_clock_ns(_log(Path(path), max_scans))
+        clock = scan_clock_ns(_log(Path(path), max_scans)).offsets_ns
         duration = float(clock[-1]) / 1e9
         correct = SessionSpec(Path(path), map_period_s=map_period_s, max_scans=max_scans)
         cases.append(BreakCase(correct, 0.0, duration))

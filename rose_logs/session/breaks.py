@@ -20,6 +20,8 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from rose.breaks import WallContradiction, contradicted_walls
 from rose_logs.snapshots import MapSnapshot
 
@@ -181,12 +183,25 @@ class DetectedBreak:
 _CLEAR = BreakScore(0.0, False, False, None, None, 0.0)
 
 
+#: Origins rotated by less than this are one placement: it moves a cell 4000 cells from the origin
+#: by under 0.005 cell (float noise in a quaternion, or q and -q, are the same rotation).
+_SAME_ROTATION_RAD = 1e-6
+
+
+def _rotation_between(a: MapSnapshot, b: MapSnapshot) -> float:
+    """Angle (radians) of the rotation between two snapshots' origin orientations."""
+    qa = np.asarray(a.origin_orientation_xyzw, dtype=np.float64)
+    qb = np.asarray(b.origin_orientation_xyzw, dtype=np.float64)
+    cosine = abs(float(qa @ qb)) / float(np.linalg.norm(qa) * np.linalg.norm(qb))
+    return 2.0 * math.acos(min(1.0, cosine))
+
+
 def _offset_px(trusted: MapSnapshot, snapshot: MapSnapshot) -> tuple[int, int] | None:
     """``(row, col)`` of the trusted grid's cell (0, 0) in the new grid; None if not comparable."""
     res = snapshot.resolution_m
     if trusted.resolution_m != res or not res > 0 or trusted.frame_id != snapshot.frame_id:
         return None
-    if trusted.origin_orientation_xyzw != snapshot.origin_orientation_xyzw:
+    if _rotation_between(trusted, snapshot) > _SAME_ROTATION_RAD:
         return None
     yaw = snapshot.origin_yaw_rad
     dx = trusted.origin_position_m[0] - snapshot.origin_position_m[0]

@@ -30,11 +30,11 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import rose
-from rose.cleaning import CleanMethod, CleanResult
+from rose.cleaning import CLEAN_METHODS, CleanMethod, CleanResult
 from rose.directions import FAILURE_LEVEL, map_frame_deg
 from rose.limits import DEFAULT_MAX_CELLS, check_cells, short
 from rose.outputs import OutputSet, signals_deferred
-from rose.params import RoseParams
+from rose.params import RoseParams, make_params
 from rose.result import RoseResult
 from rose_logs.derived import derived_topics, encode_cleaned, encode_score, encode_walls
 from rose_logs.errors import LogReadError, LogWriteError, MapMessageError
@@ -157,11 +157,14 @@ def process_log(
     """
     started = time.perf_counter()
     input_path = Path(input_path)
-    params = params or RoseParams()
+    params = make_params(params)  # a RoseParams, or a RoseError saying what it got
     break_params = break_params or BreakParams.following(params.occupied_threshold)
     if not math.isfinite(failure_level):
         msg = f"failure level must be finite, got {failure_level}"
         raise ValueError(msg)
+    if clean_method not in CLEAN_METHODS:  # before the log is read: one error, not one per map
+        msg = f"clean_method must be one of {', '.join(CLEAN_METHODS)}, got {clean_method!r}"
+        raise rose.RoseError(msg)
     own_outputs = outputs is None
     outputs = OutputSet(force=force) if outputs is None else outputs
     outputs.add_input(input_path)

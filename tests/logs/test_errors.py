@@ -401,3 +401,17 @@ def test_a_snapshot_whose_results_cannot_be_encoded_keeps_the_numbering(
     first = report["topics"]["/map"]["first_break"]
     assert (first["index"], first["trusted_index"]) == (3, 2)
     assert report["skipped_reasons"] == "1 not encodable"
+
+
+def test_a_wrong_clean_method_is_one_error_before_the_log_is_read(tmp_path: Path, fr079) -> None:
+    """It made every map fail on its own and ended blaming the log ("no map message could be
+    analysed")."""
+    import rose
+
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", session_maps(fr079[:1]))
+    with pytest.raises(
+        rose.RoseError, match="clean_method must be one of walls, paper, got 'Paper'"
+    ):
+        process_log(built.path, clean_method="Paper")  # type: ignore[arg-type]
+    with pytest.raises(rose.RoseError, match="params must be a RoseParams"):
+        process_log(built.path, params={"peak_prominence": 0.3})  # type: ignore[arg-type]

@@ -123,3 +123,14 @@ def test_break_parameters_can_follow_roses_occupied_threshold() -> None:
     assert BreakParams.following(80, threshold_m=2.0) == BreakParams(
         threshold_m=2.0, occupied_threshold=80
     )
+
+
+@pytest.mark.parametrize("other", [(0.0, 0.0, 1e-12, 1.0), (0.0, 0.0, 0.0, -1.0)])
+def test_the_same_rotation_written_differently_is_still_compared(plan, broken, other) -> None:
+    """Float noise in the origin's quaternion, or -q for q, is the same placement: the comparison
+    goes on (it restarted, and the break went unseen)."""
+    detector = BreakDetector(BreakParams(threshold_m=1.0))
+    detector.update(_snap(plan, 0))
+    turned = dataclasses.replace(_snap(broken, 1), origin_orientation_xyzw=other)
+    verdict = detector.update(turned)
+    assert verdict.trusted_index == 0 and verdict.broken
