@@ -133,8 +133,9 @@ def input_name(args: object) -> str | None:
 
 
 def error_text(err: BaseException, *, where: str | None = None) -> str:
-    """One short line for an error: OS errors with their file name, any other message prefixed with
-    ``where`` (the command's input) unless it names it already (file errors name their file)."""
+    """One short line for an error: OS errors with their file name; the algorithm's own errors
+    (:class:`RoseError` itself, which know no file) prefixed with ``where`` (the command's input);
+    file and log errors as they are (they name their file)."""
     prefix = f"{where}: " if where else ""
     if isinstance(err, OSError) and not isinstance(err, RoseError):
         if err.filename:
@@ -144,8 +145,9 @@ def error_text(err: BaseException, *, where: str | None = None) -> str:
         return short(f"{prefix}out of memory (lower --max-cells?)")
     if isinstance(err, RecursionError):
         return short(f"{prefix}input nested too deeply")
-    text = str(err)
-    return short(text if where is None or where in text else f"{prefix}{text}")
+    if type(err) is RoseError and where is not None and where not in str(err):
+        return short(f"{prefix}{err}")
+    return short(err)
 
 
 def console() -> None:

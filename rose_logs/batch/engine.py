@@ -158,6 +158,8 @@ def run_batch(
             msg = f"workers must be <= {max_local_workers()} ({WORKERS_PER_CPU} per CPU), got {workers}"
             raise BatchError(msg)
     store = OutputStore(str(out), storage_options)
+    if isinstance(inputs, str | Path):  # one input, not its characters
+        inputs = [inputs]
     recordings = _outside(discover(inputs, storage_options=storage_options), store)
     keys = {rec.uri: result_key(rec, options) for rec in recordings}
     finished: dict[str, RecordingResult] = {}

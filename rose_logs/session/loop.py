@@ -157,6 +157,8 @@ def process_log(
     """
     started = time.perf_counter()
     input_path = Path(input_path)
+    if isinstance(topics, str):  # one topic, not its characters
+        topics = [topics]
     params = make_params(params)  # a RoseParams, or a RoseError saying what it got
     break_params = break_params or BreakParams.following(params.occupied_threshold)
     if not math.isfinite(failure_level):

@@ -542,3 +542,11 @@ def test_process_options_and_the_break_gate_reach_every_recording(
         with pytest.raises(SystemExit) as exit_info:
             main([*args, *bad])
         assert exit_info.value.code == 2
+
+
+def test_one_input_given_as_a_string_is_one_input(tmp_path: Path) -> None:
+    from fleet import copy_recording
+
+    log = copy_recording(tmp_path / "run.mcap", "mcap", max_maps=1)
+    report = run_batch(str(log), tmp_path / "out")  # type: ignore[arg-type]
+    assert [r.uri for r in report.results] == [str(log)]

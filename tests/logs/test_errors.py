@@ -415,3 +415,8 @@ def test_a_wrong_clean_method_is_one_error_before_the_log_is_read(tmp_path: Path
         process_log(built.path, clean_method="Paper")  # type: ignore[arg-type]
     with pytest.raises(rose.RoseError, match="params must be a RoseParams"):
         process_log(built.path, params={"peak_prominence": 0.3})  # type: ignore[arg-type]
+
+
+def test_one_topic_given_as_a_string_is_one_topic(tmp_path: Path, fr079) -> None:
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", session_maps(fr079[:1]))
+    assert process_log(built.path, topics="/map").map_topics == ("/map",)  # type: ignore[arg-type]
