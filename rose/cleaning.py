@@ -48,7 +48,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rose.errors import RoseError
-from rose.grid import FREE, OCCUPIED, UNKNOWN, as_occupancy_grid
+from rose.grid import FREE, OCCUPIED, UNKNOWN, as_occupancy_grid, occupied_mask
 from rose.pipeline import analyze
 from rose.result import RoseResult
 
@@ -136,11 +136,12 @@ class CleanParams:
 
 
 def _finite_number(value: object) -> bool:
-    return (
-        isinstance(value, int | float | np.integer | np.floating)
-        and not isinstance(value, bool)
-        and math.isfinite(float(value))
-    )
+    if not isinstance(value, int | float | np.integer | np.floating) or isinstance(value, bool):
+        return False
+    try:
+        return math.isfinite(float(value))
+    except OverflowError:  # an int beyond any float
+        return False
 
 
 #: Finest resolution the ``"walls"`` cleaning takes (metres per cell). Its lengths are metres: at
@@ -262,7 +263,8 @@ def clean(
         msg = (
             f"resolution_m {resolution_m:g} m is finer than {MIN_CLEAN_RESOLUTION_M:g} m per cell: "
             "the cleaning's lengths (a 0.15 m robot radius, 2 m wall runs) would span thousands "
-            "of cells; give the map's real resolution, or use method 'paper'"
+            "of cells; give the map's real resolution, or use the paper's labelling (method "
+            "'paper', --method paper)"
         )
         raise RoseError(msg)
     p = params if params is not None else CleanParams()
@@ -274,11 +276,15 @@ def clean(
         )
         raise RoseError(msg)
     occupied = result.occupied
+    threshold = result.params.occupied_threshold
+    if not np.array_equal(occupied_mask(occupancy, occupied_threshold=threshold), occupied):
+        msg = "the ROSE result is for another grid: its occupied cells are not this grid's"
+        raise RoseError(msg)
     nothing = np.zeros(occupancy.shape, dtype=bool)
     if method == "paper" or not result.has_structure:
         kept = occupied & ~result.clutter
-        # The paper's labelling applied to ``grid`` itself (``result.cleaned`` when the result is
-        # ``grid``'s, as it should be).
+        # The paper's labelling on ``grid`` itself: its free and unknown cells as they are (the
+        # same as ``result.cleaned`` when the result was computed on ``grid``).
         cleaned = occupancy.copy()
         cleaned[result.clutter] = FREE if result.params.clutter_value == "free" else UNKNOWN
         return CleanResult(

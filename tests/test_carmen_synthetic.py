@@ -195,3 +195,15 @@ def test_a_session_that_would_run_past_2_31_s_is_refused(tmp_path: Path) -> None
     with pytest.raises(ValueError, match=r"past 2\*\*31 s"):
         write_carmen_session(read_carmen_log(path), tmp_path / "late.mcap")
     assert not (tmp_path / "late.mcap").exists()
+
+
+def test_jitter_next_to_a_long_pause_stays_jitter(tmp_path: Path) -> None:
+    """A stamp 0.15 s back next to a real 10-minute pause is jitter (nudged by 1 ns), not a wrong
+    stamp to move into the middle of the pause."""
+    from rose_logs.carmen.clock import scan_clock_ns
+
+    path = tmp_path / "pause.log"
+    _write_log(path, SCANS)
+    _restamped(path, ["100.0", "100.1", "99.95", "700.0", "700.1"])
+    offsets = scan_clock_ns(read_carmen_log(path)).offsets_ns
+    np.testing.assert_array_equal(offsets, [0, 10**8, 10**8 + 1, 600 * 10**9, 600 * 10**9 + 10**8])

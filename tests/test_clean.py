@@ -287,12 +287,20 @@ def test_bad_lengths_and_resolutions_are_rose_errors_before_any_work() -> None:
 
 
 def test_the_papers_labelling_is_applied_to_the_grid_given() -> None:
-    """``clean(grid, result, method="paper")`` returned ``result.cleaned`` whatever ``grid`` was."""
+    """``clean(grid, result, method="paper")`` returned ``result.cleaned`` whatever ``grid`` was:
+    it now labels ``grid`` (its own free and unknown cells), and a result whose occupied cells are
+    not ``grid``'s is refused."""
     grid = np.zeros((60, 60), dtype=np.int8)
     grid[10, 5:55] = 100
     grid[30:33, 30:33] = 100
     result = rose.analyze(grid)
+    assert result.clutter.any()
     np.testing.assert_array_equal(clean(grid, result, method="paper").cleaned, result.cleaned)
-    other = np.full_like(grid, -1)  # same shape, all unknown: nothing to keep or remove
-    cleaned = clean(other, result, method="paper").cleaned
-    assert not (cleaned == 100).any() and (cleaned[~result.clutter] == -1).all()
+    unexplored = np.where(grid == 100, grid, np.int8(-1))  # same walls, the rest unknown
+    cleaned = clean(unexplored, result, method="paper").cleaned
+    np.testing.assert_array_equal(cleaned[result.clutter], 0)  # removed clutter becomes free
+    np.testing.assert_array_equal(cleaned[~result.occupied], -1)  # the rest as given
+    np.testing.assert_array_equal(cleaned[result.structure], 100)
+    for method in ("paper", "walls"):
+        with pytest.raises(RoseError, match="for another grid"):
+            clean(np.zeros_like(grid), result, method=method)

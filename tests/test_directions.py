@@ -169,12 +169,14 @@ def test_fold_deg_stays_in_half_open_range(angle: float, digits: int | None, fol
 
 @pytest.mark.parametrize("shape", [(64, 64), (9, 40), (736, 1152)])
 def test_per_direction_sums_are_those_of_a_bincount(shape: tuple[int, int]) -> None:
-    """The grouped reduction gives np.bincount's sums bit for bit, also with empty bins (a small
-    map leaves some bins without a cell, at the end too)."""
+    """The grouped reduction gives np.bincount's sums up to rounding, also with empty bins (a
+    small map leaves some bins without a cell, at the end too), on amplitudes spanning many
+    orders of magnitude as real spectra do."""
     from rose.unfold import cumulative_amplitude, direction_bins
 
     rng = np.random.default_rng(1)
-    amplitude = rng.random((shape[0], shape[1] // 2 + 1)).astype(np.float32)
+    size = (shape[0], shape[1] // 2 + 1)
+    amplitude = (10.0 ** rng.uniform(-3, 6, size) * rng.random(size)).astype(np.float32)
     bins = direction_bins(shape, angular_resolution_deg=0.5, min_radius_px=4.0)
     sums = np.bincount(
         bins.bin_index, weights=amplitude.ravel()[bins.cell_index], minlength=bins.centres.size
@@ -182,4 +184,6 @@ def test_per_direction_sums_are_those_of_a_bincount(shape: tuple[int, int]) -> N
     filled = bins.counts > 0
     expected = sums[filled] / bins.counts[filled] * bins.radius_span_px
     got = cumulative_amplitude(amplitude, bins, smoothing_bins=0)
-    assert_array_equal(got[filled], expected)  # empty bins are interpolated from their neighbours
+    # Rounding differs by an ulp or so; one cell missing from a bin (it did, at the last filled
+    # bin before empty ones) is off by far more. Empty bins are interpolated, not compared.
+    assert_allclose(got[filled], expected, rtol=1e-12)

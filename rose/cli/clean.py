@@ -21,7 +21,7 @@ from rose.cli.options import (
     verdict,
 )
 from rose.directions import fold_deg
-from rose.errors import RoseError
+from rose.errors import MapFileError
 from rose.mapfile import OccupancyMap, save_map
 from rose.outputs import OutputSet
 from rose.pipeline import analyze
@@ -61,7 +61,7 @@ def run(args: argparse.Namespace) -> int:
     output_path = Path(args.output)
     if output_path.suffix.lower() not in (".yaml", ".yml"):
         msg = f"{output_path}: the output map must be a .yaml file"
-        raise RoseError(msg)
+        raise MapFileError(msg)
     # Refuse bad outputs (an input, the map's image, each other, existing) before computing anything.
     outputs.check(output_path, output_path.with_suffix(".pgm"), args.json)
     started = time.perf_counter()

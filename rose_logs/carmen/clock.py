@@ -84,22 +84,30 @@ def _stamps_in_line(stamps: npt.NDArray[np.int64], log: CarmenLog) -> npt.NDArra
     """``stamps`` with those far out of line with the rest placed between their neighbours.
 
     The stamps in line are the longest non-decreasing run through the log (not necessarily
-    consecutive scans); a stamp outside it by more than :data:`OUT_OF_LINE_S` from where its
-    neighbours in line put it is interpolated (by scan index) between them, or placed on at the
-    log's median scan period before the first or after the last stamp in line. Small backward steps
-    stay as they are, for the caller's 1 ns nudge.
+    consecutive scans). A stamp off that run is wrong when it lies more than :data:`OUT_OF_LINE_S`
+    outside the span of its neighbours in line (before the first or after the last of them: of
+    where the log's median scan period puts it). A wrong stamp is interpolated (by scan index)
+    between its neighbours, or placed on at that period at the ends (never before 0). Small
+    backward steps, also next to a long pause, stay as they are, for the caller's 1 ns nudge. A
+    first stamp that is too early or a last one too late stays in line and cannot be told from a
+    real pause.
     """
     kept = _longest_non_decreasing(stamps)
     if kept.size == stamps.size:
         return stamps
     index = np.arange(stamps.size)
     in_line = stamps[kept].astype(np.float64)
-    expected = np.interp(index, kept, in_line)
-    # Before the first and after the last stamp in line: on at the log's usual scan period.
     period = float(np.median(np.diff(in_line) / np.diff(kept))) if kept.size > 1 else 0.0
+    expected = np.interp(index, kept, in_line)
     expected[: kept[0]] = in_line[0] - (kept[0] - index[: kept[0]]) * period
     expected[kept[-1] + 1 :] = in_line[-1] + (index[kept[-1] + 1 :] - kept[-1]) * period
-    wrong = np.abs(stamps - expected) > OUT_OF_LINE_S * 1e9
+    # The span of every scan's neighbours in line (its own stamp for a scan in line).
+    after = np.searchsorted(kept, index)  # first scan in line at or after each scan
+    before = np.searchsorted(kept, index, side="right") - 1  # last at or before
+    low = np.where(before >= 0, in_line[np.maximum(before, 0)], expected)
+    high = np.where(after < kept.size, in_line[np.minimum(after, kept.size - 1)], expected)
+    tolerance = OUT_OF_LINE_S * 1e9
+    wrong = (stamps < low - tolerance) | (stamps > high + tolerance)
     if not wrong.any():
         return stamps
     first = int(np.flatnonzero(wrong)[0])
@@ -113,7 +121,7 @@ def _stamps_in_line(stamps: npt.NDArray[np.int64], log: CarmenLog) -> npt.NDArra
         stamps[first] / 1e9,
     )
     out = stamps.copy()
-    out[wrong] = np.round(expected[wrong]).astype(np.int64)
+    out[wrong] = np.maximum(np.round(expected[wrong]), 0).astype(np.int64)
     return out
 
 

@@ -324,7 +324,8 @@ def write_carmen_session(
     fmt = fmt if fmt is not None else _session_format(out)
     offsets, clock, start_ns = scan_clock_ns(log)
     stamps = start_ns + offsets
-    end_s = int(stamps[-1]) / 1e9 + 1.0 if stamps.size else 0.0  # the last map comes just after
+    # The last map comes 1 ns after the last scan.
+    end_s = (int(stamps[-1]) + 1) / 1e9 if stamps.size else 0.0
     if end_s >= MAX_STAMP_S:
         # The nominal-speed clock runs on from the first stamp: near 2**31 s it runs past it.
         msg = f"{log.path}: the session would end at {end_s:.0f} s, past 2**31 s (ROS time)"

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 import rose
-from rose.cleaning import CleanMethod, CleanResult, clean
+from rose.cleaning import MIN_CLEAN_RESOLUTION_M, CleanMethod, CleanResult, clean
 from rose.params import RoseParams
 from rose.result import RoseResult
 from rose.walls.segments import WallSet
@@ -70,9 +70,17 @@ class SnapshotAnalyser:
             )
             wall_params = rose.WallParams(occupied_threshold=self.params.occupied_threshold)
             walls = rose.extract_walls(placed, result, params=wall_params)
-        cleaning = clean(
-            snapshot.grid, result, method=self.clean_method, resolution_m=snapshot.resolution_m
-        )
+        method = self.clean_method
+        if method == "walls" and snapshot.resolution_m < MIN_CLEAN_RESOLUTION_M:
+            # W and the labels do not depend on the resolution; only the walls rules do.
+            _LOG.warning(
+                "%s: maps finer than %g m per cell get the paper's labelling as their cleaned "
+                "map (the walls cleaning's lengths would span thousands of cells)",
+                snapshot.topic,
+                MIN_CLEAN_RESOLUTION_M,
+            )
+            method = "paper"
+        cleaning = clean(snapshot.grid, result, method=method, resolution_m=snapshot.resolution_m)
         seconds = time.perf_counter() - started
         return SnapshotAnalysis(result, walls, reused=False, cleaning=cleaning, seconds=seconds)
 
