@@ -120,8 +120,9 @@ def cumulative_amplitude(
         return np.zeros(n_bins)
     # One zero past the end: empty bins at the end start there (reduceat needs a valid index),
     # and the last filled bin ends there. Empty bins' entries are not used.
-    gathered = np.zeros(bins.cell_index.size + 1)
+    gathered = np.empty(bins.cell_index.size + 1)
     gathered[:-1] = amplitude_half.ravel()[bins.cell_index]
+    gathered[-1] = 0.0
     sums = np.add.reduceat(gathered, bins.bin_starts)
     means = np.zeros(n_bins)
     means[filled] = sums[filled] / bins.counts[filled]
