@@ -273,3 +273,26 @@ def test_convert_shows_progress_over_the_scans_on_a_terminal_unless_quiet(tmp_pa
     assert "/30 [" in shown  # a bar over the 30 scans
     assert "scan/s" in shown
     assert "scan" not in _on_a_terminal([*argv, "--force", "-q"])
+
+
+def test_convert_names_a_wrong_map_file_and_why_no_scan_was_read(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--map-file final.pgm`` read "used for two outputs"; a log of unreadable lines did not say
+    why, and a range beyond float32 leaked numpy's overflow warning."""
+    from rose_logs.cli import main
+
+    good = "FLASER 3 1.0 2.0 3.0 0.5 -0.5 0.1 0.5 -0.5 0.1 12.5 host 12.5\n"
+    path = tmp_path / "log.txt"
+    path.write_text(good)
+    with pytest.raises(SystemExit) as exit_info:
+        main(["convert", str(path), str(tmp_path / "s.mcap"), "--map-file", "final.pgm"])
+    assert exit_info.value.code == 2
+    assert "final.pgm: --map-file names the map's YAML" in capsys.readouterr().err
+    path.write_text(good.replace("2.0", "1e39"))
+    assert main(["convert", str(path), str(tmp_path / "s.mcap")]) == 1
+    err = capsys.readouterr().err
+    assert err.strip().splitlines() == [
+        f"error: {path}: no FLASER scan found (1 malformed FLASER lines; first: line 1: "
+        "non-finite value)"
+    ]

@@ -180,7 +180,8 @@ def parse_flaser_line(line: str, *, line_number: int = 0) -> FlaserScan:
         msg = f"{where}: {n} beams announced but only {len(tokens)} fields"
         raise CarmenFormatError(msg)
     try:
-        ranges = np.array(tokens[2 : 2 + n], dtype=np.float32)
+        with np.errstate(over="ignore"):  # a range beyond float32 becomes inf: "non-finite" below
+            ranges = np.array(tokens[2 : 2 + n], dtype=np.float32)
         values = [float(v) for v in tokens[2 + n : 2 + n + 7]]
     except ValueError as err:
         msg = f"{where}: non-numeric value ({err})"
@@ -282,7 +283,8 @@ def read_carmen_log(path: str | Path, *, max_scans: int | None = None) -> Carmen
         msg = f"{path}: cannot read CARMEN log ({getattr(err, 'strerror', None) or err})"
         raise CarmenFormatError(msg) from err
     if not log.scans:
-        msg = f"{path}: no FLASER scan found ({log.malformed} malformed FLASER lines)"
+        first = f"; first: {log.first_errors[0]}" if log.first_errors else ""
+        msg = f"{path}: no FLASER scan found ({log.malformed} malformed FLASER lines{first})"
         raise CarmenFormatError(msg)
     if log.malformed:
         _LOG.warning(

@@ -20,6 +20,7 @@ from rose.outputs import OutputSet
 from rose_logs.carmen.parse import CarmenLog, read_carmen_log
 from rose_logs.carmen.raycast import BuilderParams
 from rose_logs.carmen.session import SessionOptions, write_carmen_session
+from rose_logs.cli.options import UsageError
 from rose_logs.errors import LogReadError, LogWriteError
 from rose_logs.formats import format_from_path, unknown_suffix_warning
 
@@ -108,6 +109,9 @@ def run(args: argparse.Namespace) -> int:
     warning = None if args.fmt else unknown_suffix_warning(args.output, "as a ROS 2 db3 bag folder")
     if warning is not None:  # a typo (out.mcpa) should not pass unnoticed
         print(warning, file=sys.stderr)
+    if args.map_file is not None and args.map_file.suffix.lower() not in (".yaml", ".yml"):
+        msg = f"{args.map_file}: --map-file names the map's YAML (its image goes beside it as .pgm)"
+        raise UsageError(msg)
     map_files = (
         (args.map_file, args.map_file.with_suffix(".pgm")) if args.map_file is not None else ()
     )
