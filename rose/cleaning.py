@@ -40,7 +40,6 @@ from __future__ import annotations
 
 import dataclasses
 import logging
-import math
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -49,6 +48,7 @@ import numpy.typing as npt
 
 from rose.errors import RoseError
 from rose.grid import FREE, OCCUPIED, UNKNOWN, as_occupancy_grid, occupied_mask
+from rose.limits import finite_number
 from rose.pipeline import analyze
 from rose.result import RoseResult
 
@@ -104,7 +104,7 @@ class CleanParams:
         not_numbers = [
             f"{name} must be a finite number, got {getattr(self, name)!r}"
             for name in lengths
-            if not _finite_number(getattr(self, name))
+            if not finite_number(getattr(self, name))
         ]
         if not isinstance(self.run_tolerance_px, int | np.integer) or isinstance(
             self.run_tolerance_px, bool
@@ -133,15 +133,6 @@ class CleanParams:
             problems.append(f"run_tolerance_px must be in 0..5, got {self.run_tolerance_px}")
         if problems:
             raise RoseError("; ".join(problems))
-
-
-def _finite_number(value: object) -> bool:
-    if not isinstance(value, int | float | np.integer | np.floating) or isinstance(value, bool):
-        return False
-    try:
-        return math.isfinite(float(value))
-    except OverflowError:  # an int beyond any float
-        return False
 
 
 #: Finest resolution the ``"walls"`` cleaning takes (metres per cell). Its lengths are metres: at
@@ -256,7 +247,7 @@ def clean(
     if method not in CLEAN_METHODS:
         msg = f"method must be one of {', '.join(CLEAN_METHODS)}, got {method!r}"
         raise RoseError(msg)
-    if not (_finite_number(resolution_m) and float(resolution_m) > 0):
+    if not (finite_number(resolution_m) and float(resolution_m) > 0):
         msg = f"resolution_m must be a positive number, got {resolution_m!r}"
         raise RoseError(msg)
     if method == "walls" and resolution_m < MIN_CLEAN_RESOLUTION_M:

@@ -14,6 +14,8 @@
 
 from __future__ import annotations
 
+import math
+import numbers
 import re
 import struct
 from typing import Any
@@ -26,6 +28,7 @@ __all__ = [
     "MAX_YAML_BYTES",
     "MAX_YAML_DEPTH",
     "check_cells",
+    "finite_number",
     "image_shape",
     "load_yaml",
     "pnm_header",
@@ -180,3 +183,15 @@ def image_shape(data: bytes | memoryview) -> tuple[int, int] | None:
         cols, rows = struct.unpack("<ii", head[18:26])
         return abs(rows), abs(cols)
     return None
+
+
+def finite_number(value: object) -> bool:
+    """Whether ``value`` is a finite real number (Python or numpy; a bool is not one, an int too
+    large for a float is not finite)."""
+    # numbers.Real holds numpy's scalars too, without importing numpy here (CLI start-up).
+    if not isinstance(value, numbers.Real) or isinstance(value, bool):
+        return False
+    try:
+        return math.isfinite(float(value))
+    except OverflowError:
+        return False

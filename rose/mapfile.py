@@ -33,6 +33,7 @@ from rose.limits import (
     DEFAULT_MAX_CELLS,
     MAX_YAML_BYTES,
     check_cells,
+    finite_number,
     image_shape,
     load_yaml,
     pnm_header,
@@ -181,7 +182,7 @@ def _load_yaml_map(path: Path, max_cells: int | None) -> OccupancyMap:
             f"{path}: 'origin' must be a list of three numbers [x, y, yaw], got {short(origin, 80)}"
         )
         raise MapFileError(msg)
-    if not all(_finite(v) for v in origin):
+    if not all(finite_number(v) for v in origin):
         msg = f"{path}: 'origin' must be finite, got {origin!r}"
         raise MapFileError(msg)
     mode = meta.get("mode", "trinary")
@@ -227,13 +228,6 @@ def _load_yaml_map(path: Path, max_cells: int | None) -> OccupancyMap:
         source=path,
         image_path=image_path,
     )
-
-
-def _finite(value: float) -> bool:
-    try:
-        return math.isfinite(float(value))
-    except OverflowError:
-        return False
 
 
 def _as_number(value: Any, kind: type) -> Any:
@@ -493,17 +487,7 @@ def save_map(
         raise MapFileError(msg)
     grid = as_occupancy_grid(occupancy_map.grid)
     image_path = path.with_suffix(".pgm")
-    resolution = occupancy_map.resolution_m
-    placement = (*occupancy_map.origin_xy_m, occupancy_map.origin_yaw_rad)
-    problem = (
-        "an empty grid"
-        if grid.size == 0
-        else f"resolution {resolution!r}"
-        if not (_finite(resolution) and 0 < float(resolution) <= MAX_RESOLUTION_M)
-        else f"origin {placement!r}"
-        if not all(_finite(v) for v in placement)
-        else None
-    )
+    problem = _unloadable(grid, occupancy_map)
     if problem is not None:  # written, it could not be read back
         msg = f"{path}: cannot save a map with {problem}"
         raise MapFileError(msg)
@@ -536,6 +520,19 @@ def save_map(
     if own:
         target.commit()
     return image_path
+
+
+def _unloadable(grid: npt.NDArray[np.int8], occupancy_map: OccupancyMap) -> str | None:
+    """What :func:`load_map` would refuse in a map to save, if anything."""
+    if grid.size == 0:
+        return "an empty grid"
+    resolution = occupancy_map.resolution_m
+    if not (finite_number(resolution) and 0 < float(resolution) <= MAX_RESOLUTION_M):
+        return f"resolution {resolution!r}"
+    placement = (*occupancy_map.origin_xy_m, occupancy_map.origin_yaw_rad)
+    if not all(finite_number(v) for v in placement):
+        return f"origin {placement!r}"
+    return None
 
 
 def write_atomically(path: Path, write: Callable[[Any], object]) -> None:

@@ -19,7 +19,7 @@ import uuid
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 from rose.cleaning import CleanMethod
 from rose.directions import FAILURE_LEVEL
@@ -31,6 +31,9 @@ from rose_logs.batch.sources import Recording
 from rose_logs.batch.store import OutputStore, filesystem, is_local
 from rose_logs.errors import LogError
 from rose_logs.session.report import w_judges
+
+if TYPE_CHECKING:  # the session package is imported when a recording is processed
+    from rose_logs.session.breaks import BreakParams
 
 __all__ = [
     "RESULTS_DIR",
@@ -465,7 +468,7 @@ def _attempt(
     )
 
 
-def _break_params(options: RecordingOptions) -> Any:
+def _break_params(options: RecordingOptions) -> BreakParams | None:
     """The break detector's parameters for ``options`` (None: process_log's own default)."""
     if options.break_threshold_m is None:
         return None
