@@ -16,7 +16,7 @@ from typing import Any
 
 from rose_logs.batch.errors import BatchError
 from rose_logs.batch.sources import Recording, discover
-from rose_logs.batch.store import OutputStore
+from rose_logs.batch.store import OutputStore, storage_errors
 from rose_logs.batch.task import (
     RecordingOptions,
     RecordingResult,
@@ -157,7 +157,8 @@ def run_batch(
         if workers > max_local_workers():
             msg = f"workers must be <= {max_local_workers()} ({WORKERS_PER_CPU} per CPU), got {workers}"
             raise BatchError(msg)
-    store = OutputStore(str(out), storage_options)
+    with storage_errors(str(out)):
+        store = OutputStore(str(out), storage_options)
     if isinstance(inputs, str | Path):  # one input, not its characters
         inputs = [inputs]
     recordings = _outside(discover(inputs, storage_options=storage_options), store)
@@ -166,7 +167,8 @@ def run_batch(
     todo: list[Recording] = []
     before: dict[str, RecordingResult | None] = {}  # stored results of the recordings to do
     for rec in recordings:
-        previous = load_result(store, keys[rec.uri])
+        with storage_errors(store.root):
+            previous = load_result(store, keys[rec.uri])
         if force or previous is None or (retry_errors and previous.status == "error"):
             todo.append(rec)
             before[rec.uri] = previous
@@ -235,7 +237,7 @@ def run_batch(
         # A signal between two tables would leave them out of step: they are written first (in a
         # second), and the report then says the batch was stopped.
         try:
-            with signals_deferred():
+            with signals_deferred(), storage_errors(store.root):
                 write_outputs(store, report, options)
         except KeyboardInterrupt as err:
             stopped_by = getattr(err, "signum", signal.SIGINT)

@@ -14,9 +14,9 @@ from typing import Any
 import fsspec
 
 from rose_logs.batch.errors import BatchError
-from rose_logs.batch.store import filesystem, is_local
+from rose_logs.batch.store import filesystem, is_local, storage_errors
 
-__all__ = ["LOG_SUFFIXES", "MAX_LIST_BYTES", "Recording", "discover", "read_list"]
+__all__ = ["LOG_SUFFIXES", "MAX_LIST_BYTES", "Recording", "discover", "printable", "read_list"]
 
 #: File suffixes searched for in folders (a folder with ``metadata.yaml`` is one ROS 2 bag). A
 #: ``.bag.active`` is a recording ``rosbag record`` never closed: it shows as an error row (naming
@@ -51,6 +51,17 @@ class Recording:
     is_dir: bool
     size: int
     version: str
+
+
+def printable(text: str) -> str:
+    """``text`` as valid UTF-8 for tables, reports and ids: a local file name need not be UTF-8
+    (Python keeps its undecodable bytes as surrogates, which Parquet, ``uuid5`` and a UTF-8
+    terminal refuse); such bytes are written as ``\\xff`` escapes. Other text is unchanged."""
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError:
+        return text.encode("utf-8", "surrogateescape").decode("utf-8", "backslashreplace")
+    return text
 
 
 #: Largest ``--from-list`` file read, bytes: millions of lines, and a device such as ``/dev/zero`` is
@@ -131,7 +142,9 @@ def discover(
     found: dict[str, Recording] = {}
     names: dict[str, str] = {}
     for item in inputs:
-        for recording in _expand(str(item), storage_options):
+        with storage_errors(str(item)):
+            expanded = list(_expand(str(item), storage_options))
+        for recording in expanded:
             # One file under two spellings (``a/../a/x.mcap``, a symlink) is one recording: the
             # first spelling names it.
             same = _identity(recording.uri)
@@ -139,7 +152,9 @@ def discover(
                 continue
             name = recording.name
             if name in names:  # two inputs with the same relative name: keep both, distinguishable
-                digest = hashlib.sha256(recording.uri.encode()).hexdigest()[:8]
+                digest = hashlib.sha256(
+                    recording.uri.encode("utf-8", "surrogateescape")
+                ).hexdigest()[:8]
                 stem, dot, ext = name.rpartition(".")
                 name = (
                     f"{stem}-{digest}.{ext}" if dot and not recording.is_dir else f"{name}-{digest}"

@@ -10,7 +10,7 @@ import contextlib
 import logging
 import os
 import re
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -20,7 +20,7 @@ from rose.errors import OutputError
 from rose.outputs import OutputSet, temporary_name
 from rose_logs.batch.errors import BatchError
 
-__all__ = ["OutputStore", "filesystem", "is_local", "join_uri"]
+__all__ = ["OutputStore", "filesystem", "is_local", "join_uri", "storage_errors"]
 
 _LOG = logging.getLogger(__name__)
 
@@ -101,6 +101,37 @@ def filesystem(uri: str, storage_options: Mapping[str, Any] | None = None) -> tu
         raise BatchError(msg) from err
 
 
+#: Packages whose exceptions mean "the storage cannot be reached or refuses us" (no endpoint, no
+#: credentials, a bad bucket name): fsspec's object-store backends raise their clients' own types,
+#: not ``OSError``, for these.
+_STORAGE_CLIENTS = (
+    "botocore",
+    "aiobotocore",
+    "aiohttp",
+    "s3fs",
+    "gcsfs",
+    "google",
+    "adlfs",
+    "azure",
+)
+
+
+@contextlib.contextmanager
+def storage_errors(uri: str) -> Iterator[None]:
+    """Turn a storage client's own exception inside the block into a one-line :class:`BatchError`
+    naming ``uri`` (``OSError`` s and everything else pass unchanged)."""
+    try:
+        yield
+    except BatchError:
+        raise
+    except Exception as err:
+        if type(err).__module__.split(".")[0] not in _STORAGE_CLIENTS:
+            raise
+        text = " ".join(str(err).split()) or "no details"
+        msg = f"{uri}: cannot use the storage ({type(err).__name__}: {text})"
+        raise BatchError(msg) from err
+
+
 class OutputStore:
     """Files under one output root; every write is atomic (temporary name + rename, or one PUT).
 
@@ -129,15 +160,30 @@ class OutputStore:
         return join_uri(self.root, *relative.split("/"))
 
     def prepare(self) -> None:
-        """Create the root folder (local) or check the bucket is reachable (remote)."""
+        """Create the root folder and its staging folder (local: an existing folder we cannot write
+        to is refused here, not per recording), or check that the bucket exists (object stores: a
+        mistyped bucket name must not create a new bucket) and create the root (other remotes)."""
         try:
             if self.local:
                 Path(_strip_file(self.root)).mkdir(parents=True, exist_ok=True)
+                self.staging_dir()
             else:
-                self.fs.makedirs(self.root, exist_ok=True)
+                with storage_errors(self.root):
+                    self._prepare_remote()
         except OSError as err:
-            msg = f"{self.root}: cannot create the output folder ({err})"
+            reason = err.strerror or str(err)
+            msg = f"{self.root}: cannot write to the output folder ({reason})"
             raise BatchError(msg) from err
+
+    def _prepare_remote(self) -> None:
+        split_path = getattr(self.fs, "split_path", None)  # object stores: bucket, key, version
+        if split_path is None:
+            self.fs.makedirs(self.root, exist_ok=True)
+            return
+        bucket = split_path(self.root)[0]
+        if not self.fs.exists(bucket):
+            msg = f"{self.root}: the bucket {bucket!r} does not exist (it is not created for you)"
+            raise BatchError(msg)
 
     def read_bytes(self, relative: str) -> bytes | None:
         """Content of ``relative``, None if it does not exist."""

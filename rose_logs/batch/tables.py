@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Any
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from rose_logs.batch.sources import printable
 from rose_logs.batch.store import OutputStore
 from rose_logs.batch.task import RecordingOptions, package_version
 
@@ -105,7 +106,7 @@ def snapshots_table(report: BatchReport) -> pa.Table:
     rows: list[dict[str, Any]] = []
     for result in report.results:
         ordered = sorted(result.snapshots, key=lambda s: (s["topic"], s["index"]))
-        rows.extend({"uri": result.uri, **s} for s in ordered)
+        rows.extend({"uri": printable(result.uri), **s} for s in ordered)
     names = SNAPSHOT_SCHEMA.names
     return pa.Table.from_pylist(
         [{k: row.get(k) for k in names} for row in rows], schema=SNAPSHOT_SCHEMA

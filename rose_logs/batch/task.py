@@ -27,7 +27,7 @@ from rose.errors import RoseError
 from rose.limits import DEFAULT_MAX_CELLS
 from rose.params import RoseParams
 from rose_logs.batch.recording_log import RecordingWarnings, collecting
-from rose_logs.batch.sources import Recording
+from rose_logs.batch.sources import Recording, printable
 from rose_logs.batch.store import OutputStore, filesystem, is_local
 from rose_logs.errors import LogError
 from rose_logs.session.report import w_judges
@@ -194,16 +194,17 @@ class RecordingResult:
         """The recording's row of ``recordings.parquet``."""
         scores = [s["structure_score"] for s in self.snapshots if w_judges(s["occupied"])]
         first = next((s for s in self.snapshots if s["broken"]), None)
+        text = _printable_or_none
         return {
-            "uri": self.uri,
-            "name": self.name,
+            "uri": printable(self.uri),
+            "name": printable(self.name),
             "format": self.format,
             "status": self.status,
-            "error": self.error,
-            "losses": list(self.losses),
+            "error": text(self.error),
+            "losses": [printable(line) for line in self.losses],
             "skipped_messages": self.skipped_messages,
             "skipped_reasons": self.skipped_reasons,
-            "warnings": list(self.warnings),
+            "warnings": [printable(line) for line in self.warnings],
             "map_topics": list(self.map_topics),
             "snapshots": len(self.snapshots),
             "start_ns": self.start_ns,
@@ -217,8 +218,8 @@ class RecordingResult:
             "first_break_ns": None if first is None else first["log_time_ns"],
             "seconds": round(self.seconds, 6),
             "cpu_seconds": round(self.cpu_seconds, 6),
-            "cleaned": self.cleaned_uri,
-            "rrd": self.rrd_uri,
+            "cleaned": text(self.cleaned_uri),
+            "rrd": text(self.rrd_uri),
         }
 
     def to_json(self) -> dict[str, Any]:
@@ -239,6 +240,10 @@ class RecordingResult:
         data["losses"] = tuple(data.get("losses", ()))
         data["warnings"] = tuple(data.get("warnings", ()))
         return cls(**data)
+
+
+def _printable_or_none(text: str | None) -> str | None:
+    return None if text is None else printable(text)
 
 
 def package_version() -> str:
@@ -279,7 +284,7 @@ def result_path(key: str) -> str:
 
 def recording_id(uri: str) -> str:
     """Rerun recording id of a recording: from its full URI (two robots' ``run.mcap`` stay apart)."""
-    return str(uuid.uuid5(uuid.NAMESPACE_URL, uri))
+    return str(uuid.uuid5(uuid.NAMESPACE_URL, printable(uri)))
 
 
 def worker_name() -> str:

@@ -555,3 +555,23 @@ def test_a_failed_upload_of_a_table_restores_the_previous_objects(
         assert {name: memory.cat_file(f"{out}/{name}") for name in TABLES} == before
     finally:
         memory.rm(f"memory://rose-batch-test-{os.getpid()}", recursive=True)
+
+
+def test_an_output_folder_that_cannot_be_written_is_one_error_before_any_recording(
+    fleet: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "locked"
+    out.mkdir()
+    # Immutable: refused even to root (the suite may run as root, for whom mode bits are no lock).
+    if subprocess.run(["chattr", "+i", str(out)], capture_output=True).returncode != 0:
+        pytest.skip("chattr +i is not available here")
+    try:
+        code = main(["batch", str(fleet / "robot_a" / "run.mcap"), "-o", str(out), "-q"])
+    finally:
+        subprocess.run(["chattr", "-i", str(out)], check=True)
+    err = capsys.readouterr().err
+    assert code == 1
+    assert err.strip() == (
+        f"error: {out}: cannot write to the output folder (Operation not permitted)"
+    )
+    assert list(out.iterdir()) == []

@@ -550,3 +550,21 @@ def test_one_input_given_as_a_string_is_one_input(tmp_path: Path) -> None:
     log = copy_recording(tmp_path / "run.mcap", "mcap", max_maps=1)
     report = run_batch(str(log), tmp_path / "out")  # type: ignore[arg-type]
     assert [r.uri for r in report.results] == [str(log)]
+
+
+def test_a_file_name_that_is_not_utf8_is_processed_and_tabled(fleet: Path, tmp_path: Path) -> None:
+    # Linux file names are bytes: Python keeps undecodable ones as surrogates, which Parquet and
+    # uuid5 refuse (the whole batch failed writing its tables).
+    folder = tmp_path / "odd"
+    folder.mkdir()
+    name = os.fsdecode(b"r\xffbot.mcap")
+    (folder / name).write_bytes((fleet / "robot_a" / "run.mcap").read_bytes())
+    out = tmp_path / "out"
+    report = run_batch([folder], out, options=RecordingOptions(cleaned=True))
+    assert [r.status for r in report.results] == ["ok"]
+    rows = read_rows(out / "recordings.parquet")
+    assert rows[0]["uri"] == str(folder / "r\\xffbot.mcap")
+    assert rows[0]["snapshots"] > 0
+    assert read_rows(out / "snapshots.parquet")[0]["uri"] == rows[0]["uri"]
+    assert (out / "cleaned" / "odd" / name).is_file()  # the output keeps the real name
+    assert "r\\xffbot.mcap" in (out / "report.md").read_text(encoding="utf-8")

@@ -12,7 +12,7 @@ from typing import Any
 import pyarrow.parquet as pq
 import pytest
 
-from rose_logs.batch import RecordingOptions, run_batch
+from rose_logs.batch import BatchError, RecordingOptions, run_batch
 from rose_logs.cli import main
 
 pytest.importorskip("s3fs")
@@ -127,3 +127,46 @@ def test_cli_storage_options_and_a_corrupt_object(
     # The row names the object, not the downloaded copy (gone by the time anyone reads it).
     assert rows[0]["error"].startswith(f"s3://{BUCKET}/in/cut.mcap: ")
     assert "rose-batch-" not in rows[0]["error"]
+
+
+def test_a_mistyped_output_bucket_is_an_error_and_is_not_created(
+    fleet: Path, s3: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    import s3fs
+
+    argv = ["batch", str(fleet / "robot_a" / "run.mcap"), "-o", "s3://no-such-bucket/out", "-q"]
+    argv += ["--storage-option", f"endpoint_url={s3['endpoint_url']}"]
+    argv += ["--storage-option", "key=testing", "--storage-option", "secret=testing"]
+    assert main(argv) == 1
+    err = capsys.readouterr().err.strip()
+    assert err == (
+        "error: s3://no-such-bucket/out: the bucket 'no-such-bucket' does not exist "
+        "(it is not created for you)"
+    )
+    assert not s3fs.S3FileSystem(**s3).exists("no-such-bucket")
+
+
+@pytest.mark.parametrize("side", ["input", "output"])
+def test_an_unreachable_endpoint_is_a_one_line_error(
+    fleet: Path, side: str, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("AWS_ACCESS_KEY_ID", "testing")
+    monkeypatch.setenv("AWS_SECRET_ACCESS_KEY", "testing")
+    monkeypatch.setenv("AWS_DEFAULT_REGION", "us-east-1")
+    nowhere = f"http://127.0.0.1:{free_port()}"  # nothing listens there
+    local_in, local_out = str(fleet / "robot_a" / "run.mcap"), str(fleet.parent / "out")
+    source, out = ("s3://b/in/", local_out) if side == "input" else (local_in, "s3://b/out")
+    with pytest.raises(BatchError) as caught:
+        run_batch(
+            [source],
+            out,
+            storage_options={
+                "endpoint_url": nowhere,
+                "config_kwargs": {"retries": {"max_attempts": 1}, "connect_timeout": 1},
+            },
+        )
+    text = str(caught.value)
+    assert "\n" not in text
+    assert text.startswith(f"{source if side == 'input' else out}: cannot use the storage (")
+    assert "EndpointConnectionError" in text
+    assert not Path(local_out).exists()
