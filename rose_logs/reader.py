@@ -125,7 +125,7 @@ class LogReader:
         remedy = (
             "nothing before the damage can be read either"
             if self.salvage
-            else "`rose-bag process --salvage` keeps the messages before the damage"
+            else "`rose-bag process --salvage` keeps the messages before the damage, if any can be read"
         )
         what = (
             "MCAP file, its index at the end cannot be read"

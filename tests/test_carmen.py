@@ -152,6 +152,16 @@ def test_no_scan_is_an_error(tmp_path: Path) -> None:
         read_carmen_log(path)
 
 
+def test_a_file_that_is_not_what_its_name_says_is_named_so(tmp_path: Path) -> None:
+    noise = bytes(range(256)) * 8  # binary: NUL bytes, no FLASER line
+    (tmp_path / "fake.log.gz").write_bytes(noise)
+    with pytest.raises(CarmenFormatError, match=r"fake.log.gz: not gzip-compressed \(its name"):
+        read_carmen_log(tmp_path / "fake.log.gz")
+    (tmp_path / "data.log").write_bytes(noise)
+    with pytest.raises(CarmenFormatError, match=r"data.log: not a CARMEN log \(binary data"):
+        read_carmen_log(tmp_path / "data.log")
+
+
 def test_missing_file_is_an_error(tmp_path: Path) -> None:
     with pytest.raises(CarmenFormatError, match="cannot read"):
         read_carmen_log(tmp_path / "nope.log.gz")

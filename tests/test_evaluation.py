@@ -297,3 +297,7 @@ def test_evaluate_writes_its_folder_whole_and_replaces_only_its_own_reports(
     assert "did not write" in capsys.readouterr().err
     assert [p.name for p in other.iterdir()] == ["cat.png"]
     assert not [p for p in tmp_path.iterdir() if ".rose-tmp-" in p.name]
+    # The README's `evaluate out/eval` in a fresh folder: the report's parent folders are made.
+    nested = tmp_path / "out" / "deeper" / "eval"
+    assert main(["evaluate", str(nested), *empty]) == 0
+    assert (nested / "report.md").is_file()

@@ -169,7 +169,13 @@ def run_batch(
     for rec in recordings:
         with storage_errors(store.root):
             previous = load_result(store, keys[rec.uri])
-        if force or previous is None or (retry_errors and previous.status == "error"):
+            redo = (
+                force
+                or previous is None
+                or (retry_errors and previous.status == "error")
+                or _outputs_missing(previous, store)
+            )
+        if redo:
             todo.append(rec)
             before[rec.uri] = previous
         else:
@@ -254,6 +260,13 @@ def _same(result: RecordingResult, other: RecordingResult | None) -> bool:
     )
 
 
+def _outputs_missing(result: RecordingResult, store: OutputStore) -> bool:
+    """Whether a cleaned log or recording of a finished result is gone (deleted since): the
+    recording is done again, so that every output the table names exists."""
+    written = (result.cleaned_uri, result.rrd_uri)
+    return any(uri is not None and not store.has(uri) for uri in written)
+
+
 def _outside(recordings: tuple[Recording, ...], store: OutputStore) -> tuple[Recording, ...]:
     """The recordings not inside the output root (its cleaned logs are no inputs of a re-run)."""
     root = store.root.removeprefix("file://")
@@ -261,6 +274,17 @@ def _outside(recordings: tuple[Recording, ...], store: OutputStore) -> tuple[Rec
         root = str(Path(root).expanduser().absolute())
     prefix = root.rstrip("/") + "/"
     kept = tuple(r for r in recordings if not r.uri.startswith(prefix))
+    # The batch's own outputs are left out quietly; anything else there is the user's recording.
+    ours = tuple(prefix + folder + "/" for folder in ("cleaned", ".staging"))
+    theirs = [r.uri for r in recordings if r.uri.startswith(prefix) and not r.uri.startswith(ours)]
+    if theirs:
+        _LOG.warning(
+            "%s: %d recording(s) inside the output folder are not processed (the batch writes "
+            "there; choose another -o to include them), first: %s",
+            store.root,
+            len(theirs),
+            theirs[0],
+        )
     if not kept:
         msg = f"no recording found outside the output folder {store.root}"
         raise BatchError(msg)

@@ -35,9 +35,9 @@ def markdown(report: BatchReport, summary: dict[str, Any], *, figure: bool) -> s
     lines = [
         "# rose-bag batch report",
         "",
-        f"{_count(summary['recordings'], 'recording')}: {summary['ok']} processed, "
+        f"{_count(summary['recordings'], 'recording')}: {summary['ok']} ok, "
         f"{summary['errors']} failed, {summary['broken']} with a map that broke (break detector, or W > {level:g}); "
-        f"{_count(summary['snapshots'], 'map snapshot')}.",
+        f"{_count(summary['snapshots'], 'map snapshot')}{_losses_in_brief(summary)}.",
         "",
     ]
     if report.interrupted:
@@ -73,6 +73,7 @@ def markdown(report: BatchReport, summary: dict[str, Any], *, figure: bool) -> s
         lines += [f"| {_cell(r['name'])} | {_cell(r['error'] or '')} |" for r in failed]
     else:
         lines.append("None.")
+    lines += _losses_section(rows)
     lines += [
         "",
         "## All recordings",
@@ -93,6 +94,43 @@ def markdown(report: BatchReport, summary: dict[str, Any], *, figure: bool) -> s
         "",
     ]
     return "\n".join(lines)
+
+
+def _losses_in_brief(summary: dict[str, Any]) -> str:
+    """``; 1 damaged (salvaged), 21 map messages skipped`` (empty when nothing was lost)."""
+    parts = []
+    if summary["salvaged"]:
+        parts.append(f"{summary['salvaged']} damaged (what could be read kept, --salvage)")
+    if summary["skipped_messages"]:
+        parts.append(f"{_count(summary['skipped_messages'], 'map message')} skipped")
+    return "".join(f"; {part}" for part in parts)
+
+
+def _losses_section(rows: list[dict[str, Any]]) -> list[str]:
+    """A table of the ``ok`` recordings that lost messages (damage, skipped maps) or warned."""
+    hit = [
+        r
+        for r in rows
+        if r["status"] == "ok" and (r["losses"] or r["skipped_messages"] or r["warnings"])
+    ]
+    if not hit:
+        return []
+    lines = [
+        "",
+        "## Recordings with losses or warnings",
+        "",
+        "| recording | lost (damaged, --salvage) | map messages skipped | warnings |",
+        "|---|---|---|---|",
+    ]
+    for r in hit:
+        skipped = (
+            f"{r['skipped_messages']} ({r['skipped_reasons']})" if r["skipped_messages"] else "-"
+        )
+        lost = "; ".join(r["losses"]) or "-"
+        # A salvaged recording's loss is also said as a warning: once is enough.
+        warned = "; ".join(w for w in r["warnings"] if w not in r["losses"]) or "-"
+        lines.append(f"| {_cell(r['name'])} | {_cell(lost)} | {skipped} | {_cell(warned)} |")
+    return lines
 
 
 def figure_png(report: BatchReport) -> bytes | None:

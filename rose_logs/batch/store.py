@@ -301,6 +301,12 @@ class OutputStore:
             except OSError as err:
                 _LOG.warning("%s: cannot restore the previous file (%s)", self.uri(relative), err)
 
+    def has(self, uri: str) -> bool:
+        """Whether the file or folder ``uri`` (a full path or URL under the root) exists."""
+        if self.local:
+            return Path(_strip_file(uri)).exists()
+        return bool(self.fs.exists(uri))
+
     def put(self, local: Path, relative: str) -> str:
         """Move (local root) or upload (remote root) the file or folder ``local`` to ``relative``."""
         target = self.uri(relative)

@@ -242,6 +242,16 @@ class RecordingResult:
         return cls(**data)
 
 
+def _format_of(path: Path) -> str | None:
+    """The log format of ``path`` by its content, None when it is no log we know."""
+    from rose_logs.formats import detect_format
+
+    try:
+        return detect_format(path)
+    except LogError:
+        return None
+
+
 def _printable_or_none(text: str | None) -> str | None:
     return None if text is None else printable(text)
 
@@ -354,16 +364,25 @@ def process_recording(
 
 
 def error_result(
-    recording: Recording, key: str, options: RecordingOptions, message: str
+    recording: Recording,
+    key: str,
+    options: RecordingOptions,
+    message: str,
+    *,
+    log_format: str | None = None,
 ) -> RecordingResult:
-    """A result saying that ``recording`` failed with ``message`` (one line)."""
+    """A result saying that ``recording`` (of ``log_format``, when known) failed with ``message``
+    (one line, starting with the recording's URI like every error row)."""
     line = " ".join(str(message).split()) or "unknown error"
+    if not line.startswith(recording.uri):
+        line = f"{recording.uri}: {line}"
     return RecordingResult(
         uri=recording.uri,
         name=recording.name,
         key=key,
         status="error",
         error=line,
+        format=log_format,
         failure_level=options.failure_level,
         worker=worker_name(),
     )
@@ -436,9 +455,10 @@ def _attempt(
         except (LogError, RoseError) as err:
             # The message names the downloaded copy, which is gone by the time anyone reads the
             # row: name the recording instead.
-            if str(local) != recording.uri and len(err.args) == 1:
-                err.args = (str(err).replace(str(local), recording.uri),)
-            raise
+            text = str(err)
+            if str(local) != recording.uri:
+                text = text.replace(str(local), recording.uri)
+            return error_result(recording, key, options, text, log_format=_format_of(local))
         cleaned_uri = None if cleaned is None else store.put(cleaned, f"cleaned/{cleaned_name}")
         rrd_uri = None if rrd is None else store.put(rrd, f"rrd/{recording.name}.rrd")
     level = options.failure_level

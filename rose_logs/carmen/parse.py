@@ -253,6 +253,21 @@ def parse_carmen_lines(
     )
 
 
+def _why_no_scans(path: Path, log: CarmenLog) -> str:
+    """Why a file gave no scan: not what its name says, not text, or no good FLASER line."""
+    try:
+        with path.open("rb") as probe:
+            head = probe.read(4096)
+    except OSError:
+        head = b""
+    if path.suffix == ".gz" and head[:2] != _GZIP_MAGIC:
+        return "not gzip-compressed (its name ends in .gz) and no FLASER scan in it as text"
+    if head[:2] != _GZIP_MAGIC and b"\0" in head:  # text logs hold no NUL byte
+        return "not a CARMEN log (binary data, no FLASER scan)"
+    first = f"; first: {log.first_errors[0]}" if log.first_errors else ""
+    return f"no FLASER scan found ({log.malformed} malformed FLASER lines{first})"
+
+
 def read_carmen_log(path: str | Path, *, max_scans: int | None = None) -> CarmenLog:
     """Read the ``FLASER`` scans of a CARMEN log (plain text or gzip).
 
@@ -283,9 +298,7 @@ def read_carmen_log(path: str | Path, *, max_scans: int | None = None) -> Carmen
         msg = f"{path}: cannot read CARMEN log ({getattr(err, 'strerror', None) or err})"
         raise CarmenFormatError(msg) from err
     if not log.scans:
-        first = f"; first: {log.first_errors[0]}" if log.first_errors else ""
-        msg = f"{path}: no FLASER scan found ({log.malformed} malformed FLASER lines{first})"
-        raise CarmenFormatError(msg)
+        raise CarmenFormatError(f"{path}: {_why_no_scans(path, log)}")
     if log.malformed:
         _LOG.warning(
             "%s: skipped %d malformed FLASER lines, first: %s",

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import sys
 from collections.abc import Callable
@@ -170,6 +171,10 @@ def run(args: argparse.Namespace) -> int:
     config = config_from_args(args)
     # The data set is read, never written (data_root raises DataSetError, one line, if it is absent).
     inputs = [config.data_root] if config.logs or config.benchmark_maps else []
+    # A report folder's parents are made, as `batch` makes OUT's (`evaluate out/eval` in a fresh
+    # checkout); a path through a file stays an error of the output check.
+    with contextlib.suppress(OSError):
+        Path(args.out_dir).parent.mkdir(parents=True, exist_ok=True)
     with OutputSet(inputs=inputs, force=args.force, ends_run=True) as outputs:
         staged = outputs.stage(args.out_dir, directory=True, replaceable=is_report_folder)
         assert staged.temp is not None  # a folder output is never a stream

@@ -201,6 +201,13 @@ def run(args: argparse.Namespace) -> int:
     if args.no_output and args.output is not None:
         msg = "--no-output and --output exclude each other"
         raise UsageError(msg)
+    if args.connect is not None:
+        from rose_logs.rerun.sink import viewer_endpoint  # loads Rerun: only when it is used
+
+        try:
+            viewer_endpoint(args.connect)
+        except ValueError as err:
+            raise UsageError(f"argument --connect: {err}") from err
     output = None if args.no_output else (args.output or default_output_path(args.input))
     # Only a name the user typed: the default (input name + .rose) keeps the input's suffix.
     warning = None

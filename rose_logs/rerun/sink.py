@@ -41,7 +41,14 @@ from rose_logs.session.breaks import BreakScore
 from rose_logs.session.report import w_judges
 from rose_logs.snapshots import MapSnapshot
 
-__all__ = ["APPLICATION_ID", "RerunSink", "grpc_url", "recording_id_for", "viewer_unreachable"]
+__all__ = [
+    "APPLICATION_ID",
+    "RerunSink",
+    "grpc_url",
+    "recording_id_for",
+    "viewer_endpoint",
+    "viewer_unreachable",
+]
 
 _LOG = logging.getLogger(__name__)
 
@@ -132,7 +139,7 @@ def viewer_unreachable(address: str) -> str | None:
     ValueError
         If ``address`` is no viewer address (a bad port, no host).
     """
-    host, port = _viewer_endpoint(address)
+    host, port = viewer_endpoint(address)
     try:
         with socket.create_connection((host, port), timeout=_VIEWER_PROBE_S):
             return None
@@ -143,14 +150,17 @@ def viewer_unreachable(address: str) -> str | None:
 _LOCAL_HOSTS = frozenset({"localhost", "127.0.0.1", "::1"})
 
 
-def _viewer_endpoint(address: str) -> tuple[str, int]:
+def viewer_endpoint(address: str) -> tuple[str, int]:
     """Host and TCP port Rerun connects to for ``address``: without a port, a local viewer's 9876,
     else the scheme's (``rerun+http``: 80; ``rerun`` and ``rerun+https``: 443, TLS), as Rerun does."""
     scheme, _, rest = grpc_url(address).partition("://")
     parts = urllib.parse.urlsplit(f"//{rest}")
     host = parts.hostname
-    port = parts.port  # ValueError for a port out of range
-    if not host or port == 0:
+    try:
+        port = parts.port
+    except ValueError:  # out of range, or not a number
+        port = 0
+    if not host or port == 0 or parts.netloc.endswith(":"):  # "host:" names no port
         msg = f"viewer address needs a host and a port in 1..65535, got {address!r}"
         raise ValueError(msg)
     if port is None:

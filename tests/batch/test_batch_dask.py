@@ -210,5 +210,6 @@ def test_a_recording_over_the_memory_limit_is_an_error_row(
     by_name = {r.name: r for r in report.results}
     assert by_name["big.mcap"].status == "error"
     assert "died" in by_name["big.mcap"].error
+    assert by_name["big.mcap"].error.startswith(f"{by_name['big.mcap'].uri}: ")
     assert "600MB" in by_name["big.mcap"].error
     assert by_name["small.mcap"].status == "ok"

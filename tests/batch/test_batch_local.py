@@ -110,7 +110,8 @@ def test_process_recording_ok_and_truncated(fleet: Path, tmp_path: Path) -> None
     assert ok.worker.endswith(f":{os.getpid()}")
     error = process_recording(bad, out=out, options=options)
     assert error.status == "error"
-    assert str(truncated) in error.error
+    assert error.error.startswith(f"{truncated}: ")
+    assert error.format == "mcap"  # recognised, then unreadable: the row still says what it is
     assert "\n" not in error.error
     assert truncated.read_bytes() == data[: len(data) // 2]  # input untouched
     stored = json.loads((tmp_path / "out" / "results" / f"{error.key}.json").read_text())
@@ -323,6 +324,40 @@ def test_an_output_folder_inside_the_inputs_is_not_read_back(fleet: Path) -> Non
     assert (again.processed, again.skipped) == (0, 5)
 
 
+def test_a_users_recording_inside_the_output_folder_is_left_out_with_a_warning(
+    fleet: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    out = fleet / "robot_b"  # holds three of the fleet's recordings
+    with caplog.at_level("WARNING", logger="rose_logs"):
+        report = run_batch([fleet], out, options=RecordingOptions(cleaned=True))
+    assert [r.name for r in report.results] == ["fleet/robot_a/later.db3", "fleet/robot_a/run.mcap"]
+    said = [r.getMessage() for r in caplog.records if "inside the output folder" in r.getMessage()]
+    assert said == [
+        f"{out}: 3 recording(s) inside the output folder are not processed (the batch writes "
+        f"there; choose another -o to include them), first: {out / 'bag_dir'}"
+    ]
+    # Its own cleaned logs there are no recordings of the user's: not warned about again.
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="rose_logs"):
+        run_batch([fleet / "robot_a", out / "cleaned"], out, options=RecordingOptions(cleaned=True))
+    assert not [r for r in caplog.records if "inside the output folder" in r.getMessage()]
+
+
+def test_a_rerun_remakes_outputs_deleted_since(fleet: Path, tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    options = RecordingOptions(cleaned=True, rrd=True)
+    run_batch([fleet / "robot_a"], out, options=options)
+    cleaned = out / "cleaned" / "robot_a" / "run.mcap"
+    rrd = out / "rrd" / "robot_a" / "later.db3.rrd"
+    assert cleaned.is_file() and rrd.is_file()
+    cleaned.unlink()
+    rrd.unlink()
+    again = run_batch([fleet / "robot_a"], out, options=options)
+    assert (again.processed, again.skipped) == (2, 0)
+    assert cleaned.is_file() and rrd.is_file()
+    assert run_batch([fleet / "robot_a"], out, options=options).processed == 0
+
+
 def test_usage_errors_show_the_batch_usage(
     capsys: pytest.CaptureFixture[str], tmp_path: Path
 ) -> None:
@@ -368,6 +403,13 @@ def test_salvage_keeps_the_readable_part_of_a_damaged_recording(
     assert row["status"] == "ok" and row["snapshots"] > 0
     assert len(row["losses"]) == 1 and str(cut) in row["losses"][0]
     assert json.loads((out / "summary.json").read_text())["salvaged"] == 1
+    # The report says so too (it showed a plain "ok" row), and says the loss once.
+    text = (out / "report.md").read_text()
+    assert "1 recording: 1 ok, 0 failed" in text
+    assert "1 damaged (what could be read kept, --salvage)" in text
+    section = text.split("## Recordings with losses or warnings")[1].split("##")[0]
+    assert "| cut.mcap | " in section
+    assert section.count(row["losses"][0]) == 1
 
 
 def test_salvage_leaves_the_keys_of_results_stored_without_it_alone() -> None:
@@ -464,6 +506,9 @@ def test_skipped_map_messages_and_warnings_are_in_the_row_and_name_the_recording
     assert said == [f"warning: {log}: {w}" for w in row["warnings"]]
     summary = json.loads((out_dir / "summary.json").read_text())
     assert (summary["skipped_messages"], summary["with_warnings"]) == (2, 1)
+    text = (out_dir / "report.md").read_text()
+    assert "; 2 map messages skipped." in text
+    assert "| run.mcap | - | 2 (2 malformed) | " in text
 
 
 def test_recordings_processed_side_by_side_keep_their_own_warnings(tmp_path: Path) -> None:

@@ -243,17 +243,29 @@ def test_grpc_url() -> None:
 def test_the_viewer_probe_tries_the_port_rerun_connects_to(
     address: str, endpoint: tuple[str, int]
 ) -> None:
-    from rose_logs.rerun.sink import _viewer_endpoint
+    from rose_logs.rerun.sink import viewer_endpoint
 
-    assert _viewer_endpoint(address) == endpoint
+    assert viewer_endpoint(address) == endpoint
 
 
-@pytest.mark.parametrize("address", ["host:0", "host:99999", "::1:9876"])
+@pytest.mark.parametrize("address", ["host:0", "host:99999", "::1:9876", "127.0.0.1:", "h:x"])
 def test_a_viewer_address_without_a_usable_port_is_refused(address: str) -> None:
     from rose_logs.rerun.sink import viewer_unreachable
 
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="viewer address"):
         viewer_unreachable(address)
+
+
+@pytest.mark.parametrize("address", ["http://127.0.0.1:9876", "127.0.0.1:", "host:99999"])
+def test_a_bad_connect_address_is_a_usage_error_before_the_log_is_read(
+    address: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from rose_logs.cli import main
+
+    missing = tmp_path / "not-read.mcap"  # the address is refused first: the log is never opened
+    assert main(["process", str(missing), "--no-output", "--connect", address]) == 2
+    err = capsys.readouterr().err
+    assert err.splitlines()[-1].startswith("rose-bag: error: argument --connect: viewer address")
 
 
 def test_entity_roots() -> None:
