@@ -20,7 +20,9 @@ import contextvars
 import dataclasses
 import logging
 import math
+import os
 import struct
+import sys
 import time
 from collections import deque
 from collections.abc import Callable, Sequence
@@ -358,6 +360,13 @@ def _rerun_sink(
             raise LogWriteError(f"{connect}: cannot open the Rerun recording ({err})") from err
         if reason is not None:
             raise LogWriteError(_rerun_failure(None, connect, OSError(reason)))
+    if spawn and _no_display():
+        # The spawned viewer would die at once and the session fail only at its final flush.
+        msg = (
+            "--spawn needs a display for the Rerun viewer (DISPLAY and WAYLAND_DISPLAY are unset); "
+            "save a recording with --rrd FILE, or stream to a viewer elsewhere with --connect ADDR"
+        )
+        raise LogWriteError(msg)
     try:
         return RerunSink(
             rrd_path=None if rrd_path is None else Path(rrd_path),
@@ -773,6 +782,13 @@ class _Skips:
     def describe(self) -> str:
         """``"14 over --max-cells"``, ``"2 malformed, 1 not analysable"``; ``"none"`` when empty."""
         return ", ".join(f"{n} {reason}" for reason, n in self.by_reason.items()) or "none"
+
+
+def _no_display() -> bool:
+    """Linux or BSD without an X11 or Wayland display (macOS and Windows always have one)."""
+    if sys.platform.startswith(("darwin", "win")):
+        return False
+    return not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
 
 
 def _rerun_failure(rrd_path: Path | None, connect: str | None, err: BaseException) -> str:

@@ -322,6 +322,20 @@ def test_a_viewer_that_is_not_running_is_an_error_before_any_work(
     assert _leftovers(tmp_path, {mcap_log.name}) == []
 
 
+@pytest.mark.skipif(sys.platform.startswith(("darwin", "win")), reason="X11 / Wayland only")
+def test_spawn_without_a_display_is_an_error_before_any_work(
+    tmp_path: Path, capsys, mcap_log: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The spawned viewer died at once without a display, and the run failed 28 s later."""
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    out = tmp_path / "o.mcap"
+    code, _, err = _run(capsys, "process", mcap_log, "-o", out, "--spawn")
+    assert code == 1
+    _assert_one_line_error(err, "--spawn needs a display for the Rerun viewer")
+    assert _leftovers(tmp_path, {mcap_log.name}) == []
+
+
 def test_format_mismatch_is_an_error(tmp_path: Path, fr079) -> None:
     built = build_log(tmp_path / "in.bag", "ros1", session_maps(fr079[:1]))
     with pytest.raises(LogWriteError, match="cannot store ROS 1 messages"):
