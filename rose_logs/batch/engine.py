@@ -175,7 +175,7 @@ def run_batch(
                 or (retry_errors and previous.status == "error")
                 or _outputs_missing(previous, store)
             )
-        if redo:
+        if redo or previous is None:
             todo.append(rec)
             before[rec.uri] = previous
         else:
