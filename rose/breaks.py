@@ -1,16 +1,26 @@
-"""What a map alone says about a break: walls of an earlier map that a later map contradicts.
+"""What a map alone says about a break: an earlier map that a later map contradicts.
 
-A map *breaks* mid-session when the pose estimate goes wrong: from then on the robot writes walls
-where it believes they are, and log-odds mapping, instead of adding a second, inconsistent set of
-walls, erases the established walls it now sees through. The signal measured here is that erasure:
-an *established wall cell* (occupied in the earlier grid) that the later grid holds free, with no
-occupied cell within ``tolerance_px`` in the later grid (so a wall that moved by a cell or two, as
-walls do between two correct snapshots, does not count). Only *walls* count: established occupied
-cells whose connected piece (small gaps bridged) is at least ``min_extent_px`` long, so people,
-chairs and furniture blobs that come and go do not. A break erases along whole walls. So erased cells are counted
-by the tiles of ``tile_px`` cells they touch (a length along the erased walls, in tile sides), the
-score is the most such tiles inside one square window of ``window_px`` cells, and the region is
-where that window's erased cells lie.
+A map *breaks* mid-session when the pose estimate goes wrong: from then on the robot writes what it
+sees where it believes it is. Log-odds mapping does not add a second, inconsistent set of walls; it
+changes evidence, a few scans at a time. Two contradictions are measured, each in *wall-like pieces*
+(connected cells, small gaps bridged, at least ``min_extent_px`` long, so people, chairs and furniture
+blobs that come and go do not count):
+
+*erased walls*
+    An established wall cell (occupied in the earlier grid, part of such a piece there) that the
+    later grid holds free, with no occupied cell within ``tolerance_px`` in the later grid (so a wall
+    that moved by a cell or two, as walls do between two correct snapshots, does not count).
+*risen evidence*
+    A cell deep in the earlier grid's known free space (no earlier wall and no unknown cell within
+    ``rise_margin_px``) whose occupancy rose by at least ``rise_points`` percentage points, in a
+    piece of such cells (in the later grid). Rays from a wrong pose end in space mapped free: the
+    evidence rises there long before the cells read as occupied, since a free cell needs several
+    net hits (and a clamped wall several net misses) to flip.
+
+A break contradicts the map along whole walls. So contradicted cells are counted by the tiles of
+``tile_px`` cells they touch (a length along the walls, in tile sides), the score is the most such
+tiles inside one square window of ``window_px`` cells, and the region is where that window's
+contradicted cells lie.
 
 Global W (:mod:`rose.directions`) stays the paper's score of the whole map; on maps that break
 mid-session it barely moves, because the intact part of the map dominates the spectrum.
@@ -28,33 +38,42 @@ import numpy.typing as npt
 
 from rose.errors import RoseError
 
-__all__ = ["WallContradiction", "contradicted_walls", "erased_walls"]
+__all__ = [
+    "WallContradiction",
+    "contradicted_walls",
+    "erased_walls",
+    "placed_grid",
+    "risen_evidence",
+]
 
 
 @dataclass(frozen=True)
 class WallContradiction:
-    """Established walls that a later grid contradicts.
+    """What of an earlier grid a later grid contradicts (module notes).
 
     Attributes
     ----------
     erased_px : int
         Established wall cells that the later grid holds free, far from any wall.
-    erased_tiles : int
-        Tiles of ``tile_px`` x ``tile_px`` cells holding at least one of them.
+    risen_px : int
+        Cells deep in the earlier grid's free space where the later grid's evidence rose.
+    contradicted_tiles : int
+        Tiles of ``tile_px`` x ``tile_px`` cells holding at least one erased or risen cell.
     peak_tiles : int
         The most such tiles in one window of ``window_px`` x ``window_px`` cells: the break score in
         tiles (times ``tile_px`` times the resolution it is a wall length in metres).
     established_px : int
         Occupied cells of the earlier grid.
     region_px : tuple of int or None
-        ``(row_min, col_min, row_max, col_max)`` (inclusive) of the erased cells in that window, in
-        the later grid's cells; None when nothing was erased.
+        ``(row_min, col_min, row_max, col_max)`` (inclusive) of the contradicted cells in that
+        window, in the later grid's cells; None when nothing was contradicted.
     tile_px, window_px : int
         Tile and window sides, cells.
     """
 
     erased_px: int
-    erased_tiles: int
+    risen_px: int
+    contradicted_tiles: int
     peak_tiles: int
     established_px: int
     region_px: tuple[int, int, int, int] | None
@@ -62,7 +81,7 @@ class WallContradiction:
     window_px: int
 
 
-def _place(
+def placed_grid(
     earlier: npt.NDArray[np.int8], shape: tuple[int, int], offset_px: tuple[int, int]
 ) -> npt.NDArray[np.int8]:
     """``earlier`` in a grid of ``shape`` with its cell (0, 0) at ``offset_px``; -1 elsewhere."""
@@ -108,6 +127,8 @@ def _check(
     tolerance_px: int,
     min_extent_px: int = 0,
     bridge_px: int = 0,
+    rise_points: int = 1,
+    rise_margin_px: int = 0,
 ) -> None:
     if earlier.ndim != 2 or later.ndim != 2:
         msg = f"grids must be 2-D, got shapes {earlier.shape} and {later.shape}"
@@ -118,10 +139,19 @@ def _check(
     if min_extent_px < 0 or bridge_px < 0:
         msg = f"min_extent_px and bridge_px must be >= 0, got {min_extent_px} and {bridge_px}"
         raise RoseError(msg)
+    if not 1 <= rise_points <= 101 or rise_margin_px < 0:
+        msg = (
+            f"rise_points must be in 1..101 (101: off) and rise_margin_px >= 0, got {rise_points} "
+            f"and {rise_margin_px}"
+        )
+        raise RoseError(msg)
 
 
-def _dilate_square(mask: npt.NDArray[np.bool_], radius_px: int) -> npt.NDArray[np.bool_]:
-    """``mask`` grown by ``radius_px`` cells in chessboard distance (outside counts as empty)."""
+def _dilate_square(
+    mask: npt.NDArray[np.bool_], radius_px: int, *, outside: bool = False
+) -> npt.NDArray[np.bool_]:
+    """``mask`` grown by ``radius_px`` cells in chessboard distance (``outside`` the image counts
+    as that value)."""
     import cv2
 
     if radius_px <= 0:
@@ -131,7 +161,7 @@ def _dilate_square(mask: npt.NDArray[np.bool_], radius_px: int) -> npt.NDArray[n
         np.ascontiguousarray(mask).view(np.uint8),
         kernel,
         borderType=cv2.BORDER_CONSTANT,
-        borderValue=0,
+        borderValue=int(outside),
     ).astype(bool)
 
 
@@ -173,7 +203,7 @@ def _erased_box(
     bridge_px: int = 0,
 ) -> tuple[npt.NDArray[np.bool_], int, int]:
     """Erased cells within their bounding box: ``(mask, row0, col0)`` in ``later``'s cells."""
-    placed = _place(earlier.astype(np.int8, copy=False), later.shape, offset_px)
+    placed = placed_grid(earlier.astype(np.int8, copy=False), later.shape, offset_px)
     walls = placed >= occupied_threshold
     candidates = walls & (later >= 0) & (later <= free_threshold)
     rows = np.flatnonzero(candidates.any(axis=1))
@@ -190,6 +220,100 @@ def _erased_box(
     if min_extent_px > 1 and erased.any():
         erased &= _long_walls(walls[r0:r1, c0:c1], min_extent_px, bridge_px)
     return erased, r0, c0
+
+
+def _risen_box(
+    earlier: npt.NDArray[np.integer],
+    later: npt.NDArray[np.integer],
+    offset_px: tuple[int, int],
+    rise_points: int,
+    rise_margin_px: int,
+    free_threshold: int,
+    min_extent_px: int,
+    bridge_px: int,
+) -> tuple[npt.NDArray[np.bool_], int, int]:
+    """Risen cells within their bounding box: ``(mask, row0, col0)`` in ``later``'s cells."""
+    placed = placed_grid(earlier.astype(np.int8, copy=False), later.shape, offset_px)
+    was_free = (placed >= 0) & (placed <= free_threshold)
+    rise = later.astype(np.int16) - placed  # -1 (unknown) later never rises above free earlier
+    candidates = was_free & (rise >= rise_points)
+    rows = np.flatnonzero(candidates.any(axis=1))
+    if rows.size == 0:
+        return np.zeros((0, 0), dtype=bool), 0, 0
+    cols = np.flatnonzero(candidates.any(axis=0))
+    margin = max(rise_margin_px, min_extent_px + bridge_px)
+    r0, r1 = max(int(rows[0]) - margin, 0), int(rows[-1]) + margin + 1
+    c0, c1 = max(int(cols[0]) - margin, 0), int(cols[-1]) + margin + 1
+    # Deep in free space: no earlier wall or unknown cell (nor the grid's edge) within the margin,
+    # so that walls seen a cell off and the frontier of exploration do not count.
+    near_other = _dilate_square(~was_free[r0:r1, c0:c1], rise_margin_px, outside=True)
+    risen = candidates[r0:r1, c0:c1] & ~near_other
+    if min_extent_px > 1 and risen.any():
+        risen = _long_walls(risen, min_extent_px, bridge_px)
+    return risen, r0, c0
+
+
+def _union(
+    *boxes: tuple[npt.NDArray[np.bool_], int, int],
+) -> tuple[npt.NDArray[np.bool_], int, int]:
+    """Masks placed at ``(row0, col0)`` as one mask over their common bounding box."""
+    present = [(m, r, c) for m, r, c in boxes if m.size]
+    if not present:
+        return np.zeros((0, 0), dtype=bool), 0, 0
+    r0 = min(r for _, r, _ in present)
+    c0 = min(c for _, _, c in present)
+    r1 = max(r + m.shape[0] for m, r, _ in present)
+    c1 = max(c + m.shape[1] for m, _, c in present)
+    out = np.zeros((r1 - r0, c1 - c0), dtype=bool)
+    for m, r, c in present:
+        out[r - r0 : r - r0 + m.shape[0], c - c0 : c - c0 + m.shape[1]] |= m
+    return out, r0, c0
+
+
+def _full(
+    later: npt.NDArray[np.integer], box: tuple[npt.NDArray[np.bool_], int, int]
+) -> npt.NDArray[np.bool_]:
+    mask, r0, c0 = box
+    out = np.zeros(later.shape, dtype=bool)
+    out[r0 : r0 + mask.shape[0], c0 : c0 + mask.shape[1]] = mask
+    return out
+
+
+def risen_evidence(
+    earlier: npt.NDArray[np.integer],
+    later: npt.NDArray[np.integer],
+    *,
+    offset_px: tuple[int, int] = (0, 0),
+    rise_points: int = 15,
+    rise_margin_px: int = 4,
+    min_extent_px: int = 20,
+    bridge_px: int = 2,
+    free_threshold: int = 50,
+) -> npt.NDArray[np.bool_]:
+    """Cells of ``later`` deep in ``earlier``'s free space whose occupancy rose (module notes).
+
+    Parameters are those of :func:`contradicted_walls`.
+
+    Returns
+    -------
+    ndarray of bool, shape of ``later``
+        Known free in ``earlier`` (0..``free_threshold``) with no wall or unknown cell of
+        ``earlier`` within ``rise_margin_px`` (chessboard distance), at least ``rise_points`` higher
+        in ``later``, in pieces at least ``min_extent_px`` long.
+    """
+    earlier, later = np.asarray(earlier), np.asarray(later)
+    _check(earlier, later, 0, min_extent_px, bridge_px, rise_points, rise_margin_px)
+    box = _risen_box(
+        earlier,
+        later,
+        offset_px,
+        rise_points,
+        rise_margin_px,
+        free_threshold,
+        min_extent_px,
+        bridge_px,
+    )
+    return _full(later, box)
 
 
 def erased_walls(
@@ -215,7 +339,7 @@ def erased_walls(
     """
     earlier, later = np.asarray(earlier), np.asarray(later)
     _check(earlier, later, tolerance_px, min_extent_px, bridge_px)
-    box, r0, c0 = _erased_box(
+    box = _erased_box(
         earlier,
         later,
         offset_px,
@@ -225,9 +349,7 @@ def erased_walls(
         min_extent_px,
         bridge_px,
     )
-    out = np.zeros(later.shape, dtype=bool)
-    out[r0 : r0 + box.shape[0], c0 : c0 + box.shape[1]] = box
-    return out
+    return _full(later, box)
 
 
 def contradicted_walls(
@@ -242,8 +364,10 @@ def contradicted_walls(
     window_px: int = 200,
     occupied_threshold: int = 65,
     free_threshold: int = 50,
+    rise_points: int = 15,
+    rise_margin_px: int = 4,
 ) -> WallContradiction:
-    """Established walls of ``earlier`` that ``later`` erased (see the module notes).
+    """What of ``earlier`` ``later`` contradicts: erased walls and risen evidence (module notes).
 
     Parameters
     ----------
@@ -256,14 +380,14 @@ def contradicted_walls(
         A wall cell still counts as present when ``later`` has an occupied cell within this many
         cells (chessboard distance).
     min_extent_px : int
-        Only walls of ``earlier`` whose connected cells span at least this many cells (along rows or
-        columns, after bridging gaps) count: people, chair legs and furniture blobs do not.
-        0 or 1: every occupied cell counts.
+        Only pieces whose connected cells span at least this many cells (along rows or columns,
+        after bridging gaps) count, of established walls and of risen cells: people, chair legs and
+        furniture blobs do not. 0 or 1: every cell counts.
     bridge_px : int
-        Gaps of up to this many cells along a wall are bridged before measuring its extent (walls
+        Gaps of up to this many cells along a piece are bridged before measuring its extent (walls
         of log-odds maps are broken into pieces where few beams hit them).
     tile_px : int
-        Side of the tiles erased cells are counted in, cells: a wall erased along its length
+        Side of the tiles contradicted cells are counted in, cells: a wall erased along its length
         touches many tiles.
     window_px : int
         Side of the square window the score counts tiles in, cells.
@@ -271,6 +395,12 @@ def contradicted_walls(
         Occupancy (percent) from which a cell is a wall.
     free_threshold : int
         Occupancy (percent) up to which a known cell counts as free.
+    rise_points : int
+        Rise of occupancy (percentage points) from which a free cell's evidence counts as risen;
+        101 turns risen evidence off (erased walls only).
+    rise_margin_px : int
+        Risen cells count only this far (chessboard distance) from every wall and unknown cell of
+        ``earlier``.
 
     Returns
     -------
@@ -282,12 +412,12 @@ def contradicted_walls(
         On grids that are not 2-D or a non-positive window / negative tolerance.
     """
     earlier, later = np.asarray(earlier), np.asarray(later)
-    _check(earlier, later, tolerance_px, min_extent_px, bridge_px)
+    _check(earlier, later, tolerance_px, min_extent_px, bridge_px, rise_points, rise_margin_px)
     if window_px < 1 or tile_px < 1:
         msg = f"window_px and tile_px must be >= 1, got {window_px} and {tile_px}"
         raise RoseError(msg)
     established = int(np.count_nonzero(earlier >= occupied_threshold))
-    erased, r0, c0 = _erased_box(
+    erased = _erased_box(
         earlier,
         later,
         offset_px,
@@ -297,17 +427,28 @@ def contradicted_walls(
         min_extent_px,
         bridge_px,
     )
-    count = int(np.count_nonzero(erased))
-    if count == 0:
-        return WallContradiction(0, 0, 0, established, None, tile_px, window_px)
-    tiles, tr, tc = _tiles(erased, r0, c0, tile_px)
+    risen = _risen_box(
+        earlier,
+        later,
+        offset_px,
+        rise_points,
+        rise_margin_px,
+        free_threshold,
+        min_extent_px,
+        bridge_px,
+    )
+    erased_px, risen_px = int(np.count_nonzero(erased[0])), int(np.count_nonzero(risen[0]))
+    if erased_px + risen_px == 0:
+        return WallContradiction(0, 0, 0, 0, established, None, tile_px, window_px)
+    contradicted, r0, c0 = _union(erased, risen)
+    tiles, tr, tc = _tiles(contradicted, r0, c0, tile_px)
     side = max(-(-window_px // tile_px), 1)
     peak, wi, wj = _densest_window(tiles, side)
-    # The erased cells inside the window, in later-grid cells.
+    # The contradicted cells inside the window, in later-grid cells.
     wr0, wc0 = tr + wi * tile_px, tc + wj * tile_px
     br0, bc0 = max(wr0 - r0, 0), max(wc0 - c0, 0)
     br1, bc1 = wr0 + side * tile_px - r0, wc0 + side * tile_px - c0
-    inside = erased[br0:br1, bc0:bc1]
+    inside = contradicted[br0:br1, bc0:bc1]
     rr = np.flatnonzero(inside.any(axis=1))
     cc = np.flatnonzero(inside.any(axis=0))
     region = (
@@ -316,4 +457,6 @@ def contradicted_walls(
         r0 + br0 + int(rr[-1]),
         c0 + bc0 + int(cc[-1]),
     )
-    return WallContradiction(count, int(tiles.sum()), peak, established, region, tile_px, window_px)
+    return WallContradiction(
+        erased_px, risen_px, int(tiles.sum()), peak, established, region, tile_px, window_px
+    )

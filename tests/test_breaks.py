@@ -7,7 +7,7 @@ import numpy.typing as npt
 import pytest
 from scipy import ndimage
 
-from rose.breaks import contradicted_walls, erased_walls
+from rose.breaks import contradicted_walls, erased_walls, risen_evidence
 from rose.errors import RoseError
 from tests.synthetic import floor_plan
 
@@ -59,7 +59,7 @@ def test_blobs_are_not_walls_but_long_walls_are(plan: npt.NDArray[np.int8]) -> N
     assert contradicted_walls(earlier, plan, min_extent_px=20, **kwargs).erased_px == 0
     every = contradicted_walls(earlier, plan, min_extent_px=0, **kwargs)
     assert every.erased_px == 36
-    assert 4 <= every.erased_tiles <= 16
+    assert 4 <= every.contradicted_tiles <= 16
     # A 36-cell wall erased along its length counts, and touches more tiles than the blobs.
     wall = plan.copy()
     wall[150, 60:96] = 100
@@ -117,3 +117,57 @@ def test_bad_parameters(plan: npt.NDArray[np.int8], kwargs: dict, match: str) ->
 def test_grids_must_be_2d(plan: npt.NDArray[np.int8]) -> None:
     with pytest.raises(RoseError, match="2-D"):
         contradicted_walls(plan.ravel(), plan)
+
+
+# ---- risen evidence: obstacle evidence written deep into established free space ------------------
+
+
+def _room(size: tuple[int, int] = (120, 160)) -> npt.NDArray[np.int8]:
+    """A free room (0) with a wall border (100) and unknown outside the border's outer ring."""
+    grid = np.zeros(size, dtype=np.int8)
+    grid[[0, -1], :] = -1
+    grid[:, [0, -1]] = -1
+    grid[[1, -2], 1:-1] = 100
+    grid[1:-1, [1, -2]] = 100
+    return grid
+
+
+def test_a_line_of_risen_evidence_in_free_space_is_a_contradiction() -> None:
+    earlier = _room()
+    later = earlier.copy()
+    later[60, 40:80] = 40  # a wall seen from a wrong pose: evidence rose, not yet "occupied"
+    kwargs = {"tile_px": 5, "window_px": 200}
+    found = contradicted_walls(earlier, later, **kwargs)
+    assert (found.erased_px, found.risen_px) == (0, 40)
+    assert found.peak_tiles == 8  # 40 cells along one row: 8 tiles of 5
+    assert found.region_px == (60, 40, 60, 79)
+    risen = risen_evidence(earlier, later)
+    assert int(risen.sum()) == 40 and risen[60, 40:80].all()
+    # Off: only erased walls count.
+    assert contradicted_walls(earlier, later, rise_points=101, **kwargs).peak_tiles == 0
+
+
+def test_risen_evidence_needs_a_real_rise_a_long_piece_and_depth() -> None:
+    earlier = _room()
+    small = earlier.copy()
+    small[60, 40:80] = 10  # a rise of 10 points: noise
+    assert risen_evidence(earlier, small, rise_points=15).sum() == 0
+    blob = earlier.copy()
+    blob[60:63, 60:63] = 100  # a person: a piece shorter than min_extent_px
+    assert risen_evidence(earlier, blob, min_extent_px=20).sum() == 0
+    assert risen_evidence(earlier, blob, min_extent_px=0).sum() == 9
+    near = earlier.copy()
+    near[4, 20:140] = 100  # along the wall, 2 cells from it: a wall seen a little off
+    assert risen_evidence(earlier, near, rise_margin_px=4).sum() == 0
+    assert risen_evidence(earlier, near, rise_margin_px=1).sum() == 120
+    frontier = earlier.copy()
+    frontier[:, 100:] = -1  # unexplored in the earlier map: newly mapped walls there are no rise
+    later = frontier.copy()
+    later[60, 102:150] = 100
+    assert risen_evidence(frontier, later).sum() == 0
+
+
+@pytest.mark.parametrize("rise_points", [0, 102])
+def test_bad_rise_parameters(rise_points: int) -> None:
+    with pytest.raises(RoseError, match="rise_points"):
+        contradicted_walls(_room(), _room(), rise_points=rise_points)

@@ -188,7 +188,7 @@ def _print_break(report: Any, topic: str, out: Any) -> None:
         where = f", x {x0:.1f}..{x1:.1f} m, y {y0:.1f}..{y1:.1f} m"
     print(
         f"  break        first at snapshot {first.index}, "
-        f"+{duration_text(first.log_time_ns - start)} ({first.score_m:.2f} m of wall erased since "
+        f"+{duration_text(first.log_time_ns - start)} ({first.score_m:.2f} m of map contradicted since "
         f"snapshot {first.trusted_index}{where})",
         file=out,
     )

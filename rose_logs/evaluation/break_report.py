@@ -211,7 +211,7 @@ def _example_figure(path: Path, scores: SessionScores, threshold: float) -> Path
     ax_t.axhline(threshold, color="C3", ls=":", label=f"threshold {threshold:g} m")
     ax_t.axvline(spec.drift_start_s, color="k", ls="--", label="drift starts")
     ax_t.set_xlabel("session time, s")
-    ax_t.set_ylabel("erased wall, m")
+    ax_t.set_ylabel("break score (map contradicted), m")
     ax_w = ax_t.twinx()
     ax_w.plot(scores.times_s, scores.structure_scores, "C0.-", label="global W")
     ax_w.set_ylabel("W")
@@ -286,11 +286,14 @@ def run_break_experiment(
         f"starting at {', '.join(f'{x:g}' for x in start_fractions)} of the log, {seeds} seed(s) each "
         f"({len(sessions)} sessions). Break detector: tolerance {params.tolerance_m:g} m, "
         f"walls >= {params.min_wall_m:g} m (gaps <= {params.bridge_m:g} m bridged), "
+        f"risen evidence >= {params.rise_points} points at >= {params.rise_margin_m:g} m from "
+        f"walls and unknown space, "
         f"tiles {params.tile_m:g} m, window {params.window_m:g} m, threshold {threshold:g} m. "
         "A false alarm is an alarm on a correct session or before the drift starts; delays are from "
         f"the drift start to the first alarm (target: level >= 2 within {DELAY_TARGET_S:g} s). "
-        "'Region right': at least half of the erased cells in the reported region are walls that "
-        "the correct session's map still has at that time.",
+        "'Region right': at least half of the contradicted cells in the reported region are the "
+        "drift's doing: erased walls the correct session's map still has at that time, or risen "
+        "evidence where that map is free.",
         "",
         f"### Break score, threshold {threshold:g} m",
         "",

@@ -33,7 +33,7 @@ import numpy as np
 import numpy.typing as npt
 
 import rose
-from rose.breaks import erased_walls
+from rose.breaks import erased_walls, placed_grid, risen_evidence
 from rose.params import RoseParams
 from rose_logs.carmen.clock import scan_clock_ns
 from rose_logs.carmen.parse import CarmenLog, read_carmen_log
@@ -230,27 +230,37 @@ def _region_hit(
     truth: SessionGrid,
     region_m: tuple[float, float, float, float],
 ) -> float:
-    """Share of the erased cells inside the region that the correct map keeps as walls."""
+    """Share of the contradicted cells inside the region that the drift made: erased walls that
+    the correct map keeps as walls, and risen evidence where the correct map is free."""
     p = detector.params
     res = current.resolution_m
-    kwargs = {
-        "tolerance_px": round(p.tolerance_m / res),
+    pieces = {
         "min_extent_px": round(p.min_wall_m / res),
         "bridge_px": round(p.bridge_m / res),
-        "occupied_threshold": p.occupied_threshold,
         "free_threshold": p.free_threshold,
     }
-    erased = erased_walls(trusted.grid, current.grid, offset_px=_offset(trusted, current), **kwargs)
-    lost = erased_walls(truth.grid, current.grid, offset_px=_offset(truth, current), **kwargs)
+    walls = {
+        "tolerance_px": round(p.tolerance_m / res),
+        "occupied_threshold": p.occupied_threshold,
+        **pieces,
+    }
+    rises = {"rise_points": p.rise_points, "rise_margin_px": round(p.rise_margin_m / res), **pieces}
+    from_trusted, from_truth = _offset(trusted, current), _offset(truth, current)
+    erased = erased_walls(trusted.grid, current.grid, offset_px=from_trusted, **walls)
+    lost = erased_walls(truth.grid, current.grid, offset_px=from_truth, **walls)
+    risen = risen_evidence(trusted.grid, current.grid, offset_px=from_trusted, **rises)
+    truth_placed = placed_grid(truth.grid, current.grid.shape, from_truth)
+    truly_free = (truth_placed >= 0) & (truth_placed <= p.free_threshold)
     x0, y0, x1, y1 = region_m
     ox, oy = current.origin_xy_m
     c0, c1 = math.floor((x0 - ox) / res + 1e-6), math.ceil((x1 - ox) / res - 1e-6)
     r0, r1 = math.floor((y0 - oy) / res + 1e-6), math.ceil((y1 - oy) / res - 1e-6)
-    inside = erased[r0:r1, c0:c1]
-    total = int(np.count_nonzero(inside))
+    box = (slice(r0, r1), slice(c0, c1))
+    total = int(np.count_nonzero(erased[box] | risen[box]))
     if total == 0:
         return math.nan
-    return float(np.count_nonzero(inside & lost[r0:r1, c0:c1])) / total
+    made = (erased[box] & lost[box]) | (risen[box] & truly_free[box])
+    return float(np.count_nonzero(made)) / total
 
 
 def score_case(

@@ -127,7 +127,7 @@ def _topic_container(layout: TopicLayout) -> rrb.Container:
         f"{root}: structure score W over session time", f"/{paths.score}", layout.w_top
     )
     break_plot = _session_plot(
-        f"{root}: break score (m of established wall erased) and threshold",
+        f"{root}: break score (m of established map contradicted) and threshold",
         f"/{paths.break_score_view}",
         layout.break_top,
     )

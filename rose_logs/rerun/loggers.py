@@ -475,7 +475,7 @@ class TopicLogger:
                 [corners],
                 colors=style.BREAK_COLOR,
                 radii=rr.Radius.ui_points(2.5),
-                labels=[f"break: {verdict.score_m:.1f} m of wall erased"],
+                labels=[f"break: {verdict.score_m:.1f} m of map contradicted"],
             ),
         )
 

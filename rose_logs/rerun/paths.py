@@ -25,7 +25,7 @@ Paths are lowercase and live below one root per map topic (``/map`` -> ``map``):
     <root>/structure_score/w         Scalars: W, trust level, failure level (three series, static styles)
     <root>/structure_score/breaks    Scalars: W at every break (point markers)
     <root>/events                    TextLog of break events
-    <root>/break_score/erased_m      Scalars: the break detector's score, metres of established wall erased
+    <root>/break_score/score_m       Scalars: the break detector's score, metres of established map contradicted
     <root>/break_score/threshold_m   Scalars: the detector's threshold (static style)
     <root>/metric/break_region       LineStrips3D: the region of a detected break, map frame, metres
 """
@@ -172,7 +172,7 @@ class EntityPaths:
 
     @property
     def break_score(self) -> str:
-        return self._below("break_score/erased_m")
+        return self._below("break_score/score_m")
 
     @property
     def break_threshold(self) -> str:

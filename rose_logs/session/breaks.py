@@ -2,9 +2,10 @@
 
 Per map topic, :class:`BreakDetector` keeps the *last trusted snapshot* (the latest one whose break
 score stayed below the threshold). Every new snapshot is compared with it by
-:func:`rose.breaks.contradicted_walls`: the break score is the length of established wall, in metres,
-that the new snapshot erased inside the densest ``window_m`` square (counted in pieces of
-``tile_m``: a person or a chair leg erases one or two, a break whole walls). A score at or above
+:func:`rose.breaks.contradicted_walls`: the break score is the length, in metres, of established map
+the new snapshot contradicts inside the densest ``window_m`` square (counted in pieces of
+``tile_m``): established walls it erased, and obstacle evidence that rose deep in established free
+space. A person or a chair leg makes one or two pieces, a break whole walls. A score at or above
 ``threshold_m`` marks the snapshot broken, and the trusted snapshot stays where it was, so the
 score of every later snapshot is measured against the map as it was before the break. The first
 broken snapshot after a trusted one starts a break (:attr:`BreakScore.started`).
@@ -37,22 +38,27 @@ class BreakParams:
     Attributes
     ----------
     threshold_m : float
-        Erased wall length (metres, in one window) from which a snapshot is broken.
+        Contradicted length (metres, in one window) from which a snapshot is broken.
     tolerance_m : float
         A wall that moved by at most this much (metres) is not erased.
     min_wall_m : float
-        Only established walls at least this long (connected occupied cells, gaps up to
-        ``bridge_m`` bridged) count; people and furniture blobs do not.
+        Only pieces at least this long (connected cells, gaps up to ``bridge_m`` bridged) count, of
+        established walls and of risen evidence; people and furniture blobs do not.
     bridge_m : float
         Gaps along a wall up to this long are bridged before measuring it, metres.
     tile_m : float
         Erased walls are measured in pieces of this length (tiles of this side), metres.
     window_m : float
-        Side of the square window the erased length is counted in, metres.
+        Side of the square window the contradicted length is counted in, metres.
     occupied_threshold : int
         Occupancy (percent) from which a cell is a wall.
     free_threshold : int
         Occupancy (percent) up to which a known cell counts as free.
+    rise_points : int
+        A free cell whose occupancy rose by at least this many percentage points holds risen
+        evidence (101: off, erased walls only).
+    rise_margin_m : float
+        Risen evidence counts only this far from every established wall and unknown cell, metres.
     """
 
     threshold_m: float = 1.25
@@ -63,6 +69,8 @@ class BreakParams:
     window_m: float = 10.0
     occupied_threshold: int = 65
     free_threshold: int = 50
+    rise_points: int = 15
+    rise_margin_m: float = 0.2
 
     @classmethod
     def following(cls, occupied_threshold: int, **overrides: Any) -> BreakParams:
@@ -80,12 +88,17 @@ class BreakParams:
             and self.tolerance_m >= 0
             and self.min_wall_m >= 0
             and self.bridge_m >= 0
+            and self.rise_margin_m >= 0
         ):
             msg = (
                 "break parameters need threshold_m, window_m, tile_m > 0 and tolerance_m, "
-                f"min_wall_m, bridge_m >= 0, got {self.threshold_m}, {self.window_m}, "
-                f"{self.tile_m}, {self.tolerance_m}, {self.min_wall_m}, {self.bridge_m}"
+                f"min_wall_m, bridge_m, rise_margin_m >= 0, got {self.threshold_m}, "
+                f"{self.window_m}, {self.tile_m}, {self.tolerance_m}, {self.min_wall_m}, "
+                f"{self.bridge_m}, {self.rise_margin_m}"
             )
+            raise ValueError(msg)
+        if not 1 <= self.rise_points <= 101:
+            msg = f"rise_points must be in 1..101 (101: off), got {self.rise_points}"
             raise ValueError(msg)
         if not 0 <= self.free_threshold < self.occupied_threshold <= 100:
             msg = (
@@ -102,7 +115,8 @@ class BreakScore:
     Attributes
     ----------
     score_m : float
-        Erased established wall length in the densest window, metres (0 when not compared).
+        Contradicted length (erased walls, risen evidence) in the densest window, metres (0 when
+        not compared).
     broken : bool
         ``score_m >= threshold_m``.
     started : bool
@@ -111,10 +125,10 @@ class BreakScore:
         Snapshot index (on the topic) of the trusted snapshot compared with; None for the first
         snapshot and after a restart.
     region_m : tuple of float or None
-        ``(x_min, y_min, x_max, y_max)`` of the erased walls in the densest window, map frame,
-        metres (cell outer edges); None when nothing was erased.
-    erased_m : float
-        Erased established wall length over the whole map, metres (same measure as ``score_m``).
+        ``(x_min, y_min, x_max, y_max)`` of the contradicted cells in the densest window, map
+        frame, metres (cell outer edges); None when nothing was contradicted.
+    contradicted_m : float
+        Contradicted length over the whole map, metres (same measure as ``score_m``).
     """
 
     score_m: float
@@ -122,7 +136,7 @@ class BreakScore:
     started: bool
     trusted_index: int | None
     region_m: tuple[float, float, float, float] | None
-    erased_m: float
+    contradicted_m: float
 
 
 @dataclass(frozen=True)
@@ -140,7 +154,7 @@ class DetectedBreak:
     score_m : float
         Its break score, metres.
     region_m : tuple of float or None
-        ``(x_min, y_min, x_max, y_max)`` of the erased walls, map frame, metres.
+        ``(x_min, y_min, x_max, y_max)`` of the contradicted cells, map frame, metres.
     trusted_index : int or None
         The last trusted snapshot it was compared with.
     text : str
@@ -166,7 +180,7 @@ class DetectedBreak:
             where = f" around x {x0:.1f}..{x1:.1f} m, y {y0:.1f}..{y1:.1f} m"
         text = (
             f"{snapshot.topic}: map breaks at snapshot {index}: {verdict.score_m:.2f} m of "
-            f"established wall erased (threshold {threshold_m:g} m) since snapshot "
+            f"established map contradicted (threshold {threshold_m:g} m) since snapshot "
             f"{verdict.trusted_index}{where}"
         )
         return cls(
@@ -269,7 +283,12 @@ class BreakDetector:
             self._trusted[topic] = (index, snapshot)
         region = None if found.region_px is None else _region_m(snapshot, found.region_px)
         return BreakScore(
-            score, broken, started, trusted[0], region, found.erased_tiles * found.tile_px * res
+            score,
+            broken,
+            started,
+            trusted[0],
+            region,
+            found.contradicted_tiles * found.tile_px * res,
         )
 
     def compare(
@@ -289,4 +308,6 @@ class BreakDetector:
             window_px=max(round(p.window_m / res), 1),
             occupied_threshold=p.occupied_threshold,
             free_threshold=p.free_threshold,
+            rise_points=p.rise_points,
+            rise_margin_px=round(p.rise_margin_m / res),
         )

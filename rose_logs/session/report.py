@@ -61,10 +61,11 @@ class SnapshotRecord:
     from_update : bool
         True when the snapshot came from an ``OccupancyGridUpdate``.
     break_score_m : float
-        Break score (:mod:`rose_logs.session.breaks`): established wall length, metres, that this
-        snapshot erased in one window compared with the last trusted snapshot.
+        Break score (:mod:`rose_logs.session.breaks`): length, metres, of established map that this
+        snapshot contradicts in one window (walls erased, obstacle evidence risen in free space)
+        compared with the last trusted snapshot.
     break_region_m : tuple of float or None
-        ``(x_min, y_min, x_max, y_max)`` of those erased walls, map frame, metres.
+        ``(x_min, y_min, x_max, y_max)`` of those contradicted cells, map frame, metres.
     break_detected : bool
         The break detector marks this snapshot broken (``break_score_m`` at or above its threshold).
     clean_method : str

@@ -134,3 +134,27 @@ def test_the_same_rotation_written_differently_is_still_compared(plan, broken, o
     turned = dataclasses.replace(_snap(broken, 1), origin_orientation_xyzw=other)
     verdict = detector.update(turned)
     assert verdict.trusted_index == 0 and verdict.broken
+
+
+def test_walls_written_into_established_free_space_break_the_map(plan) -> None:
+    """A wrong pose first shows as evidence rising where the map was free (a few scans do not yet
+    erase the old walls): the rotated wing's walls drawn faintly over the intact map."""
+    ghost = ndimage.rotate(plan, 4.0, reshape=False, order=0, cval=0) >= 65
+    later = plan.copy()
+    later[:, 180:][ghost[:, 180:] & (plan[:, 180:] == 0)] = 40  # below the occupied threshold
+    detector = BreakDetector()
+    first, second = detector.update(_snap(plan, 0)), detector.update(_snap(later, 1))
+    assert (first.broken, second.broken, second.started) == (False, True, True)
+    x0, _, x1, _ = second.region_m
+    assert -5.0 + (180 - 6) * RES <= x0 < x1 <= -5.0 + 360 * RES  # in the rotated half
+    # Without the risen evidence nothing was erased: the old detector saw no break.
+    erased_only = BreakDetector(BreakParams(rise_points=101))
+    erased_only.update(_snap(plan, 0))
+    assert erased_only.update(_snap(later, 1)).score_m == 0.0
+
+
+def test_rise_parameters_are_checked() -> None:
+    with pytest.raises(ValueError, match="rise_points"):
+        BreakParams(rise_points=0)
+    with pytest.raises(ValueError, match="rise_margin_m"):
+        BreakParams(rise_margin_m=-0.1)
