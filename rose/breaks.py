@@ -11,8 +11,8 @@ blobs that come and go do not count):
     later grid holds free, with no occupied cell within ``tolerance_px`` in the later grid (so a wall
     that moved by a cell or two, as walls do between two correct snapshots, does not count).
 *risen evidence*
-    A cell deep in the earlier grid's known free space (no earlier wall and no unknown cell within
-    ``rise_margin_px``) whose occupancy rose by at least ``rise_points`` percentage points, in a
+    A cell deep in the earlier grid's known free space (no earlier cell that is not known free,
+    i.e. wall, unknown or uncertain, within ``rise_margin_px``) whose occupancy rose by at least ``rise_points`` percentage points, in a
     piece of such cells (in the later grid). Rays from a wrong pose end in space mapped free: the
     evidence rises there long before the cells read as occupied, since a free cell needs several
     net hits (and a clamped wall several net misses) to flip.
@@ -233,10 +233,14 @@ def _risen_box(
     bridge_px: int,
 ) -> tuple[npt.NDArray[np.bool_], int, int]:
     """Risen cells within their bounding box: ``(mask, row0, col0)`` in ``later``'s cells."""
+    if rise_points > 100:  # off
+        return np.zeros((0, 0), dtype=bool), 0, 0
     placed = placed_grid(earlier.astype(np.int8, copy=False), later.shape, offset_px)
     was_free = (placed >= 0) & (placed <= free_threshold)
-    rise = later.astype(np.int16) - placed  # -1 (unknown) later never rises above free earlier
-    candidates = was_free & (rise >= rise_points)
+    # Only known later cells (0..100) rise: unknown (-1) never, nor values outside the ROS range.
+    known_later = (later >= 0) & (later <= 100)
+    rise = later.astype(np.int16) - placed
+    candidates = was_free & known_later & (rise >= rise_points)
     rows = np.flatnonzero(candidates.any(axis=1))
     if rows.size == 0:
         return np.zeros((0, 0), dtype=bool), 0, 0
@@ -244,7 +248,8 @@ def _risen_box(
     margin = max(rise_margin_px, min_extent_px + bridge_px)
     r0, r1 = max(int(rows[0]) - margin, 0), int(rows[-1]) + margin + 1
     c0, c1 = max(int(cols[0]) - margin, 0), int(cols[-1]) + margin + 1
-    # Deep in free space: no earlier wall or unknown cell (nor the grid's edge) within the margin,
+    # Deep in free space: no earlier cell that is not known free (wall, unknown, uncertain; nor the
+    # grid's edge) within the margin,
     # so that walls seen a cell off and the frontier of exploration do not count.
     near_other = _dilate_square(~was_free[r0:r1, c0:c1], rise_margin_px, outside=True)
     risen = candidates[r0:r1, c0:c1] & ~near_other
@@ -297,8 +302,8 @@ def risen_evidence(
     Returns
     -------
     ndarray of bool, shape of ``later``
-        Known free in ``earlier`` (0..``free_threshold``) with no wall or unknown cell of
-        ``earlier`` within ``rise_margin_px`` (chessboard distance), at least ``rise_points`` higher
+        Known free in ``earlier`` (0..``free_threshold``) with no other cell of ``earlier`` (wall,
+        unknown, uncertain) within ``rise_margin_px`` (chessboard distance), at least ``rise_points`` higher
         in ``later``, in pieces at least ``min_extent_px`` long.
     """
     earlier, later = np.asarray(earlier), np.asarray(later)
@@ -399,8 +404,8 @@ def contradicted_walls(
         Rise of occupancy (percentage points) from which a free cell's evidence counts as risen;
         101 turns risen evidence off (erased walls only).
     rise_margin_px : int
-        Risen cells count only this far (chessboard distance) from every wall and unknown cell of
-        ``earlier``.
+        Risen cells count only farther than this (chessboard distance) from every cell of
+        ``earlier`` that is not known free (wall, unknown, uncertain).
 
     Returns
     -------

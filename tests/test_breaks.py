@@ -161,10 +161,25 @@ def test_risen_evidence_needs_a_real_rise_a_long_piece_and_depth() -> None:
     assert risen_evidence(earlier, near, rise_margin_px=4).sum() == 0
     assert risen_evidence(earlier, near, rise_margin_px=1).sum() == 120
     frontier = earlier.copy()
-    frontier[:, 100:] = -1  # unexplored in the earlier map: newly mapped walls there are no rise
+    frontier[:, 100:] = -1  # unexplored in the earlier map
     later = frontier.copy()
-    later[60, 102:150] = 100
-    assert risen_evidence(frontier, later).sum() == 0
+    later[20:100, 98] = 100  # a wall found along the frontier, in the last 2 known-free columns
+    later[20:100, 97] = 100
+    assert risen_evidence(frontier, later, rise_margin_px=4).sum() == 0
+    assert risen_evidence(frontier, later, rise_margin_px=0).sum() == 160
+    beyond = frontier.copy()
+    beyond[60, 102:150] = 100  # newly mapped walls in unexplored space are no rise at all
+    assert risen_evidence(frontier, beyond, rise_margin_px=0).sum() == 0
+
+
+def test_only_known_later_cells_rise_and_101_is_off() -> None:
+    earlier = _room()
+    later = earlier.copy()
+    later[60, 40:80] = 127  # outside the ROS range 0..100: no occupancy to rise to
+    assert risen_evidence(earlier, later).sum() == 0
+    later[60, 40:80] = 100
+    assert contradicted_walls(earlier, later, rise_points=101).risen_px == 0
+    assert contradicted_walls(earlier, later, rise_points=100).risen_px == 40
 
 
 @pytest.mark.parametrize("rise_points", [0, 102])

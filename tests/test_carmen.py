@@ -160,6 +160,9 @@ def test_a_file_that_is_not_what_its_name_says_is_named_so(tmp_path: Path) -> No
     (tmp_path / "data.log").write_bytes(noise)
     with pytest.raises(CarmenFormatError, match=r"data.log: not a CARMEN log \(binary data"):
         read_carmen_log(tmp_path / "data.log")
+    (tmp_path / "data.log.gz").write_bytes(gzip.compress(noise))  # compressed binary: the same
+    with pytest.raises(CarmenFormatError, match=r"data.log.gz: not a CARMEN log \(binary data"):
+        read_carmen_log(tmp_path / "data.log.gz")
 
 
 def test_missing_file_is_an_error(tmp_path: Path) -> None:

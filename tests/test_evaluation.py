@@ -301,3 +301,9 @@ def test_evaluate_writes_its_folder_whole_and_replaces_only_its_own_reports(
     nested = tmp_path / "out" / "deeper" / "eval"
     assert main(["evaluate", str(nested), *empty]) == 0
     assert (nested / "report.md").is_file()
+    # ... but never inside the data set, which is read only: refused, and nothing made there.
+    data = tmp_path / "data"
+    data.mkdir()
+    assert main(["evaluate", str(data / "new" / "report"), "--maps-dir", str(data)]) == 1
+    assert "refusing to write over the input" in capsys.readouterr().err
+    assert list(data.iterdir()) == []

@@ -5,6 +5,7 @@ from __future__ import annotations
 import io
 from typing import TYPE_CHECKING, Any
 
+from rose_logs.batch.sources import printable
 from rose_logs.session.report import w_judges
 
 if TYPE_CHECKING:
@@ -149,7 +150,8 @@ def figure_png(report: BatchReport) -> bytes | None:
             rows = sorted(
                 (s for s in result.snapshots if s["topic"] == topic), key=lambda s: s["index"]
             )
-            label = result.name if len(topics) == 1 else f"{result.name} {topic}"
+            name = printable(result.name)  # matplotlib refuses a non-UTF-8 file name's surrogates
+            label = name if len(topics) == 1 else f"{name} {topic}"
             series.append((label, rows))
     if not series:
         return None

@@ -75,8 +75,9 @@ def read_list(path: str, storage_options: Mapping[str, Any] | None = None) -> li
     Raises
     ------
     BatchError
-        If ``path`` is missing, not a regular file, larger than :data:`MAX_LIST_BYTES` or not UTF-8,
-        or a URL of an unknown scheme or one whose fsspec backend is not installed.
+        If ``path`` is missing, not a regular file, larger than :data:`MAX_LIST_BYTES`, or a URL
+        that is not UTF-8 text, of an unknown scheme or whose fsspec backend is not installed (a
+        local list may hold local names that are not UTF-8).
     """
     fs, fs_path = filesystem(path, _options(path, storage_options))
     try:
@@ -101,7 +102,9 @@ def read_list(path: str, storage_options: Mapping[str, Any] | None = None) -> li
             msg = f"{path}: the list of inputs is larger than {MAX_LIST_BYTES >> 20} MiB"
             raise BatchError(msg)
         try:
-            lines = data.decode("utf-8").splitlines()
+            # A local list may name local files whose names are not UTF-8 (kept as the OS does).
+            errors = "surrogateescape" if is_local(path) else "strict"
+            lines = data.decode("utf-8", errors).splitlines()
         except UnicodeDecodeError as err:
             msg = f"{path}: the list of inputs is not UTF-8 text ({err.reason} at byte {err.start})"
             raise BatchError(msg) from err

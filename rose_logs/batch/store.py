@@ -165,7 +165,16 @@ class OutputStore:
         mistyped bucket name must not create a new bucket) and create the root (other remotes)."""
         try:
             if self.local:
-                Path(_strip_file(self.root)).mkdir(parents=True, exist_ok=True)
+                root = Path(_strip_file(self.root))
+                if root.exists() and not root.is_dir():
+                    msg = f"{self.root}: not a folder (the output of a batch is a folder)"
+                    raise BatchError(msg)
+                root.mkdir(parents=True, exist_ok=True)
+                # A real write in the root (results/ and the tables go there): a staging folder
+                # left by a killed run proves nothing.
+                probe = root / temporary_name("write-probe")
+                probe.touch()
+                probe.unlink()
                 self.staging_dir()
             else:
                 with storage_errors(self.root):
@@ -181,9 +190,15 @@ class OutputStore:
             self.fs.makedirs(self.root, exist_ok=True)
             return
         bucket = split_path(self.root)[0]
-        if not self.fs.exists(bucket):
+        try:
+            # A listing, not exists(): s3fs's exists() reads "access denied" as "no such bucket".
+            self.fs.ls(bucket, refresh=True)
+        except FileNotFoundError as err:
             msg = f"{self.root}: the bucket {bucket!r} does not exist (it is not created for you)"
-            raise BatchError(msg)
+            raise BatchError(msg) from err
+        except PermissionError as err:
+            msg = f"{self.root}: access to the bucket {bucket!r} denied ({err})"
+            raise BatchError(msg) from err
 
     def read_bytes(self, relative: str) -> bytes | None:
         """Content of ``relative``, None if it does not exist."""

@@ -81,7 +81,7 @@ class RecordingOptions:
     clean_method : {"walls", "paper"}
         How the cleaned maps are made (``process --clean-method``).
     break_threshold_m : float, optional
-        The break detector's threshold, metres of erased wall (default: ``BreakParams``').
+        The break detector's threshold, metres of map contradicted (default: ``BreakParams``').
     max_cells : int or None
         Grids of more cells are skipped (``process --max-cells``; None: no limit).
     """
@@ -268,8 +268,8 @@ def package_version() -> str:
 #: calls broken, not only a break's first; 3: maps without occupied cells are never
 #: ``w_above_failure``; 4: directions in the map frame, the ``completed`` count; 5: skipped
 #: messages and warnings; 6: thin maps padded to 16 cells, resolution as its float32 reads,
-#: warnings counted once).
-RESULT_LAYOUT = 6
+#: warnings counted once; 7: the break detector also counts risen evidence).
+RESULT_LAYOUT = 7
 
 
 def result_key(recording: Recording, options: RecordingOptions) -> str:

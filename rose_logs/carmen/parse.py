@@ -262,7 +262,13 @@ def _why_no_scans(path: Path, log: CarmenLog) -> str:
         head = b""
     if path.suffix == ".gz" and head[:2] != _GZIP_MAGIC:
         return "not gzip-compressed (its name ends in .gz) and no FLASER scan in it as text"
-    if head[:2] != _GZIP_MAGIC and b"\0" in head:  # text logs hold no NUL byte
+    if head[:2] == _GZIP_MAGIC:
+        try:
+            with gzip.open(path, "rb") as unpacked:
+                head = unpacked.read(4096)
+        except (OSError, EOFError):
+            head = b""
+    if b"\0" in head:  # text logs hold no NUL byte
         return "not a CARMEN log (binary data, no FLASER scan)"
     first = f"; first: {log.first_errors[0]}" if log.first_errors else ""
     return f"no FLASER scan found ({log.malformed} malformed FLASER lines{first})"

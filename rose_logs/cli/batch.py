@@ -247,6 +247,8 @@ def _print_summary(report: Any) -> None:
 
 
 def _exit_code(report: Any, args: argparse.Namespace) -> int:
+    from rose_logs.batch.sources import printable  # loaded with the batch already
+
     if report.interrupted:
         print(
             f"error: interrupted; {len(report.results)} finished recordings kept in {report.out} "
@@ -258,11 +260,8 @@ def _exit_code(report: Any, args: argparse.Namespace) -> int:
     errors = report.errors
     if len(errors) > args.max_errors:
         first = errors[0]
-        what = (
-            first.error
-            if first.error and first.uri in first.error
-            else f"{first.uri}: {first.error}"
-        )
+        # Rows start with their URI (error_result); printable: as the tables show odd file names.
+        what = printable(first.error or f"{first.uri}: unknown error")
         print(
             f"error: {len(errors)} recording(s) failed (more than --max-errors {args.max_errors}); "
             f"first: {what}",
@@ -273,7 +272,7 @@ def _exit_code(report: Any, args: argparse.Namespace) -> int:
     if salvaged:  # as process --salvage: lost messages come before the gates
         print(
             f"warning: {len(salvaged)} recording(s) damaged, kept what could be read "
-            f"(--salvage, exit {EXIT_SALVAGED}); first: {salvaged[0].losses[0]}",
+            f"(--salvage, exit {EXIT_SALVAGED}); first: {printable(salvaged[0].losses[0])}",
             file=sys.stderr,
         )
         return EXIT_SALVAGED
@@ -286,7 +285,7 @@ def _exit_code(report: Any, args: argparse.Namespace) -> int:
         )
         if worst is not None and worst.row()["w_max"] > args.fail_above:
             print(
-                f"error: {worst.uri}: W = {worst.row()['w_max']:.3f} exceeds --fail-above "
+                f"error: {printable(worst.uri)}: W = {worst.row()['w_max']:.3f} exceeds --fail-above "
                 f"{args.fail_above:g}",
                 file=sys.stderr,
             )
@@ -296,7 +295,7 @@ def _exit_code(report: Any, args: argparse.Namespace) -> int:
         if breaks:
             recording, snapshot = breaks[0]
             print(
-                f"error: {recording.uri}: the map breaks at {snapshot['topic']} snapshot "
+                f"error: {printable(recording.uri)}: the map breaks at {snapshot['topic']} snapshot "
                 f"{snapshot['index']} ({len(breaks)} break(s) in "
                 f"{len({r.uri for r, _ in breaks})} recording(s); --fail-on-break)",
                 file=sys.stderr,

@@ -172,9 +172,12 @@ def run(args: argparse.Namespace) -> int:
     # The data set is read, never written (data_root raises DataSetError, one line, if it is absent).
     inputs = [config.data_root] if config.logs or config.benchmark_maps else []
     # A report folder's parents are made, as `batch` makes OUT's (`evaluate out/eval` in a fresh
-    # checkout); a path through a file stays an error of the output check.
-    with contextlib.suppress(OSError):
-        Path(args.out_dir).parent.mkdir(parents=True, exist_ok=True)
+    # checkout), but never inside the data set (the output check refuses that path next); a path
+    # through a file stays an error of the output check.
+    parent = Path(args.out_dir).resolve().parent
+    if not any(parent.is_relative_to(Path(i).resolve()) for i in inputs):
+        with contextlib.suppress(OSError):
+            parent.mkdir(parents=True, exist_ok=True)
     with OutputSet(inputs=inputs, force=args.force, ends_run=True) as outputs:
         staged = outputs.stage(args.out_dir, directory=True, replaceable=is_report_folder)
         assert staged.temp is not None  # a folder output is never a stream

@@ -60,7 +60,7 @@ def add_session_arguments(parser: Any) -> None:
         type=positive_float,
         default=None,
         metavar="M",
-        help="break detector: metres of established wall a snapshot must erase to count as a "
+        help="break detector: metres of established map a snapshot must contradict to count as a "
         "break (default 1.25)",  # BreakParams().threshold_m (tested); imported lazily
     )
     add_limit_arguments(parser)

@@ -9,8 +9,9 @@ fraction of the log (drift levels x start fractions x seeds). Every snapshot get
   with threshold ``t`` is the first snapshot whose score here is ``>= t``: one pass gives the whole
   ROC over the threshold;
 - the paper's global W (:func:`rose.analyze`), scored the same way (first snapshot with W ``>= t``);
-- a check of the region: the share of the erased cells inside the reported region that are walls of
-  the correct session's map at the same time (within the tolerance) which the drifted map lost.
+- a check of the region: the share of the contradicted cells inside the reported region that the
+  drift made: erased walls that the correct session's map at the same time still has, and risen
+  evidence where that map is free.
 
 Outcomes at a threshold: a correct session with any alarm is a false alarm; a drifted session with
 an alarm before the drift starts is a false alarm too; otherwise its first alarm after the start is a
@@ -114,7 +115,7 @@ class SessionScores:
     regions_m : tuple of (tuple of float or None)
         Region of each snapshot's score, map frame, metres.
     region_hits : ndarray of float64, shape (N,)
-        Share of the erased cells in the region that the correct session keeps as walls (NaN when
+        Share of the contradicted cells in the region that the drift made (NaN when
         no region, or for correct sessions).
     detector_s, rose_s : ndarray of float64, shape (N,)
         CPU time (``time.process_time``) of the detector's update and of :func:`rose.analyze` per

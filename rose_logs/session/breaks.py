@@ -58,7 +58,8 @@ class BreakParams:
         A free cell whose occupancy rose by at least this many percentage points holds risen
         evidence (101: off, erased walls only).
     rise_margin_m : float
-        Risen evidence counts only this far from every established wall and unknown cell, metres.
+        Risen evidence counts only farther than this from every cell that was not known free
+        (walls, unknown, uncertain), metres.
     """
 
     threshold_m: float = 1.25

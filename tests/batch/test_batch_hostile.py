@@ -557,11 +557,15 @@ def test_a_failed_upload_of_a_table_restores_the_previous_objects(
         memory.rm(f"memory://rose-batch-test-{os.getpid()}", recursive=True)
 
 
+@pytest.mark.parametrize("leftover", [False, True])
 def test_an_output_folder_that_cannot_be_written_is_one_error_before_any_recording(
-    fleet: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    fleet: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], leftover: bool
 ) -> None:
     out = tmp_path / "locked"
     out.mkdir()
+    if leftover:  # a killed run's staging folder (writable itself) proves nothing about OUT
+        (out / ".staging").mkdir()
+    before = sorted(p.name for p in out.iterdir())
     # Immutable: refused even to root (the suite may run as root, for whom mode bits are no lock).
     if subprocess.run(["chattr", "+i", str(out)], capture_output=True).returncode != 0:
         pytest.skip("chattr +i is not available here")
@@ -574,4 +578,16 @@ def test_an_output_folder_that_cannot_be_written_is_one_error_before_any_recordi
     assert err.strip() == (
         f"error: {out}: cannot write to the output folder (Operation not permitted)"
     )
-    assert list(out.iterdir()) == []
+    assert sorted(p.name for p in out.iterdir()) == before
+
+
+def test_an_output_that_is_a_file_is_named_so(
+    fleet: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "afile"
+    out.write_text("mine")
+    assert main(["batch", str(fleet / "robot_a" / "run.mcap"), "-o", str(out), "-q"]) == 1
+    assert capsys.readouterr().err.strip() == (
+        f"error: {out}: not a folder (the output of a batch is a folder)"
+    )
+    assert out.read_text() == "mine"

@@ -604,9 +604,14 @@ def test_a_file_name_that_is_not_utf8_is_processed_and_tabled(fleet: Path, tmp_p
     folder.mkdir()
     name = os.fsdecode(b"r\xffbot.mcap")
     (folder / name).write_bytes((fleet / "robot_a" / "run.mcap").read_bytes())
+    # A broken map's recording is named in the figure's legend (matplotlib refused surrogates).
+    broken = os.fsdecode(b"s\xfeb.mcap")
+    (folder / broken).write_bytes((fleet / "robot_b" / "run.mcap").read_bytes())
     out = tmp_path / "out"
     report = run_batch([folder], out, options=RecordingOptions(cleaned=True))
-    assert [r.status for r in report.results] == ["ok"]
+    assert [r.status for r in report.results] == ["ok", "ok"]
+    assert [r.row()["broke"] for r in report.results] == [False, True]
+    assert (out / "w_over_time.png").is_file()
     rows = read_rows(out / "recordings.parquet")
     assert rows[0]["uri"] == str(folder / "r\\xffbot.mcap")
     assert rows[0]["snapshots"] > 0

@@ -170,3 +170,22 @@ def test_an_unreachable_endpoint_is_a_one_line_error(
     assert text.startswith(f"{source if side == 'input' else out}: cannot use the storage (")
     assert "EndpointConnectionError" in text
     assert not Path(local_out).exists()
+
+
+def test_denied_access_to_the_output_bucket_is_not_called_a_missing_bucket(
+    fleet: Path,
+    s3: dict[str, Any],
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    import moto.settings
+
+    # From now on the server checks credentials: the fixture's "testing" keys are nobody's.
+    monkeypatch.setattr(moto.settings, "INITIAL_NO_AUTH_ACTION_COUNT", 0)
+    argv = ["batch", str(fleet / "robot_a" / "run.mcap"), "-o", f"s3://{BUCKET}/out", "-q"]
+    argv += ["--storage-option", f"endpoint_url={s3['endpoint_url']}"]
+    argv += ["--storage-option", "key=testing", "--storage-option", "secret=testing"]
+    assert main(argv) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"error: s3://{BUCKET}/out: access to the bucket '{BUCKET}' denied (")
+    assert "\n" not in err
