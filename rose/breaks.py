@@ -193,17 +193,16 @@ def _long_walls(
 
 
 def _erased_box(
-    earlier: npt.NDArray[np.integer],
+    placed: npt.NDArray[np.int8],
     later: npt.NDArray[np.integer],
-    offset_px: tuple[int, int],
     tolerance_px: int,
     occupied_threshold: int,
     free_threshold: int,
     min_extent_px: int = 0,
     bridge_px: int = 0,
 ) -> tuple[npt.NDArray[np.bool_], int, int]:
-    """Erased cells within their bounding box: ``(mask, row0, col0)`` in ``later``'s cells."""
-    placed = placed_grid(earlier.astype(np.int8, copy=False), later.shape, offset_px)
+    """Erased cells within their bounding box: ``(mask, row0, col0)`` in ``later``'s cells
+    (``placed``: the earlier grid in ``later``'s cells, :func:`placed_grid`)."""
     walls = placed >= occupied_threshold
     candidates = walls & (later >= 0) & (later <= free_threshold)
     rows = np.flatnonzero(candidates.any(axis=1))
@@ -222,25 +221,34 @@ def _erased_box(
     return erased, r0, c0
 
 
+def _placed(
+    earlier: npt.NDArray[np.integer], later: npt.NDArray[np.integer], offset_px: tuple[int, int]
+) -> npt.NDArray[np.int8]:
+    return placed_grid(earlier.astype(np.int8, copy=False), later.shape, offset_px)
+
+
 def _risen_box(
-    earlier: npt.NDArray[np.integer],
+    placed: npt.NDArray[np.int8],
     later: npt.NDArray[np.integer],
-    offset_px: tuple[int, int],
     rise_points: int,
     rise_margin_px: int,
     free_threshold: int,
     min_extent_px: int,
     bridge_px: int,
 ) -> tuple[npt.NDArray[np.bool_], int, int]:
-    """Risen cells within their bounding box: ``(mask, row0, col0)`` in ``later``'s cells."""
+    """Risen cells within their bounding box: ``(mask, row0, col0)`` in ``later``'s cells
+    (``placed``: the earlier grid in ``later``'s cells, :func:`placed_grid`)."""
     if rise_points > 100:  # off
         return np.zeros((0, 0), dtype=bool), 0, 0
-    placed = placed_grid(earlier.astype(np.int8, copy=False), later.shape, offset_px)
     was_free = (placed >= 0) & (placed <= free_threshold)
     # Only known later cells (0..100) rise: unknown (-1) never, nor values outside the ROS range.
-    known_later = (later >= 0) & (later <= 100)
-    rise = later.astype(np.int16) - placed
-    candidates = was_free & known_later & (rise >= rise_points)
+    # On those and the free earlier cells the difference lies in -50..100: int8 holds it (elsewhere
+    # it may wrap, and is masked out).
+    later8 = later.astype(np.int8, copy=False)
+    candidates = (later8 - placed) >= rise_points
+    candidates &= was_free
+    candidates &= later >= 0  # on the given values: a cast to int8 could wrap them into range
+    candidates &= later <= 100
     rows = np.flatnonzero(candidates.any(axis=1))
     if rows.size == 0:
         return np.zeros((0, 0), dtype=bool), 0, 0
@@ -249,12 +257,21 @@ def _risen_box(
     r0, r1 = max(int(rows[0]) - margin, 0), int(rows[-1]) + margin + 1
     c0, c1 = max(int(cols[0]) - margin, 0), int(cols[-1]) + margin + 1
     # Deep in free space: no earlier cell that is not known free (wall, unknown, uncertain; nor the
-    # grid's edge) within the margin,
-    # so that walls seen a cell off and the frontier of exploration do not count.
+    # grid's edge) within the margin, so that walls seen a cell off and the frontier of exploration
+    # do not count. The box reaches `margin` beyond every candidate unless the grid ends first, so
+    # only the grid's own edge is within the reach of `outside`.
     near_other = _dilate_square(~was_free[r0:r1, c0:c1], rise_margin_px, outside=True)
     risen = candidates[r0:r1, c0:c1] & ~near_other
     if min_extent_px > 1 and risen.any():
-        risen = _long_walls(risen, min_extent_px, bridge_px)
+        # Pieces are made of risen cells only (gaps bridged): their box, a bridge wider, is enough
+        # and often far smaller than the candidates' (scattered single cells everywhere).
+        rows, cols = np.flatnonzero(risen.any(axis=1)), np.flatnonzero(risen.any(axis=0))
+        pad = bridge_px + 1
+        a0, a1 = max(int(rows[0]) - pad, 0), int(rows[-1]) + pad + 1
+        b0, b1 = max(int(cols[0]) - pad, 0), int(cols[-1]) + pad + 1
+        pieces = np.zeros_like(risen)
+        pieces[a0:a1, b0:b1] = _long_walls(risen[a0:a1, b0:b1], min_extent_px, bridge_px)
+        risen = pieces
     return risen, r0, c0
 
 
@@ -309,9 +326,8 @@ def risen_evidence(
     earlier, later = np.asarray(earlier), np.asarray(later)
     _check(earlier, later, 0, min_extent_px, bridge_px, rise_points, rise_margin_px)
     box = _risen_box(
-        earlier,
+        _placed(earlier, later, offset_px),
         later,
-        offset_px,
         rise_points,
         rise_margin_px,
         free_threshold,
@@ -345,9 +361,8 @@ def erased_walls(
     earlier, later = np.asarray(earlier), np.asarray(later)
     _check(earlier, later, tolerance_px, min_extent_px, bridge_px)
     box = _erased_box(
-        earlier,
+        _placed(earlier, later, offset_px),
         later,
-        offset_px,
         tolerance_px,
         occupied_threshold,
         free_threshold,
@@ -422,10 +437,10 @@ def contradicted_walls(
         msg = f"window_px and tile_px must be >= 1, got {window_px} and {tile_px}"
         raise RoseError(msg)
     established = int(np.count_nonzero(earlier >= occupied_threshold))
+    placed = _placed(earlier, later, offset_px)
     erased = _erased_box(
-        earlier,
+        placed,
         later,
-        offset_px,
         tolerance_px,
         occupied_threshold,
         free_threshold,
@@ -433,9 +448,8 @@ def contradicted_walls(
         bridge_px,
     )
     risen = _risen_box(
-        earlier,
+        placed,
         later,
-        offset_px,
         rise_points,
         rise_margin_px,
         free_threshold,
