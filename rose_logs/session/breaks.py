@@ -47,7 +47,7 @@ class BreakParams:
     bridge_m : float
         Gaps along a wall up to this long are bridged before measuring it, metres.
     tile_m : float
-        Erased walls are measured in pieces of this length (tiles of this side), metres.
+        Contradicted cells are measured in pieces of this length (tiles of this side), metres.
     window_m : float
         Side of the square window the contradicted length is counted in, metres.
     occupied_threshold : int
