@@ -175,11 +175,11 @@ def run_batch(
                 or (retry_errors and previous.status == "error")
                 or _outputs_missing(previous, store)
             )
-        if redo or previous is None:
+        if previous is not None and not redo:
+            finished[rec.uri] = previous
+        else:
             todo.append(rec)
             before[rec.uri] = previous
-        else:
-            finished[rec.uri] = previous
     skipped = len(finished)
     _LOG.info("%d recordings, %d finished before, %d to do", len(recordings), skipped, len(todo))
     named_by = None  # the scheduler file, for errors

@@ -98,7 +98,8 @@ def markdown(report: BatchReport, summary: dict[str, Any], *, figure: bool) -> s
 
 
 def _losses_in_brief(summary: dict[str, Any]) -> str:
-    """``; 1 damaged (salvaged), 21 map messages skipped`` (empty when nothing was lost)."""
+    """``; 1 damaged (what could be read kept, --salvage); 21 map messages skipped`` (empty when
+    nothing was lost)."""
     parts = []
     if summary["salvaged"]:
         parts.append(f"{summary['salvaged']} damaged (what could be read kept, --salvage)")
