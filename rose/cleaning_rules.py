@@ -169,6 +169,30 @@ def _components(mask: npt.NDArray[np.bool_]) -> tuple[int, npt.NDArray[np.intege
     return int(count), np.asarray(labels)
 
 
+def _label_boxes(
+    labels: npt.NDArray[np.integer], cells: npt.NDArray[np.intp], count: int
+) -> npt.NDArray[np.int64]:
+    """Bounding boxes ``x, y, width, height`` (OpenCV's order; shape ``(count, 4)``) of the labels
+    at the flat indices ``cells`` (a label with no cell there gets an empty box).
+
+    OpenCV's labelling with statistics costs 3-5x the plain labelling on the guard's images (it
+    visits every pixel again); the labelled cells are a tenth of them.
+    """
+    rows, cols = np.divmod(cells, labels.shape[1])
+    owner = labels.reshape(-1)[cells]
+    low_r = np.full(count, np.iinfo(np.int64).max, dtype=np.int64)
+    low_c = low_r.copy()
+    high_r = np.full(count, -1, dtype=np.int64)
+    high_c = high_r.copy()
+    np.minimum.at(low_r, owner, rows)
+    np.minimum.at(low_c, owner, cols)
+    np.maximum.at(high_r, owner, rows)
+    np.maximum.at(high_c, owner, cols)
+    empty = high_r < 0
+    low_r[empty] = low_c[empty] = 0
+    return np.stack([low_c, low_r, high_c + 1 - low_c, high_r + 1 - low_r], axis=1)
+
+
 def _components_with_stats(
     mask: npt.NDArray[np.bool_] | npt.NDArray[np.uint8],
 ) -> tuple[int, npt.NDArray[np.integer], npt.NDArray[np.int32]]:
@@ -477,7 +501,8 @@ def topology_guard(
     reach = math.ceil(radius_px) + 1
     box = _padded_box(opened, window_px + reach + 2)
     before, opened = before[box], opened[box]
-    count, patches, stats = _components_with_stats(opened)
+    count, patches = _components(opened)
+    boxes = _label_boxes(patches, np.flatnonzero(opened), count)
     ring_cells, ring_patches = _rings(patches, opened, count)
     formerly = before.reshape(-1)[ring_cells]
     # Patches whose ring is all formerly passable are free-standing objects: nothing to check.
@@ -500,7 +525,7 @@ def topology_guard(
     if not blocked.any():
         return restore
     separating = _separating_patches(
-        before, stats, blocked, ring_cells, ring_patches, window_px, min_region_px
+        before, boxes, blocked, ring_cells, ring_patches, window_px, min_region_px
     )
     if not separating.any():
         return restore
@@ -569,7 +594,7 @@ def _rings(
 
 def _separating_patches(
     before: npt.NDArray[np.bool_],
-    stats: npt.NDArray[np.int32],
+    boxes: npt.NDArray[np.int64],
     blocked: npt.NDArray[np.bool_],
     ring_cells: npt.NDArray[np.intp],
     ring_patches: npt.NDArray[np.int64],
@@ -584,7 +609,7 @@ def _separating_patches(
     All windows are copied into one mosaic, one empty cell apart, and labelled in one call.
     """
 
-    count = stats.shape[0]
+    count = boxes.shape[0]
     separating = np.zeros(count, dtype=bool)
     rows, cols = before.shape
     # The ring cells of every blocked patch (flat indices) and their patch.
@@ -594,7 +619,7 @@ def _separating_patches(
     ids = np.flatnonzero(blocked & (sizes >= 2))
     if ids.size == 0:
         return separating
-    x, y, w, h = (stats[ids, i].astype(np.int64) for i in range(4))
+    x, y, w, h = (boxes[ids, i] for i in range(4))
     r0, c0 = np.maximum(y - window_px, 0), np.maximum(x - window_px, 0)
     r1, c1 = np.minimum(y + h + window_px, rows), np.minimum(x + w + window_px, cols)
     heights, widths = r1 - r0, c1 - c0

@@ -11,7 +11,7 @@ import pytest
 
 import rose
 from rose.cleaning import CleanParams, clean
-from rose.cleaning_rules import directional_runs, passable, wide_unknown
+from rose.cleaning_rules import _label_boxes, directional_runs, passable, wide_unknown
 from rose.errors import RoseError
 
 RES = 0.05
@@ -188,6 +188,18 @@ def test_wide_unknown_drops_narrow_shadows() -> None:
     wide = wide_unknown(grid, radius_px=5)
     assert wide[:, :30].all()
     assert not wide[50:53, 40:90].any()
+
+
+def test_label_boxes_match_opencvs_statistics() -> None:
+    # The guard's patch boxes come from the labelled cells instead of OpenCV's (slower) statistics.
+    rng = np.random.default_rng(3)
+    mask = rng.random((97, 131)) < 0.08
+    mask[0, 5:9] = mask[96, 120:] = mask[40:, 0] = True  # pieces on every border
+    count, labels, stats, _ = cv2.connectedComponentsWithStats(
+        mask.view(np.uint8), None, None, None, 8
+    )
+    boxes = _label_boxes(labels, np.flatnonzero(mask), count)
+    np.testing.assert_array_equal(boxes[1:], stats[1:, :4])
 
 
 def test_topology_guard_restores_only_pieces_that_join_regions() -> None:
