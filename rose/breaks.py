@@ -37,6 +37,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rose.errors import RoseError
+from rose.labelling import components, label_boxes, labels_wanted
 
 __all__ = [
     "WallContradiction",
@@ -180,16 +181,14 @@ def _long_walls(
         joined = np.asarray(
             cv2.dilate(joined, np.ones((size, size), np.uint8), anchor=anchor), dtype=np.uint8
         )
-    count, labels, stats, _ = cv2.connectedComponentsWithStats(
-        joined, None, None, None, 8, cv2.CV_32S
-    )
+    count, labels = components(joined)
     if count <= 1:  # label 0 is the background
         return np.zeros_like(walls)
     # The extent of each (bridged) wall: the longer side of its bounding box, in cells.
-    extent = np.maximum(stats[:, cv2.CC_STAT_WIDTH], stats[:, cv2.CC_STAT_HEIGHT])
-    keep = extent >= min_extent_px
+    boxes = label_boxes(labels, np.flatnonzero(joined), count)
+    keep = np.maximum(boxes[:, 2], boxes[:, 3]) >= min_extent_px
     keep[0] = False
-    return walls & keep[labels]
+    return labels_wanted(keep, labels, walls)
 
 
 def _erased_box(

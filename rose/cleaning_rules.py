@@ -14,6 +14,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rose.grid import UNKNOWN
+from rose.labelling import components, components_with_stats, label_boxes, labels_wanted
 
 if TYPE_CHECKING:
     from rose.cleaning import CleanParams
@@ -131,78 +132,13 @@ def _touching(pieces: npt.NDArray[np.bool_], other: npt.NDArray[np.bool_]) -> np
         return out
     # Only the pieces' bounding box matters (plus two cells for the reach of ``other``).
     box = _padded_box(pieces, 2)
-    count, labels = _components(pieces[box])
+    count, labels = components(pieces[box])
     near = _dilate(other[box], 2)
     wanted = np.zeros(count, dtype=bool)
     wanted[labels[near & pieces[box]]] = True
     wanted[0] = False
-    out[box] = _labels_wanted(wanted, labels, pieces[box])
+    out[box] = labels_wanted(wanted, labels, pieces[box])
     return out
-
-
-def _labels_wanted(
-    wanted: npt.NDArray[np.bool_], labels: npt.NDArray[np.integer], cells: npt.NDArray[np.bool_]
-) -> npt.NDArray[np.bool_]:
-    """``wanted[labels]`` on ``cells`` (False elsewhere), looked up at those cells only: they are few
-    next to the whole image, so this is much cheaper than indexing every label."""
-    at = np.flatnonzero(cells)
-    out = np.zeros(labels.shape, dtype=bool)
-    out.ravel()[at] = wanted[labels.ravel()[at]]
-    return out
-
-
-def _label_type(mask: npt.NDArray[np.bool_] | npt.NDArray[np.uint8]) -> int:
-    """OpenCV label type for the 8-connected components of ``mask``: 16 bits (half the memory,
-    about twice as fast) when the components cannot outnumber them, else 32."""
-    import cv2
-
-    rows, cols = mask.shape
-    bound = min(int(np.count_nonzero(mask)), ((rows + 1) // 2) * ((cols + 1) // 2))
-    return int(cv2.CV_16U) if bound < np.iinfo(np.uint16).max else int(cv2.CV_32S)
-
-
-def _components(mask: npt.NDArray[np.bool_]) -> tuple[int, npt.NDArray[np.integer]]:
-    """Count (background included) and labels of the 8-connected components of ``mask``."""
-    import cv2
-
-    count, labels = cv2.connectedComponents(mask.view(np.uint8), None, 8, _label_type(mask))
-    return int(count), np.asarray(labels)
-
-
-def _label_boxes(
-    labels: npt.NDArray[np.integer], cells: npt.NDArray[np.intp], count: int
-) -> npt.NDArray[np.int64]:
-    """Bounding boxes ``x, y, width, height`` (OpenCV's order; shape ``(count, 4)``) of the labels
-    at the flat indices ``cells`` (a label with no cell there gets an empty box).
-
-    OpenCV's labelling with statistics costs 3-5x the plain labelling on the guard's images (it
-    visits every pixel again); the labelled cells are a tenth of them.
-    """
-    rows, cols = np.divmod(cells, labels.shape[1])
-    owner = labels.reshape(-1)[cells]
-    low_r = np.full(count, np.iinfo(np.int64).max, dtype=np.int64)
-    low_c = low_r.copy()
-    high_r = np.full(count, -1, dtype=np.int64)
-    high_c = high_r.copy()
-    np.minimum.at(low_r, owner, rows)
-    np.minimum.at(low_c, owner, cols)
-    np.maximum.at(high_r, owner, rows)
-    np.maximum.at(high_c, owner, cols)
-    empty = high_r < 0
-    low_r[empty] = low_c[empty] = 0
-    return np.stack([low_c, low_r, high_c + 1 - low_c, high_r + 1 - low_r], axis=1)
-
-
-def _components_with_stats(
-    mask: npt.NDArray[np.bool_] | npt.NDArray[np.uint8],
-) -> tuple[int, npt.NDArray[np.integer], npt.NDArray[np.int32]]:
-    """:func:`_components` and OpenCV's ``x, y, width, height, area`` of every component."""
-    import cv2
-
-    count, labels, stats, _ = cv2.connectedComponentsWithStats(
-        mask.view(np.uint8), None, None, None, 8, _label_type(mask)
-    )
-    return int(count), np.asarray(labels), np.asarray(stats)
 
 
 def length_px(length_m: float, res: float) -> float:
@@ -501,8 +437,8 @@ def topology_guard(
     reach = math.ceil(radius_px) + 1
     box = _padded_box(opened, window_px + reach + 2)
     before, opened = before[box], opened[box]
-    count, patches = _components(opened)
-    boxes = _label_boxes(patches, np.flatnonzero(opened), count)
+    count, patches = components(opened)
+    boxes = label_boxes(patches, np.flatnonzero(opened), count)
     ring_cells, ring_patches = _rings(patches, opened, count)
     formerly = before.reshape(-1)[ring_cells]
     # Patches whose ring is all formerly passable are free-standing objects: nothing to check.
@@ -515,7 +451,7 @@ def topology_guard(
     # also runs along another patch's ring proves nothing (it may leave this patch's window).
     touched = np.zeros(opened.shape, dtype=bool)
     touched.reshape(-1)[ring_cells] = True
-    arcs_count, arcs = _components(touched)
+    arcs_count, arcs = components(touched)
     pairs = np.unique(ring_patches * arcs_count + arcs.reshape(-1)[ring_cells])
     arc_of, patch_of = pairs % arcs_count, pairs // arcs_count
     shared = np.bincount(arc_of, minlength=arcs_count)[arc_of] >= 2
@@ -533,7 +469,7 @@ def topology_guard(
     # ones that kept the disc out of it. Whole removed pieces would also bring back furniture that
     # merely touches a wall hole, diagonally, as rasterised walls at an angle often do.
     reach_kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach + 1, 2 * reach + 1))
-    seeds = _labels_wanted(separating, patches, opened)
+    seeds = labels_wanted(separating, patches, opened)
     near = _padded_box(seeds, reach)
     zone = np.zeros(seeds.shape, dtype=bool)
     zone[near] = cv2.dilate(seeds[near].view(np.uint8), reach_kernel).astype(bool)
@@ -640,7 +576,7 @@ def _separating_patches(
         mosaic[oy[i] : oy[i] + heights[i], ox[i] : ox[i] + widths[i]] = view[
             r0[i] : r1[i], c0[i] : c1[i]
         ]
-    _, regions, region_stats = _components_with_stats(mosaic)
+    _, regions, region_stats = components_with_stats(mosaic)
     slot = np.full(count, -1, dtype=np.int64)
     slot[ids] = np.arange(ids.size)
     where = slot[ring_patch]

@@ -11,8 +11,9 @@ import pytest
 
 import rose
 from rose.cleaning import CleanParams, clean
-from rose.cleaning_rules import _label_boxes, directional_runs, passable, wide_unknown
+from rose.cleaning_rules import directional_runs, passable, wide_unknown
 from rose.errors import RoseError
+from rose.labelling import label_boxes
 
 RES = 0.05
 
@@ -198,7 +199,7 @@ def test_label_boxes_match_opencvs_statistics() -> None:
     count, labels, stats, _ = cv2.connectedComponentsWithStats(
         mask.view(np.uint8), None, None, None, 8
     )
-    boxes = _label_boxes(labels, np.flatnonzero(mask), count)
+    boxes = label_boxes(labels, np.flatnonzero(mask), count)
     np.testing.assert_array_equal(boxes[1:], stats[1:, :4])
 
 
