@@ -34,7 +34,9 @@ def label_type(mask: npt.NDArray[np.bool_] | npt.NDArray[np.uint8]) -> int:
     return int(cv2.CV_16U) if bound < np.iinfo(np.uint16).max else int(cv2.CV_32S)
 
 
-def components(mask: npt.NDArray[np.bool_]) -> tuple[int, npt.NDArray[np.integer]]:
+def components(
+    mask: npt.NDArray[np.bool_] | npt.NDArray[np.uint8],
+) -> tuple[int, npt.NDArray[np.integer]]:
     """Count (background included) and labels of the 8-connected components of ``mask``."""
     import cv2
 
