@@ -188,3 +188,14 @@ def test_em_threshold_matches_scikit_learn_on_every_real_map() -> None:
         worst = max(worst, abs(ours - theirs))
         compared += 1
     assert compared >= 20, compared
+
+
+def test_quartiles_of_the_initialisation_equal_numpys() -> None:
+    # The k-means start reads its quartiles off the sorted samples; they must be numpy's, bit for bit.
+    from rose.threshold import _sorted_quantile
+
+    rng = np.random.default_rng(5)
+    for n in [*range(1, 30), 1999, 2000]:
+        x = np.sort(rng.standard_normal(n) * rng.uniform(1e-3, 1e3))
+        for q in (0.25, 0.75):
+            assert _sorted_quantile(x, q) == float(np.quantile(x, q))
