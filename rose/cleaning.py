@@ -47,10 +47,11 @@ import numpy as np
 import numpy.typing as npt
 
 from rose.errors import RoseError
-from rose.grid import FREE, OCCUPIED, UNKNOWN, as_occupancy_grid, occupied_mask
+from rose.grid import FREE, OCCUPIED, UNKNOWN, as_occupancy_grid
 from rose.limits import finite_number
+from rose.mapfile import MAX_RESOLUTION_M
 from rose.pipeline import analyze
-from rose.result import RoseResult
+from rose.result import RoseResult, check_result_for
 
 __all__ = ["CLEAN_METHODS", "CleanMethod", "CleanParams", "CleanResult", "clean"]
 
@@ -208,6 +209,33 @@ class CleanResult:
         return int(np.count_nonzero(self.guarded))
 
 
+#: Longest of the ``"walls"`` cleaning's lengths, in cells at the map's resolution: the robot disc
+#: and the unknown margin are dilations costing the square of their radius per cell (a 1000-cell
+#: robot radius ran for minutes), the guard's windows the square of their margin per opened patch.
+#: The defaults are 3-40 cells at 5 cm per cell, and within these at the finest resolution taken
+#: (:data:`MIN_CLEAN_RESOLUTION_M`).
+_MAX_CELLS_OF = {
+    "robot_radius_m": 200,
+    "unknown_margin_m": 200,
+    "guard_window_m": 500,
+    "min_run_m": 10_000,
+    "max_bridge_m": 10_000,
+    "open_unknown_width_m": 10_000,
+}
+
+
+def _check_cells(p: CleanParams, resolution_m: float) -> None:
+    """Refuse lengths of ``p`` that span more cells than :data:`_MAX_CELLS_OF` allows."""
+    problems = [
+        f"{name} {getattr(p, name):g} m is {getattr(p, name) / resolution_m:.3g} cells at "
+        f"{resolution_m:g} m per cell (at most {most:,})"
+        for name, most in _MAX_CELLS_OF.items()
+        if getattr(p, name) / resolution_m > most
+    ]
+    if problems:
+        raise RoseError("; ".join(problems) + ": the walls cleaning's cost grows with these")
+
+
 def clean(
     grid: npt.ArrayLike,
     result: RoseResult | None = None,
@@ -247,8 +275,11 @@ def clean(
     if method not in CLEAN_METHODS:
         msg = f"method must be one of {', '.join(CLEAN_METHODS)}, got {method!r}"
         raise RoseError(msg)
-    if not (finite_number(resolution_m) and float(resolution_m) > 0):
-        msg = f"resolution_m must be a positive number, got {resolution_m!r}"
+    if not (finite_number(resolution_m) and 0 < float(resolution_m) <= MAX_RESOLUTION_M):
+        msg = (
+            f"resolution_m must be a positive number of metres up to {MAX_RESOLUTION_M:g}, "
+            f"got {resolution_m!r}"
+        )
         raise RoseError(msg)
     if method == "walls" and resolution_m < MIN_CLEAN_RESOLUTION_M:
         msg = (
@@ -258,19 +289,16 @@ def clean(
             "'paper', --method paper)"
         )
         raise RoseError(msg)
+    if params is not None and not isinstance(params, CleanParams):
+        msg = f"params must be a CleanParams, got {type(params).__name__}"
+        raise RoseError(msg)
     p = params if params is not None else CleanParams()
+    if method == "walls":
+        _check_cells(p, float(resolution_m))
     if result is None:
         result = analyze(occupancy)
-    if result.occupied.shape != occupancy.shape:
-        msg = (
-            f"the ROSE result is for a grid of shape {result.occupied.shape}, not {occupancy.shape}"
-        )
-        raise RoseError(msg)
+    check_result_for(result, occupancy)
     occupied = result.occupied
-    threshold = result.params.occupied_threshold
-    if not np.array_equal(occupied_mask(occupancy, occupied_threshold=threshold), occupied):
-        msg = "the ROSE result is for another grid: its occupied cells are not this grid's"
-        raise RoseError(msg)
     nothing = np.zeros(occupancy.shape, dtype=bool)
     if method == "paper" or not result.has_structure:
         kept = occupied & ~result.clutter

@@ -9,7 +9,7 @@ import numpy.typing as npt
 
 from rose.params import RoseParams
 
-__all__ = ["RoseResult"]
+__all__ = ["RoseResult", "check_result_for"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -97,3 +97,20 @@ class RoseResult:
         # The padded column count is always even, so the half-plane width determines it.
         rows, half_cols = self.spectrum_half.shape
         return rows, 2 * (half_cols - 1)
+
+
+def check_result_for(result: RoseResult, occupancy: npt.NDArray[np.int8]) -> None:
+    """Raise :class:`~rose.errors.RoseError` unless ``result`` was computed on ``occupancy`` (int8
+    ROS grid): same shape, and the same occupied cells at the result's threshold."""
+    from rose.errors import RoseError
+    from rose.grid import occupied_mask
+
+    if result.occupied.shape != occupancy.shape:
+        msg = (
+            f"the ROSE result is for a grid of shape {result.occupied.shape}, not {occupancy.shape}"
+        )
+        raise RoseError(msg)
+    threshold = result.params.occupied_threshold
+    if not np.array_equal(occupied_mask(occupancy, occupied_threshold=threshold), result.occupied):
+        msg = "the ROSE result is for another grid: its occupied cells are not this grid's"
+        raise RoseError(msg)

@@ -10,7 +10,7 @@ import numpy.typing as npt
 import pytest
 
 import rose
-from rose.cleaning import CleanParams, clean
+from rose.cleaning import MIN_CLEAN_RESOLUTION_M, CleanParams, clean
 from rose.cleaning_rules import directional_runs, passable, wide_unknown
 from rose.errors import RoseError
 from rose.labelling import label_boxes
@@ -297,6 +297,18 @@ def test_bad_lengths_and_resolutions_are_rose_errors_before_any_work() -> None:
         clean(grid, resolution_m="0.05")  # type: ignore[arg-type]
     assert clean(grid, resolution_m=1e-6, method="paper").method == "paper"
     assert CleanParams(run_tolerance_px=np.int64(2)).run_tolerance_px == 2
+    # Beyond the map files' range (1e300 m overflowed squaring it), lengths spanning so many cells
+    # that the dilations run for minutes, and parameters that are not a CleanParams.
+    with pytest.raises(RoseError, match="up to 10000"):
+        clean(grid, resolution_m=1e300)
+    with pytest.raises(RoseError, match=r"robot_radius_m 1000 m is 2e\+04 cells"):
+        clean(grid, resolution_m=0.05, params=CleanParams(robot_radius_m=1000))
+    with pytest.raises(RoseError, match="min_run_m"):
+        clean(grid, resolution_m=0.05, params=CleanParams(min_run_m=1e9))
+    with pytest.raises(RoseError, match="must be a CleanParams, got dict"):
+        clean(grid, resolution_m=0.05, params={"min_run_m": 1})  # type: ignore[arg-type]
+    # The defaults pass at every resolution the cleaning takes.
+    assert clean(grid, resolution_m=MIN_CLEAN_RESOLUTION_M).method == "walls"
 
 
 def test_the_papers_labelling_is_applied_to_the_grid_given() -> None:

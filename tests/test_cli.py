@@ -154,6 +154,14 @@ def test_a_bare_image_takes_its_resolution_from_the_option(
         == 1
     )
     assert "--resolution is for bare images" in capsys.readouterr().err
+    # Beyond what a map file may declare is a usage error before any work (1e300 overflowed inside
+    # the cleaning; 1e5 ran it all, then failed to save).
+    for huge in ("1e300", "1e5"):
+        with pytest.raises(SystemExit) as stop:
+            main(["clean", str(image), "-o", str(tmp_path / "d.yaml"), "--resolution", huge])
+        assert stop.value.code == 2
+        assert "up to 10000" in capsys.readouterr().err
+    assert not (tmp_path / "d.yaml").exists()
     # W does not depend on the resolution: rose score neither takes nor warns about one.
     assert main(["score", str(image)]) == 0
     assert "warning" not in capsys.readouterr().err

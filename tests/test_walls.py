@@ -162,6 +162,36 @@ def test_empty_and_invalid_inputs() -> None:
     grid, _ = floor_plan(angle_deg=0.0)
     with pytest.raises(rose.RoseError, match="shape"):
         extract_walls(grid, rose.analyze(grid[:100]))
+    other = grid.copy()
+    other[10, 10:30] = 100
+    with pytest.raises(rose.RoseError, match="another grid"):
+        extract_walls(grid, rose.analyze(other))
+    for bad in (
+        {"origin_xy_m": (math.nan, 0.0)},
+        {"origin_yaw_rad": math.inf},
+        {"resolution_m": 1e300},
+        {"params": {"hough_votes": 3}},
+    ):
+        with pytest.raises(rose.RoseError, match=next(iter(bad))):
+            extract_walls(grid, **bad)  # type: ignore[arg-type]
+
+
+def test_hough_parameters_that_crashed_opencv_are_rose_errors() -> None:
+    # A distance step of 1e4 cells killed the interpreter inside OpenCV (segmentation fault); an
+    # angle step of 1e-9 degrees asked for 18 EB; a fractional vote count failed overload resolution.
+    for bad in (
+        {"hough_rho_px": 1e4},
+        {"hough_theta_deg": 1e-9},
+        {"hough_theta_deg": math.inf},
+        {"hough_votes": 1.5},
+        {"hough_votes": "15"},
+        {"faces_only": 1},
+        {"occupied_threshold": True},
+        {"extend_band_px": math.nan},
+    ):
+        with pytest.raises(rose.RoseError, match=next(iter(bad))):
+            WallParams(**bad)  # type: ignore[arg-type]
+    assert WallParams(hough_votes=np.int64(3), hough_rho_px=100).hough_votes == 3
 
 
 def test_input_not_modified_and_deterministic() -> None:

@@ -14,7 +14,13 @@ from rose.directions import FAILURE_LEVEL, TRUST_LEVEL, map_frame_deg
 from rose.errors import RoseError
 from rose.grid import as_occupancy_grid
 from rose.limits import DEFAULT_MAX_CELLS
-from rose.mapfile import DEFAULT_RESOLUTION_M, YAML_SUFFIXES, OccupancyMap, load_map
+from rose.mapfile import (
+    DEFAULT_RESOLUTION_M,
+    MAX_RESOLUTION_M,
+    YAML_SUFFIXES,
+    OccupancyMap,
+    load_map,
+)
 from rose.params import RoseParams, make_params
 from rose.result import RoseResult
 
@@ -51,6 +57,16 @@ def positive_float(text: str) -> float:
     value = _number(text)
     if value <= 0:
         msg = f"expected a positive number, got {text!r}"
+        raise argparse.ArgumentTypeError(msg)
+    return value
+
+
+def resolution(text: str) -> float:
+    """argparse type: metres per cell, a finite number in (0, :data:`MAX_RESOLUTION_M`], the range
+    a map file may declare."""
+    value = positive_float(text)
+    if value > MAX_RESOLUTION_M:
+        msg = f"expected metres per cell up to {MAX_RESOLUTION_M:g}, got {text!r}"
         raise argparse.ArgumentTypeError(msg)
     return value
 
@@ -116,7 +132,7 @@ def add_map_arguments(parser: argparse.ArgumentParser) -> None:
     add_limit_arguments(parser)
     parser.add_argument(
         "--resolution",
-        type=positive_float,
+        type=resolution,
         default=None,
         metavar="M",
         help=f"metres per cell of a bare image (no YAML; default {DEFAULT_RESOLUTION_M:g}, with a "

@@ -35,9 +35,10 @@ from scipy.sparse.csgraph import connected_components
 
 from rose.errors import RoseError
 from rose.grid import as_occupancy_grid, occupied_mask
-from rose.mapfile import DEFAULT_RESOLUTION_M, OccupancyMap
+from rose.limits import finite_number
+from rose.mapfile import DEFAULT_RESOLUTION_M, MAX_RESOLUTION_M, OccupancyMap
 from rose.pipeline import analyze
-from rose.result import RoseResult
+from rose.result import RoseResult, check_result_for
 from rose.walls.segments import WallMethod, WallSet, axial_difference, segment_orientations
 
 __all__ = ["WallParams", "extract_walls", "extract_walls_hough", "hough_segments", "wall_pixels"]
@@ -110,13 +111,24 @@ class WallParams:
 
     def __post_init__(self) -> None:
         problems = []
-        if not 1 <= self.occupied_threshold <= 100:
-            problems.append(f"occupied_threshold must be in 1..100, got {self.occupied_threshold}")
-        for name in ("hough_rho_px", "hough_theta_deg"):
-            if not getattr(self, name) > 0:
-                problems.append(f"{name} must be > 0, got {getattr(self, name)}")
-        if self.hough_votes < 1:
-            problems.append(f"hough_votes must be >= 1, got {self.hough_votes}")
+        for name in ("faces_only", "extend_on_raw"):
+            if not isinstance(getattr(self, name), bool | np.bool_):
+                problems.append(f"{name} must be True or False, got {getattr(self, name)!r}")
+        if not _integer(self.occupied_threshold) or not 1 <= self.occupied_threshold <= 100:
+            problems.append(
+                f"occupied_threshold must be an integer in 1..100, got {self.occupied_threshold!r}"
+            )
+        if not _integer(self.hough_votes) or self.hough_votes < 1:
+            problems.append(f"hough_votes must be an integer >= 1, got {self.hough_votes!r}")
+        # OpenCV's Hough transform sizes its accumulator by these two and crashed the interpreter
+        # on a distance step of 1e4 cells; steps over a hundred cells or under 0.01 degree mean
+        # nothing on a map.
+        if not (finite_number(self.hough_rho_px) and 0 < self.hough_rho_px <= 100):
+            problems.append(f"hough_rho_px must be in (0, 100] cells, got {self.hough_rho_px!r}")
+        if not (finite_number(self.hough_theta_deg) and 0.01 <= self.hough_theta_deg <= 90):
+            problems.append(
+                f"hough_theta_deg must be in [0.01, 90] degrees, got {self.hough_theta_deg!r}"
+            )
         for name in (
             "hough_min_length_px",
             "hough_max_gap_px",
@@ -126,12 +138,20 @@ class WallParams:
             "min_wall_length_px",
             "extend_band_px",
         ):
-            if not getattr(self, name) >= 0:
-                problems.append(f"{name} must be >= 0, got {getattr(self, name)}")
-        if not 0 <= self.snap_tolerance_deg <= 90:
-            problems.append(f"snap_tolerance_deg must be in [0, 90], got {self.snap_tolerance_deg}")
+            value = getattr(self, name)
+            if not (finite_number(value) and value >= 0):
+                problems.append(f"{name} must be a finite number >= 0, got {value!r}")
+        if not (finite_number(self.snap_tolerance_deg) and 0 <= self.snap_tolerance_deg <= 90):
+            problems.append(
+                f"snap_tolerance_deg must be in [0, 90], got {self.snap_tolerance_deg!r}"
+            )
         if problems:
             raise RoseError("; ".join(problems))
+
+
+def _integer(value: object) -> bool:
+    """Whether ``value`` is an integer (Python or numpy), not a bool."""
+    return isinstance(value, int | np.integer) and not isinstance(value, bool | np.bool_)
 
 
 def extract_walls_hough(
@@ -165,7 +185,7 @@ def extract_walls_hough(
     RoseError
         If the grid is not a 2D grid in ROS convention or a parameter is out of range.
     """
-    p = params if params is not None else WallParams()
+    p = _wall_params(params)
     occupancy, placement = _grid_and_placement(grid, resolution_m, origin_xy_m, origin_yaw_rad)
     pixels = wall_pixels(
         occupancy, occupied_threshold=p.occupied_threshold, faces_only=p.faces_only
@@ -206,13 +226,11 @@ def extract_walls(
     RoseError
         As :func:`extract_walls_hough`, or if ``result`` was computed on a grid of another shape.
     """
-    p = params if params is not None else WallParams()
+    p = _wall_params(params)
     occupancy, placement = _grid_and_placement(grid, resolution_m, origin_xy_m, origin_yaw_rad)
     if result is None:
         result = analyze(occupancy, occupied_threshold=p.occupied_threshold)
-    if result.structure.shape != occupancy.shape:
-        msg = f"the ROSE result is for a grid of shape {result.structure.shape}, not {occupancy.shape}"
-        raise RoseError(msg)
+    check_result_for(result, occupancy)
     pixels = wall_pixels(
         occupancy, occupied_threshold=p.occupied_threshold, faces_only=p.faces_only
     )
@@ -290,6 +308,13 @@ def hough_segments(pixels: npt.NDArray[np.bool_], *, params: WallParams) -> npt.
     return _ordered(lines.reshape(-1, 2, 2).astype(np.float64))
 
 
+def _wall_params(params: WallParams | None) -> WallParams:
+    if params is not None and not isinstance(params, WallParams):
+        msg = f"params must be a WallParams, got {type(params).__name__}"
+        raise RoseError(msg)
+    return params if params is not None else WallParams()
+
+
 def _grid_and_placement(
     grid: npt.ArrayLike | OccupancyMap,
     resolution_m: float | None,
@@ -307,8 +332,14 @@ def _grid_and_placement(
         tuple(float(v) for v in (origin_xy_m if origin_xy_m is not None else defaults[1])),
         float(origin_yaw_rad if origin_yaw_rad is not None else defaults[2]),
     )
-    if len(placement[1]) != 2:
-        msg = f"origin_xy_m must be two numbers (x, y), got {origin_xy_m!r}"
+    if len(placement[1]) != 2 or not all(math.isfinite(v) for v in placement[1]):
+        msg = f"origin_xy_m must be two finite numbers (x, y) in metres, got {origin_xy_m!r}"
+        raise RoseError(msg)
+    if not (math.isfinite(placement[0]) and 0 < placement[0] <= MAX_RESOLUTION_M):
+        msg = f"resolution_m must be a positive number of metres up to {MAX_RESOLUTION_M:g}, got {resolution_m!r}"
+        raise RoseError(msg)
+    if not math.isfinite(placement[2]):
+        msg = f"origin_yaw_rad must be a finite number of radians, got {origin_yaw_rad!r}"
         raise RoseError(msg)
     return occupancy, placement  # type: ignore[return-value]
 
