@@ -23,6 +23,18 @@ Two methods, chosen by name:
     ``max_bridge_m`` apart and next to a removed piece, become walls (``completed``; thin lines only,
     never the space between two parallel walls).
 
+    Three rules then tell wall pieces from objects the way a scanner sees them:
+
+    3. *object faces*: occupied cells around a small enclosed unknown pocket (less than
+       ``object_pocket_m2``, the completed walls counting as its boundary) are the faces of a
+       scanned object, whose inside stays unknown; they go unless they lie on a straight run;
+    4. *attached pieces*: occupied cells joined to a kept wall within ``attach_reach_m`` (through
+       occupied cells that are not object faces) stay: wall stubs, door frames, corners;
+    5. *free-standing pieces* (``loose_pieces``): a piece (joined across one-cell gaps) with no cell on
+       a run or near wide unknown space and less than ``min_run_m`` across is removed, even where
+       the paper's labelling calls it structure (so ``kept`` need not contain the paper's structure);
+       pieces attached to no kept wall do not count as obstacles for the guard.
+
     Finally a topology guard (counting the completed walls) finds every opening through which a disc
     of ``robot_radius_m`` would pass between two regions that the input kept apart (locally, within
     ``guard_window_m``), unless one of them is a small enclosed pocket (less than ``min_region_m2``:
@@ -89,6 +101,17 @@ class CleanParams:
     max_bridge_m : float
         Longest hidden wall completed behind removed furniture: unknown cells on the straight line
         between two kept walls along a dominant direction, at most this far apart (0: never).
+    attach_reach_m : float
+        Occupied cells joined to a kept wall within this distance (through occupied cells that are
+        not object faces) are kept: wall stubs, door frames, corners (0: never).
+    object_pocket_m2 : float
+        Unknown pockets smaller than this, enclosed by occupied and completed cells, are the insides
+        of scanned objects; the occupied cells around them are object faces, removed unless on a
+        straight run of ``min_run_m`` (0: no object faces).
+    loose_pieces : bool
+        Remove free-standing pieces (no cell on a run or near wide unknown, even across a one-cell
+        gap, and less than ``min_run_m`` across) even where the paper calls them structure, and let
+        the guard ignore pieces attached to no kept wall.
     """
 
     min_run_m: float = 2.0
@@ -99,9 +122,16 @@ class CleanParams:
     max_bridge_m: float = 2.0
     guard_window_m: float = 0.5
     run_tolerance_px: int = 1
+    attach_reach_m: float = 0.3
+    object_pocket_m2: float = 2.0
+    loose_pieces: bool = True
 
     def __post_init__(self) -> None:
-        lengths = [f.name for f in dataclasses.fields(self) if f.name != "run_tolerance_px"]
+        lengths = [
+            f.name
+            for f in dataclasses.fields(self)
+            if f.name not in ("run_tolerance_px", "loose_pieces")
+        ]
         not_numbers = [
             f"{name} must be a finite number, got {getattr(self, name)!r}"
             for name in lengths
@@ -128,6 +158,12 @@ class CleanParams:
         ]
         if not self.max_bridge_m >= 0:
             problems.append(f"max_bridge_m must be >= 0, got {self.max_bridge_m}")
+        if not self.attach_reach_m >= 0:
+            problems.append(f"attach_reach_m must be >= 0, got {self.attach_reach_m}")
+        if not self.object_pocket_m2 >= 0:
+            problems.append(f"object_pocket_m2 must be >= 0, got {self.object_pocket_m2}")
+        if not isinstance(self.loose_pieces, bool | np.bool_):
+            problems.append(f"loose_pieces must be True or False, got {self.loose_pieces!r}")
         if not self.unknown_margin_m >= 0:
             problems.append(f"unknown_margin_m must be >= 0, got {self.unknown_margin_m}")
         if not 0 <= self.run_tolerance_px <= 5:
@@ -218,6 +254,7 @@ _MAX_CELLS_OF = {
     "robot_radius_m": 200,
     "unknown_margin_m": 200,
     "guard_window_m": 500,
+    "attach_reach_m": 500,
     "min_run_m": 10_000,
     "max_bridge_m": 10_000,
     "open_unknown_width_m": 10_000,
@@ -320,8 +357,10 @@ def clean(
         )
     from rose.cleaning_rules import wall_cells
 
-    walls, guarded, completed = wall_cells(occupancy, result, resolution_m=resolution_m, params=p)
-    kept = occupied & (walls | result.structure)
+    walls, guarded, completed, dropped = wall_cells(
+        occupancy, result, resolution_m=resolution_m, params=p
+    )
+    kept = occupied & (walls | (result.structure & ~dropped))
     removed = occupied & ~kept
     cleaned = occupancy.copy()
     cleaned[removed] = FREE if result.params.clutter_value == "free" else UNKNOWN

@@ -8,13 +8,20 @@ and labelling (imported lazily, like the wall extraction).
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
 
 from rose.grid import UNKNOWN
-from rose.labelling import components, components_with_stats, label_boxes, labels_wanted
+from rose.labelling import (
+    component_areas,
+    components,
+    components_with_stats,
+    label_boxes,
+    labels_wanted,
+)
 
 if TYPE_CHECKING:
     from rose.cleaning import CleanParams
@@ -40,9 +47,11 @@ def wall_cells(
     *,
     resolution_m: float,
     params: CleanParams,
-) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
-    """Occupied cells the ``"walls"`` cleaning keeps, those among them only the guard keeps, and the
-    unknown cells completed as hidden walls.
+) -> tuple[
+    npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_]
+]:
+    """Occupied cells the ``"walls"`` cleaning keeps, those among them only the guard keeps, the
+    unknown cells completed as hidden walls, and the paper's structure cells removed as loose pieces.
 
     Returns
     -------
@@ -52,14 +61,17 @@ def wall_cells(
         Cells restored by the topology guard.
     completed : ndarray of bool, shape (rows, cols)
         Unknown cells to make walls: the wall line hidden behind removed furniture.
+    dropped : ndarray of bool, shape (rows, cols)
+        Occupied cells of free-standing pieces, removed even where the paper calls them structure.
     """
     p = params
     res = resolution_m
     walls = np.zeros(occupancy.shape, dtype=bool)
     guarded = walls.copy()
     completed = walls.copy()
+    dropped = walls.copy()
     if not result.occupied.any():
-        return walls, guarded, completed
+        return walls, guarded, completed, dropped
     # Everything happens near known cells: work on their bounding box, padded so that every window
     # and disc that matters fits (outside it all cells are unknown).
     pad = 2 + max(
@@ -71,7 +83,7 @@ def wall_cells(
     r0, c0 = max(r0 - pad, 0), max(c0 - pad, 0)
     r1, c1 = min(r1 + pad, occupancy.shape[0]), min(c1 + pad, occupancy.shape[1])
     window = (slice(r0, r1), slice(c0, c1))
-    kept, restored, added = _wall_cells(
+    kept, restored, added, removed = _wall_cells(
         occupancy[window],
         result.occupied[window],
         result.structure[window],
@@ -82,7 +94,8 @@ def wall_cells(
     walls[window] = kept
     guarded[window] = restored
     completed[window] = added
-    return walls, guarded, completed
+    dropped[window] = removed
+    return walls, guarded, completed, dropped
 
 
 def _wall_cells(
@@ -93,7 +106,9 @@ def _wall_cells(
     *,
     res: float,
     p: CleanParams,
-) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
+) -> tuple[
+    npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_]
+]:
     runs = directional_runs(
         occupied,
         directions,
@@ -102,9 +117,9 @@ def _wall_cells(
     )
     outside = wide_unknown(occupancy, radius_px=length_px(p.open_unknown_width_m, 2 * res))
     near_outside = _dilate(outside, round(length_px(p.unknown_margin_m, res)))
-    keep = occupied & (structure | runs | near_outside)
     # Straight lines at any angle (walls off the dominant directions, curved walls in pieces).
-    keep |= straight_lines(occupied, min_length_px=length_px(p.min_run_m, res))
+    lines = occupied & (runs | straight_lines(occupied, min_length_px=length_px(p.min_run_m, res)))
+    keep = occupied & (structure | near_outside) | lines
     completed = np.zeros(occupied.shape, dtype=bool)
     if p.max_bridge_m > 0:
         # The wall line hidden behind furniture: unknown cells between collinear kept walls.
@@ -112,8 +127,32 @@ def _wall_cells(
             keep, occupancy == UNKNOWN, directions, max_gap_px=length_px(p.max_bridge_m, res)
         )
         completed = _touching(bridges, occupied & ~keep)
+    dropped = np.zeros(occupied.shape, dtype=bool)
+    guard_obstacles = occupied
+    if p.object_pocket_m2 > 0:
+        # Object faces: a scanner sees a solid object as faces around a small unknown pocket (its
+        # inside, sealed by the wall completed behind it). They go unless on a long straight run.
+        faces = _pocket_faces(
+            occupancy == UNKNOWN, completed, occupied, length_px(p.object_pocket_m2, res**2)
+        )
+        keep &= ~(faces & ~lines)
+    else:
+        faces = np.zeros(occupied.shape, dtype=bool)
+    if p.attach_reach_m > 0:
+        # Wall stubs, door frames, corners: occupied cells joined to a kept wall within the reach,
+        # through occupied cells that are not object faces.
+        keep |= _grow_within(keep, occupied & ~faces, round(length_px(p.attach_reach_m, res)))
+    if p.loose_pieces:
+        # Free-standing pieces: no cell on a run, a line or next to wide unknown, even across a
+        # one-cell gap, and shorter than a wall run: clutter, whatever the paper's labelling says.
+        pieces = _Pieces.of(occupied, join_px=1)
+        dropped = pieces.loose(lines | (occupied & near_outside), length_px(p.min_run_m, res))
+        keep &= ~dropped
+        # Pieces attached to no kept wall at all are furniture standing in the room: the guard
+        # does not count them as obstacles of the input (removing them opens nothing).
+        guard_obstacles = occupied & ~pieces.loose(keep)
     guarded = topology_guard(
-        occupied,
+        guard_obstacles,
         keep,
         added=completed,
         radius_px=length_px(p.robot_radius_m, res),
@@ -121,7 +160,87 @@ def _wall_cells(
         min_region_px=length_px(p.min_region_m2, res**2),
     )
     kept = keep | guarded
-    return kept, guarded, completed
+    return kept, guarded, completed, dropped & ~guarded
+
+
+def _pocket_faces(
+    unknown: npt.NDArray[np.bool_],
+    completed: npt.NDArray[np.bool_],
+    occupied: npt.NDArray[np.bool_],
+    max_area_px: float,
+) -> npt.NDArray[np.bool_]:
+    """Occupied cells next to (8-neighbours of) a pocket: a 4-connected component of unknown cells
+    (the completed walls are a boundary) smaller than ``max_area_px``, the inside of a scanned
+    object."""
+    cells = unknown & ~completed
+    faces = np.zeros(occupied.shape, dtype=bool)
+    if not cells.any() or not occupied.any():
+        return faces
+    count, labels = components(cells, connectivity=4)
+    pocket = component_areas(labels, count) < max_area_px
+    pocket[0] = False
+    # The labels around each occupied cell (few next to the whole image), on labels padded with
+    # the background so that border cells have all eight neighbours.
+    cols = occupied.shape[1]
+    padded = np.pad(labels, 1).reshape(-1)
+    at = np.flatnonzero(occupied)
+    r, c = np.divmod(at, cols)
+    centre = (r + 1) * (cols + 2) + (c + 1)
+    near = np.zeros(at.size, dtype=bool)
+    for dr in (-1, 0, 1):
+        for dc in (-1, 0, 1):
+            if dr or dc:
+                near |= pocket[padded[centre + dr * (cols + 2) + dc]]
+    faces.reshape(-1)[at[near]] = True
+    return faces
+
+
+def _grow_within(
+    seed: npt.NDArray[np.bool_], mask: npt.NDArray[np.bool_], steps: int
+) -> npt.NDArray[np.bool_]:
+    """Cells of ``mask`` within ``steps`` 8-connected steps of ``seed`` through ``mask``."""
+    import cv2
+
+    out = seed & mask
+    kernel = np.ones((3, 3), np.uint8)
+    for _ in range(steps):
+        grown = cv2.dilate(out.view(np.uint8), kernel).view(bool) & mask
+        if np.array_equal(grown, out):
+            break
+        out = grown
+    return out
+
+
+@dataclass(frozen=True)
+class _Pieces:
+    """The 8-connected pieces of occupied cells, joined across gaps of up to ``2 * join_px``
+    cells, labelled once for several questions."""
+
+    occupied: npt.NDArray[np.bool_]
+    labels: npt.NDArray[np.integer]
+    diagonals: npt.NDArray[np.float64]  # of each joined piece's bounding box, cells
+
+    @classmethod
+    def of(cls, occupied: npt.NDArray[np.bool_], *, join_px: int) -> _Pieces:
+        import cv2
+
+        grown = occupied
+        if join_px > 0:
+            kernel = np.ones((3, 3), np.uint8)
+            grown = cv2.dilate(occupied.view(np.uint8), kernel, iterations=join_px).view(bool)
+        count, labels = components(grown)
+        boxes = label_boxes(labels, np.flatnonzero(grown), count)
+        return cls(occupied, labels, np.hypot(boxes[:, 2], boxes[:, 3]))
+
+    def loose(
+        self, anchored: npt.NDArray[np.bool_], max_extent_px: float = math.inf
+    ) -> npt.NDArray[np.bool_]:
+        """Occupied cells of pieces with no ``anchored`` cell whose (joined) bounding box has a
+        diagonal shorter than ``max_extent_px``."""
+        attached = self.diagonals >= max_extent_px
+        attached[self.labels[anchored & self.occupied]] = True
+        attached[0] = True
+        return labels_wanted(~attached, self.labels, self.occupied)
 
 
 def _touching(pieces: npt.NDArray[np.bool_], other: npt.NDArray[np.bool_]) -> npt.NDArray[np.bool_]:

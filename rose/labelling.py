@@ -10,7 +10,14 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-__all__ = ["components", "components_with_stats", "label_boxes", "label_type", "labels_wanted"]
+__all__ = [
+    "component_areas",
+    "components",
+    "components_with_stats",
+    "label_boxes",
+    "label_type",
+    "labels_wanted",
+]
 
 
 def labels_wanted(
@@ -24,24 +31,50 @@ def labels_wanted(
     return out
 
 
-def label_type(mask: npt.NDArray[np.bool_] | npt.NDArray[np.uint8]) -> int:
-    """OpenCV label type for the 8-connected components of ``mask``: 16 bits (half the memory,
-    about twice as fast) when the components cannot outnumber them, else 32."""
+def label_type(mask: npt.NDArray[np.bool_] | npt.NDArray[np.uint8], connectivity: int = 8) -> int:
+    """OpenCV label type for the components of ``mask``: 16 bits (half the memory, about twice as
+    fast) when the components cannot outnumber them, else 32."""
     import cv2
 
     rows, cols = mask.shape
-    bound = min(int(np.count_nonzero(mask)), ((rows + 1) // 2) * ((cols + 1) // 2))
-    return int(cv2.CV_16U) if bound < np.iinfo(np.uint16).max else int(cv2.CV_32S)
+    limit = np.iinfo(np.uint16).max
+    if connectivity == 8:  # at most one component per 2 x 2 block
+        bound = min(int(np.count_nonzero(mask)), ((rows + 1) // 2) * ((cols + 1) // 2))
+        return int(cv2.CV_16U) if bound < limit else int(cv2.CV_32S)
+    # 4-connectivity: every component has a first cell in raster order, one with neither its upper
+    # nor its left neighbour in the mask. Counting those is cheap next to a 32-bit labelling of a
+    # large mask (unknown space is often millions of cells in few components).
+    cells = np.asarray(mask, dtype=bool)
+    starts = cells.copy()
+    starts[1:] &= ~cells[:-1]
+    starts[:, 1:] &= ~cells[:, :-1]
+    return int(cv2.CV_16U) if int(np.count_nonzero(starts)) < limit else int(cv2.CV_32S)
 
 
 def components(
-    mask: npt.NDArray[np.bool_] | npt.NDArray[np.uint8],
+    mask: npt.NDArray[np.bool_] | npt.NDArray[np.uint8], connectivity: int = 8
 ) -> tuple[int, npt.NDArray[np.integer]]:
-    """Count (background included) and labels of the 8-connected components of ``mask``."""
+    """Count (background included) and labels of the 4- or 8-connected components of ``mask``."""
     import cv2
 
-    count, labels = cv2.connectedComponents(mask.view(np.uint8), None, 8, label_type(mask))
+    count, labels = cv2.connectedComponents(
+        mask.view(np.uint8), None, connectivity, label_type(mask, connectivity)
+    )
     return int(count), np.asarray(labels)
+
+
+def component_areas(labels: npt.NDArray[np.integer], count: int) -> npt.NDArray[np.float64]:
+    """Cells per label (``count`` labels, the background's included), shape ``(count,)``.
+
+    With 16-bit labels OpenCV's histogram (exact: one bin per label, counts below 2**24 cells); it
+    and the plain labelling cost a third of the labelling with statistics.
+    """
+    import cv2
+
+    if labels.dtype == np.uint16 and count > 0:
+        hist = cv2.calcHist([labels], [0], None, [count], [0, count])
+        return np.asarray(hist, dtype=np.float64).reshape(-1)
+    return np.bincount(labels.reshape(-1), minlength=count).astype(np.float64)
 
 
 def label_boxes(
@@ -69,12 +102,13 @@ def label_boxes(
 
 
 def components_with_stats(
-    mask: npt.NDArray[np.bool_] | npt.NDArray[np.uint8],
+    mask: npt.NDArray[np.bool_] | npt.NDArray[np.uint8], connectivity: int = 8
 ) -> tuple[int, npt.NDArray[np.integer], npt.NDArray[np.int32]]:
-    """:func:`components` and OpenCV's ``x, y, width, height, area`` of every component."""
+    """:func:`components` (with 4- or 8-``connectivity``) and OpenCV's ``x, y, width, height,
+    area`` of every component."""
     import cv2
 
     count, labels, stats, _ = cv2.connectedComponentsWithStats(
-        mask.view(np.uint8), None, None, None, 8, label_type(mask)
+        mask.view(np.uint8), None, None, None, connectivity, label_type(mask, connectivity)
     )
     return int(count), np.asarray(labels), np.asarray(stats)

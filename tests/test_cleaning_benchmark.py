@@ -138,11 +138,12 @@ def test_floors_on_a_slam_like_bormann_building() -> None:
         BORMANN / "Freiburg79_scan.png", BORMANN / "Freiburg79_scan_furnitures.png"
     )
     runs = {r.method: r for r in run_cleaning([case])}
-    # Measured: paper 0.68 / 0.89 / 0.95 / 6 gaps; walls 0.97 / 0.80 / 0.93 / 1 gap (a one-cell
-    # diagonal scan artefact outside the building).
-    assert runs["walls"].wall_recall >= 0.95
-    assert runs["walls"].clutter_removal >= 0.7
-    assert runs["walls"].precision >= 0.9
+    # Measured: paper 0.73 / 0.86 / 0.94 / 6 gaps; walls 0.995 / 0.51 / 0.85 / 0 gaps. This drawing's
+    # shelves and bins stand against the walls and are solid (no unknown inside, unlike scanned
+    # objects), so the attached-pieces rule keeps them: before it, 0.97 / 0.80 / 0.93 / 1 gap.
+    assert runs["walls"].wall_recall >= 0.97
+    assert runs["walls"].clutter_removal >= 0.45
+    assert runs["walls"].precision >= 0.8
     assert runs["walls"].robot_gaps <= 1
     assert runs["paper"].robot_gaps >= 3
 
@@ -162,7 +163,7 @@ def test_floors_on_ray_cast_furniture(fr101_case: CleaningCase) -> None:
     assert not np.any(case.walls & case.clutter)
     runs = run_cleaning([case])
     summary = {s.method: s for s in summarise_cleaning(runs)}
-    # Measured: paper 0.35 / 0.98 / 0.97 / 0 gaps; walls 0.84 / 0.84 / 0.90 / 0 gaps.
+    # Measured: paper 0.35 / 0.98 / 0.97 / 0 gaps; walls 0.85 / 0.85 / 0.90 / 0 gaps.
     assert summary["walls"].wall_recall_median >= 0.75
     assert summary["walls"].clutter_removal_median >= 0.7
     assert summary["walls"].precision_median >= 0.85
