@@ -141,6 +141,7 @@ class LogWriter:
         self.tmp_path: Path | None = None
         self._backend: WriteBackend | None = None
         self._topics: dict[str, int] = {}
+        self._types: dict[str, str] = {}  # topic -> pkg/msg/Name of its first connection
 
     # -- lifecycle -------------------------------------------------------------------------------
     def open(self) -> None:
@@ -259,6 +260,7 @@ class LogWriter:
             raise LogWriteError(msg)
         handle = backend.add(channel)
         self._topics.setdefault(channel.topic, handle)
+        self._types.setdefault(channel.topic, channel.msgtype)
         return handle
 
     def add_topic(
@@ -334,6 +336,11 @@ class LogWriter:
         ``publish_time_ns`` and ``sequence`` are kept by MCAP only (publish time defaults to the log time).
         """
         backend = self._require_open()
+        latest = _LATEST_NS.get(self.format, 2**63 - 1)
+        for name, value in (("log time", log_time_ns), ("publish time", publish_time_ns)):
+            if value is not None and not 0 <= int(value) <= latest:
+                msg = f"{self.path}: {name} {value} ns is outside what {self.format} stores (0..{latest})"
+                raise LogWriteError(msg)
         try:
             backend.write(
                 handle,
@@ -352,20 +359,33 @@ class LogWriter:
         Raises
         ------
         LogWriteError
-            If ``topic`` was never added.
+            If ``topic`` was never added, or ``message`` is an object of another type than the
+            topic's.
         """
         handle = self._topics.get(topic)
         if handle is None:
             msg = f"{self.path}: topic {topic} was not added (call add_topic first)"
             raise LogWriteError(msg)
         if not isinstance(message, bytes | bytearray | memoryview):
-            msgtype = message.__msgtype__
+            from rose_logs.storage.records import normalize_msgtype
+
+            msgtype = getattr(message, "__msgtype__", None)
+            expected = self._types[topic]
+            if msgtype is None or normalize_msgtype(msgtype) != expected:
+                got = msgtype or type(message).__name__
+                msg = f"{self.path}: topic {topic} holds {expected}, got a {got} message"
+                raise LogWriteError(msg)
             store = self.typestore
             if self.serialization == "ros1":
                 message = store.serialize_ros1(message, msgtype)
             else:
                 message = store.serialize_cdr(message, msgtype)
         self.write_raw(handle, log_time_ns, message)
+
+
+#: Latest time each format can store, ns: ROS 1 bags hold unsigned 32-bit seconds, ROS 2 bags signed
+#: 64-bit nanoseconds (SQLite integers, metadata.yaml), MCAP unsigned 64-bit nanoseconds.
+_LATEST_NS = {"ros1": (2**32 - 1) * 10**9 + 999_999_999, "mcap": 2**64 - 1}
 
 
 def open_output(

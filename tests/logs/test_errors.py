@@ -434,3 +434,26 @@ def test_a_wrong_clean_method_is_one_error_before_the_log_is_read(tmp_path: Path
 def test_one_topic_given_as_a_string_is_one_topic(tmp_path: Path, fr079) -> None:
     built = build_log(tmp_path / "in.mcap", "mcap-ros2", session_maps(fr079[:1]))
     assert process_log(built.path, topics="/map").map_topics == ("/map",)  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize("fmt", ["ros1", "db3", "mcap"])
+def test_writer_refuses_a_message_of_another_type_or_an_unstorable_time(
+    tmp_path: Path, fmt: str
+) -> None:
+    """A String written on a Float32 topic used to land as Float32(2.8e-45); negative or too late
+    times were bare struct / SQLite errors. Both are LogWriteErrors naming the output."""
+    from rose_logs.writer import open_output
+
+    path = tmp_path / {"ros1": "out.bag", "db3": "out", "mcap": "out.mcap"}[fmt]
+    with open_output(path, fmt) as out:  # type: ignore[arg-type]
+        types = out.typestore.types
+        out.add_topic("/x", "std_msgs/msg/Float32")
+        out.write("/x", START_NS, types["std_msgs/msg/Float32"](data=1.0))
+        with pytest.raises(
+            LogWriteError, match="holds std_msgs/msg/Float32, got a std_msgs/msg/String"
+        ):
+            out.write("/x", START_NS, types["std_msgs/msg/String"](data="a"))
+        for time_ns in (-5, 2**64):
+            with pytest.raises(LogWriteError, match=f"{path}: log time"):
+                out.write("/x", time_ns, types["std_msgs/msg/Float32"](data=1.0))
+    assert [t for t, _ in read_all(path)["/x"]] == [START_NS]
