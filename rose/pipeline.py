@@ -19,6 +19,9 @@ from rose.unfold import cumulative_amplitude, direction_bins
 
 __all__ = ["analyze"]
 
+#: Directions this close below pi are 0 (radians; far below any peak's refinement accuracy).
+_WRAP_RAD = 1e-9
+
 
 def analyze(grid: npt.ArrayLike, params: RoseParams | None = None, **overrides: Any) -> RoseResult:
     """Run ROSE on one occupancy grid.
@@ -58,6 +61,9 @@ def analyze(grid: npt.ArrayLike, params: RoseParams | None = None, **overrides: 
     directions = np.mod(
         refine_peak_positions(cumulative, peaks.indices) * (math.pi / bins.centres.size), math.pi
     )
+    # A peak refined a hair below bin 0 wraps to pi - 2e-11: that is 0 (axis-aligned walls read
+    # 180 degrees in `rose walls` and 0 in `rose score` otherwise).
+    directions[directions > math.pi - _WRAP_RAD] = 0.0
     score = structure_score(cumulative, peaks.indices)
     has_structure = peaks.indices.size > 0 and bool(occupied.any())
 

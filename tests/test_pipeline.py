@@ -194,3 +194,14 @@ def test_nan_in_a_float_grid_is_refused() -> None:
     grid[3, 4] = np.nan
     with pytest.raises(rose.RoseError, match="got NaN"):
         rose.analyze(grid)
+
+
+def test_axis_aligned_walls_read_zero_not_pi() -> None:
+    # The refined peak of an axis-aligned room landed a hair below bin 0 and wrapped to pi - 2e-11:
+    # `rose walls` then printed 180 degrees where `rose score` printed 0.
+    grid = np.zeros((200, 300), dtype=np.int8)
+    grid[20, 20:280] = grid[180, 20:280] = 100
+    grid[20:181, 20] = grid[20:181, 280] = 100
+    directions = rose.analyze(grid).dominant_directions
+    assert 0.0 in directions.tolist()
+    assert np.all((directions >= 0) & (directions < np.pi - 1e-6))
