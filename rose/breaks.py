@@ -48,6 +48,11 @@ __all__ = [
 ]
 
 
+#: Longest tolerance, bridge or margin taken, cells: they are square kernels of about twice that side
+#: (10**6 cells asked for terabytes).
+_MAX_KERNEL_PX = 1000
+
+
 @dataclass(frozen=True)
 class WallContradiction:
     """What of an earlier grid a later grid contradicts (module notes).
@@ -123,29 +128,68 @@ def _densest_window(tiles: npt.NDArray[np.bool_], side: int) -> tuple[int, int, 
 
 
 def _check(
-    earlier: npt.NDArray[np.generic],
-    later: npt.NDArray[np.generic],
+    earlier: npt.ArrayLike,
+    later: npt.ArrayLike,
+    offset_px: tuple[int, int],
     tolerance_px: int,
     min_extent_px: int = 0,
     bridge_px: int = 0,
     rise_points: int = 1,
     rise_margin_px: int = 0,
-) -> None:
-    if earlier.ndim != 2 or later.ndim != 2:
-        msg = f"grids must be 2-D, got shapes {earlier.shape} and {later.shape}"
+    occupied_threshold: int = 100,
+    free_threshold: int = 0,
+) -> tuple[npt.NDArray[np.int8], npt.NDArray[np.int8]]:
+    """The two grids as int8 arrays, after checking them and the lengths; RoseError otherwise.
+
+    Grids are integer ROS grids. Values outside -1..100 are kept (such cells are neither free nor
+    known occupancy, so nothing rises to them); floats (NaN casts to garbage) and boolean masks
+    (which would read as all free) are refused.
+    """
+    grids = []
+    for name, grid in (("earlier", earlier), ("later", later)):
+        array = np.asarray(grid)
+        if array.ndim != 2:
+            msg = f"{name} grid must be 2-D, got shape {array.shape}"
+            raise RoseError(msg)
+        if not np.issubdtype(array.dtype, np.integer) or (
+            array.size and (array.min() < -128 or array.max() > 127)
+        ):
+            msg = f"{name} grid must hold int8 ROS occupancy (-1, 0..100), got dtype {array.dtype}"
+            raise RoseError(msg)
+        grids.append(array.astype(np.int8, copy=False))
+    if len(offset_px) != 2 or not all(_integer(v) for v in offset_px):
+        msg = f"offset_px must be two integers (row, col), got {offset_px!r}"
         raise RoseError(msg)
-    if tolerance_px < 0:
-        msg = f"tolerance_px must be >= 0, got {tolerance_px}"
+    kernels = {
+        "tolerance_px": tolerance_px,
+        "bridge_px": bridge_px,
+        "rise_margin_px": rise_margin_px,
+    }
+    for name, value in kernels.items():
+        if not _integer(value) or not 0 <= value <= _MAX_KERNEL_PX:
+            msg = f"{name} must be an integer in 0..{_MAX_KERNEL_PX}, got {value!r}"
+            raise RoseError(msg)
+    if not _integer(min_extent_px) or min_extent_px < 0:
+        msg = f"min_extent_px must be an integer >= 0, got {min_extent_px!r}"
         raise RoseError(msg)
-    if min_extent_px < 0 or bridge_px < 0:
-        msg = f"min_extent_px and bridge_px must be >= 0, got {min_extent_px} and {bridge_px}"
-        raise RoseError(msg)
-    if not 1 <= rise_points <= 101 or rise_margin_px < 0:
+    if not (
+        _integer(occupied_threshold)
+        and _integer(free_threshold)
+        and 0 <= free_threshold < occupied_threshold <= 100
+    ):
         msg = (
-            f"rise_points must be in 1..101 (101: off) and rise_margin_px >= 0, got {rise_points} "
-            f"and {rise_margin_px}"
+            "occupied_threshold and free_threshold must be integers with 0 <= free < occupied "
+            f"<= 100, got {occupied_threshold!r} and {free_threshold!r}"
         )
         raise RoseError(msg)
+    if not _integer(rise_points) or not 1 <= rise_points <= 101:
+        msg = f"rise_points must be an integer in 1..101 (101: off), got {rise_points!r}"
+        raise RoseError(msg)
+    return grids[0], grids[1]
+
+
+def _integer(value: object) -> bool:
+    return isinstance(value, int | np.integer) and not isinstance(value, bool | np.bool_)
 
 
 def _dilate_square(
@@ -322,8 +366,18 @@ def risen_evidence(
         unknown, uncertain) within ``rise_margin_px`` (chessboard distance), at least ``rise_points`` higher
         in ``later``, in pieces at least ``min_extent_px`` long.
     """
-    earlier, later = np.asarray(earlier), np.asarray(later)
-    _check(earlier, later, 0, min_extent_px, bridge_px, rise_points, rise_margin_px)
+    earlier, later = _check(
+        earlier,
+        later,
+        offset_px,
+        0,
+        min_extent_px,
+        bridge_px,
+        rise_points,
+        rise_margin_px,
+        free_threshold=free_threshold,
+        occupied_threshold=100,
+    )
     box = _risen_box(
         _placed(earlier, later, offset_px),
         later,
@@ -357,8 +411,16 @@ def erased_walls(
         Occupied in ``earlier`` and part of a wall at least ``min_extent_px`` long there, free in
         ``later``, no occupied cell of ``later`` within ``tolerance_px`` (chessboard distance).
     """
-    earlier, later = np.asarray(earlier), np.asarray(later)
-    _check(earlier, later, tolerance_px, min_extent_px, bridge_px)
+    earlier, later = _check(
+        earlier,
+        later,
+        offset_px,
+        tolerance_px,
+        min_extent_px,
+        bridge_px,
+        occupied_threshold=occupied_threshold,
+        free_threshold=free_threshold,
+    )
     box = _erased_box(
         _placed(earlier, later, offset_px),
         later,
@@ -430,8 +492,18 @@ def contradicted_walls(
     RoseError
         On grids that are not 2-D or a non-positive window / negative tolerance.
     """
-    earlier, later = np.asarray(earlier), np.asarray(later)
-    _check(earlier, later, tolerance_px, min_extent_px, bridge_px, rise_points, rise_margin_px)
+    earlier, later = _check(
+        earlier,
+        later,
+        offset_px,
+        tolerance_px,
+        min_extent_px,
+        bridge_px,
+        rise_points,
+        rise_margin_px,
+        occupied_threshold=occupied_threshold,
+        free_threshold=free_threshold,
+    )
     if window_px < 1 or tile_px < 1:
         msg = f"window_px and tile_px must be >= 1, got {window_px} and {tile_px}"
         raise RoseError(msg)

@@ -186,3 +186,21 @@ def test_only_known_later_cells_rise_and_101_is_off() -> None:
 def test_bad_rise_parameters(rise_points: int) -> None:
     with pytest.raises(RoseError, match="rise_points"):
         contradicted_walls(_room(), _room(), rise_points=rise_points)
+
+
+def test_inputs_that_misled_or_crashed_the_detector_are_rose_errors() -> None:
+    # NaN in a float grid cast to garbage and reported a break; a boolean mask read as all free;
+    # a fractional offset was a TypeError; a 10**6-cell tolerance asked for 3.6 TiB.
+    room = _room()
+    nan_grid = room.astype(np.float64)
+    nan_grid[5, 5] = np.nan
+    for earlier, later, kwargs, match in (
+        (nan_grid, room, {}, "earlier grid must hold int8"),
+        (room, room > 50, {}, "later grid must hold int8"),
+        (room, room, {"offset_px": (1.5, 0)}, "offset_px"),
+        (room, room, {"tolerance_px": 10**6}, "tolerance_px"),
+        (room, room, {"occupied_threshold": 0}, "occupied_threshold"),
+    ):
+        with pytest.raises(RoseError, match=match):
+            contradicted_walls(earlier, later, **kwargs)  # type: ignore[arg-type]
+    assert contradicted_walls(room, room, offset_px=(np.int64(0), np.int32(0))).peak_tiles == 0
