@@ -98,6 +98,7 @@ def segmentation_image(
     occupied: OccupiedCells | None = None,
     *,
     rescued: npt.NDArray[np.bool_] | None = None,
+    dropped: npt.NDArray[np.bool_] | None = None,
 ) -> npt.NDArray[np.uint8]:
     """Class id of every cell, image row order (north up).
 
@@ -112,6 +113,9 @@ def segmentation_image(
     rescued : ndarray of bool, shape (rows, cols), optional
         Grid order: clutter cells the cleaning kept as walls (:attr:`rose.cleaning.CleanResult.rescued`),
         shown as ``CLASS_RESCUED``.
+    dropped : ndarray of bool, shape (rows, cols), optional
+        Grid order: structure cells the cleaning removed (free-standing pieces), shown as
+        ``CLASS_CLUTTER`` like every removed cell.
 
     Returns
     -------
@@ -135,6 +139,8 @@ def segmentation_image(
     classes.ravel()[image_index] = values
     if rescued is not None:
         classes[rescued[::-1]] = np.uint8(CLASS_RESCUED)
+    if dropped is not None:
+        classes[dropped[::-1]] = np.uint8(CLASS_CLUTTER)
     return classes
 
 

@@ -242,10 +242,12 @@ class TopicLogger:
         result: RoseResult,
         walls: WallSet | None,
         rescued: npt.NDArray[np.bool_] | None = None,
+        dropped: npt.NDArray[np.bool_] | None = None,
     ) -> None:
         """Every stream of one analysed snapshot, at the time set by :func:`set_snapshot_time`.
 
-        ``rescued`` (grid order): clutter cells the cleaning kept as walls, their own class.
+        ``rescued`` (grid order): clutter cells the cleaning kept as walls, their own class;
+        ``dropped``: structure cells the cleaning removed, shown as clutter.
         """
         if result.cell_scores.shape != snapshot.grid.shape:
             msg = (
@@ -255,7 +257,7 @@ class TopicLogger:
             raise ValueError(msg)
         occupied = conv.occupied_cells(result)
         self.log_grid_map(snapshot)
-        self.log_segmentation(snapshot, result, occupied, rescued=rescued)
+        self.log_segmentation(snapshot, result, occupied, rescued=rescued, dropped=dropped)
         self.log_directions(snapshot, result, occupied)
         self.log_cell_scores(result, occupied)
         self.log_spectrum(result)
@@ -291,10 +293,13 @@ class TopicLogger:
         occupied: conv.OccupiedCells | None = None,
         *,
         rescued: npt.NDArray[np.bool_] | None = None,
+        dropped: npt.NDArray[np.bool_] | None = None,
     ) -> None:
         """Free / unknown / occupied / structure / clutter (/ kept by the cleaning) as a
         segmentation image (the class table is static)."""
-        image = conv.segmentation_image(snapshot.grid, result, occupied, rescued=rescued)
+        image = conv.segmentation_image(
+            snapshot.grid, result, occupied, rescued=rescued, dropped=dropped
+        )
         self.recording.log(self.paths.segmentation, rr.SegmentationImage(image))
 
     def log_directions(

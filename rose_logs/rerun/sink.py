@@ -348,9 +348,10 @@ class RerunSink:
         index: int,
         walls: WallSet | None,
         rescued: npt.NDArray[np.bool_] | None = None,
+        dropped: npt.NDArray[np.bool_] | None = None,
     ) -> None:
         """Log every stream of an analysed snapshot (at its log time); ``rescued``: clutter cells
-        the cleaning kept as walls (grid order)."""
+        the cleaning kept as walls, ``dropped``: structure cells it removed (grid order)."""
         topic_logger = self.loggers[snapshot.topic]
         first = snapshot.topic not in self._latest
         self._latest[snapshot.topic] = snapshot
@@ -364,7 +365,7 @@ class RerunSink:
                 start_ns=self.start_ns,
                 index=index,
             )
-            topic_logger.log_snapshot(snapshot, result, walls, rescued)
+            topic_logger.log_snapshot(snapshot, result, walls, rescued, dropped)
 
         self._submit(job)
         if self.live and first:

@@ -691,8 +691,12 @@ class _Loop:
         # still analysed: its record, Rerun and break events stay, so every gate sees it.
         self._write_results(snapshot, analysis)
         if self.rerun is not None:
-            rescued = analysis.cleaning.rescued if analysis.cleaning is not None else None
-            self.rerun.snapshot(snapshot, analysis.result, index, analysis.walls, rescued)
+            cleaning = analysis.cleaning
+            rescued = dropped = None
+            if cleaning is not None:
+                rescued = cleaning.rescued
+                dropped = cleaning.removed & analysis.result.structure
+            self.rerun.snapshot(snapshot, analysis.result, index, analysis.walls, rescued, dropped)
             self.rerun.break_score(snapshot, verdict, index, self.detector.params.threshold_m)
         self._report_breaks(snapshot, analysis.result, index, verdict)
         compute_s = 0.0 if pending.reused else analysis.seconds

@@ -207,3 +207,15 @@ def test_rescued_cells_get_their_own_class(plan) -> None:
     image = conv.segmentation_image(grid, result, rescued=rescued)[::-1]
     assert_array_equal(image[rescued], style.CLASS_RESCUED)
     assert_array_equal(image[result.clutter & ~rescued], style.CLASS_CLUTTER)
+
+
+def test_structure_the_cleaning_removed_shows_as_clutter(plan) -> None:
+    # Free-standing pieces the walls cleaning removes may be the paper's structure; on screen they
+    # are removed cells like any other, not blue structure.
+    grid, result = plan
+    dropped = np.zeros(grid.shape, dtype=bool)
+    structure_cells = np.argwhere(result.structure)[:3]
+    dropped[tuple(structure_cells.T)] = True
+    image = conv.segmentation_image(grid, result, dropped=dropped)[::-1]
+    assert_array_equal(image[dropped], style.CLASS_CLUTTER)
+    assert_array_equal(image[result.structure & ~dropped], style.CLASS_STRUCTURE)
