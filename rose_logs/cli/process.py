@@ -160,14 +160,18 @@ def _print_summary(report: Any, out: TextIO) -> None:
 
 
 def _w_text(records: Sequence[Any]) -> str:
-    """W's min / median / max over the snapshots W judges, and how many empty maps it left out."""
+    """W's min / median / max over the snapshots W judges, and how many (nearly) empty maps it
+    left out."""
+    from rose_logs.session.report import MIN_JUDGED_CELLS
+
     scores = [r.structure_score for r in records if r.judged]
     if not scores:
-        return "none (no map with occupied cells)"
+        return f"none (no map with {MIN_JUDGED_CELLS} or more occupied cells)"
     text = f"min {min(scores):.3f}  median {statistics.median(scores):.3f}  max {max(scores):.3f}"
     empty = len(records) - len(scores)
     if empty:
-        text += f"  ({empty} empty map{'s' if empty > 1 else ''} left out)"
+        maps = "map" if empty == 1 else "maps"
+        text += f"  ({empty} empty {maps} left out: fewer than {MIN_JUDGED_CELLS} occupied cells)"
     return text
 
 
