@@ -7,6 +7,8 @@ in percent. Boolean arrays are accepted as occupied masks.
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import numpy.typing as npt
 
@@ -30,7 +32,17 @@ def as_occupancy_grid(grid: npt.ArrayLike) -> npt.NDArray[np.int8]:
     RoseError
         If ``grid`` is not 2D or holds values outside ``-1..100`` (NaN included).
     """
-    array = np.asarray(grid)
+    if isinstance(grid, str | bytes | os.PathLike):
+        msg = (
+            f"The input grid must be an array, got the path {grid!r}; read a map file with "
+            "rose.load_map(path) and pass its .grid (or the OccupancyMap where one is taken)."
+        )
+        raise RoseError(msg)
+    try:
+        array = np.asarray(grid)
+    except ValueError as err:  # ragged nested lists
+        msg = f"The input grid must be a 2D array, got {type(grid).__name__} ({err})."
+        raise RoseError(msg) from err
     if array.ndim != 2:
         msg = f"The input grid must be 2D, got an array of shape {array.shape}."
         raise RoseError(msg)

@@ -617,9 +617,7 @@ class OutputSet:
     ) -> None:
         if not os.path.lexists(target):
             return
-        if not self.force:
-            msg = f"{path}: exists already (use --force to replace it)"
-            raise OutputError(msg)
+        # What --force would not replace either is said first (no advice to use it in vain).
         is_dir = target.is_dir()
         if is_dir and not directory:
             msg = f"{path}: is a directory, not replacing it with a file"
@@ -632,6 +630,9 @@ class OutputSet:
             raise OutputError(msg)
         if directory and not is_dir:
             msg = f"{path}: is a file, not replacing it with a folder"
+            raise OutputError(msg)
+        if not self.force:
+            msg = f"{path}: exists already (use --force to replace it)"
             raise OutputError(msg)
 
     # -- writing -----------------------------------------------------------------------------------------

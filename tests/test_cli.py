@@ -295,3 +295,17 @@ def test_a_map_without_a_dominant_direction_is_kept_and_said_so(
     assert "kept         1 cell (" in out
     assert "completed    0 unknown cells made walls" in out
     assert (rose.load_map(tmp_path / "c.yaml").grid == grid).all()
+
+
+def test_fixed_threshold_takes_what_the_api_takes(
+    cluttered_map: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # RoseParams takes fixed_threshold in [0, 1]; the option refused 0.
+    assert (
+        main(["score", str(cluttered_map), "--threshold-mode", "fixed", "--fixed-threshold", "0"])
+        == 0
+    )
+    with pytest.raises(SystemExit) as stop:
+        main(["score", str(cluttered_map), "--fixed-threshold", "1.5"])
+    assert stop.value.code == 2
+    assert "expected a number in [0, 1]" in capsys.readouterr().err

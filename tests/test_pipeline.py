@@ -205,3 +205,10 @@ def test_axis_aligned_walls_read_zero_not_pi() -> None:
     directions = rose.analyze(grid).dominant_directions
     assert 0.0 in directions.tolist()
     assert np.all((directions >= 0) & (directions < np.pi - 1e-6))
+
+
+def test_a_path_or_a_ragged_list_is_named_as_such() -> None:
+    with pytest.raises(rose.RoseError, match=r"got the path 'map\.yaml'; read a map file with"):
+        rose.analyze("map.yaml")  # type: ignore[arg-type]
+    with pytest.raises(rose.RoseError, match="must be a 2D array, got list"):
+        rose.analyze([[0, 100], [0]])

@@ -89,6 +89,15 @@ def fraction(text: str) -> float:
     return value
 
 
+def unit_interval(text: str) -> float:
+    """argparse type: a number in [0, 1]."""
+    value = non_negative_float(text)
+    if value > 1:
+        msg = f"expected a number in [0, 1], got {text!r}"
+        raise argparse.ArgumentTypeError(msg)
+    return value
+
+
 def int_in_range(low: int, high: int) -> Any:
     """argparse type factory: an integer in ``[low, high]`` (usage error otherwise)."""
 
@@ -187,7 +196,7 @@ def add_param_arguments(parser: argparse.ArgumentParser) -> None:
     )
     group.add_argument(
         "--fixed-threshold",
-        type=fraction,
+        type=unit_interval,
         default=d.fixed_threshold,
         metavar="F",
         help="score threshold of the fixed mode, fraction of the top score (default %(default)s)",

@@ -19,7 +19,6 @@ from __future__ import annotations
 import contextvars
 import dataclasses
 import logging
-import math
 import os
 import struct
 import sys
@@ -34,7 +33,7 @@ from typing import TYPE_CHECKING, Any
 import rose
 from rose.cleaning import CLEAN_METHODS, CleanMethod, CleanResult
 from rose.directions import FAILURE_LEVEL, map_frame_deg
-from rose.limits import DEFAULT_MAX_CELLS, check_cells, short
+from rose.limits import DEFAULT_MAX_CELLS, check_cells, finite_number, short
 from rose.outputs import OutputSet, signals_deferred
 from rose.params import RoseParams, make_params
 from rose.result import RoseResult
@@ -156,6 +155,9 @@ def process_log(
         If an output cannot be written. Nothing is left under the output names on any error.
     OutputError
         If the recording touches the input or another output, or exists without ``force``.
+    RoseError
+        On a parameter out of range (``params``, ``failure_level``, ``clean_method``,
+        ``analysis_threads``), before the input is read.
     """
     started = time.perf_counter()
     input_path = Path(input_path)
@@ -163,10 +165,17 @@ def process_log(
         topics = [topics]
     params = make_params(params)  # a RoseParams, or a RoseError saying what it got
     break_params = break_params or BreakParams.following(params.occupied_threshold)
-    if not math.isfinite(failure_level):
-        msg = f"failure level must be finite, got {failure_level}"
-        raise ValueError(msg)
-    if clean_method not in CLEAN_METHODS:  # before the log is read: one error, not one per map
+    # Parameters before the log is read: one error, not one per map (the CLI's ranges).
+    if not (finite_number(failure_level) and 0 < failure_level <= 1):
+        msg = f"failure_level must be a number in (0, 1], got {failure_level!r}"
+        raise rose.RoseError(msg)
+    if not isinstance(analysis_threads, int) or isinstance(analysis_threads, bool):
+        msg = f"analysis_threads must be an integer >= 1, got {analysis_threads!r}"
+        raise rose.RoseError(msg)
+    if analysis_threads < 1:
+        msg = f"analysis_threads must be an integer >= 1, got {analysis_threads!r}"
+        raise rose.RoseError(msg)
+    if clean_method not in CLEAN_METHODS:
         msg = f"clean_method must be one of {', '.join(CLEAN_METHODS)}, got {clean_method!r}"
         raise rose.RoseError(msg)
     own_outputs = outputs is None

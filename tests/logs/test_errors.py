@@ -457,3 +457,34 @@ def test_writer_refuses_a_message_of_another_type_or_an_unstorable_time(
             with pytest.raises(LogWriteError, match=f"{path}: log time"):
                 out.write("/x", time_ns, types["std_msgs/msg/Float32"](data=1.0))
     assert [t for t, _ in read_all(path)["/x"]] == [START_NS]
+
+
+def test_an_output_that_is_a_folder_is_named_so_without_advising_force(
+    tmp_path: Path, capsys, mcap_log: Path
+) -> None:
+    """--json to a folder said 'exists already (use --force ...)', and with --force 'is a
+    directory': the second answer comes first now."""
+    folder = tmp_path / "adir"
+    folder.mkdir()
+    assert main(["process", str(mcap_log), "--no-output", "--json", str(folder)]) == 1
+    err = capsys.readouterr().err
+    assert f"{folder}: is a directory" in err and "--force" not in err
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"failure_level": -1.0}, "failure_level"),
+        ({"failure_level": float("nan")}, "failure_level"),
+        ({"analysis_threads": 0}, "analysis_threads"),
+    ],
+)
+def test_process_log_refuses_bad_parameters_before_reading(
+    tmp_path: Path, kwargs: dict, match: str
+) -> None:
+    """The Python API takes what the CLI takes (failure level in (0, 1]), as RoseErrors, before
+    the input is read: a missing input is not even looked at."""
+    import rose
+
+    with pytest.raises(rose.RoseError, match=match):
+        process_log(tmp_path / "missing.mcap", **kwargs)
