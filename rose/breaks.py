@@ -136,7 +136,7 @@ def _check(
     bridge_px: int = 0,
     rise_points: int = 1,
     rise_margin_px: int = 0,
-    occupied_threshold: int = 100,
+    occupied_threshold: int | None = None,
     free_threshold: int = 0,
 ) -> tuple[npt.NDArray[np.int8], npt.NDArray[np.int8]]:
     """The two grids as int8 arrays, after checking them and the lengths; RoseError otherwise.
@@ -151,10 +151,14 @@ def _check(
         if array.ndim != 2:
             msg = f"{name} grid must be 2-D, got shape {array.shape}"
             raise RoseError(msg)
-        if not np.issubdtype(array.dtype, np.integer) or (
-            array.size and (array.min() < -128 or array.max() > 127)
-        ):
+        if not np.issubdtype(array.dtype, np.integer):
             msg = f"{name} grid must hold int8 ROS occupancy (-1, 0..100), got dtype {array.dtype}"
+            raise RoseError(msg)
+        if array.size and (array.min() < -128 or array.max() > 127):
+            msg = (
+                f"{name} grid must hold int8 ROS occupancy (-1, 0..100), got values in "
+                f"[{array.min()}, {array.max()}]"
+            )
             raise RoseError(msg)
         grids.append(array.astype(np.int8, copy=False))
     if len(offset_px) != 2 or not all(_integer(v) for v in offset_px):
@@ -172,14 +176,15 @@ def _check(
     if not _integer(min_extent_px) or min_extent_px < 0:
         msg = f"min_extent_px must be an integer >= 0, got {min_extent_px!r}"
         raise RoseError(msg)
-    if not (
-        _integer(occupied_threshold)
-        and _integer(free_threshold)
-        and 0 <= free_threshold < occupied_threshold <= 100
+    if not _integer(free_threshold) or not 0 <= free_threshold <= 100:
+        msg = f"free_threshold must be an integer in 0..100, got {free_threshold!r}"
+        raise RoseError(msg)
+    if occupied_threshold is not None and not (
+        _integer(occupied_threshold) and free_threshold < occupied_threshold <= 100
     ):
         msg = (
-            "occupied_threshold and free_threshold must be integers with 0 <= free < occupied "
-            f"<= 100, got {occupied_threshold!r} and {free_threshold!r}"
+            "occupied_threshold must be an integer above free_threshold and at most 100, got "
+            f"{occupied_threshold!r} (free_threshold {free_threshold})"
         )
         raise RoseError(msg)
     if not _integer(rise_points) or not 1 <= rise_points <= 101:
@@ -376,7 +381,6 @@ def risen_evidence(
         rise_points,
         rise_margin_px,
         free_threshold=free_threshold,
-        occupied_threshold=100,
     )
     box = _risen_box(
         _placed(earlier, later, offset_px),

@@ -30,10 +30,13 @@ Two methods, chosen by name:
        scanned object, whose inside stays unknown; they go unless they lie on a straight run;
     4. *attached pieces*: occupied cells joined to a kept wall within ``attach_reach_m`` (through
        occupied cells that are not object faces) stay: wall stubs, door frames, corners;
-    5. *free-standing pieces* (``loose_pieces``): a piece (joined across one-cell gaps) with no cell on
-       a run or near wide unknown space and less than ``min_run_m`` across is removed, even where
-       the paper's labelling calls it structure (so ``kept`` need not contain the paper's structure);
-       pieces attached to no kept wall do not count as obstacles for the guard.
+    5. *free-standing pieces* (``loose_pieces``): a piece (joined across gaps of up to two cells)
+       with no cell on a run or near wide unknown space, whose joined bounding box has a diagonal
+       under ``min_run_m``, is removed, unless it closes around known free space (a small room,
+       not an object). Like object faces, it goes even where the paper's labelling calls it
+       structure (so ``kept`` need not contain the paper's structure). Pieces attached to no kept
+       wall and smaller than ``min_region_m2`` (they can enclose no region the guard protects) do
+       not count as obstacles for the guard.
 
     Finally a topology guard (counting the completed walls) finds every opening through which a disc
     of ``robot_radius_m`` would pass between two regions that the input kept apart (locally, within
@@ -109,9 +112,10 @@ class CleanParams:
         of scanned objects; the occupied cells around them are object faces, removed unless on a
         straight run of ``min_run_m`` (0: no object faces).
     loose_pieces : bool
-        Remove free-standing pieces (no cell on a run or near wide unknown, even across a one-cell
-        gap, and less than ``min_run_m`` across) even where the paper calls them structure, and let
-        the guard ignore pieces attached to no kept wall.
+        Remove free-standing pieces (no cell on a run or near wide unknown, even across a gap of up
+        to two cells; a joined box with a diagonal under ``min_run_m``; not closed around known
+        free space) even where the paper calls them structure, and let the guard ignore pieces
+        attached to no kept wall that are smaller than ``min_region_m2``.
     """
 
     min_run_m: float = 2.0

@@ -51,18 +51,19 @@ def wall_cells(
     npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_]
 ]:
     """Occupied cells the ``"walls"`` cleaning keeps, those among them only the guard keeps, the
-    unknown cells completed as hidden walls, and the paper's structure cells removed as loose pieces.
+    unknown cells completed as hidden walls, and the cells removed whatever the paper says.
 
     Returns
     -------
     walls : ndarray of bool, shape (rows, cols)
-        Kept cells (including the paper's structure).
+        Kept cells (the paper's structure among them, except the ``dropped`` cells).
     guarded : ndarray of bool, shape (rows, cols)
         Cells restored by the topology guard.
     completed : ndarray of bool, shape (rows, cols)
         Unknown cells to make walls: the wall line hidden behind removed furniture.
     dropped : ndarray of bool, shape (rows, cols)
-        Occupied cells of free-standing pieces, removed even where the paper calls them structure.
+        Object faces and occupied cells of free-standing pieces: removed even where the paper
+        calls them structure.
     """
     p = params
     res = resolution_m
@@ -120,6 +121,7 @@ def _wall_cells(
     # Straight lines at any angle (walls off the dominant directions, curved walls in pieces).
     lines = occupied & (runs | straight_lines(occupied, min_length_px=length_px(p.min_run_m, res)))
     keep = occupied & (structure | near_outside) | lines
+    min_region_px = length_px(p.min_region_m2, res**2)
     completed = np.zeros(occupied.shape, dtype=bool)
     if p.max_bridge_m > 0:
         # The wall line hidden behind furniture: unknown cells between collinear kept walls.
@@ -128,6 +130,7 @@ def _wall_cells(
         )
         completed = _touching(bridges, occupied & ~keep)
     dropped = np.zeros(occupied.shape, dtype=bool)
+    object_faces = dropped
     guard_obstacles = occupied
     if p.object_pocket_m2 > 0:
         # Object faces: a scanner sees a solid object as faces around a small unknown pocket (its
@@ -135,7 +138,8 @@ def _wall_cells(
         faces = _pocket_faces(
             occupancy == UNKNOWN, completed, occupied, length_px(p.object_pocket_m2, res**2)
         )
-        keep &= ~(faces & ~lines)
+        object_faces = faces & ~lines
+        keep &= ~object_faces
     else:
         faces = np.zeros(occupied.shape, dtype=bool)
     if p.attach_reach_m > 0:
@@ -144,23 +148,29 @@ def _wall_cells(
         keep |= _grow_within(keep, occupied & ~faces, round(length_px(p.attach_reach_m, res)))
     if p.loose_pieces:
         # Free-standing pieces: no cell on a run, a line or next to wide unknown, even across a
-        # one-cell gap, and shorter than a wall run: clutter, whatever the paper's labelling says.
+        # gap of up to two cells, and a joined box with a diagonal shorter than a wall run:
+        # clutter, whatever the paper's labelling says.
         pieces = _Pieces.of(occupied, join_px=1)
         dropped = pieces.loose(lines | (occupied & near_outside), length_px(p.min_run_m, res))
+        # ... unless it closes around known free space: a small room or shaft, not an object
+        # (a scanned object's inside stays unknown).
+        dropped &= ~pieces.around_free(dropped, occupancy >= 0)
         keep &= ~dropped
         # Pieces attached to no kept wall at all are furniture standing in the room: the guard
-        # does not count them as obstacles of the input (removing them opens nothing).
-        guard_obstacles = occupied & ~pieces.loose(keep)
+        # does not count them as obstacles of the input. Only those whose box is smaller than a
+        # region the guard protects, though: they can enclose nothing it would count (a closed
+        # free-standing room of 1.3 m x 1.3 m was removed whole, its inside opened).
+        guard_obstacles = occupied & ~pieces.loose(keep, max_box_area_px=min_region_px)
     guarded = topology_guard(
         guard_obstacles,
         keep,
         added=completed,
         radius_px=length_px(p.robot_radius_m, res),
         window_px=max(1, round(length_px(p.guard_window_m, res))),
-        min_region_px=length_px(p.min_region_m2, res**2),
+        min_region_px=min_region_px,
     )
     kept = keep | guarded
-    return kept, guarded, completed, dropped & ~guarded
+    return kept, guarded, completed, (dropped | object_faces) & ~guarded
 
 
 def _pocket_faces(
@@ -219,6 +229,7 @@ class _Pieces:
     occupied: npt.NDArray[np.bool_]
     labels: npt.NDArray[np.integer]
     diagonals: npt.NDArray[np.float64]  # of each joined piece's bounding box, cells
+    box_areas: npt.NDArray[np.float64]  # of the same boxes, cells
 
     @classmethod
     def of(cls, occupied: npt.NDArray[np.bool_], *, join_px: int) -> _Pieces:
@@ -229,18 +240,53 @@ class _Pieces:
             kernel = np.ones((3, 3), np.uint8)
             grown = cv2.dilate(occupied.view(np.uint8), kernel, iterations=join_px).view(bool)
         count, labels = components(grown)
-        boxes = label_boxes(labels, np.flatnonzero(grown), count)
-        return cls(occupied, labels, np.hypot(boxes[:, 2], boxes[:, 3]))
+        boxes = label_boxes(labels, np.flatnonzero(grown), count).astype(np.float64)
+        width, height = boxes[:, 2], boxes[:, 3]
+        return cls(occupied, labels, np.hypot(width, height), width * height)
 
     def loose(
-        self, anchored: npt.NDArray[np.bool_], max_extent_px: float = math.inf
+        self,
+        anchored: npt.NDArray[np.bool_],
+        max_extent_px: float = math.inf,
+        max_box_area_px: float = math.inf,
     ) -> npt.NDArray[np.bool_]:
         """Occupied cells of pieces with no ``anchored`` cell whose (joined) bounding box has a
-        diagonal shorter than ``max_extent_px``."""
-        attached = self.diagonals >= max_extent_px
+        diagonal shorter than ``max_extent_px`` and an area under ``max_box_area_px``."""
+        attached = (self.diagonals >= max_extent_px) | (self.box_areas >= max_box_area_px)
         attached[self.labels[anchored & self.occupied]] = True
         attached[0] = True
         return labels_wanted(~attached, self.labels, self.occupied)
+
+    def around_free(
+        self, cells: npt.NDArray[np.bool_], known: npt.NDArray[np.bool_]
+    ) -> npt.NDArray[np.bool_]:
+        """Cells of ``cells`` (occupied) in pieces next to a hole of ``cells`` (other cells that
+        4-connected paths cannot leave without crossing ``cells``) holding a known non-occupied
+        cell."""
+        out = np.zeros(cells.shape, dtype=bool)
+        if not cells.any():
+            return out
+        import cv2
+
+        # Flood the outside from a one-cell frame: what stays unflooded of the other cells are
+        # the holes (one pass; no labelling unless a hole holds known free space).
+        rows, cols = cells.shape
+        image = np.ones((rows + 2, cols + 2), dtype=np.uint8)
+        image[1:-1, 1:-1] = ~cells
+        cv2.floodFill(image, None, (0, 0), 0, flags=4)
+        holes = image[1:-1, 1:-1].view(bool)
+        if not (holes & known & ~self.occupied).any():
+            return out
+        count, parts = components(holes, connectivity=4)
+        wanted = np.zeros(count, dtype=bool)
+        wanted[parts[holes & known & ~self.occupied]] = True
+        wanted[0] = False
+        hole_cells = labels_wanted(wanted, parts, holes)
+        rim = cv2.dilate(hole_cells.view(np.uint8), np.ones((3, 3), np.uint8)).view(bool) & cells
+        enclosing = np.zeros(self.diagonals.size, dtype=bool)
+        enclosing[self.labels[rim]] = True
+        enclosing[0] = False
+        return labels_wanted(enclosing, self.labels, cells)
 
 
 def _touching(pieces: npt.NDArray[np.bool_], other: npt.NDArray[np.bool_]) -> npt.NDArray[np.bool_]:

@@ -329,3 +329,19 @@ def test_the_papers_labelling_is_applied_to_the_grid_given() -> None:
     for method in ("paper", "walls"):
         with pytest.raises(RoseError, match="for another grid"):
             clean(np.zeros_like(grid), result, method=method)
+
+
+def test_a_small_closed_room_is_no_free_standing_object() -> None:
+    """A closed 1.3 m x 1.3 m room in known free space is under 2 m across and has no 2 m run, like a
+    piece of furniture; but its inside is known free (a scanned object's stays unknown), so it stays
+    whole and no robot passes from inside to outside (it was removed, its inside opened)."""
+    grid = np.zeros((90, 90), dtype=np.int8)
+    grid[30, 30:56] = grid[55, 30:56] = 100
+    grid[30:56, 30] = grid[30:56, 55] = 100
+    result = rose.analyze(grid)
+    cleaning = clean(grid, result, resolution_m=0.05)
+    assert cleaning.kept_count == result.occupied_count
+    # The same ring with an unknown inside is a scanned object, and goes.
+    crate = grid.copy()
+    crate[31:55, 31:55] = -1
+    assert clean(crate, rose.analyze(crate), resolution_m=0.05).kept_count == 0

@@ -171,7 +171,7 @@ def _w_text(records: Sequence[Any]) -> str:
     empty = len(records) - len(scores)
     if empty:
         maps = "map" if empty == 1 else "maps"
-        text += f"  ({empty} empty {maps} left out: fewer than {MIN_JUDGED_CELLS} occupied cells)"
+        text += f"  ({empty} {maps} of fewer than {MIN_JUDGED_CELLS} occupied cells left out)"
     return text
 
 

@@ -272,7 +272,7 @@ def test_empty_first_maps_do_not_trip_the_w_gate(
     topic = data["topics"]["/map"]
     assert topic["w_max"] == second["structure_score"] < 0.4
     assert topic["first_w_above"] is None
-    assert "(1 empty map left out: fewer than 20 occupied cells)" in capsys.readouterr().out
+    assert "(1 map of fewer than 20 occupied cells left out)" in capsys.readouterr().out
     assert topic["snapshots"] == 2
     # Nor does a map of one occupied cell: no direction to find, W = 1 by convention.
     speck = empty.copy()
