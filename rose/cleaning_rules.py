@@ -18,7 +18,6 @@ from rose.grid import UNKNOWN
 from rose.labelling import (
     component_areas,
     components,
-    components_with_stats,
     label_boxes,
     labels_wanted,
 )
@@ -741,7 +740,13 @@ def _separating_patches(
         mosaic[oy[i] : oy[i] + heights[i], ox[i] : ox[i] + widths[i]] = view[
             r0[i] : r1[i], c0[i] : c1[i]
         ]
-    _, regions, region_stats = components_with_stats(mosaic)
+    # Plain labels, areas from a histogram and the regions on their window's frame: a third of
+    # the cost of OpenCV's statistics.
+    region_count, regions = components(mosaic)
+    areas = component_areas(regions, region_count)
+    on_frame = np.zeros(region_count, dtype=bool)
+    on_frame[regions.reshape(-1)[_frame_cells(oy, ox, heights, widths, mosaic.shape[1])]] = True
+    on_frame[0] = False
     slot = np.full(count, -1, dtype=np.int64)
     slot[ids] = np.arange(ids.size)
     where = slot[ring_patch]
@@ -749,15 +754,34 @@ def _separating_patches(
     where, cells = where[keep], ring_idx[keep]
     labels = regions[cells // cols - r0[where] + oy[where], cells % cols - c0[where] + ox[where]]
     touched = labels > 0
-    pairs = np.unique(where[touched] * (region_stats.shape[0]) + labels[touched])
-    window_of, label = pairs // region_stats.shape[0], pairs % region_stats.shape[0]
-    rx, ry, rw, rh, area = (region_stats[label, i].astype(np.int64) for i in range(5))
-    edge = (
-        (rx == ox[window_of])
-        | (ry == oy[window_of])
-        | (rx + rw == ox[window_of] + widths[window_of])
-        | (ry + rh == oy[window_of] + heights[window_of])
+    pairs = np.unique(where[touched] * region_count + labels[touched])
+    window_of, label = pairs // region_count, pairs % region_count
+    open_regions = np.bincount(
+        window_of[on_frame[label] | (areas[label] >= min_region_px)], minlength=ids.size
     )
-    open_regions = np.bincount(window_of[edge | (area >= min_region_px)], minlength=ids.size)
     separating[ids] = open_regions >= 2
     return separating
+
+
+def _frame_cells(
+    top: npt.NDArray[np.int64],
+    left: npt.NDArray[np.int64],
+    heights: npt.NDArray[np.int64],
+    widths: npt.NDArray[np.int64],
+    stride: int,
+) -> npt.NDArray[np.int64]:
+    """Flat indices (rows of ``stride`` cells) of the first and last row and column of every
+    window ``top, left, heights, widths`` (cells; a cell may come twice)."""
+    n = top.size
+    along = np.repeat(np.arange(n), widths)
+    cols = left[along] + np.arange(along.size) - np.repeat(np.cumsum(widths) - widths, widths)
+    down = np.repeat(np.arange(n), heights)
+    rows = top[down] + np.arange(down.size) - np.repeat(np.cumsum(heights) - heights, heights)
+    return np.concatenate(
+        [
+            top[along] * stride + cols,
+            (top[along] + heights[along] - 1) * stride + cols,
+            rows * stride + left[down],
+            rows * stride + left[down] + widths[down] - 1,
+        ]
+    )

@@ -13,7 +13,6 @@ import numpy.typing as npt
 __all__ = [
     "component_areas",
     "components",
-    "components_with_stats",
     "label_boxes",
     "label_type",
     "labels_wanted",
@@ -99,16 +98,3 @@ def label_boxes(
     empty = high_r < 0
     low_r[empty] = low_c[empty] = 0
     return np.stack([low_c, low_r, high_c + 1 - low_c, high_r + 1 - low_r], axis=1)
-
-
-def components_with_stats(
-    mask: npt.NDArray[np.bool_] | npt.NDArray[np.uint8], connectivity: int = 8
-) -> tuple[int, npt.NDArray[np.integer], npt.NDArray[np.int32]]:
-    """:func:`components` (with 4- or 8-``connectivity``) and OpenCV's ``x, y, width, height,
-    area`` of every component."""
-    import cv2
-
-    count, labels, stats, _ = cv2.connectedComponentsWithStats(
-        mask.view(np.uint8), None, None, None, connectivity, label_type(mask, connectivity)
-    )
-    return int(count), np.asarray(labels), np.asarray(stats)

@@ -345,3 +345,17 @@ def test_a_small_closed_room_is_no_free_standing_object() -> None:
     crate = grid.copy()
     crate[31:55, 31:55] = -1
     assert clean(crate, rose.analyze(crate), resolution_m=0.05).kept_count == 0
+
+
+def test_frame_cells_are_the_windows_first_and_last_rows_and_columns() -> None:
+    from rose.cleaning_rules import _frame_cells
+
+    top, left = np.array([0, 3, 10]), np.array([0, 7, 2])
+    heights, widths = np.array([2, 4, 1]), np.array([3, 1, 5])
+    expected = np.zeros((12, 12), dtype=bool)
+    for t, c, h, w in zip(top, left, heights, widths, strict=True):
+        expected[t : t + h, c : c + w] = True
+        expected[t + 1 : t + h - 1, c + 1 : c + w - 1] = False  # the inside is no frame
+    found = np.zeros(144, dtype=bool)
+    found[_frame_cells(top, left, heights, widths, 12)] = True
+    assert np.array_equal(found.reshape(12, 12), expected)
