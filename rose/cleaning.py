@@ -104,6 +104,9 @@ class CleanParams:
     max_bridge_m : float
         Longest hidden wall completed behind removed furniture: unknown cells on the straight line
         between two kept walls along a dominant direction, at most this far apart (0: never).
+    hidden_wall_reach_m : float
+        Hidden walls are completed only within this distance (chessboard) of removed cells: the
+        depth of the furniture they hide behind.
     attach_reach_m : float
         Occupied cells joined to a kept wall within this distance (through occupied cells that are
         not object faces) are kept: wall stubs, door frames, corners (0: never).
@@ -127,6 +130,7 @@ class CleanParams:
     guard_window_m: float = 0.5
     run_tolerance_px: int = 1
     attach_reach_m: float = 0.3
+    hidden_wall_reach_m: float = 0.5
     object_pocket_m2: float = 2.0
     loose_pieces: bool = True
 
@@ -162,6 +166,8 @@ class CleanParams:
         ]
         if not self.max_bridge_m >= 0:
             problems.append(f"max_bridge_m must be >= 0, got {self.max_bridge_m}")
+        if not self.hidden_wall_reach_m >= 0:
+            problems.append(f"hidden_wall_reach_m must be >= 0, got {self.hidden_wall_reach_m}")
         if not self.attach_reach_m >= 0:
             problems.append(f"attach_reach_m must be >= 0, got {self.attach_reach_m}")
         if not self.object_pocket_m2 >= 0:
@@ -259,6 +265,7 @@ _MAX_CELLS_OF = {
     "unknown_margin_m": 200,
     "guard_window_m": 500,
     "attach_reach_m": 500,
+    "hidden_wall_reach_m": 500,
     "min_run_m": 10_000,
     "max_bridge_m": 10_000,
     "open_unknown_width_m": 10_000,

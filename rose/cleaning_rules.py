@@ -127,7 +127,14 @@ def _wall_cells(
         bridges = bridge_gaps(
             keep, occupancy == UNKNOWN, directions, max_gap_px=length_px(p.max_bridge_m, res)
         )
-        completed = _touching(bridges, occupied & ~keep)
+        # Only next to what goes (within a cabinet's depth): a bridge network reaching into
+        # unexplored space or across racks is no wall hidden behind removed clutter.
+        import cv2
+
+        removed = occupied & ~keep
+        side = 2 * round(length_px(p.hidden_wall_reach_m, res)) + 1
+        behind = cv2.dilate(removed.view(np.uint8), np.ones((side, side), np.uint8)).view(bool)
+        completed = _touching(bridges, removed) & behind
     dropped = np.zeros(occupied.shape, dtype=bool)
     object_faces = dropped
     guard_obstacles = occupied
@@ -150,7 +157,14 @@ def _wall_cells(
         # gap of up to two cells, and a joined box with a diagonal shorter than a wall run:
         # clutter, whatever the paper's labelling says.
         pieces = _Pieces.of(occupied, join_px=1)
-        dropped = pieces.loose(lines | (occupied & near_outside), length_px(p.min_run_m, res))
+        import cv2
+
+        solid = cv2.erode(occupied.view(np.uint8), np.ones((3, 3), np.uint8), borderValue=0).view(
+            bool
+        )
+        dropped = pieces.loose(
+            lines | (occupied & near_outside) | solid, length_px(p.min_run_m, res)
+        )
         # ... unless it closes around known free space: a small room or shaft, not an object
         # (a scanned object's inside stays unknown).
         dropped &= ~pieces.around_free(dropped, occupancy >= 0)
