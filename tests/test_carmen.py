@@ -307,3 +307,30 @@ def test_convert_names_a_wrong_map_file_and_why_no_scan_was_read(
         f"error: {path}: no FLASER scan found (1 malformed FLASER lines; first: line 1: "
         "non-finite value)"
     ]
+
+
+@pytest.mark.parametrize(
+    "option",
+    [
+        ["--map-period", "1e300"],
+        ["--drift-level", "1", "--drift-start", "1e300"],
+        ["--resolution", "1e300"],
+        ["--resolution", "1e5"],
+        ["--max-range", "1e200"],
+        ["--drift-level", "1e300"],
+    ],
+)
+def test_convert_option_values_beyond_sense_are_usage_errors(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], option: list[str]
+) -> None:
+    """They overflowed deep inside (tracebacks), or wrote maps process refuses (1e5 m cells)."""
+    from rose_logs.cli import main
+
+    path = tmp_path / "log.txt"
+    path.write_text("FLASER 3 1.0 2.0 3.0 0.5 -0.5 0.1 0.5 -0.5 0.1 12.5 host 12.5\n")
+    with pytest.raises(SystemExit) as stop:
+        main(["convert", str(path), str(tmp_path / "s.mcap"), *option])
+    assert stop.value.code == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and "expected" in err
+    assert not (tmp_path / "s.mcap").exists()

@@ -98,6 +98,21 @@ def unit_interval(text: str) -> float:
     return value
 
 
+def float_up_to(high: float, *, zero: bool = False) -> Any:
+    """argparse type factory: a finite number in ``(0, high]`` (``[0, high]`` with ``zero``).
+
+    Values beyond any sensible setting are usage errors rather than overflows deep inside."""
+
+    def parse(text: str) -> float:
+        value = non_negative_float(text) if zero else positive_float(text)
+        if value > high:
+            msg = f"expected a number up to {high:g}, got {text!r}"
+            raise argparse.ArgumentTypeError(msg)
+        return value
+
+    return parse
+
+
 def int_in_range(low: int, high: int) -> Any:
     """argparse type factory: an integer in ``[low, high]`` (usage error otherwise)."""
 

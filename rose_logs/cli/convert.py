@@ -10,14 +10,9 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
-from rose.cli.options import (
-    add_limit_arguments,
-    int_in_range,
-    non_negative_float,
-    positive_float,
-)
+from rose.cli.options import add_limit_arguments, float_up_to, int_in_range, resolution
 from rose.outputs import OutputSet
-from rose_logs.carmen.parse import CarmenLog, read_carmen_log
+from rose_logs.carmen.parse import MAX_STAMP_S, CarmenLog, read_carmen_log
 from rose_logs.carmen.raycast import BuilderParams
 from rose_logs.carmen.session import SessionOptions, write_carmen_session
 from rose_logs.cli.options import UsageError
@@ -25,6 +20,13 @@ from rose_logs.errors import LogReadError, LogWriteError
 from rose_logs.formats import format_from_path, unknown_suffix_warning
 
 __all__ = ["add_parser", "run"]
+
+#: Bounds of the options, beyond any sensible setting (larger values overflowed deep inside):
+#: laser ranges in metres, log seconds (CARMEN timestamps are refused past 2^31 s) and
+#: the drift's multiplier (the benchmark's levels are 0.5-4).
+MAX_RANGE_M = 1e4
+LATEST_S = float(MAX_STAMP_S)
+MAX_DRIFT_LEVEL = 100.0
 
 
 def add_parser(subparsers: Any) -> None:
@@ -45,17 +47,17 @@ def add_parser(subparsers: Any) -> None:
         help="output format (default: from the output name)",
     )
     parser.add_argument(
-        "--resolution", type=positive_float, default=0.05, help="map cell size, m (0.05)"
+        "--resolution", type=resolution, default=0.05, help="map cell size, m (0.05)"
     )
     parser.add_argument(
         "--max-range",
-        type=positive_float,
+        type=float_up_to(MAX_RANGE_M),
         default=30.0,
         help="readings at or beyond this are 'no return', m (30)",
     )
     parser.add_argument(
         "--map-period",
-        type=positive_float,
+        type=float_up_to(LATEST_S),
         default=10.0,
         help="log seconds between /map snapshots (10)",
     )
@@ -67,7 +69,7 @@ def add_parser(subparsers: Any) -> None:
     )
     parser.add_argument(
         "--drift-level",
-        type=non_negative_float,
+        type=float_up_to(MAX_DRIFT_LEVEL, zero=True),
         default=0.0,
         help="odometry drift level, 0 = corrected poses (see rose_logs.carmen.drift)",
     )
@@ -76,7 +78,7 @@ def add_parser(subparsers: Any) -> None:
     )
     parser.add_argument(
         "--drift-start",
-        type=non_negative_float,
+        type=float_up_to(LATEST_S, zero=True),
         default=0.0,
         help="seconds after the first scan when drift starts (0)",
     )
