@@ -26,6 +26,8 @@ from rose_logs.cli.evaluate import config_from_args
         ("--seed", str(2**32), "0..4294967295"),
         ("--break-seeds", "-1", "0..20"),
         ("--break-seeds", "1000", "0..20"),
+        ("--logs", ",", "one or more comma-separated names"),  # was a report of empty tables
+        ("--maps", " ", "one or more comma-separated names"),
     ],
 )
 def test_out_of_range_values_are_usage_errors(

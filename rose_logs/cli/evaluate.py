@@ -18,7 +18,13 @@ __all__ = ["add_parser", "config_from_args", "run"]
 
 
 def _csv(value: str) -> tuple[str, ...]:
-    return tuple(v.strip() for v in value.split(",") if v.strip())
+    """argparse type: comma-separated names, at least one (``--logs ,`` or an unset shell variable
+    ran every experiment on nothing and reported empty tables as a success)."""
+    names = tuple(v.strip() for v in value.split(",") if v.strip())
+    if not names:
+        msg = f"expected one or more comma-separated names, got {value!r}"
+        raise argparse.ArgumentTypeError(msg)
+    return names
 
 
 #: Bounds of the experiment options. The paper's ranges (``--config full``) are sizes 2..39 px and
