@@ -18,9 +18,13 @@ __all__ = ["add_parser", "config_from_args", "run"]
 
 
 def _csv(value: str) -> tuple[str, ...]:
+    return tuple(v.strip() for v in value.split(",") if v.strip())
+
+
+def _names(value: str) -> tuple[str, ...]:
     """argparse type: comma-separated names, at least one (``--logs ,`` or an unset shell variable
     ran every experiment on nothing and reported empty tables as a success)."""
-    names = tuple(v.strip() for v in value.split(",") if v.strip())
+    names = _csv(value)
     if not names:
         msg = f"expected one or more comma-separated names, got {value!r}"
         raise argparse.ArgumentTypeError(msg)
@@ -92,8 +96,8 @@ def _configure(parser: argparse.ArgumentParser) -> None:
         help=f"folder with {LOGS_SUBDIR}/ and {BENCHMARK_SUBDIR}/ "
         f"(default: ${ENV_VAR}, else ../shared/maps beside the source checkout)",
     )
-    parser.add_argument("--logs", type=_csv, default=None, help="comma-separated Radish logs")
-    parser.add_argument("--maps", type=_csv, default=None, help="comma-separated benchmark maps")
+    parser.add_argument("--logs", type=_names, default=None, help="comma-separated Radish logs")
+    parser.add_argument("--maps", type=_names, default=None, help="comma-separated benchmark maps")
     parser.add_argument(
         "--sizes",
         type=_ints(1, MAX_SIZE_PX),
