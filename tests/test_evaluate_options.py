@@ -26,8 +26,6 @@ from rose_logs.cli.evaluate import config_from_args
         ("--seed", str(2**32), "0..4294967295"),
         ("--break-seeds", "-1", "0..20"),
         ("--break-seeds", "1000", "0..20"),
-        ("--logs", ",", "one or more comma-separated names"),  # was a report of empty tables
-        ("--maps", " ", "one or more comma-separated names"),
     ],
 )
 def test_out_of_range_values_are_usage_errors(
@@ -72,3 +70,14 @@ def test_help_states_the_bounds(capsys: pytest.CaptureFixture[str]) -> None:
     help_text = " ".join(capsys.readouterr().out.split())
     for bound in ("1..200", "1..1000", "0..2**32-1", "0..20", "at most 50 values"):
         assert bound in help_text
+
+
+def test_nothing_to_evaluate_is_a_usage_error(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # Both lists empty (an unset shell variable) ran every experiment on nothing and reported
+    # empty tables as a success; one empty list alone skips that part, as documented.
+    out = tmp_path / "report"
+    assert main(["evaluate", str(out), "--no-plots", "--logs", ",", "--maps", ""]) == 2
+    assert "nothing to evaluate" in capsys.readouterr().err
+    assert not out.exists()

@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from rose.cli.options import int_in_range
+from rose_logs.cli.options import UsageError
 from rose_logs.datasets import ENV_VAR
 from rose_logs.evaluation.config import BENCHMARK_SUBDIR, LOGS_SUBDIR, EvaluationConfig
 
@@ -19,16 +20,6 @@ __all__ = ["add_parser", "config_from_args", "run"]
 
 def _csv(value: str) -> tuple[str, ...]:
     return tuple(v.strip() for v in value.split(",") if v.strip())
-
-
-def _names(value: str) -> tuple[str, ...]:
-    """argparse type: comma-separated names, at least one (``--logs ,`` or an unset shell variable
-    ran every experiment on nothing and reported empty tables as a success)."""
-    names = _csv(value)
-    if not names:
-        msg = f"expected one or more comma-separated names, got {value!r}"
-        raise argparse.ArgumentTypeError(msg)
-    return names
 
 
 #: Bounds of the experiment options. The paper's ranges (``--config full``) are sizes 2..39 px and
@@ -96,8 +87,8 @@ def _configure(parser: argparse.ArgumentParser) -> None:
         help=f"folder with {LOGS_SUBDIR}/ and {BENCHMARK_SUBDIR}/ "
         f"(default: ${ENV_VAR}, else ../shared/maps beside the source checkout)",
     )
-    parser.add_argument("--logs", type=_names, default=None, help="comma-separated Radish logs")
-    parser.add_argument("--maps", type=_names, default=None, help="comma-separated benchmark maps")
+    parser.add_argument("--logs", type=_csv, default=None, help="comma-separated Radish logs")
+    parser.add_argument("--maps", type=_csv, default=None, help="comma-separated benchmark maps")
     parser.add_argument(
         "--sizes",
         type=_ints(1, MAX_SIZE_PX),
@@ -179,6 +170,11 @@ def run(args: argparse.Namespace) -> int:
     from rose_logs.evaluation.report import MARKDOWN_NAME, run_evaluation
 
     config = config_from_args(args)
+    if not config.logs and not config.benchmark_maps:
+        # An empty --logs and --maps (an unset shell variable) ran every experiment on nothing and
+        # reported empty tables as a success.
+        msg = "--logs and --maps are both empty: nothing to evaluate"
+        raise UsageError(msg)
     # The data set is read, never written (data_root raises DataSetError, one line, if it is absent).
     inputs = [config.data_root] if config.logs or config.benchmark_maps else []
     # A report folder's parents are made, as `batch` makes OUT's (`evaluate out/eval` in a fresh
