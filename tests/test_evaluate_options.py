@@ -72,12 +72,20 @@ def test_help_states_the_bounds(capsys: pytest.CaptureFixture[str]) -> None:
         assert bound in help_text
 
 
-def test_nothing_to_evaluate_is_a_usage_error(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
-    # Both lists empty (an unset shell variable) ran every experiment on nothing and reported
-    # empty tables as a success; one empty list alone skips that part, as documented.
+def test_nothing_to_evaluate_is_said(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # Both lists empty (an unset shell variable?) ran every experiment on nothing and reported
+    # empty tables silently; one empty list alone skips that part, as documented.
     out = tmp_path / "report"
-    assert main(["evaluate", str(out), "--no-plots", "--logs", ",", "--maps", ""]) == 2
-    assert "nothing to evaluate" in capsys.readouterr().err
-    assert not out.exists()
+    args = [
+        "evaluate",
+        str(out),
+        "--no-plots",
+        "--logs",
+        ",",
+        "--maps",
+        "",
+        "--maps-dir",
+        str(tmp_path),
+    ]
+    assert main(args) == 0
+    assert "--logs and --maps are both empty: no experiment runs" in capsys.readouterr().err

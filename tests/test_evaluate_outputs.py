@@ -147,7 +147,7 @@ def test_no_plots_writes_no_figure_and_links_only_written_files(
     markdown = (out / "report.md").read_text()
     links = re.findall(r"\]\(([^)]+)\)", markdown)
     assert [link for link in links if not (out / link).is_file()] == []
-    assert "Figures were not written" in markdown
+    assert "The plots were not drawn" in markdown
     assert (out / "wall_error.csv").is_file()  # the tables are still there
     assert (out / "cleaning_runs.csv").is_file()
 

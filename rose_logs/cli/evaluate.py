@@ -11,7 +11,6 @@ from pathlib import Path
 from typing import Any
 
 from rose.cli.options import int_in_range
-from rose_logs.cli.options import UsageError
 from rose_logs.datasets import ENV_VAR
 from rose_logs.evaluation.config import BENCHMARK_SUBDIR, LOGS_SUBDIR, EvaluationConfig
 
@@ -171,10 +170,12 @@ def run(args: argparse.Namespace) -> int:
 
     config = config_from_args(args)
     if not config.logs and not config.benchmark_maps:
-        # An empty --logs and --maps (an unset shell variable) ran every experiment on nothing and
-        # reported empty tables as a success.
-        msg = "--logs and --maps are both empty: nothing to evaluate"
-        raise UsageError(msg)
+        # Empty lists run no experiment (a quick check of the report's files); said, so that an
+        # unset shell variable (`--logs $LOGS`) is not mistaken for an evaluation.
+        print(
+            "warning: --logs and --maps are both empty: no experiment runs, the tables stay empty",
+            file=sys.stderr,
+        )
     # The data set is read, never written (data_root raises DataSetError, one line, if it is absent).
     inputs = [config.data_root] if config.logs or config.benchmark_maps else []
     # A report folder's parents are made, as `batch` makes OUT's (`evaluate out/eval` in a fresh

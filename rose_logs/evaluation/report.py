@@ -532,6 +532,7 @@ def _markdown(
     (``cleaning_md``), the file list."""
     lines = [
         *_setup_section(config, timings=timings, run_s=run_s, map_images=map_images),
+        *(["![maps from logs](maps_from_logs.png)", ""] if "maps_from_logs.png" in figures else []),
         *_clutter_section(clutter_runs, median_by_map, figures),
         *_furniture_section(furniture_runs),
         *_drift_section(config, drift_runs, w_by_log, figures),
@@ -542,6 +543,10 @@ def _markdown(
     if cleaning_md:
         lines += [cleaning_md.rstrip(), ""]
     if not figures:
-        lines += ["Figures were not written (plots disabled or matplotlib missing).", ""]
+        lines += [
+            "The plots were not drawn (`--no-plots` or matplotlib missing); the cleaning picture "
+            "needs no matplotlib.",
+            "",
+        ]
     lines += _files_section(figures=bool(figures))
     return "\n".join(lines)
