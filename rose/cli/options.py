@@ -80,37 +80,25 @@ def non_negative_float(text: str) -> float:
     return value
 
 
-def fraction(text: str) -> float:
-    """argparse type: a number in (0, 1]."""
-    value = positive_float(text)
-    if value > 1:
-        msg = f"expected a number in (0, 1], got {text!r}"
-        raise argparse.ArgumentTypeError(msg)
-    return value
-
-
-def unit_interval(text: str) -> float:
-    """argparse type: a number in [0, 1]."""
-    value = non_negative_float(text)
-    if value > 1:
-        msg = f"expected a number in [0, 1], got {text!r}"
-        raise argparse.ArgumentTypeError(msg)
-    return value
-
-
 def float_up_to(high: float, *, zero: bool = False) -> Any:
     """argparse type factory: a finite number in ``(0, high]`` (``[0, high]`` with ``zero``).
 
     Values beyond any sensible setting are usage errors rather than overflows deep inside."""
+    interval = f"{'[' if zero else '('}0, {high:g}]"
 
     def parse(text: str) -> float:
         value = non_negative_float(text) if zero else positive_float(text)
         if value > high:
-            msg = f"expected a number up to {high:g}, got {text!r}"
+            msg = f"expected a number in {interval}, got {text!r}"
             raise argparse.ArgumentTypeError(msg)
         return value
 
     return parse
+
+
+#: argparse types: a number in (0, 1] and in [0, 1].
+fraction = float_up_to(1.0)
+unit_interval = float_up_to(1.0, zero=True)
 
 
 def int_in_range(low: int, high: int) -> Any:
