@@ -199,6 +199,9 @@ def test_a_worker_killed_mid_task_is_an_error_row(
 def test_a_recording_over_the_memory_limit_is_an_error_row(
     fleet: Path, big_recording: Path, tmp_path: Path, fragile_client: Any
 ) -> None:
+    # Both workers up (the previous test killed one; its nanny restarts it): with one worker, the
+    # small recording queued behind the big one dies with it (seen once on a loaded machine).
+    fragile_client.wait_for_workers(2, timeout=120)
     inputs = [big_recording, fleet / "robot_b" / "nested" / "small.mcap"]
     report = run_batch(
         inputs,
