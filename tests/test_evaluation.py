@@ -307,3 +307,27 @@ def test_evaluate_writes_its_folder_whole_and_replaces_only_its_own_reports(
     assert main(["evaluate", str(data / "new" / "report"), "--maps-dir", str(data)]) == 1
     assert "refusing to write over the input" in capsys.readouterr().err
     assert list(data.iterdir()) == []
+
+
+def test_a_missing_furnished_drawing_is_named_before_any_experiment(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The wall experiment needs <name>_furnitures.png; its absence was found only after
+    experiments 1 and 2 had run (minutes with --config full)."""
+    import shutil
+
+    from rose_logs.cli import main
+
+    data = tmp_path / "data"
+    (data / "bormann_ipa_room_segmentation").mkdir(parents=True)
+    shutil.copy(
+        REPO_DATA / "bormann_ipa_room_segmentation" / "Freiburg79_scan.png",
+        data / "bormann_ipa_room_segmentation",
+    )
+    out = tmp_path / "report"
+    args = ["evaluate", str(out), "--no-plots", "--maps-dir", str(data), "--logs", ""]
+    assert main([*args, "--maps", "Freiburg79_scan"]) == 1
+    err = capsys.readouterr().err
+    assert "Freiburg79_scan_furnitures.png: no such file" in err
+    assert "experiment 1" not in err
+    assert not out.exists()
