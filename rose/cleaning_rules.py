@@ -109,6 +109,8 @@ def _wall_cells(
 ) -> tuple[
     npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_]
 ]:
+    import cv2
+
     runs = directional_runs(
         occupied,
         directions,
@@ -129,14 +131,12 @@ def _wall_cells(
         )
         # Only next to what goes (within a cabinet's depth): a bridge network reaching into
         # unexplored space or across racks is no wall hidden behind removed clutter.
-        import cv2
-
         removed = occupied & ~keep
         side = 2 * round(length_px(p.hidden_wall_reach_m, res)) + 1
         behind = cv2.dilate(removed.view(np.uint8), np.ones((side, side), np.uint8)).view(bool)
         completed = _touching(bridges, removed) & behind
     dropped = np.zeros(occupied.shape, dtype=bool)
-    object_faces = dropped
+    object_faces = np.zeros(occupied.shape, dtype=bool)
     guard_obstacles = occupied
     if p.object_pocket_m2 > 0:
         # Object faces: a scanner sees a solid object as faces around a small unknown pocket (its
@@ -157,8 +157,7 @@ def _wall_cells(
         # gap of up to two cells, and a joined box with a diagonal shorter than a wall run:
         # clutter, whatever the paper's labelling says.
         pieces = _Pieces.of(occupied, join_px=1)
-        import cv2
-
+        # A solid 3 x 3 block is a drawn column or wall, not the faces a scanner sees of an object.
         solid = cv2.erode(occupied.view(np.uint8), np.ones((3, 3), np.uint8), borderValue=0).view(
             bool
         )
