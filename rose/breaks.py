@@ -38,6 +38,7 @@ import numpy.typing as npt
 
 from rose.errors import RoseError
 from rose.labelling import components, label_boxes, labels_wanted
+from rose.limits import integer_number
 
 __all__ = [
     "WallContradiction",
@@ -161,7 +162,7 @@ def _check(
             )
             raise RoseError(msg)
         grids.append(array.astype(np.int8, copy=False))
-    if len(offset_px) != 2 or not all(_integer(v) for v in offset_px):
+    if len(offset_px) != 2 or not all(integer_number(v) for v in offset_px):
         msg = f"offset_px must be two integers (row, col), got {offset_px!r}"
         raise RoseError(msg)
     kernels = {
@@ -170,31 +171,27 @@ def _check(
         "rise_margin_px": rise_margin_px,
     }
     for name, value in kernels.items():
-        if not _integer(value) or not 0 <= value <= _MAX_KERNEL_PX:
+        if not integer_number(value) or not 0 <= value <= _MAX_KERNEL_PX:
             msg = f"{name} must be an integer in 0..{_MAX_KERNEL_PX}, got {value!r}"
             raise RoseError(msg)
-    if not _integer(min_extent_px) or min_extent_px < 0:
+    if not integer_number(min_extent_px) or min_extent_px < 0:
         msg = f"min_extent_px must be an integer >= 0, got {min_extent_px!r}"
         raise RoseError(msg)
-    if not _integer(free_threshold) or not 0 <= free_threshold <= 100:
+    if not integer_number(free_threshold) or not 0 <= free_threshold <= 100:
         msg = f"free_threshold must be an integer in 0..100, got {free_threshold!r}"
         raise RoseError(msg)
     if occupied_threshold is not None and not (
-        _integer(occupied_threshold) and free_threshold < occupied_threshold <= 100
+        integer_number(occupied_threshold) and free_threshold < occupied_threshold <= 100
     ):
         msg = (
             "occupied_threshold must be an integer above free_threshold and at most 100, got "
             f"{occupied_threshold!r} (free_threshold {free_threshold})"
         )
         raise RoseError(msg)
-    if not _integer(rise_points) or not 1 <= rise_points <= 101:
+    if not integer_number(rise_points) or not 1 <= rise_points <= 101:
         msg = f"rise_points must be an integer in 1..101 (101: off), got {rise_points!r}"
         raise RoseError(msg)
     return grids[0], grids[1]
-
-
-def _integer(value: object) -> bool:
-    return isinstance(value, int | np.integer) and not isinstance(value, bool | np.bool_)
 
 
 def _dilate_square(

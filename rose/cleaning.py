@@ -63,7 +63,7 @@ import numpy.typing as npt
 
 from rose.errors import RoseError
 from rose.grid import FREE, OCCUPIED, UNKNOWN, as_occupancy_grid
-from rose.limits import finite_number
+from rose.limits import finite_number, integer_number
 from rose.mapfile import MAX_RESOLUTION_M
 from rose.pipeline import analyze
 from rose.result import RoseResult, check_result_for
@@ -145,9 +145,7 @@ class CleanParams:
             for name in lengths
             if not finite_number(getattr(self, name))
         ]
-        if not isinstance(self.run_tolerance_px, int | np.integer) or isinstance(
-            self.run_tolerance_px, bool
-        ):
+        if not integer_number(self.run_tolerance_px):
             not_numbers.append(
                 f"run_tolerance_px must be an integer, got {self.run_tolerance_px!r}"
             )

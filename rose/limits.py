@@ -30,6 +30,7 @@ __all__ = [
     "check_cells",
     "finite_number",
     "image_shape",
+    "integer_number",
     "load_yaml",
     "pnm_header",
     "pnm_numbers",
@@ -183,6 +184,11 @@ def image_shape(data: bytes | memoryview) -> tuple[int, int] | None:
         cols, rows = struct.unpack("<ii", head[18:26])
         return abs(rows), abs(cols)
     return None
+
+
+def integer_number(value: object) -> bool:
+    """Whether ``value`` is an integer (Python or numpy; a bool is not one)."""
+    return isinstance(value, numbers.Integral) and not isinstance(value, bool)
 
 
 def finite_number(value: object) -> bool:

@@ -35,7 +35,7 @@ from scipy.sparse.csgraph import connected_components
 
 from rose.errors import RoseError
 from rose.grid import as_occupancy_grid, occupied_mask
-from rose.limits import finite_number
+from rose.limits import finite_number, integer_number
 from rose.mapfile import DEFAULT_RESOLUTION_M, MAX_RESOLUTION_M, OccupancyMap
 from rose.pipeline import analyze
 from rose.result import RoseResult, check_result_for
@@ -114,11 +114,11 @@ class WallParams:
         for name in ("faces_only", "extend_on_raw"):
             if not isinstance(getattr(self, name), bool | np.bool_):
                 problems.append(f"{name} must be True or False, got {getattr(self, name)!r}")
-        if not _integer(self.occupied_threshold) or not 1 <= self.occupied_threshold <= 100:
+        if not integer_number(self.occupied_threshold) or not 1 <= self.occupied_threshold <= 100:
             problems.append(
                 f"occupied_threshold must be an integer in 1..100, got {self.occupied_threshold!r}"
             )
-        if not _integer(self.hough_votes) or self.hough_votes < 1:
+        if not integer_number(self.hough_votes) or self.hough_votes < 1:
             problems.append(f"hough_votes must be an integer >= 1, got {self.hough_votes!r}")
         # OpenCV's Hough transform sizes its accumulator by these two and crashed the interpreter
         # on a distance step of 1e4 cells; steps over a hundred cells or under 0.01 degree mean
@@ -147,11 +147,6 @@ class WallParams:
             )
         if problems:
             raise RoseError("; ".join(problems))
-
-
-def _integer(value: object) -> bool:
-    """Whether ``value`` is an integer (Python or numpy), not a bool."""
-    return isinstance(value, int | np.integer) and not isinstance(value, bool | np.bool_)
 
 
 def extract_walls_hough(
