@@ -201,18 +201,10 @@ def _pocket_faces(
     count, labels = components(cells, connectivity=4)
     pocket = component_areas(labels, count) < max_area_px
     pocket[0] = False
-    # The labels around each occupied cell (few next to the whole image), on labels padded with
-    # the background so that border cells have all eight neighbours.
-    cols = occupied.shape[1]
-    padded = np.pad(labels, 1).reshape(-1)
+    # Looked up around the occupied cells only (few next to the whole image); an occupied cell's
+    # own label is 0, the background, so a border cell's repeated neighbours change nothing.
     at = np.flatnonzero(occupied)
-    r, c = np.divmod(at, cols)
-    centre = (r + 1) * (cols + 2) + (c + 1)
-    near = np.zeros(at.size, dtype=bool)
-    for dr in (-1, 0, 1):
-        for dc in (-1, 0, 1):
-            if dr or dc:
-                near |= pocket[padded[centre + dr * (cols + 2) + dc]]
+    near = pocket[_neighbour_labels(labels, at)].any(axis=1)
     faces.reshape(-1)[at[near]] = True
     return faces
 
@@ -670,27 +662,10 @@ def _rings(
     """
     import cv2
 
-    rows, cols = patches.shape
     grown = cv2.dilate(opened.view(np.uint8), np.ones((3, 3), np.uint8))
     cells = np.flatnonzero(grown.view(bool) & ~opened)
     # The labels of every ring cell's 8 neighbours (ring cells are few next to the whole image).
-    # On the border, neighbours are clipped onto the cell's own row or column: that only repeats
-    # a neighbour.
-    row, col = np.divmod(cells, cols)
-    flat = patches.reshape(-1)
-    inner = cells.size == 0 or (
-        row[0] > 0 and row[-1] < rows - 1 and int(col.min()) > 0 and int(col.max()) < cols - 1
-    )
-    offsets = [(dr, dc) for dr in (-1, 0, 1) for dc in (-1, 0, 1) if dr or dc]
-    around = np.stack(
-        [
-            flat[cells + (dr * cols + dc)]
-            if inner
-            else flat[np.clip(row + dr, 0, rows - 1) * cols + np.clip(col + dc, 0, cols - 1)]
-            for dr, dc in offsets
-        ],
-        axis=1,
-    )
+    around = _neighbour_labels(patches, cells)
     top = around.max(axis=1)
     # Cells next to two patches are rare: only they need every (cell, patch) pair sorted out.
     contested = ((around > 0) & (around != top[:, None])).any(axis=1)
@@ -702,6 +677,33 @@ def _rings(
     return (
         np.concatenate([cells[~contested], keys // count]),
         np.concatenate([top[~contested], keys % count]),
+    )
+
+
+def _neighbour_labels(
+    labels: npt.NDArray[np.integer], cells: npt.NDArray[np.intp]
+) -> npt.NDArray[np.integer]:
+    """The labels of the 8 neighbours of each cell, shape ``(N, 8)``.
+
+    ``cells`` are flat indices into ``labels``, ascending (as :func:`numpy.flatnonzero` gives
+    them). On the image border a neighbour is clipped onto the cell's own row or column: that only
+    repeats a neighbour or the cell itself.
+    """
+    rows, cols = labels.shape
+    flat = labels.reshape(-1)
+    row, col = np.divmod(cells, cols)
+    inner = cells.size == 0 or (
+        row[0] > 0 and row[-1] < rows - 1 and int(col.min()) > 0 and int(col.max()) < cols - 1
+    )
+    offsets = [(dr, dc) for dr in (-1, 0, 1) for dc in (-1, 0, 1) if dr or dc]
+    return np.stack(
+        [
+            flat[cells + (dr * cols + dc)]
+            if inner
+            else flat[np.clip(row + dr, 0, rows - 1) * cols + np.clip(col + dc, 0, cols - 1)]
+            for dr, dc in offsets
+        ],
+        axis=1,
     )
 
 
