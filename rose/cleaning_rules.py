@@ -111,6 +111,7 @@ def _wall_cells(
 ]:
     import cv2
 
+    unknown = occupancy == UNKNOWN
     runs = directional_runs(
         occupied,
         directions,
@@ -126,9 +127,7 @@ def _wall_cells(
     completed = np.zeros(occupied.shape, dtype=bool)
     if p.max_bridge_m > 0:
         # The wall line hidden behind furniture: unknown cells between collinear kept walls.
-        bridges = bridge_gaps(
-            keep, occupancy == UNKNOWN, directions, max_gap_px=length_px(p.max_bridge_m, res)
-        )
+        bridges = bridge_gaps(keep, unknown, directions, max_gap_px=length_px(p.max_bridge_m, res))
         # Only next to what goes (within a cabinet's depth): a bridge network reaching into
         # unexplored space or across racks is no wall hidden behind removed clutter.
         removed = occupied & ~keep
@@ -141,9 +140,7 @@ def _wall_cells(
     if p.object_pocket_m2 > 0:
         # Object faces: a scanner sees a solid object as faces around a small unknown pocket (its
         # inside, sealed by the wall completed behind it). They go unless on a long straight run.
-        faces = _pocket_faces(
-            occupancy == UNKNOWN, completed, occupied, length_px(p.object_pocket_m2, res**2)
-        )
+        faces = _pocket_faces(unknown, completed, occupied, length_px(p.object_pocket_m2, res**2))
         object_faces = faces & ~lines
         keep &= ~object_faces
     else:
@@ -166,7 +163,7 @@ def _wall_cells(
         )
         # ... unless it closes around known free space: a small room or shaft, not an object
         # (a scanned object's inside stays unknown).
-        dropped &= ~pieces.around_free(dropped, occupancy >= 0)
+        dropped &= ~pieces.around_free(dropped, ~unknown)
         keep &= ~dropped
         # Pieces attached to no kept wall at all are furniture standing in the room: the guard
         # does not count them as obstacles of the input. Only those whose box is smaller than a

@@ -7,6 +7,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
+from rose.errors import RoseError
+from rose.grid import occupied_mask
 from rose.params import RoseParams
 
 __all__ = ["RoseResult", "check_result_for"]
@@ -102,9 +104,6 @@ class RoseResult:
 def check_result_for(result: RoseResult, occupancy: npt.NDArray[np.int8]) -> None:
     """Raise :class:`~rose.errors.RoseError` unless ``result`` was computed on ``occupancy`` (int8
     ROS grid): same shape, and the same occupied cells at the result's threshold."""
-    from rose.errors import RoseError
-    from rose.grid import occupied_mask
-
     if result.occupied.shape != occupancy.shape:
         msg = (
             f"the ROSE result is for a grid of shape {result.occupied.shape}, not {occupancy.shape}"
