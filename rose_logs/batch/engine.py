@@ -191,6 +191,10 @@ def run_batch(
         scheduler = scheduler_address(scheduler_file)
         named_by = str(scheduler_file)
     stopped_by: int | None = None
+    if write_tables and todo:
+        from rose_logs.batch.report import warm_imports
+
+        warm_imports()
     bar = _Progress(total=len(todo), enabled=progress)
     try:
         with _executor(

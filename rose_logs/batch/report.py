@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import contextlib
 import io
+import threading
 from typing import TYPE_CHECKING, Any
 
 from rose_logs.batch.sources import printable
@@ -11,7 +13,7 @@ from rose_logs.session.report import w_judges
 if TYPE_CHECKING:
     from rose_logs.batch.engine import BatchReport
 
-__all__ = ["figure_png", "markdown"]
+__all__ = ["figure_png", "markdown", "warm_imports"]
 
 #: Broken recordings named in the figure's legend (the rest are counted).
 _LEGEND_MAX = 12
@@ -138,10 +140,10 @@ def _losses_section(rows: list[dict[str, Any]]) -> list[str]:
 def figure_png(report: BatchReport) -> bytes | None:
     """PNG of W over time per recording and map topic; None without matplotlib or snapshots."""
     try:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+        # The object API with its own Agg canvas: no pyplot state, and the backend of a user who
+        # calls run_batch from a notebook stays theirs.
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
     except ImportError:
         return None
     series = []
@@ -157,7 +159,9 @@ def figure_png(report: BatchReport) -> bytes | None:
     if not series:
         return None
     level = report.failure_level
-    fig, ax = plt.subplots(figsize=(9, 4.5), dpi=100)
+    fig = Figure(figsize=(9, 4.5), dpi=100)
+    FigureCanvasAgg(fig)
+    ax = fig.subplots()
     broken_count = 0
     for label, rows in series:
         judged = [s for s in rows if w_judges(s["occupied"])]
@@ -187,5 +191,18 @@ def figure_png(report: BatchReport) -> bytes | None:
     fig.tight_layout()
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png", metadata={"Software": None})
-    plt.close(fig)
     return buffer.getvalue()
+
+
+def warm_imports() -> threading.Thread:
+    """Import the figure's modules (about half a second) in a daemon thread, started while the
+    recordings run: the report is drawn sooner when they are done."""
+
+    def load() -> None:
+        with contextlib.suppress(ImportError):
+            import matplotlib.backends.backend_agg
+            import matplotlib.figure  # noqa: F401
+
+    thread = threading.Thread(target=load, name="rose-report-imports", daemon=True)
+    thread.start()
+    return thread

@@ -618,3 +618,19 @@ def test_a_file_name_that_is_not_utf8_is_processed_and_tabled(fleet: Path, tmp_p
     assert read_rows(out / "snapshots.parquet")[0]["uri"] == rows[0]["uri"]
     assert (out / "cleaned" / "odd" / name).is_file()  # the output keeps the real name
     assert "r\\xffbot.mcap" in (out / "report.md").read_text(encoding="utf-8")
+
+
+def test_the_report_figure_leaves_the_callers_matplotlib_backend_alone(tmp_path: Path) -> None:
+    """run_batch called from a notebook must not switch the user's plotting backend."""
+    matplotlib = pytest.importorskip("matplotlib")
+    from fleet import copy_recording
+
+    log = copy_recording(tmp_path / "run.mcap", "mcap", max_maps=2)
+    chosen = matplotlib.get_backend()
+    try:
+        matplotlib.use("svg")
+        run_batch([log], tmp_path / "out")
+        assert matplotlib.get_backend() == "svg"
+    finally:
+        matplotlib.use(chosen)
+    assert (tmp_path / "out" / "w_over_time.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
