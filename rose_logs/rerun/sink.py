@@ -54,6 +54,11 @@ _LOG = logging.getLogger(__name__)
 
 APPLICATION_ID = "rose_bag"
 _QUEUE_DEPTH = 2
+_FLUSH_NUM_BYTES = 256 * 1024
+"""Rerun's batcher flushes a chunk at this many bytes (its default is 2 MiB). A snapshot logs about
+1 MB of images, so Rerun's default held several snapshots' data at once: on the one-hour benchmark
+session the peak memory went 425 -> 386 MB with this, for a 4 % larger recording (96.5 -> 100.2
+MB). ``RERUN_FLUSH_NUM_BYTES`` in the environment still wins."""
 _FLUSH_STEP_S = 5.0
 """Longest wait for one flush of the recording, seconds (see :meth:`RerunSink._flush`)."""
 _STALL_STEPS = 2
@@ -198,6 +203,13 @@ def _layout_of(root: str, snapshot: MapSnapshot | None, *, has_events: bool) -> 
     )
 
 
+def _batcher_config() -> rr.ChunkBatcherConfig:
+    """Rerun's batching thresholds from the environment, with a smaller flush size unless set."""
+    if "RERUN_FLUSH_NUM_BYTES" in os.environ:
+        return rr.ChunkBatcherConfig()
+    return rr.ChunkBatcherConfig(flush_num_bytes=_FLUSH_NUM_BYTES)
+
+
 class RerunSink:
     """A Rerun recording of one session: a saved ``.rrd`` and/or a live viewer.
 
@@ -252,7 +264,9 @@ class RerunSink:
             self.tmp = self.rrd_path.with_name(f".{self.rrd_path.name}.rose-tmp")
         self.live = spawn or connect is not None
         self.start_ns = int(start_ns)
-        self.recording = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id)
+        self.recording = rr.RecordingStream(
+            APPLICATION_ID, recording_id=recording_id, batcher_config=_batcher_config()
+        )
         self.recording.set_log_time_enabled(False)
         sinks: list[rr.FileSink | rr.GrpcSink] = []
         if self.tmp is not None:

@@ -422,3 +422,14 @@ def test_direction_labels_are_in_each_views_frame(tmp_path: Path, fr079) -> None
     assert cells["Points2D:labels"] == [f"walls {fold_deg(d, 1):.1f}°" for d in degrees]
     turned = [f"walls {fold_deg(d + math.degrees(yaw), 1):.1f}°" for d in degrees]
     assert metric["Points3D:labels"] == turned
+
+
+def test_rerun_batches_small_chunks_unless_the_environment_says_otherwise(monkeypatch) -> None:
+    """Rerun's 2 MiB default held several snapshots' images in memory at once; a user's own
+    RERUN_FLUSH_NUM_BYTES still decides."""
+    from rose_logs.rerun import sink
+
+    monkeypatch.delenv("RERUN_FLUSH_NUM_BYTES", raising=False)
+    assert sink._batcher_config().flush_num_bytes == 256 * 1024
+    monkeypatch.setenv("RERUN_FLUSH_NUM_BYTES", "4096")
+    assert sink._batcher_config().flush_num_bytes == 4096
