@@ -18,8 +18,9 @@ __all__ = ["RoseResult", "check_result_for"]
 class RoseResult:
     """Everything ROSE computed for one map.
 
-    Angles are in radians, counter-clockwise from the map's +x axis (along columns) towards +y (along
-    rows); row 0 is the map origin, as in the input grid. Directions are line orientations in ``[0, pi)``.
+    Angles are in radians in the grid frame: counter-clockwise from the column axis (+x of an
+    unrotated map) towards the row axis; row 0 is the map origin, as in the input grid. The map
+    frame adds the origin's yaw. Directions are line orientations in ``[0, pi)``.
 
     Attributes
     ----------

@@ -17,7 +17,7 @@ def structure_mask(
     """The paper's structure part S of the half-plane spectrum of a padded ``shape``.
 
     Cells within ``half_width_px`` (cells of the longer side) of the line through DC perpendicular to
-    each wall direction (radians, map frame), at every radius, DC included as in the authors' code.
+    each wall direction (radians, grid frame), at every radius, DC included as in the authors' code.
 
     The strips cover about 1 % of the spectrum: only the cells near each strip (found per column, or
     per row for strips closer to the rows) are tested, with the same float32 arithmetic a test of

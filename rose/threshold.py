@@ -3,7 +3,7 @@
 The paper fits a 2-component Gaussian mixture to the occupied cells' scores with EM and puts the
 threshold where the two weighted Gaussians intersect. The mixture is one-dimensional and fitted on at
 most a few thousand samples, so it is a few vectorised numpy lines here: no scikit-learn and no thread
-pools (scikit-learn's fit took 130-250 ms per map whenever other processes kept the cores busy, this
+pools (scikit-learn's fit took 130-950 ms per map whenever other processes kept the cores busy, this
 one takes 1-2 ms), and a deterministic initialisation from the data's quantiles instead of a random one.
 """
 

@@ -5,7 +5,8 @@
 - ``<map>/rose/structure_score``: ``std_msgs/msg/Float32``, the score W;
 - ``<map>/rose/walls``: ``visualization_msgs/msg/MarkerArray``, one ``LINE_LIST`` marker with a line through
   the map centre along each dominant direction (in the map's frame, so RViz and Foxglove draw it over the
-  map) and a ``TEXT_VIEW_FACING`` marker showing W.
+  map), a ``TEXT_VIEW_FACING`` marker showing W and, with ``--walls``, a second ``LINE_LIST`` of the
+  wall segments.
 """
 
 from __future__ import annotations

@@ -15,8 +15,10 @@ Both pipelines share every step but two (the paper's Section 4.1):
 4. Segments shorter than ``min_wall_length_px`` are dropped.
 
 :func:`extract_walls_hough` (the baseline) runs this on the raw map. :func:`extract_walls` (ROSE) keeps
-only the wall pixels that ROSE labels structure, and rotates every segment about its midpoint onto the
-nearest dominant direction before and after merging, so parallel near-duplicates collapse.
+only the wall pixels that ROSE labels structure, and rotates every segment within
+``snap_tolerance_deg`` of a dominant direction about its midpoint onto it before and after merging,
+so parallel near-duplicates collapse. With ``extend_on_raw`` (the default) the merged segments are
+then extended along the raw map's wall pixels (structure or not) and merged once more.
 
 """
 
@@ -206,8 +208,9 @@ def extract_walls(
         As in :func:`extract_walls_hough`. Not modified.
     result : RoseResult, optional
         ROSE's result for ``grid``; computed with :func:`rose.analyze` defaults if omitted. When it
-        found no structure (``has_structure`` False) there is nothing to snap to and the walls equal
-        the baseline's (a warning is logged).
+        found no structure (``has_structure`` False) there is nothing to snap to: Hough runs on all
+        the wall pixels, as in the baseline, but the segments are still merged and extended along
+        the raw map (a warning is logged).
     params, resolution_m, origin_xy_m, origin_yaw_rad
         As in :func:`extract_walls_hough`.
 

@@ -76,7 +76,7 @@ class BatchReport:
 
     @property
     def broken(self) -> tuple[RecordingResult, ...]:
-        """Recordings with a snapshot above the failure level."""
+        """Recordings whose map broke: the break detector fired, or W rose above the failure level."""
         return tuple(r for r in self.results if r.row()["broke"])
 
 

@@ -1,7 +1,9 @@
 """The ``rose-bag`` command: ``process``, ``info``, ``convert``, ``evaluate`` and ``batch``, one module each.
 
 Exit codes: 0 success, 1 error (one line ``error: <file>: <problem>`` on stderr), 2 usage error,
-3 ``--fail-above`` or ``--fail-on-break`` gate failed. Tracebacks only with ``--debug``.
+3 ``--fail-above`` or ``--fail-on-break`` gate failed, 4 ``--salvage`` with messages lost,
+130 / 143 / 129 interrupted by SIGINT / SIGTERM / SIGHUP, 141 standard output closed early.
+Tracebacks only with ``--debug``.
 """
 
 from __future__ import annotations
@@ -30,7 +32,7 @@ from rose_logs.malloc import keep_arrays_on_heap
 __all__ = ["EXIT_GATE", "EXIT_SALVAGED", "build_parser", "console", "main"]
 
 EXIT_GATE = 3
-"""Exit code of a failed quality gate (``--fail-above``)."""
+"""Exit code of a failed quality gate (``--fail-above``, ``--fail-on-break``)."""
 
 EXIT_SALVAGED = 4
 """Exit code of ``--salvage`` when messages were lost: the outputs hold what could be read."""
@@ -96,8 +98,9 @@ class _OncePerMessage(logging.Filter):
 def main(argv: list[str] | None = None) -> int:
     """Run ``rose-bag`` with ``argv`` (default ``sys.argv[1:]``); returns the exit code.
 
-    0 success, 1 error (one line on stderr, nothing written), 2 usage error, 3 ``--fail-above`` gate,
-    4 ``--salvage`` with messages lost, 130 / 143 / 129 interrupted by SIGINT / SIGTERM / SIGHUP.
+    0 success, 1 error (one line on stderr, nothing written), 2 usage error, 3 ``--fail-above`` or
+    ``--fail-on-break`` gate, 4 ``--salvage`` with messages lost, 130 / 143 / 129 interrupted by
+    SIGINT / SIGTERM / SIGHUP, 141 standard output closed early.
     """
     with signal_handlers_kept():  # an in-process caller keeps its own handlers
         install_signal_handlers()

@@ -42,7 +42,7 @@ def add_parser(subparsers: Any) -> None:
         "--output",
         type=Path,
         default=None,
-        help="output log (default: <input>.rose.<ext> next to the input)",
+        help="output log (default: <input>.rose.<ext> next to the input; a bag folder or .db3 <name> gives the folder <name>.rose)",
     )
     parser.add_argument(
         "--no-output", action="store_true", help="write no output log (report / Rerun only)"

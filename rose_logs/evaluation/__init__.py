@@ -1,4 +1,5 @@
-"""The paper's evaluation on real data: clutter sensitivity, W on broken maps, W as confidence.
+"""The paper's evaluation on real data: clutter sensitivity, W on broken maps, W as confidence,
+walls, break detection in sessions and the cleaning benchmark.
 
 ``run_evaluation(EvaluationConfig.small(), out_dir)`` writes ``report.md``, CSV tables and PNG figures;
 ``python -m rose_logs.evaluation OUT_DIR --config full`` runs the benchmark configuration.

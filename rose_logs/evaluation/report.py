@@ -158,7 +158,8 @@ def run_evaluation(
     *,
     progress: Callable[[str], None] | None = None,
 ) -> EvaluationReport:
-    """Run experiments 1-3 and the wall experiment and write the report.
+    """Run experiments 1-3, the wall experiment, experiment 4 (break detection) and the cleaning
+    benchmark, and write the report.
 
     Parameters
     ----------

@@ -1,8 +1,9 @@
 """The default layout: "when does my map break, and what does ROSE see there?"
 
-Left, large: the segmentation (structure blue, clutter orange) with the dominant directions; below it the
-map from above in metres on a 1 m grid, and the occupied cells' scores. Right: W over session time
-with the trust and failure levels and the breaks marked, the cumulative amplitude per direction with
+Left, large: the segmentation (structure blue, clutter orange, clutter kept as wall teal) with the
+dominant directions; below it the map from above in metres on a 1 m grid, and the occupied cells'
+scores. Right: W over session time with the trust and failure levels and the breaks marked, the break
+detector's score over the same time, the cumulative amplitude per direction with
 its peaks and prominence threshold, the spectrum with the kept strips, and the events (only when the
 session has any). Panels are collapsed so the views get the window.
 """

@@ -221,6 +221,8 @@ def take_screenshots(
         Seconds the viewer gets to load before each shot.
     chromium : Path, optional
         Browser executable; default :func:`chromium_path`.
+    prefix : str
+        Put before every PNG's name (``fr079_`` gives ``fr079_end.png``).
 
     Raises
     ------

@@ -129,7 +129,9 @@ def process_log(
         absolute path and content, so a re-run of the same file joins it). ``rose-bag batch`` passes
         one derived from the full URI, so that two robots' ``run.mcap`` stay separate recordings.
     break_params : BreakParams, optional
-        Break detector parameters (defaults of :class:`rose_logs.session.breaks.BreakParams`).
+        Break detector parameters; default
+        ``BreakParams.following(params.occupied_threshold)`` (the defaults, with the occupied
+        threshold the analysis uses).
     outputs : rose.outputs.OutputSet, optional
         The run's outputs: the log and recording are staged there and the caller commits them together
         with its own (a JSON report). Default: a set of its own, committed before returning.
