@@ -429,6 +429,18 @@ def _is_bag_folder(path: Path) -> bool:
     return "metadata.yaml" in names and not any(e.is_dir(follow_symlinks=False) for e in entries)
 
 
+def enclosing_bag_folder(path: Path) -> Path | None:
+    """The ROS 2 bag folder a storage file lies in (its folder holds ``metadata.yaml``), else None.
+
+    Reading ``bag/bag.db3`` alone is fine, but every file of the bag is the input: an output in
+    that folder would overwrite its metadata or nest a bag inside it.
+    """
+    path = Path(path)
+    if not path.is_file() or not (path.parent / "metadata.yaml").is_file():
+        return None
+    return path.parent
+
+
 class OutputSet:
     """The outputs of one run, committed together (see the module docstring).
 
@@ -474,8 +486,12 @@ class OutputSet:
 
     # -- registration --------------------------------------------------------------------------------
     def add_input(self, path: Path | str) -> None:
-        """Protect ``path`` (and, if it is a symlink, what it points to) from every output."""
+        """Protect ``path`` (and, if it is a symlink, what it points to) from every output; for a
+        storage file of a ROS 2 bag, the whole bag folder (:func:`enclosing_bag_folder`)."""
         path = Path(path)
+        bag = enclosing_bag_folder(path)
+        if bag is not None:
+            path = bag
         self._inputs.append((path, path.resolve()))
 
     @property
@@ -595,7 +611,8 @@ class OutputSet:
             raise OutputError(msg)
         for given, resolved in self._inputs:
             if _conflict(target, resolved):
-                msg = f"{path}: refusing to write over the input {given}"
+                what = "inside the input" if resolved in target.parents else "over the input"
+                msg = f"{path}: refusing to write {what} {given}"
                 raise OutputError(msg)
         for other in self._outputs:
             if other.stream and str(path) != STDOUT:

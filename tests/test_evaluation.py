@@ -305,7 +305,7 @@ def test_evaluate_writes_its_folder_whole_and_replaces_only_its_own_reports(
     data = tmp_path / "data"
     data.mkdir()
     assert main(["evaluate", str(data / "new" / "report"), "--maps-dir", str(data)]) == 1
-    assert "refusing to write over the input" in capsys.readouterr().err
+    assert "refusing to write inside the input" in capsys.readouterr().err
     assert list(data.iterdir()) == []
 
 

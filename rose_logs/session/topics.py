@@ -6,6 +6,7 @@ import logging
 from collections.abc import Sequence
 from pathlib import Path
 
+from rose.outputs import enclosing_bag_folder
 from rose_logs.derived import derived_topics
 from rose_logs.errors import LogReadError, LogWriteError
 from rose_logs.storage.records import Channel
@@ -86,7 +87,8 @@ def default_output_path(input_path: Path) -> Path:
     """``run.mcap`` -> ``run.rose.mcap``, ``run.bag`` (or ``run.bag.active``) -> ``run.rose.bag``,
     folder ``run`` -> ``run.rose``.
 
-    A path without a name of its own (``.``, ``bags/..``) is named by its absolute form.
+    A path without a name of its own (``.``, ``bags/..``) is named by its absolute form. A storage
+    file inside a ROS 2 bag folder gets its output beside that folder, never inside the input bag.
     """
     path = Path(input_path)
     if path.name in ("", ".", ".."):
@@ -95,10 +97,13 @@ def default_output_path(input_path: Path) -> Path:
         msg = f"{input_path}: no file name to name the output after; give one with -o"
         raise LogWriteError(msg)
     if path.is_dir() or path.suffix.lower() == ".db3":
-        return path.with_name(f"{path.stem if path.is_file() else path.name}.rose")
-    if path.name.lower().endswith(_ACTIVE_BAG):  # a recording rosbag never closed
-        return path.with_name(f"{path.name[: -len(_ACTIVE_BAG)]}.rose.bag")
-    return path.with_name(f"{path.stem}.rose{path.suffix}")
+        name = f"{path.stem if path.is_file() else path.name}.rose"
+    elif path.name.lower().endswith(_ACTIVE_BAG):  # a recording rosbag never closed
+        name = f"{path.name[: -len(_ACTIVE_BAG)]}.rose.bag"
+    else:
+        name = f"{path.stem}.rose{path.suffix}"
+    bag = enclosing_bag_folder(path)
+    return (path.parent if bag is None else bag.parent) / name
 
 
 def select_topics(

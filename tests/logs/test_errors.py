@@ -275,6 +275,28 @@ def test_output_never_replaces_the_input(tmp_path: Path, capsys, mcap_log: Path)
     assert mcap_log.read_bytes() == before
 
 
+def test_a_storage_file_of_a_bag_is_read_but_its_bag_folder_is_never_written(
+    tmp_path: Path, capsys, fr079
+) -> None:
+    """``process bag/bag.db3``: any output inside the bag folder (its metadata.yaml, a nested
+    bag) would damage the input bag; the default output goes beside the folder."""
+    built = build_log(tmp_path / "bag", "db3", session_maps(fr079[:2]))
+    storage = next(built.path.glob("*.db3"))
+    before = tree_bytes(built.path)
+    for extra in (
+        ["--no-output", "--json", built.path / "metadata.yaml", "--force"],
+        ["-o", built.path / "nested.mcap"],
+        ["--no-output", "--rrd", built.path / "run.rrd"],
+    ):
+        code, _, err = _run(capsys, "process", storage, *extra)
+        assert code == 1
+        _assert_one_line_error(err, "refusing to write inside the input")
+    code, out, _ = _run(capsys, "process", storage)
+    assert code == 0
+    assert (tmp_path / f"{storage.stem}.rose" / "metadata.yaml").is_file()
+    assert tree_bytes(built.path) == before
+
+
 def test_missing_output_folder(tmp_path: Path, capsys, mcap_log: Path) -> None:
     code, _, err = _run(capsys, "process", mcap_log, "-o", tmp_path / "no" / "such" / "o.mcap")
     assert code == 1
