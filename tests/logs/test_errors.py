@@ -291,7 +291,7 @@ def test_a_storage_file_of_a_bag_is_read_but_its_bag_folder_is_never_written(
         code, _, err = _run(capsys, "process", storage, *extra)
         assert code == 1
         _assert_one_line_error(err, "refusing to write inside the input")
-    code, out, _ = _run(capsys, "process", storage)
+    code, _, _ = _run(capsys, "process", storage)
     assert code == 0
     assert (tmp_path / f"{storage.stem}.rose" / "metadata.yaml").is_file()
     assert tree_bytes(built.path) == before
