@@ -11,9 +11,11 @@ Supported inputs (:func:`detect_format`):
 Messages are never decoded here: :class:`RawMessage` carries the serialised bytes, so copying is byte for
 byte and memory stays flat in the number of messages. Decoding map messages is :mod:`rose_logs.snapshots`.
 
-With ``salvage``, an MCAP file whose summary is missing and a ROS 1 bag whose index cannot be used are
-read record by record from their start instead (:mod:`rose_logs.storage.mcap`,
-:mod:`rose_logs.storage.ros1_stream`): their messages then come in file order.
+An MCAP file written without a summary section (optional in MCAP) is read record by record, its
+messages sorted by log time when the file has them out of order. With ``salvage``, an MCAP file whose
+end is missing and a ROS 1 bag whose index cannot be used are read record by record from their start
+instead (:mod:`rose_logs.storage.mcap`, :mod:`rose_logs.storage.ros1_stream`); MCAP messages come
+sorted by log time too, a ROS 1 bag's in file order.
 """
 
 from __future__ import annotations
@@ -30,7 +32,7 @@ from rose.outputs import reraise_interrupt_behind
 from rose_logs.errors import LogError, LogReadError
 from rose_logs.formats import LogFormat, detect_format
 from rose_logs.storage.connections import QosStyle
-from rose_logs.storage.mcap import McapReadBackend, McapStreamReadBackend
+from rose_logs.storage.mcap import McapNoSummaryError, McapReadBackend, McapStreamReadBackend
 from rose_logs.storage.records import Channel, RawMessage
 from rose_logs.storage.ros1_stream import Ros1StreamReadBackend
 from rose_logs.storage.rosbags import RosbagsReadBackend
@@ -110,7 +112,9 @@ class LogReader:
         except Exception as err:  # library errors of every kind: wrap at the boundary
             backend.close()
             reraise_interrupt_behind(err)
-            salvaged = self._salvage_stream() if self.salvage else None
+            salvaged = self._without_summary() if isinstance(err, McapNoSummaryError) else None
+            if salvaged is None and self.salvage:
+                salvaged = self._salvage_stream()
             if salvaged is None:
                 if isinstance(err, LogError):
                     raise
@@ -136,6 +140,22 @@ class LogReader:
             f"{self.path}: corrupt or truncated {what} ({short(_library_text(err), 120)}); {remedy}"
         )
 
+    def _without_summary(self) -> McapStreamReadBackend | None:
+        """A complete MCAP file written without its (optional) summary, read record by record;
+        None when the file is truncated instead (its error stands)."""
+        backend = McapStreamReadBackend(self.path)
+        try:
+            backend.open()
+        except Exception as err:
+            backend.close()
+            reraise_interrupt_behind(err)
+            return None
+        if not backend.complete:
+            backend.close()
+            return None
+        _LOG.info("%s: no summary section (optional in MCAP): read record by record", self.path)
+        return backend
+
     def _salvage_stream(self) -> McapStreamReadBackend | Ros1StreamReadBackend | None:
         """The readable start of an MCAP file whose end is missing or damaged, or of a ROS 1 bag
         without a readable index (None for other formats, or when not even that can be read); the
@@ -159,13 +179,13 @@ class LogReader:
             backend.close()
             return None
         read = sum(c.message_count for c in backend.channels)
+        order = "sorted by log time" if self.format == "mcap" else "in file order"
         if backend.complete:
             # Only the header's pointer to the index was wrong: nothing is lost.
-            _LOG.warning("%s: %s, read record by record, in file order", self.path, backend.damage)
+            _LOG.warning("%s: %s, read record by record, %s", self.path, backend.damage, order)
             return backend
         problem = (
-            f"{self.path}: {where} ({backend.damage}); kept the {read} messages before it, "
-            "in file order"
+            f"{self.path}: {where} ({backend.damage}); kept the {read} messages before it, {order}"
         )
         self.losses.append(problem)
         _LOG.warning("%s", problem)
@@ -235,7 +255,7 @@ class LogReader:
         return "cdr"
 
     def messages(self, *, topics: Collection[str] | None = None) -> Iterator[RawMessage]:
-        """Every message (or those on ``topics``), in log-time order (in file order for a log
+        """Every message (or those on ``topics``), in log-time order (in file order for a ROS 1 bag
         salvaged record by record, see the module notes).
 
         Raises

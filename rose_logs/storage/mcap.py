@@ -26,9 +26,18 @@ from rose_logs.storage.records import (
     ros1_msgtype,
 )
 
-__all__ = ["McapReadBackend", "McapStreamReadBackend", "McapWriteBackend"]
+__all__ = ["McapNoSummaryError", "McapReadBackend", "McapStreamReadBackend", "McapWriteBackend"]
 
 _LOG = logging.getLogger(__name__)
+
+#: Most message bytes sorted in memory, for a file read record by record whose messages are not in
+#: log-time order (a file with an index is sorted through it, in constant memory).
+MAX_SORTED_BYTES = 2**30
+
+
+class McapNoSummaryError(LogReadError):
+    """An MCAP file has no summary section: truncated, still being recorded, or written without one
+    (the section is optional); :class:`McapStreamReadBackend` tells which."""
 
 
 class McapReadBackend:
@@ -60,7 +69,7 @@ class McapReadBackend:
                 f"{self.path}: MCAP file without summary (truncated or still being recorded?); "
                 "`rose-bag process --salvage` keeps the messages before the end, or try `mcap recover`"
             )
-            raise LogReadError(msg)
+            raise McapNoSummaryError(msg)
         counts = summary.statistics.channel_message_counts if summary.statistics else None
         if counts is None:  # no statistics record: count what the file holds
             counts = self._count_messages()
@@ -138,19 +147,25 @@ class McapStreamReadBackend(McapReadBackend):
     """What can be read of a bare MCAP file from its start, when its end (the summary) is missing or
     damaged: a recording cut off by a crash or a full disk. For ``--salvage`` only.
 
+    Also the reader of a complete file written without a summary (the MCAP specification makes it
+    optional): then :attr:`complete` is True and nothing is lost.
+
     The file is read record by record (complete chunks only) up to the first record that cannot be
-    read; :attr:`damage` says where and why. Messages come in file order (recorders write them as they
-    arrive), not sorted by log time. The file is read twice: :meth:`open` for the channels and their
-    counts (which the output needs before the first message), :meth:`messages` for the messages, so
-    memory stays that of one chunk.
+    read; :attr:`damage` says where and why. The file is read twice: :meth:`open` for the channels and
+    their counts (which the output needs before the first message), :meth:`messages` for the messages,
+    so memory stays that of one chunk. Recorders write messages as they arrive, in log-time order;
+    when they are not, :meth:`messages` sorts them in memory (up to :data:`MAX_SORTED_BYTES`).
     """
 
     def __init__(self, path: Path) -> None:
         super().__init__(path)
         self.damage = ""
-        #: As :attr:`Ros1StreamReadBackend.complete`; a file read here lost its summary, always.
+        #: As :attr:`Ros1StreamReadBackend.complete`: the file ends with its footer, no summary.
         self.complete = False
         self._end: int | None = None  # where open() stopped: messages() stops there too
+        self._in_order = True  # messages in log-time order in the file
+        self._bytes = 0  # message data read by open()
+        self._sorted_said = False
 
     def _records(self) -> Iterator[Any]:
         """Records from the start of the file up to the first unreadable one (which sets
@@ -181,13 +196,14 @@ class McapStreamReadBackend(McapReadBackend):
 
     def open(self) -> None:
         from mcap.records import Channel as McapChannel
-        from mcap.records import Header, Message, Schema
+        from mcap.records import Footer, Header, Message, Schema
 
         self.stream = self.path.open("rb")
         schemas: dict[int, Any] = {}
         mcap_channels: dict[int, Any] = {}
         counts: dict[int, int] = {}
         first = last = None
+        footer = False
         for record in self._records():
             if isinstance(record, Header):
                 self.profile = record.profile
@@ -197,15 +213,39 @@ class McapStreamReadBackend(McapReadBackend):
                 mcap_channels[record.id] = record
             elif isinstance(record, Message):
                 counts[record.channel_id] = counts.get(record.channel_id, 0) + 1
+                self._in_order &= last is None or record.log_time >= last
+                self._bytes += len(record.data)
                 first = record.log_time if first is None else min(first, record.log_time)
                 last = record.log_time if last is None else max(last, record.log_time)
+            elif isinstance(record, Footer):
+                footer = True
+        self.complete = footer and not self.damage
         if not self.damage:
-            self.damage = "no summary at the end"
+            self.damage = "the file ends without a summary" if footer else "no summary at the end"
         self.channels, self._by_id, self.qos_style = _channels(mcap_channels, schemas, counts)
         if first is not None and last is not None:
             self.start_ns, self.end_ns = int(first), int(last)
 
     def messages(self, topics: set[str] | None) -> Iterator[RawMessage]:
+        if self._in_order:
+            yield from self._file_order(topics)
+            return
+        if self._bytes > MAX_SORTED_BYTES:
+            msg = (
+                f"{self.path}: messages not in log-time order and no index to sort them by "
+                f"({self._bytes / 2**20:.0f} MiB, more than {MAX_SORTED_BYTES // 2**20} MiB to sort "
+                "in memory); `mcap recover` writes a copy with an index"
+            )
+            raise LogReadError(msg)
+        if not self._sorted_said:
+            self._sorted_said = True
+            _LOG.warning(
+                "%s: messages not in log-time order, no index: sorted in memory", self.path
+            )
+        # A stable sort: messages of equal log time keep their file order.
+        yield from sorted(self._file_order(topics), key=lambda m: m.log_time_ns)
+
+    def _file_order(self, topics: set[str] | None) -> Iterator[RawMessage]:
         from mcap.records import Message
 
         by_id = self._by_id

@@ -92,3 +92,70 @@ def test_bag_folder_storage_comes_from_metadata(tmp_path: Path) -> None:
 )
 def test_format_from_output_name(name: str, expected: str | None) -> None:
     assert format_from_path(Path(name)) == expected
+
+
+def _without_summary(source: Path, target: Path, *, reverse: bool) -> None:
+    """Rewrite a bare MCAP file with no summary section (optional in MCAP), messages reversed."""
+    from mcap.reader import make_reader
+    from mcap.writer import IndexType, Writer
+
+    with source.open("rb") as f:
+        reader = make_reader(f)
+        profile = reader.get_header().profile
+        messages = list(reader.iter_messages(log_time_order=True))
+    if reverse:
+        messages.reverse()
+    with target.open("wb") as f:
+        writer = Writer(
+            f,
+            use_summary_offsets=False,
+            use_statistics=False,
+            index_types=IndexType.NONE,
+            repeat_channels=False,
+            repeat_schemas=False,
+        )
+        writer.start(profile=profile, library="tests")
+        schemas: dict[int, int] = {}
+        channels: dict[int, int] = {}
+        for schema, channel, message in messages:
+            if channel.id not in channels:
+                if schema.id not in schemas:
+                    schemas[schema.id] = writer.register_schema(
+                        schema.name, schema.encoding, schema.data
+                    )
+                channels[channel.id] = writer.register_channel(
+                    channel.topic, channel.message_encoding, schemas[schema.id], channel.metadata
+                )
+            writer.add_message(
+                channels[channel.id],
+                message.log_time,
+                message.data,
+                message.publish_time,
+                message.sequence,
+            )
+        writer.finish()
+
+
+@pytest.mark.parametrize("reverse", [False, True], ids=["in-order", "out-of-order"])
+def test_a_complete_mcap_without_summary_reads_like_one_with_it(
+    tmp_path: Path, fr079, reverse: bool
+) -> None:
+    """The summary section is optional in MCAP: such a file is no truncated recording, and its
+    messages come in log-time order even when written out of order."""
+    from conftest import read_all, session_maps
+
+    from rose_logs.reader import LogReader
+
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", session_maps(fr079[:3]))
+    bare = tmp_path / "bare.mcap"
+    _without_summary(built.path, bare, reverse=reverse)
+    with LogReader(bare) as reader:
+        assert reader.losses == []
+        times = [m.log_time_ns for m in reader.messages()]
+    assert times == sorted(times)
+    assert read_all(bare) == read_all(built.path)
+    # Truncated, it is still refused (a recording cut off), naming --salvage.
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(bare.read_bytes()[: bare.stat().st_size // 2])
+    with pytest.raises(LogReadError, match="salvage"):
+        LogReader(cut).open()
