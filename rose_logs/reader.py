@@ -112,7 +112,9 @@ class LogReader:
         except Exception as err:  # library errors of every kind: wrap at the boundary
             backend.close()
             reraise_interrupt_behind(err)
-            salvaged = self._without_summary() if isinstance(err, McapNoSummaryError) else None
+            salvaged: McapStreamReadBackend | Ros1StreamReadBackend | None = (
+                self._without_summary() if isinstance(err, McapNoSummaryError) else None
+            )
             if salvaged is None and self.salvage:
                 salvaged = self._salvage_stream()
             if salvaged is None:
