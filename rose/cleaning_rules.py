@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
-from rose.grid import UNKNOWN
+from rose.grid import OCCUPIED, UNKNOWN
 from rose.labelling import (
     component_areas,
     components,
@@ -134,6 +134,15 @@ def _wall_cells(
         side = 2 * round(length_px(p.hidden_wall_reach_m, res)) + 1
         behind = cv2.dilate(removed.view(np.uint8), np.ones((side, side), np.uint8)).view(bool)
         completed = _touching(bridges, removed) & behind
+        if completed.any():
+            # The completed wall separates the room from the unknown beyond it: furniture faces
+            # in front of it are no longer next to the outside (a cabinet's inside, open through
+            # the unscanned wall behind it, made its faces look like the building's edge).
+            sealed = occupancy.copy()
+            sealed[completed] = OCCUPIED
+            outside = wide_unknown(sealed, radius_px=length_px(p.open_unknown_width_m, 2 * res))
+            near_outside = _dilate(outside, round(length_px(p.unknown_margin_m, res)))
+            keep = occupied & (structure | near_outside) | lines
     dropped = np.zeros(occupied.shape, dtype=bool)
     object_faces = np.zeros(occupied.shape, dtype=bool)
     guard_obstacles = occupied
