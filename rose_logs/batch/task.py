@@ -269,8 +269,9 @@ def package_version() -> str:
 #: ``w_above_failure``; 4: directions in the map frame, the ``completed`` count; 5: skipped
 #: messages and warnings; 6: thin maps padded to 16 cells, resolution as its float32 reads,
 #: warnings counted once; 7: the break detector also counts risen evidence; 8: the walls cleaning's
-#: object rules, W judges maps of 20 or more occupied cells).
-RESULT_LAYOUT = 8
+#: object rules, W judges maps of 20 or more occupied cells; 9: the wide unknown recomputed behind
+#: completed walls, complete MCAP files without a summary read in log-time order).
+RESULT_LAYOUT = 9
 
 
 def result_key(recording: Recording, options: RecordingOptions) -> str:
