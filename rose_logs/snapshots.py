@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from rose.grid import OCCUPIED, UNKNOWN
 from rose.mapfile import MAX_RESOLUTION_M
 from rose_logs.errors import MapMessageError
 from rose_logs.frames import quaternion_to_yaw
@@ -58,6 +59,8 @@ class MapSnapshot:
         ``info.map_load_time`` in nanoseconds.
     header_seq : int
         ROS 1 ``header.seq`` (0 for ROS 2), kept so derived messages repeat it.
+    out_of_range_cells : int
+        Cells of the message outside -1..100, read as occupied (100) in ``grid``.
     """
 
     topic: str
@@ -70,6 +73,7 @@ class MapSnapshot:
     origin_orientation_xyzw: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 1.0)
     map_load_time_ns: int = 0
     header_seq: int = 0
+    out_of_range_cells: int = 0
 
     @property
     def origin_yaw_rad(self) -> float:
@@ -98,6 +102,8 @@ class GridUpdate:
         Column and row of the patch's first cell in the full grid.
     patch : ndarray of int8, shape (height, width)
         New cell values, ROS convention (row 0 towards the origin). Read-only.
+    out_of_range_cells : int
+        Cells of the message outside -1..100, read as occupied (100) in ``patch``.
     """
 
     topic: str
@@ -107,6 +113,7 @@ class GridUpdate:
     x_px: int
     y_px: int
     patch: npt.NDArray[np.int8]
+    out_of_range_cells: int = 0
 
 
 def apply_update(snapshot: MapSnapshot, update: GridUpdate) -> MapSnapshot:
@@ -143,6 +150,7 @@ def apply_update(snapshot: MapSnapshot, update: GridUpdate) -> MapSnapshot:
         origin_orientation_xyzw=snapshot.origin_orientation_xyzw,
         map_load_time_ns=snapshot.map_load_time_ns,
         header_seq=snapshot.header_seq,
+        out_of_range_cells=update.out_of_range_cells,
     )
 
 
@@ -192,7 +200,14 @@ def _deserialize(data: bytes | memoryview, msgtype: str, serialization: str, top
         raise MapMessageError(msg) from err
 
 
-def _grid_from(data: Any, width: int, height: int, topic: str, what: str) -> npt.NDArray[np.int8]:
+def _grid_from(
+    data: Any, width: int, height: int, topic: str, what: str
+) -> tuple[npt.NDArray[np.int8], int]:
+    """The cells as a read-only ``(height, width)`` grid, and how many were outside -1..100.
+
+    Those are read as occupied, as Nav2's static layer reads them (as unsigned bytes, every value
+    but -1 = 255 from 100 up is lethal): one stray value must not cost the whole map.
+    """
     flat = np.asarray(data)
     if flat.dtype != np.int8:
         flat = flat.astype(np.int8)
@@ -203,8 +218,12 @@ def _grid_from(data: Any, width: int, height: int, topic: str, what: str) -> npt
         msg = f"{topic}: {what} data has {flat.size} cells, width x height is {width} x {height} = {width * height}"
         raise MapMessageError(msg)
     grid = flat.reshape(height, width).copy()
+    odd = (grid < UNKNOWN) | (grid > OCCUPIED)
+    odd_count = int(np.count_nonzero(odd))
+    if odd_count:
+        grid[odd] = OCCUPIED
     grid.setflags(write=False)
-    return grid
+    return grid, odd_count
 
 
 def decode_map(
@@ -238,7 +257,7 @@ def decode_map(
     _check_placement(topic, float(info.resolution), position, quaternion)
     stamp_ns = _time_ns(msg.header.stamp, topic, "header.stamp")
     load_ns = _time_ns(info.map_load_time, topic, "info.map_load_time")
-    grid = _grid_from(msg.data, int(info.width), int(info.height), topic, "map")
+    grid, odd = _grid_from(msg.data, int(info.width), int(info.height), topic, "map")
     return MapSnapshot(
         topic=topic,
         log_time_ns=int(log_time_ns),
@@ -250,6 +269,7 @@ def decode_map(
         origin_orientation_xyzw=quaternion,
         map_load_time_ns=load_ns,
         header_seq=int(getattr(msg.header, "seq", 0)),
+        out_of_range_cells=odd,
     )
 
 
@@ -264,7 +284,7 @@ def decode_update(
         If the bytes do not decode or ``len(data) != width * height``.
     """
     msg = _deserialize(data, UPDATE_TYPE, serialization, topic)
-    patch = _grid_from(msg.data, int(msg.width), int(msg.height), topic, "update")
+    patch, odd = _grid_from(msg.data, int(msg.width), int(msg.height), topic, "update")
     return GridUpdate(
         topic=topic,
         log_time_ns=int(log_time_ns),
@@ -273,4 +293,5 @@ def decode_update(
         x_px=int(msg.x),
         y_px=int(msg.y),
         patch=patch,
+        out_of_range_cells=odd,
     )

@@ -236,23 +236,37 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return EXIT_SALVAGED
+    failed = _gate_failures(args, report)
+    for reason in failed:
+        print(f"error: {args.input}: {reason}", file=sys.stderr)
+    return EXIT_GATE if failed else 0
+
+
+def _gate_failures(args: argparse.Namespace, report: Any) -> list[str]:
+    """Why the requested gates fail, each gate once (empty: they pass or none was asked for)."""
+    reasons = []
     if args.fail_above is not None and report.max_score > args.fail_above:
         judged = [r for r in report.records if r.judged]
         first = next(r for r in judged if r.structure_score > args.fail_above)
         worst = max(judged, key=lambda r: r.structure_score)
         when = duration_text(first.log_time_ns - report.start_ns)
-        print(
-            f"error: {args.input}: W = {first.structure_score:.3f} on {first.topic} snapshot "
-            f"{first.index} ({when} into the log) exceeds --fail-above {args.fail_above:g} "
-            f"first; highest: W = {worst.structure_score:.3f} on snapshot {worst.index}",
-            file=sys.stderr,
+        reasons.append(
+            f"W = {first.structure_score:.3f} on {first.topic} snapshot {first.index} ({when} "
+            f"into the log) exceeds --fail-above {args.fail_above:g} first; highest: "
+            f"W = {worst.structure_score:.3f} on snapshot {worst.index}"
         )
-        return EXIT_GATE
-    first = report.first_break()
-    if args.fail_on_break and first is not None:
-        print(f"error: {args.input}: {first.text} (--fail-on-break)", file=sys.stderr)
-        return EXIT_GATE
-    return 0
+    first_break = report.first_break()
+    if args.fail_on_break and first_break is not None:
+        reasons.append(f"{first_break.text} (--fail-on-break)")
+    if args.fail_above is not None or args.fail_on_break:
+        # A gate cannot vouch for a map topic none of whose maps could be analysed.
+        analysed = {r.topic for r in report.records}
+        reasons.extend(
+            f"{topic}: no map message could be analysed, the gate cannot judge it"
+            for topic in report.map_topics
+            if topic not in analysed
+        )
+    return reasons
 
 
 def _process(args: argparse.Namespace, output: Path | None, progress: bool, outputs: Any) -> Any:

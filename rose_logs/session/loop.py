@@ -540,6 +540,7 @@ class _Loop:
         self.records: list[SnapshotRecord] = []
         self.breaks: list[BreakEvent] = []
         self.skips = _Skips()
+        self.out_of_range_said: set[str] = set()  # topics warned about cells outside -1..100
         self.queue: deque[_Copy | _Pending] = deque()
         self.in_flight = 0
         self.executor: Executor | None = None
@@ -637,7 +638,20 @@ class _Loop:
             self.skips.add("malformed", f"{short(err, 240)} at {log_time_ns} ns")
             return
         self.last_map[topic] = snapshot
+        self._note_out_of_range(topic, snapshot.out_of_range_cells, log_time_ns)
         self._analyse(snapshot, from_update=False)
+
+    def _note_out_of_range(self, topic: str, cells: int, log_time_ns: int) -> None:
+        """Say once per topic that cells outside -1..100 were read as occupied."""
+        if cells and topic not in self.out_of_range_said:
+            self.out_of_range_said.add(topic)
+            _LOG.warning(
+                "%s: %d cell(s) outside -1..100 in the map at %d ns, read as occupied (as Nav2 "
+                "reads them); said once per topic",
+                topic,
+                cells,
+                log_time_ns,
+            )
 
     def _on_update(self, data: bytes | memoryview, topic: str, log_time_ns: int) -> None:
         target = self.updates[topic]
@@ -655,6 +669,7 @@ class _Loop:
             self.skips.add("malformed", f"{short(err, 240)} at {log_time_ns} ns")
             return
         self.last_map[target] = snapshot
+        self._note_out_of_range(target, snapshot.out_of_range_cells, log_time_ns)
         self._analyse(snapshot, from_update=True)
 
     def _analyse(self, snapshot: MapSnapshot, *, from_update: bool) -> None:
@@ -687,7 +702,7 @@ class _Loop:
         topic = snapshot.topic
         try:
             analysis = pending.future.result()
-        except rose.RoseError as err:  # e.g. cell values outside -1..100
+        except rose.RoseError as err:  # e.g. a map too thin to analyse
             self.skips.add(
                 "not analysable", f"{topic}: map at {snapshot.log_time_ns} ns not analysed ({err})"
             )

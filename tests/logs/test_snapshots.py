@@ -103,3 +103,36 @@ def test_out_of_bounds_update_in_a_session_is_skipped_and_copied(tmp_path, fr079
     assert report.skipped_messages == 1
     assert [r.from_update for r in report.records] == [False, True]
     assert read_all(out)["/map_updates"] == read_all(built.path)["/map_updates"]
+
+
+def test_cells_outside_the_ros_range_are_read_as_occupied_not_dropping_the_map(
+    tmp_path, fr079, caplog
+) -> None:
+    """One stray value (101, -2, 127, -128) must not cost the whole snapshot: it is read as
+    occupied, as Nav2's static layer reads it, and said once per topic."""
+    from conftest import START_NS, MapMsg, build_log
+
+    from rose_logs.session import process_log
+
+    odd = fr079[1].copy()
+    odd[0, :4] = (101, -2, 127, -128)
+    patch = fr079[2][:20, :30].copy()
+    patch[5, 5] = 120
+    maps = [
+        MapMsg(START_NS + 1_000_000_000, fr079[0]),
+        MapMsg(START_NS + 2_000_000_000, odd),
+        MapMsg(START_NS + 3_000_000_000, patch, topic="/map_updates", xy=(0, 0)),
+    ]
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps)
+    seen: list = []
+    with caplog.at_level("WARNING"):
+        report = process_log(built.path, output_path=None, on_snapshot=lambda s, *_: seen.append(s))
+    assert report.skipped_messages == 0
+    assert [r.from_update for r in report.records] == [False, False, True]
+    expected = odd.copy()
+    expected[0, :4] = 100
+    assert_array_equal(seen[1].grid, expected)
+    assert seen[1].out_of_range_cells == 4
+    assert seen[2].grid[5, 5] == 100 and seen[2].out_of_range_cells == 1
+    said = [r.getMessage() for r in caplog.records if "outside -1..100" in r.getMessage()]
+    assert len(said) == 1 and "4 cell(s)" in said[0]
