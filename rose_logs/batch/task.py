@@ -270,7 +270,8 @@ def package_version() -> str:
 #: messages and warnings; 6: thin maps padded to 16 cells, resolution as its float32 reads,
 #: warnings counted once; 7: the break detector also counts risen evidence; 8: the walls cleaning's
 #: object rules, W judges maps of 20 or more occupied cells; 9: the wide unknown recomputed behind
-#: completed walls, complete MCAP files without a summary read in log-time order).
+#: completed walls, complete MCAP files without a summary read in log-time order, cells outside
+#: -1..100 read as occupied, unappliable grid updates counted as skipped).
 RESULT_LAYOUT = 9
 
 

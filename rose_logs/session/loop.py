@@ -44,7 +44,7 @@ from rose_logs.reader import LogReader
 from rose_logs.session.analysis import SnapshotAnalyser, SnapshotAnalysis
 from rose_logs.session.breaks import BreakDetector, BreakParams, BreakScore, DetectedBreak
 from rose_logs.session.report import BreakEvent, SessionReport, SnapshotRecord, w_judges
-from rose_logs.session.topics import select_topics, update_targets
+from rose_logs.session.topics import orphan_updates, select_topics, update_targets
 from rose_logs.snapshots import (
     MapSnapshot,
     apply_update,
@@ -290,6 +290,13 @@ def _run_session(
                 max_cells=max_cells,
                 in_flight=analysis_threads,
             )
+            for channel in orphan_updates(channels):
+                loop.skips.add(
+                    "updates of no known map",
+                    f"{channel.topic}: grid updates whose map cannot be told (not <map>_updates "
+                    f"and several map topics)",
+                    count=channel.message_count,
+                )
             loop.run(progress=progress)
             if not loop.records:
                 msg = (
@@ -662,8 +669,12 @@ class _Loop:
             )
             base = self.last_map.get(target)
             if base is None:
-                msg = f"{topic}: grid update before the first full map on {target}"
-                raise MapMessageError(msg)
+                self.skips.add(
+                    "before the first full map",
+                    f"{topic}: grid update at {log_time_ns} ns before the first full map on "
+                    f"{target}",
+                )
+                return
             snapshot = apply_update(base, update)
         except (MapMessageError, ValueError) as err:
             self.skips.add("malformed", f"{short(err, 240)} at {log_time_ns} ns")
@@ -791,19 +802,25 @@ class _Skips:
 
     def __init__(self) -> None:
         self.by_reason: dict[str, int] = {}
+        self.warned: dict[str, int] = {}  # messages named in a warning of their own, by reason
+        self.warnings: dict[str, int] = {}  # those warnings, by reason
 
-    def add(self, reason: str, text: str) -> None:
-        count = self.by_reason.get(reason, 0) + 1
-        self.by_reason[reason] = count
-        if count <= _WARN_FIRST:
-            _LOG.warning("%s, copied unprocessed", text)
+    def add(self, reason: str, text: str, *, count: int = 1) -> None:
+        """``count`` messages skipped for ``reason``; ``text`` names them (warned one by one for
+        the first few warnings of a reason; ``count`` messages at once are one warning)."""
+        if count <= 0:
+            return
+        self.by_reason[reason] = self.by_reason.get(reason, 0) + count
+        if self.warnings.get(reason, 0) < _WARN_FIRST:
+            self.warnings[reason] = self.warnings.get(reason, 0) + 1
+            self.warned[reason] = self.warned.get(reason, 0) + count
+            _LOG.warning("%s%s, copied unprocessed", f"{count} " if count > 1 else "", text)
 
     def warn_rest(self) -> None:
         for reason, count in self.by_reason.items():
-            if count > _WARN_FIRST:
-                _LOG.warning(
-                    "%d more map messages %s, copied unprocessed", count - _WARN_FIRST, reason
-                )
+            rest = count - self.warned.get(reason, 0)
+            if rest > 0:
+                _LOG.warning("%d more map messages %s, copied unprocessed", rest, reason)
 
     @property
     def total(self) -> int:

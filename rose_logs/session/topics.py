@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import logging
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -16,11 +15,11 @@ __all__ = [
     "default_output_path",
     "find_map_topics",
     "is_derived_topic",
+    "orphan_updates",
     "select_topics",
     "update_targets",
 ]
 
-_LOG = logging.getLogger(__name__)
 
 _DECODABLE = {"ros1", "cdr"}
 #: The name rosbag record gives a bag while it records (left so when it is killed).
@@ -62,25 +61,34 @@ def update_targets(
     too), so that picking one map (``--topic``) never hands it another map's patches; updates of
     maps not analysed are left out.
     """
-    grids = sorted(
+    grids = _grid_topics(channels)
+    wanted = set(find_map_topics(channels) if map_topics is None else map_topics)
+    owners = {c.topic: _owner(c.topic, grids) for c in _update_channels(channels)}
+    return {topic: owner for topic, owner in owners.items() if owner in wanted}
+
+
+def orphan_updates(channels: Sequence[Channel]) -> tuple[Channel, ...]:
+    """Update channels whose map cannot be told (not ``<map>_updates``, several map topics)."""
+    grids = _grid_topics(channels)
+    return tuple(c for c in _update_channels(channels) if _owner(c.topic, grids) is None)
+
+
+def _grid_topics(channels: Sequence[Channel]) -> list[str]:
+    return sorted(
         {c.topic for c in channels if c.msgtype == MAP_TYPE and not is_derived_topic(c.topic)}
     )
-    wanted = set(find_map_topics(channels) if map_topics is None else map_topics)
-    targets = {}
-    for c in channels:
-        if c.msgtype != UPDATE_TYPE or c.message_encoding not in _DECODABLE:
-            continue
-        named = c.topic.removesuffix("_updates") if c.topic.endswith("_updates") else None
-        if named in grids:
-            owner = named
-        elif len(grids) == 1:
-            owner = grids[0]
-        else:
-            _LOG.warning("%s: grid updates for an unknown map topic, not applied", c.topic)
-            continue
-        if owner in wanted:
-            targets[c.topic] = owner
-    return targets
+
+
+def _update_channels(channels: Sequence[Channel]) -> list[Channel]:
+    return [c for c in channels if c.msgtype == UPDATE_TYPE and c.message_encoding in _DECODABLE]
+
+
+def _owner(topic: str, grids: Sequence[str]) -> str | None:
+    """The map topic an update topic patches: ``<map>_updates``'s map, else the only map."""
+    named = topic.removesuffix("_updates") if topic.endswith("_updates") else None
+    if named in grids:
+        return named
+    return grids[0] if len(grids) == 1 else None
 
 
 def default_output_path(input_path: Path) -> Path:

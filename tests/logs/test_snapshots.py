@@ -136,3 +136,26 @@ def test_cells_outside_the_ros_range_are_read_as_occupied_not_dropping_the_map(
     assert seen[2].grid[5, 5] == 100 and seen[2].out_of_range_cells == 1
     said = [r.getMessage() for r in caplog.records if "outside -1..100" in r.getMessage()]
     assert len(said) == 1 and "4 cell(s)" in said[0]
+
+
+def test_updates_that_cannot_be_applied_are_counted_by_reason(tmp_path, fr079) -> None:
+    """No silent loss: updates of a map that cannot be told (several maps, no ``<map>_updates``
+    name) and an update before its map's first full message are skipped messages, each under a
+    reason that says what happened (the second was called "malformed")."""
+    from conftest import START_NS, MapMsg, build_log
+
+    from rose_logs.session import process_log
+
+    patch = fr079[2][:20, :30]
+    s = 1_000_000_000
+    maps = [
+        MapMsg(START_NS + 1 * s, patch, topic="/map_updates", xy=(0, 0)),
+        MapMsg(START_NS + 2 * s, fr079[0]),
+        MapMsg(START_NS + 3 * s, fr079[0], topic="/robot2/map"),
+        MapMsg(START_NS + 4 * s, patch, topic="/costmap_updates", xy=(0, 0)),
+        MapMsg(START_NS + 5 * s, patch, topic="/costmap_updates", xy=(0, 0)),
+    ]
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps)
+    report = process_log(built.path, output_path=None)
+    assert report.skipped_messages == 3
+    assert report.skipped_reasons == "2 updates of no known map, 1 before the first full map"
