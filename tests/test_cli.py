@@ -309,3 +309,22 @@ def test_fixed_threshold_takes_what_the_api_takes(
         main(["score", str(cluttered_map), "--fixed-threshold", "1.5"])
     assert stop.value.code == 2
     assert "expected a number in [0, 1]" in capsys.readouterr().err
+
+
+def test_a_fixed_threshold_alone_selects_the_fixed_mode(
+    cluttered_map: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--fixed-threshold was silently ignored without --threshold-mode fixed."""
+
+    def threshold(*extra: str) -> float:
+        assert main(["score", str(cluttered_map), "--json", *extra]) == 0
+        report = json.loads(capsys.readouterr().out)
+        return (report[0] if isinstance(report, list) else report)["threshold"]
+
+    assert threshold("--fixed-threshold", "0.42") == 0.42
+    assert threshold("--threshold-mode", "fixed", "--fixed-threshold", "0.42") == 0.42
+    assert threshold() != 0.42  # the mixture's own
+    with pytest.raises(SystemExit) as stop:
+        main(["score", str(cluttered_map), "--threshold-mode", "gmm", "--fixed-threshold", "0.4"])
+    assert stop.value.code == 2
+    assert "--fixed-threshold needs --threshold-mode fixed" in capsys.readouterr().err

@@ -17,6 +17,7 @@ from rose.cli.options import (
     directions_deg,
     load_grid_map,
     params_from_args,
+    path_arg,
     result_summary,
     verdict,
 )
@@ -32,12 +33,12 @@ __all__ = ["add_parser", "cleaning_summary", "run"]
 def add_parser(commands: Any) -> None:
     """Register ``clean`` on an argparse subparsers object (``func=run``)."""
     clean = commands.add_parser("clean", help="remove clutter from a map, write a map_server map")
-    clean.add_argument("map", type=Path, help="map_server YAML or a PGM/PNG image")
+    clean.add_argument("map", type=path_arg, help="map_server YAML or a PGM/PNG image")
     clean.add_argument(
-        "-o", "--output", type=Path, required=True, help="output YAML (PGM beside it)"
+        "-o", "--output", type=path_arg, required=True, help="output YAML (PGM beside it)"
     )
     clean.add_argument(
-        "--json", type=Path, metavar="REPORT", help="also write a JSON report ('-': stdout)"
+        "--json", type=path_arg, metavar="REPORT", help="also write a JSON report ('-': stdout)"
     )
     clean.add_argument("-f", "--force", action="store_true", help="replace existing output files")
     add_map_arguments(clean)

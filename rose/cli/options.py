@@ -118,11 +118,26 @@ def int_in_range(low: int, high: int) -> Any:
     return parse
 
 
+def path_arg(text: str) -> Path:
+    """argparse type: a file or folder path; an empty one is a usage error (``Path("")`` is the
+    current folder, which made ``-o ""`` read as writing over the input)."""
+    return Path(location(text))
+
+
+def location(text: str) -> str:
+    """argparse type: a path or URL as given, not empty (``batch -o ""`` wrote into the current
+    folder)."""
+    if not text:
+        msg = "expected a path, got an empty string"
+        raise argparse.ArgumentTypeError(msg)
+    return text
+
+
 def cell_count(text: str) -> int:
     """argparse type: a positive number of cells, integer or float notation (``2e8``)."""
     value = positive_float(text)
-    if value < 1 or value > 1e15:
-        msg = f"expected a number of cells in 1..1e15, got {text!r}"
+    if value < 1 or value > 1e15 or value != int(value):
+        msg = f"expected a whole number of cells in 1..1e15, got {text!r}"
         raise argparse.ArgumentTypeError(msg)
     return int(value)
 
@@ -194,15 +209,17 @@ def add_param_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument(
         "--threshold-mode",
         choices=("gmm", "fixed"),
-        default=d.threshold_mode,
-        help="gmm: Gaussian-mixture intersection (paper); fixed: --fixed-threshold",
+        default=None,
+        help=f"gmm: Gaussian-mixture intersection (paper); fixed: --fixed-threshold (default "
+        f"{d.threshold_mode}, fixed when --fixed-threshold is given)",
     )
     group.add_argument(
         "--fixed-threshold",
         type=unit_interval,
-        default=d.fixed_threshold,
+        default=None,
         metavar="F",
-        help="score threshold of the fixed mode, fraction of the top score (default %(default)s)",
+        help=f"score threshold of the fixed mode, fraction of the top score (default "
+        f"{d.fixed_threshold:g}); implies --threshold-mode fixed",
     )
     group.add_argument(
         "--clutter-value",
@@ -219,15 +236,26 @@ def add_param_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def params_from_args(args: argparse.Namespace) -> RoseParams:
-    """The :class:`RoseParams` given by the options of :func:`add_param_arguments`."""
+    """The :class:`RoseParams` given by the options of :func:`add_param_arguments`.
+
+    ``--fixed-threshold`` alone selects the fixed mode (it was ignored without
+    ``--threshold-mode fixed``); with ``--threshold-mode gmm`` it is an error.
+    """
+    d = RoseParams()
+    mode, fixed = args.threshold_mode, args.fixed_threshold
+    if fixed is not None and mode == "gmm":
+        msg = "--fixed-threshold needs --threshold-mode fixed (the mixture picks its own threshold)"
+        raise RoseError(msg)
+    if mode is None:
+        mode = "fixed" if fixed is not None else d.threshold_mode
     return make_params(
         peak_prominence=args.peak_prominence,
         angular_resolution_deg=args.angular_resolution,
         smoothing_deg=args.smoothing,
         mask_half_width_px=args.mask_half_width,
         occupied_threshold=args.occupied_threshold,
-        threshold_mode=args.threshold_mode,
-        fixed_threshold=args.fixed_threshold,
+        threshold_mode=mode,
+        fixed_threshold=d.fixed_threshold if fixed is None else fixed,
         clutter_value=args.clutter_value,
         seed=args.seed,
     )

@@ -17,6 +17,7 @@ from rose.cli.options import (
     add_param_arguments,
     load_grid_map,
     params_from_args,
+    path_arg,
     result_summary,
 )
 from rose.directions import fold_deg
@@ -31,7 +32,7 @@ __all__ = ["add_parser", "run"]
 def add_parser(commands: Any) -> None:
     """Register ``score`` on an argparse subparsers object (``func=run``)."""
     score = commands.add_parser("score", help="W and dominant directions of maps")
-    score.add_argument("maps", type=Path, nargs="+", metavar="MAP")
+    score.add_argument("maps", type=path_arg, nargs="+", metavar="MAP")
     score.add_argument(
         "--json",
         action="store_true",

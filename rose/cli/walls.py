@@ -5,10 +5,9 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-from pathlib import Path
 from typing import Any, TextIO
 
-from rose.cli.options import add_map_arguments, load_grid_map, non_negative_float
+from rose.cli.options import add_map_arguments, load_grid_map, non_negative_float, path_arg
 from rose.outputs import OutputSet, json_text
 from rose.pipeline import analyze
 from rose.walls import WallParams, WallSet, extract_walls, extract_walls_hough
@@ -31,13 +30,13 @@ def add_parser(subparsers: Any) -> None:
             "dominant directions; --hough gives the probabilistic-Hough baseline on the raw map."
         ),
     )
-    parser.add_argument("map", type=Path, metavar="MAP", help="map YAML or image file")
+    parser.add_argument("map", type=path_arg, metavar="MAP", help="map YAML or image file")
     out = parser.add_mutually_exclusive_group()
     out.add_argument(
-        "--geojson", type=Path, metavar="FILE", help="write the walls as GeoJSON ('-': stdout)"
+        "--geojson", type=path_arg, metavar="FILE", help="write the walls as GeoJSON ('-': stdout)"
     )
     out.add_argument(
-        "--svg", type=Path, metavar="FILE", help="write the walls as SVG ('-': stdout)"
+        "--svg", type=path_arg, metavar="FILE", help="write the walls as SVG ('-': stdout)"
     )
     parser.add_argument("-f", "--force", action="store_true", help="replace an existing file")
     add_map_arguments(parser)

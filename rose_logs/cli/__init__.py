@@ -60,6 +60,11 @@ def build_parser() -> argparse.ArgumentParser:
         command.add_parser(subparsers)
     for command_parser in subparsers.choices.values():  # usage errors show the command's usage
         command_parser.set_defaults(command_parser=command_parser)
+        # Also after the command (rose-bag process x --debug); not given there, the top level's
+        # value stands.
+        command_parser.add_argument(
+            "--debug", action="store_true", default=argparse.SUPPRESS, help=argparse.SUPPRESS
+        )
     return parser
 
 
@@ -125,8 +130,9 @@ def _run(argv: list[str] | None) -> int:
     try:
         return int(args.func(args))
     except UsageError as err:
-        getattr(args, "command_parser", parser).print_usage(sys.stderr)
-        print(f"rose-bag: error: {error_text(err)}", file=sys.stderr)
+        command_parser = getattr(args, "command_parser", parser)
+        command_parser.print_usage(sys.stderr)
+        print(f"{command_parser.prog}: error: {error_text(err)}", file=sys.stderr)  # as argparse
         return 2
     except (LogError, RoseError, OSError, MemoryError, RecursionError) as err:
         reraise_interrupt_behind(err)  # a signal inside a library: exit 130 / 143, not "error"

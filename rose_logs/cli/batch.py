@@ -6,7 +6,7 @@ import argparse
 import sys
 from typing import Any
 
-from rose.cli.options import add_param_arguments, params_from_args
+from rose.cli.options import add_param_arguments, location, params_from_args
 from rose_logs.cli.options import (
     EXIT_GATE,
     EXIT_SALVAGED,
@@ -97,7 +97,11 @@ def add_parser(subparsers: Any) -> None:
     )
     parser.add_argument("inputs", nargs="*", metavar="INPUT", help="file, folder, glob or URL")
     parser.add_argument(
-        "-o", "--out", required=True, help="output folder or URL (e.g. s3://bucket/prefix)"
+        "-o",
+        "--out",
+        required=True,
+        type=location,
+        help="output folder or URL (e.g. s3://bucket/prefix)",
     )
     parser.add_argument(
         "--from-list",

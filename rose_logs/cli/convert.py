@@ -7,10 +7,9 @@ import contextlib
 import math
 import sys
 from collections.abc import Callable, Iterator
-from pathlib import Path
 from typing import Any
 
-from rose.cli.options import add_limit_arguments, float_up_to, int_in_range, resolution
+from rose.cli.options import add_limit_arguments, float_up_to, int_in_range, path_arg, resolution
 from rose.outputs import OutputSet
 from rose_logs.carmen.parse import MAX_STAMP_S, CarmenLog, read_carmen_log
 from rose_logs.carmen.raycast import BuilderParams
@@ -37,8 +36,10 @@ def add_parser(subparsers: Any) -> None:
         description="Parse a CARMEN log (.log or .log.gz), build occupancy-grid snapshots by ray "
         "casting, optionally add odometry drift, and write a ROS 1 bag, ROS 2 db3 or MCAP bag.",
     )
-    parser.add_argument("log", type=Path, help="CARMEN log, plain or gzip")
-    parser.add_argument("output", type=Path, help="*.bag (ROS 1), *.mcap or a folder (ROS 2 db3)")
+    parser.add_argument("log", type=path_arg, help="CARMEN log, plain or gzip")
+    parser.add_argument(
+        "output", type=path_arg, help="*.bag (ROS 1), *.mcap or a folder (ROS 2 db3)"
+    )
     parser.add_argument(
         "--format",
         choices=("ros1", "db3", "mcap"),
@@ -94,7 +95,7 @@ def add_parser(subparsers: Any) -> None:
     add_limit_arguments(parser)
     parser.add_argument(
         "--map-file",
-        type=Path,
+        type=path_arg,
         default=None,
         help="also save the final map as map_server YAML + PGM at this path",
     )

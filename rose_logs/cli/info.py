@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 from typing import Any
 
+from rose.cli.options import path_arg
 from rose_logs.cli.options import duration_text, utc_text
 
 __all__ = ["add_parser", "run"]
@@ -16,7 +16,9 @@ def add_parser(subparsers: Any) -> None:
         "info",
         help="map topics, message counts, grid sizes and resolutions, time range of a log",
     )
-    parser.add_argument("input", type=Path, help="ROS 1 .bag, ROS 2 bag folder / .db3, or .mcap")
+    parser.add_argument(
+        "input", type=path_arg, help="ROS 1 .bag, ROS 2 bag folder / .db3, or .mcap"
+    )
     parser.set_defaults(func=run)
 
 

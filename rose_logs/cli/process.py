@@ -12,6 +12,7 @@ from typing import Any, TextIO
 from rose.cli.options import (
     add_param_arguments,
     params_from_args,
+    path_arg,
 )
 from rose.outputs import OutputSet, json_text
 from rose_logs.cli.options import (
@@ -36,11 +37,13 @@ def add_parser(subparsers: Any) -> None:
         "unchanged plus <map>/rose/cleaned, <map>/rose/structure_score and <map>/rose/walls to a new "
         "log, and print a summary.",
     )
-    parser.add_argument("input", type=Path, help="ROS 1 .bag, ROS 2 bag folder / .db3, or .mcap")
+    parser.add_argument(
+        "input", type=path_arg, help="ROS 1 .bag, ROS 2 bag folder / .db3, or .mcap"
+    )
     parser.add_argument(
         "-o",
         "--output",
-        type=Path,
+        type=path_arg,
         default=None,
         help="output log (default: <input>.rose.<ext> next to the input; a bag folder or .db3 <name> gives the folder <name>.rose)",
     )
@@ -65,7 +68,7 @@ def add_parser(subparsers: Any) -> None:
         dest="topics",
         help="map topic to analyse (repeatable; default: every OccupancyGrid topic)",
     )
-    parser.add_argument("--rrd", type=Path, default=None, help="save a Rerun recording here")
+    parser.add_argument("--rrd", type=path_arg, default=None, help="save a Rerun recording here")
     parser.add_argument(
         "--spawn", action="store_true", help="stream to a new Rerun viewer as the session runs"
     )
@@ -77,7 +80,7 @@ def add_parser(subparsers: Any) -> None:
     add_session_arguments(parser)
     parser.add_argument(
         "--json",
-        type=Path,
+        type=path_arg,
         default=None,
         dest="json_path",
         help="write a JSON report here (strict JSON, non-finite numbers as null; '-': stdout)",

@@ -265,7 +265,9 @@ def test_a_bad_connect_address_is_a_usage_error_before_the_log_is_read(
     missing = tmp_path / "not-read.mcap"  # the address is refused first: the log is never opened
     assert main(["process", str(missing), "--no-output", "--connect", address]) == 2
     err = capsys.readouterr().err
-    assert err.splitlines()[-1].startswith("rose-bag: error: argument --connect: viewer address")
+    assert err.splitlines()[-1].startswith(
+        "rose-bag process: error: argument --connect: viewer address"
+    )
 
 
 def test_entity_roots() -> None:

@@ -182,6 +182,37 @@ def test_usage_errors_exit_2(capsys) -> None:
 
 
 @pytest.mark.parametrize(
+    ("argv", "said"),
+    [
+        (["process", "x.bag", "-o", ""], "expected a path, got an empty string"),
+        (["process", "x.bag", "--json", ""], "expected a path, got an empty string"),
+        (["batch", "x.bag", "-o", ""], "expected a path, got an empty string"),
+        (["process", "x.bag", "--max-cells", "1.5"], "whole number of cells"),
+        (["process", "x.bag", "--connect", "99999"], "rose-bag process: error: argument --connect"),
+    ],
+)
+def test_bad_values_are_usage_errors_naming_the_command(
+    argv: list[str], said: str, tmp_path: Path, capsys, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """An empty output path read as the current folder ("refusing to write over the input", or
+    batch tables written into it), 1.5 cells were silently 1."""
+    monkeypatch.chdir(tmp_path)
+    try:
+        code = main(argv)
+    except SystemExit as stop:
+        code = stop.code
+    assert code == 2
+    assert said in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_debug_is_taken_after_the_command_too(tmp_path: Path, capsys, fr079) -> None:
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", session_maps(fr079[:1]))
+    assert main(["process", str(built.path), "--no-output", "--debug"]) == 0
+    assert "debug: " in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
     "argv",
     [
         ["rose-bag", "process", "x.bag", "--smoothing", "1e9"],
