@@ -573,13 +573,15 @@ class _Loop:
             for message in self.reader.messages():
                 channel = message.channel
                 self._copy(message)
-                if channel.topic in self.map_topics and channel.msgtype == MAP_TYPE:
+                is_map = channel.topic in self.map_topics and channel.msgtype == MAP_TYPE
+                if is_map:
                     self._on_map(message.data, channel.topic, message.log_time_ns)
                 elif channel.topic in self.updates:
                     self._on_update(message.data, channel.topic, message.log_time_ns)
                 self._drain(self.in_flight_limit)
                 pending += 1
-                if pending >= 64:
+                # Every 64 messages, and at every map (a log of maps alone moved in big jumps).
+                if pending >= 64 or is_map:
                     bar.update(pending)
                     pending = 0
             self._drain(0)
