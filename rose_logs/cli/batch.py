@@ -280,29 +280,48 @@ def _exit_code(report: Any, args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return EXIT_SALVAGED
+    failed = _gate_failures(args, report)
+    for reason in failed:
+        print(f"error: {reason}", file=sys.stderr)
+    if failed:
+        return EXIT_GATE
+    return 0
+
+
+def _gate_failures(args: argparse.Namespace, report: Any) -> list[str]:
+    """Why the requested gates fail, each gate once (empty: they pass or none was asked for)."""
+    from rose_logs.batch.sources import printable
+
+    reasons = []
+    ok = [r for r in report.results if r.status == "ok"]
     if args.fail_above is not None:
         # w_max is None for a recording without a judged snapshot (only empty maps).
         worst = max(
-            (r for r in report.results if r.row()["w_max"] is not None),
+            (r for r in ok if r.row()["w_max"] is not None),
             key=lambda r: r.row()["w_max"],
             default=None,
         )
         if worst is not None and worst.row()["w_max"] > args.fail_above:
-            print(
-                f"error: {printable(worst.uri)}: W = {worst.row()['w_max']:.3f} exceeds --fail-above "
-                f"{args.fail_above:g}",
-                file=sys.stderr,
+            reasons.append(
+                f"{printable(worst.uri)}: W = {worst.row()['w_max']:.3f} exceeds --fail-above "
+                f"{args.fail_above:g}"
             )
-            return EXIT_GATE
     if args.fail_on_break:
-        breaks = [(r, s) for r in report.results for s in r.snapshots if s.get("break_start")]
+        breaks = [(r, s) for r in ok for s in r.snapshots if s.get("break_start")]
         if breaks:
             recording, snapshot = breaks[0]
-            print(
-                f"error: {printable(recording.uri)}: the map breaks at {snapshot['topic']} snapshot "
+            reasons.append(
+                f"{printable(recording.uri)}: the map breaks at {snapshot['topic']} snapshot "
                 f"{snapshot['index']} ({len(breaks)} break(s) in "
-                f"{len({r.uri for r, _ in breaks})} recording(s); --fail-on-break)",
-                file=sys.stderr,
+                f"{len({r.uri for r, _ in breaks})} recording(s); --fail-on-break)"
             )
-            return EXIT_GATE
-    return 0
+    if args.fail_above is not None or args.fail_on_break:
+        # A gate cannot vouch for a map topic none of whose maps could be analysed.
+        reasons.extend(
+            f"{printable(r.uri)}: {topic}: no map message could be analysed, the gate cannot "
+            "judge it"
+            for r in ok
+            for topic in r.map_topics
+            if not any(s["topic"] == topic for s in r.snapshots)
+        )
+    return reasons

@@ -634,3 +634,25 @@ def test_the_report_figure_leaves_the_callers_matplotlib_backend_alone(tmp_path:
     finally:
         matplotlib.use(chosen)
     assert (tmp_path / "out" / "w_over_time.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_a_gate_fails_on_a_map_topic_it_cannot_judge(tmp_path: Path, capsys) -> None:
+    """As ``process``: a recording whose second map topic has only malformed maps passes no
+    gate; without a gate it is an ok row."""
+    from fleet import SAMPLE
+
+    from rose_logs.reader import LogReader
+    from rose_logs.writer import open_output
+
+    log = tmp_path / "two_robots.mcap"
+    with LogReader(SAMPLE) as reader, open_output(log, "mcap", serialization="cdr") as out:
+        handles = {c.id: out.add_channel(c) for c in reader.channels}
+        robot2 = out.add_topic("/robot2/map", "nav_msgs/msg/OccupancyGrid", latching=True)
+        for message in reader.messages():
+            out.write_raw(handles[message.channel.id], message.log_time_ns, message.data)
+            if message.channel.topic == "/map":  # the same map, cut short: malformed
+                out.write_raw(robot2, message.log_time_ns, bytes(message.data)[:-50])
+    assert main(["batch", str(log), "-o", str(tmp_path / "a"), "-q"]) == 0
+    code = main(["batch", str(log), "-o", str(tmp_path / "b"), "-q", "--fail-above", "0.9"])
+    assert code == 3
+    assert "/robot2/map: no map message could be analysed" in capsys.readouterr().err
