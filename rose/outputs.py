@@ -429,16 +429,45 @@ def _is_bag_folder(path: Path) -> bool:
     return "metadata.yaml" in names and not any(e.is_dir(follow_symlinks=False) for e in entries)
 
 
+_BAG_STORAGE_SUFFIXES = (".db3", ".mcap")
+
+
 def enclosing_bag_folder(path: Path) -> Path | None:
-    """The ROS 2 bag folder a storage file lies in (its folder holds ``metadata.yaml``), else None.
+    """The ROS 2 bag folder a storage file belongs to, else None: an absolute folder whose
+    ``metadata.yaml`` names the file (``.db3`` / ``.mcap``; also for a symlink's target).
 
     Reading ``bag/bag.db3`` alone is fine, but every file of the bag is the input: an output in
-    that folder would overwrite its metadata or nest a bag inside it.
+    that folder would overwrite its metadata or nest a bag inside it. A folder that merely holds
+    some other ``metadata.yaml`` is no bag.
     """
     path = Path(path)
-    if not path.is_file() or not (path.parent / "metadata.yaml").is_file():
+    if path.suffix.lower() not in _BAG_STORAGE_SUFFIXES or not path.is_file():
         return None
-    return path.parent
+    for candidate in _link_chain(path):
+        metadata = candidate.parent / "metadata.yaml"
+        try:
+            with metadata.open("rb") as f:
+                names = f.read(_METADATA_PEEK).decode("utf-8", "replace")
+        except OSError:
+            continue
+        if candidate.name in names:
+            return candidate.parent
+    return None
+
+
+#: Bytes of a ``metadata.yaml`` read to find a storage file's name (rosbag2 writes a few KB).
+_METADATA_PEEK = 1 << 20
+
+
+def _link_chain(path: Path) -> list[Path]:
+    """``path`` (absolute), every symlink hop after it, and the resolved file."""
+    chain = [path.absolute()]
+    for _ in range(40):  # the kernel's own limit on nested links
+        if not chain[-1].is_symlink():
+            break
+        chain.append((chain[-1].parent / chain[-1].readlink()).absolute())
+    chain.append(path.resolve())
+    return chain
 
 
 class OutputSet:
@@ -489,10 +518,10 @@ class OutputSet:
         """Protect ``path`` (and, if it is a symlink, what it points to) from every output; for a
         storage file of a ROS 2 bag, the whole bag folder (:func:`enclosing_bag_folder`)."""
         path = Path(path)
+        self._inputs.append((path, path.resolve()))
         bag = enclosing_bag_folder(path)
         if bag is not None:
-            path = bag
-        self._inputs.append((path, path.resolve()))
+            self._inputs.append((bag, bag.resolve()))
 
     @property
     def outputs(self) -> tuple[StagedOutput, ...]:

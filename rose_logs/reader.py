@@ -32,7 +32,7 @@ from rose.outputs import reraise_interrupt_behind
 from rose_logs.errors import LogError, LogReadError
 from rose_logs.formats import LogFormat, detect_format
 from rose_logs.storage.connections import QosStyle
-from rose_logs.storage.mcap import McapNoSummaryError, McapReadBackend, McapStreamReadBackend
+from rose_logs.storage.mcap import McapReadBackend, McapStreamReadBackend
 from rose_logs.storage.records import Channel, RawMessage
 from rose_logs.storage.ros1_stream import Ros1StreamReadBackend
 from rose_logs.storage.rosbags import RosbagsReadBackend
@@ -113,7 +113,7 @@ class LogReader:
             backend.close()
             reraise_interrupt_behind(err)
             salvaged: McapStreamReadBackend | Ros1StreamReadBackend | None = (
-                self._without_summary() if isinstance(err, McapNoSummaryError) else None
+                self._without_summary() if self.format == "mcap" else None
             )
             if salvaged is None and self.salvage:
                 salvaged = self._salvage_stream()
@@ -143,8 +143,9 @@ class LogReader:
         )
 
     def _without_summary(self) -> McapStreamReadBackend | None:
-        """A complete MCAP file written without its (optional) summary, read record by record;
-        None when the file is truncated instead (its error stands)."""
+        """An MCAP file the indexed reader could not open that is complete all the same (every
+        record up to its footer reads: no summary, or no closing magic bytes), read record by
+        record; None when it is truncated or damaged instead (the first error stands)."""
         backend = McapStreamReadBackend(self.path)
         try:
             backend.open()
@@ -181,7 +182,8 @@ class LogReader:
             backend.close()
             return None
         read = sum(c.message_count for c in backend.channels)
-        order = "sorted by log time" if self.format == "mcap" else "in file order"
+        mcap_sorted = isinstance(backend, McapStreamReadBackend) and backend.sorted_by_time
+        order = "sorted by log time" if mcap_sorted else "in file order"
         if backend.complete:
             # Only the header's pointer to the index was wrong: nothing is lost.
             _LOG.warning("%s: %s, read record by record, %s", self.path, backend.damage, order)

@@ -399,3 +399,44 @@ def test_a_ctrl_c_after_the_work_is_done_changes_nothing(tmp_path: Path) -> None
     )
     assert done.returncode == 0
     assert done.stderr == ""
+
+
+def test_a_storage_file_of_a_bag_protects_the_bag_and_what_it_links_to(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The bag folder of a storage file is protected as well as the file itself (a symlinked
+    file's target too), also reached through a link outside the bag or named from inside it."""
+    from rose.outputs import enclosing_bag_folder
+
+    data = tmp_path / "data"
+    data.mkdir()
+    (data / "real.db3").write_bytes(b"sqlite")
+    bag = tmp_path / "bag"
+    bag.mkdir()
+    (bag / "metadata.yaml").write_text("relative_file_paths:\n- bag_0.db3\n")
+    (bag / "bag_0.db3").symlink_to(data / "real.db3")
+    (tmp_path / "x.db3").symlink_to(bag / "bag_0.db3")
+    for given in (bag / "bag_0.db3", tmp_path / "x.db3"):
+        assert enclosing_bag_folder(given) == bag
+        outputs = OutputSet(inputs=[given], force=True)
+        for target in (data / "real.db3", bag / "metadata.yaml", bag / "nested.mcap"):
+            with pytest.raises(OutputError, match="refusing to write"):
+                outputs.stage(target)
+    monkeypatch.chdir(bag)
+    assert enclosing_bag_folder(Path("bag_0.db3")) == bag
+    from rose_logs.session import default_output_path
+
+    assert default_output_path(Path("bag_0.db3")) == tmp_path / "bag_0.rose"
+
+
+def test_a_folder_with_some_other_metadata_yaml_is_no_bag(tmp_path: Path) -> None:
+    """A data set folder with its own metadata.yaml: its files are ordinary inputs."""
+    from rose.outputs import enclosing_bag_folder
+
+    (tmp_path / "metadata.yaml").write_text("name: my dataset\n")
+    (tmp_path / "run.mcap").write_bytes(b"mcap")
+    (tmp_path / "map.png").write_bytes(b"png")
+    assert enclosing_bag_folder(tmp_path / "run.mcap") is None
+    assert enclosing_bag_folder(tmp_path / "map.png") is None
+    staged = OutputSet(inputs=[tmp_path / "map.png"]).stage(tmp_path / "clean.yaml")
+    assert staged.path == tmp_path / "clean.yaml"

@@ -282,6 +282,7 @@ def _run_session(
                 derived=derived,
                 map_topics=map_topics,
                 updates=updates,
+                orphans={c.topic for c in orphan_updates(channels)},
                 analyser=SnapshotAnalyser(params, walls=walls, clean_method=clean_method),
                 failure_level=failure_level,
                 rerun=rerun,
@@ -290,13 +291,6 @@ def _run_session(
                 max_cells=max_cells,
                 in_flight=analysis_threads,
             )
-            for channel in orphan_updates(channels):
-                loop.skips.add(
-                    "updates of no known map",
-                    f"{channel.topic}: grid updates whose map cannot be told (not <map>_updates "
-                    f"and several map topics)",
-                    count=channel.message_count,
-                )
             loop.run(progress=progress)
             if not loop.records:
                 msg = (
@@ -516,6 +510,7 @@ class _Loop:
         map_topics: Sequence[str],
         updates: dict[str, str],
         analyser: SnapshotAnalyser,
+        orphans: set[str],
         failure_level: float,
         rerun: RerunSink | None,
         on_snapshot: Callable[[MapSnapshot, RoseResult, SnapshotRecord], None] | None,
@@ -536,6 +531,7 @@ class _Loop:
         self.derived = derived
         self.map_topics = set(map_topics)
         self.updates = updates
+        self.orphans = orphans  # update topics whose map cannot be told
         self.analyser = analyser
         self.failure_level = failure_level
         self.rerun = rerun
@@ -578,6 +574,12 @@ class _Loop:
                     self._on_map(message.data, channel.topic, message.log_time_ns)
                 elif channel.topic in self.updates:
                     self._on_update(message.data, channel.topic, message.log_time_ns)
+                elif channel.topic in self.orphans:
+                    self.skips.add(
+                        "updates of no known map",
+                        f"{channel.topic}: grid update at {message.log_time_ns} ns whose map "
+                        "cannot be told (not <map>_updates, and several map topics)",
+                    )
                 self._drain(self.in_flight_limit)
                 pending += 1
                 # Every 64 messages, and at every map (a log of maps alone moved in big jumps).
@@ -804,25 +806,19 @@ class _Skips:
 
     def __init__(self) -> None:
         self.by_reason: dict[str, int] = {}
-        self.warned: dict[str, int] = {}  # messages named in a warning of their own, by reason
-        self.warnings: dict[str, int] = {}  # those warnings, by reason
 
-    def add(self, reason: str, text: str, *, count: int = 1) -> None:
-        """``count`` messages skipped for ``reason``; ``text`` names them (warned one by one for
-        the first few warnings of a reason; ``count`` messages at once are one warning)."""
-        if count <= 0:
-            return
-        self.by_reason[reason] = self.by_reason.get(reason, 0) + count
-        if self.warnings.get(reason, 0) < _WARN_FIRST:
-            self.warnings[reason] = self.warnings.get(reason, 0) + 1
-            self.warned[reason] = self.warned.get(reason, 0) + count
-            _LOG.warning("%s%s, copied unprocessed", f"{count} " if count > 1 else "", text)
+    def add(self, reason: str, text: str) -> None:
+        count = self.by_reason.get(reason, 0) + 1
+        self.by_reason[reason] = count
+        if count <= _WARN_FIRST:
+            _LOG.warning("%s, copied unprocessed", text)
 
     def warn_rest(self) -> None:
         for reason, count in self.by_reason.items():
-            rest = count - self.warned.get(reason, 0)
-            if rest > 0:
-                _LOG.warning("%d more map messages %s, copied unprocessed", rest, reason)
+            if count > _WARN_FIRST:
+                _LOG.warning(
+                    "%d more map messages %s, copied unprocessed", count - _WARN_FIRST, reason
+                )
 
     @property
     def total(self) -> int:

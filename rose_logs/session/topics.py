@@ -110,8 +110,11 @@ def default_output_path(input_path: Path) -> Path:
         name = f"{path.name[: -len(_ACTIVE_BAG)]}.rose.bag"
     else:
         name = f"{path.stem}.rose{path.suffix}"
+    folder = path.parent
     bag = enclosing_bag_folder(path)
-    return (path.parent if bag is None else bag.parent) / name
+    if bag is not None and folder.absolute() == bag:  # beside the input bag, not inside it
+        folder = bag.parent
+    return folder / name
 
 
 def select_topics(
@@ -135,7 +138,10 @@ def select_topics(
         if unreadable:
             msg += f"; {unreadable[0].topic} {_why_not_a_map(unreadable[0])}"
         raise LogReadError(msg)
-    return found
+    # A map topic declared but never published is no map of the session (its summary would say
+    # "snapshots 0", and a gate would fail on it); unless no topic has a message at all.
+    published = {c.topic for c in channels if c.message_count > 0}
+    return tuple(t for t in found if t in published) or found
 
 
 def _why_not_a_map(channel: Channel) -> str:

@@ -26,18 +26,15 @@ from rose_logs.storage.records import (
     ros1_msgtype,
 )
 
-__all__ = ["McapNoSummaryError", "McapReadBackend", "McapStreamReadBackend", "McapWriteBackend"]
+__all__ = ["McapReadBackend", "McapStreamReadBackend", "McapWriteBackend"]
 
 _LOG = logging.getLogger(__name__)
 
-#: Most message bytes sorted in memory, for a file read record by record whose messages are not in
-#: log-time order (a file with an index is sorted through it, in constant memory).
+#: Most memory spent sorting the messages of a file read record by record whose messages are not
+#: in log-time order (a file with an index is sorted through it, in constant memory).
 MAX_SORTED_BYTES = 2**30
-
-
-class McapNoSummaryError(LogReadError):
-    """An MCAP file has no summary section: truncated, still being recorded, or written without one
-    (the section is optional); :class:`McapStreamReadBackend` tells which."""
+#: Memory a message held for sorting costs beyond its data (a RawMessage and its bytes: ~250 B).
+_HELD_OVERHEAD = 256
 
 
 class McapReadBackend:
@@ -69,7 +66,7 @@ class McapReadBackend:
                 f"{self.path}: MCAP file without summary (truncated or still being recorded?); "
                 "`rose-bag process --salvage` keeps the messages before the end, or try `mcap recover`"
             )
-            raise McapNoSummaryError(msg)
+            raise LogReadError(msg)
         counts = summary.statistics.channel_message_counts if summary.statistics else None
         if counts is None:  # no statistics record: count what the file holds
             counts = self._count_messages()
@@ -145,16 +142,19 @@ def _channels(
 
 class McapStreamReadBackend(McapReadBackend):
     """What can be read of a bare MCAP file from its start, when its end (the summary) is missing or
-    damaged: a recording cut off by a crash or a full disk. For ``--salvage`` only.
+    damaged: a recording cut off by a crash or a full disk (``--salvage``).
 
     Also the reader of a complete file written without a summary (the MCAP specification makes it
-    optional): then :attr:`complete` is True and nothing is lost.
+    optional), with or without its closing magic bytes: then :attr:`complete` is True and nothing
+    is lost.
 
     The file is read record by record (complete chunks only) up to the first record that cannot be
     read; :attr:`damage` says where and why. The file is read twice: :meth:`open` for the channels and
     their counts (which the output needs before the first message), :meth:`messages` for the messages,
     so memory stays that of one chunk. Recorders write messages as they arrive, in log-time order;
-    when they are not, :meth:`messages` sorts them in memory (up to :data:`MAX_SORTED_BYTES`).
+    when they are not, :meth:`messages` sorts them in memory (up to :data:`MAX_SORTED_BYTES`); beyond
+    that a complete file is refused (``mcap recover`` gives it an index) and a damaged one is
+    salvaged in file order.
     """
 
     def __init__(self, path: Path) -> None:
@@ -162,15 +162,16 @@ class McapStreamReadBackend(McapReadBackend):
         self.damage = ""
         #: As :attr:`Ros1StreamReadBackend.complete`: the file ends with its footer, no summary.
         self.complete = False
-        self._end: int | None = None  # where open() stopped: messages() stops there too
+        self._end: int | None = None  # records open() read: messages() reads as many
         self._in_order = True  # messages in log-time order in the file
-        self._bytes = 0  # message data read by open()
-        self._sorted_said = False
+        self._held_bytes = 0  # memory the messages would take to sort them
+        self._order_said = False
 
     def _records(self) -> Iterator[Any]:
         """Records from the start of the file up to the first unreadable one (which sets
-        :attr:`damage`), or to where :meth:`open` stopped (a recording still being written has
-        more by the second pass, which must hand out what the first one counted)."""
+        :attr:`damage`), or as many as :meth:`open` read (a recording still being written has
+        more by the second pass, which must hand out what the first one counted; counted in
+        records, since a chunk's records all come at the file position after the chunk)."""
         from mcap.stream_reader import StreamReader
 
         assert self.stream is not None
@@ -178,10 +179,9 @@ class McapStreamReadBackend(McapReadBackend):
         size = self.path.stat().st_size
         reader = StreamReader(self.stream, validate_crcs=True, record_size_limit=max(size, 1))
         records = reader.records
-        while True:
+        read = 0
+        while self._end is None or read < self._end:
             offset = self.stream.tell()
-            if self._end is not None and offset >= self._end:
-                return
             try:
                 record = next(records)
             except StopIteration:
@@ -190,9 +190,10 @@ class McapStreamReadBackend(McapReadBackend):
                 reason = str(err) or type(err).__name__
                 self.damage = f"unreadable from byte {offset} of {size}: {short(reason, 120)}"
                 break
+            read += 1
             yield record
         if self._end is None:
-            self._end = offset
+            self._end = read
 
     def open(self) -> None:
         from mcap.records import Channel as McapChannel
@@ -214,11 +215,14 @@ class McapStreamReadBackend(McapReadBackend):
             elif isinstance(record, Message):
                 counts[record.channel_id] = counts.get(record.channel_id, 0) + 1
                 self._in_order &= last is None or record.log_time >= last
-                self._bytes += len(record.data)
+                self._held_bytes += len(record.data) + _HELD_OVERHEAD
                 first = record.log_time if first is None else min(first, record.log_time)
                 last = record.log_time if last is None else max(last, record.log_time)
             elif isinstance(record, Footer):
                 footer = True
+        if footer and self.damage:  # e.g. the closing magic bytes missing: every record read
+            _LOG.warning("%s: %s, after its footer: nothing lost", self.path, self.damage)
+            self.damage = ""
         self.complete = footer and not self.damage
         if not self.damage:
             self.damage = "the file ends without a summary" if footer else "no summary at the end"
@@ -226,22 +230,29 @@ class McapStreamReadBackend(McapReadBackend):
         if first is not None and last is not None:
             self.start_ns, self.end_ns = int(first), int(last)
 
+    @property
+    def sorted_by_time(self) -> bool:
+        """Whether :meth:`messages` gives log-time order (else file order: damaged and too large)."""
+        return self._in_order or self._held_bytes <= MAX_SORTED_BYTES
+
     def messages(self, topics: set[str] | None) -> Iterator[RawMessage]:
         if self._in_order:
             yield from self._file_order(topics)
             return
-        if self._bytes > MAX_SORTED_BYTES:
+        if not self.sorted_by_time and self.complete:
             msg = (
                 f"{self.path}: messages not in log-time order and no index to sort them by "
-                f"({self._bytes / 2**20:.0f} MiB, more than {MAX_SORTED_BYTES // 2**20} MiB to sort "
-                "in memory); `mcap recover` writes a copy with an index"
+                f"({self._held_bytes / 2**20:.0f} MiB to sort in memory, more than "
+                f"{MAX_SORTED_BYTES // 2**20} MiB); `mcap recover` writes a copy with an index"
             )
             raise LogReadError(msg)
-        if not self._sorted_said:
-            self._sorted_said = True
-            _LOG.warning(
-                "%s: messages not in log-time order, no index: sorted in memory", self.path
-            )
+        if not self._order_said:
+            self._order_said = True
+            how = "sorted in memory" if self.sorted_by_time else "too large to sort, in file order"
+            _LOG.warning("%s: messages not in log-time order, no index: %s", self.path, how)
+        if not self.sorted_by_time:
+            yield from self._file_order(topics)
+            return
         # A stable sort: messages of equal log time keep their file order.
         yield from sorted(self._file_order(topics), key=lambda m: m.log_time_ns)
 

@@ -212,6 +212,24 @@ def test_a_gate_fails_on_a_map_topic_it_cannot_judge(tmp_path: Path, capsys, fr0
     assert any("/robot2/map: no map message could be analysed" in line for line in errors)
 
 
+def test_a_map_topic_declared_but_never_published_is_no_map_of_the_session(
+    tmp_path: Path, capsys, fr079
+) -> None:
+    from rose_logs.reader import LogReader
+    from rose_logs.writer import open_output
+
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", session_maps(fr079[:2]))
+    log = tmp_path / "declared.mcap"
+    with LogReader(built.path) as reader, open_output(log, "mcap", serialization="cdr") as out:
+        handles = {c.id: out.add_channel(c) for c in reader.channels}
+        out.add_topic("/robot2/map", "nav_msgs/msg/OccupancyGrid", latching=True)
+        for m in reader.messages():
+            out.write_raw(handles[m.channel.id], m.log_time_ns, m.data)
+    code, out_text, _ = _run(capsys, "process", log, "--no-output", "--fail-above", "0.9")
+    assert code == 0
+    assert "/robot2/map" not in out_text
+
+
 def test_only_malformed_maps_is_an_error_without_output(tmp_path: Path, capsys, fr079) -> None:
     built = build_log(
         tmp_path / "in.mcap", "mcap-ros2", [MapMsg(START_NS, fr079[0], bad_length=True)]

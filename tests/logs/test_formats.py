@@ -159,3 +159,44 @@ def test_a_complete_mcap_without_summary_reads_like_one_with_it(
     cut.write_bytes(bare.read_bytes()[: bare.stat().st_size // 2])
     with pytest.raises(LogReadError, match="salvage"):
         LogReader(cut).open()
+
+
+def test_a_summaryless_mcap_without_its_closing_magic_loses_nothing(tmp_path: Path, fr079) -> None:
+    from conftest import read_all, session_maps
+
+    from rose_logs.reader import LogReader
+
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", session_maps(fr079[:3]))
+    bare = tmp_path / "bare.mcap"
+    _without_summary(built.path, bare, reverse=False)
+    no_magic = tmp_path / "no_magic.mcap"
+    no_magic.write_bytes(bare.read_bytes()[:-8])
+    with LogReader(no_magic) as reader:
+        assert reader.losses == []
+    assert read_all(no_magic) == read_all(built.path)
+
+
+def test_salvage_too_large_to_sort_keeps_every_message_in_file_order(
+    tmp_path: Path, fr079, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Past the sorting cap a damaged file keeps what it has, in file order (it kept nothing);
+    a complete one is refused, naming ``mcap recover``."""
+    from conftest import session_maps
+
+    from rose_logs.reader import LogReader
+    from rose_logs.storage import mcap
+
+    monkeypatch.setattr(mcap, "MAX_SORTED_BYTES", 100)
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", session_maps(fr079[:3]))
+    bare = tmp_path / "bare.mcap"
+    _without_summary(built.path, bare, reverse=True)
+    with pytest.raises(LogReadError, match="mcap recover"), LogReader(bare) as reader:
+        list(reader.messages())
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(bare.read_bytes()[:-40])  # the footer gone: damaged
+    with LogReader(cut, salvage=True) as reader:
+        times = [m.log_time_ns for m in reader.messages()]
+        assert "in file order" in reader.losses[0]
+    with LogReader(built.path) as whole:
+        assert len(times) == whole.message_count
+    assert times == sorted(times, reverse=True)

@@ -158,4 +158,4 @@ def test_updates_that_cannot_be_applied_are_counted_by_reason(tmp_path, fr079) -
     built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps)
     report = process_log(built.path, output_path=None)
     assert report.skipped_messages == 3
-    assert report.skipped_reasons == "2 updates of no known map, 1 before the first full map"
+    assert report.skipped_reasons == "1 before the first full map, 2 updates of no known map"
