@@ -49,6 +49,17 @@ def _library_text(err: BaseException) -> str:
     return text if text.strip() else type(err).__name__
 
 
+def _opened(backend: McapStreamReadBackend | Ros1StreamReadBackend) -> bool:
+    """Open ``backend``; False (and closed) when even reading from the start fails."""
+    try:
+        backend.open()
+    except Exception as err:
+        backend.close()
+        reraise_interrupt_behind(err)
+        return False
+    return True
+
+
 def _corrupt(path: Path, err: BaseException) -> LogReadError:
     return LogReadError(f"{path}: corrupt or truncated log ({short(_library_text(err), 160)})")
 
@@ -147,13 +158,7 @@ class LogReader:
         record up to its footer reads: no summary, or no closing magic bytes), read record by
         record; None when it is truncated or damaged instead (the first error stands)."""
         backend = McapStreamReadBackend(self.path)
-        try:
-            backend.open()
-        except Exception as err:
-            backend.close()
-            reraise_interrupt_behind(err)
-            return None
-        if not backend.complete:
+        if not _opened(backend) or not backend.complete:
             backend.close()
             return None
         _LOG.info("%s: no summary section (optional in MCAP): read record by record", self.path)
@@ -172,11 +177,7 @@ class LogReader:
             where = "the bag's index is missing or damaged"
         else:
             return None
-        try:
-            backend.open()
-        except Exception as err:
-            backend.close()
-            reraise_interrupt_behind(err)
+        if not _opened(backend):
             return None
         if not backend.channels:
             backend.close()
