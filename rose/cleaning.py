@@ -329,10 +329,9 @@ def clean(
         raise RoseError(msg)
     if method == "walls" and resolution_m < MIN_CLEAN_RESOLUTION_M:
         msg = (
-            f"resolution_m {resolution_m:g} m is finer than {MIN_CLEAN_RESOLUTION_M:g} m per cell: "
-            "the cleaning's lengths (a 0.15 m robot radius, 2 m wall runs) would span thousands "
-            "of cells; give the map's real resolution, or use the paper's labelling (method "
-            "'paper', --method paper)"
+            f"resolution_m {resolution_m:g} m is finer than {MIN_CLEAN_RESOLUTION_M:g} m per cell "
+            "(the cleaning's lengths would span thousands of cells): give the map's real "
+            "resolution, or --method paper (method='paper')"
         )
         raise RoseError(msg)
     if params is not None and not isinstance(params, CleanParams):

@@ -678,7 +678,7 @@ class OutputSet:
             msg = f"{path}: is a file, not replacing it with a folder"
             raise OutputError(msg)
         if not self.force:
-            msg = f"{path}: exists already (use --force to replace it)"
+            msg = f"{path}: exists already (--force, or force=True in Python, replaces it)"
             raise OutputError(msg)
 
     # -- writing -----------------------------------------------------------------------------------------

@@ -328,3 +328,9 @@ def test_a_fixed_threshold_alone_selects_the_fixed_mode(
         main(["score", str(cluttered_map), "--threshold-mode", "gmm", "--fixed-threshold", "0.4"])
     assert stop.value.code == 2
     assert "--fixed-threshold needs --threshold-mode fixed" in capsys.readouterr().err
+
+
+def test_debug_is_taken_after_the_command_too(capsys: pytest.CaptureFixture[str]) -> None:
+    """As rose-bag takes it (the README says before or after the command)."""
+    assert main(["score", "no-such-map.yaml", "--debug"]) == 1
+    assert "no such file" in capsys.readouterr().err

@@ -60,6 +60,10 @@ def build_parser() -> argparse.ArgumentParser:
         command.add_parser(commands)
     for command_parser in commands.choices.values():  # usage errors show the command's usage
         command_parser.set_defaults(command_parser=command_parser)
+        # Also after the command, as rose-bag takes it; not given there, the top level's stands.
+        command_parser.add_argument(
+            "--debug", action="store_true", default=argparse.SUPPRESS, help=argparse.SUPPRESS
+        )
     return parser
 
 

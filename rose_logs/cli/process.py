@@ -159,6 +159,10 @@ def _print_summary(report: Any, out: TextIO) -> None:
             f"({report.skipped_reasons})",
             file=out,
         )
+    if report.losses:  # --salvage: what could not be read
+        print(f"\nlosses       {report.losses[0]}", file=out)
+        for loss in report.losses[1:]:
+            print(f"             {loss}", file=out)
     print(f"\nelapsed      {report.elapsed_s:.2f} s", file=out)
 
 

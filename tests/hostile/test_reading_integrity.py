@@ -86,8 +86,11 @@ def _refused_then_salvaged(
     code, _, err = _run(capsys, "process", log, "-o", out, "-q")
     assert code == 1 and refusal in err and "--salvage" in err
     assert not out.exists()
-    code, _, err = _run(capsys, "process", log, "-o", out, "--json", report, "-q", "--salvage")
+    code, summary, err = _run(
+        capsys, "process", log, "-o", out, "--json", report, "-q", "--salvage"
+    )
     assert code == EXIT_SALVAGED
+    assert "\nlosses       " in summary  # the summary lists them too, as the README says
     return err
 
 
