@@ -430,6 +430,8 @@ def _is_bag_folder(path: Path) -> bool:
 
 
 _BAG_STORAGE_SUFFIXES = (".db3", ".mcap")
+#: Bytes of a ``metadata.yaml`` read to find a storage file's name (rosbag2 writes a few KB).
+_METADATA_PEEK = 1 << 20
 
 
 def enclosing_bag_folder(path: Path) -> Path | None:
@@ -453,10 +455,6 @@ def enclosing_bag_folder(path: Path) -> Path | None:
         if candidate.name in names:
             return candidate.parent
     return None
-
-
-#: Bytes of a ``metadata.yaml`` read to find a storage file's name (rosbag2 writes a few KB).
-_METADATA_PEEK = 1 << 20
 
 
 def _link_chain(path: Path) -> list[Path]:
