@@ -7,6 +7,7 @@ from typing import Any
 
 from rose.cli.options import path_arg
 from rose_logs.cli.options import duration_text, utc_text
+from rose_logs.storage.records import ros1_msgtype
 
 __all__ = ["add_parser", "run"]
 
@@ -44,8 +45,10 @@ def run(args: argparse.Namespace) -> int:
         for c in channels:
             counts[c.topic] = counts.get(c.topic, 0) + c.message_count
             known = types.setdefault(c.topic, [])
-            if c.msgtype not in known:
-                known.append(c.msgtype)
+            # As the log spells it: pkg/Name in a ROS 1 bag or ros1 MCAP, pkg/msg/Name for ROS 2.
+            name = ros1_msgtype(c.msgtype) if c.message_encoding == "ros1" else c.msgtype
+            if name not in known:
+                known.append(name)
         width = max((len(t) for t in counts), default=5)
         print("\ntopics")
         for topic in sorted(counts):

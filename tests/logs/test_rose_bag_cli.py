@@ -370,3 +370,11 @@ def test_process_help_gives_the_break_detectors_own_default(capsys) -> None:
         main(["process", "--help"])
     help_text = " ".join(capsys.readouterr().out.split())
     assert f"break (default {BreakParams().threshold_m:g})" in help_text
+
+
+def test_info_spells_types_as_the_log_does(tmp_path: Path, capsys, fr079) -> None:
+    """A ROS 1 bag's types are pkg/Name (info showed the ROS 2 spelling)."""
+    built = build_log(tmp_path / "in.bag", "ros1", session_maps(fr079[:1]))
+    assert main(["info", str(built.path)]) == 0
+    out = capsys.readouterr().out
+    assert "nav_msgs/OccupancyGrid  [map]" in out and "nav_msgs/msg/" not in out
