@@ -218,9 +218,10 @@ def _grid_from(
         msg = f"{topic}: {what} data has {flat.size} cells, width x height is {width} x {height} = {width * height}"
         raise MapMessageError(msg)
     grid = flat.reshape(height, width).copy()
-    odd = (grid < UNKNOWN) | (grid > OCCUPIED)
-    odd_count = int(np.count_nonzero(odd))
-    if odd_count:
+    odd_count = 0
+    if grid.min() < UNKNOWN or grid.max() > OCCUPIED:  # rare: no mask on every map's hot path
+        odd = (grid < UNKNOWN) | (grid > OCCUPIED)
+        odd_count = int(np.count_nonzero(odd))
         grid[odd] = OCCUPIED
     grid.setflags(write=False)
     return grid, odd_count

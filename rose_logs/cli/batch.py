@@ -13,6 +13,7 @@ from rose_logs.cli.options import (
     UsageError,
     add_gate_arguments,
     add_session_arguments,
+    unjudged_topics,
 )
 
 __all__ = ["EXIT_INTERRUPTED", "add_parser", "run"]
@@ -315,13 +316,9 @@ def _gate_failures(args: argparse.Namespace, report: Any) -> list[str]:
                 f"{snapshot['index']} ({len(breaks)} break(s) in "
                 f"{len({r.uri for r, _ in breaks})} recording(s); --fail-on-break)"
             )
-    if args.fail_above is not None or args.fail_on_break:
-        # A gate cannot vouch for a map topic none of whose maps could be analysed.
-        reasons.extend(
-            f"{printable(r.uri)}: {topic}: no map message could be analysed, the gate cannot "
-            "judge it"
-            for r in ok
-            for topic in r.map_topics
-            if not any(s["topic"] == topic for s in r.snapshots)
-        )
+    for r in ok:
+        analysed = {s["topic"] for s in r.snapshots}
+        reasons += [
+            f"{printable(r.uri)}: {why}" for why in unjudged_topics(args, r.map_topics, analysed)
+        ]
     return reasons

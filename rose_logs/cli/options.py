@@ -6,6 +6,7 @@ The ROSE tuning options themselves are defined once in :mod:`rose.cli.options` a
 
 from __future__ import annotations
 
+from collections.abc import Collection, Iterable
 from datetime import UTC, datetime
 from typing import Any
 
@@ -20,6 +21,7 @@ __all__ = [
     "add_gate_arguments",
     "add_session_arguments",
     "duration_text",
+    "unjudged_topics",
     "utc_text",
 ]
 
@@ -82,3 +84,15 @@ def add_gate_arguments(parser: Any, *, scope: str) -> None:
         help=f"exit {EXIT_GATE} if the break detector finds a break in any {scope} "
         "(map-quality gate)",
     )
+
+
+def unjudged_topics(args: Any, map_topics: Iterable[str], analysed: Collection[str]) -> list[str]:
+    """Gate failures for the map topics none of whose maps could be analysed: with a gate asked
+    for (:func:`add_gate_arguments`), it cannot vouch for them."""
+    if args.fail_above is None and not args.fail_on_break:
+        return []
+    return [
+        f"{topic}: no map message could be analysed, the gate cannot judge it"
+        for topic in map_topics
+        if topic not in analysed
+    ]

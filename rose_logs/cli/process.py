@@ -22,6 +22,7 @@ from rose_logs.cli.options import (
     add_gate_arguments,
     add_session_arguments,
     duration_text,
+    unjudged_topics,
     utc_text,
 )
 
@@ -265,14 +266,7 @@ def _gate_failures(args: argparse.Namespace, report: Any) -> list[str]:
     first_break = report.first_break()
     if args.fail_on_break and first_break is not None:
         reasons.append(f"{first_break.text} (--fail-on-break)")
-    if args.fail_above is not None or args.fail_on_break:
-        # A gate cannot vouch for a map topic none of whose maps could be analysed.
-        analysed = {r.topic for r in report.records}
-        reasons.extend(
-            f"{topic}: no map message could be analysed, the gate cannot judge it"
-            for topic in report.map_topics
-            if topic not in analysed
-        )
+    reasons += unjudged_topics(args, report.map_topics, {r.topic for r in report.records})
     return reasons
 
 

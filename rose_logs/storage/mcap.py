@@ -223,7 +223,7 @@ class McapStreamReadBackend(McapReadBackend):
         if footer and self.damage:  # e.g. the closing magic bytes missing: every record read
             _LOG.warning("%s: %s, after its footer: nothing lost", self.path, self.damage)
             self.damage = ""
-        self.complete = footer and not self.damage
+        self.complete = footer
         if not self.damage:
             self.damage = "the file ends without a summary" if footer else "no summary at the end"
         self.channels, self._by_id, self.qos_style = _channels(mcap_channels, schemas, counts)
@@ -236,25 +236,22 @@ class McapStreamReadBackend(McapReadBackend):
         return self._in_order or self._held_bytes <= MAX_SORTED_BYTES
 
     def messages(self, topics: set[str] | None) -> Iterator[RawMessage]:
-        if self._in_order:
+        if not self._in_order:
+            if not self.sorted_by_time and self.complete:
+                msg = (
+                    f"{self.path}: messages not in log-time order and no index to sort them by "
+                    f"({self._held_bytes / 2**20:.0f} MiB to sort in memory, more than "
+                    f"{MAX_SORTED_BYTES // 2**20} MiB); `mcap recover` writes a copy with an index"
+                )
+                raise LogReadError(msg)
+            if not self._order_said:
+                self._order_said = True
+                how = "sorted in memory" if self.sorted_by_time else "too large to sort, file order"
+                _LOG.warning("%s: messages not in log-time order, no index: %s", self.path, how)
+        if self._in_order or not self.sorted_by_time:
             yield from self._file_order(topics)
-            return
-        if not self.sorted_by_time and self.complete:
-            msg = (
-                f"{self.path}: messages not in log-time order and no index to sort them by "
-                f"({self._held_bytes / 2**20:.0f} MiB to sort in memory, more than "
-                f"{MAX_SORTED_BYTES // 2**20} MiB); `mcap recover` writes a copy with an index"
-            )
-            raise LogReadError(msg)
-        if not self._order_said:
-            self._order_said = True
-            how = "sorted in memory" if self.sorted_by_time else "too large to sort, in file order"
-            _LOG.warning("%s: messages not in log-time order, no index: %s", self.path, how)
-        if not self.sorted_by_time:
-            yield from self._file_order(topics)
-            return
-        # A stable sort: messages of equal log time keep their file order.
-        yield from sorted(self._file_order(topics), key=lambda m: m.log_time_ns)
+        else:  # a stable sort: messages of equal log time keep their file order
+            yield from sorted(self._file_order(topics), key=lambda m: m.log_time_ns)
 
     def _file_order(self, topics: set[str] | None) -> Iterator[RawMessage]:
         from mcap.records import Message
