@@ -97,17 +97,22 @@ class OccupancyMap:
 
 
 def load_map(
-    path: str | os.PathLike[str], *, max_cells: int | None = DEFAULT_MAX_CELLS
+    path: str | os.PathLike[str],
+    *,
+    resolution_m: float | None = None,
+    max_cells: int | None = DEFAULT_MAX_CELLS,
 ) -> OccupancyMap:
     """Read a map_server YAML (with its image) or a bare image as an :class:`OccupancyMap`.
 
-    A bare image is read in trinary mode with map_server's default thresholds, resolution 0.05 m and
-    origin (0, 0).
+    A bare image is read in trinary mode with map_server's default thresholds and origin (0, 0).
 
     Parameters
     ----------
     path : path-like
         YAML or image file. Never modified.
+    resolution_m : float, optional
+        Cell size of a bare image in metres; without it :data:`DEFAULT_RESOLUTION_M` (0.05 m) is
+        assumed. A YAML map gives its own: passing one with it is an error, not an override.
     max_cells : int or None, default :data:`rose.limits.DEFAULT_MAX_CELLS`
         Refuse images with more pixels than this (checked on the header, before decoding).
 
@@ -115,11 +120,23 @@ def load_map(
     ------
     MapFileError
         If the file is missing, not a regular file, unreadable, too large, or the YAML lacks or
-        mistypes a field.
+        mistypes a field; if ``resolution_m`` is given with a YAML map or is not a positive number
+        of metres.
     """
     path = Path(path)
+    bare_image = path.suffix.lower() not in YAML_SUFFIXES
+    if resolution_m is not None:
+        if not bare_image:
+            msg = f"{short(path, 200)}: resolution_m is for bare images; a YAML map gives its own"
+            raise MapFileError(msg)
+        if not (finite_number(resolution_m) and 0 < float(resolution_m) <= MAX_RESOLUTION_M):
+            msg = (
+                f"{short(path, 200)}: resolution_m must be a positive number of metres up to "
+                f"{MAX_RESOLUTION_M:g}, got {resolution_m!r}"
+            )
+            raise MapFileError(msg)
     _require_regular(path, "no such file")
-    if path.suffix.lower() in YAML_SUFFIXES:
+    if not bare_image:
         return _load_yaml_map(path, max_cells)
     grid = image_to_grid(
         _read_image(path, max_cells),
@@ -128,7 +145,8 @@ def load_map(
         occupied_thresh=DEFAULT_OCCUPIED_THRESH,
         free_thresh=DEFAULT_FREE_THRESH,
     )
-    return OccupancyMap(grid=grid, source=path, image_path=path)
+    resolution = DEFAULT_RESOLUTION_M if resolution_m is None else float(resolution_m)
+    return OccupancyMap(grid=grid, resolution_m=resolution, source=path, image_path=path)
 
 
 def _require_regular(path: Path, missing: str) -> None:

@@ -27,6 +27,7 @@ __all__ = [
     "check_log_time",
     "decode_map",
     "decode_update",
+    "float32_decimal",
 ]
 
 _NS_PER_S = 1_000_000_000
@@ -81,6 +82,12 @@ class MapSnapshot:
         return quaternion_to_yaw(self.origin_orientation_xyzw)
 
     @property
+    def resolution_decimal_m(self) -> float:
+        """The message's float32 resolution as its shortest decimal (0.05, not 0.0500000007), for
+        what users read: metres in reports would otherwise carry float noise (9.100001 m)."""
+        return float32_decimal(self.resolution_m)
+
+    @property
     def shape(self) -> tuple[int, int]:
         """``(height, width)`` in cells."""
         return self.grid.shape[0], self.grid.shape[1]
@@ -114,6 +121,11 @@ class GridUpdate:
     y_px: int
     patch: npt.NDArray[np.int8]
     out_of_range_cells: int = 0
+
+
+def float32_decimal(value: float) -> float:
+    """A float32 message field as its shortest decimal (0.05, not 0.05000000074505806)."""
+    return float(str(np.float32(value)))
 
 
 def apply_update(snapshot: MapSnapshot, update: GridUpdate) -> MapSnapshot:

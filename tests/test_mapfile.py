@@ -263,6 +263,19 @@ def test_real_png_maps_load(name: str) -> None:
     assert np.count_nonzero(grid == 100) > 0
 
 
+def test_a_bare_image_takes_its_resolution_from_the_caller(tmp_path: Path) -> None:
+    image = repo_data("bormann_ipa_room_segmentation/lab_ipa.png")
+    assert rose.load_map(image).resolution_m == rose.mapfile.DEFAULT_RESOLUTION_M
+    assert rose.load_map(image, resolution_m=0.1).resolution_m == 0.1
+    for bad in (0, -0.05, math.nan, "0.1"):
+        with pytest.raises(MapFileError, match="resolution_m must be a positive number"):
+            rose.load_map(image, resolution_m=bad)  # type: ignore[arg-type]
+    # A YAML map gives its own: a second one is refused, not silently preferred.
+    rose.save_map(tmp_path / "m.yaml", OccupancyMap(grid=np.zeros((4, 4), np.int8)))
+    with pytest.raises(MapFileError, match="a YAML map gives its own"):
+        rose.load_map(tmp_path / "m.yaml", resolution_m=0.1)
+
+
 @pytest.mark.parametrize(
     ("yaml_text", "match"),
     [

@@ -4,7 +4,6 @@ tuning options (argparse types with range checks, so bad values are usage errors
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import math
 import sys
 from pathlib import Path
@@ -338,20 +337,17 @@ def load_grid_map(
     if resolution_m is not None and not bare_image:
         msg = f"{path}: --resolution is for bare images; a YAML map gives its own resolution"
         raise RoseError(msg)
-    occupancy_map = load_map(path, max_cells=max_cells)
+    occupancy_map = load_map(path, resolution_m=resolution_m, max_cells=max_cells)
     try:
         as_occupancy_grid(occupancy_map.grid)
     except RoseError as err:
         text = str(err).rstrip(".")
         msg = f"{path}: {text[:1].lower()}{text[1:]}"
         raise RoseError(msg) from err
-    if bare_image:
-        if resolution_m is None and metric:
-            print(
-                f"warning: {path}: no map YAML, assuming {DEFAULT_RESOLUTION_M:g} m/cell "
-                "(set it with --resolution)",
-                file=sys.stderr,
-            )
-        elif resolution_m is not None:
-            occupancy_map = dataclasses.replace(occupancy_map, resolution_m=resolution_m)
+    if bare_image and resolution_m is None and metric:
+        print(
+            f"warning: {path}: no map YAML, assuming {DEFAULT_RESOLUTION_M:g} m/cell "
+            "(set it with --resolution)",
+            file=sys.stderr,
+        )
     return occupancy_map

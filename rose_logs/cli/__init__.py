@@ -72,7 +72,7 @@ def _configure_logging(debug: bool) -> None:
     """``warning: ...`` lines on stderr for our logs and for the ``rose`` library underneath.
 
     A session calls the library once per snapshot: its messages (``ROSE found no dominant
-    direction ...``) are said once per run, not once per snapshot.
+    direction ...``) are said once per map topic, naming it, not once per snapshot.
     """
     for name, once in (("rose_logs", False), ("rose", True)):
         handler = logging.StreamHandler(sys.stderr)
@@ -86,14 +86,21 @@ def _configure_logging(debug: bool) -> None:
 
 
 class _OncePerMessage(logging.Filter):
-    """Lets each distinct message through once."""
+    """Lets each distinct message through once; one said while a session analyses a map topic
+    gets the topic in front."""
 
     def __init__(self) -> None:
         super().__init__()
         self._seen: set[str] = set()
 
     def filter(self, record: logging.LogRecord) -> bool:
+        from rose_logs.session.analysis import ANALYSED_TOPIC
+
         message = record.getMessage()
+        topic = ANALYSED_TOPIC.get()
+        if topic is not None:
+            message = f"{topic}: {message}"
+            record.msg, record.args = message, None
         if message in self._seen:
             return False
         self._seen.add(message)

@@ -74,7 +74,7 @@ def run(args: argparse.Namespace) -> int:
                 stats[topic]["bad"] += 1
                 continue
             stats[topic]["sizes"].add((snap.shape[1], snap.shape[0]))
-            stats[topic]["res"].add(round(snap.resolution_m, 6))
+            stats[topic]["res"].add(snap.resolution_decimal_m)
             stats[topic]["frames"].add(snap.frame_id)
         for topic in map_topics:
             s = stats[topic]
@@ -89,6 +89,8 @@ def run(args: argparse.Namespace) -> int:
                 print(f"  frame        {', '.join(sorted(s['frames']))}")
             if s["bad"]:
                 print(f"  malformed    {s['bad']}")
+            if not sizes and not s["bad"]:
+                print("  no messages  (declared only: not a map of the session)")
         if not map_topics:
             print("\nno nav_msgs/OccupancyGrid topic")
     return 0

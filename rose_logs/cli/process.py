@@ -196,8 +196,8 @@ def _print_break(report: Any, topic: str, out: Any) -> None:
         return
     where = ""
     if first.region_m is not None:
-        x0, y0, x1, y1 = first.region_m
-        where = f", x {x0:.1f}..{x1:.1f} m, y {y0:.1f}..{y1:.1f} m"
+        x0, y0, x1, y1 = (round(v, 3) for v in first.region_m)  # cell edges: mm is enough
+        where = f", x {x0:g}..{x1:g} m, y {y0:g}..{y1:g} m"
     print(
         f"  break        first at snapshot {first.index}, "
         f"+{duration_text(first.log_time_ns - start)} ({first.score_m:.2f} m of map contradicted since "

@@ -5,6 +5,7 @@ from __future__ import annotations
 import logging
 import time
 from concurrent.futures import Executor, Future
+from contextvars import ContextVar
 from dataclasses import dataclass
 
 import numpy as np
@@ -16,9 +17,13 @@ from rose.result import RoseResult
 from rose.walls.segments import WallSet
 from rose_logs.snapshots import MapSnapshot
 
-__all__ = ["SnapshotAnalyser", "SnapshotAnalysis", "same_placed_grid"]
+__all__ = ["ANALYSED_TOPIC", "SnapshotAnalyser", "SnapshotAnalysis", "same_placed_grid"]
 
 _LOG = logging.getLogger(__name__)
+
+#: The map topic this thread is analysing, so that the library's messages underneath (``ROSE found no
+#: dominant direction ...``) can be said with it (``rose_logs.cli``'s log handler does).
+ANALYSED_TOPIC: ContextVar[str | None] = ContextVar("rose_analysed_topic", default=None)
 
 
 @dataclass(frozen=True)
@@ -58,6 +63,13 @@ class SnapshotAnalyser:
 
     def analyse(self, snapshot: MapSnapshot) -> SnapshotAnalysis:
         """One snapshot, from scratch. No shared state: safe to run in several threads at once."""
+        token = ANALYSED_TOPIC.set(snapshot.topic)
+        try:
+            return self._analyse(snapshot)
+        finally:
+            ANALYSED_TOPIC.reset(token)
+
+    def _analyse(self, snapshot: MapSnapshot) -> SnapshotAnalysis:
         started = time.perf_counter()
         result = rose.analyze(snapshot.grid, self.params)
         walls = None

@@ -233,7 +233,7 @@ def _region_m(
 ) -> tuple[float, float, float, float]:
     """A cell box (inclusive) as a map-frame box in metres (outer cell edges)."""
     r0, c0, r1, c1 = region_px
-    res = snapshot.resolution_m
+    res = snapshot.resolution_decimal_m
     yaw = snapshot.origin_yaw_rad
     ox, oy = snapshot.origin_position_m[0], snapshot.origin_position_m[1]
     c, s = math.cos(yaw), math.sin(yaw)

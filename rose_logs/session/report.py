@@ -9,10 +9,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from rose.params import RoseParams
 from rose_logs.session.breaks import DetectedBreak
+from rose_logs.snapshots import float32_decimal
 
 __all__ = ["BreakEvent", "SessionReport", "SnapshotRecord", "w_judges"]
 
@@ -124,8 +123,7 @@ class SnapshotRecord:
             "time_s": round((self.log_time_ns - start_ns) / 1e9, 9),
             "width": self.width,
             "height": self.height,
-            # The message's float32, as its shortest decimal (0.05, not 0.05000000074505806).
-            "resolution_m": float(str(np.float32(self.resolution_m))),
+            "resolution_m": float32_decimal(self.resolution_m),
             "structure_score": self.structure_score,
             "directions_deg": list(self.directions_deg),
             "threshold": None if math.isnan(self.threshold) else self.threshold,

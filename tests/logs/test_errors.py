@@ -228,6 +228,11 @@ def test_a_map_topic_declared_but_never_published_is_no_map_of_the_session(
     code, out_text, _ = _run(capsys, "process", log, "--no-output", "--fail-above", "0.9")
     assert code == 0
     assert "/robot2/map" not in out_text
+    # info lists it and says why it is no map of the session (it printed an empty section).
+    code, out_text, _ = _run(capsys, "info", log)
+    assert code == 0
+    section = out_text.split("map topic    /robot2/map\n", 1)[1].split("\n")[0]
+    assert section.startswith("  no messages")
 
 
 def test_only_malformed_maps_is_an_error_without_output(tmp_path: Path, capsys, fr079) -> None:
