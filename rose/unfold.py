@@ -105,6 +105,10 @@ def direction_bins(
     )
 
 
+#: A circular Gaussian narrower than this (standard deviation, bins) leaves every bin as it is.
+_SMOOTHING_IDENTITY_BELOW_BINS = 0.125
+
+
 def cumulative_amplitude(
     amplitude_half: npt.NDArray[np.float32], bins: DirectionBins, *, smoothing_bins: float
 ) -> npt.NDArray[np.float64]:
@@ -130,6 +134,8 @@ def cumulative_amplitude(
         positions = np.arange(n_bins)
         means = np.interp(positions, positions[filled], means[filled], period=n_bins)
     cumulative = means * bins.radius_span_px
-    if smoothing_bins > 0 and n_bins > 1:
+    # SciPy's kernel spans round(4 sigma) bins each side: below 1/8 bin it is [1], the identity
+    # (and for sigma < 1e-154 its exp(-x^2 / 2 sigma^2) underflows to NaN, a silent W of 1).
+    if smoothing_bins >= _SMOOTHING_IDENTITY_BELOW_BINS and n_bins > 1:
         cumulative = gaussian_filter1d(cumulative, smoothing_bins, mode="wrap")
     return cumulative

@@ -43,3 +43,14 @@ def test_an_empty_map_has_a_zero_spectrum() -> None:
     spectrum = half_spectrum(occupied, shape)
     assert spectrum.shape == (shape[0], shape[1] // 2 + 1)
     assert not spectrum.any()
+
+
+@pytest.mark.parametrize("tiny", [1e-3, 1e-160, 1e-200])
+def test_a_vanishing_smoothing_is_no_smoothing(tiny: float) -> None:
+    """A Gaussian far narrower than a bin is the identity: W and the directions of no smoothing
+    (the kernel underflowed to NaN, a silent W of 1, or raised ZeroDivisionError)."""
+    grid = rose.load_map(repo_data(f"{FR079_DIR}/map15.yaml")).grid
+    none = rose.analyze(grid, smoothing_deg=0.0)
+    narrow = rose.analyze(grid, smoothing_deg=tiny)
+    assert narrow.structure_score == none.structure_score < 0.4
+    np.testing.assert_array_equal(narrow.dominant_directions, none.dominant_directions)
