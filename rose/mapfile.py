@@ -445,21 +445,26 @@ def image_to_grid(
         # ("to preserve existing behavior"; a grey+alpha image is read as RGBA): an opaque 205,
         # unknown in a grey image, is free in a grey+alpha one.
         grey = (3.0 * grey + image[:, :, -1]) / 4.0
+    if mode == "raw":
+        # Nav2 stores the grey value itself (never negated) when it is an occupancy, 0..100, and
+        # unknown otherwise (ROS 1 stored any value as a signed byte: 205 became -51).
+        value = np.rint(grey)
+        grid = np.where(value <= OCCUPIED, value, UNKNOWN).astype(np.int8)
+        return np.flipud(grid).copy()
     if negate:
         grey = 255.0 - grey
-    if mode == "raw":
-        # map_server stores the (possibly negated) grey value as a signed byte.
-        return np.flipud(grey.astype(np.uint8).view(np.int8)).copy()
     occ = (255.0 - grey) / 255.0
     grid = np.full(grey.shape, UNKNOWN, dtype=np.int8)
-    if mode == "scale":
-        opaque = image[:, :, -1] == 255 if has_alpha else np.ones(grey.shape, dtype=bool)
-        ratio = (occ - free_thresh) / (occupied_thresh - free_thresh)
-        scaled = (1.0 + 98.0 * ratio).astype(np.int8)
-        between = opaque & (occ <= occupied_thresh) & (occ >= free_thresh)
-        grid[between] = scaled[between]
     grid[occ > occupied_thresh] = OCCUPIED
     grid[occ < free_thresh] = 0
+    if mode == "scale":
+        # As Nav2: a pixel not fully opaque is unknown whatever its colour; one in between the
+        # thresholds gets rint(100 * ratio) (ROS 1: 1 + 98 * ratio).
+        ratio = (occ - free_thresh) / (occupied_thresh - free_thresh)
+        between = (occ <= occupied_thresh) & (occ >= free_thresh)
+        grid[between] = np.rint(100.0 * ratio[between]).astype(np.int8)
+        if has_alpha:
+            grid[image[:, :, -1] != 255] = UNKNOWN
     return np.flipud(grid).copy()
 
 

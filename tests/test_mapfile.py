@@ -121,7 +121,7 @@ def test_alpha_counts_in_trinary_mode_as_the_map_servers_count_it(tmp_path: Path
         assert rose.load_map(path).grid.tolist() == [[100, 0, 0]]
         assert rose.load_map(tmp_path / image).grid.tolist() == [[100, -1, 0]]  # bare image
     scale = write_yaml(tmp_path / "s.yaml", "image: rgba.png\nresolution: 0.05\nmode: scale\n")
-    assert rose.load_map(scale).grid[0, 1] == 1  # 205 in scale mode, alpha left out
+    assert rose.load_map(scale).grid[0, 1] == 0  # 205 in scale mode (rint), alpha left out
 
 
 def test_quoted_numbers_are_numbers_as_yaml_cpp_reads_them(tmp_path: Path) -> None:
@@ -169,9 +169,23 @@ def test_scale_and_raw_modes(tmp_path: Path) -> None:
     common = "image: m.pgm\nresolution: 0.1\norigin: [1, 2, 0]\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n"
     scale = rose.load_map(write_yaml(tmp_path / "s.yaml", common + "mode: scale\n")).grid
     ratio = ((255 - 100) / 255 - 0.196) / (0.65 - 0.196)
-    np.testing.assert_array_equal(scale[0], [100, int(1 + 98 * ratio), 0])
+    np.testing.assert_array_equal(scale[0], [100, round(100 * ratio), 0])  # Nav2's rint
+    # Raw: the grey value when it is an occupancy, else unknown (Nav2; ROS 1 stored 254 as -2).
     raw = rose.load_map(write_yaml(tmp_path / "r.yaml", common + "mode: raw\n")).grid
-    np.testing.assert_array_equal(raw[0].view(np.uint8), [0, 100, 254])
+    np.testing.assert_array_equal(raw[0], [0, 100, -1])
+    negated = common.replace("negate: 0", "negate: 1") + "mode: raw\n"
+    raw = rose.load_map(write_yaml(tmp_path / "n.yaml", negated)).grid
+    np.testing.assert_array_equal(raw[0], [0, 100, -1])  # Nav2 never negates raw values
+
+
+def test_scale_mode_reads_a_pixel_not_fully_opaque_as_unknown(tmp_path: Path) -> None:
+    """Nav2 checks alpha before the thresholds: transparent black is unknown, not occupied."""
+    grey = np.array([[0, 0, 254, 100]], dtype=np.uint8)
+    alpha = np.array([[0, 128, 0, 255]], dtype=np.uint8)
+    cv2.imwrite(str(tmp_path / "a.png"), np.dstack([grey, grey, grey, alpha]))
+    path = write_yaml(tmp_path / "s.yaml", "image: a.png\nresolution: 0.05\nmode: scale\n")
+    ratio = ((255 - 100) / 255 - 0.196) / (0.65 - 0.196)
+    assert rose.load_map(path).grid.tolist() == [[-1, -1, -1, round(100 * ratio)]]
 
 
 def test_exponent_numbers_read_as_map_server_reads_them(tmp_path: Path) -> None:
