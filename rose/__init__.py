@@ -1,6 +1,7 @@
 """ROSE: robust frequency-based structure extraction for occupancy-grid maps.
 
-``analyze`` runs the whole method on one grid; the stage functions are public in ``rose.spectrum``,
+``load_map`` reads a map_server YAML or a bare image as an ``OccupancyMap`` (its ``grid`` is what the
+functions below take) and ``save_map`` writes one back. ``analyze`` runs the whole method on one grid; the stage functions are public in ``rose.spectrum``,
 ``rose.unfold``, ``rose.directions``, ``rose.scoring`` and ``rose.threshold``. Wall segments with and
 without ROSE come from ``extract_walls`` / ``extract_walls_hough`` (:mod:`rose.walls`), scored by
 ``wall_error``. ``clean`` gives the cleaned map users get (walls kept, no robot-sized gap opened) or,
@@ -16,7 +17,7 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     from rose.cleaning import CleanParams, CleanResult, clean
     from rose.directions import FAILURE_LEVEL, TRUST_LEVEL
-    from rose.errors import MapFileError, RoseError
+    from rose.errors import MapFileError, OutputError, RoseError
     from rose.mapfile import OccupancyMap, load_map, save_map
     from rose.params import RoseParams, make_params
     from rose.pipeline import analyze
@@ -38,6 +39,7 @@ __all__ = [
     "CleanResult",
     "MapFileError",
     "OccupancyMap",
+    "OutputError",
     "RoseError",
     "RoseParams",
     "RoseResult",
@@ -64,6 +66,7 @@ _LAZY = {
     "FAILURE_LEVEL": "rose.directions",
     "TRUST_LEVEL": "rose.directions",
     "MapFileError": "rose.errors",
+    "OutputError": "rose.errors",
     "RoseError": "rose.errors",
     "OccupancyMap": "rose.mapfile",
     "load_map": "rose.mapfile",

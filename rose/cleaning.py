@@ -318,6 +318,9 @@ def clean(
         On a bad grid, method or resolution, or a ``result`` computed for a grid of another shape.
     """
     occupancy = as_occupancy_grid(grid)
+    if isinstance(result, str):  # clean(grid, "paper"): an easy slip
+        msg = f"result must be a RoseResult, got {result!r}: pass the method by name, method={result!r}"
+        raise RoseError(msg)
     if method not in CLEAN_METHODS:
         msg = f"method must be one of {', '.join(CLEAN_METHODS)}, got {method!r}"
         raise RoseError(msg)

@@ -38,6 +38,9 @@ def as_occupancy_grid(grid: npt.ArrayLike) -> npt.NDArray[np.int8]:
             "rose.load_map(path) and pass its .grid (or the OccupancyMap where one is taken)."
         )
         raise RoseError(msg)
+    if hasattr(grid, "grid") and hasattr(grid, "resolution_m"):  # an OccupancyMap
+        msg = "The input grid must be an array, got an OccupancyMap: pass its .grid."
+        raise RoseError(msg)
     try:
         array = np.asarray(grid)
     except ValueError as err:  # ragged nested lists

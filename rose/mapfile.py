@@ -493,7 +493,8 @@ def save_map(
     ``path`` names the YAML file; the image gets the same stem with ``.pgm``. Both files are staged
     in ``outputs`` (committed by its owner together with the run's other outputs); without
     ``outputs`` they are committed together here, replacing an existing map, so an existing map is
-    never left half-overwritten.
+    never left half-overwritten; the files the map was read from (``input_files``) are never
+    replaced.
 
     Raises
     ------
@@ -502,7 +503,8 @@ def save_map(
         grid, a resolution or origin that is not a finite number in range) or the image cannot be
         encoded.
     OutputError
-        If an output is refused by ``outputs`` (an input, exists without force) or cannot be written.
+        If an output would replace a file the map was read from, is refused by ``outputs`` (an
+        input, exists without force) or cannot be written.
     """
     path = Path(path)
     if path.suffix.lower() not in YAML_SUFFIXES:
@@ -533,6 +535,8 @@ def save_map(
     text = yaml.safe_dump(meta, sort_keys=False, default_flow_style=None)
     own = outputs is None
     target = OutputSet(force=True) if outputs is None else outputs
+    for source in occupancy_map.input_files:  # a map read from files never replaces them
+        target.add_input(source)
     try:
         target.write_bytes(image_path, encoded.tobytes())
         target.write_bytes(path, text.encode())
@@ -552,6 +556,8 @@ def _unloadable(grid: npt.NDArray[np.int8], occupancy_map: OccupancyMap) -> str 
     resolution = occupancy_map.resolution_m
     if not (finite_number(resolution) and 0 < float(resolution) <= MAX_RESOLUTION_M):
         return f"resolution {resolution!r}"
+    if len(occupancy_map.origin_xy_m) != 2:
+        return f"origin_xy_m {occupancy_map.origin_xy_m!r} (x and y, metres)"
     placement = (*occupancy_map.origin_xy_m, occupancy_map.origin_yaw_rad)
     if not all(finite_number(v) for v in placement):
         return f"origin {placement!r}"

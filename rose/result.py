@@ -105,6 +105,9 @@ class RoseResult:
 def check_result_for(result: RoseResult, occupancy: npt.NDArray[np.int8]) -> None:
     """Raise :class:`~rose.errors.RoseError` unless ``result`` was computed on ``occupancy`` (int8
     ROS grid): same shape, and the same occupied cells at the result's threshold."""
+    if not isinstance(result, RoseResult):
+        msg = f"result must be a RoseResult from rose.analyze, got {type(result).__name__}"
+        raise RoseError(msg)
     if result.occupied.shape != occupancy.shape:
         msg = (
             f"the ROSE result is for a grid of shape {result.occupied.shape}, not {occupancy.shape}"

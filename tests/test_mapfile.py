@@ -349,3 +349,22 @@ def test_a_map_load_map_would_refuse_is_not_saved(
     with pytest.raises(MapFileError, match=f"cannot save a map with {problem}"):
         rose.save_map(tmp_path / "m.yaml", dataclasses.replace(base, **changes))
     assert not list(tmp_path.iterdir())
+
+
+def test_save_map_never_replaces_the_files_the_map_was_read_from(tmp_path: Path) -> None:
+    """house.yaml names house_img.pgm: saving its cleaned copy as house_img.yaml would rewrite
+    that image (the CLI refused it, the API did it silently)."""
+    cv2.imwrite(str(tmp_path / "house_img.pgm"), np.array([[0, 254], [205, 0]], np.uint8))
+    write_yaml(tmp_path / "house.yaml", "image: house_img.pgm\nresolution: 0.05\n")
+    before = (tmp_path / "house_img.pgm").read_bytes()
+    occupancy = rose.load_map(tmp_path / "house.yaml")
+    cleaned = dataclasses.replace(occupancy, grid=np.zeros((2, 2), np.int8))
+    with pytest.raises(rose.OutputError, match=r"house_img\.pgm"):
+        rose.save_map(tmp_path / "house_img.yaml", cleaned)
+    with pytest.raises(rose.OutputError, match=r"house\.yaml"):
+        rose.save_map(tmp_path / "house.yaml", cleaned)
+    assert (tmp_path / "house_img.pgm").read_bytes() == before
+    assert not (tmp_path / "house_img.yaml").exists()
+    # Elsewhere it is saved, and a map with no files behind it may replace anything.
+    rose.save_map(tmp_path / "cleaned.yaml", cleaned)
+    rose.save_map(tmp_path / "house.yaml", OccupancyMap(grid=cleaned.grid))

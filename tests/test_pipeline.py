@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -209,6 +210,20 @@ def test_axis_aligned_walls_read_zero_not_pi() -> None:
 
 def test_a_path_or_a_ragged_list_is_named_as_such() -> None:
     with pytest.raises(rose.RoseError, match=r"got the path 'map\.yaml'; read a map file with"):
-        rose.analyze("map.yaml")  # type: ignore[arg-type]
+        rose.analyze("map.yaml")
     with pytest.raises(rose.RoseError, match="must be a 2D array, got list"):
         rose.analyze([[0, 100], [0]])
+
+
+def test_easy_slips_with_the_api_are_rose_errors_that_say_what_to_pass(tmp_path: Path) -> None:
+    """A notebook user's first tries (AttributeError or a shape () message before)."""
+    occupancy = rose.OccupancyMap(grid=np.zeros((8, 8), np.int8))
+    with pytest.raises(rose.RoseError, match=r"OccupancyMap: pass its \.grid"):
+        rose.analyze(occupancy)  # type: ignore[arg-type]
+    with pytest.raises(rose.RoseError, match="method='paper'"):
+        rose.clean(occupancy.grid, "paper")  # type: ignore[arg-type]
+    with pytest.raises(rose.RoseError, match="must be a RoseResult"):
+        rose.clean(occupancy.grid, occupancy)  # type: ignore[arg-type]
+    odd = rose.OccupancyMap(grid=occupancy.grid, origin_xy_m=(1.0, 2.0, 3.0))  # type: ignore[arg-type]
+    with pytest.raises(rose.MapFileError, match="origin_xy_m"):
+        rose.save_map(tmp_path / "m.yaml", odd)
