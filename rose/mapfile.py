@@ -35,6 +35,7 @@ from rose.limits import (
     check_cells,
     finite_number,
     image_shape,
+    integer_number,
     load_yaml,
     pnm_header,
     pnm_numbers,
@@ -486,11 +487,15 @@ def save_map(
     path: str | os.PathLike[str],
     occupancy_map: OccupancyMap,
     *,
+    occupied_threshold: int = SAVED_OCCUPIED_FROM,
     outputs: OutputSet | None = None,
 ) -> Path:
     """Write ``occupancy_map`` as map_server YAML plus a trinary PGM beside it; return the image path.
 
-    ``path`` names the YAML file; the image gets the same stem with ``.pgm``. Both files are staged
+    ``path`` names the YAML file; the image gets the same stem with ``.pgm``. Cells of at least
+    ``occupied_threshold`` are written occupied (map_saver's 65 by default: pass the threshold the
+    map was analysed with, so that every cell ROSE counted as occupied stays so), of at most 25 free,
+    the rest unknown. Both files are staged
     in ``outputs`` (committed by its owner together with the run's other outputs); without
     ``outputs`` they are committed together here, replacing an existing map, so an existing map is
     never left half-overwritten; the files the map was read from (``input_files``) are never
@@ -518,7 +523,11 @@ def save_map(
         raise MapFileError(msg)
     import cv2
 
-    ok, encoded = cv2.imencode(".pgm", grid_to_image(grid))
+    if not (integer_number(occupied_threshold) and 1 <= int(occupied_threshold) <= OCCUPIED):
+        msg = f"{path}: occupied_threshold must be a whole number in 1..100, got {occupied_threshold!r}"
+        raise MapFileError(msg)
+    image = grid_to_image(grid, occupied_threshold=int(occupied_threshold))
+    ok, encoded = cv2.imencode(".pgm", image)
     if not ok:
         msg = f"{image_path}: could not encode the map image"
         raise MapFileError(msg)

@@ -333,3 +333,25 @@ def test_debug_is_taken_after_the_command_too(capsys: pytest.CaptureFixture[str]
     """As rose-bag takes it (the README says before or after the command)."""
     assert main(["score", "no-such-map.yaml", "--debug"]) == 1
     assert "no such file" in capsys.readouterr().err
+
+
+def test_clean_writes_every_kept_wall_as_occupied_at_the_threshold_given(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Walls of occupancy 56 (a scale map), cleaned with --occupied-threshold 50: map_saver's cut at
+    65 wrote every kept wall as unknown."""
+    import cv2
+
+    image = np.full((200, 300), 254, np.uint8)
+    for wall in (np.s_[5:7, 5:-5], np.s_[-7:-5, 5:-5], np.s_[5:-5, 5:7], np.s_[5:-5, -7:-5]):
+        image[wall] = 140
+    image[5:-5, 150:152] = 140
+    cv2.imwrite(str(tmp_path / "grey.pgm"), image)
+    (tmp_path / "grey.yaml").write_text("image: grey.pgm\nmode: scale\nresolution: 0.05\n")
+    assert set(np.unique(rose.load_map(tmp_path / "grey.yaml").grid)) == {0, 56}
+    out, report = tmp_path / "c.yaml", tmp_path / "c.json"
+    argv = ["clean", str(tmp_path / "grey.yaml"), "-o", str(out), "--json", str(report)]
+    assert main([*argv, "--occupied-threshold", "50"]) == 0
+    kept = json.loads(report.read_text())["kept_cells"]
+    cleaned = rose.load_map(out).grid
+    assert kept > 2000 and np.count_nonzero(cleaned == 100) == kept

@@ -80,7 +80,12 @@ def run(args: argparse.Namespace) -> int:
     summary["input"] = str(args.map)
     summary["output"] = str(args.output)
     with outputs:  # all files or none
-        image_path = save_map(output_path, output, outputs=outputs)
+        image_path = save_map(
+            output_path,
+            output,
+            occupied_threshold=result.params.occupied_threshold,
+            outputs=outputs,
+        )
         if args.json is not None:
             outputs.write_json(args.json, summary)
     out = sys.stderr if outputs.uses_stdout else sys.stdout
