@@ -63,6 +63,25 @@ SAVED_OCCUPIED_FROM = 65
 MAX_RESOLUTION_M = 1e4
 """Largest cell size accepted (metres); anything larger is a corrupt value, not a map."""
 
+MAX_ORIGIN_M = 1e9
+"""Largest origin coordinate accepted (metres; UTM northings reach 1e7): beyond, cell positions
+overflow or lose every digit a cell needs."""
+
+MAX_YAW_RAD = 1e3
+"""Largest origin yaw accepted (radians): a float this large still holds the angle to 1e-13 rad, a
+yaw of 1e300 none of it (two perpendicular walls came out parallel)."""
+
+
+def origin_problem(x_m: float, y_m: float, yaw_rad: float) -> str | None:
+    """What is wrong with a map origin (metres, radians), if anything: not finite or out of range."""
+    if not all(finite_number(v) for v in (x_m, y_m, yaw_rad)):
+        return "must be finite"
+    if max(abs(float(x_m)), abs(float(y_m))) > MAX_ORIGIN_M:
+        return f"x and y must be within +-{MAX_ORIGIN_M:g} m"
+    if abs(float(yaw_rad)) > MAX_YAW_RAD:
+        return f"its yaw must be within +-{MAX_YAW_RAD:g} rad"
+    return None
+
 
 @dataclass(frozen=True, eq=False)
 class OccupancyMap:
@@ -201,8 +220,9 @@ def _load_yaml_map(path: Path, max_cells: int | None) -> OccupancyMap:
             f"{path}: 'origin' must be a list of three numbers [x, y, yaw], got {short(origin, 80)}"
         )
         raise MapFileError(msg)
-    if not all(finite_number(v) for v in origin):
-        msg = f"{path}: 'origin' must be finite, got {origin!r}"
+    problem = origin_problem(*origin)
+    if problem is not None:
+        msg = f"{path}: 'origin' {problem}, got {short(origin, 80)}"
         raise MapFileError(msg)
     mode = meta.get("mode", "trinary")
     if mode not in ("trinary", "scale", "raw"):
@@ -568,8 +588,9 @@ def _unloadable(grid: npt.NDArray[np.int8], occupancy_map: OccupancyMap) -> str 
     if len(occupancy_map.origin_xy_m) != 2:
         return f"origin_xy_m {occupancy_map.origin_xy_m!r} (x and y, metres)"
     placement = (*occupancy_map.origin_xy_m, occupancy_map.origin_yaw_rad)
-    if not all(finite_number(v) for v in placement):
-        return f"origin {placement!r}"
+    problem = origin_problem(*placement)
+    if problem is not None:
+        return f"origin {placement!r} (it {problem})"
     return None
 
 

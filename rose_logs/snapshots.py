@@ -14,7 +14,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rose.grid import OCCUPIED, UNKNOWN
-from rose.mapfile import MAX_RESOLUTION_M
+from rose.mapfile import MAX_ORIGIN_M, MAX_RESOLUTION_M
 from rose_logs.errors import MapMessageError
 from rose_logs.frames import quaternion_to_yaw
 from rose_logs.storage.typesys import MAP_TYPE, UPDATE_TYPE, typestore_for
@@ -194,6 +194,9 @@ def _check_placement(
         raise MapMessageError(msg)
     if not all(math.isfinite(v) for v in position):
         msg = f"{topic}: origin position {position} is not finite"
+        raise MapMessageError(msg)
+    if max(abs(v) for v in position) > MAX_ORIGIN_M:
+        msg = f"{topic}: origin position {position} is beyond +-{MAX_ORIGIN_M:g} m"
         raise MapMessageError(msg)
     norm = math.sqrt(sum(v * v for v in quaternion)) if all(map(math.isfinite, quaternion)) else 0.0
     if not norm > 1e-6:

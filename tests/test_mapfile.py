@@ -368,3 +368,30 @@ def test_save_map_never_replaces_the_files_the_map_was_read_from(tmp_path: Path)
     # Elsewhere it is saved, and a map with no files behind it may replace anything.
     rose.save_map(tmp_path / "cleaned.yaml", cleaned)
     rose.save_map(tmp_path / "house.yaml", OccupancyMap(grid=cleaned.grid))
+
+
+@pytest.mark.parametrize(
+    ("origin", "match"),
+    [("[0, 0, 1e300]", "yaw must be within"), ("[1e308, 1e308, 0]", "x and y must be within")],
+)
+def test_an_origin_too_large_to_place_a_cell_is_refused(
+    tmp_path: Path, origin: str, match: str
+) -> None:
+    """A yaw of 1e300 holds no angle (perpendicular walls came out parallel), x = 1e308 overflows
+    a cell's position (null coordinates in GeoJSON): finite, but corrupt values."""
+    cv2.imwrite(str(tmp_path / "m.pgm"), np.array([[0, 254]], dtype=np.uint8))
+    path = write_yaml(tmp_path / "m.yaml", f"image: m.pgm\nresolution: 0.05\norigin: {origin}\n")
+    with pytest.raises(MapFileError, match=match):
+        rose.load_map(path)
+    with pytest.raises(MapFileError, match=match):
+        rose.save_map(
+            tmp_path / "o.yaml",
+            OccupancyMap(
+                grid=np.zeros((2, 2), np.int8),
+                origin_xy_m=(1e308, 1e308) if "x and" in match else (0.0, 0.0),
+                origin_yaw_rad=1e300 if "yaw" in match else 0.0,
+            ),
+        )
+    # A UTM northing and an unnormalised yaw are real maps.
+    text = "image: m.pgm\nresolution: 0.05\norigin: [500000.0, 5400000.0, 7.5]\n"
+    assert rose.load_map(write_yaml(tmp_path / "utm.yaml", text)).origin_yaw_rad == 7.5

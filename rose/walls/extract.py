@@ -38,7 +38,7 @@ from scipy.sparse.csgraph import connected_components
 from rose.errors import RoseError
 from rose.grid import as_occupancy_grid, occupied_mask
 from rose.limits import finite_number, integer_number
-from rose.mapfile import DEFAULT_RESOLUTION_M, MAX_RESOLUTION_M, OccupancyMap
+from rose.mapfile import DEFAULT_RESOLUTION_M, MAX_RESOLUTION_M, OccupancyMap, origin_problem
 from rose.pipeline import analyze
 from rose.result import RoseResult, check_result_for
 from rose.walls.segments import WallMethod, WallSet, axial_difference, segment_orientations
@@ -336,8 +336,9 @@ def _grid_and_placement(
     if not (math.isfinite(placement[0]) and 0 < placement[0] <= MAX_RESOLUTION_M):
         msg = f"resolution_m must be a positive number of metres up to {MAX_RESOLUTION_M:g}, got {resolution_m!r}"
         raise RoseError(msg)
-    if not math.isfinite(placement[2]):
-        msg = f"origin_yaw_rad must be a finite number of radians, got {origin_yaw_rad!r}"
+    problem = origin_problem(*placement[1], placement[2])
+    if problem is not None:
+        msg = f"origin_xy_m {placement[1]!r}, origin_yaw_rad {placement[2]!r}: the origin {problem}"
         raise RoseError(msg)
     return occupancy, placement  # type: ignore[return-value]
 

@@ -245,6 +245,17 @@ def test_only_malformed_maps_is_an_error_without_output(tmp_path: Path, capsys, 
     assert _leftovers(tmp_path, {"in.mcap"}) == []
 
 
+def test_a_map_placed_beyond_any_real_origin_is_skipped_as_malformed(
+    tmp_path: Path, capsys, fr079
+) -> None:
+    """x = 1e308 is finite, but no cell position can be computed from it (walls came out null)."""
+    maps = [MapMsg(START_NS, fr079[0]), MapMsg(START_NS + 1, fr079[1], origin_xy_m=(1e308, 0.0))]
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps)
+    code, _, err = _run(capsys, "process", built.path, "--no-output", "--walls")
+    assert code == 0
+    assert "beyond +-1e+09 m" in err
+
+
 def test_maps_over_the_cell_limit_are_named_so_and_warned_about_in_one_line(
     tmp_path: Path, capsys, fr079
 ) -> None:
