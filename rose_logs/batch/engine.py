@@ -6,6 +6,7 @@ import contextlib
 import dataclasses
 import json
 import logging
+import os
 import signal
 import sys
 import time
@@ -265,22 +266,40 @@ def _same(result: RecordingResult, other: RecordingResult | None) -> bool:
 
 
 def _outputs_missing(result: RecordingResult, store: OutputStore) -> bool:
-    """Whether a cleaned log or recording of a finished result is gone (deleted since): the
-    recording is done again, so that every output the table names exists."""
-    written = (result.cleaned_uri, result.rrd_uri)
-    return any(uri is not None and not store.has(uri) for uri in written)
+    """Whether a cleaned log or recording of a finished result is gone or no longer the size it was
+    written with (deleted, cut short, a bag folder missing a file since): the recording is done
+    again, so that every output the table names is whole."""
+    written = ((result.cleaned_uri, result.cleaned_bytes), (result.rrd_uri, result.rrd_bytes))
+    for uri, size in written:
+        if uri is None:
+            continue
+        if size is None:  # stored by an older rose-bag: its presence is all there is to check
+            if not store.has(uri):
+                return True
+        elif store.size(uri) != size:
+            return True
+    return False
 
 
 def _outside(recordings: tuple[Recording, ...], store: OutputStore) -> tuple[Recording, ...]:
     """The recordings not inside the output root (its cleaned logs are no inputs of a re-run)."""
     root = store.root.removeprefix("file://")
+
+    def where(uri: str) -> str:  # local paths compared as the file system sees them ('..', links)
+        return os.path.realpath(uri.removeprefix("file://")) if store.local else uri
+
     if store.local:
-        root = str(Path(root).expanduser().absolute())
+        root = where(str(Path(root).expanduser()))
     prefix = root.rstrip("/") + "/"
-    kept = tuple(r for r in recordings if not r.uri.startswith(prefix))
+    inside = [where(r.uri).startswith(prefix) for r in recordings]
+    kept = tuple(r for r, i in zip(recordings, inside, strict=True) if not i)
     # The batch's own outputs are left out quietly; anything else there is the user's recording.
     ours = tuple(prefix + folder + "/" for folder in ("cleaned", ".staging"))
-    theirs = [r.uri for r in recordings if r.uri.startswith(prefix) and not r.uri.startswith(ours)]
+    theirs = [
+        r.uri
+        for r, i in zip(recordings, inside, strict=True)
+        if i and not where(r.uri).startswith(ours)
+    ]
     if theirs:
         _LOG.warning(
             "%s: %d recording(s) inside the output folder are not processed (the batch writes "
@@ -431,7 +450,9 @@ def _collect(
         return future.result()
     except KilledWorker as err:
         limit = f" (memory limit {memory_limit})" if memory_limit is not None else ""
-        message = f"the worker processing it died{limit}, out of memory or killed: {err}"
+        # Dask's first sentence says how often it was tried; the rest is advice about its logs.
+        tried = str(err).split(". ", 1)[0]
+        message = f"the worker processing it died{limit}, out of memory or killed ({tried})"
     except Exception as err:  # the task itself never raises for a bad recording
         message = f"{type(err).__name__}: {err}"
     result = error_result(rec, key, options, message)

@@ -13,10 +13,19 @@ from typing import Any
 
 import fsspec
 
+from rose.outputs import enclosing_bag_folder
 from rose_logs.batch.errors import BatchError
 from rose_logs.batch.store import filesystem, is_local, storage_errors
 
-__all__ = ["LOG_SUFFIXES", "MAX_LIST_BYTES", "Recording", "discover", "printable", "read_list"]
+__all__ = [
+    "LOG_SUFFIXES",
+    "MAX_LIST_BYTES",
+    "Recording",
+    "cleaned_log_name",
+    "discover",
+    "printable",
+    "read_list",
+]
 
 #: File suffixes searched for in folders (a folder with ``metadata.yaml`` is one ROS 2 bag). A
 #: ``.bag.active`` is a recording ``rosbag record`` never closed: it shows as an error row (naming
@@ -154,15 +163,11 @@ def discover(
             if same in found:
                 continue
             name = recording.name
-            if name in names:  # two inputs with the same relative name: keep both, distinguishable
-                digest = hashlib.sha256(
-                    recording.uri.encode("utf-8", "surrogateescape")
-                ).hexdigest()[:8]
-                stem, dot, ext = name.rpartition(".")
-                name = (
-                    f"{stem}-{digest}.{ext}" if dot and not recording.is_dir else f"{name}-{digest}"
-                )
-            names[name] = recording.uri
+            # Two recordings with the same relative name, or whose cleaned logs would be one (x.bag
+            # and the x.bag.active beside it): keep both, distinguishable.
+            if name in names or cleaned_log_name(name) in names:
+                name = _distinct(name, recording)
+            names[name] = names[cleaned_log_name(name)] = recording.uri
             found[same] = Recording(
                 recording.uri, name, recording.is_dir, recording.size, recording.version
             )
@@ -170,6 +175,26 @@ def discover(
         msg = f"no recording found in {', '.join(str(i) for i in inputs) or 'the inputs'}"
         raise BatchError(msg)
     return tuple(sorted(found.values()))
+
+
+def cleaned_log_name(name: str) -> str:
+    """Name of a recording's cleaned log: its own, except that a ``.bag.active`` (a recording
+    ``rosbag record`` never closed, salvaged) comes out as the complete ``.bag`` it now is."""
+    return name[: -len(".active")] if name.lower().endswith(".bag.active") else name
+
+
+def _distinct(name: str, recording: Recording) -> str:
+    """``name`` with a digest of the recording's URI before its suffix (``run-1a2b3c4d.mcap``,
+    ``x-1a2b3c4d.bag.active``; after a folder's name)."""
+    digest = hashlib.sha256(recording.uri.encode("utf-8", "surrogateescape")).hexdigest()[:8]
+    if recording.is_dir:
+        return f"{name}-{digest}"
+    folder, _, base = name.rpartition("/")
+    suffix = next((s for s in LOG_SUFFIXES[::-1] if base.lower().endswith(s)), "")
+    if not suffix and "." in base:
+        suffix = base[base.rindex(".") :]
+    stem = base[: len(base) - len(suffix)] if suffix else base
+    return f"{folder}/{stem}-{digest}{suffix}" if folder else f"{stem}-{digest}{suffix}"
 
 
 def _identity(uri: str) -> str:
@@ -184,7 +209,9 @@ def _options(uri: str, storage_options: Mapping[str, Any] | None) -> dict[str, A
 def _expand(item: str, storage_options: Mapping[str, Any] | None) -> Iterable[Recording]:
     local = is_local(item)
     if local:
-        item = str(Path(item.removeprefix("file://")).expanduser().absolute())
+        # Without '..' (a recording's name is its path below the input, the input's own name
+        # first: '../..' has none, and 'x/../y' would put outputs outside cleaned/ and rrd/).
+        item = os.path.normpath(Path(item.removeprefix("file://")).expanduser().absolute())
     fs, path = filesystem(item, _options(item, storage_options))
     protocol = None if local else fsspec.utils.get_protocol(item)
     try:
@@ -218,6 +245,12 @@ def _glob_base(pattern: str) -> str:
 def _expand_path(fs: Any, path: str, protocol: str | None, base: str) -> Iterable[Recording]:
     path = path.rstrip("/")
     if not fs.isdir(path):
+        bag = enclosing_bag_folder(Path(path)) if protocol is None else None
+        if bag is not None:  # a bag's storage file: the whole bag is the recording, once
+            folder = str(bag)
+            above = base if folder.startswith(base.rstrip("/") + "/") else posixpath.dirname(folder)
+            yield _recording(fs, folder, protocol, above, is_dir=True)
+            return
         yield _recording(fs, path, protocol, base, is_dir=False)
         return
     if fs.isfile(posixpath.join(path, "metadata.yaml")):

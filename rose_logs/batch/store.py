@@ -322,6 +322,20 @@ class OutputStore:
             return Path(_strip_file(uri)).exists()
         return bool(self.fs.exists(uri))
 
+    def size(self, uri: str) -> int | None:
+        """Bytes of the file ``uri``, or of every file of the folder ``uri``; None if it is gone."""
+        try:
+            if self.local:
+                path = Path(_strip_file(uri))
+                if path.is_dir():
+                    return sum(f.stat().st_size for f in sorted(path.rglob("*")) if f.is_file())
+                return path.stat().st_size if path.exists() else None
+            if not self.fs.exists(uri):
+                return None
+            return int(self.fs.du(uri, total=True))
+        except OSError:
+            return None
+
     def put(self, local: Path, relative: str) -> str:
         """Move (local root) or upload (remote root) the file or folder ``local`` to ``relative``."""
         target = self.uri(relative)

@@ -27,9 +27,10 @@ from rose.errors import RoseError
 from rose.limits import DEFAULT_MAX_CELLS
 from rose.params import RoseParams
 from rose_logs.batch.recording_log import RecordingWarnings, collecting
-from rose_logs.batch.sources import Recording, printable
+from rose_logs.batch.sources import Recording, cleaned_log_name, printable
 from rose_logs.batch.store import OutputStore, filesystem, is_local
 from rose_logs.errors import LogError
+from rose_logs.formats import LogFormat, detect_format
 from rose_logs.session.report import w_judges
 
 if TYPE_CHECKING:  # the session package is imported when a recording is processed
@@ -159,6 +160,9 @@ class RecordingResult:
         ``host:pid`` of the process that did the work.
     cleaned_uri, rrd_uri : str or None
         Outputs written.
+    cleaned_bytes, rrd_bytes : int or None
+        Their sizes as written (all files of a bag folder): a re-run redoes a recording whose
+        output has since been cut short or lost a file.
     losses : tuple of str
         With ``salvage``: what could not be read of a damaged recording (empty when intact).
     skipped_messages : int
@@ -185,6 +189,8 @@ class RecordingResult:
     worker: str = ""
     cleaned_uri: str | None = None
     rrd_uri: str | None = None
+    cleaned_bytes: int | None = None
+    rrd_bytes: int | None = None
     losses: tuple[str, ...] = ()
     skipped_messages: int = 0
     skipped_reasons: str = ""
@@ -242,10 +248,8 @@ class RecordingResult:
         return cls(**data)
 
 
-def _format_of(path: Path) -> str | None:
+def _format_of(path: Path) -> LogFormat | None:
     """The log format of ``path`` by its content, None when it is no log we know."""
-    from rose_logs.formats import detect_format
-
     try:
         return detect_format(path)
     except LogError:
@@ -316,8 +320,9 @@ def process_recording(
 
     The recording is read in place (local) or downloaded to a temporary folder (remote); its cleaned
     log and Rerun recording, if asked for, go to ``<out>/cleaned/<name>`` and ``<out>/rrd/<name>.rrd``.
-    ``OSError`` s are retried ``options.retries`` times. The result is written atomically to
-    ``<out>/results/<key>.json`` before it is returned, so that a later batch can skip the recording.
+    ``OSError`` s (also a full disk under ``out``) are retried ``options.retries`` times. The result
+    is written atomically to ``<out>/results/<key>.json`` before it is returned, so that a later
+    batch can skip the recording; an I/O error's is not (a later batch tries again).
 
     Parameters
     ----------
@@ -339,6 +344,7 @@ def process_recording(
     started = time.perf_counter()
     cpu_started = time.process_time()
     attempts = max(0, options.retries) + 1
+    lasting = True  # a result that holds for this recording, stored so that a re-run skips it
     for attempt in range(1, attempts + 1):
         said = RecordingWarnings()  # those of the last attempt are the recording's
         try:
@@ -347,7 +353,11 @@ def process_recording(
             break
         except OSError as err:
             if attempt == attempts:
-                result = error_result(recording, key, options, f"I/O error: {err}")
+                # Not stored: an I/O error (a full disk under OUT, a network file system) says
+                # nothing about the recording, and a re-run once it is fixed does it again.
+                text = err.strerror if err.strerror and err.filename is None else str(err)
+                result = error_result(recording, key, options, f"I/O error: {text}")
+                lasting = False
                 break
             _LOG.warning(
                 "%s: %s (attempt %d of %d, retrying)", recording.uri, err, attempt, attempts
@@ -362,7 +372,8 @@ def process_recording(
             break
     result = dataclasses.replace(result, warnings=said.lines())  # an error row keeps them too
     result = _with_seconds(result, time.perf_counter() - started, time.process_time() - cpu_started)
-    store_result(store, result)
+    if lasting:
+        store_result(store, result)
     return result
 
 
@@ -443,6 +454,9 @@ def _attempt(
             report = process_log(
                 local,
                 output_path=cleaned,
+                # The cleaned log mirrors the input, also one whose suffix is not its format (an
+                # MCAP file named .bag): the suffix would ask for a conversion no log gets.
+                output_format=_format_of(local) if cleaned is not None else None,
                 topics=options.topics,
                 params=options.params,
                 failure_level=options.failure_level,
@@ -461,6 +475,8 @@ def _attempt(
             text = str(err)
             if str(local) != recording.uri:
                 text = text.replace(str(local), recording.uri)
+            if isinstance(err.__cause__, OSError):  # a full disk under OUT, an I/O error: not
+                raise OSError(err.__cause__.errno, text) from err  # the recording's, retried
             return error_result(recording, key, options, text, log_format=_format_of(local))
         cleaned_uri = None if cleaned is None else store.put(cleaned, f"cleaned/{cleaned_name}")
         rrd_uri = None if rrd is None else store.put(rrd, f"rrd/{recording.name}.rrd")
@@ -489,6 +505,8 @@ def _attempt(
         worker=worker_name(),
         cleaned_uri=cleaned_uri,
         rrd_uri=rrd_uri,
+        cleaned_bytes=None if cleaned_uri is None else store.size(cleaned_uri),
+        rrd_bytes=None if rrd_uri is None else store.size(rrd_uri),
         # The downloaded copy's path means nothing to the reader of the table: name the recording.
         losses=tuple(loss.replace(str(local), recording.uri) for loss in report.losses),
         skipped_messages=report.skipped_messages,
@@ -505,12 +523,6 @@ def _break_params(options: RecordingOptions) -> BreakParams | None:
     return BreakParams.following(
         options.params.occupied_threshold, threshold_m=options.break_threshold_m
     )
-
-
-def cleaned_log_name(name: str) -> str:
-    """Name of a recording's cleaned log: its own, except that a ``.bag.active`` (a recording
-    ``rosbag record`` never closed, salvaged) comes out as the complete ``.bag`` it now is."""
-    return name[: -len(".active")] if name.lower().endswith(".bag.active") else name
 
 
 def _fetch(recording: Recording, target: Path, storage_options: Mapping[str, Any] | None) -> Path:

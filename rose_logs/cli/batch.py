@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from typing import Any
 
 from rose.cli.options import add_param_arguments, location, params_from_args
+from rose.limits import short
 from rose_logs.cli.options import (
     EXIT_GATE,
     EXIT_SALVAGED,
@@ -35,7 +37,11 @@ def _non_negative_int(text: str) -> int:
 
 
 def _positive_int(text: str) -> int:
-    value = _non_negative_int(text)
+    try:
+        value = int(text)
+    except ValueError:
+        msg = f"expected a whole number, got {text!r}"
+        raise argparse.ArgumentTypeError(msg) from None
     if value < 1:
         msg = f"must be >= 1, got {value}"
         raise argparse.ArgumentTypeError(msg)
@@ -53,6 +59,11 @@ def _worker_count(text: str) -> int:
     return value
 
 
+#: Smallest --memory-limit: a worker's imports alone take about 100 MB (Dask's nanny kills a worker
+#: over its limit before it can report anything, and the batch failed with "Stream is closed").
+MIN_WORKER_MEMORY_BYTES = 200 * 1000**2
+
+
 def _memory_limit(text: str) -> str | float:
     """``auto``, a fraction of RAM (0 < f <= 1) or a size such as ``2GB`` / ``512MiB``."""
     from dask.utils import parse_bytes
@@ -64,16 +75,27 @@ def _memory_limit(text: str) -> str | float:
     except ValueError:
         pass
     else:
-        if 0 < value <= 1:
-            return value
-        msg = f"a fraction must be in (0, 1], got {text!r}"
-        raise argparse.ArgumentTypeError(msg)
+        if not 0 < value <= 1:
+            msg = f"a fraction must be in (0, 1], got {text!r}"
+            raise argparse.ArgumentTypeError(msg)
+        _check_worker_memory(text, value * os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
+        return value
     try:
-        parse_bytes(text)
+        size = parse_bytes(text)
     except ValueError:
         msg = f"expected a size such as 2GB, a fraction of RAM or 'auto', got {text!r}"
         raise argparse.ArgumentTypeError(msg) from None
+    _check_worker_memory(text, size)
     return text
+
+
+def _check_worker_memory(text: str, size_bytes: float) -> None:
+    if size_bytes < MIN_WORKER_MEMORY_BYTES:
+        msg = (
+            f"{text!r} is {size_bytes / 1e6:.3g} MB, too little to start a worker (at least "
+            f"{MIN_WORKER_MEMORY_BYTES // 1000**2} MB: its imports alone take about 100 MB)"
+        )
+        raise argparse.ArgumentTypeError(msg)
 
 
 def _storage_option(text: str) -> tuple[str, Any]:
@@ -192,6 +214,14 @@ def run(args: argparse.Namespace) -> int:
     if (args.scheduler or args.scheduler_file) and args.workers != 1:
         msg = "--workers starts a local cluster; it cannot be combined with --scheduler"
         raise UsageError(msg)
+    if args.memory_limit is not None and (
+        args.workers == 1 or args.scheduler or args.scheduler_file
+    ):
+        print(
+            "warning: --memory-limit applies to the workers of a local cluster (--workers 2 or "
+            "more); it is ignored here",
+            file=sys.stderr,
+        )
     storage_options = dict(args.storage_option)
     inputs = list(args.inputs)
     for path in args.from_list:
@@ -267,17 +297,23 @@ def _exit_code(report: Any, args: argparse.Namespace) -> int:
         first = errors[0]
         # Rows start with their URI (error_result); printable: as the tables show odd file names.
         what = printable(first.error or f"{first.uri}: unknown error")
-        print(
-            f"error: {len(errors)} recording(s) failed (more than --max-errors {args.max_errors}); "
-            f"first: {what}",
-            file=sys.stderr,
+        line = (
+            f"{len(errors)} recording(s) failed (more than --max-errors {args.max_errors}); "
+            f"first: {what}"
         )
+        # Failed gates are named too, though the errors decide the exit code (1).
+        for reason in _gate_failures(args, report):
+            print(f"error: {reason}", file=sys.stderr)
+        print(f"error: {short(line)}", file=sys.stderr)  # the rest is in the tables
         return 1
     salvaged = [r for r in report.results if r.losses]
     if salvaged:  # as process --salvage: lost messages come before the gates
         print(
-            f"warning: {len(salvaged)} recording(s) damaged, kept what could be read "
-            f"(--salvage, exit {EXIT_SALVAGED}); first: {printable(salvaged[0].losses[0])}",
+            "warning: "
+            + short(
+                f"{len(salvaged)} recording(s) damaged, kept what could be read (--salvage, "
+                f"exit {EXIT_SALVAGED}); first: {printable(salvaged[0].losses[0])}"
+            ),
             file=sys.stderr,
         )
         return EXIT_SALVAGED

@@ -656,3 +656,117 @@ def test_a_gate_fails_on_a_map_topic_it_cannot_judge(tmp_path: Path, capsys) -> 
     code = main(["batch", str(log), "-o", str(tmp_path / "b"), "-q", "--fail-above", "0.9"])
     assert code == 3
     assert "/robot2/map: no map message could be analysed" in capsys.readouterr().err
+
+
+# ---- names and outputs of odd inputs (new-user run) -------------------------------------------------
+
+
+def test_inputs_spelled_with_dot_dot_are_named_below_the_folder_they_mean(
+    fleet: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """'../..' from a robot's folder: names had '..' in them and outputs escaped cleaned/ and rrd/;
+    an output folder given as '.' took the '../' inputs for its own."""
+    monkeypatch.chdir(fleet / "robot_b" / "nested")
+    assert [r.name for r in discover([Path("..") / ".."])] == FLEET_NAMES
+    report = tmp_path / "report"
+    report.mkdir()
+    monkeypatch.chdir(report)
+    result = run_batch(
+        ["../fleet/robot_a/../robot_b/run.mcap"], ".", options=RecordingOptions(cleaned=True)
+    )
+    (row,) = result.results
+    assert row.status == "ok" and row.name == "run.mcap"
+    assert row.cleaned_uri == str(report / "cleaned" / "run.mcap")
+    assert Path(row.cleaned_uri).is_file()
+
+
+def test_a_bags_storage_file_is_its_bag_and_counted_once(fleet: Path) -> None:
+    bag = fleet / "robot_b" / "bag_dir"
+    for inputs in ([bag, bag / "bag_dir.mcap"], [str(fleet / "robot_*" / "*" / "*.mcap")]):
+        recordings = discover(inputs)
+        bags = [r for r in recordings if r.uri == str(bag)]
+        assert len(bags) == 1 and bags[0].is_dir and bags[0].name.endswith("bag_dir"), recordings
+    assert [r.name for r in discover([bag / "bag_dir.mcap"])] == ["bag_dir"]
+
+
+def test_a_bag_and_the_unclosed_bag_beside_it_get_two_cleaned_logs(tmp_path: Path) -> None:
+    """x.bag and x.bag.active: the salvaged one's cleaned log (x.bag) replaced the complete one's."""
+    from rose_logs.batch.sources import cleaned_log_name
+
+    robot = tmp_path / "robot"
+    robot.mkdir()
+    (robot / "x.bag").write_bytes(b"complete")
+    (robot / "x.bag.active").write_bytes(b"unclosed")
+    names = [r.name for r in discover([robot])]
+    assert names[0] == "robot/x.bag"
+    assert names[1].startswith("robot/x-") and names[1].endswith(".bag.active")
+    assert len({cleaned_log_name(n) for n in names}) == 2
+
+
+def test_a_cleaned_log_keeps_the_format_of_its_input_whatever_the_suffix(
+    fleet: Path, tmp_path: Path
+) -> None:
+    """An MCAP file named session.bag: --cleaned asked to write ROS 2 messages as a ROS 1 bag."""
+    from rose_logs.formats import detect_format
+
+    odd = tmp_path / "odd" / "session.bag"
+    odd.parent.mkdir()
+    odd.write_bytes((fleet / "robot_a" / "run.mcap").read_bytes())
+    (row,) = run_batch([odd], tmp_path / "out", options=RecordingOptions(cleaned=True)).results
+    assert row.status == "ok", row.error
+    assert detect_format(Path(row.cleaned_uri)) == "mcap"
+
+
+def test_a_full_output_disk_is_no_failure_of_the_recording(
+    fleet: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """An error writing under OUT is retried and not stored: a re-run with space does the
+    recording (it was stored as the recording's error, redone only by --retry-errors)."""
+    import errno
+
+    import rose_logs.session
+    from rose_logs.errors import LogWriteError
+
+    real = rose_logs.session.process_log
+
+    def full(*args: object, **kwargs: object) -> object:
+        try:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        except OSError as err:
+            msg = f"{kwargs['output_path']}: cannot write (No space left on device)"
+            raise LogWriteError(msg) from err
+
+    monkeypatch.setattr(rose_logs.session, "process_log", full)
+    out = tmp_path / "out"
+    options = RecordingOptions(cleaned=True, retries=1)
+    (failed,) = run_batch([fleet / "robot_a" / "run.mcap"], out, options=options).results
+    assert failed.status == "error" and "No space left on device" in failed.error
+    monkeypatch.setattr(rose_logs.session, "process_log", real)
+    again = run_batch([fleet / "robot_a" / "run.mcap"], out, options=options)
+    assert (again.processed, again.skipped) == (1, 0)
+    assert again.results[0].status == "ok"
+
+
+def test_a_rerun_remakes_outputs_cut_short_or_missing_a_file(fleet: Path, tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    options = RecordingOptions(cleaned=True)
+    run_batch([fleet / "robot_b"], out, options=options)
+    log = out / "cleaned" / "robot_b" / "run.mcap"
+    storage = out / "cleaned" / "robot_b" / "bag_dir" / "bag_dir.mcap"
+    whole = log.read_bytes()
+    log.write_bytes(whole[:1000])
+    storage.unlink()  # its metadata.yaml stays: the folder still exists
+    again = run_batch([fleet / "robot_b"], out, options=options)
+    assert (again.processed, again.skipped) == (2, 1)
+    assert log.read_bytes() == whole and storage.is_file()
+
+
+@pytest.mark.parametrize("limit", ["1KB", "0.0000001"])
+def test_a_memory_limit_too_small_for_a_worker_is_a_usage_error(
+    fleet: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], limit: str
+) -> None:
+    argv = ["batch", str(fleet), "-o", str(tmp_path / "o"), "--workers", "2"]
+    with pytest.raises(SystemExit) as info:
+        main([*argv, "--memory-limit", limit])
+    assert info.value.code == 2
+    assert "too little to start a worker" in capsys.readouterr().err
