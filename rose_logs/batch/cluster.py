@@ -190,10 +190,37 @@ def local_client(
                     memory_limit="auto" if memory_limit is None else memory_limit,
                     host="127.0.0.1",
                     dashboard_address=None,
-                    silence_logs=logging.ERROR,
+                    # What goes wrong is on the recording's row (a dead worker too); Dask's
+                    # own ERROR lines (a worker's heartbeat to a scheduler closed by Ctrl-C)
+                    # would be tracebacks on the user's terminal.
+                    silence_logs=logging.CRITICAL,
                 )
-            with Client(cluster) as client:
+            client = Client(cluster)
+            try:
                 yield client
+            finally:
+                with _dask_quiet():
+                    client.close()
     finally:
         if cluster is not None:
-            cluster.close()
+            with _dask_quiet():
+                cluster.close()
+
+
+@contextlib.contextmanager
+def _dask_quiet() -> Iterator[None]:
+    """This process's Dask and Tornado loggers at CRITICAL, and no "coroutine ... never awaited"
+    warning, while a cluster is torn down (after Ctrl-C its comms close under it)."""
+    import warnings
+
+    loggers = [logging.getLogger(name) for name in ("distributed", "tornado")]
+    levels = [logger.level for logger in loggers]
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", "coroutine .* was never awaited", RuntimeWarning)
+        for logger in loggers:
+            logger.setLevel(logging.CRITICAL)
+        try:
+            yield
+        finally:
+            for logger, level in zip(loggers, levels, strict=True):
+                logger.setLevel(level)
