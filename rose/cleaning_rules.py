@@ -36,6 +36,10 @@ __all__ = [
     "wide_unknown",
 ]
 
+#: Shortest stretch of wall, along a gap, that a hidden wall is drawn from (metres): a wall's end,
+#: not the side face of an object across the gap.
+_BRIDGE_ANCHOR_M = 0.25
+
 #: Directions closer than this to a right angle of each other share one rotated frame.
 _PAIR_TOLERANCE_RAD = math.radians(3.0)
 
@@ -126,21 +130,31 @@ def _wall_cells(
     keep = occupied & (structure | near_outside) | lines
     min_region_px = length_px(p.min_region_m2, res**2)
     completed = np.zeros(occupied.shape, dtype=bool)
+    sealed_off = completed  # what closes scanned objects and the building, as walls or not
     if p.max_bridge_m > 0:
-        # The wall line hidden behind furniture: unknown cells between collinear kept walls.
-        bridges = bridge_gaps(keep, unknown, directions, max_gap_px=length_px(p.max_bridge_m, res))
+        # Unknown cells between collinear kept walls. Those between wall ends become the wall line
+        # hidden behind furniture; all of them seal what they close off (an object's inside
+        # between its faces, a cabinet's open back) but are not drawn as walls.
+        bridges, wall_lines = _bridges(
+            keep,
+            unknown,
+            directions,
+            length_px(p.max_bridge_m, res),
+            (1, length_px(_BRIDGE_ANCHOR_M, res)),
+        )
         # Only next to what goes (within a cabinet's depth): a bridge network reaching into
         # unexplored space or across racks is no wall hidden behind removed clutter.
         removed = occupied & ~keep
         side = 2 * round(length_px(p.hidden_wall_reach_m, res)) + 1
         behind = cv2.dilate(removed.view(np.uint8), np.ones((side, side), np.uint8)).view(bool)
-        completed = _touching(bridges, removed) & behind
-        if completed.any():
-            # The completed wall separates the room from the unknown beyond it: furniture faces
-            # in front of it are no longer next to the outside (a cabinet's inside, open through
-            # the unscanned wall behind it, made its faces look like the building's edge).
+        sealed_off = _touching(bridges, removed) & behind
+        completed = sealed_off & wall_lines
+        if sealed_off.any():
+            # The sealed cells separate the room from the unknown beyond them: furniture faces
+            # in front are no longer next to the outside (a cabinet's inside, open through the
+            # unscanned wall behind it, made its faces look like the building's edge).
             sealed = occupancy.copy()
-            sealed[completed] = OCCUPIED
+            sealed[sealed_off] = OCCUPIED
             outside = wide_unknown(sealed, radius_px=length_px(p.open_unknown_width_m, 2 * res))
             near_outside = _dilate(outside, round(length_px(p.unknown_margin_m, res)))
             keep = occupied & (structure | near_outside) | lines
@@ -150,7 +164,7 @@ def _wall_cells(
     if p.object_pocket_m2 > 0:
         # Object faces: a scanner sees a solid object as faces around a small unknown pocket (its
         # inside, sealed by the wall completed behind it). They go unless on a long straight run.
-        faces = _pocket_faces(unknown, completed, occupied, length_px(p.object_pocket_m2, res**2))
+        faces = _pocket_faces(unknown, sealed_off, occupied, length_px(p.object_pocket_m2, res**2))
         object_faces = faces & ~lines
         keep &= ~object_faces
     else:
@@ -493,43 +507,69 @@ def bridge_gaps(
     directions: npt.NDArray[np.float64],
     *,
     max_gap_px: float,
+    min_anchor_px: float = 1,
 ) -> npt.NDArray[np.bool_]:
-    """Cells of ``fillable`` on the straight line between two wall cells along a dominant direction.
+    """Cells of ``fillable`` on the straight line between two wall pieces along a dominant direction.
 
-    A morphological closing of ``walls`` with a line of ``max_gap_px`` cells along every direction
-    (in the rotated frames of :func:`directional_runs`) joins collinear wall pieces across gaps
-    shorter than the line; only ``fillable`` cells are filled.
+    A morphological closing with a line of ``max_gap_px`` cells along every direction (in the
+    rotated frames of :func:`directional_runs`) joins collinear wall pieces across gaps shorter
+    than the line; the pieces are the cells of ``walls`` on straight stretches of at least
+    ``min_anchor_px`` cells along that direction. Only ``fillable`` cells are filled.
 
     Returns
     -------
     ndarray of bool, shape (rows, cols)
         A subset of ``fillable & ~walls``.
     """
+    (bridges,) = _bridges(walls, fillable, directions, max_gap_px, (min_anchor_px,))
+    return bridges
+
+
+def _bridges(
+    walls: npt.NDArray[np.bool_],
+    fillable: npt.NDArray[np.bool_],
+    directions: npt.NDArray[np.float64],
+    max_gap_px: float,
+    anchors_px: tuple[float, ...],
+) -> list[npt.NDArray[np.bool_]]:
+    """:func:`bridge_gaps` for each shortest anchor of ``anchors_px`` (ascending), rotating the map
+    once."""
     import cv2
 
-    out = np.zeros(walls.shape, dtype=bool)
+    outs = [np.zeros(walls.shape, dtype=bool) for _ in anchors_px]
     if not walls.any() or directions.size == 0:
-        return out
+        return outs
     length = max(3, round(max_gap_px)) | 1
     r0, r1, c0, c1 = _bounds(walls)
     crop = walls[r0:r1, c0:c1]
     rows, cols = crop.shape
     for angle in _frames(directions):
         rotated, matrix = _rotate(crop.view(np.uint8), angle)
-        closed = np.zeros_like(rotated)
-        for along, across in (((1, length), (4, 1)), ((length, 1), (1, 4))):
-            closing = cv2.morphologyEx(rotated, cv2.MORPH_CLOSE, np.ones(along, np.uint8))
-            fill = np.asarray(closing, dtype=np.uint8) & ~rotated
-            # A wall line is thin: drop fills four or more cells thick across the line (the space
-            # between two parallel walls, not a wall).
-            closed |= fill & ~_open(fill, across)
-        if matrix is not None:
-            back = cv2.warpAffine(
-                closed, matrix, (cols, rows), flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP
-            )
-            closed = np.asarray(back, dtype=np.uint8)
-        out[r0:r1, c0:c1] |= closed.astype(bool)
-    return out & fillable & ~walls
+        closed = [np.zeros_like(rotated) for _ in anchors_px]
+        for along, across, line in (((1, length), (4, 1), (0, 1)), ((length, 1), (1, 4), (1, 0))):
+            thin = None
+            for i, anchor in enumerate(max(1, round(a)) for a in anchors_px):
+                # Only wall pieces running along the gap anchor a bridge: the side faces of an
+                # object, across it, would join its two sides through its inside.
+                pieces = rotated
+                if anchor > 1:
+                    pieces = _open(rotated, (max(1, line[0] * anchor), max(1, line[1] * anchor)))
+                closing = cv2.morphologyEx(pieces, cv2.MORPH_CLOSE, np.ones(along, np.uint8))
+                fill = np.asarray(closing, dtype=np.uint8) & ~rotated
+                if thin is None:
+                    # A wall line is thin: drop fills four or more cells thick across the line
+                    # (the space between two parallel walls, not a wall). Fewer anchors only
+                    # ever fill less: the first (all walls) decides for every anchor.
+                    thin = ~_open(fill, across)
+                closed[i] |= fill & thin
+        for out, fills in zip(outs, closed, strict=True):
+            if matrix is not None:
+                back = cv2.warpAffine(
+                    fills, matrix, (cols, rows), flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP
+                )
+                fills = np.asarray(back, dtype=np.uint8)
+            out[r0:r1, c0:c1] |= fills.astype(bool)
+    return [out & fillable & ~walls for out in outs]
 
 
 def straight_lines(

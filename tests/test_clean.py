@@ -8,6 +8,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 import pytest
+from real_data import repo_data
 
 import rose
 from rose.cleaning import MIN_CLEAN_RESOLUTION_M, CleanParams, clean
@@ -385,3 +386,17 @@ def test_a_solid_column_is_no_free_standing_object() -> None:
     grid[35:46, 35:46] = 100
     result = rose.analyze(grid)
     assert clean(grid, result, resolution_m=0.05).kept_count == result.occupied_count
+
+
+def test_hidden_walls_are_lines_between_wall_ends_not_networks_inside_objects() -> None:
+    """The shelves of a warehouse map got crosses and stubs of 'completed' wall drawn through
+    their unknown insides: any two kept cells along a direction were joined, an object's two side
+    faces too. Only stretches of wall along the gap anchor a hidden wall now; each is a line."""
+    occupancy = rose.load_map(repo_data("aws_small_warehouse_005/map_rotated.png"))
+    result = rose.analyze(occupancy.grid)
+    completed = clean(occupancy.grid, result, resolution_m=occupancy.resolution_m).completed
+    count, _, stats, _ = cv2.connectedComponentsWithStats(completed.view(np.uint8), connectivity=8)
+    assert count > 1
+    widths = stats[1:, cv2.CC_STAT_WIDTH]
+    heights = stats[1:, cv2.CC_STAT_HEIGHT]
+    assert (np.minimum(widths, heights) <= 3).all(), stats[1:]
