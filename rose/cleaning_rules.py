@@ -40,6 +40,10 @@ __all__ = [
 #: not the side face of an object across the gap.
 _BRIDGE_ANCHOR_M = 0.25
 
+#: Shortest partition kept (metres, :func:`_partitions`): door frames and wall pieces between a
+#: corner and a door, shorter than a run; a scanned table leg or chair is smaller.
+_PARTITION_MIN_M = 0.5
+
 #: Directions closer than this to a right angle of each other share one rotated frame.
 _PAIR_TOLERANCE_RAD = math.radians(3.0)
 
@@ -173,6 +177,12 @@ def _wall_cells(
         # Wall stubs, door frames, corners: occupied cells joined to a kept wall within the reach,
         # through occupied cells that are not object faces.
         keep |= _grow_within(keep, occupied & ~faces, round(length_px(p.attach_reach_m, res)))
+        # Partitions: pieces seen from both sides (free space across them) that meet a kept wall,
+        # a wall between a corner and a door shorter than a run. A scanned object shows faces
+        # with its unknown inside behind them, never free space on both sides.
+        keep |= _partitions(
+            occupied & ~keep & ~faces, keep, occupancy == 0, length_px(_PARTITION_MIN_M, res)
+        )
     if p.loose_pieces:
         # Free-standing pieces: no cell on a run, a line or next to wide unknown, even across a
         # gap of up to two cells, and a joined box with a diagonal shorter than a wall run:
@@ -204,6 +214,55 @@ def _wall_cells(
     )
     kept = keep | guarded
     return kept, guarded, completed, (dropped | object_faces) & ~guarded
+
+
+def _two_sided(
+    cells: npt.NDArray[np.bool_], free: npt.NDArray[np.bool_], reach: int = 2
+) -> npt.NDArray[np.bool_]:
+    """Cells of ``cells`` with a free cell within ``reach`` on both sides along a grid axis (up and
+    down, or left and right): inside a wall up to ``2 * reach - 1`` cells thick between two free
+    spaces. Looked up at those cells only (few next to the whole map)."""
+    out = np.zeros(cells.shape, dtype=bool)
+    rows, cols = cells.shape
+    padded = np.zeros((rows + 2 * reach, cols + 2 * reach), dtype=bool)
+    padded[reach:-reach, reach:-reach] = free
+    at = np.flatnonzero(cells)
+    width = cols + 2 * reach
+    centre = (at // cols + reach) * width + at % cols + reach
+    flat = padded.reshape(-1)
+    sides = np.zeros((4, at.size), dtype=bool)
+    for k in range(1, reach + 1):
+        for side, step in enumerate((-k * width, k * width, -k, k)):  # up, down, left, right
+            sides[side] |= flat[centre + step]
+    out.reshape(-1)[at[(sides[0] & sides[1]) | (sides[2] & sides[3])]] = True
+    return out
+
+
+def _partitions(
+    candidates: npt.NDArray[np.bool_],
+    walls: npt.NDArray[np.bool_],
+    free: npt.NDArray[np.bool_],
+    min_length_px: float,
+) -> npt.NDArray[np.bool_]:
+    """Cells of ``candidates`` in 8-connected pieces of two-sided cells (:func:`_two_sided`) that
+    touch ``walls`` and span at least ``min_length_px`` cells."""
+    out = np.zeros(candidates.shape, dtype=bool)
+    if not candidates.any() or not walls.any():
+        return out
+    sided = _two_sided(candidates, free)
+    if not sided.any():
+        return out
+    box = _padded_box(sided, 1)
+    count, labels = components(sided[box])
+    boxes = label_boxes(labels, np.flatnonzero(sided[box]), count)
+    long_enough = np.maximum(boxes[:, 2], boxes[:, 3]) >= min_length_px
+    touching = np.zeros(count, dtype=bool)
+    near_walls = _dilate(walls[box], 1) & sided[box]
+    touching[labels[near_walls]] = True
+    wanted = long_enough & touching
+    wanted[0] = False
+    out[box] = labels_wanted(wanted, labels, sided[box])
+    return out
 
 
 def _pocket_faces(
