@@ -537,6 +537,13 @@ def save_map(
         raise MapFileError(msg)
     grid = as_occupancy_grid(occupancy_map.grid)
     image_path = path.with_suffix(".pgm")
+    try:
+        image_path.name.encode("utf-8")
+    except (
+        UnicodeEncodeError
+    ):  # YAML is Unicode: the name would be an escape map_server cannot open
+        msg = f"{short(path, 200)}: a map's name must be UTF-8 (its YAML names the image)"
+        raise MapFileError(msg) from None
     problem = _unloadable(grid, occupancy_map)
     if problem is not None:  # written, it could not be read back
         msg = f"{path}: cannot save a map with {problem}"

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 from pathlib import Path
 
 import cv2
@@ -395,3 +396,11 @@ def test_an_origin_too_large_to_place_a_cell_is_refused(
     # A UTM northing and an unnormalised yaw are real maps.
     text = "image: m.pgm\nresolution: 0.05\norigin: [500000.0, 5400000.0, 7.5]\n"
     assert rose.load_map(write_yaml(tmp_path / "utm.yaml", text)).origin_yaw_rad == 7.5
+
+
+def test_a_saved_map_needs_a_utf8_name_its_yaml_can_hold(tmp_path: Path) -> None:
+    """A YAML naming o\\xe9.pgm held the escape "o\\udce9.pgm", which map_server cannot open."""
+    name = os.fsdecode(b"o\xe9.yaml")
+    with pytest.raises(MapFileError, match="must be UTF-8"):
+        rose.save_map(tmp_path / name, OccupancyMap(grid=np.zeros((2, 2), np.int8)))
+    assert not list(tmp_path.iterdir())

@@ -276,7 +276,7 @@ def package_version() -> str:
 #: object rules, W judges maps of 20 or more occupied cells; 9: the wide unknown recomputed behind
 #: completed walls, complete MCAP files without a summary read in log-time order, cells outside
 #: -1..100 read as occupied, unappliable grid updates counted as skipped).
-RESULT_LAYOUT = 9
+RESULT_LAYOUT = 10
 
 
 def result_key(recording: Recording, options: RecordingOptions) -> str:
