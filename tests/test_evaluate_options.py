@@ -89,3 +89,32 @@ def test_nothing_to_evaluate_is_said(tmp_path: Path, capsys: pytest.CaptureFixtu
     ]
     assert main(args) == 0
     assert "--logs and --maps are both empty: no experiment runs" in capsys.readouterr().err
+
+
+def test_lists_are_taken_once_and_logs_by_their_file_names_too() -> None:
+    args = build_parser().parse_args(
+        [
+            "evaluate",
+            "out",
+            "--logs",
+            "aces,aces-corrected.log.gz,intel-corrected",
+            "--sizes",
+            "4,4",
+        ]
+    )
+    config = config_from_args(args)
+    assert config.logs == ("aces", "intel")  # a log named twice ran, and was tabled, twice
+    assert config.sizes_px == (4,)
+
+
+def test_a_missing_data_folder_is_named_and_an_empty_report_folder_is_replaceable(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["evaluate", str(tmp_path / "r"), "--maps-dir", str(tmp_path / "nope")]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err == f"error: {tmp_path / 'nope'}: no such data folder (--maps-dir)"
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    argv = ["evaluate", str(empty), "--no-plots", "--logs", "", "--maps", "", "--force"]
+    assert main([*argv, "--maps-dir", str(tmp_path)]) == 0  # was refused: not a report folder
+    assert (empty / "report.md").is_file()

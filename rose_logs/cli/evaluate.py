@@ -18,7 +18,14 @@ __all__ = ["add_parser", "config_from_args", "run"]
 
 
 def _csv(value: str) -> tuple[str, ...]:
-    return tuple(v.strip() for v in value.split(",") if v.strip())
+    """Comma-separated names, each once (a name given twice would run, and be tabled, twice)."""
+    return tuple(dict.fromkeys(v.strip() for v in value.split(",") if v.strip()))
+
+
+def _log_names(value: str) -> tuple[str, ...]:
+    """Radish log names, also as their files are called (``aces-corrected.log.gz`` is ``aces``)."""
+    names = (v.removesuffix(".log.gz").removesuffix("-corrected") for v in _csv(value))
+    return tuple(dict.fromkeys(names))
 
 
 #: Bounds of the experiment options. The paper's ranges (``--config full``) are sizes 2..39 px and
@@ -35,7 +42,7 @@ def _ints(low: int, high: int) -> Callable[[str], tuple[int, ...]]:
     """argparse type: comma-separated integers in ``low..high``, at most :data:`MAX_LIST_VALUES`."""
 
     def parse(value: str) -> tuple[int, ...]:
-        items = _csv(value)
+        items = [v.strip() for v in value.split(",") if v.strip()]
         if not items:
             msg = f"expected at least one integer, got {value[:40]!r}"
             raise argparse.ArgumentTypeError(msg)
@@ -43,7 +50,7 @@ def _ints(low: int, high: int) -> Callable[[str], tuple[int, ...]]:
             msg = f"at most {MAX_LIST_VALUES} values, got {len(items)}"
             raise argparse.ArgumentTypeError(msg)
         try:
-            numbers = tuple(int(v, 10) for v in items)
+            numbers = tuple(dict.fromkeys(int(v, 10) for v in items))
         except ValueError as err:
             msg = f"expected comma-separated integers, got {value[:40]!r}"
             raise argparse.ArgumentTypeError(msg) from err
@@ -86,7 +93,9 @@ def _configure(parser: argparse.ArgumentParser) -> None:
         help=f"folder with {LOGS_SUBDIR}/ and {BENCHMARK_SUBDIR}/ "
         f"(default: ${ENV_VAR}, else ../shared/maps beside the source checkout)",
     )
-    parser.add_argument("--logs", type=_csv, default=None, help="comma-separated Radish logs")
+    parser.add_argument(
+        "--logs", type=_log_names, default=None, help="comma-separated Radish logs (aces, intel...)"
+    )
     parser.add_argument("--maps", type=_csv, default=None, help="comma-separated benchmark maps")
     parser.add_argument(
         "--sizes",
@@ -197,7 +206,12 @@ def run(args: argparse.Namespace) -> int:
 
 
 def is_report_folder(path: Path) -> bool:
-    """Whether ``path`` holds an earlier ``evaluate`` report (``--force`` may replace only that)."""
+    """Whether ``path`` is empty or holds an earlier ``evaluate`` report (``--force`` may replace
+    only that)."""
     from rose_logs.evaluation.report import MARKDOWN_NAME
 
-    return (path / MARKDOWN_NAME).is_file()
+    try:
+        empty = not any(path.iterdir())  # nothing to lose
+    except OSError:
+        empty = False
+    return empty or (path / MARKDOWN_NAME).is_file()

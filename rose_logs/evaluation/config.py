@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from rose import RoseParams
-from rose_logs.datasets import require_data_dir
+from rose_logs.datasets import DataSetError, require_data_dir
 from rose_logs.evaluation.clutter import SHAPES, ClutterShape
 
 __all__ = [
@@ -139,9 +139,14 @@ class EvaluationConfig:
         Raises
         ------
         rose_logs.datasets.DataSetError
-            When ``maps_dir`` is None and the data set is not available.
+            When ``maps_dir`` is not a folder, or is None and the data set is not available.
         """
-        return Path(self.maps_dir) if self.maps_dir is not None else require_data_dir()
+        if self.maps_dir is None:
+            return require_data_dir()
+        if not Path(self.maps_dir).is_dir():
+            msg = f"{self.maps_dir}: no such data folder (--maps-dir)"
+            raise DataSetError(msg)
+        return Path(self.maps_dir)
 
     @property
     def logs_dir(self) -> Path:
