@@ -6,6 +6,7 @@ import hashlib
 import os
 import posixpath
 import stat
+import sys
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -79,7 +80,8 @@ MAX_LIST_BYTES = 64 * 1024 * 1024
 
 
 def read_list(path: str, storage_options: Mapping[str, Any] | None = None) -> list[str]:
-    """Inputs listed in a text file, one per line; blank lines and ``#`` comments are skipped.
+    """Inputs listed in a text file (``-``: standard input), one per line; blank lines and ``#``
+    comments are skipped.
 
     Raises
     ------
@@ -88,6 +90,12 @@ def read_list(path: str, storage_options: Mapping[str, Any] | None = None) -> li
         that is not UTF-8 text, of an unknown scheme or whose fsspec backend is not installed (a
         local list may hold local names that are not UTF-8).
     """
+    if path == "-":  # find ... | rose-bag batch --from-list - -o OUT
+        data = sys.stdin.buffer.read(MAX_LIST_BYTES + 1)
+        if len(data) > MAX_LIST_BYTES:
+            msg = f"standard input: the list of inputs is larger than {MAX_LIST_BYTES >> 20} MiB"
+            raise BatchError(msg)
+        return _entries(data.decode("utf-8", "surrogateescape").splitlines())
     fs, fs_path = filesystem(path, _options(path, storage_options))
     try:
         if is_local(path):
@@ -123,8 +131,15 @@ def read_list(path: str, storage_options: Mapping[str, Any] | None = None) -> li
     except OSError as err:
         msg = f"{path}: cannot read the list of inputs ({err.strerror or err})"
         raise BatchError(msg) from err
-    # The lines are checked by discover(), with the other inputs: a line naming nothing (a missing
-    # file, an unknown URL scheme) stops the whole batch before anything runs, never an error row.
+    return _entries(lines)
+
+
+def _entries(lines: list[str]) -> list[str]:
+    """A list's inputs: blank lines and ``#`` comments skipped. They are checked by discover(), with
+    the other inputs: a line naming nothing (a missing file, an unknown URL scheme) stops the whole
+    batch before anything runs, never an error row."""
+    if lines and lines[0].startswith("\ufeff"):  # a byte-order mark (Windows editors)
+        lines = [lines[0][1:], *lines[1:]]
     return [s for s in (line.strip() for line in lines) if s and not s.startswith("#")]
 
 

@@ -131,8 +131,8 @@ def add_parser(subparsers: Any) -> None:
         action="append",
         default=[],
         metavar="FILE",
-        help="read more inputs from FILE (a regular file of at most 64 MiB), one per line "
-        "(# comments)",
+        help="read more inputs from FILE (a regular file of at most 64 MiB; - for standard "
+        "input), one per line (# comments)",
     )
     engine = parser.add_argument_group("engine")
     engine.add_argument(

@@ -770,3 +770,17 @@ def test_a_memory_limit_too_small_for_a_worker_is_a_usage_error(
         main([*argv, "--memory-limit", limit])
     assert info.value.code == 2
     assert "too little to start a worker" in capsys.readouterr().err
+
+
+def test_a_list_may_come_from_standard_input_and_start_with_a_byte_order_mark(
+    fleet: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import io
+    import sys
+
+    listing = tmp_path / "inputs.txt"
+    listing.write_bytes(b"\xef\xbb\xbf" + f"{fleet / 'robot_a'}\n".encode())  # a Windows editor's
+    assert read_list(str(listing)) == [str(fleet / "robot_a")]
+    piped = io.TextIOWrapper(io.BytesIO(f"# found\n{fleet / 'robot_b' / 'run.mcap'}\n".encode()))
+    monkeypatch.setattr(sys, "stdin", piped)
+    assert read_list("-") == [str(fleet / "robot_b" / "run.mcap")]
