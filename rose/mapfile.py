@@ -117,7 +117,7 @@ class OccupancyMap:
 
 
 def load_map(
-    path: str | os.PathLike[str],
+    path: str | bytes | os.PathLike[str],
     *,
     resolution_m: float | None = None,
     max_cells: int | None = DEFAULT_MAX_CELLS,
@@ -143,7 +143,10 @@ def load_map(
         mistypes a field; if ``resolution_m`` is given with a YAML map or is not a positive number
         of metres.
     """
-    path = Path(path)
+    path = Path(os.fsdecode(path))  # bytes too, as os.open takes them
+    if max_cells is not None and not (integer_number(max_cells) and int(max_cells) >= 1):
+        msg = f"max_cells must be a whole number >= 1 or None, got {max_cells!r}"
+        raise MapFileError(msg)
     bare_image = path.suffix.lower() not in YAML_SUFFIXES
     if resolution_m is not None:
         if not bare_image:

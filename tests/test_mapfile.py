@@ -404,3 +404,11 @@ def test_a_saved_map_needs_a_utf8_name_its_yaml_can_hold(tmp_path: Path) -> None
     with pytest.raises(MapFileError, match="must be UTF-8"):
         rose.save_map(tmp_path / name, OccupancyMap(grid=np.zeros((2, 2), np.int8)))
     assert not list(tmp_path.iterdir())
+
+
+def test_load_map_takes_bytes_paths_and_refuses_cell_limits_that_are_no_limit() -> None:
+    path = repo_data(f"{FR079_DIR}/map15.yaml")
+    assert rose.load_map(os.fsencode(path)).grid.shape == rose.load_map(path).grid.shape
+    for bad in (-1, 0, 1.5):
+        with pytest.raises(MapFileError, match="max_cells must be a whole number"):
+            rose.load_map(path, max_cells=bad)  # type: ignore[arg-type]
