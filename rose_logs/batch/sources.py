@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import logging
 import os
 import posixpath
 import stat
@@ -33,6 +34,7 @@ __all__ = [
 #: ``rose-bag process --salvage``) instead of going unnoticed.
 LOG_SUFFIXES = (".bag", ".mcap", ".db3", ".bag.active")
 _GLOB_CHARS = "*?["
+_LOG = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True, order=True)
@@ -272,6 +274,22 @@ def _expand_path(fs: Any, path: str, protocol: str | None, base: str) -> Iterabl
         yield _recording(fs, path, protocol, base, is_dir=True)
         return
     files = sorted(fs.find(path))
+    # An earlier batch's OUT found inside a folder: its cleaned logs are no recordings of the fleet
+    # (they would be counted twice). Named on their own (OUT/cleaned) they are inputs like others.
+    found = set(files)
+    outs = [
+        posixpath.dirname(f)
+        for f in files
+        if posixpath.basename(f) == "summary.json"
+        and posixpath.join(posixpath.dirname(f), "recordings.parquet") in found
+    ]
+    for out in outs:  # quietly, as the batch's own OUT (a re-run's OUT is one)
+        _LOG.info(
+            "%s: the output of an earlier batch; its cleaned logs are not read as recordings",
+            out if protocol is None else f"{protocol}://{out}",
+        )
+    skipped = tuple(posixpath.join(out, "cleaned") + "/" for out in outs)
+    files = [f for f in files if not f.startswith(skipped)] if skipped else files
     bag_dirs = sorted(
         {posixpath.dirname(f) for f in files if posixpath.basename(f) == "metadata.yaml"}
     )

@@ -784,3 +784,15 @@ def test_a_list_may_come_from_standard_input_and_start_with_a_byte_order_mark(
     piped = io.TextIOWrapper(io.BytesIO(f"# found\n{fleet / 'robot_b' / 'run.mcap'}\n".encode()))
     monkeypatch.setattr(sys, "stdin", piped)
     assert read_list("-") == [str(fleet / "robot_b" / "run.mcap")]
+
+
+def test_the_cleaned_logs_of_an_earlier_batch_inside_the_inputs_are_no_recordings(
+    fleet: Path, tmp_path: Path
+) -> None:
+    """A batch's OUT kept beside the fleet: a later batch writing elsewhere counted its cleaned
+    logs as recordings (4 rows instead of 2); named on their own they still are inputs."""
+    run_batch([fleet / "robot_a"], fleet / "health", options=RecordingOptions(cleaned=True))
+    names = [r.name for r in discover([fleet])]
+    assert names == FLEET_NAMES
+    cleaned = [r.name for r in discover([fleet / "health" / "cleaned"])]
+    assert cleaned == ["cleaned/robot_a/later.db3", "cleaned/robot_a/run.mcap"]
