@@ -332,7 +332,11 @@ def test_a_fixed_threshold_alone_selects_the_fixed_mode(
 def test_debug_is_taken_after_the_command_too(capsys: pytest.CaptureFixture[str]) -> None:
     """As rose-bag takes it (the README says before or after the command)."""
     assert main(["score", "no-such-map.yaml", "--debug"]) == 1
-    assert "no such file" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "no such file" in err
+    assert "Traceback (most recent call last)" in err  # score's per-map errors too
+    assert main(["score", "no-such-map.yaml"]) == 1
+    assert "Traceback" not in capsys.readouterr().err
 
 
 def test_clean_writes_every_kept_wall_as_occupied_at_the_threshold_given(

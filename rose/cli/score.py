@@ -78,6 +78,10 @@ def _score(path: Path, args: argparse.Namespace, params: RoseParams) -> dict[str
     except (RoseError, OSError, MemoryError) as err:
         reraise_interrupt_behind(err)  # a signal inside a library: exit 130 / 143, not "error"
         text = error_text(err, where=str(path))
+        if getattr(args, "debug", False):  # the traceback, as --debug gives it for other commands
+            import traceback
+
+            traceback.print_exception(err, file=sys.stderr)
         print(f"error: {text}", file=sys.stderr)
         return {"map": str(path), "error": text}
     summary = result_summary(
