@@ -298,6 +298,9 @@ def _field(meta: dict[str, Any], key: str, kind: type, path: Path, default: Any 
     ):
         msg = f"{path}: '{key}' must be a {kind.__name__}, got {short(repr(value), 80)}"
         raise MapFileError(msg)
+    if kind is int and isinstance(value, float) and math.isfinite(value) and not value.is_integer():
+        msg = f"{path}: '{key}' must be a whole number, got {value!r}"  # negate: 0.5 was 0
+        raise MapFileError(msg)
     try:
         return kind(value)
     except (OverflowError, ValueError) as err:

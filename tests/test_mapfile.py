@@ -299,6 +299,7 @@ def test_a_bare_image_takes_its_resolution_from_the_caller(tmp_path: Path) -> No
         ("image: m.pgm\nresolution: 0.05\norigin: [0, 0]\n", "'origin' must be a list of three"),
         ("image: m.pgm\nresolution: 0.05\norigin: [0, 0, 0]\nmode: fancy\n", "'mode' must be"),
         ("image: m.pgm\nresolution: -1\norigin: [0, 0, 0]\n", "'resolution' must be a positive"),
+        ("image: m.pgm\nresolution: 0.05\nnegate: 0.5\n", "'negate' must be a whole number"),
         ("image: missing.pgm\nresolution: 0.05\norigin: [0, 0, 0]\n", "no such image file"),
         ("just a string\n", "expected a YAML mapping"),
         ("image: [unclosed\n", "not a readable YAML"),
