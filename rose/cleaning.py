@@ -19,17 +19,23 @@ Two methods, chosen by name:
        insides of scanned objects, are not wide.
 
     Furniture against a wall hides the wall behind it; so that removing it does not open the wall,
-    unknown cells on the straight line between two kept walls along a dominant direction, at most
-    ``max_bridge_m`` apart, next to a removed piece and within ``hidden_wall_reach_m`` of it, become
-    walls (``completed``; thin lines only, never the space between two parallel walls).
+    unknown cells on the straight line between the ends of two kept walls along a dominant direction
+    (wall stretches of at least 0.25 m running along the gap, not an object's side faces across
+    it), at most ``max_bridge_m`` apart, next to a removed piece and within ``hidden_wall_reach_m``
+    of it, become walls (``completed``; thin lines only, never the space between two parallel
+    walls). Such lines between any two kept cells also *seal*: they close the insides of objects
+    for rules 2 and 3, without being drawn.
 
     Three rules then tell wall pieces from objects the way a scanner sees them:
 
     3. *object faces*: occupied cells around a small enclosed unknown pocket (less than
-       ``object_pocket_m2``, the completed walls counting as its boundary) are the faces of a
+       ``object_pocket_m2``, the sealing lines counting as its boundary) are the faces of a
        scanned object, whose inside stays unknown; they go unless they lie on a straight run;
     4. *attached pieces*: occupied cells joined to a kept wall within ``attach_reach_m`` (through
-       occupied cells that are not object faces) stay: wall stubs, door frames, corners;
+       occupied cells that are not object faces) stay: wall stubs, door frames, corners; and so do
+       *partitions*, pieces seen from both sides (known free space across them, up to 3 cells
+       thick) at least 0.5 m long that meet a kept wall: a wall between a corner and a door (both
+       only when ``attach_reach_m`` > 0);
     5. *free-standing pieces* (``loose_pieces``): a piece (joined across gaps of up to two cells)
        with no cell on a run or near wide unknown space, whose joined bounding box has a diagonal
        under ``min_run_m``, is removed, unless it closes around known free space (a small room,
@@ -38,7 +44,7 @@ Two methods, chosen by name:
        wall and smaller than ``min_region_m2`` (they can enclose no region the guard protects) do
        not count as obstacles for the guard.
 
-    Finally a topology guard (counting the completed walls) finds every opening through which a disc
+    Finally a topology guard (counting the completed walls, those drawn) finds every opening through which a disc
     of ``robot_radius_m`` would pass between two regions that the input kept apart (locally, within
     ``guard_window_m``), unless one of them is a small enclosed pocket (less than ``min_region_m2``:
     the inside of a piece of furniture), and restores the removed cells that blocked it (those
@@ -103,15 +109,17 @@ class CleanParams:
         Cells of tolerance across and along a run (stair steps, dropouts).
     max_bridge_m : float
         Longest hidden wall completed behind removed furniture: unknown cells on the straight line
-        between two kept walls along a dominant direction, at most this far apart (0: never).
+        between the ends of two kept walls along a dominant direction, at most this far apart (0:
+        never).
     hidden_wall_reach_m : float
         Hidden walls are completed only within this distance (chessboard) of removed cells: the
         depth of the furniture they hide behind.
     attach_reach_m : float
         Occupied cells joined to a kept wall within this distance (through occupied cells that are
-        not object faces) are kept: wall stubs, door frames, corners (0: never).
+        not object faces) are kept: wall stubs, door frames, corners; also partitions (module
+        notes, rule 4). 0: neither.
     object_pocket_m2 : float
-        Unknown pockets smaller than this, enclosed by occupied and completed cells, are the insides
+        Unknown pockets smaller than this, enclosed by occupied and sealing cells, are the insides
         of scanned objects; the occupied cells around them are object faces, removed unless on a
         straight run of ``min_run_m`` (0: no object faces).
     loose_pieces : bool

@@ -31,7 +31,7 @@ def as_occupancy_grid(grid: npt.ArrayLike) -> npt.NDArray[np.int8]:
     ------
     RoseError
         If ``grid`` is not 2D or holds values outside ``-1..100`` (NaN included), or is a float
-        grid of probabilities (fractions, nothing above 1): truncated, it would read all free.
+        grid of probabilities or a 0/1 float mask (nothing above 1): as percent, all free.
     """
     if isinstance(grid, str | bytes | os.PathLike):
         msg = (
@@ -64,14 +64,13 @@ def as_occupancy_grid(grid: npt.ArrayLike) -> npt.NDArray[np.int8]:
             f"got values in [{array.min()}, {array.max()}]."
         )
         raise RoseError(msg)
-    if np.issubdtype(array.dtype, np.floating) and array.size and array.max() <= 1.0:
-        fractions = array[(array > 0) & (array < 1)]
-        if fractions.size:  # read as percent they would all truncate to 0: a free map
-            msg = (
-                "The input grid holds occupancy probabilities in 0..1, but it takes percent "
-                "(0..100, -1 unknown): pass np.where(grid < 0, -1, grid * 100)."
-            )
-            raise RoseError(msg)
+    if np.issubdtype(array.dtype, np.floating) and array.size and 0 < array.max() <= 1.0:
+        # Probabilities, or a 0/1 mask as floats: read as percent, a free map.
+        msg = (
+            "The input grid holds occupancy probabilities in 0..1 (floats, nothing above 1), but "
+            "it takes percent (0..100, -1 unknown): pass np.where(grid < 0, -1, grid * 100)."
+        )
+        raise RoseError(msg)
     return array.astype(np.int8, copy=False)
 
 

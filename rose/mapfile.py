@@ -73,13 +73,14 @@ yaw of 1e300 none of it (two perpendicular walls came out parallel)."""
 
 
 def origin_problem(x_m: float, y_m: float, yaw_rad: float) -> str | None:
-    """What is wrong with a map origin (metres, radians), if anything: not finite or out of range."""
+    """What is wrong with a map origin (metres, radians), if anything, as a predicate ("is not
+    finite", "has a yaw beyond ..."): not finite or out of range."""
     if not all(finite_number(v) for v in (x_m, y_m, yaw_rad)):
-        return "must be finite"
+        return "is not finite"
     if max(abs(float(x_m)), abs(float(y_m))) > MAX_ORIGIN_M:
-        return f"x and y must be within +-{MAX_ORIGIN_M:g} m"
+        return f"has x or y beyond +-{MAX_ORIGIN_M:g} m"
     if abs(float(yaw_rad)) > MAX_YAW_RAD:
-        return f"its yaw must be within +-{MAX_YAW_RAD:g} rad"
+        return f"has a yaw beyond +-{MAX_YAW_RAD:g} rad"
     return None
 
 
@@ -603,7 +604,7 @@ def _unloadable(grid: npt.NDArray[np.int8], occupancy_map: OccupancyMap) -> str 
     placement = (*occupancy_map.origin_xy_m, occupancy_map.origin_yaw_rad)
     problem = origin_problem(*placement)
     if problem is not None:
-        return f"origin {placement!r} (it {problem})"
+        return f"origin {placement!r}, which {problem}"
     return None
 
 

@@ -422,3 +422,30 @@ def test_a_wall_between_a_corner_and_a_door_is_kept_on_a_clutter_free_plan() -> 
     cleaned = clean(grid, result, resolution_m=0.05)
     # Only the stubs at the corridor's two ends, under 0.5 m, may go.
     assert cleaned.removed_count <= 12, np.argwhere(cleaned.removed)[:5]
+
+
+@pytest.mark.parametrize(("free", "thick"), [(0, 1), (5, 1), (0, 3)])
+def test_a_partition_is_kept_whole_on_probabilistic_grids_and_three_cells_thick(
+    free: int, thick: int
+) -> None:
+    """Free space of a probabilistic grid is 0..20, not only 0 (the rule never fired there), and a
+    wall 3 cells thick is two-sided in its middle row only (its outer rows were removed)."""
+    grid = np.full((160, 240), -1, np.int8)
+    grid[10:150, 10:230] = free
+    grid[10, 10:230] = grid[149, 10:230] = grid[10:150, 10] = grid[10:150, 229] = 100
+    grid[10:150, 120 : 120 + thick] = 100  # a wall between two rooms, with a 0.9 m door
+    grid[36:54, 120 : 120 + thick] = free
+    grid[80 : 80 + thick, 10:36] = 100  # a 1.3 m partition from the left wall to a door
+    for r, c in (
+        (30, 40),
+        (100, 60),
+        (120, 180),
+        (60, 200),
+    ):  # scanned boxes: faces, unknown inside
+        grid[r : r + 9, c : c + 9] = 100
+        grid[r + 1 : r + 8, c + 1 : c + 8] = -1
+    cleaning = clean(grid, rose.analyze(grid), resolution_m=0.05)
+    partition = np.zeros(grid.shape, dtype=bool)
+    partition[80 : 80 + thick, 11:36] = True
+    assert cleaning.result.clutter[partition].any()  # the paper calls it clutter
+    assert cleaning.kept[partition].all()

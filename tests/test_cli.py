@@ -359,3 +359,23 @@ def test_clean_writes_every_kept_wall_as_occupied_at_the_threshold_given(
     kept = json.loads(report.read_text())["kept_cells"]
     cleaned = rose.load_map(out).grid
     assert kept > 2000 and np.count_nonzero(cleaned == 100) == kept
+
+
+def test_clean_with_a_threshold_above_65_keeps_the_inputs_walls_of_65_and_more(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--occupied-threshold 90: cells of 70, which ROSE did not count as occupied, were written as
+    unknown; map_saver's 65 still makes them walls."""
+    import cv2
+
+    image = np.full((60, 80), 254, np.uint8)
+    image[5, 5:75] = image[55, 5:75] = image[5:56, 5] = image[5:56, 75] = 0
+    image[30, 20:60] = 124  # occupancy 70 in scale mode
+    cv2.imwrite(str(tmp_path / "m.pgm"), image)
+    (tmp_path / "m.yaml").write_text("image: m.pgm\nresolution: 0.05\nmode: scale\n")
+    seventy = rose.load_map(tmp_path / "m.yaml").grid == 70
+    assert seventy.sum() == 40
+    out = tmp_path / "c.yaml"
+    argv = ["clean", str(tmp_path / "m.yaml"), "-o", str(out), "--occupied-threshold", "90"]
+    assert main(argv) == 0
+    assert (rose.load_map(out).grid[seventy] == 100).all()

@@ -226,6 +226,8 @@ def test_easy_slips_with_the_api_are_rose_errors_that_say_what_to_pass(tmp_path:
         rose.clean(occupancy.grid, occupancy)  # type: ignore[arg-type]
     with pytest.raises(rose.RoseError, match="probabilities"):
         rose.analyze(np.array([[0.0, 0.7], [1.0, -1.0]]))  # a free map once truncated
+    with pytest.raises(rose.RoseError, match="probabilities"):
+        rose.analyze(np.eye(8))  # a 0/1 mask as floats: 1 % occupancy, a free map
     odd = rose.OccupancyMap(grid=occupancy.grid, origin_xy_m=(1.0, 2.0, 3.0))  # type: ignore[arg-type]
     with pytest.raises(rose.MapFileError, match="origin_xy_m"):
         rose.save_map(tmp_path / "m.yaml", odd)

@@ -23,7 +23,7 @@ from rose.cli.options import (
 )
 from rose.directions import fold_deg
 from rose.errors import MapFileError
-from rose.mapfile import OccupancyMap, save_map
+from rose.mapfile import SAVED_OCCUPIED_FROM, OccupancyMap, save_map
 from rose.outputs import OutputSet
 from rose.pipeline import analyze
 
@@ -83,7 +83,9 @@ def run(args: argparse.Namespace) -> int:
         image_path = save_map(
             output_path,
             output,
-            occupied_threshold=result.params.occupied_threshold,
+            # Written occupied from the threshold analysed with, or map_saver's 65 if that is
+            # lower: the cells 65..N-1 ROSE did not count were walls of the input all the same.
+            occupied_threshold=min(result.params.occupied_threshold, SAVED_OCCUPIED_FROM),
             outputs=outputs,
         )
         if args.json is not None:

@@ -213,7 +213,13 @@ def _dask_quiet() -> Iterator[None]:
     warning, while a cluster is torn down (after Ctrl-C its comms close under it)."""
     import warnings
 
-    loggers = [logging.getLogger(name) for name in ("distributed", "tornado")]
+    # Every one of them: distributed.client and tornado.application set levels of their own.
+    names = [
+        name
+        for name in ("distributed", "tornado", *logging.root.manager.loggerDict)
+        if name.split(".")[0] in ("distributed", "tornado")
+    ]
+    loggers = [logging.getLogger(name) for name in dict.fromkeys(names)]
     levels = [logger.level for logger in loggers]
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", "coroutine .* was never awaited", RuntimeWarning)

@@ -17,7 +17,7 @@ from typing import Any
 
 from rose_logs.batch.errors import BatchError
 from rose_logs.batch.sources import Recording, discover
-from rose_logs.batch.store import OutputStore, storage_errors
+from rose_logs.batch.store import OutputStore, is_local, storage_errors
 from rose_logs.batch.task import (
     RecordingOptions,
     RecordingResult,
@@ -286,7 +286,8 @@ def _outside(recordings: tuple[Recording, ...], store: OutputStore) -> tuple[Rec
     root = store.root.removeprefix("file://")
 
     def where(uri: str) -> str:  # local paths compared as the file system sees them ('..', links)
-        return os.path.realpath(uri.removeprefix("file://")) if store.local else uri
+        local = store.local and is_local(uri)  # a remote recording is never inside a local OUT
+        return os.path.realpath(uri.removeprefix("file://")) if local else uri
 
     if store.local:
         root = where(str(Path(root).expanduser()))

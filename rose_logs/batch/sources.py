@@ -93,6 +93,9 @@ def read_list(path: str, storage_options: Mapping[str, Any] | None = None) -> li
         local list may hold local names that are not UTF-8).
     """
     if path == "-":  # find ... | rose-bag batch --from-list - -o OUT
+        if sys.stdin is None:  # started with standard input closed (<&-)
+            msg = "standard input: closed, no list of inputs to read (--from-list -)"
+            raise BatchError(msg)
         data = sys.stdin.buffer.read(MAX_LIST_BYTES + 1)
         if len(data) > MAX_LIST_BYTES:
             msg = f"standard input: the list of inputs is larger than {MAX_LIST_BYTES >> 20} MiB"
@@ -168,36 +171,42 @@ def discover(
         inputs like any other: a bad line stops the batch before anything runs, as a missing file
         does (an error row is for a recording that exists but cannot be processed).
     """
-    found: dict[str, Recording] = {}
-    names: dict[str, str] = {}
+    unique: dict[str, Recording] = {}
     for item in inputs:
         with storage_errors(str(item)):
             expanded = list(_expand(str(item), storage_options))
         for recording in expanded:
             # One file under two spellings (``a/../a/x.mcap``, a symlink) is one recording: the
             # first spelling names it.
-            same = _identity(recording.uri)
-            if same in found:
-                continue
-            name = recording.name
-            # Two recordings with the same relative name, or whose cleaned logs would be one (x.bag
-            # and the x.bag.active beside it): keep both, distinguishable.
-            if name in names or cleaned_log_name(name) in names:
-                name = _distinct(name, recording)
-            names[name] = names[cleaned_log_name(name)] = recording.uri
-            found[same] = Recording(
-                recording.uri, name, recording.is_dir, recording.size, recording.version
-            )
+            unique.setdefault(_identity(recording.uri), recording)
+    found: dict[str, Recording] = {}
+    names: dict[str, str] = {}
+    # Complete recordings are named first: a salvaged x.bag.active, not the x.bag beside it, is
+    # the one renamed, whatever the order of the inputs.
+    for same, recording in sorted(unique.items(), key=lambda kv: _unclosed(kv[1].name)):
+        name = recording.name
+        # Two recordings with the same relative name, or whose cleaned logs would be one (x.bag and
+        # the x.bag.active beside it): keep both, distinguishable.
+        if name in names or cleaned_log_name(name) in names:
+            name = _distinct(name, recording)
+        names[name] = names[cleaned_log_name(name)] = recording.uri
+        found[same] = Recording(
+            recording.uri, name, recording.is_dir, recording.size, recording.version
+        )
     if not found:
         msg = f"no recording found in {', '.join(str(i) for i in inputs) or 'the inputs'}"
         raise BatchError(msg)
     return tuple(sorted(found.values()))
 
 
+def _unclosed(name: str) -> bool:
+    return name.lower().endswith(".bag.active")
+
+
 def cleaned_log_name(name: str) -> str:
     """Name of a recording's cleaned log: its own, except that a ``.bag.active`` (a recording
     ``rosbag record`` never closed, salvaged) comes out as the complete ``.bag`` it now is."""
-    return name[: -len(".active")] if name.lower().endswith(".bag.active") else name
+    return name[: -len(".active")] if _unclosed(name) else name
 
 
 def _distinct(name: str, recording: Recording) -> str:
@@ -223,30 +232,42 @@ def _options(uri: str, storage_options: Mapping[str, Any] | None) -> dict[str, A
     return {} if is_local(uri) else dict(storage_options or {})
 
 
+def _without_dot_dot(path: str) -> str:
+    """An absolute local ``path`` without '..': the part up to the last '..' resolved as the kernel
+    resolves it (after following links: ``link/..`` is the parent of the link's target), the rest
+    as written. A recording's name is its path below the input, the input's own name first:
+    '../..' has none, and 'x/../y' put outputs outside cleaned/ and rrd/."""
+    parts = path.split("/")
+    if ".." not in parts:
+        return os.path.normpath(path)  # '.' and doubled slashes only
+    last = len(parts) - 1 - parts[::-1].index("..")
+    head = os.path.realpath("/".join(parts[: last + 1]) or "/")
+    return os.path.normpath("/".join([head, *parts[last + 1 :]]))
+
+
 def _expand(item: str, storage_options: Mapping[str, Any] | None) -> Iterable[Recording]:
+    given = item  # errors name the input as the user wrote it
     local = is_local(item)
     if local:
-        # Without '..' (a recording's name is its path below the input, the input's own name
-        # first: '../..' has none, and 'x/../y' would put outputs outside cleaned/ and rrd/).
-        item = os.path.normpath(Path(item.removeprefix("file://")).expanduser().absolute())
+        item = _without_dot_dot(str(Path(item.removeprefix("file://")).expanduser().absolute()))
     fs, path = filesystem(item, _options(item, storage_options))
     protocol = None if local else fsspec.utils.get_protocol(item)
     try:
         if any(c in path for c in _GLOB_CHARS):
             matches = sorted(fs.glob(path))
             if not matches:
-                msg = f"{item}: matches no file or folder"
+                msg = f"{given}: matches no file or folder"
                 raise BatchError(msg)
             base = _glob_base(path)
             for match in matches:
                 yield from _expand_path(fs, match, protocol, base)
             return
         if not fs.exists(path):
-            msg = f"{item}: no such file or folder"
+            msg = f"{given}: no such file or folder"
             raise BatchError(msg)
         yield from _expand_path(fs, path, protocol, posixpath.dirname(path.rstrip("/")))
     except OSError as err:
-        msg = f"{item}: cannot list ({err})"
+        msg = f"{given}: cannot list ({err})"
         raise BatchError(msg) from err
 
 
@@ -262,9 +283,9 @@ def _glob_base(pattern: str) -> str:
 def _expand_path(fs: Any, path: str, protocol: str | None, base: str) -> Iterable[Recording]:
     path = path.rstrip("/")
     if not fs.isdir(path):
-        bag = enclosing_bag_folder(Path(path)) if protocol is None else None
-        if bag is not None:  # a bag's storage file: the whole bag is the recording, once
-            folder = str(bag)
+        bag = _bag_of(fs, path, protocol)
+        if bag is not None:  # a bag's storage file or metadata: the whole bag is the recording
+            folder = bag
             above = base if folder.startswith(base.rstrip("/") + "/") else posixpath.dirname(folder)
             yield _recording(fs, folder, protocol, above, is_dir=True)
             return
@@ -298,6 +319,25 @@ def _expand_path(fs: Any, path: str, protocol: str | None, base: str) -> Iterabl
     for f in files:
         if f.lower().endswith(LOG_SUFFIXES) and not any(f.startswith(b + "/") for b in bag_dirs):
             yield _recording(fs, f, protocol, base, is_dir=False)
+
+
+def _bag_of(fs: Any, path: str, protocol: str | None) -> str | None:
+    """The ROS 2 bag folder the file ``path`` belongs to (its ``metadata.yaml``, or a storage file
+    the metadata names), else None."""
+    folder = posixpath.dirname(path)
+    if posixpath.basename(path) == "metadata.yaml":
+        return folder
+    if protocol is None:  # locally also along symlinks (rose.outputs)
+        bag = enclosing_bag_folder(Path(path))
+        return None if bag is None else str(bag)
+    if not path.lower().endswith((".db3", ".mcap")):
+        return None
+    metadata = posixpath.join(folder, "metadata.yaml")
+    if not fs.isfile(metadata):
+        return None
+    with fs.open(metadata, "rb") as f:
+        names = f.read(64 * 1024).decode("utf-8", "replace")
+    return folder if posixpath.basename(path) in names else None
 
 
 def _recording(fs: Any, path: str, protocol: str | None, base: str, *, is_dir: bool) -> Recording:

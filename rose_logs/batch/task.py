@@ -23,13 +23,13 @@ from typing import TYPE_CHECKING, Any, Literal
 
 from rose.cleaning import CleanMethod
 from rose.directions import FAILURE_LEVEL
-from rose.errors import RoseError
+from rose.errors import OutputError, RoseError
 from rose.limits import DEFAULT_MAX_CELLS
 from rose.params import RoseParams
 from rose_logs.batch.recording_log import RecordingWarnings, collecting
 from rose_logs.batch.sources import Recording, cleaned_log_name, printable
 from rose_logs.batch.store import OutputStore, filesystem, is_local
-from rose_logs.errors import LogError
+from rose_logs.errors import LogError, LogWriteError
 from rose_logs.formats import LogFormat, detect_format
 from rose_logs.session.report import w_judges
 
@@ -475,8 +475,8 @@ def _attempt(
             text = str(err)
             if str(local) != recording.uri:
                 text = text.replace(str(local), recording.uri)
-            if isinstance(err.__cause__, OSError):  # a full disk under OUT, an I/O error: not
-                raise OSError(err.__cause__.errno, text) from err  # the recording's, retried
+            if _output_failure(err):  # a full disk under OUT: not the recording's, retried
+                raise OSError(err.__cause__.errno, text) from err  # type: ignore[union-attr]
             return error_result(recording, key, options, text, log_format=_format_of(local))
         cleaned_uri = None if cleaned is None else store.put(cleaned, f"cleaned/{cleaned_name}")
         rrd_uri = None if rrd is None else store.put(rrd, f"rrd/{recording.name}.rrd")
@@ -511,6 +511,18 @@ def _attempt(
         losses=tuple(loss.replace(str(local), recording.uri) for loss in report.losses),
         skipped_messages=report.skipped_messages,
         skipped_reasons=report.skipped_reasons,
+    )
+
+
+def _output_failure(err: BaseException) -> bool:
+    """Whether ``err`` is an output that could not be written for want of space or a working disk
+    (an ``OSError`` with an errno underneath): not the recording's fault. A damaged recording's
+    read errors (a corrupt bz2 chunk is an ``OSError`` too) are its own."""
+    cause = err.__cause__
+    return (
+        isinstance(err, LogWriteError | OutputError)
+        and isinstance(cause, OSError)
+        and cause.errno is not None
     )
 
 

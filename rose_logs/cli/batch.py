@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from typing import Any
 
@@ -78,7 +77,9 @@ def _memory_limit(text: str) -> str | float:
         if not 0 < value <= 1:
             msg = f"a fraction must be in (0, 1], got {text!r}"
             raise argparse.ArgumentTypeError(msg)
-        _check_worker_memory(text, value * os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
+        from distributed.system import MEMORY_LIMIT  # what Dask multiplies it by (cgroup-aware)
+
+        _check_worker_memory(text, value * MEMORY_LIMIT)
         return value
     try:
         size = parse_bytes(text)
@@ -227,7 +228,8 @@ def run(args: argparse.Namespace) -> int:
     for path in args.from_list:
         inputs += read_list(path, storage_options)
     if not inputs and args.from_list:
-        msg = f"{', '.join(args.from_list)}: the list of inputs is empty (blank lines and # comments only)"
+        lists = ", ".join("standard input" if f == "-" else f for f in args.from_list)
+        msg = f"{lists}: the list of inputs is empty (blank lines and # comments only)"
         raise BatchError(msg)
     if not inputs:
         msg = "no INPUT given (and no --from-list)"
@@ -303,7 +305,7 @@ def _exit_code(report: Any, args: argparse.Namespace) -> int:
         )
         # Failed gates are named too, though the errors decide the exit code (1).
         for reason in _gate_failures(args, report):
-            print(f"error: {reason}", file=sys.stderr)
+            print(f"error: {short(reason)}", file=sys.stderr)
         print(f"error: {short(line)}", file=sys.stderr)  # the rest is in the tables
         return 1
     salvaged = [r for r in report.results if r.losses]
@@ -319,7 +321,7 @@ def _exit_code(report: Any, args: argparse.Namespace) -> int:
         return EXIT_SALVAGED
     failed = _gate_failures(args, report)
     for reason in failed:
-        print(f"error: {reason}", file=sys.stderr)
+        print(f"error: {short(reason)}", file=sys.stderr)
     if failed:
         return EXIT_GATE
     return 0

@@ -24,7 +24,9 @@ def _csv(value: str) -> tuple[str, ...]:
 
 def _log_names(value: str) -> tuple[str, ...]:
     """Radish log names, also as their files are called (``aces-corrected.log.gz`` is ``aces``)."""
-    names = (v.removesuffix(".log.gz").removesuffix("-corrected") for v in _csv(value))
+    names = (
+        v.removesuffix(".gz").removesuffix(".log").removesuffix("-corrected") for v in _csv(value)
+    )
     return tuple(dict.fromkeys(names))
 
 

@@ -216,3 +216,20 @@ def test_a_recording_over_the_memory_limit_is_an_error_row(
     assert by_name["big.mcap"].error.startswith(f"{by_name['big.mcap'].uri}: ")
     assert "600MB" in by_name["big.mcap"].error
     assert by_name["small.mcap"].status == "ok"
+
+
+def test_tearing_a_cluster_down_quiets_every_dask_and_tornado_logger() -> None:
+    """distributed.client and tornado.application have levels of their own: quieting only their
+    parents left their ERROR lines (tracebacks after Ctrl-C) on the terminal."""
+    import logging
+
+    import distributed  # noqa: F401 - configures its loggers
+
+    from rose_logs.batch.cluster import _dask_quiet
+
+    chatty = [logging.getLogger(n) for n in ("distributed.client", "tornado.application")]
+    logging.getLogger("tornado.application").setLevel(logging.ERROR)
+    assert all(logger.isEnabledFor(logging.ERROR) for logger in chatty)
+    with _dask_quiet():
+        assert not any(logger.isEnabledFor(logging.ERROR) for logger in chatty)
+    assert all(logger.isEnabledFor(logging.ERROR) for logger in chatty)

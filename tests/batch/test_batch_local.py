@@ -796,3 +796,107 @@ def test_the_cleaned_logs_of_an_earlier_batch_inside_the_inputs_are_no_recording
     assert names == FLEET_NAMES
     cleaned = [r.name for r in discover([fleet / "health" / "cleaned"])]
     assert cleaned == ["cleaned/robot_a/later.db3", "cleaned/robot_a/run.mcap"]
+
+
+def test_a_corrupt_recording_is_its_own_error_not_an_io_error_retried(
+    fleet: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A damaged bz2 chunk is an OSError inside the reader (errno None): the recording's error,
+    stored once, not retried and redone on every run as a full disk is."""
+    import rose_logs.session
+    from rose_logs.errors import LogReadError
+
+    calls = {"n": 0}
+
+    def corrupt(*args: object, **kwargs: object) -> object:
+        calls["n"] += 1
+        try:
+            raise OSError("Invalid data stream")
+        except OSError as err:
+            msg = "bad.bag: corrupt or truncated log (Invalid data stream)"
+            raise LogReadError(msg) from err
+
+    monkeypatch.setattr(rose_logs.session, "process_log", corrupt)
+    out = tmp_path / "out"
+    options = RecordingOptions(retries=2)
+    (row,) = run_batch([fleet / "robot_a" / "run.mcap"], out, options=options).results
+    assert row.status == "error" and "I/O error" not in row.error and calls["n"] == 1
+    again = run_batch([fleet / "robot_a" / "run.mcap"], out, options=options)
+    assert (again.processed, again.skipped, calls["n"]) == (0, 1, 1)
+
+
+def test_dot_dot_after_a_symlink_names_what_the_shell_names(
+    tmp_path: Path, fleet: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """link/../x is the parent of the link's target, as the kernel resolves it (a textual
+    normpath dropped 'link/..' and named a file that does not exist)."""
+    (tmp_path / "real" / "dir").mkdir(parents=True)
+    (tmp_path / "real" / "data").mkdir()
+    (tmp_path / "real" / "data" / "x.mcap").write_bytes(
+        (fleet / "robot_a" / "run.mcap").read_bytes()
+    )
+    (tmp_path / "link").symlink_to(tmp_path / "real" / "dir")
+    (found,) = discover([str(tmp_path / "link" / ".." / "data" / "x.mcap")])
+    assert found.uri == str(tmp_path / "real" / "data" / "x.mcap") and found.name == "x.mcap"
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(BatchError, match=r"^link/\.\./nope: no such file"):
+        discover(["link/../nope"])  # named as typed
+
+
+def test_remote_recordings_are_never_inside_a_local_output_folder(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """realpath('s3://logs/x') is <cwd>/s3:/logs/x: with -o . every remote recording was dropped."""
+    from rose_logs.batch.engine import _outside
+    from rose_logs.batch.sources import Recording
+    from rose_logs.batch.store import OutputStore
+
+    monkeypatch.chdir(tmp_path)
+    remote = Recording("s3://logs/robots/run.mcap", "robots/run.mcap", False, 1, "etag")
+    assert _outside((remote,), OutputStore(".")) == (remote,)
+
+
+def test_a_bags_metadata_is_its_bag_and_an_unclosed_bag_is_renamed_whatever_the_order(
+    fleet: Path, tmp_path: Path
+) -> None:
+    bag = fleet / "robot_b" / "bag_dir"
+    (found,) = discover([str(bag / "*")])  # metadata.yaml and the storage file: one bag
+    assert found.is_dir and found.uri == str(bag)
+    robot = tmp_path / "robot"
+    robot.mkdir()
+    (robot / "x.bag").write_bytes(b"complete")
+    (robot / "x.bag.active").write_bytes(b"unclosed")
+    for order in (
+        [robot / "x.bag.active", robot / "x.bag"],
+        [robot / "x.bag", robot / "x.bag.active"],
+    ):
+        names = {Path(r.uri).name: r.name for r in discover(order)}
+        assert names["x.bag"] == "x.bag" and names["x.bag.active"].startswith("x-")
+
+
+def test_a_list_read_from_a_closed_standard_input_is_one_error(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    import sys
+
+    monkeypatch.setattr(sys, "stdin", None)
+    with pytest.raises(BatchError, match="standard input: closed"):
+        read_list("-")
+
+
+def test_a_remote_bags_storage_file_is_its_bag_too() -> None:
+    import fsspec
+
+    fs = fsspec.filesystem("memory")
+    metadata = b"rosbag2_bagfile_information:\n  relative_file_paths: [bag1.db3]\n"
+    fs.pipe("/rose-test-fleet/bag1/metadata.yaml", metadata)
+    fs.pipe("/rose-test-fleet/bag1/bag1.db3", b"x")
+    try:
+        for inputs in (
+            ["memory://rose-test-fleet/bag1", "memory://rose-test-fleet/bag1/bag1.db3"],
+            ["memory://rose-test-fleet/*/*.db3"],
+        ):
+            (found,) = discover(inputs)
+            assert found.is_dir and found.uri == "memory:///rose-test-fleet/bag1"
+    finally:
+        fs.rm("/rose-test-fleet", recursive=True)

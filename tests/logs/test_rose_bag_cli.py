@@ -138,8 +138,10 @@ def test_fail_on_break_gate_and_json_first_break(
     assert region["x_min"] < region["x_max"] and region["y_min"] < region["y_max"]
     # Cell edges in metres without the float32 resolution's noise, and the summary says the same.
     assert all(round(v, 3) == v for v in region.values())
-    x0, y0, x1, y1 = (region[k] for k in ("x_min", "y_min", "x_max", "y_max"))
-    assert f"x {x0:g}..{x1:g} m, y {y0:g}..{y1:g} m" in out
+    said = re.search(r"x (\S+)\.\.(\S+) m, y (\S+)\.\.(\S+) m\)", out)
+    assert said is not None and "e" not in said.group(0)  # no exponent (UTM northings)
+    x0, x1, y0, y1 = (float(v) for v in said.groups())
+    assert (x0, y0, x1, y1) == tuple(region[k] for k in ("x_min", "y_min", "x_max", "y_max"))
     scores = [s["break_score_m"] for s in data["snapshots"]]
     assert max(scores[:3]) < data["break_threshold_m"] <= scores[3]
     # Numbers as written in the messages and rounded alike: the float32 0.05 reads 0.05.
