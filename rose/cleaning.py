@@ -70,7 +70,7 @@ import numpy.typing as npt
 from rose.errors import RoseError
 from rose.grid import FREE, OCCUPIED, UNKNOWN, as_occupancy_grid
 from rose.limits import finite_number, integer_number
-from rose.mapfile import MAX_RESOLUTION_M
+from rose.mapfile import resolution_problem
 from rose.pipeline import analyze
 from rose.result import RoseResult, check_result_for
 
@@ -332,11 +332,9 @@ def clean(
     if method not in CLEAN_METHODS:
         msg = f"method must be one of {', '.join(CLEAN_METHODS)}, got {method!r}"
         raise RoseError(msg)
-    if not (finite_number(resolution_m) and 0 < float(resolution_m) <= MAX_RESOLUTION_M):
-        msg = (
-            f"resolution_m must be a positive number of metres up to {MAX_RESOLUTION_M:g}, "
-            f"got {resolution_m!r}"
-        )
+    problem = resolution_problem(resolution_m)
+    if problem is not None:
+        msg = f"resolution_m {problem}"
         raise RoseError(msg)
     if method == "walls" and resolution_m < MIN_CLEAN_RESOLUTION_M:
         msg = (

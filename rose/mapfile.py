@@ -72,6 +72,13 @@ MAX_YAW_RAD = 1e3
 yaw of 1e300 none of it (two perpendicular walls came out parallel)."""
 
 
+def resolution_problem(value: object) -> str | None:
+    """What is wrong with a cell size in metres, if anything ("must be a positive number ...")."""
+    if finite_number(value) and 0 < float(value) <= MAX_RESOLUTION_M:  # type: ignore[arg-type]
+        return None
+    return f"must be a positive number of metres up to {MAX_RESOLUTION_M:g}, got {value!r}"
+
+
 def origin_problem(x_m: float, y_m: float, yaw_rad: float) -> str | None:
     """What is wrong with a map origin (metres, radians), if anything, as a predicate ("is not
     finite", "has a yaw beyond ..."): not finite or out of range."""
@@ -153,11 +160,9 @@ def load_map(
         if not bare_image:
             msg = f"{short(path, 200)}: resolution_m is for bare images; a YAML map gives its own"
             raise MapFileError(msg)
-        if not (finite_number(resolution_m) and 0 < float(resolution_m) <= MAX_RESOLUTION_M):
-            msg = (
-                f"{short(path, 200)}: resolution_m must be a positive number of metres up to "
-                f"{MAX_RESOLUTION_M:g}, got {resolution_m!r}"
-            )
+        problem = resolution_problem(resolution_m)
+        if problem is not None:
+            msg = f"{short(path, 200)}: resolution_m {problem}"
             raise MapFileError(msg)
     _require_regular(path, "no such file")
     if not bare_image:
@@ -235,8 +240,9 @@ def _load_yaml_map(path: Path, max_cells: int | None) -> OccupancyMap:
     negate = _field(meta, "negate", int, path, default=0)
     occupied_thresh = _field(meta, "occupied_thresh", float, path, default=DEFAULT_OCCUPIED_THRESH)
     free_thresh = _field(meta, "free_thresh", float, path, default=DEFAULT_FREE_THRESH)
-    if not math.isfinite(resolution) or not 0 < resolution <= MAX_RESOLUTION_M:
-        msg = f"{path}: 'resolution' must be a positive number of metres up to {MAX_RESOLUTION_M:g}, got {resolution}"
+    problem = resolution_problem(resolution)
+    if problem is not None:
+        msg = f"{path}: 'resolution' {problem}"
         raise MapFileError(msg)
     if not 0.0 <= free_thresh < occupied_thresh <= 1.0:
         msg = (
@@ -597,7 +603,7 @@ def _unloadable(grid: npt.NDArray[np.int8], occupancy_map: OccupancyMap) -> str 
     if grid.size == 0:
         return "an empty grid"
     resolution = occupancy_map.resolution_m
-    if not (finite_number(resolution) and 0 < float(resolution) <= MAX_RESOLUTION_M):
+    if resolution_problem(resolution) is not None:
         return f"resolution {resolution!r}"
     if len(occupancy_map.origin_xy_m) != 2:
         return f"origin_xy_m {occupancy_map.origin_xy_m!r} (x and y, metres)"

@@ -38,7 +38,12 @@ from scipy.sparse.csgraph import connected_components
 from rose.errors import RoseError
 from rose.grid import as_occupancy_grid, occupied_mask
 from rose.limits import finite_number, integer_number
-from rose.mapfile import DEFAULT_RESOLUTION_M, MAX_RESOLUTION_M, OccupancyMap, origin_problem
+from rose.mapfile import (
+    DEFAULT_RESOLUTION_M,
+    OccupancyMap,
+    origin_problem,
+    resolution_problem,
+)
 from rose.pipeline import analyze
 from rose.result import RoseResult, check_result_for
 from rose.walls.segments import WallMethod, WallSet, axial_difference, segment_orientations
@@ -333,8 +338,9 @@ def _grid_and_placement(
     if len(placement[1]) != 2 or not all(math.isfinite(v) for v in placement[1]):
         msg = f"origin_xy_m must be two finite numbers (x, y) in metres, got {origin_xy_m!r}"
         raise RoseError(msg)
-    if not (math.isfinite(placement[0]) and 0 < placement[0] <= MAX_RESOLUTION_M):
-        msg = f"resolution_m must be a positive number of metres up to {MAX_RESOLUTION_M:g}, got {resolution_m!r}"
+    problem = resolution_problem(placement[0])
+    if problem is not None:
+        msg = f"resolution_m {problem}"
         raise RoseError(msg)
     problem = origin_problem(*placement[1], placement[2])
     if problem is not None:
