@@ -167,7 +167,7 @@ def _wall_cells(
     guard_obstacles = occupied
     if p.object_pocket_m2 > 0:
         # Object faces: a scanner sees a solid object as faces around a small unknown pocket (its
-        # inside, sealed by the wall completed behind it). They go unless on a long straight run.
+        # inside, sealed by the bridges across it). They go unless on a long straight run.
         faces = _pocket_faces(unknown, sealed_off, occupied, length_px(p.object_pocket_m2, res**2))
         object_faces = faces & ~lines
         keep &= ~object_faces
@@ -272,14 +272,14 @@ def _partitions(
 
 def _pocket_faces(
     unknown: npt.NDArray[np.bool_],
-    completed: npt.NDArray[np.bool_],
+    sealing: npt.NDArray[np.bool_],
     occupied: npt.NDArray[np.bool_],
     max_area_px: float,
 ) -> npt.NDArray[np.bool_]:
     """Occupied cells next to (8-neighbours of) a pocket: a 4-connected component of unknown cells
-    (the completed walls are a boundary) smaller than ``max_area_px``, the inside of a scanned
+    (the ``sealing`` cells are a boundary) smaller than ``max_area_px``, the inside of a scanned
     object."""
-    cells = unknown & ~completed
+    cells = unknown & ~sealing
     faces = np.zeros(occupied.shape, dtype=bool)
     if not cells.any() or not occupied.any():
         return faces

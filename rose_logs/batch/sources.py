@@ -216,7 +216,8 @@ def _distinct(name: str, recording: Recording) -> str:
     if recording.is_dir:
         return f"{name}-{digest}"
     folder, _, base = name.rpartition("/")
-    suffix = next((s for s in LOG_SUFFIXES[::-1] if base.lower().endswith(s)), "")
+    known = next((s for s in LOG_SUFFIXES[::-1] if base.lower().endswith(s)), "")
+    suffix = base[len(base) - len(known) :] if known else ""  # as spelled (.MCAP stays)
     if not suffix and "." in base:
         suffix = base[base.rindex(".") :]
     stem = base[: len(base) - len(suffix)] if suffix else base

@@ -275,7 +275,8 @@ def package_version() -> str:
 #: warnings counted once; 7: the break detector also counts risen evidence; 8: the walls cleaning's
 #: object rules, W judges maps of 20 or more occupied cells; 9: the wide unknown recomputed behind
 #: completed walls, complete MCAP files without a summary read in log-time order, cells outside
-#: -1..100 read as occupied, unappliable grid updates counted as skipped).
+#: -1..100 read as occupied, unappliable grid updates counted as skipped; 10: hidden walls drawn
+#: only between wall ends, partitions kept, output sizes stored).
 RESULT_LAYOUT = 10
 
 
