@@ -951,7 +951,10 @@ def _signal_cases(corpus: Corpus) -> None:
     """Signals during start-up (imports) and mid-run (temporaries open): exit 130 / 143 / 129, nothing left."""
     folder = corpus.folder("signals-base")
     big = folder / "big.mcap"
-    write_session(big, "mcap", maps=[{"grid": floor_plan(400, 500, seed=i)} for i in range(40)])
+    # Long enough that a signal sent once the temporaries exist lands mid-run: 40 maps took 0.3 s
+    # on a fast machine, and a SIGHUP came during the final commit (dropped: exit 0, not 129).
+    maps = [{"grid": floor_plan(400, 500, seed=i)} for i in range(40)]
+    write_session(big, "mcap", maps=maps * 4)
     for label, (signum, delay, codes) in {
         # Counted from main()'s install_signal_handlers, not from exec: on a loaded 2-core machine
         # interpreter start-up alone can pass 0.5 s, and a signal before main() kills the process
