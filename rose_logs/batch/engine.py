@@ -59,6 +59,8 @@ class BatchReport:
         Wall time of the run, seconds.
     signal : int or None
         The signal that stopped the batch (``signal.SIGINT`` for Ctrl-C), None if it was not stopped.
+    found : int
+        Recordings the inputs named (more than ``results`` when interrupted).
     """
 
     out: str
@@ -69,6 +71,7 @@ class BatchReport:
     failure_level: float
     elapsed_s: float
     signal: int | None = None
+    found: int = 0
 
     @property
     def errors(self) -> tuple[RecordingResult, ...]:
@@ -240,6 +243,7 @@ def run_batch(
         failure_level=options.failure_level,
         elapsed_s=time.perf_counter() - started,
         signal=stopped_by,
+        found=len(recordings),
     )
     if write_tables:
         from rose.outputs import signals_deferred

@@ -268,8 +268,11 @@ def _print_summary(report: Any) -> None:
     rows = [r.row() for r in report.results]
     out = sys.stdout
     ok = sum(r["status"] == "ok" for r in rows)
+    # Interrupted, the finished recordings are fewer than the fleet: say both.
+    of = f" of {report.found} found" if report.interrupted and report.found else ""
     print(
-        f"recordings   {len(rows)} ({report.processed} processed, {report.skipped} finished before)",
+        f"recordings   {len(rows)}{of} ({report.processed} processed, {report.skipped} finished "
+        "before)",
         file=out,
     )
     print(f"ok           {ok}", file=out)

@@ -251,7 +251,7 @@ def test_cli_gates_errors_win_over_fail_above(
 
 
 def test_ctrl_c_keeps_finished_recordings_and_exits_130(
-    fleet: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    fleet: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
     import rose_logs.batch.engine as engine
 
@@ -268,6 +268,8 @@ def test_ctrl_c_keeps_finished_recordings_and_exits_130(
     out = tmp_path / "out"
     assert main(["batch", str(fleet), "-o", str(out), "-q"]) == 130
     assert len(read_rows(out / "recordings.parquet")) == 2
+    # The summary says how far it got, not only what finished (read like the fleet's size).
+    assert "recordings   2 of 5 found (2 processed" in capsys.readouterr().out
     assert json.loads((out / "summary.json").read_text())["interrupted"] is True
     monkeypatch.setattr(engine, "process_recording", real)
     resumed = run_batch([fleet], out)
