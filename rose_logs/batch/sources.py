@@ -22,6 +22,7 @@ from rose_logs.batch.store import filesystem, is_local, storage_errors
 __all__ = [
     "LOG_SUFFIXES",
     "MAX_LIST_BYTES",
+    "ListedInput",
     "Recording",
     "cleaned_log_name",
     "discover",
@@ -100,7 +101,7 @@ def read_list(path: str, storage_options: Mapping[str, Any] | None = None) -> li
         if len(data) > MAX_LIST_BYTES:
             msg = f"standard input: the list of inputs is larger than {MAX_LIST_BYTES >> 20} MiB"
             raise BatchError(msg)
-        return _entries(data.decode("utf-8", "surrogateescape").splitlines())
+        return _entries(data.decode("utf-8", "surrogateescape").splitlines(), "standard input")
     fs, fs_path = filesystem(path, _options(path, storage_options))
     try:
         if is_local(path):
@@ -136,16 +137,32 @@ def read_list(path: str, storage_options: Mapping[str, Any] | None = None) -> li
     except OSError as err:
         msg = f"{path}: cannot read the list of inputs ({err.strerror or err})"
         raise BatchError(msg) from err
-    return _entries(lines)
+    return _entries(lines, path)
 
 
-def _entries(lines: list[str]) -> list[str]:
+class ListedInput(str):
+    """An input read from a list: the text of its line, and ``where`` it was (``todo.txt line 3``),
+    for messages about it."""
+
+    where: str
+
+    def __new__(cls, text: str, where: str) -> ListedInput:
+        entry = super().__new__(cls, text)
+        entry.where = where
+        return entry
+
+
+def _entries(lines: list[str], source: str) -> list[str]:
     """A list's inputs: blank lines and ``#`` comments skipped. They are checked by discover(), with
     the other inputs: a line naming nothing (a missing file, an unknown URL scheme) stops the whole
     batch before anything runs, never an error row."""
     if lines and lines[0].startswith("\ufeff"):  # a byte-order mark (Windows editors)
         lines = [lines[0][1:], *lines[1:]]
-    return [s for s in (line.strip() for line in lines) if s and not s.startswith("#")]
+    return [
+        ListedInput(text, f"{source} line {number}")
+        for number, text in enumerate((line.strip() for line in lines), start=1)
+        if text and not text.startswith("#")
+    ]
 
 
 def discover(
@@ -173,8 +190,14 @@ def discover(
     """
     unique: dict[str, Recording] = {}
     for item in inputs:
-        with storage_errors(str(item)):
-            expanded = list(_expand(str(item), storage_options))
+        try:
+            with storage_errors(str(item)):
+                expanded = list(_expand(str(item), storage_options))
+        except BatchError as err:
+            if not isinstance(item, ListedInput):
+                raise
+            msg = f"{err} ({item.where})"  # which line of which list
+            raise BatchError(msg) from err
         for recording in expanded:
             # One file under two spellings (``a/../a/x.mcap``, a symlink) is one recording: the
             # first spelling names it.

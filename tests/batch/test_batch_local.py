@@ -902,3 +902,16 @@ def test_a_remote_bags_storage_file_is_its_bag_too() -> None:
             assert found.is_dir and found.uri == "memory:///rose-test-fleet/bag1"
     finally:
         fs.rm("/rose-test-fleet", recursive=True)
+
+
+def test_a_list_entry_naming_nothing_is_named_with_its_list_and_line(
+    fleet: Path, tmp_path: Path
+) -> None:
+    listing = tmp_path / "todo.txt"
+    listing.write_text(f"# fleet\n{fleet / 'robot_a'}\n\nmissing.mcap\n")
+    with pytest.raises(
+        BatchError, match=rf"^missing\.mcap: no such file or folder \({listing} line 4\)$"
+    ):
+        discover(read_list(str(listing)))
+    with pytest.raises(BatchError, match=r"^missing\.mcap: no such file or folder$"):
+        discover(["missing.mcap"])  # given on the command line: no line to name
