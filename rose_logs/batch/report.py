@@ -72,8 +72,13 @@ def markdown(report: BatchReport, summary: dict[str, Any], *, figure: bool) -> s
     lines += ["", "## Failed recordings", ""]
     failed = [r for r in rows if r["status"] == "error"]
     if failed:
-        lines += ["| recording | error |", "|---|---|"]
-        lines += [f"| {_cell(r['name'])} | {_cell(r['error'] or '')} |" for r in failed]
+        # Their warnings here too (summary.json counts them among those that warned).
+        lines += ["| recording | error | warnings |", "|---|---|---|"]
+        lines += [
+            f"| {_cell(r['name'])} | {_cell(r['error'] or '')} | "
+            f"{_cell('; '.join(r['warnings']) or '-')} |"
+            for r in failed
+        ]
     else:
         lines.append("None.")
     lines += _losses_section(rows)

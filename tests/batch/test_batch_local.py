@@ -915,3 +915,15 @@ def test_a_list_entry_naming_nothing_is_named_with_its_list_and_line(
         discover(read_list(str(listing)))
     with pytest.raises(BatchError, match=r"^missing\.mcap: no such file or folder$"):
         discover(["missing.mcap"])  # given on the command line: no line to name
+
+
+def test_a_failed_recordings_warnings_are_in_the_report(tmp_path: Path) -> None:
+    """summary.json counted a failed recording among those that warned; report.md showed its
+    warnings nowhere."""
+    log = _with_nan_resolution(tmp_path / "robot" / "all_bad.mcap", {1, 2, 3, 4})
+    out_dir = tmp_path / "out"
+    run_batch([log], out_dir)
+    (row,) = read_rows(out_dir / "recordings.parquet")
+    assert row["status"] == "error" and row["warnings"]
+    failed = (out_dir / "report.md").read_text().split("## Failed recordings")[1].split("##")[0]
+    assert "| all_bad.mcap |" in failed and row["warnings"][0][:40] in failed
