@@ -248,8 +248,16 @@ def _distinct(name: str, recording: Recording) -> str:
 
 
 def _identity(uri: str) -> str:
-    """What tells two recordings apart: a local path resolved (symlinks, ``..``), else the URL."""
-    return os.path.realpath(uri.removeprefix("file://")) if is_local(uri) else uri
+    """What tells two recordings apart: a local file by its inode (symlinks, ``..`` and hard links
+    name one file), a local folder by its resolved path, else the URL."""
+    if not is_local(uri):
+        return uri
+    path = os.path.realpath(uri.removeprefix("file://"))
+    try:
+        status = Path(path).stat()
+    except OSError:
+        return path
+    return path if stat.S_ISDIR(status.st_mode) else f"inode {status.st_dev}:{status.st_ino}"
 
 
 def _options(uri: str, storage_options: Mapping[str, Any] | None) -> dict[str, Any]:

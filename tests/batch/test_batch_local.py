@@ -927,3 +927,10 @@ def test_a_failed_recordings_warnings_are_in_the_report(tmp_path: Path) -> None:
     assert row["status"] == "error" and row["warnings"]
     failed = (out_dir / "report.md").read_text().split("## Failed recordings")[1].split("##")[0]
     assert "| all_bad.mcap |" in failed and row["warnings"][0][:40] in failed
+
+
+def test_a_hard_link_is_the_same_recording(fleet: Path, tmp_path: Path) -> None:
+    copy = tmp_path / "elsewhere.mcap"
+    os.link(fleet / "robot_a" / "run.mcap", copy)
+    found = discover([fleet / "robot_a" / "run.mcap", copy])
+    assert [r.name for r in found] == ["run.mcap"]  # named by its first spelling
