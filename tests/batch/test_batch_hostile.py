@@ -434,7 +434,8 @@ def test_a_url_fsspec_cannot_open_is_a_one_line_error_before_anything_runs(
         "list file": ["--from-list", url, "-o", str(out)],
     }[where]
     assert main(["batch", *argv, "-q"]) == 1  # was a traceback (ValueError / ImportError)
-    assert one_error_line(capsys.readouterr().err, url) == f"error: {url}: {problem}"
+    line = f" ({listing} line 2)" if where == "list entry" else ""  # which line of which list
+    assert one_error_line(capsys.readouterr().err, url) == f"error: {url}: {problem}{line}"
     assert not out.exists()
 
 
