@@ -934,3 +934,26 @@ def test_a_hard_link_is_the_same_recording(fleet: Path, tmp_path: Path) -> None:
     os.link(fleet / "robot_a" / "run.mcap", copy)
     found = discover([fleet / "robot_a" / "run.mcap", copy])
     assert [r.name for r in found] == ["run.mcap"]  # named by its first spelling
+
+
+def test_the_batchs_error_line_is_one_short_line_however_long_the_rows_error(
+    fleet: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A truncated bag's error made a 347-character line (the README promises at most 300); the
+    whole text stays in the tables."""
+    import rose_logs.session
+    from rose.limits import MAX_MESSAGE_CHARS
+    from rose_logs.errors import LogReadError
+
+    long_text = "corrupt or truncated log (" + "x" * 500 + ")"
+
+    def corrupt(*args: object, **kwargs: object) -> object:
+        raise LogReadError(long_text)
+
+    monkeypatch.setattr(rose_logs.session, "process_log", corrupt)
+    out = tmp_path / "out"
+    assert main(["batch", str(fleet / "robot_a" / "run.mcap"), "-o", str(out), "-q"]) == 1
+    (line,) = [x for x in capsys.readouterr().err.splitlines() if x.startswith("error:")]
+    assert len(line) <= len("error: ") + MAX_MESSAGE_CHARS and line.endswith("...")
+    (row,) = read_rows(out / "recordings.parquet")
+    assert long_text in row["error"]
