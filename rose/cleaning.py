@@ -70,7 +70,7 @@ import numpy.typing as npt
 from rose.errors import RoseError
 from rose.grid import FREE, OCCUPIED, UNKNOWN, as_occupancy_grid
 from rose.limits import finite_number, integer_number
-from rose.mapfile import resolution_problem
+from rose.mapfile import DEFAULT_RESOLUTION_M, OccupancyMap, resolution_problem
 from rose.pipeline import analyze
 from rose.result import RoseResult, check_result_for
 
@@ -291,28 +291,29 @@ def _check_cells(p: CleanParams, resolution_m: float) -> None:
 
 
 def clean(
-    grid: npt.ArrayLike,
+    grid: npt.ArrayLike | OccupancyMap,
     result: RoseResult | None = None,
     *,
     method: CleanMethod = "walls",
-    resolution_m: float = 0.05,
+    resolution_m: float | None = None,
     params: CleanParams | None = None,
 ) -> CleanResult:
     """Remove clutter from an occupancy grid.
 
     Parameters
     ----------
-    grid : array_like, shape (rows, cols)
+    grid : array_like, shape (rows, cols), or OccupancyMap
         ROS occupancy grid (int8: -1 unknown, 0..100; row 0 at the map origin) or a boolean occupied
-        mask. Not modified.
+        mask, or a map read by :func:`rose.load_map` (its grid and resolution). Not modified.
     result : RoseResult, optional
         :func:`rose.analyze`'s result for ``grid``; computed with the defaults when omitted. Its
         ``params.clutter_value`` decides what removed cells become.
     method : {"walls", "paper"}
         ``"walls"`` keeps walls and never opens a robot-sized gap (module notes); ``"paper"`` is the
         paper's labelling.
-    resolution_m : float
-        Cell size in metres (the lengths of ``params`` are converted with it).
+    resolution_m : float, optional
+        Cell size in metres (the lengths of ``params`` are converted with it). Default: the
+        OccupancyMap's resolution, or 0.05 m (the common ROS map resolution) for an array.
     params : CleanParams, optional
         Parameters of the ``"walls"`` method.
 
@@ -325,6 +326,12 @@ def clean(
     RoseError
         On a bad grid, method or resolution, or a ``result`` computed for a grid of another shape.
     """
+    if isinstance(grid, OccupancyMap):
+        if resolution_m is None:
+            resolution_m = grid.resolution_m
+        grid = grid.grid
+    elif resolution_m is None:
+        resolution_m = DEFAULT_RESOLUTION_M
     occupancy = as_occupancy_grid(grid)
     if isinstance(result, str):  # clean(grid, "paper"): an easy slip
         msg = f"result must be a RoseResult, got {result!r}: pass the method by name, method={result!r}"

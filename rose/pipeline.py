@@ -10,6 +10,7 @@ import numpy.typing as npt
 
 from rose.directions import find_direction_peaks, refine_peak_positions, structure_score
 from rose.grid import FREE, UNKNOWN, as_occupancy_grid, occupied_mask
+from rose.mapfile import OccupancyMap
 from rose.params import RoseParams, make_params
 from rose.result import RoseResult
 from rose.scoring import nominal_reference_map, structure_mask
@@ -23,14 +24,16 @@ __all__ = ["analyze"]
 _WRAP_RAD = 1e-9
 
 
-def analyze(grid: npt.ArrayLike, params: RoseParams | None = None, **overrides: Any) -> RoseResult:
+def analyze(
+    grid: npt.ArrayLike | OccupancyMap, params: RoseParams | None = None, **overrides: Any
+) -> RoseResult:
     """Run ROSE on one occupancy grid.
 
     Parameters
     ----------
-    grid : array_like, shape (rows, cols)
+    grid : array_like, shape (rows, cols), or OccupancyMap
         ROS occupancy grid (int8: -1 unknown, 0..100; row 0 at the map origin) or a boolean occupied
-        mask. Not modified.
+        mask, or a map read by :func:`rose.load_map` (its grid). Not modified.
     params : RoseParams, optional
         Parameters; the defaults of :class:`RoseParams` if omitted.
     **overrides
@@ -46,7 +49,7 @@ def analyze(grid: npt.ArrayLike, params: RoseParams | None = None, **overrides: 
         If ``grid`` is not a 2D boolean or numeric array in -1..100, or a parameter is invalid.
     """
     p = make_params(params, **overrides)
-    occupancy = as_occupancy_grid(grid)
+    occupancy = as_occupancy_grid(grid.grid if isinstance(grid, OccupancyMap) else grid)
     occupied = occupied_mask(occupancy, occupied_threshold=p.occupied_threshold)
     shape = padded_shape(occupancy.shape)
 

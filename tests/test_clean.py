@@ -312,6 +312,22 @@ def test_bad_lengths_and_resolutions_are_rose_errors_before_any_work() -> None:
     assert clean(grid, resolution_m=MIN_CLEAN_RESOLUTION_M).method == "walls"
 
 
+def test_a_map_read_from_a_file_is_cleaned_at_its_own_resolution() -> None:
+    """rose.clean(rose.load_map(...)) takes the map's resolution (an array alone meant 0.05 m
+    whatever the map's); an explicit resolution_m still wins, and analyze takes the map too."""
+    grid, _, _ = closed_building()
+    coarse = rose.OccupancyMap(grid=grid, resolution_m=0.5)
+    result = rose.analyze(coarse)
+    assert result.structure_score == rose.analyze(grid).structure_score
+    from_map = clean(coarse, result)
+    assert from_map.resolution_m == 0.5
+    assert np.array_equal(from_map.cleaned, clean(grid, result, resolution_m=0.5).cleaned)
+    at_default = clean(grid, result)
+    assert at_default.resolution_m == 0.05
+    assert not np.array_equal(from_map.cleaned, at_default.cleaned)  # the lengths differ
+    assert clean(coarse, result, resolution_m=0.05).resolution_m == 0.05
+
+
 def test_the_papers_labelling_is_applied_to_the_grid_given() -> None:
     """``clean(grid, result, method="paper")`` returned ``result.cleaned`` whatever ``grid`` was:
     it now labels ``grid`` (its own free and unknown cells), and a result whose occupied cells are

@@ -218,8 +218,6 @@ def test_a_path_or_a_ragged_list_is_named_as_such() -> None:
 def test_easy_slips_with_the_api_are_rose_errors_that_say_what_to_pass(tmp_path: Path) -> None:
     """A notebook user's first tries (AttributeError or a shape () message before)."""
     occupancy = rose.OccupancyMap(grid=np.zeros((8, 8), np.int8))
-    with pytest.raises(rose.RoseError, match=r"OccupancyMap: pass its \.grid"):
-        rose.analyze(occupancy)  # type: ignore[arg-type]
     with pytest.raises(rose.RoseError, match="method='paper'"):
         rose.clean(occupancy.grid, "paper")  # type: ignore[arg-type]
     with pytest.raises(rose.RoseError, match="must be a RoseResult"):
