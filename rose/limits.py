@@ -18,6 +18,7 @@ import math
 import numbers
 import re
 import struct
+from collections.abc import Hashable
 from typing import Any
 
 import yaml
@@ -68,7 +69,7 @@ def check_cells(rows: int, cols: int, max_cells: int | None) -> str | None:
 
 # -- YAML ------------------------------------------------------------------------------------------------
 class _StrictLoader(yaml.SafeLoader):
-    """SafeLoader that refuses aliases and limits nesting depth."""
+    """SafeLoader that refuses aliases and repeated keys, and limits nesting depth."""
 
     def __init__(self, stream: Any) -> None:
         super().__init__(stream)
@@ -92,6 +93,19 @@ class _StrictLoader(yaml.SafeLoader):
             return super().compose_node(parent, index)
         finally:
             self._depth -= 1
+
+    def construct_mapping(self, node: Any, deep: bool = False) -> Any:
+        # PyYAML keeps the last of two equal keys, ROS's yaml-cpp the first: a map file that says
+        # `image:` twice means two different maps, so neither reading is taken.
+        seen: set[Any] = set()
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=deep)
+            if isinstance(key, Hashable) and key in seen:
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"key {key!r} appears twice", key_node.start_mark
+                )
+            seen.add(key)
+        return super().construct_mapping(node, deep=deep)
 
 
 # YAML 1.2 (yaml-cpp, which ROS map_server uses) reads 5e-2 and 1.0e5 as numbers; PyYAML's YAML 1.1
@@ -125,7 +139,10 @@ def load_yaml(text: str | bytes) -> Any:
     try:
         return yaml.load(text, Loader=_StrictLoader)
     except yaml.YAMLError as err:
-        msg = f"invalid YAML ({short(getattr(err, 'problem', None) or err, 120)})"
+        problem = short(getattr(err, "problem", None) or err, 120)
+        mark = getattr(err, "problem_mark", None)
+        where = f" on line {mark.line + 1}" if getattr(err, "problem", None) and mark else ""
+        msg = f"invalid YAML ({problem}{where})"
         raise ValueError(msg) from err
     except RecursionError as err:
         msg = "YAML nested too deeply"

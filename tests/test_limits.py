@@ -26,6 +26,7 @@ def _bomb(levels: int = 9) -> str:
         ("x: " + "[" * 2000 + "]" * 2000, "nested"),
         ("x: " + "9" * 5000, "invalid YAML value"),
         ("x: [unclosed", "invalid YAML"),
+        ("x: 1\ny: 2\nx: 3\n", r"key 'x' appears twice on line 3"),  # last or first wins?
         ("x: 1\n" * 300_000, "larger than"),
     ],
 )

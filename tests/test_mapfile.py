@@ -303,6 +303,7 @@ def test_a_bare_image_takes_its_resolution_from_the_caller(tmp_path: Path) -> No
         ("image: missing.pgm\nresolution: 0.05\norigin: [0, 0, 0]\n", "no such image file"),
         ("just a string\n", "expected a YAML mapping"),
         ("image: [unclosed\n", "not a readable YAML"),
+        ("image: m.pgm\nresolution: 0.05\nimage: n.pgm\n", "key 'image' appears twice"),
     ],
 )
 def test_bad_yaml_raises_one_line_error(tmp_path: Path, yaml_text: str, match: str) -> None:
