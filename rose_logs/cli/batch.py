@@ -284,6 +284,10 @@ def _print_summary(report: Any) -> None:
     print(f"elapsed      {report.elapsed_s:.2f} s", file=out)
 
 
+#: Failed recordings named on stderr, one line each, when they fail the batch.
+_LISTED_FAILURES = 10
+
+
 def _exit_code(report: Any, args: argparse.Namespace) -> int:
     from rose_logs.batch.sources import printable  # loaded with the batch already
 
@@ -297,17 +301,23 @@ def _exit_code(report: Any, args: argparse.Namespace) -> int:
         return EXIT_INTERRUPTED if report.signal is None else 128 + report.signal
     errors = report.errors
     if len(errors) > args.max_errors:
-        first = errors[0]
-        # Rows start with their URI (error_result); printable: as the tables show odd file names.
-        what = printable(first.error or f"{first.uri}: unknown error")
-        line = (
-            f"{len(errors)} recording(s) failed (more than --max-errors {args.max_errors}); "
-            f"first: {what}"
-        )
+        # One line per failed recording, up to _LISTED_FAILURES (the rest are in the tables). Rows
+        # start with their URI (error_result); printable: as the tables show odd file names.
+        for row in errors[:_LISTED_FAILURES]:
+            print(
+                f"failed: {short(printable(row.error or f'{row.uri}: unknown error'))}",
+                file=sys.stderr,
+            )
+        more = len(errors) - _LISTED_FAILURES
+        if more > 0:
+            print(f"failed: ... and {more} more (recordings.parquet, report.md)", file=sys.stderr)
         # Failed gates are named too, though the errors decide the exit code (1).
         for reason in _gate_failures(args, report):
             print(f"error: {short(reason)}", file=sys.stderr)
-        print(f"error: {short(line)}", file=sys.stderr)  # the rest is in the tables
+        print(
+            f"error: {len(errors)} recording(s) failed (more than --max-errors {args.max_errors})",
+            file=sys.stderr,
+        )
         return 1
     salvaged = [r for r in report.results if r.losses]
     if salvaged:  # as process --salvage: lost messages come before the gates

@@ -250,6 +250,24 @@ def test_cli_gates_errors_win_over_fail_above(
     assert "no such file" in capsys.readouterr().err
 
 
+def test_cli_names_each_failed_recording_on_its_own_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Not only the first: up to ten lines, then how many more (the rest is in the tables)."""
+    inputs = tmp_path / "in"
+    inputs.mkdir()
+    for n in range(12):
+        (inputs / f"broken_{n:02d}.mcap").write_bytes(b"")
+    assert main(["batch", str(inputs), "-o", str(tmp_path / "out"), "-q"]) == 1
+    err = capsys.readouterr().err.splitlines()
+    failed = [line for line in err if line.startswith("failed: ")]
+    assert [line.split(": ")[1] for line in failed[:10]] == [
+        str(inputs / f"broken_{n:02d}.mcap") for n in range(10)
+    ]
+    assert failed[10] == "failed: ... and 2 more (recordings.parquet, report.md)"
+    assert err[-1] == "error: 12 recording(s) failed (more than --max-errors 0)"
+
+
 def test_ctrl_c_keeps_finished_recordings_and_exits_130(
     fleet: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
