@@ -11,6 +11,7 @@ import math
 
 import numpy as np
 import numpy.typing as npt
+import pyarrow as pa
 import rerun as rr
 
 from rose.directions import FAILURE_LEVEL, TRUST_LEVEL, fold_deg
@@ -34,6 +35,39 @@ _AXIS_TICKS_S = (0.0, 0.5, 1.0)
 def _f32(points: npt.NDArray[np.float64]) -> npt.NDArray[np.float32]:
     """Positions as float32, Rerun's position type (and what its type hints accept)."""
     return np.asarray(points, dtype=np.float32)
+
+
+#: Rerun's image buffer component type (``list<item: uint8 not null>``).
+_IMAGE_BUFFER_TYPE = pa.list_(pa.field("item", pa.uint8(), nullable=False))
+
+
+def _image_buffer(image: npt.NDArray[np.uint8]) -> pa.ListArray:
+    """The bytes of a uint8 image as Rerun's image buffer, without copying them.
+
+    Rerun's own conversion (``rr.SegmentationImage(array)``) copies the pixels twice: about 1 ms of
+    a 1000 x 1000 snapshot's logging per image, against 0.1 ms here. Rerun reads the buffer on its
+    own threads, so ``image`` must not change afterwards: pass arrays made for the log call.
+    """
+    flat = pa.array(np.ascontiguousarray(image, dtype=np.uint8).reshape(-1))
+    return pa.ListArray.from_arrays(
+        pa.array([0, len(flat)], type=pa.int32()), flat, type=_IMAGE_BUFFER_TYPE
+    )
+
+
+def _u8_format(
+    image: npt.NDArray[np.uint8], color_model: str | None = None
+) -> rr.components.ImageFormat:
+    """Rerun's format of a single-channel uint8 image (``color_model="L"`` for a grey image)."""
+    rows, cols = image.shape
+    return rr.components.ImageFormat(
+        width=cols, height=rows, color_model=color_model, channel_datatype="U8"
+    )
+
+
+def segmentation_image(image: npt.NDArray[np.uint8]) -> rr.SegmentationImage:
+    """``rr.SegmentationImage(image)`` (class ids, image row order) without its copies
+    (:func:`_image_buffer`)."""
+    return rr.SegmentationImage.from_fields(buffer=_image_buffer(image), format=_u8_format(image))
 
 
 def set_snapshot_time(
@@ -272,14 +306,12 @@ class TopicLogger:
         The int8 cells go as their uint8 bit pattern (-1 unknown -> 255), the convention of
         :attr:`rerun.components.Colormap.RvizMap`; the image's lower-left corner is the grid origin.
         """
-        rows, cols = snapshot.grid.shape
+        image = snapshot.grid.view(np.uint8)[::-1].copy()  # image row order, a copy of its own
         self.recording.log(
             self.paths.grid,
             rr.GridMap(
-                data=snapshot.grid.view(np.uint8)[::-1].tobytes(),
-                format=rr.components.ImageFormat(
-                    width=cols, height=rows, color_model="L", channel_datatype="U8"
-                ),
+                data=_image_buffer(image),
+                format=_u8_format(image, color_model="L"),
                 cell_size=float(snapshot.resolution_m),
                 translation=[float(v) for v in snapshot.origin_position_m],
                 quaternion=rr.Quaternion(xyzw=[float(v) for v in snapshot.origin_orientation_xyzw]),
@@ -300,7 +332,7 @@ class TopicLogger:
         image = conv.segmentation_image(
             snapshot.grid, result, occupied, rescued=rescued, dropped=dropped
         )
-        self.recording.log(self.paths.segmentation, rr.SegmentationImage(image))
+        self.recording.log(self.paths.segmentation, segmentation_image(image))
 
     def log_directions(
         self,
@@ -398,7 +430,7 @@ class TopicLogger:
             labels.append(f"threshold {result.threshold:.2f}")
         rec.log(
             paths.cell_scores,
-            rr.SegmentationImage(conv.masked_score_image(result, occupied)),
+            segmentation_image(conv.masked_score_image(result, occupied)),
             rr.Points2D.from_fields(positions=_f32(np.array(positions)), labels=labels),
         )
 

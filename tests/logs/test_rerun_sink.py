@@ -345,6 +345,42 @@ def test_grid_map_is_sent_top_row_first_and_placed(tmp_path: Path) -> None:
     assert row["GridMap:cell_size"][0] == pytest.approx(0.5)
 
 
+def test_images_go_to_rerun_without_copies_and_as_rerun_would_send_them(tmp_path: Path) -> None:
+    """The buffers handed to Rerun without its two copies hold the same Arrow data as
+    rr.SegmentationImage(array), and a grid changed after logging does not change the log."""
+    import rerun as rr
+
+    from rose_logs.rerun import TopicLogger, set_snapshot_time
+    from rose_logs.rerun.loggers import segmentation_image
+    from rose_logs.snapshots import MapSnapshot
+
+    image = np.random.default_rng(0).integers(0, 6, size=(7, 5), dtype=np.uint8)
+    ours = {
+        str(b.component_descriptor()): b.as_arrow_array()
+        for b in segmentation_image(image).as_component_batches()
+    }
+    rerun_s = {
+        str(b.component_descriptor()): b.as_arrow_array()
+        for b in rr.SegmentationImage(image).as_component_batches()
+    }
+    assert ours.keys() == rerun_s.keys()
+    assert all(ours[k].equals(rerun_s[k]) for k in ours)
+
+    grid = np.arange(12, dtype=np.int8).reshape(3, 4)
+    sent = grid.copy()
+    snapshot = MapSnapshot("/map", 5, 5, "map", grid, 0.5, (1.0, 2.0, 0.0))
+    path = tmp_path / "grid.rrd"
+    recording = rr.RecordingStream("t")
+    recording.save(path)
+    set_snapshot_time(recording, log_time_ns=5, start_ns=0, index=0)
+    TopicLogger(recording, PATHS).log_grid_map(snapshot)
+    grid[:] = -1  # before Rerun has written it
+    recording.flush()
+    recording.disconnect()
+    (row,) = _read(path).rows(PATHS.grid)
+    assert bytes(row["GridMap:data"][0]) == sent[::-1].tobytes()
+
+
 def test_walls_are_logged_in_pixels_and_metres(tmp_path: Path) -> None:
     import rerun as rr
 
