@@ -258,7 +258,10 @@ class LogWriter:
                 f"format {self.format!r} holds {self.serialization!r} messages"
             )
             raise LogWriteError(msg)
-        handle = backend.add(channel)
+        try:
+            handle = backend.add(channel)
+        except LogWriteError as err:
+            raise LogWriteError(f"{self.path}: {err}") from err
         self._topics.setdefault(channel.topic, handle)
         self._types.setdefault(channel.topic, channel.msgtype)
         return handle

@@ -60,7 +60,17 @@ def _reliable_qos(depth: int, *, transient_local: bool) -> Qos:
 
 # -- message definitions -------------------------------------------------------------------------
 def definitions(channel: Channel, ros_version: int) -> tuple[str, str]:
-    """``(msgdef, digest)`` for an output connection of ``channel``; computed when the input lacked one."""
+    """``(msgdef, digest)`` for an output connection of ``channel``; computed when the input lacked one.
+
+    A ROS 2 type known neither to the input nor to rosbags (a custom type of a Humble bag, which
+    stores no definitions) gets ``("", "")``: its messages are copied byte for byte, which needs no
+    definition, and ROS 2 bags and MCAP files may lack one (as Humble's do). A ROS 1 bag cannot.
+
+    Raises
+    ------
+    LogWriteError
+        For a ROS 1 output (``ros_version`` 1) of a type whose definition is unknown.
+    """
     serialization = "ros1" if ros_version == 1 else "cdr"
     wanted = "ros1msg" if ros_version == 1 else "ros2"
     if channel.msgdef and channel.digest and channel.msgdef_encoding.startswith(wanted):
@@ -80,7 +90,19 @@ def definitions(channel: Channel, ros_version: int) -> tuple[str, str]:
     try:
         return msgdef_for(channel.msgtype, serialization)
     except Exception as err:
-        msg = f"no usable message definition for {channel.msgtype} on {channel.topic}"
+        if ros_version == 2:
+            _LOG.warning(
+                "%s: no message definition of %s in the input (a Humble bag stores none): copied "
+                "without one; tools that decode it need its package",
+                channel.topic,
+                channel.msgtype,
+            )
+            return "", ""
+        msg = (
+            f"a ROS 1 bag needs the message definition of {channel.msgtype} (topic "
+            f"{channel.topic}), which the input does not have: write a ROS 2 bag or MCAP "
+            "(--format db3, mcap or mcap-dir)"
+        )
         raise LogWriteError(msg) from err
 
 

@@ -300,6 +300,8 @@ class McapWriteBackend(WriteBackend):
             data, _digest = definitions(channel, 1 if ros1 else 2)
             name = ros1_msgtype(channel.msgtype) if ros1 else channel.msgtype
             encoding = "ros1msg" if ros1 else (channel.msgdef_encoding or "ros2msg")
+            if not data:  # no definition known (see definitions): a schema without encoding
+                encoding = ""
         key = (name, encoding, data)
         schema_id = self.schemas.get(key)
         if schema_id is None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import logging
 from collections.abc import Iterator
 from pathlib import Path
@@ -211,11 +212,31 @@ class Ros2WriteBackend(_RosbagsWriteBackend):
         self.writer.open()
 
     def _add_connection(self, channel: Channel, msgdef: str, digest: str) -> Any:
-        return self.writer.add_connection(
-            channel.topic,
-            channel.msgtype,
-            msgdef=msgdef,
-            rihs01=digest or "RIHS01_" + "0" * 64,
-            serialization_format=channel.message_encoding,
-            offered_qos_profiles=offered_qos(channel),
-        )
+        storage = self.writer.storage
+        if not msgdef:
+            # rosbags would store an empty ros2msg definition, which its readers parse as a type
+            # without fields whose hash then mismatches (they refuse the bag): store none instead,
+            # as Humble's rosbag2 does.
+            storage.add_msgtype = functools.partial(_add_type_without_definition, storage)
+        try:
+            return self.writer.add_connection(
+                channel.topic,
+                channel.msgtype,
+                msgdef=msgdef,
+                rihs01=digest or "RIHS01_" + "0" * 64,
+                serialization_format=channel.message_encoding,
+                offered_qos_profiles=offered_qos(channel),
+            )
+        finally:
+            storage.__dict__.pop("add_msgtype", None)
+
+
+def _add_type_without_definition(storage: Any, connection: Any) -> None:
+    """Register ``connection``'s type with a rosbags storage writer without a definition: no
+    ``message_definitions`` row in SQLite, a schema without encoding or data in MCAP (read back as
+    ``MessageDefinitionFormat.NONE``)."""
+    if type(storage).__module__.endswith("storage_mcap"):
+        from rosbags.rosbag2.storage_mcap import Schema, write_schema
+
+        storage.schemas.append(Schema(len(storage.schemas) + 1, connection.msgtype, "", ""))
+        write_schema(storage.chunk.bio, storage.schemas[-1])

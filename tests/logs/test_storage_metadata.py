@@ -306,3 +306,58 @@ def test_ros1_input_text_without_md5_is_kept(tmp_path: Path) -> None:
         copied = next(c for c in reader.channels if c.topic == "/map")
     assert copied.msgdef == text
     assert copied.digest == "3381f2d731d4076ec5c71b0759edbe4e"  # nav_msgs/OccupancyGrid in ROS 1
+
+
+def _humble_bag_with_a_custom_type(path: Path, fr079: list[npt.NDArray[np.int8]]) -> bytes:
+    """A db3 bag as Humble's rosbag2 writes it (no message definitions stored) with a custom
+    message type beside /map; returns the custom message's bytes."""
+    import sqlite3
+
+    from conftest import MapMsg, _map_message, typestore
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import get_types_from_msg
+
+    store = typestore("cdr")
+    store.register(get_types_from_msg("string mode\nfloat64 battery\n", "my_robot_msgs/msg/Status"))
+    status = bytes(
+        store.serialize_cdr(
+            store.types["my_robot_msgs/msg/Status"](mode="explore", battery=0.5),
+            "my_robot_msgs/msg/Status",
+        )
+    )
+    with Writer(path, version=8, storage_plugin=StoragePlugin.SQLITE3) as writer:
+        grid = writer.add_connection("/map", "nav_msgs/msg/OccupancyGrid", typestore=store)
+        custom = writer.add_connection("/status", "my_robot_msgs/msg/Status", typestore=store)
+        for n, t in enumerate((1_000_000_000, 2_000_000_000)):
+            writer.write(grid, t, _map_message(store, "cdr", MapMsg(t, fr079[n + 1]), n)[1])
+            writer.write(custom, t + 1, status)
+    db = sqlite3.connect(path / f"{path.name}.db3")
+    db.execute("DELETE FROM message_definitions")  # what Humble's bags hold: nothing
+    db.commit()
+    db.close()
+    return status
+
+
+@pytest.mark.parametrize("fmt", ["db3", "mcap-dir", "mcap"])
+def test_a_custom_type_without_definition_is_copied_and_stored_without_one(
+    tmp_path: Path, fr079: list[npt.NDArray[np.int8]], fmt: str, caplog: pytest.LogCaptureFixture
+) -> None:
+    """Humble bags store no definitions, so their custom types have none: their messages are
+    copied byte for byte (no output at all before), the output says "no definition" as Humble's
+    bags do (an empty one made rosbags refuse to open the bag: hash mismatch), and a warning
+    names the topic."""
+    from rosbags.highlevel import AnyReader
+    from rosbags.interfaces import MessageDefinitionFormat
+
+    status = _humble_bag_with_a_custom_type(tmp_path / "humble", fr079)
+    out = tmp_path / ("out.mcap" if fmt == "mcap" else "out")
+    report = process_log(tmp_path / "humble", output_path=out, output_format=fmt)
+    assert len(report.records) == 2
+    assert "/status: no message definition of my_robot_msgs/msg/Status" in caplog.text
+    with LogReader(out) as reader:
+        copied = [bytes(m.data) for m in reader.messages() if m.channel.topic == "/status"]
+    assert copied == [status, status]
+    with AnyReader([out]) as reader:
+        formats = {c.topic: c.msgdef.format for c in reader.connections}
+    assert formats["/status"] == MessageDefinitionFormat.NONE
+    assert formats["/map"] == MessageDefinitionFormat.MSG
