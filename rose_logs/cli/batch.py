@@ -320,6 +320,9 @@ def _exit_code(report: Any, args: argparse.Namespace) -> int:
         )
         return 1
     salvaged = [r for r in report.results if r.losses]
+    failed = _gate_failures(args, report)
+    for reason in failed:  # named even when the salvage decides the exit code
+        print(f"error: {short(reason)}", file=sys.stderr)
     if salvaged:  # as process --salvage: lost messages come before the gates
         print(
             "warning: "
@@ -330,17 +333,13 @@ def _exit_code(report: Any, args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return EXIT_SALVAGED
-    failed = _gate_failures(args, report)
-    for reason in failed:
-        print(f"error: {short(reason)}", file=sys.stderr)
-    if failed:
-        return EXIT_GATE
-    return 0
+    return EXIT_GATE if failed else 0
 
 
 def _gate_failures(args: argparse.Namespace, report: Any) -> list[str]:
     """Why the requested gates fail, each gate once (empty: they pass or none was asked for)."""
     from rose_logs.batch.sources import printable
+    from rose_logs.session.report import w_judges
 
     reasons = []
     ok = [r for r in report.results if r.status == "ok"]
@@ -366,8 +365,8 @@ def _gate_failures(args: argparse.Namespace, report: Any) -> list[str]:
                 f"{len({r.uri for r, _ in breaks})} recording(s); --fail-on-break)"
             )
     for r in ok:
-        analysed = {s["topic"] for s in r.snapshots}
+        judged = {s["topic"] for s in r.snapshots if w_judges(s["occupied"])}
         reasons += [
-            f"{printable(r.uri)}: {why}" for why in unjudged_topics(args, r.map_topics, analysed)
+            f"{printable(r.uri)}: {why}" for why in unjudged_topics(args, r.map_topics, judged)
         ]
     return reasons

@@ -243,6 +243,10 @@ def run(args: argparse.Namespace) -> int:
             outputs.fill(json_out, json_text(report.to_json()).encode("utf-8"))
     out = sys.stderr if outputs.uses_stdout else sys.stdout
     _print_summary(report, out)
+    # Failed gates are named even when the salvage decides the exit code (4).
+    failed = _gate_failures(args, report)
+    for reason in failed:
+        print(f"error: {args.input}: {reason}", file=sys.stderr)
     if report.losses:
         # Each loss was warned about when the reader met it (a long session shows it at once).
         print(
@@ -251,9 +255,6 @@ def run(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return EXIT_SALVAGED
-    failed = _gate_failures(args, report)
-    for reason in failed:
-        print(f"error: {args.input}: {reason}", file=sys.stderr)
     return EXIT_GATE if failed else 0
 
 
@@ -273,7 +274,9 @@ def _gate_failures(args: argparse.Namespace, report: Any) -> list[str]:
     first_break = report.first_break()
     if args.fail_on_break and first_break is not None:
         reasons.append(f"{first_break.text} (--fail-on-break)")
-    reasons += unjudged_topics(args, report.map_topics, {r.topic for r in report.records})
+    reasons += unjudged_topics(
+        args, report.map_topics, {r.topic for r in report.records if r.judged}
+    )
     return reasons
 
 

@@ -38,7 +38,9 @@ def read_rows(path: Path) -> list[dict]:
 # ---- discovery ------------------------------------------------------------------------------------
 
 
-def test_an_empty_first_map_is_no_broken_map(tmp_path: Path) -> None:
+def test_an_empty_first_map_is_no_broken_map(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     """A session that starts all unknown (W = 1 by convention) is judged by its real maps."""
     from fleet import copy_recording
 
@@ -51,10 +53,14 @@ def test_an_empty_first_map_is_no_broken_map(tmp_path: Path) -> None:
     row = result.row()
     assert row["snapshots"] == 3 and not row["broke"]
     assert row["w_max"] == max(s["structure_score"] for s in result.snapshots[1:]) < 0.4
-    # A recording of empty maps only has no W at all; the gate passes it (it used to crash).
+    # A recording of empty maps only has no W at all (it used to crash the gate): the gate
+    # cannot vouch for it, as for a recording whose maps could not be analysed.
     only_empty = copy_recording(tmp_path / "empty.mcap", "mcap", max_maps=1, empty_first=True)
     out = str(tmp_path / "gate")
-    assert main(["batch", str(log), str(only_empty), "-o", out, "-q", "--fail-above", "0.4"]) == 0
+    assert main(["batch", str(log), str(only_empty), "-o", out, "-q"]) == 0
+    assert main(["batch", str(log), str(only_empty), "-o", out, "-q", "--fail-above", "0.4"]) == 3
+    (line,) = [x for x in capsys.readouterr().err.splitlines() if x.startswith("error:")]
+    assert line.startswith(f"error: {only_empty}: /map: no map message could be analysed with 20")
     rows = {r["uri"]: r for r in read_rows(tmp_path / "gate" / "recordings.parquet")}
     assert rows[str(only_empty)]["w_max"] is None and not rows[str(only_empty)]["broke"]
 
@@ -971,7 +977,7 @@ def test_the_batchs_error_line_is_one_short_line_however_long_the_rows_error(
     monkeypatch.setattr(rose_logs.session, "process_log", corrupt)
     out = tmp_path / "out"
     assert main(["batch", str(fleet / "robot_a" / "run.mcap"), "-o", str(out), "-q"]) == 1
-    (line,) = [x for x in capsys.readouterr().err.splitlines() if x.startswith("error:")]
-    assert len(line) <= len("error: ") + MAX_MESSAGE_CHARS and line.endswith("...")
+    (line,) = [x for x in capsys.readouterr().err.splitlines() if x.startswith("failed:")]
+    assert len(line) <= len("failed: ") + MAX_MESSAGE_CHARS and line.endswith("...")
     (row,) = read_rows(out / "recordings.parquet")
     assert long_text in row["error"]

@@ -65,6 +65,12 @@ def test_salvage_keeps_what_was_read_and_exits_4(
     assert out.is_dir()
     data = json.loads(report.read_text())
     assert data["losses"] and data["message_count"] == 15
+    # A gate that fails is named although the salvage decides the exit code (said nothing before).
+    code, _, err = _run(
+        capsys, "process", log, "--no-output", "-q", "--salvage", "--fail-above", "0.0001"
+    )
+    assert code == EXIT_SALVAGED
+    assert "exceeds --fail-above 0.0001" in err
 
 
 def test_truncated_mcap_with_salvage_is_never_exit_0(

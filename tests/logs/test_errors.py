@@ -7,6 +7,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 from conftest import START_NS, MapMsg, build_log, log_path, read_all, session_maps, tree_bytes
 
@@ -209,7 +210,19 @@ def test_a_gate_fails_on_a_map_topic_it_cannot_judge(tmp_path: Path, capsys, fr0
     assert code == 3
     errors = [line for line in err.splitlines() if line.startswith("error:")]
     assert any("exceeds --fail-above" in line for line in errors)
-    assert any("/robot2/map: no map message could be analysed" in line for line in errors)
+    assert any("/robot2/map: no map message could be analysed with" in line for line in errors)
+
+
+def test_a_gate_fails_on_a_topic_whose_maps_w_never_judged(tmp_path: Path, capsys) -> None:
+    """Maps that were analysed but are all unknown (or of a few occupied cells) leave W without a
+    judgement: a gate cannot vouch for them either (the run passed every gate before)."""
+    unknown = np.full((60, 80), -1, dtype=np.int8)
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", session_maps([unknown, unknown]))
+    assert _run(capsys, "process", built.path, "--no-output")[0] == 0
+    for gate in (["--fail-above", "0.4"], ["--fail-on-break"]):
+        code, _, err = _run(capsys, "process", built.path, "--no-output", *gate)
+        assert code == 3
+        assert "/map: no map message could be analysed with 20 or more occupied cells" in err
 
 
 def test_a_map_topic_declared_but_never_published_is_no_map_of_the_session(
