@@ -183,13 +183,6 @@ def _w_text(records: Sequence[Any]) -> str:
     return text
 
 
-def _metres(value: float) -> str:
-    """A cell edge in metres as the JSON report has it, to the mm, without exponent or trailing
-    zeros (-4.75, 9.1, 5400001.25: a UTM northing with :g came out as 5.4e+06)."""
-    text = f"{value:.3f}".rstrip("0").rstrip(".")
-    return "0" if text == "-0" else text
-
-
 def _print_break(report: Any, topic: str, out: Any) -> None:
     start = report.start_ns
     top = max(r.break_score_m for r in report.records_of(topic))
@@ -203,7 +196,9 @@ def _print_break(report: Any, topic: str, out: Any) -> None:
         return
     where = ""
     if first.region_m is not None:
-        x0, y0, x1, y1 = (_metres(v) for v in first.region_m)
+        from rose_logs.session.breaks import metres_text  # loaded with the session already
+
+        x0, y0, x1, y1 = (metres_text(v) for v in first.region_m)
         where = f", x {x0}..{x1} m, y {y0}..{y1} m"
     print(
         f"  break        first at snapshot {first.index}, "

@@ -26,7 +26,7 @@ import numpy as np
 from rose.breaks import WallContradiction, contradicted_walls
 from rose_logs.snapshots import MapSnapshot
 
-__all__ = ["BreakDetector", "BreakParams", "BreakScore", "DetectedBreak"]
+__all__ = ["BreakDetector", "BreakParams", "BreakScore", "DetectedBreak", "metres_text"]
 
 _LOG = logging.getLogger(__name__)
 
@@ -177,8 +177,8 @@ class DetectedBreak:
         """The event of a snapshot whose verdict ``started`` a break."""
         where = ""
         if verdict.region_m is not None:
-            x0, y0, x1, y1 = verdict.region_m
-            where = f" around x {x0:.1f}..{x1:.1f} m, y {y0:.1f}..{y1:.1f} m"
+            x0, y0, x1, y1 = (metres_text(v) for v in verdict.region_m)
+            where = f" around x {x0}..{x1} m, y {y0}..{y1} m"
         text = (
             f"{snapshot.topic}: map breaks at snapshot {index}: {verdict.score_m:.2f} m of "
             f"established map contradicted (threshold {threshold_m:g} m) since snapshot "
@@ -193,6 +193,13 @@ class DetectedBreak:
             trusted_index=verdict.trusted_index,
             text=text,
         )
+
+
+def metres_text(value: float) -> str:
+    """A length or map coordinate in metres as the reports print it: to the mm (as the JSON report
+    rounds it), without exponent or trailing zeros (-4.75, 9.1, 5400001.25; :g gave 5.4e+06)."""
+    text = f"{value:.3f}".rstrip("0").rstrip(".")
+    return "0" if text == "-0" else text
 
 
 _CLEAR = BreakScore(0.0, False, False, None, None, 0.0)

@@ -132,7 +132,7 @@ class SnapshotRecord:
             "seconds": round(self.seconds, 6),
             "reused": self.reused,
             "from_update": self.from_update,
-            "break_score_m": round(self.break_score_m, 6),
+            "break_score_m": round(self.break_score_m, 3),  # mm: float32 resolutions add 1e-6 noise
             "break_region_m": _region_json(self.break_region_m),
             "break_detected": self.break_detected,
             "clean_method": self.clean_method,
@@ -147,7 +147,7 @@ def _region_json(region: tuple[float, float, float, float] | None) -> dict[str, 
     if region is None:
         return None
     return dict(
-        zip(("x_min", "y_min", "x_max", "y_max"), (round(v, 6) for v in region), strict=True)
+        zip(("x_min", "y_min", "x_max", "y_max"), (round(v, 3) for v in region), strict=True)
     )
 
 
@@ -261,7 +261,7 @@ class SessionReport:
                 "w_median": statistics.median(scores) if scores else None,
                 "w_max": max(scores, default=None),
                 "break_score_max_m": max(
-                    (round(r.break_score_m, 6) for r in self.records_of(topic)), default=None
+                    (round(r.break_score_m, 3) for r in self.records_of(topic)), default=None
                 ),
                 "first_break": None
                 if first is None
@@ -269,7 +269,7 @@ class SessionReport:
                     "index": first.index,
                     "log_time_ns": first.log_time_ns,
                     "time_s": round((first.log_time_ns - self.start_ns) / 1e9, 9),
-                    "break_score_m": round(first.score_m, 6),
+                    "break_score_m": round(first.score_m, 3),
                     "region_m": _region_json(first.region_m),
                     "trusted_index": first.trusted_index,
                 },

@@ -142,7 +142,10 @@ def test_fail_on_break_gate_and_json_first_break(
     assert said is not None and "e" not in said.group(0)  # no exponent (UTM northings)
     x0, x1, y0, y1 = (float(v) for v in said.groups())
     assert (x0, y0, x1, y1) == tuple(region[k] for k in ("x_min", "y_min", "x_max", "y_max"))
+    # The gate's error line (the event text, also in Rerun) gives the region as the summary does.
+    assert said.group(0)[:-1] in err
     scores = [s["break_score_m"] for s in data["snapshots"]]
+    assert all(round(v, 3) == v for v in scores)  # mm: no 400.000006
     assert max(scores[:3]) < data["break_threshold_m"] <= scores[3]
     # Numbers as written in the messages and rounded alike: the float32 0.05 reads 0.05.
     assert data["topics"]["/map"]["break_score_max_m"] == max(scores)
