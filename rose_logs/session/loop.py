@@ -578,7 +578,8 @@ class _Loop:
                     self.skips.add(
                         "updates of no known map",
                         f"{channel.topic}: grid update at {message.log_time_ns} ns whose map "
-                        "cannot be told (not <map>_updates, and several map topics)",
+                        "cannot be told (<map>_updates whose map is not in the log, or another "
+                        "name and several map topics)",
                     )
                 self._drain(self.in_flight_limit)
                 pending += 1

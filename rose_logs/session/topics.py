@@ -56,7 +56,8 @@ def update_targets(
 ) -> dict[str, str]:
     """Update topic -> map topic, for the updates of the analysed ``map_topics`` (default: all).
 
-    An update topic belongs to ``<map>_updates``'s map by name, else to the log's only map topic.
+    An update topic belongs to ``<map>_updates``'s map by name (to none if that map is not in the
+    log), else to the log's only map topic.
     The owner is decided among every ``OccupancyGrid`` topic of the log (those we cannot decode
     too), so that picking one map (``--topic``) never hands it another map's patches; updates of
     maps not analysed are left out.
@@ -68,7 +69,8 @@ def update_targets(
 
 
 def orphan_updates(channels: Sequence[Channel]) -> tuple[Channel, ...]:
-    """Update channels whose map cannot be told (not ``<map>_updates``, several map topics)."""
+    """Update channels whose map cannot be told (``<map>_updates`` without its map in the log, or
+    another name and several map topics)."""
     grids = _grid_topics(channels)
     return tuple(c for c in _update_channels(channels) if _owner(c.topic, grids) is None)
 
@@ -84,10 +86,12 @@ def _update_channels(channels: Sequence[Channel]) -> list[Channel]:
 
 
 def _owner(topic: str, grids: Sequence[str]) -> str | None:
-    """The map topic an update topic patches: ``<map>_updates``'s map, else the only map."""
-    named = topic.removesuffix("_updates") if topic.endswith("_updates") else None
-    if named in grids:
-        return named
+    """The map topic an update topic patches: ``<map>_updates``'s map (None when that map is not in
+    the log: another costmap's patches, ``/local_costmap/costmap_updates`` beside ``/map``, must
+    not land on the only map), else the only map."""
+    if topic.endswith("_updates"):
+        named = topic.removesuffix("_updates")
+        return named if named in grids else None
     return grids[0] if len(grids) == 1 else None
 
 

@@ -159,3 +159,24 @@ def test_updates_that_cannot_be_applied_are_counted_by_reason(tmp_path, fr079) -
     report = process_log(built.path, output_path=None)
     assert report.skipped_messages == 3
     assert report.skipped_reasons == "1 before the first full map, 2 updates of no known map"
+
+
+def test_another_costmaps_updates_never_patch_the_only_map(tmp_path, fr079) -> None:
+    """``/local_costmap/costmap_updates`` names a map the log does not hold: its patches are not
+    the only map's (they were applied to /map: lethal blocks in its cleaned maps, extra snapshots);
+    an update topic of another name still belongs to the only map."""
+    from conftest import START_NS, MapMsg, build_log
+
+    from rose_logs.session import process_log
+
+    patch = np.full((20, 20), 100, dtype=np.int8)
+    s = 1_000_000_000
+    maps = [
+        MapMsg(START_NS + 1 * s, fr079[0]),
+        MapMsg(START_NS + 2 * s, patch, topic="/local_costmap/costmap_updates", xy=(0, 0)),
+        MapMsg(START_NS + 3 * s, patch, topic="/map_patches", xy=(0, 0)),
+    ]
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps)
+    report = process_log(built.path, output_path=None)
+    assert len(report.records) == 2  # the map, and the map patched by /map_patches
+    assert report.skipped_reasons == "1 updates of no known map"
