@@ -419,7 +419,12 @@ def _session_report(
         failure_level=failure_level,
         message_count=reader.read_count,
         start_ns=reader.start_ns,
-        end_ns=reader.end_ns,
+        # A damaged log's index still declares its whole range: give what was read.
+        end_ns=(
+            max(reader.start_ns, min(reader.end_ns, loop.latest_ns))
+            if reader.losses
+            else reader.end_ns
+        ),
         skipped_messages=loop.skipped,
         skipped_reasons=loop.skips.describe() if loop.skipped else "",
         elapsed_s=time.perf_counter() - started,
@@ -544,6 +549,7 @@ class _Loop:
         self.breaks: list[BreakEvent] = []
         self.skips = _Skips()
         self.out_of_range_said: set[str] = set()  # topics warned about cells outside -1..100
+        self.latest_ns = 0  # log time of the latest message read (a salvaged log ends there)
         self.queue: deque[_Copy | _Pending] = deque()
         self.in_flight = 0
         self.executor: Executor | None = None
@@ -568,6 +574,7 @@ class _Loop:
         try:
             for message in self.reader.messages():
                 channel = message.channel
+                self.latest_ns = max(self.latest_ns, message.log_time_ns)
                 self._copy(message)
                 is_map = channel.topic in self.map_topics and channel.msgtype == MAP_TYPE
                 if is_map:

@@ -73,6 +73,26 @@ def test_salvage_keeps_what_was_read_and_exits_4(
     assert "exceeds --fail-above 0.0001" in err
 
 
+def test_a_salvaged_log_reports_the_time_range_it_read(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A damaged chunk: the report ends at the last message read, not where the index says the
+    log ended (the summary said 65 s of a log cut after 5 s)."""
+    log, out, report = tmp_path / "in.mcap", tmp_path / "o.mcap", tmp_path / "r.json"
+    sample = Path(__file__).resolve().parents[2] / "sample_data" / "fr079_session.mcap"
+    data = bytearray(sample.read_bytes())
+    data[50_000] ^= 0xFF  # in the second of its chunks
+    log.write_bytes(bytes(data))
+    with LogReader(sample) as reader:
+        declared_end = reader.end_ns
+    code, _, _ = _run(capsys, "process", log, "-o", out, "--json", report, "-q", "--salvage")
+    assert code == EXIT_SALVAGED
+    with LogReader(out) as reader:
+        read_end = max(m.log_time_ns for m in reader.messages())
+    data = json.loads(report.read_text())
+    assert data["end_ns"] == read_end < declared_end
+
+
 def test_truncated_mcap_with_salvage_is_never_exit_0(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
