@@ -446,9 +446,17 @@ def _prepare_output(
         return {}, {}
     handles = {c.id: writer.add_channel(c) for c in channels}
     derived = {}
+    owners: dict[str, str] = {}  # derived topic -> the map topic it is made from
     for topic in map_topics:
         names = derived_topics(topic)
         for name in (names.cleaned, names.structure_score, names.walls):
+            if name in owners:  # /map and /map/ (a trailing slash is dropped)
+                msg = (
+                    f"{input_path}: map topics {owners[name]} and {topic} would both be written "
+                    f"to {name}; pick one with --topic"
+                )
+                raise LogWriteError(msg)
+            owners[name] = topic
             if writer.has_topic(name):
                 msg = f"{input_path}: has topic {name} already (processed before?)"
                 raise LogWriteError(msg)

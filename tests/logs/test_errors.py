@@ -576,3 +576,18 @@ def test_process_log_refuses_bad_parameters_before_reading(
 
     with pytest.raises(rose.RoseError, match=match):
         process_log(tmp_path / "missing.mcap", **kwargs)
+
+
+def test_two_map_topics_that_would_share_their_outputs_are_named(
+    tmp_path: Path, capsys, fr079
+) -> None:
+    """/map and /map/ both derive /map/rose/*: the error says so (it said the input had been
+    processed before), and --topic picks one."""
+    maps = [MapMsg(START_NS + 1, fr079[0]), MapMsg(START_NS + 2, fr079[1], topic="/map/")]
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps)
+    code, _, err = _run(capsys, "process", built.path, "-o", tmp_path / "o.mcap", "-q")
+    assert code == 1
+    assert "map topics /map and /map/ would both be written to /map/rose/cleaned" in err
+    assert not (tmp_path / "o.mcap").exists()
+    code, _, _ = _run(capsys, "process", built.path, "-o", tmp_path / "o.mcap", "-q", "-t", "/map/")
+    assert code == 0
