@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import difflib
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -130,9 +131,15 @@ def select_topics(
         for topic in topics:
             if topic not in known:
                 msg = f"{path}: no topic {topic} (map topics: {', '.join(found) or 'none'})"
+                guess = difflib.get_close_matches(f"/{topic.lstrip('/')}", found, n=1)
+                if guess:
+                    msg += f"; did you mean {guess[0]}?"
                 raise LogReadError(msg)
             if topic not in found:
                 msg = f"{path}: topic {topic} {_why_not_a_map(known[topic])}"
+                owner = update_targets(channels).get(topic)
+                if owner is not None:
+                    msg += f" (it updates {owner}: pass --topic {owner})"
                 raise LogReadError(msg)
         return tuple(dict.fromkeys(topics))
     if not found:

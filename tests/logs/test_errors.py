@@ -591,3 +591,21 @@ def test_two_map_topics_that_would_share_their_outputs_are_named(
     assert not (tmp_path / "o.mcap").exists()
     code, _, _ = _run(capsys, "process", built.path, "-o", tmp_path / "o.mcap", "-q", "-t", "/map/")
     assert code == 0
+
+
+def test_a_mistyped_topic_gets_a_suggestion(tmp_path: Path, capsys, fr079) -> None:
+    """``-t map`` (no slash) or a typo names the close map topic, ``-t`` of an update topic names
+    the map it updates."""
+    patch = fr079[1][:10, :10]
+    maps = [
+        MapMsg(START_NS + 1, fr079[0]),
+        MapMsg(START_NS + 2, patch, topic="/map_updates", xy=(0, 0)),
+    ]
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps)
+    for typed in ("map", "/mpa"):
+        code, _, err = _run(capsys, "process", built.path, "--no-output", "-t", typed)
+        assert code == 1
+        _assert_one_line_error(err, f"no topic {typed} (map topics: /map); did you mean /map?")
+    code, _, err = _run(capsys, "process", built.path, "--no-output", "-t", "/map_updates")
+    assert code == 1
+    _assert_one_line_error(err, "(it updates /map: pass --topic /map)")
