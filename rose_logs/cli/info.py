@@ -57,7 +57,7 @@ def run(args: argparse.Namespace) -> int:
                 f"  {topic:<{width}}  {counts[topic]:>8}  {', '.join(sorted(types[topic]))}{mark}"
             )
         stats: dict[str, dict[str, Any]] = {
-            t: {"sizes": set(), "res": set(), "frames": set(), "bad": 0} for t in map_topics
+            t: {"sizes": {}, "res": set(), "frames": set(), "bad": 0} for t in map_topics
         }
         for message in reader.messages(topics=map_topics):
             topic = message.channel.topic
@@ -73,20 +73,21 @@ def run(args: argparse.Namespace) -> int:
             except MapMessageError:
                 stats[topic]["bad"] += 1
                 continue
-            stats[topic]["sizes"].add((snap.shape[1], snap.shape[0]))
+            stats[topic]["sizes"].setdefault((snap.shape[1], snap.shape[0]), None)  # as they came
             stats[topic]["res"].add(snap.resolution_decimal_m)
             stats[topic]["frames"].add(snap.frame_id)
         for topic in map_topics:
             s = stats[topic]
             print(f"\nmap topic    {topic}")
-            sizes = sorted(s["sizes"])
+            sizes = [f"{w} x {h}" for w, h in s["sizes"]]
             if sizes:
-                print(
-                    f"  grid sizes   {', '.join(f'{w} x {h}' for w, h in sizes[:6])}"
-                    + (" ..." if len(sizes) > 6 else "")
-                )
+                # In the order they came, so a growing map's last size shows.
+                shown = sizes if len(sizes) <= 6 else [*sizes[:3], "...", *sizes[-3:]]
+                more = f" ({len(sizes)} sizes)" if len(sizes) > 6 else ""
+                print(f"  grid sizes   {', '.join(shown)}{more}")
                 print(f"  resolution   {', '.join(f'{r:g}' for r in sorted(s['res']))} m")
-                print(f"  frame        {', '.join(sorted(s['frames']))}")
+                frames = (repr(f) if not f.strip() else f for f in sorted(s["frames"]))
+                print(f"  frame        {', '.join(frames)}")
             if s["bad"]:
                 print(f"  malformed    {s['bad']}")
             if not sizes and not s["bad"]:

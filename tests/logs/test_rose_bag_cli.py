@@ -9,6 +9,7 @@ import statistics
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 from conftest import START_NS, MapMsg, build_log, session_maps
 
@@ -76,6 +77,19 @@ def test_info(capsys) -> None:
     )
     assert "  grid sizes   1152 x 736" in out.splitlines()
     assert "  resolution   0.05 m" in out.splitlines()
+
+
+def test_info_shows_a_maps_sizes_in_the_order_they_came(tmp_path: Path, capsys) -> None:
+    """Eight sizes: the first three and the last three as they came (the six smallest hid a
+    growing map's final size)."""
+    grids = [np.zeros((10 + n, 20 + n), dtype=np.int8) for n in range(8)]
+    order = (7, 6, 5, 4, 0, 1, 2, 3)  # not sorted by size
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", session_maps([grids[n] for n in order]))
+    assert main(["info", str(built.path)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    expected = [f"{20 + n} x {10 + n}" for n in order]
+    shown = ", ".join([*expected[:3], "...", *expected[-3:]])
+    assert f"  grid sizes   {shown} (8 sizes)" in lines
 
 
 def test_the_command_keeps_map_arrays_on_the_heap(monkeypatch: pytest.MonkeyPatch, capsys) -> None:
