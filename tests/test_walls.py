@@ -150,11 +150,15 @@ def test_metres_follow_resolution_origin_and_yaw() -> None:
     assert found.line_list_m.shape == (2 * len(found), 2)
 
 
-def test_empty_and_invalid_inputs() -> None:
+def test_empty_and_invalid_inputs(caplog: pytest.LogCaptureFixture) -> None:
     empty = extract_walls_hough(np.zeros((40, 50), dtype=np.int8))
     assert len(empty) == 0
     assert empty.endpoints_m.shape == (0, 2, 2)
     assert len(extract_walls(np.zeros((40, 50), dtype=np.int8))) == 0
+    assert len(extract_walls(np.full((40, 50), -1, dtype=np.int8))) == 0
+    assert "not snapped" not in caplog.text  # nothing to snap on an empty map: no warning
+    extract_walls(np.pad(np.full((1, 1), 100, np.int8), 20))  # occupied, no dominant direction
+    assert "no dominant direction: wall segments are not snapped" in caplog.text
     with pytest.raises(rose.RoseError, match="2D"):
         extract_walls_hough(np.zeros(10, dtype=np.int8))
     with pytest.raises(rose.RoseError, match="merge_gap_px"):

@@ -239,7 +239,8 @@ def extract_walls(
     )
     directions = np.asarray(result.dominant_directions, dtype=np.float64)
     if not result.has_structure:
-        logger.warning("ROSE found no dominant direction: wall segments are not snapped")
+        if pixels.any():  # an empty or all-unknown map has no segments to snap: nothing to say
+            logger.warning("ROSE found no dominant direction: wall segments are not snapped")
         directions = np.empty(0)
     raw_pixels = pixels.copy()
     if result.has_structure:
