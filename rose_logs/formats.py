@@ -121,3 +121,15 @@ def unknown_suffix_warning(path: Path, written_as: str) -> str | None:
         f"warning: {path}: '{suffix}' names no log format (.bag, .db3, .mcap): written "
         f"{written_as} (--format to choose)"
     )
+
+
+def suffix_mismatch_warning(path: Path, fmt: str) -> str | None:
+    """A warning line for an output written in ``fmt`` (``--format``) under a name whose suffix
+    names another format (``--format ros1 -o out.mcap``: a ROS 1 bag that tools would open as
+    MCAP); None when the suffix agrees or names none."""
+    implied = format_from_path(Path(path))
+    if implied is None or implied == fmt:
+        return None
+    return (
+        f"warning: {path}: written as {fmt} (--format), but '{Path(path).suffix}' names {implied}"
+    )

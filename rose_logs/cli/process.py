@@ -209,11 +209,14 @@ def _print_break(report: Any, topic: str, out: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from rose_logs.formats import unknown_suffix_warning
+    from rose_logs.formats import suffix_mismatch_warning, unknown_suffix_warning
     from rose_logs.session import default_output_path
 
     if args.no_output and args.output is not None:
         msg = "--no-output and --output exclude each other"
+        raise UsageError(msg)
+    if args.no_output and args.fmt:
+        msg = "--no-output and --format exclude each other"
         raise UsageError(msg)
     if args.connect is not None:
         from rose_logs.rerun.sink import viewer_endpoint  # loads Rerun: only when it is used
@@ -227,6 +230,8 @@ def run(args: argparse.Namespace) -> int:
     warning = None
     if args.output is not None and not args.fmt:
         warning = unknown_suffix_warning(args.output, "in the input's format")
+    elif args.output is not None:
+        warning = suffix_mismatch_warning(args.output, args.fmt)
     if warning is not None:  # a typo (out.mcpa) should not pass unnoticed
         print(warning, file=sys.stderr)
     progress = not args.quiet and sys.stderr.isatty()

@@ -297,6 +297,13 @@ def test_an_output_suffix_that_names_no_format_is_warned_about(
     assert code == 0 and "warning" not in err
     code, _, err = _run(capsys, "process", mcap_log, "-o", tmp_path / "o3.mcap", "-q")
     assert code == 0 and "warning" not in err
+    # --format against the suffix: a db3 bag folder named .mcap that tools would open as MCAP.
+    out = tmp_path / "o4.mcap"
+    code, _, err = _run(capsys, "process", mcap_log, "-o", out, "--format", "db3", "-q")
+    assert code == 0 and out.is_dir()
+    assert f"warning: {out}: written as db3 (--format), but '.mcap' names mcap" in err
+    code, _, err = _run(capsys, "process", mcap_log, "--no-output", "--format", "mcap")
+    assert code == 2 and "--no-output and --format exclude each other" in err
 
 
 def test_existing_output_needs_force(tmp_path: Path, capsys, mcap_log: Path) -> None:
