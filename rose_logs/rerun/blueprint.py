@@ -37,9 +37,6 @@ class TopicLayout:
     bounds_m : tuple of float or None
         ``(x_min, y_min, x_max, y_max)`` of the known part of the map in the map frame, metres (None
         before any map): the metric view looks at it from above.
-    bounds_px : tuple of float or None
-        ``(u_min, v_min, u_max, v_max)`` of the known part in pixels of the north-up images: the
-        segmentation view shows this region.
     has_events : bool
         Whether the topic has break events (the events view is shown only then).
     w_top, break_top : float or None
@@ -49,7 +46,6 @@ class TopicLayout:
 
     root: str
     bounds_m: tuple[float, float, float, float] | None = None
-    bounds_px: tuple[float, float, float, float] | None = None
     has_events: bool = False
     w_top: float | None = None
     break_top: float | None = None
@@ -90,21 +86,30 @@ def _metric_eye(bounds_m: tuple[float, float, float, float] | None) -> rrb.EyeCo
     )
 
 
+def _north_up_bounds(
+    bounds_m: tuple[float, float, float, float] | None, *, below: float = 0.0
+) -> rrb.VisualBounds2D | None:
+    """The map-frame box ``bounds_m`` in the 2D views' north-up frame (x east, y south, metres:
+    :func:`rose_logs.rerun.loggers.image_placement`), with a margin, and ``below`` times its height
+    more under it."""
+    if bounds_m is None:
+        return None
+    x0, y0, x1, y1 = bounds_m
+    margin = 0.03 * max(x1 - x0, y1 - y0)
+    return rrb.VisualBounds2D(
+        x_range=(x0 - margin, x1 + margin),
+        y_range=(-y1 - margin, -y0 + margin + below * (y1 - y0)),
+    )
+
+
 def _topic_container(layout: TopicLayout) -> rrb.Container:
     paths = EntityPaths(layout.root)
     root = paths.root
     h = style.AMPLITUDE_PLOT_HEIGHT
-    visual_bounds = None
-    if layout.bounds_px is not None:
-        u0, v0, u1, v1 = layout.bounds_px
-        margin = 0.03 * max(u1 - u0, v1 - v0)
-        visual_bounds = rrb.VisualBounds2D(
-            x_range=(u0 - margin, u1 + margin), y_range=(v0 - margin, v1 + margin)
-        )
     segmentation = rrb.Spatial2DView(
-        name=f"{root}: segmentation, structure (blue) / clutter (orange), cells",
+        name=f"{root}: segmentation, structure (blue) / clutter (orange), north up",
         origin=f"/{paths.cells}",
-        visual_bounds=visual_bounds,
+        visual_bounds=_north_up_bounds(layout.bounds_m),
     )
     spacing = _grid_spacing_m(layout.bounds_m)
     metric = rrb.Spatial3DView(
@@ -123,6 +128,7 @@ def _topic_container(layout: TopicLayout) -> rrb.Container:
     scores = rrb.Spatial2DView(
         name=f"{root}: scores of occupied cells",
         origin=f"/{paths.scores_view}",
+        visual_bounds=_north_up_bounds(layout.bounds_m, below=0.22),  # and the colour bar
     )
     w_plot = _session_plot(
         f"{root}: structure score W over session time", f"/{paths.score}", layout.w_top

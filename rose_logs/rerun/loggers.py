@@ -70,6 +70,51 @@ def segmentation_image(image: npt.NDArray[np.uint8]) -> rr.SegmentationImage:
     return rr.SegmentationImage.from_fields(buffer=_image_buffer(image), format=_u8_format(image))
 
 
+def image_placement(
+    snapshot: MapSnapshot,
+    *,
+    offset_px: tuple[float, float] = (0.0, 0.0),
+    scale_px: tuple[float, float] = (1.0, 1.0),
+) -> rr.Transform3D:
+    """Where the 2D views draw pixels of ``snapshot``'s north-up images: in metres of the map frame,
+    north up (x east, y south: 2D views draw y downwards).
+
+    Every snapshot lands where it lies in the map, so a map that grows, moves its origin or changes
+    resolution during a session stays in place in the views (in pixels, each grid size had its own
+    frame: a growing map jumped and shrank in a fixed view). Something drawn in an image's pixels
+    at ``offset_px`` with ``scale_px`` (the score colour bar) comes along.
+    """
+    translation, angle, scale = placement_terms(snapshot, offset_px=offset_px, scale_px=scale_px)
+    return rr.Transform3D(
+        translation=[*translation, 0.0],
+        rotation=rr.RotationAxisAngle(axis=[0.0, 0.0, 1.0], radians=angle),
+        scale=[*scale, 1.0],
+    )
+
+
+def placement_terms(
+    snapshot: MapSnapshot,
+    *,
+    offset_px: tuple[float, float] = (0.0, 0.0),
+    scale_px: tuple[float, float] = (1.0, 1.0),
+) -> tuple[tuple[float, float], float, tuple[float, float]]:
+    """``(translation, rotation angle (radians, about z), scale)`` of :func:`image_placement`:
+    a pixel ``p`` lands at ``translation + R(angle) (scale * p)``."""
+    res = float(snapshot.resolution_m)
+    yaw = float(snapshot.origin_yaw_rad)
+    c, s = math.cos(yaw), math.sin(yaw)
+    ox, oy = (float(v) for v in snapshot.origin_position_m[:2])
+    rows = snapshot.grid.shape[0]
+    # Pixel (u, v) is grid point (res u, res (rows - v)); rotate by yaw, translate by the origin,
+    # negate y: X = ox + res (c u + s v) - s res rows, Y = -oy + res (-s u + c v) - c res rows.
+    u, v = offset_px
+    translation = (
+        ox - s * res * rows + res * (c * u + s * v),
+        -oy - c * res * rows + res * (-s * u + c * v),
+    )
+    return translation, -yaw, (res * scale_px[0], res * scale_px[1])
+
+
 def set_snapshot_time(
     recording: rr.RecordingStream, *, log_time_ns: int, start_ns: int, index: int | None
 ) -> None:
@@ -121,7 +166,7 @@ class TopicLogger:
         self.paths = paths
         self.failure_level = float(failure_level)
         self.trust_level = float(trust_level)
-        self._legend_shape: tuple[int, int] | None = None
+        self._legend_placement: tuple[object, ...] | None = None
         self._threshold_logged = False
 
     # ------------------------------------------------------------------------------------------
@@ -293,7 +338,7 @@ class TopicLogger:
         self.log_grid_map(snapshot)
         self.log_segmentation(snapshot, result, occupied, rescued=rescued, dropped=dropped)
         self.log_directions(snapshot, result, occupied)
-        self.log_cell_scores(result, occupied)
+        self.log_cell_scores(snapshot, result, occupied)
         self.log_spectrum(result)
         self.log_amplitude(result)
         self.log_structure_score(result)
@@ -332,7 +377,9 @@ class TopicLogger:
         image = conv.segmentation_image(
             snapshot.grid, result, occupied, rescued=rescued, dropped=dropped
         )
-        self.recording.log(self.paths.segmentation, segmentation_image(image))
+        self.recording.log(
+            self.paths.segmentation, segmentation_image(image), image_placement(snapshot)
+        )
 
     def log_directions(
         self,
@@ -355,18 +402,18 @@ class TopicLogger:
         bounds = (occupied or conv.occupied_cells(result)).bounds
         segments = conv.direction_segments_cells(directions, (rows, cols), bounds=bounds)
         anchors = conv.direction_label_positions(segments)
-        # The segmentation shows the grid, the metric view the map frame: a map whose origin has a
-        # yaw shows its walls that much further round there (as the JSON report gives them).
+        # Both views show the map frame (image_placement): a map whose origin has a yaw shows its
+        # walls that much further round than the grid does (as the JSON report gives them).
         yaw = snapshot.origin_yaw_rad
-        grid_labels = [f"walls {fold_deg(math.degrees(a), 1):.1f}°" for a in directions]
         map_labels = [f"walls {fold_deg(math.degrees(a + yaw), 1):.1f}°" for a in directions]
         # Colours, sizes and the label switch are static (log_static).
         rec.log(
             paths.cell_directions,
             rr.LineStrips2D.from_fields(strips=_f32(conv.cells_to_pixels(segments, rows))),
             rr.Points2D.from_fields(
-                positions=_f32(conv.cells_to_pixels(anchors, rows)), labels=grid_labels
+                positions=_f32(conv.cells_to_pixels(anchors, rows)), labels=map_labels
             ),
+            image_placement(snapshot),
         )
         rec.log(
             paths.metric_directions,
@@ -395,42 +442,61 @@ class TopicLogger:
         centres = walls.endpoints_px + 0.5  # cell centres
         pixels = conv.cells_to_pixels(centres, snapshot.grid.shape[0])
         rec.log(
-            paths.cell_walls, rr.LineStrips2D(_f32(pixels), colors=style.WALL_COLOR, radii=radius)
+            paths.cell_walls,
+            rr.LineStrips2D(_f32(pixels), colors=style.WALL_COLOR, radii=radius),
+            image_placement(snapshot),
         )
 
     def log_cell_scores(
-        self, result: RoseResult, occupied: conv.OccupiedCells | None = None
+        self,
+        snapshot: MapSnapshot,
+        result: RoseResult,
+        occupied: conv.OccupiedCells | None = None,
     ) -> None:
-        """Occupied cells' scores, colour-mapped (other cells transparent), with a colour bar below
-        (re-sent only when the map's shape changes) labelled with the scale and the threshold."""
+        """Occupied cells' scores, colour-mapped (other cells transparent), with a colour bar
+        under the occupied cells (re-sent only when it moves) labelled with the scale and the
+        threshold."""
         rec, paths = self.recording, self.paths
         rows, cols = result.occupied.shape
         levels = style.DISPLAY_LEVELS
-        left, width = 0.2 * cols, 0.6 * cols
-        top, height = rows + 0.04 * rows, max(0.035 * rows, 2.0)
-        if self._legend_shape != (rows, cols):
+        # Under the occupied cells' box, in image pixels (a SLAM map's grid is mostly unknown).
+        bounds = (occupied or conv.occupied_cells(result)).bounds or (0, 0, cols, rows)
+        box_w, box_h = bounds[2] - bounds[0], bounds[3] - bounds[1]
+        left, width = bounds[0] + 0.2 * box_w, 0.6 * box_w
+        top, height = rows - bounds[1] + 0.04 * box_h, max(0.035 * box_h, 2.0)
+        placement = (
+            left,
+            top,
+            width,
+            rows,
+            float(snapshot.resolution_m),
+            tuple(float(v) for v in snapshot.origin_position_m),
+            float(snapshot.origin_yaw_rad),
+        )
+        if self._legend_placement != placement:
             bar = np.repeat(np.arange(1, levels + 1, dtype=np.uint8)[np.newaxis], 2, axis=0)
             rec.log(
                 paths.score_legend,
                 rr.SegmentationImage(bar, opacity=1.0),
-                rr.Transform3D(
-                    translation=[left, top, 0.0], scale=[width / levels, height / 2, 1.0]
+                image_placement(
+                    snapshot, offset_px=(left, top), scale_px=(width / levels, height / 2)
                 ),
             )
-            self._legend_shape = (rows, cols)
+            self._legend_placement = placement
 
         def u_of(score: float) -> float:
             return left + width * float(conv.score_to_unit(np.array([score]))[0])
 
-        below = top + height + 0.05 * rows
+        below = top + height + 0.07 * box_h
         positions = [(u_of(style.SCORE_DISPLAY_MIN), below), (u_of(1.0), below)]
         labels = [f"score {style.SCORE_DISPLAY_MIN:g}", "1 (best cell)"]
         if math.isfinite(result.threshold):
-            positions.append((u_of(result.threshold), top - 0.07 * rows))
+            positions.append((u_of(result.threshold), top - 0.1 * box_h))
             labels.append(f"threshold {result.threshold:.2f}")
         rec.log(
             paths.cell_scores,
             segmentation_image(conv.masked_score_image(result, occupied)),
+            image_placement(snapshot),
             rr.Points2D.from_fields(positions=_f32(np.array(positions)), labels=labels),
         )
 

@@ -187,7 +187,6 @@ def _layout_of(root: str, snapshot: MapSnapshot | None, *, has_events: bool) -> 
     if snapshot is None or known is None:
         return TopicLayout(root, has_events=has_events)
     x0, y0, x1, y1 = known
-    rows = snapshot.grid.shape[0]
     corners = cells_to_map_m(snapshot, np.array([[x0, y0], [x1, y0], [x0, y1], [x1, y1]], float))
     bounds_m = (
         float(corners[:, 0].min()),
@@ -198,7 +197,6 @@ def _layout_of(root: str, snapshot: MapSnapshot | None, *, has_events: bool) -> 
     return TopicLayout(
         root,
         bounds_m=bounds_m,
-        bounds_px=(float(x0), float(rows - y1), float(x1), float(rows - y0)),
         has_events=has_events,
     )
 

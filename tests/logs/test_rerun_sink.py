@@ -427,9 +427,9 @@ def test_blueprint_has_a_tab_per_map_topic() -> None:
         default_blueprint(())
 
 
-def test_direction_labels_are_in_each_views_frame(tmp_path: Path, fr079) -> None:
-    """The segmentation shows the grid, the metric view the map frame: with an origin yaw, the
-    metric labels give the walls' map-frame angle (as the JSON report does), the grid labels theirs."""
+def test_direction_labels_give_the_map_frames_angles(tmp_path: Path, fr079) -> None:
+    """Both views show the map frame (the 2D ones north up, image_placement): with an origin yaw,
+    the labels give the walls' map-frame angle (as the JSON report does)."""
     import math
 
     import rerun as rr
@@ -457,9 +457,34 @@ def test_direction_labels_are_in_each_views_frame(tmp_path: Path, fr079) -> None
     (cells,) = content.rows(PATHS.cell_directions)
     (metric,) = content.rows(PATHS.metric_directions)
     degrees = [math.degrees(a) for a in result.dominant_directions]
-    assert cells["Points2D:labels"] == [f"walls {fold_deg(d, 1):.1f}°" for d in degrees]
     turned = [f"walls {fold_deg(d + math.degrees(yaw), 1):.1f}°" for d in degrees]
     assert metric["Points3D:labels"] == turned
+    assert cells["Points2D:labels"] == turned
+
+
+@pytest.mark.parametrize("yaw", [0.0, 0.7])
+def test_2d_views_place_every_snapshot_where_it_lies_in_the_map(yaw: float) -> None:
+    """A pixel of a snapshot's images lands at its cell's map-frame metres, north up (y negated):
+    maps that grow, move their origin or change resolution stay in place in the 2D views."""
+    import math
+
+    from rose_logs.rerun.loggers import cells_to_map_m, placement_terms
+    from rose_logs.snapshots import MapSnapshot
+
+    grid = np.zeros((30, 50), dtype=np.int8)
+    snapshot = MapSnapshot(
+        "/map", 1, 1, "map", grid, 0.1, (-3.0, 7.0, 0.0),
+        (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)),
+    )  # fmt: skip
+    translation, angle, scale = placement_terms(snapshot)
+    c, s = math.cos(angle), math.sin(angle)
+    pixels = np.array([[0.0, 0.0], [50.0, 30.0], [12.5, 4.0]])
+    scaled = pixels * np.array(scale)
+    placed = np.stack([c * scaled[:, 0] - s * scaled[:, 1], s * scaled[:, 0] + c * scaled[:, 1]], 1)
+    placed += np.array(translation)
+    cells = np.stack([pixels[:, 0], 30 - pixels[:, 1]], axis=1)  # image rows run north to south
+    metres = cells_to_map_m(snapshot, cells)[:, :2]
+    assert placed == pytest.approx(metres * np.array([1.0, -1.0]))
 
 
 def test_rerun_batches_small_chunks_unless_the_environment_says_otherwise(monkeypatch) -> None:
