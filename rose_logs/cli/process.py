@@ -239,12 +239,19 @@ def run(args: argparse.Namespace) -> int:
     with outputs:  # the log, the recording and the report: all committed, or none
         json_out = None if args.json_path is None else outputs.stage(args.json_path)
         report = _process(args, output, progress, outputs)
+        failed = _gate_failures(args, report)
         if json_out is not None:
-            outputs.fill(json_out, json_text(report.to_json()).encode("utf-8"))
+            data = report.to_json()
+            # The verdict a pipeline acts on, beside the exit code.
+            data["gates"] = {
+                "fail_above": args.fail_above,
+                "fail_on_break": bool(args.fail_on_break),
+                "failed": failed,
+            }
+            outputs.fill(json_out, json_text(data).encode("utf-8"))
     out = sys.stderr if outputs.uses_stdout else sys.stdout
     _print_summary(report, out)
     # Failed gates are named even when the salvage decides the exit code (4).
-    failed = _gate_failures(args, report)
     for reason in failed:
         print(f"error: {args.input}: {reason}", file=sys.stderr)
     if report.losses:

@@ -165,6 +165,10 @@ def test_fail_on_break_gate_and_json_first_break(
     assert data["topics"]["/map"]["break_score_max_m"] == max(scores)
     assert {s["resolution_m"] for s in data["snapshots"]} == {0.05}
     assert data["topics"]["/map"]["first_w_above"]["index"] == 3
+    gates = data["gates"]
+    assert gates["fail_on_break"] and gates["fail_above"] is None
+    (reason,) = gates["failed"]
+    assert f"error: {built.path}: {reason}" in err  # as the error line says it
 
 
 def test_topic_selection_and_rose_params(tmp_path: Path, capsys, fr079) -> None:
