@@ -128,7 +128,7 @@ def _topic_container(layout: TopicLayout) -> rrb.Container:
     scores = rrb.Spatial2DView(
         name=f"{root}: scores of occupied cells",
         origin=f"/{paths.scores_view}",
-        visual_bounds=_north_up_bounds(layout.bounds_m, below=0.22),  # and the colour bar
+        visual_bounds=_north_up_bounds(layout.bounds_m, below=0.45),  # and the colour bar
     )
     w_plot = _session_plot(
         f"{root}: structure score W over session time", f"/{paths.score}", layout.w_top

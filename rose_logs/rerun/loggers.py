@@ -463,7 +463,8 @@ class TopicLogger:
         bounds = (occupied or conv.occupied_cells(result)).bounds or (0, 0, cols, rows)
         box_w, box_h = bounds[2] - bounds[0], bounds[3] - bounds[1]
         left, width = bounds[0] + 0.2 * box_w, 0.6 * box_w
-        top, height = rows - bounds[1] + 0.04 * box_h, max(0.035 * box_h, 2.0)
+        # Far enough below for the threshold's label to sit between the cells and the bar.
+        top, height = rows - bounds[1] + 0.22 * box_h, max(0.035 * box_h, 2.0)
         placement = (
             left,
             top,
@@ -487,11 +488,11 @@ class TopicLogger:
         def u_of(score: float) -> float:
             return left + width * float(conv.score_to_unit(np.array([score]))[0])
 
-        below = top + height + 0.07 * box_h
+        below = top + height + 0.09 * box_h
         positions = [(u_of(style.SCORE_DISPLAY_MIN), below), (u_of(1.0), below)]
         labels = [f"score {style.SCORE_DISPLAY_MIN:g}", "1 (best cell)"]
         if math.isfinite(result.threshold):
-            positions.append((u_of(result.threshold), top - 0.1 * box_h))
+            positions.append((u_of(result.threshold), top - 0.2 * box_h))
             labels.append(f"threshold {result.threshold:.2f}")
         rec.log(
             paths.cell_scores,
