@@ -592,7 +592,7 @@ class _Loop:
                 elif channel.topic in self.orphans:
                     self.skips.add(
                         "updates of no known map",
-                        f"{channel.topic}: grid update at {message.log_time_ns} ns whose map "
+                        f"{channel.topic}: grid update {self._at(message.log_time_ns)} whose map "
                         "cannot be told (<map>_updates whose map is not in the log, or another "
                         "name and several map topics)",
                     )
@@ -650,6 +650,10 @@ class _Loop:
                 return
             self.queue.popleft()
 
+    def _at(self, log_time_ns: int) -> str:
+        """When a message was logged, as people and tools read it: session time and log time."""
+        return f"at +{(log_time_ns - self.reader.start_ns) / 1e9:.1f} s ({log_time_ns} ns)"
+
     @property
     def skipped(self) -> int:
         """Map messages copied unprocessed."""
@@ -662,7 +666,7 @@ class _Loop:
                 data, serialization=self.serialization, topic=topic, log_time_ns=log_time_ns
             )
         except MapMessageError as err:
-            self.skips.add("malformed", f"{short(err, 240)} at {log_time_ns} ns")
+            self.skips.add("malformed", f"{short(err, 240)} {self._at(log_time_ns)}")
             return
         self.last_map[topic] = snapshot
         self._note_out_of_range(topic, snapshot.out_of_range_cells, log_time_ns)
@@ -691,13 +695,13 @@ class _Loop:
             if base is None:
                 self.skips.add(
                     "before the first full map",
-                    f"{topic}: grid update at {log_time_ns} ns before the first full map on "
+                    f"{topic}: grid update {self._at(log_time_ns)} before the first full map on "
                     f"{target}",
                 )
                 return
             snapshot = apply_update(base, update)
         except (MapMessageError, ValueError) as err:
-            self.skips.add("malformed", f"{short(err, 240)} at {log_time_ns} ns")
+            self.skips.add("malformed", f"{short(err, 240)} {self._at(log_time_ns)}")
             return
         self.last_map[target] = snapshot
         self._note_out_of_range(target, snapshot.out_of_range_cells, log_time_ns)
@@ -709,7 +713,7 @@ class _Loop:
         too_large = check_cells(*snapshot.shape, self.max_cells)
         if too_large is not None:
             self.skips.add(
-                "over --max-cells", f"{topic}: map of {too_large} at {snapshot.log_time_ns} ns"
+                "over --max-cells", f"{topic}: map of {too_large} {self._at(snapshot.log_time_ns)}"
             )
             return
         assert self.executor is not None and self.detection is not None, "called inside run()"
@@ -735,7 +739,8 @@ class _Loop:
             analysis = pending.future.result()
         except rose.RoseError as err:  # e.g. a map too thin to analyse
             self.skips.add(
-                "not analysable", f"{topic}: map at {snapshot.log_time_ns} ns not analysed ({err})"
+                "not analysable",
+                f"{topic}: map {self._at(snapshot.log_time_ns)} not analysed ({err})",
             )
             return
         # Numbered among the analysed snapshots, as the break detector (which has seen this one)
@@ -778,7 +783,8 @@ class _Loop:
             )
         except (struct.error, OverflowError, ValueError, TypeError) as err:
             self.skips.add(
-                "not encodable", f"{snapshot.topic}: cannot encode the results ({err}) at {t} ns"
+                "not encodable",
+                f"{snapshot.topic}: cannot encode the results ({err}) {self._at(t)}",
             )
             return
         for handle, data in zip(self.derived[snapshot.topic], encoded, strict=True):

@@ -281,6 +281,8 @@ def test_maps_over_the_cell_limit_are_named_so_and_warned_about_in_one_line(
     lines = err.strip().splitlines()
     assert len(lines) == 5, err  # 3 warnings, 1 for the other 3, the error
     assert all("exceeds the limit" in line for line in lines[:3])
+    # When, as the summary says it (session time) and as tools take it (log time, ns).
+    assert f"at +1.0 s ({START_NS + 1_000_000_000} ns)" in lines[1]
     assert lines[3] == "warning: 3 more map messages over --max-cells, copied unprocessed"
     assert lines[4].endswith("no map message on /map could be analysed (6 over --max-cells)")
     assert "malformed" not in err
