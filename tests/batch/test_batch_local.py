@@ -567,7 +567,7 @@ def test_recordings_processed_side_by_side_keep_their_own_warnings(tmp_path: Pat
             )
         )
     for result in results:
-        said = {int(t) for w in result.warnings for t in re.findall(r"at (\d+) ns", w)}
+        said = {int(t) for w in result.warnings for t in re.findall(r"\((\d+) ns\)", w)}
         assert said == times[result.uri], result.warnings
     assert [r.status for r in results] == ["ok", "ok", "error"]
     assert (logging.getLogger("rose_logs").handlers, logging.getLogger("rose_logs").propagate) == (
