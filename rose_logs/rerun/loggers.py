@@ -8,6 +8,7 @@ converted by :mod:`rose_logs.rerun.conversions` (north up, image row order).
 from __future__ import annotations
 
 import math
+from typing import Literal
 
 import numpy as np
 import numpy.typing as npt
@@ -55,7 +56,7 @@ def _image_buffer(image: npt.NDArray[np.uint8]) -> pa.ListArray:
 
 
 def _u8_format(
-    image: npt.NDArray[np.uint8], color_model: str | None = None
+    image: npt.NDArray[np.uint8], color_model: Literal["L"] | None = None
 ) -> rr.components.ImageFormat:
     """Rerun's format of a single-channel uint8 image (``color_model="L"`` for a grey image)."""
     rows, cols = image.shape

@@ -19,7 +19,9 @@ __all__ = [
     "offered_qos",
     "qos_style",
     "qos_yaml",
+    "require_definition",
     "transient_local_qos",
+    "warn_no_definition",
 ]
 
 QosStyle = Literal["v8", "v9"]
@@ -62,14 +64,10 @@ def _reliable_qos(depth: int, *, transient_local: bool) -> Qos:
 def definitions(channel: Channel, ros_version: int) -> tuple[str, str]:
     """``(msgdef, digest)`` for an output connection of ``channel``; computed when the input lacked one.
 
-    A ROS 2 type known neither to the input nor to rosbags (a custom type of a Humble bag, which
-    stores no definitions) gets ``("", "")``: its messages are copied byte for byte, which needs no
-    definition, and ROS 2 bags and MCAP files may lack one (as Humble's do). A ROS 1 bag cannot.
-
-    Raises
-    ------
-    LogWriteError
-        For a ROS 1 output (``ros_version`` 1) of a type whose definition is unknown.
+    A type known neither to the input nor to rosbags (a custom type of a Humble bag, which stores
+    no definitions) gets ``("", "")`` (:func:`warn_no_definition` says so): its messages are copied byte for byte, which
+    needs no definition, and ROS 2 bags and MCAP files may lack one (as Humble's do). A ROS 1 bag
+    cannot: its writer refuses an empty definition (:func:`require_definition`).
     """
     serialization = "ros1" if ros_version == 1 else "cdr"
     wanted = "ros1msg" if ros_version == 1 else "ros2"
@@ -89,21 +87,34 @@ def definitions(channel: Channel, ros_version: int) -> tuple[str, str]:
             _LOG.debug("could not hash the definition of %s", channel.msgtype, exc_info=True)
     try:
         return msgdef_for(channel.msgtype, serialization)
-    except Exception as err:
-        if ros_version == 2:
-            _LOG.warning(
-                "%s: no message definition of %s in the input (a Humble bag stores none): copied "
-                "without one; tools that decode it need its package",
-                channel.topic,
-                channel.msgtype,
-            )
-            return "", ""
+    except Exception:
+        return "", ""
+
+
+def warn_no_definition(channel: Channel) -> None:
+    """Say that ``channel`` is copied without a message definition (:func:`definitions` had none)."""
+    _LOG.warning(
+        "%s: no message definition of %s in the input (Humble bags store none): copied without "
+        "one; tools that decode it need its package",
+        channel.topic,
+        channel.msgtype or "its type",
+    )
+
+
+def require_definition(channel: Channel, msgdef: str) -> None:
+    """Refuse a channel without a message definition in a ROS 1 bag, whose connections need one.
+
+    Raises
+    ------
+    LogWriteError
+        If ``msgdef`` is empty.
+    """
+    if not msgdef:
         msg = (
-            f"a ROS 1 bag needs the message definition of {channel.msgtype} (topic "
-            f"{channel.topic}), which the input does not have: write a ROS 2 bag or MCAP "
-            "(--format db3, mcap or mcap-dir)"
+            f"a ROS 1 bag needs the message definition of {channel.msgtype or 'an untyped topic'} "
+            f"(topic {channel.topic}), which the input does not have: write MCAP (--format mcap)"
         )
-        raise LogWriteError(msg) from err
+        raise LogWriteError(msg)
 
 
 def _split_msgdef(msgtype: str, text: str) -> list[tuple[str, str]]:

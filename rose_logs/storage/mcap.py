@@ -17,6 +17,7 @@ from rose_logs.storage.connections import (
     offered_qos,
     qos_style,
     qos_yaml,
+    warn_no_definition,
 )
 from rose_logs.storage.records import (
     Channel,
@@ -302,6 +303,7 @@ class McapWriteBackend(WriteBackend):
             encoding = "ros1msg" if ros1 else (channel.msgdef_encoding or "ros2msg")
             if not data:  # no definition known (see definitions): a schema without encoding
                 encoding = ""
+                warn_no_definition(channel)
         key = (name, encoding, data)
         schema_id = self.schemas.get(key)
         if schema_id is None:

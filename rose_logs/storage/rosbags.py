@@ -11,7 +11,14 @@ from typing import Any, Literal
 from rose_logs.errors import LogReadError
 from rose_logs.formats import LogFormat
 from rose_logs.storage.base import WriteBackend
-from rose_logs.storage.connections import QosStyle, definitions, offered_qos, qos_style
+from rose_logs.storage.connections import (
+    QosStyle,
+    definitions,
+    offered_qos,
+    qos_style,
+    require_definition,
+    warn_no_definition,
+)
 from rose_logs.storage.records import Channel, RawMessage, normalize_msgtype
 
 __all__ = ["Ros1WriteBackend", "Ros2WriteBackend", "RosbagsReadBackend"]
@@ -184,6 +191,7 @@ class Ros1WriteBackend(_RosbagsWriteBackend):
         self.writer.open()
 
     def _add_connection(self, channel: Channel, msgdef: str, digest: str) -> Any:
+        require_definition(channel, msgdef)
         return self.writer.add_connection(
             channel.topic,
             channel.msgtype,
@@ -214,6 +222,7 @@ class Ros2WriteBackend(_RosbagsWriteBackend):
     def _add_connection(self, channel: Channel, msgdef: str, digest: str) -> Any:
         storage = self.writer.storage
         if not msgdef:
+            warn_no_definition(channel)
             # rosbags would store an empty ros2msg definition, which its readers parse as a type
             # without fields whose hash then mismatches (they refuse the bag): store none instead,
             # as Humble's rosbag2 does.

@@ -361,3 +361,41 @@ def test_a_custom_type_without_definition_is_copied_and_stored_without_one(
         formats = {c.topic: c.msgdef.format for c in reader.connections}
     assert formats["/status"] == MessageDefinitionFormat.NONE
     assert formats["/map"] == MessageDefinitionFormat.MSG
+
+
+def test_a_ros1_type_without_definition_goes_to_mcap_not_to_a_ros1_bag(
+    tmp_path: Path, fr079: list[npt.NDArray[np.int8]], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A ROS 1 MCAP whose custom type has no definition: a ROS 1 bag cannot hold it (the error
+    names the format that can, not db3, which refuses ROS 1 messages); MCAP copies it."""
+    from conftest import MapMsg, _map_message, typestore
+    from mcap.writer import Writer
+
+    from rose_logs.cli import main
+
+    store = typestore("ros1")
+    src = tmp_path / "in.mcap"
+    with src.open("wb") as stream:
+        writer = Writer(stream)
+        writer.start(profile="ros1", library="test")
+        msgdef, md5 = store.generate_msgdef("nav_msgs/msg/OccupancyGrid")
+        grid = writer.register_channel(
+            "/map",
+            "ros1",
+            writer.register_schema("nav_msgs/OccupancyGrid", "ros1msg", msgdef.encode()),
+            {"md5sum": md5},
+        )
+        custom = writer.register_channel(
+            "/status", "ros1", writer.register_schema("my_msgs/Status", "ros1msg", b""), {}
+        )
+        writer.add_message(grid, 1, _map_message(store, "ros1", MapMsg(1, fr079[0]), 1)[1], 1, 0)
+        writer.add_message(custom, 2, b"\x00", 2, 1)
+        writer.finish()
+    assert main(["process", str(src), "-o", str(tmp_path / "o.bag"), "-q"]) == 1
+    err = capsys.readouterr().err
+    assert "a ROS 1 bag needs the message definition of my_msgs/msg/Status" in err
+    assert err.strip().endswith("write MCAP (--format mcap)") and "warning" not in err
+    assert main(["process", str(src), "-o", str(tmp_path / "o.mcap"), "-q"]) == 0
+    assert "/status: no message definition of my_msgs/msg/Status" in capsys.readouterr().err
+    with LogReader(tmp_path / "o.mcap") as reader:
+        assert [bytes(m.data) for m in reader.messages(topics=["/status"])] == [b"\x00"]
