@@ -395,7 +395,6 @@ def test_a_ros1_type_without_definition_goes_to_mcap_not_to_a_ros1_bag(
     err = capsys.readouterr().err
     assert "a ROS 1 bag needs the message definition of my_msgs/msg/Status" in err
     assert err.strip().endswith("write MCAP (--format mcap)") and "warning" not in err
-    assert main(["process", str(src), "-o", str(tmp_path / "o.mcap"), "-q"]) == 0
-    assert "/status: no message definition of my_msgs/msg/Status" in capsys.readouterr().err
+    assert main(["process", str(src), "-o", str(tmp_path / "o.mcap"), "-q"]) == 0  # as it came
     with LogReader(tmp_path / "o.mcap") as reader:
         assert [bytes(m.data) for m in reader.messages(topics=["/status"])] == [b"\x00"]
