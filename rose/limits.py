@@ -99,6 +99,8 @@ class _StrictLoader(yaml.SafeLoader):
         # `image:` twice means two different maps, so neither reading is taken.
         seen: set[Any] = set()
         for key_node, _ in node.value:
+            if key_node.tag == "tag:yaml.org,2002:merge":  # `<<:` merges, explicit keys win
+                continue
             key = self.construct_object(key_node, deep=deep)
             if isinstance(key, Hashable) and key in seen:
                 raise yaml.constructor.ConstructorError(

@@ -38,6 +38,8 @@ def test_hostile_yaml_is_refused_without_expanding(text: str, match: str) -> Non
 
 def test_plain_yaml_still_loads() -> None:
     assert load_yaml("image: m.pgm\norigin: [0, 0, 0]\n") == {"image": "m.pgm", "origin": [0, 0, 0]}
+    # An inline merge is no repeated key (the check for those broke it).
+    assert load_yaml("<<: {a: 1, b: 3}\nb: 2\n") == {"a": 1, "b": 2}
 
 
 def _png(width: int, height: int) -> bytes:
