@@ -36,7 +36,9 @@ class TopicLayout:
         Entity root of the topic.
     bounds_m : tuple of float or None
         ``(x_min, y_min, x_max, y_max)`` of the known part of the map in the map frame, metres (None
-        before any map): the metric view looks at it from above.
+        before any map): the metric view looks at it from above, the 2D views frame it north up.
+    view_origin_m : tuple of float
+        Map-frame point at the 2D views' 0 (:func:`rose_logs.rerun.loggers.view_origin_m`).
     has_events : bool
         Whether the topic has break events (the events view is shown only then).
     w_top, break_top : float or None
@@ -46,6 +48,7 @@ class TopicLayout:
 
     root: str
     bounds_m: tuple[float, float, float, float] | None = None
+    view_origin_m: tuple[float, float] = (0.0, 0.0)
     has_events: bool = False
     w_top: float | None = None
     break_top: float | None = None
@@ -86,19 +89,18 @@ def _metric_eye(bounds_m: tuple[float, float, float, float] | None) -> rrb.EyeCo
     )
 
 
-def _north_up_bounds(
-    bounds_m: tuple[float, float, float, float] | None, *, below: float = 0.0
-) -> rrb.VisualBounds2D | None:
-    """The map-frame box ``bounds_m`` in the 2D views' north-up frame (x east, y south, metres:
-    :func:`rose_logs.rerun.loggers.image_placement`), with a margin, and ``below`` times its height
-    more under it."""
-    if bounds_m is None:
+def _north_up_bounds(layout: TopicLayout, *, below: float = 0.0) -> rrb.VisualBounds2D | None:
+    """The known box of ``layout`` in the 2D views' north-up frame (x east, y south, metres from
+    its view origin: :func:`rose_logs.rerun.loggers.image_placement`), with a margin, and
+    ``below`` times its height more under it."""
+    if layout.bounds_m is None:
         return None
-    x0, y0, x1, y1 = bounds_m
+    x0, y0, x1, y1 = layout.bounds_m
+    rx, ry = layout.view_origin_m
     margin = 0.03 * max(x1 - x0, y1 - y0)
     return rrb.VisualBounds2D(
-        x_range=(x0 - margin, x1 + margin),
-        y_range=(-y1 - margin, -y0 + margin + below * (y1 - y0)),
+        x_range=(x0 - rx - margin, x1 - rx + margin),
+        y_range=(ry - y1 - margin, ry - y0 + margin + below * (y1 - y0)),
     )
 
 
@@ -109,7 +111,7 @@ def _topic_container(layout: TopicLayout) -> rrb.Container:
     segmentation = rrb.Spatial2DView(
         name=f"{root}: segmentation, structure (blue) / clutter (orange), north up",
         origin=f"/{paths.cells}",
-        visual_bounds=_north_up_bounds(layout.bounds_m),
+        visual_bounds=_north_up_bounds(layout),
     )
     spacing = _grid_spacing_m(layout.bounds_m)
     metric = rrb.Spatial3DView(
@@ -128,7 +130,7 @@ def _topic_container(layout: TopicLayout) -> rrb.Container:
     scores = rrb.Spatial2DView(
         name=f"{root}: scores of occupied cells",
         origin=f"/{paths.scores_view}",
-        visual_bounds=_north_up_bounds(layout.bounds_m, below=0.45),  # and the colour bar
+        visual_bounds=_north_up_bounds(layout, below=0.45),  # and the colour bar
     )
     w_plot = _session_plot(
         f"{root}: structure score W over session time", f"/{paths.score}", layout.w_top

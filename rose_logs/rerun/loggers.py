@@ -71,34 +71,34 @@ def segmentation_image(image: npt.NDArray[np.uint8]) -> rr.SegmentationImage:
     return rr.SegmentationImage.from_fields(buffer=_image_buffer(image), format=_u8_format(image))
 
 
-def image_placement(
-    snapshot: MapSnapshot,
-    *,
-    offset_px: tuple[float, float] = (0.0, 0.0),
-    scale_px: tuple[float, float] = (1.0, 1.0),
-) -> rr.Transform3D:
-    """Where the 2D views draw pixels of ``snapshot``'s north-up images: in metres of the map frame,
-    north up (x east, y south: 2D views draw y downwards).
+def view_origin_m(snapshot: MapSnapshot) -> tuple[float, float]:
+    """Map-frame point (metres, on a 100 m lattice) that the 2D views of a topic put at their 0:
+    its first snapshot's origin, rounded. Rerun places things in float32, whose steps are 0.5 m
+    at a UTM northing; near 0 they are micrometres."""
+    x, y = (float(v) for v in snapshot.origin_position_m[:2])
+    return round(x, -2), round(y, -2)
+
+
+def image_placement(snapshot: MapSnapshot, view_origin: tuple[float, float]) -> rr.Transform3D:
+    """Where the 2D views draw pixels of ``snapshot``'s north-up images: in metres of the map frame
+    from ``view_origin`` (:func:`view_origin_m`), north up (x east, y south: 2D views draw y
+    downwards).
 
     Every snapshot lands where it lies in the map, so a map that grows, moves its origin or changes
     resolution during a session stays in place in the views (in pixels, each grid size had its own
-    frame: a growing map jumped and shrank in a fixed view). Something drawn in an image's pixels
-    at ``offset_px`` with ``scale_px`` (the score colour bar) comes along.
+    frame: a growing map jumped and shrank in a fixed view).
     """
-    translation, angle, scale = placement_terms(snapshot, offset_px=offset_px, scale_px=scale_px)
+    translation, angle, scale = placement_terms(snapshot, view_origin)
     return rr.Transform3D(
         translation=[*translation, 0.0],
         rotation=rr.RotationAxisAngle(axis=[0.0, 0.0, 1.0], radians=angle),
-        scale=[*scale, 1.0],
+        scale=[scale, scale, 1.0],
     )
 
 
 def placement_terms(
-    snapshot: MapSnapshot,
-    *,
-    offset_px: tuple[float, float] = (0.0, 0.0),
-    scale_px: tuple[float, float] = (1.0, 1.0),
-) -> tuple[tuple[float, float], float, tuple[float, float]]:
+    snapshot: MapSnapshot, view_origin: tuple[float, float]
+) -> tuple[tuple[float, float], float, float]:
     """``(translation, rotation angle (radians, about z), scale)`` of :func:`image_placement`:
     a pixel ``p`` lands at ``translation + R(angle) (scale * p)``."""
     res = float(snapshot.resolution_m)
@@ -106,14 +106,18 @@ def placement_terms(
     c, s = math.cos(yaw), math.sin(yaw)
     ox, oy = (float(v) for v in snapshot.origin_position_m[:2])
     rows = snapshot.grid.shape[0]
-    # Pixel (u, v) is grid point (res u, res (rows - v)); rotate by yaw, translate by the origin,
-    # negate y: X = ox + res (c u + s v) - s res rows, Y = -oy + res (-s u + c v) - c res rows.
-    u, v = offset_px
-    translation = (
-        ox - s * res * rows + res * (c * u + s * v),
-        -oy - c * res * rows + res * (-s * u + c * v),
-    )
-    return translation, -yaw, (res * scale_px[0], res * scale_px[1])
+    # Pixel (u, v) is grid point (res u, res (rows - v)); rotate by yaw, translate by the origin
+    # (less the view's), negate y: X = ox - rx + res (c u + s v) - s res rows, Y likewise.
+    translation = (ox - view_origin[0] - s * res * rows, -(oy - view_origin[1]) - c * res * rows)
+    return translation, -yaw, res
+
+
+def north_up_m(
+    snapshot: MapSnapshot, cells: npt.NDArray[np.float64], view_origin: tuple[float, float]
+) -> npt.NDArray[np.float64]:
+    """Continuous grid-frame cells ``(..., 2)`` -> the 2D views' north-up metres ``(..., 2)``."""
+    xy = cells_to_map_m(snapshot, cells)[..., :2]
+    return np.stack([xy[..., 0] - view_origin[0], view_origin[1] - xy[..., 1]], axis=-1)
 
 
 def set_snapshot_time(
@@ -167,8 +171,14 @@ class TopicLogger:
         self.paths = paths
         self.failure_level = float(failure_level)
         self.trust_level = float(trust_level)
-        self._legend_placement: tuple[object, ...] | None = None
+        self.view_origin_m: tuple[float, float] | None = None  # set by the first snapshot
         self._threshold_logged = False
+
+    def _origin_for(self, snapshot: MapSnapshot) -> tuple[float, float]:
+        """The 2D views' 0 in the map frame (:func:`view_origin_m` of the topic's first snapshot)."""
+        if self.view_origin_m is None:
+            self.view_origin_m = view_origin_m(snapshot)
+        return self.view_origin_m
 
     # ------------------------------------------------------------------------------------------
     # Static data: sent once per recording (the web viewer drops a class table sent again)
@@ -261,10 +271,19 @@ class TopicLogger:
                     rr.Points3D.from_fields(colors=direction, radii=point, show_labels=True),
                 ],
             ),
+            (paths.cell_scores, [rr.SegmentationImage.from_fields(opacity=1.0)]),
             (
-                paths.cell_scores,
+                paths.score_legend,
                 [
-                    rr.SegmentationImage.from_fields(opacity=1.0),
+                    # The colour bar (levels x 2 pixels; its placement follows the map).
+                    rr.SegmentationImage(
+                        np.repeat(
+                            np.arange(1, style.DISPLAY_LEVELS + 1, dtype=np.uint8)[np.newaxis],
+                            2,
+                            axis=0,
+                        ),
+                        opacity=1.0,
+                    ),
                     rr.Points2D.from_fields(colors=style.AXIS_COLOR, radii=0.0, show_labels=True),
                 ],
             ),
@@ -379,7 +398,9 @@ class TopicLogger:
             snapshot.grid, result, occupied, rescued=rescued, dropped=dropped
         )
         self.recording.log(
-            self.paths.segmentation, segmentation_image(image), image_placement(snapshot)
+            self.paths.segmentation,
+            segmentation_image(image),
+            image_placement(snapshot, self._origin_for(snapshot)),
         )
 
     def log_directions(
@@ -414,7 +435,7 @@ class TopicLogger:
             rr.Points2D.from_fields(
                 positions=_f32(conv.cells_to_pixels(anchors, rows)), labels=map_labels
             ),
-            image_placement(snapshot),
+            image_placement(snapshot, self._origin_for(snapshot)),
         )
         rec.log(
             paths.metric_directions,
@@ -445,7 +466,7 @@ class TopicLogger:
         rec.log(
             paths.cell_walls,
             rr.LineStrips2D(_f32(pixels), colors=style.WALL_COLOR, radii=radius),
-            image_placement(snapshot),
+            image_placement(snapshot, self._origin_for(snapshot)),
         )
 
     def log_cell_scores(
@@ -459,46 +480,38 @@ class TopicLogger:
         threshold."""
         rec, paths = self.recording, self.paths
         rows, cols = result.occupied.shape
-        levels = style.DISPLAY_LEVELS
-        # Under the occupied cells' box, in image pixels (a SLAM map's grid is mostly unknown).
-        bounds = (occupied or conv.occupied_cells(result)).bounds or (0, 0, cols, rows)
-        box_w, box_h = bounds[2] - bounds[0], bounds[3] - bounds[1]
-        left, width = bounds[0] + 0.2 * box_w, 0.6 * box_w
-        # Far enough below for the threshold's label to sit between the cells and the bar.
-        top, height = rows - bounds[1] + 0.22 * box_h, max(0.035 * box_h, 2.0)
-        placement = (
-            left,
-            top,
-            width,
-            rows,
-            float(snapshot.resolution_m),
-            tuple(float(v) for v in snapshot.origin_position_m),
-            float(snapshot.origin_yaw_rad),
+        origin = self._origin_for(snapshot)
+        # Under the occupied cells' box (a SLAM map's grid is mostly unknown), north up in the
+        # view's metres whatever the origin's yaw.
+        x0, y0, x1, y1 = (occupied or conv.occupied_cells(result)).bounds or (0, 0, cols, rows)
+        corners = north_up_m(
+            snapshot, np.array([[x0, y0], [x1, y0], [x0, y1], [x1, y1]], float), origin
         )
-        if self._legend_placement != placement:
-            bar = np.repeat(np.arange(1, levels + 1, dtype=np.uint8)[np.newaxis], 2, axis=0)
-            rec.log(
-                paths.score_legend,
-                rr.SegmentationImage(bar, opacity=1.0),
-                image_placement(
-                    snapshot, offset_px=(left, top), scale_px=(width / levels, height / 2)
-                ),
-            )
-            self._legend_placement = placement
+        (west, north), (east, south) = corners.min(axis=0), corners.max(axis=0)
+        box_w, box_h = east - west, south - north
+        levels = style.DISPLAY_LEVELS
+        left, width = west + 0.2 * box_w, 0.6 * box_w
+        # Far enough below for the threshold's label to sit between the cells and the bar.
+        top, height = south + 0.22 * box_h, max(0.035 * box_h, 2.0 * float(snapshot.resolution_m))
+        scale = (width / levels, height / 2)  # metres per pixel of the bar (levels x 2 pixels)
 
         def u_of(score: float) -> float:
-            return left + width * float(conv.score_to_unit(np.array([score]))[0])
+            return levels * float(conv.score_to_unit(np.array([score]))[0])
 
-        below = top + height + 0.09 * box_h
+        below = (height + 0.09 * box_h) / scale[1]
         positions = [(u_of(style.SCORE_DISPLAY_MIN), below), (u_of(1.0), below)]
         labels = [f"score {style.SCORE_DISPLAY_MIN:g}", "1 (best cell)"]
         if math.isfinite(result.threshold):
-            positions.append((u_of(result.threshold), top - 0.2 * box_h))
+            positions.append((u_of(result.threshold), -0.2 * box_h / scale[1]))
             labels.append(f"threshold {result.threshold:.2f}")
         rec.log(
             paths.cell_scores,
             segmentation_image(conv.masked_score_image(result, occupied)),
-            image_placement(snapshot),
+            image_placement(snapshot, origin),
+        )
+        rec.log(
+            paths.score_legend,
+            rr.Transform3D(translation=[left, top, 0.0], scale=[*scale, 1.0]),
             rr.Points2D.from_fields(positions=_f32(np.array(positions)), labels=labels),
         )
 

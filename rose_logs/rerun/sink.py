@@ -35,7 +35,7 @@ from rose.directions import FAILURE_LEVEL, TRUST_LEVEL
 from rose.result import RoseResult
 from rose.walls import WallSet
 from rose_logs.rerun.blueprint import TopicLayout, default_blueprint
-from rose_logs.rerun.loggers import TopicLogger, set_snapshot_time
+from rose_logs.rerun.loggers import TopicLogger, set_snapshot_time, view_origin_m
 from rose_logs.rerun.paths import EntityPaths, entity_root_for_topic
 from rose_logs.session.breaks import BreakScore
 from rose_logs.session.report import w_judges
@@ -178,8 +178,15 @@ def _top(*values: float) -> float:
     return max((v for v in values if math.isfinite(v)), default=0.0)
 
 
-def _layout_of(root: str, snapshot: MapSnapshot | None, *, has_events: bool) -> TopicLayout:
-    """Layout of a topic framed on the known part of its latest map."""
+def _layout_of(
+    root: str,
+    snapshot: MapSnapshot | None,
+    *,
+    has_events: bool,
+    view_origin: tuple[float, float] | None,
+) -> TopicLayout:
+    """Layout of a topic framed on the known part of its latest map (``view_origin``: the 2D
+    views' 0, see :func:`rose_logs.rerun.loggers.view_origin_m`)."""
     from rose_logs.rerun.conversions import known_bounds_cells
     from rose_logs.rerun.loggers import cells_to_map_m
 
@@ -197,6 +204,7 @@ def _layout_of(root: str, snapshot: MapSnapshot | None, *, has_events: bool) -> 
     return TopicLayout(
         root,
         bounds_m=bounds_m,
+        view_origin_m=view_origin if view_origin is not None else (0.0, 0.0),
         has_events=has_events,
     )
 
@@ -366,6 +374,8 @@ class RerunSink:
         the cleaning kept as walls, ``dropped``: structure cells it removed (grid order)."""
         topic_logger = self.loggers[snapshot.topic]
         first = snapshot.topic not in self._latest
+        if first:  # here, not on the logging thread: the layout sent below uses it
+            topic_logger.view_origin_m = view_origin_m(snapshot)
         self._latest[snapshot.topic] = snapshot
         if w_judges(result.occupied_count):  # an empty map's W (1 by convention) is not plotted
             self._w_top[snapshot.topic] = _top(self._w_top[snapshot.topic], result.structure_score)
@@ -430,7 +440,10 @@ class RerunSink:
             return
         layouts = tuple(
             _layout_of(
-                logger.paths.root, self._latest.get(topic), has_events=self._has_events[topic]
+                logger.paths.root,
+                self._latest.get(topic),
+                has_events=self._has_events[topic],
+                view_origin=logger.view_origin_m,
             )
             for topic, logger in self.loggers.items()
         )

@@ -363,8 +363,18 @@ def _rerun_sink(
     """The Rerun recording of a session: one entity root per map topic; the id ``recording_id``, else
     derived from the input's full path and content (:func:`rose_logs.rerun.recording_id_for`)."""
     from rose_logs.rerun import RerunSink, recording_id_for  # rerun loads only when used
+    from rose_logs.rerun.paths import entity_root_for_topic
     from rose_logs.rerun.sink import viewer_unreachable
 
+    roots: dict[str, str] = {}
+    for topic in map_topics:
+        other = roots.setdefault(entity_root_for_topic(topic), topic)
+        if other != topic:  # /map and /Map, or /map and /map/: one set of Rerun entities
+            msg = (
+                f"{input_path}: map topics {other} and {topic} would both be recorded under the "
+                f"Rerun entity {entity_root_for_topic(topic)}; pick one with --topic"
+            )
+            raise LogWriteError(msg)
     if connect is not None:
         try:
             reason = viewer_unreachable(connect)

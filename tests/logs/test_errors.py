@@ -600,6 +600,13 @@ def test_two_map_topics_that_would_share_their_outputs_are_named(
     assert not (tmp_path / "o.mcap").exists()
     code, _, _ = _run(capsys, "process", built.path, "-o", tmp_path / "o.mcap", "-q", "-t", "/map/")
     assert code == 0
+    # /map and /Map have outputs of their own, but one set of Rerun entities (map/...).
+    maps = [MapMsg(START_NS + 1, fr079[0]), MapMsg(START_NS + 2, fr079[1], topic="/Map")]
+    built = build_log(tmp_path / "cased.mcap", "mcap-ros2", maps)
+    code, _, err = _run(capsys, "process", built.path, "--no-output", "--rrd", tmp_path / "r.rrd")
+    assert code == 1
+    assert "map topics /Map and /map would both be recorded under the Rerun entity map" in err
+    assert not (tmp_path / "r.rrd").exists()
 
 
 def test_a_mistyped_topic_gets_a_suggestion(tmp_path: Path, capsys, fr079) -> None:

@@ -122,7 +122,8 @@ def test_styles_are_static_and_snapshots_send_only_what_changes(clean_session) -
         PATHS.grid: {"GridMap:colormap"},
         PATHS.cell_directions: {"LineStrips2D:colors", "Points2D:colors", "Points2D:show_labels"},
         PATHS.metric_directions: {"LineStrips3D:colors", "Points3D:colors", "Points3D:show_labels"},
-        PATHS.cell_scores: {"SegmentationImage:opacity", "Points2D:colors"},
+        PATHS.cell_scores: {"SegmentationImage:opacity"},
+        PATHS.score_legend: {"SegmentationImage:buffer", "Points2D:colors"},
         PATHS.spectrum: {"DepthImage:colormap", "DepthImage:meter", "LineStrips2D:colors"},
         PATHS.amplitude_curve: {"Points2D:colors", "Points2D:show_labels"},
     }
@@ -462,29 +463,74 @@ def test_direction_labels_give_the_map_frames_angles(tmp_path: Path, fr079) -> N
     assert cells["Points2D:labels"] == turned
 
 
-@pytest.mark.parametrize("yaw", [0.0, 0.7])
-def test_2d_views_place_every_snapshot_where_it_lies_in_the_map(yaw: float) -> None:
-    """A pixel of a snapshot's images lands at its cell's map-frame metres, north up (y negated):
-    maps that grow, move their origin or change resolution stay in place in the 2D views."""
+@pytest.mark.parametrize(("yaw", "origin"), [(0.0, (-3.0, 7.0)), (0.7, (654_321.5, 5_400_012.3))])
+def test_2d_views_place_every_snapshot_where_it_lies_in_the_map(
+    yaw: float, origin: tuple[float, float]
+) -> None:
+    """A pixel of a snapshot's images lands at its cell's map-frame metres, north up (y negated),
+    from the view origin: maps that grow, move their origin or change resolution stay in place in
+    the 2D views, and a UTM-sized origin keeps Rerun's float32 placement to the mm."""
     import math
 
-    from rose_logs.rerun.loggers import cells_to_map_m, placement_terms
+    from rose_logs.rerun.loggers import cells_to_map_m, placement_terms, view_origin_m
     from rose_logs.snapshots import MapSnapshot
 
     grid = np.zeros((30, 50), dtype=np.int8)
     snapshot = MapSnapshot(
-        "/map", 1, 1, "map", grid, 0.1, (-3.0, 7.0, 0.0),
+        "/map", 1, 1, "map", grid, 0.1, (*origin, 0.0),
         (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)),
     )  # fmt: skip
-    translation, angle, scale = placement_terms(snapshot)
+    reference = view_origin_m(snapshot)
+    assert max(abs(reference[0] - origin[0]), abs(reference[1] - origin[1])) <= 50.0
+    translation, angle, scale = placement_terms(snapshot, reference)
+    assert max(abs(v) for v in translation) < 100.0  # float32 steps there: micrometres
     c, s = math.cos(angle), math.sin(angle)
     pixels = np.array([[0.0, 0.0], [50.0, 30.0], [12.5, 4.0]])
-    scaled = pixels * np.array(scale)
+    scaled = pixels * scale
     placed = np.stack([c * scaled[:, 0] - s * scaled[:, 1], s * scaled[:, 0] + c * scaled[:, 1]], 1)
     placed += np.array(translation)
     cells = np.stack([pixels[:, 0], 30 - pixels[:, 1]], axis=1)  # image rows run north to south
-    metres = cells_to_map_m(snapshot, cells)[:, :2]
-    assert placed == pytest.approx(metres * np.array([1.0, -1.0]))
+    metres = cells_to_map_m(snapshot, cells)[:, :2] - np.array(reference)
+    assert placed == pytest.approx(metres * np.array([1.0, -1.0]), abs=1e-6)
+
+
+def test_the_score_colour_bar_lies_under_the_map_whatever_its_yaw(tmp_path: Path, fr079) -> None:
+    """The colour bar is placed north up under the occupied cells, where the scores view looks
+    (laid out in the image's pixels it turned with a yawed map: at 90 degrees beside it, out of
+    view)."""
+    import math
+
+    import rerun as rr
+
+    import rose
+    from rose_logs.rerun import TopicLogger
+    from rose_logs.rerun.sink import _layout_of
+    from rose_logs.snapshots import MapSnapshot
+
+    yaw = math.pi / 2
+    grid = fr079[0]
+    snapshot = MapSnapshot(
+        "/map", 1, 1, "map", grid, 0.05, (10.0, -4.0, 0.0),
+        (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)),
+    )  # fmt: skip
+    result = rose.analyze(grid)
+    rrd = tmp_path / "legend.rrd"
+    recording = rr.RecordingStream("test")
+    recording.save(str(rrd))
+    recording.set_time(SESSION_TIMELINE, duration=0.0)
+    logger = TopicLogger(recording, PATHS)
+    logger.log_cell_scores(snapshot, result)
+    recording.flush()
+    recording.disconnect()
+    (legend,) = _read(rrd).rows(PATHS.score_legend)
+    left, top, _ = legend["Transform3D:translation"][0]
+    # The scores view frames the known part north up, with room below (blueprint._north_up_bounds).
+    layout = _layout_of("map", snapshot, has_events=False, view_origin=logger.view_origin_m)
+    assert layout.bounds_m is not None
+    x0, y0, x1, y1 = layout.bounds_m
+    rx, ry = layout.view_origin_m
+    assert x0 - rx < left < x1 - rx  # under the map, not beside it
+    assert ry - y0 < top < ry - y0 + 0.45 * (y1 - y0)  # below its south edge, inside the view
 
 
 def test_rerun_batches_small_chunks_unless_the_environment_says_otherwise(monkeypatch) -> None:
