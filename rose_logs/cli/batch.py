@@ -365,8 +365,10 @@ def _gate_failures(args: argparse.Namespace, report: Any) -> list[str]:
                 f"{len({r.uri for r, _ in breaks})} recording(s); --fail-on-break)"
             )
     for r in ok:
+        analysed = {s["topic"] for s in r.snapshots}
         judged = {s["topic"] for s in r.snapshots if w_judges(s["occupied"])}
         reasons += [
-            f"{printable(r.uri)}: {why}" for why in unjudged_topics(args, r.map_topics, judged)
+            f"{printable(r.uri)}: {why}"
+            for why in unjudged_topics(args, r.map_topics, analysed, judged)
         ]
     return reasons

@@ -86,17 +86,23 @@ def add_gate_arguments(parser: Any, *, scope: str) -> None:
     )
 
 
-def unjudged_topics(args: Any, map_topics: Iterable[str], judged: Collection[str]) -> list[str]:
-    """Gate failures for the map topics none of whose maps W judged (none could be analysed, or
-    none had ``MIN_JUDGED_CELLS`` occupied cells: a session of all-unknown maps): with a gate asked
-    for (:func:`add_gate_arguments`), it cannot vouch for them."""
+def unjudged_topics(
+    args: Any, map_topics: Iterable[str], analysed: Collection[str], judged: Collection[str]
+) -> list[str]:
+    """Gate failures for the map topics none of whose maps W judged: none could be ``analysed``,
+    or none of them had ``MIN_JUDGED_CELLS`` occupied cells (a session of all-unknown or empty
+    maps). With a gate asked for (:func:`add_gate_arguments`), it cannot vouch for them."""
     if args.fail_above is None and not args.fail_on_break:
         return []
     from rose_logs.session.report import MIN_JUDGED_CELLS  # loaded with the session already
 
-    return [
-        f"{topic}: no map message could be analysed with {MIN_JUDGED_CELLS} or more occupied "
-        "cells, the gate cannot judge it"
-        for topic in map_topics
-        if topic not in judged
-    ]
+    reasons = []
+    for topic in map_topics:
+        if topic not in analysed:
+            reasons.append(f"{topic}: no map message could be analysed, the gate cannot judge it")
+        elif topic not in judged:
+            reasons.append(
+                f"{topic}: no map had {MIN_JUDGED_CELLS} or more occupied cells (all unknown or "
+                "empty), the gate cannot judge it"
+            )
+    return reasons

@@ -282,7 +282,10 @@ def _gate_failures(args: argparse.Namespace, report: Any) -> list[str]:
     if args.fail_on_break and first_break is not None:
         reasons.append(f"{first_break.text} (--fail-on-break)")
     reasons += unjudged_topics(
-        args, report.map_topics, {r.topic for r in report.records if r.judged}
+        args,
+        report.map_topics,
+        {r.topic for r in report.records},
+        {r.topic for r in report.records if r.judged},
     )
     return reasons
 

@@ -60,7 +60,7 @@ def test_an_empty_first_map_is_no_broken_map(
     assert main(["batch", str(log), str(only_empty), "-o", out, "-q"]) == 0
     assert main(["batch", str(log), str(only_empty), "-o", out, "-q", "--fail-above", "0.4"]) == 3
     (line,) = [x for x in capsys.readouterr().err.splitlines() if x.startswith("error:")]
-    assert line.startswith(f"error: {only_empty}: /map: no map message could be analysed with 20")
+    assert line.startswith(f"error: {only_empty}: /map: no map had 20 or more occupied cells")
     rows = {r["uri"]: r for r in read_rows(tmp_path / "gate" / "recordings.parquet")}
     assert rows[str(only_empty)]["w_max"] is None and not rows[str(only_empty)]["broke"]
 
