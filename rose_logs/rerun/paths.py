@@ -16,7 +16,8 @@ Paths are lowercase and live below one root per map topic (``/map`` -> ``map``):
     <root>/cell_scores               AnnotationContext of the score levels (static)
     <root>/cell_scores/scores        SegmentationImage of the occupied cells' score levels, others
                                      transparent, and Points2D: the colour bar's labels
-    <root>/cell_scores/legend        the colour bar under the map (sent when the map's shape changes)
+    <root>/cell_scores/legend        the colour bar (static) and its labels, placed north up under
+                                     the occupied cells
     <root>/spectrum/log_amplitude    DepthImage (colour-mapped) of the log amplitude spectrum, DC at the
                                      centre, both axes -1/2 .. 1/2 cycles per cell (physical angles),
                                      and LineStrips2D, the kept strip of each dominant direction

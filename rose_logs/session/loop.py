@@ -687,11 +687,11 @@ class _Loop:
         if cells and topic not in self.out_of_range_said:
             self.out_of_range_said.add(topic)
             _LOG.warning(
-                "%s: %d cell(s) outside -1..100 in the map at %d ns, read as occupied (as Nav2 "
+                "%s: %d cell(s) outside -1..100 in the map %s, read as occupied (as Nav2 "
                 "reads them); said once per topic",
                 topic,
                 cells,
-                log_time_ns,
+                self._at(log_time_ns),
             )
 
     def _on_update(self, data: bytes | memoryview, topic: str, log_time_ns: int) -> None:

@@ -244,8 +244,9 @@ def _add_type_without_definition(storage: Any, connection: Any) -> None:
     """Register ``connection``'s type with a rosbags storage writer without a definition: no
     ``message_definitions`` row in SQLite, a schema without encoding or data in MCAP (read back as
     ``MessageDefinitionFormat.NONE``)."""
-    if type(storage).__module__.endswith("storage_mcap"):
-        from rosbags.rosbag2.storage_mcap import Schema, write_schema
+    from rosbags.rosbag2.storage_mcap import McapWriter, Schema, write_schema
 
+    # rosbags internals (pinned below 0.12): the MCAP storage's schema list and open chunk.
+    if isinstance(storage, McapWriter):
         storage.schemas.append(Schema(len(storage.schemas) + 1, connection.msgtype, "", ""))
         write_schema(storage.chunk.bio, storage.schemas[-1])
