@@ -367,19 +367,20 @@ def test_images_go_to_rerun_without_copies_and_as_rerun_would_send_them(tmp_path
     assert ours.keys() == rerun_s.keys()
     assert all(ours[k].equals(rerun_s[k]) for k in ours)
 
-    grid = np.arange(12, dtype=np.int8).reshape(3, 4)
-    sent = grid.copy()
-    snapshot = MapSnapshot("/map", 5, 5, "map", grid, 0.5, (1.0, 2.0, 0.0))
-    path = tmp_path / "grid.rrd"
-    recording = rr.RecordingStream("t")
-    recording.save(path)
-    set_snapshot_time(recording, log_time_ns=5, start_ns=0, index=0)
-    TopicLogger(recording, PATHS).log_grid_map(snapshot)
-    grid[:] = -1  # before Rerun has written it
-    recording.flush()
-    recording.disconnect()
-    (row,) = _read(path).rows(PATHS.grid)
-    assert bytes(row["GridMap:data"][0]) == sent[::-1].tobytes()
+    for shape in ((3, 4), (1, 12)):  # a one-row grid reversed is contiguous: no copy by itself
+        grid = np.arange(12, dtype=np.int8).reshape(shape)
+        sent = grid.copy()
+        snapshot = MapSnapshot("/map", 5, 5, "map", grid, 0.5, (1.0, 2.0, 0.0))
+        path = tmp_path / f"grid{shape[0]}.rrd"
+        recording = rr.RecordingStream("t")
+        recording.save(path)
+        set_snapshot_time(recording, log_time_ns=5, start_ns=0, index=0)
+        TopicLogger(recording, PATHS).log_grid_map(snapshot)
+        grid[:] = -1  # before Rerun has written it
+        recording.flush()
+        recording.disconnect()
+        (row,) = _read(path).rows(PATHS.grid)
+        assert bytes(row["GridMap:data"][0]) == sent[::-1].tobytes()
 
 
 def test_walls_are_logged_in_pixels_and_metres(tmp_path: Path) -> None:
