@@ -29,6 +29,26 @@ SAMPLE = Path(__file__).resolve().parents[2] / "sample_data" / "fr079_session.mc
 PATHS = EntityPaths("map")
 
 
+def _yawed(grid: np.ndarray, yaw: float, origin: tuple[float, float], resolution: float = 0.05):  # type: ignore[no-untyped-def]
+    """A snapshot of ``grid`` whose origin is at ``origin`` (metres) turned by ``yaw`` (radians)."""
+    import math
+
+    from rose_logs.snapshots import MapSnapshot
+
+    rotation = (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2))
+    return MapSnapshot("/map", 1, 1, "map", grid, resolution, (*origin, 0.0), rotation)
+
+
+def _recording_at_zero(path: Path):  # type: ignore[no-untyped-def]
+    """A recording saved to ``path``, its session time at 0."""
+    import rerun as rr
+
+    recording = rr.RecordingStream("test")
+    recording.save(str(path))
+    recording.set_time(SESSION_TIMELINE, duration=0.0)
+    return recording
+
+
 @dataclass
 class _Content:
     static_rows: Counter[str]
@@ -434,24 +454,16 @@ def test_direction_labels_give_the_map_frames_angles(tmp_path: Path, fr079) -> N
     the labels give the walls' map-frame angle (as the JSON report does)."""
     import math
 
-    import rerun as rr
-
     import rose
     from rose.directions import fold_deg
     from rose_logs.rerun import TopicLogger
-    from rose_logs.snapshots import MapSnapshot
 
     yaw = 0.5
     grid = fr079[-1]
-    snapshot = MapSnapshot(
-        "/map", 1, 1, "map", grid, 0.05, (0.0, 0.0, 0.0),
-        (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)),
-    )  # fmt: skip
+    snapshot = _yawed(grid, yaw, (0.0, 0.0))
     result = rose.analyze(grid)
     rrd = tmp_path / "d.rrd"
-    recording = rr.RecordingStream("test")
-    recording.save(str(rrd))
-    recording.set_time(SESSION_TIMELINE, duration=0.0)
+    recording = _recording_at_zero(rrd)
     TopicLogger(recording, PATHS).log_directions(snapshot, result)
     recording.flush()
     recording.disconnect()
@@ -474,13 +486,9 @@ def test_2d_views_place_every_snapshot_where_it_lies_in_the_map(
     import math
 
     from rose_logs.rerun.loggers import cells_to_map_m, placement_terms, view_origin_m
-    from rose_logs.snapshots import MapSnapshot
 
     grid = np.zeros((30, 50), dtype=np.int8)
-    snapshot = MapSnapshot(
-        "/map", 1, 1, "map", grid, 0.1, (*origin, 0.0),
-        (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)),
-    )  # fmt: skip
+    snapshot = _yawed(grid, yaw, origin, resolution=0.1)
     reference = view_origin_m(snapshot)
     assert max(abs(reference[0] - origin[0]), abs(reference[1] - origin[1])) <= 50.0
     translation, angle, scale = placement_terms(snapshot, reference)
@@ -501,24 +509,15 @@ def test_the_score_colour_bar_lies_under_the_map_whatever_its_yaw(tmp_path: Path
     view)."""
     import math
 
-    import rerun as rr
-
     import rose
     from rose_logs.rerun import TopicLogger
     from rose_logs.rerun.sink import _layout_of
-    from rose_logs.snapshots import MapSnapshot
 
-    yaw = math.pi / 2
     grid = fr079[0]
-    snapshot = MapSnapshot(
-        "/map", 1, 1, "map", grid, 0.05, (10.0, -4.0, 0.0),
-        (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)),
-    )  # fmt: skip
+    snapshot = _yawed(grid, math.pi / 2, (10.0, -4.0))
     result = rose.analyze(grid)
     rrd = tmp_path / "legend.rrd"
-    recording = rr.RecordingStream("test")
-    recording.save(str(rrd))
-    recording.set_time(SESSION_TIMELINE, duration=0.0)
+    recording = _recording_at_zero(rrd)
     logger = TopicLogger(recording, PATHS)
     logger.log_cell_scores(snapshot, result)
     recording.flush()
