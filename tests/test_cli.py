@@ -206,7 +206,8 @@ def test_library_warnings_print_like_the_commands_own(
     handlers, level = root.handlers[:], root.level
     root.handlers = []  # as in a fresh process: the command sets its own
     try:
-        grid = np.zeros((40, 40), np.int8)  # all free: ROSE finds no dominant direction
+        grid = np.zeros((40, 40), np.int8)
+        grid[20, 20] = 100  # a speck: ROSE finds no dominant direction to snap walls to
         path = tmp_path / "speck.yaml"
         rose.save_map(path, rose.OccupancyMap(grid=grid, resolution_m=0.05))
         main(["walls", str(path)])
