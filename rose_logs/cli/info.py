@@ -74,6 +74,7 @@ def run(args: argparse.Namespace) -> int:
                 stats[topic]["bad"] += 1
                 continue
             stats[topic]["sizes"].setdefault((snap.shape[1], snap.shape[0]), None)  # as they came
+            stats[topic]["last"] = (snap.shape[1], snap.shape[0])
             stats[topic]["res"].add(snap.resolution_decimal_m)
             stats[topic]["frames"].add(snap.frame_id)
         for topic in map_topics:
@@ -84,6 +85,9 @@ def run(args: argparse.Namespace) -> int:
                 # In the order they came, so a growing map's last size shows.
                 shown = sizes if len(sizes) <= 6 else [*sizes[:3], "...", *sizes[-3:]]
                 more = f" ({len(sizes)} sizes)" if len(sizes) > 6 else ""
+                last = "{} x {}".format(*s["last"])
+                if last != sizes[-1]:  # back to an earlier size at the end
+                    more += f", last {last}"
                 print(f"  grid sizes   {', '.join(shown)}{more}")
                 print(f"  resolution   {', '.join(f'{r:g}' for r in sorted(s['res']))} m")
                 frames = (repr(f) if not f.strip() else f for f in sorted(s["frames"]))

@@ -90,6 +90,12 @@ def test_info_shows_a_maps_sizes_in_the_order_they_came(tmp_path: Path, capsys) 
     expected = [f"{20 + n} x {10 + n}" for n in order]
     shown = ", ".join([*expected[:3], "...", *expected[-3:]])
     assert f"  grid sizes   {shown} (8 sizes)" in lines
+    # A map that ends at a size it had before says so.
+    back = build_log(
+        tmp_path / "back.mcap", "mcap-ros2", session_maps([grids[0], grids[1], grids[0]])
+    )
+    assert main(["info", str(back.path)]) == 0
+    assert "  grid sizes   20 x 10, 21 x 11, last 20 x 10" in capsys.readouterr().out.splitlines()
 
 
 def test_the_command_keeps_map_arrays_on_the_heap(monkeypatch: pytest.MonkeyPatch, capsys) -> None:
