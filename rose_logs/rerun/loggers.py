@@ -475,9 +475,8 @@ class TopicLogger:
         result: RoseResult,
         occupied: conv.OccupiedCells | None = None,
     ) -> None:
-        """Occupied cells' scores, colour-mapped (other cells transparent), with a colour bar
-        under the occupied cells (re-sent only when it moves) labelled with the scale and the
-        threshold."""
+        """Occupied cells' scores, colour-mapped (other cells transparent), and the placement and
+        labels (scale, threshold) of the colour bar (static) under the occupied cells."""
         rec, paths = self.recording, self.paths
         rows, cols = result.occupied.shape
         origin = self._origin_for(snapshot)
