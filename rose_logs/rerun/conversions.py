@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from rose.directions import fold_deg
 from rose.result import RoseResult
 from rose_logs.rerun.style import (
     AMPLITUDE_PLOT_HEIGHT,
@@ -48,6 +49,7 @@ __all__ = [
     "OccupiedCells",
     "amplitude_plot",
     "colour_levels",
+    "direction_label_deg",
     "direction_label_positions",
     "direction_segments_cells",
     "display_spectrum",
@@ -396,6 +398,12 @@ def spectrum_strip_segments(
     return np.stack([centre - reach * unit, centre + reach * unit], axis=1)
 
 
+def direction_label_deg(direction_rad: float, yaw_rad: float = 0.0) -> float:
+    """A dominant direction (radians, grid frame) as its labels show it: map-frame degrees turned by
+    the origin's ``yaw_rad``, in ``[0, 180)`` to 0.1 (179.96 reads 0.0, not 180.0)."""
+    return fold_deg(math.degrees(float(direction_rad) + yaw_rad), 1)
+
+
 @dataclass(frozen=True)
 class AmplitudePlot:
     """The scaled cumulative amplitude as plot geometry (x: degrees, y: ``-AMPLITUDE_PLOT_HEIGHT * s``).
@@ -420,24 +428,39 @@ class AmplitudePlot:
     threshold: float
 
 
-def amplitude_plot(result: RoseResult) -> AmplitudePlot:
-    """Plot geometry of the paper's scaled scores ``s = (A - min) / (max - min)`` per direction."""
+def amplitude_plot(result: RoseResult, *, yaw_rad: float = 0.0) -> AmplitudePlot:
+    """Plot geometry of the paper's scaled scores ``s = (A - min) / (max - min)`` per direction, in
+    map-frame degrees: ROSE's grid-frame directions turned by the origin's ``yaw_rad``, as the map
+    views and every report label them."""
     amplitude = np.asarray(result.cumulative_amplitude, dtype=np.float64)
     low, high = (float(amplitude.min()), float(amplitude.max())) if amplitude.size else (0.0, 0.0)
     span = high - low
     scaled = (amplitude - low) / span if span > 0 else np.zeros_like(amplitude)
-    degrees = np.degrees(np.asarray(result.direction_bins, dtype=np.float64))
+    degrees = np.mod(
+        np.degrees(np.asarray(result.direction_bins, dtype=np.float64) + yaw_rad), 180.0
+    )
+    # Turned by the yaw, the curve starts somewhere round the half circle: sort it from 0 degrees
+    # and close it at 0 and 180 with the value between its last and first bins.
+    order = np.argsort(degrees, kind="stable")
+    degrees, in_order = degrees[order], scaled[order]
+    if degrees.size and degrees[0] > 0.0:
+        gap = degrees[0] + 180.0 - degrees[-1]
+        wrap = in_order[-1] + (in_order[0] - in_order[-1]) * (180.0 - degrees[-1]) / gap
+        degrees, in_order = np.insert(degrees, 0, 0.0), np.insert(in_order, 0, wrap)
     height = AMPLITUDE_PLOT_HEIGHT
-    curve = np.stack([np.append(degrees, 180.0), -height * np.append(scaled, scaled[:1])], axis=-1)
+    curve = np.stack(
+        [np.append(degrees, 180.0), -height * np.append(in_order, in_order[:1])], axis=-1
+    )
     peaks_idx = np.asarray(result.peak_indices, dtype=np.intp)
     peak_s = scaled[peaks_idx]
-    peak_deg = np.degrees(np.asarray(result.dominant_directions, dtype=np.float64))
+    directions = np.asarray(result.dominant_directions, dtype=np.float64)
+    peak_deg = np.mod(np.degrees(directions + yaw_rad), 180.0)
     peaks = np.stack([peak_deg, -height * peak_s], axis=-1)
     prominence = np.asarray(result.peak_prominences, dtype=np.float64)
     bars = np.stack([peaks, np.stack([peak_deg, -height * (peak_s - prominence)], axis=-1)], axis=1)
     labels = [
-        f"{deg:.1f}° (prominence {prom:.2f})"
-        for deg, prom in zip(peak_deg, prominence, strict=True)
+        f"{direction_label_deg(a, yaw_rad):.1f}° (prominence {prom:.2f})"
+        for a, prom in zip(directions, prominence, strict=True)
     ]
     return AmplitudePlot(
         curve=curve,

@@ -15,7 +15,7 @@ import numpy.typing as npt
 import pyarrow as pa
 import rerun as rr
 
-from rose.directions import FAILURE_LEVEL, TRUST_LEVEL, fold_deg
+from rose.directions import FAILURE_LEVEL, TRUST_LEVEL
 from rose.result import RoseResult
 from rose.walls import WallSet
 from rose.walls.segments import cells_to_metres
@@ -324,7 +324,7 @@ class TopicLogger:
         positions = [(x, 9.0) for x in _AXIS_TICKS_DEG] + [(-9.0, -h * s) for s in _AXIS_TICKS_S]
         labels = [f"{x:g}°" for x in _AXIS_TICKS_DEG] + [f"{s:g}" for s in _AXIS_TICKS_S]
         positions += [(90.0, 22.0), (-9.0, -h * 1.18)]
-        labels += ["wall direction (deg)", "s"]
+        labels += ["wall direction, map frame (deg)", "s"]
         rec.log(
             paths.amplitude_axis_labels,
             rr.Points2D(positions, labels=labels, colors=style.AXIS_COLOR, radii=0.0),
@@ -360,7 +360,7 @@ class TopicLogger:
         self.log_directions(snapshot, result, occupied)
         self.log_cell_scores(snapshot, result, occupied)
         self.log_spectrum(result)
-        self.log_amplitude(result)
+        self.log_amplitude(result, yaw_rad=snapshot.origin_yaw_rad)
         self.log_structure_score(result)
         if walls is not None:
             self.log_walls(snapshot, walls)
@@ -427,7 +427,7 @@ class TopicLogger:
         # Both views show the map frame (image_placement): a map whose origin has a yaw shows its
         # walls that much further round than the grid does (as the JSON report gives them).
         yaw = snapshot.origin_yaw_rad
-        map_labels = [f"walls {fold_deg(math.degrees(a + yaw), 1):.1f}°" for a in directions]
+        map_labels = [f"walls {conv.direction_label_deg(a, yaw):.1f}°" for a in directions]
         # Colours, sizes and the label switch are static (log_static).
         rec.log(
             paths.cell_directions,
@@ -530,15 +530,16 @@ class TopicLogger:
             ),
         )
 
-    def log_amplitude(self, result: RoseResult) -> None:
-        """The scaled cumulative amplitude ``s`` per direction, its peaks and prominences.
+    def log_amplitude(self, result: RoseResult, *, yaw_rad: float = 0.0) -> None:
+        """The scaled cumulative amplitude ``s`` per map-frame direction (ROSE's grid-frame
+        directions turned by the origin's ``yaw_rad``), its peaks and prominences.
 
         One entity: the curve and a vertical bar per peak (its prominence, down from the peak) as
         line strips, the labelled peaks as points. The prominence threshold is a parameter of the
         session: drawn once, as static data.
         """
         rec, paths = self.recording, self.paths
-        plot = conv.amplitude_plot(result)
+        plot = conv.amplitude_plot(result, yaw_rad=yaw_rad)
         if not self._threshold_logged:
             level = -style.AMPLITUDE_PLOT_HEIGHT * plot.threshold
             rec.log(
