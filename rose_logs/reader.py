@@ -15,7 +15,8 @@ An MCAP file written without a summary section (optional in MCAP) is read record
 messages sorted by log time when the file has them out of order. With ``salvage``, an MCAP file whose
 end is missing and a ROS 1 bag whose index cannot be used are read record by record from their start
 instead (:mod:`rose_logs.storage.mcap`, :mod:`rose_logs.storage.ros1_stream`); MCAP messages come
-sorted by log time too, a ROS 1 bag's in file order.
+sorted by log time too, a ROS 1 bag's in file order. A complete MCAP file with a damaged chunk loses
+that chunk only: its index leads past it to the chunks after it.
 """
 
 from __future__ import annotations
@@ -133,6 +134,8 @@ class LogReader:
                     raise
                 raise self._unreadable(err) from err
             backend = salvaged
+        if self.salvage and type(backend) is McapReadBackend:
+            backend.skip_damaged_chunks = True
         self._backend = backend
 
     def _unreadable(self, err: BaseException) -> LogReadError:
@@ -284,12 +287,29 @@ class LogReader:
             if not self.salvage:
                 if isinstance(err, LogError):
                     raise
-                raise error from err
+                salvage = "`rose-bag process --salvage` keeps what can be read"
+                raise LogReadError(f"{error}; {salvage}") from err
             problem = f"{short(error, 200)}; stopped after {self.read_count} messages"
             self.losses.append(problem)
             _LOG.warning("%s", problem)  # as it happens: the command does not repeat it
             return
+        finally:
+            self._note_skipped_chunks(backend)
         self._check_counts(counts, wanted)
+
+    def _note_skipped_chunks(self, backend: object) -> None:
+        """The damaged chunks a salvaging MCAP reader skipped, as losses (each said once)."""
+        skipped = getattr(backend, "skipped_chunks", [])
+        for chunk in skipped:
+            first, last = ((t - self.start_ns) / 1e9 for t in (chunk.start_ns, chunk.end_ns))
+            problem = (
+                f"{self.path}: skipped a damaged chunk at byte {chunk.offset} of {chunk.file_size} "
+                f"({chunk.reason}): its messages from +{first:.1f} s to +{last:.1f} s "
+                f"({chunk.start_ns}..{chunk.end_ns} ns) are lost, the rest is read"
+            )
+            self.losses.append(problem)
+            _LOG.warning("%s", problem)
+        skipped.clear()
 
     def _check_counts(self, counts: dict[int, int], topics: set[str] | None) -> None:
         """Compare messages read per channel with the declared counts; a shortfall is a loss."""

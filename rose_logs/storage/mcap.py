@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import heapq
 import logging
 from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, BinaryIO
 
@@ -27,7 +29,7 @@ from rose_logs.storage.records import (
     ros1_msgtype,
 )
 
-__all__ = ["McapReadBackend", "McapStreamReadBackend", "McapWriteBackend"]
+__all__ = ["McapReadBackend", "McapStreamReadBackend", "McapWriteBackend", "SkippedChunk"]
 
 _LOG = logging.getLogger(__name__)
 
@@ -36,6 +38,17 @@ _LOG = logging.getLogger(__name__)
 MAX_SORTED_BYTES = 2**30
 #: Memory a message held for sorting costs beyond its data (a RawMessage and its bytes: ~250 B).
 _HELD_OVERHEAD = 256
+
+
+@dataclass(frozen=True)
+class SkippedChunk:
+    """A chunk of an indexed MCAP file that could not be read, skipped by ``--salvage``."""
+
+    offset: int  # byte of the file where it starts
+    file_size: int  # bytes
+    reason: str
+    start_ns: int  # log times of its first and last message, from the index
+    end_ns: int
 
 
 class McapReadBackend:
@@ -51,6 +64,10 @@ class McapReadBackend:
         self.end_ns = 0
         self.profile = ""
         self.qos_style: QosStyle | None = None
+        #: ``--salvage``: a chunk that cannot be read (CRC, compression, framing) is skipped and
+        #: said in :attr:`skipped_chunks`, and the chunks after it are read (else it is an error).
+        self.skip_damaged_chunks = False
+        self.skipped_chunks: list[SkippedChunk] = []
 
     def open(self) -> None:
         from mcap.reader import SeekingReader
@@ -95,9 +112,59 @@ class McapReadBackend:
         return counts
 
     def messages(self, topics: set[str] | None) -> Iterator[RawMessage]:
+        if self.skip_damaged_chunks:
+            yield from self._around_damaged_chunks(topics)
+            return
         by_id = self._by_id
         for _schema, ch, msg in self.reader.iter_messages(topics=topics, log_time_order=True):
             yield RawMessage(by_id[ch.id], msg.log_time, msg.data, msg.publish_time, msg.sequence)
+
+    def _around_damaged_chunks(self, topics: set[str] | None) -> Iterator[RawMessage]:
+        """:meth:`messages` through the chunk index, skipping the chunks that cannot be read.
+
+        The ``mcap`` reader's own merge, in the same order (log time, then file position), with each
+        chunk read on its own: a flipped bit in one chunk of an hour's recording loses that chunk's
+        seconds, not the rest of the hour."""
+        from mcap.data_stream import ReadDataStream
+        from mcap.records import Chunk, Message
+        from mcap.stream_reader import breakup_chunk
+
+        assert self.stream is not None
+        summary = self.reader.get_summary()
+        wanted = {
+            cid
+            for cid, ch in summary.channels.items()
+            if cid in self._by_id and (topics is None or ch.topic in topics)
+        }
+        size = self.path.stat().st_size
+        # (log time, chunk offset, index in the chunk (-1: the chunk itself), item)
+        queue: list[tuple[int, int, int, Any]] = [
+            (index.message_start_time, index.chunk_start_offset, -1, index)
+            for index in summary.chunk_indexes
+            if wanted & set(index.message_index_offsets) or not index.message_index_offsets
+        ]
+        heapq.heapify(queue)
+        while queue:
+            _, offset, position, item = heapq.heappop(queue)
+            if position >= 0:
+                ch = self._by_id[item.channel_id]
+                yield RawMessage(ch, item.log_time, item.data, item.publish_time, item.sequence)
+                continue
+            try:
+                self.stream.seek(offset + 1 + 8)  # past the record's opcode and length
+                chunk = Chunk.read(ReadDataStream(self.stream))
+                records = list(breakup_chunk(chunk, validate_crc=True))
+            except Exception as err:  # any library error: this chunk is damaged, go on
+                reason = short(str(err) or type(err).__name__, 120)
+                self.skipped_chunks.append(
+                    SkippedChunk(
+                        offset, size, reason, item.message_start_time, item.message_end_time
+                    )
+                )
+                continue
+            for at, record in enumerate(records):
+                if isinstance(record, Message) and record.channel_id in wanted:
+                    heapq.heappush(queue, (record.log_time, offset, at, record))
 
     def close(self) -> None:
         if self.stream is not None:

@@ -13,7 +13,7 @@ from make_corpus import storage_file, write_session
 
 from rose_logs.cli import EXIT_SALVAGED, main
 from rose_logs.errors import LogReadError
-from rose_logs.reader import LogReader, MessageLossError
+from rose_logs.reader import LogReader, MessageLossError, RawMessage
 
 
 def _run(capsys: pytest.CaptureFixture[str], *argv: object) -> tuple[int, str, str]:
@@ -76,12 +76,12 @@ def test_salvage_keeps_what_was_read_and_exits_4(
 def test_a_salvaged_log_reports_the_time_range_it_read(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """A damaged chunk: the report ends at the last message read, not where the index says the
-    log ended (the summary said 65 s of a log cut after 5 s)."""
+    """A damaged last chunk: the report ends at the last message read, not where the index says
+    the log ended (the summary said 65 s of a log cut after 5 s)."""
     log, out, report = tmp_path / "in.mcap", tmp_path / "o.mcap", tmp_path / "r.json"
     sample = Path(__file__).resolve().parents[2] / "sample_data" / "fr079_session.mcap"
     data = bytearray(sample.read_bytes())
-    data[50_000] ^= 0xFF  # in the second of its chunks
+    data[_chunk_starts(sample)[-1] + 5_000] ^= 0xFF  # in the last of its chunks
     log.write_bytes(bytes(data))
     with LogReader(sample) as reader:
         declared_end = reader.end_ns
@@ -91,6 +91,74 @@ def test_a_salvaged_log_reports_the_time_range_it_read(
         read_end = max(m.log_time_ns for m in reader.messages())
     data = json.loads(report.read_text())
     assert data["end_ns"] == read_end < declared_end
+
+
+def _chunk_starts(path: Path) -> list[int]:
+    from mcap.reader import make_reader
+
+    with path.open("rb") as stream:
+        summary = make_reader(stream).get_summary()
+    assert summary is not None
+    return sorted(c.chunk_start_offset for c in summary.chunk_indexes)
+
+
+def test_salvage_skips_only_the_damaged_chunk_of_an_indexed_mcap(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """One flipped bit in the second of seven chunks lost the six after it too: the index leads
+    past the damage, so only that chunk's ten seconds are lost."""
+    sample = Path(__file__).resolve().parents[2] / "sample_data" / "fr079_session.mcap"
+    starts = _chunk_starts(sample)
+    assert len(starts) >= 4
+    data = bytearray(sample.read_bytes())
+    data[starts[1] + 5_000] ^= 0xFF
+    log, out, report = tmp_path / "in.mcap", tmp_path / "o.mcap", tmp_path / "r.json"
+    log.write_bytes(bytes(data))
+    err = _refused_then_salvaged(capsys, log, out, report, refusal="corrupt")
+    assert err.count("skipped a damaged chunk at byte") == 1, err
+    assert f"at byte {starts[1]} of {len(data)}" in err
+    whole = {(m.channel.topic, m.log_time_ns): bytes(m.data) for m in _read(sample)}
+    kept = {(m.channel.topic, m.log_time_ns): bytes(m.data) for m in _read(out)}
+    salvaged = json.loads(report.read_text())
+    lost = [key for key in whole if key not in kept]
+    # What is lost is one chunk's time span; everything else is there, byte for byte, up to the end.
+    assert lost and len(lost) < len(whole) / 3
+    assert all(kept[key] == whole[key] for key in kept if key in whole)
+    assert max(t for _, t in kept) == max(t for _, t in whole)
+    assert salvaged["end_ns"] == max(t for _, t in whole)
+    maps = [t for topic, t in whole if topic == "/map"]
+    assert 0 < len(salvaged["snapshots"]) < len(maps)
+    assert len(salvaged["snapshots"]) == sum(1 for t in maps if ("/map", t) in kept)
+
+
+def _read(path: Path) -> list[RawMessage]:
+    with LogReader(path) as reader:
+        return list(reader.messages())
+
+
+def test_salvage_reads_an_intact_indexed_mcap_as_the_index_orders_it(tmp_path: Path) -> None:
+    """The salvaging reader merges the chunks itself: on an intact file it gives what the mcap
+    library gives, in the same order, also for chunks that overlap in time and equal log times."""
+    from mcap.writer import Writer
+
+    log = tmp_path / "overlap.mcap"
+    with log.open("wb") as stream:
+        writer = Writer(stream, chunk_size=300)
+        writer.start(profile="", library="test")
+        channels = [writer.register_channel(f"/t{k}", "json", 0) for k in range(3)]
+        times = [5, 3, 3, 9, 1, 3, 7, 7, 2, 8, 3, 6] * 4
+        for n, t in enumerate(times):
+            writer.add_message(channels[n % 3], t, f'{{"n": {n}}}'.encode(), t)
+        writer.finish()
+    assert len(_chunk_starts(log)) > 3
+    plain = [(m.channel.topic, m.log_time_ns, bytes(m.data)) for m in _read(log)]
+    with LogReader(log, salvage=True) as reader:
+        salvaged = [(m.channel.topic, m.log_time_ns, bytes(m.data)) for m in reader.messages()]
+        assert not reader.losses
+    assert salvaged == plain and len(plain) == len(times)
+    with LogReader(log, salvage=True) as reader:
+        some = [(m.channel.topic, m.log_time_ns) for m in reader.messages(topics={"/t1"})]
+    assert some == [(topic, t) for topic, t, _ in plain if topic == "/t1"]
 
 
 def test_truncated_mcap_with_salvage_is_never_exit_0(
