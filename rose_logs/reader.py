@@ -287,7 +287,7 @@ class LogReader:
             if not self.salvage:
                 if isinstance(err, LogError):
                     raise
-                salvage = "`rose-bag process --salvage` keeps what can be read"
+                salvage = "--salvage keeps what can be read"
                 raise LogReadError(f"{error}; {salvage}") from err
             problem = f"{short(error, 200)}; stopped after {self.read_count} messages"
             self.losses.append(problem)

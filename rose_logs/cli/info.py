@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import argparse
+from collections.abc import Sequence
 from typing import Any
 
 from rose.cli.options import path_arg
-from rose_logs.cli.options import duration_text, utc_text
-from rose_logs.storage.records import ros1_msgtype
+from rose_logs.cli.options import EXIT_SALVAGED, duration_text, utc_text
+from rose_logs.storage.records import Channel, ros1_msgtype
 
 __all__ = ["add_parser", "run"]
 
@@ -20,6 +21,12 @@ def add_parser(subparsers: Any) -> None:
     parser.add_argument(
         "input", type=path_arg, help="ROS 1 .bag, ROS 2 bag folder / .db3, or .mcap"
     )
+    parser.add_argument(
+        "--salvage",
+        action="store_true",
+        help=f"on a damaged log, describe what can be read, list the losses and exit {EXIT_SALVAGED} "
+        "(default: a damaged log is an error), as process --salvage reads it",
+    )
     parser.set_defaults(func=run)
 
 
@@ -29,33 +36,11 @@ def run(args: argparse.Namespace) -> int:
     from rose_logs.session import find_map_topics
     from rose_logs.snapshots import decode_map
 
-    with LogReader(args.input) as reader:
+    # Everything is read before anything is printed: a log damaged half-way is an error line, not
+    # half a report followed by one.
+    with LogReader(args.input, salvage=args.salvage) as reader:
         channels = reader.channels
         map_topics = find_map_topics(channels)
-        print(f"file         {args.input}")
-        print(f"format       {reader.format} ({reader.serialization})")
-        print(f"messages     {reader.message_count}")
-        if reader.message_count:
-            print(
-                f"time range   {utc_text(reader.start_ns)} .. {utc_text(reader.end_ns)} UTC "
-                f"({duration_text(reader.end_ns - reader.start_ns)})"
-            )
-        counts: dict[str, int] = {}
-        types: dict[str, list[str]] = {}  # a topic may carry several types, one per connection
-        for c in channels:
-            counts[c.topic] = counts.get(c.topic, 0) + c.message_count
-            known = types.setdefault(c.topic, [])
-            # As the log spells it: pkg/Name in a ROS 1 bag or ros1 MCAP, pkg/msg/Name for ROS 2.
-            name = ros1_msgtype(c.msgtype) if c.message_encoding == "ros1" else c.msgtype
-            if name not in known:
-                known.append(name)
-        width = max((len(t) for t in counts), default=5)
-        print("\ntopics")
-        for topic in sorted(counts):
-            mark = "  [map]" if topic in map_topics else ""
-            print(
-                f"  {topic:<{width}}  {counts[topic]:>8}  {', '.join(sorted(types[topic]))}{mark}"
-            )
         stats: dict[str, dict[str, Any]] = {
             t: {"sizes": {}, "res": set(), "frames": set(), "bad": 0} for t in map_topics
         }
@@ -77,25 +62,62 @@ def run(args: argparse.Namespace) -> int:
             stats[topic]["last"] = (snap.shape[1], snap.shape[0])
             stats[topic]["res"].add(snap.resolution_decimal_m)
             stats[topic]["frames"].add(snap.frame_id)
+        print(f"file         {args.input}")
+        print(f"format       {reader.format} ({reader.serialization})")
+        declared = " (declared)" if reader.losses else ""
+        print(f"messages     {reader.message_count}{declared}")
+        if reader.message_count:
+            print(
+                f"time range   {utc_text(reader.start_ns)} .. {utc_text(reader.end_ns)} UTC "
+                f"({duration_text(reader.end_ns - reader.start_ns)}){declared}"
+            )
+        _print_topics(channels, map_topics)
         for topic in map_topics:
-            s = stats[topic]
-            print(f"\nmap topic    {topic}")
-            sizes = [f"{w} x {h}" for w, h in s["sizes"]]
-            if sizes:
-                # In the order they came, so a growing map's last size shows.
-                shown = sizes if len(sizes) <= 6 else [*sizes[:3], "...", *sizes[-3:]]
-                more = f" ({len(sizes)} sizes)" if len(sizes) > 6 else ""
-                last = "{} x {}".format(*s["last"])
-                if last != sizes[-1]:  # back to an earlier size at the end
-                    more += f", last {last}"
-                print(f"  grid sizes   {', '.join(shown)}{more}")
-                print(f"  resolution   {', '.join(f'{r:g}' for r in sorted(s['res']))} m")
-                frames = (repr(f) if not f.strip() else f for f in sorted(s["frames"]))
-                print(f"  frame        {', '.join(frames)}")
-            if s["bad"]:
-                print(f"  malformed    {s['bad']}")
-            if not sizes and not s["bad"]:
-                print("  no messages  (declared only: not a map of the session)")
+            _print_map_topic(topic, stats[topic])
         if not map_topics:
             print("\nno nav_msgs/OccupancyGrid topic")
+        if reader.losses:
+            print(f"\nlosses       {reader.losses[0]}")
+            for loss in reader.losses[1:]:
+                print(f"             {loss}")
+            return EXIT_SALVAGED
     return 0
+
+
+def _print_topics(channels: Sequence[Channel], map_topics: Sequence[str]) -> None:
+    """Each topic with its declared message count and type(s), map topics marked."""
+    counts: dict[str, int] = {}
+    types: dict[str, list[str]] = {}  # a topic may carry several types, one per connection
+    for c in channels:
+        counts[c.topic] = counts.get(c.topic, 0) + c.message_count
+        known = types.setdefault(c.topic, [])
+        # As the log spells it: pkg/Name in a ROS 1 bag or ros1 MCAP, pkg/msg/Name for ROS 2.
+        name = ros1_msgtype(c.msgtype) if c.message_encoding == "ros1" else c.msgtype
+        if name not in known:
+            known.append(name)
+    width = max((len(t) for t in counts), default=5)
+    print("\ntopics")
+    for topic in sorted(counts):
+        mark = "  [map]" if topic in map_topics else ""
+        print(f"  {topic:<{width}}  {counts[topic]:>8}  {', '.join(sorted(types[topic]))}{mark}")
+
+
+def _print_map_topic(topic: str, s: dict[str, Any]) -> None:
+    """Grid sizes (in the order they came), resolutions and frames of a map topic's messages."""
+    print(f"\nmap topic    {topic}")
+    sizes = [f"{w} x {h}" for w, h in s["sizes"]]
+    if sizes:
+        # In the order they came, so a growing map's last size shows.
+        shown = sizes if len(sizes) <= 6 else [*sizes[:3], "...", *sizes[-3:]]
+        more = f" ({len(sizes)} sizes)" if len(sizes) > 6 else ""
+        last = "{} x {}".format(*s["last"])
+        if last != sizes[-1]:  # back to an earlier size at the end
+            more += f", last {last}"
+        print(f"  grid sizes   {', '.join(shown)}{more}")
+        print(f"  resolution   {', '.join(f'{r:g}' for r in sorted(s['res']))} m")
+        frames = (repr(f) if not f.strip() else f for f in sorted(s["frames"]))
+        print(f"  frame        {', '.join(frames)}")
+    if s["bad"]:
+        print(f"  malformed    {s['bad']}")
+    if not sizes and not s["bad"]:
+        print("  no messages  (declared only: not a map of the session)")

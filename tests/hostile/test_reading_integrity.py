@@ -131,6 +131,29 @@ def test_salvage_skips_only_the_damaged_chunk_of_an_indexed_mcap(
     assert len(salvaged["snapshots"]) == sum(1 for t in maps if ("/map", t) in kept)
 
 
+def test_info_on_a_damaged_log_is_one_error_line_or_with_salvage_the_readable_part(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """info printed half its report, then the error; it had no --salvage to look past the damage."""
+    sample = Path(__file__).resolve().parents[2] / "sample_data" / "fr079_session.mcap"
+    data = bytearray(sample.read_bytes())
+    data[_chunk_starts(sample)[1] + 5_000] ^= 0xFF
+    log = tmp_path / "in.mcap"
+    log.write_bytes(bytes(data))
+    code, out, err = _run(capsys, "info", log)
+    assert code == 1 and out == ""
+    assert err.startswith(f"error: {log}: corrupt") and "--salvage" in err
+    assert err.count("\n") == 1
+    code, out, err = _run(capsys, "info", log, "--salvage")
+    assert code == EXIT_SALVAGED
+    assert "messages     715 (declared)" in out and "grid sizes   1152 x 736" in out
+    assert "\nlosses       " in out and "skipped a damaged chunk" in out
+    assert "/map 12 of 14" in out and "warning:" in err
+    code, out, _ = _run(capsys, "info", sample, "--salvage")  # nothing lost: as without
+    assert code == 0 and "losses" not in out and "(declared)" not in out
+    assert (code, out) == _run(capsys, "info", sample)[:2]
+
+
 def _read(path: Path) -> list[RawMessage]:
     with LogReader(path) as reader:
         return list(reader.messages())
