@@ -503,6 +503,43 @@ def test_2d_views_place_every_snapshot_where_it_lies_in_the_map(
     assert placed == pytest.approx(metres * np.array([1.0, -1.0]), abs=1e-6)
 
 
+def test_the_logged_placement_puts_each_pixel_on_its_cell_in_metres(tmp_path: Path) -> None:
+    """The segmentation's Transform3D as the recording holds it, composed as Rerun composes one
+    (translation, then rotation, then scale): pixel corners land on their cells' map-frame metres
+    from the view origin, north up, for a yawed map at a UTM-sized origin."""
+    import math
+
+    import rose
+    from rose_logs.rerun import TopicLogger
+    from rose_logs.rerun.loggers import cells_to_map_m, view_origin_m
+
+    grid = np.full((30, 50), -1, dtype=np.int8)
+    grid[5:25, 5:45] = 0
+    grid[5, 5:45] = grid[24, 5:45] = grid[5:25, 5] = grid[5:25, 44] = 100
+    snapshot = _yawed(grid, 0.7, (654_321.5, 5_400_012.3), resolution=0.1)
+    rrd = tmp_path / "p.rrd"
+    recording = _recording_at_zero(rrd)
+    logger = TopicLogger(recording, PATHS)
+    logger.view_origin_m = reference = view_origin_m(snapshot)
+    logger.log_segmentation(snapshot, rose.analyze(grid))
+    recording.flush()
+    recording.disconnect()
+    (row,) = _read(rrd).rows(PATHS.segmentation)
+    (translation,) = row["Transform3D:translation"]
+    (scale,) = row["Transform3D:scale"]
+    ((axis, radians),) = [(v["axis"], v["angle"]) for v in row["Transform3D:rotation_axis_angle"]]
+    assert axis == pytest.approx([0.0, 0.0, 1.0])
+    c, s = math.cos(radians), math.sin(radians)
+    pixels = np.array([[0.0, 0.0], [50.0, 30.0], [12.5, 4.0]])
+    scaled = pixels * np.array(scale[:2])
+    placed = np.stack([c * scaled[:, 0] - s * scaled[:, 1], s * scaled[:, 0] + c * scaled[:, 1]], 1)
+    placed += np.array(translation[:2])
+    cells = np.stack([pixels[:, 0], 30 - pixels[:, 1]], axis=1)  # image rows run north to south
+    metres = cells_to_map_m(snapshot, cells)[:, :2] - np.array(reference)
+    # float32 in the recording: micrometres at these few metres from the view origin.
+    assert placed == pytest.approx(metres * np.array([1.0, -1.0]), abs=1e-4)
+
+
 def test_the_score_colour_bar_lies_under_the_map_whatever_its_yaw(tmp_path: Path, fr079) -> None:
     """The colour bar is placed north up under the occupied cells, where the scores view looks
     (laid out in the image's pixels it turned with a yawed map: at 90 degrees beside it, out of
