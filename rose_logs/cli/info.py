@@ -34,6 +34,7 @@ def run(args: argparse.Namespace) -> int:
     from rose_logs.errors import MapMessageError
     from rose_logs.reader import LogReader
     from rose_logs.session import find_map_topics
+    from rose_logs.session.topics import publishers
     from rose_logs.snapshots import decode_map
 
     # Everything is read before anything is printed: a log damaged half-way is an error line, not
@@ -73,7 +74,7 @@ def run(args: argparse.Namespace) -> int:
             )
         _print_topics(channels, map_topics)
         for topic in map_topics:
-            _print_map_topic(topic, stats[topic])
+            _print_map_topic(topic, stats[topic], publishers(channels, topic))
         if not map_topics:
             print("\nno nav_msgs/OccupancyGrid topic")
         if reader.losses:
@@ -102,9 +103,13 @@ def _print_topics(channels: Sequence[Channel], map_topics: Sequence[str]) -> Non
         print(f"  {topic:<{width}}  {counts[topic]:>8}  {', '.join(sorted(types[topic]))}{mark}")
 
 
-def _print_map_topic(topic: str, s: dict[str, Any]) -> None:
-    """Grid sizes (in the order they came), resolutions and frames of a map topic's messages."""
+def _print_map_topic(topic: str, s: dict[str, Any], nodes: Sequence[str]) -> None:
+    """Grid sizes (in the order they came), resolutions and frames of a map topic's messages, and
+    its publishers when the log names them (ROS 1)."""
     print(f"\nmap topic    {topic}")
+    if nodes:
+        several = "  (analysed as one session)" if len(nodes) > 1 else ""
+        print(f"  publishers   {', '.join(nodes)}{several}")
     sizes = [f"{w} x {h}" for w, h in s["sizes"]]
     if sizes:
         # In the order they came, so a growing map's last size shows.

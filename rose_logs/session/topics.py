@@ -17,6 +17,7 @@ __all__ = [
     "find_map_topics",
     "is_derived_topic",
     "orphan_updates",
+    "publishers",
     "select_topics",
     "update_targets",
 ]
@@ -165,3 +166,11 @@ def _why_not_a_map(channel: Channel) -> str:
             f"rose-bag reads {' and '.join(sorted(_DECODABLE))}"
         )
     return "is rose-bag's own cleaned map, not analysed again"
+
+
+def publishers(channels: Sequence[Channel], topic: str) -> list[str]:
+    """The nodes that published maps on ``topic``, sorted, as far as the log records them (a ROS 1
+    connection's ``callerid``; ROS 2 bags and MCAP files name no publisher: empty)."""
+    return sorted(
+        {c.callerid for c in channels if c.topic == topic and c.msgtype == MAP_TYPE and c.callerid}
+    )

@@ -398,3 +398,55 @@ def test_a_ros1_type_without_definition_goes_to_mcap_not_to_a_ros1_bag(
     assert main(["process", str(src), "-o", str(tmp_path / "o.mcap"), "-q"]) == 0  # as it came
     with LogReader(tmp_path / "o.mcap") as reader:
         assert [bytes(m.data) for m in reader.messages(topics=["/status"])] == [b"\x00"]
+
+
+def test_a_map_topic_with_two_publishers_is_said_to_be_one_session(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A map_server beside a SLAM node, both on /map: the session mixes their maps, and the break
+    detector compares one's with the other's. A ROS 1 bag names the publishers: say so."""
+    import logging
+
+    from rosbags.rosbag1 import Writer
+
+    src = tmp_path / "in.bag"
+    store = get_typestore(Stores.ROS1_NOETIC)
+    with Writer(src) as writer:
+        maps = [
+            writer.add_connection("/map", MAP_TYPE, typestore=store, callerid=node)
+            for node in ("/slam", "/map_server")
+        ]
+        scans = writer.add_connection("/scan", SCAN_TYPE, typestore=store, callerid="/laser")
+        map_count = 0
+        for t_ns, topic, data in _messages("ros1"):
+            if topic == "/map":
+                writer.write(maps[map_count % 2], t_ns, data)
+                map_count += 1
+            else:
+                writer.write(scans, t_ns, data)
+    with caplog.at_level(logging.WARNING):
+        report = process_log(src, output_path=None)
+    said = [r.getMessage() for r in caplog.records if "publishers" in r.getMessage()]
+    assert said == [
+        "/map: maps from 2 publishers (/map_server, /slam) are analysed as one session: the "
+        "break detector compares one's maps with the other's (-t picks no publisher)"
+    ]
+    assert len(report.records) == map_count == 2
+    from rose_logs.cli import main
+
+    assert main(["info", str(src)]) == 0
+    assert (
+        "  publishers   /map_server, /slam  (analysed as one session)\n" in capsys.readouterr().out
+    )
+    caplog.clear()
+    one = tmp_path / "one.bag"
+    with Writer(one) as writer:  # one publisher: nothing to say
+        conns = {
+            topic: writer.add_connection(topic, msgtype, typestore=store, callerid="/slam")
+            for topic, msgtype in (("/map", MAP_TYPE), ("/scan", SCAN_TYPE))
+        }
+        for t_ns, topic, data in _messages("ros1"):
+            writer.write(conns[topic], t_ns, data)
+    with caplog.at_level(logging.WARNING):
+        process_log(one, output_path=None)
+    assert not [r for r in caplog.records if "publishers" in r.getMessage()]
