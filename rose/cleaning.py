@@ -389,14 +389,15 @@ def clean(
     cleaned = occupancy.copy()
     cleaned[removed] = FREE if result.params.clutter_value == "free" else UNKNOWN
     cleaned[completed] = OCCUPIED
-    _LOG.debug(
-        "walls cleaning: %d cells kept (%d rescued, %d by the guard), %d removed, %d completed",
-        int(np.count_nonzero(kept)),
-        int(np.count_nonzero(kept & result.clutter)),
-        int(np.count_nonzero(guarded & result.clutter)),
-        int(np.count_nonzero(removed)),
-        int(np.count_nonzero(completed)),
-    )
+    if _LOG.isEnabledFor(logging.DEBUG):  # the counts cost map-sized passes
+        _LOG.debug(
+            "walls cleaning: %d cells kept (%d rescued, %d by the guard), %d removed, %d completed",
+            int(np.count_nonzero(kept)),
+            int(np.count_nonzero(kept & result.clutter)),
+            int(np.count_nonzero(guarded & result.clutter)),
+            int(np.count_nonzero(removed)),
+            int(np.count_nonzero(completed)),
+        )
     return CleanResult(
         cleaned=cleaned,
         method=method,
