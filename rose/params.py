@@ -105,6 +105,10 @@ def make_params(params: RoseParams | None = None, **overrides: Any) -> RoseParam
     return merged
 
 
+#: Largest spectrum length a parameter takes, cells (a map of 1e6 cells a side has 1e12 cells).
+MAX_SPECTRUM_PX = 1e6
+
+
 def _problems(p: RoseParams) -> list[str]:
     numbers = [
         f.name for f in dataclasses.fields(p) if f.name not in ("threshold_mode", "clutter_value")
@@ -135,10 +139,14 @@ def _problems(p: RoseParams) -> list[str]:
         )
     if not 0.0 <= p.smoothing_deg <= 30.0:
         problems.append(f"smoothing_deg must be in [0, 30], got {p.smoothing_deg}")
-    if not p.min_radius_px >= 0:
-        problems.append(f"min_radius_px must be >= 0, got {p.min_radius_px}")
-    if not p.mask_half_width_px > 0:
-        problems.append(f"mask_half_width_px must be > 0, got {p.mask_half_width_px}")
+    # Spectrum lengths (cells of the padded map's longer side): beyond any map's size they mean
+    # "all of it", and far beyond they overflow the index arithmetic (1e19 crashed the strip mask).
+    if not 0 <= p.min_radius_px <= MAX_SPECTRUM_PX:
+        problems.append(f"min_radius_px must be in [0, {MAX_SPECTRUM_PX:g}], got {p.min_radius_px}")
+    if not 0 < p.mask_half_width_px <= MAX_SPECTRUM_PX:
+        problems.append(
+            f"mask_half_width_px must be in (0, {MAX_SPECTRUM_PX:g}], got {p.mask_half_width_px}"
+        )
     if not 1 <= p.occupied_threshold <= 100:
         problems.append(f"occupied_threshold must be in 1..100, got {p.occupied_threshold}")
     if p.threshold_mode not in ("gmm", "fixed"):
