@@ -192,10 +192,16 @@ def test_hough_parameters_that_crashed_opencv_are_rose_errors() -> None:
         {"faces_only": 1},
         {"occupied_threshold": True},
         {"extend_band_px": math.nan},
+        # A 32-bit threshold in OpenCV (a cv2.error); a band searched cell by cell (1e5: 45 s,
+        # 1e6: minutes, 1e300: a numpy ValueError).
+        {"hough_votes": 2**31},
+        {"extend_band_px": 1e5},
+        {"extend_band_px": 1e300},
     ):
         with pytest.raises(rose.RoseError, match=next(iter(bad))):
             WallParams(**bad)  # type: ignore[arg-type]
     assert WallParams(hough_votes=np.int64(3), hough_rho_px=100).hough_votes == 3
+    assert WallParams(hough_votes=10**7, extend_band_px=100).extend_band_px == 100
 
 
 def test_input_not_modified_and_deterministic() -> None:

@@ -98,7 +98,8 @@ class WallParams:
         cannot add walls. A deviation from the paper (which uses the cleaned map alone), on by
         default.
     extend_band_px : float
-        Half-width, in cells, of the band along a segment's line searched for raw wall pixels.
+        Half-width, in cells (at most 100), of the band along a segment's line searched for raw
+        wall pixels.
     """
 
     occupied_threshold: int = 65
@@ -125,8 +126,11 @@ class WallParams:
             problems.append(
                 f"occupied_threshold must be an integer in 1..100, got {self.occupied_threshold!r}"
             )
-        if not integer_number(self.hough_votes) or self.hough_votes < 1:
-            problems.append(f"hough_votes must be an integer >= 1, got {self.hough_votes!r}")
+        # OpenCV takes a 32-bit threshold (2**31 was a cv2.error); no map has 1e7 cells on a line.
+        if not integer_number(self.hough_votes) or not 1 <= self.hough_votes <= 10**7:
+            problems.append(
+                f"hough_votes must be an integer in 1..10000000, got {self.hough_votes!r}"
+            )
         # OpenCV's Hough transform sizes its accumulator by these two and crashed the interpreter
         # on a distance step of 1e4 cells; steps over a hundred cells or under 0.01 degree mean
         # nothing on a map.
@@ -143,11 +147,16 @@ class WallParams:
             "merge_distance_px",
             "merge_gap_px",
             "min_wall_length_px",
-            "extend_band_px",
         ):
             value = getattr(self, name)
             if not (finite_number(value) and value >= 0):
                 problems.append(f"{name} must be a finite number >= 0, got {value!r}")
+        # The band is searched cell by cell around every segment: 1e5 cells took 45 s, 1e300 failed
+        # in numpy; a band of 100 cells (5 m at 5 cm) is no longer "near the line".
+        if not (finite_number(self.extend_band_px) and 0 <= self.extend_band_px <= 100):
+            problems.append(
+                f"extend_band_px must be in [0, 100] cells, got {self.extend_band_px!r}"
+            )
         if not (finite_number(self.snap_tolerance_deg) and 0 <= self.snap_tolerance_deg <= 90):
             problems.append(
                 f"snap_tolerance_deg must be in [0, 90], got {self.snap_tolerance_deg!r}"
