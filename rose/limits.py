@@ -188,7 +188,8 @@ def pnm_header(data: bytes | memoryview) -> tuple[list[int], int] | None:
 
 
 def image_shape(data: bytes | memoryview) -> tuple[int, int] | None:
-    """``(rows, cols)`` declared by a PNG, PNM (PBM/PGM/PPM/PAM-less) or BMP header; None otherwise.
+    """``(rows, cols)`` declared by a PNG, PNM (PBM/PGM/PPM/PAM-less), BMP, JPEG, TIFF or WebP header;
+    None otherwise.
 
     Only the header is read; a truncated header gives None (the decoder reports it).
     """
@@ -202,6 +203,82 @@ def image_shape(data: bytes | memoryview) -> tuple[int, int] | None:
     if head.startswith(b"BM") and len(head) >= 26:
         cols, rows = struct.unpack("<ii", head[18:26])
         return abs(rows), abs(cols)
+    if head.startswith(b"\xff\xd8"):
+        return _jpeg_shape(data)
+    if head[:4] in (b"II*\x00", b"MM\x00*"):
+        return _tiff_shape(data)
+    if head[:4] == b"RIFF" and head[8:12] == b"WEBP":
+        return _webp_shape(head)
+    return None
+
+
+#: JPEG start-of-frame markers (the frame's size follows them): C0..CF but DHT, JPG and DAC.
+_JPEG_FRAMES = frozenset(range(0xC0, 0xD0)) - {0xC4, 0xC8, 0xCC}
+
+
+def _jpeg_shape(data: bytes | memoryview) -> tuple[int, int] | None:
+    """The size in a JPEG's first start-of-frame segment (after APPn / EXIF segments)."""
+    pos, end = 2, len(data)
+    while pos + 4 <= end:
+        if data[pos] != 0xFF:
+            return None
+        marker = data[pos + 1]
+        if marker == 0xFF:  # fill byte
+            pos += 1
+            continue
+        if marker in (0x01, *range(0xD0, 0xD8)):  # no length
+            pos += 2
+            continue
+        if marker in (0xD9, 0xDA):  # end of image, start of scan: no frame header before it
+            return None
+        (length,) = struct.unpack(">H", bytes(data[pos + 2 : pos + 4]))
+        if marker in _JPEG_FRAMES:
+            if pos + 9 > end or length < 7:
+                return None
+            rows, cols = struct.unpack(">HH", bytes(data[pos + 5 : pos + 9]))
+            return rows, cols
+        pos += 2 + length
+    return None
+
+
+def _tiff_shape(data: bytes | memoryview) -> tuple[int, int] | None:
+    """ImageLength and ImageWidth of a TIFF's first directory (the page OpenCV decodes)."""
+    order = "<" if bytes(data[:2]) == b"II" else ">"
+    if len(data) < 8:
+        return None
+    (ifd,) = struct.unpack(order + "I", bytes(data[4:8]))
+    if ifd + 2 > len(data):
+        return None
+    (count,) = struct.unpack(order + "H", bytes(data[ifd : ifd + 2]))
+    size: dict[int, int] = {}
+    for k in range(count):
+        entry = bytes(data[ifd + 2 + 12 * k : ifd + 14 + 12 * k])
+        if len(entry) < 12:
+            return None
+        tag, kind = struct.unpack(order + "HH", entry[:4])
+        if tag in (256, 257):  # ImageWidth, ImageLength: SHORT or LONG
+            if kind == 3:
+                (size[tag],) = struct.unpack(order + "H", entry[8:10])
+            elif kind == 4:
+                (size[tag],) = struct.unpack(order + "I", entry[8:12])
+    if 256 not in size or 257 not in size:
+        return None
+    return size[257], size[256]
+
+
+def _webp_shape(head: bytes) -> tuple[int, int] | None:
+    """The canvas of a WebP file: lossy (VP8), lossless (VP8L) or extended (VP8X)."""
+    chunk = head[12:16]
+    if chunk == b"VP8 " and len(head) >= 30 and head[23:26] == b"\x9d\x01\x2a":
+        cols, rows = struct.unpack("<HH", head[26:30])
+        return rows & 0x3FFF, cols & 0x3FFF
+    if chunk == b"VP8L" and len(head) >= 25 and head[20] == 0x2F:
+        (bits,) = struct.unpack("<I", head[21:25])
+        return ((bits >> 14) & 0x3FFF) + 1, (bits & 0x3FFF) + 1
+    if chunk == b"VP8X" and len(head) >= 30:
+        cols = int.from_bytes(head[24:27], "little") + 1
+        rows = int.from_bytes(head[27:30], "little") + 1
+        return rows, cols
     return None
 
 

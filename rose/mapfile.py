@@ -333,6 +333,14 @@ def _read_image(path: Path, max_cells: int | None = DEFAULT_MAX_CELLS) -> npt.ND
         if problem is not None:
             msg = f"{path}: image of {problem}"
             raise MapFileError(msg)
+    elif max_cells is not None:
+        # Its size cannot be checked before decoding: a 10 KB file can declare 16000 x 16000
+        # pixels, and the decoder allocates them before any limit applies.
+        msg = (
+            f"{path}: not a readable image (not a PNG, PGM / PPM / PBM, BMP, JPEG, TIFF or WebP "
+            "file: the formats whose size is checked before decoding)"
+        )
+        raise MapFileError(msg)
     pixels = _decode_pnm(raw, path)
     if pixels is None:
         pixels = _decode_other(raw, path, max_cells)

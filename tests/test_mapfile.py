@@ -227,6 +227,49 @@ def test_malformed_image_headers_fail_quietly_in_one_line(
     assert capfd.readouterr().err == ""
 
 
+@pytest.mark.parametrize(
+    ("ext", "params"),
+    [
+        (".jpg", []),
+        (".jpg", [cv2.IMWRITE_JPEG_PROGRESSIVE, 1]),
+        (".tiff", []),
+        (".webp", [cv2.IMWRITE_WEBP_QUALITY, 80]),
+        (".webp", [cv2.IMWRITE_WEBP_QUALITY, 101]),  # lossless
+        (".png", []),
+        (".bmp", []),
+        (".pgm", []),
+    ],
+)
+def test_every_accepted_image_format_is_sized_from_its_header_before_decoding(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, ext: str, params: list[int]
+) -> None:
+    """A 10 KB WebP declaring 16000 x 16000 pixels was decoded in full (1.6 GB) before --max-cells
+    refused it (JPEG and TIFF 590 MB); only PNG, PNM and BMP were sized from their headers."""
+    from rose.limits import image_shape
+
+    pixels = (np.arange(37 * 53) % 251).astype(np.uint8).reshape(37, 53)
+    path = tmp_path / f"m{ext}"
+    path.write_bytes(cv2.imencode(ext, pixels, params)[1].tobytes())
+    assert image_shape(path.read_bytes()) == (37, 53)
+    assert rose.load_map(path, resolution_m=0.05).grid.shape == (37, 53)
+
+    def no_decoding(*args: object) -> None:
+        raise AssertionError("decoded")
+
+    monkeypatch.setattr(cv2, "imdecode", no_decoding)
+    with pytest.raises(MapFileError, match="53 x 37 = 1,961 cells exceeds the limit of 1,000"):
+        rose.load_map(path, resolution_m=0.05, max_cells=1000)
+
+
+def test_an_image_format_not_sized_from_its_header_is_refused_under_a_limit(
+    tmp_path: Path,
+) -> None:
+    path = tmp_path / "m.hdr"  # Radiance HDR: OpenCV reads it, its size is not checked first
+    path.write_bytes(cv2.imencode(".hdr", np.ones((4, 5, 3), np.float32))[1].tobytes())
+    with pytest.raises(MapFileError, match="formats whose size is checked before decoding"):
+        rose.load_map(path, resolution_m=0.05)
+
+
 def test_image_path_is_relative_to_the_yaml(tmp_path: Path) -> None:
     (tmp_path / "img").mkdir()
     cv2.imwrite(str(tmp_path / "img" / "m.png"), np.full((5, 5), 254, np.uint8))
