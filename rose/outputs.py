@@ -11,7 +11,8 @@ Every command of ``rose`` and ``rose-bag`` writes its outputs through one :class
 - **staging**: each output is written inside its own hidden folder next to the target,
   ``.NAME.rose-tmp-<pid>-<random>/NAME``, unique per run (two concurrent runs never share a temporary);
   an output given as ``-``, or an existing non-regular target such as ``/dev/stdout``, ``/dev/null`` or
-  a FIFO, is a *stream*: its bytes are kept in memory and written to it at commit, never by rename. A
+  a FIFO, is a *stream*: its bytes are kept in memory and written to it at commit (before any file is
+  placed: a stream that fails leaves no file), never by rename. A
   symlink to a regular file is followed: its target is replaced and the link kept.
 - **commit** (:meth:`OutputSet.commit`): existing targets (``force``) are moved aside, every staged output
   is renamed into place, then the old ones are deleted; if any rename fails, the new ones are removed and
@@ -715,11 +716,15 @@ class OutputSet:
     def commit(self) -> None:
         """Move every staged output into place, all or none (see the module docstring).
 
+        Streams (stdout, a device, a FIFO) are written first: they cannot be taken back, so a
+        stream that fails (a full device, a closed pipe) leaves no file placed. Files that then
+        cannot be placed leave the streams written.
+
         Raises
         ------
         OutputError
-            If a staged output is missing or a target cannot be replaced; nothing is changed then
-            (streams aside, which are written last).
+            If a staged output is missing, a stream cannot be written or a target cannot be
+            replaced; no file is changed then.
         """
         if self._done:
             return
@@ -729,6 +734,11 @@ class OutputSet:
                 self.abort()
                 msg = f"{staged.path}: the output was not written"
                 raise OutputError(msg)
+        try:
+            self._write_streams()
+        except BaseException:
+            self.abort()
+            raise
         # Signals held: one landing between a rename and its bookkeeping would leave a half-placed
         # set, a target moved aside for good, or staging folders. One that came while the outputs
         # were placed undoes them (as a failure does) and is raised then. Once all are placed, the
@@ -767,7 +777,6 @@ class OutputSet:
                 if staged.stage is not None:
                     _remove_tree(staged.stage)
             self._done = True
-        self._write_streams()
 
     def _undo(self, placed: list[StagedOutput], backups: list[tuple[StagedOutput, Path]]) -> None:
         for staged in placed:

@@ -157,6 +157,22 @@ def test_devices_are_streamed_not_replaced(tmp_path: Path) -> None:
     assert Path("/dev/null").is_char_device()
 
 
+@pytest.mark.skipif(not Path("/dev/full").exists(), reason="no /dev/full on this system")
+def test_a_stream_that_cannot_be_written_leaves_no_file(tmp_path: Path) -> None:
+    """`rose clean m.yaml -o out.yaml --json /dev/full` said error and exit 1, with out.yaml and
+    out.pgm placed: streams were written after the files. Written first, a failure places none."""
+    (tmp_path / "kept.pgm").write_bytes(b"old")
+    with (
+        pytest.raises(OutputError, match="/dev/full: cannot write"),
+        OutputSet(force=True) as outputs,
+    ):
+        outputs.write_bytes(tmp_path / "out.yaml", b"yaml")
+        outputs.write_bytes(tmp_path / "kept.pgm", b"new")
+        outputs.write_bytes(Path("/dev/full"), b"{}")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["kept.pgm"]
+    assert (tmp_path / "kept.pgm").read_bytes() == b"old"
+
+
 def test_dash_and_dev_stdout_stream_to_stdout(tmp_path: Path) -> None:
     code = (
         "import sys; from pathlib import Path; from rose.outputs import OutputSet\n"
