@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 import os
 import stat
+import struct
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -447,10 +448,13 @@ def _decode_other(raw: bytes, path: Path, max_cells: int | None) -> npt.NDArray[
 
 
 def _header_problem(raw: bytes, shape: tuple[int, int] | None) -> str | None:
-    """What is wrong with the header of a PNG or PNM image, if it is one; None otherwise."""
+    """What is wrong with the header of a PNG or PNM image, or with a PNG's chunks, if it is one;
+    None otherwise."""
     if raw.startswith(b"\x89PNG\r\n\x1a\n"):
         if shape is None:
             return "truncated or malformed PNG header"
+        if 0 not in shape:
+            return _png_problem(raw)
     elif raw[:1] == b"P" and raw[1:2] in (b"1", b"2", b"3", b"4", b"5", b"6"):
         numbers = pnm_numbers(raw)
         if numbers is None:
@@ -462,6 +466,41 @@ def _header_problem(raw: bytes, shape: tuple[int, int] | None) -> str | None:
     if shape is not None and 0 in shape:
         return f"its header declares {shape[1]} x {shape[0]} pixels"
     return None
+
+
+def _png_problem(raw: bytes) -> str | None:
+    """A truncated PNG, a chunk whose CRC does not match or image data that does not inflate: what
+    libpng would print on stderr itself (before an error without a reason), said here in one line."""
+    import zlib
+
+    pos, end = 8, len(raw)
+    image_data = zlib.decompressobj()
+    while True:
+        if pos + 12 > end:
+            return f"truncated PNG: the file ends at byte {end}, inside or before a chunk"
+        length, kind = struct.unpack(">I4s", raw[pos : pos + 8])
+        body_end = pos + 8 + length
+        if body_end + 4 > end:
+            name = kind.decode("latin-1")
+            return (
+                f"truncated PNG: its {name!r} chunk at byte {pos} runs past the end ({end} bytes)"
+            )
+        (crc,) = struct.unpack(">I", raw[body_end : body_end + 4])
+        if zlib.crc32(raw[pos + 4 : body_end]) != crc:
+            return (
+                f"corrupt PNG: CRC mismatch in its {kind.decode('latin-1')!r} chunk at byte {pos}"
+            )
+        if kind == b"IDAT":
+            try:  # inflated in pieces and dropped: only whether it inflates matters here
+                chunk = raw[pos + 8 : body_end]
+                while chunk:
+                    image_data.decompress(chunk, 1 << 20)
+                    chunk = image_data.unconsumed_tail
+            except zlib.error as err:
+                return f"corrupt PNG: its image data does not inflate ({err})"
+        if kind == b"IEND":
+            return None
+        pos = body_end + 4
 
 
 def image_to_grid(

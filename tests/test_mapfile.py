@@ -270,6 +270,41 @@ def test_an_image_format_not_sized_from_its_header_is_refused_under_a_limit(
         rose.load_map(path, resolution_m=0.05)
 
 
+def _png_damaged(how: str) -> bytes:
+    import struct
+    import zlib
+
+    raw = bytearray(cv2.imencode(".png", np.arange(400, dtype=np.uint8).reshape(20, 20))[1])
+    idat = raw.find(b"IDAT") - 4
+    (length,) = struct.unpack(">I", raw[idat : idat + 4])
+    if how == "truncated":
+        return bytes(raw[: raw.rfind(b"IEND") - 4])
+    raw[idat + 8 + length // 2] ^= 0xFF
+    if how == "inflate":  # the CRC made to match: only the compressed stream is wrong
+        raw[idat + 8 + length : idat + 12 + length] = struct.pack(
+            ">I", zlib.crc32(raw[idat + 4 : idat + 8 + length])
+        )
+    return bytes(raw)
+
+
+@pytest.mark.parametrize(
+    ("how", "problem"),
+    [
+        ("truncated", "truncated PNG: the file ends at byte"),
+        ("crc", "corrupt PNG: CRC mismatch in its 'IDAT' chunk"),
+        ("inflate", "corrupt PNG: its image data does not inflate"),
+    ],
+)
+def test_a_damaged_png_says_what_is_wrong_in_one_line(
+    tmp_path: Path, capfd: pytest.CaptureFixture[str], how: str, problem: str
+) -> None:
+    """libpng printed its own lines on stderr, then came 'not a readable image' with no reason."""
+    (tmp_path / "m.png").write_bytes(_png_damaged(how))
+    with pytest.raises(MapFileError, match=problem):
+        rose.load_map(tmp_path / "m.png", resolution_m=0.05)
+    assert capfd.readouterr().err == ""
+
+
 def test_image_path_is_relative_to_the_yaml(tmp_path: Path) -> None:
     (tmp_path / "img").mkdir()
     cv2.imwrite(str(tmp_path / "img" / "m.png"), np.full((5, 5), 254, np.uint8))
