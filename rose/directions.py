@@ -10,6 +10,7 @@ import numpy.typing as npt
 
 __all__ = [
     "FAILURE_LEVEL",
+    "MIN_JUDGED_CELLS",
     "TRUST_LEVEL",
     "DirectionPeaks",
     "find_direction_peaks",
@@ -19,6 +20,7 @@ __all__ = [
     "peak_prominences",
     "refine_peak_positions",
     "structure_score",
+    "w_judges",
 ]
 
 
@@ -49,6 +51,22 @@ TRUST_LEVEL = 0.2
 """W below which the paper trusts a map's decluttering."""
 FAILURE_LEVEL = 0.4
 """W above which the paper considers the decluttering (and the map) failed."""
+
+#: Fewest occupied cells for W to judge a map: a 1 m wall at 5 cm per cell. An empty map has
+#: W = 1 by convention (so has a single cell: its spectrum is flat), and a few cells' W says nothing
+#: about a building.
+MIN_JUDGED_CELLS = 20
+
+
+def w_judges(occupied_cells: int) -> bool:
+    """Whether W says something about a map with ``occupied_cells`` occupied cells.
+
+    An empty or all-unknown map (a SLAM session's first maps, W = 1 by convention), or one of a few
+    occupied cells (fewer than :data:`MIN_JUDGED_CELLS`), says nothing about the building: it stays
+    in the per-snapshot records but is left out of W's statistics, the failure-level events, the
+    gates and the W plot of ``rose-bag``, and gets no verdict from ``rose``.
+    """
+    return occupied_cells >= MIN_JUDGED_CELLS
 
 
 @dataclass(frozen=True, eq=False)

@@ -214,7 +214,7 @@ def _load_yaml_map(path: Path, max_cells: int | None) -> OccupancyMap:
         msg = f"{path}: not a readable YAML file ({err})"
         raise MapFileError(msg) from err
     if not isinstance(meta, dict):
-        msg = f"{path}: expected a YAML mapping with 'image', 'resolution' and 'origin'"
+        msg = f"{path}: expected a YAML mapping with 'image' and 'resolution' (and 'origin')"
         raise MapFileError(msg)
     image_name = _field(meta, "image", str, path)
     resolution = _field(meta, "resolution", float, path)

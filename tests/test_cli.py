@@ -47,6 +47,23 @@ def test_clean_writes_map_and_report(
     assert "W " in printed and "directions" in printed and "removed" in printed
 
 
+def test_clean_gives_no_verdict_on_a_few_occupied_cells(
+    cluttered_map: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A 16-cell map read "structured: decluttering can be trusted"; rose-bag leaves maps of fewer
+    than 20 occupied cells out of W's judgement, and so does rose now."""
+    grid = np.zeros((40, 40), dtype=np.int8)
+    grid[10, 10:26] = 100
+    few = tmp_path / "few.yaml"
+    rose.save_map(few, rose.OccupancyMap(grid=grid, resolution_m=0.05))
+    assert main(["clean", str(few), "-o", str(tmp_path / "c1.yaml")]) == 0
+    line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("W "))
+    assert "only 16 occupied cells (fewer than 20): W says nothing about this map" in line
+    assert main(["clean", str(cluttered_map), "-o", str(tmp_path / "c2.yaml")]) == 0
+    line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("W "))
+    assert "says nothing" not in line
+
+
 def test_main_in_process_leaves_the_callers_signal_handlers(
     cluttered_map: Path, tmp_path: Path
 ) -> None:

@@ -9,7 +9,13 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from rose.directions import FAILURE_LEVEL, TRUST_LEVEL, map_frame_deg
+from rose.directions import (
+    FAILURE_LEVEL,
+    MIN_JUDGED_CELLS,
+    TRUST_LEVEL,
+    map_frame_deg,
+    w_judges,
+)
 from rose.errors import RoseError
 from rose.grid import as_occupancy_grid
 from rose.limits import DEFAULT_MAX_CELLS
@@ -305,6 +311,11 @@ def verdict(score: float, *, occupied_cells: int | None = None, has_structure: b
         return "no occupied cells: W says nothing about this map"
     if not has_structure:
         return "no dominant direction: nothing labelled, the map is kept as it is"
+    if occupied_cells is not None and not w_judges(occupied_cells):
+        return (
+            f"only {cells(occupied_cells, 'occupied')} (fewer than {MIN_JUDGED_CELLS}): "
+            "W says nothing about this map"
+        )
     if score < TRUST_LEVEL:
         return "structured: decluttering can be trusted"
     if score <= FAILURE_LEVEL:

@@ -9,30 +9,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from rose.directions import MIN_JUDGED_CELLS, w_judges
 from rose.params import RoseParams
 from rose_logs.session.breaks import DetectedBreak
 from rose_logs.snapshots import float32_decimal
 
-__all__ = ["BreakEvent", "SessionReport", "SnapshotRecord", "w_judges"]
+__all__ = ["MIN_JUDGED_CELLS", "BreakEvent", "SessionReport", "SnapshotRecord", "w_judges"]
 
 _LOG = logging.getLogger(__name__)
-
-
-#: Fewest occupied cells for W to judge a map: a 1 m wall at 5 cm per cell. An empty map has
-#: W = 1 by convention (so has a single cell: its spectrum is flat), and a few cells' W says nothing
-#: about a building.
-MIN_JUDGED_CELLS = 20
-
-
-def w_judges(occupied_cells: int) -> bool:
-    """Whether W says something about a map with ``occupied_cells`` occupied cells.
-
-    An empty or all-unknown map (a SLAM session's first maps, W = 1 by convention), or one of a few
-    occupied cells (fewer than :data:`MIN_JUDGED_CELLS`), says nothing about the building: it stays
-    in the per-snapshot records but is left out of W's statistics, the failure-level events, the
-    gates and the W plot.
-    """
-    return occupied_cells >= MIN_JUDGED_CELLS
 
 
 @dataclass(frozen=True)
