@@ -572,7 +572,8 @@ def save_map(
 ) -> Path:
     """Write ``occupancy_map`` as map_server YAML plus a trinary PGM beside it; return the image path.
 
-    ``path`` names the YAML file; the image gets the same stem with ``.pgm``. Cells of at least
+    ``path`` names the YAML file; the image gets the same stem with ``.pgm`` (a symlinked YAML is
+    written through to its target, and the image goes beside the target, with its stem). Cells of at least
     ``occupied_threshold`` are written occupied (map_saver's 65 by default: pass the threshold the
     map was analysed with, so that every cell ROSE counted as occupied stays so), of at most 25 free,
     the rest unknown. Both files are staged
@@ -596,7 +597,9 @@ def save_map(
         msg = f"{path}: the output map must be a .yaml file"
         raise MapFileError(msg)
     grid = as_occupancy_grid(occupancy_map.grid)
-    image_path = path.with_suffix(".pgm")
+    # A symlinked YAML is written through to its target: the image goes beside the target, which
+    # names it (beside the link, the target named an image that was not beside it).
+    image_path = (Path(os.path.realpath(path)) if path.is_symlink() else path).with_suffix(".pgm")
     try:
         image_path.name.encode("utf-8")
     except (

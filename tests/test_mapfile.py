@@ -14,6 +14,7 @@ from real_data import FR079_DIR, repo_data
 
 import rose
 from rose import MapFileError, OccupancyMap
+from rose.outputs import OutputSet
 
 
 def write_yaml(path: Path, text: str) -> Path:
@@ -399,6 +400,24 @@ def test_unreadable_image_and_missing_file(tmp_path: Path) -> None:
         rose.load_map(tmp_path / "junk.png")
     with pytest.raises(MapFileError, match="no such file"):
         rose.load_map(tmp_path / "nothing.yaml")
+
+
+def test_a_symlinked_yaml_is_saved_beside_its_target(tmp_path: Path) -> None:
+    """-o lnk.yaml -> sub/real.yaml wrote the YAML through the link into sub/ and the image beside
+    the link: sub/real.yaml named an image that was not beside it."""
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "real.yaml").write_text("x")
+    link = tmp_path / "lnk.yaml"
+    link.symlink_to("sub/real.yaml")
+    grid = np.zeros((6, 8), dtype=np.int8)
+    grid[2, 1:7] = 100
+    with OutputSet(force=True) as outputs:
+        image = rose.save_map(
+            link, rose.OccupancyMap(grid=grid, resolution_m=0.05), outputs=outputs
+        )
+    assert image == tmp_path / "sub" / "real.pgm"
+    assert link.is_symlink() and sorted(p.name for p in tmp_path.iterdir()) == ["lnk.yaml", "sub"]
+    np.testing.assert_array_equal(rose.load_map(tmp_path / "sub" / "real.yaml").grid, grid)
 
 
 def test_save_into_missing_directory_fails_cleanly(tmp_path: Path) -> None:

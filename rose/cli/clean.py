@@ -115,7 +115,7 @@ def run(args: argparse.Namespace) -> int:
         f"the paper's labelling, {cleaning.guarded_count} by the gap guard)",
         f"completed    {cells(cleaning.completed_count, 'unknown')} made walls (the wall line "
         "hidden behind removed clutter)",
-        f"written      {args.output} + {image_path.name}",
+        f"written      {args.output} + {_beside(image_path, Path(args.output))}",
         f"time         {elapsed * 1000:.0f} ms",
     ]
     print("\n".join(lines), file=out)
@@ -134,3 +134,9 @@ def cleaning_summary(cleaning: CleanResult) -> dict[str, Any]:
         "guarded_cells": cleaning.guarded_count,
         "completed_cells": cleaning.completed_count,
     }
+
+
+def _beside(image: Path, yaml_path: Path) -> str:
+    """The image's name when it lies beside the YAML as given, else its path (a symlinked YAML's
+    image lies beside the link's target)."""
+    return image.name if image.parent == yaml_path.parent else str(image)
