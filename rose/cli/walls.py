@@ -26,8 +26,9 @@ def add_parser(subparsers: Any) -> None:
         help="extract wall segments (ROSE-snapped, or the plain Hough baseline)",
         description=(
             "Find wall segments in MAP (map_server YAML, or a PGM/PNG image) and print them in the "
-            "map frame. By default walls are found on the ROSE-cleaned map and snapped to its "
-            "dominant directions; --hough gives the probabilistic-Hough baseline on the raw map."
+            "map frame. By default walls are found on the cells ROSE labels structure (the paper's "
+            "labelling, not `rose clean`'s walls method) and snapped to its dominant directions; "
+            "--hough gives the probabilistic-Hough baseline on the raw map."
         ),
     )
     parser.add_argument("map", type=path_arg, metavar="MAP", help="map YAML or image file")
