@@ -119,6 +119,10 @@ _StrictLoader.add_implicit_resolver(
 )
 
 
+#: A colon followed by tabs (and spaces), which yaml-cpp reads as a separating space.
+_TAB_AFTER_COLON = re.compile(r":[ ]*\t[ \t]*")
+
+
 def load_yaml(text: str | bytes) -> Any:
     """Parse ``text`` as YAML with the limits above (floats with an exponent, ``5e-2``, as YAML 1.2
     and ROS's yaml-cpp read them).
@@ -139,7 +143,13 @@ def load_yaml(text: str | bytes) -> Any:
             msg = "not UTF-8 text"
             raise ValueError(msg) from err
     try:
-        return yaml.load(text, Loader=_StrictLoader)
+        try:
+            return yaml.load(text, Loader=_StrictLoader)
+        except yaml.scanner.ScannerError as err:
+            # yaml-cpp (map_server's) takes a tab after "key:" as a space; PyYAML refuses it.
+            if "'\\t'" not in str(err.problem) or not _TAB_AFTER_COLON.search(text):
+                raise
+            return yaml.load(_TAB_AFTER_COLON.sub(": ", text), Loader=_StrictLoader)
     except yaml.YAMLError as err:
         problem = short(getattr(err, "problem", None) or err, 120)
         mark = getattr(err, "problem_mark", None)

@@ -342,6 +342,11 @@ def _read_image(path: Path, max_cells: int | None = DEFAULT_MAX_CELLS) -> npt.ND
             "file: the formats whose size is checked before decoding)"
         )
         raise MapFileError(msg)
+    if raw.startswith(b"\x89PNG\r\n\x1a\n"):
+        problem = _png_problem(raw)
+        if problem is not None:  # libpng would print its own lines on stderr, then fail
+            msg = f"{path}: not a readable image ({problem})"
+            raise MapFileError(msg)
     pixels = _decode_pnm(raw, path)
     if pixels is None:
         pixels = _decode_other(raw, path, max_cells)
@@ -448,13 +453,10 @@ def _decode_other(raw: bytes, path: Path, max_cells: int | None) -> npt.NDArray[
 
 
 def _header_problem(raw: bytes, shape: tuple[int, int] | None) -> str | None:
-    """What is wrong with the header of a PNG or PNM image, or with a PNG's chunks, if it is one;
-    None otherwise."""
+    """What is wrong with the header of a PNG or PNM image, if it is one; None otherwise."""
     if raw.startswith(b"\x89PNG\r\n\x1a\n"):
         if shape is None:
             return "truncated or malformed PNG header"
-        if 0 not in shape:
-            return _png_problem(raw)
     elif raw[:1] == b"P" and raw[1:2] in (b"1", b"2", b"3", b"4", b"5", b"6"):
         numbers = pnm_numbers(raw)
         if numbers is None:

@@ -126,6 +126,18 @@ def test_alpha_counts_in_trinary_mode_as_the_map_servers_count_it(tmp_path: Path
     assert rose.load_map(scale).grid[0, 1] == 0  # 205 in scale mode (rint), alpha left out
 
 
+def test_a_tab_after_a_colon_reads_as_yaml_cpp_reads_it(tmp_path: Path) -> None:
+    """map_server (yaml-cpp) loads `image:<TAB>m.pgm`; PyYAML refused it."""
+    cv2.imwrite(str(tmp_path / "m.pgm"), np.array([[0, 254]], dtype=np.uint8))
+    path = write_yaml(tmp_path / "m.yaml", "image:\tm.pgm\nresolution: \t0.05\norigin: [1, 2, 0]\n")
+    loaded = rose.load_map(path)
+    assert (loaded.resolution_m, loaded.origin_xy_m) == (0.05, (1.0, 2.0))
+    # A tab that indents is still an error, with its line.
+    bad = write_yaml(tmp_path / "bad.yaml", "image: m.pgm\nresolution: 0.05\norigin:\n\t- 1\n")
+    with pytest.raises(MapFileError, match="'\\\\t' that cannot start any token on line 4"):
+        rose.load_map(bad)
+
+
 def test_quoted_numbers_are_numbers_as_yaml_cpp_reads_them(tmp_path: Path) -> None:
     cv2.imwrite(str(tmp_path / "m.pgm"), np.array([[0, 254]], dtype=np.uint8))
     path = write_yaml(
