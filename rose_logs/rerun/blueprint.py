@@ -143,7 +143,7 @@ def _topic_container(layout: TopicLayout) -> rrb.Container:
     amplitude = rrb.Spatial2DView(
         name=f"{root}: cumulative amplitude s per wall direction, peaks, threshold",
         origin=f"/{paths.amplitude_view}",
-        visual_bounds=rrb.VisualBounds2D(x_range=(-22.0, 198.0), y_range=(-1.28 * h, 36.0)),
+        visual_bounds=rrb.VisualBounds2D(x_range=(-22.0, 198.0), y_range=(-1.28 * h, 44.0)),
     )
     spectrum = rrb.Spatial2DView(
         name=f"{root}: log amplitude spectrum, kept strips (magenta)",
