@@ -342,8 +342,8 @@ def _read_image(path: Path, max_cells: int | None = DEFAULT_MAX_CELLS) -> npt.ND
             "file: the formats whose size is checked before decoding)"
         )
         raise MapFileError(msg)
-    if raw.startswith(b"\x89PNG\r\n\x1a\n"):
-        problem = _png_problem(raw)
+    if raw.startswith(b"\x89PNG\r\n\x1a\n") and shape is not None:
+        problem = _png_problem(raw, shape)
         if problem is not None:  # libpng would print its own lines on stderr, then fail
             msg = f"{path}: not a readable image ({problem})"
             raise MapFileError(msg)
@@ -470,13 +470,19 @@ def _header_problem(raw: bytes, shape: tuple[int, int] | None) -> str | None:
     return None
 
 
-def _png_problem(raw: bytes) -> str | None:
+def _png_problem(raw: bytes, shape: tuple[int, int]) -> str | None:
     """A truncated PNG, a chunk whose CRC does not match or image data that does not inflate: what
-    libpng would print on stderr itself (before an error without a reason), said here in one line."""
+    libpng would print on stderr itself (before an error without a reason), said here in one line.
+
+    The image data is inflated in pieces and dropped, and no further than the most the header's
+    ``shape`` (rows, cols) can hold: a small file inflating without end is left to the decoder,
+    which stops there."""
     import zlib
 
     pos, end = 8, len(raw)
     image_data = zlib.decompressobj()
+    most = shape[0] * (shape[1] * 8 + 1)  # 4 channels of 16 bits and a filter byte per row
+    inflated = 0
     while True:
         if pos + 12 > end:
             return f"truncated PNG: the file ends at byte {end}, inside or before a chunk"
@@ -492,15 +498,17 @@ def _png_problem(raw: bytes) -> str | None:
             return (
                 f"corrupt PNG: CRC mismatch in its {kind.decode('latin-1')!r} chunk at byte {pos}"
             )
-        if kind == b"IDAT":
-            try:  # inflated in pieces and dropped: only whether it inflates matters here
+        if kind == b"IDAT" and inflated <= most:
+            try:
                 chunk = raw[pos + 8 : body_end]
-                while chunk:
-                    image_data.decompress(chunk, 1 << 20)
+                while chunk and inflated <= most:
+                    inflated += len(image_data.decompress(chunk, 1 << 20))
                     chunk = image_data.unconsumed_tail
             except zlib.error as err:
                 return f"corrupt PNG: its image data does not inflate ({err})"
         if kind == b"IEND":
+            if inflated <= most and not image_data.eof:
+                return "corrupt PNG: its image data ends early"
             return None
         pos = body_end + 4
 

@@ -292,6 +292,10 @@ def _png_damaged(how: str) -> bytes:
     (length,) = struct.unpack(">I", raw[idat : idat + 4])
     if how == "truncated":
         return bytes(raw[: raw.rfind(b"IEND") - 4])
+    if how == "short":  # the compressed stream cut short inside a chunk whose CRC matches
+        body = b"IDAT" + bytes(raw[idat + 8 : idat + 8 + length - 6])
+        chunk = struct.pack(">I", len(body) - 4) + body + struct.pack(">I", zlib.crc32(body))
+        return bytes(raw[:idat]) + chunk + bytes(raw[idat + 12 + length :])
     raw[idat + 8 + length // 2] ^= 0xFF
     if how == "inflate":  # the CRC made to match: only the compressed stream is wrong
         raw[idat + 8 + length : idat + 12 + length] = struct.pack(
@@ -306,6 +310,7 @@ def _png_damaged(how: str) -> bytes:
         ("truncated", "truncated PNG: the file ends at byte"),
         ("crc", "corrupt PNG: CRC mismatch in its 'IDAT' chunk"),
         ("inflate", "corrupt PNG: its image data does not inflate"),
+        ("short", "corrupt PNG: its image data ends early"),
     ],
 )
 def test_a_damaged_png_says_what_is_wrong_in_one_line(
