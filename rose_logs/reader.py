@@ -145,7 +145,7 @@ class LogReader:
         remedy = (
             "nothing before the damage can be read either"
             if self.salvage
-            else "`rose-bag process --salvage` keeps the messages before the damage, if any can be read"
+            else "--salvage (process, info, batch) keeps the messages before the damage, if any can be read"
         )
         what = (
             "MCAP file, its index at the end cannot be read"
@@ -299,7 +299,9 @@ class LogReader:
 
     def _note_skipped_chunks(self, backend: object) -> None:
         """The damaged chunks a salvaging MCAP reader skipped, as losses (each said once)."""
-        skipped = getattr(backend, "skipped_chunks", [])
+        if not isinstance(backend, McapReadBackend):
+            return
+        skipped = backend.skipped_chunks
         for chunk in skipped:
             first, last = ((t - self.start_ns) / 1e9 for t in (chunk.start_ns, chunk.end_ns))
             problem = (
@@ -338,8 +340,6 @@ class LogReader:
             f"({short(', '.join(short_channels), 160)}): the log is damaged"
         )
         if not self.salvage:
-            raise MessageLossError(
-                problem + " (`rose-bag process --salvage` keeps what can be read)"
-            )
+            raise MessageLossError(problem + " (--salvage keeps what can be read)")
         self.losses.append(problem)
         _LOG.warning("%s", problem)

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import heapq
+import io
+import itertools
 import logging
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -36,6 +38,8 @@ _LOG = logging.getLogger(__name__)
 #: Most memory spent sorting the messages of a file read record by record whose messages are not
 #: in log-time order (a file with an index is sorted through it, in constant memory).
 MAX_SORTED_BYTES = 2**30
+#: The MCAP record type of a chunk (its first byte).
+_CHUNK_OPCODE = 0x06
 #: Memory a message held for sorting costs beyond its data (a RawMessage and its bytes: ~250 B).
 _HELD_OVERHEAD = 256
 
@@ -82,7 +86,7 @@ class McapReadBackend:
         if summary is None:
             msg = (
                 f"{self.path}: MCAP file without summary (truncated or still being recorded?); "
-                "`rose-bag process --salvage` keeps the messages before the end, or try `mcap recover`"
+                "--salvage keeps the messages before the end, or try `mcap recover`"
             )
             raise LogReadError(msg)
         counts = summary.statistics.channel_message_counts if summary.statistics else None
@@ -131,28 +135,43 @@ class McapReadBackend:
 
         assert self.stream is not None
         summary = self.reader.get_summary()
+        if not summary.chunk_indexes:  # no chunks (or no chunk index): the library reads it whole
+            by_id = self._by_id
+            for _schema, ch, msg in self.reader.iter_messages(topics=topics, log_time_order=True):
+                yield RawMessage(
+                    by_id[ch.id], msg.log_time, msg.data, msg.publish_time, msg.sequence
+                )
+            return
         wanted = {
             cid
             for cid, ch in summary.channels.items()
             if cid in self._by_id and (topics is None or ch.topic in topics)
         }
         size = self.path.stat().st_size
-        # (log time, chunk offset, index in the chunk (-1: the chunk itself), item)
-        queue: list[tuple[int, int, int, Any]] = [
-            (index.message_start_time, index.chunk_start_offset, -1, index)
+        # (log time, chunk offset, index in the chunk (-1: the chunk itself), tie-breaker, item):
+        # the tie-breaker keeps the items themselves out of every comparison.
+        tie = itertools.count()
+        queue: list[tuple[int, int, int, int, Any]] = [
+            (index.message_start_time, index.chunk_start_offset, -1, next(tie), index)
             for index in summary.chunk_indexes
             if wanted & set(index.message_index_offsets) or not index.message_index_offsets
         ]
         heapq.heapify(queue)
         while queue:
-            _, offset, position, item = heapq.heappop(queue)
+            _, offset, position, _, item = heapq.heappop(queue)
             if position >= 0:
                 ch = self._by_id[item.channel_id]
                 yield RawMessage(ch, item.log_time, item.data, item.publish_time, item.sequence)
                 continue
             try:
-                self.stream.seek(offset + 1 + 8)  # past the record's opcode and length
-                chunk = Chunk.read(ReadDataStream(self.stream))
+                # The record as the index bounds it: a damaged length inside it reads no further
+                # than the record (a length of 2**60 would have been read from the file).
+                self.stream.seek(offset)
+                raw = self.stream.read(min(item.chunk_length, size - offset))
+                if len(raw) < 9 or raw[0] != _CHUNK_OPCODE:
+                    msg = "no chunk record where the index points"
+                    raise ValueError(msg)
+                chunk = Chunk.read(ReadDataStream(io.BytesIO(raw[9:])))
                 records = list(breakup_chunk(chunk, validate_crc=True))
             except Exception as err:  # any library error: this chunk is damaged, go on
                 reason = short(str(err) or type(err).__name__, 120)
@@ -164,7 +183,7 @@ class McapReadBackend:
                 continue
             for at, record in enumerate(records):
                 if isinstance(record, Message) and record.channel_id in wanted:
-                    heapq.heappush(queue, (record.log_time, offset, at, record))
+                    heapq.heappush(queue, (record.log_time, offset, at, next(tie), record))
 
     def close(self) -> None:
         if self.stream is not None:

@@ -159,21 +159,25 @@ def _read(path: Path) -> list[RawMessage]:
         return list(reader.messages())
 
 
-def test_salvage_reads_an_intact_indexed_mcap_as_the_index_orders_it(tmp_path: Path) -> None:
+@pytest.mark.parametrize("chunked", [True, False])
+def test_salvage_reads_an_intact_indexed_mcap_as_the_index_orders_it(
+    tmp_path: Path, chunked: bool
+) -> None:
     """The salvaging reader merges the chunks itself: on an intact file it gives what the mcap
-    library gives, in the same order, also for chunks that overlap in time and equal log times."""
+    library gives, in the same order, also for chunks that overlap in time and equal log times,
+    and for a file of no chunks (it read nothing of one)."""
     from mcap.writer import Writer
 
     log = tmp_path / "overlap.mcap"
     with log.open("wb") as stream:
-        writer = Writer(stream, chunk_size=300)
+        writer = Writer(stream, chunk_size=300, use_chunking=chunked)
         writer.start(profile="", library="test")
         channels = [writer.register_channel(f"/t{k}", "json", 0) for k in range(3)]
         times = [5, 3, 3, 9, 1, 3, 7, 7, 2, 8, 3, 6] * 4
         for n, t in enumerate(times):
             writer.add_message(channels[n % 3], t, f'{{"n": {n}}}'.encode(), t)
         writer.finish()
-    assert len(_chunk_starts(log)) > 3
+    assert len(_chunk_starts(log)) > 3 if chunked else not _chunk_starts(log)
     plain = [(m.channel.topic, m.log_time_ns, bytes(m.data)) for m in _read(log)]
     with LogReader(log, salvage=True) as reader:
         salvaged = [(m.channel.topic, m.log_time_ns, bytes(m.data)) for m in reader.messages()]
