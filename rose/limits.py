@@ -8,7 +8,8 @@
   the grid extent of ``rose-bag convert`` before ray casting.
 - :func:`load_yaml`: YAML without aliases (a 1 KB "billion laughs" file cannot expand), at most
   :data:`MAX_YAML_BYTES` long and :data:`MAX_YAML_DEPTH` levels deep.
-- :func:`image_shape`: the size an image header declares (PNG, PNM, BMP), read without decoding.
+- :func:`image_shape`: the size an image header declares (PNG, PNM, BMP, JPEG, TIFF, WebP), read
+  without decoding.
 - :func:`short`: an error text cut to one line of at most :data:`MAX_MESSAGE_CHARS` characters.
 """
 
@@ -222,6 +223,21 @@ def image_shape(data: bytes | memoryview) -> tuple[int, int] | None:
     return None
 
 
+def image_kind(data: bytes | memoryview) -> str | None:
+    """The format :func:`image_shape` reads that ``data``'s first bytes announce (``"JPEG"``, ...),
+    or None: for an error that names what a truncated header was meant to be."""
+    head = bytes(data[:16])
+    kinds = (
+        (head.startswith(b"\x89PNG\r\n\x1a\n"), "PNG"),
+        (head[:1] == b"P" and head[1:2] in (b"1", b"2", b"3", b"4", b"5", b"6"), "PNM"),
+        (head.startswith(b"BM"), "BMP"),
+        (head.startswith(b"\xff\xd8"), "JPEG"),
+        (head[:4] in (b"II*\x00", b"MM\x00*", b"II+\x00", b"MM\x00+"), "TIFF"),
+        (head[:4] == b"RIFF" and head[8:12] == b"WEBP", "WebP"),
+    )
+    return next((name for announced, name in kinds if announced), None)
+
+
 #: JPEG start-of-frame markers (the frame's size follows them): C0..CF but DHT, JPG and DAC.
 _JPEG_FRAMES = frozenset(range(0xC0, 0xD0)) - {0xC4, 0xC8, 0xCC}
 
@@ -266,11 +282,13 @@ def _tiff_shape(data: bytes | memoryview) -> tuple[int, int] | None:
         if len(entry) < 12:
             return None
         tag, kind = struct.unpack(order + "HH", entry[:4])
-        if tag in (256, 257):  # ImageWidth, ImageLength: SHORT or LONG
-            if kind == 3:
-                (size[tag],) = struct.unpack(order + "H", entry[8:10])
-            elif kind == 4:
-                (size[tag],) = struct.unpack(order + "I", entry[8:12])
+        # ImageWidth, ImageLength: SHORT or LONG; the first one counts, as libtiff reads it (a
+        # second 1 x 1 after a 12000 x 12000 passed the check and 1.4e8 pixels were decoded).
+        if tag in (256, 257) and tag not in size:
+            if kind not in (3, 4):
+                return None
+            field, width = ("H", 2) if kind == 3 else ("I", 4)
+            (size[tag],) = struct.unpack(order + field, entry[8 : 8 + width])
     if 256 not in size or 257 not in size:
         return None
     return size[257], size[256]

@@ -35,6 +35,7 @@ from rose.limits import (
     MAX_YAML_BYTES,
     check_cells,
     finite_number,
+    image_kind,
     image_shape,
     integer_number,
     load_yaml,
@@ -337,10 +338,14 @@ def _read_image(path: Path, max_cells: int | None = DEFAULT_MAX_CELLS) -> npt.ND
     elif max_cells is not None:
         # Its size cannot be checked before decoding: a 10 KB file can declare 16000 x 16000
         # pixels, and the decoder allocates them before any limit applies.
-        msg = (
-            f"{path}: not a readable image (not a PNG, PGM / PPM / PBM, BMP, JPEG, TIFF or WebP "
-            "file: the formats whose size is checked before decoding)"
+        kind = image_kind(raw)
+        problem = (
+            f"truncated or malformed {kind} header" + (" (BigTIFF is not read)" * (kind == "TIFF"))
+            if kind is not None
+            else "not a PNG, PGM / PPM / PBM, BMP, JPEG, TIFF or WebP file: the formats whose "
+            "size is checked before decoding"
         )
+        msg = f"{path}: not a readable image ({problem})"
         raise MapFileError(msg)
     if raw.startswith(b"\x89PNG\r\n\x1a\n") and shape is not None:
         problem = _png_problem(raw, shape)
@@ -494,7 +499,10 @@ def _png_problem(raw: bytes, shape: tuple[int, int]) -> str | None:
                 f"truncated PNG: its {name!r} chunk at byte {pos} runs past the end ({end} bytes)"
             )
         (crc,) = struct.unpack(">I", raw[body_end : body_end + 4])
-        if zlib.crc32(raw[pos + 4 : body_end]) != crc:
+        # A critical chunk (upper-case first letter) with a wrong CRC is an error for libpng; an
+        # ancillary one (tEXt, ...) is dropped with a warning and the image reads.
+        critical = kind[:1].isupper()
+        if critical and zlib.crc32(raw[pos + 4 : body_end]) != crc:
             return (
                 f"corrupt PNG: CRC mismatch in its {kind.decode('latin-1')!r} chunk at byte {pos}"
             )

@@ -274,6 +274,37 @@ def test_every_accepted_image_format_is_sized_from_its_header_before_decoding(
         rose.load_map(path, resolution_m=0.05, max_cells=1000)
 
 
+def test_a_tiff_is_sized_by_its_first_width_and_length_as_libtiff_reads_them() -> None:
+    """A second ImageWidth / ImageLength of 1 x 1 after 12000 x 12000 passed the size check, and
+    1.4e8 pixels were decoded before the limit caught them."""
+    import struct
+
+    from rose.limits import image_shape
+
+    def entry(tag: int, value: int) -> bytes:
+        return struct.pack("<HHII", tag, 4, 1, value)
+
+    entries = [entry(256, 12000), entry(257, 12000), entry(256, 1), entry(257, 1)]
+    tiff = b"II*\x00" + struct.pack("<I", 8) + struct.pack("<H", len(entries)) + b"".join(entries)
+    assert image_shape(tiff) == (12000, 12000)
+
+
+@pytest.mark.parametrize(
+    ("content", "kind"),
+    [
+        (b"\xff\xd8\xff\xe0\x00\x10JFIF", "JPEG"),
+        (b"BM" + bytes(10), "BMP"),
+        (b"II+\x00" + bytes(12), "TIFF"),
+    ],
+)
+def test_a_truncated_header_is_named_for_its_format(
+    tmp_path: Path, content: bytes, kind: str
+) -> None:
+    (tmp_path / "m.img").write_bytes(content)
+    with pytest.raises(MapFileError, match=f"truncated or malformed {kind} header"):
+        rose.load_map(tmp_path / "m.img", resolution_m=0.05)
+
+
 def test_an_image_format_not_sized_from_its_header_is_refused_under_a_limit(
     tmp_path: Path,
 ) -> None:
@@ -302,6 +333,22 @@ def _png_damaged(how: str) -> bytes:
             ">I", zlib.crc32(raw[idat + 4 : idat + 8 + length])
         )
     return bytes(raw)
+
+
+def test_an_ancillary_png_chunk_with_a_wrong_crc_is_dropped_as_libpng_drops_it(
+    tmp_path: Path,
+) -> None:
+    """libpng warns about a tEXt chunk whose CRC is wrong and reads the image; so do we."""
+    import struct
+    import zlib
+
+    pixels = np.arange(600, dtype=np.uint8).reshape(20, 30)
+    raw = bytes(cv2.imencode(".png", pixels)[1])
+    body = b"tEXt" + b"Comment\x00hello"
+    text = struct.pack(">I", len(body) - 4) + body + struct.pack(">I", zlib.crc32(body) ^ 1)
+    at = raw.find(b"IDAT") - 4
+    (tmp_path / "m.png").write_bytes(raw[:at] + text + raw[at:])
+    assert rose.load_map(tmp_path / "m.png", resolution_m=0.05).grid.shape == (20, 30)
 
 
 @pytest.mark.parametrize(
