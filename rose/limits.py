@@ -120,8 +120,9 @@ _StrictLoader.add_implicit_resolver(
 )
 
 
-#: A colon followed by tabs (and spaces), which yaml-cpp reads as a separating space.
-_TAB_AFTER_COLON = re.compile(r":[ ]*\t[ \t]*")
+#: A block mapping's key at the start of a line, then its colon and the tabs (and spaces) after it,
+#: which yaml-cpp reads as a separating space. Only there: a tab inside a value stays as it is.
+_TAB_AFTER_COLON = re.compile(r"^([ ]*[^\s\"'#:{}\[\],-][^:\"'#\n]*):[ ]*\t[ \t]*", re.MULTILINE)
 
 
 def load_yaml(text: str | bytes) -> Any:
@@ -150,7 +151,7 @@ def load_yaml(text: str | bytes) -> Any:
             # yaml-cpp (map_server's) takes a tab after "key:" as a space; PyYAML refuses it.
             if "'\\t'" not in str(err.problem) or not _TAB_AFTER_COLON.search(text):
                 raise
-            return yaml.load(_TAB_AFTER_COLON.sub(": ", text), Loader=_StrictLoader)
+            return yaml.load(_TAB_AFTER_COLON.sub(r"\1: ", text), Loader=_StrictLoader)
     except yaml.YAMLError as err:
         problem = short(getattr(err, "problem", None) or err, 120)
         mark = getattr(err, "problem_mark", None)
