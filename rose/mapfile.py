@@ -581,6 +581,14 @@ def grid_to_image(
     return np.flipud(image)
 
 
+def map_image_path(yaml_path: str | os.PathLike[str]) -> Path:
+    """Where :func:`save_map` writes the image of a map saved as ``yaml_path``: beside it, with its
+    stem and ``.pgm``. A symlinked YAML is written through to its target, so the image goes beside
+    the target, which names it (beside the link, the target named an image not beside it)."""
+    path = Path(yaml_path)
+    return (Path(os.path.realpath(path)) if path.is_symlink() else path).with_suffix(".pgm")
+
+
 def save_map(
     path: str | os.PathLike[str],
     occupancy_map: OccupancyMap,
@@ -590,8 +598,8 @@ def save_map(
 ) -> Path:
     """Write ``occupancy_map`` as map_server YAML plus a trinary PGM beside it; return the image path.
 
-    ``path`` names the YAML file; the image gets the same stem with ``.pgm`` (a symlinked YAML is
-    written through to its target, and the image goes beside the target, with its stem). Cells of at least
+    ``path`` names the YAML file; the image goes to :func:`map_image_path` (the same stem with
+    ``.pgm``; for a symlinked YAML, beside the target). Cells of at least
     ``occupied_threshold`` are written occupied (map_saver's 65 by default: pass the threshold the
     map was analysed with, so that every cell ROSE counted as occupied stays so), of at most 25 free,
     the rest unknown. Both files are staged
@@ -615,9 +623,7 @@ def save_map(
         msg = f"{path}: the output map must be a .yaml file"
         raise MapFileError(msg)
     grid = as_occupancy_grid(occupancy_map.grid)
-    # A symlinked YAML is written through to its target: the image goes beside the target, which
-    # names it (beside the link, the target named an image that was not beside it).
-    image_path = (Path(os.path.realpath(path)) if path.is_symlink() else path).with_suffix(".pgm")
+    image_path = map_image_path(path)
     try:
         image_path.name.encode("utf-8")
     except (

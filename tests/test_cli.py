@@ -64,6 +64,24 @@ def test_clean_gives_no_verdict_on_a_few_occupied_cells(
     assert "says nothing" not in line
 
 
+def test_clean_to_a_symlinked_yaml_checks_the_image_it_will_write(
+    cluttered_map: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The image goes beside the link's target (save_map): the early check looked beside the link
+    and refused a stale file there that this run would never write."""
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "real.yaml").write_text("x")
+    link = tmp_path / "lnk.yaml"
+    link.symlink_to("sub/real.yaml")
+    (tmp_path / "lnk.pgm").write_text("stale, not ours")
+    assert main(["clean", str(cluttered_map), "-o", str(link), "--force"]) == 0
+    assert (
+        rose.load_map(tmp_path / "sub" / "real.yaml").grid.shape
+        == rose.load_map(cluttered_map).grid.shape
+    )
+    assert (tmp_path / "lnk.pgm").read_text() == "stale, not ours"
+
+
 def test_main_in_process_leaves_the_callers_signal_handlers(
     cluttered_map: Path, tmp_path: Path
 ) -> None:

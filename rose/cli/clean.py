@@ -23,7 +23,7 @@ from rose.cli.options import (
 )
 from rose.directions import fold_deg
 from rose.errors import MapFileError
-from rose.mapfile import SAVED_OCCUPIED_FROM, OccupancyMap, save_map
+from rose.mapfile import SAVED_OCCUPIED_FROM, OccupancyMap, map_image_path, save_map
 from rose.outputs import OutputSet
 from rose.pipeline import analyze
 
@@ -64,7 +64,7 @@ def run(args: argparse.Namespace) -> int:
         msg = f"{output_path}: the output map must be a .yaml file"
         raise MapFileError(msg)
     # Refuse bad outputs (an input, the map's image, each other, existing) before computing anything.
-    outputs.check(output_path, output_path.with_suffix(".pgm"), args.json)
+    outputs.check(output_path, map_image_path(output_path), args.json)
     started = time.perf_counter()
     result = analyze(source.grid, params)
     cleaning = clean(source.grid, result, method=args.method, resolution_m=source.resolution_m)

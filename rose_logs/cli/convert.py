@@ -115,9 +115,9 @@ def run(args: argparse.Namespace) -> int:
     if args.map_file is not None and args.map_file.suffix.lower() not in (".yaml", ".yml"):
         msg = f"{args.map_file}: --map-file names the map's YAML (its image goes beside it as .pgm)"
         raise UsageError(msg)
-    map_files = (
-        (args.map_file, args.map_file.with_suffix(".pgm")) if args.map_file is not None else ()
-    )
+    from rose.mapfile import map_image_path  # with numpy: not at the CLI's start-up
+
+    map_files = (args.map_file, map_image_path(args.map_file)) if args.map_file is not None else ()
     outputs.check(args.output, directory=fmt == "db3")
     outputs.check(*map_files)
     log = read_carmen_log(args.log, max_scans=args.max_scans)  # warns of malformed lines itself
