@@ -36,14 +36,16 @@ def fold_deg(angle_deg: float, digits: int | None = None) -> float:
     return 0.0 if folded >= 180.0 else folded + 0.0  # + 0.0: no -0.0
 
 
-def map_frame_deg(directions_rad: npt.ArrayLike, *, yaw_rad: float = 0.0) -> list[float]:
+def map_frame_deg(
+    directions_rad: npt.ArrayLike, *, yaw_rad: float = 0.0, digits: int = 2
+) -> list[float]:
     """Dominant directions (radians, grid frame) in degrees in the map frame, in ``[0, 180)`` and
-    rounded to 0.01, the precision of every report.
+    rounded to ``digits`` (0.01, the precision of every report; the views' labels give 0.1).
 
     ROSE measures directions in the grid (counter-clockwise from the grid's +x, the column axis); a
     map whose origin is rotated by ``yaw_rad`` has its walls that much further round in the map frame.
     """
-    return [fold_deg(math.degrees(float(a) + yaw_rad), 2) for a in np.ravel(directions_rad)]
+    return [fold_deg(math.degrees(float(a) + yaw_rad), digits) for a in np.ravel(directions_rad)]
 
 
 # The paper's rule of thumb for reading W; the one definition every command, report and view uses.

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from rose.directions import fold_deg
+from rose.directions import map_frame_deg
 from rose.result import RoseResult
 from rose_logs.rerun.style import (
     AMPLITUDE_PLOT_HEIGHT,
@@ -49,7 +49,6 @@ __all__ = [
     "OccupiedCells",
     "amplitude_plot",
     "colour_levels",
-    "direction_label_deg",
     "direction_label_positions",
     "direction_segments_cells",
     "display_spectrum",
@@ -398,10 +397,16 @@ def spectrum_strip_segments(
     return np.stack([centre - reach * unit, centre + reach * unit], axis=1)
 
 
-def direction_label_deg(direction_rad: float, yaw_rad: float = 0.0) -> float:
-    """A dominant direction (radians, grid frame) as its labels show it: map-frame degrees turned by
-    the origin's ``yaw_rad``, in ``[0, 180)`` to 0.1 (179.96 reads 0.0, not 180.0)."""
-    return fold_deg(math.degrees(float(direction_rad) + yaw_rad), 1)
+#: Degrees this close below 180 are 0 (far below the 0.1-degree labels; float noise of a yaw).
+_WRAP_DEG = 1e-6
+
+
+def _folded_deg(angles_rad: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+    """Line orientations in degrees in ``[0, 180)``, as :func:`rose.directions.fold_deg` folds
+    them: a hair below 0 (a yaw of -90 degrees on a 90-degree wall) is 0, not 179.99999998."""
+    folded = np.mod(np.degrees(angles_rad), 180.0)
+    folded[folded > 180.0 - _WRAP_DEG] = 0.0
+    return folded
 
 
 @dataclass(frozen=True)
@@ -436,9 +441,7 @@ def amplitude_plot(result: RoseResult, *, yaw_rad: float = 0.0) -> AmplitudePlot
     low, high = (float(amplitude.min()), float(amplitude.max())) if amplitude.size else (0.0, 0.0)
     span = high - low
     scaled = (amplitude - low) / span if span > 0 else np.zeros_like(amplitude)
-    degrees = np.mod(
-        np.degrees(np.asarray(result.direction_bins, dtype=np.float64) + yaw_rad), 180.0
-    )
+    degrees = _folded_deg(np.asarray(result.direction_bins, dtype=np.float64) + yaw_rad)
     # Turned by the yaw, the curve starts somewhere round the half circle: sort it from 0 degrees
     # and close it at 0 and 180 with the value between its last and first bins.
     order = np.argsort(degrees, kind="stable")
@@ -454,13 +457,15 @@ def amplitude_plot(result: RoseResult, *, yaw_rad: float = 0.0) -> AmplitudePlot
     peaks_idx = np.asarray(result.peak_indices, dtype=np.intp)
     peak_s = scaled[peaks_idx]
     directions = np.asarray(result.dominant_directions, dtype=np.float64)
-    peak_deg = np.mod(np.degrees(directions + yaw_rad), 180.0)
+    peak_deg = _folded_deg(directions + yaw_rad)
     peaks = np.stack([peak_deg, -height * peak_s], axis=-1)
     prominence = np.asarray(result.peak_prominences, dtype=np.float64)
     bars = np.stack([peaks, np.stack([peak_deg, -height * (peak_s - prominence)], axis=-1)], axis=1)
     labels = [
-        f"{direction_label_deg(a, yaw_rad):.1f}° (prominence {prom:.2f})"
-        for a, prom in zip(directions, prominence, strict=True)
+        f"{deg:.1f}° (prominence {prom:.2f})"
+        for deg, prom in zip(
+            map_frame_deg(directions, yaw_rad=yaw_rad, digits=1), prominence, strict=True
+        )
     ]
     return AmplitudePlot(
         curve=curve,

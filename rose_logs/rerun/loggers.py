@@ -15,7 +15,7 @@ import numpy.typing as npt
 import pyarrow as pa
 import rerun as rr
 
-from rose.directions import FAILURE_LEVEL, TRUST_LEVEL
+from rose.directions import FAILURE_LEVEL, TRUST_LEVEL, map_frame_deg
 from rose.result import RoseResult
 from rose.walls import WallSet
 from rose.walls.segments import cells_to_metres
@@ -427,7 +427,7 @@ class TopicLogger:
         # Both views show the map frame (image_placement): a map whose origin has a yaw shows its
         # walls that much further round than the grid does (as the JSON report gives them).
         yaw = snapshot.origin_yaw_rad
-        map_labels = [f"walls {conv.direction_label_deg(a, yaw):.1f}°" for a in directions]
+        map_labels = [f"walls {d:.1f}°" for d in map_frame_deg(directions, yaw_rad=yaw, digits=1)]
         # Colours, sizes and the label switch are static (log_static).
         rec.log(
             paths.cell_directions,
