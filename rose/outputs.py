@@ -724,7 +724,8 @@ class OutputSet:
         ------
         OutputError
             If a staged output is missing, a stream cannot be written or a target cannot be
-            replaced; no file is changed then.
+            replaced; no file is changed then (a stream written before a file failed to be placed
+            stays written).
         """
         if self._done:
             return

@@ -251,6 +251,12 @@ class LogReader:
         return self._open_backend.qos_style
 
     @property
+    def counts_declared(self) -> bool:
+        """Whether :attr:`message_count` and the time range are what the log's index declares (an
+        MCAP or ROS 1 log salvaged record by record counts what it read)."""
+        return not isinstance(self._open_backend, McapStreamReadBackend | Ros1StreamReadBackend)
+
+    @property
     def serialization(self) -> str:
         """``"ros1"`` or ``"cdr"``: the ROS serialisation of this log's messages."""
         encodings = {c.message_encoding for c in self.channels} & {"ros1", "cdr"}

@@ -65,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
             stats[topic]["frames"].add(snap.frame_id)
         print(f"file         {args.input}")
         print(f"format       {reader.format} ({reader.serialization})")
-        declared = " (declared)" if reader.losses else ""
+        declared = " (declared)" if reader.losses and reader.counts_declared else ""
         print(f"messages     {reader.message_count}{declared}")
         if reader.message_count:
             print(

@@ -44,7 +44,12 @@ from rose_logs.reader import LogReader
 from rose_logs.session.analysis import SnapshotAnalyser, SnapshotAnalysis
 from rose_logs.session.breaks import BreakDetector, BreakParams, BreakScore, DetectedBreak
 from rose_logs.session.report import BreakEvent, SessionReport, SnapshotRecord, w_judges
-from rose_logs.session.topics import orphan_updates, publishers, select_topics, update_targets
+from rose_logs.session.topics import (
+    orphan_updates,
+    select_topics,
+    update_targets,
+    warn_shared_map_topics,
+)
 from rose_logs.snapshots import (
     MapSnapshot,
     apply_update,
@@ -252,18 +257,7 @@ def _run_session(
     with reader:
         channels = reader.channels
         map_topics = select_topics(input_path, channels, topics)
-        for topic in map_topics:
-            nodes = publishers(channels, topic)
-            if len(nodes) > 1:
-                # A map_server beside a SLAM node: their maps alternate in one session, and each
-                # switch looks like a break to the detector.
-                _LOG.warning(
-                    "%s: maps from %d publishers (%s) are analysed as one session: the break "
-                    "detector compares one's maps with the other's (-t picks no publisher)",
-                    topic,
-                    len(nodes),
-                    short(", ".join(nodes), 120),
-                )
+        warn_shared_map_topics(channels, map_topics)
         updates = update_targets(channels, map_topics)
         writer = _output_writer(
             reader, input_path, output_path, output_format, force=force, outputs=outputs

@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import difflib
+import logging
 from collections.abc import Sequence
 from pathlib import Path
 
+from rose.limits import short
 from rose.outputs import enclosing_bag_folder
 from rose_logs.derived import derived_topics
 from rose_logs.errors import LogReadError, LogWriteError
@@ -20,8 +22,11 @@ __all__ = [
     "publishers",
     "select_topics",
     "update_targets",
+    "warn_shared_map_topics",
 ]
 
+
+_LOG = logging.getLogger(__name__)
 
 _DECODABLE = {"ros1", "cdr"}
 #: The name rosbag record gives a bag while it records (left so when it is killed).
@@ -169,8 +174,28 @@ def _why_not_a_map(channel: Channel) -> str:
 
 
 def publishers(channels: Sequence[Channel], topic: str) -> list[str]:
-    """The nodes that published maps on ``topic``, sorted, as far as the log records them (a ROS 1
-    connection's ``callerid``; ROS 2 bags and MCAP files name no publisher: empty)."""
+    """The nodes that published maps on ``topic`` (connections with messages), sorted, as far as
+    the log records them: a ROS 1 connection's ``callerid``, kept in a ROS 1 bag and in an MCAP
+    channel's metadata; ROS 2 bags name no publisher (empty)."""
     return sorted(
-        {c.callerid for c in channels if c.topic == topic and c.msgtype == MAP_TYPE and c.callerid}
+        {
+            c.callerid
+            for c in channels
+            if c.topic == topic and c.msgtype == MAP_TYPE and c.callerid and c.message_count > 0
+        }
     )
+
+
+def warn_shared_map_topics(channels: Sequence[Channel], map_topics: Sequence[str]) -> None:
+    """Warn of each map topic more than one node published maps on (a map_server beside a SLAM
+    node): their maps alternate in one session, and each switch looks like a break."""
+    for topic in map_topics:
+        nodes = publishers(channels, topic)
+        if len(nodes) > 1:
+            _LOG.warning(
+                "%s: maps from %d publishers (%s) are analysed as one session: the break "
+                "detector compares one's maps with the other's (-t picks no publisher)",
+                topic,
+                len(nodes),
+                short(", ".join(nodes), 120),
+            )

@@ -149,6 +149,11 @@ def test_info_on_a_damaged_log_is_one_error_line_or_with_salvage_the_readable_pa
     assert "messages     715 (declared)" in out and "grid sizes   1152 x 736" in out
     assert "\nlosses       " in out and "skipped a damaged chunk" in out
     assert "/map 12 of 14" in out and "warning:" in err
+    # Cut off: read record by record, the counts are what was read, not declared.
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(sample.read_bytes()[: len(data) * 6 // 10])
+    code, out, _ = _run(capsys, "info", cut, "--salvage")
+    assert code == EXIT_SALVAGED and "(declared)" not in out and "\nlosses       " in out
     code, out, _ = _run(capsys, "info", sample, "--salvage")  # nothing lost: as without
     assert code == 0 and "losses" not in out and "(declared)" not in out
     assert (code, out) == _run(capsys, "info", sample)[:2]

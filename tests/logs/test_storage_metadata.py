@@ -416,6 +416,8 @@ def test_a_map_topic_with_two_publishers_is_said_to_be_one_session(
             writer.add_connection("/map", MAP_TYPE, typestore=store, callerid=node)
             for node in ("/slam", "/map_server")
         ]
+        # A publisher that never sent a map (it counts for nothing).
+        writer.add_connection("/map", MAP_TYPE, typestore=store, callerid="/idle")
         scans = writer.add_connection("/scan", SCAN_TYPE, typestore=store, callerid="/laser")
         map_count = 0
         for t_ns, topic, data in _messages("ros1"):
@@ -440,11 +442,12 @@ def test_a_map_topic_with_two_publishers_is_said_to_be_one_session(
     )
     caplog.clear()
     one = tmp_path / "one.bag"
-    with Writer(one) as writer:  # one publisher: nothing to say
+    with Writer(one) as writer:  # one publisher, and one that sent nothing: nothing to say
         conns = {
             topic: writer.add_connection(topic, msgtype, typestore=store, callerid="/slam")
             for topic, msgtype in (("/map", MAP_TYPE), ("/scan", SCAN_TYPE))
         }
+        writer.add_connection("/map", MAP_TYPE, typestore=store, callerid="/idle")
         for t_ns, topic, data in _messages("ros1"):
             writer.write(conns[topic], t_ns, data)
     with caplog.at_level(logging.WARNING):
