@@ -19,6 +19,7 @@ import os
 import stat
 import struct
 import warnings
+import zlib
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -482,8 +483,6 @@ def _png_problem(raw: bytes, shape: tuple[int, int]) -> str | None:
     The image data is inflated in pieces and dropped, and no further than the most the header's
     ``shape`` (rows, cols) can hold: a small file inflating without end is left to the decoder,
     which stops there."""
-    import zlib
-
     pos, end = 8, len(raw)
     image_data = zlib.decompressobj()
     most = shape[0] * (shape[1] * 8 + 1)  # 4 channels of 16 bits and a filter byte per row
