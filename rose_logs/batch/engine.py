@@ -177,6 +177,9 @@ def run_batch(
                 force
                 or previous is None
                 or (retry_errors and previous.status == "error")
+                # Named otherwise this run (a recording of the same name joined the batch): its
+                # outputs go under the new name, or two rows would share one cleaned log.
+                or previous.name != rec.name
                 or _outputs_missing(previous, store)
             )
         if previous is not None and not redo:

@@ -20,6 +20,7 @@ from rose_logs.batch import (
 )
 from rose_logs.batch.task import recording_id
 from rose_logs.cli import EXIT_SALVAGED, main
+from rose_logs.reader import LogReader
 from rose_logs.session import BreakParams
 
 FLEET_NAMES = [
@@ -233,6 +234,28 @@ def test_cleaned_and_rrd_outputs_mirror_the_input_names(fleet: Path, tmp_path: P
         str(out / "cleaned" / "run.mcap"),
         str(out / "cleaned" / "bag_dir"),
     ]
+
+
+def test_a_recording_named_otherwise_by_a_later_run_is_redone_under_its_new_name(
+    tmp_path: Path,
+) -> None:
+    """Day 1: a/fleet/run.mcap is fleet/run.mcap. Day 2, b/fleet/run.mcap listed first takes that
+    name: the stored result of a kept it too, two rows shared one cleaned log, and b's overwrote
+    a's (exit 0). a is now redone under its new name; every row has its own cleaned log."""
+    from fleet import copy_recording
+
+    a = copy_recording(tmp_path / "a" / "fleet" / "run.mcap", "mcap", max_maps=2)
+    b = copy_recording(tmp_path / "b" / "fleet" / "run.mcap", "mcap", max_maps=3)
+    out = tmp_path / "out"
+    run_batch([a.parent], out, options=RecordingOptions(cleaned=True))
+    report = run_batch([b.parent, a.parent], out, options=RecordingOptions(cleaned=True))
+    rows = read_rows(out / "recordings.parquet")
+    assert len({r["name"] for r in rows}) == len({r["cleaned"] for r in rows}) == 2
+    assert report.processed == 2  # a's result is not reused under a name it no longer has
+    for row in rows:
+        with LogReader(Path(row["cleaned"])) as reader:
+            maps = sum(c.message_count for c in reader.channels if c.topic == "/map")
+        assert maps == row["snapshots"]
 
 
 # ---- CLI: exit codes ------------------------------------------------------------------------------
