@@ -319,7 +319,28 @@ def _outside(recordings: tuple[Recording, ...], store: OutputStore) -> tuple[Rec
     if not kept:
         msg = f"no recording found outside the output folder {store.root}"
         raise BatchError(msg)
+    if store.local:
+        _refuse_out_in_a_bag(root, [where(r.uri) for r in recordings if r.is_dir])
     return kept
+
+
+def _refuse_out_in_a_bag(root: str, bag_folders: Sequence[str]) -> None:
+    """A local output folder inside a ROS 2 bag folder of the inputs, or one itself, is refused:
+    the tables would be written into a recording (and, inside an input, change its resume key, so
+    that no run ever resumed)."""
+    for folder in bag_folders:
+        if (root + "/").startswith(folder.rstrip("/") + "/"):
+            msg = (
+                f"{root}: the output folder is inside the recording {folder} (a ROS 2 bag "
+                "folder): the batch would write into its input; choose another -o"
+            )
+            raise BatchError(msg)
+    if (Path(root) / "metadata.yaml").is_file():
+        msg = (
+            f"{root}: the output folder is a ROS 2 bag folder (it has metadata.yaml): the batch "
+            "would write its tables into a recording; choose another -o"
+        )
+        raise BatchError(msg)
 
 
 Runner = Callable[

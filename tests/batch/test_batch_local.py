@@ -258,6 +258,20 @@ def test_a_recording_named_otherwise_by_a_later_run_is_redone_under_its_new_name
         assert maps == row["snapshots"]
 
 
+def test_an_output_folder_in_or_at_a_ros2_bag_folder_is_refused(
+    fleet: Path, tmp_path: Path
+) -> None:
+    """-o inside a bag folder that is an input wrote the tables into the recording, and changed its
+    resume key: every run processed it again. -o at a bag folder wrote into that recording."""
+    bag = fleet / "robot_b" / "bag_dir"
+    before = sorted(p.name for p in bag.iterdir())
+    with pytest.raises(BatchError, match="inside the recording .*bag_dir"):
+        run_batch([bag], bag / "out")
+    with pytest.raises(BatchError, match="is a ROS 2 bag folder"):
+        run_batch([fleet / "robot_a" / "run.mcap"], bag)
+    assert sorted(p.name for p in bag.iterdir()) == before
+
+
 # ---- CLI: exit codes ------------------------------------------------------------------------------
 
 
