@@ -185,7 +185,15 @@ def test_one_stamp_far_out_of_line_is_placed_between_its_neighbours(
         np.testing.assert_allclose(clock.offsets_ns, np.arange(5) * 1e8, atol=1)
     assert "out of line with the rest" in caplog.text
     _restamped(path, ["1000.0", "1000.1", "999.9", "1000.3", "1000.4"])  # small jitter: nudged
+    caplog.clear()
     assert scan_clock_ns(read_carmen_log(path)).offsets_ns[2] == 10**8 + 1
+    # ... and said, with how many and how far back (two swapped lines moved every scan between
+    # them onto one time, silently).
+    assert "1 scan stamp(s) earlier than the scan before them (at most 0.200 s back)" in caplog.text
+    caplog.clear()
+    _restamped(path, ["1000.0", "1000.1", "1000.1", "1000.3", "1000.4"])  # equal: no disorder
+    scan_clock_ns(read_carmen_log(path))
+    assert "earlier than" not in caplog.text
 
 
 def test_a_session_that_would_run_past_2_31_s_is_refused(tmp_path: Path) -> None:

@@ -1,6 +1,7 @@
 """The session clock of a CARMEN log: its own stamps, or a replacement when they do not resolve the scans.
 
-Most logs stamp every scan (a handful of backward steps are nudged forward by 1 ns; a stamp far out
+Most logs stamp every scan (a handful of backward steps are nudged forward by 1 ns, with a warning
+that counts them; a stamp far out
 of line with the rest, e.g. one wrong by a day, is placed between its neighbours with a warning, so
 that it does not drag every later scan along). Some do not: the
 CSAIL log writes its stamps with six significant digits, so nearly all scans share one stamp and a
@@ -66,9 +67,22 @@ def scan_clock_ns(log: CarmenLog) -> ScanClock:
     if steps.size == 0 or np.count_nonzero(steps > 0) >= steps.size / 2:
         stamps = _stamps_in_line(stamps, log)
         out = stamps - stamps[0]
+        nudged, back = 0, 0
         for i in range(1, out.size):  # a handful of backward stamps at most (Intel)
             if out[i] <= out[i - 1]:
+                back = max(back, int(out[i - 1] - out[i]))
+                nudged += int(out[i] < out[i - 1])  # equal stamps are no disorder
                 out[i] = out[i - 1] + 1
+        if nudged:
+            # Scans keep their file order; a stamp earlier than the scan before it takes that
+            # scan's time (+1 ns): two swapped lines put every scan between them on one time.
+            _LOG.warning(
+                "%s: %d scan stamp(s) earlier than the scan before them (at most %.3f s back): "
+                "scans kept in file order, each such stamp moved to just after the one before",
+                log.path,
+                nudged,
+                back / 1e9,
+            )
         return ScanClock(out, "log", int(stamps[0]) if stamps.size else 0)
     poses = log.laser_poses
     dist = np.hypot(*np.diff(poses[:, :2], axis=0).T)
