@@ -309,6 +309,19 @@ def test_convert_names_a_wrong_map_file_and_why_no_scan_was_read(
     ]
 
 
+def test_convert_max_range_within_the_shortest_reading_is_a_usage_error(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """It was exit 1 naming the output file and internal names (max_range_m > min_range_m)."""
+    from rose_logs.cli import main
+
+    path = tmp_path / "log.txt"
+    path.write_text("FLASER 3 1.0 2.0 3.0 0.5 -0.5 0.1 0.5 -0.5 0.1 12.5 host 12.5\n")
+    assert main(["convert", str(path), str(tmp_path / "s.mcap"), "--max-range", "0.05"]) == 2
+    assert "--max-range must be above the shortest reading kept, 0.05 m" in capsys.readouterr().err
+    assert not (tmp_path / "s.mcap").exists()
+
+
 @pytest.mark.parametrize(
     "option",
     [

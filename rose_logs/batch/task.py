@@ -102,8 +102,10 @@ class RecordingOptions:
 
     def key_fields(self) -> dict[str, Any]:
         """Everything that changes a result (not ``retries`` or ``analysis_threads``), JSON-ready."""
+        # The seed has no effect (the mixture's start is deterministic): not in the key.
+        params = {k: v for k, v in asdict(self.params).items() if k != "seed"}
         fields: dict[str, Any] = {
-            "params": asdict(self.params),
+            "params": params,
             "topics": None if self.topics is None else list(self.topics),
             "failure_level": self.failure_level,
             "walls": self.walls,

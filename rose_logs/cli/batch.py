@@ -345,15 +345,14 @@ def _gate_failures(args: argparse.Namespace, report: Any) -> list[str]:
     ok = [r for r in report.results if r.status == "ok"]
     if args.fail_above is not None:
         # w_max is None for a recording without a judged snapshot (only empty maps).
-        worst = max(
-            (r for r in ok if r.row()["w_max"] is not None),
-            key=lambda r: r.row()["w_max"],
-            default=None,
-        )
-        if worst is not None and worst.row()["w_max"] > args.fail_above:
+        above = [
+            r for r in ok if r.row()["w_max"] is not None and r.row()["w_max"] > args.fail_above
+        ]
+        if above:
+            worst = max(above, key=lambda r: r.row()["w_max"])
             reasons.append(
                 f"{printable(worst.uri)}: W = {worst.row()['w_max']:.3f} exceeds --fail-above "
-                f"{args.fail_above:g}"
+                f"{args.fail_above:g} (the highest; {len(above)} recording(s) above it)"
             )
     if args.fail_on_break:
         breaks = [(r, s) for r in ok for s in r.snapshots if s.get("break_start")]

@@ -107,6 +107,11 @@ def run(args: argparse.Namespace) -> int:
 
     The session and ``--map-file`` (YAML + PGM) are committed together, or nothing is written.
     """
+    if not args.max_range > BuilderParams.min_range_m:
+        msg = (
+            f"--max-range must be above the shortest reading kept, {BuilderParams.min_range_m:g} m"
+        )
+        raise UsageError(msg)
     outputs = OutputSet(inputs=[args.log], force=args.force, ends_run=True)
     fmt = args.fmt or format_from_path(args.output) or "db3"
     warning = None if args.fmt else unknown_suffix_warning(args.output, "as a ROS 2 db3 bag folder")

@@ -102,7 +102,7 @@ def unjudged_topics(
             reasons.append(f"{topic}: no map message could be analysed, the gate cannot judge it")
         elif topic not in judged:
             reasons.append(
-                f"{topic}: no map had {MIN_JUDGED_CELLS} or more occupied cells (all unknown or "
-                "empty), the gate cannot judge it"
+                f"{topic}: no map had {MIN_JUDGED_CELLS} or more occupied cells, the gate cannot "
+                "judge it"
             )
     return reasons

@@ -214,6 +214,14 @@ def test_keys_depend_on_uri_size_version_and_options(fleet: Path) -> None:
     assert result_key(a, options) != result_key(b, options)
     assert result_key(a, options) != result_key(a, RecordingOptions(walls=True))
     assert result_key(a, options) == result_key(a, RecordingOptions(retries=5))
+    # The seed changes nothing (the README says so): a fleet is not redone for it.
+    import rose
+
+    seeded = RecordingOptions(params=rose.RoseParams(seed=7))
+    assert result_key(a, options) == result_key(a, seeded)
+    assert result_key(a, options) != result_key(
+        a, RecordingOptions(params=rose.RoseParams(peak_prominence=0.4))
+    )
     # One key per value of an option: the default written out, 2 and 2.0 are no new options.
     keyed = {t: result_key(a, RecordingOptions(break_threshold_m=t)) for t in (None, 1.25, 2, 2.0)}
     assert keyed[None] == keyed[1.25] and keyed[2] == keyed[2.0] != keyed[None]
@@ -281,7 +289,10 @@ def test_cli_gates_errors_win_over_fail_above(
     out = str(tmp_path / "out")
     assert main(["batch", str(fleet), "-o", out, "-q"]) == 0
     assert main(["batch", str(fleet), "-o", out, "-q", "--fail-above", "0.4"]) == 3
-    assert "robot_b/run.mcap" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "robot_b/run.mcap" in err and "(the highest; 1 recording(s) above it)" in err
+    assert main(["batch", str(fleet), "-o", out, "-q", "--fail-above", "0.0001"]) == 3
+    assert f"(the highest; {len(FLEET_NAMES)} recording(s) above it)" in capsys.readouterr().err
     (fleet / "robot_a" / "zero.mcap").write_bytes(b"")
     assert main(["batch", str(fleet), "-o", out, "-q", "--fail-above", "0.4"]) == 1
     assert main(["batch", str(fleet), "-o", out, "-q", "--max-errors", "1"]) == 0
