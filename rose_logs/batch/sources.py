@@ -346,11 +346,47 @@ def _expand_path(fs: Any, path: str, protocol: str | None, base: str) -> Iterabl
     bag_dirs = sorted(
         {posixpath.dirname(f) for f in files if posixpath.basename(f) == "metadata.yaml"}
     )
+    logs = [
+        f
+        for f in files
+        if f.lower().endswith(LOG_SUFFIXES) and not any(f.startswith(b + "/") for b in bag_dirs)
+    ]
+    theirs = _process_outputs([*bag_dirs, *logs], set(files) | set(bag_dirs))
+    if theirs:
+        _LOG.warning(
+            "%s: %d recording(s) named as `rose-bag process` names its output of a recording "
+            "beside it are not read as recordings (first: %s); name them on their own to include "
+            "them",
+            path if protocol is None else f"{protocol}://{path}",
+            len(theirs),
+            theirs[0],
+        )
     for bag in bag_dirs:
-        yield _recording(fs, bag, protocol, base, is_dir=True)
-    for f in files:
-        if f.lower().endswith(LOG_SUFFIXES) and not any(f.startswith(b + "/") for b in bag_dirs):
+        if bag not in theirs:
+            yield _recording(fs, bag, protocol, base, is_dir=True)
+    for f in logs:
+        if f not in theirs:
             yield _recording(fs, f, protocol, base, is_dir=False)
+
+
+def _process_outputs(candidates: Sequence[str], present: set[str]) -> list[str]:
+    """The candidates named as ``rose-bag process`` names its output of a recording that is
+    ``present`` beside them (``run.rose.mcap`` beside ``run.mcap``, ``run.rose.bag`` beside
+    ``run.bag`` or ``run.bag.active``, a bag folder ``run.rose`` beside ``run`` or ``run.db3``):
+    processed copies of a recording in the fleet, which would be counted twice."""
+    out = []
+    for path in candidates:
+        folder, name = posixpath.split(path)
+        stem, dot, suffix = name.rpartition(".rose.")
+        if dot:
+            sources = [f"{stem}.{suffix}"] + ([f"{stem}.bag.active"] if suffix == "bag" else [])
+        elif name.endswith(".rose"):
+            sources = [name[: -len(".rose")], name[: -len(".rose")] + ".db3"]
+        else:
+            continue
+        if any(posixpath.join(folder, source) in present for source in sources):
+            out.append(path)
+    return out
 
 
 def _bag_of(fs: Any, path: str, protocol: str | None) -> str | None:

@@ -280,6 +280,27 @@ def test_an_output_folder_in_or_at_a_ros2_bag_folder_is_refused(
     assert sorted(p.name for p in bag.iterdir()) == before
 
 
+def test_process_outputs_beside_their_recordings_are_not_read_twice(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """`rose-bag process run.mcap` writes run.rose.mcap beside it: a batch over the folder counted
+    it as a second recording (with --cleaned, an error row: it has /map/rose/cleaned already)."""
+    import logging
+
+    from fleet import copy_recording
+
+    from rose_logs.session import process_log
+
+    log = copy_recording(tmp_path / "fleet" / "run.mcap", "mcap", max_maps=2)
+    process_log(log, output_path=tmp_path / "fleet" / "run.rose.mcap")
+    with caplog.at_level(logging.WARNING):
+        found = discover([tmp_path / "fleet"])
+    assert [r.name for r in found] == ["fleet/run.mcap"]
+    assert "1 recording(s) named as `rose-bag process` names its output" in caplog.text
+    # Named on its own, it is an input like any other.
+    assert [r.name for r in discover([tmp_path / "fleet" / "run.rose.mcap"])] == ["run.rose.mcap"]
+
+
 # ---- CLI: exit codes ------------------------------------------------------------------------------
 
 
