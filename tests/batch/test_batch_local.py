@@ -273,7 +273,7 @@ def test_an_output_folder_in_or_at_a_ros2_bag_folder_is_refused(
     resume key: every run processed it again. -o at a bag folder wrote into that recording."""
     bag = fleet / "robot_b" / "bag_dir"
     before = sorted(p.name for p in bag.iterdir())
-    with pytest.raises(BatchError, match="inside the recording .*bag_dir"):
+    with pytest.raises(BatchError, match=r"inside the recording .*bag_dir"):
         run_batch([bag], bag / "out")
     with pytest.raises(BatchError, match="is a ROS 2 bag folder"):
         run_batch([fleet / "robot_a" / "run.mcap"], bag)
