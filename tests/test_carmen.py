@@ -129,6 +129,11 @@ def test_convert_warns_of_an_output_suffix_that_names_no_format(
     assert (tmp_path / "s.txt" / "metadata.yaml").is_file()  # a ROS 2 bag folder, as said
     assert main(["convert", str(path), str(tmp_path / "s")]) == 0
     assert "warning" not in capsys.readouterr().err
+    # --format against the suffix, as process says it (convert said nothing).
+    assert main(["convert", str(path), str(tmp_path / "y.bag"), "--format", "mcap"]) == 0
+    assert "written as mcap (--format), but '.bag' names ros1" in capsys.readouterr().err
+    assert main(["convert", str(path), str(tmp_path / "z.mcap"), "--format", "mcap"]) == 0
+    assert "warning" not in capsys.readouterr().err
 
 
 def test_convert_warns_once_of_malformed_lines_naming_the_log(

@@ -16,7 +16,7 @@ from rose_logs.carmen.raycast import BuilderParams
 from rose_logs.carmen.session import SessionOptions, write_carmen_session
 from rose_logs.cli.options import UsageError
 from rose_logs.errors import LogReadError, LogWriteError
-from rose_logs.formats import format_from_path, unknown_suffix_warning
+from rose_logs.formats import format_from_path, suffix_mismatch_warning, unknown_suffix_warning
 
 __all__ = ["add_parser", "run"]
 
@@ -114,8 +114,14 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(msg)
     outputs = OutputSet(inputs=[args.log], force=args.force, ends_run=True)
     fmt = args.fmt or format_from_path(args.output) or "db3"
-    warning = None if args.fmt else unknown_suffix_warning(args.output, "as a ROS 2 db3 bag folder")
-    if warning is not None:  # a typo (out.mcpa) should not pass unnoticed
+    warning = (
+        suffix_mismatch_warning(args.output, args.fmt)
+        if args.fmt
+        else unknown_suffix_warning(args.output, "as a ROS 2 db3 bag folder")
+    )
+    if (
+        warning is not None
+    ):  # a typo (out.mcpa), or --format ros1 -o x.mcap, should not pass unnoticed
         print(warning, file=sys.stderr)
     if args.map_file is not None and args.map_file.suffix.lower() not in (".yaml", ".yml"):
         msg = f"{args.map_file}: --map-file names the map's YAML (its image goes beside it as .pgm)"
