@@ -310,8 +310,20 @@ def test_convert_names_a_wrong_map_file_and_why_no_scan_was_read(
     err = capsys.readouterr().err
     assert err.strip().splitlines() == [
         f"error: {path}: no FLASER scan found (1 malformed FLASER lines; first: line 1: "
-        "non-finite value)"
+        "non-finite value, or a range beyond float32 (3.4e38))"
     ]
+
+
+def test_convert_max_scans_bound_reads_as_a_lower_bound(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The message gave the range 1..4611686018427387904."""
+    from rose_logs.cli import main
+
+    with pytest.raises(SystemExit) as stop:
+        main(["convert", "x.log", str(tmp_path / "s.mcap"), "--max-scans", "0"])
+    assert stop.value.code == 2
+    assert "expected an integer >= 1, got '0'" in capsys.readouterr().err
 
 
 def test_convert_max_range_within_the_shortest_reading_is_a_usage_error(

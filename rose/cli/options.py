@@ -115,7 +115,8 @@ def int_in_range(low: int, high: int) -> Any:
         except ValueError:
             value = None
         if value is None or not low <= value <= high:
-            msg = f"expected an integer in {low}..{high}, got {text[:40]!r}"
+            span = f"in {low}..{high}" if high < 2**40 else f">= {low}"  # 2**62 is no bound to read
+            msg = f"expected an integer {span}, got {text[:40]!r}"
             raise argparse.ArgumentTypeError(msg)
         return value
 

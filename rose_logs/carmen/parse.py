@@ -190,7 +190,8 @@ def parse_flaser_line(line: str, *, line_number: int = 0) -> FlaserScan:
         msg = f"{where}: pose or timestamp missing"
         raise CarmenFormatError(msg)
     if not (np.all(np.isfinite(ranges)) and all(math.isfinite(v) for v in values)):
-        msg = f"{where}: non-finite value"
+        # A range beyond float32 (1e300) reads as inf: say both.
+        msg = f"{where}: non-finite value, or a range beyond float32 (3.4e38)"
         raise CarmenFormatError(msg)
     if np.any(ranges < 0):
         msg = f"{where}: negative range"
