@@ -15,6 +15,7 @@ from typing import Any
 
 import fsspec
 
+from rose.limits import short
 from rose.outputs import enclosing_bag_folder
 from rose_logs.batch.errors import BatchError
 from rose_logs.batch.store import filesystem, is_local, storage_errors
@@ -189,19 +190,23 @@ def discover(
         does (an error row is for a recording that exists but cannot be processed).
     """
     unique: dict[str, Recording] = {}
+    problems: list[str] = []  # every input that names nothing, not only the first
     for item in inputs:
         try:
             with storage_errors(str(item)):
                 expanded = list(_expand(str(item), storage_options))
         except BatchError as err:
-            if not isinstance(item, ListedInput):
-                raise
-            msg = f"{err} ({item.where})"  # which line of which list
-            raise BatchError(msg) from err
+            # which line of which list
+            problems.append(f"{err} ({item.where})" if isinstance(item, ListedInput) else str(err))
+            continue
         for recording in expanded:
             # One file under two spellings (``a/../a/x.mcap``, a symlink) is one recording: the
             # first spelling names it.
             unique.setdefault(_identity(recording.uri), recording)
+    if problems:
+        more = len(problems) - 1
+        rest = f" (and {more} more: {short('; '.join(problems[1:]), 200)})" if more else ""
+        raise BatchError(problems[0] + rest)
     found: dict[str, Recording] = {}
     names: dict[str, str] = {}
     # Complete recordings are named first: a salvaged x.bag.active, not the x.bag beside it, is

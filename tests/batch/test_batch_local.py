@@ -97,6 +97,17 @@ def test_an_input_that_names_nothing_is_an_error(fleet: Path, bad: str) -> None:
         discover([str(fleet / bad)])
 
 
+def test_every_input_that_names_nothing_is_named(fleet: Path) -> None:
+    """Only the first was: a fleet list with three typos took three runs to mend."""
+    inputs = [str(fleet / "a.mcap"), str(fleet), str(fleet / "b.mcap"), str(fleet / "c*.bag")]
+    with pytest.raises(BatchError) as info:
+        discover(inputs)
+    message = str(info.value)
+    assert message.startswith(f"{fleet / 'a.mcap'}: no such file")
+    assert "(and 2 more: " in message and "b.mcap: no such file" in message
+    assert "c*.bag" in message and "\n" not in message
+
+
 # ---- one recording, no Dask -------------------------------------------------------------------------
 
 
