@@ -113,6 +113,10 @@ def test_a_missing_data_folder_is_named_and_an_empty_report_folder_is_replaceabl
     assert main(["evaluate", str(tmp_path / "r"), "--maps-dir", str(tmp_path / "nope")]) == 1
     err = capsys.readouterr().err.strip()
     assert err == f"error: {tmp_path / 'nope'}: no such data folder (--maps-dir)"
+    (tmp_path / "a_file").write_text("x")  # said "no such data folder" of a file that exists
+    assert main(["evaluate", str(tmp_path / "r"), "--maps-dir", str(tmp_path / "a_file")]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err == f"error: {tmp_path / 'a_file'}: is a file, not a data folder (--maps-dir)"
     empty = tmp_path / "empty"
     empty.mkdir()
     argv = ["evaluate", str(empty), "--no-plots", "--logs", "", "--maps", "", "--force"]

@@ -144,7 +144,8 @@ class EvaluationConfig:
         if self.maps_dir is None:
             return require_data_dir()
         if not Path(self.maps_dir).is_dir():
-            msg = f"{self.maps_dir}: no such data folder (--maps-dir)"
+            what = "is a file, not a" if Path(self.maps_dir).exists() else "no such"
+            msg = f"{self.maps_dir}: {what} data folder (--maps-dir)"
             raise DataSetError(msg)
         return Path(self.maps_dir)
 
