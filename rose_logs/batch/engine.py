@@ -170,15 +170,18 @@ def run_batch(
     finished: dict[str, RecordingResult] = {}
     todo: list[Recording] = []
     before: dict[str, RecordingResult | None] = {}  # stored results of the recordings to do
+    names = {rec.name for rec in recordings}
     for rec in recordings:
         with storage_errors(store.root):
             previous = load_result(store, keys[rec.uri])
+            if previous is not None and previous.name != rec.name:
+                rec, previous = _named_for_reuse(rec, previous, names, options)
             redo = (
                 force
                 or previous is None
                 or (retry_errors and previous.status == "error")
-                # Named otherwise this run (a recording of the same name joined the batch): its
-                # outputs go under the new name, or two rows would share one cleaned log.
+                # Its outputs carry a name another recording takes this run: redone under its new
+                # name, or two rows would share one cleaned log.
                 or previous.name != rec.name
                 or _outputs_missing(previous, store)
             )
@@ -286,6 +289,21 @@ def _outputs_missing(result: RecordingResult, store: OutputStore) -> bool:
         elif store.size(uri) != size:
             return True
     return False
+
+
+def _named_for_reuse(
+    rec: Recording, previous: RecordingResult, names: set[str], options: RecordingOptions
+) -> tuple[Recording, RecordingResult]:
+    """A recording this run names otherwise than its stored result (another input root, another
+    recording of the same name): it keeps the stored name when no recording of this run takes that
+    name (its outputs are there, and a smaller run must not write another recording's outputs over
+    them); else, without outputs named after it, only its row is renamed; else it is redone."""
+    if previous.name not in names:
+        names.add(previous.name)
+        return dataclasses.replace(rec, name=previous.name), previous
+    if not (options.cleaned or options.rrd):
+        return rec, dataclasses.replace(previous, name=rec.name)
+    return rec, previous
 
 
 def _outside(recordings: tuple[Recording, ...], store: OutputStore) -> tuple[Recording, ...]:

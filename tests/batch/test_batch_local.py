@@ -277,6 +277,31 @@ def test_a_recording_named_otherwise_by_a_later_run_is_redone_under_its_new_name
         assert maps == row["snapshots"]
 
 
+def test_a_recording_keeps_its_stored_name_when_a_smaller_run_names_it_otherwise(
+    tmp_path: Path,
+) -> None:
+    """Run 1 over a and b (b gets the -<hash> name), run 2 over b alone (b would be plain): b was
+    redone and its cleaned log overwrote a's, which run 3 then reused as a's. b keeps its name."""
+    from fleet import copy_recording
+
+    a = copy_recording(tmp_path / "a" / "fleet" / "run.mcap", "mcap", max_maps=2)
+    b = copy_recording(tmp_path / "b" / "fleet" / "run.mcap", "mcap", max_maps=3)
+    out, options = tmp_path / "out", RecordingOptions(cleaned=True)
+    run_batch([a.parent, b.parent], out, options=options)
+    first = {r["uri"]: (r["name"], r["cleaned"]) for r in read_rows(out / "recordings.parquet")}
+    assert run_batch([b.parent], out, options=options).processed == 0
+    assert run_batch([a.parent, b.parent], out, options=options).processed == 0
+    rows = read_rows(out / "recordings.parquet")
+    assert {r["uri"]: (r["name"], r["cleaned"]) for r in rows} == first
+    for row in rows:
+        with LogReader(Path(row["cleaned"])) as reader:
+            maps = sum(c.message_count for c in reader.channels if c.topic == "/map")
+        assert maps == row["snapshots"]
+    # Another input root, no outputs named after the recording: its stored result is reused.
+    assert run_batch([tmp_path / "b"], tmp_path / "plain").processed == 1
+    assert run_batch([b.parent], tmp_path / "plain").processed == 0
+
+
 def test_an_output_folder_in_or_at_a_ros2_bag_folder_is_refused(
     fleet: Path, tmp_path: Path
 ) -> None:
