@@ -16,7 +16,8 @@ messages sorted by log time when the file has them out of order. With ``salvage`
 end is missing and a ROS 1 bag whose index cannot be used are read record by record from their start
 instead (:mod:`rose_logs.storage.mcap`, :mod:`rose_logs.storage.ros1_stream`); MCAP messages come
 sorted by log time too, a ROS 1 bag's in file order. A complete MCAP file with a damaged chunk loses
-that chunk only: its index leads past it to the chunks after it.
+that chunk only: its index leads past it to the chunks after it (a file of no chunks is salvaged in
+file order, up to its damage).
 """
 
 from __future__ import annotations

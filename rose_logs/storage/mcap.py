@@ -135,9 +135,12 @@ class McapReadBackend:
 
         assert self.stream is not None
         summary = self.reader.get_summary()
-        if not summary.chunk_indexes:  # no chunks (or no chunk index): the library reads it whole
+        if not summary.chunk_indexes:
+            # No chunks (or no chunk index): the library reads it record by record, in file order;
+            # its log-time order would read (and sort) the whole file before the first message,
+            # so a damaged record would leave nothing to keep.
             by_id = self._by_id
-            for _schema, ch, msg in self.reader.iter_messages(topics=topics, log_time_order=True):
+            for _schema, ch, msg in self.reader.iter_messages(topics=topics, log_time_order=False):
                 yield RawMessage(
                     by_id[ch.id], msg.log_time, msg.data, msg.publish_time, msg.sequence
                 )
