@@ -189,11 +189,17 @@ def test_one_stamp_far_out_of_line_is_placed_between_its_neighbours(
     assert scan_clock_ns(read_carmen_log(path)).offsets_ns[2] == 10**8 + 1
     # ... and said, with how many and how far back (two swapped lines moved every scan between
     # them onto one time, silently).
-    assert "1 scan stamp(s) earlier than the scan before them (at most 0.200 s back)" in caplog.text
+    assert (
+        "1 scan stamp(s) earlier than the scan before them in the log (at most 0.200 s back): "
+        "scans kept in file order, 1 stamp(s) moved" in caplog.text
+    )
     caplog.clear()
-    _restamped(path, ["1000.0", "1000.1", "1000.1", "1000.3", "1000.4"])  # equal: no disorder
+    _restamped(path, ["1000.0", "1000.1", "1000.1", "1000.1", "1000.4"])  # equal: no disorder
     scan_clock_ns(read_carmen_log(path))
     assert "earlier than" not in caplog.text
+    _restamped(path, ["1000.0", "1000.3", "1000.1", "1000.2", "1000.4"])  # one line out of place
+    scan_clock_ns(read_carmen_log(path))
+    assert "1 scan stamp(s) earlier" in caplog.text and "2 stamp(s) moved" in caplog.text
 
 
 def test_a_session_that_would_run_past_2_31_s_is_refused(tmp_path: Path) -> None:

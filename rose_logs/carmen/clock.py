@@ -67,21 +67,25 @@ def scan_clock_ns(log: CarmenLog) -> ScanClock:
     if steps.size == 0 or np.count_nonzero(steps > 0) >= steps.size / 2:
         stamps = _stamps_in_line(stamps, log)
         out = stamps - stamps[0]
-        nudged, back = 0, 0
+        steps = np.diff(stamps)
+        backward = int(np.count_nonzero(steps < 0))  # in the log, not after the nudges below
+        moved = 0
         for i in range(1, out.size):  # a handful of backward stamps at most (Intel)
             if out[i] <= out[i - 1]:
-                back = max(back, int(out[i - 1] - out[i]))
-                nudged += int(out[i] < out[i - 1])  # equal stamps are no disorder
+                moved += int(out[i] < out[i - 1])  # an equal stamp moved by 1 ns is no news
                 out[i] = out[i - 1] + 1
-        if nudged:
+        if backward:
             # Scans keep their file order; a stamp earlier than the scan before it takes that
-            # scan's time (+1 ns): two swapped lines put every scan between them on one time.
+            # scan's time (+1 ns), and so may the scans after it: two swapped lines put every
+            # scan between them on one time.
             _LOG.warning(
-                "%s: %d scan stamp(s) earlier than the scan before them (at most %.3f s back): "
-                "scans kept in file order, each such stamp moved to just after the one before",
+                "%s: %d scan stamp(s) earlier than the scan before them in the log (at most "
+                "%.3f s back): scans kept in file order, %d stamp(s) moved to just after the scan "
+                "before them",
                 log.path,
-                nudged,
-                back / 1e9,
+                backward,
+                -int(steps.min()) / 1e9,
+                moved,
             )
         return ScanClock(out, "log", int(stamps[0]) if stamps.size else 0)
     poses = log.laser_poses
