@@ -356,7 +356,7 @@ def _expand_path(fs: Any, path: str, protocol: str | None, base: str) -> Iterabl
         for f in files
         if f.lower().endswith(LOG_SUFFIXES) and not any(f.startswith(b + "/") for b in bag_dirs)
     ]
-    theirs = _process_outputs([*bag_dirs, *logs], set(files) | set(bag_dirs))
+    theirs = _process_outputs([*bag_dirs, *logs], {*bag_dirs, *logs})
     if theirs:
         _LOG.warning(
             "%s: %d recording(s) named as `rose-bag process` names its output of a recording "
@@ -375,13 +375,14 @@ def _expand_path(fs: Any, path: str, protocol: str | None, base: str) -> Iterabl
 
 
 def _process_outputs(candidates: Sequence[str], present: set[str]) -> list[str]:
-    """The candidates named as ``rose-bag process`` names its output of a recording that is
-    ``present`` beside them (``run.rose.mcap`` beside ``run.mcap``, ``run.rose.bag`` beside
+    """The candidates named as ``rose-bag process`` names its output of a recording (one of
+    ``present``, the recordings found) beside them (``run.rose.mcap`` beside ``run.mcap``, ``run.rose.bag`` beside
     ``run.bag`` or ``run.bag.active``, a bag folder ``run.rose`` beside ``run`` or ``run.db3``):
     processed copies of a recording in the fleet, which would be counted twice."""
+    recordings = {p.lower() for p in present}  # suffixes as process reads them: any case
     out = []
     for path in candidates:
-        folder, name = posixpath.split(path)
+        folder, name = posixpath.split(path.lower())
         stem, dot, suffix = name.rpartition(".rose.")
         if dot:
             sources = [f"{stem}.{suffix}"] + ([f"{stem}.bag.active"] if suffix == "bag" else [])
@@ -389,7 +390,7 @@ def _process_outputs(candidates: Sequence[str], present: set[str]) -> list[str]:
             sources = [name[: -len(".rose")], name[: -len(".rose")] + ".db3"]
         else:
             continue
-        if any(posixpath.join(folder, source) in present for source in sources):
+        if any(posixpath.join(folder, source) in recordings for source in sources):
             out.append(path)
     return out
 

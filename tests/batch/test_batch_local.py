@@ -335,6 +335,10 @@ def test_process_outputs_beside_their_recordings_are_not_read_twice(
     assert "1 recording(s) named as `rose-bag process` names its output" in caplog.text
     # Named on its own, it is an input like any other.
     assert [r.name for r in discover([tmp_path / "fleet" / "run.rose.mcap"])] == ["run.rose.mcap"]
+    # Only a recording beside it makes it an output: a text file called "notes" does not.
+    copy_recording(tmp_path / "other" / "notes.rose", "db3", max_maps=1)
+    (tmp_path / "other" / "notes").write_text("not a recording")
+    assert [r.name for r in discover([tmp_path / "other"])] == ["other/notes.rose"]
 
 
 # ---- CLI: exit codes ------------------------------------------------------------------------------
