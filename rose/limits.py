@@ -233,7 +233,8 @@ def image_kind(data: bytes | memoryview) -> str | None:
         (head[:1] == b"P" and head[1:2] in (b"1", b"2", b"3", b"4", b"5", b"6"), "PNM"),
         (head.startswith(b"BM"), "BMP"),
         (head.startswith(b"\xff\xd8"), "JPEG"),
-        (head[:4] in (b"II*\x00", b"MM\x00*", b"II+\x00", b"MM\x00+"), "TIFF"),
+        (head[:4] in (b"II*\x00", b"MM\x00*"), "TIFF"),
+        (head[:4] in (b"II+\x00", b"MM\x00+"), "BigTIFF"),
         (head[:4] == b"RIFF" and head[8:12] == b"WEBP", "WebP"),
     )
     return next((name for announced, name in kinds if announced), None)
@@ -268,6 +269,10 @@ def _jpeg_shape(data: bytes | memoryview) -> tuple[int, int] | None:
     return None
 
 
+#: TIFF field types a size may have (libtiff reads them all): BYTE, SHORT, LONG.
+_TIFF_SIZE_FIELDS = {1: ("B", 1), 3: ("H", 2), 4: ("I", 4)}
+
+
 def _tiff_shape(data: bytes | memoryview) -> tuple[int, int] | None:
     """ImageLength and ImageWidth of a TIFF's first directory (the page OpenCV decodes)."""
     order = "<" if bytes(data[:2]) == b"II" else ">"
@@ -286,9 +291,9 @@ def _tiff_shape(data: bytes | memoryview) -> tuple[int, int] | None:
         # ImageWidth, ImageLength: SHORT or LONG; the first one counts, as libtiff reads it (a
         # second 1 x 1 after a 12000 x 12000 passed the check and 1.4e8 pixels were decoded).
         if tag in (256, 257) and tag not in size:
-            if kind not in (3, 4):
+            if kind not in _TIFF_SIZE_FIELDS:
                 return None
-            field, width = ("H", 2) if kind == 3 else ("I", 4)
+            field, width = _TIFF_SIZE_FIELDS[kind]
             (size[tag],) = struct.unpack(order + field, entry[8 : 8 + width])
     if 256 not in size or 257 not in size:
         return None

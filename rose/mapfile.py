@@ -341,7 +341,11 @@ def _read_image(path: Path, max_cells: int | None = DEFAULT_MAX_CELLS) -> npt.ND
         # pixels, and the decoder allocates them before any limit applies.
         kind = image_kind(raw)
         problem = (
-            f"truncated or malformed {kind} header" + (" (BigTIFF is not read)" * (kind == "TIFF"))
+            (
+                "BigTIFF is not read"
+                if kind == "BigTIFF"
+                else f"truncated or malformed {kind} header"
+            )
             if kind is not None
             else "not a PNG, PGM / PPM / PBM, BMP, JPEG, TIFF or WebP file: the formats whose "
             "size is checked before decoding"

@@ -294,6 +294,16 @@ def test_a_tiff_is_sized_by_its_first_width_and_length_as_libtiff_reads_them() -
     entries = [entry(256, 12000), entry(257, 12000), entry(256, 1), entry(257, 1)]
     tiff = b"II*\x00" + struct.pack("<I", 8) + struct.pack("<H", len(entries)) + b"".join(entries)
     assert image_shape(tiff) == (12000, 12000)
+    # A size stored as a BYTE (libtiff and OpenCV read it; it was refused as malformed).
+    small = [struct.pack("<HHIBxxx", 256, 1, 1, 4), struct.pack("<HHIBxxx", 257, 1, 1, 4)]
+    tiff = b"II*\x00" + struct.pack("<I", 8) + struct.pack("<H", 2) + b"".join(small)
+    assert image_shape(tiff) == (4, 4)
+
+
+def test_a_bigtiff_is_refused_as_such(tmp_path: Path) -> None:
+    (tmp_path / "m.tif").write_bytes(b"II+\x00" + bytes(12))
+    with pytest.raises(MapFileError, match=r"not a readable image \(BigTIFF is not read\)"):
+        rose.load_map(tmp_path / "m.tif", resolution_m=0.05)
 
 
 @pytest.mark.parametrize(
@@ -301,7 +311,7 @@ def test_a_tiff_is_sized_by_its_first_width_and_length_as_libtiff_reads_them() -
     [
         (b"\xff\xd8\xff\xe0\x00\x10JFIF", "JPEG"),
         (b"BM" + bytes(10), "BMP"),
-        (b"II+\x00" + bytes(12), "TIFF"),
+        (b"II*\x00" + bytes(4), "TIFF"),
     ],
 )
 def test_a_truncated_header_is_named_for_its_format(
