@@ -348,8 +348,9 @@ def _refuse_out_in_a_bag(root: str, bag_folders: Sequence[str]) -> None:
     that no run ever resumed)."""
     for folder in bag_folders:
         if (root + "/").startswith(folder.rstrip("/") + "/"):
+            where = "is" if root.rstrip("/") == folder.rstrip("/") else "is inside"
             msg = (
-                f"{root}: the output folder is inside the recording {folder} (a ROS 2 bag "
+                f"{root}: the output folder {where} the recording {folder} (a ROS 2 bag "
                 "folder): the batch would write into its input; choose another -o"
             )
             raise BatchError(msg)
