@@ -353,10 +353,13 @@ def _read_image(path: Path, max_cells: int | None = DEFAULT_MAX_CELLS) -> npt.ND
         msg = f"{path}: not a readable image ({problem})"
         raise MapFileError(msg)
     if raw.startswith(b"\x89PNG\r\n\x1a\n") and shape is not None:
-        problem = _png_problem(raw, shape)
+        dropped: list[tuple[int, int]] = []
+        problem = _png_problem(raw, shape, dropped)
         if problem is not None:  # libpng would print its own lines on stderr, then fail
             msg = f"{path}: not a readable image ({problem})"
             raise MapFileError(msg)
+        for start, end in reversed(dropped):  # as libpng drops them, without its stderr line
+            raw = raw[:start] + raw[end:]
     pixels = _decode_pnm(raw, path)
     if pixels is None:
         pixels = _decode_other(raw, path, max_cells)
@@ -480,9 +483,11 @@ def _header_problem(raw: bytes, shape: tuple[int, int] | None) -> str | None:
     return None
 
 
-def _png_problem(raw: bytes, shape: tuple[int, int]) -> str | None:
+def _png_problem(raw: bytes, shape: tuple[int, int], dropped: list[tuple[int, int]]) -> str | None:
     """A truncated PNG, a chunk whose CRC does not match or image data that does not inflate: what
     libpng would print on stderr itself (before an error without a reason), said here in one line.
+    Ancillary chunks whose CRC does not match go to ``dropped`` as ``(start, end)`` byte spans: libpng
+    drops them (with a warning on stderr), and so does the caller, before it decodes.
 
     The image data is inflated in pieces and dropped, and no further than the most the header's
     ``shape`` (rows, cols) can hold: a small file inflating without end is left to the decoder,
@@ -504,11 +509,14 @@ def _png_problem(raw: bytes, shape: tuple[int, int]) -> str | None:
         (crc,) = struct.unpack(">I", raw[body_end : body_end + 4])
         # A critical chunk (upper-case first letter) with a wrong CRC is an error for libpng; an
         # ancillary one (tEXt, ...) is dropped with a warning and the image reads.
-        critical = kind[:1].isupper()
-        if critical and zlib.crc32(raw[pos + 4 : body_end]) != crc:
-            return (
-                f"corrupt PNG: CRC mismatch in its {kind.decode('latin-1')!r} chunk at byte {pos}"
-            )
+        if zlib.crc32(raw[pos + 4 : body_end]) != crc:
+            if not kind[:1].isupper():
+                dropped.append((pos, body_end + 4))
+            else:
+                return (
+                    f"corrupt PNG: CRC mismatch in its {kind.decode('latin-1')!r} chunk at "
+                    f"byte {pos}"
+                )
         if kind == b"IDAT" and inflated <= most:
             try:
                 chunk = raw[pos + 8 : body_end]

@@ -353,7 +353,7 @@ def _png_damaged(how: str) -> bytes:
 
 
 def test_an_ancillary_png_chunk_with_a_wrong_crc_is_dropped_as_libpng_drops_it(
-    tmp_path: Path,
+    tmp_path: Path, capfd: pytest.CaptureFixture[str]
 ) -> None:
     """libpng warns about a tEXt chunk whose CRC is wrong and reads the image; so do we."""
     import struct
@@ -365,7 +365,15 @@ def test_an_ancillary_png_chunk_with_a_wrong_crc_is_dropped_as_libpng_drops_it(
     text = struct.pack(">I", len(body) - 4) + body + struct.pack(">I", zlib.crc32(body) ^ 1)
     at = raw.find(b"IDAT") - 4
     (tmp_path / "m.png").write_bytes(raw[:at] + text + raw[at:])
-    assert rose.load_map(tmp_path / "m.png", resolution_m=0.05).grid.shape == (20, 30)
+    loaded = rose.load_map(tmp_path / "m.png", resolution_m=0.05)
+    np.testing.assert_array_equal(loaded.grid, rose.load_map(_saved(tmp_path, raw)).grid)
+    assert capfd.readouterr().err == ""  # libpng's own warning line stays off stderr
+
+
+def _saved(folder: Path, raw: bytes) -> Path:
+    (folder / "intact.png").write_bytes(raw)
+    write_yaml(folder / "intact.yaml", "image: intact.png\nresolution: 0.05\n")
+    return folder / "intact.yaml"
 
 
 @pytest.mark.parametrize(
