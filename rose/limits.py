@@ -122,7 +122,10 @@ _StrictLoader.add_implicit_resolver(
 
 #: A block mapping's key at the start of a line, then its colon and the tabs (and spaces) after it,
 #: which yaml-cpp reads as a separating space. Only there: a tab inside a value stays as it is.
-_TAB_AFTER_COLON = re.compile(r"^([ ]*[^\s\"'#:{}\[\],-][^:\"'#\n]*):[ ]*\t[ \t]*", re.MULTILINE)
+_TAB_AFTER_COLON = re.compile(
+    r"^([ ]*(?:- +)*(?:\"[^\"\n]*\"|'[^'\n]*'|[^\s\"'#:{}\[\],-][^:\"'#\n]*)):[ ]*\t[ \t]*",
+    re.MULTILINE,
+)
 
 
 def load_yaml(text: str | bytes) -> Any:

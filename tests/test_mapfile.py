@@ -139,6 +139,11 @@ def test_a_tab_after_a_colon_reads_as_yaml_cpp_reads_it(tmp_path: Path) -> None:
         "image": "m:\tx.pgm",
         "mode": "a:\tb",
     }
+    # ... and a quoted key, or a key in a sequence item, is read like a plain one.
+    assert load_yaml('"image":\tm.pgm\nlist:\n  - a:\t1\n') == {
+        "image": "m.pgm",
+        "list": [{"a": 1}],
+    }
     # A tab that indents is still an error, with its line, also beside a tab the retry reads.
     bad = write_yaml(tmp_path / "bad.yaml", "image:\tm.pgm\nresolution: 0.05\norigin:\n\t- 1\n")
     with pytest.raises(MapFileError, match="'\\\\t' that cannot start any token on line 4"):
