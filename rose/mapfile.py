@@ -352,7 +352,7 @@ def _read_image(path: Path, max_cells: int | None = DEFAULT_MAX_CELLS) -> npt.ND
         )
         msg = f"{path}: not a readable image ({problem})"
         raise MapFileError(msg)
-    if raw.startswith(b"\x89PNG\r\n\x1a\n") and shape is not None:
+    if shape is not None and image_kind(raw) == "PNG":
         dropped: list[tuple[int, int]] = []
         problem = _png_problem(raw, shape, dropped)
         if problem is not None:  # libpng would print its own lines on stderr, then fail

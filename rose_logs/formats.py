@@ -16,7 +16,14 @@ from typing import Literal
 from rose.limits import MAX_YAML_BYTES, load_yaml, short
 from rose_logs.errors import LogReadError
 
-__all__ = ["FORMATS", "LogFormat", "detect_format", "format_from_path", "unknown_suffix_warning"]
+__all__ = [
+    "FORMATS",
+    "LogFormat",
+    "detect_format",
+    "format_from_path",
+    "processed_name",
+    "unknown_suffix_warning",
+]
 
 LogFormat = Literal["ros1", "db3", "mcap", "mcap-dir"]
 FORMATS: tuple[LogFormat, ...] = ("ros1", "db3", "mcap", "mcap-dir")
@@ -133,3 +140,22 @@ def suffix_mismatch_warning(path: Path, fmt: str) -> str | None:
     return (
         f"warning: {path}: written as {fmt} (--format), but '{Path(path).suffix}' names {implied}"
     )
+
+
+#: The suffix ``rosbag record`` gives a bag while it records (left so when it is killed).
+ACTIVE_BAG = ".bag.active"
+
+
+def processed_name(name: str, *, is_dir: bool) -> str:
+    """The name ``rose-bag process`` gives its output of the recording ``name`` by default:
+    ``run.mcap`` -> ``run.rose.mcap``, ``run.bag`` (or ``run.bag.active``) -> ``run.rose.bag``, a bag
+    folder ``run`` or a bare ``run.db3`` -> ``run.rose`` (a ROS 2 bag folder)."""
+    lower = name.lower()
+    if is_dir:
+        return f"{name}.rose"
+    if lower.endswith(".db3"):
+        return f"{name[: -len('.db3')]}.rose"
+    if lower.endswith(ACTIVE_BAG):  # a recording rosbag never closed
+        return f"{name[: -len(ACTIVE_BAG)]}.rose.bag"
+    stem, dot, suffix = name.rpartition(".")
+    return f"{stem}.rose.{suffix}" if dot and stem else f"{name}.rose"

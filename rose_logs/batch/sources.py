@@ -19,6 +19,7 @@ from rose.limits import short
 from rose.outputs import enclosing_bag_folder
 from rose_logs.batch.errors import BatchError
 from rose_logs.batch.store import filesystem, is_local, storage_errors
+from rose_logs.formats import ACTIVE_BAG, processed_name
 
 __all__ = [
     "LOG_SUFFIXES",
@@ -228,7 +229,7 @@ def discover(
 
 
 def _unclosed(name: str) -> bool:
-    return name.lower().endswith(".bag.active")
+    return name.lower().endswith(ACTIVE_BAG)
 
 
 def cleaned_log_name(name: str) -> str:
@@ -356,7 +357,7 @@ def _expand_path(fs: Any, path: str, protocol: str | None, base: str) -> Iterabl
         for f in files
         if f.lower().endswith(LOG_SUFFIXES) and not any(f.startswith(b + "/") for b in bag_dirs)
     ]
-    theirs = _process_outputs([*bag_dirs, *logs], {*bag_dirs, *logs})
+    theirs = sorted(_process_outputs([*bag_dirs, *logs], bag_dirs, logs))
     if theirs:
         _LOG.warning(
             "%s: %d recording(s) named as `rose-bag process` names its output of a recording "
@@ -374,25 +375,21 @@ def _expand_path(fs: Any, path: str, protocol: str | None, base: str) -> Iterabl
             yield _recording(fs, f, protocol, base, is_dir=False)
 
 
-def _process_outputs(candidates: Sequence[str], present: set[str]) -> list[str]:
-    """The candidates named as ``rose-bag process`` names its output of a recording (one of
-    ``present``, the recordings found) beside them (``run.rose.mcap`` beside ``run.mcap``, ``run.rose.bag`` beside
-    ``run.bag`` or ``run.bag.active``, a bag folder ``run.rose`` beside ``run`` or ``run.db3``):
-    processed copies of a recording in the fleet, which would be counted twice."""
-    recordings = {p.lower() for p in present}  # suffixes as process reads them: any case
-    out = []
-    for path in candidates:
-        folder, name = posixpath.split(path.lower())
-        stem, dot, suffix = name.rpartition(".rose.")
-        if dot:
-            sources = [f"{stem}.{suffix}"] + ([f"{stem}.bag.active"] if suffix == "bag" else [])
-        elif name.endswith(".rose"):
-            sources = [name[: -len(".rose")], name[: -len(".rose")] + ".db3"]
-        else:
-            continue
-        if any(posixpath.join(folder, source) in recordings for source in sources):
-            out.append(path)
-    return out
+def _process_outputs(
+    candidates: Sequence[str], bag_dirs: Sequence[str], logs: Sequence[str]
+) -> set[str]:
+    """The candidates named as ``rose-bag process`` names its output of a recording found beside
+    them (:func:`rose_logs.formats.processed_name`: ``run.rose.mcap`` beside ``run.mcap``):
+    processed copies of a recording in the fleet, which would be counted twice. Compared in any
+    case, as process reads suffixes."""
+    outputs = {
+        posixpath.join(
+            posixpath.dirname(r), processed_name(posixpath.basename(r), is_dir=d)
+        ).lower()
+        for group, d in ((bag_dirs, True), (logs, False))
+        for r in group
+    }
+    return {c for c in candidates if c.lower() in outputs}
 
 
 def _bag_of(fs: Any, path: str, protocol: str | None) -> str | None:

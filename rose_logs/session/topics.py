@@ -11,6 +11,7 @@ from rose.limits import short
 from rose.outputs import enclosing_bag_folder
 from rose_logs.derived import derived_topics
 from rose_logs.errors import LogReadError, LogWriteError
+from rose_logs.formats import processed_name
 from rose_logs.storage.records import Channel
 from rose_logs.storage.typesys import MAP_TYPE, UPDATE_TYPE
 
@@ -29,8 +30,6 @@ __all__ = [
 _LOG = logging.getLogger(__name__)
 
 _DECODABLE = {"ros1", "cdr"}
-#: The name rosbag record gives a bag while it records (left so when it is killed).
-_ACTIVE_BAG = ".bag.active"
 #: The map topics we add ourselves end so (only ``<map>/rose/cleaned`` is an OccupancyGrid).
 _DERIVED_MAP_SUFFIX = derived_topics("").cleaned
 
@@ -115,12 +114,7 @@ def default_output_path(input_path: Path) -> Path:
     if not path.name:
         msg = f"{input_path}: no file name to name the output after; give one with -o"
         raise LogWriteError(msg)
-    if path.is_dir() or path.suffix.lower() == ".db3":
-        name = f"{path.stem if path.is_file() else path.name}.rose"
-    elif path.name.lower().endswith(_ACTIVE_BAG):  # a recording rosbag never closed
-        name = f"{path.name[: -len(_ACTIVE_BAG)]}.rose.bag"
-    else:
-        name = f"{path.stem}.rose{path.suffix}"
+    name = processed_name(path.name, is_dir=path.is_dir())
     folder = path.parent
     bag = enclosing_bag_folder(path)
     if bag is not None and folder.absolute() == bag:  # beside the input bag, not inside it
