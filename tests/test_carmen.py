@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import gzip
 import itertools
+import json
 import math
 from pathlib import Path
 
@@ -136,6 +137,28 @@ def test_convert_warns_of_an_output_suffix_that_names_no_format(
     assert "warning" not in capsys.readouterr().err
 
 
+def test_convert_writes_a_ros2_bag_folder_with_mcap_storage_that_process_reads(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from rose_logs.cli import main
+    from rose_logs.reader import LogReader
+
+    out = tmp_path / "session"
+    argv = ["convert", str(repo_data(FR101)), str(out), "--max-scans", "60", "--format"]
+    assert main([*argv, "mcap-dir", "--map-period", "5"]) == 0
+    assert (out / "metadata.yaml").is_file()
+    assert [p.suffix for p in out.iterdir() if p.name != "metadata.yaml"] == [".mcap"]
+    with LogReader(out) as reader:
+        assert reader.format == "mcap-dir"
+        maps = sum(1 for m in reader.messages() if m.channel.topic == "/map")
+    assert maps >= 2
+    capsys.readouterr()
+    assert main(["process", str(out), "--no-output", "-q", "--json", "-"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["input_format"] == "mcap-dir"
+    assert len(report["snapshots"]) == maps
+
+
 def test_convert_warns_once_of_malformed_lines_naming_the_log(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -189,7 +212,10 @@ def test_beam_angles(n: int, increment_deg: float) -> None:
 
 
 # -- sessions written from a log (rose_logs.carmen.session) -------------------------------------
-@pytest.mark.parametrize(("name", "fmt"), [("s.bag", "ros1"), ("s_db3", "db3"), ("s.mcap", "mcap")])
+@pytest.mark.parametrize(
+    ("name", "fmt"),
+    [("s.bag", "ros1"), ("s_db3", "db3"), ("s.mcap", "mcap"), ("s_mcap_bag", "mcap-dir")],
+)
 def test_session_write_then_read(tmp_path: Path, name: str, fmt: str) -> None:
     from rosbags.highlevel import AnyReader
 
@@ -203,9 +229,14 @@ def test_session_write_then_read(tmp_path: Path, name: str, fmt: str) -> None:
         map_period_s=20.0,
         pose_output="both",
     )
-    summary = write_carmen_session(log, out, options=options)
+    # mcap-dir is never implied by a name: it is asked for.
+    summary = write_carmen_session(
+        log, out, options=options, fmt="mcap-dir" if fmt == "mcap-dir" else None
+    )
     assert summary.scans == 40
     assert summary.format == fmt
+    if fmt == "mcap-dir":  # a ROS 2 bag folder with MCAP storage
+        assert sorted(p.suffix for p in out.iterdir()) == [".mcap", ".yaml"]
     with AnyReader([out]) as reader:
         counts = {c.topic: c.msgcount for c in reader.connections}
         assert counts["/scan"] == 40 and counts["/tf"] == 40 and counts["/odom"] == 40

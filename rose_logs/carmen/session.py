@@ -44,7 +44,7 @@ __all__ = [
 
 _LOG = logging.getLogger(__name__)
 
-SessionFormat = Literal["ros1", "db3", "mcap"]
+SessionFormat = Literal["ros1", "db3", "mcap", "mcap-dir"]
 PoseOutput = Literal["tf", "odom", "both"]
 
 
@@ -298,9 +298,10 @@ def write_carmen_session(
         Parsed log (:func:`rose_logs.carmen.parse.read_carmen_log`).
     path : str or Path
         Output: ``*.bag`` file (ROS 1), ``*.mcap`` file, or ROS 2 bag folder; must not exist.
-    fmt : {"ros1", "db3", "mcap"}, optional
+    fmt : {"ros1", "db3", "mcap", "mcap-dir"}, optional
         Output format; from the path when omitted (:func:`rose_logs.formats.format_from_path`;
-        a name without a known suffix is a ROS 2 db3 bag folder).
+        a name without a known suffix is a ROS 2 db3 bag folder; ``"mcap-dir"``, a ROS 2 bag folder
+        with MCAP storage, is never implied).
     options : SessionOptions, optional
         Grid, map period, pose topics, frames and drift; defaults of :class:`SessionOptions`.
     progress : callable, optional

@@ -34,15 +34,18 @@ def add_parser(subparsers: Any) -> None:
         "convert",
         help="turn a CARMEN laser log into a ROS mapping session (/scan, /tf or /odom, /map)",
         description="Parse a CARMEN log (.log or .log.gz), build occupancy-grid snapshots by ray "
-        "casting, optionally add odometry drift, and write a ROS 1 bag, ROS 2 db3 or MCAP bag.",
+        "casting, optionally add odometry drift, and write a ROS 1 bag, a ROS 2 bag (db3 or MCAP "
+        "storage) or an MCAP file.",
     )
     parser.add_argument("log", type=path_arg, help="CARMEN log, plain or gzip")
     parser.add_argument(
-        "output", type=path_arg, help="*.bag (ROS 1), *.mcap or a folder (ROS 2 db3)"
+        "output",
+        type=path_arg,
+        help="*.bag (ROS 1), *.mcap, or a folder (ROS 2 bag: db3, or MCAP with --format mcap-dir)",
     )
     parser.add_argument(
         "--format",
-        choices=("ros1", "db3", "mcap"),
+        choices=("ros1", "db3", "mcap", "mcap-dir"),
         default=None,
         dest="fmt",
         help="output format (default: from the output name)",
@@ -129,7 +132,7 @@ def run(args: argparse.Namespace) -> int:
     from rose.mapfile import map_image_path  # with numpy: not at the CLI's start-up
 
     map_files = (args.map_file, map_image_path(args.map_file)) if args.map_file is not None else ()
-    outputs.check(args.output, directory=fmt == "db3")
+    outputs.check(args.output, directory=fmt in ("db3", "mcap-dir"))
     outputs.check(*map_files)
     log = read_carmen_log(args.log, max_scans=args.max_scans)  # warns of malformed lines itself
     _check_extent(log, args)
