@@ -332,7 +332,7 @@ def _expand_path(fs: Any, path: str, protocol: str | None, base: str) -> Iterabl
     if fs.isfile(posixpath.join(path, "metadata.yaml")):
         yield _recording(fs, path, protocol, base, is_dir=True)
         return
-    files = sorted(fs.find(path))
+    files = _local_files(path) if protocol is None else sorted(fs.find(path))
     # An earlier batch's OUT found inside a folder: its cleaned logs are no recordings of the fleet
     # (they would be counted twice). Named on their own (OUT/cleaned) they are inputs like others.
     found = set(files)
@@ -373,6 +373,27 @@ def _expand_path(fs: Any, path: str, protocol: str | None, base: str) -> Iterabl
     for f in logs:
         if f not in theirs:
             yield _recording(fs, f, protocol, base, is_dir=False)
+
+
+def _local_files(root: str) -> list[str]:
+    """Every file below the local folder ``root``, sorted, following symlinked folders (a fleet's
+    day folders linked from other disks) but entering each real folder once, so that a link to a
+    folder above it ends no search in a loop. Spelled through the links, as found."""
+
+    def unreadable(err: OSError) -> None:
+        raise err
+
+    seen: set[tuple[int, int]] = set()
+    files: list[str] = []
+    for folder, subfolders, names in os.walk(root, onerror=unreadable, followlinks=True):
+        status = Path(folder).stat()
+        if (status.st_dev, status.st_ino) in seen:  # reached again through a link
+            subfolders.clear()
+            continue
+        seen.add((status.st_dev, status.st_ino))
+        subfolders.sort()  # walk order decides which spelling of a folder linked twice is kept
+        files.extend(posixpath.join(folder, name) for name in names)
+    return sorted(files)
 
 
 def _process_outputs(

@@ -215,6 +215,23 @@ def test_one_file_under_several_spellings_is_one_recording(
     assert [r.name for r in report.results] == ["run.mcap"]
 
 
+def test_symlinked_folders_are_searched_and_a_link_to_a_folder_above_ends_no_search(
+    fleet: Path, tmp_path: Path
+) -> None:
+    # A fleet whose day folders live on another disk, linked in: their recordings are found,
+    # named through the link. A link back to the fleet (a loop) adds nothing and ends.
+    elsewhere = tmp_path / "disk2" / "robot_c"
+    elsewhere.mkdir(parents=True)
+    shutil.copy(fleet / "robot_a" / "run.mcap", elsewhere / "extra.mcap")
+    (fleet / "robot_c").symlink_to(elsewhere, target_is_directory=True)
+    (fleet / "robot_a" / "loop").symlink_to(fleet, target_is_directory=True)
+    found = discover([fleet])
+    names = [r.name for r in found]
+    assert "fleet/robot_c/extra.mcap" in names
+    assert len(found) == 6  # the five of the fleet and the linked one, each once
+    assert not any("/loop/" in name for name in names)
+
+
 # ---- --workers --------------------------------------------------------------------------------------
 
 
