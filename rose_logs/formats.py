@@ -27,6 +27,8 @@ __all__ = [
 
 LogFormat = Literal["ros1", "db3", "mcap", "mcap-dir"]
 FORMATS: tuple[LogFormat, ...] = ("ros1", "db3", "mcap", "mcap-dir")
+#: The suffix of an output written in a format (ROS 2 bag folders have none).
+_FORMAT_SUFFIX: dict[LogFormat, str] = {"ros1": ".bag", "mcap": ".mcap", "db3": "", "mcap-dir": ""}
 
 _ROS1_MAGIC = b"#ROSBAG V2.0\n"
 _MCAP_MAGIC = b"\x89MCAP0\r\n"
@@ -146,16 +148,21 @@ def suffix_mismatch_warning(path: Path, fmt: str) -> str | None:
 ACTIVE_BAG = ".bag.active"
 
 
-def processed_name(name: str, *, is_dir: bool) -> str:
+def processed_name(name: str, *, is_dir: bool, fmt: LogFormat | None = None) -> str:
     """The name ``rose-bag process`` gives its output of the recording ``name`` by default:
     ``run.mcap`` -> ``run.rose.mcap``, ``run.bag`` (or ``run.bag.active``) -> ``run.rose.bag``, a bag
-    folder ``run`` or a bare ``run.db3`` -> ``run.rose`` (a ROS 2 bag folder)."""
+    folder ``run`` or a bare ``run.db3`` -> ``run.rose`` (a ROS 2 bag folder). With an output format
+    ``fmt`` (``--format``) the suffix is that format's: ``run.bag`` as ``mcap`` -> ``run.rose.mcap``,
+    as ``db3`` or ``mcap-dir`` -> the folder ``run.rose``."""
     lower = name.lower()
-    if is_dir:
-        return f"{name}.rose"
-    if lower.endswith(".db3"):
-        return f"{name[: -len('.db3')]}.rose"
-    if lower.endswith(ACTIVE_BAG):  # a recording rosbag never closed
-        return f"{name[: -len(ACTIVE_BAG)]}.rose.bag"
-    stem, dot, suffix = name.rpartition(".")
-    return f"{stem}.rose.{suffix}" if dot and stem else f"{name}.rose"
+    if is_dir or lower.endswith(".db3"):
+        stem = name[: -len(".db3")] if not is_dir else name
+        own = ""
+    elif lower.endswith(ACTIVE_BAG):  # a recording rosbag never closed
+        stem, own = name[: -len(ACTIVE_BAG)], ".bag"
+    else:
+        before, dot, suffix = name.rpartition(".")
+        stem, own = (before, f".{suffix}") if dot and before else (name, "")
+    if fmt is not None:
+        own = _FORMAT_SUFFIX[fmt]
+    return f"{stem}.rose{own}"

@@ -19,7 +19,7 @@ from rose.limits import short
 from rose.outputs import enclosing_bag_folder
 from rose_logs.batch.errors import BatchError
 from rose_logs.batch.store import filesystem, is_local, storage_errors
-from rose_logs.formats import ACTIVE_BAG, processed_name
+from rose_logs.formats import ACTIVE_BAG, FORMATS, processed_name
 
 __all__ = [
     "LOG_SUFFIXES",
@@ -405,10 +405,11 @@ def _process_outputs(
     case, as process reads suffixes."""
     outputs = {
         posixpath.join(
-            posixpath.dirname(r), processed_name(posixpath.basename(r), is_dir=d)
+            posixpath.dirname(r), processed_name(posixpath.basename(r), is_dir=d, fmt=fmt)
         ).lower()
         for group, d in ((bag_dirs, True), (logs, False))
         for r in group
+        for fmt in (None, *FORMATS)  # process --format names its output by the format
     }
     return {c for c in candidates if c.lower() in outputs}
 

@@ -225,8 +225,8 @@ def run(args: argparse.Namespace) -> int:
             viewer_endpoint(args.connect)
         except ValueError as err:
             raise UsageError(f"argument --connect: {err}") from err
-    output = None if args.no_output else (args.output or default_output_path(args.input))
-    # Only a name the user typed: the default (input name + .rose) keeps the input's suffix.
+    output = None if args.no_output else (args.output or default_output_path(args.input, args.fmt))
+    # Only a name the user typed: the default (input name + .rose) has the output format's suffix.
     warning = None
     if args.output is not None and not args.fmt:
         warning = unknown_suffix_warning(args.output, "in the input's format")

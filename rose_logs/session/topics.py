@@ -11,7 +11,7 @@ from rose.limits import short
 from rose.outputs import enclosing_bag_folder
 from rose_logs.derived import derived_topics
 from rose_logs.errors import LogReadError, LogWriteError
-from rose_logs.formats import processed_name
+from rose_logs.formats import LogFormat, processed_name
 from rose_logs.storage.records import Channel
 from rose_logs.storage.typesys import MAP_TYPE, UPDATE_TYPE
 
@@ -101,9 +101,10 @@ def _owner(topic: str, grids: Sequence[str]) -> str | None:
     return grids[0] if len(grids) == 1 else None
 
 
-def default_output_path(input_path: Path) -> Path:
+def default_output_path(input_path: Path, fmt: LogFormat | None = None) -> Path:
     """``run.mcap`` -> ``run.rose.mcap``, ``run.bag`` (or ``run.bag.active``) -> ``run.rose.bag``,
-    folder ``run`` -> ``run.rose``.
+    folder ``run`` -> ``run.rose``; with an output format ``fmt``, that format's suffix
+    (:func:`rose_logs.formats.processed_name`).
 
     A path without a name of its own (``.``, ``bags/..``) is named by its absolute form. A storage
     file inside a ROS 2 bag folder gets its output beside that folder, never inside the input bag.
@@ -114,7 +115,7 @@ def default_output_path(input_path: Path) -> Path:
     if not path.name:
         msg = f"{input_path}: no file name to name the output after; give one with -o"
         raise LogWriteError(msg)
-    name = processed_name(path.name, is_dir=path.is_dir())
+    name = processed_name(path.name, is_dir=path.is_dir(), fmt=fmt)
     folder = path.parent
     bag = enclosing_bag_folder(path)
     if bag is not None and folder.absolute() == bag:  # beside the input bag, not inside it

@@ -339,6 +339,9 @@ def test_process_outputs_beside_their_recordings_are_not_read_twice(
     copy_recording(tmp_path / "other" / "notes.rose", "db3", max_maps=1)
     (tmp_path / "other" / "notes").write_text("not a recording")
     assert [r.name for r in discover([tmp_path / "other"])] == ["other/notes.rose"]
+    # process --format db3 names its output of run.mcap by the format: the bag folder run.rose.
+    process_log(log, output_path=tmp_path / "fleet" / "run.rose", output_format="db3")
+    assert [r.name for r in discover([tmp_path / "fleet"])] == ["fleet/run.mcap"]
 
 
 # ---- CLI: exit codes ------------------------------------------------------------------------------

@@ -205,6 +205,26 @@ def test_topic_selection_and_rose_params(tmp_path: Path, capsys, fr079) -> None:
     assert "no topic /nope" in capsys.readouterr().err
 
 
+def test_the_default_output_name_has_the_suffix_of_the_format_asked_for(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # --format mcap on a ROS 1 bag wrote MCAP into in.rose.bag, and --format db3 on an MCAP file a
+    # bag folder named in.rose.mcap: names that tools open as the wrong format.
+    from rose_logs.formats import detect_format
+
+    maps = session_maps([np.full((40, 40), -1, dtype=np.int8)])
+    bag = build_log(tmp_path / "in.bag", "ros1", maps).path
+    assert main(["process", str(bag), "--format", "mcap", "-q"]) == 0
+    assert detect_format(tmp_path / "in.rose.mcap") == "mcap"
+    assert not (tmp_path / "in.rose.bag").exists()
+    mcap = build_log(tmp_path / "m.mcap", "mcap-ros2", maps).path
+    assert main(["process", str(mcap), "--format", "db3", "-q"]) == 0
+    assert detect_format(tmp_path / "m.rose") == "db3"
+    assert main(["process", str(mcap), "-q"]) == 0  # no --format: the input's suffix
+    assert detect_format(tmp_path / "m.rose.mcap") == "mcap"
+    capsys.readouterr()
+
+
 def test_usage_errors_exit_2(capsys) -> None:
     with pytest.raises(SystemExit) as exc:
         main(["process"])

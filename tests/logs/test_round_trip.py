@@ -305,3 +305,5 @@ def test_a_recording_rosbag_never_closed_is_named_like_a_bag_once_processed() ->
 
     assert default_output_path(Path("runs/k.bag.active")) == Path("runs/k.rose.bag")
     assert default_output_path(Path("runs/k.bag")) == Path("runs/k.rose.bag")
+    assert default_output_path(Path("runs/k.bag.active"), "mcap") == Path("runs/k.rose.mcap")
+    assert default_output_path(Path("runs/k.mcap"), "mcap-dir") == Path("runs/k.rose")
