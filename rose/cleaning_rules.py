@@ -87,17 +87,24 @@ def wall_cells(
         math.ceil(length_px(p.open_unknown_width_m, res))
         + round(length_px(p.unknown_margin_m, res)),
     )
+    rows, cols = occupancy.shape
     r0, r1, c0, c1 = _bounds(occupancy >= 0)
-    r0, c0 = max(r0 - pad, 0), max(c0 - pad, 0)
-    r1, c1 = min(r1 + pad, occupancy.shape[0]), min(c1 + pad, occupancy.shape[1])
-    window = (slice(r0, r1), slice(c0, c1))
-    kept, restored, added, removed = _wall_cells(
-        occupancy[window],
-        result.occupied[window],
-        result.structure[window],
-        result.dominant_directions,
-        res=res,
-        p=p,
+    r0, c0, r1, c1 = r0 - pad, c0 - pad, r1 + pad, c1 + pad
+    window = (slice(max(r0, 0), min(r1, rows)), slice(max(c0, 0), min(c1, cols)))
+    # Beyond the grid lies unknown space, as around a map with a margin of unknown cells: a map
+    # cropped tight against its outer wall must clean as the same map with that margin (its wall
+    # next to a narrow strip of unknown cells at the edge was not "near wide unknown" and went).
+    beyond = ((max(-r0, 0), max(r1 - rows, 0)), (max(-c0, 0), max(c1 - cols, 0)))
+    kept, restored, added, removed = (
+        out[beyond[0][0] : out.shape[0] - beyond[0][1], beyond[1][0] : out.shape[1] - beyond[1][1]]
+        for out in _wall_cells(
+            np.pad(occupancy[window], beyond, constant_values=UNKNOWN),
+            np.pad(result.occupied[window], beyond),
+            np.pad(result.structure[window], beyond),
+            result.dominant_directions,
+            res=res,
+            p=p,
+        )
     )
     walls[window] = kept
     guarded[window] = restored
@@ -657,8 +664,11 @@ def straight_lines(
     if not mask.any():
         return out.astype(bool)
     length = max(2, round(min_length_px))
+    # On the mask's bounding box: the transform's votes depend on where the cells lie in its image,
+    # so the same cells give the same segments however much empty space is around them.
+    box = _padded_box(mask, 0)
     segments = cv2.HoughLinesP(
-        mask.view(np.uint8) * np.uint8(255),
+        mask[box].view(np.uint8) * np.uint8(255),
         1.0,
         math.pi / 180,
         threshold=max(2, length // 2),
@@ -667,7 +677,7 @@ def straight_lines(
     )
     if segments is not None:
         lines = segments.reshape(-1, 1, 2, 2).astype(np.int32)
-        cv2.polylines(out, list(lines), isClosed=False, color=1, thickness=3)
+        cv2.polylines(out[box], list(lines), isClosed=False, color=1, thickness=3)
     return out.astype(bool) & mask
 
 

@@ -105,6 +105,24 @@ def test_walls_method_never_opens_a_gap_when_walls_are_weak() -> None:
     assert separated_pairs(cleaned.cleaned >= 65, inside, outside)
 
 
+def test_a_map_cropped_tight_against_its_wall_cleans_as_with_a_margin_of_unknown() -> None:
+    # A 1.4 m wall (no run, no line) at the edge of the known space, which the paper's labelling
+    # calls clutter: kept because wide unknown space lies behind it. Outside the grid is unknown
+    # space too: cropped three cells beyond the wall, the wall was removed (the strip of unknown
+    # cells left at the edge was too narrow to be "wide unknown").
+    import dataclasses
+
+    grid = np.full((120, 120), -1, dtype=np.int8)
+    grid[40:68, 40:80] = 0
+    grid[40:68, 80:82] = 100
+    for tight in (grid, np.ascontiguousarray(grid[:, :85])):
+        analysed = rose.analyze(tight)
+        nothing = np.zeros(tight.shape, dtype=bool)
+        result = dataclasses.replace(analysed, structure=nothing, clutter=analysed.occupied)
+        cleaned = clean(tight, result, resolution_m=RES)
+        assert cleaned.kept[40:68, 80:82].all(), tight.shape
+
+
 def test_result_shapes_partition_and_counts() -> None:
     grid, _, _ = closed_building()
     result = rose.analyze(grid)
