@@ -292,7 +292,9 @@ class LogReader:
             reraise_interrupt_behind(err)  # a signal inside the library, not a corrupt log
             error = err if isinstance(err, LogError) else _corrupt(self.path, err)
             if not self.salvage:
-                if isinstance(err, LogError):
+                if isinstance(err, LogError) and (
+                    "--salvage" in str(err) or not isinstance(err, LogReadError)
+                ):
                     raise
                 salvage = "--salvage keeps what can be read"
                 raise LogReadError(f"{error}; {salvage}") from err

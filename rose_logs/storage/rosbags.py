@@ -101,7 +101,17 @@ class RosbagsReadBackend:
             if not conns:
                 return
         for conn, timestamp, data in self.reader.messages(connections=conns or ()):
+            if not isinstance(data, bytes | memoryview) or timestamp < 0:
+                raise LogReadError(self._damaged_row(conn.topic, timestamp, data))
             yield RawMessage(by_conn[id(conn)], int(timestamp), data, int(timestamp))
+
+    def _damaged_row(self, topic: str, timestamp: int, data: object) -> str:
+        """What is wrong with a message a SQLite bag stores (its columns take any type: a NULL or
+        a text where the message's bytes belong, a time before 1970)."""
+        if timestamp < 0:
+            return f"{self.path}: a message on {topic} has a negative time ({timestamp} ns)"
+        stored = "NULL" if data is None else f"a {type(data).__name__}"
+        return f"{self.path}: the message on {topic} at {timestamp} ns holds {stored}, not its bytes"
 
     def close(self) -> None:
         if self.reader is not None:

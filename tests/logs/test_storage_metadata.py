@@ -453,3 +453,54 @@ def test_a_map_topic_with_two_publishers_is_said_to_be_one_session(
     with caplog.at_level(logging.WARNING):
         process_log(one, output_path=None)
     assert not [r for r in caplog.records if "publishers" in r.getMessage()]
+
+
+@pytest.mark.parametrize(
+    ("change", "said"),
+    [
+        ("UPDATE messages SET data = NULL WHERE id = 2", "holds NULL, not its bytes"),
+        ("UPDATE messages SET data = 'hello' WHERE id = 2", "holds a str, not its bytes"),
+        ("UPDATE messages SET timestamp = -5 WHERE id = 2", "has a negative time (-5 ns)"),
+    ],
+)
+def test_a_sqlite_row_that_holds_no_message_is_named_as_damage_of_the_input(
+    tmp_path: Path,
+    fr079: list[npt.NDArray[np.int8]],
+    change: str,
+    said: str,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """SQLite columns take any type: a NULL or a text where a message's bytes belong, or a time
+    before 1970, raised a TypeError traceback while copying (or blamed the output's format)."""
+    import sqlite3
+
+    from conftest import build_log, session_maps
+
+    from rose_logs.cli import main
+
+    bag = build_log(tmp_path / "in", "db3", session_maps(fr079[:3]), scans_per_map=0).path
+    (storage,) = bag.glob("*.db3")
+    db = sqlite3.connect(storage)
+    db.execute("PRAGMA writable_schema = ON")  # rosbag2 declares data NOT NULL; the damage does not
+    db.execute(
+        "UPDATE sqlite_master SET sql = replace(sql, 'data BLOB NOT NULL', 'data BLOB') "
+        "WHERE name = 'messages'"
+    )
+    db.commit()
+    db.close()
+    db = sqlite3.connect(storage)
+    db.execute(change)
+    db.commit()
+    db.close()
+    out = tmp_path / "out.mcap"
+    assert main(["process", str(bag), "-o", str(out), "-q"]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith(f"error: {bag}: ")
+    assert said in err and "--salvage" in err
+    assert not out.exists()
+    # --salvage keeps the messages before it (none before a time that sorts first), and says
+    # what was lost.
+    first = "timestamp" in change
+    assert main(["process", str(bag), "-o", str(out), "-q", "--salvage"]) == (1 if first else 4)
+    assert said in capsys.readouterr().err
+    assert out.is_file() != first
