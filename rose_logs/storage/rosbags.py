@@ -111,7 +111,9 @@ class RosbagsReadBackend:
         if timestamp < 0:
             return f"{self.path}: a message on {topic} has a negative time ({timestamp} ns)"
         stored = "NULL" if data is None else f"a {type(data).__name__}"
-        return f"{self.path}: the message on {topic} at {timestamp} ns holds {stored}, not its bytes"
+        return (
+            f"{self.path}: the message on {topic} at {timestamp} ns holds {stored}, not its bytes"
+        )
 
     def close(self) -> None:
         if self.reader is not None:
