@@ -159,6 +159,28 @@ def test_convert_writes_a_ros2_bag_folder_with_mcap_storage_that_process_reads(
     assert len(report["snapshots"]) == maps
 
 
+@pytest.mark.parametrize("x", ["1e12", "1e20", "1e300"])
+def test_convert_refuses_poses_whose_map_no_tool_would_place(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], x: str
+) -> None:
+    """Poses of 1e12 m made a session that process then refused (origin beyond +-1e9 m); from 1e15
+    m on, numpy warnings and an error blaming the output. One line naming the log and the scan."""
+    from rose_logs.cli import main
+
+    good = "FLASER 3 1.0 2.0 3.0 0.5 -0.5 0.1 0.5 -0.5 0.1 12.5 host 12.5\n"
+    far = good.replace("0.5 -0.5 0.1 0.5 -0.5", f"{x} -0.5 0.1 {x} -0.5")
+    path = tmp_path / "log.txt"
+    path.write_text(good + far.replace("12.5", "13.0"))
+    out = tmp_path / "s.mcap"
+    assert main(["convert", str(path), str(out), "-q"]) == 1
+    err = capsys.readouterr().err
+    assert err == (
+        f"error: {path}: scan 2 is at ({float(x):.6g}, -0.5) m: a map around it would lie beyond "
+        "+-1e+09 m of the origin, where no map is placed\n"
+    )
+    assert not out.exists()
+
+
 def test_convert_warns_once_of_malformed_lines_naming_the_log(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -210,8 +210,25 @@ def _scan_progress(total: int, *, enabled: bool) -> Iterator[Callable[[int, int]
 
 def _check_extent(log: CarmenLog, args: argparse.Namespace) -> None:
     """Refuse, before any allocation, a map larger than ``--max-cells`` (poses far apart, tiny cells)."""
+    import numpy as np  # not at the CLI's start-up
+
+    from rose.mapfile import MAX_ORIGIN_M
+
     poses = log.laser_poses[:, :2]
-    span = poses.max(axis=0) - poses.min(axis=0) + 2 * (args.max_range + 10.0)
+    # The map reaches a reading's range (and a margin) beyond the poses: its origin must stay
+    # where ROS tools place maps (process refuses an origin beyond, and poses of 1e15 m and more
+    # broke the ray casting's arithmetic).
+    reach = args.max_range + 10.0
+    far = np.abs(poses).max(axis=1) + reach
+    if not far.max() <= MAX_ORIGIN_M:
+        i = int(np.argmax(~(far <= MAX_ORIGIN_M)))
+        x, y = (float(v) for v in poses[i])
+        msg = (
+            f"{args.log}: scan {i + 1} is at ({x:.6g}, {y:.6g}) m: a map around it would lie "
+            f"beyond +-{MAX_ORIGIN_M:g} m of the origin, where no map is placed"
+        )
+        raise LogReadError(msg)
+    span = poses.max(axis=0) - poses.min(axis=0) + 2 * reach
     cells = math.prod(math.ceil(float(v) / args.resolution) for v in span)
     if cells > args.max_cells:
         msg = (
