@@ -27,7 +27,7 @@ from rose.limits import short
 from rose_logs.storage.connections import QosStyle
 from rose_logs.storage.records import Channel, RawMessage, normalize_msgtype
 
-__all__ = ["Ros1StreamReadBackend"]
+__all__ = ["Ros1StreamReadBackend", "unindexed_messages"]
 
 _MAGIC = b"#ROSBAG V2.0\n"
 _OP_MESSAGE = 0x02
@@ -244,7 +244,7 @@ class Ros1StreamReadBackend:
         self.complete = indexed
         if not self.damage:
             self.damage = (
-                "the bag header's index position is wrong; every record was read"
+                "the bag's index is damaged or misplaced; every record was read"
                 if indexed
                 else "no index at the end (the recording was not closed)"
             )
@@ -339,3 +339,54 @@ def _chunk_items(content: bytes) -> Iterator[_Connection | tuple[int, int, bytes
             return
         fields, data = record
         yield from _record_items(_op(fields), fields, data)
+
+
+_OP_INDEX_DATA = 0x04
+
+
+def unindexed_messages(path: Path, listed: dict[int, int]) -> str | None:
+    """What the index of the ROS 1 bag ``path`` leaves out, in a few words; None when it accounts
+    for every chunk and message.
+
+    ``listed`` maps each chunk's position to the messages its chunk info counts; the records
+    from the bag header to the index are walked (their headers only: a chunk's data is skipped)
+    and every chunk's index data records counted. A chunk info whose count was damaged, or a
+    bag header that counts fewer chunks than the file holds, loses messages silently otherwise.
+    """
+    found: dict[int, int] = {}
+    size = path.stat().st_size
+    with path.open("rb") as stream:
+        stream.readline()  # the magic line (checked by whoever opened the bag)
+        try:
+            header = _read_record(stream, size)
+            index_pos = _uint(header[0], "index_pos", "<Q") if header is not None else 0
+            chunk = None
+            while stream.tell() < index_pos:
+                at = stream.tell()
+                fields = _fields(_read_block(stream, index_pos, "header"))
+                raw = stream.read(4)
+                (length,) = struct.unpack("<I", raw) if len(raw) == 4 else (index_pos,)
+                if stream.tell() + length > index_pos:
+                    return f"a record at byte {at} runs past the index at byte {index_pos}"
+                op = _op(fields)
+                if op == _OP_CHUNK:
+                    chunk = at
+                    found[chunk] = 0
+                elif op == _OP_INDEX_DATA and chunk is not None:
+                    found[chunk] += _uint(fields, "count", "<I")
+                stream.seek(length, io.SEEK_CUR)
+        except _Damage as err:
+            return f"{err} before the index"
+    unlisted = sorted(set(found) - set(listed))
+    if unlisted:
+        lost = sum(found[pos] for pos in unlisted)
+        return (
+            f"{len(unlisted)} chunk(s) from byte {unlisted[0]} on, with {lost} message(s), are "
+            "not in the index"
+        )
+    for pos, count in sorted(found.items()):
+        if count != listed[pos]:
+            return (
+                f"the chunk at byte {pos} holds {count} message(s), the index counts {listed[pos]}"
+            )
+    return None

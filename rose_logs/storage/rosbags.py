@@ -51,6 +51,8 @@ class RosbagsReadBackend:
 
             self.reader = Reader2(self.path)
         self.reader.open()
+        if self.format == "ros1":
+            self._check_ros1_index()
         channels: list[Channel] = []
         for conn in self.reader.connections:
             ext = conn.ext
@@ -80,6 +82,20 @@ class RosbagsReadBackend:
             self.start_ns = int(self.reader.start_time)
             # rosbags reports the end as "1 ns after the last message"
             self.end_ns = max(self.start_ns, int(self.reader.end_time) - 1)
+
+    def _check_ros1_index(self) -> None:
+        """Refuse a bag whose index leaves chunks or messages out (rosbags reads what it lists)."""
+        from rose_logs.storage.ros1_stream import unindexed_messages
+
+        infos = getattr(self.reader, "chunk_infos", [])
+        listed = {int(c.pos): sum(c.connection_counts.values()) for c in infos}
+        problem = unindexed_messages(self.path, listed)
+        if problem is not None:
+            msg = (
+                f"{self.path}: the bag's index is damaged ({problem}); --salvage reads the bag "
+                "record by record"
+            )
+            raise LogReadError(msg)
 
     def _check_types(self) -> None:
         """Refuse a bag folder whose metadata.yaml declares other types than its storage records."""

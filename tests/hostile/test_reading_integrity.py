@@ -406,7 +406,37 @@ def test_a_ros1_bag_whose_header_misplaces_its_index_is_read_whole_and_loses_not
     odd.write_bytes(bytes(data))
     code, _, err = _run(capsys, "process", odd, "--no-output", "-q", "--salvage")
     assert code == 0, err  # a warning, but no message is lost
-    assert "index position is wrong; every record was read" in err
+    assert "index is damaged or misplaced; every record was read" in err
+    assert _messages(odd, salvage=True) == _in_file_order(bag)
+
+
+@pytest.mark.parametrize("damage", ["header_counts_fewer_chunks", "chunk_info_counts_none"])
+def test_a_ros1_bag_whose_index_leaves_messages_out_is_damage_not_a_shorter_log(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], ros1_bag: tuple[Path, list], damage: str
+) -> None:
+    """rosbags reads what the index lists: a bag header counting fewer chunks than the file holds,
+    or a chunk info whose message count was zeroed, lost those messages with exit 0."""
+    bag, chunks = ros1_bag
+    data = bytearray(bag.read_bytes())
+    if damage == "header_counts_fewer_chunks":
+        at = data.index(b"chunk_count=") + len(b"chunk_count=")
+        data[at : at + 4] = (2).to_bytes(4, "little")
+        lost = sum(n for _, n in chunks[2:])
+        said = f"{len(chunks) - 2} chunk(s) from byte {chunks[2][0]} on, with {lost} message(s), are not in the index"
+    else:  # the last chunk info's count of connections (its last field): none
+        at = data.rindex(b"count=") + len(b"count=")
+        data[at : at + 4] = (0).to_bytes(4, "little")
+        said = f"the chunk at byte {chunks[-1][0]} holds {chunks[-1][1]} message(s), the index counts 0"
+    odd = tmp_path / "odd.bag"
+    odd.write_bytes(bytes(data))
+    code, _, err = _run(capsys, "process", odd, "--no-output", "-q")
+    assert code == 1
+    assert (
+        err
+        == f"error: {odd}: the bag's index is damaged ({said}); --salvage reads the bag record by record\n"
+    )
+    code, _, err = _run(capsys, "process", odd, "--no-output", "-q", "--salvage")
+    assert code == 0, err  # every record read: nothing is lost
     assert _messages(odd, salvage=True) == _in_file_order(bag)
 
 
