@@ -88,9 +88,37 @@ _LAZY = {
 }
 
 
+#: Modules the docs name as ``rose.<module>``: loaded on first use too (``rose.spectrum.half_spectrum``
+#: after a plain ``import rose``), as SciPy serves its subpackages.
+_SUBMODULES = frozenset(
+    {
+        "breaks",
+        "cleaning",
+        "cleaning_rules",
+        "directions",
+        "errors",
+        "grid",
+        "labelling",
+        "limits",
+        "mapfile",
+        "outputs",
+        "params",
+        "pipeline",
+        "result",
+        "scoring",
+        "spectrum",
+        "threshold",
+        "unfold",
+        "walls",
+    }
+)
+
+
 def __getattr__(name: str) -> Any:
     if name in _LAZY:
         return getattr(importlib.import_module(_LAZY[name]), name)
+    if name in _SUBMODULES:
+        return importlib.import_module(f"rose.{name}")
     msg = f"module 'rose' has no attribute {name!r}"
     raise AttributeError(msg)
 

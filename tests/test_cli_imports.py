@@ -82,3 +82,21 @@ def test_version_is_the_one_pyproject_declares(command: str, package: str) -> No
         capture_output=True, text=True, check=False,
     )  # fmt: skip
     assert (shown.returncode, shown.stdout) == (0, f"{command} {version}\n")
+
+
+def test_the_modules_the_docs_name_load_on_first_use_after_a_plain_import() -> None:
+    """``import rose; rose.spectrum.padded_shape(...)`` raised AttributeError unless something had
+    imported rose.spectrum first."""
+    import subprocess
+    import sys
+
+    import rose
+
+    code = (
+        "import rose; print(rose.spectrum.padded_shape((736, 1152)), rose.breaks.__name__); "
+        f"print(all(hasattr(rose, m) for m in {sorted(rose._SUBMODULES)!r}))"
+    )
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert run.stdout.split("\n")[1] == "True"
+    assert "rose.breaks" in run.stdout
+    assert not hasattr(rose, "no_such_module")
