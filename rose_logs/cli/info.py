@@ -45,8 +45,10 @@ def run(args: argparse.Namespace) -> int:
         stats: dict[str, dict[str, Any]] = {
             t: {"sizes": {}, "res": set(), "frames": set(), "bad": 0} for t in map_topics
         }
+        read: dict[str, int] = dict.fromkeys(map_topics, 0)  # what the map topics hold
         for message in reader.messages(topics=map_topics):
             topic = message.channel.topic
+            read[topic] += 1
             if message.channel.msgtype != "nav_msgs/msg/OccupancyGrid":
                 continue
             try:
@@ -66,13 +68,20 @@ def run(args: argparse.Namespace) -> int:
         print(f"file         {args.input}")
         print(f"format       {reader.format} ({reader.serialization})")
         declared = " (declared)" if reader.losses and reader.counts_declared else ""
-        print(f"messages     {reader.message_count}{declared}")
+        # The map topics as read (an index can undercount them: a warning says so), the other
+        # topics as declared (info reads no other topic). After a loss the counts stay as
+        # declared, and the loss says how many were read.
+        if reader.losses:
+            read = {}
+        total = reader.message_count + sum(read.values())
+        total -= sum(c.message_count for c in channels if c.topic in read)
+        print(f"messages     {total}{declared}")
         if reader.message_count:
             print(
                 f"time range   {utc_text(reader.start_ns)} .. {utc_text(reader.end_ns)} UTC "
                 f"({duration_text(reader.end_ns - reader.start_ns)}){declared}"
             )
-        _print_topics(channels, map_topics)
+        _print_topics(channels, map_topics, read)
         for topic in map_topics:
             _print_map_topic(topic, stats[topic], publishers(channels, topic))
         if not map_topics:
@@ -85,8 +94,11 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _print_topics(channels: Sequence[Channel], map_topics: Sequence[str]) -> None:
-    """Each topic with its declared message count and type(s), map topics marked."""
+def _print_topics(
+    channels: Sequence[Channel], map_topics: Sequence[str], read: dict[str, int]
+) -> None:
+    """Each topic with its message count (``read`` for the map topics, else declared) and type(s),
+    map topics marked."""
     counts: dict[str, int] = {}
     types: dict[str, list[str]] = {}  # a topic may carry several types, one per connection
     for c in channels:
@@ -96,6 +108,7 @@ def _print_topics(channels: Sequence[Channel], map_topics: Sequence[str]) -> Non
         name = ros1_msgtype(c.msgtype) if c.message_encoding == "ros1" else c.msgtype
         if name not in known:
             known.append(name)
+    counts.update(read)
     width = max((len(t) for t in counts), default=5)
     print("\ntopics")
     for topic in sorted(counts):

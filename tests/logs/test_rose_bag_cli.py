@@ -79,6 +79,28 @@ def test_info(capsys) -> None:
     assert "  resolution   0.05 m" in out.splitlines()
 
 
+def test_info_counts_map_topics_as_read_when_the_index_undercounts_them(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """An MCAP whose statistics say 2 of its 6 maps: info warned of 6, then printed 2."""
+    import struct
+
+    grids = [np.full((30, 40), -1, dtype=np.int8) for _ in range(6)]
+    path = build_log(tmp_path / "in.mcap", "mcap-ros2", session_maps(grids), scans_per_map=0).path
+    data = bytearray(path.read_bytes())
+    pos = 8  # after the magic: records are opcode (1 byte), length (8 bytes), content
+    while data[pos] != 0x0B:  # the Statistics record
+        pos += 9 + struct.unpack_from("<Q", data, pos + 1)[0]
+    entries = pos + 9 + 8 + 2 + 4 * 4 + 8 + 8 + 4  # its channel message counts: (u16, u64) each
+    assert struct.unpack_from("<Q", data, entries + 2)[0] == 6
+    struct.pack_into("<Q", data, entries + 2, 2)
+    path.write_bytes(bytes(data))
+    assert main(["info", str(path)]) == 0
+    out, err = capsys.readouterr()
+    assert "/map has 6 messages, its index says 2" in err
+    assert "messages     6\n" in out and re.search(r"/map\s+6\s", out)
+
+
 def test_info_shows_a_maps_sizes_in_the_order_they_came(tmp_path: Path, capsys) -> None:
     """Eight sizes: the first three and the last three as they came (the six smallest hid a
     growing map's final size)."""
