@@ -58,6 +58,15 @@ def short(text: object, limit: int = MAX_MESSAGE_CHARS) -> str:
     return line if len(line) <= limit else line[: limit - 3] + "..."
 
 
+def visible(text: str) -> str:
+    """``text`` with its control characters written as escapes (``\\n``, ``\\x1b``), for names
+    printed in a table: a topic named with a newline stays on its line, and an escape sequence
+    cannot drive the terminal. Other text (accents too) is unchanged."""
+    if text.isprintable():
+        return text
+    return "".join(c if c.isprintable() else c.encode("unicode_escape").decode() for c in text)
+
+
 def check_cells(rows: int, cols: int, max_cells: int | None) -> str | None:
     """None if a ``rows x cols`` grid is within ``max_cells`` (None: no limit), else the reason."""
     if max_cells is None or rows * cols <= max_cells:

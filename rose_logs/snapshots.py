@@ -190,7 +190,9 @@ def _check_placement(
 ) -> None:
     """Raise MapMessageError for a resolution, origin or orientation no real map has."""
     if not math.isfinite(resolution) or not 0 < resolution <= MAX_RESOLUTION_M:
-        msg = f"{topic}: resolution {resolution} m is not in (0, {MAX_RESOLUTION_M:g}]"
+        # As the message stores it (float32): -0.05, not -0.05000000074505806.
+        shown = float32_decimal(resolution) if abs(resolution) < 3.4e38 else resolution
+        msg = f"{topic}: resolution {shown} m is not in (0, {MAX_RESOLUTION_M:g}]"
         raise MapMessageError(msg)
     if not all(math.isfinite(v) for v in position):
         msg = f"{topic}: origin position {position} is not finite"

@@ -7,6 +7,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from rose.cli.options import path_arg
+from rose.limits import visible
 from rose_logs.cli.options import EXIT_SALVAGED, duration_text, utc_text
 from rose_logs.storage.records import Channel, ros1_msgtype
 
@@ -109,17 +110,18 @@ def _print_topics(
         if name not in known:
             known.append(name)
     counts.update(read)
-    width = max((len(t) for t in counts), default=5)
+    width = max((len(visible(t)) for t in counts), default=5)
     print("\ntopics")
     for topic in sorted(counts):
         mark = "  [map]" if topic in map_topics else ""
-        print(f"  {topic:<{width}}  {counts[topic]:>8}  {', '.join(sorted(types[topic]))}{mark}")
+        kinds = ", ".join(visible(t) for t in sorted(types[topic]))
+        print(f"  {visible(topic):<{width}}  {counts[topic]:>8}  {kinds}{mark}")
 
 
 def _print_map_topic(topic: str, s: dict[str, Any], nodes: Sequence[str]) -> None:
     """Grid sizes (in the order they came), resolutions and frames of a map topic's messages, and
     its publishers when the log names them (ROS 1)."""
-    print(f"\nmap topic    {topic}")
+    print(f"\nmap topic    {visible(topic)}")
     if nodes:
         several = "  (analysed as one session)" if len(nodes) > 1 else ""
         print(f"  publishers   {', '.join(nodes)}{several}")

@@ -14,6 +14,7 @@ from rose.cli.options import (
     params_from_args,
     path_arg,
 )
+from rose.limits import visible
 from rose.outputs import OutputSet, json_text
 from rose_logs.cli.options import (
     EXIT_GATE,
@@ -116,7 +117,7 @@ def _print_summary(report: Any, out: TextIO) -> None:
         print(f"rerun        {report.rrd_path}", file=out)
     for topic in report.map_topics:
         records = report.records_of(topic)
-        print(f"\nmap topic    {topic}", file=out)
+        print(f"\nmap topic    {visible(topic)}", file=out)
         if not records:
             print("  snapshots    0", file=out)
             continue

@@ -101,6 +101,18 @@ def test_info_counts_map_topics_as_read_when_the_index_undercounts_them(
     assert "messages     6\n" in out and re.search(r"/map\s+6\s", out)
 
 
+def test_a_topic_named_with_a_newline_stays_on_its_line_in_the_summaries(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    grid = np.full((30, 40), -1, dtype=np.int8)
+    maps = [MapMsg(START_NS + 5_000_000_000, grid, topic="/ma\np")]
+    path = build_log(tmp_path / "in.mcap", "mcap-ros2", maps, scans_per_map=0).path
+    assert main(["info", str(path)]) == 0
+    assert "\nmap topic    /ma\\np\n" in capsys.readouterr().out
+    assert main(["process", str(path), "--no-output", "-q"]) == 0
+    assert "\nmap topic    /ma\\np\n" in capsys.readouterr().out
+
+
 def test_info_shows_a_maps_sizes_in_the_order_they_came(tmp_path: Path, capsys) -> None:
     """Eight sizes: the first three and the last three as they came (the six smallest hid a
     growing map's final size)."""

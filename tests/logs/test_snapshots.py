@@ -180,3 +180,22 @@ def test_another_costmaps_updates_never_patch_the_only_map(tmp_path, fr079) -> N
     report = process_log(built.path, output_path=None)
     assert len(report.records) == 2  # the map, and the map patched by /map_patches
     assert report.skipped_reasons == "1 updates of no known map"
+
+
+def test_a_bad_resolution_is_said_as_the_message_stores_it() -> None:
+    """float32 -0.05 read "-0.05000000074505806 m" in the warning."""
+    from rose_logs.errors import MapMessageError
+    from rose_logs.snapshots import _check_placement
+
+    with pytest.raises(MapMessageError, match=r"resolution -0\.05 m is not in"):
+        _check_placement("/map", float(np.float32(-0.05)), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
+    with pytest.raises(MapMessageError, match=r"resolution nan m"):
+        _check_placement("/map", float("nan"), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
+
+
+def test_names_printed_in_tables_keep_their_line() -> None:
+    from rose.limits import visible
+
+    assert visible("/map") == "/map"
+    assert visible("/kärta") == "/kärta"  # not a control character
+    assert visible("/ma\np\x1b[2J") == "/ma\\np\\x1b[2J"
