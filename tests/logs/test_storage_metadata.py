@@ -504,3 +504,21 @@ def test_a_sqlite_row_that_holds_no_message_is_named_as_damage_of_the_input(
     assert main(["process", str(bag), "-o", str(out), "-q", "--salvage"]) == (1 if first else 4)
     assert said in capsys.readouterr().err
     assert out.is_file() != first
+
+
+def test_a_storage_file_listed_twice_in_metadata_is_refused_not_read_twice(
+    tmp_path: Path, fr079: list[npt.NDArray[np.int8]], capsys: pytest.CaptureFixture[str]
+) -> None:
+    from conftest import build_log, session_maps
+
+    from rose_logs.cli import main
+
+    bag = build_log(tmp_path / "in", "db3", session_maps(fr079[:2]), scans_per_map=0).path
+    meta = bag / "metadata.yaml"
+    info = yaml.safe_load(meta.read_text())
+    files = info["rosbag2_bagfile_information"]["relative_file_paths"]
+    info["rosbag2_bagfile_information"]["relative_file_paths"] = files + files
+    meta.write_text(yaml.safe_dump(info))
+    assert main(["process", str(bag), "--no-output", "-q"]) == 1
+    err = capsys.readouterr().err
+    assert err == f"error: {bag}: metadata.yaml lists the storage file {files[0]} more than once\n"
