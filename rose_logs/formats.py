@@ -111,7 +111,41 @@ def _folder_format(path: Path) -> LogFormat:
     if not isinstance(info, dict):
         msg = f"{meta}: no rosbag2_bagfile_information mapping, not a ROS 2 bag"
         raise LogReadError(msg)
+    problem = _metadata_field_problem(info)
+    if problem is not None:  # else rosbags' own words: "'>' not supported between 'str' and 'int'"
+        msg = f"{meta}: {problem}"
+        raise LogReadError(msg)
     return "mcap-dir" if info.get("storage_identifier") == "mcap" else "db3"
+
+
+#: Fields of ``rosbag2_bagfile_information`` that rosbags computes with, and their YAML types.
+_METADATA_FIELDS: tuple[tuple[tuple[str, ...], type, str], ...] = (
+    (("version",), int, "an integer"),
+    (("storage_identifier",), str, "a name"),
+    (("relative_file_paths",), list, "a list of file names"),
+    (("starting_time", "nanoseconds_since_epoch"), int, "an integer"),
+    (("duration", "nanoseconds"), int, "an integer"),
+    (("message_count",), int, "an integer"),
+    (("topics_with_message_count",), list, "a list"),
+)
+
+
+def _metadata_field_problem(info: dict[str, object]) -> str | None:
+    """The first field of a ``metadata.yaml`` that is present with a type rosbags cannot use, in
+    words (a string where a number belongs); None when all are usable or absent (absent ones
+    are rosbags' to refuse)."""
+    for keys, kind, words in _METADATA_FIELDS:
+        value: object = info
+        for key in keys:
+            value = value.get(key) if isinstance(value, dict) else None
+        if value is None:
+            continue
+        if not isinstance(value, kind) or isinstance(value, bool):
+            return f"{'.'.join(keys)} should be {words}, not {short(repr(value), 60)}"
+    files = info.get("relative_file_paths")
+    if isinstance(files, list) and not all(isinstance(f, str) for f in files):
+        return "relative_file_paths should be a list of file names"
+    return None
 
 
 def format_from_path(path: Path) -> LogFormat | None:

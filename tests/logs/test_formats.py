@@ -77,6 +77,35 @@ def test_bag_folder_storage_comes_from_metadata(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize(
+    ("field", "said"),
+    [
+        ("  version: nine\n", "version should be an integer, not 'nine'"),
+        (
+            "  starting_time:\n    nanoseconds_since_epoch: abc\n",
+            "starting_time.nanoseconds_since_epoch should be an integer, not 'abc'",
+        ),
+        (
+            "  relative_file_paths: x.db3\n",
+            "relative_file_paths should be a list of file names, not 'x.db3'",
+        ),
+        ("  relative_file_paths: [1]\n", "relative_file_paths should be a list of file names"),
+        ("  message_count: true\n", "message_count should be an integer, not True"),
+    ],
+)
+def test_metadata_fields_of_the_wrong_type_are_named(tmp_path: Path, field: str, said: str) -> None:
+    """rosbags said "'>' not supported between instances of 'str' and 'int'" or "can only
+    concatenate str (not "int") to str"."""
+    folder = tmp_path / "bag"
+    folder.mkdir()
+    (folder / "metadata.yaml").write_text(
+        "rosbag2_bagfile_information:\n  storage_identifier: sqlite3\n" + field
+    )
+    with pytest.raises(LogReadError) as info:
+        detect_format(folder)
+    assert str(info.value) == f"{folder / 'metadata.yaml'}: {said}"
+
+
+@pytest.mark.parametrize(
     ("name", "expected"),
     [
         ("out.bag", "ros1"),
