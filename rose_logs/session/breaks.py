@@ -12,6 +12,9 @@ broken snapshot after a trusted one starts a break (:attr:`BreakScore.started`).
 
 Snapshots that cannot be compared with the trusted one (another resolution, a rotated origin, an
 origin shifted by a fraction of a cell) restart the comparison: score 0, and they become trusted.
+So does every snapshot after one without a single occupied cell (a blank map a node publishes
+while it starts): a map with no wall establishes nothing, and its free space would make every
+wall drawn later a break.
 """
 
 from __future__ import annotations
@@ -266,6 +269,7 @@ class BreakDetector:
         self._trusted: dict[str, tuple[int, MapSnapshot]] = {}
         self._broken: dict[str, bool] = {}
         self._count: dict[str, int] = {}
+        self._blank: set[str] = set()  # topics whose trusted snapshot has no occupied cell
 
     def update(self, snapshot: MapSnapshot) -> BreakScore:
         """Score the next snapshot of ``snapshot.topic`` and update the topic's state."""
@@ -274,11 +278,10 @@ class BreakDetector:
         self._count[topic] = index + 1
         trusted = self._trusted.get(topic)
         offset = None if trusted is None else _offset_px(trusted[1], snapshot)
-        if trusted is None or offset is None:
-            if trusted is not None:
+        if trusted is None or offset is None or topic in self._blank:
+            if trusted is not None and offset is None:
                 _LOG.info("%s: snapshot %d not comparable with the trusted one", topic, index)
-            self._trusted[topic] = (index, snapshot)
-            self._broken[topic] = False
+            self._trust(topic, index, snapshot)
             return _CLEAR
         found = self.compare(trusted[1], snapshot, offset)
         res = snapshot.resolution_m
@@ -288,7 +291,7 @@ class BreakDetector:
         started = broken and not self._broken.get(topic, False)
         self._broken[topic] = broken
         if not broken:
-            self._trusted[topic] = (index, snapshot)
+            self._trust(topic, index, snapshot)
         region = None if found.region_px is None else _region_m(snapshot, found.region_px)
         return BreakScore(
             score,
@@ -298,6 +301,15 @@ class BreakDetector:
             region,
             found.contradicted_tiles * found.tile_px * res,
         )
+
+    def _trust(self, topic: str, index: int, snapshot: MapSnapshot) -> None:
+        """Make ``snapshot`` the topic's trusted one (noting whether it has no wall at all)."""
+        self._trusted[topic] = (index, snapshot)
+        self._broken[topic] = False
+        if (snapshot.grid >= self.params.occupied_threshold).any():
+            self._blank.discard(topic)
+        else:
+            self._blank.add(topic)
 
     def compare(
         self, trusted: MapSnapshot, snapshot: MapSnapshot, offset_px: tuple[int, int]

@@ -158,3 +158,19 @@ def test_rise_parameters_are_checked() -> None:
         BreakParams(rise_points=0)
     with pytest.raises(ValueError, match="rise_margin_m"):
         BreakParams(rise_margin_m=-0.1)
+
+
+def test_a_blank_first_map_establishes_nothing(plan, broken) -> None:
+    """A node that publishes an all-free map while it starts: every later map drew walls into its
+    "established" free space, so the whole session read as broken (7.5 m at the second map)."""
+    detector = BreakDetector(BreakParams(threshold_m=1.0))
+    blank = np.zeros_like(plan)
+    verdicts = [detector.update(_snap(g, i)) for i, g in enumerate([blank, plan, plan, broken])]
+    assert [v.broken for v in verdicts] == [False, False, False, True]
+    assert [v.trusted_index for v in verdicts] == [None, None, 1, 2]
+    # A map that loses every wall later is still a break against the map before it.
+    detector = BreakDetector(BreakParams(threshold_m=1.0))
+    assert [detector.update(_snap(g, i)).broken for i, g in enumerate([plan, blank])] == [
+        False,
+        True,
+    ]
