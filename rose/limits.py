@@ -59,9 +59,10 @@ def short(text: object, limit: int = MAX_MESSAGE_CHARS) -> str:
 
 
 def visible(text: str) -> str:
-    """``text`` with its control characters written as escapes (``\\n``, ``\\x1b``), for names
-    printed in a table: a topic named with a newline stays on its line, and an escape sequence
-    cannot drive the terminal. Other text (accents too) is unchanged."""
+    """``text`` with the characters that do not print written as escapes (``\\n``, ``\\x1b``,
+    ``\\xa0``: controls, and spaces other than the plain one), for names printed in a table: a
+    topic named with a newline stays on its line, an escape sequence cannot drive the terminal,
+    and an invisible space shows. Other text (accents too) is unchanged."""
     if text.isprintable():
         return text
     return "".join(c if c.isprintable() else c.encode("unicode_escape").decode() for c in text)

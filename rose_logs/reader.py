@@ -292,10 +292,11 @@ class LogReader:
             reraise_interrupt_behind(err)  # a signal inside the library, not a corrupt log
             error = err if isinstance(err, LogError) else _corrupt(self.path, err)
             if not self.salvage:
-                if isinstance(err, LogError) and (
-                    "--salvage" in str(err) or not isinstance(err, LogReadError)
-                ):
-                    raise
+                if isinstance(err, LogError):
+                    if "--salvage" in str(err) or self.read_count == 0:
+                        raise  # said already, or nothing before it to keep
+                    kept = f"--salvage keeps the {self.read_count} message(s) before it"
+                    raise LogReadError(f"{error}; {kept}") from err
                 salvage = "--salvage keeps what can be read"
                 raise LogReadError(f"{error}; {salvage}") from err
             problem = f"{short(error, 200)}; stopped after {self.read_count} messages"

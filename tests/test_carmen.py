@@ -159,7 +159,7 @@ def test_convert_writes_a_ros2_bag_folder_with_mcap_storage_that_process_reads(
     assert len(report["snapshots"]) == maps
 
 
-@pytest.mark.parametrize("x", ["1e12", "1e20", "1e300"])
+@pytest.mark.parametrize("x", ["999999990", "1e12", "1e300"])
 def test_convert_refuses_poses_whose_map_no_tool_would_place(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], x: str
 ) -> None:
@@ -175,7 +175,7 @@ def test_convert_refuses_poses_whose_map_no_tool_would_place(
     assert main(["convert", str(path), str(out), "-q"]) == 1
     err = capsys.readouterr().err
     assert err == (
-        f"error: {path}: scan 2 is at ({float(x):.6g}, -0.5) m: a map around it would lie beyond "
+        f"error: {path}: scan 2 is at ({float(x):.12g}, -0.5) m: a map around it would lie beyond "
         "+-1e+09 m of the origin, where no map is placed\n"
     )
     assert not out.exists()

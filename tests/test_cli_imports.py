@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import importlib
+import re
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -100,3 +102,9 @@ def test_the_modules_the_docs_name_load_on_first_use_after_a_plain_import() -> N
     assert run.stdout.split("\n")[1] == "True"
     assert "rose.breaks" in run.stdout
     assert not hasattr(rose, "no_such_module")
+    # Every module of the package, and every one its docstring names, is served.
+    package = Path(rose.__file__).parent
+    modules = {p.stem for p in package.glob("*.py") if p.stem != "__init__"} | {"walls"}
+    named = set(re.findall(r"``rose\.(\w+)``", rose.__doc__ or ""))
+    assert named and named <= modules == set(rose._SUBMODULES)
+    assert modules <= set(dir(rose))

@@ -381,7 +381,10 @@ def _local_files(root: str) -> list[str]:
     folder above it ends no search in a loop. Spelled through the links, as found."""
 
     def unreadable(err: OSError) -> None:
-        raise err
+        if err.filename == root:  # the input itself: nothing to search
+            raise err
+        # One folder the user may not read (a disk's lost+found) does not stop the fleet's batch.
+        _LOG.warning("%s: cannot list (%s), not searched", err.filename, err.strerror or err)
 
     seen: set[tuple[int, int]] = set()
     files: list[str] = []
@@ -391,7 +394,9 @@ def _local_files(root: str) -> list[str]:
             subfolders.clear()
             continue
         seen.add((status.st_dev, status.st_ino))
-        subfolders.sort()  # walk order decides which spelling of a folder linked twice is kept
+        # Real folders before links to them, then by name: the walk's order decides which
+        # spelling of a folder reached twice names its recordings.
+        subfolders.sort(key=lambda name: (Path(folder, name).is_symlink(), name))
         files.extend(posixpath.join(folder, name) for name in names)
     return sorted(files)
 

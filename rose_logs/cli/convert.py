@@ -224,7 +224,7 @@ def _check_extent(log: CarmenLog, args: argparse.Namespace) -> None:
         i = int(np.argmax(~(far <= MAX_ORIGIN_M)))
         x, y = (float(v) for v in poses[i])
         msg = (
-            f"{args.log}: scan {i + 1} is at ({x:.6g}, {y:.6g}) m: a map around it would lie "
+            f"{args.log}: scan {i + 1} is at ({x:.12g}, {y:.12g}) m: a map around it would lie "
             f"beyond +-{MAX_ORIGIN_M:g} m of the origin, where no map is placed"
         )
         raise LogReadError(msg)

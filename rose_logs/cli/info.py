@@ -124,7 +124,7 @@ def _print_map_topic(topic: str, s: dict[str, Any], nodes: Sequence[str]) -> Non
     print(f"\nmap topic    {visible(topic)}")
     if nodes:
         several = "  (analysed as one session)" if len(nodes) > 1 else ""
-        print(f"  publishers   {', '.join(nodes)}{several}")
+        print(f"  publishers   {', '.join(visible(n) for n in nodes)}{several}")
     sizes = [f"{w} x {h}" for w, h in s["sizes"]]
     if sizes:
         # In the order they came, so a growing map's last size shows.
@@ -135,7 +135,7 @@ def _print_map_topic(topic: str, s: dict[str, Any], nodes: Sequence[str]) -> Non
             more += f", last {last}"
         print(f"  grid sizes   {', '.join(shown)}{more}")
         print(f"  resolution   {', '.join(f'{r:g}' for r in sorted(s['res']))} m")
-        frames = (repr(f) if not f.strip() else f for f in sorted(s["frames"]))
+        frames = (repr(f) if not f.strip() else visible(f) for f in sorted(s["frames"]))
         print(f"  frame        {', '.join(frames)}")
     if s["bad"]:
         print(f"  malformed    {s['bad']}")

@@ -344,23 +344,25 @@ def _chunk_items(content: bytes) -> Iterator[_Connection | tuple[int, int, bytes
 _OP_INDEX_DATA = 0x04
 
 
-def unindexed_messages(path: Path, listed: dict[int, int]) -> str | None:
+def unindexed_messages(path: Path, listed: dict[int, dict[int, int]]) -> str | None:
     """What the index of the ROS 1 bag ``path`` leaves out, in a few words; None when it accounts
     for every chunk and message.
 
-    ``listed`` maps each chunk's position to the messages its chunk info counts; the records
-    from the bag header to the index are walked (their headers only: a chunk's data is skipped)
-    and every chunk's index data records counted. A chunk info whose count was damaged, or a
-    bag header that counts fewer chunks than the file holds, loses messages silently otherwise.
+    ``listed`` maps each chunk's position to the messages its chunk info counts per connection.
+    The records from the bag header to the index are walked (their headers only: a chunk's data
+    is skipped), and the index data records after each chunk (which locate its messages, per
+    connection) are counted. A chunk info whose count was damaged, an index data record naming
+    another connection, or a bag header that counts fewer chunks than the file holds, loses
+    messages silently otherwise: a reader reads what the index lists.
     """
-    found: dict[int, int] = {}
+    found: dict[int, dict[int, int]] = {}
     size = path.stat().st_size
     with path.open("rb") as stream:
         stream.readline()  # the magic line (checked by whoever opened the bag)
         try:
             header = _read_record(stream, size)
             index_pos = _uint(header[0], "index_pos", "<Q") if header is not None else 0
-            chunk = None
+            chunk: dict[int, int] | None = None
             while stream.tell() < index_pos:
                 at = stream.tell()
                 fields = _fields(_read_block(stream, index_pos, "header"))
@@ -370,23 +372,31 @@ def unindexed_messages(path: Path, listed: dict[int, int]) -> str | None:
                     return f"a record at byte {at} runs past the index at byte {index_pos}"
                 op = _op(fields)
                 if op == _OP_CHUNK:
-                    chunk = at
-                    found[chunk] = 0
+                    chunk = found[at] = {}
                 elif op == _OP_INDEX_DATA and chunk is not None:
-                    found[chunk] += _uint(fields, "count", "<I")
+                    conn = _uint(fields, "conn", "<I")
+                    chunk[conn] = chunk.get(conn, 0) + _uint(fields, "count", "<I")
                 stream.seek(length, io.SEEK_CUR)
         except _Damage as err:
             return f"{err} before the index"
     unlisted = sorted(set(found) - set(listed))
     if unlisted:
-        lost = sum(found[pos] for pos in unlisted)
+        lost = sum(sum(found[pos].values()) for pos in unlisted)
         return (
             f"{len(unlisted)} chunk(s) from byte {unlisted[0]} on, with {lost} message(s), are "
             "not in the index"
         )
-    for pos, count in sorted(found.items()):
-        if count != listed[pos]:
+    for pos, counts in sorted(found.items()):
+        declared = {conn: n for conn, n in listed[pos].items() if n}
+        counts = {conn: n for conn, n in counts.items() if n}
+        if counts != declared:
             return (
-                f"the chunk at byte {pos} holds {count} message(s), the index counts {listed[pos]}"
+                f"the chunk at byte {pos} has index entries for {sum(counts.values())} "
+                f"message(s) (connections {_ids(counts)}), its chunk info counts "
+                f"{sum(declared.values())} (connections {_ids(declared)})"
             )
     return None
+
+
+def _ids(counts: dict[int, int]) -> str:
+    return ", ".join(str(conn) for conn in sorted(counts)) or "none"

@@ -8,6 +8,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, Literal
 
+from rose.limits import short
 from rose_logs.errors import LogReadError
 from rose_logs.formats import LogFormat
 from rose_logs.storage.base import WriteBackend
@@ -88,7 +89,7 @@ class RosbagsReadBackend:
         from rose_logs.storage.ros1_stream import unindexed_messages
 
         infos = getattr(self.reader, "chunk_infos", [])
-        listed = {int(c.pos): sum(c.connection_counts.values()) for c in infos}
+        listed = {int(c.pos): dict(c.connection_counts) for c in infos}
         problem = unindexed_messages(self.path, listed)
         if problem is not None:
             msg = (
@@ -122,18 +123,18 @@ class RosbagsReadBackend:
             if not conns:
                 return
         for conn, timestamp, data in self.reader.messages(connections=conns or ()):
-            if not isinstance(data, bytes | memoryview) or timestamp < 0:
+            if not isinstance(data, bytes | memoryview) or not _valid_time(timestamp):
                 raise LogReadError(self._damaged_row(conn.topic, timestamp, data))
             yield RawMessage(by_conn[id(conn)], int(timestamp), data, int(timestamp))
 
-    def _damaged_row(self, topic: str, timestamp: int, data: object) -> str:
+    def _damaged_row(self, topic: str, timestamp: object, data: object) -> str:
         """What is wrong with a message a SQLite bag stores (its columns take any type: a NULL or
-        a text where the message's bytes belong, a time before 1970)."""
-        if timestamp < 0:
-            return f"{self.path}: a message on {topic} has a negative time ({timestamp} ns)"
-        stored = "NULL" if data is None else f"a {type(data).__name__}"
+        a text where the message's bytes belong, a time that is no ROS time)."""
+        if not _valid_time(timestamp):
+            return f"{self.path}: a message on {topic} has no valid time ({_stored(timestamp)})"
         return (
-            f"{self.path}: the message on {topic} at {timestamp} ns holds {stored}, not its bytes"
+            f"{self.path}: the message on {topic} at {timestamp} ns holds {_stored(data)}, "
+            "not its bytes"
         )
 
     def close(self) -> None:
@@ -143,6 +144,22 @@ class RosbagsReadBackend:
             except Exception:  # closing a half-open reader must not mask the real error
                 _LOG.debug("closing %s failed", self.path, exc_info=True)
             self.reader = None
+
+
+def _valid_time(value: object) -> bool:
+    """Whether a SQLite row's timestamp is a log time: an integer of nanoseconds in 0 .. 2**63."""
+    return type(value) is int and 0 <= value < 2**63
+
+
+def _stored(value: object) -> str:
+    """A SQLite value in words, for an error: NULL, a text, a number (shortened)."""
+    if value is None:
+        return "NULL"
+    if isinstance(value, str):
+        return f"the text {short(repr(value), 40)}"
+    if isinstance(value, int | float):
+        return f"the number {short(repr(value), 40)}"
+    return f"a {type(value).__name__}"
 
 
 def _storage_files(path: Path) -> list[object]:

@@ -230,6 +230,37 @@ def test_symlinked_folders_are_searched_and_a_link_to_a_folder_above_ends_no_sea
     assert "fleet/robot_c/extra.mcap" in names
     assert len(found) == 6  # the five of the fleet and the linked one, each once
     assert not any("/loop/" in name for name in names)
+    # A link beside the folder it names (sorting before it) does not take its recordings' names.
+    (fleet / "again").symlink_to(fleet / "robot_a", target_is_directory=True)
+    assert [r.name for r in discover([fleet])] == names
+
+
+def test_a_folder_that_cannot_be_listed_is_skipped_with_a_warning_not_the_end_of_the_batch(
+    fleet: Path, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    """A disk's lost+found (mode 700, root's) made a batch over the disk a "cannot list" error;
+    a whole input that cannot be listed still is one."""
+    import errno
+    import logging
+
+    from rose_logs.batch.errors import BatchError
+
+    locked = fleet / "lost+found"
+    locked.mkdir()
+    listing = os.scandir
+
+    def scandir(path: object = ".") -> object:
+        if Path(os.fsdecode(path)) in (locked, fleet / "robot_a"):
+            raise PermissionError(errno.EACCES, "Permission denied", os.fspath(path))
+        return listing(path)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(os, "scandir", scandir)
+    with caplog.at_level(logging.WARNING):
+        found = discover([fleet])
+    assert found and not any(r.name.startswith("fleet/robot_a/") for r in found)
+    assert f"{locked}: cannot list (Permission denied), not searched" in caplog.text
+    with pytest.raises(BatchError, match="cannot list"):
+        discover([fleet / "robot_a"])
 
 
 # ---- --workers --------------------------------------------------------------------------------------

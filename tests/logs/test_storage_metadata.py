@@ -459,8 +459,12 @@ def test_a_map_topic_with_two_publishers_is_said_to_be_one_session(
     ("change", "said"),
     [
         ("UPDATE messages SET data = NULL WHERE id = 2", "holds NULL, not its bytes"),
-        ("UPDATE messages SET data = 'hello' WHERE id = 2", "holds a str, not its bytes"),
-        ("UPDATE messages SET timestamp = -5 WHERE id = 2", "has a negative time (-5 ns)"),
+        ("UPDATE messages SET data = 'hello' WHERE id = 2", "holds the text 'hello', not its"),
+        ("UPDATE messages SET data = 7 WHERE id = 2", "holds the number 7, not its bytes"),
+        ("UPDATE messages SET timestamp = -5 WHERE id = 2", "has no valid time (the number -5)"),
+        ("UPDATE messages SET timestamp = NULL WHERE id = 2", "has no valid time (NULL)"),
+        ("UPDATE messages SET timestamp = 'x' WHERE id = 2", "has no valid time (the text 'x')"),
+        ("UPDATE messages SET timestamp = 1e300 WHERE id = 2", "no valid time (the number 1e+300)"),
     ],
 )
 def test_a_sqlite_row_that_holds_no_message_is_named_as_damage_of_the_input(
@@ -471,7 +475,7 @@ def test_a_sqlite_row_that_holds_no_message_is_named_as_damage_of_the_input(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
     """SQLite columns take any type: a NULL or a text where a message's bytes belong, or a time
-    before 1970, raised a TypeError traceback while copying (or blamed the output's format)."""
+    that is no ROS time, raised a TypeError traceback while copying (or blamed the output)."""
     import sqlite3
 
     from conftest import build_log, session_maps
@@ -481,10 +485,10 @@ def test_a_sqlite_row_that_holds_no_message_is_named_as_damage_of_the_input(
     bag = build_log(tmp_path / "in", "db3", session_maps(fr079[:3]), scans_per_map=0).path
     (storage,) = bag.glob("*.db3")
     db = sqlite3.connect(storage)
-    db.execute("PRAGMA writable_schema = ON")  # rosbag2 declares data NOT NULL; the damage does not
+    db.execute("PRAGMA writable_schema = ON")  # rosbag2 declares NOT NULL; the damage does not
     db.execute(
-        "UPDATE sqlite_master SET sql = replace(sql, 'data BLOB NOT NULL', 'data BLOB') "
-        "WHERE name = 'messages'"
+        "UPDATE sqlite_master SET sql = replace(replace(sql, 'data BLOB NOT NULL', 'data BLOB'), "
+        "'timestamp INTEGER NOT NULL', 'timestamp INTEGER') WHERE name = 'messages'"
     )
     db.commit()
     db.close()
@@ -492,18 +496,20 @@ def test_a_sqlite_row_that_holds_no_message_is_named_as_damage_of_the_input(
     db.execute(change)
     db.commit()
     db.close()
+    # Where the damaged row sorts: first (NULL, a negative time), last (a text, a huge time), or
+    # in its place (bad data): --salvage keeps the messages before it, and says so when any are.
+    value = change.split()[5]
+    before = {"-5": 0, "NULL": 0, "'x'": 2, "1e300": 2}[value] if "timestamp" in change else 1
+    hint = f"; --salvage keeps the {before} message(s) before it" if before else ""
     out = tmp_path / "out.mcap"
     assert main(["process", str(bag), "-o", str(out), "-q"]) == 1
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith(f"error: {bag}: ")
-    assert said in err and "--salvage" in err
+    assert said in err and err.endswith(f"{hint}\n")
     assert not out.exists()
-    # --salvage keeps the messages before it (none before a time that sorts first), and says
-    # what was lost.
-    first = "timestamp" in change
-    assert main(["process", str(bag), "-o", str(out), "-q", "--salvage"]) == (1 if first else 4)
+    assert main(["process", str(bag), "-o", str(out), "-q", "--salvage"]) == (4 if before else 1)
     assert said in capsys.readouterr().err
-    assert out.is_file() != first
+    assert out.is_file() == bool(before)
 
 
 def test_a_storage_file_listed_twice_in_metadata_is_refused_not_read_twice(
