@@ -137,8 +137,15 @@ def apply_update(snapshot: MapSnapshot, update: GridUpdate) -> MapSnapshot:
     Raises
     ------
     ValueError
-        If the patch does not lie inside the grid.
+        If the patch does not lie inside the grid, or the update names another frame than the
+        map (cells of another map's grid; an empty frame is taken as the map's).
     """
+    if update.frame_id and snapshot.frame_id and update.frame_id != snapshot.frame_id:
+        msg = (
+            f"{update.topic}: update in frame {update.frame_id!r}, the map of {snapshot.topic} "
+            f"in {snapshot.frame_id!r}"
+        )
+        raise ValueError(msg)
     rows, cols = snapshot.shape
     h, w = update.patch.shape
     x, y = update.x_px, update.y_px

@@ -84,6 +84,18 @@ def test_patch_out_of_bounds_is_an_error_naming_both_topics(x: int, y: int, h: i
     assert_array_equal(snapshot.grid, before)
 
 
+def test_an_update_in_another_frame_is_not_written_into_the_map() -> None:
+    """Its cells are another grid's: it was applied without comment. An empty frame is the map's."""
+    import dataclasses
+
+    snapshot = _snapshot()
+    other = dataclasses.replace(_update(0, 0, 1, 1), frame_id="odom")
+    with pytest.raises(ValueError, match="update in frame 'odom', the map of /map in 'map'"):
+        apply_update(snapshot, other)
+    unnamed = dataclasses.replace(_update(0, 0, 1, 1), frame_id="")
+    assert apply_update(snapshot, unnamed).grid[0, 0] == -1
+
+
 def test_out_of_bounds_update_in_a_session_is_skipped_and_copied(tmp_path, fr079) -> None:
     from conftest import START_NS, MapMsg, build_log, read_all
 
