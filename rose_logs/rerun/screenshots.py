@@ -31,6 +31,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from rose.limits import short
 from rose_logs.rerun.paths import SESSION_TIMELINE
 
 __all__ = [
@@ -92,13 +93,20 @@ def session_times_ns(rrd_path: Path) -> list[int]:
     """Sorted distinct ``session_time`` values (ns) of the recording's snapshots."""
     from rerun.chunk import RrdReader
 
+    if not Path(rrd_path).is_file():
+        msg = f"{rrd_path}: no such recording"
+        raise ScreenshotError(msg)
     times: set[int] = set()
-    for chunk in RrdReader(rrd_path).stream().to_chunks():
-        if chunk.is_static or not chunk.entity_path.endswith("/structure_score/w"):
-            continue
-        batch = chunk.to_record_batch()
-        if SESSION_TIMELINE in batch.schema.names:
-            times.update(batch.column(SESSION_TIMELINE).cast("int64").to_pylist())
+    try:
+        for chunk in RrdReader(rrd_path).stream().to_chunks():
+            if chunk.is_static or not chunk.entity_path.endswith("/structure_score/w"):
+                continue
+            batch = chunk.to_record_batch()
+            if SESSION_TIMELINE in batch.schema.names:
+                times.update(batch.column(SESSION_TIMELINE).cast("int64").to_pylist())
+    except (ValueError, RuntimeError, OSError) as err:  # Rerun's words for a file it cannot read
+        msg = f"{rrd_path}: not a readable Rerun recording ({short(str(err), 120)})"
+        raise ScreenshotError(msg) from err
     return sorted(times)
 
 
@@ -312,6 +320,15 @@ def _steps(
         msg = f"{rrd_path}: no snapshot on the {SESSION_TIMELINE} timeline"
         raise ScreenshotError(msg)
     if times_ns:
+        last = snapshots[-1]
+        for ns in times_ns:
+            if ns > last:
+                _LOG.warning(
+                    "%s: %g s is after the last snapshot (%g s): the last one is shown",
+                    rrd_path,
+                    ns / 1e9,
+                    last / 1e9,
+                )
         # The last snapshot at or before each time (the first one for earlier times).
         return [
             (f"t{ns / 1e9:g}s", max(bisect.bisect_right(snapshots, ns) - 1, 0)) for ns in times_ns

@@ -579,3 +579,20 @@ def test_rerun_batches_small_chunks_unless_the_environment_says_otherwise(monkey
     assert sink._batcher_config().flush_num_bytes == 256 * 1024
     monkeypatch.setenv("RERUN_FLUSH_NUM_BYTES", "4096")
     assert sink._batcher_config().flush_num_bytes == 4096
+
+
+def test_the_screenshot_tool_says_in_one_line_what_it_cannot_read(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A missing file or a log that is no recording ended in a Rerun traceback."""
+    from rose_logs.rerun.screenshots import main as screenshots
+
+    sample = Path(__file__).resolve().parents[2] / "sample_data" / "fr079_session.mcap"
+    for given, said in (
+        (tmp_path / "nosuch.rrd", "no such recording"),
+        (sample, "not a readable Rerun recording"),
+    ):
+        assert screenshots([str(given), "--out", str(tmp_path / "shots")]) == 1
+        err = capsys.readouterr().err
+        assert err.startswith(f"error: {given}: {said}") and err.count("\n") == 1
+    assert not (tmp_path / "shots").exists()
