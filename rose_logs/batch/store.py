@@ -351,6 +351,18 @@ class OutputStore:
         self.fs.put(str(local), target, recursive=local.is_dir())
         return target
 
+    def remove(self, relative: str) -> None:
+        """Delete the file ``relative`` if it exists (a remote store: best effort, logged)."""
+        target = self.uri(relative)
+        try:
+            if self.local:
+                Path(target).unlink(missing_ok=True)
+            elif self.fs.exists(target):
+                self.fs.rm_file(target)
+        except OSError as err:
+            msg = f"{target}: cannot remove ({err.strerror or err})"
+            raise BatchError(msg) from err
+
     def remove_staging(self) -> None:
         """Remove the (empty) staging folder left by :meth:`staging_dir`."""
         if self.local:

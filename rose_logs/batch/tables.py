@@ -177,3 +177,5 @@ def write_outputs(store: OutputStore, report: BatchReport, options: RecordingOpt
         files["w_over_time.png"] = png
     files["report.md"] = markdown(report, payload, figure=png is not None).encode()
     store.write_set(files)
+    if png is None:  # no W to draw: an earlier run's figure would describe other recordings
+        store.remove("w_over_time.png")

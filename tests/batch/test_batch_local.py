@@ -774,6 +774,20 @@ def test_the_report_figure_leaves_the_callers_matplotlib_backend_alone(tmp_path:
     assert (tmp_path / "out" / "w_over_time.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+def test_a_later_run_without_w_to_draw_leaves_no_figure_of_the_earlier_one(tmp_path: Path) -> None:
+    """The tables, report and figure are replaced together: a run whose recordings have no W
+    (every one an error row) left the earlier run's figure beside a report without one."""
+    from fleet import copy_recording
+
+    log = copy_recording(tmp_path / "run.mcap", "mcap", max_maps=2)
+    out = tmp_path / "out"
+    run_batch([log], out)
+    assert (out / "w_over_time.png").is_file()
+    run_batch([log], out, options=RecordingOptions(topics=("/nomap",)), force=True)
+    assert "w_over_time.png" not in (out / "report.md").read_text(encoding="utf-8")
+    assert not (out / "w_over_time.png").exists()
+
+
 def test_a_gate_fails_on_a_map_topic_it_cannot_judge(tmp_path: Path, capsys) -> None:
     """As ``process``: a recording whose second map topic has only malformed maps passes no
     gate; without a gate it is an ok row."""
