@@ -28,7 +28,12 @@ from rose_logs.snapshots import MapSnapshot
 
 __all__ = ["TopicLogger", "set_snapshot_time"]
 
-_METRIC_LINE_HEIGHT_M = 0.02
+#: Height of the metric view's overlays above the grid map, as a fraction of the map's larger
+#: side (at least 2 cm): a fixed 2-3 cm lost the depth test against the map's plane once the
+#: camera backed off to show a 50 m map (the direction lines vanished, the break rectangle kept
+#: two of its sides). Seen from above, the height moves nothing in the picture.
+_OVERLAY_HEIGHT_FRACTION = 0.005
+_MIN_OVERLAY_HEIGHT_M = 0.02
 _AXIS_TICKS_DEG = (0.0, 45.0, 90.0, 135.0, 180.0)
 _AXIS_TICKS_S = (0.0, 0.5, 1.0)
 
@@ -142,8 +147,18 @@ def cells_to_map_m(
         origin_xy_m=(float(snapshot.origin_position_m[0]), float(snapshot.origin_position_m[1])),
         origin_yaw_rad=snapshot.origin_yaw_rad,
     )
-    height = float(snapshot.origin_position_m[2]) + _METRIC_LINE_HEIGHT_M
+    height = overlay_z_m(snapshot, layer=1)
     return np.concatenate([xy, np.full((*xy.shape[:-1], 1), height)], axis=-1)
+
+
+def overlay_z_m(snapshot: MapSnapshot, *, layer: int) -> float:
+    """Height (map frame, metres) of the metric view's overlays of ``layer`` 1 (directions), 2
+    (walls) or 3 (the break region, on top) above ``snapshot``'s grid map."""
+    rows, cols = snapshot.grid.shape
+    step = max(
+        _MIN_OVERLAY_HEIGHT_M, _OVERLAY_HEIGHT_FRACTION * max(rows, cols) * snapshot.resolution_m
+    )
+    return float(snapshot.origin_position_m[2]) + layer * step
 
 
 class TopicLogger:
@@ -457,7 +472,7 @@ class TopicLogger:
             rec.log(paths.cell_walls, rr.Clear(recursive=False))
             return
         ends_m = walls.endpoints_m
-        height_m = float(snapshot.origin_position_m[2]) + 2 * _METRIC_LINE_HEIGHT_M
+        height_m = overlay_z_m(snapshot, layer=2)
         metric = np.concatenate([ends_m, np.full((*ends_m.shape[:2], 1), height_m)], axis=-1)
         radius = rr.Radius.ui_points(1.0)
         rec.log(paths.metric_walls, rr.LineStrips3D(metric, colors=style.WALL_COLOR, radii=radius))
@@ -585,7 +600,7 @@ class TopicLogger:
             rec.log(paths.break_region, rr.Clear(recursive=False))
             return
         x0, y0, x1, y1 = verdict.region_m
-        z = float(snapshot.origin_position_m[2]) + style.BREAK_REGION_HEIGHT_M
+        z = overlay_z_m(snapshot, layer=3)
         corners = [[x0, y0, z], [x1, y0, z], [x1, y1, z], [x0, y1, z], [x0, y0, z]]
         rec.log(
             paths.break_region,

@@ -12,7 +12,6 @@ from typing import Final
 __all__ = [
     "AMPLITUDE_PLOT_HEIGHT",
     "BREAK_COLOR",
-    "BREAK_REGION_HEIGHT_M",
     "BREAK_SCORE_COLOR",
     "CLASS_CLUTTER",
     "CLASS_FREE",
@@ -58,8 +57,6 @@ BREAK_COLOR: Final = (230, 30, 30)
 """The break detector's region on the map (red, like the levels a map must stay under)."""
 BREAK_SCORE_COLOR: Final = (235, 120, 0)
 """The break score series (its threshold is drawn in FAILURE_COLOR)."""
-BREAK_REGION_HEIGHT_M: Final = 0.03
-"""The break region is drawn this far above the grid map, metres."""
 TRUST_COLOR: Final = (40, 160, 60)
 GUIDE_LINE_WIDTH: Final = 2.0
 """Width of the level / threshold lines in the plots, points (thinner lines fade in anti-aliasing)."""
