@@ -300,17 +300,18 @@ def _exit_code(report: Any, args: argparse.Namespace) -> int:
         # 128 + signal, as a shell reports it: 130 for Ctrl-C, 143 for SIGTERM, 129 for SIGHUP.
         return EXIT_INTERRUPTED if report.signal is None else 128 + report.signal
     errors = report.errors
+    # One line per failed recording, up to _LISTED_FAILURES (the rest are in the tables), also
+    # when --max-errors tolerates them: which ones failed is the first thing to look at. Rows
+    # start with their URI (error_result); printable: as the tables show odd file names.
+    for row in errors[:_LISTED_FAILURES]:
+        print(
+            f"failed: {short(printable(row.error or f'{row.uri}: unknown error'))}",
+            file=sys.stderr,
+        )
+    more = len(errors) - _LISTED_FAILURES
+    if more > 0:
+        print(f"failed: ... and {more} more (recordings.parquet, report.md)", file=sys.stderr)
     if len(errors) > args.max_errors:
-        # One line per failed recording, up to _LISTED_FAILURES (the rest are in the tables). Rows
-        # start with their URI (error_result); printable: as the tables show odd file names.
-        for row in errors[:_LISTED_FAILURES]:
-            print(
-                f"failed: {short(printable(row.error or f'{row.uri}: unknown error'))}",
-                file=sys.stderr,
-            )
-        more = len(errors) - _LISTED_FAILURES
-        if more > 0:
-            print(f"failed: ... and {more} more (recordings.parquet, report.md)", file=sys.stderr)
         # Failed gates are named too, though the errors decide the exit code (1).
         for reason in _gate_failures(args, report):
             print(f"error: {short(reason)}", file=sys.stderr)

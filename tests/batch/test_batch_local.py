@@ -384,6 +384,13 @@ def test_cli_names_each_failed_recording_on_its_own_line(
     ]
     assert failed[10] == "failed: ... and 2 more (recordings.parquet, report.md)"
     assert err[-1] == "error: 12 recording(s) failed (more than --max-errors 0)"
+    # Tolerated by --max-errors, they are named all the same (only the count was shown).
+    assert (
+        main(["batch", str(inputs), "-o", str(tmp_path / "out"), "-q", "--max-errors", "20"]) == 0
+    )
+    err = capsys.readouterr().err.splitlines()
+    assert [line for line in err if line.startswith("failed: ")] == failed
+    assert not any(line.startswith("error: ") for line in err)
 
 
 def test_ctrl_c_keeps_finished_recordings_and_exits_130(
