@@ -181,7 +181,8 @@ def figure_png(report: BatchReport) -> bytes | None:
         (line,) = ax.plot(times, scores, linewidth=1.6, zorder=3, label=label if shown else None)
         ax.plot(first["time_s"], first["structure_score"], "o", color=line.get_color(), zorder=4)
     if len(series) > broken_count:
-        ax.plot([], [], ".-", color="0.65", label=f"{len(series) - broken_count} below the level")
+        # Grey: no break (W below the level, and no break detected: a broken map may stay below).
+        ax.plot([], [], ".-", color="0.65", label=f"{len(series) - broken_count} did not break")
     ax.axhline(
         level, color="tab:red", linestyle="--", linewidth=1, label=f"failure level {level:g}"
     )
