@@ -92,3 +92,11 @@ def test_w_plot_and_spectrum_are_drawn(screenshot) -> None:
     luminance = spectrum.mean(axis=-1)
     assert np.median(luminance) < 60  # dark noise floor (inferno) ...
     assert (luminance > 100).sum() > 100  # ... with bright spectral lines
+
+
+def test_the_map_from_above_shows_the_direction_lines(screenshot) -> None:
+    """On a 57 m map the lines 2 cm above the grid lost the depth test once the camera backed
+    off: only their labels showed (and two sides of a break's rectangle)."""
+    image, _ = screenshot
+    metric = _region(image, (0.0, 0.29), (0.62, 0.97))  # left column, bottom: the map from above
+    assert _colour_count(metric, style.DIRECTION_COLOR, tol=40) > 300
