@@ -141,7 +141,7 @@ def _topic_container(layout: TopicLayout) -> rrb.Container:
         layout.break_top,
     )
     amplitude = rrb.Spatial2DView(
-        name=f"{root}: cumulative amplitude s per wall direction, peaks, threshold",
+        name=f"{root}: cumulative amplitude s per wall direction, peaks (p: prominence), threshold t",
         origin=f"/{paths.amplitude_view}",
         visual_bounds=rrb.VisualBounds2D(x_range=(-22.0, 198.0), y_range=(-1.28 * h, 44.0)),
     )

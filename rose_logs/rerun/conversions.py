@@ -461,8 +461,11 @@ def amplitude_plot(result: RoseResult, *, yaw_rad: float = 0.0) -> AmplitudePlot
     peaks = np.stack([peak_deg, -height * peak_s], axis=-1)
     prominence = np.asarray(result.peak_prominences, dtype=np.float64)
     bars = np.stack([peaks, np.stack([peak_deg, -height * (peak_s - prominence)], axis=-1)], axis=1)
+    # Short: the view is a third of the window wide, and two peaks 90° apart are a quarter of it
+    # apart ("3.0° (prominence 0.71)" covered "100.0° (prominence 1.00)"). The view's title says
+    # what p is.
     labels = [
-        f"{deg:.1f}° (prominence {prom:.2f})"
+        f"{deg:.1f}° p {prom:.2f}"
         for deg, prom in zip(
             map_frame_deg(directions, yaw_rad=yaw_rad, digits=1), prominence, strict=True
         )

@@ -563,7 +563,7 @@ class TopicLogger:
                     [[(0.0, level), (180.0, level)]],
                     colors=style.THRESHOLD_COLOR,
                     radii=rr.Radius.ui_points(1.0),
-                    labels=[f"prominence threshold t = {plot.threshold:g}"],
+                    labels=[f"t = {plot.threshold:g}"],
                     show_labels=True,
                 ),
                 static=True,

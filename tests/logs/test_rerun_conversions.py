@@ -189,7 +189,7 @@ def test_amplitude_plot_reads_map_frame_degrees_on_a_yawed_map(plan, yaw_deg: fl
     assert_allclose(turned.peaks[:, 0], expected, atol=1e-6)
     assert_allclose(turned.peaks[:, 1], straight.peaks[:, 1])
     assert turned.peak_labels == [
-        f"{round(float(e), 1) % 180.0:.1f}° (prominence {p:.2f})"
+        f"{round(float(e), 1) % 180.0:.1f}° p {p:.2f}"
         for e, p in zip(expected, result.peak_prominences, strict=True)
     ]
     # The same curve, turned: every bin keeps its s at its angle plus the yaw.
