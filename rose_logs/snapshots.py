@@ -140,7 +140,9 @@ def apply_update(snapshot: MapSnapshot, update: GridUpdate) -> MapSnapshot:
         If the patch does not lie inside the grid, or the update names another frame than the
         map (cells of another map's grid; an empty frame is taken as the map's).
     """
-    if update.frame_id and snapshot.frame_id and update.frame_id != snapshot.frame_id:
+    # A leading slash names the same frame (tf's old spelling "/map"; tf2 drops it).
+    frames = (update.frame_id.lstrip("/"), snapshot.frame_id.lstrip("/"))
+    if all(frames) and frames[0] != frames[1]:
         msg = (
             f"{update.topic}: update in frame {update.frame_id!r}, the map of {snapshot.topic} "
             f"in {snapshot.frame_id!r}"

@@ -352,7 +352,8 @@ class OutputStore:
         return target
 
     def remove(self, relative: str) -> None:
-        """Delete the file ``relative`` if it exists (a remote store: best effort, logged)."""
+        """Delete the file ``relative`` if it exists; one that cannot be deleted gets a warning
+        (the outputs beside it are written by then)."""
         target = self.uri(relative)
         try:
             if self.local:
@@ -360,8 +361,7 @@ class OutputStore:
             elif self.fs.exists(target):
                 self.fs.rm_file(target)
         except OSError as err:
-            msg = f"{target}: cannot remove ({err.strerror or err})"
-            raise BatchError(msg) from err
+            _LOG.warning("%s: cannot remove (%s)", target, err.strerror or err)
 
     def remove_staging(self) -> None:
         """Remove the (empty) staging folder left by :meth:`staging_dir`."""

@@ -94,6 +94,8 @@ def test_an_update_in_another_frame_is_not_written_into_the_map() -> None:
         apply_update(snapshot, other)
     unnamed = dataclasses.replace(_update(0, 0, 1, 1), frame_id="")
     assert apply_update(snapshot, unnamed).grid[0, 0] == -1
+    slashed = dataclasses.replace(_update(0, 0, 1, 1), frame_id="/map")  # tf's old spelling
+    assert apply_update(snapshot, slashed).grid[0, 0] == -1
 
 
 def test_out_of_bounds_update_in_a_session_is_skipped_and_copied(tmp_path, fr079) -> None:
