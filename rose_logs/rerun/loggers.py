@@ -557,13 +557,16 @@ class TopicLogger:
         plot = conv.amplitude_plot(result, yaw_rad=yaw_rad)
         if not self._threshold_logged:
             level = -style.AMPLITUDE_PLOT_HEIGHT * plot.threshold
+            # Two pieces, the label on the first: Rerun centres a strip's label on it, and the
+            # centre of 0..180 is 90°, where most buildings have a peak whose bar crossed it.
+            # Centred on 22.5° it stands between the peaks of walls at 0° and 45°.
             rec.log(
                 paths.amplitude_threshold,
                 rr.LineStrips2D(
-                    [[(0.0, level), (180.0, level)]],
+                    [[(0.0, level), (45.0, level)], [(45.0, level), (180.0, level)]],
                     colors=style.THRESHOLD_COLOR,
                     radii=rr.Radius.ui_points(1.0),
-                    labels=[f"t = {plot.threshold:g}"],
+                    labels=[f"t = {plot.threshold:g}", ""],
                     show_labels=True,
                 ),
                 static=True,
