@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import os
 import stat
-from pathlib import Path
+from pathlib import Path, PurePath
 from typing import Literal
 
 from rose.limits import MAX_YAML_BYTES, load_yaml, short
@@ -114,6 +114,12 @@ def _folder_format(path: Path) -> LogFormat:
     problem = _metadata_field_problem(info)
     if problem is not None:  # else rosbags' own words: "'>' not supported between 'str' and 'int'"
         msg = f"{meta}: {problem}"
+        raise LogReadError(msg)
+    # rosbags reads every entry (by its file name): one listed twice would be read twice over.
+    names = [PurePath(f).name for f in info.get("relative_file_paths") or ()]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        msg = f"{path}: metadata.yaml lists the storage file {twice[0]} more than once"
         raise LogReadError(msg)
     return "mcap-dir" if info.get("storage_identifier") == "mcap" else "db3"
 

@@ -102,11 +102,6 @@ class RosbagsReadBackend:
         """Refuse a bag folder whose metadata.yaml declares other types than its storage records."""
         from rose_logs.storage.integrity import storage_types, type_mismatches
 
-        paths = [Path(str(p)).name for p in _storage_files(self.path)]
-        twice = sorted({p for p in paths if paths.count(p) > 1})
-        if twice:  # rosbags would read its messages twice over
-            msg = f"{self.path}: metadata.yaml lists the storage file {twice[0]} more than once"
-            raise LogReadError(msg)
         declared = {c.topic: c.msgtype for c in self.channels}
         problems = type_mismatches(declared, storage_types(self.path))
         if problems:
@@ -160,19 +155,6 @@ def _stored(value: object) -> str:
     if isinstance(value, int | float):
         return f"the number {short(repr(value), 40)}"
     return f"a {type(value).__name__}"
-
-
-def _storage_files(path: Path) -> list[object]:
-    """The storage files ``metadata.yaml`` of the ROS 2 bag folder ``path`` lists (rosbags reads
-    each entry, so one listed twice would be read twice); empty when it cannot say."""
-    import yaml
-
-    try:
-        info = yaml.safe_load((path / "metadata.yaml").read_text(encoding="utf-8"))
-        files = info["rosbag2_bagfile_information"]["relative_file_paths"]
-    except (OSError, yaml.YAMLError, KeyError, TypeError, ValueError):
-        return []
-    return list(files) if isinstance(files, list) else []
 
 
 def _bag_qos_style(path: Path) -> QosStyle | None:
