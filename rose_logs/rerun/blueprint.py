@@ -153,7 +153,7 @@ def _topic_container(layout: TopicLayout) -> rrb.Container:
     right: list[rrb.View] = [w_plot, break_plot, amplitude, spectrum]
     shares = [2.5, 1.8, 2.3, 3.0]
     if layout.has_events:
-        right.append(rrb.TextLogView(name=f"{root}: events", origin=f"/{paths.events}"))
+        right.append(_events_view(f"{root}: events", f"/{paths.events}"))
         shares.append(1.2)
     return rrb.Horizontal(
         rrb.Vertical(
@@ -164,6 +164,23 @@ def _topic_container(layout: TopicLayout) -> rrb.Container:
         rrb.Vertical(*right, row_shares=shares),
         column_shares=[3.0, 2.0],
         name=root,
+    )
+
+
+def _events_view(name: str, origin: str) -> rrb.TextLogView:
+    """Session time and the event's text: the entity path and level columns would say the same on
+    every row (the topic's events, all warnings) and leave the text too little of the width."""
+    return rrb.TextLogView(
+        name=name,
+        origin=origin,
+        columns=rrb.TextLogColumns(
+            timeline_columns=[rrb.components.TimelineColumn(SESSION_TIMELINE)],
+            text_log_columns=[
+                rrb.components.TextLogColumn("Body"),
+                rrb.components.TextLogColumn("EntityPath", visible=False),
+                rrb.components.TextLogColumn("LogLevel", visible=False),
+            ],
+        ),
     )
 
 

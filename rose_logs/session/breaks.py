@@ -19,6 +19,7 @@ wall drawn later a break.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 from dataclasses import dataclass
@@ -162,7 +163,7 @@ class DetectedBreak:
     trusted_index : int or None
         The last trusted snapshot it was compared with.
     text : str
-        One line for people (event logs, summaries).
+        One line for people (event logs, summaries), starting with the topic.
     """
 
     topic: str
@@ -178,23 +179,32 @@ class DetectedBreak:
         cls, snapshot: MapSnapshot, index: int, verdict: BreakScore, threshold_m: float
     ) -> DetectedBreak:
         """The event of a snapshot whose verdict ``started`` a break."""
-        where = ""
-        if verdict.region_m is not None:
-            x0, y0, x1, y1 = (metres_text(v) for v in verdict.region_m)
-            where = f" around x {x0}..{x1} m, y {y0}..{y1} m"
-        text = (
-            f"{snapshot.topic}: map breaks at snapshot {index}: {verdict.score_m:.2f} m of "
-            f"established map contradicted (threshold {threshold_m:g} m) since snapshot "
-            f"{verdict.trusted_index}{where}"
-        )
-        return cls(
+        event = cls(
             topic=snapshot.topic,
             index=index,
             log_time_ns=snapshot.log_time_ns,
             score_m=verdict.score_m,
             region_m=verdict.region_m,
             trusted_index=verdict.trusted_index,
-            text=text,
+            text="",
+        )
+        text = f"{snapshot.topic}: {event._describe(f' (threshold {threshold_m:g} m)')}"
+        return dataclasses.replace(event, text=text)
+
+    @property
+    def detail(self) -> str:
+        """The event without the topic and the threshold, for its topic's events view in Rerun
+        (where a long line is cut at the view's width; the threshold is drawn in the plot)."""
+        return self._describe("")
+
+    def _describe(self, threshold: str) -> str:
+        where = ""
+        if self.region_m is not None:
+            x0, y0, x1, y1 = (metres_text(v) for v in self.region_m)
+            where = f" around x {x0}..{x1} m, y {y0}..{y1} m"
+        return (
+            f"map breaks at snapshot {self.index}: {self.score_m:.2f} m of established map "
+            f"contradicted{threshold} since snapshot {self.trusted_index}{where}"
         )
 
 

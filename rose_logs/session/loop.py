@@ -19,6 +19,7 @@ from __future__ import annotations
 import contextvars
 import dataclasses
 import logging
+import math
 import os
 import struct
 import sys
@@ -40,6 +41,7 @@ from rose.result import RoseResult
 from rose_logs.derived import derived_topics, encode_cleaned, encode_score, encode_walls
 from rose_logs.errors import LogReadError, LogWriteError, MapMessageError
 from rose_logs.formats import LogFormat, format_from_path
+from rose_logs.frames import quaternion_tilt
 from rose_logs.reader import LogReader
 from rose_logs.session.analysis import SnapshotAnalyser, SnapshotAnalysis
 from rose_logs.session.breaks import BreakDetector, BreakParams, BreakScore, DetectedBreak
@@ -68,6 +70,9 @@ if TYPE_CHECKING:
     from rose_logs.rerun import RerunSink
 
 _LOG = logging.getLogger(__name__)
+
+#: Origins tilted less than this out of the x-y plane (float noise in a quaternion) are flat.
+_FLAT_TILT_RAD = math.radians(0.1)
 
 
 def process_log(
@@ -572,7 +577,7 @@ class _Loop:
         self.records: list[SnapshotRecord] = []
         self.breaks: list[BreakEvent] = []
         self.skips = _Skips()
-        self.out_of_range_said: set[str] = set()  # topics warned about cells outside -1..100
+        self.said: set[tuple[str, str]] = set()  # (topic, what): warnings given once per topic
         self.latest_ns = 0  # log time of the latest message read (a salvaged log ends there)
         self.queue: deque[_Copy | _Pending] = deque()
         self.in_flight = 0
@@ -686,19 +691,32 @@ class _Loop:
             return
         self.last_map[topic] = snapshot
         self._note_out_of_range(topic, snapshot.out_of_range_cells, log_time_ns)
+        tilt = quaternion_tilt(snapshot.origin_orientation_xyzw)
+        if tilt > _FLAT_TILT_RAD:
+            self._warn_once(
+                topic,
+                "tilted",
+                f"{topic}: the map's origin is tilted {math.degrees(tilt):.1f}° out of the x-y "
+                f"plane {self._at(log_time_ns)}; its grid is taken as lying in that plane, turned "
+                "by the origin's yaw (as Nav2 takes it); said once per topic",
+            )
         self._analyse(snapshot, from_update=False)
 
     def _note_out_of_range(self, topic: str, cells: int, log_time_ns: int) -> None:
         """Say once per topic that cells outside -1..100 were read as occupied."""
-        if cells and topic not in self.out_of_range_said:
-            self.out_of_range_said.add(topic)
-            _LOG.warning(
-                "%s: %d cell(s) outside -1..100 in the map %s, read as occupied (as Nav2 "
-                "reads them); said once per topic",
+        if cells:
+            self._warn_once(
                 topic,
-                cells,
-                self._at(log_time_ns),
+                "out of range",
+                f"{topic}: {cells} cell(s) outside -1..100 in the map {self._at(log_time_ns)}, "
+                "read as occupied (as Nav2 reads them); said once per topic",
             )
+
+    def _warn_once(self, topic: str, what: str, text: str) -> None:
+        """Log ``text`` as a warning the first time ``what`` is said of ``topic``."""
+        if (topic, what) not in self.said:
+            self.said.add((topic, what))
+            _LOG.warning("%s", text)
 
     def _on_update(self, data: bytes | memoryview, topic: str, log_time_ns: int) -> None:
         target = self.updates[topic]
@@ -818,18 +836,19 @@ class _Loop:
             self.detected.append(event)
             _LOG.info("%s", event.text)
             if self.rerun is not None:
-                self.rerun.event(snapshot, event.text, index, score)
+                self.rerun.event(snapshot, event.detail, index, score)
         if not w_judges(result.occupied_count):  # an empty map's W = 1 says nothing: no event
             return
         above = score > self.failure_level
         if above and not self.above.get(topic, False):
-            text = (
-                f"{topic}: W = {score:.3f} rose above the failure level {self.failure_level:g} "
+            detail = (
+                f"W = {score:.3f} rose above the failure level {self.failure_level:g} "
                 f"at snapshot {index}"
             )
+            text = f"{topic}: {detail}"
             self.breaks.append(BreakEvent(topic, index, snapshot.log_time_ns, score, text))
             if self.rerun is not None:
-                self.rerun.event(snapshot, text, index, score)
+                self.rerun.event(snapshot, detail, index, score)
         self.above[topic] = above
 
 

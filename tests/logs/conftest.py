@@ -113,6 +113,7 @@ class MapMsg:
     xy: tuple[int, int] | None = None
     bad_length: bool = False
     yaw_rad: float = 0.0
+    orientation_xyzw: tuple[float, float, float, float] | None = None  # instead of the yaw
 
 
 @dataclass
@@ -147,11 +148,15 @@ def _map_message(store: Any, serialization: str, m: MapMsg, seq: int) -> tuple[s
         msg = t[msgtype](header=header, x=m.xy[0], y=m.xy[1], width=w, height=h, data=data)
         return msgtype, _serialize(store, serialization, msg, msgtype)
     msgtype = "nav_msgs/msg/OccupancyGrid"
+    qx, qy, qz, qw = m.orientation_xyzw or (
+        0.0,
+        0.0,
+        math.sin(m.yaw_rad / 2),
+        math.cos(m.yaw_rad / 2),
+    )
     pose = t["geometry_msgs/msg/Pose"](
         position=t["geometry_msgs/msg/Point"](x=m.origin_xy_m[0], y=m.origin_xy_m[1], z=0.0),
-        orientation=t["geometry_msgs/msg/Quaternion"](
-            x=0.0, y=0.0, z=math.sin(m.yaw_rad / 2), w=math.cos(m.yaw_rad / 2)
-        ),
+        orientation=t["geometry_msgs/msg/Quaternion"](x=qx, y=qy, z=qz, w=qw),
     )
     info = t["nav_msgs/msg/MapMetaData"](
         map_load_time=stamp, resolution=m.resolution_m, width=w, height=h, origin=pose

@@ -205,6 +205,10 @@ def test_breaks_are_marked_on_the_w_plot_and_as_events(breaking_session) -> None
     break_times = [b.log_time_ns - report.start_ns for b in report.breaks]
     assert [int(r[SESSION_TIMELINE]) for r in marks] == break_times
     assert [int(r[SESSION_TIMELINE]) for r in events] == break_times
+    # The events view is the topic's own: its texts are the report's, without the topic.
+    assert [r["TextLog:text"][0] for r in events] == [
+        b.text.removeprefix("/map: ") for b in report.breaks
+    ]
     assert [r["Scalars:scalars"][0] for r in marks] == pytest.approx(
         [b.structure_score for b in report.breaks]
     )

@@ -61,6 +61,11 @@ def test_break_starts_once_and_keeps_the_trusted_snapshot(plan, broken) -> None:
     assert -3.0 <= y0 < y1 <= -3.0 + 300 * RES
     event = DetectedBreak.from_score(_snap(broken, 2), 2, verdicts[2], 1.0)
     assert event.index == 2 and "since snapshot 1" in event.text
+    topic = _snap(broken, 2).topic
+    assert event.text.startswith(f"{topic}: map breaks at snapshot 2: ")
+    assert "(threshold 1 m)" in event.text and " around x " in event.text
+    # Rerun's events view (the topic's own, cut at its width): no topic, no threshold.
+    assert event.detail == event.text.removeprefix(f"{topic}: ").replace(" (threshold 1 m)", "")
 
 
 def test_a_grown_map_is_compared_in_place(plan, broken) -> None:

@@ -152,6 +152,34 @@ def test_cells_outside_the_ros_range_are_read_as_occupied_not_dropping_the_map(
     assert len(said) == 1 and "4 cell(s)" in said[0]
 
 
+def test_a_tilted_map_origin_is_said_once_and_its_yaw_used(tmp_path, fr079, caplog) -> None:
+    """A map origin with roll or pitch: the grid is taken flat, turned by the yaw (as Nav2 does),
+    and the user is told once per topic by how much it was tilted; a yaw alone says nothing."""
+    import math
+
+    from conftest import START_NS, MapMsg, build_log
+
+    from rose_logs.session import process_log
+
+    roll, yaw = math.radians(5.0), 0.3
+    # Yaw then roll (z-y-x Euler angles): the rotated x axis still has the heading ``yaw``.
+    cr, sr, cy, sy = math.cos(roll / 2), math.sin(roll / 2), math.cos(yaw / 2), math.sin(yaw / 2)
+    tilted = (sr * cy, sr * sy, cr * sy, cr * cy)
+    maps = [
+        MapMsg(START_NS + 1_000_000_000, fr079[0], topic="/flat", yaw_rad=yaw),
+        MapMsg(START_NS + 2_000_000_000, fr079[0], orientation_xyzw=tilted),
+        MapMsg(START_NS + 3_000_000_000, fr079[1], orientation_xyzw=tilted),
+    ]
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps)
+    seen: list = []
+    with caplog.at_level("WARNING"):
+        report = process_log(built.path, output_path=None, on_snapshot=lambda s, *_: seen.append(s))
+    assert len(report.records) == 3
+    said = [r.getMessage() for r in caplog.records if "tilted" in r.getMessage()]
+    assert len(said) == 1 and said[0].startswith("/map: ") and "tilted 5.0°" in said[0]
+    assert [s.origin_yaw_rad for s in seen] == pytest.approx([yaw] * 3)
+
+
 def test_updates_that_cannot_be_applied_are_counted_by_reason(tmp_path, fr079) -> None:
     """No silent loss: updates of a map that cannot be told (several maps, no ``<map>_updates``
     name) and an update before its map's first full message are skipped messages, each under a
