@@ -51,6 +51,7 @@ from rose_logs.session.topics import (
     select_topics,
     update_targets,
     warn_shared_map_topics,
+    warn_unknown_definitions,
 )
 from rose_logs.snapshots import (
     MapSnapshot,
@@ -264,6 +265,7 @@ def _run_session(
         map_topics = select_topics(input_path, channels, topics)
         warn_shared_map_topics(channels, map_topics)
         updates = update_targets(channels, map_topics)
+        warn_unknown_definitions(channels, [*map_topics, *updates])
         writer = _output_writer(
             reader, input_path, output_path, output_format, force=force, outputs=outputs
         )

@@ -13,7 +13,7 @@ from rose_logs.derived import derived_topics
 from rose_logs.errors import LogReadError, LogWriteError
 from rose_logs.formats import LogFormat, processed_name
 from rose_logs.storage.records import Channel
-from rose_logs.storage.typesys import MAP_TYPE, UPDATE_TYPE
+from rose_logs.storage.typesys import MAP_TYPE, UPDATE_TYPE, msgdef_for
 
 __all__ = [
     "default_output_path",
@@ -24,6 +24,7 @@ __all__ = [
     "select_topics",
     "update_targets",
     "warn_shared_map_topics",
+    "warn_unknown_definitions",
 ]
 
 
@@ -193,4 +194,27 @@ def warn_shared_map_topics(channels: Sequence[Channel], map_topics: Sequence[str
                 topic,
                 len(nodes),
                 short(", ".join(nodes), 120),
+            )
+
+
+def warn_unknown_definitions(channels: Sequence[Channel], topics: Sequence[str]) -> None:
+    """Warn of each ROS 1 connection on ``topics`` (maps and their updates) whose md5sum is not
+    ROS's for its type: another definition under the standard name (a fork of ``nav_msgs``). Its
+    messages are read with ROS's definition; those that do not decode are skipped as malformed,
+    but some may decode into other values."""
+    wanted = set(topics)
+    for c in channels:
+        if c.topic not in wanted or c.message_encoding != "ros1" or not c.digest:
+            continue
+        if c.msgtype not in (MAP_TYPE, UPDATE_TYPE):
+            continue
+        standard = msgdef_for(c.msgtype, "ros1")[1]
+        if c.digest != standard:
+            _LOG.warning(
+                "%s: the log declares %s with md5sum %s, not ROS's %s (another definition under "
+                "that name); read with ROS's definition, its maps may be misread",
+                c.topic,
+                c.msgtype.replace("/msg/", "/"),
+                short(c.digest, 40),
+                standard,
             )

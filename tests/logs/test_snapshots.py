@@ -180,6 +180,32 @@ def test_a_tilted_map_origin_is_said_once_and_its_yaw_used(tmp_path, fr079, capl
     assert [s.origin_yaw_rad for s in seen] == pytest.approx([yaw] * 3)
 
 
+def test_a_map_connection_of_another_definition_is_said(tmp_path, fr079, caplog) -> None:
+    """A ROS 1 map connection whose md5sum is not ROS's (another definition under the standard
+    name) is read with ROS's definition, and the user is told, naming the topic and both sums."""
+    from conftest import START_NS, MapMsg, build_log
+
+    from rose_logs.session import process_log
+
+    maps = [MapMsg(START_NS + 1_000_000_000, fr079[0]), MapMsg(START_NS + 2_000_000_000, fr079[1])]
+    built = build_log(tmp_path / "in.bag", "ros1", maps)
+    standard, other = b"3381f2d731d4076ec5c71b0759edbe4e", b"0123456789abcdef0123456789abcdef"
+    data = built.path.read_bytes()
+    assert standard in data
+    forked = tmp_path / "forked.bag"
+    forked.write_bytes(data.replace(standard, other))
+    for path, warned in ((built.path, False), (forked, True)):
+        caplog.clear()
+        with caplog.at_level("WARNING"):
+            report = process_log(path, output_path=None)
+        assert len(report.records) == 2
+        said = [r.getMessage() for r in caplog.records if "md5sum" in r.getMessage()]
+        assert len(said) == int(warned), said
+        if warned:
+            assert said[0].startswith("/map: ") and other.decode() in said[0]
+            assert standard.decode() in said[0]
+
+
 def test_updates_that_cannot_be_applied_are_counted_by_reason(tmp_path, fr079) -> None:
     """No silent loss: updates of a map that cannot be told (several maps, no ``<map>_updates``
     name) and an update before its map's first full message are skipped messages, each under a
