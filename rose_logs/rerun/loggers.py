@@ -161,6 +161,13 @@ def overlay_z_m(snapshot: MapSnapshot, *, layer: int) -> float:
     return float(snapshot.origin_position_m[2]) + layer * step
 
 
+#: The colour bar's labels, in its pixels (it is 2 pixels high, and as tall as 3.5 % of the occupied
+#: cells' box): the scale and best-cell labels under it, the threshold's above it, between the bar
+#: and the cells.
+_BAR_LABELS_BELOW_PX = 7.0
+_BAR_THRESHOLD_LABEL_PX = -11.5
+
+
 class TopicLogger:
     """Loggers of one map topic's streams below ``paths``.
 
@@ -172,6 +179,9 @@ class TopicLogger:
         Entity paths of the topic.
     failure_level, trust_level : float
         Guide lines of the W plot (the failure level is the session's ``--failure-level``).
+    live : bool
+        Streaming to a viewer: the colour bar moves with each snapshot's map. Otherwise it is
+        placed once, under the final map, when the session ends (:meth:`log_final_placement`).
     """
 
     def __init__(
@@ -181,13 +191,16 @@ class TopicLogger:
         *,
         failure_level: float = FAILURE_LEVEL,
         trust_level: float = TRUST_LEVEL,
+        live: bool = False,
     ) -> None:
         self.recording = recording
+        self.live = live
         self.paths = paths
         self.failure_level = float(failure_level)
         self.trust_level = float(trust_level)
         self.view_origin_m: tuple[float, float] | None = None  # set by the first snapshot
         self._threshold_logged = False
+        self.score_legend_placement: rr.Transform3D | None = None  # of the last snapshot
 
     def _origin_for(self, snapshot: MapSnapshot) -> tuple[float, float]:
         """The 2D views' 0 in the map frame (:func:`view_origin_m` of the topic's first snapshot)."""
@@ -288,7 +301,7 @@ class TopicLogger:
             ),
             (paths.cell_scores, [rr.SegmentationImage.from_fields(opacity=1.0)]),
             (
-                paths.score_legend,
+                paths.score_bar,
                 [
                     # The colour bar (levels x 2 pixels; its placement follows the map).
                     rr.SegmentationImage(
@@ -504,30 +517,44 @@ class TopicLogger:
         (west, north), (east, south) = corners.min(axis=0), corners.max(axis=0)
         box_w, box_h = east - west, south - north
         levels = style.DISPLAY_LEVELS
-        left, width = west + 0.2 * box_w, 0.6 * box_w
         # Far enough below for the threshold's label to sit between the cells and the bar.
         top, height = south + 0.22 * box_h, max(0.035 * box_h, 2.0 * float(snapshot.resolution_m))
-        scale = (width / levels, height / 2)  # metres per pixel of the bar (levels x 2 pixels)
+        self.score_legend_placement = rr.Transform3D(
+            translation=[west + 0.2 * box_w, top, 0.0],
+            scale=[0.6 * box_w / levels, height / 2, 1.0],  # metres per pixel of the bar
+        )
 
         def u_of(score: float) -> float:
             return levels * float(conv.score_to_unit(np.array([score]))[0])
 
-        below = (height + 0.09 * box_h) / scale[1]
-        positions = [(u_of(style.SCORE_DISPLAY_MIN), below), (u_of(1.0), below)]
+        # In the bar's pixels (levels x 2): the labels keep their places when the session ends and
+        # the bar moves under the final map (:meth:`log_final_placement`).
+        positions = [
+            (u_of(style.SCORE_DISPLAY_MIN), _BAR_LABELS_BELOW_PX),
+            (u_of(1.0), _BAR_LABELS_BELOW_PX),
+        ]
         labels = [f"score {style.SCORE_DISPLAY_MIN:g}", "1 (best cell)"]
         if math.isfinite(result.threshold):
-            positions.append((u_of(result.threshold), -0.2 * box_h / scale[1]))
+            positions.append((u_of(result.threshold), _BAR_THRESHOLD_LABEL_PX))
             labels.append(f"threshold {result.threshold:.2f}")
         rec.log(
             paths.cell_scores,
             segmentation_image(conv.masked_score_image(result, occupied)),
             image_placement(snapshot, origin),
         )
+        if self.live:
+            rec.log(paths.score_legend, self.score_legend_placement)
         rec.log(
-            paths.score_legend,
-            rr.Transform3D(translation=[left, top, 0.0], scale=[*scale, 1.0]),
+            paths.score_bar,
             rr.Points2D.from_fields(positions=_f32(np.array(positions)), labels=labels),
         )
+
+    def log_final_placement(self) -> None:
+        """Place the colour bar under the last snapshot's occupied cells, at every time: the
+        scores view frames the final map, under which a small early map's bar (placed under that
+        map) was too small for its labels, which covered it."""
+        if self.score_legend_placement is not None:
+            self.recording.log(self.paths.score_legend, self.score_legend_placement, static=True)
 
     def log_spectrum(self, result: RoseResult) -> None:
         """The log amplitude spectrum (display resolution) with the kept strip of every direction."""

@@ -16,8 +16,9 @@ Paths are lowercase and live below one root per map topic (``/map`` -> ``map``):
     <root>/cell_scores               AnnotationContext of the score levels (static)
     <root>/cell_scores/scores        SegmentationImage of the occupied cells' score levels, others
                                      transparent, and Points2D: the colour bar's labels
-    <root>/cell_scores/legend        the colour bar (static) and its labels, placed north up under
-                                     the occupied cells
+    <root>/cell_scores/legend        Transform3D: the colour bar's placement, north up under the
+                                     final map's occupied cells (static, at the end; live: each map's)
+    <root>/cell_scores/legend/bar    the colour bar (static) and its labels, in the bar's pixels
     <root>/spectrum/log_amplitude    DepthImage (colour-mapped) of the log amplitude spectrum, DC at the
                                      centre, both axes -1/2 .. 1/2 cycles per cell (physical angles),
                                      and LineStrips2D, the kept strip of each dominant direction
@@ -124,6 +125,10 @@ class EntityPaths:
     @property
     def score_legend(self) -> str:
         return self._below("cell_scores/legend")
+
+    @property
+    def score_bar(self) -> str:
+        return self._below("cell_scores/legend/bar")
 
     @property
     def spectrum_view(self) -> str:

@@ -292,6 +292,7 @@ class RerunSink:
                 EntityPaths(entity_root_for_topic(topic)),
                 failure_level=failure_level,
                 trust_level=trust_level,
+                live=self.live,
             )
             for topic in topics
         }
@@ -503,6 +504,8 @@ class RerunSink:
         self._drain()
         self._check()
         self._closing = True  # the final layout frames the final map
+        for logger in self.loggers.values():
+            logger.log_final_placement()
         self._send_blueprint()
         self._flush()
         self.recording.disconnect()

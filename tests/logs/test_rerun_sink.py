@@ -136,6 +136,21 @@ def test_static_data_is_logged_exactly_once(clean_session) -> None:
     assert f"/{PATHS.cells}" not in content.temporal_rows
 
 
+def test_the_colour_bar_sits_under_the_final_map_at_every_time(clean_session) -> None:
+    """The scores view frames the final map: a saved recording places the bar once, under the last
+    snapshot's cells (placed under each early small map, its labels covered it); the labels'
+    positions are in the bar's pixels, the same at every snapshot."""
+    _, content = clean_session
+    legend = f"/{PATHS.score_legend}"
+    assert content.static_rows[legend] == 1
+    assert {"Transform3D:translation", "Transform3D:scale"} <= content.static_columns[legend]
+    assert legend not in content.temporal_rows
+    rows = content.rows(PATHS.score_bar)
+    assert len(rows) > 1
+    below = {tuple(r["Points2D:positions"][0])[1] for r in rows}
+    assert len(below) == 1  # the scale's label: the same place under the bar at every snapshot
+
+
 def test_styles_are_static_and_snapshots_send_only_what_changes(clean_session) -> None:
     _, content = clean_session
     styles = {
@@ -143,7 +158,7 @@ def test_styles_are_static_and_snapshots_send_only_what_changes(clean_session) -
         PATHS.cell_directions: {"LineStrips2D:colors", "Points2D:colors", "Points2D:show_labels"},
         PATHS.metric_directions: {"LineStrips3D:colors", "Points3D:colors", "Points3D:show_labels"},
         PATHS.cell_scores: {"SegmentationImage:opacity"},
-        PATHS.score_legend: {"SegmentationImage:buffer", "Points2D:colors"},
+        PATHS.score_bar: {"SegmentationImage:buffer", "Points2D:colors"},
         PATHS.spectrum: {"DepthImage:colormap", "DepthImage:meter", "LineStrips2D:colors"},
         PATHS.amplitude_curve: {"Points2D:colors", "Points2D:show_labels"},
     }
@@ -559,7 +574,7 @@ def test_the_score_colour_bar_lies_under_the_map_whatever_its_yaw(tmp_path: Path
     result = rose.analyze(grid)
     rrd = tmp_path / "legend.rrd"
     recording = _recording_at_zero(rrd)
-    logger = TopicLogger(recording, PATHS)
+    logger = TopicLogger(recording, PATHS, live=True)  # live: placed with each snapshot
     logger.log_cell_scores(snapshot, result)
     recording.flush()
     recording.disconnect()
