@@ -97,6 +97,7 @@ _SUBMODULES = frozenset(
         "cleaning_rules",
         "directions",
         "errors",
+        "frozen",
         "grid",
         "labelling",
         "limits",

@@ -505,9 +505,10 @@ def contradicted_walls(
         occupied_threshold=occupied_threshold,
         free_threshold=free_threshold,
     )
-    if window_px < 1 or tile_px < 1:
-        msg = f"window_px and tile_px must be >= 1, got {window_px} and {tile_px}"
-        raise RoseError(msg)
+    for name, value in (("tile_px", tile_px), ("window_px", window_px)):
+        if not integer_number(value) or value < 1:
+            msg = f"{name} must be an integer >= 1, got {value!r}"
+            raise RoseError(msg)
     established = int(np.count_nonzero(earlier >= occupied_threshold))
     placed = _placed(earlier, later, offset_px)
     erased = _erased_box(

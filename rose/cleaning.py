@@ -61,13 +61,14 @@ from __future__ import annotations
 
 import dataclasses
 import logging
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
 import numpy.typing as npt
 
 from rose.errors import RoseError
+from rose.frozen import ReadOnlyArrays
 from rose.grid import FREE, OCCUPIED, UNKNOWN, as_occupancy_grid
 from rose.limits import finite_number, integer_number
 from rose.mapfile import DEFAULT_RESOLUTION_M, OccupancyMap, resolution_problem
@@ -194,9 +195,9 @@ class CleanParams:
 MIN_CLEAN_RESOLUTION_M = 1e-3
 
 
-@dataclass(frozen=True, eq=False)
-class CleanResult:
-    """A cleaned map and what the cleaning did to every occupied cell.
+@dataclass(frozen=True, eq=False, repr=False)
+class CleanResult(ReadOnlyArrays):
+    """A cleaned map and what the cleaning did to every occupied cell (arrays read-only).
 
     Attributes
     ----------
@@ -233,7 +234,14 @@ class CleanResult:
     completed: npt.NDArray[np.bool_]
     resolution_m: float
     params: CleanParams
-    result: RoseResult = field(repr=False)
+    result: RoseResult
+
+    def __repr__(self) -> str:
+        return (
+            f"CleanResult(method={self.method!r}, shape={self.kept.shape}, "
+            f"kept={self.kept_count}, removed={self.removed_count}, rescued={self.rescued_count}, "
+            f"completed={self.completed_count}, resolution_m={self.resolution_m:g})"
+        )
 
     @property
     def kept_count(self) -> int:

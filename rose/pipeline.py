@@ -20,8 +20,8 @@ from rose.unfold import cumulative_amplitude, direction_bins
 
 __all__ = ["analyze"]
 
-#: Directions this close below pi are 0 (radians; far below any peak's refinement accuracy).
-_WRAP_RAD = 1e-9
+#: Directions this close below pi are 0 (radians; far below any peak's refinement accuracy, 9e-3).
+_WRAP_RAD = 1e-6
 
 
 def analyze(

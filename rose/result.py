@@ -2,21 +2,23 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
 
 from rose.errors import RoseError
+from rose.frozen import ReadOnlyArrays
 from rose.grid import occupied_mask
 from rose.params import RoseParams
 
 __all__ = ["RoseResult", "check_result_for"]
 
 
-@dataclass(frozen=True, eq=False)
-class RoseResult:
-    """Everything ROSE computed for one map.
+@dataclass(frozen=True, eq=False, repr=False)
+class RoseResult(ReadOnlyArrays):
+    """Everything ROSE computed for one map (its arrays are read-only).
 
     Angles are in radians in the grid frame: counter-clockwise from the column axis (+x of an
     unrotated map) towards the row axis; row 0 is the map origin, as in the input grid. The map
@@ -72,6 +74,16 @@ class RoseResult:
     has_structure: bool
     spectrum_half: npt.NDArray[np.float32] = field(repr=False)
     params: RoseParams = field(default_factory=RoseParams)
+
+    def __repr__(self) -> str:
+        # A summary: the arrays (360 bins, whole grids) made a repr of 200 lines.
+        directions = ", ".join(f"{math.degrees(d):.1f}" for d in self.dominant_directions)
+        return (
+            f"RoseResult(shape={self.occupied.shape}, structure_score={self.structure_score:.4f}, "
+            f"dominant_directions_deg=[{directions}], threshold={self.threshold:.4f}, "
+            f"occupied={self.occupied_count}, clutter={self.clutter_count}, "
+            f"has_structure={self.has_structure})"
+        )
 
     @property
     def occupied_count(self) -> int:

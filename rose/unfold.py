@@ -16,11 +16,13 @@ import numpy as np
 import numpy.typing as npt
 from scipy.ndimage import gaussian_filter1d
 
+from rose.frozen import ReadOnlyArrays
+
 __all__ = ["DirectionBins", "cumulative_amplitude", "direction_bins", "frequency_grid"]
 
 
 @dataclass(frozen=True, eq=False)
-class DirectionBins:
+class DirectionBins(ReadOnlyArrays):
     """Assignment of half-plane spectrum cells to wall-orientation bins, for one padded shape.
 
     Attributes

@@ -269,9 +269,9 @@ class LogReader:
             return "ros1"
         return "cdr"
 
-    def messages(self, *, topics: Collection[str] | None = None) -> Iterator[RawMessage]:
-        """Every message (or those on ``topics``), in log-time order (in file order for a ROS 1 bag
-        salvaged record by record, see the module notes).
+    def messages(self, *, topics: Collection[str] | str | None = None) -> Iterator[RawMessage]:
+        """Every message (or those on ``topics``: names, or one name), in log-time order (in file
+        order for a ROS 1 bag salvaged record by record, see the module notes).
 
         Raises
         ------
@@ -279,7 +279,8 @@ class LogReader:
             If the log turns out to be truncated or corrupt while reading.
         """
         backend = self._open_backend
-        wanted = None if topics is None else set(topics)
+        # A single topic name is one topic, not a collection of one-character topics.
+        wanted = None if topics is None else {topics} if isinstance(topics, str) else set(topics)
         counts: dict[int, int] = {}
         self.read_count = 0
         try:

@@ -14,6 +14,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rose.grid import OCCUPIED, UNKNOWN
+from rose.limits import finite_number
 from rose.mapfile import MAX_ORIGIN_M, MAX_RESOLUTION_M
 from rose_logs.errors import MapMessageError
 from rose_logs.frames import quaternion_to_yaw
@@ -49,7 +50,8 @@ class MapSnapshot:
     frame_id : str
         ``header.frame_id`` of the map.
     grid : ndarray of int8, shape (height, width)
-        ROS convention: row 0 at the origin, -1 unknown, 0..100. Read-only.
+        ROS convention: row 0 at the origin, -1 unknown, 0..100. Read-only, the snapshot's own (a
+        writable array given is copied: reusing that buffer for the next map changes no snapshot).
     resolution_m : float
         Cell size in metres.
     origin_position_m : tuple of float
@@ -75,6 +77,28 @@ class MapSnapshot:
     map_load_time_ns: int = 0
     header_seq: int = 0
     out_of_range_cells: int = 0
+
+    def __post_init__(self) -> None:
+        grid = np.asarray(self.grid)
+        if grid.ndim != 2 or not np.issubdtype(grid.dtype, np.integer):
+            msg = (
+                f"{self.topic}: a MapSnapshot's grid must be a 2-D int8 array (ROS occupancy), "
+                f"got {grid.ndim}-D {grid.dtype}"
+            )
+            raise ValueError(msg)
+        if grid.dtype != np.int8 and grid.size and (grid.min() < -128 or grid.max() > 127):
+            msg = f"{self.topic}: a MapSnapshot's grid holds values beyond int8"
+            raise ValueError(msg)
+        if not finite_number(self.resolution_m) or not self.resolution_m > 0:
+            msg = f"{self.topic}: resolution_m must be a positive number, got {self.resolution_m!r}"
+            raise ValueError(msg)
+        # The snapshot owns its cells: a caller that reuses one buffer for each new map must not
+        # change the break detector's trusted snapshot (decoded grids are read-only and owned
+        # already: no copy).
+        if grid.dtype != np.int8 or grid.flags.writeable or not grid.flags.owndata:
+            grid = grid.astype(np.int8)
+            grid.flags.writeable = False
+        object.__setattr__(self, "grid", grid)
 
     @property
     def origin_yaw_rad(self) -> float:

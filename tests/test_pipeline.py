@@ -206,6 +206,9 @@ def test_axis_aligned_walls_read_zero_not_pi() -> None:
     directions = rose.analyze(grid).dominant_directions
     assert 0.0 in directions.tolist()
     assert np.all((directions >= 0) & (directions < np.pi - 1e-6))
+    # Two occupied cells side by side: refined to pi - 3.8e-8, which printed as 180.00 degrees.
+    two = np.pad(np.full((1, 2), 100, np.int8), 10)
+    assert rose.analyze(two).dominant_directions.tolist() == [0.0]
 
 
 def test_a_path_or_a_ragged_list_is_named_as_such() -> None:

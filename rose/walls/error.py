@@ -40,6 +40,8 @@ import numpy as np
 import numpy.typing as npt
 
 from rose.errors import RoseError
+from rose.frozen import ReadOnlyArrays
+from rose.limits import finite_number
 from rose.walls.segments import WallSet, axial_difference, segment_orientations
 
 __all__ = ["WallError", "segment_distances", "wall_error"]
@@ -47,8 +49,8 @@ __all__ = ["WallError", "segment_distances", "wall_error"]
 _BLOCK = 4096
 
 
-@dataclass(frozen=True, eq=False)
-class WallError:
+@dataclass(frozen=True, eq=False, repr=False)
+class WallError(ReadOnlyArrays):
     """The wall error of one detected set against a reference set.
 
     Attributes
@@ -83,6 +85,14 @@ class WallError:
     spurious: npt.NDArray[np.bool_]
     reference_coverage: npt.NDArray[np.float64]
     missing: npt.NDArray[np.bool_]
+
+    def __repr__(self) -> str:
+        # A summary: the per-segment arrays made reprs of thousands of characters.
+        return (
+            f"WallError(mean_cost={self.mean_cost:.4g}, detected={self.cost.size}, "
+            f"spurious={int(self.spurious.sum())}, reference={self.reference_coverage.size}, "
+            f"missing={int(self.missing.sum())})"
+        )
 
     @property
     def n_detected(self) -> int:
@@ -152,10 +162,13 @@ def wall_error(
     """
     det = _as_segments(detected, "detected")
     ref = _as_segments(reference, "reference")
-    if not match_distance_m > 0 or not sample_step_m > 0 or not 0 <= min_coverage <= 1:
+    _check_parameters(match_distance_m, match_angle_deg, min_coverage, sample_step_m)
+    samples = float(np.ceil(np.hypot(*(ref[:, 1] - ref[:, 0]).T) / sample_step_m).sum())
+    if samples > _MAX_SAMPLES:
         msg = (
-            "need match_distance_m > 0, sample_step_m > 0 and 0 <= min_coverage <= 1, got "
-            f"{match_distance_m}, {sample_step_m}, {min_coverage}"
+            f"sample_step_m {sample_step_m:g} m is too fine for reference segments of "
+            f"{float(np.hypot(*(ref[:, 1] - ref[:, 0]).T).sum()):.6g} m: {samples:.3g} sample "
+            f"points (at most {_MAX_SAMPLES:.0e})"
         )
         raise RoseError(msg)
     n, m = len(det), len(ref)
@@ -220,12 +233,41 @@ def segment_distances(points: npt.ArrayLike, segments: npt.ArrayLike) -> npt.NDA
     return np.hypot(*(rel - t[..., None] * d[None, :, :]).transpose(2, 0, 1))
 
 
+#: Most sample points along the reference segments (each costs a distance to every detection).
+_MAX_SAMPLES = 5e7
+
+
+def _check_parameters(
+    match_distance_m: float, match_angle_deg: float, min_coverage: float, sample_step_m: float
+) -> None:
+    checks = (
+        ("match_distance_m", match_distance_m, "> 0", lambda v: v > 0),
+        ("match_angle_deg", match_angle_deg, "in 0..90", lambda v: 0 <= v <= 90),
+        ("min_coverage", min_coverage, "in 0..1", lambda v: 0 <= v <= 1),
+        ("sample_step_m", sample_step_m, "> 0", lambda v: v > 0),
+    )
+    for name, value, wanted, ok in checks:
+        if not finite_number(value) or not ok(value):
+            msg = f"{name} must be a finite number {wanted}, got {value!r}"
+            raise RoseError(msg)
+
+
 def _as_segments(segments: WallSet | npt.ArrayLike, name: str) -> npt.NDArray[np.float64]:
-    array = segments.endpoints_m if isinstance(segments, WallSet) else np.asarray(segments, float)
+    if isinstance(segments, WallSet):
+        array = segments.endpoints_m
+    else:
+        try:
+            array = np.asarray(segments, dtype=np.float64)
+        except (TypeError, ValueError) as err:
+            msg = f"{name} segments must be numbers of shape (N, 2, 2): {err}"
+            raise RoseError(msg) from None
     if array.size == 0:
         return np.empty((0, 2, 2))
     if array.ndim != 3 or array.shape[1:] != (2, 2):
         msg = f"{name} segments must have shape (N, 2, 2), got {array.shape}"
+        raise RoseError(msg)
+    if not np.isfinite(array).all():
+        msg = f"{name} segments must have finite endpoints (NaN or inf found)"
         raise RoseError(msg)
     return array
 

@@ -340,14 +340,25 @@ def _grid_and_placement(
     else:
         defaults = (DEFAULT_RESOLUTION_M, (0.0, 0.0), 0.0)
         occupancy = as_occupancy_grid(grid)
-    placement = (
-        float(resolution_m if resolution_m is not None else defaults[0]),
-        tuple(float(v) for v in (origin_xy_m if origin_xy_m is not None else defaults[1])),
-        float(origin_yaw_rad if origin_yaw_rad is not None else defaults[2]),
-    )
-    if len(placement[1]) != 2 or not all(math.isfinite(v) for v in placement[1]):
-        msg = f"origin_xy_m must be two finite numbers (x, y) in metres, got {origin_xy_m!r}"
+    resolution = resolution_m if resolution_m is not None else defaults[0]
+    origin = origin_xy_m if origin_xy_m is not None else defaults[1]
+    yaw = origin_yaw_rad if origin_yaw_rad is not None else defaults[2]
+    # Checked before float(): a string would convert (or fail with Python's own words).
+    if not finite_number(resolution):
+        msg = f"resolution_m must be a positive number of metres, got {resolution!r}"
         raise RoseError(msg)
+    if (
+        isinstance(origin, (str, bytes))
+        or not hasattr(origin, "__len__")
+        or len(origin) != 2
+        or not all(finite_number(v) for v in origin)
+    ):
+        msg = f"origin_xy_m must be two finite numbers (x, y) in metres, got {origin!r}"
+        raise RoseError(msg)
+    if not finite_number(yaw):
+        msg = f"origin_yaw_rad must be a finite number of radians, got {yaw!r}"
+        raise RoseError(msg)
+    placement = (float(resolution), (float(origin[0]), float(origin[1])), float(yaw))
     problem = resolution_problem(placement[0])
     if problem is not None:
         msg = f"resolution_m {problem}"

@@ -21,6 +21,8 @@ import numpy as np
 import numpy.typing as npt
 
 from rose.errors import RoseError
+from rose.frozen import ReadOnlyArrays
+from rose.limits import finite_number
 from rose.mapfile import DEFAULT_RESOLUTION_M
 
 __all__ = [
@@ -59,8 +61,8 @@ class WallSegment:
     orientation_rad: float
 
 
-@dataclass(frozen=True, eq=False)
-class WallSet:
+@dataclass(frozen=True, eq=False, repr=False)
+class WallSet(ReadOnlyArrays):
     """Wall segments of one map, with the map placement needed to express them in metres.
 
     Endpoints are ordered so that ``end - start`` points along the segment's orientation.
@@ -94,20 +96,31 @@ class WallSet:
 
     def __post_init__(self) -> None:
         # A copy: the set is read-only, and the caller's array must stay writable.
-        endpoints = np.array(self.endpoints_px, dtype=np.float64)
+        try:
+            endpoints = np.array(self.endpoints_px, dtype=np.float64)
+        except (TypeError, ValueError) as err:
+            msg = f"endpoints_px must be numbers of shape (N, 2, 2): {err}"
+            raise RoseError(msg) from None
         if endpoints.size == 0:
             endpoints = endpoints.reshape(0, 2, 2)
         if endpoints.ndim != 3 or endpoints.shape[1:] != (2, 2):
             msg = f"endpoints_px must have shape (N, 2, 2), got {endpoints.shape}"
             raise RoseError(msg)
-        if not self.resolution_m > 0 or not math.isfinite(self.resolution_m):
-            msg = f"resolution_m must be a positive number of metres, got {self.resolution_m}"
+        if not finite_number(self.resolution_m) or not self.resolution_m > 0:
+            msg = f"resolution_m must be a positive number of metres, got {self.resolution_m!r}"
             raise RoseError(msg)
-        endpoints.setflags(write=False)
         object.__setattr__(self, "endpoints_px", endpoints)
+        super().__post_init__()
 
     def __len__(self) -> int:
         return int(self.endpoints_px.shape[0])
+
+    def __repr__(self) -> str:
+        return (
+            f"WallSet(method={self.method!r}, segments={len(self)}, shape={self.shape}, "
+            f"resolution_m={self.resolution_m:g}, origin_xy_m={self.origin_xy_m}, "
+            f"origin_yaw_rad={self.origin_yaw_rad:g})"
+        )
 
     def __iter__(self) -> Iterator[WallSegment]:
         return iter(self.segments)

@@ -341,7 +341,18 @@ def process_recording(
     Returns
     -------
     RecordingResult
+
+    Raises
+    ------
+    TypeError
+        If ``recording`` is not a :class:`Recording` (``discover([path])`` makes them).
     """
+    if not isinstance(recording, Recording):
+        msg = (
+            "process_recording takes a Recording, e.g. rose_logs.batch.discover([path])[0], got "
+            f"{type(recording).__name__} {recording!r}"
+        )
+        raise TypeError(msg)
     store = OutputStore(out, storage_options)
     key = result_key(recording, options)
     started = time.perf_counter()

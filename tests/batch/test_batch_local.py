@@ -39,6 +39,13 @@ def read_rows(path: Path) -> list[dict]:
 # ---- discovery ------------------------------------------------------------------------------------
 
 
+def test_process_recording_names_what_it_takes(tmp_path: Path) -> None:
+    """A path instead of a Recording: a TypeError that says how to make one (it was an
+    AttributeError on ``.uri`` deep inside)."""
+    with pytest.raises(TypeError, match=r"takes a Recording, e\.g\. rose_logs\.batch\.discover"):
+        process_recording("run.mcap", out=tmp_path / "out", options=RecordingOptions())  # type: ignore[arg-type]
+
+
 def test_an_empty_first_map_is_no_broken_map(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -607,15 +614,15 @@ def test_a_salvaged_active_bag_is_cleaned_into_a_complete_bag(tmp_path: Path) ->
 def _with_nan_resolution(log: Path, bad: set[int], *, maps: int = 4) -> Path:
     """The first ``maps`` maps of the sample session, those numbered in ``bad`` (from 1) with a NaN
     resolution (malformed: skipped with a warning that names their log time)."""
-    import dataclasses
     import math
 
     from fleet import MAP_TOPIC, SAMPLE
 
-    from rose_logs.derived import encode_cleaned
     from rose_logs.reader import LogReader
-    from rose_logs.snapshots import decode_map
+    from rose_logs.storage.typesys import MAP_TYPE, typestore_for
     from rose_logs.writer import open_output
+
+    store = typestore_for("cdr")
 
     log.parent.mkdir(parents=True, exist_ok=True)
     with LogReader(SAMPLE) as reader, open_output(log, "mcap", serialization="cdr") as out:
@@ -627,10 +634,10 @@ def _with_nan_resolution(log: Path, bad: set[int], *, maps: int = 4) -> Path:
                 count += 1
                 if count > maps:
                     break
-                if count in bad:
-                    snap = decode_map(data, serialization="cdr", topic=MAP_TOPIC, log_time_ns=0)
-                    broken = dataclasses.replace(snap, resolution_m=math.nan)
-                    data = encode_cleaned(broken, snap.grid, serialization="cdr")
+                if count in bad:  # the same message with info.resolution = NaN
+                    msg = store.deserialize_cdr(bytes(data), MAP_TYPE)
+                    msg.info.resolution = math.nan
+                    data = store.serialize_cdr(msg, MAP_TYPE)
             out.write_raw(handles[message.channel.id], message.log_time_ns, data)
     return log
 

@@ -229,3 +229,18 @@ def test_salvage_too_large_to_sort_keeps_every_message_in_file_order(
     with LogReader(built.path) as whole:
         assert len(times) == whole.message_count
     assert times == sorted(times, reverse=True)
+
+
+def test_one_topic_name_reads_that_topic(tmp_path: Path, fr079) -> None:
+    """``messages(topics="/map")``: one name is one topic (it was read as the one-character topics
+    "/", "m", "a", "p": no message, no error)."""
+    from conftest import START_NS
+
+    from rose_logs.reader import LogReader
+
+    maps = [MapMsg(START_NS + i * 1_000_000_000, grid) for i, grid in enumerate(fr079[:3], 1)]
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps)
+    with LogReader(built.path) as reader:
+        by_name = [m.log_time_ns for m in reader.messages(topics="/map")]
+        by_list = [m.log_time_ns for m in reader.messages(topics=["/map"])]
+    assert by_name == by_list == [m.t_ns for m in maps]

@@ -68,6 +68,22 @@ def test_break_starts_once_and_keeps_the_trusted_snapshot(plan, broken) -> None:
     assert event.detail == event.text.removeprefix(f"{topic}: ").replace(" (threshold 1 m)", "")
 
 
+def test_a_node_reusing_one_buffer_for_each_map_still_breaks(plan, broken) -> None:
+    """A snapshot owns its cells: a ROS callback that writes every new map into the same array
+    must not change the trusted snapshot (the detector compared the broken map with itself)."""
+    detector = BreakDetector(BreakParams(threshold_m=1.0))
+    buffer = plan.copy()
+    verdicts = []
+    for t, grid in enumerate([plan, plan, broken]):
+        buffer[:] = grid
+        verdicts.append(detector.update(_snap(buffer, t)))
+    assert [v.broken for v in verdicts] == [False, False, True]
+    with pytest.raises(ValueError, match="positive number"):
+        MapSnapshot("/map", 0, 0, "map", plan, "0.05")  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="2-D int8"):
+        _snap(plan.astype(np.float32), 0)
+
+
 def test_a_grown_map_is_compared_in_place(plan, broken) -> None:
     # The map grows by 40 rows and 30 columns towards negative x / y: origin moves by whole cells.
     grown = np.full((plan.shape[0] + 40, plan.shape[1] + 30), -1, dtype=np.int8)

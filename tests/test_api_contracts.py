@@ -1,0 +1,135 @@
+"""What library users rely on beyond the numbers: results cannot be changed by accident (also
+after pickling, and not through a shared cache), reprs a user can read, and clear errors for
+invalid arguments instead of Python's own words from deep inside."""
+
+from __future__ import annotations
+
+import pickle
+
+import numpy as np
+import pytest
+from synthetic import add_clutter, floor_plan
+
+import rose
+from rose.breaks import contradicted_walls
+from rose.cleaning import clean
+from rose.unfold import direction_bins
+
+
+@pytest.fixture(scope="module")
+def furnished() -> np.ndarray:
+    plan = floor_plan(angle_deg=10.0)
+    mask, _ = add_clutter(plan, blobs=12, specks=40, seed=1)
+    return np.where(mask, np.int8(100), np.int8(0))
+
+
+def _arrays(obj: object) -> dict[str, np.ndarray]:
+    return {k: v for k, v in vars(obj).items() if isinstance(v, np.ndarray)}
+
+
+def test_results_arrays_are_read_only_also_after_pickling(furnished) -> None:
+    result = rose.analyze(furnished)
+    cleaned = clean(furnished, result, resolution_m=0.05)
+    walls = rose.extract_walls(furnished, result=result)
+    for obj in (
+        result,
+        cleaned,
+        walls,
+        pickle.loads(pickle.dumps(result)),
+        pickle.loads(pickle.dumps(walls)),
+    ):
+        arrays = _arrays(obj)
+        assert arrays, type(obj).__name__
+        for name, array in arrays.items():
+            assert not array.flags.writeable, f"{type(obj).__name__}.{name}"
+    with pytest.raises(ValueError, match="read-only"):
+        result.clutter[:] = False  # would have changed what clean(method="paper") removes
+    assert clean(furnished, result, method="paper").removed_count == result.clutter_count > 0
+
+
+def test_the_direction_bins_cache_cannot_be_changed_through_a_result(furnished) -> None:
+    first = rose.analyze(furnished)
+    bins = direction_bins(first.padded_shape, angular_resolution_deg=0.5, min_radius_px=3.0)
+    for array in _arrays(bins).values():
+        assert not array.flags.writeable
+    with pytest.raises(ValueError, match="read-only"):
+        np.degrees(first.direction_bins, out=first.direction_bins)
+    assert rose.analyze(furnished).structure_score == first.structure_score
+
+
+def test_the_input_stays_writable_and_unchanged(furnished) -> None:
+    grid = furnished.copy()
+    rose.analyze(grid)
+    assert grid.flags.writeable and np.array_equal(grid, furnished)
+
+
+def test_reprs_are_summaries(furnished) -> None:
+    result = rose.analyze(furnished)
+    cleaned = clean(furnished, result, resolution_m=0.05)
+    walls = rose.extract_walls(furnished, result=result)
+    error = rose.wall_error(walls, walls)
+    for obj in (result, cleaned, walls, error):
+        text = repr(obj)
+        assert text.startswith(type(obj).__name__ + "(") and len(text) < 300 and "\n" not in text
+    assert f"structure_score={result.structure_score:.4f}" in repr(result)
+    assert f"removed={cleaned.removed_count}" in repr(cleaned)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "words"),
+    [
+        ({"origin_xy_m": (0.0, "a")}, "origin_xy_m must be two finite numbers"),
+        ({"origin_xy_m": 5.0}, "origin_xy_m must be two finite numbers"),
+        ({"origin_yaw_rad": "0.x"}, "origin_yaw_rad must be a finite number"),
+        ({"resolution_m": "0.1"}, "resolution_m must be a positive number"),
+    ],
+)
+def test_wall_placement_arguments_are_checked(furnished, kwargs, words) -> None:
+    for extract in (rose.extract_walls, rose.extract_walls_hough):
+        with pytest.raises(rose.RoseError, match=words):
+            extract(furnished, **kwargs)
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [{"tile_px": 2.5}, {"window_px": 100.5}, {"tile_px": "5"}, {"window_px": None}, {"tile_px": 0}],
+)
+def test_break_tile_and_window_are_checked(furnished, bad) -> None:
+    with pytest.raises(rose.RoseError, match="must be an integer >= 1"):
+        contradicted_walls(furnished, furnished, **bad)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "words"),
+    [
+        ({"match_angle_deg": -5}, "match_angle_deg must be a finite number in 0..90"),
+        ({"match_distance_m": float("nan")}, "match_distance_m must be a finite number > 0"),
+        ({"sample_step_m": "0.05"}, "sample_step_m must be a finite number > 0"),
+        ({"sample_step_m": 1e-9}, "too fine"),
+        ({"min_coverage": 2}, "min_coverage must be a finite number in 0..1"),
+    ],
+)
+def test_wall_error_parameters_are_checked(kwargs, words) -> None:
+    segments = np.array([[[0.0, 0.0], [10.0, 0.0]]])
+    with pytest.raises(rose.RoseError, match=words):
+        rose.wall_error(segments, segments, **kwargs)
+
+
+@pytest.mark.parametrize(
+    ("segments", "words"),
+    [
+        ([[[np.nan, 0.0], [1.0, 0.0]]], "finite endpoints"),
+        ([[["a", 0], [1, 0]]], "must be numbers"),
+    ],
+)
+def test_wall_error_segments_are_checked(segments, words) -> None:
+    with pytest.raises(rose.RoseError, match=words):
+        rose.wall_error(segments, [[[0.0, 0.0], [1.0, 0.0]]])
+
+
+def test_a_zero_one_integer_mask_is_warned_about(furnished) -> None:
+    mask = (furnished == 100).astype(np.uint8)
+    with pytest.warns(UserWarning, match="only 0 and 1"):
+        result = rose.analyze(mask)
+    assert result.occupied_count == 0  # read as percent: all free, as documented
+    assert rose.analyze(mask.astype(bool)).occupied_count == int(mask.sum())
