@@ -195,12 +195,9 @@ def _print_break(report: Any, topic: str, out: Any) -> None:
             file=out,
         )
         return
-    where = ""
-    if first.region_m is not None:
-        from rose_logs.session.breaks import metres_text  # loaded with the session already
+    from rose_logs.session.breaks import region_text  # loaded with the session already
 
-        x0, y0, x1, y1 = (metres_text(v) for v in first.region_m)
-        where = f", x {x0}..{x1} m, y {y0}..{y1} m"
+    where = "" if first.region_m is None else f", {region_text(first.region_m)}"
     print(
         f"  break        first at snapshot {first.index}, "
         f"+{duration_text(first.log_time_ns - start)} ({first.score_m:.2f} m of map contradicted since "

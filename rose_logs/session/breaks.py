@@ -30,7 +30,14 @@ import numpy as np
 from rose.breaks import WallContradiction, contradicted_walls
 from rose_logs.snapshots import MapSnapshot
 
-__all__ = ["BreakDetector", "BreakParams", "BreakScore", "DetectedBreak", "metres_text"]
+__all__ = [
+    "BreakDetector",
+    "BreakParams",
+    "BreakScore",
+    "DetectedBreak",
+    "metres_text",
+    "region_text",
+]
 
 _LOG = logging.getLogger(__name__)
 
@@ -198,14 +205,17 @@ class DetectedBreak:
         return self._describe("")
 
     def _describe(self, threshold: str) -> str:
-        where = ""
-        if self.region_m is not None:
-            x0, y0, x1, y1 = (metres_text(v) for v in self.region_m)
-            where = f" around x {x0}..{x1} m, y {y0}..{y1} m"
+        where = "" if self.region_m is None else f" around {region_text(self.region_m)}"
         return (
             f"map breaks at snapshot {self.index}: {self.score_m:.2f} m of established map "
             f"contradicted{threshold} since snapshot {self.trusted_index}{where}"
         )
+
+
+def region_text(region_m: tuple[float, float, float, float]) -> str:
+    """``(x_min, y_min, x_max, y_max)`` in metres as reports print it: ``x 1.2..3.4 m, y 0..2 m``."""
+    x0, y0, x1, y1 = (metres_text(v) for v in region_m)
+    return f"x {x0}..{x1} m, y {y0}..{y1} m"
 
 
 def metres_text(value: float) -> str:
