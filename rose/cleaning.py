@@ -68,7 +68,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rose.errors import RoseError
-from rose.frozen import ReadOnlyArrays
+from rose.frozen import ReadOnlyArrays, seal
 from rose.grid import FREE, OCCUPIED, UNKNOWN, as_occupancy_grid
 from rose.limits import finite_number, integer_number
 from rose.mapfile import DEFAULT_RESOLUTION_M, OccupancyMap, resolution_problem
@@ -240,7 +240,7 @@ class CleanResult(ReadOnlyArrays):
         return (
             f"CleanResult(method={self.method!r}, shape={self.kept.shape}, "
             f"kept={self.kept_count}, removed={self.removed_count}, rescued={self.rescued_count}, "
-            f"completed={self.completed_count}, resolution_m={self.resolution_m:g})"
+            f"completed={self.completed_count}, resolution_m={self.resolution_m!r})"
         )
 
     @property
@@ -375,17 +375,19 @@ def clean(
         # same as ``result.cleaned`` when the result was computed on ``grid``).
         cleaned = occupancy.copy()
         cleaned[result.clutter] = FREE if result.params.clutter_value == "free" else UNKNOWN
-        return CleanResult(
-            cleaned=cleaned,
-            method=method,
-            kept=kept,
-            removed=result.clutter.copy(),
-            rescued=nothing,
-            guarded=nothing.copy(),
-            completed=nothing.copy(),
-            resolution_m=float(resolution_m),
-            params=p,
-            result=result,
+        return seal(
+            CleanResult(
+                cleaned=cleaned,
+                method=method,
+                kept=kept,
+                removed=result.clutter.copy(),
+                rescued=nothing,
+                guarded=nothing.copy(),
+                completed=nothing.copy(),
+                resolution_m=float(resolution_m),
+                params=p,
+                result=result,
+            )
         )
     from rose.cleaning_rules import wall_cells
 
@@ -406,15 +408,17 @@ def clean(
             int(np.count_nonzero(removed)),
             int(np.count_nonzero(completed)),
         )
-    return CleanResult(
-        cleaned=cleaned,
-        method=method,
-        kept=kept,
-        removed=removed,
-        rescued=kept & result.clutter,
-        guarded=guarded & result.clutter,
-        completed=completed,
-        resolution_m=float(resolution_m),
-        params=p,
-        result=result,
+    return seal(
+        CleanResult(
+            cleaned=cleaned,
+            method=method,
+            kept=kept,
+            removed=removed,
+            rescued=kept & result.clutter,
+            guarded=guarded & result.clutter,
+            completed=completed,
+            resolution_m=float(resolution_m),
+            params=p,
+            result=result,
+        )
     )

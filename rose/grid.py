@@ -8,7 +8,6 @@ in percent. Boolean arrays are accepted as occupied masks.
 from __future__ import annotations
 
 import os
-import warnings
 
 import numpy as np
 import numpy.typing as npt
@@ -26,8 +25,7 @@ def as_occupancy_grid(grid: npt.ArrayLike) -> npt.NDArray[np.int8]:
     """Return ``grid`` as an ``int8`` occupancy grid of the same shape (a copy when converted).
 
     A boolean array becomes ``100`` where True and ``0`` elsewhere. Integer or float arrays must hold
-    values in ``-1..100`` (floats are truncated toward zero, as a cast to int8); an integer grid of
-    only 0 and 1 (a mask, read as all free) gives a ``UserWarning``.
+    values in ``-1..100`` (floats are truncated toward zero, as a cast to int8).
 
     Raises
     ------
@@ -73,18 +71,6 @@ def as_occupancy_grid(grid: npt.ArrayLike) -> npt.NDArray[np.int8]:
             "it takes percent (0..100, -1 unknown): pass np.where(grid < 0, -1, grid * 100)."
         )
         raise RoseError(msg)
-    # Only 0 and 1, no unknown cell (a ROS map has -1 around its known part): a 0/1 mask.
-    if (
-        np.issubdtype(array.dtype, np.integer)
-        and array.size
-        and array.max() == 1 == array.min() + 1
-    ):
-        warnings.warn(
-            "The input grid holds only 0 and 1, read as occupancy in percent: all free. For a "
-            "0/1 occupied mask, pass grid.astype(bool).",
-            UserWarning,
-            stacklevel=3,
-        )
     return array.astype(np.int8, copy=False)
 
 

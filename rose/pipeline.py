@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import math
+import warnings
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
 from rose.directions import find_direction_peaks, refine_peak_positions, structure_score
+from rose.frozen import seal
 from rose.grid import FREE, UNKNOWN, as_occupancy_grid, occupied_mask
 from rose.mapfile import OccupancyMap
 from rose.params import RoseParams, make_params
@@ -20,8 +22,9 @@ from rose.unfold import cumulative_amplitude, direction_bins
 
 __all__ = ["analyze"]
 
-#: Directions this close below pi are 0 (radians; far below any peak's refinement accuracy, 9e-3).
-_WRAP_RAD = 1e-6
+#: Directions this close below pi are 0 (radians): half the 0.01 degree the reports print angles to
+#: (a refined peak a hair below bin 0 read 180.00), far below any peak's refinement accuracy (9e-3).
+_WRAP_RAD = math.radians(0.005)
 
 
 def analyze(
@@ -49,7 +52,9 @@ def analyze(
         If ``grid`` is not a 2D boolean or numeric array in -1..100, or a parameter is invalid.
     """
     p = make_params(params, **overrides)
-    occupancy = as_occupancy_grid(grid.grid if isinstance(grid, OccupancyMap) else grid)
+    given = grid.grid if isinstance(grid, OccupancyMap) else grid
+    occupancy = as_occupancy_grid(given)
+    _warn_if_mask(given, occupancy, p.occupied_threshold)
     occupied = occupied_mask(occupancy, occupied_threshold=p.occupied_threshold)
     shape = padded_shape(occupancy.shape)
 
@@ -84,23 +89,43 @@ def analyze(
 
     cleaned = occupancy.copy()
     cleaned[clutter] = FREE if p.clutter_value == "free" else UNKNOWN
-    return RoseResult(
-        structure_score=score,
-        dominant_directions=directions,
-        direction_bins=bins.centres,
-        cumulative_amplitude=cumulative,
-        peak_indices=peaks.indices,
-        peak_prominences=peaks.prominences,
-        cell_scores=cell_scores,
-        threshold=threshold,
-        occupied=occupied,
-        structure=structure,
-        clutter=clutter,
-        cleaned=cleaned,
-        has_structure=has_structure,
-        spectrum_half=amplitude,
-        params=p,
+    return seal(
+        RoseResult(
+            structure_score=score,
+            dominant_directions=directions,
+            direction_bins=bins.centres,
+            cumulative_amplitude=cumulative,
+            peak_indices=peaks.indices,
+            peak_prominences=peaks.prominences,
+            cell_scores=cell_scores,
+            threshold=threshold,
+            occupied=occupied,
+            structure=structure,
+            clutter=clutter,
+            cleaned=cleaned,
+            has_structure=has_structure,
+            spectrum_half=amplitude,
+            params=p,
+        )
     )
+
+
+def _warn_if_mask(
+    given: npt.ArrayLike, occupancy: npt.NDArray[np.int8], occupied_threshold: int
+) -> None:
+    """Warn of a 0/1 mask passed as integers (``mask.astype(np.uint8)``, a usual slip): read as
+    percent it is all free. ROS grids are int8 and have unknown cells around the known part, so
+    grids from logs and map files (int8) are never warned about."""
+    dtype = getattr(given, "dtype", None)
+    if dtype is None or dtype == np.int8 or dtype == np.bool_ or occupied_threshold <= 1:
+        return
+    if occupancy.size and occupancy.max() == 1 and occupancy.min() == 0:
+        warnings.warn(
+            "The input grid holds only 0 and 1, read as occupancy in percent: all free. For a "
+            "0/1 occupied mask, pass grid.astype(bool).",
+            UserWarning,
+            stacklevel=3,
+        )
 
 
 def _scale_and_threshold(

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
+from rose.directions import fold_deg
 from rose.errors import RoseError
 from rose.frozen import ReadOnlyArrays
 from rose.grid import occupied_mask
@@ -77,7 +78,9 @@ class RoseResult(ReadOnlyArrays):
 
     def __repr__(self) -> str:
         # A summary: the arrays (360 bins, whole grids) made a repr of 200 lines.
-        directions = ", ".join(f"{math.degrees(d):.1f}" for d in self.dominant_directions)
+        directions = ", ".join(
+            f"{fold_deg(math.degrees(d), 1):.1f}" for d in self.dominant_directions
+        )
         return (
             f"RoseResult(shape={self.occupied.shape}, structure_score={self.structure_score:.4f}, "
             f"dominant_directions_deg=[{directions}], threshold={self.threshold:.4f}, "

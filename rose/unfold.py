@@ -16,7 +16,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy.ndimage import gaussian_filter1d
 
-from rose.frozen import ReadOnlyArrays
+from rose.frozen import ReadOnlyArrays, seal
 
 __all__ = ["DirectionBins", "cumulative_amplitude", "direction_bins", "frequency_grid"]
 
@@ -97,13 +97,15 @@ def direction_bins(
     order = np.argsort(bin_index, kind="stable")
     cell_index, bin_index = cell_index[order], bin_index[order]
     starts = np.searchsorted(bin_index, np.arange(n_bins))
-    return DirectionBins(
-        centres=np.arange(n_bins, dtype=np.float64) * step,
-        cell_index=cell_index,
-        bin_index=bin_index,
-        bin_starts=starts,
-        counts=counts,
-        radius_span_px=max(outer - min_radius_px, 0.0),
+    return seal(
+        DirectionBins(
+            centres=np.arange(n_bins, dtype=np.float64) * step,
+            cell_index=cell_index,
+            bin_index=bin_index,
+            bin_starts=starts,
+            counts=counts,
+            radius_span_px=max(outer - min_radius_px, 0.0),
+        )
     )
 
 

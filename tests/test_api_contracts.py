@@ -44,6 +44,11 @@ def test_results_arrays_are_read_only_also_after_pickling(furnished) -> None:
             assert not array.flags.writeable, f"{type(obj).__name__}.{name}"
     with pytest.raises(ValueError, match="read-only"):
         result.clutter[:] = False  # would have changed what clean(method="paper") removes
+    pickled = [pickle.loads(pickle.dumps(obj)) for obj in (result, cleaned, walls)]
+    for obj in (result, cleaned, walls, *pickled):  # what the library made stays read-only
+        for array in _arrays(obj).values():
+            with pytest.raises(ValueError, match="cannot set WRITEABLE"):
+                array.flags.writeable = True
     assert clean(furnished, result, method="paper").removed_count == result.clutter_count > 0
 
 
@@ -54,6 +59,8 @@ def test_the_direction_bins_cache_cannot_be_changed_through_a_result(furnished) 
         assert not array.flags.writeable
     with pytest.raises(ValueError, match="read-only"):
         np.degrees(first.direction_bins, out=first.direction_bins)
+    with pytest.raises(ValueError, match="cannot set WRITEABLE"):
+        bins.counts.flags.writeable = True
     assert rose.analyze(furnished).structure_score == first.structure_score
 
 
@@ -102,7 +109,7 @@ def test_break_tile_and_window_are_checked(furnished, bad) -> None:
 @pytest.mark.parametrize(
     ("kwargs", "words"),
     [
-        ({"match_angle_deg": -5}, "match_angle_deg must be a finite number in 0..90"),
+        ({"match_angle_deg": -5}, "match_angle_deg must be a finite number >= 0"),
         ({"match_distance_m": float("nan")}, "match_distance_m must be a finite number > 0"),
         ({"sample_step_m": "0.05"}, "sample_step_m must be a finite number > 0"),
         ({"sample_step_m": 1e-9}, "too fine"),
@@ -128,8 +135,16 @@ def test_wall_error_segments_are_checked(segments, words) -> None:
 
 
 def test_a_zero_one_integer_mask_is_warned_about(furnished) -> None:
+    import warnings
+
     mask = (furnished == 100).astype(np.uint8)
     with pytest.warns(UserWarning, match="only 0 and 1"):
         result = rose.analyze(mask)
     assert result.occupied_count == 0  # read as percent: all free, as documented
     assert rose.analyze(mask.astype(bool)).occupied_count == int(mask.sum())
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        # A ROS grid (int8, from a log or a map file) all free but for 1 % cells, and a threshold
+        # that reads 1 as occupied: not masks by mistake.
+        rose.analyze(mask.astype(np.int8))
+        assert rose.analyze(mask, occupied_threshold=1).occupied_count == int(mask.sum())

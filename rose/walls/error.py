@@ -40,7 +40,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rose.errors import RoseError
-from rose.frozen import ReadOnlyArrays
+from rose.frozen import ReadOnlyArrays, seal
 from rose.limits import finite_number
 from rose.walls.segments import WallSet, axial_difference, segment_orientations
 
@@ -174,16 +174,18 @@ def wall_error(
     n, m = len(det), len(ref)
     if m == 0:
         inf = np.full(n, np.inf)
-        return WallError(
-            mean_cost=math.nan if n == 0 else math.inf,
-            cost=inf,
-            rotation_rad=np.full(n, np.nan),
-            translation_m=inf,
-            match_distance_m=inf,
-            matched=np.full(n, -1, dtype=np.intp),
-            spurious=np.ones(n, dtype=bool),
-            reference_coverage=np.empty(0),
-            missing=np.empty(0, dtype=bool),
+        return seal(
+            WallError(
+                mean_cost=math.nan if n == 0 else math.inf,
+                cost=inf,
+                rotation_rad=np.full(n, np.nan),
+                translation_m=inf,
+                match_distance_m=inf,
+                matched=np.full(n, -1, dtype=np.intp),
+                spurious=np.ones(n, dtype=bool),
+                reference_coverage=np.empty(0),
+                missing=np.empty(0, dtype=bool),
+            )
         )
     matched, distance = _match(det, ref)
     mid = det.mean(axis=1)
@@ -199,16 +201,18 @@ def wall_error(
         angle_rad=math.radians(match_angle_deg),
         step_m=sample_step_m,
     )
-    return WallError(
-        mean_cost=float(cost.mean()) if n else math.nan,
-        cost=cost,
-        rotation_rad=rotation,
-        translation_m=translation,
-        match_distance_m=distance,
-        matched=matched,
-        spurious=spurious,
-        reference_coverage=coverage,
-        missing=coverage < min_coverage,
+    return seal(
+        WallError(
+            mean_cost=float(cost.mean()) if n else math.nan,
+            cost=cost,
+            rotation_rad=rotation,
+            translation_m=translation,
+            match_distance_m=distance,
+            matched=matched,
+            spurious=spurious,
+            reference_coverage=coverage,
+            missing=coverage < min_coverage,
+        )
     )
 
 
@@ -242,7 +246,7 @@ def _check_parameters(
 ) -> None:
     checks = (
         ("match_distance_m", match_distance_m, "> 0", lambda v: v > 0),
-        ("match_angle_deg", match_angle_deg, "in 0..90", lambda v: 0 <= v <= 90),
+        ("match_angle_deg", match_angle_deg, ">= 0 (90 and above: any angle)", lambda v: v >= 0),
         ("min_coverage", min_coverage, "in 0..1", lambda v: 0 <= v <= 1),
         ("sample_step_m", sample_step_m, "> 0", lambda v: v > 0),
     )

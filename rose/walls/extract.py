@@ -367,7 +367,7 @@ def _grid_and_placement(
     if problem is not None:
         msg = f"origin_xy_m {placement[1]!r}, origin_yaw_rad {placement[2]!r}: the origin {problem}"
         raise RoseError(msg)
-    return occupancy, placement  # type: ignore[return-value]
+    return occupancy, placement
 
 
 def _wall_set(

@@ -109,6 +109,19 @@ class WallSet(ReadOnlyArrays):
         if not finite_number(self.resolution_m) or not self.resolution_m > 0:
             msg = f"resolution_m must be a positive number of metres, got {self.resolution_m!r}"
             raise RoseError(msg)
+        origin = self.origin_xy_m
+        if (
+            isinstance(origin, str | bytes)
+            or not hasattr(origin, "__len__")
+            or len(origin) != 2
+            or not all(finite_number(v) for v in origin)
+        ):
+            msg = f"origin_xy_m must be two finite numbers (x, y) in metres, got {origin!r}"
+            raise RoseError(msg)
+        if not finite_number(self.origin_yaw_rad):
+            msg = f"origin_yaw_rad must be a finite number of radians, got {self.origin_yaw_rad!r}"
+            raise RoseError(msg)
+        endpoints.flags.writeable = False  # our copy (numpy then refuses a writable view of it)
         object.__setattr__(self, "endpoints_px", endpoints)
         super().__post_init__()
 

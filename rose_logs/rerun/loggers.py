@@ -161,11 +161,12 @@ def overlay_z_m(snapshot: MapSnapshot, *, layer: int) -> float:
     return float(snapshot.origin_position_m[2]) + layer * step
 
 
-#: The colour bar's labels, in its pixels (it is 2 pixels high, and as tall as 3.5 % of the occupied
-#: cells' box): the scale and best-cell labels under it, the threshold's above it, between the bar
-#: and the cells.
-_BAR_LABELS_BELOW_PX = 7.0
-_BAR_THRESHOLD_LABEL_PX = -11.5
+#: The colour bar's height, as a fraction of the occupied cells' box height (its size), and its
+#: labels' places in its pixels (it is 2 pixels high): the scale and best-cell labels 0.09 size
+#: under it, the threshold's 0.2 size above it, between the bar and the cells.
+_BAR_HEIGHT = 0.035
+_BAR_LABELS_BELOW_PX = 2.0 + 0.09 / (_BAR_HEIGHT / 2)
+_BAR_THRESHOLD_LABEL_PX = -0.2 / (_BAR_HEIGHT / 2)
 
 
 class TopicLogger:
@@ -179,9 +180,10 @@ class TopicLogger:
         Entity paths of the topic.
     failure_level, trust_level : float
         Guide lines of the W plot (the failure level is the session's ``--failure-level``).
-    live : bool
-        Streaming to a viewer: the colour bar moves with each snapshot's map. Otherwise it is
-        placed once, under the final map, when the session ends (:meth:`log_final_placement`).
+    live : bool, default True
+        The colour bar is placed under each snapshot's map (as a viewer streamed to shows it).
+        False: it is placed once, under the final map, by :meth:`log_final_placement` (a saved
+        recording, whose scores view frames the final map).
     """
 
     def __init__(
@@ -191,7 +193,7 @@ class TopicLogger:
         *,
         failure_level: float = FAILURE_LEVEL,
         trust_level: float = TRUST_LEVEL,
-        live: bool = False,
+        live: bool = True,
     ) -> None:
         self.recording = recording
         self.live = live
@@ -503,8 +505,8 @@ class TopicLogger:
         result: RoseResult,
         occupied: conv.OccupiedCells | None = None,
     ) -> None:
-        """Occupied cells' scores, colour-mapped (other cells transparent), and the placement and
-        labels (scale, threshold) of the colour bar (static) under the occupied cells."""
+        """Occupied cells' scores, colour-mapped (other cells transparent), the labels (scale,
+        threshold) of the colour bar and, ``live``, its placement under the occupied cells."""
         rec, paths = self.recording, self.paths
         rows, cols = result.occupied.shape
         origin = self._origin_for(snapshot)
@@ -515,13 +517,15 @@ class TopicLogger:
             snapshot, np.array([[x0, y0], [x1, y0], [x0, y1], [x1, y1]], float), origin
         )
         (west, north), (east, south) = corners.min(axis=0), corners.max(axis=0)
-        box_w, box_h = east - west, south - north
+        box_w = east - west
+        # Every vertical length below is a fraction of one size, so that the labels' places in
+        # the bar's pixels hold whatever the box (a thin map's bar is sized by its width).
+        size = max(south - north, 0.25 * box_w, 10.0 * float(snapshot.resolution_m))
         levels = style.DISPLAY_LEVELS
         # Far enough below for the threshold's label to sit between the cells and the bar.
-        top, height = south + 0.22 * box_h, max(0.035 * box_h, 2.0 * float(snapshot.resolution_m))
         self.score_legend_placement = rr.Transform3D(
-            translation=[west + 0.2 * box_w, top, 0.0],
-            scale=[0.6 * box_w / levels, height / 2, 1.0],  # metres per pixel of the bar
+            translation=[west + 0.2 * box_w, south + 0.22 * size, 0.0],
+            scale=[0.6 * box_w / levels, _BAR_HEIGHT * size / 2, 1.0],  # metres per bar pixel
         )
 
         def u_of(score: float) -> float:
@@ -553,6 +557,8 @@ class TopicLogger:
         """Place the colour bar under the last snapshot's occupied cells, at every time: the
         scores view frames the final map, under which a small early map's bar (placed under that
         map) was too small for its labels, which covered it."""
+        # Only where no placement was logged per snapshot (not ``live``): the web viewer kept
+        # those over a static one logged after them.
         if self.score_legend_placement is not None:
             self.recording.log(self.paths.score_legend, self.score_legend_placement, static=True)
 

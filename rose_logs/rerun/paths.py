@@ -15,9 +15,10 @@ Paths are lowercase and live below one root per map topic (``/map`` -> ``map``):
     <root>/metric/walls              LineStrips3D, wall segments, metres
     <root>/cell_scores               AnnotationContext of the score levels (static)
     <root>/cell_scores/scores        SegmentationImage of the occupied cells' score levels, others
-                                     transparent, and Points2D: the colour bar's labels
+                                     transparent
     <root>/cell_scores/legend        Transform3D: the colour bar's placement, north up under the
-                                     final map's occupied cells (static, at the end; live: each map's)
+                                     occupied cells: the final map's (static, logged at the end),
+                                     or each map's when streamed live
     <root>/cell_scores/legend/bar    the colour bar (static) and its labels, in the bar's pixels
     <root>/spectrum/log_amplitude    DepthImage (colour-mapped) of the log amplitude spectrum, DC at the
                                      centre, both axes -1/2 .. 1/2 cycles per cell (physical angles),

@@ -504,8 +504,9 @@ class RerunSink:
         self._drain()
         self._check()
         self._closing = True  # the final layout frames the final map
-        for logger in self.loggers.values():
-            logger.log_final_placement()
+        if not self.live:  # a live viewer placed the bar with each map
+            for logger in self.loggers.values():
+                logger.log_final_placement()
         self._send_blueprint()
         self._flush()
         self.recording.disconnect()

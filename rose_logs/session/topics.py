@@ -125,9 +125,11 @@ def default_output_path(input_path: Path, fmt: LogFormat | None = None) -> Path:
 
 
 def select_topics(
-    path: Path, channels: Sequence[Channel], topics: Sequence[str] | None
+    path: Path, channels: Sequence[Channel], topics: Sequence[str] | str | None
 ) -> tuple[str, ...]:
     found = find_map_topics(channels)
+    if isinstance(topics, str):  # one name is one topic, not one-character topics
+        topics = (topics,)
     if topics:
         known = {c.topic: c for c in channels}
         for topic in topics:
@@ -203,11 +205,13 @@ def warn_unknown_definitions(channels: Sequence[Channel], topics: Sequence[str])
     messages are read with ROS's definition; those that do not decode are skipped as malformed,
     but some may decode into other values."""
     wanted = set(topics)
+    said: set[tuple[str, str]] = set()  # several publishers of a topic: one connection each
     for c in channels:
-        if c.topic not in wanted or c.message_encoding != "ros1" or not c.digest:
+        if c.topic not in wanted or c.message_encoding != "ros1" or c.digest in ("", "*"):
             continue
-        if c.msgtype not in (MAP_TYPE, UPDATE_TYPE):
+        if c.msgtype not in (MAP_TYPE, UPDATE_TYPE) or (c.topic, c.digest) in said:
             continue
+        said.add((c.topic, c.digest))
         standard = msgdef_for(c.msgtype, "ros1")[1]
         if c.digest != standard:
             _LOG.warning(

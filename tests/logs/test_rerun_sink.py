@@ -615,3 +615,37 @@ def test_the_screenshot_tool_says_in_one_line_what_it_cannot_read(
         err = capsys.readouterr().err
         assert err.startswith(f"error: {given}: {said}") and err.count("\n") == 1
     assert not (tmp_path / "shots").exists()
+
+
+@pytest.mark.parametrize("side", [12, 40, 400])
+def test_the_threshold_label_sits_between_the_cells_and_the_bar(tmp_path: Path, side: int) -> None:
+    """On any size of map (the bar's height had a floor of two cells, under which the labels' fixed
+    places in the bar's pixels put the threshold's label on the map's cells)."""
+    import rose
+    from rose_logs.rerun import TopicLogger
+    from rose_logs.rerun.sink import _layout_of
+
+    grid = np.full((side + 40, side + 40), -1, dtype=np.int8)
+    grid[20 : 20 + side, 20 : 20 + side] = 100
+    grid[22 : 18 + side, 22 : 18 + side] = 0
+    grid[25, 25:30] = 100  # clutter: the threshold is finite
+    snapshot = _yawed(grid, 0.0, (0.0, 0.0))
+    result = rose.analyze(grid)
+    assert np.isfinite(result.threshold)
+    rrd = tmp_path / "legend.rrd"
+    recording = _recording_at_zero(rrd)
+    logger = TopicLogger(recording, PATHS, live=True)
+    logger.log_cell_scores(snapshot, result)
+    recording.flush()
+    recording.disconnect()
+    content = _read(rrd)
+    (placement,) = content.rows(PATHS.score_legend)
+    (labels,) = content.rows(PATHS.score_bar)
+    _, top, _ = placement["Transform3D:translation"][0]
+    _, scale_y, _ = placement["Transform3D:scale"][0]
+    (_, below_px), _, (_, threshold_px) = labels["Points2D:positions"]
+    layout = _layout_of("map", snapshot, has_events=False, view_origin=logger.view_origin_m)
+    assert layout.bounds_m is not None
+    south = layout.view_origin_m[1] - layout.bounds_m[1]  # the cells' south edge in the view
+    assert south < top + threshold_px * scale_y < top  # between the cells and the bar
+    assert top + below_px * scale_y > top + 2 * scale_y  # the scale's labels under the bar
