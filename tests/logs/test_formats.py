@@ -244,3 +244,6 @@ def test_one_topic_name_reads_that_topic(tmp_path: Path, fr079) -> None:
         by_name = [m.log_time_ns for m in reader.messages(topics="/map")]
         by_list = [m.log_time_ns for m in reader.messages(topics=["/map"])]
     assert by_name == by_list == [m.t_ns for m in maps]
+    from rose_logs.session import process_log
+
+    assert len(process_log(built.path, topics="/map").records) == len(maps)
