@@ -601,7 +601,7 @@ def map_image_path(yaml_path: str | os.PathLike[str]) -> Path:
 
 
 def save_map(
-    path: str | os.PathLike[str],
+    path: str | bytes | os.PathLike[str],
     occupancy_map: OccupancyMap,
     *,
     occupied_threshold: int = SAVED_OCCUPIED_FROM,
@@ -629,7 +629,7 @@ def save_map(
         If an output would replace a file the map was read from, is refused by ``outputs`` (an
         input, exists without force) or cannot be written.
     """
-    path = Path(path)
+    path = Path(os.fsdecode(path))  # bytes too, as load_map takes them
     if path.suffix.lower() not in YAML_SUFFIXES:
         msg = f"{path}: the output map must be a .yaml file"
         raise MapFileError(msg)

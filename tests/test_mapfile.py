@@ -605,3 +605,11 @@ def test_load_map_takes_bytes_paths_and_refuses_cell_limits_that_are_no_limit() 
     for bad in (-1, 0, 1.5):
         with pytest.raises(MapFileError, match="max_cells must be a whole number"):
             rose.load_map(path, max_cells=bad)  # type: ignore[arg-type]
+
+
+def test_save_map_takes_bytes_paths_as_load_map_does(tmp_path: Path) -> None:
+    grid = np.full((4, 6), -1, dtype=np.int8)
+    grid[1, 2:5] = 100
+    image = rose.save_map(os.fsencode(tmp_path / "m.yaml"), rose.OccupancyMap(grid=grid))
+    assert image == tmp_path / "m.pgm"
+    assert np.array_equal(rose.load_map(os.fsencode(tmp_path / "m.yaml")).grid, grid)
