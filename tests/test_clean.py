@@ -483,3 +483,32 @@ def test_a_partition_is_kept_whole_on_probabilistic_grids_and_three_cells_thick(
     partition[80 : 80 + thick, 11:36] = True
     assert cleaning.result.clutter[partition].any()  # the paper calls it clutter
     assert cleaning.kept[partition].all()
+
+
+def test_cleaning_works_while_the_interpreter_shuts_down() -> None:
+    """From a thread that outlives the main one, or an atexit handler, no new thread may start:
+    the cleaning's steps then run in turn (its second thread made it fail there)."""
+    import subprocess
+    import sys
+
+    code = """
+import atexit, threading, time
+import numpy as np, rose
+from rose.cleaning import clean
+grid = np.zeros((120, 160), np.int8); grid[10, 10:150] = grid[110, 10:150] = 100
+grid[10:111, 10] = grid[10:111, 150] = 100; grid[50:53, 60:63] = 100
+
+def run(label):
+    print(label, clean(grid, rose.analyze(grid), resolution_m=0.05).kept_count, flush=True)
+
+def later():
+    time.sleep(0.5)
+    run("thread")
+
+atexit.register(run, "atexit")
+threading.Thread(target=later).start()
+"""
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    counts = dict(line.split() for line in done.stdout.splitlines())
+    assert set(counts) == {"thread", "atexit"} and counts["thread"] == counts["atexit"]
