@@ -82,7 +82,7 @@ def test_plain_text_file_and_malformed_lines(tmp_path: Path) -> None:
         good,
         "FLASER 3 1.0 2.0\n",  # truncated
         "FLASER x 1 2 3\n",  # bad count
-        "FLASER 3 1.0 nan 3.0 0 0 0 0 0 0 1 h 1\n",  # non-finite
+        "FLASER 3 1.0 2.0 3.0 nan 0 0 0 0 0 1 h 1\n",  # non-finite pose
         "FLASER 3 1.0 abc 3.0 0 0 0 0 0 0 1 h 1\n",  # non-numeric
         "FLASER 3 1.0 -2 3.0 0 0 0 0 0 0 1 h 1\n",  # negative range
         "ODOM 0 0 0 0 0 0 1 h 1\n",
@@ -358,13 +358,35 @@ def test_convert_names_a_wrong_map_file_and_why_no_scan_was_read(
     path.write_text(good)
     assert main(["convert", str(path), str(tmp_path / "s.mcap"), "--map-file", "final.pgm"]) == 2
     assert "final.pgm: --map-file names the map's YAML" in capsys.readouterr().err
-    path.write_text(good.replace("2.0", "1e39"))
+    path.write_text(good.replace("0.5 -0.5", "inf -0.5", 1))
     assert main(["convert", str(path), str(tmp_path / "s.mcap")]) == 1
     err = capsys.readouterr().err
     assert err.strip().splitlines() == [
         f"error: {path}: no FLASER scan found (1 malformed FLASER lines; first: line 1: "
-        "non-finite value, or a range beyond float32 (3.4e38))"
+        "non-finite pose or timestamp)"
     ]
+
+
+def test_flaser_ranges_without_a_return_and_lines_that_lie(tmp_path: Path) -> None:
+    """inf, nan and a range beyond float32 are readings without a return (one such beam cost the
+    whole scan); a beam count that does not match the ranges is malformed (it read ranges as the
+    pose and the time); a huge count is refused before its ranges are read; a byte-order mark
+    before the first line is no part of it (that scan was lost)."""
+    good = "FLASER 3 1.0 2.0 3.0 0.5 -0.5 0.1 0.5 -0.5 0.1 12.5 host 12.5\n"
+    scan = parse_flaser_line(
+        good.replace("2.0", "inf").replace("3.0", "nan").replace("1.0", "1e39")
+    )
+    assert np.isinf(scan.ranges_m).all() and scan.laser_pose == (0.5, -0.5, 0.1)
+    assert parse_flaser_line(good.replace(" host 12.5", "")).stamp_ns == 12_500_000_000
+    with pytest.raises(CarmenFormatError, match="2 beams announced, but 12 fields follow"):
+        parse_flaser_line(good.replace("FLASER 3 ", "FLASER 2 "))  # the true count is 3
+    with pytest.raises(CarmenFormatError, match="non-numeric value"):  # the hostname as a number
+        parse_flaser_line(good.replace("FLASER 3 ", "FLASER 4 "))
+    with pytest.raises(CarmenFormatError, match=r"beam count 3000000 outside 1\.\.100000"):
+        parse_flaser_line("FLASER 3000000 " + "1.0 " * 10)
+    path = tmp_path / "bom.log"
+    path.write_text("\ufeff" + good + good.replace("12.5", "13.0"), encoding="utf-8")
+    assert len(read_carmen_log(path).scans) == 2
 
 
 def test_convert_max_scans_bound_reads_as_a_lower_bound(

@@ -9,6 +9,9 @@ pose, ``odom_*`` the odometry pose) and timestamps in seconds. The beams cover a
 view centred on the laser's +x axis, counter-clockwise from -pi/2: with an odd ``n`` (181, 361) the
 first and the last beam sit at -pi/2 and +pi/2, with an even ``n`` (180, 360) the increment is pi / n.
 
+Ranges of ``inf`` or ``nan`` (and beyond float32) are readings without a return, as in ROS. The
+hostname and logger timestamp may be missing; any other field count is a malformed line.
+
 Every other line type (``ODOM``, ``PARAM``, ``NEFF``, ``SYNC``, comments...) is ignored and counted;
 ``FLASER`` lines that cannot be parsed are skipped and counted, so a damaged log still yields the scans
 it holds. ``.gz`` files are read transparently.
@@ -46,6 +49,10 @@ MAX_STAMP_S = 2**31
 
 #: Values after the ranges: six pose values, timestamp, hostname, logger timestamp.
 _TRAILER_FIELDS = 9
+
+#: Most beams a FLASER line may announce (laser scanners give up to a few thousand): a line of
+#: millions of ranges, a few kB gzipped, held gigabytes.
+MAX_BEAMS = 100_000
 
 
 class CarmenFormatError(LogReadError, ValueError):
@@ -166,36 +173,44 @@ def parse_flaser_line(line: str, *, line_number: int = 0) -> FlaserScan:
     CarmenFormatError
         When the line is not a complete, numeric ``FLASER`` record.
     """
-    tokens = line.split()
     where = f"line {line_number}"
-    if not tokens or tokens[0] != "FLASER":
+    head = line.split(maxsplit=2)  # the beam count first: a huge one is refused before the rest
+    if not head or head[0] != "FLASER":
         msg = f"{where}: not a FLASER line"
         raise CarmenFormatError(msg)
     try:
-        n = int(tokens[1])
+        n = int(head[1])
     except (IndexError, ValueError) as err:
-        msg = f"{where}: bad beam count {tokens[1:2]}"
+        msg = f"{where}: bad beam count {head[1:2]}"
         raise CarmenFormatError(msg) from err
-    if n < 1 or len(tokens) < 2 + n + _TRAILER_FIELDS - 2:
-        msg = f"{where}: {n} beams announced but only {len(tokens)} fields"
+    if not 1 <= n <= MAX_BEAMS:
+        msg = f"{where}: beam count {n} outside 1..{MAX_BEAMS}"
+        raise CarmenFormatError(msg)
+    tokens = line.split()
+    trailer = len(tokens) - 2 - n
+    # x y theta odom_x odom_y odom_theta timestamp, then hostname and logger timestamp (optional):
+    # a count that does not match the ranges would read ranges as the pose and the time.
+    if not _TRAILER_FIELDS - 2 <= trailer <= _TRAILER_FIELDS:
+        msg = (
+            f"{where}: {n} beams announced, but {len(tokens) - 2} fields follow "
+            f"(expected {n} ranges and {_TRAILER_FIELDS - 2}..{_TRAILER_FIELDS} more)"
+        )
         raise CarmenFormatError(msg)
     try:
-        with np.errstate(over="ignore"):  # a range beyond float32 becomes inf: "non-finite" below
+        with np.errstate(over="ignore"):  # a range beyond float32 becomes inf: no return
             ranges = np.array(tokens[2 : 2 + n], dtype=np.float32)
         values = [float(v) for v in tokens[2 + n : 2 + n + 7]]
     except ValueError as err:
         msg = f"{where}: non-numeric value ({err})"
         raise CarmenFormatError(msg) from err
-    if len(values) < 7:
-        msg = f"{where}: pose or timestamp missing"
-        raise CarmenFormatError(msg)
-    if not (np.all(np.isfinite(ranges)) and all(math.isfinite(v) for v in values)):
-        # A range beyond float32 (1e300) reads as inf: say both.
-        msg = f"{where}: non-finite value, or a range beyond float32 (3.4e38)"
+    if not all(math.isfinite(v) for v in values):
+        msg = f"{where}: non-finite pose or timestamp"
         raise CarmenFormatError(msg)
     if np.any(ranges < 0):
         msg = f"{where}: negative range"
         raise CarmenFormatError(msg)
+    # inf (and a range beyond float32) is no return, as in ROS; so is nan, a reading without one.
+    ranges[np.isnan(ranges)] = np.inf
     if not 0 <= values[6] < MAX_STAMP_S:
         msg = f"{where}: timestamp {values[6]:g} s is outside 0 .. 2**31 s (ROS time)"
         raise CarmenFormatError(msg)
@@ -215,10 +230,10 @@ def _open_lines(path: Path) -> Iterator[str]:
     with path.open("rb") as probe:
         magic = probe.read(2)
     if magic == _GZIP_MAGIC:
-        with gzip.open(path, "rt", encoding="utf-8", errors="replace") as fh:
+        with gzip.open(path, "rt", encoding="utf-8-sig", errors="replace") as fh:
             yield from fh
-    else:
-        with path.open("rt", encoding="utf-8", errors="replace") as fh:
+    else:  # utf-8-sig: a byte-order mark before the first line is no part of it
+        with path.open("rt", encoding="utf-8-sig", errors="replace") as fh:
             yield from fh
 
 
