@@ -48,6 +48,7 @@ from types import FrameType, TracebackType
 from typing import Any, NoReturn, Self
 
 from rose.errors import OutputError
+from rose.limits import short
 
 __all__ = [
     "EXIT_BROKEN_PIPE",
@@ -420,14 +421,24 @@ def _conflict(a: Path, b: Path) -> bool:
         return False
 
 
-def _is_bag_folder(path: Path) -> bool:
-    """A ROS 2 bag folder we may replace: ``metadata.yaml`` and files only."""
+def _bag_folder_extras(path: Path) -> list[str] | None:
+    """What a ROS 2 bag folder holds besides ``metadata.yaml`` and the files it names (with
+    SQLite's ``-wal`` / ``-shm`` / ``-journal`` beside a ``.db3``): notes, another log written into
+    the folder, sub-folders, which replacing the bag would delete. None: not a bag folder."""
     try:
         entries = list(os.scandir(path))
+        with (Path(path) / "metadata.yaml").open("rb") as f:
+            metadata = f.read(_METADATA_PEEK).decode("utf-8", "replace")
     except OSError:
-        return False
-    names = {e.name for e in entries}
-    return "metadata.yaml" in names and not any(e.is_dir(follow_symlinks=False) for e in entries)
+        return None
+    extras = []
+    for entry in entries:
+        stored = re.sub(r"-(wal|shm|journal)$", "", entry.name)
+        if entry.name != "metadata.yaml" and (
+            entry.is_dir(follow_symlinks=False) or stored not in metadata
+        ):
+            extras.append(entry.name)
+    return sorted(extras)
 
 
 _BAG_STORAGE_SUFFIXES = (".db3", ".mcap")
@@ -667,8 +678,15 @@ class OutputSet:
         if is_dir and not directory:
             msg = f"{path}: is a directory, not replacing it with a file"
             raise OutputError(msg)
-        if is_dir and replaceable is None and not _is_bag_folder(target):
+        extras = _bag_folder_extras(target) if is_dir and replaceable is None else []
+        if extras is None:
             msg = f"{path}: is a directory that is not a ROS 2 bag, not replacing it"
+            raise OutputError(msg)
+        if extras:
+            msg = (
+                f"{path}: is a ROS 2 bag folder that holds other files too "
+                f"({short(', '.join(extras), 120)}), not replacing it"
+            )
             raise OutputError(msg)
         if is_dir and replaceable is not None and not replaceable(target):
             msg = f"{path}: is a directory this command did not write, not replacing it"

@@ -119,6 +119,23 @@ def test_existing_output_needs_force(tmp_path: Path) -> None:
     assert (tmp_path / "r.json").read_bytes() == b"new"
 
 
+def test_force_replaces_a_bag_folder_only_when_it_holds_nothing_else(tmp_path: Path) -> None:
+    """Another log written into a bag folder, or notes beside it, went with the bag on --force."""
+    bag = tmp_path / "bag"
+    bag.mkdir()
+    (bag / "metadata.yaml").write_text("relative_file_paths:\n- bag_0.db3\n")
+    for name in ("bag_0.db3", "bag_0.db3-wal"):
+        (bag / name).write_bytes(b"x")
+    for extra in ("notes.txt", "inner.mcap"):
+        (bag / extra).write_text("mine")
+        with pytest.raises(OutputError, match=f"holds other files too \\({extra}\\)"):
+            OutputSet(force=True).stage(bag, directory=True)
+        (bag / extra).unlink()
+    outputs = OutputSet(force=True)
+    outputs.stage(bag, directory=True)  # the bag's own files only: may be replaced
+    outputs.abort()
+
+
 def test_force_replaces_only_bag_folders(tmp_path: Path) -> None:
     photos = tmp_path / "photos"
     photos.mkdir()
