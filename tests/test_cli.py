@@ -415,3 +415,15 @@ def test_clean_with_a_threshold_above_65_keeps_the_inputs_walls_of_65_and_more(
     argv = ["clean", str(tmp_path / "m.yaml"), "-o", str(out), "--occupied-threshold", "90"]
     assert main(argv) == 0
     assert (rose.load_map(out).grid[seventy] == 100).all()
+
+
+def test_walls_min_length_past_any_map_is_a_usage_error(
+    cluttered_map: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """1e308 m overflowed to inf cells: exit 1 and an internal name, blaming the map file."""
+    with pytest.raises(SystemExit) as stop:
+        main(["walls", str(cluttered_map), "--min-length", "1e308"])
+    assert stop.value.code == 2
+    assert "argument --min-length: expected a number in [0, 1e+06], got '1e308'" in (
+        capsys.readouterr().err
+    )

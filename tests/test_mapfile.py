@@ -613,3 +613,13 @@ def test_save_map_takes_bytes_paths_as_load_map_does(tmp_path: Path) -> None:
     image = rose.save_map(os.fsencode(tmp_path / "m.yaml"), rose.OccupancyMap(grid=grid))
     assert image == tmp_path / "m.pgm"
     assert np.array_equal(rose.load_map(os.fsencode(tmp_path / "m.yaml")).grid, grid)
+
+
+def test_an_image_name_with_spaces_around_it_is_shown_quoted(tmp_path: Path) -> None:
+    """'image: "depot.pgm "' said "its image depot.pgm: no such image file" beside depot.pgm."""
+    grid = np.zeros((4, 4), dtype=np.int8)
+    rose.save_map(tmp_path / "depot.yaml", rose.OccupancyMap(grid=grid))
+    text = (tmp_path / "depot.yaml").read_text().replace("image: depot.pgm", 'image: "depot.pgm "')
+    (tmp_path / "spaced.yaml").write_text(text)
+    with pytest.raises(MapFileError, match=r"the name 'depot\.pgm ' has spaces or line breaks"):
+        rose.load_map(tmp_path / "spaced.yaml")

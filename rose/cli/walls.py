@@ -7,13 +7,17 @@ import math
 import sys
 from typing import Any, TextIO
 
-from rose.cli.options import add_map_arguments, load_grid_map, non_negative_float, path_arg
+from rose.cli.options import add_map_arguments, float_up_to, load_grid_map, path_arg
 from rose.outputs import OutputSet, json_text
 from rose.pipeline import analyze
 from rose.walls import WallParams, WallSet, extract_walls, extract_walls_hough
 from rose.walls.export import walls_to_geojson, walls_to_svg
 
 __all__ = ["add_parser", "format_walls_table", "run"]
+
+
+#: Longest --min-length (metres): a wall of 1000 km is past any map (1e308 overflowed to inf cells).
+_MAX_MIN_LENGTH_M = 1e6
 
 
 def add_parser(subparsers: Any) -> None:
@@ -46,7 +50,7 @@ def add_parser(subparsers: Any) -> None:
     )
     parser.add_argument(
         "--min-length",
-        type=non_negative_float,
+        type=float_up_to(_MAX_MIN_LENGTH_M, zero=True),
         default=None,
         metavar="M",
         help="drop walls shorter than M metres (default: 10 cells)",
