@@ -439,3 +439,14 @@ def test_convert_option_values_beyond_sense_are_usage_errors(
     err = capsys.readouterr().err
     assert "Traceback" not in err and "expected" in err
     assert not (tmp_path / "s.mcap").exists()
+
+
+def test_gzip_with_bytes_after_it_is_said_so(tmp_path: Path) -> None:
+    """It read "cannot read CARMEN log (Not a gzipped file (b'ga'))" of a log zcat reads."""
+    import gzip
+
+    path = tmp_path / "log.gz"
+    good = "FLASER 3 1.0 2.0 3.0 0.5 -0.5 0.1 0.5 -0.5 0.1 12.5 host 12.5\n"
+    path.write_bytes(gzip.compress(good.encode()) + b"garbage after the member\n")
+    with pytest.raises(CarmenFormatError, match=r"corrupt gzip data .*no gzip member follow"):
+        read_carmen_log(path)

@@ -316,6 +316,12 @@ def read_carmen_log(path: str | Path, *, max_scans: int | None = None) -> Carmen
             msg = f"{path}: not a regular file"
             raise CarmenFormatError(msg)
         log = parse_carmen_lines(_open_lines(path), path=path, max_scans=max_scans)
+    except gzip.BadGzipFile as err:  # an OSError whose words ("Not a gzipped file") mislead
+        msg = (
+            f"{path}: corrupt gzip data ({err}): bytes that are no gzip member follow or "
+            "interrupt the compressed log (zcat may read the part before them)"
+        )
+        raise CarmenFormatError(msg) from err
     except (OSError, EOFError) as err:
         msg = f"{path}: cannot read CARMEN log ({getattr(err, 'strerror', None) or err})"
         raise CarmenFormatError(msg) from err
