@@ -108,6 +108,11 @@ def make_params(params: RoseParams | None = None, **overrides: Any) -> RoseParam
 #: Largest spectrum length a parameter takes, cells (a map of 1e6 cells a side has 1e12 cells).
 MAX_SPECTRUM_PX = 1e6
 
+#: Direction bins from 0.01 to 30 degrees wide (finer takes memory, coarser loses the peaks).
+ANGULAR_RESOLUTION_RANGE_DEG = (0.01, 30.0)
+#: Most angular smoothing, degrees (more blurs the peaks of a right-angled building together).
+MAX_SMOOTHING_DEG = 30.0
+
 
 def _problems(p: RoseParams) -> list[str]:
     numbers = [
@@ -133,12 +138,15 @@ def _problems(p: RoseParams) -> list[str]:
             problems.append(f"{name} must be an integer, got {getattr(p, name)!r}")
     if not 0.0 < p.peak_prominence <= 1.0:
         problems.append(f"peak_prominence must be in (0, 1], got {p.peak_prominence}")
-    if not 0.01 <= p.angular_resolution_deg <= 30.0:
+    low, high = ANGULAR_RESOLUTION_RANGE_DEG
+    if not low <= p.angular_resolution_deg <= high:
         problems.append(
-            f"angular_resolution_deg must be in [0.01, 30], got {p.angular_resolution_deg}"
+            f"angular_resolution_deg must be in [{low:g}, {high:g}], got {p.angular_resolution_deg}"
         )
-    if not 0.0 <= p.smoothing_deg <= 30.0:
-        problems.append(f"smoothing_deg must be in [0, 30], got {p.smoothing_deg}")
+    if not 0.0 <= p.smoothing_deg <= MAX_SMOOTHING_DEG:
+        problems.append(
+            f"smoothing_deg must be in [0, {MAX_SMOOTHING_DEG:g}], got {p.smoothing_deg}"
+        )
     # Spectrum lengths (cells of the padded map's longer side): beyond any map's size they mean
     # "all of it", and far beyond they overflow the index arithmetic (1e19 crashed the strip mask).
     if not 0 <= p.min_radius_px <= MAX_SPECTRUM_PX:

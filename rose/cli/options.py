@@ -26,7 +26,13 @@ from rose.mapfile import (
     OccupancyMap,
     load_map,
 )
-from rose.params import RoseParams, make_params
+from rose.params import (
+    ANGULAR_RESOLUTION_RANGE_DEG,
+    MAX_SMOOTHING_DEG,
+    MAX_SPECTRUM_PX,
+    RoseParams,
+    make_params,
+)
 from rose.result import RoseResult
 
 __all__ = [
@@ -83,6 +89,19 @@ def non_negative_float(text: str) -> float:
         msg = f"expected a number >= 0, got {text!r}"
         raise argparse.ArgumentTypeError(msg)
     return value
+
+
+def float_in(low: float, high: float) -> Any:
+    """argparse type factory: a finite number in ``[low, high]`` (``low`` > 0)."""
+
+    def parse(text: str) -> float:
+        value = positive_float(text)
+        if not low <= value <= high:
+            msg = f"expected a number in [{low:g}, {high:g}], got {text!r}"
+            raise argparse.ArgumentTypeError(msg)
+        return value
+
+    return parse
 
 
 def float_up_to(high: float, *, zero: bool = False) -> Any:
@@ -186,21 +205,21 @@ def add_param_arguments(parser: argparse.ArgumentParser) -> None:
     )
     group.add_argument(
         "--angular-resolution",
-        type=positive_float,
+        type=float_in(*ANGULAR_RESOLUTION_RANGE_DEG),
         default=d.angular_resolution_deg,
         metavar="DEG",
         help="direction bin width in degrees (default %(default)s)",
     )
     group.add_argument(
         "--smoothing",
-        type=non_negative_float,
+        type=float_up_to(MAX_SMOOTHING_DEG, zero=True),
         default=d.smoothing_deg,
         metavar="DEG",
         help="angular smoothing of the cumulative amplitude (default %(default)s)",
     )
     group.add_argument(
         "--mask-half-width",
-        type=positive_float,
+        type=float_up_to(MAX_SPECTRUM_PX),
         default=d.mask_half_width_px,
         metavar="PX",
         help="half-width of the spectrum strip kept per direction (default %(default)s)",

@@ -304,6 +304,8 @@ def test_debug_is_taken_after_the_command_too(tmp_path: Path, capsys, fr079) -> 
     [
         ["rose-bag", "process", "x.bag", "--smoothing", "1e9"],
         ["rose", "score", "m.yaml", "--angular-resolution", "1e-9"],
+        ["rose", "score", "m.yaml", "--angular-resolution", "100"],
+        ["rose", "score", "m.yaml", "--mask-half-width", "1e300"],
     ],
 )
 def test_out_of_range_rose_options_are_usage_errors(
@@ -318,6 +320,8 @@ def test_out_of_range_rose_options_are_usage_errors(
     assert exc.value.code == 2
     err = capsys.readouterr().err
     assert err.startswith("usage: ") and f"{command} {args[0]}: error: " in err
+    # Named by the option the user typed, with its range (was the parameter's internal name).
+    assert f"argument {args[2]}: expected a number in " in err and "_deg" not in err
 
 
 class _ClosedPipe(io.StringIO):
