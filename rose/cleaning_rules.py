@@ -178,13 +178,7 @@ def _wall_cells(
             # Free-standing pieces need neither the object faces nor the attached pieces: they
             # go beside them, after the wide unknown space they need (the same thread, in turn).
             pieces = pieces_job.result()
-
-            def free_standing(
-                near: Future[npt.NDArray[np.bool_]] = near_job,
-            ) -> npt.NDArray[np.bool_]:
-                return _free_standing(pieces, lines | (occupied & near.result()), unknown, res, p)
-
-            dropped_job = beside.submit(free_standing)
+            dropped_job = beside.submit(_free_standing, pieces, lines, near_job, unknown, res, p)
         faces = np.zeros(occupied.shape, dtype=bool)
         if p.object_pocket_m2 > 0:
             # Object faces: a scanner sees a solid object as faces around a small unknown pocket
@@ -215,7 +209,6 @@ def _wall_cells(
     min_region_px = length_px(p.min_region_m2, res**2)
     guard_obstacles = occupied
     if pieces_job is not None:
-        pieces = pieces_job.result()
         keep &= ~dropped
         # Pieces attached to no kept wall at all are furniture standing in the room: the guard
         # does not count them as obstacles of the input. Only those whose box is smaller than a
@@ -281,18 +274,21 @@ def _beside() -> Iterator[Executor]:
 
 def _free_standing(
     pieces: _Pieces,
-    anchored: npt.NDArray[np.bool_],
+    lines: npt.NDArray[np.bool_],
+    near_outside: Future[npt.NDArray[np.bool_]],
     unknown: npt.NDArray[np.bool_],
     res: float,
     p: CleanParams,
 ) -> npt.NDArray[np.bool_]:
-    """Occupied cells of free-standing pieces: no cell ``anchored`` (on a run, a line or next to
-    wide unknown) even across a gap of up to two cells, and a joined box with a diagonal shorter
-    than a wall run: clutter, whatever the paper's labelling says."""
+    """Occupied cells of free-standing pieces: no cell on a run or ``lines`` or near wide unknown
+    (``near_outside``, a job submitted before this one) even across a gap of up to two cells, and
+    a joined box with a diagonal shorter than a wall run: clutter, whatever the paper's labelling
+    says."""
     import cv2
 
-    # A solid 3 x 3 block is a drawn column or wall, not the faces a scanner sees of an object.
     occupied = pieces.occupied
+    anchored = lines | (occupied & near_outside.result())
+    # A solid 3 x 3 block is a drawn column or wall, not the faces a scanner sees of an object.
     solid = cv2.erode(occupied.view(np.uint8), np.ones((3, 3), np.uint8), borderValue=0)
     dropped = pieces.loose(anchored | solid.view(bool), length_px(p.min_run_m, res))
     # ... unless it closes around known free space: a small room or shaft, not an object (a
