@@ -287,6 +287,10 @@ def test_errors_are_one_line_with_exit_1(
         ["score", "m.yaml", "--seed", str(2**33)],
         ["score", "m.yaml", "--max-cells", "0"],
         ["clean", "m.yaml", "-o", "o.yaml", "--fixed-threshold", "nan"],
+        # A name ending in '/' is a folder: Path dropped the slash and wrote the file 'out'.
+        ["clean", "m.yaml", "-o", "out/"],
+        ["clean", "m.yaml", "-o", "o.yaml", "--json", "out/"],
+        ["walls", "m.yaml", "--svg", "out/"],
     ],
 )
 def test_usage_error_exits_2(argv: list[str]) -> None:

@@ -15,6 +15,7 @@ from rose.cli.options import (
     add_param_arguments,
     cells,
     directions_deg,
+    file_arg,
     load_grid_map,
     params_from_args,
     path_arg,
@@ -35,10 +36,10 @@ def add_parser(commands: Any) -> None:
     clean = commands.add_parser("clean", help="remove clutter from a map, write a map_server map")
     clean.add_argument("map", type=path_arg, help="map_server YAML or a PGM/PNG image")
     clean.add_argument(
-        "-o", "--output", type=path_arg, required=True, help="output YAML (PGM beside it)"
+        "-o", "--output", type=file_arg, required=True, help="output YAML (PGM beside it)"
     )
     clean.add_argument(
-        "--json", type=path_arg, metavar="REPORT", help="also write a JSON report ('-': stdout)"
+        "--json", type=file_arg, metavar="REPORT", help="also write a JSON report ('-': stdout)"
     )
     clean.add_argument("-f", "--force", action="store_true", help="replace existing output files")
     add_map_arguments(clean)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 from pathlib import Path
 from typing import Any
@@ -41,8 +42,10 @@ __all__ = [
     "add_param_arguments",
     "cell_count",
     "directions_deg",
+    "file_arg",
     "fraction",
     "int_in_range",
+    "names_folder",
     "non_negative_float",
     "params_from_args",
     "positive_float",
@@ -147,6 +150,21 @@ def path_arg(text: str) -> Path:
     """argparse type: a file or folder path; an empty one is a usage error (``Path("")`` is the
     current folder, which made ``-o ""`` read as writing over the input)."""
     return Path(location(text))
+
+
+def file_arg(text: str) -> Path:
+    """argparse type: the path of an output *file*. A name ending in ``/`` names a folder: refused
+    (``Path`` drops the slash, so ``--rrd out/`` wrote the file ``out``)."""
+    if names_folder(text):
+        msg = f"{text!r} ends with '/', a folder: give a file name"
+        raise argparse.ArgumentTypeError(msg)
+    return path_arg(text)
+
+
+def names_folder(text: str | Path) -> bool:
+    """Whether a path as typed ends with a separator (``out/``): the user means a folder."""
+    text = str(text)
+    return len(text) > 1 and text.endswith(tuple(sep for sep in (os.sep, os.altsep) if sep))
 
 
 def location(text: str) -> str:

@@ -7,7 +7,7 @@ import math
 import sys
 from typing import Any, TextIO
 
-from rose.cli.options import add_map_arguments, float_up_to, load_grid_map, path_arg
+from rose.cli.options import add_map_arguments, file_arg, float_up_to, load_grid_map, path_arg
 from rose.outputs import OutputSet, json_text
 from rose.pipeline import analyze
 from rose.walls import WallParams, WallSet, extract_walls, extract_walls_hough
@@ -38,10 +38,10 @@ def add_parser(subparsers: Any) -> None:
     parser.add_argument("map", type=path_arg, metavar="MAP", help="map YAML or image file")
     out = parser.add_mutually_exclusive_group()
     out.add_argument(
-        "--geojson", type=path_arg, metavar="FILE", help="write the walls as GeoJSON ('-': stdout)"
+        "--geojson", type=file_arg, metavar="FILE", help="write the walls as GeoJSON ('-': stdout)"
     )
     out.add_argument(
-        "--svg", type=path_arg, metavar="FILE", help="write the walls as SVG ('-': stdout)"
+        "--svg", type=file_arg, metavar="FILE", help="write the walls as SVG ('-': stdout)"
     )
     parser.add_argument("-f", "--force", action="store_true", help="replace an existing file")
     add_map_arguments(parser)

@@ -7,14 +7,23 @@ import contextlib
 import math
 import sys
 from collections.abc import Callable, Iterator
+from pathlib import Path
 from typing import Any
 
-from rose.cli.options import add_limit_arguments, float_up_to, int_in_range, path_arg, resolution
+from rose.cli.options import (
+    add_limit_arguments,
+    file_arg,
+    float_up_to,
+    int_in_range,
+    location,
+    path_arg,
+    resolution,
+)
 from rose.outputs import OutputSet
 from rose_logs.carmen.parse import MAX_STAMP_S, CarmenLog, read_carmen_log
 from rose_logs.carmen.raycast import BuilderParams
 from rose_logs.carmen.session import SessionOptions, write_carmen_session
-from rose_logs.cli.options import UsageError
+from rose_logs.cli.options import UsageError, output_log_path
 from rose_logs.errors import LogReadError, LogWriteError
 from rose_logs.formats import format_from_path, suffix_mismatch_warning, unknown_suffix_warning
 
@@ -40,7 +49,7 @@ def add_parser(subparsers: Any) -> None:
     parser.add_argument("log", type=path_arg, help="CARMEN log, plain or gzip")
     parser.add_argument(
         "output",
-        type=path_arg,
+        type=location,
         help="*.bag (ROS 1), *.mcap, or a folder (ROS 2 bag: db3, or MCAP with --format mcap-dir)",
     )
     parser.add_argument(
@@ -98,7 +107,7 @@ def add_parser(subparsers: Any) -> None:
     add_limit_arguments(parser)
     parser.add_argument(
         "--map-file",
-        type=path_arg,
+        type=file_arg,
         default=None,
         help="also save the final map as map_server YAML + PGM at this path",
     )
@@ -116,7 +125,8 @@ def run(args: argparse.Namespace) -> int:
         )
         raise UsageError(msg)
     outputs = OutputSet(inputs=[args.log], force=args.force, ends_run=True)
-    fmt = args.fmt or format_from_path(args.output) or "db3"
+    fmt = args.fmt or format_from_path(Path(args.output)) or "db3"
+    args.output = output_log_path(args.output, fmt)
     warning = (
         suffix_mismatch_warning(args.output, args.fmt)
         if args.fmt

@@ -8,9 +8,10 @@ from __future__ import annotations
 
 from collections.abc import Collection, Iterable
 from datetime import UTC, datetime
+from pathlib import Path
 from typing import Any
 
-from rose.cli.options import add_limit_arguments, fraction, positive_float
+from rose.cli.options import add_limit_arguments, fraction, names_folder, positive_float
 from rose.directions import FAILURE_LEVEL
 from rose_logs.cli import EXIT_GATE, EXIT_SALVAGED, UsageError
 
@@ -24,6 +25,27 @@ __all__ = [
     "unjudged_topics",
     "utc_text",
 ]
+
+
+def output_log_path(text: str | None, fmt: str | None) -> Path | None:
+    """The output log named on the command line, as a ``Path``; ``fmt`` is the format it will be
+    written in, None when not known (a bag folder is assumed fine).
+
+    Raises
+    ------
+    UsageError
+        If the name ends with ``/`` (a folder) but the format is a single file (mcap, ros1): ``Path``
+        drops the slash, so ``-o out/`` wrote the file ``out``.
+    """
+    if text is None:
+        return None
+    if names_folder(text) and fmt in ("mcap", "ros1"):
+        msg = (
+            f"{text}: ends with '/', a folder, but the output is one {fmt} file: give a file name, "
+            "or --format db3 / mcap-dir for a ROS 2 bag folder"
+        )
+        raise UsageError(msg)
+    return Path(text)
 
 
 def utc_text(time_ns: int) -> str:

@@ -11,6 +11,8 @@ from typing import Any, TextIO
 
 from rose.cli.options import (
     add_param_arguments,
+    file_arg,
+    location,
     params_from_args,
     path_arg,
 )
@@ -23,6 +25,7 @@ from rose_logs.cli.options import (
     add_gate_arguments,
     add_session_arguments,
     duration_text,
+    output_log_path,
     unjudged_topics,
     utc_text,
 )
@@ -45,7 +48,7 @@ def add_parser(subparsers: Any) -> None:
     parser.add_argument(
         "-o",
         "--output",
-        type=path_arg,
+        type=location,
         default=None,
         help="output log (default: <input>.rose.<ext> next to the input; a bag folder or .db3 <name> gives the folder <name>.rose)",
     )
@@ -70,7 +73,7 @@ def add_parser(subparsers: Any) -> None:
         dest="topics",
         help="map topic to analyse (repeatable; default: every OccupancyGrid topic)",
     )
-    parser.add_argument("--rrd", type=path_arg, default=None, help="save a Rerun recording here")
+    parser.add_argument("--rrd", type=file_arg, default=None, help="save a Rerun recording here")
     parser.add_argument(
         "--spawn", action="store_true", help="stream to a new Rerun viewer as the session runs"
     )
@@ -82,7 +85,7 @@ def add_parser(subparsers: Any) -> None:
     add_session_arguments(parser)
     parser.add_argument(
         "--json",
-        type=path_arg,
+        type=file_arg,
         default=None,
         dest="json_path",
         help="write a JSON report here (strict JSON, non-finite numbers as null; '-': stdout)",
@@ -206,6 +209,20 @@ def _print_break(report: Any, topic: str, out: Any) -> None:
     )
 
 
+def _output_format(args: argparse.Namespace) -> str | None:
+    """The format the output log named by ``-o`` is written in; None when the input cannot be read
+    (its own error comes later)."""
+    from rose_logs.errors import LogReadError
+    from rose_logs.formats import detect_format, format_from_path
+
+    if args.output is None:
+        return None
+    try:
+        return args.fmt or format_from_path(Path(args.output)) or detect_format(args.input)
+    except LogReadError:
+        return None
+
+
 def run(args: argparse.Namespace) -> int:
     from rose_logs.formats import suffix_mismatch_warning, unknown_suffix_warning
     from rose_logs.session import default_output_path
@@ -223,6 +240,7 @@ def run(args: argparse.Namespace) -> int:
             viewer_endpoint(args.connect)
         except ValueError as err:
             raise UsageError(f"argument --connect: {err}") from err
+    args.output = output_log_path(args.output, _output_format(args))
     output = None if args.no_output else (args.output or default_output_path(args.input, args.fmt))
     # Only a name the user typed: the default (input name + .rose) has the output format's suffix.
     warning = None

@@ -569,6 +569,32 @@ def test_an_output_that_is_a_folder_is_named_so_without_advising_force(
 
 
 @pytest.mark.parametrize(
+    ("extra", "written"),
+    [
+        (["-o", "out/"], None),
+        (["-o", "out.mcap/"], None),
+        (["--no-output", "--rrd", "out/"], None),
+        (["--no-output", "--json", "out/"], None),
+        (["-o", "out/", "--format", "mcap-dir"], "out"),
+    ],
+)
+def test_an_output_file_named_as_a_folder_is_a_usage_error(
+    tmp_path: Path, capsys, mcap_log: Path, monkeypatch, extra: list[str], written: str | None
+) -> None:
+    """``-o out/`` wrote the MCAP file ``out`` (the slash was dropped): a name ending in '/' is a
+    folder, which only a ROS 2 bag output can be."""
+    monkeypatch.chdir(tmp_path)
+    if written is None:
+        assert _exit_code(["process", str(mcap_log), "-q", *extra]) == 2
+        assert "ends with '/', a folder" in capsys.readouterr().err.splitlines()[-1]
+        assert _leftovers(tmp_path, {"in.mcap"}) == []
+    else:
+        code, _, err = _run(capsys, "process", mcap_log, "-q", *extra)
+        assert code == 0, err
+        assert (tmp_path / written / "metadata.yaml").is_file()
+
+
+@pytest.mark.parametrize(
     ("kwargs", "match"),
     [
         ({"failure_level": -1.0}, "failure_level"),
@@ -625,3 +651,14 @@ def test_a_mistyped_topic_gets_a_suggestion(tmp_path: Path, capsys, fr079) -> No
     code, _, err = _run(capsys, "process", built.path, "--no-output", "-t", "/map_updates")
     assert code == 1
     _assert_one_line_error(err, "(it updates /map: pass --topic /map)")
+
+
+def _exit_code(argv: list[str]) -> int | str | None:
+    """The exit code of ``rose-bag ARGV``: returned, or argparse's (it exits on its own usage
+    errors)."""
+    from rose_logs.cli import main
+
+    try:
+        return main(argv)
+    except SystemExit as stop:
+        return stop.code
