@@ -263,7 +263,12 @@ def _load_yaml_map(path: Path, max_cells: int | None) -> OccupancyMap:
         _require_regular(image_path, "no such image file")
     except MapFileError as err:
         msg = f"{path}: its image {short(err, 240)}"
-        if image_name != image_name.strip():  # "depot.pgm " read like depot.pgm, which exists
+        if "://" in image_name:  # Path() folds 'package://p/m.pgm' to 'package:/p/m.pgm'
+            msg = (
+                f"{path}: its image {short(repr(image_name), 120)} is a URL: map_server reads a "
+                "file path (absolute, or relative to the YAML), and no such file exists"
+            )
+        elif image_name != image_name.strip():  # "depot.pgm " read like depot.pgm, which exists
             msg += f" (the name {image_name!r} has spaces or line breaks around it)"
         raise MapFileError(msg) from err
     grid = image_to_grid(

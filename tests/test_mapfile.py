@@ -623,3 +623,14 @@ def test_an_image_name_with_spaces_around_it_is_shown_quoted(tmp_path: Path) -> 
     (tmp_path / "spaced.yaml").write_text(text)
     with pytest.raises(MapFileError, match=r"the name 'depot\.pgm ' has spaces or line breaks"):
         rose.load_map(tmp_path / "spaced.yaml")
+
+
+def test_an_image_named_by_a_url_is_said_to_be_one(tmp_path: Path) -> None:
+    """'image: package://p/m.pgm' said "its image package:/p/m.pgm: no such image file" (Path
+    folds the double slash), which reads like a typo rather than a URL map_server never resolves."""
+    grid = np.zeros((4, 4), dtype=np.int8)
+    rose.save_map(tmp_path / "m.yaml", rose.OccupancyMap(grid=grid))
+    text = (tmp_path / "m.yaml").read_text()
+    (tmp_path / "url.yaml").write_text(text.replace("image: m.pgm", "image: package://p/m.pgm"))
+    with pytest.raises(MapFileError, match=r"its image 'package://p/m\.pgm' is a URL"):
+        rose.load_map(tmp_path / "url.yaml")

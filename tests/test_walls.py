@@ -263,3 +263,19 @@ def test_a_wall_set_leaves_the_callers_array_writable() -> None:
     endpoints = np.zeros((1, 2, 2))
     walls = WallSet(endpoints_px=endpoints, shape=(10, 10), resolution_m=0.05)
     assert endpoints.flags.writeable and not walls.endpoints_px.flags.writeable
+
+
+@pytest.mark.parametrize("resolution_m", [0.05, 1e-9, 1e-20])
+def test_the_walls_table_resolves_a_cell_at_any_resolution(resolution_m: float) -> None:
+    """--resolution 1e-9 printed every coordinate and length as 0.000: the table prints at least a
+    tenth of a cell (exponent form below a nanometre), and millimetres on usual maps."""
+    from rose.cli.walls import format_walls_table
+
+    grid, _ = floor_plan(angle_deg=0.0)
+    walls = rose.extract_walls(grid, resolution_m=resolution_m)
+    rows = [line.split() for line in format_walls_table(walls).splitlines()[2:]]
+    assert rows
+    lengths = np.array([float(row[5]) for row in rows])
+    np.testing.assert_allclose(lengths, walls.lengths_m, rtol=0.01)
+    if resolution_m == 0.05:
+        assert all(len(row[5].split(".")[1]) == 3 for row in rows)

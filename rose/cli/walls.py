@@ -96,13 +96,20 @@ def run(args: argparse.Namespace, *, stdout: TextIO | None = None) -> int:
 
 def format_walls_table(walls: WallSet) -> str:
     """A plain-text table of the walls (map frame, metres and degrees), with a summary line."""
+    # Millimetres, or a tenth of a cell where cells are smaller (--resolution 1e-9 printed every
+    # length as 0.000); below a nanometre, in exponent form.
+    places = max(3, math.ceil(-math.log10(walls.resolution_m)) + 1)
+    spec = f".{places}f" if places <= 10 else ".3e"
+    total_spec = ".2f" if places == 3 else spec  # centimetres, as before, on usual maps
     lines = [
-        f"{len(walls)} walls ({walls.method}), total length {walls.lengths_m.sum():.2f} m",
+        f"{len(walls)} walls ({walls.method}), total length {walls.lengths_m.sum():{total_spec}} m",
         f"{'#':>4}  {'x0_m':>9} {'y0_m':>9}  {'x1_m':>9} {'y1_m':>9}  {'length_m':>8}  {'angle_deg':>9}",
     ]
     for i, seg in enumerate(walls.segments):
+        numbers = (*seg.start_m, *seg.end_m)
+        x0, y0, x1, y1 = (f"{v:>9{spec}}" for v in numbers)
         lines.append(
-            f"{i:>4}  {seg.start_m[0]:>9.3f} {seg.start_m[1]:>9.3f}  {seg.end_m[0]:>9.3f} "
-            f"{seg.end_m[1]:>9.3f}  {seg.length_m:>8.3f}  {math.degrees(seg.orientation_rad):>9.2f}"
+            f"{i:>4}  {x0} {y0}  {x1} {y1}  {seg.length_m:>8{spec}}  "
+            f"{math.degrees(seg.orientation_rad):>9.2f}"
         )
     return "\n".join(lines) + "\n"
