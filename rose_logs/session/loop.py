@@ -34,7 +34,7 @@ from typing import TYPE_CHECKING, Any
 import rose
 from rose.cleaning import CLEAN_METHODS, CleanMethod, CleanResult
 from rose.directions import FAILURE_LEVEL, map_frame_deg
-from rose.limits import DEFAULT_MAX_CELLS, check_cells, finite_number, short
+from rose.limits import DEFAULT_MAX_CELLS, check_cells, finite_number, integer_number, short
 from rose.outputs import OutputSet, signals_deferred
 from rose.params import RoseParams, make_params
 from rose.result import RoseResult
@@ -182,11 +182,12 @@ def process_log(
     if not (finite_number(failure_level) and 0 < failure_level <= 1):
         msg = f"failure_level must be a number in (0, 1], got {failure_level!r}"
         raise rose.RoseError(msg)
-    if not isinstance(analysis_threads, int) or isinstance(analysis_threads, bool):
+    if not (integer_number(analysis_threads) and analysis_threads >= 1):
         msg = f"analysis_threads must be an integer >= 1, got {analysis_threads!r}"
         raise rose.RoseError(msg)
-    if analysis_threads < 1:
-        msg = f"analysis_threads must be an integer >= 1, got {analysis_threads!r}"
+    # 0 refused every map as too large, each with its own warning.
+    if max_cells is not None and not (integer_number(max_cells) and max_cells >= 1):
+        msg = f"max_cells must be a whole number >= 1 or None, got {max_cells!r}"
         raise rose.RoseError(msg)
     if clean_method not in CLEAN_METHODS:
         msg = f"clean_method must be one of {', '.join(CLEAN_METHODS)}, got {clean_method!r}"

@@ -600,6 +600,8 @@ def test_an_output_file_named_as_a_folder_is_a_usage_error(
         ({"failure_level": -1.0}, "failure_level"),
         ({"failure_level": float("nan")}, "failure_level"),
         ({"analysis_threads": 0}, "analysis_threads"),
+        ({"max_cells": 0}, "max_cells"),  # every map refused as too large, one warning each
+        ({"max_cells": 2.5}, "max_cells"),
     ],
 )
 def test_process_log_refuses_bad_parameters_before_reading(
