@@ -381,6 +381,13 @@ def test_convert_names_a_wrong_map_file_and_why_no_scan_was_read(
         f"error: {path}: no FLASER scan found (1 malformed FLASER lines; first: line 1: "
         "non-finite pose or timestamp)"
     ]
+    # A log of other messages only (ODOM, ROBOTLASER1) said "0 malformed FLASER lines".
+    path.write_text("ODOM 1 2 3 0 0 0 12.5 h 12.5\n" * 2 + "ROBOTLASER1 0 0 0\n# note\n")
+    assert main(["convert", str(path), str(tmp_path / "s.mcap")]) == 1
+    assert capsys.readouterr().err.strip().splitlines() == [
+        f"error: {path}: no FLASER scan found: only FLASER lines are read; its lines start "
+        "ODOM (2), ROBOTLASER1 (1)"
+    ]
 
 
 def test_flaser_ranges_without_a_return_and_lines_that_lie(tmp_path: Path) -> None:

@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
+from rose.limits import short
 from rose_logs.errors import LogReadError
 
 __all__ = [
@@ -287,7 +288,16 @@ def _why_no_scans(path: Path, log: CarmenLog) -> str:
     if b"\0" in head:  # text logs hold no NUL byte
         return "not a CARMEN log (binary data, no FLASER scan)"
     first = f"; first: {log.first_errors[0]}" if log.first_errors else ""
-    return f"no FLASER scan found ({log.malformed} malformed FLASER lines{first})"
+    held = sorted(
+        ((count, kind) for kind, count in log.ignored.items() if kind not in ("", "#")),
+        key=lambda item: (-item[0], item[1]),
+    )
+    if log.malformed or not held:
+        return f"no FLASER scan found ({log.malformed} malformed FLASER lines{first})"
+    # An ODOM-only or ROBOTLASER1 log: say what it holds, and that only FLASER lines are read.
+    kinds = ", ".join(f"{short(kind, 20)} ({count})" for count, kind in held[:3])
+    more = ", ..." if len(held) > 3 else ""
+    return f"no FLASER scan found: only FLASER lines are read; its lines start {kinds}{more}"
 
 
 def read_carmen_log(path: str | Path, *, max_scans: int | None = None) -> CarmenLog:
