@@ -131,12 +131,12 @@ def _warn_if_mask(
 def _scale_and_threshold(
     reference: npt.NDArray[np.float32], occupied: npt.NDArray[np.bool_], p: RoseParams
 ) -> tuple[npt.NDArray[np.float32], float]:
-    """Scale the nominal reference map in place so the best occupied cell scores 1; pick the threshold."""
+    """Scale the nominal reference map so the best occupied cell scores 1 (a new, contiguous array:
+    the crop and the scaling in one pass); pick the threshold."""
     occupied_scores = reference[occupied]
     top = float(occupied_scores.max())
     scale = 1.0 / top if top > 0 else 1.0
-    cell_scores = reference
-    cell_scores *= np.float32(scale)  # in place: the reference map is this function's to keep
+    cell_scores = np.multiply(reference, np.float32(scale), dtype=np.float32)
     if p.threshold_mode == "fixed":
         return cell_scores, p.fixed_threshold
     threshold = gmm_threshold(occupied_scores * np.float32(scale), max_samples=p.max_gmm_samples)
