@@ -512,3 +512,29 @@ threading.Thread(target=later).start()
     assert done.returncode == 0, done.stderr
     counts = dict(line.split() for line in done.stdout.splitlines())
     assert set(counts) == {"thread", "atexit"} and counts["thread"] == counts["atexit"]
+
+
+@pytest.mark.parametrize("vertical", [False, True])
+def test_run_morphology_matches_opencvs_line_kernels(vertical: bool) -> None:
+    # The bridges and the runs work on the runs of the occupied cells: every cell must be the one
+    # OpenCV's opening (empty border) and closing (its default borders) with a line gives.
+    from rose.cleaning_rules import _close_runs, _nonzero_flat, _open_runs, _run_cells, _runs
+
+    rng = np.random.default_rng(7)
+    for _ in range(400):
+        shape = (int(rng.integers(1, 30)), int(rng.integers(1, 30)))
+        image = (rng.random(shape) < rng.choice([0.05, 0.3, 0.8])).astype(np.uint8)
+        size = int(rng.integers(1, 10))
+        kernel = np.ones((size, 1) if vertical else (1, size), np.uint8)
+        extent = shape[0] if vertical else shape[1]
+        runs = _runs(_nonzero_flat(image), shape, vertical)
+        for got, want in (
+            (
+                _open_runs(runs, size, extent),
+                cv2.morphologyEx(image, cv2.MORPH_OPEN, kernel, borderValue=0),
+            ),
+            (_close_runs(runs, size, extent), cv2.morphologyEx(image, cv2.MORPH_CLOSE, kernel)),
+        ):
+            cells = np.zeros(shape, np.uint8)
+            cells.reshape(-1)[_run_cells(got, shape, vertical)] = 1
+            np.testing.assert_array_equal(cells, want)
