@@ -14,24 +14,26 @@ up to 32 MiB on the heap, and up to 64 MiB of free heap before giving memory bac
 A smaller trim threshold (8 MiB) gives the memory back and the page faults with it.
 
 Each thread that allocates gets its own arena, and each arena keeps up to the trim threshold of
-free heap: the session's threads (reading, two analyses, the cleaning's second thread, the break
-detector, Rerun's logging) are held to two arenas. The one-hour benchmark session
-(``benchmarks/bench_session.py --rrd``) peaked at 381 MB instead of 408-412 MB, in 28.3 s instead
-of 28.6-29.0 s (same machine, same hour).
+free heap besides the holes between live arrays: the session's threads (reading, two analyses, the
+cleaning's second thread, the break detector, Rerun's logging) share one arena. The one-hour
+benchmark session (``benchmarks/bench_session.py --rrd``) peaked at 381 MB with two arenas instead
+of 408-412 MB with glibc's default (8 per core), and 10-15 MB lower again with one, in the same
+time (its arrays are few and large: the threads seldom wait for the arena's lock).
 """
 
 from __future__ import annotations
 
 import ctypes
 import ctypes.util
+from typing import Any
 
-__all__ = ["MALLOC_ENV", "keep_arrays_on_heap"]
+__all__ = ["MALLOC_ENV", "keep_arrays_on_heap", "release_free_heap"]
 
 #: The thresholds in environment form (read by glibc when a process starts).
 MALLOC_ENV = {
     "MALLOC_TRIM_THRESHOLD_": str(64 * 2**20),
     "MALLOC_MMAP_THRESHOLD_": str(32 * 2**20),  # glibc's largest allowed value on 64-bit
-    "MALLOC_ARENA_MAX": "2",
+    "MALLOC_ARENA_MAX": "1",
 }
 
 _M_TRIM_THRESHOLD = -1
@@ -45,15 +47,35 @@ def keep_arrays_on_heap() -> bool:
     Process-wide, so only entry points call it (the ``rose-bag`` command, batch workers), never the
     library.
     """
-    library = ctypes.util.find_library("c")
-    try:
-        libc = ctypes.CDLL(library) if library else None
-        mallopt = getattr(libc, "mallopt", None)
-    except OSError:
-        mallopt = None
+    mallopt = _glibc_function("mallopt")
     if mallopt is None:  # not glibc (musl, macOS): nothing to tune
         return False
     mallopt(_M_MMAP_THRESHOLD, int(MALLOC_ENV["MALLOC_MMAP_THRESHOLD_"]))
     mallopt(_M_TRIM_THRESHOLD, int(MALLOC_ENV["MALLOC_TRIM_THRESHOLD_"]))
     mallopt(_M_ARENA_MAX, int(MALLOC_ENV["MALLOC_ARENA_MAX"]))  # threads made after this
     return True
+
+
+def release_free_heap() -> bool:
+    """Give the free pages of every malloc arena back to the system (``malloc_trim``); False when
+    not on glibc.
+
+    For the end of a phase whose arrays are gone while the process goes on: the trim threshold
+    above keeps up to 64 MiB of free heap per arena, and free space below the heap's top is kept
+    whatever the threshold.
+    """
+    malloc_trim = _glibc_function("malloc_trim")
+    if malloc_trim is None:  # not glibc
+        return False
+    malloc_trim(0)
+    return True
+
+
+def _glibc_function(name: str) -> Any:
+    """The C library's function ``name``, None when it has none (musl, macOS lack glibc's)."""
+    library = ctypes.util.find_library("c")
+    try:
+        libc = ctypes.CDLL(library) if library else None
+    except OSError:
+        return None
+    return getattr(libc, name, None)

@@ -34,6 +34,7 @@ import rerun as rr
 from rose.directions import FAILURE_LEVEL, TRUST_LEVEL
 from rose.result import RoseResult
 from rose.walls import WallSet
+from rose_logs.malloc import release_free_heap
 from rose_logs.rerun.blueprint import TopicLayout, default_blueprint
 from rose_logs.rerun.loggers import TopicLogger, set_snapshot_time, view_origin_m
 from rose_logs.rerun.paths import EntityPaths, entity_root_for_topic
@@ -503,6 +504,9 @@ class RerunSink:
         """Finish logging, send the final layout, flush, and move the ``.rrd`` into place."""
         self._drain()
         self._check()
+        # The session's arrays are gone; Rerun now builds the recording's footer (a manifest of
+        # every chunk, tens of MB after an hour): on top of glibc's free heap, that was the peak.
+        release_free_heap()
         self._closing = True  # the final layout frames the final map
         if not self.live:  # a live viewer placed the bar with each map
             for logger in self.loggers.values():

@@ -6,6 +6,7 @@ import io
 import json
 import re
 import statistics
+import subprocess
 import sys
 from pathlib import Path
 
@@ -145,6 +146,36 @@ def test_the_command_keeps_map_arrays_on_the_heap(monkeypatch: pytest.MonkeyPatc
     assert calls == [True]
     if platform.libc_ver()[0] == "glibc":
         assert keep_arrays_on_heap()
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="reads /proc/self/status (glibc on Linux)")
+def test_free_heap_goes_back_to_the_system() -> None:
+    """The heap the arrays of a finished session left free is given back (the Rerun footer was
+    built on top of it: the session's peak)."""
+    import platform
+
+    if platform.libc_ver()[0] != "glibc":
+        pytest.skip("glibc's malloc_trim")
+    script = """
+import numpy as np
+from rose_logs.malloc import keep_arrays_on_heap, release_free_heap
+def rss_mib():
+    return next(int(l.split()[1]) // 1024 for l in open("/proc/self/status") if l.startswith("VmRSS"))
+keep_arrays_on_heap()
+arrays = [np.ones(2**20, np.uint8) for _ in range(100)]  # 100 MiB on the heap, then freed
+last = arrays[-1]  # the heap's top stays in use: glibc's own trimming cannot give the rest back
+del arrays
+held = rss_mib()
+assert release_free_heap()
+print(held, rss_mib())
+"""
+    held, after = map(
+        int,
+        subprocess.run(
+            [sys.executable, "-c", script], check=True, capture_output=True, text=True
+        ).stdout.split(),
+    )
+    assert held - after > 80, (held, after)
 
 
 def test_gate_and_json_break(tmp_path: Path, capsys, fr079, broken_grid) -> None:
