@@ -538,3 +538,32 @@ def test_run_morphology_matches_opencvs_line_kernels(vertical: bool) -> None:
             cells = np.zeros(shape, np.uint8)
             cells.reshape(-1)[_run_cells(got, shape, vertical)] = 1
             np.testing.assert_array_equal(cells, want)
+
+
+@pytest.mark.parametrize("vertical", [False, True])
+def test_the_run_and_image_line_morphology_agree(
+    vertical: bool, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Speckled grids take OpenCV's whole-image morphology (the runs' index arrays grew with the
+    cells: a 40 %-occupied 5000 x 5000 grid cleaned 4x slower and with 1 GB more); walls take the
+    runs. Both must fill and keep the same cells, at every density."""
+    import rose.cleaning_rules as rules
+
+    rng = np.random.default_rng(11)
+    for _ in range(60):
+        shape = (int(rng.integers(1, 60)), int(rng.integers(1, 60)))
+        image = (rng.random(shape) < rng.choice([0.02, 0.1, 0.4, 0.9])).astype(np.uint8)
+        image[int(rng.integers(0, shape[0]))] = 1  # a wall line along the rows
+        length, anchors = int(rng.integers(3, 14)), sorted({1, int(rng.integers(1, 9))})
+        found = []
+        for share in (2.0, -1.0):  # never, always OpenCV's
+            for name in ("_DENSE_CELLS", "_FRAGMENTED_RUNS", "_FRAGMENTED_CLOSED"):
+                monkeypatch.setattr(rules, name, share)
+            found.append(
+                (
+                    rules._closed_gaps(image, vertical, length, anchors),
+                    rules._runs_in_frame(image.view(bool), 0.0, length, int(vertical)),
+                )
+            )
+        for runs_way, image_way in zip(*found, strict=True):
+            np.testing.assert_array_equal(runs_way, image_way)
