@@ -29,6 +29,7 @@ __all__ = [
     "MAX_MESSAGE_CHARS",
     "MAX_YAML_BYTES",
     "MAX_YAML_DEPTH",
+    "cell_limit",
     "check_cells",
     "finite_number",
     "image_shape",
@@ -66,6 +67,23 @@ def visible(text: str) -> str:
     if text.isprintable():
         return text
     return "".join(c if c.isprintable() else c.encode("unicode_escape").decode() for c in text)
+
+
+def cell_limit(value: object) -> int | None:
+    """A ``max_cells`` argument as an int (None: no limit); a whole float such as ``2e8`` is taken.
+
+    Raises
+    ------
+    ValueError
+        If ``value`` is not None nor a whole number >= 1 (0 refused every map as too large).
+    """
+    if value is None:
+        return None
+    whole = integer_number(value) or (finite_number(value) and float(value).is_integer())  # type: ignore[arg-type]
+    if not whole or int(value) < 1:  # type: ignore[call-overload]
+        msg = f"max_cells must be a whole number >= 1 or None, got {value!r}"
+        raise ValueError(msg)
+    return int(value)  # type: ignore[call-overload]
 
 
 def check_cells(rows: int, cols: int, max_cells: int | None) -> str | None:

@@ -34,6 +34,7 @@ from rose.grid import OCCUPIED, UNKNOWN, as_occupancy_grid
 from rose.limits import (
     DEFAULT_MAX_CELLS,
     MAX_YAML_BYTES,
+    cell_limit,
     check_cells,
     finite_number,
     image_kind,
@@ -155,9 +156,10 @@ def load_map(
         of metres.
     """
     path = Path(os.fsdecode(path))  # bytes too, as os.open takes them
-    if max_cells is not None and not (integer_number(max_cells) and int(max_cells) >= 1):
-        msg = f"max_cells must be a whole number >= 1 or None, got {max_cells!r}"
-        raise MapFileError(msg)
+    try:
+        max_cells = cell_limit(max_cells)
+    except ValueError as err:
+        raise MapFileError(str(err)) from None
     bare_image = path.suffix.lower() not in YAML_SUFFIXES
     if resolution_m is not None:
         if not bare_image:
@@ -266,8 +268,10 @@ def _load_yaml_map(path: Path, max_cells: int | None) -> OccupancyMap:
         if "://" in image_name:  # Path() folds 'package://p/m.pgm' to 'package:/p/m.pgm'
             msg = (
                 f"{path}: its image {short(repr(image_name), 120)} is a URL: map_server reads a "
-                "file path (absolute, or relative to the YAML), and no such file exists"
+                "file path (absolute, or relative to the YAML)"
             )
+            if image_name.startswith("file://") and Path(image_name[len("file://") :]).is_file():
+                msg += f": write {short(repr(image_name[len('file://') :]), 120)}"
         elif image_name != image_name.strip():  # "depot.pgm " read like depot.pgm, which exists
             msg += f" (the name {image_name!r} has spaces or line breaks around it)"
         raise MapFileError(msg) from err

@@ -96,8 +96,9 @@ def nominal_reference_map(
 
     Returns
     -------
-    ndarray of float32, shape ``shape``
-        A view into the padded transform (the caller copies it when it scales it).
+    ndarray of float32 (float64 for a complex128 spectrum), shape ``shape``
+        A view into the padded transform, not contiguous unless nothing was padded (``analyze``
+        copies it as it scales it).
     """
     padded_rows = spectrum.shape[0]
     padded_cols = 2 * (spectrum.shape[1] - 1)

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import ctypes
 import ctypes.util
+import functools
 from typing import Any
 
 __all__ = ["MALLOC_ENV", "keep_arrays_on_heap", "release_free_heap"]
@@ -62,7 +63,8 @@ def release_free_heap() -> bool:
 
     For the end of a phase whose arrays are gone while the process goes on: the trim threshold
     above keeps up to 64 MiB of free heap per arena, and free space below the heap's top is kept
-    whatever the threshold.
+    whatever the threshold. Unlike the thresholds, this changes no setting of the process, so
+    library code may call it (the Rerun sink does, before writing the recording's footer).
     """
     malloc_trim = _glibc_function("malloc_trim")
     if malloc_trim is None:  # not glibc
@@ -71,8 +73,10 @@ def release_free_heap() -> bool:
     return True
 
 
+@functools.cache
 def _glibc_function(name: str) -> Any:
-    """The C library's function ``name``, None when it has none (musl, macOS lack glibc's)."""
+    """The C library's function ``name``, None when it has none (musl, macOS lack glibc's). Looked
+    up once: ``find_library`` runs ``ldconfig -p``."""
     library = ctypes.util.find_library("c")
     try:
         libc = ctypes.CDLL(library) if library else None

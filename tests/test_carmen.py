@@ -147,7 +147,7 @@ def test_convert_refuses_a_file_output_named_as_a_folder(
     path.write_text("FLASER 3 1.0 2.0 3.0 0.5 -0.5 0.1 0.5 -0.5 0.1 12.5 host 12.5\n")
     for argv in (["o.mcap/"], ["o.bag/"], ["o/", "--format", "ros1"], ["s", "--map-file", "m/"]):
         assert _exit_code(["convert", str(path), *argv]) == 2
-        assert "ends with '/', a folder" in capsys.readouterr().err
+        assert "names a folder (it ends with a separator)" in capsys.readouterr().err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["log.txt"]
     assert main(["convert", str(path), f"{tmp_path}/bag/"]) == 0
     assert (tmp_path / "bag" / "metadata.yaml").is_file()
@@ -388,6 +388,12 @@ def test_convert_names_a_wrong_map_file_and_why_no_scan_was_read(
         f"error: {path}: no FLASER scan found: only FLASER lines are read; its lines start "
         "ODOM (2), ROBOTLASER1 (1)"
     ]
+    path.write_text("# only a comment\n\n\x1b[31mX 1\n")  # an escape cannot drive the terminal
+    assert main(["convert", str(path), str(tmp_path / "s.mcap")]) == 1
+    assert "its lines start \\x1b[31mX (1)" in capsys.readouterr().err
+    path.write_text("# only a comment\n\n")
+    assert main(["convert", str(path), str(tmp_path / "s.mcap")]) == 1
+    assert "the log is empty, or holds only comments" in capsys.readouterr().err
 
 
 def test_flaser_ranges_without_a_return_and_lines_that_lie(tmp_path: Path) -> None:

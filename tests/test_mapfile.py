@@ -602,9 +602,13 @@ def test_a_saved_map_needs_a_utf8_name_its_yaml_can_hold(tmp_path: Path) -> None
 def test_load_map_takes_bytes_paths_and_refuses_cell_limits_that_are_no_limit() -> None:
     path = repo_data(f"{FR079_DIR}/map15.yaml")
     assert rose.load_map(os.fsencode(path)).grid.shape == rose.load_map(path).grid.shape
-    for bad in (-1, 0, 1.5):
+    for bad in (-1, 0, 1.5, float("inf"), True):
         with pytest.raises(MapFileError, match="max_cells must be a whole number"):
             rose.load_map(path, max_cells=bad)  # type: ignore[arg-type]
+    # A whole float is a limit (2e8 was refused as not a whole number).
+    assert rose.load_map(path, max_cells=2e8).grid.shape == (736, 1152)  # type: ignore[arg-type]
+    with pytest.raises(MapFileError, match="exceeds the limit of 1,000"):
+        rose.load_map(path, max_cells=1e3)  # type: ignore[arg-type]
 
 
 def test_save_map_takes_bytes_paths_as_load_map_does(tmp_path: Path) -> None:

@@ -265,17 +265,24 @@ def test_a_wall_set_leaves_the_callers_array_writable() -> None:
     assert endpoints.flags.writeable and not walls.endpoints_px.flags.writeable
 
 
-@pytest.mark.parametrize("resolution_m", [0.05, 1e-9, 1e-20])
-def test_the_walls_table_resolves_a_cell_at_any_resolution(resolution_m: float) -> None:
-    """--resolution 1e-9 printed every coordinate and length as 0.000: the table prints at least a
-    tenth of a cell (exponent form below a nanometre), and millimetres on usual maps."""
+@pytest.mark.parametrize(
+    ("resolution_m", "origin"),
+    [(0.05, (0.0, 0.0)), (1e-9, (0.0, 0.0)), (1e-20, (0.0, 0.0)), (1e-10, (-10.0, 3.0))],
+)
+def test_the_walls_table_resolves_a_cell_at_any_resolution(
+    resolution_m: float, origin: tuple[float, float]
+) -> None:
+    """--resolution 1e-9 printed every coordinate and length as 0.000, and an origin 10 m away at
+    1e-10 m per cell every x the same: the table tells a tenth of a cell apart at any resolution,
+    in millimetres on usual maps."""
     from rose.cli.walls import format_walls_table
 
     grid, _ = floor_plan(angle_deg=0.0)
-    walls = rose.extract_walls(grid, resolution_m=resolution_m)
+    walls = rose.extract_walls(grid, resolution_m=resolution_m, origin_xy_m=origin)
     rows = [line.split() for line in format_walls_table(walls).splitlines()[2:]]
-    assert rows
-    lengths = np.array([float(row[5]) for row in rows])
-    np.testing.assert_allclose(lengths, walls.lengths_m, rtol=0.01)
+    assert len(rows) == len(walls) > 0
+    printed = np.array([[float(v) for v in row[1:6]] for row in rows])
+    exact = np.array([[*s.start_m, *s.end_m, s.length_m] for s in walls.segments])
+    np.testing.assert_allclose(printed, exact, rtol=0, atol=resolution_m / 2)
     if resolution_m == 0.05:
         assert all(len(row[5].split(".")[1]) == 3 for row in rows)

@@ -156,15 +156,17 @@ def file_arg(text: str) -> Path:
     """argparse type: the path of an output *file*. A name ending in ``/`` names a folder: refused
     (``Path`` drops the slash, so ``--rrd out/`` wrote the file ``out``)."""
     if names_folder(text):
-        msg = f"{text!r} ends with '/', a folder: give a file name"
+        msg = f"{text!r} names a folder (it ends with a separator): give a file name"
         raise argparse.ArgumentTypeError(msg)
     return path_arg(text)
 
 
-def names_folder(text: str | Path) -> bool:
-    """Whether a path as typed ends with a separator (``out/``): the user means a folder."""
-    text = str(text)
-    return len(text) > 1 and text.endswith(tuple(sep for sep in (os.sep, os.altsep) if sep))
+def names_folder(text: str) -> bool:
+    """Whether a path as typed (a ``str``: ``Path`` drops the slash) ends with a separator, or a
+    separator and ``.`` (``out/``, ``out/.``): the user means a folder."""
+    separators = [sep for sep in (os.sep, os.altsep) if sep]
+    endings = (*separators, *(sep + "." for sep in separators))
+    return len(text) > 1 and text.endswith(endings)
 
 
 def location(text: str) -> str:

@@ -96,20 +96,37 @@ def run(args: argparse.Namespace, *, stdout: TextIO | None = None) -> int:
 
 def format_walls_table(walls: WallSet) -> str:
     """A plain-text table of the walls (map frame, metres and degrees), with a summary line."""
-    # Millimetres, or a tenth of a cell where cells are smaller (--resolution 1e-9 printed every
-    # length as 0.000); below a nanometre, in exponent form.
-    places = max(3, math.ceil(-math.log10(walls.resolution_m)) + 1)
-    spec = f".{places}f" if places <= 10 else ".3e"
-    total_spec = ".2f" if places == 3 else spec  # centimetres, as before, on usual maps
-    lines = [
-        f"{len(walls)} walls ({walls.method}), total length {walls.lengths_m.sum():{total_spec}} m",
-        f"{'#':>4}  {'x0_m':>9} {'y0_m':>9}  {'x1_m':>9} {'y1_m':>9}  {'length_m':>8}  {'angle_deg':>9}",
+    rows = [
+        (*seg.start_m, *seg.end_m, seg.length_m, math.degrees(seg.orientation_rad))
+        for seg in walls.segments
     ]
-    for i, seg in enumerate(walls.segments):
-        numbers = (*seg.start_m, *seg.end_m)
-        x0, y0, x1, y1 = (f"{v:>9{spec}}" for v in numbers)
-        lines.append(
-            f"{i:>4}  {x0} {y0}  {x1} {y1}  {seg.length_m:>8{spec}}  "
-            f"{math.degrees(seg.orientation_rad):>9.2f}"
-        )
+    metres = _metres_format(
+        walls.resolution_m, max((abs(v) for r in rows for v in r[:5]), default=0)
+    )
+    texts = [[format(v, metres) for v in r[:5]] + [f"{r[5]:.2f}"] for r in rows]
+    heads = ("x0_m", "y0_m", "x1_m", "y1_m", "length_m", "angle_deg")
+    least = (9, 9, 9, 9, 8, 9)  # the usual table's columns
+    width = [max([least[k], *(len(t[k]) for t in texts)]) for k in range(len(heads))]
+
+    def line(first: str, cells: list[str] | tuple[str, ...]) -> str:
+        x0, y0, x1, y1, length, angle = (c.rjust(w) for c, w in zip(cells, width, strict=True))
+        return f"{first:>4}  {x0} {y0}  {x1} {y1}  {length}  {angle}"
+
+    total = walls.lengths_m.sum()
+    lines = [
+        f"{len(walls)} walls ({walls.method}), total length "
+        f"{format(total, '.2f' if metres == '.3f' else metres)} m",
+        line("#", heads),
+        *(line(str(i), t) for i, t in enumerate(texts)),
+    ]
     return "\n".join(lines) + "\n"
+
+
+def _metres_format(resolution_m: float, largest_m: float) -> str:
+    """Millimetres on usual maps; on finer grids enough significant digits to tell a tenth of a cell
+    apart at the largest value (--resolution 1e-9 printed every length as 0.000; an origin of
+    10 m at 1e-10 m per cell printed every x the same in exponent form)."""
+    if resolution_m >= 1e-3:
+        return ".3f"
+    digits = math.ceil(math.log10(max(largest_m, resolution_m) / resolution_m)) + 2
+    return f".{min(max(digits, 4), 17)}g"

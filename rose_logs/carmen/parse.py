@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
-from rose.limits import short
+from rose.limits import short, visible
 from rose_logs.errors import LogReadError
 
 __all__ = [
@@ -292,10 +292,12 @@ def _why_no_scans(path: Path, log: CarmenLog) -> str:
         ((count, kind) for kind, count in log.ignored.items() if kind not in ("", "#")),
         key=lambda item: (-item[0], item[1]),
     )
-    if log.malformed or not held:
+    if log.malformed:
         return f"no FLASER scan found ({log.malformed} malformed FLASER lines{first})"
+    if not held:
+        return "no FLASER scan found: the log is empty, or holds only comments and blank lines"
     # An ODOM-only or ROBOTLASER1 log: say what it holds, and that only FLASER lines are read.
-    kinds = ", ".join(f"{short(kind, 20)} ({count})" for count, kind in held[:3])
+    kinds = ", ".join(f"{visible(short(kind, 20))} ({count})" for count, kind in held[:3])
     more = ", ..." if len(held) > 3 else ""
     return f"no FLASER scan found: only FLASER lines are read; its lines start {kinds}{more}"
 

@@ -22,6 +22,7 @@ __all__ = [
     "add_gate_arguments",
     "add_session_arguments",
     "duration_text",
+    "output_log_path",
     "unjudged_topics",
     "utc_text",
 ]
@@ -41,7 +42,8 @@ def output_log_path(text: str | None, fmt: str | None) -> Path | None:
         return None
     if names_folder(text) and fmt in ("mcap", "ros1"):
         msg = (
-            f"{text}: ends with '/', a folder, but the output is one {fmt} file: give a file name, "
+            f"{text}: names a folder (it ends with a separator), but the output is one {fmt} "
+            "file: give a file name, "
             "or --format db3 / mcap-dir for a ROS 2 bag folder"
         )
         raise UsageError(msg)

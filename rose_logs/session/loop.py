@@ -34,7 +34,14 @@ from typing import TYPE_CHECKING, Any
 import rose
 from rose.cleaning import CLEAN_METHODS, CleanMethod, CleanResult
 from rose.directions import FAILURE_LEVEL, map_frame_deg
-from rose.limits import DEFAULT_MAX_CELLS, check_cells, finite_number, integer_number, short
+from rose.limits import (
+    DEFAULT_MAX_CELLS,
+    cell_limit,
+    check_cells,
+    finite_number,
+    integer_number,
+    short,
+)
 from rose.outputs import OutputSet, signals_deferred
 from rose.params import RoseParams, make_params
 from rose.result import RoseResult
@@ -185,10 +192,10 @@ def process_log(
     if not (integer_number(analysis_threads) and analysis_threads >= 1):
         msg = f"analysis_threads must be an integer >= 1, got {analysis_threads!r}"
         raise rose.RoseError(msg)
-    # 0 refused every map as too large, each with its own warning.
-    if max_cells is not None and not (integer_number(max_cells) and max_cells >= 1):
-        msg = f"max_cells must be a whole number >= 1 or None, got {max_cells!r}"
-        raise rose.RoseError(msg)
+    try:
+        max_cells = cell_limit(max_cells)
+    except ValueError as err:
+        raise rose.RoseError(str(err)) from None
     if clean_method not in CLEAN_METHODS:
         msg = f"clean_method must be one of {', '.join(CLEAN_METHODS)}, got {clean_method!r}"
         raise rose.RoseError(msg)

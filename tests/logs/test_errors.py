@@ -586,7 +586,9 @@ def test_an_output_file_named_as_a_folder_is_a_usage_error(
     monkeypatch.chdir(tmp_path)
     if written is None:
         assert _exit_code(["process", str(mcap_log), "-q", *extra]) == 2
-        assert "ends with '/', a folder" in capsys.readouterr().err.splitlines()[-1]
+        assert (
+            "names a folder (it ends with a separator)" in capsys.readouterr().err.splitlines()[-1]
+        )
         assert _leftovers(tmp_path, {"in.mcap"}) == []
     else:
         code, _, err = _run(capsys, "process", mcap_log, "-q", *extra)
@@ -602,6 +604,7 @@ def test_an_output_file_named_as_a_folder_is_a_usage_error(
         ({"analysis_threads": 0}, "analysis_threads"),
         ({"max_cells": 0}, "max_cells"),  # every map refused as too large, one warning each
         ({"max_cells": 2.5}, "max_cells"),
+        ({"max_cells": float("nan")}, "max_cells"),
     ],
 )
 def test_process_log_refuses_bad_parameters_before_reading(
