@@ -922,13 +922,21 @@ def _runs(cells: npt.NDArray[np.int64], shape: tuple[int, int], vertical: bool) 
         line, pos = np.divmod(cells, cols)
     if line.size == 0:
         return line, pos, pos
+    first, last = _groups(line, pos[1:] != pos[:-1] + 1)
+    return line[first], pos[first], pos[last]
+
+
+def _groups(
+    line: npt.NDArray[np.int64], apart: npt.NDArray[np.bool_]
+) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.intp]]:
+    """Where each group of consecutive items (``line`` non-empty) starts and ends (inclusive): a new
+    group at each new line and wherever ``apart`` (shape ``line.size - 1``: item ``i + 1`` is apart
+    from item ``i``) holds."""
     starts = np.empty(line.size, dtype=bool)
     starts[0] = True
-    np.not_equal(pos[1:], pos[:-1] + 1, out=starts[1:])
-    starts[1:] |= line[1:] != line[:-1]
+    np.logical_or(apart, line[1:] != line[:-1], out=starts[1:])
     first = np.flatnonzero(starts)
-    last = np.append(first[1:], line.size) - 1
-    return line[first], pos[first], pos[last]
+    return first, np.append(first[1:], line.size) - 1
 
 
 def _run_cells(runs: _Runs, shape: tuple[int, int], vertical: bool) -> npt.NDArray[np.int64]:
@@ -963,12 +971,7 @@ def _close_runs(runs: _Runs, size: int, extent: int) -> _Runs:
     low = np.maximum(start - after, 0)
     high = np.minimum(end + before, extent - 1)
     # Dilated runs that meet merge (the dilation keeps their order along a line).
-    starts = np.empty(line.size, dtype=bool)
-    starts[0] = True
-    np.greater(low[1:], high[:-1] + 1, out=starts[1:])
-    starts[1:] |= line[1:] != line[:-1]
-    first = np.flatnonzero(starts)
-    last = np.append(first[1:], line.size) - 1
+    first, last = _groups(line, low[1:] > high[:-1] + 1)
     low, high = low[first], high[last]
     low = np.where(low == 0, 0, low + before)
     high = np.where(high == extent - 1, extent - 1, high - after)

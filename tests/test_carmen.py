@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from cli_exit import exit_code
 from numpy.testing import assert_allclose
 from real_data import CARMEN_DIR, repo_data
 
@@ -146,7 +147,7 @@ def test_convert_refuses_a_file_output_named_as_a_folder(
     path = tmp_path / "log.txt"
     path.write_text("FLASER 3 1.0 2.0 3.0 0.5 -0.5 0.1 0.5 -0.5 0.1 12.5 host 12.5\n")
     for argv in (["o.mcap/"], ["o.bag/"], ["o/", "--format", "ros1"], ["s", "--map-file", "m/"]):
-        assert _exit_code(["convert", str(path), *argv]) == 2
+        assert exit_code(["convert", str(path), *argv]) == 2
         assert "names a folder (it ends with a separator)" in capsys.readouterr().err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["log.txt"]
     assert main(["convert", str(path), f"{tmp_path}/bag/"]) == 0
@@ -479,14 +480,3 @@ def test_gzip_with_bytes_after_it_is_said_so(tmp_path: Path) -> None:
     path.write_bytes(gzip.compress(good.encode()) + b"garbage after the member\n")
     with pytest.raises(CarmenFormatError, match=r"corrupt gzip data .*no gzip member follow"):
         read_carmen_log(path)
-
-
-def _exit_code(argv: list[str]) -> int | str | None:
-    """The exit code of ``rose-bag ARGV``: returned, or argparse's (it exits on its own usage
-    errors)."""
-    from rose_logs.cli import main
-
-    try:
-        return main(argv)
-    except SystemExit as stop:
-        return stop.code

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from cli_exit import exit_code
 from conftest import START_NS, MapMsg, build_log, log_path, read_all, session_maps, tree_bytes
 
 from rose_logs.cli import main
@@ -585,7 +586,7 @@ def test_an_output_file_named_as_a_folder_is_a_usage_error(
     folder, which only a ROS 2 bag output can be."""
     monkeypatch.chdir(tmp_path)
     if written is None:
-        assert _exit_code(["process", str(mcap_log), "-q", *extra]) == 2
+        assert exit_code(["process", str(mcap_log), "-q", *extra]) == 2
         assert (
             "names a folder (it ends with a separator)" in capsys.readouterr().err.splitlines()[-1]
         )
@@ -656,14 +657,3 @@ def test_a_mistyped_topic_gets_a_suggestion(tmp_path: Path, capsys, fr079) -> No
     code, _, err = _run(capsys, "process", built.path, "--no-output", "-t", "/map_updates")
     assert code == 1
     _assert_one_line_error(err, "(it updates /map: pass --topic /map)")
-
-
-def _exit_code(argv: list[str]) -> int | str | None:
-    """The exit code of ``rose-bag ARGV``: returned, or argparse's (it exits on its own usage
-    errors)."""
-    from rose_logs.cli import main
-
-    try:
-        return main(argv)
-    except SystemExit as stop:
-        return stop.code
