@@ -45,7 +45,7 @@ from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from types import FrameType, TracebackType
-from typing import Any, NoReturn, Self
+from typing import Any, BinaryIO, NoReturn, Self
 
 from rose.errors import OutputError
 from rose.limits import short
@@ -400,6 +400,15 @@ class StagedOutput:
     stream: bool
     data: bytearray | None = None
     to_stdout: bool = False
+
+
+def _write_all(stream: BinaryIO, data: bytes | bytearray) -> None:
+    """Write all of ``data``: a pipe whose reader leaves mid-write takes part of it and reports
+    the count, not an error (``--json - | head`` ended with exit 0 and the report cut); the next
+    write then raises ``BrokenPipeError``."""
+    view = memoryview(data)
+    while view:
+        view = view[stream.write(view) :]
 
 
 def _is_stdout(path: Path) -> bool:
@@ -828,11 +837,11 @@ class OutputSet:
             try:
                 if staged.to_stdout:
                     sys.stdout.flush()
-                    sys.stdout.buffer.write(staged.data)
+                    _write_all(sys.stdout.buffer, staged.data)
                     sys.stdout.buffer.flush()
                 else:
                     with staged.target.open("ab") as stream:  # a device or FIFO: never truncated
-                        stream.write(staged.data)
+                        _write_all(stream, staged.data)
             except BrokenPipeError:
                 if staged.to_stdout:  # the reader went away (`| head`): the CLI exits quietly
                     raise

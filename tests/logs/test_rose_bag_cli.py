@@ -9,6 +9,7 @@ import statistics
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -393,6 +394,30 @@ def test_a_closed_standard_output_ends_quietly_with_141(
     command, *args = (a.format(sample=SAMPLE, map15=MAP15, tmp=tmp_path) for a in argv)
     code = main(args) if command == "rose-bag" else rose.cli.main(args)
     assert code == 141
+    assert capsys.readouterr().err == ""
+
+
+class _PipeClosingMidWrite(_ClosedPipe):
+    """A reader that leaves after 1,000 bytes: the write that spans that point takes part of its
+    data and reports the count (as Python's buffered writer does), the next one breaks."""
+
+    taken = 0
+
+    def write(self, data: Any) -> int:
+        if self.taken >= 1000:
+            raise BrokenPipeError(32, "Broken pipe")
+        count = min(len(data), 1000 - self.taken)
+        self.taken += count
+        return count
+
+
+def test_a_reader_leaving_mid_report_is_141_not_a_cut_report(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--json - | head -1`` on a long session exited 0 with the report cut: the short count of
+    the write was not looked at."""
+    monkeypatch.setattr(sys, "stdout", _PipeClosingMidWrite())
+    assert main(["process", str(SAMPLE), "--no-output", "--json", "-", "-q"]) == 141
     assert capsys.readouterr().err == ""
 
 
