@@ -64,6 +64,8 @@ def detect_format(path: Path) -> LogFormat:
         return "db3"
     what = "empty file" if not head else "unrecognised header"
     msg = f"{path}: not a ROS 1 bag, ROS 2 bag or MCAP file ({what})"
+    if path.name.lower().endswith((".log", ".log.gz", ".clf", ".clf.gz")):
+        msg += "; a CARMEN laser log becomes a session with 'rose-bag convert'"
     raise LogReadError(msg)
 
 

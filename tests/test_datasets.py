@@ -75,3 +75,14 @@ def test_no_machine_paths_in_the_repository() -> None:
             if "/work/" in text or "/home/" in text or "/root/" in text:
                 offenders.append(str(path.relative_to(root)))
     assert offenders == []
+
+
+def test_an_evaluation_without_the_data_set_points_to_maps_dir(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A fresh clone has tests/data: the error named only ROSE_DATA_DIR and ../shared/maps."""
+    from rose_logs.evaluation.config import EvaluationConfig
+
+    monkeypatch.setenv(ENV_VAR, str(tmp_path / "absent"))
+    with pytest.raises(DataSetError, match=r"or give --maps-dir \(the small configuration"):
+        EvaluationConfig.small().data_root  # noqa: B018 (the property raises)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import importlib.util
 import io
 import threading
 from typing import TYPE_CHECKING, Any
@@ -45,6 +46,8 @@ def markdown(report: BatchReport, summary: dict[str, Any], *, figure: bool) -> s
     ]
     if report.interrupted:
         lines += ["**Interrupted:** recordings not finished are missing from this report.", ""]
+    if not figure and summary["snapshots"] and not plotting_available():
+        lines += ["No figure: matplotlib is not installed (`pip install 'rose-bag[plots]'`).", ""]
     if figure:
         lines += [
             "![W over time per recording; broken ones in colour](w_over_time.png)",
@@ -140,6 +143,11 @@ def _losses_section(rows: list[dict[str, Any]]) -> list[str]:
         warned = "; ".join(w for w in r["warnings"] if w not in r["losses"]) or "-"
         lines.append(f"| {_cell(r['name'])} | {_cell(lost)} | {skipped} | {_cell(warned)} |")
     return lines
+
+
+def plotting_available() -> bool:
+    """Whether matplotlib, which draws the figure (the ``plots`` extra), is installed."""
+    return importlib.util.find_spec("matplotlib") is not None
 
 
 def figure_png(report: BatchReport) -> bytes | None:

@@ -282,6 +282,13 @@ def _print_summary(report: Any) -> None:
     print(f"snapshots    {sum(r['snapshots'] for r in rows)}", file=out)
     print(f"output       {report.out}", file=out)
     print(f"elapsed      {report.elapsed_s:.2f} s", file=out)
+    from rose_logs.batch.report import plotting_available
+
+    if any(r["snapshots"] for r in rows) and not plotting_available():
+        print(
+            "note: no w_over_time.png: matplotlib is not installed (pip install 'rose-bag[plots]')",
+            file=sys.stderr,
+        )
 
 
 #: Failed recordings named on stderr, one line each, when they fail the batch.

@@ -142,7 +142,11 @@ class EvaluationConfig:
             When ``maps_dir`` is not a folder, or is None and the data set is not available.
         """
         if self.maps_dir is None:
-            return require_data_dir()
+            try:
+                return require_data_dir()
+            except DataSetError as err:  # a clone without the data set still has tests/data
+                msg = f"{err}; or give --maps-dir (the small configuration runs on tests/data)"
+                raise DataSetError(msg) from None
         if not Path(self.maps_dir).is_dir():
             what = "is a file, not a" if Path(self.maps_dir).exists() else "no such"
             msg = f"{self.maps_dir}: {what} data folder (--maps-dir)"

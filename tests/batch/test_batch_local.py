@@ -772,6 +772,21 @@ def test_a_file_name_that_is_not_utf8_is_processed_and_tabled(fleet: Path, tmp_p
     assert "r\\xffbot.mcap" in (out / "report.md").read_text(encoding="utf-8")
 
 
+def test_without_matplotlib_the_report_says_why_it_has_no_figure(
+    fleet: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The figure was left out silently where matplotlib (the plots extra) is not installed."""
+    import rose_logs.batch.report as report_module
+
+    monkeypatch.setattr(report_module, "plotting_available", lambda: False)
+    monkeypatch.setattr(report_module, "figure_png", lambda report: None)
+    out = tmp_path / "out"
+    assert main(["batch", str(fleet / "robot_a"), "-o", str(out), "-q"]) == 0
+    assert "matplotlib is not installed" in (out / "report.md").read_text()
+    assert "no w_over_time.png: matplotlib is not installed" in capsys.readouterr().err
+    assert not (out / "w_over_time.png").exists()
+
+
 def test_the_report_figure_leaves_the_callers_matplotlib_backend_alone(tmp_path: Path) -> None:
     """run_batch called from a notebook must not switch the user's plotting backend."""
     matplotlib = pytest.importorskip("matplotlib")

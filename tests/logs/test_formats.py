@@ -55,6 +55,17 @@ def test_unsupported_files_are_one_line_errors(
     assert "\n" not in str(info.value)
 
 
+@pytest.mark.parametrize("name", ["aces.log", "aces.log.gz", "intel.clf"])
+def test_a_carmen_log_given_as_a_recording_points_to_convert(tmp_path: Path, name: str) -> None:
+    """The README's own examples use CARMEN logs: processing one said only 'unrecognised header'."""
+    path = tmp_path / name
+    path.write_bytes(b"FLASER 3 1.0 2.0 3.0 0.5 -0.5 0.1 0.5 -0.5 0.1 12.5 host 12.5\n")
+    with pytest.raises(
+        LogReadError, match="a CARMEN laser log becomes a session with 'rose-bag convert'"
+    ):
+        detect_format(path)
+
+
 def test_missing_paths_and_folders_without_metadata(tmp_path: Path) -> None:
     with pytest.raises(LogReadError, match="no such file or directory"):
         detect_format(tmp_path / "nothing.mcap")
