@@ -431,3 +431,13 @@ def test_walls_min_length_past_any_map_is_a_usage_error(
     assert "argument --min-length: expected a number in [0, 1e+06], got '1e308'" in (
         capsys.readouterr().err
     )
+
+
+@pytest.mark.parametrize("value", ["0", "-0.5", "7"])
+def test_a_fraction_out_of_range_names_its_range_on_either_side(
+    value: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--peak-prominence 0 said 'expected a positive number', 7 'expected a number in (0, 1]'."""
+    with pytest.raises(SystemExit):
+        main(["score", "m.yaml", "--peak-prominence", value])
+    assert f"expected a number in (0, 1], got '{value}'" in capsys.readouterr().err

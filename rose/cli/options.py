@@ -98,7 +98,7 @@ def float_in(low: float, high: float) -> Any:
     """argparse type factory: a finite number in ``[low, high]`` (``low`` > 0)."""
 
     def parse(text: str) -> float:
-        value = positive_float(text)
+        value = _number(text)
         if not low <= value <= high:
             msg = f"expected a number in [{low:g}, {high:g}], got {text!r}"
             raise argparse.ArgumentTypeError(msg)
@@ -114,8 +114,10 @@ def float_up_to(high: float, *, zero: bool = False) -> Any:
     interval = f"{'[' if zero else '('}0, {high:g}]"
 
     def parse(text: str) -> float:
-        value = non_negative_float(text) if zero else positive_float(text)
-        if value > high:
+        value = _number(text)
+        # One wording on either side (--fail-above 0 said "a positive number", 1.5 "in (0, 1]").
+        low_ok = value >= 0 if zero else value > 0
+        if not low_ok or value > high:
             msg = f"expected a number in {interval}, got {text!r}"
             raise argparse.ArgumentTypeError(msg)
         return value

@@ -32,7 +32,9 @@ __all__ = ["add_parser", "run"]
 def add_parser(commands: Any) -> None:
     """Register ``score`` on an argparse subparsers object (``func=run``)."""
     score = commands.add_parser("score", help="W and dominant directions of maps")
-    score.add_argument("maps", type=path_arg, nargs="+", metavar="MAP")
+    score.add_argument(
+        "maps", type=path_arg, nargs="+", metavar="MAP", help="map_server YAML or a PGM/PNG image"
+    )
     score.add_argument(
         "--json",
         action="store_true",

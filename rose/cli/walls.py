@@ -89,7 +89,7 @@ def run(args: argparse.Namespace, *, stdout: TextIO | None = None) -> int:
         out = sys.stderr
     out.write(format_walls_table(walls))
     for path in (args.geojson, args.svg):
-        if path is not None:
+        if path is not None and str(path) != "-":  # on standard output, the data says it itself
             out.write(f"wrote {path}\n")
     return 0
 
