@@ -31,11 +31,13 @@ non-finite float written as ``null``.
 from __future__ import annotations
 
 import contextlib
+import errno
 import json
 import math
 import os
 import re
 import secrets
+import select
 import shutil
 import signal
 import stat
@@ -403,12 +405,19 @@ class StagedOutput:
 
 
 def _write_all(stream: BinaryIO, data: bytes | bytearray) -> None:
-    """Write all of ``data``: a pipe whose reader leaves mid-write takes part of it and reports
-    the count, not an error (``--json - | head`` ended with exit 0 and the report cut); the next
-    write then raises ``BrokenPipeError``."""
+    """Write all of ``data``. An unbuffered stream (``python -u``, ``PYTHONUNBUFFERED``) takes part
+    of it when a pipe's reader leaves mid-write and reports the count, not an error (``--json - |
+    head`` ended with exit 0 and the report cut): the next write raises ``BrokenPipeError``. A
+    non-blocking one that can take nothing now (None) is waited for."""
     view = memoryview(data)
     while view:
-        view = view[stream.write(view) :]
+        written = stream.write(view)
+        if written is None:
+            select.select([], [stream], [])
+            continue
+        if written == 0:  # no progress and no error: looping would never end
+            raise OSError(errno.EIO, "the stream takes no more data")
+        view = view[written:]
 
 
 def _is_stdout(path: Path) -> bool:

@@ -64,7 +64,10 @@ def detect_format(path: Path) -> LogFormat:
         return "db3"
     what = "empty file" if not head else "unrecognised header"
     msg = f"{path}: not a ROS 1 bag, ROS 2 bag or MCAP file ({what})"
-    if path.name.lower().endswith((".log", ".log.gz", ".clf", ".clf.gz")):
+    carmen_words = (b"FLASER", b"ODOM", b"PARAM", b"ROBOTLASER", b"RAWLASER", b"TRUEPOS")
+    if path.name.lower().endswith((".log", ".log.gz", ".clf", ".clf.gz")) or head.lstrip(
+        b"\xef\xbb\xbf \t\r\n"
+    ).startswith(carmen_words):
         msg += "; a CARMEN laser log becomes a session with 'rose-bag convert'"
     raise LogReadError(msg)
 

@@ -267,7 +267,13 @@ def test_a_wall_set_leaves_the_callers_array_writable() -> None:
 
 @pytest.mark.parametrize(
     ("resolution_m", "origin"),
-    [(0.05, (0.0, 0.0)), (1e-9, (0.0, 0.0)), (1e-20, (0.0, 0.0)), (1e-10, (-10.0, 3.0))],
+    [
+        (0.05, (0.0, 0.0)),
+        (0.002, (-1.2345, 0.0)),  # 2 mm cells printed to 1 mm
+        (1e-9, (0.0, 0.0)),
+        (1e-20, (0.0, 0.0)),
+        (1e-10, (-10.0, 3.0)),
+    ],
 )
 def test_the_walls_table_resolves_a_cell_at_any_resolution(
     resolution_m: float, origin: tuple[float, float]
@@ -283,6 +289,6 @@ def test_the_walls_table_resolves_a_cell_at_any_resolution(
     assert len(rows) == len(walls) > 0
     printed = np.array([[float(v) for v in row[1:6]] for row in rows])
     exact = np.array([[*s.start_m, *s.end_m, s.length_m] for s in walls.segments])
-    np.testing.assert_allclose(printed, exact, rtol=0, atol=resolution_m / 2)
+    np.testing.assert_allclose(printed, exact, rtol=1e-12, atol=resolution_m / 10)
     if resolution_m == 0.05:
         assert all(len(row[5].split(".")[1]) == 3 for row in rows)

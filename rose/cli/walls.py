@@ -100,9 +100,8 @@ def format_walls_table(walls: WallSet) -> str:
         (*seg.start_m, *seg.end_m, seg.length_m, math.degrees(seg.orientation_rad))
         for seg in walls.segments
     ]
-    metres = _metres_format(
-        walls.resolution_m, max((abs(v) for r in rows for v in r[:5]), default=0)
-    )
+    finite = [abs(v) for r in rows for v in r[:5] if math.isfinite(v)]
+    metres = _metres_format(walls.resolution_m, max(finite, default=0.0))
     texts = [[format(v, metres) for v in r[:5]] + [f"{r[5]:.2f}"] for r in rows]
     heads = ("x0_m", "y0_m", "x1_m", "y1_m", "length_m", "angle_deg")
     least = (9, 9, 9, 9, 8, 9)  # the usual table's columns
@@ -123,10 +122,10 @@ def format_walls_table(walls: WallSet) -> str:
 
 
 def _metres_format(resolution_m: float, largest_m: float) -> str:
-    """Millimetres on usual maps; on finer grids enough significant digits to tell a tenth of a cell
-    apart at the largest value (--resolution 1e-9 printed every length as 0.000; an origin of
-    10 m at 1e-10 m per cell printed every x the same in exponent form)."""
-    if resolution_m >= 1e-3:
-        return ".3f"
+    """A tenth of a cell, millimetres at least: fixed decimals (--resolution 1e-9 printed every
+    length as 0.000); below 1e-11 m per cell, enough significant digits at the largest value."""
+    places = max(3, math.ceil(-math.log10(resolution_m)) + 1)
+    if places <= 12:
+        return f".{places}f"
     digits = math.ceil(math.log10(max(largest_m, resolution_m) / resolution_m)) + 2
     return f".{min(max(digits, 4), 17)}g"

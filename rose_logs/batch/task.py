@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any, Literal
 from rose.cleaning import CleanMethod
 from rose.directions import FAILURE_LEVEL
 from rose.errors import OutputError, RoseError
-from rose.limits import DEFAULT_MAX_CELLS
+from rose.limits import DEFAULT_MAX_CELLS, cell_limit
 from rose.params import RoseParams
 from rose_logs.batch.recording_log import RecordingWarnings, collecting
 from rose_logs.batch.sources import Recording, cleaned_log_name, printable
@@ -123,8 +123,14 @@ class RecordingOptions:
             # 2, 2.0 and the default written out are the same option: one key for each value.
             if float(self.break_threshold_m) != BreakParams().threshold_m:
                 fields["break_threshold_m"] = float(self.break_threshold_m)
-        if self.max_cells != DEFAULT_MAX_CELLS:
-            fields["max_cells"] = self.max_cells
+        # 2e8, 200000000 and numpy's int are the same limit: one key for each.
+        max_cells: int | str | None
+        try:
+            max_cells = cell_limit(self.max_cells)
+        except ValueError:  # refused when the recording is processed: the key need only be stable
+            max_cells = repr(self.max_cells)
+        if max_cells != DEFAULT_MAX_CELLS:
+            fields["max_cells"] = max_cells
         return fields
 
 

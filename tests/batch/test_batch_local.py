@@ -569,6 +569,18 @@ def test_salvage_leaves_the_keys_of_results_stored_without_it_alone() -> None:
     assert RecordingOptions(salvage=True).key_fields()["salvage"] is True
 
 
+def test_one_cell_limit_written_three_ways_is_one_key() -> None:
+    """2e8, 200000000 and numpy's int gave three keys: a resumed batch redid every recording."""
+    import numpy as np
+
+    keys = {
+        json.dumps(RecordingOptions(max_cells=value).key_fields(), sort_keys=True)  # type: ignore[arg-type]
+        for value in (200_000_000, 2e8, np.int64(200_000_000))
+    }
+    assert len(keys) == 1
+    assert "max_cells" not in RecordingOptions(max_cells=1e8).key_fields()  # type: ignore[arg-type]
+
+
 def test_a_local_name_holding_a_double_colon_is_a_file_not_a_url(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

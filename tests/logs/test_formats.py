@@ -55,7 +55,7 @@ def test_unsupported_files_are_one_line_errors(
     assert "\n" not in str(info.value)
 
 
-@pytest.mark.parametrize("name", ["aces.log", "aces.log.gz", "intel.clf"])
+@pytest.mark.parametrize("name", ["aces.log", "aces.log.gz", "intel.clf", "lines.txt"])
 def test_a_carmen_log_given_as_a_recording_points_to_convert(tmp_path: Path, name: str) -> None:
     """The README's own examples use CARMEN logs: processing one said only 'unrecognised header'."""
     path = tmp_path / name

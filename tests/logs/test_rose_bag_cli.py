@@ -399,7 +399,7 @@ def test_a_closed_standard_output_ends_quietly_with_141(
 
 class _PipeClosingMidWrite(_ClosedPipe):
     """A reader that leaves after 1,000 bytes: the write that spans that point takes part of its
-    data and reports the count (as Python's buffered writer does), the next one breaks."""
+    data and reports the count (as an unbuffered stream does, ``python -u``), the next breaks."""
 
     taken = 0
 
@@ -419,6 +419,21 @@ def test_a_reader_leaving_mid_report_is_141_not_a_cut_report(
     monkeypatch.setattr(sys, "stdout", _PipeClosingMidWrite())
     assert main(["process", str(SAMPLE), "--no-output", "--json", "-", "-q"]) == 141
     assert capsys.readouterr().err == ""
+
+
+class _StuckPipe(_ClosedPipe):
+    """A stream that takes nothing and reports no error."""
+
+    def write(self, data: Any) -> int:
+        return 0
+
+
+def test_a_stream_that_takes_nothing_is_an_error_not_a_hang(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.setattr(sys, "stdout", _StuckPipe())
+    assert main(["process", str(SAMPLE), "--no-output", "--json", "-", "-q"]) == 1
+    assert "-: cannot write (the stream takes no more data)" in capsys.readouterr().err
 
 
 def test_processing_a_processed_log_names_the_input(
