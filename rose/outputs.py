@@ -668,7 +668,12 @@ class OutputSet:
             raise OutputError(msg)
         for given, resolved in self._inputs:
             if _conflict(target, resolved):
-                what = "inside the input" if resolved in target.parents else "over the input"
+                if resolved in target.parents:
+                    what = "inside the input"
+                elif target in resolved.parents:
+                    what = "a folder that holds the input"
+                else:
+                    what = "over the input"
                 msg = f"{path}: refusing to write {what} {given}"
                 raise OutputError(msg)
         for other in self._outputs:
@@ -713,7 +718,9 @@ class OutputSet:
             msg = f"{path}: is a file, not replacing it with a folder"
             raise OutputError(msg)
         if not self.force:
-            msg = f"{path}: exists already (--force, or force=True in Python, replaces it)"
+            # A command's outputs (``ends_run``) are the command line's; others a Python caller's.
+            how = "--force" if self.ends_run else "force=True"
+            msg = f"{path}: exists already ({how} replaces it)"
             raise OutputError(msg)
 
     # -- writing -----------------------------------------------------------------------------------------

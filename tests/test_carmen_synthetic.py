@@ -202,6 +202,22 @@ def test_one_stamp_far_out_of_line_is_placed_between_its_neighbours(
     assert "1 scan stamp(s) earlier" in caplog.text and "2 stamp(s) moved" in caplog.text
 
 
+def test_scans_before_a_clock_restart_keep_their_period(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """The first scans of a log whose clock then restarted at 0 were placed at 0 and squeezed
+    into 1 ns steps; they keep the log's scan period, and the session starts at 0."""
+    from rose_logs.carmen.clock import scan_clock_ns
+
+    path = tmp_path / "restart.log"
+    _write_log(path, SCANS * 2)
+    _restamped(path, ["5000.0", "5000.1", "5000.2", *(f"{0.1 * k:.1f}" for k in range(7))])
+    clock = scan_clock_ns(read_carmen_log(path))
+    assert clock.name == "log" and clock.start_ns == 0
+    np.testing.assert_allclose(clock.offsets_ns, np.arange(10) * 1e8, atol=1)
+    assert "3 scan stamp(s) out of line with the rest" in caplog.text
+
+
 def test_a_session_that_would_run_past_2_31_s_is_refused(tmp_path: Path) -> None:
     path = tmp_path / "late.log"
     _write_log(path, SCANS)

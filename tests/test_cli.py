@@ -428,7 +428,7 @@ def test_walls_min_length_past_any_map_is_a_usage_error(
     with pytest.raises(SystemExit) as stop:
         main(["walls", str(cluttered_map), "--min-length", "1e308"])
     assert stop.value.code == 2
-    assert "argument --min-length: expected a number in [0, 1e+06], got '1e308'" in (
+    assert "argument --min-length: expected a number in [0, 1000000], got '1e308'" in (
         capsys.readouterr().err
     )
 
@@ -441,3 +441,16 @@ def test_a_fraction_out_of_range_names_its_range_on_either_side(
     with pytest.raises(SystemExit):
         main(["score", "m.yaml", "--peak-prominence", value])
     assert f"expected a number in (0, 1], got '{value}'" in capsys.readouterr().err
+
+
+def test_a_range_message_prints_its_bound_in_full() -> None:
+    """2**31 s was printed 2.14748e+09: 2147483000 looked out of range, and was not."""
+    import argparse
+
+    from rose.cli.options import float_in, float_up_to
+
+    with pytest.raises(argparse.ArgumentTypeError, match=r"\(0, 2147483648\], got '3e9'"):
+        float_up_to(2.0**31)("3e9")
+    assert float_up_to(2.0**31)("2147483000") == 2147483000.0
+    with pytest.raises(argparse.ArgumentTypeError, match=r"\[0\.25, 7\.5\]"):
+        float_in(0.25, 7.5)("8")

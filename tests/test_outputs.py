@@ -94,8 +94,10 @@ def test_an_output_never_touches_an_input(tmp_path: Path, relation: str) -> None
         target.symlink_to(source)
     if relation == "hardlink":
         os.link(source, target)
-    words = "inside" if relation == "inside" else "over"
-    with pytest.raises(OutputError, match=f"refusing to write {words} the input"):
+    words = {"inside": "inside the input", "contains": "a folder that holds the input"}
+    with pytest.raises(
+        OutputError, match=f"refusing to write {words.get(relation, 'over the input')}"
+    ):
         OutputSet(inputs=[source, bag], force=True).stage(target, directory=relation == "contains")
     assert source.read_bytes() == b"input"
 
@@ -112,8 +114,11 @@ def test_one_path_for_two_outputs_is_refused(tmp_path: Path) -> None:
 
 def test_existing_output_needs_force(tmp_path: Path) -> None:
     (tmp_path / "r.json").write_text("keep")
-    with pytest.raises(OutputError, match="exists already"):
+    with pytest.raises(OutputError, match=r"exists already \(force=True replaces it\)"):
         OutputSet().check(tmp_path / "r.json")
+    # A command's outputs name the command line's option.
+    with pytest.raises(OutputError, match=r"exists already \(--force replaces it\)"):
+        OutputSet(ends_run=True).check(tmp_path / "r.json")
     with OutputSet(force=True) as outputs:
         outputs.write_bytes(tmp_path / "r.json", b"new")
     assert (tmp_path / "r.json").read_bytes() == b"new"

@@ -100,7 +100,7 @@ def float_in(low: float, high: float) -> Any:
     def parse(text: str) -> float:
         value = _number(text)
         if not low <= value <= high:
-            msg = f"expected a number in [{low:g}, {high:g}], got {text!r}"
+            msg = f"expected a number in [{_bound(low)}, {_bound(high)}], got {text!r}"
             raise argparse.ArgumentTypeError(msg)
         return value
 
@@ -111,7 +111,7 @@ def float_up_to(high: float, *, zero: bool = False) -> Any:
     """argparse type factory: a finite number in ``(0, high]`` (``[0, high]`` with ``zero``).
 
     Values beyond any sensible setting are usage errors rather than overflows deep inside."""
-    interval = f"{'[' if zero else '('}0, {high:g}]"
+    interval = f"{'[' if zero else '('}0, {_bound(high)}]"
 
     def parse(text: str) -> float:
         value = _number(text)
@@ -123,6 +123,12 @@ def float_up_to(high: float, *, zero: bool = False) -> Any:
         return value
 
     return parse
+
+
+def _bound(value: float) -> str:
+    """A range's bound as written in its message: every digit a whole number has (``:g`` printed
+    2**31 - 1 s as 2.14748e+09, a bound that seemed to be exceeded by 2147483000)."""
+    return f"{value:.15g}"
 
 
 #: argparse types: a number in (0, 1] and in [0, 1].

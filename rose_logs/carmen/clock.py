@@ -3,7 +3,8 @@
 Most logs stamp every scan (a handful of backward steps are nudged forward by 1 ns, with a warning
 that counts them; a stamp far out
 of line with the rest, e.g. one wrong by a day, is placed between its neighbours with a warning, so
-that it does not drag every later scan along). Some do not: the
+that it does not drag every later scan along; so are the first scans of a log whose clock restarted,
+at the log's scan period before the restart). Some do not: the
 CSAIL log writes its stamps with six significant digits, so nearly all scans share one stamp and a
 session cut into map periods would be a single snapshot. Such a log gets a replacement clock: every
 scan takes the time a robot needs to move to it at :data:`NOMINAL_SPEED_M_S` and turn at
@@ -49,7 +50,7 @@ ClockName = Literal["log", "nominal-speed"]
 class ScanClock(NamedTuple):
     """Scan times of a log: ``offsets_ns`` since the first scan (strictly increasing), the clock's
     ``name``, and ``start_ns``, the first scan's stamp (where its neighbours put it when it is out
-    of line with them)."""
+    of line with them; 0 when that is before 0)."""
 
     offsets_ns: npt.NDArray[np.int64]
     name: ClockName
@@ -87,7 +88,7 @@ def scan_clock_ns(log: CarmenLog) -> ScanClock:
                 -int(steps.min()) / 1e9,
                 moved,
             )
-        return ScanClock(out, "log", int(stamps[0]) if stamps.size else 0)
+        return ScanClock(out, "log", _start_ns(stamps))
     poses = log.laser_poses
     dist = np.hypot(*np.diff(poses[:, :2], axis=0).T)
     turn = np.abs((np.diff(poses[:, 2]) + np.pi) % (2 * np.pi) - np.pi)
@@ -95,7 +96,13 @@ def scan_clock_ns(log: CarmenLog) -> ScanClock:
         [dist / NOMINAL_SPEED_M_S, turn / NOMINAL_TURN_RAD_S, np.full(dist.size, MIN_SCAN_PERIOD_S)]
     )
     offsets = np.concatenate([[0], np.cumsum(np.round(dt * 1e9).astype(np.int64))])
-    return ScanClock(offsets, "nominal-speed", int(stamps[0]))
+    return ScanClock(offsets, "nominal-speed", _start_ns(stamps))
+
+
+def _start_ns(stamps: npt.NDArray[np.int64]) -> int:
+    """The session's first stamp: the first scan's, or 0 when that is before 0 (ROS time starts
+    there; the scans before a clock restart are placed before its first stamp, which may be 0)."""
+    return max(int(stamps[0]), 0) if stamps.size else 0
 
 
 def _stamps_in_line(stamps: npt.NDArray[np.int64], log: CarmenLog) -> npt.NDArray[np.int64]:
@@ -105,7 +112,7 @@ def _stamps_in_line(stamps: npt.NDArray[np.int64], log: CarmenLog) -> npt.NDArra
     consecutive scans). A stamp off that run is wrong when it lies more than :data:`OUT_OF_LINE_S`
     outside the span of its neighbours in line (before the first or after the last of them: of
     where the log's median scan period puts it). A wrong stamp is interpolated (by scan index)
-    between its neighbours, or placed on at that period at the ends (never before 0). Small
+    between its neighbours, or placed on at that period at the ends (possibly before 0). Small
     backward steps, also next to a long pause, stay as they are, for the caller's 1 ns nudge. A
     first stamp that is too early or a last one too late stays in line and cannot be told from a
     real pause.
@@ -139,7 +146,9 @@ def _stamps_in_line(stamps: npt.NDArray[np.int64], log: CarmenLog) -> npt.NDArra
         stamps[first] / 1e9,
     )
     out = stamps.copy()
-    out[wrong] = np.maximum(np.round(expected[wrong]), 0).astype(np.int64)
+    # Not clamped at 0: scans before a clock that restarted near 0 would all share that time (the
+    # caller starts the session at 0 instead, every scan keeping its period).
+    out[wrong] = np.round(expected[wrong]).astype(np.int64)
     return out
 
 
