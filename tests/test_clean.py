@@ -324,6 +324,9 @@ def test_bad_lengths_and_resolutions_are_rose_errors_before_any_work() -> None:
         clean(grid, resolution_m=0.05, params=CleanParams(robot_radius_m=1000))
     with pytest.raises(RoseError, match="min_run_m"):
         clean(grid, resolution_m=0.05, params=CleanParams(min_run_m=1e9))
+    # It pads the window by as much: 500 m (10,000 cells) would need tens of GB.
+    with pytest.raises(RoseError, match=r"open_unknown_width_m 100 m is 2e\+03 cells"):
+        clean(grid, resolution_m=0.05, params=CleanParams(open_unknown_width_m=100))
     with pytest.raises(RoseError, match="must be a CleanParams, got dict"):
         clean(grid, resolution_m=0.05, params={"min_run_m": 1})  # type: ignore[arg-type]
     # The defaults pass at every resolution the cleaning takes.
