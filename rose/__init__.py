@@ -109,6 +109,7 @@ _SUBMODULES = frozenset(
         "scoring",
         "spectrum",
         "threshold",
+        "threads",
         "unfold",
         "walls",
     }

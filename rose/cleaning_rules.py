@@ -257,9 +257,10 @@ def _beside() -> Iterator[Executor]:
         yield _Inline()
         return
     try:
-        from concurrent.futures import ThreadPoolExecutor
+        from rose.threads import threads_in_this_context
 
-        pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="rose-clean")
+        # In the caller's context: what the jobs log belongs to its work (a batch's recording).
+        pool = threads_in_this_context(1, "rose-clean")
         pool.submit(int).result()
     except RuntimeError:  # "cannot schedule new futures after interpreter shutdown" and kin
         yield _Inline()

@@ -570,3 +570,31 @@ def test_the_run_and_image_line_morphology_agree(
             )
         for runs_way, image_way in zip(*found, strict=True):
             np.testing.assert_array_equal(runs_way, image_way)
+
+
+def test_the_cleanings_second_thread_runs_in_the_callers_context() -> None:
+    """A batch routes each recording's warnings by a context variable: a job of the cleaning's
+    second thread started from an empty context, so what it logged belonged to no recording."""
+    import contextvars
+
+    import cv2
+
+    from rose.cleaning_rules import _beside
+
+    recording: contextvars.ContextVar[str] = contextvars.ContextVar("recording", default="none")
+    threads = cv2.getNumThreads()
+    cv2.setNumThreads(2)  # the second thread runs only where OpenCV may use several
+    try:
+        token = recording.set("run-7")
+        with _beside() as beside:
+            assert beside.submit(recording.get).result() == "run-7"
+            assert beside.submit(threading_name).result().startswith("rose-clean")
+        recording.reset(token)
+    finally:
+        cv2.setNumThreads(threads)
+
+
+def threading_name() -> str:
+    import threading
+
+    return threading.current_thread().name

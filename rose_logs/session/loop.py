@@ -16,7 +16,6 @@ is a :class:`BreakEvent`.
 
 from __future__ import annotations
 
-import contextvars
 import dataclasses
 import logging
 import math
@@ -26,7 +25,7 @@ import sys
 import time
 from collections import deque
 from collections.abc import Callable, Sequence
-from concurrent.futures import Executor, Future, ThreadPoolExecutor
+from concurrent.futures import Executor, Future
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -45,6 +44,7 @@ from rose.limits import (
 from rose.outputs import OutputSet, signals_deferred
 from rose.params import RoseParams, make_params
 from rose.result import RoseResult
+from rose.threads import threads_in_this_context
 from rose_logs.derived import derived_topics, encode_cleaned, encode_score, encode_walls
 from rose_logs.errors import LogReadError, LogWriteError, MapMessageError
 from rose_logs.formats import LogFormat, format_from_path
@@ -909,23 +909,6 @@ def _rerun_failure(rrd_path: Path | None, connect: str | None, err: BaseExceptio
         return f"{rrd_path}: cannot write the Rerun recording ({short(err, 160)})"
     viewer = f"the Rerun viewer at {connect}" if connect is not None else "the spawned Rerun viewer"
     return f"cannot stream to {viewer}; is it running? ({short(err, 160)})"
-
-
-def threads_in_this_context(workers: int, name: str) -> ThreadPoolExecutor:
-    """A thread pool whose threads run in a copy of the caller's :mod:`contextvars` context, so that
-    what they log belongs to the same session (``rose-bag batch`` keeps each recording's warnings
-    apart that way)."""
-    return ThreadPoolExecutor(
-        workers,
-        thread_name_prefix=name,
-        initializer=_enter_context,
-        initargs=(contextvars.copy_context(),),
-    )
-
-
-def _enter_context(context: contextvars.Context) -> None:
-    for variable, value in context.items():
-        variable.set(value)
 
 
 def _record(
