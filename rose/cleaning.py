@@ -23,8 +23,11 @@ Two methods, chosen by name:
     (wall stretches of at least 0.25 m running along the gap, not an object's side faces across
     it), at most ``max_bridge_m`` apart, next to a removed piece and within ``hidden_wall_reach_m``
     of it, become walls (``completed``; thin lines only, never the space between two parallel
-    walls). Such lines between any two kept cells also *seal*: they close the insides of objects
-    for rules 2 and 3, without being drawn.
+    walls). Wall ends up to a cell apart across the line (a scanned wall's staircase, a wall at an
+    angle to the grid) are joined too, by a line up to three cells thick, when each is a stretch of
+    at least 0.5 m within a band three cells wide and the hidden stretch is at least 0.25 m long.
+    Such lines between any two kept cells also *seal*: they close the insides of objects for rules
+    2 and 3, without being drawn.
 
     Three rules then tell wall pieces from objects the way a scanner sees them:
 
@@ -44,7 +47,9 @@ Two methods, chosen by name:
        wall and smaller than ``min_region_m2`` (they can enclose no region the guard protects) do
        not count as obstacles for the guard.
 
-    Finally a topology guard (counting the completed walls, those drawn) finds every opening through which a disc
+    Finally a topology guard (counting the completed walls, those drawn, as obstacles before and
+    after: the inside of a cabinet closed by the wall line behind it is a pocket, not the unknown
+    outside) finds every opening through which a disc
     of ``robot_radius_m`` would pass between two regions that the input kept apart (locally, within
     ``guard_window_m``), unless one of them is a small enclosed pocket (less than ``min_region_m2``:
     the inside of a piece of furniture), and restores the removed cells that blocked it (those

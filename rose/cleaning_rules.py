@@ -48,6 +48,13 @@ __all__ = [
 #: not the side face of an object across the gap.
 _BRIDGE_ANCHOR_M = 0.25
 
+#: Hidden walls between wall ends a cell apart across the line (a scanned wall's staircase, a wall
+#: at an angle to its rotated frame): each end a stretch at least this long within a band three
+#: cells wide (twice the exact anchor: a steep wall's staircase also makes short stretches in such a
+#: band), and each hidden stretch at least ``_BRIDGE_ANCHOR_M`` long (shorter ones are the notches of
+#: a staircase, beside the wall, not a wall hidden behind furniture).
+_STAGGERED_ANCHOR_M = 2 * _BRIDGE_ANCHOR_M
+
 #: Shortest partition kept (metres, :func:`_partitions`): door frames and wall pieces between a
 #: corner and a door, shorter than a run; a scanned table leg or chair is smaller.
 _PARTITION_MIN_M = 0.5
@@ -152,14 +159,22 @@ def _wall_cells(
             # Unknown cells between collinear kept walls. Those between wall ends become the wall
             # line hidden behind furniture; all of them seal what they close off (an object's
             # inside between its faces, a cabinet's open back) but are not drawn as walls.
-            bridges, wall_lines = _bridges(
+            bridges, wall_lines, staggered = _bridges(
                 keep,
                 unknown,
                 directions,
                 length_px(p.max_bridge_m, res),
                 (1, length_px(_BRIDGE_ANCHOR_M, res)),
                 beside,
+                staggered_px=(
+                    length_px(_STAGGERED_ANCHOR_M, res),
+                    length_px(_BRIDGE_ANCHOR_M, res),
+                ),
             )
+            # Wall ends a cell apart across the line draw the hidden wall too (exact anchors need
+            # the ends in one row of the rotated frame: a staircase at 30 or 45 degrees breaks that).
+            bridges |= staggered
+            wall_lines |= staggered
             # Only next to what goes (within a cabinet's depth): a bridge network reaching into
             # unexplored space or across racks is no wall hidden behind removed clutter.
             removed = occupied & ~keep
@@ -734,25 +749,32 @@ def _bridges(
     max_gap_px: float,
     anchors_px: tuple[float, ...],
     beside: Executor | None = None,
+    *,
+    staggered_px: tuple[float, float] | None = None,
 ) -> list[npt.NDArray[np.bool_]]:
     """:func:`bridge_gaps` for each shortest anchor of ``anchors_px`` (ascending), rotating the map
     once; which fills are thin enough is decided on the first anchor's (the smallest: the most
     fill), so a larger anchor never fills more than it does.
 
+    With ``staggered_px = (anchor, min_fill)`` one more output: the fills between wall ends up to a
+    cell apart across the line (:func:`_staggered_gaps`), at most three cells thick.
+
     The anchors are exact stretches in the rotated frame: a wall one cell thin at an angle to its
     frame can come out of the rotation dashed, and then anchors nothing (no hidden wall is drawn
     there; the guard keeps the furniture instead). A cell of tolerance brought the dashes back but
     also every wall's staircase: on the 30-degree benchmark logs robot gaps rose from 0.5 (2) to
-    1 (3) with nothing gained.
+    1 (3) with nothing gained. The staggered fills (``staggered_px``) take a cell of tolerance
+    across the line only, with longer anchors and no fills shorter than ``min_fill``.
 
     ``beside`` works out the gaps along the columns while this thread does the rows' (in turn when
     omitted)."""
     import cv2
 
-    if len(anchors_px) > 8:
+    bits = len(anchors_px) + (staggered_px is not None)
+    if bits > 8:
         msg = "at most 8 anchors (one bit each)"
         raise ValueError(msg)
-    outs = [np.zeros(walls.shape, dtype=bool) for _ in anchors_px]
+    outs = [np.zeros(walls.shape, dtype=bool) for _ in range(bits)]
     if not walls.any() or directions.size == 0:
         return outs
     length = max(3, round(max_gap_px)) | 1
@@ -766,7 +788,14 @@ def _bridges(
         rotated = np.ascontiguousarray(rotated)  # the crop itself when not rotated
         # The rows' and the columns' gaps need nothing of each other.
         across_job = side.submit(_closed_gaps, rotated, True, length, anchors)
+        staggered_job = None
+        if staggered_px is not None:
+            stagger = (max(1, round(staggered_px[0])), max(1, round(staggered_px[1])))
+            staggered_job = side.submit(_staggered_gaps, rotated, True, length, *stagger)
+            staggered = _staggered_gaps(rotated, False, length, *stagger)
         fills = _closed_gaps(rotated, False, length, anchors) | across_job.result()
+        if staggered_job is not None:
+            fills |= (staggered | staggered_job.result()) << np.uint8(len(anchors))
         if matrix is not None:
             # Nearest-neighbour sampling copies values: every anchor's fills, one bit each, go
             # back in one warp.
@@ -828,6 +857,27 @@ def _closed_gaps(
                 _run_cells(_open_runs(across, 4, shape[vertical]), shape, not vertical)
             ] = 1
         out.reshape(-1)[fill[thick.reshape(-1)[fill] == 0]] |= np.uint8(1 << bit)
+    return out
+
+
+def _staggered_gaps(
+    rotated: npt.NDArray[np.uint8], vertical: bool, length: int, anchor: int, min_fill: int
+) -> npt.NDArray[np.uint8]:
+    """:func:`_closed_gaps` (one anchor, 0 or 1 per cell) of the walls grown by a cell across the
+    line (along the columns when ``vertical``, else the rows): fills between two wall ends up to a
+    cell apart across it, less the grown walls (never the cells beside a wall), only in stretches
+    of at least ``min_fill`` cells along the line (a staircase's notches are shorter)."""
+    import cv2
+
+    band: npt.NDArray[np.uint8] = np.ascontiguousarray(
+        cv2.dilate(rotated, np.ones((1, 3) if vertical else (3, 1), np.uint8)), dtype=np.uint8
+    )
+    fills = np.ascontiguousarray(_closed_gaps(band, vertical, length, [anchor]))
+    line, start, end = _runs(_nonzero_flat(fills), fills.shape, vertical)
+    long_enough = end - start + 1 >= min_fill
+    out = np.zeros(fills.shape, dtype=np.uint8)
+    runs = (line[long_enough], start[long_enough], end[long_enough])
+    out.reshape(-1)[_run_cells(runs, fills.shape, vertical)] = 1
     return out
 
 
@@ -1041,8 +1091,9 @@ def topology_guard(
 
     Removing ``occupied & ~keep`` (and adding the obstacles ``added``) makes some cells passable for
     a disc of ``radius_px``. Each connected patch of them is checked in a window of ``window_px``
-    cells around it: if the cells that were passable before and touch the patch belong to two or more
-    regions of the window that are not small enclosed pockets (a pocket does not reach the window's
+    cells around it: if the cells that were passable before (``added`` counting as obstacles before
+    too: hidden walls, there but unseen) and touch the patch belong to two or more regions of the
+    window that are not small enclosed pockets (a pocket does not reach the window's
     edge and covers less than ``min_region_px``), every removed cell within ``radius_px + 1`` of the
     patch is restored: those are the cells that kept the disc out of it. Patches surrounded by
     formerly passable cells (a free-standing object) are skipped without labelling; the rest cost
@@ -1059,8 +1110,12 @@ def topology_guard(
     restore = np.zeros(occupied.shape, dtype=bool)
     if not removal.any():
         return restore
-    blocked_before = _blocked(occupied, radius_px)
     after = occupied & keep if added is None else (occupied & keep) | added
+    # The added obstacles (hidden walls) were there before too, only unseen: regions they close off
+    # are told apart as such (the inside of a cabinet against a wall, closed by the wall line behind
+    # it, is a pocket, not the unknown outside). What opens is the same either way: the added
+    # obstacles block after as well.
+    blocked_before = _blocked(occupied if added is None else occupied | added, radius_px)
     # Passable after, not before (booleans: a > b is a & ~b, one pass).
     opened = np.greater(blocked_before, _blocked(after, radius_px))
     if not opened.any():

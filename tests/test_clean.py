@@ -416,6 +416,26 @@ def test_hidden_walls_are_completed_only_next_to_what_was_removed() -> None:
     assert clean(grid, result, resolution_m=0.05, params=far).completed_count == 30
 
 
+def test_a_cabinet_against_a_stepped_wall_goes_and_the_wall_behind_it_is_drawn() -> None:
+    """The wall behind a scanned cabinet is unknown; its two visible ends one cell apart across the
+    line (a scanned wall's staircase) anchored no hidden wall, so removing the cabinet opened the
+    room to the unknown outside and the guard kept it. Ends a cell out of line are joined now, and
+    the guard counts the drawn line as there before too (the cabinet's inside is a pocket)."""
+    grid = np.zeros((60, 140), dtype=np.int8)
+    grid[:26, :] = -1  # the unknown outside, above the wall
+    grid[24, 5:51] = 100  # the wall's left part ...
+    grid[25, 71:136] = 100  # ... and its right part, one cell lower
+    grid[25:31, 51:71] = -1  # the cabinet's inside, unseen
+    grid[31, 50:72] = 100  # its front, 1.1 m
+    grid[24:32, 50] = grid[25:32, 71] = 100  # its sides
+    cleaned = clean(grid, rose.analyze(grid), resolution_m=RES)
+    assert not cleaned.kept[31, 52:70].any()  # the front goes
+    hidden = np.argwhere(cleaned.completed)
+    assert set(hidden[:, 0]) <= {24, 25} and hidden[:, 1].min() <= 52 and hidden[:, 1].max() >= 69
+    # Closed: a wall cell in every column of the gap.
+    assert (cleaned.cleaned[24:26, 50:72] == 100).any(axis=0).all()
+
+
 def test_a_solid_column_is_no_free_standing_object() -> None:
     # Drawn maps show columns solid (a 0.55 m I-beam of a warehouse map was removed); scanned
     # objects are faces around unknown.
