@@ -176,11 +176,17 @@ def test_a_bare_image_takes_its_resolution_from_the_option(
     """A bare image has no resolution: without --resolution the default is said, with it the output
     YAML and every metre-based rule use it; a YAML map keeps its own."""
     image = rose.load_map(cluttered_map).image_path
-    assert main(["clean", str(image), "-o", str(tmp_path / "a.yaml")]) == 0
+    report = tmp_path / "a.json"
+    assert main(["clean", str(image), "-o", str(tmp_path / "a.yaml"), "--json", str(report)]) == 0
     assert "no map YAML, assuming 0.05 m/cell" in capsys.readouterr().err
     assert rose.load_map(tmp_path / "a.yaml").resolution_m == pytest.approx(0.05)
-    assert main(["clean", str(image), "-o", str(tmp_path / "b.yaml"), "--resolution", "0.1"]) == 0
+    # ... and the report says the cell size was assumed (the rules' lengths are metres).
+    assert json.loads(report.read_text())["resolution_assumed"] is True
+    argv = ["clean", str(image), "-o", str(tmp_path / "b.yaml"), "--resolution", "0.1"]
+    assert main([*argv, "--json", str(report), "--force"]) == 0
     assert "warning" not in capsys.readouterr().err
+    summary = json.loads(report.read_text())
+    assert summary["resolution_m"] == 0.1 and summary["resolution_assumed"] is False
     assert rose.load_map(tmp_path / "b.yaml").resolution_m == pytest.approx(0.1)
     # The cleaning's lengths are metres: at 0.1 m per cell it keeps another set of cells.
     a, b = (rose.load_map(tmp_path / n).grid for n in ("a.yaml", "b.yaml"))

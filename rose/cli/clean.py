@@ -19,6 +19,7 @@ from rose.cli.options import (
     load_grid_map,
     params_from_args,
     path_arg,
+    resolution_assumed,
     result_summary,
     verdict,
 )
@@ -78,6 +79,9 @@ def run(args: argparse.Namespace) -> int:
     )
     summary = result_summary(result, seconds=elapsed, yaw_rad=source.origin_yaw_rad)
     summary.update(cleaning_summary(cleaning))
+    summary["resolution_m"] = source.resolution_m
+    # The rules' lengths are metres: a result at an assumed cell size says so.
+    summary["resolution_assumed"] = resolution_assumed(args.map, args.resolution)
     summary["input"] = str(args.map)
     summary["output"] = str(args.output)
     with outputs:  # all files or none

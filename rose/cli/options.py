@@ -49,6 +49,7 @@ __all__ = [
     "non_negative_float",
     "params_from_args",
     "positive_float",
+    "resolution_assumed",
     "result_summary",
     "verdict",
 ]
@@ -377,6 +378,12 @@ def cells(count: int, kind: str = "") -> str:
     return f"{count} {kind} {noun}" if kind else f"{count} {noun}"
 
 
+def resolution_assumed(path: str | Path, resolution_m: float | None) -> bool:
+    """Whether the map at ``path`` gets :data:`rose.mapfile.DEFAULT_RESOLUTION_M` for want of any
+    other: a bare image (no YAML) without ``--resolution``."""
+    return resolution_m is None and Path(path).suffix.lower() not in YAML_SUFFIXES
+
+
 def load_grid_map(
     path: str | Path,
     *,
@@ -403,7 +410,7 @@ def load_grid_map(
         text = str(err).rstrip(".")
         msg = f"{path}: {text[:1].lower()}{text[1:]}"
         raise RoseError(msg) from err
-    if bare_image and resolution_m is None and metric:
+    if resolution_assumed(path, resolution_m) and metric:
         print(
             f"warning: {path}: no map YAML, assuming {DEFAULT_RESOLUTION_M:g} m/cell "
             "(set it with --resolution)",
