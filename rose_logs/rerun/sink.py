@@ -515,6 +515,7 @@ class RerunSink:
         self._flush()
         self.recording.disconnect()
         if self.tmp is not None and self.rrd_path is not None:
+            _require_footer(self.tmp)
             self.tmp.replace(self.rrd_path)
 
     def abort(self) -> None:
@@ -529,3 +530,28 @@ class RerunSink:
         finally:
             if self.tmp is not None:
                 self.tmp.unlink(missing_ok=True)
+
+
+#: How an ``.rrd`` of Rerun 0.41 ends: its footer's magic and version (a 4-byte little-endian 1).
+_FOOTER_END = b"RRF2FOOT"
+
+
+def _require_footer(path: Path) -> None:
+    """OSError unless the file at ``path`` ends with a recording's footer.
+
+    Rerun's file writer reports a failed last write (the footer, on a disk that just filled up)
+    nowhere: the recording was cut short, the run said nothing and placed it (the viewer then reads
+    it without its index, or not at all).
+    """
+    try:
+        with path.open("rb") as f:
+            f.seek(0, 2)
+            size = f.tell()
+            f.seek(max(size - 12, 0))
+            tail = f.read(12)
+    except OSError as err:
+        msg = f"cannot read it back ({err.strerror or err})"
+        raise OSError(msg) from err
+    if len(tail) < 12 or tail[:8] != _FOOTER_END:
+        msg = f"incomplete: {size} bytes without the footer Rerun writes last (a full disk?)"
+        raise OSError(msg)

@@ -649,3 +649,31 @@ def test_the_threshold_label_sits_between_the_cells_and_the_bar(tmp_path: Path, 
     south = layout.view_origin_m[1] - layout.bounds_m[1]  # the cells' south edge in the view
     assert south < top + threshold_px * scale_y < top  # between the cells and the bar
     assert top + below_px * scale_y > top + 2 * scale_y  # the scale's labels under the bar
+
+
+def test_a_recording_cut_short_is_an_error_and_never_placed(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A disk that filled up during Rerun's last write (the footer) left a cut-short .rrd in place
+    and the run said nothing: Rerun's file writer reports that write nowhere."""
+    from rose_logs.errors import LogWriteError
+    from rose_logs.rerun import sink as sink_module
+
+    whole = tmp_path / "whole.rrd"
+    process_log(SAMPLE, rrd_path=whole)
+    sink_module._require_footer(whole)  # a complete recording passes
+    cut = tmp_path / "cut.rrd"
+    cut.write_bytes(whole.read_bytes()[:-20])
+    with pytest.raises(OSError, match="incomplete"):
+        sink_module._require_footer(cut)
+    # As the session sees it: a one-line error naming the recording, nothing placed.
+    monkeypatch.setattr(sink_module, "_FOOTER_END", b"NOTTHERE")
+    target = tmp_path / "run.rrd"
+    with pytest.raises(
+        LogWriteError, match=r"run\.rrd: cannot write the Rerun recording \(incomplete"
+    ):
+        process_log(SAMPLE, rrd_path=target)
+    assert not target.exists() and sorted(p.name for p in tmp_path.iterdir()) == [
+        "cut.rrd",
+        "whole.rrd",
+    ]
