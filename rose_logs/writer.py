@@ -29,6 +29,7 @@ type, definition, hash, QoS / latching and MCAP channel metadata, and :meth:`Log
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 import shutil
@@ -200,11 +201,16 @@ class LogWriter:
             raise
 
     def abort(self) -> None:
-        """Drop everything written so far (idempotent); ``path`` is left as it was."""
-        if self._backend is not None:
-            self._backend.abort()
-            self._backend = None
-        self._drop_stage()
+        """Drop everything written so far (idempotent); ``path`` is left as it was. Never raises
+        ``OSError``: closing what is dropped may flush its buffer onto a full disk, and that error
+        would hide the one that made the caller abort."""
+        backend, self._backend = self._backend, None
+        try:
+            if backend is not None:
+                with contextlib.suppress(OSError):
+                    backend.abort()
+        finally:
+            self._drop_stage()
 
     def _drop_stage(self) -> None:
         if self._own_outputs:

@@ -427,7 +427,6 @@ class McapWriteBackend(WriteBackend):
             self.stream = None
 
     def abort(self) -> None:
-        if self.stream is not None:
-            self.stream.close()
-            self.stream = None
-        self.writer = None
+        stream, self.stream, self.writer = self.stream, None, None
+        if stream is not None:
+            stream.close()

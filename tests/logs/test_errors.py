@@ -657,3 +657,25 @@ def test_a_mistyped_topic_gets_a_suggestion(tmp_path: Path, capsys, fr079) -> No
     code, _, err = _run(capsys, "process", built.path, "--no-output", "-t", "/map_updates")
     assert code == 1
     _assert_one_line_error(err, "(it updates /map: pass --topic /map)")
+
+
+@pytest.mark.parametrize("fmt", ["mcap", "db3", "ros1"])
+def test_dropping_an_output_never_hides_the_error_that_dropped_it(tmp_path: Path, fmt: str) -> None:
+    """On a nearly full disk closing the dropped log flushed its buffer and failed again: that
+    second OSError replaced the first, and the run blamed the input ('fr079.mcap: No space left')."""
+    from rose_logs.writer import open_output
+
+    out = open_output(tmp_path / f"o.{fmt}", fmt)
+    out.open()
+    out.add_topic("/chatter", "std_msgs/msg/String")
+    out.write("/chatter", START_NS, out.typestore.types["std_msgs/msg/String"](data="hi"))
+    backend = out._backend
+    assert backend is not None
+
+    def full_disk() -> None:
+        raise OSError(28, "No space left on device")
+
+    backend.abort = full_disk  # type: ignore[method-assign]
+    out.abort()  # no OSError
+    out.abort()  # idempotent
+    assert list(tmp_path.iterdir()) == []
