@@ -429,6 +429,14 @@ def _is_stdout(path: Path) -> bool:
         return False
 
 
+def _no_folder(path: Path | str, parent: Path) -> str:
+    """The error for an output whose folder is not one: missing, or a file (a path such as
+    ``notes.txt/out.mcap`` said the folder did not exist)."""
+    if parent.exists():
+        return f"{path}: {parent} is a file, not a folder"
+    return f"{path}: folder {parent} does not exist"
+
+
 def _conflict(a: Path, b: Path) -> bool:
     """Whether ``a`` and ``b`` (resolved) are the same path, or one lies inside the other."""
     if a == b or a in b.parents or b in a.parents:
@@ -592,8 +600,7 @@ class OutputSet:
                 continue
             self._check_existing(path, target, directory=directory, replaceable=replaceable)
             if not target.parent.is_dir():
-                msg = f"{path}: folder {target.parent} does not exist"
-                raise OutputError(msg)
+                raise OutputError(_no_folder(path, target.parent))
 
     def stage(
         self,
@@ -638,8 +645,7 @@ class OutputSet:
         self._check_existing(path, target, directory=directory, replaceable=replaceable)
         parent = target.parent
         if not parent.is_dir():
-            msg = f"{path}: folder {parent} does not exist"
-            raise OutputError(msg)
+            raise OutputError(_no_folder(path, parent))
         if self.clean_stale:
             remove_stale_temporaries(parent)
         stage_dir = parent / temporary_name(target.name)

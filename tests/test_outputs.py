@@ -478,3 +478,14 @@ def test_a_folder_with_some_other_metadata_yaml_is_no_bag(tmp_path: Path) -> Non
     assert enclosing_bag_folder(tmp_path / "map.png") is None
     staged = OutputSet(inputs=[tmp_path / "map.png"]).stage(tmp_path / "clean.yaml")
     assert staged.path == tmp_path / "clean.yaml"
+
+
+def test_an_output_under_a_file_says_the_file_is_no_folder(tmp_path: Path) -> None:
+    """'notes.txt/out.json' said 'folder notes.txt does not exist'; it does, as a file."""
+    (tmp_path / "notes.txt").write_text("x")
+    for call in (OutputSet().check, OutputSet().stage):
+        with pytest.raises(OutputError, match=r"notes\.txt is a file, not a folder"):
+            call(tmp_path / "notes.txt" / "out.json")
+    with pytest.raises(OutputError, match=r"folder .*missing does not exist"):
+        OutputSet().stage(tmp_path / "missing" / "out.json")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.txt"]
