@@ -540,3 +540,12 @@ def test_info_spells_types_as_the_log_does(tmp_path: Path, capsys, fr079) -> Non
     assert main(["info", str(built.path)]) == 0
     out = capsys.readouterr().out
     assert "nav_msgs/OccupancyGrid  [map]" in out and "nav_msgs/msg/" not in out
+
+
+def test_a_ros2_log_named_bag_gets_a_default_output_it_can_be_written_in(tmp_path: Path) -> None:
+    """An MCAP file named .bag got 'run.rose.bag', ROS 1, which cannot hold its CDR messages: the
+    run failed on a name the user never gave. It keeps its own format now."""
+    misnamed = tmp_path / "run.bag"
+    misnamed.write_bytes(SAMPLE.read_bytes())
+    assert main(["process", str(misnamed), "-q"]) == 0
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.bag", "run.rose.mcap"]
