@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import contextlib
 import statistics
 import sys
 from collections.abc import Sequence
@@ -30,8 +29,6 @@ from rose_logs.cli.options import (
     unjudged_topics,
     utc_text,
 )
-from rose_logs.errors import LogReadError
-from rose_logs.formats import LogFormat
 
 __all__ = ["add_parser", "run"]
 
@@ -228,6 +225,7 @@ def _output_format(args: argparse.Namespace) -> str | None:
 
 def run(args: argparse.Namespace) -> int:
     from rose_logs.formats import suffix_mismatch_warning, unknown_suffix_warning
+    from rose_logs.session import default_output_path
 
     if args.no_output and args.output is not None:
         msg = "--no-output and --output exclude each other"
@@ -243,7 +241,7 @@ def run(args: argparse.Namespace) -> int:
         except ValueError as err:
             raise UsageError(f"argument --connect: {err}") from err
     args.output = output_log_path(args.output, _output_format(args))
-    output = None if args.no_output else (args.output or _default_output(args.input, args.fmt))
+    output = None if args.no_output else (args.output or default_output_path(args.input, args.fmt))
     # Only a name the user typed: the default (input name + .rose) has the output format's suffix.
     warning = None
     if args.output is not None and not args.fmt:
@@ -335,18 +333,3 @@ def _process(args: argparse.Namespace, output: Path | None, progress: bool, outp
         salvage=args.salvage,
         max_cells=args.max_cells,
     )
-
-
-def _default_output(input_path: Path, fmt: LogFormat | None) -> Path:
-    """:func:`default_output_path`, in the input's own format when its name says ROS 1 and its
-    content is ROS 2 (an MCAP file named ``.bag`` got ``run.rose.bag``, a format that cannot hold
-    its messages: the user had named no output)."""
-    from rose_logs.formats import detect_format, format_from_path
-    from rose_logs.session import default_output_path
-
-    if fmt is None and format_from_path(Path(input_path)) == "ros1":
-        with contextlib.suppress(LogReadError):  # unreadable: the reader says so, naming the input
-            detected = detect_format(Path(input_path))
-            if detected != "ros1":
-                fmt = detected
-    return default_output_path(input_path, fmt)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import difflib
 import logging
 from collections.abc import Sequence
@@ -11,7 +12,7 @@ from rose.limits import short
 from rose.outputs import enclosing_bag_folder
 from rose_logs.derived import derived_topics
 from rose_logs.errors import LogReadError, LogWriteError
-from rose_logs.formats import LogFormat, processed_name
+from rose_logs.formats import LogFormat, detect_format, format_from_path, processed_name
 from rose_logs.storage.records import Channel
 from rose_logs.storage.typesys import MAP_TYPE, UPDATE_TYPE, msgdef_for
 
@@ -109,8 +110,15 @@ def default_output_path(input_path: Path, fmt: LogFormat | None = None) -> Path:
 
     A path without a name of its own (``.``, ``bags/..``) is named by its absolute form. A storage
     file inside a ROS 2 bag folder gets its output beside that folder, never inside the input bag.
+    A ROS 2 log named as ROS 1 (an MCAP file named ``.bag``) keeps its own format: ``run.rose.bag``
+    could not hold its messages, and the caller named no output.
     """
     path = Path(input_path)
+    if fmt is None and format_from_path(path) == "ros1":
+        with contextlib.suppress(LogReadError):  # unreadable: the reader says so, naming the input
+            detected = detect_format(path)
+            if detected != "ros1":
+                fmt = detected
     if path.name in ("", ".", ".."):
         path = path.resolve()
     if not path.name:
