@@ -5,6 +5,11 @@ No Rerun here, so everything is tested directly. Conventions: ROS grids store ro
 image row order (north up) and every 2D position is in pixels of such an image, ``u`` right and
 ``v`` down, a pixel ``(i, j)`` covering ``[j, j + 1] x [i, i + 1]``. Cells ``(x, y)`` of the grid
 frame (x along columns, y along rows) become pixels ``(x, rows - y)``.
+
+The per-cell images cover a *window* of the grid, ``(x_min, y_min, x_max, y_max)`` in cells
+(exclusive max): :func:`image_window` gives the known cells' box, since a SLAM grid is mostly
+unknown space that would cost as much to send as its map. Cell ``(x, y)`` is then pixel
+``(x - x_min, y_max - y)`` of the window's image.
 """
 
 from __future__ import annotations
@@ -52,6 +57,7 @@ __all__ = [
     "direction_label_positions",
     "direction_segments_cells",
     "display_spectrum",
+    "image_window",
     "known_bounds_cells",
     "masked_score_image",
     "occupied_cells",
@@ -64,33 +70,54 @@ __all__ = [
 ]
 
 
+#: ``(x_min, y_min, x_max, y_max)`` in grid cells, exclusive max: the part of a grid an image covers.
+Window = tuple[int, int, int, int]
+
+
 @dataclass(frozen=True)
 class OccupiedCells:
     """The occupied cells of a result, found once per snapshot and shared by the conversions.
 
     Attributes
     ----------
-    grid_index, image_index : ndarray of intp, shape (N,)
-        Flat indices in grid (ROS) row order and in image (north-up) row order.
+    grid_index : ndarray of intp, shape (N,)
+        Flat indices in grid (ROS) row order.
+    image_index : ndarray of intp, shape (N,)
+        Flat indices in the image (north-up) row order of ``window``.
     bounds : tuple of int or None
         ``(x_min, y_min, x_max, y_max)`` in cells (exclusive max) around the occupied cells, None
         when there are none: the walls bound what was mapped.
+    window : Window
+        The part of the grid the images cover (the whole grid unless given).
     """
 
     grid_index: npt.NDArray[np.intp]
     image_index: npt.NDArray[np.intp]
     bounds: tuple[int, int, int, int] | None
+    window: Window
 
 
-def occupied_cells(result: RoseResult) -> OccupiedCells:
-    """:class:`OccupiedCells` of ``result`` (one pass over the occupied mask)."""
+def image_window(grid: npt.NDArray[np.int8]) -> Window:
+    """The window of ``grid`` its images cover: the known cells' box, the whole grid when no cell
+    is known (an image needs a pixel)."""
+    rows, cols = grid.shape
+    return known_bounds_cells(grid) or (0, 0, cols, rows)
+
+
+def occupied_cells(result: RoseResult, window: Window | None = None) -> OccupiedCells:
+    """:class:`OccupiedCells` of ``result`` (one pass over the occupied mask), indexed for images
+    of ``window`` (default: the whole grid), which must hold every occupied cell."""
     rows, cols = result.occupied.shape
+    x0, y0, x1, y1 = window = window or (0, 0, cols, rows)
     grid_index = np.flatnonzero(result.occupied)
     row, col = np.divmod(grid_index, cols)
     bounds = None
     if grid_index.size:
         bounds = (int(col.min()), int(row[0]), int(col.max()) + 1, int(row[-1]) + 1)
-    return OccupiedCells(grid_index, (rows - 1 - row) * cols + col, bounds)
+        if bounds[0] < x0 or bounds[1] < y0 or bounds[2] > x1 or bounds[3] > y1:
+            msg = f"window {window} does not hold the occupied cells' box {bounds}"
+            raise ValueError(msg)
+    return OccupiedCells(grid_index, (y1 - 1 - row) * (x1 - x0) + (col - x0), bounds, window)
 
 
 def segmentation_image(
@@ -101,7 +128,8 @@ def segmentation_image(
     rescued: npt.NDArray[np.bool_] | None = None,
     dropped: npt.NDArray[np.bool_] | None = None,
 ) -> npt.NDArray[np.uint8]:
-    """Class id of every cell, image row order (north up).
+    """Class id of every cell of the window of ``occupied`` (the whole grid without it), image
+    row order (north up).
 
     Parameters
     ----------
@@ -120,16 +148,17 @@ def segmentation_image(
 
     Returns
     -------
-    ndarray of uint8, shape (rows, cols)
+    ndarray of uint8, shape (window rows, window cols)
         ``CLASS_FREE`` for known cells that are not occupied, ``CLASS_UNKNOWN``, and for occupied cells
         ``CLASS_STRUCTURE`` / ``CLASS_CLUTTER`` (``CLASS_RESCUED``), or ``CLASS_OCCUPIED`` when ROSE
         found no structure.
     """
-    # Comparing the row-reversed view writes the image rows directly: free 1, unknown 1 + 1.
-    classes = (grid[::-1] < 0).view(np.uint8)
-    classes += np.uint8(CLASS_FREE)
     cells = occupied or occupied_cells(result)
     grid_index, image_index = cells.grid_index, cells.image_index
+    x0, y0, x1, y1 = cells.window
+    # Comparing the row-reversed view writes the image rows directly: free 1, unknown 1 + 1.
+    classes = (grid[y0:y1, x0:x1][::-1] < 0).view(np.uint8)
+    classes += np.uint8(CLASS_FREE)
     if result.has_structure:
         # structure 4, clutter 5: the occupied cells are partitioned into the two.
         values: npt.NDArray[np.uint8] | np.uint8 = np.uint8(
@@ -139,9 +168,9 @@ def segmentation_image(
         values = np.uint8(CLASS_OCCUPIED)
     classes.ravel()[image_index] = values
     if rescued is not None:
-        classes[rescued[::-1]] = np.uint8(CLASS_RESCUED)
+        classes[rescued[y0:y1, x0:x1][::-1]] = np.uint8(CLASS_RESCUED)
     if dropped is not None:
-        classes[dropped[::-1]] = np.uint8(CLASS_CLUTTER)
+        classes[dropped[y0:y1, x0:x1][::-1]] = np.uint8(CLASS_CLUTTER)
     return classes
 
 
@@ -185,18 +214,20 @@ def score_levels(
 def masked_score_image(
     result: RoseResult, occupied: OccupiedCells | None = None, *, levels: int = DISPLAY_LEVELS
 ) -> npt.NDArray[np.uint8]:
-    """Occupied cells' score level as class ids ``1 .. levels``; every other cell 0 (transparent).
+    """Occupied cells' score level as class ids ``1 .. levels``; every other cell 0 (transparent),
+    over the window of ``occupied`` (the whole grid without it).
 
     Returns
     -------
-    ndarray of uint8, shape (rows, cols)
+    ndarray of uint8, shape (window rows, window cols)
         Image row order; ``1 + score_levels(score)`` on occupied cells (see :func:`score_classes`).
     """
     if not 2 <= levels <= 255:
         msg = f"levels must be in 2..255, got {levels}"
         raise ValueError(msg)
-    image = np.zeros(result.occupied.shape, dtype=np.uint8)
     cells = occupied or occupied_cells(result)
+    x0, y0, x1, y1 = cells.window
+    image = np.zeros((y1 - y0, x1 - x0), dtype=np.uint8)
     grid_index, image_index = cells.grid_index, cells.image_index
     image.ravel()[image_index] = (
         score_levels(result.cell_scores.ravel()[grid_index], levels=levels) + 1

@@ -84,16 +84,18 @@ def view_origin_m(snapshot: MapSnapshot) -> tuple[float, float]:
     return round(x, -2), round(y, -2)
 
 
-def image_placement(snapshot: MapSnapshot, view_origin: tuple[float, float]) -> rr.Transform3D:
-    """Where the 2D views draw pixels of ``snapshot``'s north-up images: in metres of the map frame
-    from ``view_origin`` (:func:`view_origin_m`), north up (x east, y south: 2D views draw y
-    downwards).
+def image_placement(
+    snapshot: MapSnapshot, view_origin: tuple[float, float], window: conv.Window | None = None
+) -> rr.Transform3D:
+    """Where the 2D views draw pixels of ``snapshot``'s north-up images of ``window`` (default: the
+    whole grid): in metres of the map frame from ``view_origin`` (:func:`view_origin_m`), north up
+    (x east, y south: 2D views draw y downwards).
 
     Every snapshot lands where it lies in the map, so a map that grows, moves its origin or changes
     resolution during a session stays in place in the views (in pixels, each grid size had its own
     frame: a growing map jumped and shrank in a fixed view).
     """
-    translation, angle, scale = placement_terms(snapshot, view_origin)
+    translation, angle, scale = placement_terms(snapshot, view_origin, window)
     return rr.Transform3D(
         translation=[*translation, 0.0],
         rotation=rr.RotationAxisAngle(axis=[0.0, 0.0, 1.0], radians=angle),
@@ -102,7 +104,7 @@ def image_placement(snapshot: MapSnapshot, view_origin: tuple[float, float]) -> 
 
 
 def placement_terms(
-    snapshot: MapSnapshot, view_origin: tuple[float, float]
+    snapshot: MapSnapshot, view_origin: tuple[float, float], window: conv.Window | None = None
 ) -> tuple[tuple[float, float], float, float]:
     """``(translation, rotation angle (radians, about z), scale)`` of :func:`image_placement`:
     a pixel ``p`` lands at ``translation + R(angle) (scale * p)``."""
@@ -110,10 +112,13 @@ def placement_terms(
     yaw = float(snapshot.origin_yaw_rad)
     c, s = math.cos(yaw), math.sin(yaw)
     ox, oy = (float(v) for v in snapshot.origin_position_m[:2])
-    rows = snapshot.grid.shape[0]
-    # Pixel (u, v) is grid point (res u, res (rows - v)); rotate by yaw, translate by the origin
-    # (less the view's), negate y: X = ox - rx + res (c u + s v) - s res rows, Y likewise.
-    translation = (ox - view_origin[0] - s * res * rows, -(oy - view_origin[1]) - c * res * rows)
+    x0, _, _, y1 = window or (0, 0, 0, snapshot.grid.shape[0])
+    # Pixel (u, v) is grid point (res (x0 + u), res (y1 - v)); rotate by yaw, translate by the
+    # origin (less the view's), negate y: X = ox - rx + res (c (x0 + u) - s (y1 - v)), Y likewise.
+    translation = (
+        ox - view_origin[0] + res * (c * x0 - s * y1),
+        -(oy - view_origin[1]) - res * (s * x0 + c * y1),
+    )
     return translation, -yaw, res
 
 
@@ -134,6 +139,19 @@ def set_snapshot_time(
     recording.set_time(TIMELINE, timestamp=np.datetime64(int(log_time_ns), "ns"))
     if index is not None:
         recording.set_time(SEQUENCE_TIMELINE, sequence=int(index))
+
+
+def _rotated(
+    quaternion_xyzw: list[float], vector: tuple[float, float, float]
+) -> npt.NDArray[np.float64]:
+    """``vector`` turned by the quaternion ``(x, y, z, w)`` (normalised here, as Rerun does: a
+    map message's need not be a unit one)."""
+    xyzw = np.asarray(quaternion_xyzw, dtype=np.float64)
+    xyzw /= np.linalg.norm(xyzw)
+    q, w = xyzw[:3], float(xyzw[3])
+    v = np.asarray(vector, dtype=np.float64)
+    t = 2.0 * np.cross(q, v)
+    return v + w * t + np.cross(q, t)
 
 
 def cells_to_map_m(
@@ -384,8 +402,9 @@ class TopicLogger:
                 f"{snapshot.grid.shape} (topic {snapshot.topic}, log time {snapshot.log_time_ns} ns)"
             )
             raise ValueError(msg)
-        occupied = conv.occupied_cells(result)
-        self.log_grid_map(snapshot)
+        window = conv.image_window(snapshot.grid)
+        occupied = conv.occupied_cells(result, window)
+        self.log_grid_map(snapshot, window)
         self.log_segmentation(snapshot, result, occupied, rescued=rescued, dropped=dropped)
         self.log_directions(snapshot, result, occupied)
         self.log_cell_scores(snapshot, result, occupied)
@@ -395,21 +414,26 @@ class TopicLogger:
         if walls is not None:
             self.log_walls(snapshot, walls)
 
-    def log_grid_map(self, snapshot: MapSnapshot) -> None:
-        """The occupancy grid as a GridMap in the map frame, metres, RViz map colours.
+    def log_grid_map(self, snapshot: MapSnapshot, window: conv.Window | None = None) -> None:
+        """The occupancy grid's ``window`` (default :func:`~conv.image_window`: its known cells) as
+        a GridMap in the map frame, metres, RViz map colours.
 
         The int8 cells go as their uint8 bit pattern (-1 unknown -> 255), the convention of
-        :attr:`rerun.components.Colormap.RvizMap`; the image's lower-left corner is the grid origin.
+        :attr:`rerun.components.Colormap.RvizMap`; the image's lower-left corner is the window's.
         """
-        image = snapshot.grid.view(np.uint8)[::-1].copy()  # image row order, a copy of its own
+        x0, y0, x1, y1 = window or conv.image_window(snapshot.grid)
+        # Image row order, a copy of its own (Rerun reads it later, see _image_buffer).
+        image = snapshot.grid[y0:y1, x0:x1].view(np.uint8)[::-1].copy()
+        quaternion = [float(v) for v in snapshot.origin_orientation_xyzw]
+        corner = _rotated(quaternion, (x0 * snapshot.resolution_m, y0 * snapshot.resolution_m, 0.0))
         self.recording.log(
             self.paths.grid,
             rr.GridMap(
                 data=_image_buffer(image),
                 format=_u8_format(image, color_model="L"),
                 cell_size=float(snapshot.resolution_m),
-                translation=[float(v) for v in snapshot.origin_position_m],
-                quaternion=rr.Quaternion(xyzw=[float(v) for v in snapshot.origin_orientation_xyzw]),
+                translation=[float(v) for v in np.add(snapshot.origin_position_m, corner)],
+                quaternion=rr.Quaternion(xyzw=quaternion),
             ),
         )
 
@@ -424,13 +448,14 @@ class TopicLogger:
     ) -> None:
         """Free / unknown / occupied / structure / clutter (/ kept by the cleaning) as a
         segmentation image (the class table is static)."""
+        occupied = occupied or conv.occupied_cells(result, conv.image_window(snapshot.grid))
         image = conv.segmentation_image(
             snapshot.grid, result, occupied, rescued=rescued, dropped=dropped
         )
         self.recording.log(
             self.paths.segmentation,
             segmentation_image(image),
-            image_placement(snapshot, self._origin_for(snapshot)),
+            image_placement(snapshot, self._origin_for(snapshot), occupied.window),
         )
 
     def log_directions(
@@ -510,9 +535,10 @@ class TopicLogger:
         rec, paths = self.recording, self.paths
         rows, cols = result.occupied.shape
         origin = self._origin_for(snapshot)
+        occupied = occupied or conv.occupied_cells(result, conv.image_window(snapshot.grid))
         # Under the occupied cells' box (a SLAM map's grid is mostly unknown), north up in the
         # view's metres whatever the origin's yaw.
-        x0, y0, x1, y1 = (occupied or conv.occupied_cells(result)).bounds or (0, 0, cols, rows)
+        x0, y0, x1, y1 = occupied.bounds or (0, 0, cols, rows)
         corners = north_up_m(
             snapshot, np.array([[x0, y0], [x1, y0], [x0, y1], [x1, y1]], float), origin
         )
@@ -544,7 +570,7 @@ class TopicLogger:
         rec.log(
             paths.cell_scores,
             segmentation_image(conv.masked_score_image(result, occupied)),
-            image_placement(snapshot, origin),
+            image_placement(snapshot, origin, occupied.window),
         )
         if self.live:
             rec.log(paths.score_legend, self.score_legend_placement)

@@ -223,6 +223,37 @@ def test_occupied_cells_indices_and_bounds(plan) -> None:
     assert empty.bounds is None and empty.grid_index.size == 0
 
 
+def test_images_of_the_known_window_are_the_whole_grids_images_cut_to_it() -> None:
+    """A SLAM grid is mostly unknown: its images cover the known cells' box, pixel for pixel what
+    the whole grid's images hold there, and every occupied, rescued and dropped cell is in it."""
+    grid = np.full((110, 160), -1, dtype=np.int8)
+    grid[12:92, 20:140] = _plan()  # unknown around its own unknown margin
+    result = rose.analyze(grid)
+    assert result.clutter.any() and result.structure.any()
+    rescued, dropped = np.zeros(grid.shape, bool), np.zeros(grid.shape, bool)
+    rescued[tuple(np.argwhere(result.clutter)[:3].T)] = True
+    dropped[tuple(np.argwhere(result.structure)[:3].T)] = True
+    window = conv.image_window(grid)
+    x0, y0, x1, y1 = window
+    assert window == conv.known_bounds_cells(grid)
+    assert window == (25, 17, 135, 87)
+    cut = slice(110 - y1, 110 - y0), slice(x0, x1)  # image rows run north to south
+    whole = conv.occupied_cells(result)
+    part = conv.occupied_cells(result, window)
+    assert part.bounds == whole.bounds
+    assert_array_equal(
+        conv.segmentation_image(grid, result, part, rescued=rescued, dropped=dropped),
+        conv.segmentation_image(grid, result, whole, rescued=rescued, dropped=dropped)[cut],
+    )
+    assert_array_equal(
+        conv.masked_score_image(result, part), conv.masked_score_image(result, whole)[cut]
+    )
+    with pytest.raises(ValueError, match="does not hold the occupied cells"):
+        conv.occupied_cells(result, (x0 + 5, y0, x1, y1))
+    unknown = np.full((4, 6), -1, dtype=np.int8)
+    assert conv.image_window(unknown) == (0, 0, 6, 4)  # an image needs a pixel
+
+
 def test_direction_segments_span_the_given_box() -> None:
     segments = conv.direction_segments_cells(
         np.radians([0.0, 90.0]), (100, 200), bounds=(20, 10, 60, 30)

@@ -385,6 +385,30 @@ def test_grid_map_is_sent_top_row_first_and_placed(tmp_path: Path) -> None:
     assert row["GridMap:cell_size"][0] == pytest.approx(0.5)
 
 
+def test_the_grid_map_covers_the_known_cells_where_they_lie(tmp_path: Path) -> None:
+    """A SLAM grid is mostly unknown: the GridMap holds the known cells' box only, its lower-left
+    corner placed on that box's corner in the map frame (yawed origin)."""
+    import rerun as rr
+
+    from rose_logs.rerun import TopicLogger, set_snapshot_time
+    from rose_logs.rerun.loggers import cells_to_map_m
+
+    grid = np.full((40, 50), -1, dtype=np.int8)
+    grid[7:19, 11:31] = np.arange(240, dtype=np.int64).reshape(12, 20) % 101
+    snapshot = _yawed(grid, 0.6, (3.0, -2.0), resolution=0.1)
+    path = tmp_path / "grid.rrd"
+    recording = rr.RecordingStream("t")
+    recording.save(path)
+    set_snapshot_time(recording, log_time_ns=5, start_ns=0, index=0)
+    TopicLogger(recording, PATHS).log_grid_map(snapshot)
+    recording.flush()
+    recording.disconnect()
+    (row,) = _read(path).rows(PATHS.grid)
+    assert bytes(row["GridMap:data"][0]) == grid[7:19, 11:31][::-1].tobytes()
+    corner = cells_to_map_m(snapshot, np.array([[11.0, 7.0]]))[0, :2]
+    assert row["GridMap:translation"][0][:2] == pytest.approx(corner, abs=1e-5)
+
+
 def test_images_go_to_rerun_without_copies_and_as_rerun_would_send_them(tmp_path: Path) -> None:
     """The buffers handed to Rerun without its two copies hold the same Arrow data as
     rr.SegmentationImage(array), and a grid changed after logging does not change the log."""
@@ -525,7 +549,8 @@ def test_2d_views_place_every_snapshot_where_it_lies_in_the_map(
 def test_the_logged_placement_puts_each_pixel_on_its_cell_in_metres(tmp_path: Path) -> None:
     """The segmentation's Transform3D as the recording holds it, composed as Rerun composes one
     (translation, then rotation, then scale): pixel corners land on their cells' map-frame metres
-    from the view origin, north up, for a yawed map at a UTM-sized origin."""
+    from the view origin, north up, for a yawed map at a UTM-sized origin. The image covers the
+    known cells' box only: pixel (u, v) is cell (5 + u, 25 - v)."""
     import math
 
     import rose
@@ -549,11 +574,13 @@ def test_the_logged_placement_puts_each_pixel_on_its_cell_in_metres(tmp_path: Pa
     ((axis, radians),) = [(v["axis"], v["angle"]) for v in row["Transform3D:rotation_axis_angle"]]
     assert axis == pytest.approx([0.0, 0.0, 1.0])
     c, s = math.cos(radians), math.sin(radians)
-    pixels = np.array([[0.0, 0.0], [50.0, 30.0], [12.5, 4.0]])
+    (image_format,) = row["SegmentationImage:format"]
+    assert (image_format["width"], image_format["height"]) == (40, 20)
+    pixels = np.array([[0.0, 0.0], [40.0, 20.0], [12.5, 4.0]])
     scaled = pixels * np.array(scale[:2])
     placed = np.stack([c * scaled[:, 0] - s * scaled[:, 1], s * scaled[:, 0] + c * scaled[:, 1]], 1)
     placed += np.array(translation[:2])
-    cells = np.stack([pixels[:, 0], 30 - pixels[:, 1]], axis=1)  # image rows run north to south
+    cells = np.stack([5 + pixels[:, 0], 25 - pixels[:, 1]], axis=1)  # rows run north to south
     metres = cells_to_map_m(snapshot, cells)[:, :2] - np.array(reference)
     # float32 in the recording: micrometres at these few metres from the view origin.
     assert placed == pytest.approx(metres * np.array([1.0, -1.0]), abs=1e-4)
