@@ -3,7 +3,10 @@
 The 14 partial maps ``map2`` .. ``map15`` of Radish fr079 (1152 x 736 cells, 0.05 m) are published in
 order on ``/map`` (``nav_msgs/msg/OccupancyGrid``, transient-local QoS, frame ``map``), one every
 ``--period`` seconds (5 s by default), with a ``/clock`` (``rosgraph_msgs/msg/Clock``) at 10 Hz as other
-traffic. Output is deterministic: the same inputs give a byte-identical file.
+traffic. Every map is placed at the first map's origin: ``map15``'s YAML gives (-20, -20) m where the
+others give (-100, -100) m, though its cells lie where ``map14``'s do (a slip of the source's YAML that
+moved the last map 80 m away from the others). Output is deterministic: the same inputs give a
+byte-identical file.
 
 Usage::
 
@@ -43,6 +46,7 @@ def build(maps_dir: Path, output: Path, *, period_s: float = 5.0, force: bool = 
         out.add_topic("/clock", "rosgraph_msgs/msg/Clock")
         out.add_topic("/map", "nav_msgs/msg/OccupancyGrid", latching=True)
         map_times = {START_NS + period_ns * (i + 1): path for i, path in enumerate(yamls)}
+        origin_xy_m = rose.load_map(yamls[0]).origin_xy_m
         t = START_NS
         while t <= end_ns:
             stamp = types["builtin_interfaces/msg/Time"](
@@ -58,7 +62,7 @@ def build(maps_dir: Path, output: Path, *, period_s: float = 5.0, force: bool = 
                     frame_id="map",
                     grid=occupancy.grid,
                     resolution_m=occupancy.resolution_m,
-                    origin_position_m=(*occupancy.origin_xy_m, 0.0),
+                    origin_position_m=(*origin_xy_m, 0.0),
                 )
                 out.write("/map", t, encode_cleaned(snapshot, occupancy.grid, serialization="cdr"))
             t += CLOCK_PERIOD_NS

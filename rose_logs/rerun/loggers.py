@@ -390,11 +390,14 @@ class TopicLogger:
         walls: WallSet | None,
         rescued: npt.NDArray[np.bool_] | None = None,
         dropped: npt.NDArray[np.bool_] | None = None,
+        *,
+        window: conv.Window | None = None,
     ) -> None:
         """Every stream of one analysed snapshot, at the time set by :func:`set_snapshot_time`.
 
         ``rescued`` (grid order): clutter cells the cleaning kept as walls, their own class;
-        ``dropped``: structure cells the cleaning removed, shown as clutter.
+        ``dropped``: structure cells the cleaning removed, shown as clutter; ``window``: the
+        snapshot's :func:`~conv.image_window`, when the caller has it.
         """
         if result.cell_scores.shape != snapshot.grid.shape:
             msg = (
@@ -402,7 +405,7 @@ class TopicLogger:
                 f"{snapshot.grid.shape} (topic {snapshot.topic}, log time {snapshot.log_time_ns} ns)"
             )
             raise ValueError(msg)
-        window = conv.image_window(snapshot.grid)
+        window = window or conv.image_window(snapshot.grid)
         occupied = conv.occupied_cells(result, window)
         self.log_grid_map(snapshot, window)
         self.log_segmentation(snapshot, result, occupied, rescued=rescued, dropped=dropped)

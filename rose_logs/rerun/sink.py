@@ -36,6 +36,7 @@ from rose.result import RoseResult
 from rose.walls import WallSet
 from rose_logs.malloc import release_free_heap
 from rose_logs.rerun.blueprint import TopicLayout, default_blueprint
+from rose_logs.rerun.conversions import known_bounds_cells
 from rose_logs.rerun.loggers import TopicLogger, set_snapshot_time, view_origin_m
 from rose_logs.rerun.paths import EntityPaths, entity_root_for_topic
 from rose_logs.session.breaks import BreakScore
@@ -179,29 +180,44 @@ def _top(*values: float) -> float:
     return max((v for v in values if math.isfinite(v)), default=0.0)
 
 
-def _layout_of(
-    root: str,
-    snapshot: MapSnapshot | None,
-    *,
-    has_events: bool,
-    view_origin: tuple[float, float] | None,
-) -> TopicLayout:
-    """Layout of a topic framed on the known part of its latest map (``view_origin``: the 2D
-    views' 0, see :func:`rose_logs.rerun.loggers.view_origin_m`)."""
-    from rose_logs.rerun.conversions import known_bounds_cells
+Box = tuple[float, float, float, float]
+"""``(x_min, y_min, x_max, y_max)`` in map-frame metres."""
+
+
+def known_box_m(snapshot: MapSnapshot, known: tuple[int, int, int, int] | None) -> Box | None:
+    """The map-frame box around ``snapshot``'s known cells ``known`` (cells, exclusive max, from
+    :func:`~rose_logs.rerun.conversions.known_bounds_cells`); None when nothing is known."""
     from rose_logs.rerun.loggers import cells_to_map_m
 
-    known = None if snapshot is None else known_bounds_cells(snapshot.grid)
-    if snapshot is None or known is None:
-        return TopicLayout(root, has_events=has_events)
+    if known is None:
+        return None
     x0, y0, x1, y1 = known
     corners = cells_to_map_m(snapshot, np.array([[x0, y0], [x1, y0], [x0, y1], [x1, y1]], float))
-    bounds_m = (
+    return (
         float(corners[:, 0].min()),
         float(corners[:, 1].min()),
         float(corners[:, 0].max()),
         float(corners[:, 1].max()),
     )
+
+
+def _union(a: Box | None, b: Box | None) -> Box | None:
+    if a is None or b is None:
+        return a or b
+    return (min(a[0], b[0]), min(a[1], b[1]), max(a[2], b[2]), max(a[3], b[3]))
+
+
+def _layout_of(
+    root: str,
+    bounds_m: Box | None,
+    *,
+    has_events: bool,
+    view_origin: tuple[float, float] | None,
+) -> TopicLayout:
+    """Layout of a topic framed on ``bounds_m``, the known part of every map of the session so far
+    (``view_origin``: the 2D views' 0, see :func:`rose_logs.rerun.loggers.view_origin_m`)."""
+    if bounds_m is None:
+        return TopicLayout(root, has_events=has_events)
     return TopicLayout(
         root,
         bounds_m=bounds_m,
@@ -298,6 +314,9 @@ class RerunSink:
             for topic in topics
         }
         self._latest: dict[str, MapSnapshot] = {}
+        # Known part of every map so far, per topic: the views frame them all, so that scrubbing
+        # back over a map that moved (a new origin) does not show an empty view.
+        self._bounds_m: dict[str, Box | None] = dict.fromkeys(topics)
         self._closing = False
         self._has_events: dict[str, bool] = dict.fromkeys(topics, False)
         # Highest value each topic's W / break-score plot shows, guide lines included (final layout).
@@ -379,6 +398,11 @@ class RerunSink:
         if first:  # here, not on the logging thread: the layout sent below uses it
             topic_logger.view_origin_m = view_origin_m(snapshot)
         self._latest[snapshot.topic] = snapshot
+        known = known_bounds_cells(snapshot.grid)
+        window = known or (0, 0, snapshot.grid.shape[1], snapshot.grid.shape[0])
+        self._bounds_m[snapshot.topic] = _union(
+            self._bounds_m[snapshot.topic], known_box_m(snapshot, known)
+        )
         if w_judges(result.occupied_count):  # an empty map's W (1 by convention) is not plotted
             self._w_top[snapshot.topic] = _top(self._w_top[snapshot.topic], result.structure_score)
 
@@ -389,7 +413,7 @@ class RerunSink:
                 start_ns=self.start_ns,
                 index=index,
             )
-            topic_logger.log_snapshot(snapshot, result, walls, rescued, dropped)
+            topic_logger.log_snapshot(snapshot, result, walls, rescued, dropped, window=window)
 
         self._submit(job)
         if self.live and first:
@@ -444,7 +468,7 @@ class RerunSink:
         layouts = tuple(
             _layout_of(
                 logger.paths.root,
-                self._latest.get(topic),
+                self._bounds_m[topic],
                 has_events=self._has_events[topic],
                 view_origin=logger.view_origin_m,
             )
@@ -507,7 +531,7 @@ class RerunSink:
         # The session's arrays are gone; Rerun now builds the recording's footer (a manifest of
         # every chunk, tens of MB after an hour): on top of glibc's free heap, that was the peak.
         release_free_heap()
-        self._closing = True  # the final layout frames the final map
+        self._closing = True  # the final layout frames every map of the session
         if not self.live:  # a live viewer placed the bar with each map
             for logger in self.loggers.values():
                 logger.log_final_placement()

@@ -40,17 +40,29 @@ def _colour_count(region: npt.NDArray[np.uint8], rgb: tuple[int, int, int], tol:
 
 
 @pytest.fixture(scope="module")
-def screenshot(tmp_path_factory: pytest.TempPathFactory) -> tuple[npt.NDArray[np.uint8], object]:
+def shots(
+    tmp_path_factory: pytest.TempPathFactory,
+) -> tuple[dict[str, npt.NDArray[np.uint8]], object]:
+    """The sample's first and last snapshots in the viewer (it loads once), and the report."""
     from PIL import Image
 
     tmp = tmp_path_factory.mktemp("viewer")
     rrd = tmp / "fr079.rrd"
     report = process_log(SAMPLE, rrd_path=rrd)
     assert len(session_times_ns(rrd)) == len(report.records)
-    (shot,) = take_screenshots(rrd, tmp, steps=[("last", None)], width=WIDTH, height=HEIGHT)
-    image = np.asarray(Image.open(shot.path).convert("RGB"))
-    assert image.shape == (HEIGHT, WIDTH, 3)
-    return image, report
+    taken = take_screenshots(
+        rrd, tmp, steps=[("first", 0), ("last", None)], width=WIDTH, height=HEIGHT
+    )
+    images = {shot.name: np.asarray(Image.open(shot.path).convert("RGB")) for shot in taken}
+    assert all(image.shape == (HEIGHT, WIDTH, 3) for image in images.values())
+    return images, report
+
+
+@pytest.fixture(scope="module")
+def screenshot(shots) -> tuple[npt.NDArray[np.uint8], object]:
+    """The last snapshot's screenshot and the report."""
+    images, report = shots
+    return images["last"], report
 
 
 def _region(image: npt.NDArray[np.uint8], x: tuple[float, float], y: tuple[float, float]):
@@ -100,3 +112,14 @@ def test_the_map_from_above_shows_the_direction_lines(screenshot) -> None:
     image, _ = screenshot
     metric = _region(image, (0.0, 0.29), (0.62, 0.97))  # left column, bottom: the map from above
     assert _colour_count(metric, style.DIRECTION_COLOR, tol=40) > 300
+
+
+def test_the_first_snapshot_is_drawn_too(shots) -> None:
+    """Scrubbing back to the session's start shows its map: the views framed only the last map,
+    and an earlier map lying elsewhere (a moved origin) left them empty."""
+    image = shots[0]["first"]
+    view = _region(image, (0.02, 0.58), (0.08, 0.55))  # the segmentation view, left top
+    colours = {label: rgb for _, label, rgb in style.CLASS_INFO}
+    area = view.shape[0] * view.shape[1]
+    assert _colour_count(view, colours["free"]) > 0.05 * area
+    assert _colour_count(view, colours["structure"]) > 200

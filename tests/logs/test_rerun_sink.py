@@ -39,6 +39,14 @@ def _yawed(grid: np.ndarray, yaw: float, origin: tuple[float, float], resolution
     return MapSnapshot("/map", 1, 1, "map", grid, resolution, (*origin, 0.0), rotation)
 
 
+def _known_box(snapshot):  # type: ignore[no-untyped-def]
+    """The map-frame box of ``snapshot``'s known cells, as the sink frames it."""
+    from rose_logs.rerun.conversions import known_bounds_cells
+    from rose_logs.rerun.sink import known_box_m
+
+    return known_box_m(snapshot, known_bounds_cells(snapshot.grid))
+
+
 def _recording_at_zero(path: Path):  # type: ignore[no-untyped-def]
     """A recording saved to ``path``, its session time at 0."""
     import rerun as rr
@@ -608,12 +616,55 @@ def test_the_score_colour_bar_lies_under_the_map_whatever_its_yaw(tmp_path: Path
     (legend,) = _read(rrd).rows(PATHS.score_legend)
     left, top, _ = legend["Transform3D:translation"][0]
     # The scores view frames the known part north up, with room below (blueprint._north_up_bounds).
-    layout = _layout_of("map", snapshot, has_events=False, view_origin=logger.view_origin_m)
+    layout = _layout_of(
+        "map", _known_box(snapshot), has_events=False, view_origin=logger.view_origin_m
+    )
     assert layout.bounds_m is not None
     x0, y0, x1, y1 = layout.bounds_m
     rx, ry = layout.view_origin_m
     assert x0 - rx < left < x1 - rx  # under the map, not beside it
     assert ry - y0 < top < ry - y0 + 0.45 * (y1 - y0)  # below its south edge, inside the view
+
+
+def test_the_views_frame_every_map_of_the_session_when_the_origin_moves(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A map whose origin moves 80 m (the sample's last map does) drew every earlier snapshot out
+    of the views, which framed the last map only: scrubbing back showed empty views."""
+    import rose
+    from rose_logs.rerun import sink as sink_module
+    from rose_logs.rerun.loggers import placement_terms
+
+    sent: list[tuple[object, ...]] = []
+    real = sink_module.default_blueprint
+    monkeypatch.setattr(
+        sink_module,
+        "default_blueprint",
+        lambda layouts, **kw: sent.append(layouts) or real(layouts, **kw),
+    )
+    grid = np.full((60, 80), -1, dtype=np.int8)
+    grid[10:50, 10:70] = 0
+    grid[10, 10:70] = grid[49, 10:70] = grid[10:50, 10] = grid[10:50, 69] = 100
+    first, moved = _yawed(grid, 0.0, (-100.0, -100.0)), _yawed(grid, 0.0, (-20.0, -20.0))
+    sink = sink_module.RerunSink(
+        rrd_path=tmp_path / "x.rrd", topics=("/map",), recording_id="x", start_ns=0
+    )
+    result = rose.analyze(grid)
+    for index, snapshot in enumerate((first, moved)):
+        sink.snapshot(snapshot, result, index, None)
+    sink.close()
+    (layout,) = sent[-1]
+    assert layout.bounds_m is not None
+    x0, y0, x1, y1 = layout.bounds_m
+    rx, ry = layout.view_origin_m
+    for snapshot in (first, moved):
+        # The corners of each snapshot's image (its known box, 60 x 40 cells) in the views' north-up
+        # metres (x east, y south), inside what the views frame (blueprint._north_up_bounds).
+        (tx, ty), _, scale = placement_terms(snapshot, layout.view_origin_m, (10, 10, 70, 50))
+        for u, v in ((0, 0), (60, 40)):
+            x, y = tx + scale * u, ty + scale * v
+            assert x0 - rx - 1e-6 <= x <= x1 - rx + 1e-6, (snapshot.origin_position_m, x)
+            assert ry - y1 - 1e-6 <= y <= ry - y0 + 1e-6, (snapshot.origin_position_m, y)
 
 
 def test_rerun_batches_small_chunks_unless_the_environment_says_otherwise(monkeypatch) -> None:
@@ -671,7 +722,9 @@ def test_the_threshold_label_sits_between_the_cells_and_the_bar(tmp_path: Path, 
     _, top, _ = placement["Transform3D:translation"][0]
     _, scale_y, _ = placement["Transform3D:scale"][0]
     (_, below_px), _, (_, threshold_px) = labels["Points2D:positions"]
-    layout = _layout_of("map", snapshot, has_events=False, view_origin=logger.view_origin_m)
+    layout = _layout_of(
+        "map", _known_box(snapshot), has_events=False, view_origin=logger.view_origin_m
+    )
     assert layout.bounds_m is not None
     south = layout.view_origin_m[1] - layout.bounds_m[1]  # the cells' south edge in the view
     assert south < top + threshold_px * scale_y < top  # between the cells and the bar
