@@ -8,11 +8,14 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from rose.spectrum import MIN_PADDED_SIDE
+
 __all__ = [
     "FAILURE_LEVEL",
     "MIN_JUDGED_CELLS",
     "TRUST_LEVEL",
     "DirectionPeaks",
+    "degenerate_input",
     "find_direction_peaks",
     "fold_deg",
     "local_maxima",
@@ -69,6 +72,50 @@ def w_judges(occupied_cells: int) -> bool:
     gates and the W plot of ``rose-bag``, and gets no verdict from ``rose``.
     """
     return occupied_cells >= MIN_JUDGED_CELLS
+
+
+def degenerate_input(grid: npt.NDArray[np.int8], occupied: npt.NDArray[np.bool_]) -> str | None:
+    """Why ROSE's input, the ``occupied`` mask of ``grid``, cannot show a building's structure, so
+    that W says nothing about the map; None when it can.
+
+    ROSE sees a building in the outline of the occupied cells: the spectrum of the mask is that of
+    its edges. It cannot when
+
+    - *a side is too thin for a 2D spectrum*: under :data:`rose.spectrum.MIN_PADDED_SIDE` cells, the
+      side ROSE pads because so few cells sample the spectrum too coarsely to tell directions apart
+      (a solid 1 x 300 strip read W = 0.007, "structured");
+    - *the occupied cells fill the grid*: their outline inside the grid is shorter than where they
+      meet its border, so the grid's rectangle outweighs them in the spectrum (a solid 40 x 50 block
+      read W = 0.016, the rectangle's directions). A map whose outside is drawn occupied (Bormann's
+      lab_ipa: 82 % of its cells) still has twice as long an outline inside as on its border;
+    - *there is no free space*: fewer free cells than :data:`MIN_JUDGED_CELLS`, so nothing lies
+      between walls (a solid block amid unknown cells: the outline of a blob, not of rooms).
+    """
+    thinnest = min(occupied.shape, default=0)
+    if thinnest < MIN_PADDED_SIDE:
+        noun = "cell" if thinnest == 1 else "cells"
+        return f"a side of {thinnest} {noun} (fewer than {MIN_PADDED_SIDE}, too thin for a 2D spectrum)"
+    outline = int(
+        np.count_nonzero(occupied[1:] != occupied[:-1])
+        + np.count_nonzero(occupied[:, 1:] != occupied[:, :-1])
+    )
+    border = sum(int(np.count_nonzero(side)) for side in _sides(occupied))
+    if outline < border:
+        return (
+            f"occupied cells fill the grid ({border} cell sides on its border, {outline} inside it)"
+        )
+    # Free cells anywhere, not only next to walls: drawn maps (Bormann's office_g) edge their walls
+    # with grey, unknown cells.
+    free = int(np.count_nonzero(grid >= 0)) - int(np.count_nonzero(occupied))
+    if free < MIN_JUDGED_CELLS:
+        noun = "cell" if free == 1 else "cells"
+        return f"only {free} free {noun} (fewer than {MIN_JUDGED_CELLS}, no space between walls)"
+    return None
+
+
+def _sides(mask: npt.NDArray[np.bool_]) -> tuple[npt.NDArray[np.bool_], ...]:
+    """The grid's four sides: its first and last rows and columns."""
+    return mask[0], mask[-1], mask[:, 0], mask[:, -1]
 
 
 @dataclass(frozen=True, eq=False)

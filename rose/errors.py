@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-__all__ = ["MapFileError", "OutputError", "RoseError"]
+__all__ = ["MapFileError", "OutputError", "RoseError", "StdoutError"]
 
 
 class RoseError(Exception):
@@ -15,3 +15,12 @@ class MapFileError(RoseError):
 
 class OutputError(RoseError):
     """An output cannot be written: it touches an input or another output, exists, or its folder fails."""
+
+
+class StdoutError(OutputError):
+    """Standard output cannot be written (a full disk, an I/O error): the message names standard
+    output, not the command's input, as ``standard output: cannot write (<reason>)``."""
+
+    def __init__(self, reason: str) -> None:
+        super().__init__(f"standard output: cannot write ({reason})")
+        self.reason = reason

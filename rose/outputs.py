@@ -47,9 +47,9 @@ from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from types import FrameType, TracebackType
-from typing import Any, BinaryIO, NoReturn, Self
+from typing import Any, BinaryIO, NoReturn, Self, TextIO
 
-from rose.errors import OutputError
+from rose.errors import OutputError, StdoutError
 from rose.limits import short
 
 __all__ = [
@@ -72,6 +72,7 @@ __all__ = [
     "signal_handlers_kept",
     "signals_deferred",
     "stdout_closed",
+    "stdout_errors_named",
     "temporary_name",
 ]
 
@@ -158,13 +159,80 @@ def stdout_closed(err: OSError) -> bool:
     """
     if not isinstance(err, BrokenPipeError) or err.filename is not None:
         return False
+    _discard_stdout()
+    return True
+
+
+def _discard_stdout() -> None:
+    """Point standard output's descriptor at ``/dev/null``: what is still buffered goes nowhere."""
     with contextlib.suppress(OSError, ValueError, AttributeError):  # stdout may be no real file
         devnull = os.open(os.devnull, os.O_WRONLY)
         try:
             os.dup2(devnull, sys.stdout.fileno())
         finally:
             os.close(devnull)
-    return True
+
+
+@contextlib.contextmanager
+def stdout_errors_named() -> Iterator[None]:
+    """Run a command with standard output's write errors raised as :class:`StdoutError`.
+
+    A write error carries no file name, so the CLIs named their input for it (``rose score m.yaml >
+    /dev/full``: ``m.yaml: No space left on device``). The text still buffered is flushed before
+    the block ends, where the error is reported like any other: at exit Python would only print a
+    traceback and exit 120. A broken pipe stays :class:`BrokenPipeError` (the reader left: the CLIs
+    end quietly, :func:`stdout_closed`).
+    """
+    stream = sys.stdout
+    if stream is None:  # no standard output at all (pythonw): nothing to name
+        yield
+        return
+    named = _NamedStdout(stream)
+    sys.stdout = named  # a TextIO in all but type: what it does not wrap, it passes on
+    try:
+        yield
+        named.flush()
+    except StdoutError:
+        _discard_stdout()  # Python's flush at exit would fail again, and exit 120
+        raise
+    finally:
+        if sys.stdout is named:
+            sys.stdout = stream
+
+
+class _NamedStdout:
+    """Standard output whose write errors are :class:`StdoutError`; everything else is the stream's."""
+
+    def __init__(self, stream: TextIO) -> None:
+        self._stream = stream
+
+    def write(self, text: str) -> int:
+        with _named_write_errors():
+            return self._stream.write(text)
+
+    def writelines(self, lines: Iterable[str]) -> None:
+        with _named_write_errors():
+            self._stream.writelines(lines)
+
+    def flush(self) -> None:
+        with _named_write_errors():
+            self._stream.flush()
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._stream, name)
+
+
+@contextlib.contextmanager
+def _named_write_errors() -> Iterator[None]:
+    """An error of standard output's own (no file name) as :class:`StdoutError`."""
+    try:
+        yield
+    except BrokenPipeError:
+        raise
+    except OSError as err:
+        if err.filename is not None:  # not standard output's own error
+            raise
+        raise StdoutError(err.strerror or str(err)) from err
 
 
 def exit_after(code: int) -> NoReturn:
@@ -870,6 +938,8 @@ class OutputSet:
                 msg = f"{staged.path}: cannot write (the reader closed the pipe)"
                 raise OutputError(msg) from None
             except OSError as err:
+                if staged.to_stdout:  # named as the command's own lines name it
+                    raise StdoutError(err.strerror or str(err)) from err
                 msg = f"{staged.path}: cannot write ({err.strerror or err})"
                 raise OutputError(msg) from err
 

@@ -11,7 +11,7 @@ import numpy as np
 import numpy.typing as npt
 import scipy.fft
 
-__all__ = ["full_amplitude_spectrum", "half_spectrum", "padded_shape"]
+__all__ = ["MIN_PADDED_SIDE", "full_amplitude_spectrum", "half_spectrum", "padded_shape"]
 
 #: Largest share of the rows in use for which transforming only those rows beats ``rfft2``
 #: (measured on the benchmark maps: 42 % of the rows: 16-40 % faster; 97 %: 18 % slower).
@@ -21,7 +21,7 @@ _ROWS_IN_USE_FRACTION = 0.75
 #: Shortest padded side of a map whose longer side reaches it. A side of a few cells samples the
 #: spectrum too coarsely to tell directions apart (a 300 x 12 strip read as 0 degrees, a 3 x 200 one
 #: as having no direction while its transpose had one); padding it to this costs next to nothing.
-_MIN_PADDED_SIDE = 16
+MIN_PADDED_SIDE = 16
 
 
 def padded_shape(shape: tuple[int, int]) -> tuple[int, int]:
@@ -30,7 +30,7 @@ def padded_shape(shape: tuple[int, int]) -> tuple[int, int]:
 
     The even column count lets the half-plane width determine the full width.
     """
-    shortest = _MIN_PADDED_SIDE if max(shape) >= _MIN_PADDED_SIDE else 1
+    shortest = MIN_PADDED_SIDE if max(shape) >= MIN_PADDED_SIDE else 1
     rows = scipy.fft.next_fast_len(max(shape[0], shortest), real=True)
     cols = scipy.fft.next_fast_len(max(shape[1], shortest, 2), real=True)
     while cols % 2:

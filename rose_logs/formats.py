@@ -21,6 +21,7 @@ __all__ = [
     "LogFormat",
     "detect_format",
     "format_from_path",
+    "mcap_cut_short",
     "processed_name",
     "unknown_suffix_warning",
 ]
@@ -33,6 +34,21 @@ _FORMAT_SUFFIX: dict[LogFormat, str] = {"ros1": ".bag", "mcap": ".mcap", "db3": 
 _ROS1_MAGIC = b"#ROSBAG V2.0\n"
 _MCAP_MAGIC = b"\x89MCAP0\r\n"
 _SQLITE_MAGIC = b"SQLite format 3\x00"
+
+
+def mcap_cut_short(path: Path) -> bool:
+    """Whether the MCAP file at ``path`` is cut short: it lacks the magic bytes that end every
+    complete MCAP file (as they begin it), as a recording cut off by a crash or a full disk, or a
+    copy that stopped, does. A file that cannot be read is not said to be."""
+    try:
+        with Path(path).open("rb") as f:
+            size = f.seek(0, os.SEEK_END)
+            if size < 2 * len(_MCAP_MAGIC):  # not even room for both
+                return True
+            f.seek(size - len(_MCAP_MAGIC))
+            return f.read(len(_MCAP_MAGIC)) != _MCAP_MAGIC
+    except OSError:
+        return False
 
 
 def detect_format(path: Path) -> LogFormat:

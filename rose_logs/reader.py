@@ -32,7 +32,7 @@ from typing import Self
 from rose.limits import short
 from rose.outputs import reraise_interrupt_behind
 from rose_logs.errors import LogError, LogReadError
-from rose_logs.formats import LogFormat, detect_format
+from rose_logs.formats import LogFormat, detect_format, mcap_cut_short
 from rose_logs.storage.connections import QosStyle
 from rose_logs.storage.mcap import McapReadBackend, McapStreamReadBackend
 from rose_logs.storage.records import Channel, RawMessage
@@ -148,6 +148,13 @@ class LogReader:
             if self.salvage
             else "--salvage (process, info, batch) keeps the messages before the damage, if any can be read"
         )
+        if self.format == "mcap" and mcap_cut_short(self.path):
+            # The library reads the footer from wherever the file now ends: its error is about a
+            # record length of garbage ("HEADER record has length 29245...").
+            return LogReadError(
+                f"{self.path}: truncated MCAP file, cut short: its end, which holds the index, "
+                f"is missing (a recording that was not closed, or a copy that stopped?); {remedy}"
+            )
         what = (
             "MCAP file, its index at the end cannot be read"
             if self.format == "mcap"

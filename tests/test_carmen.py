@@ -138,6 +138,25 @@ def test_convert_warns_of_an_output_suffix_that_names_no_format(
     assert "warning" not in capsys.readouterr().err
 
 
+def test_convert_refuses_its_input_as_output_without_a_suffix_warning_first(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`convert p.log p.log` warned that '.log' names no format, then refused to write over the
+    input: the refusal should come first and alone, and so should that of an existing output."""
+    from rose_logs.cli import main
+
+    path = tmp_path / "p.log"
+    path.write_text("FLASER 3 1.0 2.0 3.0 0.5 -0.5 0.1 0.5 -0.5 0.1 12.5 host 12.5\n")
+    before = path.read_bytes()
+    assert main(["convert", str(path), str(path)]) == 1
+    assert capsys.readouterr().err == f"error: {path}: refusing to write over the input {path}\n"
+    assert path.read_bytes() == before
+    (tmp_path / "s.txt").write_text("precious")
+    assert main(["convert", str(path), str(tmp_path / "s.txt")]) == 1
+    err = capsys.readouterr().err  # a file where the bag folder would go
+    assert err == f"error: {tmp_path / 's.txt'}: is a file, not replacing it with a folder\n"
+
+
 def test_convert_refuses_a_file_output_named_as_a_folder(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

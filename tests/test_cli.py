@@ -64,6 +64,55 @@ def test_clean_gives_no_verdict_on_a_few_occupied_cells(
     assert "says nothing" not in line
 
 
+@pytest.mark.parametrize(
+    ("grid", "caveat"),
+    [
+        # Every cell occupied: the spectrum is the grid's rectangle (W 0.016).
+        (np.full((40, 50), 100, np.int8), "occupied cells fill the grid (180 cell sides on its "),
+        # A strip one cell wide: no 2D spectrum to tell directions apart (W 0.007).
+        (np.full((1, 300), 100, np.int8), "a side of 1 cell (fewer than 16, too thin for a 2D "),
+        (np.full((300, 1), 100, np.int8), "a side of 1 cell (fewer than 16, too thin for a 2D "),
+        # A solid block amid unknown cells: no free space, the outline of a blob (W 0.090).
+        (np.pad(np.full((40, 50), 100, np.int8), 30, constant_values=-1), "only 0 free cells "),
+    ],
+)
+def test_clean_gives_no_verdict_on_a_degenerate_map(
+    grid: np.ndarray, caveat: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A solid map or a 1 x 300 strip read "structured: decluttering can be trusted": outside
+    ROSE's domain (README), their low W says nothing about a building."""
+    path = tmp_path / "m.yaml"
+    rose.save_map(path, rose.OccupancyMap(grid=grid, resolution_m=0.05))
+    assert main(["clean", str(path), "-o", str(tmp_path / "c.yaml")]) == 0
+    line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("W "))
+    assert caveat in line and line.endswith(": W says nothing about this map)"), line
+    assert "trusted" not in line
+
+
+def test_the_real_maps_get_no_degenerate_input_caveat() -> None:
+    """The caveat must not fall on a real map: every map of tests/data, the snapshots of the sample
+    session, and a drawn map whose outside is occupied (lab_ipa, 82 % of its cells)."""
+    from real_data import REPO_DATA
+
+    from rose.directions import degenerate_input
+    from rose_logs.reader import LogReader
+    from rose_logs.snapshots import decode_map
+
+    images = sorted(REPO_DATA.rglob("*.png"))
+    grids = [rose.load_map(p).grid for p in sorted(REPO_DATA.rglob("*.yaml"))]
+    grids += [rose.load_map(p).grid for p in images if not p.with_suffix(".yaml").exists()]
+    sample = Path(__file__).resolve().parents[1] / "sample_data" / "fr079_session.mcap"
+    with LogReader(sample) as reader:
+        grids += [
+            decode_map(m.data, serialization=reader.serialization, topic="/map", log_time_ns=0).grid
+            for m in reader.messages(topics={"/map"})
+        ]
+    assert len(grids) == 34
+    threshold = rose.RoseParams().occupied_threshold
+    caveats = [degenerate_input(g, g >= threshold) for g in grids]
+    assert caveats == [None] * len(grids)
+
+
 def test_clean_to_a_symlinked_yaml_checks_the_image_it_will_write(
     cluttered_map: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

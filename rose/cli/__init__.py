@@ -26,6 +26,7 @@ from rose.outputs import (
     signal_handlers_kept,
     signals_deferred,
     stdout_closed,
+    stdout_errors_named,
 )
 
 __all__ = [
@@ -108,7 +109,8 @@ def _run(argv: Sequence[str] | None) -> int:
     handler.setFormatter(LevelFormatter())
     logging.basicConfig(level=logging.WARNING, handlers=[handler])
     try:
-        return int(args.func(args))
+        with stdout_errors_named():  # its errors name it, not the input
+            return int(args.func(args))
     except (RoseError, OSError, MemoryError, RecursionError) as err:
         reraise_interrupt_behind(err)  # a signal inside a library: exit 130 / 143, not "error"
         if isinstance(err, OSError) and stdout_closed(err):  # `| head`: stop quietly

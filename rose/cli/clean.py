@@ -23,7 +23,7 @@ from rose.cli.options import (
     result_summary,
     verdict,
 )
-from rose.directions import fold_deg
+from rose.directions import degenerate_input, fold_deg
 from rose.errors import MapFileError
 from rose.mapfile import SAVED_OCCUPIED_FROM, OccupancyMap, map_image_path, save_map
 from rose.outputs import OutputSet
@@ -107,6 +107,7 @@ def run(args: argparse.Namespace) -> int:
         result.structure_score,
         occupied_cells=result.occupied_count,
         has_structure=result.has_structure,
+        degenerate=degenerate_input(source.grid, result.occupied),
     )
     lines = [
         f"map          {args.map}  ({cols} x {rows} cells, {source.resolution_m:g} m/cell)",

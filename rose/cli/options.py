@@ -352,10 +352,18 @@ def result_summary(
     return summary
 
 
-def verdict(score: float, *, occupied_cells: int | None = None, has_structure: bool = True) -> str:
+def verdict(
+    score: float,
+    *,
+    occupied_cells: int | None = None,
+    has_structure: bool = True,
+    degenerate: str | None = None,
+) -> str:
     """The paper's reading of W: trusted below TRUST_LEVEL, failed above FAILURE_LEVEL. A map
     without occupied cells, or in which ROSE found no dominant direction, has W = 1 by convention
-    and nothing labelled: W says nothing about decluttering there."""
+    and nothing labelled: W says nothing about decluttering there. Nor does it on a map of a few
+    occupied cells, or one whose input is ``degenerate`` (why, from
+    :func:`rose.directions.degenerate_input`): a solid block or a thin strip reads a low W."""
     if occupied_cells == 0:
         return "no occupied cells: W says nothing about this map"
     if not has_structure:
@@ -365,6 +373,8 @@ def verdict(score: float, *, occupied_cells: int | None = None, has_structure: b
             f"only {cells(occupied_cells, 'occupied')} (fewer than {MIN_JUDGED_CELLS}): "
             "W says nothing about this map"
         )
+    if degenerate is not None:
+        return f"{degenerate}: W says nothing about this map"
     if score < TRUST_LEVEL:
         return "structured: decluttering can be trusted"
     if score <= FAILURE_LEVEL:

@@ -24,6 +24,7 @@ from rose.outputs import (
     signal_handlers_kept,
     signals_deferred,
     stdout_closed,
+    stdout_errors_named,
 )
 from rose_logs import __version__
 from rose_logs.errors import LogError
@@ -135,7 +136,8 @@ def _run(argv: list[str] | None) -> int:
     check_params(getattr(args, "command_parser", parser), args)
     _configure_logging(args.debug)
     try:
-        return int(args.func(args))
+        with stdout_errors_named():  # its errors name it, not the input
+            return int(args.func(args))
     except UsageError as err:
         command_parser = getattr(args, "command_parser", parser)
         command_parser.print_usage(sys.stderr)

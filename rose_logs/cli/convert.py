@@ -127,15 +127,6 @@ def run(args: argparse.Namespace) -> int:
     outputs = OutputSet(inputs=[args.log], force=args.force, ends_run=True)
     fmt = args.fmt or format_from_path(Path(args.output)) or "db3"
     args.output = output_log_path(args.output, fmt)
-    warning = (
-        suffix_mismatch_warning(args.output, args.fmt)
-        if args.fmt
-        else unknown_suffix_warning(args.output, "as a ROS 2 db3 bag folder")
-    )
-    if (
-        warning is not None
-    ):  # a typo (out.mcpa), or --format ros1 -o x.mcap, should not pass unnoticed
-        print(warning, file=sys.stderr)
     if args.map_file is not None and args.map_file.suffix.lower() not in (".yaml", ".yml"):
         msg = f"{args.map_file}: --map-file names the map's YAML (its image goes beside it as .pgm)"
         raise UsageError(msg)
@@ -144,6 +135,9 @@ def run(args: argparse.Namespace) -> int:
     map_files = (args.map_file, map_image_path(args.map_file)) if args.map_file is not None else ()
     outputs.check(args.output, directory=fmt in ("db3", "mcap-dir"))
     outputs.check(*map_files)
+    # After the checks: an output refused anyway (the input itself, `convert p.log p.log`) is
+    # refused alone, not warned about first.
+    _warn_of_suffix(args)
     log = read_carmen_log(args.log, max_scans=args.max_scans)  # warns of malformed lines itself
     _check_extent(log, args)
     with outputs:
@@ -200,6 +194,19 @@ def run(args: argparse.Namespace) -> int:
         f"{duration_s:.1f} s{clock}"
     )
     return 0
+
+
+def _warn_of_suffix(args: argparse.Namespace) -> None:
+    """Warn on stderr of an output suffix that names no format, or another than ``--format``."""
+    warning = (
+        suffix_mismatch_warning(args.output, args.fmt)
+        if args.fmt
+        else unknown_suffix_warning(args.output, "as a ROS 2 db3 bag folder")
+    )
+    if (
+        warning is not None
+    ):  # a typo (out.mcpa), or --format ros1 -o x.mcap, should not pass unnoticed
+        print(warning, file=sys.stderr)
 
 
 @contextlib.contextmanager

@@ -248,10 +248,13 @@ def run(args: argparse.Namespace) -> int:
         warning = unknown_suffix_warning(args.output, "in the input's format")
     elif args.output is not None:
         warning = suffix_mismatch_warning(args.output, args.fmt)
+    outputs = OutputSet(inputs=[args.input], force=args.force, ends_run=True)
     if warning is not None:  # a typo (out.mcpa) should not pass unnoticed
+        # ... unless the output is refused anyway (the input itself, an existing file): then the
+        # refusal comes alone. The log writer checks it again, once the format is known for sure.
+        outputs.check(args.output, directory=_output_format(args) in ("db3", "mcap-dir"))
         print(warning, file=sys.stderr)
     progress = not args.quiet and sys.stderr.isatty()
-    outputs = OutputSet(inputs=[args.input], force=args.force, ends_run=True)
     with outputs:  # the log, the recording and the report: all committed, or none
         json_out = None if args.json_path is None else outputs.stage(args.json_path)
         report = _process(args, output, progress, outputs)

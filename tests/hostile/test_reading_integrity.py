@@ -251,6 +251,34 @@ def test_salvage_keeps_the_readable_start_of_a_truncated_mcap_file(
         assert reader.message_count >= salvaged["message_count"]
 
 
+def _data_end(path: Path) -> int:
+    """The byte just after the DataEnd record of an MCAP file (where its summary begins)."""
+    from mcap.records import DataEnd
+    from mcap.stream_reader import StreamReader
+
+    with path.open("rb") as stream:
+        for record in StreamReader(stream, skip_magic=False).records:
+            if isinstance(record, DataEnd):
+                return stream.tell()
+    raise AssertionError(f"{path}: no DataEnd record")
+
+
+@pytest.mark.parametrize("command", [["info"], ["process", "--no-output"]])
+def test_an_mcap_file_cut_after_its_data_is_said_to_be_cut_short(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], command: list[str]
+) -> None:
+    """Cut right after DataEnd (every message there, the summary and footer gone), the file read
+    "corrupt or truncated MCAP file ... (HEADER record has length 292452500802371597 that exceeds
+    limit 217568)": the library's reading of the footer where the file now ends."""
+    whole = Path(__file__).resolve().parents[2] / "sample_data" / "fr079_session.mcap"
+    log = tmp_path / "cut.mcap"
+    log.write_bytes(whole.read_bytes()[: _data_end(whole)])
+    code, _, err = _run(capsys, command[0], log, *command[1:])
+    assert code == 1
+    assert err.startswith(f"error: {log}: truncated MCAP file, cut short: ") and "--salvage" in err
+    assert "record has length" not in err and len(err.splitlines()) == 1, err
+
+
 @pytest.fixture(scope="module")
 def ros1_bag(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list[tuple[int, int]]]:
     """A ROS 1 bag of several chunks (a CARMEN session) and each chunk's ``(position, messages)``."""

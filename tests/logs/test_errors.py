@@ -309,6 +309,21 @@ def test_an_output_suffix_that_names_no_format_is_warned_about(
     assert code == 2 and "--no-output and --format exclude each other" in err
 
 
+def test_an_output_refused_anyway_gets_no_suffix_warning_first(
+    tmp_path: Path, capsys, mcap_log: Path
+) -> None:
+    """`process p.log -o p.log` warned that '.log' names no format, then refused to write over
+    the input: the refusal comes first and alone."""
+    renamed = tmp_path / "p.log"
+    renamed.write_bytes(mcap_log.read_bytes())
+    code, _, err = _run(capsys, "process", renamed, "-o", renamed)
+    assert code == 1
+    _assert_one_line_error(err, "refusing to write over the input")
+    code, _, err = _run(capsys, "process", mcap_log, "-o", mcap_log, "--format", "db3")
+    assert code == 1
+    _assert_one_line_error(err, "refusing to write over the input")
+
+
 def test_existing_output_needs_force(tmp_path: Path, capsys, mcap_log: Path) -> None:
     out = tmp_path / "out.mcap"
     out.write_bytes(b"precious")

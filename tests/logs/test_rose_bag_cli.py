@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import io
 import json
+import os
 import re
 import statistics
 import subprocess
@@ -433,7 +434,70 @@ def test_a_stream_that_takes_nothing_is_an_error_not_a_hang(
 ) -> None:
     monkeypatch.setattr(sys, "stdout", _StuckPipe())
     assert main(["process", str(SAMPLE), "--no-output", "--json", "-", "-q"]) == 1
-    assert "-: cannot write (the stream takes no more data)" in capsys.readouterr().err
+    assert (
+        "standard output: cannot write (the stream takes no more data)" in capsys.readouterr().err
+    )
+
+
+class _FullDevice(_ClosedPipe):
+    """Standard output on a full disk (``> /dev/full``): every write fails, without a file name."""
+
+    def write(self, data: Any) -> int:
+        raise OSError(28, "No space left on device")
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["rose-bag", "info", "{sample}"],
+        ["rose-bag", "process", "{sample}", "--no-output"],
+        ["rose-bag", "process", "{sample}", "--no-output", "--json", "-"],
+        ["rose", "score", "{map15}"],
+        ["rose", "score", "{map15}", "--json"],
+        ["rose", "clean", "{map15}", "-o", "{tmp}/c.yaml"],
+        ["rose", "walls", "{map15}", "--geojson", "-"],
+    ],
+)
+def test_a_full_standard_output_is_named_not_the_input(
+    argv: list[str],
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """`rose score m.yaml > /dev/full` said `m.yaml: No space left on device`: the error has no file
+    name, and the command's input was put in its place."""
+    import rose.cli
+
+    monkeypatch.setattr(sys, "stdout", _FullDevice())
+    command, *args = (a.format(sample=SAMPLE, map15=MAP15, tmp=tmp_path) for a in argv)
+    code = main(args) if command == "rose-bag" else rose.cli.main(args)
+    assert code == 1
+    err = capsys.readouterr().err.splitlines()
+    assert err[-1] == "error: standard output: cannot write (No space left on device)", err
+
+
+@pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs /dev/full")
+@pytest.mark.parametrize(
+    "command", [["rose", "score", str(MAP15)], ["rose-bag", "info", str(SAMPLE)]]
+)
+def test_a_full_disk_under_buffered_standard_output_is_one_error_line(command: list[str]) -> None:
+    """Buffered (the default, not ``python -u``), the report was written at exit: Python printed
+    "Exception ignored ... OSError" and exited 120."""
+    module = "rose.cli" if command[0] == "rose" else "rose_logs.cli"
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONUNBUFFERED"}
+    env["PYTHONPATH"] = str(Path(__file__).resolve().parents[2])
+    with Path("/dev/full").open("w") as full:
+        done = subprocess.run(
+            [sys.executable, "-c", f"import {module} as c; c.console()", *command[1:]],
+            stdout=full,
+            stderr=subprocess.PIPE,
+            text=True,
+            env=env,
+            timeout=120,
+            check=False,
+        )
+    assert done.returncode == 1, done.stderr
+    assert done.stderr == "error: standard output: cannot write (No space left on device)\n"
 
 
 def test_processing_a_processed_log_names_the_input(
