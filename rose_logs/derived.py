@@ -49,6 +49,11 @@ class DerivedTopics:
     structure_score: str
     walls: str
 
+    @property
+    def names(self) -> tuple[str, str, str]:
+        """All three, in the order they are added to an output log."""
+        return self.cleaned, self.structure_score, self.walls
+
 
 def derived_topics(map_topic: str) -> DerivedTopics:
     """Output topics of ``map_topic``: ``<map>/rose/cleaned``, ``.../structure_score``, ``.../walls``."""

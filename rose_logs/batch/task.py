@@ -85,6 +85,9 @@ class RecordingOptions:
         The break detector's threshold, metres of map contradicted (default: ``BreakParams``').
     max_cells : int or None
         Grids of more cells are skipped (``process --max-cells``; None: no limit).
+    replace_rose_topics : bool
+        A recording processed before gets its ``<map>/rose/*`` topics written anew in its cleaned
+        log (``process --replace-rose-topics``); False: it fails when ``cleaned`` is set.
     """
 
     params: RoseParams = field(default_factory=RoseParams)
@@ -99,6 +102,7 @@ class RecordingOptions:
     clean_method: CleanMethod = "walls"
     break_threshold_m: float | None = None
     max_cells: int | None = DEFAULT_MAX_CELLS
+    replace_rose_topics: bool = False
 
     def key_fields(self) -> dict[str, Any]:
         """Everything that changes a result (not ``retries`` or ``analysis_threads``), JSON-ready."""
@@ -114,6 +118,8 @@ class RecordingOptions:
         }
         if self.salvage:  # only when set: the keys of results stored without it stay valid
             fields["salvage"] = True
+        if self.replace_rose_topics:
+            fields["replace_rose_topics"] = True
         # Likewise, only when they differ from process's defaults.
         if self.clean_method != "walls":
             fields["clean_method"] = self.clean_method
@@ -488,6 +494,7 @@ def _attempt(
                 clean_method=options.clean_method,
                 break_params=_break_params(options),
                 max_cells=options.max_cells,
+                replace_rose_topics=options.replace_rose_topics,
             )
         except (LogError, RoseError) as err:
             # The message names the downloaded copy, which is gone by the time anyone reads the

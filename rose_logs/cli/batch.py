@@ -244,6 +244,7 @@ def run(args: argparse.Namespace) -> int:
         clean_method=args.clean_method,
         break_threshold_m=args.break_threshold,
         max_cells=args.max_cells,
+        replace_rose_topics=args.replace_rose_topics,
     )
     report = run_batch(
         inputs,

@@ -62,7 +62,8 @@ def duration_text(ns: int) -> str:
 
 def add_session_arguments(parser: Any) -> None:
     """What is done to each snapshot of a log, the same in ``process`` and ``batch``:
-    ``--walls``, ``--clean-method``, ``--failure-level``, ``--break-threshold``, ``--max-cells``."""
+    ``--walls``, ``--clean-method``, ``--failure-level``, ``--break-threshold``, ``--max-cells``,
+    ``--replace-rose-topics``."""
     parser.add_argument(
         "--walls",
         action="store_true",
@@ -88,6 +89,12 @@ def add_session_arguments(parser: Any) -> None:
         metavar="M",
         help="break detector: metres of established map a snapshot must contradict to count as a "
         "break (default 1.25)",  # BreakParams().threshold_m (tested); imported lazily
+    )
+    parser.add_argument(
+        "--replace-rose-topics",
+        action="store_true",
+        help="a log processed before: write its <map>/rose/* topics anew with these options, "
+        "leaving its own out of the output log (default: such a log is refused for one)",
     )
     add_limit_arguments(parser)
 

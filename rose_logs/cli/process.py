@@ -334,5 +334,6 @@ def _process(args: argparse.Namespace, output: Path | None, progress: bool, outp
         clean_method=args.clean_method,
         outputs=outputs,
         salvage=args.salvage,
+        replace_rose_topics=args.replace_rose_topics,
         max_cells=args.max_cells,
     )

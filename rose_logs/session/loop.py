@@ -105,6 +105,7 @@ def process_log(
     salvage: bool = False,
     max_cells: int | None = DEFAULT_MAX_CELLS,
     analysis_threads: int = 2,
+    replace_rose_topics: bool = False,
 ) -> SessionReport:
     """Run ROSE over every map snapshot of a log; write the output log and Rerun recording.
 
@@ -162,6 +163,10 @@ def process_log(
     analysis_threads : int, default 2
         Snapshots analysed at once, in threads, while messages are copied and results written in
         log order (outputs do not depend on it). Each costs one analysis of memory.
+    replace_rose_topics : bool, default False
+        An input that holds ``<map>/rose/*`` topics of the analysed maps already (a processed log):
+        write them anew, leaving the input's out of the output log. False: such an input is refused
+        for an output log (it would hold two sets of them).
 
     Returns
     -------
@@ -232,6 +237,7 @@ def process_log(
             outputs=outputs,
             max_cells=max_cells,
             analysis_threads=analysis_threads,
+            replace_rose_topics=replace_rose_topics,
         )
     except BaseException:
         if own_outputs:
@@ -265,6 +271,7 @@ def _run_session(
     outputs: OutputSet,
     max_cells: int | None,
     analysis_threads: int,
+    replace_rose_topics: bool,
 ) -> SessionReport:
     """The session proper; outputs are staged in ``outputs`` (committed by the caller)."""
     started = time.perf_counter()
@@ -281,7 +288,9 @@ def _run_session(
         try:
             if writer is not None:
                 writer.open()
-            handles, derived = _prepare_output(writer, channels, map_topics, input_path)
+            handles, derived = _prepare_output(
+                writer, channels, map_topics, input_path, replace=replace_rose_topics
+            )
             if rrd_path is not None or spawn or connect is not None:
                 # Signals held until `rerun` is bound: an interrupt in between would leave Rerun's
                 # writer running, to create its file after the abort removed the folder around it.
@@ -471,16 +480,23 @@ def _prepare_output(
     channels: Sequence[Channel],
     map_topics: Sequence[str],
     input_path: Path,
+    *,
+    replace: bool = False,
 ) -> tuple[dict[int, int], dict[str, tuple[int, int, int]]]:
-    """Output connections: input channel id -> handle, and map topic -> derived handles."""
+    """Output connections: input channel id -> handle, and map topic -> derived handles.
+
+    ``replace``: the input's own ``<map>/rose/*`` channels of ``map_topics`` get no handle (their
+    messages are left out: :meth:`_Loop._copy`), so that they can be written anew.
+    """
     if writer is None:
         return {}, {}
-    handles = {c.id: writer.add_channel(c) for c in channels}
+    ours = {name for topic in map_topics for name in derived_topics(topic).names}
+    handles = {c.id: writer.add_channel(c) for c in channels if not (replace and c.topic in ours)}
     derived = {}
     owners: dict[str, str] = {}  # derived topic -> the map topic it is made from
     for topic in map_topics:
         names = derived_topics(topic)
-        for name in (names.cleaned, names.structure_score, names.walls):
+        for name in names.names:
             if name in owners:  # /map and /map/ (a trailing slash is dropped)
                 msg = (
                     f"{input_path}: map topics {owners[name]} and {topic} would both be written "
@@ -489,7 +505,10 @@ def _prepare_output(
                 raise LogWriteError(msg)
             owners[name] = topic
             if writer.has_topic(name):
-                msg = f"{input_path}: has topic {name} already (processed before?)"
+                msg = (
+                    f"{input_path}: has topic {name} already (processed before?); "
+                    "--replace-rose-topics writes it anew"
+                )
                 raise LogWriteError(msg)
         source = next(c for c in channels if c.topic == topic)
         qos = offered_qos(source)
@@ -642,11 +661,13 @@ class _Loop:
             bar.close()
 
     def _copy(self, message: RawMessage) -> None:
-        """Copy ``message`` to the output log, after the results of every snapshot before it."""
-        if self.writer is None:
+        """Copy ``message`` to the output log, after the results of every snapshot before it
+        (unless its channel is one of ours being written anew: no handle)."""
+        handle = self.handles.get(message.channel.id)
+        if self.writer is None or handle is None:
             return
         item = _Copy(
-            self.handles[message.channel.id],
+            handle,
             message.log_time_ns,
             message.data,
             message.publish_time_ns,

@@ -1148,3 +1148,31 @@ def test_the_batchs_error_line_is_one_short_line_however_long_the_rows_error(
     assert len(line) <= len("failed: ") + MAX_MESSAGE_CHARS and line.endswith("...")
     (row,) = read_rows(out / "recordings.parquet")
     assert long_text in row["error"]
+
+
+def test_a_processed_recording_gets_its_rose_topics_written_anew_on_request(
+    tmp_path: Path,
+) -> None:
+    """A fleet folder holding a processed log: with --cleaned it is an error row (the cleaned log
+    would hold two sets of <map>/rose/*), unless replace_rose_topics writes them anew; the option
+    is part of the resume key only when set."""
+    from fleet import copy_recording
+
+    from rose_logs.session import process_log
+
+    raw = copy_recording(tmp_path / "raw" / "run.mcap", "mcap", max_maps=2)
+    processed = tmp_path / "fleet" / "run.mcap"
+    processed.parent.mkdir()
+    process_log(raw, output_path=processed)
+    run_batch([processed], tmp_path / "o1", options=RecordingOptions(cleaned=True))
+    (row,) = read_rows(tmp_path / "o1" / "recordings.parquet")
+    assert row["status"] == "error" and "--replace-rose-topics" in row["error"]
+    options = RecordingOptions(cleaned=True, replace_rose_topics=True)
+    run_batch([processed], tmp_path / "o2", options=options)
+    (row,) = read_rows(tmp_path / "o2" / "recordings.parquet")
+    assert row["status"] == "ok", row["error"]
+    with LogReader(Path(row["cleaned"])) as reader:
+        counts = {c.topic: c.message_count for c in reader.channels}
+    assert counts["/map/rose/cleaned"] == counts["/map"] == row["snapshots"] == 2
+    assert "replace_rose_topics" not in RecordingOptions().key_fields()
+    assert options.key_fields()["replace_rose_topics"] is True

@@ -512,6 +512,36 @@ def test_processing_a_processed_log_names_the_input(
     assert not twice.exists()
 
 
+def test_a_processed_log_gets_its_rose_topics_written_anew_on_request(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Re-cleaning a processed log with other options: --replace-rose-topics leaves the input's
+    own <map>/rose/* messages out and writes new ones, as processing the original log would."""
+    from rose_logs.reader import LogReader
+
+    def by_topic(path: Path) -> dict[str, list[tuple[int, bytes]]]:
+        topics: dict[str, list[tuple[int, bytes]]] = {}
+        with LogReader(path) as reader:
+            for message in reader.messages():
+                topics.setdefault(message.channel.topic, []).append(
+                    (message.log_time_ns, bytes(message.data))
+                )
+        return topics
+
+    once, again, direct = (tmp_path / f"{n}.mcap" for n in ("once", "again", "direct"))
+    paper = ["--clean-method", "paper", "-q"]
+    assert main(["process", str(SAMPLE), "-o", str(once), "-q"]) == 0
+    capsys.readouterr()
+    assert main(["process", str(once), "-o", str(again), *paper]) == 1
+    assert "--replace-rose-topics writes it anew" in capsys.readouterr().err
+    assert main(["process", str(once), "-o", str(again), "--replace-rose-topics", *paper]) == 0
+    assert main(["process", str(SAMPLE), "-o", str(direct), *paper]) == 0
+    got, want, first = by_topic(again), by_topic(direct), by_topic(once)
+    assert got == want
+    assert len(got["/map/rose/cleaned"]) == len(got["/map"]) == 14
+    assert got["/map/rose/cleaned"] != first["/map/rose/cleaned"]  # walls cleaning, then paper
+
+
 def test_empty_first_maps_do_not_trip_the_w_gate(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], fr079
 ) -> None:
