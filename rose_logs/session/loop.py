@@ -797,7 +797,6 @@ class _Loop:
 
     def _finish(self, pending: _Pending) -> None:
         """Outputs of one analysed snapshot: derived messages, break detection, Rerun, the record."""
-        t0 = time.perf_counter()
         snapshot = pending.snapshot
         topic = snapshot.topic
         try:
@@ -814,6 +813,9 @@ class _Loop:
         self.count[topic] = index + 1
         verdict = pending.verdict.result()
         assert verdict is not None  # the analysis succeeded
+        # From here: the time spent on this snapshot's outputs. Not before, where the wait for the
+        # analysis would count its compute time twice (the record's seconds exceeded the run's).
+        t0 = time.perf_counter()
         # A snapshot whose results cannot be written to the output log (counted as skipped) is
         # still analysed: its record, Rerun and break events stay, so every gate sees it.
         self._write_results(snapshot, analysis)

@@ -643,3 +643,13 @@ def test_a_ros2_log_named_bag_gets_a_default_output_it_can_be_written_in(tmp_pat
     misnamed.write_bytes(SAMPLE.read_bytes())
     assert main(["process", str(misnamed), "-q"]) == 0
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run.bag", "run.rose.mcap"]
+
+
+def test_a_snapshots_seconds_count_its_analysis_once() -> None:
+    """The record's seconds counted the wait for the analysis on top of the analysis's own time:
+    in one analysis thread (no two snapshots computed at once) they added up to twice the run."""
+    from rose_logs.session import process_log
+
+    report = process_log(SAMPLE, analysis_threads=1)
+    total = sum(record.seconds for record in report.records)
+    assert 0 < total <= report.elapsed_s
