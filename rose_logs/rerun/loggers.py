@@ -267,6 +267,18 @@ class TopicLogger:
                 ],
                 widths=[2.5, style.GUIDE_LINE_WIDTH, style.GUIDE_LINE_WIDTH],
             ),
+            # A point on each line too: a W between two gaps (maps not judged) or a session of one
+            # snapshot has no line to draw, and its plot was empty.
+            rr.SeriesPoints(
+                colors=[style.W_COLOR, style.TRUST_COLOR, style.FAILURE_COLOR],
+                names=[
+                    "W",
+                    f"trust level {self.trust_level:g}",
+                    f"failure level {self.failure_level:g}",
+                ],
+                markers=["Circle", "Circle", "Circle"],
+                marker_sizes=[2.5, style.GUIDE_LINE_WIDTH / 2, style.GUIDE_LINE_WIDTH / 2],
+            ),
             static=True,
         )
         rec.log(
@@ -282,6 +294,9 @@ class TopicLogger:
         rec.log(
             paths.break_score,
             rr.SeriesLines(colors=style.BREAK_SCORE_COLOR, names="break score (m)", widths=2.5),
+            rr.SeriesPoints(  # as W's: a single value is drawn too
+                colors=style.BREAK_SCORE_COLOR, names="break score (m)", marker_sizes=2.5
+            ),
             static=True,
         )
         rec.log(

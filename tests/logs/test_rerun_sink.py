@@ -144,6 +144,15 @@ def test_static_data_is_logged_exactly_once(clean_session) -> None:
     assert f"/{PATHS.cells}" not in content.temporal_rows
 
 
+def test_w_and_the_break_score_are_drawn_as_points_too(clean_session) -> None:
+    """A session of one snapshot (a map_server log), or a W between two maps not judged, has no
+    line to draw: its plots were empty. Each value gets a marker as well as the line."""
+    _, content = clean_session
+    for entity in (PATHS.w, PATHS.break_score):
+        columns = content.static_columns[f"/{entity}"]
+        assert {"SeriesLines:widths", "SeriesPoints:marker_sizes"} <= columns, entity
+
+
 def test_the_colour_bar_sits_under_the_final_map_at_every_time(clean_session) -> None:
     """The scores view frames the final map: a saved recording places the bar once, under the last
     snapshot's cells (placed under each early small map, its labels covered it); the labels'
