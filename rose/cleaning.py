@@ -42,7 +42,7 @@ Two methods, chosen by name:
     5. *free-standing pieces* (``loose_pieces``): a piece (joined across gaps of up to two cells)
        with no cell on a run or near wide unknown space, whose joined bounding box has a diagonal
        under ``min_run_m``, is removed, unless it closes around known free space (a small room,
-       not an object) or holds a solid 3 x 3 block (a column as drawn maps show it). Like object faces, it goes even where the paper's labelling calls it
+       not an object) or holds a solid square 0.25 m across (a column as drawn maps show it). Like object faces, it goes even where the paper's labelling calls it
        structure (so ``kept`` need not contain the paper's structure). Pieces attached to no kept
        wall and smaller than ``min_region_m2`` (they can enclose no region the guard protects) do
        not count as obstacles for the guard.

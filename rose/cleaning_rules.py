@@ -59,6 +59,14 @@ _STAGGERED_ANCHOR_M = 2 * _BRIDGE_ANCHOR_M
 #: corner and a door, shorter than a run; a scanned table leg or chair is smaller.
 _PARTITION_MIN_M = 0.5
 
+#: Side of the solid square that makes a free-standing piece a drawn column, not an object
+#: (metres, at least 3 cells; :func:`_free_standing`): thicker than a scanned surface. A scanner
+#: sees an object's faces, one to three cells thick in a SLAM map, and the two faces of a thin
+#: object (a shelf, a chair's rim) meet in a solid strip of a few cells: 3 x 3 cells (0.15 m) kept
+#: 4,560 furniture cells of the 19 Bormann benchmark buildings (10 wall cells). Columns as
+#: drawn maps show them are thicker (a warehouse map's I-beam: 0.55 m).
+_SOLID_MIN_M = 0.25
+
 #: Directions closer than this to a right angle of each other share one rotated frame.
 _PAIR_TOLERANCE_RAD = math.radians(3.0)
 
@@ -304,8 +312,9 @@ def _free_standing(
 
     occupied = pieces.occupied
     anchored = lines | (occupied & near_outside.result())
-    # A solid 3 x 3 block is a drawn column or wall, not the faces a scanner sees of an object.
-    solid = cv2.erode(occupied.view(np.uint8), np.ones((3, 3), np.uint8), borderValue=0)
+    # A solid square (0.25 m) is a drawn column or wall, not the faces a scanner sees of an object.
+    side = max(3, math.ceil(length_px(_SOLID_MIN_M, res)))
+    solid = cv2.erode(occupied.view(np.uint8), np.ones((side, side), np.uint8), borderValue=0)
     dropped = pieces.loose(anchored | solid.view(bool), length_px(p.min_run_m, res))
     # ... unless it closes around known free space: a small room or shaft, not an object (a
     # scanned object's inside stays unknown).

@@ -445,6 +445,28 @@ def test_a_solid_column_is_no_free_standing_object() -> None:
     assert clean(grid, result, resolution_m=0.05).kept_count == result.occupied_count
 
 
+def test_a_thin_solid_object_is_no_column() -> None:
+    """Free-standing benches 1.5 m x 0.2 m: a scanner sees them from both sides and their two
+    faces meet in a solid strip 4 cells thick. A 3 x 3 block counted as a drawn column, so the
+    part the paper calls structure stayed (4,560 furniture cells of the Bormann benchmark, 10 wall
+    cells); a column is a solid square of 0.25 m."""
+    grid = np.full((120, 160), -1, dtype=np.int8)
+    grid[4:116, 4:156] = 0
+    grid[4:6, 4:156] = grid[114:116, 4:156] = grid[4:116, 4:6] = grid[4:116, 154:156] = 100
+    benches = [np.s_[40:44, 60:90], np.s_[80:110, 100:104]]
+    for bench in benches:
+        grid[bench] = 100
+    result = rose.analyze(grid)
+    assert result.structure[benches[0]].any()  # the paper keeps part of one
+    cleaned = clean(grid, result, resolution_m=RES)
+    assert not any(cleaned.kept[bench].any() for bench in benches)
+    assert cleaned.kept[4:6, 4:156].all() and cleaned.kept[4:116, 4:6].all()  # the walls stay
+    # A square 0.25 m across is a column.
+    column = np.zeros((80, 80), dtype=np.int8)
+    column[35:40, 35:40] = 100
+    assert clean(column, rose.analyze(column), resolution_m=RES).kept_count == 25
+
+
 def test_hidden_walls_are_lines_between_wall_ends_not_networks_inside_objects() -> None:
     """The shelves of a warehouse map got crosses and stubs of 'completed' wall drawn through
     their unknown insides: any two kept cells along a direction were joined, an object's two side
