@@ -256,27 +256,25 @@ class TopicLogger:
             ),
             static=True,
         )
+        series_colors = [style.W_COLOR, style.TRUST_COLOR, style.FAILURE_COLOR]
+        series_names = [
+            "W",
+            f"trust level {self.trust_level:g}",
+            f"failure level {self.failure_level:g}",
+        ]
         rec.log(
             paths.w,
             rr.SeriesLines(
-                colors=[style.W_COLOR, style.TRUST_COLOR, style.FAILURE_COLOR],
-                names=[
-                    "W",
-                    f"trust level {self.trust_level:g}",
-                    f"failure level {self.failure_level:g}",
-                ],
+                colors=series_colors,
+                names=series_names,
                 widths=[2.5, style.GUIDE_LINE_WIDTH, style.GUIDE_LINE_WIDTH],
             ),
             # A point on each line too: a W between two gaps (maps not judged) or a session of one
             # snapshot has no line to draw, and its plot was empty.
             rr.SeriesPoints(
-                colors=[style.W_COLOR, style.TRUST_COLOR, style.FAILURE_COLOR],
-                names=[
-                    "W",
-                    f"trust level {self.trust_level:g}",
-                    f"failure level {self.failure_level:g}",
-                ],
-                markers=["Circle", "Circle", "Circle"],
+                colors=series_colors,
+                names=series_names,
+                markers=["Circle"] * 3,
                 marker_sizes=[2.5, style.GUIDE_LINE_WIDTH / 2, style.GUIDE_LINE_WIDTH / 2],
             ),
             static=True,

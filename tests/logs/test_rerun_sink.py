@@ -379,16 +379,12 @@ def test_logging_errors_reach_the_session(tmp_path: Path) -> None:
     assert not (tmp_path / "x.rrd").exists()
 
 
-def test_grid_map_is_sent_top_row_first_and_placed(tmp_path: Path) -> None:
-    """GridMap takes an image buffer (top row first) placed by its lower-left corner: the ROS grid's
-    rows are reversed once, and the origin pose is the translation."""
+def _logged_grid_map(tmp_path: Path, snapshot):  # type: ignore[no-untyped-def]
+    """The GridMap row the recording holds after ``log_grid_map(snapshot)``."""
     import rerun as rr
 
     from rose_logs.rerun import TopicLogger, set_snapshot_time
-    from rose_logs.snapshots import MapSnapshot
 
-    grid = np.arange(12, dtype=np.int8).reshape(3, 4)
-    snapshot = MapSnapshot("/map", 5, 5, "map", grid, 0.5, (1.0, 2.0, 0.0))
     path = tmp_path / "grid.rrd"
     recording = rr.RecordingStream("t")
     recording.save(path)
@@ -397,6 +393,18 @@ def test_grid_map_is_sent_top_row_first_and_placed(tmp_path: Path) -> None:
     recording.flush()
     recording.disconnect()
     (row,) = _read(path).rows(PATHS.grid)
+    return row
+
+
+def test_grid_map_is_sent_top_row_first_and_placed(tmp_path: Path) -> None:
+    """GridMap takes an image buffer (top row first) placed by its lower-left corner: the ROS grid's
+    rows are reversed once, and the origin pose is the translation."""
+
+    from rose_logs.snapshots import MapSnapshot
+
+    grid = np.arange(12, dtype=np.int8).reshape(3, 4)
+    snapshot = MapSnapshot("/map", 5, 5, "map", grid, 0.5, (1.0, 2.0, 0.0))
+    row = _logged_grid_map(tmp_path, snapshot)
     assert bytes(row["GridMap:data"][0]) == grid[::-1].tobytes()
     assert row["GridMap:translation"][0] == pytest.approx([1.0, 2.0, 0.0])
     assert row["GridMap:cell_size"][0] == pytest.approx(0.5)
@@ -405,22 +413,13 @@ def test_grid_map_is_sent_top_row_first_and_placed(tmp_path: Path) -> None:
 def test_the_grid_map_covers_the_known_cells_where_they_lie(tmp_path: Path) -> None:
     """A SLAM grid is mostly unknown: the GridMap holds the known cells' box only, its lower-left
     corner placed on that box's corner in the map frame (yawed origin)."""
-    import rerun as rr
 
-    from rose_logs.rerun import TopicLogger, set_snapshot_time
     from rose_logs.rerun.loggers import cells_to_map_m
 
     grid = np.full((40, 50), -1, dtype=np.int8)
     grid[7:19, 11:31] = np.arange(240, dtype=np.int64).reshape(12, 20) % 101
     snapshot = _yawed(grid, 0.6, (3.0, -2.0), resolution=0.1)
-    path = tmp_path / "grid.rrd"
-    recording = rr.RecordingStream("t")
-    recording.save(path)
-    set_snapshot_time(recording, log_time_ns=5, start_ns=0, index=0)
-    TopicLogger(recording, PATHS).log_grid_map(snapshot)
-    recording.flush()
-    recording.disconnect()
-    (row,) = _read(path).rows(PATHS.grid)
+    row = _logged_grid_map(tmp_path, snapshot)
     assert bytes(row["GridMap:data"][0]) == grid[7:19, 11:31][::-1].tobytes()
     corner = cells_to_map_m(snapshot, np.array([[11.0, 7.0]]))[0, :2]
     assert row["GridMap:translation"][0][:2] == pytest.approx(corner, abs=1e-5)
