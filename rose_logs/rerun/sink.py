@@ -36,7 +36,7 @@ from rose.result import RoseResult
 from rose.walls import WallSet
 from rose_logs.malloc import release_free_heap
 from rose_logs.rerun.blueprint import TopicLayout, default_blueprint
-from rose_logs.rerun.conversions import known_bounds_cells
+from rose_logs.rerun.conversions import image_window, known_bounds_cells
 from rose_logs.rerun.loggers import TopicLogger, set_snapshot_time, view_origin_m
 from rose_logs.rerun.paths import EntityPaths, entity_root_for_topic
 from rose_logs.session.breaks import BreakScore
@@ -399,7 +399,7 @@ class RerunSink:
             topic_logger.view_origin_m = view_origin_m(snapshot)
         self._latest[snapshot.topic] = snapshot
         known = known_bounds_cells(snapshot.grid)
-        window = known or (0, 0, snapshot.grid.shape[1], snapshot.grid.shape[0])
+        window = known or image_window(snapshot.grid)  # the whole grid when nothing is known
         self._bounds_m[snapshot.topic] = _union(
             self._bounds_m[snapshot.topic], known_box_m(snapshot, known)
         )
