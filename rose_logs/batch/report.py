@@ -9,7 +9,7 @@ import threading
 from typing import TYPE_CHECKING, Any
 
 from rose_logs.batch.sources import printable
-from rose_logs.session.report import w_judges
+from rose_logs.session.report import row_judged
 
 if TYPE_CHECKING:
     from rose_logs.batch.engine import BatchReport
@@ -177,7 +177,7 @@ def figure_png(report: BatchReport) -> bytes | None:
     ax = fig.subplots()
     broken_count = 0
     for label, rows in series:
-        judged = [s for s in rows if w_judges(s["occupied"])]
+        judged = [s for s in rows if row_judged(s)]
         times = [s["time_s"] for s in judged]
         scores = [s["structure_score"] for s in judged]
         first = next((s for s in rows if s["broken"]), None)

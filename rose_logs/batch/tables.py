@@ -90,6 +90,7 @@ SNAPSHOT_SCHEMA = pa.schema(
         ("kept", pa.int64()),
         ("rescued", pa.int64()),
         ("completed", pa.int64()),
+        ("degenerate", pa.string()),
     ]
 )
 """``snapshots.parquet``: one row per snapshot (the JSON report's records), by URI, topic, index."""

@@ -31,7 +31,7 @@ from rose_logs.batch.sources import Recording, cleaned_log_name, printable
 from rose_logs.batch.store import OutputStore, filesystem, is_local
 from rose_logs.errors import LogError, LogWriteError
 from rose_logs.formats import LogFormat, detect_format
-from rose_logs.session.report import w_judges
+from rose_logs.session.report import row_judged
 
 if TYPE_CHECKING:  # the session package is imported when a recording is processed
     from rose_logs.session.breaks import BreakParams
@@ -212,7 +212,7 @@ class RecordingResult:
 
     def row(self) -> dict[str, Any]:
         """The recording's row of ``recordings.parquet``."""
-        scores = [s["structure_score"] for s in self.snapshots if w_judges(s["occupied"])]
+        scores = [s["structure_score"] for s in self.snapshots if row_judged(s)]
         first = next((s for s in self.snapshots if s["broken"]), None)
         text = _printable_or_none
         return {

@@ -118,11 +118,17 @@ def add_gate_arguments(parser: Any, *, scope: str) -> None:
 
 
 def unjudged_topics(
-    args: Any, map_topics: Iterable[str], analysed: Collection[str], judged: Collection[str]
+    args: Any,
+    map_topics: Iterable[str],
+    analysed: Collection[str],
+    judged: Collection[str],
+    degenerate: Collection[str] = (),
 ) -> list[str]:
     """Gate failures for the map topics none of whose maps W judged: none could be ``analysed``,
     or none of them had ``MIN_JUDGED_CELLS`` occupied cells (a session of all-unknown or empty
-    maps). With a gate asked for (:func:`add_gate_arguments`), it cannot vouch for them."""
+    maps) and an input ROSE can read (not a solid block or a thin strip: the ``degenerate``
+    topics had such maps). With a gate asked for (:func:`add_gate_arguments`), it cannot vouch
+    for them."""
     if args.fail_above is None and not args.fail_on_break:
         return []
     from rose_logs.session.report import MIN_JUDGED_CELLS  # loaded with the session already
@@ -133,7 +139,12 @@ def unjudged_topics(
             reasons.append(f"{topic}: no map message could be analysed, the gate cannot judge it")
         elif topic not in judged:
             reasons.append(
-                f"{topic}: no map had {MIN_JUDGED_CELLS} or more occupied cells, the gate cannot "
-                "judge it"
+                f"{topic}: no map had {MIN_JUDGED_CELLS} or more occupied cells"
+                + (
+                    " in a form W reads (a solid block? a thin strip?)"
+                    if topic in degenerate
+                    else ""
+                )
+                + ", the gate cannot judge it"
             )
     return reasons

@@ -172,18 +172,26 @@ def _print_summary(report: Any, out: TextIO) -> None:
 
 
 def _w_text(records: Sequence[Any]) -> str:
-    """W's min / median / max over the snapshots W judges, and how many (nearly) empty maps it
-    left out."""
+    """W's min / median / max over the snapshots W judges, and how many maps it left out: (nearly)
+    empty ones, and ones it cannot read (a solid block, a thin strip)."""
     from rose_logs.session.report import MIN_JUDGED_CELLS
 
     scores = [r.structure_score for r in records if r.judged]
     if not scores:
-        return f"none (no map with {MIN_JUDGED_CELLS} or more occupied cells)"
+        return f"none (no map with {MIN_JUDGED_CELLS} or more occupied cells W can read)"
     text = f"min {min(scores):.3f}  median {statistics.median(scores):.3f}  max {max(scores):.3f}"
-    empty = len(records) - len(scores)
-    if empty:
-        maps = "map" if empty == 1 else "maps"
-        text += f"  ({empty} {maps} of fewer than {MIN_JUDGED_CELLS} occupied cells left out)"
+    unreadable = sum(r.unreadable for r in records)  # the rest left out are (nearly) empty
+    empty = len(records) - len(scores) - unreadable
+    left_out = [
+        f"{count} {'map' if count == 1 else 'maps'} {why}"
+        for count, why in (
+            (empty, f"of fewer than {MIN_JUDGED_CELLS} occupied cells"),
+            (unreadable, "W cannot read (a solid block, a thin strip)"),
+        )
+        if count
+    ]
+    if left_out:
+        text += f"  ({', '.join(left_out)} left out)"
     return text
 
 
@@ -305,6 +313,7 @@ def _gate_failures(args: argparse.Namespace, report: Any) -> list[str]:
         report.map_topics,
         {r.topic for r in report.records},
         {r.topic for r in report.records if r.judged},
+        {r.topic for r in report.records if r.unreadable},
     )
     return reasons
 

@@ -405,12 +405,14 @@ class TopicLogger:
         dropped: npt.NDArray[np.bool_] | None = None,
         *,
         window: conv.Window | None = None,
+        judged: bool | None = None,
     ) -> None:
         """Every stream of one analysed snapshot, at the time set by :func:`set_snapshot_time`.
 
         ``rescued`` (grid order): clutter cells the cleaning kept as walls, their own class;
         ``dropped``: structure cells the cleaning removed, shown as clutter; ``window``: the
-        snapshot's :func:`~conv.image_window`, when the caller has it.
+        snapshot's :func:`~conv.image_window`, when the caller has it; ``judged``: whether W says
+        something about it (:meth:`log_structure_score`).
         """
         if result.cell_scores.shape != snapshot.grid.shape:
             msg = (
@@ -426,7 +428,7 @@ class TopicLogger:
         self.log_cell_scores(snapshot, result, occupied)
         self.log_spectrum(result)
         self.log_amplitude(result, yaw_rad=snapshot.origin_yaw_rad)
-        self.log_structure_score(result)
+        self.log_structure_score(result, judged=judged)
         if walls is not None:
             self.log_walls(snapshot, walls)
 
@@ -658,12 +660,15 @@ class TopicLogger:
             rr.Points2D.from_fields(positions=_f32(plot.peaks), labels=plot.peak_labels),
         )
 
-    def log_structure_score(self, result: RoseResult) -> None:
+    def log_structure_score(self, result: RoseResult, *, judged: bool | None = None) -> None:
         """W and the trust / failure guide lines (three series of one entity, one log call).
 
         A map without occupied cells has W = 1 by convention, which says nothing about it: its W is
-        left out of the plot (NaN, a gap), as out of the report's statistics."""
-        w = float(result.structure_score) if w_judges(result.occupied_count) else math.nan
+        left out of the plot (NaN, a gap), as out of the report's statistics; so is the W of any
+        snapshot not ``judged`` (default: :func:`w_judges` of its occupied cells)."""
+        if judged is None:
+            judged = w_judges(result.occupied_count)
+        w = float(result.structure_score) if judged else math.nan
         self.recording.log(self.paths.w, rr.Scalars([w, self.trust_level, self.failure_level]))
 
     def log_break_score(

@@ -390,9 +390,12 @@ class RerunSink:
         walls: WallSet | None,
         rescued: npt.NDArray[np.bool_] | None = None,
         dropped: npt.NDArray[np.bool_] | None = None,
+        *,
+        judged: bool | None = None,
     ) -> None:
         """Log every stream of an analysed snapshot (at its log time); ``rescued``: clutter cells
-        the cleaning kept as walls, ``dropped``: structure cells it removed (grid order)."""
+        the cleaning kept as walls, ``dropped``: structure cells it removed (grid order);
+        ``judged``: whether W says something about it (default: enough occupied cells)."""
         topic_logger = self.loggers[snapshot.topic]
         first = snapshot.topic not in self._latest
         if first:  # here, not on the logging thread: the layout sent below uses it
@@ -403,7 +406,9 @@ class RerunSink:
         self._bounds_m[snapshot.topic] = _union(
             self._bounds_m[snapshot.topic], known_box_m(snapshot, known)
         )
-        if w_judges(result.occupied_count):  # an empty map's W (1 by convention) is not plotted
+        if judged is None:
+            judged = w_judges(result.occupied_count)
+        if judged:  # an empty map's W (1 by convention) is not plotted
             self._w_top[snapshot.topic] = _top(self._w_top[snapshot.topic], result.structure_score)
 
         def job() -> None:
@@ -413,7 +418,9 @@ class RerunSink:
                 start_ns=self.start_ns,
                 index=index,
             )
-            topic_logger.log_snapshot(snapshot, result, walls, rescued, dropped, window=window)
+            topic_logger.log_snapshot(
+                snapshot, result, walls, rescued, dropped, window=window, judged=judged
+            )
 
         self._submit(job)
         if self.live and first:

@@ -12,6 +12,7 @@ import numpy as np
 
 import rose
 from rose.cleaning import MIN_CLEAN_RESOLUTION_M, CleanMethod, CleanResult, clean
+from rose.directions import degenerate_input
 from rose.params import RoseParams
 from rose.result import RoseResult
 from rose.walls.segments import WallSet
@@ -28,13 +29,15 @@ ANALYSED_TOPIC: ContextVar[str | None] = ContextVar("rose_analysed_topic", defau
 
 @dataclass(frozen=True)
 class SnapshotAnalysis:
-    """What the session computes for one snapshot (``seconds``: compute time, 0 when reused)."""
+    """What the session computes for one snapshot (``seconds``: compute time, 0 when reused;
+    ``degenerate``: why W says nothing about the map, :func:`rose.directions.degenerate_input`)."""
 
     result: RoseResult
     walls: WallSet | None
     reused: bool
     cleaning: CleanResult | None = None
     seconds: float = 0.0
+    degenerate: str | None = None
 
 
 class SnapshotAnalyser:
@@ -93,8 +96,11 @@ class SnapshotAnalyser:
             )
             method = "paper"
         cleaning = clean(snapshot.grid, result, method=method, resolution_m=snapshot.resolution_m)
+        degenerate = degenerate_input(snapshot.grid, result.occupied)
         seconds = time.perf_counter() - started
-        return SnapshotAnalysis(result, walls, reused=False, cleaning=cleaning, seconds=seconds)
+        return SnapshotAnalysis(
+            result, walls, reused=False, cleaning=cleaning, seconds=seconds, degenerate=degenerate
+        )
 
 
 def same_placed_grid(a: MapSnapshot, b: MapSnapshot) -> bool:

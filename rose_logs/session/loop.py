@@ -819,17 +819,25 @@ class _Loop:
         # A snapshot whose results cannot be written to the output log (counted as skipped) is
         # still analysed: its record, Rerun and break events stay, so every gate sees it.
         self._write_results(snapshot, analysis)
+        record = _record(snapshot, analysis, index, verdict, pending)
         if self.rerun is not None:
             cleaning = analysis.cleaning
             rescued = dropped = None
             if cleaning is not None:
                 rescued = cleaning.rescued
                 dropped = cleaning.removed & analysis.result.structure
-            self.rerun.snapshot(snapshot, analysis.result, index, analysis.walls, rescued, dropped)
+            self.rerun.snapshot(
+                snapshot,
+                analysis.result,
+                index,
+                analysis.walls,
+                rescued,
+                dropped,
+                judged=record.judged,
+            )
             self.rerun.break_score(snapshot, verdict, index, self.detector.params.threshold_m)
         self._report_breaks(snapshot, analysis.result, index, verdict)
         compute_s = 0.0 if pending.reused else analysis.seconds
-        record = _record(snapshot, analysis, index, verdict, pending)
         record = dataclasses.replace(record, seconds=compute_s + time.perf_counter() - t0)
         self.records.append(record)
         if self.on_snapshot is not None:
@@ -965,6 +973,7 @@ def _record(
         break_score_m=verdict.score_m,
         break_region_m=verdict.region_m,
         break_detected=verdict.broken,
+        degenerate=analysis.degenerate,
         **_cleaning_counts(analysis.cleaning),
     )
 

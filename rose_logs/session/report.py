@@ -5,6 +5,7 @@ from __future__ import annotations
 import logging
 import math
 import statistics
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -14,7 +15,14 @@ from rose.params import RoseParams
 from rose_logs.session.breaks import DetectedBreak
 from rose_logs.snapshots import float32_decimal
 
-__all__ = ["MIN_JUDGED_CELLS", "BreakEvent", "SessionReport", "SnapshotRecord", "w_judges"]
+__all__ = [
+    "MIN_JUDGED_CELLS",
+    "BreakEvent",
+    "SessionReport",
+    "SnapshotRecord",
+    "row_judged",
+    "w_judges",
+]
 
 _LOG = logging.getLogger(__name__)
 
@@ -66,6 +74,9 @@ class SnapshotRecord:
         Kept cells the paper's labelling calls clutter.
     completed_count : int
         Unknown cells the cleaning made walls (the wall line hidden behind removed clutter).
+    degenerate : str or None
+        Why ROSE's input cannot show a building's structure (a solid block, a strip too thin for a
+        2D spectrum: :func:`rose.directions.degenerate_input`), so that W says nothing about it.
     """
 
     topic: str
@@ -91,11 +102,17 @@ class SnapshotRecord:
     kept_count: int = 0
     rescued_count: int = 0
     completed_count: int = 0
+    degenerate: str | None = None
 
     @property
     def judged(self) -> bool:
-        """Whether W says something about this snapshot (:func:`w_judges`)."""
-        return w_judges(self.occupied_count)
+        """Whether W says something about this snapshot (:func:`row_judged`)."""
+        return w_judges(self.occupied_count) and self.degenerate is None
+
+    @property
+    def unreadable(self) -> bool:
+        """Enough occupied cells, but in a form W cannot read (:attr:`degenerate`)."""
+        return w_judges(self.occupied_count) and self.degenerate is not None
 
     def to_json(self, *, start_ns: int) -> dict[str, Any]:
         """JSON-ready dict; ``time_s`` is seconds since ``start_ns``; NaN becomes null."""
@@ -124,7 +141,15 @@ class SnapshotRecord:
             "kept": self.kept_count,
             "rescued": self.rescued_count,
             "completed": self.completed_count,
+            "degenerate": self.degenerate,
         }
+
+
+def row_judged(row: Mapping[str, Any]) -> bool:
+    """Whether W says something about the snapshot of a JSON record (:meth:`SnapshotRecord.to_json`):
+    enough occupied cells (:func:`w_judges`) and an input ROSE can read (no ``degenerate`` reason;
+    records stored before it existed have none)."""
+    return w_judges(row["occupied"]) and not row.get("degenerate")
 
 
 def _region_json(region: tuple[float, float, float, float] | None) -> dict[str, float] | None:

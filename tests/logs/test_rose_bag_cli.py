@@ -568,6 +568,30 @@ def test_empty_first_maps_do_not_trip_the_w_gate(
     assert main(["process", str(log), "--no-output", "--fail-above", "0.4"]) == 0
 
 
+def test_maps_w_cannot_read_are_left_out_of_w_and_the_gate(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], fr079
+) -> None:
+    """A solid block reads W = 0.009 ("strong structure") and passed --fail-above 0.4: like a map
+    of a few occupied cells, W says nothing about it (rose clean said so, rose-bag did not)."""
+    import numpy as np
+
+    solid = np.full((100, 100), 100, dtype=np.int8)
+    log = build_log(tmp_path / "in.mcap", "mcap-ros2", session_maps([solid, fr079[0]])).path
+    report = tmp_path / "r.json"
+    code = main(["process", str(log), "--no-output", "--json", str(report), "--fail-above", "0.4"])
+    assert code == 0, capsys.readouterr().err
+    first, second = json.loads(report.read_text())["snapshots"]
+    assert first["structure_score"] < 0.05 and "occupied cells fill the grid" in first["degenerate"]
+    assert second["degenerate"] is None
+    assert json.loads(report.read_text())["topics"]["/map"]["w_min"] == second["structure_score"]
+    assert "(1 map W cannot read (a solid block, a thin strip) left out)" in capsys.readouterr().out
+    alone = build_log(tmp_path / "solid.mcap", "mcap-ros2", session_maps([solid])).path
+    assert main(["process", str(alone), "--no-output", "--fail-above", "0.4"]) == EXIT_GATE
+    assert "in a form W reads (a solid block? a thin strip?), the gate cannot judge it" in (
+        capsys.readouterr().err
+    )
+
+
 def test_a_library_warning_repeated_by_every_snapshot_is_said_once(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
