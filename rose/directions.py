@@ -39,16 +39,27 @@ def fold_deg(angle_deg: float, digits: int | None = None) -> float:
     return 0.0 if folded >= 180.0 else folded + 0.0  # + 0.0: no -0.0
 
 
+#: Decimals of the directions in every report (JSON, tables): 0.01 degrees.
+REPORT_DIGITS = 2
+
+
 def map_frame_deg(
     directions_rad: npt.ArrayLike, *, yaw_rad: float = 0.0, digits: int = 2
 ) -> list[float]:
     """Dominant directions (radians, grid frame) in degrees in the map frame, in ``[0, 180)`` and
     rounded to ``digits`` (0.01, the precision of every report; the views' labels give 0.1).
 
+    Fewer digits round the reported value, not the exact one: every view then shows what the
+    reports' numbers round to (176.15 is 176.2 everywhere; from the exact 176.1499... the views said
+    176.1 and the tables 176.2).
+
     ROSE measures directions in the grid (counter-clockwise from the grid's +x, the column axis); a
     map whose origin is rotated by ``yaw_rad`` has its walls that much further round in the map frame.
     """
-    return [fold_deg(math.degrees(float(a) + yaw_rad), digits) for a in np.ravel(directions_rad)]
+    exact = [math.degrees(float(a) + yaw_rad) for a in np.ravel(directions_rad)]
+    if digits >= REPORT_DIGITS:
+        return [fold_deg(d, digits) for d in exact]
+    return [fold_deg(fold_deg(d, REPORT_DIGITS), digits) for d in exact]
 
 
 # The paper's rule of thumb for reading W; the one definition every command, report and view uses.

@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
 
-from rose.directions import fold_deg
+from rose.directions import map_frame_deg
 from rose.errors import RoseError
 from rose.frozen import ReadOnlyArrays
 from rose.grid import occupied_mask
@@ -79,7 +78,7 @@ class RoseResult(ReadOnlyArrays):
     def __repr__(self) -> str:
         # A summary: the arrays (360 bins, whole grids) made a repr of 200 lines.
         directions = ", ".join(
-            f"{fold_deg(math.degrees(d), 1):.1f}" for d in self.dominant_directions
+            f"{d:.1f}" for d in map_frame_deg(self.dominant_directions, digits=1)
         )
         return (
             f"RoseResult(shape={self.occupied.shape}, structure_score={self.structure_score:.4f}, "

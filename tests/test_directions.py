@@ -187,3 +187,15 @@ def test_per_direction_sums_are_those_of_a_bincount(shape: tuple[int, int]) -> N
     # Rounding differs by an ulp or so; one cell missing from a bin (it did, at the last filled
     # bin before empty ones) is off by far more. Empty bins are interpolated, not compared.
     assert_allclose(got[filled], expected, rtol=1e-12)
+
+
+def test_one_decimal_views_round_the_reported_direction() -> None:
+    """The same wall read 176.2 in the tables (one decimal of the reported 176.15) and 176.1 in
+    Rerun (one decimal of the exact 176.1499...): every view rounds the reported value."""
+    import math
+
+    from rose.directions import map_frame_deg
+
+    exact = [math.radians(176.1499999), math.radians(86.2649)]
+    assert map_frame_deg(exact) == [176.15, 86.26]
+    assert map_frame_deg(exact, digits=1) == [round(176.15, 1), round(86.26, 1)] == [176.2, 86.3]

@@ -676,4 +676,6 @@ def test_a_snapshots_seconds_count_its_analysis_once() -> None:
 
     report = process_log(SAMPLE, analysis_threads=1)
     total = sum(record.seconds for record in report.records)
-    assert 0 < total <= report.elapsed_s
+    # One snapshot's outputs are written while the next one is analysed: on a busy machine the
+    # records may add up to a little more than the run (0.9 of it idle), never twice (1.8 before).
+    assert 0 < total <= 1.4 * report.elapsed_s
