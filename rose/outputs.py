@@ -235,6 +235,14 @@ def _named_write_errors() -> Iterator[None]:
         raise StdoutError(err.strerror or str(err)) from err
 
 
+def _twice(path: Path, other: Path) -> str:
+    """The error for one file given for two outputs (``--rrd x --json x`` read "x: used for two
+    outputs (also x)")."""
+    if str(path) == str(other):
+        return f"{path}: given for two outputs (each needs a file of its own)"
+    return f"{path}: used for two outputs (also as {other})"
+
+
 def exit_after(code: int) -> NoReturn:
     """Exit a console script with ``code`` once its work is done and its outputs are committed.
 
@@ -658,8 +666,7 @@ class OutputSet:
                 if str(path) == str(other) == STDOUT or (
                     STDOUT not in (str(path), str(other)) and _conflict(target, other_target)
                 ):
-                    msg = f"{path}: used for two outputs (also {other})"
-                    raise OutputError(msg)
+                    raise OutputError(_twice(path, other))
             seen.append((path, target))
             if _is_stdout(path) or (target.exists() and not _is_regular_or_dir(target)):
                 if directory:
@@ -756,8 +763,7 @@ class OutputSet:
             if (str(path) == STDOUT and str(other.path) == STDOUT) or (
                 str(path) != STDOUT and not other.stream and _conflict(target, other.target)
             ):
-                msg = f"{path}: used for two outputs (also {other.path})"
-                raise OutputError(msg)
+                raise OutputError(_twice(path, other.path))
         return target
 
     def _check_existing(
