@@ -19,6 +19,7 @@ from rose.directions import FAILURE_LEVEL, TRUST_LEVEL, map_frame_deg
 from rose.result import RoseResult
 from rose.walls import WallSet
 from rose.walls.segments import cells_to_metres
+from rose_logs.frames import yaw_to_quaternion
 from rose_logs.rerun import conversions as conv
 from rose_logs.rerun import style
 from rose_logs.rerun.paths import SEQUENCE_TIMELINE, SESSION_TIMELINE, TIMELINE, EntityPaths
@@ -139,19 +140,6 @@ def set_snapshot_time(
     recording.set_time(TIMELINE, timestamp=np.datetime64(int(log_time_ns), "ns"))
     if index is not None:
         recording.set_time(SEQUENCE_TIMELINE, sequence=int(index))
-
-
-def _rotated(
-    quaternion_xyzw: list[float], vector: tuple[float, float, float]
-) -> npt.NDArray[np.float64]:
-    """``vector`` turned by the quaternion ``(x, y, z, w)`` (normalised here, as Rerun does: a
-    map message's need not be a unit one)."""
-    xyzw = np.asarray(quaternion_xyzw, dtype=np.float64)
-    xyzw /= np.linalg.norm(xyzw)
-    q, w = xyzw[:3], float(xyzw[3])
-    v = np.asarray(vector, dtype=np.float64)
-    t = 2.0 * np.cross(q, v)
-    return v + w * t + np.cross(q, t)
 
 
 def cells_to_map_m(
@@ -442,16 +430,21 @@ class TopicLogger:
         x0, y0, x1, y1 = window or conv.image_window(snapshot.grid)
         # Image row order, a copy of its own (Rerun reads it later, see _image_buffer).
         image = snapshot.grid[y0:y1, x0:x1].view(np.uint8)[::-1].copy()
-        quaternion = [float(v) for v in snapshot.origin_orientation_xyzw]
-        corner = _rotated(quaternion, (x0 * snapshot.resolution_m, y0 * snapshot.resolution_m, 0.0))
+        # Flat, turned by the origin's yaw: where the session takes a grid to lie (a tilted origin
+        # is warned about), and where the overlays (cells_to_map_m) are drawn.
+        corner = cells_to_map_m(snapshot, np.array([[x0, y0]], dtype=np.float64))[0, :2]
         self.recording.log(
             self.paths.grid,
             rr.GridMap(
                 data=_image_buffer(image),
                 format=_u8_format(image, color_model="L"),
                 cell_size=float(snapshot.resolution_m),
-                translation=[float(v) for v in np.add(snapshot.origin_position_m, corner)],
-                quaternion=rr.Quaternion(xyzw=quaternion),
+                translation=[
+                    float(corner[0]),
+                    float(corner[1]),
+                    float(snapshot.origin_position_m[2]),
+                ],
+                quaternion=rr.Quaternion(xyzw=yaw_to_quaternion(snapshot.origin_yaw_rad)),
             ),
         )
 

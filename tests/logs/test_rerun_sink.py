@@ -413,6 +413,8 @@ def test_grid_map_is_sent_top_row_first_and_placed(tmp_path: Path) -> None:
 def test_the_grid_map_covers_the_known_cells_where_they_lie(tmp_path: Path) -> None:
     """A SLAM grid is mostly unknown: the GridMap holds the known cells' box only, its lower-left
     corner placed on that box's corner in the map frame (yawed origin)."""
+    import dataclasses
+    import math
 
     from rose_logs.rerun.loggers import cells_to_map_m
 
@@ -422,6 +424,26 @@ def test_the_grid_map_covers_the_known_cells_where_they_lie(tmp_path: Path) -> N
     row = _logged_grid_map(tmp_path, snapshot)
     assert bytes(row["GridMap:data"][0]) == grid[7:19, 11:31][::-1].tobytes()
     corner = cells_to_map_m(snapshot, np.array([[11.0, 7.0]]))[0, :2]
+    assert row["GridMap:translation"][0][:2] == pytest.approx(corner, abs=1e-5)
+    # A tilted origin: the grid lies flat, turned by its yaw, as the session takes it and where the
+    # overlays are drawn (the GridMap took the whole quaternion).
+    roll = 0.2
+    tilted = dataclasses.replace(
+        snapshot,
+        origin_orientation_xyzw=(
+            math.sin(roll / 2) * math.cos(0.3),
+            -math.sin(roll / 2) * math.sin(0.3),
+            math.cos(roll / 2) * math.sin(0.3),
+            math.cos(roll / 2) * math.cos(0.3),
+        ),
+    )
+    (tmp_path / "tilted").mkdir()
+    row = _logged_grid_map(tmp_path / "tilted", tilted)
+    yaw = tilted.origin_yaw_rad
+    assert row["GridMap:quaternion"][0] == pytest.approx(
+        [0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)], abs=1e-6
+    )
+    corner = cells_to_map_m(tilted, np.array([[11.0, 7.0]]))[0, :2]
     assert row["GridMap:translation"][0][:2] == pytest.approx(corner, abs=1e-5)
 
 
