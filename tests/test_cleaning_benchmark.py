@@ -70,6 +70,32 @@ def test_slam_like_keeps_a_two_cell_layer() -> None:
     assert np.all(out[10:20, 10:20] == 0)
 
 
+def test_slam_like_pair_keeps_anti_aliased_walls_on_a_grey_outside(tmp_path: Path) -> None:
+    import cv2
+
+    # A drawing like office_g: a room inside 6-pixel black walls with smoothed edges, on a grey
+    # outside that map_server reads as unknown, and a grey cabinet in the furnished copy.
+    clean = np.full((80, 100), 178, np.uint8)
+    cv2.rectangle(clean, (20, 20), (79, 59), 0, 6, lineType=cv2.LINE_AA)
+    clean[24:56, 24:76] = 255
+    clean = cv2.GaussianBlur(clean, (5, 5), 1.0)
+    furnished = clean.copy()
+    furnished[36:44, 40:60] = 100  # rows 36:44 read the same either way up
+    cv2.imwrite(str(tmp_path / "room.png"), clean)
+    cv2.imwrite(str(tmp_path / "room_furnitures.png"), furnished)
+    case = slam_like_pair(tmp_path / "room.png", tmp_path / "room_furnitures.png")
+    free = (case.grid >= 0) & (case.grid < 65)
+    unknown = case.grid < 0
+    # Every free cell's 4-neighbours are free or occupied: the walls close the room, no seam.
+    touching = unknown[1:, :] & free[:-1, :] | unknown[:-1, :] & free[1:, :]
+    touching_cols = unknown[:, 1:] & free[:, :-1] | unknown[:, :-1] & free[:, 1:]
+    assert not touching.any() and not touching_cols.any()
+    # All four walls are in the ground truth, each face two cells thick; the cabinet is clutter.
+    assert case.walls[:, 50].sum() >= 4 and case.walls[40, :].sum() >= 4
+    assert case.clutter[36:44, 40:60].sum() >= 2 * (20 + 8)
+    assert not (case.walls & case.clutter).any()
+
+
 def test_shorten_ranges_cuts_beams_at_the_first_object() -> None:
     angles = np.linspace(-0.2, 0.2, 41)
     ranges = np.full((1, angles.size), 10.0, np.float32)

@@ -3,8 +3,8 @@
 Two kinds of map, both as a SLAM system would produce them:
 
 - **SLAM-like Bormann buildings** (:func:`slam_like_pair`): the room-segmentation benchmark's clean
-  and furnished drawings, with every occupied cell farther than ``layer_px`` cells from free space
-  turned unknown. That hollows the solid black outside some drawings use, thick walls and solid
+  and furnished drawings (every non-white pixel an obstacle), with every occupied cell farther than
+  ``layer_px`` cells from free space turned unknown. That hollows the painted outside, thick walls and solid
   furniture blocks alike: a scanner sees faces, never insides. Walls are the cells occupied in both
   the clean and the furnished map; clutter the cells occupied in the furnished map only.
 - **Ray-cast furniture** (:mod:`rose_logs.evaluation.raycast`): CARMEN logs re-rendered with seeded
@@ -33,7 +33,7 @@ import rose
 from rose.cleaning import CleanMethod, clean
 from rose.cleaning_rules import length_px
 from rose_logs.evaluation.gaps import robot_gaps
-from rose_logs.evaluation.maps import _grey, load_benchmark_map
+from rose_logs.evaluation.maps import _grey
 
 __all__ = [
     "CleaningCase",
@@ -50,10 +50,13 @@ __all__ = [
 _LOG = logging.getLogger(__name__)
 #: Bormann's benchmark images are 5 cm per cell (no YAML upstream).
 BORMANN_RESOLUTION_M = 0.05
+#: Grey levels below this are obstacles in a benchmark drawing, as Bormann et al. read them: walls,
+#: the grey or black outside and the anti-aliased wall edges alike.
+_OBSTACLE_GREY_BELOW = 250
 #: Grey levels by which a furniture cell is darker in the furnished drawing than in the clean one.
 _FURNITURE_MIN_STEP = 10
-#: Maps whose clean drawing has fewer occupied cells than this draw their walls in a grey that
-#: map_server reads as unknown (Freiburg52); they have no wall ground truth and are skipped.
+#: Drawings with fewer wall cells than this (after hollowing) have no usable ground truth and are
+#: skipped.
 _MIN_WALL_CELLS = 1000
 
 
@@ -144,22 +147,26 @@ def furnished_pair(
 ) -> tuple[npt.NDArray[np.int8], npt.NDArray[np.bool_]]:
     """The furnished Bormann map (clean map + furniture cells at 100) and the clean map's walls.
 
-    Furniture cells are free in the clean map (map_server thresholds) and drawn darker, by more than
-    ``_FURNITURE_MIN_STEP`` grey levels, in the furnished image. Comparing the two images (instead of a
-    fixed grey level) keeps the anti-aliased wall edges some drawings have, identical in both images,
-    out of the clutter.
+    Every pixel of the clean drawing darker than ``_OBSTACLE_GREY_BELOW`` is an obstacle (Bormann et
+    al.'s reading), not map_server's trinary thresholds: the drawings paint walls and the outside in
+    greys map_server reads as unknown, and their anti-aliased wall edges would leave an unknown seam
+    between a room and its wall (office_g kept 3 % of its walls after hollowing). Furniture cells are
+    free in the clean drawing and darker, by more than ``_FURNITURE_MIN_STEP`` grey levels, in the
+    furnished one; comparing the two images keeps the wall edges, identical in both, out of the
+    clutter. The grid has no unknown cells; :func:`slam_like` makes the far obstacle cells unknown.
     """
-    clean = load_benchmark_map(clean_path)
     grey_clean = _grey(clean_path)
     grey_furnished = _grey(furniture_path)
-    if grey_furnished.shape != clean.shape:
-        msg = f"{furniture_path}: shape {grey_furnished.shape} differs from {clean_path} {clean.shape}"
+    if grey_furnished.shape != grey_clean.shape:
+        msg = (
+            f"{furniture_path}: shape {grey_furnished.shape} differs from {clean_path} "
+            f"{grey_clean.shape}"
+        )
         raise ValueError(msg)
-    walls = clean >= 65
+    walls = grey_clean < _OBSTACLE_GREY_BELOW
     darker = grey_clean.astype(np.int16) - grey_furnished.astype(np.int16) > _FURNITURE_MIN_STEP
-    furniture = (clean >= 0) & ~walls & darker
-    grid = clean.copy()
-    grid[furniture] = 100
+    furniture = ~walls & darker
+    grid = np.where(walls | furniture, 100, 0).astype(np.int8)
     return grid, walls
 
 
