@@ -92,15 +92,17 @@ def _metric_eye(bounds_m: tuple[float, float, float, float] | None) -> rrb.EyeCo
 def _north_up_bounds(layout: TopicLayout, *, below: float = 0.0) -> rrb.VisualBounds2D | None:
     """The known box of ``layout`` in the 2D views' north-up frame (x east, y south, metres from
     its view origin: :func:`rose_logs.rerun.loggers.image_placement`), with a margin, and
-    ``below`` times its height more under it."""
+    ``below`` times its height (at least a quarter of its width, as the colour bar's size:
+    :func:`rose_logs.rerun.loggers.bar_placement`) more under it."""
     if layout.bounds_m is None:
         return None
     x0, y0, x1, y1 = layout.bounds_m
     rx, ry = layout.view_origin_m
     margin = 0.03 * max(x1 - x0, y1 - y0)
+    extra = below * max(y1 - y0, 0.25 * (x1 - x0))
     return rrb.VisualBounds2D(
         x_range=(x0 - rx - margin, x1 - rx + margin),
-        y_range=(ry - y1 - margin, ry - y0 + margin + below * (y1 - y0)),
+        y_range=(ry - y1 - margin, ry - y0 + margin + extra),
     )
 
 

@@ -175,6 +175,24 @@ _BAR_LABELS_BELOW_PX = 2.0 + 0.09 / (_BAR_HEIGHT / 2)
 _BAR_THRESHOLD_LABEL_PX = -0.2 / (_BAR_HEIGHT / 2)
 
 
+def bar_placement(
+    box: tuple[float, float, float, float], *, min_size_m: float = 0.0
+) -> rr.Transform3D:
+    """The colour bar's placement (metres per bar pixel) under ``box`` = (west, north, east, south),
+    the 2D views' north-up metres (y south), 0.6 of its width wide, its labels clear of the box.
+
+    Every vertical length is a fraction of one size, so that the labels' places in the bar's pixels
+    hold whatever the box (a thin map's bar is sized by its width)."""
+    west, north, east, south = box
+    width = east - west
+    size = max(south - north, 0.25 * width, min_size_m)
+    # Far enough below for the threshold's label to sit between the cells and the bar.
+    return rr.Transform3D(
+        translation=[west + 0.2 * width, south + 0.22 * size, 0.0],
+        scale=[0.6 * width / style.DISPLAY_LEVELS, _BAR_HEIGHT * size / 2, 1.0],
+    )
+
+
 class TopicLogger:
     """Loggers of one map topic's streams below ``paths``.
 
@@ -334,6 +352,9 @@ class TopicLogger:
                         opacity=1.0,
                     ),
                     rr.Points2D.from_fields(colors=style.AXIS_COLOR, radii=0.0, show_labels=True),
+                    rr.LineStrips2D.from_fields(
+                        colors=style.AXIS_COLOR, radii=rr.Radius.ui_points(1.5)
+                    ),
                 ],
             ),
             (
@@ -554,16 +575,10 @@ class TopicLogger:
             snapshot, np.array([[x0, y0], [x1, y0], [x0, y1], [x1, y1]], float), origin
         )
         (west, north), (east, south) = corners.min(axis=0), corners.max(axis=0)
-        box_w = east - west
-        # Every vertical length below is a fraction of one size, so that the labels' places in
-        # the bar's pixels hold whatever the box (a thin map's bar is sized by its width).
-        size = max(south - north, 0.25 * box_w, 10.0 * float(snapshot.resolution_m))
-        levels = style.DISPLAY_LEVELS
-        # Far enough below for the threshold's label to sit between the cells and the bar.
-        self.score_legend_placement = rr.Transform3D(
-            translation=[west + 0.2 * box_w, south + 0.22 * size, 0.0],
-            scale=[0.6 * box_w / levels, _BAR_HEIGHT * size / 2, 1.0],  # metres per bar pixel
+        self.score_legend_placement = bar_placement(
+            (west, north, east, south), min_size_m=10.0 * float(snapshot.resolution_m)
         )
+        levels = style.DISPLAY_LEVELS
 
         def u_of(score: float) -> float:
             return levels * float(conv.score_to_unit(np.array([score]))[0])
@@ -575,9 +590,13 @@ class TopicLogger:
             (u_of(1.0), _BAR_LABELS_BELOW_PX),
         ]
         labels = [f"score {style.SCORE_DISPLAY_MIN:g}", "1 (best cell)"]
+        tick = np.empty((0, 2, 2), np.float32)
         if math.isfinite(result.threshold):
-            positions.append((u_of(result.threshold), _BAR_THRESHOLD_LABEL_PX))
+            at = u_of(result.threshold)
+            positions.append((at, _BAR_THRESHOLD_LABEL_PX))
             labels.append(f"threshold {result.threshold:.2f}")
+            # A tick across the bar, from above it (where the label is) to its lower edge.
+            tick = np.array([[(at, -0.6), (at, 2.0)]], np.float32)
         rec.log(
             paths.cell_scores,
             segmentation_image(conv.masked_score_image(result, occupied)),
@@ -588,16 +607,21 @@ class TopicLogger:
         rec.log(
             paths.score_bar,
             rr.Points2D.from_fields(positions=_f32(np.array(positions)), labels=labels),
+            rr.LineStrips2D.from_fields(strips=tick),
         )
 
-    def log_final_placement(self) -> None:
-        """Place the colour bar under the last snapshot's occupied cells, at every time: the
-        scores view frames the final map, under which a small early map's bar (placed under that
-        map) was too small for its labels, which covered it."""
+    def log_final_placement(self, bounds_m: tuple[float, float, float, float] | None) -> None:
+        """Place the colour bar under the session's known box ``bounds_m`` (map frame, metres: the
+        box the scores view frames), at every time. Under the last map, a map that shrank, moved
+        or changed its cell size had a bar too small for its labels, which covered it."""
         # Only where no placement was logged per snapshot (not ``live``): the web viewer kept
         # those over a static one logged after them.
-        if self.score_legend_placement is not None:
-            self.recording.log(self.paths.score_legend, self.score_legend_placement, static=True)
+        if bounds_m is None or self.view_origin_m is None:
+            return
+        x0, y0, x1, y1 = bounds_m
+        rx, ry = self.view_origin_m
+        self.score_legend_placement = bar_placement((x0 - rx, ry - y1, x1 - rx, ry - y0))
+        self.recording.log(self.paths.score_legend, self.score_legend_placement, static=True)
 
     def log_spectrum(self, result: RoseResult) -> None:
         """The log amplitude spectrum (display resolution) with the kept strip of every direction."""

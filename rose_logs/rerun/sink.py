@@ -317,6 +317,8 @@ class RerunSink:
         # Known part of every map so far, per topic: the views frame them all, so that scrubbing
         # back over a map that moved (a new origin) does not show an empty view.
         self._bounds_m: dict[str, Box | None] = dict.fromkeys(topics)
+        # The grids' whole boxes: framed only while no map of the topic knows a cell.
+        self._grid_bounds_m: dict[str, Box | None] = dict.fromkeys(topics)
         self._closing = False
         self._has_events: dict[str, bool] = dict.fromkeys(topics, False)
         # Highest value each topic's W / break-score plot shows, guide lines included (final layout).
@@ -406,6 +408,10 @@ class RerunSink:
         self._bounds_m[snapshot.topic] = _union(
             self._bounds_m[snapshot.topic], known_box_m(snapshot, known)
         )
+        rows, cols = snapshot.grid.shape
+        self._grid_bounds_m[snapshot.topic] = _union(
+            self._grid_bounds_m[snapshot.topic], known_box_m(snapshot, (0, 0, cols, rows))
+        )
         if judged is None:
             judged = w_judges(result.occupied_count)
         if judged:  # an empty map's W (1 by convention) is not plotted
@@ -465,6 +471,11 @@ class RerunSink:
         if self.live and first:
             self._send_blueprint()
 
+    def _framed_m(self, topic: str) -> Box | None:
+        """The map-frame box the views of ``topic`` frame: every snapshot's known cells, or the
+        grids themselves in a session that knows none (an all-unknown map is still drawn)."""
+        return self._bounds_m[topic] or self._grid_bounds_m[topic]
+
     def _send_blueprint(self) -> None:
         """Send the layout for what is known now (skipped when nothing it depends on changed)."""
         key = tuple(
@@ -475,7 +486,7 @@ class RerunSink:
         layouts = tuple(
             _layout_of(
                 logger.paths.root,
-                self._bounds_m[topic],
+                self._framed_m(topic),
                 has_events=self._has_events[topic],
                 view_origin=logger.view_origin_m,
             )
@@ -540,8 +551,8 @@ class RerunSink:
         release_free_heap()
         self._closing = True  # the final layout frames every map of the session
         if not self.live:  # a live viewer placed the bar with each map
-            for logger in self.loggers.values():
-                logger.log_final_placement()
+            for topic, logger in self.loggers.items():
+                logger.log_final_placement(self._framed_m(topic))
         self._send_blueprint()
         self._flush()
         self.recording.disconnect()

@@ -676,6 +676,13 @@ def test_the_views_frame_every_map_of_the_session_when_the_origin_moves(
     grid[10:50, 10:70] = 0
     grid[10, 10:70] = grid[49, 10:70] = grid[10:50, 10] = grid[10:50, 69] = 100
     first, moved = _yawed(grid, 0.0, (-100.0, -100.0)), _yawed(grid, 0.0, (-20.0, -20.0))
+    placed: list[object] = []
+    real_placement = sink_module.TopicLogger.log_final_placement
+    monkeypatch.setattr(
+        sink_module.TopicLogger,
+        "log_final_placement",
+        lambda self, bounds: placed.append(bounds) or real_placement(self, bounds),
+    )
     sink = sink_module.RerunSink(
         rrd_path=tmp_path / "x.rrd", topics=("/map",), recording_id="x", start_ns=0
     )
@@ -685,6 +692,9 @@ def test_the_views_frame_every_map_of_the_session_when_the_origin_moves(
     sink.close()
     (layout,) = sent[-1]
     assert layout.bounds_m is not None
+    # The saved recording's colour bar goes under what the scores view frames, not under the last
+    # map (a small part of the view when the map moved: a bar too small for its labels).
+    assert placed == [layout.bounds_m]
     x0, y0, x1, y1 = layout.bounds_m
     rx, ry = layout.view_origin_m
     for snapshot in (first, moved):
@@ -751,7 +761,11 @@ def test_the_threshold_label_sits_between_the_cells_and_the_bar(tmp_path: Path, 
     (labels,) = content.rows(PATHS.score_bar)
     _, top, _ = placement["Transform3D:translation"][0]
     _, scale_y, _ = placement["Transform3D:scale"][0]
-    (_, below_px), _, (_, threshold_px) = labels["Points2D:positions"]
+    (_, below_px), _, (threshold_u, threshold_px) = labels["Points2D:positions"]
+    # A tick marks the threshold on the bar, from its label down across the bar (0..2 pixels).
+    ((tick_top, tick_bottom),) = labels["LineStrips2D:strips"]
+    assert tick_top[0] == tick_bottom[0] == threshold_u
+    assert threshold_px < tick_top[1] < 0 and tick_bottom[1] >= 2
     layout = _layout_of(
         "map", _known_box(snapshot), has_events=False, view_origin=logger.view_origin_m
     )
@@ -787,3 +801,50 @@ def test_a_recording_cut_short_is_an_error_and_never_placed(
         "cut.rrd",
         "whole.rrd",
     ]
+
+
+def test_the_colour_bar_lies_under_its_box_and_inside_the_scores_view() -> None:
+    """A room and a long thin corridor: the bar (sized by a quarter of a thin box's width) and the
+    labels under it stay inside the scores view, which left room for a box's height only."""
+    from rose_logs.rerun.blueprint import _north_up_bounds
+    from rose_logs.rerun.loggers import _BAR_LABELS_BELOW_PX, bar_placement
+    from rose_logs.rerun.sink import TopicLayout
+    from rose_logs.rerun.style import DISPLAY_LEVELS
+
+    for box in ((0.0, -40.0, 80.0, 0.0), (0.0, -2.0, 80.0, 0.0)):  # map frame, view origin 0
+        west, north, east, south = box[0], -box[3], box[2], -box[1]  # the views' y points south
+        placement = bar_placement((west, north, east, south))
+        ((left, top, _),) = placement.translation.pa_array.to_pylist()
+        ((scale_x, scale_y, _),) = placement.scale.pa_array.to_pylist()
+        bounds = _north_up_bounds(TopicLayout("map", bounds_m=box), below=0.45)
+        assert bounds is not None
+        ((view_top, view_bottom),) = [r["y_range"] for r in bounds.range.pa_array.to_pylist()]
+        assert west < left and left + scale_x * DISPLAY_LEVELS < east
+        assert south < top and view_top < north
+        assert top + _BAR_LABELS_BELOW_PX * scale_y < view_bottom, box
+
+
+def test_an_all_unknown_session_is_framed_by_its_grid(tmp_path: Path, monkeypatch) -> None:
+    """A session whose maps know no cell had no box to frame: the metric view opened in Rerun's
+    default perspective, far from the (grey) grid."""
+    import rose
+    from rose_logs.rerun import sink as sink_module
+    from rose_logs.rerun.blueprint import _metric_eye
+
+    sent: list[tuple[object, ...]] = []
+    real = sink_module.default_blueprint
+    monkeypatch.setattr(
+        sink_module,
+        "default_blueprint",
+        lambda layouts, **kw: sent.append(layouts) or real(layouts, **kw),
+    )
+    grid = np.full((40, 60), -1, dtype=np.int8)
+    snapshot = _yawed(grid, 0.0, (5.0, 7.0), resolution=0.1)
+    sink = sink_module.RerunSink(
+        rrd_path=tmp_path / "x.rrd", topics=("/map",), recording_id="x", start_ns=0
+    )
+    sink.snapshot(snapshot, rose.analyze(grid), 0, None)
+    sink.close()
+    (layout,) = sent[-1]
+    assert layout.bounds_m == pytest.approx((5.0, 7.0, 11.0, 11.0))
+    assert _metric_eye(layout.bounds_m) is not None
