@@ -14,6 +14,7 @@ so rows are flipped at this boundary.
 
 from __future__ import annotations
 
+import logging
 import math
 import os
 import stat
@@ -55,6 +56,15 @@ DEFAULT_RESOLUTION_M = 0.05
 DEFAULT_OCCUPIED_THRESH = 0.65
 DEFAULT_FREE_THRESH = 0.196
 YAML_SUFFIXES = frozenset({".yaml", ".yml"})
+_USUAL_VALUES: dict[str, Any] = {
+    "origin": [0, 0, 0],
+    "negate": 0,
+    "occupied_thresh": DEFAULT_OCCUPIED_THRESH,
+    "free_thresh": DEFAULT_FREE_THRESH,
+}
+"""Keys map_server requires that a map YAML may leave out here: their usual values, with a warning."""
+
+_LOG = logging.getLogger(__name__)
 
 # Grey values ROS map_saver writes in trinary mode.
 SAVED_FREE = 254
@@ -222,7 +232,7 @@ def _load_yaml_map(path: Path, max_cells: int | None) -> OccupancyMap:
         raise MapFileError(msg)
     image_name = _field(meta, "image", str, path)
     resolution = _field(meta, "resolution", float, path)
-    origin = meta.get("origin", [0.0, 0.0, 0.0])
+    origin = meta.get("origin", _USUAL_VALUES["origin"])
     if isinstance(origin, list):
         origin = [_as_number(v, float) for v in origin]
     if (
@@ -242,9 +252,11 @@ def _load_yaml_map(path: Path, max_cells: int | None) -> OccupancyMap:
     if mode not in ("trinary", "scale", "raw"):
         msg = f"{path}: 'mode' must be trinary, scale or raw, got {short(repr(mode), 80)}"
         raise MapFileError(msg)
-    negate = _field(meta, "negate", int, path, default=0)
-    occupied_thresh = _field(meta, "occupied_thresh", float, path, default=DEFAULT_OCCUPIED_THRESH)
-    free_thresh = _field(meta, "free_thresh", float, path, default=DEFAULT_FREE_THRESH)
+    negate = _field(meta, "negate", int, path, default=_USUAL_VALUES["negate"])
+    occupied_thresh = _field(
+        meta, "occupied_thresh", float, path, default=_USUAL_VALUES["occupied_thresh"]
+    )
+    free_thresh = _field(meta, "free_thresh", float, path, default=_USUAL_VALUES["free_thresh"])
     problem = resolution_problem(resolution)
     if problem is not None:
         msg = f"{path}: 'resolution' {problem}"
@@ -283,6 +295,7 @@ def _load_yaml_map(path: Path, max_cells: int | None) -> OccupancyMap:
         free_thresh=free_thresh,
         as_map_server=True,
     )
+    _warn_of_usual_values(path, meta)  # once the map reads: an error comes alone
     return OccupancyMap(
         grid=grid,
         resolution_m=resolution,
@@ -291,6 +304,15 @@ def _load_yaml_map(path: Path, max_cells: int | None) -> OccupancyMap:
         source=path,
         image_path=image_path,
     )
+
+
+def _warn_of_usual_values(path: Path, meta: dict[str, Any]) -> None:
+    """One warning naming the keys map_server requires that ``meta`` leaves out, and the usual
+    values used instead (``m.yaml: no origin, using [0, 0, 0]``): map_server refuses such a file."""
+    used = [f"no {key}, using {value}" for key, value in _USUAL_VALUES.items() if key not in meta]
+    if used:
+        them = "it" if len(used) == 1 else "them"
+        _LOG.warning("%s: %s (map_server requires %s)", path, "; ".join(used), them)
 
 
 def _as_number(value: Any, kind: type) -> Any:

@@ -73,6 +73,7 @@ __all__ = [
     "signals_deferred",
     "stdout_closed",
     "stdout_errors_named",
+    "suffix_warning",
     "temporary_name",
 ]
 
@@ -503,6 +504,23 @@ def _is_stdout(path: Path) -> bool:
         return os.path.samestat(path.stat(), os.fstat(sys.stdout.fileno()))
     except (OSError, ValueError, AttributeError):
         return False
+
+
+def suffix_warning(path: Path | str | None, suffix: str, content: str) -> str | None:
+    """A warning line for a file output whose name lacks the suffix of what it holds (``--rrd
+    run.txt``, which ``rerun`` will not open; ``--json report.rrd``), naming ``content`` ("a JSON
+    report") and the ``suffix`` expected (".json", any case); None for no output, standard output,
+    a device or FIFO (streams keep their names), or the expected suffix."""
+    if path is None or str(path) == STDOUT:
+        return None
+    path = Path(path)
+    if _is_stdout(path) or (path.exists() and not _is_regular_or_dir(path)):
+        return None
+    found = path.suffix
+    if found.lower() == suffix:
+        return None
+    named = f"a '{found}' name" if found else "a name without a suffix"
+    return f"warning: {path}: {content} written under {named} (expected {suffix})"
 
 
 def _no_folder(path: Path | str, parent: Path) -> str:

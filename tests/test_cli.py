@@ -89,6 +89,32 @@ def test_clean_gives_no_verdict_on_a_degenerate_map(
     assert "trusted" not in line
 
 
+def test_score_does_not_claim_structure_in_a_degenerate_map(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A solid block read `"has_structure": true` (its rectangle's direction) and a plain table row
+    whose low W passed for a building's: as `rose clean` and rose-bag's records, its `degenerate`
+    says why W says nothing, and `has_structure` is not judged (null). A map with no direction at
+    all keeps `false`."""
+    block, blank = tmp_path / "block.yaml", tmp_path / "blank.yaml"
+    rose.save_map(block, rose.OccupancyMap(grid=np.full((40, 50), 100, np.int8), resolution_m=0.05))
+    rose.save_map(blank, rose.OccupancyMap(grid=np.full((40, 50), -1, np.int8), resolution_m=0.05))
+    assert main(["score", "--json", str(block), str(blank)]) == 0
+    solid, unknown = json.loads(capsys.readouterr().out)
+    assert solid["has_structure"] is None and solid["dominant_directions_deg"] == [0.0]
+    assert solid["degenerate"].startswith("occupied cells fill the grid (180 cell sides")
+    assert unknown["has_structure"] is False and unknown["degenerate"] is not None
+    assert main(["clean", str(block), "-o", str(tmp_path / "c.yaml"), "--json", "-"]) == 0
+    cleaned = json.loads(capsys.readouterr().out)  # the summary went to stderr
+    assert cleaned["has_structure"] is None and cleaned["degenerate"] == solid["degenerate"]
+    assert main(["score", str(block), str(blank)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[-2:] == [
+        f"{block}: {solid['degenerate']}: W says nothing about this map",
+        f"{blank}: no occupied cells: W says nothing about this map",
+    ]
+
+
 def test_the_real_maps_get_no_degenerate_input_caveat() -> None:
     """The caveat must not fall on a real map: every map of tests/data, the snapshots of the sample
     session, and a drawn map whose outside is occupied (lab_ipa, 82 % of its cells)."""
@@ -352,6 +378,71 @@ def test_usage_error_exits_2(argv: list[str]) -> None:
     with pytest.raises(SystemExit) as info:
         main(argv)
     assert info.value.code == 2
+
+
+@pytest.mark.parametrize(
+    ("argv", "usage"),
+    [
+        (["clean", "m.yaml", "-o", "o.yaml", "--bogus"], "rose clean"),
+        (["score", "m.yaml", "--bogus"], "rose score"),
+        (["walls", "m.yaml", "--bogus"], "rose walls"),
+        (["--bogus", "score", "m.yaml"], "rose"),  # before the command: the top level's
+    ],
+)
+def test_an_unknown_option_is_a_usage_error_of_the_parser_it_follows(
+    argv: list[str], usage: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`rose clean map.yaml --bogus` showed the top-level usage (`rose [-h] ... COMMAND ...`)."""
+    with pytest.raises(SystemExit) as info:
+        main(argv)
+    assert info.value.code == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"usage: {usage} [-h]")
+    assert err.splitlines()[-1] == f"{usage}: error: unrecognized arguments: --bogus"
+
+
+def test_clean_warns_of_a_json_report_named_with_another_suffix(
+    cluttered_map: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`--json report.rrd` was written silently; a report refused anyway is refused alone."""
+    report = tmp_path / "report.rrd"
+    argv = ["clean", str(cluttered_map), "-o", str(tmp_path / "c.yaml"), "--json", str(report)]
+    assert main(argv) == 0
+    said = f"warning: {report}: a JSON report written under a '.rrd' name (expected .json)\n"
+    assert capsys.readouterr().err == said
+    assert json.loads(report.read_text())["method"] == "walls"
+    assert main([*argv[:3], str(tmp_path / "c2.yaml"), *argv[4:]]) == 1  # exists already
+    err = capsys.readouterr().err
+    assert err.startswith(f"error: {report}: exists already") and "warning" not in err
+    for name in (str(tmp_path / "r.JSON"), "-"):
+        assert main([*argv[:3], str(tmp_path / f"c{len(name)}.yaml"), "--json", name]) == 0
+        assert "warning" not in capsys.readouterr().err
+
+
+def test_a_map_yaml_without_origin_is_read_with_a_warning(tmp_path: Path) -> None:
+    """map_server refuses a map YAML without `origin`; we take [0, 0, 0], and now say so once, as a
+    `warning:` line (in a process of its own: pytest holds the logging of this one)."""
+    import subprocess
+    import sys
+
+    grid = np.zeros((40, 40), dtype=np.int8)
+    grid[5:35, 5] = grid[5, 5:35] = 100
+    rose.save_map(tmp_path / "saved.yaml", rose.OccupancyMap(grid=grid, resolution_m=0.05))
+    path = tmp_path / "map.yaml"
+    path.write_text(
+        "image: saved.pgm\nresolution: 0.05\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-m", "rose.cli", "score", str(path), str(tmp_path / "saved.yaml")],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert done.returncode == 0, done.stderr
+    said = f"warning: {path}: no origin, using [0, 0, 0] (map_server requires it)\n"
+    assert done.stderr == said  # the saved map, which has every key, gets none
+    assert rose.load_map(path).origin_xy_m == (0.0, 0.0)
 
 
 @pytest.mark.parametrize("command", ["score", "clean", "walls"])

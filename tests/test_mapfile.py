@@ -488,6 +488,37 @@ def test_bad_yaml_raises_one_line_error(tmp_path: Path, yaml_text: str, match: s
     assert "\n" not in str(info.value)
 
 
+@pytest.mark.parametrize(
+    ("yaml_text", "said"),
+    [
+        (
+            "image: m.pgm\nresolution: 0.05\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n",
+            "no origin, using [0, 0, 0] (map_server requires it)",
+        ),
+        (
+            "image: m.pgm\nresolution: 0.05\norigin: [1, 2, 0]\n",
+            "no negate, using 0; no occupied_thresh, using 0.65; no free_thresh, using 0.196 "
+            "(map_server requires them)",
+        ),
+        (
+            "image: m.pgm\nresolution: 0.05\norigin: [1, 2, 0]\nnegate: 0\n"
+            "occupied_thresh: 0.65\nfree_thresh: 0.196\n",
+            None,
+        ),
+    ],
+)
+def test_keys_map_server_requires_are_defaulted_with_one_warning(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture, yaml_text: str, said: str | None
+) -> None:
+    """A map YAML without `origin` was read as at [0, 0, 0] without a word (map_server refuses it)."""
+    cv2.imwrite(str(tmp_path / "m.pgm"), np.full((3, 3), 254, np.uint8))
+    path = write_yaml(tmp_path / "m.yaml", yaml_text)
+    with caplog.at_level("WARNING", logger="rose"):
+        loaded = rose.load_map(path)
+    assert loaded.grid.shape == (3, 3)
+    assert [r.getMessage() for r in caplog.records] == ([] if said is None else [f"{path}: {said}"])
+
+
 def test_unreadable_image_and_missing_file(tmp_path: Path) -> None:
     (tmp_path / "junk.png").write_bytes(b"not an image at all")
     with pytest.raises(MapFileError, match="not a readable image"):

@@ -30,6 +30,7 @@ from rose.outputs import (
 )
 
 __all__ = [
+    "CommandParser",
     "LevelFormatter",
     "add_param_arguments",
     "build_parser",
@@ -53,7 +54,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--debug", action="store_true", help="show tracebacks")
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
-    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    commands = parser.add_subparsers(
+        dest="command", required=True, metavar="COMMAND", parser_class=CommandParser
+    )
     # Imported here, inside main's handlers: numpy / scipy take seconds to load on a busy machine.
     from rose.cli import clean, score, walls
 
@@ -66,6 +69,19 @@ def build_parser() -> argparse.ArgumentParser:
             "--debug", action="store_true", default=argparse.SUPPRESS, help=argparse.SUPPRESS
         )
     return parser
+
+
+class CommandParser(argparse.ArgumentParser):
+    """A command's parser (``rose clean``, ``rose-bag process``): arguments it does not know are its
+    usage error, with its usage line, not the top-level parser's (``rose clean m.yaml --bogus``)."""
+
+    def parse_known_args(  # type: ignore[override]
+        self, args: Sequence[str] | None = None, namespace: argparse.Namespace | None = None
+    ) -> tuple[argparse.Namespace, list[str]]:
+        parsed, extras = super().parse_known_args(args, namespace)
+        if extras:  # as ArgumentParser.parse_args says it (exit 2)
+            self.error(f"unrecognized arguments: {' '.join(extras)}")
+        return parsed, extras
 
 
 _OPTIONS = {

@@ -26,7 +26,7 @@ from rose.cli.options import (
 from rose.directions import degenerate_input, fold_deg
 from rose.errors import MapFileError
 from rose.mapfile import SAVED_OCCUPIED_FROM, OccupancyMap, map_image_path, save_map
-from rose.outputs import OutputSet
+from rose.outputs import OutputSet, suffix_warning
 from rose.pipeline import analyze
 
 __all__ = ["add_parser", "cleaning_summary", "run"]
@@ -67,6 +67,10 @@ def run(args: argparse.Namespace) -> int:
         raise MapFileError(msg)
     # Refuse bad outputs (an input, the map's image, each other, existing) before computing anything.
     outputs.check(output_path, map_image_path(output_path), args.json)
+    # After the checks: a refused output is refused alone, not warned about first.
+    warning = suffix_warning(args.json, ".json", "a JSON report")
+    if warning is not None:
+        print(warning, file=sys.stderr)
     started = time.perf_counter()
     result = analyze(source.grid, params)
     cleaning = clean(source.grid, result, method=args.method, resolution_m=source.resolution_m)
@@ -77,7 +81,10 @@ def run(args: argparse.Namespace) -> int:
         origin_xy_m=source.origin_xy_m,
         origin_yaw_rad=source.origin_yaw_rad,
     )
-    summary = result_summary(result, seconds=elapsed, yaw_rad=source.origin_yaw_rad)
+    degenerate = degenerate_input(source.grid, result.occupied)
+    summary = result_summary(
+        result, seconds=elapsed, yaw_rad=source.origin_yaw_rad, degenerate=degenerate
+    )
     summary.update(cleaning_summary(cleaning))
     summary["resolution_m"] = source.resolution_m
     # The rules' lengths are metres: a result at an assumed cell size says so.
@@ -107,7 +114,7 @@ def run(args: argparse.Namespace) -> int:
         result.structure_score,
         occupied_cells=result.occupied_count,
         has_structure=result.has_structure,
-        degenerate=degenerate_input(source.grid, result.occupied),
+        degenerate=degenerate,
     )
     lines = [
         f"map          {args.map}  ({cols} x {rows} cells, {source.resolution_m:g} m/cell)",

@@ -335,12 +335,23 @@ def directions_deg(result: RoseResult, *, yaw_rad: float = 0.0) -> list[float]:
 
 
 def result_summary(
-    result: RoseResult, *, seconds: float | None = None, yaw_rad: float = 0.0
+    result: RoseResult,
+    *,
+    seconds: float | None = None,
+    yaw_rad: float = 0.0,
+    degenerate: str | None = None,
 ) -> dict[str, Any]:
-    """JSON-ready summary of a result: W, directions (degrees, map frame), threshold, counts."""
+    """JSON-ready summary of a result: W, directions (degrees, map frame), threshold, counts.
+
+    ``degenerate`` says why the input is outside ROSE's domain
+    (:func:`rose.directions.degenerate_input`, as ``rose-bag``'s records): then the structure
+    ROSE found is not judged, as W is not (a solid block's directions are its rectangle's), and
+    ``has_structure`` is None rather than True."""
+    judged = degenerate is None or not result.has_structure
     summary: dict[str, Any] = {
         "structure_score": round(result.structure_score, 6),
-        "has_structure": result.has_structure,
+        "has_structure": result.has_structure if judged else None,
+        "degenerate": degenerate,
         "dominant_directions_deg": directions_deg(result, yaw_rad=yaw_rad),
         "threshold": None if math.isnan(result.threshold) else round(result.threshold, 6),
         "occupied_cells": result.occupied_count,

@@ -19,8 +19,9 @@ from rose.cli.options import (
     params_from_args,
     path_arg,
     result_summary,
+    verdict,
 )
-from rose.directions import fold_deg
+from rose.directions import degenerate_input, fold_deg
 from rose.errors import RoseError
 from rose.outputs import json_text, reraise_interrupt_behind
 from rose.params import RoseParams
@@ -64,6 +65,15 @@ def run(args: argparse.Namespace) -> int:
             )
             print(f"{r['map']:<{width}}  {r['structure_score']:6.3f}  {dirs:<24}  "
                   f"{r['occupied_cells']:>9}  {r['clutter_cells']:>8}")  # fmt: skip
+        for r in scored:  # a low W that says nothing must not pass for a building's (as `clean`)
+            if r["degenerate"] is not None:
+                reading = verdict(
+                    r["structure_score"],
+                    occupied_cells=r["occupied_cells"],
+                    has_structure=r["has_structure"] is not False,
+                    degenerate=r["degenerate"],
+                )
+                print(f"{r['map']}: {reading}")
     if failed and len(records) > 1:  # one map: its own error line says it all
         print(f"error: {failed} of {len(records)} maps could not be scored", file=sys.stderr)
     return 1 if failed else 0
@@ -86,7 +96,11 @@ def _score(path: Path, args: argparse.Namespace, params: RoseParams) -> dict[str
             traceback.print_exception(err, file=sys.stderr)
         print(f"error: {text}", file=sys.stderr)
         return {"map": str(path), "error": text}
+    seconds = time.perf_counter() - started
     summary = result_summary(
-        result, seconds=time.perf_counter() - started, yaw_rad=source.origin_yaw_rad
+        result,
+        seconds=seconds,
+        yaw_rad=source.origin_yaw_rad,
+        degenerate=degenerate_input(source.grid, result.occupied),
     )
     return {"map": str(path), **summary}

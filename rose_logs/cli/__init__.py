@@ -13,7 +13,7 @@ import logging
 import os
 import sys
 
-from rose.cli import LevelFormatter, error_text, input_name
+from rose.cli import CommandParser, LevelFormatter, error_text, input_name
 from rose.errors import RoseError
 from rose.outputs import (
     EXIT_BROKEN_PIPE,
@@ -53,7 +53,9 @@ def build_parser() -> argparse.ArgumentParser:
         "--debug", action="store_true", help="debug logging and tracebacks on errors"
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
-    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    subparsers = parser.add_subparsers(
+        dest="command", metavar="COMMAND", required=True, parser_class=CommandParser
+    )
     # Imported here, inside main's handlers: the libraries take seconds to load on a busy machine.
     from rose_logs.cli import batch, convert, evaluate, info, process
 

@@ -17,7 +17,7 @@ from rose.cli.options import (
     path_arg,
 )
 from rose.limits import visible
-from rose.outputs import OutputSet, json_text
+from rose.outputs import OutputSet, json_text, suffix_warning
 from rose_logs.cli.options import (
     EXIT_GATE,
     EXIT_SALVAGED,
@@ -251,17 +251,30 @@ def run(args: argparse.Namespace) -> int:
     args.output = output_log_path(args.output, _output_format(args))
     output = None if args.no_output else (args.output or default_output_path(args.input, args.fmt))
     # Only a name the user typed: the default (input name + .rose) has the output format's suffix.
-    warning = None
+    log_warning = None
     if args.output is not None and not args.fmt:
-        warning = unknown_suffix_warning(args.output, "in the input's format")
+        log_warning = unknown_suffix_warning(args.output, "in the input's format")
     elif args.output is not None:
-        warning = suffix_mismatch_warning(args.output, args.fmt)
+        log_warning = suffix_mismatch_warning(args.output, args.fmt)
+    warnings = [
+        warning
+        for warning in (
+            log_warning,
+            suffix_warning(args.rrd, ".rrd", "a Rerun recording"),
+            suffix_warning(args.json_path, ".json", "a JSON report"),
+        )
+        if warning is not None
+    ]
     outputs = OutputSet(inputs=[args.input], force=args.force, ends_run=True)
-    if warning is not None:  # a typo (out.mcpa) should not pass unnoticed
-        # ... unless the output is refused anyway (the input itself, an existing file): then the
-        # refusal comes alone. The log writer checks it again, once the format is known for sure.
-        outputs.check(args.output, directory=_output_format(args) in ("db3", "mcap-dir"))
-        print(warning, file=sys.stderr)
+    if warnings:  # a typo (out.mcpa, --rrd run.txt) should not pass unnoticed
+        # ... unless an output is refused anyway (the input itself, an existing file, one named
+        # twice): then the refusal comes alone. The writers check them again, once the log's
+        # format is known for sure.
+        folder = _output_format(args) in ("db3", "mcap-dir")
+        outputs.check(args.output, directory=folder)
+        outputs.check(None if folder else args.output, args.rrd, args.json_path)
+        for warning in warnings:
+            print(warning, file=sys.stderr)
     progress = not args.quiet and sys.stderr.isatty()
     with outputs:  # the log, the recording and the report: all committed, or none
         json_out = None if args.json_path is None else outputs.stage(args.json_path)

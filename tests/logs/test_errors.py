@@ -324,6 +324,66 @@ def test_an_output_refused_anyway_gets_no_suffix_warning_first(
     _assert_one_line_error(err, "refusing to write over the input")
 
 
+@pytest.mark.parametrize(
+    ("option", "name", "said"),
+    [
+        ("--rrd", "run.txt", "a Rerun recording written under a '.txt' name (expected .rrd)"),
+        ("--rrd", "run", "a Rerun recording written under a name without a suffix (expected .rrd)"),
+        ("--json", "report.rrd", "a JSON report written under a '.rrd' name (expected .json)"),
+    ],
+)
+def test_a_recording_or_report_named_with_another_suffix_is_warned_about(
+    tmp_path: Path, capsys, mcap_log: Path, option: str, name: str, said: str
+) -> None:
+    """`--rrd run.txt` (a file `rerun` does not open as a recording) and `--json report.rrd` were
+    written without a word, where a log output's odd suffix is warned about."""
+    out = tmp_path / name
+    code, _, err = _run(capsys, "process", mcap_log, "--no-output", option, out, "-q")
+    assert code == 0 and out.is_file()
+    assert f"warning: {out}: {said}\n" in err
+
+
+def test_a_recording_and_report_with_their_suffixes_get_no_warning(
+    tmp_path: Path, capsys, mcap_log: Path
+) -> None:
+    code, _, err = _run(
+        capsys,
+        "process",
+        mcap_log,
+        "-o",
+        tmp_path / "o.mcap",
+        "--rrd",
+        tmp_path / "r.RRD",
+        "--json",
+        tmp_path / "r.json",
+        "-q",
+    )
+    assert code == 0 and "warning" not in err
+    code, _, err = _run(capsys, "process", mcap_log, "--no-output", "--json", "-", "-q")
+    assert code == 0 and "warning" not in err
+
+
+@pytest.mark.parametrize(
+    ("argv", "refusal"),
+    [
+        (["--rrd", "{log}"], "refusing to write over the input"),
+        (["--json", "{tmp}/old.txt"], "exists already"),
+        (["--rrd", "{tmp}/x.txt", "--json", "{tmp}/x.txt"], "given for two outputs"),
+        (["-o", "{tmp}/x.txt", "--rrd", "{tmp}/x.txt"], "given for two outputs"),
+    ],
+)
+def test_a_recording_or_report_refused_anyway_gets_no_suffix_warning_first(
+    tmp_path: Path, capsys, mcap_log: Path, argv: list[str], refusal: str
+) -> None:
+    """As for the log: the refusal comes first and alone."""
+    (tmp_path / "old.txt").write_text("keep")
+    argv = [a.format(log=mcap_log, tmp=tmp_path) for a in argv]
+    code, _, err = _run(capsys, "process", mcap_log, *argv, "-q")
+    assert code == 1
+    _assert_one_line_error(err, refusal)
+    assert (tmp_path / "old.txt").read_text() == "keep"
+
+
 def test_existing_output_needs_force(tmp_path: Path, capsys, mcap_log: Path) -> None:
     out = tmp_path / "out.mcap"
     out.write_bytes(b"precious")

@@ -302,6 +302,29 @@ def test_usage_errors_exit_2(capsys) -> None:
 
 
 @pytest.mark.parametrize(
+    ("argv", "usage"),
+    [
+        (["process", "x.mcap", "--bogus"], "rose-bag process"),
+        (["info", "x.mcap", "--bogus"], "rose-bag info"),
+        (["convert", "x.log", "x.mcap", "--bogus"], "rose-bag convert"),
+        (["evaluate", "out", "--bogus"], "rose-bag evaluate"),
+        (["batch", "x", "-o", "out", "--bogus"], "rose-bag batch"),
+        (["--bogus", "info", "x.mcap"], "rose-bag"),  # before the command: the top level's
+    ],
+)
+def test_an_unknown_option_is_a_usage_error_of_the_parser_it_follows(
+    argv: list[str], usage: str, capsys
+) -> None:
+    """`rose-bag process x.mcap --bogus` showed the top-level usage (`rose-bag [-h] ... COMMAND`)."""
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"usage: {usage} [-h]")
+    assert err.splitlines()[-1] == f"{usage}: error: unrecognized arguments: --bogus"
+
+
+@pytest.mark.parametrize(
     ("argv", "said"),
     [
         (["process", "x.bag", "-o", ""], "expected a path, got an empty string"),
