@@ -506,21 +506,24 @@ def _is_stdout(path: Path) -> bool:
         return False
 
 
-def suffix_warning(path: Path | str | None, suffix: str, content: str) -> str | None:
+def suffix_warning(
+    path: Path | str | None, suffix: str | tuple[str, ...], content: str
+) -> str | None:
     """A warning line for a file output whose name lacks the suffix of what it holds (``--rrd
     run.txt``, which ``rerun`` will not open; ``--json report.rrd``), naming ``content`` ("a JSON
-    report") and the ``suffix`` expected (".json", any case); None for no output, standard output,
-    a device or FIFO (streams keep their names), or the expected suffix."""
+    report") and the ``suffix`` expected (".json", or one of several; any case); None for no
+    output, standard output, a device or FIFO (streams keep their names), or an expected suffix."""
     if path is None or str(path) == STDOUT:
         return None
     path = Path(path)
     if _is_stdout(path) or (path.exists() and not _is_regular_or_dir(path)):
         return None
+    expected = (suffix,) if isinstance(suffix, str) else suffix
     found = path.suffix
-    if found.lower() == suffix:
+    if found.lower() in expected:
         return None
     named = f"a '{found}' name" if found else "a name without a suffix"
-    return f"warning: {path}: {content} written under {named} (expected {suffix})"
+    return f"warning: {path}: {content} written under {named} (expected {' or '.join(expected)})"
 
 
 def _no_folder(path: Path | str, parent: Path) -> str:

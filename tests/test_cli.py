@@ -419,6 +419,21 @@ def test_clean_warns_of_a_json_report_named_with_another_suffix(
         assert "warning" not in capsys.readouterr().err
 
 
+def test_walls_warns_of_drawings_named_with_another_suffix(
+    cluttered_map: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`rose walls --geojson w.svg` (or `--svg w.json`) was written silently."""
+    for option, name, said in (
+        ("--geojson", "w.svg", "GeoJSON written under a '.svg' name (expected .geojson or .json)"),
+        ("--svg", "w.json", "an SVG drawing written under a '.json' name (expected .svg)"),
+    ):
+        assert main(["walls", str(cluttered_map), option, str(tmp_path / name)]) == 0
+        assert capsys.readouterr().err == f"warning: {tmp_path / name}: {said}\n"
+    for option, name in (("--geojson", "a.geojson"), ("--geojson", "b.JSON"), ("--svg", "c.svg")):
+        assert main(["walls", str(cluttered_map), option, str(tmp_path / name)]) == 0
+        assert "warning" not in capsys.readouterr().err
+
+
 def test_a_map_yaml_without_origin_is_read_with_a_warning(tmp_path: Path) -> None:
     """map_server refuses a map YAML without `origin`; we take [0, 0, 0], and now say so once, as a
     `warning:` line (in a process of its own: pytest holds the logging of this one)."""

@@ -8,7 +8,7 @@ import sys
 from typing import Any, TextIO
 
 from rose.cli.options import add_map_arguments, file_arg, float_up_to, load_grid_map, path_arg
-from rose.outputs import OutputSet, json_text
+from rose.outputs import OutputSet, json_text, suffix_warning
 from rose.pipeline import analyze
 from rose.walls import WallParams, WallSet, extract_walls, extract_walls_hough
 from rose.walls.export import walls_to_geojson, walls_to_svg
@@ -71,6 +71,13 @@ def run(args: argparse.Namespace, *, stdout: TextIO | None = None) -> int:
     occupancy_map = load_grid_map(args.map, max_cells=args.max_cells, resolution_m=args.resolution)
     outputs = OutputSet(inputs=occupancy_map.input_files, force=args.force, ends_run=True)
     outputs.check(args.geojson, args.svg)
+    # After the checks: a refused output is refused alone, not warned about first.
+    for warning in (
+        suffix_warning(args.geojson, (".geojson", ".json"), "GeoJSON"),
+        suffix_warning(args.svg, ".svg", "an SVG drawing"),
+    ):
+        if warning is not None:
+            print(warning, file=sys.stderr)
     params = WallParams()
     if args.min_length is not None:
         params = WallParams(min_wall_length_px=args.min_length / occupancy_map.resolution_m)
