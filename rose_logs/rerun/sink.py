@@ -56,10 +56,11 @@ _LOG = logging.getLogger(__name__)
 
 APPLICATION_ID = "rose_bag"
 _QUEUE_DEPTH = 2
-_FLUSH_NUM_BYTES = 256 * 1024
-"""Rerun's batcher flushes a chunk at this many bytes (its default is 2 MiB). A snapshot logs about
+_FLUSH_NUM_BYTES = 64 * 1024
+"""Rerun's batcher flushes a chunk at this many bytes (its default is 2 MiB). A snapshot logs up to
 1 MB of images, so Rerun's default held several snapshots' data at once: on the one-hour benchmark
-session the peak memory went 425 -> 386 MB with this, for a 4 % larger recording (96.5 -> 100.2
+session the peak memory went 425 -> 386 MB at 256 kB (a 4 % larger recording, 96.5 -> 100.2 MB),
+and 321-329 -> 305-311 MB at 64 kB (3 runs each; recording 94.8 -> 97.0 MB; 2 and 8 MiB: 346-378
 MB). ``RERUN_FLUSH_NUM_BYTES`` in the environment still wins."""
 _FLUSH_STEP_S = 5.0
 """Longest wait for one flush of the recording, seconds (see :meth:`RerunSink._flush`)."""

@@ -713,7 +713,7 @@ def test_rerun_batches_small_chunks_unless_the_environment_says_otherwise(monkey
     from rose_logs.rerun import sink
 
     monkeypatch.delenv("RERUN_FLUSH_NUM_BYTES", raising=False)
-    assert sink._batcher_config().flush_num_bytes == 256 * 1024
+    assert sink._batcher_config().flush_num_bytes == 64 * 1024
     monkeypatch.setenv("RERUN_FLUSH_NUM_BYTES", "4096")
     assert sink._batcher_config().flush_num_bytes == 4096
 
