@@ -135,17 +135,20 @@ def _topic_container(layout: TopicLayout) -> rrb.Container:
         visual_bounds=_north_up_bounds(layout, below=0.45),  # and the colour bar
     )
     w_plot = _session_plot(
-        f"{root}: structure score W over session time", f"/{paths.score}", layout.w_top
+        f"{root}: structure score W (blue) over session time, trust (green) and failure (red) levels",
+        f"/{paths.score}",
+        layout.w_top,
     )
     break_plot = _session_plot(
-        f"{root}: break score (m of established map contradicted) and threshold",
+        f"{root}: break score (orange; m of established map contradicted), threshold (red)",
         f"/{paths.break_score_view}",
         layout.break_top,
     )
     amplitude = rrb.Spatial2DView(
         name=f"{root}: cumulative amplitude s per wall direction, peaks (p: prominence), threshold t",
         origin=f"/{paths.amplitude_view}",
-        visual_bounds=rrb.VisualBounds2D(x_range=(-22.0, 198.0), y_range=(-1.28 * h, 44.0)),
+        # Above s = 1: the peaks' labels hang over them (conversions.PEAK_LABEL_LIFT).
+        visual_bounds=rrb.VisualBounds2D(x_range=(-22.0, 198.0), y_range=(-1.36 * h, 44.0)),
     )
     spectrum = rrb.Spatial2DView(
         name=f"{root}: log amplitude spectrum, kept strips (magenta)",
@@ -191,7 +194,9 @@ def _session_plot(name: str, origin: str, top: float | None) -> rrb.TimeSeriesVi
     return rrb.TimeSeriesView(
         name=name,
         origin=origin,
-        plot_legend=rrb.PlotLegend(rrb.Corner2D.LeftTop),
+        # No legend: in any corner it covered data (the break score's early peak); the titles
+        # name each series by its colour.
+        plot_legend=rrb.PlotLegend(visible=False),
         axis_y=_value_axis(top),
         axis_x=rrb.TimeAxis(
             view_range=rrb.TimeRange(

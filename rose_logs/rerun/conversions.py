@@ -440,6 +440,11 @@ def _folded_deg(angles_rad: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
     return folded
 
 
+#: How far above its peak (in units of ``s``) a peak's label hangs: a label is about a fifth of
+#: the plot's height tall.
+PEAK_LABEL_LIFT = 0.24
+
+
 @dataclass(frozen=True)
 class AmplitudePlot:
     """The scaled cumulative amplitude as plot geometry (x: degrees, y: ``-AMPLITUDE_PLOT_HEIGHT * s``).
@@ -453,6 +458,9 @@ class AmplitudePlot:
     prominence_bars : ndarray of float64, shape (K, 2, 2)
         Vertical segments from each peak down by its prominence (to its base).
     peak_labels : list of str
+    label_anchors : ndarray of float64, shape (K, 2)
+        Where each peak's label hangs (Rerun draws a label under its point): above the peak, so
+        that neither the peak's bar nor the curve runs through it.
     threshold : float
         The prominence threshold ``t`` (a fraction of max - min, so a level of ``s``).
     """
@@ -461,6 +469,7 @@ class AmplitudePlot:
     peaks: npt.NDArray[np.float64]
     prominence_bars: npt.NDArray[np.float64]
     peak_labels: list[str]
+    label_anchors: npt.NDArray[np.float64]
     threshold: float
 
 
@@ -506,5 +515,6 @@ def amplitude_plot(result: RoseResult, *, yaw_rad: float = 0.0) -> AmplitudePlot
         peaks=peaks,
         prominence_bars=bars,
         peak_labels=labels,
+        label_anchors=peaks - [0.0, height * PEAK_LABEL_LIFT],
         threshold=float(result.params.peak_prominence),
     )

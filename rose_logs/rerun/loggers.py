@@ -370,11 +370,11 @@ class TopicLogger:
             ),
             (
                 paths.amplitude_curve,
-                [
-                    rr.Points2D.from_fields(
-                        colors=style.PEAK_COLOR, radii=rr.Radius.ui_points(4.0), show_labels=True
-                    )
-                ],
+                [rr.Points2D.from_fields(colors=style.PEAK_COLOR, radii=rr.Radius.ui_points(4.0))],
+            ),
+            (
+                paths.amplitude_peak_labels,
+                [rr.Points2D.from_fields(colors=style.PEAK_COLOR, radii=0.0, show_labels=True)],
             ),
         ]
         for entity, archetypes in static:
@@ -674,7 +674,11 @@ class TopicLogger:
                 colors=[style.CURVE_COLOR] + [style.PEAK_COLOR] * peaks,
                 radii=rr.Radius.ui_points([1.5] + [1.0] * peaks),
             ),
-            rr.Points2D.from_fields(positions=_f32(plot.peaks), labels=plot.peak_labels),
+            rr.Points2D.from_fields(positions=_f32(plot.peaks)),
+        )
+        rec.log(
+            paths.amplitude_peak_labels,
+            rr.Points2D.from_fields(positions=_f32(plot.label_anchors), labels=plot.peak_labels),
         )
 
     def log_structure_score(self, result: RoseResult, *, judged: bool | None = None) -> None:

@@ -25,7 +25,8 @@ Paths are lowercase and live below one root per map topic (``/map`` -> ``map``):
                                      and LineStrips2D, the kept strip of each dominant direction
     <root>/amplitude/axes, axis_labels          static axes of the plot below (x: deg, y: -90 s)
     <root>/amplitude/curve                      s per direction, a bar per peak (its prominence),
-                                                Points2D: the dominant peaks, labelled
+                                                Points2D: the dominant peaks
+    <root>/amplitude/peak_labels                the peaks' labels, on points above the peaks
     <root>/amplitude/prominence_threshold       the threshold t (static: a session parameter)
     <root>/structure_score/w         Scalars: W, trust level, failure level (three series, static styles)
     <root>/structure_score/breaks    Scalars: W at every break (point markers)
@@ -154,6 +155,10 @@ class EntityPaths:
     @property
     def amplitude_curve(self) -> str:
         return self._below("amplitude/curve")
+
+    @property
+    def amplitude_peak_labels(self) -> str:
+        return self._below("amplitude/peak_labels")
 
     @property
     def amplitude_threshold(self) -> str:

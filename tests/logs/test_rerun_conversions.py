@@ -171,6 +171,13 @@ def test_amplitude_plot_scales_to_unit_and_marks_peaks(plan) -> None:
         height * result.peak_prominences,
     )
     assert plot.threshold == result.params.peak_prominence
+    # Each label hangs above its peak, clear of the bar running down from it and of the curve
+    # (Rerun draws a label under its point; the bar went through the label).
+    assert_allclose(plot.label_anchors[:, 0], plot.peaks[:, 0])
+    lift = (plot.peaks[:, 1] - plot.label_anchors[:, 1]) / height
+    assert np.all(lift >= 0.2)
+    # ... and inside the plot's view (blueprint: y from -1.36 * height).
+    assert np.all(plot.label_anchors[:, 1] > -1.36 * height)
 
 
 @pytest.mark.parametrize("yaw_deg", [30.0, -95.0, 0.3, -90.0, 90.0])

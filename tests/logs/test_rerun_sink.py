@@ -177,7 +177,8 @@ def test_styles_are_static_and_snapshots_send_only_what_changes(clean_session) -
         PATHS.cell_scores: {"SegmentationImage:opacity"},
         PATHS.score_bar: {"SegmentationImage:buffer", "Points2D:colors"},
         PATHS.spectrum: {"DepthImage:colormap", "DepthImage:meter", "LineStrips2D:colors"},
-        PATHS.amplitude_curve: {"Points2D:colors", "Points2D:show_labels"},
+        PATHS.amplitude_curve: {"Points2D:colors", "Points2D:radii"},
+        PATHS.amplitude_peak_labels: {"Points2D:colors", "Points2D:show_labels"},
     }
     for entity, columns in styles.items():
         assert content.static_rows[f"/{entity}"] == 1, entity
@@ -200,6 +201,7 @@ def test_every_stream_once_per_snapshot_on_session_time(clean_session) -> None:
         PATHS.cell_scores,
         PATHS.spectrum,
         PATHS.amplitude_curve,
+        PATHS.amplitude_peak_labels,
         PATHS.w,
     ):
         rows = content.rows(entity)
