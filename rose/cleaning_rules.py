@@ -324,9 +324,20 @@ def _free_standing(
 def _near_wide_unknown(
     unknown: npt.NDArray[np.bool_], res: float, p: CleanParams
 ) -> npt.NDArray[np.bool_]:
-    """Cells within ``p.unknown_margin_m`` of wide unknown space (:func:`wide_unknown`)."""
+    """Cells within ``p.unknown_margin_m`` of wide unknown space (:func:`wide_unknown`): exact at
+    the known cells, the only ones read (the occupied cells among them)."""
     outside = _wide(unknown, length_px(p.open_unknown_width_m, 2 * res))
-    return _dilate(outside, round(length_px(p.unknown_margin_m, res)))
+    radius = round(length_px(p.unknown_margin_m, res))
+    known = ~unknown
+    if not known.any():
+        return outside
+    # Dilated on the known cells' box only (``radius`` wider): the grid is padded with unknown
+    # cells as wide as the wide-unknown disc, and at 1 mm per cell the margin's 301-cell disc over
+    # the padded grid took 2.6 s for a 100 x 100 map.
+    near = outside.copy()
+    box = _padded_box(known, radius)
+    near[box] = _dilate(outside[box], radius)
+    return near
 
 
 def _two_sided(

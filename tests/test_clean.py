@@ -210,6 +210,28 @@ def test_wide_unknown_drops_narrow_shadows() -> None:
     assert not wide[50:53, 40:90].any()
 
 
+@pytest.mark.parametrize("resolution_m", [0.05, 0.001])
+def test_near_wide_unknown_is_exact_at_every_known_cell(resolution_m: float) -> None:
+    """It dilates on the known cells' box only (at 1 mm per cell the margin's disc over the whole
+    padded grid took seconds): at every known cell it must equal the dilation of the whole grid."""
+    from rose.cleaning_rules import _dilate, _near_wide_unknown, _wide, length_px
+
+    rng = np.random.default_rng(3)
+    grid = np.full((160, 200), -1, np.int8)
+    grid[30:130, 40:170] = 0
+    room = grid[30:130, 40:170]
+    room[rng.random(room.shape) < 0.05] = 100
+    grid[60:64, 50:120] = -1  # a narrow shadow
+    unknown = grid == -1
+    # In cells, the same at either resolution: a 20-cell wide unknown disc, a 40-cell margin.
+    params = CleanParams(open_unknown_width_m=20 * resolution_m, unknown_margin_m=40 * resolution_m)
+    near = _near_wide_unknown(unknown, resolution_m, params)
+    outside = _wide(unknown, length_px(params.open_unknown_width_m, 2 * resolution_m))
+    whole = _dilate(outside, round(length_px(params.unknown_margin_m, resolution_m)))
+    assert np.array_equal(near[~unknown], whole[~unknown])
+    assert whole[~unknown].any() and not whole[~unknown].all()
+
+
 def test_label_boxes_match_opencvs_statistics() -> None:
     # The guard's patch boxes come from the labelled cells instead of OpenCV's (slower) statistics.
     rng = np.random.default_rng(3)
