@@ -62,14 +62,15 @@ def _value_axis(top: float | None) -> rrb.ScalarAxis | None:
 
 
 def _grid_spacing_m(bounds_m: tuple[float, float, float, float] | None) -> float:
-    """A round grid spacing giving at most about 15 lines across the map (1 m without a map)."""
+    """The smallest round spacing (1, 2 or 5 times a power of ten, metres) giving at most 15 lines
+    across the map, whatever its size (1 m without a map)."""
     if bounds_m is None:
         return 1.0
     span = max(bounds_m[2] - bounds_m[0], bounds_m[3] - bounds_m[1])
-    for spacing in (0.5, 1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0):
-        if span / spacing <= 15:
-            return spacing
-    return 200.0
+    if not math.isfinite(span) or span <= 0:
+        return 1.0
+    decade = 10.0 ** math.floor(math.log10(span / 15))
+    return next(step * decade for step in (1.0, 2.0, 5.0, 10.0) if span / (step * decade) <= 15)
 
 
 def _metric_eye(bounds_m: tuple[float, float, float, float] | None) -> rrb.EyeControls3D | None:

@@ -850,3 +850,17 @@ def test_an_all_unknown_session_is_framed_by_its_grid(tmp_path: Path, monkeypatc
     (layout,) = sent[-1]
     assert layout.bounds_m == pytest.approx((5.0, 7.0, 11.0, 11.0))
     assert _metric_eye(layout.bounds_m) is not None
+
+
+@pytest.mark.parametrize("span_m", [0.3, 1.0, 16.0, 40.0, 3000.0, 2.5e6])
+def test_the_metric_grid_has_at_most_15_round_lines_across_any_map(span_m: float) -> None:
+    """The spacing stopped at 200 m: a map of 10 km cells showed a solid grid; a 30 cm map none."""
+    import math
+
+    from rose_logs.rerun.blueprint import _grid_spacing_m
+
+    spacing = _grid_spacing_m((0.0, 0.0, span_m, span_m / 2))
+    mantissa = spacing / 10 ** math.floor(math.log10(spacing))
+    assert min(abs(mantissa - m) for m in (1.0, 2.0, 5.0)) < 1e-9
+    assert span_m / spacing <= 15 + 1e-9
+    assert span_m / spacing > 15 / 2.5 - 1e-9  # the next finer round spacing gives more than 15
