@@ -145,10 +145,24 @@ def _wall_cells(
 ) -> tuple[
     npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_]
 ]:
+    import cv2
+
     unknown = occupancy == UNKNOWN
     with _beside() as beside:
         near_job = beside.submit(_near_wide_unknown, unknown, res, p)
         pieces_job = beside.submit(_Pieces.of, occupied, join_px=1) if p.loose_pieces else None
+        fronts_job = beside.submit(
+            _flush_fronts,
+            occupied,
+            unknown,
+            directions,
+            max_len_px=length_px(_FRONT_MAX_M, res),
+            max_depth_px=length_px(_FRONT_DEPTH_M, res),
+            anchor_px=length_px(_BRIDGE_ANCHOR_M, res),
+            face_px=length_px(_FRONT_FACE_M, res),
+            crossing_px=length_px(_FRONT_CROSSING_M, res),
+            wall_px=length_px(p.min_run_m, res),
+        )
         runs = directional_runs(
             occupied,
             directions,
@@ -190,6 +204,12 @@ def _wall_cells(
                 _touching(bridges, removed), removed, round(length_px(p.hidden_wall_reach_m, res))
             )
             completed = sealed_off & wall_lines
+        # Furniture against a wall (a cabinet, a counter: its front a straight run when 2 m or
+        # longer): the wall line hidden behind it is drawn, its front and sides go, and the walls
+        # that meet it stay.
+        front_lines, fronts, inside, front_walls = fronts_job.result()
+        completed = completed | front_lines
+        sealed_off = sealed_off | front_lines
         sealed = bool(sealed_off.any())
         if sealed:
             # The sealed cells separate the room from the unknown beyond them: furniture faces
@@ -211,8 +231,13 @@ def _wall_cells(
             )
         if sealed:
             keep = occupied & (structure | near_job.result()) | lines
-        object_faces = faces & ~lines
+        if front_lines.any():
+            # The wall ends the hidden line joins are the wall, not faces of the object's inside.
+            faces &= ~cv2.dilate(front_lines.view(np.uint8), np.ones((3, 3), np.uint8)).view(bool)
+        object_faces = faces & ~lines | fronts
         keep &= ~object_faces
+        keep |= front_walls  # walls meeting furniture fronts: kept, attach to them
+        faces = faces | fronts
         if p.attach_reach_m > 0:
             # Wall stubs, door frames, corners: occupied cells joined to a kept wall within the
             # reach, through occupied cells that are not object faces.
@@ -241,7 +266,7 @@ def _wall_cells(
     guarded = topology_guard(
         guard_obstacles,
         keep,
-        added=completed,
+        added=completed | inside,
         radius_px=length_px(p.robot_radius_m, res),
         window_px=max(1, round(length_px(p.guard_window_m, res))),
         min_region_px=min_region_px,
@@ -1345,3 +1370,267 @@ def _frame_cells(
             rows * stride + left[down] + widths[down] - 1,
         ]
     )
+
+
+#: Furniture fronts (:func:`_flush_fronts`): the longest wall line hidden behind furniture against
+#: a wall, between two visible stretches of that wall (metres).
+_FRONT_MAX_M = 5.0
+#: ... the deepest such furniture, from the wall line to its front face (metres).
+_FRONT_DEPTH_M = 1.0
+#: ... the thickest wall meeting the hidden line across it, between two pieces of furniture
+#: (metres).
+_FRONT_CROSSING_M = 0.5
+#: ... a wall face: a wall end anchors the hidden line when free space lies within this of it, on
+#: the furniture's side (metres: a scanned wall one to three cells thick).
+_FRONT_FACE_M = 0.15
+
+
+def _flush_fronts(
+    occupied: npt.NDArray[np.bool_],
+    unknown: npt.NDArray[np.bool_],
+    directions: npt.NDArray[np.float64],
+    *,
+    max_len_px: float,
+    max_depth_px: float,
+    anchor_px: float,
+    face_px: float,
+    crossing_px: float,
+    wall_px: float,
+) -> tuple[
+    npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_]
+]:
+    """Furniture flush against a wall: the hidden wall line, the furniture's cells, its inside, and
+    the walls that meet it (kept).
+
+    Along each dominant direction: a straight stretch of unknown cells (at most ``max_len_px``)
+    between two occupied stretches of at least ``anchor_px`` cells on one line that face free
+    space on the same side (most of their last ``anchor_px`` cells within ``face_px`` of it),
+    where every cell of the stretch has, on that side, more than ``face_px`` and at most
+    ``max_depth_px`` occupied or unknown cells before free space, an occupied one last (a front
+    face). That is a wall running on behind an object that stands against it: the line is the
+    hidden wall, the occupied cells between it and the room are the object's front and sides,
+    the unknown cells its inside. Columns reaching farther than the front, in stretches no wider
+    than ``crossing_px``, are a wall meeting the object (a partition ending on its front,
+    or crossing the line between two objects): its cells up to ``wall_px`` past the object are
+    kept, and its sides drawn from the line to the front.
+    """
+    import cv2
+
+    shape = occupied.shape
+    lines, fronts, insides, stubs = (np.zeros(shape, dtype=bool) for _ in range(4))
+    if not occupied.any() or directions.size == 0:
+        return lines, fronts, insides, stubs
+    r0, r1, c0, c1 = _bounds(occupied)
+    pad = math.ceil(max_depth_px) + 4
+    r0, r1, c0, c1 = (
+        max(r0 - pad, 0),
+        min(r1 + pad, shape[0]),
+        max(c0 - pad, 0),
+        min(c1 + pad, shape[1]),
+    )
+    # 0 unknown (also beyond the rotated image), 1 free, 2 occupied.
+    box = (slice(r0, r1), slice(c0, c1))
+    code = (~unknown[box]).view(np.uint8) + occupied[box].view(np.uint8)
+    rows, cols = code.shape
+    for angle in _frames(directions):
+        rotated, matrix = _rotate(code, angle)
+        out = np.zeros(rotated.shape, dtype=np.uint8)  # bit 0 line, 1 front, 2 inside, 3 wall
+        for transpose in (False, True):
+            # Along the rows, then along the columns (transposed: the runs need the cells of a
+            # line in order); each for furniture on either side of the line.
+            _fronts_rows(
+                np.ascontiguousarray(rotated.T) if transpose else rotated,
+                out.T if transpose else out,
+                round(max_len_px),
+                round(max_depth_px),
+                max(1, round(anchor_px)),
+                max(1, round(face_px)),
+                round(crossing_px),
+                round(wall_px),
+            )
+        if matrix is not None:
+            out = np.asarray(
+                cv2.warpAffine(
+                    out, matrix, (cols, rows), flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP
+                ),
+                dtype=np.uint8,
+            )
+        if not out.any():
+            continue
+        # Only where something was found (a few objects in a large map).
+        y0, y1, x0, x1 = _bounds(out.view(bool))
+        out = out[y0:y1, x0:x1]
+        found = (slice(r0 + y0, r0 + y1), slice(c0 + x0, c0 + x1))
+        line = (out & 1).view(bool) & unknown[found]
+        lines[found] |= line
+        stub = (out >> 3).view(bool) & occupied[found]
+        stubs[found] |= stub
+        fronts[found] |= (out >> 1 & 1).view(bool) & occupied[found] & ~line & ~stub
+        insides[found] |= (out >> 2 & 1).view(bool) & unknown[found] & ~line
+    return lines, fronts & ~stubs, insides, stubs
+
+
+def _fronts_rows(
+    code: npt.NDArray[np.uint8],
+    out: npt.NDArray[np.uint8],
+    max_len: int,
+    max_depth: int,
+    anchor: int,
+    face: int,
+    crossing: int,
+    stub: int,
+) -> None:
+    """:func:`_flush_fronts` along the rows of ``code`` (0 unknown, 1 free, 2 occupied), the
+    furniture below or above the line; bits 0 (line), 1 (front), 2 (inside) and 3 (a wall meeting
+    the object) set in ``out``.
+
+    Whole-image work is only the runs of the occupied cells; each candidate gap (unknown cells at
+    both ends) is then checked on a few cells, and the rest on the few rows beside it."""
+    height, width = code.shape
+    flat_code = code.reshape(-1)
+    cells = np.flatnonzero(flat_code >= 2)  # occupied: a door frame's stub is kept only later
+    if cells.size < 2:
+        return
+    r = cells // width
+    step = np.diff(cells)
+    same_row = r[1:] == r[:-1]
+    new_run = np.ones(cells.size, dtype=bool)
+    new_run[1:] = (step != 1) | ~same_row
+    run_id = np.cumsum(new_run) - 1
+    run_len = np.bincount(run_id)[run_id]
+    # Gaps between consecutive occupied cells of one row, unknown at both ends.
+    left = np.flatnonzero(same_row & (step > 1) & (step - 1 <= max_len))
+    left = left[(flat_code[cells[left] + 1] == 0) & (flat_code[cells[left + 1] - 1] == 0)]
+    left = left[(run_len[left] >= anchor) & (run_len[left + 1] >= anchor)]
+    if left.size == 0:
+        return
+    span = max_depth + 1
+
+    def free(
+        at_rows: npt.NDArray[np.int64], at_cols: npt.NDArray[np.int64]
+    ) -> npt.NDArray[np.bool_]:
+        # Free cells looked up where wanted (rows past the edges read the edge's).
+        return code[np.clip(at_rows, 0, height - 1), at_cols] == 1
+
+    rows = cells[left] // width
+    end_left, end_right = cells[left] % width, cells[left + 1] % width
+    middle = (end_left + end_right) // 2
+    for sign in (1, -1):
+        # Cheap tests first, on a few cells of each candidate: the wall ends' last cells see
+        # free space within ``face`` on this side, the gap's middle column none that near.
+        across = rows[:, None, None] + sign * np.arange(1, face + 1)[:, None]
+        along = np.arange(anchor)
+        face_left = free(across, np.maximum(end_left[:, None] - along, 0)[:, None, :])
+        face_right = free(across, np.minimum(end_right[:, None] + along, width - 1)[:, None, :])
+        face_left = face_left.any(axis=1).sum(axis=1)
+        face_right = face_right.any(axis=1).sum(axis=1)
+        beside = rows[:, None] + sign * np.arange(1, face + 2)
+        near_middle = free(beside, middle[:, None]).any(axis=1)
+        chosen = np.flatnonzero(
+            (2 * face_left >= anchor) & (2 * face_right >= anchor) & ~near_middle
+        )
+        # This side as "below": the rows reversed for the other (views, no copies).
+        view, written = (code, out) if sign == 1 else (code[::-1], out[::-1])
+        for i in chosen.tolist():
+            row = int(rows[i]) if sign == 1 else height - 1 - int(rows[i])
+            _front_at(
+                view,
+                written,
+                row,
+                int(end_left[i]) + 1,
+                int(end_right[i]),
+                span,
+                anchor,
+                face,
+                crossing,
+                stub,
+            )
+
+
+def _front_at(
+    code: npt.NDArray[np.uint8],
+    out: npt.NDArray[np.uint8],
+    row: int,
+    col0: int,
+    col1: int,
+    span: int,
+    anchor: int,
+    face: int,
+    crossing: int,
+    stub: int,
+) -> None:
+    """The checks of one candidate gap ``row, col0:col1`` (the furniture below it) and, when it
+    passes, its line, front and inside in ``out``."""
+    height, width = code.shape
+    max_depth = span - 1
+    if row + 1 >= height or (code[row, col0:col1] != 0).any():
+        return
+    lo, hi = max(col0 - anchor, 0), min(col1 + anchor, width)
+    below = code[row + 1 : row + 1 + span, lo:hi] == 1
+    # Occupied or unknown cells below each column, down to free space (``span``: none near).
+    depth = np.where(below.any(axis=0), below.argmax(axis=0), span)
+    d = depth[col0 - lo : col1 - lo]
+    # Deeper than a wall face everywhere (else the "front" is the wall itself, the line the
+    # unknown behind it), no deeper than furniture.
+    if d.min() <= face:
+        return
+    deep = d > max_depth
+    if deep.all():
+        return
+    # A wall meeting the object: columns reaching farther than the front (the depth most
+    # columns share) by more than a wall face, in a stretch no wider than a wall (a partition
+    # ending on a cabinet's front, or crossing the hidden line between two objects), not at the
+    # ends. Wider stretches are a deeper object, if not too deep.
+    front = int(np.median(d[~deep]))
+    farther = np.concatenate([[False], d > front + face, [False]])
+    edges = np.flatnonzero(np.diff(farther.view(np.int8)))
+    starts, ends = edges[::2], edges[1::2]
+    walls = ends - starts <= crossing
+    stubs = np.zeros(d.size, dtype=bool)
+    for start, end, wall in zip(starts.tolist(), ends.tolist(), walls.tolist(), strict=True):
+        if wall:
+            stubs[start:end] = True
+        elif deep[start:end].any():
+            return
+    if stubs[0] or stubs[-1]:
+        return
+    # The last cell before free space is occupied: a front face, not a shadow's edge.
+    cols = np.arange(col0, col1)[~deep]
+    if (code[row + d[~deep], cols] < 2).any():
+        return
+    out[row, col0:col1] |= 1
+    # The object: the gap's columns and its side faces (up to ``face`` columns beyond each end,
+    # where they too are deeper than a wall face) down to free space.
+    first, last = col0, col1
+    while first > lo and col0 - first < face and face < depth[first - 1 - lo] <= max_depth:
+        first -= 1
+    while last < hi and last - col1 < face and face < depth[last - lo] <= max_depth:
+        last += 1
+    reach = depth[first - lo : last - lo]
+    reach = np.where(reach > max_depth, 0, reach)
+    # The walls meeting it stay (a cell wider each side), and their hidden part, from the line
+    # to the front, is drawn along their sides.
+    wall = np.zeros(last - first, dtype=bool)
+    wall[col0 - first : col1 - first] = stubs
+    if stubs.any():
+        wall = np.convolve(wall, np.ones(3), mode="same") > 0
+        reach[wall] = 0
+        for start, end in zip(starts[walls].tolist(), ends[walls].tolist(), strict=True):
+            for col in (col0 + start, col0 + end - 1):
+                out[row + 1 : row + 1 + front, col] |= np.where(
+                    code[row + 1 : row + 1 + front, col] == 0, 1, 0
+                ).astype(np.uint8)
+            # The wall's cells, from the line to its end (up to a run's length past the front:
+            # a longer one is a run already), where it leaves the object and the free space.
+            cells = code[row + 1 : row + 1 + span + stub, col0 + start - 1 : col0 + end + 1]
+            past = np.cumsum(cells == 1, axis=0) > 0
+            out[row + 1 : row + 1 + cells.shape[0], col0 + start - 1 : col0 + end + 1] |= np.where(
+                (cells >= 2) & ~past, 8, 0
+            ).astype(np.uint8)
+    if reach.max() == 0:
+        return
+    block = code[row + 1 : row + 1 + int(reach.max()), first:last]
+    within = np.arange(block.shape[0])[:, None] < reach
+    out[row + 1 : row + 1 + block.shape[0], first:last] |= np.where(
+        within, np.where(block == 0, 4, 2), 0
+    ).astype(np.uint8)

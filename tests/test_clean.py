@@ -662,3 +662,67 @@ def threading_name() -> str:
     import threading
 
     return threading.current_thread().name
+
+
+def test_a_long_cabinet_flush_against_a_wall_goes_and_the_wall_behind_it_is_drawn() -> None:
+    """A scanned cabinet 3.5 m long and 0.6 m deep against a wall that runs on at both ends: its
+    front is a straight run longer than min_run_m and the hidden wall behind it is longer than
+    max_bridge_m, so the front was kept as a wall. A short stretch of unknown cells between two
+    collinear wall stretches facing the room, with the object's front at most 1 m in front of
+    every cell of it, is the wall hidden behind furniture: drawn, and the front and sides go."""
+    grid = np.zeros((60, 140), dtype=np.int8)
+    grid[:25, :] = -1  # the unknown outside, above the wall
+    grid[24, 5:136] = 100  # the wall ...
+    grid[24, 41:111] = -1  # ... hidden behind the cabinet
+    grid[25:37, 41:111] = -1  # the cabinet's inside, unseen
+    grid[37, 40:112] = 100  # its front, 3.6 m
+    grid[24:38, 40] = grid[24:38, 111] = 100  # its sides, 0.7 m
+    cleaned = clean(grid, rose.analyze(grid), resolution_m=RES)
+    assert not cleaned.kept[37, 42:110].any()  # the front goes
+    assert cleaned.kept[24, 5:38].all() and cleaned.kept[24, 114:136].all()  # the wall stays
+    hidden = np.argwhere(cleaned.completed)
+    assert set(hidden[:, 0]) == {24} and hidden[:, 1].min() == 41 and hidden[:, 1].max() == 110
+    # Closed: the room does not open to the unknown outside.
+    assert (cleaned.cleaned[24, 5:136] == 100).all()
+
+
+def test_a_wall_with_unknown_behind_it_is_no_cabinet_front() -> None:
+    """The same shape seen the other way: an alcove 0.6 m deep in the wall (free space in it), or
+    a wall 0.1 m thick with an unexplored room behind it, is no furniture: nothing is drawn or
+    removed."""
+    grid = np.zeros((60, 140), dtype=np.int8)
+    grid[:25, :] = -1
+    grid[24, 5:136] = 100
+    grid[12:25, 41:111] = 0  # an alcove: free space behind the line
+    grid[12, 40:112] = 100
+    grid[12:25, 40] = grid[12:25, 111] = 100
+    grid[24, 41:111] = 0
+    cleaned = clean(grid, rose.analyze(grid), resolution_m=RES)
+    assert cleaned.kept[12, 42:110].all() and not cleaned.completed.any()
+    # A thin wall (two cells) with unknown behind: the "front" is the wall itself.
+    grid = np.zeros((60, 140), dtype=np.int8)
+    grid[:25, :] = -1
+    grid[23:25, 5:136] = 100
+    grid[23:25, 41:111] = -1  # unseen stretch of the wall's back row ...
+    grid[25:27, 41:111] = 100  # ... the wall steps down by two cells there
+    cleaned = clean(grid, rose.analyze(grid), resolution_m=RES)
+    assert cleaned.kept[25:27, 42:110].all()
+
+
+def test_a_wall_ending_on_a_cabinet_front_stays_and_is_drawn_through_it() -> None:
+    """A partition 1 m long that ends on a long cabinet's front is a wall meeting the object, not
+    part of it: it stays, and its hidden part is drawn from the front to the wall line behind."""
+    grid = np.zeros((80, 140), dtype=np.int8)
+    grid[:25, :] = -1  # the unknown outside, above the wall
+    grid[24, 5:136] = 100
+    grid[24, 41:111] = -1  # the wall hidden behind the cabinet
+    grid[25:37, 41:111] = -1  # the cabinet's inside
+    grid[37, 40:112] = 100  # its front
+    grid[24:38, 40] = grid[24:38, 111] = 100  # its sides
+    grid[38:58, 74:76] = 100  # the partition, 1 m, ending on the front
+    cleaned = clean(grid, rose.analyze(grid), resolution_m=RES)
+    assert cleaned.kept[38:58, 74:76].all()  # the partition stays
+    assert not cleaned.kept[37, 42:70].any() and not cleaned.kept[37, 80:110].any()
+    assert (cleaned.cleaned[24, 5:136] == 100).all()  # the wall line behind is drawn
+    # The partition's hidden part joins it to the wall line.
+    assert (cleaned.cleaned[25:37, 73:77] == 100).any(axis=1).all()
