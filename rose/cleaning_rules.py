@@ -1420,16 +1420,9 @@ def _flush_fronts(
     lines, fronts, insides, stubs = (np.zeros(shape, dtype=bool) for _ in range(4))
     if not occupied.any() or directions.size == 0:
         return lines, fronts, insides, stubs
-    r0, r1, c0, c1 = _bounds(occupied)
-    pad = math.ceil(max_depth_px) + 4
-    r0, r1, c0, c1 = (
-        max(r0 - pad, 0),
-        min(r1 + pad, shape[0]),
-        max(c0 - pad, 0),
-        min(c1 + pad, shape[1]),
-    )
+    box = _padded_box(occupied, math.ceil(max_depth_px) + 4)
+    r0, c0 = box[0].start, box[1].start
     # 0 unknown (also beyond the rotated image), 1 free, 2 occupied.
-    box = (slice(r0, r1), slice(c0, c1))
     code = (~unknown[box]).view(np.uint8) + occupied[box].view(np.uint8)
     rows, cols = code.shape
     for angle in _frames(directions):

@@ -658,14 +658,10 @@ def test_the_score_colour_bar_lies_under_the_map_whatever_its_yaw(tmp_path: Path
     assert ry - y0 < top < ry - y0 + 0.45 * (y1 - y0)  # below its south edge, inside the view
 
 
-def test_the_views_frame_every_map_of_the_session_when_the_origin_moves(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    """A map whose origin moves 80 m (the sample's last map does) drew every earlier snapshot out
-    of the views, which framed the last map only: scrubbing back showed empty views."""
-    import rose
+@pytest.fixture
+def sent_layouts(monkeypatch: pytest.MonkeyPatch) -> list[tuple[object, ...]]:
+    """The topic layouts of every blueprint a sink sends, in order."""
     from rose_logs.rerun import sink as sink_module
-    from rose_logs.rerun.loggers import placement_terms
 
     sent: list[tuple[object, ...]] = []
     real = sink_module.default_blueprint
@@ -674,6 +670,18 @@ def test_the_views_frame_every_map_of_the_session_when_the_origin_moves(
         "default_blueprint",
         lambda layouts, **kw: sent.append(layouts) or real(layouts, **kw),
     )
+    return sent
+
+
+def test_the_views_frame_every_map_of_the_session_when_the_origin_moves(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, sent_layouts: list[tuple[object, ...]]
+) -> None:
+    """A map whose origin moves 80 m (the sample's last map does) drew every earlier snapshot out
+    of the views, which framed the last map only: scrubbing back showed empty views."""
+    import rose
+    from rose_logs.rerun import sink as sink_module
+    from rose_logs.rerun.loggers import placement_terms
+
     grid = np.full((60, 80), -1, dtype=np.int8)
     grid[10:50, 10:70] = 0
     grid[10, 10:70] = grid[49, 10:70] = grid[10:50, 10] = grid[10:50, 69] = 100
@@ -692,7 +700,7 @@ def test_the_views_frame_every_map_of_the_session_when_the_origin_moves(
     for index, snapshot in enumerate((first, moved)):
         sink.snapshot(snapshot, result, index, None)
     sink.close()
-    (layout,) = sent[-1]
+    (layout,) = sent_layouts[-1]
     assert layout.bounds_m is not None
     # The saved recording's colour bar goes under what the scores view frames, not under the last
     # map (a small part of the view when the map moved: a bar too small for its labels).
@@ -826,20 +834,15 @@ def test_the_colour_bar_lies_under_its_box_and_inside_the_scores_view() -> None:
         assert top + _BAR_LABELS_BELOW_PX * scale_y < view_bottom, box
 
 
-def test_an_all_unknown_session_is_framed_by_its_grid(tmp_path: Path, monkeypatch) -> None:
+def test_an_all_unknown_session_is_framed_by_its_grid(
+    tmp_path: Path, sent_layouts: list[tuple[object, ...]]
+) -> None:
     """A session whose maps know no cell had no box to frame: the metric view opened in Rerun's
     default perspective, far from the (grey) grid."""
     import rose
     from rose_logs.rerun import sink as sink_module
     from rose_logs.rerun.blueprint import _metric_eye
 
-    sent: list[tuple[object, ...]] = []
-    real = sink_module.default_blueprint
-    monkeypatch.setattr(
-        sink_module,
-        "default_blueprint",
-        lambda layouts, **kw: sent.append(layouts) or real(layouts, **kw),
-    )
     grid = np.full((40, 60), -1, dtype=np.int8)
     snapshot = _yawed(grid, 0.0, (5.0, 7.0), resolution=0.1)
     sink = sink_module.RerunSink(
@@ -847,7 +850,7 @@ def test_an_all_unknown_session_is_framed_by_its_grid(tmp_path: Path, monkeypatc
     )
     sink.snapshot(snapshot, rose.analyze(grid), 0, None)
     sink.close()
-    (layout,) = sent[-1]
+    (layout,) = sent_layouts[-1]
     assert layout.bounds_m == pytest.approx((5.0, 7.0, 11.0, 11.0))
     assert _metric_eye(layout.bounds_m) is not None
 
