@@ -25,6 +25,7 @@ from rose.result import RoseResult
 from rose_logs.rerun.style import (
     AMPLITUDE_PLOT_HEIGHT,
     CLASS_CLUTTER,
+    CLASS_COMPLETED,
     CLASS_FREE,
     CLASS_OCCUPIED,
     CLASS_RESCUED,
@@ -127,6 +128,7 @@ def segmentation_image(
     *,
     rescued: npt.NDArray[np.bool_] | None = None,
     dropped: npt.NDArray[np.bool_] | None = None,
+    completed: npt.NDArray[np.bool_] | None = None,
 ) -> npt.NDArray[np.uint8]:
     """Class id of every cell of the window of ``occupied`` (the whole grid without it), image
     row order (north up).
@@ -145,6 +147,9 @@ def segmentation_image(
     dropped : ndarray of bool, shape (rows, cols), optional
         Grid order: structure cells the cleaning removed (free-standing pieces), shown as
         ``CLASS_CLUTTER`` like every removed cell.
+    completed : ndarray of bool, shape (rows, cols), optional
+        Grid order: unknown cells the cleaning made walls, the wall line hidden behind removed
+        clutter (:attr:`rose.cleaning.CleanResult.completed`), shown as ``CLASS_COMPLETED``.
 
     Returns
     -------
@@ -171,6 +176,8 @@ def segmentation_image(
         classes[rescued[y0:y1, x0:x1][::-1]] = np.uint8(CLASS_RESCUED)
     if dropped is not None:
         classes[dropped[y0:y1, x0:x1][::-1]] = np.uint8(CLASS_CLUTTER)
+    if completed is not None:
+        classes[completed[y0:y1, x0:x1][::-1]] = np.uint8(CLASS_COMPLETED)
     return classes
 
 

@@ -15,6 +15,7 @@ import numpy.typing as npt
 import pyarrow as pa
 import rerun as rr
 
+from rose.cleaning import CleanResult
 from rose.directions import FAILURE_LEVEL, TRUST_LEVEL, map_frame_deg
 from rose.result import RoseResult
 from rose.walls import WallSet
@@ -410,18 +411,16 @@ class TopicLogger:
         snapshot: MapSnapshot,
         result: RoseResult,
         walls: WallSet | None,
-        rescued: npt.NDArray[np.bool_] | None = None,
-        dropped: npt.NDArray[np.bool_] | None = None,
+        cleaning: CleanResult | None = None,
         *,
         window: conv.Window | None = None,
         judged: bool | None = None,
     ) -> None:
         """Every stream of one analysed snapshot, at the time set by :func:`set_snapshot_time`.
 
-        ``rescued`` (grid order): clutter cells the cleaning kept as walls, their own class;
-        ``dropped``: structure cells the cleaning removed, shown as clutter; ``window``: the
-        snapshot's :func:`~conv.image_window`, when the caller has it; ``judged``: whether W says
-        something about it (:meth:`log_structure_score`).
+        ``cleaning``: the snapshot's cleaning, shown in the segmentation (:meth:`log_segmentation`);
+        ``window``: the snapshot's :func:`~conv.image_window`, when the caller has it; ``judged``:
+        whether W says something about it (:meth:`log_structure_score`).
         """
         if result.cell_scores.shape != snapshot.grid.shape:
             msg = (
@@ -432,7 +431,7 @@ class TopicLogger:
         window = window or conv.image_window(snapshot.grid)
         occupied = conv.occupied_cells(result, window)
         self.log_grid_map(snapshot, window)
-        self.log_segmentation(snapshot, result, occupied, rescued=rescued, dropped=dropped)
+        self.log_segmentation(snapshot, result, occupied, cleaning=cleaning)
         self.log_directions(snapshot, result, occupied)
         self.log_cell_scores(snapshot, result, occupied)
         self.log_spectrum(result)
@@ -475,15 +474,20 @@ class TopicLogger:
         result: RoseResult,
         occupied: conv.OccupiedCells | None = None,
         *,
-        rescued: npt.NDArray[np.bool_] | None = None,
-        dropped: npt.NDArray[np.bool_] | None = None,
+        cleaning: CleanResult | None = None,
     ) -> None:
-        """Free / unknown / occupied / structure / clutter (/ kept by the cleaning) as a
-        segmentation image (the class table is static)."""
+        """Free / unknown / occupied / structure / clutter as a segmentation image (the class
+        table is static); with ``cleaning``, what it changed: clutter it kept as walls, structure
+        it removed (shown as clutter), walls it drew behind removed clutter."""
         occupied = occupied or conv.occupied_cells(result, conv.image_window(snapshot.grid))
-        image = conv.segmentation_image(
-            snapshot.grid, result, occupied, rescued=rescued, dropped=dropped
-        )
+        changes = {}
+        if cleaning is not None:
+            changes = {
+                "rescued": cleaning.rescued,
+                "dropped": cleaning.removed & result.structure,
+                "completed": cleaning.completed,
+            }
+        image = conv.segmentation_image(snapshot.grid, result, occupied, **changes)
         self.recording.log(
             self.paths.segmentation,
             segmentation_image(image),

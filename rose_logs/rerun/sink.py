@@ -28,9 +28,9 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
-import numpy.typing as npt
 import rerun as rr
 
+from rose.cleaning import CleanResult
 from rose.directions import FAILURE_LEVEL, TRUST_LEVEL
 from rose.result import RoseResult
 from rose.walls import WallSet
@@ -391,14 +391,13 @@ class RerunSink:
         result: RoseResult,
         index: int,
         walls: WallSet | None,
-        rescued: npt.NDArray[np.bool_] | None = None,
-        dropped: npt.NDArray[np.bool_] | None = None,
+        cleaning: CleanResult | None = None,
         *,
         judged: bool | None = None,
     ) -> None:
-        """Log every stream of an analysed snapshot (at its log time); ``rescued``: clutter cells
-        the cleaning kept as walls, ``dropped``: structure cells it removed (grid order);
-        ``judged``: whether W says something about it (default: enough occupied cells)."""
+        """Log every stream of an analysed snapshot (at its log time); ``cleaning``: its cleaning,
+        shown in the segmentation; ``judged``: whether W says something about it (default: enough
+        occupied cells)."""
         topic_logger = self.loggers[snapshot.topic]
         first = snapshot.topic not in self._latest
         if first:  # here, not on the logging thread: the layout sent below uses it
@@ -426,7 +425,7 @@ class RerunSink:
                 index=index,
             )
             topic_logger.log_snapshot(
-                snapshot, result, walls, rescued, dropped, window=window, judged=judged
+                snapshot, result, walls, cleaning, window=window, judged=judged
             )
 
         self._submit(job)

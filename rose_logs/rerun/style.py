@@ -14,6 +14,7 @@ __all__ = [
     "BREAK_COLOR",
     "BREAK_SCORE_COLOR",
     "CLASS_CLUTTER",
+    "CLASS_COMPLETED",
     "CLASS_FREE",
     "CLASS_INFO",
     "CLASS_OCCUPIED",
@@ -38,6 +39,7 @@ CLASS_OCCUPIED: Final = 3
 CLASS_STRUCTURE: Final = 4
 CLASS_CLUTTER: Final = 5
 CLASS_RESCUED: Final = 6
+CLASS_COMPLETED: Final = 7
 
 CLASS_INFO: Final = (
     (CLASS_FREE, "free", (250, 250, 250)),
@@ -46,6 +48,7 @@ CLASS_INFO: Final = (
     (CLASS_STRUCTURE, "structure", (20, 90, 220)),
     (CLASS_CLUTTER, "clutter", (245, 130, 0)),
     (CLASS_RESCUED, "clutter kept as wall by the cleaning", (0, 170, 170)),
+    (CLASS_COMPLETED, "wall drawn by the cleaning behind removed clutter", (120, 60, 200)),
 )
 """``(class id, label, RGB)`` of the segmentation classes, logged once as an AnnotationContext."""
 

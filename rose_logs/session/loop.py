@@ -821,18 +821,12 @@ class _Loop:
         self._write_results(snapshot, analysis)
         record = _record(snapshot, analysis, index, verdict, pending)
         if self.rerun is not None:
-            cleaning = analysis.cleaning
-            rescued = dropped = None
-            if cleaning is not None:
-                rescued = cleaning.rescued
-                dropped = cleaning.removed & analysis.result.structure
             self.rerun.snapshot(
                 snapshot,
                 analysis.result,
                 index,
                 analysis.walls,
-                rescued,
-                dropped,
+                analysis.cleaning,
                 judged=record.judged,
             )
             self.rerun.break_score(snapshot, verdict, index, self.detector.params.threshold_m)

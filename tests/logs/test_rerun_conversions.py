@@ -289,3 +289,21 @@ def test_structure_the_cleaning_removed_shows_as_clutter(plan) -> None:
     image = conv.segmentation_image(grid, result, dropped=dropped)[::-1]
     assert_array_equal(image[dropped], style.CLASS_CLUTTER)
     assert_array_equal(image[result.structure & ~dropped], style.CLASS_STRUCTURE)
+
+
+def test_walls_the_cleaning_draws_get_their_own_class() -> None:
+    """The wall line drawn behind removed furniture (unknown cells made walls) was not shown: the
+    segmentation drew them unknown, as if the cleaning had opened the room there."""
+    grid = np.zeros((60, 140), dtype=np.int8)
+    grid[:25, :] = -1  # the unknown outside, above the wall
+    grid[24, 5:136] = 100  # the wall ...
+    grid[24, 41:111] = -1  # ... hidden behind a cabinet
+    grid[25:37, 41:111] = -1  # its inside, unseen
+    grid[37, 40:112] = 100  # its front
+    grid[24:38, 40] = grid[24:38, 111] = 100  # its sides
+    result = rose.analyze(grid)
+    cleaning = rose.clean(grid, result, resolution_m=0.05)
+    assert cleaning.completed.any()
+    image = conv.segmentation_image(grid, result, completed=cleaning.completed)[::-1]
+    assert_array_equal(image[cleaning.completed], style.CLASS_COMPLETED)
+    assert (image[(grid < 0) & ~cleaning.completed] == style.CLASS_UNKNOWN).all()

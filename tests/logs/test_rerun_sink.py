@@ -867,3 +867,46 @@ def test_the_metric_grid_has_at_most_15_round_lines_across_any_map(span_m: float
     assert min(abs(mantissa - m) for m in (1.0, 2.0, 5.0)) < 1e-9
     assert span_m / spacing <= 15 + 1e-9
     assert span_m / spacing > 15 / 2.5 - 1e-9  # the next finer round spacing gives more than 15
+
+
+def test_a_snapshot_logged_with_its_cleaning_shows_what_the_cleaning_changed(
+    tmp_path: Path,
+) -> None:
+    """The session hands each snapshot's cleaning to the logger: clutter kept as wall, structure
+    removed and walls drawn behind furniture get their classes in the recorded segmentation."""
+    import rose
+    from rose_logs.rerun import TopicLogger
+    from rose_logs.rerun import conversions as conv
+    from rose_logs.rerun.style import CLASS_COMPLETED
+
+    grid = np.zeros((60, 140), dtype=np.int8)
+    grid[:25, :] = -1
+    grid[24, 5:136] = 100
+    grid[24, 41:111] = -1  # the wall hidden behind a cabinet
+    grid[25:37, 41:111] = -1
+    grid[37, 40:112] = 100
+    grid[24:38, 40] = grid[24:38, 111] = 100
+    result = rose.analyze(grid)
+    cleaning = rose.clean(grid, result, resolution_m=0.05)
+    rrd = tmp_path / "c.rrd"
+    recording = _recording_at_zero(rrd)
+    TopicLogger(recording, PATHS).log_snapshot(
+        _yawed(grid, 0.0, (0.0, 0.0)), result, None, cleaning
+    )
+    recording.flush()
+    recording.disconnect()
+    (row,) = _read(rrd).rows(PATHS.segmentation)
+    (image_format,) = row["SegmentationImage:format"]
+    (buffer,) = row["SegmentationImage:buffer"]
+    shape = (image_format["height"], image_format["width"])
+    logged = np.frombuffer(bytes(buffer), dtype=np.uint8).reshape(shape)
+    expected = conv.segmentation_image(
+        grid,
+        result,
+        conv.occupied_cells(result, conv.image_window(grid)),
+        rescued=cleaning.rescued,
+        dropped=cleaning.removed & result.structure,
+        completed=cleaning.completed,
+    )
+    assert np.array_equal(logged, expected)
+    assert (logged == CLASS_COMPLETED).sum() == cleaning.completed.sum() > 0
