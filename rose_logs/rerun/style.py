@@ -48,7 +48,7 @@ CLASS_INFO: Final = (
     (CLASS_STRUCTURE, "structure", (20, 90, 220)),
     (CLASS_CLUTTER, "clutter", (245, 130, 0)),
     (CLASS_RESCUED, "clutter kept as wall by the cleaning", (0, 170, 170)),
-    (CLASS_COMPLETED, "wall drawn by the cleaning behind removed clutter", (120, 60, 200)),
+    (CLASS_COMPLETED, "wall drawn by the cleaning behind removed clutter", (190, 0, 80)),
 )
 """``(class id, label, RGB)`` of the segmentation classes, logged once as an AnnotationContext."""
 
