@@ -1591,6 +1591,11 @@ def _front_at(
     cols = np.arange(col0, col1)[~deep]
     if (code[row + d[~deep], cols] < 2).any():
         return
+    # An inside a scanner did not see, behind the front: a solid piece reaching from the wall
+    # into the room is the wall's own stub or pilaster (no scan sees into furniture).
+    behind = code[row + 1 : row + 1 + front, col0:col1][:, ~deep]
+    if not (behind == 0).any(axis=0).mean() >= 0.5:
+        return
     out[row, col0:col1] |= 1
     # The object: the gap's columns and its side faces (up to ``face`` columns beyond each end,
     # where they too are deeper than a wall face) down to free space.

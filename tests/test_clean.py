@@ -726,3 +726,23 @@ def test_a_wall_ending_on_a_cabinet_front_stays_and_is_drawn_through_it() -> Non
     assert (cleaned.cleaned[24, 5:136] == 100).all()  # the wall line behind is drawn
     # The partition's hidden part joins it to the wall line.
     assert (cleaned.cleaned[25:37, 73:77] == 100).any(axis=1).all()
+
+
+def test_a_solid_stub_of_the_wall_is_no_furniture_front(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A wall stub 0.6 m long and 0.2 m thick, solid as a scan sees a wall end, meeting the wall
+    where the scan left a two-cell hole in it: its tip read as the front of furniture flush
+    against the wall, and the whole stub went (Freiburg 079, rose2 map15). Furniture shows an
+    unseen inside behind its front; a stub does not."""
+    grid = np.zeros((60, 140), dtype=np.int8)
+    grid[:25, :] = -1  # the unknown outside, above the wall
+    grid[24, 5:136] = 100
+    grid[24, 70:72] = -1  # the scan's hole where the stub meets the wall
+    grid[25:37, 68:74] = 100  # the stub
+    result = rose.analyze(grid)
+    cleaned = clean(grid, result, resolution_m=RES)
+    assert cleaned.kept[25:31, 68:74].all()  # within the attach reach (0.3 m) of the wall
+    assert cleaned.kept[24, 5:136].sum() == 129  # the wall, but for the hole
+    # The flush-furniture rule leaves it to the other rules: the same as without it.
+    monkeypatch.setattr("rose.cleaning_rules._FRONT_MAX_M", 0.0)
+    without = clean(grid, result, resolution_m=RES)
+    assert np.array_equal(cleaned.kept, without.kept)
