@@ -102,6 +102,8 @@ def degenerate_input(grid: npt.NDArray[np.int8], occupied: npt.NDArray[np.bool_]
     - *there is no free space*: fewer free cells than :data:`MIN_JUDGED_CELLS`, so nothing lies
       between walls (a solid block amid unknown cells: the outline of a blob, not of rooms).
     """
+    if not occupied.any():  # no input at all: W = 1 by convention, nothing to be degenerate
+        return None
     thinnest = min(occupied.shape, default=0)
     if thinnest < MIN_PADDED_SIDE:
         noun = "cell" if thinnest == 1 else "cells"

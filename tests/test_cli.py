@@ -95,23 +95,30 @@ def test_score_does_not_claim_structure_in_a_degenerate_map(
     """A solid block read `"has_structure": true` (its rectangle's direction) and a plain table row
     whose low W passed for a building's: as `rose clean` and rose-bag's records, its `degenerate`
     says why W says nothing, and `has_structure` is not judged (null). A map with no direction at
-    all keeps `false`."""
-    block, blank = tmp_path / "block.yaml", tmp_path / "blank.yaml"
+    all keeps `false`. A map of a few occupied cells is not judged either (as `rose clean` says),
+    and an all-unknown map is no degenerate input (its reason read "only 0 free cells")."""
+    block, blank, few = (tmp_path / f"{n}.yaml" for n in ("block", "blank", "few"))
     rose.save_map(block, rose.OccupancyMap(grid=np.full((40, 50), 100, np.int8), resolution_m=0.05))
     rose.save_map(blank, rose.OccupancyMap(grid=np.full((40, 50), -1, np.int8), resolution_m=0.05))
-    assert main(["score", "--json", str(block), str(blank)]) == 0
-    solid, unknown = json.loads(capsys.readouterr().out)
+    sparse = np.zeros((40, 50), np.int8)
+    sparse[20, 10:15] = 100
+    rose.save_map(few, rose.OccupancyMap(grid=sparse, resolution_m=0.05))
+    assert main(["score", "--json", str(block), str(blank), str(few)]) == 0
+    solid, unknown, five = json.loads(capsys.readouterr().out)
     assert solid["has_structure"] is None and solid["dominant_directions_deg"] == [0.0]
     assert solid["degenerate"].startswith("occupied cells fill the grid (180 cell sides")
-    assert unknown["has_structure"] is False and unknown["degenerate"] is not None
+    assert unknown["has_structure"] is False and unknown["degenerate"] is None
+    assert five["has_structure"] is None and five["degenerate"] is None
     assert main(["clean", str(block), "-o", str(tmp_path / "c.yaml"), "--json", "-"]) == 0
     cleaned = json.loads(capsys.readouterr().out)  # the summary went to stderr
     assert cleaned["has_structure"] is None and cleaned["degenerate"] == solid["degenerate"]
-    assert main(["score", str(block), str(blank)]) == 0
+    assert main(["score", str(block), str(blank), str(few)]) == 0
     lines = capsys.readouterr().out.splitlines()
-    assert lines[-2:] == [
-        f"{block}: {solid['degenerate']}: W says nothing about this map",
-        f"{blank}: no occupied cells: W says nothing about this map",
+    assert [line.split()[1][-1] for line in lines[1:4]] == ["*"] * 3  # W marked in every row
+    assert lines[-3:] == [
+        f"* {block}: {solid['degenerate']}: W says nothing about this map",
+        f"* {blank}: no occupied cells: W says nothing about this map",
+        f"* {few}: only 5 occupied cells (fewer than 20): W says nothing about this map",
     ]
 
 
@@ -399,6 +406,23 @@ def test_an_unknown_option_is_a_usage_error_of_the_parser_it_follows(
     err = capsys.readouterr().err
     assert err.startswith(f"usage: {usage} [-h]")
     assert err.splitlines()[-1] == f"{usage}: error: unrecognized arguments: --bogus"
+
+
+def test_options_are_taken_by_their_full_names_only(
+    cluttered_map: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`rose score --jso m.yaml` ran as `--json`: an abbreviation that works today changes meaning
+    once an option sharing its start is added."""
+    from rose_logs.cli import main as rose_bag
+
+    for run, argv in (
+        (main, ["score", "--jso", str(cluttered_map)]),
+        (rose_bag, ["--deb", "info", str(cluttered_map)]),
+    ):
+        with pytest.raises(SystemExit) as info:
+            run(argv)
+        assert info.value.code == 2
+        assert "unrecognized arguments: --" in capsys.readouterr().err
 
 
 def test_clean_warns_of_a_json_report_named_with_another_suffix(

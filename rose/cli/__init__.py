@@ -50,7 +50,9 @@ __all__ = [
 def build_parser() -> argparse.ArgumentParser:
     """The ``rose`` argument parser."""
     parser = argparse.ArgumentParser(
-        prog="rose", description="ROSE structure extraction and decluttering for map files."
+        prog="rose",
+        description="ROSE structure extraction and decluttering for map files.",
+        allow_abbrev=False,
     )
     parser.add_argument("--debug", action="store_true", help="show tracebacks")
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
@@ -73,7 +75,13 @@ def build_parser() -> argparse.ArgumentParser:
 
 class CommandParser(argparse.ArgumentParser):
     """A command's parser (``rose clean``, ``rose-bag process``): arguments it does not know are its
-    usage error, with its usage line, not the top-level parser's (``rose clean m.yaml --bogus``)."""
+    usage error, with its usage line, not the top-level parser's (``rose clean m.yaml --bogus``).
+    Options are taken by their full names only: ``--jso`` read as ``--json``, and an abbreviation
+    that works today would change meaning when an option is added."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        kwargs.setdefault("allow_abbrev", False)
+        super().__init__(*args, **kwargs)
 
     def parse_known_args(  # type: ignore[override]
         self, args: Sequence[str] | None = None, namespace: argparse.Namespace | None = None

@@ -344,10 +344,10 @@ def result_summary(
     """JSON-ready summary of a result: W, directions (degrees, map frame), threshold, counts.
 
     ``degenerate`` says why the input is outside ROSE's domain
-    (:func:`rose.directions.degenerate_input`, as ``rose-bag``'s records): then the structure
-    ROSE found is not judged, as W is not (a solid block's directions are its rectangle's), and
-    ``has_structure`` is None rather than True."""
-    judged = degenerate is None or not result.has_structure
+    (:func:`rose.directions.degenerate_input`, as ``rose-bag``'s records). There, and on a map of
+    too few occupied cells, the structure ROSE found is not judged, as W is not (a solid block's
+    directions are its rectangle's), and ``has_structure`` is None rather than True."""
+    judged = (degenerate is None and w_judges(result.occupied_count)) or not result.has_structure
     summary: dict[str, Any] = {
         "structure_score": round(result.structure_score, 6),
         "has_structure": result.has_structure if judged else None,

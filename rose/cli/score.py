@@ -57,23 +57,26 @@ def run(args: argparse.Namespace) -> int:
     if scored:
         width = max(len("map"), *(len(r["map"]) for r in scored))
         print(
-            f"{'map':<{width}}  {'W':>6}  {'directions (deg)':<24}  {'occupied':>9}  {'clutter':>8}"
+            f"{'map':<{width}}  {'W':>6}   {'directions (deg)':<24}  {'occupied':>9}  {'clutter':>8}"
         )
+        # A W that says nothing (no structure found, too few occupied cells, a solid block) must
+        # not pass for a building's: marked in its row, the reason under the table (as `clean`).
+        unjudged = [r for r in scored if r["has_structure"] is not True]
         for r in scored:
             dirs = (
                 ", ".join(f"{fold_deg(d, 1):.1f}" for d in r["dominant_directions_deg"]) or "none"
             )
-            print(f"{r['map']:<{width}}  {r['structure_score']:6.3f}  {dirs:<24}  "
+            mark = "*" if r in unjudged else " "
+            print(f"{r['map']:<{width}}  {r['structure_score']:6.3f}{mark}  {dirs:<24}  "
                   f"{r['occupied_cells']:>9}  {r['clutter_cells']:>8}")  # fmt: skip
-        for r in scored:  # a low W that says nothing must not pass for a building's (as `clean`)
-            if r["degenerate"] is not None:
-                reading = verdict(
-                    r["structure_score"],
-                    occupied_cells=r["occupied_cells"],
-                    has_structure=r["has_structure"] is not False,
-                    degenerate=r["degenerate"],
-                )
-                print(f"{r['map']}: {reading}")
+        for r in unjudged:
+            reading = verdict(
+                r["structure_score"],
+                occupied_cells=r["occupied_cells"],
+                has_structure=r["has_structure"] is not False,
+                degenerate=r["degenerate"],
+            )
+            print(f"* {r['map']}: {reading}")
     if failed and len(records) > 1:  # one map: its own error line says it all
         print(f"error: {failed} of {len(records)} maps could not be scored", file=sys.stderr)
     return 1 if failed else 0

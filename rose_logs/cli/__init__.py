@@ -48,6 +48,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="rose-bag",
         description="ROSE structure extraction and decluttering of occupancy-grid maps in robot logs.",
+        allow_abbrev=False,
     )
     parser.add_argument(
         "--debug", action="store_true", help="debug logging and tracebacks on errors"
