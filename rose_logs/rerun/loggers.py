@@ -720,7 +720,9 @@ class TopicLogger:
             ),
         )
 
-    def log_break(self, score: float, text: str) -> None:
-        """A break: a marker on the W plot and a WARN event (time set by the caller)."""
-        self.recording.log(self.paths.breaks, rr.Scalars(float(score)))
+    def log_break(self, score: float | None, text: str) -> None:
+        """A break: a marker on the W plot at ``score`` (None: none, W is not plotted there) and a
+        WARN event (time set by the caller)."""
+        if score is not None:
+            self.recording.log(self.paths.breaks, rr.Scalars(float(score)))
         self.recording.log(self.paths.events, rr.TextLog(text, level=rr.TextLogLevel.WARN))

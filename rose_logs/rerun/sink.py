@@ -451,9 +451,10 @@ class RerunSink:
 
         self._submit(job)
 
-    def event(self, snapshot: MapSnapshot, text: str, index: int, score: float) -> None:
-        """Log a break of ``snapshot``'s topic: a marker on the W plot and a WARN event ``text``
-        (without the topic: the events view is the topic's own)."""
+    def event(self, snapshot: MapSnapshot, text: str, index: int, score: float | None) -> None:
+        """Log a break of ``snapshot``'s topic: a marker on the W plot at ``score`` (None: none,
+        W says nothing about the snapshot) and a WARN event ``text`` (without the topic: the
+        events view is the topic's own)."""
         topic_logger = self.loggers[snapshot.topic]
         first = not self._has_events[snapshot.topic]
         self._has_events[snapshot.topic] = True

@@ -52,7 +52,7 @@ from rose_logs.frames import quaternion_tilt
 from rose_logs.reader import LogReader
 from rose_logs.session.analysis import SnapshotAnalyser, SnapshotAnalysis
 from rose_logs.session.breaks import BreakDetector, BreakParams, BreakScore, DetectedBreak
-from rose_logs.session.report import BreakEvent, SessionReport, SnapshotRecord, w_judges
+from rose_logs.session.report import BreakEvent, SessionReport, SnapshotRecord
 from rose_logs.session.topics import (
     orphan_updates,
     select_topics,
@@ -830,7 +830,7 @@ class _Loop:
                 judged=record.judged,
             )
             self.rerun.break_score(snapshot, verdict, index, self.detector.params.threshold_m)
-        self._report_breaks(snapshot, analysis.result, index, verdict)
+        self._report_breaks(snapshot, analysis.result, index, verdict, judged=record.judged)
         compute_s = 0.0 if pending.reused else analysis.seconds
         record = dataclasses.replace(record, seconds=compute_s + time.perf_counter() - t0)
         self.records.append(record)
@@ -860,9 +860,17 @@ class _Loop:
             self.writer.write_raw(handle, t, data)
 
     def _report_breaks(
-        self, snapshot: MapSnapshot, result: RoseResult, index: int, verdict: BreakScore
+        self,
+        snapshot: MapSnapshot,
+        result: RoseResult,
+        index: int,
+        verdict: BreakScore,
+        *,
+        judged: bool,
     ) -> None:
-        """The detector's break starts and W's crossings of the failure level: events and logs."""
+        """The detector's break starts and W's crossings of the failure level: events and logs.
+        ``judged``: whether W says something about the snapshot (else neither a crossing nor a
+        break's marker on the W plot, where a solid block's W = 0.009 read as a fine map)."""
         topic, score = snapshot.topic, float(result.structure_score)
         if verdict.started:
             event = DetectedBreak.from_score(
@@ -871,8 +879,8 @@ class _Loop:
             self.detected.append(event)
             _LOG.info("%s", event.text)
             if self.rerun is not None:
-                self.rerun.event(snapshot, event.detail, index, score)
-        if not w_judges(result.occupied_count):  # an empty map's W = 1 says nothing: no event
+                self.rerun.event(snapshot, event.detail, index, score if judged else None)
+        if not judged:  # an empty map's W = 1, a solid block's 0.009: they say nothing
             return
         above = score > self.failure_level
         if above and not self.above.get(topic, False):

@@ -59,3 +59,25 @@ def test_score_threshold_and_region_are_logged(tmp_path: Path) -> None:
     assert corners.shape == (5, 3)
     np.testing.assert_allclose(corners[:, :2].min(axis=0), (1.0, 2.0))
     np.testing.assert_allclose(corners[:, :2].max(axis=0), (1.4, 2.5))
+
+
+def test_a_break_on_a_map_w_says_nothing_about_has_no_marker_on_the_w_plot(
+    tmp_path: Path,
+) -> None:
+    """The break detector may fire on a map W cannot read (a solid block: W = 0.009); its cross on
+    the W plot read as a fine map at a W the plot leaves out. The event stays, the marker goes."""
+    path = tmp_path / "e.rrd"
+    sink = RerunSink(
+        rrd_path=path, topics=["/map"], recording_id="events-test", start_ns=0, threaded=False
+    )
+    sink.event(_snapshot(1_000), "map breaks at snapshot 1", 1, None)
+    sink.event(_snapshot(2_000), "map breaks at snapshot 2", 2, 0.3)
+    sink.close()
+    rows: dict[str, list[dict]] = {}
+    for chunk in rerun_chunk.RrdReader(path).stream().to_chunks():
+        if not chunk.is_static:
+            rows.setdefault(chunk.entity_path, []).extend(chunk.to_record_batch().to_pylist())
+    paths = EntityPaths("map")
+    assert len(rows[f"/{paths.events}"]) == 2
+    (marker,) = rows[f"/{paths.breaks}"]
+    assert next(v for k, v in marker.items() if k.endswith("scalars")) == [0.3]
