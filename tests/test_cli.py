@@ -639,3 +639,15 @@ def test_a_range_message_prints_its_bound_in_full() -> None:
     assert float_up_to(2.0**31)("2147483000") == 2147483000.0
     with pytest.raises(argparse.ArgumentTypeError, match=r"\[0\.25, 7\.5\]"):
         float_in(0.25, 7.5)("8")
+
+
+def test_clean_to_standard_output_says_why_it_cannot(
+    cluttered_map: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`rose clean m.yaml -o -` said `-: the output map must be a .yaml file`."""
+    assert main(["clean", str(cluttered_map), "-o", "-"]) == 1
+    err = capsys.readouterr().err
+    assert (
+        err
+        == "error: -: a map cannot go to standard output (it is a YAML file and its image beside it)\n"
+    )

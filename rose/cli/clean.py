@@ -26,7 +26,7 @@ from rose.cli.options import (
 from rose.directions import degenerate_input, fold_deg
 from rose.errors import MapFileError
 from rose.mapfile import SAVED_OCCUPIED_FROM, OccupancyMap, map_image_path, save_map
-from rose.outputs import OutputSet, suffix_warning
+from rose.outputs import STDOUT, OutputSet, suffix_warning
 from rose.pipeline import analyze
 
 __all__ = ["add_parser", "cleaning_summary", "run"]
@@ -62,6 +62,9 @@ def run(args: argparse.Namespace) -> int:
     source = load_grid_map(args.map, max_cells=args.max_cells, resolution_m=args.resolution)
     outputs = OutputSet(inputs=source.input_files, force=args.force, ends_run=True)
     output_path = Path(args.output)
+    if str(args.output) == STDOUT:
+        msg = "-: a map cannot go to standard output (it is a YAML file and its image beside it)"
+        raise MapFileError(msg)
     if output_path.suffix.lower() not in (".yaml", ".yml"):
         msg = f"{output_path}: the output map must be a .yaml file"
         raise MapFileError(msg)
