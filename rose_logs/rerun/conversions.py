@@ -450,6 +450,9 @@ def _folded_deg(angles_rad: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
 #: How far above its peak (in units of ``s``) a peak's label hangs: a label is about a fifth of
 #: the plot's height tall.
 PEAK_LABEL_LIFT = 0.24
+#: The leftmost centre of a peak's label (degrees): a label is about 30 degrees wide at the default
+#: layout, and the y axis's labels stand left of 0.
+PEAK_LABEL_MIN_DEG = 18.0
 
 
 @dataclass(frozen=True)
@@ -467,7 +470,7 @@ class AmplitudePlot:
     peak_labels : list of str
     label_anchors : ndarray of float64, shape (K, 2)
         Where each peak's label hangs (Rerun draws a label under its point): above the peak, so
-        that neither the peak's bar nor the curve runs through it.
+        that neither the peak's bar nor the curve runs through it, and clear of the y axis.
     threshold : float
         The prominence threshold ``t`` (a fraction of max - min, so a level of ``s``).
     """
@@ -522,6 +525,10 @@ def amplitude_plot(result: RoseResult, *, yaw_rad: float = 0.0) -> AmplitudePlot
         peaks=peaks,
         prominence_bars=bars,
         peak_labels=labels,
-        label_anchors=peaks - [0.0, height * PEAK_LABEL_LIFT],
+        # Right of the y axis and its tick labels: a peak at 0° hung its label over "s" and "1".
+        label_anchors=np.stack(
+            [np.maximum(peaks[:, 0], PEAK_LABEL_MIN_DEG), peaks[:, 1] - height * PEAK_LABEL_LIFT],
+            axis=-1,
+        ),
         threshold=float(result.params.peak_prominence),
     )
