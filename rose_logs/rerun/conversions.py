@@ -450,9 +450,9 @@ def _folded_deg(angles_rad: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
 #: How far above its peak (in units of ``s``) a peak's label hangs: a label is about a fifth of
 #: the plot's height tall.
 PEAK_LABEL_LIFT = 0.24
-#: The leftmost centre of a peak's label (degrees): a label is about 30 degrees wide at the default
+#: The leftmost centre of a peak's label (degrees): a label is about 65 degrees wide at the default
 #: layout, and the y axis's labels stand left of 0.
-PEAK_LABEL_MIN_DEG = 18.0
+PEAK_LABEL_MIN_DEG = 36.0
 
 
 @dataclass(frozen=True)

@@ -173,7 +173,7 @@ def test_amplitude_plot_scales_to_unit_and_marks_peaks(plan) -> None:
     assert plot.threshold == result.params.peak_prominence
     # Each label hangs above its peak, clear of the bar running down from it and of the curve
     # (Rerun draws a label under its point; the bar went through the label).
-    assert_allclose(plot.label_anchors[:, 0], np.maximum(plot.peaks[:, 0], 18.0))
+    assert_allclose(plot.label_anchors[:, 0], np.maximum(plot.peaks[:, 0], 36.0))
     lift = (plot.peaks[:, 1] - plot.label_anchors[:, 1]) / height
     assert np.all(lift >= 0.2)
     # ... and inside the plot's view (blueprint: y from -1.36 * height).
