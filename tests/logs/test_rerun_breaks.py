@@ -28,6 +28,15 @@ def _snapshot(t: int) -> MapSnapshot:
     )
 
 
+def _temporal_rows(path: Path) -> dict[str, list[dict]]:
+    """The temporal rows of a recording, per entity path."""
+    rows: dict[str, list[dict]] = {}
+    for chunk in rerun_chunk.RrdReader(path).stream().to_chunks():
+        if not chunk.is_static:
+            rows.setdefault(chunk.entity_path, []).extend(chunk.to_record_batch().to_pylist())
+    return rows
+
+
 def test_score_threshold_and_region_are_logged(tmp_path: Path) -> None:
     path = tmp_path / "b.rrd"
     sink = RerunSink(
@@ -38,10 +47,7 @@ def test_score_threshold_and_region_are_logged(tmp_path: Path) -> None:
     sink.break_score(_snapshot(1_000), quiet, 1, 1.25)
     sink.break_score(_snapshot(2_000), broken, 2, 1.25)
     sink.close()
-    rows: dict[str, list[dict]] = {}
-    for chunk in rerun_chunk.RrdReader(path).stream().to_chunks():
-        if not chunk.is_static:
-            rows.setdefault(chunk.entity_path, []).extend(chunk.to_record_batch().to_pylist())
+    rows = _temporal_rows(path)
     paths = EntityPaths("map")
     score, threshold, region = (
         f"/{p}" for p in (paths.break_score, paths.break_threshold, paths.break_region)
@@ -73,10 +79,7 @@ def test_a_break_on_a_map_w_says_nothing_about_has_no_marker_on_the_w_plot(
     sink.event(_snapshot(1_000), "map breaks at snapshot 1", 1, None)
     sink.event(_snapshot(2_000), "map breaks at snapshot 2", 2, 0.3)
     sink.close()
-    rows: dict[str, list[dict]] = {}
-    for chunk in rerun_chunk.RrdReader(path).stream().to_chunks():
-        if not chunk.is_static:
-            rows.setdefault(chunk.entity_path, []).extend(chunk.to_record_batch().to_pylist())
+    rows = _temporal_rows(path)
     paths = EntityPaths("map")
     assert len(rows[f"/{paths.events}"]) == 2
     (marker,) = rows[f"/{paths.breaks}"]
