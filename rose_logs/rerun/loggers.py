@@ -593,7 +593,7 @@ class TopicLogger:
             (u_of(style.SCORE_DISPLAY_MIN), _BAR_LABELS_BELOW_PX),
             (u_of(1.0), _BAR_LABELS_BELOW_PX),
         ]
-        labels = [f"score {style.SCORE_DISPLAY_MIN:g}", "1 (best cell)"]
+        labels = [f"score ≤ {style.SCORE_DISPLAY_MIN:g}", "1 (best cell)"]  # lower ones clipped
         tick = np.empty((0, 2, 2), np.float32)
         if math.isfinite(result.threshold):
             at = u_of(result.threshold)

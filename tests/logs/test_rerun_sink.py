@@ -772,6 +772,8 @@ def test_the_threshold_label_sits_between_the_cells_and_the_bar(tmp_path: Path, 
     _, top, _ = placement["Transform3D:translation"][0]
     _, scale_y, _ = placement["Transform3D:scale"][0]
     (_, below_px), _, (threshold_u, threshold_px) = labels["Points2D:positions"]
+    # Scores below the bar's low end take its colour: the label says so.
+    assert labels["Points2D:labels"][:2] == ["score ≤ -0.5", "1 (best cell)"]
     # A tick marks the threshold on the bar, from its label down across the bar (0..2 pixels).
     ((tick_top, tick_bottom),) = labels["LineStrips2D:strips"]
     assert tick_top[0] == tick_bottom[0] == threshold_u
