@@ -651,3 +651,20 @@ def test_clean_to_standard_output_says_why_it_cannot(
         err
         == "error: -: a map cannot go to standard output (it is a YAML file and its image beside it)\n"
     )
+
+
+def test_clean_names_every_file_it_wrote(
+    cluttered_map: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The summary's `written` line left out the JSON report."""
+    out, report = tmp_path / "c.yaml", tmp_path / "c.json"
+    assert main(["clean", str(cluttered_map), "-o", str(out), "--json", str(report)]) == 0
+    (written,) = [
+        line for line in capsys.readouterr().out.splitlines() if line.startswith("written")
+    ]
+    assert written.split()[1:] == [str(out), "+", "c.pgm", "+", str(report)]
+    assert main(["clean", str(cluttered_map), "-o", str(tmp_path / "d.yaml"), "--json", "-"]) == 0
+    (written,) = [
+        line for line in capsys.readouterr().err.splitlines() if line.startswith("written")
+    ]
+    assert written.split()[-1] == "d.pgm"  # the report went to standard output

@@ -131,7 +131,8 @@ def run(args: argparse.Namespace) -> int:
         f"the paper's labelling, {cleaning.guarded_count} by the gap guard)",
         f"completed    {cells(cleaning.completed_count, 'unknown')} made walls (the wall line "
         "hidden behind removed clutter)",
-        f"written      {args.output} + {_beside(image_path, Path(args.output))}",
+        f"written      {args.output} + {_beside(image_path, Path(args.output))}"
+        + (f" + {args.json}" if args.json is not None and not outputs.uses_stdout else ""),
         f"time         {elapsed * 1000:.0f} ms",
     ]
     print("\n".join(lines), file=out)
