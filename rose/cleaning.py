@@ -27,7 +27,11 @@ Two methods, chosen by name:
     angle to the grid) are joined too, by a line up to three cells thick, when each is a stretch of
     at least 0.5 m within a band three cells wide and the hidden stretch is at least 0.25 m long.
     Such lines between any two kept cells also *seal*: they close the insides of objects for rules
-    2 and 3, without being drawn.
+    2 and 3, without being drawn. Longer furniture flush against a wall (up to 5 m, its front a
+    straight run a scan cannot tell from a wall) is found by its shape along walls parallel to the
+    grid's axes: a stretch of unknown cells on a wall's line between two stretches of that wall
+    facing the room, with a front face 0.15-1 m in front of it and an unseen inside behind the
+    front; the line is drawn, the front and sides go, and a wall meeting the front stays.
 
     Three rules then tell wall pieces from objects the way a scanner sees them:
 
@@ -116,7 +120,7 @@ class CleanParams:
     max_bridge_m : float
         Longest hidden wall completed behind removed furniture: unknown cells on the straight line
         between the ends of two kept walls along a dominant direction, at most this far apart (0:
-        never).
+        never, and no furniture flush against a wall is taken out either).
     hidden_wall_reach_m : float
         Hidden walls are completed only within this distance (chessboard) of removed cells: the
         depth of the furniture they hide behind.

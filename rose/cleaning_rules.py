@@ -152,12 +152,13 @@ def _wall_cells(
     with _beside() as beside:
         near_job = beside.submit(_near_wide_unknown, unknown, res, p)
         pieces_job = beside.submit(_Pieces.of, occupied, join_px=1) if p.loose_pieces else None
+        # Furniture flush against a wall: its hidden wall line is drawn, as the bridges' are.
         fronts_job = beside.submit(
             _flush_fronts,
             occupied,
             unknown,
             directions,
-            max_len_px=length_px(_FRONT_MAX_M, res),
+            max_len_px=length_px(_FRONT_MAX_M, res) if p.max_bridge_m > 0 else 0.0,
             max_depth_px=length_px(_FRONT_DEPTH_M, res),
             anchor_px=length_px(_BRIDGE_ANCHOR_M, res),
             face_px=length_px(_FRONT_FACE_M, res),
@@ -1384,6 +1385,8 @@ _FRONT_CROSSING_M = 0.5
 #: ... a wall face: a wall end anchors the hidden line when free space lies within this of it, on
 #: the furniture's side (metres: a scanned wall one to three cells thick).
 _FRONT_FACE_M = 0.15
+#: ... the share of the furniture's columns whose last cell before the room is occupied.
+_FRONT_FACE_SHARE = 0.9
 
 
 def _flush_fronts(
@@ -1574,7 +1577,8 @@ def _front_at(
     # A wall meeting the object: columns reaching farther than the front (the depth most
     # columns share) by more than a wall face, in a stretch no wider than a wall (a partition
     # ending on a cabinet's front, or crossing the hidden line between two objects), not at the
-    # ends. Wider stretches are a deeper object, if not too deep.
+    # ends. Wider stretches are a deeper object, refused when they reach beyond the depth limit
+    # (unless the front itself lies within a wall face of it: then they are not told apart).
     front = int(np.median(d[~deep]))
     farther = np.concatenate([[False], d > front + face, [False]])
     edges = np.flatnonzero(np.diff(farther.view(np.int8)))
@@ -1588,9 +1592,12 @@ def _front_at(
             return
     if stubs[0] or stubs[-1]:
         return
-    # The last cell before free space is occupied: a front face, not a shadow's edge.
+    # The last cell before free space is occupied: a front face, not a shadow's edge, in nine
+    # columns of ten (a scan leaves single holes in a front). Walls at an angle to the grid are
+    # staircases once rotated onto the rows, which the checks here do not take yet: the rule
+    # finds furniture along walls parallel to the grid's axes only.
     cols = np.arange(col0, col1)[~deep]
-    if (code[row + d[~deep], cols] < 2).any():
+    if (code[row + d[~deep], cols] >= 2).mean() < _FRONT_FACE_SHARE:
         return
     # An inside a scanner did not see, behind the front: a solid piece reaching from the wall
     # into the room is the wall's own stub or pilaster (no scan sees into furniture).

@@ -684,6 +684,26 @@ def test_a_long_cabinet_flush_against_a_wall_goes_and_the_wall_behind_it_is_draw
     assert set(hidden[:, 0]) == {24} and hidden[:, 1].min() == 41 and hidden[:, 1].max() == 110
     # Closed: the room does not open to the unknown outside.
     assert (cleaned.cleaned[24, 5:136] == 100).all()
+    # No hidden walls drawn (max_bridge_m = 0): no furniture front taken out either.
+    kept = clean(grid, rose.analyze(grid), resolution_m=RES, params=CleanParams(max_bridge_m=0))
+    assert not kept.completed.any() and kept.kept[37, 42:110].all()
+
+
+def test_a_cabinet_front_with_a_scan_hole_is_still_a_front() -> None:
+    """A scan leaves single holes in a cabinet's front: one column of seventy open to the room
+    read as a shadow's edge, and the cabinet stayed as a wall."""
+    grid = np.zeros((60, 140), dtype=np.int8)
+    grid[:25, :] = -1
+    grid[24, 5:136] = 100
+    grid[24, 41:111] = -1
+    grid[25:37, 41:111] = -1
+    grid[37, 40:112] = 100
+    grid[24:38, 40] = grid[24:38, 111] = 100
+    grid[37, 75] = -1  # the hole: the cabinet's unseen inside meets the room there
+    grid[38, 75] = 0
+    cleaned = clean(grid, rose.analyze(grid), resolution_m=RES)
+    assert not cleaned.kept[37, 42:110].any()
+    assert cleaned.completed[24, 41:111].all()
 
 
 def test_a_wall_with_unknown_behind_it_is_no_cabinet_front() -> None:

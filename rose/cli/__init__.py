@@ -76,7 +76,7 @@ def build_parser() -> argparse.ArgumentParser:
 class CommandParser(argparse.ArgumentParser):
     """A command's parser (``rose clean``, ``rose-bag process``): arguments it does not know are its
     usage error, with its usage line, not the top-level parser's (``rose clean m.yaml --bogus``).
-    Options are taken by their full names only: ``--jso`` read as ``--json``, and an abbreviation
+    Options are taken by their full names only (``--jso`` was read as ``--json``): an abbreviation
     that works today would change meaning when an option is added."""
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:

@@ -66,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
             dirs = (
                 ", ".join(f"{fold_deg(d, 1):.1f}" for d in r["dominant_directions_deg"]) or "none"
             )
-            mark = "*" if r in unjudged else " "
+            mark = " " if r["has_structure"] is True else "*"
             print(f"{r['map']:<{width}}  {r['structure_score']:6.3f}{mark}  {dirs:<24}  "
                   f"{r['occupied_cells']:>9}  {r['clutter_cells']:>8}")  # fmt: skip
         for r in unjudged:

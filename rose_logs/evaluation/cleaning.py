@@ -3,7 +3,7 @@
 Two kinds of map, both as a SLAM system would produce them:
 
 - **SLAM-like Bormann buildings** (:func:`slam_like_pair`): the room-segmentation benchmark's clean
-  and furnished drawings (every non-white pixel an obstacle), with every occupied cell farther than
+  and furnished drawings (every pixel darker than grey 250 an obstacle), with every occupied cell farther than
   ``layer_px`` cells from free space turned unknown. That hollows the painted outside, thick walls and solid
   furniture blocks alike: a scanner sees faces, never insides. Walls are the cells occupied in both
   the clean and the furnished map; clutter the cells occupied in the furnished map only.

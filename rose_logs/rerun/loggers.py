@@ -614,17 +614,22 @@ class TopicLogger:
             rr.LineStrips2D.from_fields(strips=tick),
         )
 
-    def log_final_placement(self, bounds_m: tuple[float, float, float, float] | None) -> None:
+    def log_final_placement(
+        self, bounds_m: tuple[float, float, float, float] | None, *, min_size_m: float = 0.0
+    ) -> None:
         """Place the colour bar under the session's known box ``bounds_m`` (map frame, metres: the
         box the scores view frames), at every time. Under the last map, a map that shrank, moved
-        or changed its cell size had a bar too small for its labels, which covered it."""
+        or changed its cell size had a bar too small for its labels, which covered it.
+        ``min_size_m``: as under each snapshot (ten of the last snapshot's cells)."""
         # Only where no placement was logged per snapshot (not ``live``): the web viewer kept
         # those over a static one logged after them.
         if bounds_m is None or self.view_origin_m is None:
             return
         x0, y0, x1, y1 = bounds_m
         rx, ry = self.view_origin_m
-        self.score_legend_placement = bar_placement((x0 - rx, ry - y1, x1 - rx, ry - y0))
+        self.score_legend_placement = bar_placement(
+            (x0 - rx, ry - y1, x1 - rx, ry - y0), min_size_m=min_size_m
+        )
         self.recording.log(self.paths.score_legend, self.score_legend_placement, static=True)
 
     def log_spectrum(self, result: RoseResult) -> None:

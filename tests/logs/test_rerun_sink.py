@@ -691,7 +691,7 @@ def test_the_views_frame_every_map_of_the_session_when_the_origin_moves(
     monkeypatch.setattr(
         sink_module.TopicLogger,
         "log_final_placement",
-        lambda self, bounds: placed.append(bounds) or real_placement(self, bounds),
+        lambda self, bounds, **kw: placed.append(bounds) or real_placement(self, bounds, **kw),
     )
     sink = sink_module.RerunSink(
         rrd_path=tmp_path / "x.rrd", topics=("/map",), recording_id="x", start_ns=0
