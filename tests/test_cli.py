@@ -408,6 +408,41 @@ def test_an_unknown_option_is_a_usage_error_of_the_parser_it_follows(
     assert err.splitlines()[-1] == f"{usage}: error: unrecognized arguments: --bogus"
 
 
+@pytest.mark.parametrize(
+    ("argv", "usage", "unknown"),
+    [
+        (["clean", "--bogus"], "rose clean", "--bogus"),
+        (["clean", "-5", "-z"], "rose clean", "-z"),
+        (["rose-bag", "process", "--bogus=3"], "rose-bag process", "--bogus=3"),
+    ],
+)
+def test_an_unknown_option_is_named_even_when_a_required_argument_is_missing(
+    argv: list[str], usage: str, unknown: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """argparse checks required arguments first: `rose clean --bogus` only said that map and -o
+    were missing, hiding the mistyped option (a negative number is a value, not an option)."""
+    from rose_logs.cli import main as rose_bag
+
+    run, args = (rose_bag, argv[1:]) if argv[0] == "rose-bag" else (main, argv)
+    with pytest.raises(SystemExit) as info:
+        run(args)
+    assert info.value.code == 2
+    assert capsys.readouterr().err.splitlines()[-1] == (
+        f"{usage}: error: unrecognized arguments: {unknown}"
+    )
+
+
+def test_a_missing_required_argument_is_still_named_without_unknown_options(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    with pytest.raises(SystemExit) as info:
+        main(["clean", "-5", "-f"])
+    assert info.value.code == 2
+    assert capsys.readouterr().err.splitlines()[-1] == (
+        "rose clean: error: the following arguments are required: -o/--output"
+    )
+
+
 def test_options_are_taken_by_their_full_names_only(
     cluttered_map: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -10,9 +10,10 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
+import re
 import sys
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, NoReturn
 
 from rose import __version__
 from rose.errors import RoseError
@@ -86,10 +87,40 @@ class CommandParser(argparse.ArgumentParser):
     def parse_known_args(  # type: ignore[override]
         self, args: Sequence[str] | None = None, namespace: argparse.Namespace | None = None
     ) -> tuple[argparse.Namespace, list[str]]:
+        self._given = list(sys.argv[1:] if args is None else args)
         parsed, extras = super().parse_known_args(args, namespace)
         if extras:  # as ArgumentParser.parse_args says it (exit 2)
             self.error(f"unrecognized arguments: {' '.join(extras)}")
         return parsed, extras
+
+    def error(self, message: str) -> NoReturn:
+        # argparse checks required arguments before it looks at unknown ones: `rose clean --bogus`
+        # said only that map and -o were missing, hiding the mistyped option.
+        unknown = _unknown_options(self, getattr(self, "_given", []))
+        if unknown and message.startswith("the following arguments are required"):
+            message = f"unrecognized arguments: {' '.join(unknown)}"
+        super().error(message)
+
+
+_NEGATIVE_NUMBER = re.compile(r"^-\d+$|^-\d*\.\d+$")
+
+
+def _unknown_options(parser: argparse.ArgumentParser, args: Sequence[str]) -> list[str]:
+    """The arguments in ``args`` that look like options ``parser`` does not know (``--bogus``,
+    ``-z``; not negative numbers, ``-`` or anything after ``--``)."""
+    known = parser._option_string_actions  # argparse has no public table of its option strings
+    unknown = []
+    for token in args:
+        if token == "--":
+            break
+        if not token.startswith("-") or token == "-" or _NEGATIVE_NUMBER.match(token):
+            continue
+        name = token.split("=", 1)[0]
+        # A short option with its value or further flags attached (-o5, -qv) is known by its start.
+        if name in known or (not token.startswith("--") and token[:2] in known):
+            continue
+        unknown.append(token)
+    return unknown
 
 
 _OPTIONS = {
