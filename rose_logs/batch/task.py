@@ -290,8 +290,9 @@ def package_version() -> str:
 #: object rules, W judges maps of 20 or more occupied cells; 9: the wide unknown recomputed behind
 #: completed walls, complete MCAP files without a summary read in log-time order, cells outside
 #: -1..100 read as occupied, unappliable grid updates counted as skipped; 10: hidden walls drawn
-#: only between wall ends, partitions kept, output sizes stored).
-RESULT_LAYOUT = 10
+#: only between wall ends, partitions kept, output sizes stored; 11: the walls cleaning's
+#: flush-furniture rule, W and thresholds rounded to six decimals as ``rose score --json``).
+RESULT_LAYOUT = 11
 
 
 def result_key(recording: Recording, options: RecordingOptions) -> str:

@@ -125,9 +125,9 @@ class SnapshotRecord:
             "width": self.width,
             "height": self.height,
             "resolution_m": float32_decimal(self.resolution_m),
-            "structure_score": self.structure_score,
+            "structure_score": _score_json(self.structure_score),
             "directions_deg": list(self.directions_deg),
-            "threshold": None if math.isnan(self.threshold) else self.threshold,
+            "threshold": _score_json(self.threshold),
             "occupied": self.occupied_count,
             "clutter": self.clutter_count,
             "seconds": round(self.seconds, 6),
@@ -150,6 +150,11 @@ def row_judged(row: Mapping[str, Any]) -> bool:
     enough occupied cells (:func:`w_judges`) and an input ROSE can read (no ``degenerate`` reason;
     records stored before it existed have none)."""
     return w_judges(row["occupied"]) and not row.get("degenerate")
+
+
+def _score_json(value: float) -> float | None:
+    """A score (W, a threshold) as ``rose score --json`` gives it: six decimals, NaN as null."""
+    return None if math.isnan(value) else round(value, 6)
 
 
 def _region_json(region: tuple[float, float, float, float] | None) -> dict[str, float] | None:
@@ -266,9 +271,9 @@ class SessionReport:
             first = self.first_break(topic)
             topics[topic] = {
                 "snapshots": len(self.records_of(topic)),
-                "w_min": min(scores, default=None),
-                "w_median": statistics.median(scores) if scores else None,
-                "w_max": max(scores, default=None),
+                "w_min": _score_json(min(scores, default=math.nan)),
+                "w_median": _score_json(statistics.median(scores) if scores else math.nan),
+                "w_max": _score_json(max(scores, default=math.nan)),
                 "break_score_max_m": max(
                     (round(r.break_score_m, 3) for r in self.records_of(topic)), default=None
                 ),
@@ -289,7 +294,7 @@ class SessionReport:
                     "index": above.index,
                     "log_time_ns": above.log_time_ns,
                     "time_s": round((above.log_time_ns - self.start_ns) / 1e9, 9),
-                    "structure_score": above.structure_score,
+                    "structure_score": _score_json(above.structure_score),
                 },
             }
         return {

@@ -272,6 +272,28 @@ def test_topic_selection_and_rose_params(tmp_path: Path, capsys, fr079) -> None:
     assert "no topic /nope" in capsys.readouterr().err
 
 
+def test_a_map_in_a_log_gets_the_w_and_threshold_rose_score_gives_it(
+    tmp_path: Path, capsys
+) -> None:
+    """The same map read from a file and from a log: equal W and threshold in both JSON reports
+    (rose-bag's were unrounded, rose's six decimals: equal values compared unequal)."""
+    import rose
+    from rose.cli import main as rose_main
+
+    assert rose_main(["score", "--json", str(MAP15)]) == 0
+    from_file = json.loads(capsys.readouterr().out)
+    from_file = from_file[0] if isinstance(from_file, list) else from_file
+    built = build_log(
+        tmp_path / "in.mcap", "mcap-ros2", [MapMsg(START_NS, rose.load_map(MAP15).grid)]
+    )
+    report = tmp_path / "r.json"
+    assert main(["process", str(built.path), "--no-output", "--json", str(report), "-q"]) == 0
+    (snapshot,) = json.loads(report.read_text())["snapshots"]
+    assert snapshot["structure_score"] == from_file["structure_score"]
+    assert snapshot["threshold"] == from_file["threshold"]
+    assert snapshot["structure_score"] == round(snapshot["structure_score"], 6)
+
+
 def test_the_default_output_name_has_the_suffix_of_the_format_asked_for(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
