@@ -453,6 +453,27 @@ PEAK_LABEL_LIFT = 0.24
 #: The leftmost centre of a peak's label (degrees): a label is about 65 degrees wide at the default
 #: layout, and the y axis's labels stand left of 0.
 PEAK_LABEL_MIN_DEG = 36.0
+#: Centres of two labels at about the same height are at least this far apart (degrees): a label
+#: is 65-72 degrees wide at the default layout ("176.2° p 1.00").
+PEAK_LABEL_WIDTH_DEG = 72.0
+#: Labels whose anchors are less than this apart in ``s`` share a row and are spread along it.
+PEAK_LABEL_HEIGHT_S = 0.22
+
+
+def _label_anchors(peaks: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+    """Where the labels of ``peaks`` (shape (K, 2), plot units) hang: above each peak, right of the
+    y axis and its tick labels (a peak at 0° hung its label over "s" and "1"), and, from left to
+    right, each at least a label's width right of the labels at about its height (peaks at 0° and
+    90° of equal height wrote their labels over each other)."""
+    height = AMPLITUDE_PLOT_HEIGHT
+    x = np.maximum(peaks[:, 0], PEAK_LABEL_MIN_DEG)
+    y = peaks[:, 1] - height * PEAK_LABEL_LIFT
+    order = np.argsort(x, kind="stable").tolist()
+    for n, i in enumerate(order):
+        for j in order[:n]:
+            if abs(y[i] - y[j]) < height * PEAK_LABEL_HEIGHT_S:
+                x[i] = max(x[i], x[j] + PEAK_LABEL_WIDTH_DEG)
+    return np.stack([x, y], axis=-1)
 
 
 @dataclass(frozen=True)
@@ -470,7 +491,8 @@ class AmplitudePlot:
     peak_labels : list of str
     label_anchors : ndarray of float64, shape (K, 2)
         Where each peak's label hangs (Rerun draws a label under its point): above the peak, so
-        that neither the peak's bar nor the curve runs through it, and clear of the y axis.
+        that neither the peak's bar nor the curve runs through it, clear of the y axis and of the
+        other labels (:func:`_label_anchors`).
     threshold : float
         The prominence threshold ``t`` (a fraction of max - min, so a level of ``s``).
     """
@@ -525,10 +547,6 @@ def amplitude_plot(result: RoseResult, *, yaw_rad: float = 0.0) -> AmplitudePlot
         peaks=peaks,
         prominence_bars=bars,
         peak_labels=labels,
-        # Right of the y axis and its tick labels: a peak at 0° hung its label over "s" and "1".
-        label_anchors=np.stack(
-            [np.maximum(peaks[:, 0], PEAK_LABEL_MIN_DEG), peaks[:, 1] - height * PEAK_LABEL_LIFT],
-            axis=-1,
-        ),
+        label_anchors=_label_anchors(peaks),
         threshold=float(result.params.peak_prominence),
     )

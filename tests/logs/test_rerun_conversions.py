@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -173,11 +174,36 @@ def test_amplitude_plot_scales_to_unit_and_marks_peaks(plan) -> None:
     assert plot.threshold == result.params.peak_prominence
     # Each label hangs above its peak, clear of the bar running down from it and of the curve
     # (Rerun draws a label under its point; the bar went through the label).
-    assert_allclose(plot.label_anchors[:, 0], np.maximum(plot.peaks[:, 0], 36.0))
+    shift = plot.label_anchors[:, 0] - np.maximum(plot.peaks[:, 0], 36.0)
+    assert np.all((shift >= 0.0) & (shift < 35.0))  # over the peak, or spread right of it
     lift = (plot.peaks[:, 1] - plot.label_anchors[:, 1]) / height
     assert np.all(lift >= 0.2)
     # ... and inside the plot's view (blueprint: y from -1.36 * height).
     assert np.all(plot.label_anchors[:, 1] > -1.36 * height)
+
+
+def test_labels_of_peaks_of_equal_height_do_not_cover_each_other(plan) -> None:
+    """Peaks at 0 and 90 degrees of equal height wrote their labels over each other (the 0-degree
+    label is held right of the y axis, 54 degrees from the other: a label is about 70 wide)."""
+    _, result = plan
+    top = int(np.argmax(result.cumulative_amplitude))
+    even = dataclasses.replace(
+        result,
+        dominant_directions=np.radians([90.0, 0.0]),
+        peak_indices=np.array([top, top]),
+        peak_prominences=np.array([1.0, 1.0]),
+    )
+    anchors = conv.amplitude_plot(even).label_anchors
+    assert anchors[0, 1] == anchors[1, 1]
+    assert anchors[1, 0] == 36.0  # 0 degrees, right of the axis
+    assert anchors[0, 0] - anchors[1, 0] >= 70.0  # 90 degrees, a label's width right of it
+    assert anchors[0, 0] - 90.0 < 35.0  # still over its peak
+    # Peaks far apart, or at other heights, keep their labels over them.
+    apart = dataclasses.replace(even, dominant_directions=np.radians([170.0, 10.0]))
+    assert_allclose(conv.amplitude_plot(apart).label_anchors[:, 0], [170.0, 36.0])
+    low = int(np.argmin(result.cumulative_amplitude))
+    stepped = dataclasses.replace(even, peak_indices=np.array([top, low]))
+    assert_allclose(conv.amplitude_plot(stepped).label_anchors[:, 0], [90.0, 36.0])
 
 
 @pytest.mark.parametrize("yaw_deg", [30.0, -95.0, 0.3, -90.0, 90.0])
