@@ -349,11 +349,12 @@ def result_summary(
     directions are its rectangle's), and ``has_structure`` is None rather than True."""
     judged = (degenerate is None and w_judges(result.occupied_count)) or not result.has_structure
     summary: dict[str, Any] = {
-        "structure_score": round(result.structure_score, 6),
+        # Unrounded, as rose-bag's records: a gate or a comparison sees the W the tools decide on.
+        "structure_score": result.structure_score,
         "has_structure": result.has_structure if judged else None,
         "degenerate": degenerate,
         "dominant_directions_deg": directions_deg(result, yaw_rad=yaw_rad),
-        "threshold": None if math.isnan(result.threshold) else round(result.threshold, 6),
+        "threshold": None if math.isnan(result.threshold) else result.threshold,
         "occupied_cells": result.occupied_count,
         "clutter_cells": result.clutter_count,
         "shape": list(result.occupied.shape),

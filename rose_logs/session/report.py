@@ -153,8 +153,9 @@ def row_judged(row: Mapping[str, Any]) -> bool:
 
 
 def _score_json(value: float) -> float | None:
-    """A score (W, a threshold) as ``rose score --json`` gives it: six decimals, NaN as null."""
-    return None if math.isnan(value) else round(value, 6)
+    """A score (W, a threshold) as ``rose score --json`` gives it: unrounded (the gates compare
+    the unrounded W, and a batch's medians are taken from these), NaN as null."""
+    return None if math.isnan(value) else value
 
 
 def _region_json(region: tuple[float, float, float, float] | None) -> dict[str, float] | None:

@@ -1176,3 +1176,21 @@ def test_a_processed_recording_gets_its_rose_topics_written_anew_on_request(
     assert counts["/map/rose/cleaned"] == counts["/map"] == row["snapshots"] == 2
     assert "replace_rose_topics" not in RecordingOptions().key_fields()
     assert options.key_fields()["replace_rose_topics"] is True
+
+
+def test_the_batch_gate_decides_as_process_on_a_w_near_the_level(tmp_path: Path) -> None:
+    """Batch compared a W rounded to six decimals with --fail-above (0.14689164 read 0.146892):
+    a level between the two passed `process` and failed the batch."""
+    from fleet import copy_recording
+
+    log = copy_recording(tmp_path / "run.mcap", "mcap", max_maps=3)
+    report = tmp_path / "r.json"
+    assert main(["process", str(log), "--no-output", "-q", "--json", str(report)]) == 0
+    w_max = json.loads(report.read_text())["topics"]["/map"]["w_max"]
+    for level, expected in ((w_max + 1e-9, 0), (w_max - 1e-9, 3)):
+        text = repr(level)
+        assert main(["process", str(log), "--no-output", "-q", "--fail-above", text]) == expected
+        out = str(tmp_path / f"batch-{expected}")
+        assert main(["batch", str(log), "-o", out, "-q", "--fail-above", text]) == expected
+        (row,) = read_rows(Path(out) / "recordings.parquet")
+        assert row["w_max"] == w_max
