@@ -15,6 +15,7 @@ from rose_logs.cli.options import (
     UsageError,
     add_gate_arguments,
     add_session_arguments,
+    score_beside_level,
     unjudged_topics,
 )
 
@@ -359,9 +360,10 @@ def _gate_failures(args: argparse.Namespace, report: Any) -> list[str]:
         ]
         if above:
             worst = max(above, key=lambda r: r.row()["w_max"])
+            w, level = score_beside_level(worst.row()["w_max"], args.fail_above)
             reasons.append(
-                f"{printable(worst.uri)}: W = {worst.row()['w_max']:.3f} exceeds --fail-above "
-                f"{args.fail_above:g} (the highest; {len(above)} recording(s) above it)"
+                f"{printable(worst.uri)}: W = {w} exceeds --fail-above {level} (the highest; "
+                f"{len(above)} recording(s) above it)"
             )
     if args.fail_on_break:
         breaks = [(r, s) for r in ok for s in r.snapshots if s.get("break_start")]

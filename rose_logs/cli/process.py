@@ -26,6 +26,7 @@ from rose_logs.cli.options import (
     add_session_arguments,
     duration_text,
     output_log_path,
+    score_beside_level,
     unjudged_topics,
     utc_text,
 )
@@ -313,10 +314,12 @@ def _gate_failures(args: argparse.Namespace, report: Any) -> list[str]:
         first = next(r for r in judged if r.structure_score > args.fail_above)
         worst = max(judged, key=lambda r: r.structure_score)
         when = duration_text(first.log_time_ns - report.start_ns)
+        first_w, level = score_beside_level(first.structure_score, args.fail_above)
+        worst_w, _ = score_beside_level(worst.structure_score, args.fail_above)
         reasons.append(
-            f"W = {first.structure_score:.3f} on {first.topic} snapshot {first.index} ({when} "
-            f"into the log) exceeds --fail-above {args.fail_above:g} first; highest: "
-            f"W = {worst.structure_score:.3f} on snapshot {worst.index}"
+            f"W = {first_w} on {first.topic} snapshot {first.index} ({when} "
+            f"into the log) exceeds --fail-above {level} first; highest: "
+            f"W = {worst_w} on snapshot {worst.index}"
         )
     first_break = report.first_break()
     if args.fail_on_break and first_break is not None:

@@ -725,3 +725,21 @@ def test_a_snapshots_seconds_count_its_analysis_once() -> None:
     # One snapshot's outputs are written while the next one is analysed: on a busy machine the
     # records may add up to a little more than the run (0.9 of it idle), never twice (1.8 before).
     assert 0 < total <= 1.4 * report.elapsed_s
+
+
+@pytest.mark.parametrize(
+    ("score", "level", "shown"),
+    [
+        (0.5, 0.4, ("0.500", "0.4")),
+        (0.1470001, 0.147, ("0.1470001", "0.147")),  # not "W = 0.147 exceeds 0.147"
+        (0.14649, 0.1464, ("0.1465", "0.1464")),  # not "W = 0.146 exceeds 0.1464"
+        (0.4000000000000001, 0.4, ("0.4000000000000001", "0.4")),
+        (0.14689164, 0.1468918, ("0.14689", "0.1468918")),  # the level as given, not 0.146892
+    ],
+)
+def test_a_gate_message_shows_w_on_its_side_of_the_level(
+    score: float, level: float, shown: tuple[str, str]
+) -> None:
+    from rose_logs.cli.options import score_beside_level
+
+    assert score_beside_level(score, level) == shown
