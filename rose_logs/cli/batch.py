@@ -15,7 +15,6 @@ from rose_logs.cli.options import (
     UsageError,
     add_gate_arguments,
     add_session_arguments,
-    score_beside_level,
     unjudged_topics,
 )
 
@@ -360,6 +359,8 @@ def _gate_failures(args: argparse.Namespace, report: Any) -> list[str]:
         ]
         if above:
             worst = max(above, key=lambda r: r.row()["w_max"])
+            from rose_logs.session.report import score_beside_level  # loaded with the batch
+
             w, level = score_beside_level(worst.row()["w_max"], args.fail_above)
             reasons.append(
                 f"{printable(worst.uri)}: W = {w} exceeds --fail-above {level} (the highest; "

@@ -23,7 +23,6 @@ __all__ = [
     "add_session_arguments",
     "duration_text",
     "output_log_path",
-    "score_beside_level",
     "unjudged_topics",
     "utc_text",
 ]
@@ -59,18 +58,6 @@ def utc_text(time_ns: int) -> str:
 def duration_text(ns: int) -> str:
     """A duration in ns as seconds with one decimal, e.g. ``"12.5 s"``."""
     return f"{ns / 1e9:.1f} s"
-
-
-def score_beside_level(score: float, level: float) -> tuple[str, str]:
-    """``score`` and a gate's ``level`` as a message shows them side by side: the level as given,
-    the score with three decimals or as many more as it takes to read on the same side of the level
-    as it is ("W = 0.147 exceeds --fail-above 0.147", or "W = 0.146 exceeds 0.1464", left the user
-    to guess)."""
-    for digits in range(3, 17):
-        shown = float(f"{score:.{digits}f}")
-        if shown != level and (shown > level) == (score > level):
-            return f"{score:.{digits}f}", repr(float(level))
-    return repr(float(score)), repr(float(level))
 
 
 def add_session_arguments(parser: Any) -> None:

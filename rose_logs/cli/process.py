@@ -26,7 +26,6 @@ from rose_logs.cli.options import (
     add_session_arguments,
     duration_text,
     output_log_path,
-    score_beside_level,
     unjudged_topics,
     utc_text,
 )
@@ -150,7 +149,7 @@ def _print_summary(report: Any, out: TextIO) -> None:
         print(f"  W            {_w_text(records)}", file=out)
         _print_break(report, topic, out)
         first = report.first_w_above(topic)
-        level = f"{report.failure_level:g}"
+        level = repr(float(report.failure_level))  # as given
         if first is None:
             print(f"  W > {level:<8} never", file=out)
         else:
@@ -314,6 +313,8 @@ def _gate_failures(args: argparse.Namespace, report: Any) -> list[str]:
         first = next(r for r in judged if r.structure_score > args.fail_above)
         worst = max(judged, key=lambda r: r.structure_score)
         when = duration_text(first.log_time_ns - report.start_ns)
+        from rose_logs.session.report import score_beside_level  # loaded with the session
+
         first_w, level = score_beside_level(first.structure_score, args.fail_above)
         worst_w, _ = score_beside_level(worst.structure_score, args.fail_above)
         reasons.append(

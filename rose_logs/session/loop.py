@@ -52,7 +52,12 @@ from rose_logs.frames import quaternion_tilt
 from rose_logs.reader import LogReader
 from rose_logs.session.analysis import SnapshotAnalyser, SnapshotAnalysis
 from rose_logs.session.breaks import BreakDetector, BreakParams, BreakScore, DetectedBreak
-from rose_logs.session.report import BreakEvent, SessionReport, SnapshotRecord
+from rose_logs.session.report import (
+    BreakEvent,
+    SessionReport,
+    SnapshotRecord,
+    score_beside_level,
+)
 from rose_logs.session.topics import (
     orphan_updates,
     select_topics,
@@ -884,10 +889,8 @@ class _Loop:
             return
         above = score > self.failure_level
         if above and not self.above.get(topic, False):
-            detail = (
-                f"W = {score:.3f} rose above the failure level {self.failure_level:g} "
-                f"at snapshot {index}"
-            )
+            w, level = score_beside_level(score, self.failure_level)
+            detail = f"W = {w} rose above the failure level {level} at snapshot {index}"
             text = f"{topic}: {detail}"
             self.breaks.append(BreakEvent(topic, index, snapshot.log_time_ns, score, text))
             if self.rerun is not None:

@@ -21,6 +21,7 @@ __all__ = [
     "SessionReport",
     "SnapshotRecord",
     "row_judged",
+    "score_beside_level",
     "w_judges",
 ]
 
@@ -150,6 +151,18 @@ def row_judged(row: Mapping[str, Any]) -> bool:
     enough occupied cells (:func:`w_judges`) and an input ROSE can read (no ``degenerate`` reason;
     records stored before it existed have none)."""
     return w_judges(row["occupied"]) and not row.get("degenerate")
+
+
+def score_beside_level(score: float, level: float) -> tuple[str, str]:
+    """``score`` and a gate's ``level`` as a message shows them side by side: the level as given,
+    the score with three decimals or as many more as it takes to read on the same side of the level
+    as it is ("W = 0.147 exceeds --fail-above 0.147", or "W = 0.146 exceeds 0.1464", left the user
+    to guess)."""
+    for digits in range(3, 17):
+        shown = float(f"{score:.{digits}f}")
+        if shown != level and (shown > level) == (score > level):
+            return f"{score:.{digits}f}", repr(float(level))
+    return repr(float(score)), repr(float(level))
 
 
 def _score_json(value: float) -> float | None:

@@ -740,6 +740,6 @@ def test_a_snapshots_seconds_count_its_analysis_once() -> None:
 def test_a_gate_message_shows_w_on_its_side_of_the_level(
     score: float, level: float, shown: tuple[str, str]
 ) -> None:
-    from rose_logs.cli.options import score_beside_level
+    from rose_logs.session.report import score_beside_level
 
     assert score_beside_level(score, level) == shown
