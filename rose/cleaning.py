@@ -366,7 +366,7 @@ def clean(
         msg = (
             f"resolution_m {resolution_m:g} m is finer than {MIN_CLEAN_RESOLUTION_M:g} m per cell "
             "(the cleaning's lengths would span thousands of cells): give the map's real "
-            "resolution, or --method paper (method='paper')"
+            "resolution, or use the paper's labelling (--method paper)"
         )
         raise RoseError(msg)
     if params is not None and not isinstance(params, CleanParams):

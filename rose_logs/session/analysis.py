@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import threading
 import time
 from concurrent.futures import Executor, Future
 from contextvars import ContextVar
@@ -51,6 +52,8 @@ class SnapshotAnalyser:
         self.walls = walls
         self.clean_method = clean_method
         self.previous: dict[str, tuple[MapSnapshot, Future[SnapshotAnalysis]]] = {}
+        self._too_fine_said: set[str] = set()  # topics told of the paper labelling's fallback
+        self._lock = threading.Lock()  # analyses run in several threads
 
     def submit(
         self, snapshot: MapSnapshot, executor: Executor
@@ -88,18 +91,26 @@ class SnapshotAnalyser:
         method = self.clean_method
         if method == "walls" and snapshot.resolution_m < MIN_CLEAN_RESOLUTION_M:
             # W and the labels do not depend on the resolution; only the walls rules do.
-            _LOG.warning(
-                "%s: maps finer than %g m per cell get the paper's labelling as their cleaned "
-                "map (the walls cleaning's lengths would span thousands of cells)",
-                snapshot.topic,
-                MIN_CLEAN_RESOLUTION_M,
-            )
+            self._say_too_fine(snapshot.topic)
             method = "paper"
         cleaning = clean(snapshot.grid, result, method=method, resolution_m=snapshot.resolution_m)
         degenerate = degenerate_input(snapshot.grid, result.occupied)
         seconds = time.perf_counter() - started
         return SnapshotAnalysis(
             result, walls, reused=False, cleaning=cleaning, seconds=seconds, degenerate=degenerate
+        )
+
+    def _say_too_fine(self, topic: str) -> None:
+        """Warn once per topic (not once per snapshot) that its maps get the paper's labelling."""
+        with self._lock:
+            if topic in self._too_fine_said:
+                return
+            self._too_fine_said.add(topic)
+        _LOG.warning(
+            "%s: maps finer than %g m per cell get the paper's labelling as their cleaned map "
+            "(the walls cleaning's lengths would span thousands of cells); said once per topic",
+            topic,
+            MIN_CLEAN_RESOLUTION_M,
         )
 
 

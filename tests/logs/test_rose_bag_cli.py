@@ -743,3 +743,19 @@ def test_a_gate_message_shows_w_on_its_side_of_the_level(
     from rose_logs.session.report import score_beside_level
 
     assert score_beside_level(score, level) == shown
+
+
+def test_maps_finer_than_a_millimetre_are_cleaned_by_the_paper_with_one_warning(
+    tmp_path: Path, capsys, fr079
+) -> None:
+    """The fallback was said once per snapshot (ten lines for ten maps); other warnings once per
+    topic."""
+    maps = [MapMsg(START_NS + k * 1_000_000_000, fr079[0], resolution_m=0.0005) for k in range(3)]
+    maps[1] = MapMsg(START_NS + 1_000_000_000, fr079[1], resolution_m=0.0005)
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps)
+    report = tmp_path / "r.json"
+    assert main(["process", str(built.path), "--no-output", "-q", "--json", str(report)]) == 0
+    warnings = [x for x in capsys.readouterr().err.splitlines() if "finer than 0.001 m" in x]
+    assert len(warnings) == 1 and warnings[0].startswith("warning: /map: maps finer than")
+    snapshots = json.loads(report.read_text())["snapshots"]
+    assert len(snapshots) == 3 and all(s["completed"] == 0 for s in snapshots)
