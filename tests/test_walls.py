@@ -292,3 +292,21 @@ def test_the_walls_table_resolves_a_cell_at_any_resolution(
     np.testing.assert_allclose(printed, exact, rtol=1e-12, atol=resolution_m / 10)
     if resolution_m == 0.05:
         assert all(len(row[5].split(".")[1]) == 3 for row in rows)
+
+
+def test_a_wall_a_hair_below_zero_degrees_reads_zero_in_the_table_and_geojson() -> None:
+    """A map whose origin has a tiny negative yaw: its horizontal walls read 180.00 in the walls
+    table and 180.0 in GeoJSON (outside [0, 180)) while rose score said 0."""
+    from rose.cli.walls import format_walls_table
+    from rose.walls.export import walls_to_geojson
+    from rose.walls.segments import WallSet
+
+    walls = WallSet(
+        endpoints_px=np.array([[[0.0, 5.0], [9.0, 5.0]]]),
+        shape=(10, 10),
+        resolution_m=0.05,
+        origin_yaw_rad=-1e-9,
+    )
+    assert format_walls_table(walls).splitlines()[-1].split()[-1] == "0.00"
+    (feature,) = walls_to_geojson(walls)["features"]
+    assert feature["properties"]["orientation_deg"] == 0.0

@@ -23,7 +23,7 @@ from rose.cli.options import (
     result_summary,
     verdict,
 )
-from rose.directions import degenerate_input, fold_deg
+from rose.directions import degenerate_input
 from rose.errors import MapFileError
 from rose.mapfile import SAVED_OCCUPIED_FROM, OccupancyMap, map_image_path, save_map
 from rose.outputs import STDOUT, OutputSet, suffix_warning
@@ -109,9 +109,7 @@ def run(args: argparse.Namespace) -> int:
     rows, cols = result.occupied.shape
     share = cleaning.removed_count / result.occupied_count if result.occupied_count else 0.0
     threshold = summary["threshold"]
-    angles = ", ".join(
-        f"{fold_deg(d, 1):.1f}" for d in directions_deg(result, yaw_rad=source.origin_yaw_rad)
-    )
+    angles = ", ".join(f"{d:.2f}" for d in directions_deg(result, yaw_rad=source.origin_yaw_rad))
     directions = f"{angles} deg" if angles else "none"
     w_reading = verdict(
         result.structure_score,

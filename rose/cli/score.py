@@ -21,7 +21,7 @@ from rose.cli.options import (
     result_summary,
     verdict,
 )
-from rose.directions import degenerate_input, fold_deg
+from rose.directions import degenerate_input
 from rose.errors import RoseError
 from rose.outputs import json_text, reraise_interrupt_behind
 from rose.params import RoseParams
@@ -63,9 +63,7 @@ def run(args: argparse.Namespace) -> int:
         # not pass for a building's: marked in its row, the reason under the table (as `clean`).
         unjudged = [r for r in scored if r["has_structure"] is not True]
         for r in scored:
-            dirs = (
-                ", ".join(f"{fold_deg(d, 1):.1f}" for d in r["dominant_directions_deg"]) or "none"
-            )
+            dirs = ", ".join(f"{d:.2f}" for d in r["dominant_directions_deg"]) or "none"
             mark = " " if r["has_structure"] is True else "*"
             print(f"{r['map']:<{width}}  {r['structure_score']:6.3f}{mark}  {dirs:<24}  "
                   f"{r['occupied_cells']:>9}  {r['clutter_cells']:>8}")  # fmt: skip

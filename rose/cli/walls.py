@@ -8,6 +8,7 @@ import sys
 from typing import Any, TextIO
 
 from rose.cli.options import add_map_arguments, file_arg, float_up_to, load_grid_map, path_arg
+from rose.directions import fold_deg
 from rose.outputs import OutputSet, json_text, suffix_warning
 from rose.pipeline import analyze
 from rose.walls import WallParams, WallSet, extract_walls, extract_walls_hough
@@ -109,7 +110,8 @@ def format_walls_table(walls: WallSet) -> str:
     ]
     finite = [abs(v) for r in rows for v in r[:5] if math.isfinite(v)]
     metres = _metres_format(walls.resolution_m, max(finite, default=0.0))
-    texts = [[format(v, metres) for v in r[:5]] + [f"{r[5]:.2f}"] for r in rows]
+    # Folded after rounding, as every report: a wall at -0.00002 degrees read 180.00.
+    texts = [[format(v, metres) for v in r[:5]] + [f"{fold_deg(r[5], 2):.2f}"] for r in rows]
     heads = ("x0_m", "y0_m", "x1_m", "y1_m", "length_m", "angle_deg")
     least = (9, 9, 9, 9, 8, 9)  # the usual table's columns
     width = [max([least[k], *(len(t[k]) for t in texts)]) for k in range(len(heads))]

@@ -16,6 +16,7 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
+from rose.directions import fold_deg
 from rose.mapfile import write_atomically
 from rose.outputs import json_text
 from rose.walls.segments import WallSet
@@ -40,7 +41,7 @@ def walls_to_geojson(walls: WallSet) -> dict[str, Any]:
             "properties": {
                 "index": i,
                 "length_m": round(float(lengths[i]), 6),
-                "orientation_deg": round(float(angles[i]), 6),
+                "orientation_deg": fold_deg(float(angles[i]), 6),  # 179.9999999 is 0, not 180
                 "start_px": walls.endpoints_px[i, 0].round(3).tolist(),
                 "end_px": walls.endpoints_px[i, 1].round(3).tolist(),
             },
