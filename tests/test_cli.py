@@ -703,3 +703,15 @@ def test_clean_names_every_file_it_wrote(
         line for line in capsys.readouterr().err.splitlines() if line.startswith("written")
     ]
     assert written.split()[-1] == "d.pgm"  # the report went to standard output
+
+
+def test_clean_summary_gives_the_threshold_to_six_decimals(
+    cluttered_map: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The JSON reports carry the unrounded threshold; the summary still reads it to 1e-6 (it
+    printed 0.9382514154204894 once the JSON stopped rounding)."""
+    import re
+
+    assert main(["clean", str(cluttered_map), "-o", str(tmp_path / "c.yaml")]) == 0
+    (line,) = [x for x in capsys.readouterr().out.splitlines() if x.startswith("threshold ")]
+    assert re.fullmatch(r"threshold    \d\.\d{6}", line), line

@@ -121,7 +121,7 @@ def run(args: argparse.Namespace) -> int:
         f"map          {args.map}  ({cols} x {rows} cells, {source.resolution_m:g} m/cell)",
         f"W            {result.structure_score:.3f}  ({w_reading})",
         f"directions   {directions}",
-        f"threshold    {threshold if threshold is not None and math.isfinite(threshold) else 'n/a'}",
+        f"threshold    {f'{threshold:.6f}' if threshold is not None and math.isfinite(threshold) else 'n/a'}",
         f"occupied     {cells(result.occupied_count)}",
         f"method       {cleaning.method}",
         f"removed      {cells(cleaning.removed_count)} ({share:.1%}), set to {params.clutter_value}",
