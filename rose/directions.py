@@ -96,9 +96,11 @@ def degenerate_input(grid: npt.NDArray[np.int8], occupied: npt.NDArray[np.bool_]
       side ROSE pads because so few cells sample the spectrum too coarsely to tell directions apart
       (a solid 1 x 300 strip read W = 0.007, "structured");
     - *the occupied cells fill the grid*: their outline inside the grid is shorter than where they
-      meet its border, so the grid's rectangle outweighs them in the spectrum (a solid 40 x 50 block
+      meet its border as a mass (a border cell with occupied cells two further in: thicker than a
+      scanned wall), so the grid's rectangle outweighs them in the spectrum (a solid 40 x 50 block
       read W = 0.016, the rectangle's directions). A map whose outside is drawn occupied (Bormann's
-      lab_ipa: 82 % of its cells) still has twice as long an outline inside as on its border;
+      lab_ipa: 82 % of its cells) still has twice as long an outline inside as on its border, and
+      a room whose one-cell walls are the grid's border (a map cropped to its walls) is a room;
     - *there is no free space*: fewer free cells than :data:`MIN_JUDGED_CELLS`, so nothing lies
       between walls (a solid block amid unknown cells: the outline of a blob, not of rooms).
     """
@@ -112,7 +114,7 @@ def degenerate_input(grid: npt.NDArray[np.int8], occupied: npt.NDArray[np.bool_]
         np.count_nonzero(occupied[1:] != occupied[:-1])
         + np.count_nonzero(occupied[:, 1:] != occupied[:, :-1])
     )
-    border = sum(int(np.count_nonzero(side)) for side in _sides(occupied))
+    border = sum(int(np.count_nonzero(side)) for side in _solid_sides(occupied))
     if outline < border:
         return (
             f"occupied cells fill the grid ({border} cell sides on its border, {outline} inside it)"
@@ -126,9 +128,15 @@ def degenerate_input(grid: npt.NDArray[np.int8], occupied: npt.NDArray[np.bool_]
     return None
 
 
-def _sides(mask: npt.NDArray[np.bool_]) -> tuple[npt.NDArray[np.bool_], ...]:
-    """The grid's four sides: its first and last rows and columns."""
-    return mask[0], mask[-1], mask[:, 0], mask[:, -1]
+def _solid_sides(mask: npt.NDArray[np.bool_]) -> tuple[npt.NDArray[np.bool_], ...]:
+    """The grid's four sides (first and last rows and columns), True where the cell and the two
+    next to it inwards are True (walls on the border one or two cells thick are not counted)."""
+    return (
+        mask[0] & mask[1] & mask[2],
+        mask[-1] & mask[-2] & mask[-3],
+        mask[:, 0] & mask[:, 1] & mask[:, 2],
+        mask[:, -1] & mask[:, -2] & mask[:, -3],
+    )
 
 
 @dataclass(frozen=True, eq=False)

@@ -715,3 +715,16 @@ def test_clean_summary_gives_the_threshold_to_six_decimals(
     assert main(["clean", str(cluttered_map), "-o", str(tmp_path / "c.yaml")]) == 0
     (line,) = [x for x in capsys.readouterr().out.splitlines() if x.startswith("threshold ")]
     assert re.fullmatch(r"threshold    \d\.\d{6}", line), line
+
+
+def test_a_room_whose_walls_are_the_grids_border_is_no_degenerate_input() -> None:
+    """A map cropped to its walls (one-cell walls on the grid's border, a free room inside) read
+    "occupied cells fill the grid (1000 cell sides on its border, 992 inside it)"; a solid block
+    filling the grid still does."""
+    from rose.directions import degenerate_input
+
+    room = np.zeros((200, 300), np.int8)
+    room[[0, -1], :] = room[:, [0, -1]] = 100
+    assert degenerate_input(room, room == 100) is None
+    block = np.full((40, 50), 100, np.int8)
+    assert degenerate_input(block, block == 100).startswith("occupied cells fill the grid")
