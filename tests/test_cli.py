@@ -728,3 +728,19 @@ def test_a_room_whose_walls_are_the_grids_border_is_no_degenerate_input() -> Non
     assert degenerate_input(room, room == 100) is None
     block = np.full((40, 50), 100, np.int8)
     assert degenerate_input(block, block == 100).startswith("occupied cells fill the grid")
+
+
+def test_score_gives_the_same_reason_in_its_table_and_json_for_a_thin_map(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """An 8 x 2 map: the table said "no dominant direction" where JSON said "a side of 2 cells"."""
+    path = tmp_path / "thin.yaml"
+    thin = np.zeros((2, 8), np.int8)
+    thin[0] = 100
+    rose.save_map(path, rose.OccupancyMap(grid=thin, resolution_m=0.05))
+    assert main(["score", "--json", str(path)]) == 0
+    (record,) = json.loads(capsys.readouterr().out)
+    assert record["degenerate"].startswith("a side of 2 cells")
+    assert main(["score", str(path)]) == 0
+    footnote = capsys.readouterr().out.splitlines()[-1]
+    assert footnote.startswith(f"* {path}: {record['degenerate']}: W says nothing about this map")

@@ -378,8 +378,13 @@ def verdict(
     :func:`rose.directions.degenerate_input`): a solid block or a thin strip reads a low W."""
     if occupied_cells == 0:
         return "no occupied cells: W says nothing about this map"
+    nothing_labelled = "no dominant direction: nothing labelled, the map is kept as it is"
+    if degenerate is not None and not has_structure:
+        # The cause first, as the JSON's `degenerate` gives it (an 8 x 2 map read "no dominant
+        # direction" in the table and "a side of 2 cells" in JSON).
+        return f"{degenerate}: W says nothing about this map; {nothing_labelled}"
     if not has_structure:
-        return "no dominant direction: nothing labelled, the map is kept as it is"
+        return nothing_labelled
     if occupied_cells is not None and not w_judges(occupied_cells):
         return (
             f"only {cells(occupied_cells, 'occupied')} (fewer than {MIN_JUDGED_CELLS}): "
