@@ -28,9 +28,9 @@ Two methods, chosen by name:
     at least 0.5 m within a band three cells wide and the hidden stretch is at least 0.25 m long.
     Such lines between any two kept cells also *seal*: they close the insides of objects for rules
     2 and 3, without being drawn. Longer furniture flush against a wall (up to 5 m, its front a
-    straight run a scan cannot tell from a wall) is found by its shape along walls parallel to the
-    grid's axes: a stretch of unknown cells on a wall's line between two stretches of that wall
-    facing the room, with a front face 0.15-1 m in front of it and an unseen inside behind the
+    straight run a scan cannot tell from a wall) is found by its shape along walls at any angle to
+    the grid (read straightened there too): a stretch of unknown cells on a wall's line between two
+    stretches of that wall facing the room, with a front face 0.15-1 m in front of it and an unseen inside behind the
     front; the line is drawn, the front and sides go, and a wall meeting the front stays.
 
     Three rules then tell wall pieces from objects the way a scanner sees them:

@@ -1416,7 +1416,10 @@ def _flush_fronts(
     the unknown cells its inside. Columns reaching farther than the front, in stretches no wider
     than ``crossing_px``, are a wall meeting the object (a partition ending on its front,
     or crossing the line between two objects): its cells up to ``wall_px`` past the object are
-    kept, and its sides drawn from the line to the front.
+    kept, and its sides drawn from the line to the front. In a frame at an angle to the grid, where
+    a wall is a staircase, the rotated rows are read as they are and once more straightened
+    (:func:`_straightened`: the wall line a band of rows), with anchors twice as long, the gap's
+    end columns allowed to open to the room, and the front two cells deeper than a wall face.
     """
     import cv2
 
@@ -1432,11 +1435,22 @@ def _flush_fronts(
     for angle in _frames(directions):
         rotated, matrix = _rotate(code, angle)
         out = np.zeros(rotated.shape, dtype=np.uint8)  # bit 0 line, 1 front, 2 inside, 3 wall
-        for transpose in (False, True):
+        transposed = np.ascontiguousarray(rotated.T)
+        # Rotated (a wall at an angle to the grid): the exact rows, then the straightened ones.
+        for slack, transpose in ((0, False), (0, True)) + (
+            ((1, False), (1, True)) if matrix is not None else ()
+        ):
             # Along the rows, then along the columns (transposed: the runs need the cells of a
             # line in order); each for furniture on either side of the line.
+            along = transposed if transpose else rotated
+            if slack:
+                # A wall at an angle to the grid is a staircase once rotated onto the rows (its
+                # cells a row off here and there, its line broken): straightened by growing the
+                # occupied cells a row across the line, the wall line, its anchors and the front
+                # are whole rows.
+                along = _straightened(along)
             _fronts_rows(
-                np.ascontiguousarray(rotated.T) if transpose else rotated,
+                along,
                 out.T if transpose else out,
                 round(max_len_px),
                 round(max_depth_px),
@@ -1444,6 +1458,7 @@ def _flush_fronts(
                 max(1, round(face_px)),
                 round(crossing_px),
                 round(wall_px),
+                slack=slack,
             )
         if matrix is not None:
             out = np.asarray(
@@ -1467,6 +1482,23 @@ def _flush_fronts(
     return lines, fronts & ~stubs, insides, stubs
 
 
+def _straightened(code: npt.NDArray[np.uint8]) -> npt.NDArray[np.uint8]:
+    """``code`` (0 unknown, 1 free, 2 occupied) with every cell a row above or below an occupied
+    one occupied, and then the holes of one or two cells along the rows between occupied cells (a
+    morphological closing along the rows): a staircase of one or two rows becomes a solid band."""
+    import cv2
+
+    _, occupied = cv2.threshold(code, 1, 2, cv2.THRESH_BINARY)
+    grown: npt.NDArray[np.uint8] = np.asarray(
+        cv2.dilate(occupied, np.ones((3, 1), np.uint8)), dtype=np.uint8
+    )
+    closed = grown.copy()
+    closed[:, 1:-1] |= grown[:, :-2] & grown[:, 2:]
+    closed[:, 1:-2] |= grown[:, :-3] & grown[:, 3:]
+    closed[:, 2:-1] |= grown[:, :-3] & grown[:, 3:]
+    return np.asarray(cv2.max(code, closed), dtype=np.uint8)
+
+
 def _fronts_rows(
     code: npt.NDArray[np.uint8],
     out: npt.NDArray[np.uint8],
@@ -1476,6 +1508,8 @@ def _fronts_rows(
     face: int,
     crossing: int,
     stub: int,
+    *,
+    slack: int = 0,
 ) -> None:
     """:func:`_flush_fronts` along the rows of ``code`` (0 unknown, 1 free, 2 occupied), the
     furniture below or above the line; bits 0 (line), 1 (front), 2 (inside) and 3 (a wall meeting
@@ -1498,7 +1532,10 @@ def _fronts_rows(
     # Gaps between consecutive occupied cells of one row, unknown at both ends.
     left = np.flatnonzero(same_row & (step > 1) & (step - 1 <= max_len))
     left = left[(flat_code[cells[left] + 1] == 0) & (flat_code[cells[left + 1] - 1] == 0)]
-    left = left[(run_len[left] >= anchor) & (run_len[left + 1] >= anchor)]
+    # (Straightened: a band's wall stretches twice as long, as the staggered bridges' ends: a face
+    # across the line at an angle makes short stretches in a band too.)
+    run_anchor = anchor if slack == 0 else 2 * anchor
+    left = left[(run_len[left] >= run_anchor) & (run_len[left + 1] >= run_anchor)]
     if left.size == 0:
         return
     span = max_depth + 1
@@ -1515,8 +1552,8 @@ def _fronts_rows(
     for sign in (1, -1):
         # Cheap tests first, on a few cells of each candidate: the wall ends' last cells see
         # free space within ``face`` on this side, the gap's middle column none that near.
-        across = rows[:, None, None] + sign * np.arange(1, face + 1)[:, None]
-        along = np.arange(anchor)
+        across = rows[:, None, None] + sign * np.arange(1, face + slack + 1)[:, None]
+        along = np.arange(anchor + 2 * slack)
         face_left = free(across, np.maximum(end_left[:, None] - along, 0)[:, None, :])
         face_right = free(across, np.minimum(end_right[:, None] + along, width - 1)[:, None, :])
         face_left = face_left.any(axis=1).sum(axis=1)
@@ -1541,6 +1578,7 @@ def _fronts_rows(
                 face,
                 crossing,
                 stub,
+                slack=slack,
             )
 
 
@@ -1555,9 +1593,12 @@ def _front_at(
     face: int,
     crossing: int,
     stub: int,
+    *,
+    slack: int = 0,
 ) -> None:
     """The checks of one candidate gap ``row, col0:col1`` (the furniture below it) and, when it
-    passes, its line, front and inside in ``out``."""
+    passes, its line, front and inside in ``out``; with ``slack`` (a straightened staircase) the
+    gap's first and last ``slack + 1`` columns may open to the room (a side face a column off)."""
     height, width = code.shape
     max_depth = span - 1
     if row + 1 >= height or (code[row, col0:col1] != 0).any():
@@ -1566,10 +1607,19 @@ def _front_at(
     below = code[row + 1 : row + 1 + span, lo:hi] == 1
     # Occupied or unknown cells below each column, down to free space (``span``: none near).
     depth = np.where(below.any(axis=0), below.argmax(axis=0), span)
+    if slack:
+        # A staircase's side face a column or two off the wall's end: free space reaches the line
+        # there, beside the object, not in front of it.
+        for _ in range(slack + 1):
+            if col1 - col0 > 1 and depth[col0 - lo] <= face:
+                col0 += 1
+            if col1 - col0 > 1 and depth[col1 - 1 - lo] <= face:
+                col1 -= 1
     d = depth[col0 - lo : col1 - lo]
     # Deeper than a wall face everywhere (else the "front" is the wall itself, the line the
-    # unknown behind it), no deeper than furniture.
-    if d.min() <= face:
+    # unknown behind it), no deeper than furniture. Straightened, by two cells more: the grown
+    # row, and a wall bending off the line by a cell (a single wall is no object).
+    if d.min() <= face + 2 * slack:
         return
     deep = d > max_depth
     if deep.all():
@@ -1594,8 +1644,7 @@ def _front_at(
         return
     # The last cell before free space is occupied: a front face, not a shadow's edge, in nine
     # columns of ten (a scan leaves single holes in a front). Walls at an angle to the grid are
-    # staircases once rotated onto the rows, which the checks here do not take yet: the rule
-    # finds furniture along walls parallel to the grid's axes only.
+    # staircases once rotated onto the rows: :func:`_flush_fronts` reads them straightened too.
     cols = np.arange(col0, col1)[~deep]
     if (code[row + d[~deep], cols] >= 2).mean() < _FRONT_FACE_SHARE:
         return

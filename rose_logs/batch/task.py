@@ -291,7 +291,8 @@ def package_version() -> str:
 #: completed walls, complete MCAP files without a summary read in log-time order, cells outside
 #: -1..100 read as occupied, unappliable grid updates counted as skipped; 10: hidden walls drawn
 #: only between wall ends, partitions kept, output sizes stored; 11: the walls cleaning's
-#: flush-furniture rule).
+#: flush-furniture rule, also at an angle to the grid; a room walled by the grid's border no
+#: degenerate input).
 RESULT_LAYOUT = 11
 
 
