@@ -54,7 +54,8 @@ def test_structure_score_separates_plan_from_noise() -> None:
     rng = np.random.default_rng(0)
     assert rose.analyze(floor_plan(angle_deg=20.0)).structure_score < 0.2
     for density in (0.01, 0.05, 0.2):
-        assert rose.analyze(rng.random((300, 400)) < density).structure_score > 0.5
+        # Above the paper's failure level (README: 0.46-0.65 over 20 seeds).
+        assert rose.analyze(rng.random((300, 400)) < density).structure_score > 0.4
 
 
 def test_rotating_the_map_by_90_degrees_shifts_directions_by_90() -> None:
