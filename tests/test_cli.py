@@ -322,7 +322,8 @@ def test_a_map_without_occupied_cells_gets_no_verdict_on_w(
 def test_library_warnings_print_like_the_commands_own(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """`warning: ...`, lower case, as everywhere else (Python's default says `WARNING:`)."""
+    """`warning: ...`, lower case, as everywhere else (Python's default says `WARNING:`), naming
+    the map (it said "ROSE found no dominant direction" without saying which map)."""
     import logging
 
     root = logging.getLogger()
@@ -337,7 +338,7 @@ def test_library_warnings_print_like_the_commands_own(
     finally:
         root.handlers, root.level = handlers, level
     err = capsys.readouterr().err
-    assert "warning: ROSE found no dominant direction" in err, err
+    assert f"warning: {path}: ROSE found no dominant direction" in err, err
     assert "WARNING" not in err
 
 

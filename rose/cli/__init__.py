@@ -162,6 +162,9 @@ def _run(argv: Sequence[str] | None) -> int:
     check_params(args.command_parser, args)
     handler = logging.StreamHandler(sys.stderr)
     handler.setFormatter(LevelFormatter())
+    # Not for `rose score`'s several maps: the first one's name would be wrong for the others.
+    single = input_name(args) if getattr(args, "maps", None) is None else None
+    handler.addFilter(_InputNamed(single))
     logging.basicConfig(level=logging.WARNING, handlers=[handler])
     try:
         with stdout_errors_named():  # its errors name it, not the input
@@ -181,6 +184,23 @@ class LevelFormatter(logging.Formatter):
 
     def format(self, record: logging.LogRecord) -> str:
         return f"{record.levelname.lower()}: {record.getMessage()}"
+
+
+class _InputNamed(logging.Filter):
+    """Puts the command's input in front of the library's messages that do not name a file
+    (``warning: ROSE found no dominant direction ...`` said nothing of which map)."""
+
+    def __init__(self, name: str | None) -> None:
+        super().__init__()
+        self._name = name
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        from_library = record.name.startswith("rose.") and not record.name.startswith("rose.cli")
+        if self._name and from_library:
+            message = record.getMessage()
+            if not message.startswith(self._name):
+                record.msg, record.args = f"{self._name}: {message}", None
+        return True
 
 
 def input_name(args: object) -> str | None:
