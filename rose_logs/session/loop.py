@@ -942,9 +942,21 @@ def _no_display() -> bool:
 def _rerun_failure(rrd_path: Path | None, connect: str | None, err: BaseException) -> str:
     """One line for a Rerun recording that could not be finished, naming where it was going."""
     if rrd_path is not None:
-        return f"{rrd_path}: cannot write the Rerun recording ({short(err, 160)})"
+        # Rerun says only that its file writer stopped; a full disk is the usual reason.
+        return f"{rrd_path}: cannot write the Rerun recording ({short(err, 160)}{_full(rrd_path)})"
     viewer = f"the Rerun viewer at {connect}" if connect is not None else "the spawned Rerun viewer"
     return f"cannot stream to {viewer}; is it running? ({short(err, 160)})"
+
+
+def _full(path: Path) -> str:
+    """``"; its file system is full (12 kB free)"`` when less than a MiB is free where ``path``
+    goes (the recording's partial file is still there), else ``""``."""
+    try:
+        stat = os.statvfs(path.parent)
+    except (OSError, AttributeError):  # no such folder any more; statvfs is POSIX only
+        return ""
+    free = stat.f_bavail * stat.f_frsize
+    return f"; its file system is full ({free // 1000} kB free)" if free < 2**20 else ""
 
 
 def _record(

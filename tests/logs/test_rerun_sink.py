@@ -912,3 +912,23 @@ def test_a_snapshot_logged_with_its_cleaning_shows_what_the_cleaning_changed(
     )
     assert np.array_equal(logged, expected)
     assert (logged == CLASS_COMPLETED).sum() == cleaning.completed.sum() > 0
+
+
+def test_a_recording_that_filled_its_disk_says_so(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Rerun's file writer only says it "shut down prematurely"; the error hid that the disk was
+    full (the other outputs say "No space left on device")."""
+    import os
+
+    from rose_logs.errors import LogWriteError
+    from rose_logs.rerun import sink as sink_module
+
+    monkeypatch.setattr(sink_module, "_FOOTER_END", b"NOTTHERE")  # the recording fails to finish
+
+    class Full:
+        f_bavail, f_frsize = 3, 4096
+
+    monkeypatch.setattr(os, "statvfs", lambda path: Full())
+    with pytest.raises(LogWriteError, match=r"; its file system is full \(12 kB free\)\)$"):
+        process_log(SAMPLE, rrd_path=tmp_path / "run.rrd")
