@@ -53,10 +53,26 @@ MAX_MESSAGE_CHARS = 300
 """Longest error message printed (the rest is cut)."""
 
 
+#: Fewest characters of a word shortened in its middle (:func:`short`).
+_KEPT_OF_A_WORD = 24
+
+
 def short(text: object, limit: int = MAX_MESSAGE_CHARS) -> str:
-    """``text`` as one line of at most ``limit`` characters (first line, cut with ``...``)."""
+    """``text`` as one line of at most ``limit`` characters: whitespace runs made single spaces,
+    then, if still too long, its longest word (usually a deep file path) shortened in the middle
+    with ``...``, so that the message's end (often what to do about it) stays; failing that, cut
+    at the end with ``...``."""
     line = " ".join(str(text).split())
-    return line if len(line) <= limit else line[: limit - 3] + "..."
+    if len(line) <= limit:
+        return line
+    words = line.split(" ")
+    longest = max(range(len(words)), key=lambda i: len(words[i]))
+    keep = len(words[longest]) - (len(line) - limit) - 3
+    if keep >= _KEPT_OF_A_WORD:
+        word = words[longest]
+        words[longest] = f"{word[: keep // 2]}...{word[len(word) - (keep - keep // 2) :]}"
+        return " ".join(words)
+    return line[: limit - 3] + "..."
 
 
 def visible(text: str) -> str:

@@ -100,3 +100,17 @@ def test_non_finite_origin_is_refused(tmp_path: Path, origin: str) -> None:
 def test_short_cuts_long_messages() -> None:
     assert short("a\nb") == "a b"
     assert len(short("x" * 10_000)) == 300
+
+
+def test_short_keeps_the_advice_at_the_end_of_a_message_about_a_deep_path() -> None:
+    """A truncated log under a deep folder: the cut fell in "--salvage (pro...", the advice."""
+    path = "/data/" + "a" * 150 + "/" + "b" * 100 + "/run.mcap"
+    message = (
+        f"{path}: truncated MCAP file; --salvage (process, info, batch) keeps what can be read"
+    )
+    text = short(message)
+    assert len(text) == 300
+    assert text.endswith("; --salvage (process, info, batch) keeps what can be read")
+    assert text.startswith("/data/aaa") and "...b" in text and "/run.mcap: truncated" in text
+    # Many short words: cut at the end, as before.
+    assert short("ab " * 200).endswith("...") and len(short("ab " * 200)) == 300
