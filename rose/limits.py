@@ -53,26 +53,18 @@ MAX_MESSAGE_CHARS = 300
 """Longest error message printed (the rest is cut)."""
 
 
-#: Fewest characters of a word shortened in its middle (:func:`short`).
-_KEPT_OF_A_WORD = 24
-
-
 def short(text: object, limit: int = MAX_MESSAGE_CHARS) -> str:
     """``text`` as one line of at most ``limit`` characters: whitespace runs made single spaces,
-    then, if still too long, its longest word (usually a deep file path) shortened in the middle
-    with ``...``, so that the message's end (often what to do about it) stays; failing that, cut
-    at the end with ``...``."""
+    then, if still too long, cut after its last whole word that fits, with ``...`` (a file name at
+    its start stays whole; a cut in the middle of a word read like another word: "--salvage
+    (pro...")."""
     line = " ".join(str(text).split())
     if len(line) <= limit:
         return line
-    words = line.split(" ")
-    longest = max(range(len(words)), key=lambda i: len(words[i]))
-    keep = len(words[longest]) - (len(line) - limit) - 3
-    if keep >= _KEPT_OF_A_WORD:
-        word = words[longest]
-        words[longest] = f"{word[: keep // 2]}...{word[len(word) - (keep - keep // 2) :]}"
-        return " ".join(words)
-    return line[: limit - 3] + "..."
+    cut = line.rfind(" ", 0, limit - 2)  # the space before "..." may fall at limit - 3
+    if cut < limit // 2:  # one enormous word: cut inside it
+        cut = limit - 3
+    return line[:cut] + "..."
 
 
 def visible(text: str) -> str:

@@ -1145,8 +1145,7 @@ def test_the_batchs_error_line_is_one_short_line_however_long_the_rows_error(
     out = tmp_path / "out"
     assert main(["batch", str(fleet / "robot_a" / "run.mcap"), "-o", str(out), "-q"]) == 1
     (line,) = [x for x in capsys.readouterr().err.splitlines() if x.startswith("failed:")]
-    assert len(line) <= len("failed: ") + MAX_MESSAGE_CHARS and "..." in line
-    assert line.endswith("x)")  # shortened in its longest word, the end kept
+    assert len(line) <= len("failed: ") + MAX_MESSAGE_CHARS and line.endswith("...")
     (row,) = read_rows(out / "recordings.parquet")
     assert long_text in row["error"]
 
