@@ -164,6 +164,8 @@ def _wall_cells(
             face_px=length_px(_FRONT_FACE_M, res),
             crossing_px=length_px(_FRONT_CROSSING_M, res),
             wall_px=length_px(p.min_run_m, res),
+            corner_px=length_px(_CORNER_MAX_M, res) if p.max_bridge_m > 0 else 0.0,
+            corner_depth_px=length_px(_CORNER_DEPTH_M, res),
         )
         runs = directional_runs(
             occupied,
@@ -1387,6 +1389,19 @@ _FRONT_CROSSING_M = 0.5
 _FRONT_FACE_M = 0.15
 #: ... the share of the furniture's columns whose last cell before the room is occupied.
 _FRONT_FACE_SHARE = 0.9
+#: ... furniture in a room's corner (:func:`_corner_at`), where the hidden parts of two walls meet
+#: behind it: one wall's line runs on from its visible end to the other's, which runs on from the
+#: furniture's front; the longest such line (metres, as between two wall ends). Read only in frames
+#: along the grid's axes: rotated onto the rows, nearest-neighbour sampling breaks a wall's rows
+#: into stretches whose ends look like a wall's end (on the ray-cast logs, whose walls are 1.5-18
+#: degrees off the axes, reading corners in rotated frames too cost intel 0.6-1.0 points of wall
+#: recall, of its own shelves, and opened a robot gap in both intel-r30 cases).
+_CORNER_MAX_M = 5.0
+#: ... the shallowest such furniture, from the wall line to the far side of its front (metres):
+#: twice a wall face. One wall end is weaker evidence than two: a wall stepping or bending off
+#: its line by a wall's thickness (0.2-0.25 m) next to a corner looks the same, and shallower
+#: furniture (a shelf) is rare.
+_CORNER_DEPTH_M = 0.3
 
 
 def _flush_fronts(
@@ -1400,6 +1415,8 @@ def _flush_fronts(
     face_px: float,
     crossing_px: float,
     wall_px: float,
+    corner_px: float = 0.0,
+    corner_depth_px: float = 0.0,
 ) -> tuple[
     npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_]
 ]:
@@ -1420,6 +1437,10 @@ def _flush_fronts(
     a wall is a staircase, the rotated rows are read as they are and once more straightened
     (:func:`_straightened`: the wall line a band of rows), with anchors twice as long, the gap's
     end columns allowed to open to the room, and the front two cells deeper than a wall face.
+    With ``corner_px``, in frames along the grid's axes, also furniture in a room's corner
+    (:func:`_corner_at`): the line from one wall's visible end (at most ``corner_px``) to the line
+    of a perpendicular wall that runs on from the furniture's front, the front at least
+    ``corner_depth_px`` from the line; both hidden lines are drawn.
     """
     import cv2
 
@@ -1459,6 +1480,9 @@ def _flush_fronts(
                 round(crossing_px),
                 round(wall_px),
                 slack=slack,
+                # Corners only along the grid's axes (see _CORNER_MAX_M).
+                corner_len=round(corner_px) if matrix is None else 0,
+                corner_depth=round(corner_depth_px),
             )
         if matrix is not None:
             out = np.asarray(
@@ -1510,10 +1534,14 @@ def _fronts_rows(
     stub: int,
     *,
     slack: int = 0,
+    corner_len: int = 0,
+    corner_depth: int = 0,
 ) -> None:
     """:func:`_flush_fronts` along the rows of ``code`` (0 unknown, 1 free, 2 occupied), the
     furniture below or above the line; bits 0 (line), 1 (front), 2 (inside) and 3 (a wall meeting
-    the object) set in ``out``.
+    the object) set in ``out``. With ``corner_len``, also furniture in a room's corner
+    (:func:`_corners_rows`), its hidden line at most that long and its front at least
+    ``corner_depth`` cells from the line.
 
     Whole-image work is only the runs of the occupied cells; each candidate gap (unknown cells at
     both ends) is then checked on a few cells, and the rest on the few rows beside it."""
@@ -1536,9 +1564,26 @@ def _fronts_rows(
     # across the line at an angle makes short stretches in a band too.)
     run_anchor = anchor if slack == 0 else 2 * anchor
     left = left[(run_len[left] >= run_anchor) & (run_len[left + 1] >= run_anchor)]
+    span = max_depth + 1
+    if corner_len > 0 and slack == 0:
+        # One wall end is weaker evidence than two: its visible stretch must be twice an anchor
+        # (as a staggered bridge's ends), longer than the steps of a wall at 45 degrees.
+        last = np.append(new_run[1:], True)
+        long_run = run_len >= 2 * anchor
+        _corners_rows(
+            code,
+            out,
+            (cells[last & long_run], cells[new_run & long_run]),
+            corner_len,
+            corner_depth,
+            span,
+            anchor,
+            face,
+            crossing,
+            stub,
+        )
     if left.size == 0:
         return
-    span = max_depth + 1
 
     def free(
         at_rows: npt.NDArray[np.int64], at_cols: npt.NDArray[np.int64]
@@ -1595,14 +1640,15 @@ def _front_at(
     stub: int,
     *,
     slack: int = 0,
-) -> None:
+) -> bool:
     """The checks of one candidate gap ``row, col0:col1`` (the furniture below it) and, when it
-    passes, its line, front and inside in ``out``; with ``slack`` (a straightened staircase) the
-    gap's first and last ``slack + 1`` columns may open to the room (a side face a column off)."""
+    passes (returns True), its line, front and inside in ``out``; with ``slack`` (a straightened
+    staircase) the gap's first and last ``slack + 1`` columns may open to the room (a side face a
+    column off)."""
     height, width = code.shape
     max_depth = span - 1
     if row + 1 >= height or (code[row, col0:col1] != 0).any():
-        return
+        return False
     lo, hi = max(col0 - anchor, 0), min(col1 + anchor, width)
     below = code[row + 1 : row + 1 + span, lo:hi] == 1
     # Occupied or unknown cells below each column, down to free space (``span``: none near).
@@ -1620,10 +1666,10 @@ def _front_at(
     # unknown behind it), no deeper than furniture. Straightened, by two cells more: the grown
     # row, and a wall bending off the line by a cell (a single wall is no object).
     if d.min() <= face + 2 * slack:
-        return
+        return False
     deep = d > max_depth
     if deep.all():
-        return
+        return False
     # A wall meeting the object: columns reaching farther than the front (the depth most
     # columns share) by more than a wall face, in a stretch no wider than a wall (a partition
     # ending on a cabinet's front, or crossing the hidden line between two objects), not at the
@@ -1639,20 +1685,20 @@ def _front_at(
         if wall:
             stubs[start:end] = True
         elif deep[start:end].any():
-            return
+            return False
     if stubs[0] or stubs[-1]:
-        return
+        return False
     # The last cell before free space is occupied: a front face, not a shadow's edge, in nine
     # columns of ten (a scan leaves single holes in a front). Walls at an angle to the grid are
     # staircases once rotated onto the rows: :func:`_flush_fronts` reads them straightened too.
     cols = np.arange(col0, col1)[~deep]
     if (code[row + d[~deep], cols] >= 2).mean() < _FRONT_FACE_SHARE:
-        return
+        return False
     # An inside a scanner did not see, behind the front: a solid piece reaching from the wall
     # into the room is the wall's own stub or pilaster (no scan sees into furniture).
     behind = code[row + 1 : row + 1 + front, col0:col1][:, ~deep]
     if not (behind == 0).any(axis=0).mean() >= 0.5:
-        return
+        return False
     out[row, col0:col1] |= 1
     # The object: the gap's columns and its side faces (up to ``face`` columns beyond each end,
     # where they too are deeper than a wall face) down to free space.
@@ -1683,9 +1729,140 @@ def _front_at(
                 (cells >= 2) & ~past, 8, 0
             ).astype(np.uint8)
     if reach.max() == 0:
-        return
+        return True
     block = code[row + 1 : row + 1 + int(reach.max()), first:last]
     within = np.arange(block.shape[0])[:, None] < reach
     out[row + 1 : row + 1 + block.shape[0], first:last] |= np.where(
         within, np.where(block == 0, 4, 2), 0
     ).astype(np.uint8)
+    return True
+
+
+def _corners_rows(
+    code: npt.NDArray[np.uint8],
+    out: npt.NDArray[np.uint8],
+    anchors: tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]],
+    max_len: int,
+    min_depth: int,
+    span: int,
+    anchor: int,
+    face: int,
+    crossing: int,
+    stub: int,
+) -> None:
+    """Furniture in a room's corner, along the rows of ``code``: a wall stretch (``anchors``: the
+    flat indices of the last and of the first cells of the occupied runs long enough to anchor a
+    line) ending in unknown cells, its line hidden behind furniture up to a perpendicular wall
+    (:func:`_corner_at`), in either direction along the row, the furniture on either side of it."""
+    height, width = code.shape
+    flat_code = code.reshape(-1)
+    # The last cell of a stretch going right, the first going left, with an unknown cell beyond.
+    for step, end in zip((1, -1), anchors, strict=True):
+        col = end % width
+        end = end[(col < width - 1) if step == 1 else (col > 0)]
+        end = end[flat_code[end + step] == 0]
+        rows, beyond = end // width, end % width + step
+        for sign in (1, -1):
+            # Cheap tests first, on a few cells of each candidate: the wall's end faces the room
+            # on this side (as both ends of a gap must: free space within a wall face of most of
+            # its last ``anchor`` cells), and the furniture starts right beyond it (free space
+            # there no nearer than the shallowest front, but for a cell of a scan's noise, and no
+            # farther than the deepest).
+            across = np.clip(
+                rows[:, None, None] + sign * np.arange(1, face + 1)[:, None], 0, height - 1
+            )
+            along = np.clip(beyond[:, None] - step * np.arange(1, anchor + 1), 0, width - 1)
+            facing = (code[across, along[:, None, :]] == 1).any(axis=1).sum(axis=1)
+            down = np.clip(rows[:, None] + sign * np.arange(1, span + 1), 0, height - 1)
+            free = code[down, beyond[:, None]] == 1
+            depth = np.where(free.any(axis=1), free.argmax(axis=1), span)
+            chosen = (
+                (2 * facing >= anchor) & (depth >= max(face + 1, min_depth - 1)) & (depth < span)
+            )
+            # Rows and columns flipped so that the furniture lies below and the line runs right
+            # (views, no copies).
+            view, written = code[::sign, ::step], out[::sign, ::step]
+            for row, start in zip(rows[chosen].tolist(), beyond[chosen].tolist(), strict=True):
+                _corner_at(
+                    view,
+                    written,
+                    row if sign == 1 else height - 1 - row,
+                    start if step == 1 else width - 1 - start,
+                    (max_len, min_depth, span),
+                    anchor,
+                    face,
+                    crossing,
+                    stub,
+                )
+
+
+def _corner_at(
+    code: npt.NDArray[np.uint8],
+    out: npt.NDArray[np.uint8],
+    row: int,
+    col0: int,
+    lengths: tuple[int, int, int],
+    anchor: int,
+    face: int,
+    crossing: int,
+    stub: int,
+) -> None:
+    """One candidate corner: the wall along ``row`` ends at ``col0 - 1`` (facing the room below:
+    :func:`_corners_rows` checked) and runs on unseen from ``col0``, with furniture below it up to the first column no front reaches (``col1``). That
+    column must be the room's other wall, perpendicular: a stretch of at least ``anchor`` occupied
+    cells from just past the furniture's front on, facing the room on the furniture's side; the
+    corner of the two wall lines lies behind the furniture. The front must be parallel to the line
+    and at least ``min_depth`` cells from it. Then the gap ``col0:col1`` is checked as a gap between
+    two wall ends (:func:`_front_at`: fronts, depth, an unseen inside) and, when it passes, the
+    other wall's hidden part, from the line to the front, is drawn too, and the first wall's
+    visible end is kept. ``lengths``: the longest line (``max_len``), the shallowest front
+    (``min_depth``) and ``span`` (the deepest front plus one), in cells."""
+    max_len, min_depth, span = lengths
+    height, width = code.shape
+    if row + 1 >= height or col0 >= width:
+        return
+    # The unseen stretch of the line (it runs on past the corner, unseen, into the outside).
+    line = code[row, col0 : col0 + max_len + 1] == 0
+    n = line.size if line.all() else int(line.argmin())
+    below = code[row + 1 : row + 1 + span, col0 : col0 + n] == 1
+    depth = np.where(below.any(axis=0), below.argmax(axis=0), span)
+    deep = np.flatnonzero(depth >= span)
+    if deep.size == 0 or deep[0] < anchor:
+        return
+    col1 = col0 + int(deep[0])
+    front = int(np.median(depth[: deep[0]]))
+    # A front parallel to the line, as furniture set against a wall has, every column within a
+    # cell of it (a scan's noise; a wall a few degrees off the grid, running off from the wall's
+    # end, reaches the room at ever other depths), and deeper than a wall's step.
+    if front < min_depth or (np.abs(depth[: deep[0]] - front) > 1).any():
+        return
+    # The other wall: occupied from just past the front on, an anchor's length, with free space
+    # within a wall face of it on the furniture's side (a wall facing the room, not the outside).
+    top = row + front + 1
+    if top + anchor > height:
+        return
+    wall = code[top : top + anchor, col1] >= 2
+    sees = (code[top : top + anchor, max(col1 - face, 0) : col1] == 1).any(axis=1)
+    if not wall.all() or 2 * int(sees.sum()) < anchor:
+        return
+    if not _front_at(code, out, row, col0, col1, span, anchor, face, crossing, stub):
+        return
+    # The corner: the line on to the other wall's line, and that wall, from the line down to the
+    # front (only the unknown cells are drawn: :func:`_flush_fronts` masks the line).
+    out[row:top, col1] |= 1
+    # The first wall's visible end is a wall (the line's anchor), up to a run's length from the
+    # object and as thick as it is solid: kept, though the line may now close off a thick wall's
+    # unknown core, which the object-face rule reads as a scanned object's inside (its faces went).
+    behind = (slice(max(row - face + 1, 0), row + 1), slice(max(col0 - stub, 0), col0))
+    _mark_solid(out[behind][::-1, ::-1], code[behind][::-1, ::-1] >= 2)
+
+
+def _mark_solid(out: npt.NDArray[np.uint8], solid: npt.NDArray[np.bool_]) -> None:
+    """Bit 3 (a wall, kept) in ``out`` on the cells of ``solid`` joined to its first cell: along its
+    first row while solid, and across from each of those cells while solid (a wall's length and,
+    from its face, its thickness)."""
+    if solid.size == 0 or not solid[0, 0]:
+        return
+    length = solid.shape[1] if solid[0].all() else int(solid[0].argmin())
+    deep = np.cumprod(solid[:, :length], axis=0).astype(bool)
+    out[:, :length] |= np.where(deep, 8, 0).astype(np.uint8)

@@ -822,3 +822,69 @@ def test_a_solid_stub_of_the_wall_is_no_furniture_front(monkeypatch: pytest.Monk
     monkeypatch.setattr("rose.cleaning_rules._FRONT_MAX_M", 0.0)
     without = clean(grid, result, resolution_m=RES)
     assert np.array_equal(cleaned.kept, without.kept)
+
+
+def _corner_room() -> npt.NDArray[np.int8]:
+    """A closed room 4.7 x 2.7 m, 1-cell walls, the unknown outside around it."""
+    grid = np.full((80, 120), -1, dtype=np.int8)
+    grid[20:76, 5:101] = 0
+    grid[20, 5:101] = grid[75, 5:101] = 100  # top and bottom walls
+    grid[20:76, 5] = grid[20:76, 100] = 100  # left and right walls
+    return grid
+
+
+def test_a_cabinet_in_a_room_corner_goes_and_both_hidden_walls_are_drawn() -> None:
+    """A cabinet 1.5 m x 0.6 m in a room's corner hides the ends of both walls: the wall line runs
+    unseen from one wall's visible end to the other wall, which runs on from the cabinet's front.
+    The flush-furniture rule needed visible wall on both ends of the hidden line, and the cabinet
+    stayed. The corner of the two wall lines as the second end: the front and side go, both hidden
+    lines are drawn and the room stays closed."""
+    grid = _corner_room()
+    grid[20:32, 71:101] = -1  # hidden: both walls' ends and the cabinet's inside
+    grid[32, 70:100] = 100  # the front, 1.5 m
+    grid[20:33, 70] = 100  # the side, 0.6 m
+    cleaned = clean(grid, rose.analyze(grid), resolution_m=RES)
+    assert not cleaned.kept[32, 72:98].any() and not cleaned.kept[22:31, 70].any()
+    assert cleaned.kept[20, 5:69].all() and cleaned.kept[34:76, 100].all()  # the walls stay
+    assert cleaned.completed[20, 71:101].all()  # the top wall's hidden end ...
+    assert cleaned.completed[21:32, 100].all()  # ... and the right wall's
+    assert (cleaned.cleaned[20, 5:101] == 100).all() and (cleaned.cleaned[20:76, 100] == 100).all()
+    # No hidden walls drawn (max_bridge_m = 0): the cabinet stays.
+    kept = clean(grid, rose.analyze(grid), resolution_m=RES, params=CleanParams(max_bridge_m=0))
+    assert not kept.completed.any() and kept.kept[32, 72:98].all()
+
+
+def test_a_wall_ending_on_two_corner_cabinets_stays() -> None:
+    """A partition two cells thick ends on the fronts of two cabinets standing against the wall
+    behind, one each side of it: each cabinet is in a corner of the partition and that wall. The
+    partition's end is a wall, not a side face of either cabinet: it stays, whole."""
+    grid = _corner_room()
+    grid[21:60, 52:54] = 100  # the partition, ending on the fronts 0.8 m from the far wall
+    grid[62:76, 34:72] = -1  # the cabinets' insides, unseen, and the wall behind them
+    grid[60:62, 32:74] = 100  # the fronts, two cells thick, 1 m each side of the partition
+    grid[60:76, 32:34] = grid[60:76, 72:74] = 100  # their outer sides
+    cleaned = clean(grid, rose.analyze(grid), resolution_m=RES)
+    assert cleaned.kept[21:60, 52:54].all()  # the partition stays
+    assert not cleaned.kept[60:62, 36:50].any() and not cleaned.kept[60:62, 56:70].any()
+    assert (cleaned.cleaned[75, 5:101] == 100).all()  # the wall behind is drawn
+
+
+@pytest.mark.parametrize("kind", ["step", "hole"])
+def test_a_room_corner_with_a_wall_step_or_a_scan_hole_keeps_its_walls(kind: str) -> None:
+    """Two shapes of a real room corner that end one wall short of the other with unknown cells
+    beyond: the wall stepping 0.2 m into the room next to the corner (a wall's thickness: no
+    furniture is that shallow), and a scan hole in the wall next to the corner (free space right
+    in front of it: no front). Nothing is removed, nor drawn by the corner rule."""
+    grid = _corner_room()
+    if kind == "step":
+        grid[20, 71:101] = -1
+        grid[21:24, 71:100] = -1
+        grid[20:25, 70] = 100  # the step, 0.2 m
+        grid[24, 70:100] = 100  # the wall on, 0.2 m into the room
+        grid[20:24, 100] = -1
+    else:
+        grid[20, 88:100] = -1  # the hole, 0.6 m, free space in front of it
+    walls = grid == 100
+    cleaned = clean(grid, rose.analyze(grid), resolution_m=RES)
+    assert cleaned.kept[walls].all()
+    assert not cleaned.completed[20:40, 60:101].any()

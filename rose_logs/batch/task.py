@@ -292,8 +292,8 @@ def package_version() -> str:
 #: -1..100 read as occupied, unappliable grid updates counted as skipped; 10: hidden walls drawn
 #: only between wall ends, partitions kept, output sizes stored; 11: the walls cleaning's
 #: flush-furniture rule, also at an angle to the grid; a room walled by the grid's border no
-#: degenerate input).
-RESULT_LAYOUT = 11
+#: degenerate input; 12: the walls cleaning's corner-furniture rule).
+RESULT_LAYOUT = 12
 
 
 def result_key(recording: Recording, options: RecordingOptions) -> str:
