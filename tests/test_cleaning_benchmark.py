@@ -232,3 +232,37 @@ def test_rotated_ray_cast_case_turns_the_building_and_keeps_its_walls(
     assert runs["walls"].wall_recall >= 0.7
     assert runs["walls"].wall_recall > runs["paper"].wall_recall + 0.3
     assert runs["walls"].robot_gaps <= 2
+
+
+def test_paired_rotated_furniture_is_the_unrotated_furniture_turned() -> None:
+    """The benchmark's paired rotated cases keep the unrotated case's objects, turned with the log
+    about the world origin (positions and rectangle headings)."""
+    from rose_logs.carmen.furniture import Furniture
+    from rose_logs.evaluation.raycast import _rotated, _rotated_furniture
+
+    furniture = Furniture(
+        rects=np.array([[2.0, 1.0, 0.5, 0.3, 0.25]]),
+        circles=np.array([[-1.0, 3.0, 0.2]]),
+        kinds=("box", "bin"),
+    )
+    turned = _rotated_furniture(furniture, math.radians(30))
+    poses = _rotated(np.array([[2.0, 1.0, 0.25], [-1.0, 3.0, 0.0]]), math.radians(30))
+    np.testing.assert_allclose(turned.rects[0, [0, 1, 4]], poses[0])
+    np.testing.assert_allclose(turned.rects[0, 2:4], [0.5, 0.3])
+    np.testing.assert_allclose(turned.circles[0], [*poses[1, :2], 0.2])
+    assert turned.kinds == furniture.kinds
+    assert _rotated_furniture(furniture, 0.0) is furniture
+
+
+@needs_logs
+def test_a_paired_rotated_case_is_named_and_kept_apart_from_the_unpaired_one() -> None:
+    """``paired=True`` is a kind of its own in the benchmark's tables (its own medians), named with
+    a ``p`` after the angle; unrotated, it is the plain case."""
+    from rose_logs.evaluation.raycast import raycast_case
+
+    log = LOGS / "freiburg-101-corrected.log.gz"
+    paired = raycast_case(log, seed=2021, rotation_deg=30.0, paired=True)
+    assert paired.kind == "raycast-r30deg-paired" and paired.name == "freiburg-101-r30p-s2021"
+    assert paired.clutter.any() and not np.any(paired.walls & paired.clutter)
+    straight = raycast_case(log, seed=2021, paired=True)
+    assert straight.kind == "raycast" and straight.name == "freiburg-101-s2021"

@@ -19,7 +19,12 @@ import numpy as np
 import numpy.typing as npt
 
 import rose
-from rose_logs.carmen.furniture import place_furniture, rasterise_furniture, shorten_ranges
+from rose_logs.carmen.furniture import (
+    Furniture,
+    place_furniture,
+    rasterise_furniture,
+    shorten_ranges,
+)
 from rose_logs.carmen.parse import beam_angles
 from rose_logs.carmen.raycast import BuilderParams, OccupancyGridBuilder, ScanBatch
 from rose_logs.evaluation.cleaning import CleaningCase
@@ -76,6 +81,22 @@ def _rotated(poses: npt.NDArray[np.float64], angle: float) -> npt.NDArray[np.flo
     return turned
 
 
+def _rotated_furniture(furniture: Furniture, angle: float) -> Furniture:
+    """``furniture`` rotated by ``angle`` (radians, counter-clockwise) about the world origin, as
+    :func:`_rotated` turns the poses."""
+    if angle == 0:
+        return furniture
+    c, s = math.cos(angle), math.sin(angle)
+    rects = np.array(furniture.rects, dtype=np.float64).reshape(-1, 5)
+    circles = np.array(furniture.circles, dtype=np.float64).reshape(-1, 3)
+    for shapes in (rects, circles):
+        x, y = shapes[:, 0].copy(), shapes[:, 1].copy()
+        shapes[:, 0] = c * x - s * y
+        shapes[:, 1] = s * x + c * y
+    rects[:, 4] += angle
+    return Furniture(rects=rects, circles=circles, kinds=furniture.kinds)
+
+
 def _large_components(
     occupied: npt.NDArray[np.bool_], resolution_m: float
 ) -> npt.NDArray[np.bool_]:
@@ -97,6 +118,7 @@ def raycast_case(
     objects: int | None = None,
     name: str | None = None,
     rotation_deg: float = 0.0,
+    paired: bool = False,
 ) -> CleaningCase:
     """A furnished ray-cast map of a CARMEN log with exact wall / clutter ground truth.
 
@@ -116,35 +138,51 @@ def raycast_case(
         Rotate the whole log (every pose about the world origin) counter-clockwise by this angle,
         degrees: the building's walls then lie at other angles to the grid, as a map whose frame is
         not aligned with the building has them. Rotated cases are of kind ``raycast-<angle>deg``.
+    paired : bool
+        With ``rotation_deg``: place the objects on the unrotated map (the very objects of the
+        unrotated case of the same seed) and turn them with the log, so that the rotated case
+        differs from the unrotated one by the rotation alone. Otherwise the objects are placed
+        on the rotated map, where the same seed draws other positions, kinds and sizes. Paired
+        cases are of kind ``raycast-<angle>deg-paired`` and named ``<log>-r<angle>p-s<seed>``.
     """
     log = read_log(Path(log_path))
     ranges = np.stack([s.ranges_m for s in log.scans])
     angles = beam_angles(ranges.shape[1])
-    poses = _rotated(log.laser_poses, math.radians(rotation_deg))
+    turn = math.radians(rotation_deg)
+    poses = _rotated(log.laser_poses, turn)
     params = BuilderParams(resolution_m=resolution_m)
     clean, clean_origin = _build(ranges, angles, poses, params)
+    paired = paired and rotation_deg != 0
+    # Where the objects are placed: the rotated map, or the unrotated one when paired.
+    placed_on, placed_origin, placed_poses = clean, clean_origin, poses
+    if paired:
+        placed_poses = log.laser_poses
+        placed_on, placed_origin = _build(ranges, angles, placed_poses, params)
     if objects is None:
-        free_m2 = float(np.count_nonzero((clean >= 0) & (clean < 50))) * resolution_m**2
+        free_m2 = float(np.count_nonzero((placed_on >= 0) & (placed_on < 50))) * resolution_m**2
         objects = int(np.clip(round(free_m2 / _M2_PER_OBJECT), _MIN_OBJECTS, _MAX_OBJECTS))
-    directions = rose.analyze(clean).dominant_directions
-    origin_m = (clean_origin * resolution_m).astype(np.float64)
+    directions = rose.analyze(placed_on).dominant_directions
+    origin_m = (placed_origin * resolution_m).astype(np.float64)
     furniture = place_furniture(
-        clean,
+        placed_on,
         origin_xy_m=(float(origin_m[0]), float(origin_m[1])),
         resolution_m=resolution_m,
-        poses=poses,
+        poses=placed_poses,
         directions=directions,
         count=objects,
         seed=seed,
     )
+    # A beam's range does not depend on the frame: cut where placed, the cut ranges hold rotated.
     cut = shorten_ranges(
         ranges,
         angles,
-        poses,
+        placed_poses,
         furniture,
         max_range_m=params.max_range_m,
         min_range_m=params.min_range_m,
     )
+    if paired:
+        furniture = _rotated_furniture(furniture, turn)
     furnished, furnished_origin = _build(cut, angles, poses, params)
     # One window holding the known cells of both maps.
     lo = np.minimum(clean_origin, furnished_origin)
@@ -173,7 +211,9 @@ def raycast_case(
     clutter = occupied & footprint
     walls = occupied & _large_components(clean_w >= 65, resolution_m) & ~footprint
     turned = f"-r{rotation_deg:g}" if rotation_deg else ""
-    label = name or f"{Path(log_path).name.split('-corrected')[0]}{turned}-s{seed}"
+    label = name or (
+        f"{Path(log_path).name.split('-corrected')[0]}{turned}{'p' if paired else ''}-s{seed}"
+    )
     _LOG.info(
         "%s: %d objects (%s), %d wall cells, %d clutter cells",
         label,
@@ -184,7 +224,7 @@ def raycast_case(
     )
     return CleaningCase(
         name=label,
-        kind=f"raycast{turned}deg" if turned else "raycast",
+        kind=(f"raycast{turned}deg" + ("-paired" if paired else "")) if turned else "raycast",
         grid=furnished_w,
         walls=walls,
         clutter=clutter,
