@@ -1675,7 +1675,7 @@ def _front_at(
     # ending on a cabinet's front, or crossing the hidden line between two objects), not at the
     # ends. Wider stretches are a deeper object, refused when they reach beyond the depth limit
     # (unless the front itself lies within a wall face of it: then they are not told apart).
-    front = int(np.median(d[~deep]))
+    front = _median(d[~deep])
     farther = np.concatenate([[False], d > front + face, [False]])
     edges = np.flatnonzero(np.diff(farther.view(np.int8)))
     starts, ends = edges[::2], edges[1::2]
@@ -1738,6 +1738,13 @@ def _front_at(
     return True
 
 
+def _median(values: npt.NDArray[np.int64]) -> int:
+    """``int(np.median(values))`` of non-negative integers (not empty), in a sixth of its time
+    (called once per candidate gap or corner)."""
+    ordered = np.sort(values)
+    return int(ordered[(values.size - 1) // 2] + ordered[values.size // 2]) // 2
+
+
 def _corners_rows(
     code: npt.NDArray[np.uint8],
     out: npt.NDArray[np.uint8],
@@ -1776,8 +1783,15 @@ def _corners_rows(
             down = np.clip(rows[:, None] + sign * np.arange(1, span + 1), 0, height - 1)
             free = code[down, beyond[:, None]] == 1
             depth = np.where(free.any(axis=1), free.argmax(axis=1), span)
+            # The line runs on unseen for more than an anchor's length (the furniture's width, at
+            # least: :func:`_corner_at`): on the Bormann maps, nearly half the candidates are not.
+            ahead = np.clip(beyond[:, None] + step * np.arange(anchor + 1), 0, width - 1)
+            unseen = (code[rows[:, None], ahead] == 0).all(axis=1)
             chosen = (
-                (2 * facing >= anchor) & (depth >= max(face + 1, min_depth - 1)) & (depth < span)
+                (2 * facing >= anchor)
+                & (depth >= max(face + 1, min_depth - 1))
+                & (depth < span)
+                & unseen
             )
             # Rows and columns flipped so that the furniture lies below and the line runs right
             # (views, no copies).
@@ -1830,7 +1844,7 @@ def _corner_at(
     if deep.size == 0 or deep[0] < anchor:
         return
     col1 = col0 + int(deep[0])
-    front = int(np.median(depth[: deep[0]]))
+    front = _median(depth[: deep[0]])
     # A front parallel to the line, as furniture set against a wall has, every column within a
     # cell of it (a scan's noise; a wall a few degrees off the grid, running off from the wall's
     # end, reaches the room at ever other depths), and deeper than a wall's step.
