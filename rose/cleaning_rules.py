@@ -1394,7 +1394,7 @@ _FRONT_FACE_SHARE = 0.9
 #: furniture's front; the longest such line (metres, as between two wall ends). Read only in frames
 #: along the grid's axes: rotated onto the rows, nearest-neighbour sampling breaks a wall's rows
 #: into stretches whose ends look like a wall's end (on the ray-cast logs, whose walls are 1.5-18
-#: degrees off the axes, reading corners in rotated frames too cost intel 0.6-1.0 points of wall
+#: degrees off the axes, reading corners in rotated frames too cost intel 0.2-0.7 points of wall
 #: recall, of its own shelves, and opened a robot gap in both intel-r30 cases).
 _CORNER_MAX_M = 5.0
 #: ... the shallowest such furniture, from the wall line to the far side of its front (metres):
@@ -1822,15 +1822,16 @@ def _corner_at(
     stub: int,
 ) -> None:
     """One candidate corner: the wall along ``row`` ends at ``col0 - 1`` (facing the room below:
-    :func:`_corners_rows` checked) and runs on unseen from ``col0``, with furniture below it up to the first column no front reaches (``col1``). That
-    column must be the room's other wall, perpendicular: a stretch of at least ``anchor`` occupied
-    cells from just past the furniture's front on, facing the room on the furniture's side; the
-    corner of the two wall lines lies behind the furniture. The front must be parallel to the line
-    and at least ``min_depth`` cells from it. Then the gap ``col0:col1`` is checked as a gap between
-    two wall ends (:func:`_front_at`: fronts, depth, an unseen inside) and, when it passes, the
-    other wall's hidden part, from the line to the front, is drawn too, and the first wall's
-    visible end is kept. ``lengths``: the longest line (``max_len``), the shallowest front
-    (``min_depth``) and ``span`` (the deepest front plus one), in cells."""
+    :func:`_corners_rows` checked) and runs on unseen from ``col0``, with furniture below it up to
+    the first column no front reaches (``col1``). That column must be the room's other wall,
+    perpendicular: a stretch of at least ``anchor`` occupied cells from just past the furniture's
+    front on, facing the room on the furniture's side; the corner of the two wall lines lies behind
+    the furniture. The front must be parallel to the line and at least ``min_depth`` cells from it.
+    Then the gap ``col0:col1`` is checked as a gap between two wall ends (:func:`_front_at`: fronts,
+    depth, an unseen inside) and, when it passes, the other wall's hidden part, from the line to the
+    front, is drawn too, and the first wall's visible end is kept. ``lengths``: the longest line
+    (``max_len``), the shallowest front (``min_depth``) and ``span`` (the deepest front plus one),
+    in cells."""
     max_len, min_depth, span = lengths
     height, width = code.shape
     if row + 1 >= height or col0 >= width:
@@ -1865,8 +1866,9 @@ def _corner_at(
     # front (only the unknown cells are drawn: :func:`_flush_fronts` masks the line).
     out[row:top, col1] |= 1
     # The first wall's visible end is a wall (the line's anchor), up to a run's length from the
-    # object and as thick as it is solid: kept, though the line may now close off a thick wall's
-    # unknown core, which the object-face rule reads as a scanned object's inside (its faces went).
+    # object and as thick as it is solid, up to a wall face (``face`` cells): kept, though the line
+    # may now close off a thick wall's unknown core, which the object-face rule reads as a scanned
+    # object's inside (its faces went).
     behind = (slice(max(row - face + 1, 0), row + 1), slice(max(col0 - stub, 0), col0))
     _mark_solid(out[behind][::-1, ::-1], code[behind][::-1, ::-1] >= 2)
 

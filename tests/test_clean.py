@@ -857,7 +857,9 @@ def test_a_cabinet_in_a_room_corner_goes_and_both_hidden_walls_are_drawn() -> No
 def test_a_wall_ending_on_two_corner_cabinets_stays() -> None:
     """A partition two cells thick ends on the fronts of two cabinets standing against the wall
     behind, one each side of it: each cabinet is in a corner of the partition and that wall. The
-    partition's end is a wall, not a side face of either cabinet: it stays, whole."""
+    partition's end is a wall, not a side face of either cabinet: it stays, whole. (The
+    flush-furniture rule alone keeps it too, as a wall meeting the fronts; this guards against the
+    corner rule, which fires here, taking it for a cabinet's side.)"""
     grid = _corner_room()
     grid[21:60, 52:54] = 100  # the partition, ending on the fronts 0.8 m from the far wall
     grid[62:76, 34:72] = -1  # the cabinets' insides, unseen, and the wall behind them
@@ -888,3 +890,17 @@ def test_a_room_corner_with_a_wall_step_or_a_scan_hole_keeps_its_walls(kind: str
     cleaned = clean(grid, rose.analyze(grid), resolution_m=RES)
     assert cleaned.kept[walls].all()
     assert not cleaned.completed[20:40, 60:101].any()
+
+
+def test_a_thick_wall_end_beside_a_corner_cabinet_stays_whole() -> None:
+    """The first wall two cells thick, its end hidden behind a corner cabinet: the wall's visible
+    end is the hidden line's anchor, kept across its whole thickness (the cabinet's side goes, not
+    the wall's last cells beside it)."""
+    grid = _corner_room()
+    grid[19, 5:101] = 100  # the top wall two cells thick
+    grid[19:32, 71:101] = -1  # hidden: both walls' ends and the cabinet's inside
+    grid[32, 70:100] = 100  # the front, 1.5 m
+    grid[19:33, 70] = 100  # the side, 0.6 m
+    cleaned = clean(grid, rose.analyze(grid), resolution_m=RES)
+    assert not cleaned.kept[32, 72:98].any()  # the cabinet goes ...
+    assert cleaned.kept[19:21, 5:71].all()  # ... the wall's end stays, both rows

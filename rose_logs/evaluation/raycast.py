@@ -137,13 +137,13 @@ def raycast_case(
     rotation_deg : float
         Rotate the whole log (every pose about the world origin) counter-clockwise by this angle,
         degrees: the building's walls then lie at other angles to the grid, as a map whose frame is
-        not aligned with the building has them. Rotated cases are of kind ``raycast-<angle>deg``.
+        not aligned with the building has them. Rotated cases are of kind ``raycast-r<angle>deg``.
     paired : bool
         With ``rotation_deg``: place the objects on the unrotated map (the very objects of the
         unrotated case of the same seed) and turn them with the log, so that the rotated case
         differs from the unrotated one by the rotation alone. Otherwise the objects are placed
         on the rotated map, where the same seed draws other positions, kinds and sizes. Paired
-        cases are of kind ``raycast-<angle>deg-paired`` and named ``<log>-r<angle>p-s<seed>``.
+        cases are of kind ``raycast-r<angle>deg-paired`` and named ``<log>-r<angle>p-s<seed>``.
     """
     log = read_log(Path(log_path))
     ranges = np.stack([s.ranges_m for s in log.scans])
