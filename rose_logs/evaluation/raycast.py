@@ -69,15 +69,23 @@ def _in_frame(
     return out
 
 
+def _turn_xy(rows: npt.ArrayLike, angle: float) -> npt.NDArray[np.float64]:
+    """A float64 copy of ``rows`` (N, k >= 2) with columns 0 and 1 (x, y metres) rotated by
+    ``angle`` (radians, counter-clockwise) about the world origin; the other columns as they are."""
+    turned = np.array(rows, dtype=np.float64)
+    c, s = math.cos(angle), math.sin(angle)
+    x, y = turned[:, 0].copy(), turned[:, 1].copy()
+    turned[:, 0] = c * x - s * y
+    turned[:, 1] = s * x + c * y
+    return turned
+
+
 def _rotated(poses: npt.NDArray[np.float64], angle: float) -> npt.NDArray[np.float64]:
     """Poses ``(N, 3)`` (x, y metres, heading radians) rotated by ``angle`` about the world origin."""
     if angle == 0:
         return poses
-    c, s = math.cos(angle), math.sin(angle)
-    turned = np.array(poses, dtype=np.float64)
-    turned[:, 0] = c * poses[:, 0] - s * poses[:, 1]
-    turned[:, 1] = s * poses[:, 0] + c * poses[:, 1]
-    turned[:, 2] = poses[:, 2] + angle
+    turned = _turn_xy(poses, angle)
+    turned[:, 2] += angle
     return turned
 
 
@@ -86,14 +94,9 @@ def _rotated_furniture(furniture: Furniture, angle: float) -> Furniture:
     :func:`_rotated` turns the poses."""
     if angle == 0:
         return furniture
-    c, s = math.cos(angle), math.sin(angle)
-    rects = np.array(furniture.rects, dtype=np.float64).reshape(-1, 5)
-    circles = np.array(furniture.circles, dtype=np.float64).reshape(-1, 3)
-    for shapes in (rects, circles):
-        x, y = shapes[:, 0].copy(), shapes[:, 1].copy()
-        shapes[:, 0] = c * x - s * y
-        shapes[:, 1] = s * x + c * y
+    rects = _turn_xy(np.reshape(furniture.rects, (-1, 5)), angle)
     rects[:, 4] += angle
+    circles = _turn_xy(np.reshape(furniture.circles, (-1, 3)), angle)
     return Furniture(rects=rects, circles=circles, kinds=furniture.kinds)
 
 
