@@ -552,6 +552,31 @@ def test_a_partition_is_kept_whole_on_probabilistic_grids_and_three_cells_thick(
     assert cleaning.kept[partition].all()
 
 
+def test_a_thick_wall_seen_from_both_sides_keeps_its_faces_and_a_cabinet_goes() -> None:
+    """A scanner shows a thick wall as two faces around its unseen core, which looks like a scanned
+    object's faces around its inside: a 1.3 m wall stub 0.25 m thick (faces one cell, core three)
+    went as object faces. Free space on both sides within 0.3 m makes it a wall; a cabinet against
+    a wall with an inside of about the same area (0.4 x 0.5 m, unknown up to the wall behind it)
+    still goes."""
+    grid = np.full((160, 240), -1, np.int8)
+    grid[10:150, 10:230] = 0
+    grid[10, 10:230] = grid[149, 10:230] = grid[10:150, 10] = grid[10:150, 229] = 100
+    grid[80, 11:37] = grid[84, 11:37] = grid[80:85, 36] = 100  # the stub's faces and its end
+    grid[81:84, 11:36] = -1  # its unseen core, 3 x 25 cells
+    grid[140, 150:162] = grid[140:149, 150] = grid[140:149, 161] = 100  # the cabinet's faces
+    grid[141:149, 151:161] = -1  # its inside, 8 x 10 cells, up to the wall
+    for r, c in ((30, 40), (100, 60), (60, 200)):  # scanned boxes: faces, unknown inside
+        grid[r : r + 9, c : c + 9] = 100
+        grid[r + 1 : r + 8, c + 1 : c + 8] = -1
+    cleaning = clean(grid, rose.analyze(grid), resolution_m=0.05)
+    stub = grid[78:87, 11:38] == 100
+    assert cleaning.kept[78:87, 11:38][stub].all()
+    cabinet = np.zeros(grid.shape, dtype=bool)
+    cabinet[140, 151:161] = True  # its front
+    cabinet[141:148, 150] = cabinet[141:148, 161] = True  # its sides, off the wall
+    assert not cleaning.kept[cabinet].any()
+
+
 def test_cleaning_works_while_the_interpreter_shuts_down() -> None:
     """From a thread that outlives the main one, or an atexit handler, no new thread may start:
     the cleaning's steps then run in turn (its second thread made it fail there)."""
