@@ -44,9 +44,11 @@ Two methods, chosen by name:
        scanned object, whose inside stays unknown; they go unless they lie on a straight run;
     4. *attached pieces*: occupied cells joined to a kept wall within ``attach_reach_m`` (through
        occupied cells that are not object faces) stay: wall stubs, door frames, corners; and so do
-       *partitions*, pieces seen from both sides (known free space across them, up to 3 cells
-       thick) at least 0.5 m long that meet a kept wall: a wall between a corner and a door (both
-       only when ``attach_reach_m`` > 0);
+       *partitions*, pieces seen from both sides (known free space across them along a grid row
+       or column within 0.3 m, an unseen core between two faces included) at least 0.5 m long
+       that meet a kept wall: a wall between a corner and a door, a thick wall's second face
+       around its unseen core, which rule 3 reads as an object's faces (both only when
+       ``attach_reach_m`` > 0);
     5. *free-standing pieces* (``loose_pieces``): a piece (joined across gaps of up to two cells)
        with no cell on a run or near wide unknown space, whose joined bounding box has a diagonal
        under ``min_run_m``, is removed, unless it closes around known free space (a small room,
