@@ -907,11 +907,15 @@ def _bridges(
         staggered_job = None
         if staggered_px is not None:
             stagger = (max(1, round(staggered_px[0])), max(1, round(staggered_px[1])))
-            staggered_job = side.submit(_staggered_gaps, rotated, True, length, *stagger)
-            staggered = _staggered_gaps(rotated, False, length, *stagger)
-        fills = _closed_gaps(rotated, False, length, anchors) | across_job.result()
+            # Drawn straight into the bit after the anchors' (no shifted copies).
+            bit = 1 << len(anchors)
+            staggered_job = side.submit(_staggered_gaps, rotated, True, length, *stagger, bit)
+            staggered = _staggered_gaps(rotated, False, length, *stagger, bit)
+        fills = _closed_gaps(rotated, False, length, anchors)
+        fills |= across_job.result()
         if staggered_job is not None:
-            fills |= (staggered | staggered_job.result()) << np.uint8(len(anchors))
+            fills |= staggered
+            fills |= staggered_job.result()
         if matrix is not None:
             # Nearest-neighbour sampling copies values: every anchor's fills, one bit each, go
             # back in one warp.
@@ -919,8 +923,10 @@ def _bridges(
                 fills, matrix, (cols, rows), flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP
             )
             fills = np.asarray(back, dtype=np.uint8)
+        filled = np.empty_like(fills)
         for bit, out in enumerate(outs):
-            out[r0:r1, c0:c1] |= ((fills >> bit) & 1).view(bool)
+            np.bitwise_and(fills, np.uint8(1 << bit), out=filled)
+            np.logical_or(out[r0:r1, c0:c1], filled, out=out[r0:r1, c0:c1])
     open_cells = fillable & ~walls
     for out in outs:
         out &= open_cells
@@ -980,12 +986,18 @@ def _closed_gaps(
 
 
 def _staggered_gaps(
-    rotated: npt.NDArray[np.uint8], vertical: bool, length: int, anchor: int, min_fill: int
+    rotated: npt.NDArray[np.uint8],
+    vertical: bool,
+    length: int,
+    anchor: int,
+    min_fill: int,
+    value: int = 1,
 ) -> npt.NDArray[np.uint8]:
-    """:func:`_closed_gaps` (one anchor, 0 or 1 per cell) of the walls grown by a cell across the
-    line (along the columns when ``vertical``, else the rows): fills between two wall ends up to a
-    cell apart across it, less the grown walls (never the cells beside a wall), only in stretches
-    of at least ``min_fill`` cells along the line (a staircase's notches are shorter)."""
+    """:func:`_closed_gaps` (one anchor, ``value`` or 0 per cell) of the walls grown by a cell
+    across the line (along the columns when ``vertical``, else the rows): fills between two wall
+    ends up to a cell apart across it, less the grown walls (never the cells beside a wall), only
+    in stretches of at least ``min_fill`` cells along the line (a staircase's notches are
+    shorter)."""
     import cv2
 
     band: npt.NDArray[np.uint8] = np.ascontiguousarray(
@@ -996,7 +1008,7 @@ def _staggered_gaps(
     long_enough = end - start + 1 >= min_fill
     out = np.zeros(fills.shape, dtype=np.uint8)
     runs = (line[long_enough], start[long_enough], end[long_enough])
-    out.reshape(-1)[_run_cells(runs, fills.shape, vertical)] = 1
+    out.reshape(-1)[_run_cells(runs, fills.shape, vertical)] = value
     return out
 
 
