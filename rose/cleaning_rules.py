@@ -1610,8 +1610,10 @@ def _straightened(code: npt.NDArray[np.uint8]) -> npt.NDArray[np.uint8]:
     )
     closed = grown.copy()
     closed[:, 1:-1] |= grown[:, :-2] & grown[:, 2:]
-    closed[:, 1:-2] |= grown[:, :-3] & grown[:, 3:]
-    closed[:, 2:-1] |= grown[:, :-3] & grown[:, 3:]
+    # Holes of two cells: the same pairs three columns apart close both of their cells.
+    apart = grown[:, :-3] & grown[:, 3:]
+    closed[:, 1:-2] |= apart
+    closed[:, 2:-1] |= apart
     return np.asarray(cv2.max(code, closed), dtype=np.uint8)
 
 
