@@ -250,8 +250,11 @@ def _wall_cells(
         if sealed:
             keep = occupied & (structure | near_job.result()) | lines
         if front_lines.any():
-            # The wall ends the hidden line joins are the wall, not faces of the object's inside.
-            faces &= ~cv2.dilate(front_lines.view(np.uint8), np.ones((3, 3), np.uint8)).view(bool)
+            # The wall ends the hidden line joins are the wall, not faces of the object's inside
+            # (dilated on the lines' box only: a few objects in a large map).
+            box = _padded_box(front_lines, 1)
+            beside_lines = cv2.dilate(front_lines[box].view(np.uint8), np.ones((3, 3), np.uint8))
+            faces[box] &= ~beside_lines.view(bool)
         object_faces = faces & ~lines | fronts
         keep &= ~object_faces
         keep |= front_walls  # walls meeting furniture fronts: kept, attach to them
