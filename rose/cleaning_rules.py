@@ -596,25 +596,32 @@ class _Pieces:
             return out
         import cv2
 
-        # Flood the outside from a one-cell frame: what stays unflooded of the other cells are
-        # the holes (one pass; no labelling unless a hole holds known free space).
-        rows, cols = cells.shape
-        image = np.ones((rows + 2, cols + 2), dtype=np.uint8)
-        image[1:-1, 1:-1] = ~cells
+        # Only the box of ``cells`` matters (a cell wider: its rim is outside space, which
+        # reaches the image's edge past no cell). Flood the outside from a one-cell frame around
+        # it: what stays unflooded of the other cells are the holes (one pass; no labelling
+        # unless a hole holds known free space).
+        box = _padded_box(cells, 1)
+        image = cv2.copyMakeBorder(
+            (~cells[box]).view(np.uint8), 1, 1, 1, 1, cv2.BORDER_CONSTANT, value=1
+        )
         cv2.floodFill(image, None, (0, 0), 0, flags=4)
         holes = image[1:-1, 1:-1].view(bool)
-        if not (holes & known & ~self.occupied).any():
+        free_holes = holes & known[box] & ~self.occupied[box]
+        if not free_holes.any():
             return out
         count, parts = components(holes, connectivity=4)
         wanted = np.zeros(count, dtype=bool)
-        wanted[parts[holes & known & ~self.occupied]] = True
+        wanted[parts[free_holes]] = True
         wanted[0] = False
         hole_cells = labels_wanted(wanted, parts, holes)
-        rim = cv2.dilate(hole_cells.view(np.uint8), np.ones((3, 3), np.uint8)).view(bool) & cells
+        # (Holes never reach the box's edge: their rim lies in it.)
+        rim = cv2.dilate(hole_cells.view(np.uint8), np.ones((3, 3), np.uint8)).view(bool)
+        labels = self.labels[box]
         enclosing = np.zeros(self.diagonals.size, dtype=bool)
-        enclosing[self.labels[rim]] = True
+        enclosing[labels[rim & cells[box]]] = True
         enclosing[0] = False
-        return labels_wanted(enclosing, self.labels, cells)
+        out[box] = labels_wanted(enclosing, labels, cells[box])
+        return out
 
 
 def _touching(pieces: npt.NDArray[np.bool_], other: npt.NDArray[np.bool_]) -> npt.NDArray[np.bool_]:
