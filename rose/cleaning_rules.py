@@ -467,18 +467,38 @@ def _partitions(
         return out
     box = _padded_box(sided, 1)
     count, labels = components(sided[box])
-    boxes = label_boxes(labels, np.flatnonzero(sided[box]), count)
+    at = np.flatnonzero(sided[box])
+    boxes = label_boxes(labels, at, count)
     long_enough = np.maximum(boxes[:, 2], boxes[:, 3]) >= min_length_px
+    # Pieces with a cell on or next to (4-neighbours) a wall, looked up around their cells only.
     touching = np.zeros(count, dtype=bool)
-    near_walls = _dilate(walls[box], 1) & sided[box]
-    touching[labels[near_walls]] = True
+    near_walls = walls[box][_cross(at, labels.shape)].any(axis=1)
+    touching[labels.reshape(-1)[at[near_walls]]] = True
     wanted = long_enough & touching
     wanted[0] = False
     pieces = labels_wanted(wanted, labels, sided[box]) & candidates[box]
     # A run along a row misses the cells of a ragged face that stick out of it: the candidate
-    # cells next to a piece belong to it.
-    out[box] = pieces | (_dilate(pieces, 1) & candidates[box])
+    # cells next to a piece belong to it (4-neighbours, looked up around the piece's cells).
+    beside = _cross(np.flatnonzero(pieces), pieces.shape)
+    pieces[beside] |= candidates[box][beside]
+    out[box] = pieces
     return out
+
+
+def _cross(
+    cells: npt.NDArray[np.intp], shape: tuple[int, int]
+) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.intp]]:
+    """Row and column indices of each cell (flat indices into an image of ``shape``) and of its 4
+    neighbours, shape ``(N, 5)``: the cross a 3 x 3 elliptic kernel dilates by. A neighbour past
+    the image's edge is the cell itself (one of the five anyway)."""
+    rows, cols = shape
+    row, col = np.divmod(cells, cols)
+    up, down = np.maximum(row - 1, 0), np.minimum(row + 1, rows - 1)
+    left, right = np.maximum(col - 1, 0), np.minimum(col + 1, cols - 1)
+    return (
+        np.stack([row, up, down, row, row], axis=1),
+        np.stack([col, col, col, left, right], axis=1),
+    )
 
 
 def _pocket_faces(
