@@ -262,7 +262,11 @@ def _wall_cells(
         if p.attach_reach_m > 0:
             # Wall stubs, door frames, corners: occupied cells joined to a kept wall within the
             # reach, through occupied cells that are not object faces.
-            keep |= _grow_within(keep, occupied & ~faces, round(length_px(p.attach_reach_m, res)))
+            attached = _grow_within(
+                keep, occupied & ~faces, round(length_px(p.attach_reach_m, res))
+            )
+            attached &= ~keep
+            keep |= attached
             # Partitions: pieces seen from both sides (free space across them within a wall's
             # thickness) that meet a kept wall, a wall between a corner and a door shorter than a
             # run. A thick wall shows two faces around its unseen core, which the object rule
@@ -274,6 +278,7 @@ def _wall_cells(
                 keep,
                 ~unknown & ~occupied,
                 pockets,
+                attached=attached,
                 min_length_px=length_px(_PARTITION_MIN_M, res),
                 max_thickness_px=length_px(_THIN_WALL_M, res),
             )
@@ -443,6 +448,7 @@ def _partitions(
     *,
     min_length_px: float,
     max_thickness_px: float,
+    attached: npt.NDArray[np.bool_] | None = None,
 ) -> npt.NDArray[np.bool_]:
     """Occupied cells not in ``walls`` (the candidates) in 8-connected pieces of thin cells that
     touch ``walls`` and span at least ``min_length_px`` cells, with the candidates next to them.
@@ -451,7 +457,9 @@ def _partitions(
     object's inside or a thick wall's unseen core) on a run of occupied and core cells at most
     ``max_thickness_px`` long between two free cells: a wall seen from both sides, solid or with
     an unseen core. ``free``: known cells that are not occupied (a probabilistic grid's free space
-    is 0..20, not only 0)."""
+    is 0..20, not only 0). ``attached``: cells of ``walls`` the attach rule kept (within its reach
+    of a wall); thin ones count towards a piece's length, so that a partition 0.5 m long stays
+    whole, not only its first ``attach_reach_m``."""
     candidates = occupied & ~walls
     out = np.zeros(candidates.shape, dtype=bool)
     if not candidates.any() or not walls.any():
@@ -463,6 +471,8 @@ def _partitions(
     room = free & (~_dilate(cores, 1) | _in_free_square(free))
     thin = _thin_runs(occupied | cores, room, max_thickness_px)
     sided = thin & (candidates | cores)
+    if attached is not None:
+        sided |= thin & attached
     if not sided.any():
         return out
     box = _padded_box(sided, 1)
