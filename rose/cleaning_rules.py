@@ -303,7 +303,8 @@ def _wall_cells(
         min_region_px=min_region_px,
     )
     kept = keep | guarded
-    return kept, guarded, completed, (dropped | object_faces) & ~guarded
+    # (Object faces a partition keeps are walls, not dropped.)
+    return kept, guarded, completed, (dropped | object_faces) & ~kept
 
 
 class _Inline(Executor):

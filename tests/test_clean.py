@@ -593,6 +593,23 @@ def test_a_partition_under_the_attach_reach_plus_the_minimum_stays_whole(length:
     assert cleaning.kept[80, 11 : 11 + length].all()
 
 
+def test_object_faces_a_partition_keeps_are_not_reported_dropped() -> None:
+    """wall_cells' ``dropped`` (removed whatever the paper says) held the faces of a thick wall
+    that the partitions keep, so the same cells were both kept and dropped."""
+    from rose.cleaning_rules import wall_cells
+
+    grid = np.full((160, 240), -1, np.int8)
+    grid[10:150, 10:230] = 0
+    grid[10, 10:230] = grid[149, 10:230] = grid[10:150, 10] = grid[10:150, 229] = 100
+    grid[80, 11:37] = grid[84, 11:37] = grid[80:85, 36] = 100  # a thick wall stub's faces
+    grid[81:84, 11:36] = -1  # its unseen core
+    walls, _, _, dropped = wall_cells(
+        grid, rose.analyze(grid), resolution_m=0.05, params=CleanParams()
+    )
+    assert walls[80, 11:37].all()
+    assert not (walls & dropped).any()
+
+
 def test_cleaning_works_while_the_interpreter_shuts_down() -> None:
     """From a thread that outlives the main one, or an atexit handler, no new thread may start:
     the cleaning's steps then run in turn (its second thread made it fail there)."""
