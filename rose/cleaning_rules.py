@@ -72,6 +72,11 @@ _PARTITION_MIN_M = 0.5
 #: 0.693) for no more ray-cast wall recall.
 _THIN_WALL_M = 0.3
 
+#: Thickest partition in cells at any resolution (:func:`_partitions`): on a coarse grid a thin wall
+#: rasterises up to 3 cells thick (0.6 m at 0.2 m per cell), as the rule before ``_THIN_WALL_M``
+#: read it at every resolution; at 0.05 m per cell ``_THIN_WALL_M`` is 6 cells and decides.
+_THIN_WALL_MIN_CELLS = 3
+
 #: Side of the solid square that makes a free-standing piece a drawn column, not an object
 #: (metres, at least 3 cells; :func:`_free_standing`): thicker than a scanned surface. A scanner
 #: sees an object's faces, one to three cells thick in a SLAM map, and the two faces of a thin
@@ -280,7 +285,7 @@ def _wall_cells(
                 pockets,
                 attached=attached,
                 min_length_px=length_px(_PARTITION_MIN_M, res),
-                max_thickness_px=length_px(_THIN_WALL_M, res),
+                max_thickness_px=max(length_px(_THIN_WALL_M, res), _THIN_WALL_MIN_CELLS),
             )
         dropped = (
             np.zeros(occupied.shape, dtype=bool) if dropped_job is None else dropped_job.result()

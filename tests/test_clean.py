@@ -962,3 +962,18 @@ def test_a_thick_wall_end_beside_a_corner_cabinet_stays_whole() -> None:
     cleaned = clean(grid, rose.analyze(grid), resolution_m=RES)
     assert not cleaned.kept[32, 72:98].any()  # the cabinet goes ...
     assert cleaned.kept[19:21, 5:71].all()  # ... the wall's end stays, both rows
+
+
+@pytest.mark.parametrize("thickness", [1, 2, 3])
+def test_a_partition_up_to_three_cells_thick_stays_on_a_coarse_grid(thickness: int) -> None:
+    """At 0.2 m per cell a thin wall rasterises 1-3 cells thick: 0.4-0.6 m, over the 0.3 m of a
+    wall seen from both sides. A 1.6 m partition meeting the wall stays whole at every thickness
+    (at 2 and 3 cells only its attached first cells stayed)."""
+    grid = np.full((70, 90), -1, np.int8)
+    grid[5:65, 5:85] = 0
+    grid[5, 5:85] = grid[64, 5:85] = grid[5:65, 5] = grid[5:65, 84] = 100
+    grid[34 : 34 + thickness, 6:14] = 100  # 8 cells long, from the left wall
+    for r, c in ((15, 40), (45, 30), (20, 70)):  # small objects
+        grid[r : r + 3, c : c + 3] = 100
+    cleaning = clean(grid, rose.analyze(grid), resolution_m=0.2)
+    assert cleaning.kept[34 : 34 + thickness, 6:14].all()
