@@ -45,7 +45,7 @@ Two methods, chosen by name:
     4. *attached pieces*: occupied cells joined to a kept wall within ``attach_reach_m`` (through
        occupied cells that are not object faces) stay: wall stubs, door frames, corners; and so do
        *partitions*, pieces seen from both sides (known free space across them along a grid row
-       or column within 0.3 m, an unseen core between two faces included) at least 0.5 m long
+       or column within 0.3 m or 3 cells, an unseen core between two faces included) at least 0.5 m long
        that meet a kept wall: a wall between a corner and a door, a thick wall's second face
        around its unseen core, which rule 3 reads as an object's faces (both only when
        ``attach_reach_m`` > 0);
