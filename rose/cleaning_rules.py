@@ -406,33 +406,30 @@ def _thin_runs(
     solid: npt.NDArray[np.bool_], free: npt.NDArray[np.bool_], max_px: float
 ) -> npt.NDArray[np.bool_]:
     """Cells of ``solid`` in a run along a grid row or column of at most ``max_px`` cells with a
-    ``free`` cell just before and just after it: a wall at most that thick, seen from both sides."""
-    return (
-        _thin_runs_along_rows(solid, free, max_px)
-        | _thin_runs_along_rows(solid.T, free.T, max_px).T
-    )
-
-
-def _thin_runs_along_rows(
-    solid: npt.NDArray[np.bool_], free: npt.NDArray[np.bool_], max_px: float
-) -> npt.NDArray[np.bool_]:
-    """:func:`_thin_runs` along the rows only, worked out on the solid cells (few next to the
-    whole image)."""
-    rows, cols = solid.shape
-    out = np.zeros((rows, cols), dtype=bool)
-    at = np.flatnonzero(solid)  # row by row, left to right
-    if at.size == 0:
-        return out
-    # A run ends where the next solid cell is not the next cell of the same row.
-    breaks = np.flatnonzero((np.diff(at) != 1) | (at[1:] % cols == 0)) + 1
-    starts = np.concatenate(([0], breaks))
-    lengths = np.diff(np.concatenate((starts, [at.size])))
-    first, last = at[starts], at[starts + lengths - 1]
-    thin = (lengths <= max_px) & (first % cols > 0) & (last % cols < cols - 1)
-    flat_free = free.reshape(-1)
-    thin[thin] &= flat_free[first[thin] - 1] & flat_free[last[thin] + 1]
-    out.reshape(-1)[at[np.repeat(thin, lengths)]] = True
+    ``free`` cell just before and just after it: a wall at most that thick, seen from both sides.
+    Worked out on the solid cells' runs (few next to the whole image)."""
+    shape = solid.shape
+    out = np.zeros(shape, dtype=bool)
+    cells = np.flatnonzero(solid)
+    flat_free, flat_out = free.reshape(-1), out.reshape(-1)
+    for vertical in (False, True):
+        line, first, last = _runs(cells, shape, vertical)
+        extent = shape[0] if vertical else shape[1]
+        thin = (last - first + 1 <= max_px) & (first > 0) & (last < extent - 1)
+        line, first, last = line[thin], first[thin], last[thin]
+        seen = (
+            flat_free[_flat_index(line, first - 1, shape, vertical)]
+            & flat_free[_flat_index(line, last + 1, shape, vertical)]
+        )
+        flat_out[_run_cells((line[seen], first[seen], last[seen]), shape, vertical)] = True
     return out
+
+
+def _flat_index(
+    line: npt.NDArray[np.int64], pos: npt.NDArray[np.int64], shape: tuple[int, int], vertical: bool
+) -> npt.NDArray[np.int64]:
+    """Flat indices of the cells at ``pos`` along ``line`` (a column when ``vertical``, else a row)."""
+    return pos * shape[1] + line if vertical else line * shape[1] + pos
 
 
 def _in_free_square(free: npt.NDArray[np.bool_]) -> npt.NDArray[np.bool_]:
@@ -1184,7 +1181,7 @@ def _run_cells(runs: _Runs, shape: tuple[int, int], vertical: bool) -> npt.NDArr
     offsets = np.arange(int(lengths.sum()), dtype=np.int64)
     pos = np.repeat(start - (np.cumsum(lengths) - lengths), lengths) + offsets
     along = np.repeat(line, lengths)
-    return pos * shape[1] + along if vertical else along * shape[1] + pos
+    return _flat_index(along, pos, shape, vertical)
 
 
 def _open_runs(runs: _Runs, size: int, extent: int) -> _Runs:
