@@ -6,7 +6,7 @@ import numpy as np
 import numpy.typing as npt
 import scipy.fft
 
-from rose.unfold import frequency_grid
+from rose.unfold import frequency_axes
 
 __all__ = ["nominal_reference_map", "structure_mask"]
 
@@ -27,14 +27,16 @@ def structure_mask(
     -------
     ndarray of bool, shape (rows, cols // 2 + 1)
     """
-    u, v = frequency_grid(shape)
-    mask = np.zeros(u.shape, dtype=bool)
+    u, v = frequency_axes(shape)
+    half_cols = u.size
+    mask = np.zeros((v.size, half_cols), dtype=bool)
     for direction in directions:
         c, s = np.float32(np.cos(direction)), np.float32(np.sin(direction))
         cells = _strip_candidates(shape, float(c), float(s), half_width_px)
+        row, col = np.divmod(cells, half_cols)
         # The spectrum line of walls at `direction` runs along (cos, sin) of direction + pi/2,
         # i.e. (-sin, cos); the distance from it is the projection on the wall direction itself.
-        distance = np.abs(u.ravel()[cells] * c + v.ravel()[cells] * s)
+        distance = np.abs(u[col] * c + v[row] * s)
         mask.ravel()[cells[distance <= half_width_px]] = True
     return mask
 
