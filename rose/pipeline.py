@@ -15,7 +15,7 @@ from rose.grid import FREE, UNKNOWN, as_occupancy_grid, occupied_mask
 from rose.mapfile import OccupancyMap
 from rose.params import RoseParams, make_params
 from rose.result import RoseResult
-from rose.scoring import nominal_reference_map, structure_mask
+from rose.scoring import inverse_to_map, masked_spectrum, structure_mask
 from rose.spectrum import half_spectrum, padded_shape
 from rose.threshold import gmm_threshold
 from rose.unfold import cumulative_amplitude, direction_bins
@@ -77,8 +77,15 @@ def analyze(
 
     if has_structure:
         mask = structure_mask(shape, directions, half_width_px=p.mask_half_width_px)
-        reference = nominal_reference_map(spectrum, mask, occupancy.shape)
-        cell_scores, threshold = _scale_and_threshold(reference, occupied, p)
+        restricted = masked_spectrum(spectrum, mask)
+        # The spectrum is the largest array here: freed before the inverse transform makes its
+        # output (sessions run two analyses at once, and their peaks add up).
+        del spectrum
+        reference = inverse_to_map(restricted, occupancy.shape)
+        del restricted
+        cell_scores, threshold = _scale_and_threshold(
+            reference, occupied, p, in_place=shape == occupancy.shape
+        )
         structure = occupied & (cell_scores > threshold)
         clutter = occupied & ~structure
     else:
@@ -129,14 +136,24 @@ def _warn_if_mask(
 
 
 def _scale_and_threshold(
-    reference: npt.NDArray[np.float32], occupied: npt.NDArray[np.bool_], p: RoseParams
+    reference: npt.NDArray[np.float32],
+    occupied: npt.NDArray[np.bool_],
+    p: RoseParams,
+    *,
+    in_place: bool,
 ) -> tuple[npt.NDArray[np.float32], float]:
-    """Scale the nominal reference map so the best occupied cell scores 1 (a new, contiguous array:
-    the crop and the scaling in one pass); pick the threshold."""
+    """Scale the nominal reference map so the best occupied cell scores 1; pick the threshold.
+
+    ``in_place``: ``reference`` is the whole (unpadded) transform, scaled where it is; otherwise a
+    crop of a padded one, copied as it is scaled (the crop and the scaling in one pass).
+    """
     occupied_scores = reference[occupied]
     top = float(occupied_scores.max())
     scale = 1.0 / top if top > 0 else 1.0
-    cell_scores = np.multiply(reference, np.float32(scale), dtype=np.float32)
+    if in_place and reference.dtype == np.float32 and reference.flags.c_contiguous:
+        cell_scores = np.multiply(reference, np.float32(scale), out=reference)
+    else:
+        cell_scores = np.multiply(reference, np.float32(scale), dtype=np.float32)
     if p.threshold_mode == "fixed":
         return cell_scores, p.fixed_threshold
     threshold = gmm_threshold(occupied_scores * np.float32(scale), max_samples=p.max_gmm_samples)

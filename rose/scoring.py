@@ -8,7 +8,7 @@ import scipy.fft
 
 from rose.unfold import frequency_axes
 
-__all__ = ["nominal_reference_map", "structure_mask"]
+__all__ = ["inverse_to_map", "masked_spectrum", "nominal_reference_map", "structure_mask"]
 
 
 def structure_mask(
@@ -95,6 +95,7 @@ def nominal_reference_map(
 
     The mask is point-symmetric, so the reconstruction is real and ``irfft2`` gives it directly
     (the authors take ``abs`` of a complex ``ifft2``; we keep the sign, which the paper's formula has).
+    :func:`masked_spectrum` then :func:`inverse_to_map`, for callers that free ``spectrum`` between.
 
     Returns
     -------
@@ -102,13 +103,28 @@ def nominal_reference_map(
         A view into the padded transform, not contiguous unless nothing was padded (``analyze``
         copies it as it scales it).
     """
-    padded_rows = spectrum.shape[0]
-    padded_cols = 2 * (spectrum.shape[1] - 1)
+    return inverse_to_map(masked_spectrum(spectrum, mask), shape)
+
+
+def masked_spectrum(
+    spectrum: npt.NDArray[np.complex64], mask: npt.NDArray[np.bool_]
+) -> npt.NDArray[np.complex64]:
+    """A copy of the half-plane ``spectrum`` with every cell outside ``mask`` zero."""
     # The mask keeps about 1 % of the cells: copy those into zeros (calloc'd) instead of a
     # full-size select.
     kept = np.flatnonzero(mask)
     restricted = np.zeros(spectrum.shape, dtype=spectrum.dtype)
     restricted.ravel()[kept] = spectrum.ravel()[kept]
+    return restricted
+
+
+def inverse_to_map(
+    restricted: npt.NDArray[np.complex64], shape: tuple[int, int]
+) -> npt.NDArray[np.float32]:
+    """``irfft2`` of a half-plane spectrum (overwritten: used as the transform's buffer) of the
+    padded shape, cropped to the map's ``shape`` (a view, as :func:`nominal_reference_map`)."""
+    padded_rows = restricted.shape[0]
+    padded_cols = 2 * (restricted.shape[1] - 1)
     # overwrite_x: the column pass runs in `restricted` itself, one map-sized buffer fewer.
     reference = scipy.fft.irfft2(restricted, s=(padded_rows, padded_cols), overwrite_x=True)
     return reference[: shape[0], : shape[1]]
