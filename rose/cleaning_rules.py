@@ -116,10 +116,8 @@ def wall_cells(
     """
     p = params
     res = resolution_m
-    # Fresh zeros, not copies: the pages of a large array are only mapped where written.
-    walls, guarded, completed, dropped = (np.zeros(occupancy.shape, dtype=bool) for _ in range(4))
     if not result.occupied.any():
-        return walls, guarded, completed, dropped
+        return _nothing_kept(occupancy.shape)
     # Everything happens near known cells: work on their bounding box, padded so that every window
     # and disc that matters fits (outside it all cells are unknown).
     pad = 2 + max(
@@ -146,11 +144,28 @@ def wall_cells(
             p=p,
         )
     )
+    # Made after the rules, whose own arrays are the cleaning's peak memory.
+    walls, guarded, completed, dropped = _nothing_kept(occupancy.shape)
     walls[window] = kept
     guarded[window] = restored
     completed[window] = added
     dropped[window] = removed
     return walls, guarded, completed, dropped
+
+
+def _nothing_kept(
+    shape: tuple[int, int],
+) -> tuple[
+    npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_]
+]:
+    """:func:`wall_cells`' four masks, all False."""
+    # Fresh zeros, not copies: the pages of a large array are only mapped where written.
+    return (
+        np.zeros(shape, dtype=bool),
+        np.zeros(shape, dtype=bool),
+        np.zeros(shape, dtype=bool),
+        np.zeros(shape, dtype=bool),
+    )
 
 
 def _wall_cells(
