@@ -109,13 +109,13 @@ def direction_bins(
     order = np.argsort(bin_index, kind="stable")
     # Bin numbers fit in 32 bits (ANGULAR_RESOLUTION_RANGE_DEG): half the memory of intp, held
     # per shape in the cache.
-    cell_index, bin_index = cell_index[order], bin_index[order].astype(np.int32)
-    starts = np.searchsorted(bin_index, np.arange(n_bins))
+    cell_index, sorted_bins = cell_index[order], bin_index[order].astype(np.int32)
+    starts = np.searchsorted(sorted_bins, np.arange(n_bins))
     return seal(
         DirectionBins(
             centres=np.arange(n_bins, dtype=np.float64) * step,
             cell_index=cell_index,
-            bin_index=bin_index,
+            bin_index=sorted_bins,
             bin_starts=starts,
             counts=counts,
             radius_span_px=max(outer - min_radius_px, 0.0),
