@@ -77,7 +77,7 @@ class McapReadBackend:
         from mcap.reader import SeekingReader
 
         self.stream = self.path.open("rb")
-        size = self.path.stat().st_size
+        size = self._size = self.path.stat().st_size
         # Chunk CRCs are checked on every chunk read; no record can be longer than the file, so a
         # corrupt length never makes the reader allocate more than the file's size.
         self.reader = SeekingReader(self.stream, validate_crcs=True, record_size_limit=max(size, 1))
@@ -102,6 +102,7 @@ class McapReadBackend:
             self.start_ns, self.end_ns = self._times
 
     _times: tuple[int, int] | None = None
+    _size = 0  # bytes of the file, when opened
 
     def _count_messages(self) -> dict[int, int]:
         """Messages per channel id and the time range, by reading every message (no statistics)."""
@@ -119,9 +120,103 @@ class McapReadBackend:
         if self.skip_damaged_chunks:
             yield from self._around_damaged_chunks(topics)
             return
+        chunks = self._chunks_in_sequence(topics)
+        if chunks is not None:
+            yield from self._chunk_by_chunk(chunks, topics)
+            return
         by_id = self._by_id
         for _schema, ch, msg in self.reader.iter_messages(topics=topics, log_time_order=True):
             yield RawMessage(by_id[ch.id], msg.log_time, msg.data, msg.publish_time, msg.sequence)
+
+    def _wanted(self, topics: set[str] | None) -> set[int]:
+        """MCAP channel ids of ``topics`` (every channel we know when None)."""
+        channels = self.reader.get_summary().channels
+        return {
+            cid
+            for cid, ch in channels.items()
+            if cid in self._by_id and (topics is None or ch.topic in topics)
+        }
+
+    def _chunks_with(self, wanted: set[int]) -> list[Any]:
+        """Chunk indexes that may hold messages of the channels ``wanted`` (any, without a list
+        of the chunk's channels)."""
+        return [
+            index
+            for index in self.reader.get_summary().chunk_indexes
+            if wanted & set(index.message_index_offsets) or not index.message_index_offsets
+        ]
+
+    def _chunks_in_sequence(self, topics: set[str] | None) -> list[Any] | None:
+        """The chunk indexes holding ``topics``, in file order, when each chunk's messages all come
+        before the next one's in the library's log-time order (log time, then chunk, then place in
+        the chunk), as recorders write them; None when chunks overlap in time (or there is no
+        index), for the library's merge.
+
+        The library merges through a heap of every message of every open chunk, in Python: about a
+        third of the session's reading time. Chunks that follow each other in time need no merge,
+        only each chunk's messages sorted by log time (stable: the place in the chunk breaks ties).
+        """
+        summary = self.reader.get_summary()
+        if not summary.chunk_indexes:
+            return None
+        chunks = sorted(
+            self._chunks_with(self._wanted(topics)),
+            key=lambda index: (index.message_start_time, index.chunk_start_offset),
+        )
+        for before, after in itertools.pairwise(chunks):
+            if before.message_end_time > after.message_start_time or (
+                before.message_end_time == after.message_start_time
+                and before.chunk_start_offset > after.chunk_start_offset
+            ):
+                return None
+        return chunks
+
+    def _chunk_by_chunk(self, chunks: list[Any], topics: set[str] | None) -> Iterator[RawMessage]:
+        """The messages of ``chunks`` (:meth:`_chunks_in_sequence`), each chunk's sorted by log time."""
+        wanted = self._wanted(topics)
+        by_id = self._by_id
+        latest = 0
+        for index in chunks:
+            messages = []
+            for m in self._read_chunk(index):
+                if m.channel_id in wanted:
+                    messages.append(m)
+                elif m.channel_id not in by_id:  # as the library's reader, which looks it up
+                    msg = f"message on channel id {m.channel_id}, which the file does not define"
+                    raise ValueError(msg)
+            if any(a.log_time > b.log_time for a, b in itertools.pairwise(messages)):
+                messages.sort(key=lambda m: m.log_time)
+            if messages and messages[0].log_time < latest:
+                # Only a chunk index whose times are not its chunk's: the file is damaged.
+                msg = (
+                    f"the chunk at byte {index.chunk_start_offset} holds messages older than the "
+                    "chunk before it, which its index denies"
+                )
+                raise ValueError(msg)
+            latest = messages[-1].log_time if messages else latest
+            for m in messages:
+                yield RawMessage(
+                    by_id[m.channel_id], m.log_time, m.data, m.publish_time, m.sequence
+                )
+
+    def _read_chunk(self, index: Any) -> list[Any]:
+        """The message records of the chunk ``index`` points to, in file order (CRC checked).
+
+        The record as the index bounds it: a damaged length inside it reads no further than the
+        record (a length of 2**60 would have been read from the file)."""
+        from mcap.data_stream import ReadDataStream
+        from mcap.records import Chunk, Message
+        from mcap.stream_reader import breakup_chunk
+
+        assert self.stream is not None
+        offset = index.chunk_start_offset
+        self.stream.seek(offset)
+        raw = self.stream.read(min(index.chunk_length, self._size - offset))
+        if len(raw) < 9 or raw[0] != _CHUNK_OPCODE:
+            msg = "no chunk record where the index points"
+            raise ValueError(msg)
+        chunk = Chunk.read(ReadDataStream(io.BytesIO(raw[9:])))
+        return [r for r in breakup_chunk(chunk, validate_crc=True) if isinstance(r, Message)]
 
     def _around_damaged_chunks(self, topics: set[str] | None) -> Iterator[RawMessage]:
         """:meth:`messages` through the chunk index, skipping the chunks that cannot be read.
@@ -129,11 +224,6 @@ class McapReadBackend:
         The ``mcap`` reader's own merge, in the same order (log time, then file position), with each
         chunk read on its own: a flipped bit in one chunk of an hour's recording loses that chunk's
         seconds, not the rest of the hour."""
-        from mcap.data_stream import ReadDataStream
-        from mcap.records import Chunk, Message
-        from mcap.stream_reader import breakup_chunk
-
-        assert self.stream is not None
         summary = self.reader.get_summary()
         if not summary.chunk_indexes:
             # No chunks (or no chunk index): the library reads it record by record, in file order;
@@ -145,19 +235,14 @@ class McapReadBackend:
                     by_id[ch.id], msg.log_time, msg.data, msg.publish_time, msg.sequence
                 )
             return
-        wanted = {
-            cid
-            for cid, ch in summary.channels.items()
-            if cid in self._by_id and (topics is None or ch.topic in topics)
-        }
+        wanted = self._wanted(topics)
         size = self.path.stat().st_size
         # (log time, chunk offset, index in the chunk (-1: the chunk itself), tie-breaker, item):
         # the tie-breaker keeps the items themselves out of every comparison.
         tie = itertools.count()
         queue: list[tuple[int, int, int, int, Any]] = [
             (index.message_start_time, index.chunk_start_offset, -1, next(tie), index)
-            for index in summary.chunk_indexes
-            if wanted & set(index.message_index_offsets) or not index.message_index_offsets
+            for index in self._chunks_with(wanted)
         ]
         heapq.heapify(queue)
         while queue:
@@ -167,15 +252,7 @@ class McapReadBackend:
                 yield RawMessage(ch, item.log_time, item.data, item.publish_time, item.sequence)
                 continue
             try:
-                # The record as the index bounds it: a damaged length inside it reads no further
-                # than the record (a length of 2**60 would have been read from the file).
-                self.stream.seek(offset)
-                raw = self.stream.read(min(item.chunk_length, size - offset))
-                if len(raw) < 9 or raw[0] != _CHUNK_OPCODE:
-                    msg = "no chunk record where the index points"
-                    raise ValueError(msg)
-                chunk = Chunk.read(ReadDataStream(io.BytesIO(raw[9:])))
-                records = list(breakup_chunk(chunk, validate_crc=True))
+                records = self._read_chunk(item)
             except Exception as err:  # any library error: this chunk is damaged, go on
                 reason = short(str(err) or type(err).__name__, 120)
                 self.skipped_chunks.append(
@@ -185,7 +262,7 @@ class McapReadBackend:
                 )
                 continue
             for at, record in enumerate(records):
-                if isinstance(record, Message) and record.channel_id in wanted:
+                if record.channel_id in wanted:
                     heapq.heappush(queue, (record.log_time, offset, at, next(tie), record))
 
     def close(self) -> None:
