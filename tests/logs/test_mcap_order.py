@@ -76,3 +76,21 @@ def test_recorder_like_files_take_the_chunk_by_chunk_path(tmp_path: Path) -> Non
     path = tmp_path / "overlapping.mcap"
     _write(path, [1000 + (i * 7919) % 500 for i in range(500)], [0] * 500, chunk_size=200)
     assert not _our_order(path, None)[1]
+
+
+def test_a_chunk_index_that_lies_about_times_is_an_error(tmp_path: Path) -> None:
+    """A damaged index claiming chunks follow each other while their messages overlap: an error
+    (the reader names it and points to --salvage), never messages out of log-time order."""
+    path = tmp_path / "lying.mcap"
+    _write(path, [1000 + (i * 7919) % 500 for i in range(500)], [0] * 500, chunk_size=200)
+    backend = McapReadBackend(path)
+    backend.open()
+    try:
+        indexes = backend.reader.get_summary().chunk_indexes
+        for k, index in enumerate(indexes):  # what a damaged index could say
+            index.message_start_time, index.message_end_time = 10 * k, 10 * k + 5
+        assert backend._chunks_in_sequence(None) is not None
+        with pytest.raises(ValueError, match="older than the chunk before it"):
+            list(backend.messages(None))
+    finally:
+        backend.close()
