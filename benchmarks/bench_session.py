@@ -86,8 +86,7 @@ def build(
                 100 - grid[i % size, 0] if grid[i % size, 0] >= 0 else 0
             )  # always differs
             snap = MapSnapshot("/map", t_map, t_map, "map", grid, 0.05, (-25.0, -25.0, 0.0))
-            out.write("/map", t_map, encode_cleaned(snap, grid, serialization=out.serialization))
-            count += 1
+            # In log-time order, as a recorder writes: the interval's scans, then its map.
             if scan_ns:
                 for t in range(t_map - period_ns + scan_ns, t_map, scan_ns):
                     stamp = types["builtin_interfaces/msg/Time"](
@@ -109,6 +108,8 @@ def build(
                     )
                     out.write("/scan", t, scan)
                     count += 1
+            out.write("/map", t_map, encode_cleaned(snap, grid, serialization=out.serialization))
+            count += 1
     return count
 
 
