@@ -101,7 +101,7 @@ def nominal_reference_map(
     -------
     ndarray of float32 (float64 for a complex128 spectrum), shape ``shape``
         A view into the padded transform, not contiguous unless nothing was padded (``analyze``
-        copies it as it scales it).
+        scales it in place when nothing was, else copies it as it scales it).
     """
     return inverse_to_map(masked_spectrum(spectrum, mask), shape)
 
