@@ -671,16 +671,18 @@ class _Loop:
         handle = self.handles.get(message.channel.id)
         if self.writer is None or handle is None:
             return
+        # Held until the analyses before it are written (the output's order never depends on
+        # timing): then a copy of its data, which the reader's buffer does not outlive.
+        held = bool(self.queue)
         item = _Copy(
             handle,
             message.log_time_ns,
-            message.data,
+            bytes(message.data) if held else message.data,
             message.publish_time_ns,
             message.sequence,
         )
-        if self.queue:
-            # Held until the analyses before it are written: the output's order never depends on timing.
-            self.queue.append(dataclasses.replace(item, data=bytes(item.data)))
+        if held:
+            self.queue.append(item)
         else:
             self._write(item)
 
