@@ -26,7 +26,7 @@ from pathlib import Path
 from rose_logs.batch import run_batch
 from rose_logs.batch.cluster import local_client
 from rose_logs.batch.task import RecordingOptions
-from rose_logs.malloc import MALLOC_ENV
+from rose_logs.malloc import MALLOC_ENV, keep_arrays_on_heap
 from rose_logs.reader import LogReader
 from rose_logs.writer import open_output
 
@@ -149,6 +149,9 @@ def main() -> None:
         "--malloc", action="store_true", help="also compare malloc settings (task CPU, in-process)"
     )
     args = parser.parse_args()
+    # As the rose-bag command does (the Dask workers get the same settings): the in-process runs
+    # measure what users get.
+    keep_arrays_on_heap()
     work = Path(tempfile.mkdtemp(prefix="bench-batch-"))
     try:
         fleet = args.keep or work / "fleet"
