@@ -166,38 +166,90 @@ class McapReadBackend:
         for before, after in itertools.pairwise(chunks):
             if before.message_end_time > after.message_start_time or (
                 before.message_end_time == after.message_start_time
-                and before.chunk_start_offset > after.chunk_start_offset
+                and before.chunk_start_offset >= after.chunk_start_offset
             ):
                 return None
         return chunks
 
     def _chunk_by_chunk(self, chunks: list[Any], topics: set[str] | None) -> Iterator[RawMessage]:
-        """The messages of ``chunks`` (:meth:`_chunks_in_sequence`), each chunk's sorted by log time."""
+        """The messages of ``chunks`` (:meth:`_chunks_in_sequence`), each chunk's sorted by log time.
+
+        Only while each chunk's messages lie within the times its index gives: a chunk whose
+        index does not bound them (a writer's bug, such as a start time that leaves out messages
+        logged at time 0) hands over to the library's merge from that chunk on, which up to there
+        gave the same messages."""
         wanted = self._wanted(topics)
         by_id = self._by_id
-        latest = 0
-        for index in chunks:
-            messages = []
-            for m in self._read_chunk(index):
-                if m.channel_id in wanted:
-                    messages.append(m)
-                elif m.channel_id not in by_id:  # as the library's reader, which looks it up
-                    msg = f"message on channel id {m.channel_id}, which the file does not define"
-                    raise ValueError(msg)
-            if any(a.log_time > b.log_time for a, b in itertools.pairwise(messages)):
-                messages.sort(key=lambda m: m.log_time)
-            if messages and messages[0].log_time < latest:
-                # Only a chunk index whose times are not its chunk's: the file is damaged.
-                msg = (
-                    f"the chunk at byte {index.chunk_start_offset} holds messages older than the "
-                    "chunk before it, which its index denies"
+        for k, index in enumerate(chunks):
+            messages = self._messages_of(index, wanted, strict=True)
+            times = [m.log_time for m in messages]
+            if times and not (
+                index.message_start_time <= min(times) and max(times) <= index.message_end_time
+            ):
+                offset = index.chunk_start_offset
+                yield from self._merge(
+                    [(m.log_time, offset, at, m) for at, m in enumerate(messages)]
+                    + [
+                        (c.message_start_time, c.chunk_start_offset, -1, c) for c in chunks[k + 1 :]
+                    ],
+                    wanted,
+                    skip_damaged=False,
                 )
-                raise ValueError(msg)
-            latest = messages[-1].log_time if messages else latest
+                return
+            if any(a > b for a, b in itertools.pairwise(times)):
+                messages.sort(key=lambda m: m.log_time)
             for m in messages:
                 yield RawMessage(
                     by_id[m.channel_id], m.log_time, m.data, m.publish_time, m.sequence
                 )
+
+    def _messages_of(self, index: Any, wanted: set[int], *, strict: bool) -> list[Any]:
+        """The messages of the channels ``wanted`` in the chunk ``index`` points to, in file
+        order; ``strict``: a message on a channel the file does not define is an error (as in
+        the library's reader, which looks it up), else left out."""
+        messages = []
+        for m in self._read_chunk(index):
+            if m.channel_id in wanted:
+                messages.append(m)
+            elif strict and m.channel_id not in self._by_id:
+                msg = f"message on channel id {m.channel_id}, which the file does not define"
+                raise ValueError(msg)
+        return messages
+
+    def _merge(
+        self, items: list[tuple[int, int, int, Any]], wanted: set[int], *, skip_damaged: bool
+    ) -> Iterator[RawMessage]:
+        """The ``mcap`` reader's own merge, in the same order (log time, then file position).
+
+        ``items``: ``(log time, chunk offset, place in the chunk, message)`` for messages read,
+        ``(start time, chunk offset, -1, chunk index)`` for chunks to read when their time comes.
+        ``skip_damaged``: a chunk that cannot be read is said in :attr:`skipped_chunks` and
+        skipped (else its error is raised).
+        """
+        # A tie-breaker keeps the items themselves out of every comparison.
+        tie = itertools.count()
+        queue = [(t, offset, at, next(tie), item) for t, offset, at, item in items]
+        heapq.heapify(queue)
+        while queue:
+            _, offset, position, _, item = heapq.heappop(queue)
+            if position >= 0:
+                ch = self._by_id[item.channel_id]
+                yield RawMessage(ch, item.log_time, item.data, item.publish_time, item.sequence)
+                continue
+            try:
+                messages = self._messages_of(item, wanted, strict=not skip_damaged)
+            except Exception as err:  # any library error: this chunk is damaged
+                if not skip_damaged:
+                    raise
+                reason = short(str(err) or type(err).__name__, 120)
+                self.skipped_chunks.append(
+                    SkippedChunk(
+                        offset, self._size, reason, item.message_start_time, item.message_end_time
+                    )
+                )
+                continue
+            for at, m in enumerate(messages):
+                heapq.heappush(queue, (m.log_time, offset, at, next(tie), m))
 
     def _read_chunk(self, index: Any) -> list[Any]:
         """The message records of the chunk ``index`` points to, in file order (CRC checked).
@@ -236,34 +288,14 @@ class McapReadBackend:
                 )
             return
         wanted = self._wanted(topics)
-        size = self.path.stat().st_size
-        # (log time, chunk offset, index in the chunk (-1: the chunk itself), tie-breaker, item):
-        # the tie-breaker keeps the items themselves out of every comparison.
-        tie = itertools.count()
-        queue: list[tuple[int, int, int, int, Any]] = [
-            (index.message_start_time, index.chunk_start_offset, -1, next(tie), index)
-            for index in self._chunks_with(wanted)
-        ]
-        heapq.heapify(queue)
-        while queue:
-            _, offset, position, _, item = heapq.heappop(queue)
-            if position >= 0:
-                ch = self._by_id[item.channel_id]
-                yield RawMessage(ch, item.log_time, item.data, item.publish_time, item.sequence)
-                continue
-            try:
-                records = self._read_chunk(item)
-            except Exception as err:  # any library error: this chunk is damaged, go on
-                reason = short(str(err) or type(err).__name__, 120)
-                self.skipped_chunks.append(
-                    SkippedChunk(
-                        offset, size, reason, item.message_start_time, item.message_end_time
-                    )
-                )
-                continue
-            for at, record in enumerate(records):
-                if record.channel_id in wanted:
-                    heapq.heappush(queue, (record.log_time, offset, at, next(tie), record))
+        yield from self._merge(
+            [
+                (index.message_start_time, index.chunk_start_offset, -1, index)
+                for index in self._chunks_with(wanted)
+            ],
+            wanted,
+            skip_damaged=True,
+        )
 
     def close(self) -> None:
         if self.stream is not None:
