@@ -28,6 +28,7 @@ import tempfile
 import time
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 import rose
@@ -185,6 +186,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--keep", type=Path, default=None, help="work here and keep the files")
     args = parser.parse_args(argv)
     keep_arrays_on_heap()  # as the rose-bag command does: measure what its users get
+    cv2.setNumThreads(1)  # as `rose-bag process` does (rose_logs/cli/process.py)
 
     work = args.keep or Path(tempfile.mkdtemp(prefix="rose-bench-"))
     work.mkdir(parents=True, exist_ok=True)

@@ -347,8 +347,8 @@ def _beside() -> Iterator[Executor]:
     OpenCV and numpy let go of the GIL, so a second thread runs them on a second core (the Hough
     transform, the distance transforms and the labellings use one core each): on two cores, 17 %
     less wall time than in turn over the 29 benchmark maps, none when the cores are busy anyway.
-    Only when OpenCV may use several threads, though: batch workers hold it to one (they share the
-    cores), and so does a one-core machine. Also in turn once the interpreter is shutting down
+    Only when OpenCV may use several threads, though: batch workers and `rose-bag process` (whose
+    session keeps the cores busy) hold it to one, and so does a one-core machine. Also in turn once the interpreter is shutting down
     (a thread that outlives the main one, an atexit handler), when no new thread may start.
     """
     import cv2
