@@ -120,9 +120,10 @@ class McapReadBackend:
         if self.skip_damaged_chunks:
             yield from self._around_damaged_chunks(topics)
             return
-        chunks = self._chunks_in_sequence(topics)
+        wanted = self._wanted(topics)
+        chunks = self._chunks_in_sequence(wanted)
         if chunks is not None:
-            yield from self._chunk_by_chunk(chunks, topics)
+            yield from self._chunk_by_chunk(chunks, wanted)
             return
         by_id = self._by_id
         for _schema, ch, msg in self.reader.iter_messages(topics=topics, log_time_order=True):
@@ -146,8 +147,8 @@ class McapReadBackend:
             if wanted & set(index.message_index_offsets) or not index.message_index_offsets
         ]
 
-    def _chunks_in_sequence(self, topics: set[str] | None) -> list[Any] | None:
-        """The chunk indexes holding ``topics``, in file order, when each chunk's messages all come
+    def _chunks_in_sequence(self, wanted: set[int]) -> list[Any] | None:
+        """The chunk indexes holding the channels ``wanted``, in file order, when each chunk's messages all come
         before the next one's in the library's log-time order (log time, then chunk, then place in
         the chunk), as recorders write them; None when chunks overlap in time (or there is no
         index), for the library's merge.
@@ -160,7 +161,7 @@ class McapReadBackend:
         if not summary.chunk_indexes:
             return None
         chunks = sorted(
-            self._chunks_with(self._wanted(topics)),
+            self._chunks_with(wanted),
             key=lambda index: (index.message_start_time, index.chunk_start_offset),
         )
         for before, after in itertools.pairwise(chunks):
@@ -171,14 +172,13 @@ class McapReadBackend:
                 return None
         return chunks
 
-    def _chunk_by_chunk(self, chunks: list[Any], topics: set[str] | None) -> Iterator[RawMessage]:
+    def _chunk_by_chunk(self, chunks: list[Any], wanted: set[int]) -> Iterator[RawMessage]:
         """The messages of ``chunks`` (:meth:`_chunks_in_sequence`), each chunk's sorted by log time.
 
         Only while each chunk's messages lie within the times its index gives: a chunk whose
         index does not bound them (a writer's bug, such as a start time that leaves out messages
         logged at time 0) hands over to the library's merge from that chunk on, which up to there
         gave the same messages."""
-        wanted = self._wanted(topics)
         by_id = self._by_id
         for k, index in enumerate(chunks):
             messages = self._messages_of(index, wanted, strict=True)

@@ -36,7 +36,7 @@ def _our_order(path: Path, topics: set[str] | None) -> tuple[list[tuple[str, int
     backend = McapReadBackend(path)
     backend.open()
     try:
-        sequential = backend._chunks_in_sequence(topics) is not None
+        sequential = backend._chunks_in_sequence(backend._wanted(topics)) is not None
         got = [(m.channel.topic, m.log_time_ns, bytes(m.data)) for m in backend.messages(topics)]
     finally:
         backend.close()
