@@ -26,6 +26,7 @@ from pathlib import Path
 from rose_logs.batch import run_batch
 from rose_logs.batch.cluster import local_client
 from rose_logs.batch.task import RecordingOptions
+from rose_logs.cli.options import hold_opencv_to_one_thread
 from rose_logs.malloc import MALLOC_ENV, keep_arrays_on_heap
 from rose_logs.reader import LogReader
 from rose_logs.writer import open_output
@@ -152,6 +153,7 @@ def main() -> None:
     # As the rose-bag command does (the Dask workers get the same settings): the in-process runs
     # measure what users get.
     keep_arrays_on_heap()
+    hold_opencv_to_one_thread()  # as `rose-bag batch --workers 1` does (the workers hold it too)
     work = Path(tempfile.mkdtemp(prefix="bench-batch-"))
     try:
         fleet = args.keep or work / "fleet"

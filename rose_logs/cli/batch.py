@@ -15,6 +15,7 @@ from rose_logs.cli.options import (
     UsageError,
     add_gate_arguments,
     add_session_arguments,
+    hold_opencv_to_one_thread,
     unjudged_topics,
 )
 
@@ -246,6 +247,8 @@ def run(args: argparse.Namespace) -> int:
         max_cells=args.max_cells,
         replace_rose_topics=args.replace_rose_topics,
     )
+    if args.workers == 1 and not (args.scheduler or args.scheduler_file):
+        hold_opencv_to_one_thread()  # in this process, as `process` (the workers hold it too)
     report = run_batch(
         inputs,
         args.out,

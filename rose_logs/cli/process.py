@@ -25,6 +25,7 @@ from rose_logs.cli.options import (
     add_gate_arguments,
     add_session_arguments,
     duration_text,
+    hold_opencv_to_one_thread,
     output_log_path,
     unjudged_topics,
     utc_text,
@@ -336,16 +337,10 @@ def _gate_failures(args: argparse.Namespace, report: Any) -> list[str]:
 
 
 def _process(args: argparse.Namespace, output: Path | None, progress: bool, outputs: Any) -> Any:
-    import cv2
-
     from rose_logs.session import process_log
     from rose_logs.session.breaks import BreakParams
 
-    # A session keeps both cores busy already (two analyses at once, the break detector and
-    # Rerun's logging beside them): OpenCV's own pool, and the walls cleaning's second thread
-    # that follows it, only add work there (the one-hour benchmark session, walls cleaning, six
-    # pairs of runs: 9 % less CPU, 6 % less wall time). Results are the same either way.
-    cv2.setNumThreads(1)
+    hold_opencv_to_one_thread()
     rose_params = params_from_args(args)
     return process_log(
         args.input,

@@ -375,6 +375,21 @@ def test_cli_gates_errors_win_over_fail_above(
     assert "no such file" in capsys.readouterr().err
 
 
+def test_cli_in_process_holds_opencv_to_one_thread(fleet: Path, tmp_path: Path) -> None:
+    # As `process` and the Dask workers: the session keeps both cores busy, and OpenCV's pool
+    # (with the walls cleaning's second thread) only added CPU there (numbers in the helper).
+    import cv2
+
+    threads = cv2.getNumThreads()
+    cv2.setNumThreads(2)
+    try:
+        only = fleet / "robot_b" / "nested" / "small.mcap"
+        assert main(["batch", str(only), "-o", str(tmp_path / "out"), "-q"]) == 0
+        assert cv2.getNumThreads() == 1
+    finally:
+        cv2.setNumThreads(threads)
+
+
 def test_cli_names_each_failed_recording_on_its_own_line(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
