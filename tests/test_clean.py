@@ -214,7 +214,8 @@ def test_wide_unknown_drops_narrow_shadows() -> None:
 def test_near_wide_unknown_is_exact_at_every_known_cell(resolution_m: float) -> None:
     """It dilates on the known cells' box only (at 1 mm per cell the margin's disc over the whole
     padded grid took seconds): at every known cell it must equal the dilation of the whole grid."""
-    from rose.cleaning_rules import _dilate, _near_wide_unknown, _wide, length_px
+    from rose.cleaning_rules.masks import _dilate, length_px
+    from rose.cleaning_rules.outside import _near_wide_unknown, _wide
 
     rng = np.random.default_rng(3)
     grid = np.full((160, 200), -1, np.int8)
@@ -408,7 +409,7 @@ def test_a_small_closed_room_is_no_free_standing_object() -> None:
 
 
 def test_frame_cells_are_the_windows_first_and_last_rows_and_columns() -> None:
-    from rose.cleaning_rules import _frame_cells
+    from rose.cleaning_rules.guard import _frame_cells
 
     top, left = np.array([0, 3, 10]), np.array([0, 7, 2])
     heights, widths = np.array([2, 4, 1]), np.array([3, 1, 5])
@@ -643,7 +644,7 @@ threading.Thread(target=later).start()
 def test_run_morphology_matches_opencvs_line_kernels(vertical: bool) -> None:
     # The bridges and the runs work on the runs of the occupied cells: every cell must be the one
     # OpenCV's opening (empty border) and closing (its default borders) with a line gives.
-    from rose.cleaning_rules import _close_runs, _nonzero_flat, _open_runs, _run_cells, _runs
+    from rose.cleaning_rules.runs import _close_runs, _nonzero_flat, _open_runs, _run_cells, _runs
 
     rng = np.random.default_rng(7)
     for _ in range(400):
@@ -672,7 +673,8 @@ def test_the_run_and_image_line_morphology_agree(
     """Speckled grids take OpenCV's whole-image morphology (the runs' index arrays grew with the
     cells: a 40 %-occupied 5000 x 5000 grid cleaned 4x slower and with 1 GB more); walls take the
     runs. Both must fill and keep the same cells, at every density."""
-    import rose.cleaning_rules as rules
+    import rose.cleaning_rules.bridges as bridges
+    import rose.cleaning_rules.runs as runs
 
     rng = np.random.default_rng(11)
     for _ in range(60):
@@ -682,12 +684,16 @@ def test_the_run_and_image_line_morphology_agree(
         length, anchors = int(rng.integers(3, 14)), sorted({1, int(rng.integers(1, 9))})
         found = []
         for share in (2.0, -1.0):  # never, always OpenCV's
-            for name in ("_DENSE_CELLS", "_FRAGMENTED_RUNS", "_FRAGMENTED_CLOSED"):
-                monkeypatch.setattr(rules, name, share)
+            for module, name in (
+                (runs, "_DENSE_CELLS"),
+                (runs, "_FRAGMENTED_RUNS"),
+                (bridges, "_FRAGMENTED_CLOSED"),
+            ):
+                monkeypatch.setattr(module, name, share)
             found.append(
                 (
-                    rules._closed_gaps(image, vertical, length, anchors),
-                    rules._runs_in_frame(image.view(bool), 0.0, length, int(vertical)),
+                    bridges._closed_gaps(image, vertical, length, anchors),
+                    runs._runs_in_frame(image.view(bool), 0.0, length, int(vertical)),
                 )
             )
         for runs_way, image_way in zip(*found, strict=True):
@@ -701,7 +707,7 @@ def test_the_cleanings_second_thread_runs_in_the_callers_context() -> None:
 
     import cv2
 
-    from rose.cleaning_rules import _beside
+    from rose.cleaning_rules.beside import _beside
 
     recording: contextvars.ContextVar[str] = contextvars.ContextVar("recording", default="none")
     threads = cv2.getNumThreads()

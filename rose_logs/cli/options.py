@@ -34,7 +34,7 @@ def hold_opencv_to_one_thread() -> None:
 
     A session keeps both cores busy already (two analyses at once, the break detector and Rerun's
     logging beside them): OpenCV's own pool, and the walls cleaning's second thread that follows
-    it (:func:`rose.cleaning_rules._beside`), only add work there. Measured: the one-hour
+    it (:func:`rose.cleaning_rules.beside._beside`), only add work there. Measured: the one-hour
     benchmark session, walls cleaning, six pairs of runs, 9 % less CPU and 6 % less wall time;
     ``rose-bag batch --workers 1`` on the 40-recording benchmark fleet, six pairs, 15 % less
     CPU and 13 % less wall time. Results are the same either way.

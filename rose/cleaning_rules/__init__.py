@@ -1,0 +1,313 @@
+"""The rules of the ``"walls"`` cleaning (:func:`rose.cleaning.clean`): runs, open unknown, topology guard.
+
+Everything works on boolean masks of shape ``(rows, cols)`` in the grid's cell space (row 0 at the map
+origin); lengths are in cells here, converted from metres by the caller. OpenCV does the morphology
+and labelling (imported lazily, like the wall extraction).
+
+The package: :func:`wall_cells` (here) runs the rules in order; the rules live in
+:mod:`~rose.cleaning_rules.outside` (the building's edge), :mod:`~rose.cleaning_rules.runs` (walls
+as straight runs and lines), :mod:`~rose.cleaning_rules.bridges` (hidden walls between wall ends),
+:mod:`~rose.cleaning_rules.fronts` (furniture against walls), :mod:`~rose.cleaning_rules.objects`
+(object faces, free-standing pieces, partitions, attached stubs) and
+:mod:`~rose.cleaning_rules.guard` (the topology guard), on the helpers of
+:mod:`~rose.cleaning_rules.masks`, :mod:`~rose.cleaning_rules.frames` and
+:mod:`~rose.cleaning_rules.beside`. Names with a leading underscore are internal to the package.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+import numpy.typing as npt
+
+from rose.cleaning_rules.beside import _beside
+from rose.cleaning_rules.bridges import _bridges
+from rose.cleaning_rules.fronts import (
+    _CORNER_DEPTH_M,
+    _CORNER_MAX_M,
+    _FRONT_CROSSING_M,
+    _FRONT_DEPTH_M,
+    _FRONT_FACE_M,
+    _FRONT_MAX_M,
+    _flush_fronts,
+)
+from rose.cleaning_rules.guard import passable, topology_guard
+from rose.cleaning_rules.masks import _bounds, _near, _padded_box, _touching, length_px
+from rose.cleaning_rules.objects import (
+    _PARTITION_MIN_M,
+    _THIN_WALL_M,
+    _THIN_WALL_MIN_CELLS,
+    _free_standing,
+    _grow_within,
+    _partitions,
+    _Pieces,
+    _pocket_faces,
+)
+from rose.cleaning_rules.outside import _near_wide_unknown, wide_unknown
+from rose.cleaning_rules.runs import directional_runs, straight_lines
+from rose.grid import UNKNOWN
+
+if TYPE_CHECKING:
+    from rose.cleaning import CleanParams
+    from rose.result import RoseResult
+
+
+__all__ = [
+    "directional_runs",
+    "length_px",
+    "passable",
+    "straight_lines",
+    "topology_guard",
+    "wall_cells",
+    "wide_unknown",
+]
+
+#: Shortest stretch of wall, along a gap, that a hidden wall is drawn from (metres): a wall's end,
+#: not the side face of an object across the gap.
+_BRIDGE_ANCHOR_M = 0.25
+
+#: Hidden walls between wall ends a cell apart across the line (a scanned wall's staircase, a wall
+#: at an angle to its rotated frame): each end a stretch at least this long within a band three
+#: cells wide (twice the exact anchor: a steep wall's staircase also makes short stretches in such a
+#: band), and each hidden stretch at least ``_BRIDGE_ANCHOR_M`` long (shorter ones are the notches of
+#: a staircase, beside the wall, not a wall hidden behind furniture).
+_STAGGERED_ANCHOR_M = 2 * _BRIDGE_ANCHOR_M
+
+
+def wall_cells(
+    occupancy: npt.NDArray[np.int8],
+    result: RoseResult,
+    *,
+    resolution_m: float,
+    params: CleanParams,
+) -> tuple[
+    npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_]
+]:
+    """Occupied cells the ``"walls"`` cleaning keeps, those among them only the guard keeps, the
+    unknown cells completed as hidden walls, and the cells removed whatever the paper says.
+
+    Returns
+    -------
+    walls : ndarray of bool, shape (rows, cols)
+        Kept cells (the paper's structure among them, except the ``dropped`` cells).
+    guarded : ndarray of bool, shape (rows, cols)
+        Cells restored by the topology guard.
+    completed : ndarray of bool, shape (rows, cols)
+        Unknown cells to make walls: the wall line hidden behind removed furniture.
+    dropped : ndarray of bool, shape (rows, cols)
+        Object faces and occupied cells of free-standing pieces: removed even where the paper
+        calls them structure.
+    """
+    p = params
+    res = resolution_m
+    if not result.occupied.any():
+        return _nothing_kept(occupancy.shape)
+    # Everything happens near known cells: work on their bounding box, padded so that every window
+    # and disc that matters fits (outside it all cells are unknown).
+    pad = 2 + max(
+        round(length_px(p.guard_window_m, res)) + math.ceil(length_px(p.robot_radius_m, res)),
+        math.ceil(length_px(p.open_unknown_width_m, res))
+        + round(length_px(p.unknown_margin_m, res)),
+    )
+    rows, cols = occupancy.shape
+    r0, r1, c0, c1 = _bounds(occupancy >= 0)
+    r0, c0, r1, c1 = r0 - pad, c0 - pad, r1 + pad, c1 + pad
+    window = (slice(max(r0, 0), min(r1, rows)), slice(max(c0, 0), min(c1, cols)))
+    # Beyond the grid lies unknown space, as around a map with a margin of unknown cells: a map
+    # cropped tight against its outer wall must clean as the same map with that margin (its wall
+    # next to a narrow strip of unknown cells at the edge was not "near wide unknown" and went).
+    beyond = ((max(-r0, 0), max(r1 - rows, 0)), (max(-c0, 0), max(c1 - cols, 0)))
+    kept, restored, added, removed = (
+        out[beyond[0][0] : out.shape[0] - beyond[0][1], beyond[1][0] : out.shape[1] - beyond[1][1]]
+        for out in _wall_cells(
+            np.pad(occupancy[window], beyond, constant_values=UNKNOWN),
+            np.pad(result.occupied[window], beyond),
+            np.pad(result.structure[window], beyond),
+            result.dominant_directions,
+            res=res,
+            p=p,
+        )
+    )
+    # Made after the rules, whose own arrays are the cleaning's peak memory.
+    walls, guarded, completed, dropped = _nothing_kept(occupancy.shape)
+    walls[window] = kept
+    guarded[window] = restored
+    completed[window] = added
+    dropped[window] = removed
+    return walls, guarded, completed, dropped
+
+
+def _nothing_kept(
+    shape: tuple[int, int],
+) -> tuple[
+    npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_]
+]:
+    """:func:`wall_cells`' four masks, all False."""
+    # Fresh zeros, not copies: the pages of a large array are only mapped where written.
+    return (
+        np.zeros(shape, dtype=bool),
+        np.zeros(shape, dtype=bool),
+        np.zeros(shape, dtype=bool),
+        np.zeros(shape, dtype=bool),
+    )
+
+
+def _wall_cells(
+    occupancy: npt.NDArray[np.int8],
+    occupied: npt.NDArray[np.bool_],
+    structure: npt.NDArray[np.bool_],
+    directions: npt.NDArray[np.float64],
+    *,
+    res: float,
+    p: CleanParams,
+) -> tuple[
+    npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_]
+]:
+    import cv2
+
+    unknown = occupancy == UNKNOWN
+    with _beside() as beside:
+        near_job = beside.submit(_near_wide_unknown, unknown, res, p)
+        pieces_job = beside.submit(_Pieces.of, occupied, join_px=1) if p.loose_pieces else None
+        # Furniture flush against a wall: its hidden wall line is drawn, as the bridges' are.
+        fronts_job = beside.submit(
+            _flush_fronts,
+            occupied,
+            unknown,
+            directions,
+            max_len_px=length_px(_FRONT_MAX_M, res) if p.max_bridge_m > 0 else 0.0,
+            max_depth_px=length_px(_FRONT_DEPTH_M, res),
+            anchor_px=length_px(_BRIDGE_ANCHOR_M, res),
+            face_px=length_px(_FRONT_FACE_M, res),
+            crossing_px=length_px(_FRONT_CROSSING_M, res),
+            wall_px=length_px(p.min_run_m, res),
+            corner_px=length_px(_CORNER_MAX_M, res) if p.max_bridge_m > 0 else 0.0,
+            corner_depth_px=length_px(_CORNER_DEPTH_M, res),
+        )
+        runs = directional_runs(
+            occupied,
+            directions,
+            min_length_px=length_px(p.min_run_m, res),
+            tolerance_px=p.run_tolerance_px,
+        )
+        # Straight lines at any angle (walls off the dominant directions, curved walls in pieces);
+        # the runs are walls already, and leaving them out of Hough's input makes it 1.2-3x
+        # cheaper.
+        lines = runs | straight_lines(occupied & ~runs, min_length_px=length_px(p.min_run_m, res))
+        near_outside = near_job.result()
+        keep = occupied & (structure | near_outside) | lines
+        completed = np.zeros(occupied.shape, dtype=bool)
+        sealed_off = completed  # what closes scanned objects and the building, as walls or not
+        if p.max_bridge_m > 0:
+            # Unknown cells between collinear kept walls. Those between wall ends become the wall
+            # line hidden behind furniture; all of them seal what they close off (an object's
+            # inside between its faces, a cabinet's open back) but are not drawn as walls.
+            bridges, wall_lines, staggered = _bridges(
+                keep,
+                unknown,
+                directions,
+                length_px(p.max_bridge_m, res),
+                (1, length_px(_BRIDGE_ANCHOR_M, res)),
+                beside,
+                staggered_px=(
+                    length_px(_STAGGERED_ANCHOR_M, res),
+                    length_px(_BRIDGE_ANCHOR_M, res),
+                ),
+            )
+            # Wall ends a cell apart across the line draw the hidden wall too (exact anchors need
+            # the ends in one row of the rotated frame: a staircase at 30 or 45 degrees breaks that).
+            bridges |= staggered
+            wall_lines |= staggered
+            # Only next to what goes (within a cabinet's depth): a bridge network reaching into
+            # unexplored space or across racks is no wall hidden behind removed clutter.
+            removed = occupied & ~keep
+            sealed_off = _near(
+                _touching(bridges, removed), removed, round(length_px(p.hidden_wall_reach_m, res))
+            )
+            completed = sealed_off & wall_lines
+        # Furniture against a wall (a cabinet, a counter: its front a straight run when 2 m or
+        # longer): the wall line hidden behind it is drawn, its front and sides go, and the walls
+        # that meet it stay.
+        front_lines, fronts, inside, front_walls = fronts_job.result()
+        completed = completed | front_lines
+        sealed_off = sealed_off | front_lines
+        sealed = bool(sealed_off.any())
+        if sealed:
+            # The sealed cells separate the room from the unknown beyond them: furniture faces
+            # in front are no longer next to the outside (a cabinet's inside, open through the
+            # unscanned wall behind it, made its faces look like the building's edge).
+            near_job = beside.submit(_near_wide_unknown, unknown & ~sealed_off, res, p)
+        dropped_job = None
+        if pieces_job is not None:
+            # Free-standing pieces need neither the object faces nor the attached pieces: they
+            # go beside them, after the wide unknown space they need (the same thread, in turn).
+            pieces = pieces_job.result()
+            dropped_job = beside.submit(_free_standing, pieces, lines, near_job, unknown, res, p)
+        faces = np.zeros(occupied.shape, dtype=bool)
+        pockets = faces
+        if p.object_pocket_m2 > 0:
+            # Object faces: a scanner sees a solid object as faces around a small unknown pocket
+            # (its inside, sealed by the bridges across it). They go unless on a long straight run.
+            faces, pockets = _pocket_faces(
+                unknown, sealed_off, occupied, length_px(p.object_pocket_m2, res**2)
+            )
+        if sealed:
+            keep = occupied & (structure | near_job.result()) | lines
+        if front_lines.any():
+            # The wall ends the hidden line joins are the wall, not faces of the object's inside
+            # (dilated on the lines' box only: a few objects in a large map).
+            box = _padded_box(front_lines, 1)
+            beside_lines = cv2.dilate(front_lines[box].view(np.uint8), np.ones((3, 3), np.uint8))
+            faces[box] &= ~beside_lines.view(bool)
+        object_faces = faces & ~lines | fronts
+        keep &= ~object_faces
+        keep |= front_walls  # walls meeting furniture fronts: kept, attach to them
+        faces = faces | fronts
+        if p.attach_reach_m > 0:
+            # Wall stubs, door frames, corners: occupied cells joined to a kept wall within the
+            # reach, through occupied cells that are not object faces.
+            attached = _grow_within(
+                keep, occupied & ~faces, round(length_px(p.attach_reach_m, res))
+            )
+            attached &= ~keep
+            keep |= attached
+            # Partitions: pieces seen from both sides (free space across them within a wall's
+            # thickness) that meet a kept wall, a wall between a corner and a door shorter than a
+            # run. A thick wall shows two faces around its unseen core, which the object rule
+            # takes for an object's faces around its inside: object faces count here too. A
+            # scanned object is deeper, its inside unknown up to a back against a wall or seen
+            # from the room, so no row or column crosses it from free space to free space.
+            keep |= _partitions(
+                occupied,
+                keep,
+                ~unknown & ~occupied,
+                pockets,
+                attached=attached,
+                min_length_px=length_px(_PARTITION_MIN_M, res),
+                max_thickness_px=max(length_px(_THIN_WALL_M, res), _THIN_WALL_MIN_CELLS),
+            )
+        dropped = (
+            np.zeros(occupied.shape, dtype=bool) if dropped_job is None else dropped_job.result()
+        )
+    min_region_px = length_px(p.min_region_m2, res**2)
+    guard_obstacles = occupied
+    if pieces_job is not None:
+        keep &= ~dropped
+        # Pieces attached to no kept wall at all are furniture standing in the room: the guard
+        # does not count them as obstacles of the input. Only those whose box is smaller than a
+        # region the guard protects, though: they can enclose nothing it would count (a closed
+        # free-standing room of 1.3 m x 1.3 m was removed whole, its inside opened).
+        guard_obstacles = occupied & ~pieces.loose(keep, max_box_area_px=min_region_px)
+    guarded = topology_guard(
+        guard_obstacles,
+        keep,
+        added=completed | inside,
+        radius_px=length_px(p.robot_radius_m, res),
+        window_px=max(1, round(length_px(p.guard_window_m, res))),
+        min_region_px=min_region_px,
+    )
+    kept = keep | guarded
+    # (Object faces a partition keeps are walls, not dropped.)
+    return kept, guarded, completed, (dropped | object_faces) & ~kept

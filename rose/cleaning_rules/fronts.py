@@ -1,0 +1,537 @@
+"""Furniture flush against a wall or in a room's corner: the hidden wall line is drawn, the furniture's
+front and sides go.
+
+Part of the ``"walls"`` cleaning's rules (:mod:`rose.cleaning_rules`); masks of shape ``(rows, cols)``
+in the grid's cell space (row 0 at the map origin), lengths in cells.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import numpy.typing as npt
+
+from rose.cleaning_rules.frames import _frames, _rotate
+from rose.cleaning_rules.masks import _bounds, _padded_box
+
+#: Furniture fronts (:func:`_flush_fronts`): the longest wall line hidden behind furniture against
+#: a wall, between two visible stretches of that wall (metres).
+_FRONT_MAX_M = 5.0
+
+
+#: ... the deepest such furniture, from the wall line to its front face (metres).
+_FRONT_DEPTH_M = 1.0
+
+
+#: ... the thickest wall meeting the hidden line across it, between two pieces of furniture
+#: (metres).
+_FRONT_CROSSING_M = 0.5
+
+
+#: ... a wall face: a wall end anchors the hidden line when free space lies within this of it, on
+#: the furniture's side (metres: a scanned wall one to three cells thick).
+_FRONT_FACE_M = 0.15
+
+
+#: ... the share of the furniture's columns whose last cell before the room is occupied.
+_FRONT_FACE_SHARE = 0.9
+
+
+#: ... furniture in a room's corner (:func:`_corner_at`), where the hidden parts of two walls meet
+#: behind it: one wall's line runs on from its visible end to the other's, which runs on from the
+#: furniture's front; the longest such line (metres, as between two wall ends). Read only in frames
+#: along the grid's axes: rotated onto the rows, nearest-neighbour sampling breaks a wall's rows
+#: into stretches whose ends look like a wall's end (on the ray-cast logs, whose walls are 1.5-18
+#: degrees off the axes, reading corners in rotated frames too cost intel 0.2-0.7 points of wall
+#: recall, of its own shelves, and opened a robot gap in both intel-r30 cases).
+_CORNER_MAX_M = 5.0
+
+
+#: ... the shallowest such furniture, from the wall line to the far side of its front (metres):
+#: twice a wall face. One wall end is weaker evidence than two: a wall stepping or bending off
+#: its line by a wall's thickness (0.2-0.25 m) next to a corner looks the same, and shallower
+#: furniture (a shelf) is rare.
+_CORNER_DEPTH_M = 0.3
+
+
+def _flush_fronts(
+    occupied: npt.NDArray[np.bool_],
+    unknown: npt.NDArray[np.bool_],
+    directions: npt.NDArray[np.float64],
+    *,
+    max_len_px: float,
+    max_depth_px: float,
+    anchor_px: float,
+    face_px: float,
+    crossing_px: float,
+    wall_px: float,
+    corner_px: float = 0.0,
+    corner_depth_px: float = 0.0,
+) -> tuple[
+    npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_]
+]:
+    """Furniture flush against a wall: the hidden wall line, the furniture's cells, its inside, and
+    the walls that meet it (kept).
+
+    Along each dominant direction: a straight stretch of unknown cells (at most ``max_len_px``)
+    between two occupied stretches of at least ``anchor_px`` cells on one line that face free
+    space on the same side (most of their last ``anchor_px`` cells within ``face_px`` of it),
+    where every cell of the stretch has, on that side, more than ``face_px`` and at most
+    ``max_depth_px`` occupied or unknown cells before free space, an occupied one last (a front
+    face). That is a wall running on behind an object that stands against it: the line is the
+    hidden wall, the occupied cells between it and the room are the object's front and sides,
+    the unknown cells its inside. Columns reaching farther than the front, in stretches no wider
+    than ``crossing_px``, are a wall meeting the object (a partition ending on its front,
+    or crossing the line between two objects): its cells up to ``wall_px`` past the object are
+    kept, and its sides drawn from the line to the front. In a frame at an angle to the grid, where
+    a wall is a staircase, the rotated rows are read as they are and once more straightened
+    (:func:`_straightened`: the wall line a band of rows), with anchors twice as long, the gap's
+    end columns allowed to open to the room, and the front two cells deeper than a wall face.
+    With ``corner_px``, in frames along the grid's axes, also furniture in a room's corner
+    (:func:`_corner_at`): the line from one wall's visible end (at most ``corner_px``) to the line
+    of a perpendicular wall that runs on from the furniture's front, the front at least
+    ``corner_depth_px`` from the line; both hidden lines are drawn.
+    """
+    import cv2
+
+    shape = occupied.shape
+    lines, fronts, insides, stubs = (np.zeros(shape, dtype=bool) for _ in range(4))
+    if not occupied.any() or directions.size == 0:
+        return lines, fronts, insides, stubs
+    box = _padded_box(occupied, math.ceil(max_depth_px) + 4)
+    r0, c0 = box[0].start, box[1].start
+    # 0 unknown (also beyond the rotated image), 1 free, 2 occupied.
+    code = (~unknown[box]).view(np.uint8) + occupied[box].view(np.uint8)
+    rows, cols = code.shape
+    for angle in _frames(directions):
+        rotated, matrix = _rotate(code, angle)
+        out = np.zeros(rotated.shape, dtype=np.uint8)  # bit 0 line, 1 front, 2 inside, 3 wall
+        transposed = np.asarray(cv2.transpose(rotated), dtype=np.uint8)  # a ninth of numpy's cost
+        # Rotated (a wall at an angle to the grid): the exact rows, then the straightened ones.
+        for slack, transpose in ((0, False), (0, True)) + (
+            ((1, False), (1, True)) if matrix is not None else ()
+        ):
+            # Along the rows, then along the columns (transposed: the runs need the cells of a
+            # line in order); each for furniture on either side of the line.
+            along = transposed if transpose else rotated
+            if slack:
+                # A wall at an angle to the grid is a staircase once rotated onto the rows (its
+                # cells a row off here and there, its line broken): straightened by growing the
+                # occupied cells a row across the line, the wall line, its anchors and the front
+                # are whole rows.
+                along = _straightened(along)
+            _fronts_rows(
+                along,
+                out.T if transpose else out,
+                round(max_len_px),
+                round(max_depth_px),
+                max(1, round(anchor_px)),
+                max(1, round(face_px)),
+                round(crossing_px),
+                round(wall_px),
+                slack=slack,
+                # Corners only along the grid's axes (see _CORNER_MAX_M).
+                corner_len=round(corner_px) if matrix is None else 0,
+                corner_depth=round(corner_depth_px),
+            )
+        if matrix is not None:
+            out = np.asarray(
+                cv2.warpAffine(
+                    out, matrix, (cols, rows), flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP
+                ),
+                dtype=np.uint8,
+            )
+        if not out.any():
+            continue
+        # Only where something was found (a few objects in a large map).
+        y0, y1, x0, x1 = _bounds(out.view(bool))
+        out = out[y0:y1, x0:x1]
+        found = (slice(r0 + y0, r0 + y1), slice(c0 + x0, c0 + x1))
+        line = (out & 1).view(bool) & unknown[found]
+        lines[found] |= line
+        stub = (out >> 3).view(bool) & occupied[found]
+        stubs[found] |= stub
+        fronts[found] |= (out >> 1 & 1).view(bool) & occupied[found] & ~line & ~stub
+        insides[found] |= (out >> 2 & 1).view(bool) & unknown[found] & ~line
+    return lines, fronts & ~stubs, insides, stubs
+
+
+def _straightened(code: npt.NDArray[np.uint8]) -> npt.NDArray[np.uint8]:
+    """``code`` (0 unknown, 1 free, 2 occupied) with every cell a row above or below an occupied
+    one occupied, and then the holes of one or two cells along the rows between occupied cells (a
+    morphological closing along the rows): a staircase of one or two rows becomes a solid band."""
+    import cv2
+
+    _, occupied = cv2.threshold(code, 1, 2, cv2.THRESH_BINARY)
+    grown: npt.NDArray[np.uint8] = np.asarray(
+        cv2.dilate(occupied, np.ones((3, 1), np.uint8)), dtype=np.uint8
+    )
+    closed = grown.copy()
+    closed[:, 1:-1] |= grown[:, :-2] & grown[:, 2:]
+    # Holes of two cells: the same pairs three columns apart close both of their cells.
+    apart = grown[:, :-3] & grown[:, 3:]
+    closed[:, 1:-2] |= apart
+    closed[:, 2:-1] |= apart
+    return np.asarray(cv2.max(code, closed), dtype=np.uint8)
+
+
+def _fronts_rows(
+    code: npt.NDArray[np.uint8],
+    out: npt.NDArray[np.uint8],
+    max_len: int,
+    max_depth: int,
+    anchor: int,
+    face: int,
+    crossing: int,
+    stub: int,
+    *,
+    slack: int = 0,
+    corner_len: int = 0,
+    corner_depth: int = 0,
+) -> None:
+    """:func:`_flush_fronts` along the rows of ``code`` (0 unknown, 1 free, 2 occupied), the
+    furniture below or above the line; bits 0 (line), 1 (front), 2 (inside) and 3 (a wall meeting
+    the object) set in ``out``. With ``corner_len``, also furniture in a room's corner
+    (:func:`_corners_rows`), its hidden line at most that long and its front at least
+    ``corner_depth`` cells from the line.
+
+    Whole-image work is only the runs of the occupied cells; each candidate gap (unknown cells at
+    both ends) is then checked on a few cells, and the rest on the few rows beside it."""
+    height, width = code.shape
+    flat_code = code.reshape(-1)
+    cells = np.flatnonzero(flat_code >= 2)  # occupied: a door frame's stub is kept only later
+    if cells.size < 2:
+        return
+    r = cells // width
+    step = np.diff(cells)
+    same_row = r[1:] == r[:-1]
+    new_run = np.ones(cells.size, dtype=bool)
+    new_run[1:] = (step != 1) | ~same_row
+    run_id = np.cumsum(new_run) - 1
+    run_len = np.bincount(run_id)[run_id]
+    # Gaps between consecutive occupied cells of one row, unknown at both ends.
+    left = np.flatnonzero(same_row & (step > 1) & (step - 1 <= max_len))
+    left = left[(flat_code[cells[left] + 1] == 0) & (flat_code[cells[left + 1] - 1] == 0)]
+    # (Straightened: a band's wall stretches twice as long, as the staggered bridges' ends: a face
+    # across the line at an angle makes short stretches in a band too.)
+    run_anchor = anchor if slack == 0 else 2 * anchor
+    left = left[(run_len[left] >= run_anchor) & (run_len[left + 1] >= run_anchor)]
+    span = max_depth + 1
+    if corner_len > 0 and slack == 0:
+        # One wall end is weaker evidence than two: its visible stretch must be twice an anchor
+        # (as a staggered bridge's ends), longer than the steps of a wall at 45 degrees.
+        last = np.append(new_run[1:], True)
+        long_run = run_len >= 2 * anchor
+        _corners_rows(
+            code,
+            out,
+            (cells[last & long_run], cells[new_run & long_run]),
+            corner_len,
+            corner_depth,
+            span,
+            anchor,
+            face,
+            crossing,
+            stub,
+        )
+    if left.size == 0:
+        return
+
+    def free(
+        at_rows: npt.NDArray[np.int64], at_cols: npt.NDArray[np.int64]
+    ) -> npt.NDArray[np.bool_]:
+        # Free cells looked up where wanted (rows past the edges read the edge's).
+        return code[np.clip(at_rows, 0, height - 1), at_cols] == 1
+
+    rows = cells[left] // width
+    end_left, end_right = cells[left] % width, cells[left + 1] % width
+    middle = (end_left + end_right) // 2
+    for sign in (1, -1):
+        # Cheap tests first, on a few cells of each candidate: the wall ends' last cells see
+        # free space within ``face`` on this side, the gap's middle column none that near.
+        across = rows[:, None, None] + sign * np.arange(1, face + slack + 1)[:, None]
+        along = np.arange(anchor + 2 * slack)
+        face_left = free(across, np.maximum(end_left[:, None] - along, 0)[:, None, :])
+        face_right = free(across, np.minimum(end_right[:, None] + along, width - 1)[:, None, :])
+        face_left = face_left.any(axis=1).sum(axis=1)
+        face_right = face_right.any(axis=1).sum(axis=1)
+        beside = rows[:, None] + sign * np.arange(1, face + 2)
+        near_middle = free(beside, middle[:, None]).any(axis=1)
+        chosen = np.flatnonzero(
+            (2 * face_left >= anchor) & (2 * face_right >= anchor) & ~near_middle
+        )
+        # This side as "below": the rows reversed for the other (views, no copies).
+        view, written = (code, out) if sign == 1 else (code[::-1], out[::-1])
+        for i in chosen.tolist():
+            row = int(rows[i]) if sign == 1 else height - 1 - int(rows[i])
+            _front_at(
+                view,
+                written,
+                row,
+                int(end_left[i]) + 1,
+                int(end_right[i]),
+                span,
+                anchor,
+                face,
+                crossing,
+                stub,
+                slack=slack,
+            )
+
+
+def _front_at(
+    code: npt.NDArray[np.uint8],
+    out: npt.NDArray[np.uint8],
+    row: int,
+    col0: int,
+    col1: int,
+    span: int,
+    anchor: int,
+    face: int,
+    crossing: int,
+    stub: int,
+    *,
+    slack: int = 0,
+) -> bool:
+    """The checks of one candidate gap ``row, col0:col1`` (the furniture below it) and, when it
+    passes (returns True), its line, front and inside in ``out``; with ``slack`` (a straightened
+    staircase) the gap's first and last ``slack + 1`` columns may open to the room (a side face a
+    column off)."""
+    height, width = code.shape
+    max_depth = span - 1
+    if row + 1 >= height or (code[row, col0:col1] != 0).any():
+        return False
+    lo, hi = max(col0 - anchor, 0), min(col1 + anchor, width)
+    below = code[row + 1 : row + 1 + span, lo:hi] == 1
+    # Occupied or unknown cells below each column, down to free space (``span``: none near).
+    depth = np.where(below.any(axis=0), below.argmax(axis=0), span)
+    if slack:
+        # A staircase's side face a column or two off the wall's end: free space reaches the line
+        # there, beside the object, not in front of it.
+        for _ in range(slack + 1):
+            if col1 - col0 > 1 and depth[col0 - lo] <= face:
+                col0 += 1
+            if col1 - col0 > 1 and depth[col1 - 1 - lo] <= face:
+                col1 -= 1
+    d = depth[col0 - lo : col1 - lo]
+    # Deeper than a wall face everywhere (else the "front" is the wall itself, the line the
+    # unknown behind it), no deeper than furniture. Straightened, by two cells more: the grown
+    # row, and a wall bending off the line by a cell (a single wall is no object).
+    if d.min() <= face + 2 * slack:
+        return False
+    deep = d > max_depth
+    if deep.all():
+        return False
+    # A wall meeting the object: columns reaching farther than the front (the depth most
+    # columns share) by more than a wall face, in a stretch no wider than a wall (a partition
+    # ending on a cabinet's front, or crossing the hidden line between two objects), not at the
+    # ends. Wider stretches are a deeper object, refused when they reach beyond the depth limit
+    # (unless the front itself lies within a wall face of it: then they are not told apart).
+    front = _median(d[~deep])
+    farther = np.concatenate([[False], d > front + face, [False]])
+    edges = np.flatnonzero(np.diff(farther.view(np.int8)))
+    starts, ends = edges[::2], edges[1::2]
+    walls = ends - starts <= crossing
+    stubs = np.zeros(d.size, dtype=bool)
+    for start, end, wall in zip(starts.tolist(), ends.tolist(), walls.tolist(), strict=True):
+        if wall:
+            stubs[start:end] = True
+        elif deep[start:end].any():
+            return False
+    if stubs[0] or stubs[-1]:
+        return False
+    # The last cell before free space is occupied: a front face, not a shadow's edge, in nine
+    # columns of ten (a scan leaves single holes in a front). Walls at an angle to the grid are
+    # staircases once rotated onto the rows: :func:`_flush_fronts` reads them straightened too.
+    cols = np.arange(col0, col1)[~deep]
+    if (code[row + d[~deep], cols] >= 2).mean() < _FRONT_FACE_SHARE:
+        return False
+    # An inside a scanner did not see, behind the front: a solid piece reaching from the wall
+    # into the room is the wall's own stub or pilaster (no scan sees into furniture).
+    behind = code[row + 1 : row + 1 + front, col0:col1][:, ~deep]
+    if not (behind == 0).any(axis=0).mean() >= 0.5:
+        return False
+    out[row, col0:col1] |= 1
+    # The object: the gap's columns and its side faces (up to ``face`` columns beyond each end,
+    # where they too are deeper than a wall face) down to free space.
+    first, last = col0, col1
+    while first > lo and col0 - first < face and face < depth[first - 1 - lo] <= max_depth:
+        first -= 1
+    while last < hi and last - col1 < face and face < depth[last - lo] <= max_depth:
+        last += 1
+    reach = depth[first - lo : last - lo]
+    reach = np.where(reach > max_depth, 0, reach)
+    # The walls meeting it stay (a cell wider each side), and their hidden part, from the line
+    # to the front, is drawn along their sides.
+    wall = np.zeros(last - first, dtype=bool)
+    wall[col0 - first : col1 - first] = stubs
+    if stubs.any():
+        wall = np.convolve(wall, np.ones(3), mode="same") > 0
+        reach[wall] = 0
+        for start, end in zip(starts[walls].tolist(), ends[walls].tolist(), strict=True):
+            for col in (col0 + start, col0 + end - 1):
+                out[row + 1 : row + 1 + front, col] |= np.where(
+                    code[row + 1 : row + 1 + front, col] == 0, 1, 0
+                ).astype(np.uint8)
+            # The wall's cells, from the line to its end (up to a run's length past the front:
+            # a longer one is a run already), where it leaves the object and the free space.
+            cells = code[row + 1 : row + 1 + span + stub, col0 + start - 1 : col0 + end + 1]
+            past = np.cumsum(cells == 1, axis=0) > 0
+            out[row + 1 : row + 1 + cells.shape[0], col0 + start - 1 : col0 + end + 1] |= np.where(
+                (cells >= 2) & ~past, 8, 0
+            ).astype(np.uint8)
+    if reach.max() == 0:
+        return True
+    block = code[row + 1 : row + 1 + int(reach.max()), first:last]
+    within = np.arange(block.shape[0])[:, None] < reach
+    out[row + 1 : row + 1 + block.shape[0], first:last] |= np.where(
+        within, np.where(block == 0, 4, 2), 0
+    ).astype(np.uint8)
+    return True
+
+
+def _median(values: npt.NDArray[np.int64]) -> int:
+    """``int(np.median(values))`` of non-negative integers (not empty), in a sixth of its time
+    (called once per candidate gap or corner)."""
+    ordered = np.sort(values)
+    return int(ordered[(values.size - 1) // 2] + ordered[values.size // 2]) // 2
+
+
+def _corners_rows(
+    code: npt.NDArray[np.uint8],
+    out: npt.NDArray[np.uint8],
+    anchors: tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]],
+    max_len: int,
+    min_depth: int,
+    span: int,
+    anchor: int,
+    face: int,
+    crossing: int,
+    stub: int,
+) -> None:
+    """Furniture in a room's corner, along the rows of ``code``: a wall stretch (``anchors``: the
+    flat indices of the last and of the first cells of the occupied runs long enough to anchor a
+    line) ending in unknown cells, its line hidden behind furniture up to a perpendicular wall
+    (:func:`_corner_at`), in either direction along the row, the furniture on either side of it."""
+    height, width = code.shape
+    flat_code = code.reshape(-1)
+    # The last cell of a stretch going right, the first going left, with an unknown cell beyond.
+    for step, end in zip((1, -1), anchors, strict=True):
+        col = end % width
+        end = end[(col < width - 1) if step == 1 else (col > 0)]
+        end = end[flat_code[end + step] == 0]
+        rows, beyond = end // width, end % width + step
+        for sign in (1, -1):
+            # Cheap tests first, on a few cells of each candidate: the wall's end faces the room
+            # on this side (as both ends of a gap must: free space within a wall face of most of
+            # its last ``anchor`` cells), and the furniture starts right beyond it (free space
+            # there no nearer than the shallowest front, but for a cell of a scan's noise, and no
+            # farther than the deepest).
+            across = np.clip(
+                rows[:, None, None] + sign * np.arange(1, face + 1)[:, None], 0, height - 1
+            )
+            along = np.clip(beyond[:, None] - step * np.arange(1, anchor + 1), 0, width - 1)
+            facing = (code[across, along[:, None, :]] == 1).any(axis=1).sum(axis=1)
+            down = np.clip(rows[:, None] + sign * np.arange(1, span + 1), 0, height - 1)
+            free = code[down, beyond[:, None]] == 1
+            depth = np.where(free.any(axis=1), free.argmax(axis=1), span)
+            # The line runs on unseen for more than an anchor's length (the furniture's width, at
+            # least: :func:`_corner_at`): on the Bormann maps, nearly half the candidates are not.
+            ahead = np.clip(beyond[:, None] + step * np.arange(anchor + 1), 0, width - 1)
+            unseen = (code[rows[:, None], ahead] == 0).all(axis=1)
+            chosen = (
+                (2 * facing >= anchor)
+                & (depth >= max(face + 1, min_depth - 1))
+                & (depth < span)
+                & unseen
+            )
+            # Rows and columns flipped so that the furniture lies below and the line runs right
+            # (views, no copies).
+            view, written = code[::sign, ::step], out[::sign, ::step]
+            for row, start in zip(rows[chosen].tolist(), beyond[chosen].tolist(), strict=True):
+                _corner_at(
+                    view,
+                    written,
+                    row if sign == 1 else height - 1 - row,
+                    start if step == 1 else width - 1 - start,
+                    (max_len, min_depth, span),
+                    anchor,
+                    face,
+                    crossing,
+                    stub,
+                )
+
+
+def _corner_at(
+    code: npt.NDArray[np.uint8],
+    out: npt.NDArray[np.uint8],
+    row: int,
+    col0: int,
+    lengths: tuple[int, int, int],
+    anchor: int,
+    face: int,
+    crossing: int,
+    stub: int,
+) -> None:
+    """One candidate corner: the wall along ``row`` ends at ``col0 - 1`` (facing the room below:
+    :func:`_corners_rows` checked) and runs on unseen from ``col0``, with furniture below it up to
+    the first column no front reaches (``col1``). That column must be the room's other wall,
+    perpendicular: a stretch of at least ``anchor`` occupied cells from just past the furniture's
+    front on, facing the room on the furniture's side; the corner of the two wall lines lies behind
+    the furniture. The front must be parallel to the line and at least ``min_depth`` cells from it.
+    Then the gap ``col0:col1`` is checked as a gap between two wall ends (:func:`_front_at`: fronts,
+    depth, an unseen inside) and, when it passes, the other wall's hidden part, from the line to the
+    front, is drawn too, and the first wall's visible end is kept. ``lengths``: the longest line
+    (``max_len``), the shallowest front (``min_depth``) and ``span`` (the deepest front plus one),
+    in cells."""
+    max_len, min_depth, span = lengths
+    height, width = code.shape
+    if row + 1 >= height or col0 >= width:
+        return
+    # The unseen stretch of the line (it runs on past the corner, unseen, into the outside).
+    line = code[row, col0 : col0 + max_len + 1] == 0
+    n = line.size if line.all() else int(line.argmin())
+    below = code[row + 1 : row + 1 + span, col0 : col0 + n] == 1
+    depth = np.where(below.any(axis=0), below.argmax(axis=0), span)
+    deep = np.flatnonzero(depth >= span)
+    if deep.size == 0 or deep[0] < anchor:
+        return
+    col1 = col0 + int(deep[0])
+    front = _median(depth[: deep[0]])
+    # A front parallel to the line, as furniture set against a wall has, every column within a
+    # cell of it (a scan's noise; a wall a few degrees off the grid, running off from the wall's
+    # end, reaches the room at ever other depths), and deeper than a wall's step.
+    if front < min_depth or (np.abs(depth[: deep[0]] - front) > 1).any():
+        return
+    # The other wall: occupied from just past the front on, an anchor's length, with free space
+    # within a wall face of it on the furniture's side (a wall facing the room, not the outside).
+    top = row + front + 1
+    if top + anchor > height:
+        return
+    wall = code[top : top + anchor, col1] >= 2
+    sees = (code[top : top + anchor, max(col1 - face, 0) : col1] == 1).any(axis=1)
+    if not wall.all() or 2 * int(sees.sum()) < anchor:
+        return
+    if not _front_at(code, out, row, col0, col1, span, anchor, face, crossing, stub):
+        return
+    # The corner: the line on to the other wall's line, and that wall, from the line down to the
+    # front (only the unknown cells are drawn: :func:`_flush_fronts` masks the line).
+    out[row:top, col1] |= 1
+    # The first wall's visible end is a wall (the line's anchor), up to a run's length from the
+    # object and as thick as it is solid, up to a wall face (``face`` cells): kept, though the line
+    # may now close off a thick wall's unknown core, which the object-face rule reads as a scanned
+    # object's inside (its faces went).
+    behind = (slice(max(row - face + 1, 0), row + 1), slice(max(col0 - stub, 0), col0))
+    _mark_solid(out[behind][::-1, ::-1], code[behind][::-1, ::-1] >= 2)
+
+
+def _mark_solid(out: npt.NDArray[np.uint8], solid: npt.NDArray[np.bool_]) -> None:
+    """Bit 3 (a wall, kept) in ``out`` on the cells of ``solid`` joined to its first cell: along its
+    first row while solid, and across from each of those cells while solid (a wall's length and,
+    from its face, its thickness)."""
+    if solid.size == 0 or not solid[0, 0]:
+        return
+    length = solid.shape[1] if solid[0].all() else int(solid[0].argmin())
+    deep = np.cumprod(solid[:, :length], axis=0).astype(bool)
+    out[:, :length] |= np.where(deep, 8, 0).astype(np.uint8)

@@ -1,0 +1,124 @@
+"""Mask helpers the cleaning's rules share: lengths in cells, bounding boxes, dilation, neighbours.
+
+Part of the ``"walls"`` cleaning's rules (:mod:`rose.cleaning_rules`); masks of shape ``(rows, cols)``
+in the grid's cell space (row 0 at the map origin), lengths in cells.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+from rose.labelling import (
+    components,
+    labels_wanted,
+)
+
+
+def _flat_index(
+    line: npt.NDArray[np.int64], pos: npt.NDArray[np.int64], shape: tuple[int, int], vertical: bool
+) -> npt.NDArray[np.int64]:
+    """Flat indices of the cells at ``pos`` along ``line`` (a column when ``vertical``, else a row)."""
+    return pos * shape[1] + line if vertical else line * shape[1] + pos
+
+
+def _touching(pieces: npt.NDArray[np.bool_], other: npt.NDArray[np.bool_]) -> npt.NDArray[np.bool_]:
+    """The 8-connected components of ``pieces`` within two cells of ``other``."""
+
+    out = np.zeros(pieces.shape, dtype=bool)
+    if not pieces.any() or not other.any():
+        return out
+    # Only the pieces' bounding box matters (plus two cells for the reach of ``other``).
+    box = _padded_box(pieces, 2)
+    count, labels = components(pieces[box])
+    near = _dilate(other[box], 2)
+    wanted = np.zeros(count, dtype=bool)
+    wanted[labels[near & pieces[box]]] = True
+    wanted[0] = False
+    out[box] = labels_wanted(wanted, labels, pieces[box])
+    return out
+
+
+def _near(
+    cells: npt.NDArray[np.bool_], other: npt.NDArray[np.bool_], reach: int
+) -> npt.NDArray[np.bool_]:
+    """Cells of ``cells`` with a cell of ``other`` within ``reach`` cells (chessboard distance).
+    Dilated on the bounding box of ``cells`` only (``reach`` wider): the same at every cell of it."""
+    import cv2
+
+    out = np.zeros(cells.shape, dtype=bool)
+    if not cells.any():
+        return out
+    box = _padded_box(cells, reach)
+    side = 2 * reach + 1
+    grown = cv2.dilate(other[box].view(np.uint8), np.ones((side, side), np.uint8)).view(bool)
+    out[box] = cells[box] & grown
+    return out
+
+
+def length_px(length_m: float, res: float) -> float:
+    """``length_m`` in cells, rounded to 1e-6 so that a resolution stored as float32 (0.05 ->
+    0.0500000007) converts exactly like the decimal one."""
+    return round(length_m / res, 6)
+
+
+def _dilate(mask: npt.NDArray[np.bool_], radius_px: int) -> npt.NDArray[np.bool_]:
+    import cv2
+
+    if radius_px <= 0:
+        return mask.copy()
+    size = 2 * radius_px + 1
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (size, size))
+    return cv2.dilate(mask.view(np.uint8), kernel).view(bool)
+
+
+def _padded_box(mask: npt.NDArray[np.bool_], pad: int) -> tuple[slice, slice]:
+    """The bounding box of the True cells of ``mask`` (it must have one), ``pad`` cells wider on
+    every side, clipped to ``mask``."""
+    r0, r1, c0, c1 = _bounds(mask)
+    rows, cols = mask.shape
+    return slice(max(r0 - pad, 0), min(r1 + pad, rows)), slice(
+        max(c0 - pad, 0), min(c1 + pad, cols)
+    )
+
+
+def _bounds(mask: npt.NDArray[np.bool_]) -> tuple[int, int, int, int]:
+    """``r0, r1, c0, c1`` of the bounding box of the True cells (``mask`` must have one)."""
+    import cv2
+
+    # OpenCV's bounding rectangle of the non-zero pixels: one pass, not two reductions.
+    x, y, width, height = cv2.boundingRect(mask.view(np.uint8))
+    return y, y + height, x, x + width
+
+
+def _neighbour_labels(
+    labels: npt.NDArray[np.integer], cells: npt.NDArray[np.intp]
+) -> npt.NDArray[np.integer]:
+    """The labels of the 8 neighbours of each cell, shape ``(N, 8)``.
+
+    ``cells`` are flat indices into ``labels``, ascending (as :func:`numpy.flatnonzero` gives
+    them). On the image border a neighbour is clipped onto the cell's own row or column: that only
+    repeats a neighbour or the cell itself.
+    """
+    rows, cols = labels.shape
+    flat = labels.reshape(-1)
+    row, col = np.divmod(cells, cols)
+    inner = cells.size == 0 or (
+        row[0] > 0 and row[-1] < rows - 1 and int(col.min()) > 0 and int(col.max()) < cols - 1
+    )
+    offsets = [(dr, dc) for dr in (-1, 0, 1) for dc in (-1, 0, 1) if dr or dc]
+    return np.stack(
+        [
+            flat[cells + (dr * cols + dc)]
+            if inner
+            else flat[np.clip(row + dr, 0, rows - 1) * cols + np.clip(col + dc, 0, cols - 1)]
+            for dr, dc in offsets
+        ],
+        axis=1,
+    )
+
+
+def _any_of_8(flags: npt.NDArray[np.bool_]) -> npt.NDArray[np.bool_]:
+    """``flags.any(axis=1)`` of a C-contiguous ``(N, 8)`` boolean array, each row read as one uint64
+    (numpy's reduction over rows of 8 costs several times more)."""
+    return flags.view(np.uint64).reshape(-1) != 0

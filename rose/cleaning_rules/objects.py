@@ -1,0 +1,343 @@
+"""Scanned objects and pieces: faces around unknown pockets, free-standing pieces, partitions seen from
+both sides, and the wall stubs attached to kept walls.
+
+Part of the ``"walls"`` cleaning's rules (:mod:`rose.cleaning_rules`); masks of shape ``(rows, cols)``
+in the grid's cell space (row 0 at the map origin), lengths in cells.
+"""
+
+from __future__ import annotations
+
+import math
+from concurrent.futures import Future
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+import numpy.typing as npt
+
+from rose.cleaning_rules.masks import (
+    _any_of_8,
+    _dilate,
+    _flat_index,
+    _neighbour_labels,
+    _padded_box,
+    length_px,
+)
+from rose.cleaning_rules.runs import _run_cells, _runs
+from rose.labelling import (
+    component_areas,
+    components,
+    label_boxes,
+    labels_wanted,
+)
+
+if TYPE_CHECKING:
+    from rose.cleaning import CleanParams
+
+
+#: Shortest partition kept (metres, :func:`_partitions`): door frames and wall pieces between a
+#: corner and a door, shorter than a run; a scanned table leg or chair is smaller.
+_PARTITION_MIN_M = 0.5
+
+
+#: Thickest partition (metres, :func:`_partitions`): both faces and the unseen core between them,
+#: counted along a grid row or column from the known free cells on one side to those on the other.
+#: Interior walls are 0.1-0.3 m thick; a scanner sees a thick one as two faces around an unknown
+#: core, which looks like an object's faces around its inside, and the object rules took such
+#: walls (and hollow wall ends, door jambs) for furniture. Furniture is rarely less than 0.3 m
+#: deep and a scanned object's inside is unknown up to its back, which is against a wall or seen
+#: from the room: across a cabinet no row or column runs from free space to free space within
+#: 0.3 m. Along a grid axis a wall at an angle is thicker (1.15x at 30 degrees). Measured
+#: (``bench_cleaning.py``): 0.25 m kept 260 fewer wall cells on the logs turned by 30 degrees;
+#: 0.4 m kept 313 more Bormann furniture cells (worst clutter removed at 30 degrees 0.717 ->
+#: 0.693) for no more ray-cast wall recall.
+_THIN_WALL_M = 0.3
+
+
+#: Thickest partition in cells at any resolution (:func:`_partitions`): on a coarse grid a thin wall
+#: rasterises up to 3 cells thick (0.6 m at 0.2 m per cell), as the rule before ``_THIN_WALL_M``
+#: read it at every resolution; at 0.05 m per cell ``_THIN_WALL_M`` is 6 cells and decides.
+_THIN_WALL_MIN_CELLS = 3
+
+
+#: Side of the solid square that makes a free-standing piece a drawn column, not an object
+#: (metres, at least 3 cells; :func:`_free_standing`): thicker than a scanned surface. A scanner
+#: sees an object's faces, one to three cells thick in a SLAM map, and the two faces of a thin
+#: object (a shelf, a chair's rim) meet in a solid strip of a few cells: 3 x 3 cells (0.15 m) kept
+#: 4,560 furniture cells of the 19 Bormann benchmark buildings (10 wall cells). A solid piece is
+#: left to the paper's labelling (kept where it says structure); an I-beam drawn as its flanges (the
+#: nav2 depot's, 0.55 m across, flanges 0.1-0.15 m thick) is no solid square and goes as an object.
+_SOLID_MIN_M = 0.25
+
+
+def _free_standing(
+    pieces: _Pieces,
+    lines: npt.NDArray[np.bool_],
+    near_outside: Future[npt.NDArray[np.bool_]],
+    unknown: npt.NDArray[np.bool_],
+    res: float,
+    p: CleanParams,
+) -> npt.NDArray[np.bool_]:
+    """Occupied cells of free-standing pieces: no cell on a run or ``lines`` or near wide unknown
+    (``near_outside``, a job submitted before this one) even across a gap of up to two cells, and
+    a joined box with a diagonal shorter than a wall run: clutter, whatever the paper's labelling
+    says."""
+    import cv2
+
+    occupied = pieces.occupied
+    anchored = lines | (occupied & near_outside.result())
+    # A solid square (0.25 m) is a drawn column or wall, not the faces a scanner sees of an object.
+    side = max(3, math.ceil(length_px(_SOLID_MIN_M, res)))
+    solid = cv2.erode(occupied.view(np.uint8), np.ones((side, side), np.uint8), borderValue=0)
+    dropped = pieces.loose(anchored | solid.view(bool), length_px(p.min_run_m, res))
+    # ... unless it closes around known free space: a small room or shaft, not an object (a
+    # scanned object's inside stays unknown).
+    return dropped & ~pieces.around_free(dropped, ~unknown)
+
+
+def _thin_runs(
+    solid: npt.NDArray[np.bool_], free: npt.NDArray[np.bool_], max_px: float
+) -> npt.NDArray[np.bool_]:
+    """Cells of ``solid`` in a run along a grid row or column of at most ``max_px`` cells with a
+    ``free`` cell just before and just after it: a wall at most that thick, seen from both sides.
+    Worked out on the solid cells' runs (few next to the whole image)."""
+    shape = solid.shape
+    out = np.zeros(shape, dtype=bool)
+    cells = np.flatnonzero(solid)
+    flat_free, flat_out = free.reshape(-1), out.reshape(-1)
+    for vertical in (False, True):
+        line, first, last = _runs(cells, shape, vertical)
+        extent = shape[0] if vertical else shape[1]
+        thin = (last - first + 1 <= max_px) & (first > 0) & (last < extent - 1)
+        line, first, last = line[thin], first[thin], last[thin]
+        seen = (
+            flat_free[_flat_index(line, first - 1, shape, vertical)]
+            & flat_free[_flat_index(line, last + 1, shape, vertical)]
+        )
+        flat_out[_run_cells((line[seen], first[seen], last[seen]), shape, vertical)] = True
+    return out
+
+
+def _in_free_square(free: npt.NDArray[np.bool_]) -> npt.NDArray[np.bool_]:
+    """Cells of ``free`` in some 2 x 2 square of free cells."""
+    square = free[:-1, :-1] & free[1:, :-1] & free[:-1, 1:] & free[1:, 1:]
+    out = np.zeros(free.shape, dtype=bool)
+    out[:-1, :-1] |= square
+    out[1:, :-1] |= square
+    out[:-1, 1:] |= square
+    out[1:, 1:] |= square
+    return out
+
+
+def _partitions(
+    occupied: npt.NDArray[np.bool_],
+    walls: npt.NDArray[np.bool_],
+    free: npt.NDArray[np.bool_],
+    cores: npt.NDArray[np.bool_],
+    *,
+    min_length_px: float,
+    max_thickness_px: float,
+    attached: npt.NDArray[np.bool_] | None = None,
+) -> npt.NDArray[np.bool_]:
+    """Occupied cells not in ``walls`` (the candidates) in 8-connected pieces of thin cells that
+    touch ``walls`` and span at least ``min_length_px`` cells, with the candidates next to them.
+
+    Thin cells (:func:`_thin_runs`) are the candidates and ``cores`` cells (unknown pockets: an
+    object's inside or a thick wall's unseen core) on a run of occupied and core cells at most
+    ``max_thickness_px`` long between two free cells: a wall seen from both sides, solid or with
+    an unseen core. ``free``: known cells that are not occupied (a probabilistic grid's free space
+    is 0..20, not only 0). ``attached``: cells of ``walls`` the attach rule kept (within its reach
+    of a wall); thin ones count towards a piece's length, so that a partition 0.5 m long stays
+    whole, not only its first ``attach_reach_m``."""
+    candidates = occupied & ~walls
+    out = np.zeros(candidates.shape, dtype=bool)
+    if not candidates.any() or not walls.any():
+        return out
+    # A free cell next to a pocket counts only in a 2 x 2 square of free cells: single free cells
+    # there are slivers between an object's inside and its face, or a beam that got into the
+    # inside, not the room behind a wall (without this, a cabinet's front at 10 degrees to the
+    # grid stayed, and ray-cast boxes whose insides beams crossed).
+    room = free & (~_dilate(cores, 1) | _in_free_square(free))
+    thin = _thin_runs(occupied | cores, room, max_thickness_px)
+    sided = thin & (candidates | cores)
+    if attached is not None:
+        sided |= thin & attached
+    if not sided.any():
+        return out
+    box = _padded_box(sided, 1)
+    count, labels = components(sided[box])
+    at = np.flatnonzero(sided[box])
+    boxes = label_boxes(labels, at, count)
+    long_enough = np.maximum(boxes[:, 2], boxes[:, 3]) >= min_length_px
+    # Pieces with a cell on or next to (4-neighbours) a wall, looked up around their cells only.
+    touching = np.zeros(count, dtype=bool)
+    near_walls = walls[box][_cross(at, labels.shape)].any(axis=1)
+    touching[labels.reshape(-1)[at[near_walls]]] = True
+    wanted = long_enough & touching
+    wanted[0] = False
+    pieces = labels_wanted(wanted, labels, sided[box]) & candidates[box]
+    # A run along a row misses the cells of a ragged face that stick out of it: the candidate
+    # cells next to a piece belong to it (4-neighbours, looked up around the piece's cells).
+    beside = _cross(np.flatnonzero(pieces), pieces.shape)
+    pieces[beside] |= candidates[box][beside]
+    out[box] = pieces
+    return out
+
+
+def _cross(
+    cells: npt.NDArray[np.intp], shape: tuple[int, int]
+) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.intp]]:
+    """Row and column indices of each cell (flat indices into an image of ``shape``) and of its 4
+    neighbours, shape ``(N, 5)``: the cross a 3 x 3 elliptic kernel dilates by. A neighbour past
+    the image's edge is the cell itself (one of the five anyway)."""
+    rows, cols = shape
+    row, col = np.divmod(cells, cols)
+    up, down = np.maximum(row - 1, 0), np.minimum(row + 1, rows - 1)
+    left, right = np.maximum(col - 1, 0), np.minimum(col + 1, cols - 1)
+    return (
+        np.stack([row, up, down, row, row], axis=1),
+        np.stack([col, col, col, left, right], axis=1),
+    )
+
+
+def _pocket_faces(
+    unknown: npt.NDArray[np.bool_],
+    sealing: npt.NDArray[np.bool_],
+    occupied: npt.NDArray[np.bool_],
+    max_area_px: float,
+) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
+    """Occupied cells next to (8-neighbours of) a pocket, and the pockets' cells. A pocket is a
+    4-connected component of unknown cells (the ``sealing`` cells are a boundary) smaller than
+    ``max_area_px``: the inside of a scanned object, or the unseen core of a thick wall."""
+    cells = unknown & ~sealing
+    faces = np.zeros(occupied.shape, dtype=bool)
+    if not cells.any() or not occupied.any():
+        return faces, faces.copy()
+    count, labels = components(cells, connectivity=4)
+    pocket = component_areas(labels, count) < max_area_px
+    pocket[0] = False
+    # Looked up around the occupied cells only (few next to the whole image); an occupied cell's
+    # own label is 0, the background, so a border cell's repeated neighbours change nothing.
+    at = np.flatnonzero(occupied)
+    near = _any_of_8(pocket[_neighbour_labels(labels, at)])
+    faces.reshape(-1)[at[near]] = True
+    return faces, labels_wanted(pocket, labels, cells)
+
+
+def _grow_within(
+    seed: npt.NDArray[np.bool_], mask: npt.NDArray[np.bool_], steps: int
+) -> npt.NDArray[np.bool_]:
+    """Cells of ``mask`` within ``steps`` 8-connected steps of ``seed`` through ``mask``.
+
+    Step by step from the cells reached last only: a step reaches a few hundred cells, and a
+    dilation of the whole image per step cost several times more."""
+    out = seed & mask
+    if steps <= 0:
+        return out
+    rows, cols = mask.shape
+    # 0 outside ``mask``, 1 not reached yet, 2 reached; a frame of zeros around the image, so
+    # that the 8 neighbours of a cell are flat offsets from it.
+    width = cols + 2
+    state = np.zeros((rows + 2, width), dtype=np.uint8)
+    np.add(mask.view(np.uint8), out.view(np.uint8), out=state[1:-1, 1:-1])
+    flat = state.reshape(-1)
+    around = np.array([-width - 1, -width, -width + 1, -1, 1, width - 1, width, width + 1])
+    waiting = np.flatnonzero(flat == 1)
+    reached = waiting[_any_of_8(flat[waiting[:, None] + around] == 2)]
+    for step in range(steps):
+        if reached.size == 0:
+            break
+        flat[reached] = 2
+        if step + 1 < steps:
+            # Only cells next to those just reached can be reached by the next step.
+            near = (reached[:, None] + around).reshape(-1)
+            reached = np.unique(near[flat[near] == 1])
+    return state[1:-1, 1:-1] == 2
+
+
+@dataclass(frozen=True)
+class _Pieces:
+    """The 8-connected pieces of occupied cells, joined across gaps of up to ``2 * join_px``
+    cells, labelled once for several questions."""
+
+    occupied: npt.NDArray[np.bool_]
+    labels: npt.NDArray[np.integer]
+    cells: npt.NDArray[np.intp]  # flat indices of the occupied cells (fewer than the image's)
+    owners: npt.NDArray[np.integer]  # the joined piece of each of them
+    diagonals: npt.NDArray[np.float64]  # of each joined piece's bounding box, cells
+    box_areas: npt.NDArray[np.float64]  # of the same boxes, cells
+
+    @classmethod
+    def of(cls, occupied: npt.NDArray[np.bool_], *, join_px: int) -> _Pieces:
+        import cv2
+
+        grown = occupied
+        if join_px > 0:
+            kernel = np.ones((3, 3), np.uint8)
+            grown = cv2.dilate(occupied.view(np.uint8), kernel, iterations=join_px).view(bool)
+        count, labels = components(grown)
+        cells = np.flatnonzero(occupied)
+        owners = labels.reshape(-1)[cells]
+        # A joined piece is its occupied cells grown by ``join_px`` (clipped by the image), and so
+        # is its box: boxed from the occupied cells (fewer than the grown ones). The background's
+        # box (no occupied cell) stays empty.
+        x, y, width, height = label_boxes(labels, cells, count).T
+        grow = join_px * (width > 0)
+        rows, cols = occupied.shape
+        left, top = np.maximum(x - grow, 0), np.maximum(y - grow, 0)
+        width = (np.minimum(x + width + grow, cols) - left).astype(np.float64)
+        height = (np.minimum(y + height + grow, rows) - top).astype(np.float64)
+        return cls(occupied, labels, cells, owners, np.hypot(width, height), width * height)
+
+    def loose(
+        self,
+        anchored: npt.NDArray[np.bool_],
+        max_extent_px: float = math.inf,
+        max_box_area_px: float = math.inf,
+    ) -> npt.NDArray[np.bool_]:
+        """Occupied cells of pieces with no ``anchored`` cell whose (joined) bounding box has a
+        diagonal shorter than ``max_extent_px`` and an area under ``max_box_area_px``."""
+        attached = (self.diagonals >= max_extent_px) | (self.box_areas >= max_box_area_px)
+        attached[self.owners[anchored.reshape(-1)[self.cells]]] = True
+        attached[0] = True
+        out = np.zeros(self.occupied.shape, dtype=bool)
+        out.reshape(-1)[self.cells] = ~attached[self.owners]
+        return out
+
+    def around_free(
+        self, cells: npt.NDArray[np.bool_], known: npt.NDArray[np.bool_]
+    ) -> npt.NDArray[np.bool_]:
+        """Cells of ``cells`` (occupied) in pieces next to a hole of ``cells`` (other cells that
+        4-connected paths cannot leave without crossing ``cells``) holding a known non-occupied
+        cell."""
+        out = np.zeros(cells.shape, dtype=bool)
+        if not cells.any():
+            return out
+        import cv2
+
+        # Only the box of ``cells`` matters (a cell wider: its rim is outside space, which
+        # reaches the image's edge past no cell). Flood the outside from a one-cell frame around
+        # it: what stays unflooded of the other cells are the holes (one pass; no labelling
+        # unless a hole holds known free space).
+        box = _padded_box(cells, 1)
+        image = cv2.copyMakeBorder(
+            (~cells[box]).view(np.uint8), 1, 1, 1, 1, cv2.BORDER_CONSTANT, value=1
+        )
+        cv2.floodFill(image, None, (0, 0), 0, flags=4)
+        holes = image[1:-1, 1:-1].view(bool)
+        free_holes = holes & known[box] & ~self.occupied[box]
+        if not free_holes.any():
+            return out
+        count, parts = components(holes, connectivity=4)
+        wanted = np.zeros(count, dtype=bool)
+        wanted[parts[free_holes]] = True
+        wanted[0] = False
+        hole_cells = labels_wanted(wanted, parts, holes)
+        # (Holes never reach the box's edge: their rim lies in it.)
+        rim = cv2.dilate(hole_cells.view(np.uint8), np.ones((3, 3), np.uint8)).view(bool)
+        labels = self.labels[box]
+        enclosing = np.zeros(self.diagonals.size, dtype=bool)
+        enclosing[labels[rim & cells[box]]] = True
+        enclosing[0] = False
+        out[box] = labels_wanted(enclosing, labels, cells[box])
+        return out

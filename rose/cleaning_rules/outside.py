@@ -1,0 +1,85 @@
+"""The building's edge: occupied cells next to wide unknown space (walls separate known from unknown).
+
+Part of the ``"walls"`` cleaning's rules (:mod:`rose.cleaning_rules`); masks of shape ``(rows, cols)``
+in the grid's cell space (row 0 at the map origin), lengths in cells.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+import numpy.typing as npt
+
+from rose.cleaning_rules.masks import _dilate, _padded_box, length_px
+from rose.grid import UNKNOWN
+
+if TYPE_CHECKING:
+    from rose.cleaning import CleanParams
+
+
+def _near_wide_unknown(
+    unknown: npt.NDArray[np.bool_], res: float, p: CleanParams
+) -> npt.NDArray[np.bool_]:
+    """Cells within ``p.unknown_margin_m`` of wide unknown space (:func:`wide_unknown`): exact at
+    the known cells, the only ones read (the occupied cells among them)."""
+    outside = _wide(unknown, length_px(p.open_unknown_width_m, 2 * res))
+    radius = round(length_px(p.unknown_margin_m, res))
+    known = ~unknown
+    if not known.any():
+        return outside
+    # Dilated on the known cells' box only (``radius`` wider): the grid is padded with unknown
+    # cells as wide as the wide-unknown disc, and at 1 mm per cell the margin's 301-cell disc over
+    # the padded grid took 2.6 s for a 100 x 100 map.
+    near = outside.copy()
+    box = _padded_box(known, radius)
+    near[box] = _dilate(outside[box], radius)
+    return near
+
+
+def wide_unknown(occupancy: npt.NDArray[np.int8], *, radius_px: float) -> npt.NDArray[np.bool_]:
+    """Unknown cells covered by a disc of ``radius_px`` that lies wholly in unknown space.
+
+    The morphological opening of the unknown cells by a disc: the outside of a building and unexplored
+    rooms stay, the narrow shadows behind furniture and the insides of scanned objects go.
+
+    Parameters
+    ----------
+    occupancy : ndarray of int8, shape (rows, cols)
+        ROS grid.
+    radius_px : float
+        Disc radius, cells.
+    """
+    return _wide(occupancy == UNKNOWN, radius_px)
+
+
+def _wide(unknown: npt.NDArray[np.bool_], radius_px: float) -> npt.NDArray[np.bool_]:
+    """:func:`wide_unknown` of the ``unknown`` cells."""
+    import cv2
+
+    if not unknown.any():
+        return unknown.copy()
+    # On a grid of 2 x 2 blocks (a block is unknown when all its cells are): a quarter of the work,
+    # and only ever less unknown space, never more. An odd last row or column is repeated (a block
+    # of it alone). Rows are paired first, then the byte pairs of every paired row are read as one
+    # uint16: a tenth of the cost of four strided slices.
+    rows, cols = unknown.shape
+    half = rows // 2
+    pairs = np.empty((half + rows % 2, cols + cols % 2), dtype=bool)
+    np.logical_and(unknown[0 : 2 * half : 2], unknown[1 : 2 * half : 2], out=pairs[:half, :cols])
+    if rows % 2:
+        pairs[half, :cols] = unknown[-1]
+    if cols % 2:
+        pairs[:, cols] = pairs[:, cols - 1]
+    blocks = pairs.view(np.uint16) == 0x0101
+    radius = radius_px / 2
+    depth = cv2.distanceTransform(blocks.view(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_5)
+    core = depth > radius
+    if not core.any():
+        return np.zeros(unknown.shape, dtype=bool)
+    reach = cv2.distanceTransform((~core).view(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_5)
+    near = (reach <= radius).view(np.uint8)
+    # Back to cells: every block value twice along the row (a uint16 of two equal bytes), then every
+    # row twice (ten times cheaper than OpenCV's nearest-neighbour resize).
+    wide = np.repeat((near.astype(np.uint16) * np.uint16(0x0101)).view(np.uint8), 2, axis=0)
+    return wide[:rows, :cols].view(bool) & unknown
