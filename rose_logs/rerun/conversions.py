@@ -127,7 +127,7 @@ def segmentation_image(
     occupied: OccupiedCells | None = None,
     *,
     rescued: npt.NDArray[np.bool_] | None = None,
-    dropped: npt.NDArray[np.bool_] | None = None,
+    removed: npt.NDArray[np.bool_] | None = None,
     completed: npt.NDArray[np.bool_] | None = None,
 ) -> npt.NDArray[np.uint8]:
     """Class id of every cell of the window of ``occupied`` (the whole grid without it), image
@@ -143,10 +143,11 @@ def segmentation_image(
         ``occupied_cells(result)``, when the caller has it already.
     rescued : ndarray of bool, shape (rows, cols), optional
         Grid order: clutter cells the cleaning kept as walls (:attr:`rose.cleaning.CleanResult.rescued`),
-        shown as ``CLASS_RESCUED``.
-    dropped : ndarray of bool, shape (rows, cols), optional
-        Grid order: structure cells the cleaning removed (free-standing pieces), shown as
-        ``CLASS_CLUTTER`` like every removed cell.
+        shown as ``CLASS_RESCUED``. Read on the occupied cells only.
+    removed : ndarray of bool, shape (rows, cols), optional
+        Grid order: occupied cells the cleaning removed (:attr:`rose.cleaning.CleanResult.removed`),
+        shown as ``CLASS_CLUTTER``, also where the paper says structure (free-standing pieces).
+        Read on the occupied cells only.
     completed : ndarray of bool, shape (rows, cols), optional
         Grid order: unknown cells the cleaning made walls, the wall line hidden behind removed
         clutter (:attr:`rose.cleaning.CleanResult.completed`), shown as ``CLASS_COMPLETED``.
@@ -164,20 +165,23 @@ def segmentation_image(
     # Comparing the row-reversed view writes the image rows directly: free 1, unknown 1 + 1.
     classes = (grid[y0:y1, x0:x1][::-1] < 0).view(np.uint8)
     classes += np.uint8(CLASS_FREE)
+    values: npt.NDArray[np.uint8] | np.uint8
     if result.has_structure:
         # structure 4, clutter 5: the occupied cells are partitioned into the two.
-        values: npt.NDArray[np.uint8] | np.uint8 = np.uint8(
-            CLASS_CLUTTER
-        ) - result.structure.ravel()[grid_index].view(np.uint8)
+        values = np.uint8(CLASS_CLUTTER) - result.structure.ravel()[grid_index].view(np.uint8)
+    elif rescued is not None or removed is not None:
+        values = np.full(grid_index.shape, CLASS_OCCUPIED, dtype=np.uint8)
     else:
         values = np.uint8(CLASS_OCCUPIED)
-    classes.ravel()[image_index] = values
+    # The cleaning's changes to occupied cells, read on those cells alone: a few per cent of the
+    # window, where masking the whole window cost 0.1-0.2 ms per mask and snapshot.
     if rescued is not None:
-        classes[rescued[y0:y1, x0:x1][::-1]] = np.uint8(CLASS_RESCUED)
-    if dropped is not None:
-        classes[dropped[y0:y1, x0:x1][::-1]] = np.uint8(CLASS_CLUTTER)
-    if completed is not None:
-        classes[completed[y0:y1, x0:x1][::-1]] = np.uint8(CLASS_COMPLETED)
+        values[rescued.ravel()[grid_index]] = np.uint8(CLASS_RESCUED)
+    if removed is not None:
+        values[removed.ravel()[grid_index]] = np.uint8(CLASS_CLUTTER)
+    classes.ravel()[image_index] = values
+    if completed is not None:  # unknown cells: the window's mask (copyto: a third cheaper)
+        np.copyto(classes, np.uint8(CLASS_COMPLETED), where=completed[y0:y1, x0:x1][::-1])
     return classes
 
 

@@ -484,7 +484,7 @@ class TopicLogger:
         if cleaning is not None:
             changes = {
                 "rescued": cleaning.rescued,
-                "dropped": cleaning.removed & result.structure,
+                "removed": cleaning.removed,
                 "completed": cleaning.completed,
             }
         image = conv.segmentation_image(snapshot.grid, result, occupied, **changes)

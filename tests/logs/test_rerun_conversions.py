@@ -275,8 +275,8 @@ def test_images_of_the_known_window_are_the_whole_grids_images_cut_to_it() -> No
     part = conv.occupied_cells(result, window)
     assert part.bounds == whole.bounds
     assert_array_equal(
-        conv.segmentation_image(grid, result, part, rescued=rescued, dropped=dropped),
-        conv.segmentation_image(grid, result, whole, rescued=rescued, dropped=dropped)[cut],
+        conv.segmentation_image(grid, result, part, rescued=rescued, removed=dropped),
+        conv.segmentation_image(grid, result, whole, rescued=rescued, removed=dropped)[cut],
     )
     assert_array_equal(
         conv.masked_score_image(result, part), conv.masked_score_image(result, whole)[cut]
@@ -312,7 +312,7 @@ def test_structure_the_cleaning_removed_shows_as_clutter(plan) -> None:
     dropped = np.zeros(grid.shape, dtype=bool)
     structure_cells = np.argwhere(result.structure)[:3]
     dropped[tuple(structure_cells.T)] = True
-    image = conv.segmentation_image(grid, result, dropped=dropped)[::-1]
+    image = conv.segmentation_image(grid, result, removed=dropped)[::-1]
     assert_array_equal(image[dropped], style.CLASS_CLUTTER)
     assert_array_equal(image[result.structure & ~dropped], style.CLASS_STRUCTURE)
 
