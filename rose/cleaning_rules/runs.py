@@ -226,8 +226,9 @@ def straight_lines(
 ) -> npt.NDArray[np.bool_]:
     """Cells of ``mask`` on straight segments at least ``min_length_px`` long, at any angle.
 
-    OpenCV's probabilistic Hough transform (deterministic) finds the segments, with gaps of up to
-    ``max_gap_px`` cells; they are drawn three cells wide and intersected with ``mask``.
+    OpenCV's probabilistic Hough transform (deterministic) finds the segments on ``mask`` grown by
+    one cell (a band around walls that step or bend by a cell), with gaps of up to ``max_gap_px``
+    cells; they are drawn three cells wide and intersected with ``mask``.
     """
     import cv2
 
@@ -235,11 +236,16 @@ def straight_lines(
     if not mask.any():
         return out.astype(bool)
     length = max(2, round(min_length_px))
-    # On the mask's bounding box: the transform's votes depend on where the cells lie in its image,
-    # so the same cells give the same segments however much empty space is around them.
-    box = _padded_box(mask, 0)
+    # On the mask's bounding box (and the cell the band grows into): the transform's votes depend on
+    # where the cells lie in its image, so the same cells give the same segments however much
+    # empty space is around them.
+    box = _padded_box(mask, 1)
+    # Grown by a cell all round: a wall at an angle to the grid is a staircase, and a SLAM map's
+    # walls bend by a cell or two over a few metres; the transform's one-cell bins and the one-cell
+    # corridor it follows a segment along broke such a wall into pieces shorter than a run.
+    image = cv2.dilate(mask[box].view(np.uint8) * np.uint8(255), np.ones((3, 3), np.uint8))
     segments = cv2.HoughLinesP(
-        mask[box].view(np.uint8) * np.uint8(255),
+        image,
         1.0,
         math.pi / 180,
         threshold=max(2, length // 2),
