@@ -165,14 +165,12 @@ def segmentation_image(
     # Comparing the row-reversed view writes the image rows directly: free 1, unknown 1 + 1.
     classes = (grid[y0:y1, x0:x1][::-1] < 0).view(np.uint8)
     classes += np.uint8(CLASS_FREE)
-    values: npt.NDArray[np.uint8] | np.uint8
+    values: npt.NDArray[np.uint8]
     if result.has_structure:
         # structure 4, clutter 5: the occupied cells are partitioned into the two.
         values = np.uint8(CLASS_CLUTTER) - result.structure.ravel()[grid_index].view(np.uint8)
-    elif rescued is not None or removed is not None:
-        values = np.full(grid_index.shape, CLASS_OCCUPIED, dtype=np.uint8)
     else:
-        values = np.uint8(CLASS_OCCUPIED)
+        values = np.full(grid_index.shape, CLASS_OCCUPIED, dtype=np.uint8)
     # The cleaning's changes to occupied cells, read on those cells alone: a few per cent of the
     # window, where masking the whole window cost 0.1-0.2 ms per mask and snapshot.
     if rescued is not None:
