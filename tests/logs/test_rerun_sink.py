@@ -907,7 +907,7 @@ def test_a_snapshot_logged_with_its_cleaning_shows_what_the_cleaning_changed(
         result,
         conv.occupied_cells(result, conv.image_window(grid)),
         rescued=cleaning.rescued,
-        dropped=cleaning.removed & result.structure,
+        removed=cleaning.removed,
         completed=cleaning.completed,
     )
     assert np.array_equal(logged, expected)
