@@ -32,6 +32,7 @@ import cv2
 import numpy as np
 
 import rose
+from rose.cleaning import CleanMethod
 from rose_logs.derived import encode_cleaned
 from rose_logs.malloc import keep_arrays_on_heap
 from rose_logs.reader import LogReader
@@ -135,7 +136,7 @@ def raw_copy(src: Path, dst: Path, fmt: str) -> float:
 
 
 def rerun_logging_cost(
-    size: int, *, count: int = 14, rounds: int = 4, cleaning: bool = True
+    size: int, *, count: int = 14, rounds: int = 4, clean_method: CleanMethod = "walls"
 ) -> tuple[float, float, float, float]:
     """Cost of the Rerun loggers on ``count`` analysed ``size`` x ``size`` snapshots, in one thread:
     once, and then ``rounds`` times more (the steady state of a long session: the first calls of
@@ -143,9 +144,12 @@ def rerun_logging_cost(
 
     Returns ``(first cpu ms, steady wall ms, steady cpu ms, rrd kB)`` per snapshot: the time of
     ``TopicLogger.log_snapshot`` (the conversions and the log calls; Rerun encodes, compresses and
-    writes on its own threads, which the flush at the end waits for) with the snapshot's default
-    (walls) cleaning when ``cleaning``, and the saved recording's size.
+    writes on its own threads, which the flush at the end waits for) with the snapshot's cleaning
+    by ``clean_method`` shown, as a session shows it, and the saved recording's size.
     """
+    if count < 1 or rounds < 1:
+        msg = f"count and rounds must be >= 1, got {count} and {rounds}"
+        raise ValueError(msg)
     import rerun as rr
 
     from rose.cleaning import clean
@@ -158,7 +162,7 @@ def rerun_logging_cost(
     ]
     results = [rose.analyze(s.grid) for s in snapshots[:count]]
     cleanings = [
-        clean(s.grid, r) if cleaning else None
+        clean(s.grid, r, method=clean_method)
         for s, r in zip(snapshots[:count], results, strict=True)
     ]
     with tempfile.TemporaryDirectory() as tmp:
@@ -269,7 +273,7 @@ def main(argv: list[str] | None = None) -> int:
                 f"{720 * rrd_mb / n:.0f} MB for 720 snapshots"
             )
             first_ms, wall_ms, cpu_ms, kb = rerun_logging_cost(
-                args.size, cleaning=args.clean_method == "walls"
+                args.size, clean_method=args.clean_method
             )
             print(
                 f"rerun logging      {wall_ms:.1f} ms wall, {cpu_ms:.1f} ms cpu per {args.size} x "

@@ -228,6 +228,25 @@ def test_straight_lines_find_walls_that_step_or_bend_by_a_cell(
     assert not (found & ~wall).any()
 
 
+def test_straight_lines_do_not_depend_on_where_the_cells_lie() -> None:
+    # A wall at the map's edge gives the lines it gives inside the map (the grown band once lost
+    # its outer row there), and the length counts the mask's cells, not the band's.
+    for angle_deg, bow_px in [(30, 2.0), (48, 2.0), (75, 1.0), (0, 1.0)]:
+        wall = _bent_wall(angle_deg, bow_px)
+        rows, cols = np.nonzero(wall)
+        at_corner = wall[rows.min() :, cols.min() :]
+        inside = np.pad(at_corner, 3)
+        assert np.array_equal(
+            straight_lines(at_corner, min_length_px=40),
+            straight_lines(inside, min_length_px=40)[3:-3, 3:-3],
+        )
+    row = np.zeros((5, 60), dtype=bool)
+    row[2, 5:45] = True  # 40 cells: a segment of length 39
+    assert not straight_lines(row, min_length_px=40).any()
+    row[2, 45] = True
+    assert straight_lines(row, min_length_px=40)[2, 5:46].all()
+
+
 def test_wide_unknown_drops_narrow_shadows() -> None:
     grid = np.zeros((100, 100), np.int8)
     grid[:, :30] = -1  # wide unknown
