@@ -157,7 +157,8 @@ def rerun_logging_cost(
 
     maps = stages(size)
     snapshots = [
-        MapSnapshot("/map", START_NS + i, START_NS + i, "map", maps[i % len(maps)], 0.05)
+        # Snapshot i shows the count distinct maps in turn, as results[i % count] is computed.
+        MapSnapshot("/map", START_NS + i, START_NS + i, "map", maps[i % count % len(maps)], 0.05)
         for i in range(count * (1 + rounds))
     ]
     results = [rose.analyze(s.grid) for s in snapshots[:count]]
