@@ -135,6 +135,8 @@ def _flush_fronts(
                 corner_len=round(corner_px) if matrix is None else 0,
                 corner_depth=round(corner_depth_px),
             )
+        if not out.any():
+            continue
         if matrix is not None:
             out = np.asarray(
                 cv2.warpAffine(
@@ -142,8 +144,8 @@ def _flush_fronts(
                 ),
                 dtype=np.uint8,
             )
-        if not out.any():
-            continue
+            if not out.any():  # what was found fell between the cells sampled back
+                continue
         # Only where something was found (a few objects in a large map).
         y0, y1, x0, x1 = _bounds(out.view(bool))
         out = out[y0:y1, x0:x1]

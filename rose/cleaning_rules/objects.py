@@ -221,7 +221,9 @@ def _pocket_faces(
     at = np.flatnonzero(occupied)
     near = _any_of_8(pocket[_neighbour_labels(labels, at)])
     faces.reshape(-1)[at[near]] = True
-    return faces, labels_wanted(pocket, labels, cells)
+    # Unknown cells are most of the image here: a lookup at every cell (0, the background, is no
+    # pocket) is a third of the cost of one at the unknown cells only (labels_wanted).
+    return faces, np.take(pocket, labels)
 
 
 def _grow_within(

@@ -640,7 +640,7 @@ class TopicLogger:
         half_width = result.params.mask_half_width_px * size / max(result.padded_shape)
         self.recording.log(
             self.paths.spectrum,
-            rr.DepthImage(image),
+            rr.DepthImage.from_fields(buffer=_image_buffer(image), format=_u8_format(image)),
             # The strips' width is the kept half-width at display scale (at least a line).
             rr.LineStrips2D.from_fields(
                 strips=_f32(conv.spectrum_strip_segments(directions, size=size)),
