@@ -1,7 +1,7 @@
 """The cleaning benchmark: paper labelling vs the wall-preserving default on maps with ground truth.
 
 Run: python benchmarks/bench_cleaning.py [--maps-dir DIR] [--seeds N] [--logs a,b] [--bormann a,b]
-[--rotations 0,30,45] [--paired] [--figure PNG]. Prints, per map and method, wall recall, clutter removed, precision of the kept cells,
+[--rotations 0,30,45] [--resolutions 0.05,0.1] [--paired] [--figure PNG]. Prints, per map and method, wall recall, clutter removed, precision of the kept cells,
 robot-sized gaps and the time of analyze + cleaning over analyze alone, then medians and worst cases
 per kind of map (SLAM-like Bormann buildings, ray-cast furniture in CARMEN logs, optionally with the
 logs rotated so that the walls lie at other angles to the grid). Targets of issue 9:
@@ -77,6 +77,12 @@ def main() -> None:
         help="angles (degrees) to rotate the ray-cast logs by, each a kind of its own, e.g. 0,30,45",
     )
     parser.add_argument(
+        "--resolutions",
+        default="0.05",
+        help="cell sizes (metres) to ray-cast the logs at, each other than 0.05 a kind of its own, "
+        "e.g. 0.05,0.1",
+    )
+    parser.add_argument(
         "--paired",
         action="store_true",
         help="rotated logs keep the unrotated case's objects (turned with the log) instead of "
@@ -106,7 +112,14 @@ def main() -> None:
     for log in logs:
         path = args.maps_dir / "radish_carmen_corrected_logs" / f"{log}-corrected.log.gz"
         cases += [
-            raycast_case(path, seed=seed, rotation_deg=float(angle), paired=args.paired)
+            raycast_case(
+                path,
+                seed=seed,
+                rotation_deg=float(angle),
+                paired=args.paired,
+                resolution_m=float(cell),
+            )
+            for cell in args.resolutions.split(",")
             for angle in args.rotations.split(",")
             for seed in range(args.seeds)
         ]

@@ -65,6 +65,12 @@ Two methods, chosen by name:
     the inside of a piece of furniture), and restores the removed cells that blocked it (those
     within the disc's reach of the opening).
 
+The rules were designed and measured on cells of 0.05 m, and some of their tolerances are whole
+cells (a run's cell of tolerance, the straight lines' one-cell band, a wall face a cell deep). A map
+with cells of 0.1 m up to 0.15 m is cleaned on its cells split in 2 x 2, the ROSE masks split with
+them; a cell is kept, completed or removed when any of its parts is. Coarser maps are cleaned as
+they are (split further, they lost more clutter but opened more robot-sized gaps).
+
 Everything is deterministic (OpenCV morphology, labelling and its probabilistic Hough transform,
 which seeds itself) and never modifies the input.
 

@@ -8,6 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import rose
+from rose.cleaning import clean
+from rose.cleaning_rules import DESIGN_RESOLUTION_M, refinement
 from rose_logs import LogReader
 from rose_logs.carmen.furniture import (
     Furniture,
@@ -20,6 +23,7 @@ from rose_logs.evaluation.cleaning import (
     CleaningCase,
     furnish_grid,
     run_cleaning,
+    score_cleaning,
     slam_like,
     slam_like_pair,
     summarise_cleaning,
@@ -207,6 +211,34 @@ def test_floors_on_ray_cast_furniture(fr101_case: CleaningCase) -> None:
     assert summary["walls"].clutter_removal_median >= 0.7
     assert summary["walls"].precision_median >= 0.85
     assert summary["walls"].gaps_worst <= 2
+
+
+@needs_logs
+def test_a_coarse_map_is_cleaned_on_cells_of_the_design_size() -> None:
+    # The same building and furniture ray-cast at 0.1 m per cell: the rules' whole-cell tolerances
+    # would span twice the metres there. Measured on 0.1 m cells as they are: 0.94 / 0.75 / 0.86
+    # with 2 robot gaps; split into 0.05 m cells: 0.93 / 0.75 / 0.86 and none.
+    from rose_logs.evaluation.raycast import raycast_case
+
+    case = raycast_case(LOGS / "freiburg-101-corrected.log.gz", seed=2021, resolution_m=0.1)
+    result = rose.analyze(case.grid)
+    cleaned = clean(case.grid, result, resolution_m=0.1)
+    assert cleaned.kept.shape == case.grid.shape
+    assert not np.any(cleaned.kept & ~result.occupied)
+    assert not np.any(cleaned.completed & (case.grid != -1))
+    run = score_cleaning(
+        case, cleaned.kept, method="walls", analyze_s=1.0, clean_s=1.0, completed=cleaned.completed
+    )
+    assert run.robot_gaps == 0
+    assert run.wall_recall >= 0.9
+    assert run.clutter_removal >= 0.7
+    assert run.precision >= 0.8
+
+
+def test_only_cells_of_two_design_cells_up_to_three_are_split() -> None:
+    sizes = (0.01, 0.05, 0.075, 0.0999, 0.1, 0.12, 0.1499, 0.15, 0.2, 1.0)
+    assert [refinement(r) for r in sizes] == [1, 1, 1, 1, 2, 2, 2, 1, 1, 1]
+    assert refinement(2 * DESIGN_RESOLUTION_M) == 2
 
 
 @needs_logs

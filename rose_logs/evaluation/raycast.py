@@ -36,6 +36,9 @@ _LOG = logging.getLogger(__name__)
 #: One object per this many square metres of free space (bounded below and above).
 _M2_PER_OBJECT = 12.0
 _MIN_OBJECTS, _MAX_OBJECTS = 20, 150
+
+#: The cell size of the benchmark's ray-cast maps (metres); cases at other sizes are named for theirs.
+_BENCHMARK_RESOLUTION_M = 0.05
 #: The logs' own maps hold real clutter (people, chairs): small occupied components of the map built
 #: from the original scans are neither wall nor clutter and stay out of the metrics.
 _MIN_WALL_EXTENT_M = 3.0
@@ -117,7 +120,7 @@ def raycast_case(
     log_path: Path,
     *,
     seed: int,
-    resolution_m: float = 0.05,
+    resolution_m: float = _BENCHMARK_RESOLUTION_M,
     objects: int | None = None,
     name: str | None = None,
     rotation_deg: float = 0.0,
@@ -132,7 +135,8 @@ def raycast_case(
     seed : int
         Seed of the objects.
     resolution_m : float
-        Cell size, metres.
+        Cell size, metres. Cases at other sizes than 0.05 m are of a kind of their own
+        (``raycast-10cm``, ``raycast-r30deg-10cm``) and named ``<name>-10cm``.
     objects : int, optional
         Objects to place; by default one per 12 m² of free space, 20..150.
     name : str, optional
@@ -214,8 +218,11 @@ def raycast_case(
     clutter = occupied & footprint
     walls = occupied & _large_components(clean_w >= 65, resolution_m) & ~footprint
     turned = f"-r{rotation_deg:g}" if rotation_deg else ""
+    # Cells of another size than the benchmark's 0.05 m: a kind of its own.
+    cells = "" if resolution_m == _BENCHMARK_RESOLUTION_M else f"-{resolution_m * 100:g}cm"
     label = name or (
         f"{Path(log_path).name.split('-corrected')[0]}{turned}{'p' if paired else ''}-s{seed}"
+        f"{cells}"
     )
     _LOG.info(
         "%s: %d objects (%s), %d wall cells, %d clutter cells",
@@ -227,7 +234,8 @@ def raycast_case(
     )
     return CleaningCase(
         name=label,
-        kind=(f"raycast{turned}deg" + ("-paired" if paired else "")) if turned else "raycast",
+        kind=((f"raycast{turned}deg" + ("-paired" if paired else "")) if turned else "raycast")
+        + cells,
         grid=furnished_w,
         walls=walls,
         clutter=clutter,
