@@ -67,9 +67,10 @@ Two methods, chosen by name:
 
 The rules were designed and measured on cells of 0.05 m, and some of their tolerances are whole
 cells (a run's cell of tolerance, the straight lines' one-cell band, a wall face a cell deep). A map
-with cells of 0.1 m up to 0.15 m is cleaned on its cells split in 2 x 2, the ROSE masks split with
-them; a cell is kept, completed or removed when any of its parts is. Coarser maps are cleaned as
-they are (split further, they lost more clutter but opened more robot-sized gaps).
+with cells from 0.1 m to under 0.15 m is cleaned on its cells split in 2 x 2 (its lengths in
+metres read at half its cell size), the ROSE masks split with them; a cell is kept or completed
+when any of its parts is, removed when none is kept. Coarser maps are cleaned as they are (split
+further, they lost more clutter but opened more robot-sized gaps).
 
 Everything is deterministic (OpenCV morphology, labelling and its probabilistic Hough transform,
 which seeds itself) and never modifies the input.
@@ -106,7 +107,8 @@ CLEAN_METHODS: tuple[CleanMethod, ...] = ("walls", "paper")
 
 @dataclass(frozen=True)
 class CleanParams:
-    """Tuning parameters of the ``"walls"`` cleaning, in metres (converted with the map's resolution).
+    """Tuning parameters of the ``"walls"`` cleaning, in metres (converted with the size of the cells
+    the rules work on: the map's, or half of it for cells from 0.1 m to under 0.15 m, module notes).
 
     Attributes
     ----------
@@ -128,7 +130,8 @@ class CleanParams:
         Half a metre keeps such holes out at a small cost in clutter removed (measured with
         ``benchmarks/bench_cleaning.py``; numbers in the README).
     run_tolerance_px : int
-        Cells of tolerance across and along a run (stair steps, dropouts).
+        Cells of tolerance across and along a run (stair steps, dropouts), of the cells the rules
+        work on (half a cell of a map with cells from 0.1 m to under 0.15 m).
     max_bridge_m : float
         Longest hidden wall completed behind removed furniture: unknown cells on the straight line
         between the ends of two kept walls along a dominant direction, at most this far apart (0:
@@ -239,7 +242,8 @@ class CleanResult(ReadOnlyArrays):
         behind removed furniture (a cabinet against a wall hides the wall behind it), so that removing
         the furniture does not open the wall. Empty for "paper".
     resolution_m : float
-        Cell size the metric parameters were converted with.
+        The map's cell size, metres (the metric parameters were converted with half of it for
+        cells from 0.1 m to under 0.15 m: module notes).
     params : CleanParams
         The parameters used.
     result : RoseResult
@@ -290,7 +294,8 @@ class CleanResult(ReadOnlyArrays):
         return int(np.count_nonzero(self.guarded))
 
 
-#: Longest of the ``"walls"`` cleaning's lengths, in cells at the map's resolution: the robot disc
+#: Longest of the ``"walls"`` cleaning's lengths, in the cells the rules work on (the map's, split
+#: in 2 x 2 from 0.1 m to under 0.15 m per cell): the robot disc
 #: and the unknown margin are dilations costing the square of their radius per cell (a 1000-cell
 #: robot radius ran for minutes), the guard's windows the square of their margin per opened patch.
 #: The wide unknown width pads the cleaning's window by as much on every side: 100 m at 5 cm per
@@ -310,12 +315,20 @@ _MAX_CELLS_OF = {
 
 
 def _check_cells(p: CleanParams, resolution_m: float) -> None:
-    """Refuse lengths of ``p`` that span more cells than :data:`_MAX_CELLS_OF` allows."""
+    """Refuse lengths of ``p`` that span more cells than :data:`_MAX_CELLS_OF` allows, in the cells
+    the rules work on for a map of ``resolution_m`` (split for coarse maps: module notes)."""
+    from rose.cleaning_rules import refinement
+
+    split = refinement(resolution_m)
+    cell_m = resolution_m / split
+    cells = f"{cell_m:g} m per cell" + (
+        f" (the map's {resolution_m:g} m cells split in {split} x {split})" if split > 1 else ""
+    )
     problems = [
-        f"{name} {getattr(p, name):g} m is {getattr(p, name) / resolution_m:.3g} cells at "
-        f"{resolution_m:g} m per cell (at most {most:,})"
+        f"{name} {getattr(p, name):g} m is {getattr(p, name) / cell_m:.3g} cells at {cells} "
+        f"(at most {most:,})"
         for name, most in _MAX_CELLS_OF.items()
-        if getattr(p, name) / resolution_m > most
+        if getattr(p, name) / cell_m > most
     ]
     if problems:
         raise RoseError("; ".join(problems) + ": the walls cleaning's cost grows with these")
@@ -343,7 +356,8 @@ def clean(
         ``"walls"`` keeps walls and never opens a robot-sized gap (module notes); ``"paper"`` is the
         paper's labelling.
     resolution_m : float, optional
-        Cell size in metres (the lengths of ``params`` are converted with it). Default: the
+        Cell size in metres (the lengths of ``params`` are converted with it, or with half of it
+        from 0.1 m to under 0.15 m: module notes). Default: the
         OccupancyMap's resolution, or 0.05 m (the common ROS map resolution) for an array.
     params : CleanParams, optional
         Parameters of the ``"walls"`` method.

@@ -396,6 +396,10 @@ def test_bad_lengths_and_resolutions_are_rose_errors_before_any_work() -> None:
     # It pads the window by as much: 500 m (10,000 cells) would need tens of GB.
     with pytest.raises(RoseError, match=r"open_unknown_width_m 100 m is 2e\+03 cells"):
         clean(grid, resolution_m=0.05, params=CleanParams(open_unknown_width_m=100))
+    # Counted in the cells the rules work on: a 0.1 m map's are split in 2 x 2 (75 m: 1,500 cells).
+    with pytest.raises(RoseError, match=r"1\.5e\+03 cells at 0\.05 m per cell \(the map's 0\.1 m"):
+        clean(grid, resolution_m=0.1, params=CleanParams(open_unknown_width_m=75))
+    assert clean(grid, resolution_m=0.15, params=CleanParams(open_unknown_width_m=75)).kept.any()
     with pytest.raises(RoseError, match="must be a CleanParams, got dict"):
         clean(grid, resolution_m=0.05, params={"min_run_m": 1})  # type: ignore[arg-type]
     # The defaults pass at every resolution the cleaning takes.

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from real_data import repo_data
 
 import rose
 from rose.cleaning import clean
@@ -213,14 +214,14 @@ def test_floors_on_ray_cast_furniture(fr101_case: CleaningCase) -> None:
     assert summary["walls"].gaps_worst <= 2
 
 
-@needs_logs
 def test_a_coarse_map_is_cleaned_on_cells_of_the_design_size() -> None:
     # The same building and furniture ray-cast at 0.1 m per cell: the rules' whole-cell tolerances
     # would span twice the metres there. Measured on 0.1 m cells as they are: 0.94 / 0.75 / 0.86
     # with 2 robot gaps; split into 0.05 m cells: 0.93 / 0.75 / 0.86 and none.
     from rose_logs.evaluation.raycast import raycast_case
 
-    case = raycast_case(LOGS / "freiburg-101-corrected.log.gz", seed=2021, resolution_m=0.1)
+    log = repo_data("radish_carmen_corrected_logs/freiburg-101-corrected.log.gz")
+    case = raycast_case(log, seed=2021, resolution_m=0.1)
     result = rose.analyze(case.grid)
     cleaned = clean(case.grid, result, resolution_m=0.1)
     assert cleaned.kept.shape == case.grid.shape
@@ -233,6 +234,26 @@ def test_a_coarse_map_is_cleaned_on_cells_of_the_design_size() -> None:
     assert run.wall_recall >= 0.9
     assert run.clutter_removal >= 0.7
     assert run.precision >= 0.8
+
+
+def test_split_cells_join_back_kept_by_any_part_guarded_and_removed_by_all() -> None:
+    from rose.cleaning_rules import _joined_outputs
+
+    # Four map cells (1 x 4), each split in 2 x 2: A has a part kept by a rule and one by the guard,
+    # B parts kept by the guard only, C a part removed and one kept, D parts removed only.
+    kept, restored, completed, removed = (np.zeros((2, 8), dtype=bool) for _ in range(4))
+    kept[0, 0] = kept[1, 1] = restored[1, 1] = True  # A
+    kept[0, 2] = restored[0, 2] = True  # B
+    removed[0, 4] = kept[1, 5] = True  # C
+    removed[0, 6] = removed[1, 7] = True  # D
+    completed[1, 3] = True
+    joined = _joined_outputs((kept, restored, completed, removed), 2)
+    assert [m.tolist() for m in joined] == [
+        [[True, True, True, False]],  # kept: any part
+        [[False, True, False, False]],  # guarded: no part kept by another rule
+        [[False, True, False, False]],  # completed: any part
+        [[False, False, False, True]],  # removed: no part kept
+    ]
 
 
 def test_only_cells_of_two_design_cells_up_to_three_are_split() -> None:

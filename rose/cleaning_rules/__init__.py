@@ -76,8 +76,8 @@ _BRIDGE_ANCHOR_M = 0.25
 #: Some of their tolerances are whole cells (a run's cell of tolerance across and along, the
 #: one-cell band of the straight lines, a wall face at least a cell deep), which on coarser cells
 #: span more of the building: at 0.1 m furniture standing 0.1 m from a wall joined its run, and
-#: robot gaps opened where an object touched a wall. Maps with cells of two design cells (up to
-#: three) are cleaned on each cell split in 2 x 2 (:func:`refinement`).
+#: robot gaps opened where an object touched a wall. Maps with cells of two design cells to under
+#: three are cleaned on each cell split in 2 x 2 (:func:`refinement`).
 DESIGN_RESOLUTION_M = 0.05
 
 #: Hidden walls between wall ends a cell apart across the line (a scanned wall's staircase, a wall
@@ -144,7 +144,7 @@ def wall_cells(
     )
     kept, restored, added, removed = (
         out[beyond[0][0] : out.shape[0] - beyond[0][1], beyond[1][0] : out.shape[1] - beyond[1][1]]
-        for out in (_joined_cells(out, factor) for out in outs)
+        for out in _joined_outputs(outs, factor)
     )
     # Made after the rules, whose own arrays are the cleaning's peak memory.
     walls, guarded, completed, dropped = _nothing_kept(occupancy.shape)
@@ -157,8 +157,8 @@ def wall_cells(
 
 def refinement(resolution_m: float) -> int:
     """How many times finer than ``resolution_m`` (metres per cell) the cells the walls rules
-    clean a map on are, along each axis: 2 for cells of two design cells up to three
-    (:data:`DESIGN_RESOLUTION_M`: 0.1 m up to 0.15 m), else 1.
+    clean a map on are, along each axis: 2 for cells of two design cells to under three
+    (:data:`DESIGN_RESOLUTION_M`: from 0.1 m to under 0.15 m), else 1.
 
     Coarser maps are cleaned as they are. Split to the design size, the ray-cast benchmark logs at
     0.15 and 0.2 m lost more clutter but opened more robot gaps than cleaned as they were (0.2 m:
@@ -183,6 +183,30 @@ def _joined_cells(mask: npt.NDArray[np.bool_], factor: int) -> npt.NDArray[np.bo
     rows, cols = mask.shape
     blocks = mask.reshape(rows // factor, factor, cols // factor, factor)
     return np.asarray(blocks.any(axis=(1, 3)))
+
+
+def _joined_outputs(
+    outs: tuple[
+        npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_]
+    ],
+    factor: int,
+) -> tuple[
+    npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_]
+]:
+    """:func:`_wall_cells`' masks of split cells (kept, restored by the guard, completed, removed
+    whatever the paper says) for the map's cells: a cell is kept or completed when any of its parts
+    is, restored by the guard only when no part is kept otherwise, removed only when no part is
+    kept."""
+    if factor == 1:
+        return outs
+    kept, restored, completed, removed = outs
+    joined_kept = _joined_cells(kept, factor)
+    return (
+        joined_kept,
+        _joined_cells(restored, factor) & ~_joined_cells(kept & ~restored, factor),
+        _joined_cells(completed, factor),
+        _joined_cells(removed, factor) & ~joined_kept,
+    )
 
 
 def _nothing_kept(
