@@ -39,6 +39,7 @@ _MIN_OBJECTS, _MAX_OBJECTS = 20, 150
 
 #: The cell size of the benchmark's ray-cast maps (metres); cases at other sizes are named for theirs.
 _BENCHMARK_RESOLUTION_M = 0.05
+
 #: The logs' own maps hold real clutter (people, chairs): small occupied components of the map built
 #: from the original scans are neither wall nor clutter and stay out of the metrics.
 _MIN_WALL_EXTENT_M = 3.0
