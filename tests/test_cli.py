@@ -266,9 +266,13 @@ def test_a_bare_image_takes_its_resolution_from_the_option(
     assert json.loads(report.read_text())["resolution_assumed"] is True
     argv = ["clean", str(image), "-o", str(tmp_path / "b.yaml"), "--resolution", "0.1"]
     assert main([*argv, "--json", str(report), "--force"]) == 0
-    assert "warning" not in capsys.readouterr().err
+    said = capsys.readouterr()
+    assert "warning" not in said.err
     summary = json.loads(report.read_text())
     assert summary["resolution_m"] == 0.1 and summary["resolution_assumed"] is False
+    # 0.1 m cells are twice the rules' design size: cleaned on the cells split in 2 x 2.
+    assert summary["rules_cell_m"] == 0.05
+    assert "split in 2 x 2" in said.out
     assert rose.load_map(tmp_path / "b.yaml").resolution_m == pytest.approx(0.1)
     # The cleaning's lengths are metres: at 0.1 m per cell it keeps another set of cells.
     a, b = (rose.load_map(tmp_path / n).grid for n in ("a.yaml", "b.yaml"))

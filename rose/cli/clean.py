@@ -90,6 +90,11 @@ def run(args: argparse.Namespace) -> int:
     )
     summary.update(cleaning_summary(cleaning))
     summary["resolution_m"] = source.resolution_m
+    # The walls rules work on cells of the size they were designed for: a coarse map's are split.
+    from rose.cleaning_rules import refinement  # loaded by the cleaning already
+
+    split = refinement(source.resolution_m) if cleaning.method == "walls" else 1
+    summary["rules_cell_m"] = source.resolution_m / split if cleaning.method == "walls" else None
     # The rules' lengths are metres: a result at an assumed cell size says so.
     summary["resolution_assumed"] = resolution_assumed(args.map, args.resolution)
     summary["input"] = str(args.map)
@@ -123,7 +128,12 @@ def run(args: argparse.Namespace) -> int:
         f"directions   {directions}",
         f"threshold    {f'{threshold:.6f}' if threshold is not None and math.isfinite(threshold) else 'n/a'}",
         f"occupied     {cells(result.occupied_count)}",
-        f"method       {cleaning.method}",
+        f"method       {cleaning.method}"
+        + (
+            f" (on the map's cells split in {split} x {split}, the size the rules were made for)"
+            if split > 1
+            else ""
+        ),
         f"removed      {cells(cleaning.removed_count)} ({share:.1%}), set to {params.clutter_value}",
         f"kept         {cells(cleaning.kept_count)} ({cleaning.rescued_count} of them against "
         f"the paper's labelling, {cleaning.guarded_count} by the gap guard)",
