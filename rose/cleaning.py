@@ -70,7 +70,7 @@ cells (a run's cell of tolerance, the straight lines' one-cell band, a wall face
 with cells from 0.1 m to under 0.15 m is cleaned on its cells split in 2 x 2 (its lengths in
 metres read at half its cell size), the ROSE masks split with them; a cell is kept or completed
 when any of its parts is, removed when none is kept. Coarser maps are cleaned as they are (split
-further, they lost more clutter but opened more robot-sized gaps).
+further, more of their clutter went but more robot-sized gaps opened).
 
 Everything is deterministic (OpenCV morphology, labelling and its probabilistic Hough transform,
 which seeds itself) and never modifies the input.
