@@ -7,7 +7,7 @@ quiet threshold: detections per level / start, delays, false alarms; a leave-one
 threshold; the region check; the detector's CPU cost per snapshot beside ROSE's.
 
     python benchmarks/bench_breaks.py [--maps-dir DIR] [--logs aces,intel] [--seeds 3] [--workers 2]
-        [--save scores.pkl]
+        [--resolution 0.05] [--save scores.pkl]
 
 Timing is CPU time per process (``time.process_time``): wall time on a shared machine is noise.
 """
@@ -58,6 +58,9 @@ def main() -> int:
     parser.add_argument("--logs", default=",".join(LOGS))
     parser.add_argument("--seeds", type=int, default=3)
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument(
+        "--resolution", type=float, default=0.05, help="cell size of the sessions' maps, metres"
+    )
     parser.add_argument("--save", type=Path, default=None, help="pickle the scores here")
     parser.add_argument("--load", type=Path, default=None, help="reuse pickled scores")
     args = parser.parse_args()
@@ -72,7 +75,7 @@ def main() -> int:
         if missing:
             print(f"error: {missing[0]}: no such log", file=sys.stderr)
             return 1
-        cases = break_cases(paths, seeds=range(args.seeds))
+        cases = break_cases(paths, seeds=range(args.seeds), resolution_m=args.resolution)
         started = time.perf_counter()
         sessions = score_cases(cases, workers=args.workers)
         print(f"{len(sessions)} sessions in {time.perf_counter() - started:.0f} s wall")

@@ -12,6 +12,7 @@ from real_data import CARMEN_DIR, repo_data
 
 from rose_logs.carmen.clock import scan_clock_ns
 from rose_logs.carmen.parse import read_carmen_log
+from rose_logs.carmen.raycast import BuilderParams
 from rose_logs.carmen.session import SessionOptions, write_carmen_session
 from rose_logs.evaluation.break_sessions import SessionSpec, session_grids
 from rose_logs.evaluation.breaks import (
@@ -95,6 +96,25 @@ def test_replay_matches_the_converter(tmp_path: Path) -> None:
     assert grids[-1].origin_xy_m == written.final_origin_xy_m
     clock, name, _ = scan_clock_ns(log)
     assert name == "log" and np.all(np.diff(clock) > 0)
+
+
+def test_replay_at_another_cell_size_matches_the_converter_at_it(tmp_path: Path) -> None:
+    path = repo_data(f"{CARMEN_DIR}/aces-corrected.log.gz")
+    log = read_carmen_log(path, max_scans=60)
+    spec = SessionSpec(path, map_period_s=30.0, resolution_m=0.1)
+    grids = list(session_grids(log, spec))
+    written = write_carmen_session(
+        log,
+        tmp_path / "s.mcap",
+        options=SessionOptions(map_period_s=30.0, builder_params=BuilderParams(resolution_m=0.1)),
+    )
+    assert grids[-1].resolution_m == 0.1
+    np.testing.assert_array_equal(grids[-1].grid, written.final_grid)
+    # ... and the cases of the benchmark carry the cell size.
+    cases = break_cases(
+        [path], levels=(1.0,), start_fractions=(0.5,), seeds=(0,), max_scans=60, resolution_m=0.1
+    )
+    assert {case.spec.resolution_m for case in cases} == {0.1}
 
 
 def test_a_real_break_is_found_near_its_start_and_in_place() -> None:

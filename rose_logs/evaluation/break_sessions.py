@@ -46,6 +46,8 @@ class SessionSpec:
         Seconds between snapshots.
     max_scans : int, optional
         Only the first scans of the log (for a quick run); the whole log when None.
+    resolution_m : float
+        Cell size of the session's maps, metres.
     """
 
     log_path: Path
@@ -54,6 +56,7 @@ class SessionSpec:
     drift_seed: int = 0
     map_period_s: float = 30.0
     max_scans: int | None = None
+    resolution_m: float = 0.05
 
     @property
     def name(self) -> str:
@@ -102,12 +105,16 @@ def session_grids(
     log : CarmenLog
         Parsed log.
     spec : SessionSpec
-        Drift and period.
+        Drift, period and cell size.
     builder_params : BuilderParams, optional
-        Ray-casting parameters (defaults: 5 cm cells).
+        Ray-casting parameters (default: the builder's, with the spec's cell size).
     """
     clock = scan_clock_ns(log).offsets_ns
-    params = builder_params if builder_params is not None else BuilderParams()
+    params = (
+        builder_params
+        if builder_params is not None
+        else BuilderParams(resolution_m=spec.resolution_m)
+    )
     poses = apply_drift(
         log.laser_poses,
         stamps_ns=clock,

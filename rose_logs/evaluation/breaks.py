@@ -178,14 +178,17 @@ def break_cases(
     seeds: Sequence[int] = (0, 1, 2),
     map_period_s: float = 30.0,
     max_scans: int | None = None,
+    resolution_m: float = 0.05,
 ) -> list[BreakCase]:
     """The correct session and every drifted session of each log, in a fixed order (``max_scans``:
-    only the first scans of each log)."""
+    only the first scans of each log; ``resolution_m``: the maps' cell size)."""
     cases = []
     for path in log_paths:
         clock = scan_clock_ns(_log(Path(path), max_scans)).offsets_ns
         duration = float(clock[-1]) / 1e9
-        correct = SessionSpec(Path(path), map_period_s=map_period_s, max_scans=max_scans)
+        correct = SessionSpec(
+            Path(path), map_period_s=map_period_s, max_scans=max_scans, resolution_m=resolution_m
+        )
         cases.append(BreakCase(correct, 0.0, duration))
         for level in levels:
             for fraction in start_fractions:
@@ -197,6 +200,7 @@ def break_cases(
                         drift_seed=int(seed),
                         map_period_s=map_period_s,
                         max_scans=max_scans,
+                        resolution_m=resolution_m,
                     )
                     cases.append(BreakCase(spec, float(fraction), duration))
     return cases
