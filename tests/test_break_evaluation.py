@@ -18,6 +18,7 @@ from rose_logs.evaluation.break_sessions import SessionSpec, session_grids
 from rose_logs.evaluation.breaks import (
     BreakCase,
     SessionScores,
+    _correct_session,
     break_cases,
     group_table,
     leave_one_log_out,
@@ -115,6 +116,10 @@ def test_replay_at_another_cell_size_matches_the_converter_at_it(tmp_path: Path)
         [path], levels=(1.0,), start_fractions=(0.5,), seeds=(0,), max_scans=60, resolution_m=0.1
     )
     assert {case.spec.resolution_m for case in cases} == {0.1}
+    # The drifted case's region is checked against the correct session at its own cell size.
+    scores = score_case(cases[1], structure_scores=False)
+    truth = _correct_session(path, 30.0, 60, 0.1)
+    assert truth[-1].resolution_m == 0.1 and len(truth) == len(scores.times_s)
 
 
 def test_a_real_break_is_found_near_its_start_and_in_place() -> None:

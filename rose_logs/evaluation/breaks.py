@@ -164,9 +164,11 @@ def _log(path: Path, max_scans: int | None = None) -> CarmenLog:
 
 @functools.lru_cache(maxsize=1)
 def _correct_session(
-    path: Path, map_period_s: float, max_scans: int | None
+    path: Path, map_period_s: float, max_scans: int | None, resolution_m: float
 ) -> tuple[SessionGrid, ...]:
-    spec = SessionSpec(path, map_period_s=map_period_s, max_scans=max_scans)
+    spec = SessionSpec(
+        path, map_period_s=map_period_s, max_scans=max_scans, resolution_m=resolution_m
+    )
     return tuple(session_grids(_log(path, max_scans), spec))
 
 
@@ -286,7 +288,10 @@ def score_case(
     rose_params = rose_params if rose_params is not None else RoseParams()
     truth: tuple[SessionGrid, ...] = ()
     if not case.correct:
-        truth = _correct_session(case.spec.log_path, case.spec.map_period_s, case.spec.max_scans)
+        spec = case.spec
+        truth = _correct_session(
+            spec.log_path, spec.map_period_s, spec.max_scans, spec.resolution_m
+        )
     times, scores, w, regions, hits, det_s, rose_s, cells = [], [], [], [], [], [], [], []
     previous: SessionGrid | None = None
     for i, grid in enumerate(session_grids(log, case.spec)):
