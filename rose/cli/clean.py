@@ -93,8 +93,9 @@ def run(args: argparse.Namespace) -> int:
     # The walls rules work on cells of the size they were designed for: a coarse map's are split.
     from rose.cleaning_rules import refinement  # loaded by the cleaning already
 
-    split = refinement(source.resolution_m) if cleaning.method == "walls" else 1
-    summary["rules_cell_m"] = source.resolution_m / split if cleaning.method == "walls" else None
+    walls = cleaning.method == "walls"
+    split = refinement(source.resolution_m) if walls else 1
+    summary["rules_cell_m"] = source.resolution_m / split if walls else None
     # The rules' lengths are metres: a result at an assumed cell size says so.
     summary["resolution_assumed"] = resolution_assumed(args.map, args.resolution)
     summary["input"] = str(args.map)
