@@ -22,7 +22,7 @@ import time
 from pathlib import Path
 
 from rose.directions import FAILURE_LEVEL
-from rose_logs.datasets import require_data_dir
+from rose_logs.datasets import DataSetError, require_data_dir
 from rose_logs.evaluation.breaks import (
     DELAY_TARGET_S,
     break_cases,
@@ -53,7 +53,7 @@ def _table(sessions: list, threshold: float, *, use_w: bool, title: str) -> None
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
-        "--maps-dir", type=Path, default=Path(__file__).parents[1] / "../shared/maps"
+        "--maps-dir", type=Path, default=None, help="data set (default: rose_logs.datasets)"
     )
     parser.add_argument("--logs", default=",".join(LOGS))
     parser.add_argument("--seeds", type=int, default=3)
@@ -111,4 +111,7 @@ def main() -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    try:
+        sys.exit(main())
+    except DataSetError as err:  # no data set: one line, not a traceback
+        sys.exit(f"error: {err}")

@@ -14,12 +14,13 @@ from __future__ import annotations
 
 import argparse
 import logging
+import sys
 import time
 from pathlib import Path
 
 import rose
 from rose.cleaning import clean
-from rose_logs.datasets import require_data_dir
+from rose_logs.datasets import DataSetError, require_data_dir
 from rose_logs.evaluation.cleaning import (
     CleaningCase,
     CleaningRun,
@@ -148,4 +149,7 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    except DataSetError as err:  # no data set: one line, not a traceback
+        sys.exit(f"error: {err}")
