@@ -331,22 +331,25 @@ def display_spectrum(
     f_cols = max(1, cols_p // size)
     columns = _pooled_rows(np.ascontiguousarray(rows_binned.T), f_cols)
     k = np.minimum(np.rint(bins * cols_p / size).astype(np.intp), spectrum_half.shape[1] - 1)
-    right = columns[k // f_cols].T
-    image = np.empty((size + 1, size + 1), dtype=np.float32)
-    image[:, half:] = right
-    # Left half (u < 0) by point symmetry about the centre pixel.
-    image[:, :half] = image[::-1, :half:-1]
+    # Display columns half .. size, one per row (a copy, worked in place); the left half (u < 0) is
+    # their point mirror about the centre pixel, so the log, the stretch and the quantisation run on
+    # this half alone.
+    right = columns[k // f_cols]
     # log(1 + a): numpy's float32 log is vectorised, its log1p is not (6x slower); amplitudes are
     # >= 0 and the result is quantised to 8 bits, so log1p's extra precision near 0 is invisible.
-    image += np.float32(1.0)
-    np.log(image, out=image)
-    floor = float(np.median(image[::3, ::3]))  # the noise floor; a subsample is plenty
-    top = float(image.max())
+    right += np.float32(1.0)
+    np.log(right, out=right)
+    floor = float(np.median(right[::3, ::3]))  # the noise floor; a subsample is plenty
+    top = float(right.max())  # the mirrored half holds the same values
+    image = np.empty((size + 1, size + 1), dtype=np.uint8)
     if not math.isfinite(top) or top <= floor:
-        return np.full(image.shape, 1, dtype=np.uint8)
-    image -= np.float32(floor)
-    image *= np.float32(1.0 / (top - floor))
-    return quantise_unit(image, levels=levels)
+        image.fill(1)
+        return image
+    right -= np.float32(floor)
+    right *= np.float32(1.0 / (top - floor))
+    image[:, half:] = quantise_unit(right, levels=levels).T
+    image[:, :half] = image[::-1, :half:-1]
+    return image
 
 
 def direction_segments_cells(
