@@ -25,6 +25,7 @@ import resource
 import shutil
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -49,6 +50,69 @@ MAPS = (
     / "Freiburg_Building_079_partial"
 )
 START_NS = 1_700_000_000 * 1_000_000_000
+
+
+class ThreadCpu:
+    """CPU seconds per thread of this process while the block runs (Linux ``/proc``; empty elsewhere).
+
+    Pool threads end with the session, so their times are sampled every ``period_s`` and the last
+    sample of each kept; Python threads are named by their name's prefix (``rose-analyse_0`` ->
+    ``rose-analyse``), the native ones (Rerun's) by their kernel name.
+    """
+
+    def __init__(self, period_s: float = 0.2) -> None:
+        self.period_s = period_s
+        self.seconds: dict[int, tuple[str, float]] = {}
+        self._names: dict[int, str] = {}
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="bench-sampler", daemon=True)
+
+    def __enter__(self) -> ThreadCpu:
+        self._start = self._sample()
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._stop.set()
+        self._thread.join()
+        self.seconds = self._sample()
+
+    def _run(self) -> None:
+        while not self._stop.wait(self.period_s):
+            self.seconds = self._sample()
+
+    def _sample(self) -> dict[int, tuple[str, float]]:
+        for thread in threading.enumerate():
+            if thread.native_id is not None:
+                self._names[thread.native_id] = thread.name.split("_")[0]
+        tick = os.sysconf("SC_CLK_TCK") if hasattr(os, "sysconf") else 100
+        out = dict(self.seconds)
+        try:
+            tasks = list(Path("/proc/self/task").iterdir())
+        except OSError:
+            return out
+        for task in tasks:
+            tid = int(task.name)
+            try:
+                comm = (task / "comm").read_text().strip()
+                fields = (task / "stat").read_text().rsplit(")", 1)[1].split()
+            except OSError:  # the thread ended
+                continue
+            # utime and stime, fields 14 and 15 of stat (11 and 12 after the name).
+            out[tid] = (
+                self._names.get(tid, comm),
+                (int(fields[11]) + int(fields[12])) / tick,
+            )
+        return out
+
+    def by_name(self) -> list[tuple[str, float]]:
+        """``(thread name, CPU seconds inside the block)``, largest first."""
+        totals: dict[str, float] = {}
+        for tid, (name, seconds) in self.seconds.items():
+            before = self._start.get(tid, (name, 0.0))[1]
+            if name != "bench-sampler":
+                totals[name] = totals.get(name, 0.0) + seconds - before
+        return sorted(totals.items(), key=lambda item: -item[1])
 
 
 def stages(size: int) -> list[np.ndarray]:
@@ -234,15 +298,16 @@ def main(argv: list[str] | None = None) -> int:
         size_mb = sum(p.stat().st_size for p in ([src] if src.is_file() else src.iterdir())) / 1e6
         copy_s = raw_copy(src, copy, args.format)
         t0 = time.perf_counter()
-        report = process_log(
-            src,
-            output_path=out,
-            output_format=args.format,
-            force=True,
-            rrd_path=work / "session.rrd" if args.rrd else None,
-            walls=args.walls,
-            clean_method=args.clean_method,
-        )
+        with ThreadCpu() as threads:
+            report = process_log(
+                src,
+                output_path=out,
+                output_format=args.format,
+                force=True,
+                rrd_path=work / "session.rrd" if args.rrd else None,
+                walls=args.walls,
+                clean_method=args.clean_method,
+            )
         process_s = time.perf_counter() - t0
         n = len(report.records)
         analysed = sum(not r.reused for r in report.records)
@@ -258,6 +323,13 @@ def main(argv: list[str] | None = None) -> int:
             f"{analysed} analysed, {n - analysed} reused)"
         )
         print(f"snapshots/s        {n / process_s:.1f} ({args.clean_method} cleaning)")
+        busy = threads.by_name()
+        if busy:
+            cpu = sum(s for _, s in busy)
+            print(
+                f"cpu by thread      {cpu:.1f} s in {process_s:.1f} s ({cpu / process_s:.2f} cores): "
+                + ", ".join(f"{name} {s:.1f}" for name, s in busy if s >= 0.05)
+            )
         print(f"process / copy     {process_s / copy_s:.1f}x")
         per = sorted(r.seconds for r in report.records)
         print(
