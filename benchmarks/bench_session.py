@@ -63,6 +63,7 @@ class ThreadCpu:
     def __init__(self, period_s: float = 0.2) -> None:
         self.period_s = period_s
         self.seconds: dict[int, tuple[str, float]] = {}
+        self._start: dict[int, tuple[str, float]] = {}
         self._names: dict[int, str] = {}
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="bench-sampler", daemon=True)
