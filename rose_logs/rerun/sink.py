@@ -56,6 +56,10 @@ _LOG = logging.getLogger(__name__)
 
 APPLICATION_ID = "rose_bag"
 _QUEUE_DEPTH = 2
+#: The logging thread looks at its queue at least this often, seconds (see RerunSink._work).
+_WAKE_S = 0.25
+#: How long abort() waits for the logging thread, seconds.
+_ABORT_WAIT_S = 10.0
 _FLUSH_NUM_BYTES = 64 * 1024
 """Rerun's batcher flushes a chunk at this many bytes (its default is 2 MiB). A snapshot logs up to
 1 MB of images, so Rerun's default held several snapshots' data at once: on the one-hour benchmark
@@ -304,6 +308,7 @@ class RerunSink:
         self._queue: queue.Queue[Callable[[], None] | None] | None = None
         self._thread: threading.Thread | None = None
         self._flush_failed = False
+        self._aborted = False
         self.loggers = {
             topic: TopicLogger(
                 self.recording,
@@ -359,11 +364,18 @@ class RerunSink:
 
     def _work(self, jobs: queue.Queue[Callable[[], None] | None]) -> None:
         while True:
-            job = jobs.get()
+            try:
+                # Not an endless wait: a Ctrl-C that lands inside the session thread's put, in
+                # Condition.notify between its waking a waiter and its forgetting it, leaves that
+                # waiter behind (CPython 3.11), and the next put wakes it instead of this thread,
+                # which slept beside the queued end of the work while abort() waited for it.
+                job = jobs.get(timeout=_WAKE_S)
+            except queue.Empty:
+                continue
             try:
                 if job is None:
                     return
-                if self._error is None:
+                if self._error is None and not self._aborted:
                     job()
             except BaseException as err:  # handed to the session thread by _check
                 self._error = err
@@ -505,10 +517,15 @@ class RerunSink:
         )
         self._sent_key = key
 
-    def _drain(self) -> None:
+    def _drain(self, timeout_s: float | None = None) -> None:
+        """End the logging thread after its queued jobs; with ``timeout_s``, give up waiting for a
+        thread stuck in Rerun after that long (it is a daemon: it ends with the process)."""
         if self._queue is not None and self._thread is not None:
-            self._queue.put(None)
-            self._thread.join()
+            try:
+                self._queue.put(None, timeout=timeout_s)
+            except queue.Full:
+                _LOG.debug("Rerun logging thread busy; not waited for")
+            self._thread.join(timeout_s)
             self._queue = None
 
     def _flush(self) -> None:
@@ -569,7 +586,8 @@ class RerunSink:
         """Stop logging and remove the temporary ``.rrd``; never raises for logging errors."""
         try:
             self._error = None
-            self._drain()
+            self._aborted = True  # the queued snapshots are not wanted
+            self._drain(_ABORT_WAIT_S)
             if self._flush_failed:  # disconnect or release would wait forever on the dead writer
                 _keep_stalled(self.recording)
             else:

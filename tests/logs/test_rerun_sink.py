@@ -366,6 +366,33 @@ def test_a_signal_while_the_sink_opens_leaves_no_file(
     assert list(tmp_path.iterdir()) == []
 
 
+def test_abort_ends_even_when_a_signal_cost_the_logging_thread_its_wake_up(
+    tmp_path: Path,
+) -> None:
+    # A Ctrl-C inside the session thread's queue.put, in Condition.notify between its waking a
+    # waiter and its forgetting it, leaves a waiter behind that swallows the next wake-up (CPython
+    # 3.11); the hostile corpus saw abort() wait forever for a logging thread asleep beside the
+    # queued end of its work. Here the left-behind waiter is put in place by hand.
+    import threading
+    import time
+
+    sink = RerunSink(rrd_path=tmp_path / "x.rrd", topics=("/map",), recording_id="x", start_ns=0)
+    jobs = sink._queue
+    assert jobs is not None
+    deadline = time.monotonic() + 10
+    while not jobs.not_empty._waiters and time.monotonic() < deadline:  # type: ignore[attr-defined]
+        time.sleep(0.01)  # until the logging thread waits for work
+    stale = threading.Lock()
+    stale.acquire()
+    with jobs.mutex:
+        jobs.not_empty._waiters.appendleft(stale)  # type: ignore[attr-defined]
+    aborter = threading.Thread(target=sink.abort, daemon=True)
+    aborter.start()
+    aborter.join(timeout=30)
+    assert not aborter.is_alive(), "abort() still waits for the logging thread"
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_logging_errors_reach_the_session(tmp_path: Path) -> None:
     import rose
     from rose_logs.snapshots import MapSnapshot
