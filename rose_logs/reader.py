@@ -34,7 +34,7 @@ from rose.outputs import reraise_interrupt_behind
 from rose_logs.errors import LogError, LogReadError
 from rose_logs.formats import LogFormat, detect_format, mcap_cut_short
 from rose_logs.storage.connections import QosStyle
-from rose_logs.storage.mcap import McapReadBackend, McapStreamReadBackend
+from rose_logs.storage.mcap import DamagedSummaryError, McapReadBackend, McapStreamReadBackend
 from rose_logs.storage.records import Channel, RawMessage
 from rose_logs.storage.ros1_stream import Ros1StreamReadBackend
 from rose_logs.storage.rosbags import RosbagsReadBackend
@@ -126,7 +126,7 @@ class LogReader:
             backend.close()
             reraise_interrupt_behind(err)
             salvaged: McapStreamReadBackend | Ros1StreamReadBackend | None = (
-                self._without_summary() if self.format == "mcap" else None
+                self._without_summary(err) if self.format == "mcap" else None
             )
             if salvaged is None and self.salvage:
                 salvaged = self._salvage_stream()
@@ -164,15 +164,19 @@ class LogReader:
             f"{self.path}: corrupt or truncated {what} ({short(_library_text(err), 120)}); {remedy}"
         )
 
-    def _without_summary(self) -> McapStreamReadBackend | None:
-        """An MCAP file the indexed reader could not open that is complete all the same (every
-        record up to its footer reads: no summary, or no closing magic bytes), read record by
-        record; None when it is truncated or damaged instead (the first error stands)."""
+    def _without_summary(self, err: BaseException) -> McapStreamReadBackend | None:
+        """An MCAP file the indexed reader could not open (``err``) that is complete all the same
+        (every record up to its footer reads: no summary, a damaged one, or no closing magic
+        bytes), read record by record; None when it is truncated or damaged instead (the first
+        error stands)."""
         backend = McapStreamReadBackend(self.path)
         if not _opened(backend) or not backend.complete:
             backend.close()
             return None
-        _LOG.info("%s: no summary section (optional in MCAP): read record by record", self.path)
+        if isinstance(err, DamagedSummaryError):
+            _LOG.warning("%s: %s; read record by record, no message lost", self.path, err)
+        else:
+            _LOG.info("%s: no summary section (optional in MCAP): read record by record", self.path)
         return backend
 
     def _salvage_stream(self) -> McapStreamReadBackend | Ros1StreamReadBackend | None:

@@ -6,6 +6,8 @@ import heapq
 import io
 import itertools
 import logging
+import struct
+import zlib
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -31,7 +33,13 @@ from rose_logs.storage.records import (
     ros1_msgtype,
 )
 
-__all__ = ["McapReadBackend", "McapStreamReadBackend", "McapWriteBackend", "SkippedChunk"]
+__all__ = [
+    "DamagedSummaryError",
+    "McapReadBackend",
+    "McapStreamReadBackend",
+    "McapWriteBackend",
+    "SkippedChunk",
+]
 
 _LOG = logging.getLogger(__name__)
 
@@ -42,6 +50,44 @@ MAX_SORTED_BYTES = 2**30
 _CHUNK_OPCODE = 0x06
 #: Memory a message held for sorting costs beyond its data (a RawMessage and its bytes: ~250 B).
 _HELD_OVERHEAD = 256
+
+
+#: An MCAP file's last bytes: the footer record (opcode, length, summary start, summary offset
+#: start, summary CRC) and the closing magic.
+_FOOTER = struct.Struct("<BQQQI8s")
+
+
+class DamagedSummaryError(LogReadError):
+    """The summary section of an MCAP file (its index, channels and counts) does not match its CRC."""
+
+
+def check_summary_crc(stream: BinaryIO, size: int) -> None:
+    """DamagedSummaryError when the footer's summary CRC (not 0) does not match the summary section.
+
+    The CRC covers the summary section and the footer up to the CRC itself; the ``mcap`` package's
+    reader does not check it, and a damaged index or count then read as a wrong one.
+    """
+    if size < _FOOTER.size:
+        return  # not even a footer: the reader says what is wrong
+    stream.seek(size - _FOOTER.size)
+    _op, _length, summary_start, _offsets, crc, _magic = _FOOTER.unpack(stream.read(_FOOTER.size))
+    end = size - 8 - 4  # up to the CRC field, before the magic
+    if crc == 0 or not 0 < summary_start <= end:
+        return  # no CRC written, or no summary (the reader handles both)
+    stream.seek(summary_start)
+    actual, left = 0, end - summary_start
+    while left > 0:
+        block = stream.read(min(left, 1 << 20))
+        if not block:
+            return  # shorter than it says: the reader says what is wrong
+        actual = zlib.crc32(block, actual)
+        left -= len(block)
+    if actual != crc:
+        msg = (
+            f"MCAP summary section (index, channels, counts) damaged: its CRC is {actual:#010x}, "
+            f"the footer says {crc:#010x}"
+        )
+        raise DamagedSummaryError(msg)
 
 
 @dataclass(frozen=True)
@@ -82,6 +128,7 @@ class McapReadBackend:
         # corrupt length never makes the reader allocate more than the file's size.
         self.reader = SeekingReader(self.stream, validate_crcs=True, record_size_limit=max(size, 1))
         self.profile = self.reader.get_header().profile
+        check_summary_crc(self.stream, size)
         summary = self.reader.get_summary()
         if summary is None:
             msg = (

@@ -216,6 +216,38 @@ def test_a_summaryless_mcap_without_its_closing_magic_loses_nothing(tmp_path: Pa
     assert read_all(no_magic) == read_all(built.path)
 
 
+def test_a_damaged_mcap_summary_is_seen_and_read_around(
+    tmp_path: Path, fr079, caplog: pytest.LogCaptureFixture
+) -> None:
+    """The footer's CRC of the summary section (which the mcap package does not check) tells a
+    damaged index from a file whose counts are wrong: the file is read record by record, with a
+    warning, and no message is lost."""
+    import struct
+
+    from conftest import read_all, session_maps
+
+    from rose_logs.reader import LogReader
+
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", session_maps(fr079[:3]))
+    with LogReader(built.path) as reader:
+        counts = {c.topic: c.message_count for c in reader.channels}
+    data = bytearray(built.path.read_bytes())
+    summary_start = struct.unpack_from("<Q", data, len(data) - 8 - 4 - 16)[0]
+    # The first channel's count in the Statistics record (opcode 0x0b): after the record's opcode
+    # and length, 42 bytes of totals and times, the map's byte length and the channel id.
+    at = summary_start
+    while data[at] != 0x0B:
+        at += 9 + struct.unpack_from("<Q", data, at + 1)[0]
+    data[at + 9 + 42 + 4 + 2] ^= 1
+    damaged = tmp_path / "damaged.mcap"
+    damaged.write_bytes(bytes(data))
+    with caplog.at_level("WARNING"), LogReader(damaged) as reader:
+        assert {c.topic: c.message_count for c in reader.channels} == counts
+        assert reader.losses == []
+    assert "summary section (index, channels, counts) damaged" in caplog.text
+    assert read_all(damaged) == read_all(built.path)
+
+
 def test_salvage_too_large_to_sort_keeps_every_message_in_file_order(
     tmp_path: Path, fr079, monkeypatch: pytest.MonkeyPatch
 ) -> None:
