@@ -87,6 +87,7 @@ def test_info_counts_map_topics_as_read_when_the_index_undercounts_them(
 ) -> None:
     """An MCAP whose statistics say 2 of its 6 maps: info warned of 6, then printed 2."""
     import struct
+    import zlib
 
     grids = [np.full((30, 40), -1, dtype=np.int8) for _ in range(6)]
     path = build_log(tmp_path / "in.mcap", "mcap-ros2", session_maps(grids), scans_per_map=0).path
@@ -97,6 +98,10 @@ def test_info_counts_map_topics_as_read_when_the_index_undercounts_them(
     entries = pos + 9 + 8 + 2 + 4 * 4 + 8 + 8 + 4  # its channel message counts: (u16, u64) each
     assert struct.unpack_from("<Q", data, entries + 2)[0] == 6
     struct.pack_into("<Q", data, entries + 2, 2)
+    # A writer that miscounts writes the summary's CRC over its wrong counts (a CRC that does not
+    # match is damage, read around: test_formats).
+    summary_start = struct.unpack_from("<Q", data, len(data) - 8 - 4 - 16)[0]
+    struct.pack_into("<I", data, len(data) - 12, zlib.crc32(data[summary_start : len(data) - 12]))
     path.write_bytes(bytes(data))
     assert main(["info", str(path)]) == 0
     out, err = capsys.readouterr()
