@@ -18,6 +18,7 @@ from rose_logs.errors import LogReadError
 
 __all__ = [
     "FORMATS",
+    "MCAP_MAGIC",
     "LogFormat",
     "detect_format",
     "format_from_path",
@@ -32,7 +33,8 @@ FORMATS: tuple[LogFormat, ...] = ("ros1", "db3", "mcap", "mcap-dir")
 _FORMAT_SUFFIX: dict[LogFormat, str] = {"ros1": ".bag", "mcap": ".mcap", "db3": "", "mcap-dir": ""}
 
 _ROS1_MAGIC = b"#ROSBAG V2.0\n"
-_MCAP_MAGIC = b"\x89MCAP0\r\n"
+#: The bytes every MCAP file begins and, complete, ends with.
+MCAP_MAGIC = b"\x89MCAP0\r\n"
 _SQLITE_MAGIC = b"SQLite format 3\x00"
 
 
@@ -43,10 +45,10 @@ def mcap_cut_short(path: Path) -> bool:
     try:
         with Path(path).open("rb") as f:
             size = f.seek(0, os.SEEK_END)
-            if size < 2 * len(_MCAP_MAGIC):  # not even room for both
+            if size < 2 * len(MCAP_MAGIC):  # not even room for both
                 return True
-            f.seek(size - len(_MCAP_MAGIC))
-            return f.read(len(_MCAP_MAGIC)) != _MCAP_MAGIC
+            f.seek(size - len(MCAP_MAGIC))
+            return f.read(len(MCAP_MAGIC)) != MCAP_MAGIC
     except OSError:
         return False
 
@@ -74,7 +76,7 @@ def detect_format(path: Path) -> LogFormat:
         raise LogReadError(msg) from err
     if head.startswith(_ROS1_MAGIC):
         return "ros1"
-    if head.startswith(_MCAP_MAGIC):
+    if head.startswith(MCAP_MAGIC):
         return "mcap"
     if head.startswith(_SQLITE_MAGIC):
         return "db3"

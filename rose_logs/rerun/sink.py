@@ -363,7 +363,7 @@ class RerunSink:
     # -- worker ------------------------------------------------------------------------------
 
     def _work(self, jobs: queue.Queue[Callable[[], None] | None]) -> None:
-        while True:
+        while not self._aborted:  # abort(): the queued snapshots are not wanted
             try:
                 # Not an endless wait: a Ctrl-C that lands inside the session thread's put, in
                 # Condition.notify between its waking a waiter and its forgetting it, leaves that
@@ -517,15 +517,11 @@ class RerunSink:
         )
         self._sent_key = key
 
-    def _drain(self, timeout_s: float | None = None) -> None:
-        """End the logging thread after its queued jobs; with ``timeout_s``, give up waiting for a
-        thread stuck in Rerun after that long (it is a daemon: it ends with the process)."""
+    def _drain(self) -> None:
+        """End the logging thread after its queued jobs."""
         if self._queue is not None and self._thread is not None:
-            try:
-                self._queue.put(None, timeout=timeout_s)
-            except queue.Full:
-                _LOG.debug("Rerun logging thread busy; not waited for")
-            self._thread.join(timeout_s)
+            self._queue.put(None)
+            self._thread.join()
             self._queue = None
 
     def _flush(self) -> None:
@@ -586,8 +582,11 @@ class RerunSink:
         """Stop logging and remove the temporary ``.rrd``; never raises for logging errors."""
         try:
             self._error = None
-            self._aborted = True  # the queued snapshots are not wanted
-            self._drain(_ABORT_WAIT_S)
+            self._aborted = True  # the logging thread ends after the job it is running, if any
+            if self._thread is not None:
+                # Not for ever: a job stuck in Rerun is left behind (a daemon thread).
+                self._thread.join(_ABORT_WAIT_S)
+            self._queue = None
             if self._flush_failed:  # disconnect or release would wait forever on the dead writer
                 _keep_stalled(self.recording)
             else:

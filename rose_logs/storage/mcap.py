@@ -15,6 +15,7 @@ from typing import Any, BinaryIO
 
 from rose.limits import short
 from rose_logs.errors import LogReadError
+from rose_logs.formats import MCAP_MAGIC
 from rose_logs.storage.base import WriteBackend
 from rose_logs.storage.connections import (
     QosStyle,
@@ -55,10 +56,28 @@ _HELD_OVERHEAD = 256
 #: An MCAP file's last bytes: the footer record (opcode, length, summary start, summary offset
 #: start, summary CRC) and the closing magic.
 _FOOTER = struct.Struct("<BQQQI8s")
+_FOOTER_OPCODE = 0x02
+_FOOTER_LENGTH = 8 + 8 + 4  # the footer record's content: summary start, offsets start, CRC
 
 
 class DamagedSummaryError(LogReadError):
     """The summary section of an MCAP file (its index, channels and counts) does not match its CRC."""
+
+
+def _footer(stream: BinaryIO, size: int) -> tuple[int, int] | None:
+    """``(summary_start, summary_crc)`` of the footer that ends a complete MCAP file; None when
+    its last bytes are no footer and closing magic (a file cut short)."""
+    if size < _FOOTER.size:
+        return None
+    stream.seek(size - _FOOTER.size)
+    op, length, summary_start, _offsets, crc, magic = _FOOTER.unpack(stream.read(_FOOTER.size))
+    if op != _FOOTER_OPCODE or length != _FOOTER_LENGTH or magic != MCAP_MAGIC:
+        return None
+    return summary_start, crc
+
+
+def _ends_with_footer(stream: BinaryIO, size: int) -> bool:
+    return _footer(stream, size) is not None
 
 
 def check_summary_crc(stream: BinaryIO, size: int) -> None:
@@ -67,10 +86,10 @@ def check_summary_crc(stream: BinaryIO, size: int) -> None:
     The CRC covers the summary section and the footer up to the CRC itself; the ``mcap`` package's
     reader does not check it, and a damaged index or count then read as a wrong one.
     """
-    if size < _FOOTER.size:
-        return  # not even a footer: the reader says what is wrong
-    stream.seek(size - _FOOTER.size)
-    _op, _length, summary_start, _offsets, crc, _magic = _FOOTER.unpack(stream.read(_FOOTER.size))
+    footer = _footer(stream, size)
+    if footer is None:
+        return  # no footer where a complete file has it (cut short?): the reader says what is wrong
+    summary_start, crc = footer
     end = size - 8 - 4  # up to the CRC field, before the magic
     if crc == 0 or not 0 < summary_start <= end:
         return  # no CRC written, or no summary (the reader handles both)
@@ -443,16 +462,22 @@ class McapStreamReadBackend(McapReadBackend):
 
     def open(self) -> None:
         from mcap.records import Channel as McapChannel
-        from mcap.records import Footer, Header, Message, Schema
+        from mcap.records import DataEnd, Footer, Header, Message, Schema
 
         self.stream = self.path.open("rb")
         schemas: dict[int, Any] = {}
         mcap_channels: dict[int, Any] = {}
         counts: dict[int, int] = {}
         first = last = None
-        footer = False
+        footer = data_end = False
         for record in self._records():
-            if isinstance(record, Header):
+            if isinstance(record, DataEnd):
+                # What follows is the summary, which this reader does not trust (missing or
+                # damaged): its copies of the definitions are not read over the data section's.
+                data_end = True
+            elif data_end:
+                footer |= isinstance(record, Footer)
+            elif isinstance(record, Header):
                 self.profile = record.profile
             elif isinstance(record, Schema):
                 schemas[record.id] = record
@@ -469,6 +494,10 @@ class McapStreamReadBackend(McapReadBackend):
         if footer and self.damage:  # e.g. the closing magic bytes missing: every record read
             _LOG.warning("%s: %s, after its footer: nothing lost", self.path, self.damage)
             self.damage = ""
+        elif data_end and self.damage and _ends_with_footer(self.stream, self.path.stat().st_size):
+            # A summary that does not read, between the data's end and an intact footer.
+            _LOG.warning("%s: %s, in its summary: nothing lost", self.path, self.damage)
+            self.damage, footer = "", True
         self.complete = footer
         if not self.damage:
             self.damage = "the file ends without a summary" if footer else "no summary at the end"
@@ -500,10 +529,12 @@ class McapStreamReadBackend(McapReadBackend):
             yield from sorted(self._file_order(topics), key=lambda m: m.log_time_ns)
 
     def _file_order(self, topics: set[str] | None) -> Iterator[RawMessage]:
-        from mcap.records import Message
+        from mcap.records import DataEnd, Message
 
         by_id = self._by_id
         for record in self._records():
+            if isinstance(record, DataEnd):
+                return  # as open() counted: no message after the data section
             if isinstance(record, Message) and record.channel_id in by_id:
                 channel = by_id[record.channel_id]
                 if topics is None or channel.topic in topics:

@@ -216,14 +216,59 @@ def test_a_summaryless_mcap_without_its_closing_magic_loses_nothing(tmp_path: Pa
     assert read_all(no_magic) == read_all(built.path)
 
 
-def test_a_damaged_mcap_summary_is_seen_and_read_around(
-    tmp_path: Path, fr079, caplog: pytest.LogCaptureFixture
-) -> None:
-    """The footer's CRC of the summary section (which the mcap package does not check) tells a
-    damaged index from a file whose counts are wrong: the file is read record by record, with a
-    warning, and no message is lost."""
+def _summary_start(data: bytearray) -> int:
+    """Offset of an MCAP file's summary section (from its footer)."""
     import struct
 
+    return struct.unpack_from("<Q", data, len(data) - 8 - 4 - 16)[0]
+
+
+def _summary_record(data: bytearray, opcode: int) -> int:
+    """Offset of the first record of type ``opcode`` in an MCAP file's summary section."""
+    import struct
+
+    at = _summary_start(data)
+    while data[at] != opcode:
+        at += 9 + struct.unpack_from("<Q", data, at + 1)[0]  # opcode, length, content
+    return at
+
+
+# Where a byte of the summary is damaged: a channel's count in the Statistics record (after its
+# opcode and length, 42 bytes of totals and times, the map's byte length and the channel id); a
+# letter of a topic in a Channel record (id, then the topic's length and text); the high byte of
+# the first summary record's length (the summary no longer reads at all).
+_SUMMARY_DAMAGE = {
+    "count": lambda data: _summary_record(data, 0x0B) + 9 + 42 + 4 + 2,
+    "topic": lambda data: _summary_record(data, 0x04) + 9 + 2 + 4 + 1,
+    "length": lambda data: _summary_start(data) + 8,
+}
+
+
+def test_an_mcap_without_its_closing_magic_is_not_called_damaged(
+    tmp_path: Path, fr079, caplog: pytest.LogCaptureFixture
+) -> None:
+    """Without its last 8 bytes the footer is not where the summary CRC's check looks: no false
+    'damaged' warning, and every message reads."""
+    from conftest import read_all, session_maps
+
+    from rose_logs.reader import LogReader
+
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", session_maps(fr079[:3]))
+    cut = tmp_path / "no_magic.mcap"
+    cut.write_bytes(built.path.read_bytes()[:-8])
+    with caplog.at_level("INFO"), LogReader(cut) as reader:
+        assert reader.losses == []
+    assert "damaged" not in caplog.text
+    assert read_all(cut) == read_all(built.path)
+
+
+@pytest.mark.parametrize("where", sorted(_SUMMARY_DAMAGE))
+def test_a_damaged_mcap_summary_is_seen_and_read_around(
+    tmp_path: Path, fr079, caplog: pytest.LogCaptureFixture, where: str
+) -> None:
+    """The footer's CRC of the summary section (which the mcap package does not check) tells a
+    damaged index from a file whose counts are wrong: the file is read record by record, its
+    definitions from the data section, with a warning, and no message is lost."""
     from conftest import read_all, session_maps
 
     from rose_logs.reader import LogReader
@@ -232,13 +277,7 @@ def test_a_damaged_mcap_summary_is_seen_and_read_around(
     with LogReader(built.path) as reader:
         counts = {c.topic: c.message_count for c in reader.channels}
     data = bytearray(built.path.read_bytes())
-    summary_start = struct.unpack_from("<Q", data, len(data) - 8 - 4 - 16)[0]
-    # The first channel's count in the Statistics record (opcode 0x0b): after the record's opcode
-    # and length, 42 bytes of totals and times, the map's byte length and the channel id.
-    at = summary_start
-    while data[at] != 0x0B:
-        at += 9 + struct.unpack_from("<Q", data, at + 1)[0]
-    data[at + 9 + 42 + 4 + 2] ^= 1
+    data[_SUMMARY_DAMAGE[where](data)] ^= 1
     damaged = tmp_path / "damaged.mcap"
     damaged.write_bytes(bytes(data))
     with caplog.at_level("WARNING"), LogReader(damaged) as reader:

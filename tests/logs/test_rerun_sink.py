@@ -393,6 +393,32 @@ def test_abort_ends_even_when_a_signal_cost_the_logging_thread_its_wake_up(
     assert list(tmp_path.iterdir()) == []
 
 
+def test_abort_skips_the_queued_snapshots_and_does_not_wait_for_a_stuck_one(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import threading
+    import time
+
+    from rose_logs.rerun import sink as sink_module
+
+    monkeypatch.setattr(sink_module, "_ABORT_WAIT_S", 0.5)
+    sink = RerunSink(rrd_path=tmp_path / "x.rrd", topics=("/map",), recording_id="x", start_ns=0)
+    release, ran = threading.Event(), []
+    sink._submit(lambda: release.wait(30))  # a job stuck in Rerun, say
+    sink._submit(lambda: ran.append(1))
+    sink._submit(lambda: ran.append(2))
+    worker = sink._thread
+    assert worker is not None
+    started = time.monotonic()
+    sink.abort()
+    assert time.monotonic() - started < 5
+    release.set()
+    worker.join(timeout=5)
+    assert not worker.is_alive()
+    assert ran == []
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_logging_errors_reach_the_session(tmp_path: Path) -> None:
     import rose
     from rose_logs.snapshots import MapSnapshot
