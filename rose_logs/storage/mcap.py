@@ -76,10 +76,6 @@ def _footer(stream: BinaryIO, size: int) -> tuple[int, int] | None:
     return summary_start, crc
 
 
-def _ends_with_footer(stream: BinaryIO, size: int) -> bool:
-    return _footer(stream, size) is not None
-
-
 def check_summary_crc(stream: BinaryIO, size: int) -> None:
     """DamagedSummaryError when the footer's summary CRC (not 0) does not match the summary section.
 
@@ -494,7 +490,9 @@ class McapStreamReadBackend(McapReadBackend):
         if footer and self.damage:  # e.g. the closing magic bytes missing: every record read
             _LOG.warning("%s: %s, after its footer: nothing lost", self.path, self.damage)
             self.damage = ""
-        elif data_end and self.damage and _ends_with_footer(self.stream, self.path.stat().st_size):
+        elif (
+            data_end and self.damage and _footer(self.stream, self.path.stat().st_size) is not None
+        ):
             # A summary that does not read, between the data's end and an intact footer.
             _LOG.warning("%s: %s, in its summary: nothing lost", self.path, self.damage)
             self.damage, footer = "", True
