@@ -76,7 +76,7 @@ def _footer(stream: BinaryIO, size: int) -> tuple[int, int] | None:
     return summary_start, crc
 
 
-def check_summary_crc(stream: BinaryIO, size: int) -> None:
+def _check_summary_crc(stream: BinaryIO, size: int) -> None:
     """DamagedSummaryError when the footer's summary CRC (not 0) does not match the summary section.
 
     The CRC covers the summary section and the footer up to the CRC itself; the ``mcap`` package's
@@ -143,7 +143,7 @@ class McapReadBackend:
         # corrupt length never makes the reader allocate more than the file's size.
         self.reader = SeekingReader(self.stream, validate_crcs=True, record_size_limit=max(size, 1))
         self.profile = self.reader.get_header().profile
-        check_summary_crc(self.stream, size)
+        _check_summary_crc(self.stream, size)
         summary = self.reader.get_summary()
         if summary is None:
             msg = (
