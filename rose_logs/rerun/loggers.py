@@ -7,8 +7,8 @@ converted by :mod:`rose_logs.rerun.conversions` (north up, image row order).
 
 from __future__ import annotations
 
+import functools
 import math
-from typing import Literal
 
 import numpy as np
 import numpy.typing as npt
@@ -21,8 +21,8 @@ from rose.result import RoseResult
 from rose.walls import WallSet
 from rose.walls.segments import cells_to_metres
 from rose_logs.frames import yaw_to_quaternion
+from rose_logs.rerun import arrow, style
 from rose_logs.rerun import conversions as conv
-from rose_logs.rerun import style
 from rose_logs.rerun.paths import SEQUENCE_TIMELINE, SESSION_TIMELINE, TIMELINE, EntityPaths
 from rose_logs.session.breaks import BreakScore
 from rose_logs.session.report import w_judges
@@ -38,44 +38,24 @@ _OVERLAY_HEIGHT_FRACTION = 0.005
 _MIN_OVERLAY_HEIGHT_M = 0.02
 _AXIS_TICKS_DEG = (0.0, 45.0, 90.0, 135.0, 180.0)
 _AXIS_TICKS_S = (0.0, 0.5, 1.0)
+_PLACEMENTS_KEPT = 8
 
 
-def _f32(points: npt.NDArray[np.float64]) -> npt.NDArray[np.float32]:
-    """Positions as float32, Rerun's position type (and what its type hints accept)."""
-    return np.asarray(points, dtype=np.float32)
-
-
-#: Rerun's image buffer component type (``list<item: uint8 not null>``).
-_IMAGE_BUFFER_TYPE = pa.list_(pa.field("item", pa.uint8(), nullable=False))
-
-
-def _image_buffer(image: npt.NDArray[np.uint8]) -> pa.ListArray:
-    """The bytes of a uint8 image as Rerun's image buffer, without copying them.
-
-    Rerun's own conversion (``rr.SegmentationImage(array)``) copies the pixels twice: about 1 ms of
-    a 1000 x 1000 snapshot's logging per image, against 0.1 ms here. Rerun reads the buffer on its
-    own threads, so ``image`` must not change afterwards: pass arrays made for the log call.
-    """
-    flat = pa.array(np.ascontiguousarray(image, dtype=np.uint8).reshape(-1))
-    return pa.ListArray.from_arrays(
-        pa.array([0, len(flat)], type=pa.int32()), flat, type=_IMAGE_BUFFER_TYPE
-    )
-
-
-def _u8_format(
-    image: npt.NDArray[np.uint8], color_model: Literal["L"] | None = None
-) -> rr.components.ImageFormat:
-    """Rerun's format of a single-channel uint8 image (``color_model="L"`` for a grey image)."""
-    rows, cols = image.shape
-    return rr.components.ImageFormat(
-        width=cols, height=rows, color_model=color_model, channel_datatype="U8"
-    )
+@functools.lru_cache(maxsize=16)
+def _curve_style(peaks: int) -> dict[str, pa.Array]:
+    """Colours and radii of the amplitude curve and its ``peaks`` prominence bars, converted once
+    per number of peaks (Arrow arrays are immutable: shared by every log call)."""
+    colors = rr.components.ColorBatch([style.CURVE_COLOR] + [style.PEAK_COLOR] * peaks)
+    radii = rr.components.RadiusBatch(rr.Radius.ui_points([1.5] + [1.0] * peaks))
+    return {"colors": colors.as_arrow_array(), "radii": radii.as_arrow_array()}
 
 
 def segmentation_image(image: npt.NDArray[np.uint8]) -> rr.SegmentationImage:
     """``rr.SegmentationImage(image)`` (class ids, image row order) without its copies
-    (:func:`_image_buffer`)."""
-    return rr.SegmentationImage.from_fields(buffer=_image_buffer(image), format=_u8_format(image))
+    (:func:`~rose_logs.rerun.arrow.image_buffer`)."""
+    return rr.SegmentationImage.from_fields(
+        buffer=arrow.image_buffer(image), format=arrow.u8_format(image)
+    )
 
 
 def view_origin_m(snapshot: MapSnapshot) -> tuple[float, float]:
@@ -97,7 +77,13 @@ def image_placement(
     resolution during a session stays in place in the views (in pixels, each grid size had its own
     frame: a growing map jumped and shrank in a fixed view).
     """
-    translation, angle, scale = placement_terms(snapshot, view_origin, window)
+    return _placement_transform(*placement_terms(snapshot, view_origin, window))
+
+
+def _placement_transform(
+    translation: tuple[float, float], angle: float, scale: float
+) -> rr.Transform3D:
+    """The transform of :func:`placement_terms`' terms."""
     return rr.Transform3D(
         translation=[*translation, 0.0],
         rotation=rr.RotationAxisAngle(axis=[0.0, 0.0, 1.0], radians=angle),
@@ -228,6 +214,22 @@ class TopicLogger:
         self.view_origin_m: tuple[float, float] | None = None  # set by the first snapshot
         self._threshold_logged = False
         self.score_legend_placement: rr.Transform3D | None = None  # of the last snapshot
+        # By placement_terms: Rerun's Transform3D cost about 0.1 ms to build, three times per
+        # snapshot, and a snapshot's images share placements, as do snapshots of a map that did
+        # not grow. Dropped when full (a growing map moves its placements on).
+        self._placements: dict[tuple[tuple[float, float], float, float], rr.Transform3D] = {}
+
+    def _image_placement(
+        self, snapshot: MapSnapshot, window: conv.Window | None = None
+    ) -> rr.Transform3D:
+        """:func:`image_placement` of ``snapshot``'s images of ``window`` in this topic's views."""
+        terms = placement_terms(snapshot, self._origin_for(snapshot), window)
+        placement = self._placements.get(terms)
+        if placement is None:
+            if len(self._placements) >= _PLACEMENTS_KEPT:
+                self._placements.clear()
+            placement = self._placements[terms] = _placement_transform(*terms)
+        return placement
 
     def _origin_for(self, snapshot: MapSnapshot) -> tuple[float, float]:
         """The 2D views' 0 in the map frame (:func:`view_origin_m` of the topic's first snapshot)."""
@@ -448,7 +450,7 @@ class TopicLogger:
         :attr:`rerun.components.Colormap.RvizMap`; the image's lower-left corner is the window's.
         """
         x0, y0, x1, y1 = window or conv.image_window(snapshot.grid)
-        # Image row order, a copy of its own (Rerun reads it later, see _image_buffer).
+        # Image row order, a copy of its own (Rerun reads it later, see arrow.image_buffer).
         image = snapshot.grid[y0:y1, x0:x1].view(np.uint8)[::-1].copy()
         # Flat, turned by the origin's yaw: where the session takes a grid to lie (a tilted origin
         # is warned about), and where the overlays (cells_to_map_m) are drawn.
@@ -456,8 +458,8 @@ class TopicLogger:
         self.recording.log(
             self.paths.grid,
             rr.GridMap(
-                data=_image_buffer(image),
-                format=_u8_format(image, color_model="L"),
+                data=arrow.image_buffer(image),
+                format=arrow.u8_format(image, color_model="L"),
                 cell_size=float(snapshot.resolution_m),
                 translation=[
                     float(corner[0]),
@@ -491,7 +493,7 @@ class TopicLogger:
         self.recording.log(
             self.paths.segmentation,
             segmentation_image(image),
-            image_placement(snapshot, self._origin_for(snapshot), occupied.window),
+            self._image_placement(snapshot, occupied.window),
         )
 
     def log_directions(
@@ -522,17 +524,17 @@ class TopicLogger:
         # Colours, sizes and the label switch are static (log_static).
         rec.log(
             paths.cell_directions,
-            rr.LineStrips2D.from_fields(strips=_f32(conv.cells_to_pixels(segments, rows))),
+            rr.LineStrips2D.from_fields(strips=arrow.strips(conv.cells_to_pixels(segments, rows))),
             rr.Points2D.from_fields(
-                positions=_f32(conv.cells_to_pixels(anchors, rows)), labels=map_labels
+                positions=arrow.points(conv.cells_to_pixels(anchors, rows)), labels=map_labels
             ),
-            image_placement(snapshot, self._origin_for(snapshot)),
+            self._image_placement(snapshot),
         )
         rec.log(
             paths.metric_directions,
-            rr.LineStrips3D.from_fields(strips=_f32(cells_to_map_m(snapshot, segments))),
+            rr.LineStrips3D.from_fields(strips=arrow.strips(cells_to_map_m(snapshot, segments))),
             rr.Points3D.from_fields(
-                positions=_f32(cells_to_map_m(snapshot, anchors)), labels=map_labels
+                positions=arrow.points(cells_to_map_m(snapshot, anchors)), labels=map_labels
             ),
         )
 
@@ -551,13 +553,20 @@ class TopicLogger:
         height_m = overlay_z_m(snapshot, layer=2)
         metric = np.concatenate([ends_m, np.full((*ends_m.shape[:2], 1), height_m)], axis=-1)
         radius = rr.Radius.ui_points(1.0)
-        rec.log(paths.metric_walls, rr.LineStrips3D(metric, colors=style.WALL_COLOR, radii=radius))
+        rec.log(
+            paths.metric_walls,
+            rr.LineStrips3D.from_fields(
+                strips=arrow.strips(metric), colors=style.WALL_COLOR, radii=radius
+            ),
+        )
         centres = walls.endpoints_px + 0.5  # cell centres
         pixels = conv.cells_to_pixels(centres, snapshot.grid.shape[0])
         rec.log(
             paths.cell_walls,
-            rr.LineStrips2D(_f32(pixels), colors=style.WALL_COLOR, radii=radius),
-            image_placement(snapshot, self._origin_for(snapshot)),
+            rr.LineStrips2D.from_fields(
+                strips=arrow.strips(pixels), colors=style.WALL_COLOR, radii=radius
+            ),
+            self._image_placement(snapshot),
         )
 
     def log_cell_scores(
@@ -594,24 +603,24 @@ class TopicLogger:
             (u_of(1.0), _BAR_LABELS_BELOW_PX),
         ]
         labels = [f"score ≤ {style.SCORE_DISPLAY_MIN:g}", "1 (best cell)"]  # lower ones clipped
-        tick = np.empty((0, 2, 2), np.float32)
+        tick = np.empty((0, 2, 2))
         if math.isfinite(result.threshold):
             at = u_of(result.threshold)
             positions.append((at, _BAR_THRESHOLD_LABEL_PX))
             labels.append(f"threshold {result.threshold:.2f}")
             # A tick across the bar, from above it (where the label is) to its lower edge.
-            tick = np.array([[(at, -0.6), (at, 2.0)]], np.float32)
+            tick = np.array([[(at, -0.6), (at, 2.0)]])
         rec.log(
             paths.cell_scores,
             segmentation_image(conv.masked_score_image(result, occupied)),
-            image_placement(snapshot, origin, occupied.window),
+            self._image_placement(snapshot, occupied.window),
         )
         if self.live:
             rec.log(paths.score_legend, self.score_legend_placement)
         rec.log(
             paths.score_bar,
-            rr.Points2D.from_fields(positions=_f32(np.array(positions)), labels=labels),
-            rr.LineStrips2D.from_fields(strips=tick),
+            rr.Points2D.from_fields(positions=arrow.points(positions), labels=labels),
+            rr.LineStrips2D.from_fields(strips=arrow.strips(tick)),
         )
 
     def log_final_placement(
@@ -640,10 +649,12 @@ class TopicLogger:
         half_width = result.params.mask_half_width_px * size / max(result.padded_shape)
         self.recording.log(
             self.paths.spectrum,
-            rr.DepthImage.from_fields(buffer=_image_buffer(image), format=_u8_format(image)),
+            rr.DepthImage.from_fields(
+                buffer=arrow.image_buffer(image), format=arrow.u8_format(image)
+            ),
             # The strips' width is the kept half-width at display scale (at least a line).
             rr.LineStrips2D.from_fields(
-                strips=_f32(conv.spectrum_strip_segments(directions, size=size)),
+                strips=arrow.strips(conv.spectrum_strip_segments(directions, size=size)),
                 radii=max(half_width, 0.75),
             ),
         )
@@ -678,16 +689,16 @@ class TopicLogger:
         peaks = len(plot.peak_labels)
         rec.log(
             paths.amplitude_curve,
-            rr.LineStrips2D(
-                [plot.curve, *plot.prominence_bars],
-                colors=[style.CURVE_COLOR] + [style.PEAK_COLOR] * peaks,
-                radii=rr.Radius.ui_points([1.5] + [1.0] * peaks),
+            rr.LineStrips2D.from_fields(
+                strips=arrow.strips([plot.curve, *plot.prominence_bars]), **_curve_style(peaks)
             ),
-            rr.Points2D.from_fields(positions=_f32(plot.peaks)),
+            rr.Points2D.from_fields(positions=arrow.points(plot.peaks)),
         )
         rec.log(
             paths.amplitude_peak_labels,
-            rr.Points2D.from_fields(positions=_f32(plot.label_anchors), labels=plot.peak_labels),
+            rr.Points2D.from_fields(
+                positions=arrow.points(plot.label_anchors), labels=plot.peak_labels
+            ),
         )
 
     def log_structure_score(self, result: RoseResult, *, judged: bool | None = None) -> None:

@@ -1,0 +1,90 @@
+"""The Arrow arrays the loggers hand to Rerun are exactly what Rerun's own conversions make.
+
+Rerun takes an array of a component's type as it is, without checking its contents: a wrong layout
+would draw wrong lines, not fail. These tests compare with Rerun's conversions, so an upgrade of
+the pinned Rerun that changes a type fails here.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import rerun as rr
+
+from rose_logs.rerun import arrow
+
+
+@pytest.fixture
+def rng() -> np.random.Generator:
+    return np.random.default_rng(7)
+
+
+@pytest.mark.parametrize("dims", [2, 3])
+def test_strips_of_equal_length_match_rerun(rng, dims: int) -> None:
+    lines = rng.normal(size=(4, 2, dims)) * 100.0  # float64, as the loggers compute them
+    archetype = rr.LineStrips2D if dims == 2 else rr.LineStrips3D
+    expected = archetype(lines.astype(np.float32)).strips.as_arrow_array()
+    assert arrow.strips(lines).equals(expected)
+
+
+@pytest.mark.parametrize("dims", [2, 3])
+def test_ragged_strips_match_rerun(rng, dims: int) -> None:
+    lines = [rng.normal(size=(n, dims)) for n in (181, 2, 2, 5)]
+    archetype = rr.LineStrips2D if dims == 2 else rr.LineStrips3D
+    expected = archetype([line.astype(np.float32) for line in lines]).strips.as_arrow_array()
+    assert arrow.strips(lines).equals(expected)
+
+
+def test_no_strips_match_rerun() -> None:
+    expected = rr.LineStrips2D(np.empty((0, 2, 2), np.float32)).strips.as_arrow_array()
+    assert arrow.strips(np.empty((0, 2, 2))).equals(expected)
+    assert arrow.strips([]).equals(expected)
+
+
+@pytest.mark.parametrize("dims", [2, 3])
+def test_points_match_rerun(rng, dims: int) -> None:
+    positions = rng.normal(size=(6, dims))
+    archetype = rr.Points2D if dims == 2 else rr.Points3D
+    expected = archetype(positions.astype(np.float32)).positions.as_arrow_array()
+    assert arrow.points(positions).equals(expected)
+    assert arrow.points(positions[:0]).equals(archetype(positions[:0]).positions.as_arrow_array())
+
+
+def test_bad_shapes_are_refused() -> None:
+    with pytest.raises(ValueError, match="shape"):
+        arrow.points(np.zeros((3, 4)))
+    with pytest.raises(ValueError, match="2D or 3D"):
+        arrow.strips(np.zeros((2, 2, 4)))
+    with pytest.raises(ValueError, match="all"):
+        arrow.strips([np.zeros((2, 2)), np.zeros((2, 3))])
+
+
+def test_images_match_rerun() -> None:
+    image = np.arange(12, dtype=np.uint8).reshape(3, 4)
+    expected = rr.SegmentationImage(image)
+    assert arrow.image_buffer(image).equals(expected.buffer.as_arrow_array())
+    assert arrow.u8_format(image).equals(expected.format.as_arrow_array())
+    grey = rr.GridMap(
+        data=image.reshape(-1),
+        format=rr.components.ImageFormat(width=4, height=3, color_model="L", channel_datatype="U8"),
+        cell_size=1.0,
+    )
+    assert arrow.u8_format(image, color_model="L").equals(grey.format.as_arrow_array())
+    # One format per shape, shared: another shape gets its own.
+    assert arrow.u8_format(image.T.copy()).equals(
+        rr.SegmentationImage(image.T.copy()).format.as_arrow_array()
+    )
+
+
+def test_amplitude_curve_style_matches_rerun() -> None:
+    from rose_logs.rerun import style
+    from rose_logs.rerun.loggers import _curve_style
+
+    expected = rr.LineStrips2D(
+        [np.zeros((2, 2), np.float32)] * 4,
+        colors=[style.CURVE_COLOR] + [style.PEAK_COLOR] * 3,
+        radii=rr.Radius.ui_points([1.5, 1.0, 1.0, 1.0]),
+    )
+    style_arrays = _curve_style(3)
+    assert style_arrays["colors"].equals(expected.colors.as_arrow_array())
+    assert style_arrays["radii"].equals(expected.radii.as_arrow_array())
