@@ -3,6 +3,7 @@
 - :mod:`~rose_logs.rerun.paths`: entity paths and timelines (the one definition).
 - :mod:`~rose_logs.rerun.style`: colours, class ids, display constants.
 - :mod:`~rose_logs.rerun.conversions`: numpy conversions to what the viewer draws (tested directly).
+- :mod:`~rose_logs.rerun.arrow`: per-snapshot components as Arrow arrays of Rerun's own types.
 - :mod:`~rose_logs.rerun.loggers`: one logger per stream; static data logged once.
 - :mod:`~rose_logs.rerun.blueprint`: the default layout.
 - :mod:`~rose_logs.rerun.sink`: :class:`RerunSink`, the session's recording (file and/or live viewer).
