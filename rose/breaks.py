@@ -37,6 +37,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rose.errors import RoseError
+from rose.grid import blocks_any
 from rose.labelling import components, label_boxes, labels_wanted
 from rose.limits import integer_number
 
@@ -112,10 +113,7 @@ def _tiles(
     hp, wp = -(-h // tile_px) * tile_px, -(-w // tile_px) * tile_px
     padded = np.zeros((hp, wp), dtype=bool)
     padded[r0 - tr : r0 - tr + mask.shape[0], c0 - tc : c0 - tc + mask.shape[1]] = mask
-    flags = np.asarray(
-        padded.reshape(hp // tile_px, tile_px, wp // tile_px, tile_px).any(axis=(1, 3))
-    )
-    return flags, tr, tc
+    return blocks_any(padded, tile_px), tr, tc
 
 
 def _densest_window(tiles: npt.NDArray[np.bool_], side: int) -> tuple[int, int, int]:

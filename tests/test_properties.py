@@ -32,3 +32,25 @@ def test_analyze_invariants(grid: np.ndarray) -> None:
     again = rose.analyze(grid)
     np.testing.assert_array_equal(again.cleaned, result.cleaned)
     assert again.structure_score == result.structure_score
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.integers(1, 5).flatmap(
+        lambda factor: st.tuples(
+            st.just(factor),
+            st.tuples(st.integers(0, 12), st.integers(0, 12)).flatmap(
+                lambda blocks: arrays(bool, (blocks[0] * factor, blocks[1] * factor))
+            ),
+        )
+    )
+)
+def test_blocks_any_is_the_or_of_each_block(case: tuple[int, np.ndarray]) -> None:
+    from rose.grid import blocks_any
+
+    factor, mask = case
+    rows, cols = mask.shape
+    expected = mask.reshape(rows // factor, factor, cols // factor, factor).any(axis=(1, 3))
+    got = blocks_any(mask, factor)
+    assert got.dtype == np.bool_
+    np.testing.assert_array_equal(got, expected)

@@ -47,7 +47,7 @@ from rose.cleaning_rules.objects import (
 )
 from rose.cleaning_rules.outside import _near_wide_unknown, wide_unknown
 from rose.cleaning_rules.runs import directional_runs, straight_lines
-from rose.grid import UNKNOWN
+from rose.grid import UNKNOWN, blocks_any
 
 if TYPE_CHECKING:
     from rose.cleaning import CleanParams
@@ -180,9 +180,7 @@ def _joined_cells(mask: npt.NDArray[np.bool_], factor: int) -> npt.NDArray[np.bo
     ``factor`` x ``factor`` cells is (a cell with a wall in it is kept)."""
     if factor == 1:
         return mask
-    rows, cols = mask.shape
-    blocks = mask.reshape(rows // factor, factor, cols // factor, factor)
-    return np.asarray(blocks.any(axis=(1, 3)))
+    return blocks_any(mask, factor)
 
 
 def _joined_outputs(
