@@ -290,11 +290,19 @@ class BreakDetector:
         self._broken: dict[str, bool] = {}
         self._count: dict[str, int] = {}
         self._blank: set[str] = set()  # topics whose trusted snapshot has no occupied cell
+        # Per topic, its state before its last update (withdraw_last puts it back).
+        self._before: dict[str, tuple[int, tuple[int, MapSnapshot] | None, bool, bool]] = {}
 
     def update(self, snapshot: MapSnapshot) -> BreakScore:
         """Score the next snapshot of ``snapshot.topic`` and update the topic's state."""
         topic = snapshot.topic
         index = self._count.get(topic, 0)
+        self._before[topic] = (
+            index,
+            self._trusted.get(topic),
+            self._broken.get(topic, False),
+            topic in self._blank,
+        )
         self._count[topic] = index + 1
         trusted = self._trusted.get(topic)
         offset = None if trusted is None else _offset_px(trusted[1], snapshot)
@@ -321,6 +329,26 @@ class BreakDetector:
             region,
             found.contradicted_tiles * found.tile_px * res,
         )
+
+    def withdraw_last(self, topic: str) -> None:
+        """Undo the last :meth:`update` of ``topic``, as if that snapshot had never come: a
+        session scores each snapshot while it is still being analysed, and one whose analysis
+        fails is no snapshot of the session. At most once per update."""
+        before = self._before.pop(topic, None)
+        if before is None:
+            msg = f"no update of {topic!r} to withdraw"
+            raise RuntimeError(msg)
+        count, trusted, broken, blank = before
+        self._count[topic] = count
+        if trusted is None:
+            self._trusted.pop(topic, None)
+        else:
+            self._trusted[topic] = trusted
+        self._broken[topic] = broken
+        if blank:
+            self._blank.add(topic)
+        else:
+            self._blank.discard(topic)
 
     def _trust(self, topic: str, index: int, snapshot: MapSnapshot) -> None:
         """Make ``snapshot`` the topic's trusted one (noting whether it has no wall at all)."""

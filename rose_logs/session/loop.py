@@ -557,7 +557,7 @@ class _Pending:
     from_update: bool
     reused: bool
     future: Future[SnapshotAnalysis]
-    verdict: Future[BreakScore | None]
+    verdict: Future[BreakScore]
 
 
 class _Loop:
@@ -617,6 +617,8 @@ class _Loop:
         self.in_flight = 0
         self.executor: Executor | None = None
         self.detection: Executor | None = None
+        # Per topic, the analysis of its last snapshot submitted (see _detect).
+        self.last_analysis: dict[str, Future[SnapshotAnalysis]] = {}
 
     def run(self, *, progress: bool) -> None:
         from tqdm import tqdm
@@ -790,16 +792,25 @@ class _Loop:
             return
         assert self.executor is not None and self.detection is not None, "called inside run()"
         future, reused = self.analyser.submit(snapshot, self.executor)
-        verdict = self.detection.submit(self._detect, snapshot, future)
+        previous = self.last_analysis.get(topic)
+        self.last_analysis[topic] = future
+        verdict = self.detection.submit(self._detect, snapshot, previous)
         self.queue.append(_Pending(snapshot, from_update, reused, future, verdict))
         self.in_flight += 1
 
     def _detect(
-        self, snapshot: MapSnapshot, analysis: Future[SnapshotAnalysis]
-    ) -> BreakScore | None:
-        """The break detector's verdict on an analysed snapshot (None: its analysis failed)."""
-        if analysis.exception() is not None:  # waits for the analysis
-            return None
+        self, snapshot: MapSnapshot, previous: Future[SnapshotAnalysis] | None
+    ) -> BreakScore:
+        """The break detector's verdict on a snapshot, scored while it is analysed.
+
+        The detector must see the analysed snapshots only (its numbering is the records'). Waiting
+        for a snapshot's own analysis put the two in series, and the session waited for both: so
+        each snapshot is scored at once, and withdrawn by the next one of its topic if its
+        analysis failed (``previous``: the analysis of the topic's snapshot before, None for the
+        first). The verdict of a snapshot whose analysis fails is never read.
+        """
+        if previous is not None and previous.exception() is not None:  # waits for it
+            self.detector.withdraw_last(snapshot.topic)
         return self.detector.update(snapshot)
 
     def _finish(self, pending: _Pending) -> None:
@@ -819,7 +830,6 @@ class _Loop:
         index = self.count.get(topic, 0)
         self.count[topic] = index + 1
         verdict = pending.verdict.result()
-        assert verdict is not None  # the analysis succeeded
         # From here: the time spent on this snapshot's outputs. Not before, where the wait for the
         # analysis would count its compute time twice (the record's seconds exceeded the run's).
         t0 = time.perf_counter()

@@ -195,3 +195,57 @@ def test_a_blank_first_map_establishes_nothing(plan, broken) -> None:
         False,
         True,
     ]
+
+
+def test_a_withdrawn_snapshot_leaves_no_trace(plan, broken) -> None:
+    """withdraw_last: the detector goes on as if the withdrawn snapshot had never come (a session
+    scores snapshots while they are analysed and withdraws those whose analysis fails)."""
+    with_withdrawal = BreakDetector(BreakParams(threshold_m=1.0))
+    first = with_withdrawal.update(_snap(plan, 0))
+    with_withdrawal.withdraw_last("/map")  # the first snapshot of its topic
+    assert with_withdrawal.update(_snap(plan, 1)) == first  # again the first: trusted at once
+    with_withdrawal.update(_snap(broken, 2))  # a break, withdrawn: nothing of it stays
+    with_withdrawal.withdraw_last("/map")
+    later = [with_withdrawal.update(_snap(g, i)) for i, g in enumerate([plan, broken], start=3)]
+
+    without = BreakDetector(BreakParams(threshold_m=1.0))
+    expected = [without.update(_snap(g, i)) for i, g in enumerate([plan, plan, broken])][1:]
+    assert later == expected
+    assert later[1].started and later[1].trusted_index == 1
+    with pytest.raises(RuntimeError, match="no update"):
+        with_withdrawal.withdraw_last("/other")
+
+
+def test_a_failed_analysis_is_withdrawn_from_the_break_detector(
+    tmp_path, monkeypatch: pytest.MonkeyPatch, fr079, broken_grid
+) -> None:
+    """A snapshot whose analysis fails is no snapshot of the session: the break detector, which
+    scores each snapshot while it is analysed, numbers and trusts the others as if it had not
+    come (the report's break names the analysed snapshots by their records' numbers)."""
+    import rose
+    from rose_logs.session import process_log
+    from rose_logs.session.analysis import SnapshotAnalyser
+    from tests.logs.conftest import build_log, session_maps
+
+    maps = session_maps([fr079[0], fr079[1], fr079[2], broken_grid])
+    failing_ns = maps[1].t_ns
+    analyse = SnapshotAnalyser._analyse
+
+    def fail_one(self, snapshot):  # type: ignore[no-untyped-def]
+        if snapshot.log_time_ns == failing_ns:
+            raise rose.RoseError("a map this test cannot analyse")
+        return analyse(self, snapshot)
+
+    monkeypatch.setattr(SnapshotAnalyser, "_analyse", fail_one)
+    failed = process_log(build_log(tmp_path / "failed.mcap", "mcap-ros2", maps).path).to_json()
+    without = [m for m in maps if m.t_ns != failing_ns]
+    clean = process_log(build_log(tmp_path / "clean.mcap", "mcap-ros2", without).path).to_json()
+
+    assert failed["skipped_messages"] == 1
+    first_break = failed["topics"]["/map"]["first_break"]
+    assert first_break is not None and first_break["trusted_index"] == 1  # fr079[2], not [1]
+    assert first_break == clean["topics"]["/map"]["first_break"]
+    fields = ("index", "log_time_ns", "break_score_m", "break_detected")
+    assert [{k: r[k] for k in fields} for r in failed["snapshots"]] == [
+        {k: r[k] for k in fields} for r in clean["snapshots"]
+    ]
