@@ -153,7 +153,8 @@ def _check(
         if not np.issubdtype(array.dtype, np.integer):
             msg = f"{name} grid must hold int8 ROS occupancy (-1, 0..100), got dtype {array.dtype}"
             raise RoseError(msg)
-        if array.size and (array.min() < -128 or array.max() > 127):
+        # (int8 holds nothing else: two passes saved per grid and snapshot.)
+        if array.dtype != np.int8 and array.size and (array.min() < -128 or array.max() > 127):
             msg = (
                 f"{name} grid must hold int8 ROS occupancy (-1, 0..100), got values in "
                 f"[{array.min()}, {array.max()}]"
