@@ -93,11 +93,12 @@ def occupied_mask(grid: npt.NDArray[np.int8], *, occupied_threshold: int) -> npt
 def blocks_any(mask: npt.NDArray[np.bool_], factor: int) -> npt.NDArray[np.bool_]:
     """Whether each ``factor`` x ``factor`` block of ``mask`` holds a True cell.
 
-    ``mask``: shape (rows, cols), both multiples of ``factor``; returns shape
-    (rows / factor, cols / factor), block (i, j) covering rows ``i factor ..`` and columns
-    ``j factor ..``. The OR runs over whole rows (one strided slice per row of a block, then per
-    column): numpy's ``any`` over the block axes of a 4-D view is 10-17x slower.
+    ``mask``: shape (rows, cols), both multiples of ``factor`` (any dtype: non-zero is True);
+    returns shape (rows / factor, cols / factor), block (i, j) covering rows ``i factor ..`` and
+    columns ``j factor ..``. The OR runs over whole rows (one strided slice per row of a block,
+    then per column): numpy's ``any`` over the block axes of a 4-D view is over 10x slower.
     """
+    mask = np.asarray(mask, dtype=np.bool_)  # no copy of a bool mask; bytes of 0 / 1 below
     rows, cols = mask.shape
     if factor < 1 or rows % factor or cols % factor:
         msg = f"mask shape {mask.shape} is not a multiple of the block size {factor}"

@@ -54,3 +54,5 @@ def test_blocks_any_is_the_or_of_each_block(case: tuple[int, np.ndarray]) -> Non
     got = blocks_any(mask, factor)
     assert got.dtype == np.bool_
     np.testing.assert_array_equal(got, expected)
+    # Any dtype: non-zero is True (not its bytes, which a view of a wider type would split).
+    np.testing.assert_array_equal(blocks_any(mask.astype(np.int16) * 2, factor), expected)

@@ -1,9 +1,14 @@
 """Rerun components of each snapshot as Arrow arrays, built without Rerun's generic conversions.
 
-Rerun takes an Arrow array of a component's own type as it is. Its Python conversions of numpy
-input check and re-wrap every strip and point one by one; the per-snapshot streams of a map topic
-log about 30 such arrays, which cost about 1 ms of a 1000 x 1000 snapshot's logging through Rerun
-and a fifth of that here. The types are those of the pinned Rerun (tests compare them).
+Rerun takes an Arrow array of exactly a component's type as it is, without looking at its
+contents (an array of another type goes through its conversions again, with a warning). Its Python
+conversions of numpy input check and re-wrap every strip and point one by one; the per-snapshot
+streams of a map topic log about 30 such arrays, which cost about 1 ms of a 1000 x 1000
+snapshot's logging through Rerun and a fifth of that here. The types are those of the pinned Rerun
+(tests compare them).
+
+The arrays may share memory with their input (float32 positions, uint8 images), and Rerun reads
+them on its own threads: pass arrays made for the log call, and do not change them afterwards.
 """
 
 from __future__ import annotations
@@ -57,22 +62,30 @@ def _u8_format(rows: int, cols: int, color_model: Literal["L"] | None) -> pa.Arr
     return rr.components.ImageFormatBatch(fmt).as_arrow_array()
 
 
-def points(positions: npt.ArrayLike) -> pa.FixedSizeListArray:
-    """Positions ``(N, d)`` (d = 2 or 3; any float dtype) as Rerun's Position2D / Position3D array."""
+def points(positions: npt.ArrayLike, *, dims: int = 2) -> pa.FixedSizeListArray:
+    """Positions ``(N, d)`` (d = 2 or 3; any float dtype) as Rerun's Position2D / Position3D array;
+    ``dims``: d of an input with no points that does not say (``[]``)."""
     flat = np.asarray(positions, dtype=np.float32)
-    dims = flat.shape[-1] if flat.ndim == 2 else 0
-    if dims not in POSITION_TYPES:
+    if flat.size == 0 and flat.ndim < 2:
+        flat = flat.reshape(0, dims)
+    width = flat.shape[-1] if flat.ndim == 2 else 0
+    if width not in POSITION_TYPES:
         msg = f"positions must have shape (N, 2) or (N, 3), got {flat.shape}"
         raise ValueError(msg)
-    return pa.FixedSizeListArray.from_arrays(pa.array(flat.reshape(-1)), type=POSITION_TYPES[dims])
+    return pa.FixedSizeListArray.from_arrays(pa.array(flat.reshape(-1)), type=POSITION_TYPES[width])
 
 
-def strips(lines: npt.NDArray[np.floating] | Sequence[npt.NDArray[np.floating]]) -> pa.ListArray:
+def strips(
+    lines: npt.NDArray[np.floating] | Sequence[npt.NDArray[np.floating]], *, dims: int = 2
+) -> pa.ListArray:
     """Line strips as Rerun's LineStrip2D / LineStrip3D array: an array ``(K, N, d)`` of K strips
-    of N points, or a sequence of ``(N_i, d)`` arrays (d = 2 or 3)."""
+    of N points, one strip ``(N, d)``, or a sequence of ``(N_i, d)`` arrays (d = 2 or 3; ``dims``:
+    d of an empty sequence)."""
+    if isinstance(lines, np.ndarray) and lines.ndim == 2:
+        lines = lines[None]  # one strip
     if isinstance(lines, np.ndarray) and lines.ndim == 3:
         count, length, dims = lines.shape
-        offsets = np.arange(0, (count + 1) * length, length, dtype=np.int32)
+        offsets = np.arange(count + 1, dtype=np.int32) * np.int32(length)
         flat = lines.reshape(-1, dims)
     else:
         parts = [np.asarray(line, dtype=np.float32) for line in lines]
@@ -80,7 +93,7 @@ def strips(lines: npt.NDArray[np.floating] | Sequence[npt.NDArray[np.floating]])
         if len(shapes) > 1:
             msg = f"strips must all be (N, 2) or all (N, 3), got {[p.shape for p in parts]}"
             raise ValueError(msg)
-        dims = shapes.pop() if shapes else 2
+        dims = shapes.pop() if shapes else dims
         offsets = np.cumsum([0] + [len(p) for p in parts], dtype=np.int32)
         flat = np.concatenate(parts) if parts else np.empty((0, dims), np.float32)
     if dims not in STRIP_TYPES:

@@ -42,12 +42,12 @@ _PLACEMENTS_KEPT = 8
 
 
 @functools.lru_cache(maxsize=16)
-def _curve_style(peaks: int) -> dict[str, pa.Array]:
+def _curve_style(peaks: int) -> tuple[pa.Array, pa.Array]:
     """Colours and radii of the amplitude curve and its ``peaks`` prominence bars, converted once
     per number of peaks (Arrow arrays are immutable: shared by every log call)."""
     colors = rr.components.ColorBatch([style.CURVE_COLOR] + [style.PEAK_COLOR] * peaks)
     radii = rr.components.RadiusBatch(rr.Radius.ui_points([1.5] + [1.0] * peaks))
-    return {"colors": colors.as_arrow_array(), "radii": radii.as_arrow_array()}
+    return colors.as_arrow_array(), radii.as_arrow_array()
 
 
 def segmentation_image(image: npt.NDArray[np.uint8]) -> rr.SegmentationImage:
@@ -66,36 +66,19 @@ def view_origin_m(snapshot: MapSnapshot) -> tuple[float, float]:
     return round(x, -2), round(y, -2)
 
 
-def image_placement(
+def placement_terms(
     snapshot: MapSnapshot, view_origin: tuple[float, float], window: conv.Window | None = None
-) -> rr.Transform3D:
+) -> tuple[tuple[float, float], float, float]:
     """Where the 2D views draw pixels of ``snapshot``'s north-up images of ``window`` (default: the
     whole grid): in metres of the map frame from ``view_origin`` (:func:`view_origin_m`), north up
-    (x east, y south: 2D views draw y downwards).
+    (x east, y south: 2D views draw y downwards). Returns ``(translation, rotation angle (radians,
+    about z), scale)``: a pixel ``p`` lands at ``translation + R(angle) (scale * p)``
+    (:func:`placement_transform` makes it Rerun's transform).
 
     Every snapshot lands where it lies in the map, so a map that grows, moves its origin or changes
     resolution during a session stays in place in the views (in pixels, each grid size had its own
     frame: a growing map jumped and shrank in a fixed view).
     """
-    return _placement_transform(*placement_terms(snapshot, view_origin, window))
-
-
-def _placement_transform(
-    translation: tuple[float, float], angle: float, scale: float
-) -> rr.Transform3D:
-    """The transform of :func:`placement_terms`' terms."""
-    return rr.Transform3D(
-        translation=[*translation, 0.0],
-        rotation=rr.RotationAxisAngle(axis=[0.0, 0.0, 1.0], radians=angle),
-        scale=[scale, scale, 1.0],
-    )
-
-
-def placement_terms(
-    snapshot: MapSnapshot, view_origin: tuple[float, float], window: conv.Window | None = None
-) -> tuple[tuple[float, float], float, float]:
-    """``(translation, rotation angle (radians, about z), scale)`` of :func:`image_placement`:
-    a pixel ``p`` lands at ``translation + R(angle) (scale * p)``."""
     res = float(snapshot.resolution_m)
     yaw = float(snapshot.origin_yaw_rad)
     c, s = math.cos(yaw), math.sin(yaw)
@@ -108,6 +91,17 @@ def placement_terms(
         -(oy - view_origin[1]) - res * (s * x0 + c * y1),
     )
     return translation, -yaw, res
+
+
+def placement_transform(
+    translation: tuple[float, float], angle: float, scale: float
+) -> rr.Transform3D:
+    """The transform of :func:`placement_terms`' terms."""
+    return rr.Transform3D(
+        translation=[*translation, 0.0],
+        rotation=rr.RotationAxisAngle(axis=[0.0, 0.0, 1.0], radians=angle),
+        scale=[scale, scale, 1.0],
+    )
 
 
 def north_up_m(
@@ -222,13 +216,14 @@ class TopicLogger:
     def _image_placement(
         self, snapshot: MapSnapshot, window: conv.Window | None = None
     ) -> rr.Transform3D:
-        """:func:`image_placement` of ``snapshot``'s images of ``window`` in this topic's views."""
+        """Rerun's transform of ``snapshot``'s images of ``window`` in this topic's views
+        (:func:`placement_terms`)."""
         terms = placement_terms(snapshot, self._origin_for(snapshot), window)
         placement = self._placements.get(terms)
         if placement is None:
             if len(self._placements) >= _PLACEMENTS_KEPT:
                 self._placements.clear()
-            placement = self._placements[terms] = _placement_transform(*terms)
+            placement = self._placements[terms] = placement_transform(*terms)
         return placement
 
     def _origin_for(self, snapshot: MapSnapshot) -> tuple[float, float]:
@@ -517,7 +512,7 @@ class TopicLogger:
         bounds = (occupied or conv.occupied_cells(result)).bounds
         segments = conv.direction_segments_cells(directions, (rows, cols), bounds=bounds)
         anchors = conv.direction_label_positions(segments)
-        # Both views show the map frame (image_placement): a map whose origin has a yaw shows its
+        # Both views show the map frame (placement_terms): a map whose origin has a yaw shows its
         # walls that much further round than the grid does (as the JSON report gives them).
         yaw = snapshot.origin_yaw_rad
         map_labels = [f"walls {d:.1f}°" for d in map_frame_deg(directions, yaw_rad=yaw, digits=1)]
@@ -686,11 +681,13 @@ class TopicLogger:
                 static=True,
             )
             self._threshold_logged = True
-        peaks = len(plot.peak_labels)
+        colors, radii = _curve_style(len(plot.peak_labels))
         rec.log(
             paths.amplitude_curve,
             rr.LineStrips2D.from_fields(
-                strips=arrow.strips([plot.curve, *plot.prominence_bars]), **_curve_style(peaks)
+                strips=arrow.strips([plot.curve, *plot.prominence_bars]),
+                colors=colors,
+                radii=radii,
             ),
             rr.Points2D.from_fields(positions=arrow.points(plot.peaks)),
         )

@@ -5,7 +5,7 @@ Paths are lowercase and live below one root per map topic (``/map`` -> ``map``):
     <root>/cells                     AnnotationContext of the segmentation classes (static)
     <root>/cells/segmentation        SegmentationImage, one pixel per cell, north up; like every image
                                      below and what is drawn on it (pixels), placed by a Transform3D
-                                     in map-frame metres, north up (loggers.image_placement)
+                                     in map-frame metres, north up (loggers.placement_terms)
     <root>/cells/directions          LineStrips2D, dominant wall directions through the grid centre, and
                                      Points2D, one label per direction near its line's end; pixels
     <root>/cells/walls               LineStrips2D, wall segments (``--walls``), pixels

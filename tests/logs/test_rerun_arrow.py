@@ -39,6 +39,19 @@ def test_no_strips_match_rerun() -> None:
     expected = rr.LineStrips2D(np.empty((0, 2, 2), np.float32)).strips.as_arrow_array()
     assert arrow.strips(np.empty((0, 2, 2))).equals(expected)
     assert arrow.strips([]).equals(expected)
+    expected_3d = rr.LineStrips3D(np.empty((0, 2, 3), np.float32)).strips.as_arrow_array()
+    assert arrow.strips([], dims=3).equals(expected_3d)
+    # Strips without points.
+    for shape in ((3, 0, 2), (0, 0, 3)):
+        archetype = rr.LineStrips2D if shape[-1] == 2 else rr.LineStrips3D
+        lines = np.empty(shape, np.float32)
+        assert arrow.strips(lines).equals(archetype(lines).strips.as_arrow_array())
+
+
+def test_one_strip_as_an_array_matches_rerun(rng) -> None:
+    line = rng.normal(size=(7, 2))
+    expected = rr.LineStrips2D(line.astype(np.float32)).strips.as_arrow_array()
+    assert arrow.strips(line).equals(expected)
 
 
 @pytest.mark.parametrize("dims", [2, 3])
@@ -48,6 +61,7 @@ def test_points_match_rerun(rng, dims: int) -> None:
     expected = archetype(positions.astype(np.float32)).positions.as_arrow_array()
     assert arrow.points(positions).equals(expected)
     assert arrow.points(positions[:0]).equals(archetype(positions[:0]).positions.as_arrow_array())
+    assert arrow.points([], dims=dims).equals(archetype([]).positions.as_arrow_array())
 
 
 def test_bad_shapes_are_refused() -> None:
@@ -85,6 +99,6 @@ def test_amplitude_curve_style_matches_rerun() -> None:
         colors=[style.CURVE_COLOR] + [style.PEAK_COLOR] * 3,
         radii=rr.Radius.ui_points([1.5, 1.0, 1.0, 1.0]),
     )
-    style_arrays = _curve_style(3)
-    assert style_arrays["colors"].equals(expected.colors.as_arrow_array())
-    assert style_arrays["radii"].equals(expected.radii.as_arrow_array())
+    colors, radii = _curve_style(3)
+    assert colors.equals(expected.colors.as_arrow_array())
+    assert radii.equals(expected.radii.as_arrow_array())
