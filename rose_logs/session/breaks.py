@@ -308,7 +308,15 @@ class BreakDetector:
         offset = None if trusted is None else _offset_px(trusted[1], snapshot)
         if trusted is None or offset is None or topic in self._blank:
             if trusted is not None and offset is None:
-                _LOG.info("%s: snapshot %d not comparable with the trusted one", topic, index)
+                # Named by its log time: a session scores a snapshot before its analysis is done,
+                # and one whose analysis fails leaves its index to the next (withdraw_last).
+                _LOG.info(
+                    "%s: the snapshot logged at %d ns is not comparable with trusted snapshot "
+                    "%d; it is trusted instead",
+                    topic,
+                    snapshot.log_time_ns,
+                    trusted[0],
+                )
             self._trust(topic, index, snapshot)
             return _CLEAR
         found = self.compare(trusted[1], snapshot, offset)

@@ -249,3 +249,14 @@ def test_a_failed_analysis_is_withdrawn_from_the_break_detector(
     assert [{k: r[k] for k in fields} for r in failed["snapshots"]] == [
         {k: r[k] for k in fields} for r in clean["snapshots"]
     ]
+
+
+def test_a_snapshot_not_comparable_is_named_by_its_log_time(plan, caplog) -> None:
+    """A session scores snapshots before their analysis ends and withdraws those whose analysis
+    fails, whose index the next snapshot then takes: the message names the log time."""
+    detector = BreakDetector(BreakParams(threshold_m=1.0))
+    detector.update(_snap(plan, 10))
+    with caplog.at_level("INFO", logger="rose_logs.session.breaks"):
+        verdict = detector.update(_snap(plan, 20, res=RES * 2))  # another cell size
+    assert not verdict.broken
+    assert "logged at 20 ns is not comparable with trusted snapshot 0" in caplog.text
