@@ -207,7 +207,8 @@ class TopicLogger:
         self.trust_level = float(trust_level)
         self.view_origin_m: tuple[float, float] | None = None  # set by the first snapshot
         self._threshold_logged = False
-        self.score_legend_placement: rr.Transform3D | None = None  # of the last snapshot
+        # Of the last snapshot (``live``), else of the session's end (log_final_placement).
+        self.score_legend_placement: rr.Transform3D | None = None
         # By placement_terms: Rerun's Transform3D cost about 0.1 ms to build, three times per
         # snapshot, and a snapshot's images share placements, as do snapshots of a map that did
         # not grow. Dropped when full (a growing map moves its placements on).
@@ -573,19 +574,7 @@ class TopicLogger:
         """Occupied cells' scores, colour-mapped (other cells transparent), the labels (scale,
         threshold) of the colour bar and, ``live``, its placement under the occupied cells."""
         rec, paths = self.recording, self.paths
-        rows, cols = result.occupied.shape
-        origin = self._origin_for(snapshot)
         occupied = occupied or conv.occupied_cells(result, conv.image_window(snapshot.grid))
-        # Under the occupied cells' box (a SLAM map's grid is mostly unknown), north up in the
-        # view's metres whatever the origin's yaw.
-        x0, y0, x1, y1 = occupied.bounds or (0, 0, cols, rows)
-        corners = north_up_m(
-            snapshot, np.array([[x0, y0], [x1, y0], [x0, y1], [x1, y1]], float), origin
-        )
-        (west, north), (east, south) = corners.min(axis=0), corners.max(axis=0)
-        self.score_legend_placement = bar_placement(
-            (west, north, east, south), min_size_m=10.0 * float(snapshot.resolution_m)
-        )
         levels = style.DISPLAY_LEVELS
 
         def u_of(score: float) -> float:
@@ -611,11 +600,27 @@ class TopicLogger:
             self._image_placement(snapshot, occupied.window),
         )
         if self.live:
+            self.score_legend_placement = self._bar_under(snapshot, occupied)
             rec.log(paths.score_legend, self.score_legend_placement)
         rec.log(
             paths.score_bar,
             rr.Points2D.from_fields(positions=arrow.points(positions), labels=labels),
             rr.LineStrips2D.from_fields(strips=arrow.strips(tick)),
+        )
+
+    def _bar_under(self, snapshot: MapSnapshot, occupied: conv.OccupiedCells) -> rr.Transform3D:
+        """The colour bar's placement under the occupied cells' box (a SLAM map's grid is mostly
+        unknown), north up in the view's metres whatever the origin's yaw."""
+        rows, cols = snapshot.grid.shape
+        x0, y0, x1, y1 = occupied.bounds or (0, 0, cols, rows)
+        corners = north_up_m(
+            snapshot,
+            np.array([[x0, y0], [x1, y0], [x0, y1], [x1, y1]], float),
+            self._origin_for(snapshot),
+        )
+        (west, north), (east, south) = corners.min(axis=0), corners.max(axis=0)
+        return bar_placement(
+            (west, north, east, south), min_size_m=10.0 * float(snapshot.resolution_m)
         )
 
     def log_final_placement(
