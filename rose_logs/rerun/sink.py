@@ -24,6 +24,7 @@ import sys
 import threading
 import urllib.parse
 import uuid
+import weakref
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
@@ -206,6 +207,17 @@ def known_box_m(snapshot: MapSnapshot, known: tuple[int, int, int, int] | None) 
     )
 
 
+def _placed_alike(a: MapSnapshot, b: MapSnapshot) -> bool:
+    """Whether two snapshots' grids have the same shape, cell size and origin (their images would
+    be drawn in the same place)."""
+    return (
+        a.grid.shape == b.grid.shape
+        and a.resolution_m == b.resolution_m
+        and a.origin_position_m == b.origin_position_m
+        and a.origin_orientation_xyzw == b.origin_orientation_xyzw
+    )
+
+
 def _union(a: Box | None, b: Box | None) -> Box | None:
     if a is None or b is None:
         return a or b
@@ -320,6 +332,9 @@ class RerunSink:
             for topic in topics
         }
         self._latest: dict[str, MapSnapshot] = {}
+        # Per topic, what its last snapshot showed (result, walls, cleaning), held weakly: an
+        # analysis reused for an unchanged map is the same objects (see RerunSink.snapshot).
+        self._shown: dict[str, tuple[weakref.ref[object] | None, ...]] = {}
         # Known part of every map so far, per topic: the views frame them all, so that scrubbing
         # back over a map that moved (a new origin) does not show an empty view.
         self._bounds_m: dict[str, Box | None] = dict.fromkeys(topics)
@@ -409,12 +424,34 @@ class RerunSink:
     ) -> None:
         """Log every stream of an analysed snapshot (at its log time); ``cleaning``: its cleaning,
         shown in the segmentation; ``judged``: whether W says something about it (default: enough
-        occupied cells)."""
+        occupied cells). A snapshot placed as the topic's last one and shown with the very same
+        ``result``, ``walls`` and ``cleaning`` (an analysis reused for an unchanged map) adds its
+        W only: the views show the latest images, which are the same."""
         topic_logger = self.loggers[snapshot.topic]
-        first = snapshot.topic not in self._latest
+        previous = self._latest.get(snapshot.topic)
+        first = previous is None
         if first:  # here, not on the logging thread: the layout sent below uses it
             topic_logger.view_origin_m = view_origin_m(snapshot)
         self._latest[snapshot.topic] = snapshot
+        if judged is None:
+            judged = w_judges(result.occupied_count)
+        shown_again = self._shows_again(snapshot.topic, (result, walls, cleaning))
+        if shown_again and previous is not None and _placed_alike(previous, snapshot):
+            # The analysis of the topic's last snapshot, reused (its grid and placement did not
+            # change): its images are in the recording, and the views show the latest of each,
+            # so only W gets a point here. A robot standing still while its SLAM republishes the
+            # map cost a full snapshot's logging and 130 kB of recording per map.
+            def again() -> None:
+                set_snapshot_time(
+                    self.recording,
+                    log_time_ns=snapshot.log_time_ns,
+                    start_ns=self.start_ns,
+                    index=index,
+                )
+                topic_logger.log_structure_score(result, judged=judged)
+
+            self._submit(again)
+            return
         known = known_bounds_cells(snapshot.grid)
         window = known or image_window(snapshot.grid)  # the whole grid when nothing is known
         self._bounds_m[snapshot.topic] = _union(
@@ -424,8 +461,6 @@ class RerunSink:
         self._grid_bounds_m[snapshot.topic] = _union(
             self._grid_bounds_m[snapshot.topic], known_box_m(snapshot, (0, 0, cols, rows))
         )
-        if judged is None:
-            judged = w_judges(result.occupied_count)
         if judged:  # an empty map's W (1 by convention) is not plotted
             self._w_top[snapshot.topic] = _top(self._w_top[snapshot.topic], result.structure_score)
 
@@ -443,6 +478,19 @@ class RerunSink:
         self._submit(job)
         if self.live and first:
             self._send_blueprint()
+
+    def _shows_again(self, topic: str, shown: tuple[object, ...]) -> bool:
+        """Whether ``shown`` (result, walls, cleaning) are the very objects the topic's last
+        snapshot showed; remembers them (weakly: a result is not kept alive for this)."""
+        before = self._shown.get(topic)
+        refs = tuple(None if item is None else weakref.ref(item) for item in shown)
+        self._shown[topic] = refs
+        if before is None:
+            return False
+        return all(
+            (ref is None and item is None) or (ref is not None and ref() is item)
+            for ref, item in zip(before, shown, strict=True)
+        )
 
     def break_score(
         self, snapshot: MapSnapshot, verdict: BreakScore, index: int, threshold_m: float

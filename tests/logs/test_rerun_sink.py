@@ -210,6 +210,35 @@ def test_every_stream_once_per_snapshot_on_session_time(clean_session) -> None:
     assert expected[0] > 0  # the first map arrives after the session's first message
 
 
+def test_an_unchanged_map_adds_its_w_only(tmp_path: Path, fr079) -> None:
+    """A map republished unchanged (its analysis reused) adds a W point and the break score, not
+    another copy of every image: the views show the latest images, which are the same."""
+    from conftest import build_log, session_maps
+
+    grids = [fr079[0], fr079[0], fr079[0], fr079[1], fr079[1]]
+    log = build_log(tmp_path / "in.mcap", "mcap-ros2", session_maps(grids)).path
+    report = process_log(log, rrd_path=tmp_path / "s.rrd")
+    assert [r.reused for r in report.records] == [False, True, True, False, True]
+    content = _read(tmp_path / "s.rrd")
+    times = [r.log_time_ns - report.start_ns for r in report.records]
+    for entity in (
+        PATHS.grid,
+        PATHS.segmentation,
+        PATHS.cell_directions,
+        PATHS.metric_directions,
+        PATHS.cell_scores,
+        PATHS.spectrum,
+        PATHS.amplitude_curve,
+        PATHS.amplitude_peak_labels,
+    ):
+        rows = content.rows(entity)
+        assert [int(r[SESSION_TIMELINE]) for r in rows] == [times[0], times[3]], entity
+    for entity in (PATHS.w, PATHS.break_score):
+        assert [int(r[SESSION_TIMELINE]) for r in content.rows(entity)] == times, entity
+    w = [r["Scalars:scalars"][0] for r in content.rows(PATHS.w)]
+    assert w == pytest.approx([r.structure_score for r in report.records])
+
+
 def test_w_series_carry_w_and_the_session_levels(breaking_session) -> None:
     report, content = breaking_session
     rows = content.rows(PATHS.w)
