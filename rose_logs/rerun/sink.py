@@ -207,14 +207,16 @@ def known_box_m(snapshot: MapSnapshot, known: tuple[int, int, int, int] | None) 
     )
 
 
-def _placed_alike(a: MapSnapshot, b: MapSnapshot) -> bool:
-    """Whether two snapshots' grids have the same shape, cell size and origin (their images would
-    be drawn in the same place)."""
+def _same_map(a: MapSnapshot, b: MapSnapshot) -> bool:
+    """Whether two snapshots hold the same grid placed alike (same cell size and origin): their
+    images are the same, drawn in the same place. The session passes the same result only for
+    such snapshots; the grid is compared too, for callers that might not (one pass, on repeats
+    only)."""
     return (
-        a.grid.shape == b.grid.shape
-        and a.resolution_m == b.resolution_m
+        a.resolution_m == b.resolution_m
         and a.origin_position_m == b.origin_position_m
         and a.origin_orientation_xyzw == b.origin_orientation_xyzw
+        and np.array_equal(a.grid, b.grid)
     )
 
 
@@ -335,6 +337,8 @@ class RerunSink:
         # Per topic, what its last snapshot showed (result, walls, cleaning), held weakly: an
         # analysis reused for an unchanged map is the same objects (see RerunSink.snapshot).
         self._shown: dict[str, tuple[weakref.ref[object] | None, ...]] = {}
+        # Per topic: log time of its last fully logged snapshot, and the latest of any.
+        self._full_at: dict[str, tuple[int, int]] = {}
         # Known part of every map so far, per topic: the views frame them all, so that scrubbing
         # back over a map that moved (a new origin) does not show an empty view.
         self._bounds_m: dict[str, Box | None] = dict.fromkeys(topics)
@@ -424,9 +428,10 @@ class RerunSink:
     ) -> None:
         """Log every stream of an analysed snapshot (at its log time); ``cleaning``: its cleaning,
         shown in the segmentation; ``judged``: whether W says something about it (default: enough
-        occupied cells). A snapshot placed as the topic's last one and shown with the very same
-        ``result``, ``walls`` and ``cleaning`` (an analysis reused for an unchanged map) adds its
-        W only: the views show the latest images, which are the same."""
+        occupied cells). A snapshot with the topic's last grid, placed alike, shown with the very
+        same ``result``, ``walls`` and ``cleaning`` (an analysis reused for an unchanged map) and
+        no earlier in log time than any map of the topic logged before adds its W only: the views
+        show the latest images, which are the same."""
         topic_logger = self.loggers[snapshot.topic]
         previous = self._latest.get(snapshot.topic)
         first = previous is None
@@ -436,11 +441,16 @@ class RerunSink:
         if judged is None:
             judged = w_judges(result.occupied_count)
         shown_again = self._shows_again(snapshot.topic, (result, walls, cleaning))
-        if shown_again and previous is not None and _placed_alike(previous, snapshot):
+        full_at = self._full_at.get(snapshot.topic)
+        # Latest-at on the time timelines finds the images shown again only if they are the
+        # topic's latest images at or before this snapshot's log time (a salvaged bag is read in
+        # file order: log times can go back).
+        in_order = full_at is not None and full_at[0] == full_at[1] <= snapshot.log_time_ns
+        if shown_again and in_order and previous is not None and _same_map(previous, snapshot):
             # The analysis of the topic's last snapshot, reused (its grid and placement did not
             # change): its images are in the recording, and the views show the latest of each,
             # so only W gets a point here. A robot standing still while its SLAM republishes the
-            # map cost a full snapshot's logging and 130 kB of recording per map.
+            # map cost a full snapshot's logging and about 135 kB of recording per map.
             def again() -> None:
                 set_snapshot_time(
                     self.recording,
@@ -452,6 +462,8 @@ class RerunSink:
 
             self._submit(again)
             return
+        t = snapshot.log_time_ns
+        self._full_at[snapshot.topic] = (t, t if full_at is None else max(t, full_at[1]))
         known = known_bounds_cells(snapshot.grid)
         window = known or image_window(snapshot.grid)  # the whole grid when nothing is known
         self._bounds_m[snapshot.topic] = _union(

@@ -1014,3 +1014,50 @@ def test_a_recording_that_filled_its_disk_says_so(
     monkeypatch.setattr(os, "statvfs", lambda path: Full())
     with pytest.raises(LogWriteError, match=r"; its file system is full \(12 kB free\)\)$"):
         process_log(SAMPLE, rrd_path=tmp_path / "run.rrd")
+
+
+def test_a_repeat_logged_back_in_time_still_shows_its_images(tmp_path: Path, fr079) -> None:
+    """A salvaged bag is read in file order: a republished map whose log time is before the
+    images it repeats (and after another map's) must log its images again."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from rose.params import RoseParams
+    from rose_logs.session.analysis import SnapshotAnalyser
+    from rose_logs.snapshots import MapSnapshot
+
+    s = 1_000_000_000
+    order = [(fr079[1], 15 * s), (fr079[0], 30 * s), (fr079[0], 20 * s)]
+    analyser = SnapshotAnalyser(RoseParams(), walls=False)
+    sink = RerunSink(
+        rrd_path=tmp_path / "s.rrd", topics=["/map"], recording_id="x", start_ns=0, threaded=False
+    )
+    with ThreadPoolExecutor(1) as pool:
+        for index, (grid, t) in enumerate(order):
+            snap = MapSnapshot(
+                "/map", t, t, "map", grid, 0.05, (-100.0, -100.0, 0.0), (0, 0, 0, 1.0)
+            )
+            future, _ = analyser.submit(snap, pool)
+            a = future.result()
+            sink.snapshot(snap, a.result, index, a.walls, a.cleaning)
+    sink.close()
+    rows = _read(tmp_path / "s.rrd").rows(PATHS.grid)
+    assert [int(r[SESSION_TIMELINE]) for r in rows] == [15 * s, 20 * s, 30 * s]
+
+
+def test_the_same_result_for_another_grid_logs_its_images(tmp_path: Path, fr079) -> None:
+    """Only an unchanged grid skips its images: a caller passing one result for two grids of the
+    same shape gets both grids drawn."""
+    import rose
+    from rose_logs.snapshots import MapSnapshot
+
+    result = rose.analyze(fr079[0])
+    changed = fr079[0].copy()
+    changed[changed == 0] = -1  # the same shape, other cells
+    sink = RerunSink(
+        rrd_path=tmp_path / "s.rrd", topics=["/map"], recording_id="x", start_ns=0, threaded=False
+    )
+    for index, grid in enumerate((fr079[0], changed)):
+        t = (index + 1) * 1_000_000_000
+        sink.snapshot(MapSnapshot("/map", t, t, "map", grid, 0.05), result, index, None)
+    sink.close()
+    assert len(_read(tmp_path / "s.rrd").rows(PATHS.grid)) == 2
