@@ -451,16 +451,9 @@ class RerunSink:
             # change): its images are in the recording, and the views show the latest of each,
             # so only W gets a point here. A robot standing still while its SLAM republishes the
             # map cost a full snapshot's logging and about 135 kB of recording per map.
-            def again() -> None:
-                set_snapshot_time(
-                    self.recording,
-                    log_time_ns=snapshot.log_time_ns,
-                    start_ns=self.start_ns,
-                    index=index,
-                )
-                topic_logger.log_structure_score(result, judged=judged)
-
-            self._submit(again)
+            self._submit_at(
+                snapshot, index, lambda: topic_logger.log_structure_score(result, judged=judged)
+            )
             return
         t = snapshot.log_time_ns
         self._full_at[snapshot.topic] = (t, t if full_at is None else max(t, full_at[1]))
@@ -476,6 +469,19 @@ class RerunSink:
         if judged:  # an empty map's W (1 by convention) is not plotted
             self._w_top[snapshot.topic] = _top(self._w_top[snapshot.topic], result.structure_score)
 
+        self._submit_at(
+            snapshot,
+            index,
+            lambda: topic_logger.log_snapshot(
+                snapshot, result, walls, cleaning, window=window, judged=judged
+            ),
+        )
+        if self.live and first:
+            self._send_blueprint()
+
+    def _submit_at(self, snapshot: MapSnapshot, index: int, log: Callable[[], None]) -> None:
+        """Run ``log`` on the logging thread, the recording's time put at ``snapshot`` first."""
+
         def job() -> None:
             set_snapshot_time(
                 self.recording,
@@ -483,13 +489,9 @@ class RerunSink:
                 start_ns=self.start_ns,
                 index=index,
             )
-            topic_logger.log_snapshot(
-                snapshot, result, walls, cleaning, window=window, judged=judged
-            )
+            log()
 
         self._submit(job)
-        if self.live and first:
-            self._send_blueprint()
 
     def _shows_again(self, topic: str, shown: tuple[object, ...]) -> bool:
         """Whether ``shown`` (result, walls, cleaning) are the very objects the topic's last
@@ -512,16 +514,9 @@ class RerunSink:
         top = _top(self._break_top[snapshot.topic], verdict.score_m, threshold_m)
         self._break_top[snapshot.topic] = top
 
-        def job() -> None:
-            set_snapshot_time(
-                self.recording,
-                log_time_ns=snapshot.log_time_ns,
-                start_ns=self.start_ns,
-                index=index,
-            )
-            topic_logger.log_break_score(snapshot, verdict, threshold_m)
-
-        self._submit(job)
+        self._submit_at(
+            snapshot, index, lambda: topic_logger.log_break_score(snapshot, verdict, threshold_m)
+        )
 
     def event(self, snapshot: MapSnapshot, text: str, index: int, score: float | None) -> None:
         """Log a break of ``snapshot``'s topic: a marker on the W plot at ``score`` (None: none,
@@ -531,16 +526,7 @@ class RerunSink:
         first = not self._has_events[snapshot.topic]
         self._has_events[snapshot.topic] = True
 
-        def job() -> None:
-            set_snapshot_time(
-                self.recording,
-                log_time_ns=snapshot.log_time_ns,
-                start_ns=self.start_ns,
-                index=index,
-            )
-            topic_logger.log_break(score, text)
-
-        self._submit(job)
+        self._submit_at(snapshot, index, lambda: topic_logger.log_break(score, text))
         if self.live and first:
             self._send_blueprint()
 

@@ -27,6 +27,17 @@ rerun_chunk = pytest.importorskip("rerun.chunk")
 
 SAMPLE = Path(__file__).resolve().parents[2] / "sample_data" / "fr079_session.mcap"
 PATHS = EntityPaths("map")
+#: The streams logged once per snapshot whose map changed (all but the time series).
+_IMAGE_STREAMS = (
+    PATHS.grid,
+    PATHS.segmentation,
+    PATHS.cell_directions,
+    PATHS.metric_directions,
+    PATHS.cell_scores,
+    PATHS.spectrum,
+    PATHS.amplitude_curve,
+    PATHS.amplitude_peak_labels,
+)
 
 
 def _yawed(grid: np.ndarray, yaw: float, origin: tuple[float, float], resolution: float = 0.05):  # type: ignore[no-untyped-def]
@@ -193,17 +204,7 @@ def test_styles_are_static_and_snapshots_send_only_what_changes(clean_session) -
 def test_every_stream_once_per_snapshot_on_session_time(clean_session) -> None:
     report, content = clean_session
     expected = [r.log_time_ns - report.start_ns for r in report.records]
-    for entity in (
-        PATHS.grid,
-        PATHS.segmentation,
-        PATHS.cell_directions,
-        PATHS.metric_directions,
-        PATHS.cell_scores,
-        PATHS.spectrum,
-        PATHS.amplitude_curve,
-        PATHS.amplitude_peak_labels,
-        PATHS.w,
-    ):
+    for entity in (*_IMAGE_STREAMS, PATHS.w):
         rows = content.rows(entity)
         assert [int(r[SESSION_TIMELINE]) for r in rows] == expected, entity
         assert [int(r[TIMELINE]) for r in rows] == [r.log_time_ns for r in report.records]
@@ -221,16 +222,7 @@ def test_an_unchanged_map_adds_its_w_only(tmp_path: Path, fr079) -> None:
     assert [r.reused for r in report.records] == [False, True, True, False, True]
     content = _read(tmp_path / "s.rrd")
     times = [r.log_time_ns - report.start_ns for r in report.records]
-    for entity in (
-        PATHS.grid,
-        PATHS.segmentation,
-        PATHS.cell_directions,
-        PATHS.metric_directions,
-        PATHS.cell_scores,
-        PATHS.spectrum,
-        PATHS.amplitude_curve,
-        PATHS.amplitude_peak_labels,
-    ):
+    for entity in _IMAGE_STREAMS:
         rows = content.rows(entity)
         assert [int(r[SESSION_TIMELINE]) for r in rows] == [times[0], times[3]], entity
     for entity in (PATHS.w, PATHS.break_score):
