@@ -22,7 +22,7 @@ import time
 from pathlib import Path
 
 from rose.directions import FAILURE_LEVEL
-from rose_logs.datasets import DataSetError, require_data_dir
+from rose_logs.datasets import require_data_dir, run_benchmark
 from rose_logs.evaluation.breaks import (
     DELAY_TARGET_S,
     break_cases,
@@ -111,7 +111,4 @@ def main() -> int:
 
 
 if __name__ == "__main__":
-    try:
-        sys.exit(main())
-    except DataSetError as err:  # no data set: one line, not a traceback
-        sys.exit(f"error: {err}")
+    run_benchmark(main)

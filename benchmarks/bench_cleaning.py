@@ -14,13 +14,12 @@ from __future__ import annotations
 
 import argparse
 import logging
-import sys
 import time
 from pathlib import Path
 
 import rose
 from rose.cleaning import clean
-from rose_logs.datasets import DataSetError, require_data_dir
+from rose_logs.datasets import require_data_dir, run_benchmark
 from rose_logs.evaluation.cleaning import (
     CleaningCase,
     CleaningRun,
@@ -149,7 +148,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    try:
-        main()
-    except DataSetError as err:  # no data set: one line, not a traceback
-        sys.exit(f"error: {err}")
+    run_benchmark(main)

@@ -12,7 +12,6 @@ Usage: ``python benchmarks/bench_local_w.py [--logs aces,intel] [--maps-dir DIR]
 from __future__ import annotations
 
 import argparse
-import sys
 
 import numpy as np
 import numpy.typing as npt
@@ -20,7 +19,7 @@ import numpy.typing as npt
 import rose
 from rose_logs.carmen.clock import scan_clock_ns
 from rose_logs.carmen.parse import read_carmen_log
-from rose_logs.datasets import DataSetError, require_data_dir
+from rose_logs.datasets import require_data_dir, run_benchmark
 from rose_logs.evaluation.break_sessions import SessionSpec, session_grids
 from rose_logs.evaluation.config import LOGS_SUBDIR, RADISH_LOGS
 
@@ -84,7 +83,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    try:
-        main()
-    except DataSetError as err:  # no data set: one line, not a traceback
-        sys.exit(f"error: {err}")
+    run_benchmark(main)

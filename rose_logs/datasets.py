@@ -16,7 +16,10 @@ environment again, so tests can change it.
 from __future__ import annotations
 
 import os
+import sys
+from collections.abc import Callable
 from pathlib import Path
+from typing import NoReturn
 
 from rose_logs.errors import LogError
 
@@ -27,6 +30,7 @@ __all__ = [
     "data_dir",
     "data_path",
     "require_data_dir",
+    "run_benchmark",
 ]
 
 #: Environment variable naming the data-set folder.
@@ -110,3 +114,12 @@ def data_path(relative: str | Path) -> Path:
         msg = f"{path}: not in the data set; {HOW_TO}"
         raise DataSetError(msg)
     return path
+
+
+def run_benchmark(main: Callable[[], int | None]) -> NoReturn:
+    """Run a benchmark script's ``main`` and exit with its code; a missing data set is one line
+    on stderr and exit code 1, not a traceback."""
+    try:
+        sys.exit(main())
+    except DataSetError as err:
+        sys.exit(f"error: {err}")

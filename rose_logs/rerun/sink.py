@@ -40,6 +40,7 @@ from rose_logs.rerun.blueprint import TopicLayout, default_blueprint
 from rose_logs.rerun.conversions import image_window, known_bounds_cells
 from rose_logs.rerun.loggers import TopicLogger, set_snapshot_time, view_origin_m
 from rose_logs.rerun.paths import EntityPaths, entity_root_for_topic
+from rose_logs.session.analysis import same_placed_grid
 from rose_logs.session.breaks import BreakScore
 from rose_logs.session.report import w_judges
 from rose_logs.snapshots import MapSnapshot
@@ -204,19 +205,6 @@ def known_box_m(snapshot: MapSnapshot, known: tuple[int, int, int, int] | None) 
         float(corners[:, 1].min()),
         float(corners[:, 0].max()),
         float(corners[:, 1].max()),
-    )
-
-
-def _same_map(a: MapSnapshot, b: MapSnapshot) -> bool:
-    """Whether two snapshots hold the same grid placed alike (same cell size and origin): their
-    images are the same, drawn in the same place. The session passes the same result only for
-    such snapshots; the grid is compared too, for callers that might not (one pass, on repeats
-    only)."""
-    return (
-        a.resolution_m == b.resolution_m
-        and a.origin_position_m == b.origin_position_m
-        and a.origin_orientation_xyzw == b.origin_orientation_xyzw
-        and np.array_equal(a.grid, b.grid)
     )
 
 
@@ -446,7 +434,12 @@ class RerunSink:
         # topic's latest images at or before this snapshot's log time (a salvaged bag is read in
         # file order: log times can go back).
         in_order = full_at is not None and full_at[0] == full_at[1] <= snapshot.log_time_ns
-        if shown_again and in_order and previous is not None and _same_map(previous, snapshot):
+        if (
+            shown_again
+            and in_order
+            and previous is not None
+            and same_placed_grid(previous, snapshot)
+        ):
             # The analysis of the topic's last snapshot, reused (its grid and placement did not
             # change): its images are in the recording, and the views show the latest of each,
             # so only W gets a point here. A robot standing still while its SLAM republishes the
