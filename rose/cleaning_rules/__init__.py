@@ -237,8 +237,12 @@ def _wall_cells(
 
     unknown = occupancy == UNKNOWN
     with _beside() as beside:
+        # The side thread, in turn: the wide unknown space (wanted once the lines are found), the
+        # fronts (once the bridges are drawn) and the pieces (by the object rules), while this
+        # thread finds the runs, the lines and the bridges: the two threads' shares of the work
+        # up to the fronts are about even (the bridges' columns on the side thread too waited
+        # there behind the fronts).
         near_job = beside.submit(_near_wide_unknown, unknown, res, p)
-        pieces_job = beside.submit(_Pieces.of, occupied, join_px=1) if p.loose_pieces else None
         # Furniture flush against a wall: its hidden wall line is drawn, as the bridges' are.
         fronts_job = beside.submit(
             _flush_fronts,
@@ -254,6 +258,7 @@ def _wall_cells(
             corner_px=length_px(_CORNER_MAX_M, res) if p.max_bridge_m > 0 else 0.0,
             corner_depth_px=length_px(_CORNER_DEPTH_M, res),
         )
+        pieces_job = beside.submit(_Pieces.of, occupied, join_px=1) if p.loose_pieces else None
         runs = directional_runs(
             occupied,
             directions,
@@ -278,7 +283,7 @@ def _wall_cells(
                 directions,
                 length_px(p.max_bridge_m, res),
                 (1, length_px(_BRIDGE_ANCHOR_M, res)),
-                beside,
+                None,
                 staggered_px=(
                     length_px(_STAGGERED_ANCHOR_M, res),
                     length_px(_BRIDGE_ANCHOR_M, res),
