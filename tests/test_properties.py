@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -56,3 +58,28 @@ def test_blocks_any_is_the_or_of_each_block(case: tuple[int, np.ndarray]) -> Non
     np.testing.assert_array_equal(got, expected)
     # Any dtype: non-zero is True (not its bytes, which a view of a wider type would split).
     np.testing.assert_array_equal(blocks_any(mask.astype(np.int16) * 2, factor), expected)
+
+
+@settings(max_examples=80, deadline=None)
+@given(
+    st.tuples(st.integers(1, 12), st.integers(1, 12)).flatmap(
+        lambda shape: arrays(np.uint8, shape, elements=st.integers(0, 2))
+    )
+)
+def test_straightened_fills_only_short_holes_between_occupied_cells(code: np.ndarray) -> None:
+    """The fronts rule's straightened rows: cells a row from an occupied one become occupied,
+    then the holes of one or two cells between two occupied cells of a row; nothing else
+    (a hole open to the row's end is no hole between two cells)."""
+    from rose.cleaning_rules.fronts import _straightened
+
+    occupied = code == 2
+    grown = occupied.copy()
+    grown[1:] |= occupied[:-1]
+    grown[:-1] |= occupied[1:]
+    expected = grown.copy()
+    for row, cells in zip(expected, grown, strict=True):
+        (set_cols,) = np.nonzero(cells)
+        for left, right in itertools.pairwise(set_cols.tolist()):
+            if 1 < right - left <= 3:
+                row[left + 1 : right] = True
+    np.testing.assert_array_equal(_straightened(code), np.where(expected, 2, code))
