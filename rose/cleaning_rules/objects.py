@@ -17,7 +17,6 @@ import numpy.typing as npt
 
 from rose.cleaning_rules.masks import (
     _any_of_8,
-    _dilate,
     _flat_index,
     _neighbour_labels,
     _padded_box,
@@ -32,6 +31,8 @@ from rose.labelling import (
 )
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
     from rose.cleaning import CleanParams
 
 
@@ -96,37 +97,69 @@ def _free_standing(
 
 
 def _thin_runs(
-    solid: npt.NDArray[np.bool_], free: npt.NDArray[np.bool_], max_px: float
-) -> npt.NDArray[np.bool_]:
-    """Cells of ``solid`` in a run along a grid row or column of at most ``max_px`` cells with a
-    ``free`` cell just before and just after it: a wall at most that thick, seen from both sides.
+    solid: npt.NDArray[np.bool_],
+    seen: Callable[[npt.NDArray[np.int64]], npt.NDArray[np.bool_]],
+    max_px: float,
+) -> npt.NDArray[np.int64]:
+    """Flat indices of the cells of ``solid`` in a run along a grid row or column of at most
+    ``max_px`` cells with a free cell just before and just after it: a wall at most that thick,
+    seen from both sides (a cell in such a run along both axes is listed twice). ``seen`` tells
+    which of the cells at the given flat indices are free (asked about the runs' ends only).
     Worked out on the solid cells' runs (few next to the whole image)."""
     shape = solid.shape
-    out = np.zeros(shape, dtype=bool)
     cells = np.flatnonzero(solid)
-    flat_free, flat_out = free.reshape(-1), out.reshape(-1)
+    out = []
     for vertical in (False, True):
         line, first, last = _runs(cells, shape, vertical)
         extent = shape[0] if vertical else shape[1]
         thin = (last - first + 1 <= max_px) & (first > 0) & (last < extent - 1)
         line, first, last = line[thin], first[thin], last[thin]
-        seen = (
-            flat_free[_flat_index(line, first - 1, shape, vertical)]
-            & flat_free[_flat_index(line, last + 1, shape, vertical)]
+        before = seen(_flat_index(line, first - 1, shape, vertical))
+        line, first, last = line[before], first[before], last[before]
+        after = seen(_flat_index(line, last + 1, shape, vertical))
+        out.append(_run_cells((line[after], first[after], last[after]), shape, vertical))
+    return np.concatenate(out)
+
+
+def _room_at(
+    free: npt.NDArray[np.bool_], cores: npt.NDArray[np.bool_], cells: npt.NDArray[np.int64]
+) -> npt.NDArray[np.bool_]:
+    """Which of ``cells`` (flat indices into C-contiguous masks) are ``free`` and, if next to
+    (4-neighbours of) a ``cores`` cell, in a 2 x 2 square of free cells."""
+    room = free.reshape(-1)[cells]
+    at = cells[room]
+    flat, index, width = _framed(cores, at)
+    near = (
+        flat[index] | flat[index - width] | flat[index + width] | flat[index - 1] | flat[index + 1]
+    )
+    if near.any():
+        flat, index, width = _framed(free, at[near])
+        up, down = flat[index - width], flat[index + width]
+        left, right = flat[index - 1], flat[index + 1]
+        square = (
+            up & left & flat[index - width - 1]
+            | up & right & flat[index - width + 1]
+            | down & left & flat[index + width - 1]
+            | down & right & flat[index + width + 1]
         )
-        flat_out[_run_cells((line[seen], first[seen], last[seen]), shape, vertical)] = True
-    return out
+        near[near] = ~square
+        room[room] = ~near
+    return room
 
 
-def _in_free_square(free: npt.NDArray[np.bool_]) -> npt.NDArray[np.bool_]:
-    """Cells of ``free`` in some 2 x 2 square of free cells."""
-    square = free[:-1, :-1] & free[1:, :-1] & free[:-1, 1:] & free[1:, 1:]
-    out = np.zeros(free.shape, dtype=bool)
-    out[:-1, :-1] |= square
-    out[1:, :-1] |= square
-    out[:-1, 1:] |= square
-    out[1:, 1:] |= square
-    return out
+def _framed(
+    mask: npt.NDArray[np.bool_], cells: npt.NDArray[np.int64]
+) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.int64], int]:
+    """``flat, at, width``: ``flat[at + dr * width + dc]`` is ``mask`` (C-contiguous) ``dr`` rows
+    and ``dc`` columns (at most one each) from each of ``cells`` (flat indices into it), False past
+    its edge. ``mask`` itself unless a cell is on its edge (then a copy in a frame of one cell)."""
+    rows, cols = mask.shape
+    row, col = np.divmod(cells, cols)
+    if cells.size == 0 or (
+        row.min() > 0 and row.max() < rows - 1 and col.min() > 0 and col.max() < cols - 1
+    ):
+        return mask.reshape(-1), cells, cols
+    return np.pad(mask, 1).reshape(-1), (row + 1) * (cols + 2) + col + 1, cols + 2
 
 
 def _partitions(
@@ -149,39 +182,68 @@ def _partitions(
     is 0..20, not only 0). ``attached``: cells of ``walls`` the attach rule kept (within its reach
     of a wall); thin ones count towards a piece's length, so that a partition 0.5 m long stays
     whole, not only its first ``attach_reach_m``."""
+    import cv2
+
+    out = np.zeros(occupied.shape, dtype=bool)
     candidates = occupied & ~walls
-    out = np.zeros(candidates.shape, dtype=bool)
     if not candidates.any() or not walls.any():
         return out
     # A free cell next to a pocket counts only in a 2 x 2 square of free cells: single free cells
     # there are slivers between an object's inside and its face, or a beam that got into the
     # inside, not the room behind a wall (without this, a cabinet's front at 10 degrees to the
-    # grid stayed, and ray-cast boxes whose insides beams crossed).
-    room = free & (~_dilate(cores, 1) | _in_free_square(free))
-    thin = _thin_runs(occupied | cores, room, max_thickness_px)
-    sided = thin & (candidates | cores)
+    # grid stayed, and ray-cast boxes whose insides beams crossed). Looked up at the runs' ends
+    # only (a few thousand cells).
+    thin = _thin_runs(
+        occupied | cores, lambda cells: _room_at(free, cores, cells), max_thickness_px
+    )
+    # The thin cells among the candidates, the cores and the attached walls.
+    sides = candidates | cores
     if attached is not None:
-        sided |= thin & attached
-    if not sided.any():
+        sides |= attached
+    thin = thin[sides.reshape(-1)[thin]]
+    if thin.size == 0:
         return out
-    box = _padded_box(sided, 1)
-    count, labels = components(sided[box])
-    at = np.flatnonzero(sided[box])
+    row, col = np.divmod(thin, occupied.shape[1])
+    box = _cells_box(row, col, occupied.shape, 1)
+    sided = np.zeros(occupied[box].shape, dtype=bool)
+    sided[row - box[0].start, col - box[1].start] = True
+    count, labels = components(sided)
+    at = np.flatnonzero(sided)
+    owners = labels.reshape(-1)[at]
     boxes = label_boxes(labels, at, count)
     long_enough = np.maximum(boxes[:, 2], boxes[:, 3]) >= min_length_px
-    # Pieces with a cell on or next to (4-neighbours) a wall, looked up around their cells only.
+    # Pieces with a cell on or next to (4-neighbours) a wall: the walls dilated by the cross (on
+    # the box only), looked up at the pieces' cells.
+    near_walls = cv2.dilate(walls[box].view(np.uint8), _CROSS).view(bool).reshape(-1)[at]
     touching = np.zeros(count, dtype=bool)
-    near_walls = walls[box][_cross(at, labels.shape)].any(axis=1)
-    touching[labels.reshape(-1)[at[near_walls]]] = True
+    touching[owners[near_walls]] = True
     wanted = long_enough & touching
     wanted[0] = False
-    pieces = labels_wanted(wanted, labels, sided[box]) & candidates[box]
+    candidates = candidates[box]
+    cells = at[wanted[owners] & candidates.reshape(-1)[at]]
+    pieces = np.zeros(sided.shape, dtype=bool)
+    pieces.reshape(-1)[cells] = True
     # A run along a row misses the cells of a ragged face that stick out of it: the candidate
     # cells next to a piece belong to it (4-neighbours, looked up around the piece's cells).
-    beside = _cross(np.flatnonzero(pieces), pieces.shape)
-    pieces[beside] |= candidates[box][beside]
+    beside = _cross(cells, labels.shape)
+    pieces[beside] |= candidates[beside]
     out[box] = pieces
     return out
+
+
+#: The 4-neighbours and the cell itself: a 3 x 3 elliptic kernel.
+_CROSS = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], np.uint8)
+
+
+def _cells_box(
+    row: npt.NDArray[np.int64], col: npt.NDArray[np.int64], shape: tuple[int, int], pad: int
+) -> tuple[slice, slice]:
+    """The bounding box of the cells at ``row``, ``col`` (at least one) in an image of ``shape``,
+    ``pad`` cells wider on every side, clipped to the image (as :func:`_padded_box`)."""
+    rows, cols = shape
+    return slice(max(int(row.min()) - pad, 0), min(int(row.max()) + 1 + pad, rows)), slice(
+        max(int(col.min()) - pad, 0), min(int(col.max()) + 1 + pad, cols)
+    )
 
 
 def _cross(
