@@ -279,6 +279,25 @@ def test_near_wide_unknown_is_exact_at_every_known_cell(resolution_m: float) -> 
     assert whole[~unknown].any() and not whole[~unknown].all()
 
 
+@pytest.mark.parametrize("radius", [0.0, 1.0, 2.5, 3.33, 5.0, 7.9])
+def test_chamfer_disc_morphology_equals_the_distance_transforms(radius: float) -> None:
+    """The wide unknown space's core and reach come from an erosion and a dilation by the
+    transform's disc: they must equal the thresholded distance transforms, at the image's edges
+    too."""
+    from rose.cleaning_rules.outside import _chamfer_disc
+
+    rng = np.random.default_rng(5)
+    disc = _chamfer_disc(radius)
+    for _ in range(40):
+        blocks = rng.random(tuple(rng.integers(1, 50, 2))) < rng.uniform(0.6, 1.0)
+        depth = cv2.distanceTransform(blocks.view(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_5)
+        core = depth > radius
+        reach = cv2.distanceTransform((~core).view(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_5)
+        eroded = cv2.erode(blocks.view(np.uint8), disc)
+        np.testing.assert_array_equal(eroded.view(bool), core)
+        np.testing.assert_array_equal(cv2.dilate(eroded, disc).view(bool), reach <= radius)
+
+
 def test_label_boxes_match_opencvs_statistics() -> None:
     # The guard's patch boxes come from the labelled cells instead of OpenCV's (slower) statistics.
     rng = np.random.default_rng(3)

@@ -6,6 +6,8 @@ in the grid's cell space (row 0 at the map origin), lengths in cells.
 
 from __future__ import annotations
 
+import functools
+import math
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -73,13 +75,54 @@ def _wide(unknown: npt.NDArray[np.bool_], radius_px: float) -> npt.NDArray[np.bo
         pairs[:, cols] = pairs[:, cols - 1]
     blocks = pairs.view(np.uint16) == 0x0101
     radius = radius_px / 2
-    depth = cv2.distanceTransform(blocks.view(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_5)
-    core = depth > radius
-    if not core.any():
-        return np.zeros(unknown.shape, dtype=bool)
-    reach = cv2.distanceTransform((~core).view(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_5)
-    near = (reach <= radius).view(np.uint8)
+    disc = _chamfer_disc(radius)
+    if 0 < int(np.count_nonzero(disc)) <= _MORPHOLOGY_MAX_CELLS:
+        # The same as the distance transforms below, a third of their cost: the core blocks have no
+        # known block within the disc (beyond the image: unknown, OpenCV's erosion border as the
+        # transform's), the near ones a core block.
+        core_u8 = cv2.erode(blocks.view(np.uint8), disc)
+        if not core_u8.any():
+            return np.zeros(unknown.shape, dtype=bool)
+        near = cv2.dilate(core_u8, disc)
+    else:
+        depth = cv2.distanceTransform(blocks.view(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_5)
+        core = depth > radius
+        if not core.any():
+            return np.zeros(unknown.shape, dtype=bool)
+        reach = cv2.distanceTransform((~core).view(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_5)
+        near = (reach <= radius).view(np.uint8)
     # Back to cells: every block value twice along the row (a uint16 of two equal bytes), then every
     # row twice (ten times cheaper than OpenCV's nearest-neighbour resize).
     wide = np.repeat((near.astype(np.uint16) * np.uint16(0x0101)).view(np.uint8), 2, axis=0)
     return wide[:rows, :cols].view(bool) & unknown
+
+
+#: Most cells of the disc (:func:`_chamfer_disc`) that :func:`_wide` erodes and dilates by rather
+#: than running two distance transforms: the morphology's cost grows with the kernel's cells, the
+#: transforms' does not. Measured on the cleaning's block images: 0.44 against 1.5 ms at a radius of
+#: 5 blocks (81 cells, the design resolution's), 1.05 against 1.54 at 8 (205 cells), slower at 10.
+_MORPHOLOGY_MAX_CELLS = 200
+
+
+@functools.lru_cache(maxsize=8)
+def _chamfer_disc(radius: float) -> npt.NDArray[np.uint8]:
+    """The offsets within ``radius`` (cells) of a cell by the distance OpenCV's 5 x 5 mask distance
+    transform measures, as a morphology kernel: uint8 0/1, a square of odd side centred on the cell,
+    reflected (OpenCV's morphology reads its kernel as offsets from the anchor, a distance counts
+    from the zero cell). Read-only (cached).
+
+    The transform is exact for its mask: the least sum of its steps (all those of one cell to
+    another lie in their bounding box, whatever the image's edges), the same for every cell. So a
+    cell is within ``radius`` of the zero cells exactly where this disc dilated from them reaches,
+    and further from all of them exactly where their complement's erosion by it keeps it."""
+    import cv2
+
+    # A step of the mask is at least its chessboard length: the disc fits in ``radius`` cells.
+    half = max(0, math.floor(radius))
+    side = 2 * half + 1
+    image = np.ones((side + 4, side + 4), np.uint8)
+    image[half + 2, half + 2] = 0
+    distance = cv2.distanceTransform(image, cv2.DIST_L2, cv2.DIST_MASK_5)[2:-2, 2:-2]
+    disc = np.ascontiguousarray((distance <= radius)[::-1, ::-1]).view(np.uint8)
+    disc.flags.writeable = False
+    return disc
