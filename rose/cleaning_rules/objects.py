@@ -18,7 +18,6 @@ import numpy.typing as npt
 from rose.cleaning_rules.masks import (
     _any_of_8,
     _flat_index,
-    _neighbour_labels,
     _padded_box,
     length_px,
 )
@@ -271,21 +270,30 @@ def _pocket_faces(
     """Occupied cells next to (8-neighbours of) a pocket, and the pockets' cells. A pocket is a
     4-connected component of unknown cells (the ``sealing`` cells are a boundary) smaller than
     ``max_area_px``: the inside of a scanned object, or the unseen core of a thick wall."""
+    import cv2
+
     cells = unknown & ~sealing
-    faces = np.zeros(occupied.shape, dtype=bool)
     if not cells.any() or not occupied.any():
-        return faces, faces.copy()
+        return np.zeros(occupied.shape, dtype=bool), np.zeros(occupied.shape, dtype=bool)
     count, labels = components(cells, connectivity=4)
     pocket = component_areas(labels, count) < max_area_px
     pocket[0] = False
-    # Looked up around the occupied cells only (few next to the whole image); an occupied cell's
-    # own label is 0, the background, so a border cell's repeated neighbours change nothing.
-    at = np.flatnonzero(occupied)
-    near = _any_of_8(pocket[_neighbour_labels(labels, at)])
-    faces.reshape(-1)[at[near]] = True
     # Unknown cells are most of the image here: a lookup at every cell (0, the background, is no
-    # pocket) is a third of the cost of one at the unknown cells only (labels_wanted).
-    return faces, np.take(pocket, labels)
+    # pocket) is a third of the cost of one at the unknown cells only (labels_wanted); of bytes,
+    # not booleans, a fifth less.
+    pockets = np.take(pocket.view(np.uint8), labels)
+    # The occupied cells with a pocket among their 8 neighbours: the pockets dilated by the ring
+    # around a cell (half the cost of looking the neighbours' labels up at the occupied cells).
+    faces = cv2.dilate(pockets, _RING).view(bool) & occupied
+    # On the image's edge a cell counts itself among its neighbours (those past the edge clipped
+    # onto the image, as the 8-neighbour lookups of the rules do).
+    for edge in ((0, slice(None)), (-1, slice(None)), (slice(None), 0), (slice(None), -1)):
+        faces[edge] |= pockets[edge].view(bool) & occupied[edge]
+    return faces, pockets.view(bool)
+
+
+#: The 8 neighbours of a cell, not the cell itself.
+_RING = np.array([[1, 1, 1], [1, 0, 1], [1, 1, 1]], np.uint8)
 
 
 def _grow_within(
