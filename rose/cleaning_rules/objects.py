@@ -17,6 +17,7 @@ import numpy.typing as npt
 
 from rose.cleaning_rules.masks import (
     _any_of_8,
+    _bounds,
     _flat_index,
     _padded_box,
     length_px,
@@ -379,9 +380,9 @@ class _Pieces:
     def around_free(
         self, cells: npt.NDArray[np.bool_], known: npt.NDArray[np.bool_]
     ) -> npt.NDArray[np.bool_]:
-        """Cells of ``cells`` (occupied) in pieces next to a hole of ``cells`` (other cells that
-        4-connected paths cannot leave without crossing ``cells``) holding a known non-occupied
-        cell."""
+        """Cells of ``cells`` (occupied cells, some of the pieces') in pieces next to a hole of
+        ``cells`` (other cells that 4-connected paths cannot leave without crossing ``cells``)
+        holding a known non-occupied cell."""
         out = np.zeros(cells.shape, dtype=bool)
         if not cells.any():
             return out
@@ -397,7 +398,18 @@ class _Pieces:
         )
         cv2.floodFill(image, None, (0, 0), 0, flags=4)
         holes = image[1:-1, 1:-1].view(bool)
-        free_holes = holes & known[box] & ~self.occupied[box]
+        # Then only the holes' box matters, a cell wider (their rim): they are few cells, often in
+        # a few places of the pieces' box. (Holes never reach its edge: their rim lies in it.)
+        top, bottom, left, right = _bounds(holes)
+        if bottom == top:
+            return out
+        inner = (slice(top - 1, bottom + 1), slice(left - 1, right + 1))
+        around = tuple(
+            slice(outer.start + part.start, outer.start + part.stop)
+            for outer, part in zip(box, inner, strict=True)
+        )
+        holes = holes[inner]
+        free_holes = holes & known[around] & ~self.occupied[around]
         if not free_holes.any():
             return out
         count, parts = components(holes, connectivity=4)
@@ -405,11 +417,10 @@ class _Pieces:
         wanted[parts[free_holes]] = True
         wanted[0] = False
         hole_cells = labels_wanted(wanted, parts, holes)
-        # (Holes never reach the box's edge: their rim lies in it.)
         rim = cv2.dilate(hole_cells.view(np.uint8), np.ones((3, 3), np.uint8)).view(bool)
-        labels = self.labels[box]
         enclosing = np.zeros(self.diagonals.size, dtype=bool)
-        enclosing[labels[rim & cells[box]]] = True
+        enclosing[self.labels[around][rim & cells[around]]] = True
         enclosing[0] = False
-        out[box] = labels_wanted(enclosing, labels, cells[box])
+        # Looked up at the occupied cells (``cells`` are some of them).
+        out.reshape(-1)[self.cells] = enclosing[self.owners] & cells.reshape(-1)[self.cells]
         return out
