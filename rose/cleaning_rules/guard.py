@@ -11,12 +11,12 @@ import math
 import numpy as np
 import numpy.typing as npt
 
-from rose.cleaning_rules.masks import _any_of_8, _neighbour_labels, _padded_box
+from rose.cleaning_rules.masks import _neighbour_columns, _padded_box
+from rose.cleaning_rules.runs import _nonzero_flat
 from rose.labelling import (
     component_areas,
     components,
     label_boxes,
-    labels_wanted,
 )
 
 
@@ -65,11 +65,12 @@ def topology_guard(
     """
     import cv2
 
-    removal = occupied & ~keep
     restore = np.zeros(occupied.shape, dtype=bool)
-    if not removal.any():
+    after = occupied & keep
+    if np.count_nonzero(after) == np.count_nonzero(occupied):  # nothing removed
         return restore
-    after = occupied & keep if added is None else (occupied & keep) | added
+    if added is not None:
+        after |= added
     # The added obstacles (hidden walls) were there before too, only unseen: regions they close off
     # are told apart as such (the inside of a cabinet against a wall, closed by the wall line behind
     # it, is a pocket, not the unknown outside). What opens is the same either way: the added
@@ -83,32 +84,26 @@ def topology_guard(
     # patch: work on their bounding box (windows clipped by it are clipped as by the map).
     reach = math.ceil(radius_px) + 1
     box = _padded_box(opened, window_px + reach + 2)
-    before, opened = ~blocked_before[box], opened[box]
+    # Formerly passable cells are looked up in ``blocked_before`` where needed (the ring cells and
+    # the windows), not negated over the whole box.
+    blocked_before, opened = blocked_before[box], np.ascontiguousarray(opened[box])
+    opened_cells = _nonzero_flat(opened.view(np.uint8))
     count, patches = components(opened)
-    boxes = label_boxes(patches, np.flatnonzero(opened), count)
+    boxes = label_boxes(patches, opened_cells, count)
     ring_cells, ring_patches = _rings(patches, opened, count)
-    formerly = before.reshape(-1)[ring_cells]
+    formerly = ~blocked_before[np.divmod(ring_cells, opened.shape[1])]
     # Patches whose ring is all formerly passable are free-standing objects: nothing to check.
     blocked = np.zeros(count, dtype=bool)
     blocked[ring_patches[~formerly]] = True
     blocked[0] = False
     ring_cells, ring_patches = ring_cells[formerly], ring_patches[formerly]
-    # A patch whose formerly passable ring cells are one connected arc joins nothing (it opens into
-    # one region only): only patches with two or more arcs need a labelled window. An arc that
-    # also runs along another patch's ring proves nothing (it may leave this patch's window).
-    touched = np.zeros(opened.shape, dtype=bool)
-    touched.reshape(-1)[ring_cells] = True
-    arcs_count, arcs = components(touched)
-    pairs = np.unique(ring_patches * arcs_count + arcs.reshape(-1)[ring_cells])
-    arc_of, patch_of = pairs % arcs_count, pairs // arcs_count
-    shared = np.bincount(arc_of, minlength=arcs_count)[arc_of] >= 2
-    several = np.bincount(patch_of, minlength=count) >= 2
-    several[patch_of[shared]] = True
-    blocked &= several
+    # No labelling of the ring arcs first to skip the patches whose ring is one arc: the windows'
+    # labelling finds one region for them anyway, and labelling the arcs over the whole box cost
+    # more than the windows it spared.
     if not blocked.any():
         return restore
     separating = _separating_patches(
-        before, boxes, blocked, ring_cells, ring_patches, window_px, min_region_px
+        blocked_before, boxes, blocked, ring_cells, ring_patches, window_px, min_region_px
     )
     if not separating.any():
         return restore
@@ -116,12 +111,26 @@ def topology_guard(
     # ones that kept the disc out of it. Whole removed pieces would also bring back furniture that
     # merely touches a wall hole, diagonally, as rasterised walls at an angle often do.
     reach_kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach + 1, 2 * reach + 1))
-    seeds = labels_wanted(separating, patches, opened)
-    near = _padded_box(seeds, reach)
-    zone = np.zeros(seeds.shape, dtype=bool)
-    zone[near] = cv2.dilate(seeds[near].view(np.uint8), reach_kernel).astype(bool)
-    restore[box] = zone & removal[box]
+    seeds = opened_cells[separating[patches.reshape(-1)[opened_cells]]]
+    near, zone = _drawn_box(seeds, opened.shape, reach)
+    zone = cv2.dilate(zone, reach_kernel).view(bool)
+    removal = np.greater(occupied[box][near], keep[box][near])  # occupied & ~keep in one pass
+    restore[box][near] = zone & removal
     return restore
+
+
+def _drawn_box(
+    cells: npt.NDArray[np.int64], shape: tuple[int, int], pad: int
+) -> tuple[tuple[slice, slice], npt.NDArray[np.uint8]]:
+    """The bounding box of ``cells`` (flat indices into ``shape``, ascending, at least one), ``pad``
+    cells wider on every side and clipped to ``shape`` (as :func:`_padded_box`), and the cells drawn
+    with 1 in an uint8 image of that box."""
+    rows, cols = np.divmod(cells, shape[1])
+    r0, r1 = max(int(rows[0]) - pad, 0), min(int(rows[-1]) + 1 + pad, shape[0])
+    c0, c1 = max(int(cols.min()) - pad, 0), min(int(cols.max()) + 1 + pad, shape[1])
+    image = np.zeros((r1 - r0, c1 - c0), dtype=np.uint8)
+    image[rows - r0, cols - c0] = 1
+    return (slice(r0, r1), slice(c0, c1)), image
 
 
 def _rings(
@@ -141,16 +150,26 @@ def _rings(
     import cv2
 
     grown = cv2.dilate(opened.view(np.uint8), np.ones((3, 3), np.uint8))
-    cells = np.flatnonzero(grown.view(bool) & ~opened)
+    # grown & ~opened in one pass, listed by OpenCV (``opened`` is C-contiguous).
+    cells = _nonzero_flat(np.greater(grown, opened.view(np.uint8)).view(np.uint8))
     # The labels of every ring cell's 8 neighbours (ring cells are few next to the whole image).
-    around = _neighbour_labels(patches, cells)
-    top = around.max(axis=1)
-    # Cells next to two patches are rare: only they need every (cell, patch) pair sorted out.
-    contested = _any_of_8((around > 0) & (around != top[:, None]))
+    around = _neighbour_columns(patches, cells)
+    top = around[0].copy()
+    for column in around[1:]:
+        np.maximum(top, column, out=top)
+    # Cells next to two patches are rare: only they need every (cell, patch) pair sorted out. A
+    # neighbour's label minus one, unsigned, is the largest value for the background: a least one
+    # below ``top - 1`` is another patch's (the labels are 16 or 32 bits).
+    unsigned = np.dtype(f"u{patches.dtype.itemsize}")
+    least = (around[0] - 1).view(unsigned)
+    for column in around[1:]:
+        np.minimum(least, (column - 1).view(unsigned), out=least)
+    contested = least < (top - 1).view(unsigned)
     top = top.astype(np.int64)
     if not contested.any():
         return cells, top
-    shared, labels = cells[contested], around[contested].astype(np.int64)
+    shared = cells[contested]
+    labels = np.stack([column[contested] for column in around], axis=1).astype(np.int64)
     keys = np.unique((shared[:, None] * count + labels)[labels > 0])
     return (
         np.concatenate([cells[~contested], keys // count]),
@@ -159,7 +178,7 @@ def _rings(
 
 
 def _separating_patches(
-    before: npt.NDArray[np.bool_],
+    blocked_before: npt.NDArray[np.bool_],
     boxes: npt.NDArray[np.int64],
     blocked: npt.NDArray[np.bool_],
     ring_cells: npt.NDArray[np.intp],
@@ -168,16 +187,16 @@ def _separating_patches(
     min_region_px: float,
 ) -> npt.NDArray[np.bool_]:
     """Which ``blocked`` patches touch, with their ring (``ring_cells`` of ``ring_patches``, from
-    :func:`_rings`), two or more regions of ``before`` (in a window of ``window_px`` cells around
-    the patch) that are not small enclosed pockets (a pocket does not reach the window's edge and
-    covers less than ``min_region_px``).
+    :func:`_rings`), two or more regions of the cells passable before (not ``blocked_before``; in a
+    window of ``window_px`` cells around the patch) that are not small enclosed pockets (a pocket
+    does not reach the window's edge and covers less than ``min_region_px``).
 
     All windows are copied into one mosaic, one empty cell apart, and labelled in one call.
     """
 
     count = boxes.shape[0]
     separating = np.zeros(count, dtype=bool)
-    rows, cols = before.shape
+    rows, cols = blocked_before.shape
     # The ring cells of every blocked patch (flat indices) and their patch.
     wanted = blocked[ring_patches]
     ring_idx, ring_patch = ring_cells[wanted], ring_patches[wanted]
@@ -189,23 +208,13 @@ def _separating_patches(
     r0, c0 = np.maximum(y - window_px, 0), np.maximum(x - window_px, 0)
     r1, c1 = np.minimum(y + h + window_px, rows), np.minimum(x + w + window_px, cols)
     heights, widths = r1 - r0, c1 - c0
-    # Shelf packing: windows left to right in rows of the mosaic, one empty cell between them.
-    width = max(int(widths.max()) + 1, 1024)
-    ox = np.zeros(ids.size, dtype=np.int64)
-    oy = np.zeros(ids.size, dtype=np.int64)
-    cursor_x = cursor_y = shelf = 0
-    for i in range(ids.size):
-        if cursor_x + int(widths[i]) + 1 > width:
-            cursor_x, cursor_y, shelf = 0, cursor_y + shelf + 1, 0
-        ox[i], oy[i] = cursor_x, cursor_y
-        cursor_x += int(widths[i]) + 1
-        shelf = max(shelf, int(heights[i]))
-    mosaic = np.zeros((cursor_y + shelf + 1, width), dtype=np.uint8)
-    view = before.view(np.uint8)
-    for i in range(ids.size):
-        mosaic[oy[i] : oy[i] + heights[i], ox[i] : ox[i] + widths[i]] = view[
-            r0[i] : r1[i], c0[i] : c1[i]
-        ]
+    ox, oy, mosaic_shape = _shelves(heights, widths)
+    mosaic = np.zeros(mosaic_shape, dtype=bool)
+    # (Python ints in the loop: indexing numpy arrays item by item costs several times more.)
+    sources = zip(r0.tolist(), c0.tolist(), heights.tolist(), widths.tolist(), strict=True)
+    for (y0, x0, h_i, w_i), top_i, left_i in zip(sources, oy.tolist(), ox.tolist(), strict=True):
+        window = blocked_before[y0 : y0 + h_i, x0 : x0 + w_i]
+        np.logical_not(window, out=mosaic[top_i : top_i + h_i, left_i : left_i + w_i])
     # Plain labels, areas from a histogram and the regions on their window's frame: a third of
     # the cost of OpenCV's statistics.
     region_count, regions = components(mosaic)
@@ -219,14 +228,50 @@ def _separating_patches(
     keep = where >= 0
     where, cells = where[keep], ring_idx[keep]
     labels = regions[cells // cols - r0[where] + oy[where], cells % cols - c0[where] + ox[where]]
-    touched = labels > 0
-    pairs = np.unique(where[touched] * region_count + labels[touched])
-    window_of, label = pairs // region_count, pairs % region_count
-    open_regions = np.bincount(
-        window_of[on_frame[label] | (areas[label] >= min_region_px)], minlength=ids.size
-    )
+    # Every region lies in one window (they are apart in the mosaic): the regions touched, each
+    # counted once for its window, without sorting (window, region) pairs.
+    touched = np.zeros(region_count, dtype=bool)
+    touched[labels] = True
+    touched[0] = False
+    window_of = np.zeros(region_count, dtype=np.int64)
+    window_of[labels] = where
+    counted = touched & (on_frame | (areas >= min_region_px))
+    open_regions = np.bincount(window_of[counted], minlength=ids.size)
     separating[ids] = open_regions >= 2
     return separating
+
+
+def _shelves(
+    heights: npt.NDArray[np.int64], widths: npt.NDArray[np.int64]
+) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64], tuple[int, int]]:
+    """Shelf packing of windows of ``heights, widths`` (cells) into a mosaic, one empty cell
+    between them: left to right in rows of the mosaic, the tallest first (shelves of windows of
+    alike heights: the mosaics of the benchmark maps are a third smaller than with the windows in
+    their order, and their labelling and histogram cost by the cell).
+
+    Returns
+    -------
+    left, top : ndarray of int64, shape (N,)
+        Where each window goes.
+    shape : tuple of int
+        The mosaic's ``(rows, cols)``.
+    """
+    width = max(int(widths.max()) + 1, 1024)
+    order = np.argsort(-heights, kind="stable").tolist()
+    left, top = [0] * heights.size, [0] * heights.size
+    cursor_x = cursor_y = shelf = 0
+    # (Python ints in the loop: indexing numpy arrays item by item costs several times more.)
+    for i, w_i, h_i in zip(order, widths[order].tolist(), heights[order].tolist(), strict=True):
+        if cursor_x + w_i + 1 > width:
+            cursor_x, cursor_y, shelf = 0, cursor_y + shelf + 1, 0
+        left[i], top[i] = cursor_x, cursor_y
+        cursor_x += w_i + 1
+        shelf = max(shelf, h_i)
+    return (
+        np.array(left, dtype=np.int64),
+        np.array(top, dtype=np.int64),
+        (cursor_y + shelf + 1, width),
+    )
 
 
 def _frame_cells(

@@ -94,7 +94,17 @@ def _bounds(mask: npt.NDArray[np.bool_]) -> tuple[int, int, int, int]:
 def _neighbour_labels(
     labels: npt.NDArray[np.integer], cells: npt.NDArray[np.intp]
 ) -> npt.NDArray[np.integer]:
-    """The labels of the 8 neighbours of each cell, shape ``(N, 8)``.
+    """The labels of the 8 neighbours of each cell, shape ``(N, 8)``: :func:`_neighbour_columns`
+    side by side."""
+    return np.stack(_neighbour_columns(labels, cells), axis=1)
+
+
+def _neighbour_columns(
+    labels: npt.NDArray[np.integer], cells: npt.NDArray[np.intp]
+) -> list[npt.NDArray[np.integer]]:
+    """The labels of the 8 neighbours of each cell: one array of shape ``(N,)`` per neighbour
+    (reductions over the 8 run as 7 elementwise passes, several times cheaper than numpy's
+    reduction over rows of 8).
 
     ``cells`` are flat indices into ``labels``, ascending (as :func:`numpy.flatnonzero` gives
     them). On the image border a neighbour is clipped onto the cell's own row or column: that only
@@ -107,15 +117,12 @@ def _neighbour_labels(
         row[0] > 0 and row[-1] < rows - 1 and int(col.min()) > 0 and int(col.max()) < cols - 1
     )
     offsets = [(dr, dc) for dr in (-1, 0, 1) for dc in (-1, 0, 1) if dr or dc]
-    return np.stack(
-        [
-            flat[cells + (dr * cols + dc)]
-            if inner
-            else flat[np.clip(row + dr, 0, rows - 1) * cols + np.clip(col + dc, 0, cols - 1)]
-            for dr, dc in offsets
-        ],
-        axis=1,
-    )
+    return [
+        flat[cells + (dr * cols + dc)]
+        if inner
+        else flat[np.clip(row + dr, 0, rows - 1) * cols + np.clip(col + dc, 0, cols - 1)]
+        for dr, dc in offsets
+    ]
 
 
 def _any_of_8(flags: npt.NDArray[np.bool_]) -> npt.NDArray[np.bool_]:
