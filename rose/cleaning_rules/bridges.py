@@ -67,7 +67,7 @@ def _bridges(
     fill), so a larger anchor never fills more than it does.
 
     With ``staggered_px = (anchor, min_fill)`` one more output: the fills between wall ends up to a
-    cell apart across the line (:func:`_staggered_gaps`), at most three cells thick.
+    cell apart across the line (:func:`_staggered_cells`), at most three cells thick.
 
     The anchors are exact stretches in the rotated frame: a wall one cell thin at an angle to its
     frame can come out of the rotation dashed, and then anchors nothing (no hidden wall is drawn
@@ -78,8 +78,6 @@ def _bridges(
 
     ``beside`` works out the gaps along the columns while this thread does the rows' (in turn when
     omitted)."""
-    import cv2
-
     bits = len(anchors_px) + (staggered_px is not None)
     if bits > 8:
         msg = "at most 8 anchors (one bit each)"
@@ -90,41 +88,96 @@ def _bridges(
     length = max(3, round(max_gap_px)) | 1
     r0, r1, c0, c1 = _bounds(walls)
     crop = walls[r0:r1, c0:c1]
-    rows, cols = crop.shape
     anchors = [max(1, round(a)) for a in anchors_px]
+    stagger = (
+        None
+        if staggered_px is None
+        else (max(1, round(staggered_px[0])), max(1, round(staggered_px[1])))
+    )
     side = beside if beside is not None else _Inline()
-    for angle in _frames(directions):
-        rotated, matrix = _rotate(crop.view(np.uint8), angle)
-        rotated = np.ascontiguousarray(rotated)  # the crop itself when not rotated
-        # The rows' and the columns' gaps need nothing of each other.
-        across_job = side.submit(_closed_gaps, rotated, True, length, anchors)
-        staggered_job = None
-        if staggered_px is not None:
-            stagger = (max(1, round(staggered_px[0])), max(1, round(staggered_px[1])))
-            # Drawn straight into the bit after the anchors' (no shifted copies).
-            bit = 1 << len(anchors)
-            staggered_job = side.submit(_staggered_gaps, rotated, True, length, *stagger, bit)
-            staggered = _staggered_gaps(rotated, False, length, *stagger, bit)
-        fills = _closed_gaps(rotated, False, length, anchors)
-        fills |= across_job.result()
-        if staggered_job is not None:
-            fills |= staggered
-            fills |= staggered_job.result()
-        if matrix is not None:
-            # Nearest-neighbour sampling copies values: every anchor's fills, one bit each, go
-            # back in one warp.
-            back = cv2.warpAffine(
-                fills, matrix, (cols, rows), flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP
-            )
-            fills = np.asarray(back, dtype=np.uint8)
-        filled = np.empty_like(fills)
-        for bit, out in enumerate(outs):
-            np.bitwise_and(fills, np.uint8(1 << bit), out=filled)
-            np.logical_or(out[r0:r1, c0:c1], filled, out=out[r0:r1, c0:c1])
-    open_cells = fillable & ~walls
-    for out in outs:
-        out &= open_cells
+    # Every frame's fills of the crop, one bit per output, split into the outputs once at the end.
+    frames = iter(_frames(directions))
+    found = _crop_fills(crop, next(frames), length, anchors, stagger, side)
+    for angle in frames:
+        found |= _crop_fills(crop, angle, length, anchors, stagger, side)
+    # Only open fillable cells, on the crop only (nothing is filled outside it).
+    open_cells = np.greater(fillable[r0:r1, c0:c1], crop)  # fillable & ~walls, one pass
+    filled = np.empty_like(found)
+    for bit, out in enumerate(outs):
+        np.bitwise_and(found, np.uint8(1 << bit), out=filled)
+        np.logical_and(filled, open_cells, out=out[r0:r1, c0:c1])
     return outs
+
+
+def _crop_fills(
+    crop: npt.NDArray[np.bool_],
+    angle: float,
+    length: int,
+    anchors: list[int],
+    stagger: tuple[int, int] | None,
+    side: Executor,
+) -> npt.NDArray[np.uint8]:
+    """:func:`_frame_fills` of ``crop`` rotated by ``angle`` (:func:`_rotate`), back in the crop's
+    cells: an image of ``crop``'s shape, one bit per output."""
+    import cv2
+
+    rows, cols = crop.shape
+    rotated, matrix = _rotate(crop.view(np.uint8), angle)
+    rotated = np.ascontiguousarray(rotated)  # the crop itself when not rotated
+    fills = _frame_fills(rotated, length, anchors, stagger, side)
+    if matrix is None:
+        return fills
+    # Nearest-neighbour sampling copies values: every anchor's fills, one bit each, go back in one
+    # warp.
+    back = cv2.warpAffine(
+        fills, matrix, (cols, rows), flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP
+    )
+    return np.asarray(back, dtype=np.uint8)
+
+
+def _frame_fills(
+    rotated: npt.NDArray[np.uint8],
+    length: int,
+    anchors: list[int],
+    stagger: tuple[int, int] | None,
+    side: Executor,
+) -> npt.NDArray[np.uint8]:
+    """:func:`_bridges`' fills of one rotated frame (C-contiguous, 0 or 1), bit ``i`` for
+    ``anchors[i]`` and, with ``stagger = (anchor, min_fill)``, the next bit for the staggered
+    fills. ``side`` works out the columns' gaps while this thread does the rows'."""
+    # The rows' and the columns' gaps need nothing of each other; the wall cells are listed once
+    # for both.
+    cells = _nonzero_flat(rotated)
+    across_job = side.submit(_gaps, rotated, cells, True, length, anchors)
+    staggered_job = None
+    if stagger is not None:
+        staggered_job = side.submit(_staggered_cells, rotated, True, length, *stagger)
+        staggered = _staggered_cells(rotated, False, length, *stagger)
+    fills = np.zeros(rotated.shape, dtype=np.uint8)
+    _draw(fills, _gaps(rotated, cells, False, length, anchors))
+    _draw(fills, across_job.result())
+    if staggered_job is not None:
+        # Drawn straight into the bit after the anchors' (no shifted copies).
+        bit = np.uint8(1 << len(anchors))
+        fills.reshape(-1)[staggered] |= bit
+        fills.reshape(-1)[staggered_job.result()] |= bit
+    return fills
+
+
+#: Fills of one orientation of a rotated frame: the flat indices of each anchor's cells (bit ``i``
+#: for ``anchors[i]``, the runs' way), or an image of the bits (OpenCV's way, :func:`_dense` or
+#: fragmented walls).
+_Gaps = list[npt.NDArray[np.int64]] | npt.NDArray[np.uint8]
+
+
+def _draw(fills: npt.NDArray[np.uint8], gaps: _Gaps) -> None:
+    """Adds ``gaps`` (of :func:`_gaps`) to ``fills``, an image of the same frame."""
+    if isinstance(gaps, np.ndarray):
+        fills |= gaps
+        return
+    flat = fills.reshape(-1)
+    for bit, cells in enumerate(gaps):
+        flat[cells] |= np.uint8(1 << bit)
 
 
 def _closed_gaps(
@@ -133,7 +186,25 @@ def _closed_gaps(
     """:func:`_bridges`' fills of one orientation of a rotated frame (along the columns when
     ``vertical``, else the rows), bit ``i`` for ``anchors[i]`` (at most 8): the closing with a line
     of ``length`` cells of the pieces on straight stretches of ``anchor`` cells along it, less the
-    walls and the fills four or more cells thick across it.
+    walls and the fills four or more cells thick across it (:func:`_gaps` drawn)."""
+    rotated = np.ascontiguousarray(rotated)
+    gaps = _gaps(rotated, _nonzero_flat(rotated), vertical, length, anchors)
+    if isinstance(gaps, np.ndarray):
+        return gaps
+    fills = np.zeros(rotated.shape, dtype=np.uint8)
+    _draw(fills, gaps)
+    return fills
+
+
+def _gaps(
+    rotated: npt.NDArray[np.uint8],
+    cells: npt.NDArray[np.int64],
+    vertical: bool,
+    length: int,
+    anchors: list[int],
+) -> _Gaps:
+    """:func:`_closed_gaps` of ``rotated`` (C-contiguous) and its non-zero ``cells`` (flat indices,
+    ascending). The first anchor's cells come ascending.
 
     Worked out on the runs of the wall cells along the lines (the same cells as OpenCV's closings
     and openings with line kernels, :func:`_close_runs`): the walls are a few percent of the
@@ -141,7 +212,6 @@ def _closed_gaps(
     """
     shape = rotated.shape
     extent = shape[not vertical]  # cells along a line
-    cells = _nonzero_flat(rotated)
     if _dense(cells, rotated):
         return _closed_gaps_of_image(rotated, vertical, length, anchors)
     walls = _runs(cells, shape, vertical)
@@ -149,9 +219,9 @@ def _closed_gaps(
     if _fragmented(walls, rotated) or _covered(closed_walls) > _FRAGMENTED_CLOSED * rotated.size:
         return _closed_gaps_of_image(rotated, vertical, length, anchors)
     is_wall = rotated.reshape(-1)
-    out = np.zeros(shape, dtype=np.uint8)
+    gaps: list[npt.NDArray[np.int64]] = []
     thick: npt.NDArray[np.uint8] | None = None
-    for bit, anchor in enumerate(anchors):
+    for anchor in anchors:
         # Only wall pieces running along the gap anchor a bridge: the side faces of an object,
         # across it, would join its two sides through its inside.
         closed_runs = (
@@ -175,19 +245,18 @@ def _closed_gaps(
             thick.reshape(-1)[
                 _run_cells(_open_runs(across, 4, shape[vertical]), shape, not vertical)
             ] = 1
-        out.reshape(-1)[fill[thick.reshape(-1)[fill] == 0]] |= np.uint8(1 << bit)
-    return out
+        gaps.append(fill[thick.reshape(-1)[fill] == 0])
+    return gaps
 
 
-def _staggered_gaps(
+def _staggered_cells(
     rotated: npt.NDArray[np.uint8],
     vertical: bool,
     length: int,
     anchor: int,
     min_fill: int,
-    value: int = 1,
-) -> npt.NDArray[np.uint8]:
-    """:func:`_closed_gaps` (one anchor, ``value`` or 0 per cell) of the walls grown by a cell
+) -> npt.NDArray[np.int64]:
+    """Flat indices of the fills of :func:`_closed_gaps` (one anchor) of the walls grown by a cell
     across the line (along the columns when ``vertical``, else the rows): fills between two wall
     ends up to a cell apart across it, less the grown walls (never the cells beside a wall), only
     in stretches of at least ``min_fill`` cells along the line (a staircase's notches are
@@ -197,13 +266,13 @@ def _staggered_gaps(
     band: npt.NDArray[np.uint8] = np.ascontiguousarray(
         cv2.dilate(rotated, np.ones((1, 3) if vertical else (3, 1), np.uint8)), dtype=np.uint8
     )
-    fills = np.ascontiguousarray(_closed_gaps(band, vertical, length, [anchor]))
-    line, start, end = _runs(_nonzero_flat(fills), fills.shape, vertical)
+    gaps = _gaps(band, _nonzero_flat(band), vertical, length, [anchor])
+    # Ascending either way (the image's listed by OpenCV), as _runs needs them.
+    fill = _nonzero_flat(gaps) if isinstance(gaps, np.ndarray) else gaps[0]
+    line, start, end = _runs(fill, band.shape, vertical)
     long_enough = end - start + 1 >= min_fill
-    out = np.zeros(fills.shape, dtype=np.uint8)
     runs = (line[long_enough], start[long_enough], end[long_enough])
-    out.reshape(-1)[_run_cells(runs, fills.shape, vertical)] = value
-    return out
+    return _run_cells(runs, band.shape, vertical)
 
 
 def _closed_gaps_of_image(
