@@ -19,6 +19,7 @@ from rose.cleaning_rules.runs import (
     _covered,
     _dense,
     _fragmented,
+    _groups,
     _nonzero_flat,
     _open,
     _open_runs,
@@ -100,12 +101,17 @@ def _bridges(
     found = _crop_fills(crop, next(frames), length, anchors, stagger, side)
     for angle in frames:
         found |= _crop_fills(crop, angle, length, anchors, stagger, side)
-    # Only open fillable cells, on the crop only (nothing is filled outside it).
-    open_cells = np.greater(fillable[r0:r1, c0:c1], crop)  # fillable & ~walls, one pass
-    filled = np.empty_like(found)
+    # The filled cells are few: looked up and drawn one by one, only the open fillable ones.
+    cells = _nonzero_flat(found)
+    rows, cols = np.divmod(cells, found.shape[1])
+    rows += r0
+    cols += c0
+    fill_bits = found.reshape(-1)[cells]
+    wanted = np.greater(fillable[rows, cols], walls[rows, cols])  # fillable & ~walls
+    rows, cols, fill_bits = rows[wanted], cols[wanted], fill_bits[wanted]
     for bit, out in enumerate(outs):
-        np.bitwise_and(found, np.uint8(1 << bit), out=filled)
-        np.logical_and(filled, open_cells, out=out[r0:r1, c0:c1])
+        on = (fill_bits & np.uint8(1 << bit)) != 0
+        out[rows[on], cols[on]] = True
     return outs
 
 
@@ -221,7 +227,7 @@ def _gaps(
     is_wall = rotated.reshape(-1)
     gaps: list[npt.NDArray[np.int64]] = []
     thick: npt.NDArray[np.uint8] | None = None
-    for anchor in anchors:
+    for i, anchor in enumerate(anchors):
         # Only wall pieces running along the gap anchor a bridge: the side faces of an object,
         # across it, would join its two sides through its inside.
         closed_runs = (
@@ -231,22 +237,47 @@ def _gaps(
         )
         closed = _run_cells(closed_runs, shape, vertical)
         fill = closed[is_wall[closed] == 0]
-        if thick is None:
-            # A wall line is thin: drop fills four or more cells thick across the line (the space
-            # between two parallel walls, not a wall). Fewer anchors only ever fill less: the
-            # first (all walls) decides for every anchor.
-            # Runs along the rows need their cells in ascending order (along the columns, _runs
-            # orders them itself). Closed along the columns, ``fill`` is in column order: a stable
-            # reordering by row sorts it.
-            if vertical:
-                fill = fill[_order_by(fill // shape[1], shape[0])]
-            across = _runs(fill, shape, not vertical)
+        if i > 0:
+            fill = fill[thick.reshape(-1)[fill] == 0] if thick is not None else fill
+            gaps.append(fill)
+            continue
+        # A wall line is thin: drop fills four or more cells thick across the line (the space
+        # between two parallel walls, not a wall). Fewer anchors only ever fill less: the first
+        # (all walls) decides for every anchor. Closed along the columns, ``fill`` is in column
+        # order: a stable reordering by row sorts it.
+        if vertical:
+            fill = fill[_order_by(fill // shape[1], shape[0])]
+        wide = _thick(fill, shape, not vertical)
+        if len(anchors) > 1:  # the later anchors' fills look their cells up
             thick = np.zeros(shape, dtype=np.uint8)
-            thick.reshape(-1)[
-                _run_cells(_open_runs(across, 4, shape[vertical]), shape, not vertical)
-            ] = 1
-        gaps.append(fill[thick.reshape(-1)[fill] == 0])
+            thick.reshape(-1)[fill[wide]] = 1
+        gaps.append(fill[~wide])
     return gaps
+
+
+def _thick(
+    fill: npt.NDArray[np.int64], shape: tuple[int, int], vertical: bool
+) -> npt.NDArray[np.bool_]:
+    """Which cells of ``fill`` (flat indices into ``shape``, ascending) OpenCV's opening with a line
+    of 4 cells along the columns when ``vertical`` (else the rows) keeps, as :func:`_open_runs`:
+    in runs of 4 or more cells, every cell but the first (the even line's anchor is a cell off the
+    middle: the opening is the run shifted on by a cell, and the cell after a run is not in
+    ``fill``). Worked out on the runs, with no image to draw them in and look them up."""
+    cols = shape[1]
+    if fill.size == 0:
+        return np.zeros(0, dtype=bool)
+    row, col = np.divmod(fill, cols)
+    order = _order_by(col, cols) if vertical else None
+    line, pos = (col[order], row[order]) if order is not None else (row, col)
+    first, last = _groups(line, pos[1:] != pos[:-1] + 1)
+    lengths = last - first + 1
+    wide = np.repeat(lengths >= 4, lengths)
+    wide[first] = False
+    if order is None:
+        return wide
+    unsorted = np.empty_like(wide)
+    unsorted[order] = wide
+    return unsorted
 
 
 def _staggered_cells(
