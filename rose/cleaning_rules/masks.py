@@ -9,10 +9,7 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from rose.labelling import (
-    components,
-    labels_wanted,
-)
+from rose.labelling import components
 
 
 def _flat_index(
@@ -24,19 +21,35 @@ def _flat_index(
 
 def _touching(pieces: npt.NDArray[np.bool_], other: npt.NDArray[np.bool_]) -> npt.NDArray[np.bool_]:
     """The 8-connected components of ``pieces`` within two cells of ``other``."""
+    from rose.cleaning_rules.runs import _nonzero_flat  # runs imports this module
 
     out = np.zeros(pieces.shape, dtype=bool)
-    if not pieces.any() or not other.any():
+    # The pieces' cells are few: listed once (OpenCV's list, a tenth of numpy's cost), they give
+    # the bounding box and are looked up one by one instead of in passes over the box.
+    cells = _nonzero_flat(np.ascontiguousarray(pieces).view(np.uint8))
+    if cells.size == 0 or not other.any():
         return out
+    rows, cols = np.divmod(cells, pieces.shape[1])
     # Only the pieces' bounding box matters (plus two cells for the reach of ``other``).
-    box = _padded_box(pieces, 2)
+    box = _cells_box(rows, cols, pieces.shape, 2)
     count, labels = components(pieces[box])
     near = _dilate(other[box], 2)
+    inside = (rows - box[0].start, cols - box[1].start)
+    own = labels[inside]
     wanted = np.zeros(count, dtype=bool)
-    wanted[labels[near & pieces[box]]] = True
-    wanted[0] = False
-    out[box] = labels_wanted(wanted, labels, pieces[box])
+    wanted[own[near[inside]]] = True
+    out[rows, cols] = wanted[own]
     return out
+
+
+def _cells_box(
+    rows: npt.NDArray[np.int64], cols: npt.NDArray[np.int64], shape: tuple[int, int], pad: int
+) -> tuple[slice, slice]:
+    """:func:`_padded_box` of the cells at ``rows, cols`` (at least one; ``rows`` ascending) of a
+    mask of ``shape``."""
+    return slice(max(int(rows[0]) - pad, 0), min(int(rows[-1]) + 1 + pad, shape[0])), slice(
+        max(int(cols.min()) - pad, 0), min(int(cols.max()) + 1 + pad, shape[1])
+    )
 
 
 def _near(
@@ -46,13 +59,18 @@ def _near(
     Dilated on the bounding box of ``cells`` only (``reach`` wider): the same at every cell of it."""
     import cv2
 
+    from rose.cleaning_rules.runs import _nonzero_flat  # runs imports this module
+
     out = np.zeros(cells.shape, dtype=bool)
-    if not cells.any():
+    # Few cells: listed once, they give the box and are looked up one by one (as in _touching).
+    at = _nonzero_flat(np.ascontiguousarray(cells).view(np.uint8))
+    if at.size == 0:
         return out
-    box = _padded_box(cells, reach)
+    rows, cols = np.divmod(at, cells.shape[1])
+    box = _cells_box(rows, cols, cells.shape, reach)
     side = 2 * reach + 1
     grown = cv2.dilate(other[box].view(np.uint8), np.ones((side, side), np.uint8)).view(bool)
-    out[box] = cells[box] & grown
+    out[rows, cols] = grown[rows - box[0].start, cols - box[1].start]
     return out
 
 
