@@ -11,7 +11,7 @@ import math
 import numpy as np
 import numpy.typing as npt
 
-from rose.cleaning_rules.masks import _neighbour_columns, _padded_box
+from rose.cleaning_rules.masks import _cells_box, _neighbour_columns, _padded_box
 from rose.cleaning_rules.runs import _nonzero_flat
 from rose.labelling import (
     component_areas,
@@ -132,14 +132,13 @@ def _drawn_box(
     cells: npt.NDArray[np.int64], shape: tuple[int, int], pad: int
 ) -> tuple[tuple[slice, slice], npt.NDArray[np.uint8]]:
     """The bounding box of ``cells`` (flat indices into ``shape``, ascending, at least one), ``pad``
-    cells wider on every side and clipped to ``shape`` (as :func:`_padded_box`), and the cells drawn
+    cells wider on every side and clipped to ``shape`` (:func:`_cells_box`), and the cells drawn
     with 1 in an uint8 image of that box."""
     rows, cols = np.divmod(cells, shape[1])
-    r0, r1 = max(int(rows[0]) - pad, 0), min(int(rows[-1]) + 1 + pad, shape[0])
-    c0, c1 = max(int(cols.min()) - pad, 0), min(int(cols.max()) + 1 + pad, shape[1])
-    image = np.zeros((r1 - r0, c1 - c0), dtype=np.uint8)
-    image[rows - r0, cols - c0] = 1
-    return (slice(r0, r1), slice(c0, c1)), image
+    box = _cells_box(rows, cols, shape, pad)
+    image = np.zeros((box[0].stop - box[0].start, box[1].stop - box[1].start), dtype=np.uint8)
+    image[rows - box[0].start, cols - box[1].start] = 1
+    return box, image
 
 
 def _rings(
