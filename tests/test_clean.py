@@ -746,7 +746,7 @@ def test_the_run_and_image_line_morphology_agree(
     import rose.cleaning_rules.runs as runs
 
     rng = np.random.default_rng(11)
-    for _ in range(60):
+    for _ in range(600):
         shape = (int(rng.integers(1, 60)), int(rng.integers(1, 60)))
         image = (rng.random(shape) < rng.choice([0.02, 0.1, 0.4, 0.9])).astype(np.uint8)
         image[int(rng.integers(0, shape[0]))] = 1  # a wall line along the rows
@@ -767,6 +767,33 @@ def test_the_run_and_image_line_morphology_agree(
             )
         for runs_way, image_way in zip(*found, strict=True):
             np.testing.assert_array_equal(runs_way, image_way)
+
+
+def test_a_later_even_anchor_fills_the_cell_after_a_thick_fill(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """An even anchor's line opening shifts its pieces a cell on, so a later anchor can fill the cell
+    just past a thick fill of the first one (a gap four rows deep here): the runs must find what
+    OpenCV's image morphology finds (they once left that cell out)."""
+    import rose.cleaning_rules.bridges as bridges
+    import rose.cleaning_rules.runs as runs
+
+    walls = np.zeros((41, 41), dtype=bool)
+    walls[0:4, 1] = walls[0:4, 3] = True  # a gap a cell wide, four rows deep
+    walls[4, 0:2] = True  # a run of two below it: the second anchor's piece
+    walls[40, 40] = True  # a sparse crop: the runs, unless told otherwise
+    found = []
+    for share in (2.0, -1.0):  # never, always OpenCV's
+        for module, name in (
+            (runs, "_DENSE_CELLS"),
+            (runs, "_FRAGMENTED_RUNS"),
+            (bridges, "_FRAGMENTED_CLOSED"),
+        ):
+            monkeypatch.setattr(module, name, share)
+        found.append(bridges._bridges(walls, np.ones_like(walls), np.array([0.0]), 3, (1, 2)))
+    for runs_way, image_way in zip(*found, strict=True):
+        np.testing.assert_array_equal(runs_way, image_way)
+    assert found[0][1][4, 3]  # the cell past the thick fill
 
 
 def test_the_cleanings_second_thread_runs_in_the_callers_context() -> None:
@@ -1052,3 +1079,17 @@ def test_a_partition_up_to_three_cells_thick_stays_on_a_coarse_grid(thickness: i
         grid[r : r + 3, c : c + 3] = 100
     cleaning = clean(grid, rose.analyze(grid), resolution_m=0.2)
     assert cleaning.kept[34 : 34 + thickness, 6:14].all()
+
+
+def test_the_chamfer_disc_is_cached_by_the_radius_and_its_type() -> None:
+    """A Python float radius is compared with the float32 distances in float32, a NumPy float64 in
+    float64 (as the distance transforms' thresholds were): near a distance the two discs differ,
+    and the cache must not hand one type the other's."""
+    from rose.cleaning_rules.outside import _chamfer_disc
+
+    radius = 9.993799 / 2  # within 1e-7 of a chamfer distance
+    wide_first = _chamfer_disc(np.float64(radius))
+    as_float = _chamfer_disc(radius)
+    np.testing.assert_array_equal(as_float, _chamfer_disc.__wrapped__(radius))
+    np.testing.assert_array_equal(wide_first, _chamfer_disc.__wrapped__(np.float64(radius)))
+    assert np.count_nonzero(as_float) != np.count_nonzero(wide_first)

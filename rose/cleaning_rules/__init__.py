@@ -240,8 +240,8 @@ def _wall_cells(
         # The side thread, in turn: the wide unknown space (wanted once the lines are found), the
         # fronts (once the bridges are drawn) and the pieces (by the object rules), while this
         # thread finds the runs, the lines and the bridges: the two threads' shares of the work
-        # up to the fronts are about even (the bridges' columns on the side thread too waited
-        # there behind the fronts).
+        # up to the fronts are about even (the bridges' columns, on the side thread, waited there
+        # behind the fronts).
         near_job = beside.submit(_near_wide_unknown, unknown, res, p)
         # Furniture flush against a wall: its hidden wall line is drawn, as the bridges' are.
         fronts_job = beside.submit(
@@ -283,7 +283,6 @@ def _wall_cells(
                 directions,
                 length_px(p.max_bridge_m, res),
                 (1, length_px(_BRIDGE_ANCHOR_M, res)),
-                None,
                 staggered_px=(
                     length_px(_STAGGERED_ANCHOR_M, res),
                     length_px(_BRIDGE_ANCHOR_M, res),

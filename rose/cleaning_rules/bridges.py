@@ -6,12 +6,9 @@ in the grid's cell space (row 0 at the map origin), lengths in cells.
 
 from __future__ import annotations
 
-from concurrent.futures import Executor
-
 import numpy as np
 import numpy.typing as npt
 
-from rose.cleaning_rules.beside import _Inline
 from rose.cleaning_rules.frames import _frames, _rotate
 from rose.cleaning_rules.masks import _bounds
 from rose.cleaning_rules.runs import (
@@ -59,13 +56,13 @@ def _bridges(
     directions: npt.NDArray[np.float64],
     max_gap_px: float,
     anchors_px: tuple[float, ...],
-    beside: Executor | None = None,
     *,
     staggered_px: tuple[float, float] | None = None,
 ) -> list[npt.NDArray[np.bool_]]:
     """:func:`bridge_gaps` for each shortest anchor of ``anchors_px`` (ascending), rotating the map
     once; which fills are thin enough is decided on the first anchor's (the smallest: the most
-    fill), so a larger anchor never fills more than it does.
+    fill; an even anchor's opening shifts its pieces a cell on, so a later anchor may still fill a
+    cell the first does not, just past one of its fills).
 
     With ``staggered_px = (anchor, min_fill)`` one more output: the fills between wall ends up to a
     cell apart across the line (:func:`_staggered_cells`), at most three cells thick.
@@ -75,10 +72,7 @@ def _bridges(
     there; the guard keeps the furniture instead). A cell of tolerance brought the dashes back but
     also every wall's staircase: on the 30-degree benchmark logs robot gaps rose from 0.5 (2) to
     1 (3) with nothing gained. The staggered fills (``staggered_px``) take a cell of tolerance
-    across the line only, with longer anchors and no fills shorter than ``min_fill``.
-
-    ``beside`` works out the gaps along the columns while this thread does the rows' (in turn when
-    omitted)."""
+    across the line only, with longer anchors and no fills shorter than ``min_fill``."""
     bits = len(anchors_px) + (staggered_px is not None)
     if bits > 8:
         msg = "at most 8 anchors (one bit each)"
@@ -95,12 +89,11 @@ def _bridges(
         if staggered_px is None
         else (max(1, round(staggered_px[0])), max(1, round(staggered_px[1])))
     )
-    side = beside if beside is not None else _Inline()
     # Every frame's fills of the crop, one bit per output, split into the outputs once at the end.
     frames = iter(_frames(directions))
-    found = _crop_fills(crop, next(frames), length, anchors, stagger, side)
+    found = _crop_fills(crop, next(frames), length, anchors, stagger)
     for angle in frames:
-        found |= _crop_fills(crop, angle, length, anchors, stagger, side)
+        found |= _crop_fills(crop, angle, length, anchors, stagger)
     # The filled cells are few: looked up and drawn one by one, only the open fillable ones.
     cells = _nonzero_flat(found)
     rows, cols = np.divmod(cells, found.shape[1])
@@ -121,7 +114,6 @@ def _crop_fills(
     length: int,
     anchors: list[int],
     stagger: tuple[int, int] | None,
-    side: Executor,
 ) -> npt.NDArray[np.uint8]:
     """:func:`_frame_fills` of ``crop`` rotated by ``angle`` (:func:`_rotate`), back in the crop's
     cells: an image of ``crop``'s shape, one bit per output."""
@@ -130,7 +122,7 @@ def _crop_fills(
     rows, cols = crop.shape
     rotated, matrix = _rotate(crop.view(np.uint8), angle)
     rotated = np.ascontiguousarray(rotated)  # the crop itself when not rotated
-    fills = _frame_fills(rotated, length, anchors, stagger, side)
+    fills = _frame_fills(rotated, length, anchors, stagger)
     if matrix is None:
         return fills
     # Nearest-neighbour sampling copies values: every anchor's fills, one bit each, go back in one
@@ -146,27 +138,18 @@ def _frame_fills(
     length: int,
     anchors: list[int],
     stagger: tuple[int, int] | None,
-    side: Executor,
 ) -> npt.NDArray[np.uint8]:
     """:func:`_bridges`' fills of one rotated frame (C-contiguous, 0 or 1), bit ``i`` for
     ``anchors[i]`` and, with ``stagger = (anchor, min_fill)``, the next bit for the staggered
-    fills. ``side`` works out the columns' gaps while this thread does the rows'."""
-    # The rows' and the columns' gaps need nothing of each other; the wall cells are listed once
-    # for both.
-    cells = _nonzero_flat(rotated)
-    across_job = side.submit(_gaps, rotated, cells, True, length, anchors)
-    staggered_job = None
-    if stagger is not None:
-        staggered_job = side.submit(_staggered_cells, rotated, True, length, *stagger)
-        staggered = _staggered_cells(rotated, False, length, *stagger)
+    fills, along the rows and the columns."""
+    cells = _nonzero_flat(rotated)  # listed once for both orientations
     fills = np.zeros(rotated.shape, dtype=np.uint8)
-    _draw(fills, _gaps(rotated, cells, False, length, anchors))
-    _draw(fills, across_job.result())
-    if staggered_job is not None:
-        # Drawn straight into the bit after the anchors' (no shifted copies).
-        bit = np.uint8(1 << len(anchors))
-        fills.reshape(-1)[staggered] |= bit
-        fills.reshape(-1)[staggered_job.result()] |= bit
+    for vertical in (False, True):
+        _draw(fills, _gaps(rotated, cells, vertical, length, anchors))
+        if stagger is not None:
+            # Drawn straight into the bit after the anchors' (no shifted copies).
+            staggered = _staggered_cells(rotated, vertical, length, *stagger)
+            fills.reshape(-1)[staggered] |= np.uint8(1 << len(anchors))
     return fills
 
 
@@ -192,7 +175,8 @@ def _closed_gaps(
     """:func:`_bridges`' fills of one orientation of a rotated frame (along the columns when
     ``vertical``, else the rows), bit ``i`` for ``anchors[i]`` (at most 8): the closing with a line
     of ``length`` cells of the pieces on straight stretches of ``anchor`` cells along it, less the
-    walls and the fills four or more cells thick across it (:func:`_gaps` drawn)."""
+    walls and the fills four or more cells thick across it (:func:`_gaps` drawn). The rules call
+    :func:`_gaps` itself; this image of its cells is what the tests compare with OpenCV's way."""
     rotated = np.ascontiguousarray(rotated)
     gaps = _gaps(rotated, _nonzero_flat(rotated), vertical, length, anchors)
     if isinstance(gaps, np.ndarray):
@@ -227,7 +211,7 @@ def _gaps(
     is_wall = rotated.reshape(-1)
     gaps: list[npt.NDArray[np.int64]] = []
     thick: npt.NDArray[np.uint8] | None = None
-    for i, anchor in enumerate(anchors):
+    for anchor in anchors:
         # Only wall pieces running along the gap anchor a bridge: the side faces of an object,
         # across it, would join its two sides through its inside.
         closed_runs = (
@@ -237,35 +221,38 @@ def _gaps(
         )
         closed = _run_cells(closed_runs, shape, vertical)
         fill = closed[is_wall[closed] == 0]
-        if i > 0:
-            fill = fill[thick.reshape(-1)[fill] == 0] if thick is not None else fill
-            gaps.append(fill)
+        if thick is not None:  # a later anchor: none of the first one's thick fills
+            gaps.append(fill[thick.reshape(-1)[fill] == 0])
             continue
         # A wall line is thin: drop fills four or more cells thick across the line (the space
-        # between two parallel walls, not a wall). Fewer anchors only ever fill less: the first
-        # (all walls) decides for every anchor. Closed along the columns, ``fill`` is in column
+        # between two parallel walls, not a wall). The first anchor (all walls, the most fill)
+        # decides for every anchor. Closed along the columns, ``fill`` is in column
         # order: a stable reordering by row sorts it.
         if vertical:
             fill = fill[_order_by(fill // shape[1], shape[0])]
-        wide = _thick(fill, shape, not vertical)
+        wide, past = _thick(fill, shape, not vertical)
         if len(anchors) > 1:  # the later anchors' fills look their cells up
+            # The opening's cell after each thick run too: not this fill's, but a later (even)
+            # anchor's can hold it (its pieces shifted a cell on by their own opening).
             thick = np.zeros(shape, dtype=np.uint8)
             thick.reshape(-1)[fill[wide]] = 1
+            thick.reshape(-1)[past] = 1
         gaps.append(fill[~wide])
     return gaps
 
 
 def _thick(
     fill: npt.NDArray[np.int64], shape: tuple[int, int], vertical: bool
-) -> npt.NDArray[np.bool_]:
+) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.int64]]:
     """Which cells of ``fill`` (flat indices into ``shape``, ascending) OpenCV's opening with a line
     of 4 cells along the columns when ``vertical`` (else the rows) keeps, as :func:`_open_runs`:
     in runs of 4 or more cells, every cell but the first (the even line's anchor is a cell off the
     middle: the opening is the run shifted on by a cell, and the cell after a run is not in
-    ``fill``). Worked out on the runs, with no image to draw them in and look them up."""
+    ``fill``). Worked out on the runs, with no image to draw them in and look them up. Also the flat
+    indices of the cells just after those runs (within the image), which the opening covers too."""
     cols = shape[1]
     if fill.size == 0:
-        return np.zeros(0, dtype=bool)
+        return np.zeros(0, dtype=bool), np.zeros(0, dtype=np.int64)
     row, col = np.divmod(fill, cols)
     order = _order_by(col, cols) if vertical else None
     line, pos = (col[order], row[order]) if order is not None else (row, col)
@@ -273,11 +260,14 @@ def _thick(
     lengths = last - first + 1
     wide = np.repeat(lengths >= 4, lengths)
     wide[first] = False
+    # The cell after each run of 4 or more, within the image (a cell further along its line).
+    ends = last[(lengths >= 4) & (pos[last] + 1 < shape[not vertical])]
+    past = (fill if order is None else fill[order])[ends] + (cols if vertical else 1)
     if order is None:
-        return wide
+        return wide, past
     unsorted = np.empty_like(wide)
     unsorted[order] = wide
-    return unsorted
+    return unsorted, past
 
 
 def _staggered_cells(

@@ -166,16 +166,16 @@ def _rings(
     for column in around[1:]:
         np.maximum(top, column, out=top)
     # Cells next to two patches are rare: only they need every (cell, patch) pair sorted out. A
-    # neighbour's label minus one, unsigned, is the largest value for the background: a least one
+    # neighbour's label minus one, unsigned, is the largest value for the background: the least one
     # below ``top - 1`` is another patch's (the labels are 16 or 32 bits).
     unsigned = np.dtype(f"u{patches.dtype.itemsize}")
     least = (around[0] - 1).view(unsigned)
     for column in around[1:]:
         np.minimum(least, (column - 1).view(unsigned), out=least)
     contested = least < (top - 1).view(unsigned)
-    top = top.astype(np.int64)
+    patch = top.astype(np.int64)
     if not contested.any():
-        return cells, top
+        return cells, patch
     shared = cells[contested]
     labels = np.stack([column[contested] for column in around], axis=1).astype(np.int64)
     keys = np.sort((shared[:, None] * count + labels)[labels > 0])
@@ -183,7 +183,7 @@ def _rings(
     keys = keys[np.concatenate(([True], keys[1:] != keys[:-1]))]
     return (
         np.concatenate([cells[~contested], keys // count]),
-        np.concatenate([top[~contested], keys % count]),
+        np.concatenate([patch[~contested], keys % count]),
     )
 
 

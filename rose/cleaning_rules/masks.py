@@ -45,9 +45,9 @@ def _touching(pieces: npt.NDArray[np.bool_], other: npt.NDArray[np.bool_]) -> np
 def _cells_box(
     rows: npt.NDArray[np.int64], cols: npt.NDArray[np.int64], shape: tuple[int, int], pad: int
 ) -> tuple[slice, slice]:
-    """:func:`_padded_box` of the cells at ``rows, cols`` (at least one; ``rows`` ascending) of a
-    mask of ``shape``."""
-    return slice(max(int(rows[0]) - pad, 0), min(int(rows[-1]) + 1 + pad, shape[0])), slice(
+    """The bounding box of the cells at ``rows, cols`` (at least one, in any order) of a mask of
+    ``shape``, ``pad`` cells wider on every side, clipped to the mask (as :func:`_padded_box`)."""
+    return slice(max(int(rows.min()) - pad, 0), min(int(rows.max()) + 1 + pad, shape[0])), slice(
         max(int(cols.min()) - pad, 0), min(int(cols.max()) + 1 + pad, shape[1])
     )
 
@@ -107,14 +107,6 @@ def _bounds(mask: npt.NDArray[np.bool_]) -> tuple[int, int, int, int]:
     # OpenCV's bounding rectangle of the non-zero pixels: one pass, not two reductions.
     x, y, width, height = cv2.boundingRect(mask.view(np.uint8))
     return y, y + height, x, x + width
-
-
-def _neighbour_labels(
-    labels: npt.NDArray[np.integer], cells: npt.NDArray[np.intp]
-) -> npt.NDArray[np.integer]:
-    """The labels of the 8 neighbours of each cell, shape ``(N, 8)``: :func:`_neighbour_columns`
-    side by side."""
-    return np.stack(_neighbour_columns(labels, cells), axis=1)
 
 
 def _neighbour_columns(

@@ -18,6 +18,7 @@ import numpy.typing as npt
 from rose.cleaning_rules.masks import (
     _any_of_8,
     _bounds,
+    _cells_box,
     _flat_index,
     _padded_box,
     length_px,
@@ -235,17 +236,6 @@ def _partitions(
 _CROSS = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], np.uint8)
 
 
-def _cells_box(
-    row: npt.NDArray[np.int64], col: npt.NDArray[np.int64], shape: tuple[int, int], pad: int
-) -> tuple[slice, slice]:
-    """The bounding box of the cells at ``row``, ``col`` (at least one) in an image of ``shape``,
-    ``pad`` cells wider on every side, clipped to the image (as :func:`_padded_box`)."""
-    rows, cols = shape
-    return slice(max(int(row.min()) - pad, 0), min(int(row.max()) + 1 + pad, rows)), slice(
-        max(int(col.min()) - pad, 0), min(int(col.max()) + 1 + pad, cols)
-    )
-
-
 def _cross(
     cells: npt.NDArray[np.intp], shape: tuple[int, int]
 ) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.intp]]:
@@ -287,7 +277,9 @@ def _pocket_faces(
     # around a cell (half the cost of looking the neighbours' labels up at the occupied cells).
     faces = cv2.dilate(pockets, _RING).view(bool) & occupied
     # On the image's edge a cell counts itself among its neighbours (those past the edge clipped
-    # onto the image, as the 8-neighbour lookups of the rules do).
+    # onto the image, as the 8-neighbour lookups of the rules do). Only a cell both occupied and
+    # in a pocket can gain by it, which the cleaning never passes; kept so that the function is
+    # the lookup's exactly.
     for edge in ((0, slice(None)), (-1, slice(None)), (slice(None), 0), (slice(None), -1)):
         faces[edge] |= pockets[edge].view(bool) & occupied[edge]
     return faces, pockets.view(bool)

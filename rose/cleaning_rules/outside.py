@@ -75,8 +75,8 @@ def _wide(unknown: npt.NDArray[np.bool_], radius_px: float) -> npt.NDArray[np.bo
         pairs[:, cols] = pairs[:, cols - 1]
     blocks = pairs.view(np.uint16) == 0x0101
     radius = radius_px / 2
-    disc = _chamfer_disc(radius)
-    if 0 < int(np.count_nonzero(disc)) <= _MORPHOLOGY_MAX_CELLS:
+    disc = _chamfer_disc(radius) if radius < _MORPHOLOGY_MAX_RADIUS else None
+    if disc is not None and 0 < int(np.count_nonzero(disc)) <= _MORPHOLOGY_MAX_CELLS:
         # The same as the distance transforms below, a third of their cost: the core blocks have no
         # known block within the disc (beyond the image: unknown, OpenCV's erosion border as the
         # transform's), the near ones a core block.
@@ -103,8 +103,12 @@ def _wide(unknown: npt.NDArray[np.bool_], radius_px: float) -> npt.NDArray[np.bo
 #: 5 blocks (81 cells, the design resolution's), 1.05 against 1.54 at 8 (205 cells), slower at 10.
 _MORPHOLOGY_MAX_CELLS = 200
 
+#: Radius (blocks) from which the disc has more cells than that anyway (205 at 8): not built, a
+#: transform over its square for nothing (a 1,000-cell radius is allowed).
+_MORPHOLOGY_MAX_RADIUS = 9
 
-@functools.lru_cache(maxsize=8)
+
+@functools.lru_cache(maxsize=8, typed=True)
 def _chamfer_disc(radius: float) -> npt.NDArray[np.uint8]:
     """The offsets within ``radius`` (cells) of a cell by the distance OpenCV's 5 x 5 mask distance
     transform measures, as a morphology kernel: uint8 0/1, a square of odd side centred on the cell,
@@ -114,7 +118,11 @@ def _chamfer_disc(radius: float) -> npt.NDArray[np.uint8]:
     The transform is exact for its mask: the least sum of its steps (all those of one cell to
     another lie in their bounding box, whatever the image's edges), the same for every cell. So a
     cell is within ``radius`` of the zero cells exactly where this disc dilated from them reaches,
-    and further from all of them exactly where their complement's erosion by it keeps it."""
+    and further from all of them exactly where their complement's erosion by it keeps it.
+
+    Cached by ``radius`` and its type: a Python float is compared with the float32 distances in
+    float32, a NumPy float64 in float64 (as the transforms' own thresholds are), which can differ
+    within about 1e-7 of a distance."""
     import cv2
 
     # A step of the mask is at least its chessboard length: the disc fits in ``radius`` cells.
