@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from typing import TypeVar
 
 import cv2
 import numpy as np
@@ -735,6 +737,26 @@ def test_run_morphology_matches_opencvs_line_kernels(vertical: bool) -> None:
             np.testing.assert_array_equal(cells, want)
 
 
+_T = TypeVar("_T")
+
+
+def _runs_and_image_ways(monkeypatch: pytest.MonkeyPatch, compute: Callable[[], _T]) -> list[_T]:
+    """``compute()`` with the line morphology on the runs, then with OpenCV's on the whole image."""
+    import rose.cleaning_rules.bridges as bridges
+    import rose.cleaning_rules.runs as runs
+
+    found = []
+    for share in (2.0, -1.0):  # never, always OpenCV's
+        for module, name in (
+            (runs, "_DENSE_CELLS"),
+            (runs, "_FRAGMENTED_RUNS"),
+            (bridges, "_FRAGMENTED_CLOSED"),
+        ):
+            monkeypatch.setattr(module, name, share)
+        found.append(compute())
+    return found
+
+
 @pytest.mark.parametrize("vertical", [False, True])
 def test_the_run_and_image_line_morphology_agree(
     vertical: bool, monkeypatch: pytest.MonkeyPatch
@@ -751,22 +773,15 @@ def test_the_run_and_image_line_morphology_agree(
         image = (rng.random(shape) < rng.choice([0.02, 0.1, 0.4, 0.9])).astype(np.uint8)
         image[int(rng.integers(0, shape[0]))] = 1  # a wall line along the rows
         length, anchors = int(rng.integers(3, 14)), sorted({1, int(rng.integers(1, 9))})
-        found = []
-        for share in (2.0, -1.0):  # never, always OpenCV's
-            for module, name in (
-                (runs, "_DENSE_CELLS"),
-                (runs, "_FRAGMENTED_RUNS"),
-                (bridges, "_FRAGMENTED_CLOSED"),
-            ):
-                monkeypatch.setattr(module, name, share)
-            found.append(
-                (
-                    bridges._closed_gaps(image, vertical, length, anchors),
-                    runs._runs_in_frame(image.view(bool), 0.0, length, int(vertical)),
-                )
-            )
-        for runs_way, image_way in zip(*found, strict=True):
-            np.testing.assert_array_equal(runs_way, image_way)
+        runs_way, image_way = _runs_and_image_ways(
+            monkeypatch,
+            lambda image=image, length=length, anchors=anchors: (
+                bridges._closed_gaps(image, vertical, length, anchors),
+                runs._runs_in_frame(image.view(bool), 0.0, length, int(vertical)),
+            ),
+        )
+        for got, want in zip(runs_way, image_way, strict=True):
+            np.testing.assert_array_equal(got, want)
 
 
 def test_a_later_even_anchor_fills_the_cell_after_a_thick_fill(
@@ -776,24 +791,18 @@ def test_a_later_even_anchor_fills_the_cell_after_a_thick_fill(
     just past a thick fill of the first one (a gap four rows deep here): the runs must find what
     OpenCV's image morphology finds (they once left that cell out)."""
     import rose.cleaning_rules.bridges as bridges
-    import rose.cleaning_rules.runs as runs
 
     walls = np.zeros((41, 41), dtype=bool)
     walls[0:4, 1] = walls[0:4, 3] = True  # a gap a cell wide, four rows deep
     walls[4, 0:2] = True  # a run of two below it: the second anchor's piece
     walls[40, 40] = True  # a sparse crop: the runs, unless told otherwise
-    found = []
-    for share in (2.0, -1.0):  # never, always OpenCV's
-        for module, name in (
-            (runs, "_DENSE_CELLS"),
-            (runs, "_FRAGMENTED_RUNS"),
-            (bridges, "_FRAGMENTED_CLOSED"),
-        ):
-            monkeypatch.setattr(module, name, share)
-        found.append(bridges._bridges(walls, np.ones_like(walls), np.array([0.0]), 3, (1, 2)))
-    for runs_way, image_way in zip(*found, strict=True):
-        np.testing.assert_array_equal(runs_way, image_way)
-    assert found[0][1][4, 3]  # the cell past the thick fill
+    runs_way, image_way = _runs_and_image_ways(
+        monkeypatch,
+        lambda: bridges._bridges(walls, np.ones_like(walls), np.array([0.0]), 3, (1, 2)),
+    )
+    for got, want in zip(runs_way, image_way, strict=True):
+        np.testing.assert_array_equal(got, want)
+    assert runs_way[1][4, 3]  # the cell past the thick fill
 
 
 def test_the_cleanings_second_thread_runs_in_the_callers_context() -> None:
