@@ -715,7 +715,8 @@ threading.Thread(target=later).start()
 def test_run_morphology_matches_opencvs_line_kernels(vertical: bool) -> None:
     # The bridges and the runs work on the runs of the occupied cells: every cell must be the one
     # OpenCV's opening (empty border) and closing (its default borders) with a line gives.
-    from rose.cleaning_rules.runs import _close_runs, _nonzero_flat, _open_runs, _run_cells, _runs
+    from rose.cleaning_rules.masks import _nonzero_flat
+    from rose.cleaning_rules.runs import _close_runs, _open_runs, _run_cells, _runs
 
     rng = np.random.default_rng(7)
     for _ in range(400):

@@ -10,14 +10,13 @@ import numpy as np
 import numpy.typing as npt
 
 from rose.cleaning_rules.frames import _frames, _rotate
-from rose.cleaning_rules.masks import _bounds
+from rose.cleaning_rules.masks import _bounds, _nonzero_flat
 from rose.cleaning_rules.runs import (
     _close_runs,
     _covered,
     _dense,
     _fragmented,
     _groups,
-    _nonzero_flat,
     _open,
     _open_runs,
     _order_by,

@@ -11,8 +11,12 @@ import math
 import numpy as np
 import numpy.typing as npt
 
-from rose.cleaning_rules.masks import _cells_box, _neighbour_columns, _padded_box
-from rose.cleaning_rules.runs import _nonzero_flat
+from rose.cleaning_rules.masks import (
+    _cells_box,
+    _neighbour_columns,
+    _nonzero_flat,
+    _padded_box,
+)
 from rose.labelling import (
     component_areas,
     components,

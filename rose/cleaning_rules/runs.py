@@ -13,7 +13,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rose.cleaning_rules.frames import _frames, _rotate
-from rose.cleaning_rules.masks import _bounds, _flat_index, _padded_box
+from rose.cleaning_rules.masks import _bounds, _flat_index, _nonzero_flat, _padded_box
 
 
 def directional_runs(
@@ -129,18 +129,6 @@ def _covered(runs: _Runs) -> int:
 
 
 _Runs = tuple[npt.NDArray[np.int64], npt.NDArray[np.int64], npt.NDArray[np.int64]]
-
-
-def _nonzero_flat(image: npt.NDArray[np.uint8]) -> npt.NDArray[np.int64]:
-    """Flat indices (ascending) of the non-zero cells of a C-contiguous image (OpenCV's list of
-    them: a tenth of the cost of numpy's for a uint8 image)."""
-    import cv2
-
-    points = cv2.findNonZero(image)
-    if points is None:
-        return np.empty(0, dtype=np.int64)
-    points = points.reshape(-1, 2).astype(np.int64)
-    return points[:, 1] * image.shape[1] + points[:, 0]
 
 
 def _runs(cells: npt.NDArray[np.int64], shape: tuple[int, int], vertical: bool) -> _Runs:
