@@ -39,16 +39,20 @@ def label_type(mask: npt.NDArray[np.bool_] | npt.NDArray[np.uint8], connectivity
     limit = np.iinfo(np.uint16).max
     if connectivity == 8:  # at most one component per 2 x 2 block
         bound = min(int(np.count_nonzero(mask)), ((rows + 1) // 2) * ((cols + 1) // 2))
-        return int(cv2.CV_16U) if bound < limit else int(cv2.CV_32S)
-    # 4-connectivity: every component has a first cell in raster order, one with neither its upper
-    # nor its left neighbour in the mask. Counting those is cheap next to a 32-bit labelling of a
-    # large mask (unknown space is often millions of cells in few components).
+        if bound < limit:
+            return int(cv2.CV_16U)
+    # Every component, 4- or 8-connected, holds a whole run of cells along a row: the runs (cells
+    # whose left neighbour is not in the mask, two passes) bound them, and nearly always closely
+    # enough. Counting them is cheap next to a 32-bit labelling of a large mask and the areas of its
+    # labels (free or unknown space is often millions of cells in few components).
     cells = np.asarray(mask, dtype=bool)
-    # Every component holds a whole run of cells along a row: the runs (cells whose left neighbour
-    # is not in the mask, two passes) bound them, and nearly always closely enough.
     runs = np.count_nonzero(cells[:, 1:] > cells[:, :-1]) + np.count_nonzero(cells[:, :1])
     if runs < limit:
         return int(cv2.CV_16U)
+    if connectivity == 8:
+        return int(cv2.CV_32S)
+    # 4-connectivity: every component has a first cell in raster order, one with neither its upper
+    # nor its left neighbour in the mask.
     starts = cells.copy()
     starts[1:] &= ~cells[:-1]
     starts[:, 1:] &= ~cells[:, :-1]

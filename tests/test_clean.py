@@ -16,7 +16,7 @@ import rose
 from rose.cleaning import MIN_CLEAN_RESOLUTION_M, CleanParams, clean
 from rose.cleaning_rules import directional_runs, passable, straight_lines, wide_unknown
 from rose.errors import RoseError
-from rose.labelling import label_boxes
+from rose.labelling import components, label_boxes, label_type
 
 RES = 0.05
 
@@ -310,6 +310,26 @@ def test_label_boxes_match_opencvs_statistics() -> None:
     )
     boxes = label_boxes(labels, np.flatnonzero(mask), count)
     np.testing.assert_array_equal(boxes[1:], stats[1:, :4])
+
+
+@pytest.mark.parametrize("connectivity", [4, 8])
+def test_labels_are_16_bit_when_the_rows_runs_bound_the_components(connectivity: int) -> None:
+    # Free space of a large map: most cells, few components (a wall every 50 rows).
+    rooms = np.ones((700, 700), dtype=bool)
+    rooms[::50, :] = False
+    assert label_type(rooms, connectivity) == cv2.CV_16U
+    count, labels = components(rooms, connectivity)
+    expected_count, expected = cv2.connectedComponents(
+        rooms.view(np.uint8), None, connectivity, cv2.CV_32S
+    )
+    assert labels.dtype == np.uint16 and count == expected_count == 15
+    np.testing.assert_array_equal(labels, expected)
+    # More components than 16 bits hold (single cells two apart): 32 bits.
+    specks = np.zeros((700, 700), dtype=bool)
+    specks[::2, ::2] = True
+    assert label_type(specks, connectivity) == cv2.CV_32S
+    count, labels = components(specks, connectivity)
+    assert count == 350 * 350 + 1 and labels.max() == 350 * 350
 
 
 def test_topology_guard_restores_only_pieces_that_join_regions() -> None:
