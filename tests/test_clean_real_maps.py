@@ -1,0 +1,158 @@
+"""The walls cleaning keeps every real map closed: no two regions a robot could not pass between in
+the input are joined in the cleaned map.
+
+A check of the whole map, independent of the topology guard (which looks within a window around each
+opened patch and leaves loose pieces out): the regions are those of the whole map where a disc of the
+guard's robot radius fits, with the hidden walls the cleaning draws counted before as well as after
+(they were there, unseen), and regions under the guard's smallest protected area are pockets (the
+inside of a piece of furniture), not places a robot could reach. The maps committed with the tests
+always run; the full data set's (every map of every source: SLAM maps, drawn plans, simulated
+worlds, at 0.03 to 0.1 m per cell) when present.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+import numpy.typing as npt
+import pytest
+from real_data import BORMANN_DIR, FR079_DIR, REPO_DATA, dataset
+
+import rose
+from rose.cleaning import CleanParams, clean
+from rose.cleaning_rules import length_px, passable
+from rose.grid import FREE, occupied_mask
+
+#: Folders of the full data set with map files (the CARMEN logs are rasterised elsewhere).
+DATA_SET_SOURCES = (
+    BORMANN_DIR,
+    FR079_DIR,
+    "aws_small_house",
+    "aws_small_warehouse_005",
+    "cob_environments",
+    "nav2_bringup",
+    "willow_stage_ros",
+    "willow_turtlebot_apps",
+)
+
+
+def map_files(folder: Path) -> list[Path]:
+    """Every map under ``folder``: YAML files, and images no YAML file names (bare images, read at
+    0.05 m per cell; Bormann's ground-truth room images are no maps)."""
+    yamls = sorted(folder.rglob("*.yaml"))
+    described = {p.with_suffix("") for p in yamls}
+    images = sorted(
+        p
+        for p in folder.rglob("*")
+        if p.suffix in (".png", ".pgm")
+        and p.with_suffix("") not in described
+        and not p.stem.endswith("_gt_segmentation")
+    )
+    return yamls + images
+
+
+def joined_regions(
+    before: npt.NDArray[np.bool_],
+    after: npt.NDArray[np.bool_],
+    free: npt.NDArray[np.bool_],
+    *,
+    radius_px: float,
+    min_region_px: float,
+) -> int:
+    """How many places, among the obstacles ``before``, share a region with another among the
+    obstacles ``after`` (0: the map stays as closed as it was).
+
+    A place is a region where a disc of ``radius_px`` fits that holds at least ``min_region_px``
+    ``free`` (seen) cells, a room, or reaches the map's edge, the outside; a region of unknown
+    cells walled all round is an object's unseen inside, removed with the object."""
+    count, regions_before = cv2.connectedComponents(
+        passable(before, radius_px).view(np.uint8), connectivity=8, ltype=cv2.CV_32S
+    )
+    _, regions_after = cv2.connectedComponents(
+        passable(after, radius_px).view(np.uint8), connectivity=8, ltype=cv2.CV_32S
+    )
+    seen = np.bincount(regions_before[free], minlength=count) >= min_region_px
+    edges = np.concatenate(
+        [regions_before[0], regions_before[-1], regions_before[:, 0], regions_before[:, -1]]
+    )
+    outside = np.zeros(count, dtype=bool)
+    outside[edges] = True
+    places = np.flatnonzero(seen | outside)
+    places = places[places > 0]
+    # Obstacles are only removed (``after`` within ``before``): each place lies within one region
+    # after, the one any of its cells is in.
+    labels, first_cell = np.unique(regions_before.reshape(-1), return_index=True)
+    owners = regions_after.reshape(-1)[first_cell[np.searchsorted(labels, places)]]
+    return int(owners.size - np.unique(owners).size)
+
+
+def regions_joined_by_cleaning(path: Path) -> tuple[int, int]:
+    """:func:`joined_regions` of the map file ``path`` cleaned by the default walls method, and the
+    number of cells the cleaning removed."""
+    occupancy_map = rose.load_map(path, resolution_m=None if path.suffix == ".yaml" else 0.05)
+    grid, resolution_m = occupancy_map.grid, occupancy_map.resolution_m
+    result = rose.analyze(grid)
+    cleaned = clean(grid, result, resolution_m=resolution_m)
+    params = CleanParams()
+    joined = joined_regions(
+        result.occupied | cleaned.completed,
+        occupied_mask(cleaned.cleaned, occupied_threshold=result.params.occupied_threshold),
+        grid == FREE,
+        radius_px=length_px(params.robot_radius_m, resolution_m),
+        min_region_px=length_px(params.min_region_m2, resolution_m**2),
+    )
+    return joined, int(np.count_nonzero(cleaned.removed))
+
+
+def assert_all_closed(paths: list[Path]) -> None:
+    assert paths, "no map files found"
+    opened = {}
+    removed_total = 0
+    for path in paths:
+        joined, removed = regions_joined_by_cleaning(path)
+        removed_total += removed
+        if joined:
+            opened[path.name] = joined
+    assert not opened, f"regions joined by the cleaning: {opened}"
+    # The maps were cleaned, not left alone (a cleaning that removes nothing keeps any map closed).
+    assert removed_total > 0
+
+
+def test_the_check_sees_a_wall_opened() -> None:
+    walls = np.zeros((60, 60), dtype=bool)
+    walls[30, :] = True  # a wall across the map: two rooms
+    free = ~walls
+    opened = walls.copy()
+    opened[30, 20:28] = False  # a gap of 8 cells: a disc of radius 3 passes
+    narrow = walls.copy()
+    narrow[30, 20:25] = False  # 5 cells: it does not
+    assert joined_regions(walls, opened, free, radius_px=3.0, min_region_px=100) == 1
+    assert joined_regions(walls, narrow, free, radius_px=3.0, min_region_px=100) == 0
+    # A room into the unknown outside: still a hole.
+    assert (
+        joined_regions(
+            walls, opened, free & (np.arange(60) < 30)[:, None], radius_px=3.0, min_region_px=100
+        )
+        == 1
+    )
+    # An unseen inside walled all round, opened: an object removed, no hole.
+    box = np.zeros((60, 60), dtype=bool)
+    box[20:41, 20] = box[20:41, 40] = box[20, 20:41] = box[40, 20:41] = True
+    inside = np.zeros((60, 60), dtype=bool)
+    inside[21:40, 21:40] = True
+    open_box = box.copy()
+    open_box[40, 25:35] = False
+    assert joined_regions(box, open_box, ~box & ~inside, radius_px=3.0, min_region_px=100) == 0
+    assert joined_regions(box, open_box, ~box, radius_px=3.0, min_region_px=100) == 1
+
+
+@pytest.mark.parametrize("source", [BORMANN_DIR, FR079_DIR, "aws_small_warehouse_005"])
+def test_the_repositorys_real_maps_stay_closed(source: str) -> None:
+    assert_all_closed(map_files(REPO_DATA / source))
+
+
+@pytest.mark.parametrize("source", DATA_SET_SOURCES)
+def test_every_real_map_of_the_data_set_stays_closed(source: str) -> None:
+    assert_all_closed(map_files(dataset(source)))
