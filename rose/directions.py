@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from rose.spectrum import MIN_PADDED_SIDE
+from rose.params import MIN_PADDED_SIDE
 
 __all__ = [
     "FAILURE_LEVEL",
@@ -92,7 +92,7 @@ def degenerate_input(grid: npt.NDArray[np.int8], occupied: npt.NDArray[np.bool_]
     ROSE sees a building in the outline of the occupied cells: the spectrum of the mask is that of
     its edges. It cannot when
 
-    - *a side is too thin for a 2D spectrum*: under :data:`rose.spectrum.MIN_PADDED_SIDE` cells, the
+    - *a side is too thin for a 2D spectrum*: under :data:`rose.params.MIN_PADDED_SIDE` cells, the
       side ROSE pads because so few cells sample the spectrum too coarsely to tell directions apart
       (a solid 1 x 300 strip read W = 0.007, "structured");
     - *the occupied cells fill the grid*: their outline inside the grid is shorter than where they

