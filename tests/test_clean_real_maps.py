@@ -1,12 +1,13 @@
-"""The walls cleaning keeps every real map closed: no two regions a robot could not pass between in
-the input are joined in the cleaned map.
+"""The walls cleaning keeps every real map closed: no two rooms, or a room and the outside, that a
+robot could not pass between in the input are joined in the cleaned map.
 
 A check of the whole map, independent of the topology guard (which looks within a window around each
 opened patch and leaves loose pieces out): the regions are those of the whole map where a disc of the
 guard's robot radius fits, with the hidden walls the cleaning draws counted before as well as after
-(they were there, unseen), and regions under the guard's smallest protected area are pockets (the
-inside of a piece of furniture), not places a robot could reach. The maps committed with the tests
-always run; the full data set's (every map of every source: SLAM maps, drawn plans, simulated
+(they were there, unseen). A region counts when it holds the guard's smallest protected area of seen
+free cells (a room) or reaches the map's edge (the outside); unknown cells walled all round are an
+object's unseen inside, removed with it (docs/cleaning.md, 2026-12-05). The maps committed with the
+tests always run; the full data set's (every map of every source: SLAM maps, drawn plans, simulated
 worlds, at 0.03 to 0.1 m per cell) when present.
 """
 
