@@ -94,7 +94,6 @@ from rose.frozen import ReadOnlyArrays, seal
 from rose.grid import FREE, OCCUPIED, UNKNOWN, as_occupancy_grid
 from rose.limits import finite_number, integer_number
 from rose.mapfile import DEFAULT_RESOLUTION_M, OccupancyMap, resolution_problem
-from rose.pipeline import analyze
 from rose.result import RoseResult, check_result_for
 
 __all__ = ["CLEAN_METHODS", "CleanMethod", "CleanParams", "CleanResult", "clean"]
@@ -402,6 +401,9 @@ def clean(
     if method == "walls":
         _check_cells(p, float(resolution_m))
     if result is None:
+        # scipy: loaded when needed (the CLIs' parsers import this module).
+        from rose.pipeline import analyze
+
         result = analyze(occupancy)
     check_result_for(result, occupancy)
     occupied = result.occupied

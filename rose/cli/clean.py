@@ -27,7 +27,6 @@ from rose.directions import degenerate_input
 from rose.errors import MapFileError
 from rose.mapfile import SAVED_OCCUPIED_FROM, OccupancyMap, map_image_path, save_map
 from rose.outputs import STDOUT, OutputSet, suffix_warning
-from rose.pipeline import analyze
 
 __all__ = ["add_parser", "cleaning_summary", "run"]
 
@@ -74,6 +73,8 @@ def run(args: argparse.Namespace) -> int:
     warning = suffix_warning(args.json, ".json", "a JSON report")
     if warning is not None:
         print(warning, file=sys.stderr)
+    from rose.pipeline import analyze  # scipy: loaded by the command, not by the parser
+
     started = time.perf_counter()
     result = analyze(source.grid, params)
     cleaning = clean(source.grid, result, method=args.method, resolution_m=source.resolution_m)

@@ -25,7 +25,6 @@ from rose.directions import degenerate_input
 from rose.errors import RoseError
 from rose.outputs import json_text, reraise_interrupt_behind
 from rose.params import RoseParams
-from rose.pipeline import analyze
 
 __all__ = ["add_parser", "run"]
 
@@ -83,6 +82,7 @@ def run(args: argparse.Namespace) -> int:
 def _score(path: Path, args: argparse.Namespace, params: RoseParams) -> dict[str, Any]:
     """The summary record of one map, or ``{"map", "error"}`` (also printed) when it fails."""
     from rose.cli import error_text  # the package imports this module: import at call time
+    from rose.pipeline import analyze  # scipy: loaded by the command, not by the parser
 
     try:
         source = load_grid_map(path, max_cells=args.max_cells, metric=False)

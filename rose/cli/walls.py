@@ -5,14 +5,14 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-from typing import Any, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
 from rose.cli.options import add_map_arguments, file_arg, float_up_to, load_grid_map, path_arg
 from rose.directions import fold_deg
 from rose.outputs import OutputSet, json_text, suffix_warning
-from rose.pipeline import analyze
-from rose.walls import WallParams, WallSet, extract_walls, extract_walls_hough
-from rose.walls.export import walls_to_geojson, walls_to_svg
+
+if TYPE_CHECKING:
+    from rose.walls import WallSet
 
 __all__ = ["add_parser", "format_walls_table", "run"]
 
@@ -79,6 +79,11 @@ def run(args: argparse.Namespace, *, stdout: TextIO | None = None) -> int:
     ):
         if warning is not None:
             print(warning, file=sys.stderr)
+    # scipy and the wall extraction: loaded by the command, not by the parser.
+    from rose.pipeline import analyze
+    from rose.walls import WallParams, extract_walls, extract_walls_hough
+    from rose.walls.export import walls_to_geojson, walls_to_svg
+
     params = WallParams()
     if args.min_length is not None:
         params = WallParams(min_wall_length_px=args.min_length / occupancy_map.resolution_m)
