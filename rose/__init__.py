@@ -11,8 +11,9 @@ stays light.
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from rose.lazy import lazy_exports
 
 if TYPE_CHECKING:
     from rose.cleaning import CleanParams, CleanResult, clean
@@ -100,6 +101,7 @@ _SUBMODULES = frozenset(
         "frozen",
         "grid",
         "labelling",
+        "lazy",
         "limits",
         "mapfile",
         "outputs",
@@ -116,14 +118,4 @@ _SUBMODULES = frozenset(
 )
 
 
-def __getattr__(name: str) -> Any:
-    if name in _LAZY:
-        return getattr(importlib.import_module(_LAZY[name]), name)
-    if name in _SUBMODULES:
-        return importlib.import_module(f"rose.{name}")
-    msg = f"module 'rose' has no attribute {name!r}"
-    raise AttributeError(msg)
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__) | _SUBMODULES)
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY, __all__, _SUBMODULES)

@@ -8,8 +8,9 @@ evaluation in ``rose_logs.evaluation``; they are imported on demand.
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from rose.lazy import lazy_exports
 
 if TYPE_CHECKING:
     from rose_logs.errors import LogError, LogReadError, LogWriteError, MapMessageError
@@ -51,12 +52,4 @@ _LAZY = {
 }
 
 
-def __getattr__(name: str) -> Any:
-    if name in _LAZY:
-        return getattr(importlib.import_module(_LAZY[name]), name)
-    msg = f"module 'rose_logs' has no attribute {name!r}"
-    raise AttributeError(msg)
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY, __all__)

