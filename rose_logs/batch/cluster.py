@@ -190,6 +190,10 @@ def local_client(
                     memory_limit="auto" if memory_limit is None else memory_limit,
                     host="127.0.0.1",
                     dashboard_address=None,
+                    # The scheduler serves its HTTP routes (health, metrics) even without the
+                    # dashboard, on port 8787 by default: taken by another cluster or a notebook's,
+                    # Dask warned on the user's terminal and moved. Any free port, said nowhere.
+                    scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
                     # What goes wrong is on the recording's row (a dead worker too); Dask's
                     # own ERROR lines (a worker's heartbeat to a scheduler closed by Ctrl-C)
                     # would be tracebacks on the user's terminal.

@@ -357,6 +357,27 @@ def test_sigterm_while_the_local_cluster_starts_exits_143_quietly(tmp_path: Path
     assert len(err.strip().splitlines()) == 1, err
 
 
+@needs_dask
+def test_a_taken_dashboard_port_is_no_warning(tmp_path: Path) -> None:
+    # Port 8787 held, as by another Dask cluster or a notebook's: Dask warned and moved the
+    # scheduler's HTTP server (the tool shows no dashboard).
+    import socket
+
+    held = socket.socket()
+    try:
+        held.bind(("127.0.0.1", 8787))
+        held.listen()
+    except OSError:
+        pass  # taken already: the condition holds anyway
+    try:
+        process = _start_batch(SAMPLE, tmp_path / "out", "--workers", "2")
+        code, err = _finish(process)
+    finally:
+        held.close()
+    assert code == 0, err
+    assert "8787" not in err and "Warning" not in err, err
+
+
 # ---- signals in this process ------------------------------------------------------------------------
 
 
