@@ -60,6 +60,7 @@ from rose_logs.session.report import (
 )
 from rose_logs.session.topics import (
     orphan_updates,
+    rose_topics_in,
     select_topics,
     update_targets,
     warn_shared_map_topics,
@@ -169,9 +170,10 @@ def process_log(
         Snapshots analysed at once, in threads, while messages are copied and results written in
         log order (outputs do not depend on it). Each costs one analysis of memory.
     replace_rose_topics : bool, default False
-        An input that holds ``<map>/rose/*`` topics of the analysed maps already (a processed log):
-        write them anew, leaving the input's out of the output log. False: such an input is refused
-        for an output log (it would hold two sets of them).
+        An input that holds ``<map>/rose/*`` topics already (a processed log; of any of its maps,
+        analysed now or not): leave them all out of the output log and write the analysed maps'
+        anew (the output of the log as it was before). False: such an input is refused for an
+        output log (it would hold results of two runs, made with two sets of options).
 
     Returns
     -------
@@ -490,13 +492,23 @@ def _prepare_output(
 ) -> tuple[dict[int, int], dict[str, tuple[int, int, int]]]:
     """Output connections: input channel id -> handle, and map topic -> derived handles.
 
-    ``replace``: the input's own ``<map>/rose/*`` channels of ``map_topics`` get no handle (their
-    messages are left out: :meth:`_Loop._copy`), so that they can be written anew.
+    The input's own ``<map>/rose/*`` channels (:func:`rose_topics_in`: of every map in it, analysed
+    or not) refuse it without ``replace`` (the output would hold results of two runs, with two sets
+    of options); with ``replace`` they get no handle (their messages are left out:
+    :meth:`_Loop._copy`), and the analysed maps' are written anew: the output of the log as it was
+    before any run.
     """
     if writer is None:
         return {}, {}
-    ours = {name for topic in map_topics for name in derived_topics(topic).names}
-    handles = {c.id: writer.add_channel(c) for c in channels if not (replace and c.topic in ours)}
+    earlier = rose_topics_in(channels, map_topics)
+    if earlier and not replace:
+        msg = (
+            f"{input_path}: has topic {earlier[0]} already (processed before?); "
+            "--replace-rose-topics writes it anew"
+        )
+        raise LogWriteError(msg)
+    left_out = set(earlier)
+    handles = {c.id: writer.add_channel(c) for c in channels if c.topic not in left_out}
     derived = {}
     owners: dict[str, str] = {}  # derived topic -> the map topic it is made from
     for topic in map_topics:

@@ -22,6 +22,7 @@ __all__ = [
     "is_derived_topic",
     "orphan_updates",
     "publishers",
+    "rose_topics_in",
     "select_topics",
     "update_targets",
     "warn_shared_map_topics",
@@ -42,6 +43,16 @@ def is_derived_topic(topic: str) -> bool:
     Only the exact suffix counts: ``/rose/map`` (a robot called rose) is a map like any other.
     """
     return topic.endswith(_DERIVED_MAP_SUFFIX)
+
+
+def rose_topics_in(channels: Sequence[Channel], map_topics: Sequence[str] = ()) -> list[str]:
+    """Topics of ``channels`` that are ``<map>/rose/*`` outputs of a run before, sorted: those of
+    every map of the log (``map_topics`` and the maps in ``channels``), and all three of any
+    cleaned map (``<map>/rose/cleaned``) whose map is not in the log."""
+    maps = {*map_topics, *(c.topic for c in channels if c.msgtype == MAP_TYPE)}
+    maps |= {t[: -len(_DERIVED_MAP_SUFFIX)] for t in maps if is_derived_topic(t)}
+    ours = {name for topic in maps for name in derived_topics(topic).names}
+    return sorted({c.topic for c in channels if c.topic in ours})
 
 
 def find_map_topics(channels: Sequence[Channel]) -> tuple[str, ...]:

@@ -563,22 +563,24 @@ def test_processing_a_processed_log_names_the_input(
     assert not twice.exists()
 
 
+def by_topic(path: Path) -> dict[str, list[tuple[int, bytes]]]:
+    """Every message of the log at ``path``: topic -> (log time, data), in log order."""
+    from rose_logs.reader import LogReader
+
+    topics: dict[str, list[tuple[int, bytes]]] = {}
+    with LogReader(path) as reader:
+        for message in reader.messages():
+            topics.setdefault(message.channel.topic, []).append(
+                (message.log_time_ns, bytes(message.data))
+            )
+    return topics
+
+
 def test_a_processed_log_gets_its_rose_topics_written_anew_on_request(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """Re-cleaning a processed log with other options: --replace-rose-topics leaves the input's
     own <map>/rose/* messages out and writes new ones, as processing the original log would."""
-    from rose_logs.reader import LogReader
-
-    def by_topic(path: Path) -> dict[str, list[tuple[int, bytes]]]:
-        topics: dict[str, list[tuple[int, bytes]]] = {}
-        with LogReader(path) as reader:
-            for message in reader.messages():
-                topics.setdefault(message.channel.topic, []).append(
-                    (message.log_time_ns, bytes(message.data))
-                )
-        return topics
-
     once, again, direct = (tmp_path / f"{n}.mcap" for n in ("once", "again", "direct"))
     paper = ["--clean-method", "paper", "-q"]
     assert main(["process", str(SAMPLE), "-o", str(once), "-q"]) == 0
@@ -591,6 +593,32 @@ def test_a_processed_log_gets_its_rose_topics_written_anew_on_request(
     assert got == want
     assert len(got["/map/rose/cleaned"]) == len(got["/map"]) == 14
     assert got["/map/rose/cleaned"] != first["/map/rose/cleaned"]  # walls cleaning, then paper
+
+
+def test_the_rose_topics_of_maps_not_analysed_are_replaced_too(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], fr079
+) -> None:
+    """A log processed for /map, processed again for /local_map: refused without
+    --replace-rose-topics (the output would hold /map/rose/* of the first run beside this run's,
+    made with other options); with it, /map/rose/* is left out too, as processing the original log
+    for /local_map would."""
+    maps = [
+        MapMsg(START_NS, fr079[0], topic="/map"),
+        MapMsg(START_NS + 1, fr079[1], topic="/local_map"),
+    ]
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps).path
+    once, again, direct = (tmp_path / f"{n}.mcap" for n in ("once", "again", "direct"))
+    second = ["-t", "/local_map", "--clean-method", "paper", "-q"]
+    assert main(["process", str(built), "-t", "/map", "-o", str(once), "-q"]) == 0
+    capsys.readouterr()
+    assert main(["process", str(once), "-o", str(again), *second]) == 1
+    assert f"error: {once}: has topic /map/rose/cleaned already" in capsys.readouterr().err
+    assert not again.exists()
+    assert main(["process", str(once), "-o", str(again), "--replace-rose-topics", *second]) == 0
+    assert main(["process", str(built), "-o", str(direct), *second]) == 0
+    got = by_topic(again)
+    assert got == by_topic(direct)
+    assert "/local_map/rose/cleaned" in got and "/map/rose/cleaned" not in got
 
 
 def test_empty_first_maps_do_not_trip_the_w_gate(
