@@ -500,6 +500,17 @@ def _prepare_output(
     """
     if writer is None:
         return {}, {}
+    first_of = {}
+    for c in channels:
+        if c.message_encoding in {"ros1", "cdr"}:
+            first_of.setdefault(c.message_encoding, c.topic)
+    if len(first_of) > 1:
+        msg = (
+            f"{input_path}: mixes ROS 1 and ROS 2 messages ({first_of['ros1']} and "
+            f"{first_of['cdr']}, as a merged MCAP file may); an output log holds one kind: "
+            "--no-output reads it, or write each kind's topics from a log of their own"
+        )
+        raise LogWriteError(msg)
     earlier = rose_topics_in(channels, map_topics)
     if earlier and not replace:
         msg = (
@@ -617,6 +628,11 @@ class _Loop:
         self.rerun = rerun
         self.on_snapshot = on_snapshot
         self.serialization = reader.serialization
+        # Each topic's own: an MCAP file may mix ROS 1 and ROS 2 channels (a merged recording).
+        self.encodings: dict[str, str] = {}
+        for channel in reader.channels:
+            if channel.message_encoding in {"ros1", "cdr"}:
+                self.encodings.setdefault(channel.topic, channel.message_encoding)
         self.last_map: dict[str, MapSnapshot] = {}
         self.count: dict[str, int] = {}
         self.above: dict[str, bool] = {}
@@ -736,7 +752,10 @@ class _Loop:
         try:
             check_log_time(topic, log_time_ns)
             snapshot = decode_map(
-                data, serialization=self.serialization, topic=topic, log_time_ns=log_time_ns
+                data,
+                serialization=self.encodings.get(topic, self.serialization),
+                topic=topic,
+                log_time_ns=log_time_ns,
             )
         except MapMessageError as err:
             self.skips.add("malformed", f"{short(err, 240)} {self._at(log_time_ns)}")
@@ -775,7 +794,10 @@ class _Loop:
         try:
             check_log_time(topic, log_time_ns)
             update = decode_update(
-                data, serialization=self.serialization, topic=topic, log_time_ns=log_time_ns
+                data,
+                serialization=self.encodings.get(topic, self.serialization),
+                topic=topic,
+                log_time_ns=log_time_ns,
             )
             base = self.last_map.get(target)
             if base is None:

@@ -621,6 +621,58 @@ def test_the_rose_topics_of_maps_not_analysed_are_replaced_too(
     assert "/local_map/rose/cleaned" in got and "/map/rose/cleaned" not in got
 
 
+def test_an_mcap_mixing_ros1_and_ros2_channels_is_read_by_each_channels_encoding(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], fr079
+) -> None:
+    """A merged MCAP file (``mcap merge`` of a ROS 1 and a ROS 2 recording): each map decodes by its
+    own channel's encoding (the ROS 1 one was read as CDR and skipped as malformed); an output log,
+    which holds one kind, is refused in one line."""
+    from mcap.reader import make_reader
+    from mcap.writer import Writer
+
+    ros1 = build_log(tmp_path / "r1.mcap", "mcap-ros1", [MapMsg(START_NS, fr079[0])]).path
+    ros2 = build_log(tmp_path / "r2.mcap", "mcap-ros2", [MapMsg(START_NS + 1, fr079[1])]).path
+    merged = tmp_path / "merged.mcap"
+    with merged.open("wb") as stream:
+        writer = Writer(stream)
+        writer.start(profile="", library="test")
+        for source, prefix in ((ros1, "/robot1"), (ros2, "/robot2")):
+            with source.open("rb") as f:
+                reader = make_reader(f)
+                summary = reader.get_summary()
+                assert summary is not None
+                schemas = {
+                    i: writer.register_schema(s.name, s.encoding, s.data)
+                    for i, s in summary.schemas.items()
+                }
+                channels = {
+                    i: writer.register_channel(
+                        prefix + c.topic, c.message_encoding, schemas[c.schema_id], c.metadata
+                    )
+                    for i, c in summary.channels.items()
+                }
+                for _, channel, message in reader.iter_messages():
+                    writer.add_message(
+                        channels[channel.id], message.log_time, message.data, message.publish_time
+                    )
+        writer.finish()
+    report = tmp_path / "r.json"
+    assert main(["process", str(merged), "--no-output", "--json", str(report), "-q"]) == 0
+    topics = json.loads(report.read_text())["topics"]
+    assert {t: topics[t]["snapshots"] for t in ("/robot1/map", "/robot2/map")} == {
+        "/robot1/map": 1,
+        "/robot2/map": 1,
+    }
+    assert "cannot decode" not in capsys.readouterr().err
+    out = tmp_path / "out.mcap"
+    assert main(["process", str(merged), "-o", str(out), "-q"]) == 1
+    err = capsys.readouterr().err
+    assert (
+        err.startswith(f"error: {merged}: mixes ROS 1 and ROS 2 messages") and err.count("\n") == 1
+    )
+    assert not out.exists()
+
+
 def test_empty_first_maps_do_not_trip_the_w_gate(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], fr079
 ) -> None:
