@@ -87,6 +87,8 @@ def detect_format(path: Path) -> LogFormat:
         b"\xef\xbb\xbf \t\r\n"
     ).startswith(carmen_words):
         msg += "; a CARMEN laser log becomes a session with 'rose-bag convert'"
+    elif path.name == "metadata.yaml":
+        msg += f"; a ROS 2 bag's metadata: give its folder, {path.parent}"
     raise LogReadError(msg)
 
 

@@ -104,13 +104,18 @@ def test_short_cuts_long_messages() -> None:
 
 def test_short_cuts_between_words_and_keeps_a_deep_path_whole() -> None:
     """A truncated log under a deep folder: the cut fell in "--salvage (pro...", which reads like
-    another word; the file name at the start must stay whole (which file it is)."""
-    path = "/data/" + "a" * 150 + "/" + "b" * 100 + "/run.mcap"
-    message = (
-        f"{path}: truncated MCAP file; --salvage (process, info, batch) keeps what can be read"
-    )
-    text = short(message)
+    another word; the file name at the start must stay whole (which file it is), and the problem
+    must still show after a name of nearly the whole limit or more (it was cut away)."""
+    short_path = "/data/" + "a" * 60 + "/run.mcap"
+    problem = "truncated MCAP file; --salvage (process, info, batch) keeps what can be read " * 4
+    text = short(f"{short_path}: {problem}")
     assert len(text) <= 300 and text.endswith("...")
-    assert text.startswith(f"{path}: truncated MCAP file;")
-    assert message.startswith(text[:-3]) and message[len(text) - 3] == " "  # a whole word last
+    assert text.startswith(f"{short_path}: truncated MCAP file;")
+    assert problem.startswith(text[len(short_path) + 2 : -3])
+    assert problem[len(text) - len(short_path) - 5] == " "  # a whole word last
+    for deep in (150, 280, 500):
+        path = "/data/" + "d" * deep + "/run.mcap"
+        text = short(f"{path}: {problem}")
+        assert text.startswith(f"{path}: truncated MCAP file; --salvage (process, info, batch)")
+        assert len(text) <= len(path) + 2 + 150 and text.endswith("...")
     assert len(short("x" * 10_000)) == 300  # one enormous word: cut inside it

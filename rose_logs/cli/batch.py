@@ -16,6 +16,7 @@ from rose_logs.cli.options import (
     add_gate_arguments,
     add_session_arguments,
     hold_opencv_to_one_thread,
+    topic_arg,
     unjudged_topics,
 )
 
@@ -171,7 +172,13 @@ def add_parser(subparsers: Any) -> None:
     )
     work = parser.add_argument_group("per recording (as `process`)")
     work.add_argument(
-        "-t", "--topic", action="append", default=None, dest="topics", help="map topic (repeatable)"
+        "-t",
+        "--topic",
+        action="append",
+        default=None,
+        dest="topics",
+        type=topic_arg,
+        help="map topic (repeatable)",
     )
     work.add_argument(
         "--cleaned", action="store_true", help="write each cleaned log to OUT/cleaned/<name>"

@@ -6,6 +6,7 @@ The ROSE tuning options themselves are defined once in :mod:`rose.cli.options` a
 
 from __future__ import annotations
 
+import argparse
 from collections.abc import Collection, Iterable
 from datetime import UTC, datetime
 from pathlib import Path
@@ -24,6 +25,7 @@ __all__ = [
     "duration_text",
     "hold_opencv_to_one_thread",
     "output_log_path",
+    "topic_arg",
     "unjudged_topics",
     "utc_text",
 ]
@@ -64,6 +66,15 @@ def output_log_path(text: str | None, fmt: str | None) -> Path | None:
         )
         raise UsageError(msg)
     return Path(text)
+
+
+def topic_arg(text: str) -> str:
+    """argparse type: a topic name; an empty one (``-t ""``, an unset shell variable) is a usage
+    error, not a topic the log lacks."""
+    if not text.strip():
+        msg = "a topic name cannot be empty"
+        raise argparse.ArgumentTypeError(msg)
+    return text
 
 
 def utc_text(time_ns: int) -> str:

@@ -27,6 +27,7 @@ from rose_logs.cli.options import (
     duration_text,
     hold_opencv_to_one_thread,
     output_log_path,
+    topic_arg,
     unjudged_topics,
     utc_text,
 )
@@ -72,6 +73,7 @@ def add_parser(subparsers: Any) -> None:
         action="append",
         default=None,
         dest="topics",
+        type=topic_arg,
         help="map topic to analyse (repeatable; default: every OccupancyGrid topic)",
     )
     parser.add_argument("--rrd", type=file_arg, default=None, help="save a Rerun recording here")

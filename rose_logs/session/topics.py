@@ -122,13 +122,17 @@ def default_output_path(input_path: Path, fmt: LogFormat | None = None) -> Path:
     A path without a name of its own (``.``, ``bags/..``) is named by its absolute form. A storage
     file inside a ROS 2 bag folder gets its output beside that folder, never inside the input bag.
     A ROS 2 log named as ROS 1 (an MCAP file named ``.bag``) keeps its own format: ``run.rose.bag``
-    could not hold its messages, and the caller named no output.
+    could not hold its messages, and the caller named no output. A file whose name says no format
+    gets its content's suffix (``run`` holding MCAP -> ``run.rose.mcap``).
     """
     path = Path(input_path)
-    if fmt is None and format_from_path(path) == "ros1":
+    named = format_from_path(path)
+    if fmt is None and named in (None, "ros1") and not path.is_dir():
+        # A name that says no format (``run``, ``run.log``) or ROS 1: the content's format, so
+        # that the output's name says what it holds.
         with contextlib.suppress(LogReadError):  # unreadable: the reader says so, naming the input
             detected = detect_format(path)
-            if detected != "ros1":
+            if detected != named:
                 fmt = detected
     if path.name in ("", ".", ".."):
         path = path.resolve()

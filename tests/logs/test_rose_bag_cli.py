@@ -844,3 +844,36 @@ def test_maps_finer_than_a_millimetre_are_cleaned_by_the_paper_with_one_warning(
     assert len(warnings) == 1 and warnings[0].startswith("warning: /map: maps finer than")
     snapshots = json.loads(report.read_text())["snapshots"]
     assert len(snapshots) == 3 and all(s["completed"] == 0 for s in snapshots)
+
+
+def test_an_input_whose_name_says_no_format_gets_its_contents_suffix(tmp_path: Path) -> None:
+    """``run`` or ``run.log`` holding MCAP: the default output was ``run.rose`` or
+    ``run.rose.log``, a name that says nothing of what it holds."""
+    import shutil
+
+    for name, expected in (("run", "run.rose.mcap"), ("run.log", "run.rose.mcap")):
+        (tmp_path / expected).unlink(missing_ok=True)
+        log = tmp_path / name
+        shutil.copyfile(SAMPLE, log)
+        assert default_output_path(log) == tmp_path / expected
+        assert main(["process", str(log), "-q"]) == 0
+        assert (tmp_path / expected).is_file()
+
+
+def test_an_empty_topic_name_is_a_usage_error(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as done:
+        main(["process", str(SAMPLE), "-t", "", "--no-output"])
+    assert done.value.code == 2
+    assert "a topic name cannot be empty" in capsys.readouterr().err
+
+
+def test_a_bags_metadata_given_as_the_input_points_to_its_folder(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    bag = tmp_path / "run"
+    assert main(["process", str(SAMPLE), "--format", "db3", "-o", str(bag), "-q"]) == 0
+    capsys.readouterr()
+    assert main(["process", str(bag / "metadata.yaml"), "--no-output", "-q"]) == 1
+    err = capsys.readouterr().err
+    assert err.strip().endswith(f"a ROS 2 bag's metadata: give its folder, {bag}")
+    assert main(["process", str(bag), "--no-output", "-q"]) == 0
