@@ -15,8 +15,8 @@ from rose_logs.cli.options import (
     UsageError,
     add_gate_arguments,
     add_session_arguments,
+    add_topic_argument,
     hold_opencv_to_one_thread,
-    topic_arg,
     unjudged_topics,
 )
 
@@ -171,15 +171,7 @@ def add_parser(subparsers: Any) -> None:
         help="fsspec option for remote inputs and OUT, e.g. endpoint_url=http://host:9000",
     )
     work = parser.add_argument_group("per recording (as `process`)")
-    work.add_argument(
-        "-t",
-        "--topic",
-        action="append",
-        default=None,
-        dest="topics",
-        type=topic_arg,
-        help="map topic (repeatable)",
-    )
+    add_topic_argument(work)
     work.add_argument(
         "--cleaned", action="store_true", help="write each cleaned log to OUT/cleaned/<name>"
     )

@@ -22,6 +22,7 @@ __all__ = [
     "UsageError",
     "add_gate_arguments",
     "add_session_arguments",
+    "add_topic_argument",
     "duration_text",
     "hold_opencv_to_one_thread",
     "output_log_path",
@@ -75,6 +76,19 @@ def topic_arg(text: str) -> str:
         msg = "a topic name cannot be empty"
         raise argparse.ArgumentTypeError(msg)
     return text
+
+
+def add_topic_argument(parser: Any) -> None:
+    """``-t / --topic`` (repeatable, into ``topics``): the map topics to analyse."""
+    parser.add_argument(
+        "-t",
+        "--topic",
+        action="append",
+        default=None,
+        dest="topics",
+        type=topic_arg,
+        help="map topic to analyse (repeatable; default: every OccupancyGrid topic)",
+    )
 
 
 def utc_text(time_ns: int) -> str:

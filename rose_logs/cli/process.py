@@ -24,10 +24,10 @@ from rose_logs.cli.options import (
     UsageError,
     add_gate_arguments,
     add_session_arguments,
+    add_topic_argument,
     duration_text,
     hold_opencv_to_one_thread,
     output_log_path,
-    topic_arg,
     unjudged_topics,
     utc_text,
 )
@@ -67,15 +67,7 @@ def add_parser(subparsers: Any) -> None:
     parser.add_argument(
         "-f", "--force", action="store_true", help="replace an existing output / recording"
     )
-    parser.add_argument(
-        "-t",
-        "--topic",
-        action="append",
-        default=None,
-        dest="topics",
-        type=topic_arg,
-        help="map topic to analyse (repeatable; default: every OccupancyGrid topic)",
-    )
+    add_topic_argument(parser)
     parser.add_argument("--rrd", type=file_arg, default=None, help="save a Rerun recording here")
     parser.add_argument(
         "--spawn", action="store_true", help="stream to a new Rerun viewer as the session runs"
