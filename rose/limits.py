@@ -57,15 +57,20 @@ def short(text: object, limit: int = MAX_MESSAGE_CHARS) -> str:
     """``text`` as one line of at most ``limit`` characters: whitespace runs made single spaces,
     then, if still too long, cut after its last whole word that fits, with ``...`` (a cut in the
     middle of a word read like another word: "--salvage (pro..."). A file name at its start (up to
-    the first ``": "``) stays whole; one longer than half the limit (deep folders) is followed by
-    the problem cut to half the limit, so that the line still says what went wrong (a longer line
-    than the limit, by the name's excess)."""
+    the first ``": "``, with a ``/`` in it) stays whole up to half the limit; a longer one (deep
+    folders) loses the middle of its folders, keeping its start and its file's name, so that the
+    line still says what went wrong."""
     line = " ".join(str(text).split())
     if len(line) <= limit:
         return line
     name, sep, problem = line.partition(": ")
-    if sep and len(name) > limit // 2:
-        return f"{name}: {short(problem, limit // 2)}"
+    half = limit // 2
+    if sep and "/" in name and len(name) > half:
+        folder, slash, base = name.rpartition("/")
+        tail = slash + base if len(base) < half - 20 else slash + base[-(half - 20) :]
+        line = f"{folder[: half - len(tail) - 3]}...{tail}: {problem}"
+        if len(line) <= limit:
+            return line
     cut = line.rfind(" ", 0, limit - 2)  # the space before "..." may fall at limit - 3
     if cut < limit // 2:  # one enormous word: cut inside it
         cut = limit - 3

@@ -105,13 +105,12 @@ def make_params(params: RoseParams | None = None, **overrides: Any) -> RoseParam
     return merged
 
 
-#: Largest spectrum length a parameter takes, cells (a map of 1e6 cells a side has 1e12 cells).
 #: Shortest padded side of a map whose longer side reaches it. A side of a few cells samples the
 #: spectrum too coarsely to tell directions apart (a 300 x 12 strip read as 0 degrees, a 3 x 200 one
 #: as having no direction while its transpose had one); padding it to this costs next to nothing.
 MIN_PADDED_SIDE = 16
 
-
+#: Largest spectrum length a parameter takes, cells (a map of 1e6 cells a side has 1e12 cells).
 MAX_SPECTRUM_PX = 1e6
 
 #: Direction bins from 0.01 to 30 degrees wide (finer takes memory, coarser loses the peaks).

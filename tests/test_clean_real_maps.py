@@ -149,6 +149,21 @@ def test_the_check_sees_a_wall_opened() -> None:
     assert joined_regions(box, open_box, ~box, radius_px=3.0, min_region_px=100) == 1
 
 
+def test_without_the_guard_real_maps_in_the_repository_open(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # The check has teeth on the repository's maps alone: two Bormann buildings open without the
+    # topology guard.
+    import rose.cleaning_rules
+
+    monkeypatch.setattr(
+        rose.cleaning_rules, "topology_guard", lambda occupied, *_, **__: np.zeros_like(occupied)
+    )
+    for name in ("lab_d_scan.png", "Freiburg101_scan.png"):
+        joined, _ = regions_joined_by_cleaning(REPO_DATA / BORMANN_DIR / name)
+        assert joined >= 1, name
+
+
 @pytest.mark.parametrize("source", [BORMANN_DIR, FR079_DIR, "aws_small_warehouse_005"])
 def test_the_repositorys_real_maps_stay_closed(source: str) -> None:
     assert_all_closed(map_files(REPO_DATA / source))

@@ -104,8 +104,9 @@ def test_short_cuts_long_messages() -> None:
 
 def test_short_cuts_between_words_and_keeps_a_deep_path_whole() -> None:
     """A truncated log under a deep folder: the cut fell in "--salvage (pro...", which reads like
-    another word; the file name at the start must stay whole (which file it is), and the problem
-    must still show after a name of nearly the whole limit or more (it was cut away)."""
+    another word; the file name at the start must stay whole (which file it is), and after a name
+    longer than half the limit the problem must still show (it was cut away): the name loses the
+    middle of its folders."""
     short_path = "/data/" + "a" * 60 + "/run.mcap"
     problem = "truncated MCAP file; --salvage (process, info, batch) keeps what can be read " * 4
     text = short(f"{short_path}: {problem}")
@@ -113,9 +114,14 @@ def test_short_cuts_between_words_and_keeps_a_deep_path_whole() -> None:
     assert text.startswith(f"{short_path}: truncated MCAP file;")
     assert problem.startswith(text[len(short_path) + 2 : -3])
     assert problem[len(text) - len(short_path) - 5] == " "  # a whole word last
-    for deep in (150, 280, 500):
+    for deep in (150, 280, 5000):
         path = "/data/" + "d" * deep + "/run.mcap"
         text = short(f"{path}: {problem}")
-        assert text.startswith(f"{path}: truncated MCAP file; --salvage (process, info, batch)")
-        assert len(text) <= len(path) + 2 + 150 and text.endswith("...")
+        assert len(text) <= 300 and text.startswith("/data/ddd")
+        name, _, said = text.partition(": ")
+        assert name.endswith(".../run.mcap") and len(name) == 150  # its folders' middle left out
+        assert said.startswith("truncated MCAP file; --salvage (process, info, batch)")
+    # Not a file name first: cut as any text.
+    text = short("the map could not be read because " + "very " * 100 + "long: detail")
+    assert len(text) <= 300 and text.endswith(" very...")
     assert len(short("x" * 10_000)) == 300  # one enormous word: cut inside it

@@ -7,6 +7,7 @@ walls, break detection in sessions and the cleaning benchmark.
 
 from __future__ import annotations
 
+import pkgutil
 from typing import TYPE_CHECKING
 
 from rose.lazy import lazy_exports
@@ -36,4 +37,6 @@ __getattr__, __dir__ = lazy_exports(
         "run_evaluation": "rose_logs.evaluation.report",
     },
     __all__,
+    # ``rose_logs.evaluation.report`` after a plain ``import rose_logs.evaluation``, as before.
+    tuple(module.name for module in pkgutil.iter_modules(__path__)),
 )

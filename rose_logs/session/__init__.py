@@ -6,6 +6,7 @@ and writes, :mod:`.analysis` the per-snapshot ROSE run with reuse, :mod:`rose_lo
 
 from __future__ import annotations
 
+import pkgutil
 from typing import TYPE_CHECKING
 
 from rose.lazy import lazy_exports
@@ -52,4 +53,6 @@ __getattr__, __dir__ = lazy_exports(
         "is_derived_topic": "rose_logs.session.topics",
     },
     __all__,
+    # ``rose_logs.session.loop`` after a plain ``import rose_logs.session``, as before.
+    tuple(module.name for module in pkgutil.iter_modules(__path__)),
 )

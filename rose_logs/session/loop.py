@@ -500,7 +500,7 @@ def _prepare_output(
     """
     if writer is None:
         return {}, {}
-    first_of = {}
+    first_of: dict[str, str] = {}
     for c in channels:
         if c.message_encoding in {"ros1", "cdr"}:
             first_of.setdefault(c.message_encoding, c.topic)
@@ -515,7 +515,7 @@ def _prepare_output(
     if earlier and not replace:
         msg = (
             f"{input_path}: has topic {earlier[0]} already (processed before?); "
-            "--replace-rose-topics writes it anew"
+            "--replace-rose-topics leaves it out and writes this run's"
         )
         raise LogWriteError(msg)
     left_out = set(earlier)
@@ -532,12 +532,6 @@ def _prepare_output(
                 )
                 raise LogWriteError(msg)
             owners[name] = topic
-            if writer.has_topic(name):
-                msg = (
-                    f"{input_path}: has topic {name} already (processed before?); "
-                    "--replace-rose-topics writes it anew"
-                )
-                raise LogWriteError(msg)
         source = next(c for c in channels if c.topic == topic)
         qos = offered_qos(source)
         latched = (
@@ -628,11 +622,6 @@ class _Loop:
         self.rerun = rerun
         self.on_snapshot = on_snapshot
         self.serialization = reader.serialization
-        # Each topic's own: an MCAP file may mix ROS 1 and ROS 2 channels (a merged recording).
-        self.encodings: dict[str, str] = {}
-        for channel in reader.channels:
-            if channel.message_encoding in {"ros1", "cdr"}:
-                self.encodings.setdefault(channel.topic, channel.message_encoding)
         self.last_map: dict[str, MapSnapshot] = {}
         self.count: dict[str, int] = {}
         self.above: dict[str, bool] = {}
@@ -671,9 +660,9 @@ class _Loop:
                 self._copy(message)
                 is_map = channel.topic in self.map_topics and channel.msgtype == MAP_TYPE
                 if is_map:
-                    self._on_map(message.data, channel.topic, message.log_time_ns)
+                    self._on_map(message.data, channel, message.log_time_ns)
                 elif channel.topic in self.updates:
-                    self._on_update(message.data, channel.topic, message.log_time_ns)
+                    self._on_update(message.data, channel, message.log_time_ns)
                 elif channel.topic in self.orphans:
                     self.skips.add(
                         "updates of no known map",
@@ -748,12 +737,19 @@ class _Loop:
         """Map messages copied unprocessed."""
         return self.skips.total
 
-    def _on_map(self, data: bytes | memoryview, topic: str, log_time_ns: int) -> None:
+    def _encoding(self, channel: Channel) -> str:
+        """How ``channel``'s messages are serialised: its own encoding (an MCAP file may mix ROS 1
+        and ROS 2 channels, on one topic too: a merged recording), else the log's."""
+        encoding = channel.message_encoding
+        return encoding if encoding in {"ros1", "cdr"} else self.serialization
+
+    def _on_map(self, data: bytes | memoryview, channel: Channel, log_time_ns: int) -> None:
+        topic = channel.topic
         try:
             check_log_time(topic, log_time_ns)
             snapshot = decode_map(
                 data,
-                serialization=self.encodings.get(topic, self.serialization),
+                serialization=self._encoding(channel),
                 topic=topic,
                 log_time_ns=log_time_ns,
             )
@@ -789,13 +785,14 @@ class _Loop:
             self.said.add((topic, what))
             _LOG.warning("%s", text)
 
-    def _on_update(self, data: bytes | memoryview, topic: str, log_time_ns: int) -> None:
+    def _on_update(self, data: bytes | memoryview, channel: Channel, log_time_ns: int) -> None:
+        topic = channel.topic
         target = self.updates[topic]
         try:
             check_log_time(topic, log_time_ns)
             update = decode_update(
                 data,
-                serialization=self.encodings.get(topic, self.serialization),
+                serialization=self._encoding(channel),
                 topic=topic,
                 log_time_ns=log_time_ns,
             )

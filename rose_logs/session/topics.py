@@ -123,10 +123,12 @@ def default_output_path(input_path: Path, fmt: LogFormat | None = None) -> Path:
     file inside a ROS 2 bag folder gets its output beside that folder, never inside the input bag.
     A ROS 2 log named as ROS 1 (an MCAP file named ``.bag``) keeps its own format: ``run.rose.bag``
     could not hold its messages, and the caller named no output. A file whose name says no format
-    gets its content's suffix (``run`` holding MCAP -> ``run.rose.mcap``).
+    gets its content's suffix after its whole name (``run`` holding MCAP -> ``run.rose.mcap``,
+    ``run.1`` -> ``run.1.rose.mcap``).
     """
     path = Path(input_path)
     named = format_from_path(path)
+    whole = False  # the name has no format's suffix: it is kept whole
     if fmt is None and named in (None, "ros1") and not path.is_dir():
         # A name that says no format (``run``, ``run.log``) or ROS 1: the content's format, so
         # that the output's name says what it holds.
@@ -134,12 +136,19 @@ def default_output_path(input_path: Path, fmt: LogFormat | None = None) -> Path:
             detected = detect_format(path)
             if detected != named:
                 fmt = detected
+                if named is None:
+                    # A suffix that names no format is part of the name: ``run.1`` and ``run.2``
+                    # get two outputs, not both ``run.rose.mcap``.
+                    whole = True
     if path.name in ("", ".", ".."):
         path = path.resolve()
     if not path.name:
         msg = f"{input_path}: no file name to name the output after; give one with -o"
         raise LogWriteError(msg)
-    name = processed_name(path.name, is_dir=path.is_dir(), fmt=fmt)
+    # (processed_name cuts the last suffix: an empty one, when the name is kept whole.)
+    name = processed_name(
+        path.name.rstrip(".") + "." if whole else path.name, is_dir=path.is_dir(), fmt=fmt
+    )
     folder = path.parent
     bag = enclosing_bag_folder(path)
     if bag is not None and folder.absolute() == bag:  # beside the input bag, not inside it

@@ -586,7 +586,7 @@ def test_a_processed_log_gets_its_rose_topics_written_anew_on_request(
     assert main(["process", str(SAMPLE), "-o", str(once), "-q"]) == 0
     capsys.readouterr()
     assert main(["process", str(once), "-o", str(again), *paper]) == 1
-    assert "--replace-rose-topics writes it anew" in capsys.readouterr().err
+    assert "--replace-rose-topics leaves it out and writes this run's" in capsys.readouterr().err
     assert main(["process", str(once), "-o", str(again), "--replace-rose-topics", *paper]) == 0
     assert main(["process", str(SAMPLE), "-o", str(direct), *paper]) == 0
     got, want, first = by_topic(again), by_topic(direct), by_topic(once)
@@ -621,12 +621,14 @@ def test_the_rose_topics_of_maps_not_analysed_are_replaced_too(
     assert "/local_map/rose/cleaned" in got and "/map/rose/cleaned" not in got
 
 
+@pytest.mark.parametrize("prefixes", [("/robot1", "/robot2"), ("", "")])
 def test_an_mcap_mixing_ros1_and_ros2_channels_is_read_by_each_channels_encoding(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str], fr079
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], fr079, prefixes: tuple[str, str]
 ) -> None:
     """A merged MCAP file (``mcap merge`` of a ROS 1 and a ROS 2 recording): each map decodes by its
     own channel's encoding (the ROS 1 one was read as CDR and skipped as malformed); an output log,
-    which holds one kind, is refused in one line."""
+    which holds one kind, is refused in one line. Also when both recordings' maps share a topic
+    (two recordings of one robot)."""
     from mcap.reader import make_reader
     from mcap.writer import Writer
 
@@ -636,7 +638,7 @@ def test_an_mcap_mixing_ros1_and_ros2_channels_is_read_by_each_channels_encoding
     with merged.open("wb") as stream:
         writer = Writer(stream)
         writer.start(profile="", library="test")
-        for source, prefix in ((ros1, "/robot1"), (ros2, "/robot2")):
+        for source, prefix in zip((ros1, ros2), prefixes, strict=True):
             with source.open("rb") as f:
                 reader = make_reader(f)
                 summary = reader.get_summary()
@@ -659,10 +661,8 @@ def test_an_mcap_mixing_ros1_and_ros2_channels_is_read_by_each_channels_encoding
     report = tmp_path / "r.json"
     assert main(["process", str(merged), "--no-output", "--json", str(report), "-q"]) == 0
     topics = json.loads(report.read_text())["topics"]
-    assert {t: topics[t]["snapshots"] for t in ("/robot1/map", "/robot2/map")} == {
-        "/robot1/map": 1,
-        "/robot2/map": 1,
-    }
+    maps = [f"{prefix}/map" for prefix in prefixes]
+    assert sum(topics[t]["snapshots"] for t in set(maps)) == 2
     assert "cannot decode" not in capsys.readouterr().err
     out = tmp_path / "out.mcap"
     assert main(["process", str(merged), "-o", str(out), "-q"]) == 1
@@ -848,10 +848,18 @@ def test_maps_finer_than_a_millimetre_are_cleaned_by_the_paper_with_one_warning(
 
 def test_an_input_whose_name_says_no_format_gets_its_contents_suffix(tmp_path: Path) -> None:
     """``run`` or ``run.log`` holding MCAP: the default output was ``run.rose`` or
-    ``run.rose.log``, a name that says nothing of what it holds."""
+    ``run.rose.log``, a name that says nothing of what it holds; a suffix that names no format is
+    part of the name (``run.1`` and ``run.2`` get two outputs)."""
     import shutil
 
-    for name, expected in (("run", "run.rose.mcap"), ("run.log", "run.rose.mcap")):
+    cases = (
+        ("run", "run.rose.mcap"),
+        ("run.log", "run.log.rose.mcap"),
+        ("run.1", "run.1.rose.mcap"),
+        ("run.2", "run.2.rose.mcap"),
+        ("x.", "x.rose.mcap"),
+    )
+    for name, expected in cases:
         (tmp_path / expected).unlink(missing_ok=True)
         log = tmp_path / name
         shutil.copyfile(SAMPLE, log)
