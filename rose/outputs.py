@@ -139,17 +139,37 @@ shell reports for a program that SIGPIPE ended."""
 
 
 def print_any_file_name() -> None:
-    """Let standard output print file names that are not UTF-8.
+    """Let standard output print any file name.
 
     Linux file names are bytes; Python decodes the undecodable ones with surrogate escapes, which a
     strict UTF-8 stream refuses to print. Written back as the bytes they came from, they show as
-    ``ls`` shows them. The CLIs' ``main`` calls this once (process-wide, like their signal
-    handlers); messages on stderr escape them already.
+    ``ls`` shows them. A stream that cannot hold a character (``café`` on an ASCII or Latin-1
+    terminal, ``PYTHONIOENCODING=ascii``) gets it backslash-escaped, as stderr does, instead of a
+    traceback after the outputs were written. The CLIs' ``main`` calls this once (process-wide,
+    like their signal handlers).
     """
+    import codecs
+
+    codecs.register_error(_PRINTABLE, _printable)
     reconfigure = getattr(sys.stdout, "reconfigure", None)
     if reconfigure is not None:
         with contextlib.suppress(ValueError, OSError):  # not a text stream we may change
-            reconfigure(errors="surrogateescape")
+            reconfigure(errors=_PRINTABLE)
+
+
+#: The error handler :func:`print_any_file_name` gives standard output.
+_PRINTABLE = "rose-printable"
+
+
+def _printable(err: UnicodeError) -> tuple[str | bytes, int]:
+    """Characters the stream cannot encode: a file name's undecodable bytes (surrogate escapes) as
+    those bytes, anything else backslash-escaped."""
+    if not isinstance(err, UnicodeEncodeError):
+        raise err
+    chunk = err.object[err.start : err.end]
+    if all(0xDC80 <= ord(c) <= 0xDCFF for c in chunk):
+        return bytes(ord(c) - 0xDC00 for c in chunk), err.end
+    return chunk.encode("ascii", "backslashreplace").decode("ascii"), err.end
 
 
 def stdout_closed(err: OSError) -> bool:

@@ -160,6 +160,27 @@ def test_output_names_need_not_be_utf8(tmp_path: Path, mcap_log: Path) -> None:
     assert b"run\xff.mcap" in done.stdout
 
 
+@pytest.mark.parametrize("encoding", ["ascii", "latin-1"])
+def test_names_a_terminal_cannot_show_are_escaped(
+    tmp_path: Path, mcap_log: Path, encoding: str
+) -> None:
+    """``café`` or ``地图`` on a stream that cannot hold them (``PYTHONIOENCODING=ascii``): a
+    traceback came after the outputs were written (exit 1 with its outputs in place)."""
+    log = mcap_log.rename(tmp_path / "地图café.mcap")
+    out = tmp_path / "out.mcap"
+    env = {**os.environ, "PYTHONIOENCODING": encoding}
+    done = subprocess.run(
+        [sys.executable, "-m", "rose_logs.cli", "process", str(log), "-o", str(out)],
+        capture_output=True,
+        env=env,
+        check=False,
+        timeout=120,
+    )
+    assert done.returncode == 0, done.stderr.decode(errors="replace")
+    assert b"Traceback" not in done.stderr and out.stat().st_size > 0
+    assert b"\\u5730\\u56fe" in done.stdout  # 地图, backslash-escaped
+
+
 def test_output_named_after_the_current_folder(
     tmp_path: Path, capsys, fr079, monkeypatch: pytest.MonkeyPatch
 ) -> None:
