@@ -55,26 +55,32 @@ MAX_MESSAGE_CHARS = 300
 
 def short(text: object, limit: int = MAX_MESSAGE_CHARS) -> str:
     """``text`` as one line of at most ``limit`` characters: whitespace runs made single spaces,
-    then, if still too long, cut after its last whole word that fits, with ``...`` (a cut in the
-    middle of a word read like another word: "--salvage (pro..."). A file name at its start (up to
-    the first ``": "``, with a ``/`` in it) stays whole up to half the limit; a longer one (deep
-    folders) loses the middle of its folders, keeping its start and its file's name, so that the
-    line still says what went wrong."""
+    then, if still too long, file names longer than a third of the limit (deep folders) lose the
+    middle of their folders, keeping their start and their file's name, so that what is said after
+    them still shows; then, if still too long, the line is cut after its last whole word that fits,
+    with ``...`` (a cut in the middle of a word read like another word: "--salvage (pro...")."""
     line = " ".join(str(text).split())
     if len(line) <= limit:
         return line
-    name, sep, problem = line.partition(": ")
-    half = limit // 2
-    if sep and "/" in name and len(name) > half:
-        folder, slash, base = name.rpartition("/")
-        tail = slash + base if len(base) < half - 20 else slash + base[-(half - 20) :]
-        line = f"{folder[: half - len(tail) - 3]}...{tail}: {problem}"
-        if len(line) <= limit:
-            return line
+    longest = limit // 3
+    line = " ".join(
+        _middle_out(word, longest) if "/" in word and len(word) > longest else word
+        for word in line.split(" ")
+    )
+    if len(line) <= limit:
+        return line
     cut = line.rfind(" ", 0, limit - 2)  # the space before "..." may fall at limit - 3
     if cut < limit // 2:  # one enormous word: cut inside it
         cut = limit - 3
     return line[:cut] + "..."
+
+
+def _middle_out(path: str, length: int) -> str:
+    """``path`` in ``length`` characters: its start, ``...`` and its last component (or that
+    component's end, when it alone is too long)."""
+    folder, slash, base = path.rpartition("/")
+    tail = slash + (base if len(base) < length - 20 else base[-(length - 20) :])
+    return folder[: length - len(tail) - 3] + "..." + tail
 
 
 def visible(text: str) -> str:
