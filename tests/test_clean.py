@@ -90,6 +90,23 @@ def test_walls_method_keeps_the_building_closed_and_removes_clutter(angle: float
     assert separated_pairs(cleaned.cleaned >= 65, inside, outside)
 
 
+def test_a_corner_cabinet_drawn_over_both_walls_leaves_the_room_closed() -> None:
+    # A cabinet's outline drawn over a room's corner, its unseen inside beyond both walls: its
+    # faces went, and its inside joined the room to the outside through a 0.8 m hole in each
+    # wall, though no opened patch alone touched both (the inside, a pocket, linked them).
+    image = np.full((170, 220), 205, np.uint8)
+    cv2.rectangle(image, (10, 10), (210, 160), 254, -1)
+    cv2.rectangle(image, (10, 10), (210, 160), 0, 1)
+    cv2.rectangle(image, (185, 135), (212, 162), 205, -1)
+    cv2.rectangle(image, (185, 135), (212, 162), 0, 1)
+    # As map_server reads the image (row 0 at the bottom).
+    grid = np.flipud(np.where(image == 0, 100, np.where(image == 254, 0, -1)).astype(np.int8))
+    cleaned = clean(grid, rose.analyze(grid), resolution_m=RES)
+    inside, outside = (80, 100), (2, 2)
+    assert separated_pairs(grid >= 65, inside, outside)
+    assert separated_pairs(cleaned.cleaned >= 65, inside, outside)
+
+
 def test_walls_method_never_opens_a_gap_when_walls_are_weak() -> None:
     grid, walls, _ = closed_building()
     # Break the outer wall's straightness: short zig-zag pieces no run rule keeps.

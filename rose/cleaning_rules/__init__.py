@@ -375,7 +375,8 @@ def _wall_cells(
     guarded = topology_guard(
         guard_obstacles,
         keep,
-        added=completed | inside,
+        added=completed,
+        hidden=inside,
         radius_px=length_px(p.robot_radius_m, res),
         window_px=max(1, round(length_px(p.guard_window_m, res))),
         min_region_px=min_region_px,

@@ -53,6 +53,7 @@ def topology_guard(
     *,
     radius_px: float,
     added: npt.NDArray[np.bool_] | None = None,
+    hidden: npt.NDArray[np.bool_] | None = None,
     window_px: int,
     min_region_px: float,
 ) -> npt.NDArray[np.bool_]:
@@ -61,7 +62,9 @@ def topology_guard(
     Removing ``occupied & ~keep`` (and adding the obstacles ``added``) makes some cells passable for
     a disc of ``radius_px``. Each connected patch of them is checked in a window of ``window_px``
     cells around it: if the cells that were passable before (``added`` counting as obstacles before
-    too: hidden walls, there but unseen) and touch the patch belong to two or more regions of the
+    too: hidden walls, there but unseen; ``hidden`` counting as obstacles before only: the unseen
+    insides of removed furniture, which the cleaned map leaves unknown) and touch the patch belong
+    to two or more regions of the
     window that are not small enclosed pockets (a pocket does not reach the window's
     edge and covers less than ``min_region_px``), every removed cell within ``radius_px + 1`` of the
     patch is restored: those are the cells that kept the disc out of it. Patches surrounded by
@@ -86,6 +89,11 @@ def topology_guard(
     # it, is a pocket, not the unknown outside). What opens is the same either way: the added
     # obstacles block after as well.
     before = occupied if added is None else occupied | added
+    if hidden is not None:
+        # A removed object's inside closes off what its faces did before, but not after: the
+        # cleaned map leaves it unknown, which a planner may cross (a corner cabinet drawn over
+        # the walls opened the room to the outside through its inside).
+        before = before | hidden
     # Both dilations in one: 1 on the obstacles removed, 2 on those that stay (``after`` is within
     # ``before``). The disc's maximum is 0 where passable before, 2 where blocked after, and 1
     # where only removed cells blocked: passable after, not before.
@@ -101,13 +109,19 @@ def topology_guard(
     # windows), not over the whole box.
     blocking, opened = blocking[box], np.ascontiguousarray(opened[box])
     opened_cells = _nonzero_flat(opened.view(np.uint8))
-    count, patches = components(opened)
-    boxes = label_boxes(patches, opened_cells, count)
-    ring_cells, ring_patches = _rings(patches, opened, count)
+    # A pocket links the patches around it: a removed object's unseen inside, opened on one side
+    # to the room and on another to the outside, is a passage (a corner cabinet drawn over both
+    # walls), though no patch alone touches two regions.
+    linked = _linked_through_pockets(blocking, opened, min_region_px)
+    count, patches = components(linked)
+    boxes = label_boxes(patches, _nonzero_flat(linked.view(np.uint8)), count)
+    ring_cells, ring_patches = _rings(patches, linked, count)
     formerly = blocking[np.divmod(ring_cells, opened.shape[1])] == 0
-    # Patches whose ring is all formerly passable are free-standing objects: nothing to check.
+    # Patches whose ring is all formerly passable are free-standing objects: nothing to check
+    # (nor are pockets next to no opened cell).
     blocked = np.zeros(count, dtype=bool)
     blocked[ring_patches[~formerly]] = True
+    blocked &= np.bincount(patches.reshape(-1)[opened_cells], minlength=count) > 0
     blocked[0] = False
     ring_cells, ring_patches = ring_cells[formerly], ring_patches[formerly]
     # No labelling of the ring arcs first to skip the patches whose ring is one arc: the windows'
@@ -130,6 +144,20 @@ def topology_guard(
     removal = np.greater(occupied[box][near], keep[box][near])  # occupied & ~keep in one pass
     restore[box][near] = zone & removal
     return restore
+
+
+def _linked_through_pockets(
+    blocking: npt.NDArray[np.uint8], opened: npt.NDArray[np.bool_], min_region_px: float
+) -> npt.NDArray[np.bool_]:
+    """``opened`` with the pockets: the regions of cells passable before (``blocking`` 0) smaller
+    than ``min_region_px`` that do not reach the image's edge (beyond it they may go on)."""
+    count, regions = components(blocking == 0)
+    pocket = component_areas(regions, count) < min_region_px
+    pocket[0] = False
+    pocket[np.concatenate([regions[0], regions[-1], regions[:, 0], regions[:, -1]])] = False
+    if not pocket.any():
+        return opened
+    return opened | pocket[regions]
 
 
 def _drawn_box(
