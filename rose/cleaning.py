@@ -91,9 +91,10 @@ import numpy.typing as npt
 
 from rose.errors import RoseError
 from rose.frozen import ReadOnlyArrays, seal
-from rose.grid import FREE, OCCUPIED, UNKNOWN, as_occupancy_grid
+from rose.grid import FREE, OCCUPIED, UNKNOWN, as_occupancy_grid, warn_if_mask
 from rose.limits import finite_number, integer_number
 from rose.mapfile import DEFAULT_RESOLUTION_M, OccupancyMap, resolution_problem
+from rose.params import RoseParams
 from rose.result import RoseResult, check_result_for
 
 __all__ = ["CLEAN_METHODS", "CleanMethod", "CleanParams", "CleanResult", "clean"]
@@ -377,6 +378,8 @@ def clean(
     elif resolution_m is None:
         resolution_m = DEFAULT_RESOLUTION_M
     occupancy = as_occupancy_grid(grid)
+    if result is None:  # analyzed below with the defaults, from the converted grid: warned here
+        warn_if_mask(grid, occupancy, RoseParams().occupied_threshold)
     if isinstance(result, str):  # clean(grid, "paper"): an easy slip
         msg = f"result must be a RoseResult, got {result!r}: pass the method by name, method={result!r}"
         raise RoseError(msg)

@@ -8,13 +8,22 @@ in percent. Boolean arrays are accepted as occupied masks.
 from __future__ import annotations
 
 import os
+import warnings
 
 import numpy as np
 import numpy.typing as npt
 
 from rose.errors import RoseError
 
-__all__ = ["FREE", "OCCUPIED", "UNKNOWN", "as_occupancy_grid", "blocks_any", "occupied_mask"]
+__all__ = [
+    "FREE",
+    "OCCUPIED",
+    "UNKNOWN",
+    "as_occupancy_grid",
+    "blocks_any",
+    "occupied_mask",
+    "warn_if_mask",
+]
 
 UNKNOWN = -1
 FREE = 0
@@ -111,3 +120,21 @@ def blocks_any(mask: npt.NDArray[np.bool_], factor: int) -> npt.NDArray[np.bool_
     for k in range(1, factor):
         np.bitwise_or(blocks, block_rows[:, k::factor], out=blocks)
     return blocks.view(np.bool_)
+
+
+def warn_if_mask(
+    given: npt.ArrayLike, occupancy: npt.NDArray[np.int8], occupied_threshold: int
+) -> None:
+    """Warn of a 0/1 mask passed as integers (``mask.astype(np.uint8)``, a usual slip): read as
+    percent it is all free. ROS grids are int8 and have unknown cells around the known part, so
+    grids from logs and map files (int8) are never warned about."""
+    dtype = getattr(given, "dtype", None)
+    if dtype is None or dtype == np.int8 or dtype == np.bool_ or occupied_threshold <= 1:
+        return
+    if occupancy.size and occupancy.max() == 1 and occupancy.min() == 0:
+        warnings.warn(
+            "The input grid holds only 0 and 1, read as occupancy in percent: all free. For a "
+            "0/1 occupied mask, pass grid.astype(bool).",
+            UserWarning,
+            stacklevel=3,
+        )

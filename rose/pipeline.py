@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import warnings
 from typing import Any
 
 import numpy as np
@@ -11,7 +10,7 @@ import numpy.typing as npt
 
 from rose.directions import find_direction_peaks, refine_peak_positions, structure_score
 from rose.frozen import seal
-from rose.grid import FREE, UNKNOWN, as_occupancy_grid, occupied_mask
+from rose.grid import FREE, UNKNOWN, as_occupancy_grid, occupied_mask, warn_if_mask
 from rose.mapfile import OccupancyMap
 from rose.params import RoseParams, make_params
 from rose.result import RoseResult
@@ -54,7 +53,7 @@ def analyze(
     p = make_params(params, **overrides)
     given = grid.grid if isinstance(grid, OccupancyMap) else grid
     occupancy = as_occupancy_grid(given)
-    _warn_if_mask(given, occupancy, p.occupied_threshold)
+    warn_if_mask(given, occupancy, p.occupied_threshold)
     occupied = occupied_mask(occupancy, occupied_threshold=p.occupied_threshold)
     shape = padded_shape(occupancy.shape)
 
@@ -115,24 +114,6 @@ def analyze(
             params=p,
         )
     )
-
-
-def _warn_if_mask(
-    given: npt.ArrayLike, occupancy: npt.NDArray[np.int8], occupied_threshold: int
-) -> None:
-    """Warn of a 0/1 mask passed as integers (``mask.astype(np.uint8)``, a usual slip): read as
-    percent it is all free. ROS grids are int8 and have unknown cells around the known part, so
-    grids from logs and map files (int8) are never warned about."""
-    dtype = getattr(given, "dtype", None)
-    if dtype is None or dtype == np.int8 or dtype == np.bool_ or occupied_threshold <= 1:
-        return
-    if occupancy.size and occupancy.max() == 1 and occupancy.min() == 0:
-        warnings.warn(
-            "The input grid holds only 0 and 1, read as occupancy in percent: all free. For a "
-            "0/1 occupied mask, pass grid.astype(bool).",
-            UserWarning,
-            stacklevel=3,
-        )
 
 
 def _scale_and_threshold(

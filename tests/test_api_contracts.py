@@ -148,3 +148,6 @@ def test_a_zero_one_integer_mask_is_warned_about(furnished) -> None:
         # that reads 1 as occupied: not masks by mistake.
         rose.analyze(mask.astype(np.int8))
         assert rose.analyze(mask, occupied_threshold=1).occupied_count == int(mask.sum())
+    # clean() analyses it itself when given no result: warned there too (it was silent).
+    with pytest.warns(UserWarning, match="only 0 and 1"):
+        assert rose.clean(mask).kept_count == 0
