@@ -240,7 +240,8 @@ class CleanResult(ReadOnlyArrays):
     completed : ndarray of bool, shape (rows, cols)
         Cells unknown in the input that ``cleaned`` makes walls (100): the straight wall line hidden
         behind removed furniture (a cabinet against a wall hides the wall behind it), so that removing
-        the furniture does not open the wall. Empty for "paper".
+        the furniture does not open the wall; drawn also where the topology guard then puts the
+        furniture back (the line is still the wall). Empty for "paper".
     resolution_m : float
         The map's cell size, metres (the metric parameters were converted with half of it for
         cells from 0.1 m to under 0.15 m: module notes).

@@ -139,8 +139,8 @@ def run(args: argparse.Namespace) -> int:
         f"removed      {cells(cleaning.removed_count)} ({share:.1%}), set to {params.clutter_value}",
         f"kept         {cells(cleaning.kept_count)} ({cleaning.rescued_count} of them against "
         f"the paper's labelling, {cleaning.guarded_count} by the gap guard)",
-        f"completed    {cells(cleaning.completed_count, 'unknown')} made walls (the wall line "
-        "hidden behind removed clutter)",
+        f"completed    {cells(cleaning.completed_count, 'unknown')} made walls (wall lines "
+        "hidden behind what the rules took for clutter)",
         f"written      {args.output} + {_beside(image_path, Path(args.output))}"
         + (f" + {args.json}" if args.json is not None and not outputs.uses_stdout else ""),
         f"time         {elapsed * 1000:.0f} ms",

@@ -74,7 +74,8 @@ class SnapshotRecord:
     rescued_count : int
         Kept cells the paper's labelling calls clutter.
     completed_count : int
-        Unknown cells the cleaning made walls (the wall line hidden behind removed clutter).
+        Unknown cells the cleaning made walls (wall lines hidden behind what its rules took for
+        clutter, also where the topology guard put that clutter back).
     degenerate : str or None
         Why ROSE's input cannot show a building's structure (a solid block, a strip too thin for a
         2D spectrum: :func:`rose.directions.degenerate_input`), so that W says nothing about it.
