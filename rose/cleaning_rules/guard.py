@@ -67,9 +67,10 @@ def topology_guard(
     to two or more regions of the
     window that are not small enclosed pockets (a pocket does not reach the window's
     edge and covers less than ``min_region_px``), every removed cell within ``radius_px + 1`` of the
-    patch is restored: those are the cells that kept the disc out of it. Patches surrounded by
-    formerly passable cells (a free-standing object) are skipped without labelling; the rest cost
-    one small labelling each.
+    patch is restored: those are the cells that kept the disc out of it. A pocket counts with the
+    patches it touches (one patch with them), so that a passage through it is judged whole.
+    Patches surrounded by formerly passable cells (a free-standing object) are skipped without
+    labelling; the rest cost one small labelling each.
 
     Returns
     -------
