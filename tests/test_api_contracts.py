@@ -148,6 +148,10 @@ def test_a_zero_one_integer_mask_is_warned_about(furnished) -> None:
         # that reads 1 as occupied: not masks by mistake.
         rose.analyze(mask.astype(np.int8))
         assert rose.analyze(mask, occupied_threshold=1).occupied_count == int(mask.sum())
-    # clean() analyses it itself when given no result: warned there too (it was silent).
+    # clean() and the wall extractions read it themselves: warned there too (they were silent).
     with pytest.warns(UserWarning, match="only 0 and 1"):
         assert rose.clean(mask).kept_count == 0
+    with pytest.warns(UserWarning, match="only 0 and 1"):
+        assert not rose.extract_walls(mask).segments
+    with pytest.warns(UserWarning, match="only 0 and 1"):
+        assert not rose.extract_walls_hough(mask).segments

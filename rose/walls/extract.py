@@ -36,7 +36,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
 from rose.errors import RoseError
-from rose.grid import as_occupancy_grid, occupied_mask
+from rose.grid import as_occupancy_grid, occupied_mask, warn_if_mask
 from rose.limits import finite_number, integer_number
 from rose.mapfile import (
     DEFAULT_RESOLUTION_M,
@@ -198,6 +198,7 @@ def extract_walls_hough(
     """
     p = _wall_params(params)
     occupancy, placement = _grid_and_placement(grid, resolution_m, origin_xy_m, origin_yaw_rad)
+    warn_if_mask(_given(grid), occupancy, p.occupied_threshold)
     pixels = wall_pixels(
         occupancy, occupied_threshold=p.occupied_threshold, faces_only=p.faces_only
     )
@@ -240,7 +241,8 @@ def extract_walls(
     """
     p = _wall_params(params)
     occupancy, placement = _grid_and_placement(grid, resolution_m, origin_xy_m, origin_yaw_rad)
-    if result is None:
+    if result is None:  # (a result brings its own warning from rose.analyze)
+        warn_if_mask(_given(grid), occupancy, p.occupied_threshold)
         result = analyze(occupancy, occupied_threshold=p.occupied_threshold)
     check_result_for(result, occupancy)
     pixels = wall_pixels(
@@ -326,6 +328,11 @@ def _wall_params(params: WallParams | None) -> WallParams:
         msg = f"params must be a WallParams, got {type(params).__name__}"
         raise RoseError(msg)
     return params if params is not None else WallParams()
+
+
+def _given(grid: npt.ArrayLike | OccupancyMap) -> npt.ArrayLike:
+    """The array the caller handed over (a map's grid)."""
+    return grid.grid if isinstance(grid, OccupancyMap) else grid
 
 
 def _grid_and_placement(
