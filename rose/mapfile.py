@@ -30,7 +30,7 @@ import numpy as np
 import numpy.typing as npt
 import yaml
 
-from rose.errors import MapFileError
+from rose.errors import MapFileError, RoseError
 from rose.grid import OCCUPIED, UNKNOWN, as_occupancy_grid
 from rose.limits import (
     DEFAULT_MAX_CELLS,
@@ -131,6 +131,25 @@ class OccupancyMap:
     origin_yaw_rad: float = 0.0
     source: Path | None = None
     image_path: Path | None = None
+
+    def __post_init__(self) -> None:
+        # Refused where it is made, not by whichever stage first uses it (a map with a negative
+        # cell size was accepted and failed later, in `clean` or `save_map`, far from its cause).
+        problem = resolution_problem(self.resolution_m)
+        if problem is not None:
+            msg = f"OccupancyMap: resolution_m {problem}"
+            raise RoseError(msg)
+        origin = self.origin_xy_m
+        if not isinstance(origin, tuple | list | np.ndarray) or len(origin) != 2:
+            msg = f"OccupancyMap: origin_xy_m must be (x, y) in metres, got {origin!r}"
+            raise RoseError(msg)
+        problem = origin_problem(origin[0], origin[1], self.origin_yaw_rad)
+        if problem is not None:
+            msg = (
+                f"OccupancyMap: the origin ({origin[0]!r}, {origin[1]!r}, yaw "
+                f"{self.origin_yaw_rad!r}) {problem}"
+            )
+            raise RoseError(msg)
 
     @property
     def input_files(self) -> tuple[Path, ...]:
@@ -516,19 +535,70 @@ def _header_problem(raw: bytes, shape: tuple[int, int] | None) -> str | None:
     return None
 
 
-def _png_problem(raw: bytes, shape: tuple[int, int], dropped: list[tuple[int, int]]) -> str | None:
-    """A truncated PNG, a chunk whose CRC does not match or image data that does not inflate: what
-    libpng would print on stderr itself (before an error without a reason), said here in one line.
-    Ancillary chunks whose CRC does not match go to ``dropped`` as ``(start, end)`` byte spans: libpng
-    drops them (with a warning on stderr), and so does the caller, before it decodes.
+#: PNG colour type -> (samples per pixel, bit depths allowed), from the PNG specification.
+_PNG_COLOUR_TYPES = {
+    0: (1, (1, 2, 4, 8, 16)),  # grey
+    2: (3, (8, 16)),  # RGB
+    3: (1, (1, 2, 4, 8)),  # palette
+    4: (2, (8, 16)),  # grey + alpha
+    6: (4, (8, 16)),  # RGBA
+}
 
-    The image data is inflated in pieces and dropped, and no further than the most the header's
-    ``shape`` (rows, cols) can hold: a small file inflating without end is left to the decoder,
-    which stops there."""
+#: Adam7's passes: first column, first row, column step, row step.
+_ADAM7 = (
+    (0, 0, 8, 8),
+    (4, 0, 8, 8),
+    (0, 4, 4, 8),
+    (2, 0, 4, 4),
+    (0, 2, 2, 4),
+    (1, 0, 2, 2),
+    (0, 1, 1, 2),
+)
+
+
+def _png_rows(ihdr: bytes) -> str | npt.NDArray[np.int64]:
+    """Where each row's filter byte lies in a PNG's inflated image data (the data's length last),
+    from its IHDR chunk's body; or what is wrong with that header."""
+    if len(ihdr) != 13:
+        return f"its IHDR chunk holds {len(ihdr)} bytes, not 13"
+    cols, rows, depth, colour, compression, filtering, interlace = struct.unpack(">IIBBBBB", ihdr)
+    if colour not in _PNG_COLOUR_TYPES:
+        return f"colour type {colour} in its header"
+    samples, depths = _PNG_COLOUR_TYPES[colour]
+    if depth not in depths:
+        return f"bit depth {depth} for colour type {colour} in its header"
+    if compression != 0 or filtering != 0 or interlace not in (0, 1):
+        return (
+            f"compression {compression}, filter {filtering}, interlace {interlace} in its header "
+            "(0, 0 and 0 or 1 are defined)"
+        )
+    passes = _ADAM7 if interlace else ((0, 0, 1, 1),)
+    starts = [np.zeros(1, dtype=np.int64)]
+    for col0, row0, col_step, row_step in passes:
+        width = -(-(cols - col0) // col_step) if cols > col0 else 0
+        height = -(-(rows - row0) // row_step) if rows > row0 else 0
+        if width and height:  # an empty pass has no rows, not even filter bytes
+            stride = 1 + -(-width * samples * depth // 8)
+            starts.append(starts[-1][-1] + stride * np.arange(1, height + 1, dtype=np.int64))
+    return np.concatenate(starts)
+
+
+def _png_problem(raw: bytes, shape: tuple[int, int], dropped: list[tuple[int, int]]) -> str | None:
+    """What libpng would print on stderr itself (before an error without a reason), said here in
+    one line: a truncated PNG, a chunk whose CRC does not match, a header PNG does not define, a
+    palette image without its palette, image data that does not inflate, is short or has a row
+    with an unknown filter. Ancillary chunks whose CRC does not match go to ``dropped`` as
+    ``(start, end)`` byte spans: libpng drops them (with a warning on stderr), and so does the
+    caller, before it decodes.
+
+    The image data is inflated in pieces and dropped, no further than the header's ``shape``
+    (rows, cols) needs: a small file inflating without end is left to the decoder, which stops
+    there."""
     pos, end = 8, len(raw)
     image_data = zlib.decompressobj()
-    most = shape[0] * (shape[1] * 8 + 1)  # 4 channels of 16 bits and a filter byte per row
+    row_starts: npt.NDArray[np.int64] | None = None
     inflated = 0
+    seen_palette = False
     while True:
         if pos + 12 > end:
             return f"truncated PNG: the file ends at byte {end}, inside or before a chunk"
@@ -550,19 +620,45 @@ def _png_problem(raw: bytes, shape: tuple[int, int], dropped: list[tuple[int, in
                     f"corrupt PNG: CRC mismatch in its {kind.decode('latin-1')!r} chunk at "
                     f"byte {pos}"
                 )
-        if kind == b"IDAT" and inflated <= most:
+        if kind == b"IHDR" and row_starts is None:
+            layout = _png_rows(raw[pos + 8 : body_end])
+            if isinstance(layout, str):
+                return f"corrupt PNG: {layout}"
+            row_starts = layout
+        seen_palette |= kind == b"PLTE"
+        if kind == b"IDAT" and row_starts is not None:
+            if raw[25] == 3 and not seen_palette:  # colour type 3 (its IHDR was read above)
+                return "corrupt PNG: a palette image without a palette (PLTE) before its data"
+            needed = int(row_starts[-1])
             try:
                 chunk = raw[pos + 8 : body_end]
-                while chunk and inflated <= most:
-                    inflated += len(image_data.decompress(chunk, 1 << 20))
+                while chunk and inflated < needed:
+                    piece = image_data.decompress(chunk, min(1 << 20, needed - inflated))
+                    problem = _png_filter_problem(piece, inflated, row_starts)
+                    if problem is not None:
+                        return problem
+                    inflated += len(piece)
                     chunk = image_data.unconsumed_tail
             except zlib.error as err:
                 return f"corrupt PNG: its image data does not inflate ({err})"
         if kind == b"IEND":
-            if inflated <= most and not image_data.eof:
-                return "corrupt PNG: its image data ends early"
+            if row_starts is not None and inflated < row_starts[-1]:
+                return (
+                    f"corrupt PNG: its image data ends early ({inflated} of {row_starts[-1]} bytes)"
+                )
             return None
         pos = body_end + 4
+
+
+def _png_filter_problem(piece: bytes, offset: int, row_starts: npt.NDArray[np.int64]) -> str | None:
+    """An unknown row filter (above 4) among the filter bytes inside ``piece``, the inflated image
+    data from byte ``offset`` on."""
+    first, last = np.searchsorted(row_starts, (offset, offset + len(piece)))
+    filters = np.frombuffer(piece, dtype=np.uint8)[row_starts[first:last] - offset]
+    bad = np.flatnonzero(filters > 4)
+    if bad.size:
+        return f"corrupt PNG: row {first + int(bad[0])} has filter type {filters[bad[0]]} (types 0..4 exist)"
+    return None
 
 
 def image_to_grid(
@@ -675,7 +771,7 @@ def save_map(
     ):  # YAML is Unicode: the name would be an escape map_server cannot open
         msg = f"{short(path, 200)}: a map's name must be UTF-8 (its YAML names the image)"
         raise MapFileError(msg) from None
-    problem = _unloadable(grid, occupancy_map)
+    problem = _unloadable(grid)
     if problem is not None:  # written, it could not be read back
         msg = f"{path}: cannot save a map with {problem}"
         raise MapFileError(msg)
@@ -716,19 +812,11 @@ def save_map(
     return image_path
 
 
-def _unloadable(grid: npt.NDArray[np.int8], occupancy_map: OccupancyMap) -> str | None:
-    """What :func:`load_map` would refuse in a map to save, if anything."""
+def _unloadable(grid: npt.NDArray[np.int8]) -> str | None:
+    """What :func:`load_map` would refuse in a map to save, if anything (its resolution and origin
+    are checked when the :class:`OccupancyMap` is made)."""
     if grid.size == 0:
         return "an empty grid"
-    resolution = occupancy_map.resolution_m
-    if resolution_problem(resolution) is not None:
-        return f"resolution {resolution!r}"
-    if len(occupancy_map.origin_xy_m) != 2:
-        return f"origin_xy_m {occupancy_map.origin_xy_m!r} (x and y, metres)"
-    placement = (*occupancy_map.origin_xy_m, occupancy_map.origin_yaw_rad)
-    problem = origin_problem(*placement)
-    if problem is not None:
-        return f"origin {placement!r}, which {problem}"
     return None
 
 

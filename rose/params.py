@@ -43,7 +43,8 @@ class RoseParams:
         ``"gmm"``: threshold where the two weighted Gaussians of a mixture fitted to the occupied cells'
         scores intersect (the paper). ``"fixed"``: ``fixed_threshold`` on scores scaled to max 1.
     fixed_threshold : float
-        Threshold of the fixed mode, as a fraction of the largest occupied cell score.
+        Threshold of the fixed mode, as a fraction of the largest occupied cell score: cells
+        scoring above it are structure (1 keeps none).
     clutter_value : {"free", "unknown"}
         What clutter cells become in :attr:`RoseResult.cleaned`.
     max_gmm_samples : int

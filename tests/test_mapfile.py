@@ -400,6 +400,100 @@ def test_a_damaged_png_says_what_is_wrong_in_one_line(
     assert capfd.readouterr().err == ""
 
 
+def _png_of(
+    rows: list[bytes],
+    *,
+    depth: int = 8,
+    colour: int = 0,
+    methods: tuple[int, int, int] = (0, 0, 0),
+    width: int = 4,
+    height: int | None = None,
+    palette: bool = False,
+) -> bytes:
+    """A PNG of ``width`` x ``height`` pixels (``len(rows)`` rows unless given) from its inflated
+    image data, each row its filter byte and samples, with matching CRCs: only what the arguments
+    make wrong is wrong."""
+    import struct
+    import zlib
+
+    def chunk(kind: bytes, body: bytes) -> bytes:
+        return (
+            struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body))
+        )
+
+    header = struct.pack(">IIBBBBB", width, height or len(rows), depth, colour, *methods)
+    return (
+        b"\x89PNG\r\n\x1a\n"
+        + chunk(b"IHDR", header)
+        + (chunk(b"PLTE", bytes(range(6))) if palette else b"")
+        + chunk(b"IDAT", zlib.compress(b"".join(rows)))
+        + chunk(b"IEND", b"")
+    )
+
+
+_GREY_ROWS = [b"\x00" + bytes([254, 0, 205, 254])] * 3
+
+
+@pytest.mark.parametrize(
+    ("png", "problem"),
+    [
+        (_png_of([*_GREY_ROWS[:2], b"\x07" + bytes(4)]), "row 2 has filter type 7"),
+        (_png_of([*_GREY_ROWS[:2], b"\x00" + bytes(2)]), r"ends early \(13 of 15 bytes\)"),
+        (_png_of([b"\x00" + bytes(4)] * 3, colour=3), "a palette image without a palette"),
+        (_png_of(_GREY_ROWS, methods=(0, 0, 2)), "interlace 2 in its header"),
+        (_png_of(_GREY_ROWS, methods=(1, 0, 0)), "compression 1, filter 0"),
+        (_png_of(_GREY_ROWS, depth=7), "bit depth 7 for colour type 0"),
+        (_png_of(_GREY_ROWS, colour=5), "colour type 5 in its header"),
+    ],
+    ids=["filter", "short", "no-palette", "interlace", "compression", "depth", "colour"],
+)
+def test_a_png_libpng_refuses_says_why_in_one_line(
+    tmp_path: Path, capfd: pytest.CaptureFixture[str], png: bytes, problem: str
+) -> None:
+    """libpng printed its own line on stderr ('bad adaptive filter value', 'Invalid IHDR data'),
+    then came 'not a readable image' with no reason."""
+    (tmp_path / "m.png").write_bytes(png)
+    with pytest.raises(
+        MapFileError, match=f"m.png: not a readable image \\(corrupt PNG: .*{problem}"
+    ):
+        rose.load_map(tmp_path / "m.png", resolution_m=0.05)
+    assert capfd.readouterr().err == ""
+
+
+def test_pngs_libpng_reads_pass_the_checks(
+    tmp_path: Path, capfd: pytest.CaptureFixture[str]
+) -> None:
+    """The rows' layout the checks use holds for Adam7-interlaced, 1-bit and palette images."""
+    grey = np.array([[254, 0, 205, 254, 0], [0, 0, 254, 254, 254], [205, 254, 0, 0, 254]], np.uint8)
+    # Adam7 over 3 x 5 pixels: passes 1, 2, 4, 5, 6 and 7 hold pixels, pass 3 (from row 4) none.
+    passes = [
+        grey[0:1, 0:1],
+        grey[0:1, 4:5],
+        grey[0:1, 2:3],
+        grey[2:3, 0::2],
+        grey[0:3:2, 1::2],
+        grey[1:2, :],
+    ]
+    interlaced = _png_of(
+        [b"\x00" + row.tobytes() for p in passes for row in p], methods=(0, 0, 1), width=5, height=3
+    )
+    bits = np.array([[1, 0, 1, 1, 0]] * 2, np.uint8)
+    one_bit = _png_of([b"\x00" + np.packbits(row).tobytes() for row in bits], depth=1, width=5)
+    indexed = _png_of([b"\x00" + bytes([0, 1, 0, 1])] * 2, colour=3, palette=True)
+    for name, png, rows in (("i", interlaced, 3), ("b", one_bit, 2), ("p", indexed, 2)):
+        (tmp_path / f"{name}.png").write_bytes(png)
+        assert rose.load_map(tmp_path / f"{name}.png").grid.shape[0] == rows
+    expected = rose.mapfile.image_to_grid(
+        grey[:, :, np.newaxis],
+        mode="trinary",
+        negate=False,
+        occupied_thresh=0.65,
+        free_thresh=0.196,
+    )
+    np.testing.assert_array_equal(rose.load_map(tmp_path / "i.png").grid, expected)
+    assert capfd.readouterr().err == ""
+
+
 def test_image_path_is_relative_to_the_yaml(tmp_path: Path) -> None:
     (tmp_path / "img").mkdir()
     cv2.imwrite(str(tmp_path / "img" / "m.png"), np.full((5, 5), 254, np.uint8))
@@ -557,23 +651,32 @@ def test_save_leaves_no_temporary_files(tmp_path: Path) -> None:
     assert sorted(p.name for p in tmp_path.iterdir()) == ["m.pgm", "m.yaml"]
 
 
+def test_an_empty_map_is_not_saved(tmp_path: Path) -> None:
+    with pytest.raises(MapFileError, match="cannot save a map with an empty grid"):
+        rose.save_map(tmp_path / "m.yaml", OccupancyMap(grid=np.zeros((0, 0), dtype=np.int8)))
+    assert not list(tmp_path.iterdir())
+
+
 @pytest.mark.parametrize(
     ("changes", "problem"),
     [
-        ({"grid": np.zeros((0, 0), dtype=np.int8)}, "an empty grid"),
-        ({"resolution_m": 0.0}, "resolution 0.0"),
-        ({"resolution_m": math.nan}, "resolution nan"),
-        ({"origin_xy_m": (math.inf, 0.0)}, "origin"),
-        ({"origin_yaw_rad": math.nan}, "origin"),
+        ({"resolution_m": 0.0}, "resolution_m must be a positive number of metres .* got 0.0"),
+        ({"resolution_m": -1}, "resolution_m must be a positive number of metres .* got -1"),
+        ({"resolution_m": math.nan}, "resolution_m must be .* got nan"),
+        ({"resolution_m": "0.05"}, "resolution_m must be .* got '0.05'"),
+        ({"origin_xy_m": (math.inf, 0.0)}, r"the origin \(inf, 0.0, yaw 0.0\) is not finite"),
+        ({"origin_xy_m": (1.0,)}, r"origin_xy_m must be \(x, y\) in metres, got \(1.0,\)"),
+        ({"origin_yaw_rad": math.nan}, "the origin .* is not finite"),
+        ({"origin_yaw_rad": 1e9}, "the origin .* has a yaw beyond"),
     ],
 )
-def test_a_map_load_map_would_refuse_is_not_saved(
-    tmp_path: Path, changes: dict, problem: str
+def test_a_map_with_a_placement_load_map_would_refuse_is_not_made(
+    changes: dict, problem: str
 ) -> None:
+    """Refused when made (it was accepted, and failed later in `clean` or `save_map`)."""
     base = OccupancyMap(grid=np.zeros((3, 3), dtype=np.int8), resolution_m=0.05)
-    with pytest.raises(MapFileError, match=f"cannot save a map with {problem}"):
-        rose.save_map(tmp_path / "m.yaml", dataclasses.replace(base, **changes))
-    assert not list(tmp_path.iterdir())
+    with pytest.raises(rose.RoseError, match=f"^OccupancyMap: {problem}"):
+        dataclasses.replace(base, **changes)
 
 
 def test_save_map_never_replaces_the_files_the_map_was_read_from(tmp_path: Path) -> None:
@@ -608,14 +711,11 @@ def test_an_origin_too_large_to_place_a_cell_is_refused(
     path = write_yaml(tmp_path / "m.yaml", f"image: m.pgm\nresolution: 0.05\norigin: {origin}\n")
     with pytest.raises(MapFileError, match=match):
         rose.load_map(path)
-    with pytest.raises(MapFileError, match=match):
-        rose.save_map(
-            tmp_path / "o.yaml",
-            OccupancyMap(
-                grid=np.zeros((2, 2), np.int8),
-                origin_xy_m=(1e308, 1e308) if "x or y" in match else (0.0, 0.0),
-                origin_yaw_rad=1e300 if "yaw" in match else 0.0,
-            ),
+    with pytest.raises(rose.RoseError, match=match):
+        OccupancyMap(
+            grid=np.zeros((2, 2), np.int8),
+            origin_xy_m=(1e308, 1e308) if "x or y" in match else (0.0, 0.0),
+            origin_yaw_rad=1e300 if "yaw" in match else 0.0,
         )
     # A UTM northing and an unnormalised yaw are real maps.
     text = "image: m.pgm\nresolution: 0.05\norigin: [500000.0, 5400000.0, 7.5]\n"

@@ -272,8 +272,8 @@ def add_param_arguments(parser: argparse.ArgumentParser) -> None:
         type=unit_interval,
         default=None,
         metavar="F",
-        help=f"score threshold of the fixed mode, fraction of the top score (default "
-        f"{d.fixed_threshold:g}); implies --threshold-mode fixed",
+        help=f"fixed mode: cells scoring above F times the top score are structure (0 keeps every "
+        f"cell that scores, 1 none; default {d.fixed_threshold:g}); implies --threshold-mode fixed",
     )
     group.add_argument(
         "--clutter-value",
