@@ -56,6 +56,10 @@ Two methods, chosen by name:
        structure (so ``kept`` need not contain the paper's structure). Pieces attached to no kept
        wall and smaller than ``min_region_m2`` (they can enclose no region the guard protects) do
        not count as obstacles for the guard.
+    6. *walls between two doors*: a piece none of the above kept, along a dominant direction at
+       most 0.3 m thick and twice as long, with known free space beyond each end for at most
+       1.2 m and then a kept wall in line for at least 0.3 m, stays, whatever the paper's
+       labelling says.
 
     Finally a topology guard (counting the completed walls, those drawn, as obstacles before and
     after: the inside of a cabinet closed by the wall line behind it is a pocket, not the unknown

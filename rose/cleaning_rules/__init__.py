@@ -39,6 +39,7 @@ from rose.cleaning_rules.objects import (
     _PARTITION_MIN_M,
     _THIN_WALL_M,
     _THIN_WALL_MIN_CELLS,
+    _between_doors,
     _free_standing,
     _grow_within,
     _partitions,
@@ -367,6 +368,11 @@ def _wall_cells(
     guard_obstacles = occupied
     if pieces_job is not None:
         keep &= ~dropped
+        # A wall between two doors: a piece nothing kept (too short for a run) that continues
+        # kept walls in line across a door at each end.
+        keep |= _between_doors(
+            pieces, pieces.loose(keep), keep, ~unknown & ~occupied, directions, res
+        )
         # Pieces attached to no kept wall at all are furniture standing in the room: the guard
         # does not count them as obstacles of the input. Only those whose box is smaller than a
         # region the guard protects, though: they can enclose nothing it would count (a closed

@@ -72,6 +72,15 @@ _THIN_WALL_MIN_CELLS = 3
 _SOLID_MIN_M = 0.25
 
 
+#: Widest door (metres, :func:`_between_doors`): single doors are 0.7-1.0 m wide, wide ones 1.2 m.
+_DOOR_MAX_M = 1.2
+
+
+#: Wall in line beyond a door that makes a piece between two doors a wall (metres,
+#: :func:`_between_doors`): a stretch a table's edge lined up with a wall rarely continues.
+_DOOR_ANCHOR_M = 0.3
+
+
 def _free_standing(
     pieces: _Pieces,
     lines: npt.NDArray[np.bool_],
@@ -95,6 +104,95 @@ def _free_standing(
     # ... unless it closes around known free space: a small room or shaft, not an object (a
     # scanned object's inside stays unknown).
     return dropped & ~pieces.around_free(dropped, ~unknown)
+
+
+def _between_doors(
+    pieces: _Pieces,
+    removed: npt.NDArray[np.bool_],
+    walls: npt.NDArray[np.bool_],
+    free: npt.NDArray[np.bool_],
+    directions: npt.NDArray[np.float64],
+    res: float,
+) -> npt.NDArray[np.bool_]:
+    """Cells of the pieces of ``removed`` (whole pieces of ``pieces``) that continue a wall across
+    two doors: along a dominant direction at most ``_THIN_WALL_M`` thick and at least 4 cells and
+    twice as long as thick, with known ``free`` cells beyond each end for at most
+    ``_DOOR_MAX_M`` and then ``walls`` in line for ``_DOOR_ANCHOR_M``. A pier between two doors
+    of a partition is such a piece; furniture rarely lines up with walls at both ends across
+    doorways (``bench_cleaning.py``: no furniture cell of the benchmarks kept by it; with pieces
+    as long as thick, 52 cells of office_e's chairs were)."""
+    out = np.zeros(removed.shape, dtype=bool)
+    in_removed = removed.reshape(-1)[pieces.cells]
+    if directions.size == 0 or not in_removed.any():
+        return out
+    cells = pieces.cells[in_removed]
+    owners = pieces.owners[in_removed]
+    order = np.argsort(owners, kind="stable")
+    cells, owners = cells[order], owners[order]
+    starts = np.flatnonzero(np.r_[True, owners[1:] != owners[:-1]])
+    rows, cols = np.divmod(cells, removed.shape[1])
+    door = max(2, math.ceil(length_px(_DOOR_MAX_M, res)))
+    anchor = max(2, math.ceil(length_px(_DOOR_ANCHOR_M, res)))
+    thin = max(_THIN_WALL_MIN_CELLS, length_px(_THIN_WALL_M, res))
+    steps = np.arange(1, door + anchor + 1, dtype=np.float64)
+    kept = np.zeros(starts.size, dtype=bool)
+    for angle in directions:
+        along = np.array([math.cos(angle), math.sin(angle)])  # (col, row): the wall's direction
+        across = np.array([-along[1], along[0]])
+        a = cols * along[0] + rows * along[1]
+        n = cols * across[0] + rows * across[1]
+        low, high = np.minimum.reduceat(a, starts), np.maximum.reduceat(a, starts)
+        width = np.maximum.reduceat(n, starts) - np.minimum.reduceat(n, starts) + 1
+        middle = np.add.reduceat(n, starts) / np.diff(np.r_[starts, n.size])
+        # (A hair of slack: the projections of cells on a grid axis carry rounding errors.)
+        length = high - low + 1 + 1e-6
+        candidate = (width <= thin + 1e-6) & (length >= np.maximum(2 * width, 4)) & ~kept
+        if not candidate.any():
+            continue
+        both = np.ones(int(candidate.sum()), dtype=bool)
+        for end, sign in ((high[candidate], 1.0), (low[candidate], -1.0)):
+            both &= _door_then_wall(
+                end, middle[candidate], sign * steps, along, across, walls, free, door, anchor
+            )
+        kept[np.flatnonzero(candidate)[both]] = True
+    if kept.any():
+        lengths = np.diff(np.r_[starts, cells.size])
+        out.reshape(-1)[cells[np.repeat(kept, lengths)]] = True
+    return out
+
+
+def _door_then_wall(
+    end: npt.NDArray[np.float64],
+    middle: npt.NDArray[np.float64],
+    steps: npt.NDArray[np.float64],
+    along: npt.NDArray[np.float64],
+    across: npt.NDArray[np.float64],
+    walls: npt.NDArray[np.bool_],
+    free: npt.NDArray[np.bool_],
+    door: int,
+    anchor: int,
+) -> npt.NDArray[np.bool_]:
+    """For pieces ending at ``end`` (along the wall direction) on the line ``middle`` (across it):
+    whether the cells past the end (``steps`` cells on, signed) are free for at most ``door`` cells
+    and then ``walls`` for ``anchor`` cells or more, within a cell of the line."""
+    t = end[:, None, None] + steps[None, :, None]  # (pieces, steps, 3 lines)
+    s = middle[:, None, None] + np.array([-1.0, 0.0, 1.0])[None, None, :]
+    col = np.rint(t * along[0] + s * across[0]).astype(np.intp)
+    row = np.rint(t * along[1] + s * across[1]).astype(np.intp)
+    rows, cols = walls.shape
+    inside = (row >= 0) & (row < rows) & (col >= 0) & (col < cols)
+    row, col = np.where(inside, row, 0), np.where(inside, col, 0)
+    wall = (walls[row, col] & inside).any(axis=2)
+    open_ = (free[row, col] & inside)[:, :, 1]
+    hit = np.argmax(wall, axis=1)
+    reached = wall.any(axis=1) & (hit >= 1) & (hit <= door)
+    before = np.arange(steps.size)[None, :] < hit[:, None]
+    clear = np.all(open_ | ~before, axis=1)
+    after = (np.arange(steps.size)[None, :] >= hit[:, None]) & (
+        np.arange(steps.size)[None, :] < hit[:, None] + anchor
+    )
+    anchored = np.sum(wall & after, axis=1) >= anchor
+    return reached & clear & anchored
 
 
 def _thin_runs(
