@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import io
 import json
 import math
 import os
@@ -151,10 +152,30 @@ def print_any_file_name() -> None:
     import codecs
 
     codecs.register_error(_PRINTABLE, _printable)
+    _buffer_unbuffered_stdout()
     reconfigure = getattr(sys.stdout, "reconfigure", None)
     if reconfigure is not None:
         with contextlib.suppress(ValueError, OSError):  # not a text stream we may change
             reconfigure(errors=_PRINTABLE)
+
+
+def _buffer_unbuffered_stdout() -> None:
+    """Give an unbuffered standard output (``python -u``, ``PYTHONUNBUFFERED``, common in
+    containers and CI) a buffer, flushed at every line as unbuffered output is expected to show.
+    Unbuffered, a pipe whose reader leaves mid-write takes part of a large write and reports the
+    count, not an error, and the text layer drops the rest: ``rose score --json ... | head`` ended
+    with exit 0 and the report cut. A buffer writes all it is given or raises."""
+    stream = sys.stdout
+    raw = getattr(stream, "buffer", None)
+    if not isinstance(raw, io.RawIOBase) or not isinstance(stream, io.TextIOWrapper):
+        return
+    # (The original stream stays referenced as sys.__stdout__: it does not close the descriptor.)
+    sys.stdout = io.TextIOWrapper(
+        io.BufferedWriter(raw),
+        encoding=stream.encoding,
+        errors=stream.errors,
+        line_buffering=True,
+    )
 
 
 #: The error handler :func:`print_any_file_name` gives standard output.

@@ -85,6 +85,19 @@ def test_folders_are_searched_recursively_and_a_bag_folder_is_one_recording(flee
     )
 
 
+def test_a_dangling_link_in_a_folder_is_an_error_row_not_a_stopped_batch(
+    fleet: Path, tmp_path: Path
+) -> None:
+    """One moved file on a fleet's share (a link left behind) stopped the whole batch with
+    'cannot list' before any recording was processed."""
+    (fleet / "robot_a" / "moved.mcap").symlink_to(tmp_path / "gone.mcap")
+    result = run_batch([fleet / "robot_a"], tmp_path / "out")
+    rows = {row.name.rsplit("/", 1)[-1]: row for row in result.results}
+    assert rows["moved.mcap"].status == "error"
+    assert rows["moved.mcap"].error.endswith("moved.mcap: no such file or directory")
+    assert rows["run.mcap"].status == "ok"
+
+
 def test_globs_files_lists_and_duplicates(fleet: Path, tmp_path: Path) -> None:
     recordings = discover([str(fleet / "robot_*" / "run.mcap"), fleet / "robot_a" / "run.mcap"])
     assert [r.name for r in recordings] == ["robot_a/run.mcap", "robot_b/run.mcap"]

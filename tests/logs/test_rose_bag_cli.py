@@ -473,6 +473,33 @@ def test_a_reader_leaving_mid_report_is_141_not_a_cut_report(
     assert capsys.readouterr().err == ""
 
 
+def test_an_unbuffered_standard_output_whose_reader_leaves_is_141_not_a_cut_report(
+    tmp_path: Path,
+) -> None:
+    """``PYTHONUNBUFFERED=1 rose score --json MAPS... | head -c 10`` exited 0 with the JSON cut:
+    unbuffered, the write the reader left in took part of the report and reported no error. A
+    real pipe, a real unbuffered interpreter; the report (over 64 kB) fills the pipe first."""
+    image = np.full((40, 40), 254, np.uint8)
+    image[5, :] = 0
+    import cv2
+
+    cv2.imwrite(str(tmp_path / "room.png"), image)
+    env = dict(os.environ, PYTHONUNBUFFERED="1", PYTHONPATH=str(Path(__file__).parents[2]))
+    with subprocess.Popen(
+        [sys.executable, "-c", "import rose.cli as c; c.console()", "score", "--json"]
+        + [str(tmp_path / "room.png")] * 400,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        env=env,
+    ) as child:
+        assert child.stdout is not None and child.stderr is not None
+        assert child.stdout.read(10) == b"[\n  {\n    "
+        child.stdout.close()  # the reader leaves (| head -c 10)
+        err = child.stderr.read()
+        assert child.wait(timeout=120) == 141, err
+    assert err == b""
+
+
 class _StuckPipe(_ClosedPipe):
     """A stream that takes nothing and reports no error."""
 
