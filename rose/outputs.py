@@ -169,9 +169,14 @@ def _buffer_unbuffered_stdout() -> None:
     raw = getattr(stream, "buffer", None)
     if not isinstance(raw, io.RawIOBase) or not isinstance(stream, io.TextIOWrapper):
         return
-    # (The original stream stays referenced as sys.__stdout__: it does not close the descriptor.)
+    try:
+        # A file of its own on the descriptor, which it never closes: the stream it replaces
+        # (sys.__stdout__, or a test's capture) keeps its file open when this one goes.
+        own = io.FileIO(raw.fileno(), "w", closefd=False)
+    except (OSError, ValueError):  # no descriptor (an in-memory stream): nothing to buffer
+        return
     sys.stdout = io.TextIOWrapper(
-        io.BufferedWriter(raw),
+        io.BufferedWriter(own),
         encoding=stream.encoding,
         errors=stream.errors,
         line_buffering=True,

@@ -12,7 +12,13 @@ from rose.limits import short
 from rose.outputs import enclosing_bag_folder
 from rose_logs.derived import derived_topics
 from rose_logs.errors import LogReadError, LogWriteError
-from rose_logs.formats import LogFormat, detect_format, format_from_path, processed_name
+from rose_logs.formats import (
+    ACTIVE_BAG,
+    LogFormat,
+    detect_format,
+    format_from_path,
+    processed_name,
+)
 from rose_logs.storage.records import Channel
 from rose_logs.storage.typesys import MAP_TYPE, UPDATE_TYPE, msgdef_for
 
@@ -121,17 +127,20 @@ def default_output_path(input_path: Path, fmt: LogFormat | None = None) -> Path:
 
     A path without a name of its own (``.``, ``bags/..``) is named by its absolute form. A storage
     file inside a ROS 2 bag folder gets its output beside that folder, never inside the input bag.
-    A ROS 2 log named as ROS 1 (an MCAP file named ``.bag``) keeps its own format: ``run.rose.bag``
-    could not hold its messages, and the caller named no output. A file whose name says no format
+    A log named as another format (an MCAP file named ``.bag`` or ``.db3``) keeps its own format
+    and gets its suffix: ``run.rose.bag`` could not hold its messages, and the caller named no
+    output. A file whose name says no format
     gets its content's suffix after its whole name (``run`` holding MCAP -> ``run.rose.mcap``,
     ``run.1`` -> ``run.1.rose.mcap``).
     """
     path = Path(input_path)
-    named = format_from_path(path)
+    named = "ros1" if path.name.lower().endswith(ACTIVE_BAG) else format_from_path(path)
     whole = False  # the name has no format's suffix: it is kept whole
-    if fmt is None and named in (None, "ros1") and not path.is_dir():
-        # A name that says no format (``run``, ``run.log``) or ROS 1: the content's format, so
-        # that the output's name says what it holds.
+    if fmt is None and not path.is_dir():
+        # The content's format, so that the output's name says what it holds: a name may say no
+        # format (``run``, ``run.log``) or another one (an MCAP file named ``.bag`` or ``.db3``:
+        # a bare ``.db3`` names a folder ``run.rose``, and a file of another format was written
+        # there under that name).
         with contextlib.suppress(LogReadError):  # unreadable: the reader says so, naming the input
             detected = detect_format(path)
             if detected != named:

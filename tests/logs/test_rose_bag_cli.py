@@ -895,6 +895,31 @@ def test_an_input_whose_name_says_no_format_gets_its_contents_suffix(tmp_path: P
         assert (tmp_path / expected).is_file()
 
 
+def test_a_log_named_as_another_format_or_left_active_gets_its_contents_suffix(
+    tmp_path: Path,
+) -> None:
+    """An MCAP or ROS 1 file named ``.db3`` was written to ``x.rose``, a file without a format's
+    suffix (a bare ``.db3`` names a folder); ``run.bag.active`` (rosbag never closed it) gave
+    ``run.bag.active.rose.bag``, which a later batch read as a recording."""
+    import shutil
+
+    shutil.copyfile(SAMPLE, tmp_path / "mcap_inside.db3")
+    grids = [np.zeros((40, 40), np.int8)]
+    bag = build_log(tmp_path / "r.bag", "ros1", session_maps(grids), scans_per_map=0).path
+    shutil.copyfile(bag, tmp_path / "ros1_inside.db3")
+    shutil.copyfile(bag, tmp_path / "run.bag.active")
+    cases = (
+        ("mcap_inside.db3", "mcap_inside.rose.mcap"),
+        ("ros1_inside.db3", "ros1_inside.rose.bag"),
+        ("run.bag.active", "run.rose.bag"),
+    )
+    for name, expected in cases:
+        assert default_output_path(tmp_path / name) == tmp_path / expected
+        assert main(["process", str(tmp_path / name), "-q"]) == 0
+        assert (tmp_path / expected).is_file()
+    assert not (tmp_path / "mcap_inside.rose").exists()
+
+
 def test_an_empty_topic_name_is_a_usage_error(capsys: pytest.CaptureFixture[str]) -> None:
     with pytest.raises(SystemExit) as done:
         main(["process", str(SAMPLE), "-t", "", "--no-output"])
