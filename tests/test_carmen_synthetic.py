@@ -215,7 +215,31 @@ def test_scans_before_a_clock_restart_keep_their_period(
     clock = scan_clock_ns(read_carmen_log(path))
     assert clock.name == "log" and clock.start_ns == 0
     np.testing.assert_allclose(clock.offsets_ns, np.arange(10) * 1e8, atol=1)
-    assert "3 scan stamp(s) out of line with the rest" in caplog.text
+    assert "the clock restarted 1 time(s) (first before scan 4, 5000.200 s back)" in caplog.text
+
+
+def test_a_clock_that_steps_back_a_few_seconds_early_in_a_log_squeezes_no_scans(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """A restart 8.5 s back after 8 of 20 scans: the scans after it lay within 10 s of those
+    before, so they were taken for backward jitter and squeezed onto one time, 1 ns apart (213 of
+    ACES's 440 scans with its clock restarted at half-time). Both parts keep their 0.5 s steps."""
+    from rose_logs.carmen.clock import scan_clock_ns
+
+    path = tmp_path / "restart.log"
+    _write_log(path, SCANS * 4)
+    before = [f"{100.0 + 0.5 * k:.1f}" for k in range(8)]
+    after = [f"{95.0 + 0.5 * k:.1f}" for k in range(12)]
+    _restamped(path, before + after)
+    clock = scan_clock_ns(read_carmen_log(path))
+    np.testing.assert_allclose(np.diff(clock.offsets_ns), 5e8, atol=1)
+    assert clock.start_ns == round((95.0 - 8 * 0.5) * 1e9)
+    assert "the clock restarted 1 time(s) (first before scan 9, 8.500 s back)" in caplog.text
+    # Two restarts: each part keeps its steps, the last its own stamps.
+    _restamped(path, before[:4] + after[:8] + [f"{50.0 + 0.5 * k:.1f}" for k in range(8)])
+    clock = scan_clock_ns(read_carmen_log(path))
+    np.testing.assert_allclose(np.diff(clock.offsets_ns), 5e8, atol=1)
+    assert clock.start_ns == round((50.0 - 12 * 0.5) * 1e9)
 
 
 def test_a_session_that_would_run_past_2_31_s_is_refused(tmp_path: Path) -> None:

@@ -3,8 +3,8 @@
 Most logs stamp every scan (a handful of backward steps are nudged forward by 1 ns, with a warning
 that counts them; a stamp far out
 of line with the rest, e.g. one wrong by a day, is placed between its neighbours with a warning, so
-that it does not drag every later scan along; so are the first scans of a log whose clock restarted,
-at the log's scan period before the restart). Some do not: the
+that it does not drag every later scan along; the scans before a clock restart keep their steps
+and end at the log's scan period before it). Some do not: the
 CSAIL log writes its stamps with six significant digits, so nearly all scans share one stamp and a
 session cut into map periods would be a single snapshot. Such a log gets a replacement clock: every
 scan takes the time a robot needs to move to it at :data:`NOMINAL_SPEED_M_S` and turn at
@@ -37,6 +37,13 @@ _LOG = logging.getLogger(__name__)
 OUT_OF_LINE_S = 10.0
 """A stamp off the log's ordered stamps by more than this (seconds) is a wrong stamp, not jitter."""
 
+RESTART_MIN_S = 1.0
+"""A step back by more than this (seconds) that the scans on both sides agree with is a clock
+restart (:func:`_restarts_joined`); shorter ones are jitter or swapped lines, nudged."""
+
+#: Scans on each side of a step back whose median stamps tell a restart from a wrong stamp.
+_RESTART_SIDE = 9
+
 NOMINAL_SPEED_M_S = 0.3
 """Robot speed of the replacement clock, metres per second."""
 NOMINAL_TURN_RAD_S = 0.5
@@ -66,7 +73,7 @@ def scan_clock_ns(log: CarmenLog) -> ScanClock:
     stamps = log.stamps_ns.astype(np.int64)
     steps = np.diff(stamps)
     if steps.size == 0 or np.count_nonzero(steps > 0) >= steps.size / 2:
-        stamps = _stamps_in_line(stamps, log)
+        stamps = _stamps_in_line(_restarts_joined(stamps, log), log)
         out = stamps - stamps[0]
         steps = np.diff(stamps)
         backward = int(np.count_nonzero(steps < 0))  # in the log, not after the nudges below
@@ -103,6 +110,45 @@ def _start_ns(stamps: npt.NDArray[np.int64]) -> int:
     """The session's first stamp: the first scan's, or 0 when that is before 0 (ROS time starts
     there; the scans before a clock restart are placed before its first stamp, which may be 0)."""
     return max(int(stamps[0]), 0) if stamps.size else 0
+
+
+def _restarts_joined(stamps: npt.NDArray[np.int64], log: CarmenLog) -> npt.NDArray[np.int64]:
+    """``stamps`` with the scans before each clock restart moved, as a block, to end at the log's
+    scan period before the first stamp after it (the last part keeps its own stamps).
+
+    A restart is a step back by more than :data:`RESTART_MIN_S` that the scans on both sides agree
+    with: the median of up to :data:`_RESTART_SIDE` stamps before it lies past the middle of the
+    jump, and so does that of the stamps after it (one stamp wrong by a day, forward or back, has
+    its neighbours against it and is left to :func:`_stamps_in_line`). Each part keeps its own
+    steps: found as out of line instead, the scans on one side were spread at the median period
+    or, with the restart early in the log, squeezed onto one time (213 of ACES's 440 scans)."""
+    steps = np.diff(stamps)
+    jumps = np.flatnonzero(steps < -RESTART_MIN_S * 1e9) + 1  # first scan after each
+    restarts = []
+    for i in jumps.tolist():
+        middle = (int(stamps[i - 1]) + int(stamps[i])) / 2
+        before = np.median(stamps[max(i - _RESTART_SIDE, 0) : i])
+        after = np.median(stamps[i : i + _RESTART_SIDE])
+        if before > middle > after:
+            restarts.append(i)
+    if not restarts:
+        return stamps
+    forward = steps[steps > 0]
+    period = int(np.median(forward)) if forward.size else 0
+    out = stamps.copy()
+    bounds = [0, *restarts, stamps.size]
+    for k in range(len(restarts) - 1, -1, -1):  # from the last restart back: parts already moved
+        first, last = bounds[k], bounds[k + 1]
+        out[first:last] += out[last] - period - out[last - 1]
+    _LOG.warning(
+        "%s: the clock restarted %d time(s) (first before scan %d, %.3f s back): the scans before "
+        "each restart placed at the log's scan period before the first stamp after it",
+        log.path,
+        len(restarts),
+        restarts[0] + 1,
+        -int(steps[restarts[0] - 1]) / 1e9,
+    )
+    return out
 
 
 def _stamps_in_line(stamps: npt.NDArray[np.int64], log: CarmenLog) -> npt.NDArray[np.int64]:
