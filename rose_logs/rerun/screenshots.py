@@ -217,7 +217,8 @@ def take_screenshots(
     rrd_path : Path
         Recording to show.
     out_dir : Path
-        Created if needed; PNGs are named ``<prefix><name>.png``.
+        Created if needed; PNGs are named ``<prefix><name>.png``, replaced if there, all written
+        at the end (none when interrupted).
     steps : sequence of (str, int or None)
         Name of each shot and the index of the time point (snapshot) it shows, counted from the first
         time point of the ``session_time`` timeline; None: the last time point.
@@ -256,7 +257,7 @@ def take_screenshots(
         msg = f"{rrd_path}: no snapshot on the {SESSION_TIMELINE} timeline"
         raise ScreenshotError(msg)
     out_dir.mkdir(parents=True, exist_ok=True)
-    shots: list[Shot] = []
+    taken: list[tuple[str, int | None, bytes]] = []
     with (
         _serve(Path(rrd_path)) as (web_port, grpc_port),
         tempfile.TemporaryDirectory(prefix="rose-chromium-") as profile,
@@ -293,12 +294,18 @@ def take_screenshots(
                         _press(page, "Control+ArrowRight")
                     position = target
                 page.wait_for_timeout(_SETTLE_MS)
-                path = out_dir / f"{prefix}{name}.png"
-                page.screenshot(path=str(path))
-                shots.append(Shot(name, step, path))
-                _LOG.info("saved %s", path)
+                taken.append((name, step, page.screenshot()))
+                _LOG.info("took %s", name)
         finally:
             context.close()
+    # All written at the end, or none (an interrupt said "nothing written" after some were):
+    # each through a temporary renamed into place, as every output of rose-bag.
+    from rose.outputs import OutputSet
+
+    shots = [Shot(name, step, out_dir / f"{prefix}{name}.png") for name, step, _ in taken]
+    with OutputSet(inputs=[Path(rrd_path)], force=True) as outputs:
+        for shot, (_, _, png) in zip(shots, taken, strict=True):
+            outputs.write_bytes(shot.path, png)
     return shots
 
 

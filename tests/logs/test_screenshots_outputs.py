@@ -1,0 +1,94 @@
+"""The screenshot helper's outputs without a browser: a stand-in for Playwright and the viewer, so
+that what is written when does not wait a minute for the real viewer (tests/logs/
+test_rerun_screenshots.py shows the real one)."""
+
+from __future__ import annotations
+
+import contextlib
+import sys
+import types
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+import rose_logs.rerun.screenshots as screenshots
+
+
+class _Page:
+    """A page whose second screenshot is interrupted (Ctrl-C while the viewer draws)."""
+
+    def __init__(self) -> None:
+        self.taken = 0
+        self.keyboard = types.SimpleNamespace(press=lambda key: None)
+
+    def goto(self, url: str) -> None:
+        pass
+
+    def wait_for_selector(self, *args: Any, **kwargs: Any) -> None:
+        pass
+
+    def wait_for_timeout(self, ms: float) -> None:
+        pass
+
+    def evaluate(self, script: str) -> None:
+        pass
+
+    def locator(self, selector: str) -> Any:
+        return types.SimpleNamespace(first=types.SimpleNamespace(focus=lambda **kw: None))
+
+    def screenshot(self) -> bytes:
+        self.taken += 1
+        if self.taken == 2:
+            raise KeyboardInterrupt
+        return b"\x89PNG fake"
+
+
+@contextlib.contextmanager
+def _playwright() -> Iterator[Any]:
+    context = types.SimpleNamespace(new_page=_Page, close=lambda: None)
+    chromium = types.SimpleNamespace(launch_persistent_context=lambda *a, **kw: context)
+    yield types.SimpleNamespace(chromium=chromium)
+
+
+@contextlib.contextmanager
+def _served(rrd_path: Path) -> Iterator[tuple[int, int]]:
+    yield 1, 2
+
+
+def test_screenshots_interrupted_midway_write_none(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The first PNG was written in place, then Ctrl-C said "interrupted, nothing written"."""
+    api = types.ModuleType("playwright.sync_api")
+    api.sync_playwright = _playwright  # type: ignore[attr-defined]
+    api.Error = RuntimeError  # type: ignore[attr-defined]
+    monkeypatch.setitem(sys.modules, "playwright", types.ModuleType("playwright"))
+    monkeypatch.setitem(sys.modules, "playwright.sync_api", api)
+    monkeypatch.setattr(screenshots, "_serve", _served)
+    rrd = tmp_path / "s.rrd"
+    rrd.write_bytes(b"")
+    out = tmp_path / "shots"
+    with pytest.raises(KeyboardInterrupt):
+        screenshots.take_screenshots(
+            rrd,
+            out,
+            steps=[("start", 0), ("end", None)],
+            time_points=3,
+            chromium=Path(sys.executable),
+            load_s=0,
+        )
+    assert list(out.iterdir()) == []
+    # Uninterrupted, both are written.
+    monkeypatch.setattr(_Page, "screenshot", lambda self: b"\x89PNG fake")
+    shots = screenshots.take_screenshots(
+        rrd,
+        out,
+        steps=[("start", 0), ("end", None)],
+        time_points=3,
+        chromium=Path(sys.executable),
+        load_s=0,
+    )
+    assert sorted(p.name for p in out.iterdir()) == ["end.png", "start.png"]
+    assert all(shot.path.read_bytes() == b"\x89PNG fake" for shot in shots)
