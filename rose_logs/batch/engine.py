@@ -19,6 +19,7 @@ from rose_logs.batch.errors import BatchError
 from rose_logs.batch.sources import Recording, discover
 from rose_logs.batch.store import OutputStore, is_local, storage_errors
 from rose_logs.batch.task import (
+    RESULTS_DIR,
     RecordingOptions,
     RecordingResult,
     error_result,
@@ -216,7 +217,7 @@ def run_batch(
             options,
         ) as run:
             # Created once the engine is ready: a scheduler that cannot be reached leaves no folder.
-            store.prepare()
+            store.prepare(folders=(RESULTS_DIR,))
             bar.slots = getattr(run, "slots", 1)
             with _console_beside(bar):
                 for result in run(todo, store, options, storage_options, keys):

@@ -159,16 +159,23 @@ class OutputStore:
         """Full path or URL of ``relative`` (``/``-separated) under the root."""
         return join_uri(self.root, *relative.split("/"))
 
-    def prepare(self) -> None:
-        """Create the root folder and its staging folder (local: an existing folder we cannot write
-        to is refused here, not per recording), or check that the bucket exists (object stores: a
-        mistyped bucket name must not create a new bucket) and create the root (other remotes)."""
+    def prepare(self, folders: tuple[str, ...] = ()) -> None:
+        """Create the root folder, its staging folder and ``folders`` below it (local: an existing
+        folder we cannot write to, or a file where one of them goes, is refused here, not per
+        recording), or check that the bucket exists (object stores: a mistyped bucket name must
+        not create a new bucket) and create the root (other remotes)."""
         try:
             if self.local:
                 root = Path(_strip_file(self.root))
-                if root.exists() and not root.is_dir():
-                    msg = f"{self.root}: not a folder (the output of a batch is a folder)"
-                    raise BatchError(msg)
+                for folder in (root, *(root / f for f in folders)):
+                    if folder.exists() and not folder.is_dir():
+                        why = (
+                            "the output of a batch is a folder"
+                            if folder == root
+                            else "the batch keeps each recording's result in this folder"
+                        )
+                        msg = f"{folder}: not a folder ({why})"
+                        raise BatchError(msg)
                 root.mkdir(parents=True, exist_ok=True)
                 # A real write in the root (results/ and the tables go there): a staging folder
                 # left by a killed run proves nothing.

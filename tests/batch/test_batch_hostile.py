@@ -661,3 +661,13 @@ def test_an_output_that_is_a_file_is_named_so(
         f"error: {out}: not a folder (the output of a batch is a folder)"
     )
     assert out.read_text() == "mine"
+    # A file where the results go is refused before any recording runs (it failed after them).
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "results").write_text("mine")
+    assert main(["batch", str(fleet / "robot_a" / "run.mcap"), "-o", str(out), "-q"]) == 1
+    assert capsys.readouterr().err.strip() == (
+        f"error: {out / 'results'}: not a folder (the batch keeps each recording's result in "
+        "this folder)"
+    )
+    assert sorted(p.name for p in out.iterdir()) == ["results"]
