@@ -9,6 +9,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+import numpy.typing as npt
 import pytest
 from real_data import FR079_DIR, repo_data
 
@@ -400,6 +401,17 @@ def test_a_damaged_png_says_what_is_wrong_in_one_line(
     assert capfd.readouterr().err == ""
 
 
+def _trinary(grey: npt.NDArray[np.uint8]) -> npt.NDArray[np.int8]:
+    """The grid a map server reads from the grey image ``grey`` with its default thresholds."""
+    return rose.mapfile.image_to_grid(
+        grey[:, :, np.newaxis],
+        mode="trinary",
+        negate=False,
+        occupied_thresh=0.65,
+        free_thresh=0.196,
+    )
+
+
 def _png_of(
     rows: list[bytes],
     *,
@@ -483,13 +495,7 @@ def test_pngs_libpng_reads_pass_the_checks(
     for name, png, rows in (("i", interlaced, 3), ("b", one_bit, 2), ("p", indexed, 2)):
         (tmp_path / f"{name}.png").write_bytes(png)
         assert rose.load_map(tmp_path / f"{name}.png").grid.shape[0] == rows
-    expected = rose.mapfile.image_to_grid(
-        grey[:, :, np.newaxis],
-        mode="trinary",
-        negate=False,
-        occupied_thresh=0.65,
-        free_thresh=0.196,
-    )
+    expected = _trinary(grey)
     np.testing.assert_array_equal(rose.load_map(tmp_path / "i.png").grid, expected)
     assert capfd.readouterr().err == ""
 
@@ -526,13 +532,7 @@ def test_png_colour_types_read_alike(tmp_path: Path, channels: str) -> None:
         else:
             cv2.imwrite(str(path), arrays[channels])
     grid = rose.load_map(path).grid
-    expected = rose.mapfile.image_to_grid(
-        grey[:, :, np.newaxis],
-        mode="trinary",
-        negate=False,
-        occupied_thresh=0.65,
-        free_thresh=0.196,
-    )
+    expected = _trinary(grey)
     np.testing.assert_array_equal(grid, expected)
 
 

@@ -70,8 +70,9 @@ def test_screenshots_interrupted_midway_write_none(
     rrd = tmp_path / "s.rrd"
     rrd.write_bytes(b"")
     out = tmp_path / "shots"
-    with pytest.raises(KeyboardInterrupt):
-        screenshots.take_screenshots(
+
+    def take() -> list[screenshots.Shot]:
+        return screenshots.take_screenshots(
             rrd,
             out,
             steps=[("start", 0), ("end", None)],
@@ -79,16 +80,12 @@ def test_screenshots_interrupted_midway_write_none(
             chromium=Path(sys.executable),
             load_s=0,
         )
+
+    with pytest.raises(KeyboardInterrupt):
+        take()
     assert list(out.iterdir()) == []
     # Uninterrupted, both are written.
     monkeypatch.setattr(_Page, "screenshot", lambda self: b"\x89PNG fake")
-    shots = screenshots.take_screenshots(
-        rrd,
-        out,
-        steps=[("start", 0), ("end", None)],
-        time_points=3,
-        chromium=Path(sys.executable),
-        load_s=0,
-    )
+    shots = take()
     assert sorted(p.name for p in out.iterdir()) == ["end.png", "start.png"]
     assert all(shot.path.read_bytes() == b"\x89PNG fake" for shot in shots)
