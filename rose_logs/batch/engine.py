@@ -86,6 +86,7 @@ class BatchReport:
 
 
 ResultCallback = Callable[[RecordingResult, int, int], None]
+GatesCallback = Callable[["BatchReport"], Mapping[str, Any]]
 
 
 def run_batch(
@@ -104,6 +105,7 @@ def run_batch(
     progress: bool = False,
     on_result: ResultCallback | None = None,
     write_tables: bool = True,
+    gates: GatesCallback | None = None,
 ) -> BatchReport:
     """Process every recording of ``inputs``; write the tables and report to ``out``.
 
@@ -138,6 +140,10 @@ def run_batch(
         Called with ``(result, done, total)`` after each recording processed by this run.
     write_tables : bool, default True
         Write ``recordings.parquet``, ``snapshots.parquet``, ``summary.json`` and ``report.md``.
+    gates : callable, optional
+        Called with the :class:`BatchReport` before the tables are written; what it returns (the
+        gates asked for and those that failed, JSON-ready) goes into ``summary.json`` as
+        ``gates``, so that a pipeline reading it sees why the batch failed.
 
     Returns
     -------
@@ -260,7 +266,9 @@ def run_batch(
         # second), and the report then says the batch was stopped.
         try:
             with signals_deferred(), storage_errors(store.root):
-                write_outputs(store, report, options)
+                write_outputs(
+                    store, report, options, gates=None if gates is None else gates(report)
+                )
         except KeyboardInterrupt as err:
             stopped_by = getattr(err, "signum", signal.SIGINT)
             report = dataclasses.replace(report, interrupted=True, signal=stopped_by)

@@ -15,6 +15,8 @@ from rose_logs.batch.store import OutputStore
 from rose_logs.batch.task import RecordingOptions, package_version
 
 if TYPE_CHECKING:
+    from collections.abc import Mapping
+
     from rose_logs.batch.engine import BatchReport
 
 __all__ = [
@@ -151,7 +153,13 @@ def summary(report: BatchReport, options: RecordingOptions) -> dict[str, Any]:
     }
 
 
-def write_outputs(store: OutputStore, report: BatchReport, options: RecordingOptions) -> None:
+def write_outputs(
+    store: OutputStore,
+    report: BatchReport,
+    options: RecordingOptions,
+    *,
+    gates: Mapping[str, Any] | None = None,
+) -> None:
     """Write the tables, ``summary.json``, ``report.md`` and its figure to the output root, together.
 
     Everything is rendered first and then committed as one set (:meth:`OutputStore.write_set`): a
@@ -166,6 +174,8 @@ def write_outputs(store: OutputStore, report: BatchReport, options: RecordingOpt
     from rose_logs.batch.report import figure_png, markdown
 
     payload = summary(report, options)
+    if gates is not None:
+        payload["gates"] = dict(gates)
     png = figure_png(report)
     files = {
         "recordings.parquet": _parquet_bytes(recordings_table(report)),

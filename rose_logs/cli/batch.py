@@ -260,6 +260,11 @@ def run(args: argparse.Namespace) -> int:
         force=args.force,
         retry_errors=args.retry_errors,
         progress=not args.quiet and sys.stderr.isatty(),
+        gates=lambda report: {
+            "fail_above": args.fail_above,
+            "fail_on_break": bool(args.fail_on_break),
+            "failed": _gate_failures(args, report),
+        },
     )
     _print_summary(report)
     return _exit_code(report, args)

@@ -408,9 +408,9 @@ def test_a_signal_while_the_tables_are_written_waits_for_them(
 
     real = tables.write_outputs
 
-    def interrupted(*args: object) -> None:
+    def interrupted(*args: object, **kwargs: object) -> None:
         os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C just as the tables are being written
-        real(*args)  # type: ignore[arg-type]
+        real(*args, **kwargs)  # type: ignore[arg-type]
 
     monkeypatch.setattr(tables, "write_outputs", interrupted)
     out = tmp_path / "out"

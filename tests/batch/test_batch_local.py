@@ -375,6 +375,14 @@ def test_cli_gates_errors_win_over_fail_above(
     assert main(["batch", str(fleet), "-o", out, "-q", "--fail-above", "0.4"]) == 3
     err = capsys.readouterr().err
     assert "robot_b/run.mcap" in err and "(the highest; 1 recording(s) above it)" in err
+    # The summary a pipeline reads says why, as the error line (it said nothing of the gates).
+    gates = json.loads((tmp_path / "out" / "summary.json").read_text())["gates"]
+    assert gates["fail_above"] == 0.4 and gates["fail_on_break"] is False
+    (reason,) = gates["failed"]
+    assert f"error: {reason}" in err.splitlines()
+    assert main(["batch", str(fleet), "-o", out, "-q"]) == 0
+    gates = json.loads((tmp_path / "out" / "summary.json").read_text())["gates"]
+    assert gates == {"fail_above": None, "fail_on_break": False, "failed": []}
     assert main(["batch", str(fleet), "-o", out, "-q", "--fail-above", "0.0001"]) == 3
     assert f"(the highest; {len(FLEET_NAMES)} recording(s) above it)" in capsys.readouterr().err
     (fleet / "robot_a" / "zero.mcap").write_bytes(b"")
