@@ -140,7 +140,12 @@ class OccupancyMap:
             msg = f"OccupancyMap: resolution_m {problem}"
             raise RoseError(msg)
         origin = self.origin_xy_m
-        if not isinstance(origin, tuple | list | np.ndarray) or len(origin) != 2:
+        numbers = (int, float, np.integer, np.floating)
+        if (
+            not isinstance(origin, tuple | list | np.ndarray)
+            or len(origin) != 2
+            or not all(isinstance(v, numbers) and not isinstance(v, bool) for v in origin)
+        ):
             msg = f"OccupancyMap: origin_xy_m must be (x, y) in metres, got {origin!r}"
             raise RoseError(msg)
         problem = origin_problem(origin[0], origin[1], self.origin_yaw_rad)
@@ -150,6 +155,9 @@ class OccupancyMap:
                 f"{self.origin_yaw_rad!r}) {problem}"
             )
             raise RoseError(msg)
+        # Kept as a tuple of its own: a list given could be changed after the check (a NaN put in
+        # was saved, and the map then refused by load_map).
+        object.__setattr__(self, "origin_xy_m", (float(origin[0]), float(origin[1])))
 
     @property
     def input_files(self) -> tuple[Path, ...]:
@@ -556,12 +564,51 @@ _ADAM7 = (
 )
 
 
-def _png_rows(ihdr: bytes) -> str | npt.NDArray[np.int64]:
-    """Where each row's filter byte lies in a PNG's inflated image data (the data's length last),
-    from its IHDR chunk's body; or what is wrong with that header."""
+#: Most pixels along a side libpng reads (its default user limit; it refuses more with its own
+#: stderr lines).
+_PNG_MAX_SIDE = 1_000_000
+
+#: Critical chunks libpng knows; any other critical chunk is an error for it.
+_PNG_CRITICAL = (b"IHDR", b"PLTE", b"IDAT", b"IEND")
+
+
+@dataclass(frozen=True)
+class _PngLayout:
+    """Where the rows of a PNG's inflated image data lie: per pass (one without interlacing, the
+    seven of Adam7 with it) the offset of its first row's filter byte, the row stride and the row
+    count; and the bytes they need in all."""
+
+    colour: int
+    passes: tuple[tuple[int, int, int], ...]
+    size: int
+
+    def filter_problem(self, piece: bytes, offset: int) -> str | None:
+        """An unknown row filter (above 4) among the filter bytes inside ``piece``, the inflated
+        image data from byte ``offset`` on."""
+        data = np.frombuffer(piece, dtype=np.uint8)
+        for number, (first, stride, count) in enumerate(self.passes, start=1):
+            low = max(0, -(-(offset - first) // stride))
+            high = min(count, -(-(offset + data.size - first) // stride))
+            if high <= low:
+                continue
+            filters = data[first + stride * np.arange(low, high) - offset]
+            bad = np.flatnonzero(filters > 4)
+            if bad.size:
+                row = low + int(bad[0])
+                where = f"row {row}" if len(self.passes) == 1 else f"row {row} of pass {number}"
+                return f"corrupt PNG: {where} has filter type {filters[bad[0]]} (types 0..4 exist)"
+        return None
+
+
+def _png_layout(ihdr: bytes) -> str | _PngLayout:
+    """The :class:`_PngLayout` of a PNG from its IHDR chunk's body, or what is wrong with it."""
     if len(ihdr) != 13:
         return f"its IHDR chunk holds {len(ihdr)} bytes, not 13"
     cols, rows, depth, colour, compression, filtering, interlace = struct.unpack(">IIBBBBB", ihdr)
+    if max(cols, rows) > _PNG_MAX_SIDE:
+        return (
+            f"{cols} x {rows} pixels in its header: libpng reads {_PNG_MAX_SIDE:,} a side at most"
+        )
     if colour not in _PNG_COLOUR_TYPES:
         return f"colour type {colour} in its header"
     samples, depths = _PNG_COLOUR_TYPES[colour]
@@ -572,40 +619,45 @@ def _png_rows(ihdr: bytes) -> str | npt.NDArray[np.int64]:
             f"compression {compression}, filter {filtering}, interlace {interlace} in its header "
             "(0, 0 and 0 or 1 are defined)"
         )
-    passes = _ADAM7 if interlace else ((0, 0, 1, 1),)
-    starts = [np.zeros(1, dtype=np.int64)]
-    for col0, row0, col_step, row_step in passes:
+    passes = []
+    size = 0
+    for col0, row0, col_step, row_step in _ADAM7 if interlace else ((0, 0, 1, 1),):
         width = -(-(cols - col0) // col_step) if cols > col0 else 0
         height = -(-(rows - row0) // row_step) if rows > row0 else 0
         if width and height:  # an empty pass has no rows, not even filter bytes
             stride = 1 + -(-width * samples * depth // 8)
-            starts.append(starts[-1][-1] + stride * np.arange(1, height + 1, dtype=np.int64))
-    return np.concatenate(starts)
+            passes.append((size, stride, height))
+            size += stride * height
+    return _PngLayout(colour, tuple(passes), size)
 
 
 def _png_problem(raw: bytes, shape: tuple[int, int], dropped: list[tuple[int, int]]) -> str | None:
     """What libpng would print on stderr itself (before an error without a reason), said here in
     one line: a truncated PNG, a chunk whose CRC does not match, a header PNG does not define, a
-    palette image without its palette, image data that does not inflate, is short or has a row
-    with an unknown filter. Ancillary chunks whose CRC does not match go to ``dropped`` as
-    ``(start, end)`` byte spans: libpng drops them (with a warning on stderr), and so does the
-    caller, before it decodes.
+    chunk out of place or of a wrong size, a palette image without its palette, image data that
+    does not inflate, ends early or has a row with an unknown filter. Chunks libpng drops with a
+    warning on stderr (ancillary ones whose CRC does not match, a palette in a grey image, a
+    transparency chunk that does not fit the image) go to ``dropped`` as ``(start, end)`` byte
+    spans, and so does the caller, before it decodes. Image data beyond what the rows need is
+    left to libpng (it reads the image, with a warning).
 
-    The image data is inflated in pieces and dropped, no further than the header's ``shape``
-    (rows, cols) needs: a small file inflating without end is left to the decoder, which stops
-    there."""
+    The image data is inflated in pieces and dropped, and no further than the most the header's
+    ``shape`` (rows, cols) can hold: a small file inflating without end is left to the decoder,
+    which stops there."""
     pos, end = 8, len(raw)
     image_data = zlib.decompressobj()
-    row_starts: npt.NDArray[np.int64] | None = None
+    most = shape[0] * (shape[1] * 8 + 1)  # 4 channels of 16 bits and a filter byte per row
+    layout: _PngLayout | None = None
     inflated = 0
-    seen_palette = False
+    palette = 0  # entries of the PLTE chunk, once read
+    data_state = 0  # 0: no IDAT yet, 1: in the IDAT chunks, 2: after them
     while True:
         if pos + 12 > end:
             return f"truncated PNG: the file ends at byte {end}, inside or before a chunk"
         length, kind = struct.unpack(">I4s", raw[pos : pos + 8])
         body_end = pos + 8 + length
+        name = kind.decode("latin-1")
         if body_end + 4 > end:
-            name = kind.decode("latin-1")
             return (
                 f"truncated PNG: its {name!r} chunk at byte {pos} runs past the end ({end} bytes)"
             )
@@ -613,52 +665,71 @@ def _png_problem(raw: bytes, shape: tuple[int, int], dropped: list[tuple[int, in
         # A critical chunk (upper-case first letter) with a wrong CRC is an error for libpng; an
         # ancillary one (tEXt, ...) is dropped with a warning and the image reads.
         if zlib.crc32(raw[pos + 4 : body_end]) != crc:
-            if not kind[:1].isupper():
+            if kind[:1].isupper():
+                return f"corrupt PNG: CRC mismatch in its {name!r} chunk at byte {pos}"
+            dropped.append((pos, body_end + 4))
+            pos = body_end + 4
+            continue
+        data_state = max(data_state, 2) if data_state and kind != b"IDAT" else data_state
+        if kind[:1].isupper() and kind not in _PNG_CRITICAL:
+            return f"corrupt PNG: an unknown critical chunk {name!r} at byte {pos}"
+        if kind == b"IHDR":
+            if layout is not None:
+                return f"corrupt PNG: a second IHDR chunk at byte {pos}"
+            found = _png_layout(raw[pos + 8 : body_end])
+            if isinstance(found, str):
+                return f"corrupt PNG: {found}"
+            layout = found
+        elif layout is None:  # the IHDR chunk comes first (the caller read the shape there)
+            return f"corrupt PNG: its {name!r} chunk at byte {pos} comes before its IHDR chunk"
+        elif kind == b"PLTE":
+            if palette or data_state:
+                return f"corrupt PNG: a PLTE chunk out of place at byte {pos}"
+            if length == 0 or length % 3 or length > 768:
+                return f"corrupt PNG: its PLTE chunk holds {length} bytes (3 per entry, 1..256)"
+            if layout.colour in (0, 4):  # a palette in a grey image: libpng ignores it
                 dropped.append((pos, body_end + 4))
             else:
-                return (
-                    f"corrupt PNG: CRC mismatch in its {kind.decode('latin-1')!r} chunk at "
-                    f"byte {pos}"
-                )
-        if kind == b"IHDR" and row_starts is None:
-            layout = _png_rows(raw[pos + 8 : body_end])
-            if isinstance(layout, str):
-                return f"corrupt PNG: {layout}"
-            row_starts = layout
-        seen_palette |= kind == b"PLTE"
-        if kind == b"IDAT" and row_starts is not None:
-            if raw[25] == 3 and not seen_palette:  # colour type 3 (its IHDR was read above)
+                palette = length // 3
+        elif kind == b"tRNS" and not _fits_transparency(layout.colour, length, palette):
+            dropped.append((pos, body_end + 4))
+        elif kind == b"IDAT":
+            if data_state == 2:
+                return f"corrupt PNG: its image data is split by other chunks (IDAT at byte {pos})"
+            data_state = 1
+            if layout.colour == 3 and not palette:
                 return "corrupt PNG: a palette image without a palette (PLTE) before its data"
-            needed = int(row_starts[-1])
             try:
                 chunk = raw[pos + 8 : body_end]
-                while chunk and inflated < needed:
-                    piece = image_data.decompress(chunk, min(1 << 20, needed - inflated))
-                    problem = _png_filter_problem(piece, inflated, row_starts)
-                    if problem is not None:
-                        return problem
+                while chunk and inflated <= most:
+                    piece = image_data.decompress(chunk, 1 << 20)
+                    if inflated < layout.size:
+                        problem = layout.filter_problem(piece[: layout.size - inflated], inflated)
+                        if problem is not None:
+                            return problem
                     inflated += len(piece)
                     chunk = image_data.unconsumed_tail
             except zlib.error as err:
                 return f"corrupt PNG: its image data does not inflate ({err})"
-        if kind == b"IEND":
-            if row_starts is not None and inflated < row_starts[-1]:
+        elif kind == b"IEND":
+            if inflated < layout.size:
+                return f"corrupt PNG: its image data ends early ({inflated} of {layout.size} bytes)"
+            if inflated <= most and not image_data.eof:
                 return (
-                    f"corrupt PNG: its image data ends early ({inflated} of {row_starts[-1]} bytes)"
+                    "corrupt PNG: its image data ends early (its compressed stream is unfinished)"
                 )
             return None
         pos = body_end + 4
 
 
-def _png_filter_problem(piece: bytes, offset: int, row_starts: npt.NDArray[np.int64]) -> str | None:
-    """An unknown row filter (above 4) among the filter bytes inside ``piece``, the inflated image
-    data from byte ``offset`` on."""
-    first, last = np.searchsorted(row_starts, (offset, offset + len(piece)))
-    filters = np.frombuffer(piece, dtype=np.uint8)[row_starts[first:last] - offset]
-    bad = np.flatnonzero(filters > 4)
-    if bad.size:
-        return f"corrupt PNG: row {first + int(bad[0])} has filter type {filters[bad[0]]} (types 0..4 exist)"
-    return None
+def _fits_transparency(colour: int, length: int, palette: int) -> bool:
+    """Whether a tRNS chunk of ``length`` bytes fits a PNG of colour type ``colour`` (one grey or
+    RGB sample of 16 bits, or up to one alpha per palette entry; none with an alpha channel)."""
+    if colour == 0:
+        return length == 2
+    if colour == 2:
+        return length == 6
+    return colour == 3 and 0 < length <= palette
 
 
 def image_to_grid(
@@ -752,7 +823,7 @@ def save_map(
     ------
     MapFileError
         If the path is not a ``.yaml`` name, the map is one :func:`load_map` would refuse (an empty
-        grid, a resolution or origin that is not a finite number in range) or the image cannot be
+        grid; its resolution and origin were checked when it was made) or the image cannot be
         encoded.
     OutputError
         If an output would replace a file the map was read from, is refused by ``outputs`` (an

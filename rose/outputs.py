@@ -60,6 +60,7 @@ __all__ = [
     "OutputSet",
     "StagedOutput",
     "Terminated",
+    "buffer_unbuffered_stdout",
     "exit_after",
     "install_signal_handlers",
     "interrupt_behind",
@@ -152,28 +153,29 @@ def print_any_file_name() -> None:
     import codecs
 
     codecs.register_error(_PRINTABLE, _printable)
-    _buffer_unbuffered_stdout()
     reconfigure = getattr(sys.stdout, "reconfigure", None)
     if reconfigure is not None:
         with contextlib.suppress(ValueError, OSError):  # not a text stream we may change
             reconfigure(errors=_PRINTABLE)
 
 
-def _buffer_unbuffered_stdout() -> None:
+def buffer_unbuffered_stdout() -> None:
     """Give an unbuffered standard output (``python -u``, ``PYTHONUNBUFFERED``, common in
     containers and CI) a buffer, flushed at every line as unbuffered output is expected to show.
     Unbuffered, a pipe whose reader leaves mid-write takes part of a large write and reports the
     count, not an error, and the text layer drops the rest: ``rose score --json ... | head`` ended
-    with exit 0 and the report cut. A buffer writes all it is given or raises."""
+    with exit 0 and the report cut. A buffer writes all it is given or raises. The console
+    scripts call this (not ``main``: an in-process caller keeps its own stream); only a plain file
+    descriptor is wrapped (a Windows console's stream encodes for its console itself)."""
     stream = sys.stdout
     raw = getattr(stream, "buffer", None)
-    if not isinstance(raw, io.RawIOBase) or not isinstance(stream, io.TextIOWrapper):
+    if type(raw) is not io.FileIO or not isinstance(stream, io.TextIOWrapper):
         return
     try:
         # A file of its own on the descriptor, which it never closes: the stream it replaces
-        # (sys.__stdout__, or a test's capture) keeps its file open when this one goes.
+        # (sys.__stdout__) keeps its file open when this one goes.
         own = io.FileIO(raw.fileno(), "w", closefd=False)
-    except (OSError, ValueError):  # no descriptor (an in-memory stream): nothing to buffer
+    except (OSError, ValueError):
         return
     sys.stdout = io.TextIOWrapper(
         io.BufferedWriter(own),

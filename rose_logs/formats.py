@@ -116,6 +116,7 @@ def _folder_format(path: Path) -> LogFormat:
         raise LogReadError(msg)
     for entry in entries:
         if not entry.is_dir() and not entry.is_file():
+            _mode(Path(entry.path))  # a dangling link: "no such file or directory"
             msg = f"{entry.path}: not a regular file (a FIFO, device or socket in a bag folder)"
             raise LogReadError(msg)
     if not meta.is_file():

@@ -235,6 +235,14 @@ def test_a_clock_that_steps_back_a_few_seconds_early_in_a_log_squeezes_no_scans(
     np.testing.assert_allclose(np.diff(clock.offsets_ns), 5e8, atol=1)
     assert clock.start_ns == round((95.0 - 8 * 0.5) * 1e9)
     assert "the clock restarted 1 time(s) (first before scan 9, 8.500 s back)" in caplog.text
+    # The last stamp, or the last two, a day early: wrong stamps, not a restart (the whole
+    # session was shifted a day back).
+    good = [f"{200000.0 + 0.5 * k:.1f}" for k in range(20)]
+    for wrong in (1, 2):
+        _restamped(path, good[:-wrong] + [f"{113600.0 + 0.5 * k:.1f}" for k in range(wrong)])
+        clock = scan_clock_ns(read_carmen_log(path))
+        assert clock.start_ns == 200000 * 10**9
+        np.testing.assert_allclose(np.diff(clock.offsets_ns), 5e8, atol=1)
     # Two restarts: each part keeps its steps, the last its own stamps.
     _restamped(path, before[:4] + after[:8] + [f"{50.0 + 0.5 * k:.1f}" for k in range(8)])
     clock = scan_clock_ns(read_carmen_log(path))

@@ -5,6 +5,8 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
+import struct
+import zlib
 from pathlib import Path
 
 import cv2
@@ -412,6 +414,10 @@ def _trinary(grey: npt.NDArray[np.uint8]) -> npt.NDArray[np.int8]:
     )
 
 
+def _png_chunk(kind: bytes, body: bytes) -> bytes:
+    return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body))
+
+
 def _png_of(
     rows: list[bytes],
     *,
@@ -421,26 +427,30 @@ def _png_of(
     width: int = 4,
     height: int | None = None,
     palette: bool = False,
+    before: tuple[tuple[bytes, bytes], ...] = (),
+    after: tuple[tuple[bytes, bytes], ...] = (),
+    stream: bytes | None = None,
 ) -> bytes:
     """A PNG of ``width`` x ``height`` pixels (``len(rows)`` rows unless given) from its inflated
-    image data, each row its filter byte and samples, with matching CRCs: only what the arguments
-    make wrong is wrong."""
-    import struct
-    import zlib
-
-    def chunk(kind: bytes, body: bytes) -> bytes:
-        return (
-            struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body))
-        )
-
+    image data, each row its filter byte and samples (compressed, unless ``stream`` is given),
+    the chunks ``before`` and ``after`` it, with matching CRCs: only what the arguments make
+    wrong is wrong."""
     header = struct.pack(">IIBBBBB", width, height or len(rows), depth, colour, *methods)
     return (
         b"\x89PNG\r\n\x1a\n"
-        + chunk(b"IHDR", header)
-        + (chunk(b"PLTE", bytes(range(6))) if palette else b"")
-        + chunk(b"IDAT", zlib.compress(b"".join(rows)))
-        + chunk(b"IEND", b"")
+        + _png_chunk(b"IHDR", header)
+        + (_png_chunk(b"PLTE", bytes(range(6))) if palette else b"")
+        + b"".join(_png_chunk(k, b) for k, b in before)
+        + _png_chunk(b"IDAT", zlib.compress(b"".join(rows)) if stream is None else stream)
+        + b"".join(_png_chunk(k, b) for k, b in after)
+        + _png_chunk(b"IEND", b"")
     )
+
+
+def _unfinished(data: bytes) -> bytes:
+    """``data`` compressed and flushed, its stream never ended (no final block, no checksum)."""
+    squeezer = zlib.compressobj()
+    return squeezer.compress(data) + squeezer.flush(zlib.Z_SYNC_FLUSH)
 
 
 _GREY_ROWS = [b"\x00" + bytes([254, 0, 205, 254])] * 3
@@ -456,8 +466,33 @@ _GREY_ROWS = [b"\x00" + bytes([254, 0, 205, 254])] * 3
         (_png_of(_GREY_ROWS, methods=(1, 0, 0)), "compression 1, filter 0"),
         (_png_of(_GREY_ROWS, depth=7), "bit depth 7 for colour type 0"),
         (_png_of(_GREY_ROWS, colour=5), "colour type 5 in its header"),
+        (_png_of(_GREY_ROWS, stream=_unfinished(b"".join(_GREY_ROWS))), "stream is unfinished"),
+        (
+            _png_of(_GREY_ROWS, stream=zlib.compress(b"".join(_GREY_ROWS))[:-4] + bytes(4)),
+            "does not inflate .*incorrect data check",
+        ),
+        (_png_of(_GREY_ROWS, after=((b"tEXt", b"a\x00b"), (b"IDAT", b""))), "split by other"),
+        (_png_of(_GREY_ROWS, before=((b"ABCD", b""),)), "an unknown critical chunk 'ABCD'"),
+        (_png_of(_GREY_ROWS, before=((b"IHDR", bytes(13)),)), "a second IHDR chunk"),
+        (_png_of(_GREY_ROWS, colour=3, before=((b"PLTE", bytes(5)),)), "PLTE chunk holds 5"),
+        (_png_of(_GREY_ROWS, height=2_000_000), "libpng reads 1,000,000 a side at most"),
     ],
-    ids=["filter", "short", "no-palette", "interlace", "compression", "depth", "colour"],
+    ids=[
+        "filter",
+        "short",
+        "no-palette",
+        "interlace",
+        "compression",
+        "depth",
+        "colour",
+        "unfinished",
+        "checksum",
+        "split",
+        "critical",
+        "ihdr-twice",
+        "palette-size",
+        "tall",
+    ],
 )
 def test_a_png_libpng_refuses_says_why_in_one_line(
     tmp_path: Path, capfd: pytest.CaptureFixture[str], png: bytes, problem: str
@@ -469,6 +504,23 @@ def test_a_png_libpng_refuses_says_why_in_one_line(
         MapFileError, match=f"m.png: not a readable image \\(corrupt PNG: .*{problem}"
     ):
         rose.load_map(tmp_path / "m.png", resolution_m=0.05)
+    assert capfd.readouterr().err == ""
+
+
+@pytest.mark.parametrize(
+    "chunk",
+    [(b"PLTE", bytes(6)), (b"tRNS", bytes(3))],
+    ids=["palette-in-grey", "transparency-misfit"],
+)
+def test_a_chunk_libpng_drops_with_a_warning_is_dropped_quietly(
+    tmp_path: Path, capfd: pytest.CaptureFixture[str], chunk: tuple[bytes, bytes]
+) -> None:
+    """A palette in a grey image, a transparency chunk of the wrong size: libpng ignores them and
+    prints a warning on stderr; the map reads the same without them, and nothing is printed."""
+    (tmp_path / "m.png").write_bytes(_png_of(_GREY_ROWS, before=(chunk,)))
+    (tmp_path / "plain.png").write_bytes(_png_of(_GREY_ROWS))
+    grid = rose.load_map(tmp_path / "m.png").grid
+    np.testing.assert_array_equal(grid, rose.load_map(tmp_path / "plain.png").grid)
     assert capfd.readouterr().err == ""
 
 
@@ -677,6 +729,19 @@ def test_a_map_with_a_placement_load_map_would_refuse_is_not_made(
     base = OccupancyMap(grid=np.zeros((3, 3), dtype=np.int8), resolution_m=0.05)
     with pytest.raises(rose.RoseError, match=f"^OccupancyMap: {problem}"):
         dataclasses.replace(base, **changes)
+
+
+def test_a_maps_origin_cannot_be_changed_after_its_check(tmp_path: Path) -> None:
+    """A list given as the origin stayed the map's: a NaN put in afterwards was saved, and the
+    saved map was then refused by load_map."""
+    given = [1.0, 2.0]
+    occupancy = OccupancyMap(grid=np.zeros((3, 3), dtype=np.int8), origin_xy_m=given)  # type: ignore[arg-type]
+    given[0] = math.nan
+    assert occupancy.origin_xy_m == (1.0, 2.0)
+    rose.save_map(tmp_path / "m.yaml", occupancy)
+    assert rose.load_map(tmp_path / "m.yaml").origin_xy_m == (1.0, 2.0)
+    with pytest.raises(rose.RoseError, match=r"origin_xy_m must be \(x, y\) in metres"):
+        OccupancyMap(grid=occupancy.grid, origin_xy_m=np.zeros((2, 2)))  # type: ignore[arg-type]
 
 
 def test_save_map_never_replaces_the_files_the_map_was_read_from(tmp_path: Path) -> None:

@@ -233,6 +233,7 @@ def error_text(err: BaseException, *, where: str | None = None) -> str:
 
 def console() -> None:
     """The console script: :func:`main`, then exit with its code (late signals ignored)."""
-    from rose.outputs import exit_after
+    from rose.outputs import buffer_unbuffered_stdout, exit_after
 
+    buffer_unbuffered_stdout()
     exit_after(main())

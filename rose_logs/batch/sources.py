@@ -441,11 +441,15 @@ def _bag_of(fs: Any, path: str, protocol: str | None) -> str | None:
 def _recording(fs: Any, path: str, protocol: str | None, base: str, *, is_dir: bool) -> Recording:
     uri = path if protocol is None else f"{protocol}://{path}"
     name = posixpath.relpath(path, base) if base else path
-    if not is_dir and protocol is None and not Path(path).exists():
-        # A dangling link with a log's suffix: its row says so (the reader names the missing
-        # file) instead of one moved file stopping the whole fleet's batch.
-        return Recording(uri=uri, name=name, is_dir=False, size=0, version="")
-    infos = [fs.info(f) for f in sorted(fs.find(path))] if is_dir else [fs.info(path)]
+    try:
+        infos = [fs.info(f) for f in sorted(fs.find(path))] if is_dir else [fs.info(path)]
+    except FileNotFoundError:
+        if protocol is not None:
+            raise
+        # A dangling link (a log with its suffix, or a file of a bag folder): its row says so,
+        # the reader naming what is missing, instead of one moved file stopping the whole
+        # fleet's batch.
+        return Recording(uri=uri, name=name, is_dir=is_dir, size=0, version="")
     size = sum(int(i.get("size") or 0) for i in infos)
     return Recording(uri=uri, name=name, is_dir=is_dir, size=size, version=_version(infos))
 

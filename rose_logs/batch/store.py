@@ -168,7 +168,8 @@ class OutputStore:
             if self.local:
                 root = Path(_strip_file(self.root))
                 for folder in (root, *(root / f for f in folders)):
-                    if folder.exists() and not folder.is_dir():
+                    # (A dangling link is no folder either: writing into it failed later.)
+                    if os.path.lexists(folder) and not folder.is_dir():
                         why = (
                             "the output of a batch is a folder"
                             if folder == root

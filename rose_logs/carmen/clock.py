@@ -44,6 +44,9 @@ restart (:func:`_restarts_joined`); shorter ones are jitter or swapped lines, nu
 #: Scans on each side of a step back whose median stamps tell a restart from a wrong stamp.
 _RESTART_SIDE = 9
 
+#: Fewest scans on each side of a restart: fewer at a log's end are wrong stamps.
+_RESTART_MIN_SIDE = 3
+
 NOMINAL_SPEED_M_S = 0.3
 """Robot speed of the replacement clock, metres per second."""
 NOMINAL_TURN_RAD_S = 0.5
@@ -116,8 +119,8 @@ def _restarts_joined(stamps: npt.NDArray[np.int64], log: CarmenLog) -> npt.NDArr
     """``stamps`` with the scans before each clock restart moved, as a block, to end at the log's
     scan period before the first stamp after it (the last part keeps its own stamps).
 
-    A restart is a step back by more than :data:`RESTART_MIN_S` that the scans on both sides agree
-    with: the median of up to :data:`_RESTART_SIDE` stamps before it lies past the middle of the
+    A restart is a step back by more than :data:`RESTART_MIN_S` that the scans on both sides (at
+    least :data:`_RESTART_MIN_SIDE` of them) agree with: the median of up to :data:`_RESTART_SIDE` stamps before it lies past the middle of the
     jump, and so does that of the stamps after it (one stamp wrong by a day, forward or back, has
     its neighbours against it and is left to :func:`_stamps_in_line`). Each part keeps its own
     steps: found as out of line instead, the scans on one side were spread at the median period
@@ -126,6 +129,10 @@ def _restarts_joined(stamps: npt.NDArray[np.int64], log: CarmenLog) -> npt.NDArr
     jumps = np.flatnonzero(steps < -RESTART_MIN_S * 1e9) + 1  # first scan after each
     restarts = []
     for i in jumps.tolist():
+        if min(i, stamps.size - i) < _RESTART_MIN_SIDE:
+            # A few stamps at an end agree with themselves: wrong stamps there, for
+            # _stamps_in_line (the last stamp a day early shifted the whole session a day back).
+            continue
         middle = (int(stamps[i - 1]) + int(stamps[i])) / 2
         before = np.median(stamps[max(i - _RESTART_SIDE, 0) : i])
         after = np.median(stamps[i : i + _RESTART_SIDE])

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from rose.errors import RoseError
 from rose.limits import short
 from rose_logs.rerun.paths import SESSION_TIMELINE
 
@@ -237,6 +238,8 @@ def take_screenshots(
     ------
     ScreenshotError
         If Chromium, Playwright or ``rerun`` is missing or does not start.
+    rose.OutputError
+        If two shots have one name or a PNG's place is taken by a folder (before anything starts).
     """
     try:
         from playwright.sync_api import Error as PlaywrightError
@@ -256,7 +259,20 @@ def take_screenshots(
     if time_points < 1:
         msg = f"{rrd_path}: no snapshot on the {SESSION_TIMELINE} timeline"
         raise ScreenshotError(msg)
+    from rose.errors import OutputError
+    from rose.outputs import OutputSet
+
+    paths = [out_dir / f"{prefix}{name}.png" for name, _ in steps]
+    created = not out_dir.exists()
     out_dir.mkdir(parents=True, exist_ok=True)
+    try:
+        # Refused before the viewer starts (two shots of one name, a folder in the way), not
+        # after all the browser's work.
+        OutputSet(inputs=[Path(rrd_path)], force=True).check(*paths)
+    except OutputError:
+        if created:
+            out_dir.rmdir()
+        raise
     taken: list[tuple[str, int | None, bytes]] = []
     with (
         _serve(Path(rrd_path)) as (web_port, grpc_port),
@@ -300,9 +316,7 @@ def take_screenshots(
             context.close()
     # All written at the end, or none (an interrupt said "nothing written" after some were):
     # each through a temporary renamed into place, as every output of rose-bag.
-    from rose.outputs import OutputSet
-
-    shots = [Shot(name, step, out_dir / f"{prefix}{name}.png") for name, step, _ in taken]
+    shots = [Shot(name, step, path) for (name, step, _), path in zip(taken, paths, strict=True)]
     with OutputSet(inputs=[Path(rrd_path)], force=True) as outputs:
         for shot, (_, _, png) in zip(shots, taken, strict=True):
             outputs.write_bytes(shot.path, png)
@@ -394,7 +408,7 @@ def _main(argv: Sequence[str] | None) -> int:
             load_s=args.load_seconds,
             prefix=args.prefix,
         )
-    except (ScreenshotError, OSError) as err:
+    except (ScreenshotError, RoseError, OSError) as err:
         print(f"error: {err}", file=sys.stderr)
         return 1
     for shot in shots:

@@ -671,3 +671,8 @@ def test_an_output_that_is_a_file_is_named_so(
         "this folder)"
     )
     assert sorted(p.name for p in out.iterdir()) == ["results"]
+    # ... and so is a dangling link there (writing into it failed after the recordings, too).
+    (out / "results").unlink()
+    (out / "results").symlink_to(tmp_path / "gone")
+    assert main(["batch", str(fleet / "robot_a" / "run.mcap"), "-o", str(out), "-q"]) == 1
+    assert "results: not a folder" in capsys.readouterr().err

@@ -91,11 +91,19 @@ def test_a_dangling_link_in_a_folder_is_an_error_row_not_a_stopped_batch(
     """One moved file on a fleet's share (a link left behind) stopped the whole batch with
     'cannot list' before any recording was processed."""
     (fleet / "robot_a" / "moved.mcap").symlink_to(tmp_path / "gone.mcap")
-    result = run_batch([fleet / "robot_a"], tmp_path / "out")
-    rows = {row.name.rsplit("/", 1)[-1]: row for row in result.results}
-    assert rows["moved.mcap"].status == "error"
-    assert rows["moved.mcap"].error.endswith("moved.mcap: no such file or directory")
-    assert rows["run.mcap"].status == "ok"
+    # ... and a bag folder one of whose files moved.
+    bag = fleet / "robot_b" / "bag_dir"
+    storage = next(p for p in bag.iterdir() if p.name != "metadata.yaml")
+    storage.unlink()
+    storage.symlink_to(tmp_path / "gone.db3")
+    result = run_batch([fleet], tmp_path / "out")
+    rows = {row.name: row for row in result.results}
+    assert rows["fleet/robot_a/moved.mcap"].status == "error"
+    assert rows["fleet/robot_a/moved.mcap"].error.endswith("moved.mcap: no such file or directory")
+    assert rows["fleet/robot_b/bag_dir"].error.endswith(
+        f"{storage.name}: no such file or directory"
+    )
+    assert rows["fleet/robot_a/run.mcap"].status == "ok"
 
 
 def test_globs_files_lists_and_duplicates(fleet: Path, tmp_path: Path) -> None:

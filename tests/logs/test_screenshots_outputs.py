@@ -89,3 +89,34 @@ def test_screenshots_interrupted_midway_write_none(
     shots = take()
     assert sorted(p.name for p in out.iterdir()) == ["end.png", "start.png"]
     assert all(shot.path.read_bytes() == b"\x89PNG fake" for shot in shots)
+
+
+def test_shots_that_cannot_be_written_are_refused_before_the_viewer_starts(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Two shots of one name (``--at start start``, ``--time 1 1.0``) or a folder where a PNG goes
+    ended in a traceback, after all the browser's work."""
+
+    def served(rrd_path: Path) -> Iterator[tuple[int, int]]:
+        raise AssertionError("the viewer was started")
+
+    monkeypatch.setattr(screenshots, "_serve", served)
+    monkeypatch.setattr(screenshots, "session_times_ns", lambda path: [0, 10**9, 2 * 10**9])
+    monkeypatch.setattr(screenshots, "chromium_path", lambda: Path(sys.executable))
+    monkeypatch.setitem(sys.modules, "playwright", types.ModuleType("playwright"))
+    api = types.ModuleType("playwright.sync_api")
+    api.sync_playwright = _playwright  # type: ignore[attr-defined]
+    api.Error = RuntimeError  # type: ignore[attr-defined]
+    monkeypatch.setitem(sys.modules, "playwright.sync_api", api)
+    rrd = tmp_path / "s.rrd"
+    rrd.write_bytes(b"")
+    out = tmp_path / "shots"
+    assert screenshots.main([str(rrd), "--out", str(out), "--at", "start", "start"]) == 1
+    err = capsys.readouterr().err
+    assert (
+        err.startswith("error: ") and "given for two outputs" in err and len(err.splitlines()) == 1
+    )
+    (out / "end.png").mkdir(parents=True)
+    assert screenshots.main([str(rrd), "--out", str(out), "--at", "end"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith(f"error: {out / 'end.png'}: ") and "Traceback" not in err
