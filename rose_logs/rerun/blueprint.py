@@ -73,12 +73,14 @@ def _grid_spacing_m(bounds_m: tuple[float, float, float, float] | None) -> float
     return next(step * decade for step in (1.0, 2.0, 5.0, 10.0) if span / (step * decade) <= 15)
 
 
-def _metric_eye(bounds_m: tuple[float, float, float, float] | None) -> rrb.EyeControls3D | None:
-    """A camera straight above the map centre, high enough for the map to fill the view."""
-    if bounds_m is None:
+def _metric_eye(layout: TopicLayout) -> rrb.EyeControls3D | None:
+    """A camera straight above the map centre, high enough for the map to fill the view (the
+    metric view's metres: the map frame's less the view origin)."""
+    if layout.bounds_m is None:
         return None
-    x_min, y_min, x_max, y_max = bounds_m
-    cx, cy = (x_min + x_max) / 2, (y_min + y_max) / 2
+    x_min, y_min, x_max, y_max = layout.bounds_m
+    rx, ry = layout.view_origin_m
+    cx, cy = (x_min + x_max) / 2 - rx, (y_min + y_max) / 2 - ry
     half_x, half_y = max((x_max - x_min) / 2, 0.5), max((y_max - y_min) / 2, 0.5)
     tan_half = math.tan(_FOV_Y_RAD / 2)
     height = 1.05 * max(half_y / tan_half, half_x / (tan_half * _ASSUMED_ASPECT))
@@ -128,7 +130,7 @@ def _topic_container(layout: TopicLayout) -> rrb.Container:
             stroke_width=1.0,
             color=(90, 90, 90, 110),
         ),
-        eye_controls=_metric_eye(layout.bounds_m),
+        eye_controls=_metric_eye(layout),
     )
     scores = rrb.Spatial2DView(
         name=f"{root}: scores of occupied cells",

@@ -112,6 +112,25 @@ def north_up_m(
     return np.stack([xy[..., 0] - view_origin[0], view_origin[1] - xy[..., 1]], axis=-1)
 
 
+def metric_m(
+    snapshot: MapSnapshot, cells: npt.NDArray[np.float64], view_origin: tuple[float, float]
+) -> npt.NDArray[np.float64]:
+    """Continuous grid-frame cells ``(..., 2)`` -> the metric view's metres ``(..., 3)``: the map
+    frame's, less ``view_origin`` (:func:`view_origin_m`), just above the grid. Worked out in
+    float64 before Rerun's float32 (at a UTM northing, map-frame metres are 0.5 m steps there)."""
+    return map_to_metric_m(cells_to_map_m(snapshot, cells), view_origin)
+
+
+def map_to_metric_m(
+    points_m: npt.NDArray[np.float64], view_origin: tuple[float, float]
+) -> npt.NDArray[np.float64]:
+    """Map-frame points ``(..., 2 or 3)`` (metres) -> the metric view's (``view_origin`` at 0)."""
+    out = np.array(points_m, dtype=np.float64)
+    out[..., 0] -= view_origin[0]
+    out[..., 1] -= view_origin[1]
+    return out
+
+
 def set_snapshot_time(
     recording: rr.RecordingStream, *, log_time_ns: int, start_ns: int, index: int | None
 ) -> None:
@@ -450,7 +469,9 @@ class TopicLogger:
         image = snapshot.grid[y0:y1, x0:x1].view(np.uint8)[::-1].copy()
         # Flat, turned by the origin's yaw: where the session takes a grid to lie (a tilted origin
         # is warned about), and where the overlays (cells_to_map_m) are drawn.
-        corner = cells_to_map_m(snapshot, np.array([[x0, y0]], dtype=np.float64))[0, :2]
+        corner = metric_m(
+            snapshot, np.array([[x0, y0]], dtype=np.float64), self._origin_for(snapshot)
+        )[0, :2]
         self.recording.log(
             self.paths.grid,
             rr.GridMap(
@@ -526,11 +547,12 @@ class TopicLogger:
             ),
             self._image_placement(snapshot),
         )
+        origin = self._origin_for(snapshot)
         rec.log(
             paths.metric_directions,
-            rr.LineStrips3D.from_fields(strips=arrow.strips(cells_to_map_m(snapshot, segments))),
+            rr.LineStrips3D.from_fields(strips=arrow.strips(metric_m(snapshot, segments, origin))),
             rr.Points3D.from_fields(
-                positions=arrow.points(cells_to_map_m(snapshot, anchors)), labels=map_labels
+                positions=arrow.points(metric_m(snapshot, anchors, origin)), labels=map_labels
             ),
         )
 
@@ -545,7 +567,7 @@ class TopicLogger:
             rec.log(paths.metric_walls, rr.Clear(recursive=False))
             rec.log(paths.cell_walls, rr.Clear(recursive=False))
             return
-        ends_m = walls.endpoints_m
+        ends_m = map_to_metric_m(walls.endpoints_m, self._origin_for(snapshot))
         height_m = overlay_z_m(snapshot, layer=2)
         metric = np.concatenate([ends_m, np.full((*ends_m.shape[:2], 1), height_m)], axis=-1)
         radius = rr.Radius.ui_points(1.0)
@@ -725,7 +747,9 @@ class TopicLogger:
         if not verdict.broken or verdict.region_m is None:
             rec.log(paths.break_region, rr.Clear(recursive=False))
             return
+        rx, ry = self._origin_for(snapshot)
         x0, y0, x1, y1 = verdict.region_m
+        x0, x1, y0, y1 = x0 - rx, x1 - rx, y0 - ry, y1 - ry
         z = overlay_z_m(snapshot, layer=3)
         corners = [[x0, y0, z], [x1, y0, z], [x1, y1, z], [x0, y1, z], [x0, y0, z]]
         rec.log(

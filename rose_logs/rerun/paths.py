@@ -10,8 +10,9 @@ Paths are lowercase and live below one root per map topic (``/map`` -> ``map``):
                                      Points2D, one label per direction near its line's end; pixels
     <root>/cells/walls               LineStrips2D, wall segments (``--walls``), pixels
     <root>/metric                    ViewCoordinates RIGHT_HAND_Z_UP (static)
-    <root>/metric/grid               GridMap, the occupancy grid in the map frame, metres
-    <root>/metric/directions         LineStrips3D + Points3D labels of the directions, map frame, metres
+    <root>/metric/grid               GridMap, the occupancy grid in the map frame, metres from the
+                                     view origin (loggers.metric_m)
+    <root>/metric/directions         LineStrips3D + Points3D labels of the directions, same metres
     <root>/metric/walls              LineStrips3D, wall segments, metres
     <root>/cell_scores               AnnotationContext of the score levels (static)
     <root>/cell_scores/scores        SegmentationImage of the occupied cells' score levels, others

@@ -597,6 +597,52 @@ def test_walls_are_logged_in_pixels_and_metres(tmp_path: Path) -> None:
     )
 
 
+def test_the_metric_view_keeps_centimetres_at_a_utm_origin(tmp_path: Path) -> None:
+    """At a UTM northing Rerun's float32 holds 0.5 m steps: the grid map, the walls and the
+    break's rectangle were logged in map-frame metres and came out in grey bands, without the
+    direction lines or the rectangle. They are logged from the view origin, as the 2D views."""
+    import rerun as rr
+
+    import rose
+    from rose_logs.rerun import TopicLogger, set_snapshot_time
+    from rose_logs.rerun.loggers import cells_to_map_m, view_origin_m
+    from rose_logs.session.breaks import BreakScore
+    from rose_logs.snapshots import MapSnapshot
+
+    grid = np.zeros((60, 80), dtype=np.int8)
+    grid[10, 5:75] = grid[50, 5:75] = 100
+    grid[10:51, 5] = grid[10:51, 74] = 100
+    origin = (654_321.53, 5_400_012.37)
+    snapshot = MapSnapshot("/map", 5, 5, "map", grid, 0.1, (*origin, 0.0))
+    occupancy = rose.OccupancyMap(grid=grid, resolution_m=0.1, origin_xy_m=origin)
+    result = rose.analyze(grid)
+    walls = rose.extract_walls(occupancy, result)
+    path = tmp_path / "utm.rrd"
+    recording = rr.RecordingStream("t")
+    recording.save(path)
+    set_snapshot_time(recording, log_time_ns=5, start_ns=0, index=0)
+    logger = TopicLogger(recording, PATHS)
+    logger.log_snapshot(snapshot, result, walls)
+    region = (origin[0] + 1.23, origin[1] + 2.34, origin[0] + 3.45, origin[1] + 4.56)
+    logger.log_break_score(snapshot, BreakScore(2.0, True, True, 0, region, 2.0), 1.25)
+    recording.flush()
+    recording.disconnect()
+    content = _read(path)
+    rx, ry = view_origin_m(snapshot)
+    (grid_row,) = content.rows(PATHS.grid)
+    corner = cells_to_map_m(snapshot, np.array([[0.0, 0.0]]))[0, :2] - (rx, ry)  # all known
+    assert grid_row["GridMap:translation"][0][:2] == pytest.approx(corner, abs=1e-4)
+    (metric,) = content.rows(PATHS.metric_walls)
+    strips = np.array(metric["LineStrips3D:strips"], dtype=float)[..., :2]
+    np.testing.assert_allclose(strips, walls.endpoints_m - (rx, ry), atol=1e-4)
+    (directions,) = content.rows(PATHS.metric_directions)
+    assert np.abs(np.array(directions["LineStrips3D:strips"], dtype=float)).max() < 100.0
+    (rectangle,) = content.rows(PATHS.break_region)
+    corners = np.array(rectangle["LineStrips3D:strips"][0], dtype=float)[:, :2]
+    assert corners.min(axis=0) == pytest.approx((region[0] - rx, region[1] - ry), abs=1e-4)
+    assert corners.max(axis=0) == pytest.approx((region[2] - rx, region[3] - ry), abs=1e-4)
+
+
 def test_blueprint_has_a_tab_per_map_topic() -> None:
     from rose_logs.rerun import TopicLayout, default_blueprint
 
@@ -928,7 +974,7 @@ def test_an_all_unknown_session_is_framed_by_its_grid(
     sink.close()
     (layout,) = sent_layouts[-1]
     assert layout.bounds_m == pytest.approx((5.0, 7.0, 11.0, 11.0))
-    assert _metric_eye(layout.bounds_m) is not None
+    assert _metric_eye(layout) is not None
 
 
 @pytest.mark.parametrize("span_m", [0.3, 1.0, 16.0, 40.0, 3000.0, 2.5e6])
