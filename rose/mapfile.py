@@ -165,6 +165,15 @@ class OccupancyMap:
         return tuple(p for p in dict.fromkeys((self.source, self.image_path)) if p is not None)
 
 
+def _file_name(path: str | bytes | os.PathLike[str]) -> Path:
+    """``path`` as a Path (bytes too, as os.open takes them), or a RoseError naming what it got."""
+    try:
+        return Path(os.fsdecode(path))
+    except TypeError:
+        msg = f"a map file name must be a str, bytes or path, got {type(path).__name__}"
+        raise RoseError(msg) from None
+
+
 def load_map(
     path: str | bytes | os.PathLike[str],
     *,
@@ -192,7 +201,7 @@ def load_map(
         mistypes a field; if ``resolution_m`` is given with a YAML map or is not a positive number
         of metres.
     """
-    path = Path(os.fsdecode(path))  # bytes too, as os.open takes them
+    path = _file_name(path)
     try:
         max_cells = cell_limit(max_cells)
     except ValueError as err:
@@ -829,7 +838,13 @@ def save_map(
         If an output would replace a file the map was read from, is refused by ``outputs`` (an
         input, exists without force) or cannot be written.
     """
-    path = Path(os.fsdecode(path))  # bytes too, as load_map takes them
+    path = _file_name(path)
+    if not isinstance(occupancy_map, OccupancyMap):
+        msg = (
+            f"{path}: save_map needs an OccupancyMap (rose.OccupancyMap(grid, resolution_m=...)),"
+            f" got {type(occupancy_map).__name__}"
+        )
+        raise RoseError(msg)
     if path.suffix.lower() not in YAML_SUFFIXES:
         msg = f"{path}: the output map must be a .yaml file"
         raise MapFileError(msg)

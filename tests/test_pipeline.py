@@ -231,3 +231,9 @@ def test_easy_slips_with_the_api_are_rose_errors_that_say_what_to_pass() -> None
         rose.analyze(np.eye(8))  # a 0/1 mask as floats: 1 % occupancy, a free map
     with pytest.raises(rose.RoseError, match="origin_xy_m must be"):
         rose.OccupancyMap(grid=occupancy.grid, origin_xy_m=(1.0, 2.0, 3.0))  # type: ignore[arg-type]
+    # An AttributeError ('no attribute grid') and os's TypeError before.
+    with pytest.raises(rose.RoseError, match=r"save_map needs an OccupancyMap .* got ndarray"):
+        rose.save_map("m.yaml", occupancy.grid)  # type: ignore[arg-type]
+    for name in (5, None):
+        with pytest.raises(rose.RoseError, match="a map file name must be a str, bytes or path"):
+            rose.load_map(name)  # type: ignore[arg-type]

@@ -159,6 +159,9 @@ def run_batch(
     """
     started = time.perf_counter()
     options = options or RecordingOptions()
+    if not isinstance(options, RecordingOptions):
+        msg = f"options must be a RecordingOptions, got {type(options).__name__}"
+        raise BatchError(msg)
     if workers < 1:
         msg = f"workers must be >= 1, got {workers}"
         raise BatchError(msg)

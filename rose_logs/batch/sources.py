@@ -190,6 +190,8 @@ def discover(
         inputs like any other: a bad line stops the batch before anything runs, as a missing file
         does (an error row is for a recording that exists but cannot be processed).
     """
+    if isinstance(inputs, str | Path):  # one input, not its characters (as run_batch)
+        inputs = [inputs]
     unique: dict[str, Recording] = {}
     problems: list[str] = []  # every input that names nothing, not only the first
     for item in inputs:

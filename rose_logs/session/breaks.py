@@ -28,6 +28,8 @@ from typing import Any
 import numpy as np
 
 from rose.breaks import WallContradiction, contradicted_walls
+from rose.errors import RoseError
+from rose.limits import finite_number
 from rose_logs.snapshots import MapSnapshot
 
 __all__ = [
@@ -93,6 +95,10 @@ class BreakParams:
         return cls(occupied_threshold=occupied_threshold, free_threshold=free, **overrides)
 
     def __post_init__(self) -> None:
+        for name, value in dataclasses.asdict(self).items():
+            if not finite_number(value):
+                msg = f"{name} must be a finite number, got {value!r}"
+                raise ValueError(msg)
         if not (
             self.threshold_m > 0
             and self.window_m > 0
@@ -285,6 +291,9 @@ class BreakDetector:
     """
 
     def __init__(self, params: BreakParams | None = None) -> None:
+        if params is not None and not isinstance(params, BreakParams):
+            msg = f"params must be a BreakParams, got {type(params).__name__}"
+            raise RoseError(msg)
         self.params = params if params is not None else BreakParams()
         self._trusted: dict[str, tuple[int, MapSnapshot]] = {}
         self._broken: dict[str, bool] = {}

@@ -197,6 +197,9 @@ def process_log(
         topics = [topics]
     params = make_params(params)  # a RoseParams, or a RoseError saying what it got
     break_params = break_params or BreakParams.following(params.occupied_threshold)
+    if not isinstance(break_params, BreakParams):
+        msg = f"break_params must be a BreakParams, got {type(break_params).__name__}"
+        raise rose.RoseError(msg)
     # Parameters before the log is read: one error, not one per map (the CLI's ranges).
     if not (finite_number(failure_level) and 0 < failure_level <= 1):
         msg = f"failure_level must be a number in (0, 1], got {failure_level!r}"

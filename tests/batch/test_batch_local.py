@@ -106,6 +106,16 @@ def test_a_dangling_link_in_a_folder_is_an_error_row_not_a_stopped_batch(
     assert rows["fleet/robot_a/run.mcap"].status == "ok"
 
 
+def test_one_input_as_a_string_or_path_is_one_input(fleet: Path, tmp_path: Path) -> None:
+    """discover('x.mcap') took each character for an input, discover(Path) was a TypeError (as
+    run_batch, they are one input); options as a dict was an AttributeError deep inside."""
+    run = fleet / "robot_a" / "run.mcap"
+    assert [r.uri for r in discover(str(run))] == [r.uri for r in discover(run)] == [str(run)]
+    with pytest.raises(BatchError, match="options must be a RecordingOptions, got dict"):
+        run_batch([run], tmp_path / "out", options={"rrd": True})  # type: ignore[arg-type]
+    assert not (tmp_path / "out").exists()
+
+
 def test_globs_files_lists_and_duplicates(fleet: Path, tmp_path: Path) -> None:
     recordings = discover([str(fleet / "robot_*" / "run.mcap"), fleet / "robot_a" / "run.mcap"])
     assert [r.name for r in recordings] == ["robot_a/run.mcap", "robot_b/run.mcap"]

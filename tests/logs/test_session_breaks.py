@@ -84,6 +84,20 @@ def test_a_node_reusing_one_buffer_for_each_map_still_breaks(plan, broken) -> No
         _snap(plan.astype(np.float32), 0)
 
 
+def test_wrong_parameters_say_what_they_got() -> None:
+    """A string threshold was a TypeError from a comparison inside; a dict of parameters was
+    accepted and failed at the second snapshot with an AttributeError."""
+    import rose
+    from rose_logs.session import process_log
+
+    with pytest.raises(ValueError, match="threshold_m must be a finite number, got '1'"):
+        BreakParams(threshold_m="1")  # type: ignore[arg-type]
+    with pytest.raises(rose.RoseError, match="params must be a BreakParams, got dict"):
+        BreakDetector({"threshold_m": 2.0})  # type: ignore[arg-type]
+    with pytest.raises(rose.RoseError, match="break_params must be a BreakParams, got dict"):
+        process_log("x.mcap", break_params={"threshold_m": 2.0})  # type: ignore[arg-type]
+
+
 def test_a_grown_map_is_compared_in_place(plan, broken) -> None:
     # The map grows by 40 rows and 30 columns towards negative x / y: origin moves by whole cells.
     grown = np.full((plan.shape[0] + 40, plan.shape[1] + 30), -1, dtype=np.int8)
