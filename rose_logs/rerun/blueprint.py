@@ -138,7 +138,8 @@ def _topic_container(layout: TopicLayout) -> rrb.Container:
         visual_bounds=_north_up_bounds(layout, below=0.45),  # and the colour bar
     )
     w_plot = _session_plot(
-        f"{root}: structure score W (blue) over session time, trust (green) and failure (red) levels",
+        f"{root}: structure score W (blue) over session time, trust (green) and failure (red) "
+        "levels, red crosses: breaks and W above the failure level",
         f"/{paths.score}",
         layout.w_top,
     )

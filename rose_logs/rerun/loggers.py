@@ -24,7 +24,7 @@ from rose_logs.frames import yaw_to_quaternion
 from rose_logs.rerun import arrow, style
 from rose_logs.rerun import conversions as conv
 from rose_logs.rerun.paths import SEQUENCE_TIMELINE, SESSION_TIMELINE, TIMELINE, EntityPaths
-from rose_logs.session.breaks import BreakScore
+from rose_logs.session.breaks import BreakScore, metres_text
 from rose_logs.session.report import w_judges
 from rose_logs.snapshots import MapSnapshot
 
@@ -758,7 +758,8 @@ class TopicLogger:
                 [corners],
                 colors=style.BREAK_COLOR,
                 radii=rr.Radius.ui_points(2.5),
-                labels=[f"break: {verdict.score_m:.1f} m of map contradicted"],
+                # As the reports say it (to the mm): 1.25 m read "1.3 m" beside a 1.25 m event.
+                labels=[f"break: {metres_text(verdict.score_m)} m of map contradicted"],
             ),
         )
 

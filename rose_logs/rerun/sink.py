@@ -335,7 +335,8 @@ class RerunSink:
         self._closing = False
         self._has_events: dict[str, bool] = dict.fromkeys(topics, False)
         # Highest value each topic's W / break-score plot shows, guide lines included (final layout).
-        self._w_top: dict[str, float] = dict.fromkeys(topics, failure_level)
+        # Both guide lines in view: a --failure-level under the trust level cut the trust off.
+        self._w_top: dict[str, float] = dict.fromkeys(topics, max(failure_level, trust_level))
         self._break_top: dict[str, float] = dict.fromkeys(topics, 0.0)
         self._sent_key: tuple[tuple[str, bool, bool], ...] | None = None
         try:

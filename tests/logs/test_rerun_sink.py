@@ -624,7 +624,9 @@ def test_the_metric_view_keeps_centimetres_at_a_utm_origin(tmp_path: Path) -> No
     logger = TopicLogger(recording, PATHS)
     logger.log_snapshot(snapshot, result, walls)
     region = (origin[0] + 1.23, origin[1] + 2.34, origin[0] + 3.45, origin[1] + 4.56)
-    logger.log_break_score(snapshot, BreakScore(2.0, True, True, 0, region, 2.0), 1.25)
+    # A float32 score a hair above the threshold (1.25 m read "1.3 m" beside a 1.25 m event).
+    verdict = BreakScore(1.2500000186, True, True, 0, region, 2.0)
+    logger.log_break_score(snapshot, verdict, 1.25)
     recording.flush()
     recording.disconnect()
     content = _read(path)
@@ -641,6 +643,7 @@ def test_the_metric_view_keeps_centimetres_at_a_utm_origin(tmp_path: Path) -> No
     corners = np.array(rectangle["LineStrips3D:strips"][0], dtype=float)[:, :2]
     assert corners.min(axis=0) == pytest.approx((region[0] - rx, region[1] - ry), abs=1e-4)
     assert corners.max(axis=0) == pytest.approx((region[2] - rx, region[3] - ry), abs=1e-4)
+    assert rectangle["LineStrips3D:labels"] == ["break: 1.25 m of map contradicted"]
 
 
 def test_blueprint_has_a_tab_per_map_topic() -> None:
@@ -975,6 +978,30 @@ def test_an_all_unknown_session_is_framed_by_its_grid(
     (layout,) = sent_layouts[-1]
     assert layout.bounds_m == pytest.approx((5.0, 7.0, 11.0, 11.0))
     assert _metric_eye(layout) is not None
+
+
+def test_the_w_plot_shows_both_guide_lines_under_a_low_failure_level(
+    tmp_path: Path, sent_layouts: list[tuple[object, ...]], fr079
+) -> None:
+    """With --failure-level 0.15 the W axis ended just above it: the trust line (0.2) the title
+    names was off the plot."""
+    import rose
+    from rose_logs.rerun import sink as sink_module
+
+    grid = fr079[0]
+    result = rose.analyze(grid)
+    assert result.structure_score < 0.15
+    sink = sink_module.RerunSink(
+        rrd_path=tmp_path / "x.rrd",
+        topics=("/map",),
+        recording_id="x",
+        start_ns=0,
+        failure_level=0.15,
+    )
+    sink.snapshot(_yawed(grid, 0.0, (0.0, 0.0)), result, 0, None)
+    sink.close()
+    (layout,) = sent_layouts[-1]
+    assert layout.w_top >= 0.2
 
 
 @pytest.mark.parametrize("span_m", [0.3, 1.0, 16.0, 40.0, 3000.0, 2.5e6])
