@@ -333,9 +333,11 @@ def _run_session(
             )
             loop.run(progress=progress)
             if not loop.records:
+                skipped = loop.skips.describe()
+                why = "it holds none: declared only" if skipped == "none" else skipped
                 msg = (
                     f"{input_path}: no map message on {', '.join(map_topics)} could be analysed "
-                    f"({loop.skips.describe()})"
+                    f"({why})"
                 )
                 raise LogReadError(msg)
             if writer is not None:

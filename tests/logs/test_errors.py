@@ -270,6 +270,20 @@ def test_a_map_topic_declared_but_never_published_is_no_map_of_the_session(
     assert section.startswith("  no messages")
 
 
+def test_a_log_whose_map_topic_holds_no_message_says_so(tmp_path: Path, capsys) -> None:
+    """It said "no map message on /map could be analysed (none)"."""
+    from rose_logs.writer import open_output
+
+    log = tmp_path / "empty.mcap"
+    with open_output(log, "mcap", serialization="cdr") as out:
+        out.add_topic("/map", "nav_msgs/msg/OccupancyGrid", latching=True)
+    code, _, err = _run(capsys, "process", log, "--no-output")
+    assert code == 1
+    assert err.splitlines()[-1].endswith(
+        "no map message on /map could be analysed (it holds none: declared only)"
+    )
+
+
 def test_only_malformed_maps_is_an_error_without_output(tmp_path: Path, capsys, fr079) -> None:
     built = build_log(
         tmp_path / "in.mcap", "mcap-ros2", [MapMsg(START_NS, fr079[0], bad_length=True)]
