@@ -206,9 +206,14 @@ class DetectedBreak:
 
     @property
     def detail(self) -> str:
-        """The event without the topic and the threshold, for its topic's events view in Rerun
-        (where a long line is cut at the view's width; the threshold is drawn in the plot)."""
-        return self._describe("")
+        """The event for its topic's events view in Rerun, where a long line is cut at the view's
+        width: where first, no topic, no threshold (drawn in the plot). The place was what was cut
+        off (at 1600 pixels: "... since snapshot 6 ar")."""
+        where = "" if self.region_m is None else f" around {region_text(self.region_m)}"
+        return (
+            f"break at snapshot {self.index}{where}: {self.score_m:.2f} m contradicted since "
+            f"snapshot {self.trusted_index}"
+        )
 
     def _describe(self, threshold: str) -> str:
         where = "" if self.region_m is None else f" around {region_text(self.region_m)}"

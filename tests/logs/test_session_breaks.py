@@ -64,8 +64,11 @@ def test_break_starts_once_and_keeps_the_trusted_snapshot(plan, broken) -> None:
     topic = _snap(broken, 2).topic
     assert event.text.startswith(f"{topic}: map breaks at snapshot 2: ")
     assert "(threshold 1 m)" in event.text and " around x " in event.text
-    # Rerun's events view (the topic's own, cut at its width): no topic, no threshold.
-    assert event.detail == event.text.removeprefix(f"{topic}: ").replace(" (threshold 1 m)", "")
+    # Rerun's events view (the topic's own, cut at its width): where first, no topic, no
+    # threshold.
+    where = event.text.split(" around ")[1]
+    assert event.detail.startswith(f"break at snapshot 2 around {where}: ")
+    assert event.detail.endswith(" m contradicted since snapshot 1")
 
 
 def test_a_node_reusing_one_buffer_for_each_map_still_breaks(plan, broken) -> None:
