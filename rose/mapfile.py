@@ -200,6 +200,8 @@ def load_map(
         If the file is missing, not a regular file, unreadable, too large, or the YAML lacks or
         mistypes a field; if ``resolution_m`` is given with a YAML map or is not a positive number
         of metres.
+    RoseError
+        If ``path`` is no file name (a number, None).
     """
     path = _file_name(path)
     try:
@@ -821,8 +823,9 @@ def save_map(
     ``path`` names the YAML file; the image goes to :func:`map_image_path` (the same stem with
     ``.pgm``; for a symlinked YAML, beside the target). Cells of at least
     ``occupied_threshold`` are written occupied (map_saver's 65 by default: pass the threshold the
-    map was analysed with, so that every cell ROSE counted as occupied stays so), of at most 25 free,
-    the rest unknown. Both files are staged
+    map was analysed with, so that every cell ROSE counted as occupied stays so), the others of at
+    most 25 free (a threshold of 25 or less: every known cell under it), the rest unknown. Both
+    files are staged
     in ``outputs`` (committed by its owner together with the run's other outputs); without
     ``outputs`` they are committed together here, replacing an existing map, so an existing map is
     never left half-overwritten; the files the map was read from (``input_files``) are never
@@ -830,6 +833,8 @@ def save_map(
 
     Raises
     ------
+    RoseError
+        If ``occupancy_map`` is no :class:`OccupancyMap` or ``path`` no file name.
     MapFileError
         If the path is not a ``.yaml`` name, the map is one :func:`load_map` would refuse (an empty
         grid; its resolution and origin were checked when it was made) or the image cannot be
