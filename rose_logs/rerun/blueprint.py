@@ -138,8 +138,8 @@ def _topic_container(layout: TopicLayout) -> rrb.Container:
         visual_bounds=_north_up_bounds(layout, below=0.45),  # and the colour bar
     )
     w_plot = _session_plot(
-        f"{root}: structure score W (blue) over session time, trust (green) and failure (red) "
-        "levels, red crosses: breaks and W above the failure level",
+        # (As long as fits a third of 1600 pixels: a longer title was cut.)
+        f"{root}: structure score W (blue), trust (green) / failure (red), x: break or W > failure",
         f"/{paths.score}",
         layout.w_top,
     )
