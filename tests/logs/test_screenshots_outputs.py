@@ -57,15 +57,21 @@ def _served(rrd_path: Path) -> Iterator[tuple[int, int]]:
     yield 1, 2
 
 
-def test_screenshots_interrupted_midway_write_none(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    """The first PNG was written in place, then Ctrl-C said "interrupted, nothing written"."""
+@pytest.fixture
+def stand_in_browser(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Playwright replaced by the stand-in above (installed or not)."""
     api = types.ModuleType("playwright.sync_api")
     api.sync_playwright = _playwright  # type: ignore[attr-defined]
     api.Error = RuntimeError  # type: ignore[attr-defined]
     monkeypatch.setitem(sys.modules, "playwright", types.ModuleType("playwright"))
     monkeypatch.setitem(sys.modules, "playwright.sync_api", api)
+
+
+@pytest.mark.usefixtures("stand_in_browser")
+def test_screenshots_interrupted_midway_write_none(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The first PNG was written in place, then Ctrl-C said "interrupted, nothing written"."""
     monkeypatch.setattr(screenshots, "_serve", _served)
     rrd = tmp_path / "s.rrd"
     rrd.write_bytes(b"")
@@ -91,6 +97,7 @@ def test_screenshots_interrupted_midway_write_none(
     assert all(shot.path.read_bytes() == b"\x89PNG fake" for shot in shots)
 
 
+@pytest.mark.usefixtures("stand_in_browser")
 def test_shots_that_cannot_be_written_are_refused_before_the_viewer_starts(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -103,11 +110,6 @@ def test_shots_that_cannot_be_written_are_refused_before_the_viewer_starts(
     monkeypatch.setattr(screenshots, "_serve", served)
     monkeypatch.setattr(screenshots, "session_times_ns", lambda path: [0, 10**9, 2 * 10**9])
     monkeypatch.setattr(screenshots, "chromium_path", lambda: Path(sys.executable))
-    monkeypatch.setitem(sys.modules, "playwright", types.ModuleType("playwright"))
-    api = types.ModuleType("playwright.sync_api")
-    api.sync_playwright = _playwright  # type: ignore[attr-defined]
-    api.Error = RuntimeError  # type: ignore[attr-defined]
-    monkeypatch.setitem(sys.modules, "playwright.sync_api", api)
     rrd = tmp_path / "s.rrd"
     rrd.write_bytes(b"")
     out = tmp_path / "shots"
