@@ -96,7 +96,9 @@ class BreakParams:
 
     def __post_init__(self) -> None:
         for name, value in dataclasses.asdict(self).items():
-            if not finite_number(value):
+            # A number (an infinite threshold never breaks: the evaluation's replays use one).
+            infinite = name == "threshold_m" and value == math.inf
+            if not (finite_number(value) or infinite):
                 msg = f"{name} must be a finite number, got {value!r}"
                 raise ValueError(msg)
         if not (

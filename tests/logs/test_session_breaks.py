@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 import numpy.typing as npt
@@ -95,6 +96,9 @@ def test_wrong_parameters_say_what_they_got() -> None:
 
     with pytest.raises(ValueError, match="threshold_m must be a finite number, got '1'"):
         BreakParams(threshold_m="1")  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="tile_m must be a finite number, got nan"):
+        BreakParams(tile_m=math.nan)
+    assert BreakParams(threshold_m=math.inf).threshold_m == math.inf  # never breaks: allowed
     with pytest.raises(rose.RoseError, match="params must be a BreakParams, got dict"):
         BreakDetector({"threshold_m": 2.0})  # type: ignore[arg-type]
     with pytest.raises(rose.RoseError, match="break_params must be a BreakParams, got dict"):
