@@ -158,7 +158,7 @@ def run_batch(
         (then none of them is replaced; the results of finished recordings are kept for a re-run).
     """
     started = time.perf_counter()
-    options = options or RecordingOptions()
+    options = RecordingOptions() if options is None else options
     if not isinstance(options, RecordingOptions):
         msg = f"options must be a RecordingOptions, got {type(options).__name__}"
         raise BatchError(msg)

@@ -38,7 +38,8 @@ class TopicLayout:
         ``(x_min, y_min, x_max, y_max)`` of the known part of the map in the map frame, metres (None
         before any map): the metric view looks at it from above, the 2D views frame it north up.
     view_origin_m : tuple of float
-        Map-frame point at the 2D views' 0 (:func:`rose_logs.rerun.loggers.view_origin_m`).
+        Map-frame point at the views' 0, the 2D views' and the metric view's
+        (:func:`rose_logs.rerun.loggers.view_origin_m`).
     has_events : bool
         Whether the topic has break events (the events view is shown only then).
     w_top, break_top : float or None

@@ -24,7 +24,7 @@ from rose_logs.frames import yaw_to_quaternion
 from rose_logs.rerun import arrow, style
 from rose_logs.rerun import conversions as conv
 from rose_logs.rerun.paths import SEQUENCE_TIMELINE, SESSION_TIMELINE, TIMELINE, EntityPaths
-from rose_logs.session.breaks import BreakScore, metres_text
+from rose_logs.session.breaks import BreakScore
 from rose_logs.session.report import w_judges
 from rose_logs.snapshots import MapSnapshot
 
@@ -59,9 +59,9 @@ def segmentation_image(image: npt.NDArray[np.uint8]) -> rr.SegmentationImage:
 
 
 def view_origin_m(snapshot: MapSnapshot) -> tuple[float, float]:
-    """Map-frame point (metres, on a 100 m lattice) that the 2D views of a topic put at their 0:
-    its first snapshot's origin, rounded. Rerun places things in float32, whose steps are 0.5 m
-    at a UTM northing; near 0 they are micrometres."""
+    """Map-frame point (metres, on a 100 m lattice) that the views of a topic put at their 0 (the
+    2D views and the metric view): its first snapshot's origin, rounded. Rerun places things in
+    float32, whose steps are 0.5 m at a UTM northing; near 0 they are micrometres."""
     x, y = (float(v) for v in snapshot.origin_position_m[:2])
     return round(x, -2), round(y, -2)
 
@@ -247,7 +247,8 @@ class TopicLogger:
         return placement
 
     def _origin_for(self, snapshot: MapSnapshot) -> tuple[float, float]:
-        """The 2D views' 0 in the map frame (:func:`view_origin_m` of the topic's first snapshot)."""
+        """The views' 0 in the map frame, the 2D views' and the metric view's (:func:`view_origin_m`
+        of the topic's first snapshot)."""
         if self.view_origin_m is None:
             self.view_origin_m = view_origin_m(snapshot)
         return self.view_origin_m
@@ -459,7 +460,8 @@ class TopicLogger:
 
     def log_grid_map(self, snapshot: MapSnapshot, window: conv.Window | None = None) -> None:
         """The occupancy grid's ``window`` (default :func:`~conv.image_window`: its known cells) as
-        a GridMap in the map frame, metres, RViz map colours.
+        a GridMap in the metric view's metres (the map frame's from the view origin,
+        :func:`metric_m`), RViz map colours.
 
         The int8 cells go as their uint8 bit pattern (-1 unknown -> 255), the convention of
         :attr:`rerun.components.Colormap.RvizMap`; the image's lower-left corner is the window's.
@@ -557,7 +559,8 @@ class TopicLogger:
         )
 
     def log_walls(self, snapshot: MapSnapshot, walls: WallSet) -> None:
-        """Wall segments over the segmentation (pixels) and in the map frame (metres).
+        """Wall segments over the segmentation (pixels) and in the metric view (metres from the
+        view origin).
 
         ``walls`` must come from this snapshot's grid placed with its resolution and origin. No walls:
         both entities are cleared.
@@ -740,7 +743,8 @@ class TopicLogger:
         self, snapshot: MapSnapshot, verdict: BreakScore, threshold_m: float
     ) -> None:
         """The break detector's score and threshold, and its region while the snapshot is broken
-        (a rectangle in the map frame, metres, just above the grid map; cleared otherwise)."""
+        (a rectangle in the metric view's metres, from the view origin, just above the grid map;
+        cleared otherwise)."""
         rec, paths = self.recording, self.paths
         rec.log(paths.break_score, rr.Scalars(float(verdict.score_m)))
         rec.log(paths.break_threshold, rr.Scalars(float(threshold_m)))
@@ -758,8 +762,8 @@ class TopicLogger:
                 [corners],
                 colors=style.BREAK_COLOR,
                 radii=rr.Radius.ui_points(2.5),
-                # As the reports say it (to the mm): 1.25 m read "1.3 m" beside a 1.25 m event.
-                labels=[f"break: {metres_text(verdict.score_m)} m of map contradicted"],
+                # As the event and the summary say it (1.25 m read "1.3 m" beside them).
+                labels=[f"break: {verdict.score_m:.2f} m of map contradicted"],
             ),
         )
 

@@ -34,7 +34,8 @@ Paths are lowercase and live below one root per map topic (``/map`` -> ``map``):
     <root>/events                    TextLog of break events
     <root>/break_score/score_m       Scalars: the break detector's score, metres of established map contradicted
     <root>/break_score/threshold_m   Scalars: the detector's threshold (static style)
-    <root>/metric/break_region       LineStrips3D: the region of a detected break, map frame, metres
+    <root>/metric/break_region       LineStrips3D: the region of a detected break, metres from the
+                                     view origin
 """
 
 from __future__ import annotations

@@ -378,7 +378,7 @@ def build_parser() -> argparse.ArgumentParser:
         type=_parse_duration_ns,
         metavar="SECONDS",
         help="session times to show instead of --at (e.g. 35 or 35s): the last snapshot at or "
-        "before each (a break at +248.2 s shows from --time 248.2 on)",
+        "before each (times print rounded: give a little more to see a break's first snapshot)",
     )
     parser.add_argument("--prefix", default="", help="prefix of the PNG names")
     parser.add_argument("--width", type=int, default=1600)

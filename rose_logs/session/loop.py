@@ -196,7 +196,8 @@ def process_log(
     if isinstance(topics, str):  # one topic, not its characters
         topics = [topics]
     params = make_params(params)  # a RoseParams, or a RoseError saying what it got
-    break_params = break_params or BreakParams.following(params.occupied_threshold)
+    if break_params is None:
+        break_params = BreakParams.following(params.occupied_threshold)
     if not isinstance(break_params, BreakParams):
         msg = f"break_params must be a BreakParams, got {type(break_params).__name__}"
         raise rose.RoseError(msg)
@@ -334,7 +335,12 @@ def _run_session(
             loop.run(progress=progress)
             if not loop.records:
                 skipped = loop.skips.describe()
-                why = "it holds none: declared only" if skipped == "none" else skipped
+                if skipped != "none":
+                    why = skipped
+                elif reader.losses:  # (warned about as the reader met them)
+                    why = "the damage above lost them"
+                else:
+                    why = "it holds none: declared only"
                 msg = (
                     f"{input_path}: no map message on {', '.join(map_topics)} could be analysed "
                     f"({why})"

@@ -111,8 +111,9 @@ def test_one_input_as_a_string_or_path_is_one_input(fleet: Path, tmp_path: Path)
     run_batch, they are one input); options as a dict was an AttributeError deep inside."""
     run = fleet / "robot_a" / "run.mcap"
     assert [r.uri for r in discover(str(run))] == [r.uri for r in discover(run)] == [str(run)]
-    with pytest.raises(BatchError, match="options must be a RecordingOptions, got dict"):
-        run_batch([run], tmp_path / "out", options={"rrd": True})  # type: ignore[arg-type]
+    for wrong in ({"rrd": True}, {}):  # an empty one too (it passed for the defaults)
+        with pytest.raises(BatchError, match="options must be a RecordingOptions, got dict"):
+            run_batch([run], tmp_path / "out", options=wrong)  # type: ignore[arg-type]
     assert not (tmp_path / "out").exists()
 
 

@@ -284,6 +284,28 @@ def test_a_log_whose_map_topic_holds_no_message_says_so(tmp_path: Path, capsys) 
     )
 
 
+def test_a_log_whose_map_messages_were_all_lost_says_so_not_declared_only(
+    tmp_path: Path, capsys, fr079
+) -> None:
+    """With --salvage, a damaged chunk holding the only map: the error said "declared only",
+    under the warning that the map's message was lost."""
+    from mcap.reader import make_reader
+
+    log = build_log(tmp_path / "in.mcap", "mcap-ros2", [MapMsg(START_NS, fr079[0])]).path
+    with log.open("rb") as stream:
+        summary = make_reader(stream).get_summary()
+    assert summary is not None
+    first = min(c.chunk_start_offset for c in summary.chunk_indexes)
+    data = bytearray(log.read_bytes())
+    data[first + 200] ^= 0xFF  # inside the chunk holding the map (its CRC no longer matches)
+    log.write_bytes(bytes(data))
+    code, _, err = _run(capsys, "process", log, "--no-output", "--salvage")
+    assert code == 1
+    assert err.splitlines()[-1].endswith(
+        "no map message on /map could be analysed (the damage above lost them)"
+    )
+
+
 def test_only_malformed_maps_is_an_error_without_output(tmp_path: Path, capsys, fr079) -> None:
     built = build_log(
         tmp_path / "in.mcap", "mcap-ros2", [MapMsg(START_NS, fr079[0], bad_length=True)]

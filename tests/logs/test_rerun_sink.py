@@ -624,7 +624,7 @@ def test_the_metric_view_keeps_centimetres_at_a_utm_origin(tmp_path: Path) -> No
     logger = TopicLogger(recording, PATHS)
     logger.log_snapshot(snapshot, result, walls)
     region = (origin[0] + 1.23, origin[1] + 2.34, origin[0] + 3.45, origin[1] + 4.56)
-    # A float32 score a hair above the threshold (1.25 m read "1.3 m" beside a 1.25 m event).
+    # A float32 score a hair above the threshold (1.25 m read "1.3 m" beside a "1.25 m" event).
     verdict = BreakScore(1.2500000186, True, True, 0, region, 2.0)
     logger.log_break_score(snapshot, verdict, 1.25)
     recording.flush()

@@ -101,8 +101,9 @@ def test_wrong_parameters_say_what_they_got() -> None:
     assert BreakParams(threshold_m=math.inf).threshold_m == math.inf  # never breaks: allowed
     with pytest.raises(rose.RoseError, match="params must be a BreakParams, got dict"):
         BreakDetector({"threshold_m": 2.0})  # type: ignore[arg-type]
-    with pytest.raises(rose.RoseError, match="break_params must be a BreakParams, got dict"):
-        process_log("x.mcap", break_params={"threshold_m": 2.0})  # type: ignore[arg-type]
+    for wrong in ({"threshold_m": 2.0}, {}):  # an empty one too (it passed for the defaults)
+        with pytest.raises(rose.RoseError, match="break_params must be a BreakParams, got dict"):
+            process_log("x.mcap", break_params=wrong)  # type: ignore[arg-type]
 
 
 def test_a_grown_map_is_compared_in_place(plan, broken) -> None:
