@@ -681,7 +681,8 @@ def _png_problem(raw: bytes, shape: tuple[int, int], dropped: list[tuple[int, in
             dropped.append((pos, body_end + 4))
             pos = body_end + 4
             continue
-        data_state = max(data_state, 2) if data_state and kind != b"IDAT" else data_state
+        if data_state == 1 and kind != b"IDAT":
+            data_state = 2
         if kind[:1].isupper() and kind not in _PNG_CRITICAL:
             return f"corrupt PNG: an unknown critical chunk {name!r} at byte {pos}"
         if kind == b"IHDR":

@@ -751,11 +751,12 @@ class TopicLogger:
         if not verdict.broken or verdict.region_m is None:
             rec.log(paths.break_region, rr.Clear(recursive=False))
             return
-        rx, ry = self._origin_for(snapshot)
         x0, y0, x1, y1 = verdict.region_m
-        x0, x1, y0, y1 = x0 - rx, x1 - rx, y0 - ry, y1 - ry
         z = overlay_z_m(snapshot, layer=3)
-        corners = [[x0, y0, z], [x1, y0, z], [x1, y1, z], [x0, y1, z], [x0, y0, z]]
+        corners = map_to_metric_m(
+            np.array([[x0, y0, z], [x1, y0, z], [x1, y1, z], [x0, y1, z], [x0, y0, z]]),
+            self._origin_for(snapshot),
+        )
         rec.log(
             paths.break_region,
             rr.LineStrips3D(
