@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import rerun as rr
 import rerun.blueprint as rrb
+from rerun.encodings import EntityPathLike
 
 from rose_logs.rerun import style
 from rose_logs.rerun.paths import SESSION_TIMELINE, EntityPaths
@@ -24,6 +25,8 @@ __all__ = ["TopicLayout", "default_blueprint"]
 _FOV_Y_RAD = math.radians(55.0)  # the 3D view's default vertical field of view
 _ASSUMED_ASPECT = 1.3  # width / height of the metric view in the default layout
 _GRID_HEIGHT_M = 0.05  # the metric grid's plane, just above the map (z = 0 in the map frame)
+_ONE_TIME_HALF_WINDOW_S = 10.0  # the plots' time axis either side of a one-time session's snapshot
+_ONE_TIME_POINT_SIZE = 5.0  # a one-time session's plotted values, wider than the time cursor
 
 
 @dataclass(frozen=True)
@@ -45,6 +48,9 @@ class TopicLayout:
     w_top, break_top : float or None
         Highest value the W plot / the break-score plot shows (data and guide lines): the plots get
         headroom above it so a guide line at the top stays visible. None: fit to the data (live).
+    one_time : bool
+        Every snapshot of the topic is at one log time (a map_server log's one latched map): the
+        plots show a window around it, as their whole-session range has no width.
     """
 
     root: str
@@ -53,6 +59,7 @@ class TopicLayout:
     has_events: bool = False
     w_top: float | None = None
     break_top: float | None = None
+    one_time: bool = False
 
 
 def _value_axis(top: float | None) -> rrb.ScalarAxis | None:
@@ -143,11 +150,22 @@ def _topic_container(layout: TopicLayout) -> rrb.Container:
         f"{root}: structure score W (blue), trust (green) / failure (red), x: break or W > failure",
         f"/{paths.score}",
         layout.w_top,
+        one_time=layout.one_time,
+        points={
+            f"/{paths.w}": rr.SeriesPoints.from_fields(marker_sizes=[_ONE_TIME_POINT_SIZE] * 3)
+        },
     )
     break_plot = _session_plot(
         f"{root}: break score (orange; m of established map contradicted), threshold (red)",
         f"/{paths.break_score_view}",
         layout.break_top,
+        one_time=layout.one_time,
+        points={
+            f"/{paths.break_score}": rr.SeriesPoints.from_fields(marker_sizes=_ONE_TIME_POINT_SIZE),
+            f"/{paths.break_threshold}": rr.SeriesPoints.from_fields(
+                colors=style.FAILURE_COLOR, marker_sizes=_ONE_TIME_POINT_SIZE
+            ),
+        },
     )
     amplitude = rrb.Spatial2DView(
         name=f"{root}: cumulative amplitude s per wall direction, peaks (p: prominence), threshold t",
@@ -194,20 +212,52 @@ def _events_view(name: str, origin: str) -> rrb.TextLogView:
     )
 
 
-def _session_plot(name: str, origin: str, top: float | None) -> rrb.TimeSeriesView:
-    """A time series over the whole session (on any timeline; the default follows the time cursor)."""
+def _time_range(one_time: bool) -> rrb.TimeRange:
+    """The plots' time axis: the whole session, or for a session at one time a window around the
+    cursor (on the time timelines; the whole range has no width, and the axis printed labels such
+    as ".000001 ms" over each other)."""
+    if one_time:
+        half = _ONE_TIME_HALF_WINDOW_S
+        return rrb.TimeRange(
+            start=rrb.TimeRangeBoundary.cursor_relative(seconds=-half),
+            end=rrb.TimeRangeBoundary.cursor_relative(seconds=half),
+        )
+    return rrb.TimeRange(
+        start=rrb.TimeRangeBoundary.infinite(), end=rrb.TimeRangeBoundary.infinite()
+    )
+
+
+def _session_plot(
+    name: str,
+    origin: str,
+    top: float | None,
+    *,
+    one_time: bool = False,
+    points: dict[str, rr.SeriesPoints] | None = None,
+) -> rrb.TimeSeriesView:
+    """A time series over the whole session (on any timeline; the default follows the time cursor).
+
+    ``points``: series (entity path: their points' style) drawn with large points as well as their
+    lines in a session at one time, where a line has no length and the time cursor covers small
+    points.
+    """
+    overrides: dict[EntityPathLike, list[rrb.Visualizer]] | None = (
+        {
+            path: [rr.SeriesLines.from_fields().visualizer(), style.visualizer()]
+            for path, style in points.items()
+        }
+        if one_time and points
+        else None
+    )
     return rrb.TimeSeriesView(
         name=name,
         origin=origin,
+        overrides=overrides,
         # No legend: in any corner it covered data (the break score's early peak); the titles
         # name each series by its colour.
         plot_legend=rrb.PlotLegend(visible=False),
         axis_y=_value_axis(top),
-        axis_x=rrb.TimeAxis(
-            view_range=rrb.TimeRange(
-                start=rrb.TimeRangeBoundary.infinite(), end=rrb.TimeRangeBoundary.infinite()
-            )
-        ),
+        axis_x=rrb.TimeAxis(view_range=_time_range(one_time)),
     )
 
 

@@ -327,6 +327,8 @@ class RerunSink:
         self._shown: dict[str, tuple[weakref.ref[object] | None, ...]] = {}
         # Per topic: log time of its last fully logged snapshot, and the latest of any.
         self._full_at: dict[str, tuple[int, int]] = {}
+        # Per topic: the first and last log time of any of its snapshots (the plots' time range).
+        self._span_ns: dict[str, tuple[int, int]] = {}
         # Known part of every map so far, per topic: the views frame them all, so that scrubbing
         # back over a map that moved (a new origin) does not show an empty view.
         self._bounds_m: dict[str, Box | None] = dict.fromkeys(topics)
@@ -427,6 +429,9 @@ class RerunSink:
         if first:  # here, not on the logging thread: the layout sent below uses it
             topic_logger.view_origin_m = view_origin_m(snapshot)
         self._latest[snapshot.topic] = snapshot
+        t = snapshot.log_time_ns
+        span = self._span_ns.get(snapshot.topic, (t, t))
+        self._span_ns[snapshot.topic] = (min(span[0], t), max(span[1], t))
         if judged is None:
             judged = w_judges(result.occupied_count)
         shown_again = self._shows_again(snapshot.topic, (result, walls, cleaning))
@@ -449,7 +454,6 @@ class RerunSink:
                 snapshot, index, lambda: topic_logger.log_structure_score(result, judged=judged)
             )
             return
-        t = snapshot.log_time_ns
         self._full_at[snapshot.topic] = (t, t if full_at is None else max(t, full_at[1]))
         known = known_bounds_cells(snapshot.grid)
         window = known or image_window(snapshot.grid)  # the whole grid when nothing is known
@@ -524,6 +528,11 @@ class RerunSink:
         if self.live and first:
             self._send_blueprint()
 
+    def _one_time(self, topic: str) -> bool:
+        """Whether every snapshot of ``topic`` so far is at one log time (none: no)."""
+        span = self._span_ns.get(topic)
+        return span is not None and span[0] == span[1]
+
     def _framed_m(self, topic: str) -> Box | None:
         """The map-frame box the views of ``topic`` frame: every snapshot's known cells, or the
         grids themselves in a session that knows none (an all-unknown map is still drawn)."""
@@ -545,10 +554,13 @@ class RerunSink:
             )
             for topic, logger in self.loggers.items()
         )
-        if self._closing:  # the plots' value ranges are known: leave headroom above lines and data
+        if self._closing:  # the plots' ranges are known: leave headroom above lines and data
             layouts = tuple(
                 dataclasses.replace(
-                    layout, w_top=self._w_top[topic], break_top=self._break_top[topic] or None
+                    layout,
+                    w_top=self._w_top[topic],
+                    break_top=self._break_top[topic] or None,
+                    one_time=self._one_time(topic),
                 )
                 for topic, layout in zip(self.loggers, layouts, strict=True)
             )

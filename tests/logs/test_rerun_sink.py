@@ -1126,3 +1126,42 @@ def test_the_same_result_for_another_grid_logs_its_images(tmp_path: Path, fr079)
         sink.snapshot(MapSnapshot("/map", t, t, "map", grid, 0.05), result, index, None)
     sink.close()
     assert len(_read(tmp_path / "s.rrd").rows(PATHS.grid)) == 2
+
+
+@pytest.mark.parametrize("times_ns", [(7, 7), (7, 5_000_000_007)])
+def test_a_session_at_one_time_gets_plots_a_time_axis_can_draw(
+    tmp_path: Path, sent_layouts: list[tuple[object, ...]], times_ns: tuple[int, int]
+) -> None:
+    """A map_server log's one latched map (republished at the same time or not at all) gave the
+    plots a time range of no width: the axis printed ".000001 ms" labels over each other and the
+    time cursor covered the trust and failure points. Such a topic's plots show a window around
+    the cursor and draw its values as large points; a session over time keeps the whole range."""
+    import dataclasses
+
+    import rerun as rr
+
+    import rose
+    from rose_logs.rerun import sink as sink_module
+    from rose_logs.rerun.blueprint import _session_plot, _time_range
+
+    grid = np.full((60, 80), -1, dtype=np.int8)
+    grid[10:50, 10:70] = 0
+    grid[10, 10:70] = grid[49, 10:70] = grid[10:50, 10] = grid[10:50, 69] = 100
+    sink = sink_module.RerunSink(
+        rrd_path=tmp_path / "x.rrd", topics=("/map",), recording_id="x", start_ns=0
+    )
+    result = rose.analyze(grid)
+    for index, t in enumerate(times_ns):
+        snapshot = dataclasses.replace(_yawed(grid, 0.0, (0.0, 0.0)), log_time_ns=t)
+        sink.snapshot(snapshot, result, index, None)
+    sink.close()
+    (layout,) = sent_layouts[-1]
+    one_time = times_ns[0] == times_ns[1]
+    assert layout.one_time is one_time
+    view_range = _time_range(layout.one_time)
+    assert {view_range.start.kind, view_range.end.kind} == (
+        {"cursor_relative"} if one_time else {"infinite"}
+    )
+    points = {"/map/structure_score/w": rr.SeriesPoints.from_fields(marker_sizes=5.0)}
+    plot = _session_plot("W", "/map/structure_score", 0.4, one_time=layout.one_time, points=points)
+    assert bool(plot.visualizer_overrides) is one_time
