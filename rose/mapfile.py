@@ -424,13 +424,14 @@ def _read_image(path: Path, max_cells: int | None = DEFAULT_MAX_CELLS) -> npt.ND
         msg = f"{path}: not a readable image ({problem})"
         raise MapFileError(msg)
     if shape is not None and image_kind(raw) == "PNG":
-        dropped: list[tuple[int, int]] = []
-        problem = _png_problem(raw, shape, dropped)
+        mended: list[tuple[int, int, bytes]] = []
+        problem = _png_problem(raw, shape, mended)
         if problem is not None:  # libpng would print its own lines on stderr, then fail
             msg = f"{path}: not a readable image ({problem})"
             raise MapFileError(msg)
-        for start, end in reversed(dropped):  # as libpng drops them, without its stderr line
-            raw = raw[:start] + raw[end:]
+        # As libpng reads them, without its stderr lines: chunks dropped, surplus data cut.
+        for start, end, replacement in reversed(mended):
+            raw = raw[:start] + replacement + raw[end:]
     pixels = _decode_pnm(raw, path)
     if pixels is None:
         pixels = _decode_other(raw, path, max_cells)
@@ -642,15 +643,18 @@ def _png_layout(ihdr: bytes) -> str | _PngLayout:
     return _PngLayout(colour, tuple(passes), size)
 
 
-def _png_problem(raw: bytes, shape: tuple[int, int], dropped: list[tuple[int, int]]) -> str | None:
+def _png_problem(
+    raw: bytes, shape: tuple[int, int], mended: list[tuple[int, int, bytes]]
+) -> str | None:
     """What libpng would print on stderr itself (before an error without a reason), said here in
     one line: a truncated PNG, a chunk whose CRC does not match, a header PNG does not define, a
     chunk out of place or of a wrong size, a palette image without its palette, image data that
     does not inflate, ends early or has a row with an unknown filter. Chunks libpng drops with a
     warning on stderr (ancillary ones whose CRC does not match, a palette in a grey image, a
-    transparency chunk that does not fit the image) go to ``dropped`` as ``(start, end)`` byte
-    spans, and so does the caller, before it decodes. Image data beyond what the rows need is
-    left to libpng (it reads the image, with a warning).
+    transparency chunk that does not fit the image) go to ``mended`` as ``(start, end, b"")``
+    (a byte span and what replaces it), and so does the caller, before it decodes. Image data
+    beyond what the rows need, which libpng reads with a warning, goes there as its chunks' span
+    and one chunk of the data the rows need (:func:`_image_data_chunk`).
 
     The image data is inflated in pieces and dropped, and no further than the most the header's
     ``shape`` (rows, cols) can hold: a small file inflating without end is left to the decoder,
@@ -662,6 +666,7 @@ def _png_problem(raw: bytes, shape: tuple[int, int], dropped: list[tuple[int, in
     inflated = 0
     palette = 0  # entries of the PLTE chunk, once read
     data_state = 0  # 0: no IDAT yet, 1: in the IDAT chunks, 2: after them
+    data_span = [0, 0]  # the IDAT chunks' bytes
     while True:
         if pos + 12 > end:
             return f"truncated PNG: the file ends at byte {end}, inside or before a chunk"
@@ -678,7 +683,7 @@ def _png_problem(raw: bytes, shape: tuple[int, int], dropped: list[tuple[int, in
         if zlib.crc32(raw[pos + 4 : body_end]) != crc:
             if kind[:1].isupper():
                 return f"corrupt PNG: CRC mismatch in its {name!r} chunk at byte {pos}"
-            dropped.append((pos, body_end + 4))
+            mended.append((pos, body_end + 4, b""))
             pos = body_end + 4
             continue
         if data_state == 1 and kind != b"IDAT":
@@ -700,14 +705,17 @@ def _png_problem(raw: bytes, shape: tuple[int, int], dropped: list[tuple[int, in
             if length == 0 or length % 3 or length > 768:
                 return f"corrupt PNG: its PLTE chunk holds {length} bytes (3 per entry, 1..256)"
             if layout.colour in (0, 4):  # a palette in a grey image: libpng ignores it
-                dropped.append((pos, body_end + 4))
+                mended.append((pos, body_end + 4, b""))
             else:
                 palette = length // 3
         elif kind == b"tRNS" and not _fits_transparency(layout.colour, length, palette):
-            dropped.append((pos, body_end + 4))
+            mended.append((pos, body_end + 4, b""))
         elif kind == b"IDAT":
             if data_state == 2:
                 return f"corrupt PNG: its image data is split by other chunks (IDAT at byte {pos})"
+            if data_state == 0:
+                data_span[0] = pos
+            data_span[1] = body_end + 4
             data_state = 1
             if layout.colour == 3 and not palette:
                 return "corrupt PNG: a palette image without a palette (PLTE) before its data"
@@ -730,8 +738,24 @@ def _png_problem(raw: bytes, shape: tuple[int, int], dropped: list[tuple[int, in
                 return (
                     "corrupt PNG: its image data ends early (its compressed stream is unfinished)"
                 )
+            if layout.size < inflated <= most:
+                start, end = data_span
+                mended.append((start, end, _image_data_chunk(raw[start:end], layout.size)))
             return None
         pos = body_end + 4
+
+
+def _image_data_chunk(chunks: bytes, size: int) -> bytes:
+    """One IDAT chunk holding the first ``size`` bytes of the image data in ``chunks`` (whole IDAT
+    chunks, checked by :func:`_png_problem`), compressed anew."""
+    pos, compressed = 0, []
+    while pos < len(chunks):
+        (length,) = struct.unpack(">I", chunks[pos : pos + 4])
+        compressed.append(chunks[pos + 8 : pos + 8 + length])
+        pos += length + 12
+    data = zlib.decompressobj().decompress(b"".join(compressed), size)
+    body = b"IDAT" + zlib.compress(data)
+    return struct.pack(">I", len(body) - 4) + body + struct.pack(">I", zlib.crc32(body))
 
 
 def _fits_transparency(colour: int, length: int, palette: int) -> bool:

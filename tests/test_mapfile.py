@@ -524,6 +524,36 @@ def test_a_chunk_libpng_drops_with_a_warning_is_dropped_quietly(
     assert capfd.readouterr().err == ""
 
 
+def _split_data(data: bytes) -> tuple[bytes, bytes]:
+    """``data`` compressed, in two pieces (for two IDAT chunks)."""
+    stream = zlib.compress(data)
+    return stream[:5], stream[5:]
+
+
+@pytest.mark.parametrize("chunks", [1, 2], ids=["one-chunk", "two-chunks"])
+def test_image_data_beyond_the_rows_is_cut_quietly(
+    tmp_path: Path, capfd: pytest.CaptureFixture[str], chunks: int
+) -> None:
+    """Image data past the last row: libpng reads the rows and prints "IDAT: Too much image data"
+    on stderr. The map reads the same as without it, a CRC-damaged tEXt before it dropped too, and
+    nothing is printed."""
+    surplus = b"".join(_GREY_ROWS) + bytes(40)
+    if chunks == 1:
+        png = _png_of(_GREY_ROWS, stream=zlib.compress(surplus), before=((b"tEXt", b"a\x00b"),))
+    else:
+        first, second = _split_data(surplus)
+        png = _png_of(_GREY_ROWS, stream=first, before=((b"tEXt", b"a\x00b"),))
+        end = png.index(b"IEND") - 4
+        png = png[:end] + _png_chunk(b"IDAT", second) + png[end:]
+    text = png.index(b"tEXt")
+    png = png[: text + 7] + b"c" + png[text + 8 :]  # its CRC no longer matches
+    (tmp_path / "m.png").write_bytes(png)
+    (tmp_path / "plain.png").write_bytes(_png_of(_GREY_ROWS))
+    grid = rose.load_map(tmp_path / "m.png").grid
+    np.testing.assert_array_equal(grid, rose.load_map(tmp_path / "plain.png").grid)
+    assert capfd.readouterr().err == ""
+
+
 def test_pngs_libpng_reads_pass_the_checks(
     tmp_path: Path, capfd: pytest.CaptureFixture[str]
 ) -> None:
