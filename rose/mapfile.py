@@ -3,11 +3,12 @@
 Reading follows ROS 1 ``map_server`` (``image_loader.cpp``) and Nav2's ``map_io.cpp``: a sample is
 scaled to 0..255 by the image's maximum value; the grey value of a pixel is the mean of its red, green
 and blue channels, and for a map YAML's image in ``trinary`` mode of its alpha channel too (both
-servers do so; a bare image's alpha is left out); with
-``negate`` it is inverted; ``occ = (255 - grey) / 255``; ``occ > occupied_thresh`` is occupied (100),
-``occ < free_thresh`` free (0), anything between unknown (-1) in ``trinary`` mode, or ``1 + 98 * ratio``
-in ``scale`` mode (unknown where the pixel is not fully opaque, as Nav2; ROS 1 only where it is fully
-transparent); ``raw`` mode stores the grey value itself. Palette images are read by their colours, as
+servers do so; a bare image's alpha is left out); ``occ = 1 - grey / 255`` (``grey / 255`` with
+``negate``), in Nav2's arithmetic (ROS 1's ``(255 - grey) / 255`` rounds a grey value on a threshold
+to the other side); ``occ > occupied_thresh`` is occupied (100), ``occ < free_thresh`` free (0),
+anything between unknown (-1) in ``trinary`` mode, or ``rint(100 * ratio)`` in ``scale`` mode, as
+Nav2 (ROS 1: ``1 + 98 * ratio``; unknown where the pixel is not fully opaque, as Nav2; ROS 1 only
+where it is fully transparent); ``raw`` mode stores the grey value itself. Palette images are read by their colours, as
 Nav2 (ROS 1 reads the palette index). Image row 0 is the top of the picture, grid row 0 the map origin,
 so rows are flipped at this boundary.
 """
@@ -797,9 +798,10 @@ def image_to_grid(
         value = np.rint(grey)
         grid = np.where(value <= OCCUPIED, value, UNKNOWN).astype(np.int8)
         return np.flipud(grid).copy()
-    if negate:
-        grey = 255.0 - grey
-    occ = (255.0 - grey) / 255.0
+    # Nav2's arithmetic: a grey value on a threshold (204 of 255 at free_thresh 0.2) is on the same
+    # side as in Nav2 (ROS 1's (255 - grey) / 255 rounds it to the other).
+    shade = grey / 255.0
+    occ = shade if negate else 1.0 - shade
     grid = np.full(grey.shape, UNKNOWN, dtype=np.int8)
     grid[occ > occupied_thresh] = OCCUPIED
     grid[occ < free_thresh] = 0

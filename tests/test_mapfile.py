@@ -192,6 +192,24 @@ def test_trinary_thresholds_and_negate(tmp_path: Path) -> None:
     np.testing.assert_array_equal(negated[0], [0, -1, 100, 100, 100])
 
 
+def test_a_grey_value_on_a_threshold_reads_as_in_nav2(tmp_path: Path) -> None:
+    """Nav2 computes occ = 1 - grey / 255: grey 204 at free_thresh 0.2 is just under it, free (ROS 1's
+    (255 - 204) / 255 is exactly 0.2, unknown: we said we follow Nav2 where the two differ). Grey 51
+    with negate is 0.2 in both, unknown; an RGB pixel is read by its channels' mean."""
+    image = np.array([[[204, 204, 204], [51, 51, 51], [89, 89, 90]]], dtype=np.uint8)
+    cv2.imwrite(str(tmp_path / "m.png"), image)
+    base = "image: m.png\nresolution: 0.05\norigin: [0, 0, 0]\noccupied_thresh: 0.65\nfree_thresh: 0.2\n"
+    grid = rose.load_map(write_yaml(tmp_path / "a.yaml", base + "negate: 0\n")).grid
+    shades = image[0].mean(axis=1) / 255.0
+    expected = [100 if o > 0.65 else 0 if o < 0.2 else -1 for o in 1.0 - shades]
+    assert expected[0] == 0  # 1 - 0.8 is 0.19999999999999996
+    np.testing.assert_array_equal(grid[0], expected)
+    negated = rose.load_map(write_yaml(tmp_path / "b.yaml", base + "negate: 1\n")).grid
+    np.testing.assert_array_equal(
+        negated[0], [100 if o > 0.65 else 0 if o < 0.2 else -1 for o in shades]
+    )
+
+
 def test_scale_and_raw_modes(tmp_path: Path) -> None:
     image = np.array([[0, 100, 254]], dtype=np.uint8)
     cv2.imwrite(str(tmp_path / "m.pgm"), image)
