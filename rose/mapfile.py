@@ -22,7 +22,7 @@ import stat
 import struct
 import warnings
 import zlib
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
@@ -435,7 +435,8 @@ def _read_image(path: Path, max_cells: int | None = DEFAULT_MAX_CELLS) -> npt.ND
             raw = raw[:start] + replacement + raw[end:]
     pixels = _decode_pnm(raw, path)
     if pixels is None:
-        pixels = _decode_other(raw, path, max_cells)
+        transparent = _grey_transparency(raw) if image_kind(raw) == "PNG" else None
+        pixels = _decode_other(raw, path, max_cells, transparent)
     return pixels[:, :, np.newaxis] if pixels.ndim == 2 else pixels
 
 
@@ -508,8 +509,15 @@ def _plain_samples(text: bytes, count: int) -> npt.NDArray[np.int64] | None:
     return samples[:count]
 
 
-def _decode_other(raw: bytes, path: Path, max_cells: int | None) -> npt.NDArray[np.uint8]:
-    """Any image OpenCV reads (PNG, PBM, BMP, ...) as uint8, 16-bit samples scaled to 8 bits."""
+def _decode_other(
+    raw: bytes, path: Path, max_cells: int | None, transparent: int | None = None
+) -> npt.NDArray[np.uint8]:
+    """Any image OpenCV reads (PNG, PBM, BMP, ...) as uint8, 16-bit samples scaled to 8 bits.
+
+    ``transparent``: a grey image's sample value (as decoded, before the scaling) that is
+    transparent (a PNG's tRNS chunk, which OpenCV leaves out of a grey image): the image comes
+    with an alpha channel then, 0 there and 255 elsewhere, as the map servers read it.
+    """
     data = np.frombuffer(raw, dtype=np.uint8)
     import cv2  # OpenCV loads on first image use, not with `import rose`
 
@@ -530,12 +538,17 @@ def _decode_other(raw: bytes, path: Path, max_cells: int | None) -> npt.NDArray[
     if image is None:
         msg = f"{path}: not a readable image"
         raise MapFileError(msg)
+    alpha = None
+    if transparent is not None and image.ndim == 2:
+        alpha = np.where(image == transparent, 0, 255).astype(np.uint8)
     if image.dtype == np.uint16:
-        return _to_8_bits(np.asarray(image, dtype=np.uint16), 65535)
-    if image.dtype != np.uint8:
+        pixels = _to_8_bits(np.asarray(image, dtype=np.uint16), 65535)
+    elif image.dtype == np.uint8:
+        pixels = np.asarray(image, dtype=np.uint8)  # typed; no copy, the dtype is uint8 here
+    else:
         msg = f"{path}: unsupported pixel type {image.dtype}"
         raise MapFileError(msg)
-    return np.asarray(image, dtype=np.uint8)  # typed; no copy, the dtype is uint8 here
+    return pixels if alpha is None else np.dstack([pixels, alpha])
 
 
 def _header_problem(raw: bytes, shape: tuple[int, int] | None) -> str | None:
@@ -746,14 +759,37 @@ def _png_problem(
         pos = body_end + 4
 
 
+def _png_chunks(chunks: bytes) -> Iterator[tuple[bytes, bytes]]:
+    """Type and body of each chunk in ``chunks`` (whole chunks, checked by :func:`_png_problem`)."""
+    pos = 0
+    while pos < len(chunks):
+        (length,) = struct.unpack(">I", chunks[pos : pos + 4])
+        yield chunks[pos + 4 : pos + 8], chunks[pos + 8 : pos + 8 + length]
+        pos += length + 12
+
+
+def _grey_transparency(raw: bytes) -> int | None:
+    """The transparent sample value of a grey PNG (its tRNS chunk, as OpenCV decodes the samples:
+    1, 2 and 4 bits scaled to 0..255), None for another PNG or one without it. ``raw`` has passed
+    :func:`_png_problem`, and the chunks it drops are gone."""
+    depth = 0
+    for kind, body in _png_chunks(raw[8:]):
+        if kind == b"IHDR":
+            depth, colour = body[8], body[9]
+            if colour != 0:
+                return None
+        elif kind == b"tRNS":
+            (value,) = struct.unpack(">H", body)  # 2 bytes in a grey image, or dropped
+            return value * (255 // (2**depth - 1)) if depth < 8 else value
+        elif kind == b"IDAT":
+            return None
+    return None
+
+
 def _image_data_chunk(chunks: bytes, size: int) -> bytes:
     """One IDAT chunk holding the first ``size`` bytes of the image data in ``chunks`` (whole IDAT
     chunks, checked by :func:`_png_problem`), compressed anew."""
-    pos, compressed = 0, []
-    while pos < len(chunks):
-        (length,) = struct.unpack(">I", chunks[pos : pos + 4])
-        compressed.append(chunks[pos + 8 : pos + 8 + length])
-        pos += length + 12
+    compressed = [body for _, body in _png_chunks(chunks)]
     data = zlib.decompressobj().decompress(b"".join(compressed), size)
     body = b"IDAT" + zlib.compress(data)
     return struct.pack(">I", len(body) - 4) + body + struct.pack(">I", zlib.crc32(body))

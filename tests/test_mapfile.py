@@ -542,6 +542,58 @@ def test_a_chunk_libpng_drops_with_a_warning_is_dropped_quietly(
     assert capfd.readouterr().err == ""
 
 
+@pytest.mark.parametrize("depth", [1, 8, 16])
+@pytest.mark.parametrize("mode", ["trinary", "scale"])
+def test_a_grey_pngs_transparent_value_reads_as_transparent(
+    tmp_path: Path, depth: int, mode: str
+) -> None:
+    """A grey PNG's tRNS chunk names one grey value transparent; OpenCV leaves it out of a grey
+    image, so those cells read free where the map servers read them unknown. They now read as the
+    same picture with an alpha channel (grey + alpha PNG) does."""
+    top = 2**depth - 1
+    samples = np.array([[top, 0, top, 0], [0, top, top, 0]])  # white (transparent) and black
+    fmt = {1: "1", 8: "B", 16: ">H"}[depth]
+
+    def packed(row: np.ndarray, alpha: np.ndarray | None = None) -> bytes:
+        if depth == 1:
+            return b"\x00" + np.packbits(row.astype(np.uint8)).tobytes()
+        values = row if alpha is None else np.stack([row, alpha], axis=1).reshape(-1)
+        return b"\x00" + values.astype(fmt).tobytes()
+
+    key = struct.pack(">H", top)
+    (tmp_path / "key.png").write_bytes(
+        _png_of([packed(r) for r in samples], depth=depth, before=((b"tRNS", key),))
+    )
+    alpha_depth = max(depth, 8)  # grey + alpha has 8 or 16 bits
+    scaled = samples * ((2**alpha_depth - 1) // top)
+    alpha = np.where(samples == top, 0, 2**alpha_depth - 1)
+    (tmp_path / "alpha.png").write_bytes(
+        _png_of(
+            [
+                b"\x00"
+                + np.stack([g, a], axis=1)
+                .reshape(-1)
+                .astype({8: "B", 16: ">H"}[alpha_depth])
+                .tobytes()
+                for g, a in zip(scaled, alpha, strict=True)
+            ],
+            depth=alpha_depth,
+            colour=4,
+        )
+    )
+    grids = []
+    for name in ("key", "alpha"):
+        yaml_path = write_yaml(
+            tmp_path / f"{name}.yaml",
+            f"image: {name}.png\nresolution: 0.05\norigin: [0, 0, 0]\nmode: {mode}\n"
+            "negate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n",
+        )
+        grids.append(rose.load_map(yaml_path).grid)
+    np.testing.assert_array_equal(grids[0], grids[1])
+    assert (grids[0][np.flipud(samples) == top] == -1).all()  # unknown, not free
+    assert (grids[0][np.flipud(samples) == 0] == 100).all()
+
+
 def _split_data(data: bytes) -> tuple[bytes, bytes]:
     """``data`` compressed, in two pieces (for two IDAT chunks)."""
     stream = zlib.compress(data)
