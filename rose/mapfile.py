@@ -47,7 +47,7 @@ from rose.limits import (
     pnm_numbers,
     short,
 )
-from rose.outputs import OutputSet
+from rose.outputs import OutputSet, is_stream
 
 __all__ = ["MapMode", "OccupancyMap", "load_map", "save_map", "write_atomically"]
 
@@ -869,7 +869,8 @@ def grid_to_image(
 def map_image_path(yaml_path: str | os.PathLike[str]) -> Path:
     """Where :func:`save_map` writes the image of a map saved as ``yaml_path``: beside it, with its
     stem and ``.pgm``. A symlinked YAML is written through to its target, so the image goes beside
-    the target, which names it (beside the link, the target named an image not beside it)."""
+    the target (beside the link, the target named an image not beside it); the YAML names it by its
+    absolute path when the link is in another folder (:func:`_image_entry`)."""
     path = Path(yaml_path)
     return (Path(os.path.realpath(path)) if path.is_symlink() else path).with_suffix(".pgm")
 
@@ -884,7 +885,7 @@ def save_map(
     """Write ``occupancy_map`` as map_server YAML plus a trinary PGM beside it; return the image path.
 
     ``path`` names the YAML file; the image goes to :func:`map_image_path` (the same stem with
-    ``.pgm``; for a symlinked YAML, beside the target). Cells of at least
+    ``.pgm``; for a symlinked YAML, beside the target). Neither may be a device or FIFO. Cells of at least
     ``occupied_threshold`` are written occupied (map_saver's 65 by default: pass the threshold the
     map was analysed with, so that every cell ROSE counted as occupied stays so), the others of at
     most 25 free (a threshold of 25 or less: every known cell under it), the rest unknown. Both
@@ -925,6 +926,13 @@ def save_map(
     ):  # YAML is Unicode: the name would be an escape map_server cannot open
         msg = f"{short(path, 200)}: a map's name must be UTF-8 (its YAML names the image)"
         raise MapFileError(msg) from None
+    for output in (path, image_path):
+        if is_stream(output):  # and opening a FIFO without a reader would wait for one
+            msg = (
+                f"{output}: a map is two files, its YAML naming its image: not written to a "
+                "device or FIFO"
+            )
+            raise MapFileError(msg)
     problem = _unloadable(grid)
     if problem is not None:  # written, it could not be read back
         msg = f"{path}: cannot save a map with {problem}"
@@ -941,7 +949,7 @@ def save_map(
         raise MapFileError(msg)
     x, y = occupancy_map.origin_xy_m
     meta = {
-        "image": image_path.name,
+        "image": _image_entry(path, image_path),
         "mode": "trinary",
         "resolution": float(occupancy_map.resolution_m),
         "origin": [float(x), float(y), float(occupancy_map.origin_yaw_rad)],
@@ -964,6 +972,17 @@ def save_map(
     if own:
         target.commit()
     return image_path
+
+
+def _image_entry(yaml_path: Path, image_path: Path) -> str:
+    """The YAML's ``image`` for ``image_path``: its name, which the map servers (and
+    :func:`load_map`) look for beside the YAML path they were given; its absolute path when that
+    is another file (a YAML symlinked from another folder: its image goes beside the target, and
+    read through the link, its name alone named a file beside the link)."""
+    beside = os.path.realpath(yaml_path.parent / image_path.name)
+    if beside == os.path.realpath(image_path):
+        return image_path.name
+    return os.path.realpath(image_path)
 
 
 def _unloadable(grid: npt.NDArray[np.int8]) -> str | None:

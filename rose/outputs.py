@@ -64,6 +64,7 @@ __all__ = [
     "exit_after",
     "install_signal_handlers",
     "interrupt_behind",
+    "is_stream",
     "json_safe",
     "json_text",
     "print_any_file_name",
@@ -554,6 +555,15 @@ def _is_stdout(path: Path) -> bool:
         return False
 
 
+def is_stream(path: Path | str) -> bool:
+    """Whether an output ``path`` is written as a stream, not a file: ``-`` (standard output) or
+    an existing device or FIFO (``/dev/stdout``, ``/dev/null``, a named pipe)."""
+    if str(path) == STDOUT:
+        return True
+    path = Path(path)
+    return _is_stdout(path) or (path.exists() and not _is_regular_or_dir(path))
+
+
 def suffix_warning(
     path: Path | str | None, suffix: str | tuple[str, ...], content: str
 ) -> str | None:
@@ -561,11 +571,9 @@ def suffix_warning(
     run.txt``, which ``rerun`` will not open; ``--json report.rrd``), naming ``content`` ("a JSON
     report") and the ``suffix`` expected (".json", or one of several; any case); None for no
     output, standard output, a device or FIFO (streams keep their names), or an expected suffix."""
-    if path is None or str(path) == STDOUT:
+    if path is None or is_stream(path):
         return None
     path = Path(path)
-    if _is_stdout(path) or (path.exists() and not _is_regular_or_dir(path)):
-        return None
     expected = (suffix,) if isinstance(suffix, str) else suffix
     found = path.suffix
     if found.lower() in expected:

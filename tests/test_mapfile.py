@@ -13,6 +13,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 import pytest
+import yaml
 from real_data import FR079_DIR, repo_data
 
 import rose
@@ -789,6 +790,33 @@ def test_a_symlinked_yaml_is_saved_beside_its_target(tmp_path: Path) -> None:
     assert image == tmp_path / "sub" / "real.pgm"
     assert link.is_symlink() and sorted(p.name for p in tmp_path.iterdir()) == ["lnk.yaml", "sub"]
     np.testing.assert_array_equal(rose.load_map(tmp_path / "sub" / "real.yaml").grid, grid)
+    # Through the link too: the map servers look for a relative image beside the path they were
+    # given (the link), where sub/'s image is not: the YAML names it by its absolute path.
+    np.testing.assert_array_equal(rose.load_map(link).grid, grid)
+    assert yaml.safe_load(link.read_text())["image"] == str(image.resolve())
+
+
+def test_a_yaml_beside_its_image_names_it_by_name(tmp_path: Path) -> None:
+    """The usual case, a link in the target's own folder too: the image by its name alone, so the
+    map's two files can move together."""
+    (tmp_path / "real.yaml").write_text("x")
+    (tmp_path / "lnk.yaml").symlink_to("real.yaml")
+    occupancy = rose.OccupancyMap(grid=np.zeros((3, 3), np.int8), resolution_m=0.05)
+    for name in ("m.yaml", "lnk.yaml"):
+        with OutputSet(force=True) as outputs:
+            image = rose.save_map(tmp_path / name, occupancy, outputs=outputs)
+        assert yaml.safe_load((tmp_path / name).read_text())["image"] == image.name
+
+
+@pytest.mark.parametrize("fifo", ["m.yaml", "m.pgm"])
+def test_a_map_is_not_saved_into_a_fifo(tmp_path: Path, fifo: str) -> None:
+    """A named pipe at the YAML's or the image's name: the save waited for a reader, or wrote a
+    map whose YAML named an image nobody can read again. Refused before anything is opened."""
+    os.mkfifo(tmp_path / fifo)
+    occupancy = rose.OccupancyMap(grid=np.zeros((3, 3), np.int8), resolution_m=0.05)
+    with pytest.raises(MapFileError, match=f"{fifo}: a map is two files.*device or FIFO"):
+        rose.save_map(tmp_path / "m.yaml", occupancy)
+    assert sorted(p.name for p in tmp_path.iterdir()) == [fifo]
 
 
 def test_save_into_missing_directory_fails_cleanly(tmp_path: Path) -> None:
