@@ -3,7 +3,8 @@
 - :data:`DEFAULT_MAX_CELLS`: the largest grid analysed by default (``--max-cells``). ``rose.analyze``
   needs 31-36 bytes per cell at its peak (FFT planes, scores, masks; ``benchmarks/bench_memory.py`` at
   1-9 million cells), decoding a map image some more, so the default 1e8 cells (10,000 x 10,000) needs
-  about 4 GB. Sizes are checked before anything of
+  about 4 GB; the ``"walls"`` cleaning doubles that (``rose clean`` of 16 million cells peaked at
+  1.2 GB, ``rose score`` at 0.58 GB). Sizes are checked before anything of
   that size is allocated: image headers before decoding, width x height of map messages before analysis,
   the grid extent of ``rose-bag convert`` before ray casting.
 - :func:`load_yaml`: YAML without aliases (a 1 KB "billion laughs" file cannot expand), at most
@@ -116,7 +117,7 @@ def check_cells(rows: int, cols: int, max_cells: int | None) -> str | None:
         return None
     return (
         f"{cols} x {rows} = {rows * cols:,} cells exceeds the limit of {max_cells:,} "
-        "(--max-cells; ROSE needs about 35 bytes per cell)"
+        "(--max-cells; ROSE needs about 35 bytes per cell, its walls cleaning about 75)"
     )
 
 

@@ -204,7 +204,8 @@ def add_limit_arguments(parser: argparse.ArgumentParser) -> None:
         default=DEFAULT_MAX_CELLS,
         metavar="N",
         help="refuse grids of more than N cells, checked before allocating "
-        "(default %(default).0e; ROSE needs about 35 bytes per cell)",
+        "(default %(default).0e; ROSE needs about 35 bytes per cell, its walls cleaning "
+        "about 75)",
     )
 
 
