@@ -312,10 +312,12 @@ def _gate_failures(args: argparse.Namespace, report: Any) -> list[str]:
 
         first_w, level = score_beside_level(first.structure_score, args.fail_above)
         worst_w, _ = score_beside_level(worst.structure_score, args.fail_above)
+        # (Its topic too when another: each topic numbers its own snapshots.)
+        worst_at = "" if worst.topic == first.topic else f"{worst.topic} "
         reasons.append(
             f"W = {first_w} on {first.topic} snapshot {first.index} ({when} "
             f"into the log) exceeds --fail-above {level} first; highest: "
-            f"W = {worst_w} on snapshot {worst.index}"
+            f"W = {worst_w} on {worst_at}snapshot {worst.index}"
         )
     first_break = report.first_break()
     if args.fail_on_break and first_break is not None:

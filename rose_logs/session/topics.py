@@ -195,9 +195,18 @@ def select_topics(
             msg += f"; {unreadable[0].topic} {_why_not_a_map(unreadable[0])}"
         raise LogReadError(msg)
     # A map topic declared but never published is no map of the session (its summary would say
-    # "snapshots 0", and a gate would fail on it); unless no topic has a message at all.
+    # "snapshots 0", and a gate would fail on it); unless no topic has a message at all. Said, though:
+    # a gate passing a recording whose costmap never came out did not mention it.
     published = {c.topic for c in channels if c.message_count > 0}
-    return tuple(t for t in found if t in published) or found
+    chosen = tuple(t for t in found if t in published) or found
+    for topic in found:
+        if topic not in chosen:
+            _LOG.warning(
+                "%s: a map topic the log declares but holds no message on: not analysed, "
+                "and no gate judges it",
+                topic,
+            )
+    return chosen
 
 
 def _why_not_a_map(channel: Channel) -> str:

@@ -260,9 +260,14 @@ def test_a_map_topic_declared_but_never_published_is_no_map_of_the_session(
         out.add_topic("/robot2/map", "nav_msgs/msg/OccupancyGrid", latching=True)
         for m in reader.messages():
             out.write_raw(handles[m.channel.id], m.log_time_ns, m.data)
-    code, out_text, _ = _run(capsys, "process", log, "--no-output", "--fail-above", "0.9")
+    code, out_text, err = _run(capsys, "process", log, "--no-output", "--fail-above", "0.9")
     assert code == 0
     assert "/robot2/map" not in out_text
+    # ... but said: a gate passing a recording whose costmap never came out did not mention it.
+    assert (
+        "warning: /robot2/map: a map topic the log declares but holds no message on: not "
+        "analysed, and no gate judges it" in err.splitlines()
+    )
     # info lists it and says why it is no map of the session (it printed an empty section).
     code, out_text, _ = _run(capsys, "info", log)
     assert code == 0

@@ -210,6 +210,25 @@ def test_gate_and_json_break(tmp_path: Path, capsys, fr079, broken_grid) -> None
     assert main(["process", str(built.path), "--no-output", "--fail-above", "0.9", "-q"]) == 0
 
 
+def test_the_gate_names_the_topic_of_the_highest_w_when_another(
+    tmp_path: Path, capsys, fr079, broken_grid
+) -> None:
+    """Two map topics, the first past the level on one, the highest W on the other: the message
+    said "highest: ... on snapshot 1" of the first topic, which has no such W."""
+    maps = [
+        MapMsg(START_NS + 1_000_000_000, fr079[0], topic="/costmap"),
+        MapMsg(START_NS + 2_000_000_000, fr079[0]),
+        MapMsg(START_NS + 3_000_000_000, broken_grid),
+    ]
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps)
+    code = main(["process", str(built.path), "--no-output", "--fail-above", "0.01"])
+    _, err = capsys.readouterr()
+    assert code == EXIT_GATE
+    line = next(line for line in err.splitlines() if "exceeds --fail-above" in line)
+    assert "on /costmap snapshot 0" in line
+    assert re.search(r"highest: W = [0-9.]+ on /map snapshot 1$", line), line
+
+
 def test_fail_on_break_gate_and_json_first_break(
     tmp_path: Path, capsys, fr079, broken_grid
 ) -> None:
