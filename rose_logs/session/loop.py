@@ -634,6 +634,7 @@ class _Loop:
         self.on_snapshot = on_snapshot
         self.serialization = reader.serialization
         self.last_map: dict[str, MapSnapshot] = {}
+        self.lost_map: set[str] = set()  # topics whose latest full map was malformed
         self.count: dict[str, int] = {}
         self.above: dict[str, bool] = {}
         self.records: list[SnapshotRecord] = []
@@ -766,8 +767,13 @@ class _Loop:
             )
         except MapMessageError as err:
             self.skips.add("malformed", f"{short(err, 240)} {self._at(log_time_ns)}")
+            # The updates after it patch it, not the map before it: they are skipped too (one
+            # was applied to the earlier map, a snapshot the robot never had).
+            self.last_map.pop(topic, None)
+            self.lost_map.add(topic)
             return
         self.last_map[topic] = snapshot
+        self.lost_map.discard(topic)
         self._note_out_of_range(topic, snapshot.out_of_range_cells, log_time_ns)
         tilt = quaternion_tilt(snapshot.origin_orientation_xyzw)
         if tilt > _FLAT_TILT_RAD:
@@ -808,6 +814,13 @@ class _Loop:
                 log_time_ns=log_time_ns,
             )
             base = self.last_map.get(target)
+            if base is None and target in self.lost_map:
+                self.skips.add(
+                    "after a malformed map",
+                    f"{topic}: grid update {self._at(log_time_ns)} of a malformed full map on "
+                    f"{target}",
+                )
+                return
             if base is None:
                 self.skips.add(
                     "before the first full map",

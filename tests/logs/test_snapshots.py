@@ -229,6 +229,31 @@ def test_updates_that_cannot_be_applied_are_counted_by_reason(tmp_path, fr079) -
     assert report.skipped_reasons == "1 before the first full map, 2 updates of no known map"
 
 
+def test_updates_after_a_malformed_map_are_skipped_not_applied_to_the_map_before(
+    tmp_path, fr079
+) -> None:
+    """A good map, a malformed one, then an update: the update was applied to the good map, a
+    snapshot the robot never had (analysed and written at the update's time). It patches the map
+    that was skipped, so it goes too; the next full map takes updates again."""
+    from conftest import START_NS, MapMsg, build_log
+
+    from rose_logs.session import process_log
+
+    patch = fr079[2][:20, :30]
+    s = 1_000_000_000
+    maps = [
+        MapMsg(START_NS + 1 * s, fr079[0]),
+        MapMsg(START_NS + 2 * s, fr079[1], bad_length=True),
+        MapMsg(START_NS + 3 * s, patch, topic="/map_updates", xy=(0, 0)),
+        MapMsg(START_NS + 4 * s, fr079[1]),
+        MapMsg(START_NS + 5 * s, patch, topic="/map_updates", xy=(0, 0)),
+    ]
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps)
+    report = process_log(built.path, output_path=None)
+    assert [r.log_time_ns - START_NS for r in report.records] == [1 * s, 4 * s, 5 * s]
+    assert report.skipped_reasons == "1 malformed, 1 after a malformed map"
+
+
 def test_another_costmaps_updates_never_patch_the_only_map(tmp_path, fr079) -> None:
     """``/local_costmap/costmap_updates`` names a map the log does not hold: its patches are not
     the only map's (they were applied to /map: lethal blocks in its cleaned maps, extra snapshots);
