@@ -42,6 +42,7 @@ from rose.labelling import components, label_boxes, labels_wanted
 from rose.limits import integer_number
 
 __all__ = [
+    "MAX_KERNEL_PX",
     "WallContradiction",
     "contradicted_walls",
     "erased_walls",
@@ -52,7 +53,7 @@ __all__ = [
 
 #: Longest tolerance, bridge or margin taken, cells: they are square kernels of about twice that side
 #: (10**6 cells asked for terabytes).
-_MAX_KERNEL_PX = 1000
+MAX_KERNEL_PX = 1000
 
 
 @dataclass(frozen=True)
@@ -170,8 +171,8 @@ def _check(
         "rise_margin_px": rise_margin_px,
     }
     for name, value in kernels.items():
-        if not integer_number(value) or not 0 <= value <= _MAX_KERNEL_PX:
-            msg = f"{name} must be an integer in 0..{_MAX_KERNEL_PX}, got {value!r}"
+        if not integer_number(value) or not 0 <= value <= MAX_KERNEL_PX:
+            msg = f"{name} must be an integer in 0..{MAX_KERNEL_PX}, got {value!r}"
             raise RoseError(msg)
     if not integer_number(min_extent_px) or min_extent_px < 0:
         msg = f"min_extent_px must be an integer >= 0, got {min_extent_px!r}"

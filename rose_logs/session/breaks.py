@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from rose.breaks import WallContradiction, contradicted_walls
+from rose.breaks import MAX_KERNEL_PX, WallContradiction, contradicted_walls
 from rose.errors import RoseError
 from rose.limits import finite_number
 from rose_logs.snapshots import MapSnapshot
@@ -306,6 +306,7 @@ class BreakDetector:
         self._broken: dict[str, bool] = {}
         self._count: dict[str, int] = {}
         self._blank: set[str] = set()  # topics whose trusted snapshot has no occupied cell
+        self._too_fine_said: set[str] = set()  # topics warned of maps too fine to check
         # Per topic, its state before its last update (withdraw_last puts it back).
         self._before: dict[str, tuple[int, tuple[int, MapSnapshot] | None, bool, bool]] = {}
 
@@ -320,6 +321,10 @@ class BreakDetector:
             topic in self._blank,
         )
         self._count[topic] = index + 1
+        if not self._kernels_fit(snapshot.resolution_m):
+            self._say_too_fine(topic)
+            self._trust(topic, index, snapshot)
+            return _CLEAR
         trusted = self._trusted.get(topic)
         offset = None if trusted is None else _offset_px(trusted[1], snapshot)
         if trusted is None or offset is None or topic in self._blank:
@@ -352,6 +357,28 @@ class BreakDetector:
             trusted[0],
             region,
             found.contradicted_tiles * found.tile_px * res,
+        )
+
+    def _kernels_fit(self, resolution_m: float) -> bool:
+        """Whether the detector's lengths are at most :data:`rose.breaks.MAX_KERNEL_PX` cells of
+        ``resolution_m`` (a map finer than about 0.3 mm per cell: its 0.3 m tolerance would be a
+        square kernel of over 2000 cells a side)."""
+        p = self.params
+        longest = max(p.tolerance_m, p.bridge_m, p.rise_margin_m)
+        return round(longest / resolution_m) <= MAX_KERNEL_PX
+
+    def _say_too_fine(self, topic: str) -> None:
+        """Warn once per topic that its maps are too fine for the detector."""
+        if topic in self._too_fine_said:
+            return
+        self._too_fine_said.add(topic)
+        p = self.params
+        _LOG.warning(
+            "%s: maps so fine that the break detector's %g m would span more than %d cells are "
+            "not checked for breaks (their break score is 0); said once per topic",
+            topic,
+            max(p.tolerance_m, p.bridge_m, p.rise_margin_m),
+            MAX_KERNEL_PX,
         )
 
     def withdraw_last(self, topic: str) -> None:

@@ -282,3 +282,30 @@ def test_a_snapshot_not_comparable_is_named_by_its_log_time(plan, caplog) -> Non
         verdict = detector.update(_snap(plan, 20, res=RES * 2))  # another cell size
     assert not verdict.broken
     assert "logged at 20 ns is not comparable with trusted snapshot 0" in caplog.text
+
+
+def test_maps_too_fine_for_the_detector_are_not_checked_and_say_so(
+    plan, broken, caplog: pytest.LogCaptureFixture
+) -> None:
+    """A topic at 0.25 mm per cell made the detector's 0.3 m tolerance 1200 cells, over its kernel
+    limit: the whole session stopped with "tolerance_px must be an integer in 0..1000", every other
+    topic's results lost. Such maps get a break score of 0 and one warning per topic; the detector
+    still checks the others."""
+    detector = BreakDetector(BreakParams(threshold_m=1.0))
+    with caplog.at_level("WARNING"):
+        fine = [
+            detector.update(_snap(g, i, res=0.00025, topic="/fine"))
+            for i, g in enumerate([plan, broken, broken])
+        ]
+        usual = [detector.update(_snap(g, i)) for i, g in enumerate([plan, broken])]
+    assert [(v.score_m, v.broken) for v in fine] == [(0.0, False)] * 3
+    assert usual[1].broken
+    said = [r.getMessage() for r in caplog.records if "not checked for breaks" in r.getMessage()]
+    assert len(said) == 1 and said[0].startswith("/fine: ")
+    # 0.3 mm per cell: 1000 cells, the limit, still checked (compared: no warning).
+    caplog.clear()
+    at_limit = BreakDetector(BreakParams(threshold_m=1.0))
+    with caplog.at_level("WARNING"):
+        for i, grid in enumerate([plan, broken]):
+            at_limit.update(_snap(grid, i, res=0.0003))
+    assert not caplog.records
