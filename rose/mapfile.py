@@ -605,6 +605,7 @@ class _PngLayout:
     count; and the bytes they need in all."""
 
     colour: int
+    depth: int
     passes: tuple[tuple[int, int, int], ...]
     size: int
 
@@ -654,7 +655,7 @@ def _png_layout(ihdr: bytes) -> str | _PngLayout:
             stride = 1 + -(-width * samples * depth // 8)
             passes.append((size, stride, height))
             size += stride * height
-    return _PngLayout(colour, tuple(passes), size)
+    return _PngLayout(colour, depth, tuple(passes), size)
 
 
 def _png_problem(
@@ -665,10 +666,11 @@ def _png_problem(
     chunk out of place or of a wrong size, a palette image without its palette, image data that
     does not inflate, ends early or has a row with an unknown filter. Chunks libpng drops with a
     warning on stderr (ancillary ones whose CRC does not match, a palette in a grey image, a
-    transparency chunk that does not fit the image) go to ``mended`` as ``(start, end, b"")``
-    (a byte span and what replaces it), and so does the caller, before it decodes. Image data
-    beyond what the rows need, which libpng reads with a warning, goes there as its chunks' span
-    and one chunk of the data the rows need (:func:`_image_data_chunk`).
+    transparency chunk that does not fit the image, comes after the image data or again) go to
+    ``mended`` as ``(start, end, b"")`` (a byte span and what replaces it, in file order), and
+    so does the caller, before it decodes. Image data beyond what the rows need, or bytes after
+    its compressed stream, which libpng reads with a warning, go there as their chunks' span and
+    one chunk of the data the rows need (:func:`_image_data_chunk`).
 
     The image data is inflated in pieces and dropped, and no further than the most the header's
     ``shape`` (rows, cols) can hold: a small file inflating without end is left to the decoder,
@@ -681,6 +683,7 @@ def _png_problem(
     palette = 0  # entries of the PLTE chunk, once read
     data_state = 0  # 0: no IDAT yet, 1: in the IDAT chunks, 2: after them
     data_span = [0, 0]  # the IDAT chunks' bytes
+    seen_transparency = False
     while True:
         if pos + 12 > end:
             return f"truncated PNG: the file ends at byte {end}, inside or before a chunk"
@@ -722,8 +725,11 @@ def _png_problem(
                 mended.append((pos, body_end + 4, b""))
             else:
                 palette = length // 3
-        elif kind == b"tRNS" and not _fits_transparency(layout.colour, length, palette):
-            mended.append((pos, body_end + 4, b""))
+        elif kind == b"tRNS":
+            body = raw[pos + 8 : body_end]
+            if data_state or seen_transparency or not _fits_transparency(layout, body, palette):
+                mended.append((pos, body_end + 4, b""))  # libpng ignores it, with a warning
+            seen_transparency = True
         elif kind == b"IDAT":
             if data_state == 2:
                 return f"corrupt PNG: its image data is split by other chunks (IDAT at byte {pos})"
@@ -752,9 +758,14 @@ def _png_problem(
                 return (
                     "corrupt PNG: its image data ends early (its compressed stream is unfinished)"
                 )
-            if layout.size < inflated <= most:
+            if inflated <= most and (inflated > layout.size or image_data.unused_data):
+                # More data than the rows, or bytes after the stream: libpng reads the rows
+                # with a warning; one chunk of what they need replaces the image data chunks
+                # (and the chunks dropped between them), in their place in the list.
                 start, end = data_span
-                mended.append((start, end, _image_data_chunk(raw[start:end], layout.size)))
+                kept = [span for span in mended if not start <= span[0] < end]
+                kept.append((start, end, _image_data_chunk(raw[start:end], layout.size)))
+                mended[:] = sorted(kept, key=lambda span: span[0])
             return None
         pos = body_end + 4
 
@@ -789,20 +800,23 @@ def _grey_transparency(raw: bytes) -> int | None:
 def _image_data_chunk(chunks: bytes, size: int) -> bytes:
     """One IDAT chunk holding the first ``size`` bytes of the image data in ``chunks`` (whole IDAT
     chunks, checked by :func:`_png_problem`), compressed anew."""
-    compressed = [body for _, body in _png_chunks(chunks)]
+    # (Dropped ancillary chunks may lie between them; the data inflated whole in the check.)
+    compressed = [body for kind, body in _png_chunks(chunks) if kind == b"IDAT"]
     data = zlib.decompressobj().decompress(b"".join(compressed), size)
-    body = b"IDAT" + zlib.compress(data)
+    body = b"IDAT" + zlib.compress(data, 1)  # the fastest level: a large image is seconds at 6
     return struct.pack(">I", len(body) - 4) + body + struct.pack(">I", zlib.crc32(body))
 
 
-def _fits_transparency(colour: int, length: int, palette: int) -> bool:
-    """Whether a tRNS chunk of ``length`` bytes fits a PNG of colour type ``colour`` (one grey or
-    RGB sample of 16 bits, or up to one alpha per palette entry; none with an alpha channel)."""
-    if colour == 0:
-        return length == 2
-    if colour == 2:
-        return length == 6
-    return colour == 3 and 0 < length <= palette
+def _fits_transparency(layout: _PngLayout, body: bytes, palette: int) -> bool:
+    """Whether a tRNS chunk's ``body`` fits a PNG of ``layout`` (one grey or RGB sample of 16
+    bits within the bit depth, or up to one alpha per palette entry; none with an alpha
+    channel)."""
+    samples = {0: 1, 2: 3}.get(layout.colour)
+    if samples is None:
+        return layout.colour == 3 and 0 < len(body) <= palette
+    if len(body) != 2 * samples:
+        return False
+    return max(struct.unpack(f">{samples}H", body)) < 2**layout.depth
 
 
 def image_to_grid(

@@ -601,27 +601,78 @@ def _split_data(data: bytes) -> tuple[bytes, bytes]:
     return stream[:5], stream[5:]
 
 
-@pytest.mark.parametrize("chunks", [1, 2], ids=["one-chunk", "two-chunks"])
-def test_image_data_beyond_the_rows_is_cut_quietly(
-    tmp_path: Path, capfd: pytest.CaptureFixture[str], chunks: int
+def _damaged_chunk(kind: bytes, body: bytes) -> bytes:
+    """A chunk whose CRC does not match (libpng drops an ancillary one with a warning)."""
+    chunk = _png_chunk(kind, body)
+    return chunk[:-1] + bytes([chunk[-1] ^ 1])
+
+
+_SURPLUS_DATA = b"".join(_GREY_ROWS) + bytes(40)
+
+
+@pytest.mark.parametrize(
+    "chunks",
+    [
+        [_damaged_chunk(b"tEXt", b"a\x00b"), _png_chunk(b"IDAT", zlib.compress(_SURPLUS_DATA, 9))],
+        [_png_chunk(b"IDAT", piece) for piece in _split_data(_SURPLUS_DATA)],
+        [
+            _png_chunk(b"IDAT", _split_data(_SURPLUS_DATA)[0]),
+            _damaged_chunk(b"tEXt", b"a\x00b"),
+            _png_chunk(b"IDAT", _split_data(_SURPLUS_DATA)[1]),
+        ],
+        [_png_chunk(b"IDAT", zlib.compress(_SURPLUS_DATA, 0)), _damaged_chunk(b"tEXt", b"a\x00b")],
+        [_png_chunk(b"IDAT", zlib.compress(b"".join(_GREY_ROWS)) + b"junk")],
+        [
+            _png_chunk(b"IDAT", zlib.compress(b"".join(_GREY_ROWS))),
+            _png_chunk(b"tRNS", struct.pack(">H", 254)),
+        ],
+        [
+            _png_chunk(b"tRNS", struct.pack(">H", 254)),
+            _png_chunk(b"tRNS", struct.pack(">H", 0)),
+            _png_chunk(b"IDAT", zlib.compress(b"".join(_GREY_ROWS))),
+        ],
+        [
+            _png_chunk(b"tRNS", struct.pack(">H", 300)),
+            _png_chunk(b"IDAT", zlib.compress(b"".join(_GREY_ROWS))),
+        ],
+    ],
+    ids=[
+        "surplus",
+        "surplus-two-chunks",
+        "surplus-damaged-chunk-between",
+        "surplus-damaged-chunk-after",
+        "bytes-after-the-stream",
+        "transparency-after-the-data",
+        "transparency-twice",
+        "transparency-out-of-range",
+    ],
+)
+def test_what_libpng_reads_with_a_warning_reads_quietly(
+    tmp_path: Path, capfd: pytest.CaptureFixture[str], chunks: list[bytes]
 ) -> None:
-    """Image data past the last row: libpng reads the rows and prints "IDAT: Too much image data"
-    on stderr. The map reads the same as without it, a CRC-damaged tEXt before it dropped too, and
-    nothing is printed."""
-    surplus = b"".join(_GREY_ROWS) + bytes(40)
-    if chunks == 1:
-        png = _png_of(_GREY_ROWS, stream=zlib.compress(surplus), before=((b"tEXt", b"a\x00b"),))
-    else:
-        first, second = _split_data(surplus)
-        png = _png_of(_GREY_ROWS, stream=first, before=((b"tEXt", b"a\x00b"),))
-        end = png.index(b"IEND") - 4
-        png = png[:end] + _png_chunk(b"IDAT", second) + png[end:]
-    text = png.index(b"tEXt")
-    png = png[: text + 7] + b"c" + png[text + 8 :]  # its CRC no longer matches
-    (tmp_path / "m.png").write_bytes(png)
-    (tmp_path / "plain.png").write_bytes(_png_of(_GREY_ROWS))
-    grid = rose.load_map(tmp_path / "m.png").grid
-    np.testing.assert_array_equal(grid, rose.load_map(tmp_path / "plain.png").grid)
+    """Image data past the last row ("IDAT: Too much image data"), bytes after its compressed
+    stream ("Extra compressed data"), a damaged ancillary chunk before, between or after the
+    image data chunks ("CRC error"), a tRNS chunk after the data ("out of place"), a second one
+    ("duplicate") or out of the bit depth: libpng reads the image and prints a warning on
+    stderr. The map reads as libpng reads it (the first tRNS kept, the others ignored), and
+    nothing is printed. (The image data cut to the rows is encoded anew, a length of its own:
+    the damaged chunk after it was cut at its old place.)"""
+    header = struct.pack(">IIBBBBB", 4, len(_GREY_ROWS), 8, 0, 0, 0, 0)
+    png = b"\x89PNG\r\n\x1a\n" + _png_chunk(b"IHDR", header) + b"".join(chunks)
+    (tmp_path / "m.png").write_bytes(png + _png_chunk(b"IEND", b""))
+    # The first tRNS when it is one libpng keeps: before the data, within the bit depth.
+    kept = [c for c in chunks[:1] if c[4:8] == b"tRNS" and struct.unpack(">H", c[8:10])[0] < 256]
+    (tmp_path / "plain.png").write_bytes(
+        _png_of(_GREY_ROWS, before=tuple((c[4:8], c[8:-4]) for c in kept))
+    )
+    for name in ("m", "plain"):
+        write_yaml(
+            tmp_path / f"{name}.yaml",
+            f"image: {name}.png\nresolution: 0.05\norigin: [0, 0, 0]\nnegate: 0\n"
+            "occupied_thresh: 0.65\nfree_thresh: 0.196\n",
+        )
+    grid = rose.load_map(tmp_path / "m.yaml").grid
+    np.testing.assert_array_equal(grid, rose.load_map(tmp_path / "plain.yaml").grid)
     assert capfd.readouterr().err == ""
 
 
