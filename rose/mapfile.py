@@ -933,12 +933,12 @@ def save_map(
         raise MapFileError(msg)
     grid = as_occupancy_grid(occupancy_map.grid)
     image_path = map_image_path(path)
+    image_entry = _image_entry(path, image_path)
     try:
-        image_path.name.encode("utf-8")
-    except (
-        UnicodeEncodeError
-    ):  # YAML is Unicode: the name would be an escape map_server cannot open
-        msg = f"{short(path, 200)}: a map's name must be UTF-8 (its YAML names the image)"
+        image_entry.encode("utf-8")
+    except UnicodeEncodeError:  # YAML is Unicode: the name would be an escape map_server cannot open
+        what = "name" if image_entry == image_path.name else "image's path"
+        msg = f"{short(path, 200)}: a map's {what} must be UTF-8 (its YAML names the image)"
         raise MapFileError(msg) from None
     for output in (path, image_path):
         if is_stream(output):  # and opening a FIFO without a reader would wait for one
@@ -963,7 +963,7 @@ def save_map(
         raise MapFileError(msg)
     x, y = occupancy_map.origin_xy_m
     meta = {
-        "image": _image_entry(path, image_path),
+        "image": image_entry,
         "mode": "trinary",
         "resolution": float(occupancy_map.resolution_m),
         "origin": [float(x), float(y), float(occupancy_map.origin_yaw_rad)],

@@ -969,9 +969,19 @@ def test_an_origin_too_large_to_place_a_cell_is_refused(
 def test_a_saved_map_needs_a_utf8_name_its_yaml_can_hold(tmp_path: Path) -> None:
     """A YAML naming o\\xe9.pgm held the escape "o\\udce9.pgm", which map_server cannot open."""
     name = os.fsdecode(b"o\xe9.yaml")
-    with pytest.raises(MapFileError, match="must be UTF-8"):
+    with pytest.raises(MapFileError, match="name must be UTF-8"):
         rose.save_map(tmp_path / name, OccupancyMap(grid=np.zeros((2, 2), np.int8)))
     assert not list(tmp_path.iterdir())
+    # A link from another folder into a folder whose name is not: the YAML names its image by its
+    # absolute path there, with the escape in it.
+    folder = tmp_path / os.fsdecode(b"caf\xe9")
+    folder.mkdir()
+    (folder / "real.yaml").write_text("x")
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "lnk.yaml").symlink_to(folder / "real.yaml")
+    with pytest.raises(MapFileError, match="image's path must be UTF-8"):
+        rose.save_map(tmp_path / "sub" / "lnk.yaml", OccupancyMap(grid=np.zeros((2, 2), np.int8)))
+    assert sorted(p.name for p in folder.iterdir()) == ["real.yaml"]
 
 
 def test_load_map_takes_bytes_paths_and_refuses_cell_limits_that_are_no_limit() -> None:
