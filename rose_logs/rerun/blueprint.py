@@ -25,7 +25,6 @@ __all__ = ["TopicLayout", "default_blueprint"]
 _FOV_Y_RAD = math.radians(55.0)  # the 3D view's default vertical field of view
 _ASSUMED_ASPECT = 1.3  # width / height of the metric view in the default layout
 _GRID_HEIGHT_M = 0.05  # the metric grid's plane, just above the map (z = 0 in the map frame)
-_ONE_TIME_HALF_WINDOW_S = 10.0  # the plots' time axis either side of a one-time session's snapshot
 _ONE_TIME_POINT_SIZE = 5.0  # a one-time session's plotted values, wider than the time cursor
 
 
@@ -48,9 +47,12 @@ class TopicLayout:
     w_top, break_top : float or None
         Highest value the W plot / the break-score plot shows (data and guide lines): the plots get
         headroom above it so a guide line at the top stays visible. None: fit to the data (live).
-    one_time : bool
-        Every snapshot of the topic is at one log time (a map_server log's one latched map): the
-        plots show a window around it, as their whole-session range has no width.
+    one_time_window_s : float or None
+        For a topic whose snapshots are all at one log time (a map_server log's one latched map):
+        the plots' time axis, seconds either side of the time cursor (as wide as the session and
+        more, so that the topic's time is in view wherever the cursor is; the topic's own time
+        range has no width, and its axis printed labels such as ".000001 ms" over each other),
+        its values drawn as large points. None: the whole session.
     """
 
     root: str
@@ -59,7 +61,7 @@ class TopicLayout:
     has_events: bool = False
     w_top: float | None = None
     break_top: float | None = None
-    one_time: bool = False
+    one_time_window_s: float | None = None
 
 
 def _value_axis(top: float | None) -> rrb.ScalarAxis | None:
@@ -150,7 +152,7 @@ def _topic_container(layout: TopicLayout) -> rrb.Container:
         f"{root}: structure score W (blue), trust (green) / failure (red), x: break or W > failure",
         f"/{paths.score}",
         layout.w_top,
-        one_time=layout.one_time,
+        one_time_window_s=layout.one_time_window_s,
         points={
             f"/{paths.w}": rr.SeriesPoints.from_fields(marker_sizes=[_ONE_TIME_POINT_SIZE] * 3)
         },
@@ -159,7 +161,7 @@ def _topic_container(layout: TopicLayout) -> rrb.Container:
         f"{root}: break score (orange; m of established map contradicted), threshold (red)",
         f"/{paths.break_score_view}",
         layout.break_top,
-        one_time=layout.one_time,
+        one_time_window_s=layout.one_time_window_s,
         points={
             f"/{paths.break_score}": rr.SeriesPoints.from_fields(marker_sizes=_ONE_TIME_POINT_SIZE),
             f"/{paths.break_threshold}": rr.SeriesPoints.from_fields(
@@ -212,15 +214,13 @@ def _events_view(name: str, origin: str) -> rrb.TextLogView:
     )
 
 
-def _time_range(one_time: bool) -> rrb.TimeRange:
-    """The plots' time axis: the whole session, or for a session at one time a window around the
-    cursor (on the time timelines; the whole range has no width, and the axis printed labels such
-    as ".000001 ms" over each other)."""
-    if one_time:
-        half = _ONE_TIME_HALF_WINDOW_S
+def _time_range(one_time_window_s: float | None) -> rrb.TimeRange:
+    """The plots' time axis: the whole session, or ``one_time_window_s`` seconds either side of
+    the cursor (:class:`TopicLayout`)."""
+    if one_time_window_s is not None:
         return rrb.TimeRange(
-            start=rrb.TimeRangeBoundary.cursor_relative(seconds=-half),
-            end=rrb.TimeRangeBoundary.cursor_relative(seconds=half),
+            start=rrb.TimeRangeBoundary.cursor_relative(seconds=-one_time_window_s),
+            end=rrb.TimeRangeBoundary.cursor_relative(seconds=one_time_window_s),
         )
     return rrb.TimeRange(
         start=rrb.TimeRangeBoundary.infinite(), end=rrb.TimeRangeBoundary.infinite()
@@ -232,15 +232,17 @@ def _session_plot(
     origin: str,
     top: float | None,
     *,
-    one_time: bool = False,
+    one_time_window_s: float | None = None,
     points: dict[str, rr.SeriesPoints] | None = None,
 ) -> rrb.TimeSeriesView:
-    """A time series over the whole session (on any timeline; the default follows the time cursor).
+    """A time series over the whole session (on any timeline; the default follows the time
+    cursor), or for a topic at one time a window around the cursor (:class:`TopicLayout`).
 
     ``points``: series (entity path: their points' style) drawn with large points as well as their
-    lines in a session at one time, where a line has no length and the time cursor covers small
+    lines for a topic at one time, where a line has no length and the time cursor covers small
     points.
     """
+    one_time = one_time_window_s is not None
     overrides: dict[EntityPathLike, list[rrb.Visualizer]] | None = (
         {
             path: [rr.SeriesLines.from_fields().visualizer(), style.visualizer()]
@@ -257,7 +259,7 @@ def _session_plot(
         # name each series by its colour.
         plot_legend=rrb.PlotLegend(visible=False),
         axis_y=_value_axis(top),
-        axis_x=rrb.TimeAxis(view_range=_time_range(one_time)),
+        axis_x=rrb.TimeAxis(view_range=_time_range(one_time_window_s)),
     )
 
 

@@ -208,6 +208,11 @@ def known_box_m(snapshot: MapSnapshot, known: tuple[int, int, int, int] | None) 
     )
 
 
+#: Seconds beyond the session's span that the plots of a topic at one time show either side of
+#: the time cursor.
+_ONE_TIME_MARGIN_S = 10.0
+
+
 def _union(a: Box | None, b: Box | None) -> Box | None:
     if a is None or b is None:
         return a or b
@@ -528,10 +533,17 @@ class RerunSink:
         if self.live and first:
             self._send_blueprint()
 
-    def _one_time(self, topic: str) -> bool:
-        """Whether every snapshot of ``topic`` so far is at one log time (none: no)."""
+    def _one_time_window_s(self, topic: str) -> float | None:
+        """For a topic whose snapshots are all at one log time, its plots' window either side of
+        the time cursor: the session's span of snapshot times and 10 s more, so its time is in
+        view wherever the cursor is (a recording holds data at snapshot times only). None for
+        any other topic."""
         span = self._span_ns.get(topic)
-        return span is not None and span[0] == span[1]
+        if span is None or span[0] != span[1]:
+            return None
+        first = min(start for start, _ in self._span_ns.values())
+        last = max(end for _, end in self._span_ns.values())
+        return (last - first) / 1e9 + _ONE_TIME_MARGIN_S
 
     def _framed_m(self, topic: str) -> Box | None:
         """The map-frame box the views of ``topic`` frame: every snapshot's known cells, or the
@@ -560,7 +572,7 @@ class RerunSink:
                     layout,
                     w_top=self._w_top[topic],
                     break_top=self._break_top[topic] or None,
-                    one_time=self._one_time(topic),
+                    one_time_window_s=self._one_time_window_s(topic),
                 )
                 for topic, layout in zip(self.loggers, layouts, strict=True)
             )

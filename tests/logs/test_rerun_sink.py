@@ -1128,40 +1128,74 @@ def test_the_same_result_for_another_grid_logs_its_images(tmp_path: Path, fr079)
     assert len(_read(tmp_path / "s.rrd").rows(PATHS.grid)) == 2
 
 
-@pytest.mark.parametrize("times_ns", [(7, 7), (7, 5_000_000_007)])
-def test_a_session_at_one_time_gets_plots_a_time_axis_can_draw(
-    tmp_path: Path, sent_layouts: list[tuple[object, ...]], times_ns: tuple[int, int]
-) -> None:
-    """A map_server log's one latched map (republished at the same time or not at all) gave the
-    plots a time range of no width: the axis printed ".000001 ms" labels over each other and the
-    time cursor covered the trust and failure points. Such a topic's plots show a window around
-    the cursor and draw its values as large points; a session over time keeps the whole range."""
-    import dataclasses
+def _time_series_views(blueprint: object) -> list[object]:
+    """The TimeSeriesViews of a blueprint, in layout order."""
+    import rerun.blueprint as rrb
 
-    import rerun as rr
+    found: list[object] = []
+
+    def walk(container: object) -> None:
+        for item in getattr(container, "contents", []):
+            if isinstance(item, rrb.TimeSeriesView):
+                found.append(item)
+            walk(item)
+
+    walk(blueprint.root_container)  # type: ignore[attr-defined]
+    return found
+
+
+def test_a_topic_at_one_time_gets_plots_a_time_axis_can_draw(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A map_server log's one latched map gave the plots a time range of no width: the axis
+    printed ".000001 ms" labels over each other and the time cursor covered the trust and failure
+    points. Such a topic's plots show a window around the cursor as wide as the session and 10 s
+    more (its point in view wherever the cursor is: a costmap's later snapshots move it), its
+    values as large points on the W and break-score series; a topic over time keeps the whole
+    session."""
+    import dataclasses
 
     import rose
     from rose_logs.rerun import sink as sink_module
-    from rose_logs.rerun.blueprint import _session_plot, _time_range
 
+    sent: list[object] = []
+    real = sink_module.default_blueprint
+    monkeypatch.setattr(
+        sink_module,
+        "default_blueprint",
+        lambda layouts, **kw: sent.append(real(layouts, **kw)) or sent[-1],
+    )
     grid = np.full((60, 80), -1, dtype=np.int8)
     grid[10:50, 10:70] = 0
     grid[10, 10:70] = grid[49, 10:70] = grid[10:50, 10] = grid[10:50, 69] = 100
     sink = sink_module.RerunSink(
-        rrd_path=tmp_path / "x.rrd", topics=("/map",), recording_id="x", start_ns=0
+        rrd_path=tmp_path / "x.rrd", topics=("/map", "/costmap"), recording_id="x", start_ns=0
     )
     result = rose.analyze(grid)
-    for index, t in enumerate(times_ns):
-        snapshot = dataclasses.replace(_yawed(grid, 0.0, (0.0, 0.0)), log_time_ns=t)
-        sink.snapshot(snapshot, result, index, None)
+    s = 1_000_000_000
+    snaps = [("/map", 1 * s), ("/costmap", 1 * s), ("/costmap", 40 * s), ("/costmap", 120 * s)]
+    counts: dict[str, int] = {}
+    for topic, t in snaps:
+        snapshot = dataclasses.replace(_yawed(grid, 0.0, (0.0, 0.0)), topic=topic, log_time_ns=t)
+        sink.snapshot(snapshot, result, counts.setdefault(topic, 0), None)
+        counts[topic] += 1
     sink.close()
-    (layout,) = sent_layouts[-1]
-    one_time = times_ns[0] == times_ns[1]
-    assert layout.one_time is one_time
-    view_range = _time_range(layout.one_time)
-    assert {view_range.start.kind, view_range.end.kind} == (
-        {"cursor_relative"} if one_time else {"infinite"}
-    )
-    points = {"/map/structure_score/w": rr.SeriesPoints.from_fields(marker_sizes=5.0)}
-    plot = _session_plot("W", "/map/structure_score", 0.4, one_time=layout.one_time, points=points)
-    assert bool(plot.visualizer_overrides) is one_time
+    content = _read(tmp_path / "x.rrd")
+    views = _time_series_views(sent[-1])
+    assert len(views) == 4  # W and break score, per topic (tabs: /map first)
+    map_paths = EntityPaths("/map")
+    for view, one_time in zip(views, (True, True, False, False), strict=True):
+        (window,) = view.properties["TimeAxis"].view_range.as_arrow_array().to_pylist()
+        if one_time:
+            # Cursor-relative: 119 s of session and 10 s, either side of the cursor.
+            assert window == {"start": -129 * s, "end": 129 * s}
+            overridden = set(view.visualizer_overrides)
+            assert overridden in (
+                {f"/{map_paths.w}"},
+                {f"/{map_paths.break_score}", f"/{map_paths.break_threshold}"},
+            )
+            # ... series the recording holds for /map.
+            assert overridden <= set(content.static_rows) | set(content.temporal_rows)
+        else:
+            assert window == {"start": None, "end": None}  # infinite: the whole session
+            assert not view.visualizer_overrides
