@@ -936,9 +936,8 @@ def save_map(
     image_entry = _image_entry(path, image_path)
     try:
         image_entry.encode("utf-8")
-    except (
-        UnicodeEncodeError
-    ):  # YAML is Unicode: the name would be an escape map_server cannot open
+    except UnicodeEncodeError:
+        # YAML is Unicode: the name would be an escape map_server cannot open.
         what = "name" if image_entry == image_path.name else "image's path"
         msg = f"{short(path, 200)}: a map's {what} must be UTF-8 (its YAML names the image)"
         raise MapFileError(msg) from None
