@@ -124,8 +124,33 @@ def test_snapshots_that_cannot_be_compared_restart(plan, broken) -> None:
     detector.update(_snap(plan, 0))
     other_res = detector.update(_snap(broken, 1, res=0.1))
     assert (other_res.score_m, other_res.trusted_index) == (0.0, None)
-    half_cell = detector.update(_snap(broken, 2, origin=(-5.0 + 0.5 * 0.1, -3.0), res=0.1))
-    assert half_cell.trusted_index is None
+
+
+@pytest.mark.parametrize("shift_cells", [0.04, 0.3, 0.5, -0.45])
+def test_an_origin_moved_by_a_fraction_of_a_cell_is_still_compared(
+    plan, broken, shift_cells: float, caplog: pytest.LogCaptureFixture
+) -> None:
+    """An origin that moved by a few millimetres (more than 1 % of a cell) made the snapshot
+    incomparable: it was trusted instead, and a break in the same snapshot passed without a word.
+    It is placed to the nearest cell: the break is found, as without the shift."""
+    shift_m = shift_cells * RES
+    with caplog.at_level("WARNING"):
+        for origin in ((-5.0, -3.0), (-5.0 + shift_m, -3.0 - shift_m)):
+            detector = BreakDetector(BreakParams(threshold_m=1.0))
+            detector.update(_snap(plan, 0))
+            verdict = detector.update(_snap(broken, 1, origin=origin))
+            assert verdict.broken and verdict.trusted_index == 0, origin
+    assert not caplog.records
+
+
+def test_a_snapshot_the_detector_cannot_compare_is_a_warning(plan, caplog) -> None:
+    """A break across a change of cell size is not seen: said as a warning, not an INFO line the
+    command never shows."""
+    detector = BreakDetector(BreakParams(threshold_m=1.0))
+    detector.update(_snap(plan, 10))
+    with caplog.at_level("WARNING", logger="rose_logs.session.breaks"):
+        detector.update(_snap(plan, 20, res=RES * 2))
+    assert "a break across the change is not seen" in caplog.text
 
 
 def test_topics_are_independent(plan, broken) -> None:
@@ -281,7 +306,7 @@ def test_a_snapshot_not_comparable_is_named_by_its_log_time(plan, caplog) -> Non
     with caplog.at_level("INFO", logger="rose_logs.session.breaks"):
         verdict = detector.update(_snap(plan, 20, res=RES * 2))  # another cell size
     assert not verdict.broken
-    assert "logged at 20 ns is not comparable with trusted snapshot 0" in caplog.text
+    assert "map logged at 20 ns is not comparable with trusted snapshot 0" in caplog.text
 
 
 def test_maps_too_fine_for_the_detector_are_not_checked_and_say_so(
