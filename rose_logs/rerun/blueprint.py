@@ -25,7 +25,7 @@ __all__ = ["TopicLayout", "default_blueprint"]
 _FOV_Y_RAD = math.radians(55.0)  # the 3D view's default vertical field of view
 _ASSUMED_ASPECT = 1.3  # width / height of the metric view in the default layout
 _GRID_HEIGHT_M = 0.05  # the metric grid's plane, just above the map (z = 0 in the map frame)
-_ONE_TIME_POINT_SIZE = 5.0  # a one-time session's plotted values, wider than the time cursor
+_ONE_TIME_POINT_SIZE = 5.0  # a one-time topic's plotted values, wider than the time cursor
 
 
 @dataclass(frozen=True)
