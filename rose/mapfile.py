@@ -594,6 +594,13 @@ _ADAM7 = (
 #: stderr lines).
 _PNG_MAX_SIDE = 1_000_000
 
+#: Samples of a tRNS chunk per PNG colour type: grey 1, RGB 3 (16 bits each).
+_TRANSPARENCY_SAMPLES = {0: 1, 2: 3}
+
+#: Image data past what a PNG's rows need that is still inflated (bytes): up to this much surplus
+#: is cut quietly; more, and a file inflating without end is left to the decoder.
+_PNG_SURPLUS_READ = 1 << 20
+
 #: Critical chunks libpng knows; any other critical chunk is an error for it.
 _PNG_CRITICAL = (b"IHDR", b"PLTE", b"IDAT", b"IEND")
 
@@ -672,12 +679,12 @@ def _png_problem(
     its compressed stream, which libpng reads with a warning, go there as their chunks' span and
     one chunk of the data the rows need (:func:`_image_data_chunk`).
 
-    The image data is inflated in pieces and dropped, and no further than the most the header's
-    ``shape`` (rows, cols) can hold: a small file inflating without end is left to the decoder,
-    which stops there."""
+    The image data is inflated in pieces and dropped, and no further than 1 MiB past what the
+    header's rows need: a small file inflating without end is left to the decoder, which stops
+    there (with libpng's warning of too much image data)."""
     pos, end = 8, len(raw)
     image_data = zlib.decompressobj()
-    most = shape[0] * (shape[1] * 8 + 1)  # 4 channels of 16 bits and a filter byte per row
+    most = 0  # the most image data inflated: set from the IHDR chunk, which comes first
     layout: _PngLayout | None = None
     inflated = 0
     palette = 0  # entries of the PLTE chunk, once read
@@ -714,6 +721,7 @@ def _png_problem(
             if isinstance(found, str):
                 return f"corrupt PNG: {found}"
             layout = found
+            most = layout.size + _PNG_SURPLUS_READ
         elif layout is None:  # the IHDR chunk comes first (the caller read the shape there)
             return f"corrupt PNG: its {name!r} chunk at byte {pos} comes before its IHDR chunk"
         elif kind == b"PLTE":
@@ -729,7 +737,11 @@ def _png_problem(
             body = raw[pos + 8 : body_end]
             if data_state or seen_transparency or not _fits_transparency(layout, body, palette):
                 mended.append((pos, body_end + 4, b""))  # libpng ignores it, with a warning
-            seen_transparency = True
+            else:
+                seen_transparency = True  # (libpng ignores a later one)
+                masked = _masked_transparency(layout, body)
+                if masked != body:  # libpng keeps it masked to the bit depth, with a warning
+                    mended.append((pos, body_end + 4, _png_chunk(b"tRNS", masked)))
         elif kind == b"IDAT":
             if data_state == 2:
                 return f"corrupt PNG: its image data is split by other chunks (IDAT at byte {pos})"
@@ -803,20 +815,31 @@ def _image_data_chunk(chunks: bytes, size: int) -> bytes:
     # (Dropped ancillary chunks may lie between them; the data inflated whole in the check.)
     compressed = [body for kind, body in _png_chunks(chunks) if kind == b"IDAT"]
     data = zlib.decompressobj().decompress(b"".join(compressed), size)
-    body = b"IDAT" + zlib.compress(data, 1)  # the fastest level: a large image is seconds at 6
-    return struct.pack(">I", len(body) - 4) + body + struct.pack(">I", zlib.crc32(body))
+    return _png_chunk(b"IDAT", zlib.compress(data, 1))  # fastest: a large image took seconds at 6
 
 
 def _fits_transparency(layout: _PngLayout, body: bytes, palette: int) -> bool:
-    """Whether a tRNS chunk's ``body`` fits a PNG of ``layout`` (one grey or RGB sample of 16
-    bits within the bit depth, or up to one alpha per palette entry; none with an alpha
-    channel)."""
-    samples = {0: 1, 2: 3}.get(layout.colour)
+    """Whether a tRNS chunk's ``body`` fits a PNG of ``layout`` (one grey or RGB sample of 16 bits,
+    or up to one alpha per palette entry; none with an alpha channel)."""
+    samples = _TRANSPARENCY_SAMPLES.get(layout.colour)
     if samples is None:
         return layout.colour == 3 and 0 < len(body) <= palette
-    if len(body) != 2 * samples:
-        return False
-    return max(struct.unpack(f">{samples}H", body)) < 2**layout.depth
+    return len(body) == 2 * samples
+
+
+def _masked_transparency(layout: _PngLayout, body: bytes) -> bytes:
+    """A fitting tRNS chunk's ``body`` with its grey or RGB samples masked to the bit depth, as
+    libpng keeps samples beyond it (a palette's alphas as they are)."""
+    samples = _TRANSPARENCY_SAMPLES.get(layout.colour)
+    if samples is None:
+        return body
+    values = struct.unpack(f">{samples}H", body)
+    return struct.pack(f">{samples}H", *(v & (2**layout.depth - 1) for v in values))
+
+
+def _png_chunk(kind: bytes, body: bytes) -> bytes:
+    """A PNG chunk: length, type, body and CRC."""
+    return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body))
 
 
 def image_to_grid(

@@ -18,6 +18,7 @@ from real_data import FR079_DIR, repo_data
 
 import rose
 from rose import MapFileError, OccupancyMap
+from rose.mapfile import _read_image, _to_8_bits
 from rose.outputs import OutputSet
 
 
@@ -660,10 +661,14 @@ def test_what_libpng_reads_with_a_warning_reads_quietly(
     header = struct.pack(">IIBBBBB", 4, len(_GREY_ROWS), 8, 0, 0, 0, 0)
     png = b"\x89PNG\r\n\x1a\n" + _png_chunk(b"IHDR", header) + b"".join(chunks)
     (tmp_path / "m.png").write_bytes(png + _png_chunk(b"IEND", b""))
-    # The first tRNS when it is one libpng keeps: before the data, within the bit depth.
-    kept = [c for c in chunks[:1] if c[4:8] == b"tRNS" and struct.unpack(">H", c[8:10])[0] < 256]
+    # The first tRNS when it is before the data, as libpng keeps it: masked to the bit depth.
+    kept = [
+        b"tRNS" + struct.pack(">H", struct.unpack(">H", c[8:10])[0] & 0xFF)
+        for c in chunks[:1]
+        if c[4:8] == b"tRNS"
+    ]
     (tmp_path / "plain.png").write_bytes(
-        _png_of(_GREY_ROWS, before=tuple((c[4:8], c[8:-4]) for c in kept))
+        _png_of(_GREY_ROWS, before=tuple((c[:4], c[4:]) for c in kept))
     )
     for name in ("m", "plain"):
         write_yaml(
@@ -673,6 +678,80 @@ def test_what_libpng_reads_with_a_warning_reads_quietly(
         )
     grid = rose.load_map(tmp_path / "m.yaml").grid
     np.testing.assert_array_equal(grid, rose.load_map(tmp_path / "plain.yaml").grid)
+    assert capfd.readouterr().err == ""
+
+
+def _rgb_with_transparency(key: tuple[int, int, int]) -> bytes:
+    """An 8-bit RGB PNG of black and white pixels with a tRNS chunk naming ``key``."""
+    rows = [b"\x00" + bytes([0, 0, 0, 255, 255, 255] * 2)] * 2
+    return _png_of(rows, colour=2, before=((b"tRNS", struct.pack(">3H", *key)),))
+
+
+def _palette_with_transparency_before_its_palette() -> bytes:
+    """A palette PNG whose first tRNS comes before its PLTE (libpng ignores it) and whose second,
+    after it, makes entry 0 transparent (libpng keeps it: the first was never accepted)."""
+    header = struct.pack(">IIBBBBB", 4, 1, 8, 3, 0, 0, 0)
+    return (
+        b"\x89PNG\r\n\x1a\n"
+        + _png_chunk(b"IHDR", header)
+        + _png_chunk(b"tRNS", b"\xff")
+        + _png_chunk(b"PLTE", bytes([0, 0, 0, 255, 255, 255]))
+        + _png_chunk(b"tRNS", b"\x00")
+        + _png_chunk(b"IDAT", zlib.compress(b"\x00" + bytes([0, 1, 0, 1])))
+        + _png_chunk(b"IEND", b"")
+    )
+
+
+def _interlaced_rgba16_in_small_chunks() -> bytes:
+    """A 16-bit RGBA Adam7 PNG of 40 x 200 pixels, its image data in 100-byte IDAT chunks (the
+    rows with their passes' filter bytes are more than 8 bytes a pixel and one a row)."""
+    width, height = 40, 200
+    noise = np.random.default_rng(0)
+    adam7 = ((0, 0, 8, 8), (4, 0, 8, 8), (0, 4, 4, 8), (2, 0, 4, 4), (0, 2, 2, 4), (1, 0, 2, 2))
+    data = b""
+    for col0, row0, col_step, row_step in (*adam7, (0, 1, 1, 2)):
+        cols = len(range(col0, width, col_step))
+        for _ in range(row0, height, row_step):
+            data += b"\x00" + noise.bytes(8 * cols)
+    stream = zlib.compress(data)
+    header = struct.pack(">IIBBBBB", width, height, 16, 6, 0, 0, 1)
+    return (
+        b"\x89PNG\r\n\x1a\n"
+        + _png_chunk(b"IHDR", header)
+        + b"".join(_png_chunk(b"IDAT", stream[i : i + 100]) for i in range(0, len(stream), 100))
+        + _png_chunk(b"IEND", b"")
+    )
+
+
+@pytest.mark.parametrize(
+    "png",
+    [
+        _rgb_with_transparency((0x100, 0, 0)),
+        _palette_with_transparency_before_its_palette(),
+        _interlaced_rgba16_in_small_chunks(),
+        _png_of(_GREY_ROWS, stream=zlib.compress(b"".join(_GREY_ROWS) + bytes(5000))),
+    ],
+    ids=[
+        "rgb-key-beyond-8-bits",
+        "palette-key-before-palette",
+        "rgba16-interlaced",
+        "surplus-5000",
+    ],
+)
+def test_a_png_reads_as_libpng_reads_it_and_quietly(
+    tmp_path: Path, capfd: pytest.CaptureFixture[str], png: bytes
+) -> None:
+    """The pixels are the ones libpng gives OpenCV for the file as it is, and nothing is printed:
+    an RGB key beyond the bit depth is kept masked (it was dropped), a valid tRNS after one
+    libpng ignored is kept (it was dropped as a second one), a 16-bit interlaced image's data is
+    read whole (it was called short), a surplus of 5000 bytes is cut (it was left to libpng)."""
+    expected = cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_UNCHANGED)
+    capfd.readouterr()  # what libpng printed for that
+    (tmp_path / "m.png").write_bytes(png)
+    pixels = _read_image(tmp_path / "m.png")
+    if expected.dtype == np.uint16:
+        expected = _to_8_bits(expected, 65535)
+    np.testing.assert_array_equal(pixels.reshape(expected.shape), expected)
     assert capfd.readouterr().err == ""
 
 
