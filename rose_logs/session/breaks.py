@@ -149,6 +149,10 @@ class BreakScore:
         frame, metres (cell outer edges); None when nothing was contradicted.
     contradicted_m : float
         Contradicted length over the whole map, metres (same measure as ``score_m``).
+    incomparable_with : int or None
+        The trusted snapshot this one could not be compared with (another cell size, frame or
+        orientation): the detector starts again from this one, and a break across the change is
+        not seen. None otherwise.
     """
 
     score_m: float
@@ -157,6 +161,7 @@ class BreakScore:
     trusted_index: int | None
     region_m: tuple[float, float, float, float] | None
     contradicted_m: float
+    incomparable_with: int | None = None
 
 
 @dataclass(frozen=True)
@@ -254,13 +259,15 @@ def _rotation_between(a: MapSnapshot, b: MapSnapshot) -> float:
     return 2.0 * math.acos(min(1.0, cosine))
 
 
-def _offset_px(trusted: MapSnapshot, snapshot: MapSnapshot) -> tuple[int, int] | None:
-    """``(row, col)`` of the trusted grid's cell (0, 0) in the new grid, to the nearest cell; None
-    if not comparable (another cell size, frame or orientation).
+def _offset_px(
+    trusted: MapSnapshot, snapshot: MapSnapshot, *, rounding: float = 0.01
+) -> tuple[int, int] | None:
+    """``(row, col)`` of the trusted grid's cell (0, 0) in the new grid, to the nearest cell when
+    at most ``rounding`` cells off it (:meth:`BreakDetector._rounding`); None if not comparable
+    (another cell size, frame or orientation, or an origin further off the cells).
 
-    An origin that moved by a fraction of a cell is placed to the nearest cell: half a cell is far
-    below the detector's tolerance (0.3 m), and a node whose origin moved by millimetres between
-    maps made every snapshot incomparable, the detector blind (a 7.6 m ghost wall passed)."""
+    On fine cells any fraction is rounded: a node whose origin moved by millimetres between maps
+    made every snapshot incomparable, the detector blind (a 7.6 m ghost wall passed)."""
     res = snapshot.resolution_m
     if trusted.resolution_m != res or not res > 0 or trusted.frame_id != snapshot.frame_id:
         return None
@@ -271,6 +278,8 @@ def _offset_px(trusted: MapSnapshot, snapshot: MapSnapshot) -> tuple[int, int] |
     dy = trusted.origin_position_m[1] - snapshot.origin_position_m[1]
     c, s = math.cos(yaw), math.sin(yaw)  # the shift in the grid's own axes
     col, row = (c * dx + s * dy) / res, (-s * dx + c * dy) / res
+    if abs(col - round(col)) > rounding or abs(row - round(row)) > rounding:
+        return None
     return round(row), round(col)
 
 
@@ -329,21 +338,17 @@ class BreakDetector:
             self._trust(topic, index, snapshot)
             return _CLEAR
         trusted = self._trusted.get(topic)
-        offset = None if trusted is None else _offset_px(trusted[1], snapshot)
+        offset = (
+            None
+            if trusted is None
+            else _offset_px(trusted[1], snapshot, rounding=self._rounding(snapshot.resolution_m))
+        )
         if trusted is None or offset is None or topic in self._blank:
-            if trusted is not None and offset is None:
-                # Named by its log time: a session scores a snapshot before its analysis is done,
-                # and one whose analysis fails leaves its index to the next (withdraw_last). A
-                # warning: a break across it is not seen.
-                _LOG.warning(
-                    "%s: the map logged at %d ns is not comparable with trusted snapshot %d "
-                    "(another cell size, frame or orientation): the break detector starts again "
-                    "from it, and a break across the change is not seen",
-                    topic,
-                    snapshot.log_time_ns,
-                    trusted[0],
-                )
             self._trust(topic, index, snapshot)
+            if trusted is not None and offset is None:
+                # Said by the session once the snapshot stays (one whose analysis fails is
+                # withdrawn, and the next is compared with the trusted one again).
+                return dataclasses.replace(_CLEAR, incomparable_with=trusted[0])
             return _CLEAR
         found = self.compare(trusted[1], snapshot, offset)
         res = snapshot.resolution_m
@@ -363,6 +368,15 @@ class BreakDetector:
             region,
             found.contradicted_tiles * found.tile_px * res,
         )
+
+    def _rounding(self, resolution_m: float) -> float:
+        """How far (cells) an origin may lie off the trusted grid's cells to be placed to the
+        nearest one: any fraction when half a cell is at most a quarter of the detector's
+        tolerance and rise margin (cells of 0.1 m or finer at the defaults), else 1 %: on coarse
+        cells the walls drawn anew a cell over contradict the map (0.5 m cells, an origin 4 cm
+        off: a 10 m false break)."""
+        p = self.params
+        return 0.5 if resolution_m / 2 <= min(p.tolerance_m, p.rise_margin_m) / 4 else 0.01
 
     def _kernels_fit(self, resolution_m: float) -> bool:
         """Whether the detector's lengths are at most :data:`rose.breaks.MAX_KERNEL_PX` cells of

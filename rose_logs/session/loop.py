@@ -885,6 +885,15 @@ class _Loop:
         index = self.count.get(topic, 0)
         self.count[topic] = index + 1
         verdict = pending.verdict.result()
+        if verdict.incomparable_with is not None:
+            _LOG.warning(
+                "%s: the map %s is not comparable with trusted snapshot %d (another cell size, "
+                "frame or orientation): the break detector starts again from it, and a break "
+                "across the change is not seen",
+                topic,
+                self._at(snapshot.log_time_ns),
+                verdict.incomparable_with,
+            )
         # From here: the time spent on this snapshot's outputs. Not before, where the wait for the
         # analysis would count its compute time twice (the record's seconds exceeded the run's).
         t0 = time.perf_counter()

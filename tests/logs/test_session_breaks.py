@@ -128,29 +128,34 @@ def test_snapshots_that_cannot_be_compared_restart(plan, broken) -> None:
 
 @pytest.mark.parametrize("shift_cells", [0.04, 0.3, 0.5, -0.45])
 def test_an_origin_moved_by_a_fraction_of_a_cell_is_still_compared(
-    plan, broken, shift_cells: float, caplog: pytest.LogCaptureFixture
+    plan, broken, shift_cells: float
 ) -> None:
     """An origin that moved by a few millimetres (more than 1 % of a cell) made the snapshot
     incomparable: it was trusted instead, and a break in the same snapshot passed without a word.
-    It is placed to the nearest cell: the break is found, as without the shift."""
-    shift_m = shift_cells * RES
-    with caplog.at_level("WARNING"):
-        for origin in ((-5.0, -3.0), (-5.0 + shift_m, -3.0 - shift_m)):
-            detector = BreakDetector(BreakParams(threshold_m=1.0))
-            detector.update(_snap(plan, 0))
-            verdict = detector.update(_snap(broken, 1, origin=origin))
-            assert verdict.broken and verdict.trusted_index == 0, origin
-    assert not caplog.records
+    It is placed to the nearest cell: a map grown by 7 columns and 3 rows (its origin that many
+    cells and a fraction further) scores 0 unchanged and breaks when broken."""
+    grown_plan, grown_broken = (
+        np.pad(grid, ((3, 0), (7, 0)), constant_values=-1) for grid in (plan, broken)
+    )
+    origin = (-5.0 - (7 + shift_cells) * RES, -3.0 - (3 - shift_cells) * RES)
+    for grid, broke in ((grown_plan, False), (grown_broken, True)):
+        detector = BreakDetector(BreakParams(threshold_m=1.0))
+        detector.update(_snap(plan, 0))
+        verdict = detector.update(_snap(grid, 1, origin=origin))
+        assert verdict.trusted_index == 0 and verdict.incomparable_with is None
+        assert verdict.broken is broke and (verdict.score_m == 0.0) is not broke
 
 
-def test_a_snapshot_the_detector_cannot_compare_is_a_warning(plan, caplog) -> None:
-    """A break across a change of cell size is not seen: said as a warning, not an INFO line the
-    command never shows."""
-    detector = BreakDetector(BreakParams(threshold_m=1.0))
-    detector.update(_snap(plan, 10))
-    with caplog.at_level("WARNING", logger="rose_logs.session.breaks"):
-        detector.update(_snap(plan, 20, res=RES * 2))
-    assert "a break across the change is not seen" in caplog.text
+def test_on_coarse_cells_an_origin_off_the_cells_is_not_compared(plan) -> None:
+    """At 0.5 m per cell the detector's tolerance is a cell: walls drawn anew a cell over, with
+    an origin placed to the nearest cell, scored a 10 m false break. There only an origin within
+    1 % of the cells is compared."""
+    detector = BreakDetector(BreakParams(threshold_m=1.25))
+    detector.update(_snap(plan, 0, res=0.5))
+    off = detector.update(_snap(plan, 1, res=0.5, origin=(-5.0 + 0.04, -3.0)))
+    assert off.incomparable_with == 0 and not off.broken
+    on = detector.update(_snap(plan, 2, res=0.5, origin=(-5.0 + 0.04 + 0.5 * 3, -3.0)))
+    assert on.trusted_index == 1 and on.incomparable_with is None
 
 
 def test_topics_are_independent(plan, broken) -> None:
@@ -298,15 +303,14 @@ def test_a_failed_analysis_is_withdrawn_from_the_break_detector(
     ]
 
 
-def test_a_snapshot_not_comparable_is_named_by_its_log_time(plan, caplog) -> None:
-    """A session scores snapshots before their analysis ends and withdraws those whose analysis
-    fails, whose index the next snapshot then takes: the message names the log time."""
+def test_a_snapshot_not_comparable_says_which_trusted_snapshot(plan) -> None:
+    """Another cell size: the verdict names the trusted snapshot it could not be compared with
+    (the session says so once the snapshot stays, see test_snapshots)."""
     detector = BreakDetector(BreakParams(threshold_m=1.0))
     detector.update(_snap(plan, 10))
-    with caplog.at_level("INFO", logger="rose_logs.session.breaks"):
-        verdict = detector.update(_snap(plan, 20, res=RES * 2))  # another cell size
-    assert not verdict.broken
-    assert "map logged at 20 ns is not comparable with trusted snapshot 0" in caplog.text
+    verdict = detector.update(_snap(plan, 20, res=RES * 2))
+    assert not verdict.broken and verdict.incomparable_with == 0
+    assert detector.update(_snap(plan, 30, res=RES * 2)).trusted_index == 1
 
 
 def test_maps_too_fine_for_the_detector_are_not_checked_and_say_so(
@@ -334,3 +338,39 @@ def test_maps_too_fine_for_the_detector_are_not_checked_and_say_so(
         for i, grid in enumerate([plan, broken]):
             at_limit.update(_snap(grid, i, res=0.0003))
     assert not caplog.records
+
+
+@pytest.mark.parametrize("fails", [False, True], ids=["kept", "withdrawn"])
+def test_the_session_warns_of_a_map_the_detector_cannot_compare_once_it_stays(
+    tmp_path, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture, fr079, fails: bool
+) -> None:
+    """A map at another cell size: the detector starts again from it, and a break across the
+    change is not seen, said as a warning (it was an INFO line the command never showed). Not for
+    one whose analysis fails: it is withdrawn, and the next map is compared with the trusted one
+    again (the warning said the detector started again from it)."""
+    import dataclasses
+
+    import rose
+    from rose_logs.session import process_log
+    from rose_logs.session.analysis import SnapshotAnalyser
+    from tests.logs.conftest import build_log, session_maps
+
+    maps = session_maps([fr079[0], fr079[1], fr079[2]])
+    maps[1] = dataclasses.replace(maps[1], resolution_m=0.1)
+    analyse = SnapshotAnalyser._analyse
+
+    def fail_one(self, snapshot):  # type: ignore[no-untyped-def]
+        if fails and snapshot.log_time_ns == maps[1].t_ns:
+            raise rose.RoseError("a map this test cannot analyse")
+        return analyse(self, snapshot)
+
+    monkeypatch.setattr(SnapshotAnalyser, "_analyse", fail_one)
+    with caplog.at_level("WARNING"):
+        report = process_log(build_log(tmp_path / "in.mcap", "mcap-ros2", maps).path)
+    said = [r.getMessage() for r in caplog.records if "not comparable" in r.getMessage()]
+    if fails:
+        assert said == [] and len(report.records) == 2
+    else:  # to 0.1 m and back
+        assert len(said) == 2
+        assert all(line.startswith("/map: the map at +") for line in said)
+        assert "trusted snapshot 0" in said[0] and "trusted snapshot 1" in said[1]
