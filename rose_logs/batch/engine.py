@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from rose_logs.batch.errors import BatchError
-from rose_logs.batch.sources import Recording, discover
+from rose_logs.batch.sources import Recording, cleaned_log_name, discover, distinct_name
 from rose_logs.batch.store import OutputStore, is_local, storage_errors
 from rose_logs.batch.task import (
     RESULTS_DIR,
@@ -24,6 +24,7 @@ from rose_logs.batch.task import (
     RecordingResult,
     error_result,
     load_result,
+    output_owners,
     process_recording,
     result_key,
     store_result,
@@ -180,12 +181,22 @@ def run_batch(
     finished: dict[str, RecordingResult] = {}
     todo: list[Recording] = []
     before: dict[str, RecordingResult | None] = {}  # stored results of the recordings to do
-    names = {rec.name for rec in recordings}
+    with storage_errors(store.root):
+        stored_results = {rec.uri: load_result(store, keys[rec.uri]) for rec in recordings}
+        owners = output_owners(store) if options.cleaned or options.rrd else {}
+    names = _run_names(
+        recordings, stored_results, owners, keep_stored=options.cleaned or options.rrd
+    )
     for rec in recordings:
         with storage_errors(store.root):
-            previous = load_result(store, keys[rec.uri])
-            if previous is not None and previous.name != rec.name:
-                rec, previous = _named_for_reuse(rec, previous, names, options)
+            previous = stored_results[rec.uri]
+            rec = dataclasses.replace(rec, name=names[rec.uri])
+            if (
+                previous is not None
+                and previous.name != rec.name
+                and not (options.cleaned or options.rrd)
+            ):
+                previous = dataclasses.replace(previous, name=rec.name)  # no file has its name
             redo = (
                 force
                 or previous is None
@@ -303,19 +314,45 @@ def _outputs_missing(result: RecordingResult, store: OutputStore) -> bool:
     return False
 
 
-def _named_for_reuse(
-    rec: Recording, previous: RecordingResult, names: set[str], options: RecordingOptions
-) -> tuple[Recording, RecordingResult]:
-    """A recording this run names otherwise than its stored result (another input root, another
-    recording of the same name): it keeps the stored name when no recording of this run takes that
-    name (its outputs are there, and a smaller run must not write another recording's outputs over
-    them); else, without outputs named after it, only its row is renamed; else it is redone."""
-    if previous.name not in names:
-        names.add(previous.name)
-        return dataclasses.replace(rec, name=previous.name), previous
-    if not (options.cleaned or options.rrd):
-        return rec, dataclasses.replace(previous, name=rec.name)
-    return rec, previous
+def _run_names(
+    recordings: tuple[Recording, ...],
+    stored: Mapping[str, RecordingResult | None],
+    owners: Mapping[str, str],
+    *,
+    keep_stored: bool,
+) -> dict[str, str]:
+    """The name of each recording in this run (by URI), for its row and outputs.
+
+    With outputs named after recordings (``keep_stored``): a recording keeps the name its stored
+    result has (its outputs are there: a smaller run, or the inputs in another order, must not
+    write another recording's outputs over them), and no recording takes a name whose outputs are
+    another's, of this run or an earlier one (``owners``: name -> URI; two daily folders' ``run.bag``
+    wrote one cleaned log, and the older row named the newer log). The others get the name
+    discovery gave them, made distinct (:func:`~rose_logs.batch.sources.distinct_name`) when taken.
+    Without outputs, the names discovery gave."""
+    if not keep_stored:
+        return {rec.uri: rec.name for rec in recordings}
+    taken: dict[str, str] = {}
+    for name, uri in owners.items():
+        taken[name] = taken[cleaned_log_name(name)] = uri
+    names: dict[str, str] = {}
+    for rec in recordings:  # stored names first
+        previous = stored.get(rec.uri)
+        if previous is not None and taken.get(previous.name, rec.uri) == rec.uri:
+            names[rec.uri] = previous.name
+            taken[previous.name] = taken[cleaned_log_name(previous.name)] = rec.uri
+    for rec in recordings:
+        if rec.uri in names:
+            continue
+        name = rec.name
+        if (
+            taken.get(name, rec.uri) != rec.uri
+            or taken.get(cleaned_log_name(name), rec.uri) != rec.uri
+        ):
+            name = distinct_name(rec.name, rec)
+        names[rec.uri] = name
+        taken[name] = taken[cleaned_log_name(name)] = rec.uri
+    return names
 
 
 def _outside(recordings: tuple[Recording, ...], store: OutputStore) -> tuple[Recording, ...]:

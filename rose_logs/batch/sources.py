@@ -28,6 +28,7 @@ __all__ = [
     "Recording",
     "cleaned_log_name",
     "discover",
+    "distinct_name",
     "printable",
     "read_list",
 ]
@@ -219,7 +220,7 @@ def discover(
         # Two recordings with the same relative name, or whose cleaned logs would be one (x.bag and
         # the x.bag.active beside it): keep both, distinguishable.
         if name in names or cleaned_log_name(name) in names:
-            name = _distinct(name, recording)
+            name = distinct_name(name, recording)
         names[name] = names[cleaned_log_name(name)] = recording.uri
         found[same] = Recording(
             recording.uri, name, recording.is_dir, recording.size, recording.version
@@ -240,7 +241,7 @@ def cleaned_log_name(name: str) -> str:
     return name[: -len(".active")] if _unclosed(name) else name
 
 
-def _distinct(name: str, recording: Recording) -> str:
+def distinct_name(name: str, recording: Recording) -> str:
     """``name`` with a digest of the recording's URI before its suffix (``run-1a2b3c4d.mcap``,
     ``x-1a2b3c4d.bag.active``; after a folder's name)."""
     digest = hashlib.sha256(recording.uri.encode("utf-8", "surrogateescape")).hexdigest()[:8]

@@ -324,6 +324,28 @@ class OutputStore:
             except OSError as err:
                 _LOG.warning("%s: cannot restore the previous file (%s)", self.uri(relative), err)
 
+    def read_folder(self, relative: str, suffix: str) -> dict[str, bytes]:
+        """Content of every file of the folder ``relative`` whose name ends with ``suffix``, by
+        name, in name order (none when the folder does not exist); remote files in one request."""
+        folder = self.uri(relative)
+        if self.local:
+            path = Path(_strip_file(folder))
+            if not path.is_dir():
+                return {}
+            return {
+                f.name: f.read_bytes()
+                for f in sorted(path.iterdir())
+                if f.name.endswith(suffix) and f.is_file()
+            }
+        try:
+            names = sorted(
+                str(p) for p in self.fs.ls(folder, detail=False) if str(p).endswith(suffix)
+            )
+        except FileNotFoundError:
+            return {}
+        found = self.fs.cat(names) if names else {}
+        return {str(k).rsplit("/", 1)[-1]: v for k, v in sorted(found.items())}
+
     def has(self, uri: str) -> bool:
         """Whether the file or folder ``uri`` (a full path or URL under the root) exists."""
         if self.local:

@@ -436,6 +436,21 @@ def store_result(store: OutputStore, result: RecordingResult) -> None:
     store.write_bytes(result_path(result.key), data.encode())
 
 
+def output_owners(store: OutputStore) -> dict[str, str]:
+    """The name of every stored result with outputs (a cleaned log or a recording named after it)
+    and the URI of its recording: the outputs of ``cleaned/`` and ``rrd/`` are theirs. Unreadable
+    results are passed over (they are redone when their recording comes again)."""
+    owners: dict[str, str] = {}
+    for data in store.read_folder(RESULTS_DIR, ".json").values():
+        try:
+            result = RecordingResult.from_json(json.loads(data))
+        except (ValueError, TypeError):
+            continue
+        if result.cleaned_uri is not None or result.rrd_uri is not None:
+            owners.setdefault(result.name, result.uri)
+    return owners
+
+
 def load_result(store: OutputStore, key: str) -> RecordingResult | None:
     """The stored result of ``key``, None if there is none (or it is unreadable)."""
     try:

@@ -294,12 +294,13 @@ def test_cleaned_and_rrd_outputs_mirror_the_input_names(fleet: Path, tmp_path: P
     ]
 
 
-def test_a_recording_named_otherwise_by_a_later_run_is_redone_under_its_new_name(
+def test_a_recording_keeps_its_stored_name_when_a_later_run_lists_another_first(
     tmp_path: Path,
 ) -> None:
-    """Day 1: a/fleet/run.mcap is fleet/run.mcap. Day 2, b/fleet/run.mcap listed first takes that
-    name: the stored result of a kept it too, two rows shared one cleaned log, and b's overwrote
-    a's (exit 0). a is now redone under its new name; every row has its own cleaned log."""
+    """Day 1: a/fleet/run.mcap is fleet/run.mcap. Day 2, b/fleet/run.mcap listed first took that
+    name: two rows shared one cleaned log, and b's overwrote a's (exit 0); later a was redone
+    under a new name, its old log left with no row. a keeps its name and its result; b gets the
+    -<hash> name; every row has its own cleaned log."""
     from fleet import copy_recording
 
     a = copy_recording(tmp_path / "a" / "fleet" / "run.mcap", "mcap", max_maps=2)
@@ -309,11 +310,37 @@ def test_a_recording_named_otherwise_by_a_later_run_is_redone_under_its_new_name
     report = run_batch([b.parent, a.parent], out, options=RecordingOptions(cleaned=True))
     rows = read_rows(out / "recordings.parquet")
     assert len({r["name"] for r in rows}) == len({r["cleaned"] for r in rows}) == 2
-    assert report.processed == 2  # a's result is not reused under a name it no longer has
+    assert report.processed == 1  # b; a's result is reused under its name
+    assert {r["uri"]: r["name"] for r in rows}[str(a)] == "fleet/run.mcap"
     for row in rows:
         with LogReader(Path(row["cleaned"])) as reader:
             maps = sum(c.message_count for c in reader.channels if c.topic == "/map")
         assert maps == row["snapshots"]
+
+
+def test_separate_runs_into_one_output_never_share_a_name(tmp_path: Path) -> None:
+    """Two daily folders laid out alike, each batched on its own into one output folder: day 2's
+    fleet/run.mcap took the name of day 1's, wrote its cleaned log over day 1's, and day 1's row
+    (reused by a third run) named day 2's log. Day 2 gets the -<hash> name; each row names its own
+    log, unchanged by the later runs; the inputs' order does not rename a stored recording."""
+    from fleet import copy_recording
+
+    day1 = copy_recording(tmp_path / "day1" / "fleet" / "run.mcap", "mcap", max_maps=2)
+    day2 = copy_recording(tmp_path / "day2" / "fleet" / "run.mcap", "mcap", max_maps=3)
+    out, options = tmp_path / "out", RecordingOptions(cleaned=True)
+    run_batch([day1.parent], out, options=options)
+    (first,) = read_rows(out / "recordings.parquet")
+    kept = Path(first["cleaned"]).read_bytes()
+    run_batch([day2.parent], out, options=options)
+    (second,) = read_rows(out / "recordings.parquet")
+    assert second["name"] != first["name"] and second["cleaned"] != first["cleaned"]
+    assert Path(first["cleaned"]).read_bytes() == kept
+    for inputs in ([day1.parent], [day2.parent, day1.parent]):
+        assert run_batch(inputs, out, options=options).processed == 0
+    rows = {r["uri"]: r for r in read_rows(out / "recordings.parquet")}
+    assert rows[first["uri"]]["cleaned"] == first["cleaned"]
+    assert rows[second["uri"]]["cleaned"] == second["cleaned"]
+    assert Path(first["cleaned"]).read_bytes() == kept
 
 
 def test_a_recording_keeps_its_stored_name_when_a_smaller_run_names_it_otherwise(
