@@ -540,7 +540,10 @@ def _collect(
     options: RecordingOptions,
     memory_limit: str | float | None,
 ) -> RecordingResult:
-    """A finished future's result; a worker death or task failure becomes (and is stored as) an error."""
+    """A finished future's result; a worker death or task failure becomes an error. A task failure
+    is stored; a worker death is not, as an I/O error is not (:func:`process_recording`): it says
+    more about the cluster than the recording (a memory limit raised for the next run did
+    nothing: the stored death was reported again, naming the old limit)."""
     from distributed import KilledWorker
 
     try:
@@ -550,6 +553,7 @@ def _collect(
         # Dask's first sentence says how often it was tried; the rest is advice about its logs.
         tried = str(err).split(". ", 1)[0]
         message = f"the worker processing it died{limit}, out of memory or killed ({tried})"
+        return error_result(rec, key, options, message)
     except Exception as err:  # the task itself never raises for a bad recording
         message = f"{type(err).__name__}: {err}"
     result = error_result(rec, key, options, message)
