@@ -110,7 +110,9 @@ class RecordingOptions:
         params = {k: v for k, v in asdict(self.params).items() if k != "seed"}
         fields: dict[str, Any] = {
             "params": params,
-            "topics": None if self.topics is None else list(self.topics),
+            # A set of topics: -t /map -t /local_map, the other way round or /map twice analyse
+            # the same (each redid the recording).
+            "topics": None if self.topics is None else sorted(set(self.topics)),
             "failure_level": self.failure_level,
             "walls": self.walls,
             "cleaned": self.cleaned,

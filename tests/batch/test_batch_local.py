@@ -651,6 +651,20 @@ def test_salvage_leaves_the_keys_of_results_stored_without_it_alone() -> None:
     assert RecordingOptions(salvage=True).key_fields()["salvage"] is True
 
 
+def test_one_set_of_topics_written_in_any_order_is_one_key() -> None:
+    """-t /map -t /local_map, the other way round and /map twice each redid the recording."""
+    keys = {
+        json.dumps(RecordingOptions(topics=topics).key_fields(), sort_keys=True)
+        for topics in (
+            ("/map", "/local_map"),
+            ("/local_map", "/map"),
+            ("/map", "/local_map", "/map"),
+        )
+    }
+    assert len(keys) == 1
+    assert keys != {json.dumps(RecordingOptions(topics=("/map",)).key_fields(), sort_keys=True)}
+
+
 def test_one_cell_limit_written_three_ways_is_one_key() -> None:
     """2e8, 200000000 and numpy's int gave three keys: a resumed batch redid every recording."""
     import numpy as np
