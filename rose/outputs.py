@@ -68,6 +68,7 @@ __all__ = [
     "json_safe",
     "json_text",
     "print_any_file_name",
+    "process_alive",
     "remove_stale_temporaries",
     "report_interrupt",
     "reraise_interrupt_behind",
@@ -458,7 +459,8 @@ def temporary_name(name: str, kind: str = "tmp") -> str:
     return f".{name}.rose-{kind}-{os.getpid()}-{secrets.token_hex(4)}"
 
 
-def _pid_alive(pid: int) -> bool:
+def process_alive(pid: int) -> bool:
+    """Whether process ``pid`` of this host exists (one of another user's counts)."""
     if pid == os.getpid():
         return True
     try:
@@ -482,7 +484,7 @@ def remove_stale_temporaries(directory: Path) -> list[Path]:
         return removed
     for entry in entries:
         match = _TEMP_RE.match(entry.name)
-        if match is None or _pid_alive(int(match.group(1))):
+        if match is None or process_alive(int(match.group(1))):
             continue
         path = Path(entry.path)
         _remove_tree(path)

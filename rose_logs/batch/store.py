@@ -10,6 +10,8 @@ import contextlib
 import logging
 import os
 import re
+import shutil
+import socket
 from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
@@ -17,7 +19,7 @@ from typing import Any
 import fsspec
 
 from rose.errors import OutputError
-from rose.outputs import OutputSet, temporary_name
+from rose.outputs import OutputSet, process_alive, temporary_name
 from rose_logs.batch.errors import BatchError
 
 __all__ = ["OutputStore", "filesystem", "is_local", "join_uri", "storage_errors"]
@@ -132,6 +134,20 @@ def storage_errors(uri: str) -> Iterator[None]:
         raise BatchError(msg) from err
 
 
+def work_folder_prefix() -> str:
+    """Prefix of a recording's work folder in the staging folder: this host and process, so that
+    a later run can tell the folders of dead processes (:meth:`OutputStore.remove_dead_work`)."""
+    return f"rose-batch-{_host_tag()}-{os.getpid()}-"
+
+
+def _host_tag() -> str:
+    """This host's name as a work folder holds it (no path separators)."""
+    return re.sub(r"[^A-Za-z0-9.]", "_", socket.gethostname()) or "host"
+
+
+_WORK_RE = re.compile(r"^rose-batch-(?P<host>[A-Za-z0-9._]+)-(?P<pid>\d+)-[A-Za-z0-9_]+$")
+
+
 class OutputStore:
     """Files under one output root; every write is atomic (temporary name + rename, or one PUT).
 
@@ -184,6 +200,7 @@ class OutputStore:
                 probe.touch()
                 probe.unlink()
                 self.staging_dir()
+                self.remove_dead_work()
             else:
                 with storage_errors(self.root):
                     self._prepare_remote()
@@ -373,8 +390,6 @@ class OutputStore:
             path = Path(target)
             path.parent.mkdir(parents=True, exist_ok=True)
             if path.is_dir():
-                import shutil
-
                 shutil.rmtree(path)
             Path(local).replace(path)  # same file system: the temporary lives beside the output
             return target
@@ -394,10 +409,29 @@ class OutputStore:
             _LOG.warning("%s: cannot remove (%s)", target, err.strerror or err)
 
     def remove_staging(self) -> None:
-        """Remove the (empty) staging folder left by :meth:`staging_dir`."""
+        """Remove the staging folder left by :meth:`staging_dir` when nothing is left in it but
+        the work folders of dead processes (:meth:`remove_dead_work`)."""
         if self.local:
+            self.remove_dead_work()
             with contextlib.suppress(OSError):
                 (Path(_strip_file(self.root)) / ".staging").rmdir()
+
+    def remove_dead_work(self) -> None:
+        """Remove the work folders (:func:`work_folder_prefix`) in the staging folder of processes
+        of this host that are gone: a worker killed by a signal left its folder behind, and no
+        later run removed it. Other hosts' folders (a shared file system) are left alone."""
+        staging = Path(_strip_file(self.root)) / ".staging"
+        try:
+            entries = list(os.scandir(staging))
+        except OSError:
+            return
+        host = _host_tag()
+        for entry in entries:
+            match = _WORK_RE.match(entry.name)
+            if match is None or match["host"] != host or process_alive(int(match["pid"])):
+                continue
+            with contextlib.suppress(OSError):
+                shutil.rmtree(entry.path)
 
     def staging_dir(self) -> Path | None:
         """Folder for temporary outputs, on the same file system as the root (local), else None."""

@@ -28,7 +28,7 @@ from rose.limits import DEFAULT_MAX_CELLS, cell_limit
 from rose.params import RoseParams
 from rose_logs.batch.recording_log import RecordingWarnings, collecting
 from rose_logs.batch.sources import Recording, cleaned_log_name, printable
-from rose_logs.batch.store import OutputStore, filesystem, is_local
+from rose_logs.batch.store import OutputStore, filesystem, is_local, work_folder_prefix
 from rose_logs.errors import LogError, LogWriteError
 from rose_logs.formats import LogFormat, detect_format
 from rose_logs.session.report import row_judged
@@ -485,7 +485,7 @@ def _attempt(
 ) -> RecordingResult:
     from rose_logs.session import process_log
 
-    with tempfile.TemporaryDirectory(prefix="rose-batch-", dir=store.staging_dir()) as tmp:
+    with tempfile.TemporaryDirectory(prefix=work_folder_prefix(), dir=store.staging_dir()) as tmp:
         work = Path(tmp)
         local = _fetch(recording, work / "input", storage_options)
         # The downloaded copy's path means nothing to the reader of the row: name the recording.

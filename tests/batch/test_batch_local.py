@@ -1290,3 +1290,37 @@ def test_the_batch_gate_decides_as_process_on_a_w_near_the_level(tmp_path: Path)
         assert main(["batch", str(log), "-o", out, "-q", "--fail-above", text]) == expected
         (row,) = read_rows(Path(out) / "recordings.parquet")
         assert row["w_max"] == w_max
+
+
+def test_work_folders_of_dead_workers_are_removed_by_the_next_run(tmp_path: Path) -> None:
+    """A worker killed by a signal left its work folder in OUT/.staging, and no later run removed
+    it. A run removes those of dead processes of this host, not a live one's or another host's
+    (a file system shared with other machines)."""
+    import subprocess
+    import sys
+
+    from fleet import copy_recording
+
+    from rose_logs.batch.store import _host_tag
+
+    log = copy_recording(tmp_path / "in" / "run.mcap", "mcap", max_maps=1)
+    gone = subprocess.run(
+        [sys.executable, "-c", "import os; print(os.getpid())"],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    dead_pid = int(gone.stdout)
+    staging = tmp_path / "out" / ".staging"
+    host = _host_tag()
+    names = {
+        "dead": f"rose-batch-{host}-{dead_pid}-abc_123",
+        "alive": f"rose-batch-{host}-{os.getpid()}-abc_123",
+        "elsewhere": f"rose-batch-otherhost-{dead_pid}-abc_123",
+    }
+    for name in names.values():
+        (staging / name / "cleaned").mkdir(parents=True)
+        (staging / name / "cleaned" / "part.mcap").write_bytes(b"x")
+    run_batch([log], tmp_path / "out")
+    left = {p.name for p in staging.iterdir()}
+    assert left == {names["alive"], names["elsewhere"]}
