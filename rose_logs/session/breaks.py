@@ -151,8 +151,8 @@ class BreakScore:
         Contradicted length over the whole map, metres (same measure as ``score_m``).
     incomparable_with : int or None
         The trusted snapshot this one could not be compared with (another cell size, frame or
-        orientation): the detector starts again from this one, and a break across the change is
-        not seen. None otherwise.
+        orientation, or on coarse cells an origin off the trusted grid's cells): the detector
+        starts again from this one, and a break across the change is not seen. None otherwise.
     """
 
     score_m: float
@@ -341,7 +341,9 @@ class BreakDetector:
         offset = (
             None
             if trusted is None
-            else _offset_px(trusted[1], snapshot, rounding=self._rounding(snapshot.resolution_m))
+            else _offset_px(
+                trusted[1], snapshot, rounding=self._rounding(snapshot.resolution_decimal_m)
+            )
         )
         if trusted is None or offset is None or topic in self._blank:
             self._trust(topic, index, snapshot)
@@ -372,7 +374,8 @@ class BreakDetector:
     def _rounding(self, resolution_m: float) -> float:
         """How far (cells) an origin may lie off the trusted grid's cells to be placed to the
         nearest one: any fraction when half a cell is at most a quarter of the detector's
-        tolerance and rise margin (cells of 0.1 m or finer at the defaults), else 1 %: on coarse
+        tolerance and rise margin (cells of 0.1 m or finer at the defaults; ``resolution_m`` as
+        written in decimal: a message's float32 0.1 is 0.10000000149), else 1 %: on coarse
         cells the walls drawn anew a cell over contradict the map (0.5 m cells, an origin 4 cm
         off: a 10 m false break)."""
         p = self.params

@@ -888,8 +888,8 @@ class _Loop:
         if verdict.incomparable_with is not None:
             _LOG.warning(
                 "%s: the map %s is not comparable with trusted snapshot %d (another cell size, "
-                "frame or orientation): the break detector starts again from it, and a break "
-                "across the change is not seen",
+                "frame or orientation, or an origin off its cells): the break detector starts "
+                "again from it, and a break across the change is not seen",
                 topic,
                 self._at(snapshot.log_time_ns),
                 verdict.incomparable_with,

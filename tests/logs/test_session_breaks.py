@@ -146,6 +146,17 @@ def test_an_origin_moved_by_a_fraction_of_a_cell_is_still_compared(
         assert verdict.broken is broke and (verdict.score_m == 0.0) is not broke
 
 
+def test_a_message_at_0_1_m_per_cell_is_fine_cells_too(plan, broken) -> None:
+    """A map message's resolution is float32: 0.1 arrives as 0.10000000149, and half of it missed
+    the "0.1 m or finer" bound by a hair, so an origin jittering by 3 mm made every snapshot
+    incomparable at exactly 0.1 m."""
+    res = float(np.float32(0.1))
+    detector = BreakDetector(BreakParams(threshold_m=1.0))
+    detector.update(_snap(plan, 0, res=res))
+    verdict = detector.update(_snap(broken, 1, res=res, origin=(-5.0 + 0.003, -3.0)))
+    assert verdict.incomparable_with is None and verdict.trusted_index == 0
+
+
 def test_on_coarse_cells_an_origin_off_the_cells_is_not_compared(plan) -> None:
     """At 0.5 m per cell the detector's tolerance is a cell: walls drawn anew a cell over, with
     an origin placed to the nearest cell, scored a 10 m false break. There only an origin within
