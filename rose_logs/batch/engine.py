@@ -327,32 +327,71 @@ def _run_names(
     result has (its outputs are there: a smaller run, or the inputs in another order, must not
     write another recording's outputs over them), and no recording takes a name whose outputs are
     another's, of this run or an earlier one (``owners``: name -> URI; two daily folders' ``run.bag``
-    wrote one cleaned log, and the older row named the newer log). The others get the name
-    discovery gave them, made distinct (:func:`~rose_logs.batch.sources.distinct_name`) when taken.
-    Without outputs, the names discovery gave."""
+    wrote one cleaned log, and the older row named the newer log), nor one whose outputs would
+    hold or lie inside another's (:class:`_TakenNames`). The others get the name discovery gave
+    them, made distinct (:func:`~rose_logs.batch.sources.distinct_name`) when taken. Without
+    outputs, the names discovery gave."""
     if not keep_stored:
         return {rec.uri: rec.name for rec in recordings}
-    taken: dict[str, str] = {}
+    taken = _TakenNames()
     for name, uri in owners.items():
-        taken[name] = taken[cleaned_log_name(name)] = uri
+        taken.add(name, uri)
     names: dict[str, str] = {}
     for rec in recordings:  # stored names first
         previous = stored.get(rec.uri)
-        if previous is not None and taken.get(previous.name, rec.uri) == rec.uri:
+        if previous is not None and not taken.clashes(previous.name, rec.uri):
             names[rec.uri] = previous.name
-            taken[previous.name] = taken[cleaned_log_name(previous.name)] = rec.uri
+            taken.add(previous.name, rec.uri)
     for rec in recordings:
         if rec.uri in names:
             continue
-        name = rec.name
-        if (
-            taken.get(name, rec.uri) != rec.uri
-            or taken.get(cleaned_log_name(name), rec.uri) != rec.uri
-        ):
-            name = distinct_name(rec.name, rec)
+        name = rec.name if not taken.clashes(rec.name, rec.uri) else _free_name(rec, taken)
         names[rec.uri] = name
-        taken[name] = taken[cleaned_log_name(name)] = rec.uri
+        taken.add(name, rec.uri)
     return names
+
+
+def _free_name(rec: Recording, taken: _TakenNames) -> str:
+    """A name for ``rec`` that clashes with no other recording's: its name made distinct, or,
+    when that still lies inside another's outputs (a file ``robot/run.mcap`` beside a bag folder
+    ``robot``), its top folder made distinct (``robot-1a2b3c4d/run.mcap``)."""
+    name = distinct_name(rec.name, rec)
+    top, _, rest = rec.name.partition("/")
+    if taken.clashes(name, rec.uri) and rest:
+        folder = distinct_name(top, dataclasses.replace(rec, is_dir=True))
+        name = f"{folder}/{rest}"
+    return name
+
+
+class _TakenNames:
+    """Recording names whose outputs belong to a recording (by URI). A name clashes with another
+    recording's when their outputs would be one (the same name, or a salvaged ``x.bag.active``'s
+    cleaned ``x.bag``) or one would lie inside the other (a bag folder ``robot`` and a file
+    ``robot/run.mcap``: writing the folder's cleaned bag deleted the file's cleaned log)."""
+
+    def __init__(self) -> None:
+        self._owner: dict[str, str] = {}  # name (and cleaned log name) -> URI
+        self._holder: dict[str, str] = {}  # a folder some name lies in -> a URI of such a name
+
+    def add(self, name: str, uri: str) -> None:
+        for spelled in {name, cleaned_log_name(name)}:
+            self._owner.setdefault(spelled, uri)
+            for folder in _folders_of(spelled):
+                self._holder.setdefault(folder, uri)
+
+    def clashes(self, name: str, uri: str) -> bool:
+        for spelled in {name, cleaned_log_name(name)}:
+            if self._owner.get(spelled, uri) != uri or self._holder.get(spelled, uri) != uri:
+                return True
+            if any(self._owner.get(folder, uri) != uri for folder in _folders_of(spelled)):
+                return True
+        return False
+
+
+def _folders_of(name: str) -> list[str]:
+    """The folders a ``/``-separated name lies in: ``a/b/c`` -> ``a``, ``a/b``."""
+    parts = name.split("/")
+    return ["/".join(parts[:i]) for i in range(1, len(parts))]
 
 
 def _outside(recordings: tuple[Recording, ...], store: OutputStore) -> tuple[Recording, ...]:

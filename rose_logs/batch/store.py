@@ -12,6 +12,7 @@ import os
 import re
 import shutil
 import socket
+import time
 from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
@@ -143,6 +144,21 @@ def work_folder_prefix() -> str:
 def _host_tag() -> str:
     """This host's name as a work folder holds it (no path separators)."""
     return re.sub(r"[^A-Za-z0-9.]", "_", socket.gethostname()) or "host"
+
+
+#: Seconds without a change after which the work folder of a dead process of this host is
+#: removed, and after which any work folder is (see :meth:`OutputStore.remove_dead_work`).
+_DEAD_WORK_IDLE_S = 60.0
+_STALE_WORK_IDLE_S = 24 * 3600.0
+
+
+def _newest_change(folder: Path) -> float:
+    """The latest modification time of ``folder`` and everything in it (seconds since the epoch)."""
+    newest = 0.0
+    for path in (folder, *folder.rglob("*")):
+        with contextlib.suppress(OSError):
+            newest = max(newest, path.lstat().st_mtime)
+    return newest
 
 
 _WORK_RE = re.compile(r"^rose-batch-(?P<host>[A-Za-z0-9._]+)-(?P<pid>\d+)-[A-Za-z0-9_]+$")
@@ -341,27 +357,28 @@ class OutputStore:
             except OSError as err:
                 _LOG.warning("%s: cannot restore the previous file (%s)", self.uri(relative), err)
 
-    def read_folder(self, relative: str, suffix: str) -> dict[str, bytes]:
-        """Content of every file of the folder ``relative`` whose name ends with ``suffix``, by
-        name, in name order (none when the folder does not exist); remote files in one request."""
+    def iter_folder(self, relative: str, suffix: str) -> Iterator[bytes]:
+        """Content of every file of the folder ``relative`` whose name ends with ``suffix``, in
+        name order, one file at a time (a remote folder listed afresh: a worker process may have
+        written files since this process last listed it; none when the folder does not exist)."""
         folder = self.uri(relative)
         if self.local:
             path = Path(_strip_file(folder))
             if not path.is_dir():
-                return {}
-            return {
-                f.name: f.read_bytes()
-                for f in sorted(path.iterdir())
-                if f.name.endswith(suffix) and f.is_file()
-            }
+                return
+            for entry in sorted(path.iterdir()):
+                if entry.name.endswith(suffix) and entry.is_file():
+                    yield entry.read_bytes()
+            return
+        self.fs.invalidate_cache(folder)
         try:
-            names = sorted(
-                str(p) for p in self.fs.ls(folder, detail=False) if str(p).endswith(suffix)
-            )
+            names = sorted(str(p) for p in self.fs.ls(folder, detail=False))
         except FileNotFoundError:
-            return {}
-        found = self.fs.cat(names) if names else {}
-        return {str(k).rsplit("/", 1)[-1]: v for k, v in sorted(found.items())}
+            return
+        for name in names:
+            if name.endswith(suffix):
+                with contextlib.suppress(FileNotFoundError):
+                    yield self.fs.cat_file(name)
 
     def has(self, uri: str) -> bool:
         """Whether the file or folder ``uri`` (a full path or URL under the root) exists."""
@@ -417,21 +434,30 @@ class OutputStore:
                 (Path(_strip_file(self.root)) / ".staging").rmdir()
 
     def remove_dead_work(self) -> None:
-        """Remove the work folders (:func:`work_folder_prefix`) in the staging folder of processes
-        of this host that are gone: a worker killed by a signal left its folder behind, and no
-        later run removed it. Other hosts' folders (a shared file system) are left alone."""
+        """Remove the work folders (:func:`work_folder_prefix`) in the staging folder that no
+        process works in: a worker killed by a signal left its folder behind, and no later run
+        removed it. A folder goes when nothing in it changed for a minute and its process, of this
+        host, is gone; or when nothing in it changed for a day (a folder of another host, of a
+        process in another PID namespace, or of an older rose-bag: a live process's pid cannot be
+        told from there, and a live batch's folder was deleted under it)."""
         staging = Path(_strip_file(self.root)) / ".staging"
         try:
-            entries = list(os.scandir(staging))
+            entries = [e for e in os.scandir(staging) if e.name.startswith("rose-batch-")]
         except OSError:
             return
-        host = _host_tag()
+        host, now = _host_tag(), time.time()
         for entry in entries:
+            idle = now - _newest_change(Path(entry.path))
             match = _WORK_RE.match(entry.name)
-            if match is None or match["host"] != host or process_alive(int(match["pid"])):
-                continue
-            with contextlib.suppress(OSError):
-                shutil.rmtree(entry.path)
+            dead = (
+                match is not None
+                and match["host"] == host
+                and not process_alive(int(match["pid"]))
+                and idle >= _DEAD_WORK_IDLE_S
+            )
+            if dead or idle >= _STALE_WORK_IDLE_S:
+                with contextlib.suppress(OSError):
+                    shutil.rmtree(entry.path)
 
     def staging_dir(self) -> Path | None:
         """Folder for temporary outputs, on the same file system as the root (local), else None."""

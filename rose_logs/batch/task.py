@@ -443,13 +443,17 @@ def output_owners(store: OutputStore) -> dict[str, str]:
     and the URI of its recording: the outputs of ``cleaned/`` and ``rrd/`` are theirs. Unreadable
     results are passed over (they are redone when their recording comes again)."""
     owners: dict[str, str] = {}
-    for data in store.read_folder(RESULTS_DIR, ".json").values():
+    for data in store.iter_folder(RESULTS_DIR, ".json"):
         try:
-            result = RecordingResult.from_json(json.loads(data))
-        except (ValueError, TypeError):
+            fields = json.loads(data)  # one at a time: a result holds every snapshot's record
+        except ValueError:
             continue
-        if result.cleaned_uri is not None or result.rrd_uri is not None:
-            owners.setdefault(result.name, result.uri)
+        if not isinstance(fields, dict):
+            continue
+        name, uri = fields.get("name"), fields.get("uri")
+        has_outputs = fields.get("cleaned_uri") is not None or fields.get("rrd_uri") is not None
+        if isinstance(name, str) and isinstance(uri, str) and has_outputs:
+            owners.setdefault(name, uri)
     return owners
 
 

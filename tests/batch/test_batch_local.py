@@ -1294,10 +1294,12 @@ def test_the_batch_gate_decides_as_process_on_a_w_near_the_level(tmp_path: Path)
 
 def test_work_folders_of_dead_workers_are_removed_by_the_next_run(tmp_path: Path) -> None:
     """A worker killed by a signal left its work folder in OUT/.staging, and no later run removed
-    it. A run removes those of dead processes of this host, not a live one's or another host's
-    (a file system shared with other machines)."""
+    it. A run removes the folders of dead processes of this host untouched for a minute, and any
+    untouched for a day; not a live process's, nor a folder changed lately whose pid this host
+    cannot vouch for (a batch in another PID namespace lost its folder mid-recording)."""
     import subprocess
     import sys
+    import time
 
     from fleet import copy_recording
 
@@ -1313,14 +1315,53 @@ def test_work_folders_of_dead_workers_are_removed_by_the_next_run(tmp_path: Path
     dead_pid = int(gone.stdout)
     staging = tmp_path / "out" / ".staging"
     host = _host_tag()
-    names = {
-        "dead": f"rose-batch-{host}-{dead_pid}-abc_123",
-        "alive": f"rose-batch-{host}-{os.getpid()}-abc_123",
-        "elsewhere": f"rose-batch-otherhost-{dead_pid}-abc_123",
+    now = time.time()
+    folders = {  # name: (seconds since its last change, removed)
+        f"rose-batch-{host}-{dead_pid}-dead_idle": (120, True),
+        f"rose-batch-{host}-{dead_pid}-dead_busy": (5, False),
+        f"rose-batch-{host}-{os.getpid()}-alive_idle": (120, False),
+        f"rose-batch-otherhost-{dead_pid}-elsewhere": (3600, False),
+        f"rose-batch-otherhost-{dead_pid}-elsewhere_old": (2 * 86400, True),
+        "rose-batch-k3j9xyz_": (2 * 86400, True),  # an older rose-bag's name
     }
-    for name in names.values():
-        (staging / name / "cleaned").mkdir(parents=True)
-        (staging / name / "cleaned" / "part.mcap").write_bytes(b"x")
+    for name, (idle, _) in folders.items():
+        part = staging / name / "cleaned" / "part.mcap"
+        part.parent.mkdir(parents=True)
+        part.write_bytes(b"x")
+        for path in (part, part.parent, part.parent.parent):
+            os.utime(path, (now - idle, now - idle))
     run_batch([log], tmp_path / "out")
     left = {p.name for p in staging.iterdir()}
-    assert left == {names["alive"], names["elsewhere"]}
+    assert left == {name for name, (_, removed) in folders.items() if not removed}
+
+
+def test_no_two_recordings_get_names_whose_outputs_are_one_or_nested() -> None:
+    """Stored names came first, but a stored name was checked alone: a salvaged x.bag.active
+    (cleaned into x.bag) kept its name beside another recording's x.bag, and both rows named one
+    cleaned log. And a bag folder `robot` and a file `robot/run.mcap`: writing the folder's
+    cleaned bag deleted the file's cleaned log, and every run redid one of them."""
+    from rose_logs.batch.engine import _run_names
+    from rose_logs.batch.sources import Recording
+    from rose_logs.batch.task import RecordingResult
+
+    def rec(uri: str, name: str, is_dir: bool = False) -> Recording:
+        return Recording(uri, name, is_dir, 1, "1")
+
+    stored_active = RecordingResult(
+        uri="/b/act/x.bag.active", name="act/x.bag.active", key="k", status="error"
+    )
+    recordings = (rec("/a/act/x.bag", "act/x.bag"), rec("/b/act/x.bag.active", "act/x.bag.active"))
+    names = _run_names(
+        recordings,
+        {"/b/act/x.bag.active": stored_active},
+        {"act/x.bag": "/a/act/x.bag"},
+        keep_stored=True,
+    )
+    assert names["/a/act/x.bag"] == "act/x.bag"
+    assert names["/b/act/x.bag.active"].startswith("act/x-")  # made distinct
+    nested = (rec("/n1/robot", "robot", is_dir=True), rec("/n2/robot/run.mcap", "robot/run.mcap"))
+    for owners in ({}, {"robot/run.mcap": "/n2/robot/run.mcap"}, {"robot": "/n1/robot"}):
+        names = _run_names(nested, {}, owners, keep_stored=True)
+        assert len({n for n in names.values() if n == "robot" or n.startswith("robot/")}) <= 1, (
+            names
+        )
