@@ -324,8 +324,9 @@ def _run_names(
     """The name of each recording in this run (by URI), for its row and outputs.
 
     With outputs named after recordings (``keep_stored``): a recording keeps the name its stored
-    result has (its outputs are there: a smaller run, or the inputs in another order, must not
-    write another recording's outputs over them), and no recording takes a name whose outputs are
+    result has, or without one (its file or the options changed) a name its outputs have (they
+    are there: a smaller run, or the inputs in another order, must not write another recording's
+    outputs over them, nor leave its own behind), and no recording takes a name whose outputs are
     another's, of this run or an earlier one (``owners``: name -> URI; two daily folders' ``run.bag``
     wrote one cleaned log, and the older row named the newer log), nor one whose outputs would
     hold or lie inside another's (:class:`_TakenNames`). The others get the name discovery gave
@@ -336,12 +337,19 @@ def _run_names(
     taken = _TakenNames()
     for name, uri in owners.items():
         taken.add(name, uri)
+    owned: dict[str, list[str]] = {}  # URI -> the names whose outputs are its, in name order
+    for name, uri in sorted(owners.items()):
+        owned.setdefault(uri, []).append(name)
     names: dict[str, str] = {}
-    for rec in recordings:  # stored names first
+    for rec in recordings:  # stored names first: this key's result's, else any its outputs have
         previous = stored.get(rec.uri)
-        if previous is not None and not taken.clashes(previous.name, rec.uri):
-            names[rec.uri] = previous.name
-            taken.add(previous.name, rec.uri)
+        mine = [previous.name] if previous is not None else owned.get(rec.uri, [])
+        if rec.name in mine and previous is None:
+            mine = [rec.name]  # (discovery's name, when it is one of them)
+        free = [name for name in mine if not taken.clashes(name, rec.uri)]
+        if free:
+            names[rec.uri] = free[0]
+            taken.add(free[0], rec.uri)
     for rec in recordings:
         if rec.uri in names:
             continue

@@ -1365,3 +1365,19 @@ def test_no_two_recordings_get_names_whose_outputs_are_one_or_nested() -> None:
         assert len({n for n in names.values() if n == "robot" or n.startswith("robot/")}) <= 1, (
             names
         )
+
+
+def test_a_recording_without_a_result_for_this_key_takes_back_the_name_its_outputs_have() -> None:
+    """Options or the file changed (a new key, no result under it), and the inputs came in another
+    order: discovery named H otherwise, H was redone under the new name and its old cleaned log
+    stayed behind, named by no row. H takes back the name its outputs have, and K keeps its own."""
+    from rose_logs.batch.engine import _run_names
+    from rose_logs.batch.sources import Recording
+
+    recordings = (
+        Recording("/H/day/x.mcap", "x-a392300b.mcap", False, 1, "2"),
+        Recording("/K/day/x.mcap", "x.mcap", False, 1, "2"),
+    )
+    owners = {"x.mcap": "/H/day/x.mcap", "x-d8a08a7b.mcap": "/K/day/x.mcap"}
+    names = _run_names(recordings, {}, owners, keep_stored=True)
+    assert names == {"/H/day/x.mcap": "x.mcap", "/K/day/x.mcap": "x-d8a08a7b.mcap"}
