@@ -426,7 +426,7 @@ def _read_image(path: Path, max_cells: int | None = DEFAULT_MAX_CELLS) -> npt.ND
         raise MapFileError(msg)
     if shape is not None and image_kind(raw) == "PNG":
         mended: list[tuple[int, int, bytes]] = []
-        problem = _png_problem(raw, shape, mended)
+        problem = _png_problem(raw, mended)
         if problem is not None:  # libpng would print its own lines on stderr, then fail
             msg = f"{path}: not a readable image ({problem})"
             raise MapFileError(msg)
@@ -665,9 +665,7 @@ def _png_layout(ihdr: bytes) -> str | _PngLayout:
     return _PngLayout(colour, depth, tuple(passes), size)
 
 
-def _png_problem(
-    raw: bytes, shape: tuple[int, int], mended: list[tuple[int, int, bytes]]
-) -> str | None:
+def _png_problem(raw: bytes, mended: list[tuple[int, int, bytes]]) -> str | None:
     """What libpng would print on stderr itself (before an error without a reason), said here in
     one line: a truncated PNG, a chunk whose CRC does not match, a header PNG does not define, a
     chunk out of place or of a wrong size, a palette image without its palette, image data that
