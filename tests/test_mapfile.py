@@ -18,7 +18,7 @@ from real_data import FR079_DIR, repo_data
 
 import rose
 from rose import MapFileError, OccupancyMap
-from rose.mapfile import _read_image, _to_8_bits
+from rose.mapfile import _png_chunk, _read_image, _to_8_bits
 from rose.outputs import OutputSet
 
 
@@ -432,10 +432,6 @@ def _trinary(grey: npt.NDArray[np.uint8]) -> npt.NDArray[np.int8]:
         occupied_thresh=0.65,
         free_thresh=0.196,
     )
-
-
-def _png_chunk(kind: bytes, body: bytes) -> bytes:
-    return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body))
 
 
 def _png_of(

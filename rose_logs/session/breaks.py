@@ -385,21 +385,23 @@ class BreakDetector:
         """Whether the detector's lengths are at most :data:`rose.breaks.MAX_KERNEL_PX` cells of
         ``resolution_m`` (a map finer than about 0.3 mm per cell: its 0.3 m tolerance would be a
         square kernel of over 2000 cells a side)."""
+        return round(self._longest_kernel_m() / resolution_m) <= MAX_KERNEL_PX
+
+    def _longest_kernel_m(self) -> float:
+        """The longest of the detector's lengths taken as a square kernel (metres)."""
         p = self.params
-        longest = max(p.tolerance_m, p.bridge_m, p.rise_margin_m)
-        return round(longest / resolution_m) <= MAX_KERNEL_PX
+        return max(p.tolerance_m, p.bridge_m, p.rise_margin_m)
 
     def _say_too_fine(self, topic: str) -> None:
         """Warn once per topic that its maps are too fine for the detector."""
         if topic in self._too_fine_said:
             return
         self._too_fine_said.add(topic)
-        p = self.params
         _LOG.warning(
             "%s: maps so fine that the break detector's %g m would span more than %d cells are "
             "not checked for breaks (their break score is 0); said once per topic",
             topic,
-            max(p.tolerance_m, p.bridge_m, p.rise_margin_m),
+            self._longest_kernel_m(),
             MAX_KERNEL_PX,
         )
 
