@@ -41,9 +41,11 @@ import secrets
 import select
 import shutil
 import signal
+import socket
 import stat
 import sys
 import threading
+import time
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -67,8 +69,11 @@ __all__ = [
     "is_stream",
     "json_safe",
     "json_text",
+    "left_behind",
+    "newest_change",
     "print_any_file_name",
     "process_alive",
+    "process_tag",
     "remove_stale_temporaries",
     "report_interrupt",
     "reraise_interrupt_behind",
@@ -84,7 +89,13 @@ __all__ = [
 STDOUT = "-"
 """The output name meaning standard output."""
 
-_TEMP_RE = re.compile(r"^\..+\.rose-(?:tmp|old)-(\d+)-[0-9a-f]+$")
+#: A temporary of this version: ``.NAME.rose-<kind>-<process tag>-<pid>-<random>``.
+_TEMP_RE = re.compile(r"^\..+\.rose-(?:tmp|old)-(?P<tag>[A-Za-z0-9._]+)-(?P<pid>\d+)-[0-9a-f]+$")
+#: Seconds without a change after which any temporary goes, whoever made it (see
+#: :func:`left_behind`).
+STALE_IDLE_S = 24 * 3600.0
+#: A temporary of rose-bag 0.1 before the process tags: ``.NAME.rose-<kind>-<pid>-<random>``.
+_OLD_TEMP_RE = re.compile(r"^\..+\.rose-(?:tmp|old)-\d+-[0-9a-f]+$")
 
 
 # -- strict JSON ------------------------------------------------------------------------------------
@@ -455,8 +466,22 @@ def interrupt_behind(err: BaseException) -> KeyboardInterrupt | None:
 
 # -- temporary names ------------------------------------------------------------------------------------
 def temporary_name(name: str, kind: str = "tmp") -> str:
-    """``.NAME.rose-<kind>-<pid>-<random>``: hidden, unique per run, recognisable by a later run."""
-    return f".{name}.rose-{kind}-{os.getpid()}-{secrets.token_hex(4)}"
+    """``.NAME.rose-<kind>-<process tag>-<pid>-<random>``: hidden, unique per run, recognisable by
+    a later run (:func:`process_tag`)."""
+    return f".{name}.rose-{kind}-{process_tag()}-{os.getpid()}-{secrets.token_hex(4)}"
+
+
+def process_tag() -> str:
+    """Where this process's pid means something: the host's name and, on Linux, its PID namespace
+    (letters, digits, dots and underscores). A pid of another tag cannot be checked from here: a
+    run in another container or on another host over a shared folder is not "dead" for being
+    absent from this host's process table."""
+    host = re.sub(r"[^A-Za-z0-9.]", "_", socket.gethostname()) or "host"
+    try:
+        namespace = Path("/proc/self/ns/pid").stat().st_ino
+    except OSError:  # not Linux
+        return host
+    return f"{host}_pidns{namespace}"
 
 
 def process_alive(pid: int) -> bool:
@@ -472,8 +497,35 @@ def process_alive(pid: int) -> bool:
     return True
 
 
+def newest_change(path: Path) -> float:
+    """The latest modification time of ``path`` and, for a folder, everything in it (seconds
+    since the epoch; 0 when none can be read)."""
+    newest = 0.0
+    for item in (path, *path.rglob("*")) if path.is_dir() else (path,):
+        with contextlib.suppress(OSError):
+            newest = max(newest, item.lstat().st_mtime)
+    return newest
+
+
+def left_behind(path: Path, tag: str | None, pid: int | None, *, dead_idle_s: float = 0.0) -> bool:
+    """Whether the temporary ``path``, made by process ``pid`` under :func:`process_tag` ``tag``
+    (None: unknown, an older version's name), was left behind by a run that is gone.
+
+    Gone: a process of this tag that no longer exists, its temporary unchanged for
+    ``dead_idle_s``; or, made under another tag (whose pids cannot be checked from here), unchanged
+    for :data:`STALE_IDLE_S` (a day). A live process's temporary of this tag never is.
+    """
+    if tag == process_tag() and pid is not None:
+        if process_alive(pid):
+            return False
+        return dead_idle_s <= 0 or time.time() - newest_change(path) >= dead_idle_s
+    return time.time() - newest_change(path) >= STALE_IDLE_S
+
+
 def remove_stale_temporaries(directory: Path) -> list[Path]:
-    """Remove ``.*.rose-tmp-<pid>-*`` / ``.*.rose-old-<pid>-*`` entries of ``directory`` whose process is gone.
+    """Remove the temporaries (:func:`temporary_name`) in ``directory`` left behind by runs that
+    are gone (:func:`left_behind`); an older version's (``.NAME.rose-tmp-<pid>-<random>``) only
+    after a day unchanged.
 
     Returns the removed paths. Unreadable directories and entries that vanish meanwhile are ignored.
     """
@@ -483,10 +535,16 @@ def remove_stale_temporaries(directory: Path) -> list[Path]:
     except OSError:
         return removed
     for entry in entries:
-        match = _TEMP_RE.match(entry.name)
-        if match is None or process_alive(int(match.group(1))):
-            continue
         path = Path(entry.path)
+        match = _TEMP_RE.match(entry.name)
+        if match is not None:
+            gone = left_behind(path, match["tag"], int(match["pid"]))
+        elif _OLD_TEMP_RE.match(entry.name):
+            gone = left_behind(path, None, None)
+        else:
+            continue
+        if not gone:
+            continue
         _remove_tree(path)
         if not os.path.lexists(path):
             removed.append(path)

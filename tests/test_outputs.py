@@ -8,6 +8,7 @@ import os
 import signal
 import subprocess
 import sys
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -21,6 +22,7 @@ from rose.outputs import (
     install_signal_handlers,
     interrupt_behind,
     json_text,
+    process_tag,
     remove_stale_temporaries,
     signals_deferred,
     temporary_name,
@@ -214,22 +216,54 @@ def test_dash_and_dev_stdout_stream_to_stdout(tmp_path: Path) -> None:
     assert Path("/dev/stdout").is_symlink()
 
 
+def _touch_back(path: Path, seconds: float) -> None:
+    """Make ``path`` and what it holds look unchanged for ``seconds``."""
+    when = time.time() - seconds
+    for item in (path, *path.rglob("*")):
+        os.utime(item, (when, when))
+
+
 def test_stale_temporaries_of_dead_processes_are_removed(tmp_path: Path) -> None:
-    dead = tmp_path / ".o.mcap.rose-tmp-999999999-0badc0de"
-    dead.mkdir()
-    (dead / "o.mcap").write_bytes(b"half")
-    alive = tmp_path / temporary_name("o.mcap")  # ours: this process is alive
-    alive.mkdir()
-    unrelated = tmp_path / ".o.mcap.tmp"
-    unrelated.write_bytes(b"not ours")
-    assert remove_stale_temporaries(tmp_path) == [dead]
-    assert alive.exists() and unrelated.exists()
+    gone = subprocess.run(
+        [sys.executable, "-c", "import os; print(os.getpid())"],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    dead_pid, tag = int(gone.stdout), process_tag()
+    made = {}
+    for name, idle_s, removed in (
+        (f".o.mcap.rose-tmp-{tag}-{dead_pid}-0badc0de", 0, True),  # ours, its process gone
+        (temporary_name("o.rrd"), 2 * 86400, False),  # ours: this process is alive
+        # Another host or PID namespace (a container): its pid means nothing here.
+        (f".o.json.rose-tmp-otherhost_pidns1-{dead_pid}-0badc0de", 3600, False),
+        (f".p.json.rose-old-otherhost_pidns1-{dead_pid}-0badc0de", 2 * 86400, True),
+        (f".o.db3.rose-tmp-{dead_pid}-0badc0de", 3600, False),  # an older version's name
+        (f".p.db3.rose-tmp-{dead_pid}-0badc0de", 2 * 86400, True),
+        (".o.mcap.tmp", 2 * 86400, False),  # not ours
+    ):
+        path = tmp_path / name
+        path.mkdir()
+        (path / "o.mcap").write_bytes(b"half")
+        _touch_back(path, idle_s)
+        made[path] = removed
+    assert sorted(remove_stale_temporaries(tmp_path)) == sorted(p for p, r in made.items() if r)
+    assert all(path.exists() != removed for path, removed in made.items())
+
+
+def test_a_temporary_in_use_by_another_container_is_not_removed(tmp_path: Path) -> None:
+    # A run in another PID namespace of this host: its pid is absent here, but it is at work.
+    other = tmp_path / f".o.mcap.rose-tmp-{process_tag()}x-999999999-0badc0de"
+    other.mkdir()
+    (other / "o.mcap").write_bytes(b"being written")
+    assert remove_stale_temporaries(tmp_path) == []
+    assert (other / "o.mcap").read_bytes() == b"being written"
 
 
 def test_temporary_names_are_unique() -> None:
     names = {temporary_name("o.rrd") for _ in range(100)}
     assert len(names) == 100
-    assert all(n.startswith(f".o.rrd.rose-tmp-{os.getpid()}-") for n in names)
+    assert all(n.startswith(f".o.rrd.rose-tmp-{process_tag()}-{os.getpid()}-") for n in names)
 
 
 def test_without_force_of_two_commits_one_wins(tmp_path: Path) -> None:

@@ -11,8 +11,6 @@ import logging
 import os
 import re
 import shutil
-import socket
-import time
 from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
@@ -20,7 +18,7 @@ from typing import Any
 import fsspec
 
 from rose.errors import OutputError
-from rose.outputs import OutputSet, process_alive, temporary_name
+from rose.outputs import OutputSet, left_behind, process_tag, temporary_name
 from rose_logs.batch.errors import BatchError
 
 __all__ = ["OutputStore", "filesystem", "is_local", "join_uri", "storage_errors"]
@@ -138,27 +136,12 @@ def storage_errors(uri: str) -> Iterator[None]:
 def work_folder_prefix() -> str:
     """Prefix of a recording's work folder in the staging folder: this host and process, so that
     a later run can tell the folders of dead processes (:meth:`OutputStore.remove_dead_work`)."""
-    return f"rose-batch-{_host_tag()}-{os.getpid()}-"
-
-
-def _host_tag() -> str:
-    """This host's name as a work folder holds it (no path separators)."""
-    return re.sub(r"[^A-Za-z0-9.]", "_", socket.gethostname()) or "host"
+    return f"rose-batch-{process_tag()}-{os.getpid()}-"
 
 
 #: Seconds without a change after which the work folder of a dead process of this host is
-#: removed, and after which any work folder is (see :meth:`OutputStore.remove_dead_work`).
+#: removed (see :meth:`OutputStore.remove_dead_work`).
 _DEAD_WORK_IDLE_S = 60.0
-_STALE_WORK_IDLE_S = 24 * 3600.0
-
-
-def _newest_change(folder: Path) -> float:
-    """The latest modification time of ``folder`` and everything in it (seconds since the epoch)."""
-    newest = 0.0
-    for path in (folder, *folder.rglob("*")):
-        with contextlib.suppress(OSError):
-            newest = max(newest, path.lstat().st_mtime)
-    return newest
 
 
 _WORK_RE = re.compile(r"^rose-batch-(?P<host>[A-Za-z0-9._]+)-(?P<pid>\d+)-[A-Za-z0-9_]+$")
@@ -445,19 +428,13 @@ class OutputStore:
             entries = [e for e in os.scandir(staging) if e.name.startswith("rose-batch-")]
         except OSError:
             return
-        host, now = _host_tag(), time.time()
         for entry in entries:
-            idle = now - _newest_change(Path(entry.path))
             match = _WORK_RE.match(entry.name)
-            dead = (
-                match is not None
-                and match["host"] == host
-                and not process_alive(int(match["pid"]))
-                and idle >= _DEAD_WORK_IDLE_S
-            )
-            if dead or idle >= _STALE_WORK_IDLE_S:
+            path = Path(entry.path)
+            tag, pid = (match["host"], int(match["pid"])) if match else (None, None)
+            if left_behind(path, tag, pid, dead_idle_s=_DEAD_WORK_IDLE_S):
                 with contextlib.suppress(OSError):
-                    shutil.rmtree(entry.path)
+                    shutil.rmtree(path)
 
     def staging_dir(self) -> Path | None:
         """Folder for temporary outputs, on the same file system as the root (local), else None."""

@@ -1303,7 +1303,7 @@ def test_work_folders_of_dead_workers_are_removed_by_the_next_run(tmp_path: Path
 
     from fleet import copy_recording
 
-    from rose_logs.batch.store import _host_tag
+    from rose.outputs import process_tag
 
     log = copy_recording(tmp_path / "in" / "run.mcap", "mcap", max_maps=1)
     gone = subprocess.run(
@@ -1314,7 +1314,7 @@ def test_work_folders_of_dead_workers_are_removed_by_the_next_run(tmp_path: Path
     )
     dead_pid = int(gone.stdout)
     staging = tmp_path / "out" / ".staging"
-    host = _host_tag()
+    host = process_tag()
     now = time.time()
     folders = {  # name: (seconds since its last change, removed)
         f"rose-batch-{host}-{dead_pid}-dead_idle": (120, True),
