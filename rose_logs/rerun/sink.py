@@ -47,7 +47,9 @@ from rose_logs.snapshots import MapSnapshot
 
 __all__ = [
     "APPLICATION_ID",
+    "SPAWNED_VIEWER",
     "RerunSink",
+    "ViewerNotStarted",
     "grpc_url",
     "recording_id_for",
     "viewer_endpoint",
@@ -139,6 +141,18 @@ def grpc_url(address: str) -> str:
 
 _VIEWER_PROBE_S = 3.0
 """Longest wait for a viewer to accept a connection before a session starts, seconds."""
+
+
+#: Where the viewer that ``--spawn`` starts listens (Rerun's default port, on this machine).
+SPAWNED_VIEWER = "127.0.0.1:9876"
+
+
+#: Where the viewer that ``spawn`` starts listens (Rerun's default port, on this machine).
+SPAWNED_VIEWER = "127.0.0.1:9876"
+
+
+class ViewerNotStarted(RuntimeError):
+    """The viewer :class:`RerunSink` spawned is not listening (it could not open a window)."""
 
 
 def viewer_unreachable(address: str) -> str | None:
@@ -303,11 +317,21 @@ class RerunSink:
             APPLICATION_ID, recording_id=recording_id, batcher_config=_batcher_config()
         )
         self.recording.set_log_time_enabled(False)
+        if spawn:
+            self.recording.spawn(connect=False)
+            # Rerun's spawn waits a few seconds for its viewer, then only warns: a viewer that died
+            # at start (a display set but unusable) failed the session at its final flush.
+            reason = viewer_unreachable(SPAWNED_VIEWER)
+            if reason is not None:
+                msg = (
+                    f"the Rerun viewer did not start (nothing listens at {SPAWNED_VIEWER}: "
+                    f"{reason}; its own message above says why)"
+                )
+                raise ViewerNotStarted(msg)
         sinks: list[rr.FileSink | rr.GrpcSink] = []
         if self.tmp is not None:
             sinks.append(rr.FileSink(str(self.tmp)))
         if spawn:
-            self.recording.spawn(connect=False)
             sinks.append(rr.GrpcSink())
         if connect is not None:
             sinks.append(rr.GrpcSink(grpc_url(connect)))

@@ -412,7 +412,7 @@ def _rerun_sink(
     derived from the input's full path and content (:func:`rose_logs.rerun.recording_id_for`)."""
     from rose_logs.rerun import RerunSink, recording_id_for  # rerun loads only when used
     from rose_logs.rerun.paths import entity_root_for_topic
-    from rose_logs.rerun.sink import viewer_unreachable
+    from rose_logs.rerun.sink import ViewerNotStarted, viewer_unreachable
 
     roots: dict[str, str] = {}
     for topic in map_topics:
@@ -447,6 +447,12 @@ def _rerun_sink(
             start_ns=start_ns,
             failure_level=failure_level,
         )
+    except ViewerNotStarted as err:
+        msg = (
+            f"--spawn: {err}; save a recording with --rrd FILE, or stream to a viewer elsewhere "
+            "with --connect ADDR"
+        )
+        raise LogWriteError(msg) from err
     except (ValueError, OSError, RuntimeError) as err:
         msg = f"{rrd_path or connect or 'Rerun viewer'}: cannot open the Rerun recording ({err})"
         raise LogWriteError(msg) from err

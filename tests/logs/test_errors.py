@@ -571,6 +571,30 @@ def test_spawn_without_a_display_is_an_error_before_any_work(
     assert _leftovers(tmp_path, {mcap_log.name}) == []
 
 
+def test_spawn_whose_viewer_does_not_start_is_an_error_before_any_work(
+    tmp_path: Path, capsys, mcap_log: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A display set but unusable: the viewer died at start, the whole session ran, and its
+    outputs were lost at the final flush (exit 1 after the work)."""
+    import socket
+
+    import rerun as rr
+
+    from rose_logs.rerun import sink
+
+    with socket.socket() as sock:  # the spawned viewer's port, with nothing listening on it
+        sock.bind(("127.0.0.1", 0))
+        port = sock.getsockname()[1]
+    monkeypatch.setenv("DISPLAY", ":99")
+    monkeypatch.setattr(sink, "SPAWNED_VIEWER", f"127.0.0.1:{port}")
+    monkeypatch.setattr(rr.RecordingStream, "spawn", lambda self, **_: None)  # a viewer that died
+    out, report = tmp_path / "o.mcap", tmp_path / "r.json"
+    code, _, err = _run(capsys, "process", mcap_log, "-o", out, "--json", report, "--spawn")
+    assert code == 1
+    _assert_one_line_error(err, "--spawn: the Rerun viewer did not start")
+    assert _leftovers(tmp_path, {mcap_log.name}) == []
+
+
 def test_format_mismatch_is_an_error(tmp_path: Path, fr079) -> None:
     built = build_log(tmp_path / "in.bag", "ros1", session_maps(fr079[:1]))
     with pytest.raises(LogWriteError, match="cannot store ROS 1 messages"):
