@@ -100,6 +100,9 @@ def filesystem(uri: str, storage_options: Mapping[str, Any] | None = None) -> tu
     except (ValueError, ImportError) as err:  # e.g. a chain fsspec cannot build
         msg = f"{uri}: cannot open ({err})"
         raise BatchError(msg) from err
+    except TypeError as err:  # an option the file system does not take, or of the wrong type
+        msg = f"{uri}: cannot open with the storage options given ({err})"
+        raise BatchError(msg) from err
 
 
 #: Packages whose exceptions mean "the storage cannot be reached or refuses us" (no endpoint, no
@@ -126,11 +129,25 @@ def storage_errors(uri: str) -> Iterator[None]:
     except BatchError:
         raise
     except Exception as err:
-        if type(err).__module__.split(".")[0] not in _STORAGE_CLIENTS:
+        if not _from_storage_client(err):
             raise
         text = " ".join(str(err).split()) or "no details"
         msg = f"{uri}: cannot use the storage ({type(err).__name__}: {text})"
         raise BatchError(msg) from err
+
+
+def _from_storage_client(err: BaseException) -> bool:
+    """Whether ``err`` is a storage client's: of its own type, or a ``TypeError`` raised inside
+    one (an option it does not take, or of another type, from ``--storage-option``)."""
+    if type(err).__module__.split(".")[0] in _STORAGE_CLIENTS:
+        return True
+    if not isinstance(err, TypeError):
+        return False
+    tb = err.__traceback__
+    while tb is not None and tb.tb_next is not None:
+        tb = tb.tb_next
+    module = "" if tb is None else str(tb.tb_frame.f_globals.get("__name__", ""))
+    return module.split(".")[0] in _STORAGE_CLIENTS
 
 
 def work_folder_prefix() -> str:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from collections.abc import Callable
 from typing import Any
@@ -107,7 +108,12 @@ def _storage_option(text: str) -> tuple[str, Any]:
     lowered = value.lower()
     if lowered in ("true", "false"):
         return key, lowered == "true"
-    return key, value
+    # As fsspec reads its FSSPEC_<PROTOCOL> variables: JSON where it is JSON (numbers, null,
+    # objects such as client_kwargs), else the text ("123" quoted stays a string).
+    try:
+        return key, json.loads(value)
+    except ValueError:
+        return key, value
 
 
 def add_parser(subparsers: Any) -> None:
@@ -168,7 +174,11 @@ def add_parser(subparsers: Any) -> None:
         action="append",
         default=[],
         metavar="KEY=VALUE",
-        help="fsspec option for remote inputs and OUT, e.g. endpoint_url=http://host:9000",
+        help=(
+            "fsspec option for remote inputs and OUT, e.g. endpoint_url=http://host:9000; a "
+            "VALUE that is JSON is read as JSON (max_concurrency=2, "
+            'client_kwargs=\'{"region_name": "eu-west-1"}\'; quoted, "123" stays text)'
+        ),
     )
     work = parser.add_argument_group("per recording (as `process`)")
     add_topic_argument(work)

@@ -115,6 +115,11 @@ def test_cli_storage_options_and_a_corrupt_object(
         "key=testing",
         "--storage-option",
         "secret=testing",
+        # JSON values as JSON: s3fs wants a number and a dict here (a string failed)
+        "--storage-option",
+        "max_concurrency=2",
+        "--storage-option",
+        'client_kwargs={"region_name": "us-east-1"}',
         "--max-errors",
         "1",
     ]
@@ -127,6 +132,22 @@ def test_cli_storage_options_and_a_corrupt_object(
     # The row names the object, not the downloaded copy (gone by the time anyone reads it).
     assert rows[0]["error"].startswith(f"s3://{BUCKET}/in/cut.mcap: ")
     assert "rose-batch-" not in rows[0]["error"]
+
+
+def test_a_misspelt_storage_option_is_a_one_line_error(
+    fleet: Path, s3: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    import s3fs
+
+    s3fs.S3FileSystem(**s3).put(str(fleet / "robot_a" / "run.mcap"), f"{BUCKET}/in/run.mcap")
+    argv = ["batch", f"s3://{BUCKET}/in/", "-o", f"s3://{BUCKET}/out", "-q"]
+    argv += ["--storage-option", f"endpoint_url={s3['endpoint_url']}"]
+    argv += ["--storage-option", "key=testing", "--storage-option", "secret=testing"]
+    argv += ["--storage-option", "endpont_url=http://typo"]
+    assert main(argv) == 1
+    err = capsys.readouterr().err
+    assert err.startswith(f"error: s3://{BUCKET}/in/: cannot use the storage (TypeError: ")
+    assert "endpont_url" in err and "Traceback" not in err
 
 
 def test_a_mistyped_output_bucket_is_an_error_and_is_not_created(
