@@ -17,6 +17,7 @@ import argparse
 import bisect
 import contextlib
 import logging
+import math
 import os
 import shutil
 import signal
@@ -31,6 +32,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from rose.cli.options import float_in, int_in_range
 from rose.errors import RoseError
 from rose.limits import short
 from rose_logs.rerun.paths import SESSION_TIMELINE
@@ -323,13 +325,20 @@ def take_screenshots(
     return shots
 
 
+#: Latest session time ``--time`` takes, seconds (a century: nothing later fits the timeline).
+_MOST_SESSION_S = 100 * 365 * 86400.0
+
+
 def _parse_duration_ns(text: str) -> int:
     value = text.strip().lower().removesuffix("s")
     try:
-        return round(float(value) * 1e9)
-    except ValueError as err:
-        msg = f"not a session time in seconds: {text!r}"
-        raise argparse.ArgumentTypeError(msg) from err
+        seconds = float(value)
+    except ValueError:
+        seconds = math.nan
+    if not 0 <= seconds <= _MOST_SESSION_S:  # NaN, inf (round() overflowed), negative
+        msg = f"not a session time in seconds (0 to a century): {text!r}"
+        raise argparse.ArgumentTypeError(msg)
+    return round(seconds * 1e9)
 
 
 def _steps(
@@ -381,9 +390,18 @@ def build_parser() -> argparse.ArgumentParser:
         "before each (times print rounded: give a little more to see a break's first snapshot)",
     )
     parser.add_argument("--prefix", default="", help="prefix of the PNG names")
-    parser.add_argument("--width", type=int, default=1600)
-    parser.add_argument("--height", type=int, default=1000)
-    parser.add_argument("--load-seconds", type=float, default=DEFAULT_LOAD_S)
+    parser.add_argument(
+        "--width", type=int_in_range(320, 8192), default=1600, help="pixels (default: 1600)"
+    )
+    parser.add_argument(
+        "--height", type=int_in_range(240, 8192), default=1000, help="pixels (default: 1000)"
+    )
+    parser.add_argument(
+        "--load-seconds",
+        type=float_in(1.0, 3600.0),
+        default=DEFAULT_LOAD_S,
+        help=f"seconds to let the viewer load before the first shot (default: {DEFAULT_LOAD_S:g})",
+    )
     return parser
 
 

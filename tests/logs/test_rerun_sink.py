@@ -868,6 +868,23 @@ def test_the_screenshot_tool_says_in_one_line_what_it_cannot_read(
     assert not (tmp_path / "shots").exists()
 
 
+@pytest.mark.parametrize(
+    "option",
+    [("--time", "inf"), ("--time", "1e300"), ("--time", "-2"), ("--width", "0")],
+)
+def test_the_screenshot_tool_refuses_odd_numbers_as_usage_errors(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], option: tuple[str, str]
+) -> None:
+    """--time inf ended in an OverflowError traceback."""
+    from rose_logs.rerun.screenshots import main as screenshots
+
+    with pytest.raises(SystemExit) as stop:
+        screenshots([str(tmp_path / "s.rrd"), "--out", str(tmp_path / "shots"), *option])
+    assert stop.value.code == 2
+    err = capsys.readouterr().err
+    assert f"argument {option[0]}:" in err and "Traceback" not in err
+
+
 @pytest.mark.parametrize("side", [12, 40, 400])
 def test_the_threshold_label_sits_between_the_cells_and_the_bar(tmp_path: Path, side: int) -> None:
     """On any size of map (the bar's height had a floor of two cells, under which the labels' fixed
