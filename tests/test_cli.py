@@ -175,6 +175,36 @@ def test_main_in_process_leaves_the_callers_signal_handlers(
     assert {name: signal.getsignal(getattr(signal, name)) for name in names} == before
 
 
+def test_main_in_process_twice_says_each_runs_warnings_on_its_own_stderr(tmp_path: Path) -> None:
+    """The first run's logging handler stayed on the root logger: the second run's warnings went
+    to the first run's stream, named after its input."""
+    import contextlib
+    import io
+    import logging
+
+    from rose_logs.cli import main as rose_bag_main
+
+    source = Path(__file__).parent / "data" / "rose2_aislabunimi" / "Freiburg_Building_079_partial"
+    (tmp_path / "map15.png").write_bytes((source / "map15.png").read_bytes())
+    for name in ("a", "b"):  # no negate / thresholds: a warning naming the file
+        (tmp_path / f"{name}.yaml").write_text(
+            "image: map15.png\nresolution: 0.05\norigin: [0, 0, 0]\n"
+        )
+    loggers = [logging.getLogger(name) for name in ("", "rose", "rose_logs")]
+    before = [(lg.handlers[:], lg.level, lg.propagate) for lg in loggers]
+    said = {}
+    for name in ("a", "b"):
+        said[name] = io.StringIO()
+        with contextlib.redirect_stderr(said[name]), contextlib.redirect_stdout(io.StringIO()):
+            assert main(["score", str(tmp_path / f"{name}.yaml")]) == 0
+    for name in ("a", "b"):
+        assert said[name].getvalue().count("warning:") == 1
+        assert f"{name}.yaml: no negate" in said[name].getvalue()
+    with contextlib.redirect_stderr(io.StringIO()), contextlib.redirect_stdout(io.StringIO()):
+        assert rose_bag_main(["info", str(source / "map15.yaml")]) != 0
+    assert [(lg.handlers[:], lg.level, lg.propagate) for lg in loggers] == before
+
+
 def test_clean_method_paper_is_the_papers_labelling(cluttered_map: Path, tmp_path: Path) -> None:
     paper, walls = tmp_path / "paper.yaml", tmp_path / "walls.yaml"
     assert main(["clean", str(cluttered_map), "-o", str(paper), "--method", "paper"]) == 0

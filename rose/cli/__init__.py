@@ -8,11 +8,12 @@ options in :mod:`rose.cli.options`; errors are one line on stderr with exit code
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import logging
 import re
 import sys
-from collections.abc import Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from typing import Any, NoReturn
 
 from rose import __version__
@@ -165,9 +166,8 @@ def _run(argv: Sequence[str] | None) -> int:
     # Not for `rose score`'s several maps: the first one's name would be wrong for the others.
     single = input_name(args) if getattr(args, "maps", None) is None else None
     handler.addFilter(_InputNamed(single))
-    logging.basicConfig(level=logging.WARNING, handlers=[handler])
     try:
-        with stdout_errors_named():  # its errors name it, not the input
+        with logging_routed({"": handler}, logging.WARNING), stdout_errors_named():
             return int(args.func(args))
     except (RoseError, OSError, MemoryError, RecursionError) as err:
         reraise_interrupt_behind(err)  # a signal inside a library: exit 130 / 143, not "error"
@@ -177,6 +177,30 @@ def _run(argv: Sequence[str] | None) -> int:
             raise
         print(f"error: {error_text(err, where=input_name(args))}", file=sys.stderr)
         return 1
+
+
+@contextlib.contextmanager
+def logging_routed(routes: Mapping[str, logging.Handler], level: int) -> Iterator[None]:
+    """While the block runs, the records of each named logger (``""``: the root) at ``level`` and
+    above go to its handler alone (not on to its parents); afterwards every logger is as it was.
+
+    A command run twice in one process (``main`` called in-process) wrote its warnings to the
+    first run's stream through a handler left on the root logger.
+    """
+    saved = []
+    for name, handler in routes.items():
+        logger = logging.getLogger(name)
+        saved.append((logger, logger.handlers[:], logger.level, logger.propagate))
+        logger.handlers[:] = [handler]
+        logger.setLevel(level)
+        logger.propagate = False
+    try:
+        yield
+    finally:
+        for logger, handlers, old_level, propagate in saved:
+            logger.handlers[:] = handlers
+            logger.setLevel(old_level)
+            logger.propagate = propagate
 
 
 class LevelFormatter(logging.Formatter):

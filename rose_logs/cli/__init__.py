@@ -9,11 +9,12 @@ Tracebacks only with ``--debug``.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import logging
 import os
 import sys
 
-from rose.cli import CommandParser, LevelFormatter, error_text, input_name
+from rose.cli import CommandParser, LevelFormatter, error_text, input_name, logging_routed
 from rose.errors import RoseError
 from rose.outputs import (
     EXIT_BROKEN_PIPE,
@@ -72,21 +73,20 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _configure_logging(debug: bool) -> None:
-    """``warning: ...`` lines on stderr for our logs and for the ``rose`` library underneath.
+def _logging(debug: bool) -> contextlib.AbstractContextManager[None]:
+    """``warning: ...`` lines on stderr for our logs and for the ``rose`` library underneath, while
+    the command runs.
 
     A session calls the library once per snapshot: its messages (``ROSE found no dominant
     direction ...``) are said once per map topic, naming it, not once per snapshot.
     """
-    for name, once in (("rose_logs", False), ("rose", True)):
-        handler = logging.StreamHandler(sys.stderr)
-        handler.setFormatter(LevelFormatter())
-        if once:
-            handler.addFilter(_OncePerMessage())
-        logger = logging.getLogger(name)
-        logger.handlers[:] = [handler]
-        logger.setLevel(logging.DEBUG if debug else logging.WARNING)
-        logger.propagate = False
+    ours = logging.StreamHandler(sys.stderr)
+    ours.setFormatter(LevelFormatter())
+    library = logging.StreamHandler(sys.stderr)
+    library.setFormatter(LevelFormatter())
+    library.addFilter(_OncePerMessage())
+    level = logging.DEBUG if debug else logging.WARNING
+    return logging_routed({"rose_logs": ours, "rose": library}, level)
 
 
 class _OncePerMessage(logging.Filter):
@@ -137,9 +137,8 @@ def _run(argv: list[str] | None) -> int:
     from rose.cli.options import check_params  # loaded with the commands already
 
     check_params(getattr(args, "command_parser", parser), args)
-    _configure_logging(args.debug)
     try:
-        with stdout_errors_named():  # its errors name it, not the input
+        with _logging(args.debug), stdout_errors_named():  # its errors name it, not the input
             return int(args.func(args))
     except UsageError as err:
         command_parser = getattr(args, "command_parser", parser)
