@@ -955,20 +955,9 @@ def save_map(
     grid = as_occupancy_grid(occupancy_map.grid)
     image_path = map_image_path(path)
     image_entry = _image_entry(path, image_path)
-    try:
-        image_entry.encode("utf-8")
-    except UnicodeEncodeError:
-        # YAML is Unicode: the name would be an escape map_server cannot open.
-        what = "name" if image_entry == image_path.name else "image's path"
-        msg = f"{short(path, 200)}: a map's {what} must be UTF-8 (its YAML names the image)"
-        raise MapFileError(msg) from None
-    for output in (path, image_path):
-        if is_stream(output):  # and opening a FIFO without a reader would wait for one
-            msg = (
-                f"{output}: a map is two files, its YAML naming its image: not written to a "
-                "device or FIFO"
-            )
-            raise MapFileError(msg)
+    problem = map_output_problem(path)
+    if problem is not None:
+        raise MapFileError(problem)
     problem = _unloadable(grid)
     if problem is not None:  # written, it could not be read back
         msg = f"{path}: cannot save a map with {problem}"
@@ -1008,6 +997,28 @@ def save_map(
     if own:
         target.commit()
     return image_path
+
+
+def map_output_problem(path: str | Path) -> str | None:
+    """Why a map cannot be saved to the YAML ``path`` whatever its grid (one line naming the file),
+    or None: its image's name not UTF-8, or an output that is a device or FIFO. What
+    :func:`save_map` refuses before writing; a command checks it before its work."""
+    path = Path(path)
+    image_path = map_image_path(path)
+    image_entry = _image_entry(path, image_path)
+    try:
+        image_entry.encode("utf-8")
+    except UnicodeEncodeError:
+        # YAML is Unicode: the name would be an escape map_server cannot open.
+        what = "name" if image_entry == image_path.name else "image's path"
+        return f"{short(path, 200)}: a map's {what} must be UTF-8 (its YAML names the image)"
+    for output in (path, image_path):
+        if is_stream(output):  # and opening a FIFO without a reader would wait for one
+            return (
+                f"{output}: a map is two files, its YAML naming its image: not written to a "
+                "device or FIFO"
+            )
+    return None
 
 
 def _image_entry(yaml_path: Path, image_path: Path) -> str:

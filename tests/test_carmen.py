@@ -499,3 +499,27 @@ def test_gzip_with_bytes_after_it_is_said_so(tmp_path: Path) -> None:
     path.write_bytes(gzip.compress(good.encode()) + b"garbage after the member\n")
     with pytest.raises(CarmenFormatError, match=r"corrupt gzip data .*no gzip member follow"):
         read_carmen_log(path)
+
+
+def test_convert_refuses_a_map_file_clashing_with_the_session_before_ray_casting(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The session named as the map's image, or a map inside the session's bag folder, was found
+    only when the map was staged, after the whole log was ray cast."""
+    from rose_logs.cli import convert, main
+
+    path = tmp_path / "log.txt"
+    path.write_text("FLASER 3 1.0 2.0 3.0 0.5 -0.5 0.1 0.5 -0.5 0.1 12.5 host 12.5\n")
+
+    def never(*_: object, **__: object) -> None:
+        raise AssertionError("the log was converted before its outputs were checked")
+
+    monkeypatch.setattr(convert, "write_carmen_session", never)
+    monkeypatch.chdir(tmp_path)
+    for argv, said in (
+        (["out.pgm", "--format", "mcap", "--map-file", "out.yaml"], "out.pgm"),
+        (["m2.yaml", "--format", "db3", "--map-file", "m2.yaml"], "m2.yaml: given for two"),
+    ):
+        assert main(["convert", str(path), *argv]) in (1, 2)
+        assert said in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["log.txt"]

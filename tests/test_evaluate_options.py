@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from real_data import REPO_DATA
 
 from rose_logs.cli import build_parser, main
 from rose_logs.cli.evaluate import config_from_args
@@ -122,3 +123,48 @@ def test_a_missing_data_folder_is_named_and_an_empty_report_folder_is_replaceabl
     argv = ["evaluate", str(empty), "--no-plots", "--logs", "", "--maps", "", "--force"]
     assert main([*argv, "--maps-dir", str(tmp_path)]) == 0  # was refused: not a report folder
     assert (empty / "report.md").is_file()
+
+
+def test_force_replaces_only_a_folder_that_holds_an_evaluation_report_alone(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A folder of the user's with a report.md of its own (and a chapters/ folder) was replaced
+    whole, its other files lost."""
+    mine = tmp_path / "thesis"
+    (mine / "chapters").mkdir(parents=True)
+    (mine / "report.md").write_text("# My thesis\n")
+    (mine / "chapters" / "ch1.tex").write_text("\\chapter{One}\n")
+    argv = ["evaluate", str(mine), "--no-plots", "--logs", "", "--maps", "", "--force"]
+    assert main([*argv, "--maps-dir", str(tmp_path)]) == 1
+    assert "thesis" in capsys.readouterr().err
+    assert (mine / "chapters" / "ch1.tex").is_file()
+    assert (mine / "report.md").read_text() == "# My thesis\n"
+    report = tmp_path / "report"
+    report.mkdir()
+    assert main([*argv[:1], str(report), *argv[2:], "--maps-dir", str(tmp_path)]) == 0
+    assert main([*argv[:1], str(report), *argv[2:], "--maps-dir", str(tmp_path)]) == 0  # again
+    (report / "notes.txt").write_text("mine")
+    assert main([*argv[:1], str(report), *argv[2:], "--maps-dir", str(tmp_path)]) == 1
+    assert (report / "notes.txt").read_text() == "mine"
+
+
+def test_a_furnished_drawing_of_another_size_is_said_before_any_experiment(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """It was a ValueError traceback, after experiment 1 had run."""
+    import shutil
+
+    import cv2
+
+    from rose_logs.evaluation.config import BENCHMARK_SUBDIR
+
+    data = tmp_path / "maps"
+    shutil.copytree(REPO_DATA / BENCHMARK_SUBDIR, data / BENCHMARK_SUBDIR)
+    furnished = data / BENCHMARK_SUBDIR / "Freiburg79_scan_furnitures.png"
+    cv2.imwrite(str(furnished), cv2.imread(str(furnished), cv2.IMREAD_GRAYSCALE)[:-5])
+    out = tmp_path / "report"
+    argv = ["evaluate", str(out), "--maps-dir", str(data), "--logs", "", "--no-plots"]
+    assert main([*argv, "--maps", "Freiburg79_scan"]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith(f"error: {furnished}: shape ") and err.count("\n") == 1
+    assert not out.exists()

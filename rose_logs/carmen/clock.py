@@ -185,16 +185,20 @@ def _stamps_in_line(stamps: npt.NDArray[np.int64], log: CarmenLog) -> npt.NDArra
     low = np.where(before >= 0, in_line[np.maximum(before, 0)], expected)
     high = np.where(after < kept.size, in_line[np.minimum(after, kept.size - 1)], expected)
     tolerance = OUT_OF_LINE_S * 1e9
-    wrong = (stamps < low - tolerance) | (stamps > high + tolerance)
+    # A stamp ahead of the scans in line after it is nudged onto by all of them (a stamp 5 s ahead
+    # put the next 5 s of scans on one time): placed between its neighbours from a second on.
+    ahead = min(tolerance, RESTART_MIN_S * 1e9)
+    wrong = (stamps < low - tolerance) | (stamps > high + ahead)
     if not wrong.any():
         return stamps
     first = int(np.flatnonzero(wrong)[0])
     _LOG.warning(
-        "%s: %d scan stamp(s) out of line with the rest by more than %g s (first: scan %d, "
-        "%.3f s): placed between their neighbours",
+        "%s: %d scan stamp(s) out of line with the rest (by more than %g s, or %g s ahead of "
+        "the scans after them; first: scan %d, %.3f s): placed between their neighbours",
         log.path,
         int(np.count_nonzero(wrong)),
         OUT_OF_LINE_S,
+        RESTART_MIN_S,
         first + 1,
         stamps[first] / 1e9,
     )

@@ -27,6 +27,7 @@ from collections import Counter
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import IO
 
 import numpy as np
 import numpy.typing as npt
@@ -54,6 +55,9 @@ _TRAILER_FIELDS = 9
 #: Most beams a FLASER line may announce (laser scanners give up to a few thousand): a line of
 #: millions of ranges, a few kB gzipped, held gigabytes.
 MAX_BEAMS = 100_000
+
+#: Line kinds (first words) counted one by one; lines of further kinds are counted together.
+_MAX_KINDS = 100
 
 
 class CarmenFormatError(LogReadError, ValueError):
@@ -227,15 +231,36 @@ def parse_flaser_line(line: str, *, line_number: int = 0) -> FlaserScan:
     )
 
 
+#: Longest line read whole, characters: a FLASER line of MAX_BEAMS ranges written with 17 digits
+#: each is under 2 MiB. The rest of a longer line is skipped (a line of 1 GB of junk, a few MB
+#: gzipped, held 1.8 GB while it was read).
+MAX_LINE_CHARS = 8 * 1024 * 1024
+
+
+def _bounded_lines(fh: IO[str]) -> Iterator[str]:
+    """The lines of a text file, each cut after :data:`MAX_LINE_CHARS` (its rest skipped)."""
+    readline = fh.readline
+    while True:
+        line = readline(MAX_LINE_CHARS)
+        if not line:
+            return
+        if len(line) >= MAX_LINE_CHARS and not line.endswith("\n"):
+            while True:  # skip to the end of the line, a bounded piece at a time
+                rest = readline(MAX_LINE_CHARS)
+                if not rest or rest.endswith("\n"):
+                    break
+        yield line
+
+
 def _open_lines(path: Path) -> Iterator[str]:
     with path.open("rb") as probe:
         magic = probe.read(2)
     if magic == _GZIP_MAGIC:
         with gzip.open(path, "rt", encoding="utf-8-sig", errors="replace") as fh:
-            yield from fh
+            yield from _bounded_lines(fh)
     else:  # utf-8-sig: a byte-order mark before the first line is no part of it
         with path.open("rt", encoding="utf-8-sig", errors="replace") as fh:
-            yield from fh
+            yield from _bounded_lines(fh)
 
 
 def parse_carmen_lines(
@@ -250,7 +275,11 @@ def parse_carmen_lines(
         head = line.split(maxsplit=1)
         kind = head[0] if head else ""
         if kind != "FLASER":
-            ignored["#" if kind.startswith("#") else kind] += 1
+            kind = "#" if kind.startswith("#") else kind
+            if kind not in ignored and len(ignored) >= _MAX_KINDS:
+                # one count for the rest: a kind per line of junk held GBs
+                kind = "(other kinds)"
+            ignored[kind] += 1
             continue
         try:
             scans.append(parse_flaser_line(line, line_number=number))

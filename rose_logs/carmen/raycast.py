@@ -279,26 +279,45 @@ class OccupancyGridBuilder:
         ox0, oy0 = self._origin_cell * res
 
         # Free samples: one per cell length, from the ray origin to one cell short of the end.
-        n_free = np.floor(length / res - 1.0).clip(min=0).astype(np.int64).ravel()
-        total = int(n_free.sum())
-        beam = np.repeat(np.arange(n_free.size), n_free)
-        starts = np.cumsum(n_free) - n_free
-        t = (np.arange(total, dtype=np.int64) - np.repeat(starts, n_free)).astype(np.float32)
-        t = (t + 0.5) * np.float32(res)
-        fx = (ox - ox0).astype(np.float32).repeat(angles.size, axis=1).ravel()[beam]
-        fy = (oy - oy0).astype(np.float32).repeat(angles.size, axis=1).ravel()[beam]
-        fx += t * cos_t.astype(np.float32).ravel()[beam]
-        fy += t * sin_t.astype(np.float32).ravel()[beam]
-        free_idx = (np.floor(fy / res).astype(np.int64) * cols) + np.floor(fx / res).astype(
-            np.int64
-        )
+        # Counted over pieces of at most _MAX_FREE_SAMPLES samples (the counts add up, so the map
+        # is the same): 16 scans of 100,000 beams of 25 m are 800 million samples, which took
+        # all of a 24 GB machine's memory at once.
+        n_free_all = np.floor(length / res - 1.0).clip(min=0).astype(np.int64).ravel()
+        ox_rays = (ox - ox0).astype(np.float32).repeat(angles.size, axis=1).ravel()
+        oy_rays = (oy - oy0).astype(np.float32).repeat(angles.size, axis=1).ravel()
+        cos_rays = cos_t.astype(np.float32).ravel()
+        sin_rays = sin_t.astype(np.float32).ravel()
+        size = rows * cols
+        miss_count = np.zeros(size, dtype=np.int64)
+        ends = np.cumsum(n_free_all)
+        first = 0
+        while first < n_free_all.size:
+            done = int(ends[first - 1]) if first else 0
+            # the rays whose samples fit in the piece (at least one ray)
+            last = max(
+                int(np.searchsorted(ends, done + _MAX_FREE_SAMPLES, side="right")), first + 1
+            )
+            n_free = n_free_all[first:last]
+            total = int(n_free.sum())
+            beam = np.repeat(np.arange(n_free.size), n_free)
+            starts = np.cumsum(n_free) - n_free
+            t = (np.arange(total, dtype=np.int64) - np.repeat(starts, n_free)).astype(np.float32)
+            t = (t + 0.5) * np.float32(res)
+            fx = ox_rays[first:last][beam]
+            fy = oy_rays[first:last][beam]
+            fx += t * cos_rays[first:last][beam]
+            fy += t * sin_rays[first:last][beam]
+            free_idx = (np.floor(fy / res).astype(np.int64) * cols) + np.floor(fx / res).astype(
+                np.int64
+            )
+            counts = np.bincount(free_idx)
+            miss_count[: counts.size] += counts
+            first = last
 
         hx = np.floor((ex[hit] - ox0) / res).astype(np.int64)
         hy = np.floor((ey[hit] - oy0) / res).astype(np.int64)
         hit_idx = hy * cols + hx
 
-        size = rows * cols
-        miss_count = np.bincount(free_idx, minlength=size)
         hit_count = np.bincount(hit_idx, minlength=size)
         delta = (p.log_odds_miss * miss_count + p.log_odds_hit * hit_count).astype(np.float32)
         flat = self._log_odds.reshape(-1)
@@ -307,6 +326,10 @@ class OccupancyGridBuilder:
         touched = (miss_count > 0) | (hit_count > 0)
         self._observed.reshape(-1)[touched] = True
         self.scan_count += ranges.shape[0]
+
+
+#: Most free-space samples of one ray-casting piece (about 40 bytes each while they are counted).
+_MAX_FREE_SAMPLES = 4_000_000
 
 
 def crop_to_known(

@@ -133,8 +133,19 @@ def run(args: argparse.Namespace) -> int:
     from rose.mapfile import map_image_path  # with numpy: not at the CLI's start-up
 
     map_files = (args.map_file, map_image_path(args.map_file)) if args.map_file is not None else ()
-    outputs.check(args.output, directory=fmt in ("db3", "mcap-dir"))
-    outputs.check(*map_files)
+    folder = fmt in ("db3", "mcap-dir")
+    outputs.check(args.output, directory=folder)
+    # The session against the map's YAML and image too, now: staging the map at the end found a
+    # clash only after the whole log was ray cast (`out.pgm --format mcap --map-file out.yaml`).
+    outputs.check(None if folder else args.output, *map_files)
+    if folder:
+        _check_apart(Path(args.output), map_files)
+    if args.map_file is not None:  # save_map's own refusals, now rather than after the ray casting
+        from rose.mapfile import map_output_problem
+
+        problem = map_output_problem(args.map_file)
+        if problem is not None:
+            raise UsageError(problem)
     # After the checks: an output refused anyway (the input itself, `convert p.log p.log`) is
     # refused alone, not warned about first.
     _warn_of_suffix(args)
@@ -194,6 +205,19 @@ def run(args: argparse.Namespace) -> int:
         f"{duration_s:.1f} s{clock}"
     )
     return 0
+
+
+def _check_apart(folder: Path, files: tuple[Path, ...]) -> None:
+    """Refuse a ``--map-file`` YAML or image that is the session's bag folder or lies inside it."""
+    from rose.errors import OutputError
+
+    here = folder.resolve()
+    for path in files:
+        there = Path(path).resolve()
+        if there == here or here in there.parents:
+            also = "(each needs a file of its own)" if there == here else f"(also inside {folder})"
+            msg = f"{path}: given for two outputs {also}"
+            raise OutputError(msg)
 
 
 def _warn_of_suffix(args: argparse.Namespace) -> None:

@@ -208,12 +208,26 @@ def run(args: argparse.Namespace) -> int:
 
 
 def is_report_folder(path: Path) -> bool:
-    """Whether ``path`` is empty or holds an earlier ``evaluate`` report (``--force`` may replace
-    only that)."""
+    """Whether ``path`` is empty or holds an earlier ``evaluate`` report and nothing else
+    (``--force`` may replace only that): its ``report.md`` says so in its title, and every entry is
+    a file of the kinds a report holds (no sub-folder, no notes of the user's)."""
+    import os
+    import re
+
     from rose_logs.evaluation.report import MARKDOWN_NAME
 
     try:
-        empty = not any(path.iterdir())  # nothing to lose
+        entries = list(os.scandir(path))
     except OSError:
-        empty = False
-    return empty or (path / MARKDOWN_NAME).is_file()
+        return False
+    if not entries:
+        return True  # nothing to lose
+    try:
+        with (path / MARKDOWN_NAME).open("rb") as fh:
+            title = fh.read(64)
+    except OSError:
+        return False
+    kinds = re.compile(r"[\w.+-]+\.(?:csv|png|md)")
+    return title.startswith(b"# ROSE evaluation") and all(
+        e.is_file(follow_symlinks=False) and kinds.fullmatch(e.name) for e in entries
+    )

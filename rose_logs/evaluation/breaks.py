@@ -552,8 +552,10 @@ class CostSummary:
 
 def cost_summary(sessions: Sequence[SessionScores]) -> CostSummary:
     """:class:`CostSummary` over every scored snapshot."""
-    det = np.concatenate([s.detector_s[1:] for s in sessions])
-    ros = np.concatenate([s.rose_s[1:] for s in sessions])
+    det = np.concatenate([np.zeros(0), *(s.detector_s[1:] for s in sessions)])
+    ros = np.concatenate([np.zeros(0), *(s.rose_s[1:] for s in sessions)])
+    if det.size == 0:  # sessions of one snapshot each (a log shorter than a map period)
+        return CostSummary(0, math.nan, math.nan, math.nan, math.nan)
     ratio = det / np.maximum(ros, 1e-9)
     return CostSummary(
         snapshots=int(det.size),

@@ -162,7 +162,7 @@ def furnished_pair(
             f"{furniture_path}: shape {grey_furnished.shape} differs from {clean_path} "
             f"{grey_clean.shape}"
         )
-        raise ValueError(msg)
+        raise rose.MapFileError(msg)
     walls = grey_clean < _OBSTACLE_GREY_BELOW
     darker = grey_clean.astype(np.int16) - grey_furnished.astype(np.int16) > _FURNITURE_MIN_STEP
     furniture = ~walls & darker

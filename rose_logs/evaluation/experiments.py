@@ -128,14 +128,27 @@ def _seed(base: int, *parts: object) -> int:
 def source_maps(config: EvaluationConfig) -> dict[str, tuple[str, npt.NDArray[np.int8]]]:
     """Experiment-1 input maps: name -> (source, grid); logs rasterised, benchmark images loaded."""
     maps: dict[str, tuple[str, npt.NDArray[np.int8]]] = {}
+    threshold = config.rose_params.occupied_threshold
     for name in config.logs:
-        log_map = rasterise_log(
-            config.logs_dir / f"{name}-corrected.log.gz", resolution_m=config.resolution_m
-        )
+        path = config.logs_dir / f"{name}-corrected.log.gz"
+        log_map = rasterise_log(path, resolution_m=config.resolution_m)
+        _check_free(path, log_map.grid, threshold)
         maps[name] = ("radish log", log_map.grid)
     for name in config.benchmark_maps:
-        maps[name] = ("bormann", load_benchmark_map(config.benchmark_dir / f"{name}.png"))
+        path = config.benchmark_dir / f"{name}.png"
+        maps[name] = ("bormann", _check_free(path, load_benchmark_map(path), threshold))
     return maps
+
+
+def _check_free(
+    path: object, grid: npt.NDArray[np.int8], occupied_threshold: int
+) -> npt.NDArray[np.int8]:
+    """``grid``, or a one-line error naming ``path`` when it has no free cell to put clutter on
+    (a log of readings without a return, a drawing all black): a traceback from add_clutter."""
+    if not np.any((grid >= 0) & (grid < occupied_threshold)):
+        msg = f"{path}: its map has no free cell to place clutter on (experiment 1)"
+        raise rose.MapFileError(msg)
+    return grid
 
 
 def _clutter_run(

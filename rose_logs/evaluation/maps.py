@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
-from rose import load_map
+from rose import MapFileError, load_map
 from rose_logs.carmen.drift import apply_drift
 from rose_logs.carmen.parse import CarmenLog, read_carmen_log
 from rose_logs.carmen.raycast import (
@@ -109,10 +109,26 @@ def load_benchmark_map(path: Path) -> npt.NDArray[np.int8]:
 def _grey(path: Path) -> npt.NDArray[np.uint8]:
     import cv2
 
-    image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+    from rose.limits import DEFAULT_MAX_CELLS, check_cells, image_shape
+
+    # Sized from its header before decoding, as load_map sizes the clean drawing: a 0.4 MB PNG
+    # declaring 20000 x 20000 pixels took 0.9 GB in cv2.imread.
+    try:
+        raw = Path(path).read_bytes()
+    except OSError as err:
+        msg = f"{path}: cannot read image ({err.strerror or err})"
+        raise MapFileError(msg) from err
+    shape = image_shape(raw)
+    problem = (
+        "no image size in its header" if shape is None else check_cells(*shape, DEFAULT_MAX_CELLS)
+    )
+    if problem is not None:
+        msg = f"{path}: image of {problem}"
+        raise MapFileError(msg)
+    image = cv2.imdecode(np.frombuffer(raw, dtype=np.uint8), cv2.IMREAD_GRAYSCALE)
     if image is None:
         msg = f"{path}: cannot read image"
-        raise OSError(msg)
+        raise MapFileError(msg)
     # Image rows are top first; ROS grids start at the bottom.
     return np.ascontiguousarray(image[::-1], dtype=np.uint8)
 
@@ -138,7 +154,7 @@ def furniture_pair(
     grey = _grey(furniture_path)
     if grey.shape != clean.shape:
         msg = f"{furniture_path}: shape {grey.shape} differs from {clean_path} {clean.shape}"
-        raise ValueError(msg)
+        raise MapFileError(msg)
     structure = clean >= 65
     clutter = (clean >= 0) & ~structure & (grey < _FURNITURE_GREY_BELOW)
     grid = clean.copy()

@@ -31,7 +31,7 @@ from rose_logs.evaluation.experiments import (
 )
 from rose_logs.evaluation.figures import have_matplotlib, plot_all, render_grid
 from rose_logs.evaluation.files import text_file, write_bytes, write_png
-from rose_logs.evaluation.maps import LogMap
+from rose_logs.evaluation.maps import LogMap, furniture_pair
 from rose_logs.evaluation.walls import WallReport, wall_experiment
 
 __all__ = ["MARKDOWN_NAME", "EvaluationReport", "run_evaluation"]
@@ -192,8 +192,11 @@ def run_evaluation(
     for name in config.benchmark_maps:
         furnished = config.benchmark_dir / f"{name}_furnitures.png"
         if not furnished.is_file():
-            msg = f"{furnished}: no such file"
+            what = "is not a file" if furnished.exists() else "no such file"
+            msg = f"{furnished}: {what}"
             raise rose.MapFileError(msg)
+        # Both drawings decode and agree in size: said now too, not after experiment 1.
+        furniture_pair(config.benchmark_dir / f"{name}.png", furnished)
     out.mkdir(parents=True, exist_ok=True)
     say = progress if progress is not None else _LOG.info
     t0 = time.perf_counter()
@@ -280,7 +283,7 @@ def _break_section(
 ) -> tuple[str, list[Path]]:
     """Experiment 4 (break detection on replayed sessions) when ``config.break_seeds`` asks for it:
     its markdown and files."""
-    if config.break_seeds <= 0:
+    if config.break_seeds <= 0 or not config.logs:  # no log, no session (`--config full --logs ''`)
         return "", []
     from rose_logs.evaluation.break_report import run_break_experiment
 

@@ -21,6 +21,7 @@ from dataclasses import dataclass, fields
 from pathlib import Path
 
 import numpy as np
+import numpy.typing as npt
 
 from rose import RoseParams, analyze, load_map
 from rose.walls import WallError, WallParams, extract_walls, extract_walls_hough, wall_error
@@ -254,9 +255,14 @@ def _plot(path: Path, rows: tuple[WallRow, ...]) -> Path | None:
         return None
     x = np.arange(len(rows))
     floor = 1e-7  # a zero cost cannot be drawn on a log axis
-    base = np.array([max(r.baseline.mean_cost, floor) for r in rows])
-    rose = np.array([max(r.rose.mean_cost, floor) for r in rows])
-    fixed = np.array([max(r.rose_fixed.mean_cost, floor) for r in rows])
+
+    def costs(pick: str) -> npt.NDArray[np.float64]:
+        # NaN (no segment detected) is not drawn; max(nan, floor) kept it and a log axis of
+        # nothing but NaN raised from matplotlib (a blank drawing)
+        v = np.array([getattr(r, pick).mean_cost for r in rows], dtype=np.float64)
+        return np.where(np.isfinite(v), np.maximum(v, floor), np.nan)
+
+    base, rose, fixed = costs("baseline"), costs("rose"), costs("rose_fixed")
     fig, ax = plt.subplots(figsize=(13, 4.8))
     ax.scatter(x, base, color="tab:red", label="Hough on the furnished map (no ROSE)")
     ax.scatter(
@@ -264,6 +270,8 @@ def _plot(path: Path, rows: tuple[WallRow, ...]) -> Path | None:
     )
     ax.scatter(x, fixed, color="tab:blue", marker="x", label="ROSE with its fixed threshold")
     ax.set_yscale("log")
+    if not np.isfinite(np.concatenate([base, rose, fixed])).any():
+        ax.set_ylim(floor, 1.0)  # nothing to draw: an axis all the same
     ax.set_xticks(x, [r.name for r in rows], rotation=80)
     ax.set_ylabel("mean wall error θ·|T|/2 (rad·m)")
     ax.set_title(f"Wall-line error per building (values below {floor:g} drawn at {floor:g})")
