@@ -16,7 +16,7 @@ from rose.cli.options import (
     params_from_args,
     path_arg,
 )
-from rose.limits import visible
+from rose.limits import short, visible
 from rose.outputs import OutputSet, json_text, suffix_warning
 from rose_logs.cli.options import (
     EXIT_GATE,
@@ -287,15 +287,16 @@ def run(args: argparse.Namespace) -> int:
     out = sys.stderr if outputs.uses_stdout else sys.stdout
     _print_summary(report, out)
     # Failed gates are named even when the salvage decides the exit code (4).
+    # One line each, whatever the input's name holds (a newline split the line).
     for reason in failed:
-        print(f"error: {args.input}: {reason}", file=sys.stderr)
+        print(f"error: {short(f'{args.input}: {reason}')}", file=sys.stderr)
     if report.losses:
         # Each loss was warned about when the reader met it (a long session shows it at once).
-        print(
-            f"warning: {args.input}: damaged input ({len(report.losses)} problem(s) above), "
-            f"outputs hold only what could be read (--salvage, exit {EXIT_SALVAGED})",
-            file=sys.stderr,
+        text = (
+            f"{args.input}: damaged input ({len(report.losses)} problem(s) above), outputs hold "
+            f"only what could be read (--salvage, exit {EXIT_SALVAGED})"
         )
+        print(f"warning: {short(text)}", file=sys.stderr)
         return EXIT_SALVAGED
     return EXIT_GATE if failed else 0
 

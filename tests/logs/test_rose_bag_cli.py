@@ -229,6 +229,16 @@ def test_the_gate_names_the_topic_of_the_highest_w_when_another(
     assert re.search(r"highest: W = [0-9.]+ on /map snapshot 1$", line), line
 
 
+def test_a_failed_gate_is_one_line_whatever_the_inputs_name(tmp_path: Path, capsys, fr079) -> None:
+    """The gate's error line printed the input's name raw: a newline in it split the line."""
+    named = tmp_path / "nl\nname.mcap"
+    build_log(named, "mcap-ros2", session_maps(fr079[:1]))
+    assert main(["process", str(named), "--no-output", "-q", "--fail-above", "0.01"]) == EXIT_GATE
+    lines = capsys.readouterr().err.splitlines()
+    assert lines and all(line.startswith(("error: ", "warning: ")) for line in lines), lines
+    assert any("nl name.mcap: W = " in line for line in lines)
+
+
 def test_fail_on_break_gate_and_json_first_break(
     tmp_path: Path, capsys, fr079, broken_grid
 ) -> None:
