@@ -164,13 +164,37 @@ class _StrictLoader(yaml.SafeLoader):
         return super().construct_mapping(node, deep=deep)
 
 
-# YAML 1.2 (yaml-cpp, which ROS map_server uses) reads 5e-2 and 1.0e5 as numbers; PyYAML's YAML 1.1
-# wants a dot and a signed exponent, and would read them as strings.
-_StrictLoader.add_implicit_resolver(
-    "tag:yaml.org,2002:float",
-    re.compile(r"^[-+]?(?:\.[0-9]+|[0-9]+(?:\.[0-9]*)?)[eE][-+]?[0-9]+$"),
-    list("-+.0123456789"),
+# Plain scalars are typed as YAML 1.2's core schema types them, as ROS's yaml-cpp reads them: PyYAML's
+# YAML 1.1 took `0x10` and `1_0` for numbers (resolution 16 m, 10 m), `1:30` for 90 (sexagesimal)
+# and `yes` / `on` for true, all of which map_server refuses; and it read 5e-2 and 1.0e5 (no dot, or
+# an unsigned exponent) as strings. Hexadecimal and octal integers stay strings too: no map field
+# wants one.
+_StrictLoader.yaml_implicit_resolvers = {
+    first: [
+        (tag, regexp) for tag, regexp in resolvers if not tag.endswith((":bool", ":int", ":float"))
+    ]
+    for first, resolvers in yaml.SafeLoader.yaml_implicit_resolvers.items()
+}
+for _tag, _regexp, _first in (
+    ("tag:yaml.org,2002:bool", r"^(?:true|True|TRUE|false|False|FALSE)$", "tTfF"),
+    ("tag:yaml.org,2002:int", r"^[-+]?[0-9]+$", "-+0123456789"),
+    (
+        "tag:yaml.org,2002:float",
+        r"^(?:[-+]?(?:\.[0-9]+|[0-9]+(?:\.[0-9]*)?)(?:[eE][-+]?[0-9]+)?"
+        r"|[-+]?\.(?:inf|Inf|INF)|\.(?:nan|NaN|NAN))$",
+        "-+.0123456789",
+    ),
+):
+    _StrictLoader.add_implicit_resolver(_tag, re.compile(_regexp), list(_first))
+
+# Decimal, as YAML 1.2 reads `010` (PyYAML's YAML 1.1 read it as octal 8; yaml-cpp's resolution 10).
+_StrictLoader.add_constructor(
+    "tag:yaml.org,2002:int",
+    lambda loader, node: int(loader.construct_scalar(node), 10),
 )
+
+#: A number as YAML 1.2 (and yaml-cpp) writes it in decimal: what a quoted number may hold.
+DECIMAL_NUMBER = re.compile(r"[-+]?(?:\.[0-9]+|[0-9]+(?:\.[0-9]*)?)(?:[eE][-+]?[0-9]+)?")
 
 
 #: A block mapping's key at the start of a line, then its colon and the tabs (and spaces) after it,

@@ -34,6 +34,7 @@ import yaml
 from rose.errors import MapFileError, RoseError
 from rose.grid import OCCUPIED, UNKNOWN, as_occupancy_grid
 from rose.limits import (
+    DECIMAL_NUMBER,
     DEFAULT_MAX_CELLS,
     MAX_YAML_BYTES,
     cell_limit,
@@ -356,12 +357,12 @@ def _warn_of_usual_values(path: Path, meta: dict[str, Any]) -> None:
 
 def _as_number(value: Any, kind: type) -> Any:
     """A quoted number (``resolution: "0.05"``) as that number, as map_server's yaml-cpp converts
-    it; anything else unchanged (the caller judges it)."""
+    it (decimal digits only: Python's ``float`` also took ``"1_0"`` and ``"infinity"``); anything
+    else unchanged (the caller judges it)."""
     if isinstance(value, str):
-        try:
-            return kind(value.strip())
-        except ValueError:
-            return value
+        text = value.strip()
+        if DECIMAL_NUMBER.fullmatch(text) and (kind is float or text.lstrip("+-").isdigit()):
+            return kind(text)
     return value
 
 

@@ -174,6 +174,38 @@ def test_quoted_numbers_are_numbers_as_yaml_cpp_reads_them(tmp_path: Path) -> No
         rose.load_map(bad)
 
 
+@pytest.mark.parametrize(
+    ("text", "refused"),
+    [
+        ("resolution: 0x10", "resolution"),  # YAML 1.1: 16 m per cell
+        ("resolution: 1_0", "resolution"),  # YAML 1.1: 10
+        ('resolution: "1_0"', "resolution"),  # Python's float() took the underscore
+        ('resolution: "infinity"', "resolution"),
+        ("resolution: 0.05\norigin: [1:30, 0, 0]", "origin"),  # YAML 1.1: sexagesimal 90
+        ("resolution: 0.05\nnegate: yes", "negate"),  # YAML 1.1: true, the whole map inverted
+        ("resolution: 0.05\nnegate: on", "negate"),
+    ],
+)
+def test_numbers_map_server_refuses_are_refused(tmp_path: Path, text: str, refused: str) -> None:
+    """PyYAML read YAML 1.1 numbers and booleans that map_server's yaml-cpp refuses."""
+    cv2.imwrite(str(tmp_path / "m.pgm"), np.array([[0, 254]], dtype=np.uint8))
+    path = write_yaml(tmp_path / "m.yaml", f"image: m.pgm\n{text}\n")
+    with pytest.raises(MapFileError, match=refused):
+        rose.load_map(path)
+
+
+def test_numbers_as_yaml_1_2_writes_them_are_read(tmp_path: Path) -> None:
+    cv2.imwrite(str(tmp_path / "m.pgm"), np.array([[0, 254]], dtype=np.uint8))
+    path = write_yaml(
+        tmp_path / "m.yaml",
+        "image: m.pgm\nresolution: 5e-2\norigin: [010, +2., -.5]\nnegate: 0\n"
+        "occupied_thresh: 0.65\nfree_thresh: 0.196\n",
+    )
+    loaded = rose.load_map(path)
+    assert (loaded.resolution_m, loaded.origin_xy_m) == (0.05, (10.0, 2.0))  # 010: decimal
+    assert loaded.origin_yaw_rad == -0.5
+
+
 def test_row_zero_is_the_bottom_of_the_image(tmp_path: Path) -> None:
     image = np.full((4, 3), 254, dtype=np.uint8)
     image[-1, 0] = 0  # bottom-left pixel occupied
