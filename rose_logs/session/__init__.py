@@ -13,7 +13,13 @@ from rose.lazy import lazy_exports
 
 if TYPE_CHECKING:
     from rose.directions import FAILURE_LEVEL, TRUST_LEVEL
-    from rose_logs.session.breaks import BreakDetector, BreakParams, BreakScore, DetectedBreak
+    from rose_logs.session.breaks import (
+        BreakDetector,
+        BreakParams,
+        BreakParamsError,
+        BreakScore,
+        DetectedBreak,
+    )
     from rose_logs.session.loop import process_log
     from rose_logs.session.report import BreakEvent, SessionReport, SnapshotRecord
     from rose_logs.session.topics import default_output_path, find_map_topics, is_derived_topic
@@ -24,6 +30,7 @@ __all__ = [
     "BreakDetector",
     "BreakEvent",
     "BreakParams",
+    "BreakParamsError",
     "BreakScore",
     "DetectedBreak",
     "SessionReport",
@@ -42,6 +49,7 @@ __getattr__, __dir__ = lazy_exports(
         "TRUST_LEVEL": "rose.directions",
         "BreakDetector": "rose_logs.session.breaks",
         "BreakParams": "rose_logs.session.breaks",
+        "BreakParamsError": "rose_logs.session.breaks",
         "BreakScore": "rose_logs.session.breaks",
         "DetectedBreak": "rose_logs.session.breaks",
         "process_log": "rose_logs.session.loop",

@@ -29,12 +29,13 @@ import numpy as np
 
 from rose.breaks import MAX_KERNEL_PX, WallContradiction, contradicted_walls
 from rose.errors import RoseError
-from rose.limits import finite_number
+from rose.limits import finite_number, integer_number
 from rose_logs.snapshots import MapSnapshot
 
 __all__ = [
     "BreakDetector",
     "BreakParams",
+    "BreakParamsError",
     "BreakScore",
     "DetectedBreak",
     "metres_text",
@@ -42,6 +43,11 @@ __all__ = [
 ]
 
 _LOG = logging.getLogger(__name__)
+
+
+class BreakParamsError(RoseError, ValueError):
+    """A :class:`BreakParams` value out of range (a :class:`rose.RoseError`, as the other
+    parameters' errors, and a ``ValueError``)."""
 
 
 @dataclass(frozen=True)
@@ -100,7 +106,11 @@ class BreakParams:
             infinite = name == "threshold_m" and value == math.inf
             if not (finite_number(value) or infinite):
                 msg = f"{name} must be a finite number, got {value!r}"
-                raise ValueError(msg)
+                raise BreakParamsError(msg)
+        for name in ("occupied_threshold", "free_threshold", "rise_points"):
+            if not integer_number(getattr(self, name)):
+                msg = f"{name} must be an integer, got {getattr(self, name)!r}"
+                raise BreakParamsError(msg)
         if not (
             self.threshold_m > 0
             and self.window_m > 0
@@ -116,16 +126,16 @@ class BreakParams:
                 f"{self.window_m}, {self.tile_m}, {self.tolerance_m}, {self.min_wall_m}, "
                 f"{self.bridge_m}, {self.rise_margin_m}"
             )
-            raise ValueError(msg)
+            raise BreakParamsError(msg)
         if not 1 <= self.rise_points <= 101:
             msg = f"rise_points must be in 1..101 (101: off), got {self.rise_points}"
-            raise ValueError(msg)
+            raise BreakParamsError(msg)
         if not 0 <= self.free_threshold < self.occupied_threshold <= 100:
             msg = (
                 "need 0 <= free_threshold < occupied_threshold <= 100, got "
                 f"{self.free_threshold}, {self.occupied_threshold}"
             )
-            raise ValueError(msg)
+            raise BreakParamsError(msg)
 
 
 @dataclass(frozen=True)
@@ -334,7 +344,7 @@ class BreakDetector:
         )
         self._count[topic] = index + 1
         if not self._kernels_fit(snapshot.resolution_m):
-            self._say_too_fine(topic)
+            self._say_too_fine(topic, snapshot.resolution_m)
             self._trust(topic, index, snapshot)
             return _CLEAR
         trusted = self._trusted.get(topic)
@@ -392,17 +402,19 @@ class BreakDetector:
         p = self.params
         return max(p.tolerance_m, p.bridge_m, p.rise_margin_m)
 
-    def _say_too_fine(self, topic: str) -> None:
-        """Warn once per topic that its maps are too fine for the detector."""
+    def _say_too_fine(self, topic: str, resolution_m: float) -> None:
+        """Warn once per topic that the detector's lengths span too many of its maps' cells."""
         if topic in self._too_fine_said:
             return
         self._too_fine_said.add(topic)
         _LOG.warning(
-            "%s: maps so fine that the break detector's %g m would span more than %d cells are "
-            "not checked for breaks (their break score is 0); said once per topic",
+            "%s: the break detector's longest length (tolerance_m, bridge_m, rise_margin_m: "
+            "%g m) would span more than %d cells of these maps (%g m per cell): they are not "
+            "checked for breaks (their break score is 0); said once per topic",
             topic,
             self._longest_kernel_m(),
             MAX_KERNEL_PX,
+            resolution_m,
         )
 
     def withdraw_last(self, topic: str) -> None:

@@ -188,8 +188,17 @@ def test_topics_are_independent(plan, broken) -> None:
     ],
 )
 def test_bad_parameters(kwargs: dict) -> None:
-    with pytest.raises(ValueError, match="need"):
+    import rose
+
+    with pytest.raises(rose.RoseError, match="need"):  # as every other parameter's error
         BreakParams(**kwargs)
+
+
+@pytest.mark.parametrize("name", ["rise_points", "occupied_threshold", "free_threshold"])
+def test_whole_number_parameters_must_be_integers(name: str) -> None:
+    """rise_points=15.5 was taken, and failed deep in the session after its first snapshot."""
+    with pytest.raises(ValueError, match=f"{name} must be an integer, got 15.5"):
+        BreakParams(**{name: 15.5})
 
 
 def test_a_snapshot_in_another_frame_is_not_compared(plan, broken) -> None:
@@ -342,6 +351,8 @@ def test_maps_too_fine_for_the_detector_are_not_checked_and_say_so(
     assert usual[1].broken
     said = [r.getMessage() for r in caplog.records if "not checked for breaks" in r.getMessage()]
     assert len(said) == 1 and said[0].startswith("/fine: ")
+    assert "(tolerance_m, bridge_m, rise_margin_m: 0.3 m)" in said[0]  # the lengths, not only maps
+    assert "(0.00025 m per cell)" in said[0]
     # 0.3 mm per cell: 1000 cells, the limit, still checked (compared: no warning).
     caplog.clear()
     at_limit = BreakDetector(BreakParams(threshold_m=1.0))
