@@ -21,11 +21,12 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
-from rose.cleaning import CleanMethod
+from rose.cleaning import CLEAN_METHODS, CleanMethod
 from rose.directions import FAILURE_LEVEL
 from rose.errors import OutputError, RoseError
-from rose.limits import DEFAULT_MAX_CELLS, cell_limit
+from rose.limits import DEFAULT_MAX_CELLS, cell_limit, finite_number, integer_number
 from rose.params import RoseParams
+from rose_logs.batch.errors import BatchError
 from rose_logs.batch.recording_log import RecordingWarnings, collecting
 from rose_logs.batch.sources import Recording, cleaned_log_name, printable
 from rose_logs.batch.store import OutputStore, filesystem, is_local, work_folder_prefix
@@ -104,6 +105,46 @@ class RecordingOptions:
     max_cells: int | None = DEFAULT_MAX_CELLS
     replace_rose_topics: bool = False
 
+    def __post_init__(self) -> None:
+        problems = []
+        if not isinstance(self.params, RoseParams):
+            problems.append(f"params must be a RoseParams, got {type(self.params).__name__}")
+        if self.topics is not None and (
+            isinstance(self.topics, str)
+            or not isinstance(self.topics, tuple | list)
+            or not all(isinstance(t, str) for t in self.topics)
+        ):
+            problems.append(f"topics must be a tuple of topic names or None, got {self.topics!r}")
+        if not (finite_number(self.failure_level) and 0 < self.failure_level <= 1):
+            problems.append(f"failure_level must be a number in (0, 1], got {self.failure_level!r}")
+        for name in ("walls", "cleaned", "rrd", "salvage", "replace_rose_topics"):
+            if not isinstance(getattr(self, name), bool):
+                problems.append(f"{name} must be True or False, got {getattr(self, name)!r}")
+        if not (integer_number(self.retries) and self.retries >= 0):
+            problems.append(f"retries must be an integer >= 0, got {self.retries!r}")
+        if not (integer_number(self.analysis_threads) and self.analysis_threads >= 1):
+            problems.append(
+                f"analysis_threads must be an integer >= 1, got {self.analysis_threads!r}"
+            )
+        if self.clean_method not in CLEAN_METHODS:
+            problems.append(
+                f"clean_method must be one of {', '.join(CLEAN_METHODS)}, got {self.clean_method!r}"
+            )
+        if self.break_threshold_m is not None and not (
+            isinstance(self.break_threshold_m, int | float)
+            and not isinstance(self.break_threshold_m, bool)
+            and self.break_threshold_m > 0
+        ):
+            problems.append(
+                f"break_threshold_m must be a number > 0 or None, got {self.break_threshold_m!r}"
+            )
+        try:
+            cell_limit(self.max_cells)
+        except ValueError as err:
+            problems.append(str(err))
+        if problems:  # said before any recording is processed, not once per recording
+            raise BatchError("RecordingOptions: " + "; ".join(problems))
+
     def key_fields(self) -> dict[str, Any]:
         """Everything that changes a result (not ``retries`` or ``analysis_threads``), JSON-ready."""
         # The seed has no effect (the mixture's start is deterministic): not in the key.
@@ -132,11 +173,7 @@ class RecordingOptions:
             if float(self.break_threshold_m) != BreakParams().threshold_m:
                 fields["break_threshold_m"] = float(self.break_threshold_m)
         # 2e8, 200000000 and numpy's int are the same limit: one key for each.
-        max_cells: int | str | None
-        try:
-            max_cells = cell_limit(self.max_cells)
-        except ValueError:  # refused when the recording is processed: the key need only be stable
-            max_cells = repr(self.max_cells)
+        max_cells = cell_limit(self.max_cells)  # checked when the options were made
         if max_cells != DEFAULT_MAX_CELLS:
             fields["max_cells"] = max_cells
         return fields

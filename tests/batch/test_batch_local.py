@@ -3,8 +3,11 @@
 from __future__ import annotations
 
 import json
+import math
 import os
+import re
 from pathlib import Path
+from typing import Any
 
 import pyarrow.parquet as pq
 import pytest
@@ -675,6 +678,27 @@ def test_one_cell_limit_written_three_ways_is_one_key() -> None:
     }
     assert len(keys) == 1
     assert "max_cells" not in RecordingOptions(max_cells=1e8).key_fields()  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(
+    ("options", "said"),
+    [
+        ({"retries": 1.5}, "retries must be an integer >= 0, got 1.5"),
+        ({"params": None}, "params must be a RoseParams, got NoneType"),
+        ({"failure_level": 5}, "failure_level must be a number in (0, 1], got 5"),
+        ({"topics": "/map"}, "topics must be a tuple of topic names or None"),
+        ({"clean_method": "wall"}, "clean_method must be one of walls, paper"),
+        ({"break_threshold_m": math.nan}, "break_threshold_m must be a number > 0 or None"),
+        ({"cleaned": "yes"}, "cleaned must be True or False"),
+    ],
+)
+def test_bad_recording_options_are_one_error_before_any_recording(
+    options: dict[str, Any], said: str
+) -> None:
+    """retries=1.5 or params=None were raw TypeErrors out of process_recording, which "never
+    raises for a bad recording"; failure_level=5 made one error row per recording."""
+    with pytest.raises(BatchError, match=re.escape(said)):
+        RecordingOptions(**options)
 
 
 def test_a_local_name_holding_a_double_colon_is_a_file_not_a_url(
