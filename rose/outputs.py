@@ -651,13 +651,18 @@ def _no_folder(path: Path | str, parent: Path) -> str:
 
 
 def _conflict(a: Path, b: Path) -> bool:
-    """Whether ``a`` and ``b`` (resolved) are the same path, or one lies inside the other."""
+    """Whether ``a`` and ``b`` (resolved) are the same path, or one lies inside the other (a hard
+    link to a file of folder ``b`` too: a bag folder's storage file linked from elsewhere)."""
     if a == b or a in b.parents or b in a.parents:
         return True
     try:
-        return a.samefile(b)
+        if a.samefile(b):
+            return True
+        if b.is_dir() and a.is_file() and a.stat().st_nlink > 1:
+            return any(e.is_file() and a.samefile(e.path) for e in os.scandir(b))
     except OSError:
         return False
+    return False
 
 
 def _bag_folder_extras(path: Path) -> list[str] | None:

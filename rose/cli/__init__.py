@@ -18,7 +18,7 @@ from typing import Any, NoReturn
 
 from rose import __version__
 from rose.errors import RoseError
-from rose.limits import short
+from rose.limits import short, visible
 from rose.outputs import (
     EXIT_BROKEN_PIPE,
     install_signal_handlers,
@@ -207,7 +207,9 @@ class LevelFormatter(logging.Formatter):
     """``warning: <message>``, like every other line the commands print (``rose`` and ``rose-bag``)."""
 
     def format(self, record: logging.LogRecord) -> str:
-        return f"{record.levelname.lower()}: {record.getMessage()}"
+        # A name from a log (a topic, a frame) may hold a newline or an escape sequence: one line,
+        # and nothing that drives the terminal.
+        return f"{record.levelname.lower()}: {visible(record.getMessage())}"
 
 
 class _InputNamed(logging.Filter):
@@ -241,6 +243,10 @@ def error_text(err: BaseException, *, where: str | None = None) -> str:
     """One short line for an error: OS errors with their file name; the algorithm's own errors
     (:class:`RoseError` itself, which know no file) prefixed with ``where`` (the command's input);
     file and log errors as they are (they name their file)."""
+    return visible(_error_text(err, where=where))
+
+
+def _error_text(err: BaseException, *, where: str | None = None) -> str:
     prefix = f"{where}: " if where else ""
     if isinstance(err, OSError) and not isinstance(err, RoseError):
         if err.filename:

@@ -287,16 +287,17 @@ def run(args: argparse.Namespace) -> int:
     out = sys.stderr if outputs.uses_stdout else sys.stdout
     _print_summary(report, out)
     # Failed gates are named even when the salvage decides the exit code (4).
-    # One line each, whatever the input's name holds (a newline split the line).
+    # One line each, whatever the input's name holds (a newline split the line, an escape
+    # sequence drove the terminal).
     for reason in failed:
-        print(f"error: {short(f'{args.input}: {reason}')}", file=sys.stderr)
+        print(f"error: {visible(short(f'{args.input}: {reason}'))}", file=sys.stderr)
     if report.losses:
         # Each loss was warned about when the reader met it (a long session shows it at once).
         text = (
             f"{args.input}: damaged input ({len(report.losses)} problem(s) above), outputs hold "
             f"only what could be read (--salvage, exit {EXIT_SALVAGED})"
         )
-        print(f"warning: {short(text)}", file=sys.stderr)
+        print(f"warning: {visible(short(text))}", file=sys.stderr)
         return EXIT_SALVAGED
     return EXIT_GATE if failed else 0
 

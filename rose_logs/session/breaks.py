@@ -281,7 +281,11 @@ def _offset_px(
     res = snapshot.resolution_m
     if trusted.resolution_m != res or not res > 0 or trusted.frame_id != snapshot.frame_id:
         return None
-    if _rotation_between(trusted, snapshot) > _SAME_ROTATION_RAD:
+    # A turn that moves the grids' farthest cell by less than the rounding is no turn: a heading
+    # re-estimated at each publish (microradians) made every snapshot incomparable, the detector
+    # blind, as an origin moving by millimetres did.
+    extent = math.hypot(*trusted.shape) + math.hypot(*snapshot.shape)
+    if _rotation_between(trusted, snapshot) * extent > max(rounding, _SAME_ROTATION_RAD):
         return None
     yaw = snapshot.origin_yaw_rad
     dx = trusted.origin_position_m[0] - snapshot.origin_position_m[0]

@@ -25,6 +25,7 @@ from rose_logs.storage.records import Channel, RawMessage, normalize_msgtype
 __all__ = ["Ros1WriteBackend", "Ros2WriteBackend", "RosbagsReadBackend"]
 
 _LOG = logging.getLogger(__name__)
+_HOT_JOURNAL = bytes.fromhex("d9d505f920a163d7")  # a rollback journal's header while it is live
 
 
 class RosbagsReadBackend:
@@ -43,6 +44,8 @@ class RosbagsReadBackend:
         self.qos_style: QosStyle | None = None
 
     def open(self) -> None:
+        if self.format == "db3":
+            self._refuse_unmerged_wal()
         if self.format == "ros1":
             from rosbags.rosbag1 import Reader as Reader1
 
@@ -79,10 +82,40 @@ class RosbagsReadBackend:
             self.qos_style = _bag_qos_style(self.path)
         if self.format != "ros1" and self.path.is_dir():
             self._check_types()
+            self._warn_unlisted_storage()
         if sum(c.message_count for c in channels):
             self.start_ns = int(self.reader.start_time)
             # rosbags reports the end as "1 ns after the last message"
             self.end_ns = max(self.start_ns, int(self.reader.end_time) - 1)
+
+    def _refuse_unmerged_wal(self) -> None:
+        """Refuse a SQLite bag with writes beside its database file, left by a recorder that did
+        not close: a write-ahead log (``x.db3-wal``, rosbag2's ``resilient`` preset) holds its last
+        messages, a hot rollback journal (``x.db3-journal``) the pages its open transaction
+        overwrote. rosbags opens the database ``immutable``, without either: the first loses
+        messages unsaid (a bag without metadata.yaml), the second reads as corrupt."""
+        files = [self.path] if self.path.is_file() else sorted(self.path.glob("*.db3"))
+        for storage in files:
+            for side, what in (
+                ("-wal", "writes not yet in"),
+                ("-journal", "an unfinished write of"),
+            ):
+                extra = storage.with_name(storage.name + side)
+                try:
+                    with extra.open("rb") as stream:
+                        head = stream.read(8)
+                    size = extra.stat().st_size
+                except OSError:
+                    continue
+                pending = size > 32 if side == "-wal" else head == _HOT_JOURNAL
+                if pending:
+                    msg = (
+                        f"{self.path}: {extra.name} holds {size:,} bytes of {what} "
+                        f"{storage.name} (a recording that did not close), which rose-bag does "
+                        f"not read: copy the files and open the copy once with sqlite3 "
+                        f"(sqlite3 COPY.db3 'PRAGMA integrity_check'), which completes it"
+                    )
+                    raise LogReadError(msg)
 
     def _check_ros1_index(self) -> None:
         """Refuse a bag whose index leaves chunks or messages out (rosbags reads what it lists)."""
@@ -97,6 +130,30 @@ class RosbagsReadBackend:
                 "record by record"
             )
             raise LogReadError(msg)
+
+    def _warn_unlisted_storage(self) -> None:
+        """Say so when the bag folder holds a storage file its metadata.yaml does not list (a
+        split recording whose metadata was written before its last file): rosbags, like rosbag2,
+        reads the listed files only, and that file's messages would go unsaid."""
+        from rose.limits import load_yaml
+
+        try:
+            info = load_yaml((self.path / "metadata.yaml").read_bytes())
+            listed = {
+                Path(str(f)).name
+                for f in info["rosbag2_bagfile_information"].get("relative_file_paths") or ()
+            }
+        except (OSError, ValueError, KeyError, TypeError, AttributeError):
+            return  # read and judged by rosbags already
+        storage = (".db3", ".mcap", ".db3.zstd", ".mcap.zstd")
+        for entry in sorted(self.path.iterdir()):
+            if entry.name.endswith(storage) and entry.name not in listed:
+                _LOG.warning(
+                    "%s: storage file %s is not listed in metadata.yaml: its messages are not "
+                    "read (ros2 bag reindex rebuilds the metadata)",
+                    self.path,
+                    entry.name,
+                )
 
     def _check_types(self) -> None:
         """Refuse a bag folder whose metadata.yaml declares other types than its storage records."""

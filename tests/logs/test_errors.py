@@ -840,3 +840,92 @@ def test_dropping_an_output_never_hides_the_error_that_dropped_it(tmp_path: Path
     out.abort()  # no OSError
     out.abort()  # idempotent
     assert list(tmp_path.iterdir()) == []
+
+
+def _db3_with_unmerged_writes(folder: Path) -> Path:
+    """The bag's last messages moved into a write-ahead log, as a recorder that died left them
+    (rosbag2's `resilient` preset keeps the database in WAL mode); returns the storage file."""
+    import sqlite3
+
+    storage = next(folder.glob("*.db3"))
+    db = sqlite3.connect(storage)
+    rows = db.execute("select id, topic_id, timestamp, data from messages order by id").fetchall()
+    db.execute("delete from messages where id > ?", (rows[len(rows) // 2][0],))
+    db.commit()
+    db.execute("pragma journal_mode=wal")
+    db.close()
+    code = (
+        "import os, pickle, sqlite3, sys\n"
+        "db = sqlite3.connect(sys.argv[1]); db.execute('pragma wal_autocheckpoint=0')\n"
+        "db.executemany('insert into messages values (?,?,?,?)', pickle.loads(sys.stdin.buffer.read()))\n"
+        "db.commit(); os._exit(0)\n"  # dies: the WAL is never checkpointed
+    )
+    import pickle
+
+    later = rows[len(rows) // 2 + 1 :]
+    subprocess.run(
+        [sys.executable, "-c", code, str(storage)], input=pickle.dumps(later), check=True
+    )
+    assert storage.with_name(storage.name + "-wal").stat().st_size > 32
+    return storage
+
+
+@pytest.mark.parametrize("with_metadata", [True, False])
+def test_a_db3_bag_with_writes_in_its_wal_is_an_error_naming_it(
+    tmp_path: Path, capsys, fr079, with_metadata: bool
+) -> None:
+    """rosbags opens the database immutable, without its -wal: half the messages were lost
+    silently (Humble writes metadata.yaml only on close), or the bag was called damaged."""
+    folder = build_log(tmp_path / "bag", "db3", session_maps(fr079[:2])).path
+    storage = _db3_with_unmerged_writes(folder)
+    if not with_metadata:
+        (folder / "metadata.yaml").unlink()
+    before = tree_bytes(folder)
+    given = folder if with_metadata else storage
+    code, _, err = _run(capsys, "process", given, "--no-output", "-q")
+    assert code == 1
+    _assert_one_line_error(err, f"{storage.name}-wal holds", "did not close", "sqlite3")
+    assert tree_bytes(folder) == before
+
+
+def test_a_storage_file_its_metadata_does_not_list_is_warned_about(
+    tmp_path: Path, capsys, fr079
+) -> None:
+    """A split bag whose metadata.yaml was written before its last file: that file's messages
+    were skipped without a word."""
+    import shutil
+
+    folder = build_log(tmp_path / "bag", "db3", session_maps(fr079[:2])).path
+    storage = next(folder.glob("*.db3"))
+    shutil.copy(storage, folder / "bag_9.db3")
+    code, _, err = _run(capsys, "process", folder, "--no-output", "-q")
+    assert code == 0
+    assert "storage file bag_9.db3 is not listed in metadata.yaml" in err
+
+
+def test_control_characters_of_a_topic_name_do_not_reach_the_terminal(
+    tmp_path: Path, capsys, fr079
+) -> None:
+    """Warning and error lines printed a topic's escape sequences and newlines raw: the screen
+    cleared, and a forged `error:` line appeared."""
+    topic = "/map\x1b[2J\nerror: fake"
+    maps = [MapMsg(START_NS + 1_000_000_000, fr079[0], topic=topic)]
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps)
+    code, _, err = _run(capsys, "process", built.path, "--no-output", "-q", "--fail-above", "0.01")
+    assert code == 3
+    assert "\x1b" not in err and "\\x1b[2J" in err
+    assert all(line.startswith(("error: ", "warning: ")) for line in err.splitlines()), err
+    assert not any(line.startswith("error: fake") for line in err.splitlines())
+
+
+def test_an_output_hard_linked_to_a_file_of_the_input_bag_folder_is_refused(
+    tmp_path: Path, capsys, fr079
+) -> None:
+    folder = build_log(tmp_path / "bag", "db3", session_maps(fr079[:1])).path
+    before = tree_bytes(folder)
+    linked = tmp_path / "report.json"
+    os.link(folder / "metadata.yaml", linked)
+    code, _, err = _run(capsys, "process", folder, "--no-output", "--json", linked, "--force")
+    assert code == 1
+    assert "report.json" in err
+    assert tree_bytes(folder) == before

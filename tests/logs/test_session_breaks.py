@@ -211,6 +211,26 @@ def test_a_snapshot_in_another_frame_is_not_compared(plan, broken) -> None:
     assert detector.update(_snap(broken, 2)).trusted_index is None  # back in "map": restart
 
 
+def test_a_heading_jittering_by_microradians_is_still_compared(plan, broken) -> None:
+    """A map origin whose yaw is re-estimated at each publish (+-2 microradians, the far corner
+    moving 0.1 mm) made every snapshot incomparable: a ghost wall passed --fail-on-break."""
+    import math
+
+    def yawed(grid: npt.NDArray[np.int8], t: int, yaw: float) -> MapSnapshot:
+        xyzw = (0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2))
+        return dataclasses.replace(_snap(grid, t), origin_orientation_xyzw=xyzw)
+
+    detector = BreakDetector(BreakParams(threshold_m=1.0))
+    detector.update(yawed(plan, 0, 2e-6))
+    detector.update(yawed(plan, 1, -2e-6))
+    verdict = detector.update(yawed(broken, 2, 2e-6))
+    assert verdict.trusted_index is not None and verdict.broken
+    # A real turn (a quarter of a degree: the far corner moves about two cells) still restarts.
+    restarted = BreakDetector(BreakParams(threshold_m=1.0))
+    restarted.update(yawed(plan, 0, 0.0))
+    assert restarted.update(yawed(broken, 1, math.radians(0.25))).trusted_index is None
+
+
 def test_break_parameters_can_follow_roses_occupied_threshold() -> None:
     assert BreakParams.following(40) == BreakParams(occupied_threshold=40, free_threshold=39)
     assert BreakParams.following(80, threshold_m=2.0) == BreakParams(
