@@ -128,7 +128,7 @@ def summary(report: BatchReport, options: RecordingOptions) -> dict[str, Any]:
     return {
         "rose_bag": package_version(),
         "failure_level": report.failure_level,
-        "options": options.key_fields(),
+        "options": options.stated(),
         "recordings": len(rows),
         "ok": sum(r["status"] == "ok" for r in rows),
         "errors": sum(r["status"] == "error" for r in rows),

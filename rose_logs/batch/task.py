@@ -145,6 +145,24 @@ class RecordingOptions:
         if problems:  # said before any recording is processed, not once per recording
             raise BatchError("RecordingOptions: " + "; ".join(problems))
 
+    def stated(self) -> dict[str, Any]:
+        """Every option that changes a result, defaults written out (``summary.json``: a reader
+        sees which break threshold and cleaning were used); :meth:`key_fields` leaves some of them
+        out at their defaults to keep older results' keys."""
+        from rose_logs.session.breaks import BreakParams
+
+        threshold = self.break_threshold_m
+        return {
+            **self.key_fields(),
+            "salvage": self.salvage,
+            "replace_rose_topics": self.replace_rose_topics,
+            "clean_method": self.clean_method,
+            "break_threshold_m": BreakParams().threshold_m
+            if threshold is None
+            else float(threshold),
+            "max_cells": cell_limit(self.max_cells),
+        }
+
     def key_fields(self) -> dict[str, Any]:
         """Everything that changes a result (not ``retries`` or ``analysis_threads``), JSON-ready."""
         # The seed has no effect (the mixture's start is deterministic): not in the key.

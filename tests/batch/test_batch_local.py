@@ -224,6 +224,11 @@ def test_batch_tables_report_and_breaks(fleet: Path, tmp_path: Path) -> None:
         0,
         1,
     )
+    # Every option stated, defaults too (the break threshold used was missing at its default).
+    assert {"clean_method": "walls", "break_threshold_m": 1.25, "salvage": False}.items() <= (
+        summary["options"].items()
+    )
+    assert summary["options"]["max_cells"] == RecordingOptions().max_cells
     text = (out / "report.md").read_text()
     assert "fleet/robot_b/run.mcap" in text
     assert "w_over_time.png" in text
