@@ -168,3 +168,18 @@ def test_a_furnished_drawing_of_another_size_is_said_before_any_experiment(
     err = capsys.readouterr().err
     assert err.startswith(f"error: {furnished}: shape ") and err.count("\n") == 1
     assert not out.exists()
+
+
+def test_experiment_4_comes_before_the_file_list_which_names_its_tables(tmp_path: Path) -> None:
+    """Experiment 4 was appended after "## Files", which left its tables out; with one log its
+    leave-one-out table was headers alone."""
+    out = tmp_path / "report"
+    argv = ["evaluate", str(out), "--maps-dir", str(REPO_DATA), "--logs", "freiburg-101"]
+    argv += ["--maps", "", "--sizes", "2", "--counts", "20", "--break-seeds", "1", "--no-plots"]
+    assert main(argv) == 0
+    text = (out / "report.md").read_text()
+    headings = [line for line in text.splitlines() if line.startswith("## ")]
+    assert headings[-2].startswith("## Experiment 4") and headings[-1] == "## Files"
+    files = text.split("## Files", 1)[1]
+    assert "`exp4_breaks_sessions.csv`" in files and (out / "exp4_breaks_sessions.csv").is_file()
+    assert "### Leave one log out\n\nNeeds sessions of two logs or more." in text

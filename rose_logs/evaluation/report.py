@@ -262,9 +262,10 @@ def run_evaluation(
         run_s=run_s,
         wall_md=wall_report.markdown if wall_report is not None else "",
         cleaning_md=cleaning.markdown,
+        break_md=break_md,
     )
     md_path = out / MARKDOWN_NAME
-    write_bytes(md_path, (markdown + ("\n" + break_md if break_md else "")).encode("utf-8"))
+    write_bytes(md_path, markdown.encode("utf-8"))
     files.insert(0, md_path)
     say(f"report done in {run_s:.1f} s")
     return EvaluationReport(
@@ -511,14 +512,19 @@ def _confidence_section(exp3: Experiment3, figures: list[str]) -> list[str]:
     return lines
 
 
-def _files_section(*, figures: bool) -> list[str]:
+def _files_section(*, figures: bool, breaks: bool = False) -> list[str]:
     """The list of files written next to the report."""
     shown = ", figures above" if figures else ""
+    exp4 = (
+        ", `exp4_breaks_sessions.csv` (one row per replayed session), `exp4_breaks_roc.csv`"
+        if breaks
+        else ""
+    )
     return [
         "## Files",
         "",
         "`exp1_clutter_runs.csv` (one row per cluttered map), `exp1_furniture.csv`, `exp2_drift.csv`, "
-        f"`exp3_correlation.csv`, `map_*.png` (rasterised logs, map_server greys){shown}.",
+        f"`exp3_correlation.csv`{exp4}, `map_*.png` (rasterised logs, map_server greys){shown}.",
         "",
     ]
 
@@ -538,9 +544,10 @@ def _markdown(
     run_s: float,
     wall_md: str,
     cleaning_md: str = "",
+    break_md: str = "",
 ) -> str:
     """The report: setup, the three experiments, the wall section (``wall_md``), the cleaning section
-    (``cleaning_md``), the file list."""
+    (``cleaning_md``), experiment 4 (``break_md``), the file list."""
     lines = [
         *_setup_section(config, timings=timings, run_s=run_s, map_images=map_images),
         *(["![maps from logs](maps_from_logs.png)", ""] if "maps_from_logs.png" in figures else []),
@@ -553,11 +560,13 @@ def _markdown(
         lines += [wall_md.rstrip(), ""]
     if cleaning_md:
         lines += [cleaning_md.rstrip(), ""]
+    if break_md:
+        lines += [break_md.rstrip(), ""]
     if not figures:
         lines += [
             "The plots were not drawn (`--no-plots` or matplotlib missing); the cleaning picture "
             "needs no matplotlib.",
             "",
         ]
-    lines += _files_section(figures=bool(figures))
+    lines += _files_section(figures=bool(figures), breaks=bool(break_md))
     return "\n".join(lines)
