@@ -779,3 +779,16 @@ def test_score_gives_the_same_reason_in_its_table_and_json_for_a_thin_map(
     assert main(["score", str(path)]) == 0
     footnote = capsys.readouterr().out.splitlines()[-1]
     assert footnote.startswith(f"* {path}: {record['degenerate']}: W says nothing about this map")
+
+
+def test_every_command_describes_itself_and_shows_debug(capsys: pytest.CaptureFixture[str]) -> None:
+    """`rose clean`, `rose score` and `rose-bag info` had no description; --debug, taken after any
+    command, showed in none of their helps."""
+    from rose.cli import build_parser as rose_parser
+    from rose_logs.cli import build_parser as rose_bag_parser
+
+    for parser in (rose_parser(), rose_bag_parser()):
+        commands = next(a for a in parser._actions if a.dest == "command").choices
+        for name, command in commands.items():
+            assert command.description, name
+            assert "--debug" in command.format_help(), name

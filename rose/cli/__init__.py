@@ -70,7 +70,7 @@ def build_parser() -> argparse.ArgumentParser:
         command_parser.set_defaults(command_parser=command_parser)
         # Also after the command, as rose-bag takes it; not given there, the top level's stands.
         command_parser.add_argument(
-            "--debug", action="store_true", default=argparse.SUPPRESS, help=argparse.SUPPRESS
+            "--debug", action="store_true", default=argparse.SUPPRESS, help="show tracebacks"
         )
     return parser
 

@@ -33,7 +33,13 @@ __all__ = ["add_parser", "cleaning_summary", "run"]
 
 def add_parser(commands: Any) -> None:
     """Register ``clean`` on an argparse subparsers object (``func=run``)."""
-    clean = commands.add_parser("clean", help="remove clutter from a map, write a map_server map")
+    clean = commands.add_parser(
+        "clean",
+        help="remove clutter from a map, write a map_server map",
+        description="Remove the clutter from a map and write the cleaned map as a map_server YAML "
+        "and image: by default the walls cleaning (walls kept, no gap a robot fits through), "
+        "or the paper's labelling with --method paper.",
+    )
     clean.add_argument("map", type=path_arg, help="map_server YAML or a PGM/PNG image")
     clean.add_argument(
         "-o", "--output", type=file_arg, required=True, help="output YAML (PGM beside it)"

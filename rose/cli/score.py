@@ -31,7 +31,12 @@ __all__ = ["add_parser", "run"]
 
 def add_parser(commands: Any) -> None:
     """Register ``score`` on an argparse subparsers object (``func=run``)."""
-    score = commands.add_parser("score", help="W and dominant directions of maps")
+    score = commands.add_parser(
+        "score",
+        help="W and dominant directions of maps",
+        description="Score the structure of maps: W (near 0 strong structure, above 0.4 ROSE has "
+        "failed) and the dominant wall directions of each map, as a table or JSON.",
+    )
     score.add_argument(
         "maps", type=path_arg, nargs="+", metavar="MAP", help="map_server YAML or a PGM/PNG image"
     )

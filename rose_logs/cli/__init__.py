@@ -68,7 +68,10 @@ def build_parser() -> argparse.ArgumentParser:
         # Also after the command (rose-bag process x --debug); not given there, the top level's
         # value stands.
         command_parser.add_argument(
-            "--debug", action="store_true", default=argparse.SUPPRESS, help=argparse.SUPPRESS
+            "--debug",
+            action="store_true",
+            default=argparse.SUPPRESS,
+            help="debug logging and tracebacks on errors",
         )
     return parser
 

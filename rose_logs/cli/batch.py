@@ -121,7 +121,8 @@ def add_parser(subparsers: Any) -> None:
         "batch",
         help="process many recordings (folders, globs, s3://) locally or on a Dask cluster",
         description="Run `process` on every recording found in the inputs (files, folders searched "
-        "recursively for .bag / .mcap / .db3 and ROS 2 bag folders, glob patterns, s3:// prefixes) and "
+        "recursively for .bag / .mcap / .db3 / .bag.active and ROS 2 bag folders, glob patterns, s3:// "
+        "prefixes) and "
         "write recordings.parquet, snapshots.parquet, summary.json and report.md to OUT. Recordings "
         "finished by an earlier run with the same options are skipped.",
     )

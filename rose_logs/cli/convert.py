@@ -84,7 +84,8 @@ def add_parser(subparsers: Any) -> None:
         "--drift-level",
         type=float_up_to(MAX_DRIFT_LEVEL, zero=True),
         default=0.0,
-        help="odometry drift level, 0 = corrected poses (see rose_logs.carmen.drift)",
+        help=f"odometry drift level, 0 to {MAX_DRIFT_LEVEL:g} (default 0: the corrected poses; "
+        "see rose_logs.carmen.drift)",
     )
     parser.add_argument(
         "--drift-seed", type=int_in_range(0, 2**32 - 1), default=0, help="seed of the drift (0)"

@@ -18,6 +18,9 @@ def add_parser(subparsers: Any) -> None:
     parser = subparsers.add_parser(
         "info",
         help="map topics, message counts, grid sizes and resolutions, time range of a log",
+        description="Describe a log without analysing it: its map topics, message counts, grid "
+        "sizes and resolutions, and time range (a ROS 1 bag, a ROS 2 bag folder or storage file, "
+        "or an MCAP file).",
     )
     parser.add_argument(
         "input", type=path_arg, help="ROS 1 .bag, ROS 2 bag folder / .db3, or .mcap"
