@@ -188,9 +188,9 @@ def format_from_path(path: Path) -> LogFormat | None:
 def unknown_suffix_warning(path: Path, written_as: str) -> str | None:
     """A warning line for an output name whose suffix names no log format (``out.txt``, the typo
     ``out.mcpa``), saying what is written instead; None for no suffix (a ROS 2 bag folder's usual
-    name) or a known one."""
+    name), a known one, or ``.rose`` (``process``'s own name for a bag folder: ``run.rose``)."""
     suffix = Path(path).suffix
-    if not suffix or format_from_path(Path(path)) is not None:
+    if not suffix or suffix == ".rose" or format_from_path(Path(path)) is not None:
         return None
     return (
         f"warning: {path}: '{suffix}' names no log format (.bag, .db3, .mcap): written "
@@ -201,13 +201,22 @@ def unknown_suffix_warning(path: Path, written_as: str) -> str | None:
 def suffix_mismatch_warning(path: Path, fmt: str) -> str | None:
     """A warning line for an output written in ``fmt`` (``--format``) under a name whose suffix
     names another format (``--format ros1 -o out.mcap``: a ROS 1 bag that tools would open as
-    MCAP); None when the suffix agrees or names none."""
+    MCAP), or a file format under a suffix that names none (``--format mcap -o out.mcpa``, a typo);
+    None when the suffix agrees, or a bag folder has none of a file's (``.rose``, a date)."""
     implied = format_from_path(Path(path))
+    suffix = Path(path).suffix
+    if implied is None and suffix and fmt in _FILE_FORMATS and suffix != _FORMAT_SUFFIX[fmt]:
+        return (
+            f"warning: {path}: written as {fmt} (--format), but '{suffix}' names no log format "
+            f"(tools look for {_FORMAT_SUFFIX[fmt]})"
+        )
     if implied is None or implied == fmt:
         return None
-    return (
-        f"warning: {path}: written as {fmt} (--format), but '{Path(path).suffix}' names {implied}"
-    )
+    return f"warning: {path}: written as {fmt} (--format), but '{suffix}' names {implied}"
+
+
+#: Formats written as one file (the others are ROS 2 bag folders).
+_FILE_FORMATS = ("ros1", "mcap")
 
 
 #: The suffix ``rosbag record`` gives a bag while it records (left so when it is killed).

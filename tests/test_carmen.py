@@ -136,6 +136,11 @@ def test_convert_warns_of_an_output_suffix_that_names_no_format(
     assert "written as mcap (--format), but '.bag' names ros1" in capsys.readouterr().err
     assert main(["convert", str(path), str(tmp_path / "z.mcap"), "--format", "mcap"]) == 0
     assert "warning" not in capsys.readouterr().err
+    # A typo with --format given passed silently; a bag folder named as process names it did not.
+    assert main(["convert", str(path), str(tmp_path / "q.mcpa"), "--format", "mcap"]) == 0
+    assert "'.mcpa' names no log format (tools look for .mcap)" in capsys.readouterr().err
+    assert main(["convert", str(path), str(tmp_path / "run.rose")]) == 0
+    assert "warning" not in capsys.readouterr().err
 
 
 def test_convert_refuses_its_input_as_output_without_a_suffix_warning_first(

@@ -274,7 +274,8 @@ def _check_extent(log: CarmenLog, args: argparse.Namespace) -> None:
     cells = math.prod(math.ceil(float(v) / args.resolution) for v in span)
     if cells > args.max_cells:
         msg = (
-            f"{args.log}: the map would have about {cells:.3g} cells ({span[0]:.4g} x {span[1]:.4g} m "
-            f"at {args.resolution:g} m), more than --max-cells {args.max_cells:,}"
+            f"{args.log}: the map could have up to {cells:.3g} cells ({span[0]:.4g} x {span[1]:.4g} m "
+            f"at {args.resolution:g} m: the poses' span and --max-range {args.max_range:g} m plus "
+            f"10 m on every side), more than --max-cells {args.max_cells:,}"
         )
         raise LogReadError(msg)
