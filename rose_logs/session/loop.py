@@ -847,8 +847,11 @@ class _Loop:
         topic = snapshot.topic
         too_large = check_cells(*snapshot.shape, self.max_cells)
         if too_large is not None:
+            # An update names its own message: the map it patches came earlier.
+            what = "map updated by a grid update" if from_update else "map"
             self.skips.add(
-                "over --max-cells", f"{topic}: map of {too_large} {self._at(snapshot.log_time_ns)}"
+                "over --max-cells",
+                f"{topic}: {what} of {too_large} {self._at(snapshot.log_time_ns)}",
             )
             return
         assert self.executor is not None and self.detection is not None, "called inside run()"

@@ -930,3 +930,19 @@ def test_an_output_hard_linked_to_a_file_of_the_input_bag_folder_is_refused(
     assert code == 1
     assert "report.json" in err
     assert tree_bytes(folder) == before
+
+
+def test_an_update_of_a_map_over_max_cells_is_named_as_an_update(tmp_path: Path, capsys) -> None:
+    """The skipped update was reported as a map message, at the update's time."""
+    big = np.zeros((600, 600), dtype=np.int8)
+    big[100:500, 100] = 100
+    maps = [
+        MapMsg(START_NS + 1_000_000_000, big),
+        MapMsg(START_NS + 2_000_000_000, big[:10, :10], topic="/map_updates", xy=(0, 0)),
+    ]
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps)
+    code, _, err = _run(capsys, "process", built.path, "--no-output", "-q", "--max-cells", "300000")
+    said = [line for line in err.splitlines() if "600 x 600" in line]
+    assert len(said) == 2, err
+    assert "/map: map of 600 x 600" in said[0] and "at +0.0 s" in said[0]
+    assert "/map: map updated by a grid update of 600 x 600" in said[1] and "at +1.0 s" in said[1]
