@@ -941,7 +941,7 @@ def test_an_update_of_a_map_over_max_cells_is_named_as_an_update(tmp_path: Path,
         MapMsg(START_NS + 2_000_000_000, big[:10, :10], topic="/map_updates", xy=(0, 0)),
     ]
     built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps)
-    code, _, err = _run(capsys, "process", built.path, "--no-output", "-q", "--max-cells", "300000")
+    _, _, err = _run(capsys, "process", built.path, "--no-output", "-q", "--max-cells", "300000")
     said = [line for line in err.splitlines() if "600 x 600" in line]
     assert len(said) == 2, err
     assert "/map: map of 600 x 600" in said[0] and "at +0.0 s" in said[0]
