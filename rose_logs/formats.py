@@ -205,18 +205,19 @@ def suffix_mismatch_warning(path: Path, fmt: str) -> str | None:
     None when the suffix agrees, or a bag folder has none of a file's (``.rose``, a date)."""
     implied = format_from_path(Path(path))
     suffix = Path(path).suffix
-    if implied is None and suffix and fmt in _FILE_FORMATS and suffix != _FORMAT_SUFFIX[fmt]:
+    wanted = _FILE_FORMATS.get(fmt)
+    if implied is None and suffix and wanted is not None and suffix != wanted:
         return (
             f"warning: {path}: written as {fmt} (--format), but '{suffix}' names no log format "
-            f"(tools look for {_FORMAT_SUFFIX[fmt]})"
+            f"(tools look for {wanted})"
         )
     if implied is None or implied == fmt:
         return None
     return f"warning: {path}: written as {fmt} (--format), but '{suffix}' names {implied}"
 
 
-#: Formats written as one file (the others are ROS 2 bag folders).
-_FILE_FORMATS = ("ros1", "mcap")
+#: Formats written as one file, and their suffix (the others are ROS 2 bag folders).
+_FILE_FORMATS = {"ros1": ".bag", "mcap": ".mcap"}
 
 
 #: The suffix ``rosbag record`` gives a bag while it records (left so when it is killed).
