@@ -292,7 +292,13 @@ def _load_yaml_map(path: Path, max_cells: int | None) -> OccupancyMap:
     if mode not in ("trinary", "scale", "raw"):
         msg = f"{path}: 'mode' must be trinary, scale or raw, got {short(repr(mode), 80)}"
         raise MapFileError(msg)
-    negate = _field(meta, "negate", int, path, default=_USUAL_VALUES["negate"])
+    # Nav2 reads negate as an int, else as a yaml-cpp bool (y/n, yes/no, true/false, on/off).
+    spelt = _yaml_cpp_bool(meta.get("negate"))
+    negate = (
+        int(spelt)
+        if spelt is not None
+        else _field(meta, "negate", int, path, default=_USUAL_VALUES["negate"])
+    )
     occupied_thresh = _field(
         meta, "occupied_thresh", float, path, default=_USUAL_VALUES["occupied_thresh"]
     )
@@ -364,6 +370,20 @@ def _as_number(value: Any, kind: type) -> Any:
         if DECIMAL_NUMBER.fullmatch(text) and (kind is float or text.lstrip("+-").isdigit()):
             return kind(text)
     return value
+
+
+#: yaml-cpp's ``convert<bool>`` spellings (any of lower, Upper, UPPER case).
+_YAML_CPP_BOOLS = {"y": True, "yes": True, "true": True, "on": True}
+_YAML_CPP_BOOLS |= {"n": False, "no": False, "false": False, "off": False}
+
+
+def _yaml_cpp_bool(value: Any) -> bool | None:
+    """``value`` as yaml-cpp reads a plain scalar as a bool, or None when it would not."""
+    if not isinstance(value, str) or not (
+        value.islower() or value.isupper() or (value[:1].isupper() and value[1:].islower())
+    ):
+        return None
+    return _YAML_CPP_BOOLS.get(value.lower())
 
 
 def _field(meta: dict[str, Any], key: str, kind: type, path: Path, default: Any = None) -> Any:

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import hashlib
 import io
 import json
 import math
@@ -94,6 +95,11 @@ _TEMP_RE = re.compile(r"^\..+\.rose-(?:tmp|old)-(?P<tag>[A-Za-z0-9._]+)-(?P<pid>
 #: Seconds without a change after which any temporary goes, whoever made it (see
 #: :func:`left_behind`).
 STALE_IDLE_S = 24 * 3600.0
+#: Longest :func:`process_tag`: 24 characters of host name, 8 of boot, ``_pidns`` and 10 digits.
+_MAX_TAG_CHARS = 24 + 1 + 8 + 6 + 10
+#: Longest output name, bytes: its temporary ``.NAME.rose-tmp-<tag>-<pid>-<8 hex>`` (pids up to
+#: 2**22, seven digits) must stay within the 255 bytes most file systems allow.
+_MAX_OUTPUT_NAME_BYTES = 255 - (len(".") + len(".rose-tmp-") + _MAX_TAG_CHARS + 1 + 7 + 1 + 8)
 #: A temporary of rose-bag 0.1 before the process tags: ``.NAME.rose-<kind>-<pid>-<random>``.
 _OLD_TEMP_RE = re.compile(r"^\..+\.rose-(?:tmp|old)-\d+-[0-9a-f]+$")
 
@@ -472,16 +478,19 @@ def temporary_name(name: str, kind: str = "tmp") -> str:
 
 
 def process_tag() -> str:
-    """Where this process's pid means something: the host's name and, on Linux, its PID namespace
-    (letters, digits, dots and underscores). A pid of another tag cannot be checked from here: a
-    run in another container or on another host over a shared folder is not "dead" for being
-    absent from this host's process table."""
-    host = re.sub(r"[^A-Za-z0-9.]", "_", socket.gethostname()) or "host"
+    """Where this process's pid means something: the host's name (its first 24 characters), its
+    boot and, on Linux, its PID namespace (letters, digits, dots and underscores, at most
+    :data:`_MAX_TAG_CHARS`). A pid of another tag cannot be checked from here: a run in another
+    container or on another host over a shared folder is not "dead" for being absent from this
+    host's process table. The boot tells hosts of one name apart (every host's first PID
+    namespace has the same number), and a pid of before a reboot from today's."""
+    host = re.sub(r"[^A-Za-z0-9.]", "_", socket.gethostname())[:24] or "host"
     try:
+        boot = Path("/proc/sys/kernel/random/boot_id").read_text(encoding="ascii").strip()
         namespace = Path("/proc/self/ns/pid").stat().st_ino
     except OSError:  # not Linux
         return host
-    return f"{host}_pidns{namespace}"
+    return f"{host}_{hashlib.sha256(boot.encode()).hexdigest()[:8]}_pidns{namespace}"
 
 
 def process_alive(pid: int) -> bool:
@@ -885,9 +894,11 @@ class OutputSet:
         except (OSError, RuntimeError) as err:  # symlink loops, over-long names
             msg = f"{path}: not a usable output path ({err})"
             raise OutputError(msg) from err
-        if len(os.fsencode(target.name)) > 200:
-            # The staging name adds ~30 characters; most file systems stop at 255 bytes.
-            msg = f"{str(path)[:80]}...: output file name longer than 200 bytes"
+        if len(os.fsencode(target.name)) > _MAX_OUTPUT_NAME_BYTES:
+            # Its temporary's name adds the process tag, pid and a random part (see temporary_name).
+            msg = (
+                f"{str(path)[:80]}...: output file name longer than {_MAX_OUTPUT_NAME_BYTES} bytes"
+            )
             raise OutputError(msg)
         for given, resolved in self._inputs:
             if _conflict(target, resolved):

@@ -7,6 +7,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+import numpy.typing as npt
 import pytest
 
 from rose_logs.carmen.parse import beam_angles, read_carmen_log
@@ -294,14 +295,32 @@ def test_ray_casting_in_pieces_counts_every_free_sample(
 ) -> None:
     """Free-space samples are counted in bounded pieces (16 scans of 100,000 beams of 25 m took
     all of a 24 GB machine's memory at once): the map is the same whatever the piece size."""
+    import tracemalloc
+
     from rose_logs.carmen import raycast
 
-    path = tmp_path / "room.log"
-    _write_log(path, SCANS)
-    whole = rasterise_log(path, resolution_m=0.05).grid
+    path = tmp_path / "hall.log"  # long beams in a hall of 40 m: 1.4 million free samples
+    lines = []
+    for k in range(4):
+        pose = (0.5 * k, 0.0, 0.1 * k)
+        ranges = " ".join(f"{r:.3f}" for r in _room_ranges(1000, pose, half_m=20.0))
+        x, y, t = pose
+        lines.append(f"FLASER 1000 {ranges} {x} {y} {t} {x} {y} {t} {1000 + k} host {1000 + k}")
+    path.write_text("\n".join(lines) + "\n")
+
+    def rasterised() -> tuple[npt.NDArray[np.int8], int]:
+        tracemalloc.start()
+        try:
+            grid = rasterise_log(path, resolution_m=0.05).grid
+            return grid, tracemalloc.get_traced_memory()[1]
+        finally:
+            tracemalloc.stop()
+
+    whole, whole_peak = rasterised()
     monkeypatch.setattr(raycast, "_MAX_FREE_SAMPLES", 997)  # pieces end inside beams' runs too
-    pieces = rasterise_log(path, resolution_m=0.05).grid
+    pieces, pieces_peak = rasterised()
     assert np.array_equal(whole, pieces) and (whole >= 0).sum() > 1000
+    assert pieces_peak < whole_peak / 2  # the samples of all beams were held at once
 
 
 def test_endless_lines_and_endless_line_kinds_are_read_in_bounded_memory(
@@ -310,6 +329,7 @@ def test_endless_lines_and_endless_line_kinds_are_read_in_bounded_memory(
     """One gzipped line of 600 MB held 1.8 GB while read, and a distinct first word per junk line
     was counted one by one: both are now bounded, and the scans around them still read."""
     import gzip
+    import tracemalloc
 
     from rose_logs.carmen import parse
 
@@ -317,10 +337,18 @@ def test_endless_lines_and_endless_line_kinds_are_read_in_bounded_memory(
     plain = tmp_path / "room.log"
     _write_log(plain, SCANS)
     lines = plain.read_text().splitlines()
-    junk = ["X" * 20000 + " tail", *(f"KIND{k} 1 2" for k in range(300))]
+    junk = ["X" * 5_000_000 + " tail", *(f"KIND{k} 1 2" for k in range(300))]
     path = tmp_path / "junk.log.gz"
     with gzip.open(path, "wt") as fh:
         fh.write("\n".join([lines[0], *junk, *lines[1:]]) + "\n")
-    log = read_carmen_log(path)
+    kinds = len(junk)
+    del junk, lines
+    tracemalloc.start()
+    try:
+        log = read_carmen_log(path)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 2_000_000  # the 5 MB line was held whole
     assert len(log.scans) == len(SCANS)
-    assert sum(log.ignored.values()) == len(junk) and len(log.ignored) <= parse._MAX_KINDS + 1
+    assert sum(log.ignored.values()) == kinds and len(log.ignored) <= parse._MAX_KINDS + 1

@@ -182,8 +182,8 @@ def test_quoted_numbers_are_numbers_as_yaml_cpp_reads_them(tmp_path: Path) -> No
         ('resolution: "1_0"', "resolution"),  # Python's float() took the underscore
         ('resolution: "infinity"', "resolution"),
         ("resolution: 0.05\norigin: [1:30, 0, 0]", "origin"),  # YAML 1.1: sexagesimal 90
-        ("resolution: 0.05\nnegate: yes", "negate"),  # YAML 1.1: true, the whole map inverted
-        ("resolution: 0.05\nnegate: on", "negate"),
+        ("resolution: 0.05\nnegate: 0x1", "negate"),
+        ("resolution: 0.05\nnegate: yEs", "negate"),  # no spelling of yaml-cpp's
     ],
 )
 def test_numbers_map_server_refuses_are_refused(tmp_path: Path, text: str, refused: str) -> None:
@@ -192,6 +192,18 @@ def test_numbers_map_server_refuses_are_refused(tmp_path: Path, text: str, refus
     path = write_yaml(tmp_path / "m.yaml", f"image: m.pgm\n{text}\n")
     with pytest.raises(MapFileError, match=refused):
         rose.load_map(path)
+
+
+@pytest.mark.parametrize(
+    ("spelt", "negate"), [("yes", True), ("On", True), ("y", True), ("OFF", False), ("no", False)]
+)
+def test_negate_takes_yaml_cpps_truth_values_as_nav2_does(
+    tmp_path: Path, spelt: str, negate: bool
+) -> None:
+    """Nav2 reads negate as an int, else as a yaml-cpp bool: `negate: yes` inverts the map."""
+    cv2.imwrite(str(tmp_path / "m.pgm"), np.array([[0, 254]], dtype=np.uint8))
+    path = write_yaml(tmp_path / "m.yaml", f"image: m.pgm\nresolution: 0.05\nnegate: {spelt}\n")
+    assert rose.load_map(path).grid.tolist() == ([[0, 100]] if negate else [[100, 0]])
 
 
 def test_numbers_as_yaml_1_2_writes_them_are_read(tmp_path: Path) -> None:

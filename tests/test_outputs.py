@@ -525,3 +525,23 @@ def test_an_output_under_a_file_says_the_file_is_no_folder(tmp_path: Path) -> No
     with pytest.raises(OutputError, match=r"folder .*missing does not exist"):
         OutputSet().stage(tmp_path / "missing" / "out.json")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.txt"]
+
+
+def test_the_longest_output_name_stages_under_a_long_host_name(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A name that passed the check failed when staged ("File name too long") once the temporary's
+    name held a long host name (a cloud host's FQDN, a Kubernetes pod)."""
+    import socket
+
+    from rose import outputs
+
+    monkeypatch.setattr(socket, "gethostname", lambda: "ip-10-0-0-1.eu-west-1.compute.internal.x")
+    assert len(process_tag()) <= outputs._MAX_TAG_CHARS
+    longest = "n" * (outputs._MAX_OUTPUT_NAME_BYTES - len(".json")) + ".json"
+    written = OutputSet()
+    written.write_bytes(tmp_path / longest, b"{}")
+    written.commit()
+    assert (tmp_path / longest).read_bytes() == b"{}"
+    with pytest.raises(OutputError, match="output file name longer than"):
+        OutputSet().write_bytes(tmp_path / ("n" + longest), b"{}")

@@ -147,7 +147,8 @@ def _from_storage_client(err: BaseException) -> bool:
     while tb is not None and tb.tb_next is not None:
         tb = tb.tb_next
     module = "" if tb is None else str(tb.tb_frame.f_globals.get("__name__", ""))
-    return module.split(".")[0] in _STORAGE_CLIENTS
+    # fsspec's own implementations pass the options on too (http: aiohttp.ClientSession(**kw)).
+    return module.split(".")[0] in _STORAGE_CLIENTS or module.startswith("fsspec.implementations.")
 
 
 def work_folder_prefix() -> str:

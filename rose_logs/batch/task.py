@@ -10,6 +10,7 @@ import dataclasses
 import hashlib
 import json
 import logging
+import math
 import os
 import socket
 import statistics
@@ -20,6 +21,8 @@ from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
+
+import numpy as np
 
 from rose.cleaning import CLEAN_METHODS, CleanMethod
 from rose.directions import FAILURE_LEVEL
@@ -115,10 +118,12 @@ class RecordingOptions:
             or not all(isinstance(t, str) for t in self.topics)
         ):
             problems.append(f"topics must be a tuple of topic names or None, got {self.topics!r}")
+        elif isinstance(self.topics, list):  # a tuple, as the field says: the options stay hashable
+            object.__setattr__(self, "topics", tuple(self.topics))
         if not (finite_number(self.failure_level) and 0 < self.failure_level <= 1):
             problems.append(f"failure_level must be a number in (0, 1], got {self.failure_level!r}")
         for name in ("walls", "cleaned", "rrd", "salvage", "replace_rose_topics"):
-            if not isinstance(getattr(self, name), bool):
+            if not isinstance(getattr(self, name), bool | np.bool_):
                 problems.append(f"{name} must be True or False, got {getattr(self, name)!r}")
         if not (integer_number(self.retries) and self.retries >= 0):
             problems.append(f"retries must be an integer >= 0, got {self.retries!r}")
@@ -130,10 +135,9 @@ class RecordingOptions:
             problems.append(
                 f"clean_method must be one of {', '.join(CLEAN_METHODS)}, got {self.clean_method!r}"
             )
-        if self.break_threshold_m is not None and not (
-            isinstance(self.break_threshold_m, int | float)
-            and not isinstance(self.break_threshold_m, bool)
-            and self.break_threshold_m > 0
+        threshold = self.break_threshold_m  # any number BreakParams takes (numpy's too, or inf)
+        if threshold is not None and not (
+            (finite_number(threshold) or threshold == math.inf) and threshold > 0
         ):
             problems.append(
                 f"break_threshold_m must be a number > 0 or None, got {self.break_threshold_m!r}"

@@ -164,7 +164,8 @@ def _stamps_in_line(stamps: npt.NDArray[np.int64], log: CarmenLog) -> npt.NDArra
     The stamps in line are the longest non-decreasing run through the log (not necessarily
     consecutive scans). A stamp off that run is wrong when it lies more than :data:`OUT_OF_LINE_S`
     outside the span of its neighbours in line (before the first or after the last of them: of
-    where the log's median scan period puts it). A wrong stamp is interpolated (by scan index)
+    where the log's median scan period puts it), or more than :data:`RESTART_MIN_S` ahead of the
+    scans in line after it (which it would otherwise squeeze onto one time). A wrong stamp is interpolated (by scan index)
     between its neighbours, or placed on at that period at the ends (possibly before 0). Small
     backward steps, also next to a long pause, stay as they are, for the caller's 1 ns nudge. A
     first stamp that is too early or a last one too late stays in line and cannot be told from a

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
 from collections.abc import Callable
 from typing import Any
@@ -108,12 +109,19 @@ def _storage_option(text: str) -> tuple[str, Any]:
     lowered = value.lower()
     if lowered in ("true", "false"):
         return key, lowered == "true"
+    # Credentials stay text: a numeric password is no number.
+    if _CREDENTIAL_KEY.search(key):
+        return key, value
     # As fsspec reads its FSSPEC_<PROTOCOL> variables: JSON where it is JSON (numbers, null,
     # objects such as client_kwargs), else the text ("123" quoted stays a string).
     try:
         return key, json.loads(value)
     except ValueError:
         return key, value
+
+
+#: Storage option names whose values are credentials, taken as text whatever they look like.
+_CREDENTIAL_KEY = re.compile(r"(key|secret|password|passwd|token|user|username|profile)$", re.I)
 
 
 def add_parser(subparsers: Any) -> None:
@@ -178,7 +186,8 @@ def add_parser(subparsers: Any) -> None:
         help=(
             "fsspec option for remote inputs and OUT, e.g. endpoint_url=http://host:9000; a "
             "VALUE that is JSON is read as JSON (max_concurrency=2, "
-            'client_kwargs=\'{"region_name": "eu-west-1"}\'; quoted, "123" stays text)'
+            'client_kwargs=\'{"region_name": "eu-west-1"}\'; quoted, "123" stays text; keys, '
+            "secrets, passwords, tokens and user names stay text)"
         ),
     )
     work = parser.add_argument_group("per recording (as `process`)")

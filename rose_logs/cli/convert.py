@@ -142,11 +142,12 @@ def run(args: argparse.Namespace) -> int:
     if folder:
         _check_apart(Path(args.output), map_files)
     if args.map_file is not None:  # save_map's own refusals, now rather than after the ray casting
+        from rose.errors import MapFileError
         from rose.mapfile import map_output_problem
 
         problem = map_output_problem(args.map_file)
-        if problem is not None:
-            raise UsageError(problem)
+        if problem is not None:  # exit 1, as `rose clean -o` to a FIFO
+            raise MapFileError(problem)
     # After the checks: an output refused anyway (the input itself, `convert p.log p.log`) is
     # refused alone, not warned about first.
     _warn_of_suffix(args)

@@ -290,14 +290,14 @@ def run(args: argparse.Namespace) -> int:
     # One line each, whatever the input's name holds (a newline split the line, an escape
     # sequence drove the terminal).
     for reason in failed:
-        print(f"error: {visible(short(f'{args.input}: {reason}'))}", file=sys.stderr)
+        print(f"error: {short(visible(f'{args.input}: {reason}'))}", file=sys.stderr)
     if report.losses:
         # Each loss was warned about when the reader met it (a long session shows it at once).
         text = (
             f"{args.input}: damaged input ({len(report.losses)} problem(s) above), outputs hold "
             f"only what could be read (--salvage, exit {EXIT_SALVAGED})"
         )
-        print(f"warning: {visible(short(text))}", file=sys.stderr)
+        print(f"warning: {short(visible(text))}", file=sys.stderr)
         return EXIT_SALVAGED
     return EXIT_GATE if failed else 0
 

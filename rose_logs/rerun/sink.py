@@ -143,10 +143,6 @@ _VIEWER_PROBE_S = 3.0
 """Longest wait for a viewer to accept a connection before a session starts, seconds."""
 
 
-#: Where the viewer that ``--spawn`` starts listens (Rerun's default port, on this machine).
-SPAWNED_VIEWER = "127.0.0.1:9876"
-
-
 #: Where the viewer that ``spawn`` starts listens (Rerun's default port, on this machine).
 SPAWNED_VIEWER = "127.0.0.1:9876"
 

@@ -97,7 +97,7 @@ class RosbagsReadBackend:
         files = [self.path] if self.path.is_file() else sorted(self.path.glob("*.db3"))
         for storage in files:
             for side, what in (
-                ("-wal", "writes not yet in"),
+                ("-wal", "writes that may not be in"),  # unless checkpointed at the very end
                 ("-journal", "an unfinished write of"),
             ):
                 extra = storage.with_name(storage.name + side)

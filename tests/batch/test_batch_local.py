@@ -1410,3 +1410,29 @@ def test_a_recording_without_a_result_for_this_key_takes_back_the_name_its_outpu
     owners = {"x.mcap": "/H/day/x.mcap", "x-d8a08a7b.mcap": "/K/day/x.mcap"}
     names = _run_names(recordings, {}, owners, keep_stored=True)
     assert names == {"/H/day/x.mcap": "x.mcap", "/K/day/x.mcap": "x-d8a08a7b.mcap"}
+
+
+@pytest.mark.parametrize(
+    ("given", "read"),
+    [
+        ("max_concurrency=2", ("max_concurrency", 2)),
+        (
+            'client_kwargs={"region_name": "eu-west-1"}',
+            ("client_kwargs", {"region_name": "eu-west-1"}),
+        ),
+        ("anon=TRUE", ("anon", True)),
+        ('version_id="123"', ("version_id", "123")),
+        ("endpoint_url=http://host:9000", ("endpoint_url", "http://host:9000")),
+        # credentials stay text, however they look
+        ("secret=123456", ("secret", "123456")),
+        ("password=2024", ("password", "2024")),
+        ("token=null", ("token", "null")),
+        ("aws_access_key=1e5", ("aws_access_key", "1e5")),
+    ],
+)
+def test_storage_options_are_read_as_json_except_credentials(
+    given: str, read: tuple[str, Any]
+) -> None:
+    from rose_logs.cli.batch import _storage_option
+
+    assert _storage_option(given) == read

@@ -931,7 +931,9 @@ def _output_cases(corpus: Corpus) -> None:
     # a stale temporary of a dead process is removed by the next run
     sub = corpus.folder("out-stale-temp")
     sub_log = corpus.copy_log("mcap", sub)
-    stale = sub / ".o.mcap.rose-tmp-999999999-deadbeef"
+    from rose.outputs import process_tag  # the name a run on this host and namespace gives
+
+    stale = sub / f".o.mcap.rose-tmp-{process_tag()}-999999999-deadbeef"
     stale.mkdir()
     (stale / "o.mcap").write_bytes(b"half written")
     corpus.add(

@@ -236,7 +236,7 @@ def test_a_failed_gate_is_one_line_whatever_the_inputs_name(tmp_path: Path, caps
     assert main(["process", str(named), "--no-output", "-q", "--fail-above", "0.01"]) == EXIT_GATE
     lines = capsys.readouterr().err.splitlines()
     assert lines and all(line.startswith(("error: ", "warning: ")) for line in lines), lines
-    assert any("nl name.mcap: W = " in line for line in lines)
+    assert any("nl\\nname.mcap: W = " in line for line in lines)  # as in every other line
 
 
 def test_fail_on_break_gate_and_json_first_break(
