@@ -155,12 +155,16 @@ def test_a_tab_after_a_colon_reads_as_yaml_cpp_reads_it(tmp_path: Path) -> None:
         rose.load_map(bad)
 
 
+def _two_cell_map(folder: Path, keys: str) -> Path:
+    """A map of two cells (occupied, free) whose YAML holds ``image`` and then ``keys``."""
+    cv2.imwrite(str(folder / "m.pgm"), np.array([[0, 254]], dtype=np.uint8))
+    return write_yaml(folder / "m.yaml", f"image: m.pgm\n{keys}\n")
+
+
 def test_quoted_numbers_are_numbers_as_yaml_cpp_reads_them(tmp_path: Path) -> None:
-    cv2.imwrite(str(tmp_path / "m.pgm"), np.array([[0, 254]], dtype=np.uint8))
-    path = write_yaml(
-        tmp_path / "m.yaml",
-        'image: m.pgm\nresolution: "0.05"\norigin: ["-5.0", "1.5", "0"]\nnegate: "0"\n'
-        "occupied_thresh: '0.65'\n",
+    path = _two_cell_map(
+        tmp_path,
+        'resolution: "0.05"\norigin: ["-5.0", "1.5", "0"]\nnegate: "0"\noccupied_thresh: \'0.65\'',
     )
     loaded = rose.load_map(path)
     assert (loaded.resolution_m, loaded.origin_xy_m, loaded.origin_yaw_rad) == (
@@ -188,8 +192,7 @@ def test_quoted_numbers_are_numbers_as_yaml_cpp_reads_them(tmp_path: Path) -> No
 )
 def test_numbers_map_server_refuses_are_refused(tmp_path: Path, text: str, refused: str) -> None:
     """PyYAML read YAML 1.1 numbers and booleans that map_server's yaml-cpp refuses."""
-    cv2.imwrite(str(tmp_path / "m.pgm"), np.array([[0, 254]], dtype=np.uint8))
-    path = write_yaml(tmp_path / "m.yaml", f"image: m.pgm\n{text}\n")
+    path = _two_cell_map(tmp_path, text)
     with pytest.raises(MapFileError, match=refused):
         rose.load_map(path)
 
@@ -201,17 +204,15 @@ def test_negate_takes_yaml_cpps_truth_values_as_nav2_does(
     tmp_path: Path, spelt: str, negate: bool
 ) -> None:
     """Nav2 reads negate as an int, else as a yaml-cpp bool: `negate: yes` inverts the map."""
-    cv2.imwrite(str(tmp_path / "m.pgm"), np.array([[0, 254]], dtype=np.uint8))
-    path = write_yaml(tmp_path / "m.yaml", f"image: m.pgm\nresolution: 0.05\nnegate: {spelt}\n")
+    path = _two_cell_map(tmp_path, f"resolution: 0.05\nnegate: {spelt}")
     assert rose.load_map(path).grid.tolist() == ([[0, 100]] if negate else [[100, 0]])
 
 
 def test_numbers_as_yaml_1_2_writes_them_are_read(tmp_path: Path) -> None:
-    cv2.imwrite(str(tmp_path / "m.pgm"), np.array([[0, 254]], dtype=np.uint8))
-    path = write_yaml(
-        tmp_path / "m.yaml",
-        "image: m.pgm\nresolution: 5e-2\norigin: [010, +2., -.5]\nnegate: 0\n"
-        "occupied_thresh: 0.65\nfree_thresh: 0.196\n",
+    path = _two_cell_map(
+        tmp_path,
+        "resolution: 5e-2\norigin: [010, +2., -.5]\nnegate: 0\noccupied_thresh: 0.65\n"
+        "free_thresh: 0.196",
     )
     loaded = rose.load_map(path)
     assert (loaded.resolution_m, loaded.origin_xy_m) == (0.05, (10.0, 2.0))  # 010: decimal
