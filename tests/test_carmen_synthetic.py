@@ -352,3 +352,19 @@ def test_endless_lines_and_endless_line_kinds_are_read_in_bounded_memory(
     assert peak < 2_000_000  # the 5 MB line was held whole
     assert len(log.scans) == len(SCANS)
     assert sum(log.ignored.values()) == kinds and len(log.ignored) <= parse._MAX_KINDS + 1
+
+
+def test_a_gzipped_log_cut_short_keeps_its_scans_before_the_cut(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """A cut plain log kept its scans; the same log gzipped and cut was an error."""
+    import gzip
+
+    plain = tmp_path / "room.log"
+    _write_log(plain, SCANS)
+    whole = gzip.compress(plain.read_bytes())
+    cut = tmp_path / "cut.log.gz"
+    cut.write_bytes(whole[: len(whole) * 2 // 3])
+    log = read_carmen_log(cut)
+    assert 0 < len(log.scans) < len(SCANS)
+    assert "ends before its end marker" in caplog.text

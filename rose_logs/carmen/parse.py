@@ -257,7 +257,14 @@ def _open_lines(path: Path) -> Iterator[str]:
         magic = probe.read(2)
     if magic == _GZIP_MAGIC:
         with gzip.open(path, "rt", encoding="utf-8-sig", errors="replace") as fh:
-            yield from _bounded_lines(fh)
+            try:
+                yield from _bounded_lines(fh)
+            except EOFError:  # cut short (a download, a copy): read as a cut plain log is
+                _LOG.warning(
+                    "%s: the compressed log ends before its end marker (a copy cut short?): "
+                    "the scans before the cut are read",
+                    path,
+                )
     else:  # utf-8-sig: a byte-order mark before the first line is no part of it
         with path.open("rt", encoding="utf-8-sig", errors="replace") as fh:
             yield from _bounded_lines(fh)
