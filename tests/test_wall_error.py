@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import numpy.typing as npt
@@ -98,3 +99,19 @@ def test_empty_sets() -> None:
     assert wall_error(REFERENCE, none).n_spurious == 4
     with pytest.raises(RoseError, match="shape"):
         wall_error(np.zeros((3, 4)), REFERENCE)
+
+
+def test_the_wall_section_of_a_drawing_with_no_walls_says_n_a(tmp_path: Path) -> None:
+    """A drawing with no walls printed `nan` and "median factor nan", and its plot raised from
+    matplotlib (a log axis of nothing but NaN)."""
+    import math
+
+    from rose_logs.evaluation.walls import WallRow, WallScore, _markdown, _plot
+
+    none = WallScore(0, math.nan, math.nan, math.nan, 0, 0)
+    row = WallRow("blank", 0, none, none, none, 0.1)
+    text = _markdown((row,), None)
+    assert " nan" not in text and "| blank | 0 | 0 | n/a |" in text
+    assert "median factor n/a" in text
+    pytest.importorskip("matplotlib")
+    assert _plot(tmp_path / "walls.png", (row,)) == tmp_path / "walls.png"

@@ -294,7 +294,7 @@ def _markdown(rows: tuple[WallRow, ...], plot_path: Path | None) -> str:
         median = float(np.median(finite)) if finite.size else math.nan
         return (
             f"- {label}: lower cost on {better} of {len(rows)} buildings, median factor "
-            f"{median:.3g}; spurious {sum(s.n_spurious for s in scores)}, missing "
+            f"{_g(median)}; spurious {sum(s.n_spurious for s in scores)}, missing "
             f"{sum(s.n_missing for s in scores)} of {n_ref} reference walls."
         )
 
@@ -321,11 +321,11 @@ def _markdown(rows: tuple[WallRow, ...], plot_path: Path | None) -> str:
     ]
     for r in rows:
         b, o, f = r.baseline, r.rose, r.rose_fixed
-        factor = ">1e6" if r.improvement > 1e6 else f"{r.improvement:.3g}"
+        factor = ">1e6" if r.improvement > 1e6 else _g(r.improvement)
         lines.append(
-            f"| {r.name} | {r.n_reference} | {b.n_detected} | {b.mean_cost:.3g} | {b.n_spurious} "
-            f"| {b.n_missing} | {o.n_detected} | {o.mean_cost:.3g} | {o.n_spurious} "
-            f"| {o.n_missing} | {factor} | {f.mean_cost:.3g} | {f.n_missing} |"
+            f"| {r.name} | {r.n_reference} | {b.n_detected} | {_g(b.mean_cost)} | {b.n_spurious} "
+            f"| {b.n_missing} | {o.n_detected} | {_g(o.mean_cost)} | {o.n_spurious} "
+            f"| {o.n_missing} | {factor} | {_g(f.mean_cost)} | {f.n_missing} |"
         )
     lines.append("")
     lines.append(f"Table: `{CSV_NAME}`.")
@@ -360,3 +360,9 @@ def main(argv: list[str] | None = None) -> int:
 
 if __name__ == "__main__":
     sys.exit(main())
+
+
+def _g(value: float) -> str:
+    """A cost or factor for the report: three significant digits, ``n/a`` when there is none (no
+    segment detected), as the rest of the report writes it."""
+    return f"{value:.3g}" if not math.isnan(value) else "n/a"
