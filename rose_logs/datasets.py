@@ -90,7 +90,8 @@ def require_data_dir() -> Path:
         msg = f"the real data set was not found: {HOW_TO}"
         raise DataSetError(msg)
     if not root.is_dir():
-        msg = f"{root}: data-set folder ({ENV_VAR}) does not exist; {HOW_TO}"
+        what = "is a file, not a folder" if root.exists() else "does not exist"
+        msg = f"{root}: data-set folder ({ENV_VAR}) {what}; {HOW_TO}"
         raise DataSetError(msg)
     return root
 

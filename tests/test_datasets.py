@@ -27,6 +27,9 @@ def test_missing_folder_named_by_the_variable_is_an_error(
     expected = re.escape(f"{tmp_path / 'typo'}: data-set folder ({ENV_VAR}) does not exist")
     with pytest.raises(DataSetError, match=expected):
         require_data_dir()
+    (tmp_path / "typo").write_text("")  # a file: said so, not "does not exist"
+    with pytest.raises(DataSetError, match="is a file, not a folder"):
+        require_data_dir()
 
 
 def test_missing_file_inside_the_data_set(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
