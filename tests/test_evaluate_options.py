@@ -183,3 +183,21 @@ def test_experiment_4_comes_before_the_file_list_which_names_its_tables(tmp_path
     files = text.split("## Files", 1)[1]
     assert "`exp4_breaks_sessions.csv`" in files and (out / "exp4_breaks_sessions.csv").is_file()
     assert "### Leave one log out\n\nNeeds sessions of two logs or more." in text
+
+
+def test_a_failed_evaluation_leaves_no_folder_it_made(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`evaluate new/a/b/eval` makes the report's parent folders; a run that failed left them."""
+    import shutil
+
+    from rose_logs.evaluation.config import BENCHMARK_SUBDIR
+
+    data = tmp_path / "maps"
+    shutil.copytree(REPO_DATA / BENCHMARK_SUBDIR, data / BENCHMARK_SUBDIR)
+    (data / BENCHMARK_SUBDIR / "Freiburg79_scan_furnitures.png").write_bytes(b"not a png")
+    out = tmp_path / "new" / "a" / "b" / "eval"
+    argv = ["evaluate", str(out), "--maps-dir", str(data), "--logs", "", "--no-plots"]
+    assert main([*argv, "--maps", "Freiburg79_scan"]) == 1
+    assert "Freiburg79_scan_furnitures.png" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["maps"]

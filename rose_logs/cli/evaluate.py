@@ -193,16 +193,24 @@ def run(args: argparse.Namespace) -> int:
     # checkout), but never inside the data set (the output check refuses that path next); a path
     # through a file stays an error of the output check.
     parent = Path(args.out_dir).resolve().parent
+    made = [p for p in (parent, *parent.parents) if not p.exists()]  # deepest first
     if not any(parent.is_relative_to(Path(i).resolve()) for i in inputs):
         with contextlib.suppress(OSError):
             parent.mkdir(parents=True, exist_ok=True)
-    with OutputSet(inputs=inputs, force=args.force, ends_run=True) as outputs:
-        staged = outputs.stage(args.out_dir, directory=True, replaceable=is_report_folder)
-        assert staged.temp is not None  # a folder output is never a stream
-        try:
-            run_evaluation(config, staged.temp, progress=lambda m: print(m, file=sys.stderr))
-        except ReportWriteError as err:  # raised inside `with`: the staged report is removed
-            raise err.relocated(staged.temp, args.out_dir) from err
+    try:
+        with OutputSet(inputs=inputs, force=args.force, ends_run=True) as outputs:
+            staged = outputs.stage(args.out_dir, directory=True, replaceable=is_report_folder)
+            assert staged.temp is not None  # a folder output is never a stream
+            try:
+                run_evaluation(config, staged.temp, progress=lambda m: print(m, file=sys.stderr))
+            except ReportWriteError as err:  # raised inside `with`: the staged report is removed
+                raise err.relocated(staged.temp, args.out_dir) from err
+    except BaseException:
+        # No report: the folders made for it go too (an interrupted run left `a/b/` behind).
+        for folder in made:
+            with contextlib.suppress(OSError):
+                folder.rmdir()  # only while empty
+        raise
     print(args.out_dir / MARKDOWN_NAME)
     return 0
 
