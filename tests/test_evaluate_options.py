@@ -101,11 +101,15 @@ def test_lists_are_taken_once_and_logs_by_their_file_names_too() -> None:
             "aces,aces-corrected.log.gz,intel-corrected",
             "--sizes",
             "4,4",
+            "--maps",
+            "Freiburg79_scan.png,Freiburg79_scan,lab_ipa_furnitures.png",
         ]
     )
     config = config_from_args(args)
     assert config.logs == ("aces", "intel")  # a log named twice ran, and was tabled, twice
     assert config.sizes_px == (4,)
+    # Map file names looked for Freiburg79_scan.png_furnitures.png.
+    assert config.benchmark_maps == ("Freiburg79_scan", "lab_ipa")
 
 
 def test_a_missing_data_folder_is_named_and_an_empty_report_folder_is_replaceable(

@@ -30,6 +30,13 @@ def _log_names(value: str) -> tuple[str, ...]:
     return tuple(dict.fromkeys(names))
 
 
+def _map_names(value: str) -> tuple[str, ...]:
+    """Benchmark map names, also as their files are called (``Freiburg79_scan.png`` or its
+    ``_furnitures.png`` drawing is ``Freiburg79_scan``)."""
+    names = (v.removesuffix(".png").removesuffix("_furnitures") for v in _csv(value))
+    return tuple(dict.fromkeys(names))
+
+
 #: Bounds of the experiment options. The paper's ranges (``--config full``) are sizes 2..39 px and
 #: counts 20..180 per map; far larger values only make each map slower to build and analyse (an
 #: obstacle of 100000 px, 1e8 obstacles) without telling anything new.
@@ -98,7 +105,12 @@ def _configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--logs", type=_log_names, default=None, help="comma-separated Radish logs (aces, intel...)"
     )
-    parser.add_argument("--maps", type=_csv, default=None, help="comma-separated benchmark maps")
+    parser.add_argument(
+        "--maps",
+        type=_map_names,
+        default=None,
+        help="comma-separated benchmark maps (Freiburg79_scan...; their file names too)",
+    )
     parser.add_argument(
         "--sizes",
         type=_ints(1, MAX_SIZE_PX),
