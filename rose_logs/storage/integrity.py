@@ -64,7 +64,7 @@ def storage_types(folder: Path) -> dict[str, str]:
 def type_mismatches(declared: dict[str, str], stored: dict[str, str]) -> list[str]:
     """``"<topic>: metadata.yaml says A, the storage B"`` for every topic whose types disagree."""
     return [
-        f"{topic}: metadata.yaml says {kind}, the storage {stored[topic]}"
+        f"{topic}: metadata.yaml says {kind or 'no type'}, the storage {stored[topic] or 'no type'}"
         for topic, kind in sorted(declared.items())
         if topic in stored and normalize_msgtype(kind) != stored[topic]
     ]

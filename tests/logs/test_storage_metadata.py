@@ -528,3 +528,15 @@ def test_a_storage_file_listed_twice_in_metadata_is_refused_not_read_twice(
     assert main(["process", str(bag), "--no-output", "-q"]) == 1
     err = capsys.readouterr().err
     assert err == f"error: {bag}: metadata.yaml lists the storage file {files[0]} more than once\n"
+
+
+def test_a_type_missing_on_either_side_is_named_so() -> None:
+    """A storage topic with an empty type read "..., the storage )"."""
+    from rose_logs.storage.integrity import type_mismatches
+
+    assert type_mismatches({"/map": "nav_msgs/msg/OccupancyGrid"}, {"/map": ""}) == [
+        "/map: metadata.yaml says nav_msgs/msg/OccupancyGrid, the storage no type"
+    ]
+    assert type_mismatches({"/map": ""}, {"/map": "nav_msgs/msg/OccupancyGrid"}) == [
+        "/map: metadata.yaml says no type, the storage nav_msgs/msg/OccupancyGrid"
+    ]
