@@ -53,7 +53,8 @@ CLASS_INFO: Final = (
 """``(class id, label, RGB)`` of the segmentation classes, logged once as an AnnotationContext."""
 
 DIRECTION_COLOR: Final = (200, 0, 160)
-#: Wall segments (``--walls``): translucent green, so that the structure cells under them show.
+#: Wall segments (``--walls``): green, drawn thin (Rerun 0.41 draws lines opaque, whatever their
+#: alpha), so that the structure cells beside them show.
 WALL_COLOR: Final = (0, 130, 60, 140)
 PEAK_COLOR: Final = (220, 40, 40)
 W_COLOR: Final = (20, 90, 220)

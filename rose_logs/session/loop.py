@@ -920,6 +920,14 @@ class _Loop:
                 judged=record.judged,
             )
             self.rerun.break_score(snapshot, verdict, index, self.detector.params.threshold_m)
+            if verdict.incomparable_with is not None:
+                # In the viewer too: the break score falls to 0 there, which read as a recovery.
+                restart = (
+                    f"break detector restarted: not comparable with snapshot "
+                    f"{verdict.incomparable_with} (another cell size, frame or orientation); a "
+                    "break across the change is not seen"
+                )
+                self.rerun.event(snapshot, restart, index, None)
         self._report_breaks(snapshot, analysis.result, index, verdict, judged=record.judged)
         compute_s = 0.0 if pending.reused else analysis.seconds
         record = dataclasses.replace(record, seconds=compute_s + time.perf_counter() - t0)

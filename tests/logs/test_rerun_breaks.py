@@ -84,3 +84,24 @@ def test_a_break_on_a_map_w_says_nothing_about_has_no_marker_on_the_w_plot(
     assert len(rows[f"/{paths.events}"]) == 2
     (marker,) = rows[f"/{paths.breaks}"]
     assert next(v for k, v in marker.items() if k.endswith("scalars")) == [0.3]
+
+
+def test_a_detector_restart_is_an_event_in_the_recording(tmp_path: Path, fr079) -> None:
+    """After a change of cell size the break score fell to 0 in the viewer with nothing to say
+    why: it read as the map recovering."""
+    from conftest import START_NS, MapMsg, build_log
+
+    from rose_logs.session import process_log
+
+    coarse = fr079[1][::2, ::2].copy()
+    maps = [
+        MapMsg(START_NS + 1_000_000_000, fr079[0]),
+        MapMsg(START_NS + 2_000_000_000, coarse, resolution_m=0.1),
+    ]
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps)
+    process_log(built.path, rrd_path=tmp_path / "s.rrd")
+    events = _temporal_rows(tmp_path / "s.rrd")[f"/{EntityPaths('map').events}"]
+    texts = [next(v for k, v in row.items() if k.endswith("text"))[0] for row in events]
+    assert any(
+        t.startswith("break detector restarted: not comparable with snapshot 0") for t in texts
+    )
