@@ -180,18 +180,16 @@ def _topic_container(layout: TopicLayout) -> rrb.Container:
         origin=f"/{paths.spectrum_view}",
         background=[0, 0, 0],
     )
-    right: list[rrb.View] = [w_plot, break_plot, amplitude, spectrum]
-    shares = [2.5, 1.8, 2.3, 3.0]
+    left: list[rrb.View | rrb.Horizontal] = [segmentation, rrb.Horizontal(metric, scores)]
+    shares = [3.0, 2.0]
     if layout.has_events:
-        right.append(_events_view(f"{root}: events", f"/{paths.events}"))
-        shares.append(1.2)
+        # Under the maps, across the wider column: room for several rows of long text (in the
+        # right column one row showed, cut at the right).
+        left.append(_events_view(f"{root}: events", f"/{paths.events}"))
+        shares.append(1.0)
     return rrb.Horizontal(
-        rrb.Vertical(
-            segmentation,
-            rrb.Horizontal(metric, scores),
-            row_shares=[3.0, 2.0],
-        ),
-        rrb.Vertical(*right, row_shares=shares),
+        rrb.Vertical(*left, row_shares=shares),
+        rrb.Vertical(w_plot, break_plot, amplitude, spectrum, row_shares=[2.5, 1.8, 2.3, 3.0]),
         column_shares=[3.0, 2.0],
         name=root,
     )
