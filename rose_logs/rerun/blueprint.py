@@ -149,7 +149,7 @@ def _topic_container(layout: TopicLayout) -> rrb.Container:
     )
     w_plot = _session_plot(
         # (As long as fits a third of 1600 pixels: a longer title was cut.)
-        f"{root}: structure score W (blue), trust (green) / failure (red), x: break or W > failure",
+        f"{root}: structure score W (blue), trust (green) / failure (red), x: break, ^: W > failure",
         f"/{paths.score}",
         layout.w_top,
         one_time_window_s=layout.one_time_window_s,

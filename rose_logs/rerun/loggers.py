@@ -314,6 +314,16 @@ class TopicLogger:
             ),
             static=True,
         )
+        rec.log(  # a shape of its own: three identical crosses could not be told apart
+            paths.failures,
+            rr.SeriesPoints(
+                colors=style.FAILURE_COLOR,
+                names="W above the failure level",
+                markers="Up",
+                marker_sizes=8.0,
+            ),
+            static=True,
+        )
         rec.log(
             paths.break_score,
             rr.SeriesLines(colors=style.BREAK_SCORE_COLOR, names="break score (m)", widths=2.5),
@@ -768,9 +778,11 @@ class TopicLogger:
             ),
         )
 
-    def log_break(self, score: float | None, text: str) -> None:
-        """A break: a marker on the W plot at ``score`` (None: none, W is not plotted there) and a
-        WARN event (time set by the caller)."""
+    def log_break(self, score: float | None, text: str, *, failure: bool = False) -> None:
+        """A break: a marker on the W plot at ``score`` (None: none, W is not plotted there; a
+        cross for the detector's break, a triangle for W rising above the failure level with
+        ``failure``) and a WARN event (time set by the caller)."""
         if score is not None:
-            self.recording.log(self.paths.breaks, rr.Scalars(float(score)))
+            where = self.paths.failures if failure else self.paths.breaks
+            self.recording.log(where, rr.Scalars(float(score)))
         self.recording.log(self.paths.events, rr.TextLog(text, level=rr.TextLogLevel.WARN))

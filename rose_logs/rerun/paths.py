@@ -30,7 +30,8 @@ Paths are lowercase and live below one root per map topic (``/map`` -> ``map``):
     <root>/amplitude/peak_labels                the peaks' labels, on points above the peaks
     <root>/amplitude/prominence_threshold       the threshold t (static: a session parameter)
     <root>/structure_score/w         Scalars: W, trust level, failure level (three series, static styles)
-    <root>/structure_score/breaks    Scalars: W at every break (point markers)
+    <root>/structure_score/breaks    Scalars: W at every break the detector finds (crosses)
+    <root>/structure_score/failures  Scalars: W where it rises above the failure level (triangles)
     <root>/events                    TextLog of break events
     <root>/break_score/score_m       Scalars: the break detector's score, metres of established map contradicted
     <root>/break_score/threshold_m   Scalars: the detector's threshold (static style)
@@ -177,6 +178,10 @@ class EntityPaths:
     @property
     def breaks(self) -> str:
         return self._below("structure_score/breaks")
+
+    @property
+    def failures(self) -> str:
+        return self._below("structure_score/failures")
 
     @property
     def events(self) -> str:

@@ -541,15 +541,26 @@ class RerunSink:
             snapshot, index, lambda: topic_logger.log_break_score(snapshot, verdict, threshold_m)
         )
 
-    def event(self, snapshot: MapSnapshot, text: str, index: int, score: float | None) -> None:
+    def event(
+        self,
+        snapshot: MapSnapshot,
+        text: str,
+        index: int,
+        score: float | None,
+        *,
+        failure: bool = False,
+    ) -> None:
         """Log a break of ``snapshot``'s topic: a marker on the W plot at ``score`` (None: none,
-        W says nothing about the snapshot) and a WARN event ``text`` (without the topic: the
-        events view is the topic's own)."""
+        W says nothing about the snapshot; ``failure``: W rose above the failure level, its own
+        marker) and a WARN event ``text`` (without the topic: the events view is the topic's
+        own)."""
         topic_logger = self.loggers[snapshot.topic]
         first = not self._has_events[snapshot.topic]
         self._has_events[snapshot.topic] = True
 
-        self._submit_at(snapshot, index, lambda: topic_logger.log_break(score, text))
+        self._submit_at(
+            snapshot, index, lambda: topic_logger.log_break(score, text, failure=failure)
+        )
         if self.live and first:
             self._send_blueprint()
 

@@ -987,7 +987,7 @@ class _Loop:
             text = f"{topic}: {detail}"
             self.breaks.append(BreakEvent(topic, index, snapshot.log_time_ns, score, text))
             if self.rerun is not None:
-                self.rerun.event(snapshot, detail, index, score)
+                self.rerun.event(snapshot, detail, index, score, failure=True)
         self.above[topic] = above
 
 
