@@ -9,7 +9,7 @@ Every command of ``rose`` and ``rose-bag`` writes its outputs through one :class
   is a ROS 2 bag itself (``metadata.yaml`` and no sub-folder), so ``-o SOME_DIR --force`` never deletes
   an unrelated folder.
 - **staging**: each output is written inside its own hidden folder next to the target,
-  ``.NAME.rose-tmp-<pid>-<random>/NAME``, unique per run (two concurrent runs never share a temporary);
+  ``.NAME.rose-tmp-<tag>-<pid>-<random>/NAME`` (:func:`process_tag`), unique per run (two concurrent runs never share a temporary);
   an output given as ``-``, or an existing non-regular target such as ``/dev/stdout``, ``/dev/null`` or
   a FIFO, is a *stream*: its bytes are kept in memory and written to it at commit (before any file is
   placed: a stream that fails leaves no file), never by rename. A
@@ -20,8 +20,10 @@ Every command of ``rose`` and ``rose-bag`` writes its outputs through one :class
   replaces), so of two concurrent runs one wins and the other fails cleanly.
 - **abort** (:meth:`OutputSet.abort`, also on any exception inside ``with``): every staging folder is
   removed and the targets are left as they were.
-- **stale temporaries**: staging any output removes ``.*.rose-tmp-<pid>-*`` / ``.*.rose-old-<pid>-*``
-  entries of its directory whose process is gone (a run killed with SIGKILL or a power cut).
+- **stale temporaries**: staging any output removes the ``.*.rose-tmp-*`` / ``.*.rose-old-*`` entries
+  of its directory left by runs that are gone (a run killed with SIGKILL or a power cut): at once
+  for a dead process of this host and PID namespace, after a day unchanged for others
+  (:func:`left_behind`).
 
 :func:`install_signal_handlers` turns SIGTERM and SIGHUP into :class:`Terminated` (a ``KeyboardInterrupt``)
 so the same clean-up runs as for Ctrl-C. :func:`json_text` is the one JSON encoder: strict JSON, every

@@ -186,7 +186,7 @@ def test_quoted_numbers_are_numbers_as_yaml_cpp_reads_them(tmp_path: Path) -> No
         ('resolution: "1_0"', "resolution"),  # Python's float() took the underscore
         ('resolution: "infinity"', "resolution"),
         ("resolution: 0.05\norigin: [1:30, 0, 0]", "origin"),  # YAML 1.1: sexagesimal 90
-        ("resolution: 0.05\nnegate: 0x1", "negate"),
+        ("resolution: 0.05\nnegate: 2.5", "negate"),  # neither an int nor a truth value
         ("resolution: 0.05\nnegate: yEs", "negate"),  # no spelling of yaml-cpp's
     ],
 )

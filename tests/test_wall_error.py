@@ -115,3 +115,31 @@ def test_the_wall_section_of_a_drawing_with_no_walls_says_n_a(tmp_path: Path) ->
     assert "median factor n/a" in text
     pytest.importorskip("matplotlib")
     assert _plot(tmp_path / "walls.png", (row,)) == tmp_path / "walls.png"
+
+
+def test_the_wall_evaluation_runs_as_a_script(tmp_path: Path) -> None:
+    """A helper defined below the `__main__` block made `python -m rose_logs.evaluation.walls`
+    fail with a NameError (imported, the module worked)."""
+    import os
+    import subprocess
+    import sys
+
+    repo = Path(__file__).resolve().parents[1]
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "rose_logs.evaluation.walls",
+            str(tmp_path / "out"),
+            "Freiburg79_scan",
+            "--maps-dir",
+            str(repo / "tests" / "data" / "bormann_ipa_room_segmentation"),
+        ],
+        capture_output=True,
+        text=True,
+        check=False,
+        cwd=repo,
+        env={**os.environ, "MPLBACKEND": "Agg"},
+    )
+    assert done.returncode == 0, done.stderr
+    assert "| Freiburg79_scan |" in done.stdout

@@ -10,7 +10,6 @@ import dataclasses
 import hashlib
 import json
 import logging
-import math
 import os
 import socket
 import statistics
@@ -135,12 +134,10 @@ class RecordingOptions:
             problems.append(
                 f"clean_method must be one of {', '.join(CLEAN_METHODS)}, got {self.clean_method!r}"
             )
-        threshold = self.break_threshold_m  # any number BreakParams takes (numpy's too, or inf)
-        if threshold is not None and not (
-            (finite_number(threshold) or threshold == math.inf) and threshold > 0
-        ):
+        threshold = self.break_threshold_m  # finite: summary.json is strict JSON
+        if threshold is not None and not (finite_number(threshold) and threshold > 0):
             problems.append(
-                f"break_threshold_m must be a number > 0 or None, got {self.break_threshold_m!r}"
+                f"break_threshold_m must be a finite number > 0 or None, got {threshold!r}"
             )
         try:
             cell_limit(self.max_cells)
@@ -148,6 +145,25 @@ class RecordingOptions:
             problems.append(str(err))
         if problems:  # said before any recording is processed, not once per recording
             raise BatchError("RecordingOptions: " + "; ".join(problems))
+        self._as_builtin_types()
+
+    def _as_builtin_types(self) -> None:
+        """numpy's numbers and flags as Python's (checked above): the options are written to
+        strict JSON (summary.json) and hashed into the resume key, where ``np.True_`` and ``True``
+        must be the same option."""
+        builtin: dict[str, object] = {
+            name: bool(getattr(self, name))
+            for name in ("walls", "cleaned", "rrd", "salvage", "replace_rose_topics")
+        }
+        builtin |= {
+            "failure_level": float(self.failure_level),
+            "retries": int(self.retries),
+            "analysis_threads": int(self.analysis_threads),
+        }
+        if self.break_threshold_m is not None:
+            builtin["break_threshold_m"] = float(self.break_threshold_m)
+        for name, value in builtin.items():
+            object.__setattr__(self, name, value)
 
     def stated(self) -> dict[str, Any]:
         """Every option that changes a result, defaults written out (``summary.json``: a reader

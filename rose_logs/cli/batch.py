@@ -106,12 +106,14 @@ def _storage_option(text: str) -> tuple[str, Any]:
     if not sep or not key:
         msg = f"expected KEY=VALUE, got {text!r}"
         raise argparse.ArgumentTypeError(msg)
+    # Credentials stay text (a numeric password, `password=true`), unless written as a JSON
+    # object (gcsfs takes its token as one).
+    credential = _CREDENTIAL_KEY.search(key) is not None
+    if credential and not value.lstrip().startswith("{"):
+        return key, value
     lowered = value.lower()
     if lowered in ("true", "false"):
         return key, lowered == "true"
-    # Credentials stay text: a numeric password is no number.
-    if _CREDENTIAL_KEY.search(key):
-        return key, value
     # As fsspec reads its FSSPEC_<PROTOCOL> variables: JSON where it is JSON (numbers, null,
     # objects such as client_kwargs), else the text ("123" quoted stays a string).
     try:
@@ -120,8 +122,11 @@ def _storage_option(text: str) -> tuple[str, Any]:
         return key, value
 
 
-#: Storage option names whose values are credentials, taken as text whatever they look like.
-_CREDENTIAL_KEY = re.compile(r"(key|secret|password|passwd|token|user|username|profile)$", re.I)
+#: Storage option names whose values are credentials (anywhere in the name: api_key_id,
+#: account_name, client_id), taken as text whatever they look like.
+_CREDENTIAL_KEY = re.compile(
+    r"key|secret|password|passwd|token|user|account|client_id|credential|profile|sas", re.I
+)
 
 
 def add_parser(subparsers: Any) -> None:

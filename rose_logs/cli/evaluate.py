@@ -205,10 +205,9 @@ def run(args: argparse.Namespace) -> int:
     # checkout), but never inside the data set (the output check refuses that path next); a path
     # through a file stays an error of the output check.
     parent = Path(args.out_dir).resolve().parent
-    made = [p for p in (parent, *parent.parents) if not p.exists()]  # deepest first
+    made: list[Path] = []  # the folders this run made, deepest first
     if not any(parent.is_relative_to(Path(i).resolve()) for i in inputs):
-        with contextlib.suppress(OSError):
-            parent.mkdir(parents=True, exist_ok=True)
+        made = _make_folders(parent)
     try:
         with OutputSet(inputs=inputs, force=args.force, ends_run=True) as outputs:
             staged = outputs.stage(args.out_dir, directory=True, replaceable=is_report_folder)
@@ -225,6 +224,23 @@ def run(args: argparse.Namespace) -> int:
         raise
     print(args.out_dir / MARKDOWN_NAME)
     return 0
+
+
+def _make_folders(folder: Path) -> list[Path]:
+    """Make ``folder`` and its missing parents, one level at a time; return those this call made,
+    deepest first (one that another process makes meanwhile is not ours to remove). Errors are
+    left to the output check, which names them."""
+    missing = [p for p in (folder, *folder.parents) if not p.exists()]
+    made: list[Path] = []
+    for level in reversed(missing):
+        try:
+            level.mkdir()
+        except FileExistsError:
+            continue
+        except OSError:
+            break
+        made.append(level)
+    return made[::-1]
 
 
 def is_report_folder(path: Path) -> bool:

@@ -281,6 +281,12 @@ def _plot(path: Path, rows: tuple[WallRow, ...]) -> Path | None:
     return save_figure(fig, path, dpi=120)
 
 
+def _g(value: float) -> str:
+    """A cost or factor for the report: three significant digits, ``n/a`` when there is none (no
+    segment detected), as the rest of the report writes it."""
+    return f"{value:.3g}" if not math.isnan(value) else "n/a"
+
+
 def _markdown(rows: tuple[WallRow, ...], plot_path: Path | None) -> str:
     n_ref = sum(r.n_reference for r in rows)
 
@@ -360,9 +366,3 @@ def main(argv: list[str] | None = None) -> int:
 
 if __name__ == "__main__":
     sys.exit(main())
-
-
-def _g(value: float) -> str:
-    """A cost or factor for the report: three significant digits, ``n/a`` when there is none (no
-    segment detected), as the rest of the report writes it."""
-    return f"{value:.3g}" if not math.isnan(value) else "n/a"

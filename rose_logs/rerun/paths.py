@@ -32,7 +32,7 @@ Paths are lowercase and live below one root per map topic (``/map`` -> ``map``):
     <root>/structure_score/w         Scalars: W, trust level, failure level (three series, static styles)
     <root>/structure_score/breaks    Scalars: W at every break the detector finds (crosses)
     <root>/structure_score/failures  Scalars: W where it rises above the failure level (triangles)
-    <root>/events                    TextLog of break events
+    <root>/events                    TextLog: breaks, W's rises above the failure level, detector restarts
     <root>/break_score/score_m       Scalars: the break detector's score, metres of established map contradicted
     <root>/break_score/threshold_m   Scalars: the detector's threshold (static style)
     <root>/metric/break_region       LineStrips3D: the region of a detected break, metres from the

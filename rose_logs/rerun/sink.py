@@ -550,7 +550,8 @@ class RerunSink:
         *,
         failure: bool = False,
     ) -> None:
-        """Log a break of ``snapshot``'s topic: a marker on the W plot at ``score`` (None: none,
+        """Log an event of ``snapshot``'s topic (a break, W rising above the failure level, the
+        break detector restarting): a marker on the W plot at ``score`` (None: none,
         W says nothing about the snapshot; ``failure``: W rose above the failure level, its own
         marker) and a WARN event ``text`` (without the topic: the events view is the topic's
         own)."""

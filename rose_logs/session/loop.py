@@ -924,8 +924,8 @@ class _Loop:
                 # In the viewer too: the break score falls to 0 there, which read as a recovery.
                 restart = (
                     f"break detector restarted: not comparable with snapshot "
-                    f"{verdict.incomparable_with} (another cell size, frame or orientation); a "
-                    "break across the change is not seen"
+                    f"{verdict.incomparable_with} (another cell size, frame or orientation, or an "
+                    "origin off its cells); a break across the change is not seen"
                 )
                 self.rerun.event(snapshot, restart, index, None)
         self._report_breaks(snapshot, analysis.result, index, verdict, judged=record.judged)

@@ -693,7 +693,7 @@ def test_one_cell_limit_written_three_ways_is_one_key() -> None:
         ({"failure_level": 5}, "failure_level must be a number in (0, 1], got 5"),
         ({"topics": "/map"}, "topics must be a tuple of topic names or None"),
         ({"clean_method": "wall"}, "clean_method must be one of walls, paper"),
-        ({"break_threshold_m": math.nan}, "break_threshold_m must be a number > 0 or None"),
+        ({"break_threshold_m": math.nan}, "break_threshold_m must be a finite number > 0 or None"),
         ({"cleaned": "yes"}, "cleaned must be True or False"),
     ],
 )
@@ -704,6 +704,25 @@ def test_bad_recording_options_are_one_error_before_any_recording(
     raises for a bad recording"; failure_level=5 made one error row per recording."""
     with pytest.raises(BatchError, match=re.escape(said)):
         RecordingOptions(**options)
+
+
+def test_numpy_options_are_the_same_options_as_pythons() -> None:
+    """np.True_ made another resume key than True (every recording redone), and numpy values or
+    an infinite threshold made summary.json fail after the whole batch."""
+    import numpy as np
+
+    plain = RecordingOptions(walls=True, retries=1, break_threshold_m=2.0, topics=("/map",))
+    given = RecordingOptions(
+        walls=np.True_,
+        retries=np.int64(1),
+        break_threshold_m=np.float32(2.0),
+        failure_level=np.float64(0.4),
+        topics=["/map"],
+    )
+    assert given == plain and hash(given) == hash(plain)
+    assert json.dumps(given.stated(), allow_nan=False) == json.dumps(plain.stated())
+    with pytest.raises(BatchError, match="break_threshold_m must be a finite number"):
+        RecordingOptions(break_threshold_m=math.inf)
 
 
 def test_a_local_name_holding_a_double_colon_is_a_file_not_a_url(
@@ -1428,6 +1447,10 @@ def test_a_recording_without_a_result_for_this_key_takes_back_the_name_its_outpu
         ("password=2024", ("password", "2024")),
         ("token=null", ("token", "null")),
         ("aws_access_key=1e5", ("aws_access_key", "1e5")),
+        ("password=true", ("password", "true")),
+        ("account_name=123", ("account_name", "123")),
+        ("api_key_id=123", ("api_key_id", "123")),
+        ('token={"type": "service_account"}', ("token", {"type": "service_account"})),
     ],
 )
 def test_storage_options_are_read_as_json_except_credentials(

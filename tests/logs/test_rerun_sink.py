@@ -665,6 +665,22 @@ def test_blueprint_has_a_tab_per_map_topic() -> None:
         default_blueprint(())
 
 
+def test_the_events_view_sits_under_the_maps() -> None:
+    """In the right column one row of cut text showed: the events go under the maps, across the
+    wider left column, and only when there are any."""
+    import rerun.blueprint as rrb
+
+    from rose_logs.rerun.blueprint import TopicLayout, _topic_container
+
+    def columns(layout: TopicLayout) -> list[list[type]]:
+        container = _topic_container(layout)
+        return [[type(v) for v in column.contents] for column in container.contents]
+
+    left, right = columns(TopicLayout("map", has_events=True))
+    assert left[-1] is rrb.TextLogView and rrb.TextLogView not in right
+    assert rrb.TextLogView not in columns(TopicLayout("map"))[0]
+
+
 def test_direction_labels_give_the_map_frames_angles(tmp_path: Path, fr079) -> None:
     """Both views show the map frame (the 2D ones north up, image_placement): with an origin yaw,
     the labels give the walls' map-frame angle (as the JSON report does)."""
