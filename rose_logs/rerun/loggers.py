@@ -304,26 +304,19 @@ class TopicLogger:
             ),
             static=True,
         )
-        rec.log(
-            paths.breaks,
-            rr.SeriesPoints(
-                colors=style.FAILURE_COLOR,
-                names="break",
-                markers="Cross",
-                marker_sizes=10.0,
-            ),
-            static=True,
-        )
-        rec.log(  # a shape of its own: three identical crosses could not be told apart
-            paths.failures,
-            rr.SeriesPoints(
-                colors=style.FAILURE_COLOR,
-                names="W above the failure level",
-                markers="Up",
-                marker_sizes=8.0,
-            ),
-            static=True,
-        )
+        # Markers on the W plot: the detector's breaks and W's rises above the failure level, each
+        # a shape of its own (three identical crosses could not be told apart).
+        for entity, name, marker, size in (
+            (paths.breaks, "break", rr.components.MarkerShape.Cross, 10.0),
+            (paths.failures, "W above the failure level", rr.components.MarkerShape.Up, 8.0),
+        ):
+            rec.log(
+                entity,
+                rr.SeriesPoints(
+                    colors=style.FAILURE_COLOR, names=name, markers=marker, marker_sizes=size
+                ),
+                static=True,
+            )
         rec.log(
             paths.break_score,
             rr.SeriesLines(colors=style.BREAK_SCORE_COLOR, names="break score (m)", widths=2.5),
