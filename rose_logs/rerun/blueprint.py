@@ -123,6 +123,8 @@ def _topic_container(layout: TopicLayout) -> rrb.Container:
     paths = EntityPaths(layout.root)
     root = paths.root
     h = style.AMPLITUDE_PLOT_HEIGHT
+    # The topic in the first view's title only: in the others' it cut their legends off (a
+    # long topic name); the topic's tab names it too.
     segmentation = rrb.Spatial2DView(
         name=f"{root}: segmentation, structure (blue) / clutter (orange), north up",
         origin=f"/{paths.cells}",
@@ -130,7 +132,7 @@ def _topic_container(layout: TopicLayout) -> rrb.Container:
     )
     spacing = _grid_spacing_m(layout.bounds_m)
     metric = rrb.Spatial3DView(
-        name=f"{root}: map from above, metres (grid {spacing:g} m)",
+        name=f"map from above, metres (grid {spacing:g} m)",
         origin=f"/{paths.metric}",
         # Just above the map (an opaque grid map would hide a grid in its own plane).
         line_grid=rrb.LineGrid3D(
@@ -143,13 +145,13 @@ def _topic_container(layout: TopicLayout) -> rrb.Container:
         eye_controls=_metric_eye(layout),
     )
     scores = rrb.Spatial2DView(
-        name=f"{root}: scores of occupied cells",
+        name="scores of occupied cells",
         origin=f"/{paths.scores_view}",
         visual_bounds=_north_up_bounds(layout, below=0.45),  # and the colour bar
     )
     w_plot = _session_plot(
         # (As long as fits a third of 1600 pixels: a longer title was cut.)
-        f"{root}: structure score W (blue), trust (green) / failure (red), x: break, ^: W > failure",
+        "structure score W (blue), trust (green) / failure (red), x: break, ^: W > failure",
         f"/{paths.score}",
         layout.w_top,
         one_time_window_s=layout.one_time_window_s,
@@ -158,7 +160,7 @@ def _topic_container(layout: TopicLayout) -> rrb.Container:
         },
     )
     break_plot = _session_plot(
-        f"{root}: break score (orange; m of established map contradicted), threshold (red)",
+        "break score (orange; m of established map contradicted), threshold (red)",
         f"/{paths.break_score_view}",
         layout.break_top,
         one_time_window_s=layout.one_time_window_s,
@@ -170,13 +172,13 @@ def _topic_container(layout: TopicLayout) -> rrb.Container:
         },
     )
     amplitude = rrb.Spatial2DView(
-        name=f"{root}: cumulative amplitude s per wall direction, peaks (p: prominence), threshold t",
+        name="cumulative amplitude s per wall direction, peaks (p: prominence), threshold t",
         origin=f"/{paths.amplitude_view}",
         # Above s = 1: the peaks' labels hang over them (conversions.PEAK_LABEL_LIFT).
         visual_bounds=rrb.VisualBounds2D(x_range=(-22.0, 198.0), y_range=(-1.36 * h, 44.0)),
     )
     spectrum = rrb.Spatial2DView(
-        name=f"{root}: log amplitude spectrum, kept strips (magenta)",
+        name="log amplitude spectrum, kept strips (magenta)",
         origin=f"/{paths.spectrum_view}",
         background=[0, 0, 0],
     )
@@ -185,7 +187,7 @@ def _topic_container(layout: TopicLayout) -> rrb.Container:
     if layout.has_events:
         # Under the maps, across the wider column: room for several rows of long text (in the
         # right column one row showed, cut at the right).
-        left.append(_events_view(f"{root}: events", f"/{paths.events}"))
+        left.append(_events_view("events", f"/{paths.events}"))
         shares.append(1.0)
     return rrb.Horizontal(
         rrb.Vertical(*left, row_shares=shares),

@@ -681,6 +681,24 @@ def test_the_events_view_sits_under_the_maps() -> None:
     assert rrb.TextLogView not in columns(TopicLayout("map"))[0]
 
 
+def test_only_the_first_views_title_names_the_topic() -> None:
+    """A long topic name in front of every title cut the plots' legends (their titles) off; the
+    topic's tab and its first view name it."""
+    import rerun.blueprint as rrb
+
+    from rose_logs.rerun.blueprint import TopicLayout, _topic_container
+
+    def names(container: rrb.Container) -> list[str]:
+        found = []
+        for item in container.contents:
+            found += names(item) if isinstance(item, rrb.Container) else [str(item.name)]
+        return found
+
+    titles = names(_topic_container(TopicLayout("robot1/slam_map", has_events=True)))
+    assert titles[0].startswith("robot1/slam_map: segmentation")
+    assert len(titles) == 8 and not any("slam_map" in t for t in titles[1:])
+
+
 def test_direction_labels_give_the_map_frames_angles(tmp_path: Path, fr079) -> None:
     """Both views show the map frame (the 2D ones north up, image_placement): with an origin yaw,
     the labels give the walls' map-frame angle (as the JSON report does)."""
