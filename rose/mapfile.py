@@ -50,7 +50,15 @@ from rose.limits import (
 )
 from rose.outputs import OutputSet, is_stream
 
-__all__ = ["MapMode", "OccupancyMap", "load_map", "save_map", "write_atomically"]
+__all__ = [
+    "MapMode",
+    "OccupancyMap",
+    "checked_image_bytes",
+    "load_map",
+    "map_output_problem",
+    "save_map",
+    "write_atomically",
+]
 
 MapMode = Literal["trinary", "scale", "raw"]
 
@@ -416,6 +424,24 @@ def _read_image(path: Path, max_cells: int | None = DEFAULT_MAX_CELLS) -> npt.ND
 
     The size its header declares is checked against ``max_cells`` before decoding.
     """
+    raw = checked_image_bytes(path, max_cells)
+    pixels = _decode_pnm(raw, path)
+    if pixels is None:
+        transparent = _grey_transparency(raw) if image_kind(raw) == "PNG" else None
+        pixels = _decode_other(raw, path, max_cells, transparent)
+    return pixels[:, :, np.newaxis] if pixels.ndim == 2 else pixels
+
+
+def checked_image_bytes(path: Path, max_cells: int | None = DEFAULT_MAX_CELLS) -> bytes:
+    """The bytes of the image file ``path``, safe to hand to a decoder: its header read and its
+    declared size checked against ``max_cells`` before any decoding (a 10 KB file can declare
+    16000 x 16000 pixels), a PNG's chunks mended as libpng reads them.
+
+    Raises
+    ------
+    MapFileError
+        For a missing or non-regular file, an unreadable or too large image (one line, naming it).
+    """
     _require_regular(path, "no such image file")
     raw = _read_bytes(path)
     shape = image_shape(raw)
@@ -454,11 +480,7 @@ def _read_image(path: Path, max_cells: int | None = DEFAULT_MAX_CELLS) -> npt.ND
         # As libpng reads them, without its stderr lines: chunks dropped, surplus data cut.
         for start, end, replacement in reversed(mended):
             raw = raw[:start] + replacement + raw[end:]
-    pixels = _decode_pnm(raw, path)
-    if pixels is None:
-        transparent = _grey_transparency(raw) if image_kind(raw) == "PNG" else None
-        pixels = _decode_other(raw, path, max_cells, transparent)
-    return pixels[:, :, np.newaxis] if pixels.ndim == 2 else pixels
+    return raw
 
 
 #: PNM types decoded by :func:`_decode_pnm` (plain and binary PGM / PPM); PBM goes to OpenCV.

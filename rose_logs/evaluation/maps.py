@@ -109,22 +109,11 @@ def load_benchmark_map(path: Path) -> npt.NDArray[np.int8]:
 def _grey(path: Path) -> npt.NDArray[np.uint8]:
     import cv2
 
-    from rose.limits import DEFAULT_MAX_CELLS, check_cells, image_shape
+    from rose.mapfile import checked_image_bytes
 
     # Sized from its header before decoding, as load_map sizes the clean drawing: a 0.4 MB PNG
     # declaring 20000 x 20000 pixels took 0.9 GB in cv2.imread.
-    try:
-        raw = Path(path).read_bytes()
-    except OSError as err:
-        msg = f"{path}: cannot read image ({err.strerror or err})"
-        raise MapFileError(msg) from err
-    shape = image_shape(raw)
-    problem = (
-        "no image size in its header" if shape is None else check_cells(*shape, DEFAULT_MAX_CELLS)
-    )
-    if problem is not None:
-        msg = f"{path}: image of {problem}"
-        raise MapFileError(msg)
+    raw = checked_image_bytes(Path(path))
     image = cv2.imdecode(np.frombuffer(raw, dtype=np.uint8), cv2.IMREAD_GRAYSCALE)
     if image is None:
         msg = f"{path}: cannot read image"

@@ -79,10 +79,11 @@ class RosbagsReadBackend:
             self._by_conn[id(conn)] = channel
         self.channels = tuple(channels)
         if self.format != "ros1":
-            self.qos_style = _bag_qos_style(self.path)
-        if self.format != "ros1" and self.path.is_dir():
-            self._check_types()
-            self._warn_unlisted_storage()
+            information = _bag_information(self.path)  # read once, for both
+            self.qos_style = _bag_qos_style(information)
+            if self.path.is_dir():
+                self._check_types()
+                self._warn_unlisted_storage(information)
         if sum(c.message_count for c in channels):
             self.start_ns = int(self.reader.start_time)
             # rosbags reports the end as "1 ns after the last message"
@@ -131,20 +132,15 @@ class RosbagsReadBackend:
             )
             raise LogReadError(msg)
 
-    def _warn_unlisted_storage(self) -> None:
-        """Say so when the bag folder holds a storage file its metadata.yaml does not list (a
-        split recording whose metadata was written before its last file): rosbags, like rosbag2,
-        reads the listed files only, and that file's messages would go unsaid."""
-        from rose.limits import load_yaml
-
-        try:
-            info = load_yaml((self.path / "metadata.yaml").read_bytes())
-            listed = {
-                Path(str(f)).name
-                for f in info["rosbag2_bagfile_information"].get("relative_file_paths") or ()
-            }
-        except (OSError, ValueError, KeyError, TypeError, AttributeError):
+    def _warn_unlisted_storage(self, information: dict[str, Any] | None) -> None:
+        """Say so when the bag folder holds a storage file its metadata.yaml (``information``)
+        does not list (a split recording whose metadata was written before its last file):
+        rosbags, like rosbag2, reads the listed files only, and that file's messages would go
+        unsaid."""
+        paths = None if information is None else information.get("relative_file_paths")
+        if not isinstance(paths, list):
             return  # read and judged by rosbags already
+        listed = {Path(str(f)).name for f in paths}
         storage = (".db3", ".mcap", ".db3.zstd", ".mcap.zstd")
         for entry in sorted(self.path.iterdir()):
             if entry.name.endswith(storage) and entry.name not in listed:
@@ -214,22 +210,35 @@ def _stored(value: object) -> str:
     return f"a {type(value).__name__}"
 
 
-def _bag_qos_style(path: Path) -> QosStyle | None:
-    """How ``metadata.yaml`` of the ROS 2 bag folder ``path`` spells QoS (None: no folder / no QoS).
+def _bag_information(path: Path) -> dict[str, Any] | None:
+    """``rosbag2_bagfile_information`` of the ROS 2 bag folder ``path``'s metadata.yaml (None: no
+    folder, or none that reads as a mapping)."""
+    from rose.limits import load_yaml
+
+    try:
+        information = load_yaml((path / "metadata.yaml").read_bytes())[
+            "rosbag2_bagfile_information"
+        ]
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    return information if isinstance(information, dict) else None
+
+
+def _bag_qos_style(information: dict[str, Any] | None) -> QosStyle | None:
+    """How a bag's metadata.yaml (its ``rosbag2_bagfile_information``) spells QoS (None: no
+    folder / no QoS).
 
     From the first topic with offered QoS profiles, else from the format version (<= 8: integers).
     """
-    import yaml
-
+    if information is None:
+        return None
     try:
-        info = yaml.safe_load((path / "metadata.yaml").read_text(encoding="utf-8"))
-        info = info["rosbag2_bagfile_information"]
-        for topic in info.get("topics_with_message_count") or ():
+        for topic in information.get("topics_with_message_count") or ():
             style = qos_style(topic["topic_metadata"].get("offered_qos_profiles") or "")
             if style is not None:
                 return style
-        return "v8" if int(info["version"]) <= 8 else "v9"
-    except (OSError, yaml.YAMLError, KeyError, TypeError, ValueError):
+        return "v8" if int(information["version"]) <= 8 else "v9"
+    except (KeyError, TypeError, ValueError, AttributeError):
         return None
 
 
