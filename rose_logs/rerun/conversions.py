@@ -29,7 +29,10 @@ from rose_logs.rerun.style import (
     CLASS_FREE,
     CLASS_OCCUPIED,
     CLASS_RESCUED,
+    CLASS_STRUCTURE,
+    CLASS_UNKNOWN,
     DISPLAY_LEVELS,
+    DISPLAY_MAX_PX,
     SCORE_DISPLAY_MIN,
     SPECTRUM_DISPLAY_PX,
 )
@@ -56,12 +59,16 @@ __all__ = [
     "amplitude_plot",
     "colour_levels",
     "direction_label_positions",
+    "display_factor",
     "direction_segments_cells",
     "display_spectrum",
     "image_window",
     "known_bounds_cells",
     "masked_score_image",
     "occupied_cells",
+    "pool_classes",
+    "pool_scores",
+    "pooled_window",
     "quantise_unit",
     "score_classes",
     "score_levels",
@@ -181,6 +188,89 @@ def segmentation_image(
     if completed is not None:  # unknown cells: the window's mask (copyto: a third cheaper)
         np.copyto(classes, np.uint8(CLASS_COMPLETED), where=completed[y0:y1, x0:x1][::-1])
     return classes
+
+
+# A pooled pixel shows the highest-ranked class of its block, unknown lowest: a wall, a clutter
+# cell or a drawn wall line in a block of free space stays visible however far the map is shrunk.
+# Walls outrank clutter (a wall's line stays whole where furniture touches it).
+_CLASS_RANK = np.zeros(256, dtype=np.uint8)
+_RANKED_CLASSES = (
+    CLASS_UNKNOWN,
+    CLASS_FREE,
+    CLASS_OCCUPIED,
+    CLASS_CLUTTER,
+    CLASS_STRUCTURE,
+    CLASS_RESCUED,
+    CLASS_COMPLETED,
+)
+_CLASS_RANK[list(_RANKED_CLASSES)] = np.arange(len(_RANKED_CLASSES), dtype=np.uint8)
+_RANKED = np.array(_RANKED_CLASSES, dtype=np.uint8)
+
+
+def display_factor(window: Window, max_px: int = DISPLAY_MAX_PX) -> int:
+    """Cells per side of a pixel of ``window``'s images in the 2D views: 1 while the window's longer
+    side is at most ``max_px`` cells, else the smallest whole factor that brings it there."""
+    if max_px < 1:
+        msg = f"max_px must be >= 1, got {max_px}"
+        raise ValueError(msg)
+    x0, y0, x1, y1 = window
+    return max(1, math.ceil(max(x1 - x0, y1 - y0) / max_px))
+
+
+def pooled_window(window: Window, factor: int) -> Window:
+    """``window`` grown at its right (``x_max``) and top (``y_max``) to whole blocks of ``factor``
+    cells: the cells a pooled image (:func:`pool_classes`) covers, its lower-left corner unmoved."""
+    x0, y0, x1, y1 = window
+    return (
+        x0,
+        y0,
+        x0 + factor * math.ceil((x1 - x0) / factor),
+        y0 + factor * math.ceil((y1 - y0) / factor),
+    )
+
+
+def _padded(image: npt.NDArray[np.uint8], factor: int, fill: int) -> npt.NDArray[np.uint8]:
+    """``image`` (image row order) padded with ``fill`` to whole blocks of ``factor``: rows on top
+    (the window's y_max side, :func:`pooled_window`), columns on the right."""
+    rows, cols = image.shape
+    top, right = -rows % factor, -cols % factor
+    if not top and not right:
+        return image
+    return np.pad(image, ((top, 0), (0, right)), constant_values=fill)
+
+
+def _blocks_max(image: npt.NDArray[np.uint8], factor: int) -> npt.NDArray[np.uint8]:
+    """Maximum of each ``factor`` x ``factor`` block of ``image`` (shape a multiple of ``factor``);
+    strided row then column passes, as :func:`rose.grid.blocks_any`."""
+    rows = image[0::factor].copy()
+    for k in range(1, factor):
+        np.maximum(rows, image[k::factor], out=rows)
+    blocks = rows[:, 0::factor].copy()
+    for k in range(1, factor):
+        np.maximum(blocks, rows[:, k::factor], out=blocks)
+    return blocks
+
+
+def pool_classes(image: npt.NDArray[np.uint8], factor: int) -> npt.NDArray[np.uint8]:
+    """A :func:`segmentation_image` shrunk ``factor`` times per side: each pixel the highest-ranked
+    class of its block (walls, drawn walls, clutter, occupied, free, unknown), the blocks those of
+    :func:`pooled_window`. Returns ``image`` itself for ``factor`` 1."""
+    if factor == 1:
+        return image
+    ranks = _CLASS_RANK[_padded(image, factor, CLASS_UNKNOWN)]
+    return _RANKED[_blocks_max(ranks, factor)]
+
+
+def pool_scores(image: npt.NDArray[np.uint8], factor: int) -> npt.NDArray[np.uint8]:
+    """A :func:`masked_score_image` shrunk ``factor`` times per side: each pixel the lowest score
+    level of the occupied cells in its block (the clutter the view is for stays visible), 0
+    (transparent) where it has none. Returns ``image`` itself for ``factor`` 1."""
+    if factor == 1:
+        return image
+    # As uint8, -level is 256 - level for levels 1..255 and 0 for 0: the largest negated level
+    # is the lowest level, and a block of 0s stays 0.
+    negated = np.negative(_padded(image, factor, 0))
+    return np.negative(_blocks_max(negated, factor))
 
 
 def score_to_unit(scores: npt.NDArray[np.floating]) -> npt.NDArray[np.float32]:

@@ -67,13 +67,17 @@ def view_origin_m(snapshot: MapSnapshot) -> tuple[float, float]:
 
 
 def placement_terms(
-    snapshot: MapSnapshot, view_origin: tuple[float, float], window: conv.Window | None = None
+    snapshot: MapSnapshot,
+    view_origin: tuple[float, float],
+    window: conv.Window | None = None,
+    factor: int = 1,
 ) -> tuple[tuple[float, float], float, float]:
     """Where the 2D views draw pixels of ``snapshot``'s north-up images of ``window`` (default: the
-    whole grid): in metres of the map frame from ``view_origin`` (:func:`view_origin_m`), north up
-    (x east, y south: 2D views draw y downwards). Returns ``(translation, rotation angle (radians,
-    about z), scale)``: a pixel ``p`` lands at ``translation + R(angle) (scale * p)``
-    (:func:`placement_transform` makes it Rerun's transform).
+    whole grid), each pixel ``factor`` x ``factor`` cells (a pooled image: ``window`` is then its
+    :func:`~conv.pooled_window`): in metres of the map frame from ``view_origin``
+    (:func:`view_origin_m`), north up (x east, y south: 2D views draw y downwards). Returns
+    ``(translation, rotation angle (radians, about z), scale)``: a pixel ``p`` lands at
+    ``translation + R(angle) (scale * p)`` (:func:`placement_transform` makes it Rerun's transform).
 
     Every snapshot lands where it lies in the map, so a map that grows, moves its origin or changes
     resolution during a session stays in place in the views (in pixels, each grid size had its own
@@ -90,7 +94,7 @@ def placement_terms(
         ox - view_origin[0] + res * (c * x0 - s * y1),
         -(oy - view_origin[1]) - res * (s * x0 + c * y1),
     )
-    return translation, -yaw, res
+    return translation, -yaw, res * factor
 
 
 def placement_transform(
@@ -208,6 +212,9 @@ class TopicLogger:
         The colour bar is placed under each snapshot's map (as a viewer streamed to shows it).
         False: it is placed once, under the final map, by :meth:`log_final_placement` (a saved
         recording, whose scores view frames the final map).
+    display_max_px : int, default ``style.DISPLAY_MAX_PX``
+        Longest side of the segmentation and cell-score images: a larger map is shown pooled
+        (:func:`conv.display_factor`); the metric view's grid stays at full resolution.
     """
 
     def __init__(
@@ -218,9 +225,11 @@ class TopicLogger:
         failure_level: float = FAILURE_LEVEL,
         trust_level: float = TRUST_LEVEL,
         live: bool = True,
+        display_max_px: int = style.DISPLAY_MAX_PX,
     ) -> None:
         self.recording = recording
         self.live = live
+        self.display_max_px = display_max_px
         self.paths = paths
         self.failure_level = float(failure_level)
         self.trust_level = float(trust_level)
@@ -234,17 +243,23 @@ class TopicLogger:
         self._placements: dict[tuple[tuple[float, float], float, float], rr.Transform3D] = {}
 
     def _image_placement(
-        self, snapshot: MapSnapshot, window: conv.Window | None = None
+        self, snapshot: MapSnapshot, window: conv.Window | None = None, factor: int = 1
     ) -> rr.Transform3D:
-        """Rerun's transform of ``snapshot``'s images of ``window`` in this topic's views
-        (:func:`placement_terms`)."""
-        terms = placement_terms(snapshot, self._origin_for(snapshot), window)
+        """Rerun's transform of ``snapshot``'s images of ``window`` in this topic's views, pooled
+        ``factor`` times (:func:`placement_terms`)."""
+        terms = placement_terms(snapshot, self._origin_for(snapshot), window, factor)
         placement = self._placements.get(terms)
         if placement is None:
             if len(self._placements) >= _PLACEMENTS_KEPT:
                 self._placements.clear()
             placement = self._placements[terms] = placement_transform(*terms)
         return placement
+
+    def _pooled_placement(
+        self, snapshot: MapSnapshot, window: conv.Window, factor: int
+    ) -> rr.Transform3D:
+        """The transform of ``window``'s images pooled ``factor`` times (:func:`conv.pool_classes`)."""
+        return self._image_placement(snapshot, conv.pooled_window(window, factor), factor)
 
     def _origin_for(self, snapshot: MapSnapshot) -> tuple[float, float]:
         """The views' 0 in the map frame, the 2D views' and the metric view's (:func:`view_origin_m`
@@ -512,10 +527,11 @@ class TopicLogger:
                 "completed": cleaning.completed,
             }
         image = conv.segmentation_image(snapshot.grid, result, occupied, **changes)
+        factor = conv.display_factor(occupied.window, self.display_max_px)
         self.recording.log(
             self.paths.segmentation,
-            segmentation_image(image),
-            self._image_placement(snapshot, occupied.window),
+            segmentation_image(conv.pool_classes(image, factor)),
+            self._pooled_placement(snapshot, occupied.window, factor),
         )
 
     def log_directions(
@@ -622,10 +638,11 @@ class TopicLogger:
             labels.append(f"threshold {result.threshold:.2f}")
             # A tick across the bar, from above it (where the label is) to its lower edge.
             tick = np.array([[(at, -0.6), (at, 2.0)]])
+        factor = conv.display_factor(occupied.window, self.display_max_px)
         rec.log(
             paths.cell_scores,
-            segmentation_image(conv.masked_score_image(result, occupied)),
-            self._image_placement(snapshot, occupied.window),
+            segmentation_image(conv.pool_scores(conv.masked_score_image(result, occupied), factor)),
+            self._pooled_placement(snapshot, occupied.window, factor),
         )
         if self.live:
             self.score_legend_placement = self._bar_under(snapshot, occupied)

@@ -23,6 +23,7 @@ __all__ = [
     "CLASS_UNKNOWN",
     "DIRECTION_COLOR",
     "DISPLAY_LEVELS",
+    "DISPLAY_MAX_PX",
     "FAILURE_COLOR",
     "GUIDE_LINE_WIDTH",
     "PEAK_COLOR",
@@ -51,6 +52,12 @@ CLASS_INFO: Final = (
     (CLASS_COMPLETED, "wall drawn by the cleaning behind removed clutter", (190, 0, 80)),
 )
 """``(class id, label, RGB)`` of the segmentation classes, logged once as an AnnotationContext."""
+
+#: Longest side, in pixels, of the per-cell images of the 2D views (segmentation, cell scores): a
+#: larger map is shown pooled, each pixel a block of cells. Rerun samples a shrunk image without
+#: mipmaps (rerun-io/rerun#2039), so a map several times the view's size showed one wall cell in
+#: several: dotted walls, a scores view of scattered dots. About a full-HD view's size.
+DISPLAY_MAX_PX: Final = 1024
 
 DIRECTION_COLOR: Final = (200, 0, 160)
 #: Wall segments (``--walls``): green, drawn thin (Rerun 0.41 draws lines opaque, whatever their

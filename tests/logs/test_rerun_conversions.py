@@ -333,3 +333,42 @@ def test_walls_the_cleaning_draws_get_their_own_class() -> None:
     image = conv.segmentation_image(grid, result, completed=cleaning.completed)[::-1]
     assert_array_equal(image[cleaning.completed], style.CLASS_COMPLETED)
     assert (image[(grid < 0) & ~cleaning.completed] == style.CLASS_UNKNOWN).all()
+
+
+def test_a_map_larger_than_the_views_is_shown_in_blocks_that_keep_every_wall() -> None:
+    """Rerun shrinks an image by sampling it (no mipmaps): a map several times the view's size
+    showed one wall cell in several. Pooled, a one-cell wall stays a whole line, walls win over
+    clutter, clutter over free space, free over unknown, and the padding is unknown."""
+    image = np.full((10, 13), style.CLASS_FREE, dtype=np.uint8)
+    image[:, :3] = style.CLASS_UNKNOWN
+    image[4, 3:] = style.CLASS_STRUCTURE  # a wall one cell thick across the known part
+    image[5, 6] = style.CLASS_CLUTTER  # clutter touching the wall
+    image[8, 9] = style.CLASS_CLUTTER  # free-standing clutter
+    assert conv.display_factor((0, 0, 13, 10), max_px=13) == 1
+    factor = conv.display_factor((0, 0, 13, 10), max_px=5)
+    assert factor == 3
+    pooled = conv.pool_classes(image, factor)
+    # 10 rows padded by 2 on top (the window's north side), 13 columns by 2 on the right.
+    assert pooled.shape == (4, 5)
+    # Image row 4 is padded row 6: block row 2 holds the wall, whole and on top of the clutter.
+    assert_array_equal(pooled[2], [style.CLASS_UNKNOWN] + [style.CLASS_STRUCTURE] * 4)
+    assert pooled[3, 3] == style.CLASS_CLUTTER  # padded row 10, column 9
+    assert pooled[0, 0] == style.CLASS_UNKNOWN  # padding and unknown columns only
+    assert pooled[1, 1] == style.CLASS_FREE
+    assert conv.pooled_window((0, 0, 13, 10), factor) == (0, 0, 15, 12)
+    assert conv.pool_classes(image, 1) is image
+
+
+def test_pooled_scores_show_the_lowest_score_of_a_block_and_stay_transparent_elsewhere() -> None:
+    image = np.zeros((4, 4), dtype=np.uint8)
+    image[0, 0], image[1, 1] = 30, 2  # a good cell beside a clutter-like one
+    image[2, 3] = 17
+    assert_array_equal(conv.pool_scores(image, 2), [[2, 0], [0, 17]])
+
+
+def test_the_display_factor_keeps_maps_up_to_the_limit_whole() -> None:
+    assert conv.display_factor((0, 0, 1024, 700)) == 1
+    assert conv.display_factor((10, 10, 1035, 700)) == 2  # 1025 cells across
+    assert conv.display_factor((0, 0, 1453, 2073)) == 3
+    with pytest.raises(ValueError, match="max_px"):
+        conv.display_factor((0, 0, 5, 5), max_px=0)

@@ -753,11 +753,19 @@ def test_2d_views_place_every_snapshot_where_it_lies_in_the_map(
     assert placed == pytest.approx(metres * np.array([1.0, -1.0]), abs=1e-6)
 
 
-def test_the_logged_placement_puts_each_pixel_on_its_cell_in_metres(tmp_path: Path) -> None:
+@pytest.mark.parametrize(
+    ("max_px", "size", "factor", "top"),
+    [(1024, (40, 20), 1, 25), (16, (14, 7), 3, 26)],
+    ids=["full", "pooled"],
+)
+def test_the_logged_placement_puts_each_pixel_on_its_cell_in_metres(
+    tmp_path: Path, max_px: int, size: tuple[int, int], factor: int, top: int
+) -> None:
     """The segmentation's Transform3D as the recording holds it, composed as Rerun composes one
     (translation, then rotation, then scale): pixel corners land on their cells' map-frame metres
     from the view origin, north up, for a yawed map at a UTM-sized origin. The image covers the
-    known cells' box only: pixel (u, v) is cell (5 + u, 25 - v)."""
+    known cells' box only: pixel (u, v) is cell (5 + u, 25 - v); pooled 3 x 3 (a map larger than
+    the views' pixels), cell (5 + 3 u, 26 - 3 v), the box grown on its north side to whole blocks."""
     import math
 
     import rose
@@ -770,7 +778,7 @@ def test_the_logged_placement_puts_each_pixel_on_its_cell_in_metres(tmp_path: Pa
     snapshot = _yawed(grid, 0.7, (654_321.5, 5_400_012.3), resolution=0.1)
     rrd = tmp_path / "p.rrd"
     recording = _recording_at_zero(rrd)
-    logger = TopicLogger(recording, PATHS)
+    logger = TopicLogger(recording, PATHS, display_max_px=max_px)
     logger.view_origin_m = reference = view_origin_m(snapshot)
     logger.log_segmentation(snapshot, rose.analyze(grid))
     recording.flush()
@@ -782,12 +790,13 @@ def test_the_logged_placement_puts_each_pixel_on_its_cell_in_metres(tmp_path: Pa
     assert axis == pytest.approx([0.0, 0.0, 1.0])
     c, s = math.cos(radians), math.sin(radians)
     (image_format,) = row["SegmentationImage:format"]
-    assert (image_format["width"], image_format["height"]) == (40, 20)
-    pixels = np.array([[0.0, 0.0], [40.0, 20.0], [12.5, 4.0]])
+    assert (image_format["width"], image_format["height"]) == size
+    pixels = np.array([[0.0, 0.0], [*size], [12.5, 4.0]])
     scaled = pixels * np.array(scale[:2])
     placed = np.stack([c * scaled[:, 0] - s * scaled[:, 1], s * scaled[:, 0] + c * scaled[:, 1]], 1)
     placed += np.array(translation[:2])
-    cells = np.stack([5 + pixels[:, 0], 25 - pixels[:, 1]], axis=1)  # rows run north to south
+    # Rows run north to south.
+    cells = np.stack([5 + factor * pixels[:, 0], top - factor * pixels[:, 1]], axis=1)
     metres = cells_to_map_m(snapshot, cells)[:, :2] - np.array(reference)
     # float32 in the recording: micrometres at these few metres from the view origin.
     assert placed == pytest.approx(metres * np.array([1.0, -1.0]), abs=1e-4)
