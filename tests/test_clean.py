@@ -211,6 +211,42 @@ def test_errors_name_the_problem() -> None:
         CleanParams(min_run_m=-1.0)
 
 
+def test_a_long_thin_map_at_an_angle_is_turned_in_pieces_with_the_whole_frames_result(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The rules turn the map so that walls at an angle lie along rows; a long, thin map's turned
+    frame grows with the square of its length (a 3 x 200,000 strip asked for 14 GB and was killed).
+    Such a map is turned in overlapping pieces, each on the whole frame's cells: the same result,
+    with every frame small."""
+    from rose.cleaning_rules import frames
+
+    image = np.zeros((60, 6000), dtype=np.uint8)
+    for x in range(0, 6000, 15):  # walls at about 60 degrees, and speckle
+        cv2.line(image, (x, 0), (x + 34, 59), 1, 1)
+    image[np.random.default_rng(3).random(image.shape) < 0.01] = 1
+    grid = np.where(image > 0, 100, 0).astype(np.int8)
+    result = rose.analyze(grid)
+    assert all(0.2 < d % (math.pi / 2) < 1.4 for d in result.dominant_directions)
+    turned: list[tuple[int, int]] = []
+    real = frames._turned_and_back
+
+    def recorded(source, *args):  # type: ignore[no-untyped-def]
+        turned.append(source.shape)
+        return real(source, *args)
+
+    monkeypatch.setattr(frames, "_turned_and_back", recorded)
+    in_pieces = clean(grid, result)
+    assert len(turned) > 20
+    assert max(rows * cols for rows, cols in turned) <= grid.size // 2
+    turned.clear()
+    monkeypatch.setattr(frames, "_MAX_FRAME_GROWTH", math.inf)  # the whole strip at once
+    whole = clean(grid, result)
+    assert max(rows * cols for rows, cols in turned) >= grid.size
+    assert 0 < in_pieces.removed_count < in_pieces.kept_count
+    for name in ("kept", "completed", "rescued"):
+        assert np.array_equal(getattr(in_pieces, name), getattr(whole, name)), name
+
+
 def test_directional_runs_keep_long_lines_only() -> None:
     mask = np.zeros((80, 120), dtype=bool)
     mask[10, 5:105] = True  # 100 cells

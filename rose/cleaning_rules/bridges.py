@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from rose.cleaning_rules.frames import _frames, _rotate
+from rose.cleaning_rules.frames import _frames, in_rotated_frame
 from rose.cleaning_rules.masks import _bounds, _nonzero_flat
 from rose.cleaning_rules.runs import (
     _close_runs,
@@ -114,22 +114,16 @@ def _crop_fills(
     anchors: list[int],
     stagger: tuple[int, int] | None,
 ) -> npt.NDArray[np.uint8]:
-    """:func:`_frame_fills` of ``crop`` rotated by ``angle`` (:func:`_rotate`), back in the crop's
+    """:func:`_frame_fills` of ``crop`` rotated by ``angle`` (:func:`in_rotated_frame`), back in the crop's
     cells: an image of ``crop``'s shape, one bit per output."""
-    import cv2
-
-    rows, cols = crop.shape
-    rotated, matrix = _rotate(crop.view(np.uint8), angle)
-    rotated = np.ascontiguousarray(rotated)  # the crop itself when not rotated
-    fills = _frame_fills(rotated, length, anchors, stagger)
-    if matrix is None:
-        return fills
-    # Nearest-neighbour sampling copies values: every anchor's fills, one bit each, go back in one
-    # warp.
-    back = cv2.warpAffine(
-        fills, matrix, (cols, rows), flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP
+    fills, _ = in_rotated_frame(
+        crop.view(np.uint8),
+        angle,
+        lambda rotated, _turned: _frame_fills(rotated, length, anchors, stagger),
+        # A fill and its anchors on either side; a staggered fill's longer anchors.
+        reach_px=length + 2 * max(anchors + ([stagger[0]] if stagger else [])) + 2,
     )
-    return np.asarray(back, dtype=np.uint8)
+    return fills
 
 
 def _frame_fills(

@@ -12,7 +12,7 @@ import math
 import numpy as np
 import numpy.typing as npt
 
-from rose.cleaning_rules.frames import _frames, _rotate
+from rose.cleaning_rules.frames import _frames, in_rotated_frame
 from rose.cleaning_rules.masks import _bounds, _padded_box
 
 #: Furniture fronts (:func:`_flush_fronts`): the longest wall line hidden behind furniture against
@@ -103,14 +103,13 @@ def _flush_fronts(
     r0, c0 = box[0].start, box[1].start
     # 0 unknown (also beyond the rotated image), 1 free, 2 occupied.
     code = (~unknown[box]).view(np.uint8) + occupied[box].view(np.uint8)
-    rows, cols = code.shape
-    for angle in _frames(directions):
-        rotated, matrix = _rotate(code, angle)
+
+    def fronts_of(rotated: npt.NDArray[np.uint8], turned: bool) -> npt.NDArray[np.uint8]:
         out = np.zeros(rotated.shape, dtype=np.uint8)  # bit 0 line, 1 front, 2 inside, 3 wall
         transposed = np.asarray(cv2.transpose(rotated), dtype=np.uint8)  # a ninth of numpy's cost
         # Rotated (a wall at an angle to the grid): the exact rows, then the straightened ones.
         for slack, transpose in ((0, False), (0, True)) + (
-            ((1, False), (1, True)) if matrix is not None else ()
+            ((1, False), (1, True)) if turned else ()
         ):
             # Along the rows, then along the columns (transposed: the runs need the cells of a
             # line in order); each for furniture on either side of the line.
@@ -132,20 +131,19 @@ def _flush_fronts(
                 round(wall_px),
                 slack=slack,
                 # Corners only along the grid's axes (see _CORNER_MAX_M).
-                corner_len=round(corner_px) if matrix is None else 0,
+                corner_len=0 if turned else round(corner_px),
                 corner_depth=round(corner_depth_px),
             )
-        if not out.any():
+        return out
+
+    # A hidden line with its anchors on either side, or a corner's, and the front before it.
+    reach = round(max_len_px + corner_px + max_depth_px) + 4 * max(
+        1, round(anchor_px), round(wall_px)
+    )
+    for angle in _frames(directions):
+        out, _ = in_rotated_frame(code, angle, fronts_of, reach_px=reach)
+        if not out.any():  # nothing, or what was found fell between the cells sampled back
             continue
-        if matrix is not None:
-            out = np.asarray(
-                cv2.warpAffine(
-                    out, matrix, (cols, rows), flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP
-                ),
-                dtype=np.uint8,
-            )
-            if not out.any():  # what was found fell between the cells sampled back
-                continue
         # Only where something was found (a few objects in a large map).
         y0, y1, x0, x1 = _bounds(out.view(bool))
         out = out[y0:y1, x0:x1]

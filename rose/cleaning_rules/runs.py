@@ -12,7 +12,7 @@ import math
 import numpy as np
 import numpy.typing as npt
 
-from rose.cleaning_rules.frames import _frames, _rotate
+from rose.cleaning_rules.frames import _frames, in_rotated_frame
 from rose.cleaning_rules.masks import _bounds, _flat_index, _nonzero_flat, _padded_box
 
 
@@ -61,31 +61,31 @@ def _runs_in_frame(
 ) -> npt.NDArray[np.bool_]:
     import cv2
 
-    rows, cols = crop.shape
-    rotated, matrix = _rotate(crop.view(np.uint8), angle)
-    if tolerance_px > 0:
-        box = np.ones((2 * tolerance_px + 1, 2 * tolerance_px + 1), np.uint8)
-        rotated = np.asarray(cv2.dilate(rotated, box), dtype=np.uint8)
-    # The openings with a line along the rows and the columns, from the runs of the few occupied
-    # cells (a fifth of the cost of two OpenCV openings of the whole rotated image).
-    rotated = np.ascontiguousarray(rotated)
-    cells = _nonzero_flat(rotated)
-    along_rows = None if _dense(cells, rotated) else _runs(cells, rotated.shape, False)
-    if along_rows is None or _fragmented(along_rows, rotated):
-        runs = _open(rotated, (1, length)) | _open(rotated, (length, 1))
-    else:
+    def runs_of(rotated: npt.NDArray[np.uint8], _turned: bool) -> npt.NDArray[np.uint8]:
+        if tolerance_px > 0:
+            box = np.ones((2 * tolerance_px + 1, 2 * tolerance_px + 1), np.uint8)
+            rotated = np.asarray(cv2.dilate(rotated, box), dtype=np.uint8)
+        # The openings with a line along the rows and the columns, from the runs of the few
+        # occupied cells (a fifth of the cost of two OpenCV openings of the whole rotated image).
+        rotated = np.ascontiguousarray(rotated)
+        cells = _nonzero_flat(rotated)
+        along_rows = None if _dense(cells, rotated) else _runs(cells, rotated.shape, False)
+        if along_rows is None or _fragmented(along_rows, rotated):
+            return _open(rotated, (1, length)) | _open(rotated, (length, 1))
         runs = np.zeros(rotated.shape, dtype=np.uint8)
         for vertical in (False, True):
             lines = _runs(cells, rotated.shape, vertical) if vertical else along_rows
             long_runs = _open_runs(lines, length, rotated.shape[not vertical])
             runs.reshape(-1)[_run_cells(long_runs, rotated.shape, vertical)] = 1
-    # 0 or 1 in every cell: read as booleans without a copy.
-    if matrix is None:
-        return runs.view(bool)
-    back = cv2.warpAffine(
-        runs, matrix, (cols, rows), flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP
+        return runs
+
+    runs, turned = in_rotated_frame(
+        crop.view(np.uint8), angle, runs_of, reach_px=length + 2 * tolerance_px + 2
     )
-    return np.asarray(cv2.dilate(back, np.ones((3, 3), np.uint8)), dtype=np.uint8).view(bool)
+    # 0 or 1 in every cell: read as booleans without a copy.
+    if not turned:
+        return runs.view(bool)
+    return np.asarray(cv2.dilate(runs, np.ones((3, 3), np.uint8)), dtype=np.uint8).view(bool)
 
 
 def _open(image: npt.NDArray[np.uint8], kernel_shape: tuple[int, int]) -> npt.NDArray[np.uint8]:
