@@ -51,8 +51,8 @@ __all__ = [
 ]
 
 
-#: Longest tolerance, bridge or margin taken, cells: they are square kernels of about twice that side
-#: (10**6 cells asked for terabytes).
+#: Longest tolerance, bridge, margin or tile taken, cells: they are square kernels of about twice
+#: that side, or blocks of that side (10**6 cells asked for terabytes).
 MAX_KERNEL_PX = 1000
 
 
@@ -162,7 +162,11 @@ def _check(
             )
             raise RoseError(msg)
         grids.append(array.astype(np.int8, copy=False))
-    if len(offset_px) != 2 or not all(integer_number(v) for v in offset_px):
+    try:
+        two_integers = len(offset_px) == 2 and all(integer_number(v) for v in offset_px)
+    except TypeError:  # None, a number
+        two_integers = False
+    if not two_integers:
         msg = f"offset_px must be two integers (row, col), got {offset_px!r}"
         raise RoseError(msg)
     kernels = {
@@ -505,10 +509,14 @@ def contradicted_walls(
         occupied_threshold=occupied_threshold,
         free_threshold=free_threshold,
     )
-    for name, value in (("tile_px", tile_px), ("window_px", window_px)):
-        if not integer_number(value) or value < 1:
-            msg = f"{name} must be an integer >= 1, got {value!r}"
-            raise RoseError(msg)
+    # A tile is a block of cells allocated whole (10**6 cells asked for 931 GiB); the window only
+    # counts tiles.
+    if not integer_number(tile_px) or not 1 <= tile_px <= MAX_KERNEL_PX:
+        msg = f"tile_px must be an integer in 1..{MAX_KERNEL_PX}, got {tile_px!r}"
+        raise RoseError(msg)
+    if not integer_number(window_px) or window_px < 1:
+        msg = f"window_px must be an integer >= 1, got {window_px!r}"
+        raise RoseError(msg)
     established = int(np.count_nonzero(earlier >= occupied_threshold))
     placed = _placed(earlier, later, offset_px)
     erased = _erased_box(

@@ -144,7 +144,13 @@ class OccupancyMap:
 
     def __post_init__(self) -> None:
         # Refused where it is made, not by whichever stage first uses it (a map with a negative
-        # cell size was accepted and failed later, in `clean` or `save_map`, far from its cause).
+        # cell size was accepted and failed later, in `clean` or `save_map`, far from its cause;
+        # OccupancyMap("map.yaml") was told by `analyze` to pass an OccupancyMap).
+        try:
+            as_occupancy_grid(self.grid)
+        except RoseError as err:
+            msg = f"OccupancyMap: {err}"
+            raise RoseError(msg) from None
         problem = resolution_problem(self.resolution_m)
         if problem is not None:
             msg = f"OccupancyMap: resolution_m {problem}"
@@ -1008,7 +1014,7 @@ def save_map(
     import cv2
 
     if not (integer_number(occupied_threshold) and 1 <= int(occupied_threshold) <= OCCUPIED):
-        msg = f"{path}: occupied_threshold must be a whole number in 1..100, got {occupied_threshold!r}"
+        msg = f"{path}: occupied_threshold must be an integer in 1..100, got {occupied_threshold!r}"
         raise MapFileError(msg)
     image = grid_to_image(grid, occupied_threshold=int(occupied_threshold))
     ok, encoded = cv2.imencode(".pgm", image)

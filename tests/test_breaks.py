@@ -105,6 +105,9 @@ def test_inputs_are_not_modified(plan: npt.NDArray[np.int8]) -> None:
     [
         ({"window_px": 0}, "window_px"),
         ({"tile_px": 0}, "tile_px"),
+        ({"tile_px": 10**6}, "tile_px"),  # a tile is allocated whole: 931 GiB
+        ({"offset_px": None}, "offset_px"),
+        ({"offset_px": 3}, "offset_px"),
         ({"tolerance_px": -1}, "tolerance_px"),
         ({"min_extent_px": -1}, "min_extent_px"),
     ],

@@ -1019,6 +1019,13 @@ def test_an_empty_map_is_not_saved(tmp_path: Path) -> None:
         ({"origin_xy_m": (1.0,)}, r"origin_xy_m must be \(x, y\) in metres, got \(1.0,\)"),
         ({"origin_yaw_rad": math.nan}, "the origin .* is not finite"),
         ({"origin_yaw_rad": 1e9}, "the origin .* has a yaw beyond"),
+        ({"grid": None}, "The input grid must be 2D"),
+        ({"grid": np.zeros((2, 2, 2))}, "The input grid must be 2D"),
+        ({"grid": np.full((2, 2), np.nan)}, "The input grid must hold .* got NaN"),
+        (
+            {"grid": "map15.yaml"},
+            r"The input grid must be an array, got the path 'map15.yaml'; read a map file with rose.load_map",
+        ),
     ],
 )
 def test_a_map_with_a_placement_load_map_would_refuse_is_not_made(

@@ -265,6 +265,30 @@ def test_a_wall_set_leaves_the_callers_array_writable() -> None:
     assert endpoints.flags.writeable and not walls.endpoints_px.flags.writeable
 
 
+def test_a_wall_set_holds_its_own_directions_and_checks_what_it_is_given() -> None:
+    """A hand-made set shared the caller's directions (changed under it, and made writable through
+    it); a set of no shape, a made-up method or NaN ends failed later, in an export."""
+    from rose.walls.segments import WallSet
+
+    directions = np.array([0.1])
+    walls = WallSet(np.zeros((1, 2, 2)), shape=(5, 5), dominant_directions=directions)
+    directions[0] = 2.0
+    assert walls.dominant_directions.tolist() == [0.1]
+    with pytest.raises(ValueError, match="WRITEABLE"):
+        walls.dominant_directions.flags.writeable = True
+    for bad, words in (
+        ({"shape": "abc"}, "shape"),
+        ({"shape": None}, "shape"),
+        ({"shape": (5, -1)}, "shape"),
+        ({"method": "bogus"}, "method"),
+        ({"endpoints_px": np.full((1, 2, 2), np.nan)}, "finite"),
+        ({"dominant_directions": ["x"]}, "dominant_directions"),
+    ):
+        kwargs = {"endpoints_px": np.zeros((1, 2, 2)), "shape": (5, 5), **bad}
+        with pytest.raises(rose.RoseError, match=words):
+            WallSet(**kwargs)
+
+
 @pytest.mark.parametrize(
     ("resolution_m", "origin"),
     [

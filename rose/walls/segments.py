@@ -22,7 +22,7 @@ import numpy.typing as npt
 
 from rose.errors import RoseError
 from rose.frozen import ReadOnlyArrays
-from rose.limits import finite_number
+from rose.limits import finite_number, integer_number
 from rose.mapfile import DEFAULT_RESOLUTION_M
 
 __all__ = [
@@ -106,6 +106,29 @@ class WallSet(ReadOnlyArrays):
         if endpoints.ndim != 3 or endpoints.shape[1:] != (2, 2):
             msg = f"endpoints_px must have shape (N, 2, 2), got {endpoints.shape}"
             raise RoseError(msg)
+        if not np.isfinite(endpoints).all():
+            msg = "endpoints_px must be finite numbers of cells"
+            raise RoseError(msg)
+        shape = self.shape
+        if (
+            isinstance(shape, str | bytes)
+            or not hasattr(shape, "__len__")
+            or len(shape) != 2
+            or not all(integer_number(v) and v >= 0 for v in shape)
+        ):
+            msg = f"shape must be two whole numbers of cells (rows, cols), got {shape!r}"
+            raise RoseError(msg)
+        if self.method not in ("hough", "rose"):
+            msg = f"method must be 'hough' or 'rose', got {self.method!r}"
+            raise RoseError(msg)
+        try:  # a copy too: the caller's array stays theirs
+            directions = np.array(np.ravel(self.dominant_directions), dtype=np.float64)
+        except (TypeError, ValueError) as err:
+            msg = f"dominant_directions must be numbers (radians): {err}"
+            raise RoseError(msg) from None
+        if not np.isfinite(directions).all():
+            msg = "dominant_directions must be finite numbers of radians"
+            raise RoseError(msg)
         if not finite_number(self.resolution_m) or not self.resolution_m > 0:
             msg = f"resolution_m must be a positive number of metres, got {self.resolution_m!r}"
             raise RoseError(msg)
@@ -121,8 +144,11 @@ class WallSet(ReadOnlyArrays):
         if not finite_number(self.origin_yaw_rad):
             msg = f"origin_yaw_rad must be a finite number of radians, got {self.origin_yaw_rad!r}"
             raise RoseError(msg)
-        endpoints.flags.writeable = False  # our copy (numpy then refuses a writable view of it)
+        # Our copies (numpy then refuses a writable view of them).
+        endpoints.flags.writeable = directions.flags.writeable = False
         object.__setattr__(self, "endpoints_px", endpoints)
+        object.__setattr__(self, "shape", (int(shape[0]), int(shape[1])))
+        object.__setattr__(self, "dominant_directions", directions)
         super().__post_init__()
 
     def __len__(self) -> int:

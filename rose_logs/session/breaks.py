@@ -402,9 +402,9 @@ class BreakDetector:
         return round(self._longest_kernel_m() / resolution_m) <= MAX_KERNEL_PX
 
     def _longest_kernel_m(self) -> float:
-        """The longest of the detector's lengths taken as a square kernel (metres)."""
+        """The longest of the detector's lengths taken as a square kernel or tile (metres)."""
         p = self.params
-        return max(p.tolerance_m, p.bridge_m, p.rise_margin_m)
+        return max(p.tolerance_m, p.bridge_m, p.rise_margin_m, p.tile_m)
 
     def _say_too_fine(self, topic: str, resolution_m: float) -> None:
         """Warn once per topic that the detector's lengths span too many of its maps' cells."""
@@ -412,7 +412,7 @@ class BreakDetector:
             return
         self._too_fine_said.add(topic)
         _LOG.warning(
-            "%s: the break detector's longest length (tolerance_m, bridge_m, rise_margin_m: "
+            "%s: the break detector's longest length (tolerance_m, bridge_m, rise_margin_m, tile_m: "
             "%g m) would span more than %d cells of these maps (%g m per cell): they are not "
             "checked for breaks (their break score is 0); said once per topic",
             topic,

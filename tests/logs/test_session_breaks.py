@@ -371,7 +371,9 @@ def test_maps_too_fine_for_the_detector_are_not_checked_and_say_so(
     assert usual[1].broken
     said = [r.getMessage() for r in caplog.records if "not checked for breaks" in r.getMessage()]
     assert len(said) == 1 and said[0].startswith("/fine: ")
-    assert "(tolerance_m, bridge_m, rise_margin_m: 0.3 m)" in said[0]  # the lengths, not only maps
+    assert (
+        "(tolerance_m, bridge_m, rise_margin_m, tile_m: 0.3 m)" in said[0]
+    )  # the lengths, not only maps
     assert "(0.00025 m per cell)" in said[0]
     # 0.3 mm per cell: 1000 cells, the limit, still checked (compared: no warning).
     caplog.clear()
