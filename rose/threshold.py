@@ -63,7 +63,8 @@ def gmm_threshold(scores: npt.ArrayLike, *, max_samples: int) -> float:
     Returns
     -------
     float
-        The threshold; ``-inf`` (everything is structure) when the scores are (nearly) constant.
+        The threshold, within the scores' range; ``-inf`` (everything is structure) when the
+        scores are (nearly) constant or the two Gaussians do not meet among them (one population).
     """
     values = np.sort(np.asarray(scores).ravel())  # in the input's precision: float32 sorts faster
     if values.size > max_samples:
@@ -77,7 +78,14 @@ def gmm_threshold(scores: npt.ArrayLike, *, max_samples: int) -> float:
         fit.variances,
         fit.weights,
     )
-    return gaussian_intersection(mean_hi, var_hi, weight_hi, mean_lo, var_lo, weight_lo)
+    threshold = gaussian_intersection(mean_hi, var_hi, weight_hi, mean_lo, var_lo, weight_lo)
+    # Two components fitted onto one population (EM on evenly repeating scores can end with two
+    # identical Gaussians) meet far outside the scores, if at all: a threshold above every score
+    # called every cell clutter while W said the map had structure. One population is all
+    # structure, as constant scores are.
+    if not values[0] <= threshold <= values[-1]:
+        return -math.inf
+    return threshold
 
 
 def fit_two_gaussians(

@@ -199,3 +199,25 @@ def test_quartiles_of_the_initialisation_equal_numpys() -> None:
         x = np.sort(rng.standard_normal(n) * rng.uniform(1e-3, 1e3))
         for q in (0.25, 0.75):
             assert _sorted_quantile(x, q) == float(np.quantile(x, q))
+
+
+@pytest.mark.parametrize(("shape", "step"), [((1, 100_000), 3), ((40, 10_000), 3)])
+def test_one_population_of_scores_is_all_structure_not_a_threshold_beyond_them(
+    shape: tuple[int, int], step: int
+) -> None:
+    """Evenly repeating walls: EM fits two identical Gaussians, which met at 19.4 (above every
+    score: all 33,334 cells clutter, while W said structure) or at -23.9, flipping with the length."""
+    grid = np.zeros(shape, dtype=np.int8)
+    grid[:, ::step] = 100
+    result = rose.analyze(grid)
+    scores = result.cell_scores[result.occupied]
+    assert result.threshold == -math.inf or scores.min() <= result.threshold <= scores.max()
+    assert result.clutter_count < result.occupied_count
+
+
+def test_a_threshold_is_within_the_scores_it_splits() -> None:
+    rng = np.random.default_rng(0)
+    for _ in range(200):
+        values = rng.normal(rng.uniform(0, 1, 2)[rng.integers(0, 2, 500)], rng.uniform(1e-4, 0.3))
+        threshold = gmm_threshold(values, max_samples=2000)
+        assert threshold == -math.inf or values.min() <= threshold <= values.max()
