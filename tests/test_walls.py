@@ -334,3 +334,18 @@ def test_a_wall_a_hair_below_zero_degrees_reads_zero_in_the_table_and_geojson() 
     assert format_walls_table(walls).splitlines()[-1].split()[-1] == "0.00"
     (feature,) = walls_to_geojson(walls)["features"]
     assert feature["properties"]["orientation_deg"] == 0.0
+
+
+def test_walls_are_read_at_the_results_occupied_threshold(caplog: pytest.LogCaptureFixture) -> None:
+    """A map whose walls are 50 % cells, analysed at 30: its walls were read at the default 65 and
+    none came out."""
+    grid = np.full((120, 160), -1, dtype=np.int8)
+    grid[10:110, 10:150] = 0
+    grid[10, 10:150] = grid[109, 10:150] = grid[10:110, 10] = grid[10:110, 149] = 50
+    grid[60, 10:80] = 50
+    result = rose.analyze(grid, occupied_threshold=30)
+    walls = rose.extract_walls(grid, result)
+    assert len(walls) >= 4
+    explicit = rose.extract_walls(grid, result, params=rose.WallParams(occupied_threshold=65))
+    assert len(explicit) == len(walls)
+    assert "the result's occupied_threshold 30, not params.occupied_threshold 65" in caplog.text

@@ -24,6 +24,7 @@ then extended along the raw map's wall pixels (structure or not) and merged once
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 from dataclasses import dataclass
@@ -222,7 +223,9 @@ def extract_walls(
     grid : array_like, shape (rows, cols), or OccupancyMap
         As in :func:`extract_walls_hough`. Not modified.
     result : RoseResult, optional
-        ROSE's result for ``grid``; computed with :func:`rose.analyze` defaults if omitted. When it
+        ROSE's result for ``grid``; computed with :func:`rose.analyze` defaults (at
+        ``params.occupied_threshold``) if omitted. Given, its occupied threshold is the walls' too
+        (a different ``params.occupied_threshold`` is warned about). When it
         found no structure (``has_structure`` False) there is nothing to snap to: Hough runs on all
         the wall pixels, as in the baseline, but the segments are still merged and extended along
         the raw map (a warning is logged).
@@ -245,6 +248,18 @@ def extract_walls(
         warn_if_mask(_given(grid), occupancy, p.occupied_threshold)
         result = analyze(occupancy, occupied_threshold=p.occupied_threshold)
     check_result_for(result, occupancy)
+    threshold = result.params.occupied_threshold
+    if threshold != p.occupied_threshold:
+        # The result says which cells are occupied: at another threshold its structure mask
+        # matched no wall pixel (a map analysed at 30 gave no walls at the default 65).
+        if params is not None:
+            logger.warning(
+                "extract_walls: wall pixels read at the result's occupied_threshold %d, not "
+                "params.occupied_threshold %d",
+                threshold,
+                p.occupied_threshold,
+            )
+        p = dataclasses.replace(p, occupied_threshold=threshold)
     pixels = wall_pixels(
         occupancy, occupied_threshold=p.occupied_threshold, faces_only=p.faces_only
     )
