@@ -125,16 +125,18 @@ def blocks_any(mask: npt.NDArray[np.bool_], factor: int) -> npt.NDArray[np.bool_
 def warn_if_mask(
     given: npt.ArrayLike, occupancy: npt.NDArray[np.int8], occupied_threshold: int
 ) -> None:
-    """Warn of a 0/1 mask passed as integers (``mask.astype(np.uint8)``, a usual slip): read as
-    percent it is all free. ROS grids are int8 and have unknown cells around the known part, so
+    """Warn of a 0/1 mask passed as integers (``mask.astype(np.uint8)``, a usual slip; -1 for its
+    unknown cells too): read as percent it is all free. ROS grids are int8 and have unknown cells around the known part, so
     grids from logs and map files (int8) are never warned about."""
     dtype = getattr(given, "dtype", None)
     if dtype is None or dtype == np.int8 or dtype == np.bool_ or occupied_threshold <= 1:
         return
-    if occupancy.size and occupancy.max() == 1 and occupancy.min() == 0:
+    # -1 too: a mask with its unknown cells (np.where(grid < 0, -1, mask)) is as free.
+    if occupancy.size and occupancy.max() == 1:
         warnings.warn(
-            "The input grid holds only 0 and 1, read as occupancy in percent: all free. For a "
-            "0/1 occupied mask, pass grid.astype(bool).",
+            "The input grid holds only 0 and 1 (and -1, unknown), read as occupancy in percent: "
+            "all free. For a 0/1 occupied mask, pass grid.astype(bool), or with unknown cells "
+            "np.where(grid < 0, -1, grid * 100).",
             UserWarning,
             stacklevel=3,
         )

@@ -142,6 +142,9 @@ def test_a_zero_one_integer_mask_is_warned_about(furnished) -> None:
         result = rose.analyze(mask)
     assert result.occupied_count == 0  # read as percent: all free, as documented
     assert rose.analyze(mask.astype(bool)).occupied_count == int(mask.sum())
+    with pytest.warns(UserWarning, match="only 0 and 1"):  # with its unknown cells: as free
+        unknown_around = np.pad(mask.astype(np.int16), 5, constant_values=-1)
+        rose.analyze(unknown_around)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         # A ROS grid (int8, from a log or a map file) all free but for 1 % cells, and a threshold
