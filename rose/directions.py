@@ -248,7 +248,8 @@ def structure_score(
 ) -> float:
     """The paper's W: mean of the min-max scaled cumulative amplitude over its mean at the peaks.
 
-    Near 0 for maps with strong structure, near 1 without; exactly 1 when there is no peak.
+    Near 0 for maps with strong structure, near 1 without; exactly 1 when there is no peak, above 1
+    when the peaks' mean is below the curve's (weak peaks kept by a very low prominence).
     """
     if peak_indices.size == 0:
         return 1.0

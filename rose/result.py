@@ -27,7 +27,9 @@ class RoseResult(ReadOnlyArrays):
     Attributes
     ----------
     structure_score : float
-        The paper's global score W: near 0 for strong structure, 1 when no dominant direction exists.
+        The paper's global score W: near 0 for strong structure, 1 when no dominant direction exists;
+        above 1 when the directions kept are weaker than the curve's mean (a ``peak_prominence``
+        far below the default keeps such peaks: the paper's formula, not clipped).
     dominant_directions : ndarray of float64, shape (K,)
         Orientation of the wall lines of each dominant direction, in ``[0, pi)``, strongest first.
     direction_bins : ndarray of float64, shape (B,)

@@ -39,7 +39,8 @@ SAMPLE = Path(__file__).resolve().parents[1] / "sample_data" / "fr079_session.mc
         ("threshold_mode", "otsu", "threshold_mode must be 'gmm' or 'fixed', got 'otsu'"),
         ("fixed_threshold", 1.5, "fixed_threshold must be in [0, 1], got 1.5"),
         ("clutter_value", "grey", "clutter_value must be 'free' or 'unknown', got 'grey'"),
-        ("max_gmm_samples", 5, "max_gmm_samples must be >= 10, got 5"),
+        ("max_gmm_samples", 5, "max_gmm_samples must be >= 100, got 5"),
+        ("max_gmm_samples", 10, "max_gmm_samples must be >= 100, got 10"),
         ("seed", -1, "seed must be in 0..2**32-1, got -1"),
         ("seed", 2**32, "seed must be in 0..2**32-1, got 4294967296"),
         ("seed", 1.5, "seed must be an integer, got 1.5"),
@@ -69,7 +70,7 @@ def test_every_problem_is_reported_on_one_line() -> None:
         {},
         {"peak_prominence": 1.0},
         {"smoothing_deg": 0.0, "min_radius_px": 0.0, "fixed_threshold": 0.0},
-        {"occupied_threshold": 1, "seed": 2**32 - 1, "max_gmm_samples": 10},
+        {"occupied_threshold": 1, "seed": 2**32 - 1, "max_gmm_samples": 100},
         {"occupied_threshold": 100, "threshold_mode": "fixed", "clutter_value": "unknown"},
     ],
 )
