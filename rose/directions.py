@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from rose.errors import RoseError
 from rose.params import MIN_PADDED_SIDE
 
 __all__ = [
@@ -251,8 +252,14 @@ def structure_score(
     Near 0 for maps with strong structure, near 1 without; exactly 1 when there is no peak, above 1
     when the peaks' mean is below the curve's (weak peaks kept by a very low prominence).
     """
+    if cumulative.size == 0:
+        msg = "structure_score needs the cumulative amplitude of at least one direction"
+        raise RoseError(msg)
     if peak_indices.size == 0:
         return 1.0
+    if peak_indices.min() < 0 or peak_indices.max() >= cumulative.size:
+        msg = f"peak indices must be in 0..{cumulative.size - 1}, got {peak_indices.tolist()}"
+        raise RoseError(msg)
     low, high = float(cumulative.min()), float(cumulative.max())
     scaled = (cumulative - low) / (high - low)
     return float(scaled.mean() / scaled[peak_indices].mean())

@@ -37,7 +37,8 @@ def padded_shape(shape: tuple[int, int]) -> tuple[int, int]:
 def half_spectrum(
     occupied: npt.NDArray[np.bool_], shape: tuple[int, int]
 ) -> npt.NDArray[np.complex64]:
-    """Real FFT of ``occupied`` zero-padded to ``shape``.
+    """Real FFT of ``occupied`` zero-padded to ``shape`` (cut to it along an axis where it is longer,
+    as ``scipy.fft.rfft2``'s ``s`` does; :func:`padded_shape` is never shorter).
 
     Returns
     -------

@@ -15,6 +15,9 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from rose.errors import RoseError
+from rose.limits import integer_number
+
 __all__ = ["TwoGaussians", "fit_two_gaussians", "gaussian_intersection", "gmm_threshold"]
 
 _Pair = tuple[float, float]
@@ -67,6 +70,12 @@ def gmm_threshold(scores: npt.ArrayLike, *, max_samples: int) -> float:
         scores are (nearly) constant or the two Gaussians do not meet among them (one population).
     """
     values = np.sort(np.asarray(scores).ravel())  # in the input's precision: float32 sorts faster
+    if values.size and np.isnan(values[-1]):  # sorted last
+        msg = "gmm_threshold: the scores hold NaN"
+        raise RoseError(msg)
+    if not (integer_number(max_samples) and max_samples >= 2):
+        msg = f"gmm_threshold: max_samples must be an integer >= 2, got {max_samples!r}"
+        raise RoseError(msg)
     if values.size > max_samples:
         values = values[np.linspace(0, values.size - 1, max_samples).round().astype(np.intp)]
     values = values.astype(np.float64)

@@ -16,7 +16,10 @@ import numpy as np
 import numpy.typing as npt
 from scipy.ndimage import gaussian_filter1d
 
+from rose.errors import RoseError
 from rose.frozen import ReadOnlyArrays, seal
+from rose.limits import finite_number
+from rose.params import ANGULAR_RESOLUTION_RANGE_DEG
 
 __all__ = [
     "DirectionBins",
@@ -92,7 +95,20 @@ def direction_bins(
     A spectrum line at angle ``psi`` comes from image lines at ``psi + pi/2``; cells between
     ``min_radius_px`` and the Nyquist circle (half the longer side) take part, so every direction sees
     the same radial range.
+
+    Raises
+    ------
+    RoseError
+        If ``angular_resolution_deg`` is outside :data:`rose.params.ANGULAR_RESOLUTION_RANGE_DEG` or
+        ``min_radius_px`` is not a finite number >= 0.
     """
+    low, high = ANGULAR_RESOLUTION_RANGE_DEG
+    if not (finite_number(angular_resolution_deg) and low <= angular_resolution_deg <= high):
+        msg = f"angular_resolution_deg must be in {low}..{high}, got {angular_resolution_deg!r}"
+        raise RoseError(msg)
+    if not (finite_number(min_radius_px) and min_radius_px >= 0):
+        msg = f"min_radius_px must be a finite number >= 0, got {min_radius_px!r}"
+        raise RoseError(msg)
     n_bins = max(1, round(180.0 / angular_resolution_deg))
     step = math.pi / n_bins
     u, v = frequency_grid(shape)

@@ -4,6 +4,7 @@ invalid arguments instead of Python's own words from deep inside."""
 
 from __future__ import annotations
 
+import math
 import pickle
 
 import numpy as np
@@ -158,3 +159,23 @@ def test_a_zero_one_integer_mask_is_warned_about(furnished) -> None:
         assert not rose.extract_walls(mask).segments
     with pytest.warns(UserWarning, match="only 0 and 1"):
         assert not rose.extract_walls_hough(mask).segments
+
+
+def test_the_stage_functions_say_what_is_wrong_with_their_input() -> None:
+    """The README's public stage functions returned NaN or failed in numpy."""
+    from rose.directions import structure_score
+    from rose.threshold import gmm_threshold
+    from rose.unfold import direction_bins
+
+    with pytest.raises(rose.RoseError, match="NaN"):
+        gmm_threshold([np.nan, 0.1, 0.5, 0.9, 1.0], max_samples=10)
+    with pytest.raises(rose.RoseError, match="max_samples"):
+        gmm_threshold([0.1, 0.5], max_samples=0)
+    with pytest.raises(rose.RoseError, match="angular_resolution_deg"):
+        direction_bins((16, 16), angular_resolution_deg=0, min_radius_px=4)
+    with pytest.raises(rose.RoseError, match="min_radius_px"):
+        direction_bins((16, 16), angular_resolution_deg=1.0, min_radius_px=math.nan)
+    with pytest.raises(rose.RoseError, match="at least one direction"):
+        structure_score(np.array([]), np.array([0]))
+    with pytest.raises(rose.RoseError, match="peak indices"):
+        structure_score(np.array([0.0, 1.0]), np.array([2]))
