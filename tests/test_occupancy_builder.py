@@ -104,3 +104,12 @@ def test_crop_to_known() -> None:
     assert cropped.shape == (14, 9)
     all_unknown, off = crop_to_known(np.full((4, 4), -1, dtype=np.int8))
     assert all_unknown.shape == (4, 4) and off == (0, 0)
+
+
+def test_the_origin_is_written_as_map_saver_writes_it() -> None:
+    """-726 cells of 0.05 m: -36.300000000000004 m as a product, in the log and the YAML."""
+    from rose_logs.carmen.raycast import BuilderParams, OccupancyGridBuilder
+
+    builder = OccupancyGridBuilder(BuilderParams(resolution_m=0.05))
+    builder._origin_cell[:] = (-726, -1002)
+    assert builder.origin_xy_m == (-36.3, -50.1)

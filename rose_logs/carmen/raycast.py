@@ -139,9 +139,12 @@ class OccupancyGridBuilder:
 
     @property
     def origin_xy_m(self) -> tuple[float, float]:
-        """World position of the outer corner of cell (0, 0), metres."""
+        """World position of the outer corner of cell (0, 0), metres, to the nanometre (-726 cells of
+        0.05 m are -36.300000000000004 m as a product; map_saver writes -36.3)."""
         res = self.params.resolution_m
-        return float(self._origin_cell[0] * res), float(self._origin_cell[1] * res)
+        return round(float(self._origin_cell[0] * res), 9), round(
+            float(self._origin_cell[1] * res), 9
+        )
 
     @property
     def log_odds(self) -> npt.NDArray[np.float32]:
