@@ -368,3 +368,20 @@ def test_a_gzipped_log_cut_short_keeps_its_scans_before_the_cut(
     log = read_carmen_log(cut)
     assert 0 < len(log.scans) < len(SCANS)
     assert "ends before its end marker" in caplog.text
+
+
+def test_replayed_sessions_of_a_log_say_its_clock_warning_once(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """The break experiment replays each log a dozen times (levels x seeds): Intel's backward
+    stamps were warned about in every replay."""
+    from rose_logs.evaluation.break_sessions import SessionSpec, session_grids
+
+    path = tmp_path / "backward.log"
+    _write_log(path, SCANS)
+    _restamped(path, ["1000.0", "1000.1", "999.9", "1000.3", "1000.4"])
+    log = read_carmen_log(path)
+    for level in (0, 1, 2):
+        spec = SessionSpec(path, map_period_s=0.2, drift_level=level, drift_start_s=0.1)
+        assert len(list(session_grids(log, spec))) >= 2
+    assert caplog.text.count("earlier than the scan before them") == 1

@@ -10,6 +10,7 @@ resolve the scans, like CSAIL's, gets a nominal-speed clock).
 
 from __future__ import annotations
 
+import functools
 import logging
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -23,7 +24,7 @@ from rose_logs.carmen.drift import apply_drift
 from rose_logs.carmen.parse import CarmenLog
 from rose_logs.carmen.raycast import BuilderParams, OccupancyGridBuilder
 
-__all__ = ["SessionGrid", "SessionSpec", "session_grids"]
+__all__ = ["SessionGrid", "SessionSpec", "log_clock_ns", "session_grids"]
 
 _LOG = logging.getLogger(__name__)
 
@@ -89,6 +90,15 @@ class SessionGrid:
     scans: int
 
 
+@functools.lru_cache(maxsize=4)
+def log_clock_ns(log: CarmenLog) -> npt.NDArray[np.int64]:
+    """:func:`scan_clock_ns`'s offsets of ``log`` (read-only), worked out once per parsed log: its
+    warnings (Intel's backward stamps) are said once, not again for every session replayed."""
+    offsets = scan_clock_ns(log).offsets_ns
+    offsets.flags.writeable = False
+    return offsets
+
+
 def session_grids(
     log: CarmenLog,
     spec: SessionSpec,
@@ -109,7 +119,7 @@ def session_grids(
     builder_params : BuilderParams, optional
         Ray-casting parameters (default: the builder's, with the spec's cell size).
     """
-    clock = scan_clock_ns(log).offsets_ns
+    clock = log_clock_ns(log)
     params = (
         builder_params
         if builder_params is not None

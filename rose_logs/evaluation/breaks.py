@@ -36,9 +36,13 @@ import numpy.typing as npt
 import rose
 from rose.breaks import erased_walls, placed_grid, risen_evidence
 from rose.params import RoseParams
-from rose_logs.carmen.clock import scan_clock_ns
 from rose_logs.carmen.parse import CarmenLog, read_carmen_log
-from rose_logs.evaluation.break_sessions import SessionGrid, SessionSpec, session_grids
+from rose_logs.evaluation.break_sessions import (
+    SessionGrid,
+    SessionSpec,
+    log_clock_ns,
+    session_grids,
+)
 from rose_logs.session.breaks import BreakDetector, BreakParams
 from rose_logs.snapshots import MapSnapshot
 
@@ -186,7 +190,7 @@ def break_cases(
     only the first scans of each log; ``resolution_m``: the maps' cell size)."""
     cases = []
     for path in log_paths:
-        clock = scan_clock_ns(_log(Path(path), max_scans)).offsets_ns
+        clock = log_clock_ns(_log(Path(path), max_scans))
         duration = float(clock[-1]) / 1e9
         correct = SessionSpec(
             Path(path), map_period_s=map_period_s, max_scans=max_scans, resolution_m=resolution_m
