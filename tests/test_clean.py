@@ -247,6 +247,32 @@ def test_a_long_thin_map_at_an_angle_is_turned_in_pieces_with_the_whole_frames_r
         assert np.array_equal(getattr(in_pieces, name), getattr(whole, name)), name
 
 
+@pytest.mark.parametrize("column", [450, 750])
+def test_a_strip_of_a_real_map_at_an_angle_cleans_in_pieces_as_whole(
+    monkeypatch: pytest.MonkeyPatch, column: int
+) -> None:
+    """Strips 12 cells wide of the Freiburg 079 map turned 8 degrees, stacked 8 times: each piece's
+    frame ran along its thin sides, where OpenCV's closing reads beyond the image, and the hidden-
+    wall fills differed from the whole frame's (22 and 64 cells) until each piece's frame took the
+    whole frame's cells around it."""
+    from scipy.ndimage import rotate
+
+    from rose.cleaning_rules import frames
+
+    grid = rose.load_map(
+        repo_data("rose2_aislabunimi/Freiburg_Building_079_partial/map15.yaml")
+    ).grid
+    turned = rotate(np.asarray(grid), 8, order=0, cval=-1, reshape=True)
+    strip = np.ascontiguousarray(np.tile(turned[:, column : column + 12], (8, 1)))
+    result = rose.analyze(strip)
+    in_pieces = clean(strip, result)
+    monkeypatch.setattr(frames, "_MAX_FRAME_GROWTH", math.inf)
+    whole = clean(strip, result)
+    assert in_pieces.completed.any() or whole.completed.any()
+    for name in ("cleaned", "completed", "rescued", "guarded"):
+        assert np.array_equal(getattr(in_pieces, name), getattr(whole, name)), name
+
+
 def test_directional_runs_keep_long_lines_only() -> None:
     mask = np.zeros((80, 120), dtype=bool)
     mask[10, 5:105] = True  # 100 cells

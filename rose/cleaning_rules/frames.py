@@ -36,26 +36,44 @@ _FRAME_CELLS_WHOLE = 1 << 22
 
 
 def _rotation(
-    rows: int, cols: int, angle: float, origin: tuple[float, float] | None = None
+    rows: int, cols: int, angle: float
 ) -> tuple[npt.NDArray[np.float64], tuple[int, int]]:
     """The forward affine matrix turning a ``rows`` x ``cols`` image so that ``angle`` lies along the
-    columns, and the turned image's size ``(width, height)``.
-
-    ``origin``: where the image's cell (0, 0) lands in a larger image's turned frame (the image a
-    piece of it); the piece's frame is then that frame shifted by whole cells, so that both sample
-    the same points.
-    """
+    columns, and the turned image's size ``(width, height)``."""
     c, s = math.cos(angle), math.sin(angle)
     corners = np.array([[0, 0], [cols, 0], [0, rows], [cols, rows]], dtype=np.float64)
     u = corners[:, 0] * c + corners[:, 1] * s
     v = -corners[:, 0] * s + corners[:, 1] * c
-    if origin is None:
-        tu, tv = -u.min(), -v.min()
-    else:
-        tu = origin[0] - math.floor(origin[0] + u.min())
-        tv = origin[1] - math.floor(origin[1] + v.min())
-    matrix = np.array([[c, s, tu], [-s, c, tv]], dtype=np.float64)
-    return matrix, (math.ceil(u.max() + tu) + 1, math.ceil(v.max() + tv) + 1)
+    matrix = np.array([[c, s, -u.min()], [-s, c, -v.min()]], dtype=np.float64)
+    return matrix, (math.ceil(u.max() - u.min()) + 1, math.ceil(v.max() - v.min()) + 1)
+
+
+Frame = tuple[npt.NDArray[np.float64], tuple[int, int]]
+"""A turned frame: the forward affine matrix and the frame's size ``(width, height)``."""
+
+
+def _piece_frame(
+    whole: Frame, corner: tuple[int, int], shape: tuple[int, int], margin: int
+) -> Frame:
+    """The window of the ``whole`` frame that a piece of its source turns into: the piece's cell
+    (0, 0) is the source's cell ``corner`` ``(x, y)`` and its shape ``shape``; the window takes
+    ``margin`` more of the whole frame's cells on every side (clipped to the whole frame). The
+    piece's frame samples the whole frame's points, and its edges lie as far from the piece's
+    cells as the whole frame's do, up to ``margin`` (OpenCV's morphology reads beyond an image's
+    edge: a frame's edge beside a thin piece changed the fills along it)."""
+    matrix, (width, height) = whole
+    rows, cols = shape
+    x0, y0 = corner
+    points = np.array(
+        [[x0, y0], [x0 + cols, y0], [x0, y0 + rows], [x0 + cols, y0 + rows]], dtype=np.float64
+    )
+    u, v = (points @ matrix[:, :2].T + matrix[:, 2]).T
+    u0, v0 = max(math.floor(u.min()) - margin, 0), max(math.floor(v.min()) - margin, 0)
+    u1 = min(math.ceil(u.max()) + margin, width - 1)
+    v1 = min(math.ceil(v.max()) + margin, height - 1)
+    piece = matrix.copy()
+    piece[:, 2] = matrix[:, :2] @ np.array([x0, y0], dtype=np.float64) + matrix[:, 2] - (u0, v0)
+    return piece, (u1 - u0 + 1, v1 - v0 + 1)
 
 
 def _along_an_axis(angle: float) -> bool:
@@ -64,17 +82,17 @@ def _along_an_axis(angle: float) -> bool:
 
 
 def _rotate(
-    source: npt.NDArray[np.uint8], angle: float, origin: tuple[float, float] | None = None
+    source: npt.NDArray[np.uint8], angle: float, frame: Frame | None = None
 ) -> tuple[npt.NDArray[np.uint8], npt.NDArray[np.float64] | None]:
-    """``source`` rotated so that ``angle`` lies along the columns, and the forward affine matrix
-    (None when ``angle`` is within half a degree of an axis and nothing was rotated); ``origin``
-    as :func:`_rotation`'s."""
+    """``source`` rotated so that ``angle`` lies along the columns (into ``frame``, default its own
+    :func:`_rotation`), and the forward affine matrix (None when ``angle`` is within half a degree
+    of an axis and nothing was rotated)."""
     import cv2
 
     if _along_an_axis(angle):
         return source, None
     rows, cols = source.shape
-    matrix, size = _rotation(rows, cols, angle, origin)
+    matrix, size = frame if frame is not None else _rotation(rows, cols, angle)
     rotated = cv2.warpAffine(source, matrix, size, flags=cv2.INTER_NEAREST)
     return np.asarray(rotated, dtype=np.uint8), matrix
 
@@ -92,13 +110,15 @@ def in_rotated_frame(
 
     A long, thin ``source`` whose turned frame would be too large (``_MAX_FRAME_GROWTH``) is
     turned in pieces along its length, each with ``reach_px`` cells of the source on either side
-    (the farthest a rule looks) and its frame on the whole frame's cells, and each piece's own
-    cells kept: what a rule finds there is what it finds in the whole.
+    (the farthest a rule looks), into the window of the whole frame around it with ``reach_px``
+    more on every side (:func:`_piece_frame`), and each piece's own cells kept: what a rule finds
+    there is what it finds in the whole.
     """
     if _along_an_axis(angle):
         return work(np.ascontiguousarray(source), False), False
     rows, cols = source.shape
-    whole, (width, height) = _rotation(rows, cols, angle)
+    whole = _rotation(rows, cols, angle)
+    width, height = whole[1]
     if width * height <= max(_MAX_FRAME_GROWTH * rows * cols, _FRAME_CELLS_WHOLE):
         return _turned_and_back(source, angle, work), True
     # Pieces along the longer axis (as rows: a transposed view for a wide box).
@@ -110,29 +130,23 @@ def in_rotated_frame(
     for start in range(0, length, core):
         stop = min(start + core, length)
         low, high = max(start - reach_px, 0), min(stop + reach_px, length)
-        piece = along[low:high].T if wide else along[low:high]
-        corner = np.array([low, 0] if wide else [0, low], dtype=np.float64)  # its cell (0, 0)
-        origin = whole[:, :2] @ corner + whole[:, 2]
-        back = _turned_and_back(
-            np.ascontiguousarray(piece), angle, work, (float(origin[0]), float(origin[1]))
-        )
+        piece = np.ascontiguousarray(along[low:high].T if wide else along[low:high])
+        frame = _piece_frame(whole, (low, 0) if wide else (0, low), piece.shape, reach_px)
+        back = _turned_and_back(piece, angle, work, frame)
         out[start:stop] = (back.T if wide else back)[start - low : stop - low]
     return (np.ascontiguousarray(out.T) if wide else out), True
 
 
 def _turned_and_back(
-    source: npt.NDArray[np.uint8],
-    angle: float,
-    work: FrameWork,
-    origin: tuple[float, float] | None = None,
+    source: npt.NDArray[np.uint8], angle: float, work: FrameWork, frame: Frame | None = None
 ) -> npt.NDArray[np.uint8]:
-    """``work`` in ``source``'s frame turned by ``angle`` (``origin`` as :func:`_rotation`'s), its
+    """``work`` in ``source``'s frame turned by ``angle`` (into ``frame``, as :func:`_rotate`), its
     output sampled back into ``source``'s cells (nearest-neighbour: values are copied, bits and
     all)."""
     import cv2
 
     rows, cols = source.shape
-    rotated, matrix = _rotate(source, angle, origin)
+    rotated, matrix = _rotate(source, angle, frame)
     done = work(np.ascontiguousarray(rotated), True)
     assert matrix is not None
     back = cv2.warpAffine(
