@@ -495,7 +495,8 @@ def contradicted_walls(
     Raises
     ------
     RoseError
-        On grids that are not 2-D or a non-positive window / negative tolerance.
+        On grids that are not 2-D, an offset that is not two integers, a non-positive window, a
+        tile outside 1..``MAX_KERNEL_PX`` or a tolerance, bridge or margin outside 0..``MAX_KERNEL_PX``.
     """
     earlier, later = _check(
         earlier,

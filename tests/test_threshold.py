@@ -213,11 +213,3 @@ def test_one_population_of_scores_is_all_structure_not_a_threshold_beyond_them(
     scores = result.cell_scores[result.occupied]
     assert result.threshold == -math.inf or scores.min() <= result.threshold <= scores.max()
     assert result.clutter_count < result.occupied_count
-
-
-def test_a_threshold_is_within_the_scores_it_splits() -> None:
-    rng = np.random.default_rng(0)
-    for _ in range(200):
-        values = rng.normal(rng.uniform(0, 1, 2)[rng.integers(0, 2, 500)], rng.uniform(1e-4, 0.3))
-        threshold = gmm_threshold(values, max_samples=2000)
-        assert threshold == -math.inf or values.min() <= threshold <= values.max()

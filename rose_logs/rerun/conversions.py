@@ -253,7 +253,8 @@ def _blocks_max(image: npt.NDArray[np.uint8], factor: int) -> npt.NDArray[np.uin
 
 def pool_classes(image: npt.NDArray[np.uint8], factor: int) -> npt.NDArray[np.uint8]:
     """A :func:`segmentation_image` shrunk ``factor`` times per side: each pixel the highest-ranked
-    class of its block (walls, drawn walls, clutter, occupied, free, unknown), the blocks those of
+    class of its block (drawn walls, clutter kept as walls, structure, clutter, occupied, free,
+    unknown), the blocks those of
     :func:`pooled_window`. Returns ``image`` itself for ``factor`` 1."""
     if factor == 1:
         return image

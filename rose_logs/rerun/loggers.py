@@ -769,7 +769,7 @@ class TopicLogger:
         rec.log(paths.break_score, rr.Scalars(float(verdict.score_m)))
         rec.log(paths.break_threshold, rr.Scalars(float(threshold_m)))
         if not verdict.broken or verdict.region_m is None:
-            rec.log(paths.break_region, rr.Clear(recursive=False))
+            rec.log(paths.break_region, rr.Clear(recursive=True))  # its label too
             return
         x0, y0, x1, y1 = verdict.region_m
         z = overlay_z_m(snapshot, layer=3)
@@ -779,8 +779,14 @@ class TopicLogger:
         )
         rec.log(
             paths.break_region,
-            rr.LineStrips3D(
-                [corners],
+            rr.LineStrips3D([corners], colors=style.BREAK_COLOR, radii=rr.Radius.ui_points(2.5)),
+        )
+        # On the middle of the region's south edge: Rerun centres a label below its point, so it
+        # hangs under the region (on the strip's middle it covered a region of a metre or two).
+        rec.log(
+            paths.break_label,
+            rr.Points3D(
+                (corners[0:1] + corners[1:2]) / 2,
                 colors=style.BREAK_COLOR,
                 radii=rr.Radius.ui_points(2.5),
                 # As the event and the summary say it (1.25 m read "1.3 m" beside them).

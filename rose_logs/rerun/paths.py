@@ -3,7 +3,8 @@
 Paths are lowercase and live below one root per map topic (``/map`` -> ``map``)::
 
     <root>/cells                     AnnotationContext of the segmentation classes (static)
-    <root>/cells/segmentation        SegmentationImage, one pixel per cell, north up; like every image
+    <root>/cells/segmentation        SegmentationImage, one pixel per cell (per block of cells when the
+                                     map's known box is longer than 1024 cells), north up; like every image
                                      below and what is drawn on it (pixels), placed by a Transform3D
                                      in map-frame metres, north up (loggers.placement_terms)
     <root>/cells/directions          LineStrips2D, dominant wall directions through the grid centre, and
@@ -37,6 +38,7 @@ Paths are lowercase and live below one root per map topic (``/map`` -> ``map``):
     <root>/break_score/threshold_m   Scalars: the detector's threshold (static style)
     <root>/metric/break_region       LineStrips3D: the region of a detected break, metres from the
                                      view origin
+    <root>/metric/break_region/label Points3D: its label, under the middle of its south edge
 """
 
 from __future__ import annotations
@@ -202,3 +204,7 @@ class EntityPaths:
     @property
     def break_region(self) -> str:
         return self._below("metric/break_region")
+
+    @property
+    def break_label(self) -> str:
+        return self._below("metric/break_region/label")

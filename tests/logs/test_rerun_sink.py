@@ -653,7 +653,12 @@ def test_the_metric_view_keeps_centimetres_at_a_utm_origin(tmp_path: Path) -> No
     corners = np.array(rectangle["LineStrips3D:strips"][0], dtype=float)[:, :2]
     assert corners.min(axis=0) == pytest.approx((region[0] - rx, region[1] - ry), abs=1e-4)
     assert corners.max(axis=0) == pytest.approx((region[2] - rx, region[3] - ry), abs=1e-4)
-    assert rectangle["LineStrips3D:labels"] == ["break: 1.25 m of map contradicted"]
+    # The label hangs from the middle of the south edge, not over the region (which it covered).
+    (label,) = content.rows(PATHS.break_label)
+    assert label["Points3D:labels"] == ["break: 1.25 m of map contradicted"]
+    assert np.array(label["Points3D:positions"], dtype=float)[0, :2] == pytest.approx(
+        ((region[0] + region[2]) / 2 - rx, region[1] - ry), abs=1e-4
+    )
 
 
 def test_blueprint_has_a_tab_per_map_topic() -> None:

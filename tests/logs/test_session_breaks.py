@@ -382,6 +382,13 @@ def test_maps_too_fine_for_the_detector_are_not_checked_and_say_so(
         for i, grid in enumerate([plan, broken]):
             at_limit.update(_snap(grid, i, res=0.0003))
     assert not caplog.records
+    # Tiles are blocks of that many cells too: a 60 m tile (1200 cells of these maps) stopped the
+    # session with "tile_px must be an integer in 1..1000".
+    big_tiles = BreakDetector(BreakParams(threshold_m=1.0, tile_m=60.0))
+    with caplog.at_level("WARNING"):
+        scores = [big_tiles.update(_snap(g, i)).score_m for i, g in enumerate([plan, broken])]
+    assert scores == [0.0, 0.0]
+    assert "tile_m: 60 m" in caplog.text
 
 
 @pytest.mark.parametrize("fails", [False, True], ids=["kept", "withdrawn"])
