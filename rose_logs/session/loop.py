@@ -672,35 +672,49 @@ class _Loop:
         detection = threads_in_this_context(1, "rose-breaks")
         self.executor, self.detection = pool, detection
         try:
-            for message in self.reader.messages():
-                channel = message.channel
-                self.latest_ns = max(self.latest_ns, message.log_time_ns)
-                self._copy(message)
-                is_map = channel.topic in self.map_topics and channel.msgtype == MAP_TYPE
-                if is_map:
-                    self._on_map(message.data, channel, message.log_time_ns)
-                elif channel.topic in self.updates:
-                    self._on_update(message.data, channel, message.log_time_ns)
-                elif channel.topic in self.orphans:
-                    self.skips.add(
-                        "updates of no known map",
-                        f"{channel.topic}: grid update {self._at(message.log_time_ns)} whose map "
-                        "cannot be told (<map>_updates whose map is not in the log, or another "
-                        "name and several map topics)",
-                    )
-                self._drain(self.in_flight_limit)
-                pending += 1
-                # Every 64 messages, and at every map (a log of maps alone moved in big jumps).
-                if pending >= 64 or is_map:
+            # An interrupt is taken between two messages, never where it lands: raised inside the
+            # futures' bookkeeping (a Future's lock held by this thread), it left an analysis thread
+            # waiting on that lock for ever and the run hung at Ctrl-C (1 in about 20).
+            with signals_deferred() as held:
+                for message in self.reader.messages():
+                    if held:  # raised as the block ends
+                        break
+                    self._step(message)
+                    pending += 1
+                    # Every 64 messages, and at every map (a log of maps alone moved in big jumps).
+                    if pending >= 64 or self._is_map(message.channel):
+                        bar.update(pending)
+                        pending = 0
+                else:
+                    self._drain(0)
                     bar.update(pending)
-                    pending = 0
-            self._drain(0)
-            bar.update(pending)
-            self.skips.warn_rest()
+                    self.skips.warn_rest()
         finally:
-            pool.shutdown(wait=True, cancel_futures=True)
-            detection.shutdown(wait=True, cancel_futures=True)
+            with signals_deferred():  # a second interrupt while the threads finish: as above
+                pool.shutdown(wait=True, cancel_futures=True)
+                detection.shutdown(wait=True, cancel_futures=True)
             bar.close()
+
+    def _is_map(self, channel: Channel) -> bool:
+        return channel.topic in self.map_topics and channel.msgtype == MAP_TYPE
+
+    def _step(self, message: RawMessage) -> None:
+        """Copy ``message``, start the analysis of the snapshot it makes, write what is ready."""
+        channel = message.channel
+        self.latest_ns = max(self.latest_ns, message.log_time_ns)
+        self._copy(message)
+        if self._is_map(channel):
+            self._on_map(message.data, channel, message.log_time_ns)
+        elif channel.topic in self.updates:
+            self._on_update(message.data, channel, message.log_time_ns)
+        elif channel.topic in self.orphans:
+            self.skips.add(
+                "updates of no known map",
+                f"{channel.topic}: grid update {self._at(message.log_time_ns)} whose map "
+                "cannot be told (<map>_updates whose map is not in the log, or another "
+                "name and several map topics)",
+            )
+        self._drain(self.in_flight_limit)
 
     def _copy(self, message: RawMessage) -> None:
         """Copy ``message`` to the output log, after the results of every snapshot before it

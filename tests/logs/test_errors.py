@@ -614,6 +614,35 @@ def test_interrupted_run_leaves_nothing(tmp_path: Path, mcap_log: Path) -> None:
     assert _leftovers(tmp_path, {"in.mcap"}) == []
 
 
+def test_ctrl_c_is_taken_between_two_messages_not_where_it_lands(
+    tmp_path: Path, mcap_log: Path, monkeypatch: pytest.MonkeyPatch, capsys
+) -> None:
+    """A Ctrl-C raised where it landed could stop the main thread while it held a Future's lock:
+    an analysis thread then waited on it for ever and the run hung (1 Ctrl-C in about 20, seen in
+    a batch). It is held until the message in hand is done, then ends the run as before."""
+    import os
+    import signal
+
+    import rose_logs.session.loop as loop
+
+    real = loop._Loop._drain
+    seen: list[str] = []
+
+    def drain(self: loop._Loop, limit: int) -> None:
+        if not seen:
+            os.kill(os.getpid(), signal.SIGINT)  # lands in the loop's own work
+            seen.append("after the signal")
+        real(self, limit)
+        seen.append("drained")
+
+    monkeypatch.setattr(loop._Loop, "_drain", drain)
+    out = tmp_path / "o.mcap"
+    assert main(["process", str(mcap_log), "-o", str(out), "-q"]) == 130
+    assert seen == ["after the signal", "drained"]  # that message finished, no other began
+    assert "interrupted" in capsys.readouterr().err
+    assert _leftovers(tmp_path, {"in.mcap"}) == []
+
+
 def test_a_signal_inside_the_reading_library_is_an_interrupt_not_a_corrupt_log(
     tmp_path: Path, mcap_log: Path, monkeypatch: pytest.MonkeyPatch, capsys
 ) -> None:
