@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import contextlib
+import errno
 import functools
 import logging
+import os
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, Literal
@@ -242,6 +245,24 @@ def _bag_qos_style(information: dict[str, Any] | None) -> QosStyle | None:
         return None
 
 
+@contextlib.contextmanager
+def _sqlite_as_os_errors() -> Iterator[None]:
+    """A full disk or a failing one under a db3 output, which sqlite3 reports as its own error
+    ("database or disk is full"), raised as the ``OSError`` it is: a batch retries it and names it
+    as an MCAP output's ("cannot write (No space left on device)"), not as the recording's error."""
+    import sqlite3
+
+    try:
+        yield
+    except sqlite3.Error as err:
+        code = getattr(err, "sqlite_errorcode", None)
+        primary = -1 if code is None else int(code) & 0xFF  # extended codes: in the low byte
+        number = {sqlite3.SQLITE_FULL: errno.ENOSPC, sqlite3.SQLITE_IOERR: errno.EIO}.get(primary)
+        if number is None:
+            raise
+        raise OSError(number, os.strerror(number)) from err
+
+
 class _RosbagsWriteBackend(WriteBackend):
     ros_version: int
 
@@ -278,10 +299,12 @@ class _RosbagsWriteBackend(WriteBackend):
     def write(
         self, handle: int, log_time_ns: int, data: bytes | memoryview, publish_ns: int, seq: int
     ) -> None:
-        self.writer.write(self.connections[handle], log_time_ns, data)
+        with _sqlite_as_os_errors():
+            self.writer.write(self.connections[handle], log_time_ns, data)
 
     def close(self) -> None:
-        self.writer.close()
+        with _sqlite_as_os_errors():
+            self.writer.close()
 
     def abort(self) -> None:
         if self.writer is not None:

@@ -1459,3 +1459,34 @@ def test_storage_options_are_read_as_json_except_credentials(
     from rose_logs.cli.batch import _storage_option
 
     assert _storage_option(given) == read
+
+
+def test_a_full_disk_under_a_db3_output_is_an_io_error_retried_not_the_recordings(
+    fleet: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """sqlite3 says "database or disk is full" in its own error: the batch stored it as the
+    recording's "unexpected error" and never tried it again after space was freed."""
+    import sqlite3
+
+    from rosbags.rosbag2 import Writer
+
+    real = Writer.write
+    full = {"on": True}
+
+    def write(self: object, *args: object, **kwargs: object) -> None:
+        if full["on"]:
+            err = sqlite3.OperationalError("database or disk is full")
+            err.sqlite_errorcode = sqlite3.SQLITE_FULL  # type: ignore[attr-defined]
+            raise err
+        real(self, *args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(Writer, "write", write)
+    out = tmp_path / "out"
+    options = RecordingOptions(cleaned=True, retries=0)
+    recording = fleet / "robot_a" / "later.db3"
+    (row,) = run_batch([recording], out, options=options).results
+    assert row.status == "error"
+    assert ": I/O error: " in row.error and "cannot write (No space left on device)" in row.error
+    full["on"] = False  # space freed: tried again, not a stored failure
+    (again,) = run_batch([recording], out, options=options).results
+    assert again.status == "ok"
