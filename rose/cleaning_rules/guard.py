@@ -115,31 +115,30 @@ def topology_guard(
     # walls), though no patch alone touches two regions.
     linked = _linked_through_pockets(blocking, opened, min_region_px)
     count, patches = components(linked)
-    boxes = label_boxes(patches, _nonzero_flat(linked.view(np.uint8)), count)
-    ring_cells, ring_patches = _rings(patches, linked, count)
-    formerly = blocking[np.divmod(ring_cells, opened.shape[1])] == 0
-    # Patches whose ring is all formerly passable are free-standing objects: nothing to check
-    # (nor are pockets next to no opened cell).
-    blocked = np.zeros(count, dtype=bool)
-    blocked[ring_patches[~formerly]] = True
-    blocked &= np.bincount(patches.reshape(-1)[opened_cells], minlength=count) > 0
-    blocked[0] = False
-    ring_cells, ring_patches = ring_cells[formerly], ring_patches[formerly]
-    # No labelling of the ring arcs first to skip the patches whose ring is one arc: the windows'
-    # labelling finds one region for them anyway, and labelling the arcs over the whole box cost
-    # more than the windows it spared.
-    if not blocked.any():
-        return restore
-    separating = _separating_patches(
-        blocking, boxes, blocked, ring_cells, ring_patches, window_px, min_region_px
+    linked_cells = _nonzero_flat(linked.view(np.uint8))
+    boxes = label_boxes(patches, linked_cells, count)
+    seeds = _separating_cells(
+        patches, count, boxes, linked, opened_cells, blocking, window_px, min_region_px
     )
-    if not separating.any():
+    # A long opening is also judged in pieces: judged whole, its window spanned rooms that a door
+    # somewhere in it joined anyway, and a wall erased along metres between a corridor and a room
+    # passed as no new passage.
+    cut_count, cut = _cut_long_patches(patches, boxes, linked_cells, 4 * window_px)
+    if cut_count != count:
+        cut_boxes = label_boxes(cut, linked_cells, cut_count)
+        pieces = _separating_cells(
+            cut, cut_count, cut_boxes, linked, opened_cells, blocking, window_px, min_region_px
+        )
+        # A piece that separates speaks for its whole opening: restored in part, the rest of a
+        # long erased wall stayed open.
+        whole = np.isin(patches.reshape(-1)[opened_cells], patches.reshape(-1)[pieces])
+        seeds = np.union1d(seeds, opened_cells[whole])
+    if not seeds.size:
         return restore
     # The removed cells within reach of a separating patch (dilated on the patches' box only): the
     # ones that kept the disc out of it. Whole removed pieces would also bring back furniture that
     # merely touches a wall hole, diagonally, as rasterised walls at an angle often do.
     reach_kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach + 1, 2 * reach + 1))
-    seeds = opened_cells[separating[patches.reshape(-1)[opened_cells]]]
     near, zone = _drawn_box(seeds, opened.shape, reach)
     zone = cv2.dilate(zone, reach_kernel).view(bool)
     removal = np.greater(occupied[box][near], keep[box][near])  # occupied & ~keep in one pass
@@ -159,6 +158,67 @@ def _linked_through_pockets(
     if not pocket.any():
         return opened
     return opened | pocket[regions]
+
+
+def _separating_cells(
+    patches: npt.NDArray[np.integer],
+    count: int,
+    boxes: npt.NDArray[np.int64],
+    linked: npt.NDArray[np.bool_],
+    opened_cells: npt.NDArray[np.intp],
+    blocking: npt.NDArray[np.uint8],
+    window_px: int,
+    min_region_px: float,
+) -> npt.NDArray[np.intp]:
+    """The opened cells (flat indices, ascending) of the patches that join two regions of their
+    window (:func:`_separating_patches`); patches ringed by formerly passable cells alone (a
+    free-standing object) are not looked at."""
+    ring_cells, ring_patches = _rings(patches, linked, count)
+    formerly = blocking[np.divmod(ring_cells, linked.shape[1])] == 0
+    blocked = np.zeros(count, dtype=bool)
+    blocked[ring_patches[~formerly]] = True
+    blocked &= np.bincount(patches.reshape(-1)[opened_cells], minlength=count) > 0
+    blocked[0] = False
+    # No labelling of the ring arcs first to skip the patches whose ring is one arc: the windows'
+    # labelling finds one region for them anyway, and labelling the arcs over the whole box cost
+    # more than the windows it spared.
+    if not blocked.any():
+        return np.empty(0, dtype=np.intp)
+    separating = _separating_patches(
+        blocking,
+        boxes,
+        blocked,
+        ring_cells[formerly],
+        ring_patches[formerly],
+        window_px,
+        min_region_px,
+    )
+    return opened_cells[separating[patches.reshape(-1)[opened_cells]]]
+
+
+def _cut_long_patches(
+    patches: npt.NDArray[np.integer],
+    boxes: npt.NDArray[np.int64],
+    cells: npt.NDArray[np.intp],
+    tile_px: int,
+) -> tuple[int, npt.NDArray[np.integer]]:
+    """``patches`` with every patch whose box is longer than ``tile_px`` cut along a grid of
+    ``tile_px`` cells (``cells``: the patches' flat indices); returns the new count (with the
+    background) and labels. Shorter patches keep one label each, as they were."""
+    long = np.maximum(boxes[:, 2], boxes[:, 3]) > tile_px
+    long[0] = False
+    if not long.any():
+        return len(boxes), patches
+    rows, cols = np.divmod(cells, patches.shape[1])
+    owner = patches.reshape(-1)[cells].astype(np.int64)
+    tiles = (rows // tile_px) * (patches.shape[1] // tile_px + 1) + cols // tile_px
+    key = np.where(
+        long[owner], owner * (int(tiles.max()) + 1) + tiles, owner * (int(tiles.max()) + 1)
+    )
+    _, label = np.unique(key, return_inverse=True)
+    out = np.zeros(patches.shape, dtype=np.int32)
+    out.reshape(-1)[cells] = label.astype(np.int32) + 1
+    return int(label.max()) + 2, out
 
 
 def _drawn_box(
