@@ -68,7 +68,10 @@ def topology_guard(
     window that are not small enclosed pockets (a pocket does not reach the window's
     edge and covers less than ``min_region_px``), every removed cell within ``radius_px + 1`` of the
     patch is restored: those are the cells that kept the disc out of it. A pocket counts with the
-    patches it touches (one patch with them), so that a passage through it is judged whole.
+    patches it touches (one patch with them), so that a passage through it is judged whole. A patch
+    longer than four windows is also judged in pieces of that length, and one piece joining two
+    regions restores the whole patch's cells (a wall erased along metres between rooms that a door
+    in its window joins anyway is a new passage all the same).
     Patches surrounded by formerly passable cells (a free-standing object) are skipped without
     labelling; the rest cost one small labelling each.
 
