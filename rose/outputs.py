@@ -385,16 +385,20 @@ def _interrupt_for(signum: int) -> KeyboardInterrupt:
 class HeldSignals:
     """The signals :func:`signals_deferred` holds (numbers, in arrival order); true when any is held."""
 
-    def __init__(self) -> None:
+    def __init__(self, *, second_ends: bool = False) -> None:
         self.signals: list[int] = []
         self._dropping = False
+        self._second_ends = second_ends
 
     def __bool__(self) -> bool:
         return bool(self.signals)
 
     def hold(self, signum: int, _frame: FrameType | None) -> None:
-        if not self._dropping:
-            self.signals.append(signum)
+        if self._dropping:
+            return
+        if self._second_ends and self.signals:  # the user insists: now, wherever it lands
+            raise _interrupt_for(signum)
+        self.signals.append(signum)
 
     def drop(self) -> None:
         """Forget the held signals, and any that arrives until the block ends (the work is done)."""
@@ -403,7 +407,7 @@ class HeldSignals:
 
 
 @contextlib.contextmanager
-def signals_deferred() -> Iterator[HeldSignals]:
+def signals_deferred(*, second_ends: bool = False) -> Iterator[HeldSignals]:
     """Hold SIGINT / SIGTERM / SIGHUP for the block, then raise the first (KeyboardInterrupt / Terminated).
 
     For start-up, while the CLIs import their libraries: an interrupt raised inside a C extension's
@@ -411,9 +415,11 @@ def signals_deferred() -> Iterator[HeldSignals]:
     Yields the :class:`HeldSignals`, so a block can see that one is waiting (e.g. to undo its work
     before it is raised). If the block fails, a held signal is raised instead of the failure (from
     it): the run was interrupted. Signals the caller ignores stay ignored; outside the main thread
-    the block runs unguarded (Python handles signals in the main thread only).
+    the block runs unguarded (Python handles signals in the main thread only). With
+    ``second_ends``, a second signal is raised at once, wherever it lands (a block that waits on a
+    slow read or write can be ended).
     """
-    held = HeldSignals()
+    held = HeldSignals(second_ends=second_ends)
     previous = {
         s: h
         for s in _interrupt_signals()

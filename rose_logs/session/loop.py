@@ -672,10 +672,11 @@ class _Loop:
         detection = threads_in_this_context(1, "rose-breaks")
         self.executor, self.detection = pool, detection
         try:
-            # An interrupt is taken between two messages, never where it lands: raised inside the
+            # An interrupt is taken between two messages, not where it lands: raised inside the
             # futures' bookkeeping (a Future's lock held by this thread), it left an analysis thread
-            # waiting on that lock for ever and the run hung at Ctrl-C (1 in about 20).
-            with signals_deferred() as held:
+            # waiting on that lock for ever and the run hung at Ctrl-C (1 in about 20). A second
+            # one ends the run at once (a slow read or write holds the first).
+            with signals_deferred(second_ends=True) as held:
                 for message in self.reader.messages():
                     if held:  # raised as the block ends
                         break
@@ -690,7 +691,7 @@ class _Loop:
                     bar.update(pending)
                     self.skips.warn_rest()
         finally:
-            with signals_deferred():  # a second interrupt while the threads finish: as above
+            with signals_deferred(second_ends=True):  # while the threads finish: as above
                 pool.shutdown(wait=True, cancel_futures=True)
                 detection.shutdown(wait=True, cancel_futures=True)
             bar.close()

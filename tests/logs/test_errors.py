@@ -643,6 +643,32 @@ def test_ctrl_c_is_taken_between_two_messages_not_where_it_lands(
     assert _leftovers(tmp_path, {"in.mcap"}) == []
 
 
+def test_a_second_ctrl_c_ends_the_run_at_once(
+    tmp_path: Path, mcap_log: Path, monkeypatch: pytest.MonkeyPatch, capsys
+) -> None:
+    """The first Ctrl-C waits for the message in hand; a slow read or write held it for as long as
+    it took, and a second one did nothing. The second ends the run where it lands."""
+    import os
+    import signal
+
+    import rose_logs.session.loop as loop
+
+    seen: list[str] = []
+
+    def drain(self: loop._Loop, limit: int) -> None:
+        os.kill(os.getpid(), signal.SIGINT)
+        seen.append("held")
+        os.kill(os.getpid(), signal.SIGINT)
+        seen.append("after the second")
+
+    monkeypatch.setattr(loop._Loop, "_drain", drain)
+    out = tmp_path / "o.mcap"
+    assert main(["process", str(mcap_log), "-o", str(out), "-q"]) == 130
+    assert seen == ["held"]
+    assert "interrupted" in capsys.readouterr().err
+    assert _leftovers(tmp_path, {"in.mcap"}) == []
+
+
 def test_a_signal_inside_the_reading_library_is_an_interrupt_not_a_corrupt_log(
     tmp_path: Path, mcap_log: Path, monkeypatch: pytest.MonkeyPatch, capsys
 ) -> None:
