@@ -68,7 +68,8 @@ Two methods, chosen by name:
     ``guard_window_m``), unless one of them is a small enclosed pocket (less than ``min_region_m2``:
     the inside of a piece of furniture), and restores the removed cells that blocked it (those
     within the disc's reach of the opening). An opening longer than four windows is also judged
-    in pieces of that length, and a piece that joins two regions restores it whole.
+    in pieces (cut along a grid of four windows), and a piece that joins two regions restores it
+    whole.
 
 The rules were designed and measured on cells of 0.05 m, and some of their tolerances are whole
 cells (a run's cell of tolerance, the straight lines' one-cell band, a wall face a cell deep). A map

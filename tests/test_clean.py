@@ -433,20 +433,26 @@ def test_topology_guard_restores_only_pieces_that_join_regions() -> None:
     ).any()
 
 
-def test_topology_guard_restores_a_long_erased_wall_between_rooms_a_door_also_joins() -> None:
-    """A wall erased along 4 m between a corridor and a room that a door at its end joins anyway:
-    judged whole, the opening's window held the door and its two sides were one region, so no
-    passage was new (Intel's diagonal wall lost both faces). Judged in pieces of 2 m, a piece away
-    from the door joins the two, and the whole opening comes back."""
+@pytest.mark.parametrize(("end", "second_door"), [(100, False), (100, True), (280, True)])
+def test_topology_guard_restores_a_long_erased_wall_between_rooms_a_door_also_joins(
+    end: int, second_door: bool
+) -> None:
+    """A wall erased along metres between a corridor and a room that a door at its end joins
+    anyway: judged whole, the opening's window held the door and its two sides were one region, so
+    no passage was new (Intel's diagonal wall lost both faces). Judged in pieces of 2 m, a piece
+    away from the doors joins the two (a piece in the middle, between the two rooms only, too), and
+    the whole opening comes back."""
     from rose.cleaning_rules import topology_guard
 
-    occupied = np.zeros((60, 140), dtype=bool)
+    occupied = np.zeros((60, 320), dtype=bool)
     occupied[30, :] = True  # the wall between the corridor (above) and the room (below)
     occupied[30, 5:15] = False  # a door at its end
+    if second_door:
+        occupied[30, end + 5 : end + 15] = False  # and one at the other end
     keep = occupied.copy()
-    keep[30, 20:100] = False  # 4 m of wall (0.05 m cells) the rules would remove
+    keep[30, 20:end] = False  # 4 or 13 m of wall (0.05 m cells) the rules would remove
     restore = topology_guard(occupied, keep, radius_px=3.0, window_px=10, min_region_px=400.0)
-    assert restore[30, 20:100].all()
+    assert restore[30, 20:end].all()
 
 
 def test_topology_guard_restores_a_wall_hole_whose_opening_meets_another() -> None:

@@ -69,8 +69,9 @@ def topology_guard(
     edge and covers less than ``min_region_px``), every removed cell within ``radius_px + 1`` of the
     patch is restored: those are the cells that kept the disc out of it. A pocket counts with the
     patches it touches (one patch with them), so that a passage through it is judged whole. A patch
-    longer than four windows is also judged in pieces of that length, and one piece joining two
-    regions restores the whole patch's cells (a wall erased along metres between rooms that a door
+    longer than four windows is also judged in pieces (cut along a grid of four windows; every
+    piece, also one ringed by formerly passable cells alone), and one piece joining two regions
+    restores the whole patch's cells (a wall erased along metres between rooms that a door
     in its window joins anyway is a new passage all the same).
     Patches surrounded by formerly passable cells (a free-standing object) are skipped without
     labelling; the rest cost one small labelling each.
@@ -120,29 +121,38 @@ def topology_guard(
     count, patches = components(linked)
     linked_cells = _nonzero_flat(linked.view(np.uint8))
     boxes = label_boxes(patches, linked_cells, count)
+    on_patch = patches.reshape(-1)[opened_cells]
     seeds = _separating_cells(
-        patches, count, boxes, linked, opened_cells, blocking, window_px, min_region_px
+        patches, count, boxes, linked, on_patch, blocking, window_px, min_region_px
     )
     # A long opening is also judged in pieces: judged whole, its window spanned rooms that a door
     # somewhere in it joined anyway, and a wall erased along metres between a corridor and a room
-    # passed as no new passage.
+    # passed as no new passage. Every piece is judged (a piece in the middle of an erased wall has
+    # only the two rooms around it, which reads as a free-standing object), and one that joins two
+    # regions brings its whole opening back (restored in part, the rest of the wall stayed open).
     cut_count, cut = _cut_long_patches(patches, boxes, linked_cells, 4 * window_px)
     if cut_count != count:
-        cut_boxes = label_boxes(cut, linked_cells, cut_count)
         pieces = _separating_cells(
-            cut, cut_count, cut_boxes, linked, opened_cells, blocking, window_px, min_region_px
+            cut,
+            cut_count,
+            label_boxes(cut, linked_cells, cut_count),
+            linked,
+            cut.reshape(-1)[opened_cells],
+            blocking,
+            window_px,
+            min_region_px,
+            every_patch=True,
         )
-        # A piece that separates speaks for its whole opening: restored in part, the rest of a
-        # long erased wall stayed open.
-        whole = np.isin(patches.reshape(-1)[opened_cells], patches.reshape(-1)[pieces])
-        seeds = np.union1d(seeds, opened_cells[whole])
-    if not seeds.size:
+        joined = np.zeros(count, dtype=bool)
+        joined[on_patch[pieces]] = True
+        seeds |= joined[on_patch]
+    if not seeds.any():
         return restore
     # The removed cells within reach of a separating patch (dilated on the patches' box only): the
     # ones that kept the disc out of it. Whole removed pieces would also bring back furniture that
     # merely touches a wall hole, diagonally, as rasterised walls at an angle often do.
     reach_kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach + 1, 2 * reach + 1))
-    near, zone = _drawn_box(seeds, opened.shape, reach)
+    near, zone = _drawn_box(opened_cells[seeds], opened.shape, reach)
     zone = cv2.dilate(zone, reach_kernel).view(bool)
     removal = np.greater(occupied[box][near], keep[box][near])  # occupied & ~keep in one pass
     restore[box][near] = zone & removal
@@ -168,25 +178,29 @@ def _separating_cells(
     count: int,
     boxes: npt.NDArray[np.int64],
     linked: npt.NDArray[np.bool_],
-    opened_cells: npt.NDArray[np.intp],
+    on_patch: npt.NDArray[np.integer],
     blocking: npt.NDArray[np.uint8],
     window_px: int,
     min_region_px: float,
-) -> npt.NDArray[np.intp]:
-    """The opened cells (flat indices, ascending) of the patches that join two regions of their
-    window (:func:`_separating_patches`); patches ringed by formerly passable cells alone (a
-    free-standing object) are not looked at."""
+    *,
+    every_patch: bool = False,
+) -> npt.NDArray[np.bool_]:
+    """Which opened cells (``on_patch``: the patch of each) lie in a patch that joins two regions of
+    its window (:func:`_separating_patches`). Patches ringed by formerly passable cells alone (a
+    free-standing object) are not looked at unless ``every_patch``."""
     ring_cells, ring_patches = _rings(patches, linked, count)
     formerly = blocking[np.divmod(ring_cells, linked.shape[1])] == 0
-    blocked = np.zeros(count, dtype=bool)
-    blocked[ring_patches[~formerly]] = True
-    blocked &= np.bincount(patches.reshape(-1)[opened_cells], minlength=count) > 0
+    blocked = np.bincount(on_patch, minlength=count) > 0
+    if not every_patch:
+        walled = np.zeros(count, dtype=bool)
+        walled[ring_patches[~formerly]] = True
+        blocked &= walled
     blocked[0] = False
     # No labelling of the ring arcs first to skip the patches whose ring is one arc: the windows'
     # labelling finds one region for them anyway, and labelling the arcs over the whole box cost
     # more than the windows it spared.
     if not blocked.any():
-        return np.empty(0, dtype=np.intp)
+        return np.zeros(on_patch.shape, dtype=bool)
     separating = _separating_patches(
         blocking,
         boxes,
@@ -196,7 +210,7 @@ def _separating_cells(
         window_px,
         min_region_px,
     )
-    return opened_cells[separating[patches.reshape(-1)[opened_cells]]]
+    return separating[on_patch]
 
 
 def _cut_long_patches(
@@ -207,21 +221,22 @@ def _cut_long_patches(
 ) -> tuple[int, npt.NDArray[np.integer]]:
     """``patches`` with every patch whose box is longer than ``tile_px`` cut along a grid of
     ``tile_px`` cells (``cells``: the patches' flat indices); returns the new count (with the
-    background) and labels. Shorter patches keep one label each, as they were."""
+    background) and labels. Shorter patches keep their labels; the pieces get new ones (the long
+    patches' own labels are left without cells)."""
     long = np.maximum(boxes[:, 2], boxes[:, 3]) > tile_px
     long[0] = False
     if not long.any():
         return len(boxes), patches
-    rows, cols = np.divmod(cells, patches.shape[1])
-    owner = patches.reshape(-1)[cells].astype(np.int64)
+    owner = patches.reshape(-1)[cells]
+    in_long = long[owner]
+    cut_cells = cells[in_long]
+    rows, cols = np.divmod(cut_cells, patches.shape[1])
     tiles = (rows // tile_px) * (patches.shape[1] // tile_px + 1) + cols // tile_px
-    key = np.where(
-        long[owner], owner * (int(tiles.max()) + 1) + tiles, owner * (int(tiles.max()) + 1)
-    )
-    _, label = np.unique(key, return_inverse=True)
-    out = np.zeros(patches.shape, dtype=np.int32)
-    out.reshape(-1)[cells] = label.astype(np.int32) + 1
-    return int(label.max()) + 2, out
+    key = owner[in_long].astype(np.int64) * (int(tiles.max()) + 1) + tiles
+    _, piece = np.unique(key, return_inverse=True)
+    out = patches.astype(np.int32, copy=True)
+    out.reshape(-1)[cut_cells] = len(boxes) + piece.astype(np.int32)
+    return len(boxes) + int(piece.max()) + 1, out
 
 
 def _drawn_box(
