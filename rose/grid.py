@@ -21,6 +21,7 @@ __all__ = [
     "UNKNOWN",
     "as_occupancy_grid",
     "blocks_any",
+    "blocks_max",
     "occupied_mask",
     "warn_if_mask",
 ]
@@ -108,18 +109,23 @@ def blocks_any(mask: npt.NDArray[np.bool_], factor: int) -> npt.NDArray[np.bool_
     then per column): numpy's ``any`` over the block axes of a 4-D view is over 10x slower.
     """
     mask = np.asarray(mask, dtype=np.bool_)  # no copy of a bool mask; bytes of 0 / 1 below
-    rows, cols = mask.shape
+    return blocks_max(mask.view(np.uint8), factor).view(np.bool_)  # the largest of 0 / 1: any
+
+
+def blocks_max(image: npt.NDArray[np.uint8], factor: int) -> npt.NDArray[np.uint8]:
+    """The largest value of each ``factor`` x ``factor`` block of ``image`` (shape (rows, cols),
+    both multiples of ``factor``), shape (rows / factor, cols / factor), as :func:`blocks_any`."""
+    rows, cols = image.shape
     if factor < 1 or rows % factor or cols % factor:
-        msg = f"mask shape {mask.shape} is not a multiple of the block size {factor}"
+        msg = f"image shape {image.shape} is not a multiple of the block size {factor}"
         raise ValueError(msg)
-    cells = mask.view(np.uint8)
-    block_rows = cells[0::factor].copy()
+    block_rows = image[0::factor].copy()
     for k in range(1, factor):
-        np.bitwise_or(block_rows, cells[k::factor], out=block_rows)
+        np.maximum(block_rows, image[k::factor], out=block_rows)
     blocks = block_rows[:, 0::factor].copy()
     for k in range(1, factor):
-        np.bitwise_or(blocks, block_rows[:, k::factor], out=blocks)
-    return blocks.view(np.bool_)
+        np.maximum(blocks, block_rows[:, k::factor], out=blocks)
+    return blocks
 
 
 def warn_if_mask(

@@ -21,6 +21,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rose.directions import map_frame_deg
+from rose.grid import blocks_max
 from rose.result import RoseResult
 from rose_logs.rerun.style import (
     AMPLITUDE_PLOT_HEIGHT,
@@ -239,18 +240,6 @@ def _padded(image: npt.NDArray[np.uint8], factor: int, fill: int) -> npt.NDArray
     return np.pad(image, ((top, 0), (0, right)), constant_values=fill)
 
 
-def _blocks_max(image: npt.NDArray[np.uint8], factor: int) -> npt.NDArray[np.uint8]:
-    """Maximum of each ``factor`` x ``factor`` block of ``image`` (shape a multiple of ``factor``);
-    strided row then column passes, as :func:`rose.grid.blocks_any`."""
-    rows = image[0::factor].copy()
-    for k in range(1, factor):
-        np.maximum(rows, image[k::factor], out=rows)
-    blocks = rows[:, 0::factor].copy()
-    for k in range(1, factor):
-        np.maximum(blocks, rows[:, k::factor], out=blocks)
-    return blocks
-
-
 def pool_classes(image: npt.NDArray[np.uint8], factor: int) -> npt.NDArray[np.uint8]:
     """A :func:`segmentation_image` shrunk ``factor`` times per side: each pixel the highest-ranked
     class of its block (drawn walls, clutter kept as walls, structure, clutter, occupied, free,
@@ -259,7 +248,7 @@ def pool_classes(image: npt.NDArray[np.uint8], factor: int) -> npt.NDArray[np.ui
     if factor == 1:
         return image
     ranks = _CLASS_RANK[_padded(image, factor, CLASS_UNKNOWN)]
-    return _RANKED[_blocks_max(ranks, factor)]
+    return _RANKED[blocks_max(ranks, factor)]
 
 
 def pool_scores(image: npt.NDArray[np.uint8], factor: int) -> npt.NDArray[np.uint8]:
@@ -271,7 +260,7 @@ def pool_scores(image: npt.NDArray[np.uint8], factor: int) -> npt.NDArray[np.uin
     # As uint8, -level is 256 - level for levels 1..255 and 0 for 0: the largest negated level
     # is the lowest level, and a block of 0s stays 0.
     negated = np.negative(_padded(image, factor, 0))
-    return np.negative(_blocks_max(negated, factor))
+    return np.negative(blocks_max(negated, factor))
 
 
 def score_to_unit(scores: npt.NDArray[np.floating]) -> npt.NDArray[np.float32]:
