@@ -141,7 +141,7 @@ def topology_guard(
             blocking,
             window_px,
             min_region_px,
-            every_patch=True,
+            only=np.arange(cut_count) >= count,  # the pieces (the rest were judged above)
         )
         joined = np.zeros(count, dtype=bool)
         joined[on_patch[pieces]] = True
@@ -183,18 +183,21 @@ def _separating_cells(
     window_px: int,
     min_region_px: float,
     *,
-    every_patch: bool = False,
+    only: npt.NDArray[np.bool_] | None = None,
 ) -> npt.NDArray[np.bool_]:
     """Which opened cells (``on_patch``: the patch of each) lie in a patch that joins two regions of
     its window (:func:`_separating_patches`). Patches ringed by formerly passable cells alone (a
-    free-standing object) are not looked at unless ``every_patch``."""
+    free-standing object) are not looked at; with ``only`` (per label), exactly those patches are,
+    however ringed."""
     ring_cells, ring_patches = _rings(patches, linked, count)
     formerly = blocking[np.divmod(ring_cells, linked.shape[1])] == 0
     blocked = np.bincount(on_patch, minlength=count) > 0
-    if not every_patch:
+    if only is None:
         walled = np.zeros(count, dtype=bool)
         walled[ring_patches[~formerly]] = True
         blocked &= walled
+    else:
+        blocked &= only
     blocked[0] = False
     # No labelling of the ring arcs first to skip the patches whose ring is one arc: the windows'
     # labelling finds one region for them anyway, and labelling the arcs over the whole box cost
