@@ -369,8 +369,9 @@ def package_version() -> str:
 #: -1..100 read as occupied, unappliable grid updates counted as skipped; 10: hidden walls drawn
 #: only between wall ends, partitions kept, output sizes stored; 11: the walls cleaning's
 #: flush-furniture rule, also at an angle to the grid; a room walled by the grid's border no
-#: degenerate input; 12: the walls cleaning's corner-furniture rule).
-RESULT_LAYOUT = 12
+#: degenerate input; 12: the walls cleaning's corner-furniture rule; 13: the walls cleaning's guard
+#: judges long openings in pieces, a mixture threshold beyond the scores is one population).
+RESULT_LAYOUT = 13
 
 
 def result_key(recording: Recording, options: RecordingOptions) -> str:
