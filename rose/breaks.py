@@ -39,7 +39,7 @@ import numpy.typing as npt
 from rose.errors import RoseError
 from rose.grid import blocks_any
 from rose.labelling import components, label_boxes, labels_wanted
-from rose.limits import integer_number
+from rose.limits import integer_number, pair_of
 
 __all__ = [
     "MAX_KERNEL_PX",
@@ -162,11 +162,7 @@ def _check(
             )
             raise RoseError(msg)
         grids.append(array.astype(np.int8, copy=False))
-    try:
-        two_integers = len(offset_px) == 2 and all(integer_number(v) for v in offset_px)
-    except TypeError:  # None, a number
-        two_integers = False
-    if not two_integers:
+    if not pair_of(offset_px, integer_number):
         msg = f"offset_px must be two integers (row, col), got {offset_px!r}"
         raise RoseError(msg)
     kernels = {

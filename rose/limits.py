@@ -20,7 +20,7 @@ import math
 import numbers
 import re
 import struct
-from collections.abc import Hashable
+from collections.abc import Callable, Hashable
 from typing import Any
 
 import yaml
@@ -36,6 +36,7 @@ __all__ = [
     "image_shape",
     "integer_number",
     "load_yaml",
+    "pair_of",
     "pnm_header",
     "pnm_numbers",
     "short",
@@ -410,4 +411,15 @@ def finite_number(value: object) -> bool:
     try:
         return math.isfinite(float(value))
     except OverflowError:
+        return False
+
+
+def pair_of(value: object, is_item: Callable[[object], bool]) -> bool:
+    """Whether ``value`` is a sequence of two items that each pass ``is_item`` (a string, or
+    anything without a length, is no pair)."""
+    if isinstance(value, str | bytes) or not hasattr(value, "__len__"):
+        return False
+    try:
+        return len(value) == 2 and all(is_item(v) for v in value)  # type: ignore[attr-defined]
+    except TypeError:  # a length but no items (a 0-d array)
         return False

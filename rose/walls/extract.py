@@ -38,7 +38,7 @@ from scipy.sparse.csgraph import connected_components
 
 from rose.errors import RoseError
 from rose.grid import as_occupancy_grid, occupied_mask, warn_if_mask
-from rose.limits import finite_number, integer_number
+from rose.limits import finite_number, integer_number, pair_of
 from rose.mapfile import (
     DEFAULT_RESOLUTION_M,
     OccupancyMap,
@@ -369,12 +369,7 @@ def _grid_and_placement(
     if not finite_number(resolution):
         msg = f"resolution_m must be a positive number of metres, got {resolution!r}"
         raise RoseError(msg)
-    if (
-        isinstance(origin, (str, bytes))
-        or not hasattr(origin, "__len__")
-        or len(origin) != 2
-        or not all(finite_number(v) for v in origin)
-    ):
+    if not pair_of(origin, finite_number):
         msg = f"origin_xy_m must be two finite numbers (x, y) in metres, got {origin!r}"
         raise RoseError(msg)
     if not finite_number(yaw):

@@ -22,7 +22,7 @@ import numpy.typing as npt
 
 from rose.errors import RoseError
 from rose.frozen import ReadOnlyArrays
-from rose.limits import finite_number, integer_number
+from rose.limits import finite_number, integer_number, pair_of
 from rose.mapfile import DEFAULT_RESOLUTION_M
 
 __all__ = [
@@ -110,12 +110,7 @@ class WallSet(ReadOnlyArrays):
             msg = "endpoints_px must be finite numbers of cells"
             raise RoseError(msg)
         shape = self.shape
-        if (
-            isinstance(shape, str | bytes)
-            or not hasattr(shape, "__len__")
-            or len(shape) != 2
-            or not all(integer_number(v) and v >= 0 for v in shape)
-        ):
+        if not pair_of(shape, lambda v: integer_number(v) and v >= 0):  # type: ignore[operator]
             msg = f"shape must be two whole numbers of cells (rows, cols), got {shape!r}"
             raise RoseError(msg)
         if self.method not in ("hough", "rose"):
@@ -133,12 +128,7 @@ class WallSet(ReadOnlyArrays):
             msg = f"resolution_m must be a positive number of metres, got {self.resolution_m!r}"
             raise RoseError(msg)
         origin = self.origin_xy_m
-        if (
-            isinstance(origin, str | bytes)
-            or not hasattr(origin, "__len__")
-            or len(origin) != 2
-            or not all(finite_number(v) for v in origin)
-        ):
+        if not pair_of(origin, finite_number):
             msg = f"origin_xy_m must be two finite numbers (x, y) in metres, got {origin!r}"
             raise RoseError(msg)
         if not finite_number(self.origin_yaw_rad):
