@@ -22,11 +22,14 @@ from rose_logs.batch.task import (
     RESULTS_DIR,
     RecordingOptions,
     RecordingResult,
+    changed_settings,
     error_result,
     load_result,
     output_owners,
     process_recording,
     result_key,
+    result_settings,
+    setting_changes,
     store_result,
 )
 
@@ -63,6 +66,9 @@ class BatchReport:
         The signal that stopped the batch (``signal.SIGINT`` for Ctrl-C), None if it was not stopped.
     found : int
         Recordings the inputs named (more than ``results`` when interrupted).
+    redone : tuple of (str, int)
+        Why recordings with a stored result of other settings were processed again, and how many
+        for each reason (e.g. ``("options changed: clean_method", 12)``), most first.
     """
 
     out: str
@@ -74,6 +80,7 @@ class BatchReport:
     elapsed_s: float
     signal: int | None = None
     found: int = 0
+    redone: tuple[tuple[str, int], ...] = ()
 
     @property
     def errors(self) -> tuple[RecordingResult, ...]:
@@ -213,6 +220,10 @@ def run_batch(
             before[rec.uri] = previous
     skipped = len(finished)
     _LOG.info("%d recordings, %d finished before, %d to do", len(recordings), skipped, len(todo))
+    with storage_errors(store.root):
+        redone = _redone(store, [rec for rec in todo if before[rec.uri] is None], options)
+    for reason, count in redone:
+        _LOG.info("%d recording(s) redone: %s", count, reason)
     named_by = None  # the scheduler file, for errors
     if scheduler_file is not None and client is None and todo:
         from rose_logs.batch.cluster import scheduler_address
@@ -271,6 +282,7 @@ def run_batch(
         elapsed_s=time.perf_counter() - started,
         signal=stopped_by,
         found=len(recordings),
+        redone=redone,
     )
     if write_tables:
         from rose.outputs import signals_deferred
@@ -287,6 +299,45 @@ def run_batch(
             stopped_by = getattr(err, "signum", signal.SIGINT)
             report = dataclasses.replace(report, interrupted=True, signal=stopped_by)
     return report
+
+
+def _redone(
+    store: OutputStore, recordings: Sequence[Recording], options: RecordingOptions
+) -> tuple[tuple[str, int], ...]:
+    """Why ``recordings`` (none with a result under this run's key) have results stored under
+    other keys: each reason (:func:`changed_settings`) and how many recordings it holds for, most
+    first. Reads the stored results only when some recording may have one."""
+    if not recordings:
+        return ()
+    # A result names its recording as json.dumps writes it (store_result): looked up as bytes
+    # first, so that only the few results of these recordings are parsed.
+    wanted = {f'"uri": {json.dumps(rec.uri)}'.encode(): rec for rec in recordings}
+    earlier: dict[str, list[Any]] = {}
+    for data in store.iter_folder(RESULTS_DIR, ".json"):
+        for needle, rec in wanted.items():
+            if needle not in data:
+                continue
+            try:
+                fields = json.loads(data)
+            except ValueError:
+                break
+            if isinstance(fields, dict) and fields.get("uri") == rec.uri:
+                earlier.setdefault(rec.uri, []).append(fields.get("settings"))
+            break
+    reasons: dict[str, int] = {}
+    for rec in recordings:
+        if rec.uri not in earlier:
+            continue
+        now = result_settings(rec, options)
+        # Of several stored results (a run per set of options), the nearest that says its
+        # settings tells the most.
+        nearest = min(
+            earlier[rec.uri],
+            key=lambda settings: (settings is None, len(setting_changes(settings, now))),
+        )
+        why = changed_settings(nearest, now)
+        reasons[why] = reasons.get(why, 0) + 1
+    return tuple(sorted(reasons.items(), key=lambda item: (-item[1], item[0])))
 
 
 def _same(result: RecordingResult, other: RecordingResult | None) -> bool:

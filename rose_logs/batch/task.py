@@ -262,6 +262,9 @@ class RecordingResult:
     warnings : tuple of str
         Every warning the recording gave (one line each), in order: kept with the result, and said
         by the batch with the recording's URI.
+    settings : dict or None
+        What the result depends on besides the URI (:func:`result_settings`): a later batch with
+        other options says why it redoes the recording. None in results of older versions.
     """
 
     uri: str
@@ -286,6 +289,7 @@ class RecordingResult:
     skipped_messages: int = 0
     skipped_reasons: str = ""
     warnings: tuple[str, ...] = ()
+    settings: dict[str, Any] | None = None
 
     def row(self) -> dict[str, Any]:
         """The recording's row of ``recordings.parquet``."""
@@ -374,19 +378,75 @@ def package_version() -> str:
 RESULT_LAYOUT = 13
 
 
-def result_key(recording: Recording, options: RecordingOptions) -> str:
-    """Resume key: SHA-256 of the URI, size, version (mtime / ETag), package version, result layout
-    and options."""
-    payload = {
+def result_settings(recording: Recording, options: RecordingOptions) -> dict[str, Any]:
+    """What a result depends on besides the recording's URI, JSON-ready: its size and version
+    (mtime / ETag), the package version, the result layout and the options. Stored with each
+    result, so that a later batch can say why it redoes a recording (:func:`changed_settings`)."""
+    settings = {
         "layout": RESULT_LAYOUT,
-        "uri": recording.uri,
         "size": recording.size,
         "version": recording.version,
         "rose_bag": package_version(),
         "options": options.key_fields(),
     }
+    # Through JSON once: a stored result's settings compare equal to freshly made ones.
+    loaded: dict[str, Any] = json.loads(json.dumps(settings, sort_keys=True, default=str))
+    return loaded
+
+
+def result_key(recording: Recording, options: RecordingOptions) -> str:
+    """Resume key: SHA-256 of the URI and :func:`result_settings`."""
+    payload = {"uri": recording.uri, **result_settings(recording, options)}
     text = json.dumps(payload, sort_keys=True, default=str)
     return hashlib.sha256(text.encode()).hexdigest()[:32]
+
+
+def changed_settings(before: Mapping[str, Any] | None, now: Mapping[str, Any]) -> str:
+    """Why a result stored with the settings ``before`` (None: stored by a rose-bag that did not
+    record them) is not this run's (``now``), in a few words for people."""
+    changes = setting_changes(before, now)
+    if not changes:
+        return "processed before with other settings"
+    options = [c for c in changes if c.startswith(_OPTION)]
+    text = [c for c in changes if not c.startswith(_OPTION)]
+    if options:
+        text.append("options changed: " + ", ".join(c.removeprefix(_OPTION) for c in options))
+    return "; ".join(text)
+
+
+_OPTION = "option "
+
+
+def setting_changes(before: Mapping[str, Any] | None, now: Mapping[str, Any]) -> list[str]:
+    """What differs between a stored result's settings ``before`` and ``now``
+    (:func:`result_settings`), one item per difference (each option its own, ``"option NAME"``)."""
+    if not isinstance(before, Mapping):
+        return ["processed before by an older rose-bag or with other options"]
+    changes = []
+    if before.get("size") != now["size"] or before.get("version") != now["version"]:
+        changes.append("the file changed")
+    if before.get("rose_bag") != now["rose_bag"]:
+        changes.append(f"rose-bag {before.get('rose_bag')} -> {now['rose_bag']}")
+    elif before.get("layout") != now["layout"]:
+        changes.append("another result layout")
+    old_options = before.get("options")
+    old_options = old_options if isinstance(old_options, Mapping) else {}
+    changes += [_OPTION + name for name in _changed_fields(old_options, now["options"])]
+    return changes
+
+
+def _changed_fields(before: Mapping[str, Any], now: Mapping[str, Any]) -> list[str]:
+    """Names of the fields that differ (one level into ``params``: ``params.occupied_threshold``)."""
+    changed = []
+    for name in sorted(set(before) | set(now)):
+        old, new = before.get(name), now.get(name)
+        if old == new:
+            continue
+        if name == "params" and isinstance(old, Mapping) and isinstance(new, Mapping):
+            changed += [f"params.{field}" for field in _changed_fields(old, new)]
+        else:
+            changed.append(name)
+    return changed
 
 
 def result_path(key: str) -> str:
@@ -476,7 +536,11 @@ def process_recording(
             _LOG.exception("%s: unexpected error", recording.uri)
             result = error_result(recording, key, options, f"{type(err).__name__}: {err}")
             break
-    result = dataclasses.replace(result, warnings=said.lines())  # an error row keeps them too
+    result = dataclasses.replace(
+        result,
+        warnings=said.lines(),  # an error row keeps them too
+        settings=result_settings(recording, options),
+    )
     result = _with_seconds(result, time.perf_counter() - started, time.process_time() - cpu_started)
     if lasting:
         store_result(store, result)

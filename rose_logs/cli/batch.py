@@ -306,6 +306,9 @@ def _print_summary(report: Any) -> None:
         "before)",
         file=out,
     )
+    for reason, count in report.redone:
+        # A re-run with other options processes everything again: say so, and why.
+        print(f"redone       {count} ({reason})", file=out)
     print(f"ok           {ok}", file=out)
     print(f"failed       {len(rows) - ok}", file=out)
     salvaged = sum(bool(r["losses"]) for r in rows)

@@ -286,6 +286,62 @@ def test_keys_depend_on_uri_size_version_and_options(fleet: Path) -> None:
     assert recording_id("/robots/a/run.mcap") != recording_id("/robots/b/run.mcap")
 
 
+def test_a_rerun_with_other_settings_says_why_it_redoes_recordings(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A batch run again with another option processed the whole fleet again without a word: it
+    says which options (or the file, or the rose-bag version) changed, compared with the nearest
+    earlier run of each recording."""
+    from fleet import copy_recording
+
+    a = copy_recording(tmp_path / "in" / "a.mcap", "mcap", max_maps=2)
+    copy_recording(tmp_path / "in" / "b.mcap", "mcap", max_maps=2)
+    out = tmp_path / "out"
+    assert run_batch([a.parent], out).redone == ()  # nothing stored: nothing redone
+    paper = RecordingOptions(clean_method="paper")
+    assert run_batch([a.parent], out, options=paper).redone == (
+        ("options changed: clean_method", 2),
+    )
+    assert run_batch([a.parent], out, options=paper).redone == ()  # finished: reused
+    # Two earlier runs per recording: the nearest (paper) tells what changed since.
+    import rose
+
+    both = RecordingOptions(
+        clean_method="paper", walls=True, params=rose.RoseParams(occupied_threshold=60)
+    )
+    assert run_batch([a.parent], out, options=both).redone == (
+        ("options changed: params.occupied_threshold, walls", 2),
+    )
+    os.utime(a, ns=(1, 1))  # another version of the file
+    assert main(["batch", str(a.parent), "-o", str(out), "-q"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert "redone       1 (the file changed)" in lines
+    assert "recordings   2 (1 processed, 1 finished before)" in lines
+
+
+def test_results_stored_without_their_settings_are_redone_with_a_reason(tmp_path: Path) -> None:
+    """Results of rose-bag versions that did not store their settings: redone (another layout),
+    and said to be of an older rose-bag or other options."""
+    from fleet import copy_recording
+
+    log = copy_recording(tmp_path / "in" / "a.mcap", "mcap", max_maps=2)
+    out = tmp_path / "out"
+    (stored,) = run_batch([log], out).results
+    old = stored.to_json()
+    del old["settings"]
+    old["key"] = "0" * 32  # an older layout's key
+    (out / "results" / f"{old['key']}.json").write_text(json.dumps(old, sort_keys=True))
+    assert run_batch([log], out, options=RecordingOptions(walls=True)).redone == (
+        ("options changed: walls", 1),  # the nearest stored result says its settings
+    )
+    for path in (out / "results").glob("*.json"):
+        if path.stem != old["key"]:
+            path.unlink()
+    assert run_batch([log], out).redone == (
+        ("processed before by an older rose-bag or with other options", 1),
+    )
+
+
 def test_cleaned_and_rrd_outputs_mirror_the_input_names(fleet: Path, tmp_path: Path) -> None:
     out = tmp_path / "out"
     inputs = [fleet / "robot_a" / "run.mcap", fleet / "robot_b" / "bag_dir"]
