@@ -114,9 +114,17 @@ def _print_topics(
             known.append(name)
     counts.update(read)
     width = max((len(visible(t)) for t in counts), default=5)
+    from rose_logs.session.topics import is_costmap
+
+    # As process picks them by default: costmaps only when the log has no other map.
+    skipped = {t for t in map_topics if is_costmap(t)}
+    if skipped == set(map_topics):
+        skipped = set()
     print("\ntopics")
     for topic in sorted(counts):
         mark = "  [map]" if topic in map_topics else ""
+        if topic in skipped:
+            mark = "  [map: a costmap, analysed only with --topic]"
         kinds = ", ".join(visible(t) for t in sorted(types[topic]))
         print(f"  {visible(topic):<{width}}  {counts[topic]:>8}  {kinds}{mark}")
 

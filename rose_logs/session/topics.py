@@ -25,6 +25,7 @@ from rose_logs.storage.typesys import MAP_TYPE, UPDATE_TYPE, msgdef_for
 __all__ = [
     "default_output_path",
     "find_map_topics",
+    "is_costmap",
     "is_derived_topic",
     "orphan_updates",
     "publishers",
@@ -168,6 +169,15 @@ def default_output_path(input_path: Path, fmt: LogFormat | None = None) -> Path:
 def select_topics(
     path: Path, channels: Sequence[Channel], topics: Sequence[str] | str | None
 ) -> tuple[str, ...]:
+    """The map topics to analyse: ``topics`` (each checked: a map topic of the log), else every
+    published ``OccupancyGrid`` topic but costmaps (:func:`is_costmap`; all of them when the log
+    holds nothing else), each left out with a warning.
+
+    Raises
+    ------
+    LogReadError
+        A named topic that is not in the log or is no map; no map topic at all.
+    """
     found = find_map_topics(channels)
     if isinstance(topics, str):  # one name is one topic, not one-character topics
         topics = (topics,)
@@ -206,7 +216,26 @@ def select_topics(
                 "and no gate judges it",
                 topic,
             )
+    # A navigation stack's costmaps are OccupancyGrids too, but of a planner's obstacles: people
+    # walking by, inflated around every wall. Analysed by default, a Nav2 recording's local costmap
+    # failed the break gate on a person passing. Unless they are all the log holds.
+    maps = tuple(t for t in chosen if not is_costmap(t))
+    if maps:
+        for topic in chosen:
+            if topic not in maps:
+                _LOG.warning(
+                    "%s: a costmap (a planner's obstacles: people, inflation), not analysed; "
+                    "name it with --topic to analyse it",
+                    topic,
+                )
+        chosen = maps
     return chosen
+
+
+def is_costmap(topic: str) -> bool:
+    """Whether ``topic`` names a navigation stack's costmap (a name part containing ``costmap``:
+    Nav2's ``/local_costmap/costmap``, move_base's ``/move_base/global_costmap/costmap``)."""
+    return any("costmap" in part.lower() for part in topic.split("/"))
 
 
 def _why_not_a_map(channel: Channel) -> str:

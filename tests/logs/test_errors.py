@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -1001,3 +1002,45 @@ def test_an_update_of_a_map_over_max_cells_is_named_as_an_update(tmp_path: Path,
     assert len(said) == 2, err
     assert "/map: map of 600 x 600" in said[0] and "at +0.0 s" in said[0]
     assert "/map: map updated by a grid update of 600 x 600" in said[1] and "at +1.0 s" in said[1]
+
+
+def test_costmaps_are_left_out_unless_named_or_alone(tmp_path: Path, capsys, fr079) -> None:
+    """A Nav2 recording's costmaps are OccupancyGrids too: analysed by default, a person walking
+    through the local costmap failed the break gate. They are left out with a warning beside a
+    map, analysed when named with --topic, and when the log holds nothing else."""
+    from dataclasses import replace
+
+    maps = session_maps(fr079[:2])
+    person = np.zeros((80, 80), dtype=np.int8)
+    moved = person.copy()
+    person[10:30, 10:30] = 100  # an inflated obstacle here, then there
+    moved[50:70, 50:70] = 100
+    costmaps = [
+        replace(m, grid=g, topic="/local_costmap/costmap")
+        for m, g in zip(maps, (person, moved), strict=True)
+    ]
+    built = build_log(tmp_path / "nav.mcap", "mcap-ros2", [*maps, *costmaps])
+    code, out_text, err = _run(capsys, "process", built.path, "--no-output", "--json", "-")
+    assert code == 0
+    assert {s["topic"] for s in json.loads(out_text)["snapshots"]} == {"/map"}
+    assert (
+        "warning: /local_costmap/costmap: a costmap (a planner's obstacles: people, inflation), "
+        "not analysed; name it with --topic to analyse it" in err.splitlines()
+    )
+    named = _run(
+        capsys,
+        "process",
+        built.path,
+        "--no-output",
+        "--json",
+        "-",
+        "-t",
+        "/local_costmap/costmap",
+    )
+    assert {s["topic"] for s in json.loads(named[1])["snapshots"]} == {"/local_costmap/costmap"}
+    code, out_text, _ = _run(capsys, "info", built.path)
+    assert "[map: a costmap, analysed only with --topic]" in out_text
+    alone = build_log(tmp_path / "costmap.mcap", "mcap-ros2", costmaps)
+    code, out_text, err = _run(capsys, "process", alone.path, "--no-output", "--json", "-")
+    assert code == 0 and "not analysed" not in err
+    assert len(json.loads(out_text)["snapshots"]) == 2

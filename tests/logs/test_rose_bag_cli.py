@@ -216,7 +216,7 @@ def test_the_gate_names_the_topic_of_the_highest_w_when_another(
     """Two map topics, the first past the level on one, the highest W on the other: the message
     said "highest: ... on snapshot 1" of the first topic, which has no such W."""
     maps = [
-        MapMsg(START_NS + 1_000_000_000, fr079[0], topic="/costmap"),
+        MapMsg(START_NS + 1_000_000_000, fr079[0], topic="/robot2/map"),
         MapMsg(START_NS + 2_000_000_000, fr079[0]),
         MapMsg(START_NS + 3_000_000_000, broken_grid),
     ]
@@ -225,7 +225,7 @@ def test_the_gate_names_the_topic_of_the_highest_w_when_another(
     _, err = capsys.readouterr()
     assert code == EXIT_GATE
     line = next(line for line in err.splitlines() if "exceeds --fail-above" in line)
-    assert "on /costmap snapshot 0" in line
+    assert "on /robot2/map snapshot 0" in line
     assert re.search(r"highest: W = [0-9.]+ on /map snapshot 1$", line), line
 
 
