@@ -374,8 +374,10 @@ def package_version() -> str:
 #: only between wall ends, partitions kept, output sizes stored; 11: the walls cleaning's
 #: flush-furniture rule, also at an angle to the grid; a room walled by the grid's border no
 #: degenerate input; 12: the walls cleaning's corner-furniture rule; 13: the walls cleaning's guard
-#: judges long openings in pieces, a mixture threshold beyond the scores is one population).
-RESULT_LAYOUT = 13
+#: judges long openings in pieces, a mixture threshold beyond the scores is one population; 14: the
+#: break detector's anchor (slow drifts break, a map returning to the anchor's does not), costmaps
+#: left out unless named).
+RESULT_LAYOUT = 14
 
 
 def result_settings(recording: Recording, options: RecordingOptions) -> dict[str, Any]:

@@ -10,6 +10,14 @@ space. A person or a chair leg makes one or two pieces, a break whole walls. A s
 score of every later snapshot is measured against the map as it was before the break. The first
 broken snapshot after a trusted one starts a break (:attr:`BreakScore.started`).
 
+A drift too slow to break between two snapshots (a map redrawn from a pose graph moves its old
+walls with it: each snapshot agrees with the one before) is caught by an *anchor*: an older trusted
+snapshot, at most ``anchor_s`` of log time behind, which the snapshots are compared with too (every
+``anchor_s / 6`` and every eighth snapshot at least, and every snapshot while the topic is broken); the anchor moves up to a
+snapshot that agrees with both once it is ``anchor_s`` old. A snapshot that contradicts the last
+trusted one but agrees with the anchor is the map returning to the anchor's (a loop closure undoing
+a drift): not a break (:attr:`BreakScore.returned_from`).
+
 Snapshots that cannot be compared with the trusted one (another resolution, a rotated origin, an
 origin shifted by a fraction of a cell) restart the comparison: score 0, and they become trusted.
 So does every snapshot after one without a single occupied cell (a blank map a node publishes
@@ -79,6 +87,9 @@ class BreakParams:
     rise_margin_m : float
         Risen evidence counts only farther than this from every cell that was not known free
         (walls, unknown, uncertain), metres.
+    anchor_s : float
+        How far behind (log time, seconds) the anchor, the older trusted snapshot every snapshot is
+        also compared with, may fall before it moves up (module notes); ``inf``: no anchor.
     """
 
     threshold_m: float = 1.25
@@ -91,6 +102,7 @@ class BreakParams:
     free_threshold: int = 50
     rise_points: int = 15
     rise_margin_m: float = 0.2
+    anchor_s: float = 60.0
 
     @classmethod
     def following(cls, occupied_threshold: int, **overrides: Any) -> BreakParams:
@@ -103,7 +115,7 @@ class BreakParams:
     def __post_init__(self) -> None:
         for name, value in dataclasses.asdict(self).items():
             # A number (an infinite threshold never breaks: the evaluation's replays use one).
-            infinite = name == "threshold_m" and value == math.inf
+            infinite = name in ("threshold_m", "anchor_s") and value == math.inf
             if not (finite_number(value) or infinite):
                 msg = f"{name} must be a finite number, got {value!r}"
                 raise BreakParamsError(msg)
@@ -119,12 +131,13 @@ class BreakParams:
             and self.min_wall_m >= 0
             and self.bridge_m >= 0
             and self.rise_margin_m >= 0
+            and self.anchor_s > 0
         ):
             msg = (
-                "break parameters need threshold_m, window_m, tile_m > 0 and tolerance_m, "
-                f"min_wall_m, bridge_m, rise_margin_m >= 0, got {self.threshold_m}, "
-                f"{self.window_m}, {self.tile_m}, {self.tolerance_m}, {self.min_wall_m}, "
-                f"{self.bridge_m}, {self.rise_margin_m}"
+                "break parameters need threshold_m, window_m, tile_m, anchor_s > 0 and "
+                f"tolerance_m, min_wall_m, bridge_m, rise_margin_m >= 0, got {self.threshold_m}, "
+                f"{self.window_m}, {self.tile_m}, {self.anchor_s}, {self.tolerance_m}, "
+                f"{self.min_wall_m}, {self.bridge_m}, {self.rise_margin_m}"
             )
             raise BreakParamsError(msg)
         if not 1 <= self.rise_points <= 101:
@@ -163,6 +176,13 @@ class BreakScore:
         The trusted snapshot this one could not be compared with (another cell size, frame or
         orientation, or on coarse cells an origin off the trusted grid's cells): the detector
         starts again from this one, and a break across the change is not seen. None otherwise.
+    returned_from : int or None
+        The last trusted snapshot, which this one contradicts (by ``returned_from_m``) although
+        it agrees with the anchor, ``trusted_index``: the map returned to the anchor's, as a loop
+        closure undoing a drift does; not a break (the scores are against the anchor). None
+        otherwise.
+    returned_from_m : float
+        With ``returned_from``: the score against it, metres (else 0).
     """
 
     score_m: float
@@ -172,6 +192,8 @@ class BreakScore:
     region_m: tuple[float, float, float, float] | None
     contradicted_m: float
     incomparable_with: int | None = None
+    returned_from: int | None = None
+    returned_from_m: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -314,6 +336,32 @@ def _region_m(
     return min(xs), min(ys), max(xs), max(ys)
 
 
+#: Snapshots between two comparisons with the anchor at most (see BreakDetector._anchor_due).
+_ANCHOR_EVERY = 8
+
+
+@dataclass(frozen=True)
+class _TopicState:
+    """What the detector keeps of one topic: snapshots seen (``count``), the last trusted snapshot
+    and the anchor (``(index, snapshot)``), when the anchor was last compared with (log time, ns;
+    snapshot index),
+    whether the last snapshot was broken and whether the trusted one has no wall (``blank``)."""
+
+    count: int
+    trusted: tuple[int, MapSnapshot]
+    anchor: tuple[int, MapSnapshot]
+    anchor_checked_ns: int
+    anchor_checked_index: int
+    broken: bool
+    blank: bool
+
+    @classmethod
+    def start(cls, index: int, snapshot: MapSnapshot, blank: bool) -> _TopicState:
+        """A topic starting (again) from ``snapshot``: trusted, and the anchor."""
+        now = (index, snapshot)
+        return cls(index + 1, now, now, snapshot.log_time_ns, index, broken=False, blank=blank)
+
+
 class BreakDetector:
     """Break scores for the snapshots of one or more map topics, in log-time order.
 
@@ -328,62 +376,123 @@ class BreakDetector:
             msg = f"params must be a BreakParams, got {type(params).__name__}"
             raise RoseError(msg)
         self.params = params if params is not None else BreakParams()
-        self._trusted: dict[str, tuple[int, MapSnapshot]] = {}
-        self._broken: dict[str, bool] = {}
-        self._count: dict[str, int] = {}
-        self._blank: set[str] = set()  # topics whose trusted snapshot has no occupied cell
+        self._state: dict[str, _TopicState] = {}
         self._too_fine_said: set[str] = set()  # topics warned of maps too fine to check
         # Per topic, its state before its last update (withdraw_last puts it back).
-        self._before: dict[str, tuple[int, tuple[int, MapSnapshot] | None, bool, bool]] = {}
+        self._before: dict[str, _TopicState | None] = {}
 
     def update(self, snapshot: MapSnapshot) -> BreakScore:
         """Score the next snapshot of ``snapshot.topic`` and update the topic's state."""
         topic = snapshot.topic
-        index = self._count.get(topic, 0)
-        self._before[topic] = (
-            index,
-            self._trusted.get(topic),
-            self._broken.get(topic, False),
-            topic in self._blank,
-        )
-        self._count[topic] = index + 1
+        state = self._state.get(topic)
+        self._before[topic] = state
+        index = 0 if state is None else state.count
         if not self._kernels_fit(snapshot.resolution_m):
             self._say_too_fine(topic, snapshot.resolution_m)
-            self._trust(topic, index, snapshot)
+            self._state[topic] = _TopicState.start(index, snapshot, self._blank(snapshot))
             return _CLEAR
-        trusted = self._trusted.get(topic)
-        offset = (
-            None
-            if trusted is None
-            else _offset_px(
-                trusted[1], snapshot, rounding=self._rounding(snapshot.resolution_decimal_m)
-            )
-        )
-        if trusted is None or offset is None or topic in self._blank:
-            self._trust(topic, index, snapshot)
+        trusted = None if state is None else state.trusted
+        offset = None if trusted is None else self._offset(trusted[1], snapshot)
+        if state is None or trusted is None or offset is None or state.blank:
+            self._state[topic] = _TopicState.start(index, snapshot, self._blank(snapshot))
             if trusted is not None and offset is None:
                 # Said by the session once the snapshot stays (one whose analysis fails is
                 # withdrawn, and the next is compared with the trusted one again).
                 return dataclasses.replace(_CLEAR, incomparable_with=trusted[0])
             return _CLEAR
-        found = self.compare(trusted[1], snapshot, offset)
+        verdict = self._score(trusted, snapshot, offset)
+        returned_from, returned_from_m = None, 0.0
+        anchor, checked_ns = state.anchor, state.anchor_checked_ns
+        checked_index = state.anchor_checked_index
+        if anchor[0] != trusted[0] and self._anchor_due(state, snapshot, index, verdict.broken):
+            anchor_offset = self._offset(anchor[1], snapshot)
+            if anchor_offset is None:  # placed apart from the trusted one's: starts again here
+                anchor = trusted
+            else:
+                checked_ns, checked_index = snapshot.log_time_ns, index
+                against_anchor = self._score(anchor, snapshot, anchor_offset)
+                if verdict.broken and not against_anchor.broken:
+                    returned_from, returned_from_m = trusted[0], verdict.score_m
+                    verdict = against_anchor
+                elif against_anchor.score_m > verdict.score_m:
+                    verdict = against_anchor  # drifted away from the anchor: since the anchor
+        started = verdict.broken and not state.broken
+        if verdict.broken:
+            self._state[topic] = dataclasses.replace(
+                state,
+                count=index + 1,
+                broken=True,
+                anchor=anchor,
+                anchor_checked_ns=checked_ns,
+                anchor_checked_index=checked_index,
+            )
+        else:
+            now = (index, snapshot)
+            # The anchor moves up once old enough, to a snapshot checked against it just now.
+            old = snapshot.log_time_ns - anchor[1].log_time_ns >= self._anchor_ns
+            moved = old and checked_index == index
+            self._state[topic] = _TopicState(
+                count=index + 1,
+                trusted=now,
+                anchor=now if moved else anchor,
+                anchor_checked_ns=checked_ns,
+                anchor_checked_index=checked_index,
+                broken=False,
+                blank=self._blank(snapshot),
+            )
+        return dataclasses.replace(
+            verdict, started=started, returned_from=returned_from, returned_from_m=returned_from_m
+        )
+
+    @property
+    def _anchor_ns(self) -> float:
+        return self.params.anchor_s * 1e9
+
+    def _anchor_due(
+        self, state: _TopicState, snapshot: MapSnapshot, index: int, broken: bool
+    ) -> bool:
+        """Whether ``snapshot`` (the topic's ``index``-th) is also compared with the anchor: when
+        it breaks against the trusted one (it may have returned to the anchor's map), while the
+        topic is broken, when the anchor is old enough to move up, and at least every sixth of
+        ``anchor_s`` and every :data:`_ANCHOR_EVERY` snapshots (maps many times a second drift
+        within a few seconds)."""
+        if self.params.anchor_s == math.inf:
+            return False
+        now = snapshot.log_time_ns
+        return (
+            broken
+            or state.broken
+            or now - state.anchor[1].log_time_ns >= self._anchor_ns
+            or now - state.anchor_checked_ns >= self._anchor_ns / 6
+            or index - state.anchor_checked_index >= _ANCHOR_EVERY
+        )
+
+    def _offset(self, trusted: MapSnapshot, snapshot: MapSnapshot) -> tuple[int, int] | None:
+        return _offset_px(trusted, snapshot, rounding=self._rounding(snapshot.resolution_decimal_m))
+
+    def _score(
+        self, against: tuple[int, MapSnapshot], snapshot: MapSnapshot, offset: tuple[int, int]
+    ) -> BreakScore:
+        """The verdict on ``snapshot`` measured against the snapshot ``against`` (index, snapshot);
+        ``started`` is left False."""
+        found = self.compare(against[1], snapshot, offset)
         res = snapshot.resolution_m
         score = found.peak_tiles * found.tile_px * res
-        # Scores are whole tiles times the tile side: compare without float noise in the product.
-        broken = score >= self.params.threshold_m * (1.0 - 1e-9)
-        started = broken and not self._broken.get(topic, False)
-        self._broken[topic] = broken
-        if not broken:
-            self._trust(topic, index, snapshot)
         region = None if found.region_px is None else _region_m(snapshot, found.region_px)
         return BreakScore(
             score,
-            broken,
-            started,
-            trusted[0],
+            # Scores are whole tiles times the tile side: compare without float noise in the
+            # product.
+            score >= self.params.threshold_m * (1.0 - 1e-9),
+            False,
+            against[0],
             region,
             found.contradicted_tiles * found.tile_px * res,
         )
+
+    def _blank(self, snapshot: MapSnapshot) -> bool:
+        """Whether ``snapshot`` has no wall at all (a blank map establishes nothing)."""
+        return not bool((snapshot.grid >= self.params.occupied_threshold).any())
 
     def _rounding(self, resolution_m: float) -> float:
         """How far (cells) an origin may lie off the trusted grid's cells to be placed to the
@@ -425,30 +534,14 @@ class BreakDetector:
         """Undo the last :meth:`update` of ``topic``, as if that snapshot had never come: a
         session scores each snapshot while it is still being analysed, and one whose analysis
         fails is no snapshot of the session. At most once per update."""
-        before = self._before.pop(topic, None)
-        if before is None:
+        if topic not in self._before:
             msg = f"no update of {topic!r} to withdraw"
             raise RuntimeError(msg)
-        count, trusted, broken, blank = before
-        self._count[topic] = count
-        if trusted is None:
-            self._trusted.pop(topic, None)
+        before = self._before.pop(topic)
+        if before is None:
+            self._state.pop(topic, None)
         else:
-            self._trusted[topic] = trusted
-        self._broken[topic] = broken
-        if blank:
-            self._blank.add(topic)
-        else:
-            self._blank.discard(topic)
-
-    def _trust(self, topic: str, index: int, snapshot: MapSnapshot) -> None:
-        """Make ``snapshot`` the topic's trusted one (noting whether it has no wall at all)."""
-        self._trusted[topic] = (index, snapshot)
-        self._broken[topic] = False
-        if (snapshot.grid >= self.params.occupied_threshold).any():
-            self._blank.discard(topic)
-        else:
-            self._blank.add(topic)
+            self._state[topic] = before
 
     def compare(
         self, trusted: MapSnapshot, snapshot: MapSnapshot, offset_px: tuple[int, int]

@@ -643,6 +643,7 @@ class _Loop:
         self.lost_map: set[str] = set()  # topics whose latest full map was malformed
         self.count: dict[str, int] = {}
         self.above: dict[str, bool] = {}
+        self.broken: dict[str, bool] = {}  # per topic: whether its last snapshot was broken
         self.records: list[SnapshotRecord] = []
         self.breaks: list[BreakEvent] = []
         self.skips = _Skips()
@@ -918,6 +919,12 @@ class _Loop:
                 self._at(snapshot.log_time_ns),
                 verdict.incomparable_with,
             )
+        returned = _returned_text(verdict)
+        if returned is not None:
+            # A broken topic coming back is the end of its break; otherwise a drift the detector
+            # had not flagged was undone: worth a warning.
+            level = logging.INFO if self.broken.get(topic, False) else logging.WARNING
+            _LOG.log(level, "%s: the map %s %s", topic, self._at(snapshot.log_time_ns), returned)
         # From here: the time spent on this snapshot's outputs. Not before, where the wait for the
         # analysis would count its compute time twice (the record's seconds exceeded the run's).
         t0 = time.perf_counter()
@@ -943,7 +950,10 @@ class _Loop:
                     "origin off its cells); a break across the change is not seen"
                 )
                 self.rerun.event(snapshot, restart, index, None)
+            if returned is not None:
+                self.rerun.event(snapshot, returned, index, None)
         self._report_breaks(snapshot, analysis.result, index, verdict, judged=record.judged)
+        self.broken[topic] = verdict.broken
         compute_s = 0.0 if pending.reused else analysis.seconds
         record = dataclasses.replace(record, seconds=compute_s + time.perf_counter() - t0)
         self.records.append(record)
@@ -1113,3 +1123,15 @@ def _cleaning_counts(cleaning: CleanResult | None) -> dict[str, Any]:
         "rescued_count": cleaning.rescued_count,
         "completed_count": cleaning.completed_count,
     }
+
+
+def _returned_text(verdict: BreakScore) -> str | None:
+    """What the detector found when a snapshot returned to its anchor's map (None if it did not):
+    a loop closure undoing a drift, not a break."""
+    if verdict.returned_from is None:
+        return None
+    return (
+        f"contradicts snapshot {verdict.returned_from} ({verdict.returned_from_m:.2f} m) but "
+        f"agrees with snapshot {verdict.trusted_index}: it returned to that map (a loop closure "
+        "undoing a drift?), not a break"
+    )

@@ -966,3 +966,28 @@ def test_a_bags_metadata_given_as_the_input_points_to_its_folder(
     err = capsys.readouterr().err
     assert err.strip().endswith(f"a ROS 2 bag's metadata: give its folder, {bag}")
     assert main(["process", str(bag), "--no-output", "-q"]) == 0
+
+
+def test_a_map_returning_to_its_anchor_is_said_and_no_break(tmp_path: Path, capsys) -> None:
+    """A redrawn map whose right half drifts 0.15 m a snapshot at 10 Hz, then snaps back (a loop
+    closure): the snapshot back contradicts the drifted map, which failed the break gate; it agrees
+    with the anchor, so it is no break, and the drift the detector had not flagged is a warning."""
+    from tests.synthetic import floor_plan
+
+    plan = np.where(floor_plan(size=(300, 360)), 100, 0).astype(np.int8)
+
+    def drifted(cells: int) -> np.ndarray:
+        out = plan.copy()
+        out[:, 180:] = 0
+        out[:, 180 + cells :] = plan[:, 180 : plan.shape[1] - cells]
+        return out
+
+    grids = [*(drifted(3 * i) for i in range(5)), plan]
+    maps = [MapMsg(START_NS + i * 100_000_000, g) for i, g in enumerate(grids)]
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps)
+    code = main(["process", str(built.path), "--no-output", "--fail-on-break"])
+    _, err = capsys.readouterr()
+    assert code == 0
+    (line,) = [x for x in err.splitlines() if "returned to that map" in x]
+    assert line.startswith("warning: /map: the map at +0.5 s")
+    assert "contradicts snapshot 4 (" in line and "but agrees with snapshot 0" in line

@@ -425,3 +425,63 @@ def test_the_session_warns_of_a_map_the_detector_cannot_compare_once_it_stays(
         assert len(said) == 2
         assert all(line.startswith("/map: the map at +") for line in said)
         assert "trusted snapshot 0" in said[0] and "trusted snapshot 1" in said[1]
+
+
+def _half_shifted(plan: npt.NDArray[np.int8], cells: int) -> npt.NDArray[np.int8]:
+    """``plan`` with its right half redrawn ``cells`` cells further right: a map redrawn from a
+    pose graph whose right part drifts (its old walls move with it)."""
+    out = plan.copy()
+    out[:, 180:] = 0
+    out[:, 180 + cells :] = plan[:, 180 : plan.shape[1] - cells]
+    return out
+
+
+def test_a_drift_too_slow_to_break_between_snapshots_breaks_against_the_anchor(plan) -> None:
+    """Half the map moves 0.1 m per snapshot, within the 0.3 m tolerance of the snapshot before:
+    compared with the last trusted snapshot only, it never broke (1 m off after ten snapshots).
+    The anchor, an older trusted snapshot, sees it; the map coming back to the anchor's (a loop
+    closure) is no break but ends it."""
+    period = 100_000_000  # 10 maps a second
+    drift = [_half_shifted(plan, 2 * i) for i in range(11)]  # 0 .. 1 m
+    grids = [*drift, plan, plan]
+    without = BreakDetector(BreakParams(anchor_s=math.inf))
+    assert not any(without.update(_snap(g, i * period)).broken for i, g in enumerate(drift))
+    detector = BreakDetector()
+    verdicts = [detector.update(_snap(g, i * period)) for i, g in enumerate(grids)]
+    first = next(i for i, v in enumerate(verdicts) if v.broken)
+    assert first <= 8  # the anchor is compared with every eighth snapshot at least
+    assert verdicts[first].started and verdicts[first].trusted_index == 0  # since the anchor
+    assert all(v.broken for v in verdicts[first:11])
+    back = verdicts[11]
+    assert not back.broken and back.score_m == 0.0
+    assert back.trusted_index == 0 and back.returned_from is not None
+    assert back.returned_from_m >= 1.25  # against the drifted map it contradicts
+    assert not verdicts[12].broken and verdicts[12].returned_from is None
+
+
+def test_a_return_to_the_anchor_is_no_break_even_unflagged(plan) -> None:
+    """A drift too quick for the anchor's next look, undone: the snapshot that returns contradicts
+    the drifted trusted map, agrees with the anchor's, and is not a break."""
+    period = 100_000_000
+    grids = [*(_half_shifted(plan, 3 * i) for i in range(5)), plan]  # 0.15 m a step, then back
+    detector = BreakDetector()
+    verdicts = [detector.update(_snap(g, i * period)) for i, g in enumerate(grids)]
+    assert not any(v.broken for v in verdicts)
+    assert verdicts[5].returned_from == 4 and verdicts[5].trusted_index == 0
+    # Without the anchor, the return was the break.
+    without = BreakDetector(BreakParams(anchor_s=math.inf))
+    assert [without.update(_snap(g, i * period)).broken for i, g in enumerate(grids)][-1]
+
+
+def test_the_anchor_moves_up_to_checked_snapshots(plan, broken) -> None:
+    """Once ``anchor_s`` old, the anchor moves up to a snapshot that agrees with it: a break later
+    is measured against the recent map, not the first one."""
+    period = 5_000_000_000  # a map every 5 s
+    detector = BreakDetector(BreakParams(threshold_m=1.0, anchor_s=20.0))
+    grids = [plan] * 10 + [broken]
+    verdicts = [detector.update(_snap(g, i * period)) for i, g in enumerate(grids)]
+    assert verdicts[-1].broken and verdicts[-1].trusted_index == 9  # a sudden break: since the last
+    state = detector._state["/map"]
+    assert state.anchor[0] == 8 and state.trusted[0] == 9
+    with pytest.raises(ValueError, match="anchor_s"):
+        BreakParams(anchor_s=0.0)
