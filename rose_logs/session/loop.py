@@ -85,6 +85,9 @@ if TYPE_CHECKING:
 
 _LOG = logging.getLogger(__name__)
 
+#: The ROS 1 publisher (``callerid``) of the topics rose-bag adds to a log.
+DERIVED_CALLERID = "/rose_bag"
+
 #: Origins tilted less than this out of the x-y plane (float noise in a quaternion) are flat.
 _FLAT_TILT_RAD = math.radians(0.1)
 
@@ -556,17 +559,19 @@ def _prepare_output(
             or any(q.durability.name == "TRANSIENT_LOCAL" for q in qos)
             or "transient_local" in source.metadata.get("offered_qos_profiles", "")
         )
+        # Published by rose-bag, not by the map's node (ROS 1 names the publisher of every
+        # connection: /map/rose/* were the SLAM node's, also for another node's maps on /map).
         derived[topic] = (
             writer.add_topic(
                 names.cleaned,
                 MAP_TYPE,
                 latching=latched,
                 qos=qos or None,
-                callerid=source.callerid,
+                callerid=DERIVED_CALLERID,
             ),
-            writer.add_topic(names.structure_score, FLOAT32_TYPE, callerid=source.callerid),
+            writer.add_topic(names.structure_score, FLOAT32_TYPE, callerid=DERIVED_CALLERID),
             writer.add_topic(
-                names.walls, MARKER_ARRAY_TYPE, latching=latched, callerid=source.callerid
+                names.walls, MARKER_ARRAY_TYPE, latching=latched, callerid=DERIVED_CALLERID
             ),
         )
     return handles, derived

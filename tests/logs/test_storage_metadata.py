@@ -283,6 +283,9 @@ def test_ros1_output_stores_canonical_texts_and_keeps_the_inputs(tmp_path: Path)
     ):
         assert after[topic].msgdef == ROS1_FULL_TEXT[msgtype], topic
         assert after[topic].digest == typestore_for("ros1").generate_msgdef(msgtype)[1]
+        # Published by rose-bag, not by the map's node.
+        assert after[topic].callerid == "/rose_bag"
+    assert after["/map"].callerid == "/slam"
 
 
 def test_ros1_input_text_without_md5_is_kept(tmp_path: Path) -> None:
