@@ -174,10 +174,20 @@ def unjudged_topics(
         return []
     from rose_logs.session.report import MIN_JUDGED_CELLS  # loaded with the session already
 
+    # Both gates fail for the same reason: one line naming them (it named neither).
+    gates = ", ".join(
+        name
+        for name, asked in (
+            ("--fail-above", args.fail_above is not None),
+            ("--fail-on-break", args.fail_on_break),
+        )
+        if asked
+    )
+    cannot = f", the gate cannot judge it ({gates})"
     reasons = []
     for topic in map_topics:
         if topic not in analysed:
-            reasons.append(f"{topic}: no map message could be analysed, the gate cannot judge it")
+            reasons.append(f"{topic}: no map message could be analysed{cannot}")
         elif topic not in judged:
             reasons.append(
                 f"{topic}: no map had {MIN_JUDGED_CELLS} or more occupied cells"
@@ -186,6 +196,6 @@ def unjudged_topics(
                     if topic in degenerate
                     else ""
                 )
-                + ", the gate cannot judge it"
+                + cannot
             )
     return reasons

@@ -245,7 +245,16 @@ def test_a_gate_fails_on_a_topic_whose_maps_w_never_judged(tmp_path: Path, capsy
     for gate in (["--fail-above", "0.4"], ["--fail-on-break"]):
         code, _, err = _run(capsys, "process", built.path, "--no-output", *gate)
         assert code == 3
-        assert "/map: no map had 20 or more occupied cells, the gate cannot judge it" in err
+        assert (
+            f"/map: no map had 20 or more occupied cells, the gate cannot judge it ({gate[0]})"
+            in err
+        )
+    # Both gates: one line naming both (it named neither).
+    code, _, err = _run(
+        capsys, "process", built.path, "--no-output", "--fail-above", "0.4", "--fail-on-break"
+    )
+    assert code == 3
+    assert "the gate cannot judge it (--fail-above, --fail-on-break)" in err
 
 
 def test_a_map_topic_declared_but_never_published_is_no_map_of_the_session(
