@@ -17,6 +17,7 @@ from collections.abc import Iterator, Mapping, Sequence
 from typing import Any, NoReturn
 
 from rose import __version__
+from rose.entry import raise_held_start_signal
 from rose.errors import RoseError
 from rose.limits import short, visible
 from rose.outputs import (
@@ -154,6 +155,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _run(argv: Sequence[str] | None) -> int:
+    # A console script held the signals while the command loaded (rose.entry): now they are ours.
+    raise_held_start_signal()
     with signals_deferred():  # an interrupted import would be an ImportError, not exit 130
         print_any_file_name()
         parser = build_parser()
@@ -262,7 +265,8 @@ def _error_text(err: BaseException, *, where: str | None = None) -> str:
 
 
 def console() -> None:
-    """The console script: :func:`main`, then exit with its code (late signals ignored)."""
+    """The command as its console script runs it (through :mod:`rose.entry`): :func:`main`, then
+    exit with its code (late signals ignored)."""
     from rose.outputs import buffer_unbuffered_stdout, exit_after
 
     buffer_unbuffered_stdout()

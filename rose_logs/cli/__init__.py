@@ -15,6 +15,7 @@ import os
 import sys
 
 from rose.cli import CommandParser, LevelFormatter, error_text, input_name, logging_routed
+from rose.entry import raise_held_start_signal
 from rose.errors import RoseError
 from rose.outputs import (
     EXIT_BROKEN_PIPE,
@@ -129,6 +130,8 @@ def main(argv: list[str] | None = None) -> int:
 def _run(argv: list[str] | None) -> int:
     # Inside run_interruptible: keep_arrays_on_heap runs `ldconfig -p` (ctypes.util.find_library),
     # and a signal landing there must be exit 130 / 143, not a traceback.
+    # A console script held the signals while the command loaded (rose.entry): now they are ours.
+    raise_held_start_signal()
     with signals_deferred():  # an interrupted import would be an ImportError, not exit 130
         print_any_file_name()
         keep_arrays_on_heap()  # map-sized arrays stay on the heap: far fewer page faults (module notes)
@@ -159,7 +162,8 @@ def _run(argv: list[str] | None) -> int:
 
 
 def console() -> None:
-    """The console script: :func:`main`, then exit with its code (late signals ignored)."""
+    """The command as its console script runs it (through :mod:`rose.entry`): :func:`main`, then
+    exit with its code (late signals ignored)."""
     from rose.outputs import buffer_unbuffered_stdout, exit_after
 
     buffer_unbuffered_stdout()

@@ -53,8 +53,8 @@ START_NS = 1_700_000_000_000_000_000
 # The console scripts' own entry (exit_after): a signal once the outputs are committed, e.g. during
 # interpreter shutdown, must not turn a finished run into one killed by SIGTERM (exit -15).
 ENTRY = {
-    "rose": "from rose.cli import console; console()",
-    "rose-bag": "from rose_logs.cli import console; console()",
+    "rose": "from rose.entry import rose; rose()",
+    "rose-bag": "from rose.entry import rose_bag; rose_bag()",
 }
 OK, ERROR, USAGE, GATE, SALVAGED = 0, 1, 2, 3, 4
 LEFTOVER_MARKS = (".rose-tmp-", ".rose-old-")

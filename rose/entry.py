@@ -1,0 +1,98 @@
+"""The console scripts ``rose`` and ``rose-bag`` (``[project.scripts]``), and their start-up.
+
+The command modules take a tenth of a second or more to load (more on a busy machine), and their
+``main`` installs the signal handlers only once loaded: a Ctrl-C meanwhile was Python's
+``KeyboardInterrupt`` traceback from inside an import. So the console scripts start here, in a module
+that loads nothing else: :func:`hold_start_signals` holds SIGINT / SIGTERM / SIGHUP while the
+command loads, and the command's ``main`` ends the hold (:func:`raise_held_start_signal`) inside its
+own handlers, where a held signal exits 130 / 143 / 129 like any other interrupt. ``python -m
+rose_logs.cli`` / ``python -m rose.cli`` load the packages before the command's ``__main__``: the
+package ``rose`` (loaded first in both) holds them as it loads, when the command is the module
+run (:func:`run_as`).
+
+Only the commands hold signals: a program that imports ``rose`` or ``rose_logs`` keeps its own
+handlers (importing them, or this module, changes no handler).
+"""
+
+from __future__ import annotations
+
+import sys
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from types import FrameType
+
+__all__ = ["hold_start_signals", "raise_held_start_signal", "rose", "rose_bag", "run_as"]
+
+#: The handlers the hold replaced (signal number -> handler), while it lasts.
+_replaced: dict[int, Any] = {}
+#: The signals that arrived during the hold, in order.
+_held: list[int] = []
+
+
+def _hold(signum: int, _frame: FrameType | None) -> None:
+    _held.append(signum)
+
+
+def hold_start_signals() -> None:
+    """Hold SIGINT / SIGTERM / SIGHUP until :func:`raise_held_start_signal` (main thread only;
+    signals ignored, e.g. under ``nohup``, stay ignored)."""
+    import signal  # here: `import rose` stays as light as it was
+    import threading
+
+    if _replaced or threading.current_thread() is not threading.main_thread():
+        return
+    for name in ("SIGINT", "SIGTERM", "SIGHUP"):
+        signum = getattr(signal, name, None)
+        if signum is None:
+            continue
+        handler = signal.getsignal(signum)
+        if handler is None or handler == signal.SIG_IGN:
+            continue
+        _replaced[signum] = handler
+        signal.signal(signum, _hold)
+
+
+def raise_held_start_signal() -> None:
+    """End the hold of :func:`hold_start_signals` (a no-op without one): each signal whose handler
+    is still the hold's gets its handler back, then the first signal held is raised
+    (``KeyboardInterrupt`` for SIGINT, :class:`rose.outputs.Terminated` for the others)."""
+    if not _replaced:
+        return
+    import signal
+
+    for signum, handler in _replaced.items():
+        if signal.getsignal(signum) is _hold:
+            signal.signal(signum, handler)
+    _replaced.clear()
+    if _held:
+        from rose.outputs import Terminated
+
+        signum = _held[0]
+        _held.clear()
+        raise KeyboardInterrupt if signum == signal.SIGINT else Terminated(signum)
+
+
+def run_as(module: str) -> bool:
+    """Whether this process is ``python -m module`` and is still loading it (``runpy`` imports a
+    package before its ``__main__``; meanwhile ``sys.argv[0]`` is ``-m``)."""
+    argv, orig = sys.argv, getattr(sys, "orig_argv", [])
+    if not argv or argv[0] != "-m" or len(orig) < len(argv):
+        return False
+    return orig[-len(argv)] in (module, f"-m{module}")
+
+
+def rose() -> None:
+    """The ``rose`` console script."""
+    hold_start_signals()
+    from rose.cli import console
+
+    console()
+
+
+def rose_bag() -> None:
+    """The ``rose-bag`` console script."""
+    hold_start_signals()
+    from rose_logs.cli import console
+
+    console()

@@ -1,0 +1,121 @@
+"""A signal while a command is still loading its modules (before its ``main`` installs its handlers):
+exit 130 / 143 without a traceback, through ``python -m`` and the console scripts; a program that only
+imports the packages keeps Python's own handling."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+# A sitecustomize that sends a signal to its own process as soon as rose.outputs starts loading: the
+# signal lands inside the command's imports, every time (no timing to hit).
+_HOOK = """
+import os, signal, sys
+
+class _SignalOnLoad:
+    def find_spec(self, name, path=None, target=None):
+        if name == "rose.outputs":
+            sys.meta_path.remove(self)
+            os.kill(os.getpid(), signal.{signal})
+        return None
+
+sys.meta_path.insert(0, _SignalOnLoad())
+"""
+
+# What pip writes for a [project.scripts] entry.
+_SCRIPT = """import re
+import sys
+from {module} import {function}
+if __name__ == '__main__':
+    sys.argv[0] = re.sub(r'(-script\\.pyw|\\.exe)?$', '', sys.argv[0])
+    sys.exit({function}())
+"""
+
+
+def _run(
+    tmp_path: Path, args: list[str], signal_name: str = "SIGINT"
+) -> subprocess.CompletedProcess[str]:
+    (tmp_path / "sitecustomize.py").write_text(_HOOK.format(signal=signal_name))
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path), str(ROOT)])}
+    return subprocess.run(
+        [sys.executable, *args], capture_output=True, text=True, env=env, cwd=tmp_path, timeout=120
+    )
+
+
+def _console_script(tmp_path: Path, command: str) -> Path:
+    entry = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["scripts"][command]
+    module, function = entry.split(":")
+    script = tmp_path / command
+    script.write_text(_SCRIPT.format(module=module, function=function))
+    return script
+
+
+_COMMANDS = [
+    ("rose-bag", "rose_logs.cli", ["info", "missing.mcap"]),
+    ("rose", "rose.cli", ["score", "missing.yaml"]),
+]
+
+
+@pytest.mark.parametrize(("command", "module", "args"), _COMMANDS)
+@pytest.mark.parametrize("how", ["python -m", "console script"])
+def test_ctrl_c_while_the_command_loads_exits_130_without_a_traceback(
+    tmp_path: Path, command: str, module: str, args: list[str], how: str
+) -> None:
+    start = ["-m", module] if how == "python -m" else [str(_console_script(tmp_path, command))]
+    done = _run(tmp_path, [*start, *args])
+    assert "Traceback" not in done.stderr
+    assert (done.returncode, done.stderr) == (130, "error: interrupted, nothing written\n")
+
+
+@pytest.mark.parametrize(("command", "module", "args"), _COMMANDS)
+def test_sigterm_while_the_command_loads_exits_143(
+    tmp_path: Path, command: str, module: str, args: list[str]
+) -> None:
+    done = _run(tmp_path, [str(_console_script(tmp_path, command)), *args], "SIGTERM")
+    assert (done.returncode, done.stderr) == (143, "error: interrupted, nothing written\n")
+
+
+@pytest.mark.parametrize("module", ["rose_logs.cli", "rose.cli"])
+def test_a_program_importing_the_packages_keeps_pythons_ctrl_c(tmp_path: Path, module: str) -> None:
+    done = _run(tmp_path, ["-c", f"import {module}; print('imported')"])
+    assert "imported" not in done.stdout
+    assert done.stderr.rstrip().endswith("KeyboardInterrupt")
+
+
+def test_importing_the_packages_changes_no_signal_handler(tmp_path: Path) -> None:
+    code = (
+        "import signal; before = [signal.getsignal(s) for s in (2, 15, 1)]; "
+        "import rose, rose_logs, rose.entry, rose.cli, rose_logs.cli; "
+        "print(before == [signal.getsignal(s) for s in (2, 15, 1)])"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT
+    )
+    assert done.stdout == "True\n"
+
+
+@pytest.mark.skipif(not hasattr(signal, "SIGHUP"), reason="no SIGHUP")
+def test_a_signal_ignored_at_start_stays_ignored(tmp_path: Path) -> None:
+    """``nohup rose-bag ...``: a SIGHUP while it loads is not held (and so not acted on)."""
+    script = _console_script(tmp_path, "rose-bag")
+    (tmp_path / "sitecustomize.py").write_text(_HOOK.format(signal="SIGHUP"))
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path), str(ROOT)])}
+    done = subprocess.run(
+        [sys.executable, str(script), "info", "missing.mcap"],
+        capture_output=True,
+        text=True,
+        env=env,
+        cwd=tmp_path,
+        timeout=120,
+        preexec_fn=lambda: signal.signal(signal.SIGHUP, signal.SIG_IGN),
+    )
+    assert done.returncode == 1
+    assert done.stderr.startswith("error: missing.mcap")
