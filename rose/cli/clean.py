@@ -17,8 +17,8 @@ from rose.cli.options import (
     directions_deg,
     file_arg,
     load_grid_map,
+    map_arg,
     params_from_args,
-    path_arg,
     resolution_assumed,
     result_summary,
     verdict,
@@ -40,7 +40,7 @@ def add_parser(commands: Any) -> None:
         "and image: by default the walls cleaning (walls kept, no gap a robot fits through), "
         "or the paper's labelling with --method paper.",
     )
-    clean.add_argument("map", type=path_arg, help="map_server YAML or a PGM/PNG image")
+    clean.add_argument("map", type=map_arg, help="map_server YAML or a PGM/PNG image")
     clean.add_argument(
         "-o", "--output", type=file_arg, required=True, help="output YAML (PGM beside it)"
     )

@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import re
 import sys
 from pathlib import Path
 from typing import Any
@@ -45,8 +46,11 @@ __all__ = [
     "file_arg",
     "fraction",
     "int_in_range",
+    "local_location",
+    "map_arg",
     "names_folder",
     "non_negative_float",
+    "out_path_arg",
     "params_from_args",
     "positive_float",
     "resolution_assumed",
@@ -156,18 +160,48 @@ def int_in_range(low: int, high: int) -> Any:
 
 
 def path_arg(text: str) -> Path:
-    """argparse type: a file or folder path; an empty one is a usage error (``Path("")`` is the
-    current folder, which made ``-o ""`` read as writing over the input)."""
-    return Path(location(text))
+    """argparse type: a local file or folder path to read; an empty one is a usage error
+    (``Path("")`` is the current folder, which made ``-o ""`` read as writing over the input), and
+    so is a URL (``Path`` made ``s3://b/k.mcap`` the local ``s3:/b/k.mcap``: "no such file")."""
+    return Path(_local(text, "this command reads local files (only rose-bag batch reads URLs)"))
+
+
+def map_arg(text: str) -> Path:
+    """argparse type: a map file to read (:func:`path_arg`, worded for the ``rose`` commands)."""
+    return Path(_local(text, "maps are read from local files"))
+
+
+def out_path_arg(text: str) -> Path:
+    """argparse type: a local output file or folder (:func:`local_location`, as a ``Path``)."""
+    return Path(local_location(text))
+
+
+def local_location(text: str) -> str:
+    """argparse type: a local output path, as given (``-`` too); not empty, not a URL."""
+    return _local(text, _WRITES_LOCAL)
 
 
 def file_arg(text: str) -> Path:
-    """argparse type: the path of an output *file*. A name ending in ``/`` names a folder: refused
-    (``Path`` drops the slash, so ``--rrd out/`` wrote the file ``out``)."""
+    """argparse type: the path of a local output *file*. A name ending in ``/`` names a folder:
+    refused (``Path`` drops the slash, so ``--rrd out/`` wrote the file ``out``), and so is a URL."""
     if names_folder(text):
         msg = f"{text!r} names a folder (it ends with a separator): give a file name"
         raise argparse.ArgumentTypeError(msg)
-    return path_arg(text)
+    return out_path_arg(text)
+
+
+_WRITES_LOCAL = "this command writes local files (only rose-bag batch writes to URLs)"
+
+#: A URL as typed: a scheme and ``://`` (``s3://``, ``http://``, ``file://``).
+_URL = re.compile(r"^[A-Za-z][A-Za-z0-9+.-]*://")
+
+
+def _local(text: str, why: str) -> str:
+    """``text`` (:func:`location`) if it is no URL; a URL is a usage error naming it, as typed."""
+    if _URL.match(text):
+        msg = f"{text}: a URL; {why}"
+        raise argparse.ArgumentTypeError(msg)
+    return location(text)
 
 
 def names_folder(text: str) -> bool:

@@ -16,8 +16,8 @@ from rose.cli.options import (
     add_limit_arguments,
     add_param_arguments,
     load_grid_map,
+    map_arg,
     params_from_args,
-    path_arg,
     result_summary,
     verdict,
 )
@@ -38,7 +38,7 @@ def add_parser(commands: Any) -> None:
         "failed) and the dominant wall directions of each map, as a table or JSON.",
     )
     score.add_argument(
-        "maps", type=path_arg, nargs="+", metavar="MAP", help="map_server YAML or a PGM/PNG image"
+        "maps", type=map_arg, nargs="+", metavar="MAP", help="map_server YAML or a PGM/PNG image"
     )
     score.add_argument(
         "--json",

@@ -7,7 +7,7 @@ import math
 import sys
 from typing import TYPE_CHECKING, Any, TextIO
 
-from rose.cli.options import add_map_arguments, file_arg, float_up_to, load_grid_map, path_arg
+from rose.cli.options import add_map_arguments, file_arg, float_up_to, load_grid_map, map_arg
 from rose.directions import fold_deg
 from rose.outputs import OutputSet, json_text, suffix_warning
 
@@ -36,7 +36,7 @@ def add_parser(subparsers: Any) -> None:
             "--hough gives the probabilistic-Hough baseline on the raw map."
         ),
     )
-    parser.add_argument("map", type=path_arg, metavar="MAP", help="map YAML or image file")
+    parser.add_argument("map", type=map_arg, metavar="MAP", help="map YAML or image file")
     out = parser.add_mutually_exclusive_group()
     out.add_argument(
         "--geojson", type=file_arg, metavar="FILE", help="write the walls as GeoJSON ('-': stdout)"

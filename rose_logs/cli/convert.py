@@ -15,7 +15,7 @@ from rose.cli.options import (
     file_arg,
     float_up_to,
     int_in_range,
-    location,
+    local_location,
     path_arg,
     resolution,
 )
@@ -49,7 +49,7 @@ def add_parser(subparsers: Any) -> None:
     parser.add_argument("log", type=path_arg, help="CARMEN log, plain or gzip")
     parser.add_argument(
         "output",
-        type=location,
+        type=local_location,
         help="*.bag (ROS 1), *.mcap, or a folder (ROS 2 bag: db3, or MCAP with --format mcap-dir)",
     )
     parser.add_argument(

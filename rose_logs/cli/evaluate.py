@@ -10,7 +10,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from rose.cli.options import int_in_range, path_arg
+from rose.cli.options import int_in_range, out_path_arg, path_arg
 from rose_logs.datasets import ENV_VAR
 from rose_logs.evaluation.config import BENCHMARK_SUBDIR, LOGS_SUBDIR, EvaluationConfig
 
@@ -76,7 +76,7 @@ def _ints(low: int, high: int) -> Callable[[str], tuple[int, ...]]:
 def _configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "out_dir",
-        type=path_arg,
+        type=out_path_arg,
         help="report folder (written whole at the end; an earlier report there is replaced with --force)",
     )
     parser.add_argument(

@@ -12,7 +12,7 @@ from typing import Any, TextIO
 from rose.cli.options import (
     add_param_arguments,
     file_arg,
-    location,
+    local_location,
     params_from_args,
     path_arg,
 )
@@ -50,7 +50,7 @@ def add_parser(subparsers: Any) -> None:
     parser.add_argument(
         "-o",
         "--output",
-        type=location,
+        type=local_location,
         default=None,
         help="output log (default: <input>.rose.<ext> next to the input; a bag folder or .db3 <name> gives the folder <name>.rose)",
     )

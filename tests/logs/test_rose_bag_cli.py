@@ -406,6 +406,42 @@ def test_bad_values_are_usage_errors_naming_the_command(
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize(
+    ("argv", "said"),
+    [
+        (["rose-bag", "info", "s3://x/y.mcap"], "only rose-bag batch reads URLs"),
+        (["rose-bag", "process", "s3://x/y.mcap", "--no-output"], "only rose-bag batch reads URLs"),
+        (["rose-bag", "process", "x.mcap", "-o", "s3://x/o.mcap"], "only rose-bag batch writes"),
+        (["rose-bag", "process", "x.mcap", "--json", "http://x/r.json"], "only rose-bag batch"),
+        (["rose-bag", "convert", "http://x/a.log", "a.mcap"], "only rose-bag batch reads URLs"),
+        (["rose-bag", "convert", "a.log", "s3://x/a.mcap"], "only rose-bag batch writes"),
+        (["rose-bag", "evaluate", "s3://x/e2"], "only rose-bag batch writes"),
+        (["rose", "score", "http://x/map.yaml"], "maps are read from local files"),
+        (["rose", "clean", "https://x/map.yaml", "-o", "o.yaml"], "maps are read from local"),
+        (["rose", "walls", "file:///x/map.yaml"], "maps are read from local files"),
+        (["rose", "clean", "m.yaml", "-o", "s3://x/o.yaml"], "only rose-bag batch writes"),
+    ],
+)
+def test_a_url_outside_batch_is_a_usage_error_naming_it_as_typed(
+    argv: list[str], said: str, tmp_path: Path, capsys, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`rose-bag info s3://x/y.mcap` said `s3:/x/y.mcap: no such file or directory`: a path the user
+    never typed (Path folds the //), and no word of which command reads URLs."""
+    from rose.cli import main as rose_main
+
+    monkeypatch.chdir(tmp_path)
+    run = main if argv[0] == "rose-bag" else rose_main
+    with pytest.raises(SystemExit) as stop:
+        run(argv[1:])
+    assert stop.value.code == 2
+    url = next(a for a in argv if "://" in a)
+    last = capsys.readouterr().err.splitlines()[-1]
+    assert last.startswith(f"{argv[0]} {argv[1]}: error: argument ")
+    assert f": {url}: a URL; " in last
+    assert said in last
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_debug_is_taken_after_the_command_too(tmp_path: Path, capsys, fr079) -> None:
     built = build_log(tmp_path / "in.mcap", "mcap-ros2", session_maps(fr079[:1]))
     assert main(["process", str(built.path), "--no-output", "--debug"]) == 0
