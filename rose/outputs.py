@@ -69,6 +69,7 @@ __all__ = [
     "exit_after",
     "install_signal_handlers",
     "interrupt_behind",
+    "is_bag_folder",
     "is_stream",
     "json_safe",
     "json_text",
@@ -77,6 +78,7 @@ __all__ = [
     "print_any_file_name",
     "process_alive",
     "process_tag",
+    "refuse_log_in_bag_folder",
     "remove_stale_temporaries",
     "report_interrupt",
     "reraise_interrupt_behind",
@@ -728,6 +730,43 @@ def enclosing_bag_folder(path: Path) -> Path | None:
         if candidate.name in names:
             return candidate.parent
     return None
+
+
+def is_bag_folder(folder: Path | str) -> bool:
+    """Whether ``folder`` is a ROS 2 bag folder: it holds a ``metadata.yaml``."""
+    return (Path(folder) / "metadata.yaml").is_file()
+
+
+def refuse_log_in_bag_folder(
+    path: Path | str | None, option: str = "-o", *, inputs: Iterable[Path | str] = ()
+) -> None:
+    """Raise :class:`OutputError` if the output log ``path`` would be written inside an existing ROS 2
+    bag folder (:func:`is_bag_folder`; a symlink counts where it points): the bag's
+    ``metadata.yaml`` does not list the new file, and every later read of the bag warned of it.
+    Replacing a bag folder itself (``-o bag --format db3 --force``) is not this: that is the
+    output's own folder. ``option`` names the argument in the message. A bag folder that is or
+    holds one of ``inputs`` is left to :class:`OutputSet`, which says "inside the input"."""
+    if path is None or _is_stdout(Path(path)):
+        return
+    try:
+        folder = Path(path).resolve().parent
+    except (OSError, RuntimeError):  # the output checks say what is wrong with such a path
+        return
+    if is_bag_folder(folder) and not any(_holds_input(folder, Path(i)) for i in inputs):
+        msg = (
+            f"{path}: the output log is inside the ROS 2 bag folder {folder} (it has "
+            f"metadata.yaml): it would write into a recording; choose another {option}"
+        )
+        raise OutputError(msg)
+
+
+def _holds_input(folder: Path, given: Path) -> bool:
+    """Whether the (resolved) ``folder`` is the input ``given`` or holds it."""
+    try:
+        resolved = given.resolve()
+    except (OSError, RuntimeError):
+        return False
+    return resolved == folder or folder in resolved.parents
 
 
 def _link_chain(path: Path) -> list[Path]:

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from rose.outputs import is_bag_folder
 from rose_logs.batch.errors import BatchError
 from rose_logs.batch.sources import Recording, cleaned_log_name, discover, distinct_name
 from rose_logs.batch.store import OutputStore, is_local, storage_errors
@@ -501,7 +502,7 @@ def _refuse_out_in_a_bag(root: str, bag_folders: Sequence[str]) -> None:
                 "folder): the batch would write into its input; choose another -o"
             )
             raise BatchError(msg)
-    if (Path(root) / "metadata.yaml").is_file():
+    if is_bag_folder(root):
         msg = (
             f"{root}: the output folder is a ROS 2 bag folder (it has metadata.yaml): the batch "
             "would write its tables into a recording; choose another -o"

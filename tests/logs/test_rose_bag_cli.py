@@ -1027,3 +1027,29 @@ def test_a_map_returning_to_its_anchor_is_said_and_no_break(tmp_path: Path, caps
     (line,) = [x for x in err.splitlines() if "returned to that map" in x]
     assert line.startswith("warning: /map: the map at +0.5 s")
     assert "contradicts snapshot 4 (" in line and "but agrees with snapshot 0" in line
+
+
+@pytest.mark.parametrize("command", ["process", "convert"])
+def test_an_output_log_inside_a_ros2_bag_folder_is_refused(
+    command: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`process run.mcap -o SOMEBAG/x.mcap` exited 0 and wrote into the bag, whose every later read
+    warned `storage file x.mcap is not listed in metadata.yaml`."""
+    bag = tmp_path / "bag"
+    bag.mkdir()
+    (bag / "metadata.yaml").write_text("rosbag2_bagfile_information: {}\n")
+    carmen = SAMPLE.parents[1] / "tests/data/radish_carmen_corrected_logs"
+    for output, fmt in ((bag / "x.mcap", "mcap"), (bag / "y", "db3")):
+        if command == "process":
+            argv = ["process", str(SAMPLE), "-o", str(output), "--format", fmt, "-q"]
+        else:
+            log = carmen / "csail-corrected.head400.log.gz"
+            argv = ["convert", str(log), str(output), "--format", fmt, "-q"]
+        assert main(argv) == 1
+        err = capsys.readouterr().err
+        option = "-o" if command == "process" else "OUTPUT"
+        assert err == (
+            f"error: {output}: the output log is inside the ROS 2 bag folder {bag.resolve()} (it "
+            f"has metadata.yaml): it would write into a recording; choose another {option}\n"
+        )
+    assert sorted(p.name for p in bag.iterdir()) == ["metadata.yaml"]
