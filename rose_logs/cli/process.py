@@ -173,7 +173,7 @@ def _w_text(records: Sequence[Any]) -> str:
 
     scores = [r.structure_score for r in records if r.judged]
     if not scores:
-        return f"none (no map with {MIN_JUDGED_CELLS} or more occupied cells W can read)"
+        return f"none ({_unjudged_text(records)})"
     text = f"min {min(scores):.3f}  median {statistics.median(scores):.3f}  max {max(scores):.3f}"
     unreadable = sum(r.unreadable for r in records)  # the rest left out are (nearly) empty
     empty = len(records) - len(scores) - unreadable
@@ -188,6 +188,28 @@ def _w_text(records: Sequence[Any]) -> str:
     if left_out:
         text += f"  ({', '.join(left_out)} left out)"
     return text
+
+
+def _unjudged_text(records: Sequence[Any]) -> str:
+    """Why W judged none of a topic's maps: too few occupied cells, or a form W cannot read, with
+    the reason ROSE's domain check gives (the last such map's, as its record's ``degenerate``)."""
+    from rose_logs.session.report import MIN_JUDGED_CELLS
+
+    unreadable = [r for r in records if r.unreadable]
+    if not unreadable:
+        return f"no map has {MIN_JUDGED_CELLS} or more occupied cells"
+    reason = unreadable[-1].degenerate
+    if len(records) == 1:
+        return f"W cannot read the map: {reason}"
+    empty = len(records) - len(unreadable)
+    if not empty:
+        return f"W cannot read any of the {len(records)} maps; the last: {reason}"
+    maps = "the map" if len(unreadable) == 1 else f"the {len(unreadable)} maps"
+    which = ":" if len(unreadable) == 1 else ", the last:"
+    rest = f"{empty} map{'s have' if empty > 1 else ' has'} fewer"
+    return (
+        f"W cannot read {maps} of {MIN_JUDGED_CELLS} or more occupied cells{which} {reason}; {rest}"
+    )
 
 
 def _print_break(report: Any, topic: str, out: Any) -> None:

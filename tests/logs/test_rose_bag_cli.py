@@ -815,6 +815,46 @@ def test_maps_w_cannot_read_are_left_out_of_w_and_the_gate(
     )
 
 
+def test_the_summary_says_why_w_read_none_of_the_maps(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A solid 60 x 50 block or a thin strip has plenty of occupied cells, yet the summary said
+    `W none (no map with 20 or more occupied cells W can read)`: it gives the domain check's reason,
+    as the JSON's `degenerate` does."""
+    import numpy as np
+
+    solid = np.full((50, 60), 100, dtype=np.int8)
+    strip = np.zeros((8, 200), dtype=np.int8)
+    strip[0] = strip[-1] = 100
+    empty = np.full((50, 60), -1, dtype=np.int8)
+
+    def w_line(name: str, grids: list[Any]) -> str:
+        log = build_log(tmp_path / f"{name}.mcap", "mcap-ros2", session_maps(grids)).path
+        report = tmp_path / f"{name}.json"
+        assert main(["process", str(log), "--no-output", "--json", str(report)]) == 0
+        (line,) = [s for s in capsys.readouterr().out.splitlines() if s.startswith("  W  ")]
+        last = [s["degenerate"] for s in json.loads(report.read_text())["snapshots"]][-1]
+        assert last is None or last in line
+        return line.split(None, 1)[1]
+
+    assert w_line("solid", [solid]) == (
+        "none (W cannot read the map: occupied cells fill the grid (220 cell sides on its "
+        "border, 0 inside it))"
+    )
+    assert w_line("strip", [strip]) == (
+        "none (W cannot read the map: a side of 8 cells (fewer than 16, too thin for a 2D "
+        "spectrum))"
+    )
+    assert w_line("both", [solid, strip]).startswith(
+        "none (W cannot read any of the 2 maps; the last: a side of 8 cells"
+    )
+    assert w_line("mixed", [empty, solid]) == (
+        "none (W cannot read the map of 20 or more occupied cells: occupied cells fill the grid "
+        "(220 cell sides on its border, 0 inside it); 1 map has fewer)"
+    )
+    assert w_line("empty", [empty]) == "none (no map has 20 or more occupied cells)"
+
+
 def test_a_library_warning_repeated_by_every_snapshot_is_said_once(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
