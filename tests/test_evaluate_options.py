@@ -23,6 +23,12 @@ from rose_logs.cli.evaluate import config_from_args
         ("--counts", ",".join(["20"] * 51), "at most 50 values"),
         ("--sizes", "4,x", "comma-separated integers"),
         ("--sizes", ",", "at least one integer"),  # was an empty experiment
+        # An empty item: ran with counts 1 and 2, silently.
+        ("--counts", "1,,2", "an empty item in '1,,2' (two commas in a row, or one at an end)"),
+        ("--counts", "20,", "an empty item"),
+        ("--sizes", " ,4", "an empty item"),
+        ("--logs", "aces,,intel", "an empty item"),
+        ("--maps", "Freiburg79_scan,", "an empty item"),
         ("--seed", "-1", "0..4294967295"),  # was a traceback after ~10 s of work
         ("--seed", str(2**32), "0..4294967295"),
         ("--break-seeds", "-1", "0..20"),

@@ -17,9 +17,22 @@ from rose_logs.evaluation.config import BENCHMARK_SUBDIR, LOGS_SUBDIR, Evaluatio
 __all__ = ["add_parser", "config_from_args", "run"]
 
 
+def _items(value: str) -> list[str]:
+    """The comma-separated items of ``value``, stripped; none when every item is empty (``""``,
+    ``","``). One empty item among others (``1,,2``, ``aces,``) is a usage error: ``--counts 1,,2``
+    ran with counts 1 and 2, silently."""
+    items = [v.strip() for v in value.split(",")]
+    if not any(items):  # "", " " or only commas: no items (an empty --logs runs no experiment)
+        return []
+    if "" in items:
+        msg = f"an empty item in {value[:40]!r} (two commas in a row, or one at an end)"
+        raise argparse.ArgumentTypeError(msg)
+    return items
+
+
 def _csv(value: str) -> tuple[str, ...]:
     """Comma-separated names, each once (a name given twice would run, and be tabled, twice)."""
-    return tuple(dict.fromkeys(v.strip() for v in value.split(",") if v.strip()))
+    return tuple(dict.fromkeys(_items(value)))
 
 
 def _log_names(value: str) -> tuple[str, ...]:
@@ -51,7 +64,7 @@ def _ints(low: int, high: int) -> Callable[[str], tuple[int, ...]]:
     """argparse type: comma-separated integers in ``low..high``, at most :data:`MAX_LIST_VALUES`."""
 
     def parse(value: str) -> tuple[int, ...]:
-        items = [v.strip() for v in value.split(",") if v.strip()]
+        items = _items(value)
         if not items:
             msg = f"expected at least one integer, got {value[:40]!r}"
             raise argparse.ArgumentTypeError(msg)
