@@ -455,6 +455,20 @@ def test_convert_max_scans_bound_reads_as_a_lower_bound(
     assert "expected an integer >= 1, got '0'" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("value", ["99999999999999999999", "9" * 60])
+def test_convert_max_scans_too_large_says_so_and_the_limit(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], value: str
+) -> None:
+    """It said `expected an integer >= 1`, of a number that is one."""
+    from rose_logs.cli import main
+
+    with pytest.raises(SystemExit) as stop:
+        main(["convert", "x.log", str(tmp_path / "s.mcap"), "--max-scans", value])
+    assert stop.value.code == 2
+    err = capsys.readouterr().err
+    assert f"argument --max-scans: too large, got {value[:40]!r} (at most 2**62 = 4.6e+18)" in err
+
+
 def test_convert_max_range_within_the_shortest_reading_is_a_usage_error(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -145,18 +145,33 @@ def int_in_range(low: int, high: int) -> Any:
     """argparse type factory: an integer in ``[low, high]`` (usage error otherwise)."""
 
     def parse(text: str) -> int:
+        digits = text.strip().removeprefix("+").removeprefix("-")
         try:
             value = int(text, 10) if len(text) <= 40 else None
         except ValueError:
             value = None
+        if value is None and digits.isdigit():  # over 40 digits: no limit of ours is that large
+            value = -(10**40) if text.strip().startswith("-") else 10**40
+        readable = high < 2**40  # 2**62 is no bound to read: its range is said as ">= low"
+        if value is not None and value > high and not readable:
+            # Said as too large, with the limit: ">= 1" read as if the number were not an integer.
+            msg = f"too large, got {text[:40]!r} (at most {_power_text(high)})"
+            raise argparse.ArgumentTypeError(msg)
         if value is None or not low <= value <= high:
-            span = f"in {low}..{high}" if high < 2**40 else f">= {low}"  # 2**62 is no bound to read
+            span = f"in {low}..{high}" if readable else f">= {low}"
             msg = f"expected an integer {span}, got {text[:40]!r}"
             raise argparse.ArgumentTypeError(msg)
         return value
 
     parse.__name__ = "integer"
     return parse
+
+
+def _power_text(number: int) -> str:
+    """A large bound as it reads: ``2**62 = 4.6e+18`` for a power of two, else ``4.6e+18``."""
+    if number & (number - 1) == 0:
+        return f"2**{number.bit_length() - 1} = {number:.2g}"
+    return f"{number:.2g}"
 
 
 def path_arg(text: str) -> Path:
