@@ -63,7 +63,33 @@ def _opened(backend: McapStreamReadBackend | Ros1StreamReadBackend) -> bool:
 
 
 def _corrupt(path: Path, err: BaseException) -> LogReadError:
+    newer = _NEWER_BAG.search(str(err))
+    if newer is not None:  # rosbags's words were "...not supported; please report issue."
+        return LogReadError(
+            f"{path}: its metadata.yaml is of rosbag2 version {newer.group(1)}, newer than "
+            f"rose-bag reads ({_rosbags_reads()})"
+        )
     return LogReadError(f"{path}: corrupt or truncated log ({short(_library_text(err), 160)})")
+
+
+#: rosbags's error for a ``metadata.yaml`` version it does not know.
+_NEWER_BAG = re.compile(r"Rosbag2 version (\d+) not supported")
+
+
+def _rosbags_reads() -> str:
+    """Which rosbag2 metadata versions the installed rosbags reads: up to the one it writes."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        from rosbags.rosbag2.writer import Writer
+
+        latest = f"up to version {int(Writer.VERSION_LATEST)}"
+    except (ImportError, AttributeError, TypeError, ValueError):
+        latest = "older versions"
+    try:
+        return f"rosbags {version('rosbags')} reads {latest}"
+    except PackageNotFoundError:
+        return f"rosbags reads {latest}"
 
 
 _ONE_ITEM_TUPLE = re.compile(r"""\((['"])(.*?)\1,\)""")

@@ -1093,3 +1093,28 @@ def test_an_output_log_inside_a_ros2_bag_folder_is_refused(
             f"has metadata.yaml): it would write into a recording; choose another {option}\n"
         )
     assert sorted(p.name for p in bag.iterdir()) == ["metadata.yaml"]
+
+
+def test_a_bag_of_a_newer_rosbag2_version_is_said_so_in_our_words(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """It passed on rosbags's `(Rosbag2 version 99 not supported; please report issue.)` after
+    `corrupt or truncated log`: the bag is neither, and the issue is not rosbags's to hear of."""
+    from rosbags.rosbag2.writer import Writer
+
+    bag = tmp_path / "run"
+    assert main(["process", str(SAMPLE), "--format", "db3", "-o", str(bag), "-q"]) == 0
+    metadata = bag / "metadata.yaml"
+    text, count = re.subn(r"(?m)^  version: \d+$", "  version: 99", metadata.read_text())
+    assert count == 1
+    metadata.write_text(text)
+    capsys.readouterr()
+    for command in (["info"], ["process", "--no-output"]):
+        assert main([command[0], str(bag), *command[1:]]) == 1
+        err = capsys.readouterr().err
+        assert err.startswith(
+            f"error: {bag}: its metadata.yaml is of rosbag2 version 99, newer than rose-bag reads "
+            "(rosbags "
+        )
+        assert err.endswith(f" reads up to version {Writer.VERSION_LATEST})\n")
+        assert "report issue" not in err and "corrupt" not in err
