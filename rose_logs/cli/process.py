@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import statistics
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, TextIO
 
@@ -286,17 +286,22 @@ def run(args: argparse.Namespace) -> int:
     outputs = OutputSet(inputs=[args.input], force=args.force, ends_run=True)
     if warnings:  # a typo (out.mcpa, --rrd run.txt) should not pass unnoticed
         # ... unless an output is refused anyway (the input itself, an existing file, one named
-        # twice): then the refusal comes alone. The writers check them again, once the log's
-        # format is known for sure.
+        # twice): then the refusal comes alone. These are checked now, before the input is read;
+        # the warnings are said once the session has accepted every output (the log's format
+        # against the input's messages too: `--format ros1 -o y.mcap` of a ROS 2 log warned of
+        # the suffix, then was refused).
         folder = _output_format(args) in ("db3", "mcap-dir")
         outputs.check(args.output, directory=folder)
         outputs.check(None if folder else args.output, args.rrd, args.json_path)
+
+    def say_warnings() -> None:
         for warning in warnings:
             print(warning, file=sys.stderr)
+
     progress = not args.quiet and sys.stderr.isatty()
     with outputs:  # the log, the recording and the report: all committed, or none
         json_out = None if args.json_path is None else outputs.stage(args.json_path)
-        report = _process(args, output, progress, outputs)
+        report = _process(args, output, progress, outputs, say_warnings)
         failed = _gate_failures(args, report)
         if json_out is not None:
             data = report.to_json()
@@ -357,7 +362,13 @@ def _gate_failures(args: argparse.Namespace, report: Any) -> list[str]:
     return reasons
 
 
-def _process(args: argparse.Namespace, output: Path | None, progress: bool, outputs: Any) -> Any:
+def _process(
+    args: argparse.Namespace,
+    output: Path | None,
+    progress: bool,
+    outputs: Any,
+    on_outputs_ready: Callable[[], None] | None = None,
+) -> Any:
     from rose_logs.session import process_log
     from rose_logs.session.breaks import BreakParams
 
@@ -375,6 +386,7 @@ def _process(args: argparse.Namespace, output: Path | None, progress: bool, outp
         spawn=args.spawn,
         connect=args.connect,
         progress=progress,
+        on_outputs_ready=on_outputs_ready,
         walls=args.walls,
         break_params=BreakParams.following(
             rose_params.occupied_threshold,

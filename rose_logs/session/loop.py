@@ -106,6 +106,7 @@ def process_log(
     connect: str | None = None,
     progress: bool = False,
     on_snapshot: Callable[[MapSnapshot, RoseResult, SnapshotRecord], None] | None = None,
+    on_outputs_ready: Callable[[], None] | None = None,
     walls: bool = False,
     clean_method: CleanMethod = "walls",
     recording_id: str | None = None,
@@ -152,6 +153,11 @@ def process_log(
         gap opened, or the paper's labelling as it is.
     on_snapshot : callable, optional
         Called with ``(snapshot, result, record)`` after each snapshot.
+    on_outputs_ready : callable, optional
+        Called once every output is accepted (the log's format against the input's messages, the
+        input's ``<map>/rose/*`` topics, the recording) and before the first snapshot: ``rose-bag
+        process`` says its warnings about the outputs' names then, so that a refused output gets
+        its error alone.
     recording_id : str, optional
         Rerun recording id; default: :func:`rose_logs.rerun.sink.recording_id_for` (the input's
         absolute path and content, so a re-run of the same file joins it). ``rose-bag batch`` passes
@@ -244,6 +250,7 @@ def process_log(
             connect=connect,
             progress=progress,
             on_snapshot=on_snapshot,
+            on_outputs_ready=on_outputs_ready,
             walls=walls,
             clean_method=clean_method,
             recording_id=recording_id,
@@ -278,6 +285,7 @@ def _run_session(
     connect: str | None,
     progress: bool,
     on_snapshot: Callable[[MapSnapshot, RoseResult, SnapshotRecord], None] | None,
+    on_outputs_ready: Callable[[], None] | None,
     walls: bool,
     clean_method: CleanMethod,
     recording_id: str | None,
@@ -319,6 +327,8 @@ def _run_session(
                         start_ns=reader.start_ns,
                         failure_level=failure_level,
                     )
+            if on_outputs_ready is not None:
+                on_outputs_ready()
             loop = _Loop(
                 reader=reader,
                 writer=writer,

@@ -397,6 +397,29 @@ def test_an_output_refused_anyway_gets_no_suffix_warning_first(
     _assert_one_line_error(err, "refusing to write over the input")
 
 
+def test_an_output_log_the_session_refuses_gets_no_suffix_warning_first(
+    tmp_path: Path, capsys, mcap_log: Path
+) -> None:
+    """`process run.mcap --format ros1 -o y.mcap` (ROS 2 messages) warned that '.mcap' names mcap,
+    then refused the format: the refusal comes alone. So for an input processed before."""
+    here = tmp_path / "out"
+    here.mkdir()
+    code, _, err = _run(capsys, "process", mcap_log, "--format", "ros1", "-o", here / "y.mcap")
+    assert code == 1
+    _assert_one_line_error(err, "cannot store ROS 2 (CDR) messages in format 'ros1'")
+    done = here / "done.mcap"
+    assert _run(capsys, "process", mcap_log, "-o", done, "-q")[0] == 0
+    code, _, err = _run(capsys, "process", done, "--format", "db3", "-o", here / "again.mcap")
+    assert code == 1
+    _assert_one_line_error(err, "(processed before?)")
+    assert sorted(p.name for p in here.iterdir()) == ["done.mcap"]
+    # Accepted, the output gets its warning (before the summary).
+    out = here / "y.bag"
+    code, _, err = _run(capsys, "process", mcap_log, "--format", "mcap", "-o", out, "-q")
+    assert code == 0
+    assert err == f"warning: {out}: written as mcap (--format), but '.bag' names ros1\n"
+
+
 @pytest.mark.parametrize(
     ("option", "name", "said"),
     [
