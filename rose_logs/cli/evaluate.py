@@ -99,7 +99,7 @@ def _configure(parser: argparse.ArgumentParser) -> None:
         "--config",
         choices=("small", "full"),
         default="small",
-        help="small (the default): 1 log + 1 benchmark map, 12 clutter maps each (a minute or two); "
+        help="small (the default): 1 log + 1 benchmark map, 12 clutter maps each (5-10 s); "
         "full: 5 logs + 19 benchmark maps, 243 clutter maps each, 3 drift levels x 3 seeds",
     )
     parser.add_argument(
