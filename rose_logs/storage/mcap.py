@@ -427,6 +427,7 @@ class McapStreamReadBackend(McapReadBackend):
         self._in_order = True  # messages in log-time order in the file
         self._held_bytes = 0  # memory the messages would take to sort them
         self._order_said = False
+        self._damage_at = -1  # where the first record that cannot be read starts
 
     def _records(self) -> Iterator[Any]:
         """Records from the start of the file up to the first unreadable one (which sets
@@ -450,6 +451,7 @@ class McapStreamReadBackend(McapReadBackend):
             except Exception as err:  # the damaged end: any library error, stop there
                 reason = str(err) or type(err).__name__
                 self.damage = f"unreadable from byte {offset} of {size}: {short(reason, 120)}"
+                self._damage_at = offset
                 break
             read += 1
             yield record
@@ -496,12 +498,31 @@ class McapStreamReadBackend(McapReadBackend):
             # A summary that does not read, between the data's end and an intact footer.
             _LOG.warning("%s: %s, in its summary: nothing lost", self.path, self.damage)
             self.damage, footer = "", True
+        elif data_end and self.damage and self._damaged_footer():
+            # The footer itself damaged (its length, its op), the data section whole before it.
+            _LOG.warning(
+                "%s: the footer is damaged (%s); read record by record, nothing lost",
+                self.path,
+                self.damage,
+            )
+            self.damage, footer = "", True
         self.complete = footer
         if not self.damage:
             self.damage = "the file ends without a summary" if footer else "no summary at the end"
         self.channels, self._by_id, self.qos_style = _channels(mcap_channels, schemas, counts)
         if first is not None and last is not None:
             self.start_ns, self.end_ns = int(first), int(last)
+
+    def _damaged_footer(self) -> bool:
+        """Whether the first record that cannot be read is where the footer belongs, before the
+        closing magic bytes, which are there: the file is complete, its footer damaged (a file
+        cut short ends elsewhere than in magic bytes)."""
+        assert self.stream is not None
+        size = self.path.stat().st_size
+        if self._damage_at < size - _FOOTER.size:
+            return False
+        self.stream.seek(size - len(MCAP_MAGIC))
+        return self.stream.read(len(MCAP_MAGIC)) == MCAP_MAGIC
 
     @property
     def sorted_by_time(self) -> bool:

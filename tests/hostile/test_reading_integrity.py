@@ -279,6 +279,30 @@ def test_an_mcap_file_cut_after_its_data_is_said_to_be_cut_short(
     assert "record has length" not in err and len(err.splitlines()) == 1, err
 
 
+@pytest.mark.parametrize("back", [37, 30, 29])  # the footer's op, and bytes of its length
+def test_an_mcap_file_with_a_damaged_footer_loses_nothing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], back: int
+) -> None:
+    """A damaged footer (its record length) after an intact data section read as an index that
+    cannot be read (exit 1), and with --salvage as a loss (exit 4) with every message kept: read
+    as a damaged summary is, record by record, with a warning, exit 0."""
+    sample = Path(__file__).resolve().parents[2] / "sample_data" / "fr079_session.mcap"
+    data = bytearray(sample.read_bytes())
+    data[len(data) - back] ^= 0x41
+    log, out = tmp_path / "in.mcap", tmp_path / "o.mcap"
+    log.write_bytes(bytes(data))
+    for salvage in ([], ["--salvage"]):
+        code, summary, err = _run(capsys, "process", log, "-o", out, "-q", "--force", *salvage)
+        assert code == 0, err
+        assert "losses" not in summary and "error" not in err
+        assert err.count("the footer is damaged") == 1, err
+        assert "nothing lost" in err
+        whole = _messages(sample)
+        topics = {topic for topic, _, _ in whole}
+        assert [m for m in _messages(out) if m[0] in topics] == whole
+    assert log.read_bytes() == bytes(data)  # the input never modified
+
+
 @pytest.fixture(scope="module")
 def ros1_bag(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, list[tuple[int, int]]]:
     """A ROS 1 bag of several chunks (a CARMEN session) and each chunk's ``(position, messages)``."""
