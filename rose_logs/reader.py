@@ -15,9 +15,11 @@ An MCAP file written without a summary section (optional in MCAP) is read record
 messages sorted by log time when the file has them out of order. With ``salvage``, an MCAP file whose
 end is missing and a ROS 1 bag whose index cannot be used are read record by record from their start
 instead (:mod:`rose_logs.storage.mcap`, :mod:`rose_logs.storage.ros1_stream`); MCAP messages come
-sorted by log time too, a ROS 1 bag's in file order. A complete MCAP file with a damaged chunk loses
-that chunk only: its index leads past it to the chunks after it (a file of no chunks is salvaged in
-file order, up to its damage).
+sorted by log time too, a ROS 1 bag's in file order. A complete MCAP file or ROS 1 bag with a damaged chunk loses
+that chunk only: its index leads past it to the chunks after it (an MCAP file of no chunks is
+salvaged in file order, up to its damage; a ROS 1 bag is read chunk by chunk through its index's
+chunk infos, in rosbags' order, also when rosbags cannot open it for a damaged chunk record or
+index entry).
 """
 
 from __future__ import annotations
@@ -36,12 +38,19 @@ from rose_logs.formats import LogFormat, detect_format, mcap_cut_short
 from rose_logs.storage.connections import QosStyle
 from rose_logs.storage.mcap import DamagedSummaryError, McapReadBackend, McapStreamReadBackend
 from rose_logs.storage.records import Channel, RawMessage
-from rose_logs.storage.ros1_stream import Ros1StreamReadBackend
+from rose_logs.storage.ros1_stream import (
+    Ros1IndexedReadBackend,
+    Ros1StreamReadBackend,
+    first_damaged_chunk,
+    unindexed_messages,
+)
 from rose_logs.storage.rosbags import RosbagsReadBackend
 
 __all__ = ["Channel", "LogReader", "MessageLossError", "RawMessage"]
 
 _LOG = logging.getLogger(__name__)
+
+_Backend = RosbagsReadBackend | McapReadBackend | Ros1StreamReadBackend | Ros1IndexedReadBackend
 
 
 def _library_text(err: BaseException) -> str:
@@ -129,7 +138,7 @@ class LogReader:
         self.salvage = salvage
         self.losses: list[str] = []
         self.read_count = 0
-        self._backend: RosbagsReadBackend | McapReadBackend | Ros1StreamReadBackend | None = None
+        self._backend: _Backend | None = None
 
     # -- lifecycle -------------------------------------------------------------------------------
     def open(self) -> None:
@@ -140,7 +149,7 @@ class LogReader:
         LogReadError
             If the log is corrupt, truncated or unsupported.
         """
-        backend: RosbagsReadBackend | McapReadBackend | Ros1StreamReadBackend
+        backend: _Backend
         backend = (
             McapReadBackend(self.path)
             if self.format == "mcap"
@@ -151,9 +160,13 @@ class LogReader:
         except Exception as err:  # library errors of every kind: wrap at the boundary
             backend.close()
             reraise_interrupt_behind(err)
-            salvaged: McapStreamReadBackend | Ros1StreamReadBackend | None = (
-                self._without_summary(err) if self.format == "mcap" else None
-            )
+            salvaged: (
+                McapStreamReadBackend | Ros1StreamReadBackend | Ros1IndexedReadBackend | None
+            ) = None
+            if self.format == "mcap":
+                salvaged = self._without_summary(err)
+            elif self.format == "ros1":
+                salvaged = self._around_damaged_chunks(err)
             if salvaged is None and self.salvage:
                 salvaged = self._salvage_stream()
             if salvaged is None:
@@ -161,7 +174,9 @@ class LogReader:
                     raise
                 raise self._unreadable(err) from err
             backend = salvaged
-        if self.salvage and type(backend) is McapReadBackend:
+        if self.salvage and (
+            type(backend) is McapReadBackend or isinstance(backend, RosbagsReadBackend)
+        ):
             backend.skip_damaged_chunks = True
         self._backend = backend
 
@@ -203,6 +218,40 @@ class LogReader:
             _LOG.warning("%s: %s; read record by record, no message lost", self.path, err)
         else:
             _LOG.info("%s: no summary section (optional in MCAP): read record by record", self.path)
+        return backend
+
+    def _around_damaged_chunks(self, err: BaseException) -> Ros1IndexedReadBackend | None:
+        """A ROS 1 bag that rosbags could not open (``err``) whose index is intact: a chunk's
+        record damaged (rosbags reads every chunk's header to open a bag), or the index data
+        records after one. An error naming the damaged chunk, or with ``--salvage`` the bag read
+        chunk by chunk through its index's chunk infos, around the damaged chunks. None when the
+        index cannot be read or leaves chunks out, or, without ``--salvage``, when no chunk's
+        record is damaged (the first error stands, or the bag is read record by record)."""
+        backend = Ros1IndexedReadBackend(self.path)
+        try:
+            backend.open()
+            assert backend.index is not None
+            problem = first_damaged_chunk(self.path, backend.index, headers_only=True)
+            listed = {c.pos: c.counts for c in backend.index.chunks}
+            unlisted = unindexed_messages(self.path, listed, skip_damaged_chunks=True)
+        except Exception as failure:  # the index is damaged too, or the file went away
+            backend.close()
+            reraise_interrupt_behind(failure)
+            return None
+        if unlisted is not None or (problem is None and not self.salvage):
+            backend.close()
+            return None
+        if not self.salvage:
+            backend.close()
+            msg = f"{self.path}: {problem}"
+            raise LogReadError(msg)
+        if problem is None:  # index data records damaged: the chunks may all read
+            _LOG.warning(
+                "%s: the bag's index could not be used (%s); read chunk by chunk through its "
+                "chunk infos",
+                self.path,
+                short(_library_text(err), 120),
+            )
         return backend
 
     def _salvage_stream(self) -> McapStreamReadBackend | Ros1StreamReadBackend | None:
@@ -257,7 +306,7 @@ class LogReader:
 
     # -- index -----------------------------------------------------------------------------------
     @property
-    def _open_backend(self) -> RosbagsReadBackend | McapReadBackend | Ros1StreamReadBackend:
+    def _open_backend(self) -> _Backend:
         if self._backend is None:
             msg = f"{self.path}: reader is not open"
             raise LogReadError(msg)
@@ -346,8 +395,9 @@ class LogReader:
         self._check_counts(counts, wanted)
 
     def _note_skipped_chunks(self, backend: object) -> None:
-        """The damaged chunks a salvaging MCAP reader skipped, as losses (each said once)."""
-        if not isinstance(backend, McapReadBackend):
+        """The damaged chunks a salvaging MCAP or ROS 1 reader skipped, as losses (each said
+        once)."""
+        if not isinstance(backend, McapReadBackend | RosbagsReadBackend | Ros1IndexedReadBackend):
             return
         skipped = backend.skipped_chunks
         for chunk in skipped:

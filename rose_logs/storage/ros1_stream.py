@@ -11,23 +11,40 @@ connection and message records are kept, up to the first record that cannot be r
 Messages come in file order (the order they were recorded), not sorted by time. The file is read
 twice, as :class:`rose_logs.storage.mcap.McapStreamReadBackend` does: :meth:`open` for the
 connections and their counts, :meth:`messages` for the messages; memory stays that of one chunk.
+
+A bag whose index is intact but a chunk damaged is read through its index instead
+(:func:`chunk_messages`, :class:`Ros1IndexedReadBackend`): every chunk its chunk infos list, in
+log-time order, the damaged ones skipped and said.
 """
 
 from __future__ import annotations
 
+import bisect
 import bz2
+import heapq
 import io
 import struct
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import BinaryIO
+from typing import Any, BinaryIO
 
 from rose.limits import short
 from rose_logs.storage.connections import QosStyle
+from rose_logs.storage.mcap import SkippedChunk
 from rose_logs.storage.records import Channel, RawMessage, normalize_msgtype
 
-__all__ = ["Ros1StreamReadBackend", "unindexed_messages"]
+__all__ = [
+    "BagIndex",
+    "ChunkInfo",
+    "IndexDamage",
+    "Ros1IndexedReadBackend",
+    "Ros1StreamReadBackend",
+    "chunk_messages",
+    "first_damaged_chunk",
+    "read_index",
+    "unindexed_messages",
+]
 
 _MAGIC = b"#ROSBAG V2.0\n"
 _OP_MESSAGE = 0x02
@@ -45,6 +62,10 @@ _MAX_RECORD_BYTES = _MAX_CHUNK_BYTES + (16 << 20)
 
 class _Damage(Exception):
     """A record that cannot be read; the message says why."""
+
+
+class _PastIndex(_Damage):
+    """A record before the index whose data runs past the index."""
 
 
 @dataclass(frozen=True)
@@ -144,11 +165,13 @@ def _connection(fields: dict[str, bytes], data: bytes) -> _Connection:
     )
 
 
-def _decompress(fields: dict[str, bytes], data: bytes) -> bytes:
+def _decompress(fields: dict[str, bytes], data: bytes, *, exact: bool = True) -> bytes:
     """A chunk's content: at most the size its header declares, so that a hostile chunk cannot
-    expand without bound (a few KB of bz2 can declare gigabytes)."""
+    expand without bound (a few KB of bz2 can declare gigabytes). ``exact=False`` (a chunk the
+    index locates, whose records are then all parsed): a damaged size field is no damage, the
+    content is bounded by the largest chunk instead."""
     compression = fields.get("compression", b"none").decode("ascii", "replace")
-    size = _uint(fields, "size", "<I")
+    size = _uint(fields, "size", "<I") if exact else _MAX_CHUNK_BYTES
     if size > _MAX_CHUNK_BYTES:
         msg = f"a chunk of {size} bytes, more than {_MAX_CHUNK_BYTES}"
         raise _Damage(msg)
@@ -167,7 +190,7 @@ def _decompress(fields: dict[str, bytes], data: bytes) -> bytes:
     except (OSError, ValueError, RuntimeError, EOFError) as err:
         msg = f"a {compression} chunk that does not decompress ({short(err, 80)})"
         raise _Damage(msg) from err
-    if len(content) != size:
+    if exact and len(content) != size:
         msg = f"a {compression} chunk of {len(content)} bytes that declares {size}"
         raise _Damage(msg)
     return content
@@ -344,7 +367,9 @@ def _chunk_items(content: bytes) -> Iterator[_Connection | tuple[int, int, bytes
 _OP_INDEX_DATA = 0x04
 
 
-def unindexed_messages(path: Path, listed: dict[int, dict[int, int]]) -> str | None:
+def unindexed_messages(
+    path: Path, listed: dict[int, dict[int, int]], *, skip_damaged_chunks: bool = False
+) -> str | None:
     """What the index of the ROS 1 bag ``path`` leaves out, in a few words; None when it accounts
     for every chunk and message.
 
@@ -354,29 +379,57 @@ def unindexed_messages(path: Path, listed: dict[int, dict[int, int]]) -> str | N
     connection) are counted. A chunk info whose count was damaged, an index data record naming
     another connection, or a bag header that counts fewer chunks than the file holds, loses
     messages silently otherwise: a reader reads what the index lists.
+
+    ``skip_damaged_chunks``: a listed chunk whose record cannot be read (a damaged header, a data
+    length past the next listed chunk), or one of whose index data records cannot, is taken as
+    its chunk info counts it, and the walk goes on from the next listed chunk (a reader through
+    the chunk infos reads the chunk itself, or says it lost it).
     """
     found: dict[int, dict[int, int]] = {}
     size = path.stat().st_size
+    starts = sorted(listed)
     with path.open("rb") as stream:
         stream.readline()  # the magic line (checked by whoever opened the bag)
         try:
             header = _read_record(stream, size)
             index_pos = _uint(header[0], "index_pos", "<Q") if header is not None else 0
             chunk: dict[int, int] | None = None
+            chunk_at = -1  # where the chunk ``chunk`` counts the index entries of starts
             while stream.tell() < index_pos:
                 at = stream.tell()
-                fields = _fields(_read_block(stream, index_pos, "header"))
-                raw = stream.read(4)
-                (length,) = struct.unpack("<I", raw) if len(raw) == 4 else (index_pos,)
-                if stream.tell() + length > index_pos:
-                    return f"a record at byte {at} runs past the index at byte {index_pos}"
-                op = _op(fields)
-                if op == _OP_CHUNK:
-                    chunk = found[at] = {}
-                elif op == _OP_INDEX_DATA and chunk is not None:
-                    conn = _uint(fields, "conn", "<I")
-                    chunk[conn] = chunk.get(conn, 0) + _uint(fields, "count", "<I")
-                stream.seek(length, io.SEEK_CUR)
+                following = starts[bisect.bisect_right(starts, at) :]
+                # A chunk's record ends before the next listed chunk, or the index.
+                bound = min([*following[:1], index_pos]) if at in listed else index_pos
+                try:
+                    fields = _fields(_read_block(stream, bound, "header"))
+                    raw = stream.read(4)
+                    (length,) = struct.unpack("<I", raw) if len(raw) == 4 else (index_pos,)
+                    if stream.tell() + length > bound:
+                        if at in listed:
+                            msg = f"a chunk at byte {at} runs past the next record"
+                            raise _Damage(msg)
+                        msg = f"a record at byte {at} runs past the index at byte {index_pos}"
+                        raise _PastIndex(msg)
+                    op = _op(fields)
+                    if at in listed and op != _OP_CHUNK:
+                        msg = f"no chunk record at byte {at}"
+                        raise _Damage(msg)
+                    if op == _OP_CHUNK:
+                        chunk, chunk_at = found.setdefault(at, {}), at
+                    elif op == _OP_INDEX_DATA and chunk is not None:
+                        conn = _uint(fields, "conn", "<I")
+                        chunk[conn] = chunk.get(conn, 0) + _uint(fields, "count", "<I")
+                    stream.seek(length, io.SEEK_CUR)
+                except _Damage:
+                    owner = at if at in listed else chunk_at if chunk is not None else None
+                    if not skip_damaged_chunks or owner is None:
+                        raise
+                    # A damaged chunk, or index entries of one: what its chunk info counts.
+                    found[owner] = dict(listed[owner])
+                    chunk = None
+                    stream.seek(min([*following[:1], index_pos]))
+        except _PastIndex as err:
+            return str(err)
         except _Damage as err:
             return f"{err} before the index"
     unlisted = sorted(set(found) - set(listed))
@@ -400,3 +453,279 @@ def unindexed_messages(path: Path, listed: dict[int, dict[int, int]]) -> str | N
 
 def _ids(counts: dict[int, int]) -> str:
     return ", ".join(str(conn) for conn in sorted(counts)) or "none"
+
+
+# -- reading through the index, around damaged chunks ------------------------------------------------
+
+
+class IndexDamage(Exception):
+    """The index section of a ROS 1 bag (its connection and chunk info records) cannot be read."""
+
+
+@dataclass(frozen=True)
+class ChunkInfo:
+    """A chunk as the bag's index lists it (its chunk info record)."""
+
+    pos: int  # byte of the file where the chunk record starts
+    start_ns: int  # log times of its first and last message
+    end_ns: int
+    counts: dict[int, int]  # messages per connection id
+
+
+@dataclass(frozen=True)
+class BagIndex:
+    """What the index section at the end of a ROS 1 bag says: its connections (in the index's
+    order, the order rosbags reads them in) and chunks (in the index's order)."""
+
+    size: int  # bytes of the file
+    index_pos: int
+    connections: tuple[_Connection, ...]
+    chunks: tuple[ChunkInfo, ...]
+    starts: tuple[int, ...]  # the chunks' positions, sorted
+
+    def chunk_end(self, chunk: ChunkInfo) -> int:
+        """Where the record of ``chunk`` must end at the latest: the next chunk, else the index."""
+        after = bisect.bisect_right(self.starts, chunk.pos)
+        return self.starts[after] if after < len(self.starts) else self.index_pos
+
+
+def read_index(path: Path) -> BagIndex:
+    """The index of the ROS 1 bag ``path`` (its records read, not the chunks they point to).
+
+    Raises
+    ------
+    IndexDamage
+        When the bag header or a record of the index cannot be read, or the index points outside
+        the file.
+    """
+    size = path.stat().st_size
+    try:
+        with path.open("rb") as stream:
+            if stream.read(len(_MAGIC)) != _MAGIC:
+                msg = "not a ROS bag 2.0 file"
+                raise _Damage(msg)
+            header = _read_record(stream, size)
+            if header is None:
+                msg = "no bag header"
+                raise _Damage(msg)
+            index_pos = _uint(header[0], "index_pos", "<Q")
+            conn_count = _uint(header[0], "conn_count", "<I")
+            chunk_count = _uint(header[0], "chunk_count", "<I")
+            if not stream.tell() <= index_pos < size:
+                msg = f"the bag header places its index at byte {index_pos}, outside the file"
+                raise _Damage(msg)
+            if conn_count > _MAX_CONNECTIONS:
+                msg = f"more than {_MAX_CONNECTIONS} connections"
+                raise _Damage(msg)
+            stream.seek(index_pos)
+            connections = []
+            for _ in range(conn_count):
+                fields, data = _index_record(stream, size, _OP_CONNECTION)
+                connections.append(_connection(fields, data))
+            chunks = []
+            for _ in range(chunk_count):
+                fields, data = _index_record(stream, size, _OP_CHUNK_INFO)
+                chunks.append(_chunk_info(fields, data, index_pos))
+    except (_Damage, OSError) as err:
+        raise IndexDamage(str(err)) from err
+    starts = tuple(sorted({c.pos for c in chunks}))
+    return BagIndex(size, index_pos, tuple(connections), tuple(chunks), starts)
+
+
+def _index_record(stream: BinaryIO, end: int, op: int) -> tuple[dict[str, bytes], bytes]:
+    record = _read_record(stream, end)
+    if record is None or _op(record[0]) != op:
+        msg = f"a record of the index at byte {stream.tell()} is not what its bag header counts"
+        raise _Damage(msg)
+    return record
+
+
+def _chunk_info(fields: dict[str, bytes], data: bytes, index_pos: int) -> ChunkInfo:
+    pos = _uint(fields, "chunk_pos", "<Q")
+    count = _uint(fields, "count", "<I")
+    if pos >= index_pos or len(data) != 8 * count:
+        msg = (
+            f"a chunk info of a chunk at byte {pos}, or of {count} connections in {len(data)} bytes"
+        )
+        raise _Damage(msg)
+    times = []
+    for name in ("start_time", "end_time"):
+        time = fields.get(name, b"")
+        if len(time) != 8:
+            msg = f"a chunk info without a valid {name} field"
+            raise _Damage(msg)
+        sec, nsec = struct.unpack("<II", time)
+        times.append(sec * 1_000_000_000 + nsec)
+    counts = dict(struct.iter_unpack("<II", data))
+    return ChunkInfo(pos, times[0], times[1], counts)
+
+
+def read_chunk(stream: BinaryIO, index: BagIndex, chunk: ChunkInfo) -> list[tuple[int, int, bytes]]:
+    """The ``(connection id, time ns, data)`` messages of the chunk ``chunk``, in file order.
+
+    Raises
+    ------
+    ValueError
+        When its record, its decompression or one of its records fails (the message says how).
+    """
+    try:
+        stream.seek(chunk.pos)
+        record = _read_record(stream, index.chunk_end(chunk))
+        if record is None or _op(record[0]) != _OP_CHUNK:
+            msg = "no chunk record where the index points"
+            raise _Damage(msg)
+        content = _decompress(*record, exact=False)
+        return [item for item in _chunk_items(content) if not isinstance(item, _Connection)]
+    except (_Damage, OSError) as err:
+        raise ValueError(str(err)) from err
+
+
+def chunk_messages(
+    stream: BinaryIO,
+    index: BagIndex,
+    conns: set[int],
+    skipped: list[SkippedChunk] | None,
+) -> Iterator[tuple[int, int, bytes]]:
+    """The ``(connection id, time ns, data)`` messages of the connections ``conns``, chunk by
+    chunk through ``index``, in rosbags' order: log time, then the connection's place in the index,
+    then the chunk's, then the message's place in its chunk.
+
+    Each chunk is read when its first message's time comes (memory: the chunks that overlap in
+    time, one for a recording). ``skipped``: a chunk that cannot be read is said there and skipped;
+    None: its ValueError is raised.
+    """
+    rank = {c.conn: k for k, c in enumerate(index.connections)}
+    tie = len(rank)  # messages of a connection the index does not list: left out (counted short)
+    queue: list[tuple[int, int, int, int, Any]] = [
+        (chunk.start_ns, -1, k, -1, chunk)
+        for k, chunk in enumerate(index.chunks)
+        if any(n and conn in conns for conn, n in chunk.counts.items())
+    ]
+    heapq.heapify(queue)
+    while queue:
+        _, _, k, place, item = heapq.heappop(queue)
+        if place >= 0:
+            yield item
+            continue
+        try:
+            messages = read_chunk(stream, index, item)
+        except ValueError as err:
+            if skipped is None:
+                raise
+            skipped.append(
+                SkippedChunk(item.pos, index.size, short(str(err), 120), item.start_ns, item.end_ns)
+            )
+            continue
+        for at, message in enumerate(messages):
+            if message[0] in conns:
+                heapq.heappush(queue, (message[1], rank.get(message[0], tie), k, at, message))
+
+
+def first_damaged_chunk(path: Path, index: BagIndex, *, headers_only: bool) -> str | None:
+    """Where and why the first chunk of ``index`` (in file order) that cannot be read is damaged,
+    in a few words; None when every one reads. ``headers_only``: the chunk records' headers and
+    lengths are checked, their data is not read."""
+    with path.open("rb") as stream:
+        for chunk in sorted(index.chunks, key=lambda c: c.pos):
+            try:
+                if headers_only:
+                    stream.seek(chunk.pos)
+                    fields = _fields(_read_block(stream, index.chunk_end(chunk), "header"))
+                    if _op(fields) != _OP_CHUNK:
+                        msg = "no chunk record where the index points"
+                        raise _Damage(msg)
+                    compression = fields.get("compression")
+                    if compression not in (b"none", b"bz2", b"lz4"):
+                        how = "no" if compression is None else f"unknown {compression!r}"
+                        msg = f"a chunk with {how} compression"
+                        raise _Damage(msg)
+                    raw = stream.read(4)
+                    length = struct.unpack("<I", raw)[0] if len(raw) == 4 else -1
+                    if not 0 <= length <= index.chunk_end(chunk) - stream.tell():
+                        msg = "a chunk whose data runs past the next record"
+                        raise _Damage(msg)
+                else:
+                    read_chunk(stream, index, chunk)
+            except (_Damage, ValueError) as err:
+                return _chunk_damage(chunk, index, str(err))
+    return None
+
+
+def _chunk_damage(chunk: ChunkInfo, index: BagIndex, reason: str) -> str:
+    """A damaged chunk in words: where, the session time it held, what --salvage does and why
+    (last: what a long line loses)."""
+    n = sum(chunk.counts.values())
+    start = min((c.start_ns for c in index.chunks if any(c.counts.values())), default=0)
+    first, last = ((t - start) / 1e9 for t in (chunk.start_ns, chunk.end_ns))
+    return (
+        f"the chunk at byte {chunk.pos} of {index.size} is damaged, the index intact: --salvage "
+        f"skips its {n} message(s) (+{first:.1f} s to +{last:.1f} s) and reads the rest "
+        f"({short(reason, 80)})"
+    )
+
+
+class Ros1IndexedReadBackend:
+    """A ROS 1 bag read through its own index when a chunk's record is damaged (rosbags, which
+    reads every chunk's header to open a bag, refuses it): for ``--salvage``, which skips the
+    damaged chunks (:attr:`skipped_chunks`) and reads the others. Counts and times are the
+    index's (declared); messages come in log-time order as rosbags gives them."""
+
+    profile = ""
+    format = "ros1"
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self.channels: tuple[Channel, ...] = ()
+        self._by_conn: dict[int, Channel] = {}
+        self.start_ns = 0
+        self.end_ns = 0
+        self.qos_style: QosStyle | None = None
+        self.stream: BinaryIO | None = None
+        self.index: BagIndex | None = None
+        self.skipped_chunks: list[SkippedChunk] = []
+
+    def open(self) -> None:
+        """Read the index (IndexDamage when it cannot be read)."""
+        self.index = index = read_index(self.path)
+        self.stream = self.path.open("rb")
+        counts: dict[int, int] = {}
+        for chunk in index.chunks:
+            for conn, n in chunk.counts.items():
+                counts[conn] = counts.get(conn, 0) + n
+        channels: list[Channel] = []
+        for c in index.connections:
+            if c.conn in self._by_conn:
+                continue
+            channel = Channel(
+                id=len(channels),
+                topic=c.topic,
+                msgtype=normalize_msgtype(c.msgtype),
+                message_encoding="ros1",
+                msgdef=c.definition,
+                msgdef_encoding="ros1msg" if c.definition else "",
+                digest=c.md5sum,
+                message_count=counts.get(c.conn, 0),
+                callerid=c.callerid,
+                latching=c.latching,
+            )
+            channels.append(channel)
+            self._by_conn[c.conn] = channel
+        self.channels = tuple(channels)
+        timed = [c for c in index.chunks if any(c.counts.values())]
+        if timed:
+            self.start_ns = min(c.start_ns for c in timed)
+            self.end_ns = max(c.end_ns for c in timed)
+
+    def messages(self, topics: set[str] | None) -> Iterator[RawMessage]:
+        assert self.stream is not None and self.index is not None
+        by_conn = self._by_conn
+        conns = {conn for conn, ch in by_conn.items() if topics is None or ch.topic in topics}
+        for conn, time_ns, data in chunk_messages(
+            self.stream, self.index, conns, self.skipped_chunks
+        ):
+            yield RawMessage(by_conn[conn], time_ns, data, time_ns)
+
+    def close(self) -> None:
+        if self.stream is not None:
+            self.stream.close()
+            self.stream = None

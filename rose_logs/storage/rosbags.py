@@ -23,6 +23,7 @@ from rose_logs.storage.connections import (
     require_definition,
     warn_no_definition,
 )
+from rose_logs.storage.mcap import SkippedChunk
 from rose_logs.storage.records import Channel, RawMessage, normalize_msgtype
 
 __all__ = ["Ros1WriteBackend", "Ros2WriteBackend", "RosbagsReadBackend"]
@@ -45,6 +46,10 @@ class RosbagsReadBackend:
         self.start_ns = 0
         self.end_ns = 0
         self.qos_style: QosStyle | None = None
+        #: ``--salvage`` (ROS 1): a chunk that cannot be read is skipped and said in
+        #: :attr:`skipped_chunks`, and the chunks after it are read (else it is an error).
+        self.skip_damaged_chunks = False
+        self.skipped_chunks: list[SkippedChunk] = []
 
     def open(self) -> None:
         if self.format == "db3":
@@ -173,10 +178,50 @@ class RosbagsReadBackend:
             conns = [c for c in self.reader.connections if c.topic in topics]
             if not conns:
                 return
-        for conn, timestamp, data in self.reader.messages(connections=conns or ()):
-            if not isinstance(data, bytes | memoryview) or not _valid_time(timestamp):
-                raise LogReadError(self._damaged_row(conn.topic, timestamp, data))
-            yield RawMessage(by_conn[id(conn)], int(timestamp), data, int(timestamp))
+        if self.format == "ros1" and self.skip_damaged_chunks:
+            yield from self._around_damaged_chunks(conns)
+            return
+        try:
+            for conn, timestamp, data in self.reader.messages(connections=conns or ()):
+                if not isinstance(data, bytes | memoryview) or not _valid_time(timestamp):
+                    raise LogReadError(self._damaged_row(conn.topic, timestamp, data))
+                yield RawMessage(by_conn[id(conn)], int(timestamp), data, int(timestamp))
+        except Exception as err:
+            problem = self._damaged_chunk() if self.format == "ros1" else None
+            if problem is None:
+                raise
+            msg = f"{self.path}: {problem}"
+            raise LogReadError(msg) from err
+
+    def _damaged_chunk(self) -> str | None:
+        """The first chunk of a ROS 1 bag that cannot be read, in words (None: none, or no
+        index to find them by): what a failed read is said as."""
+        from rose_logs.storage.ros1_stream import IndexDamage, first_damaged_chunk, read_index
+
+        try:
+            return first_damaged_chunk(self.path, read_index(self.path), headers_only=False)
+        except (IndexDamage, OSError):
+            return None
+
+    def _around_damaged_chunks(self, conns: list[Any] | None) -> Iterator[RawMessage]:
+        """A ROS 1 bag's messages read chunk by chunk through its index, in rosbags' order,
+        skipping the chunks that cannot be read (:attr:`skipped_chunks`): a flipped byte in one
+        chunk loses that chunk's messages, not the rest of the bag."""
+        from rose_logs.storage.ros1_stream import IndexDamage, chunk_messages, read_index
+
+        try:
+            index = read_index(self.path)
+        except IndexDamage:  # rosbags read it: read as rosbags does (stopping at a damaged chunk)
+            self.skip_damaged_chunks = False
+            yield from self.messages(None if conns is None else {c.topic for c in conns})
+            return
+        by_id = {conn.id: self._by_conn[id(conn)] for conn in self.reader.connections}
+        wanted = {conn.id for conn in (conns or self.reader.connections)}
+        with self.path.open("rb") as stream:
+            for conn_id, time_ns, data in chunk_messages(
+                stream, index, wanted, self.skipped_chunks
+            ):
+                yield RawMessage(by_id[conn_id], time_ns, data, time_ns)
 
     def _damaged_row(self, topic: str, timestamp: object, data: object) -> str:
         """What is wrong with a message a SQLite bag stores (its columns take any type: a NULL or

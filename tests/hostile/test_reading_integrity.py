@@ -399,6 +399,178 @@ def test_the_record_by_record_reader_decompresses_ros1_chunks(
     assert _in_file_order(packed)  # every message, as rosbags reads them
 
 
+@pytest.fixture(scope="module")
+def ros1_bags(
+    ros1_bag: tuple[Path, list], tmp_path_factory: pytest.TempPathFactory
+) -> dict[str, Path]:
+    """The CARMEN session bag as written (uncompressed chunks) and rewritten with bz2 and lz4
+    chunks, each of several chunks."""
+    from rosbags.rosbag1 import Reader, Writer
+
+    bag, _ = ros1_bag
+    bags = {"none": bag}
+    for compression in ("bz2", "lz4"):
+        packed = tmp_path_factory.mktemp("ros1") / f"{compression}.bag"
+        with Reader(bag) as reader:
+            writer = Writer(packed)
+            writer.set_compression(getattr(Writer.CompressionFormat, compression.upper()))
+            writer.chunk_threshold = 200_000
+            with writer:
+                conns = {
+                    c.id: writer.add_connection(
+                        c.topic, c.msgtype, msgdef=c.msgdef.data, md5sum=c.digest,
+                        callerid=c.ext.callerid, latching=c.ext.latching,
+                    )
+                    for c in reader.connections
+                }  # fmt: skip
+                for conn, t, data in reader.messages():
+                    writer.write(conns[conn.id], t, data)
+        bags[compression] = packed
+    return bags
+
+
+def _chunk_infos(bag: Path) -> list[tuple[int, int, int]]:
+    """``(position, messages, end time ns)`` of each chunk of ``bag``, in file order."""
+    from rosbags.rosbag1 import Reader
+
+    with Reader(bag) as reader:
+        infos = [
+            (int(c.pos), sum(c.connection_counts.values()), int(c.end_time) - 1)
+            for c in reader.chunk_infos
+        ]
+    return sorted(infos)
+
+
+def _damage_a_middle_chunk(bag: Path, out: Path, where: str) -> tuple[int, int]:
+    """A copy of ``bag`` with one byte flipped in its middle chunk: in the record's header (the
+    '=' of its first field) or at the start of its data (the first record's length, or the
+    compressed stream's magic); the chunk's ``(position, messages)``."""
+    import struct
+
+    data = bytearray(bag.read_bytes())
+    chunks = _chunk_infos(bag)
+    assert len(chunks) >= 4
+    pos, count, _ = chunks[len(chunks) // 2]
+    if where == "header":
+        at = data.index(b"=", pos + 8)
+    else:
+        header_length = struct.unpack_from("<I", data, pos)[0]
+        at = pos + 4 + header_length + 4 + 3
+    data[at] ^= 0x5A
+    out.write_bytes(bytes(data))
+    return pos, count
+
+
+@pytest.mark.parametrize("where", ["payload", "header"])
+@pytest.mark.parametrize("compression", ["none", "bz2", "lz4"])
+def test_salvage_skips_only_the_damaged_chunk_of_a_ros1_bag(
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    ros1_bags: dict[str, Path],
+    compression: str,
+    where: str,
+) -> None:
+    """One flipped byte in a middle chunk lost every chunk after it (1 of 14 maps kept), and a
+    damaged chunk header was said as an index that cannot be read although the index was intact:
+    the index leads past the damaged chunk, as for MCAP."""
+    bag = ros1_bags[compression]
+    log = tmp_path / "in.bag"
+    pos, count = _damage_a_middle_chunk(bag, log, where)
+    size = log.stat().st_size
+    code, _, err = _run(capsys, "process", log, "--no-output", "-q")
+    assert code == 1 and len(err.splitlines()) == 1, err
+    assert err.startswith(
+        f"error: {log}: the chunk at byte {pos} of {size} is damaged, the index intact: "
+        f"--salvage skips its {count} message(s) ("
+    )
+    assert "index cannot be read" not in err
+    out, report = tmp_path / "o.bag", tmp_path / "r.json"
+    code, summary, err = _run(
+        capsys, "process", log, "-o", out, "--json", report, "-q", "--salvage"
+    )
+    assert code == EXIT_SALVAGED, err
+    assert "\nlosses       " in summary
+    assert err.count("skipped a damaged chunk at byte") == 1, err
+    assert f"at byte {pos} of {size}" in err
+    whole = _messages(bag)
+    with LogReader(log, salvage=True) as reader:
+        kept = [(m.channel.topic, m.log_time_ns, bytes(m.data)) for m in reader.messages()]
+        losses = reader.losses
+    # That chunk's messages only are lost; the others come in the order of the intact bag.
+    assert len(kept) == len(whole) - count
+    assert kept == [m for m in whole if m in set(kept)]
+    assert max(t for _, t, _ in kept) == max(t for _, t, _ in whole)
+    assert any(f"read {len(kept)} of {len(whole)} messages the log declares" in x for x in losses)
+    salvaged = json.loads(report.read_text())
+    maps = [t for topic, t, _ in whole if topic == "/map"]
+    assert len(salvaged["snapshots"]) == sum(1 for topic, _, _ in kept if topic == "/map")
+    assert len(maps) / 2 < len(salvaged["snapshots"]) <= len(maps)
+    with LogReader(out) as reader:  # a complete bag of what was kept
+        assert reader.message_count >= len(kept)
+
+
+def test_salvage_reads_past_damaged_index_entries_of_a_ros1_bag_and_loses_nothing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], ros1_bags: dict[str, Path]
+) -> None:
+    """A damaged index data record after a middle chunk (rosbags cannot open the bag) kept only
+    the chunks before it: the chunks are read through the chunk infos, every message kept."""
+    bag = ros1_bags["bz2"]
+    data = bytearray(bag.read_bytes())
+    pos = _chunk_infos(bag)[len(_chunk_infos(bag)) // 2][0]
+    data[data.index(b"op=\x04", pos) + 2] ^= 0x5A  # its op field loses its '='
+    log = tmp_path / "in.bag"
+    log.write_bytes(bytes(data))
+    code, _, err = _run(capsys, "process", log, "--no-output", "-q")
+    assert code == 1 and "--salvage" in err and len(err.splitlines()) == 1
+    code, _, err = _run(capsys, "process", log, "--no-output", "-q", "--salvage")
+    assert code == 0, err
+    assert "read chunk by chunk through its chunk infos" in err
+    with LogReader(log, salvage=True) as reader:
+        kept = [(m.channel.topic, m.log_time_ns, bytes(m.data)) for m in reader.messages()]
+        assert not reader.losses
+    assert kept == _messages(bag)
+
+
+@pytest.mark.parametrize("compression", ["none", "bz2"])
+def test_salvage_reads_an_intact_ros1_bag_as_rosbags_orders_it(
+    ros1_bags: dict[str, Path], compression: str
+) -> None:
+    """The salvaging reader reads the chunks itself: on an intact bag it gives what rosbags gives,
+    in the same order, for every topic and for some."""
+    bag = ros1_bags[compression]
+    with LogReader(bag, salvage=True) as reader:
+        salvaged = [(m.channel.topic, m.log_time_ns, bytes(m.data)) for m in reader.messages()]
+        assert not reader.losses
+        some = [m.log_time_ns for m in reader.messages(topics={"/map"})]
+        assert not reader.losses
+    assert salvaged == _messages(bag)
+    with LogReader(bag) as reader:
+        assert some == [m.log_time_ns for m in reader.messages(topics={"/map"})]
+
+
+def test_info_on_a_ros1_bag_with_a_damaged_chunk_counts_what_it_read(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], ros1_bags: dict[str, Path]
+) -> None:
+    """info --salvage printed the declared count of the map topic and no loss: it read one map of
+    a bag that holds 14, stopping at a damaged chunk."""
+    log = tmp_path / "in.bag"
+    pos, _ = _damage_a_middle_chunk(ros1_bags["bz2"], log, "payload")
+    with LogReader(ros1_bags["bz2"]) as reader:
+        maps = sum(1 for _ in reader.messages(topics={"/map"}))
+    code, out, err = _run(capsys, "info", log)
+    assert code == 1 and out == "" and len(err.splitlines()) == 1
+    assert f"the chunk at byte {pos} " in err and "--salvage" in err
+    code, out, err = _run(capsys, "info", log, "--salvage")
+    assert code == EXIT_SALVAGED, err
+    assert "(declared)" in out and f"skipped a damaged chunk at byte {pos} " in out
+    read = sum(topic == "/map" for topic, _, _ in _messages(log, salvage=True))
+    said = [line for line in out.splitlines() if "messages the log declares" in line]
+    if read < maps:  # the chunk held maps: the map topic is counted short
+        assert len(said) == 1 and f"/map {read} of {maps}" in said[0], out
+    else:
+        assert not said, out
+
+
 def _ros1_record(fields: dict[str, bytes], data: bytes) -> bytes:
     import struct
 
