@@ -105,11 +105,16 @@ def placed_grid(
 
 
 def _tiles(
-    mask: npt.NDArray[np.bool_], r0: int, c0: int, tile_px: int
+    mask: npt.NDArray[np.bool_],
+    r0: int,
+    c0: int,
+    tile_px: int,
+    origin: tuple[int, int] = (0, 0),
 ) -> tuple[npt.NDArray[np.bool_], int, int]:
-    """Which tiles of the later grid's tile lattice hold a ``True`` cell of ``mask`` (placed at
-    ``(r0, c0)``); returns the tile flags and the later-grid cell of tile (0, 0)."""
-    tr, tc = r0 - r0 % tile_px, c0 - c0 % tile_px
+    """Which tiles of the lattice through the later-grid cell ``origin`` hold a ``True`` cell of
+    ``mask`` (placed at ``(r0, c0)``); returns the tile flags and the later-grid cell of tile
+    (0, 0)."""
+    tr, tc = r0 - (r0 - origin[0]) % tile_px, c0 - (c0 - origin[1]) % tile_px
     h, w = mask.shape[0] + r0 - tr, mask.shape[1] + c0 - tc
     hp, wp = -(-h // tile_px) * tile_px, -(-w // tile_px) * tile_px
     padded = np.zeros((hp, wp), dtype=bool)
@@ -448,6 +453,7 @@ def contradicted_walls(
     free_threshold: int = 50,
     rise_points: int = 15,
     rise_margin_px: int = 4,
+    tile_origin_px: tuple[int, int] = (0, 0),
 ) -> WallContradiction:
     """What of ``earlier`` ``later`` contradicts: erased walls and risen evidence (module notes).
 
@@ -483,6 +489,10 @@ def contradicted_walls(
     rise_margin_px : int
         Risen cells count only farther than this (chessboard distance) from every cell of
         ``earlier`` that is not known free (wall, unknown, uncertain).
+    tile_origin_px : tuple of int
+        ``(row, col)`` of a ``later`` cell that is a tile's first (any cell of the lattice, inside
+        the grid or not): the map frame's origin keeps the tiles, so the score and region, of grids
+        of one map alike however they grew.
 
     Returns
     -------
@@ -514,6 +524,9 @@ def contradicted_walls(
     if not integer_number(window_px) or window_px < 1:
         msg = f"window_px must be an integer >= 1, got {window_px!r}"
         raise RoseError(msg)
+    if not pair_of(tile_origin_px, integer_number):
+        msg = f"tile_origin_px must be two integers (row, col), got {tile_origin_px!r}"
+        raise RoseError(msg)
     established = int(np.count_nonzero(earlier >= occupied_threshold))
     placed = _placed(earlier, later, offset_px)
     erased = _erased_box(
@@ -538,7 +551,8 @@ def contradicted_walls(
     if erased_px + risen_px == 0:
         return WallContradiction(0, 0, 0, 0, established, None, tile_px, window_px)
     contradicted, r0, c0 = _union(erased, risen)
-    tiles, tr, tc = _tiles(contradicted, r0, c0, tile_px)
+    origin = (int(tile_origin_px[0]), int(tile_origin_px[1]))
+    tiles, tr, tc = _tiles(contradicted, r0, c0, tile_px, origin)
     side = max(-(-window_px // tile_px), 1)
     peak, wi, wj = _densest_window(tiles, side)
     # The contradicted cells inside the window, in later-grid cells.

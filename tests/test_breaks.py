@@ -207,3 +207,16 @@ def test_inputs_that_misled_or_crashed_the_detector_are_rose_errors() -> None:
         with pytest.raises(RoseError, match=match):
             contradicted_walls(earlier, later, **kwargs)  # type: ignore[arg-type]
     assert contradicted_walls(room, room, offset_px=(np.int64(0), np.int32(0))).peak_tiles == 0
+
+
+def test_a_tile_origin_must_be_two_integers() -> None:
+    grid = np.zeros((20, 20), dtype=np.int8)
+    for bad in ((1.5, 0), (1,), "ab", None):
+        with pytest.raises(RoseError, match="tile_origin_px must be two integers"):
+            contradicted_walls(grid, grid, tile_origin_px=bad)  # type: ignore[arg-type]
+    # Any cell of the lattice: 3 and 3 + 5k start the same tiles.
+    wall = grid.copy()
+    wall[10, 2:18] = 100
+    a = contradicted_walls(wall, grid, tile_px=5, tile_origin_px=(3, 3), min_extent_px=1)
+    b = contradicted_walls(wall, grid, tile_px=5, tile_origin_px=(-7, 13), min_extent_px=1)
+    assert (a.peak_tiles, a.region_px) == (b.peak_tiles, b.region_px)

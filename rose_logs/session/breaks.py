@@ -319,6 +319,19 @@ def _offset_px(
     return round(row), round(col)
 
 
+def _frame_origin_px(snapshot: MapSnapshot) -> tuple[int, int]:
+    """``(row, col)`` of the map frame's origin in ``snapshot``'s grid, to the nearest cell: the
+    break score's tiles start there, so that a grid that grew on its negative side (its origin
+    moved by cells) is tiled as before and its score and region do not change."""
+    res = snapshot.resolution_m
+    yaw = snapshot.origin_yaw_rad
+    dx, dy = -snapshot.origin_position_m[0], -snapshot.origin_position_m[1]
+    c, s = math.cos(yaw), math.sin(yaw)
+    col, row = (c * dx + s * dy) / res, (-s * dx + c * dy) / res
+    # Far-away origins (UTM coordinates) give huge cell numbers: only the lattice's phase matters.
+    return round(row), round(col)
+
+
 def _region_m(
     snapshot: MapSnapshot, region_px: tuple[int, int, int, int]
 ) -> tuple[float, float, float, float]:
@@ -562,4 +575,5 @@ class BreakDetector:
             free_threshold=p.free_threshold,
             rise_points=p.rise_points,
             rise_margin_px=round(p.rise_margin_m / res),
+            tile_origin_px=_frame_origin_px(snapshot),
         )

@@ -485,3 +485,19 @@ def test_the_anchor_moves_up_to_checked_snapshots(plan, broken) -> None:
     assert state.anchor[0] == 8 and state.trusted[0] == 9
     with pytest.raises(ValueError, match="anchor_s"):
         BreakParams(anchor_s=0.0)
+
+
+def test_a_grid_grown_on_its_negative_side_breaks_alike(plan, broken) -> None:
+    """The same broken map padded by 0, 37 or 200 cells on its negative side (its origin moved
+    with it, the building where it was): the score's tiles followed the grid, and a 37-cell pad
+    gave 81.25 m instead of 78.75 m and a region 4.6 m away. They start at the map frame's origin."""
+    results = []
+    for pad in (0, 37, 200):
+        grown = np.full((broken.shape[0] + pad, broken.shape[1] + pad), -1, dtype=np.int8)
+        grown[pad:, pad:] = broken
+        detector = BreakDetector(BreakParams(threshold_m=1.0))
+        detector.update(_snap(plan, 0))
+        origin = (-5.0 - pad * RES, -3.0 - pad * RES)
+        verdict = detector.update(_snap(grown, 1, origin=origin))
+        results.append((verdict.score_m, tuple(round(v, 6) for v in verdict.region_m)))
+    assert results[0] == results[1] == results[2]
