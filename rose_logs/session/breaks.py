@@ -15,8 +15,10 @@ walls with it: each snapshot agrees with the one before) is caught by an *anchor
 snapshot, at most ``anchor_s`` of log time behind, which the snapshots are compared with too (every
 ``anchor_s / 6`` and every eighth snapshot at least, and every snapshot while the topic is broken); the anchor moves up to a
 snapshot that agrees with both once it is ``anchor_s`` old. A snapshot that contradicts the last
-trusted one but agrees with the anchor is the map returning to the anchor's (a loop closure undoing
-a drift): not a break (:attr:`BreakScore.returned_from`).
+trusted one but agrees with the anchor, where the anchor knew most of the contradicted cells, is
+the map returning to the anchor's (a loop closure undoing a drift): not a break
+(:attr:`BreakScore.returned_from`). Where the anchor knew nothing (space mapped since), agreeing
+with it means nothing: a break.
 
 Snapshots that cannot be compared with the trusted one (another resolution, a rotated origin, an
 origin shifted by a fraction of a cell) restart the comparison: score 0, and they become trusted.
@@ -424,7 +426,11 @@ class BreakDetector:
             else:
                 checked_ns, checked_index = snapshot.log_time_ns, index
                 against_anchor = self._score(anchor, snapshot, anchor_offset)
-                if verdict.broken and not against_anchor.broken:
+                if (
+                    verdict.broken
+                    and not against_anchor.broken
+                    and self._anchor_knew(anchor[1], anchor_offset, trusted[1], offset, snapshot)
+                ):
                     returned_from, returned_from_m = trusted[0], verdict.score_m
                     verdict = against_anchor
                 elif against_anchor.score_m > verdict.score_m:
@@ -502,6 +508,45 @@ class BreakDetector:
             region,
             found.contradicted_tiles * found.tile_px * res,
         )
+
+    def _anchor_knew(
+        self,
+        anchor: MapSnapshot,
+        anchor_offset: tuple[int, int],
+        trusted: MapSnapshot,
+        trusted_offset: tuple[int, int],
+        snapshot: MapSnapshot,
+    ) -> bool:
+        """Whether the anchor knew (free or occupied) most of the cells where ``snapshot``
+        contradicts the trusted snapshot: then agreeing with the anchor is the map returning to it.
+        A break in space mapped after the anchor contradicts nothing of it (its cells were
+        unknown there): no return, a break."""
+        from rose.breaks import erased_walls, placed_grid, risen_evidence
+
+        p = self.params
+        res = snapshot.resolution_m
+        pieces = {
+            "offset_px": trusted_offset,
+            "min_extent_px": round(p.min_wall_m / res),
+            "bridge_px": round(p.bridge_m / res),
+            "free_threshold": p.free_threshold,
+        }
+        contradicted = erased_walls(
+            trusted.grid,
+            snapshot.grid,
+            tolerance_px=round(p.tolerance_m / res),
+            occupied_threshold=p.occupied_threshold,
+            **pieces,
+        ) | risen_evidence(
+            trusted.grid,
+            snapshot.grid,
+            rise_points=p.rise_points,
+            rise_margin_px=round(p.rise_margin_m / res),
+            **pieces,
+        )
+        known = placed_grid(anchor.grid, snapshot.grid.shape, anchor_offset) >= 0
+        total = int(np.count_nonzero(contradicted))
+        return total > 0 and 2 * int(np.count_nonzero(contradicted & known)) >= total
 
     def _blank(self, snapshot: MapSnapshot) -> bool:
         """Whether ``snapshot`` has no wall at all (a blank map establishes nothing)."""

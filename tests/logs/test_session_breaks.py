@@ -501,3 +501,18 @@ def test_a_grid_grown_on_its_negative_side_breaks_alike(plan, broken) -> None:
         verdict = detector.update(_snap(grown, 1, origin=origin))
         results.append((verdict.score_m, tuple(round(v, 6) for v in verdict.region_m)))
     assert results[0] == results[1] == results[2]
+
+
+def test_a_break_in_space_mapped_after_the_anchor_is_no_return(plan, broken) -> None:
+    """The right half explored after the anchor, then broken: the anchor, unknown there, agreed
+    with the broken map, which passed as the map returning to the anchor's (no break, and trusted
+    from then on). Agreeing with an anchor that knew nothing of the contradicted cells is no
+    return: a break (a reviewer's find)."""
+    partial = plan.copy()
+    partial[:, 180:] = -1  # the right half not yet explored
+    grids = [partial, partial, plan, plan, plan, broken, broken, broken]
+    detector = BreakDetector()
+    verdicts = [detector.update(_snap(g, i * 1_000_000_000)) for i, g in enumerate(grids)]
+    assert [v.broken for v in verdicts] == [False] * 5 + [True] * 3
+    assert all(v.returned_from is None for v in verdicts)
+    assert verdicts[5].trusted_index == 4 and verdicts[7].trusted_index == 4
