@@ -7,10 +7,11 @@ import dataclasses
 import json
 import logging
 import os
+import re
 import signal
 import sys
 import time
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Collection, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -221,8 +222,15 @@ def run_batch(
             before[rec.uri] = previous
     skipped = len(finished)
     _LOG.info("%d recordings, %d finished before, %d to do", len(recordings), skipped, len(todo))
-    with storage_errors(store.root):
-        redone = _redone(store, [rec for rec in todo if before[rec.uri] is None], options)
+    try:
+        redone = _redone(
+            store, [rec for rec in todo if before[rec.uri] is None], options, keys.values()
+        )
+    except Exception as err:  # only says why: the run's own steps report the store
+        # A store this run cannot read (denied, missing bucket) is said by the steps that need
+        # it, in their words: the reasons are no step of the run.
+        _LOG.debug("cannot tell why recordings are redone: %s", err)
+        redone = ()
     for reason, count in redone:
         _LOG.info("%d recording(s) redone: %s", count, reason)
     named_by = None  # the scheduler file, for errors
@@ -303,28 +311,29 @@ def run_batch(
 
 
 def _redone(
-    store: OutputStore, recordings: Sequence[Recording], options: RecordingOptions
+    store: OutputStore,
+    recordings: Sequence[Recording],
+    options: RecordingOptions,
+    keys: Collection[str],
 ) -> tuple[tuple[str, int], ...]:
     """Why ``recordings`` (none with a result under this run's key) have results stored under
     other keys: each reason (:func:`changed_settings`) and how many recordings it holds for, most
-    first. Reads the stored results only when some recording may have one."""
+    first. Reads only the stored results of other keys than this run's ``keys`` (a run that adds
+    recordings to a finished fleet reads none)."""
     if not recordings:
         return ()
-    # A result names its recording as json.dumps writes it (store_result): looked up as bytes
-    # first, so that only the few results of these recordings are parsed.
-    wanted = {f'"uri": {json.dumps(rec.uri)}'.encode(): rec for rec in recordings}
+    wanted = {rec.uri for rec in recordings}
     earlier: dict[str, list[Any]] = {}
-    for data in store.iter_folder(RESULTS_DIR, ".json"):
-        for needle, rec in wanted.items():
-            if needle not in data:
-                continue
-            try:
-                fields = json.loads(data)
-            except ValueError:
-                break
-            if isinstance(fields, dict) and fields.get("uri") == rec.uri:
-                earlier.setdefault(rec.uri, []).append(fields.get("settings"))
-            break
+    for data in store.iter_folder(RESULTS_DIR, ".json", skip={f"{key}.json" for key in keys}):
+        uri = _stored_uri(data)
+        if uri not in wanted:
+            continue
+        try:
+            fields = json.loads(data)
+        except ValueError:
+            continue
+        if isinstance(fields, dict) and fields.get("uri") == uri:
+            earlier.setdefault(uri, []).append(fields.get("settings"))
     reasons: dict[str, int] = {}
     for rec in recordings:
         if rec.uri not in earlier:
@@ -339,6 +348,25 @@ def _redone(
         why = changed_settings(nearest, now)
         reasons[why] = reasons.get(why, 0) + 1
     return tuple(sorted(reasons.items(), key=lambda item: (-item[1], item[0])))
+
+
+_URI_FIELD = re.compile(rb'"uri": "')
+
+
+def _stored_uri(data: bytes) -> str | None:
+    """The ``uri`` field of a stored result (as :func:`store_result` writes it), read without
+    parsing the rest (a result holds every snapshot's record); None if there is none."""
+    found = _URI_FIELD.search(data)
+    if found is None:
+        return None
+    try:
+        start = found.end() - 1  # the opening quote; a URI is far shorter than a megabyte
+        value, _ = json.JSONDecoder().raw_decode(
+            data[start : start + (1 << 20)].decode("utf-8", "replace")
+        )
+    except ValueError:
+        return None
+    return value if isinstance(value, str) else None
 
 
 def _same(result: RecordingResult, other: RecordingResult | None) -> bool:

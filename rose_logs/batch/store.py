@@ -11,7 +11,7 @@ import logging
 import os
 import re
 import shutil
-from collections.abc import Iterator, Mapping
+from collections.abc import Collection, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -358,17 +358,20 @@ class OutputStore:
             except OSError as err:
                 _LOG.warning("%s: cannot restore the previous file (%s)", self.uri(relative), err)
 
-    def iter_folder(self, relative: str, suffix: str) -> Iterator[bytes]:
-        """Content of every file of the folder ``relative`` whose name ends with ``suffix``, in
-        name order, one file at a time (a remote folder listed afresh: a worker process may have
-        written files since this process last listed it; none when the folder does not exist)."""
+    def iter_folder(
+        self, relative: str, suffix: str, *, skip: Collection[str] = ()
+    ) -> Iterator[bytes]:
+        """Content of every file of the folder ``relative`` whose name ends with ``suffix`` and is
+        not in ``skip`` (file names), in name order, one file at a time (a remote folder listed
+        afresh: a worker process may have written files since this process last listed it; none
+        when the folder does not exist)."""
         folder = self.uri(relative)
         if self.local:
             path = Path(_strip_file(folder))
             if not path.is_dir():
                 return
             for entry in sorted(path.iterdir()):
-                if entry.name.endswith(suffix) and entry.is_file():
+                if entry.name.endswith(suffix) and entry.name not in skip and entry.is_file():
                     yield entry.read_bytes()
             return
         self.fs.invalidate_cache(folder)
@@ -377,7 +380,7 @@ class OutputStore:
         except FileNotFoundError:
             return
         for name in names:
-            if name.endswith(suffix):
+            if name.endswith(suffix) and name.rsplit("/", 1)[-1] not in skip:
                 with contextlib.suppress(FileNotFoundError):
                     yield self.fs.cat_file(name)
 

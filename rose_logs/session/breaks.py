@@ -525,24 +525,25 @@ class BreakDetector:
 
         p = self.params
         res = snapshot.resolution_m
-        pieces = {
-            "offset_px": trusted_offset,
-            "min_extent_px": round(p.min_wall_m / res),
-            "bridge_px": round(p.bridge_m / res),
-            "free_threshold": p.free_threshold,
-        }
+        extent, bridge = round(p.min_wall_m / res), round(p.bridge_m / res)
         contradicted = erased_walls(
             trusted.grid,
             snapshot.grid,
+            offset_px=trusted_offset,
             tolerance_px=round(p.tolerance_m / res),
+            min_extent_px=extent,
+            bridge_px=bridge,
             occupied_threshold=p.occupied_threshold,
-            **pieces,
+            free_threshold=p.free_threshold,
         ) | risen_evidence(
             trusted.grid,
             snapshot.grid,
+            offset_px=trusted_offset,
             rise_points=p.rise_points,
             rise_margin_px=round(p.rise_margin_m / res),
-            **pieces,
+            min_extent_px=extent,
+            bridge_px=bridge,
+            free_threshold=p.free_threshold,
         )
         known = placed_grid(anchor.grid, snapshot.grid.shape, anchor_offset) >= 0
         total = int(np.count_nonzero(contradicted))

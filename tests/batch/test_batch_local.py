@@ -1546,3 +1546,33 @@ def test_a_full_disk_under_a_db3_output_is_an_io_error_retried_not_the_recording
     full["on"] = False  # space freed: tried again, not a stored failure
     (again,) = run_batch([recording], out, options=options).results
     assert again.status == "ok"
+
+
+def test_the_redone_scan_reads_only_results_of_other_settings(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Adding one recording to a finished fleet read every stored result (a GET each on an object
+    store) to say nothing; and each stored result was searched once per recording to do (1,000
+    recordings: 5 s). Results under this run's keys are not read, the others once each."""
+    from fleet import copy_recording
+
+    from rose_logs.batch.store import OutputStore
+
+    a = copy_recording(tmp_path / "in" / "a.mcap", "mcap", max_maps=2)
+    out = tmp_path / "out"
+    run_batch([a.parent], out)
+    copy_recording(tmp_path / "in" / "b.mcap", "mcap", max_maps=2)
+    read: list[int] = []
+    real = OutputStore.iter_folder
+
+    def counted(self, relative, suffix, *, skip=()):  # type: ignore[no-untyped-def]
+        for data in real(self, relative, suffix, skip=skip):
+            read.append(len(data))
+            yield data
+
+    monkeypatch.setattr(OutputStore, "iter_folder", counted)
+    report = run_batch([a.parent], out)
+    assert report.processed == 1 and report.redone == () and read == []
+    # With other options both are redone: the two stored results are read once each.
+    report = run_batch([a.parent], out, options=RecordingOptions(walls=True))
+    assert report.redone == (("options changed: walls", 2),) and len(read) == 2
