@@ -114,12 +114,10 @@ def _print_topics(
             known.append(name)
     counts.update(read)
     width = max((len(visible(t)) for t in counts), default=5)
-    from rose_logs.session.topics import is_costmap
+    from rose_logs.session.topics import default_map_topics
 
-    # As process picks them by default: costmaps only when the log has no other map.
-    skipped = {t for t in map_topics if is_costmap(t)}
-    if skipped == set(map_topics):
-        skipped = set()
+    # As process picks them by default: costmaps only when the log publishes no other map.
+    skipped = set(default_map_topics(channels)[2])
     print("\ntopics")
     for topic in sorted(counts):
         mark = "  [map]" if topic in map_topics else ""

@@ -23,6 +23,7 @@ from rose_logs.storage.records import Channel
 from rose_logs.storage.typesys import MAP_TYPE, UPDATE_TYPE, msgdef_for
 
 __all__ = [
+    "default_map_topics",
     "default_output_path",
     "find_map_topics",
     "is_costmap",
@@ -204,32 +205,42 @@ def select_topics(
         if unreadable:
             msg += f"; {unreadable[0].topic} {_why_not_a_map(unreadable[0])}"
         raise LogReadError(msg)
-    # A map topic declared but never published is no map of the session (its summary would say
-    # "snapshots 0", and a gate would fail on it); unless no topic has a message at all. Said, though:
-    # a gate passing a recording whose costmap never came out did not mention it.
+    chosen, declared_only, costmaps = default_map_topics(channels)
+    for topic in declared_only:
+        _LOG.warning(
+            "%s: a map topic the log declares but holds no message on: not analysed, "
+            "and no gate judges it",
+            topic,
+        )
+    for topic in costmaps:
+        _LOG.warning(
+            "%s: a costmap (a planner's obstacles: people, inflation), not analysed; "
+            "name it with --topic to analyse it",
+            topic,
+        )
+    return chosen
+
+
+def default_map_topics(
+    channels: Sequence[Channel],
+) -> tuple[tuple[str, ...], tuple[str, ...], tuple[str, ...]]:
+    """The map topics analysed when none is named, and those left out: declared but holding no
+    message, and costmaps (:func:`is_costmap`).
+
+    A map topic declared but never published is no map of the session (its summary would say
+    "snapshots 0", and a gate would fail on it), unless no topic has a message at all. A
+    navigation stack's costmaps are OccupancyGrids too, but of a planner's obstacles: people
+    walking by, inflated around every wall (analysed by default, a Nav2 recording's local costmap
+    failed the break gate on a person passing), unless they are all the log's published maps.
+    """
+    found = find_map_topics(channels)
     published = {c.topic for c in channels if c.message_count > 0}
     chosen = tuple(t for t in found if t in published) or found
-    for topic in found:
-        if topic not in chosen:
-            _LOG.warning(
-                "%s: a map topic the log declares but holds no message on: not analysed, "
-                "and no gate judges it",
-                topic,
-            )
-    # A navigation stack's costmaps are OccupancyGrids too, but of a planner's obstacles: people
-    # walking by, inflated around every wall. Analysed by default, a Nav2 recording's local costmap
-    # failed the break gate on a person passing. Unless they are all the log holds.
+    declared_only = tuple(t for t in found if t not in chosen)
     maps = tuple(t for t in chosen if not is_costmap(t))
-    if maps:
-        for topic in chosen:
-            if topic not in maps:
-                _LOG.warning(
-                    "%s: a costmap (a planner's obstacles: people, inflation), not analysed; "
-                    "name it with --topic to analyse it",
-                    topic,
-                )
-        chosen = maps
-    return chosen
+    if not maps:
+        return chosen, declared_only, ()
+    return maps, declared_only, tuple(t for t in chosen if t not in maps)
 
 
 def is_costmap(topic: str) -> bool:

@@ -1076,3 +1076,26 @@ def test_costmaps_are_left_out_unless_named_or_alone(tmp_path: Path, capsys, fr0
     code, out_text, err = _run(capsys, "process", alone.path, "--no-output", "--json", "-")
     assert code == 0 and "not analysed" not in err
     assert len(json.loads(out_text)["snapshots"]) == 2
+
+
+def test_info_marks_costmaps_as_process_picks_them(tmp_path: Path, capsys, fr079) -> None:
+    """/map declared but empty and a published costmap: process analyses the costmap (the only
+    published map), and info said it would not (it counted the declared /map)."""
+    from dataclasses import replace
+
+    from rose_logs.reader import LogReader
+    from rose_logs.writer import open_output
+
+    costmaps = [replace(m, topic="/local_costmap/costmap") for m in session_maps(fr079[:2])]
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", costmaps)
+    log = tmp_path / "declared.mcap"
+    with LogReader(built.path) as reader, open_output(log, "mcap", serialization="cdr") as out:
+        handles = {c.id: out.add_channel(c) for c in reader.channels}
+        out.add_topic("/map", "nav_msgs/msg/OccupancyGrid", latching=True)
+        for m in reader.messages():
+            out.write_raw(handles[m.channel.id], m.log_time_ns, m.data)
+    code, out_text, _ = _run(capsys, "process", log, "--no-output", "--json", "-")
+    assert code == 0
+    assert {s["topic"] for s in json.loads(out_text)["snapshots"]} == {"/local_costmap/costmap"}
+    code, out_text, _ = _run(capsys, "info", log)
+    assert "analysed only with --topic" not in out_text
