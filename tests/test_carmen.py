@@ -542,3 +542,16 @@ def test_convert_refuses_a_map_file_clashing_with_the_session_before_ray_casting
         assert main(["convert", str(path), *argv]) in (1, 2)
         assert said in capsys.readouterr().err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["log.txt"]
+
+
+@pytest.mark.parametrize("value", ["+-5", "-+7", "--3", "+" + "9" * 60 + "-"])
+def test_convert_max_scans_with_two_signs_is_no_integer(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], value: str
+) -> None:
+    """`+-5` read as a number of over 40 digits ("too large"); `-+7` as no integer."""
+    from rose_logs.cli import main
+
+    with pytest.raises(SystemExit) as stop:
+        main(["convert", "x.log", str(tmp_path / "s.mcap"), f"--max-scans={value}"])
+    assert stop.value.code == 2
+    assert f"expected an integer >= 1, got {value[:40]!r}" in capsys.readouterr().err

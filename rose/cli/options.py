@@ -145,7 +145,8 @@ def int_in_range(low: int, high: int) -> Any:
     """argparse type factory: an integer in ``[low, high]`` (usage error otherwise)."""
 
     def parse(text: str) -> int:
-        digits = text.strip().removeprefix("+").removeprefix("-")
+        stripped = text.strip()
+        digits = stripped[1:] if stripped[:1] in ("+", "-") else stripped  # one sign at most
         try:
             value = int(text, 10) if len(text) <= 40 else None
         except ValueError:
