@@ -13,7 +13,7 @@ broken snapshot after a trusted one starts a break (:attr:`BreakScore.started`).
 A drift too slow to break between two snapshots (a map redrawn from a pose graph moves its old
 walls with it: each snapshot agrees with the one before) is caught by an *anchor*: an older trusted
 snapshot, at most ``anchor_s`` of log time behind, which the snapshots are compared with too (every
-``anchor_s / 6`` and every eighth snapshot at least, and every snapshot while the topic is broken); the anchor moves up to a
+``anchor_s / 6`` and every eighth snapshot at least, and every snapshot while a drift it found lasts); the anchor moves up to a
 snapshot that agrees with both once it is ``anchor_s`` old. A snapshot that contradicts the last
 trusted one but agrees with the anchor, where the anchor knew most of the contradicted cells, is
 the map returning to the anchor's (a loop closure undoing a drift): not a break
@@ -359,8 +359,9 @@ _ANCHOR_EVERY = 8
 class _TopicState:
     """What the detector keeps of one topic: snapshots seen (``count``), the last trusted snapshot
     and the anchor (``(index, snapshot)``), when the anchor was last compared with (log time, ns;
-    snapshot index),
-    whether the last snapshot was broken and whether the trusted one has no wall (``blank``)."""
+    snapshot index), whether the last snapshot was broken (``by_anchor``: a break that the anchor
+    held at some snapshot, against the trusted one or not since) and whether the trusted one has no
+    wall (``blank``)."""
 
     count: int
     trusted: tuple[int, MapSnapshot]
@@ -369,6 +370,7 @@ class _TopicState:
     anchor_checked_index: int
     broken: bool
     blank: bool
+    by_anchor: bool = False
 
     @classmethod
     def start(cls, index: int, snapshot: MapSnapshot, blank: bool) -> _TopicState:
@@ -416,6 +418,7 @@ class BreakDetector:
                 return dataclasses.replace(_CLEAR, incomparable_with=trusted[0])
             return _CLEAR
         verdict = self._score(trusted, snapshot, offset)
+        against_trusted_broken = verdict.broken
         returned_from, returned_from_m = None, 0.0
         anchor, checked_ns = state.anchor, state.anchor_checked_ns
         checked_index = state.anchor_checked_index
@@ -441,6 +444,8 @@ class BreakDetector:
                 state,
                 count=index + 1,
                 broken=True,
+                # Once the anchor held it, for the rest of the break (its end may be a return).
+                by_anchor=(state.broken and state.by_anchor) or not against_trusted_broken,
                 anchor=anchor,
                 anchor_checked_ns=checked_ns,
                 anchor_checked_index=checked_index,
@@ -470,17 +475,23 @@ class BreakDetector:
     def _anchor_due(
         self, state: _TopicState, snapshot: MapSnapshot, index: int, broken: bool
     ) -> bool:
-        """Whether ``snapshot`` (the topic's ``index``-th) is also compared with the anchor: when
-        it breaks against the trusted one (it may have returned to the anchor's map), while the
-        topic is broken, when the anchor is old enough to move up, and at least every sixth of
+        """Whether ``snapshot`` (the topic's ``index``-th; ``broken`` against the trusted one) is
+        also compared with the anchor.
+
+        While the topic is broken: on every snapshot when the anchor holds the break (a drift: the
+        snapshots agree with the trusted one), never when the trusted one does (its end is the
+        trusted one's to say; a session broken for good paid a second comparison per snapshot).
+        Otherwise: when the snapshot breaks against the trusted one (it may be the map returning
+        to the anchor's), when the anchor is old enough to move up, and at least every sixth of
         ``anchor_s`` and every :data:`_ANCHOR_EVERY` snapshots (maps many times a second drift
         within a few seconds)."""
         if self.params.anchor_s == math.inf:
             return False
+        if state.broken:
+            return state.by_anchor
         now = snapshot.log_time_ns
         return (
             broken
-            or state.broken
             or now - state.anchor[1].log_time_ns >= self._anchor_ns
             or now - state.anchor_checked_ns >= self._anchor_ns / 6
             or index - state.anchor_checked_index >= _ANCHOR_EVERY

@@ -516,3 +516,26 @@ def test_a_break_in_space_mapped_after_the_anchor_is_no_return(plan, broken) -> 
     assert [v.broken for v in verdicts] == [False] * 5 + [True] * 3
     assert all(v.returned_from is None for v in verdicts)
     assert verdicts[5].trusted_index == 4 and verdicts[7].trusted_index == 4
+
+
+def test_a_break_the_trusted_snapshot_holds_is_not_compared_with_the_anchor_again(
+    plan, broken
+) -> None:
+    """A session broken for good (the one-hour benchmark's) compared every broken snapshot with
+    the anchor too: twice the detector's time. Only its first broken snapshot is (it may be the
+    map returning to the anchor's); a drift the anchor found is checked on every snapshot."""
+    detector = BreakDetector(BreakParams(threshold_m=1.0))
+    calls: list[int] = []
+    real = detector.compare
+
+    def counted(*args, **kwargs):  # type: ignore[no-untyped-def]
+        calls.append(1)
+        return real(*args, **kwargs)
+
+    detector.compare = counted  # type: ignore[method-assign]
+    period = 5_000_000_000
+    for i, g in enumerate([plan] * 3 + [broken] * 20):
+        before = len(calls)
+        verdict = detector.update(_snap(g, i * period))
+        if i >= 4:  # broken since snapshot 3
+            assert verdict.broken and len(calls) - before == 1
