@@ -78,6 +78,21 @@ class _Connection:
     callerid: str | None
     latching: int | None
 
+    def channel(self, channel_id: int, message_count: int) -> Channel:
+        """This connection as the reader's channel ``channel_id`` of ``message_count`` messages."""
+        return Channel(
+            id=channel_id,
+            topic=self.topic,
+            msgtype=normalize_msgtype(self.msgtype),
+            message_encoding="ros1",
+            msgdef=self.definition,
+            msgdef_encoding="ros1msg" if self.definition else "",
+            digest=self.md5sum,
+            message_count=message_count,
+            callerid=self.callerid,
+            latching=self.latching,
+        )
+
 
 def _fields(block: bytes) -> dict[str, bytes]:
     """The ``name=value`` fields of a record header (or of a connection record's data)."""
@@ -295,18 +310,7 @@ class Ros1StreamReadBackend:
             self.complete = False
         channels: list[Channel] = []
         for conn, c in connections.items():
-            channel = Channel(
-                id=len(channels),
-                topic=c.topic,
-                msgtype=normalize_msgtype(c.msgtype),
-                message_encoding="ros1",
-                msgdef=c.definition,
-                msgdef_encoding="ros1msg" if c.definition else "",
-                digest=c.md5sum,
-                message_count=counts.get(conn, 0),
-                callerid=c.callerid,
-                latching=c.latching,
-            )
+            channel = c.channel(len(channels), counts.get(conn, 0))
             channels.append(channel)
             self._by_conn[conn] = channel
         self.channels = tuple(channels)
@@ -696,18 +700,7 @@ class Ros1IndexedReadBackend:
         for c in index.connections:
             if c.conn in self._by_conn:
                 continue
-            channel = Channel(
-                id=len(channels),
-                topic=c.topic,
-                msgtype=normalize_msgtype(c.msgtype),
-                message_encoding="ros1",
-                msgdef=c.definition,
-                msgdef_encoding="ros1msg" if c.definition else "",
-                digest=c.md5sum,
-                message_count=counts.get(c.conn, 0),
-                callerid=c.callerid,
-                latching=c.latching,
-            )
+            channel = c.channel(len(channels), counts.get(c.conn, 0))
             channels.append(channel)
             self._by_conn[c.conn] = channel
         self.channels = tuple(channels)

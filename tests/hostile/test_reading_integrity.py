@@ -379,13 +379,41 @@ def test_salvage_reads_a_ros1_bag_that_was_never_closed(
 def test_the_record_by_record_reader_decompresses_ros1_chunks(
     tmp_path: Path, compression: str
 ) -> None:
-    from rosbags.rosbag1 import Reader, Writer
 
     plain, packed = tmp_path / "plain.bag", tmp_path / "packed.bag"
     write_session(plain, "ros1")
-    with Reader(plain) as reader:
-        writer = Writer(packed)
+    _rewrite_bag(plain, packed, compression)
+    assert _in_file_order(packed)  # every message, as rosbags reads them
+
+
+@pytest.fixture(scope="module")
+def ros1_bags(
+    ros1_bag: tuple[Path, list], tmp_path_factory: pytest.TempPathFactory
+) -> dict[str, Path]:
+    """The CARMEN session bag as written (uncompressed chunks) and rewritten with bz2 and lz4
+    chunks, each of several chunks."""
+
+    bag, _ = ros1_bag
+    bags = {"none": bag}
+    for compression in ("bz2", "lz4"):
+        packed = tmp_path_factory.mktemp("ros1") / f"{compression}.bag"
+        _rewrite_bag(bag, packed, compression.upper(), chunk_threshold=200_000)
+        bags[compression] = packed
+    return bags
+
+
+def _rewrite_bag(
+    source: Path, target: Path, compression: str, *, chunk_threshold: int | None = None
+) -> None:
+    """``source`` (a ROS 1 bag) written again by rosbags with ``compression`` (``BZ2``, ``LZ4``)
+    chunks, of ``chunk_threshold`` bytes when given."""
+    from rosbags.rosbag1 import Reader, Writer
+
+    with Reader(source) as reader:
+        writer = Writer(target)
         writer.set_compression(getattr(Writer.CompressionFormat, compression))
+        if chunk_threshold is not None:
+            writer.chunk_threshold = chunk_threshold
         with writer:
             conns = {
                 c.id: writer.add_connection(
@@ -396,37 +424,6 @@ def test_the_record_by_record_reader_decompresses_ros1_chunks(
             }  # fmt: skip
             for conn, t, data in reader.messages():
                 writer.write(conns[conn.id], t, data)
-    assert _in_file_order(packed)  # every message, as rosbags reads them
-
-
-@pytest.fixture(scope="module")
-def ros1_bags(
-    ros1_bag: tuple[Path, list], tmp_path_factory: pytest.TempPathFactory
-) -> dict[str, Path]:
-    """The CARMEN session bag as written (uncompressed chunks) and rewritten with bz2 and lz4
-    chunks, each of several chunks."""
-    from rosbags.rosbag1 import Reader, Writer
-
-    bag, _ = ros1_bag
-    bags = {"none": bag}
-    for compression in ("bz2", "lz4"):
-        packed = tmp_path_factory.mktemp("ros1") / f"{compression}.bag"
-        with Reader(bag) as reader:
-            writer = Writer(packed)
-            writer.set_compression(getattr(Writer.CompressionFormat, compression.upper()))
-            writer.chunk_threshold = 200_000
-            with writer:
-                conns = {
-                    c.id: writer.add_connection(
-                        c.topic, c.msgtype, msgdef=c.msgdef.data, md5sum=c.digest,
-                        callerid=c.ext.callerid, latching=c.ext.latching,
-                    )
-                    for c in reader.connections
-                }  # fmt: skip
-                for conn, t, data in reader.messages():
-                    writer.write(conns[conn.id], t, data)
-        bags[compression] = packed
-    return bags
 
 
 def _chunk_infos(bag: Path) -> list[tuple[int, int, int]]:

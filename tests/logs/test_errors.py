@@ -257,19 +257,25 @@ def test_a_gate_fails_on_a_topic_whose_maps_w_never_judged(tmp_path: Path, capsy
     assert "the gate cannot judge it (--fail-above, --fail-on-break)" in err
 
 
-def test_a_map_topic_declared_but_never_published_is_no_map_of_the_session(
-    tmp_path: Path, capsys, fr079
-) -> None:
+def _with_declared_map(source: Path, target: Path, topic: str) -> Path:
+    """``source`` (an MCAP file of ROS 2 messages) copied to ``target`` with one more map topic,
+    ``topic``, declared but holding no message."""
     from rose_logs.reader import LogReader
     from rose_logs.writer import open_output
 
-    built = build_log(tmp_path / "in.mcap", "mcap-ros2", session_maps(fr079[:2]))
-    log = tmp_path / "declared.mcap"
-    with LogReader(built.path) as reader, open_output(log, "mcap", serialization="cdr") as out:
+    with LogReader(source) as reader, open_output(target, "mcap", serialization="cdr") as out:
         handles = {c.id: out.add_channel(c) for c in reader.channels}
-        out.add_topic("/robot2/map", "nav_msgs/msg/OccupancyGrid", latching=True)
+        out.add_topic(topic, "nav_msgs/msg/OccupancyGrid", latching=True)
         for m in reader.messages():
             out.write_raw(handles[m.channel.id], m.log_time_ns, m.data)
+    return target
+
+
+def test_a_map_topic_declared_but_never_published_is_no_map_of_the_session(
+    tmp_path: Path, capsys, fr079
+) -> None:
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", session_maps(fr079[:2]))
+    log = _with_declared_map(built.path, tmp_path / "declared.mcap", "/robot2/map")
     code, out_text, err = _run(capsys, "process", log, "--no-output", "--fail-above", "0.9")
     assert code == 0
     assert "/robot2/map" not in out_text
@@ -1083,17 +1089,9 @@ def test_info_marks_costmaps_as_process_picks_them(tmp_path: Path, capsys, fr079
     published map), and info said it would not (it counted the declared /map)."""
     from dataclasses import replace
 
-    from rose_logs.reader import LogReader
-    from rose_logs.writer import open_output
-
     costmaps = [replace(m, topic="/local_costmap/costmap") for m in session_maps(fr079[:2])]
     built = build_log(tmp_path / "in.mcap", "mcap-ros2", costmaps)
-    log = tmp_path / "declared.mcap"
-    with LogReader(built.path) as reader, open_output(log, "mcap", serialization="cdr") as out:
-        handles = {c.id: out.add_channel(c) for c in reader.channels}
-        out.add_topic("/map", "nav_msgs/msg/OccupancyGrid", latching=True)
-        for m in reader.messages():
-            out.write_raw(handles[m.channel.id], m.log_time_ns, m.data)
+    log = _with_declared_map(built.path, tmp_path / "declared.mcap", "/map")
     code, out_text, _ = _run(capsys, "process", log, "--no-output", "--json", "-")
     assert code == 0
     assert {s["topic"] for s in json.loads(out_text)["snapshots"]} == {"/local_costmap/costmap"}
