@@ -13,8 +13,10 @@ broken snapshot after a trusted one starts a break (:attr:`BreakScore.started`).
 A drift too slow to break between two snapshots (a map redrawn from a pose graph moves its old
 walls with it: each snapshot agrees with the one before) is caught by an *anchor*: an older trusted
 snapshot, at most ``anchor_s`` of log time behind, which the snapshots are compared with too (every
-``anchor_s / 6`` and every eighth snapshot at least, and every snapshot while a drift it found lasts); the anchor moves up to a
-snapshot that agrees with both once it is ``anchor_s`` old. A snapshot that contradicts the last
+``anchor_s / 6`` and every eighth snapshot at least, and every snapshot while a drift it found
+lasts) and which breaks them at twice ``threshold_m`` (a log-odds map's own growth over a minute
+contradicts more than over a few seconds); the anchor moves up to a snapshot that agrees with both
+once it is ``anchor_s`` old. A snapshot that contradicts the last
 trusted one but agrees with the anchor, where the anchor knew most of the contradicted cells, is
 the map returning to the anchor's (a loop closure undoing a drift): not a break
 (:attr:`BreakScore.returned_from`). Where the anchor knew nothing (space mapped since), agreeing
@@ -436,8 +438,12 @@ class BreakDetector:
                 ):
                     returned_from, returned_from_m = trusted[0], verdict.score_m
                     verdict = against_anchor
-                elif against_anchor.score_m > verdict.score_m:
-                    verdict = against_anchor  # drifted away from the anchor: since the anchor
+                elif against_anchor.score_m >= self._anchor_threshold_m and (
+                    against_anchor.score_m > verdict.score_m
+                ):
+                    # Drifted away from the anchor: broken since the anchor. (Under the anchor's
+                    # own threshold, a minute of a log-odds map's growth: the trusted one says.)
+                    verdict = dataclasses.replace(against_anchor, broken=True)
         started = verdict.broken and not state.broken
         if verdict.broken:
             self._state[topic] = dataclasses.replace(
@@ -471,6 +477,15 @@ class BreakDetector:
     @property
     def _anchor_ns(self) -> float:
         return self.params.anchor_s * 1e9
+
+    @property
+    def _anchor_threshold_m(self) -> float:
+        """Score against the anchor from which a snapshot is broken: twice ``threshold_m``. A
+        minute of a log-odds map's own growth contradicts more than a few seconds' (a faint line
+        across a hall: the correct Freiburg 101 and 079 sessions at 5 s per map broke against the
+        anchor at 1.25-2 m, and stayed broken); 2.5 m kept the correct sessions quiet with
+        snapshots 60 and 120 s apart (README, Measured). Scores are whole tiles: no float noise."""
+        return 2.0 * self.params.threshold_m * (1.0 - 1e-9)
 
     def _anchor_due(
         self, state: _TopicState, snapshot: MapSnapshot, index: int, broken: bool

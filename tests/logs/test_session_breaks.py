@@ -539,3 +539,24 @@ def test_a_break_the_trusted_snapshot_holds_is_not_compared_with_the_anchor_agai
         verdict = detector.update(_snap(g, i * period))
         if i >= 4:  # broken since snapshot 3
             assert verdict.broken and len(calls) - before == 1
+
+
+def test_the_anchor_breaks_at_twice_the_threshold() -> None:
+    """A minute of a log-odds map's own growth contradicts more than a few seconds' (the correct
+    Freiburg 101 and 079 sessions at 5 s per map broke against the anchor at 1.25-2 m, and stayed
+    broken): against the anchor a snapshot breaks at twice the threshold. A wall erased 0.25 m a
+    snapshot: under 1 m against the snapshot before, no break until 2 m are gone since the anchor."""
+    room = np.zeros((300, 360), dtype=np.int8)
+    room[150:152, 20:340] = 100  # a wall 16 m long, known free space around it
+    grids = []
+    for step in range(16):
+        grid = room.copy()
+        grid[150:152, 20 : 20 + 5 * step] = 0  # 0.25 m more of it gone each snapshot
+        grids.append(grid)
+    detector = BreakDetector(BreakParams(threshold_m=1.0))
+    verdicts = [detector.update(_snap(g, i * 2_000_000_000)) for i, g in enumerate(grids)]
+    assert all(v.score_m < 1.0 for v in verdicts[:6])  # each snapshot against the one before
+    erased_m = [0.25 * i for i in range(16)]
+    first = next(i for i, v in enumerate(verdicts) if v.broken)
+    assert erased_m[first] >= 2.0  # not at 1 m against the anchor: twice the threshold
+    assert verdicts[first].trusted_index == 0 and verdicts[first].score_m >= 2.0
