@@ -5,7 +5,6 @@ from __future__ import annotations
 import contextlib
 import errno
 import functools
-import itertools
 import logging
 import os
 from collections.abc import Iterator
@@ -205,38 +204,23 @@ class RosbagsReadBackend:
             return None
 
     def _around_damaged_chunks(self, conns: list[Any] | None) -> Iterator[RawMessage]:
-        """A ROS 1 bag's messages, in rosbags' order, skipping the chunks that cannot be read
-        (:attr:`skipped_chunks`): a flipped byte in one chunk loses that chunk's messages, not the
-        rest of the bag.
-
-        Read by rosbags until a chunk fails (reading every chunk through the index in Python
-        took four times as long on an intact bag), then chunk by chunk through the index from
-        where rosbags stopped: the same order, less the damaged chunk (which rosbags fails on
-        before giving any of its messages), so the messages already given are passed over.
-        """
+        """A ROS 1 bag's messages read chunk by chunk through its index, in rosbags' order,
+        skipping the chunks that cannot be read (:attr:`skipped_chunks`): a flipped byte in one
+        chunk loses that chunk's messages, not the rest of the bag."""
         from rose_logs.storage.ros1_stream import IndexDamage, chunk_messages, read_index
 
-        by_conn = self._by_conn
-        given = 0
         try:
-            for conn, timestamp, data in self.reader.messages(connections=conns or ()):
-                yield RawMessage(by_conn[id(conn)], int(timestamp), data, int(timestamp))
-                given += 1
+            index = read_index(self.path)
+        except IndexDamage:  # rosbags read it: read as rosbags does (stopping at a damaged chunk)
+            self.skip_damaged_chunks = False
+            yield from self.messages(None if conns is None else {c.topic for c in conns})
             return
-        except Exception as err:
-            try:
-                index = read_index(self.path)
-            except IndexDamage:  # no index to go on by: the failure as rosbags read it
-                problem = self._damaged_chunk()
-                if problem is None:
-                    raise err from None
-                msg = f"{self.path}: {problem}"
-                raise LogReadError(msg) from err
-        by_id = {conn.id: by_conn[id(conn)] for conn in self.reader.connections}
+        by_id = {conn.id: self._by_conn[id(conn)] for conn in self.reader.connections}
         wanted = {conn.id for conn in (conns or self.reader.connections)}
         with self.path.open("rb") as stream:
-            read = chunk_messages(stream, index, wanted, self.skipped_chunks)
-            for conn_id, time_ns, data in itertools.islice(read, given, None):
+            for conn_id, time_ns, data in chunk_messages(
+                stream, index, wanted, self.skipped_chunks
+            ):
                 yield RawMessage(by_id[conn_id], time_ns, data, time_ns)
 
     def _damaged_row(self, topic: str, timestamp: object, data: object) -> str:

@@ -545,23 +545,6 @@ def test_salvage_reads_an_intact_ros1_bag_as_rosbags_orders_it(
         assert some == [m.log_time_ns for m in reader.messages(topics={"/map"})]
 
 
-def test_salvage_reads_an_intact_ros1_bag_with_rosbags(
-    ros1_bags: dict[str, Path], monkeypatch: pytest.MonkeyPatch
-) -> None:
-    """Reading every chunk through the index in Python took four times rosbags' time on an intact
-    bag (the maps of 300k messages: 1.67 s against 0.45 s): the index's reader takes over only
-    once a chunk fails."""
-    import rose_logs.storage.ros1_stream as ros1_stream
-
-    def refused(*_args: object, **_kwargs: object) -> None:
-        raise AssertionError("an intact bag read chunk by chunk")
-
-    monkeypatch.setattr(ros1_stream, "chunk_messages", refused)
-    with LogReader(ros1_bags["bz2"], salvage=True) as reader:
-        assert sum(1 for _ in reader.messages(topics={"/map"})) > 0
-        assert not reader.losses
-
-
 def test_info_on_a_ros1_bag_with_a_damaged_chunk_counts_what_it_read(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], ros1_bags: dict[str, Path]
 ) -> None:
