@@ -17,8 +17,9 @@ snapshot, at most ``anchor_s`` of log time behind, which the snapshots are compa
 lasts) and which breaks them at twice ``threshold_m`` (a log-odds map's own growth over a minute
 contradicts more than over a few seconds); the anchor moves up to a snapshot that agrees with both
 once it is ``anchor_s`` old. A snapshot that contradicts the last
-trusted one but agrees with the anchor, where the anchor knew most of the contradicted cells, is
-the map returning to the anchor's (a loop closure undoing a drift): not a break
+trusted one but agrees with the anchor (under twice ``threshold_m`` and at most half its score
+against the trusted one), where the anchor knew most of the contradicted cells, is the map
+returning to the anchor's (a loop closure undoing a drift): not a break
 (:attr:`BreakScore.returned_from`). Where the anchor knew nothing (space mapped since), agreeing
 with it means nothing: a break.
 
@@ -187,6 +188,9 @@ class BreakScore:
         otherwise.
     returned_from_m : float
         With ``returned_from``: the score against it, metres (else 0).
+    threshold_m : float or None
+        The threshold the verdict was judged at when not the detector's: twice it, against the
+        anchor. None otherwise.
     """
 
     score_m: float
@@ -198,6 +202,7 @@ class BreakScore:
     incomparable_with: int | None = None
     returned_from: int | None = None
     returned_from_m: float = 0.0
+    threshold_m: float | None = None
 
 
 @dataclass(frozen=True)
@@ -234,7 +239,10 @@ class DetectedBreak:
     def from_score(
         cls, snapshot: MapSnapshot, index: int, verdict: BreakScore, threshold_m: float
     ) -> DetectedBreak:
-        """The event of a snapshot whose verdict ``started`` a break."""
+        """The event of a snapshot whose verdict ``started`` a break (``threshold_m``: the
+        detector's; the verdict's own when it has one, twice it against the anchor)."""
+        if verdict.threshold_m is not None:
+            threshold_m = verdict.threshold_m
         event = cls(
             topic=snapshot.topic,
             index=index,
@@ -420,7 +428,7 @@ class BreakDetector:
                 return dataclasses.replace(_CLEAR, incomparable_with=trusted[0])
             return _CLEAR
         verdict = self._score(trusted, snapshot, offset)
-        against_trusted_broken = verdict.broken
+        from_anchor = False
         returned_from, returned_from_m = None, 0.0
         anchor, checked_ns = state.anchor, state.anchor_checked_ns
         checked_index = state.anchor_checked_index
@@ -431,19 +439,27 @@ class BreakDetector:
             else:
                 checked_ns, checked_index = snapshot.log_time_ns, index
                 against_anchor = self._score(anchor, snapshot, anchor_offset)
+                anchor_broken = against_anchor.score_m >= self._anchor_threshold_m
                 if (
                     verdict.broken
-                    and not against_anchor.broken
+                    and not anchor_broken
+                    # Far closer to the anchor than to the trusted snapshot: a break contradicts
+                    # both alike (the anchor may hold a minute's growth more).
+                    and 2 * against_anchor.score_m <= verdict.score_m
                     and self._anchor_knew(anchor[1], anchor_offset, trusted[1], offset, snapshot)
                 ):
                     returned_from, returned_from_m = trusted[0], verdict.score_m
-                    verdict = against_anchor
-                elif against_anchor.score_m >= self._anchor_threshold_m and (
-                    against_anchor.score_m > verdict.score_m
+                    verdict = dataclasses.replace(against_anchor, broken=False)
+                elif anchor_broken and (
+                    against_anchor.score_m > verdict.score_m or (state.broken and state.by_anchor)
                 ):
-                    # Drifted away from the anchor: broken since the anchor. (Under the anchor's
-                    # own threshold, a minute of a log-odds map's growth: the trusted one says.)
-                    verdict = dataclasses.replace(against_anchor, broken=True)
+                    # Drifted away from the anchor: broken since the anchor, for the rest of the
+                    # break. (Under the anchor's own threshold, a minute of a log-odds map's
+                    # growth: the trusted one says.)
+                    verdict = dataclasses.replace(
+                        against_anchor, broken=True, threshold_m=2.0 * self.params.threshold_m
+                    )
+                    from_anchor = True
         started = verdict.broken and not state.broken
         if verdict.broken:
             self._state[topic] = dataclasses.replace(
@@ -451,7 +467,7 @@ class BreakDetector:
                 count=index + 1,
                 broken=True,
                 # Once the anchor held it, for the rest of the break (its end may be a return).
-                by_anchor=(state.broken and state.by_anchor) or not against_trusted_broken,
+                by_anchor=(state.broken and state.by_anchor) or from_anchor,
                 anchor=anchor,
                 anchor_checked_ns=checked_ns,
                 anchor_checked_index=checked_index,
@@ -494,17 +510,23 @@ class BreakDetector:
         also compared with the anchor.
 
         While the topic is broken: on every snapshot when the anchor holds the break (a drift: the
-        snapshots agree with the trusted one), never when the trusted one does (its end is the
-        trusted one's to say; a session broken for good paid a second comparison per snapshot).
+        snapshots agree with the trusted one); when the trusted one does, every half ``anchor_s``
+        and every :data:`_ANCHOR_EVERY` snapshots (a return in steps ends it; on every snapshot, a
+        session broken for good paid a second comparison per snapshot).
         Otherwise: when the snapshot breaks against the trusted one (it may be the map returning
         to the anchor's), when the anchor is old enough to move up, and at least every sixth of
         ``anchor_s`` and every :data:`_ANCHOR_EVERY` snapshots (maps many times a second drift
         within a few seconds)."""
         if self.params.anchor_s == math.inf:
             return False
-        if state.broken:
-            return state.by_anchor
         now = snapshot.log_time_ns
+        if state.broken:
+            # A break the trusted snapshot holds: every half ``anchor_s`` and every
+            # :data:`_ANCHOR_EVERY` snapshots, for a return that comes in steps.
+            return state.by_anchor or (
+                now - state.anchor_checked_ns >= self._anchor_ns / 2
+                or index - state.anchor_checked_index >= _ANCHOR_EVERY
+            )
         return (
             broken
             or now - state.anchor[1].log_time_ns >= self._anchor_ns
