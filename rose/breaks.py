@@ -132,6 +132,13 @@ def _densest_window(tiles: npt.NDArray[np.bool_], side: int) -> tuple[int, int, 
     return int(sums[i, j]), int(i), int(j)
 
 
+def _require_cell(value: object, name: str) -> None:
+    """RoseError unless ``value`` is a cell: two integers ``(row, col)``."""
+    if not pair_of(value, integer_number):
+        msg = f"{name} must be two integers (row, col), got {value!r}"
+        raise RoseError(msg)
+
+
 def _check(
     earlier: npt.ArrayLike,
     later: npt.ArrayLike,
@@ -167,9 +174,7 @@ def _check(
             )
             raise RoseError(msg)
         grids.append(array.astype(np.int8, copy=False))
-    if not pair_of(offset_px, integer_number):
-        msg = f"offset_px must be two integers (row, col), got {offset_px!r}"
-        raise RoseError(msg)
+    _require_cell(offset_px, "offset_px")
     kernels = {
         "tolerance_px": tolerance_px,
         "bridge_px": bridge_px,
@@ -524,9 +529,7 @@ def contradicted_walls(
     if not integer_number(window_px) or window_px < 1:
         msg = f"window_px must be an integer >= 1, got {window_px!r}"
         raise RoseError(msg)
-    if not pair_of(tile_origin_px, integer_number):
-        msg = f"tile_origin_px must be two integers (row, col), got {tile_origin_px!r}"
-        raise RoseError(msg)
+    _require_cell(tile_origin_px, "tile_origin_px")
     established = int(np.count_nonzero(earlier >= occupied_threshold))
     placed = _placed(earlier, later, offset_px)
     erased = _erased_box(

@@ -321,11 +321,7 @@ def _offset_px(
     extent = math.hypot(*trusted.shape) + math.hypot(*snapshot.shape)
     if _rotation_between(trusted, snapshot) * extent > max(rounding, _SAME_ROTATION_RAD):
         return None
-    yaw = snapshot.origin_yaw_rad
-    dx = trusted.origin_position_m[0] - snapshot.origin_position_m[0]
-    dy = trusted.origin_position_m[1] - snapshot.origin_position_m[1]
-    c, s = math.cos(yaw), math.sin(yaw)  # the shift in the grid's own axes
-    col, row = (c * dx + s * dy) / res, (-s * dx + c * dy) / res
+    row, col = _cells_of(snapshot, trusted.origin_position_m[0], trusted.origin_position_m[1])
     if abs(col - round(col)) > rounding or abs(row - round(row)) > rounding:
         return None
     return round(row), round(col)
@@ -335,13 +331,19 @@ def _frame_origin_px(snapshot: MapSnapshot) -> tuple[int, int]:
     """``(row, col)`` of the map frame's origin in ``snapshot``'s grid, to the nearest cell: the
     break score's tiles start there, so that a grid that grew on its negative side (its origin
     moved by cells) is tiled as before and its score and region do not change."""
-    res = snapshot.resolution_m
-    yaw = snapshot.origin_yaw_rad
-    dx, dy = -snapshot.origin_position_m[0], -snapshot.origin_position_m[1]
-    c, s = math.cos(yaw), math.sin(yaw)
-    col, row = (c * dx + s * dy) / res, (-s * dx + c * dy) / res
+    row, col = _cells_of(snapshot, 0.0, 0.0)
     # Far-away origins (UTM coordinates) give huge cell numbers: only the lattice's phase matters.
     return round(row), round(col)
+
+
+def _cells_of(snapshot: MapSnapshot, x_m: float, y_m: float) -> tuple[float, float]:
+    """``(row, col)`` of the map-frame point ``(x_m, y_m)`` in ``snapshot``'s grid, in cells (not
+    rounded; cell (0, 0)'s corner at 0)."""
+    res = snapshot.resolution_m
+    yaw = snapshot.origin_yaw_rad
+    dx, dy = x_m - snapshot.origin_position_m[0], y_m - snapshot.origin_position_m[1]
+    c, s = math.cos(yaw), math.sin(yaw)  # into the grid's own axes
+    return (-s * dx + c * dy) / res, (c * dx + s * dy) / res
 
 
 def _region_m(
