@@ -23,6 +23,7 @@ import bisect
 import bz2
 import heapq
 import io
+import itertools
 import struct
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -564,8 +565,15 @@ def _chunk_info(fields: dict[str, bytes], data: bytes, index_pos: int) -> ChunkI
     return ChunkInfo(pos, times[0], times[1], counts)
 
 
-def read_chunk(stream: BinaryIO, index: BagIndex, chunk: ChunkInfo) -> list[tuple[int, int, bytes]]:
-    """The ``(connection id, time ns, data)`` messages of the chunk ``chunk``, in file order.
+def read_chunk(
+    stream: BinaryIO, index: BagIndex, chunk: ChunkInfo, conns: set[int] | None = None
+) -> list[tuple[int, int, bytes]]:
+    """The ``(connection id, time ns, data)`` messages of the chunk ``chunk``, in file order: all
+    of them, or at least those of the connections ``conns``.
+
+    With ``conns``, the chunk's index data records (after it in the file) locate their messages,
+    and only those are parsed (a map among thousands of scans); when they are missing or disagree
+    with the chunk, every record is parsed instead.
 
     Raises
     ------
@@ -574,14 +582,61 @@ def read_chunk(stream: BinaryIO, index: BagIndex, chunk: ChunkInfo) -> list[tupl
     """
     try:
         stream.seek(chunk.pos)
-        record = _read_record(stream, index.chunk_end(chunk))
+        end = index.chunk_end(chunk)
+        record = _read_record(stream, end)
         if record is None or _op(record[0]) != _OP_CHUNK:
             msg = "no chunk record where the index points"
             raise _Damage(msg)
         content = _decompress(*record, exact=False)
+        if conns is not None:
+            located = _indexed_messages(stream, end, chunk, conns, content)
+            if located is not None:
+                return located
         return [item for item in _chunk_items(content) if not isinstance(item, _Connection)]
     except (_Damage, OSError) as err:
         raise ValueError(str(err)) from err
+
+
+def _indexed_messages(
+    stream: BinaryIO, end: int, chunk: ChunkInfo, conns: set[int], content: bytes
+) -> list[tuple[int, int, bytes]] | None:
+    """The messages of ``conns`` in ``content`` (a chunk's data), in file order, where the index
+    data records that follow the chunk (``stream`` is at the first) say they are; None when those
+    records are missing, damaged, or do not match the chunk info's counts or the records they
+    point to."""
+    wanted = {conn for conn, n in chunk.counts.items() if n and conn in conns}
+    offsets: list[tuple[int, int]] = []
+    seen: set[int] = set()
+    try:
+        while wanted - seen:
+            record = _read_record(stream, end)
+            if record is None or _op(record[0]) != _OP_INDEX_DATA:
+                return None
+            fields, data = record
+            conn = _uint(fields, "conn", "<I")
+            count = _uint(fields, "count", "<I")
+            if conn in wanted:
+                if conn in seen or count != chunk.counts[conn] or len(data) != 12 * count:
+                    return None
+                seen.add(conn)
+                offsets.extend((offset, conn) for _, _, offset in struct.iter_unpack("<III", data))
+        offsets.sort()
+        if any(a[0] == b[0] for a, b in itertools.pairwise(offsets)):
+            return None  # two entries at one record: a damaged offset
+        messages = []
+        view = io.BytesIO(content)
+        for offset, conn in offsets:
+            view.seek(offset)
+            record = _read_record(view, len(content))
+            if record is None or _op(record[0]) != _OP_MESSAGE:
+                return None
+            item = next(_record_items(_OP_MESSAGE, *record))
+            if not isinstance(item, tuple) or item[0] != conn:
+                return None
+            messages.append(item)
+    except _Damage:
+        return None
+    return messages
 
 
 def chunk_messages(
@@ -612,7 +667,7 @@ def chunk_messages(
             yield item
             continue
         try:
-            messages = read_chunk(stream, index, item)
+            messages = read_chunk(stream, index, item, conns)
         except ValueError as err:
             if skipped is None:
                 raise
