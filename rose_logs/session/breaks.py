@@ -190,7 +190,7 @@ class BreakScore:
         With ``returned_from``: the score against it, metres (else 0).
     threshold_m : float or None
         The threshold the verdict was judged at when not the detector's: twice it, against the
-        anchor. None otherwise.
+        anchor (an anchor's break or a return). None otherwise.
     """
 
     score_m: float
@@ -451,7 +451,10 @@ class BreakDetector:
                     and self._anchor_knew(anchor[1], anchor_offset, trusted[1], offset, snapshot)
                 ):
                     returned_from, returned_from_m = trusted[0], verdict.score_m
-                    verdict = dataclasses.replace(against_anchor, broken=False)
+                    # Judged at the anchor's threshold: its score may exceed the detector's.
+                    verdict = dataclasses.replace(
+                        against_anchor, broken=False, threshold_m=2.0 * self.params.threshold_m
+                    )
                 elif anchor_broken and (
                     against_anchor.score_m > verdict.score_m or (state.broken and state.by_anchor)
                 ):

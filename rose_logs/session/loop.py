@@ -956,7 +956,10 @@ class _Loop:
                 analysis.cleaning,
                 judged=record.judged,
             )
-            self.rerun.break_score(snapshot, verdict, index, self.detector.params.threshold_m)
+            # The threshold in force: twice the detector's against the anchor (a return's score
+            # may stand above the detector's own line, unbroken).
+            threshold_m = verdict.threshold_m or self.detector.params.threshold_m
+            self.rerun.break_score(snapshot, verdict, index, threshold_m)
             if verdict.incomparable_with is not None:
                 # In the viewer too: the break score falls to 0 there, which read as a recovery.
                 restart = (
@@ -1145,8 +1148,9 @@ def _returned_text(verdict: BreakScore) -> str | None:
     a loop closure undoing a drift, not a break."""
     if verdict.returned_from is None:
         return None
+    within = "" if verdict.threshold_m is None else f", under {verdict.threshold_m:.2f} m"
     return (
         f"contradicts snapshot {verdict.returned_from} ({verdict.returned_from_m:.2f} m) but "
-        f"agrees with snapshot {verdict.trusted_index}: it returned to that map (a loop closure "
-        "undoing a drift?), not a break"
+        f"agrees with snapshot {verdict.trusted_index} ({verdict.score_m:.2f} m{within}): it "
+        "returned to that map (a loop closure undoing a drift?), not a break"
     )

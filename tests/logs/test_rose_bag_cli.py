@@ -1066,7 +1066,8 @@ def test_a_map_returning_to_its_anchor_is_said_and_no_break(tmp_path: Path, caps
     assert code == 0
     (line,) = [x for x in err.splitlines() if "returned to that map" in x]
     assert line.startswith("warning: /map: the map at +0.5 s")
-    assert "contradicts snapshot 4 (" in line and "but agrees with snapshot 0" in line
+    assert "contradicts snapshot 4 (" in line and "but agrees with snapshot 0 (" in line
+    assert "m, under 2.50 m): it returned" in line  # the anchor's score, and its threshold
 
 
 @pytest.mark.parametrize("command", ["process", "convert"])

@@ -468,6 +468,9 @@ def test_a_return_to_the_anchor_is_no_break_even_unflagged(plan) -> None:
     verdicts = [detector.update(_snap(g, i * period)) for i, g in enumerate(grids)]
     assert not any(v.broken for v in verdicts)
     assert verdicts[5].returned_from == 4 and verdicts[5].trusted_index == 0
+    # Judged against the anchor, at the anchor's threshold (said with its score).
+    assert verdicts[5].threshold_m == 2 * BreakParams().threshold_m
+    assert all(v.threshold_m is None for v in verdicts[:5])
     # Without the anchor, the return was the break.
     without = BreakDetector(BreakParams(anchor_s=math.inf))
     assert [without.update(_snap(g, i * period)).broken for i, g in enumerate(grids)][-1]
