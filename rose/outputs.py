@@ -78,7 +78,7 @@ __all__ = [
     "print_any_file_name",
     "process_alive",
     "process_tag",
-    "refuse_log_in_bag_folder",
+    "refuse_output_in_bag_folder",
     "remove_stale_temporaries",
     "report_interrupt",
     "reraise_interrupt_behind",
@@ -737,15 +737,22 @@ def is_bag_folder(folder: Path | str) -> bool:
     return (Path(folder) / "metadata.yaml").is_file()
 
 
-def refuse_log_in_bag_folder(
-    path: Path | str | None, option: str = "-o", *, inputs: Iterable[Path | str] = ()
+def refuse_output_in_bag_folder(
+    path: Path | str | None,
+    option: str = "-o",
+    *,
+    what: str = "output log",
+    inputs: Iterable[Path | str] = (),
 ) -> None:
-    """Raise :class:`OutputError` if the output log ``path`` would be written inside an existing ROS 2
-    bag folder (:func:`is_bag_folder`; a symlink counts where it points): the bag's
-    ``metadata.yaml`` does not list the new file, and every later read of the bag warned of it.
-    Replacing a bag folder itself (``-o bag --format db3 --force``) is not this: that is the
-    output's own folder. ``option`` names the argument in the message. A bag folder that is or
-    holds one of ``inputs`` is left to :class:`OutputSet`, which says "inside the input"."""
+    """Raise :class:`OutputError` if the output ``path`` (a log, a Rerun recording, a report, a
+    map: ``what`` says which) would be written inside an existing ROS 2 bag folder
+    (:func:`is_bag_folder`; a symlink counts where it points). A bag folder is one recording: a
+    storage file its ``metadata.yaml`` does not list is warned of by every later read of the bag,
+    and any file put there goes wherever the bag goes, and with it (``-o bag --force`` replaces
+    the whole folder). Replacing a bag folder itself (``-o bag --format db3 --force``) is not
+    this: that is the output's own folder. ``option`` names the argument in the message. A bag
+    folder that is or holds one of ``inputs`` is left to :class:`OutputSet`, which says "inside
+    the input"."""
     if path is None or _is_stdout(Path(path)):
         return
     try:
@@ -754,7 +761,7 @@ def refuse_log_in_bag_folder(
         return
     if is_bag_folder(folder) and not any(_holds_input(folder, Path(i)) for i in inputs):
         msg = (
-            f"{path}: the output log is inside the ROS 2 bag folder {folder} (it has "
+            f"{path}: the {what} is inside the ROS 2 bag folder {folder} (it has "
             f"metadata.yaml): it would write into a recording; choose another {option}"
         )
         raise OutputError(msg)

@@ -17,7 +17,7 @@ from rose.cli.options import (
     path_arg,
 )
 from rose.limits import short, visible
-from rose.outputs import OutputSet, json_text, refuse_log_in_bag_folder, suffix_warning
+from rose.outputs import OutputSet, json_text, refuse_output_in_bag_folder, suffix_warning
 from rose_logs.cli.options import (
     EXIT_GATE,
     EXIT_SALVAGED,
@@ -267,7 +267,12 @@ def run(args: argparse.Namespace) -> int:
             raise UsageError(f"argument --connect: {err}") from err
     args.output = output_log_path(args.output, _output_format(args))
     output = None if args.no_output else (args.output or default_output_path(args.input, args.fmt))
-    refuse_log_in_bag_folder(args.output, inputs=[args.input])
+    for path, option, what in (
+        (args.output, "-o", "output log"),
+        (args.rrd, "--rrd", "Rerun recording"),
+        (args.json_path, "--json", "JSON report"),
+    ):
+        refuse_output_in_bag_folder(path, option, what=what, inputs=[args.input])
     # Only a name the user typed: the default (input name + .rose) has the output format's suffix.
     log_warning = None
     if args.output is not None and not args.fmt:

@@ -1096,6 +1096,58 @@ def test_an_output_log_inside_a_ros2_bag_folder_is_refused(
     assert sorted(p.name for p in bag.iterdir()) == ["metadata.yaml"]
 
 
+@pytest.mark.parametrize(
+    ("option", "name", "what"),
+    [
+        ("--rrd", "run.rrd", "Rerun recording"),
+        ("--json", "report.json", "JSON report"),
+        ("--map-file", "map.yaml", "map file"),
+    ],
+)
+def test_a_recording_report_or_map_inside_a_ros2_bag_folder_is_refused(
+    option: str, name: str, what: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`process run.mcap --json SOMEBAG/report.json` (or `--rrd`, or `convert --map-file`) exited 0
+    and put the file into the recording, where the output log was refused: the file went
+    wherever the bag went, and `-o SOMEBAG --force` deleted it with the bag."""
+    bag = tmp_path / "bag"
+    bag.mkdir()
+    (bag / "metadata.yaml").write_text("rosbag2_bagfile_information: {}\n")
+    output = bag / name
+    if option == "--map-file":
+        log = SAMPLE.parents[1] / "tests/data/radish_carmen_corrected_logs"
+        log = log / "csail-corrected.head400.log.gz"
+        argv = ["convert", str(log), str(tmp_path / "out.mcap"), option, str(output), "-q"]
+    else:
+        argv = ["process", str(SAMPLE), "--no-output", option, str(output), "-q"]
+    assert main(argv) == 1
+    assert capsys.readouterr().err == (
+        f"error: {output}: the {what} is inside the ROS 2 bag folder {bag.resolve()} (it "
+        f"has metadata.yaml): it would write into a recording; choose another {option}\n"
+    )
+    assert sorted(p.name for p in bag.iterdir()) == ["metadata.yaml"]
+    assert not (tmp_path / "out.mcap").exists()
+    # Beside the bag, the same run writes it.
+    argv[argv.index(str(output))] = str(tmp_path / name)
+    assert main(argv) == 0
+    assert (tmp_path / name).is_file()
+
+
+def test_a_report_inside_the_input_bag_folder_is_still_said_to_be_inside_the_input(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The input's own bag folder is the input: the refusal says so, not "another recording"."""
+    bag = tmp_path / "in"
+    assert main(["process", str(SAMPLE), "--format", "db3", "-o", str(bag), "-q"]) == 0
+    capsys.readouterr()
+    for option, name in (("--json", "r.json"), ("--rrd", "r.rrd")):
+        argv = ["process", str(bag), "--no-output", option, str(bag / name), "-q"]
+        assert main(argv) == 1
+        err = capsys.readouterr().err
+        assert err == f"error: {bag / name}: refusing to write inside the input {bag}\n"
+    assert sorted(p.name for p in bag.iterdir()) == ["in.db3", "metadata.yaml"]
+
+
 def test_a_bag_of_a_newer_rosbag2_version_is_said_so_in_our_words(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
