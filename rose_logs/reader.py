@@ -39,25 +39,20 @@ from rose_logs.storage.connections import QosStyle
 from rose_logs.storage.mcap import DamagedSummaryError, McapReadBackend, McapStreamReadBackend
 from rose_logs.storage.records import Channel, RawMessage
 from rose_logs.storage.ros1_stream import (
+    IndexDamage,
     Ros1IndexedReadBackend,
     Ros1StreamReadBackend,
+    damaged_index,
     first_damaged_chunk,
     unindexed_messages,
 )
-from rose_logs.storage.rosbags import RosbagsReadBackend
+from rose_logs.storage.rosbags import RosbagsReadBackend, library_text, rosbags_text
 
 __all__ = ["Channel", "LogReader", "MessageLossError", "RawMessage"]
 
 _LOG = logging.getLogger(__name__)
 
 _Backend = RosbagsReadBackend | McapReadBackend | Ros1StreamReadBackend | Ros1IndexedReadBackend
-
-
-def _library_text(err: BaseException) -> str:
-    """A library error as text. rosbags formats a wrapped error's args tuple into its message
-    ("...: ('Header could not be read from file.',)"): show the text, not the Python repr."""
-    text = _ONE_ITEM_TUPLE.sub(lambda m: m.group(2), str(err))
-    return text if text.strip() else type(err).__name__
 
 
 def _opened(backend: McapStreamReadBackend | Ros1StreamReadBackend) -> bool:
@@ -71,6 +66,12 @@ def _opened(backend: McapStreamReadBackend | Ros1StreamReadBackend) -> bool:
     return True
 
 
+def _unsupported(err: BaseException) -> bool:
+    """Whether rosbags refused a ROS 1 bag for a feature it does not read (encryption), not for
+    damage."""
+    return "encryption" in str(err).lower()
+
+
 def _corrupt(path: Path, err: BaseException) -> LogReadError:
     newer = _NEWER_BAG.search(str(err))
     if newer is not None:  # rosbags's words were "...not supported; please report issue."
@@ -78,7 +79,7 @@ def _corrupt(path: Path, err: BaseException) -> LogReadError:
             f"{path}: its metadata.yaml is of rosbag2 version {newer.group(1)}, newer than "
             f"rose-bag reads ({_rosbags_reads()})"
         )
-    return LogReadError(f"{path}: corrupt or truncated log ({short(_library_text(err), 160)})")
+    return LogReadError(f"{path}: corrupt or truncated log ({short(library_text(err), 160)})")
 
 
 #: rosbags's error for a ``metadata.yaml`` version it does not know.
@@ -99,9 +100,6 @@ def _rosbags_reads() -> str:
         return f"rosbags {version('rosbags')} reads {latest}"
     except PackageNotFoundError:
         return f"rosbags reads {latest}"
-
-
-_ONE_ITEM_TUPLE = re.compile(r"""\((['"])(.*?)\1,\)""")
 
 
 class MessageLossError(LogReadError):
@@ -202,7 +200,7 @@ class LogReader:
             else "ROS 1 bag, its index cannot be read (a recording that was not closed?)"
         )
         return LogReadError(
-            f"{self.path}: corrupt or truncated {what} ({short(_library_text(err), 120)}); {remedy}"
+            f"{self.path}: corrupt or truncated {what} ({short(library_text(err), 120)}); {remedy}"
         )
 
     def _without_summary(self, err: BaseException) -> McapStreamReadBackend | None:
@@ -224,9 +222,14 @@ class LogReader:
         """A ROS 1 bag that rosbags could not open (``err``) whose index is intact: a chunk's
         record damaged (rosbags reads every chunk's header to open a bag), or the index data
         records after one. An error naming the damaged chunk, or with ``--salvage`` the bag read
-        chunk by chunk through its index's chunk infos, around the damaged chunks. None when the
-        index cannot be read or leaves chunks out, or, without ``--salvage``, when no chunk's
-        record is damaged (the first error stands, or the bag is read record by record)."""
+        chunk by chunk through its index's chunk infos, around the damaged chunks.
+
+        Without ``--salvage``, a bag that was closed (its header places its index inside the
+        file) whose index is damaged is an error saying so: its index records do not read, or
+        leave chunks out, or, every chunk's record intact, rosbags could not read them (an
+        index data record after a chunk: rosbags fails an assertion, a bare ``AssertionError``).
+        None when there is no index to read (the first error stands, or ``--salvage`` reads the
+        bag record by record), or, with ``--salvage``, when the index leaves chunks out."""
         backend = Ros1IndexedReadBackend(self.path)
         try:
             backend.open()
@@ -237,10 +240,23 @@ class LogReader:
         except Exception as failure:  # the index is damaged too, or the file went away
             backend.close()
             reraise_interrupt_behind(failure)
+            if isinstance(failure, IndexDamage) and failure.in_index and not self.salvage:
+                msg = f"{self.path}: {damaged_index(str(failure), through_chunk_infos=False)}"
+                raise LogReadError(msg) from err
             return None
-        if unlisted is not None or (problem is None and not self.salvage):
+        if unlisted is not None:
             backend.close()
-            return None
+            if self.salvage or isinstance(err, LogError):  # (that error says it already)
+                return None
+            msg = f"{self.path}: {damaged_index(unlisted, through_chunk_infos=False)}"
+            raise LogReadError(msg) from err
+        if problem is None and not self.salvage:
+            backend.close()
+            # An error of ours says it already; an encrypted bag is no damage: rosbags' words.
+            if isinstance(err, LogError) or _unsupported(err):
+                return None
+            msg = f"{self.path}: {damaged_index(rosbags_text(err), through_chunk_infos=True)}"
+            raise LogReadError(msg) from err
         if not self.salvage:
             backend.close()
             msg = f"{self.path}: {problem}"
@@ -250,7 +266,7 @@ class LogReader:
                 "%s: the bag's index could not be used (%s); read chunk by chunk through its "
                 "chunk infos",
                 self.path,
-                short(_library_text(err), 120),
+                rosbags_text(err),
             )
         return backend
 

@@ -42,6 +42,7 @@ __all__ = [
     "Ros1IndexedReadBackend",
     "Ros1StreamReadBackend",
     "chunk_messages",
+    "damaged_index",
     "first_damaged_chunk",
     "read_index",
     "unindexed_messages",
@@ -464,7 +465,23 @@ def _ids(counts: dict[int, int]) -> str:
 
 
 class IndexDamage(Exception):
-    """The index section of a ROS 1 bag (its connection and chunk info records) cannot be read."""
+    """The index section of a ROS 1 bag (its connection and chunk info records) cannot be read.
+
+    ``in_index``: the bag header was read and places its index inside the file (a bag that was
+    closed), so the damage is in the index's records; False when there is no index to read (a
+    recording that was not closed, a file cut short before it, or no bag header).
+    """
+
+    def __init__(self, problem: str, *, in_index: bool = False) -> None:
+        super().__init__(problem)
+        self.in_index = in_index
+
+
+def damaged_index(problem: str, *, through_chunk_infos: bool) -> str:
+    """A ROS 1 bag's damaged index in words (``problem``: what is wrong) and what ``--salvage``
+    does then: reads the bag through its chunk infos (they are intact) or record by record."""
+    how = "chunk by chunk through its chunk infos" if through_chunk_infos else "record by record"
+    return f"the bag's index is damaged ({problem}); --salvage reads the bag {how}"
 
 
 @dataclass(frozen=True)
@@ -504,6 +521,7 @@ def read_index(path: Path) -> BagIndex:
         the file.
     """
     size = path.stat().st_size
+    in_index = False
     try:
         with path.open("rb") as stream:
             if stream.read(len(_MAGIC)) != _MAGIC:
@@ -523,6 +541,7 @@ def read_index(path: Path) -> BagIndex:
                 msg = f"more than {_MAX_CONNECTIONS} connections"
                 raise _Damage(msg)
             stream.seek(index_pos)
+            in_index = True
             connections = []
             for _ in range(conn_count):
                 fields, data = _index_record(stream, size, _OP_CONNECTION)
@@ -532,7 +551,7 @@ def read_index(path: Path) -> BagIndex:
                 fields, data = _index_record(stream, size, _OP_CHUNK_INFO)
                 chunks.append(_chunk_info(fields, data, index_pos))
     except (_Damage, OSError) as err:
-        raise IndexDamage(str(err)) from err
+        raise IndexDamage(str(err), in_index=in_index and isinstance(err, _Damage)) from err
     starts = tuple(sorted({c.pos for c in chunks}))
     return BagIndex(size, index_pos, tuple(connections), tuple(chunks), starts)
 

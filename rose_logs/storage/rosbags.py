@@ -7,6 +7,7 @@ import errno
 import functools
 import logging
 import os
+import re
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, Literal
@@ -128,16 +129,13 @@ class RosbagsReadBackend:
 
     def _check_ros1_index(self) -> None:
         """Refuse a bag whose index leaves chunks or messages out (rosbags reads what it lists)."""
-        from rose_logs.storage.ros1_stream import unindexed_messages
+        from rose_logs.storage.ros1_stream import damaged_index, unindexed_messages
 
         infos = getattr(self.reader, "chunk_infos", [])
         listed = {int(c.pos): dict(c.connection_counts) for c in infos}
         problem = unindexed_messages(self.path, listed)
         if problem is not None:
-            msg = (
-                f"{self.path}: the bag's index is damaged ({problem}); --salvage reads the bag "
-                "record by record"
-            )
+            msg = f"{self.path}: {damaged_index(problem, through_chunk_infos=False)}"
             raise LogReadError(msg)
 
     def _warn_unlisted_storage(self, information: dict[str, Any] | None) -> None:
@@ -187,21 +185,35 @@ class RosbagsReadBackend:
                     raise LogReadError(self._damaged_row(conn.topic, timestamp, data))
                 yield RawMessage(by_conn[id(conn)], int(timestamp), data, int(timestamp))
         except Exception as err:
-            problem = self._damaged_chunk() if self.format == "ros1" else None
+            problem = self._failed_read(err) if self.format == "ros1" else None
             if problem is None:
                 raise
             msg = f"{self.path}: {problem}"
             raise LogReadError(msg) from err
 
-    def _damaged_chunk(self) -> str | None:
-        """The first chunk of a ROS 1 bag that cannot be read, in words (None: none, or no
-        index to find them by): what a failed read is said as."""
-        from rose_logs.storage.ros1_stream import IndexDamage, first_damaged_chunk, read_index
+    def _failed_read(self, err: Exception) -> str | None:
+        """Why rosbags failed (``err``) to read a ROS 1 bag's messages, in words: the first chunk
+        that cannot be read, else, when every chunk reads, index entries that do not match the
+        messages they point to (rosbags fails an assertion on a message's time, or reads a
+        record where no message starts). None: no index to find the chunks by, or a failure
+        of the system (the first error stands)."""
+        from rose_logs.storage.ros1_stream import (
+            IndexDamage,
+            damaged_index,
+            first_damaged_chunk,
+            read_index,
+        )
 
         try:
-            return first_damaged_chunk(self.path, read_index(self.path), headers_only=False)
+            damaged = first_damaged_chunk(self.path, read_index(self.path), headers_only=False)
         except (IndexDamage, OSError):
             return None
+        if damaged is not None:
+            return damaged
+        if isinstance(err, OSError | MemoryError):
+            return None
+        problem = f"an index entry does not match the message it points to: {rosbags_text(err)}"
+        return damaged_index(problem, through_chunk_infos=True)
 
     def _around_damaged_chunks(self, conns: list[Any] | None) -> Iterator[RawMessage]:
         """A ROS 1 bag's messages read chunk by chunk through its index, in rosbags' order,
@@ -240,6 +252,30 @@ class RosbagsReadBackend:
             except Exception:  # closing a half-open reader must not mask the real error
                 _LOG.debug("closing %s failed", self.path, exc_info=True)
             self.reader = None
+
+
+def library_text(err: BaseException) -> str:
+    """A library error as text. rosbags formats a wrapped error's args tuple into its message
+    ("...: ('Header could not be read from file.',)"): show the text, not the Python repr."""
+    text = _ONE_ITEM_TUPLE.sub(lambda m: m.group(2), str(err))
+    return text if text.strip() else type(err).__name__
+
+
+_ONE_ITEM_TUPLE = re.compile(r"""\((['"])(.*?)\1,\)""")
+
+
+def rosbags_text(err: BaseException) -> str:
+    """What rosbags said of a ROS 1 bag it could not read, shortened. An internal check of it
+    that failed (a bare ``AssertionError``), a text field it could not decode, or another Python
+    error escaping it is said as such, not as its class name or bare value alone."""
+    text = library_text(err).removeprefix("Bag index looks damaged: ")
+    if isinstance(err, AssertionError) and not str(err).strip():
+        return "an assertion in rosbags failed"
+    if isinstance(err, UnicodeDecodeError):
+        return "a text field that is not UTF-8"
+    if type(err).__name__ != "ReaderError":  # not rosbags' own words
+        text = f"{type(err).__name__} in rosbags: {text}"
+    return short(text, 120)
 
 
 def _valid_time(value: object) -> bool:

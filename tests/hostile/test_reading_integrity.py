@@ -598,6 +598,99 @@ def test_salvage_reads_maps_through_the_index_data_and_past_offsets_that_disagre
             assert read == intact, (path, topics)
 
 
+def _first_index_entries(data: bytes, chunk_pos: int) -> int:
+    """Where the data of the first index data record after the chunk at ``chunk_pos`` starts: its
+    length (4 bytes), then an entry (time sec, time nsec, offset; 4 bytes each) per message."""
+    import struct
+
+    header_length = struct.unpack_from("<I", data, chunk_pos)[0]
+    at = chunk_pos + 4 + header_length
+    record = at + 4 + struct.unpack_from("<I", data, at)[0]  # the first record after the chunk
+    assert data.index(b"op=\x04", record) < record + 64  # an index data record
+    return record + 4 + struct.unpack_from("<I", data, record)[0]
+
+
+@pytest.mark.parametrize(
+    ("damage", "said"),
+    [
+        ("length", "an assertion in rosbags failed"),  # rosbags fails to open the bag
+        ("time", "an index entry does not match the message it points to: an assertion in "),
+        ("offset", "an index entry does not match the message it points to: "),
+    ],
+)
+def test_a_ros1_bag_whose_index_entries_are_damaged_is_said_so_and_salvaged_whole(
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    ros1_bags: dict[str, Path],
+    damage: str,
+    said: str,
+) -> None:
+    """Damaged index entries after a chunk made rosbags raise a bare AssertionError (when it
+    opened the bag: a record's length that is not 12 bytes an entry; when it read the messages:
+    an entry's time that is not its message's), said as `corrupt or truncated ... (AssertionError)`
+    and a --salvage that `keeps the messages before the damage`: the bag's index is damaged, and
+    --salvage, through the chunk infos, loses nothing."""
+    import struct
+
+    from rosbags.rosbag1 import Reader
+
+    bag = ros1_bags["none"]
+    data = bytearray(bag.read_bytes())
+    entries = _first_index_entries(data, _chunk_infos(bag)[len(_chunk_infos(bag)) // 2][0])
+    if damage == "length":
+        struct.pack_into("<I", data, entries, struct.unpack_from("<I", data, entries)[0] + 12)
+    else:
+        at = entries + 4 + (4 if damage == "time" else 8)  # the first entry's nsec, or offset
+        struct.pack_into("<I", data, at, struct.unpack_from("<I", data, at)[0] + 3)
+    log = tmp_path / "in.bag"
+    log.write_bytes(bytes(data))
+    # What rosbags does with it: the bare assertion (or its own error, where the offset lands).
+    expected = Exception if damage == "offset" else AssertionError
+    with pytest.raises(expected), Reader(log) as reader:
+        for _ in reader.messages():
+            pass
+    # (`info` reads the map topic only: an entry of a scan is not read; the index is, to open.)
+    commands = [["process", log, "--no-output", "-q"], *([["info", log]] * (damage == "length"))]
+    for command in commands:
+        code, out, err = _run(capsys, *command)
+        assert code == 1 and out == "", err
+        assert err.startswith(f"error: {log}: the bag's index is damaged ({said}"), err
+        assert err.endswith("); --salvage reads the bag chunk by chunk through its chunk infos\n")
+        assert len(err.splitlines()) == 1 and "truncated" not in err
+    code, _, err = _run(capsys, "process", log, "--no-output", "-q", "--salvage")
+    assert code == 0, err
+    assert _messages(log, salvage=True) == _messages(bag)  # every message, in rosbags' order
+    assert log.read_bytes() == bytes(data)
+
+
+def test_a_ros1_bag_whose_chunk_info_is_damaged_is_said_so_and_read_record_by_record(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], ros1_bag: tuple[Path, list]
+) -> None:
+    """A chunk info record of a closed bag that does not read was `corrupt or truncated ROS 1
+    bag, its index cannot be read (a recording that was not closed?)` with a --salvage that
+    `keeps the messages before the damage`: it is the index that is damaged, and --salvage reads
+    every record."""
+    bag, _ = ros1_bag
+    data = bytearray(bag.read_bytes())
+    at = data.index(b"index_pos=") + len(b"index_pos=")
+    index_pos = int.from_bytes(data[at : at + 8], "little")
+    at = data.index(b"start_time=", index_pos) + len(b"start_time")
+    data[at] ^= 0xFF  # the first chunk info's start_time field loses its '='
+    log = tmp_path / "in.bag"
+    log.write_bytes(bytes(data))
+    code, _, err = _run(capsys, "process", log, "--no-output", "-q")
+    assert code == 1
+    assert err == (
+        f"error: {log}: the bag's index is damaged (a header field without '='); --salvage "
+        "reads the bag record by record\n"
+    )
+    code, _, err = _run(capsys, "process", log, "--no-output", "-q", "--salvage")
+    # Read record by record up to the damaged index: every message, but the index's counts cannot
+    # vouch for it (exit 4).
+    assert code == EXIT_SALVAGED, err
+    assert _messages(log, salvage=True) == _in_file_order(bag)
+
+
 @pytest.mark.parametrize("compression", ["none", "bz2"])
 def test_salvage_reads_an_intact_ros1_bag_as_rosbags_orders_it(
     ros1_bags: dict[str, Path], compression: str
