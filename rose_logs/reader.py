@@ -240,7 +240,8 @@ class LogReader:
         except Exception as failure:  # the index is damaged too, or the file went away
             backend.close()
             reraise_interrupt_behind(failure)
-            if isinstance(failure, IndexDamage) and failure.in_index and not self.salvage:
+            said = isinstance(err, LogError)  # an error of ours, which says what is wrong
+            if isinstance(failure, IndexDamage) and failure.in_index and not (self.salvage or said):
                 msg = f"{self.path}: {damaged_index(str(failure), through_chunk_infos=False)}"
                 raise LogReadError(msg) from err
             return None
