@@ -13,8 +13,9 @@ broken snapshot after a trusted one starts a break (:attr:`BreakScore.started`).
 A drift too slow to break between two snapshots (a map redrawn from a pose graph moves its old
 walls with it: each snapshot agrees with the one before) is caught by an *anchor*: an older trusted
 snapshot, at most ``anchor_s`` of log time behind, which the snapshots are compared with too (every
-``anchor_s / 6`` and every eighth snapshot at least, and every snapshot while a drift it found
-lasts) and which breaks them at twice ``threshold_m`` (a log-odds map's own growth over a minute
+``anchor_s / 6`` and every eighth snapshot at least, every snapshot while a drift it found
+lasts, and a topic's last snapshot at its end if that was not: :meth:`BreakDetector.finish`)
+and which breaks them at twice ``threshold_m`` (a log-odds map's own growth over a minute
 contradicts more than over a few seconds); the anchor moves up to a snapshot that agrees with both
 once it is ``anchor_s`` old. A snapshot that contradicts the last
 trusted one but agrees with the anchor (under twice ``threshold_m`` and at most half its score
@@ -494,6 +495,39 @@ class BreakDetector:
         return dataclasses.replace(
             verdict, started=started, returned_from=returned_from, returned_from_m=returned_from_m
         )
+
+    def finish(self, topic: str) -> tuple[int, MapSnapshot, BreakScore] | None:
+        """The end of ``topic``'s session: its last snapshot compared with the anchor when the
+        schedule had not compared it (:meth:`_anchor_due`: every sixth of ``anchor_s`` and
+        every :data:`_ANCHOR_EVERY` snapshots, so that a session shorter than that, or its last
+        few seconds, went unseen by the anchor). ``(index, snapshot, verdict)`` when it breaks
+        against the anchor (at twice ``threshold_m``, as during the session: a break since the
+        anchor that starts at that snapshot), else None (also when the last snapshot is broken
+        already, was compared, is the anchor, or cannot be placed on it). Called once, after the
+        topic's last :meth:`update`; the last update cannot be withdrawn after it."""
+        state = self._state.get(topic)
+        self._before.pop(topic, None)
+        if state is None or state.broken or self.params.anchor_s == math.inf:
+            return None
+        index, snapshot = state.trusted  # the last snapshot: not broken, so trusted
+        anchor = state.anchor
+        if anchor[0] == index or state.anchor_checked_index == index:
+            return None
+        anchor_offset = self._offset(anchor[1], snapshot)
+        if anchor_offset is None:
+            return None
+        against_anchor = self._score(anchor, snapshot, anchor_offset)
+        checked = dataclasses.replace(
+            state, anchor_checked_ns=snapshot.log_time_ns, anchor_checked_index=index
+        )
+        if against_anchor.score_m < self._anchor_threshold_m:
+            self._state[topic] = checked
+            return None
+        self._state[topic] = dataclasses.replace(checked, broken=True, by_anchor=True)
+        verdict = dataclasses.replace(
+            against_anchor, broken=True, started=True, threshold_m=2.0 * self.params.threshold_m
+        )
+        return index, snapshot, verdict
 
     @property
     def _anchor_ns(self) -> float:

@@ -704,6 +704,7 @@ class _Loop:
                         pending = 0
                 else:
                     self._drain(0)
+                    self._finish_sessions()
                     bar.update(pending)
                     self.skips.warn_rest()
         finally:
@@ -978,6 +979,41 @@ class _Loop:
         if self.on_snapshot is not None:
             self.on_snapshot(snapshot, analysis.result, record)
 
+    def _finish_sessions(self) -> None:
+        """At the end of the log, each topic's last snapshot compared with the break detector's
+        anchor when the schedule had not (:meth:`BreakDetector.finish`: a session of fewer than
+        eight snapshots within 10 s never was). A break found then is reported as any other (the
+        log line, the event in Rerun, the report's breaks and gates) and the snapshot's record
+        and Rerun break score say it. The output log holds no break; ``on_snapshot`` had that
+        snapshot's record before."""
+        for topic, last in self.last_analysis.items():
+            if last.exception() is not None:  # no snapshot of the session (see _detect)
+                self.detector.withdraw_last(topic)
+            found = self.detector.finish(topic)
+            if found is None:
+                continue
+            index, snapshot, verdict = found
+            # Its record: the topic's last (the detector numbers the analysed snapshots).
+            at = next(
+                (k for k in range(len(self.records) - 1, -1, -1) if self.records[k].topic == topic),
+                None,
+            )
+            if at is None or self.records[at].index != index:
+                continue
+            record = self.records[at]
+            self.records[at] = dataclasses.replace(
+                record,
+                break_score_m=verdict.score_m,
+                break_region_m=verdict.region_m,
+                break_detected=True,
+            )
+            if self.rerun is not None:
+                self.rerun.break_score(snapshot, verdict, index, self.detector.params.threshold_m)
+            self._say_break(
+                snapshot, index, verdict, record.structure_score if record.judged else None
+            )
+            self.broken[topic] = True
+
     def _write_results(self, snapshot: MapSnapshot, analysis: SnapshotAnalysis) -> None:
         """The derived messages of a snapshot into the output log; none (a skip) if one cannot be
         encoded (all three are encoded before any is written)."""
@@ -1014,13 +1050,7 @@ class _Loop:
         break's marker on the W plot, where a solid block's W = 0.009 read as a fine map)."""
         topic, score = snapshot.topic, float(result.structure_score)
         if verdict.started:
-            event = DetectedBreak.from_score(
-                snapshot, index, verdict, self.detector.params.threshold_m
-            )
-            self.detected.append(event)
-            _LOG.info("%s", event.text)
-            if self.rerun is not None:
-                self.rerun.event(snapshot, event.detail, index, score if judged else None)
+            self._say_break(snapshot, index, verdict, score if judged else None)
         if not judged:  # an empty map's W = 1, a solid block's 0.009: they say nothing
             return
         above = score > self.failure_level
@@ -1032,6 +1062,21 @@ class _Loop:
             if self.rerun is not None:
                 self.rerun.event(snapshot, detail, index, score, failure=True)
         self.above[topic] = above
+
+    def _say_break(
+        self, snapshot: MapSnapshot, index: int, verdict: BreakScore, score: float | None
+    ) -> None:
+        """The start of a break: the report's list (in log order), the log line, the event in
+        Rerun (on the W plot at ``score``: None, W says nothing of the snapshot)."""
+        event = DetectedBreak.from_score(snapshot, index, verdict, self.detector.params.threshold_m)
+        # In log order: a break found at a topic's end may come before another topic's.
+        at = len(self.detected)
+        while at > 0 and self.detected[at - 1].log_time_ns > event.log_time_ns:
+            at -= 1
+        self.detected.insert(at, event)
+        _LOG.info("%s", event.text)
+        if self.rerun is not None:
+            self.rerun.event(snapshot, event.detail, index, score)
 
 
 _WARN_FIRST = 3

@@ -1070,6 +1070,51 @@ def test_a_map_returning_to_its_anchor_is_said_and_no_break(tmp_path: Path, caps
     assert "m, under 2.50 m): it returned" in line  # the anchor's score, and its threshold
 
 
+def test_a_drift_in_a_session_too_short_for_the_anchor_breaks_at_its_end(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Seven maps in 0.6 s, the right half 0.15 m further each: each agrees with the one before,
+    and the anchor was compared every eighth snapshot or 10 s only, so the 0.9 m drift passed
+    the break gate. The last snapshot is compared with the anchor at the session's end, and the
+    break is reported as any other: the gate, the summary, the JSON report's first break and
+    the snapshot's record."""
+    from tests.synthetic import floor_plan
+
+    plan = np.where(floor_plan(size=(300, 360)), 100, 0).astype(np.int8)
+
+    def drifted(cells: int) -> np.ndarray:
+        out = plan.copy()
+        out[:, 180:] = 0
+        out[:, 180 + cells :] = plan[:, 180 : plan.shape[1] - cells]
+        return out
+
+    maps = [MapMsg(START_NS + i * 100_000_000, drifted(3 * i)) for i in range(7)]
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps)
+    report = tmp_path / "r.json"
+    argv = ["process", str(built.path), "--no-output", "--fail-on-break", "--json", str(report)]
+    code = main(argv)
+    out, err = capsys.readouterr()
+    assert code == EXIT_GATE, err
+    assert "break        first at snapshot 6, +0.6 s" in out and "since snapshot 0" in out
+    (line,) = [x for x in err.splitlines() if x.startswith("error:")]
+    assert "map breaks at snapshot 6:" in line and "(threshold 2.5 m) since snapshot 0" in line
+    data = json.loads(report.read_text())
+    first = data["topics"]["/map"]["first_break"]
+    assert first["index"] == 6 and first["trusted_index"] == 0 and first["break_score_m"] >= 2.5
+    records = data["snapshots"]
+    assert [r["break_detected"] for r in records] == [False] * 6 + [True]
+    assert records[-1]["break_score_m"] == first["break_score_m"]
+    # A map every 10 s: the schedule compares each with the anchor, and finds the drift before
+    # the end, as before.
+    slow = [MapMsg(START_NS + i * 10_000_000_000, drifted(3 * i)) for i in range(7)]
+    built = build_log(tmp_path / "slow.mcap", "mcap-ros2", slow)
+    argv = ["process", str(built.path), "--no-output", "--fail-on-break", "-q"]
+    assert main(argv) == EXIT_GATE
+    out, _ = capsys.readouterr()
+    found = re.search(r"break        first at snapshot (\d+),", out)
+    assert found is not None and int(found.group(1)) < 6, out
+
+
 @pytest.mark.parametrize("command", ["process", "convert"])
 def test_an_output_log_inside_a_ros2_bag_folder_is_refused(
     command: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]

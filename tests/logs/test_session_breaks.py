@@ -593,3 +593,66 @@ def test_a_drift_the_anchor_found_stays_one_break_until_it_returns(plan) -> None
     ]
     assert any(v.returned_from is not None for v in verdicts)
     assert not any(v.broken for v in verdicts[-2:])
+
+
+def test_a_drift_in_a_session_too_short_for_the_anchor_breaks_at_its_end(plan) -> None:
+    """Seven maps in 0.6 s, half the map 0.15 m further each (0.9 m in all): each agrees with the
+    one before, and the anchor is compared every eighth snapshot or 10 s, so the drift went
+    unseen. At the topic's end its last snapshot is compared with the anchor: a break since it."""
+    period = 100_000_000
+    snaps = [_snap(_half_shifted(plan, 3 * i), i * period) for i in range(7)]
+    detector = BreakDetector()
+    assert not any(detector.update(s).broken for s in snaps)
+    found = detector.finish("/map")
+    assert found is not None
+    index, snapshot, verdict = found
+    assert index == 6 and snapshot is snaps[6]
+    assert verdict.broken and verdict.started and verdict.trusted_index == 0
+    assert verdict.score_m >= 2.5 and verdict.threshold_m == 2.5  # the anchor's threshold
+    event = DetectedBreak.from_score(snapshot, index, verdict, 1.25)
+    assert "(threshold 2.5 m) since snapshot 0" in event.text
+    assert detector.finish("/map") is None  # said once: the topic is broken now
+    quiet = BreakDetector()  # a map that stays put
+    for i in range(7):
+        quiet.update(_snap(plan, i * period))
+    assert quiet.finish("/map") is None
+    assert BreakDetector().finish("/none") is None
+
+
+def _counting(detector: BreakDetector) -> list[int]:
+    """The calls of ``detector.compare`` from now on, one item each."""
+    calls: list[int] = []
+    real = detector.compare
+
+    def counted(*args, **kwargs):  # type: ignore[no-untyped-def]
+        calls.append(1)
+        return real(*args, **kwargs)
+
+    detector.compare = counted  # type: ignore[method-assign]
+    return calls
+
+
+def test_a_session_too_short_for_the_anchor_is_compared_at_its_end_alone(plan) -> None:
+    """The end's comparison is one more, of the last snapshot with the anchor, and none when the
+    schedule compared the last snapshot, the anchor is the last snapshot itself (a single map)
+    or there is no anchor (``anchor_s`` inf)."""
+    period = 100_000_000
+    detector = BreakDetector()
+    calls = _counting(detector)
+    for i in range(5):
+        detector.update(_snap(plan, i * period))
+    assert len(calls) == 4  # each against the one before
+    assert detector.finish("/map") is None and len(calls) == 5
+    checked = BreakDetector()
+    calls = _counting(checked)
+    for i in range(9):  # the eighth snapshot after the anchor (index 8) is compared with it
+        checked.update(_snap(plan, i * period))
+    assert len(calls) == 9 and checked._state["/map"].anchor_checked_index == 8
+    assert checked.finish("/map") is None and len(calls) == 9
+    single = BreakDetector()
+    single.update(_snap(plan, 0))
+    assert single.finish("/map") is None
+    without = BreakDetector(BreakParams(anchor_s=math.inf))
+    for i in range(7):
+        without.update(_snap(_half_shifted(plan, 3 * i), i * period))
+    assert without.finish("/map") is None
