@@ -105,3 +105,41 @@ def test_a_detector_restart_is_an_event_in_the_recording(tmp_path: Path, fr079) 
     assert any(
         t.startswith("break detector restarted: not comparable with snapshot 0") for t in texts
     )
+
+
+def test_a_break_found_at_the_session_end_is_in_the_recording(tmp_path: Path) -> None:
+    """A drift in a session too short for the anchor's schedule, found at its end: the event, and
+    the last snapshot's break score against the anchor logged after its score against the
+    trusted one (at the same time: the views show the latest), with its region."""
+    from conftest import START_NS, MapMsg, build_log
+
+    from rose_logs.session import process_log
+    from tests.synthetic import floor_plan
+
+    plan = np.where(floor_plan(size=(300, 360)), 100, 0).astype(np.int8)
+    grids = []
+    for i in range(7):  # the right half 0.15 m further each, 10 maps a second
+        grid = plan.copy()
+        grid[:, 180:] = 0
+        grid[:, 180 + 3 * i :] = plan[:, 180 : plan.shape[1] - 3 * i]
+        grids.append(grid)
+    maps = [MapMsg(START_NS + i * 100_000_000, g) for i, g in enumerate(grids)]
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps)
+    report = process_log(built.path, rrd_path=tmp_path / "s.rrd")
+    (found,) = report.detected_breaks
+    assert found.index == 6 and found.trusted_index == 0
+    rows = _temporal_rows(tmp_path / "s.rrd")
+    paths = EntityPaths("map")
+    texts = [
+        next(v for k, v in row.items() if k.endswith("text"))[0] for row in rows[f"/{paths.events}"]
+    ]
+    assert texts == [found.detail]
+    last = max(r[TIMELINE] for r in rows[f"/{paths.break_score}"])
+    scores = [
+        next(v for k, v in r.items() if k.endswith("scalars"))[0]
+        for r in rows[f"/{paths.break_score}"]
+        if r[TIMELINE] == last
+    ]
+    assert len(scores) == 2 and scores[0] < 1.25 and scores[1] == pytest.approx(found.score_m)
+    regions = [r for r in rows[f"/{paths.break_region}"] if r[TIMELINE] == last]
+    assert any(k.endswith("strips") and v for r in regions for k, v in r.items())
