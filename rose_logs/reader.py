@@ -236,7 +236,10 @@ class LogReader:
             assert backend.index is not None
             problem = first_damaged_chunk(self.path, backend.index, headers_only=True)
             listed = {c.pos: c.counts for c in backend.index.chunks}
-            unlisted = unindexed_messages(self.path, listed, skip_damaged_chunks=True)
+            known = {c.conn for c in backend.index.connections}
+            unlisted = unindexed_messages(
+                self.path, listed, connections=known, skip_damaged_chunks=True
+            )
         except Exception as failure:  # the index is damaged too, or the file went away
             backend.close()
             reraise_interrupt_behind(failure)

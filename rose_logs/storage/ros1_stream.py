@@ -374,7 +374,11 @@ _OP_INDEX_DATA = 0x04
 
 
 def unindexed_messages(
-    path: Path, listed: dict[int, dict[int, int]], *, skip_damaged_chunks: bool = False
+    path: Path,
+    listed: dict[int, dict[int, int]],
+    *,
+    connections: set[int] | None = None,
+    skip_damaged_chunks: bool = False,
 ) -> str | None:
     """What the index of the ROS 1 bag ``path`` leaves out, in a few words; None when it accounts
     for every chunk and message.
@@ -385,6 +389,10 @@ def unindexed_messages(
     connection) are counted. A chunk info whose count was damaged, an index data record naming
     another connection, or a bag header that counts fewer chunks than the file holds, loses
     messages silently otherwise: a reader reads what the index lists.
+
+    ``connections``: the ids of the index's connection records. Messages the chunk infos count
+    of a connection without one (its id damaged) are left out by a reader, which knows no topic
+    for them.
 
     ``skip_damaged_chunks``: a listed chunk whose record cannot be read (a damaged header, a data
     length past the next listed chunk), or one of whose index data records cannot, is taken as
@@ -453,6 +461,18 @@ def unindexed_messages(
                 f"the chunk at byte {pos} has index entries for {sum(counts.values())} "
                 f"message(s) (connections {_ids(counts)}), its chunk info counts "
                 f"{sum(declared.values())} (connections {_ids(declared)})"
+            )
+    if connections is not None:
+        orphans: dict[int, int] = {}
+        for counts in listed.values():
+            for conn, n in counts.items():
+                if n and conn not in connections:
+                    orphans[conn] = orphans.get(conn, 0) + n
+        if orphans:
+            return (
+                f"its chunk infos count {sum(orphans.values())} message(s) of connections "
+                f"{_ids(orphans)}, which it holds no connection record of (connections "
+                f"{_ids(dict.fromkeys(connections, 1))})"
             )
     return None
 

@@ -133,7 +133,8 @@ class RosbagsReadBackend:
 
         infos = getattr(self.reader, "chunk_infos", [])
         listed = {int(c.pos): dict(c.connection_counts) for c in infos}
-        problem = unindexed_messages(self.path, listed)
+        known = {int(c.id) for c in self.reader.connections}
+        problem = unindexed_messages(self.path, listed, connections=known)
         if problem is not None:
             msg = f"{self.path}: {damaged_index(problem, through_chunk_infos=False)}"
             raise LogReadError(msg)

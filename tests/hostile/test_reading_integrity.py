@@ -795,14 +795,22 @@ def test_a_ros1_bag_whose_header_misplaces_its_index_is_read_whole_and_loses_not
 
 
 @pytest.mark.parametrize(
-    "damage", ["header_counts_fewer_chunks", "chunk_info_counts_none", "index_names_another_conn"]
+    "damage",
+    [
+        "header_counts_fewer_chunks",
+        "chunk_info_counts_none",
+        "index_names_another_conn",
+        "connection_record_renumbered",
+    ],
 )
 def test_a_ros1_bag_whose_index_leaves_messages_out_is_damage_not_a_shorter_log(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], ros1_bag: tuple[Path, list], damage: str
 ) -> None:
     """rosbags reads what the index lists: a bag header counting fewer chunks than the file holds,
-    a chunk info whose message count was zeroed, or an index data record naming a connection
-    that does not exist, lost those messages with exit 0."""
+    a chunk info whose message count was zeroed, an index data record naming a connection
+    that does not exist, or a connection record of the index whose id was damaged (rosbags
+    drops the messages of the id the chunk infos count, a whole topic), lost those messages
+    with exit 0."""
     import re
 
     bag, chunks = ros1_bag
@@ -821,6 +829,21 @@ def test_a_ros1_bag_whose_index_leaves_messages_out_is_damage_not_a_shorter_log(
         said = (
             rf"the chunk at byte {chunks[-1][0]} has index entries for {chunks[-1][1]} "
             r"message\(s\) \(connections [\d, ]+\), its chunk info counts 0 \(connections none\)"
+        )
+    elif damage == "connection_record_renumbered":  # the index's first connection record
+        at = data.index(b"index_pos=") + len(b"index_pos=")
+        index_pos = int.from_bytes(data[at : at + 8], "little")
+        at = data.index(b"conn=", index_pos) + len(b"conn=")
+        conn = int.from_bytes(data[at : at + 4], "little")
+        data[at : at + 4] = (999).to_bytes(4, "little")
+        from rosbags.rosbag1 import Reader
+
+        with Reader(bag) as reader:
+            lost = sum(c.connection_counts.get(conn, 0) for c in reader.chunk_infos)
+        assert lost > 0
+        said = (
+            rf"its chunk infos count {lost} message\(s\) of connections {conn}, which it holds "
+            r"no connection record of \(connections [\d, ]*999[\d, ]*\)"
         )
     else:  # the first index data record after the first chunk names connection 999
         at = data.index(b"conn=", data.index(b"op=\x04", chunks[0][0])) + len(b"conn=")
