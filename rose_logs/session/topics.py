@@ -132,12 +132,11 @@ def default_output_path(input_path: Path, fmt: LogFormat | None = None) -> Path:
     A log named as another format (an MCAP file named ``.bag`` or ``.db3``) keeps its own format
     and gets its suffix: ``run.rose.bag`` could not hold its messages, and the caller named no
     output. A file whose name says no format
-    gets its content's suffix after its whole name (``run`` holding MCAP -> ``run.rose.mcap``,
-    ``run.1`` -> ``run.1.rose.mcap``).
+    gets its content's suffix, or ``fmt``'s, after its whole name (``run`` holding MCAP ->
+    ``run.rose.mcap``, ``run.1`` -> ``run.1.rose.mcap``, ``run.1`` as ``db3`` -> ``run.1.rose``).
     """
     path = Path(input_path)
     named = "ros1" if path.name.lower().endswith(ACTIVE_BAG) else format_from_path(path)
-    whole = False  # the name has no format's suffix: it is kept whole
     if fmt is None and not path.is_dir():
         # The content's format, so that the output's name says what it holds: a name may say no
         # format (``run``, ``run.log``) or another one (an MCAP file named ``.bag`` or ``.db3``:
@@ -147,10 +146,9 @@ def default_output_path(input_path: Path, fmt: LogFormat | None = None) -> Path:
             detected = detect_format(path)
             if detected != named:
                 fmt = detected
-                if named is None:
-                    # A suffix that names no format is part of the name: ``run.1`` and ``run.2``
-                    # get two outputs, not both ``run.rose.mcap``.
-                    whole = True
+    # A suffix that names no format is part of the name, with --format too: ``run.1`` and
+    # ``run.2`` get two outputs, not both ``run.rose.mcap``.
+    whole = fmt is not None and named is None and not path.is_dir()
     if path.name in ("", ".", ".."):
         path = path.resolve()
     if not path.name:

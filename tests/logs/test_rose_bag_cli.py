@@ -1000,6 +1000,33 @@ def test_an_input_whose_name_says_no_format_gets_its_contents_suffix(tmp_path: P
         assert (tmp_path / expected).is_file()
 
 
+def test_an_input_whose_name_says_no_format_keeps_its_whole_name_with_format(
+    tmp_path: Path,
+) -> None:
+    """With ``--format``, ``run.1`` and ``run.2`` were both named ``run.rose.mcap`` (the second run
+    refused: it exists) and ``run.log`` ``run.rose``: a suffix that names no format is part of the
+    name whatever the output format."""
+    import shutil
+
+    cases = (
+        ("run", "mcap", "run.rose.mcap"),
+        ("run.1", "mcap", "run.1.rose.mcap"),
+        ("run.2", "mcap", "run.2.rose.mcap"),
+        ("run.log", "db3", "run.log.rose"),
+        ("run.log", "mcap-dir", "run.log.rose"),
+        ("x.", "mcap", "x.rose.mcap"),
+        ("run.mcap", "mcap", "run.rose.mcap"),
+        ("run.mcap", "db3", "run.rose"),
+    )
+    for name, fmt, expected in cases:
+        log = tmp_path / name
+        shutil.copyfile(SAMPLE, log)
+        assert default_output_path(log, fmt) == tmp_path / expected
+    for name in ("run.1", "run.2"):
+        assert main(["process", str(tmp_path / name), "--format", "mcap", "-q"]) == 0
+        assert (tmp_path / f"{name}.rose.mcap").is_file()
+
+
 def test_a_log_named_as_another_format_or_left_active_gets_its_contents_suffix(
     tmp_path: Path,
 ) -> None:
