@@ -235,6 +235,27 @@ def stdout_closed(err: OSError) -> bool:
     return True
 
 
+def flush_stdout() -> int:
+    """Flush standard output now; return 0, or the exit code of a failure said as every command
+    says it: 1 after ``error: standard output: cannot write (<reason>)``, 141 quietly when the
+    reader left (:data:`EXIT_BROKEN_PIPE`).
+
+    For text printed outside a command's :func:`stdout_errors_named` block (argparse's ``--help``
+    and ``--version``), which Python's flush at exit would report with a traceback-like
+    ``Exception ignored`` and exit 120.
+    """
+    try:
+        with stdout_errors_named():
+            pass  # the block flushes what is buffered
+    except StdoutError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 1
+    except BrokenPipeError:
+        _discard_stdout()
+        return EXIT_BROKEN_PIPE
+    return 0
+
+
 def _discard_stdout() -> None:
     """Point standard output's descriptor at ``/dev/null``: what is still buffered goes nowhere."""
     with contextlib.suppress(OSError, ValueError, AttributeError):  # stdout may be no real file

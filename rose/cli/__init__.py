@@ -160,8 +160,9 @@ def _run(argv: Sequence[str] | None) -> int:
     with signals_deferred():  # an interrupted import would be an ImportError, not exit 130
         print_any_file_name()
         parser = build_parser()
-    args = parser.parse_args(argv)
-    from rose.cli.options import check_params  # loaded with the commands already
+    from rose.cli.options import check_params, parse_args  # loaded with the commands already
+
+    args = parse_args(parser, argv)
 
     check_params(args.command_parser, args)
     handler = logging.StreamHandler(sys.stderr)

@@ -52,6 +52,7 @@ __all__ = [
     "non_negative_float",
     "out_path_arg",
     "params_from_args",
+    "parse_args",
     "positive_float",
     "resolution_assumed",
     "result_summary",
@@ -338,6 +339,23 @@ def add_param_arguments(parser: argparse.ArgumentParser) -> None:
         default=d.seed,
         help="0..2**32-1; no effect since the mixture fit is deterministic; kept for compatibility",
     )
+
+
+def parse_args(parser: argparse.ArgumentParser, argv: Any) -> argparse.Namespace:
+    """``parser.parse_args(argv)``, with the text of ``--help`` and ``--version`` flushed before
+    their exit: standard output that cannot take it is an error line and exit 1 (``--help >
+    /dev/full``), a reader that left exit 141, as for any other output (Python's flush at exit
+    printed ``Exception ignored ... OSError`` and exited 120)."""
+    from rose.outputs import flush_stdout
+
+    try:
+        return parser.parse_args(argv)
+    except SystemExit as done:
+        if not done.code:  # --help / --version printed; a usage error wrote to stderr
+            code = flush_stdout()
+            if code:
+                raise SystemExit(code) from None
+        raise
 
 
 def params_from_args(args: argparse.Namespace) -> RoseParams:

@@ -139,8 +139,9 @@ def _run(argv: list[str] | None) -> int:
         # full disk) that our one-line errors already report: keep it quiet unless the user set RUST_LOG.
         os.environ.setdefault("RUST_LOG", "off")
         parser = build_parser()
-    args = parser.parse_args(argv)
-    from rose.cli.options import check_params  # loaded with the commands already
+    from rose.cli.options import check_params, parse_args  # loaded with the commands already
+
+    args = parse_args(parser, argv)
 
     check_params(getattr(args, "command_parser", parser), args)
     try:

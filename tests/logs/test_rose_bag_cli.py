@@ -643,6 +643,51 @@ def test_a_full_disk_under_buffered_standard_output_is_one_error_line(command: l
     assert done.stderr == "error: standard output: cannot write (No space left on device)\n"
 
 
+@pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs /dev/full")
+@pytest.mark.parametrize(
+    "command",
+    [
+        ["rose", "--help"],
+        ["rose", "--version"],
+        ["rose", "score", "--help"],
+        ["rose-bag", "--help"],
+        ["rose-bag", "--version"],
+        ["rose-bag", "process", "--help"],
+    ],
+)
+def test_help_and_version_on_a_full_standard_output_are_one_error_line(
+    command: list[str],
+) -> None:
+    """argparse prints ``--help`` and ``--version`` and exits, before the command's own handling of
+    standard output: Python's flush at exit printed "Exception ignored ... OSError" and exited
+    120, and with the reader gone (``| true``) "BrokenPipeError", exit 120, instead of 141."""
+    module = "rose.cli" if command[0] == "rose" else "rose_logs.cli"
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONUNBUFFERED"}
+    env["PYTHONPATH"] = str(Path(__file__).resolve().parents[2])
+    argv = [sys.executable, "-c", f"import {module} as c; c.console()", *command[1:]]
+    with Path("/dev/full").open("w") as full:
+        done = subprocess.run(
+            argv, stdout=full, stderr=subprocess.PIPE, text=True, env=env, timeout=120, check=False
+        )
+    assert done.returncode == 1, done.stderr
+    assert done.stderr == "error: standard output: cannot write (No space left on device)\n"
+    reader, writer = os.pipe()
+    os.close(reader)  # the reader left before anything was written
+    try:
+        done = subprocess.run(
+            argv,
+            stdout=writer,
+            stderr=subprocess.PIPE,
+            text=True,
+            env=env,
+            timeout=120,
+            check=False,
+        )
+    finally:
+        os.close(writer)
+    assert (done.returncode, done.stderr) == (141, "")
+
+
 def test_processing_a_processed_log_names_the_input(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
