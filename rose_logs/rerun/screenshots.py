@@ -27,6 +27,7 @@ import sys
 import tempfile
 import time
 import urllib.parse
+import warnings
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -101,7 +102,11 @@ def session_times_ns(rrd_path: Path) -> list[int]:
         raise ScreenshotError(msg)
     times: set[int] = set()
     try:
-        for chunk in RrdReader(rrd_path).stream().to_chunks():
+        with warnings.catch_warnings():
+            # Written without the footer (see rose_logs.rerun.sink): read as a stream, as it is.
+            warnings.filterwarnings("ignore", "RRD file has no footer")
+            reader = RrdReader(rrd_path)
+        for chunk in reader.stream().to_chunks():
             if chunk.is_static or not chunk.entity_path.endswith("/structure_score/w"):
                 continue
             batch = chunk.to_record_batch()

@@ -20,6 +20,7 @@ import math
 import os
 import queue
 import socket
+import struct
 import sys
 import threading
 import urllib.parse
@@ -326,7 +327,10 @@ class RerunSink:
                 raise ViewerNotStarted(msg)
         sinks: list[rr.FileSink | rr.GrpcSink] = []
         if self.tmp is not None:
-            sinks.append(rr.FileSink(str(self.tmp)))
+            # No footer: Rerun 0.41 keeps every chunk's entry of its index (the footer) in memory
+            # until the end, about 25 kB per snapshot (18 MB of the one-hour session's peak, 44
+            # MB at two hours): the session's memory would grow with its length.
+            sinks.append(rr.FileSink(str(self.tmp), write_footer=False))
         if spawn:
             sinks.append(rr.GrpcSink())
         if connect is not None:
@@ -656,8 +660,8 @@ class RerunSink:
         """Finish logging, send the final layout, flush, and move the ``.rrd`` into place."""
         self._drain()
         self._check()
-        # The session's arrays are gone; Rerun now builds the recording's footer (a manifest of
-        # every chunk, tens of MB after an hour): on top of glibc's free heap, that was the peak.
+        # The session's arrays are gone: what Rerun allocates for its last writes comes on top
+        # of glibc's free heap otherwise.
         release_free_heap()
         self._closing = True  # the final layout frames every map of the session
         if not self.live:  # a live viewer placed the bar with each map
@@ -671,7 +675,7 @@ class RerunSink:
         self._flush()
         self.recording.disconnect()
         if self.tmp is not None and self.rrd_path is not None:
-            _require_footer(self.tmp)
+            _require_whole_stream(self.tmp)
             self.tmp.replace(self.rrd_path)
 
     def abort(self) -> None:
@@ -692,26 +696,39 @@ class RerunSink:
                 self.tmp.unlink(missing_ok=True)
 
 
-#: How an ``.rrd`` of Rerun 0.41 ends: its footer's magic and version (a 4-byte little-endian 1).
-_FOOTER_END = b"RRF2FOOT"
+#: How an ``.rrd`` of Rerun 0.41 starts: its stream header's magic (then 8 bytes of version and
+#: options), followed by messages of a 16-byte header (kind, payload length; little-endian u64).
+_STREAM_MAGIC = b"RRF2"
+_STREAM_HEADER_BYTES = 12
+_MESSAGE_HEADER = struct.Struct("<QQ")
 
 
-def _require_footer(path: Path) -> None:
-    """OSError unless the file at ``path`` ends with a recording's footer.
+def _require_whole_stream(path: Path) -> None:
+    """OSError unless the file at ``path`` is a recording stream whose last message is whole.
 
-    Rerun's file writer reports a failed last write (the footer, on a disk that just filled up)
-    nowhere: the recording was cut short, the run said nothing and placed it (the viewer then reads
-    it without its index, or not at all).
+    Rerun's file writer reports a failed write (the last ones, on a disk that just filled up)
+    nowhere: the recording was cut short, the run said nothing and placed it. The messages' headers
+    are walked (their payloads skipped): the last must end where the file does.
     """
     try:
         with path.open("rb") as f:
-            f.seek(0, 2)
-            size = f.tell()
-            f.seek(max(size - 12, 0))
-            tail = f.read(12)
+            size = f.seek(0, 2)
+            f.seek(0)
+            if f.read(len(_STREAM_MAGIC)) != _STREAM_MAGIC:
+                msg = "not a Rerun recording stream (no RRF2 header)"
+                raise OSError(msg)
+            at = _STREAM_HEADER_BYTES
+            while at < size:
+                f.seek(at)
+                header = f.read(_MESSAGE_HEADER.size)
+                if len(header) < _MESSAGE_HEADER.size:
+                    break
+                at += _MESSAGE_HEADER.size + _MESSAGE_HEADER.unpack(header)[1]
     except OSError as err:
+        if err.errno is None:  # ours, above
+            raise
         msg = f"cannot read it back ({err.strerror or err})"
         raise OSError(msg) from err
-    if len(tail) < 12 or tail[:8] != _FOOTER_END:
-        msg = f"incomplete: {size} bytes without the footer Rerun writes last (a full disk?)"
+    if at != size:
+        msg = f"incomplete: its last message is cut short at byte {size} (a full disk?)"
         raise OSError(msg)

@@ -988,20 +988,27 @@ def test_the_threshold_label_sits_between_the_cells_and_the_bar(tmp_path: Path, 
 def test_a_recording_cut_short_is_an_error_and_never_placed(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """A disk that filled up during Rerun's last write (the footer) left a cut-short .rrd in place
-    and the run said nothing: Rerun's file writer reports that write nowhere."""
+    """A disk that filled up during Rerun's last writes left a cut-short .rrd in place and the run
+    said nothing: Rerun's file writer reports those writes nowhere."""
     from rose_logs.errors import LogWriteError
     from rose_logs.rerun import sink as sink_module
 
     whole = tmp_path / "whole.rrd"
     process_log(SAMPLE, rrd_path=whole)
-    sink_module._require_footer(whole)  # a complete recording passes
+    sink_module._require_whole_stream(whole)  # a complete recording passes
+    data = whole.read_bytes()
+    # Written without Rerun's footer (its chunk index, held in memory until the end).
+    assert data[:4] == b"RRF2" and b"RRF2FOOT" not in data[-12:]
     cut = tmp_path / "cut.rrd"
-    cut.write_bytes(whole.read_bytes()[:-20])
-    with pytest.raises(OSError, match="incomplete"):
-        sink_module._require_footer(cut)
+    for end in (len(data) - 20, len(data) - 1, 20):  # in a payload, its last byte, a header
+        cut.write_bytes(data[:end])
+        with pytest.raises(OSError, match="incomplete"):
+            sink_module._require_whole_stream(cut)
+    cut.write_bytes(b"not a recording")
+    with pytest.raises(OSError, match="not a Rerun recording"):
+        sink_module._require_whole_stream(cut)
     # As the session sees it: a one-line error naming the recording, nothing placed.
-    monkeypatch.setattr(sink_module, "_FOOTER_END", b"NOTTHERE")
+    monkeypatch.setattr(sink_module, "_STREAM_HEADER_BYTES", 13)  # the walk misses every end
     target = tmp_path / "run.rrd"
     with pytest.raises(
         LogWriteError, match=r"run\.rrd: cannot write the Rerun recording \(incomplete"
@@ -1146,7 +1153,7 @@ def test_a_recording_that_filled_its_disk_says_so(
     from rose_logs.errors import LogWriteError
     from rose_logs.rerun import sink as sink_module
 
-    monkeypatch.setattr(sink_module, "_FOOTER_END", b"NOTTHERE")  # the recording fails to finish
+    monkeypatch.setattr(sink_module, "_STREAM_HEADER_BYTES", 13)  # the recording reads cut short
 
     class Full:
         f_bavail, f_frsize = 3, 4096
