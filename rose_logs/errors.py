@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-__all__ = ["LogError", "LogReadError", "LogWriteError", "MapMessageError"]
+__all__ = ["EmptyMapError", "LogError", "LogReadError", "LogWriteError", "MapMessageError"]
 
 
 class LogError(Exception):
@@ -21,4 +21,11 @@ class MapMessageError(LogError):
     """One map message cannot be decoded (for example data length != width * height).
 
     The session logs a warning and copies the message through unprocessed.
+    """
+
+
+class EmptyMapError(MapMessageError):
+    """A map message of no cells (width or height 0, no data): valid, but nothing to analyse.
+
+    The session copies it through unprocessed and counts it apart from malformed messages.
     """

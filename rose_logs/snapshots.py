@@ -16,7 +16,7 @@ import numpy.typing as npt
 from rose.grid import OCCUPIED, UNKNOWN
 from rose.limits import finite_number
 from rose.mapfile import MAX_ORIGIN_M, MAX_RESOLUTION_M
-from rose_logs.errors import MapMessageError
+from rose_logs.errors import EmptyMapError, MapMessageError
 from rose_logs.frames import quaternion_to_yaw
 from rose_logs.storage.typesys import MAP_TYPE, UPDATE_TYPE, typestore_for
 
@@ -295,13 +295,19 @@ def decode_map(
 
     Raises
     ------
+    EmptyMapError
+        If the map has no cells (and no data).
     MapMessageError
-        If the bytes do not decode, the map has zero area or ``len(data) != width * height``, the
+        If the bytes do not decode, the map has zero area but data or ``len(data) != width * height``, the
         resolution is not in ``(0, MAX_RESOLUTION_M]``, the origin is not finite, the orientation is a
         zero or non-finite quaternion, or a time has ``nanosec >= 1e9`` or a negative ``sec``.
     """
     msg = _deserialize(data, MAP_TYPE, serialization, topic)
     info = msg.info
+    if int(info.width) * int(info.height) == 0 and len(msg.data) == 0:
+        # Before any placement check: a default-constructed message (resolution 0) is empty too.
+        empty = f"{topic}: empty map ({int(info.width)} x {int(info.height)} cells)"
+        raise EmptyMapError(empty)
     pos, ori = info.origin.position, info.origin.orientation
     position = (float(pos.x), float(pos.y), float(pos.z))
     quaternion = (float(ori.x), float(ori.y), float(ori.z), float(ori.w))

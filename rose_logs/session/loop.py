@@ -46,7 +46,7 @@ from rose.params import RoseParams, make_params
 from rose.result import RoseResult
 from rose.threads import threads_in_this_context
 from rose_logs.derived import derived_topics, encode_cleaned, encode_score, encode_walls
-from rose_logs.errors import LogReadError, LogWriteError, MapMessageError
+from rose_logs.errors import EmptyMapError, LogReadError, LogWriteError, MapMessageError
 from rose_logs.formats import LogFormat, format_from_path
 from rose_logs.frames import quaternion_tilt
 from rose_logs.reader import LogReader
@@ -804,7 +804,9 @@ class _Loop:
                 log_time_ns=log_time_ns,
             )
         except MapMessageError as err:
-            self.skips.add("malformed", f"{short(err, 240)} {self._at(log_time_ns)}")
+            # An empty map is a valid message with nothing to analyse, not a malformed one.
+            reason = "empty" if isinstance(err, EmptyMapError) else "malformed"
+            self.skips.add(reason, f"{short(err, 240)} {self._at(log_time_ns)}")
             # The updates after it patch it, not the map before it: they are skipped too (one
             # was applied to the earlier map, a snapshot the robot never had).
             self.last_map.pop(topic, None)
@@ -1095,13 +1097,16 @@ class _Skips:
         count = self.by_reason.get(reason, 0) + 1
         self.by_reason[reason] = count
         if count <= _WARN_FIRST:
-            _LOG.warning("%s, copied unprocessed", text)
+            _LOG.log(_level_of(reason), "%s, copied unprocessed", text)
 
     def warn_rest(self) -> None:
         for reason, count in self.by_reason.items():
             if count > _WARN_FIRST:
-                _LOG.warning(
-                    "%d more map messages %s, copied unprocessed", count - _WARN_FIRST, reason
+                _LOG.log(
+                    _level_of(reason),
+                    "%d more map messages %s, copied unprocessed",
+                    count - _WARN_FIRST,
+                    reason,
                 )
 
     @property
@@ -1111,6 +1116,11 @@ class _Skips:
     def describe(self) -> str:
         """``"14 over --max-cells"``, ``"2 malformed, 1 not analysable"``; ``"none"`` when empty."""
         return ", ".join(f"{n} {reason}" for reason, n in self.by_reason.items()) or "none"
+
+
+def _level_of(reason: str) -> int:
+    """How a skipped map message is said: an empty map is valid (info), the rest are not."""
+    return logging.INFO if reason == "empty" else logging.WARNING
 
 
 def _no_display() -> bool:

@@ -307,3 +307,43 @@ def test_a_recording_rosbag_never_closed_is_named_like_a_bag_once_processed() ->
     assert default_output_path(Path("runs/k.bag")) == Path("runs/k.rose.bag")
     assert default_output_path(Path("runs/k.bag.active"), "mcap") == Path("runs/k.rose.mcap")
     assert default_output_path(Path("runs/k.mcap"), "mcap-dir") == Path("runs/k.rose")
+
+
+@pytest.mark.parametrize("serialization", ["ros1", "cdr"])
+def test_a_map_of_no_cells_is_empty_not_malformed(serialization: str) -> None:
+    """A message of no cells (a default-constructed map, resolution 0 too) is valid: it reads as
+    empty, which the session counts apart from malformed messages; cells declared without data
+    are malformed still."""
+    from rose_logs.errors import EmptyMapError, MapMessageError
+
+    store = typestore_for(serialization)
+    types = store.types
+    grid_msg = types[MAP_TYPE]
+    header = types["std_msgs/msg/Header"](
+        **({"seq": 0} if serialization == "ros1" else {}),
+        stamp=types["builtin_interfaces/msg/Time"](sec=0, nanosec=0),
+        frame_id="",
+    )
+    pose = types["geometry_msgs/msg/Pose"](
+        position=types["geometry_msgs/msg/Point"](x=0.0, y=0.0, z=0.0),
+        orientation=types["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=0.0),
+    )
+
+    def encoded(width: int, height: int) -> bytes:
+        info = types["nav_msgs/msg/MapMetaData"](
+            map_load_time=types["builtin_interfaces/msg/Time"](sec=0, nanosec=0),
+            resolution=0.0,
+            width=width,
+            height=height,
+            origin=pose,
+        )
+        message = grid_msg(header=header, info=info, data=np.zeros(0, dtype=np.int8))
+        if serialization == "ros1":
+            return bytes(store.serialize_ros1(message, MAP_TYPE))
+        return bytes(store.serialize_cdr(message, MAP_TYPE))
+
+    with pytest.raises(EmptyMapError, match=r"/x: empty map \(0 x 0 cells\)"):
+        decode_map(encoded(0, 0), serialization=serialization, topic="/x", log_time_ns=0)
+    with pytest.raises(MapMessageError) as declared:
+        decode_map(encoded(3, 2), serialization=serialization, topic="/x", log_time_ns=0)
+    assert not isinstance(declared.value, EmptyMapError)
