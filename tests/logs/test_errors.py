@@ -219,6 +219,22 @@ def test_malformed_map_message_is_copied_with_a_warning(
     assert len(got["/map/rose/cleaned"]) == 2
 
 
+def test_a_log_of_empty_maps_only_is_processed_not_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Maps of no cells are valid: a log holding only those was an error ("no map message could be
+    analysed"); it is copied whole with the empty maps counted, and a gate says it cannot judge."""
+    maps = [MapMsg(START_NS + i * 1_000_000_000, np.zeros((0, 0), dtype=np.int8)) for i in range(3)]
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps)
+    out = tmp_path / "out.mcap"
+    code, stdout, err = _run(capsys, "process", built.path, "-o", out, "--rrd", tmp_path / "r.rrd")
+    assert code == 0, err
+    assert "3 empty" in stdout and "warning" not in err
+    assert read_all(out)["/map"] == read_all(built.path)["/map"]
+    code, _, err = _run(capsys, "process", built.path, "--no-output", "--fail-above", "0.3")
+    assert code == 3 and "no map message could be analysed, the gate cannot judge it" in err
+
+
 def test_a_gate_fails_on_a_map_topic_it_cannot_judge(tmp_path: Path, capsys, fr079) -> None:
     """Two robots' maps, one topic all malformed: the run itself succeeds with warnings, but a
     quality gate cannot vouch for the topic it never saw a map of; both gates' reasons are said."""
