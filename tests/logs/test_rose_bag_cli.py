@@ -1116,21 +1116,22 @@ def test_a_bags_metadata_given_as_the_input_points_to_its_folder(
     assert main(["process", str(bag), "--no-output", "-q"]) == 0
 
 
+def _right_half_drifted(cells: int) -> np.ndarray:
+    """A 300 x 360 floor plan (ROS values) whose right half is moved ``cells`` further right."""
+    from tests.synthetic import floor_plan
+
+    plan = np.where(floor_plan(size=(300, 360)), 100, 0).astype(np.int8)
+    out = plan.copy()
+    out[:, 180:] = 0
+    out[:, 180 + cells :] = plan[:, 180 : plan.shape[1] - cells]
+    return out
+
+
 def test_a_map_returning_to_its_anchor_is_said_and_no_break(tmp_path: Path, capsys) -> None:
     """A redrawn map whose right half drifts 0.15 m a snapshot at 10 Hz, then snaps back (a loop
     closure): the snapshot back contradicts the drifted map, which failed the break gate; it agrees
     with the anchor, so it is no break, and the drift the detector had not flagged is a warning."""
-    from tests.synthetic import floor_plan
-
-    plan = np.where(floor_plan(size=(300, 360)), 100, 0).astype(np.int8)
-
-    def drifted(cells: int) -> np.ndarray:
-        out = plan.copy()
-        out[:, 180:] = 0
-        out[:, 180 + cells :] = plan[:, 180 : plan.shape[1] - cells]
-        return out
-
-    grids = [*(drifted(3 * i) for i in range(5)), plan]
+    grids = [*(_right_half_drifted(3 * i) for i in range(5)), _right_half_drifted(0)]
     maps = [MapMsg(START_NS + i * 100_000_000, g) for i, g in enumerate(grids)]
     built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps)
     code = main(["process", str(built.path), "--no-output", "--fail-on-break"])
@@ -1150,17 +1151,7 @@ def test_a_drift_in_a_session_too_short_for_the_anchor_breaks_at_its_end(
     the break gate. The last snapshot is compared with the anchor at the session's end, and the
     break is reported as any other: the gate, the summary, the JSON report's first break and
     the snapshot's record."""
-    from tests.synthetic import floor_plan
-
-    plan = np.where(floor_plan(size=(300, 360)), 100, 0).astype(np.int8)
-
-    def drifted(cells: int) -> np.ndarray:
-        out = plan.copy()
-        out[:, 180:] = 0
-        out[:, 180 + cells :] = plan[:, 180 : plan.shape[1] - cells]
-        return out
-
-    maps = [MapMsg(START_NS + i * 100_000_000, drifted(3 * i)) for i in range(7)]
+    maps = [MapMsg(START_NS + i * 100_000_000, _right_half_drifted(3 * i)) for i in range(7)]
     built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps)
     report = tmp_path / "r.json"
     argv = ["process", str(built.path), "--no-output", "--fail-on-break", "--json", str(report)]
@@ -1178,7 +1169,7 @@ def test_a_drift_in_a_session_too_short_for_the_anchor_breaks_at_its_end(
     assert records[-1]["break_score_m"] == first["break_score_m"]
     # A map every 10 s: the schedule compares each with the anchor, and finds the drift before
     # the end, as before.
-    slow = [MapMsg(START_NS + i * 10_000_000_000, drifted(3 * i)) for i in range(7)]
+    slow = [MapMsg(START_NS + i * 10_000_000_000, _right_half_drifted(3 * i)) for i in range(7)]
     built = build_log(tmp_path / "slow.mcap", "mcap-ros2", slow)
     argv = ["process", str(built.path), "--no-output", "--fail-on-break", "-q"]
     assert main(argv) == EXIT_GATE

@@ -529,14 +529,7 @@ def test_a_break_the_trusted_snapshot_holds_is_not_compared_with_the_anchor_agai
     returning to the anchor's), then every half minute (a return in steps); a drift the anchor
     found is checked on every snapshot."""
     detector = BreakDetector(BreakParams(threshold_m=1.0))
-    calls: list[int] = []
-    real = detector.compare
-
-    def counted(*args, **kwargs):  # type: ignore[no-untyped-def]
-        calls.append(1)
-        return real(*args, **kwargs)
-
-    detector.compare = counted  # type: ignore[method-assign]
+    calls = _counting(detector)
     period = 5_000_000_000
     extra = 0
     for i, g in enumerate([plan] * 3 + [broken] * 20):
