@@ -990,6 +990,10 @@ class _Loop:
         log line, the event in Rerun, the report's breaks and gates) and the snapshot's record
         and Rerun break score say it. The output log holds no break; ``on_snapshot`` had that
         snapshot's record before."""
+        # The verdict of a snapshot whose analysis failed is never read (_finish): the detector
+        # thread may still be scoring it. Wait for it before using the detector here.
+        assert self.detection is not None, "called inside run()"
+        self.detection.submit(lambda: None).result()
         for topic, last in self.last_analysis.items():
             if last.exception() is not None:  # no snapshot of the session (see _detect)
                 self.detector.withdraw_last(topic)

@@ -649,3 +649,40 @@ def test_a_session_too_short_for_the_anchor_is_compared_at_its_end_alone(plan) -
     for i in range(7):
         without.update(_snap(_half_shifted(plan, 3 * i), i * period))
     assert without.finish("/map") is None
+
+
+def test_the_session_end_waits_for_the_detector_on_snapshots_whose_analysis_failed(
+    tmp_path, monkeypatch: pytest.MonkeyPatch, fr079
+) -> None:
+    """The verdict of a snapshot whose analysis fails is never read, so the detector thread may
+    still be scoring it when the log ends: the session's end withdrew it from the detector before
+    it came (RuntimeError "no update of '/b' to withdraw", the whole run lost, 17 runs in 20
+    without any delay), or withdrew the snapshot before it. It waits for the detector first."""
+    import time
+
+    import rose
+    from rose_logs.session import process_log
+    from rose_logs.session.analysis import SnapshotAnalyser
+    from tests.logs.conftest import MapMsg, build_log, session_maps
+
+    first = session_maps([fr079[0], fr079[1]])
+    maps = [*first, MapMsg(first[-1].t_ns + 1_000_000, fr079[0], topic="/b")]
+    failing = {maps[1].t_ns, maps[2].t_ns}  # /map's last snapshot and /b's only one
+    analyse = SnapshotAnalyser._analyse
+    update = BreakDetector.update
+
+    def fail(self, snapshot):  # type: ignore[no-untyped-def]
+        if snapshot.log_time_ns in failing:
+            raise rose.RoseError("a map this test cannot analyse")
+        return analyse(self, snapshot)
+
+    def slow(self, snapshot):  # type: ignore[no-untyped-def]
+        if snapshot.log_time_ns in failing:
+            time.sleep(0.2)  # a busy detector thread
+        return update(self, snapshot)
+
+    monkeypatch.setattr(SnapshotAnalyser, "_analyse", fail)
+    monkeypatch.setattr(BreakDetector, "update", slow)
+    report = process_log(build_log(tmp_path / "in.mcap", "mcap-ros2", maps).path)
+    assert report.skipped_messages == 2
+    assert [(r.topic, r.index) for r in report.records] == [("/map", 0)]
