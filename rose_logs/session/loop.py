@@ -1016,7 +1016,9 @@ class _Loop:
                 break_detected=True,
             )
             if self.rerun is not None:
-                self.rerun.break_score(snapshot, verdict, index, self.detector.params.threshold_m)
+                # The threshold in force, the anchor's (twice the detector's), as in _finish.
+                threshold_m = verdict.threshold_m or self.detector.params.threshold_m
+                self.rerun.break_score(snapshot, verdict, index, threshold_m)
             self._say_break(
                 snapshot, index, verdict, record.structure_score if record.judged else None
             )

@@ -143,3 +143,35 @@ def test_a_break_found_at_the_session_end_is_in_the_recording(tmp_path: Path) ->
     assert len(scores) == 2 and scores[0] < 1.25 and scores[1] == pytest.approx(found.score_m)
     regions = [r for r in rows[f"/{paths.break_region}"] if r[TIMELINE] == last]
     assert any(k.endswith("strips") and v for r in regions for k, v in r.items())
+
+
+def test_a_break_found_at_the_session_end_plots_the_anchor_threshold(tmp_path: Path) -> None:
+    """The break found at a session's end is judged against the anchor, at twice the detector's
+    threshold, as its event says: the threshold line at that snapshot plots that threshold last
+    (it plotted the detector's own 1.25 m under a 2.5 m verdict)."""
+    from conftest import START_NS, MapMsg, build_log
+
+    from rose_logs.session import process_log
+    from tests.synthetic import floor_plan
+
+    plan = np.where(floor_plan(size=(300, 360)), 100, 0).astype(np.int8)
+    grids = []
+    for i in range(7):  # the right half 0.15 m further each, 10 maps a second
+        grid = plan.copy()
+        grid[:, 180:] = 0
+        grid[:, 180 + 3 * i :] = plan[:, 180 : plan.shape[1] - 3 * i]
+        grids.append(grid)
+    maps = [MapMsg(START_NS + i * 100_000_000, g) for i, g in enumerate(grids)]
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps)
+    report = process_log(built.path, rrd_path=tmp_path / "s.rrd")
+    (found,) = report.detected_breaks
+    assert "(threshold 2.5 m)" in found.text
+    rows = _temporal_rows(tmp_path / "s.rrd")
+    threshold = f"/{EntityPaths('map').break_threshold}"
+    last = max(r[TIMELINE] for r in rows[threshold])
+    values = [
+        next(v for k, v in r.items() if k.endswith("scalars"))[0]
+        for r in rows[threshold]
+        if r[TIMELINE] == last
+    ]
+    assert values[-1] == pytest.approx(2.5)
