@@ -376,8 +376,9 @@ def package_version() -> str:
 #: degenerate input; 12: the walls cleaning's corner-furniture rule; 13: the walls cleaning's guard
 #: judges long openings in pieces, a mixture threshold beyond the scores is one population; 14: the
 #: break detector's anchor (slow drifts break, a map returning to the anchor's does not), costmaps
-#: left out unless named).
-RESULT_LAYOUT = 14
+#: left out unless named; 15: a topic's last snapshot compared with the anchor at the end of the
+#: log, ROS 1 bags whose index is damaged or renumbers a connection refused).
+RESULT_LAYOUT = 15
 
 
 def result_settings(recording: Recording, options: RecordingOptions) -> dict[str, Any]:
