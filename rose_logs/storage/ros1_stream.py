@@ -672,6 +672,12 @@ def _indexed_messages(
             item = next(_record_items(_OP_MESSAGE, *record))
             if not isinstance(item, tuple) or item[0] != conn:
                 return None
+            # A damaged data length ends the record early or late: the next record (read in
+            # full, not only where the index points) would not start where this one ends.
+            if view.tell() < len(content):
+                after = _read_record(view, len(content))
+                if after is None or _op(after[0]) not in (_OP_MESSAGE, _OP_CONNECTION):
+                    return None
             messages.append(item)
     except _Damage:
         return None

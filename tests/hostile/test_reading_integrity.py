@@ -691,6 +691,33 @@ def test_a_ros1_bag_whose_chunk_info_is_damaged_is_said_so_and_read_record_by_re
     assert _messages(log, salvage=True) == _in_file_order(bag)
 
 
+def test_salvage_through_the_index_data_still_sees_a_damaged_record_length(
+    tmp_path: Path, ros1_bags: dict[str, Path]
+) -> None:
+    """A flipped bit in a located message record's data length (an uncompressed chunk) gave that
+    message cut short, with no loss said, once records were read where the index data points: the
+    record after it must start where it ends, else the chunk is read record by record, which
+    finds the damage, and it is skipped and said, as before."""
+    import struct
+
+    bag = ros1_bags["none"]
+    data = bytearray(bag.read_bytes())
+    chunks = _chunk_infos(bag)
+    pos = chunks[len(chunks) // 2][0]
+    content_at = pos + 4 + struct.unpack_from("<I", data, pos)[0] + 4
+    entries = _index_data_after(data, pos)
+    at = min(struct.unpack_from("<I", data, a)[0] for a, _, _ in entries)  # its first message
+    length_at = content_at + at + 4 + struct.unpack_from("<I", data, content_at + at)[0]
+    data[length_at] ^= 0x08  # 8 bytes off
+    log = tmp_path / "in.bag"
+    log.write_bytes(bytes(data))
+    whole = {(t, bytes(d)) for t, _, d in _messages(bag)}
+    with LogReader(log, salvage=True) as reader:
+        kept = [(m.channel.topic, bytes(m.data)) for m in reader.messages()]
+        assert any("skipped a damaged chunk" in loss for loss in reader.losses), reader.losses
+    assert set(kept) <= whole  # nothing cut short
+
+
 @pytest.mark.parametrize("compression", ["none", "bz2"])
 def test_salvage_reads_an_intact_ros1_bag_as_rosbags_orders_it(
     ros1_bags: dict[str, Path], compression: str
