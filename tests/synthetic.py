@@ -60,3 +60,18 @@ def add_clutter(
     clutter[speck_rows, speck_cols] = True
     clutter &= ~near_wall
     return mask | clutter, clutter
+
+
+def ros_floor_plan(size: tuple[int, int] = (300, 360)) -> npt.NDArray[np.int8]:
+    """:func:`floor_plan` as a ROS occupancy grid (100 walls, 0 free), int8."""
+    return np.where(floor_plan(size=size), 100, 0).astype(np.int8)
+
+
+def right_half_drifted(plan: npt.NDArray[np.int8], cells: int) -> npt.NDArray[np.int8]:
+    """``plan`` with its right half redrawn ``cells`` cells further right: a map redrawn from a
+    pose graph whose right part drifts (its old walls move with it)."""
+    half = plan.shape[1] // 2
+    out = plan.copy()
+    out[:, half:] = 0
+    out[:, half + cells :] = plan[:, half : plan.shape[1] - cells]
+    return out

@@ -12,7 +12,7 @@ from rerun import chunk as rerun_chunk  # noqa: E402
 
 from rose_logs.rerun import RerunSink  # noqa: E402
 from rose_logs.rerun.paths import TIMELINE, EntityPaths  # noqa: E402
-from rose_logs.session.breaks import BreakScore  # noqa: E402
+from rose_logs.session.breaks import BreakScore, DetectedBreak  # noqa: E402
 from rose_logs.snapshots import MapSnapshot  # noqa: E402
 
 
@@ -107,71 +107,57 @@ def test_a_detector_restart_is_an_event_in_the_recording(tmp_path: Path, fr079) 
     )
 
 
-def test_a_break_found_at_the_session_end_is_in_the_recording(tmp_path: Path) -> None:
-    """A drift in a session too short for the anchor's schedule, found at its end: the event, and
-    the last snapshot's break score against the anchor logged after its score against the
-    trusted one (at the same time: the views show the latest), with its region."""
+@pytest.fixture(scope="module")
+def session_end_break(tmp_path_factory: pytest.TempPathFactory) -> tuple[DetectedBreak, dict]:
+    """A drift in a session too short for the anchor's schedule (seven maps in 0.6 s, the right
+    half 0.15 m further each), found at its end: the break and the recording's temporal rows."""
     from conftest import START_NS, MapMsg, build_log
 
     from rose_logs.session import process_log
-    from tests.synthetic import floor_plan
+    from tests.synthetic import right_half_drifted, ros_floor_plan
 
-    plan = np.where(floor_plan(size=(300, 360)), 100, 0).astype(np.int8)
-    grids = []
-    for i in range(7):  # the right half 0.15 m further each, 10 maps a second
-        grid = plan.copy()
-        grid[:, 180:] = 0
-        grid[:, 180 + 3 * i :] = plan[:, 180 : plan.shape[1] - 3 * i]
-        grids.append(grid)
+    tmp_path = tmp_path_factory.mktemp("end")
+    plan = ros_floor_plan()
+    grids = [right_half_drifted(plan, 3 * i) for i in range(7)]
     maps = [MapMsg(START_NS + i * 100_000_000, g) for i, g in enumerate(grids)]
     built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps)
     report = process_log(built.path, rrd_path=tmp_path / "s.rrd")
     (found,) = report.detected_breaks
+    return found, _temporal_rows(tmp_path / "s.rrd")
+
+
+def _scalars_at_last_time(rows: list[dict]) -> list[float]:
+    """The scalars of an entity's rows at its latest time, in logging order."""
+    last = max(r[TIMELINE] for r in rows)
+    return [
+        next(v for k, v in r.items() if k.endswith("scalars"))[0]
+        for r in rows
+        if r[TIMELINE] == last
+    ]
+
+
+def test_a_break_found_at_the_session_end_is_in_the_recording(session_end_break) -> None:
+    """The event, and the last snapshot's break score against the anchor logged after its score
+    against the trusted one (at the same time: the views show the latest), with its region."""
+    found, rows = session_end_break
     assert found.index == 6 and found.trusted_index == 0
-    rows = _temporal_rows(tmp_path / "s.rrd")
     paths = EntityPaths("map")
     texts = [
         next(v for k, v in row.items() if k.endswith("text"))[0] for row in rows[f"/{paths.events}"]
     ]
     assert texts == [found.detail]
-    last = max(r[TIMELINE] for r in rows[f"/{paths.break_score}"])
-    scores = [
-        next(v for k, v in r.items() if k.endswith("scalars"))[0]
-        for r in rows[f"/{paths.break_score}"]
-        if r[TIMELINE] == last
-    ]
+    scores = _scalars_at_last_time(rows[f"/{paths.break_score}"])
     assert len(scores) == 2 and scores[0] < 1.25 and scores[1] == pytest.approx(found.score_m)
+    last = max(r[TIMELINE] for r in rows[f"/{paths.break_score}"])
     regions = [r for r in rows[f"/{paths.break_region}"] if r[TIMELINE] == last]
     assert any(k.endswith("strips") and v for r in regions for k, v in r.items())
 
 
-def test_a_break_found_at_the_session_end_plots_the_anchor_threshold(tmp_path: Path) -> None:
-    """The break found at a session's end is judged against the anchor, at twice the detector's
-    threshold, as its event says: the threshold line at that snapshot plots that threshold last
-    (it plotted the detector's own 1.25 m under a 2.5 m verdict)."""
-    from conftest import START_NS, MapMsg, build_log
-
-    from rose_logs.session import process_log
-    from tests.synthetic import floor_plan
-
-    plan = np.where(floor_plan(size=(300, 360)), 100, 0).astype(np.int8)
-    grids = []
-    for i in range(7):  # the right half 0.15 m further each, 10 maps a second
-        grid = plan.copy()
-        grid[:, 180:] = 0
-        grid[:, 180 + 3 * i :] = plan[:, 180 : plan.shape[1] - 3 * i]
-        grids.append(grid)
-    maps = [MapMsg(START_NS + i * 100_000_000, g) for i, g in enumerate(grids)]
-    built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps)
-    report = process_log(built.path, rrd_path=tmp_path / "s.rrd")
-    (found,) = report.detected_breaks
+def test_a_break_found_at_the_session_end_plots_the_anchor_threshold(session_end_break) -> None:
+    """Judged against the anchor, at twice the detector's threshold, as its event says: the
+    threshold line at that snapshot plots that threshold last (it plotted the detector's own
+    1.25 m under a 2.5 m verdict)."""
+    found, rows = session_end_break
     assert "(threshold 2.5 m)" in found.text
-    rows = _temporal_rows(tmp_path / "s.rrd")
-    threshold = f"/{EntityPaths('map').break_threshold}"
-    last = max(r[TIMELINE] for r in rows[threshold])
-    values = [
-        next(v for k, v in r.items() if k.endswith("scalars"))[0]
-        for r in rows[threshold]
-        if r[TIMELINE] == last
-    ]
+    values = _scalars_at_last_time(rows[f"/{EntityPaths('map').break_threshold}"])
     assert values[-1] == pytest.approx(2.5)

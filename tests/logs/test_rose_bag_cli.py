@@ -1117,14 +1117,10 @@ def test_a_bags_metadata_given_as_the_input_points_to_its_folder(
 
 
 def _right_half_drifted(cells: int) -> np.ndarray:
-    """A 300 x 360 floor plan (ROS values) whose right half is moved ``cells`` further right."""
-    from tests.synthetic import floor_plan
+    """The 300 x 360 floor plan with its right half ``cells`` cells further right."""
+    from tests.synthetic import right_half_drifted, ros_floor_plan
 
-    plan = np.where(floor_plan(size=(300, 360)), 100, 0).astype(np.int8)
-    out = plan.copy()
-    out[:, 180:] = 0
-    out[:, 180 + cells :] = plan[:, 180 : plan.shape[1] - cells]
-    return out
+    return right_half_drifted(ros_floor_plan(), cells)
 
 
 def test_a_map_returning_to_its_anchor_is_said_and_no_break(tmp_path: Path, capsys) -> None:

@@ -12,7 +12,7 @@ from scipy import ndimage
 
 from rose_logs.session.breaks import BreakDetector, BreakParams, DetectedBreak
 from rose_logs.snapshots import MapSnapshot
-from tests.synthetic import floor_plan
+from tests.synthetic import floor_plan, right_half_drifted
 
 RES = 0.05
 
@@ -427,22 +427,13 @@ def test_the_session_warns_of_a_map_the_detector_cannot_compare_once_it_stays(
         assert "trusted snapshot 0" in said[0] and "trusted snapshot 1" in said[1]
 
 
-def _half_shifted(plan: npt.NDArray[np.int8], cells: int) -> npt.NDArray[np.int8]:
-    """``plan`` with its right half redrawn ``cells`` cells further right: a map redrawn from a
-    pose graph whose right part drifts (its old walls move with it)."""
-    out = plan.copy()
-    out[:, 180:] = 0
-    out[:, 180 + cells :] = plan[:, 180 : plan.shape[1] - cells]
-    return out
-
-
 def test_a_drift_too_slow_to_break_between_snapshots_breaks_against_the_anchor(plan) -> None:
     """Half the map moves 0.1 m per snapshot, within the 0.3 m tolerance of the snapshot before:
     compared with the last trusted snapshot only, it never broke (1 m off after ten snapshots).
     The anchor, an older trusted snapshot, sees it; the map coming back to the anchor's (a loop
     closure) is no break but ends it."""
     period = 100_000_000  # 10 maps a second
-    drift = [_half_shifted(plan, 2 * i) for i in range(11)]  # 0 .. 1 m
+    drift = [right_half_drifted(plan, 2 * i) for i in range(11)]  # 0 .. 1 m
     grids = [*drift, plan, plan]
     without = BreakDetector(BreakParams(anchor_s=math.inf))
     assert not any(without.update(_snap(g, i * period)).broken for i, g in enumerate(drift))
@@ -463,7 +454,7 @@ def test_a_return_to_the_anchor_is_no_break_even_unflagged(plan) -> None:
     """A drift too quick for the anchor's next look, undone: the snapshot that returns contradicts
     the drifted trusted map, agrees with the anchor's, and is not a break."""
     period = 100_000_000
-    grids = [*(_half_shifted(plan, 3 * i) for i in range(5)), plan]  # 0.15 m a step, then back
+    grids = [*(right_half_drifted(plan, 3 * i) for i in range(5)), plan]  # 0.15 m a step, then back
     detector = BreakDetector()
     verdicts = [detector.update(_snap(g, i * period)) for i, g in enumerate(grids)]
     assert not any(v.broken for v in verdicts)
@@ -571,7 +562,7 @@ def test_a_drift_the_anchor_found_stays_one_break_until_it_returns(plan) -> None
     cells = [0, 2, 4, 6, 8, 10, 20, *([12] * 10)]  # quiet to 0.5 m, a jump to 1 m, then 0.6 m
     detector = BreakDetector()
     verdicts = [
-        detector.update(_snap(_half_shifted(plan, c), i * period)) for i, c in enumerate(cells)
+        detector.update(_snap(right_half_drifted(plan, c), i * period)) for i, c in enumerate(cells)
     ]
     assert [v.started for v in verdicts].count(True) == 1
     first = next(i for i, v in enumerate(verdicts) if v.broken)
@@ -582,7 +573,7 @@ def test_a_drift_the_anchor_found_stays_one_break_until_it_returns(plan) -> None
     cells = [0, 2, 4, 6, 8, 10, 5, 0, 0, 0]
     detector = BreakDetector()
     verdicts = [
-        detector.update(_snap(_half_shifted(plan, c), i * period)) for i, c in enumerate(cells)
+        detector.update(_snap(right_half_drifted(plan, c), i * period)) for i, c in enumerate(cells)
     ]
     assert any(v.returned_from is not None for v in verdicts)
     assert not any(v.broken for v in verdicts[-2:])
@@ -593,7 +584,7 @@ def test_a_drift_in_a_session_too_short_for_the_anchor_breaks_at_its_end(plan) -
     one before, and the anchor is compared every eighth snapshot or 10 s, so the drift went
     unseen. At the topic's end its last snapshot is compared with the anchor: a break since it."""
     period = 100_000_000
-    snaps = [_snap(_half_shifted(plan, 3 * i), i * period) for i in range(7)]
+    snaps = [_snap(right_half_drifted(plan, 3 * i), i * period) for i in range(7)]
     detector = BreakDetector()
     assert not any(detector.update(s).broken for s in snaps)
     found = detector.finish("/map")
@@ -647,7 +638,7 @@ def test_a_session_too_short_for_the_anchor_is_compared_at_its_end_alone(plan) -
     assert single.finish("/map") is None
     without = BreakDetector(BreakParams(anchor_s=math.inf))
     for i in range(7):
-        without.update(_snap(_half_shifted(plan, 3 * i), i * period))
+        without.update(_snap(right_half_drifted(plan, 3 * i), i * period))
     assert without.finish("/map") is None
 
 
