@@ -657,7 +657,8 @@ class _Loop:
         self.on_snapshot = on_snapshot
         self.serialization = reader.serialization
         self.last_map: dict[str, MapSnapshot] = {}
-        self.lost_map: set[str] = set()  # topics whose latest full map was malformed
+        # Topics whose latest full map was skipped, and why ("malformed" or "empty").
+        self.lost_map: dict[str, str] = {}
         self.count: dict[str, int] = {}
         self.above: dict[str, bool] = {}
         self.broken: dict[str, bool] = {}  # per topic: whether its last snapshot was broken
@@ -812,10 +813,10 @@ class _Loop:
             # The updates after it patch it, not the map before it: they are skipped too (one
             # was applied to the earlier map, a snapshot the robot never had).
             self.last_map.pop(topic, None)
-            self.lost_map.add(topic)
+            self.lost_map[topic] = reason
             return
         self.last_map[topic] = snapshot
-        self.lost_map.discard(topic)
+        self.lost_map.pop(topic, None)
         self._note_out_of_range(topic, snapshot.out_of_range_cells, log_time_ns)
         tilt = quaternion_tilt(snapshot.origin_orientation_xyzw)
         if tilt > _FLAT_TILT_RAD:
@@ -857,10 +858,12 @@ class _Loop:
             )
             base = self.last_map.get(target)
             if base is None and target in self.lost_map:
+                lost = self.lost_map[target]
+                article = "an" if lost == "empty" else "a"
                 self.skips.add(
-                    "after a malformed map",
-                    f"{topic}: grid update {self._at(log_time_ns)} of a malformed full map on "
-                    f"{target}",
+                    f"after {article} {lost} map",
+                    f"{topic}: grid update {self._at(log_time_ns)} of {article} {lost} full map "
+                    f"on {target}",
                 )
                 return
             if base is None:

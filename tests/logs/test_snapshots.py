@@ -252,6 +252,11 @@ def test_updates_after_a_malformed_map_are_skipped_not_applied_to_the_map_before
     report = process_log(built.path, output_path=None)
     assert [r.log_time_ns - START_NS for r in report.records] == [1 * s, 4 * s, 5 * s]
     assert report.skipped_reasons == "1 malformed, 1 after a malformed map"
+    # An empty map (no cells) in its place: the update after it is said as such.
+    maps[1] = MapMsg(START_NS + 2 * s, fr079[1][:0, :])
+    built = build_log(tmp_path / "empty.mcap", "mcap-ros2", maps)
+    report = process_log(built.path, output_path=None)
+    assert report.skipped_reasons == "1 empty, 1 after an empty map"
 
 
 def test_another_costmaps_updates_never_patch_the_only_map(tmp_path, fr079) -> None:
