@@ -964,10 +964,7 @@ class _Loop:
                 analysis.cleaning,
                 judged=record.judged,
             )
-            # The threshold in force: twice the detector's against the anchor (a return's score
-            # may stand above the detector's own line, unbroken).
-            threshold_m = verdict.threshold_m or self.detector.params.threshold_m
-            self.rerun.break_score(snapshot, verdict, index, threshold_m)
+            self.rerun.break_score(snapshot, verdict, index, self._threshold_in_force(verdict))
             if verdict.incomparable_with is not None:
                 # In the viewer too: the break score falls to 0 there, which read as a recovery.
                 restart = (
@@ -1019,9 +1016,7 @@ class _Loop:
                 break_detected=True,
             )
             if self.rerun is not None:
-                # The threshold in force, the anchor's (twice the detector's), as in _finish.
-                threshold_m = verdict.threshold_m or self.detector.params.threshold_m
-                self.rerun.break_score(snapshot, verdict, index, threshold_m)
+                self.rerun.break_score(snapshot, verdict, index, self._threshold_in_force(verdict))
             self._say_break(
                 snapshot, index, verdict, record.structure_score if record.judged else None
             )
@@ -1075,6 +1070,11 @@ class _Loop:
             if self.rerun is not None:
                 self.rerun.event(snapshot, detail, index, score, failure=True)
         self.above[topic] = above
+
+    def _threshold_in_force(self, verdict: BreakScore) -> float:
+        """The threshold ``verdict`` was judged at, metres: twice the detector's against the anchor
+        (a return's score may stand above the detector's own line, unbroken)."""
+        return verdict.threshold_m or self.detector.params.threshold_m
 
     def _say_break(
         self, snapshot: MapSnapshot, index: int, verdict: BreakScore, score: float | None
