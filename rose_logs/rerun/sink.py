@@ -15,6 +15,7 @@ import contextlib
 import contextvars
 import dataclasses
 import hashlib
+import io
 import logging
 import math
 import os
@@ -711,16 +712,15 @@ def _require_whole_stream(path: Path) -> None:
     are walked (their payloads skipped): the last must end where the file does.
     """
     try:
-        with path.open("rb") as f:
-            size = f.seek(0, 2)
-            f.seek(0)
-            if f.read(len(_STREAM_MAGIC)) != _STREAM_MAGIC:
+        # Unbuffered reads of the headers alone (a buffered file read 8 KiB at every seek).
+        with path.open("rb", buffering=0) as f:
+            size = os.fstat(f.fileno()).st_size
+            if _read_at(f, len(_STREAM_MAGIC), 0) != _STREAM_MAGIC:
                 msg = "not a Rerun recording stream (no RRF2 header)"
                 raise OSError(msg)
             at = _STREAM_HEADER_BYTES
             while at < size:
-                f.seek(at)
-                header = f.read(_MESSAGE_HEADER.size)
+                header = _read_at(f, _MESSAGE_HEADER.size, at)
                 if len(header) < _MESSAGE_HEADER.size:
                     break
                 at += _MESSAGE_HEADER.size + _MESSAGE_HEADER.unpack(header)[1]
@@ -732,3 +732,11 @@ def _require_whole_stream(path: Path) -> None:
     if at != size:
         msg = f"incomplete: its last message is cut short at byte {size} (a full disk?)"
         raise OSError(msg)
+
+
+def _read_at(f: io.RawIOBase, count: int, offset: int) -> bytes:
+    """``count`` bytes of the unbuffered file ``f`` from ``offset`` (one system call on POSIX)."""
+    if hasattr(os, "pread"):
+        return os.pread(f.fileno(), count, offset)
+    f.seek(offset)  # (Windows has no pread)
+    return bytes(f.read(count) or b"")
