@@ -394,7 +394,22 @@ class _RosbagsWriteBackend(WriteBackend):
                 self.writer.close()
             except Exception:  # the output is deleted anyway
                 _LOG.debug("closing an aborted writer failed", exc_info=True)
+                # rosbags closes its file last, after writing the index: a close that failed
+                # (a full disk) left it open, and the deleted output kept its disk space until
+                # the process ended (a batch's later recordings found the disk still full).
+                _release_files(self.writer)
             self.writer = None
+
+
+def _release_files(writer: Any) -> None:
+    """Close the files a rosbags writer holds (a ROS 1 bag's, a ROS 2 storage's MCAP file or
+    SQLite connection), whatever state a failed close left them in."""
+    for holder in (writer, getattr(writer, "storage", None)):
+        for name in ("bio", "conn"):
+            handle = getattr(holder, name, None)
+            if handle is not None:
+                with contextlib.suppress(Exception):  # a flush onto the full disk fails again
+                    handle.close()
 
 
 class Ros1WriteBackend(_RosbagsWriteBackend):

@@ -1115,3 +1115,37 @@ def test_info_marks_costmaps_as_process_picks_them(tmp_path: Path, capsys, fr079
     assert {s["topic"] for s in json.loads(out_text)["snapshots"]} == {"/local_costmap/costmap"}
     code, out_text, _ = _run(capsys, "info", log)
     assert "analysed only with --topic" not in out_text
+
+
+@pytest.mark.parametrize("fmt", ["ros1", "mcap-dir", "db3"])
+def test_an_aborted_log_whose_close_fails_releases_its_file(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, fmt: str
+) -> None:
+    """rosbags closes its file after writing the index: a close that failed on a full disk left
+    the deleted output open, holding its disk space, until the process ended (a batch's later
+    recordings then found the disk full too)."""
+    import errno
+
+    from rose_logs.storage.rosbags import Ros1WriteBackend, Ros2WriteBackend
+
+    backend = (
+        Ros1WriteBackend(tmp_path / "out.bag")
+        if fmt == "ros1"
+        else Ros2WriteBackend(tmp_path / "out", fmt)  # type: ignore[arg-type]
+    )
+    backend.open()
+    writer = backend.writer
+    holder = writer if fmt == "ros1" else writer.storage
+    handle = getattr(holder, "conn" if fmt == "db3" else "bio")
+
+    def full_disk(*args: object, **kwargs: object) -> None:
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(writer, "close", full_disk)
+    backend.abort()
+    if fmt == "db3":
+        with pytest.raises(Exception, match="closed"):
+            handle.execute("SELECT 1")
+    else:
+        assert handle.closed
+    assert backend.writer is None
