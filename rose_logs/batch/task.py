@@ -546,7 +546,20 @@ def process_recording(
     )
     result = _with_seconds(result, time.perf_counter() - started, time.process_time() - cpu_started)
     if lasting:
-        store_result(store, result)
+        for attempt in range(1, attempts + 1):
+            try:
+                store_result(store, result)
+                break
+            except OSError as err:
+                # An I/O error as any other under OUT (a full disk): retried, then said on the
+                # row, whose result is not stored (the next run does the recording again). It
+                # escaped before: in this process it ended the whole batch with no tables, on a
+                # Dask worker it became an error row, stored, that no later run redid.
+                if attempt == attempts:
+                    line = f"{recording.uri}: its result could not be stored ({err}); the next run does it again"
+                    result = dataclasses.replace(result, warnings=(*result.warnings, line))
+                    break
+                time.sleep(min(0.2 * 2**attempt, 5.0))
     return result
 
 

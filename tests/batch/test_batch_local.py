@@ -1576,3 +1576,34 @@ def test_the_redone_scan_reads_only_results_of_other_settings(
     # With other options both are redone: the two stored results are read once each.
     report = run_batch([a.parent], out, options=RecordingOptions(walls=True))
     assert report.redone == (("options changed: walls", 2),) and len(read) == 2
+
+
+def test_a_result_that_cannot_be_stored_is_said_not_a_crashed_batch(
+    fleet: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A full disk when a finished recording's result is written: retried, then said on its row
+    and not stored (the next run does it again). It escaped process_recording: in this process
+    the whole batch ended with no tables."""
+    import errno
+
+    from rose_logs.batch.store import OutputStore
+
+    real = OutputStore.write_bytes
+    full = {"on": True}
+
+    def write_bytes(self: OutputStore, relative: str, data: bytes) -> object:
+        if full["on"] and relative.startswith("results/"):
+            raise OSError(errno.ENOSPC, "cannot write (No space left on device)", relative)
+        return real(self, relative, data)
+
+    monkeypatch.setattr(OutputStore, "write_bytes", write_bytes)
+    out = tmp_path / "out"
+    options = RecordingOptions(retries=1)
+    report = run_batch([fleet / "robot_a"], out, options=options)
+    assert [r.status for r in report.results] == ["ok", "ok"]
+    assert all("its result could not be stored" in r.warnings[-1] for r in report.results)
+    assert len(read_rows(out / "recordings.parquet")) == 2
+    full["on"] = False
+    again = run_batch([fleet / "robot_a"], out, options=options)
+    assert (again.processed, again.skipped) == (2, 0)
+    assert not any(r.warnings for r in again.results)
