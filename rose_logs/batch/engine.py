@@ -190,6 +190,7 @@ def run_batch(
     finished: dict[str, RecordingResult] = {}
     todo: list[Recording] = []
     before: dict[str, RecordingResult | None] = {}  # stored results of the recordings to do
+    unasked: dict[str, int] = {}  # finished recordings redone though neither asked nor changed
     with storage_errors(store.root):
         stored_results = {rec.uri: load_result(store, keys[rec.uri]) for rec in recordings}
         owners = output_owners(store) if options.cleaned or options.rrd else {}
@@ -206,20 +207,23 @@ def run_batch(
                 and not (options.cleaned or options.rrd)
             ):
                 previous = dataclasses.replace(previous, name=rec.name)  # no file has its name
-            redo = (
-                force
-                or previous is None
-                or (retry_errors and previous.status == "error")
+            why = None  # a finished recording redone unasked: why, for the summary
+            if force or previous is None or (retry_errors and previous.status == "error"):
+                redo = True
+            elif previous.name != rec.name:
                 # Its outputs carry a name another recording takes this run: redone under its new
                 # name, or two rows would share one cleaned log.
-                or previous.name != rec.name
-                or _outputs_missing(previous, store)
-            )
+                redo, why = True, "its outputs' name is another recording's now"
+            else:
+                redo = _outputs_missing(previous, store)
+                why = "its --cleaned / --rrd output was deleted or changed since" if redo else None
         if previous is not None and not redo:
             finished[rec.uri] = previous
         else:
             todo.append(rec)
             before[rec.uri] = previous
+            if why is not None:
+                unasked[why] = unasked.get(why, 0) + 1
     skipped = len(finished)
     _LOG.info("%d recordings, %d finished before, %d to do", len(recordings), skipped, len(todo))
     try:
@@ -231,6 +235,8 @@ def run_batch(
         # it, in their words: the reasons are no step of the run.
         _LOG.debug("cannot tell why recordings are redone: %s", err)
         redone = ()
+    # A finished recording is never redone without a word (it took its time again).
+    redone = tuple(sorted((*redone, *unasked.items()), key=lambda item: (-item[1], item[0])))
     for reason, count in redone:
         _LOG.info("%d recording(s) redone: %s", count, reason)
     named_by = None  # the scheduler file, for errors

@@ -1152,6 +1152,8 @@ def test_a_rerun_remakes_outputs_cut_short_or_missing_a_file(fleet: Path, tmp_pa
     again = run_batch([fleet / "robot_b"], out, options=options)
     assert (again.processed, again.skipped) == (2, 1)
     assert log.read_bytes() == whole and storage.is_file()
+    # Said, as every finished recording done again is (it was redone without a word).
+    assert again.redone == (("its --cleaned / --rrd output was deleted or changed since", 2),)
 
 
 @pytest.mark.parametrize("limit", ["1KB", "0.0000001"])
