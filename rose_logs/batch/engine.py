@@ -346,10 +346,16 @@ def _redone(
             continue
         now = result_settings(rec, options)
         # Of several stored results (a run per set of options), the nearest that says its
-        # settings tells the most.
+        # settings tells the most; of those as near, one of this very file (the options say
+        # why): the order the results were listed in chose, and a fleet of like recordings was
+        # "redone 4 (options changed: salvage)" and "redone 2 (the file changed)".
         nearest = min(
             earlier[rec.uri],
-            key=lambda settings: (settings is None, len(setting_changes(settings, now))),
+            key=lambda settings: (
+                settings is None,
+                len(changes := setting_changes(settings, now)),
+                "the file changed" in changes,
+            ),
         )
         why = changed_settings(nearest, now)
         reasons[why] = reasons.get(why, 0) + 1

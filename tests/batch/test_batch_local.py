@@ -319,6 +319,25 @@ def test_a_rerun_with_other_settings_says_why_it_redoes_recordings(
     assert "recordings   2 (1 processed, 1 finished before)" in lines
 
 
+def test_of_earlier_runs_as_near_the_one_of_this_very_file_says_why(tmp_path: Path) -> None:
+    """Run 1 on the old file, run 2 (--salvage) on the new one, run 3 as run 1: each earlier
+    result differs in one thing. The order the results were listed in chose between them, and
+    six like recordings were "redone 4 (options changed: salvage)", "redone 2 (the file
+    changed)"."""
+    from fleet import copy_recording
+
+    logs = [copy_recording(tmp_path / "in" / f"{n}.mcap", "mcap", max_maps=1) for n in "abcdef"]
+    out = tmp_path / "out"
+    run_batch([tmp_path / "in"], out)
+    for log in logs:
+        os.utime(log, ns=(1, 1))  # another version of each file
+    salvage = RecordingOptions(salvage=True)
+    assert run_batch([tmp_path / "in"], out, options=salvage).redone == (
+        ("the file changed; options changed: salvage", 6),
+    )
+    assert run_batch([tmp_path / "in"], out).redone == (("options changed: salvage", 6),)
+
+
 def test_results_stored_without_their_settings_are_redone_with_a_reason(tmp_path: Path) -> None:
     """Results of rose-bag versions that did not store their settings: redone (another layout),
     and said to be of an older rose-bag or other options."""
