@@ -681,6 +681,11 @@ def _attempt(
             text = str(err)
             if str(local) != recording.uri:
                 text = text.replace(str(local), recording.uri)
+            # So do the outputs' staging names (gone too): name where they were going.
+            if cleaned is not None:
+                text = text.replace(str(cleaned), store.uri(f"cleaned/{cleaned_name}"))
+            if rrd is not None:
+                text = text.replace(str(rrd), store.uri(f"rrd/{recording.name}.rrd"))
             if _output_failure(err):  # a full disk under OUT: not the recording's, retried
                 raise OSError(err.__cause__.errno, text) from err  # type: ignore[union-attr]
             return error_result(recording, key, options, text, log_format=_format_of(local))

@@ -1153,6 +1153,9 @@ def test_a_full_output_disk_is_no_failure_of_the_recording(
     options = RecordingOptions(cleaned=True, retries=1)
     (failed,) = run_batch([fleet / "robot_a" / "run.mcap"], out, options=options).results
     assert failed.status == "error" and "No space left on device" in failed.error
+    # Named where it was going, not by its staging name (gone when the row is read).
+    assert ".staging" not in failed.error, failed.error
+    assert str(out / "cleaned" / "run.mcap") in failed.error, failed.error
     monkeypatch.setattr(rose_logs.session, "process_log", real)
     again = run_batch([fleet / "robot_a" / "run.mcap"], out, options=options)
     assert (again.processed, again.skipped) == (1, 0)
