@@ -130,6 +130,8 @@ def summary(report: BatchReport, options: RecordingOptions) -> dict[str, Any]:
         "failure_level": report.failure_level,
         "options": options.stated(),
         "recordings": len(rows),
+        # More than ``recordings`` when the run was interrupted: what is left to do.
+        "recordings_found": report.found,
         "ok": sum(r["status"] == "ok" for r in rows),
         "errors": sum(r["status"] == "error" for r in rows),
         "salvaged": sum(bool(r["losses"]) for r in rows),

@@ -585,10 +585,15 @@ def test_ctrl_c_keeps_finished_recordings_and_exits_130(
     assert len(read_rows(out / "recordings.parquet")) == 2
     # The summary says how far it got, not only what finished (read like the fleet's size).
     assert "recordings   2 of 5 found (2 processed" in capsys.readouterr().out
-    assert json.loads((out / "summary.json").read_text())["interrupted"] is True
+    summary = json.loads((out / "summary.json").read_text())
+    # And so does summary.json: 2 finished of the 5 the inputs named.
+    assert summary["interrupted"] is True
+    assert (summary["recordings"], summary["recordings_found"]) == (2, 5)
     monkeypatch.setattr(engine, "process_recording", real)
     resumed = run_batch([fleet], out)
     assert (resumed.processed, resumed.skipped) == (3, 2)
+    summary = json.loads((out / "summary.json").read_text())
+    assert (summary["recordings"], summary["recordings_found"]) == (5, 5)
 
 
 def test_two_robots_run_mcap_get_separate_rrd_files_and_recording_ids(
