@@ -213,7 +213,29 @@ def _decompress(fields: dict[str, bytes], data: bytes, *, exact: bool = True) ->
     return content
 
 
-class Ros1StreamReadBackend:
+class _Ros1FileBackend:
+    """What the two ``--salvage`` readers of a ROS 1 bag share: its channels as they are found, its
+    time range, and the open file (:meth:`close`)."""
+
+    profile = ""
+    format = "ros1"
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self.channels: tuple[Channel, ...] = ()
+        self._by_conn: dict[int, Channel] = {}
+        self.start_ns = 0
+        self.end_ns = 0
+        self.qos_style: QosStyle | None = None
+        self.stream: BinaryIO | None = None
+
+    def close(self) -> None:
+        if self.stream is not None:
+            self.stream.close()
+            self.stream = None
+
+
+class Ros1StreamReadBackend(_Ros1FileBackend):
     """A ROS 1 bag read from its start without its index (see module notes). For ``--salvage`` only.
 
     Attributes
@@ -225,19 +247,10 @@ class Ros1StreamReadBackend:
         pointer to them was wrong): then nothing was lost.
     """
 
-    profile = ""
-    format = "ros1"
-
     def __init__(self, path: Path) -> None:
-        self.path = path
+        super().__init__(path)
         self.damage = ""
         self.complete = False
-        self.channels: tuple[Channel, ...] = ()
-        self._by_conn: dict[int, Channel] = {}
-        self.start_ns = 0
-        self.end_ns = 0
-        self.qos_style: QosStyle | None = None
-        self.stream: BinaryIO | None = None
         self._end: int | None = None  # where open() stopped: messages() stops there too
 
     def _items(self) -> Iterator[_Connection | tuple[int, int, bytes]]:
@@ -328,11 +341,6 @@ class Ros1StreamReadBackend:
             channel = by_conn.get(conn)
             if channel is not None and (topics is None or channel.topic in topics):
                 yield RawMessage(channel, time_ns, data, time_ns)
-
-    def close(self) -> None:
-        if self.stream is not None:
-            self.stream.close()
-            self.stream = None
 
 
 def _count_connection(item: _Connection | tuple[int, int, bytes], known: set[int]) -> None:
@@ -674,9 +682,9 @@ def _indexed_messages(
                 return None
             # A damaged data length ends the record early or late: the next record (read in
             # full, not only where the index points) would not start where this one ends.
-            if view.tell() < len(content):
-                after = _read_record(view, len(content))
-                if after is None or _op(after[0]) not in (_OP_MESSAGE, _OP_CONNECTION):
+            if view.tell() < len(content):  # its header is enough (not a map's megabyte)
+                after = _fields(_read_block(view, len(content), "header"))
+                if _op(after) not in (_OP_MESSAGE, _OP_CONNECTION):
                     return None
             messages.append(item)
     except _Damage:
@@ -768,23 +776,14 @@ def _chunk_damage(chunk: ChunkInfo, index: BagIndex, reason: str) -> str:
     )
 
 
-class Ros1IndexedReadBackend:
+class Ros1IndexedReadBackend(_Ros1FileBackend):
     """A ROS 1 bag read through its own index when a chunk's record is damaged (rosbags, which
     reads every chunk's header to open a bag, refuses it): for ``--salvage``, which skips the
     damaged chunks (:attr:`skipped_chunks`) and reads the others. Counts and times are the
     index's (declared); messages come in log-time order as rosbags gives them."""
 
-    profile = ""
-    format = "ros1"
-
     def __init__(self, path: Path) -> None:
-        self.path = path
-        self.channels: tuple[Channel, ...] = ()
-        self._by_conn: dict[int, Channel] = {}
-        self.start_ns = 0
-        self.end_ns = 0
-        self.qos_style: QosStyle | None = None
-        self.stream: BinaryIO | None = None
+        super().__init__(path)
         self.index: BagIndex | None = None
         self.skipped_chunks: list[SkippedChunk] = []
 
@@ -817,8 +816,3 @@ class Ros1IndexedReadBackend:
             self.stream, self.index, conns, self.skipped_chunks
         ):
             yield RawMessage(by_conn[conn], time_ns, data, time_ns)
-
-    def close(self) -> None:
-        if self.stream is not None:
-            self.stream.close()
-            self.stream = None
