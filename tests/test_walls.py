@@ -289,6 +289,30 @@ def test_a_wall_set_holds_its_own_directions_and_checks_what_it_is_given() -> No
             WallSet(**kwargs)
 
 
+def test_a_wall_set_holds_its_own_placement_as_python_floats() -> None:
+    """A hand-made set kept the caller's origin list (changing it moved every wall in metres) and
+    numpy scalars (its GeoJSON failed: float32 is not JSON serializable)."""
+    import json
+
+    from rose.walls.export import walls_to_geojson
+    from rose.walls.segments import WallSet
+
+    origin = [1.0, 2.0]
+    walls = WallSet(
+        np.array([[[0.0, 0.0], [9.0, 0.0]]]),
+        shape=(10, 10),
+        resolution_m=np.float32(0.05),
+        origin_xy_m=origin,
+        origin_yaw_rad=np.float32(0.1),
+    )
+    before = walls.endpoints_m.copy()
+    origin[0] = 9.0
+    assert walls.origin_xy_m == (1.0, 2.0)
+    np.testing.assert_array_equal(walls.endpoints_m, before)
+    assert type(walls.resolution_m) is float and type(walls.origin_yaw_rad) is float
+    assert json.loads(json.dumps(walls_to_geojson(walls)))["resolution_m"] == walls.resolution_m
+
+
 @pytest.mark.parametrize(
     ("resolution_m", "origin"),
     [

@@ -139,6 +139,11 @@ class WallSet(ReadOnlyArrays):
         object.__setattr__(self, "endpoints_px", endpoints)
         object.__setattr__(self, "shape", (int(shape[0]), int(shape[1])))
         object.__setattr__(self, "dominant_directions", directions)
+        # Python floats of its own: a list given as the origin was held as it was, and changing
+        # it afterwards moved every wall in metres (numpy scalars too, as the other fields).
+        object.__setattr__(self, "resolution_m", float(self.resolution_m))
+        object.__setattr__(self, "origin_xy_m", (float(origin[0]), float(origin[1])))
+        object.__setattr__(self, "origin_yaw_rad", float(self.origin_yaw_rad))
         super().__post_init__()
 
     def __len__(self) -> int:
