@@ -360,6 +360,18 @@ def test_a_wall_a_hair_below_zero_degrees_reads_zero_in_the_table_and_geojson() 
     assert feature["properties"]["orientation_deg"] == 0.0
 
 
+def test_orientations_stay_below_pi_for_a_hair_below_zero() -> None:
+    """``np.mod(-1e-20, pi)`` is ``pi`` in floating point: a horizontal wall on a map whose origin
+    yaw is a hair below 0 (or a segment a hair below horizontal) had the orientation pi, outside
+    the documented [0, pi), and was ordered right to left."""
+    from rose.walls.segments import WallSet, segment_orientations
+
+    walls = WallSet(np.array([[[0.0, 5.0], [9.0, 5.0]]]), shape=(10, 10), origin_yaw_rad=-1e-20)
+    assert walls.orientations_rad.tolist() == [0.0]
+    assert walls.segments[0].orientation_rad == 0.0
+    assert segment_orientations(np.array([[[0.0, 0.0], [9.0, -1e-16]]])).tolist() == [0.0]
+
+
 def test_walls_are_read_at_the_results_occupied_threshold(caplog: pytest.LogCaptureFixture) -> None:
     """A map whose walls are 50 % cells, analysed at 30: its walls were read at the default 65 and
     none came out."""

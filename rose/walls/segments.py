@@ -187,7 +187,7 @@ class WallSet(ReadOnlyArrays):
     @property
     def orientations_rad(self) -> npt.NDArray[np.float64]:
         """Line orientations in the map frame, radians in ``[0, pi)``, shape (N,)."""
-        return np.mod(segment_orientations(self.endpoints_px) + self.origin_yaw_rad, math.pi)
+        return _half_turn(segment_orientations(self.endpoints_px) + self.origin_yaw_rad)
 
     @property
     def segments(self) -> tuple[WallSegment, ...]:
@@ -247,7 +247,17 @@ def segment_orientations(endpoints: npt.ArrayLike) -> npt.NDArray[np.float64]:
     """
     e = np.asarray(endpoints, dtype=np.float64)
     d = e[:, 1] - e[:, 0]
-    return np.mod(np.arctan2(d[:, 1], d[:, 0]), math.pi)
+    return _half_turn(np.arctan2(d[:, 1], d[:, 0]))
+
+
+def _half_turn(angles: npt.ArrayLike) -> npt.NDArray[np.float64]:
+    """Line orientations (radians) folded into ``[0, pi)``, float64 of the same shape.
+
+    ``np.mod`` alone leaves ``pi`` itself for an angle a hair below a multiple of pi (``-1e-20 %
+    pi`` is ``pi`` in floating point): that is 0.
+    """
+    folded = np.mod(np.asarray(angles, dtype=np.float64), math.pi)
+    return np.where(folded >= math.pi, 0.0, folded)
 
 
 def axial_difference(a: npt.ArrayLike, b: npt.ArrayLike) -> npt.NDArray[np.float64]:
