@@ -25,8 +25,9 @@ index entry).
 from __future__ import annotations
 
 import logging
+import os
 import re
-from collections.abc import Collection, Iterator
+from collections.abc import Collection, Iterable, Iterator
 from pathlib import Path
 from types import TracebackType
 from typing import Self
@@ -48,7 +49,7 @@ from rose_logs.storage.ros1_stream import (
 )
 from rose_logs.storage.rosbags import RosbagsReadBackend, library_text, rosbags_text
 
-__all__ = ["Channel", "LogReader", "MessageLossError", "RawMessage"]
+__all__ = ["Channel", "LogReader", "MessageLossError", "RawMessage", "topic_names"]
 
 _LOG = logging.getLogger(__name__)
 
@@ -102,6 +103,31 @@ def _rosbags_reads() -> str:
         return f"rosbags reads {latest}"
 
 
+def topic_names(topics: Collection[str] | str | None) -> tuple[str, ...] | None:
+    """``topics`` as a tuple of names, in order (one name is one topic, not its characters); None
+    for every topic.
+
+    Raises
+    ------
+    TypeError
+        If ``topics`` is neither a name nor names (str): ``b"/map"`` was read as the numbers of its
+        bytes and matched no topic, silently.
+    """
+    if topics is None:
+        return None
+    if isinstance(topics, str):
+        return (topics,)
+    if isinstance(topics, bytes | bytearray) or not isinstance(topics, Iterable):
+        msg = f"topics must be a topic name or names (str), got {type(topics).__name__}"
+        raise TypeError(msg)
+    names = tuple(topics)
+    for name in names:
+        if not isinstance(name, str):
+            msg = f"topics must be topic names (str), got {name!r} among them"
+            raise TypeError(msg)
+    return names
+
+
 class MessageLossError(LogReadError):
     """Fewer messages could be read than the log's index / metadata declares (or a chunk is corrupt)."""
 
@@ -111,13 +137,18 @@ class LogReader:
 
     Parameters
     ----------
-    path : Path
-        Log file or ROS 2 bag folder. Never modified.
+    path : path-like
+        Log file or ROS 2 bag folder (str, bytes or path). Never modified.
     salvage : bool, default False
         What to do when messages are lost (a corrupt chunk, a failed MCAP CRC, fewer messages than the
         index / ``metadata.yaml`` / MCAP statistics declare): False raises :class:`MessageLossError`
         from :meth:`messages`; True stops reading there, records the problem in :attr:`losses` and
         ends the iteration normally (the caller must report it).
+
+    Raises
+    ------
+    TypeError
+        If ``path`` is no file name or ``salvage`` not True or False.
 
     Notes
     -----
@@ -131,7 +162,13 @@ class LogReader:
     """
 
     def __init__(self, path: Path, *, salvage: bool = False) -> None:
-        self.path = Path(path)
+        if not isinstance(path, str | bytes | os.PathLike):
+            msg = f"path must be a log's file or folder name, got {type(path).__name__}"
+            raise TypeError(msg)
+        if salvage not in (True, False):  # salvage="no" salvaged (numpy's bools are taken)
+            msg = f"salvage must be True or False, got {salvage!r}"
+            raise TypeError(msg)
+        self.path = Path(os.fsdecode(path))
         self.format: LogFormat = detect_format(self.path)
         self.salvage = salvage
         self.losses: list[str] = []
@@ -383,10 +420,12 @@ class LogReader:
         ------
         LogReadError
             If the log turns out to be truncated or corrupt while reading.
+        TypeError
+            If ``topics`` is neither a topic name nor names (str), on the first message asked for.
         """
         backend = self._open_backend
-        # A single topic name is one topic, not a collection of one-character topics.
-        wanted = None if topics is None else {topics} if isinstance(topics, str) else set(topics)
+        names = topic_names(topics)
+        wanted = None if names is None else set(names)
         counts: dict[int, int] = {}
         self.read_count = 0
         try:

@@ -49,7 +49,7 @@ from rose_logs.derived import derived_topics, encode_cleaned, encode_score, enco
 from rose_logs.errors import EmptyMapError, LogReadError, LogWriteError, MapMessageError
 from rose_logs.formats import LogFormat, format_from_path
 from rose_logs.frames import quaternion_tilt
-from rose_logs.reader import LogReader
+from rose_logs.reader import LogReader, topic_names
 from rose_logs.session.analysis import SnapshotAnalyser, SnapshotAnalysis
 from rose_logs.session.breaks import BreakDetector, BreakParams, BreakScore, DetectedBreak
 from rose_logs.session.report import (
@@ -198,12 +198,14 @@ def process_log(
         If the recording touches the input or another output, or exists without ``force``.
     RoseError
         On a parameter out of range (``params``, ``failure_level``, ``clean_method``,
-        ``analysis_threads``), before the input is read.
+        ``analysis_threads``) or ``topics`` that are not topic names, before the input is read.
     """
     started = time.perf_counter()
     input_path = Path(input_path)
-    if isinstance(topics, str):  # one topic, not its characters
-        topics = [topics]
+    try:  # one name is one topic, not its characters; b"/map" was its bytes' numbers
+        topics = topic_names(topics)
+    except TypeError as err:
+        raise rose.RoseError(str(err)) from None
     params = make_params(params)  # a RoseParams, or a RoseError saying what it got
     if break_params is None:
         break_params = BreakParams.following(params.occupied_threshold)

@@ -758,6 +758,28 @@ def test_reader_error_names_the_file(tmp_path: Path) -> None:
         LogReader(tmp_path / "x.bag")
 
 
+def test_reader_and_session_say_what_is_wrong_with_their_topics_and_flags(mcap_log: Path) -> None:
+    """``topics=b"/map"`` read the numbers of its bytes as topics: no message, silently, from
+    LogReader.messages, and an AttributeError from process_log (``[None]`` too); ``salvage="no"``
+    salvaged; LogReader(None) failed in pathlib."""
+    import rose
+    from rose_logs.reader import LogReader
+
+    with LogReader(mcap_log) as reader:
+        assert sum(1 for _ in reader.messages(topics="/map")) > 0
+        assert sum(1 for _ in reader.messages(topics=("/map",))) > 0
+        for bad, words in ((b"/map", "got bytes"), (5, "got int"), ([None], "got None")):
+            with pytest.raises(TypeError, match=f"topics must be .*{words}"):
+                next(reader.messages(topics=bad))  # type: ignore[arg-type]
+            with pytest.raises(rose.RoseError, match=f"topics must be .*{words}"):
+                process_log(mcap_log, topics=bad)  # type: ignore[arg-type]
+    with pytest.raises(TypeError, match="salvage must be True or False, got 'no'"):
+        LogReader(mcap_log, salvage="no")  # type: ignore[arg-type]
+    with pytest.raises(TypeError, match="path must be a log's file or folder name, got NoneType"):
+        LogReader(None)  # type: ignore[arg-type]
+    assert LogReader(os.fsencode(mcap_log), salvage=np.bool_(True)).path == mcap_log
+
+
 def test_debug_shows_traceback(tmp_path: Path) -> None:
     with pytest.raises(LogReadError):
         main(["--debug", "process", str(tmp_path / "nope.mcap")])
