@@ -9,6 +9,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rose.errors import RoseError
+from rose.limits import finite_number
 from rose.params import MIN_PADDED_SIDE
 
 __all__ = [
@@ -165,7 +166,16 @@ def find_direction_peaks(
     tripled and only peaks in the middle copy are kept: a peak at 0 or near pi is found once, with its
     true prominence. A constant signal has no peaks, and neither has one whose spread is below
     ``1e-4`` of its level: that is float rounding (a single occupied cell has a flat spectrum).
+
+    Raises
+    ------
+    RoseError
+        If ``cumulative`` is not 1-D or ``prominence_fraction`` not a finite number >= 0.
     """
+    cumulative = _curve(cumulative, "find_direction_peaks")
+    if not (finite_number(prominence_fraction) and prominence_fraction >= 0):
+        msg = f"prominence_fraction must be a finite number >= 0, got {prominence_fraction!r}"
+        raise RoseError(msg)
     n = cumulative.size
     span = float(cumulative.max() - cumulative.min()) if n else 0.0
     level = float(np.abs(cumulative).max()) if n else 0.0
@@ -233,7 +243,15 @@ def peak_prominences(
 def refine_peak_positions(
     cumulative: npt.NDArray[np.float64], indices: npt.NDArray[np.intp]
 ) -> npt.NDArray[np.float64]:
-    """Sub-bin peak positions (in bins) by fitting a parabola through each peak and its two neighbours."""
+    """Sub-bin peak positions (in bins) by fitting a parabola through each peak and its two neighbours.
+
+    Raises
+    ------
+    RoseError
+        If ``cumulative`` is not 1-D or ``indices`` are not integers in ``0 .. cumulative.size - 1``.
+    """
+    cumulative = _curve(cumulative, "refine_peak_positions")
+    indices = _peak_indices(indices, cumulative.size)
     n = cumulative.size
     left = cumulative[(indices - 1) % n]
     centre = cumulative[indices]
@@ -251,15 +269,54 @@ def structure_score(
 
     Near 0 for maps with strong structure, near 1 without; exactly 1 when there is no peak, above 1
     when the peaks' mean is below the curve's (weak peaks kept by a very low prominence).
+
+    Raises
+    ------
+    RoseError
+        If ``cumulative`` is empty, not 1-D or not finite, ``peak_indices`` are not integers in
+        ``0 .. cumulative.size - 1``, or there are peaks on a constant curve (which has none).
     """
+    cumulative = _curve(cumulative, "structure_score")
     if cumulative.size == 0:
         msg = "structure_score needs the cumulative amplitude of at least one direction"
         raise RoseError(msg)
+    peak_indices = _peak_indices(peak_indices, cumulative.size)
     if peak_indices.size == 0:
         return 1.0
-    if peak_indices.min() < 0 or peak_indices.max() >= cumulative.size:
-        msg = f"peak indices must be in 0..{cumulative.size - 1}, got {peak_indices.tolist()}"
+    if not np.isfinite(cumulative).all():
+        msg = "structure_score: the cumulative amplitude holds NaN or infinite values"
         raise RoseError(msg)
     low, high = float(cumulative.min()), float(cumulative.max())
+    if not high > low:
+        msg = "structure_score: the cumulative amplitude is constant: it has no peak"
+        raise RoseError(msg)
     scaled = (cumulative - low) / (high - low)
     return float(scaled.mean() / scaled[peak_indices].mean())
+
+
+def _curve(cumulative: npt.ArrayLike, caller: str) -> npt.NDArray[np.float64]:
+    """``cumulative`` as a 1-D float array, or a RoseError naming ``caller``."""
+    curve = np.asarray(cumulative)
+    if curve.ndim != 1 or not (
+        np.issubdtype(curve.dtype, np.floating) or np.issubdtype(curve.dtype, np.integer)
+    ):
+        msg = (
+            f"{caller}: the cumulative amplitude must be a 1-D array of numbers, got "
+            f"{curve.dtype} of shape {curve.shape}"
+        )
+        raise RoseError(msg)
+    return curve
+
+
+def _peak_indices(indices: npt.ArrayLike, n: int) -> npt.NDArray[np.intp]:
+    """``indices`` as a 1-D integer array within ``0 .. n - 1``, or a RoseError."""
+    array = np.asarray(indices)
+    if array.size == 0:
+        return np.empty(0, dtype=np.intp)
+    if array.ndim != 1 or not np.issubdtype(array.dtype, np.integer):
+        msg = f"peak indices must be a 1-D array of integers, got {array.dtype} of shape {array.shape}"
+        raise RoseError(msg)
+    if array.min() < 0 or array.max() >= n:
+        msg = f"peak indices must be in 0..{n - 1}, got {array.tolist()}"
+        raise RoseError(msg)
+    return array

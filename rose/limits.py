@@ -39,6 +39,7 @@ __all__ = [
     "pair_of",
     "pnm_header",
     "pnm_numbers",
+    "shape_problem",
     "short",
 ]
 
@@ -423,3 +424,11 @@ def pair_of(value: object, is_item: Callable[[object], bool]) -> bool:
         return len(value) == 2 and all(is_item(v) for v in value)  # type: ignore[attr-defined]
     except TypeError:  # a length but no items (a 0-d array)
         return False
+
+
+def shape_problem(shape: object, *, smallest: int) -> str | None:
+    """What is wrong with ``shape`` as a grid's ``(rows, cols)``, if anything: two whole numbers of
+    at least ``smallest`` each (a predicate: "must be ...")."""
+    if pair_of(shape, lambda v: integer_number(v) and v >= smallest):  # type: ignore[operator]
+        return None
+    return f"must be two whole numbers >= {smallest} (rows, cols), got {shape!r}"

@@ -2,10 +2,15 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import numpy.typing as npt
 import scipy.fft
 
+from rose.errors import RoseError
+from rose.limits import finite_number, shape_problem
+from rose.params import MAX_SPECTRUM_PX
 from rose.unfold import frequency_axes
 
 __all__ = ["inverse_to_map", "masked_spectrum", "nominal_reference_map", "structure_mask"]
@@ -26,7 +31,28 @@ def structure_mask(
     Returns
     -------
     ndarray of bool, shape (rows, cols // 2 + 1)
+
+    Raises
+    ------
+    RoseError
+        If ``shape`` is not two whole numbers >= 1, ``directions`` not finite numbers, or
+        ``half_width_px`` not in ``(0, MAX_SPECTRUM_PX]`` (:data:`rose.params.MAX_SPECTRUM_PX`).
     """
+    problem = shape_problem(shape, smallest=1)
+    if problem is not None:
+        msg = f"structure_mask: shape {problem}"
+        raise RoseError(msg)
+    try:
+        directions = np.asarray(directions, dtype=np.float64).ravel()
+    except (TypeError, ValueError):
+        directions = np.array([math.nan])
+    if not np.isfinite(directions).all():
+        # A NaN direction made an index of -3.5e17 deep in the strip search.
+        msg = "structure_mask: directions must be finite numbers (radians)"
+        raise RoseError(msg)
+    if not (finite_number(half_width_px) and 0 < half_width_px <= MAX_SPECTRUM_PX):
+        msg = f"half_width_px must be in (0, {MAX_SPECTRUM_PX:g}], got {half_width_px!r}"
+        raise RoseError(msg)
     u, v = frequency_axes(shape)
     half_cols = u.size
     mask = np.zeros((v.size, half_cols), dtype=bool)

@@ -11,6 +11,8 @@ import numpy as np
 import numpy.typing as npt
 import scipy.fft
 
+from rose.errors import RoseError
+from rose.limits import shape_problem
 from rose.params import MIN_PADDED_SIDE
 
 __all__ = ["MIN_PADDED_SIDE", "full_amplitude_spectrum", "half_spectrum", "padded_shape"]
@@ -26,6 +28,10 @@ def padded_shape(shape: tuple[int, int]) -> tuple[int, int]:
 
     The even column count lets the half-plane width determine the full width.
     """
+    problem = shape_problem(shape, smallest=0)
+    if problem is not None:
+        msg = f"padded_shape: shape {problem}"
+        raise RoseError(msg)
     shortest = MIN_PADDED_SIDE if max(shape) >= MIN_PADDED_SIDE else 1
     rows = scipy.fft.next_fast_len(max(shape[0], shortest), real=True)
     cols = scipy.fft.next_fast_len(max(shape[1], shortest, 2), real=True)
@@ -45,7 +51,20 @@ def half_spectrum(
     ndarray of complex64, shape (shape[0], shape[1] // 2 + 1)
         Unshifted half-plane spectrum: row ``k`` holds vertical frequency ``fftfreq(rows)[k]``,
         column ``j`` horizontal frequency ``j / cols`` (cycles per cell).
+
+    Raises
+    ------
+    RoseError
+        If ``occupied`` is not 2D or ``shape`` not two whole numbers >= 1.
     """
+    occupied = np.asarray(occupied)
+    if occupied.ndim != 2:
+        msg = f"half_spectrum: occupied must be a 2D mask, got an array of shape {occupied.shape}"
+        raise RoseError(msg)
+    problem = shape_problem(shape, smallest=1)
+    if problem is not None:
+        msg = f"half_spectrum: shape {problem}"
+        raise RoseError(msg)
     # rfft2 is a real FFT of every row, then a complex FFT of every column. Rows without an occupied
     # cell transform to zeros: when they are many (SLAM maps often hold wide unknown margins, and
     # sparse maps whole empty rows between walls), only the rows in use are transformed,
@@ -70,7 +89,25 @@ def full_amplitude_spectrum(
     """Rebuild the full, fftshifted amplitude spectrum of shape ``shape`` from its half-plane.
 
     Uses ``|F(-k)| = |F(k)|`` for real images; DC ends up at ``(rows // 2, cols // 2)``.
+
+    Raises
+    ------
+    RoseError
+        If ``shape`` is not two whole numbers >= 1, the column count even, with ``amplitude_half``
+        of shape ``(rows, cols // 2 + 1)``.
     """
+    amplitude_half = np.asarray(amplitude_half)
+    problem = shape_problem(shape, smallest=1)
+    if problem is None and shape[1] % 2:
+        problem = f"must have an even column count (a padded shape), got {shape!r}"
+    if problem is None and amplitude_half.shape != (shape[0], shape[1] // 2 + 1):
+        problem = (
+            f"{shape!r} is not the padded shape of a half-plane of shape {amplitude_half.shape} "
+            f"(that is (rows, cols // 2 + 1))"
+        )
+    if problem is not None:
+        msg = f"full_amplitude_spectrum: shape {problem}"
+        raise RoseError(msg)
     rows, cols = shape
     half_cols = amplitude_half.shape[1]
     full = np.empty((rows, cols), dtype=np.float32)

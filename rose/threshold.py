@@ -68,10 +68,28 @@ def gmm_threshold(scores: npt.ArrayLike, *, max_samples: int) -> float:
     float
         The threshold, within the scores' range; ``-inf`` (everything is structure) when the
         scores are (nearly) constant or the two Gaussians do not meet among them (one population).
+
+    Raises
+    ------
+    RoseError
+        If the scores are not numbers or hold NaN or infinite values, or ``max_samples`` is not an
+        integer >= 2.
     """
-    values = np.sort(np.asarray(scores).ravel())  # in the input's precision: float32 sorts faster
+    values = np.asarray(scores)
+    if not (
+        np.issubdtype(values.dtype, np.floating)
+        or np.issubdtype(values.dtype, np.integer)
+        or values.dtype == np.bool_
+    ):
+        msg = f"gmm_threshold: the scores must be numbers, got dtype {values.dtype}"
+        raise RoseError(msg)
+    values = np.sort(values.ravel())  # in the input's precision: float32 sorts faster
     if values.size and np.isnan(values[-1]):  # sorted last
         msg = "gmm_threshold: the scores hold NaN"
+        raise RoseError(msg)
+    if values.size and not (np.isfinite(values[0]) and np.isfinite(values[-1])):
+        # (infinite scores made the mixture NaN, read as one population: -inf)
+        msg = "gmm_threshold: the scores hold infinite values"
         raise RoseError(msg)
     if not (integer_number(max_samples) and max_samples >= 2):
         msg = f"gmm_threshold: max_samples must be an integer >= 2, got {max_samples!r}"

@@ -18,7 +18,7 @@ from scipy.ndimage import gaussian_filter1d
 
 from rose.errors import RoseError
 from rose.frozen import ReadOnlyArrays, seal
-from rose.limits import finite_number
+from rose.limits import finite_number, shape_problem
 from rose.params import ANGULAR_RESOLUTION_RANGE_DEG
 
 __all__ = [
@@ -99,9 +99,14 @@ def direction_bins(
     Raises
     ------
     RoseError
-        If ``angular_resolution_deg`` is outside :data:`rose.params.ANGULAR_RESOLUTION_RANGE_DEG` or
-        ``min_radius_px`` is not a finite number >= 0.
+        If ``shape`` is not two whole numbers >= 1, ``angular_resolution_deg`` is outside
+        :data:`rose.params.ANGULAR_RESOLUTION_RANGE_DEG` or ``min_radius_px`` is not a finite
+        number >= 0.
     """
+    problem = shape_problem(shape, smallest=1)
+    if problem is not None:
+        msg = f"direction_bins: shape {problem}"
+        raise RoseError(msg)
     low, high = ANGULAR_RESOLUTION_RANGE_DEG
     if not (finite_number(angular_resolution_deg) and low <= angular_resolution_deg <= high):
         msg = f"angular_resolution_deg must be in {low}..{high}, got {angular_resolution_deg!r}"
@@ -151,7 +156,26 @@ def cumulative_amplitude(
     Each bin's mean amplitude times the radial span: the sum over radius of a polar resampling, without
     the resampling. Bins no cell falls in (tiny maps) are interpolated from their neighbours; the result
     is then smoothed with a circular Gaussian of ``smoothing_bins`` bins.
+
+    Raises
+    ------
+    RoseError
+        If ``smoothing_bins`` is not a finite number >= 0, or ``amplitude_half`` is smaller than
+        the half-plane ``bins`` were made for.
     """
+    if not isinstance(bins, DirectionBins):
+        msg = f"cumulative_amplitude: bins must be direction_bins(...), got {type(bins).__name__}"
+        raise RoseError(msg)
+    if not (finite_number(smoothing_bins) and smoothing_bins >= 0):
+        msg = f"smoothing_bins must be a finite number >= 0, got {smoothing_bins!r}"
+        raise RoseError(msg)
+    amplitude_half = np.asarray(amplitude_half)
+    if bins.cell_index.size and amplitude_half.size <= int(bins.cell_index.max()):
+        msg = (
+            f"cumulative_amplitude: the amplitude (shape {amplitude_half.shape}) is smaller than "
+            "the half-plane the direction bins were made for"
+        )
+        raise RoseError(msg)
     n_bins = bins.centres.size
     filled = bins.counts > 0
     if not filled.any():

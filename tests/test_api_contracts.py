@@ -179,3 +179,49 @@ def test_the_stage_functions_say_what_is_wrong_with_their_input() -> None:
         structure_score(np.array([]), np.array([0]))
     with pytest.raises(rose.RoseError, match="peak indices"):
         structure_score(np.array([0.0, 1.0]), np.array([2]))
+
+
+def test_the_stage_functions_refuse_what_failed_deep_inside_or_passed_silently() -> None:
+    """More of the README's public stages: a NaN direction made an index of -3.5e17 in the strip
+    search, a peak index out of range or a mismatched half-plane failed in numpy, a NaN smoothing
+    or prominence and infinite scores gave a result, a negative or float shape failed in numpy."""
+    from rose.directions import find_direction_peaks, refine_peak_positions, structure_score
+    from rose.scoring import structure_mask
+    from rose.spectrum import full_amplitude_spectrum, half_spectrum, padded_shape
+    from rose.threshold import gmm_threshold
+    from rose.unfold import cumulative_amplitude, direction_bins
+
+    curve = np.cos(np.linspace(0.0, 2 * math.pi, 360, endpoint=False)) + 2.0
+    bins = direction_bins((16, 16), angular_resolution_deg=0.5, min_radius_px=4)
+    amplitude = np.ones((16, 9), dtype=np.float32)
+    refused = [
+        (lambda: padded_shape((-1, 5)), "padded_shape: shape must be two whole numbers"),
+        (lambda: padded_shape((3.5, 4)), "padded_shape: shape must be two whole numbers"),
+        (lambda: half_spectrum(np.ones(5, bool), (16, 16)), "occupied must be a 2D mask"),
+        (lambda: half_spectrum(np.ones((5, 5), bool), (0, 16)), "half_spectrum: shape"),
+        (lambda: full_amplitude_spectrum(amplitude, (16, 20)), "not the padded shape"),
+        (lambda: full_amplitude_spectrum(amplitude, (16, 17)), "even column count"),
+        (lambda: direction_bins((0, 0), angular_resolution_deg=1, min_radius_px=4), "shape"),
+        (lambda: cumulative_amplitude(amplitude[:, :2], bins, smoothing_bins=1), "smaller"),
+        (lambda: cumulative_amplitude(amplitude, bins, smoothing_bins=math.nan), "smoothing"),
+        (lambda: cumulative_amplitude(amplitude, "bins", smoothing_bins=1), "bins must be"),
+        (lambda: find_direction_peaks(curve, prominence_fraction=math.nan), "prominence"),
+        (lambda: find_direction_peaks(curve.reshape(20, 18), prominence_fraction=0.5), "1-D"),
+        (lambda: refine_peak_positions(curve, np.array([360])), r"peak indices must be in"),
+        (lambda: refine_peak_positions(curve, np.array([-1])), r"peak indices must be in"),
+        (lambda: refine_peak_positions(curve, np.array([1.5])), "integers"),
+        (lambda: structure_score(np.full(360, np.nan), np.array([0])), "NaN or infinite"),
+        (lambda: structure_score(np.ones(360), np.array([0])), "constant"),
+        (lambda: structure_mask((16, 16), np.array([math.nan]), half_width_px=2.5), "finite"),
+        (lambda: structure_mask((16, 16), np.array([0.1]), half_width_px=-1), "half_width_px"),
+        (lambda: structure_mask((16, 16), np.array([0.1]), half_width_px=1e19), "half_width_px"),
+        (lambda: gmm_threshold([0.1, 0.5, np.inf], max_samples=10), "infinite"),
+        (lambda: gmm_threshold(["a", "b"], max_samples=10), "must be numbers"),
+    ]
+    for call, words in refused:
+        with pytest.raises(rose.RoseError, match=words):
+            call()
+    # What stays valid: a half-plane of the right shape, the peaks of a curve, a padded shape.
+    assert full_amplitude_spectrum(amplitude, (16, 16)).shape == (16, 16)
+    assert find_direction_peaks(curve, prominence_fraction=0.0).indices.tolist() == [0]
+    assert padded_shape((0, 0)) == (1, 2)
