@@ -41,7 +41,8 @@ def as_occupancy_grid(grid: npt.ArrayLike) -> npt.NDArray[np.int8]:
     ------
     RoseError
         If ``grid`` is not 2D or holds values outside ``-1..100`` (NaN included), or is a float
-        grid of probabilities or a 0/1 float mask (nothing above 1): as percent, all free.
+        grid of probabilities or a 0/1 float mask (nothing above 1): as percent, all free; or a
+        masked array with masked cells (``grid.filled(-1)`` makes them unknown).
     """
     if isinstance(grid, str | bytes | os.PathLike):
         msg = (
@@ -51,6 +52,13 @@ def as_occupancy_grid(grid: npt.ArrayLike) -> npt.NDArray[np.int8]:
         raise RoseError(msg)
     if hasattr(grid, "grid") and hasattr(grid, "resolution_m"):  # an OccupancyMap
         msg = "The input grid must be an array, got an OccupancyMap: pass its .grid."
+        raise RoseError(msg)
+    if np.ma.is_masked(grid):
+        # np.asarray keeps what lies under the mask: masked cells were read as their values.
+        msg = (
+            "The input grid is a masked array with masked cells, whose values would be read as "
+            "they are: pass grid.filled(-1) to make them unknown."
+        )
         raise RoseError(msg)
     try:
         array = np.asarray(grid)
@@ -62,7 +70,8 @@ def as_occupancy_grid(grid: npt.ArrayLike) -> npt.NDArray[np.int8]:
         raise RoseError(msg)
     if array.dtype == np.bool_:
         return np.where(array, np.int8(OCCUPIED), np.int8(FREE))
-    if not (np.issubdtype(array.dtype, np.integer) or np.issubdtype(array.dtype, np.floating)):
+    # By kind: numpy counts timedelta64 among the integers (a grid of durations was read).
+    if array.dtype.kind not in "iuf":
         msg = f"The input grid must be boolean or numeric, got dtype {array.dtype}."
         raise RoseError(msg)
     if np.issubdtype(array.dtype, np.floating) and array.size and np.isnan(array.max()):

@@ -168,6 +168,10 @@ def test_unknown_cells_are_never_occupied() -> None:
         (np.zeros((4, 4, 2)), {}, "must be 2D"),
         (np.full((4, 4), 101), {}, "-1 \\(unknown\\) or 0..100"),
         (np.array([["a"]]), {}, "boolean or numeric"),
+        # numpy counts timedelta64 among its integers: a grid of durations was analysed
+        (np.zeros((4, 4), dtype="m8[s]"), {}, "boolean or numeric"),
+        # the values under the mask were read as they are: masked walls stayed walls
+        (np.ma.masked_equal(np.full((4, 4), 100), 100), {}, r"grid\.filled\(-1\)"),
         (np.zeros((4, 4)), {"peak_prominence": 0.0}, "peak_prominence"),
         (np.zeros((4, 4)), {"threshold_mode": "otsu"}, "threshold_mode"),
         (np.zeros((4, 4)), {"no_such_param": 1}, "unknown ROSE parameter"),
@@ -187,6 +191,13 @@ def test_a_thin_map_and_its_transpose_agree(shape: tuple[int, int]) -> None:
     assert angular_error_deg(along.dominant_directions, [0.0]) < 1.0
     assert angular_error_deg(across.dominant_directions, [90.0]) < 1.0
     assert along.structure_score == pytest.approx(across.structure_score, abs=1e-6)
+
+
+def test_a_masked_array_without_masked_cells_is_its_data() -> None:
+    grid = np.where(floor_plan(), 100, 0).astype(np.int8)
+    expected = rose.analyze(grid)
+    got = rose.analyze(np.ma.masked_array(grid, mask=False))
+    assert got.cell_scores.tobytes() == expected.cell_scores.tobytes()
 
 
 def test_nan_in_a_float_grid_is_refused() -> None:
