@@ -42,10 +42,12 @@ class RoseResult(ReadOnlyArrays):
         Prominence of each peak as a fraction of ``max - min`` of the cumulative amplitude.
     cell_scores : ndarray of float32, shape (rows, cols)
         Nominal reference map (the structure-only reconstruction), scaled so that the largest occupied
-        cell scores 1. Defined on every cell; only occupied cells are classified.
+        cell scores 1. Defined on every cell; only occupied cells are classified. All 0 when
+        ``has_structure`` is False.
     threshold : float
         Score above which an occupied cell is structure (same scale as ``cell_scores``); NaN when no
-        cell was classified.
+        cell was classified; ``-inf`` when the mixture finds one population (every occupied cell is
+        structure: constant scores, or two Gaussians that do not meet among the scores).
     occupied : ndarray of bool, shape (rows, cols)
         Occupied cells of the input.
     structure, clutter : ndarray of bool, shape (rows, cols)
