@@ -138,7 +138,11 @@ def blocks_max(image: npt.NDArray[np.uint8], factor: int) -> npt.NDArray[np.uint
 
 
 def warn_if_mask(
-    given: npt.ArrayLike, occupancy: npt.NDArray[np.int8], occupied_threshold: int
+    given: npt.ArrayLike,
+    occupancy: npt.NDArray[np.int8],
+    occupied_threshold: int,
+    *,
+    stacklevel: int = 3,
 ) -> None:
     """Warn of a 0/1 mask passed as integers (``mask.astype(np.uint8)``, a usual slip; -1 for its
     unknown cells too): read as percent it is all free. ROS grids are int8 and have unknown cells around the known part, so
@@ -153,5 +157,5 @@ def warn_if_mask(
             "all free. For a 0/1 occupied mask, pass grid.astype(bool), or with unknown cells "
             "np.where(grid < 0, -1, grid * 100).",
             UserWarning,
-            stacklevel=3,
+            stacklevel=stacklevel,
         )

@@ -32,7 +32,7 @@ import numpy.typing as npt
 import yaml
 
 from rose.errors import MapFileError, RoseError
-from rose.grid import OCCUPIED, UNKNOWN, as_occupancy_grid
+from rose.grid import OCCUPIED, UNKNOWN, as_occupancy_grid, warn_if_mask
 from rose.limits import (
     DECIMAL_NUMBER,
     DEFAULT_MAX_CELLS,
@@ -49,6 +49,7 @@ from rose.limits import (
     short,
 )
 from rose.outputs import OutputSet, is_stream
+from rose.params import RoseParams
 
 __all__ = [
     "MapMode",
@@ -122,7 +123,9 @@ class OccupancyMap:
     Attributes
     ----------
     grid : ndarray of int8, shape (rows, cols)
-        ROS convention: row 0 at the origin, -1 unknown, 0..100 occupancy.
+        ROS convention: row 0 at the origin, -1 unknown, 0..100 occupancy. Any grid
+        :func:`rose.analyze` takes is converted to it (a boolean mask to 0 / 100, a list to an
+        array of its own); an int8 array is held as it is, not copied.
     resolution_m : float
         Cell size in metres.
     origin_xy_m : tuple of float
@@ -147,10 +150,16 @@ class OccupancyMap:
         # cell size was accepted and failed later, in `clean` or `save_map`, far from its cause;
         # OccupancyMap("map.yaml") was told by `analyze` to pass an OccupancyMap).
         try:
-            as_occupancy_grid(self.grid)
+            grid = as_occupancy_grid(self.grid)
         except RoseError as err:
             msg = f"OccupancyMap: {err}"
             raise RoseError(msg) from None
+        # What is read is what the checks passed (a list could be changed afterwards, to values
+        # out of range), and of the documented type (a mask was held as bool, a list as a list).
+        # A 0/1 mask of another dtype is warned about here: converted, it is an int8 grid, which
+        # rose.analyze never warns about (at its default threshold: the map's is not known yet).
+        warn_if_mask(self.grid, grid, RoseParams().occupied_threshold, stacklevel=4)
+        object.__setattr__(self, "grid", grid)
         problem = resolution_problem(self.resolution_m)
         if problem is not None:
             msg = f"OccupancyMap: resolution_m {problem}"
@@ -174,6 +183,8 @@ class OccupancyMap:
         # Kept as a tuple of its own: a list given could be changed after the check (a NaN put in
         # was saved, and the map then refused by load_map).
         object.__setattr__(self, "origin_xy_m", (float(origin[0]), float(origin[1])))
+        object.__setattr__(self, "resolution_m", float(self.resolution_m))
+        object.__setattr__(self, "origin_yaw_rad", float(self.origin_yaw_rad))
 
     @property
     def input_files(self) -> tuple[Path, ...]:

@@ -51,6 +51,26 @@ def test_saved_maps_classify_occupancies_as_ros_map_saver_does(tmp_path: Path) -
     assert loaded[0].tolist() == [-1, 0, 0, 0, 0, -1, -1, -1, 100, 100, 100]
 
 
+def test_an_occupancy_map_holds_an_int8_grid_of_what_was_checked() -> None:
+    """OccupancyMap kept what it was given: a boolean mask as bool and a list as the list, which
+    could be changed after the check (to 500, refused only by a later analyze); numpy scalars
+    stayed numpy's. An int8 array is held as it is."""
+    mask = np.zeros((20, 30), dtype=bool)
+    mask[5, 2:28] = True
+    as_bool = OccupancyMap(mask)
+    assert as_bool.grid.dtype == np.int8 and np.array_equal(as_bool.grid, np.where(mask, 100, 0))
+    cells = as_bool.grid.tolist()
+    as_list = OccupancyMap(cells, resolution_m=np.float32(0.1), origin_yaw_rad=np.float32(0.5))
+    cells[0][0] = 500
+    assert as_list.grid.dtype == np.int8 and as_list.grid[0, 0] == 0
+    assert rose.analyze(as_list).occupied_count == 26
+    assert type(as_list.resolution_m) is float and type(as_list.origin_yaw_rad) is float
+    grid = np.zeros((4, 4), np.int8)
+    assert OccupancyMap(grid).grid is grid
+    with pytest.warns(UserWarning, match="only 0 and 1"):  # a 0/1 mask of integers, as analyze
+        OccupancyMap(mask.astype(np.uint8))
+
+
 def test_real_map_round_trip(tmp_path: Path) -> None:
     source = rose.load_map(repo_data(f"{FR079_DIR}/map5.yaml"))
     rose.save_map(tmp_path / "copy.yaml", source)
