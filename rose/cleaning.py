@@ -427,20 +427,23 @@ def clean(
         if np.array_equal(cleaned, result.cleaned):  # the result was computed on ``grid``
             cleaned = result.cleaned
         nothing = np.zeros(occupancy.shape, dtype=bool)
-        return seal(
-            CleanResult(
-                cleaned=cleaned,
-                method=method,
-                # occupied & ~clutter: the structure, or every occupied cell when ROSE found none
-                kept=result.structure if result.has_structure else occupied,
-                removed=result.clutter,
-                rescued=nothing,
-                guarded=nothing,
-                completed=nothing,
-                resolution_m=float(resolution_m),
-                params=p,
-                result=result,
-            )
+        # Only what is made here is sealed: the result's arrays may be a caller's (a RoseResult
+        # made with dataclasses.replace), which seal() made read-only for good.
+        for made in (nothing, cleaned):
+            if made is not result.cleaned:
+                made.flags.writeable = False
+        return CleanResult(
+            cleaned=cleaned,
+            method=method,
+            # occupied & ~clutter: the structure, or every occupied cell when ROSE found none
+            kept=result.structure if result.has_structure else occupied,
+            removed=result.clutter,
+            rescued=nothing,
+            guarded=nothing,
+            completed=nothing,
+            resolution_m=float(resolution_m),
+            params=p,
+            result=result,
         )
     from rose.cleaning_rules import wall_cells
 

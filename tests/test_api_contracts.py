@@ -71,6 +71,25 @@ def test_the_input_stays_writable_and_unchanged(furnished) -> None:
     assert grid.flags.writeable and np.array_equal(grid, furnished)
 
 
+def test_the_papers_cleaning_leaves_the_arrays_of_a_callers_result_writable(furnished) -> None:
+    """clean(method="paper") sealed the result's arrays it passes on: those of a RoseResult made
+    with dataclasses.replace from the caller's arrays became read-only for good."""
+    import dataclasses
+
+    result = rose.analyze(furnished)
+    mine = {name: getattr(result, name).copy() for name in ("structure", "clutter", "cleaned")}
+    cleaning = clean(furnished, dataclasses.replace(result, **mine), method="paper")
+    assert all(array.flags.writeable for array in mine.values())
+    assert cleaning.removed_count == result.clutter_count > 0
+    for own in (clean(furnished, result, method="paper"), cleaning):
+        for name in ("rescued", "guarded", "completed", "cleaned", "kept", "removed"):
+            array = getattr(own, name)
+            assert not array.flags.writeable, name
+            if own is not cleaning or name in ("rescued", "guarded", "completed"):
+                with pytest.raises(ValueError, match="cannot set WRITEABLE"):
+                    array.flags.writeable = True
+
+
 def test_reprs_are_summaries(furnished) -> None:
     result = rose.analyze(furnished)
     cleaned = clean(furnished, result, resolution_m=0.05)
