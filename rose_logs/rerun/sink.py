@@ -129,7 +129,24 @@ def grpc_url(address: str) -> str:
 
     ``9876`` -> ``rerun+http://127.0.0.1:9876/proxy``; ``host:port`` -> ``rerun+http://host:port/proxy``;
     a full ``rerun+http(s)://...`` URL is kept.
+
+    Raises
+    ------
+    ValueError
+        If ``address`` is no viewer address: not a str (the port as an int failed with an
+        AttributeError), no host, or a port not in 1..65535 (``99999`` and ``host:abc`` made URLs
+        Rerun cannot use).
     """
+    url = _proxy_url(address)
+    viewer_endpoint(address)  # the host and port checked
+    return url
+
+
+def _proxy_url(address: str) -> str:
+    """:func:`grpc_url` unchecked: the URL ``address`` stands for."""
+    if not isinstance(address, str):
+        msg = f"viewer address must be PORT, HOST:PORT or a rerun+http:// URL (a str), got {address!r}"
+        raise ValueError(msg)
     text = address.strip()
     if text.startswith(("rerun://", "rerun+http://", "rerun+https://")):
         return text
@@ -179,7 +196,7 @@ _LOCAL_HOSTS = frozenset({"localhost", "127.0.0.1", "::1"})
 def viewer_endpoint(address: str) -> tuple[str, int]:
     """Host and TCP port Rerun connects to for ``address``: without a port, a local viewer's 9876,
     else the scheme's (``rerun+http``: 80; ``rerun`` and ``rerun+https``: 443, TLS), as Rerun does."""
-    scheme, _, rest = grpc_url(address).partition("://")
+    scheme, _, rest = _proxy_url(address).partition("://")
     parts = urllib.parse.urlsplit(f"//{rest}")
     host = parts.hostname
     try:

@@ -316,6 +316,11 @@ def test_grpc_url() -> None:
     assert grpc_url("rerun+http://host:1/proxy") == "rerun+http://host:1/proxy"
     with pytest.raises(ValueError, match="viewer address"):
         grpc_url("http://x/y")
+    # The session's probe refused these, but grpc_url made URLs of them (99999, h:x), and a port
+    # given as an int failed with an AttributeError.
+    for address in ("99999", "host:0", "h:x", "127.0.0.1:", 9876):
+        with pytest.raises(ValueError, match="viewer address"):
+            grpc_url(address)  # type: ignore[arg-type]
 
 
 @pytest.mark.parametrize(
