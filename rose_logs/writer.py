@@ -71,7 +71,7 @@ class LogWriter:
         ``"mcap"`` accepts both.
     force : bool, default False
         Replace an existing ``path`` (only once the new log is complete).
-    protected : sequence of Path, default ()
+    protected : sequence of Path, or one path, default ()
         Paths that must never be written or replaced (the input log); ``path`` may not equal, contain or
         lie inside any of them.
     outputs : rose.outputs.OutputSet, optional
@@ -96,7 +96,7 @@ class LogWriter:
         *,
         serialization: str | None = None,
         force: bool = False,
-        protected: Sequence[Path] = (),
+        protected: Sequence[Path] | Path = (),
         outputs: OutputSet | None = None,
         qos_style: QosStyle | None = None,
     ) -> None:
@@ -126,7 +126,9 @@ class LogWriter:
         self._directory = fmt in ("db3", "mcap-dir")
         self._own_outputs = outputs is None
         self._outputs = OutputSet(force=force) if outputs is None else outputs
-        for other in protected:
+        # One path is one path: a str was protected character by character ("/", "i", ...), and a
+        # Path failed as not iterable.
+        for other in (protected,) if isinstance(protected, str | os.PathLike) else protected:
             self._outputs.add_input(other)
         try:
             self._outputs.check(self.path, directory=self._directory)
@@ -403,7 +405,7 @@ def open_output(
     *,
     serialization: str | None = None,
     force: bool = False,
-    protected: Sequence[Path] = (),
+    protected: Sequence[Path] | Path = (),
     outputs: OutputSet | None = None,
     qos_style: QosStyle | None = None,
 ) -> LogWriter:

@@ -780,6 +780,16 @@ def test_reader_and_session_say_what_is_wrong_with_their_topics_and_flags(mcap_l
     assert LogReader(os.fsencode(mcap_log), salvage=np.bool_(True)).path == mcap_log
 
 
+def test_a_writer_protects_one_path_given_alone(mcap_log: Path) -> None:
+    """protected="in.mcap" was protected character by character (refused as "inside the input
+    /"), and protected=Path("in.mcap") failed as not iterable."""
+    from rose_logs.writer import open_output
+
+    for protected in (str(mcap_log), mcap_log, [mcap_log]):
+        with pytest.raises(LogWriteError, match=f"refusing to write over the input {mcap_log}$"):
+            open_output(mcap_log, "mcap", force=True, protected=protected)
+
+
 def test_debug_shows_traceback(tmp_path: Path) -> None:
     with pytest.raises(LogReadError):
         main(["--debug", "process", str(tmp_path / "nope.mcap")])
