@@ -163,7 +163,7 @@ def _check(
         if array.ndim != 2:
             msg = f"{name} grid must be 2-D, got shape {array.shape}"
             raise RoseError(msg)
-        if not np.issubdtype(array.dtype, np.integer):
+        if array.dtype.kind not in "iu":  # by kind: numpy counts timedelta64 among integers
             msg = f"{name} grid must hold int8 ROS occupancy (-1, 0..100), got dtype {array.dtype}"
             raise RoseError(msg)
         # (int8 holds nothing else: two passes saved per grid and snapshot.)

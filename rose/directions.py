@@ -297,9 +297,7 @@ def structure_score(
 def _curve(cumulative: npt.ArrayLike, caller: str) -> npt.NDArray[np.float64]:
     """``cumulative`` as a 1-D float array, or a RoseError naming ``caller``."""
     curve = np.asarray(cumulative)
-    if curve.ndim != 1 or not (
-        np.issubdtype(curve.dtype, np.floating) or np.issubdtype(curve.dtype, np.integer)
-    ):
+    if curve.ndim != 1 or curve.dtype.kind not in "iuf":  # (timedelta64 is no number here)
         msg = (
             f"{caller}: the cumulative amplitude must be a 1-D array of numbers, got "
             f"{curve.dtype} of shape {curve.shape}"
@@ -313,7 +311,7 @@ def _peak_indices(indices: npt.ArrayLike, n: int) -> npt.NDArray[np.intp]:
     array = np.asarray(indices)
     if array.size == 0:
         return np.empty(0, dtype=np.intp)
-    if array.ndim != 1 or not np.issubdtype(array.dtype, np.integer):
+    if array.ndim != 1 or array.dtype.kind not in "iu":
         msg = f"peak indices must be a 1-D array of integers, got {array.dtype} of shape {array.shape}"
         raise RoseError(msg)
     if array.min() < 0 or array.max() >= n:

@@ -80,7 +80,8 @@ class MapSnapshot:
 
     def __post_init__(self) -> None:
         grid = np.asarray(self.grid)
-        if grid.ndim != 2 or not np.issubdtype(grid.dtype, np.integer):
+        # By kind: numpy counts timedelta64 among its integers.
+        if grid.ndim != 2 or grid.dtype.kind not in "iu":
             msg = (
                 f"{self.topic}: a MapSnapshot's grid must be a 2-D int8 array (ROS occupancy), "
                 f"got {grid.ndim}-D {grid.dtype}"

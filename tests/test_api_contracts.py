@@ -200,6 +200,12 @@ def test_the_stage_functions_say_what_is_wrong_with_their_input() -> None:
         structure_score(np.array([0.0, 1.0]), np.array([2]))
 
 
+def test_grids_of_durations_are_refused_as_contradiction_inputs() -> None:
+    grid = np.zeros((30, 30), dtype=np.int8)
+    with pytest.raises(rose.RoseError, match="earlier grid must hold int8"):
+        contradicted_walls(grid.astype("m8[s]"), grid)
+
+
 def test_the_stage_functions_refuse_what_failed_deep_inside_or_passed_silently() -> None:
     """More of the README's public stages: a NaN direction made an index of -3.5e17 in the strip
     search, a peak index out of range or a mismatched half-plane failed in numpy, a NaN smoothing
@@ -236,6 +242,10 @@ def test_the_stage_functions_refuse_what_failed_deep_inside_or_passed_silently()
         (lambda: structure_mask((16, 16), np.array([0.1]), half_width_px=1e19), "half_width_px"),
         (lambda: gmm_threshold([0.1, 0.5, np.inf], max_samples=10), "infinite"),
         (lambda: gmm_threshold(["a", "b"], max_samples=10), "must be numbers"),
+        # numpy counts timedelta64 among its integers
+        (lambda: gmm_threshold(np.zeros(5, "m8[s]"), max_samples=10), "must be numbers"),
+        (lambda: structure_score(np.zeros(5, "m8[s]"), np.array([0])), "1-D array of numbers"),
+        (lambda: refine_peak_positions(curve, np.array([1], "m8[s]")), "integers"),
     ]
     for call, words in refused:
         with pytest.raises(rose.RoseError, match=words):

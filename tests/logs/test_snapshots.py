@@ -291,6 +291,12 @@ def test_a_bad_resolution_is_said_as_the_message_stores_it() -> None:
         _check_placement("/map", float("nan"), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
 
 
+def test_a_snapshot_of_durations_is_refused() -> None:
+    """numpy counts timedelta64 among its integers: a grid of durations made a snapshot."""
+    with pytest.raises(ValueError, match="must be a 2-D int8 array"):
+        MapSnapshot("/map", 0, 0, "map", np.zeros((4, 4), dtype="m8[s]"), 0.05)
+
+
 def test_names_printed_in_tables_keep_their_line() -> None:
     from rose.limits import visible
 
