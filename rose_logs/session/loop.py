@@ -198,9 +198,30 @@ def process_log(
         If the recording touches the input or another output, or exists without ``force``.
     RoseError
         On a parameter out of range (``params``, ``failure_level``, ``clean_method``,
-        ``analysis_threads``) or ``topics`` that are not topic names, before the input is read.
+        ``analysis_threads``), ``topics`` that are not topic names, or an argument of the wrong
+        kind (a path that is no file name, a callback that is not callable, ``outputs`` that is no
+        OutputSet, ``salvage`` not True or False), before the input is read.
     """
     started = time.perf_counter()
+    # Arguments of the wrong kind, before any work: a callback that is not callable failed after
+    # the first snapshot was analysed, an int path in pathlib, outputs=... with an AttributeError.
+    for name, path in (("input_path", input_path), ("output_path", output_path)):
+        if not (isinstance(path, str | os.PathLike) or (path is None and name != "input_path")):
+            msg = f"{name} must be a file or folder name (str or path), got {type(path).__name__}"
+            raise rose.RoseError(msg)
+    if rrd_path is not None and not isinstance(rrd_path, str | os.PathLike):
+        msg = f"rrd_path must be a file name (str or path), got {type(rrd_path).__name__}"
+        raise rose.RoseError(msg)
+    for name, hook in (("on_snapshot", on_snapshot), ("on_outputs_ready", on_outputs_ready)):
+        if hook is not None and not callable(hook):
+            msg = f"{name} must be callable, got {type(hook).__name__}"
+            raise rose.RoseError(msg)
+    if outputs is not None and not isinstance(outputs, OutputSet):
+        msg = f"outputs must be a rose.outputs.OutputSet, got {type(outputs).__name__}"
+        raise rose.RoseError(msg)
+    if salvage not in (True, False):  # salvage="no" salvaged
+        msg = f"salvage must be True or False, got {salvage!r}"
+        raise rose.RoseError(msg)
     input_path = Path(input_path)
     try:  # one name is one topic, not its characters; b"/map" was its bytes' numbers
         topics = topic_names(topics)

@@ -780,6 +780,30 @@ def test_reader_and_session_say_what_is_wrong_with_their_topics_and_flags(mcap_l
     assert LogReader(os.fsencode(mcap_log), salvage=np.bool_(True)).path == mcap_log
 
 
+def test_a_session_refuses_arguments_of_the_wrong_kind_before_any_work(
+    mcap_log: Path, tmp_path: Path
+) -> None:
+    """on_snapshot=5 failed after the first snapshot was analysed ('int' object is not
+    callable), output_path=5 in pathlib, outputs=5 with an AttributeError, salvage="no"
+    salvaged; each is now a RoseError naming the argument, and nothing is written."""
+    import rose
+
+    out = tmp_path / "o.mcap"
+    for kwargs, words in (
+        ({"on_snapshot": 5}, "on_snapshot must be callable, got int"),
+        ({"on_outputs_ready": "yes"}, "on_outputs_ready must be callable, got str"),
+        ({"output_path": 5}, "output_path must be a file or folder name"),
+        ({"output_path": out, "rrd_path": 5}, "rrd_path must be a file name"),
+        ({"output_path": out, "outputs": 5}, "outputs must be a rose.outputs.OutputSet"),
+        ({"output_path": out, "salvage": "no"}, "salvage must be True or False"),
+    ):
+        with pytest.raises(rose.RoseError, match=words):
+            process_log(mcap_log, **kwargs)  # type: ignore[arg-type]
+    with pytest.raises(rose.RoseError, match="input_path must be a file or folder name"):
+        process_log(None)  # type: ignore[arg-type]
+    assert _leftovers(tmp_path, {"in.mcap"}) == []
+
+
 def test_a_writer_protects_one_path_given_alone(mcap_log: Path) -> None:
     """protected="in.mcap" was protected character by character (refused as "inside the input
     /"), and protected=Path("in.mcap") failed as not iterable."""
