@@ -174,6 +174,12 @@ class CleanParams:
     loose_pieces: bool = True
 
     def __post_init__(self) -> None:
+        # numpy scalars as the Python numbers they stand for, as RoseParams: a float16 length
+        # overflowed in the cell arithmetic (guard_window_m=np.float16(0.5) failed on a NaN).
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            if isinstance(value, np.generic) and not isinstance(value, np.bool_):
+                object.__setattr__(self, f.name, value.item())
         lengths = [
             f.name
             for f in dataclasses.fields(self)

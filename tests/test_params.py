@@ -113,3 +113,18 @@ def test_numpy_scalars_are_numbers_and_a_dict_of_params_is_named() -> None:
     assert type(params.peak_prominence) is float
     with pytest.raises(RoseError, match="params must be a RoseParams, got dict"):
         make_params({"peak_prominence": 0.3})  # type: ignore[arg-type]
+
+
+def test_numpy_scalars_in_the_cleaning_and_wall_parameters_are_python_numbers() -> None:
+    """CleanParams and WallParams kept numpy scalars: guard_window_m=np.float16(0.5) overflowed
+    float16 in the cell arithmetic and failed deep in the cleaning ("cannot convert float NaN to
+    integer")."""
+    from synthetic import floor_plan
+
+    grid = np.where(floor_plan(), 100, 0).astype(np.int8)
+    params = rose.CleanParams(guard_window_m=np.float16(0.5), run_tolerance_px=np.int64(1))
+    assert type(params.guard_window_m) is float and type(params.run_tolerance_px) is int
+    got = rose.clean(grid, params=params)
+    assert got.cleaned.tobytes() == rose.clean(grid).cleaned.tobytes()
+    walls = rose.WallParams(hough_max_gap_px=np.float16(3), hough_votes=np.int64(15))
+    assert type(walls.hough_max_gap_px) is float and type(walls.hough_votes) is int

@@ -119,6 +119,12 @@ class WallParams:
     extend_band_px: float = 2.0
 
     def __post_init__(self) -> None:
+        # numpy scalars as the Python numbers they stand for (a float16 stays float16 in
+        # arithmetic), as RoseParams and CleanParams.
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            if isinstance(value, np.generic) and not isinstance(value, np.bool_):
+                object.__setattr__(self, f.name, value.item())
         problems = []
         for name in ("faces_only", "extend_on_raw"):
             if not isinstance(getattr(self, name), bool | np.bool_):
