@@ -403,6 +403,9 @@ def clean(
     if problem is not None:
         msg = f"resolution_m {problem}"
         raise RoseError(msg)
+    # A Python float: a numpy scalar kept its precision in the rules' arithmetic (float16 0.05
+    # overflowed there and failed on a NaN); float32 gives the same cells either way.
+    resolution_m = float(resolution_m)
     if method == "walls" and resolution_m < MIN_CLEAN_RESOLUTION_M:
         msg = (
             f"resolution_m {resolution_m:g} m is finer than {MIN_CLEAN_RESOLUTION_M:g} m per cell "

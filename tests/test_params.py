@@ -128,3 +128,18 @@ def test_numpy_scalars_in_the_cleaning_and_wall_parameters_are_python_numbers() 
     assert got.cleaned.tobytes() == rose.clean(grid).cleaned.tobytes()
     walls = rose.WallParams(hough_max_gap_px=np.float16(3), hough_votes=np.int64(15))
     assert type(walls.hough_max_gap_px) is float and type(walls.hough_votes) is int
+
+
+def test_a_numpy_resolution_is_a_python_float_in_the_cleaning() -> None:
+    """clean(resolution_m=np.float16(0.05)) kept float16 in the rules' cell arithmetic, which
+    overflowed and failed deep inside ("cannot convert float NaN to integer")."""
+    from synthetic import floor_plan
+
+    grid = np.where(floor_plan(), 100, 0).astype(np.int8)
+    result = rose.analyze(grid)
+    half = rose.clean(grid, result, resolution_m=np.float16(0.05))
+    assert type(half.resolution_m) is float
+    assert half.cleaned.tobytes() == rose.clean(grid, result, resolution_m=0.05).cleaned.tobytes()
+    single = rose.clean(grid, result, resolution_m=np.float32(0.05))
+    exact = rose.clean(grid, result, resolution_m=float(np.float32(0.05)))
+    assert single.cleaned.tobytes() == exact.cleaned.tobytes()
