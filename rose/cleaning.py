@@ -382,7 +382,9 @@ def clean(
     Raises
     ------
     RoseError
-        On a bad grid, method or resolution, or a ``result`` computed for a grid of another shape.
+        On a bad grid, method, resolution or ``params`` (a length of more cells than the rules
+        take), or a ``result`` that is no RoseResult or was computed for another grid (another
+        shape, or other occupied cells).
     """
     if isinstance(grid, OccupancyMap):
         if resolution_m is None:

@@ -246,7 +246,8 @@ def extract_walls(
     Raises
     ------
     RoseError
-        As :func:`extract_walls_hough`, or if ``result`` was computed on a grid of another shape.
+        As :func:`extract_walls_hough`, or if ``result`` is no RoseResult or was computed on
+        another grid (another shape, or other occupied cells).
     """
     p = _wall_params(params)
     occupancy, placement = _grid_and_placement(grid, resolution_m, origin_xy_m, origin_yaw_rad)
