@@ -93,6 +93,19 @@ class MapSnapshot:
         if not finite_number(self.resolution_m) or not self.resolution_m > 0:
             msg = f"{self.topic}: resolution_m must be a positive number, got {self.resolution_m!r}"
             raise ValueError(msg)
+        # Tuples of Python floats of its own, as the fields say: a list given was held as it
+        # was, and changing it afterwards moved the snapshot (and the walls drawn over it).
+        for name, size in (("origin_position_m", 3), ("origin_orientation_xyzw", 4)):
+            value = getattr(self, name)
+            try:
+                numbers = tuple(float(v) for v in value)
+            except (TypeError, ValueError):
+                numbers = ()
+            if len(numbers) != size:
+                msg = f"{self.topic}: {name} must be {size} numbers, got {value!r}"
+                raise ValueError(msg)
+            object.__setattr__(self, name, numbers)
+        object.__setattr__(self, "resolution_m", float(self.resolution_m))
         # The snapshot owns its cells: a caller that reuses one buffer for each new map must not
         # change the break detector's trusted snapshot (decoded grids are read-only and owned
         # already: no copy).

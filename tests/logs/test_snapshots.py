@@ -297,6 +297,18 @@ def test_a_snapshot_of_durations_is_refused() -> None:
         MapSnapshot("/map", 0, 0, "map", np.zeros((4, 4), dtype="m8[s]"), 0.05)
 
 
+def test_a_snapshot_holds_its_placement_as_tuples_of_its_own() -> None:
+    """A list given as the origin was held as it was: changing it afterwards moved the snapshot."""
+    origin = [1.0, 2.0, 0.0]
+    snapshot = MapSnapshot("/map", 0, 0, "map", np.zeros((4, 4), np.int8), np.float32(0.5), origin)
+    origin[0] = 9.0
+    assert snapshot.origin_position_m == (1.0, 2.0, 0.0)
+    assert snapshot.origin_orientation_xyzw == (0.0, 0.0, 0.0, 1.0)
+    assert type(snapshot.resolution_m) is float
+    with pytest.raises(ValueError, match="origin_position_m must be 3 numbers"):
+        MapSnapshot("/map", 0, 0, "map", np.zeros((4, 4), np.int8), 0.5, (1.0, 2.0))
+
+
 def test_names_printed_in_tables_keep_their_line() -> None:
     from rose.limits import visible
 
