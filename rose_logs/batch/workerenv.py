@@ -7,17 +7,20 @@ Workers share the cores, so BLAS / OpenMP pools and OpenCV's own thread pool get
 OpenCV otherwise runs every morphology and labelling call of the cleaning on all cores, and two
 workers on two cores then spent 25 s of task CPU on a fleet that takes 18-20 s with one thread
 each (``benchmarks/bench_batch.py``).
+The workers' own warnings (an I/O error retried) are ``warning: ...`` lines on stderr, as the
+command prints every other one.
 """
 
 from __future__ import annotations
 
 import logging
 import os
+import sys
 import threading
 
 from rose_logs.malloc import MALLOC_ENV, keep_arrays_on_heap
 
-__all__ = ["THREAD_ENV", "tune_worker_process", "worker_environment"]
+__all__ = ["THREAD_ENV", "tune_worker_process", "warnings_as_lines", "worker_environment"]
 
 _LOG = logging.getLogger(__name__)
 
@@ -51,6 +54,7 @@ def tune_worker_process() -> None:
         os.environ.setdefault(name, value)
     keep_arrays_on_heap()
     _thread_lock_for_tqdm()
+    warnings_as_lines()
     # OpenCV reads OPENCV_FOR_THREADS_NUM once, when it is imported: a worker that imported it
     # already (an existing cluster) is told directly.
     import cv2
@@ -76,3 +80,32 @@ def _thread_lock_for_tqdm() -> None:
     except ImportError:
         return
     tqdm.set_lock(threading.RLock())
+
+
+class _StderrLines(logging.Handler):
+    """Each record as one ``warning: ...`` line on the ``sys.stderr`` of the moment."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        try:
+            sys.stderr.write(self.format(record) + "\n")
+            sys.stderr.flush()
+        except Exception:  # as logging's own handlers: a broken stream never ends the task
+            self.handleError(record)
+
+
+def warnings_as_lines() -> None:
+    """``rose`` and ``rose_logs`` warnings of this process as the command prints them
+    (``warning: <uri>: ... (attempt 1 of 3, retrying)``), where nothing else would handle them.
+
+    A worker process has no handler for them: Python's last resort printed the bare message.
+    A logger with a handler somewhere up its chain (a cluster's own logging) is left as it is.
+    """
+    from rose.cli import LevelFormatter  # the command's format: one definition
+
+    for name in ("rose", "rose_logs"):
+        logger = logging.getLogger(name)
+        if logger.hasHandlers():
+            continue
+        handler = _StderrLines(logging.WARNING)
+        handler.setFormatter(LevelFormatter())
+        logger.addHandler(handler)

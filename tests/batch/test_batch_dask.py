@@ -156,6 +156,31 @@ def test_local_workers_run_opencv_on_one_thread(fragile_client: Any) -> None:
     assert set(fragile_client.run(cv2.getNumThreads).values()) == {1}
 
 
+def _a_retry_warning_as_printed() -> str:
+    """On a worker: what a recording's retry warning (``process_recording``'s) prints on stderr."""
+    import io
+    import logging
+
+    saved, sys.stderr = sys.stderr, io.StringIO()
+    try:
+        logging.getLogger("rose_logs.batch.task").warning(
+            "%s: %s (attempt %d of %d, retrying)", "/fleet/run.mcap", "[Errno 5] I/O error", 1, 3
+        )
+        return sys.stderr.getvalue()
+    finally:
+        sys.stderr = saved
+
+
+def test_a_workers_retry_warning_is_a_warning_line(fragile_client: Any) -> None:
+    # A worker process has no handler for rose_logs' warnings: Python's last resort printed the
+    # bare message, the one line of the batch without the warning: prefix.
+    from rose_logs.batch.workerenv import tune_worker_process
+
+    fragile_client.run(tune_worker_process)  # as the batch does before its first task
+    printed = set(fragile_client.run(_a_retry_warning_as_printed).values())
+    assert printed == {"warning: /fleet/run.mcap: [Errno 5] I/O error (attempt 1 of 3, retrying)\n"}
+
+
 def _kill_when_running(client: Any, task_key: str, done: threading.Event) -> None:
     pids = client.run(os.getpid)
     deadline = time.monotonic() + 120
