@@ -624,7 +624,9 @@ def load_result(store: OutputStore, key: str) -> RecordingResult | None:
     try:
         return RecordingResult.from_json(json.loads(data))
     except (ValueError, TypeError):
-        _LOG.warning("%s: unreadable stored result, redoing the recording", result_path(key))
+        # Named under OUT (a bare results/<key>.json named no file from where the user stands).
+        path = store.uri(result_path(key))
+        _LOG.warning("%s: unreadable stored result, redoing the recording", path)
         return None
 
 

@@ -76,6 +76,25 @@ def test_an_empty_first_map_is_no_broken_map(
     assert rows[str(only_empty)]["w_max"] is None and not rows[str(only_empty)]["broke"]
 
 
+def test_an_unreadable_stored_result_is_redone_and_named_under_out(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from fleet import copy_recording
+
+    log = copy_recording(tmp_path / "run.mcap", "mcap", max_maps=2)
+    out = tmp_path / "out"
+    assert main(["batch", str(log), "-o", str(out), "-q"]) == 0
+    (stored,) = (out / "results").iterdir()
+    stored.write_text("{cut short")
+    capsys.readouterr()
+    assert main(["batch", str(log), "-o", str(out), "-q"]) == 0
+    captured = capsys.readouterr()
+    assert "(1 processed, 0 finished before)" in captured.out
+    # The file as the user finds it, not results/<key>.json relative to OUT.
+    assert f"warning: {stored}: unreadable stored result, redoing the recording" in captured.err
+    assert json.loads(stored.read_text())["status"] == "ok"
+
+
 def test_folders_are_searched_recursively_and_a_bag_folder_is_one_recording(fleet: Path) -> None:
     recordings = discover([fleet])
     assert [r.name for r in recordings] == FLEET_NAMES
