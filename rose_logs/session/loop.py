@@ -703,7 +703,9 @@ class _Loop:
         bar = tqdm(
             total=self.reader.message_count,
             unit="msg",
+            # Whole counts ("47/973 msg"; scaled ones read "47.0/973"), a scaled rate ("1.2Mmsg/s").
             unit_scale=True,
+            bar_format="{l_bar}{bar}| {n}/{total} {unit} [{elapsed}<{remaining}, {rate_fmt}]",
             disable=not progress,
             dynamic_ncols=True,
             leave=False,
