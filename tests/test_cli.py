@@ -528,6 +528,53 @@ def test_walls_warns_of_drawings_named_with_another_suffix(
         assert "warning" not in capsys.readouterr().err
 
 
+@pytest.mark.parametrize(
+    ("command", "option", "name", "what"),
+    [
+        ("clean", "-o", "c.yaml", "output map"),
+        ("clean", "--json", "r.json", "JSON report"),
+        ("walls", "--geojson", "w.geojson", "GeoJSON file"),
+        ("walls", "--svg", "w.svg", "SVG drawing"),
+    ],
+)
+def test_an_output_inside_a_ros2_bag_folder_is_refused(
+    command: str,
+    option: str,
+    name: str,
+    what: str,
+    cluttered_map: Path,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """`rose clean MAP -o SOMEBAG/c.yaml` (or `--json`, or `rose walls --geojson / --svg` there)
+    exited 0 and put files into the recording, which `rose-bag process` refuses for its outputs."""
+    bag = tmp_path / "bag"
+    bag.mkdir()
+    (bag / "metadata.yaml").write_text("rosbag2_bagfile_information: {}\n")
+    output = bag / name
+    argv = [command, str(cluttered_map), option, str(output)]
+    if option == "--json":
+        argv += ["-o", str(tmp_path / "c.yaml")]
+    assert main(argv) == 1
+    assert capsys.readouterr().err == (
+        f"error: {output}: the {what} is inside the ROS 2 bag folder {bag.resolve()} (it "
+        f"has metadata.yaml): it would write into a recording; choose another {option}\n"
+    )
+    assert sorted(p.name for p in bag.iterdir()) == ["metadata.yaml"]
+    assert not (tmp_path / "c.yaml").exists()
+    # A map beside its bag's metadata is no excuse: its folder is still the recording.
+    moved = bag / "in.yaml"
+    rose.save_map(moved, rose.load_map(cluttered_map))
+    argv[1] = str(moved)
+    assert main(argv) == 1
+    assert "inside the ROS 2 bag folder" in capsys.readouterr().err
+    # Beside the bag, the same run writes it.
+    argv[argv.index(str(output))] = str(tmp_path / name)
+    argv[1] = str(cluttered_map)
+    assert main(argv) == 0
+    assert (tmp_path / name).is_file()
+
+
 def test_a_map_yaml_without_origin_is_read_with_a_warning(tmp_path: Path) -> None:
     """map_server refuses a map YAML without `origin`; we take [0, 0, 0], and now say so once, as a
     `warning:` line (in a process of its own: pytest holds the logging of this one)."""

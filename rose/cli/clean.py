@@ -26,7 +26,7 @@ from rose.cli.options import (
 from rose.directions import degenerate_input
 from rose.errors import MapFileError
 from rose.mapfile import SAVED_OCCUPIED_FROM, OccupancyMap, map_image_path, save_map
-from rose.outputs import STDOUT, OutputSet, suffix_warning
+from rose.outputs import STDOUT, OutputSet, refuse_output_in_bag_folder, suffix_warning
 
 __all__ = ["add_parser", "cleaning_summary", "run"]
 
@@ -73,7 +73,10 @@ def run(args: argparse.Namespace) -> int:
     if output_path.suffix.lower() not in (".yaml", ".yml"):
         msg = f"{output_path}: the output map must be a .yaml file"
         raise MapFileError(msg)
-    # Refuse bad outputs (an input, the map's image, each other, existing) before computing anything.
+    # Refuse bad outputs (inside a ROS 2 bag, an input, the map's image, each other, existing)
+    # before computing anything. A map file is no recording: a bag folder holding it is refused too.
+    refuse_output_in_bag_folder(output_path, "-o", what="output map")
+    refuse_output_in_bag_folder(args.json, "--json", what="JSON report")
     outputs.check(output_path, map_image_path(output_path), args.json)
     # After the checks: a refused output is refused alone, not warned about first.
     warning = suffix_warning(args.json, ".json", "a JSON report")

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Any, TextIO
 
 from rose.cli.options import add_map_arguments, file_arg, float_up_to, load_grid_map, map_arg
 from rose.directions import fold_deg
-from rose.outputs import OutputSet, json_text, suffix_warning
+from rose.outputs import OutputSet, json_text, refuse_output_in_bag_folder, suffix_warning
 
 if TYPE_CHECKING:
     from rose.walls import WallSet
@@ -71,6 +71,8 @@ def run(args: argparse.Namespace, *, stdout: TextIO | None = None) -> int:
     out = stdout if stdout is not None else sys.stdout
     occupancy_map = load_grid_map(args.map, max_cells=args.max_cells, resolution_m=args.resolution)
     outputs = OutputSet(inputs=occupancy_map.input_files, force=args.force, ends_run=True)
+    refuse_output_in_bag_folder(args.geojson, "--geojson", what="GeoJSON file")
+    refuse_output_in_bag_folder(args.svg, "--svg", what="SVG drawing")
     outputs.check(args.geojson, args.svg)
     # After the checks: a refused output is refused alone, not warned about first.
     for warning in (
