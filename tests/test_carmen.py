@@ -162,6 +162,23 @@ def test_convert_refuses_its_input_as_output_without_a_suffix_warning_first(
     assert err == f"error: {tmp_path / 's.txt'}: is a file, not replacing it with a folder\n"
 
 
+def test_convert_of_a_folder_or_missing_log_says_so_before_judging_its_outputs(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`convert . out.mcap` said `out.mcap: refusing to write inside the input .`: the output
+    was fine to move, the input was never a log (`convert adir out.mcap` said so)."""
+    from rose_logs.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    assert main(["convert", ".", "out.mcap"]) == 1
+    assert capsys.readouterr().err == "error: .: not a regular file\n"
+    (tmp_path / "taken.mcap").write_bytes(b"precious")
+    assert main(["convert", "missing.log", "taken.mcap"]) == 1
+    err = capsys.readouterr().err
+    assert err == "error: missing.log: cannot read CARMEN log (No such file or directory)\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["taken.mcap"]
+
+
 def test_convert_refuses_a_file_output_named_as_a_folder(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -40,6 +40,7 @@ __all__ = [
     "CarmenLog",
     "FlaserScan",
     "beam_angles",
+    "check_carmen_file",
     "parse_flaser_line",
     "read_carmen_log",
 ]
@@ -338,6 +339,20 @@ def _why_no_scans(path: Path, log: CarmenLog) -> str:
     return f"no FLASER scan found: only FLASER lines are read; its lines start {kinds}{more}"
 
 
+def check_carmen_file(path: str | Path) -> None:
+    """Raise :class:`CarmenFormatError` unless ``path`` is an existing regular file (a folder, FIFO
+    or device is no log): cheap, so a command says it before judging its outputs (``convert .
+    out.mcap`` said the output was "inside the input .")."""
+    try:
+        mode = Path(path).stat().st_mode
+    except OSError as err:
+        msg = f"{path}: cannot read CARMEN log ({err.strerror or err})"
+        raise CarmenFormatError(msg) from err
+    if not stat.S_ISREG(mode):
+        msg = f"{path}: not a regular file"
+        raise CarmenFormatError(msg)
+
+
 def read_carmen_log(path: str | Path, *, max_scans: int | None = None) -> CarmenLog:
     """Read the ``FLASER`` scans of a CARMEN log (plain text or gzip).
 
@@ -359,10 +374,8 @@ def read_carmen_log(path: str | Path, *, max_scans: int | None = None) -> Carmen
         When the file cannot be opened or decompressed, or holds no ``FLASER`` scan at all.
     """
     path = Path(path)
+    check_carmen_file(path)
     try:
-        if not stat.S_ISREG(path.stat().st_mode):
-            msg = f"{path}: not a regular file"
-            raise CarmenFormatError(msg)
         log = parse_carmen_lines(_open_lines(path), path=path, max_scans=max_scans)
     except gzip.BadGzipFile as err:  # an OSError whose words ("Not a gzipped file") mislead
         msg = (

@@ -20,7 +20,7 @@ from rose.cli.options import (
     resolution,
 )
 from rose.outputs import OutputSet, refuse_output_in_bag_folder
-from rose_logs.carmen.parse import MAX_STAMP_S, CarmenLog, read_carmen_log
+from rose_logs.carmen.parse import MAX_STAMP_S, CarmenLog, check_carmen_file, read_carmen_log
 from rose_logs.carmen.raycast import BuilderParams
 from rose_logs.carmen.session import SessionOptions, write_carmen_session
 from rose_logs.cli.options import UsageError, output_log_path
@@ -125,6 +125,7 @@ def run(args: argparse.Namespace) -> int:
             f"--max-range must be above the shortest reading kept, {BuilderParams.min_range_m:g} m"
         )
         raise UsageError(msg)
+    check_carmen_file(args.log)  # a folder or a missing log first, not its outputs' place in it
     outputs = OutputSet(inputs=[args.log], force=args.force, ends_run=True)
     fmt = args.fmt or format_from_path(Path(args.output)) or "db3"
     args.output = output_log_path(args.output, fmt)
