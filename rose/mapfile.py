@@ -358,8 +358,13 @@ def _load_yaml_map(path: Path, max_cells: int | None) -> OccupancyMap:
         elif image_name != image_name.strip():  # "depot.pgm " read like depot.pgm, which exists
             msg += f" (the name {image_name!r} has spaces or line breaks around it)"
         raise MapFileError(msg) from err
+    try:
+        pixels = _read_image(image_path, max_cells)
+    except MapFileError as err:  # named by the map given: `score a.yaml b.yaml` said only the image
+        msg = f"{path}: its image {short(err, 240)}"
+        raise MapFileError(msg) from err
     grid = image_to_grid(
-        _read_image(image_path, max_cells),
+        pixels,
         mode=mode,
         negate=bool(negate),
         occupied_thresh=occupied_thresh,

@@ -132,6 +132,19 @@ def test_plain_pgm_without_a_final_newline_and_truncated_binary_pgm(tmp_path: Pa
         rose.load_map(tmp_path / "junk.pgm")
 
 
+def test_an_unreadable_image_of_a_yaml_map_is_named_with_its_yaml(tmp_path: Path) -> None:
+    """`rose score a.yaml b.yaml` said `error: cut.pgm: not a readable image`, naming neither map
+    (a missing image said `a.yaml: its image cut.pgm: no such image file`)."""
+    (tmp_path / "cut.pgm").write_bytes(_pnm(b"P5", _SAVER_ROW, 255)[:-2])
+    yaml_path = write_yaml(tmp_path / "a.yaml", "image: cut.pgm\nresolution: 0.05\n")
+    with pytest.raises(MapFileError) as caught:
+        rose.load_map(yaml_path)
+    assert str(caught.value) == (
+        f"{yaml_path}: its image {tmp_path / 'cut.pgm'}: not a readable image (truncated: 3 of 5 "
+        "bytes of pixels)"
+    )
+
+
 def test_alpha_counts_in_trinary_mode_as_the_map_servers_count_it(tmp_path: Path) -> None:
     """ROS 1 and Nav2 map_server average alpha in with R, G and B in trinary mode: an opaque 205
     (unknown in a grey image) is free in an RGBA or grey+alpha one. Scale mode and bare images leave
