@@ -80,11 +80,19 @@ def _corrupt(path: Path, err: BaseException) -> LogReadError:
             f"{path}: its metadata.yaml is of rosbag2 version {newer.group(1)}, newer than "
             f"rose-bag reads ({_rosbags_reads()})"
         )
+    missing = _MISSING_KEY.search(str(err))
+    if missing is not None:  # rosbags's words: "A metadata key is missing KeyError('...')."
+        return LogReadError(
+            f"{path}: its metadata.yaml lacks the key {short(missing.group(1), 80)!r} that "
+            "rosbag2 metadata holds (written by hand, or cut short?)"
+        )
     return LogReadError(f"{path}: corrupt or truncated log ({short(library_text(err), 160)})")
 
 
 #: rosbags's error for a ``metadata.yaml`` version it does not know.
 _NEWER_BAG = re.compile(r"Rosbag2 version (\d+) not supported")
+#: rosbags's error for a ``metadata.yaml`` without a key it reads.
+_MISSING_KEY = re.compile(r"A metadata key is missing KeyError\('([^']*)'\)")
 
 
 def _rosbags_reads() -> str:

@@ -1252,6 +1252,26 @@ def test_a_report_inside_the_input_bag_folder_is_still_said_to_be_inside_the_inp
     assert sorted(p.name for p in bag.iterdir()) == ["in.db3", "metadata.yaml"]
 
 
+def test_a_metadata_yaml_without_a_key_rosbags_reads_is_said_so_in_our_words(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`info bag` said `corrupt or truncated log (A metadata key is missing
+    KeyError('topics_with_message_count').)`: nothing was cut, the metadata lacks a key."""
+    bag = tmp_path / "run"
+    assert main(["process", str(SAMPLE), "--format", "db3", "-o", str(bag), "-q"]) == 0
+    metadata = bag / "metadata.yaml"
+    text, count = re.subn(r"(?m)^  message_count: \d+\n", "", metadata.read_text())
+    assert count == 1
+    metadata.write_text(text)
+    capsys.readouterr()
+    for command in (["info"], ["process", "--no-output"]):
+        assert main([command[0], str(bag), *command[1:]]) == 1
+        assert capsys.readouterr().err == (
+            f"error: {bag}: its metadata.yaml lacks the key 'message_count' that rosbag2 "
+            "metadata holds (written by hand, or cut short?)\n"
+        )
+
+
 def test_a_bag_of_a_newer_rosbag2_version_is_said_so_in_our_words(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
