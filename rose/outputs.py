@@ -773,11 +773,14 @@ def refuse_output_in_bag_folder(
     the whole folder). Replacing a bag folder itself (``-o bag --format db3 --force``) is not
     this: that is the output's own folder. ``option`` names the argument in the message. A bag
     folder that is or holds one of ``inputs`` is left to :class:`OutputSet`, which says "inside
-    the input"."""
+    the input". A folder that does not exist yet counts as the one it would be made in (``evaluate
+    bag/new/report`` makes ``bag/new``)."""
     if path is None or _is_stdout(Path(path)):
         return
     try:
         folder = Path(path).resolve().parent
+        while not folder.exists() and folder != folder.parent:
+            folder = folder.parent
     except (OSError, RuntimeError):  # the output checks say what is wrong with such a path
         return
     if is_bag_folder(folder) and not any(_holds_input(folder, Path(i)) for i in inputs):

@@ -159,3 +159,21 @@ def test_help_says_which_pictures_no_plots_keeps(capsys: pytest.CaptureFixture[s
     assert "wall_error.png" in help_text
     assert "cleaning_before_after.png" in help_text
     assert "map_*.png are data and still written" in help_text
+
+
+def test_a_report_folder_inside_a_ros2_bag_folder_is_refused_before_any_run(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`evaluate SOMEBAG/report` (or `SOMEBAG/new/report`, whose `new` it made) wrote the report
+    into the recording, which `process` and `rose clean` refuse for their outputs."""
+    bag = tmp_path / "bag"
+    bag.mkdir()
+    (bag / "metadata.yaml").write_text("rosbag2_bagfile_information: {}\n")
+    for out in (bag / "report", bag / "new" / "report"):
+        assert main(["evaluate", str(out), *QUICK, "--no-plots"]) == 1
+        err = capsys.readouterr().err
+        assert err == (
+            f"error: {out}: the report folder is inside the ROS 2 bag folder {bag} (it has "
+            "metadata.yaml): it would write into a recording; choose another OUT_DIR\n"
+        )
+        assert sorted(p.name for p in bag.iterdir()) == ["metadata.yaml"]

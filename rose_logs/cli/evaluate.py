@@ -200,7 +200,7 @@ def run(args: argparse.Namespace) -> int:
         If a file of the report cannot be written; it names the file in ``out_dir``, not in the
         temporary folder, and nothing is committed.
     """
-    from rose.outputs import OutputSet
+    from rose.outputs import OutputSet, refuse_output_in_bag_folder
     from rose_logs.evaluation.files import ReportWriteError
     from rose_logs.evaluation.report import MARKDOWN_NAME, run_evaluation
 
@@ -217,6 +217,8 @@ def run(args: argparse.Namespace) -> int:
     # A report folder's parents are made, as `batch` makes OUT's (`evaluate out/eval` in a fresh
     # checkout), but never inside the data set (the output check refuses that path next); a path
     # through a file stays an error of the output check.
+    # Nor inside a ROS 2 bag folder (a recording; `-o bag --force` would delete the report with it).
+    refuse_output_in_bag_folder(args.out_dir, "OUT_DIR", what="report folder", inputs=inputs)
     parent = Path(args.out_dir).resolve().parent
     made: list[Path] = []  # the folders this run made, deepest first
     if not any(parent.is_relative_to(Path(i).resolve()) for i in inputs):
