@@ -16,7 +16,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from rose.outputs import is_bag_folder
+from rose.errors import OutputError
+from rose.outputs import is_bag_folder, refuse_output_in_bag_folder
 from rose_logs.batch.errors import BatchError
 from rose_logs.batch.sources import Recording, cleaned_log_name, discover, distinct_name
 from rose_logs.batch.store import OutputStore, is_local, storage_errors
@@ -548,6 +549,10 @@ def _refuse_out_in_a_bag(root: str, bag_folders: Sequence[str]) -> None:
             "would write its tables into a recording; choose another -o"
         )
         raise BatchError(msg)
+    try:  # nor inside another recording (`-o SOMEBAG/out`), as process's outputs
+        refuse_output_in_bag_folder(root, "-o", what="output folder")
+    except OutputError as err:
+        raise BatchError(str(err)) from None
 
 
 Runner = Callable[

@@ -481,6 +481,14 @@ def test_an_output_folder_in_or_at_a_ros2_bag_folder_is_refused(
         run_batch([bag], bag / "out")
     with pytest.raises(BatchError, match="is a ROS 2 bag folder"):
         run_batch([fleet / "robot_a" / "run.mcap"], bag)
+    # Inside a bag folder that is no input (it wrote bag/out, and bag/new/out made bag/new).
+    for out in (bag / "out", bag / "new" / "out"):
+        with pytest.raises(BatchError) as caught:
+            run_batch([fleet / "robot_a" / "run.mcap"], out)
+        assert str(caught.value) == (
+            f"{out}: the output folder is inside the ROS 2 bag folder {bag.resolve()} (it has "
+            "metadata.yaml): it would write into a recording; choose another -o"
+        )
     assert sorted(p.name for p in bag.iterdir()) == before
 
 
