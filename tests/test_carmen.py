@@ -555,6 +555,11 @@ def test_convert_refuses_a_map_file_clashing_with_the_session_before_ray_casting
     for argv, said in (
         (["out.pgm", "--format", "mcap", "--map-file", "out.yaml"], "out.pgm"),
         (["m2.yaml", "--format", "db3", "--map-file", "m2.yaml"], "m2.yaml: given for two"),
+        # Not "folder bag does not exist": the map may never go inside the session's folder.
+        (
+            ["bag", "--map-file", "bag/m.yaml"],
+            "bag/m.yaml: given for two outputs (also inside bag)",
+        ),
     ):
         assert main(["convert", str(path), *argv]) in (1, 2)
         assert said in capsys.readouterr().err

@@ -139,11 +139,11 @@ def run(args: argparse.Namespace) -> int:
     map_files = (args.map_file, map_image_path(args.map_file)) if args.map_file is not None else ()
     folder = fmt in ("db3", "mcap-dir")
     outputs.check(args.output, directory=folder)
+    if folder:  # before the map's own checks: `bag --map-file bag/m.yaml` said bag did not exist
+        _check_apart(Path(args.output), map_files)
     # The session against the map's YAML and image too, now: staging the map at the end found a
     # clash only after the whole log was ray cast (`out.pgm --format mcap --map-file out.yaml`).
     outputs.check(None if folder else args.output, *map_files)
-    if folder:
-        _check_apart(Path(args.output), map_files)
     if args.map_file is not None:  # save_map's own refusals, now rather than after the ray casting
         from rose.errors import MapFileError
         from rose.mapfile import map_output_problem
