@@ -754,8 +754,21 @@ def enclosing_bag_folder(path: Path) -> Path | None:
 
 
 def is_bag_folder(folder: Path | str) -> bool:
-    """Whether ``folder`` is a ROS 2 bag folder: it holds a ``metadata.yaml``."""
-    return (Path(folder) / "metadata.yaml").is_file()
+    """Whether ``folder`` is a ROS 2 bag folder: it holds a ``metadata.yaml`` that is rosbag2's
+    (``rosbag2_bagfile_information`` in its first MiB), or one beside a ``.db3`` / ``.mcap``
+    storage file (a bag whose metadata is damaged). A folder whose ``metadata.yaml`` is another
+    tool's (a data set's description, a web site's) is no recording."""
+    folder = Path(folder)
+    metadata = folder / "metadata.yaml"
+    if not metadata.is_file():  # a FIFO would block the read below
+        return False
+    try:
+        with metadata.open("rb") as f:
+            if b"rosbag2_bagfile_information" in f.read(_METADATA_PEEK):
+                return True
+        return any(Path(e.name).suffix.lower() in _BAG_STORAGE_SUFFIXES for e in os.scandir(folder))
+    except OSError:  # unreadable: taken as a bag, as before it was read
+        return True
 
 
 def refuse_output_in_bag_folder(

@@ -575,6 +575,22 @@ def test_an_output_inside_a_ros2_bag_folder_is_refused(
     assert (tmp_path / name).is_file()
 
 
+def test_a_folder_whose_metadata_yaml_is_no_bags_takes_outputs(
+    cluttered_map: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A maps folder with a data set's own metadata.yaml is no recording: its maps are cleaned
+    beside it. A bag folder whose metadata.yaml is cut short still is one (it holds a .db3)."""
+    maps = tmp_path / "maps"
+    maps.mkdir()
+    (maps / "metadata.yaml").write_text("title: floor plans\nlicense: CC-BY-4.0\n")
+    assert main(["clean", str(cluttered_map), "-o", str(maps / "c.yaml")]) == 0
+    assert (maps / "c.pgm").is_file()
+    (maps / "run_0.db3").write_bytes(b"")
+    assert main(["walls", str(cluttered_map), "--svg", str(maps / "w.svg")]) == 1
+    assert "inside the ROS 2 bag folder" in capsys.readouterr().err
+    assert not (maps / "w.svg").exists()
+
+
 def test_a_map_yaml_without_origin_is_read_with_a_warning(tmp_path: Path) -> None:
     """map_server refuses a map YAML without `origin`; we take [0, 0, 0], and now say so once, as a
     `warning:` line (in a process of its own: pytest holds the logging of this one)."""
