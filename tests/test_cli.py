@@ -423,6 +423,29 @@ def test_usage_error_exits_2(argv: list[str]) -> None:
 
 
 @pytest.mark.parametrize(
+    "command", [["score", "-"], ["clean", "-", "-o", "o.yaml"], ["walls", "-"]]
+)
+def test_a_map_named_dash_is_no_standard_input(
+    command: list[str],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """`rose score - < map.pgm` said `error: -: no such file`, though `-` is standard output
+    for every output: now a usage error saying inputs are files. A file called '-' is read."""
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as info:
+        main(command)
+    assert info.value.code == 2
+    assert capsys.readouterr().err.endswith(
+        "'-': inputs are read from files, not standard input (./- names a file called '-')\n"
+    )
+    (tmp_path / "-").write_bytes(b"")
+    assert main(command) == 1
+    assert "error: -: not a readable image" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
     ("argv", "usage"),
     [
         (["clean", "m.yaml", "-o", "o.yaml", "--bogus"], "rose clean"),

@@ -179,13 +179,26 @@ def _power_text(number: int) -> str:
 def path_arg(text: str) -> Path:
     """argparse type: a local file or folder path to read; an empty one is a usage error
     (``Path("")`` is the current folder, which made ``-o ""`` read as writing over the input), and
-    so is a URL (``Path`` made ``s3://b/k.mcap`` the local ``s3:/b/k.mcap``: "no such file")."""
-    return Path(_local(text, "this command reads local files (only rose-bag batch reads URLs)"))
+    so is a URL (``Path`` made ``s3://b/k.mcap`` the local ``s3:/b/k.mcap``: "no such file"), and
+    ``-`` (:func:`_no_stdin`)."""
+    return Path(
+        _no_stdin(_local(text, "this command reads local files (only rose-bag batch reads URLs)"))
+    )
 
 
 def map_arg(text: str) -> Path:
     """argparse type: a map file to read (:func:`path_arg`, worded for the ``rose`` commands)."""
-    return Path(_local(text, "maps are read from local files"))
+    return Path(_no_stdin(_local(text, "maps are read from local files")))
+
+
+def _no_stdin(text: str) -> str:
+    """``text``, unless it is ``-`` and no file is named so: an input is never standard input
+    (``rose score - < map.pgm`` said "-: no such file", though ``-`` is standard output for
+    outputs)."""
+    if text == "-" and not os.path.lexists(text):
+        msg = "'-': inputs are read from files, not standard input (./- names a file called '-')"
+        raise argparse.ArgumentTypeError(msg)
+    return text
 
 
 def out_path_arg(text: str) -> Path:
