@@ -286,6 +286,25 @@ def _read_bytes(path: Path, limit: int | None = None) -> bytes:
     return data
 
 
+#: Bytes read first from an image file: enough for :func:`rose.limits.image_kind`.
+_KIND_PEEK_BYTES = 16
+
+
+def _read_image_file(path: Path, max_cells: int | None) -> bytes:
+    """The bytes of the image file ``path``; under a cell limit, only its first bytes when they
+    announce no format whose size can be checked (refused then): ``rose score run.bag``, a 20 GB
+    log given as a map, read it whole before saying it was no image."""
+    try:
+        with path.open("rb") as file:
+            head = file.read(_KIND_PEEK_BYTES)
+            if max_cells is not None and image_kind(head) is None:
+                return head
+            return head + file.read()
+    except OSError as err:
+        msg = f"{path}: cannot read ({err.strerror or err})"
+        raise MapFileError(msg) from err
+
+
 def _load_yaml_map(path: Path, max_cells: int | None) -> OccupancyMap:
     try:
         meta = load_yaml(_read_bytes(path, MAX_YAML_BYTES))
@@ -465,7 +484,7 @@ def checked_image_bytes(path: Path, max_cells: int | None = DEFAULT_MAX_CELLS) -
         For a missing or non-regular file, an unreadable or too large image (one line, naming it).
     """
     _require_regular(path, "no such image file")
-    raw = _read_bytes(path)
+    raw = _read_image_file(path, max_cells)
     shape = image_shape(raw)
     problem = _header_problem(raw, shape)
     if problem is not None:

@@ -132,6 +132,25 @@ def test_plain_pgm_without_a_final_newline_and_truncated_binary_pgm(tmp_path: Pa
         rose.load_map(tmp_path / "junk.pgm")
 
 
+def test_a_large_file_of_no_image_format_is_refused_from_its_first_bytes(tmp_path: Path) -> None:
+    """`rose score run.bag` (a log given as a map) read the whole file into memory before saying
+    it was no image: 1.6 GB for a 1.5 GB log, past the 1 GiB promised for a rejected input."""
+    import tracemalloc
+
+    log = tmp_path / "run.bag"
+    with log.open("wb") as f:
+        f.write(b"#ROSBAG V2.0\n")
+        f.truncate(200 << 20)  # sparse: no disk used
+    tracemalloc.start()
+    try:
+        with pytest.raises(MapFileError, match=r"run\.bag: not a readable image \(not a PNG"):
+            rose.load_map(log)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 10 << 20
+
+
 def test_an_unreadable_image_of_a_yaml_map_is_named_with_its_yaml(tmp_path: Path) -> None:
     """`rose score a.yaml b.yaml` said `error: cut.pgm: not a readable image`, naming neither map
     (a missing image said `a.yaml: its image cut.pgm: no such image file`)."""
