@@ -286,23 +286,54 @@ def _read_bytes(path: Path, limit: int | None = None) -> bytes:
     return data
 
 
-#: Bytes read first from an image file: enough for :func:`rose.limits.image_kind`.
-_KIND_PEEK_BYTES = 16
+#: Bytes read first from an image file: its header (a PNM header's comments may fill 64 KiB).
+_HEAD_BYTES = 1 << 20
 
 
 def _read_image_file(path: Path, max_cells: int | None) -> bytes:
-    """The bytes of the image file ``path``; under a cell limit, only its first bytes when they
-    announce no format whose size can be checked (refused then): ``rose score run.bag``, a 20 GB
-    log given as a map, read it whole before saying it was no image."""
+    """The bytes of the image file ``path`` that a decoder needs, read whole only when needed.
+
+    Under a cell limit, a file whose first bytes announce no format whose size is checked, or
+    whose header declares too many cells, is read no further (the caller refuses it from them):
+    ``rose score run.bag``, a log given as a map, read the whole log first, 1.6 GB for 1.5 GB. A
+    binary PNM is read up to its last sample (what follows is never decoded).
+    """
     try:
-        with path.open("rb") as file:
-            head = file.read(_KIND_PEEK_BYTES)
-            if max_cells is not None and image_kind(head) is None:
-                return head
-            return head + file.read()
+        with path.open("rb", buffering=0) as file:  # unbuffered: the whole read is one copy
+            head = file.read(_HEAD_BYTES)
+            if max_cells is not None:
+                if image_kind(head) is None:
+                    return head
+                shape = image_shape(head)
+                if shape is not None and check_cells(*shape, max_cells) is not None:
+                    return head
+            length = _binary_pnm_length(head)
+            file.seek(0)
+            if length is None:
+                return file.readall()
+            pieces = []
+            while length > 0 and (piece := file.read(length)):
+                pieces.append(piece)
+                length -= len(piece)
+            return pieces[0] if len(pieces) == 1 else b"".join(pieces)
     except OSError as err:
         msg = f"{path}: cannot read ({err.strerror or err})"
         raise MapFileError(msg) from err
+
+
+def _binary_pnm_length(head: bytes) -> int | None:
+    """Bytes of a binary PBM / PGM / PPM (P4 / P5 / P6) file up to its last sample, from its
+    header; None for any other file."""
+    header = pnm_header(head)
+    if header is None or head[1:2] not in (b"4", b"5", b"6"):
+        return None
+    numbers, end = header
+    cols, rows = numbers[0], numbers[1]
+    if head[1:2] == b"4":
+        row_bytes = (cols + 7) // 8
+    else:
+        row_bytes = cols * (1 if head[1:2] == b"5" else 3) * (2 if numbers[2] > 255 else 1)
+    return end + 1 + rows * row_bytes
 
 
 def _load_yaml_map(path: Path, max_cells: int | None) -> OccupancyMap:

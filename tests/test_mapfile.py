@@ -7,6 +7,7 @@ import math
 import os
 import struct
 import zlib
+from collections.abc import Callable
 from pathlib import Path
 
 import cv2
@@ -132,23 +133,55 @@ def test_plain_pgm_without_a_final_newline_and_truncated_binary_pgm(tmp_path: Pa
         rose.load_map(tmp_path / "junk.pgm")
 
 
-def test_a_large_file_of_no_image_format_is_refused_from_its_first_bytes(tmp_path: Path) -> None:
-    """`rose score run.bag` (a log given as a map) read the whole file into memory before saying
-    it was no image: 1.6 GB for a 1.5 GB log, past the 1 GiB promised for a rejected input."""
+def _peak_bytes(call: Callable[[], object]) -> int:
+    """The most memory Python held while ``call`` ran."""
     import tracemalloc
 
-    log = tmp_path / "run.bag"
-    with log.open("wb") as f:
-        f.write(b"#ROSBAG V2.0\n")
-        f.truncate(200 << 20)  # sparse: no disk used
     tracemalloc.start()
     try:
-        with pytest.raises(MapFileError, match=r"run\.bag: not a readable image \(not a PNG"):
-            rose.load_map(log)
-        peak = tracemalloc.get_traced_memory()[1]
+        call()
+        return tracemalloc.get_traced_memory()[1]
     finally:
         tracemalloc.stop()
-    assert peak < 10 << 20
+
+
+@pytest.mark.parametrize(
+    ("head", "error"),
+    [
+        (b"#ROSBAG V2.0\n", r"run\.bag: not a readable image \(not a PNG"),
+        (
+            b"P5\n20000 20000\n255\n",
+            r"run\.bag: image of 20000 x 20000 = 400,000,000 cells exceeds",
+        ),
+    ],
+)
+def test_a_large_file_refused_from_its_first_bytes_is_not_read_whole(
+    head: bytes, error: str, tmp_path: Path
+) -> None:
+    """`rose score run.bag` (a log given as a map) read the whole file into memory before saying
+    it was no image: 1.6 GB for a 1.5 GB log, past the 1 GiB promised for a rejected input; so
+    did a header declaring more cells than the limit."""
+    log = tmp_path / "run.bag"
+    with log.open("wb") as f:
+        f.write(head)
+        f.truncate(200 << 20)  # sparse: no disk used
+
+    def refused() -> None:
+        with pytest.raises(MapFileError, match=error):
+            rose.load_map(log)
+
+    assert _peak_bytes(refused) < 10 << 20
+
+
+def test_a_binary_pgm_is_read_up_to_its_last_sample(tmp_path: Path) -> None:
+    """What follows the samples is never decoded: 200 MB after a 5-pixel PGM were read too."""
+    image = tmp_path / "m.pgm"
+    with image.open("wb") as f:
+        f.write(_pnm(b"P5", _SAVER_ROW, 255))
+        f.truncate(200 << 20)
+    grids: list[npt.NDArray[np.int8]] = []
+    assert _peak_bytes(lambda: grids.append(rose.load_map(image).grid)) < 10 << 20
+    assert grids[0].tolist() == [[100, -1, 0, 100, 0]]
 
 
 def test_an_unreadable_image_of_a_yaml_map_is_named_with_its_yaml(tmp_path: Path) -> None:
