@@ -711,9 +711,10 @@ def _bag_folder_extras(path: Path) -> list[str] | None:
     the folder, sub-folders, which replacing the bag would delete. None: not a bag folder."""
     try:
         entries = list(os.scandir(path))
-        with (Path(path) / "metadata.yaml").open("rb") as f:
-            metadata = f.read(_METADATA_PEEK).decode("utf-8", "replace")
+        metadata = _metadata_text(Path(path))
     except OSError:
+        return None
+    if metadata is None:
         return None
     extras = []
     for entry in entries:
@@ -730,6 +731,26 @@ _BAG_STORAGE_SUFFIXES = (".db3", ".mcap")
 _METADATA_PEEK = 1 << 20
 
 
+def _metadata_text(folder: Path) -> str | None:
+    """The first MiB of ``folder``'s ``metadata.yaml`` as text; None when it has no such regular
+    file. Opened without blocking and checked before reading: a FIFO named so (in a folder an
+    output would replace, beside an input's storage file) hung the command for ever.
+
+    Raises
+    ------
+    OSError
+        If the file is there but cannot be read.
+    """
+    try:
+        fd = os.open(folder / "metadata.yaml", os.O_RDONLY | os.O_NONBLOCK)
+    except FileNotFoundError:
+        return None
+    with os.fdopen(fd, "rb") as f:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            return None
+        return f.read(_METADATA_PEEK).decode("utf-8", "replace")
+
+
 def enclosing_bag_folder(path: Path) -> Path | None:
     """The ROS 2 bag folder a storage file belongs to, else None: an absolute folder whose
     ``metadata.yaml`` names the file (``.db3`` / ``.mcap``; also for a symlink's target).
@@ -742,13 +763,11 @@ def enclosing_bag_folder(path: Path) -> Path | None:
     if path.suffix.lower() not in _BAG_STORAGE_SUFFIXES or not path.is_file():
         return None
     for candidate in _link_chain(path):
-        metadata = candidate.parent / "metadata.yaml"
         try:
-            with metadata.open("rb") as f:
-                names = f.read(_METADATA_PEEK).decode("utf-8", "replace")
+            names = _metadata_text(candidate.parent)
         except OSError:
             continue
-        if candidate.name in names:
+        if names is not None and candidate.name in names:
             return candidate.parent
     return None
 
@@ -759,15 +778,14 @@ def is_bag_folder(folder: Path | str) -> bool:
     storage file (a bag whose metadata is damaged). A folder whose ``metadata.yaml`` is another
     tool's (a data set's description, a web site's) is no recording."""
     folder = Path(folder)
-    metadata = folder / "metadata.yaml"
-    if not metadata.is_file():  # a FIFO would block the read below
-        return False
     try:
-        with metadata.open("rb") as f:
-            if b"rosbag2_bagfile_information" in f.read(_METADATA_PEEK):
-                return True
+        metadata = _metadata_text(folder)
+        if metadata is None:
+            return False
+        if "rosbag2_bagfile_information" in metadata:
+            return True
         return any(Path(e.name).suffix.lower() in _BAG_STORAGE_SUFFIXES for e in os.scandir(folder))
-    except OSError:  # unreadable: taken as a bag, as before it was read
+    except OSError:  # unreadable: taken as a bag
         return True
 
 

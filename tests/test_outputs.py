@@ -516,6 +516,38 @@ def test_a_folder_with_some_other_metadata_yaml_is_no_bag(tmp_path: Path) -> Non
     assert staged.path == tmp_path / "clean.yaml"
 
 
+def test_a_fifo_named_metadata_yaml_is_no_bag_and_never_read(tmp_path: Path) -> None:
+    """`process bag/x.db3` (its metadata.yaml a FIFO) and `process LOG -o DIR --format db3
+    --force` (DIR/metadata.yaml a FIFO) hung for ever opening the FIFO to read it."""
+    import threading
+
+    from rose.outputs import enclosing_bag_folder, is_bag_folder
+
+    bag = tmp_path / "bag"
+    bag.mkdir()
+    os.mkfifo(bag / "metadata.yaml")
+    (bag / "x.db3").write_bytes(b"db3")
+    answers: list[object] = []
+
+    def judge() -> None:
+        answers.append(enclosing_bag_folder(bag / "x.db3"))
+        answers.append(is_bag_folder(bag))
+        try:
+            OutputSet(force=True).stage(bag, directory=True)
+        except OutputError as err:
+            answers.append(str(err))
+
+    thread = threading.Thread(target=judge, daemon=True)
+    thread.start()
+    thread.join(timeout=10)
+    assert not thread.is_alive(), "blocked on the FIFO"
+    assert answers == [
+        None,
+        False,
+        f"{bag}: is a directory that is not a ROS 2 bag, not replacing it",
+    ]
+
+
 def test_an_output_under_a_file_says_the_file_is_no_folder(tmp_path: Path) -> None:
     """'notes.txt/out.json' said 'folder notes.txt does not exist'; it does, as a file."""
     (tmp_path / "notes.txt").write_text("x")
