@@ -774,9 +774,10 @@ def enclosing_bag_folder(path: Path) -> Path | None:
 
 def is_bag_folder(folder: Path | str) -> bool:
     """Whether ``folder`` is a ROS 2 bag folder: it holds a ``metadata.yaml`` that is rosbag2's
-    (``rosbag2_bagfile_information`` in its first MiB), or one beside a ``.db3`` / ``.mcap``
-    storage file (a bag whose metadata is damaged). A folder whose ``metadata.yaml`` is another
-    tool's (a data set's description, a web site's) is no recording."""
+    (``rosbag2_bagfile_information`` in its first MiB), or one that names a ``.db3`` / ``.mcap``
+    storage file beside it (a bag whose metadata is damaged; :func:`enclosing_bag_folder`'s
+    test). A folder whose ``metadata.yaml`` is another tool's (a data set's description, a web
+    site's) is no recording."""
     folder = Path(folder)
     try:
         metadata = _metadata_text(folder)
@@ -784,7 +785,10 @@ def is_bag_folder(folder: Path | str) -> bool:
             return False
         if "rosbag2_bagfile_information" in metadata:
             return True
-        return any(Path(e.name).suffix.lower() in _BAG_STORAGE_SUFFIXES for e in os.scandir(folder))
+        return any(
+            Path(e.name).suffix.lower() in _BAG_STORAGE_SUFFIXES and e.name in metadata
+            for e in os.scandir(folder)
+        )
     except OSError:  # unreadable: taken as a bag
         return True
 

@@ -601,14 +601,16 @@ def test_an_output_inside_a_ros2_bag_folder_is_refused(
 def test_a_folder_whose_metadata_yaml_is_no_bags_takes_outputs(
     cluttered_map: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """A maps folder with a data set's own metadata.yaml is no recording: its maps are cleaned
-    beside it. A bag folder whose metadata.yaml is cut short still is one (it holds a .db3)."""
+    """A maps folder with a data set's own metadata.yaml is no recording, even beside a log it
+    does not name: its maps are cleaned beside it. A bag folder whose metadata.yaml is cut short
+    still is one (it names its .db3)."""
     maps = tmp_path / "maps"
     maps.mkdir()
     (maps / "metadata.yaml").write_text("title: floor plans\nlicense: CC-BY-4.0\n")
+    (maps / "run_0.db3").write_bytes(b"")
     assert main(["clean", str(cluttered_map), "-o", str(maps / "c.yaml")]) == 0
     assert (maps / "c.pgm").is_file()
-    (maps / "run_0.db3").write_bytes(b"")
+    (maps / "metadata.yaml").write_text("  relative_file_paths:\n  - run_0.db3\n")
     assert main(["walls", str(cluttered_map), "--svg", str(maps / "w.svg")]) == 1
     assert "inside the ROS 2 bag folder" in capsys.readouterr().err
     assert not (maps / "w.svg").exists()
