@@ -179,6 +179,35 @@ def test_convert_of_a_folder_or_missing_log_says_so_before_judging_its_outputs(
     assert sorted(p.name for p in tmp_path.iterdir()) == ["taken.mcap"]
 
 
+def test_convert_of_a_log_inside_a_bag_folder_writes_nothing_into_that_bag(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`convert bag/c.log bag/out.mcap` wrote into the bag folder: the check exempted a bag that
+    holds the input, as for a bag given to `process`, but a CARMEN log is no part of the bag."""
+    from rose_logs.cli import main
+
+    bag = tmp_path / "bag"
+    bag.mkdir()
+    (bag / "metadata.yaml").write_text("rosbag2_bagfile_information: {}\n")
+    log = bag / "c.log"
+    log.write_text("FLASER 3 1.0 2.0 3.0 0.5 -0.5 0.1 0.5 -0.5 0.1 12.5 host 12.5\n")
+    for argv, output, option, what in (
+        ([str(bag / "out.mcap")], bag / "out.mcap", "OUTPUT", "output log"),
+        (
+            [str(tmp_path / "o.mcap"), "--map-file", str(bag / "m.yaml")],
+            bag / "m.yaml",
+            "--map-file",
+            "map file",
+        ),
+    ):
+        assert main(["convert", str(log), *argv, "-q"]) == 1
+        assert capsys.readouterr().err == (
+            f"error: {output}: the {what} is inside the ROS 2 bag folder {bag} (it has "
+            f"metadata.yaml): it would write into a recording; choose another {option}\n"
+        )
+    assert sorted(p.name for p in bag.iterdir()) == ["c.log", "metadata.yaml"]
+
+
 def test_convert_refuses_a_file_output_named_as_a_folder(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -129,11 +129,12 @@ def run(args: argparse.Namespace) -> int:
     outputs = OutputSet(inputs=[args.log], force=args.force, ends_run=True)
     fmt = args.fmt or format_from_path(Path(args.output)) or "db3"
     args.output = output_log_path(args.output, fmt)
-    refuse_output_in_bag_folder(args.output, "OUTPUT", inputs=[args.log])
+    # No bag folder is exempt: a CARMEN log is no recording, though it may lie in one.
+    refuse_output_in_bag_folder(args.output, "OUTPUT")
     if args.map_file is not None and args.map_file.suffix.lower() not in (".yaml", ".yml"):
         msg = f"{args.map_file}: --map-file names the map's YAML (its image goes beside it as .pgm)"
         raise UsageError(msg)
-    refuse_output_in_bag_folder(args.map_file, "--map-file", what="map file", inputs=[args.log])
+    refuse_output_in_bag_folder(args.map_file, "--map-file", what="map file")
     from rose.mapfile import map_image_path  # with numpy: not at the CLI's start-up
 
     map_files = (args.map_file, map_image_path(args.map_file)) if args.map_file is not None else ()
