@@ -743,7 +743,7 @@ def _metadata_text(folder: Path) -> str | None:
     """
     try:
         fd = os.open(folder / "metadata.yaml", os.O_RDONLY | os.O_NONBLOCK)
-    except FileNotFoundError:
+    except (FileNotFoundError, NotADirectoryError):  # no such file, or ``folder`` is a file
         return None
     with os.fdopen(fd, "rb") as f:
         if not stat.S_ISREG(os.fstat(fd).st_mode):

@@ -598,6 +598,19 @@ def test_an_output_inside_a_ros2_bag_folder_is_refused(
     assert (tmp_path / name).is_file()
 
 
+def test_an_output_under_a_file_is_no_output_in_a_bag(
+    cluttered_map: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`-o notes.txt/c.yaml` said "inside the ROS 2 bag folder notes.txt": the bag check took the
+    file for a folder whose metadata.yaml could not be read."""
+    notes = tmp_path / "notes.txt"
+    notes.write_text("mine")
+    assert main(["clean", str(cluttered_map), "-o", str(notes / "c.yaml")]) == 1
+    assert (
+        capsys.readouterr().err == f"error: {notes / 'c.yaml'}: {notes} is a file, not a folder\n"
+    )
+
+
 def test_a_folder_whose_metadata_yaml_is_no_bags_takes_outputs(
     cluttered_map: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
