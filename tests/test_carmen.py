@@ -205,6 +205,11 @@ def test_convert_of_a_log_inside_a_bag_folder_writes_nothing_into_that_bag(
             f"error: {output}: the {what} is inside the ROS 2 bag folder {bag} (it has "
             f"metadata.yaml): it would write into a recording; choose another {option}\n"
         )
+    # Nor its image, through a symlink where it goes.
+    (tmp_path / "m.pgm").symlink_to(bag / "m.pgm")
+    argv = ["convert", str(log), str(tmp_path / "o.mcap"), "--map-file", str(tmp_path / "m.yaml")]
+    assert main([*argv, "-q"]) == 1
+    assert "m.pgm: the map's image is inside the ROS 2 bag folder" in capsys.readouterr().err
     assert sorted(p.name for p in bag.iterdir()) == ["c.log", "metadata.yaml"]
 
 

@@ -598,6 +598,24 @@ def test_an_output_inside_a_ros2_bag_folder_is_refused(
     assert (tmp_path / name).is_file()
 
 
+def test_a_map_image_symlinked_into_a_bag_folder_is_refused(
+    cluttered_map: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`rose clean MAP -o c.yaml` with c.pgm a symlink into a bag folder wrote the image there (a
+    symlink is followed): only the YAML's folder was checked."""
+    bag = tmp_path / "bag"
+    bag.mkdir()
+    (bag / "metadata.yaml").write_text("rosbag2_bagfile_information: {}\n")
+    (tmp_path / "c.pgm").symlink_to(bag / "c.pgm")
+    assert main(["clean", str(cluttered_map), "-o", str(tmp_path / "c.yaml")]) == 1
+    assert capsys.readouterr().err == (
+        f"error: {tmp_path / 'c.pgm'}: the output map's image is inside the ROS 2 bag folder "
+        f"{bag} (it has metadata.yaml): it would write into a recording; choose another -o\n"
+    )
+    assert sorted(p.name for p in bag.iterdir()) == ["metadata.yaml"]
+    assert not (tmp_path / "c.yaml").exists()
+
+
 def test_an_output_under_a_file_is_no_output_in_a_bag(
     cluttered_map: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -76,6 +76,8 @@ def run(args: argparse.Namespace) -> int:
     # Refuse bad outputs (inside a ROS 2 bag, an input, the map's image, each other, existing)
     # before computing anything. A map file is no recording: a bag folder holding it is refused too.
     refuse_output_in_bag_folder(output_path, "-o", what="output map")
+    # Its image too: a symlink where the image goes is followed (into a bag folder, say).
+    refuse_output_in_bag_folder(map_image_path(output_path), "-o", what="output map's image")
     refuse_output_in_bag_folder(args.json, "--json", what="JSON report")
     outputs.check(output_path, map_image_path(output_path), args.json)
     # After the checks: a refused output is refused alone, not warned about first.

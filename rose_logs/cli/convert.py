@@ -138,6 +138,8 @@ def run(args: argparse.Namespace) -> int:
     from rose.mapfile import map_image_path  # with numpy: not at the CLI's start-up
 
     map_files = (args.map_file, map_image_path(args.map_file)) if args.map_file is not None else ()
+    for image in map_files[1:]:  # a symlink where the image goes is followed
+        refuse_output_in_bag_folder(image, "--map-file", what="map's image")
     folder = fmt in ("db3", "mcap-dir")
     outputs.check(args.output, directory=folder)
     if folder:  # before the map's own checks: `bag --map-file bag/m.yaml` said bag did not exist
