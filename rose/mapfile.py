@@ -309,7 +309,7 @@ def _read_image_file(path: Path, max_cells: int | None) -> bytes:
                     return head
             length = _binary_pnm_length(head)
             file.seek(0)
-            if length is None:
+            if length is None or length >= os.fstat(file.fileno()).st_size:
                 return file.readall()
             pieces = []
             while length > 0 and (piece := file.read(length)):

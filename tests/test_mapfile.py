@@ -173,6 +173,16 @@ def test_a_large_file_refused_from_its_first_bytes_is_not_read_whole(
     assert _peak_bytes(refused) < 10 << 20
 
 
+def test_a_pgm_header_past_any_file_without_a_cell_limit_is_a_map_file_error(
+    tmp_path: Path,
+) -> None:
+    """With max_cells=None its length to the last sample (2e20 bytes) overflowed the read."""
+    image = tmp_path / "m.pgm"
+    image.write_bytes(b"P5\n99999999999999999999 2\n255\n")
+    with pytest.raises(MapFileError, match=r"truncated: 0 of 199999999999999999998 bytes"):
+        rose.load_map(image, max_cells=None)
+
+
 def test_a_binary_pgm_is_read_up_to_its_last_sample(tmp_path: Path) -> None:
     """What follows the samples is never decoded: 200 MB after a 5-pixel PGM were read too."""
     image = tmp_path / "m.pgm"
