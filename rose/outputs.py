@@ -940,6 +940,10 @@ class OutputSet:
             self._check_existing(path, target, directory=directory, replaceable=replaceable)
             if not target.parent.is_dir():
                 raise OutputError(_no_folder(path, target.parent))
+            if not os.access(target.parent, os.W_OK | os.X_OK):  # a read-only mount too
+                # Said now: staging found it only once the work was done (`rose clean` of a big map).
+                msg = f"{path}: folder {target.parent} is not writable"
+                raise OutputError(msg)
 
     def stage(
         self,

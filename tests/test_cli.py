@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import os
 import signal
 from pathlib import Path
 
@@ -614,6 +615,40 @@ def test_a_map_image_symlinked_into_a_bag_folder_is_refused(
     )
     assert sorted(p.name for p in bag.iterdir()) == ["metadata.yaml"]
     assert not (tmp_path / "c.yaml").exists()
+
+
+def test_an_unwritable_output_folder_is_refused_before_the_map_is_analysed(
+    cluttered_map: Path,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """`rose clean BIG -o ro/c.yaml` (a read-only mount) analysed and cleaned the whole map, then
+    failed staging its output: the check before the work did not ask whether it could write."""
+    import rose.pipeline
+
+    locked = tmp_path / "ro"
+    locked.mkdir()
+    writable = os.access
+
+    def access(path: object, mode: int, **kwargs: object) -> bool:
+        if Path(str(path)) == locked and mode & os.W_OK:
+            return False  # as a read-only mount says (root passes any permission bits)
+        return writable(path, mode, **kwargs)  # type: ignore[arg-type]
+
+    def never(*_: object, **__: object) -> None:
+        raise AssertionError("analysed before the outputs were checked")
+
+    monkeypatch.setattr(os, "access", access)
+    monkeypatch.setattr(rose.pipeline, "analyze", never)
+    for argv in (
+        ["clean", str(cluttered_map), "-o", str(locked / "c.yaml")],
+        ["walls", str(cluttered_map), "--svg", str(locked / "w.svg")],
+    ):
+        assert main(argv) == 1
+        name = argv[-1]
+        assert capsys.readouterr().err == f"error: {name}: folder {locked} is not writable\n"
+    assert list(locked.iterdir()) == []
 
 
 def test_an_output_under_a_file_is_no_output_in_a_bag(
