@@ -296,7 +296,8 @@ def _read_image_file(path: Path, max_cells: int | None) -> bytes:
     Under a cell limit, a file whose first bytes announce no format whose size is checked, or
     whose header declares too many cells, is read no further (the caller refuses it from them):
     ``rose score run.bag``, a log given as a map, read the whole log first, 1.6 GB for 1.5 GB. A
-    binary PNM is read up to its last sample (what follows is never decoded).
+    file far larger than its declared image can be is refused here. A binary PNM is read up to its
+    last sample (what follows is never decoded).
     """
     try:
         with path.open("rb", buffering=0) as file:  # unbuffered: the whole read is one copy
@@ -307,6 +308,8 @@ def _read_image_file(path: Path, max_cells: int | None) -> bytes:
                 shape = image_shape(head)
                 if shape is not None and check_cells(*shape, max_cells) is not None:
                     return head
+                if shape is not None:
+                    _require_plausible_size(path, file.fileno(), image_kind(head), shape)
             length = _binary_pnm_length(head)
             file.seek(0)
             if length is None or length >= os.fstat(file.fileno()).st_size:
@@ -319,6 +322,30 @@ def _read_image_file(path: Path, max_cells: int | None) -> bytes:
     except OSError as err:
         msg = f"{path}: cannot read ({err.strerror or err})"
         raise MapFileError(msg) from err
+
+
+#: The most bytes per pixel a file of each format can spend on its samples, with room to spare: a PNG
+#: of 16-bit RGBA stored uncompressed takes 8 and a filter byte per row; a BMP at most 4 and its row
+#: padding (RLE under 2); TIFF up to four float64 samples. JPEG and WebP are bounded generously.
+_MOST_BYTES_PER_PIXEL = {"PNG": 9, "BMP": 8, "JPEG": 16, "WebP": 16, "TIFF": 32}
+#: Headers, palettes, colour profiles and text an image file may hold besides its samples.
+_METADATA_ALLOWANCE = 64 << 20
+
+
+def _require_plausible_size(path: Path, fd: int, kind: str | None, shape: tuple[int, int]) -> None:
+    """Refuse an image file far larger than any image of its format and declared ``shape``
+    (``(rows, cols)``) can be, before reading it: data appended after the image, or a damaged
+    file, were read whole (1.6 GB for 1.5 GB) only to be decoded as the small image or refused.
+    PNM files are read up to their last sample instead (:func:`_binary_pnm_length`)."""
+    per_pixel = _MOST_BYTES_PER_PIXEL.get(kind or "")
+    size = os.fstat(fd).st_size
+    if per_pixel is None or size <= per_pixel * shape[0] * shape[1] + _METADATA_ALLOWANCE:
+        return
+    msg = (
+        f"{path}: not a readable image (a {kind} file of {size:,} bytes, more than any "
+        f"{shape[1]} x {shape[0]} {kind} image takes: data after the image, or a damaged file)"
+    )
+    raise MapFileError(msg)
 
 
 def _binary_pnm_length(head: bytes) -> int | None:

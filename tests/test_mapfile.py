@@ -194,6 +194,29 @@ def test_a_binary_pgm_is_read_up_to_its_last_sample(tmp_path: Path) -> None:
     assert grids[0].tolist() == [[100, -1, 0, 100, 0]]
 
 
+def test_an_image_file_far_larger_than_its_image_is_refused_unread(tmp_path: Path) -> None:
+    """A 5-pixel PNG followed by 100 MB was read whole (a 1.5 GB file: 3.1 GB) and decoded as the
+    small image; a file that large is no 5 x 1 PNG. A little data after the image still loads."""
+    image = tmp_path / "m.png"
+    png = cv2.imencode(".png", _SAVER_ROW)[1].tobytes()
+    image.write_bytes(png + b"trailing")
+    assert rose.load_map(image).grid.shape == (1, 5)
+    with image.open("r+b") as f:
+        f.truncate(100 << 20)  # sparse: no disk used
+
+    def refused() -> None:
+        with pytest.raises(
+            MapFileError,
+            match=r"m\.png: not a readable image \(a PNG file of 104,857,600 bytes, more than any "
+            r"5 x 1 PNG image takes",
+        ):
+            rose.load_map(image)
+
+    assert _peak_bytes(refused) < 10 << 20
+    # Without a cell limit nothing is refused on size (a caller's own choice).
+    assert rose.load_map(image, max_cells=None).grid.shape == (1, 5)
+
+
 def test_an_unreadable_image_of_a_yaml_map_is_named_with_its_yaml(tmp_path: Path) -> None:
     """`rose score a.yaml b.yaml` said `error: cut.pgm: not a readable image`, naming neither map
     (a missing image said `a.yaml: its image cut.pgm: no such image file`)."""
