@@ -66,6 +66,7 @@ __all__ = [
     "StagedOutput",
     "Terminated",
     "buffer_unbuffered_stdout",
+    "counted",
     "exit_after",
     "install_signal_handlers",
     "interrupt_behind",
@@ -106,6 +107,12 @@ _MAX_TAG_CHARS = 24 + 1 + 8 + 6 + 10
 _MAX_OUTPUT_NAME_BYTES = 255 - (len(".") + len(".rose-tmp-") + _MAX_TAG_CHARS + 1 + 7 + 1 + 8)
 #: A temporary of rose-bag 0.1 before the process tags: ``.NAME.rose-<kind>-<pid>-<random>``.
 _OLD_TEMP_RE = re.compile(r"^\..+\.rose-(?:tmp|old)-\d+-[0-9a-f]+$")
+
+
+# -- text ---------------------------------------------------------------------------------------------
+def counted(n: int, noun: str) -> str:
+    """``n`` and ``noun``, plural but for one: ``1 scan``, ``0 scans``, ``2 map snapshots``."""
+    return f"{n} {noun}" + ("" if n == 1 else "s")
 
 
 # -- strict JSON ------------------------------------------------------------------------------------

@@ -19,6 +19,7 @@ from rose.errors import OutputError
 from rose.outputs import (
     OutputSet,
     Terminated,
+    counted,
     install_signal_handlers,
     interrupt_behind,
     json_text,
@@ -577,3 +578,8 @@ def test_the_longest_output_name_stages_under_a_long_host_name(
     assert (tmp_path / longest).read_bytes() == b"{}"
     with pytest.raises(OutputError, match="output file name longer than"):
         OutputSet().write_bytes(tmp_path / ("n" + longest), b"{}")
+
+
+def test_counts_are_said_in_the_singular_for_one() -> None:
+    """`convert` printed "1 scans, 1 maps" and `rose walls` "1 walls"."""
+    assert [counted(n, "scan") for n in (0, 1, 2)] == ["0 scans", "1 scan", "2 scans"]

@@ -9,7 +9,13 @@ from typing import TYPE_CHECKING, Any, TextIO
 
 from rose.cli.options import add_map_arguments, file_arg, float_up_to, load_grid_map, map_arg
 from rose.directions import fold_deg
-from rose.outputs import OutputSet, json_text, refuse_output_in_bag_folder, suffix_warning
+from rose.outputs import (
+    OutputSet,
+    counted,
+    json_text,
+    refuse_output_in_bag_folder,
+    suffix_warning,
+)
 
 if TYPE_CHECKING:
     from rose.walls import WallSet
@@ -129,7 +135,7 @@ def format_walls_table(walls: WallSet) -> str:
 
     total = walls.lengths_m.sum()
     lines = [
-        f"{len(walls)} walls ({walls.method}), total length "
+        f"{counted(len(walls), 'wall')} ({walls.method}), total length "
         f"{format(total, '.2f' if metres == '.3f' else metres)} m",
         line("#", heads),
         *(line(str(i), t) for i, t in enumerate(texts)),

@@ -8,6 +8,7 @@ import io
 import threading
 from typing import TYPE_CHECKING, Any
 
+from rose.outputs import counted
 from rose_logs.batch.sources import printable
 from rose_logs.session.report import row_judged
 
@@ -24,10 +25,6 @@ def _fmt(value: float | None) -> str:
     return "-" if value is None else f"{value:.3f}"
 
 
-def _count(n: int, noun: str) -> str:
-    return f"{n} {noun}" + ("" if n == 1 else "s")
-
-
 def _cell(text: str) -> str:
     return text.replace("|", "\\|").replace("\n", " ")
 
@@ -39,9 +36,9 @@ def markdown(report: BatchReport, summary: dict[str, Any], *, figure: bool) -> s
     lines = [
         "# rose-bag batch report",
         "",
-        f"{_count(summary['recordings'], 'recording')}: {summary['ok']} ok, "
+        f"{counted(summary['recordings'], 'recording')}: {summary['ok']} ok, "
         f"{summary['errors']} failed, {summary['broken']} with a map that broke (break detector, or W > {level:g}); "
-        f"{_count(summary['snapshots'], 'map snapshot')}{_losses_in_brief(summary)}.",
+        f"{counted(summary['snapshots'], 'map snapshot')}{_losses_in_brief(summary)}.",
         "",
     ]
     if report.interrupted:
@@ -114,7 +111,7 @@ def _losses_in_brief(summary: dict[str, Any]) -> str:
     if summary["salvaged"]:
         parts.append(f"{summary['salvaged']} damaged (what could be read kept, --salvage)")
     if summary["skipped_messages"]:
-        parts.append(f"{_count(summary['skipped_messages'], 'map message')} skipped")
+        parts.append(f"{counted(summary['skipped_messages'], 'map message')} skipped")
     return "".join(f"; {part}" for part in parts)
 
 

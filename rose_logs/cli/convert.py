@@ -19,7 +19,7 @@ from rose.cli.options import (
     path_arg,
     resolution,
 )
-from rose.outputs import OutputSet, refuse_output_in_bag_folder
+from rose.outputs import OutputSet, counted, refuse_output_in_bag_folder
 from rose_logs.carmen.parse import MAX_STAMP_S, CarmenLog, check_carmen_file, read_carmen_log
 from rose_logs.carmen.raycast import BuilderParams
 from rose_logs.carmen.session import SessionOptions, write_carmen_session
@@ -209,7 +209,8 @@ def run(args: argparse.Namespace) -> int:
         )
     clock = "" if summary.clock == "log" else f" ({summary.clock} clock)"
     print(
-        f"{summary.path}: {summary.format}, {summary.scans} scans, {summary.maps} maps, "
+        f"{summary.path}: {summary.format}, {counted(summary.scans, 'scan')}, "
+        f"{counted(summary.maps, 'map')}, "
         f"{duration_s:.1f} s{clock}"
     )
     return 0

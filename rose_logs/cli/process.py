@@ -17,7 +17,7 @@ from rose.cli.options import (
     path_arg,
 )
 from rose.limits import short, visible
-from rose.outputs import OutputSet, json_text, refuse_output_in_bag_folder, suffix_warning
+from rose.outputs import OutputSet, counted, json_text, refuse_output_in_bag_folder, suffix_warning
 from rose_logs.cli.options import (
     EXIT_GATE,
     EXIT_SALVAGED,
@@ -178,7 +178,7 @@ def _w_text(records: Sequence[Any]) -> str:
     unreadable = sum(r.unreadable for r in records)  # the rest left out are (nearly) empty
     empty = len(records) - len(scores) - unreadable
     left_out = [
-        f"{count} {'map' if count == 1 else 'maps'} {why}"
+        f"{counted(count, 'map')} {why}"
         for count, why in (
             (empty, f"of fewer than {MIN_JUDGED_CELLS} occupied cells"),
             (unreadable, "W cannot read (a solid block, a thin strip)"),
