@@ -97,7 +97,7 @@ import numpy.typing as npt
 
 from rose.errors import RoseError
 from rose.frozen import ReadOnlyArrays, seal
-from rose.grid import FREE, OCCUPIED, UNKNOWN, as_occupancy_grid, warn_if_mask
+from rose.grid import OCCUPIED, as_occupancy_grid, warn_if_mask
 from rose.limits import finite_number, integer_number
 from rose.mapfile import DEFAULT_RESOLUTION_M, OccupancyMap, resolution_problem
 from rose.params import RoseParams
@@ -434,7 +434,7 @@ def clean(
         # mask for the three empty ones: a session holds several results at once, and these
         # copies were a sixth of its memory (about 5 MB per 1000 x 1000 snapshot).
         cleaned = occupancy.copy()
-        cleaned[result.clutter] = FREE if result.params.clutter_value == "free" else UNKNOWN
+        cleaned[result.clutter] = result.params.clutter_cell_value
         if np.array_equal(cleaned, result.cleaned):  # the result was computed on ``grid``
             cleaned = result.cleaned
         nothing = np.zeros(occupancy.shape, dtype=bool)
@@ -464,7 +464,7 @@ def clean(
     kept = occupied & (walls | (result.structure & ~dropped))
     removed = occupied & ~kept
     cleaned = occupancy.copy()
-    cleaned[removed] = FREE if result.params.clutter_value == "free" else UNKNOWN
+    cleaned[removed] = result.params.clutter_cell_value
     cleaned[completed] = OCCUPIED
     if _LOG.isEnabledFor(logging.DEBUG):  # the counts cost map-sized passes
         _LOG.debug(

@@ -10,6 +10,7 @@ from typing import Any, Literal
 import numpy as np
 
 from rose.errors import RoseError
+from rose.grid import FREE, UNKNOWN
 
 __all__ = ["ClutterValue", "RoseParams", "ThresholdMode", "make_params"]
 
@@ -76,6 +77,11 @@ class RoseParams:
         problems = _problems(self)
         if problems:
             raise RoseError("; ".join(problems))
+
+    @property
+    def clutter_cell_value(self) -> int:
+        """The ROS cell value clutter cells become: 0 (free) or -1 (unknown), from ``clutter_value``."""
+        return FREE if self.clutter_value == "free" else UNKNOWN
 
 
 def make_params(params: RoseParams | None = None, **overrides: Any) -> RoseParams:

@@ -10,7 +10,7 @@ import numpy.typing as npt
 
 from rose.directions import find_direction_peaks, refine_peak_positions, structure_score
 from rose.frozen import seal
-from rose.grid import FREE, UNKNOWN, as_occupancy_grid, occupied_mask, warn_if_mask
+from rose.grid import as_occupancy_grid, occupied_mask, warn_if_mask
 from rose.mapfile import OccupancyMap
 from rose.params import RoseParams, make_params
 from rose.result import RoseResult
@@ -94,7 +94,7 @@ def analyze(
         clutter = structure.copy()
 
     cleaned = occupancy.copy()
-    cleaned[clutter] = FREE if p.clutter_value == "free" else UNKNOWN
+    cleaned[clutter] = p.clutter_cell_value
     return seal(
         RoseResult(
             structure_score=score,
