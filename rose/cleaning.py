@@ -420,47 +420,74 @@ def clean(
         raise RoseError(msg)
     p = params if params is not None else CleanParams()
     if method == "walls":
-        _check_cells(p, float(resolution_m))
+        _check_cells(p, resolution_m)
     if result is None:
         # scipy: loaded when needed (the CLIs' parsers import this module).
         from rose.pipeline import analyze
 
         result = analyze(occupancy)
     check_result_for(result, occupancy)
-    occupied = result.occupied
     if method == "paper" or not result.has_structure:
-        # The paper's labelling on ``grid`` itself: its free and unknown cells as they are. The
-        # result's own (read-only) arrays stand in where they hold the same cells, and one empty
-        # mask for the three empty ones: a session holds several results at once, and these
-        # copies were a sixth of its memory (about 5 MB per 1000 x 1000 snapshot).
-        cleaned = occupancy.copy()
-        cleaned[result.clutter] = result.params.clutter_cell_value
-        if np.array_equal(cleaned, result.cleaned):  # the result was computed on ``grid``
-            cleaned = result.cleaned
-        nothing = np.zeros(occupancy.shape, dtype=bool)
-        # Only what is made here is sealed: the result's arrays may be a caller's (a RoseResult
-        # made with dataclasses.replace), which seal() made read-only for good.
-        for made in (nothing, cleaned):
-            if made is not result.cleaned:
-                made.flags.writeable = False
-        return CleanResult(
-            cleaned=cleaned,
-            method=method,
-            # occupied & ~clutter: the structure, or every occupied cell when ROSE found none
-            kept=result.structure if result.has_structure else occupied,
-            removed=result.clutter,
-            rescued=nothing,
-            guarded=nothing,
-            completed=nothing,
-            resolution_m=float(resolution_m),
-            params=p,
-            result=result,
+        return _paper_labelling(
+            occupancy, result, method=method, resolution_m=resolution_m, params=p
         )
+    return _walls_cleaning(occupancy, result, resolution_m=resolution_m, params=p)
+
+
+def _paper_labelling(
+    occupancy: npt.NDArray[np.int8],
+    result: RoseResult,
+    *,
+    method: CleanMethod,
+    resolution_m: float,
+    params: CleanParams,
+) -> CleanResult:
+    """The paper's labelling on ``occupancy`` itself (int8 ROS grid): its free and unknown cells
+    as they are, ``result``'s clutter removed; also the ``"walls"`` method's result when ROSE found
+    no structure (nothing to keep walls along)."""
+    # The result's own (read-only) arrays stand in where they hold the same cells, and one empty
+    # mask for the three empty ones: a session holds several results at once, and these copies
+    # were a sixth of its memory (about 5 MB per 1000 x 1000 snapshot).
+    cleaned = occupancy.copy()
+    cleaned[result.clutter] = result.params.clutter_cell_value
+    if np.array_equal(cleaned, result.cleaned):  # the result was computed on ``occupancy``
+        cleaned = result.cleaned
+    nothing = np.zeros(occupancy.shape, dtype=bool)
+    # Only what is made here is sealed: the result's arrays may be a caller's (a RoseResult
+    # made with dataclasses.replace), which seal() made read-only for good.
+    for made in (nothing, cleaned):
+        if made is not result.cleaned:
+            made.flags.writeable = False
+    return CleanResult(
+        cleaned=cleaned,
+        method=method,
+        # occupied & ~clutter: the structure, or every occupied cell when ROSE found none
+        kept=result.structure if result.has_structure else result.occupied,
+        removed=result.clutter,
+        rescued=nothing,
+        guarded=nothing,
+        completed=nothing,
+        resolution_m=resolution_m,
+        params=params,
+        result=result,
+    )
+
+
+def _walls_cleaning(
+    occupancy: npt.NDArray[np.int8],
+    result: RoseResult,
+    *,
+    resolution_m: float,
+    params: CleanParams,
+) -> CleanResult:
+    """The ``"walls"`` method (module notes) on ``occupancy`` (int8 ROS grid), cells of
+    ``resolution_m`` metres, starting from ``result`` (which found structure)."""
     from rose.cleaning_rules import wall_cells
 
     walls, guarded, completed, dropped = wall_cells(
-        occupancy, result, resolution_m=resolution_m, params=p
+        occupancy, result, resolution_m=resolution_m, params=params
     )
+    occupied = result.occupied
     kept = occupied & (walls | (result.structure & ~dropped))
     removed = occupied & ~kept
     cleaned = occupancy.copy()
@@ -478,14 +505,14 @@ def clean(
     return seal(
         CleanResult(
             cleaned=cleaned,
-            method=method,
+            method="walls",
             kept=kept,
             removed=removed,
             rescued=kept & result.clutter,
             guarded=guarded & result.clutter,
             completed=completed,
-            resolution_m=float(resolution_m),
-            params=p,
+            resolution_m=resolution_m,
+            params=params,
             result=result,
         )
     )
