@@ -981,25 +981,15 @@ class _Loop:
         self._write_results(snapshot, analysis)
         record = _record(snapshot, analysis, index, verdict, pending)
         if self.rerun is not None:
-            self.rerun.snapshot(
+            self._show_in_rerun(
+                self.rerun,
                 snapshot,
-                analysis.result,
+                analysis,
                 index,
-                analysis.walls,
-                analysis.cleaning,
+                verdict,
                 judged=record.judged,
+                returned=returned,
             )
-            self.rerun.break_score(snapshot, verdict, index, self._threshold_in_force(verdict))
-            if verdict.incomparable_with is not None:
-                # In the viewer too: the break score falls to 0 there, which read as a recovery.
-                restart = (
-                    f"break detector restarted: not comparable with snapshot "
-                    f"{verdict.incomparable_with} (another cell size, frame or orientation, or an "
-                    "origin off its cells); a break across the change is not seen"
-                )
-                self.rerun.event(snapshot, restart, index, None)
-            if returned is not None:
-                self.rerun.event(snapshot, returned, index, None)
         self._report_breaks(snapshot, analysis.result, index, verdict, judged=record.judged)
         self.broken[topic] = verdict.broken
         compute_s = 0.0 if pending.reused else analysis.seconds
@@ -1007,6 +997,34 @@ class _Loop:
         self.records.append(record)
         if self.on_snapshot is not None:
             self.on_snapshot(snapshot, analysis.result, record)
+
+    def _show_in_rerun(
+        self,
+        rerun: RerunSink,
+        snapshot: MapSnapshot,
+        analysis: SnapshotAnalysis,
+        index: int,
+        verdict: BreakScore,
+        *,
+        judged: bool,
+        returned: str | None,
+    ) -> None:
+        """An analysed snapshot in the Rerun recording: its streams, the break detector's score,
+        and as events a restart of the detector and a return to an earlier map (``returned``)."""
+        rerun.snapshot(
+            snapshot, analysis.result, index, analysis.walls, analysis.cleaning, judged=judged
+        )
+        rerun.break_score(snapshot, verdict, index, self._threshold_in_force(verdict))
+        if verdict.incomparable_with is not None:
+            # In the viewer too: the break score falls to 0 there, which read as a recovery.
+            restart = (
+                f"break detector restarted: not comparable with snapshot "
+                f"{verdict.incomparable_with} (another cell size, frame or orientation, or an "
+                "origin off its cells); a break across the change is not seen"
+            )
+            rerun.event(snapshot, restart, index, None)
+        if returned is not None:
+            rerun.event(snapshot, returned, index, None)
 
     def _finish_sessions(self) -> None:
         """At the end of the log, each topic's last snapshot compared with the break detector's
