@@ -40,7 +40,7 @@ from rose.walls import WallSet
 from rose_logs.malloc import release_free_heap
 from rose_logs.rerun.blueprint import TopicLayout, default_blueprint
 from rose_logs.rerun.conversions import image_window, known_bounds_cells
-from rose_logs.rerun.loggers import TopicLogger, set_snapshot_time, view_origin_m
+from rose_logs.rerun.loggers import TopicLogger, cells_to_map_m, set_snapshot_time, view_origin_m
 from rose_logs.rerun.paths import EntityPaths, entity_root_for_topic
 from rose_logs.session.analysis import same_placed_grid
 from rose_logs.session.breaks import BreakScore
@@ -223,8 +223,6 @@ Box = tuple[float, float, float, float]
 def known_box_m(snapshot: MapSnapshot, known: tuple[int, int, int, int] | None) -> Box | None:
     """The map-frame box around ``snapshot``'s known cells ``known`` (cells, exclusive max, from
     :func:`~rose_logs.rerun.conversions.known_bounds_cells`); None when nothing is known."""
-    from rose_logs.rerun.loggers import cells_to_map_m
-
     if known is None:
         return None
     x0, y0, x1, y1 = known
