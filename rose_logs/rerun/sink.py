@@ -5,7 +5,8 @@
 Rerun encodes, compresses and writes on its own threads too. Static data is logged once when the
 recording opens; the layout (:mod:`rose_logs.rerun.blueprint`) is sent when it is known: at the end of
 a saved recording (so it can frame the final map and show the events view only when there are events),
-and to a live viewer as soon as the first map arrives and again when the first break does.
+and to a live viewer when the recording opens, then again at each topic's first map and at its first
+event (a break, W rising above the failure level, the break detector restarting).
 """
 
 from __future__ import annotations
@@ -298,6 +299,8 @@ class RerunSink:
     ------
     ValueError
         If no destination is given or ``rrd_path``'s directory does not exist.
+    ViewerNotStarted
+        With ``spawn``, if the viewer started is not listening (it could not open a window).
     """
 
     def __init__(
