@@ -192,32 +192,18 @@ def run_batch(
     todo: list[Recording] = []
     before: dict[str, RecordingResult | None] = {}  # stored results of the recordings to do
     unasked: dict[str, int] = {}  # finished recordings redone though neither asked nor changed
+    named_outputs = options.cleaned or options.rrd  # files named after the recordings
     with storage_errors(store.root):
         stored_results = {rec.uri: load_result(store, keys[rec.uri]) for rec in recordings}
-        owners = output_owners(store) if options.cleaned or options.rrd else {}
-    names = _run_names(
-        recordings, stored_results, owners, keep_stored=options.cleaned or options.rrd
-    )
+        owners = output_owners(store) if named_outputs else {}
+    names = _run_names(recordings, stored_results, owners, keep_stored=named_outputs)
     for rec in recordings:
+        previous = stored_results[rec.uri]
+        rec = dataclasses.replace(rec, name=names[rec.uri])
+        if previous is not None and previous.name != rec.name and not named_outputs:
+            previous = dataclasses.replace(previous, name=rec.name)  # no file has its name
         with storage_errors(store.root):
-            previous = stored_results[rec.uri]
-            rec = dataclasses.replace(rec, name=names[rec.uri])
-            if (
-                previous is not None
-                and previous.name != rec.name
-                and not (options.cleaned or options.rrd)
-            ):
-                previous = dataclasses.replace(previous, name=rec.name)  # no file has its name
-            why = None  # a finished recording redone unasked: why, for the summary
-            if force or previous is None or (retry_errors and previous.status == "error"):
-                redo = True
-            elif previous.name != rec.name:
-                # Its outputs carry a name another recording takes this run: redone under its new
-                # name, or two rows would share one cleaned log.
-                redo, why = True, "its outputs' name is another recording's now"
-            else:
-                redo = _outputs_missing(previous, store)
-                why = "its --cleaned / --rrd output was deleted or changed since" if redo else None
+            redo, why = _redo_decision(previous, rec, store, force=force, retry_errors=retry_errors)
         if previous is not None and not redo:
             finished[rec.uri] = previous
         else:
@@ -315,6 +301,28 @@ def run_batch(
             stopped_by = getattr(err, "signum", signal.SIGINT)
             report = dataclasses.replace(report, interrupted=True, signal=stopped_by)
     return report
+
+
+def _redo_decision(
+    previous: RecordingResult | None,
+    rec: Recording,
+    store: OutputStore,
+    *,
+    force: bool,
+    retry_errors: bool,
+) -> tuple[bool, str | None]:
+    """Whether ``rec`` (named for this run) is processed again rather than its stored result
+    ``previous`` reused; and, for a finished recording redone though neither asked for nor
+    changed, why (for the summary), else None."""
+    if force or previous is None or (retry_errors and previous.status == "error"):
+        return True, None
+    if previous.name != rec.name:
+        # Its outputs carry a name another recording takes this run: redone under its new name,
+        # or two rows would share one cleaned log.
+        return True, "its outputs' name is another recording's now"
+    if _outputs_missing(previous, store):
+        return True, "its --cleaned / --rrd output was deleted or changed since"
+    return False, None
 
 
 def _redone(
