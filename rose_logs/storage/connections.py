@@ -7,6 +7,7 @@ from collections.abc import Sequence
 from typing import Any, Literal
 
 from rosbags.interfaces import Qos
+from rosbags.typesys import TypesysError
 
 from rose_logs.errors import LogWriteError
 from rose_logs.storage.records import Channel, normalize_msgtype
@@ -87,7 +88,7 @@ def definitions(channel: Channel, ros_version: int) -> tuple[str, str]:
             _LOG.debug("could not hash the definition of %s", channel.msgtype, exc_info=True)
     try:
         return msgdef_for(channel.msgtype, serialization)
-    except Exception:
+    except TypesysError:  # a type rosbags does not know either (a custom type)
         return "", ""
 
 
