@@ -30,12 +30,12 @@ ANALYSED_TOPIC: ContextVar[str | None] = ContextVar("rose_analysed_topic", defau
 
 @dataclass(frozen=True)
 class SnapshotAnalysis:
-    """What the session computes for one snapshot (``seconds``: compute time, 0 when reused;
-    ``degenerate``: why W says nothing about the map, :func:`rose.directions.degenerate_input`)."""
+    """What the session computes for one snapshot (``seconds``: compute time; ``degenerate``: why
+    W says nothing about the map, :func:`rose.directions.degenerate_input`). A reused analysis is
+    the same object again: the session's record of it counts no compute time."""
 
     result: RoseResult
     walls: WallSet | None
-    reused: bool
     cleaning: CleanResult | None = None
     seconds: float = 0.0
     degenerate: str | None = None
@@ -59,7 +59,7 @@ class SnapshotAnalyser:
         self, snapshot: MapSnapshot, executor: Executor
     ) -> tuple[Future[SnapshotAnalysis], bool]:
         """Start analysing ``snapshot``; returns its future and whether it is a reused analysis (then
-        the future is the previous snapshot's: mark its result ``reused`` when taking it)."""
+        the future is the previous snapshot's, its grid and placement unchanged)."""
         prev = self.previous.get(snapshot.topic)
         if prev is not None and same_placed_grid(prev[0], snapshot):
             return prev[1], True
@@ -97,7 +97,7 @@ class SnapshotAnalyser:
         degenerate = degenerate_input(snapshot.grid, result.occupied)
         seconds = time.perf_counter() - started
         return SnapshotAnalysis(
-            result, walls, reused=False, cleaning=cleaning, seconds=seconds, degenerate=degenerate
+            result, walls, cleaning=cleaning, seconds=seconds, degenerate=degenerate
         )
 
     def _say_too_fine(self, topic: str) -> None:
@@ -115,6 +115,7 @@ class SnapshotAnalyser:
 
 
 def same_placed_grid(a: MapSnapshot, b: MapSnapshot) -> bool:
+    """Whether ``a`` and ``b`` hold equal grids with the same resolution and origin."""
     # Walls are in metres, so a reused analysis also needs the same placement.
     return (
         a.resolution_m == b.resolution_m
