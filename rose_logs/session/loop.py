@@ -680,8 +680,9 @@ class _Loop:
         self.last_map: dict[str, MapSnapshot] = {}
         # Topics whose latest full map was skipped, and why ("malformed" or "empty").
         self.lost_map: dict[str, str] = {}
-        self.count: dict[str, int] = {}
-        self.above: dict[str, bool] = {}
+        self.analysed: dict[str, int] = {}  # per topic: snapshots analysed (the next one's index)
+        # Per topic: whether W of its last judged snapshot was above the failure level.
+        self.w_above: dict[str, bool] = {}
         self.broken: dict[str, bool] = {}  # per topic: whether its last snapshot was broken
         self.records: list[SnapshotRecord] = []
         self.breaks: list[BreakEvent] = []
@@ -953,8 +954,8 @@ class _Loop:
             return
         # Numbered among the analysed snapshots, as the break detector (which has seen this one)
         # numbers them: its trusted index and the records' must name the same snapshot.
-        index = self.count.get(topic, 0)
-        self.count[topic] = index + 1
+        index = self.analysed.get(topic, 0)
+        self.analysed[topic] = index + 1
         verdict = pending.verdict.result()
         if verdict.incomparable_with is not None:
             _LOG.warning(
@@ -1103,14 +1104,14 @@ class _Loop:
         if not judged:  # an empty map's W = 1, a solid block's 0.009: they say nothing
             return
         above = score > self.failure_level
-        if above and not self.above.get(topic, False):
+        if above and not self.w_above.get(topic, False):
             w, level = score_beside_level(score, self.failure_level)
             detail = f"W = {w} rose above the failure level {level} at snapshot {index}"
             text = f"{topic}: {detail}"
             self.breaks.append(BreakEvent(topic, index, snapshot.log_time_ns, score, text))
             if self.rerun is not None:
                 self.rerun.event(snapshot, detail, index, score, failure=True)
-        self.above[topic] = above
+        self.w_above[topic] = above
 
     def _threshold_in_force(self, verdict: BreakScore) -> float:
         """The threshold ``verdict`` was judged at, metres: twice the detector's against the anchor
