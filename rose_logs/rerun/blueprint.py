@@ -104,7 +104,7 @@ def _metric_eye(layout: TopicLayout) -> rrb.EyeControls3D | None:
 
 def _north_up_bounds(layout: TopicLayout, *, below: float = 0.0) -> rrb.VisualBounds2D | None:
     """The known box of ``layout`` in the 2D views' north-up frame (x east, y south, metres from
-    its view origin: :func:`rose_logs.rerun.loggers.image_placement`), with a margin, and
+    its view origin: :func:`rose_logs.rerun.loggers.placement_terms`), with a margin, and
     ``below`` times its height (at least a quarter of its width, as the colour bar's size:
     :func:`rose_logs.rerun.loggers.bar_placement`) more under it."""
     if layout.bounds_m is None:
