@@ -93,7 +93,7 @@ class BatchReport:
     @property
     def broken(self) -> tuple[RecordingResult, ...]:
         """Recordings whose map broke: the break detector fired, or W rose above the failure level."""
-        return tuple(r for r in self.results if r.row()["broke"])
+        return tuple(r for r in self.results if r.first_break is not None)
 
 
 ResultCallback = Callable[[RecordingResult, int, int], None]

@@ -291,10 +291,16 @@ class RecordingResult:
     warnings: tuple[str, ...] = ()
     settings: dict[str, Any] | None = None
 
+    @property
+    def first_break(self) -> dict[str, Any] | None:
+        """The first snapshot row that counts as broken (the break detector's or W above the
+        failure level), None when the map never broke."""
+        return next((s for s in self.snapshots if s["broken"]), None)
+
     def row(self) -> dict[str, Any]:
         """The recording's row of ``recordings.parquet``."""
         scores = [s["structure_score"] for s in self.snapshots if row_judged(s)]
-        first = next((s for s in self.snapshots if s["broken"]), None)
+        first = self.first_break
         text = _printable_or_none
         return {
             "uri": printable(self.uri),
