@@ -8,7 +8,7 @@ import functools
 import logging
 import os
 import re
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any, Literal
 
@@ -364,11 +364,14 @@ class _RosbagsWriteBackend(WriteBackend):
         """Register ``channel`` with the rosbags writer; return the new connection."""
         raise NotImplementedError
 
-    def _dedup(self, conn_args: tuple[Any, ...], create: Any) -> int:
+    def _dedup(self, conn_args: tuple[Any, ...], create: Callable[[], Any]) -> int:
+        from rosbags.rosbag1 import WriterError as Ros1WriterError
+        from rosbags.rosbag2 import WriterError as Ros2WriterError
+
         try:
             self.connections.append(create())
-        except Exception as err:
-            if "once" not in str(err):
+        except (Ros1WriterError, Ros2WriterError) as err:
+            if "once" not in str(err):  # "Connection(s) can only be added once ..."
                 raise
             # The same connection twice (a ROS 1 node that reconnected): share the existing one.
             for existing in list(self.connections):
