@@ -11,6 +11,8 @@
   :data:`MAX_YAML_BYTES` long and :data:`MAX_YAML_DEPTH` levels deep.
 - :func:`image_shape`: the size an image header declares (PNG, PNM, BMP, JPEG, TIFF, WebP), read
   without decoding.
+- :func:`regular_file_problem`: an input that is no regular file (a FIFO or device would block
+  or never end).
 - :func:`short`: an error text cut to one line of at most :data:`MAX_MESSAGE_CHARS` characters.
 """
 
@@ -18,9 +20,12 @@ from __future__ import annotations
 
 import math
 import numbers
+import os
 import re
+import stat
 import struct
 from collections.abc import Callable, Hashable
+from pathlib import Path
 from typing import Any
 
 import yaml
@@ -39,6 +44,7 @@ __all__ = [
     "pair_of",
     "pnm_header",
     "pnm_numbers",
+    "regular_file_problem",
     "shape_problem",
     "short",
 ]
@@ -432,3 +438,16 @@ def shape_problem(shape: object, *, smallest: int) -> str | None:
     if pair_of(shape, lambda v: integer_number(v) and v >= smallest):  # type: ignore[operator]
         return None
     return f"must be two whole numbers >= {smallest} (rows, cols), got {shape!r}"
+
+
+def regular_file_problem(path: str | os.PathLike[str], *, missing: str) -> str | None:
+    """What keeps ``path`` from being read as an input file, if anything: ``missing`` when there
+    is no such file, ``cannot read (<reason>)``, or ``not a regular file`` (a folder; a FIFO or
+    device would block or never end)."""
+    try:
+        mode = Path(path).stat().st_mode
+    except FileNotFoundError:
+        return missing
+    except OSError as err:
+        return f"cannot read ({err.strerror or err})"
+    return None if stat.S_ISREG(mode) else "not a regular file"

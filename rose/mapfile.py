@@ -18,7 +18,6 @@ from __future__ import annotations
 import logging
 import math
 import os
-import stat
 import struct
 import warnings
 import zlib
@@ -46,6 +45,7 @@ from rose.limits import (
     load_yaml,
     pnm_header,
     pnm_numbers,
+    regular_file_problem,
     short,
 )
 from rose.outputs import OutputSet, is_stream
@@ -259,17 +259,10 @@ def load_map(
 
 
 def _require_regular(path: Path, missing: str) -> None:
-    """Raise MapFileError unless ``path`` is a regular file (a FIFO or device would block or never end)."""
-    try:
-        mode = path.stat().st_mode
-    except FileNotFoundError as err:
-        msg = f"{short(path, 200)}: {missing}"
-        raise MapFileError(msg) from err
-    except OSError as err:
-        msg = f"{short(path, 200)}: cannot read ({err.strerror or err})"
-        raise MapFileError(msg) from err
-    if not stat.S_ISREG(mode):
-        msg = f"{path}: not a regular file"
+    """Raise MapFileError unless ``path`` is a regular file (:func:`rose.limits.regular_file_problem`)."""
+    problem = regular_file_problem(path, missing=missing)
+    if problem is not None:
+        msg = f"{short(path, 200)}: {problem}"
         raise MapFileError(msg)
 
 

@@ -175,7 +175,7 @@ def test_convert_of_a_folder_or_missing_log_says_so_before_judging_its_outputs(
     (tmp_path / "taken.mcap").write_bytes(b"precious")
     assert main(["convert", "missing.log", "taken.mcap"]) == 1
     err = capsys.readouterr().err
-    assert err == "error: missing.log: cannot read CARMEN log (No such file or directory)\n"
+    assert err == "error: missing.log: no such file\n"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["taken.mcap"]
 
 
@@ -308,7 +308,7 @@ def test_a_file_that_is_not_what_its_name_says_is_named_so(tmp_path: Path) -> No
 
 
 def test_missing_file_is_an_error(tmp_path: Path) -> None:
-    with pytest.raises(CarmenFormatError, match="cannot read"):
+    with pytest.raises(CarmenFormatError, match=r"nope\.log\.gz: no such file"):
         read_carmen_log(tmp_path / "nope.log.gz")
 
 

@@ -22,7 +22,6 @@ from __future__ import annotations
 import gzip
 import logging
 import math
-import stat
 from collections import Counter
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
@@ -32,7 +31,7 @@ from typing import IO
 import numpy as np
 import numpy.typing as npt
 
-from rose.limits import short, visible
+from rose.limits import regular_file_problem, short, visible
 from rose_logs.errors import LogReadError
 
 __all__ = [
@@ -343,13 +342,9 @@ def check_carmen_file(path: str | Path) -> None:
     """Raise :class:`CarmenFormatError` unless ``path`` is an existing regular file (a folder, FIFO
     or device is no log): cheap, so a command says it before judging its outputs (``convert .
     out.mcap`` said the output was "inside the input .")."""
-    try:
-        mode = Path(path).stat().st_mode
-    except OSError as err:
-        msg = f"{path}: cannot read CARMEN log ({err.strerror or err})"
-        raise CarmenFormatError(msg) from err
-    if not stat.S_ISREG(mode):
-        msg = f"{path}: not a regular file"
+    problem = regular_file_problem(path, missing="no such file")
+    if problem is not None:
+        msg = f"{path}: {problem}"
         raise CarmenFormatError(msg)
 
 

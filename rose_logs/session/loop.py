@@ -658,9 +658,6 @@ class _Loop:
         max_cells: int | None = DEFAULT_MAX_CELLS,
         in_flight: int = 2,
     ) -> None:
-        if in_flight < 1:
-            msg = f"analysis_threads must be >= 1, got {in_flight}"
-            raise ValueError(msg)
         self.in_flight_limit = in_flight
         self.max_cells = max_cells
         self.reader = reader
