@@ -328,10 +328,6 @@ class LogWriter:
         )
         return self.add_channel(channel)
 
-    def has_topic(self, topic: str) -> bool:
-        """Whether ``topic`` was added (by :meth:`add_topic` or :meth:`add_channel`)."""
-        return topic in self._topics
-
     # -- messages --------------------------------------------------------------------------------
     def write_raw(
         self,

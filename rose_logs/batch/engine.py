@@ -248,10 +248,10 @@ def run_batch(
             named_by,
             memory_limit,
             options,
-        ) as run:
+        ) as (run, slots):
             # Created once the engine is ready: a scheduler that cannot be reached leaves no folder.
             store.prepare(folders=(RESULTS_DIR,))
-            bar.slots = getattr(run, "slots", 1)
+            bar.slots = slots
             with _console_beside(bar):
                 for result in run(todo, store, options, storage_options, keys):
                     finished[result.uri] = result
@@ -577,8 +577,9 @@ def _executor(
     named_by: str | None,
     memory_limit: str | float | None,
     options: RecordingOptions,
-) -> Iterator[Runner]:
-    """A function running recordings: in-process, or on a (local or existing) Dask cluster.
+) -> Iterator[tuple[Runner, int]]:
+    """A function running recordings, in-process or on a (local or existing) Dask cluster, and
+    how many recordings it runs at once.
 
     ``named_by`` is the scheduler file that gave ``scheduler`` (errors name it).
     """
@@ -605,7 +606,7 @@ def _executor(
             yield _dask_runner(own, memory_limit)
         return
     if workers == 1:
-        yield _in_process
+        yield _in_process, 1
         return
     from rose_logs.batch.cluster import local_client
 
@@ -627,7 +628,8 @@ def _in_process(
         )
 
 
-def _dask_runner(client: Any, memory_limit: str | float | None) -> Runner:
+def _dask_runner(client: Any, memory_limit: str | float | None) -> tuple[Runner, int]:
+    """A runner of recordings on ``client``'s cluster, and its workers' count."""
     from rose_logs.batch.workerenv import tune_worker_process
 
     slots = len(client.run(tune_worker_process))  # workers we did not start: malloc, 1-thread pools
@@ -666,8 +668,7 @@ def _dask_runner(client: Any, memory_limit: str | float | None) -> Runner:
             if pending:
                 client.cancel(pending)
 
-    run.slots = slots  # type: ignore[attr-defined]
-    return run
+    return run, slots
 
 
 def _dask_task(

@@ -389,14 +389,13 @@ def _gate_failures(args: argparse.Namespace, report: Any) -> list[str]:
     ok = [r for r in report.results if r.status == "ok"]
     if args.fail_above is not None:
         # w_max is None for a recording without a judged snapshot (only empty maps).
-        above = [
-            r for r in ok if r.row()["w_max"] is not None and r.row()["w_max"] > args.fail_above
-        ]
+        w_max = {r.uri: r.row()["w_max"] for r in ok}  # a row per recording: a median to build
+        above = [r for r in ok if w_max[r.uri] is not None and w_max[r.uri] > args.fail_above]
         if above:
-            worst = max(above, key=lambda r: r.row()["w_max"])
+            worst = max(above, key=lambda r: w_max[r.uri])
             from rose_logs.session.report import score_beside_level  # loaded with the batch
 
-            w, level = score_beside_level(worst.row()["w_max"], args.fail_above)
+            w, level = score_beside_level(w_max[worst.uri], args.fail_above)
             reasons.append(
                 f"{printable(worst.uri)}: W = {w} exceeds --fail-above {level} (the highest; "
                 f"{len(above)} recording(s) above it)"
