@@ -56,7 +56,7 @@ def hold_start_signals() -> None:
 def raise_held_start_signal() -> None:
     """End the hold of :func:`hold_start_signals` (a no-op without one): each signal whose handler
     is still the hold's gets its handler back, then the first signal held is raised
-    (``KeyboardInterrupt`` for SIGINT, :class:`rose.outputs.Terminated` for the others)."""
+    (``KeyboardInterrupt`` for SIGINT, :class:`rose.signals.Terminated` for the others)."""
     if not _replaced:
         return
     import signal
@@ -66,7 +66,7 @@ def raise_held_start_signal() -> None:
             signal.signal(signum, handler)
     _replaced.clear()
     if _held:
-        from rose.outputs import Terminated
+        from rose.signals import Terminated
 
         signum = _held[0]
         _held.clear()

@@ -25,9 +25,10 @@ Every command of ``rose`` and ``rose-bag`` writes its outputs through one :class
   for a dead process of this host and PID namespace, after a day unchanged for others
   (:func:`left_behind`).
 
-:func:`install_signal_handlers` turns SIGTERM and SIGHUP into :class:`Terminated` (a ``KeyboardInterrupt``)
-so the same clean-up runs as for Ctrl-C. :func:`json_text` is the one JSON encoder: strict JSON, every
-non-finite float written as ``null``.
+Signals are :mod:`rose.signals`' (:func:`rose.signals.install_signal_handlers` turns SIGTERM and SIGHUP
+into a ``KeyboardInterrupt``, so the same clean-up runs as for Ctrl-C), standard output
+:mod:`rose.console`'s. :func:`json_text` is the one JSON encoder: strict JSON, every non-finite float
+written as ``null``.
 """
 
 from __future__ import annotations
@@ -35,7 +36,6 @@ from __future__ import annotations
 import contextlib
 import errno
 import hashlib
-import io
 import json
 import math
 import os
@@ -43,51 +43,35 @@ import re
 import secrets
 import select
 import shutil
-import signal
 import socket
 import stat
 import sys
-import threading
 import time
-from collections.abc import Callable, Iterable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from types import FrameType, TracebackType
-from typing import Any, BinaryIO, NoReturn, Self, TextIO
+from types import TracebackType
+from typing import Any, BinaryIO, Self
 
 from rose.errors import OutputError, StdoutError
 from rose.limits import short
+from rose.signals import signals_deferred
 
 __all__ = [
-    "EXIT_BROKEN_PIPE",
     "STDOUT",
-    "HeldSignals",
     "OutputSet",
     "StagedOutput",
-    "Terminated",
-    "buffer_unbuffered_stdout",
     "counted",
-    "exit_after",
-    "install_signal_handlers",
-    "interrupt_behind",
     "is_bag_folder",
     "is_stream",
     "json_safe",
     "json_text",
     "left_behind",
     "newest_change",
-    "print_any_file_name",
     "process_alive",
     "process_tag",
     "refuse_output_in_bag_folder",
     "remove_stale_temporaries",
-    "report_interrupt",
-    "reraise_interrupt_behind",
-    "run_interruptible",
-    "signal_handlers_kept",
-    "signals_deferred",
-    "stdout_closed",
-    "stdout_errors_named",
     "suffix_warning",
     "temporary_name",
 ]
@@ -147,365 +131,12 @@ def json_text(payload: Any, *, indent: int | None = 2) -> str:
     return json.dumps(json_safe(payload), indent=indent, allow_nan=False) + "\n"
 
 
-# -- signals ------------------------------------------------------------------------------------------
-class Terminated(KeyboardInterrupt):
-    """SIGTERM or SIGHUP arrived; raised in the main thread so every ``finally`` / abort runs."""
-
-    def __init__(self, signum: int) -> None:
-        super().__init__(signum)
-        self.signum = signum
-
-    @property
-    def exit_code(self) -> int:
-        """The shell's convention: 128 + signal number."""
-        return 128 + self.signum
-
-
-def _raise_terminated(signum: int, _frame: FrameType | None) -> None:
-    raise Terminated(signum)
-
-
-EXIT_BROKEN_PIPE = 141
-"""Exit code when the reader of standard output went away (``| head``): 128 + SIGPIPE, what a
-shell reports for a program that SIGPIPE ended."""
-
-
-def print_any_file_name() -> None:
-    """Let standard output print any file name.
-
-    Linux file names are bytes; Python decodes the undecodable ones with surrogate escapes, which a
-    strict UTF-8 stream refuses to print. Written back as the bytes they came from, they show as
-    ``ls`` shows them. A stream that cannot hold a character (``café`` on an ASCII or Latin-1
-    terminal, ``PYTHONIOENCODING=ascii``) gets it backslash-escaped, as stderr does, instead of a
-    traceback after the outputs were written. The CLIs' ``main`` calls this once (process-wide,
-    like their signal handlers).
-    """
-    import codecs
-
-    codecs.register_error(_PRINTABLE, _printable)
-    reconfigure = getattr(sys.stdout, "reconfigure", None)
-    if reconfigure is not None:
-        with contextlib.suppress(ValueError, OSError):  # not a text stream we may change
-            reconfigure(errors=_PRINTABLE)
-
-
-def buffer_unbuffered_stdout() -> None:
-    """Give an unbuffered standard output (``python -u``, ``PYTHONUNBUFFERED``, common in
-    containers and CI) a buffer, flushed at every line as unbuffered output is expected to show.
-    Unbuffered, a pipe whose reader leaves mid-write takes part of a large write and reports the
-    count, not an error, and the text layer drops the rest: ``rose score --json ... | head`` ended
-    with exit 0 and the report cut. A buffer writes all it is given or raises. The console
-    scripts call this (not ``main``: an in-process caller keeps its own stream); only a plain file
-    descriptor is wrapped (a Windows console's stream encodes for its console itself)."""
-    stream = sys.stdout
-    raw = getattr(stream, "buffer", None)
-    if type(raw) is not io.FileIO or not isinstance(stream, io.TextIOWrapper):
-        return
-    try:
-        # A file of its own on the descriptor, which it never closes: the stream it replaces
-        # (sys.__stdout__) keeps its file open when this one goes.
-        own = io.FileIO(raw.fileno(), "w", closefd=False)
-    except (OSError, ValueError):
-        return
-    sys.stdout = io.TextIOWrapper(
-        io.BufferedWriter(own),
-        encoding=stream.encoding,
-        errors=stream.errors,
-        line_buffering=True,
-    )
-
-
-#: The error handler :func:`print_any_file_name` gives standard output.
-_PRINTABLE = "rose-printable"
-
-
-def _printable(err: UnicodeError) -> tuple[str | bytes, int]:
-    """Characters the stream cannot encode: a file name's undecodable bytes (surrogate escapes) as
-    those bytes, anything else backslash-escaped."""
-    if not isinstance(err, UnicodeEncodeError):
-        raise err
-    chunk = err.object[err.start : err.end]
-    if all(0xDC80 <= ord(c) <= 0xDCFF for c in chunk):
-        return bytes(ord(c) - 0xDC00 for c in chunk), err.end
-    return chunk.encode("ascii", "backslashreplace").decode("ascii"), err.end
-
-
-def stdout_closed(err: OSError) -> bool:
-    """Whether ``err`` is a broken pipe on standard output (no file name: not one of our files).
-
-    If so, standard output is pointed at ``/dev/null``, so that Python's flush at exit does not
-    report the same broken pipe again; the caller then exits with :data:`EXIT_BROKEN_PIPE`, quietly.
-    """
-    if not isinstance(err, BrokenPipeError) or err.filename is not None:
-        return False
-    _discard_stdout()
-    return True
-
-
-def flush_stdout() -> int:
-    """Flush standard output now; return 0, or the exit code of a failure said as every command
-    says it: 1 after ``error: standard output: cannot write (<reason>)``, 141 quietly when the
-    reader left (:data:`EXIT_BROKEN_PIPE`).
-
-    For text printed outside a command's :func:`stdout_errors_named` block (argparse's ``--help``
-    and ``--version``), which Python's flush at exit would report with a traceback-like
-    ``Exception ignored`` and exit 120.
-    """
-    try:
-        with stdout_errors_named():
-            pass  # the block flushes what is buffered
-    except StdoutError as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 1
-    except BrokenPipeError:
-        _discard_stdout()
-        return EXIT_BROKEN_PIPE
-    return 0
-
-
-def _discard_stdout() -> None:
-    """Point standard output's descriptor at ``/dev/null``: what is still buffered goes nowhere."""
-    with contextlib.suppress(OSError, ValueError, AttributeError):  # stdout may be no real file
-        devnull = os.open(os.devnull, os.O_WRONLY)
-        try:
-            os.dup2(devnull, sys.stdout.fileno())
-        finally:
-            os.close(devnull)
-
-
-@contextlib.contextmanager
-def stdout_errors_named() -> Iterator[None]:
-    """Run a command with standard output's write errors raised as :class:`StdoutError`.
-
-    A write error carries no file name, so the CLIs named their input for it (``rose score m.yaml >
-    /dev/full``: ``m.yaml: No space left on device``). The text still buffered is flushed before
-    the block ends, where the error is reported like any other: at exit Python would only print a
-    traceback and exit 120. A broken pipe stays :class:`BrokenPipeError` (the reader left: the CLIs
-    end quietly, :func:`stdout_closed`).
-    """
-    stream = sys.stdout
-    if stream is None:  # no standard output at all (pythonw): nothing to name
-        yield
-        return
-    named = _NamedStdout(stream)
-    sys.stdout = named  # a TextIO in all but type: what it does not wrap, it passes on
-    try:
-        yield
-        named.flush()
-    except StdoutError:
-        _discard_stdout()  # Python's flush at exit would fail again, and exit 120
-        raise
-    finally:
-        if sys.stdout is named:
-            sys.stdout = stream
-
-
-class _NamedStdout:
-    """Standard output whose write errors are :class:`StdoutError`; everything else is the stream's."""
-
-    def __init__(self, stream: TextIO) -> None:
-        self._stream = stream
-
-    def write(self, text: str) -> int:
-        with _named_write_errors():
-            return self._stream.write(text)
-
-    def writelines(self, lines: Iterable[str]) -> None:
-        with _named_write_errors():
-            self._stream.writelines(lines)
-
-    def flush(self) -> None:
-        with _named_write_errors():
-            self._stream.flush()
-
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self._stream, name)
-
-
-@contextlib.contextmanager
-def _named_write_errors() -> Iterator[None]:
-    """An error of standard output's own (no file name) as :class:`StdoutError`."""
-    try:
-        yield
-    except BrokenPipeError:
-        raise
-    except OSError as err:
-        if err.filename is not None:  # not standard output's own error
-            raise
-        raise StdoutError(err.strerror or str(err)) from err
-
-
 def _twice(path: Path, other: Path) -> str:
     """The error for one file given for two outputs (``--rrd x --json x`` read "x: used for two
     outputs (also x)")."""
     if str(path) == str(other):
         return f"{path}: given for two outputs (each needs a file of its own)"
     return f"{path}: used for two outputs (also as {other})"
-
-
-def exit_after(code: int) -> NoReturn:
-    """Exit a console script with ``code`` once its work is done and its outputs are committed.
-
-    A SIGINT / SIGTERM / SIGHUP arriving from now on (during interpreter shutdown Python restores the
-    default handlers) would turn a finished run into a killed one (exit -2, -15): ignore them.
-    """
-    _set_handlers(dict.fromkeys(_interrupt_signals(), signal.SIG_IGN))
-    sys.exit(code)
-
-
-def install_signal_handlers() -> None:
-    """Turn SIGTERM and SIGHUP into :class:`Terminated` (main thread only; a no-op elsewhere).
-
-    A signal the caller ignores stays ignored: ``nohup`` (SIGHUP) and a shell's background job.
-    """
-    signums = _interrupt_signals("SIGTERM", "SIGHUP")
-    _set_handlers({s: _raise_terminated for s in signums if not _ignored(s)})
-
-
-@contextlib.contextmanager
-def signal_handlers_kept() -> Iterator[None]:
-    """Put the SIGINT / SIGTERM / SIGHUP handlers back as they were when the block ends.
-
-    For a command's ``main`` run in-process (a test, a notebook): it installs its own handlers
-    (SIGTERM / SIGHUP raise :class:`Terminated`); its caller gets its own handlers back.
-    """
-    previous = {s: h for s in _interrupt_signals() if (h := signal.getsignal(s)) is not None}
-    try:
-        yield
-    finally:
-        _set_handlers(previous)
-
-
-def _interrupt_signals(*names: str) -> list[int]:
-    """The numbers of ``names`` (default SIGINT, SIGTERM, SIGHUP) that the platform has."""
-    names = names or ("SIGINT", "SIGTERM", "SIGHUP")
-    return [getattr(signal, n) for n in names if hasattr(signal, n)]
-
-
-def _ignored(signum: int) -> bool:
-    return signal.getsignal(signum) == signal.SIG_IGN
-
-
-def _on_main_thread() -> bool:
-    return threading.current_thread() is threading.main_thread()
-
-
-def _set_handlers(handlers: Mapping[int, Any]) -> None:
-    """Install several handlers as one step: no signal is handled between two of them.
-
-    The signals are blocked meanwhile (one arriving then is delivered after, to the new handler; to
-    nothing if that is SIG_IGN). Only the main thread installs handlers: elsewhere a no-op.
-    """
-    if not handlers or not _on_main_thread():
-        return
-    mask = getattr(signal, "pthread_sigmask", None)
-    previous_mask = None if mask is None else mask(signal.SIG_BLOCK, set(handlers))
-    try:
-        for signum, handler in handlers.items():
-            signal.signal(signum, handler)
-    finally:
-        if mask is not None and previous_mask is not None:
-            mask(signal.SIG_SETMASK, previous_mask)
-
-
-def _interrupt_for(signum: int) -> KeyboardInterrupt:
-    return KeyboardInterrupt() if signum == signal.SIGINT else Terminated(signum)
-
-
-class HeldSignals:
-    """The signals :func:`signals_deferred` holds (numbers, in arrival order); true when any is held."""
-
-    def __init__(self, *, second_ends: bool = False) -> None:
-        self.signals: list[int] = []
-        self._dropping = False
-        self._second_ends = second_ends
-
-    def __bool__(self) -> bool:
-        return bool(self.signals)
-
-    def hold(self, signum: int, _frame: FrameType | None) -> None:
-        if self._dropping:
-            return
-        if self._second_ends and self.signals:  # the user insists: now, wherever it lands
-            raise _interrupt_for(signum)
-        self.signals.append(signum)
-
-    def drop(self) -> None:
-        """Forget the held signals, and any that arrives until the block ends (the work is done)."""
-        self._dropping = True
-        self.signals.clear()
-
-
-@contextlib.contextmanager
-def signals_deferred(*, second_ends: bool = False) -> Iterator[HeldSignals]:
-    """Hold SIGINT / SIGTERM / SIGHUP for the block, then raise the first (KeyboardInterrupt / Terminated).
-
-    For start-up, while the CLIs import their libraries: an interrupt raised inside a C extension's
-    initialisation surfaces as ``ImportError: initialization failed``, not as the interrupt it was.
-    Yields the :class:`HeldSignals`, so a block can see that one is waiting (e.g. to undo its work
-    before it is raised). If the block fails, a held signal is raised instead of the failure (from
-    it): the run was interrupted. Signals the caller ignores stay ignored; outside the main thread
-    the block runs unguarded (Python handles signals in the main thread only). With
-    ``second_ends``, a second signal is raised at once, wherever it lands (a block that waits on a
-    slow read or write can be ended).
-    """
-    held = HeldSignals(second_ends=second_ends)
-    previous = {
-        s: h
-        for s in _interrupt_signals()
-        if (h := signal.getsignal(s)) not in (None, signal.SIG_IGN)
-    }
-    _set_handlers(dict.fromkeys(previous, held.hold))
-    try:
-        yield held
-    except BaseException as err:
-        _set_handlers(previous)
-        if held.signals and not isinstance(err, KeyboardInterrupt):
-            raise _interrupt_for(held.signals[0]) from err
-        raise
-    _set_handlers(previous)
-    if held.signals:
-        raise _interrupt_for(held.signals[0])
-
-
-def run_interruptible(body: Callable[[], int]) -> int:
-    """Run a command's ``body`` and return its exit code; an interrupt (Ctrl-C, SIGTERM, SIGHUP, or
-    an import one of them broke) ends it with one line on stderr and 130 / 128 + signal."""
-    try:
-        return body()
-    except Exception as err:  # e.g. ImportError: a library loaded on demand, interrupted
-        interrupt = interrupt_behind(err)
-        if interrupt is None:
-            raise
-        return report_interrupt(interrupt)
-    except KeyboardInterrupt as err:
-        return report_interrupt(err)
-
-
-def report_interrupt(err: KeyboardInterrupt) -> int:
-    """Say on stderr that the run was interrupted; return its exit code (130, or 128 + signal)."""
-    print("error: interrupted, nothing written", file=sys.stderr)
-    return err.exit_code if isinstance(err, Terminated) else 130
-
-
-def reraise_interrupt_behind(err: BaseException) -> None:
-    """Raise the interrupt that caused ``err``, if any: a signal that landed inside a library (an
-    import, a class being created) comes back wrapped in that library's error."""
-    interrupt = interrupt_behind(err)
-    if interrupt is not None:
-        raise interrupt
-
-
-def interrupt_behind(err: BaseException) -> KeyboardInterrupt | None:
-    """The interrupt that caused ``err`` (e.g. an ImportError of an interrupted import), if any."""
-    seen: set[int] = set()
-    cause: BaseException | None = err
-    while cause is not None and id(cause) not in seen:
-        if isinstance(cause, KeyboardInterrupt):
-            return cause
-        seen.add(id(cause))
-        cause = cause.__cause__ or cause.__context__
-    return None
 
 
 # -- temporary names ------------------------------------------------------------------------------------

@@ -33,7 +33,7 @@ from types import TracebackType
 from typing import Self
 
 from rose.limits import short
-from rose.outputs import reraise_interrupt_behind
+from rose.signals import reraise_interrupt_behind
 from rose_logs.errors import LogError, LogReadError
 from rose_logs.formats import LogFormat, detect_format, mcap_cut_short
 from rose_logs.storage.connections import QosStyle

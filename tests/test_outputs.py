@@ -18,16 +18,13 @@ import pytest
 from rose.errors import OutputError
 from rose.outputs import (
     OutputSet,
-    Terminated,
     counted,
-    install_signal_handlers,
-    interrupt_behind,
     json_text,
     process_tag,
     remove_stale_temporaries,
-    signals_deferred,
     temporary_name,
 )
+from rose.signals import Terminated, install_signal_handlers, interrupt_behind, signals_deferred
 
 
 def _leftovers(folder: Path) -> list[str]:
@@ -281,7 +278,7 @@ def test_without_force_of_two_commits_one_wins(tmp_path: Path) -> None:
 def test_sigterm_removes_temporaries(tmp_path: Path) -> None:
     code = (
         "import sys, time; from pathlib import Path\n"
-        "from rose.outputs import OutputSet, install_signal_handlers\n"
+        "from rose.outputs import OutputSet\nfrom rose.signals import install_signal_handlers\n"
         "install_signal_handlers()\n"
         "try:\n"
         "    with OutputSet() as o:\n"
@@ -465,7 +462,7 @@ def test_a_ctrl_c_after_the_work_is_done_changes_nothing(tmp_path: Path) -> None
     script = tmp_path / "late.py"
     script.write_text(
         "import atexit, os, signal, time\n"
-        "from rose.outputs import exit_after\n"
+        "from rose.signals import exit_after\n"
         "atexit.register(lambda: (os.kill(os.getpid(), signal.SIGINT), time.sleep(0.2)))\n"
         "exit_after(0)\n"
     )

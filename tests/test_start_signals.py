@@ -15,14 +15,14 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 
-# A sitecustomize that sends a signal to its own process as soon as rose.outputs starts loading: the
+# A sitecustomize that sends a signal to its own process as soon as rose.signals starts loading: the
 # signal lands inside the command's imports, every time (no timing to hit).
 _HOOK = """
 import os, signal, sys
 
 class _SignalOnLoad:
     def find_spec(self, name, path=None, target=None):
-        if name == "rose.outputs":
+        if name == "rose.signals":
             sys.meta_path.remove(self)
             os.kill(os.getpid(), signal.{signal})
         return None

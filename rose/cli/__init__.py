@@ -17,19 +17,16 @@ from collections.abc import Iterator, Mapping, Sequence
 from typing import Any, NoReturn
 
 from rose import __version__
+from rose.console import EXIT_BROKEN_PIPE, print_any_file_name, stdout_closed, stdout_errors_named
 from rose.entry import raise_held_start_signal
 from rose.errors import RoseError
 from rose.limits import short, visible
-from rose.outputs import (
-    EXIT_BROKEN_PIPE,
+from rose.signals import (
     install_signal_handlers,
-    print_any_file_name,
     reraise_interrupt_behind,
     run_interruptible,
     signal_handlers_kept,
     signals_deferred,
-    stdout_closed,
-    stdout_errors_named,
 )
 
 __all__ = [
@@ -268,7 +265,8 @@ def _error_text(err: BaseException, *, where: str | None = None) -> str:
 def console() -> None:
     """The command as its console script runs it (through :mod:`rose.entry`): :func:`main`, then
     exit with its code (late signals ignored)."""
-    from rose.outputs import buffer_unbuffered_stdout, exit_after
+    from rose.console import buffer_unbuffered_stdout
+    from rose.signals import exit_after
 
     buffer_unbuffered_stdout()
     exit_after(main())

@@ -359,7 +359,7 @@ def parse_args(parser: argparse.ArgumentParser, argv: Any) -> argparse.Namespace
     their exit: standard output that cannot take it is an error line and exit 1 (``--help >
     /dev/full``), a reader that left exit 141, as for any other output (Python's flush at exit
     printed ``Exception ignored ... OSError`` and exited 120)."""
-    from rose.outputs import flush_stdout
+    from rose.console import flush_stdout
 
     try:
         return parser.parse_args(argv)

@@ -23,8 +23,9 @@ from rose.cli.options import (
 )
 from rose.directions import degenerate_input
 from rose.errors import RoseError
-from rose.outputs import json_text, reraise_interrupt_behind
+from rose.outputs import json_text
 from rose.params import RoseParams
+from rose.signals import reraise_interrupt_behind
 
 __all__ = ["add_parser", "run"]
 

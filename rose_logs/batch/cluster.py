@@ -16,7 +16,7 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
-from rose.outputs import signals_deferred
+from rose.signals import signals_deferred
 from rose_logs.batch.errors import BatchError
 from rose_logs.batch.workerenv import worker_environment
 

@@ -287,7 +287,7 @@ def run_batch(
         redone=redone,
     )
     if write_tables:
-        from rose.outputs import signals_deferred
+        from rose.signals import signals_deferred
         from rose_logs.batch.tables import write_outputs
 
         # A signal between two tables would leave them out of step: they are written first (in a

@@ -15,18 +15,15 @@ import os
 import sys
 
 from rose.cli import CommandParser, LevelFormatter, error_text, input_name, logging_routed
+from rose.console import EXIT_BROKEN_PIPE, print_any_file_name, stdout_closed, stdout_errors_named
 from rose.entry import raise_held_start_signal
 from rose.errors import RoseError
-from rose.outputs import (
-    EXIT_BROKEN_PIPE,
+from rose.signals import (
     install_signal_handlers,
-    print_any_file_name,
     reraise_interrupt_behind,
     run_interruptible,
     signal_handlers_kept,
     signals_deferred,
-    stdout_closed,
-    stdout_errors_named,
 )
 from rose_logs import __version__
 from rose_logs.errors import LogError
@@ -165,7 +162,8 @@ def _run(argv: list[str] | None) -> int:
 def console() -> None:
     """The command as its console script runs it (through :mod:`rose.entry`): :func:`main`, then
     exit with its code (late signals ignored)."""
-    from rose.outputs import buffer_unbuffered_stdout, exit_after
+    from rose.console import buffer_unbuffered_stdout
+    from rose.signals import exit_after
 
     buffer_unbuffered_stdout()
     exit_after(main())

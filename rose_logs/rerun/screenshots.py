@@ -413,7 +413,7 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Command line entry point; returns the exit code (130 / 143 when interrupted: the viewer
     server and the browser it started are stopped first)."""
-    from rose.outputs import install_signal_handlers, run_interruptible
+    from rose.signals import install_signal_handlers, run_interruptible
 
     install_signal_handlers()  # SIGTERM (e.g. `timeout`) unwinds through the cleanup too
     return run_interruptible(lambda: _main(argv))

@@ -41,9 +41,10 @@ from rose.limits import (
     integer_number,
     short,
 )
-from rose.outputs import OutputSet, signals_deferred
+from rose.outputs import OutputSet
 from rose.params import RoseParams, make_params
 from rose.result import RoseResult
+from rose.signals import signals_deferred
 from rose.threads import threads_in_this_context
 from rose_logs.derived import derived_topics, encode_cleaned, encode_score, encode_walls
 from rose_logs.errors import EmptyMapError, LogReadError, LogWriteError, MapMessageError

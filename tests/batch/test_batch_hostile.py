@@ -384,7 +384,7 @@ def test_a_taken_dashboard_port_is_no_warning(tmp_path: Path) -> None:
 def test_sigterm_exits_143_and_keeps_the_finished_recordings(
     fleet: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    from rose.outputs import Terminated
+    from rose.signals import Terminated
 
     real = engine.process_recording
     calls: list[int] = []

@@ -733,7 +733,7 @@ def test_a_signal_inside_the_reading_library_is_an_interrupt_not_a_corrupt_log(
     RuntimeError (seen in the hostile corpus): the run must exit 143, not call the log corrupt."""
     import signal
 
-    from rose.outputs import Terminated
+    from rose.signals import Terminated
     from rose_logs.storage.mcap import McapReadBackend
 
     def interrupted(self: object, topics: object) -> object:

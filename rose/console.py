@@ -1,0 +1,194 @@
+"""Standard output of the commands: any file name printable, a buffer for an unbuffered stream,
+write errors raised naming standard output (:class:`rose.errors.StdoutError`), and a reader that
+went away (``| head``) ending the run quietly with :data:`EXIT_BROKEN_PIPE`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import os
+import sys
+from collections.abc import Iterable, Iterator
+from typing import Any, TextIO
+
+from rose.errors import StdoutError
+
+__all__ = [
+    "EXIT_BROKEN_PIPE",
+    "buffer_unbuffered_stdout",
+    "flush_stdout",
+    "print_any_file_name",
+    "stdout_closed",
+    "stdout_errors_named",
+]
+
+
+EXIT_BROKEN_PIPE = 141
+"""Exit code when the reader of standard output went away (``| head``): 128 + SIGPIPE, what a
+shell reports for a program that SIGPIPE ended."""
+
+
+def print_any_file_name() -> None:
+    """Let standard output print any file name.
+
+    Linux file names are bytes; Python decodes the undecodable ones with surrogate escapes, which a
+    strict UTF-8 stream refuses to print. Written back as the bytes they came from, they show as
+    ``ls`` shows them. A stream that cannot hold a character (``café`` on an ASCII or Latin-1
+    terminal, ``PYTHONIOENCODING=ascii``) gets it backslash-escaped, as stderr does, instead of a
+    traceback after the outputs were written. The CLIs' ``main`` calls this once (process-wide,
+    like their signal handlers).
+    """
+    import codecs
+
+    codecs.register_error(_PRINTABLE, _printable)
+    reconfigure = getattr(sys.stdout, "reconfigure", None)
+    if reconfigure is not None:
+        with contextlib.suppress(ValueError, OSError):  # not a text stream we may change
+            reconfigure(errors=_PRINTABLE)
+
+
+def buffer_unbuffered_stdout() -> None:
+    """Give an unbuffered standard output (``python -u``, ``PYTHONUNBUFFERED``, common in
+    containers and CI) a buffer, flushed at every line as unbuffered output is expected to show.
+    Unbuffered, a pipe whose reader leaves mid-write takes part of a large write and reports the
+    count, not an error, and the text layer drops the rest: ``rose score --json ... | head`` ended
+    with exit 0 and the report cut. A buffer writes all it is given or raises. The console
+    scripts call this (not ``main``: an in-process caller keeps its own stream); only a plain file
+    descriptor is wrapped (a Windows console's stream encodes for its console itself)."""
+    stream = sys.stdout
+    raw = getattr(stream, "buffer", None)
+    if type(raw) is not io.FileIO or not isinstance(stream, io.TextIOWrapper):
+        return
+    try:
+        # A file of its own on the descriptor, which it never closes: the stream it replaces
+        # (sys.__stdout__) keeps its file open when this one goes.
+        own = io.FileIO(raw.fileno(), "w", closefd=False)
+    except (OSError, ValueError):
+        return
+    sys.stdout = io.TextIOWrapper(
+        io.BufferedWriter(own),
+        encoding=stream.encoding,
+        errors=stream.errors,
+        line_buffering=True,
+    )
+
+
+#: The error handler :func:`print_any_file_name` gives standard output.
+_PRINTABLE = "rose-printable"
+
+
+def _printable(err: UnicodeError) -> tuple[str | bytes, int]:
+    """Characters the stream cannot encode: a file name's undecodable bytes (surrogate escapes) as
+    those bytes, anything else backslash-escaped."""
+    if not isinstance(err, UnicodeEncodeError):
+        raise err
+    chunk = err.object[err.start : err.end]
+    if all(0xDC80 <= ord(c) <= 0xDCFF for c in chunk):
+        return bytes(ord(c) - 0xDC00 for c in chunk), err.end
+    return chunk.encode("ascii", "backslashreplace").decode("ascii"), err.end
+
+
+def stdout_closed(err: OSError) -> bool:
+    """Whether ``err`` is a broken pipe on standard output (no file name: not one of our files).
+
+    If so, standard output is pointed at ``/dev/null``, so that Python's flush at exit does not
+    report the same broken pipe again; the caller then exits with :data:`EXIT_BROKEN_PIPE`, quietly.
+    """
+    if not isinstance(err, BrokenPipeError) or err.filename is not None:
+        return False
+    _discard_stdout()
+    return True
+
+
+def flush_stdout() -> int:
+    """Flush standard output now; return 0, or the exit code of a failure said as every command
+    says it: 1 after ``error: standard output: cannot write (<reason>)``, 141 quietly when the
+    reader left (:data:`EXIT_BROKEN_PIPE`).
+
+    For text printed outside a command's :func:`stdout_errors_named` block (argparse's ``--help``
+    and ``--version``), which Python's flush at exit would report with a traceback-like
+    ``Exception ignored`` and exit 120.
+    """
+    try:
+        with stdout_errors_named():
+            pass  # the block flushes what is buffered
+    except StdoutError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 1
+    except BrokenPipeError:
+        _discard_stdout()
+        return EXIT_BROKEN_PIPE
+    return 0
+
+
+def _discard_stdout() -> None:
+    """Point standard output's descriptor at ``/dev/null``: what is still buffered goes nowhere."""
+    with contextlib.suppress(OSError, ValueError, AttributeError):  # stdout may be no real file
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        try:
+            os.dup2(devnull, sys.stdout.fileno())
+        finally:
+            os.close(devnull)
+
+
+@contextlib.contextmanager
+def stdout_errors_named() -> Iterator[None]:
+    """Run a command with standard output's write errors raised as :class:`StdoutError`.
+
+    A write error carries no file name, so the CLIs named their input for it (``rose score m.yaml >
+    /dev/full``: ``m.yaml: No space left on device``). The text still buffered is flushed before
+    the block ends, where the error is reported like any other: at exit Python would only print a
+    traceback and exit 120. A broken pipe stays :class:`BrokenPipeError` (the reader left: the CLIs
+    end quietly, :func:`stdout_closed`).
+    """
+    stream = sys.stdout
+    if stream is None:  # no standard output at all (pythonw): nothing to name
+        yield
+        return
+    named = _NamedStdout(stream)
+    sys.stdout = named  # a TextIO in all but type: what it does not wrap, it passes on
+    try:
+        yield
+        named.flush()
+    except StdoutError:
+        _discard_stdout()  # Python's flush at exit would fail again, and exit 120
+        raise
+    finally:
+        if sys.stdout is named:
+            sys.stdout = stream
+
+
+class _NamedStdout:
+    """Standard output whose write errors are :class:`StdoutError`; everything else is the stream's."""
+
+    def __init__(self, stream: TextIO) -> None:
+        self._stream = stream
+
+    def write(self, text: str) -> int:
+        with _named_write_errors():
+            return self._stream.write(text)
+
+    def writelines(self, lines: Iterable[str]) -> None:
+        with _named_write_errors():
+            self._stream.writelines(lines)
+
+    def flush(self) -> None:
+        with _named_write_errors():
+            self._stream.flush()
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._stream, name)
+
+
+@contextlib.contextmanager
+def _named_write_errors() -> Iterator[None]:
+    """An error of standard output's own (no file name) as :class:`StdoutError`."""
+    try:
+        yield
+    except BrokenPipeError:
+        raise
+    except OSError as err:
+        if err.filename is not None:  # not standard output's own error
+            raise
+        raise StdoutError(err.strerror or str(err)) from err
