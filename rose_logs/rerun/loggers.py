@@ -235,6 +235,10 @@ class TopicLogger:
         self.trust_level = float(trust_level)
         self.view_origin_m: tuple[float, float] | None = None  # set by the first snapshot
         self._threshold_logged = False
+        # The metric view's direction labels of the latest snapshot (None: no directions), and
+        # whether the break region's label has them hidden (log_break_score).
+        self._metric_labels: list[str] | None = None
+        self._metric_labels_hidden = False
         # Of the last snapshot (``live``), else of the session's end (log_final_placement).
         self.score_legend_placement: rr.Transform3D | None = None
         # By placement_terms: Rerun's Transform3D cost about 0.1 ms to build, three times per
@@ -550,6 +554,7 @@ class TopicLogger:
         if directions.size == 0:
             rec.log(paths.cell_directions, rr.Clear(recursive=False))
             rec.log(paths.metric_directions, rr.Clear(recursive=False))
+            self._metric_labels, self._metric_labels_hidden = None, False
             return
         rows, cols = snapshot.grid.shape
         bounds = (occupied or conv.occupied_cells(result)).bounds
@@ -576,6 +581,7 @@ class TopicLogger:
                 positions=arrow.points(metric_m(snapshot, anchors, origin)), labels=map_labels
             ),
         )
+        self._metric_labels, self._metric_labels_hidden = map_labels, False
 
     def log_walls(self, snapshot: MapSnapshot, walls: WallSet) -> None:
         """Wall segments over the segmentation (pixels) and in the metric view (metres from the
@@ -764,14 +770,17 @@ class TopicLogger:
     ) -> None:
         """The break detector's score and threshold, and its region while the snapshot is broken
         (a rectangle in the metric view's metres, from the view origin, just above the grid map;
-        cleared otherwise)."""
+        cleared otherwise). While the region is drawn, the metric view's direction labels are
+        hidden (:meth:`_show_metric_labels`)."""
         rec, paths = self.recording, self.paths
         rec.log(paths.break_score, rr.Scalars(float(verdict.score_m)))
         rec.log(paths.break_threshold, rr.Scalars(float(threshold_m)))
-        if not verdict.broken or verdict.region_m is None:
+        region = verdict.region_m if verdict.broken else None
+        self._show_metric_labels(region is None)
+        if region is None:
             rec.log(paths.break_region, rr.Clear(recursive=True))  # its label too
             return
-        x0, y0, x1, y1 = verdict.region_m
+        x0, y0, x1, y1 = region
         z = overlay_z_m(snapshot, layer=3)
         corners = map_to_metric_m(
             np.array([[x0, y0, z], [x1, y0, z], [x1, y1, z], [x0, y1, z], [x0, y0, z]]),
@@ -793,6 +802,17 @@ class TopicLogger:
                 labels=[f"break: {verdict.score_m:.2f} m of map contradicted"],
             ),
         )
+
+    def _show_metric_labels(self, show: bool) -> None:
+        """Show or hide the metric view's direction labels (their lines stay). The break region's
+        label is wide (half the view on a 50 m map) and hangs under the region, where it covered a
+        direction's label, or the direction's label covered it ("walls 168 break: 22.00 m ..."):
+        while the region is drawn, the segmentation view above names the directions alone."""
+        if self._metric_labels is None or show != self._metric_labels_hidden:
+            return
+        labels = self._metric_labels if show else []
+        self.recording.log(self.paths.metric_directions, rr.Points3D.from_fields(labels=labels))
+        self._metric_labels_hidden = not show
 
     def log_break(self, score: float | None, text: str, *, failure: bool = False) -> None:
         """A break: a marker on the W plot at ``score`` (None: none, W is not plotted there; a

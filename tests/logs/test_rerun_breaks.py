@@ -11,7 +11,7 @@ rr = pytest.importorskip("rerun")
 from rerun import chunk as rerun_chunk  # noqa: E402
 
 from rose_logs.rerun import RerunSink  # noqa: E402
-from rose_logs.rerun.paths import TIMELINE, EntityPaths  # noqa: E402
+from rose_logs.rerun.paths import SEQUENCE_TIMELINE, TIMELINE, EntityPaths  # noqa: E402
 from rose_logs.session.breaks import BreakScore, DetectedBreak  # noqa: E402
 from rose_logs.snapshots import MapSnapshot  # noqa: E402
 
@@ -161,3 +161,57 @@ def test_a_break_found_at_the_session_end_plots_the_anchor_threshold(session_end
     assert "(threshold 2.5 m)" in found.text
     values = _scalars_at_last_time(rows[f"/{EntityPaths('map').break_threshold}"])
     assert values[-1] == pytest.approx(2.5)
+
+
+def test_the_metric_views_direction_labels_give_way_to_a_break_region(tmp_path: Path) -> None:
+    """The break region's label hangs wide under the region, where it covered a direction's label
+    or was covered by it ("walls 168 break: 22.00 m ..." on the Freiburg 101 break): while the
+    region is drawn the metric view's direction lines lose their labels (the segmentation view
+    names the directions), and get them back when it goes, also on a map shown again unchanged."""
+    from synthetic import ros_floor_plan
+
+    import rose
+    from rose_logs.rerun import TopicLogger, set_snapshot_time
+
+    grid = ros_floor_plan()
+    snapshot = MapSnapshot("/map", 0, 0, "map", grid, 0.05, (1.0, 2.0, 0.0))
+    result = rose.analyze(grid)
+    paths = EntityPaths("map")
+    path = tmp_path / "labels.rrd"
+    recording = rr.RecordingStream("labels-test")
+    recording.save(path)
+    logger = TopicLogger(recording, paths)
+    quiet = BreakScore(0.5, False, False, 0, None, 0.5)
+    broken = BreakScore(3.0, True, True, 0, (2.0, 3.0, 4.0, 5.0), 3.0)
+    # (time, full snapshot logged, verdict): a map shown again logs its break score only.
+    for t, full, verdict in (
+        (1, True, quiet),
+        (2, True, broken),
+        (3, False, broken),
+        (4, False, quiet),
+    ):
+        set_snapshot_time(recording, log_time_ns=t, start_ns=0, index=t)
+        if full:
+            logger.log_snapshot(snapshot, result, None)
+        logger.log_break_score(snapshot, verdict, 1.25)
+    recording.flush()
+    recording.disconnect()
+    logged = []  # (snapshot, row id: in logging order, labels)
+    for chunk in rerun_chunk.RrdReader(path).stream().to_chunks():
+        if chunk.is_static or chunk.entity_path != f"/{paths.metric_directions}":
+            continue
+        batch = chunk.to_record_batch()
+        if "Points3D:labels" in batch.schema.names:
+            logged += zip(
+                batch.column(SEQUENCE_TIMELINE).to_pylist(),
+                batch.column("rerun.controls.RowId").to_pylist(),
+                batch.column("Points3D:labels").to_pylist(),
+                strict=True,
+            )
+    # What the viewer shows at each snapshot: the last labels logged at it (latest-at).
+    labels = {
+        index: row_labels for index, _, row_labels in sorted(logged) if row_labels is not None
+    }
+    named = [f"walls {d:.1f}°" for d in np.degrees(result.dominant_directions)]
+    assert len(named) == 2
+    assert labels == {1: named, 2: [], 4: named}
