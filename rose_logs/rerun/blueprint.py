@@ -1,11 +1,11 @@
 """The default layout: "when does my map break, and what does ROSE see there?"
 
-Left, large: the segmentation (structure blue, clutter orange, clutter kept as wall teal) with the
-dominant directions; below it the map from above in metres on a 1 m grid, and the occupied cells'
-scores. Right: W over session time with the trust and failure levels and the breaks marked, the break
-detector's score over the same time, the cumulative amplitude per direction with
-its peaks and prominence threshold, the spectrum with the kept strips, and the events (only when the
-session has any). Panels are collapsed so the views get the window.
+Left, large: the segmentation (structure blue, clutter orange, clutter kept as wall teal, walls drawn
+by the cleaning crimson, wall segments green) with the dominant directions; below it the map from
+above in metres on a metric grid, and the occupied cells' scores. Right: W over session time with
+the trust and failure levels and the breaks marked, the break detector's score over the same time,
+the cumulative amplitude per direction with its peaks and prominence threshold, the spectrum with
+the kept strips, and the events (only when the session has any). Panels are collapsed so the views get the window.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from rerun.encodings import EntityPathLike
 from rose_logs.rerun import style
 from rose_logs.rerun.paths import SESSION_TIMELINE, EntityPaths
 
-__all__ = ["TopicLayout", "default_blueprint"]
+__all__ = ["TopicLayout", "default_blueprint", "segmentation_title"]
 
 _FOV_Y_RAD = math.radians(55.0)  # the 3D view's default vertical field of view
 _ASSUMED_ASPECT = 1.3  # width / height of the metric view in the default layout
@@ -44,6 +44,9 @@ class TopicLayout:
         (:func:`rose_logs.rerun.loggers.view_origin_m`).
     has_events : bool
         Whether the topic has break events (the events view is shown only then).
+    has_walls : bool
+        Whether wall segments are drawn over the maps (``--walls``): the segmentation's title
+        names their colour.
     w_top, break_top : float or None
         Highest value the W plot / the break-score plot shows (data and guide lines): the plots get
         headroom above it so a guide line at the top stays visible. None: fit to the data (live).
@@ -59,6 +62,7 @@ class TopicLayout:
     bounds_m: tuple[float, float, float, float] | None = None
     view_origin_m: tuple[float, float] = (0.0, 0.0)
     has_events: bool = False
+    has_walls: bool = False
     w_top: float | None = None
     break_top: float | None = None
     one_time_window_s: float | None = None
@@ -119,6 +123,18 @@ def _north_up_bounds(layout: TopicLayout, *, below: float = 0.0) -> rrb.VisualBo
     )
 
 
+def segmentation_title(root: str, *, has_walls: bool = False) -> str:
+    """The segmentation view's title: the topic and every colour the view draws but magenta (the
+    directions, labelled). The cleaning's teal and crimson cells are in every session's picture,
+    and the wall segments' green over the walls with ``--walls``: a title naming blue and orange
+    only left them unexplained (and with the walls drawn, hardly any blue showed)."""
+    walls = ", wall segments (green)" if has_walls else ""
+    return (
+        f"{root}: segmentation, structure (blue) / clutter (orange), walls the cleaning "
+        f"kept (teal) / drew (crimson){walls}, north up"
+    )
+
+
 def _topic_container(layout: TopicLayout) -> rrb.Container:
     paths = EntityPaths(layout.root)
     root = paths.root
@@ -126,7 +142,7 @@ def _topic_container(layout: TopicLayout) -> rrb.Container:
     # The topic in the first view's title only: in the others' it cut their legends off (a
     # long topic name); the topic's tab names it too.
     segmentation = rrb.Spatial2DView(
-        name=f"{root}: segmentation, structure (blue) / clutter (orange), north up",
+        name=segmentation_title(root, has_walls=layout.has_walls),
         origin=f"/{paths.cells}",
         visual_bounds=_north_up_bounds(layout),
     )

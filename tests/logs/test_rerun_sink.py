@@ -1289,3 +1289,18 @@ def test_a_topic_at_one_time_gets_plots_a_time_axis_can_draw(
         else:
             assert window == {"start": None, "end": None}  # infinite: the whole session
             assert not view.visualizer_overrides
+
+
+def test_the_segmentation_title_names_every_colour_it_draws(tmp_path: Path, clean_session) -> None:
+    """The title named blue and orange only: the cleaning's teal and crimson cells, in every
+    session's picture, and the green wall segments of ``--walls`` (drawn over the structure, which
+    then hardly showed blue) went unexplained."""
+    _, clean = clean_session
+    rrd = tmp_path / "walls.rrd"
+    process_log(SAMPLE, rrd_path=rrd, walls=True)
+    walls = _read(rrd)
+    for content, has_walls in ((clean, False), (walls, True)):
+        (title,) = [name for kind, name in content.views if name.startswith("map: segmentation")]
+        assert "structure (blue)" in title and "clutter (orange)" in title
+        assert "kept (teal)" in title and "drew (crimson)" in title
+        assert ("wall segments (green)" in title) is has_walls
