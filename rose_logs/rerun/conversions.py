@@ -561,6 +561,50 @@ def _label_anchors(peaks: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
     return np.stack([x, y], axis=-1)
 
 
+#: Where the prominence threshold's label ("t = 0.5", about 40 degrees wide at the default layout)
+#: stands on its line when no peak is near: between the peaks of walls at 0° and 45°, right of the
+#: y axis's tick labels.
+THRESHOLD_LABEL_DEG = 22.5
+#: How far (degrees) the threshold label's centre keeps from every peak: half its width and a
+#: little more, so that no peak's bar runs through it (at 22.5° it covered the bar of a building
+#: turned by 20°).
+THRESHOLD_LABEL_CLEAR_DEG = 25.0
+
+
+def threshold_label_deg(peaks_deg: npt.NDArray[np.float64]) -> float:
+    """Centre (degrees) of the threshold's label on its line: :data:`THRESHOLD_LABEL_DEG` unless a
+    peak is nearer than :data:`THRESHOLD_LABEL_CLEAR_DEG` (on the half circle: a peak at 179° rises
+    from 0° too), else the middle of the gap between peaks where it is farthest from them (kept
+    as far from the plot's ends as the default)."""
+    peaks = np.mod(np.asarray(peaks_deg, dtype=np.float64).ravel(), 180.0)
+
+    def clearance(x: float) -> float:
+        if peaks.size == 0:
+            return math.inf
+        d = np.abs(peaks - x)
+        return float(np.minimum(d, 180.0 - d).min())
+
+    if clearance(THRESHOLD_LABEL_DEG) >= THRESHOLD_LABEL_CLEAR_DEG:
+        return THRESHOLD_LABEL_DEG
+    edges = np.concatenate([[0.0], np.sort(peaks), [180.0]])
+    lo, hi = THRESHOLD_LABEL_DEG, 180.0 - THRESHOLD_LABEL_DEG
+    candidates = np.clip((edges[:-1] + edges[1:]) / 2, lo, hi)
+    return max(candidates.tolist(), key=lambda x: (clearance(x), -x))
+
+
+def threshold_strips(level: float, label_deg: float) -> list[list[tuple[float, float]]]:
+    """The threshold line at ``level`` (plot units) across 0..180 degrees in pieces, the first
+    centred on ``label_deg``: Rerun centres a strip's label on it, and the label goes on the
+    first."""
+    half = min(label_deg, 180.0 - label_deg)
+    strips = [[(label_deg - half, level), (label_deg + half, level)]]
+    if label_deg - half > 0.0:
+        strips.append([(0.0, level), (label_deg - half, level)])
+    if label_deg + half < 180.0:
+        strips.append([(label_deg + half, level), (180.0, level)])
+    return strips
+
+
 @dataclass(frozen=True)
 class AmplitudePlot:
     """The scaled cumulative amplitude as plot geometry (x: degrees, y: ``-AMPLITUDE_PLOT_HEIGHT * s``).
@@ -580,6 +624,9 @@ class AmplitudePlot:
         other labels (:func:`_label_anchors`).
     threshold : float
         The prominence threshold ``t`` (a fraction of max - min, so a level of ``s``).
+    threshold_label_deg : float
+        Where the threshold's label stands on its line, clear of the peaks
+        (:func:`threshold_label_deg`).
     """
 
     curve: npt.NDArray[np.float64]
@@ -588,6 +635,7 @@ class AmplitudePlot:
     peak_labels: list[str]
     label_anchors: npt.NDArray[np.float64]
     threshold: float
+    threshold_label_deg: float = THRESHOLD_LABEL_DEG
 
 
 def amplitude_plot(result: RoseResult, *, yaw_rad: float = 0.0) -> AmplitudePlot:
@@ -634,4 +682,5 @@ def amplitude_plot(result: RoseResult, *, yaw_rad: float = 0.0) -> AmplitudePlot
         peak_labels=labels,
         label_anchors=_label_anchors(peaks),
         threshold=float(result.params.peak_prominence),
+        threshold_label_deg=threshold_label_deg(peak_deg),
     )

@@ -716,27 +716,34 @@ class TopicLogger:
 
         One entity: the curve and a vertical bar per peak (its prominence, down from the peak) as
         line strips, the labelled peaks as points. The prominence threshold is a parameter of the
-        session: drawn once, as static data.
+        session (its style is static), its label placed clear of the peaks
+        (:func:`conv.threshold_label_deg`): at 22.5° it stood on the bar of a building turned by
+        20°.
         """
         rec, paths = self.recording, self.paths
         plot = conv.amplitude_plot(result, yaw_rad=yaw_rad)
+        level = -style.AMPLITUDE_PLOT_HEIGHT * plot.threshold
         if not self._threshold_logged:
-            level = -style.AMPLITUDE_PLOT_HEIGHT * plot.threshold
-            # Two pieces, the label on the first: Rerun centres a strip's label on it, and the
-            # centre of 0..180 is 90°, where most buildings have a peak whose bar crossed it.
-            # Centred on 22.5° it stands between the peaks of walls at 0° and 45°.
+            # The line's style is static (a parameter of the session); its pieces are logged with
+            # each snapshot: its label stands where no peak's bar runs through it.
             rec.log(
                 paths.amplitude_threshold,
-                rr.LineStrips2D(
-                    [[(0.0, level), (45.0, level)], [(45.0, level), (180.0, level)]],
+                rr.LineStrips2D.from_fields(
                     colors=style.THRESHOLD_COLOR,
                     radii=rr.Radius.ui_points(1.0),
-                    labels=[f"t = {plot.threshold:g}", ""],
                     show_labels=True,
                 ),
                 static=True,
             )
             self._threshold_logged = True
+        strips = conv.threshold_strips(level, plot.threshold_label_deg)
+        rec.log(
+            paths.amplitude_threshold,
+            rr.LineStrips2D.from_fields(
+                strips=strips,
+                labels=[f"t = {plot.threshold:g}"] + [""] * (len(strips) - 1),
+            ),
+        )
         colors, radii = _curve_style(len(plot.peak_labels))
         rec.log(
             paths.amplitude_curve,

@@ -29,7 +29,7 @@ Paths are lowercase and live below one root per map topic (``/map`` -> ``map``):
     <root>/amplitude/curve                      s per direction, a bar per peak (its prominence),
                                                 Points2D: the dominant peaks
     <root>/amplitude/peak_labels                the peaks' labels, on points above the peaks
-    <root>/amplitude/prominence_threshold       the threshold t (static: a session parameter)
+    <root>/amplitude/prominence_threshold       the threshold t (static style; its label placed clear of the peaks)
     <root>/structure_score/w         Scalars: W, trust level, failure level (three series, static styles)
     <root>/structure_score/breaks    Scalars: W at every break the detector finds (crosses)
     <root>/structure_score/failures  Scalars: W where it rises above the failure level (triangles)

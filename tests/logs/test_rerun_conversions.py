@@ -372,3 +372,27 @@ def test_the_display_factor_keeps_maps_up_to_the_limit_whole() -> None:
     assert conv.display_factor((0, 0, 1453, 2073)) == 3
     with pytest.raises(ValueError, match="max_px"):
         conv.display_factor((0, 0, 5, 5), max_px=0)
+
+
+@pytest.mark.parametrize(
+    ("peaks", "expected"),
+    [
+        ([], 22.5),
+        ([86.3, 176.2], 22.5),  # the sample: the usual place is clear
+        ([20.0, 110.0], 65.0),  # a building turned by 20°: its bar ran through "t = 0.5"
+        ([179.0, 89.0], 134.0),  # a peak at 179° rises from 0° too
+        ([0.0, 30.0, 90.0, 120.0], 60.0),  # of two gaps as wide, the left one
+    ],
+)
+def test_the_threshold_label_stands_clear_of_the_peaks(peaks: list[float], expected: float) -> None:
+    label = conv.threshold_label_deg(np.array(peaks))
+    assert label == pytest.approx(expected)
+    for peak in peaks:
+        distance = abs(label - peak)
+        assert min(distance, 180.0 - distance) >= conv.THRESHOLD_LABEL_CLEAR_DEG
+    # The first piece of the line is centred on the label (Rerun centres a strip's label on it),
+    # and the pieces cover 0..180 once.
+    strips = conv.threshold_strips(-45.0, label)
+    assert np.mean([x for x, _ in strips[0]]) == pytest.approx(label)
+    assert sum(b[0] - a[0] for a, b in strips) == pytest.approx(180.0)
+    assert {y for strip in strips for _, y in strip} == {-45.0}

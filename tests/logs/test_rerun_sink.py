@@ -197,6 +197,7 @@ def test_styles_are_static_and_snapshots_send_only_what_changes(clean_session) -
         PATHS.spectrum: {"DepthImage:colormap", "DepthImage:meter", "LineStrips2D:colors"},
         PATHS.amplitude_curve: {"Points2D:colors", "Points2D:radii"},
         PATHS.amplitude_peak_labels: {"Points2D:colors", "Points2D:show_labels"},
+        PATHS.amplitude_threshold: {"LineStrips2D:colors", "LineStrips2D:show_labels"},
     }
     for entity, columns in styles.items():
         assert content.static_rows[f"/{entity}"] == 1, entity
