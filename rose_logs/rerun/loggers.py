@@ -215,6 +215,8 @@ class TopicLogger:
     display_max_px : int, default ``style.DISPLAY_MAX_PX``
         Longest side of the segmentation and cell-score images: a larger map is shown pooled
         (:func:`conv.display_factor`); the metric view's grid stays at full resolution.
+    scores_max_px : int, default ``style.SCORES_DISPLAY_MAX_PX``
+        Longest side of the cell-score image (at most ``display_max_px``): its view is smaller.
     """
 
     def __init__(
@@ -226,10 +228,12 @@ class TopicLogger:
         trust_level: float = TRUST_LEVEL,
         live: bool = True,
         display_max_px: int = style.DISPLAY_MAX_PX,
+        scores_max_px: int = style.SCORES_DISPLAY_MAX_PX,
     ) -> None:
         self.recording = recording
         self.live = live
         self.display_max_px = display_max_px
+        self.scores_max_px = min(scores_max_px, display_max_px)
         self.paths = paths
         self.failure_level = float(failure_level)
         self.trust_level = float(trust_level)
@@ -621,7 +625,8 @@ class TopicLogger:
         result: RoseResult,
         occupied: conv.OccupiedCells | None = None,
     ) -> None:
-        """Occupied cells' scores, colour-mapped (other cells transparent), the labels (scale,
+        """Occupied cells' scores, colour-mapped (other cells transparent; pooled beyond
+        ``scores_max_px``, each pixel the lowest score of its block), the labels (scale,
         threshold) of the colour bar and, ``live``, its placement under the occupied cells."""
         rec, paths = self.recording, self.paths
         occupied = occupied or conv.occupied_cells(result, conv.image_window(snapshot.grid))
@@ -644,7 +649,7 @@ class TopicLogger:
             labels.append(f"threshold {result.threshold:.2f}")
             # A tick across the bar, from above it (where the label is) to its lower edge.
             tick = np.array([[(at, -0.6), (at, 2.0)]])
-        factor = conv.display_factor(occupied.window, self.display_max_px)
+        factor = conv.display_factor(occupied.window, self.scores_max_px)
         rec.log(
             paths.cell_scores,
             segmentation_image(conv.pool_scores(conv.masked_score_image(result, occupied), factor)),

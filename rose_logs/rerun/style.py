@@ -27,6 +27,7 @@ __all__ = [
     "FAILURE_COLOR",
     "GUIDE_LINE_WIDTH",
     "PEAK_COLOR",
+    "SCORES_DISPLAY_MAX_PX",
     "SCORE_DISPLAY_MIN",
     "SPECTRUM_DISPLAY_PX",
     "TRUST_COLOR",
@@ -58,6 +59,11 @@ CLASS_INFO: Final = (
 #: mipmaps (rerun-io/rerun#2039), so a map several times the view's size showed one wall cell in
 #: several: dotted walls, a scores view of scattered dots. About a full-HD view's size.
 DISPLAY_MAX_PX: Final = 1024
+#: Longest side, in pixels, of the cell-score image: its view is a quarter of the segmentation's
+#: (about 480 x 330 pixels in a 1600 x 1000 window, with the colour bar under the map), and at
+#: 1024 pixels Rerun drew one cell in two or three there: the Freiburg 101 map's walls came out
+#: as scattered dots. Each pixel is the lowest score of its block, so a low-scoring cell shows.
+SCORES_DISPLAY_MAX_PX: Final = 384
 
 DIRECTION_COLOR: Final = (200, 0, 160)
 #: Wall segments (``--walls``): green, drawn thin (Rerun 0.41 draws lines opaque, whatever their

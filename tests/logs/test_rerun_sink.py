@@ -1305,3 +1305,33 @@ def test_the_segmentation_title_names_every_colour_it_draws(tmp_path: Path, clea
         assert "structure (blue)" in title and "clutter (orange)" in title
         assert "kept (teal)" in title and "drew (crimson)" in title
         assert ("wall segments (green)" in title) is has_walls
+
+
+def test_the_scores_view_gets_an_image_about_its_size(tmp_path: Path) -> None:
+    """The scores view is a quarter of the segmentation's: a 1707-cell map at the segmentation's
+    1024 pixels was drawn from one pixel in two or three there (walls as scattered dots). Its image
+    is pooled to the scores' own size, each pixel the lowest score of its block; the segmentation
+    keeps its 1024."""
+    from synthetic import ros_floor_plan
+
+    import rose
+    from rose_logs.rerun import TopicLogger
+    from rose_logs.rerun.style import DISPLAY_MAX_PX, SCORES_DISPLAY_MAX_PX
+
+    grid = ros_floor_plan((800, 1000))
+    result = rose.analyze(grid)
+    rrd = tmp_path / "s.rrd"
+    recording = _recording_at_zero(rrd)
+    snapshot = _yawed(grid, 0.0, (0.0, 0.0))
+    TopicLogger(recording, PATHS).log_snapshot(snapshot, result, None)
+    recording.flush()
+    recording.disconnect()
+    content = _read(rrd)
+
+    def longest(entity: str) -> int:
+        (row,) = content.rows(entity)
+        (image_format,) = row["SegmentationImage:format"]
+        return max(image_format["width"], image_format["height"])
+
+    assert SCORES_DISPLAY_MAX_PX / 2 < longest(PATHS.cell_scores) <= SCORES_DISPLAY_MAX_PX
+    assert DISPLAY_MAX_PX / 2 < longest(PATHS.segmentation) <= DISPLAY_MAX_PX
