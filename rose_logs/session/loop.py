@@ -1013,11 +1013,11 @@ class _Loop:
         )
         rerun.break_score(snapshot, verdict, index, self._threshold_in_force(verdict))
         if verdict.incomparable_with is not None:
-            # In the viewer too: the break score falls to 0 there, which read as a recovery.
+            # In the viewer too: the break score falls to 0 there, which read as a recovery. Short
+            # enough for the events view, which cuts a line (at about 140 characters) unwrapped.
             restart = (
-                f"break detector restarted: not comparable with snapshot "
-                f"{verdict.incomparable_with} (another cell size, frame or orientation, or an "
-                "origin off its cells); a break across the change is not seen"
+                "break detector restarted: cell size, frame, orientation or origin differs from "
+                f"snapshot {verdict.incomparable_with}; a break across the change is not seen"
             )
             rerun.event(snapshot, restart, index, None)
         if returned is not None:
