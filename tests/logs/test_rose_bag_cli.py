@@ -1252,17 +1252,24 @@ def test_a_report_inside_the_input_bag_folder_is_still_said_to_be_inside_the_inp
     assert sorted(p.name for p in bag.iterdir()) == ["in.db3", "metadata.yaml"]
 
 
+def _db3_bag_with_metadata_edited(tmp_path: Path, pattern: str, replacement: str) -> Path:
+    """The sample as a ROS 2 bag folder ``tmp_path/run`` whose metadata.yaml has the one line
+    ``pattern`` matches replaced."""
+    bag = tmp_path / "run"
+    assert main(["process", str(SAMPLE), "--format", "db3", "-o", str(bag), "-q"]) == 0
+    metadata = bag / "metadata.yaml"
+    text, count = re.subn(pattern, replacement, metadata.read_text())
+    assert count == 1
+    metadata.write_text(text)
+    return bag
+
+
 def test_a_metadata_yaml_without_a_key_rosbags_reads_is_said_so_in_our_words(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """`info bag` said `corrupt or truncated log (A metadata key is missing
     KeyError('topics_with_message_count').)`: nothing was cut, the metadata lacks a key."""
-    bag = tmp_path / "run"
-    assert main(["process", str(SAMPLE), "--format", "db3", "-o", str(bag), "-q"]) == 0
-    metadata = bag / "metadata.yaml"
-    text, count = re.subn(r"(?m)^  message_count: \d+\n", "", metadata.read_text())
-    assert count == 1
-    metadata.write_text(text)
+    bag = _db3_bag_with_metadata_edited(tmp_path, r"(?m)^  message_count: \d+\n", "")
     capsys.readouterr()
     for command in (["info"], ["process", "--no-output"]):
         assert main([command[0], str(bag), *command[1:]]) == 1
@@ -1279,12 +1286,7 @@ def test_a_bag_of_a_newer_rosbag2_version_is_said_so_in_our_words(
     `corrupt or truncated log`: the bag is neither, and the issue is not rosbags's to hear of."""
     from rosbags.rosbag2.writer import Writer
 
-    bag = tmp_path / "run"
-    assert main(["process", str(SAMPLE), "--format", "db3", "-o", str(bag), "-q"]) == 0
-    metadata = bag / "metadata.yaml"
-    text, count = re.subn(r"(?m)^  version: \d+$", "  version: 99", metadata.read_text())
-    assert count == 1
-    metadata.write_text(text)
+    bag = _db3_bag_with_metadata_edited(tmp_path, r"(?m)^  version: \d+$", "  version: 99")
     capsys.readouterr()
     for command in (["info"], ["process", "--no-output"]):
         assert main([command[0], str(bag), *command[1:]]) == 1
