@@ -352,7 +352,9 @@ def _bag_folder_extras(path: Path) -> list[str] | None:
         metadata = _metadata_text(Path(path))
     except OSError:
         return None
-    if metadata is None:
+    # A bag by is_bag_folder's test: another tool's metadata.yaml lists its own files (a data
+    # set's), which `-o DIR --force` then deleted as the bag's.
+    if metadata is None or not _is_bag_metadata(metadata, [e.name for e in entries]):
         return None
     extras = []
     for entry in entries:
@@ -421,14 +423,20 @@ def is_bag_folder(folder: Path | str) -> bool:
         metadata = _metadata_text(folder)
         if metadata is None:
             return False
-        if "rosbag2_bagfile_information" in metadata:
+        if "rosbag2_bagfile_information" in metadata:  # (no listing needed)
             return True
-        return any(
-            Path(e.name).suffix.lower() in _BAG_STORAGE_SUFFIXES and e.name in metadata
-            for e in os.scandir(folder)
-        )
+        return _is_bag_metadata(metadata, [e.name for e in os.scandir(folder)])
     except OSError:  # unreadable: taken as a bag
         return True
+
+
+def _is_bag_metadata(metadata: str, names: Iterable[str]) -> bool:
+    """Whether ``metadata`` (a folder's ``metadata.yaml``, its first MiB) makes the folder holding
+    the entries ``names`` a ROS 2 bag: rosbag2's own, or one naming a ``.db3`` / ``.mcap`` among
+    them (a bag whose metadata is damaged)."""
+    return "rosbag2_bagfile_information" in metadata or any(
+        Path(name).suffix.lower() in _BAG_STORAGE_SUFFIXES and name in metadata for name in names
+    )
 
 
 def refuse_output_in_bag_folder(

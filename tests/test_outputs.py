@@ -154,7 +154,7 @@ def test_force_replaces_only_bag_folders(tmp_path: Path) -> None:
     assert (photos / "a.jpg").read_bytes() == b"jpg"
     bag = tmp_path / "bag"
     bag.mkdir()
-    (bag / "metadata.yaml").write_text("old")
+    (bag / "metadata.yaml").write_text("rosbag2_bagfile_information:\n  version: 5\n")
     with OutputSet(force=True) as outputs:
         staged = outputs.stage(bag, directory=True)
         staged.temp.mkdir()
@@ -512,6 +512,35 @@ def test_a_folder_with_some_other_metadata_yaml_is_no_bag(tmp_path: Path) -> Non
     assert enclosing_bag_folder(tmp_path / "map.png") is None
     staged = OutputSet(inputs=[tmp_path / "map.png"]).stage(tmp_path / "clean.yaml")
     assert staged.path == tmp_path / "clean.yaml"
+
+
+def test_force_never_replaces_a_folder_whose_metadata_yaml_is_another_tools(
+    tmp_path: Path,
+) -> None:
+    """`process LOG -o data --format db3 --force` deleted a data set folder whose own
+    metadata.yaml listed its files: they were taken for the bag's, though is_bag_folder says
+    such a folder is no bag."""
+    from rose.outputs import is_bag_folder
+
+    data = tmp_path / "data"
+    data.mkdir()
+    (data / "metadata.yaml").write_text("name: office scans\nfiles:\n- a.csv\n- b.csv\n")
+    for name in ("a.csv", "b.csv"):
+        (data / name).write_text("1,2\n")
+    assert not is_bag_folder(data)
+    with pytest.raises(OutputError, match="is a directory that is not a ROS 2 bag"):
+        OutputSet(force=True).stage(data, directory=True)
+    assert sorted(p.name for p in data.iterdir()) == ["a.csv", "b.csv", "metadata.yaml"]
+    # A bag whose metadata.yaml is damaged (rosbag2's key lost) but names its storage file
+    # beside it is still one: replaceable.
+    (data / "metadata.yaml").write_text("relative_file_paths:\n- data_0.db3\n")
+    for name in ("a.csv", "b.csv"):
+        (data / name).unlink()
+    (data / "data_0.db3").write_bytes(b"db3")
+    assert is_bag_folder(data)
+    outputs = OutputSet(force=True)
+    outputs.stage(data, directory=True)
+    outputs.abort()
 
 
 def test_a_fifo_named_metadata_yaml_is_no_bag_and_never_read(tmp_path: Path) -> None:
