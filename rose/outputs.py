@@ -89,6 +89,8 @@ _MAX_TAG_CHARS = 24 + 1 + 8 + 6 + 10
 #: Longest output name, bytes: its temporary ``.NAME.rose-tmp-<tag>-<pid>-<8 hex>`` (pids up to
 #: 2**22, seven digits) must stay within the 255 bytes most file systems allow.
 _MAX_OUTPUT_NAME_BYTES = 255 - (len(".") + len(".rose-tmp-") + _MAX_TAG_CHARS + 1 + 7 + 1 + 8)
+#: Whether os.access can ask with the effective user and group ids (faccessat's AT_EACCESS).
+_EFFECTIVE_IDS = os.access in os.supports_effective_ids
 #: A temporary of rose-bag 0.1 before the process tags: ``.NAME.rose-<kind>-<pid>-<random>``.
 _OLD_TEMP_RE = re.compile(r"^\..+\.rose-(?:tmp|old)-\d+-[0-9a-f]+$")
 
@@ -586,8 +588,11 @@ class OutputSet:
             self._check_existing(path, target, directory=directory, replaceable=replaceable)
             if not target.parent.is_dir():
                 raise OutputError(_no_folder(path, target.parent))
-            if not os.access(target.parent, os.W_OK | os.X_OK):  # a read-only mount too
+            if not os.access(target.parent, os.W_OK | os.X_OK, effective_ids=_EFFECTIVE_IDS):
                 # Said now: staging found it only once the work was done (`rose clean` of a big map).
+                # A read-only mount too. Asked as writing asks, with the effective ids: by the
+                # real ones, access() refused a folder a process may write in (a non-root user
+                # with CAP_DAC_OVERRIDE, a set-user-ID program).
                 msg = f"{path}: folder {target.parent} is not writable"
                 raise OutputError(msg)
 

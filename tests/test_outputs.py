@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -609,3 +610,44 @@ def test_the_longest_output_name_stages_under_a_long_host_name(
 def test_counts_are_said_in_the_singular_for_one() -> None:
     """`convert` printed "1 scans, 1 maps" and `rose walls` "1 walls"."""
     assert [counted(n, "scan") for n in (0, 1, 2)] == ["0 scans", "1 scan", "2 scans"]
+
+
+@pytest.mark.skipif(
+    sys.platform != "linux" or os.geteuid() != 0 or shutil.which("setpriv") is None,
+    reason="needs root and setpriv to run a non-root process with CAP_DAC_OVERRIDE",
+)
+def test_the_writable_check_asks_with_the_ids_writing_uses(tmp_path: Path) -> None:
+    """A non-root process with CAP_DAC_OVERRIDE (a container's user given it) may write in a
+    root-owned 0755 folder, but access() by the real ids said no: its outputs were refused as
+    'not writable' before any work, though writing them succeeds."""
+    import rose
+
+    folder = tmp_path / "root_owned"
+    folder.mkdir(mode=0o755)
+    code = (
+        "import sys; from rose.outputs import OutputSet; "
+        "OutputSet().check(sys.argv[1]); open(sys.argv[1], 'w').write('ok')"
+    )
+    done = subprocess.run(
+        [
+            "setpriv",
+            "--reuid=65534",
+            "--regid=65534",
+            "--clear-groups",
+            "--inh-caps=+dac_override",
+            "--ambient-caps=+dac_override",
+            sys.executable,
+            "-c",
+            code,
+            str(folder / "out.json"),
+        ],
+        env={**os.environ, "PYTHONPATH": str(Path(rose.__file__).parents[1])},
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    if "setpriv:" in done.stderr:  # no capabilities to hand on (a restricted container)
+        pytest.skip(done.stderr.strip())
+    assert done.returncode == 0, done.stderr
+    assert (folder / "out.json").read_text() == "ok"
