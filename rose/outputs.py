@@ -384,7 +384,8 @@ def _metadata_text(folder: Path) -> str | None:
         If the file is there but cannot be read.
     """
     try:
-        fd = os.open(folder / "metadata.yaml", os.O_RDONLY | os.O_NONBLOCK)
+        # (Windows has no O_NONBLOCK, and no FIFOs to block on.)
+        fd = os.open(folder / "metadata.yaml", os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
     except (FileNotFoundError, NotADirectoryError):  # no such file, or ``folder`` is a file
         return None
     with os.fdopen(fd, "rb") as f:

@@ -22,6 +22,7 @@ from rose.outputs import (
     counted,
     json_text,
     process_tag,
+    refuse_output_in_bag_folder,
     remove_stale_temporaries,
     temporary_name,
 )
@@ -574,6 +575,25 @@ def test_a_fifo_named_metadata_yaml_is_no_bag_and_never_read(tmp_path: Path) -> 
         False,
         f"{bag}: is a directory that is not a ROS 2 bag, not replacing it",
     ]
+
+
+def test_bag_folders_are_told_where_os_has_no_o_nonblock(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Windows has no os.O_NONBLOCK: every output's bag-folder check (rose clean -o, process
+    --json, ...) failed there with an AttributeError since metadata.yaml was opened with it."""
+    from rose.outputs import enclosing_bag_folder, is_bag_folder
+
+    bag = tmp_path / "bag"
+    bag.mkdir()
+    (bag / "metadata.yaml").write_text("rosbag2_bagfile_information:\n  files: [bag_0.db3]\n")
+    (bag / "bag_0.db3").write_bytes(b"db3")
+    monkeypatch.delattr(os, "O_NONBLOCK")
+    assert is_bag_folder(bag)
+    assert not is_bag_folder(tmp_path)
+    assert enclosing_bag_folder(bag / "bag_0.db3") == bag
+    with pytest.raises(OutputError, match="inside the ROS 2 bag folder"):
+        refuse_output_in_bag_folder(bag / "out.json", "--json")
 
 
 def test_an_output_under_a_file_says_the_file_is_no_folder(tmp_path: Path) -> None:
