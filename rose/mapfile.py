@@ -286,8 +286,8 @@ _HEAD_BYTES = 1 << 20
 def _read_image_file(path: Path, max_cells: int | None) -> bytes:
     """The bytes of the image file ``path`` that a decoder needs, read whole only when needed.
 
-    Under a cell limit, a file whose first bytes announce no format whose size is checked, or
-    whose header declares too many cells, is read no further (the caller refuses it from them):
+    Under a cell limit, a file whose first bytes announce no format whose size is checked (a
+    BigTIFF too), or whose header declares too many cells, is read no further (the caller refuses it from them):
     ``rose score run.bag``, a log given as a map, read the whole log first, 1.6 GB for 1.5 GB. A
     file far larger than its declared image can be is refused here. A binary PNM is read up to its
     last sample (what follows is never decoded).
@@ -296,7 +296,7 @@ def _read_image_file(path: Path, max_cells: int | None) -> bytes:
         with path.open("rb", buffering=0) as file:  # unbuffered: the whole read is one copy
             head = file.read(_HEAD_BYTES)
             if max_cells is not None:
-                if image_kind(head) is None:
+                if image_kind(head) in (None, "BigTIFF"):  # refused under a limit, unsized
                     return head
                 shape = image_shape(head)
                 if shape is not None and check_cells(*shape, max_cells) is not None:

@@ -153,6 +153,8 @@ def _peak_bytes(call: Callable[[], object]) -> int:
             b"P5\n20000 20000\n255\n",
             r"run\.bag: image of 20000 x 20000 = 400,000,000 cells exceeds",
         ),
+        # Refused under a limit whatever follows (its size is never read from its header).
+        (b"II+\x00" + bytes(12), r"run\.bag: not a readable image \(BigTIFF is not read\)"),
     ],
 )
 def test_a_large_file_refused_from_its_first_bytes_is_not_read_whole(
