@@ -527,12 +527,14 @@ def _read_image(path: Path, max_cells: int | None = DEFAULT_MAX_CELLS) -> npt.ND
 def checked_image_bytes(path: Path, max_cells: int | None = DEFAULT_MAX_CELLS) -> bytes:
     """The bytes of the image file ``path``, safe to hand to a decoder: its header read and its
     declared size checked against ``max_cells`` before any decoding (a 10 KB file can declare
-    16000 x 16000 pixels), a PNG's chunks mended as libpng reads them.
+    16000 x 16000 pixels), a PNG's chunks mended as libpng reads them, a binary PNM's up to its
+    last sample (what follows is no part of the image).
 
     Raises
     ------
     MapFileError
-        For a missing or non-regular file, an unreadable or too large image (one line, naming it).
+        For a missing or non-regular file, an unreadable or too large image, or a file far
+        larger than its declared image can be (one line, naming it).
     """
     _require_regular(path, "no such image file")
     raw = _read_image_file(path, max_cells)
