@@ -47,6 +47,9 @@ class TopicLayout:
     has_walls : bool
         Whether wall segments are drawn over the maps (``--walls``): the segmentation's title
         names their colour.
+    walls_cleaning : bool
+        Whether the maps are cleaned by the walls rules, whose kept and drawn walls the
+        segmentation shows (teal, crimson; the paper's labelling has neither).
     w_top, break_top : float or None
         Highest value the W plot / the break-score plot shows (data and guide lines): the plots get
         headroom above it so a guide line at the top stays visible. None: fit to the data (live).
@@ -63,6 +66,7 @@ class TopicLayout:
     view_origin_m: tuple[float, float] = (0.0, 0.0)
     has_events: bool = False
     has_walls: bool = False
+    walls_cleaning: bool = True
     w_top: float | None = None
     break_top: float | None = None
     one_time_window_s: float | None = None
@@ -123,16 +127,15 @@ def _north_up_bounds(layout: TopicLayout, *, below: float = 0.0) -> rrb.VisualBo
     )
 
 
-def segmentation_title(root: str, *, has_walls: bool = False) -> str:
+def segmentation_title(root: str, *, has_walls: bool = False, walls_cleaning: bool = True) -> str:
     """The segmentation view's title: the topic and every colour the view draws but magenta (the
-    directions, labelled). The cleaning's teal and crimson cells are in every session's picture,
-    and the wall segments' green over the walls with ``--walls``: a title naming blue and orange
-    only left them unexplained (and with the walls drawn, hardly any blue showed)."""
+    directions, labelled). The walls cleaning's teal and crimson cells are in nearly every
+    picture it makes, and the wall segments' green over the walls with ``--walls``: a title naming
+    blue and orange only left them unexplained (and with the walls drawn, hardly any blue
+    showed). The paper's labelling (``walls_cleaning`` False) keeps and draws no walls."""
+    cleaning = ", walls the cleaning kept (teal) / drew (crimson)" if walls_cleaning else ""
     walls = ", wall segments (green)" if has_walls else ""
-    return (
-        f"{root}: segmentation, structure (blue) / clutter (orange), walls the cleaning "
-        f"kept (teal) / drew (crimson){walls}, north up"
-    )
+    return f"{root}: segmentation, structure (blue) / clutter (orange){cleaning}{walls}, north up"
 
 
 def _topic_container(layout: TopicLayout) -> rrb.Container:
@@ -142,7 +145,9 @@ def _topic_container(layout: TopicLayout) -> rrb.Container:
     # The topic in the first view's title only: in the others' it cut their legends off (a
     # long topic name); the topic's tab names it too.
     segmentation = rrb.Spatial2DView(
-        name=segmentation_title(root, has_walls=layout.has_walls),
+        name=segmentation_title(
+            root, has_walls=layout.has_walls, walls_cleaning=layout.walls_cleaning
+        ),
         origin=f"/{paths.cells}",
         visual_bounds=_north_up_bounds(layout),
     )

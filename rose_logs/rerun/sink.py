@@ -254,17 +254,21 @@ def _layout_of(
     has_events: bool,
     view_origin: tuple[float, float] | None,
     has_walls: bool = False,
+    walls_cleaning: bool = True,
 ) -> TopicLayout:
     """Layout of a topic framed on ``bounds_m``, the known part of every map of the session so far
     (``view_origin``: the 2D views' 0, see :func:`rose_logs.rerun.loggers.view_origin_m`)."""
     if bounds_m is None:
-        return TopicLayout(root, has_events=has_events, has_walls=has_walls)
+        return TopicLayout(
+            root, has_events=has_events, has_walls=has_walls, walls_cleaning=walls_cleaning
+        )
     return TopicLayout(
         root,
         bounds_m=bounds_m,
         view_origin_m=view_origin if view_origin is not None else (0.0, 0.0),
         has_events=has_events,
         has_walls=has_walls,
+        walls_cleaning=walls_cleaning,
     )
 
 
@@ -388,11 +392,13 @@ class RerunSink:
         self._has_events: dict[str, bool] = dict.fromkeys(topics, False)
         # Whether a snapshot of the topic came with wall segments (--walls): the layout names them.
         self._has_walls: dict[str, bool] = dict.fromkeys(topics, False)
+        # Whether the topic's last cleaning was the walls rules' (the paper's draws no walls).
+        self._walls_cleaning: dict[str, bool] = dict.fromkeys(topics, True)
         # Highest value each topic's W / break-score plot shows, guide lines included (final layout).
         # Both guide lines in view: a --failure-level under the trust level cut the trust off.
         self._w_top: dict[str, float] = dict.fromkeys(topics, max(failure_level, trust_level))
         self._break_top: dict[str, float] = dict.fromkeys(topics, 0.0)
-        self._sent_key: tuple[tuple[str, bool, bool, bool], ...] | None = None
+        self._sent_key: tuple[tuple[str, bool, bool, bool, bool], ...] | None = None
         try:
             self.recording.set_sinks(*sinks)
             self._start(threaded=threaded)
@@ -483,6 +489,8 @@ class RerunSink:
         self._latest[snapshot.topic] = snapshot
         if walls is not None:
             self._has_walls[snapshot.topic] = True
+        if cleaning is not None:
+            self._walls_cleaning[snapshot.topic] = cleaning.method == "walls"
         t = snapshot.log_time_ns
         span = self._span_ns.get(snapshot.topic, (t, t))
         self._span_ns[snapshot.topic] = (min(span[0], t), max(span[1], t))
@@ -614,7 +622,13 @@ class RerunSink:
     def _send_blueprint(self) -> None:
         """Send the layout for what is known now (skipped when nothing it depends on changed)."""
         key = tuple(
-            (topic, topic in self._latest, self._has_events[topic], self._has_walls[topic])
+            (
+                topic,
+                topic in self._latest,
+                self._has_events[topic],
+                self._has_walls[topic],
+                self._walls_cleaning[topic],
+            )
             for topic in self.loggers
         )
         if key == self._sent_key and not self._closing:
@@ -626,6 +640,7 @@ class RerunSink:
                 has_events=self._has_events[topic],
                 view_origin=logger.view_origin_m,
                 has_walls=self._has_walls[topic],
+                walls_cleaning=self._walls_cleaning[topic],
             )
             for topic, logger in self.loggers.items()
         )

@@ -1297,13 +1297,18 @@ def test_the_segmentation_title_names_every_colour_it_draws(tmp_path: Path, clea
     session's picture, and the green wall segments of ``--walls`` (drawn over the structure, which
     then hardly showed blue) went unexplained."""
     _, clean = clean_session
-    rrd = tmp_path / "walls.rrd"
-    process_log(SAMPLE, rrd_path=rrd, walls=True)
-    walls = _read(rrd)
-    for content, has_walls in ((clean, False), (walls, True)):
+    process_log(SAMPLE, rrd_path=tmp_path / "walls.rrd", walls=True)
+    # The paper's labelling keeps and draws no walls: its title names no teal or crimson.
+    process_log(SAMPLE, rrd_path=tmp_path / "paper.rrd", clean_method="paper")
+    walls, paper = _read(tmp_path / "walls.rrd"), _read(tmp_path / "paper.rrd")
+    for content, has_walls, walls_cleaning in (
+        (clean, False, True),
+        (walls, True, True),
+        (paper, False, False),
+    ):
         (title,) = [name for kind, name in content.views if name.startswith("map: segmentation")]
         assert "structure (blue)" in title and "clutter (orange)" in title
-        assert "kept (teal)" in title and "drew (crimson)" in title
+        assert ("kept (teal)" in title and "drew (crimson)" in title) is walls_cleaning
         assert ("wall segments (green)" in title) is has_walls
 
 
