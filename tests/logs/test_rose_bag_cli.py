@@ -619,6 +619,23 @@ def test_a_full_standard_output_is_named_not_the_input(
     assert err[-1] == "error: standard output: cannot write (No space left on device)", err
 
 
+def _run_buffered(command: list[str], stdout: Any) -> subprocess.CompletedProcess[str]:
+    """``command`` (``["rose" | "rose-bag", *args]``) as its console script runs it, from this
+    checkout, with standard output ``stdout`` buffered (no ``PYTHONUNBUFFERED``)."""
+    module = "rose.cli" if command[0] == "rose" else "rose_logs.cli"
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONUNBUFFERED"}
+    env["PYTHONPATH"] = str(Path(__file__).resolve().parents[2])
+    return subprocess.run(
+        [sys.executable, "-c", f"import {module} as c; c.console()", *command[1:]],
+        stdout=stdout,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+        timeout=120,
+        check=False,
+    )
+
+
 @pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs /dev/full")
 @pytest.mark.parametrize(
     "command", [["rose", "score", str(MAP15)], ["rose-bag", "info", str(SAMPLE)]]
@@ -626,19 +643,8 @@ def test_a_full_standard_output_is_named_not_the_input(
 def test_a_full_disk_under_buffered_standard_output_is_one_error_line(command: list[str]) -> None:
     """Buffered (the default, not ``python -u``), the report was written at exit: Python printed
     "Exception ignored ... OSError" and exited 120."""
-    module = "rose.cli" if command[0] == "rose" else "rose_logs.cli"
-    env = {k: v for k, v in os.environ.items() if k != "PYTHONUNBUFFERED"}
-    env["PYTHONPATH"] = str(Path(__file__).resolve().parents[2])
     with Path("/dev/full").open("w") as full:
-        done = subprocess.run(
-            [sys.executable, "-c", f"import {module} as c; c.console()", *command[1:]],
-            stdout=full,
-            stderr=subprocess.PIPE,
-            text=True,
-            env=env,
-            timeout=120,
-            check=False,
-        )
+        done = _run_buffered(command, full)
     assert done.returncode == 1, done.stderr
     assert done.stderr == "error: standard output: cannot write (No space left on device)\n"
 
@@ -661,28 +667,14 @@ def test_help_and_version_on_a_full_standard_output_are_one_error_line(
     """argparse prints ``--help`` and ``--version`` and exits, before the command's own handling of
     standard output: Python's flush at exit printed "Exception ignored ... OSError" and exited
     120, and with the reader gone (``| true``) "BrokenPipeError", exit 120, instead of 141."""
-    module = "rose.cli" if command[0] == "rose" else "rose_logs.cli"
-    env = {k: v for k, v in os.environ.items() if k != "PYTHONUNBUFFERED"}
-    env["PYTHONPATH"] = str(Path(__file__).resolve().parents[2])
-    argv = [sys.executable, "-c", f"import {module} as c; c.console()", *command[1:]]
     with Path("/dev/full").open("w") as full:
-        done = subprocess.run(
-            argv, stdout=full, stderr=subprocess.PIPE, text=True, env=env, timeout=120, check=False
-        )
+        done = _run_buffered(command, full)
     assert done.returncode == 1, done.stderr
     assert done.stderr == "error: standard output: cannot write (No space left on device)\n"
     reader, writer = os.pipe()
     os.close(reader)  # the reader left before anything was written
     try:
-        done = subprocess.run(
-            argv,
-            stdout=writer,
-            stderr=subprocess.PIPE,
-            text=True,
-            env=env,
-            timeout=120,
-            check=False,
-        )
+        done = _run_buffered(command, writer)
     finally:
         os.close(writer)
     assert (done.returncode, done.stderr) == (141, "")
