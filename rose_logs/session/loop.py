@@ -28,11 +28,11 @@ from collections.abc import Callable, Sequence
 from concurrent.futures import Executor, Future
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import rose
-from rose.cleaning import CLEAN_METHODS, CleanMethod, CleanResult
-from rose.directions import FAILURE_LEVEL, map_frame_deg
+from rose.cleaning import CLEAN_METHODS, CleanMethod
+from rose.directions import FAILURE_LEVEL
 from rose.limits import (
     DEFAULT_MAX_CELLS,
     cell_limit,
@@ -53,6 +53,7 @@ from rose_logs.frames import quaternion_tilt
 from rose_logs.reader import LogReader, topic_names
 from rose_logs.session.analysis import SnapshotAnalyser, SnapshotAnalysis
 from rose_logs.session.breaks import BreakDetector, BreakParams, BreakScore, DetectedBreak
+from rose_logs.session.records import Skips, returned_text, snapshot_record
 from rose_logs.session.report import (
     BreakEvent,
     SessionReport,
@@ -684,7 +685,7 @@ class _Loop:
         self.broken: dict[str, bool] = {}  # per topic: whether its last snapshot was broken
         self.records: list[SnapshotRecord] = []
         self.breaks: list[BreakEvent] = []
-        self.skips = _Skips()
+        self.skips = Skips(_LOG)
         self.said: set[tuple[str, str]] = set()  # (topic, what): warnings given once per topic
         self.latest_ns = 0  # log time of the latest message read (a salvaged log ends there)
         self.queue: deque[_Copy | _Pending] = deque()
@@ -964,7 +965,7 @@ class _Loop:
                 self._at(snapshot.log_time_ns),
                 verdict.incomparable_with,
             )
-        returned = _returned_text(verdict)
+        returned = returned_text(verdict)
         if returned is not None:
             # A broken topic coming back is the end of its break; otherwise a drift the detector
             # had not flagged was undone: worth a warning.
@@ -976,7 +977,14 @@ class _Loop:
         # A snapshot whose results cannot be written to the output log (counted as skipped) is
         # still analysed: its record, Rerun and break events stay, so every gate sees it.
         self._write_results(snapshot, analysis)
-        record = _record(snapshot, analysis, index, verdict, pending)
+        record = snapshot_record(
+            snapshot,
+            analysis,
+            index,
+            verdict,
+            reused=pending.reused,
+            from_update=pending.from_update,
+        )
         if self.rerun is not None:
             self._show_in_rerun(
                 self.rerun,
@@ -1132,48 +1140,6 @@ class _Loop:
             self.rerun.event(snapshot, event.detail, index, score)
 
 
-_WARN_FIRST = 3
-"""Map messages skipped for one reason that get a warning each; the rest are counted in one line."""
-
-
-class _Skips:
-    """Map messages copied unprocessed, by reason: the first few of each reason are warned about
-    one by one, the rest in one line (a one-hour session of maps over ``--max-cells`` would
-    otherwise print 720 warnings)."""
-
-    def __init__(self) -> None:
-        self.by_reason: dict[str, int] = {}
-
-    def add(self, reason: str, text: str) -> None:
-        count = self.by_reason.get(reason, 0) + 1
-        self.by_reason[reason] = count
-        if count <= _WARN_FIRST:
-            _LOG.log(_level_of(reason), "%s, copied unprocessed", text)
-
-    def warn_rest(self) -> None:
-        for reason, count in self.by_reason.items():
-            if count > _WARN_FIRST:
-                _LOG.log(
-                    _level_of(reason),
-                    "%d more map messages %s, copied unprocessed",
-                    count - _WARN_FIRST,
-                    reason,
-                )
-
-    @property
-    def total(self) -> int:
-        return sum(self.by_reason.values())
-
-    def describe(self) -> str:
-        """``"14 over --max-cells"``, ``"2 malformed, 1 not analysable"``; ``"none"`` when empty."""
-        return ", ".join(f"{n} {reason}" for reason, n in self.by_reason.items()) or "none"
-
-
-def _level_of(reason: str) -> int:
-    """How a skipped map message is said: an empty map is valid (info), the rest are not."""
-    return logging.INFO if reason == "empty" else logging.WARNING
-
-
 def _no_display() -> bool:
     """Linux or BSD without an X11 or Wayland display (macOS and Windows always have one)."""
     if sys.platform.startswith(("darwin", "win")):
@@ -1199,64 +1165,3 @@ def _full(path: Path) -> str:
         return ""
     free = stat.f_bavail * stat.f_frsize
     return f"; its file system is full ({free // 1000} kB free)" if free < 2**20 else ""
-
-
-def _record(
-    snapshot: MapSnapshot,
-    analysis: SnapshotAnalysis,
-    index: int,
-    verdict: BreakScore,
-    pending: _Pending,
-) -> SnapshotRecord:
-    """The report's record of one snapshot (``seconds`` filled in by the caller)."""
-    result = analysis.result
-    height, width = snapshot.shape
-    return SnapshotRecord(
-        topic=snapshot.topic,
-        index=index,
-        log_time_ns=snapshot.log_time_ns,
-        stamp_ns=snapshot.stamp_ns,
-        width=width,
-        height=height,
-        resolution_m=snapshot.resolution_m,
-        structure_score=float(result.structure_score),
-        directions_deg=tuple(
-            map_frame_deg(result.dominant_directions, yaw_rad=snapshot.origin_yaw_rad)
-        ),
-        threshold=float(result.threshold),
-        occupied_count=result.occupied_count,
-        clutter_count=result.clutter_count,
-        seconds=0.0,
-        reused=pending.reused,
-        from_update=pending.from_update,
-        break_score_m=verdict.score_m,
-        break_region_m=verdict.region_m,
-        break_detected=verdict.broken,
-        degenerate=analysis.degenerate,
-        **_cleaning_counts(analysis.cleaning),
-    )
-
-
-def _cleaning_counts(cleaning: CleanResult | None) -> dict[str, Any]:
-    if cleaning is None:
-        return {}
-    return {
-        "clean_method": cleaning.method,
-        "removed_count": cleaning.removed_count,
-        "kept_count": cleaning.kept_count,
-        "rescued_count": cleaning.rescued_count,
-        "completed_count": cleaning.completed_count,
-    }
-
-
-def _returned_text(verdict: BreakScore) -> str | None:
-    """What the detector found when a snapshot returned to its anchor's map (None if it did not):
-    a loop closure undoing a drift, not a break."""
-    if verdict.returned_from is None:
-        return None
-    within = "" if verdict.threshold_m is None else f", under {verdict.threshold_m:.2f} m"
-    return (
-        f"contradicts snapshot {verdict.returned_from} ({verdict.returned_from_m:.2f} m) but "
-        f"agrees with snapshot {verdict.trusted_index} ({verdict.score_m:.2f} m{within}): it "
-        "returned to that map (a loop closure undoing a drift?), not a break"
-    )

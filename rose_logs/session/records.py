@@ -1,0 +1,122 @@
+"""What the loop keeps of each map message: the report's record of an analysed snapshot, the text
+of a return to an earlier map, and the messages copied unprocessed (counted by reason)."""
+
+from __future__ import annotations
+
+import logging
+from typing import Any
+
+from rose.cleaning import CleanResult
+from rose.directions import map_frame_deg
+from rose_logs.session.analysis import SnapshotAnalysis
+from rose_logs.session.breaks import BreakScore
+from rose_logs.session.report import SnapshotRecord
+from rose_logs.snapshots import MapSnapshot
+
+__all__ = ["Skips", "cleaning_counts", "returned_text", "snapshot_record"]
+
+_WARN_FIRST = 3
+"""Map messages skipped for one reason that get a warning each; the rest are counted in one line."""
+
+
+class Skips:
+    """Map messages copied unprocessed, by reason: the first few of each reason are warned about
+    one by one, the rest in one line (a one-hour session of maps over ``--max-cells`` would
+    otherwise print 720 warnings). Said through ``log`` (the loop's logger)."""
+
+    def __init__(self, log: logging.Logger) -> None:
+        self.by_reason: dict[str, int] = {}
+        self._log = log
+
+    def add(self, reason: str, text: str) -> None:
+        count = self.by_reason.get(reason, 0) + 1
+        self.by_reason[reason] = count
+        if count <= _WARN_FIRST:
+            self._log.log(_level_of(reason), "%s, copied unprocessed", text)
+
+    def warn_rest(self) -> None:
+        for reason, count in self.by_reason.items():
+            if count > _WARN_FIRST:
+                self._log.log(
+                    _level_of(reason),
+                    "%d more map messages %s, copied unprocessed",
+                    count - _WARN_FIRST,
+                    reason,
+                )
+
+    @property
+    def total(self) -> int:
+        return sum(self.by_reason.values())
+
+    def describe(self) -> str:
+        """``"14 over --max-cells"``, ``"2 malformed, 1 not analysable"``; ``"none"`` when empty."""
+        return ", ".join(f"{n} {reason}" for reason, n in self.by_reason.items()) or "none"
+
+
+def _level_of(reason: str) -> int:
+    """How a skipped map message is said: an empty map is valid (info), the rest are not."""
+    return logging.INFO if reason == "empty" else logging.WARNING
+
+
+def snapshot_record(
+    snapshot: MapSnapshot,
+    analysis: SnapshotAnalysis,
+    index: int,
+    verdict: BreakScore,
+    *,
+    reused: bool,
+    from_update: bool,
+) -> SnapshotRecord:
+    """The report's record of one snapshot (``seconds`` filled in by the caller)."""
+    result = analysis.result
+    height, width = snapshot.shape
+    return SnapshotRecord(
+        topic=snapshot.topic,
+        index=index,
+        log_time_ns=snapshot.log_time_ns,
+        stamp_ns=snapshot.stamp_ns,
+        width=width,
+        height=height,
+        resolution_m=snapshot.resolution_m,
+        structure_score=float(result.structure_score),
+        directions_deg=tuple(
+            map_frame_deg(result.dominant_directions, yaw_rad=snapshot.origin_yaw_rad)
+        ),
+        threshold=float(result.threshold),
+        occupied_count=result.occupied_count,
+        clutter_count=result.clutter_count,
+        seconds=0.0,
+        reused=reused,
+        from_update=from_update,
+        break_score_m=verdict.score_m,
+        break_region_m=verdict.region_m,
+        break_detected=verdict.broken,
+        degenerate=analysis.degenerate,
+        **cleaning_counts(analysis.cleaning),
+    )
+
+
+def cleaning_counts(cleaning: CleanResult | None) -> dict[str, Any]:
+    """The record's fields of a snapshot's cleaning (none when it was not cleaned)."""
+    if cleaning is None:
+        return {}
+    return {
+        "clean_method": cleaning.method,
+        "removed_count": cleaning.removed_count,
+        "kept_count": cleaning.kept_count,
+        "rescued_count": cleaning.rescued_count,
+        "completed_count": cleaning.completed_count,
+    }
+
+
+def returned_text(verdict: BreakScore) -> str | None:
+    """What the detector found when a snapshot returned to its anchor's map (None if it did not):
+    a loop closure undoing a drift, not a break."""
+    if verdict.returned_from is None:
+        return None
+    within = "" if verdict.threshold_m is None else f", under {verdict.threshold_m:.2f} m"
+    return (
+        f"contradicts snapshot {verdict.returned_from} ({verdict.returned_from_m:.2f} m) but "
+        f"agrees with snapshot {verdict.trusted_index} ({verdict.score_m:.2f} m{within}): it "
+        "returned to that map (a loop closure undoing a drift?), not a break"
+    )
