@@ -19,7 +19,6 @@ from __future__ import annotations
 import dataclasses
 import logging
 import math
-import os
 import struct
 import time
 from collections import deque
@@ -30,18 +29,15 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import rose
-from rose.cleaning import CLEAN_METHODS, CleanMethod
+from rose.cleaning import CleanMethod
 from rose.directions import FAILURE_LEVEL
 from rose.limits import (
     DEFAULT_MAX_CELLS,
-    cell_limit,
     check_cells,
-    finite_number,
-    integer_number,
     short,
 )
 from rose.outputs import OutputSet
-from rose.params import RoseParams, make_params
+from rose.params import RoseParams
 from rose.result import RoseResult
 from rose.signals import signals_deferred
 from rose.threads import threads_in_this_context
@@ -49,9 +45,10 @@ from rose_logs.derived import encode_cleaned, encode_score, encode_walls
 from rose_logs.errors import EmptyMapError, LogReadError, LogWriteError, MapMessageError
 from rose_logs.formats import LogFormat
 from rose_logs.frames import quaternion_tilt
-from rose_logs.reader import LogReader, topic_names
+from rose_logs.reader import LogReader
 from rose_logs.session.analysis import SnapshotAnalyser, SnapshotAnalysis
 from rose_logs.session.breaks import BreakDetector, BreakParams, BreakScore, DetectedBreak
+from rose_logs.session.checks import check_arguments
 from rose_logs.session.records import Skips, returned_text, snapshot_record
 from rose_logs.session.report import (
     BreakEvent,
@@ -200,50 +197,22 @@ def process_log(
         OutputSet, ``salvage`` not True or False), before the input is read.
     """
     started = time.perf_counter()
-    # Arguments of the wrong kind, before any work: a callback that is not callable failed after
-    # the first snapshot was analysed, an int path in pathlib, outputs=... with an AttributeError.
-    for name, path in (("input_path", input_path), ("output_path", output_path)):
-        if not (isinstance(path, str | os.PathLike) or (path is None and name != "input_path")):
-            msg = f"{name} must be a file or folder name (str or path), got {type(path).__name__}"
-            raise rose.RoseError(msg)
-    if rrd_path is not None and not isinstance(rrd_path, str | os.PathLike):
-        msg = f"rrd_path must be a file name (str or path), got {type(rrd_path).__name__}"
-        raise rose.RoseError(msg)
-    for name, hook in (("on_snapshot", on_snapshot), ("on_outputs_ready", on_outputs_ready)):
-        if hook is not None and not callable(hook):
-            msg = f"{name} must be callable, got {type(hook).__name__}"
-            raise rose.RoseError(msg)
-    if outputs is not None and not isinstance(outputs, OutputSet):
-        msg = f"outputs must be a rose.outputs.OutputSet, got {type(outputs).__name__}"
-        raise rose.RoseError(msg)
-    if salvage not in (True, False):  # salvage="no" salvaged
-        msg = f"salvage must be True or False, got {salvage!r}"
-        raise rose.RoseError(msg)
-    input_path = Path(input_path)
-    try:  # one name is one topic, not its characters; b"/map" was its bytes' numbers
-        topics = topic_names(topics)
-    except TypeError as err:
-        raise rose.RoseError(str(err)) from None
-    params = make_params(params)  # a RoseParams, or a RoseError saying what it got
-    if break_params is None:
-        break_params = BreakParams.following(params.occupied_threshold)
-    if not isinstance(break_params, BreakParams):
-        msg = f"break_params must be a BreakParams, got {type(break_params).__name__}"
-        raise rose.RoseError(msg)
-    # Parameters before the log is read: one error, not one per map (the CLI's ranges).
-    if not (finite_number(failure_level) and 0 < failure_level <= 1):
-        msg = f"failure_level must be a number in (0, 1], got {failure_level!r}"
-        raise rose.RoseError(msg)
-    if not (integer_number(analysis_threads) and analysis_threads >= 1):
-        msg = f"analysis_threads must be an integer >= 1, got {analysis_threads!r}"
-        raise rose.RoseError(msg)
-    try:
-        max_cells = cell_limit(max_cells)
-    except ValueError as err:
-        raise rose.RoseError(str(err)) from None
-    if clean_method not in CLEAN_METHODS:
-        msg = f"clean_method must be one of {', '.join(CLEAN_METHODS)}, got {clean_method!r}"
-        raise rose.RoseError(msg)
+    input_path, topics, params, break_params, max_cells = check_arguments(
+        input_path,
+        output_path=output_path,
+        rrd_path=rrd_path,
+        on_snapshot=on_snapshot,
+        on_outputs_ready=on_outputs_ready,
+        outputs=outputs,
+        salvage=salvage,
+        topics=topics,
+        params=params,
+        break_params=break_params,
+        failure_level=failure_level,
+        analysis_threads=analysis_threads,
+        max_cells=max_cells,
+        clean_method=clean_method,
+    )
     own_outputs = outputs is None
     outputs = OutputSet(force=force) if outputs is None else outputs
     outputs.add_input(input_path)
