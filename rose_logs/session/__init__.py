@@ -1,7 +1,9 @@
 """A session: one pass over a log (log -> snapshots -> ROSE -> sinks: output log, Rerun, report).
 
 :func:`process_log` is the loop; :mod:`.report` holds what it finds, :mod:`.topics` which topics it reads
-and writes, :mod:`.analysis` the per-snapshot ROSE run with reuse, :mod:`rose_logs.rerun` the Rerun output.
+and writes, :mod:`.analysis` the per-snapshot ROSE run with reuse, :mod:`rose_logs.rerun` the Rerun output;
+:mod:`.checks` checks the loop's arguments, :mod:`.sinks` opens its outputs and :mod:`.records` makes its
+records.
 """
 
 from __future__ import annotations

@@ -12,6 +12,10 @@ scores it against the last trusted snapshot of its topic; the start of each run 
 is a :class:`~rose_logs.session.breaks.DetectedBreak`. Separately, a snapshot where W rises above
 ``failure_level`` (the paper's 0.4) after being at or below it (or on the first snapshot of a topic)
 is a :class:`BreakEvent`.
+
+Here: :func:`process_log`, the session around the loop, and the loop (:class:`_Loop`). Beside it:
+:mod:`.checks` (process_log's arguments), :mod:`.sinks` (the output log and the Rerun recording,
+opened), :mod:`.records` (a snapshot's record, the map messages copied unprocessed).
 """
 
 from __future__ import annotations
