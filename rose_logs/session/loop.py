@@ -318,6 +318,7 @@ def _run_session(
                         recording_id=recording_id,
                         start_ns=reader.start_ns,
                         failure_level=failure_level,
+                        shown_as=rrd_path,
                     )
             if on_outputs_ready is not None:
                 on_outputs_ready()

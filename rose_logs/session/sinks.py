@@ -71,9 +71,12 @@ def rerun_sink(
     recording_id: str | None,
     start_ns: int,
     failure_level: float,
+    shown_as: Path | str | None = None,
 ) -> RerunSink:
     """The Rerun recording of a session: one entity root per map topic; the id ``recording_id``, else
-    derived from the input's full path and content (:func:`rose_logs.rerun.recording_id_for`)."""
+    derived from the input's full path and content (:func:`rose_logs.rerun.recording_id_for`).
+    ``shown_as``: the recording's name in errors (the user's path, when ``rrd_path`` is where it is
+    staged)."""
     from rose_logs.rerun import RerunSink, recording_id_for  # rerun loads only when used
     from rose_logs.rerun.paths import entity_root_for_topic
     from rose_logs.rerun.sink import ViewerNotStarted, viewer_unreachable
@@ -118,7 +121,8 @@ def rerun_sink(
         )
         raise LogWriteError(msg) from err
     except (ValueError, OSError, RuntimeError) as err:
-        msg = f"{rrd_path or connect or 'Rerun viewer'}: cannot open the Rerun recording ({err})"
+        where = shown_as or rrd_path or connect or "Rerun viewer"
+        msg = f"{where}: cannot open the Rerun recording ({err})"
         raise LogWriteError(msg) from err
 
 
@@ -204,11 +208,11 @@ def _no_display() -> bool:
     return not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
 
 
-def rerun_failure(rrd_path: Path | None, connect: str | None, err: BaseException) -> str:
+def rerun_failure(rrd_path: Path | str | None, connect: str | None, err: BaseException) -> str:
     """One line for a Rerun recording that could not be finished, naming where it was going."""
     if rrd_path is not None:
         # Rerun says only that its file writer stopped; a full disk is the usual reason.
-        return f"{rrd_path}: cannot write the Rerun recording ({short(err, 160)}{_full(rrd_path)})"
+        return f"{rrd_path}: cannot write the Rerun recording ({short(err, 160)}{_full(Path(rrd_path))})"
     viewer = f"the Rerun viewer at {connect}" if connect is not None else "the spawned Rerun viewer"
     return f"cannot stream to {viewer}; is it running? ({short(err, 160)})"
 

@@ -1170,6 +1170,28 @@ def test_a_recording_that_filled_its_disk_says_so(
     monkeypatch.setattr(os, "statvfs", lambda path: Full())
     with pytest.raises(LogWriteError, match=r"; its file system is full \(12 kB free\)\)$"):
         process_log(SAMPLE, rrd_path=tmp_path / "run.rrd")
+    # A path given as a string (the API takes both) gets the same hint; it was left out.
+    with pytest.raises(LogWriteError, match=r"; its file system is full \(12 kB free\)\)$"):
+        process_log(SAMPLE, rrd_path=str(tmp_path / "run.rrd"))
+
+
+def test_a_recording_that_cannot_be_opened_is_named_as_given(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The error named the staged temporary file (a hidden folder beside the recording), not the
+    recording the user asked for."""
+    import rose_logs.rerun
+    from rose_logs.errors import LogWriteError
+
+    def refuse(**kwargs: object) -> None:
+        raise OSError("boom")
+
+    monkeypatch.setattr(rose_logs.rerun, "RerunSink", refuse)
+    target = tmp_path / "run.rrd"
+    with pytest.raises(LogWriteError) as caught:
+        process_log(SAMPLE, rrd_path=target)
+    assert str(caught.value) == f"{target}: cannot open the Rerun recording (boom)"
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_a_repeat_logged_back_in_time_still_shows_its_images(tmp_path: Path, fr079) -> None:
