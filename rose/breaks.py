@@ -269,12 +269,9 @@ def _dilate_square(
     ).astype(bool)
 
 
-def _long_labels(
-    walls: npt.NDArray[np.bool_], min_extent_px: int, bridge_px: int
-) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.integer]]:
-    """The connected walls of ``walls`` (bool, shape (rows, cols); gaps up to ``bridge_px`` cells
-    bridged): whether each spans at least ``min_extent_px`` cells along rows or columns (shape
-    (labels,), the background's False), and the labels (shape of ``walls``, 0 off the walls)."""
+def _bridged(walls: npt.NDArray[np.bool_], bridge_px: int) -> npt.NDArray[np.uint8]:
+    """``walls`` (bool, shape (rows, cols)) with gaps up to ``bridge_px`` cells bridged: uint8 0 / 1,
+    C-contiguous (a view of ``walls`` when nothing is bridged and it is contiguous)."""
     import cv2  # OpenCV's morphology and labelling: several times scipy.ndimage's speed here
 
     joined = np.ascontiguousarray(walls).view(np.uint8)
@@ -285,6 +282,16 @@ def _long_labels(
         joined = np.asarray(
             cv2.dilate(joined, np.ones((size, size), np.uint8), anchor=anchor), dtype=np.uint8
         )
+    return joined
+
+
+def _long_labels(
+    walls: npt.NDArray[np.bool_], min_extent_px: int, bridge_px: int
+) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.integer]]:
+    """The connected walls of ``walls`` (bool, shape (rows, cols); gaps up to ``bridge_px`` cells
+    bridged): whether each spans at least ``min_extent_px`` cells along rows or columns (shape
+    (labels,), the background's False), and the labels (shape of ``walls``, 0 off the walls)."""
+    joined = _bridged(walls, bridge_px)
     count, labels = components(joined)
     if count <= 1:  # label 0 is the background
         return np.zeros(count, dtype=bool), labels
@@ -308,9 +315,51 @@ def _long_walls(
     return labels_wanted(keep, labels, walls)
 
 
-#: At most this many boxes are labelled apart for the cells :func:`_on_long_walls` looks up (each
-#: costs some 30 us of calls besides its cells): more, and one box over them all is labelled.
-_MAX_CLUSTERS = 16
+#: Cells of one box looked up by flood fills (:func:`_long_at`); more are labelled. A fill is
+#: numbered in its mask's byte; 255 at most.
+_MAX_FILLS = 255
+
+
+def _long_at(
+    walls: npt.NDArray[np.bool_],
+    rows: npt.NDArray[np.intp],
+    cols: npt.NDArray[np.intp],
+    min_extent_px: int,
+    bridge_px: int,
+) -> npt.NDArray[np.bool_]:
+    """Whether the wall cells ``(rows[i], cols[i])`` of ``walls`` (bool, shape (rows, cols)) lie on
+    long walls of it (:func:`_long_walls`), shape (cells,).
+
+    Few cells: a flood fill of the bridged walls from each (one per wall), whose bounding box OpenCV
+    returns; it visits that wall's cells only, where labelling visits every cell of the box and
+    then the walls' cells again for their boxes (35 us at least, 5-10 for a fill).
+    """
+    import cv2
+
+    if rows.size > _MAX_FILLS:
+        keep, labels = _long_labels(walls, min_extent_px, bridge_px)
+        return keep[labels[rows, cols]]
+    joined = _bridged(walls, bridge_px)
+    mask = np.zeros((joined.shape[0] + 2, joined.shape[1] + 2), dtype=np.uint8)
+    # Cells equal to the seed's (1), 8-connected; the mask is marked with the fill's number.
+    flags = 8 | cv2.FLOODFILL_MASK_ONLY | cv2.FLOODFILL_FIXED_RANGE
+    long_fill = [False]  # per fill number (0: none)
+    out = np.zeros(rows.size, dtype=bool)
+    for i, (r, c) in enumerate(zip(rows.tolist(), cols.tolist(), strict=True)):
+        fill = int(mask[r + 1, c + 1])
+        if not fill:
+            fill = len(long_fill)
+            _, _, _, (_, _, width, height) = cv2.floodFill(
+                joined, mask, (c, r), 1, 0, 0, flags | (fill << 8)
+            )
+            long_fill.append(max(width, height) >= min_extent_px)
+        out[i] = long_fill[fill]
+    return out
+
+
+#: At most this many boxes are looked up apart for the cells :func:`_on_long_walls` is given;
+#: more, and one box over them all.
+_MAX_CLUSTERS = 64
 
 
 def _on_long_walls(
@@ -330,7 +379,7 @@ def _on_long_walls(
     ``reach - bridge_px`` = ``min_extent_px`` rows or columns away from the cell: long in the box
     as in the grid. A wall that does not leave it is the grid's wall.
 
-    So the cells are labelled in few small boxes instead of one over them all (erased cells are a
+    So the cells are looked up in few small boxes instead of one over them all (erased cells are a
     few dozen in some clusters across a wide box): the cells grouped by blocks of ``2 reach + 1``
     (cells in blocks that do not touch are farther apart than two reaches), each group of touching
     blocks in its cells' bounding box plus the reach; in one such box over all the cells when the
@@ -380,8 +429,9 @@ def _on_long_walls(
             boxes = grouped
     on_long = np.zeros(rows.size, dtype=bool)
     for (r0, r1, c0, c1), at in boxes:
-        keep, labels = _long_labels(walls[r0:r1, c0:c1], min_extent_px, bridge_px)
-        on_long[at] = keep[labels[rows[at] - r0, cols[at] - c0]]
+        on_long[at] = _long_at(
+            walls[r0:r1, c0:c1], rows[at] - r0, cols[at] - c0, min_extent_px, bridge_px
+        )
     return on_long
 
 
