@@ -32,12 +32,12 @@ and orientation, ``offset_px`` places the earlier grid in the later one.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
 
 from rose.errors import RoseError
-from rose.grid import blocks_any
 from rose.labelling import components, label_boxes, labels_wanted
 from rose.limits import integer_number, pair_of
 
@@ -104,29 +104,63 @@ def placed_grid(
     return out
 
 
+class _Cells(NamedTuple):
+    """Contradicted cells of one kind, in the later grid's cells: ``rows`` and ``cols`` (intp, one
+    entry a cell, each cell once) and ``box``, ``(row0, row1, col0, col1)`` (ends exclusive) where
+    they were looked for (their candidates' bounding box plus a margin), None when there was no
+    candidate. The boxes place the tiles (:func:`_tiles`): the score's window, and which of two
+    windows as dense comes first, depend on them."""
+
+    rows: npt.NDArray[np.intp]
+    cols: npt.NDArray[np.intp]
+    box: tuple[int, int, int, int] | None
+
+
+_NO_CELLS = _Cells(np.zeros(0, dtype=np.intp), np.zeros(0, dtype=np.intp), None)
+
+
+def _cells_of(
+    mask: npt.NDArray[np.bool_], r0: int, c0: int
+) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.intp]]:
+    """Rows and columns of the True cells of ``mask`` (bool, 2-D) placed at ``(r0, c0)``: by flat
+    index, several times faster than 2-D ``nonzero``."""
+    rows, cols = np.divmod(np.flatnonzero(mask), mask.shape[1])
+    rows += r0
+    cols += c0
+    return rows, cols
+
+
+def _mask(shape: tuple[int, int], cells: _Cells) -> npt.NDArray[np.bool_]:
+    """``cells`` as a boolean mask of ``shape``."""
+    out = np.zeros(shape, dtype=bool)
+    out[cells.rows, cells.cols] = True
+    return out
+
+
 def _tiles(
-    mask: npt.NDArray[np.bool_],
-    r0: int,
-    c0: int,
+    cells: _Cells,
+    box: tuple[int, int, int, int],
     tile_px: int,
     origin: tuple[int, int] = (0, 0),
 ) -> tuple[npt.NDArray[np.bool_], int, int]:
-    """Which tiles of the lattice through the later-grid cell ``origin`` hold a ``True`` cell of
-    ``mask`` (placed at ``(r0, c0)``); returns the tile flags and the later-grid cell of tile
-    (0, 0)."""
+    """Which tiles of the lattice through the later-grid cell ``origin`` hold one of ``cells``
+    (which lie in ``box``, ``(row0, row1, col0, col1)``, ends exclusive); returns the tile flags,
+    covering the box's tiles, and the later-grid cell of tile (0, 0)."""
+    r0, r1, c0, c1 = box
     tr, tc = r0 - (r0 - origin[0]) % tile_px, c0 - (c0 - origin[1]) % tile_px
-    h, w = mask.shape[0] + r0 - tr, mask.shape[1] + c0 - tc
-    hp, wp = -(-h // tile_px) * tile_px, -(-w // tile_px) * tile_px
-    padded = np.zeros((hp, wp), dtype=bool)
-    padded[r0 - tr : r0 - tr + mask.shape[0], c0 - tc : c0 - tc + mask.shape[1]] = mask
-    return blocks_any(padded, tile_px), tr, tc
+    tiles = np.zeros((-(-(r1 - tr) // tile_px), -(-(c1 - tc) // tile_px)), dtype=bool)
+    tiles[(cells.rows - tr) // tile_px, (cells.cols - tc) // tile_px] = True
+    return tiles, tr, tc
 
 
 def _densest_window(tiles: npt.NDArray[np.bool_], side: int) -> tuple[int, int, int]:
     """Most flagged tiles in a ``side`` x ``side`` window of tiles: ``(count, row, col)`` of its
     first tile (the first such window in row-major order)."""
+    import cv2
+
     side_r, side_c = min(side, tiles.shape[0]), min(side, tiles.shape[1])
-    c = np.pad(tiles.astype(np.int32).cumsum(axis=0).cumsum(axis=1), ((1, 0), (1, 0)))
+    # Summed-area table, a zero row and column first (int32): OpenCV's in one pass.
+    c = cv2.integral(np.ascontiguousarray(tiles).view(np.uint8))
     sums = c[side_r:, side_c:] - c[:-side_r, side_c:] - c[side_r:, :-side_c] + c[:-side_r, :-side_c]
     i, j = np.unravel_index(int(np.argmax(sums)), sums.shape)
     return int(sums[i, j]), int(i), int(j)
@@ -230,10 +264,11 @@ def _true_bounds(mask: npt.NDArray[np.bool_]) -> tuple[int, int, int, int] | Non
         start = max(end - _ROW_BLOCK, r0)
         block = mask[start:end]
         if block.any():
-            r1 = end - int(block.any(axis=1)[::-1].argmax())
+            rows = np.any(block, axis=1)
+            r1 = end - int(rows[::-1].argmax())
             break
         end = start
-    cols = mask[r0:r1].any(axis=0)
+    cols = np.any(mask[r0:r1], axis=0)
     return r0, r1, int(cols.argmax()), cols_n - int(cols[::-1].argmax())
 
 
@@ -435,7 +470,7 @@ def _on_long_walls(
     return on_long
 
 
-def _erased_box(
+def _erased_cells(
     placed: npt.NDArray[np.int8],
     later: npt.NDArray[np.int8],
     tolerance_px: int,
@@ -443,36 +478,32 @@ def _erased_box(
     free_threshold: int,
     min_extent_px: int = 0,
     bridge_px: int = 0,
-) -> tuple[npt.NDArray[np.bool_], int, int]:
-    """Erased cells within their bounding box: ``(mask, row0, col0)`` in ``later``'s cells
-    (``placed``: the earlier grid in ``later``'s cells, :func:`placed_grid`; both int8, one shape;
-    the mask bool)."""
-    walls = placed >= occupied_threshold
+    walls: npt.NDArray[np.bool_] | None = None,
+) -> _Cells:
+    """Erased cells in ``later``'s cells (``placed``: the earlier grid in ``later``'s cells,
+    :func:`placed_grid`; both int8, one shape; ``walls``: ``placed >= occupied_threshold`` when
+    known)."""
+    if walls is None:
+        walls = placed >= occupied_threshold
     # Known free in the later grid (0..free_threshold) in one comparison: read as unsigned bytes,
     # -1..-128 are 255..128, above every threshold (0..100).
     candidates = later.view(np.uint8) <= free_threshold
     candidates &= walls
     bounds = _true_bounds(candidates)
     if bounds is None:
-        return np.zeros((0, 0), dtype=bool), 0, 0
-    # Only candidates can be erased: the box returned is their bounding box plus the tolerance
-    # (and plus the wall extent when walls must be long, where they are seen whole).
-    r0, r1, c0, c1 = _grown(bounds, max(tolerance_px, min_extent_px + bridge_px), later.shape)
+        return _NO_CELLS
+    # Only candidates can be erased: the box is their bounding box plus the tolerance (and plus
+    # the wall extent when walls must be long, where they are seen whole).
+    box = _grown(bounds, max(tolerance_px, min_extent_px + bridge_px), later.shape)
     # Walls within the tolerance of a candidate lie in its bounding box plus the tolerance.
     t0, t1, u0, u1 = _grown(bounds, tolerance_px, later.shape)
     near_wall = _dilate_square(later[t0:t1, u0:u1] >= occupied_threshold, tolerance_px)
-    inner = candidates[t0:t1, u0:u1] > near_wall  # a candidate and not near a wall
-    if min_extent_px > 1:
-        # The cells by flat index (2-D nonzero is several times slower).
-        rows, cols = np.divmod(np.flatnonzero(inner), inner.shape[1])
-        if rows.size:
-            rows += t0
-            cols += u0
-            short = ~_on_long_walls(walls, rows, cols, min_extent_px, bridge_px)
-            inner[rows[short] - t0, cols[short] - u0] = False
-    erased = np.zeros((r1 - r0, c1 - c0), dtype=bool)
-    erased[t0 - r0 : t1 - r0, u0 - c0 : u1 - c0] = inner
-    return erased, r0, c0
+    # A candidate and not near a wall.
+    rows, cols = _cells_of(candidates[t0:t1, u0:u1] > near_wall, t0, u0)
+    if min_extent_px > 1 and rows.size:
+        on_long = _on_long_walls(walls, rows, cols, min_extent_px, bridge_px)
+        rows, cols = rows[on_long], cols[on_long]
+    return _Cells(rows, cols, box)
 
 
 def _placed(
@@ -480,13 +511,13 @@ def _placed(
 ) -> npt.NDArray[np.int8]:
     """``earlier`` in ``later``'s cells (:func:`placed_grid`): ``earlier`` itself when it lies on
     them exactly (the common case of a map that did not grow; read only, a copy saved)."""
-    earlier = earlier.astype(np.int8, copy=False)
-    if earlier.shape == later.shape and offset_px[0] == 0 and offset_px[1] == 0:
-        return earlier
-    return placed_grid(earlier, later.shape, offset_px)
+    earlier8 = earlier.astype(np.int8, copy=False)
+    if earlier8.shape == later.shape and offset_px[0] == 0 and offset_px[1] == 0:
+        return earlier8
+    return placed_grid(earlier8, later.shape, offset_px)
 
 
-def _risen_box(
+def _risen_cells(
     placed: npt.NDArray[np.int8],
     later: npt.NDArray[np.int8],
     rise_points: int,
@@ -494,12 +525,11 @@ def _risen_box(
     free_threshold: int,
     min_extent_px: int,
     bridge_px: int,
-) -> tuple[npt.NDArray[np.bool_], int, int]:
-    """Risen cells within their bounding box: ``(mask, row0, col0)`` in ``later``'s cells
-    (``placed``: the earlier grid in ``later``'s cells, :func:`placed_grid`; both int8, one shape;
-    the mask bool)."""
+) -> _Cells:
+    """Risen cells in ``later``'s cells (``placed``: the earlier grid in ``later``'s cells,
+    :func:`placed_grid`; both int8, one shape)."""
     if rise_points > 100:  # off
-        return np.zeros((0, 0), dtype=bool), 0, 0
+        return _NO_CELLS
     # Known free earlier (0..free_threshold) and known later (0..100, so unknown -1 never rises,
     # nor values outside the ROS range) in one comparison each: read as unsigned bytes, -1..-128
     # are 255..128. On those cells the difference lies in -50..100: int8 holds it (elsewhere it may
@@ -509,8 +539,8 @@ def _risen_box(
     candidates &= later.view(np.uint8) <= 100
     bounds = _true_bounds(candidates)
     if bounds is None:
-        return np.zeros((0, 0), dtype=bool), 0, 0
-    r0, r1, c0, c1 = _grown(bounds, max(rise_margin_px, min_extent_px + bridge_px), later.shape)
+        return _NO_CELLS
+    box = _grown(bounds, max(rise_margin_px, min_extent_px + bridge_px), later.shape)
     # Deep in free space: no earlier cell that is not known free (wall, unknown, uncertain; nor the
     # grid's edge) within the margin, so that walls seen a cell off and the frontier of exploration
     # do not count. Those cells lie in the candidates' bounding box plus the margin, which reaches
@@ -519,45 +549,34 @@ def _risen_box(
     t0, t1, u0, u1 = _grown(bounds, rise_margin_px, later.shape)
     not_free = placed[t0:t1, u0:u1].view(np.uint8) > free_threshold
     near_other = _dilate_square(not_free, rise_margin_px, outside=True)
-    risen = np.zeros((r1 - r0, c1 - c0), dtype=bool)
-    inner = risen[t0 - r0 : t1 - r0, u0 - c0 : u1 - c0]
-    np.greater(candidates[t0:t1, u0:u1], near_other, out=inner)  # candidate, not near another
+    risen = candidates[t0:t1, u0:u1] > near_other  # a candidate, not near another cell
     if min_extent_px > 1:
         # Pieces are made of risen cells only (gaps bridged): their box, a bridge wider, is enough
         # and often far smaller than the candidates' (scattered single cells everywhere).
         piece_bounds = _true_bounds(risen)
-        if piece_bounds is not None:
-            a0, a1, b0, b1 = _grown(piece_bounds, bridge_px + 1, risen.shape)
-            pieces = np.zeros_like(risen)
-            pieces[a0:a1, b0:b1] = _long_walls(risen[a0:a1, b0:b1], min_extent_px, bridge_px)
-            risen = pieces
-    return risen, r0, c0
+        if piece_bounds is None:
+            return _Cells(_NO_CELLS.rows, _NO_CELLS.cols, box)
+        a, b, c, d = piece_bounds
+        # In the grid's cells (the bridging reaches past the margin when it is narrower).
+        a0, a1, b0, b1 = _grown((a + t0, b + t0, c + u0, d + u0), bridge_px + 1, later.shape)
+        near = np.zeros((a1 - a0, b1 - b0), dtype=bool)
+        near[a + t0 - a0 : b + t0 - a0, c + u0 - b0 : d + u0 - b0] = risen[a:b, c:d]
+        pieces = _long_walls(near, min_extent_px, bridge_px)
+        return _Cells(*_cells_of(pieces, a0, b0), box)
+    return _Cells(*_cells_of(risen, t0, u0), box)
 
 
-def _union(
-    *boxes: tuple[npt.NDArray[np.bool_], int, int],
-) -> tuple[npt.NDArray[np.bool_], int, int]:
-    """Masks placed at ``(row0, col0)`` as one mask over their common bounding box."""
-    present = [(m, r, c) for m, r, c in boxes if m.size]
+def _union_box(*boxes: tuple[int, int, int, int] | None) -> tuple[int, int, int, int] | None:
+    """The bounding box of ``boxes`` (``(row0, row1, col0, col1)``, ends exclusive; None: none)."""
+    present = [b for b in boxes if b is not None]
     if not present:
-        return np.zeros((0, 0), dtype=bool), 0, 0
-    r0 = min(r for _, r, _ in present)
-    c0 = min(c for _, _, c in present)
-    r1 = max(r + m.shape[0] for m, r, _ in present)
-    c1 = max(c + m.shape[1] for m, _, c in present)
-    out = np.zeros((r1 - r0, c1 - c0), dtype=bool)
-    for m, r, c in present:
-        out[r - r0 : r - r0 + m.shape[0], c - c0 : c - c0 + m.shape[1]] |= m
-    return out, r0, c0
-
-
-def _full(
-    later: npt.NDArray[np.integer], box: tuple[npt.NDArray[np.bool_], int, int]
-) -> npt.NDArray[np.bool_]:
-    mask, r0, c0 = box
-    out = np.zeros(later.shape, dtype=bool)
-    out[r0 : r0 + mask.shape[0], c0 : c0 + mask.shape[1]] = mask
-    return out
+        return None
+    return (
+        min(b[0] for b in present),
+        max(b[1] for b in present),
+        min(b[2] for b in present),
+        max(b[3] for b in present),
+    )
 
 
 def risen_evidence(
@@ -593,7 +612,7 @@ def risen_evidence(
         rise_margin_px,
         free_threshold=free_threshold,
     )
-    box = _risen_box(
+    cells = _risen_cells(
         _placed(earlier, later, offset_px),
         later,
         rise_points,
@@ -602,7 +621,7 @@ def risen_evidence(
         min_extent_px,
         bridge_px,
     )
-    return _full(later, box)
+    return _mask(later.shape, cells)
 
 
 def erased_walls(
@@ -636,7 +655,7 @@ def erased_walls(
         occupied_threshold=occupied_threshold,
         free_threshold=free_threshold,
     )
-    box = _erased_box(
+    cells = _erased_cells(
         _placed(earlier, later, offset_px),
         later,
         tolerance_px,
@@ -645,7 +664,7 @@ def erased_walls(
         min_extent_px,
         bridge_px,
     )
-    return _full(later, box)
+    return _mask(later.shape, cells)
 
 
 def contradicted_walls(
@@ -734,9 +753,10 @@ def contradicted_walls(
         msg = f"window_px must be an integer >= 1, got {window_px!r}"
         raise RoseError(msg)
     _require_cell(tile_origin_px, "tile_origin_px")
-    established = int(np.count_nonzero(earlier >= occupied_threshold))
+    earlier_walls = earlier >= occupied_threshold
+    established = int(np.count_nonzero(earlier_walls))
     placed = _placed(earlier, later, offset_px)
-    erased = _erased_box(
+    erased = _erased_cells(
         placed,
         later,
         tolerance_px,
@@ -744,8 +764,10 @@ def contradicted_walls(
         free_threshold,
         min_extent_px,
         bridge_px,
+        # The earlier grid's walls are the placed ones when it lies on the later grid.
+        walls=earlier_walls if placed is earlier else None,
     )
-    risen = _risen_box(
+    risen = _risen_cells(
         placed,
         later,
         rise_points,
@@ -754,27 +776,25 @@ def contradicted_walls(
         min_extent_px,
         bridge_px,
     )
-    erased_px, risen_px = int(np.count_nonzero(erased[0])), int(np.count_nonzero(risen[0]))
-    if erased_px + risen_px == 0:
+    erased_px, risen_px = int(erased.rows.size), int(risen.rows.size)
+    box = _union_box(erased.box, risen.box)
+    if erased_px + risen_px == 0 or box is None:
         return WallContradiction(0, 0, 0, 0, established, None, tile_px, window_px)
-    contradicted, r0, c0 = _union(erased, risen)
+    # Erased cells were walls earlier and risen ones free: no cell is both.
+    contradicted = _Cells(
+        np.concatenate([erased.rows, risen.rows]), np.concatenate([erased.cols, risen.cols]), box
+    )
     origin = (int(tile_origin_px[0]), int(tile_origin_px[1]))
-    tiles, tr, tc = _tiles(contradicted, r0, c0, tile_px, origin)
+    tiles, tr, tc = _tiles(contradicted, box, tile_px, origin)
     side = max(-(-window_px // tile_px), 1)
     peak, wi, wj = _densest_window(tiles, side)
     # The contradicted cells inside the window, in later-grid cells.
     wr0, wc0 = tr + wi * tile_px, tc + wj * tile_px
-    br0, bc0 = max(wr0 - r0, 0), max(wc0 - c0, 0)
-    br1, bc1 = wr0 + side * tile_px - r0, wc0 + side * tile_px - c0
-    inside = contradicted[br0:br1, bc0:bc1]
-    rr = np.flatnonzero(inside.any(axis=1))
-    cc = np.flatnonzero(inside.any(axis=0))
-    region = (
-        r0 + br0 + int(rr[0]),
-        c0 + bc0 + int(cc[0]),
-        r0 + br0 + int(rr[-1]),
-        c0 + bc0 + int(cc[-1]),
-    )
+    rows, cols = contradicted.rows, contradicted.cols
+    inside = (rows >= wr0) & (rows < wr0 + side * tile_px)
+    inside &= (cols >= wc0) & (cols < wc0 + side * tile_px)
+    rows, cols = rows[inside], cols[inside]
+    region = (int(rows.min()), int(cols.min()), int(rows.max()), int(cols.max()))
     return WallContradiction(
         erased_px, risen_px, int(tiles.sum()), peak, established, region, tile_px, window_px
     )
