@@ -220,3 +220,86 @@ def test_a_tile_origin_must_be_two_integers() -> None:
     a = contradicted_walls(wall, grid, tile_px=5, tile_origin_px=(3, 3), min_extent_px=1)
     b = contradicted_walls(wall, grid, tile_px=5, tile_origin_px=(-7, 13), min_extent_px=1)
     assert (a.peak_tiles, a.region_px) == (b.peak_tiles, b.region_px)
+
+
+def _reference_long(walls: npt.NDArray[np.bool_], min_extent: int, bridge: int) -> npt.NDArray:
+    """Cells of ``walls`` on pieces spanning ``min_extent`` cells, labelled over the whole grid."""
+    joined = walls
+    if bridge > 0:
+        joined = ndimage.binary_dilation(walls, structure=np.ones((bridge + 1, bridge + 1)))
+    labels, _ = ndimage.label(joined, structure=np.ones((3, 3)))
+    keep = np.zeros(labels.max() + 1, dtype=bool)
+    for label, box in enumerate(ndimage.find_objects(labels), start=1):
+        if box is not None:
+            keep[label] = max(s.stop - s.start for s in box) >= min_extent
+    return walls & keep[labels]
+
+
+def _reference(
+    earlier: npt.NDArray[np.int8], later: npt.NDArray[np.int8], offset: tuple[int, int], **p: int
+) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
+    """Erased walls and risen evidence as the module notes say, in whole-grid masks (no boxes)."""
+    from rose.breaks import placed_grid
+
+    placed = placed_grid(earlier, later.shape, offset).astype(int)
+    known_later = (later >= 0) & (later <= 100)
+    walls = placed >= p["occupied_threshold"]
+    near_wall = later >= p["occupied_threshold"]
+    if p["tolerance_px"]:
+        side = 2 * p["tolerance_px"] + 1
+        near_wall = ndimage.binary_dilation(near_wall, structure=np.ones((side, side)))
+    erased = walls & known_later & (later <= p["free_threshold"]) & ~near_wall
+    was_free = (placed >= 0) & (placed <= p["free_threshold"])
+    near_other = ~was_free
+    if p["rise_margin_px"]:
+        side = 2 * p["rise_margin_px"] + 1
+        near_other = ndimage.binary_dilation(
+            near_other, structure=np.ones((side, side)), border_value=1
+        )
+    risen = (later.astype(int) - placed >= p["rise_points"]) & was_free & known_later & ~near_other
+    if p["min_extent_px"] > 1:
+        erased &= _reference_long(walls, p["min_extent_px"], p["bridge_px"])
+        risen = _reference_long(risen, p["min_extent_px"], p["bridge_px"])
+    return erased, risen
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_erased_and_risen_cells_match_a_whole_grid_reference(seed: int) -> None:
+    # The detector works in boxes around the candidates and decides a wall's length in small boxes
+    # around the erased cells (flood fills); a wall's length is the whole grid's all the same.
+    rng = np.random.default_rng(seed)
+    for _ in range(25):
+        h, w = (int(v) for v in rng.integers(20, 140, 2))
+        earlier = np.full((h, w), -1, dtype=np.int8)
+        earlier[rng.integers(0, h // 2) :, rng.integers(0, w // 2) :] = 0
+        for _ in range(int(rng.integers(3, 30))):  # walls, some dashed
+            r, c, n = int(rng.integers(0, h)), int(rng.integers(0, w)), int(rng.integers(1, 60))
+            step = int(rng.choice([1, 1, 2, 3]))
+            if rng.random() < 0.5:
+                earlier[r, c : c + n : step] = 100
+            else:
+                earlier[r : r + n : step, c] = 100
+        later = earlier.copy()
+        r, c = int(rng.integers(0, h)), int(rng.integers(0, w))
+        later[r:, c:] = np.roll(earlier, int(rng.integers(-9, 10)), axis=0)[r:, c:]  # a break
+        noise = rng.integers(0, later.size, later.size // 8)
+        later.flat[noise] = rng.integers(-1, 101, noise.size)
+        offset = (int(rng.integers(-6, 7)), int(rng.integers(-6, 7)))
+        p = {
+            "tolerance_px": int(rng.integers(0, 5)),
+            "min_extent_px": int(rng.integers(0, 25)),
+            "bridge_px": int(rng.integers(0, 4)),
+            "occupied_threshold": 65,
+            "free_threshold": int(rng.integers(20, 60)),
+            "rise_points": int(rng.integers(1, 60)),
+            "rise_margin_px": int(rng.integers(0, 5)),
+        }
+        erased, risen = _reference(earlier, later, offset, **p)
+        kw = {k: v for k, v in p.items() if k not in ("rise_points", "rise_margin_px")}
+        assert np.array_equal(erased_walls(earlier, later, offset_px=offset, **kw), erased)
+        kw = {k: v for k, v in p.items() if k not in ("tolerance_px", "occupied_threshold")}
+        assert np.array_equal(risen_evidence(earlier, later, offset_px=offset, **kw), risen)
+        found = contradicted_walls(earlier, later, offset_px=offset, tile_px=4, **p)
+        assert (found.erased_px, found.risen_px) == (erased.sum(), risen.sum())
+        rows, cols = np.nonzero(erased | risen)
+        assert found.contradicted_tiles == len(set(zip(rows // 4, cols // 4, strict=True)))
