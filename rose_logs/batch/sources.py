@@ -16,7 +16,7 @@ from typing import Any
 import fsspec
 
 from rose.limits import short
-from rose.outputs import enclosing_bag_folder
+from rose.outputs import _METADATA_PEEK, _is_bag_metadata, enclosing_bag_folder, is_bag_folder
 from rose_logs.batch.errors import BatchError
 from rose_logs.batch.store import filesystem, is_local, storage_errors
 from rose_logs.formats import ACTIVE_BAG, FORMATS, processed_name
@@ -33,7 +33,7 @@ __all__ = [
     "read_list",
 ]
 
-#: File suffixes searched for in folders (a folder with ``metadata.yaml`` is one ROS 2 bag). A
+#: File suffixes searched for in folders (a ROS 2 bag folder is one recording). A
 #: ``.bag.active`` is a recording ``rosbag record`` never closed: it shows as an error row (naming
 #: ``rose-bag process --salvage``) instead of going unnoticed.
 LOG_SUFFIXES = (".bag", ".mcap", ".db3", ".bag.active")
@@ -332,7 +332,7 @@ def _expand_path(fs: Any, path: str, protocol: str | None, base: str) -> Iterabl
             return
         yield _recording(fs, path, protocol, base, is_dir=False)
         return
-    if fs.isfile(posixpath.join(path, "metadata.yaml")):
+    if _is_bag_dir(fs, path, protocol):
         yield _recording(fs, path, protocol, base, is_dir=True)
         return
     files = _local_files(path) if protocol is None else sorted(fs.find(path))
@@ -353,7 +353,11 @@ def _expand_path(fs: Any, path: str, protocol: str | None, base: str) -> Iterabl
     skipped = tuple(posixpath.join(out, "cleaned") + "/" for out in outs)
     files = [f for f in files if not f.startswith(skipped)] if skipped else files
     bag_dirs = sorted(
-        {posixpath.dirname(f) for f in files if posixpath.basename(f) == "metadata.yaml"}
+        folder
+        for folder in {
+            posixpath.dirname(f) for f in files if posixpath.basename(f) == "metadata.yaml"
+        }
+        if _is_bag_dir(fs, folder, protocol)
     )
     logs = [
         f
@@ -427,7 +431,7 @@ def _bag_of(fs: Any, path: str, protocol: str | None) -> str | None:
     the metadata names), else None."""
     folder = posixpath.dirname(path)
     if posixpath.basename(path) == "metadata.yaml":
-        return folder
+        return folder if _is_bag_dir(fs, folder, protocol) else None
     if protocol is None:  # locally also along symlinks (rose.outputs)
         bag = enclosing_bag_folder(Path(path))
         return None if bag is None else str(bag)
@@ -439,6 +443,21 @@ def _bag_of(fs: Any, path: str, protocol: str | None) -> str | None:
     with fs.open(metadata, "rb") as f:
         names = f.read(64 * 1024).decode("utf-8", "replace")
     return folder if posixpath.basename(path) in names else None
+
+
+def _is_bag_dir(fs: Any, path: str, protocol: str | None) -> bool:
+    """Whether the folder ``path`` is a ROS 2 bag, by the test outputs are checked with
+    (:func:`rose.outputs.is_bag_folder`): rosbag2's ``metadata.yaml``, or one naming a storage
+    file beside it. A data set's own ``metadata.yaml`` makes no bag: its folder is searched as any
+    other (taken as one recording, it was an error row, as ``process`` refuses it)."""
+    if protocol is None:
+        return is_bag_folder(path)
+    metadata = posixpath.join(path, "metadata.yaml")
+    if not fs.isfile(metadata):
+        return False
+    with fs.open(metadata, "rb") as f:
+        text = f.read(_METADATA_PEEK).decode("utf-8", "replace")
+    return _is_bag_metadata(text, [posixpath.basename(p) for p in fs.ls(path, detail=False)])
 
 
 def _recording(fs: Any, path: str, protocol: str | None, base: str, *, is_dir: bool) -> Recording:

@@ -1351,6 +1351,30 @@ def test_a_remote_bags_storage_file_is_its_bag_too() -> None:
         fs.rm("/rose-test-fleet", recursive=True)
 
 
+def test_a_data_sets_own_metadata_yaml_makes_no_bag_folder(tmp_path: Path) -> None:
+    """A folder whose metadata.yaml is not rosbag2's (a data set's description) was taken whole as
+    one bag, an error row ("not a ROS 2 bag", as process says), and its logs were never found."""
+    import fsspec
+
+    data = tmp_path / "dataset"
+    (data / "day1").mkdir(parents=True)
+    (data / "metadata.yaml").write_text("name: my dataset\nlicense: CC-BY-4.0\n")
+    (data / "day1" / "metadata.yaml").write_text("robot: r1\n")
+    (data / "a.mcap").write_bytes(b"x")
+    (data / "day1" / "b.mcap").write_bytes(b"x")
+    expected = [("dataset/a.mcap", False), ("dataset/day1/b.mcap", False)]
+    assert [(r.name, r.is_dir) for r in discover([data])] == expected
+    assert [(r.name, r.is_dir) for r in discover([data / "day1"])] == [("day1/b.mcap", False)]
+    fs = fsspec.filesystem("memory")
+    fs.pipe("/rose-test-dataset/metadata.yaml", b"name: my dataset\n")
+    fs.pipe("/rose-test-dataset/a.mcap", b"x")
+    try:
+        (found,) = discover(["memory://rose-test-dataset"])
+        assert not found.is_dir and found.uri == "memory:///rose-test-dataset/a.mcap"
+    finally:
+        fs.rm("/rose-test-dataset", recursive=True)
+
+
 def test_a_list_entry_naming_nothing_is_named_with_its_list_and_line(
     fleet: Path, tmp_path: Path
 ) -> None:
