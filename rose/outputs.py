@@ -543,7 +543,11 @@ class OutputSet:
         """Protect ``path`` (and, if it is a symlink, what it points to) from every output; for a
         storage file of a ROS 2 bag, the whole bag folder (:func:`enclosing_bag_folder`)."""
         path = Path(path)
-        self._inputs.append((path, path.resolve()))
+        try:
+            resolved = path.resolve()
+        except (OSError, RuntimeError):  # a symlink loop: reading the input says so, in one line
+            resolved = path.absolute()
+        self._inputs.append((path, resolved))
         bag = enclosing_bag_folder(path)
         if bag is not None:
             self._inputs.append((bag, bag.resolve()))

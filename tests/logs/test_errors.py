@@ -49,6 +49,18 @@ def test_missing_file(tmp_path: Path, capsys) -> None:
     assert _leftovers(tmp_path, set()) == []
 
 
+def test_an_input_that_is_a_symlink_loop_is_one_line(tmp_path: Path, capsys) -> None:
+    """Path.resolve() of a link to itself raised RuntimeError (Python < 3.13) while the outputs
+    were checked: a traceback before the read could say what is wrong."""
+    loop = tmp_path / "loop.mcap"
+    loop.symlink_to(loop.name)
+    for outputs in (["--no-output"], ["-o", tmp_path / "o.mcap"]):
+        code, _, err = _run(capsys, "process", loop, *outputs)
+        assert code == 1
+        _assert_one_line_error(err, "loop.mcap", "Too many levels of symbolic links")
+    assert _leftovers(tmp_path, {"loop.mcap"}) == []
+
+
 @pytest.mark.parametrize("content", [b"", b"hello, not a bag at all\n" * 10])
 def test_unrecognised_file(tmp_path: Path, capsys, content: bytes) -> None:
     bad = tmp_path / "bad.mcap"
