@@ -465,12 +465,12 @@ def _recording(fs: Any, path: str, protocol: str | None, base: str, *, is_dir: b
     name = posixpath.relpath(path, base) if base else path
     try:
         infos = [fs.info(f) for f in sorted(fs.find(path))] if is_dir else [fs.info(path)]
-    except FileNotFoundError:
+    except OSError:
         if protocol is not None:
             raise
-        # A dangling link (a log with its suffix, or a file of a bag folder): its row says so,
-        # the reader naming what is missing, instead of one moved file stopping the whole
-        # fleet's batch.
+        # A dangling link or a symlink loop (a log with its suffix, or a file of a bag folder):
+        # its row says so, the reader naming what is wrong, instead of one moved file stopping
+        # the whole fleet's batch.
         return Recording(uri=uri, name=name, is_dir=is_dir, size=0, version="")
     size = sum(int(i.get("size") or 0) for i in infos)
     return Recording(uri=uri, name=name, is_dir=is_dir, size=size, version=_version(infos))

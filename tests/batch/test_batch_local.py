@@ -118,8 +118,13 @@ def test_a_dangling_link_in_a_folder_is_an_error_row_not_a_stopped_batch(
     storage = next(p for p in bag.iterdir() if p.name != "metadata.yaml")
     storage.unlink()
     storage.symlink_to(tmp_path / "gone.db3")
+    # ... and a link to itself (ELOOP, not FileNotFoundError: that one stopped the batch still).
+    (fleet / "robot_a" / "loop.mcap").symlink_to("loop.mcap")
     result = run_batch([fleet], tmp_path / "out")
     rows = {row.name: row for row in result.results}
+    assert rows["fleet/robot_a/loop.mcap"].error.endswith(
+        "loop.mcap: cannot read (Too many levels of symbolic links)"
+    )
     assert rows["fleet/robot_a/moved.mcap"].status == "error"
     assert rows["fleet/robot_a/moved.mcap"].error.endswith("moved.mcap: no such file or directory")
     assert rows["fleet/robot_b/bag_dir"].error.endswith(
