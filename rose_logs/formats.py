@@ -14,6 +14,7 @@ from pathlib import Path, PurePath
 from typing import Literal
 
 from rose.limits import MAX_YAML_BYTES, load_yaml, short
+from rose.outputs import is_bag_folder
 from rose_logs.errors import LogReadError
 
 __all__ = [
@@ -87,8 +88,10 @@ def detect_format(path: Path) -> LogFormat:
         b"\xef\xbb\xbf \t\r\n"
     ).startswith(carmen_words):
         msg += "; a CARMEN laser log becomes a session with 'rose-bag convert'"
-    elif path.name == "metadata.yaml":
+    elif path.name == "metadata.yaml" and is_bag_folder(path.parent):
         msg += f"; a ROS 2 bag's metadata: give its folder, {path.parent}"
+    elif path.name == "metadata.yaml":  # a data set's own: its folder is no bag either
+        msg += "; nor a ROS 2 bag's metadata (no rosbag2_bagfile_information)"
     raise LogReadError(msg)
 
 

@@ -1106,6 +1106,12 @@ def test_a_bags_metadata_given_as_the_input_points_to_its_folder(
     err = capsys.readouterr().err
     assert err.strip().endswith(f"a ROS 2 bag's metadata: give its folder, {bag}")
     assert main(["process", str(bag), "--no-output", "-q"]) == 0
+    # A data set's own metadata.yaml: no folder to give (it was named, and then refused as "not
+    # a ROS 2 bag").
+    (tmp_path / "metadata.yaml").write_text("name: my data set\n")
+    assert main(["process", str(tmp_path / "metadata.yaml"), "--no-output", "-q"]) == 1
+    err = capsys.readouterr().err
+    assert err.strip().endswith("; nor a ROS 2 bag's metadata (no rosbag2_bagfile_information)")
 
 
 def _right_half_drifted(cells: int) -> np.ndarray:
