@@ -286,6 +286,14 @@ def _write_all(stream: BinaryIO, data: bytes | bytearray) -> None:
         view = view[written:]
 
 
+def _refuse_closed_stdout(path: Path) -> None:
+    """Raise :class:`StdoutError` if ``path`` is ``-`` and the process has no standard output
+    (started with it closed, ``>&-``: Python's ``sys.stdout`` is None), before any work: writing
+    the output at commit was an AttributeError traceback."""
+    if str(path) == STDOUT and sys.stdout is None:
+        raise StdoutError("it is closed")
+
+
 def _is_stdout(path: Path) -> bool:
     if str(path) == STDOUT:
         return True
@@ -589,6 +597,7 @@ class OutputSet:
                 if directory:
                     msg = f"{path}: a folder output cannot go to a stream or device"
                     raise OutputError(msg)
+                _refuse_closed_stdout(path)
                 continue
             self._check_existing(path, target, directory=directory, replaceable=replaceable)
             if not target.parent.is_dir():
@@ -636,6 +645,7 @@ class OutputSet:
             if directory:
                 msg = f"{path}: a folder output cannot go to a stream or device"
                 raise OutputError(msg)
+            _refuse_closed_stdout(path)
             staged = StagedOutput(
                 path, target, None, None, directory, True, bytearray(), _is_stdout(path)
             )

@@ -49,6 +49,20 @@ def test_missing_file(tmp_path: Path, capsys) -> None:
     assert _leftovers(tmp_path, set()) == []
 
 
+def test_a_report_to_a_closed_standard_output_is_one_line_before_any_work(
+    tmp_path: Path, capsys, monkeypatch: pytest.MonkeyPatch, mcap_log: Path
+) -> None:
+    """Started with standard output closed (``>&-``: sys.stdout is None), ``--json -`` ended in
+    an AttributeError traceback when the report was written, after the work."""
+    import sys
+
+    monkeypatch.setattr(sys, "stdout", None)
+    code, _, err = _run(capsys, "process", mcap_log, "--no-output", "--json", "-", "-q")
+    assert code == 1
+    _assert_one_line_error(err, "standard output: cannot write (it is closed)")
+    assert _leftovers(tmp_path, {"in.mcap"}) == []
+
+
 def test_an_input_that_is_a_symlink_loop_is_one_line(tmp_path: Path, capsys) -> None:
     """Path.resolve() of a link to itself raised RuntimeError (Python < 3.13) while the outputs
     were checked: a traceback before the read could say what is wrong."""
