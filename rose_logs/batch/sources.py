@@ -294,7 +294,9 @@ def _expand(item: str, storage_options: Mapping[str, Any] | None) -> Iterable[Re
     fs, path = filesystem(item, _options(item, storage_options))
     protocol = None if local else fsspec.utils.get_protocol(item)
     try:
-        if any(c in path for c in _GLOB_CHARS):
+        # A file or folder whose name holds a glob character (``run[1]``) is itself, as a quoted
+        # name is to the shell: as a pattern it matched nothing ("matches no file or folder").
+        if any(c in path for c in _GLOB_CHARS) and not fs.exists(path):
             matches = sorted(fs.glob(path))
             if not matches:
                 msg = f"{given}: matches no file or folder"

@@ -1356,6 +1356,20 @@ def test_a_remote_bags_storage_file_is_its_bag_too() -> None:
         fs.rm("/rose-test-fleet", recursive=True)
 
 
+def test_a_name_with_glob_characters_that_exists_is_taken_as_named(tmp_path: Path) -> None:
+    """'run[1]' and 'b[x].mcap' were patterns that matched nothing: "matches no file or folder"
+    for a folder and a file that exist. A pattern is still one where nothing has its name."""
+    fleet = tmp_path / "fleet"
+    (fleet / "run[1]").mkdir(parents=True)
+    (fleet / "run[1]" / "a.mcap").write_bytes(b"x")
+    (fleet / "b[x].mcap").write_bytes(b"x")
+    assert [r.name for r in discover([fleet / "run[1]"])] == ["run[1]/a.mcap"]
+    assert [r.name for r in discover([fleet / "b[x].mcap"])] == ["b[x].mcap"]
+    assert [r.name for r in discover([f"{fleet}/*.mcap"])] == ["b[x].mcap"]
+    with pytest.raises(BatchError, match=r"run\[2\]: matches no file or folder"):
+        discover([fleet / "run[2]"])
+
+
 def test_a_data_sets_own_metadata_yaml_makes_no_bag_folder(tmp_path: Path) -> None:
     """A folder whose metadata.yaml is not rosbag2's (a data set's description) was taken whole as
     one bag, an error row ("not a ROS 2 bag", as process says), and its logs were never found."""
