@@ -139,7 +139,10 @@ def add_parser(subparsers: Any) -> None:
         "write recordings.parquet, snapshots.parquet, summary.json and report.md to OUT. Recordings "
         "finished by an earlier run with the same options are skipped.",
     )
-    parser.add_argument("inputs", nargs="*", metavar="INPUT", help="file, folder, glob or URL")
+    # Not empty: '' was the current folder, so `batch "$FLEET"` with FLEET unset batched it whole.
+    parser.add_argument(
+        "inputs", nargs="*", type=location, metavar="INPUT", help="file, folder, glob or URL"
+    )
     parser.add_argument(
         "-o",
         "--out",

@@ -387,6 +387,8 @@ def test_an_unknown_option_is_a_usage_error_of_the_parser_it_follows(
         (["process", "x.bag", "-o", ""], "expected a path, got an empty string"),
         (["process", "x.bag", "--json", ""], "expected a path, got an empty string"),
         (["batch", "x.bag", "-o", ""], "expected a path, got an empty string"),
+        # `batch "$FLEET" -o out` with FLEET unset batched the current folder whole.
+        (["batch", "", "-o", "out"], "argument INPUT: expected a path, got an empty string"),
         (["process", "x.bag", "--max-cells", "1.5"], "whole number of cells"),
         (["process", "x.bag", "--connect", "99999"], "rose-bag process: error: argument --connect"),
     ],
@@ -395,7 +397,7 @@ def test_bad_values_are_usage_errors_naming_the_command(
     argv: list[str], said: str, tmp_path: Path, capsys, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """An empty output path read as the current folder ("refusing to write over the input", or
-    batch tables written into it), 1.5 cells were silently 1."""
+    batch tables written into it), and so did an empty batch input; 1.5 cells were silently 1."""
     monkeypatch.chdir(tmp_path)
     try:
         code = main(argv)
