@@ -308,23 +308,33 @@ def _expand(item: str, storage_options: Mapping[str, Any] | None) -> Iterable[Re
         if not fs.exists(path):
             msg = f"{given}: no such file or folder"
             raise BatchError(msg)
-        yield from _expand_path(fs, path, protocol, posixpath.dirname(path.rstrip("/")))
+        yield from _expand_path(fs, path, protocol, _parent(path))
     except OSError as err:
         msg = f"{given}: cannot list ({err})"
         raise BatchError(msg) from err
 
 
+def _parent(path: str) -> str:
+    """The folder an input's recordings are named below (the input's own name first). The root
+    has no name and no parent: its recordings are named below it (``tmp/run.mcap``), not by their
+    absolute paths (``''`` as the base)."""
+    if path.startswith("/") and not path.strip("/"):
+        return "/"
+    return posixpath.dirname(path.rstrip("/"))
+
+
 def _glob_base(pattern: str) -> str:
-    """The folder above the first path component holding a glob character."""
+    """The folder above the first path component holding a glob character (``/`` for a
+    pattern such as ``/*``, so that names stay relative)."""
     parts = pattern.split("/")
     for i, part in enumerate(parts):
         if any(c in part for c in _GLOB_CHARS):
-            return "/".join(parts[:i])
+            return "/".join(parts[:i]) or ("/" if pattern.startswith("/") else "")
     return posixpath.dirname(pattern)
 
 
 def _expand_path(fs: Any, path: str, protocol: str | None, base: str) -> Iterable[Recording]:
-    path = path.rstrip("/")
+    path = path.rstrip("/") or "/"  # the root stays itself: '' is no folder (os.walk: ENOENT)
     if not fs.isdir(path):
         bag = _bag_of(fs, path, protocol)
         if bag is not None:  # a bag's storage file or metadata: the whole bag is the recording

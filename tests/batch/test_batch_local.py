@@ -1370,6 +1370,36 @@ def test_a_name_with_glob_characters_that_exists_is_taken_as_named(tmp_path: Pat
         discover([fleet / "run[2]"])
 
 
+def test_the_root_folder_is_searched_as_any_folder(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """'/' was stripped to '' (no folder): "/: cannot list ([Errno 2] No such file or directory:
+    '')". The root has no name of its own: its recordings are named below it, as are those of a
+    pattern such as '/*' (they were named by their absolute paths)."""
+    from rose_logs.batch import sources
+
+    run = tmp_path / "fleet" / "run.mcap"
+    run.parent.mkdir()
+    run.write_bytes(b"x")
+    searched: list[str] = []
+
+    def local_files(root: str) -> list[str]:  # not the whole machine: only the fleet is below '/'
+        searched.append(root)
+        if not root or not Path(root).is_dir():  # as os.walk fails (Path('') is '.')
+            raise FileNotFoundError(2, "No such file or directory", root)
+        return [str(run)] if str(run).startswith(root.rstrip("/") + "/") else []
+
+    monkeypatch.setattr(sources, "_local_files", local_files)
+    expected = [str(run).removeprefix("/")]
+    assert [r.name for r in discover(["/"])] == expected
+    assert searched == ["/"]
+    assert [r.name for r in discover(["//"])] == expected
+    monkeypatch.chdir("/")
+    assert [r.name for r in discover(["."])] == expected
+    top = "/" + expected[0].split("/")[0]  # the folder of '/*' that holds the fleet
+    assert [r.name for r in discover([top[:-1] + "*"]) if r.uri == str(run)] == expected
+
+
 def test_a_data_sets_own_metadata_yaml_makes_no_bag_folder(tmp_path: Path) -> None:
     """A folder whose metadata.yaml is not rosbag2's (a data set's description) was taken whole as
     one bag, an error row ("not a ROS 2 bag", as process says), and its logs were never found."""
