@@ -178,18 +178,19 @@ def discover(
     inputs : sequence of str or Path
         Log files (taken as they are, whatever their suffix), folders (searched recursively for
         ``*.bag``, ``*.bag.active``, ``*.mcap``, ``*.db3`` and ROS 2 bag folders; a bag folder is
-        one recording), glob
-        patterns, and fsspec URLs of any of these (``s3://bucket/prefix/``).
+        one recording), glob patterns (a search, as a folder: the folders they match are
+        searched, of the files only logs and a bag's files are taken), and fsspec URLs of any of
+        these (``s3://bucket/prefix/``).
     storage_options : mapping, optional
         fsspec options of remote inputs (``endpoint_url``, ``key``, ``secret``, ``anon``...).
 
     Raises
     ------
     BatchError
-        If an input does not exist, a pattern matches nothing, a URL's scheme is unknown or its
-        fsspec backend not installed, or nothing at all is found. Inputs read from a list are
-        inputs like any other: a bad line stops the batch before anything runs, as a missing file
-        does (an error row is for a recording that exists but cannot be processed).
+        If an input does not exist, a pattern matches no log file or folder, a URL's scheme is
+        unknown or its fsspec backend not installed, or nothing at all is found. Inputs read from
+        a list are inputs like any other: a bad line stops the batch before anything runs, as a
+        missing file does (an error row is for a recording that exists but cannot be processed).
     """
     if isinstance(inputs, str | Path):  # one input, not its characters (as run_batch)
         inputs = [inputs]
@@ -301,8 +302,19 @@ def _expand(item: str, storage_options: Mapping[str, Any] | None) -> Iterable[Re
             if not matches:
                 msg = f"{given}: matches no file or folder"
                 raise BatchError(msg)
+            # A pattern is a search, as a folder is: of the files it matches only logs and a
+            # bag's files are recordings (a README.md or a .png beside them were error rows). A
+            # file named on its own is taken whatever its suffix.
+            searched = [m for m in matches if _searched_match(fs, m, protocol)]
+            if not searched:
+                msg = (
+                    f"{given}: matches no log file or folder, only {len(matches)} other file(s) "
+                    f"(first: {posixpath.basename(matches[0])}); name a file on its own to take "
+                    "it whatever its suffix"
+                )
+                raise BatchError(msg)
             base = _glob_base(path)
-            for match in matches:
+            for match in searched:
                 yield from _expand_path(fs, match, protocol, base)
             return
         if not fs.exists(path):
@@ -321,6 +333,14 @@ def _parent(path: str) -> str:
     if path.startswith("/") and not path.strip("/"):
         return "/"
     return posixpath.dirname(path.rstrip("/"))
+
+
+def _searched_match(fs: Any, path: str, protocol: str | None) -> bool:
+    """Whether a pattern's match is what a folder search finds: a folder (searched), a file with
+    a log suffix, or a file of a ROS 2 bag folder (the bag is the recording)."""
+    if path.lower().endswith(LOG_SUFFIXES) or fs.isdir(path):
+        return True
+    return _bag_of(fs, path, protocol) is not None
 
 
 def _glob_base(pattern: str) -> str:

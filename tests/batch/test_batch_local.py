@@ -1370,6 +1370,30 @@ def test_a_name_with_glob_characters_that_exists_is_taken_as_named(tmp_path: Pat
         discover([fleet / "run[2]"])
 
 
+def test_a_pattern_is_a_search_its_files_that_are_not_logs_are_left_out(fleet: Path) -> None:
+    """'fleet/*' took the README.md, notes and pictures beside the logs as recordings: error rows.
+    A pattern is a search, as a folder is; a file named on its own is taken whatever its suffix."""
+    for other in ("README.md", "notes.txt", "map.png"):
+        (fleet / other).write_text("not a log\n")
+    (fleet / "robot_a" / "day.MCAP").write_bytes(b"x")  # a log's suffix in any case
+    found = [r.name for r in discover([f"{fleet}/*"])]
+    assert found == sorted(["robot_a/day.MCAP", *(n.removeprefix("fleet/") for n in FLEET_NAMES)])
+    assert [r.name for r in discover([f"{fleet}/robot_a/*"])] == [
+        "day.MCAP",
+        "later.db3",
+        "run.mcap",
+    ]
+    bag = fleet / "robot_b" / "bag_dir"
+    assert [(r.name, r.is_dir) for r in discover([f"{bag}/*"])] == [("bag_dir", True)]
+    assert [r.name for r in discover([fleet / "notes.txt"])] == ["notes.txt"]
+    with pytest.raises(BatchError) as info:
+        discover([f"{fleet}/*.txt"])
+    assert str(info.value) == (
+        f"{fleet}/*.txt: matches no log file or folder, only 1 other file(s) (first: notes.txt); "
+        "name a file on its own to take it whatever its suffix"
+    )
+
+
 def test_the_root_folder_is_searched_as_any_folder(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
