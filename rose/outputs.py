@@ -70,6 +70,7 @@ __all__ = [
     "newest_change",
     "process_alive",
     "process_tag",
+    "refuse_closed_stdout",
     "refuse_output_in_bag_folder",
     "remove_stale_temporaries",
     "suffix_warning",
@@ -286,10 +287,11 @@ def _write_all(stream: BinaryIO, data: bytes | bytearray) -> None:
         view = view[written:]
 
 
-def _refuse_closed_stdout(path: Path) -> None:
-    """Raise :class:`StdoutError` if ``path`` is ``-`` and the process has no standard output
-    (started with it closed, ``>&-``: Python's ``sys.stdout`` is None), before any work: writing
-    the output at commit was an AttributeError traceback."""
+def refuse_closed_stdout(path: Path | str = STDOUT) -> None:
+    """Raise :class:`StdoutError` if ``path`` is ``-`` (by default: what a command prints) and the
+    process has no standard output (started with it closed, ``>&-``: Python's ``sys.stdout`` is
+    None), before any work: writing an output at commit was an AttributeError traceback, and
+    what a command prints was lost with exit 0."""
     if str(path) == STDOUT and sys.stdout is None:
         raise StdoutError("it is closed")
 
@@ -597,7 +599,7 @@ class OutputSet:
                 if directory:
                     msg = f"{path}: a folder output cannot go to a stream or device"
                     raise OutputError(msg)
-                _refuse_closed_stdout(path)
+                refuse_closed_stdout(path)
                 continue
             self._check_existing(path, target, directory=directory, replaceable=replaceable)
             if not target.parent.is_dir():
@@ -645,7 +647,7 @@ class OutputSet:
             if directory:
                 msg = f"{path}: a folder output cannot go to a stream or device"
                 raise OutputError(msg)
-            _refuse_closed_stdout(path)
+            refuse_closed_stdout(path)
             staged = StagedOutput(
                 path, target, None, None, directory, True, bytearray(), _is_stdout(path)
             )

@@ -946,3 +946,31 @@ def test_every_command_describes_itself_and_shows_debug(capsys: pytest.CaptureFi
         for name, command in commands.items():
             assert command.description, name
             assert "--debug" in command.format_help(), name
+
+
+@pytest.mark.parametrize(
+    "command", [["score"], ["score", "--json"], ["walls"], ["clean", "-o", "out.yaml"]]
+)
+def test_every_command_refuses_a_closed_standard_output_before_any_work(
+    command: list[str],
+    cluttered_map: Path,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """Started with standard output closed (``>&-``: sys.stdout is None), `score` (table or
+    JSON) and `clean` printed nothing and exited 0, `walls` was an AttributeError traceback."""
+    import sys
+
+    import rose.pipeline
+
+    def analyze(*_args: object, **_kwargs: object) -> None:
+        raise AssertionError("analysed with no standard output to print to")
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(rose.pipeline, "analyze", analyze)
+    monkeypatch.setattr(sys, "stdout", None)
+    assert main([command[0], str(cluttered_map), *command[1:]]) == 1
+    lines = capsys.readouterr().err.splitlines()
+    assert lines == ["error: standard output: cannot write (it is closed)"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["in.pgm", "in.yaml"]

@@ -63,6 +63,25 @@ def test_a_report_to_a_closed_standard_output_is_one_line_before_any_work(
     assert _leftovers(tmp_path, {"in.mcap"}) == []
 
 
+@pytest.mark.parametrize(
+    "command", [["info"], ["process", "-o", "out.mcap", "-q"], ["batch", "-o", "out", "-q"]]
+)
+def test_every_command_refuses_a_closed_standard_output_before_any_work(
+    command: list[str], tmp_path: Path, capsys, monkeypatch: pytest.MonkeyPatch, mcap_log: Path
+) -> None:
+    """Started with standard output closed (``>&-``: sys.stdout is None), `info` printed nothing
+    and `process` and `batch` their summaries nowhere, with exit 0 (only an output ``-`` was
+    refused)."""
+    import sys
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(sys, "stdout", None)
+    code, _, err = _run(capsys, command[0], mcap_log, *command[1:])
+    assert code == 1
+    _assert_one_line_error(err, "standard output: cannot write (it is closed)")
+    assert _leftovers(tmp_path, {"in.mcap"}) == []
+
+
 def test_an_input_that_is_a_symlink_loop_is_one_line(tmp_path: Path, capsys) -> None:
     """Path.resolve() of a link to itself raised RuntimeError (Python < 3.13) while the outputs
     were checked: a traceback before the read could say what is wrong."""
