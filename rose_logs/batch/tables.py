@@ -29,6 +29,8 @@ __all__ = [
 
 _LOG = logging.getLogger(__name__)
 
+# Log times are unsigned 64-bit nanoseconds (MCAP's, ROS 1's and rosbag2's); a log time of 2**63
+# or more is valid and overflowed an int64 column. Header stamps fit an int64 (32-bit seconds).
 RECORDING_SCHEMA = pa.schema(
     [
         ("uri", pa.string()),
@@ -42,15 +44,15 @@ RECORDING_SCHEMA = pa.schema(
         ("warnings", pa.list_(pa.string())),
         ("map_topics", pa.list_(pa.string())),
         ("snapshots", pa.int64()),
-        ("start_ns", pa.int64()),
-        ("end_ns", pa.int64()),
+        ("start_ns", pa.uint64()),
+        ("end_ns", pa.uint64()),
         ("w_min", pa.float64()),
         ("w_median", pa.float64()),
         ("w_max", pa.float64()),
         ("broke", pa.bool_()),
         ("first_break_topic", pa.string()),
         ("first_break_index", pa.int64()),
-        ("first_break_ns", pa.int64()),
+        ("first_break_ns", pa.uint64()),
         ("seconds", pa.float64()),
         ("cpu_seconds", pa.float64()),
         ("cleaned", pa.string()),
@@ -64,7 +66,7 @@ SNAPSHOT_SCHEMA = pa.schema(
         ("uri", pa.string()),
         ("topic", pa.string()),
         ("index", pa.int64()),
-        ("log_time_ns", pa.int64()),
+        ("log_time_ns", pa.uint64()),
         ("stamp_ns", pa.int64()),
         ("time_s", pa.float64()),
         ("width", pa.int64()),

@@ -87,8 +87,9 @@ def make_fleet(root: Path) -> list[Path]:
     ]
 
 
-def big_map_recording(destination: Path, *, side: int) -> Path:
-    """One ``side`` x ``side`` map (walls every 40 cells) in an MCAP file: analysing it needs memory."""
+def big_map_recording(destination: Path, *, side: int, log_times_ns: tuple[int, ...] = ()) -> Path:
+    """One ``side`` x ``side`` map (walls every 40 cells) in an MCAP file: analysing it needs memory.
+    ``log_times_ns``: the map again at each of these log times, after the first."""
     from rose_logs.snapshots import MapSnapshot
 
     grid = np.zeros((side, side), dtype=np.int8)
@@ -106,5 +107,7 @@ def big_map_recording(destination: Path, *, side: int) -> Path:
     destination.parent.mkdir(parents=True, exist_ok=True)
     with open_output(destination, "mcap", serialization="cdr") as out:
         out.add_topic(MAP_TOPIC, "nav_msgs/msg/OccupancyGrid", latching=True)
-        out.write(MAP_TOPIC, start_ns, encode_cleaned(snapshot, grid, serialization="cdr"))
+        data = encode_cleaned(snapshot, grid, serialization="cdr")
+        for log_time_ns in (start_ns, *log_times_ns):
+            out.write(MAP_TOPIC, log_time_ns, data)
     return destination

@@ -1760,3 +1760,21 @@ def test_a_result_that_cannot_be_stored_is_said_not_a_crashed_batch(
     again = run_batch([fleet / "robot_a"], out, options=options)
     assert (again.processed, again.skipped) == (2, 0)
     assert not any(r.warnings for r in again.results)
+
+
+def test_log_times_of_2_to_the_63_and_more_go_into_the_tables(tmp_path: Path) -> None:
+    """Log times are unsigned 64-bit: one of 2**63 or more (valid in MCAP) overflowed the tables'
+    int64 columns, a traceback after the whole batch had run."""
+    from fleet import big_map_recording
+
+    last_ns = 2**64 - 1
+    log = big_map_recording(tmp_path / "in" / "late.mcap", side=120, log_times_ns=(2**63, last_ns))
+    out = tmp_path / "out"
+    assert main(["batch", str(log), "-o", str(out), "-q"]) == 0
+    (recording,) = read_rows(out / "recordings.parquet")
+    # The session's span is the log's; maps logged past 2**63 ns are copied, not analysed (their
+    # time does not fit the recording's timelines), and counted.
+    assert recording["end_ns"] == last_ns
+    assert recording["snapshots"] == 1 and recording["skipped_messages"] == 2
+    (snapshot,) = read_rows(out / "snapshots.parquet")
+    assert snapshot["log_time_ns"] == recording["start_ns"] < 2**63
