@@ -58,6 +58,7 @@ from rose.limits import short
 from rose.signals import signals_deferred
 
 __all__ = [
+    "BAG_STORAGE_SUFFIXES",
     "STDOUT",
     "OutputSet",
     "StagedOutput",
@@ -378,7 +379,8 @@ def _bag_folder_extras(path: Path) -> list[str] | None:
     return sorted(extras)
 
 
-_BAG_STORAGE_SUFFIXES = (".db3", ".mcap")
+#: A ROS 2 bag's storage files, also compressed whole (rosbag2's file compression: ``.mcap.zstd``).
+BAG_STORAGE_SUFFIXES = (".db3", ".mcap", ".db3.zstd", ".mcap.zstd")
 #: Bytes of a ``metadata.yaml`` read to find a storage file's name (rosbag2 writes a few KB).
 _METADATA_PEEK = 1 << 20
 
@@ -406,14 +408,14 @@ def _metadata_text(folder: Path) -> str | None:
 
 def enclosing_bag_folder(path: Path) -> Path | None:
     """The ROS 2 bag folder a storage file belongs to, else None: an absolute folder whose
-    ``metadata.yaml`` names the file (``.db3`` / ``.mcap``; also for a symlink's target).
+    ``metadata.yaml`` names the file (:data:`BAG_STORAGE_SUFFIXES`; also for a symlink's target).
 
     Reading ``bag/bag.db3`` alone is fine, but every file of the bag is the input: an output in
     that folder would overwrite its metadata or nest a bag inside it. A folder that merely holds
     some other ``metadata.yaml`` is no bag.
     """
     path = Path(path)
-    if path.suffix.lower() not in _BAG_STORAGE_SUFFIXES or not path.is_file():
+    if not path.name.lower().endswith(BAG_STORAGE_SUFFIXES) or not path.is_file():
         return None
     for candidate in _link_chain(path):
         try:
@@ -445,10 +447,10 @@ def is_bag_folder(folder: Path | str) -> bool:
 
 def _is_bag_metadata(metadata: str, names: Iterable[str]) -> bool:
     """Whether ``metadata`` (a folder's ``metadata.yaml``, its first MiB) makes the folder holding
-    the entries ``names`` a ROS 2 bag: rosbag2's own, or one naming a ``.db3`` / ``.mcap`` among
-    them (a bag whose metadata is damaged)."""
+    the entries ``names`` a ROS 2 bag: rosbag2's own, or one naming a storage file
+    (:data:`BAG_STORAGE_SUFFIXES`) among them (a bag whose metadata is damaged)."""
     return "rosbag2_bagfile_information" in metadata or any(
-        Path(name).suffix.lower() in _BAG_STORAGE_SUFFIXES and name in metadata for name in names
+        name.lower().endswith(BAG_STORAGE_SUFFIXES) and name in metadata for name in names
     )
 
 

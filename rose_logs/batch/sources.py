@@ -16,7 +16,13 @@ from typing import Any
 import fsspec
 
 from rose.limits import short
-from rose.outputs import _METADATA_PEEK, _is_bag_metadata, enclosing_bag_folder, is_bag_folder
+from rose.outputs import (
+    _METADATA_PEEK,
+    BAG_STORAGE_SUFFIXES,
+    _is_bag_metadata,
+    enclosing_bag_folder,
+    is_bag_folder,
+)
 from rose_logs.batch.errors import BatchError
 from rose_logs.batch.store import filesystem, is_local, storage_errors
 from rose_logs.formats import ACTIVE_BAG, FORMATS, processed_name
@@ -467,7 +473,7 @@ def _bag_of(fs: Any, path: str, protocol: str | None) -> str | None:
     if protocol is None:  # locally also along symlinks (rose.outputs)
         bag = enclosing_bag_folder(Path(path))
         return None if bag is None else str(bag)
-    if not path.lower().endswith((".db3", ".mcap")):
+    if not path.lower().endswith(BAG_STORAGE_SUFFIXES):
         return None
     metadata = posixpath.join(folder, "metadata.yaml")
     if not fs.isfile(metadata):

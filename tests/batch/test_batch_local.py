@@ -1356,6 +1356,29 @@ def test_a_remote_bags_storage_file_is_its_bag_too() -> None:
         fs.rm("/rose-test-fleet", recursive=True)
 
 
+def test_a_compressed_bags_storage_file_is_its_bag_too(tmp_path: Path) -> None:
+    """A bag compressed file by file (rosbag2's ``.mcap.zstd`` / ``.db3.zstd``) is one recording
+    however it is reached: 'fleet/*/*.mcap*' silently left it out (its storage file was neither a
+    log nor a bag's file), and its storage file named alone was taken as a log of its own."""
+    import fsspec
+
+    bag = tmp_path / "fleet" / "zbag"
+    bag.mkdir(parents=True)
+    metadata = "rosbag2_bagfile_information:\n  relative_file_paths: [zbag_0.mcap.zstd]\n"
+    (bag / "metadata.yaml").write_text(metadata)
+    (bag / "zbag_0.mcap.zstd").write_bytes(b"x")
+    for given in (f"{bag.parent}/*/*.mcap*", f"{bag}/*.zstd", bag / "zbag_0.mcap.zstd"):
+        assert [(r.name, r.is_dir) for r in discover([given])] == [("zbag", True)], given
+    fs = fsspec.filesystem("memory")
+    fs.pipe("/rose-test-zbag/zbag/metadata.yaml", metadata.replace("mcap", "db3").encode())
+    fs.pipe("/rose-test-zbag/zbag/zbag_0.db3.zstd", b"x")
+    try:
+        (found,) = discover(["memory://rose-test-zbag/*/*.zstd"])
+        assert found.is_dir and found.uri == "memory:///rose-test-zbag/zbag"
+    finally:
+        fs.rm("/rose-test-zbag", recursive=True)
+
+
 def test_a_name_with_glob_characters_that_exists_is_taken_as_named(tmp_path: Path) -> None:
     """'run[1]' and 'b[x].mcap' were patterns that matched nothing: "matches no file or folder"
     for a folder and a file that exist. A pattern is still one where nothing has its name."""
