@@ -193,10 +193,11 @@ def discover(
     Raises
     ------
     BatchError
-        If an input does not exist, a pattern matches no log file or folder, a URL's scheme is
-        unknown or its fsspec backend not installed, or nothing at all is found. Inputs read from
-        a list are inputs like any other: a bad line stops the batch before anything runs, as a
-        missing file does (an error row is for a recording that exists but cannot be processed).
+        If an input is empty or does not exist, a pattern matches no log file or folder, a URL's
+        scheme is unknown or its fsspec backend not installed, or nothing at all is found. Inputs
+        read from a list are inputs like any other: a bad line stops the batch before anything runs,
+        as a missing file does (an error row is for a recording that exists but cannot be
+        processed).
     """
     if isinstance(inputs, str | Path):  # one input, not its characters (as run_batch)
         inputs = [inputs]
@@ -295,6 +296,9 @@ def _without_dot_dot(path: str) -> str:
 
 def _expand(item: str, storage_options: Mapping[str, Any] | None) -> Iterable[Recording]:
     given = item  # errors name the input as the user wrote it
+    if not item:  # as a path, the current folder: discover([os.environ.get("FLEET", "")]) took it
+        msg = "an empty input names no file or folder (the current folder is '.')"
+        raise BatchError(msg)
     local = is_local(item)
     if local:
         item = _without_dot_dot(str(Path(item.removeprefix("file://")).expanduser().absolute()))

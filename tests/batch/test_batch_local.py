@@ -1379,6 +1379,17 @@ def test_a_compressed_bags_storage_file_is_its_bag_too(tmp_path: Path) -> None:
         fs.rm("/rose-test-zbag", recursive=True)
 
 
+def test_an_empty_input_is_an_error_not_the_current_folder(
+    fleet: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The CLI refuses an empty INPUT; discover and run_batch took it as the current folder and
+    searched it whole (an unset variable's ``os.environ.get("FLEET", "")``)."""
+    monkeypatch.chdir(fleet)
+    with pytest.raises(BatchError, match=r"^an empty input names no file or folder"):
+        discover([""])
+    assert [r.name for r in discover(["."])] == FLEET_NAMES  # "." names it as before
+
+
 def test_a_name_with_glob_characters_that_exists_is_taken_as_named(tmp_path: Path) -> None:
     """'run[1]' and 'b[x].mcap' were patterns that matched nothing: "matches no file or folder"
     for a folder and a file that exist. A pattern is still one where nothing has its name."""
