@@ -323,9 +323,14 @@ def _expand(item: str, storage_options: Mapping[str, Any] | None) -> Iterable[Re
                     "it whatever its suffix"
                 )
                 raise BatchError(msg)
+            # Nor, as in a folder, a recording's process output matched with it (counted twice).
+            logs = [m for m in searched if m.lower().endswith(LOG_SUFFIXES) and not fs.isdir(m)]
+            bag_dirs = [m for m in searched if fs.isdir(m) and _is_bag_dir(fs, m, protocol)]
+            theirs = _outputs_left_out(given, bag_dirs, logs)
             base = _glob_base(path)
             for match in searched:
-                yield from _expand_path(fs, match, protocol, base)
+                if match not in theirs:
+                    yield from _expand_path(fs, match, protocol, base)
             return
         if not fs.exists(path):
             msg = f"{given}: no such file or folder"
@@ -406,16 +411,7 @@ def _expand_path(fs: Any, path: str, protocol: str | None, base: str) -> Iterabl
         for f in files
         if f.lower().endswith(LOG_SUFFIXES) and not any(f.startswith(b + "/") for b in bag_dirs)
     ]
-    theirs = sorted(_process_outputs([*bag_dirs, *logs], bag_dirs, logs))
-    if theirs:
-        _LOG.warning(
-            "%s: %d recording(s) named as `rose-bag process` names its output of a recording "
-            "beside it are not read as recordings (first: %s); name them on their own to include "
-            "them",
-            path if protocol is None else f"{protocol}://{path}",
-            len(theirs),
-            theirs[0],
-        )
+    theirs = _outputs_left_out(path if protocol is None else f"{protocol}://{path}", bag_dirs, logs)
     for bag in bag_dirs:
         if bag not in theirs:
             yield _recording(fs, bag, protocol, base, is_dir=True)
@@ -448,6 +444,23 @@ def _local_files(root: str) -> list[str]:
         subfolders.sort(key=lambda name: (Path(folder, name).is_symlink(), name))
         files.extend(posixpath.join(folder, name) for name in names)
     return sorted(files)
+
+
+def _outputs_left_out(where: str, bag_dirs: Sequence[str], logs: Sequence[str]) -> set[str]:
+    """The bag folders and logs found in ``where`` (a folder, or a pattern) that are process
+    outputs of others found with them (:func:`_process_outputs`), said in a warning: they are
+    left out."""
+    theirs = sorted(_process_outputs([*bag_dirs, *logs], bag_dirs, logs))
+    if theirs:
+        _LOG.warning(
+            "%s: %d recording(s) named as `rose-bag process` names its output of a recording "
+            "beside it are not read as recordings (first: %s); name them on their own to include "
+            "them",
+            where,
+            len(theirs),
+            theirs[0],
+        )
+    return set(theirs)
 
 
 def _process_outputs(

@@ -523,6 +523,16 @@ def test_process_outputs_beside_their_recordings_are_not_read_twice(
     # process --format db3 names its output of run.mcap by the format: the bag folder run.rose.
     process_log(log, output_path=tmp_path / "fleet" / "run.rose", output_format="db3")
     assert [r.name for r in discover([tmp_path / "fleet"])] == ["fleet/run.mcap"]
+    # A pattern is a search as a folder is: 'fleet/*' and 'fleet/*.mcap' counted them twice.
+    caplog.clear()
+    with caplog.at_level(logging.WARNING):
+        for pattern in ("*", "*.mcap"):
+            assert [r.name for r in discover([f"{tmp_path}/fleet/{pattern}"])] == ["run.mcap"]
+    assert caplog.text.count("named as `rose-bag process` names its output") == 2
+    assert [r.name for r in discover([f"{tmp_path}/fleet/*.rose*"])] == [
+        "run.rose",
+        "run.rose.mcap",
+    ]
 
 
 # ---- CLI: exit codes ------------------------------------------------------------------------------
