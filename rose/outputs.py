@@ -297,6 +297,24 @@ def refuse_closed_stdout(path: Path | str = STDOUT) -> None:
         raise StdoutError("it is closed")
 
 
+def _write_stdout(data: bytes | bytearray) -> None:
+    """Write ``data`` to standard output: to its binary buffer, or, when a text stream without one
+    stands in its place (``io.StringIO``, from a caller in Python), as UTF-8 text (a report is;
+    anything else is a :class:`StdoutError`, not an AttributeError traceback after the work)."""
+    sys.stdout.flush()
+    buffer = getattr(sys.stdout, "buffer", None)
+    if buffer is None:
+        try:
+            text = bytes(data).decode("utf-8")
+        except UnicodeDecodeError:
+            raise StdoutError("it takes text, and this output is binary") from None
+        sys.stdout.write(text)
+        sys.stdout.flush()
+        return
+    _write_all(buffer, data)
+    buffer.flush()
+
+
 def _is_stdout(path: Path) -> bool:
     if str(path) == STDOUT:
         return True
@@ -872,9 +890,7 @@ class OutputSet:
                 continue
             try:
                 if staged.to_stdout:
-                    sys.stdout.flush()
-                    _write_all(sys.stdout.buffer, staged.data)
-                    sys.stdout.buffer.flush()
+                    _write_stdout(staged.data)
                 else:
                     with staged.target.open("ab") as stream:  # a device or FIFO: never truncated
                         _write_all(stream, staged.data)

@@ -216,6 +216,28 @@ def test_dash_and_dev_stdout_stream_to_stdout(tmp_path: Path) -> None:
     assert Path("/dev/stdout").is_symlink()
 
 
+def test_dash_goes_to_a_text_stream_put_in_place_of_stdout(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A CLI called from Python with sys.stdout an io.StringIO (contextlib.redirect_stdout): '-'
+    was an AttributeError traceback at commit, after all the work (a StringIO has no binary
+    buffer). Text goes there as text; bytes that are no UTF-8 text are one error, nothing lost."""
+    import io
+
+    from rose.errors import StdoutError
+
+    text = io.StringIO()
+    monkeypatch.setattr(sys, "stdout", text)
+    with OutputSet() as outputs:
+        outputs.write_bytes("-", '{"W": "é"}'.encode())
+    assert text.getvalue() == '{"W": "é"}'
+    binary = r"^standard output: cannot write \(it takes text"
+    with pytest.raises(StdoutError, match=binary), OutputSet() as outputs:
+        outputs.write_bytes("-", b"P5\n\xff")
+        outputs.write_bytes(tmp_path / "kept.yaml", b"yaml")
+    assert not (tmp_path / "kept.yaml").exists()
+
+
 def _touch_back(path: Path, seconds: float) -> None:
     """Make ``path`` and what it holds look unchanged for ``seconds``."""
     when = time.time() - seconds
