@@ -424,11 +424,15 @@ def _on_long_walls(
 
     reach = min_extent_px + bridge_px
     shape = walls.shape
-    box_of_all = _grown(
-        (int(rows.min()), int(rows.max()) + 1, int(cols.min()), int(cols.max()) + 1),
-        reach,
-        shape,
-    )
+
+    def box_around(at: npt.NDArray[np.intp]) -> tuple[int, int, int, int]:
+        """The bounding box of the cells ``at`` (indices into rows and cols) plus the reach."""
+        r, c = rows[at], cols[at]
+        return _grown(
+            (int(r.min()), int(r.max()) + 1, int(c.min()), int(c.max()) + 1), reach, shape
+        )
+
+    box_of_all = box_around(np.arange(rows.size))
     boxes = [(box_of_all, np.arange(rows.size))]
     block = 2 * reach + 1
     br, bc = rows // block, cols // block
@@ -442,22 +446,7 @@ def _on_long_walls(
         order = np.argsort(group, kind="stable")
         starts = np.flatnonzero(np.diff(group[order])) + 1
         split = np.split(order, starts)
-        grouped = [
-            (
-                _grown(
-                    (
-                        int(rows[at].min()),
-                        int(rows[at].max()) + 1,
-                        int(cols[at].min()),
-                        int(cols[at].max()) + 1,
-                    ),
-                    reach,
-                    shape,
-                ),
-                at,
-            )
-            for at in split
-        ]
+        grouped = [(box_around(at), at) for at in split]
         area = sum((r1 - r0) * (c1 - c0) for (r0, r1, c0, c1), _ in grouped)
         r0, r1, c0, c1 = box_of_all
         if area < (r1 - r0) * (c1 - c0):
@@ -556,13 +545,15 @@ def _risen_cells(
         piece_bounds = _true_bounds(risen)
         if piece_bounds is None:
             return _Cells(_NO_CELLS.rows, _NO_CELLS.cols, box)
-        a, b, c, d = piece_bounds
-        # In the grid's cells (the bridging reaches past the margin when it is narrower).
-        a0, a1, b0, b1 = _grown((a + t0, b + t0, c + u0, d + u0), bridge_px + 1, later.shape)
-        near = np.zeros((a1 - a0, b1 - b0), dtype=bool)
-        near[a + t0 - a0 : b + t0 - a0, c + u0 - b0 : d + u0 - b0] = risen[a:b, c:d]
+        pr0, pr1, pc0, pc1 = piece_bounds  # in the cells of `risen` (the margin box's)
+        # The pieces' box a bridge wider, in the grid's cells (the bridging reaches past the
+        # margin when it is narrower).
+        grid_bounds = (pr0 + t0, pr1 + t0, pc0 + u0, pc1 + u0)
+        r0, r1, c0, c1 = _grown(grid_bounds, bridge_px + 1, later.shape)
+        near = np.zeros((r1 - r0, c1 - c0), dtype=bool)
+        near[pr0 + t0 - r0 : pr1 + t0 - r0, pc0 + u0 - c0 : pc1 + u0 - c0] = risen[pr0:pr1, pc0:pc1]
         pieces = _long_walls(near, min_extent_px, bridge_px)
-        return _Cells(*_cells_of(pieces, a0, b0), box)
+        return _Cells(*_cells_of(pieces, r0, c0), box)
     return _Cells(*_cells_of(risen, t0, u0), box)
 
 
