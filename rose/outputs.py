@@ -59,11 +59,13 @@ from rose.signals import signals_deferred
 
 __all__ = [
     "BAG_STORAGE_SUFFIXES",
+    "METADATA_PEEK_BYTES",
     "STDOUT",
     "OutputSet",
     "StagedOutput",
     "counted",
     "is_bag_folder",
+    "is_bag_metadata",
     "is_stream",
     "json_safe",
     "json_text",
@@ -385,7 +387,7 @@ def _bag_folder_extras(path: Path) -> list[str] | None:
         return None
     # A bag by is_bag_folder's test: another tool's metadata.yaml lists its own files (a data
     # set's), which `-o DIR --force` then deleted as the bag's.
-    if metadata is None or not _is_bag_metadata(metadata, [e.name for e in entries]):
+    if metadata is None or not is_bag_metadata(metadata, [e.name for e in entries]):
         return None
     extras = []
     for entry in entries:
@@ -400,7 +402,7 @@ def _bag_folder_extras(path: Path) -> list[str] | None:
 #: A ROS 2 bag's storage files, also compressed whole (rosbag2's file compression: ``.mcap.zstd``).
 BAG_STORAGE_SUFFIXES = (".db3", ".mcap", ".db3.zstd", ".mcap.zstd")
 #: Bytes of a ``metadata.yaml`` read to find a storage file's name (rosbag2 writes a few KB).
-_METADATA_PEEK = 1 << 20
+METADATA_PEEK_BYTES = 1 << 20
 
 
 def _metadata_text(folder: Path) -> str | None:
@@ -421,7 +423,7 @@ def _metadata_text(folder: Path) -> str | None:
     with os.fdopen(fd, "rb") as f:
         if not stat.S_ISREG(os.fstat(fd).st_mode):
             return None
-        return f.read(_METADATA_PEEK).decode("utf-8", "replace")
+        return f.read(METADATA_PEEK_BYTES).decode("utf-8", "replace")
 
 
 def enclosing_bag_folder(path: Path) -> Path | None:
@@ -458,12 +460,12 @@ def is_bag_folder(folder: Path | str) -> bool:
             return False
         if "rosbag2_bagfile_information" in metadata:  # (no listing needed)
             return True
-        return _is_bag_metadata(metadata, [e.name for e in os.scandir(folder)])
+        return is_bag_metadata(metadata, [e.name for e in os.scandir(folder)])
     except OSError:  # unreadable: taken as a bag
         return True
 
 
-def _is_bag_metadata(metadata: str, names: Iterable[str]) -> bool:
+def is_bag_metadata(metadata: str, names: Iterable[str]) -> bool:
     """Whether ``metadata`` (a folder's ``metadata.yaml``, its first MiB) makes the folder holding
     the entries ``names`` a ROS 2 bag: rosbag2's own, or one naming a storage file
     (:data:`BAG_STORAGE_SUFFIXES`) among them (a bag whose metadata is damaged)."""

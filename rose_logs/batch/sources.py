@@ -17,11 +17,11 @@ import fsspec
 
 from rose.limits import short
 from rose.outputs import (
-    _METADATA_PEEK,
     BAG_STORAGE_SUFFIXES,
-    _is_bag_metadata,
+    METADATA_PEEK_BYTES,
     enclosing_bag_folder,
     is_bag_folder,
+    is_bag_metadata,
 )
 from rose_logs.batch.errors import BatchError
 from rose_logs.batch.store import filesystem, is_local, storage_errors
@@ -511,8 +511,8 @@ def _is_bag_dir(fs: Any, path: str, protocol: str | None) -> bool:
     if not fs.isfile(metadata):
         return False
     with fs.open(metadata, "rb") as f:
-        text = f.read(_METADATA_PEEK).decode("utf-8", "replace")
-    return _is_bag_metadata(text, [posixpath.basename(p) for p in fs.ls(path, detail=False)])
+        text = f.read(METADATA_PEEK_BYTES).decode("utf-8", "replace")
+    return is_bag_metadata(text, [posixpath.basename(p) for p in fs.ls(path, detail=False)])
 
 
 def _recording(fs: Any, path: str, protocol: str | None, base: str, *, is_dir: bool) -> Recording:
