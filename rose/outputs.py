@@ -294,7 +294,8 @@ def refuse_closed_stdout(path: Path | str = STDOUT) -> None:
     """Raise :class:`StdoutError` if ``path`` is ``-`` (by default: what a command prints) and the
     process has no standard output (started with it closed, ``>&-``: Python's ``sys.stdout`` is
     None), before any work: writing an output at commit was an AttributeError traceback, and
-    what a command prints was lost with exit 0."""
+    what a command prints was lost with exit 0. Both command-line tools call it first: every
+    command prints its result, or a summary of the files it wrote."""
     if str(path) == STDOUT and sys.stdout is None:
         raise StdoutError("it is closed")
 

@@ -168,12 +168,9 @@ def _run(argv: Sequence[str] | None) -> int:
     single = input_name(args) if getattr(args, "maps", None) is None else None
     handler.addFilter(_InputNamed(single))
     try:
-        # Every command prints to standard output (its result, or a summary of the files it
-        # wrote): started with it closed (>&-), that was lost with exit 0. Refused before any
-        # work, as an output '-' is. (rose.outputs: loaded with the commands already.)
-        from rose.outputs import refuse_closed_stdout
+        from rose.outputs import refuse_closed_stdout  # loaded with the commands already
 
-        refuse_closed_stdout()
+        refuse_closed_stdout()  # every command prints its result or summary there
         with logging_routed({"": handler}, logging.WARNING), stdout_errors_named():
             return int(args.func(args))
     except (RoseError, OSError, MemoryError, RecursionError) as err:

@@ -142,12 +142,9 @@ def _run(argv: list[str] | None) -> int:
 
     check_params(getattr(args, "command_parser", parser), args)
     try:
-        # Every command prints to standard output (its result, or a summary of the files it
-        # wrote): started with it closed (>&-), that was lost with exit 0. Refused before any
-        # work, as an output '-' is. (rose.outputs: loaded with the commands already.)
-        from rose.outputs import refuse_closed_stdout
+        from rose.outputs import refuse_closed_stdout  # loaded with the commands already
 
-        refuse_closed_stdout()
+        refuse_closed_stdout()  # every command prints its result or summary there
         with _logging(args.debug), stdout_errors_named():  # its errors name it, not the input
             return int(args.func(args))
     except UsageError as err:
