@@ -60,7 +60,9 @@ def cleaning_cases(config: EvaluationConfig, *, seeds: int = 1) -> list[Cleaning
     from rose_logs.evaluation.raycast import raycast_case
 
     cases: list[CleaningCase] = []
-    if config.benchmark_dir.is_dir():
+    # Only with maps to clean: benchmark_dir looks the data set up, which an evaluation of no map
+    # and no log (`--logs '' --maps ''`) does not need (it failed there, after the experiments).
+    if config.benchmark_maps and config.benchmark_dir.is_dir():
         cases += bormann_cases(config.benchmark_dir, names=config.benchmark_maps)
     for log in config.logs:
         path = config.logs_dir / f"{log}-corrected.log.gz"
