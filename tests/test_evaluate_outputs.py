@@ -177,3 +177,43 @@ def test_a_report_folder_inside_a_ros2_bag_folder_is_refused_before_any_run(
             "metadata.yaml): it would write into a recording; choose another OUT_DIR\n"
         )
         assert sorted(p.name for p in bag.iterdir()) == ["metadata.yaml"]
+
+
+#: The measured times, the only part of a report that differs between two runs (README).
+TIMING_COLUMNS = {"rose_s", "build_s", "analyze_s", "clean_s", "time_ratio", "seconds"}
+
+
+def _without_times(path: Path) -> list[list[str]]:
+    """A report file's rows with the measured times blanked: CSV columns by name, the markdown's
+    run-time line, the cleaning table's last cell and experiment 4's cost line."""
+    import csv
+
+    text = path.read_text(encoding="utf-8")
+    if path.suffix == ".csv":
+        rows = list(csv.reader(text.splitlines()))
+        timed = {k for k, name in enumerate(rows[0] if rows else []) if name in TIMING_COLUMNS}
+        return [["-" if k in timed else v for k, v in enumerate(row)] for row in rows]
+    lines = []
+    for line in text.splitlines():
+        if line.startswith(("- Run time:", "Cost (CPU time")):
+            line = "-"
+        elif line.startswith("| ") and line.endswith(") |") and "time" not in line:
+            line = line.rsplit("|", 2)[0]  # a cleaning row: median (worst) time ratio last
+        lines.append([line])
+    return lines
+
+
+def test_two_runs_write_the_same_report_but_for_the_measured_times(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    first, second = tmp_path / "a", tmp_path / "b"
+    assert main(["evaluate", str(first), *QUICK]) == 0
+    assert main(["evaluate", str(second), *QUICK]) == 0
+    capsys.readouterr()
+    names = sorted(p.name for p in first.iterdir())
+    assert names == sorted(p.name for p in second.iterdir())
+    for name in names:
+        if name.endswith(".png"):  # figures hold no time
+            assert (first / name).read_bytes() == (second / name).read_bytes(), name
+        else:
+            assert _without_times(first / name) == _without_times(second / name), name
