@@ -217,3 +217,18 @@ def test_two_runs_write_the_same_report_but_for_the_measured_times(
             assert (first / name).read_bytes() == (second / name).read_bytes(), name
         else:
             assert _without_times(first / name) == _without_times(second / name), name
+
+
+def test_without_matplotlib_one_warning_says_no_plots(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Only the wall plot said it was left out; the experiments' figures went silently.
+    monkeypatch.setitem(sys.modules, "matplotlib", None)  # `import matplotlib` raises ImportError
+    out = tmp_path / "report"
+    assert main(["evaluate", str(out), *QUICK]) == 0
+    warnings = [line for line in capsys.readouterr().err.splitlines() if "matplotlib" in line]
+    assert warnings == [
+        "warning: matplotlib is not installed (the plots extra): no plots; the cleaning picture "
+        "and the rasterised maps are still drawn"
+    ]
+    assert sorted(p.name for p in out.glob("*.png")) == ["cleaning_before_after.png"]

@@ -148,7 +148,7 @@ def _walls_section(out_dir: Path, config: EvaluationConfig) -> WallReport | None
         names=list(config.benchmark_maps),
         maps_dir=config.benchmark_dir,
         rose_params=config.rose_params,
-        plot=config.plots,
+        plot=config.plots and have_matplotlib(),  # without it: said once, by run_evaluation
     )
 
 
@@ -197,6 +197,13 @@ def run_evaluation(
             raise rose.MapFileError(msg)
         # Both drawings decode and agree in size: said now too, not after experiment 1.
         furniture_pair(config.benchmark_dir / f"{name}.png", furnished)
+    if config.plots and not have_matplotlib():
+        # Said once for every plot: only the wall plot said it, the other figures were left out
+        # silently.
+        _LOG.warning(
+            "matplotlib is not installed (the plots extra): no plots; the cleaning picture and the "
+            "rasterised maps are still drawn"
+        )
     out.mkdir(parents=True, exist_ok=True)
     say = progress if progress is not None else _LOG.info
     t0 = time.perf_counter()
