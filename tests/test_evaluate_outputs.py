@@ -232,3 +232,16 @@ def test_without_matplotlib_one_warning_says_no_plots(
         "and the rasterised maps are still drawn"
     ]
     assert sorted(p.name for p in out.glob("*.png")) == ["cleaning_before_after.png"]
+
+
+def test_the_file_list_names_every_table_written_and_no_map_image_without_a_log(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # wall_error.csv and cleaning_runs.csv were missing from "## Files"; map_*.png was listed by a
+    # run without a log, which writes none.
+    out = tmp_path / "report"
+    assert main(["evaluate", str(out), *QUICK, "--no-plots"]) == 0
+    capsys.readouterr()
+    listed = (out / "report.md").read_text().split("## Files", 1)[1]
+    named = set(re.findall(r"`([^`]+)`", listed))
+    assert named == {p.name for p in out.glob("*.csv")}

@@ -519,19 +519,25 @@ def _confidence_section(exp3: Experiment3, figures: list[str]) -> list[str]:
     return lines
 
 
-def _files_section(*, figures: bool, breaks: bool = False) -> list[str]:
-    """The list of files written next to the report."""
+def _files_section(
+    *, figures: bool, breaks: bool = False, walls: bool = False, maps: bool = True
+) -> list[str]:
+    """The list of tables (and map images) written next to the report: each that was written."""
     shown = ", figures above" if figures else ""
     exp4 = (
         ", `exp4_breaks_sessions.csv` (one row per replayed session), `exp4_breaks_roc.csv`"
         if breaks
         else ""
     )
+    # wall_error.csv and cleaning_runs.csv were left out of the list; map_*.png was listed without
+    # a log, when none is written.
+    wall = ", `wall_error.csv`" if walls else ""
+    images = ", `map_*.png` (rasterised logs, map_server greys)" if maps else ""
     return [
         "## Files",
         "",
         "`exp1_clutter_runs.csv` (one row per cluttered map), `exp1_furniture.csv`, `exp2_drift.csv`, "
-        f"`exp3_correlation.csv`{exp4}, `map_*.png` (rasterised logs, map_server greys){shown}.",
+        f"`exp3_correlation.csv`{wall}, `cleaning_runs.csv`{exp4}{images}{shown}.",
         "",
     ]
 
@@ -575,5 +581,7 @@ def _markdown(
             "needs no matplotlib.",
             "",
         ]
-    lines += _files_section(figures=bool(figures), breaks=bool(break_md))
+    lines += _files_section(
+        figures=bool(figures), breaks=bool(break_md), walls=bool(wall_md), maps=bool(map_images)
+    )
     return "\n".join(lines)
