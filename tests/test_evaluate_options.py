@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 import pytest
@@ -9,6 +10,7 @@ from real_data import REPO_DATA
 
 from rose_logs.cli import build_parser, main
 from rose_logs.cli.evaluate import config_from_args
+from rose_logs.evaluation.config import BENCHMARK_SUBDIR
 
 
 @pytest.mark.parametrize(
@@ -223,3 +225,24 @@ def test_nothing_to_evaluate_needs_no_data_set(
     assert main(["evaluate", str(out), "--no-plots", "--logs", "", "--maps", ""]) == 0
     assert "error" not in capsys.readouterr().err
     assert (out / "report.md").is_file()
+
+
+def test_a_report_inside_a_symlinked_data_sub_folder_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # The data folder's benchmark sub-folder a symlink to a shared copy: only the data folder was
+    # protected, and the report was written inside the benchmark's real folder.
+    shared = tmp_path / "shared_benchmark"
+    shared.mkdir()
+    for image in (REPO_DATA / BENCHMARK_SUBDIR).glob("Freiburg79_scan*.png"):
+        shutil.copy(image, shared / image.name)
+    data = tmp_path / "data"
+    data.mkdir()
+    (data / BENCHMARK_SUBDIR).symlink_to(shared)
+    before = sorted(p.name for p in shared.iterdir())
+    for out in (shared / "report", shared / "new" / "report"):
+        argv = ["evaluate", str(out), "--maps-dir", str(data), "--logs", "", "--maps"]
+        assert main([*argv, "Freiburg79_scan", "--sizes", "4", "--counts", "20", "--no-plots"]) == 1
+        err = capsys.readouterr().err.strip().splitlines()[-1]
+        assert err == f"error: {out}: refusing to write inside the input {data / BENCHMARK_SUBDIR}"
+        assert sorted(p.name for p in shared.iterdir()) == before  # no folder made there either

@@ -214,6 +214,10 @@ def run(args: argparse.Namespace) -> int:
         )
     # The data set is read, never written (data_root raises DataSetError, one line, if it is absent).
     inputs = [config.data_root] if config.logs or config.benchmark_maps else []
+    # And the sub-folders read, each in its own right: one may be a symlink out of the data folder
+    # (a shared copy of the benchmark), and the report was written inside its target.
+    inputs += [config.logs_dir] if config.logs else []
+    inputs += [config.benchmark_dir] if config.benchmark_maps else []
     # A report folder's parents are made, as `batch` makes OUT's (`evaluate out/eval` in a fresh
     # checkout), but never inside the data set (the output check refuses that path next); a path
     # through a file stays an error of the output check.
