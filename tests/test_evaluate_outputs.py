@@ -245,3 +245,21 @@ def test_the_file_list_names_every_table_written_and_no_map_image_without_a_log(
     listed = (out / "report.md").read_text().split("## Files", 1)[1]
     named = set(re.findall(r"`([^`]+)`", listed))
     assert named == {p.name for p in out.glob("*.csv")}
+
+
+@pytest.mark.parametrize(
+    ("options", "said"),
+    [
+        (["--no-plots"], "The plots were not drawn (`--no-plots`), nor the cleaning picture."),
+        ([], None),  # nothing to plot: it said "`--no-plots` or matplotlib missing"
+    ],
+)
+def test_the_report_says_why_there_is_no_plot_only_when_it_is_so(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], options: list[str], said: str | None
+) -> None:
+    out = tmp_path / "report"
+    argv = ["evaluate", str(out), "--maps-dir", str(REPO_DATA), "--logs", "", "--maps", ""]
+    assert main([*argv, *options]) == 0
+    capsys.readouterr()
+    lines = [ln for ln in (out / "report.md").read_text().splitlines() if "not drawn" in ln]
+    assert lines == ([said] if said else [])

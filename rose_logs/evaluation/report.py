@@ -575,10 +575,14 @@ def _markdown(
         lines += [cleaning_md.rstrip(), ""]
     if break_md:
         lines += [break_md.rstrip(), ""]
-    if not figures:
+    # Why there is no plot, said as it is: one sentence gave both reasons, and claimed them for a
+    # run with nothing to plot; with --no-plots the cleaning picture is not drawn either.
+    if not config.plots:
+        lines += ["The plots were not drawn (`--no-plots`), nor the cleaning picture.", ""]
+    elif not have_matplotlib():
         lines += [
-            "The plots were not drawn (`--no-plots` or matplotlib missing); the cleaning picture "
-            "needs no matplotlib.",
+            "The plots were not drawn (matplotlib is not installed, the plots extra); the cleaning "
+            "picture needs no matplotlib.",
             "",
         ]
     lines += _files_section(
