@@ -246,3 +246,15 @@ def test_a_report_inside_a_symlinked_data_sub_folder_is_refused(
         err = capsys.readouterr().err.strip().splitlines()[-1]
         assert err == f"error: {out}: refusing to write inside the input {data / BENCHMARK_SUBDIR}"
         assert sorted(p.name for p in shared.iterdir()) == before  # no folder made there either
+
+
+def test_a_missing_data_folder_is_an_error_also_with_nothing_to_read(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # --logs '' --maps '' read nothing, and a --maps-dir that does not exist was taken silently.
+    out = tmp_path / "report"
+    argv = ["evaluate", str(out), "--no-plots", "--logs", "", "--maps", ""]
+    assert main([*argv, "--maps-dir", str(tmp_path / "nope")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert err == f"error: {tmp_path / 'nope'}: no such data folder (--maps-dir)"
+    assert not out.exists()

@@ -214,6 +214,10 @@ def run(args: argparse.Namespace) -> int:
         )
     # The data set is read, never written (data_root raises DataSetError, one line, if it is absent).
     inputs = [config.data_root] if config.logs or config.benchmark_maps else []
+    if config.maps_dir is not None and not inputs:
+        # A --maps-dir given is checked though nothing is read from it: a typo (`--maps-dir dat`)
+        # was taken silently.
+        _ = config.data_root
     # And the sub-folders read, each in its own right: one may be a symlink out of the data folder
     # (a shared copy of the benchmark), and the report was written inside its target.
     inputs += [config.logs_dir] if config.logs else []
