@@ -230,6 +230,12 @@ def test_geojson_and_svg_parse(tmp_path: Path) -> None:
     # SVG y runs down: grid row r is drawn at rows - r - 0.5.
     y1 = float(lines[0].get("y1", "nan"))
     assert y1 == pytest.approx(grid.shape[0] - found.endpoints_px[0, 0, 1] - 0.5, abs=1e-3)
+    # SVG has no negative or zero-width stroke (a negative one made an invalid file): refused,
+    # nothing written.
+    for stroke in (-1.0, 0, float("nan"), "2"):
+        with pytest.raises(rose.RoseError, match="stroke_px must be a number > 0"):
+            write_walls_svg(tmp_path / "bad.svg", found, stroke_px=stroke)  # type: ignore[arg-type]
+    assert not (tmp_path / "bad.svg").exists()
 
 
 def test_walls_cli_module(tmp_path: Path) -> None:

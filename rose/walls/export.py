@@ -17,6 +17,7 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 
 from rose.directions import fold_deg
+from rose.errors import RoseError
 from rose.mapfile import write_atomically
 from rose.outputs import json_text
 from rose.walls.segments import WallSet
@@ -75,7 +76,15 @@ def walls_to_svg(walls: WallSet, *, stroke_px: float = 1.0, colour: str = "#d627
     str
         The document; its ``viewBox`` is ``0 0 cols rows`` and cell ``(c, r)`` covers
         ``[c, c + 1] x [rows - r - 1, rows - r]`` (top row of the picture = last grid row).
+
+    Raises
+    ------
+    RoseError
+        If ``stroke_px`` is not a number > 0 (SVG has no negative width: the file was invalid).
     """
+    if not (isinstance(stroke_px, int | float | np.number) and float(stroke_px) > 0):
+        msg = f"stroke_px must be a number > 0, got {stroke_px!r}"
+        raise RoseError(msg)
     rows, cols = walls.shape
     ends = walls.endpoints_px
     x = ends[:, :, 0] + 0.5
@@ -116,6 +125,8 @@ def write_walls_svg(
 
     Raises
     ------
+    RoseError
+        If ``stroke_px`` is not a number > 0 (nothing is written).
     MapFileError
         If the file cannot be written.
     """
