@@ -315,7 +315,9 @@ def _expand(item: str, storage_options: Mapping[str, Any] | None) -> Iterable[Re
             # A pattern is a search, as a folder is: of the files it matches only logs and a
             # bag's files are recordings (a README.md or a .png beside them were error rows). A
             # file named on its own is taken whatever its suffix.
-            searched = [m for m in matches if _searched_match(fs, m, protocol)]
+            # Each match asked once whether it is a folder (a request per call on remote storage).
+            folders = {m for m in matches if fs.isdir(m)}
+            searched = [m for m in matches if m in folders or _searched_file(fs, m, protocol)]
             if not searched:
                 msg = (
                     f"{given}: matches no log file or folder, only {len(matches)} other file(s) "
@@ -324,8 +326,8 @@ def _expand(item: str, storage_options: Mapping[str, Any] | None) -> Iterable[Re
                 )
                 raise BatchError(msg)
             # Nor, as in a folder, a recording's process output matched with it (counted twice).
-            logs = [m for m in searched if m.lower().endswith(LOG_SUFFIXES) and not fs.isdir(m)]
-            bag_dirs = [m for m in searched if fs.isdir(m) and _is_bag_dir(fs, m, protocol)]
+            logs = [m for m in searched if m.lower().endswith(LOG_SUFFIXES) and m not in folders]
+            bag_dirs = [m for m in searched if m in folders and _is_bag_dir(fs, m, protocol)]
             theirs = _outputs_left_out(given, bag_dirs, logs)
             base = _glob_base(path)
             for match in searched:
@@ -350,10 +352,10 @@ def _parent(path: str) -> str:
     return posixpath.dirname(path.rstrip("/"))
 
 
-def _searched_match(fs: Any, path: str, protocol: str | None) -> bool:
-    """Whether a pattern's match is what a folder search finds: a folder (searched), a file with
-    a log suffix, or a file of a ROS 2 bag folder (the bag is the recording)."""
-    if path.lower().endswith(LOG_SUFFIXES) or fs.isdir(path):
+def _searched_file(fs: Any, path: str, protocol: str | None) -> bool:
+    """Whether a file a pattern matches is one a folder search finds: a file with a log suffix,
+    or a file of a ROS 2 bag folder (the bag is the recording). Folders matched are searched."""
+    if path.lower().endswith(LOG_SUFFIXES):
         return True
     return _bag_of(fs, path, protocol) is not None
 
