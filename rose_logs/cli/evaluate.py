@@ -212,12 +212,12 @@ def run(args: argparse.Namespace) -> int:
             "warning: --logs and --maps are both empty: no experiment runs, the tables stay empty",
             file=sys.stderr,
         )
-    # The data set is read, never written (data_root raises DataSetError, one line, if it is absent).
-    inputs = [config.data_root] if config.logs or config.benchmark_maps else []
-    if config.maps_dir is not None and not inputs:
-        # A --maps-dir given is checked though nothing is read from it: a typo (`--maps-dir dat`)
-        # was taken silently.
-        _ = config.data_root
+    # The data set is read, never written (data_root raises DataSetError, one line, if it is
+    # absent). A --maps-dir given is looked up though nothing is read from it: a typo
+    # (`--maps-dir dat`) was taken silently.
+    reads = bool(config.logs or config.benchmark_maps)
+    data_root = config.data_root if reads or config.maps_dir is not None else None
+    inputs = [data_root] if data_root is not None and reads else []
     # And the sub-folders read, each in its own right: one may be a symlink out of the data folder
     # (a shared copy of the benchmark), and the report was written inside its target.
     inputs += [config.logs_dir] if config.logs else []
