@@ -60,6 +60,25 @@ def test_blocks_any_is_the_or_of_each_block(case: tuple[int, np.ndarray]) -> Non
     np.testing.assert_array_equal(blocks_any(mask.astype(np.int16) * 2, factor), expected)
 
 
+@settings(max_examples=120, deadline=None)
+@given(
+    st.tuples(st.integers(0, 80), st.integers(0, 80)).flatmap(
+        lambda shape: arrays(np.bool_, shape, elements=st.booleans(), fill=st.just(False))
+    )
+)
+def test_true_bounds_is_the_box_of_the_true_cells(mask: np.ndarray) -> None:
+    """The early-stopping search (rows by blocks from the end) finds the plain reduction's box,
+    on masks taller than its blocks of rows too, and None on empty ones."""
+    from rose.grid import true_bounds
+
+    rows = np.flatnonzero(mask.any(axis=1))
+    cols = np.flatnonzero(mask.any(axis=0))
+    expected = None
+    if rows.size:
+        expected = (int(rows[0]), int(rows[-1]) + 1, int(cols[0]), int(cols[-1]) + 1)
+    assert true_bounds(mask) == expected
+
+
 @settings(max_examples=80, deadline=None)
 @given(
     st.tuples(st.integers(1, 12), st.integers(1, 12)).flatmap(

@@ -21,7 +21,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rose.directions import map_frame_deg
-from rose.grid import blocks_max
+from rose.grid import blocks_max, true_bounds
 from rose.result import RoseResult
 from rose_logs.rerun.style import (
     AMPLITUDE_PLOT_HEIGHT,
@@ -488,12 +488,11 @@ def known_bounds_cells(grid: npt.NDArray[np.int8]) -> tuple[int, int, int, int] 
 
     Grid frame: x along columns, y along rows (row 0 at the origin).
     """
-    known = grid >= 0
-    cols_any = np.flatnonzero(known.any(axis=0))
-    if cols_any.size == 0:
+    bounds = true_bounds(grid >= 0)
+    if bounds is None:
         return None
-    rows_any = np.flatnonzero(known.any(axis=1))
-    return int(cols_any[0]), int(rows_any[0]), int(cols_any[-1]) + 1, int(rows_any[-1]) + 1
+    r0, r1, c0, c1 = bounds
+    return c0, r0, c1, r1
 
 
 def cells_to_pixels(points: npt.NDArray[np.float64], rows: int) -> npt.NDArray[np.float64]:
