@@ -259,7 +259,7 @@ def run(args: argparse.Namespace) -> int:
         msg = "--no-output and --format exclude each other"
         raise UsageError(msg)
     if args.connect is not None:
-        from rose_logs.rerun.sink import viewer_endpoint  # loads Rerun: only when it is used
+        from rose_logs.rerun.viewer import viewer_endpoint
 
         try:
             viewer_endpoint(args.connect)

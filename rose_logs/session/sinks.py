@@ -79,7 +79,7 @@ def rerun_sink(
     staged)."""
     from rose_logs.rerun import RerunSink, recording_id_for  # rerun loads only when used
     from rose_logs.rerun.paths import entity_root_for_topic
-    from rose_logs.rerun.sink import ViewerNotStarted, viewer_unreachable
+    from rose_logs.rerun.viewer import ViewerNotStarted, viewer_unreachable
 
     roots: dict[str, str] = {}
     for topic in map_topics:

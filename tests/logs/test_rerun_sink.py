@@ -339,14 +339,27 @@ def test_grpc_url() -> None:
 def test_the_viewer_probe_tries_the_port_rerun_connects_to(
     address: str, endpoint: tuple[str, int]
 ) -> None:
-    from rose_logs.rerun.sink import viewer_endpoint
+    from rose_logs.rerun.viewer import viewer_endpoint
 
     assert viewer_endpoint(address) == endpoint
 
 
+def test_viewer_addresses_are_checked_without_loading_rerun() -> None:
+    """``rose-bag process --connect`` checks its address before Rerun (about half a second) loads."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys; from rose_logs.rerun.viewer import viewer_endpoint; "
+        "print(viewer_endpoint('9876'), 'rerun' in sys.modules)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["('127.0.0.1',", "9876)", "False"]
+
+
 @pytest.mark.parametrize("address", ["host:0", "host:99999", "::1:9876", "127.0.0.1:", "h:x"])
 def test_a_viewer_address_without_a_usable_port_is_refused(address: str) -> None:
-    from rose_logs.rerun.sink import viewer_unreachable
+    from rose_logs.rerun.viewer import viewer_unreachable
 
     with pytest.raises(ValueError, match="viewer address"):
         viewer_unreachable(address)
