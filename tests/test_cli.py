@@ -123,6 +123,34 @@ def test_score_does_not_claim_structure_in_a_degenerate_map(
     ]
 
 
+@pytest.mark.parametrize(
+    ("grid", "caveat"),
+    [
+        (np.full((40, 50), 100, np.int8), "occupied cells fill the grid (180 cell sides on its "),
+        (np.full((1, 300), 100, np.int8), "a side of 1 cell (fewer than 16, too thin for a 2D "),
+        (np.pad(np.full((40, 50), 100, np.int8), 30, constant_values=-1), "only 0 free cells "),
+        (np.full((40, 50), -1, np.int8), "no occupied cells"),
+    ],
+)
+def test_walls_says_when_the_map_is_outside_roses_domain(
+    grid: np.ndarray, caveat: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`rose walls` on a solid block printed its rectangle as four walls, and nothing else:
+    `rose clean` and `rose score` say W says nothing about such a map, and so does `walls` now,
+    under its table (not on a building's map, nor for the Hough baseline, which uses no W)."""
+    path = tmp_path / "m.yaml"
+    rose.save_map(path, rose.OccupancyMap(grid=grid, resolution_m=0.05))
+    assert main(["walls", str(path)]) == 0
+    last = capsys.readouterr().out.splitlines()[-1]
+    assert last.startswith(f"note: {path}: {caveat}"), last
+    assert last.endswith(": W says nothing about this map"), last
+    assert main(["walls", str(path), "--hough"]) == 0
+    assert "note:" not in capsys.readouterr().out
+    building = Path(__file__).parent / "data/rose2_aislabunimi/Freiburg_Building_079_partial"
+    assert main(["walls", str(building / "map15.yaml")]) == 0
+    assert "note:" not in capsys.readouterr().out
+
+
 def test_the_real_maps_get_no_degenerate_input_caveat() -> None:
     """The caveat must not fall on a real map: every map of tests/data, the snapshots of the sample
     session, and a drawn map whose outside is occupied (lab_ipa, 82 % of its cells)."""

@@ -7,8 +7,16 @@ import math
 import sys
 from typing import TYPE_CHECKING, Any, TextIO
 
-from rose.cli.options import add_map_arguments, file_arg, float_up_to, load_grid_map, map_arg
-from rose.directions import fold_deg
+from rose.cli.options import (
+    add_map_arguments,
+    file_arg,
+    float_up_to,
+    load_grid_map,
+    map_arg,
+    result_summary,
+    verdict,
+)
+from rose.directions import degenerate_input, fold_deg
 from rose.outputs import (
     OutputSet,
     counted,
@@ -18,6 +26,10 @@ from rose.outputs import (
 )
 
 if TYPE_CHECKING:
+    import numpy as np
+    import numpy.typing as npt
+
+    from rose.result import RoseResult
     from rose.walls import WallSet
 
 __all__ = ["add_parser", "format_walls_table", "run"]
@@ -95,11 +107,13 @@ def run(args: argparse.Namespace, *, stdout: TextIO | None = None) -> int:
     params = WallParams()
     if args.min_length is not None:
         params = WallParams(min_wall_length_px=args.min_length / occupancy_map.resolution_m)
+    note = None
     if args.hough:
         walls = extract_walls_hough(occupancy_map, params=params)
     else:
         result = analyze(occupancy_map.grid, occupied_threshold=params.occupied_threshold)
         walls = extract_walls(occupancy_map, result, params=params)
+        note = _out_of_domain(occupancy_map.grid, result)
     with outputs:
         if args.geojson is not None:
             text = json_text(walls_to_geojson(walls), indent=1)
@@ -109,10 +123,28 @@ def run(args: argparse.Namespace, *, stdout: TextIO | None = None) -> int:
     if outputs.uses_stdout:
         out = sys.stderr
     out.write(format_walls_table(walls))
+    if note is not None:
+        out.write(f"note: {args.map}: {note}\n")
     for path in (args.geojson, args.svg):
         if path is not None and str(path) != "-":  # on standard output, the data says it itself
             out.write(f"wrote {path}\n")
     return 0
+
+
+def _out_of_domain(grid: npt.NDArray[np.int8], result: RoseResult) -> str | None:
+    """Why W says nothing about the map (no structure found, too few occupied cells, a map outside
+    ROSE's domain), in the words ``rose score`` and ``rose clean`` use; None when it judges it. The
+    walls are snapped to ROSE's directions: on a solid block those are its rectangle's, not a
+    building's, and the table alone passed them for walls."""
+    summary = result_summary(result, degenerate=degenerate_input(grid, result.occupied))
+    if summary["has_structure"] is True:
+        return None
+    return verdict(
+        result.structure_score,
+        occupied_cells=result.occupied_count,
+        has_structure=summary["has_structure"] is not False,
+        degenerate=summary["degenerate"],
+    )
 
 
 def format_walls_table(walls: WallSet) -> str:
