@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import shutil
 from pathlib import Path
 
@@ -258,3 +259,23 @@ def test_a_missing_data_folder_is_an_error_also_with_nothing_to_read(
     err = capsys.readouterr().err.strip().splitlines()[-1]
     assert err == f"error: {tmp_path / 'nope'}: no such data folder (--maps-dir)"
     assert not out.exists()
+
+
+def test_logs_names_a_cut_log_by_its_file_name(tmp_path: Path) -> None:
+    """--logs looked for NAME-corrected.log.gz only: the cut logs of tests/data
+    (csail-corrected.head400.log.gz), or a log of one's own, could not be named at all
+    ("csail-corrected.head400-corrected.log.gz: no such file")."""
+    out = tmp_path / "report"
+    argv = ["evaluate", str(out), "--maps-dir", str(REPO_DATA), "--maps", "", "--no-plots"]
+    argv += ["--logs", "csail-corrected.head400.log.gz,freiburg-079-corrected.head400"]
+    argv += ["--sizes", "2", "--counts", "20", "--break-seeds", "1"]
+    assert main(argv) == 0
+    text = (out / "report.md").read_text()
+    assert "csail-corrected.head400, freiburg-079-corrected.head400" in text
+    assert (out / "map_csail-corrected.head400.png").is_file()
+    config = config_from_args(build_parser().parse_args(["evaluate", "o", "--logs", "aces"]))
+    radish = dataclasses.replace(config, maps_dir=REPO_DATA)
+    # A Radish log keeps its own name first; a missing one is named as the Radish file.
+    assert radish.log_path("aces").name == "aces-corrected.log.gz"
+    assert radish.log_path("csail").name == "csail-corrected.log.gz"
+    assert radish.log_path("csail-corrected.head400").name == "csail-corrected.head400.log.gz"

@@ -12,7 +12,12 @@ from typing import Any
 
 from rose.cli.options import int_in_range, out_path_arg, path_arg
 from rose_logs.datasets import ENV_VAR
-from rose_logs.evaluation.config import BENCHMARK_SUBDIR, LOGS_SUBDIR, EvaluationConfig
+from rose_logs.evaluation.config import (
+    BENCHMARK_SUBDIR,
+    LOGS_SUBDIR,
+    EvaluationConfig,
+    log_name,
+)
 
 __all__ = ["add_parser", "config_from_args", "run"]
 
@@ -36,11 +41,9 @@ def _csv(value: str) -> tuple[str, ...]:
 
 
 def _log_names(value: str) -> tuple[str, ...]:
-    """Radish log names, also as their files are called (``aces-corrected.log.gz`` is ``aces``)."""
-    names = (
-        v.removesuffix(".gz").removesuffix(".log").removesuffix("-corrected") for v in _csv(value)
-    )
-    return tuple(dict.fromkeys(names))
+    """Log names, also as their files are called (``aces-corrected.log.gz`` is ``aces``; see
+    :meth:`EvaluationConfig.log_path`)."""
+    return tuple(dict.fromkeys(log_name(v) for v in _csv(value)))
 
 
 def _map_names(value: str) -> tuple[str, ...]:
@@ -116,7 +119,11 @@ def _configure(parser: argparse.ArgumentParser) -> None:
         f"(default: ${ENV_VAR}, else ../shared/maps beside the source checkout)",
     )
     parser.add_argument(
-        "--logs", type=_log_names, default=None, help="comma-separated Radish logs (aces, intel...)"
+        "--logs",
+        type=_log_names,
+        default=None,
+        help=f"comma-separated Radish logs (aces, intel...), or the names of other CARMEN logs "
+        f"in {LOGS_SUBDIR}/ (csail-corrected.head400.log.gz)",
     )
     parser.add_argument(
         "--maps",

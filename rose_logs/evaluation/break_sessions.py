@@ -23,6 +23,7 @@ from rose_logs.carmen.clock import scan_clock_ns
 from rose_logs.carmen.drift import apply_drift
 from rose_logs.carmen.parse import CarmenLog
 from rose_logs.carmen.raycast import BuilderParams, OccupancyGridBuilder
+from rose_logs.evaluation.config import log_name
 
 __all__ = ["SessionGrid", "SessionSpec", "log_clock_ns", "session_grids"]
 
@@ -61,8 +62,9 @@ class SessionSpec:
 
     @property
     def name(self) -> str:
-        """Log name (``aces``, ``freiburg-079``...)."""
-        return self.log_path.name.split("-corrected")[0]
+        """Log name (``aces``, ``freiburg-079``...), as ``--logs`` names it
+        (:func:`rose_logs.evaluation.config.log_name`)."""
+        return log_name(self.log_path.name)
 
 
 @dataclass(frozen=True, eq=False)

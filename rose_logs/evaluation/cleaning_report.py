@@ -65,7 +65,7 @@ def cleaning_cases(config: EvaluationConfig, *, seeds: int = 1) -> list[Cleaning
     if config.benchmark_maps and config.benchmark_dir.is_dir():
         cases += bormann_cases(config.benchmark_dir, names=config.benchmark_maps)
     for log in config.logs:
-        path = config.logs_dir / f"{log}-corrected.log.gz"
+        path = config.log_path(log)
         if not path.is_file():
             _LOG.warning("%s: missing, no ray-cast furniture case", path)
             continue

@@ -17,12 +17,27 @@ __all__ = [
     "PAPER_W",
     "RADISH_LOGS",
     "EvaluationConfig",
+    "log_name",
 ]
 
 #: Folders inside the data set (:mod:`rose_logs.datasets`) the evaluation reads.
 LOGS_SUBDIR = "radish_carmen_corrected_logs"
 BENCHMARK_SUBDIR = "bormann_ipa_room_segmentation"
 RADISH_LOGS: tuple[str, ...] = ("aces", "csail", "intel", "freiburg-079", "freiburg-101")
+#: The files in :data:`LOGS_SUBDIR` a log's name may stand for, in the order they are looked for:
+#: a Radish corrected log's own name (``aces`` is ``aces-corrected.log.gz``), then the name as the
+#: file's own (a cut log, ``csail-corrected.head400`` as in tests/data; a log of one's own), gzip
+#: or plain.
+_LOG_FILES = ("{}-corrected.log.gz", "{}-corrected.log", "{}.log.gz", "{}.log")
+
+
+def log_name(file_name: str) -> str:
+    """The name a log's file goes by: without ``.gz``, ``.log`` and ``-corrected``
+    (``aces-corrected.log.gz`` is ``aces``, ``csail-corrected.head400.log.gz`` is
+    ``csail-corrected.head400``)."""
+    return file_name.removesuffix(".gz").removesuffix(".log").removesuffix("-corrected")
+
+
 #: Benchmark maps with a clean and a ``_furnitures`` version. Left out: ``intel_map.png`` (no black
 #: walls, no furniture version; the Intel lab comes from its log instead) and ``lab_ipa`` (its exterior
 #: is drawn black: 82 % of the image would be "structure").
@@ -157,6 +172,15 @@ class EvaluationConfig:
     def logs_dir(self) -> Path:
         """Folder of the Radish CARMEN logs."""
         return self.data_root / LOGS_SUBDIR
+
+    def log_path(self, name: str) -> Path:
+        """The file of the log ``name`` in :attr:`logs_dir`: the first of its possible names
+        that exists (see :data:`_LOG_FILES`), else the Radish name (``NAME-corrected.log.gz``),
+        which the error then names. Only the Radish name was looked for: a cut log
+        (``csail-corrected.head400.log.gz``) or one's own could not be named."""
+        folder = self.logs_dir
+        candidates = [folder / pattern.format(name) for pattern in _LOG_FILES]
+        return next((path for path in candidates if path.is_file()), candidates[0])
 
     @property
     def benchmark_dir(self) -> Path:

@@ -130,8 +130,8 @@ def source_maps(config: EvaluationConfig) -> dict[str, tuple[str, npt.NDArray[np
     maps: dict[str, tuple[str, npt.NDArray[np.int8]]] = {}
     threshold = config.rose_params.occupied_threshold
     for name in config.logs:
-        path = config.logs_dir / f"{name}-corrected.log.gz"
-        log_map = rasterise_log(path, resolution_m=config.resolution_m)
+        path = config.log_path(name)
+        log_map = rasterise_log(path, resolution_m=config.resolution_m, name=name)
         _check_free(path, log_map.grid, threshold)
         maps[name] = ("radish log", log_map.grid)
     for name in config.benchmark_maps:
@@ -265,7 +265,7 @@ def run_drift_experiment(config: EvaluationConfig) -> tuple[list[DriftRun], dict
         for k in range(config.drift_seeds)
     ]
     for log in config.logs:
-        path = config.logs_dir / f"{log}-corrected.log.gz"
+        path = config.log_path(log)
         for level, seed in levels:
             log_map = rasterise_log(
                 path, resolution_m=config.resolution_m, drift_level=level, drift_seed=seed, name=log

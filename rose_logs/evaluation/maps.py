@@ -19,6 +19,7 @@ from rose_logs.carmen.raycast import (
     OccupancyGridBuilder,
     crop_to_known,
 )
+from rose_logs.evaluation.config import log_name
 
 __all__ = ["LogMap", "furniture_pair", "load_benchmark_map", "rasterise_log", "read_log"]
 
@@ -81,7 +82,7 @@ def rasterise_log(
     builder.integrate_scans(log.scans, poses)
     grid, _ = crop_to_known(builder.grid(), margin_px=10)
     elapsed = time.perf_counter() - start
-    label = name if name is not None else Path(path).name.split("-corrected")[0]
+    label = name if name is not None else log_name(Path(path).name)
     _LOG.info(
         "%s drift %.2f seed %d: %s cells in %.2f s",
         label,

@@ -297,7 +297,7 @@ def _break_section(
 
     t = time.perf_counter()
     section = run_break_experiment(
-        [config.logs_dir / f"{name}-corrected.log.gz" for name in config.logs],
+        [config.log_path(name) for name in config.logs],
         out,
         seeds=config.break_seeds,
         workers=config.break_workers,
