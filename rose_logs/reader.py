@@ -19,7 +19,9 @@ sorted by log time too, a ROS 1 bag's in file order. A complete MCAP file or ROS
 that chunk only: its index leads past it to the chunks after it (an MCAP file of no chunks is
 salvaged in file order, up to its damage; a ROS 1 bag is read chunk by chunk through its index's
 chunk infos, in rosbags' order, also when rosbags cannot open it for a damaged chunk record or
-index entry).
+index entry). A ROS 2 bag folder whose storage is one MCAP file is read, when that file is damaged,
+as the file would be on its own (:meth:`LogReader._damaged_mcap_storage`,
+:meth:`rose_logs.storage.rosbags.RosbagsReadBackend._mcap_around_damaged_chunks`).
 """
 
 from __future__ import annotations
@@ -47,7 +49,12 @@ from rose_logs.storage.ros1_stream import (
     first_damaged_chunk,
     unindexed_messages,
 )
-from rose_logs.storage.rosbags import RosbagsReadBackend, library_text, rosbags_text
+from rose_logs.storage.rosbags import (
+    RosbagsReadBackend,
+    library_text,
+    mcap_storage_files,
+    rosbags_text,
+)
 
 __all__ = ["Channel", "LogReader", "MessageLossError", "RawMessage", "topic_names"]
 
@@ -210,6 +217,8 @@ class LogReader:
                 salvaged = self._without_summary(err)
             elif self.format == "ros1":
                 salvaged = self._around_damaged_chunks(err)
+            elif self.format == "mcap-dir":
+                salvaged = self._damaged_mcap_storage(err)
             if salvaged is None and self.salvage:
                 salvaged = self._salvage_stream()
             if salvaged is None:
@@ -223,45 +232,99 @@ class LogReader:
             backend.skip_damaged_chunks = True
         self._backend = backend
 
-    def _unreadable(self, err: BaseException) -> LogReadError:
-        """The error for a log that cannot be opened (``err``: the library's)."""
-        if self.format not in ("mcap", "ros1"):
+    def _unreadable(self, err: BaseException, storage: Path | None = None) -> LogReadError:
+        """The error for a log that cannot be opened (``err``: the library's); ``storage``: the
+        damaged MCAP file of a ROS 2 bag folder, which it names."""
+        mcap = self.format == "mcap" or storage is not None
+        if not mcap and self.format != "ros1":
             return _corrupt(self.path, err)
+        where = storage or self.path
         remedy = (
             "nothing before the damage can be read either"
             if self.salvage
             else "--salvage (process, info, batch) keeps the messages before the damage, if any can be read"
         )
-        if self.format == "mcap" and mcap_cut_short(self.path):
+        if mcap and mcap_cut_short(where):
             # The library reads the footer from wherever the file now ends: its error is about a
             # record length of garbage ("HEADER record has length 29245...").
             return LogReadError(
-                f"{self.path}: truncated MCAP file, cut short: its end, which holds the index, "
+                f"{where}: truncated MCAP file, cut short: its end, which holds the index, "
                 f"is missing (a recording that was not closed, or a copy that stopped?); {remedy}"
             )
         what = (
             "MCAP file, its index at the end cannot be read"
-            if self.format == "mcap"
+            if mcap
             else "ROS 1 bag, its index cannot be read (a recording that was not closed?)"
         )
         return LogReadError(
-            f"{self.path}: corrupt or truncated {what} ({short(library_text(err), 120)}); {remedy}"
+            f"{where}: corrupt or truncated {what} ({short(library_text(err), 120)}); {remedy}"
         )
 
-    def _without_summary(self, err: BaseException) -> McapStreamReadBackend | None:
-        """An MCAP file the indexed reader could not open (``err``) that is complete all the same
-        (every record up to its footer reads: no summary, a damaged one, or no closing magic
-        bytes), read record by record; None when it is truncated or damaged instead (the first
-        error stands)."""
-        backend = McapStreamReadBackend(self.path)
+    def _without_summary(
+        self, err: BaseException, storage: Path | None = None
+    ) -> McapStreamReadBackend | None:
+        """An MCAP file (the log, or ``storage``: a ROS 2 bag folder's) the indexed reader could
+        not open (``err``) that is complete all the same (every record up to its footer reads: no
+        summary, a damaged one, or no closing magic bytes), read record by record; None when it
+        is truncated or damaged instead (the first error stands)."""
+        where = storage or self.path
+        backend = McapStreamReadBackend(where)
         if not _opened(backend) or not backend.complete:
             backend.close()
             return None
         if isinstance(err, DamagedSummaryError):
-            _LOG.warning("%s: %s; read record by record, no message lost", self.path, err)
+            _LOG.warning("%s: %s; read record by record, no message lost", where, err)
         else:
-            _LOG.info("%s: no summary section (optional in MCAP): read record by record", self.path)
+            _LOG.info("%s: no summary section (optional in MCAP): read record by record", where)
         return backend
+
+    def _damaged_mcap_storage(
+        self, err: BaseException
+    ) -> McapStreamReadBackend | Ros1StreamReadBackend | None:
+        """A ROS 2 bag folder of MCAP storage that rosbags could not open (``err``) because its
+        MCAP file is damaged: read as that file would be on its own (complete without a summary:
+        record by record; cut short or damaged: with ``--salvage``, its readable start), else the
+        bare file's error, naming it. rosbags' own error ("File end magic is invalid.") named no
+        file and no remedy, and ``--salvage`` kept nothing.
+
+        A folder of several MCAP files is read by rosbags alone: the error names the damaged
+        file, which ``--salvage`` can read on its own. None when every MCAP file reads (the
+        first error stands: metadata.yaml, or an error of ours, which says what is wrong)."""
+        if isinstance(err, LogError):
+            return None
+        files = mcap_storage_files(self.path)
+        for storage in files:
+            probe = McapReadBackend(storage)
+            try:
+                probe.open()
+            except Exception as failure:  # this file is the damaged one
+                reraise_interrupt_behind(failure)
+                damage = failure
+                break
+            finally:
+                probe.close()
+        else:
+            return None
+        if len(files) > 1:
+            what = (
+                "cut short (its end, which holds the index, is missing)"
+                if mcap_cut_short(storage)
+                else f"corrupt ({short(library_text(damage), 80)})"
+            )
+            # The file's path leads the message: the command names it as FILE (a long path
+            # twice ran the line past its limit).
+            msg = (
+                f"{storage}: MCAP file {what}, one of the bag's {len(files)} files; --salvage "
+                "reads it on its own (rose-bag process FILE --salvage), not in a bag of several"
+            )
+            raise LogReadError(msg) from err
+        salvaged: McapStreamReadBackend | Ros1StreamReadBackend | None
+        salvaged = self._without_summary(damage, storage)
+        if salvaged is None and self.salvage:
+            salvaged = self._salvage_stream(storage)
+        if salvaged is None:
+            raise self._unreadable(damage, storage) from err
+        return salvaged
 
     def _around_damaged_chunks(self, err: BaseException) -> Ros1IndexedReadBackend | None:
         """A ROS 1 bag that rosbags could not open (``err``) whose index is intact: a chunk's
@@ -319,13 +382,16 @@ class LogReader:
             )
         return backend
 
-    def _salvage_stream(self) -> McapStreamReadBackend | Ros1StreamReadBackend | None:
-        """The readable start of an MCAP file whose end is missing or damaged, or of a ROS 1 bag
-        without a readable index (None for other formats, or when not even that can be read); the
-        damage goes to :attr:`losses`."""
+    def _salvage_stream(
+        self, storage: Path | None = None
+    ) -> McapStreamReadBackend | Ros1StreamReadBackend | None:
+        """The readable start of an MCAP file (the log, or ``storage``: a ROS 2 bag folder's)
+        whose end is missing or damaged, or of a ROS 1 bag without a readable index (None for
+        other formats, or when not even that can be read); the damage goes to :attr:`losses`."""
         backend: McapStreamReadBackend | Ros1StreamReadBackend
-        if self.format == "mcap":
-            backend = McapStreamReadBackend(self.path)
+        name = storage or self.path
+        if storage is not None or self.format == "mcap":
+            backend = McapStreamReadBackend(name)
             where = "the end of the file is missing or damaged"
         elif self.format == "ros1":
             backend = Ros1StreamReadBackend(self.path)
@@ -342,11 +408,9 @@ class LogReader:
         order = "sorted by log time" if mcap_sorted else "in file order"
         if backend.complete:
             # Only the header's pointer to the index was wrong: nothing is lost.
-            _LOG.warning("%s: %s, read record by record, %s", self.path, backend.damage, order)
+            _LOG.warning("%s: %s, read record by record, %s", name, backend.damage, order)
             return backend
-        problem = (
-            f"{self.path}: {where} ({backend.damage}); kept the {read} messages before it, {order}"
-        )
+        problem = f"{name}: {where} ({backend.damage}); kept the {read} messages before it, {order}"
         self.losses.append(problem)
         _LOG.warning("%s", problem)
         return backend
@@ -470,7 +534,7 @@ class LogReader:
         for chunk in skipped:
             first, last = ((t - self.start_ns) / 1e9 for t in (chunk.start_ns, chunk.end_ns))
             problem = (
-                f"{self.path}: skipped a damaged chunk at byte {chunk.offset} of {chunk.file_size} "
+                f"{chunk.file or self.path}: skipped a damaged chunk at byte {chunk.offset} of {chunk.file_size} "
                 f"({chunk.reason}): its messages from +{first:.1f} s to +{last:.1f} s "
                 f"({chunk.start_ns}..{chunk.end_ns} ns) are lost, the rest is read"
             )

@@ -114,6 +114,8 @@ class SkippedChunk:
     reason: str
     start_ns: int  # log times of its first and last message, from the index
     end_ns: int
+    #: The MCAP file it is in, when that is not the log named (a ROS 2 bag folder's storage file).
+    file: Path | None = None
 
 
 class McapReadBackend:

@@ -3,16 +3,18 @@
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import errno
 import functools
 import logging
 import os
 import re
 from collections.abc import Callable, Iterator
-from pathlib import Path
+from pathlib import Path, PurePath
 from typing import Any, Literal
 
 from rose.limits import short
+from rose.signals import reraise_interrupt_behind
 from rose_logs.errors import LogReadError
 from rose_logs.formats import LogFormat
 from rose_logs.storage.base import WriteBackend
@@ -24,10 +26,10 @@ from rose_logs.storage.connections import (
     require_definition,
     warn_no_definition,
 )
-from rose_logs.storage.mcap import SkippedChunk
+from rose_logs.storage.mcap import McapReadBackend, SkippedChunk
 from rose_logs.storage.records import Channel, RawMessage, normalize_msgtype
 
-__all__ = ["Ros1WriteBackend", "Ros2WriteBackend", "RosbagsReadBackend"]
+__all__ = ["Ros1WriteBackend", "Ros2WriteBackend", "RosbagsReadBackend", "mcap_storage_files"]
 
 _LOG = logging.getLogger(__name__)
 _HOT_JOURNAL = bytes.fromhex("d9d505f920a163d7")  # a rollback journal's header while it is live
@@ -47,8 +49,9 @@ class RosbagsReadBackend:
         self.start_ns = 0
         self.end_ns = 0
         self.qos_style: QosStyle | None = None
-        #: ``--salvage`` (ROS 1): a chunk that cannot be read is skipped and said in
-        #: :attr:`skipped_chunks`, and the chunks after it are read (else it is an error).
+        #: ``--salvage`` (ROS 1, ROS 2 MCAP folder of one file): a chunk that cannot be read is
+        #: skipped and said in :attr:`skipped_chunks`, and the chunks after it are read (else it
+        #: is an error).
         self.skip_damaged_chunks = False
         self.skipped_chunks: list[SkippedChunk] = []
 
@@ -180,6 +183,9 @@ class RosbagsReadBackend:
         if self.format == "ros1" and self.skip_damaged_chunks:
             yield from self._around_damaged_chunks(conns)
             return
+        if self.format == "mcap-dir" and self.skip_damaged_chunks:
+            yield from self._mcap_around_damaged_chunks(topics)
+            return
         try:
             for conn, timestamp, data in self.reader.messages(connections=conns or ()):
                 if not isinstance(data, bytes | memoryview) or not _valid_time(timestamp):
@@ -235,6 +241,42 @@ class RosbagsReadBackend:
                 stream, index, wanted, self.skipped_chunks
             ):
                 yield RawMessage(by_id[conn_id], time_ns, data, time_ns)
+
+    def _mcap_around_damaged_chunks(self, topics: set[str] | None) -> Iterator[RawMessage]:
+        """A ROS 2 bag folder's messages read from its one MCAP file as a bare MCAP file is
+        salvaged (through its chunk index, skipping the chunks that cannot be read, said in
+        :attr:`skipped_chunks`), as this bag's channels. rosbags stops at the first damaged chunk:
+        a flipped bit early in an hour's recording lost the rest of the hour. A bag split over
+        several files, or whose file's index does not read, is read by rosbags as without
+        ``--salvage`` (up to the damage)."""
+        files = mcap_storage_files(self.path)
+        inner = McapReadBackend(files[0]) if len(files) == 1 else None
+        if inner is not None:
+            try:
+                inner.open()
+            except Exception as err:  # its index is damaged: rosbags' reading stands
+                inner.close()
+                reraise_interrupt_behind(err)
+                inner = None
+        if inner is None:
+            self.skip_damaged_chunks = False
+            yield from self.messages(topics)
+            return
+        ours = {(c.topic, c.msgtype): c for c in self.channels}
+        inner.skip_damaged_chunks = True
+        try:
+            for message in inner.messages(topics):
+                channel = ours.get((message.channel.topic, message.channel.msgtype))
+                if channel is None:  # not in metadata.yaml: rosbags does not read it either
+                    continue
+                # The log time as publish time, as rosbags gives it: the same output either way.
+                time_ns = message.log_time_ns
+                yield RawMessage(channel, time_ns, message.data, time_ns)
+        finally:
+            self.skipped_chunks.extend(
+                dataclasses.replace(chunk, file=inner.path) for chunk in inner.skipped_chunks
+            )
+            inner.close()
 
     def _damaged_row(self, topic: str, timestamp: object, data: object) -> str:
         """What is wrong with a message a SQLite bag stores (its columns take any type: a NULL or
@@ -307,6 +349,18 @@ def _bag_information(path: Path) -> dict[str, Any] | None:
     except (OSError, ValueError, KeyError, TypeError):
         return None
     return information if isinstance(information, dict) else None
+
+
+def mcap_storage_files(path: Path) -> list[Path]:
+    """The MCAP storage files the ROS 2 bag folder ``path``'s metadata.yaml lists, in its order,
+    as rosbags finds them (by name, in the folder); none when one of them is no plain MCAP file
+    (a whole file compressed, ``.mcap.zstd``) or the list does not read."""
+    information = _bag_information(path)
+    names = None if information is None else information.get("relative_file_paths")
+    if not isinstance(names, list) or not names:
+        return []
+    files = [path / PurePath(str(name)).name for name in names]
+    return files if all(f.name.endswith(".mcap") for f in files) else []
 
 
 def _bag_qos_style(information: dict[str, Any] | None) -> QosStyle | None:

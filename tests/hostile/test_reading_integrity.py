@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 import json
 import math
 import os
@@ -1125,3 +1126,109 @@ def test_existing_json_report_needs_force(
     assert code == 1 and "exists already" in err
     assert report.read_text() == "precious"
     assert not (tmp_path / "o.mcap").exists()
+
+
+def _mcap_bag_folder(folder: Path) -> Path:
+    """The sample session as a ROS 2 bag folder of MCAP storage whose file is written as rosbag2
+    writes it (zstd chunks with CRCs; rosbags writes them plain and unchecked); returns the file."""
+    from mcap.reader import make_reader
+    from mcap.writer import CompressionType
+    from mcap.writer import Writer as McapWriter
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    sample = Path(__file__).resolve().parents[2] / "sample_data" / "fr079_session.mcap"
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    with LogReader(sample) as reader, Writer(folder, version=9, storage_plugin=StoragePlugin.MCAP) as writer:  # fmt: skip
+        conns = {c.id: writer.add_connection(c.topic, c.msgtype, typestore=store) for c in reader.channels}  # fmt: skip
+        for m in reader.messages():
+            writer.write(conns[m.channel.id], m.log_time_ns, bytes(m.data))
+    storage = folder / f"{folder.name}.mcap"
+    plain = storage.read_bytes()
+    source = make_reader(io.BytesIO(plain))
+    summary = source.get_summary()
+    assert summary is not None
+    with storage.open("wb") as stream:
+        writer = McapWriter(stream, compression=CompressionType.ZSTD, chunk_size=1 << 20)
+        header = source.get_header()
+        writer.start(profile=header.profile, library=header.library)
+        schemas = {
+            sid: writer.register_schema(s.name, s.encoding, s.data)
+            for sid, s in sorted(summary.schemas.items())
+        }
+        channels = {
+            cid: writer.register_channel(
+                c.topic, c.message_encoding, schemas[c.schema_id], dict(c.metadata)
+            )
+            for cid, c in sorted(summary.channels.items())
+        }
+        # Same ids as rosbags gave them: metadata.yaml and the file agree.
+        assert schemas == {k: k for k in schemas} and channels == {k: k for k in channels}
+        for _, channel, message in source.iter_messages(log_time_order=False):
+            writer.add_message(
+                channels[channel.id],
+                message.log_time,
+                message.data,
+                message.publish_time,
+                message.sequence,
+            )
+        writer.finish()
+    return storage
+
+
+@pytest.mark.parametrize("damage", ["cut", "flipped"])
+def test_salvage_reads_a_bag_folder_of_mcap_storage_as_its_bare_file(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], damage: str
+) -> None:
+    """A ROS 2 bag folder whose MCAP file was cut short read "corrupt or truncated log (File end
+    magic is invalid.)", with or without --salvage (which kept nothing, nor said it could), and
+    one with a damaged chunk lost every chunk after it: both now read as the bare file does,
+    the cut one naming its file, the damaged chunk alone lost."""
+    bag = tmp_path / "bag"
+    storage = _mcap_bag_folder(bag)
+    starts = _chunk_starts(storage)
+    assert len(starts) >= 4
+    data = bytearray(storage.read_bytes())
+    if damage == "cut":
+        data = data[: starts[3] + 100]
+    else:
+        data[starts[1] + 1_000] ^= 0xFF
+    storage.write_bytes(bytes(data))
+    bare = tmp_path / "bare.mcap"
+    bare.write_bytes(bytes(data))
+    results, errs = {}, {}
+    for log in (bag, bare):
+        out, report = tmp_path / f"o_{log.name}", tmp_path / f"r_{log.name}.json"
+        refusal = "truncated MCAP file, cut short" if damage == "cut" else "corrupt"
+        errs[log] = _refused_then_salvaged(capsys, log, out, report, refusal=refusal)
+        assert "error:" not in errs[log]
+        results[log] = json.loads(report.read_text())
+    if damage == "cut":
+        code, _, err = _run(capsys, "info", bag)
+        assert code == 1 and err.startswith(f"error: {storage}: truncated MCAP file, cut short")
+    else:
+        assert f"{storage}: skipped a damaged chunk at byte {starts[1]} of" in errs[bag]
+    folder, alone = results[bag], results[bare]
+    assert 0 < folder["message_count"] == alone["message_count"] < 715
+    assert len(folder["snapshots"]) == len(alone["snapshots"]) > 0
+    assert folder["end_ns"] == alone["end_ns"]
+    assert len(folder["losses"]) == len(alone["losses"])
+
+
+def test_a_damaged_file_of_a_split_mcap_bag_is_named_with_what_salvages_it(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A bag of several MCAP files, one cut short: rosbags' "File end magic is invalid." named
+    no file; the error names it, and that --salvage reads it on its own."""
+    bag = tmp_path / "bag"
+    storage = _mcap_bag_folder(bag)
+    second = bag / "bag_1.mcap"
+    second.write_bytes(storage.read_bytes()[: storage.stat().st_size // 2])
+    meta = bag / "metadata.yaml"
+    meta.write_text(meta.read_text().replace("  - bag.mcap\n", "  - bag.mcap\n  - bag_1.mcap\n"))
+    for salvage in ([], ["--salvage"]):
+        code, _, err = _run(capsys, "process", bag, "--no-output", "-q", *salvage)
+        assert code == 1 and len(err.splitlines()) == 1
+        assert err.startswith(f"error: {second}: MCAP file cut short"), err
+        assert "one of the bag's 2 files" in err
+        assert err.rstrip().endswith("(rose-bag process FILE --salvage), not in a bag of several")
