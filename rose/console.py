@@ -20,6 +20,7 @@ __all__ = [
     "flush_stdout",
     "print_any_file_name",
     "stdout_closed",
+    "stdout_discarded",
     "stdout_errors_named",
 ]
 
@@ -157,6 +158,37 @@ def stdout_errors_named() -> Iterator[None]:
     finally:
         if sys.stdout is named:
             sys.stdout = stream
+
+
+@contextlib.contextmanager
+def stdout_discarded() -> Iterator[None]:
+    """Run a command that writes no result to standard output when the process has none
+    (``pythonw``, or started with it closed, ``>&-``: ``sys.stdout`` is None): what it prints
+    there (its summary) is discarded. ``print`` skips a missing stream, but a command that writes
+    to it (``sys.stdout.write``) raised AttributeError after its files were written."""
+    if sys.stdout is not None:
+        yield
+        return
+    discard = _Discarded()
+    sys.stdout = discard
+    try:
+        yield
+    finally:
+        if sys.stdout is discard:
+            sys.stdout = None
+
+
+class _Discarded(io.TextIOBase):
+    """A text stream that takes everything and keeps nothing (no file descriptor: no output is
+    ever mistaken for it)."""
+
+    encoding = "utf-8"
+
+    def writable(self) -> bool:
+        return True
+
+    def write(self, text: str) -> int:
+        return len(text)
 
 
 class _NamedStdout:

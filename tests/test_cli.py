@@ -977,9 +977,16 @@ def test_every_command_describes_itself_and_shows_debug(capsys: pytest.CaptureFi
 
 
 @pytest.mark.parametrize(
-    "command", [["score"], ["score", "--json"], ["walls"], ["clean", "-o", "out.yaml"]]
+    "command",
+    [
+        ["score"],
+        ["score", "--json"],
+        ["walls"],
+        ["walls", "--svg", "-"],
+        ["clean", "-o", "out.yaml", "--json", "-"],
+    ],
 )
-def test_every_command_refuses_a_closed_standard_output_before_any_work(
+def test_a_command_that_writes_to_a_closed_standard_output_is_refused_before_any_work(
     command: list[str],
     cluttered_map: Path,
     tmp_path: Path,
@@ -987,7 +994,8 @@ def test_every_command_refuses_a_closed_standard_output_before_any_work(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
     """Started with standard output closed (``>&-``: sys.stdout is None), `score` (table or
-    JSON) and `clean` printed nothing and exited 0, `walls` was an AttributeError traceback."""
+    JSON) and `clean` printed nothing and exited 0, `walls` was an AttributeError traceback: a
+    command whose result goes there (its printout, an output ``-``) is refused first."""
     import sys
 
     import rose.pipeline
@@ -1002,3 +1010,34 @@ def test_every_command_refuses_a_closed_standard_output_before_any_work(
     lines = capsys.readouterr().err.splitlines()
     assert lines == ["error: standard output: cannot write (it is closed)"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["in.pgm", "in.yaml"]
+
+
+@pytest.mark.parametrize(
+    ("command", "written"),
+    [
+        (["clean", "-o", "out.yaml"], ["out.pgm", "out.yaml"]),
+        (["clean", "-o", "out.yaml", "--json", "r.json"], ["out.pgm", "out.yaml", "r.json"]),
+        (["walls", "--svg", "w.svg"], ["w.svg"]),
+        (["walls", "--geojson", "w.geojson"], ["w.geojson"]),
+    ],
+)
+def test_a_command_that_writes_files_runs_without_a_standard_output(
+    command: list[str],
+    written: list[str],
+    cluttered_map: Path,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """Under ``pythonw`` sys.stdout is None, and every command was refused, `clean -o map.yaml`
+    too: one whose result is its files runs (its summary goes nowhere), exit 0."""
+    import sys
+
+    out = tmp_path / "out"
+    out.mkdir()
+    monkeypatch.chdir(out)
+    monkeypatch.setattr(sys, "stdout", None)
+    assert main([command[0], str(cluttered_map), *command[1:]]) == 0
+    assert sys.stdout is None  # as it was
+    assert sorted(p.name for p in out.iterdir()) == written
+    assert capsys.readouterr().err == ""

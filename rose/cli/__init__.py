@@ -17,7 +17,13 @@ from collections.abc import Iterator, Mapping, Sequence
 from typing import Any, NoReturn
 
 from rose import __version__
-from rose.console import EXIT_BROKEN_PIPE, print_any_file_name, stdout_closed, stdout_errors_named
+from rose.console import (
+    EXIT_BROKEN_PIPE,
+    print_any_file_name,
+    stdout_closed,
+    stdout_discarded,
+    stdout_errors_named,
+)
 from rose.entry import raise_held_start_signal
 from rose.errors import RoseError
 from rose.limits import short, visible
@@ -170,8 +176,13 @@ def _run(argv: Sequence[str] | None) -> int:
     try:
         from rose.outputs import refuse_closed_stdout  # loaded with the commands already
 
-        refuse_closed_stdout()  # every command prints its result or summary there
-        with logging_routed({"": handler}, logging.WARNING), stdout_errors_named():
+        if _needs_stdout(args):  # else, without a standard output, its summary goes nowhere
+            refuse_closed_stdout()
+        with (
+            stdout_discarded(),
+            logging_routed({"": handler}, logging.WARNING),
+            stdout_errors_named(),
+        ):
             return int(args.func(args))
     except (RoseError, OSError, MemoryError, RecursionError) as err:
         reraise_interrupt_behind(err)  # a signal inside a library: exit 130 / 143, not "error"
@@ -181,6 +192,22 @@ def _run(argv: Sequence[str] | None) -> int:
             raise
         print(f"error: {error_text(err, where=input_name(args))}", file=sys.stderr)
         return 1
+
+
+#: The options of each command that name the files it writes (``-``: standard output).
+_FILE_OPTIONS = {"clean": ("output", "json"), "walls": ("geojson", "svg")}
+
+
+def _needs_stdout(args: argparse.Namespace) -> bool:
+    """Whether the command writes its result to standard output: an output named ``-``, or a
+    command whose result is what it prints (``score``; ``walls`` without an export). Under
+    ``pythonw`` (no standard output) every command was refused, ``clean -o map.yaml`` too."""
+    names = _FILE_OPTIONS.get(args.command)
+    if names is None:
+        return True
+    paths = [getattr(args, name, None) for name in names]
+    given = [str(path) for path in paths if path is not None]
+    return not given or "-" in given
 
 
 @contextlib.contextmanager

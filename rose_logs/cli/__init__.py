@@ -15,7 +15,13 @@ import os
 import sys
 
 from rose.cli import CommandParser, LevelFormatter, error_text, input_name, logging_routed
-from rose.console import EXIT_BROKEN_PIPE, print_any_file_name, stdout_closed, stdout_errors_named
+from rose.console import (
+    EXIT_BROKEN_PIPE,
+    print_any_file_name,
+    stdout_closed,
+    stdout_discarded,
+    stdout_errors_named,
+)
 from rose.entry import raise_held_start_signal
 from rose.errors import RoseError
 from rose.signals import (
@@ -72,6 +78,31 @@ def build_parser() -> argparse.ArgumentParser:
             help="debug logging and tracebacks on errors",
         )
     return parser
+
+
+#: The options of each command that name the files or folders it writes (``-``: standard output).
+_FILE_OPTIONS = {
+    "process": ("output", "rrd", "json_path"),
+    "convert": ("output",),
+    "evaluate": ("out_dir",),
+    "batch": ("out",),
+}
+
+
+def _needs_stdout(args: argparse.Namespace) -> bool:
+    """Whether the command writes its result to standard output: an output named ``-``, or a
+    command whose result is what it prints (``info``; ``process`` writing no log, report or
+    recording, nor streaming to a viewer). Under ``pythonw`` (no standard output) every command
+    was refused, ``process run.mcap -o out.mcap`` too."""
+    names = _FILE_OPTIONS.get(args.command)
+    if names is None:
+        return True
+    if any(str(getattr(args, name, None)) == "-" for name in names):
+        return True
+    if args.command == "process":
+        streamed = args.spawn or args.connect is not None
+        return args.no_output and args.rrd is None and args.json_path is None and not streamed
+    return False
 
 
 def _logging(debug: bool) -> contextlib.AbstractContextManager[None]:
@@ -144,8 +175,10 @@ def _run(argv: list[str] | None) -> int:
     try:
         from rose.outputs import refuse_closed_stdout  # loaded with the commands already
 
-        refuse_closed_stdout()  # every command prints its result or summary there
-        with _logging(args.debug), stdout_errors_named():  # its errors name it, not the input
+        if _needs_stdout(args):  # else, without a standard output, its summary goes nowhere
+            refuse_closed_stdout()
+        # Standard output's errors name it, not the input.
+        with stdout_discarded(), _logging(args.debug), stdout_errors_named():
             return int(args.func(args))
     except UsageError as err:
         command_parser = getattr(args, "command_parser", parser)

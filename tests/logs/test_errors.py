@@ -63,15 +63,13 @@ def test_a_report_to_a_closed_standard_output_is_one_line_before_any_work(
     assert _leftovers(tmp_path, {"in.mcap"}) == []
 
 
-@pytest.mark.parametrize(
-    "command", [["info"], ["process", "-o", "out.mcap", "-q"], ["batch", "-o", "out", "-q"]]
-)
-def test_every_command_refuses_a_closed_standard_output_before_any_work(
+@pytest.mark.parametrize("command", [["info"], ["process", "--no-output", "-q"]])
+def test_a_command_that_prints_its_result_refuses_a_closed_standard_output_before_any_work(
     command: list[str], tmp_path: Path, capsys, monkeypatch: pytest.MonkeyPatch, mcap_log: Path
 ) -> None:
     """Started with standard output closed (``>&-``: sys.stdout is None), `info` printed nothing
-    and `process` and `batch` their summaries nowhere, with exit 0 (only an output ``-`` was
-    refused)."""
+    with exit 0: a command whose result is what it prints is refused first (`process` writing
+    no log, report or recording too)."""
     import sys
 
     monkeypatch.chdir(tmp_path)
@@ -80,6 +78,35 @@ def test_every_command_refuses_a_closed_standard_output_before_any_work(
     assert code == 1
     _assert_one_line_error(err, "standard output: cannot write (it is closed)")
     assert _leftovers(tmp_path, {"in.mcap"}) == []
+
+
+@pytest.mark.parametrize(
+    ("command", "written"),
+    [
+        (["process", "-o", "out.mcap"], "out.mcap"),
+        (["process", "--no-output", "--json", "r.json"], "r.json"),
+        (["batch", "-o", "out", "-q"], "out"),
+    ],
+)
+def test_a_command_that_writes_files_runs_without_a_standard_output(
+    command: list[str],
+    written: str,
+    tmp_path: Path,
+    capsys,
+    monkeypatch: pytest.MonkeyPatch,
+    mcap_log: Path,
+) -> None:
+    """Under ``pythonw`` sys.stdout is None, and every command was refused, `process -o
+    out.mcap` too: one whose result is its files runs (its summary goes nowhere), exit 0."""
+    import sys
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(sys, "stdout", None)
+    code, _, err = _run(capsys, command[0], mcap_log, *command[1:])
+    assert code == 0, err
+    assert sys.stdout is None  # as it was
+    assert (tmp_path / written).exists()
+    assert "error" not in err
 
 
 def test_an_input_that_is_a_symlink_loop_is_one_line(tmp_path: Path, capsys) -> None:
