@@ -866,6 +866,29 @@ def test_a_local_name_holding_a_double_colon_is_a_file_not_a_url(
     assert "unsupported URL scheme 'nosuch'" in capsys.readouterr().err
 
 
+def test_a_windows_drive_root_is_a_local_name_not_a_url_scheme(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``C:\\`` or ``C:/fleet/*`` look like a URL scheme ``c:``; fsspec takes a drive letter for a
+    local path, and so do the batch's inputs and OUT (on Linux, a relative name: read where it
+    exists, "no such file or folder" where it does not, never "unsupported URL scheme")."""
+    from fleet import SAMPLE
+
+    from rose_logs.batch.store import is_local
+
+    assert all(is_local(name) for name in ("C:\\", "C:/fleet/*", "c:\\fleet", "D:"))
+    monkeypatch.chdir(tmp_path)
+    fleet = tmp_path / "C:" / "fleet"
+    fleet.mkdir(parents=True)
+    (fleet / "run.mcap").write_bytes(SAMPLE.read_bytes())
+    assert main(["batch", "C:/fleet/*", "-o", "C:/out", "-q"]) == 0
+    (row,) = read_rows(tmp_path / "C:" / "out" / "recordings.parquet")
+    assert row["status"] == "ok" and row["uri"] == str(fleet / "run.mcap")
+    capsys.readouterr()
+    assert main(["batch", "E:\\", "-o", "x", "-q"]) == 1
+    assert capsys.readouterr().err == "error: E:\\: no such file or folder\n"
+
+
 def test_a_salvaged_active_bag_is_cleaned_into_a_complete_bag(tmp_path: Path) -> None:
     """``x.bag.active`` salvaged with ``--cleaned`` comes out as ``cleaned/.../x.bag``: a complete,
     indexed bag, named as one."""
