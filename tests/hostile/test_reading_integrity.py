@@ -1232,3 +1232,21 @@ def test_a_damaged_file_of_a_split_mcap_bag_is_named_with_what_salvages_it(
         assert err.startswith(f"error: {second}: MCAP file cut short"), err
         assert "one of the bag's 2 files" in err
         assert err.rstrip().endswith("(rose-bag process FILE --salvage), not in a bag of several")
+
+
+def test_salvage_reads_an_intact_mcap_bag_folder_as_without_it(tmp_path: Path) -> None:
+    """--salvage reads a bag folder of one MCAP file through the file's index (past damaged
+    chunks): on an intact bag, the same messages, channels and order as rosbags reads them."""
+    bag = tmp_path / "bag"
+    _mcap_bag_folder(bag)
+    read = []
+    for salvage in (False, True):
+        with LogReader(bag, salvage=salvage) as reader:
+            read.append(
+                [
+                    (m.channel.id, m.channel.topic, m.log_time_ns, m.publish_time_ns, bytes(m.data))
+                    for m in reader.messages()
+                ]
+            )
+            assert not reader.losses
+    assert len(read[0]) == 715 and read[0] == read[1]
