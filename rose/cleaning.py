@@ -69,7 +69,8 @@ Two methods, chosen by name:
     the inside of a piece of furniture), and restores the removed cells that blocked it (those
     within the disc's reach of the opening). An opening longer than four windows is also judged
     in pieces (cut along a grid of four windows), and a piece that joins two regions restores it
-    whole.
+    whole, unless the opening meets nothing that stays and rings no hole (furniture removed in a
+    row in a room: a robot went round it before).
 
 The rules were designed and measured on cells of 0.05 m, and some of their tolerances are whole
 cells (a run's cell of tolerance, the straight lines' one-cell band, a wall face a cell deep). A map

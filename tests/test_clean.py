@@ -455,6 +455,47 @@ def test_topology_guard_restores_a_long_erased_wall_between_rooms_a_door_also_jo
     assert restore[30, 20:end].all()
 
 
+def test_topology_guard_lets_a_long_free_standing_opening_go_unless_it_rings_a_region() -> None:
+    """A row of boxes a robot cannot pass between (0.2 m apart), removed together, standing free
+    in a room: a robot went round the row before, along the cells around it. Judged in 2 m pieces,
+    a piece's window, cut across by the rest of the row, saw two regions and the whole row came
+    back. The same boxes ringing a region of their own (1.5 m across) keep it apart from the room:
+    that opening is still judged in pieces, and comes back."""
+    from rose.cleaning_rules import topology_guard
+
+    kwargs = {"radius_px": 3.0, "window_px": 10, "min_region_px": 400.0}
+    occupied = np.zeros((100, 220), dtype=bool)
+    occupied[[0, -1], :] = occupied[:, [0, -1]] = True  # the room's walls, kept
+    for left in range(30, 180, 28):  # five 1.2 m boxes, 7 m of them
+        occupied[40:58, left : left + 24] = True
+    keep = occupied.copy()
+    keep[1:-1, 1:-1] = False
+    assert not topology_guard(occupied, keep, **kwargs).any()
+    # Four of them around 1.5 m x 1.5 m of the room, corners 0.2 m apart: a region of its own.
+    ring = np.zeros((140, 140), dtype=bool)
+    ring[[0, -1], :] = ring[:, [0, -1]] = True
+    ring[30:36, 34:100] = ring[104:110, 40:106] = True  # top and bottom
+    ring[40:110, 30:36] = ring[30:100, 104:110] = True  # left and right
+    keep = ring.copy()
+    keep[1:-1, 1:-1] = False
+    restore = topology_guard(ring, keep, **kwargs)
+    assert restore[30:36, 34:100].any() and restore[104:110, 40:106].any()
+
+
+def test_a_row_of_free_standing_boxes_goes_whole() -> None:
+    """Five scanned boxes (1.2 m x 0.9 m, unseen insides) 0.2 m apart in a row, staggered, in the
+    middle of a room: free-standing furniture, no cell kept (the guard brought the row back)."""
+    grid = np.zeros((140, 200), dtype=np.int8)
+    grid[[0, -1], :] = grid[:, [0, -1]] = 100
+    for i, left in enumerate(range(30, 170, 28)):
+        top = 50 if i % 2 else 58
+        grid[top : top + 18, left : left + 24] = 100
+        grid[top + 1 : top + 17, left + 1 : left + 23] = -1
+    cleaning = clean(grid, rose.analyze(grid), resolution_m=0.05)
+    assert not cleaning.kept[45:80, 25:175].any()
+    assert cleaning.kept[[0, -1], :].all() and cleaning.kept[:, [0, -1]].all()
+
+
 def test_topology_guard_restores_a_wall_hole_whose_opening_meets_another() -> None:
     """A removed box below a wall hole opens a patch of its own that nearly meets the hole's: cells
     between the two belong to both rings, and the hole must still be seen joining the two rooms."""

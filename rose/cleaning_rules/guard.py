@@ -72,7 +72,9 @@ def topology_guard(
     longer than four windows is also judged in pieces (cut along a grid of four windows; every
     piece, also one ringed by formerly passable cells alone), and one piece joining two regions
     restores the whole patch's cells (a wall erased along metres between rooms that a door
-    in its window joins anyway is a new passage all the same).
+    in its window joins anyway is a new passage all the same), unless the whole patch stands
+    free: ringed by formerly passable cells alone and ringing no hole (furniture removed in a row
+    in a room, which a robot went round before).
     Patches surrounded by formerly passable cells (a free-standing object) are skipped without
     labelling; the rest cost one small labelling each.
 
@@ -130,18 +132,27 @@ def topology_guard(
     # passed as no new passage. Every piece is judged (a piece in the middle of an erased wall has
     # only the two rooms around it, which reads as a free-standing object), and one that joins two
     # regions brings its whole opening back (restored in part, the rest of the wall stayed open).
+    # Not the pieces of a free-standing opening, though (furniture and scan clutter removed
+    # together in a room, met by nothing that stays): the cells around it were passable before
+    # and join along it, so a robot went round it before; a piece's window, cut across by the rest
+    # of the opening, saw two regions (a row of boxes among scan speckle came back whole). Unless
+    # it rings a hole: what it encloses was kept apart from the room around.
     cut_count, cut = _cut_long_patches(patches, boxes, linked_cells, 4 * window_px)
     if cut_count != count:
+        on_piece = cut.reshape(-1)[opened_cells]
+        parent = np.zeros(cut_count, dtype=np.int64)
+        parent[on_piece] = on_patch
+        judged = _in_pieces(patches, linked, boxes, blocking, np.unique(parent[count:]))
         pieces = _separating_cells(
             cut,
             cut_count,
             label_boxes(cut, linked_cells, cut_count),
             linked,
-            cut.reshape(-1)[opened_cells],
+            on_piece,
             blocking,
             window_px,
             min_region_px,
-            only=np.arange(cut_count) >= count,  # the pieces (the rest were judged above)
+            only=(np.arange(cut_count) >= count) & judged[parent],  # (the rest: judged above)
         )
         joined = np.zeros(count, dtype=bool)
         joined[on_patch[pieces]] = True
@@ -214,6 +225,42 @@ def _separating_cells(
         min_region_px,
     )
     return separating[on_patch]
+
+
+def _in_pieces(
+    patches: npt.NDArray[np.integer],
+    linked: npt.NDArray[np.bool_],
+    boxes: npt.NDArray[np.int64],
+    blocking: npt.NDArray[np.uint8],
+    long: npt.NDArray[np.integer],
+) -> npt.NDArray[np.bool_]:
+    """Per label of ``patches`` (``boxes`` of them, background 0): whether the patch, one of the
+    ``long`` ones, is judged in pieces: its ring (the cells off ``linked`` next to it) holds a cell
+    that was not passable before (``blocking`` not 0: the opening meets an obstacle that stays),
+    or it rings a hole (cells it closes off from the outside of its box, 8-connected as the
+    regions are)."""
+    import cv2
+
+    judged = np.zeros(len(boxes), dtype=bool)
+    rows, cols = patches.shape
+    kernel = np.ones((3, 3), np.uint8)
+    # The long patches are few: each is looked at in its box, a cell wider (its ring).
+    for label in long[long > 0].tolist():
+        x, y, width, height = boxes[label].tolist()
+        top, left = max(y - 1, 0), max(x - 1, 0)
+        bottom, right = min(y + height + 1, rows), min(x + width + 1, cols)
+        mine = (patches[top:bottom, left:right] == label).view(np.uint8)
+        ring = cv2.dilate(mine, kernel).view(bool) & ~linked[top:bottom, left:right]
+        if np.any(blocking[top:bottom, left:right][ring]):
+            judged[label] = True
+            continue
+        # The patch in its box, a cell of margin around: the margin and all that reaches it are
+        # outside; any other cell not of the patch lies in a hole.
+        inside = np.ones((height + 2, width + 2), dtype=np.uint8)
+        inside[1:-1, 1:-1] = patches[y : y + height, x : x + width] != label
+        cv2.floodFill(inside, None, (0, 0), 0, flags=8)
+        judged[label] = bool(inside.any())
+    return judged
 
 
 def _cut_long_patches(
