@@ -20,6 +20,7 @@ from rose.cleaning_rules.masks import (
     _bounds,
     _cells_box,
     _flat_index,
+    _nonzero_flat,
     _padded_box,
     length_px,
 )
@@ -206,7 +207,7 @@ def _thin_runs(
     which of the cells at the given flat indices are free (asked about the runs' ends only).
     Worked out on the solid cells' runs (few next to the whole image)."""
     shape = solid.shape
-    cells = np.flatnonzero(solid)
+    cells = _nonzero_flat(np.ascontiguousarray(solid).view(np.uint8))
     out = []
     for vertical in (False, True):
         line, first, last = _runs(cells, shape, vertical)
@@ -307,7 +308,7 @@ def _partitions(
     sided = np.zeros(occupied[box].shape, dtype=bool)
     sided[row - box[0].start, col - box[1].start] = True
     count, labels = components(sided)
-    at = np.flatnonzero(sided)
+    at = _nonzero_flat(sided.view(np.uint8))
     owners = labels.reshape(-1)[at]
     boxes = label_boxes(labels, at, count)
     long_enough = np.maximum(boxes[:, 2], boxes[:, 3]) >= min_length_px
@@ -405,7 +406,7 @@ def _grow_within(
     np.add(mask.view(np.uint8), out.view(np.uint8), out=state[1:-1, 1:-1])
     flat = state.reshape(-1)
     around = np.array([-width - 1, -width, -width + 1, -1, 1, width - 1, width, width + 1])
-    waiting = np.flatnonzero(flat == 1)
+    waiting = _nonzero_flat(np.equal(state, 1).view(np.uint8))
     reached = waiting[_any_of_8(flat[waiting[:, None] + around] == 2)]
     for step in range(steps):
         if reached.size == 0:
@@ -439,7 +440,7 @@ class _Pieces:
             kernel = np.ones((3, 3), np.uint8)
             grown = cv2.dilate(occupied.view(np.uint8), kernel, iterations=join_px).view(bool)
         count, labels = components(grown)
-        cells = np.flatnonzero(occupied)
+        cells = _nonzero_flat(np.ascontiguousarray(occupied).view(np.uint8))
         owners = labels.reshape(-1)[cells]
         # A joined piece is its occupied cells grown by ``join_px`` (clipped by the image), and so
         # is its box: boxed from the occupied cells (fewer than the grown ones). The background's
