@@ -15,6 +15,7 @@ __all__ = [
     "components",
     "label_boxes",
     "label_type",
+    "labels_looked_up",
     "labels_wanted",
 ]
 
@@ -28,6 +29,25 @@ def labels_wanted(
     out = np.zeros(labels.shape, dtype=bool)
     out.ravel()[at] = wanted[labels.ravel()[at]]
     return out
+
+
+def labels_looked_up(
+    wanted: npt.NDArray[np.bool_], labels: npt.NDArray[np.integer]
+) -> npt.NDArray[np.bool_]:
+    """``wanted[labels]`` at every cell (``wanted``: one boolean per label, shape ``(count,)``).
+
+    With at most 256 labels OpenCV's lookup table of the labels as bytes (the guard's regions, a
+    few dozen: 0.49 against numpy's take's 1.33 ms on a 1149 x 1171 box), else numpy's take of
+    bytes (the object rules' unknown pockets, thousands: a third less than indexing booleans).
+    """
+    import cv2
+
+    if wanted.size <= 256:
+        table = np.zeros(256, dtype=np.uint8)
+        table[: wanted.size] = wanted
+        # Every label is below 256: as bytes, exactly.
+        return np.asarray(cv2.LUT(labels.astype(np.uint8), table), dtype=np.uint8).view(bool)
+    return np.take(wanted.view(np.uint8), labels).view(bool)
 
 
 def label_type(mask: npt.NDArray[np.bool_] | npt.NDArray[np.uint8], connectivity: int = 8) -> int:

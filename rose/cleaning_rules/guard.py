@@ -21,6 +21,7 @@ from rose.labelling import (
     component_areas,
     components,
     label_boxes,
+    labels_looked_up,
 )
 
 
@@ -181,7 +182,7 @@ def _linked_through_pockets(
     pocket[np.concatenate([regions[0], regions[-1], regions[:, 0], regions[:, -1]])] = False
     if not pocket.any():
         return opened
-    return opened | pocket[regions]
+    return opened | labels_looked_up(pocket, regions)
 
 
 def _separating_cells(
