@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import itertools
+import random
 
 import numpy as np
 from hypothesis import given, settings
@@ -58,6 +59,29 @@ def test_blocks_any_is_the_or_of_each_block(case: tuple[int, np.ndarray]) -> Non
     np.testing.assert_array_equal(got, expected)
     # Any dtype: non-zero is True (not its bytes, which a view of a wider type would split).
     np.testing.assert_array_equal(blocks_any(mask.astype(np.int16) * 2, factor), expected)
+
+
+@settings(max_examples=80, deadline=None)
+@given(
+    st.tuples(st.integers(1, 40), st.integers(1, 40), st.sampled_from([1, 2, 255, 256, 257, 3000])),
+    st.randoms(use_true_random=False),
+)
+def test_labels_looked_up_and_nonzero_flat_match_numpy(
+    case: tuple[int, int, int], rnd: random.Random
+) -> None:
+    """The cleaning's OpenCV shortcuts give numpy's answers: a boolean per label at every cell
+    (a lookup table up to 256 labels, numpy's take beyond), and the flat indices of non-zero
+    cells."""
+    from rose.cleaning_rules.masks import _nonzero_flat
+    from rose.labelling import labels_looked_up
+
+    rows, cols, count = case
+    rng = np.random.default_rng(rnd.getrandbits(32))
+    labels = rng.integers(0, count, size=(rows, cols)).astype(np.int32)
+    wanted = rng.random(count) < 0.5
+    np.testing.assert_array_equal(labels_looked_up(wanted, labels), wanted[labels])
+    image = (rng.random((rows, cols)) < rnd.random()).astype(np.uint8)
+    np.testing.assert_array_equal(_nonzero_flat(image), np.flatnonzero(image))
 
 
 @settings(max_examples=120, deadline=None)
