@@ -1153,6 +1153,51 @@ def test_a_wall_with_unknown_behind_it_is_no_cabinet_front() -> None:
     assert cleaned.kept[25:27, 42:110].all()
 
 
+@pytest.mark.parametrize("between", [1, 2])
+def test_cabinets_side_by_side_go_and_the_wall_between_them_joins_the_drawn_line(
+    between: int,
+) -> None:
+    """Two cabinets along a wall, 0.05-0.1 m apart: the wall shows between them only in a
+    stretch shorter than an anchor (0.25 m), so neither gap had two wall ends to be drawn between
+    and both cabinets stayed. The stretch lies on the line of the long stretches beyond the row of
+    cabinets: the wall is drawn behind both, their fronts go and the stretch between them stays."""
+    grid = np.zeros((60, 160), dtype=np.int8)
+    grid[:25, :] = -1  # the unknown outside, above the wall
+    grid[24, 5:156] = 100
+    first = (40, 75)
+    second = (75 + 1 + between, 75 + 1 + between + 40)
+    for start, end in (first, second):
+        grid[24, start + 1 : end] = -1  # the wall hidden behind the cabinet
+        grid[25:37, start + 1 : end] = -1  # its inside
+        grid[37, start : end + 1] = 100  # its front
+        grid[24:38, start] = grid[24:38, end] = 100  # its sides
+    cleaned = clean(grid, rose.analyze(grid), resolution_m=RES)
+    for start, end in (first, second):
+        assert not cleaned.kept[37, start + 2 : end - 1].any()  # the fronts go
+        assert cleaned.completed[24, start + 1 : end].all()  # the wall behind is drawn
+    assert cleaned.kept[24, first[1] : second[0] + 1].all()  # the wall between them stays
+    assert (cleaned.cleaned[24, 5:156] == 100).all()
+
+
+def test_a_cabinet_a_cell_off_the_wall_goes_and_its_wall_line_is_drawn() -> None:
+    """A cabinet standing 0.05 m off the wall: a beam grazing the wall passed through the slit
+    behind it, free cells between the hidden wall and the cabinet, which read as the room in front
+    of the line (no front behind it), and the cabinet stayed. A free cell with the cabinet right
+    behind it is no room: the wall line is drawn and the cabinet goes."""
+    grid = np.zeros((60, 140), dtype=np.int8)
+    grid[:25, :] = -1  # the unknown outside, above the wall
+    grid[24, 5:136] = 100
+    grid[24, 41:111] = -1  # the wall hidden behind the cabinet
+    grid[25, 41:111] = 0  # the slit a grazing beam saw
+    grid[26:37, 41:111] = -1  # the cabinet's inside
+    grid[37, 40:112] = 100  # its front
+    grid[26:38, 40] = grid[26:38, 111] = 100  # its sides
+    cleaned = clean(grid, rose.analyze(grid), resolution_m=RES)
+    assert not cleaned.kept[37, 42:110].any()  # the front goes
+    assert cleaned.completed[24, 41:111].all()  # the wall behind is drawn
+    assert cleaned.kept[24, 5:41].all() and cleaned.kept[24, 111:136].all()
+
+
 def test_a_wall_ending_on_a_cabinet_front_stays_and_is_drawn_through_it() -> None:
     """A partition 1 m long that ends on a long cabinet's front is a wall meeting the object, not
     part of it: it stays, and its hidden part is drawn from the front to the wall line behind."""

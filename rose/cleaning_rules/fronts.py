@@ -48,7 +48,8 @@ _FRONT_FACE_SHARE = 0.9
 _CORNER_MAX_M = 5.0
 
 
-#: ... the shallowest such furniture, from the wall line to the far side of its front (metres):
+#: ... the shallowest such furniture, from the wall line to the far side of its front (metres), and
+#: that of furniture side by side along a wall (:func:`_fronts_rows`' chains of gaps):
 #: twice a wall face. One wall end is weaker evidence than two: a wall stepping or bending off
 #: its line by a wall's thickness (0.2-0.25 m) next to a corner looks the same, and shallower
 #: furniture (a shelf) is rare.
@@ -81,7 +82,10 @@ def _flush_fronts(
     ``max_depth_px`` occupied or unknown cells before free space, an occupied one last (a front
     face). That is a wall running on behind an object that stands against it: the line is the
     hidden wall, the occupied cells between it and the room are the object's front and sides,
-    the unknown cells its inside. Columns reaching farther than the front, in stretches no wider
+    the unknown cells its inside. Pieces side by side along the wall, between which it shows only
+    in stretches shorter than an anchor: each gap between two long stretches at most
+    ``max_len_px`` apart, through such short ones on the line, is checked so, its front at least
+    ``corner_depth_px`` deep. Columns reaching farther than the front, in stretches no wider
     than ``crossing_px``, are a wall meeting the object (a partition ending on its front,
     or crossing the line between two objects): its cells up to ``wall_px`` past the object are
     kept, and its sides drawn from the line to the front. In a frame at an angle to the grid, where
@@ -219,7 +223,24 @@ def _fronts_rows(
     # (Straightened: a band's wall stretches twice as long, as the staggered bridges' ends: a face
     # across the line at an angle makes short stretches in a band too.)
     run_anchor = anchor if slack == 0 else 2 * anchor
-    left = left[(run_len[left] >= run_anchor) & (run_len[left + 1] >= run_anchor)]
+    # Furniture standing side by side along a wall: the wall shows between the pieces only in
+    # short stretches (a few cells, shorter than an anchor), on the line of the long stretches
+    # beyond the row of furniture. A chain of gaps joined by short stretches is anchored by the
+    # long stretches at its two ends (the wall line visible on both sides of the row), at most
+    # ``max_len`` apart as one gap's anchors: each gap of it is then checked as a gap between
+    # those anchors (a single gap between two long stretches is a chain of one).
+    short = run_len < run_anchor
+    # Gap k continues gap k - 1's chain when they share a short stretch.
+    joined = np.zeros(left.size, dtype=bool)
+    joined[1:] = (run_id[left[1:]] == run_id[left[:-1] + 1]) & short[left[1:]]
+    starts = np.flatnonzero(~joined)
+    chain = np.cumsum(~joined) - 1
+    ends = np.append(starts[1:], left.size)[: starts.size] - 1
+    anchor_left = left[starts][chain]  # the chain's first wall end (last cell of its stretch)
+    anchor_right = left[ends][chain] + 1  # its last (first cell of its stretch)
+    anchored = ~short[anchor_left] & ~short[anchor_right]
+    anchored &= cells[anchor_right] - cells[anchor_left] - 1 <= max_len
+    left, anchor_left, anchor_right = left[anchored], anchor_left[anchored], anchor_right[anchored]
     span = max_depth + 1
     if corner_len > 0 and slack == 0:
         # One wall end is weaker evidence than two: its visible stretch must be twice an anchor
@@ -250,17 +271,30 @@ def _fronts_rows(
     rows = cells[left] // width
     end_left, end_right = cells[left] % width, cells[left + 1] % width
     middle = (end_left + end_right) // 2
+    # The faces are checked at the chain's anchors (a short stretch between two pieces of
+    # furniture has their sides next to it, no free space along an anchor's length).
+    face_end_left, face_end_right = cells[anchor_left] % width, cells[anchor_right] % width
+    # A chain's gaps are weaker evidence than a gap between two long stretches (as a corner's one
+    # wall end): a thick wall's face, with its unseen core, breaks into short stretches too. Their
+    # front must be as deep as a corner's furniture (``corner_depth``), deeper than a wall
+    # (straightened, two cells deeper, as a wall face is there: the grown rows).
+    chained = (anchor_left != left) | (anchor_right != left + 1)
     for sign in (1, -1):
         # Cheap tests first, on a few cells of each candidate: the wall ends' last cells see
         # free space within ``face`` on this side, the gap's middle column none that near.
         across = rows[:, None, None] + sign * np.arange(1, face + slack + 1)[:, None]
         along = np.arange(anchor + 2 * slack)
-        face_left = free(across, np.maximum(end_left[:, None] - along, 0)[:, None, :])
-        face_right = free(across, np.minimum(end_right[:, None] + along, width - 1)[:, None, :])
+        face_left = free(across, np.maximum(face_end_left[:, None] - along, 0)[:, None, :])
+        face_right = free(
+            across, np.minimum(face_end_right[:, None] + along, width - 1)[:, None, :]
+        )
         face_left = face_left.any(axis=1).sum(axis=1)
         face_right = face_right.any(axis=1).sum(axis=1)
         beside = rows[:, None] + sign * np.arange(1, face + 2)
-        near_middle = free(beside, middle[:, None]).any(axis=1)
+        free_beside = free(beside, middle[:, None])
+        if not slack:
+            free_beside[:, 0] &= free_beside[:, 1]  # a slit behind furniture (_front_at)
+        near_middle = free_beside.any(axis=1)
         chosen = np.flatnonzero(
             (2 * face_left >= anchor) & (2 * face_right >= anchor) & ~near_middle
         )
@@ -280,6 +314,7 @@ def _fronts_rows(
                 crossing,
                 stub,
                 slack=slack,
+                shallowest=corner_depth + 2 * slack if chained[i] else 0,
             )
 
 
@@ -296,17 +331,26 @@ def _front_at(
     stub: int,
     *,
     slack: int = 0,
+    shallowest: int = 0,
 ) -> bool:
     """The checks of one candidate gap ``row, col0:col1`` (the furniture below it) and, when it
     passes (returns True), its line, front and inside in ``out``; with ``slack`` (a straightened
     staircase) the gap's first and last ``slack + 1`` columns may open to the room (a side face a
-    column off)."""
+    column off); with ``shallowest``, the front (the depth most columns share) at least that many
+    cells from the line."""
     height, width = code.shape
     max_depth = span - 1
     if row + 1 >= height or (code[row, col0:col1] != 0).any():
         return False
     lo, hi = max(col0 - anchor, 0), min(col1 + anchor, width)
     below = code[row + 1 : row + 1 + span, lo:hi] == 1
+    if below.shape[0] > 1 and not slack:
+        # Furniture rarely stands quite flush: a beam grazing the wall passes through the slit
+        # between its back and the wall, a free cell next to the line with the furniture right
+        # behind it. That cell is no room in front of the line (the room is a second free cell).
+        # Not on a straightened staircase, where a free cell next to the line is the room beside
+        # a side face a column off, whose grown cells lie behind it.
+        below[0] &= below[1]
     # Occupied or unknown cells below each column, down to free space (``span``: none near).
     depth = np.where(below.any(axis=0), below.argmax(axis=0), span)
     if slack:
@@ -332,6 +376,8 @@ def _front_at(
     # ends. Wider stretches are a deeper object, refused when they reach beyond the depth limit
     # (unless the front itself lies within a wall face of it: then they are not told apart).
     front = _median(d[~deep])
+    if front < shallowest:
+        return False
     farther = np.concatenate([[False], d > front + face, [False]])
     edges = np.flatnonzero(np.diff(farther.view(np.int8)))
     starts, ends = edges[::2], edges[1::2]
