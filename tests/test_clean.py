@@ -1113,6 +1113,21 @@ def test_a_cabinet_against_a_wall_at_an_angle_goes_and_its_wall_line_is_drawn(
     assert hidden[:, 0].min() <= -33 and hidden[:, 0].max() >= 33
 
 
+@pytest.mark.parametrize("angle_deg", [10.0, 20.0, 30.0])
+def test_a_cabinet_a_cell_off_a_wall_at_an_angle_goes(angle_deg: float) -> None:
+    """The cabinet at an angle, standing a cell off its wall: the slit a grazing beam saw behind it
+    is sampled one or two rows wide (dotted) once rotated onto the rows, which read as the room
+    right in front of the line, and the cabinet stayed."""
+    grid, front, wall, position = _cabinet_at_an_angle(angle_deg)
+    across, along = position[..., 1], position[..., 0]
+    grid[(grid == -1) & (across > 0.5) & (across <= 1.5) & (np.abs(along) < 35)] = 0  # the slit
+    cleaned = clean(grid, rose.analyze(grid), resolution_m=RES)
+    assert (cleaned.kept & front).sum() <= 0.1 * front.sum()  # the front goes
+    assert cleaned.kept[wall].all()  # the wall beside it stays
+    hidden = position[cleaned.completed]
+    assert hidden.size and np.abs(hidden[:, 1]).max() <= 2  # drawn on the wall's line
+
+
 def test_a_cabinet_front_with_a_scan_hole_is_still_a_front() -> None:
     """A scan leaves single holes in a cabinet's front: one column of seventy open to the room
     read as a shadow's edge, and the cabinet stayed as a wall."""

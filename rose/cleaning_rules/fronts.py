@@ -292,8 +292,11 @@ def _fronts_rows(
         face_right = face_right.any(axis=1).sum(axis=1)
         beside = rows[:, None] + sign * np.arange(1, face + 2)
         free_beside = free(beside, middle[:, None])
-        if not slack:
-            free_beside[:, 0] &= free_beside[:, 1]  # a slit behind furniture (_front_at)
+        # A slit behind furniture is no room (_front_at): free cells in the row next to the line
+        # (straightened, in the two rows), with a cell that is not free behind them.
+        if free_beside.shape[1] > 1 + slack:
+            slit_beside = ~free_beside[:, 1 + slack]
+            free_beside[:, : 1 + slack] &= ~slit_beside[:, None]
         near_middle = free_beside.any(axis=1)
         chosen = np.flatnonzero(
             (2 * face_left >= anchor) & (2 * face_right >= anchor) & ~near_middle
@@ -344,13 +347,16 @@ def _front_at(
         return False
     lo, hi = max(col0 - anchor, 0), min(col1 + anchor, width)
     below = code[row + 1 : row + 1 + span, lo:hi] == 1
-    if below.shape[0] > 1 and not slack:
-        # Furniture rarely stands quite flush: a beam grazing the wall passes through the slit
-        # between its back and the wall, a free cell next to the line with the furniture right
-        # behind it. That cell is no room in front of the line (the room is a second free cell).
-        # Not on a straightened staircase, where a free cell next to the line is the room beside
-        # a side face a column off, whose grown cells lie behind it.
-        below[0] &= below[1]
+    # Furniture rarely stands quite flush: a beam grazing the wall passes through the slit between
+    # its back and the wall, a free cell next to the line with the furniture right behind it. That
+    # cell is no room in front of the line (the room is wider). Straightened, where such a slit at
+    # an angle to the grid is sampled one or two rows wide, only within the gap once its ends are
+    # found: beside it such a cell is the room beside a side face a column off.
+    slit_rows = np.zeros(below.shape, dtype=bool)
+    if below.shape[0] > 1 + slack:
+        slit_rows[: 1 + slack] = below[: 1 + slack] & ~below[1 + slack]
+    if not slack:
+        below &= ~slit_rows
     # Occupied or unknown cells below each column, down to free space (``span``: none near).
     depth = np.where(below.any(axis=0), below.argmax(axis=0), span)
     if slack:
@@ -361,6 +367,10 @@ def _front_at(
                 col0 += 1
             if col1 - col0 > 1 and depth[col1 - 1 - lo] <= face:
                 col1 -= 1
+        inner = slice(col0 - lo, col1 - lo)
+        if slit_rows[:, inner].any():
+            gap = below[:, inner] & ~slit_rows[:, inner]
+            depth[inner] = np.where(gap.any(axis=0), gap.argmax(axis=0), span)
     d = depth[col0 - lo : col1 - lo]
     # Deeper than a wall face everywhere (else the "front" is the wall itself, the line the
     # unknown behind it), no deeper than furniture. Straightened, by two cells more: the grown
