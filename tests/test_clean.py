@@ -1194,6 +1194,25 @@ def test_cabinets_side_by_side_go_and_the_wall_between_them_joins_the_drawn_line
     assert (cleaned.cleaned[24, 5:156] == 100).all()
 
 
+def test_a_wall_at_an_angle_behind_a_short_stretch_is_no_furniture_front() -> None:
+    """A wall's line seen at both ends and in a short stretch between, with another wall running
+    at an angle below it, the unknown between them: read along the line, the angled wall reaches
+    it at ever other depths, as no furniture set against a wall does. Nothing is drawn (the chain
+    of gaps through the short stretch drew a wall across the unknown)."""
+    grid = np.zeros((70, 140), dtype=np.int8)
+    grid[:25, :] = -1  # the unknown outside, above the wall
+    grid[24, 5:136] = 100
+    grid[24, 41:100] = -1  # unseen ...
+    grid[24, 68:70] = 100  # ... but for a short stretch
+    wedge = np.zeros(grid.shape, dtype=np.uint8)
+    cv2.fillPoly(wedge, [np.array([[41, 24], [99, 24], [99, 45], [41, 31]], np.int32)], 1)
+    grid[(wedge > 0) & (grid == 0)] = -1
+    cv2.line(grid, (41, 31), (99, 45), 100, 1, cv2.LINE_8)  # the wall at an angle
+    grid[24:32, 40] = grid[24:46, 100] = 100
+    cleaned = clean(grid, rose.analyze(grid), resolution_m=RES)
+    assert not cleaned.completed.any()
+
+
 def test_a_cabinet_a_cell_off_the_wall_goes_and_its_wall_line_is_drawn() -> None:
     """A cabinet standing 0.05 m off the wall: a beam grazing the wall passed through the slit
     behind it, free cells between the hidden wall and the cabinet, which read as the room in front

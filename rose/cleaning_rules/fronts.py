@@ -277,7 +277,9 @@ def _fronts_rows(
     # A chain's gaps are weaker evidence than a gap between two long stretches (as a corner's one
     # wall end): a thick wall's face, with its unseen core, breaks into short stretches too. Their
     # front must be as deep as a corner's furniture (``corner_depth``), deeper than a wall
-    # (straightened, two cells deeper, as a wall face is there: the grown rows).
+    # (straightened, two cells deeper, as a wall face is there: the grown rows), and parallel to
+    # the line, as furniture set against a wall stands (a wall at an angle to the frame, the
+    # unknown behind it read along a row, reaches the row at ever other depths).
     chained = (anchor_left != left) | (anchor_right != left + 1)
     for sign in (1, -1):
         # Cheap tests first, on a few cells of each candidate: the wall ends' last cells see
@@ -318,6 +320,7 @@ def _fronts_rows(
                 stub,
                 slack=slack,
                 shallowest=corner_depth + 2 * slack if chained[i] else 0,
+                parallel=bool(chained[i]),
             )
 
 
@@ -335,12 +338,14 @@ def _front_at(
     *,
     slack: int = 0,
     shallowest: int = 0,
+    parallel: bool = False,
 ) -> bool:
     """The checks of one candidate gap ``row, col0:col1`` (the furniture below it) and, when it
     passes (returns True), its line, front and inside in ``out``; with ``slack`` (a straightened
     staircase) the gap's first and last ``slack + 1`` columns may open to the room (a side face a
     column off); with ``shallowest``, the front (the depth most columns share) at least that many
-    cells from the line."""
+    cells from the line; with ``parallel``, every column's front (but a wall meeting it) within a
+    cell of that depth (straightened, two cells)."""
     height, width = code.shape
     max_depth = span - 1
     if row + 1 >= height or (code[row, col0:col1] != 0).any():
@@ -368,7 +373,9 @@ def _front_at(
             if col1 - col0 > 1 and depth[col1 - 1 - lo] <= face:
                 col1 -= 1
         inner = slice(col0 - lo, col1 - lo)
-        if slit_rows[:, inner].any():
+        # (A slit runs along the furniture's back: a free cell beside the line in a few columns
+        # is the room reaching in at a wall's step or a corner.)
+        if 2 * np.count_nonzero(slit_rows[:, inner].any(axis=0)) >= col1 - col0:
             gap = below[:, inner] & ~slit_rows[:, inner]
             depth[inner] = np.where(gap.any(axis=0), gap.argmax(axis=0), span)
     d = depth[col0 - lo : col1 - lo]
@@ -399,6 +406,8 @@ def _front_at(
         elif deep[start:end].any():
             return False
     if stubs[0] or stubs[-1]:
+        return False
+    if parallel and not slack and (np.abs(d[~deep & ~stubs] - front) > 1).any():
         return False
     # The last cell before free space is occupied: a front face, not a shadow's edge, in nine
     # columns of ten (a scan leaves single holes in a front). Walls at an angle to the grid are
