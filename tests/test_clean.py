@@ -1213,6 +1213,33 @@ def test_a_wall_at_an_angle_behind_a_short_stretch_is_no_furniture_front() -> No
     assert not cleaned.completed.any()
 
 
+def test_a_cabinet_whose_hidden_wall_line_grazing_beams_crossed_goes() -> None:
+    """Beams grazing the wall behind a cabinet cross its line here and there: a quarter of the
+    hidden line's cells free made it no unknown stretch, and the cabinet stayed. The wall line is
+    drawn on its unknown cells and the cabinet goes; a line free for the most part (an opening)
+    is still no wall."""
+
+    def cabinet(line: int, every_fourth: int) -> npt.NDArray[np.int8]:
+        grid = np.zeros((60, 140), dtype=np.int8)
+        grid[:25, :] = -1  # the unknown outside, above the wall
+        grid[24, 5:136] = 100
+        grid[24, 41:111] = line  # the wall's line behind the cabinet ...
+        grid[24, 43:109:4] = every_fourth  # ... and every fourth cell of it
+        grid[24, 41] = grid[24, 110] = -1  # its ends unseen
+        grid[25:37, 41:111] = -1  # the cabinet's inside
+        grid[37, 40:112] = 100  # its front
+        grid[24:38, 40] = grid[24:38, 111] = 100  # its sides
+        return grid
+
+    grid = cabinet(-1, 0)  # a quarter of the line free
+    cleaned = clean(grid, rose.analyze(grid), resolution_m=RES)
+    assert not cleaned.kept[37, 42:110].any()  # the front goes
+    assert np.array_equal(cleaned.completed[24, 41:111], grid[24, 41:111] == -1)
+    grid = cabinet(0, -1)  # three quarters free: an opening
+    cleaned = clean(grid, rose.analyze(grid), resolution_m=RES)
+    assert not cleaned.completed.any()
+
+
 def test_a_cabinet_a_cell_off_the_wall_goes_and_its_wall_line_is_drawn() -> None:
     """A cabinet standing 0.05 m off the wall: a beam grazing the wall passed through the slit
     behind it, free cells between the hidden wall and the cabinet, which read as the room in front

@@ -348,7 +348,12 @@ def _front_at(
     cell of that depth (straightened, two cells)."""
     height, width = code.shape
     max_depth = span - 1
-    if row + 1 >= height or (code[row, col0:col1] != 0).any():
+    # The hidden line: no occupied cell (a wall stretch would end the gap), and at most half its
+    # cells free: beams grazing the wall behind the furniture cross its line here and there (a wall
+    # at an angle to the grid leaves cells of the line free between its steps), but a line seen
+    # free for the most part is an opening, not a wall.
+    on_line = code[row, col0:col1]
+    if row + 1 >= height or (on_line == 2).any() or 2 * np.count_nonzero(on_line) > on_line.size:
         return False
     lo, hi = max(col0 - anchor, 0), min(col1 + anchor, width)
     below = code[row + 1 : row + 1 + span, lo:hi] == 1
