@@ -19,6 +19,7 @@ __all__ = [
     "buffer_unbuffered_stdout",
     "flush_stdout",
     "print_any_file_name",
+    "stderr_is_terminal",
     "stdout_closed",
     "stdout_discarded",
     "stdout_errors_named",
@@ -158,6 +159,12 @@ def stdout_errors_named() -> Iterator[None]:
     finally:
         if sys.stdout is named:
             sys.stdout = stream
+
+
+def stderr_is_terminal() -> bool:
+    """Whether standard error is a terminal (a progress bar is drawn there); False when the process
+    has none (``pythonw``, ``2>&-``: ``sys.stderr`` is None)."""
+    return sys.stderr is not None and sys.stderr.isatty()
 
 
 @contextlib.contextmanager

@@ -10,6 +10,7 @@ from collections.abc import Callable
 from typing import Any
 
 from rose.cli.options import add_param_arguments, location, params_from_args
+from rose.console import stderr_is_terminal
 from rose.limits import short
 from rose_logs.cli.options import (
     EXIT_GATE,
@@ -287,7 +288,7 @@ def run(args: argparse.Namespace) -> int:
         storage_options=storage_options,
         force=args.force,
         retry_errors=args.retry_errors,
-        progress=not args.quiet and sys.stderr.isatty(),
+        progress=not args.quiet and stderr_is_terminal(),
         gates=lambda report: {
             "fail_above": args.fail_above,
             "fail_on_break": bool(args.fail_on_break),

@@ -19,6 +19,7 @@ from rose.cli.options import (
     path_arg,
     resolution,
 )
+from rose.console import stderr_is_terminal
 from rose.outputs import OutputSet, counted, refuse_output_in_bag_folder
 from rose_logs.carmen.parse import MAX_STAMP_S, CarmenLog, check_carmen_file, read_carmen_log
 from rose_logs.carmen.raycast import BuilderParams
@@ -174,7 +175,7 @@ def run(args: argparse.Namespace) -> int:
                 drift_start_s=args.drift_start,
             )
             with _scan_progress(
-                len(log.scans), enabled=not args.quiet and sys.stderr.isatty()
+                len(log.scans), enabled=not args.quiet and stderr_is_terminal()
             ) as progress:
                 summary = write_carmen_session(
                     log,

@@ -16,6 +16,7 @@ from rose.cli.options import (
     params_from_args,
     path_arg,
 )
+from rose.console import stderr_is_terminal
 from rose.limits import short, visible
 from rose.outputs import OutputSet, counted, json_text, refuse_output_in_bag_folder, suffix_warning
 from rose_logs.cli.options import (
@@ -303,7 +304,7 @@ def run(args: argparse.Namespace) -> int:
         for warning in warnings:
             print(warning, file=sys.stderr)
 
-    progress = not args.quiet and sys.stderr.isatty()
+    progress = not args.quiet and stderr_is_terminal()
     with outputs:  # the log, the recording and the report: all committed, or none
         json_out = None if args.json_path is None else outputs.stage(args.json_path)
         report = _process(args, output, progress, outputs, say_warnings)

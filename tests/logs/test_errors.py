@@ -109,6 +109,32 @@ def test_a_command_that_writes_files_runs_without_a_standard_output(
     assert "error" not in err
 
 
+@pytest.mark.parametrize(
+    ("command", "written"),
+    [
+        (["process", "-o", "out.mcap"], "out.mcap"),
+        (["batch", "-o", "out"], "out"),
+    ],
+)
+def test_a_command_that_writes_files_runs_under_pythonw(
+    command: list[str],
+    written: str,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    mcap_log: Path,
+) -> None:
+    """Under ``pythonw`` sys.stderr is None as well as sys.stdout: without -q, `process -o
+    out.mcap` and `batch` asked ``sys.stderr.isatty()`` whether to draw a progress bar, an
+    AttributeError after the standard output's check let them run."""
+    import sys
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(sys, "stdout", None)
+    monkeypatch.setattr(sys, "stderr", None)
+    assert main([command[0], str(mcap_log), *command[1:]]) == 0
+    assert (tmp_path / written).exists()
+
+
 def test_an_input_that_is_a_symlink_loop_is_one_line(tmp_path: Path, capsys) -> None:
     """Path.resolve() of a link to itself raised RuntimeError (Python < 3.13) while the outputs
     were checked: a traceback before the read could say what is wrong."""
