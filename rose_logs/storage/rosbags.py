@@ -354,9 +354,16 @@ def _bag_information(path: Path) -> dict[str, Any] | None:
 def mcap_storage_files(path: Path) -> list[Path]:
     """The MCAP storage files the ROS 2 bag folder ``path``'s metadata.yaml lists, in its order,
     as rosbags finds them (by name, in the folder); none when one of them is no plain MCAP file
-    (a whole file compressed, ``.mcap.zstd``) or the list does not read."""
+    (a whole file compressed, ``.mcap.zstd``), when its messages are compressed one by one
+    (compression mode "message": the file's messages are zstd data, which rosbags decompresses),
+    or the list does not read."""
     information = _bag_information(path)
-    names = None if information is None else information.get("relative_file_paths")
+    if information is None:
+        return []
+    mode = str(information.get("compression_mode") or "").lower()
+    if mode not in ("", "none"):
+        return []
+    names = information.get("relative_file_paths")
     if not isinstance(names, list) or not names:
         return []
     files = [path / PurePath(str(name)).name for name in names]

@@ -1250,3 +1250,31 @@ def test_salvage_reads_an_intact_mcap_bag_folder_as_without_it(tmp_path: Path) -
             )
             assert not reader.losses
     assert len(read[0]) == 715 and read[0] == read[1]
+
+
+def test_salvage_reads_an_mcap_bag_folder_of_compressed_messages_as_without_it(
+    tmp_path: Path,
+) -> None:
+    """A bag folder whose MCAP file holds each message zstd-compressed (rosbag2's compression
+    mode "message": the file is a plain .mcap) was read under --salvage through the bare file,
+    whose messages are the compressed bytes: every message came out as zstd data. It is read
+    by rosbags, which decompresses them, as without --salvage."""
+    from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    sample = Path(__file__).resolve().parents[2] / "sample_data" / "fr079_session.mcap"
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    bag = tmp_path / "bag"
+    writer = Writer(bag, version=9, storage_plugin=StoragePlugin.MCAP)
+    writer.set_compression(CompressionMode.MESSAGE, CompressionFormat.ZSTD)
+    with LogReader(sample) as reader, writer:
+        conns = {c.id: writer.add_connection(c.topic, c.msgtype, typestore=store) for c in reader.channels}  # fmt: skip
+        for m in reader.messages():
+            writer.write(conns[m.channel.id], m.log_time_ns, bytes(m.data))
+    assert (bag / "bag.mcap").is_file()
+    read = []
+    for salvage in (False, True):
+        with LogReader(bag, salvage=salvage) as reader:
+            read.append([(m.channel.id, m.log_time_ns, bytes(m.data)) for m in reader.messages()])
+            assert not reader.losses
+    assert len(read[0]) == 715 and read[0] == read[1]
