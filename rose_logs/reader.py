@@ -289,10 +289,13 @@ class LogReader:
 
         A folder of several MCAP files is read by rosbags alone: the error names the damaged
         file, which ``--salvage`` can read on its own. None when every MCAP file reads (the
-        first error stands: metadata.yaml, or an error of ours, which says what is wrong)."""
+        first error stands: metadata.yaml, or an error of ours, which says what is wrong), and
+        when one is missing (rosbags says which)."""
         if isinstance(err, LogError):
             return None
         files = mcap_storage_files(self.path)
+        if not all(storage.is_file() for storage in files):
+            return None  # rosbags' error names the files that are missing
         for storage in files:
             probe = McapReadBackend(storage)
             try:

@@ -1278,3 +1278,25 @@ def test_salvage_reads_an_mcap_bag_folder_of_compressed_messages_as_without_it(
             read.append([(m.channel.id, m.log_time_ns, bytes(m.data)) for m in reader.messages()])
             assert not reader.losses
     assert len(read[0]) == 715 and read[0] == read[1]
+
+
+@pytest.mark.parametrize("listed", ["extra", "only"])
+def test_an_mcap_bag_folder_missing_a_listed_file_says_it_is_missing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], listed: str
+) -> None:
+    """metadata.yaml lists an MCAP file that is not there: rosbags' "Some database files are
+    missing" was replaced by "MCAP file corrupt ([Errno 2] No such file ...)", with or without
+    --salvage, offering --salvage on the file that does not exist."""
+    bag = tmp_path / "bag"
+    _mcap_bag_folder(bag)
+    meta = bag / "metadata.yaml"
+    if listed == "extra":
+        text = meta.read_text().replace("  - bag.mcap\n", "  - bag.mcap\n  - bag_1.mcap\n")
+    else:
+        text = meta.read_text().replace("  - bag.mcap\n", "  - gone.mcap\n")
+    meta.write_text(text)
+    for salvage in ([], ["--salvage"]):
+        code, _, err = _run(capsys, "process", bag, "--no-output", "-q", *salvage)
+        assert code == 1 and len(err.splitlines()) == 1, err
+        assert "missing" in err and "corrupt" not in err.replace("corrupt or truncated log", "")
+        assert "No such file" not in err and "reads it on its own" not in err
