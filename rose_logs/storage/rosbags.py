@@ -262,11 +262,13 @@ class RosbagsReadBackend:
             self.skip_damaged_chunks = False
             yield from self.messages(topics)
             return
-        ours = {(c.topic, c.msgtype): c for c in self.channels}
+        ours = self._mcap_channels_ours()
+        # The file's channel id of each of the inner reader's channels.
+        file_ids = {channel.id: file_id for file_id, channel in inner._by_id.items()}
         inner.skip_damaged_chunks = True
         try:
             for message in inner.messages(topics):
-                channel = ours.get((message.channel.topic, message.channel.msgtype))
+                channel = ours.get(file_ids.get(message.channel.id, -1))
                 if channel is None:  # not in metadata.yaml: rosbags does not read it either
                     continue
                 # The log time as publish time, as rosbags gives it: the same output either way.
@@ -277,6 +279,29 @@ class RosbagsReadBackend:
                 dataclasses.replace(chunk, file=inner.path) for chunk in inner.skipped_chunks
             )
             inner.close()
+
+    def _mcap_channels_ours(self) -> dict[int, Channel]:
+        """Our channel of each channel id of the one MCAP file of this bag folder, as rosbags maps
+        them (the first of metadata.yaml's topics of the same name, type and QoS, a hash that does
+        not differ): a topic's channels offered with different QoS stay apart."""
+        storage = self.reader.storage.storages[0]  # rosbags' reader of the folder, of its file
+        listed = list(self.reader.connections)
+        ours: dict[int, Channel] = {}
+        for conn in storage.connections:
+            match = next(
+                (
+                    other
+                    for other in listed
+                    if other.topic == conn.topic
+                    and other.msgtype == conn.msgtype
+                    and other.ext == conn.ext
+                    and (not conn.digest or not other.digest or other.digest == conn.digest)
+                ),
+                None,
+            )
+            if match is not None:
+                ours[int(conn.id)] = self._by_conn[id(match)]
+        return ours
 
     def _damaged_row(self, topic: str, timestamp: object, data: object) -> str:
         """What is wrong with a message a SQLite bag stores (its columns take any type: a NULL or

@@ -1300,3 +1300,59 @@ def test_an_mcap_bag_folder_missing_a_listed_file_says_it_is_missing(
         assert code == 1 and len(err.splitlines()) == 1, err
         assert "missing" in err and "corrupt" not in err.replace("corrupt or truncated log", "")
         assert "No such file" not in err and "reads it on its own" not in err
+
+
+def test_salvage_keeps_the_channels_of_one_topic_offered_with_two_qos(tmp_path: Path) -> None:
+    """Two channels of one topic and type offered with different QoS (two publishers): --salvage
+    mapped the MCAP file's channels to the bag's by topic and type alone, so every message went
+    to the last of them, and the counts' check called the intact bag damaged. They are mapped as
+    rosbags maps them (topic, type and QoS)."""
+    from rosbags.interfaces import (
+        Qos,
+        QosDurability,
+        QosHistory,
+        QosLiveliness,
+        QosReliability,
+        QosTime,
+    )
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    sample = Path(__file__).resolve().parents[2] / "sample_data" / "fr079_session.mcap"
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    never = QosTime(0, 0)
+    qos = [
+        Qos(
+            QosHistory.KEEP_LAST,
+            depth,
+            reliability,
+            durability,
+            never,
+            never,
+            QosLiveliness.AUTOMATIC,
+            never,
+            False,
+        )
+        for depth, reliability, durability in (
+            (1, QosReliability.RELIABLE, QosDurability.TRANSIENT_LOCAL),
+            (10, QosReliability.BEST_EFFORT, QosDurability.VOLATILE),
+        )
+    ]
+    bag = tmp_path / "bag"
+    with LogReader(sample) as reader, Writer(bag, version=9, storage_plugin=StoragePlugin.MCAP) as writer:  # fmt: skip
+        conns = {
+            c.id: [
+                writer.add_connection(c.topic, c.msgtype, typestore=store, offered_qos_profiles=[q])
+                for q in qos
+            ]
+            for c in reader.channels
+        }
+        for i, m in enumerate(reader.messages()):
+            writer.write(conns[m.channel.id][i % 2], m.log_time_ns, bytes(m.data))
+    read = []
+    for salvage in (False, True):
+        with LogReader(bag, salvage=salvage) as reader:
+            read.append([(m.channel.id, m.log_time_ns, bytes(m.data)) for m in reader.messages()])
+            assert not reader.losses
+    assert len(read[0]) == 715 and read[0] == read[1]
+    assert len({channel for channel, _, _ in read[0]}) == 4
