@@ -176,6 +176,7 @@ def stdout_discarded() -> Iterator[None]:
     if sys.stdout is not None:
         yield
         return
+    _occupy_closed_descriptors()
     discard = _Discarded()
     sys.stdout = discard
     try:
@@ -183,6 +184,23 @@ def stdout_discarded() -> Iterator[None]:
     finally:
         if sys.stdout is discard:
             sys.stdout = None
+
+
+def _occupy_closed_descriptors() -> None:
+    """Put ``/dev/null`` (``nul``) on file descriptors 1 and 2 where they are closed (``>&-``).
+
+    A closed descriptor is the next one ``open`` hands out: the command's output log or report
+    would become the process's standard output, into which a child (the spawned Rerun viewer, a
+    batch worker) or native code writing to standard output would then write.
+    """
+    for fd in (1, 2):
+        try:
+            os.fstat(fd)
+        except OSError:
+            null = os.open(os.devnull, os.O_WRONLY)
+            if null != fd:
+                os.dup2(null, fd)
+                os.close(null)
 
 
 class _Discarded(io.TextIOBase):

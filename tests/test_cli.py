@@ -1012,6 +1012,35 @@ def test_a_command_that_writes_to_a_closed_standard_output_is_refused_before_any
     assert sorted(p.name for p in tmp_path.iterdir()) == ["in.pgm", "in.yaml"]
 
 
+@pytest.mark.skipif(not Path("/proc/self/fd").is_dir(), reason="needs Linux's /proc")
+def test_a_closed_standard_output_is_not_handed_to_an_output_file(
+    cluttered_map: Path, tmp_path: Path
+) -> None:
+    """Started with standard output closed (``>&-``), a command that writes files runs; the closed
+    descriptor 1 is taken by /dev/null first, else the output file opened next became standard
+    output, for a child or native code to write into."""
+    import os
+    import subprocess
+    import sys
+
+    code = (
+        "import os, sys; from rose.cli import main; "
+        f"rc = main(['clean', {str(cluttered_map)!r}, '-o', 'out.yaml']); "
+        "sys.stderr.write(f\"{rc} {os.readlink('/proc/self/fd/1')}\\n\")"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code],
+        cwd=tmp_path,
+        capture_output=False,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=lambda: os.close(1),  # the child starts without a standard output
+        check=False,
+    )
+    assert done.stderr.splitlines()[-1] == f"0 {os.devnull}", done.stderr
+    assert (tmp_path / "out.yaml").is_file()
+
+
 @pytest.mark.parametrize(
     ("command", "written"),
     [
