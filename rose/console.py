@@ -172,11 +172,13 @@ def stdout_discarded() -> Iterator[None]:
     """Run a command that writes no result to standard output when the process has none
     (``pythonw``, or started with it closed, ``>&-``: ``sys.stdout`` is None): what it prints
     there (its summary) is discarded. ``print`` skips a missing stream, but a command that writes
-    to it (``sys.stdout.write``) raised AttributeError after its files were written."""
+    to it (``sys.stdout.write``) raised AttributeError after its files were written. Closed
+    descriptors 1 and 2 are taken by /dev/null first, standard error's alone too (``2>&-``): Rerun's
+    native warnings go to descriptor 2."""
+    _occupy_closed_descriptors()
     if sys.stdout is not None:
         yield
         return
-    _occupy_closed_descriptors()
     discard = _Discarded()
     sys.stdout = discard
     try:

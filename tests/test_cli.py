@@ -1013,31 +1013,33 @@ def test_a_command_that_writes_to_a_closed_standard_output_is_refused_before_any
 
 
 @pytest.mark.skipif(not Path("/proc/self/fd").is_dir(), reason="needs Linux's /proc")
-def test_a_closed_standard_output_is_not_handed_to_an_output_file(
-    cluttered_map: Path, tmp_path: Path
+@pytest.mark.parametrize("closed", [1, 2], ids=["stdout", "stderr"])
+def test_a_closed_standard_stream_is_not_handed_to_an_output_file(
+    closed: int, cluttered_map: Path, tmp_path: Path
 ) -> None:
-    """Started with standard output closed (``>&-``), a command that writes files runs; the closed
-    descriptor 1 is taken by /dev/null first, else the output file opened next became standard
-    output, for a child or native code to write into."""
+    """Started with standard output or error closed (``>&-``, ``2>&-``), a command that writes
+    files runs; the closed descriptor is taken by /dev/null first, else the output file opened
+    next became standard output or error, for a child or native code (Rerun's warnings) to write
+    into."""
     import os
     import subprocess
     import sys
 
     code = (
-        "import os, sys; from rose.cli import main; "
+        "import os; from rose.cli import main; "
         f"rc = main(['clean', {str(cluttered_map)!r}, '-o', 'out.yaml']); "
-        "sys.stderr.write(f\"{rc} {os.readlink('/proc/self/fd/1')}\\n\")"
+        "links = [os.readlink(f'/proc/self/fd/{fd}') for fd in (1, 2)]; "
+        "open('result.txt', 'w').write(' '.join([str(rc), *links]))"
     )
-    done = subprocess.run(
+    subprocess.run(
         [sys.executable, "-c", code],
         cwd=tmp_path,
-        capture_output=False,
-        stderr=subprocess.PIPE,
-        text=True,
-        preexec_fn=lambda: os.close(1),  # the child starts without a standard output
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+        preexec_fn=lambda: os.close(closed),  # the child starts without that stream
         check=False,
     )
-    assert done.stderr.splitlines()[-1] == f"0 {os.devnull}", done.stderr
+    assert (tmp_path / "result.txt").read_text() == f"0 {os.devnull} {os.devnull}"
     assert (tmp_path / "out.yaml").is_file()
 
 
