@@ -112,11 +112,10 @@ def degenerate_input(grid: npt.NDArray[np.int8], occupied: npt.NDArray[np.bool_]
     if thinnest < MIN_PADDED_SIDE:
         noun = "cell" if thinnest == 1 else "cells"
         return f"a side of {thinnest} {noun} (fewer than {MIN_PADDED_SIDE}, too thin for a 2D spectrum)"
-    outline = int(
-        np.count_nonzero(occupied[1:] != occupied[:-1])
-        + np.count_nonzero(occupied[:, 1:] != occupied[:, :-1])
-    )
     border = sum(int(np.count_nonzero(side)) for side in _solid_sides(occupied))
+    # Counted only when some mass meets the border: a SLAM map's edge is unknown space, and the
+    # outline is two whole-grid passes (0.5 ms of a 1000 x 1000 session snapshot).
+    outline = _outline_length(occupied) if border else 0
     if outline < border:
         return (
             f"occupied cells fill the grid ({border} cell sides on its border, {outline} inside it)"
@@ -128,6 +127,13 @@ def degenerate_input(grid: npt.NDArray[np.int8], occupied: npt.NDArray[np.bool_]
         noun = "cell" if free == 1 else "cells"
         return f"only {free} free {noun} (fewer than {MIN_JUDGED_CELLS}, no space between walls)"
     return None
+
+
+def _outline_length(mask: npt.NDArray[np.bool_]) -> int:
+    """Cell sides inside the grid between a True and a False cell."""
+    return int(
+        np.count_nonzero(mask[1:] != mask[:-1]) + np.count_nonzero(mask[:, 1:] != mask[:, :-1])
+    )
 
 
 def _solid_sides(mask: npt.NDArray[np.bool_]) -> tuple[npt.NDArray[np.bool_], ...]:
