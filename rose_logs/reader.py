@@ -19,8 +19,8 @@ sorted by log time too, a ROS 1 bag's in file order. A complete MCAP file or ROS
 that chunk only: its index leads past it to the chunks after it (an MCAP file of no chunks is
 salvaged in file order, up to its damage; a ROS 1 bag is read chunk by chunk through its index's
 chunk infos, in rosbags' order, also when rosbags cannot open it for a damaged chunk record or
-index entry). A ROS 2 bag folder whose storage is one MCAP file is read, when that file is damaged,
-as the file would be on its own (:meth:`LogReader._damaged_mcap_storage`,
+index entry). A ROS 2 bag folder of MCAP storage is read, when a file of it is damaged, file by
+file, each as it would be on its own (:meth:`LogReader._damaged_mcap_storage`,
 :meth:`rose_logs.storage.rosbags.RosbagsReadBackend._mcap_around_damaged_chunks`).
 """
 
@@ -39,7 +39,12 @@ from rose.signals import reraise_interrupt_behind
 from rose_logs.errors import LogError, LogReadError
 from rose_logs.formats import LogFormat, detect_format, mcap_cut_short
 from rose_logs.storage.connections import QosStyle
-from rose_logs.storage.mcap import DamagedSummaryError, McapReadBackend, McapStreamReadBackend
+from rose_logs.storage.mcap import (
+    DamagedSummaryError,
+    McapFilesReadBackend,
+    McapReadBackend,
+    McapStreamReadBackend,
+)
 from rose_logs.storage.records import Channel, RawMessage
 from rose_logs.storage.ros1_stream import (
     IndexDamage,
@@ -60,7 +65,13 @@ __all__ = ["Channel", "LogReader", "MessageLossError", "RawMessage", "topic_name
 
 _LOG = logging.getLogger(__name__)
 
-_Backend = RosbagsReadBackend | McapReadBackend | Ros1StreamReadBackend | Ros1IndexedReadBackend
+_Backend = (
+    RosbagsReadBackend
+    | McapReadBackend
+    | McapFilesReadBackend
+    | Ros1StreamReadBackend
+    | Ros1IndexedReadBackend
+)
 
 
 def _opened(backend: McapStreamReadBackend | Ros1StreamReadBackend) -> bool:
@@ -211,7 +222,11 @@ class LogReader:
             backend.close()
             reraise_interrupt_behind(err)
             salvaged: (
-                McapStreamReadBackend | Ros1StreamReadBackend | Ros1IndexedReadBackend | None
+                McapStreamReadBackend
+                | McapFilesReadBackend
+                | Ros1StreamReadBackend
+                | Ros1IndexedReadBackend
+                | None
             ) = None
             if self.format == "mcap":
                 salvaged = self._without_summary(err)
@@ -227,14 +242,17 @@ class LogReader:
                 raise self._unreadable(err) from err
             backend = salvaged
         if self.salvage and (
-            type(backend) is McapReadBackend or isinstance(backend, RosbagsReadBackend)
+            type(backend) is McapReadBackend
+            or isinstance(backend, RosbagsReadBackend | McapFilesReadBackend)
         ):
             backend.skip_damaged_chunks = True
         self._backend = backend
 
-    def _unreadable(self, err: BaseException, storage: Path | None = None) -> LogReadError:
+    def _unreadable(
+        self, err: BaseException, storage: Path | None = None, of_files: int = 1
+    ) -> LogReadError:
         """The error for a log that cannot be opened (``err``: the library's); ``storage``: the
-        damaged MCAP file of a ROS 2 bag folder, which it names."""
+        damaged MCAP file of a ROS 2 bag folder, which it names, one of ``of_files``."""
         mcap = self.format == "mcap" or storage is not None
         if not mcap and self.format != "ros1":
             return _corrupt(self.path, err)
@@ -244,15 +262,17 @@ class LogReader:
             if self.salvage
             else "--salvage (process, info, batch) keeps the messages before the damage, if any can be read"
         )
+        one_of = f" (one of the bag's {of_files} files)" if of_files > 1 else ""
         if mcap and mcap_cut_short(where):
             # The library reads the footer from wherever the file now ends: its error is about a
             # record length of garbage ("HEADER record has length 29245...").
             return LogReadError(
-                f"{where}: truncated MCAP file, cut short: its end, which holds the index, "
-                f"is missing (a recording that was not closed, or a copy that stopped?); {remedy}"
+                f"{where}: truncated MCAP file{one_of}, cut short: its end, which holds the "
+                f"index, is missing (a recording that was not closed, or a copy that stopped?); "
+                f"{remedy}"
             )
         what = (
-            "MCAP file, its index at the end cannot be read"
+            f"MCAP file{one_of}, its index at the end cannot be read"
             if mcap
             else "ROS 1 bag, its index cannot be read (a recording that was not closed?)"
         )
@@ -280,15 +300,17 @@ class LogReader:
 
     def _damaged_mcap_storage(
         self, err: BaseException
-    ) -> McapStreamReadBackend | Ros1StreamReadBackend | None:
-        """A ROS 2 bag folder of MCAP storage that rosbags could not open (``err``) because its
-        MCAP file is damaged: read as that file would be on its own (complete without a summary:
-        record by record; cut short or damaged: with ``--salvage``, its readable start), else the
-        bare file's error, naming it. rosbags' own error ("File end magic is invalid.") named no
-        file and no remedy, and ``--salvage`` kept nothing.
+    ) -> McapStreamReadBackend | McapFilesReadBackend | Ros1StreamReadBackend | None:
+        """A ROS 2 bag folder of MCAP storage that rosbags could not open (``err``) because an
+        MCAP file of it is damaged: each damaged file read as it would be on its own (complete
+        without a summary: record by record; cut short or damaged: with ``--salvage``, its
+        readable start, the loss naming it), else the bare file's error, naming it. rosbags' own
+        error ("File end magic is invalid.") named no file and no remedy, and ``--salvage`` kept
+        nothing.
 
-        A folder of several MCAP files is read by rosbags alone: the error names the damaged
-        file, which ``--salvage`` can read on its own. None when every MCAP file reads (the
+        A bag split over several files is read file after file (:class:`McapFilesReadBackend`),
+        the intact ones through their index; under ``--salvage`` a file of which nothing can be
+        read is a loss naming it, the others are read. None when every MCAP file reads (the
         first error stands: metadata.yaml, or an error of ours, which says what is wrong), and
         when one is missing (rosbags says which)."""
         if isinstance(err, LogError):
@@ -296,37 +318,67 @@ class LogReader:
         files = mcap_storage_files(self.path)
         if not all(storage.is_file() for storage in files):
             return None  # rosbags' error names the files that are missing
-        for storage in files:
-            probe = McapReadBackend(storage)
-            try:
-                probe.open()
-            except Exception as failure:  # this file is the damaged one
-                reraise_interrupt_behind(failure)
-                damage = failure
-                break
-            finally:
-                probe.close()
-        else:
-            return None
-        if len(files) > 1:
-            what = (
-                "cut short (its end, which holds the index, is missing)"
-                if mcap_cut_short(storage)
-                else f"corrupt ({short(library_text(damage), 80)})"
-            )
-            # The file's path leads the message: the command names it as FILE (a long path
-            # twice ran the line past its limit).
-            msg = (
-                f"{storage}: MCAP file {what}, one of the bag's {len(files)} files; --salvage "
-                "reads it on its own (rose-bag process FILE --salvage), not in a bag of several"
-            )
-            raise LogReadError(msg) from err
-        salvaged: McapStreamReadBackend | Ros1StreamReadBackend | None
+        probes: list[tuple[Path, McapReadBackend | None, BaseException | None]] = []
+        parts: list[McapReadBackend] = []
+        try:
+            for storage in files:
+                probe = McapReadBackend(storage)
+                try:
+                    probe.open()
+                except Exception as failure:  # this file is a damaged one
+                    probe.close()
+                    reraise_interrupt_behind(failure)
+                    probes.append((storage, None, failure))
+                else:
+                    probes.append((storage, probe, None))
+            if all(probe is not None for _, probe, _ in probes):
+                for _, opened, _ in probes:
+                    assert opened is not None
+                    opened.close()
+                return None
+            if len(files) == 1:
+                storage, _, damage = probes[0]
+                assert damage is not None
+                return self._damaged_mcap_file(err, damage, storage)
+            for storage, opened, damage in probes:
+                if opened is not None:
+                    parts.append(opened)
+                    continue
+                assert damage is not None
+                part = self._damaged_mcap_file(err, damage, storage, of_files=len(files))
+                if part is not None:
+                    parts.append(part)
+        except BaseException:
+            for backend in [p for _, p, _ in probes if p is not None] + parts:
+                backend.close()
+            raise
+        if not parts:  # (every file is damaged and none has a message to keep)
+            storage, _, damage = next(probe for probe in probes if probe[1] is None)
+            assert damage is not None
+            raise self._unreadable(damage, storage, of_files=len(files)) from err
+        return McapFilesReadBackend(parts)
+
+    def _damaged_mcap_file(
+        self, err: BaseException, damage: BaseException, storage: Path, of_files: int = 1
+    ) -> McapStreamReadBackend | None:
+        """The MCAP file ``storage`` of a ROS 2 bag folder (one of ``of_files``) that does not
+        open through its index (``damage``; rosbags' error ``err``), read as it would be on its
+        own; its error when it cannot be. None: a file of a split bag of which ``--salvage``
+        reads nothing, said as a loss (the bag's other files are read)."""
         salvaged = self._without_summary(damage, storage)
         if salvaged is None and self.salvage:
-            salvaged = self._salvage_stream(storage)
+            stream = self._salvage_stream(storage)
+            assert stream is None or isinstance(stream, McapStreamReadBackend)
+            salvaged = stream
+            if salvaged is None and of_files > 1:
+                problem = (
+                    f"{self._unreadable(damage, storage, of_files)}; the bag's other files are read"
+                )
+                self.losses.append(problem)
+                _LOG.warning("%s", problem)
+                return None
         if salvaged is None:
-            raise self._unreadable(damage, storage) from err
+            raise self._unreadable(damage, storage, of_files) from err
         return salvaged
 
     def _around_damaged_chunks(self, err: BaseException) -> Ros1IndexedReadBackend | None:
@@ -473,7 +525,10 @@ class LogReader:
     def counts_declared(self) -> bool:
         """Whether :attr:`message_count` and the time range are what the log's index declares (an
         MCAP or ROS 1 log salvaged record by record counts what it read)."""
-        return not isinstance(self._open_backend, McapStreamReadBackend | Ros1StreamReadBackend)
+        return not isinstance(
+            self._open_backend,
+            McapStreamReadBackend | McapFilesReadBackend | Ros1StreamReadBackend,
+        )
 
     @property
     def serialization(self) -> str:
@@ -531,7 +586,10 @@ class LogReader:
     def _note_skipped_chunks(self, backend: object) -> None:
         """The damaged chunks a salvaging MCAP or ROS 1 reader skipped, as losses (each said
         once)."""
-        if not isinstance(backend, McapReadBackend | RosbagsReadBackend | Ros1IndexedReadBackend):
+        if not isinstance(
+            backend,
+            McapReadBackend | McapFilesReadBackend | RosbagsReadBackend | Ros1IndexedReadBackend,
+        ):
             return
         skipped = backend.skipped_chunks
         for chunk in skipped:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import heapq
 import io
 import itertools
@@ -36,6 +37,7 @@ from rose_logs.storage.records import (
 
 __all__ = [
     "DamagedSummaryError",
+    "McapFilesReadBackend",
     "McapReadBackend",
     "McapStreamReadBackend",
     "McapWriteBackend",
@@ -562,6 +564,80 @@ class McapStreamReadBackend(McapReadBackend):
                     yield RawMessage(
                         channel, record.log_time, record.data, record.publish_time, record.sequence
                     )
+
+
+class McapFilesReadBackend:
+    """The MCAP files of a ROS 2 bag folder split over several (rosbag2's ``--max-bag-size``,
+    ``--max-bag-duration``) that rosbags cannot open because one of them is damaged (cut short,
+    its summary damaged or missing): the files read one after the other, as rosbags reads
+    them, each as it would be read on its own (``parts``, opened: through its index, or record
+    by record; see :meth:`rose_logs.reader.LogReader._damaged_mcap_storage`).
+
+    The same channel in several files (topic, type, encoding, definition and metadata alike)
+    is one channel, its counts summed; the time range spans the files'. With
+    :attr:`skip_damaged_chunks` (``--salvage``) each indexed file skips the chunks that cannot
+    be read, said in :attr:`skipped_chunks` with the file they are in.
+    """
+
+    def __init__(self, parts: list[McapReadBackend]) -> None:
+        self.path = parts[0].path.parent
+        self.parts = parts
+        self.skip_damaged_chunks = False
+        self.skipped_chunks: list[SkippedChunk] = []
+        self.profile = parts[0].profile
+        self.qos_style: QosStyle | None = next(
+            (part.qos_style for part in parts if part.qos_style is not None), None
+        )
+        firsts: dict[tuple[Any, ...], Channel] = {}
+        counts: dict[tuple[Any, ...], int] = {}
+        keys: list[dict[int, tuple[Any, ...]]] = []
+        for part in parts:
+            keys.append({})
+            for channel in part.channels:
+                key = (
+                    channel.topic,
+                    channel.msgtype,
+                    channel.message_encoding,
+                    channel.schema_name,
+                    channel.msgdef_encoding,
+                    channel.msgdef,
+                    tuple(sorted(channel.metadata.items())),
+                )
+                firsts.setdefault(key, channel)
+                counts[key] = counts.get(key, 0) + channel.message_count
+                keys[-1][channel.id] = key
+        ours = {
+            key: dataclasses.replace(channel, id=n, message_count=counts[key])
+            for n, (key, channel) in enumerate(firsts.items())
+        }
+        self.channels: tuple[Channel, ...] = tuple(ours.values())
+        #: Per part, our channel of each of the part's channel ids.
+        self._ours = [{cid: ours[key] for cid, key in part.items()} for part in keys]
+        ranges = [
+            (part.start_ns, part.end_ns)
+            for part in parts
+            if any(channel.message_count for channel in part.channels)
+        ]
+        self.start_ns = min((start for start, _ in ranges), default=0)
+        self.end_ns = max((end for _, end in ranges), default=0)
+
+    def messages(self, topics: set[str] | None) -> Iterator[RawMessage]:
+        for part, ours in zip(self.parts, self._ours, strict=True):
+            part.skip_damaged_chunks = self.skip_damaged_chunks
+            try:
+                for m in part.messages(topics):
+                    yield RawMessage(
+                        ours[m.channel.id], m.log_time_ns, m.data, m.publish_time_ns, m.sequence
+                    )
+            finally:
+                self.skipped_chunks.extend(
+                    dataclasses.replace(chunk, file=part.path) for chunk in part.skipped_chunks
+                )
+                part.skipped_chunks.clear()
+
+    def close(self) -> None:
+        for part in self.parts:
+            part.close()
 
 
 class McapWriteBackend(WriteBackend):

@@ -49,7 +49,7 @@ class RosbagsReadBackend:
         self.start_ns = 0
         self.end_ns = 0
         self.qos_style: QosStyle | None = None
-        #: ``--salvage`` (ROS 1, ROS 2 MCAP folder of one file): a chunk that cannot be read is
+        #: ``--salvage`` (ROS 1, ROS 2 folder of MCAP files): a chunk that cannot be read is
         #: skipped and said in :attr:`skipped_chunks`, and the chunks after it are read (else it
         #: is an error).
         self.skip_damaged_chunks = False
@@ -243,26 +243,46 @@ class RosbagsReadBackend:
                 yield RawMessage(by_id[conn_id], time_ns, data, time_ns)
 
     def _mcap_around_damaged_chunks(self, topics: set[str] | None) -> Iterator[RawMessage]:
-        """A ROS 2 bag folder's messages read from its one MCAP file as a bare MCAP file is
-        salvaged (through its chunk index, skipping the chunks that cannot be read, said in
-        :attr:`skipped_chunks`), as this bag's channels. rosbags stops at the first damaged chunk:
-        a flipped bit early in an hour's recording lost the rest of the hour. A bag split over
-        several files, or whose file's index does not read, is read by rosbags as without
-        ``--salvage`` (up to the damage)."""
+        """A ROS 2 bag folder's messages read from its MCAP files as a bare MCAP file is salvaged
+        (through its chunk index, skipping the chunks that cannot be read, said in
+        :attr:`skipped_chunks` with the file they are in), as this bag's channels, file after
+        file as rosbags reads them. rosbags stops at the first damaged chunk: a flipped bit early
+        in an hour's recording lost the rest of the hour (and, in a split bag, every file after
+        it). A file whose index does not read is read by rosbags as without ``--salvage`` (up
+        to the damage)."""
         files = mcap_storage_files(self.path)
-        inner = McapReadBackend(files[0]) if len(files) == 1 else None
-        if inner is not None:
-            try:
-                inner.open()
-            except Exception as err:  # its index is damaged: rosbags' reading stands
-                inner.close()
-                reraise_interrupt_behind(err)
-                inner = None
-        if inner is None:
+        storages = self.reader.storage.storages  # rosbags' readers of the folder, one a file
+        if not files or len(files) != len(storages):
             self.skip_damaged_chunks = False
             yield from self.messages(topics)
             return
-        ours = self._mcap_channels_ours()
+        for storage, path in zip(storages, files, strict=True):
+            yield from self._mcap_file_around_damaged_chunks(storage, path, topics)
+
+    def _mcap_file_around_damaged_chunks(
+        self, storage: Any, path: Path, topics: set[str] | None
+    ) -> Iterator[RawMessage]:
+        """The messages of one MCAP file ``path`` of this bag folder (rosbags' reader of it:
+        ``storage``), skipping its damaged chunks; read by rosbags when its index does not read."""
+        ours = self._mcap_channels_ours(storage)
+        inner = McapReadBackend(path)
+        try:
+            inner.open()
+            indexed = True
+        except Exception as err:  # its index is damaged: rosbags' reading stands
+            inner.close()
+            reraise_interrupt_behind(err)
+            indexed = False
+        if not indexed:
+            conns = [
+                conn
+                for conn in storage.connections
+                if int(conn.id) in ours and (topics is None or conn.topic in topics)
+            ]
+            if conns:
+                for conn, timestamp, data in storage.messages(conns):
+                    yield RawMessage(ours[int(conn.id)], int(timestamp), data, int(timestamp))
+            return
         # The file's channel id of each of the inner reader's channels.
         file_ids = {channel.id: file_id for file_id, channel in inner._by_id.items()}
         inner.skip_damaged_chunks = True
@@ -280,11 +300,11 @@ class RosbagsReadBackend:
             )
             inner.close()
 
-    def _mcap_channels_ours(self) -> dict[int, Channel]:
-        """Our channel of each channel id of the one MCAP file of this bag folder, as rosbags maps
-        them (the first of metadata.yaml's topics of the same name, type and QoS, a hash that does
-        not differ): a topic's channels offered with different QoS stay apart."""
-        storage = self.reader.storage.storages[0]  # rosbags' reader of the folder, of its file
+    def _mcap_channels_ours(self, storage: Any) -> dict[int, Channel]:
+        """Our channel of each channel id of an MCAP file of this bag folder (``storage``:
+        rosbags' reader of it), as rosbags maps them (the first of metadata.yaml's topics of the
+        same name, type and QoS, a hash that does not differ): a topic's channels offered with
+        different QoS stay apart."""
         listed = list(self.reader.connections)
         ours: dict[int, Channel] = {}
         for conn in storage.connections:

@@ -7,6 +7,7 @@ import json
 import math
 import os
 import threading
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -1131,9 +1132,6 @@ def test_existing_json_report_needs_force(
 def _mcap_bag_folder(folder: Path) -> Path:
     """The sample session as a ROS 2 bag folder of MCAP storage whose file is written as rosbag2
     writes it (zstd chunks with CRCs; rosbags writes them plain and unchecked); returns the file."""
-    from mcap.reader import make_reader
-    from mcap.writer import CompressionType
-    from mcap.writer import Writer as McapWriter
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.typesys import Stores, get_typestore
 
@@ -1144,7 +1142,19 @@ def _mcap_bag_folder(folder: Path) -> Path:
         for m in reader.messages():
             writer.write(conns[m.channel.id], m.log_time_ns, bytes(m.data))
     storage = folder / f"{folder.name}.mcap"
-    plain = storage.read_bytes()
+    _write_as_rosbag2(storage, storage.read_bytes())
+    return storage
+
+
+def _write_as_rosbag2(
+    storage: Path, plain: bytes, keep: Callable[[int], bool] = lambda _: True
+) -> None:
+    """Write the MCAP file ``plain`` (its messages whose log time is ``keep``) to ``storage`` as
+    rosbag2 writes it: zstd chunks with CRCs, the same schema and channel ids."""
+    from mcap.reader import make_reader
+    from mcap.writer import CompressionType
+    from mcap.writer import Writer as McapWriter
+
     source = make_reader(io.BytesIO(plain))
     summary = source.get_summary()
     assert summary is not None
@@ -1165,15 +1175,32 @@ def _mcap_bag_folder(folder: Path) -> Path:
         # Same ids as rosbags gave them: metadata.yaml and the file agree.
         assert schemas == {k: k for k in schemas} and channels == {k: k for k in channels}
         for _, channel, message in source.iter_messages(log_time_order=False):
-            writer.add_message(
-                channels[channel.id],
-                message.log_time,
-                message.data,
-                message.publish_time,
-                message.sequence,
-            )
+            if keep(message.log_time):
+                writer.add_message(
+                    channels[channel.id],
+                    message.log_time,
+                    message.data,
+                    message.publish_time,
+                    message.sequence,
+                )
         writer.finish()
-    return storage
+
+
+def _split_mcap_bag_folder(folder: Path) -> list[Path]:
+    """The sample session as a ROS 2 bag folder of MCAP storage split in two files at half its
+    time (rosbag2's --max-bag-duration), written as rosbag2 writes them; returns the files."""
+    whole = _mcap_bag_folder(folder)
+    plain = whole.read_bytes()
+    whole.unlink()
+    with LogReader(Path(__file__).resolve().parents[2] / "sample_data" / "fr079_session.mcap") as reader:  # fmt: skip
+        half = (reader.start_ns + reader.end_ns) // 2
+    files = [folder / f"{folder.name}_0.mcap", folder / f"{folder.name}_1.mcap"]
+    _write_as_rosbag2(files[0], plain, lambda t: t < half)
+    _write_as_rosbag2(files[1], plain, lambda t: t >= half)
+    meta = folder / "metadata.yaml"
+    listed = "".join(f"  - {f.name}\n" for f in files)
+    meta.write_text(meta.read_text().replace(f"  - {whole.name}\n", listed))
+    return files
 
 
 @pytest.mark.parametrize("damage", ["cut", "flipped"])
@@ -1215,23 +1242,61 @@ def test_salvage_reads_a_bag_folder_of_mcap_storage_as_its_bare_file(
     assert len(folder["losses"]) == len(alone["losses"])
 
 
-def test_a_damaged_file_of_a_split_mcap_bag_is_named_with_what_salvages_it(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+@pytest.mark.parametrize(
+    ("damaged", "damage"), [(0, "flipped"), (1, "flipped"), (1, "cut"), (1, "stub")]
+)
+def test_salvage_reads_each_file_of_a_split_mcap_bag_as_its_bare_file(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], damaged: int, damage: str
 ) -> None:
-    """A bag of several MCAP files, one cut short: rosbags' "File end magic is invalid." named
-    no file; the error names it, and that --salvage reads it on its own."""
+    """A bag split over two MCAP files, one with a damaged chunk or cut short: under --salvage a
+    damaged chunk stopped the reading there (the rest of its file and every file after it
+    lost), and a file cut short was refused with or without --salvage ("reads it on its own").
+    Each file is now salvaged as it is on its own: the messages are the two bare files'
+    salvaged, one file after the other, the losses name the damaged file, and the counts and
+    end time are what was read. A file cut before its first message record ("stub") loses its
+    messages, said naming it; the other file is read."""
     bag = tmp_path / "bag"
-    storage = _mcap_bag_folder(bag)
-    second = bag / "bag_1.mcap"
-    second.write_bytes(storage.read_bytes()[: storage.stat().st_size // 2])
-    meta = bag / "metadata.yaml"
-    meta.write_text(meta.read_text().replace("  - bag.mcap\n", "  - bag.mcap\n  - bag_1.mcap\n"))
-    for salvage in ([], ["--salvage"]):
-        code, _, err = _run(capsys, "process", bag, "--no-output", "-q", *salvage)
-        assert code == 1 and len(err.splitlines()) == 1
-        assert err.startswith(f"error: {second}: MCAP file cut short"), err
-        assert "one of the bag's 2 files" in err
-        assert err.rstrip().endswith("(rose-bag process FILE --salvage), not in a bag of several")
+    files = _split_mcap_bag_folder(bag)
+    target = files[damaged]
+    starts = _chunk_starts(target)
+    assert len(starts) >= 3
+    data = bytearray(target.read_bytes())
+    if damage == "cut":
+        data = data[: starts[2] + 100]
+    elif damage == "stub":
+        data = data[:20]
+    else:
+        data[starts[1] + 1_000] ^= 0xFF
+    target.write_bytes(bytes(data))
+    expected = []
+    for storage in files:
+        if storage == target and damage == "stub":
+            with pytest.raises(LogReadError), LogReader(storage, salvage=True):
+                pass
+            continue
+        with LogReader(storage, salvage=True) as reader:
+            expected += [(m.channel.topic, m.log_time_ns, bytes(m.data)) for m in reader.messages()]
+    assert 0 < len(expected) < 715
+    with LogReader(bag, salvage=True) as reader:
+        read = [(m.channel.topic, m.log_time_ns, bytes(m.data)) for m in reader.messages()]
+        losses = list(reader.losses)
+    assert read == expected
+    assert losses and any(loss.startswith(f"{target}: ") for loss in losses), losses
+    other = files[1 - damaged]
+    assert not any(str(other) in loss for loss in losses)
+    code, _, err = _run(capsys, "process", bag, "--no-output", "-q")
+    assert code == 1 and len(err.splitlines()) == 1 and "--salvage" in err, err
+    if damage != "flipped":  # cut short: the bag does not open, the error names the file
+        assert err.startswith(f"error: {target}: truncated MCAP file (one of the bag's 2 files)")
+    report = tmp_path / "r.json"
+    code, _, err = _run(capsys, "process", bag, "--no-output", "-q", "--salvage", "--json", report)
+    assert code == EXIT_SALVAGED and "error:" not in err
+    assert f"{target}: " in err
+    salvaged = json.loads(report.read_text())
+    assert salvaged["message_count"] == len(expected)
+    assert salvaged["end_ns"] == max(t for _, t, _ in expected)
+    assert len(salvaged["snapshots"]) == sum(1 for topic, _, _ in expected if topic == "/map")
+    assert salvaged["losses"] == losses
 
 
 def test_salvage_reads_an_intact_mcap_bag_folder_as_without_it(tmp_path: Path) -> None:
