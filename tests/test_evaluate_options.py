@@ -11,7 +11,7 @@ from real_data import REPO_DATA
 
 from rose_logs.cli import build_parser, main
 from rose_logs.cli.evaluate import config_from_args
-from rose_logs.evaluation.config import BENCHMARK_SUBDIR
+from rose_logs.evaluation.config import BENCHMARK_SUBDIR, LOGS_SUBDIR
 
 
 @pytest.mark.parametrize(
@@ -279,3 +279,57 @@ def test_logs_names_a_cut_log_by_its_file_name(tmp_path: Path) -> None:
     assert radish.log_path("aces").name == "aces-corrected.log.gz"
     assert radish.log_path("csail").name == "csail-corrected.log.gz"
     assert radish.log_path("csail-corrected.head400").name == "csail-corrected.head400.log.gz"
+
+
+def test_logs_takes_carmen_logs_anywhere_by_their_path(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--logs /some/dir/intel.log was looked for in the data folder as a name: it ran, then
+    failed writing map_/some/dir/intel.png, and a missing file was named as
+    .../nothere-corrected.log.gz. A path, absolute or relative (or a file in the current
+    folder), is read where it is, named by its file; a missing file, a folder or a file that is
+    no CARMEN log is a one-line error naming it, before any experiment."""
+    monkeypatch.setenv("ROSE_DATA_DIR", str(tmp_path / "nope"))  # no data set needed
+    elsewhere = tmp_path / "some" / "dir"
+    elsewhere.mkdir(parents=True)
+    log = elsewhere / "intel.log.gz"
+    shutil.copy(REPO_DATA / LOGS_SUBDIR / "csail-corrected.head400.log.gz", log)
+    monkeypatch.chdir(tmp_path)
+    base = ["--maps", "", "--no-plots", "--sizes", "2", "--counts", "20"]
+    runs = [(str(log), tmp_path / "r_abs"), ("some/dir/intel.log.gz", tmp_path / "r_rel")]
+    for given, out in runs:
+        assert main(["evaluate", str(out), *base, "--logs", given]) == 0, capsys.readouterr().err
+        assert (out / "map_intel.png").is_file()
+        assert f"intel ({given})" in (out / "report.md").read_text()
+    monkeypatch.chdir(elsewhere)
+    out = tmp_path / "r_here"
+    assert main(["evaluate", str(out), *base, "--logs", "intel.log.gz"]) == 0
+    assert (out / "map_intel.png").is_file()
+    capsys.readouterr()
+    (elsewhere / "notes.log").write_text("hello\n")
+    for given, problem in (
+        (str(elsewhere / "gone.log"), "no such file"),
+        ("notes.log", "no FLASER scan found"),
+        (str(elsewhere), "not a regular file"),
+    ):
+        out = tmp_path / "r_bad"
+        assert main(["evaluate", str(out), *base, "--logs", given]) == 1
+        err = capsys.readouterr().err
+        assert err.startswith(f"error: {given}: ") and problem in err, err
+        assert len(err.splitlines()) == 1 and "experiment" not in err
+        assert not out.exists()
+    # Two logs of one name would write each other's map: a usage error.
+    with pytest.raises(SystemExit) as info:
+        main(["evaluate", str(out), *base, "--logs", f"intel,{log}"])
+    assert info.value.code == 2
+    assert "two logs named 'intel'" in capsys.readouterr().err
+    config = config_from_args(build_parser().parse_args(["evaluate", "o", "--logs", f"aces,{log}"]))
+    assert config.logs == ("aces", "intel") and config.log_files == (("intel", log),)
+    assert config.data_logs == ("aces",) and config.log_path("intel") == log
+
+
+def test_help_says_logs_takes_paths(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit):
+        main(["evaluate", "--help"])
+    help_text = " ".join(capsys.readouterr().out.split())
+    assert "paths to CARMEN logs anywhere" in help_text

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import dataclasses
+import os
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -40,10 +41,31 @@ def _csv(value: str) -> tuple[str, ...]:
     return tuple(dict.fromkeys(_items(value)))
 
 
-def _log_names(value: str) -> tuple[str, ...]:
+def _log_names(value: str) -> tuple[str | Path, ...]:
     """Log names, also as their files are called (``aces-corrected.log.gz`` is ``aces``; see
-    :meth:`EvaluationConfig.log_path`)."""
-    return tuple(dict.fromkeys(log_name(v) for v in _csv(value)))
+    :meth:`EvaluationConfig.log_path`), and paths to CARMEN logs anywhere (an item with a ``/``,
+    or a file in the current folder: ``--logs /data/intel.log``, ``--logs intel.log``), each
+    named by its file's name (``intel``). Two logs of one name are a usage error: their maps,
+    tables and figures would take each other's place."""
+    logs: dict[str, str | Path] = {}
+    for item in _csv(value):
+        log: str | Path = item
+        if any(sep and sep in item for sep in (os.sep, os.altsep)) or Path(item).is_file():
+            log = Path(item)
+            name = log_name(log.name)
+        else:
+            log = name = log_name(item)
+        if not name:
+            msg = f"{item!r}: no log name in it (a log's file, or a name such as aces)"
+            raise argparse.ArgumentTypeError(msg)
+        known = logs.setdefault(name, log)
+        if known != log and not (isinstance(known, str) and isinstance(log, str)):
+            msg = (
+                f"two logs named {name!r} ({known}, {log}): their maps and tables would take "
+                "each other's place; give one of them under another name"
+            )
+            raise argparse.ArgumentTypeError(msg)
+    return tuple(logs.values())
 
 
 def _map_names(value: str) -> tuple[str, ...]:
@@ -122,8 +144,10 @@ def _configure(parser: argparse.ArgumentParser) -> None:
         "--logs",
         type=_log_names,
         default=None,
-        help=f"comma-separated Radish logs (aces, intel...), or the names of other CARMEN logs "
-        f"in {LOGS_SUBDIR}/ (csail-corrected.head400.log.gz)",
+        help=f"comma-separated Radish logs (aces, intel...), the names of other CARMEN logs "
+        f"in {LOGS_SUBDIR}/ (csail-corrected.head400.log.gz), or paths to CARMEN logs anywhere "
+        "(/data/intel.log, ./intel.log.gz; a file in the current folder is taken first), each "
+        "named by its file (intel)",
     )
     parser.add_argument(
         "--maps",
@@ -187,7 +211,15 @@ def config_from_args(args: argparse.Namespace) -> EvaluationConfig:
         ("break_seeds", "break_seeds"),
     ):
         value = getattr(args, attr, None)
-        if value is not None:
+        if value is not None and attr == "logs":
+            logs: tuple[str | Path, ...] = value
+            changes["logs"] = tuple(
+                log_name(log.name) if isinstance(log, Path) else log for log in logs
+            )
+            changes["log_files"] = tuple(
+                (log_name(log.name), log) for log in logs if isinstance(log, Path)
+            )
+        elif value is not None:
             changes[field] = value
     if getattr(args, "no_plots", False):
         changes["plots"] = False
@@ -222,12 +254,13 @@ def run(args: argparse.Namespace) -> int:
     # The data set is read, never written (data_root raises DataSetError, one line, if it is
     # absent). A --maps-dir given is looked up though nothing is read from it: a typo
     # (`--maps-dir dat`) was taken silently.
-    reads = bool(config.logs or config.benchmark_maps)
+    reads = bool(config.data_logs or config.benchmark_maps)
     data_root = config.data_root if reads or config.maps_dir is not None else None
     inputs = [data_root] if data_root is not None and reads else []
     # And the sub-folders read, each in its own right: one may be a symlink out of the data folder
     # (a shared copy of the benchmark), and the report was written inside its target.
-    inputs += [config.logs_dir] if config.logs else []
+    inputs += [config.logs_dir] if config.data_logs else []
+    inputs += [path for _, path in config.log_files]  # logs given as files, anywhere
     inputs += [config.benchmark_dir] if config.benchmark_maps else []
     # A report folder's parents are made, as `batch` makes OUT's (`evaluate out/eval` in a fresh
     # checkout), but never inside the data set (the output check refuses that path next); a path

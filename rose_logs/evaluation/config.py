@@ -88,7 +88,10 @@ class EvaluationConfig:
         None (default): the data set, ``$ROSE_DATA_DIR`` or ``../shared/maps`` beside the checkout
         (:func:`rose_logs.datasets.require_data_dir`), looked up when the folders are first needed.
     logs : tuple of str
-        Radish logs rasterised for experiments 1 and 2.
+        Radish logs rasterised for experiments 1 and 2 (their names; see :meth:`log_path`).
+    log_files : tuple of (str, Path)
+        Logs of ``logs`` given as files, anywhere (``--logs /some/dir/intel.log``): each name
+        (:func:`log_name` of the file's name) with its file, read instead of the data folder's.
     benchmark_maps : tuple of str
         Bormann maps for experiment 1 and for the furniture case.
     resolution_m : float
@@ -114,6 +117,7 @@ class EvaluationConfig:
     seed: int = 2021
     maps_dir: Path | None = None
     logs: tuple[str, ...] = ("freiburg-101",)
+    log_files: tuple[tuple[str, Path], ...] = ()
     benchmark_maps: tuple[str, ...] = ("Freiburg79_scan",)
     resolution_m: float = 0.05
     shapes: tuple[ClutterShape, ...] = SHAPES
@@ -169,6 +173,12 @@ class EvaluationConfig:
         return Path(self.maps_dir)
 
     @property
+    def data_logs(self) -> tuple[str, ...]:
+        """The logs of :attr:`logs` read from :attr:`logs_dir` (not given as files)."""
+        given = {name for name, _ in self.log_files}
+        return tuple(name for name in self.logs if name not in given)
+
+    @property
     def logs_dir(self) -> Path:
         """Folder of the Radish CARMEN logs."""
         return self.data_root / LOGS_SUBDIR
@@ -177,7 +187,11 @@ class EvaluationConfig:
         """The file of the log ``name`` in :attr:`logs_dir`: the first of its possible names
         that exists (see :data:`_LOG_FILES`), else the Radish name (``NAME-corrected.log.gz``),
         which the error then names. Only the Radish name was looked for: a cut log
-        (``csail-corrected.head400.log.gz``) or one's own could not be named."""
+        (``csail-corrected.head400.log.gz``) or one's own could not be named. A log given as a
+        file (:attr:`log_files`) is that file."""
+        given = dict(self.log_files)
+        if name in given:
+            return Path(given[name])
         folder = self.logs_dir
         candidates = [folder / pattern.format(name) for pattern in _LOG_FILES]
         return next((path for path in candidates if path.is_file()), candidates[0])

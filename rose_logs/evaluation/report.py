@@ -17,6 +17,7 @@ import numpy as np
 
 import rose
 import rose_logs
+from rose_logs.carmen.parse import read_carmen_log
 from rose_logs.evaluation.cleaning_report import cleaning_experiment
 from rose_logs.evaluation.config import PAPER_W, EvaluationConfig
 from rose_logs.evaluation.experiments import (
@@ -118,6 +119,12 @@ def _group_table(runs: Sequence[ClutterRun], key: str, title: str) -> list[str]:
     return lines
 
 
+def _log_label(config: EvaluationConfig, name: str) -> str:
+    """A log as the report names it: its name, and its file when given as one (``--logs PATH``)."""
+    given = dict(config.log_files)
+    return f"{name} ({given[name]})" if name in given else name
+
+
 def _versions() -> str:
     import scipy
 
@@ -184,9 +191,13 @@ def run_evaluation(
         If a PNG file cannot be written (its message names the file).
     """
     out = Path(out_dir)
-    if config.logs or config.benchmark_maps:
+    if config.data_logs or config.benchmark_maps:
         # Finds the data set (or raises DataSetError) before anything is written.
         _LOG.info("data: %s", config.data_root)
+    # Each log is a CARMEN log with a scan, said now (one line naming the file: missing, a
+    # folder, no FLASER scan), not after the experiments before its turn.
+    for name in config.logs:
+        read_carmen_log(config.log_path(name), max_scans=1)
     # The wall experiment needs each benchmark map's furnished drawing: said now, not after the
     # experiments before it (minutes with --config full).
     for name in config.benchmark_maps:
@@ -378,7 +389,7 @@ def _setup_section(
         f"- Run time: {run_s:.1f} s in total; "
         + "; ".join(f"{k} {v:.1f} s" for k, v in timings.items()),
         f"- Radish logs (rasterised from the corrected CARMEN logs at {config.resolution_m} m): "
-        f"{', '.join(config.logs) or 'none'}",
+        f"{', '.join(_log_label(config, name) for name in config.logs) or 'none'}",
         f"- Benchmark maps (Bormann et al.): {', '.join(config.benchmark_maps) or 'none'}",
         f"- Clutter: shapes {', '.join(config.shapes)}; sizes {list(config.sizes_px)} px; "
         f"counts {list(config.counts)}; one seeded map per combination",
