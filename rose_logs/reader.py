@@ -584,8 +584,8 @@ class LogReader:
         self._check_counts(counts, wanted)
 
     def _note_skipped_chunks(self, backend: object) -> None:
-        """The damaged chunks a salvaging MCAP or ROS 1 reader skipped, as losses (each said
-        once)."""
+        """The damaged chunks a salvaging MCAP or ROS 1 reader skipped, and the files of a split
+        ROS 2 bag it read part way, as losses (each said once)."""
         if not isinstance(
             backend,
             McapReadBackend | McapFilesReadBackend | RosbagsReadBackend | Ros1IndexedReadBackend,
@@ -602,6 +602,11 @@ class LogReader:
             self.losses.append(problem)
             _LOG.warning("%s", problem)
         skipped.clear()
+        if isinstance(backend, RosbagsReadBackend):  # files of a split bag read part way
+            for problem in backend.damaged_files:
+                self.losses.append(problem)
+                _LOG.warning("%s", problem)
+            backend.damaged_files.clear()
 
     def _check_counts(self, counts: dict[int, int], topics: set[str] | None) -> None:
         """Compare messages read per channel with the declared counts; a shortfall is a loss."""

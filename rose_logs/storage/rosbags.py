@@ -54,6 +54,9 @@ class RosbagsReadBackend:
         #: is an error).
         self.skip_damaged_chunks = False
         self.skipped_chunks: list[SkippedChunk] = []
+        #: ``--salvage``, a ROS 2 bag of several storage files: each file that could not be read
+        #: to its end, in words (the files after it are read).
+        self.damaged_files: list[str] = []
 
     def open(self) -> None:
         if self.format == "db3":
@@ -186,6 +189,9 @@ class RosbagsReadBackend:
         if self.format == "mcap-dir" and self.skip_damaged_chunks:
             yield from self._mcap_around_damaged_chunks(topics)
             return
+        if self.skip_damaged_chunks and len(self._storages()) > 1:  # a split SQLite bag
+            yield from self._file_by_file(topics)
+            return
         try:
             for conn, timestamp, data in self.reader.messages(connections=conns or ()):
                 if not isinstance(data, bytes | memoryview) or not _valid_time(timestamp):
@@ -248,23 +254,92 @@ class RosbagsReadBackend:
         :attr:`skipped_chunks` with the file they are in), as this bag's channels, file after
         file as rosbags reads them. rosbags stops at the first damaged chunk: a flipped bit early
         in an hour's recording lost the rest of the hour (and, in a split bag, every file after
-        it). A file whose index does not read is read by rosbags as without ``--salvage`` (up
-        to the damage)."""
+        it). A file whose index does not read is read by rosbags as without ``--salvage``, up
+        to the damage (in a split bag, the files after it are read); a bag whose messages are
+        compressed one by one is read by rosbags, file by file when there are several."""
         files = mcap_storage_files(self.path)
-        storages = self.reader.storage.storages  # rosbags' readers of the folder, one a file
+        storages = self._storages()
         if not files or len(files) != len(storages):
+            if len(storages) > 1:  # messages compressed one by one: rosbags reads each file
+                yield from self._file_by_file(topics)
+                return
             self.skip_damaged_chunks = False
             yield from self.messages(topics)
             return
         for storage, path in zip(storages, files, strict=True):
-            yield from self._mcap_file_around_damaged_chunks(storage, path, topics)
+            yield from self._mcap_file_around_damaged_chunks(
+                storage, path, topics, several=len(files) > 1
+            )
+
+    def _storages(self) -> list[Any]:
+        """rosbags' readers of this bag folder's storage files, one a file, in metadata.yaml's
+        order (none for a bare file)."""
+        if not self.path.is_dir():
+            return []
+        return list(getattr(self.reader.storage, "storages", None) or [])
+
+    def _file_by_file(self, topics: set[str] | None) -> Iterator[RawMessage]:
+        """``--salvage`` on a bag of several storage files that rosbags reads: file after file,
+        as rosbags reads them; a file that fails part way is said in :attr:`damaged_files`
+        and the files after it are read (rosbags' reading stopped there: a damaged first file
+        lost the whole bag)."""
+        information = _bag_information(self.path) or {}
+        names = [str(name) for name in information.get("relative_file_paths") or ()]
+        for storage in self._storages():
+            stored = PurePath(str(storage.path)).name  # (a temporary copy of a .zstd file)
+            name = next(
+                (n for n in names if PurePath(n).name in (stored, f"{stored}.zstd")), stored
+            )
+            yield from self._rosbags_file(
+                storage, self.path / PurePath(name).name, topics, several=True
+            )
+
+    def _rosbags_file(
+        self, storage: Any, path: Path, topics: set[str] | None, *, several: bool
+    ) -> Iterator[RawMessage]:
+        """The messages of one storage file ``path`` of this bag folder, read by rosbags
+        (``storage``: its reader of it), as this bag's channels. A failure part way is raised,
+        or, in a bag of ``several`` files, said in :attr:`damaged_files` (the caller reads the
+        files after it)."""
+        ours = self._storage_channels_ours(storage)
+        conns = [
+            conn
+            for conn in storage.connections
+            if int(conn.id) in ours and (topics is None or conn.topic in topics)
+        ]
+        if not conns:
+            return
+        decompress = None
+        if str(self.reader.compression_mode or "").lower() == "message":
+            from rosbags.rosbag2 import reader as rosbags_reader  # its zstd, as it reads them
+
+            decompress = rosbags_reader.zstd.decompress
+        read = 0
+        try:
+            for conn, timestamp, stored in storage.messages(conns):
+                data = stored if decompress is None else decompress(stored)
+                if not isinstance(data, bytes | memoryview) or not _valid_time(timestamp):
+                    raise LogReadError(self._damaged_row(conn.topic, timestamp, data))
+                read += 1
+                yield RawMessage(ours[int(conn.id)], int(timestamp), data, int(timestamp))
+        except Exception as err:
+            reraise_interrupt_behind(err)
+            if not several:
+                raise
+            why = library_text(err).removeprefix(f"{self.path}: ")
+            self.damaged_files.append(
+                f"{path}: cannot be read past its first {read} messages "
+                f"({short(why, 120)}); the bag's other files are read"
+            )
 
     def _mcap_file_around_damaged_chunks(
-        self, storage: Any, path: Path, topics: set[str] | None
+        self, storage: Any, path: Path, topics: set[str] | None, *, several: bool
     ) -> Iterator[RawMessage]:
         """The messages of one MCAP file ``path`` of this bag folder (rosbags' reader of it:
-        ``storage``), skipping its damaged chunks; read by rosbags when its index does not read."""
-        ours = self._mcap_channels_ours(storage)
+        ``storage``), skipping its damaged chunks; read by rosbags when its index does not read
+        (:meth:`_rosbags_file`, up to the damage; in a bag of ``several`` files, the others are
+        read)."""
+        ours = self._storage_channels_ours(storage)
         inner = McapReadBackend(path)
         try:
             inner.open()
@@ -274,14 +349,7 @@ class RosbagsReadBackend:
             reraise_interrupt_behind(err)
             indexed = False
         if not indexed:
-            conns = [
-                conn
-                for conn in storage.connections
-                if int(conn.id) in ours and (topics is None or conn.topic in topics)
-            ]
-            if conns:
-                for conn, timestamp, data in storage.messages(conns):
-                    yield RawMessage(ours[int(conn.id)], int(timestamp), data, int(timestamp))
+            yield from self._rosbags_file(storage, path, topics, several=several)
             return
         # The file's channel id of each of the inner reader's channels.
         file_ids = {channel.id: file_id for file_id, channel in inner._by_id.items()}
@@ -300,8 +368,8 @@ class RosbagsReadBackend:
             )
             inner.close()
 
-    def _mcap_channels_ours(self, storage: Any) -> dict[int, Channel]:
-        """Our channel of each channel id of an MCAP file of this bag folder (``storage``:
+    def _storage_channels_ours(self, storage: Any) -> dict[int, Channel]:
+        """Our channel of each channel id of a storage file of this bag folder (``storage``:
         rosbags' reader of it), as rosbags maps them (the first of metadata.yaml's topics of the
         same name, type and QoS, a hash that does not differ): a topic's channels offered with
         different QoS stay apart."""

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import contextlib
 import io
 import json
 import math
 import os
+import shutil
 import threading
 from collections.abc import Callable
 from pathlib import Path
@@ -1296,6 +1298,80 @@ def test_salvage_reads_each_file_of_a_split_mcap_bag_as_its_bare_file(
     assert salvaged["message_count"] == len(expected)
     assert salvaged["end_ns"] == max(t for _, t, _ in expected)
     assert len(salvaged["snapshots"]) == sum(1 for topic, _, _ in expected if topic == "/map")
+    assert salvaged["losses"] == losses
+
+
+def _split_db3_bag(bag: Path) -> list[Path]:
+    """A session as a ROS 2 bag folder of SQLite storage split in two files at its middle
+    message (as rosbag2 splits one), its first file damaged: a B-tree page of it no longer
+    reads, after some of its messages do. Returns the two files."""
+    import sqlite3
+
+    write_session(bag, "db3")
+    first = storage_file(bag)
+    second = bag / f"{bag.name}_1.db3"
+    shutil.copy(first, second)
+    with contextlib.closing(sqlite3.connect(first)) as db:
+        times = [t for (t,) in db.execute("SELECT timestamp FROM messages ORDER BY timestamp")]
+    middle = times[len(times) // 2]
+    for storage, keep in ((first, "timestamp < ?"), (second, "timestamp >= ?")):
+        with contextlib.closing(sqlite3.connect(storage)) as db:
+            db.execute(f"DELETE FROM messages WHERE NOT ({keep})", (middle,))
+            db.commit()
+            db.execute("VACUUM")
+    meta = bag / "metadata.yaml"
+    listed = f"  - {first.name}\n"
+    meta.write_text(meta.read_text().replace(listed, f"{listed}  - {second.name}\n"))
+    intact = first.read_bytes()
+    for page in range(2, len(intact) // 4096):  # the first page that fails part way
+        data = bytearray(intact)
+        data[page * 4096] = 0x77  # its page type: no B-tree page
+        first.write_bytes(bytes(data))
+        read = 0
+        try:
+            with LogReader(first) as reader:
+                for _ in reader.messages():
+                    read += 1
+        except LogReadError:
+            if read:
+                return [first, second]
+    pytest.fail("no page of the first file fails part way")
+
+
+def test_salvage_reads_the_files_after_a_damaged_one_of_a_split_sqlite_bag(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A bag split over two .db3 files whose first is damaged part way: --salvage stopped the
+    reading there, the second file lost too, and the loss named the bag, not the file. The
+    first file's messages before the damage are kept (as of the file on its own), the second
+    file is read, the loss names the first file, and the counts say what was read."""
+    bag = tmp_path / "bag"
+    first, second = _split_db3_bag(bag)
+    expected = []
+    for storage in (first, second):
+        with LogReader(storage, salvage=True) as reader:
+            expected += [(m.channel.topic, m.log_time_ns, bytes(m.data)) for m in reader.messages()]
+    with LogReader(second) as reader:
+        assert reader.message_count and reader.read_count == 0
+        in_second = reader.message_count
+    with LogReader(bag, salvage=True) as reader:
+        read = [(m.channel.topic, m.log_time_ns, bytes(m.data)) for m in reader.messages()]
+        losses = list(reader.losses)
+    assert read == expected and in_second < len(read) < 15
+    assert losses[0].startswith(f"{first}: cannot be read past its first "), losses
+    assert "the bag's other files are read" in losses[0]
+    assert not any(str(second) in loss for loss in losses)
+    assert (
+        losses[1]
+        == f"{bag}: read {len(read)} of 15 messages the log declares"
+        + losses[1].split("declares", 1)[1]
+    )
+    report = tmp_path / "r.json"
+    code, _, err = _run(capsys, "process", bag, "--no-output", "-q", "--salvage", "--json", report)
+    assert code == EXIT_SALVAGED and "error:" not in err
+    salvaged = json.loads(report.read_text())
+    assert salvaged["message_count"] == len(read)
+    assert salvaged["end_ns"] == max(t for _, t, _ in read)
     assert salvaged["losses"] == losses
 
 
