@@ -309,6 +309,7 @@ def test_logs_takes_carmen_logs_anywhere_by_their_path(
     (elsewhere / "notes.log").write_text("hello\n")
     for given, problem in (
         (str(elsewhere / "gone.log"), "no such file"),
+        ("gone.log", "no such file, here, and no data folder to look in"),
         ("notes.log", "no FLASER scan found"),
         (str(elsewhere), "not a regular file"),
     ):

@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from rose.cli.options import int_in_range, out_path_arg, path_arg
-from rose_logs.datasets import ENV_VAR
+from rose_logs.datasets import ENV_VAR, DataSetError
 from rose_logs.evaluation.config import (
     BENCHMARK_SUBDIR,
     LOGS_SUBDIR,
@@ -54,12 +54,14 @@ def _log_names(value: str) -> tuple[str | Path, ...]:
             log = Path(item)
             name = log_name(log.name)
         else:
-            log = name = log_name(item)
+            name = log_name(item)  # (the item as typed is kept: an error names it)
         if not name:
             msg = f"{item!r}: no log name in it (a log's file, or a name such as aces)"
             raise argparse.ArgumentTypeError(msg)
         known = logs.setdefault(name, log)
-        if known != log and not (isinstance(known, str) and isinstance(log, str)):
+        if isinstance(known, Path) != isinstance(log, Path) or (
+            isinstance(log, Path) and known != log
+        ):
             msg = (
                 f"two logs named {name!r} ({known}, {log}): their maps and tables would take "
                 "each other's place; give one of them under another name"
@@ -214,7 +216,7 @@ def config_from_args(args: argparse.Namespace) -> EvaluationConfig:
         if value is not None and attr == "logs":
             logs: tuple[str | Path, ...] = value
             changes["logs"] = tuple(
-                log_name(log.name) if isinstance(log, Path) else log for log in logs
+                log_name(log.name if isinstance(log, Path) else log) for log in logs
             )
             changes["log_files"] = tuple(
                 (log_name(log.name), log) for log in logs if isinstance(log, Path)
@@ -254,6 +256,7 @@ def run(args: argparse.Namespace) -> int:
     # The data set is read, never written (data_root raises DataSetError, one line, if it is
     # absent). A --maps-dir given is looked up though nothing is read from it: a typo
     # (`--maps-dir dat`) was taken silently.
+    _refuse_missing_log_files(args, config)
     reads = bool(config.data_logs or config.benchmark_maps)
     data_root = config.data_root if reads or config.maps_dir is not None else None
     inputs = [data_root] if data_root is not None and reads else []
@@ -287,6 +290,23 @@ def run(args: argparse.Namespace) -> int:
         raise
     print(args.out_dir / MARKDOWN_NAME)
     return 0
+
+
+def _refuse_missing_log_files(args: argparse.Namespace, config: EvaluationConfig) -> None:
+    """Raise DataSetError for a log's file name typed (``--logs intel.log``) that is neither a
+    file here nor in the data folder, naming it as typed (the error named the Radish file
+    looked for, ``intel-corrected.log.gz``, or said only that there was no data set)."""
+    for item in getattr(args, "logs", None) or ():
+        if not isinstance(item, str) or not item.endswith((".log", ".gz")):
+            continue  # a path (read as given), or a log's name
+        try:
+            if config.log_path(log_name(item)).is_file():
+                continue
+            where = f"here or in {config.logs_dir}"
+        except DataSetError:
+            where = f"here, and no data folder to look in (${ENV_VAR}, --maps-dir)"
+        msg = f"{item}: no such file, {where} (--logs)"
+        raise DataSetError(msg)
 
 
 def _make_folders(folder: Path) -> list[Path]:
