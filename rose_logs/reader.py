@@ -224,6 +224,7 @@ class LogReader:
             salvaged: (
                 McapStreamReadBackend
                 | McapFilesReadBackend
+                | RosbagsReadBackend
                 | Ros1StreamReadBackend
                 | Ros1IndexedReadBackend
                 | None
@@ -234,6 +235,8 @@ class LogReader:
                 salvaged = self._around_damaged_chunks(err)
             elif self.format == "mcap-dir":
                 salvaged = self._damaged_mcap_storage(err)
+            elif self.format == "db3":
+                salvaged = self._around_unopened_files(err)
             if salvaged is None and self.salvage:
                 salvaged = self._salvage_stream()
             if salvaged is None:
@@ -380,6 +383,41 @@ class LogReader:
         if salvaged is None:
             raise self._unreadable(damage, storage, of_files) from err
         return salvaged
+
+    def _around_unopened_files(self, err: BaseException) -> RosbagsReadBackend | None:
+        """A ROS 2 bag folder of several SQLite files that rosbags could not open (``err``)
+        because one of them does not open (its header or tables damaged): with ``--salvage``,
+        the bag read from its other files, each file that does not open a loss naming it (the
+        whole bag was refused), else an error naming that file and what ``--salvage`` reads.
+        None when that is not why (the first error stands), or no file opens."""
+        if isinstance(err, LogError) or not self.path.is_dir():
+            return None
+        backend = RosbagsReadBackend(self.path, self.format, skip_unopened=True)
+        try:
+            backend.open()
+        except Exception as failure:  # another damage: the first error stands
+            backend.close()
+            reraise_interrupt_behind(failure)
+            return None
+        files = len(backend._storages())
+        if not backend.unopened or len(backend.unopened) >= files or not self.salvage:
+            backend.close()
+            if not backend.unopened or len(backend.unopened) >= files:
+                return None
+            path, why = backend.unopened[0]
+            msg = (
+                f"{path}: cannot be opened ({short(why, 120)}), one of the bag's {files} files; "
+                "--salvage reads the others"
+            )
+            raise LogReadError(msg) from err
+        for path, why in backend.unopened:
+            problem = (
+                f"{path}: cannot be opened ({short(why, 120)}); none of its messages are read, "
+                "the bag's other files are"
+            )
+            self.losses.append(problem)
+            _LOG.warning("%s", problem)
+        return backend
 
     def _around_damaged_chunks(self, err: BaseException) -> Ros1IndexedReadBackend | None:
         """A ROS 1 bag that rosbags could not open (``err``) whose index is intact: a chunk's

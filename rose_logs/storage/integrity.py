@@ -10,6 +10,7 @@ detected here and reported as a corrupt log. Storage files are opened read-only 
 from __future__ import annotations
 
 import sqlite3
+from collections.abc import Collection
 from pathlib import Path
 from urllib.parse import quote
 
@@ -44,8 +45,9 @@ def _mcap_types(path: Path) -> dict[str, str]:
     return types
 
 
-def storage_types(folder: Path) -> dict[str, str]:
-    """Topic -> message type as recorded by the storage files of a ROS 2 bag folder.
+def storage_types(folder: Path, *, skip: Collection[str] = ()) -> dict[str, str]:
+    """Topic -> message type as recorded by the storage files of a ROS 2 bag folder (but those
+    named in ``skip``: files that do not open, left out by ``--salvage``).
 
     Raises
     ------
@@ -54,6 +56,8 @@ def storage_types(folder: Path) -> dict[str, str]:
     """
     types: dict[str, str] = {}
     for path in sorted(folder.iterdir()):
+        if path.name in skip:
+            continue
         if path.suffix == ".db3":
             types.update(_sqlite_types(path))
         elif path.suffix == ".mcap":

@@ -40,9 +40,14 @@ class RosbagsReadBackend:
 
     profile = ""
 
-    def __init__(self, path: Path, fmt: LogFormat) -> None:
+    def __init__(self, path: Path, fmt: LogFormat, *, skip_unopened: bool = False) -> None:
         self.path = path
         self.format = fmt
+        #: ``--salvage``, a ROS 2 bag folder of several SQLite files: a file that does not open
+        #: (its header or tables damaged) is noted in :attr:`unopened` (its path, why) and read
+        #: as holding nothing, and the bag opens with the others (else it is an error).
+        self.skip_unopened = skip_unopened
+        self.unopened: list[tuple[Path, str]] = []
         self.reader: Any = None
         self.channels: tuple[Channel, ...] = ()
         self._by_conn: dict[int, Channel] = {}
@@ -69,6 +74,8 @@ class RosbagsReadBackend:
             from rosbags.rosbag2 import Reader as Reader2
 
             self.reader = Reader2(self.path)
+            if self.skip_unopened and self.path.is_dir():
+                self._tolerate_unopened_files()
         self.reader.open()
         if self.format == "ros1":
             self._check_ros1_index()
@@ -103,6 +110,16 @@ class RosbagsReadBackend:
             self.start_ns = int(self.reader.start_time)
             # rosbags reports the end as "1 ns after the last message"
             self.end_ns = max(self.start_ns, int(self.reader.end_time) - 1)
+
+    def _tolerate_unopened_files(self) -> None:
+        """Make rosbags' reader of this bag folder open its SQLite files as
+        :class:`_TolerantStorage` (see :attr:`skip_unopened`)."""
+        storage = self.reader.storage  # rosbags' DirectoryReader (pinned below 0.12)
+        plugins = dict(storage.STORAGE_PLUGINS)
+        plain = plugins["sqlite3"]
+        unopened = self.unopened
+        plugins["sqlite3"] = lambda path: _TolerantStorage(plain(path), unopened)
+        storage.STORAGE_PLUGINS = plugins
 
     def _refuse_unmerged_wal(self) -> None:
         """Refuse a SQLite bag with writes beside its database file, left by a recorder that did
@@ -169,7 +186,8 @@ class RosbagsReadBackend:
         from rose_logs.storage.integrity import storage_types, type_mismatches
 
         declared = {c.topic: c.msgtype for c in self.channels}
-        problems = type_mismatches(declared, storage_types(self.path))
+        skip = {path.name for path, _ in self.unopened}
+        problems = type_mismatches(declared, storage_types(self.path, skip=skip))
         if problems:
             msg = (
                 f"{self.path}: metadata.yaml disagrees with the storage ({'; '.join(problems[:3])})"
@@ -408,6 +426,43 @@ class RosbagsReadBackend:
             except Exception:  # closing a half-open reader must not mask the real error
                 _LOG.debug("closing %s failed", self.path, exc_info=True)
             self.reader = None
+
+
+class _TolerantStorage:
+    """rosbags' reader of one storage file of a bag folder (``inner``) whose failure to open is
+    noted in ``unopened`` (its path, why) instead of raised: the file then holds no connection
+    and no message (see :attr:`RosbagsReadBackend.skip_unopened`)."""
+
+    def __init__(self, inner: Any, unopened: list[tuple[Path, str]]) -> None:
+        self.inner: Any = inner
+        self.unopened = unopened
+        self.path = inner.path
+
+    def open(self) -> None:
+        try:
+            self.inner.open()
+        except Exception as err:
+            reraise_interrupt_behind(err)
+            with contextlib.suppress(Exception):
+                self.inner.close()
+            why = library_text(err).replace(f" {self.path}", "")  # (the error names it)
+            self.unopened.append((Path(self.path), why))
+            self.inner = None
+
+    @property
+    def connections(self) -> list[Any]:
+        return [] if self.inner is None else list(self.inner.connections)
+
+    def messages(self, *args: Any, **kwargs: Any) -> Iterator[Any]:
+        if self.inner is not None:
+            yield from self.inner.messages(*args, **kwargs)
+
+    def close(self) -> None:
+        if self.inner is not None:
+            self.inner.close()
+
+    def __getattr__(self, name: str) -> Any:  # anything else rosbags asks of its storage
+        return getattr(self.inner, name)
 
 
 def library_text(err: BaseException) -> str:

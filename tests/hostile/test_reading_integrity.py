@@ -1301,10 +1301,11 @@ def test_salvage_reads_each_file_of_a_split_mcap_bag_as_its_bare_file(
     assert salvaged["losses"] == losses
 
 
-def _split_db3_bag(bag: Path) -> list[Path]:
+def _split_db3_bag(bag: Path, damage: str = "page") -> list[Path]:
     """A session as a ROS 2 bag folder of SQLite storage split in two files at its middle
     message (as rosbag2 splits one), its first file damaged: a B-tree page of it no longer
-    reads, after some of its messages do. Returns the two files."""
+    reads, after some of its messages do ("page"), or its header, so that it does not open
+    ("header"). Returns the two files."""
     import sqlite3
 
     write_session(bag, "db3")
@@ -1323,6 +1324,9 @@ def _split_db3_bag(bag: Path) -> list[Path]:
     listed = f"  - {first.name}\n"
     meta.write_text(meta.read_text().replace(listed, f"{listed}  - {second.name}\n"))
     intact = first.read_bytes()
+    if damage == "header":
+        first.write_bytes(b"no SQLite file.\0" + intact[16:])
+        return [first, second]
     for page in range(2, len(intact) // 4096):  # the first page that fails part way
         data = bytearray(intact)
         data[page * 4096] = 0x77  # its page type: no B-tree page
@@ -1373,6 +1377,42 @@ def test_salvage_reads_the_files_after_a_damaged_one_of_a_split_sqlite_bag(
     assert salvaged["message_count"] == len(read)
     assert salvaged["end_ns"] == max(t for _, t, _ in read)
     assert salvaged["losses"] == losses
+
+
+def test_salvage_reads_the_other_files_of_a_split_sqlite_bag_one_of_which_does_not_open(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A bag split over two .db3 files whose first does not open (its header damaged): the
+    whole bag was refused, with or without --salvage, the error naming the bag. The error
+    names the file and what --salvage reads; --salvage reads the other file, the loss naming
+    the one that does not open."""
+    bag = tmp_path / "bag"
+    first, second = _split_db3_bag(bag, "header")
+    with LogReader(second) as reader:
+        expected = [(m.channel.topic, m.log_time_ns, bytes(m.data)) for m in reader.messages()]
+    code, _, err = _run(capsys, "process", bag, "--no-output", "-q")
+    assert code == 1 and len(err.splitlines()) == 1, err
+    assert err.startswith(f"error: {first}: cannot be opened (")
+    assert err.rstrip().endswith("one of the bag's 2 files; --salvage reads the others")
+    with LogReader(bag, salvage=True) as reader:
+        read = [(m.channel.topic, m.log_time_ns, bytes(m.data)) for m in reader.messages()]
+        losses = list(reader.losses)
+    assert read == expected and 0 < len(read) < 15
+    assert losses[0].startswith(f"{first}: cannot be opened (")
+    assert losses[0].endswith("none of its messages are read, the bag's other files are")
+    assert losses[1].startswith(f"{bag}: read {len(read)} of 15 messages the log declares")
+    assert len(losses) == 2 and not any(str(second) in loss for loss in losses)
+    report = tmp_path / "r.json"
+    code, _, err = _run(capsys, "process", bag, "--no-output", "-q", "--salvage", "--json", report)
+    assert code == EXIT_SALVAGED and "error:" not in err
+    salvaged = json.loads(report.read_text())
+    assert salvaged["message_count"] == len(read) and salvaged["losses"] == losses
+    assert salvaged["end_ns"] == max(t for _, t, _ in read)
+    # Neither file opens: nothing to read, the first error stands (with or without --salvage).
+    second.write_bytes(first.read_bytes())
+    for salvage in ([], ["--salvage"]):
+        code, _, err = _run(capsys, "process", bag, "--no-output", "-q", *salvage)
+        assert code == 1 and len(err.splitlines()) == 1 and "corrupt or truncated log" in err
 
 
 def test_salvage_reads_an_intact_mcap_bag_folder_as_without_it(tmp_path: Path) -> None:
