@@ -1235,9 +1235,30 @@ def test_a_cabinet_whose_hidden_wall_line_grazing_beams_crossed_goes() -> None:
     cleaned = clean(grid, rose.analyze(grid), resolution_m=RES)
     assert not cleaned.kept[37, 42:110].any()  # the front goes
     assert np.array_equal(cleaned.completed[24, 41:111], grid[24, 41:111] == -1)
-    grid = cabinet(0, -1)  # three quarters free: an opening
+    grid = cabinet(0, -1)  # three quarters free, and free space beyond: an opening
+    grid[23, 41:111] = 0
     cleaned = clean(grid, rose.analyze(grid), resolution_m=RES)
     assert not cleaned.completed.any()
+
+
+def test_a_cabinet_whose_hidden_wall_line_a_beam_ran_along_goes() -> None:
+    """A beam that ran along the wall behind a cabinet saw three quarters of its hidden line free,
+    between the unknown outside and the cabinet's unseen inside: read as an opening (more than
+    half the line free), and the cabinet stayed. Such a beam saw no opening (nothing beyond the
+    line was seen through it): the line is drawn on its unknown cells and the cabinet goes."""
+    grid = np.zeros((60, 140), dtype=np.int8)
+    grid[:25, :] = -1  # the unknown outside, above the wall
+    grid[24, 5:136] = 100
+    grid[24, 41:111] = 0  # the wall's line behind the cabinet, seen free by the beam ...
+    grid[24, 43:109:4] = -1  # ... but for every fourth cell
+    grid[24, 41] = grid[24, 110] = -1  # its ends unseen
+    grid[25:37, 41:111] = -1  # the cabinet's inside
+    grid[37, 40:112] = 100  # its front
+    grid[24:38, 40] = grid[24:38, 111] = 100  # its sides
+    cleaned = clean(grid, rose.analyze(grid), resolution_m=RES)
+    assert not cleaned.kept[37, 42:110].any()  # the front goes
+    assert np.array_equal(cleaned.completed[24, 41:111], grid[24, 41:111] == -1)
+    assert cleaned.kept[24, 5:40].all() and cleaned.kept[24, 112:136].all()  # the wall stays
 
 
 def test_a_cabinet_a_cell_off_the_wall_goes_and_its_wall_line_is_drawn() -> None:

@@ -75,9 +75,10 @@ def _flush_fronts(
     """Furniture flush against a wall: the hidden wall line, the furniture's cells, its inside, and
     the walls that meet it (kept).
 
-    Along each dominant direction: a straight stretch of unknown cells (at most ``max_len_px``)
-    between two occupied stretches of at least ``anchor_px`` cells on one line that face free
-    space on the same side (most of their last ``anchor_px`` cells within ``face_px`` of it),
+    Along each dominant direction: a straight stretch of unknown cells (at most ``max_len_px``;
+    up to half of them free, and free cells a single beam saw running along the line count as
+    unknown: :func:`_beam_along`) between two occupied stretches of at least ``anchor_px`` cells on
+    one line that face free space on the same side (most of their last ``anchor_px`` cells within ``face_px`` of it),
     where every cell of the stretch has, on that side, more than ``face_px`` and at most
     ``max_depth_px`` occupied or unknown cells before free space, an occupied one last (a front
     face). That is a wall running on behind an object that stands against it: the line is the
@@ -217,9 +218,17 @@ def _fronts_rows(
     new_run[1:] = (step != 1) | ~same_row
     run_id = np.cumsum(new_run) - 1
     run_len = np.bincount(run_id)[run_id]
-    # Gaps between consecutive occupied cells of one row, unknown at both ends.
+    # Gaps between consecutive occupied cells of one row, unseen at both ends (unknown, or a beam
+    # that ran along the line: :func:`_beam_along`).
     left = np.flatnonzero(same_row & (step > 1) & (step - 1 <= max_len))
-    left = left[(flat_code[cells[left] + 1] == 0) & (flat_code[cells[left + 1] - 1] == 0)]
+    unseen = np.ones(left.size, dtype=bool)
+    for end in (cells[left] + 1, cells[left + 1] - 1):
+        end_code = flat_code[end]
+        free_end = np.flatnonzero(end_code == 1)  # (few: looked at alone)
+        end_unseen = end_code == 0
+        end_unseen[free_end] = _beam_along(code, *np.divmod(end[free_end], width))
+        unseen &= end_unseen
+    left = left[unseen]
     # (Straightened: a band's wall stretches twice as long, as the staggered bridges' ends: a face
     # across the line at an angle makes short stretches in a band too.)
     run_anchor = anchor if slack == 0 else 2 * anchor
@@ -324,6 +333,23 @@ def _fronts_rows(
             )
 
 
+def _beam_along(
+    code: npt.NDArray[np.uint8], rows: npt.NDArray[np.int64], cols: npt.NDArray[np.int64]
+) -> npt.NDArray[np.bool_]:
+    """Which cells ``rows, cols`` of ``code`` (0 unknown, 1 free, 2 occupied) are free cells that
+    a single beam saw running along the row: unknown in the rows above and below, and no free cell
+    diagonally beside it there (a beam crossing the row leaves one); cells of the first and last
+    rows are not read so."""
+    height, width = code.shape
+    up, down = np.clip(rows - 1, 0, height - 1), np.clip(rows + 1, 0, height - 1)
+    left, right = np.clip(cols - 1, 0, width - 1), np.clip(cols + 1, 0, width - 1)
+    beam = (code[rows, cols] == 1) & (rows > 0) & (rows < height - 1)
+    beam &= (code[up, cols] == 0) & (code[down, cols] == 0)
+    for side in (up, down):
+        beam &= (code[side, left] != 1) & (code[side, right] != 1)
+    return beam
+
+
 def _front_at(
     code: npt.NDArray[np.uint8],
     out: npt.NDArray[np.uint8],
@@ -350,12 +376,19 @@ def _front_at(
     height, width = code.shape
     max_depth = span - 1
     # The hidden line: no occupied cell (a wall stretch would end the gap), and at most half its
-    # cells free: beams grazing the wall behind the furniture cross its line here and there (a wall
-    # at an angle to the grid leaves cells of the line free between its steps), but a line seen
-    # free for the most part is an opening, not a wall.
+    # cells seen free: beams grazing the wall behind the furniture cross its line here and there (a
+    # wall at an angle to the grid leaves cells of the line free between its steps), but a line seen
+    # free for the most part is an opening, not a wall. A beam that ran along the line itself, its
+    # free cells between unseen ones across it (the outside beyond, the furniture's inside before),
+    # saw no opening: such cells count as unseen (:func:`_beam_along`).
     on_line = code[row, col0:col1]
-    if row + 1 >= height or (on_line == 2).any() or 2 * np.count_nonzero(on_line) > on_line.size:
+    if row + 1 >= height or (on_line == 2).any():
         return False
+    free_cols = np.flatnonzero(on_line == 1)
+    if 2 * free_cols.size > on_line.size:  # (rare: only then are the beams looked at)
+        seen = ~_beam_along(code, np.full(free_cols.size, row), col0 + free_cols)
+        if 2 * np.count_nonzero(seen) > on_line.size:
+            return False
     lo, hi = max(col0 - anchor, 0), min(col1 + anchor, width)
     below = code[row + 1 : row + 1 + span, lo:hi] == 1
     # Furniture rarely stands quite flush: a beam grazing the wall passes through the slit between
