@@ -18,6 +18,7 @@ from __future__ import annotations
 import logging
 import math
 import os
+import re
 import struct
 import warnings
 import zlib
@@ -247,8 +248,21 @@ def load_map(
     _require_regular(path, "no such file")
     if not bare_image:
         return _load_yaml_map(path, max_cells)
+    try:
+        pixels = _read_image(path, max_cells)
+    except MapFileError as err:
+        head = _head_of(path)
+        if image_kind(head) is None and _reads_as_map_yaml(head):
+            # Read as an image by its name: `map.yaml.bak` or `office_map` said only "not a
+            # readable image (not a PNG, ...)", of a file the user knows to be a map YAML.
+            msg = (
+                f"{short(path, 200)}: not an image but a map YAML by its content: "
+                "name it .yaml or .yml"
+            )
+            raise MapFileError(msg) from err
+        raise
     grid = image_to_grid(
-        _read_image(path, max_cells),
+        pixels,
         mode="trinary",
         negate=False,
         occupied_thresh=DEFAULT_OCCUPIED_THRESH,
@@ -256,6 +270,31 @@ def load_map(
     )
     resolution = DEFAULT_RESOLUTION_M if resolution_m is None else float(resolution_m)
     return OccupancyMap(grid=grid, resolution_m=resolution, source=path, image_path=path)
+
+
+def _head_of(path: Path) -> bytes:
+    """The first bytes of ``path`` (at most a map YAML's limit), or none if it cannot be read."""
+    try:
+        with path.open("rb") as file:
+            return file.read(MAX_YAML_BYTES)
+    except OSError:
+        return b""
+
+
+#: A line of a map YAML that names its image (``image: map.pgm``), as the file's first bytes show it.
+_IMAGE_KEY = re.compile(rb"^[ \t]*['\"]?image['\"]?[ \t]*:", re.MULTILINE)
+
+
+def _reads_as_map_yaml(head: bytes) -> bool:
+    """Whether ``head`` reads as a map YAML: text (no NUL byte, UTF-8 but for a character its end
+    may cut) with an ``image`` key at the start of a line."""
+    if b"\0" in head:
+        return False
+    try:
+        head[:-4].decode("utf-8")
+    except UnicodeDecodeError:
+        return False
+    return _IMAGE_KEY.search(head) is not None
 
 
 def _require_regular(path: Path, missing: str) -> None:

@@ -1270,3 +1270,19 @@ def test_an_image_named_by_a_url_is_said_to_be_one(tmp_path: Path) -> None:
     (tmp_path / "url.yaml").write_text(text.replace("image: m.pgm", "image: package://p/m.pgm"))
     with pytest.raises(MapFileError, match=r"its image 'package://p/m\.pgm' is a URL"):
         rose.load_map(tmp_path / "url.yaml")
+
+
+@pytest.mark.parametrize("name", ["office_map", "map.yaml.bak", "map.txt"])
+def test_a_map_yaml_named_as_no_yaml_says_so(tmp_path: Path, name: str) -> None:
+    """A map YAML under another name is read as an image by its name: it said only "not a readable
+    image (not a PNG, PGM / PPM / PBM, ...)" of a file the user knows to be a map YAML."""
+    rose.save_map(tmp_path / "m.yaml", rose.OccupancyMap(grid=np.zeros((4, 4), dtype=np.int8)))
+    (tmp_path / name).write_bytes((tmp_path / "m.yaml").read_bytes())
+    with pytest.raises(
+        MapFileError, match=r"not an image but a map YAML .*name it \.yaml or \.yml"
+    ):
+        rose.load_map(tmp_path / name)
+    # Other files that are no image keep saying so.
+    (tmp_path / "notes.txt").write_text("images: none here\n")
+    with pytest.raises(MapFileError, match="not a readable image"):
+        rose.load_map(tmp_path / "notes.txt")
