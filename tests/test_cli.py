@@ -1072,3 +1072,15 @@ def test_a_command_that_writes_files_runs_without_a_standard_output(
     assert sys.stdout is None  # as it was
     assert sorted(p.name for p in out.iterdir()) == written
     assert capsys.readouterr().err == ""
+
+
+def test_score_says_clutter_value_has_no_effect_on_it() -> None:
+    """`rose score --help` said --clutter-value is "what clutter cells become in the cleaned map",
+    but score writes no map: the option changes none of its output."""
+    from rose.cli import build_parser
+
+    commands = next(a for a in build_parser()._actions if a.dest == "command").choices
+    score_help = " ".join(commands["score"].format_help().split())
+    assert "--clutter-value {free,unknown} no effect here: this command writes no map" in score_help
+    clean_help = " ".join(commands["clean"].format_help().split())
+    assert "what clutter cells become in the cleaned map (default free)" in clean_help

@@ -286,8 +286,10 @@ def add_map_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def add_param_arguments(parser: argparse.ArgumentParser) -> None:
-    """Add the ROSE tuning options (defaults from :class:`RoseParams`) to ``parser``."""
+def add_param_arguments(parser: argparse.ArgumentParser, *, writes_map: bool = True) -> None:
+    """Add the ROSE tuning options (defaults from :class:`RoseParams`) to ``parser``; a command
+    that writes no cleaned map (``writes_map=False``: ``rose score``) says --clutter-value does
+    nothing there."""
     d = RoseParams()
     group = parser.add_argument_group("ROSE parameters")
     group.add_argument(
@@ -344,7 +346,12 @@ def add_param_arguments(parser: argparse.ArgumentParser) -> None:
         "--clutter-value",
         choices=("free", "unknown"),
         default=d.clutter_value,
-        help="what clutter cells become in the cleaned map (default %(default)s)",
+        help=(
+            "what clutter cells become in the cleaned map (default %(default)s)"
+            if writes_map
+            else "no effect here: this command writes no map (what clutter cells become in "
+            "rose clean's; default %(default)s)"
+        ),
     )
     group.add_argument(
         "--seed",

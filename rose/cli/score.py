@@ -47,7 +47,7 @@ def add_parser(commands: Any) -> None:
         help="print strict JSON instead of a table (non-finite: null)",
     )
     add_limit_arguments(score)  # no --resolution: W does not depend on it
-    add_param_arguments(score)
+    add_param_arguments(score, writes_map=False)
     score.set_defaults(func=run)
 
 

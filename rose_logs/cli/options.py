@@ -121,7 +121,7 @@ def add_session_arguments(parser: Any) -> None:
         "--failure-level",
         type=fraction,  # W lies in [0, 1]
         default=FAILURE_LEVEL,
-        help="W above which a map counts as broken (%(default)s, the paper's)",
+        help="W above which a map counts as broken (default %(default)s, the paper's)",
     )
     parser.add_argument(
         "--break-threshold",
