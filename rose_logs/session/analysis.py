@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import contextlib
+import dataclasses
 import logging
 import threading
 import time
+from collections.abc import Iterator, Sequence
 from concurrent.futures import Executor, Future
 from contextvars import ContextVar
 from dataclasses import dataclass
@@ -19,13 +22,79 @@ from rose.result import RoseResult
 from rose.walls.segments import WallSet
 from rose_logs.snapshots import MapSnapshot
 
-__all__ = ["ANALYSED_TOPIC", "SnapshotAnalyser", "SnapshotAnalysis", "same_placed_grid"]
+__all__ = [
+    "ANALYSED_TOPIC",
+    "SnapshotAnalyser",
+    "SnapshotAnalysis",
+    "held_log_records",
+    "same_placed_grid",
+    "say_held",
+]
 
 _LOG = logging.getLogger(__name__)
 
 #: The map topic this thread is analysing, so that the library's messages underneath (``ROSE found no
 #: dominant direction ...``) can be said with it (``rose_logs.cli``'s log handler does).
 ANALYSED_TOPIC: ContextVar[str | None] = ContextVar("rose_analysed_topic", default=None)
+
+#: Where the records of a snapshot's analysis or break score go while it runs on a session's thread.
+_HELD: ContextVar[list[logging.LogRecord] | None] = ContextVar(
+    "rose_held_log_records", default=None
+)
+
+#: The loggers that speak while a snapshot is analysed or scored, on the session's threads: the
+#: analysis, the break detector, and the library underneath (the walls extraction, the cleaning).
+_HELD_LOGGERS = (
+    "rose_logs.session.analysis",
+    "rose_logs.session.breaks",
+    "rose.walls.extract",
+    "rose.cleaning",
+)
+
+
+class _Hold(logging.Filter):
+    """Keeps a record back (in the list of its context) while :func:`held_log_records` holds them."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        held = _HELD.get()
+        if held is None:
+            return True
+        held.append(record)
+        return False
+
+
+_HOLD = _Hold()
+# A logger's filters see the records logged on it; getLogger makes each logger once, so a module
+# imported later logs on the one filtered here.
+for _name in _HELD_LOGGERS:
+    logging.getLogger(_name).addFilter(_HOLD)
+
+
+@contextlib.contextmanager
+def held_log_records() -> Iterator[list[logging.LogRecord]]:
+    """Inside the block, what the analysis, the break detector and the library underneath log is
+    kept in the list yielded instead of said: a session's threads run ahead of its log order, and
+    their warnings (a topic's maps too fine for the walls cleaning or the break detector, ROSE
+    found no dominant direction), said as they came, came in another order from run to run, in
+    ``rose-bag batch``'s tables too. The session says them (:func:`say_held`) when it takes the
+    snapshot's results, in log order."""
+    held: list[logging.LogRecord] = []
+    token = _HELD.set(held)
+    try:
+        yield held
+    finally:
+        _HELD.reset(token)
+
+
+def say_held(records: Sequence[logging.LogRecord], topic: str) -> None:
+    """Say ``records`` kept back by :func:`held_log_records`, in order, as the analysis of ``topic``
+    (the library's messages then name it, as when they are said at once)."""
+    token = ANALYSED_TOPIC.set(topic)
+    try:
+        for record in records:
+            logging.getLogger(record.name).handle(record)
+    finally:
+        ANALYSED_TOPIC.reset(token)
 
 
 @dataclass(frozen=True)
@@ -39,6 +108,8 @@ class SnapshotAnalysis:
     cleaning: CleanResult | None = None
     seconds: float = 0.0
     degenerate: str | None = None
+    #: What the analysis logged, kept back to be said in log order (:func:`say_held`).
+    log_records: tuple[logging.LogRecord, ...] = ()
 
 
 class SnapshotAnalyser:
@@ -71,7 +142,13 @@ class SnapshotAnalyser:
         """One snapshot, from scratch. No shared state: safe to run in several threads at once."""
         token = ANALYSED_TOPIC.set(snapshot.topic)
         try:
-            return self._analyse(snapshot)
+            with held_log_records() as held:
+                try:
+                    analysis = self._analyse(snapshot)
+                except Exception as err:
+                    err.held_log_records = tuple(held)  # type: ignore[attr-defined]
+                    raise
+            return dataclasses.replace(analysis, log_records=tuple(held))
         finally:
             ANALYSED_TOPIC.reset(token)
 

@@ -50,7 +50,12 @@ from rose_logs.errors import EmptyMapError, LogReadError, LogWriteError, MapMess
 from rose_logs.formats import LogFormat
 from rose_logs.frames import quaternion_tilt
 from rose_logs.reader import LogReader
-from rose_logs.session.analysis import SnapshotAnalyser, SnapshotAnalysis
+from rose_logs.session.analysis import (
+    SnapshotAnalyser,
+    SnapshotAnalysis,
+    held_log_records,
+    say_held,
+)
 from rose_logs.session.breaks import BreakDetector, BreakParams, BreakScore, DetectedBreak
 from rose_logs.session.checks import check_arguments
 from rose_logs.session.records import Skips, returned_text, snapshot_record
@@ -440,7 +445,8 @@ class _Pending:
     from_update: bool
     reused: bool
     future: Future[SnapshotAnalysis]
-    verdict: Future[BreakScore]
+    #: The break detector's verdict, and what it logged (said in log order, see :meth:`_finish`).
+    verdict: Future[tuple[BreakScore, tuple[logging.LogRecord, ...]]]
 
 
 class _Loop:
@@ -735,23 +741,40 @@ class _Loop:
 
     def _detect(
         self, snapshot: MapSnapshot, previous: Future[SnapshotAnalysis] | None
-    ) -> BreakScore:
+    ) -> tuple[BreakScore, tuple[logging.LogRecord, ...]]:
         """The break detector's verdict on a snapshot, scored while it is analysed.
 
         The detector must see the analysed snapshots only (its numbering is the records'). Waiting
         for a snapshot's own analysis put the two in series, and the session waited for both: so
         each snapshot is scored at once, and withdrawn by the next one of its topic if its
         analysis failed (``previous``: the analysis of the topic's snapshot before, None for the
-        first). The verdict of a snapshot whose analysis fails is never read.
+        first). The verdict of a snapshot whose analysis fails is never read. What the detector
+        logs meanwhile is returned with it, to be said in log order.
         """
         if previous is not None and previous.exception() is not None:  # waits for it
             self.detector.withdraw_last(snapshot.topic)
-        return self.detector.update(snapshot)
+        with held_log_records() as held:
+            verdict = self.detector.update(snapshot)
+        return verdict, tuple(held)
 
     def _finish(self, pending: _Pending) -> None:
         """Outputs of one analysed snapshot: derived messages, break detection, Rerun, the record."""
         snapshot = pending.snapshot
         topic = snapshot.topic
+        # What the analysis and the break detector said on their threads, said now: in log order,
+        # the same from run to run (a reused analysis said its own with the snapshot it was made for).
+        if not pending.reused:
+            error = pending.future.exception()
+            said = (
+                pending.future.result().log_records
+                if error is None
+                else getattr(error, "held_log_records", ())
+            )
+            say_held(said, topic)
+        # A snapshot whose analysis fails is no snapshot of the session: its verdict is not read
+        # (the next one of its topic withdraws it), but what the detector said of it is.
+        if pending.verdict.exception() is None:
+            say_held(pending.verdict.result()[1], topic)
         try:
             analysis = pending.future.result()
         except rose.RoseError as err:  # e.g. a map too thin to analyse
@@ -764,7 +787,7 @@ class _Loop:
         # numbers them: its trusted index and the records' must name the same snapshot.
         index = self.analysed.get(topic, 0)
         self.analysed[topic] = index + 1
-        verdict = pending.verdict.result()
+        verdict = pending.verdict.result()[0]
         if verdict.incomparable_with is not None:
             _LOG.warning(
                 "%s: the map %s is not comparable with trusted snapshot %d (another cell size, "

@@ -1017,6 +1017,47 @@ def test_maps_finer_than_a_millimetre_are_cleaned_by_the_paper_with_one_warning(
     assert len(snapshots) == 3 and all(s["completed"] == 0 for s in snapshots)
 
 
+def test_warnings_of_the_analysis_threads_are_said_in_log_order(
+    tmp_path: Path, capsys, monkeypatch, fr079
+) -> None:
+    """The analyses run ahead of the log order, on threads, and the break detector on its own: the
+    warnings they gave (a map too fine for the walls cleaning or for the detector) came as the
+    threads ran, before or after those the session gives in log order, so ``rose-bag batch``'s
+    ``warnings`` column and report.md differed from run to run. Here the analysis of the second
+    map is slow: the third map's, too fine for both, ran meanwhile and said so first."""
+    import time
+
+    from rose_logs.session.analysis import SnapshotAnalyser
+
+    analyse = SnapshotAnalyser._analyse
+
+    def slow_at_0_1_m(self, snapshot):
+        if snapshot.resolution_m == 0.1:
+            time.sleep(1.0)
+        return analyse(self, snapshot)
+
+    monkeypatch.setattr(SnapshotAnalyser, "_analyse", slow_at_0_1_m)
+    maps = [
+        MapMsg(START_NS + 1_000_000_000, fr079[0]),
+        MapMsg(START_NS + 2_000_000_000, fr079[0], resolution_m=0.1),  # not comparable
+        MapMsg(START_NS + 3_000_000_000, fr079[0], resolution_m=1e-5),  # too fine for both
+    ]
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps, scans_per_map=0)
+    assert main(["process", str(built.path), "--no-output", "-q"]) == 0
+    said = [x for x in capsys.readouterr().err.splitlines() if x.startswith("warning:")]
+    kinds = [
+        "not comparable with trusted snapshot 0"
+        if "not comparable with trusted snapshot 0" in x
+        else "cleaning"
+        if "paper's labelling as their cleaned map" in x
+        else "detector"
+        if "break detector's longest length" in x
+        else x
+        for x in said
+    ]
+    assert kinds[:3] == ["not comparable with trusted snapshot 0", "cleaning", "detector"], said
+
+
 def test_an_input_whose_name_says_no_format_gets_its_contents_suffix(tmp_path: Path) -> None:
     """``run`` or ``run.log`` holding MCAP: the default output was ``run.rose`` or
     ``run.rose.log``, a name that says nothing of what it holds; a suffix that names no format is
