@@ -538,7 +538,8 @@ def _field(meta: dict[str, Any], key: str, kind: type, path: Path, default: Any 
     if (numeric and (isinstance(value, bool) or not isinstance(value, int | float))) or (
         not numeric and not isinstance(value, kind)
     ):
-        msg = f"{path}: '{key}' must be a {kind.__name__}, got {short(repr(value), 80)}"
+        what = {int: "an integer", float: "a number", str: "a string"}.get(kind, kind.__name__)
+        msg = f"{path}: '{key}' must be {what}, got {short(repr(value), 80)}"
         raise MapFileError(msg)
     if kind is int and isinstance(value, float) and math.isfinite(value) and not value.is_integer():
         msg = f"{path}: '{key}' must be a whole number, got {value!r}"  # negate: 0.5 was 0

@@ -294,7 +294,7 @@ def test_quoted_numbers_are_numbers_as_yaml_cpp_reads_them(tmp_path: Path) -> No
     )
     assert loaded.grid.tolist() == [[100, 0]]
     bad = write_yaml(tmp_path / "bad.yaml", 'image: m.pgm\nresolution: "five cm"\n')
-    with pytest.raises(MapFileError, match="'resolution' must be a float"):
+    with pytest.raises(MapFileError, match="'resolution' must be a number"):
         rose.load_map(bad)
 
 
@@ -1006,11 +1006,14 @@ def test_a_bare_image_takes_its_resolution_from_the_caller(tmp_path: Path) -> No
     ("yaml_text", "match"),
     [
         ("resolution: 0.05\norigin: [0, 0, 0]\n", "missing required field 'image'"),
-        ("image: m.pgm\nresolution: fast\norigin: [0, 0, 0]\n", "'resolution' must be a float"),
+        ("image: m.pgm\nresolution: fast\norigin: [0, 0, 0]\n", "'resolution' must be a number"),
         ("image: m.pgm\nresolution: 0.05\norigin: [0, 0]\n", "'origin' must be a list of three"),
         ("image: m.pgm\nresolution: 0.05\norigin: [0, 0, 0]\nmode: fancy\n", "'mode' must be"),
         ("image: m.pgm\nresolution: -1\norigin: [0, 0, 0]\n", "'resolution' must be a positive"),
         ("image: m.pgm\nresolution: 0.05\nnegate: 0.5\n", "'negate' must be a whole number"),
+        # Said in words ("must be a int" was the type's name; "a float" and "a str" too).
+        ("image: m.pgm\nresolution: 0.05\nnegate: maybe\n", "'negate' must be an integer, got"),
+        ("image: 5\nresolution: 0.05\n", "'image' must be a string, got 5"),
         ("image: missing.pgm\nresolution: 0.05\norigin: [0, 0, 0]\n", "no such image file"),
         ("just a string\n", "expected a YAML mapping"),
         ("image: [unclosed\n", "not a readable YAML"),
