@@ -562,11 +562,12 @@ class LogReader:
     @property
     def counts_declared(self) -> bool:
         """Whether :attr:`message_count` and the time range are what the log's index declares (an
-        MCAP or ROS 1 log salvaged record by record counts what it read)."""
-        return not isinstance(
-            self._open_backend,
-            McapStreamReadBackend | McapFilesReadBackend | Ros1StreamReadBackend,
-        )
+        MCAP or ROS 1 log salvaged record by record counts what it read; a split ROS 2 bag read
+        file by file declares them when a file of it is read through its index)."""
+        backend = self._open_backend
+        if isinstance(backend, McapFilesReadBackend):
+            return backend.counts_declared
+        return not isinstance(backend, McapStreamReadBackend | Ros1StreamReadBackend)
 
     @property
     def serialization(self) -> str:

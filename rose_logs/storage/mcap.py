@@ -574,9 +574,11 @@ class McapFilesReadBackend:
     by record; see :meth:`rose_logs.reader.LogReader._damaged_mcap_storage`).
 
     The same channel in several files (topic, type, encoding, definition and metadata alike)
-    is one channel, its counts summed; the time range spans the files'. With
-    :attr:`skip_damaged_chunks` (``--salvage``) each indexed file skips the chunks that cannot
-    be read, said in :attr:`skipped_chunks` with the file they are in.
+    is one channel, its counts summed; the time range spans the files'. A file read through its
+    index counts what its index declares, one read record by record what was read
+    (:attr:`counts_declared`). With :attr:`skip_damaged_chunks` (``--salvage``) each indexed
+    file skips the chunks that cannot be read, said in :attr:`skipped_chunks` with the file they
+    are in.
     """
 
     def __init__(self, parts: list[McapReadBackend]) -> None:
@@ -584,6 +586,10 @@ class McapFilesReadBackend:
         self.parts = parts
         self.skip_damaged_chunks = False
         self.skipped_chunks: list[SkippedChunk] = []
+        #: Whether a file's counts and time range are its index's (a file read through it),
+        #: not what was read: a chunk it skips is in the counts (the reader's
+        #: :attr:`~rose_logs.reader.LogReader.counts_declared`).
+        self.counts_declared = any(not isinstance(p, McapStreamReadBackend) for p in parts)
         self.profile = parts[0].profile
         self.qos_style: QosStyle | None = next(
             (part.qos_style for part in parts if part.qos_style is not None), None

@@ -1301,6 +1301,37 @@ def test_salvage_reads_each_file_of_a_split_mcap_bag_as_its_bare_file(
     assert salvaged["losses"] == losses
 
 
+def test_info_says_the_counts_of_a_split_mcap_bag_read_file_by_file_are_declared(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A split bag whose first file is cut short (read record by record) and whose second file
+    has a damaged chunk (read through its index, which counts the chunk's messages): info
+    --salvage printed the second file's declared counts and time range as if read ("messages
+    462", the lost chunk's end as the end), while process's report said 360 messages; they are
+    marked declared, as for a bag read through its index."""
+    bag = tmp_path / "bag"
+    first, second = _split_mcap_bag_folder(bag)
+    first.write_bytes(first.read_bytes()[: first.stat().st_size // 2])
+    data = bytearray(second.read_bytes())
+    data[_chunk_starts(second)[-1] + 500] ^= 0xFF  # the last chunk of the second file
+    second.write_bytes(bytes(data))
+    with LogReader(bag, salvage=True) as reader:
+        read = sum(1 for _ in reader.messages())
+        assert reader.counts_declared and read < reader.message_count
+    code, out, _ = _run(capsys, "info", bag, "--salvage")
+    assert code == EXIT_SALVAGED and f"{second}: skipped a damaged chunk" in out
+    lines = out.splitlines()
+    assert next(line for line in lines if line.startswith("messages ")).endswith("(declared)")
+    assert next(line for line in lines if line.startswith("time range ")).endswith("(declared)")
+    # Both files cut short, both read record by record: the counts are what was read.
+    second.write_bytes(second.read_bytes()[: second.stat().st_size // 2])
+    with LogReader(bag, salvage=True) as reader:
+        assert not reader.counts_declared
+        assert sum(1 for _ in reader.messages()) == reader.message_count
+    code, out, _ = _run(capsys, "info", bag, "--salvage")
+    assert code == EXIT_SALVAGED and "(declared)" not in out
+
+
 def _split_db3_bag(bag: Path, damage: str = "page") -> list[Path]:
     """A session as a ROS 2 bag folder of SQLite storage split in two files at its middle
     message (as rosbag2 splits one), its first file damaged: a B-tree page of it no longer
