@@ -21,7 +21,9 @@ salvaged in file order, up to its damage; a ROS 1 bag is read chunk by chunk thr
 chunk infos, in rosbags' order, also when rosbags cannot open it for a damaged chunk record or
 index entry). A ROS 2 bag folder of MCAP storage is read, when a file of it is damaged, file by
 file, each as it would be on its own (:meth:`LogReader._damaged_mcap_storage`,
-:meth:`rose_logs.storage.rosbags.RosbagsReadBackend._mcap_around_damaged_chunks`).
+:meth:`rose_logs.storage.rosbags.RosbagsReadBackend._mcap_around_damaged_chunks`). The files of
+a ROS 2 bag split over several are merged by log time, damaged or not (rosbags reads them one
+after the other, in metadata.yaml's order, which need not be their time order).
 """
 
 from __future__ import annotations

@@ -30,6 +30,7 @@ from rose_logs.storage.connections import (
 from rose_logs.storage.records import (
     Channel,
     RawMessage,
+    merged_by_log_time,
     normalize_msgtype,
     parse_latching,
     ros1_msgtype,
@@ -569,9 +570,10 @@ class McapStreamReadBackend(McapReadBackend):
 class McapFilesReadBackend:
     """The MCAP files of a ROS 2 bag folder split over several (rosbag2's ``--max-bag-size``,
     ``--max-bag-duration``) that rosbags cannot open because one of them is damaged (cut short,
-    its summary damaged or missing): the files read one after the other, as rosbags reads
-    them, each as it would be read on its own (``parts``, opened: through its index, or record
-    by record; see :meth:`rose_logs.reader.LogReader._damaged_mcap_storage`).
+    its summary damaged or missing): each file read as it would be read on its own (``parts``,
+    opened: through its index, or record by record; see
+    :meth:`rose_logs.reader.LogReader._damaged_mcap_storage`), their messages merged by log time
+    (:func:`~rose_logs.storage.records.merged_by_log_time`).
 
     The same channel in several files (topic, type, encoding, definition and metadata alike)
     is one channel, its counts summed; the time range spans the files'. A file read through its
@@ -628,18 +630,27 @@ class McapFilesReadBackend:
         self.end_ns = max((end for _, end in ranges), default=0)
 
     def messages(self, topics: set[str] | None) -> Iterator[RawMessage]:
-        for part, ours in zip(self.parts, self._ours, strict=True):
-            part.skip_damaged_chunks = self.skip_damaged_chunks
-            try:
-                for m in part.messages(topics):
-                    yield RawMessage(
-                        ours[m.channel.id], m.log_time_ns, m.data, m.publish_time_ns, m.sequence
-                    )
-            finally:
-                self.skipped_chunks.extend(
-                    dataclasses.replace(chunk, file=part.path) for chunk in part.skipped_chunks
+        yield from merged_by_log_time(
+            self._part_messages(part, ours, topics)
+            for part, ours in zip(self.parts, self._ours, strict=True)
+        )
+
+    def _part_messages(
+        self, part: McapReadBackend, ours: dict[int, Channel], topics: set[str] | None
+    ) -> Iterator[RawMessage]:
+        """The messages of the file ``part`` as our channels (``ours``: of each of its channel
+        ids), its skipped chunks said in :attr:`skipped_chunks`."""
+        part.skip_damaged_chunks = self.skip_damaged_chunks
+        try:
+            for m in part.messages(topics):
+                yield RawMessage(
+                    ours[m.channel.id], m.log_time_ns, m.data, m.publish_time_ns, m.sequence
                 )
-                part.skipped_chunks.clear()
+        finally:
+            self.skipped_chunks.extend(
+                dataclasses.replace(chunk, file=part.path) for chunk in part.skipped_chunks
+            )
+            part.skipped_chunks.clear()
 
     def close(self) -> None:
         for part in self.parts:

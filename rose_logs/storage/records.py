@@ -5,12 +5,20 @@ Also the two spellings of a ROS message type name (ROS 1 ``pkg/Name``, ROS 2 ``p
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import heapq
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 
 from rosbags.interfaces import Qos
 
-__all__ = ["Channel", "RawMessage", "normalize_msgtype", "parse_latching", "ros1_msgtype"]
+__all__ = [
+    "Channel",
+    "RawMessage",
+    "merged_by_log_time",
+    "normalize_msgtype",
+    "parse_latching",
+    "ros1_msgtype",
+]
 
 
 def normalize_msgtype(name: str) -> str:
@@ -119,3 +127,21 @@ class RawMessage:
     data: bytes | memoryview
     publish_time_ns: int
     sequence: int = 0
+
+
+def merged_by_log_time(files: Iterable[Iterator[RawMessage]]) -> Iterator[RawMessage]:
+    """The messages of the storage files of one log (``files``: each file's, in log-time order)
+    in log-time order, a file's before a later file's of the same time. A recording split in
+    time (rosbag2's ``--max-bag-size``) reads as its files one after the other; files listed
+    out of their time order, or overlapping in time, came out of order: a map snapshot before
+    the one it follows (a break found where there is none, a time range ending before it
+    starts)."""
+    iterators = list(files)
+    if len(iterators) == 1:
+        yield from iterators[0]
+        return
+    yield from heapq.merge(*iterators, key=_log_time)
+
+
+def _log_time(message: RawMessage) -> int:
+    return message.log_time_ns

@@ -27,7 +27,7 @@ from rose_logs.storage.connections import (
     warn_no_definition,
 )
 from rose_logs.storage.mcap import McapReadBackend, SkippedChunk
-from rose_logs.storage.records import Channel, RawMessage, normalize_msgtype
+from rose_logs.storage.records import Channel, RawMessage, merged_by_log_time, normalize_msgtype
 
 __all__ = ["Ros1WriteBackend", "Ros2WriteBackend", "RosbagsReadBackend", "mcap_storage_files"]
 
@@ -207,8 +207,8 @@ class RosbagsReadBackend:
         if self.format == "mcap-dir" and self.skip_damaged_chunks:
             yield from self._mcap_around_damaged_chunks(topics)
             return
-        if self.skip_damaged_chunks and len(self._storages()) > 1:  # a split SQLite bag
-            yield from self._file_by_file(topics)
+        if len(self._storages()) > 1:  # a split bag: its files merged by log time
+            yield from self._file_by_file(topics, salvage=self.skip_damaged_chunks)
             return
         try:
             for conn, timestamp, data in self.reader.messages(connections=conns or ()):
@@ -269,25 +269,26 @@ class RosbagsReadBackend:
     def _mcap_around_damaged_chunks(self, topics: set[str] | None) -> Iterator[RawMessage]:
         """A ROS 2 bag folder's messages read from its MCAP files as a bare MCAP file is salvaged
         (through its chunk index, skipping the chunks that cannot be read, said in
-        :attr:`skipped_chunks` with the file they are in), as this bag's channels, file after
-        file as rosbags reads them. rosbags stops at the first damaged chunk: a flipped bit early
-        in an hour's recording lost the rest of the hour (and, in a split bag, every file after
-        it). A file whose index does not read is read by rosbags as without ``--salvage``, up
-        to the damage (in a split bag, the files after it are read); a bag whose messages are
-        compressed one by one is read by rosbags, file by file when there are several."""
+        :attr:`skipped_chunks` with the file they are in), as this bag's channels, the files'
+        messages merged by log time (:func:`merged_by_log_time`). rosbags stops at the first
+        damaged chunk: a flipped bit early in an hour's recording lost the rest of the hour (and,
+        in a split bag, every file after it). A file whose index does not read is read by rosbags
+        as without ``--salvage``, up to the damage (in a split bag, the other files are read); a
+        bag whose messages are compressed one by one is read by rosbags, file by file when there
+        are several."""
         files = mcap_storage_files(self.path)
         storages = self._storages()
         if not files or len(files) != len(storages):
             if len(storages) > 1:  # messages compressed one by one: rosbags reads each file
-                yield from self._file_by_file(topics)
+                yield from self._file_by_file(topics, salvage=True)
                 return
             self.skip_damaged_chunks = False
             yield from self.messages(topics)
             return
-        for storage, path in zip(storages, files, strict=True):
-            yield from self._mcap_file_around_damaged_chunks(
-                storage, path, topics, several=len(files) > 1
-            )
+        yield from merged_by_log_time(
+            self._mcap_file_around_damaged_chunks(storage, path, topics, salvage=len(files) > 1)
+            for storage, path in zip(storages, files, strict=True)
+        )
 
     def _storages(self) -> list[Any]:
         """rosbags' readers of this bag folder's storage files, one a file, in metadata.yaml's
@@ -296,29 +297,32 @@ class RosbagsReadBackend:
             return []
         return list(getattr(self.reader.storage, "storages", None) or [])
 
-    def _file_by_file(self, topics: set[str] | None) -> Iterator[RawMessage]:
-        """``--salvage`` on a bag of several storage files that rosbags reads: file after file,
-        as rosbags reads them; a file that fails part way is said in :attr:`damaged_files`
-        and the files after it are read (rosbags' reading stopped there: a damaged first file
-        lost the whole bag)."""
+    def _file_by_file(self, topics: set[str] | None, *, salvage: bool) -> Iterator[RawMessage]:
+        """A bag of several storage files that rosbags reads, file by file, their messages
+        merged by log time (:func:`merged_by_log_time`; rosbags reads one file after the other,
+        in metadata.yaml's order). With ``salvage``, a file that fails part way is said in
+        :attr:`damaged_files` and the other files are read (rosbags' reading stopped there: a
+        damaged first file lost the whole bag); else its error is raised."""
         information = _bag_information(self.path) or {}
         names = [str(name) for name in information.get("relative_file_paths") or ()]
+        files = []
         for storage in self._storages():
             stored = PurePath(str(storage.path)).name  # (a temporary copy of a .zstd file)
             name = next(
                 (n for n in names if PurePath(n).name in (stored, f"{stored}.zstd")), stored
             )
-            yield from self._rosbags_file(
-                storage, self.path / PurePath(name).name, topics, several=True
-            )
+            files.append((storage, self.path / PurePath(name).name))
+        yield from merged_by_log_time(
+            self._rosbags_file(storage, path, topics, salvage=salvage) for storage, path in files
+        )
 
     def _rosbags_file(
-        self, storage: Any, path: Path, topics: set[str] | None, *, several: bool
+        self, storage: Any, path: Path, topics: set[str] | None, *, salvage: bool
     ) -> Iterator[RawMessage]:
         """The messages of one storage file ``path`` of this bag folder, read by rosbags
         (``storage``: its reader of it), as this bag's channels. A failure part way is raised,
-        or, in a bag of ``several`` files, said in :attr:`damaged_files` (the caller reads the
-        files after it)."""
+        or, with ``salvage`` (a bag of several files), said in :attr:`damaged_files` (the
+        caller reads the other files)."""
         ours = self._storage_channels_ours(storage)
         conns = [
             conn
@@ -342,7 +346,7 @@ class RosbagsReadBackend:
                 yield RawMessage(ours[int(conn.id)], int(timestamp), data, int(timestamp))
         except Exception as err:
             reraise_interrupt_behind(err)
-            if not several:
+            if not salvage:
                 raise
             why = library_text(err).removeprefix(f"{self.path}: ")
             self.damaged_files.append(
@@ -351,12 +355,12 @@ class RosbagsReadBackend:
             )
 
     def _mcap_file_around_damaged_chunks(
-        self, storage: Any, path: Path, topics: set[str] | None, *, several: bool
+        self, storage: Any, path: Path, topics: set[str] | None, *, salvage: bool
     ) -> Iterator[RawMessage]:
         """The messages of one MCAP file ``path`` of this bag folder (rosbags' reader of it:
         ``storage``), skipping its damaged chunks; read by rosbags when its index does not read
-        (:meth:`_rosbags_file`, up to the damage; in a bag of ``several`` files, the others are
-        read)."""
+        (:meth:`_rosbags_file`, up to the damage, said with ``salvage``: a bag of several files,
+        whose others are read)."""
         ours = self._storage_channels_ours(storage)
         inner = McapReadBackend(path)
         try:
@@ -367,7 +371,7 @@ class RosbagsReadBackend:
             reraise_interrupt_behind(err)
             indexed = False
         if not indexed:
-            yield from self._rosbags_file(storage, path, topics, several=several)
+            yield from self._rosbags_file(storage, path, topics, salvage=salvage)
             return
         # The file's channel id of each of the inner reader's channels.
         file_ids = {channel.id: file_id for file_id, channel in inner._by_id.items()}

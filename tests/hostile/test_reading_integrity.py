@@ -1332,11 +1332,57 @@ def test_info_says_the_counts_of_a_split_mcap_bag_read_file_by_file_are_declared
     assert code == EXIT_SALVAGED and "(declared)" not in out
 
 
+@pytest.mark.parametrize("storage", ["mcap", "db3"])
+def test_a_split_bag_whose_files_are_listed_out_of_time_order_reads_in_log_time_order(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], storage: str
+) -> None:
+    """A split bag whose metadata.yaml lists its later file first (or whose files overlap in
+    time) came out file after file, as rosbags reads it: not in log-time order, the session's
+    map snapshots out of order ("time range +35.0 s .. +30.0 s", a break found where there is
+    none). The files are merged by log time, intact or salvaged file by file."""
+    bag = tmp_path / "bag"
+    if storage == "mcap":
+        files = _split_mcap_bag_folder(bag)
+        sample = Path(__file__).resolve().parents[2] / "sample_data" / "fr079_session.mcap"
+        with LogReader(sample) as reader:
+            expected = [(m.channel.topic, m.log_time_ns, bytes(m.data)) for m in reader.messages()]
+    else:
+        files = _split_db3_bag(bag, "none")
+        with LogReader(bag) as reader:
+            expected = [(m.channel.topic, m.log_time_ns, bytes(m.data)) for m in reader.messages()]
+    meta = bag / "metadata.yaml"
+    listed = "".join(f"  - {f.name}\n" for f in files)
+    meta.write_text(
+        meta.read_text().replace(listed, "".join(f"  - {f.name}\n" for f in files[::-1]))
+    )
+    for salvage in (False, True):
+        with LogReader(bag, salvage=salvage) as reader:
+            read = [(m.channel.topic, m.log_time_ns, bytes(m.data)) for m in reader.messages()]
+            assert read == expected and not reader.losses
+    if storage == "mcap":
+        code, out, _ = _run(capsys, "process", bag, "--no-output")
+        assert code == 0 and "time range   +5.0 s .. +70.0 s" in out and "break        none" in out
+        # The later file (listed first) cut short: read on its own, merged with the other.
+        files[1].write_bytes(files[1].read_bytes()[: files[1].stat().st_size // 2])
+        with LogReader(bag, salvage=True) as reader:
+            times = [m.log_time_ns for m in reader.messages()]
+            assert reader.losses and times == sorted(times) and len(times) < len(expected)
+    else:
+        first = files[0].read_bytes()
+        for page in range(2, len(first) // 4096):  # a page of the earlier file no longer reads
+            data = bytearray(first)
+            data[page * 4096] = 0x77
+            files[0].write_bytes(bytes(data))
+            with LogReader(bag, salvage=True) as reader:
+                times = [m.log_time_ns for m in reader.messages()]
+                assert times == sorted(times)
+
+
 def _split_db3_bag(bag: Path, damage: str = "page") -> list[Path]:
     """A session as a ROS 2 bag folder of SQLite storage split in two files at its middle
     message (as rosbag2 splits one), its first file damaged: a B-tree page of it no longer
     reads, after some of its messages do ("page"), or its header, so that it does not open
-    ("header"). Returns the two files."""
+    ("header"), or left intact ("none"). Returns the two files."""
     import sqlite3
 
     write_session(bag, "db3")
@@ -1355,6 +1401,8 @@ def _split_db3_bag(bag: Path, damage: str = "page") -> list[Path]:
     listed = f"  - {first.name}\n"
     meta.write_text(meta.read_text().replace(listed, f"{listed}  - {second.name}\n"))
     intact = first.read_bytes()
+    if damage == "none":
+        return [first, second]
     if damage == "header":
         first.write_bytes(b"no SQLite file.\0" + intact[16:])
         return [first, second]
