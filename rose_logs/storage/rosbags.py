@@ -60,7 +60,7 @@ class RosbagsReadBackend:
         self.skip_damaged_chunks = False
         self.skipped_chunks: list[SkippedChunk] = []
         #: ``--salvage``, a ROS 2 bag of several storage files: each file that could not be read
-        #: to its end, in words (the files after it are read).
+        #: to its end, in words (the other files are read).
         self.damaged_files: list[str] = []
 
     def open(self) -> None:
@@ -320,9 +320,9 @@ class RosbagsReadBackend:
         self, storage: Any, path: Path, topics: set[str] | None, *, salvage: bool
     ) -> Iterator[RawMessage]:
         """The messages of one storage file ``path`` of this bag folder, read by rosbags
-        (``storage``: its reader of it), as this bag's channels. A failure part way is raised,
-        or, with ``salvage`` (a bag of several files), said in :attr:`damaged_files` (the
-        caller reads the other files)."""
+        (``storage``: its reader of it), as this bag's channels. A failure part way is raised
+        (naming the file, in a bag of several), or, with ``salvage`` (a bag of several files),
+        said in :attr:`damaged_files` (the caller reads the other files)."""
         ours = self._storage_channels_ours(storage)
         conns = [
             conn
@@ -346,13 +346,23 @@ class RosbagsReadBackend:
                 yield RawMessage(ours[int(conn.id)], int(timestamp), data, int(timestamp))
         except Exception as err:
             reraise_interrupt_behind(err)
-            if not salvage:
+            files = len(self._storages())
+            if not salvage and files < 2:
                 raise
-            why = library_text(err).removeprefix(f"{self.path}: ")
-            self.damaged_files.append(
-                f"{path}: cannot be read past its first {read} messages "
-                f"({short(why, 120)}); the bag's other files are read"
+            why = short(library_text(err).removeprefix(f"{self.path}: "), 120)
+            if not salvage:  # the error names the file, not only the bag
+                msg = (
+                    f"{path}: corrupt or truncated ({why}; {read} of its messages read before "
+                    f"it), one of the bag's {files} files; --salvage keeps what can be read of "
+                    "it and reads the others"
+                )
+                raise LogReadError(msg) from err
+            kept = (
+                f"cannot be read past its first {read} messages"
+                if read
+                else "none of its messages can be read"
             )
+            self.damaged_files.append(f"{path}: {kept} ({why}); the bag's other files are read")
 
     def _mcap_file_around_damaged_chunks(
         self, storage: Any, path: Path, topics: set[str] | None, *, salvage: bool

@@ -1290,6 +1290,9 @@ def test_salvage_reads_each_file_of_a_split_mcap_bag_as_its_bare_file(
     assert code == 1 and len(err.splitlines()) == 1 and "--salvage" in err, err
     if damage != "flipped":  # cut short: the bag does not open, the error names the file
         assert err.startswith(f"error: {target}: truncated MCAP file (one of the bag's 2 files)")
+    else:  # a damaged chunk: the error named the bag only, not the file of the two
+        assert err.startswith(f"error: {target}: corrupt or truncated ("), err
+        assert "one of the bag's 2 files; --salvage keeps what can be read of it" in err
     report = tmp_path / "r.json"
     code, _, err = _run(capsys, "process", bag, "--no-output", "-q", "--salvage", "--json", report)
     assert code == EXIT_SALVAGED and "error:" not in err
@@ -1448,6 +1451,11 @@ def test_salvage_reads_the_files_after_a_damaged_one_of_a_split_sqlite_bag(
         losses[1]
         == f"{bag}: read {len(read)} of 15 messages the log declares"
         + losses[1].split("declares", 1)[1]
+    )
+    code, _, err = _run(capsys, "process", bag, "--no-output", "-q")  # the error names the file
+    assert code == 1 and len(err.splitlines()) == 1, err
+    assert (
+        err.startswith(f"error: {first}: corrupt or truncated (") and "of the bag's 2 files" in err
     )
     report = tmp_path / "r.json"
     code, _, err = _run(capsys, "process", bag, "--no-output", "-q", "--salvage", "--json", report)
