@@ -313,8 +313,8 @@ class LogReader:
         error ("File end magic is invalid.") named no file and no remedy, and ``--salvage`` kept
         nothing.
 
-        A bag split over several files is read file after file (:class:`McapFilesReadBackend`),
-        the intact ones through their index; under ``--salvage`` a file of which nothing can be
+        A bag split over several files is read file by file, their messages merged by log time
+        (:class:`McapFilesReadBackend`), the intact ones through their index; under ``--salvage`` a file of which nothing can be
         read is a loss naming it, the others are read. None when every MCAP file reads (the
         first error stands: metadata.yaml, or an error of ours, which says what is wrong), and
         when one is missing (rosbags says which)."""
