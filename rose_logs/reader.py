@@ -379,8 +379,7 @@ class LogReader:
                 problem = (
                     f"{self._unreadable(damage, storage, of_files)}; the bag's other files are read"
                 )
-                self.losses.append(problem)
-                _LOG.warning("%s", problem)
+                self._lose(problem)
                 return None
         if salvaged is None:
             raise self._unreadable(damage, storage, of_files) from err
@@ -417,8 +416,7 @@ class LogReader:
                 f"{path}: cannot be opened ({short(why, 120)}); none of its messages are read, "
                 "the bag's other files are"
             )
-            self.losses.append(problem)
-            _LOG.warning("%s", problem)
+            self._lose(problem)
         return backend
 
     def _around_damaged_chunks(self, err: BaseException) -> Ros1IndexedReadBackend | None:
@@ -506,9 +504,14 @@ class LogReader:
             _LOG.warning("%s: %s, read record by record, %s", name, backend.damage, order)
             return backend
         problem = f"{name}: {where} ({backend.damage}); kept the {read} messages before it, {order}"
+        self._lose(problem)
+        return backend
+
+    def _lose(self, problem: str) -> None:
+        """Keep a loss (one line naming the file) in :attr:`losses`, and say it as it happens (a
+        warning: the command does not repeat it)."""
         self.losses.append(problem)
         _LOG.warning("%s", problem)
-        return backend
 
     def close(self) -> None:
         """Close the log (idempotent)."""
@@ -617,8 +620,7 @@ class LogReader:
                 salvage = "--salvage keeps what can be read"
                 raise LogReadError(f"{error}; {salvage}") from err
             problem = f"{short(error, 200)}; stopped after {self.read_count} messages"
-            self.losses.append(problem)
-            _LOG.warning("%s", problem)  # as it happens: the command does not repeat it
+            self._lose(problem)
             return
         finally:
             self._note_skipped_chunks(backend)
@@ -640,13 +642,11 @@ class LogReader:
                 f"({chunk.reason}): its messages from +{first:.1f} s to +{last:.1f} s "
                 f"({chunk.start_ns}..{chunk.end_ns} ns) are lost, the rest is read"
             )
-            self.losses.append(problem)
-            _LOG.warning("%s", problem)
+            self._lose(problem)
         skipped.clear()
         if isinstance(backend, RosbagsReadBackend):  # files of a split bag read part way
             for problem in backend.damaged_files:
-                self.losses.append(problem)
-                _LOG.warning("%s", problem)
+                self._lose(problem)
             backend.damaged_files.clear()
 
     def _check_counts(self, counts: dict[int, int], topics: set[str] | None) -> None:
@@ -677,5 +677,4 @@ class LogReader:
         )
         if not self.salvage:
             raise MessageLossError(problem + " (--salvage keeps what can be read)")
-        self.losses.append(problem)
-        _LOG.warning("%s", problem)
+        self._lose(problem)
