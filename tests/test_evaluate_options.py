@@ -324,6 +324,12 @@ def test_logs_takes_carmen_logs_anywhere_by_their_path(
         main(["evaluate", str(out), *base, "--logs", f"intel,{log}"])
     assert info.value.code == 2
     assert "two logs named 'intel'" in capsys.readouterr().err
+    # A log named x@1.0 and x's map at drift 1.0 were one map (map_x_drift1.0.png): refused.
+    shutil.copy(log, drifted_name := elsewhere / "intel@1.0.log.gz")
+    with pytest.raises(SystemExit) as info:
+        main(["evaluate", str(out), *base, "--logs", f"{log},{drifted_name}"])
+    assert info.value.code == 2 and "'@' names a log's drifted maps" in capsys.readouterr().err
+    assert not out.exists()
     config = config_from_args(build_parser().parse_args(["evaluate", "o", "--logs", f"aces,{log}"]))
     assert config.logs == ("aces", "intel") and config.log_files == (("intel", log),)
     assert config.data_logs == ("aces",) and config.log_path("intel") == log

@@ -46,7 +46,8 @@ def _log_names(value: str) -> tuple[str | Path, ...]:
     :meth:`EvaluationConfig.log_path`), and paths to CARMEN logs anywhere (an item with a ``/``,
     or a file in the current folder: ``--logs /data/intel.log``, ``--logs intel.log``), each
     named by its file's name (``intel``). Two logs of one name are a usage error: their maps,
-    tables and figures would take each other's place."""
+    tables and figures would take each other's place; so is an ``@`` in a name, which names a
+    log's drifted maps (``intel@1.0``)."""
     logs: dict[str, str | Path] = {}
     for item in _csv(value):
         log: str | Path = item
@@ -57,6 +58,12 @@ def _log_names(value: str) -> tuple[str | Path, ...]:
             name = log_name(item)  # (the item as typed is kept: an error names it)
         if not name:
             msg = f"{item!r}: no log name in it (a log's file, or a name such as aces)"
+            raise argparse.ArgumentTypeError(msg)
+        if "@" in name:  # (x@1.0.log's map and x.log's at drift 1.0 would be one)
+            msg = (
+                f"{item!r}: a log named {name!r}: '@' names a log's drifted maps (LOG@LEVEL); "
+                "give it under a name without '@'"
+            )
             raise argparse.ArgumentTypeError(msg)
         known = logs.setdefault(name, log)
         if isinstance(known, Path) != isinstance(log, Path) or (
