@@ -333,6 +333,10 @@ def test_logs_takes_carmen_logs_anywhere_by_their_path(
     config = config_from_args(build_parser().parse_args(["evaluate", "o", "--logs", f"aces,{log}"]))
     assert config.logs == ("aces", "intel") and config.log_files == (("intel", log),)
     assert config.data_logs == ("aces",) and config.log_path("intel") == log
+    # One file by an absolute and a relative path (here: the current folder) is one log, run once.
+    twice = f"{log},intel.log.gz"
+    config = config_from_args(build_parser().parse_args(["evaluate", "o", "--logs", twice]))
+    assert config.log_files == (("intel", log),)
 
 
 def test_help_says_logs_takes_paths(capsys: pytest.CaptureFixture[str]) -> None:

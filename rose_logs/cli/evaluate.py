@@ -66,8 +66,9 @@ def _log_names(value: str) -> tuple[str | Path, ...]:
             )
             raise argparse.ArgumentTypeError(msg)
         known = logs.setdefault(name, log)
+        # One file given twice (by an absolute and a relative path, through a link) runs once.
         if isinstance(known, Path) != isinstance(log, Path) or (
-            isinstance(log, Path) and known != log
+            isinstance(known, Path) and isinstance(log, Path) and not _same_file(known, log)
         ):
             msg = (
                 f"two logs named {name!r} ({known}, {log}): their maps and tables would take "
@@ -75,6 +76,14 @@ def _log_names(value: str) -> tuple[str | Path, ...]:
             )
             raise argparse.ArgumentTypeError(msg)
     return tuple(logs.values())
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    """Whether ``a`` and ``b`` name one file (a missing one by its resolved path)."""
+    try:
+        return a.samefile(b)
+    except OSError:
+        return a.resolve() == b.resolve()
 
 
 def _map_names(value: str) -> tuple[str, ...]:
