@@ -400,7 +400,7 @@ class LogReader:
             backend.close()
             reraise_interrupt_behind(failure)
             return None
-        files = len(backend._storages())
+        files = len(backend.storage_readers())
         if not backend.unopened or len(backend.unopened) >= files or not self.salvage:
             backend.close()
             if not backend.unopened or len(backend.unopened) >= files:

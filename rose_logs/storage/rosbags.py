@@ -207,7 +207,7 @@ class RosbagsReadBackend:
         if self.format == "mcap-dir" and self.skip_damaged_chunks:
             yield from self._mcap_around_damaged_chunks(topics)
             return
-        if len(self._storages()) > 1:  # a split bag: its files merged by log time
+        if len(self.storage_readers()) > 1:  # a split bag: its files merged by log time
             yield from self._file_by_file(topics, salvage=self.skip_damaged_chunks)
             return
         try:
@@ -277,7 +277,7 @@ class RosbagsReadBackend:
         bag whose messages are compressed one by one is read by rosbags, file by file when there
         are several."""
         files = mcap_storage_files(self.path)
-        storages = self._storages()
+        storages = self.storage_readers()
         if not files or len(files) != len(storages):
             if len(storages) > 1:  # messages compressed one by one: rosbags reads each file
                 yield from self._file_by_file(topics, salvage=True)
@@ -290,7 +290,7 @@ class RosbagsReadBackend:
             for storage, path in zip(storages, files, strict=True)
         )
 
-    def _storages(self) -> list[Any]:
+    def storage_readers(self) -> list[Any]:
         """rosbags' readers of this bag folder's storage files, one a file, in metadata.yaml's
         order (none for a bare file)."""
         if not self.path.is_dir():
@@ -306,7 +306,7 @@ class RosbagsReadBackend:
         information = _bag_information(self.path) or {}
         names = [str(name) for name in information.get("relative_file_paths") or ()]
         files = []
-        for storage in self._storages():
+        for storage in self.storage_readers():
             stored = PurePath(str(storage.path)).name  # (a temporary copy of a .zstd file)
             name = next(
                 (n for n in names if PurePath(n).name in (stored, f"{stored}.zstd")), stored
@@ -346,7 +346,7 @@ class RosbagsReadBackend:
                 yield RawMessage(ours[int(conn.id)], int(timestamp), data, int(timestamp))
         except Exception as err:
             reraise_interrupt_behind(err)
-            files = len(self._storages())
+            files = len(self.storage_readers())
             if not salvage and files < 2:
                 raise
             why = short(library_text(err).removeprefix(f"{self.path}: "), 120)
@@ -456,9 +456,9 @@ class _TolerantStorage:
         try:
             self.inner.open()
         except Exception as err:
-            reraise_interrupt_behind(err)
             with contextlib.suppress(Exception):
                 self.inner.close()
+            reraise_interrupt_behind(err)
             why = library_text(err).replace(f" {self.path}", "")  # (the error names it)
             self.unopened.append((Path(self.path), why))
             self.inner = None
