@@ -11,6 +11,7 @@ from collections.abc import Iterator, Sequence
 from concurrent.futures import Executor, Future
 from contextvars import ContextVar
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -27,6 +28,7 @@ __all__ = [
     "SnapshotAnalyser",
     "SnapshotAnalysis",
     "held_log_records",
+    "said_at_once",
     "same_placed_grid",
     "say_held",
 ]
@@ -37,19 +39,14 @@ _LOG = logging.getLogger(__name__)
 #: dominant direction ...``) can be said with it (``rose_logs.cli``'s log handler does).
 ANALYSED_TOPIC: ContextVar[str | None] = ContextVar("rose_analysed_topic", default=None)
 
-#: Where the records of a snapshot's analysis or break score go while it runs on a session's thread.
+#: Where the records logged in this context go while :func:`held_log_records` holds them.
 _HELD: ContextVar[list[logging.LogRecord] | None] = ContextVar(
     "rose_held_log_records", default=None
 )
 
-#: The loggers that speak while a snapshot is analysed or scored, on the session's threads: the
-#: analysis, the break detector, and the library underneath (the walls extraction, the cleaning).
-_HELD_LOGGERS = (
-    "rose_logs.session.analysis",
-    "rose_logs.session.breaks",
-    "rose.walls.extract",
-    "rose.cleaning",
-)
+#: The hierarchies held: every logger of ``rose`` (the library underneath: the walls extraction,
+#: the cleaning) and of ``rose_logs`` (the session, the reader, the break detector, ...).
+_HELD_ROOTS = ("rose", "rose_logs")
 
 
 class _Hold(logging.Filter):
@@ -64,20 +61,38 @@ class _Hold(logging.Filter):
 
 
 _HOLD = _Hold()
-# A logger's filters see the records logged on it; getLogger makes each logger once, so a module
-# imported later logs on the one filtered here.
-for _name in _HELD_LOGGERS:
-    logging.getLogger(_name).addFilter(_HOLD)
+_HOLD_LOCK = threading.Lock()
+_made_record = logging.getLogRecordFactory()
+
+
+def _record_held_by_its_logger(*args: Any, **kwargs: Any) -> logging.LogRecord:
+    """logging's record factory, putting the filter on a held hierarchy's logger before it handles
+    a record made while records are held.
+
+    A logger's filters see only the records logged on it, not those of its children propagating
+    up: each logger needs its own. A list of names missed the loggers not on it, and those made
+    later (a module imported on an analysis thread); the logger that makes a record is filtered
+    here before it handles it, whichever it is."""
+    record = _made_record(*args, **kwargs)
+    if _HELD.get() is not None and record.name.partition(".")[0] in _HELD_ROOTS:
+        logger = logging.getLogger(record.name)
+        if _HOLD not in logger.filters:
+            with _HOLD_LOCK:
+                logger.addFilter(_HOLD)  # adds it once
+    return record
+
+
+logging.setLogRecordFactory(_record_held_by_its_logger)
 
 
 @contextlib.contextmanager
 def held_log_records() -> Iterator[list[logging.LogRecord]]:
-    """Inside the block, what the analysis, the break detector and the library underneath log is
-    kept in the list yielded instead of said: a session's threads run ahead of its log order, and
-    their warnings (a topic's maps too fine for the walls cleaning or the break detector, ROSE
-    found no dominant direction), said as they came, came in another order from run to run, in
-    ``rose-bag batch``'s tables too. The session says them (:func:`say_held`) when it takes the
-    snapshot's results, in log order."""
+    """Inside the block, what ``rose`` and ``rose_logs`` log in this context is kept in the list
+    yielded instead of said: a session's threads run ahead of its log order, and their warnings (a
+    topic's maps too fine for the walls cleaning or the break detector, ROSE found no dominant
+    direction), said as they came, came in another order from run to run, in ``rose-bag batch``'s
+    tables too. The session says them (:func:`say_held`) when it takes the snapshot's results, in
+    log order; so too what it says itself while reading the messages after it."""
     held: list[logging.LogRecord] = []
     token = _HELD.set(held)
     try:
@@ -86,15 +101,29 @@ def held_log_records() -> Iterator[list[logging.LogRecord]]:
         _HELD.reset(token)
 
 
-def say_held(records: Sequence[logging.LogRecord], topic: str) -> None:
+def say_held(records: Sequence[logging.LogRecord], topic: str | None = None) -> None:
     """Say ``records`` kept back by :func:`held_log_records`, in order, as the analysis of ``topic``
-    (the library's messages then name it, as when they are said at once)."""
-    token = ANALYSED_TOPIC.set(topic)
+    (the library's messages then name it, as when they are said at once; None: as logged outside
+    any analysis). Said, not held again, inside a block that holds."""
+    held = _HELD.set(None)
+    analysed = ANALYSED_TOPIC.set(topic) if topic is not None else None
     try:
         for record in records:
             logging.getLogger(record.name).handle(record)
     finally:
-        ANALYSED_TOPIC.reset(token)
+        if analysed is not None:
+            ANALYSED_TOPIC.reset(analysed)
+        _HELD.reset(held)
+
+
+@contextlib.contextmanager
+def said_at_once() -> Iterator[None]:
+    """Inside the block, records are said as they come, even inside a block that holds them."""
+    token = _HELD.set(None)
+    try:
+        yield
+    finally:
+        _HELD.reset(token)
 
 
 @dataclass(frozen=True)

@@ -54,6 +54,7 @@ from rose_logs.session.analysis import (
     SnapshotAnalyser,
     SnapshotAnalysis,
     held_log_records,
+    said_at_once,
     say_held,
 )
 from rose_logs.session.breaks import BreakDetector, BreakParams, BreakScore, DetectedBreak
@@ -438,6 +439,13 @@ class _Copy:
 
 
 @dataclass(frozen=True)
+class _Said:
+    """What the session logged while reading messages, said when the snapshots before them are."""
+
+    records: tuple[logging.LogRecord, ...]
+
+
+@dataclass(frozen=True)
 class _Pending:
     """A snapshot whose analysis runs; its outputs are written when it is at the queue's head."""
 
@@ -503,7 +511,8 @@ class _Loop:
         self.skips = Skips(_LOG)
         self.said: set[tuple[str, str]] = set()  # (topic, what): warnings given once per topic
         self.latest_ns = 0  # log time of the latest message read (a salvaged log ends there)
-        self.queue: deque[_Copy | _Pending] = deque()
+        self.queue: deque[_Copy | _Said | _Pending] = deque()
+        self.said_while_reading: list[logging.LogRecord] = []  # held, see _step
         self.in_flight = 0
         self.executor: Executor | None = None
         self.detection: Executor | None = None
@@ -533,7 +542,11 @@ class _Loop:
             # futures' bookkeeping (a Future's lock held by this thread), it left an analysis thread
             # waiting on that lock for ever and the run hung at Ctrl-C (1 in about 20). A second
             # one ends the run at once (a slow read or write holds the first).
-            with signals_deferred(second_ends=True) as held:
+            # What the session says while it reads (the reader's losses, a skipped or tilted
+            # map) is held too, and said after the snapshots before it (see _step): said at once,
+            # it came before or after their analyses' warnings as the threads kept up.
+            with signals_deferred(second_ends=True) as held, held_log_records() as said:
+                self.said_while_reading = said
                 for message in self.reader.messages():
                     if held:  # raised as the block ends
                         break
@@ -544,11 +557,17 @@ class _Loop:
                         bar.update(pending)
                         pending = 0
                 else:
-                    self._drain(0)
-                    self._finish_sessions()
-                    bar.update(pending)
-                    self.skips.warn_rest()
+                    self._queue_said()
+                    with said_at_once():
+                        self._drain(0)
+                        self._finish_sessions()
+                        bar.update(pending)
+                        self.skips.warn_rest()
         finally:
+            # Interrupted or failed: what was read is said still, not the unfinished analyses.
+            said_last = [r for item in self.queue if isinstance(item, _Said) for r in item.records]
+            say_held(said_last + self.said_while_reading)
+            self.said_while_reading = []
             with signals_deferred(second_ends=True):  # while the threads finish: as above
                 pool.shutdown(wait=True, cancel_futures=True)
                 detection.shutdown(wait=True, cancel_futures=True)
@@ -573,7 +592,21 @@ class _Loop:
                 "cannot be told (<map>_updates whose map is not in the log, or another "
                 "name and several map topics)",
             )
-        self._drain(self.in_flight_limit)
+        self._queue_said()
+        with said_at_once():  # the snapshots' outputs are said in their turn
+            self._drain(self.in_flight_limit)
+
+    def _queue_said(self) -> None:
+        """What was said while reading, held: said now if no snapshot before it waits, else
+        queued behind them (said in log order whatever the analyses' timing)."""
+        if not self.said_while_reading:
+            return
+        records = tuple(self.said_while_reading)
+        self.said_while_reading.clear()
+        if self.queue:
+            self.queue.append(_Said(records))
+        else:
+            say_held(records)
 
     def _copy(self, message: RawMessage) -> None:
         """Copy ``message`` to the output log, after the results of every snapshot before it
@@ -612,6 +645,8 @@ class _Loop:
             head = self.queue[0]
             if isinstance(head, _Copy):
                 self._write(head)
+            elif isinstance(head, _Said):
+                say_held(head.records)
             elif self.in_flight > limit or head.future.done():
                 self.in_flight -= 1
                 self._finish(head)
@@ -736,6 +771,7 @@ class _Loop:
         previous = self.last_analysis.get(topic)
         self.last_analysis[topic] = future
         verdict = self.detection.submit(self._detect, snapshot, previous)
+        self._queue_said()  # what was said of the message before its analysis's outputs
         self.queue.append(_Pending(snapshot, from_update, reused, future, verdict))
         self.in_flight += 1
 
