@@ -153,7 +153,6 @@ class SnapshotAnalyser:
         self.clean_method = clean_method
         self.previous: dict[str, tuple[MapSnapshot, Future[SnapshotAnalysis]]] = {}
         self._too_fine_said: set[str] = set()  # topics told of the paper labelling's fallback
-        self._lock = threading.Lock()  # analyses run in several threads
 
     def submit(
         self, snapshot: MapSnapshot, executor: Executor
@@ -163,6 +162,10 @@ class SnapshotAnalyser:
         prev = self.previous.get(snapshot.topic)
         if prev is not None and same_placed_grid(prev[0], snapshot):
             return prev[1], True
+        if self.clean_method == "walls" and snapshot.resolution_m < MIN_CLEAN_RESOLUTION_M:
+            # Here, in log order: said by whichever analysis of the topic came first, on the
+            # threads, it came with a later map when that one's analysis outran the first's.
+            self._say_too_fine(snapshot.topic)
         future = executor.submit(self.analyse, snapshot)
         self.previous[snapshot.topic] = (snapshot, future)
         return future, False
@@ -196,8 +199,8 @@ class SnapshotAnalyser:
             walls = rose.extract_walls(placed, result, params=wall_params)
         method = self.clean_method
         if method == "walls" and snapshot.resolution_m < MIN_CLEAN_RESOLUTION_M:
-            # W and the labels do not depend on the resolution; only the walls rules do.
-            self._say_too_fine(snapshot.topic)
+            # W and the labels do not depend on the resolution; only the walls rules do (said by
+            # submit, in log order).
             method = "paper"
         cleaning = clean(snapshot.grid, result, method=method, resolution_m=snapshot.resolution_m)
         degenerate = degenerate_input(snapshot.grid, result.occupied)
@@ -208,10 +211,9 @@ class SnapshotAnalyser:
 
     def _say_too_fine(self, topic: str) -> None:
         """Warn once per topic (not once per snapshot) that its maps get the paper's labelling."""
-        with self._lock:
-            if topic in self._too_fine_said:
-                return
-            self._too_fine_said.add(topic)
+        if topic in self._too_fine_said:
+            return
+        self._too_fine_said.add(topic)
         _LOG.warning(
             "%s: maps finer than %g m per cell get the paper's labelling as their cleaned map "
             "(the walls cleaning's lengths would span thousands of cells); said once per topic",
