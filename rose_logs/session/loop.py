@@ -591,6 +591,7 @@ class _Loop:
                 f"{channel.topic}: grid update {self._at(message.log_time_ns)} whose map "
                 "cannot be told (<map>_updates whose map is not in the log, or another "
                 "name and several map topics)",
+                at_ns=message.log_time_ns,
             )
         self._queue_said()
         with said_at_once():  # the snapshots' outputs are said in their turn
@@ -682,7 +683,7 @@ class _Loop:
         except MapMessageError as err:
             # An empty map is a valid message with nothing to analyse, not a malformed one.
             reason = "empty" if isinstance(err, EmptyMapError) else "malformed"
-            self.skips.add(reason, f"{short(err, 240)} {self._at(log_time_ns)}")
+            self.skips.add(reason, f"{short(err, 240)} {self._at(log_time_ns)}", at_ns=log_time_ns)
             # The updates after it patch it, not the map before it: they are skipped too (one
             # was applied to the earlier map, a snapshot the robot never had).
             self.last_map.pop(topic, None)
@@ -737,6 +738,7 @@ class _Loop:
                     f"after {article} {lost} map",
                     f"{topic}: grid update {self._at(log_time_ns)} of {article} {lost} full map "
                     f"on {target}",
+                    at_ns=log_time_ns,
                 )
                 return
             if base is None:
@@ -744,11 +746,14 @@ class _Loop:
                     "before the first full map",
                     f"{topic}: grid update {self._at(log_time_ns)} before the first full map on "
                     f"{target}",
+                    at_ns=log_time_ns,
                 )
                 return
             snapshot = apply_update(base, update)
         except (MapMessageError, ValueError) as err:
-            self.skips.add("malformed", f"{short(err, 240)} {self._at(log_time_ns)}")
+            self.skips.add(
+                "malformed", f"{short(err, 240)} {self._at(log_time_ns)}", at_ns=log_time_ns
+            )
             return
         self.last_map[target] = snapshot
         self._note_out_of_range(target, snapshot.out_of_range_cells, log_time_ns)
@@ -764,6 +769,7 @@ class _Loop:
             self.skips.add(
                 "over --max-cells",
                 f"{topic}: {what} of {too_large} {self._at(snapshot.log_time_ns)}",
+                at_ns=snapshot.log_time_ns,
             )
             return
         assert self.executor is not None and self.detection is not None, "called inside run()"
@@ -817,6 +823,7 @@ class _Loop:
             self.skips.add(
                 "not analysable",
                 f"{topic}: map {self._at(snapshot.log_time_ns)} not analysed ({err})",
+                at_ns=snapshot.log_time_ns,
             )
             return
         # Numbered among the analysed snapshots, as the break detector (which has seen this one)
@@ -955,6 +962,7 @@ class _Loop:
             self.skips.add(
                 "not encodable",
                 f"{snapshot.topic}: cannot encode the results ({err}) {self._at(t)}",
+                at_ns=t,
             )
             return
         for handle, data in zip(self.derived[snapshot.topic], encoded, strict=True):

@@ -26,16 +26,25 @@ class Skips:
 
     def __init__(self, log: logging.Logger) -> None:
         self.by_reason: dict[str, int] = {}
+        self._first_ns: dict[str, int] = {}  # per reason, the log time of its first message
         self._log = log
 
-    def add(self, reason: str, text: str) -> None:
+    def add(self, reason: str, text: str, *, at_ns: int) -> None:
+        """Count a message logged at ``at_ns`` skipped for ``reason``."""
         count = self.by_reason.get(reason, 0) + 1
         self.by_reason[reason] = count
+        self._first_ns[reason] = min(self._first_ns.get(reason, at_ns), at_ns)
         if count <= _WARN_FIRST:
             self._log.log(_level_of(reason), "%s, copied unprocessed", text)
 
+    def _in_log_order(self) -> list[tuple[str, int]]:
+        """The reasons by their first message in the log. A snapshot not analysable or not
+        encodable is counted when its analysis is taken, after the messages read meanwhile: in
+        the order counted, the reasons came in another order from run to run."""
+        return sorted(self.by_reason.items(), key=lambda item: self._first_ns[item[0]])
+
     def warn_rest(self) -> None:
-        for reason, count in self.by_reason.items():
+        for reason, count in self._in_log_order():
             if count > _WARN_FIRST:
                 self._log.log(
                     _level_of(reason),
@@ -50,7 +59,7 @@ class Skips:
 
     def describe(self) -> str:
         """``"14 over --max-cells"``, ``"2 malformed, 1 not analysable"``; ``"none"`` when empty."""
-        return ", ".join(f"{n} {reason}" for reason, n in self.by_reason.items()) or "none"
+        return ", ".join(f"{n} {reason}" for reason, n in self._in_log_order()) or "none"
 
 
 def _level_of(reason: str) -> int:

@@ -1152,6 +1152,46 @@ def test_a_topic_too_fine_for_the_walls_cleaning_is_said_with_its_first_map(
     assert kinds == ["/a cleaning", "/a detector", "/b"], said
 
 
+@pytest.mark.parametrize("slow", ["analysis", "reading"])
+def test_the_reasons_of_skipped_maps_are_in_log_order(
+    tmp_path: Path, capsys, monkeypatch, fr079, slow: str
+) -> None:
+    """A map not analysable is counted when the session takes its analysis, after the messages read
+    meanwhile: the report's reasons ("1 malformed, 1 not analysable") came in the order counted,
+    which was the analysis's pace against the reading's, not the log's."""
+    import time
+
+    import rose
+    from rose_logs.session.analysis import SnapshotAnalyser
+    from rose_logs.session.loop import _Loop
+
+    analyse, step = SnapshotAnalyser._analyse, _Loop._step
+
+    def failing(self, snapshot):
+        if snapshot.topic == "/a":
+            if slow == "analysis":
+                time.sleep(1.0)
+            raise rose.RoseError("too thin")
+        return analyse(self, snapshot)
+
+    def slow_reading(self, message):
+        if message.channel.topic == "/scan" and slow == "reading":
+            time.sleep(0.3)
+        return step(self, message)
+
+    monkeypatch.setattr(SnapshotAnalyser, "_analyse", failing)
+    monkeypatch.setattr(_Loop, "_step", slow_reading)
+    maps = [
+        MapMsg(START_NS + 1_000_000_000, fr079[0], topic="/a"),
+        MapMsg(START_NS + 2_000_000_000, fr079[0], topic="/b", bad_length=True),
+        MapMsg(START_NS + 3_000_000_000, fr079[0], topic="/c"),
+    ]
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps, scans_per_map=1)
+    report = tmp_path / "r.json"
+    assert main(["process", str(built.path), "--no-output", "-q", "--json", str(report)]) == 0
+    assert json.loads(report.read_text())["skipped_reasons"] == "1 not analysable, 1 malformed"
+
+
 def test_an_interrupted_session_still_says_what_it_read(
     tmp_path: Path, capsys, monkeypatch, fr079
 ) -> None:
