@@ -610,7 +610,7 @@ class LogReader:
                 yield message
         except (LogError, Exception) as err:
             reraise_interrupt_behind(err)  # a signal inside the library, not a corrupt log
-            error = err if isinstance(err, LogError) else _corrupt(self.path, err)
+            error = err if isinstance(err, LogError) else _corrupt(self._read_from(backend), err)
             if not self.salvage:
                 if isinstance(err, LogError):
                     if "--salvage" in str(err) or self.read_count == 0:
@@ -625,6 +625,13 @@ class LogReader:
         finally:
             self._note_skipped_chunks(backend)
         self._check_counts(counts, wanted)
+
+    def _read_from(self, backend: object) -> Path:
+        """The file a failure reading messages through ``backend`` is about: a ROS 2 bag folder's
+        storage file when it has one (its error named the folder, not the damaged file), else
+        the log."""
+        sole = backend.sole_storage_file() if isinstance(backend, RosbagsReadBackend) else None
+        return sole if sole is not None else self.path
 
     def _note_skipped_chunks(self, backend: object) -> None:
         """The damaged chunks a salvaging MCAP or ROS 1 reader skipped, and the files of a split

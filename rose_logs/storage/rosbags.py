@@ -290,6 +290,17 @@ class RosbagsReadBackend:
             for storage, path in zip(storages, files, strict=True)
         )
 
+    def sole_storage_file(self) -> Path | None:
+        """The one storage file of this bag folder, as its metadata.yaml lists it (None: a bare
+        file, or a bag of several files or of none that reads): an error reading such a bag is
+        about that file."""
+        if not self.path.is_dir():
+            return None
+        names = (_bag_information(self.path) or {}).get("relative_file_paths")
+        if not isinstance(names, list) or len(names) != 1:
+            return None
+        return self.path / PurePath(str(names[0])).name
+
     def storage_readers(self) -> list[Any]:
         """rosbags' readers of this bag folder's storage files, one a file, in metadata.yaml's
         order (none for a bare file)."""

@@ -1237,6 +1237,9 @@ def test_salvage_reads_a_bag_folder_of_mcap_storage_as_its_bare_file(
         assert code == 1 and err.startswith(f"error: {storage}: truncated MCAP file, cut short")
     else:
         assert f"{storage}: skipped a damaged chunk at byte {starts[1]} of" in errs[bag]
+        # Without --salvage, the error names the damaged file, not the folder around it.
+        code, _, err = _run(capsys, "process", bag, "-o", tmp_path / "o_again", "-q")
+        assert code == 1 and err.startswith(f"error: {storage}: corrupt"), err
     folder, alone = results[bag], results[bare]
     assert 0 < folder["message_count"] == alone["message_count"] < 715
     assert len(folder["snapshots"]) == len(alone["snapshots"]) > 0
