@@ -7,11 +7,11 @@ import dataclasses
 import logging
 import threading
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Executor, Future
 from contextvars import ContextVar
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -27,6 +27,8 @@ __all__ = [
     "ANALYSED_TOPIC",
     "SnapshotAnalyser",
     "SnapshotAnalysis",
+    "call_held",
+    "held_by",
     "held_log_records",
     "said_at_once",
     "same_placed_grid",
@@ -34,6 +36,7 @@ __all__ = [
 ]
 
 _LOG = logging.getLogger(__name__)
+_T = TypeVar("_T")
 
 #: The map topic this thread is analysing, so that the library's messages underneath (``ROSE found no
 #: dominant direction ...``) can be said with it (``rose_logs.cli``'s log handler does).
@@ -99,6 +102,23 @@ def held_log_records() -> Iterator[list[logging.LogRecord]]:
         yield held
     finally:
         _HELD.reset(token)
+
+
+def call_held(call: Callable[[], _T]) -> tuple[_T, tuple[logging.LogRecord, ...]]:
+    """``call()`` and what it logged, held (:func:`held_log_records`). If it raises, what it
+    logged goes with the error (:func:`held_by`), to be said still."""
+    with held_log_records() as held:
+        try:
+            value = call()
+        except BaseException as err:
+            err.held_log_records = tuple(held)  # type: ignore[attr-defined]
+            raise
+    return value, tuple(held)
+
+
+def held_by(error: BaseException) -> tuple[logging.LogRecord, ...]:
+    """What the call that raised ``error`` logged, held (:func:`call_held`)."""
+    return getattr(error, "held_log_records", ())
 
 
 def say_held(records: Sequence[logging.LogRecord], topic: str | None = None) -> None:
@@ -174,13 +194,8 @@ class SnapshotAnalyser:
         """One snapshot, from scratch. No shared state: safe to run in several threads at once."""
         token = ANALYSED_TOPIC.set(snapshot.topic)
         try:
-            with held_log_records() as held:
-                try:
-                    analysis = self._analyse(snapshot)
-                except Exception as err:
-                    err.held_log_records = tuple(held)  # type: ignore[attr-defined]
-                    raise
-            return dataclasses.replace(analysis, log_records=tuple(held))
+            analysis, held = call_held(lambda: self._analyse(snapshot))
+            return dataclasses.replace(analysis, log_records=held)
         finally:
             ANALYSED_TOPIC.reset(token)
 

@@ -53,6 +53,8 @@ from rose_logs.reader import LogReader
 from rose_logs.session.analysis import (
     SnapshotAnalyser,
     SnapshotAnalysis,
+    call_held,
+    held_by,
     held_log_records,
     said_at_once,
     say_held,
@@ -791,13 +793,15 @@ class _Loop:
         each snapshot is scored at once, and withdrawn by the next one of its topic if its
         analysis failed (``previous``: the analysis of the topic's snapshot before, None for the
         first). The verdict of a snapshot whose analysis fails is never read. What the detector
-        logs meanwhile is returned with it, to be said in log order.
+        logs meanwhile is returned with it (with its error if it fails), to be said in log order.
         """
-        if previous is not None and previous.exception() is not None:  # waits for it
-            self.detector.withdraw_last(snapshot.topic)
-        with held_log_records() as held:
-            verdict = self.detector.update(snapshot)
-        return verdict, tuple(held)
+
+        def score() -> BreakScore:
+            if previous is not None and previous.exception() is not None:  # waits for it
+                self.detector.withdraw_last(snapshot.topic)
+            return self.detector.update(snapshot)
+
+        return call_held(score)
 
     def _finish(self, pending: _Pending) -> None:
         """Outputs of one analysed snapshot: derived messages, break detection, Rerun, the record."""
@@ -805,18 +809,16 @@ class _Loop:
         topic = snapshot.topic
         # What the analysis and the break detector said on their threads, said now: in log order,
         # the same from run to run (a reused analysis said its own with the snapshot it was made for).
+        # Through an error too (the session then fails with it, or skips a map not analysable).
         if not pending.reused:
             error = pending.future.exception()
-            said = (
-                pending.future.result().log_records
-                if error is None
-                else getattr(error, "held_log_records", ())
+            say_held(
+                pending.future.result().log_records if error is None else held_by(error), topic
             )
-            say_held(said, topic)
         # A snapshot whose analysis fails is no snapshot of the session: its verdict is not read
         # (the next one of its topic withdraws it), but what the detector said of it is.
-        if pending.verdict.exception() is None:
-            say_held(pending.verdict.result()[1], topic)
+        failed = pending.verdict.exception()
+        say_held(pending.verdict.result()[1] if failed is None else held_by(failed), topic)
         try:
             analysis = pending.future.result()
         except rose.RoseError as err:  # e.g. a map too thin to analyse

@@ -1228,6 +1228,59 @@ def test_an_interrupted_session_still_says_what_it_read(
     assert "warning: /b: map data has" in err and "interrupted" in err, err
 
 
+def test_what_a_failing_break_detector_logged_is_said_once_in_order(
+    tmp_path: Path, monkeypatch, fr079
+) -> None:
+    """The break detector logs, then raises: the session fails with its error, and what it logged
+    of that snapshot (held on its thread) is said still, once, in log order, as an analysis's is
+    through its error. It was dropped."""
+    import logging
+    import time
+
+    from rose_logs.session import process_log
+    from rose_logs.session.analysis import SnapshotAnalyser
+    from rose_logs.session.breaks import BreakDetector
+
+    analyse, update = SnapshotAnalyser._analyse, BreakDetector.update
+
+    def analysed(self, snapshot):
+        logging.getLogger("rose.some_step").warning("analysed %s", snapshot.topic)
+        if snapshot.topic == "/b":
+            time.sleep(0.5)  # /c is read meanwhile
+        return analyse(self, snapshot)
+
+    def scored(self, snapshot):
+        logging.getLogger("rose_logs.session.breaks").warning("scored %s", snapshot.topic)
+        if snapshot.topic == "/b":
+            raise RuntimeError("the detector failed")
+        return update(self, snapshot)
+
+    monkeypatch.setattr(SnapshotAnalyser, "_analyse", analysed)
+    monkeypatch.setattr(BreakDetector, "update", scored)
+    maps = [
+        MapMsg(START_NS + 1_000_000_000, fr079[0], topic="/a"),
+        MapMsg(START_NS + 2_000_000_000, fr079[0], topic="/b"),
+        MapMsg(START_NS + 3_000_000_000, fr079[0], topic="/c", bad_length=True),
+    ]
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps, scans_per_map=0)
+    said: list[str] = []
+
+    class Said(logging.Handler):
+        def emit(self, record: logging.LogRecord) -> None:
+            said.append(record.getMessage().split(":")[0])
+
+    handler = Said(logging.WARNING)
+    for name in ("rose", "rose_logs"):
+        logging.getLogger(name).addHandler(handler)
+    try:
+        with pytest.raises(RuntimeError, match="the detector failed"):
+            process_log(built.path, progress=False)
+    finally:
+        for name in ("rose", "rose_logs"):
+            logging.getLogger(name).removeHandler(handler)
+    assert said == ["analysed /a", "scored /a", "analysed /b", "scored /b", "/c"], said
+
+
 def test_an_input_whose_name_says_no_format_gets_its_contents_suffix(tmp_path: Path) -> None:
     """``run`` or ``run.log`` holding MCAP: the default output was ``run.rose`` or
     ``run.rose.log``, a name that says nothing of what it holds; a suffix that names no format is
