@@ -81,7 +81,11 @@ def _record_held_by_its_logger(*args: Any, **kwargs: Any) -> logging.LogRecord:
         logger = logging.getLogger(record.name)
         if _HOLD not in logger.filters:
             with _HOLD_LOCK:
-                logger.addFilter(_HOLD)  # adds it once
+                if _HOLD not in logger.filters:
+                    # First, so that the logger's own filters see a held record once, as it is
+                    # said: after them, they saw it twice (and one letting each message through
+                    # once dropped it). A new list: a thread going through the old one is unmoved.
+                    logger.filters = [_HOLD, *logger.filters]
     return record
 
 

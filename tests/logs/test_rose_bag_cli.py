@@ -1561,3 +1561,43 @@ def test_a_bag_of_a_newer_rosbag2_version_is_said_so_in_our_words(
         )
         assert err.endswith(f" reads up to version {Writer.VERSION_LATEST})\n")
         assert "report issue" not in err and "corrupt" not in err
+
+
+def test_a_users_filter_on_our_logger_sees_a_held_record_once(
+    tmp_path: Path, monkeypatch, fr079
+) -> None:
+    """A program's own filter on one of our loggers (here one letting each message through once,
+    put there before any session ran) saw a held record twice, as it was logged and as it was said:
+    the second time it dropped it, and the skipped map was never said."""
+    import logging
+
+    from rose_logs.session import process_log
+
+    seen: list[str] = []
+
+    def once(record: logging.LogRecord) -> bool:
+        message = record.getMessage()
+        seen.append(message)
+        return seen.count(message) == 1
+
+    logger = logging.getLogger("rose_logs.session.loop")
+    monkeypatch.setattr(logger, "filters", [once])  # as in a process where no session ran yet
+    maps = [
+        MapMsg(START_NS + 1_000_000_000, fr079[0], topic="/a"),
+        MapMsg(START_NS + 2_000_000_000, fr079[0], topic="/b", bad_length=True),
+    ]
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps, scans_per_map=0)
+    said: list[str] = []
+
+    class Said(logging.Handler):
+        def emit(self, record: logging.LogRecord) -> None:
+            said.append(record.getMessage())
+
+    handler = Said(logging.WARNING)
+    logger.addHandler(handler)
+    try:
+        process_log(built.path, progress=False)
+    finally:
+        logger.removeHandler(handler)
+    assert [x[:16] for x in said] == ["/b: map data has"], said
+    assert len(seen) == 1, seen
