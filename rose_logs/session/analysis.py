@@ -59,6 +59,11 @@ class _Hold(logging.Filter):
         held = _HELD.get()
         if held is None:
             return True
+        # Its message as it is now: formatted when said, arguments changed meanwhile (a list, an
+        # object's state) were said as they had become. One that does not format is said as
+        # logged (the handler reports the error, as it would have).
+        with contextlib.suppress(Exception):
+            record.msg, record.args = record.getMessage(), None
         held.append(record)
         return False
 

@@ -1601,3 +1601,40 @@ def test_a_users_filter_on_our_logger_sees_a_held_record_once(
         logger.removeHandler(handler)
     assert [x[:16] for x in said] == ["/b: map data has"], said
     assert len(seen) == 1, seen
+
+
+def test_a_held_record_says_its_arguments_as_they_were_when_logged(
+    tmp_path: Path, monkeypatch, fr079
+) -> None:
+    """A record held on an analysis thread was formatted when said: an argument changed meanwhile
+    (a list here) was said as it had become, not as it was logged."""
+    import logging
+
+    from rose_logs.session import process_log
+    from rose_logs.session.analysis import SnapshotAnalyser
+
+    analyse = SnapshotAnalyser._analyse
+
+    def analysed(self, snapshot):
+        state = ["as logged"]
+        logging.getLogger("rose.some_step").warning("state %s", state)
+        state[0] = "changed later"
+        return analyse(self, snapshot)
+
+    monkeypatch.setattr(SnapshotAnalyser, "_analyse", analysed)
+    built = build_log(
+        tmp_path / "in.mcap", "mcap-ros2", [MapMsg(START_NS + 1, fr079[0])], scans_per_map=0
+    )
+    said: list[str] = []
+
+    class Said(logging.Handler):
+        def emit(self, record: logging.LogRecord) -> None:
+            said.append(record.getMessage())
+
+    handler = Said(logging.WARNING)
+    logging.getLogger("rose").addHandler(handler)
+    try:
+        process_log(built.path, progress=False)
+    finally:
+        logging.getLogger("rose").removeHandler(handler)
+    assert said == ["state ['as logged']"], said
