@@ -566,14 +566,19 @@ class _Loop:
                         bar.update(pending)
                         self.skips.warn_rest()
         finally:
-            # Interrupted or failed: what was read is said still, not the unfinished analyses.
-            said_last = [r for item in self.queue if isinstance(item, _Said) for r in item.records]
-            say_held(said_last + self.said_while_reading)
-            self.said_while_reading = []
-            with signals_deferred(second_ends=True):  # while the threads finish: as above
-                pool.shutdown(wait=True, cancel_futures=True)
-                detection.shutdown(wait=True, cancel_futures=True)
-            bar.close()
+            try:
+                # Interrupted or failed: what was read is said still, not the unfinished analyses.
+                said_last = [
+                    r for item in self.queue if isinstance(item, _Said) for r in item.records
+                ]
+                said_last += self.said_while_reading
+                self.said_while_reading = []
+                say_held(said_last)
+            finally:  # saying may fail too (a program's filter, a second Ctrl-C): the threads end
+                with signals_deferred(second_ends=True):  # while the threads finish: as above
+                    pool.shutdown(wait=True, cancel_futures=True)
+                    detection.shutdown(wait=True, cancel_futures=True)
+                bar.close()
 
     def _is_map(self, channel: Channel) -> bool:
         return channel.topic in self.map_topics and channel.msgtype == MAP_TYPE

@@ -1638,3 +1638,34 @@ def test_a_held_record_says_its_arguments_as_they_were_when_logged(
     finally:
         logging.getLogger("rose").removeHandler(handler)
     assert said == ["state ['as logged']"], said
+
+
+def test_a_session_failing_as_it_says_what_it_held_ends_its_threads(
+    tmp_path: Path, monkeypatch, fr079
+) -> None:
+    """A program's filter on our logger that raises on a held record: the session fails with its
+    error, said when the session says the record (at the end too), and its threads end. The
+    saying at the end came before the threads' shutdown, which it skipped: the analysis and break
+    detector threads of every such session stayed for the life of the process."""
+    import logging
+    import threading
+
+    from rose_logs.session import process_log
+
+    def refuse(record: logging.LogRecord) -> bool:
+        if record.getMessage().startswith("/b: map data"):
+            raise RuntimeError("the filter failed")
+        return True
+
+    logger = logging.getLogger("rose_logs.session.loop")
+    monkeypatch.setattr(logger, "filters", [refuse])
+    maps = [
+        MapMsg(START_NS + 1_000_000_000, fr079[0], topic="/a"),
+        MapMsg(START_NS + 2_000_000_000, fr079[0], topic="/b", bad_length=True),
+    ]
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps, scans_per_map=0)
+    before = set(threading.enumerate())
+    with pytest.raises(RuntimeError, match="the filter failed"):
+        process_log(built.path, progress=False)
+    left = [t.name for t in set(threading.enumerate()) - before if t.name.startswith("rose-")]
+    assert left == [], left
