@@ -1669,3 +1669,44 @@ def test_a_session_failing_as_it_says_what_it_held_ends_its_threads(
         process_log(built.path, progress=False)
     left = [t.name for t in set(threading.enumerate()) - before if t.name.startswith("rose-")]
     assert left == [], left
+
+
+def test_a_held_record_is_said_as_the_loggers_level_let_it_through_when_logged(
+    tmp_path: Path, monkeypatch, fr079
+) -> None:
+    """The README's word: a logger's level (and ``logging.disable``) apply when a record is logged,
+    not when the session says it held: one logged before the level was raised is said, one after
+    it is not, although both are said (or not) after the change."""
+    import logging
+
+    from rose_logs.session import process_log
+    from rose_logs.session.analysis import SnapshotAnalyser
+
+    analyse = SnapshotAnalyser._analyse
+    step = logging.getLogger("rose.some_step")
+    monkeypatch.setattr(step, "level", logging.NOTSET)
+
+    def analysed(self, snapshot):
+        step.warning("before the level was raised")
+        step.setLevel(logging.ERROR)
+        step.warning("after it")
+        return analyse(self, snapshot)
+
+    monkeypatch.setattr(SnapshotAnalyser, "_analyse", analysed)
+    built = build_log(
+        tmp_path / "in.mcap", "mcap-ros2", [MapMsg(START_NS + 1, fr079[0])], scans_per_map=0
+    )
+    said: list[str] = []
+
+    class Said(logging.Handler):
+        def emit(self, record: logging.LogRecord) -> None:
+            said.append(record.getMessage())
+
+    handler = Said(logging.WARNING)
+    logging.getLogger("rose").addHandler(handler)
+    try:
+        process_log(built.path, progress=False)
+    finally:
+        logging.getLogger("rose").removeHandler(handler)
+        step.setLevel(logging.NOTSET)
+    assert said == ["before the level was raised"], said
