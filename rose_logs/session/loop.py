@@ -457,6 +457,7 @@ class _Pending:
     future: Future[SnapshotAnalysis]
     #: The break detector's verdict, and what it logged (said in log order, see :meth:`_finish`).
     verdict: Future[tuple[BreakScore, tuple[logging.LogRecord, ...]]]
+    read: int  # the place of its message in the reading (Skips's order)
 
 
 class _Loop:
@@ -513,6 +514,7 @@ class _Loop:
         self.skips = Skips(_LOG)
         self.said: set[tuple[str, str]] = set()  # (topic, what): warnings given once per topic
         self.latest_ns = 0  # log time of the latest message read (a salvaged log ends there)
+        self.read = 0  # messages read: the place of the one being read (Skips's order)
         self.queue: deque[_Copy | _Said | _Pending] = deque()
         self.said_while_reading: list[logging.LogRecord] = []  # held, see _step
         self.in_flight = 0
@@ -587,6 +589,7 @@ class _Loop:
         """Copy ``message``, start the analysis of the snapshot it makes, write what is ready."""
         channel = message.channel
         self.latest_ns = max(self.latest_ns, message.log_time_ns)
+        self.read += 1
         self._copy(message)
         if self._is_map(channel):
             self._on_map(message.data, channel, message.log_time_ns)
@@ -599,6 +602,7 @@ class _Loop:
                 "cannot be told (<map>_updates whose map is not in the log, or another "
                 "name and several map topics)",
                 at_ns=message.log_time_ns,
+                read=self.read,
             )
         self._queue_said()
         with said_at_once():  # the snapshots' outputs are said in their turn
@@ -690,7 +694,12 @@ class _Loop:
         except MapMessageError as err:
             # An empty map is a valid message with nothing to analyse, not a malformed one.
             reason = "empty" if isinstance(err, EmptyMapError) else "malformed"
-            self.skips.add(reason, f"{short(err, 240)} {self._at(log_time_ns)}", at_ns=log_time_ns)
+            self.skips.add(
+                reason,
+                f"{short(err, 240)} {self._at(log_time_ns)}",
+                at_ns=log_time_ns,
+                read=self.read,
+            )
             # The updates after it patch it, not the map before it: they are skipped too (one
             # was applied to the earlier map, a snapshot the robot never had).
             self.last_map.pop(topic, None)
@@ -746,6 +755,7 @@ class _Loop:
                     f"{topic}: grid update {self._at(log_time_ns)} of {article} {lost} full map "
                     f"on {target}",
                     at_ns=log_time_ns,
+                    read=self.read,
                 )
                 return
             if base is None:
@@ -754,12 +764,16 @@ class _Loop:
                     f"{topic}: grid update {self._at(log_time_ns)} before the first full map on "
                     f"{target}",
                     at_ns=log_time_ns,
+                    read=self.read,
                 )
                 return
             snapshot = apply_update(base, update)
         except (MapMessageError, ValueError) as err:
             self.skips.add(
-                "malformed", f"{short(err, 240)} {self._at(log_time_ns)}", at_ns=log_time_ns
+                "malformed",
+                f"{short(err, 240)} {self._at(log_time_ns)}",
+                at_ns=log_time_ns,
+                read=self.read,
             )
             return
         self.last_map[target] = snapshot
@@ -777,6 +791,7 @@ class _Loop:
                 "over --max-cells",
                 f"{topic}: {what} of {too_large} {self._at(snapshot.log_time_ns)}",
                 at_ns=snapshot.log_time_ns,
+                read=self.read,
             )
             return
         assert self.executor is not None and self.detection is not None, "called inside run()"
@@ -785,7 +800,7 @@ class _Loop:
         self.last_analysis[topic] = future
         verdict = self.detection.submit(self._detect, snapshot, previous)
         self._queue_said()  # what was said of the message before its analysis's outputs
-        self.queue.append(_Pending(snapshot, from_update, reused, future, verdict))
+        self.queue.append(_Pending(snapshot, from_update, reused, future, verdict, self.read))
         self.in_flight += 1
 
     def _detect(
@@ -831,6 +846,7 @@ class _Loop:
                 "not analysable",
                 f"{topic}: map {self._at(snapshot.log_time_ns)} not analysed ({err})",
                 at_ns=snapshot.log_time_ns,
+                read=pending.read,
             )
             return
         # Numbered among the analysed snapshots, as the break detector (which has seen this one)
@@ -858,7 +874,7 @@ class _Loop:
         t0 = time.perf_counter()
         # A snapshot whose results cannot be written to the output log (counted as skipped) is
         # still analysed: its record, Rerun and break events stay, so every gate sees it.
-        self._write_results(snapshot, analysis)
+        self._write_results(snapshot, analysis, pending.read)
         record = snapshot_record(
             snapshot,
             analysis,
@@ -952,9 +968,10 @@ class _Loop:
             )
             self.broken[topic] = True
 
-    def _write_results(self, snapshot: MapSnapshot, analysis: SnapshotAnalysis) -> None:
+    def _write_results(self, snapshot: MapSnapshot, analysis: SnapshotAnalysis, read: int) -> None:
         """The derived messages of a snapshot into the output log; none (a skip) if one cannot be
-        encoded (all three are encoded before any is written)."""
+        encoded (all three are encoded before any is written). ``read``: the place of its message
+        in the reading."""
         if self.writer is None:
             return
         result, t, ser = analysis.result, snapshot.log_time_ns, self.serialization
@@ -970,6 +987,7 @@ class _Loop:
                 "not encodable",
                 f"{snapshot.topic}: cannot encode the results ({err}) {self._at(t)}",
                 at_ns=t,
+                read=read,
             )
             return
         for handle, data in zip(self.derived[snapshot.topic], encoded, strict=True):

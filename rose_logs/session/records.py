@@ -26,14 +26,17 @@ class Skips:
 
     def __init__(self, log: logging.Logger) -> None:
         self.by_reason: dict[str, int] = {}
-        self._first_ns: dict[str, int] = {}  # per reason, the log time of its first message
+        # Per reason, its first message: (log time, place in the reading).
+        self._first: dict[str, tuple[int, int]] = {}
         self._log = log
 
-    def add(self, reason: str, text: str, *, at_ns: int) -> None:
-        """Count a message logged at ``at_ns`` skipped for ``reason``."""
+    def add(self, reason: str, text: str, *, at_ns: int, read: int) -> None:
+        """Count a message logged at ``at_ns``, the ``read``-th read, skipped for ``reason``
+        (messages of one log time are in the order read)."""
         count = self.by_reason.get(reason, 0) + 1
         self.by_reason[reason] = count
-        self._first_ns[reason] = min(self._first_ns.get(reason, at_ns), at_ns)
+        at = (at_ns, read)
+        self._first[reason] = min(self._first.get(reason, at), at)
         if count <= _WARN_FIRST:
             self._log.log(_level_of(reason), "%s, copied unprocessed", text)
 
@@ -41,7 +44,7 @@ class Skips:
         """The reasons by their first message in the log. A snapshot not analysable or not
         encodable is counted when its analysis is taken, after the messages read meanwhile: in
         the order counted, the reasons came in another order from run to run."""
-        return sorted(self.by_reason.items(), key=lambda item: self._first_ns[item[0]])
+        return sorted(self.by_reason.items(), key=lambda item: self._first[item[0]])
 
     def warn_rest(self) -> None:
         for reason, count in self._in_log_order():

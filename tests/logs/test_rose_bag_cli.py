@@ -1192,6 +1192,37 @@ def test_the_reasons_of_skipped_maps_are_in_log_order(
     assert json.loads(report.read_text())["skipped_reasons"] == "1 not analysable, 1 malformed"
 
 
+def test_the_reasons_of_skipped_maps_of_one_log_time_are_in_the_order_read(
+    tmp_path: Path, monkeypatch, fr079
+) -> None:
+    """Two map messages of one log time (two topics, or a simulated clock): ordered by log time
+    only, their reasons came in the order counted, which was the analysis's pace against the
+    reading's ("1 malformed, 1 not analysable" here, where the map not analysable came first)."""
+    import time
+
+    import rose
+    from rose_logs.session import process_log
+    from rose_logs.session.analysis import SnapshotAnalyser
+
+    analyse = SnapshotAnalyser._analyse
+
+    def failing(self, snapshot):
+        if snapshot.topic == "/a":
+            time.sleep(0.5)
+            raise rose.RoseError("too thin")
+        return analyse(self, snapshot)
+
+    monkeypatch.setattr(SnapshotAnalyser, "_analyse", failing)
+    maps = [
+        MapMsg(START_NS + 1_000_000_000, fr079[0], topic="/a"),
+        MapMsg(START_NS + 1_000_000_000, fr079[0], topic="/b", bad_length=True),
+        MapMsg(START_NS + 2_000_000_000, fr079[0], topic="/c"),
+    ]
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps, scans_per_map=0)
+    report = process_log(built.path, progress=False)
+    assert report.to_json()["skipped_reasons"] == "1 not analysable, 1 malformed"
+
+
 def test_an_interrupted_session_still_says_what_it_read(
     tmp_path: Path, capsys, monkeypatch, fr079
 ) -> None:
