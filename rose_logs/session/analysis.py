@@ -166,8 +166,11 @@ class SnapshotAnalysis:
     cleaning: CleanResult | None = None
     seconds: float = 0.0
     degenerate: str | None = None
-    #: What the analysis logged, kept back to be said in log order (:func:`say_held`).
-    log_records: tuple[logging.LogRecord, ...] = ()
+    #: What the analysis logged, kept back to be said in log order (:func:`say_held`); not part of
+    #: what the analysis is (equality, repr).
+    log_records: tuple[logging.LogRecord, ...] = dataclasses.field(
+        default=(), compare=False, repr=False
+    )
 
 
 class SnapshotAnalyser:

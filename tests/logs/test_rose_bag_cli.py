@@ -1017,6 +1017,49 @@ def test_maps_finer_than_a_millimetre_are_cleaned_by_the_paper_with_one_warning(
     assert len(snapshots) == 3 and all(s["completed"] == 0 for s in snapshots)
 
 
+#: What a warning line of ``rose-bag process`` is, by the words that tell it (see _warning_kinds).
+_WARNING_WORDS = {
+    "not comparable with trusted snapshot 0": "not comparable",
+    "paper's labelling as their cleaned map": "cleaning",
+    "break detector's longest length": "detector",
+    ": map data has": "malformed",
+    "said by /c's analysis": "/c analysis",
+}
+
+
+def _warning_kinds(stderr: str) -> list[str]:
+    """The ``warning:`` lines of ``stderr`` as their kinds (:data:`_WARNING_WORDS`), in order; a
+    line of no known kind as it is."""
+    lines = [line for line in stderr.splitlines() if line.startswith("warning:")]
+    return [next((k for w, k in _WARNING_WORDS.items() if w in line), line) for line in lines]
+
+
+def _said_by_session(
+    log: Path, loggers: tuple[str, ...] = ("rose", "rose_logs"), into: list[str] | None = None
+) -> list[str]:
+    """The messages of WARNING and above that ``process_log`` on ``log`` says on ``loggers`` (and
+    their children), in order, also put in ``into`` as said (to read them when it raises)."""
+    import logging
+
+    from rose_logs.session import process_log
+
+    said: list[str] = [] if into is None else into
+
+    class Said(logging.Handler):
+        def emit(self, record: logging.LogRecord) -> None:
+            said.append(record.getMessage())
+
+    handler = Said(logging.WARNING)
+    for name in loggers:
+        logging.getLogger(name).addHandler(handler)
+    try:
+        process_log(log, progress=False)
+    finally:
+        for name in loggers:
+            logging.getLogger(name).removeHandler(handler)
+    return said
+
+
 def test_warnings_of_the_analysis_threads_are_said_in_log_order(
     tmp_path: Path, capsys, monkeypatch, fr079
 ) -> None:
@@ -1044,18 +1087,8 @@ def test_warnings_of_the_analysis_threads_are_said_in_log_order(
     ]
     built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps, scans_per_map=0)
     assert main(["process", str(built.path), "--no-output", "-q"]) == 0
-    said = [x for x in capsys.readouterr().err.splitlines() if x.startswith("warning:")]
-    kinds = [
-        "not comparable with trusted snapshot 0"
-        if "not comparable with trusted snapshot 0" in x
-        else "cleaning"
-        if "paper's labelling as their cleaned map" in x
-        else "detector"
-        if "break detector's longest length" in x
-        else x
-        for x in said
-    ]
-    assert kinds[:3] == ["not comparable with trusted snapshot 0", "cleaning", "detector"], said
+    kinds = _warning_kinds(capsys.readouterr().err)
+    assert kinds[:3] == ["not comparable", "cleaning", "detector"], kinds
 
 
 @pytest.mark.parametrize("slow", ["analysis", "reading"])
@@ -1097,20 +1130,8 @@ def test_warnings_said_while_reading_wait_for_the_analyses_before_them(
     ]
     built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps, scans_per_map=1)
     assert main(["process", str(built.path), "--no-output", "-q"]) == 0
-    said = [x for x in capsys.readouterr().err.splitlines() if x.startswith("warning:")]
-    kinds = [
-        "/a cleaning"
-        if "paper's labelling as their cleaned map" in x
-        else "/a detector"
-        if "break detector's longest length" in x
-        else "/b"
-        if x.startswith("warning: /b: map data has")
-        else "/c"
-        if "said by /c's analysis" in x
-        else x
-        for x in said
-    ]
-    assert kinds == ["/a cleaning", "/a detector", "/b", "/c"], said
+    kinds = _warning_kinds(capsys.readouterr().err)
+    assert kinds == ["cleaning", "detector", "malformed", "/c analysis"], kinds
 
 
 def test_a_topic_too_fine_for_the_walls_cleaning_is_said_with_its_first_map(
@@ -1138,18 +1159,8 @@ def test_a_topic_too_fine_for_the_walls_cleaning_is_said_with_its_first_map(
     ]
     built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps, scans_per_map=0)
     assert main(["process", str(built.path), "--no-output", "-q"]) == 0
-    said = [x for x in capsys.readouterr().err.splitlines() if x.startswith("warning:")]
-    kinds = [
-        "/a cleaning"
-        if "paper's labelling as their cleaned map" in x
-        else "/a detector"
-        if "break detector's longest length" in x
-        else "/b"
-        if x.startswith("warning: /b: map data has")
-        else x
-        for x in said
-    ]
-    assert kinds == ["/a cleaning", "/a detector", "/b"], said
+    kinds = _warning_kinds(capsys.readouterr().err)
+    assert kinds == ["cleaning", "detector", "malformed"], kinds
 
 
 @pytest.mark.parametrize("slow", ["analysis", "reading"])
@@ -1268,7 +1279,6 @@ def test_what_a_failing_break_detector_logged_is_said_once_in_order(
     import logging
     import time
 
-    from rose_logs.session import process_log
     from rose_logs.session.analysis import SnapshotAnalyser
     from rose_logs.session.breaks import BreakDetector
 
@@ -1295,20 +1305,9 @@ def test_what_a_failing_break_detector_logged_is_said_once_in_order(
     ]
     built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps, scans_per_map=0)
     said: list[str] = []
-
-    class Said(logging.Handler):
-        def emit(self, record: logging.LogRecord) -> None:
-            said.append(record.getMessage().split(":")[0])
-
-    handler = Said(logging.WARNING)
-    for name in ("rose", "rose_logs"):
-        logging.getLogger(name).addHandler(handler)
-    try:
-        with pytest.raises(RuntimeError, match="the detector failed"):
-            process_log(built.path, progress=False)
-    finally:
-        for name in ("rose", "rose_logs"):
-            logging.getLogger(name).removeHandler(handler)
+    with pytest.raises(RuntimeError, match="the detector failed"):
+        _said_by_session(built.path, into=said)
+    said = [x.split(":")[0] for x in said]
     assert said == ["analysed /a", "scored /a", "analysed /b", "scored /b", "/c"], said
 
 
@@ -1602,8 +1601,6 @@ def test_a_users_filter_on_our_logger_sees_a_held_record_once(
     the second time it dropped it, and the skipped map was never said."""
     import logging
 
-    from rose_logs.session import process_log
-
     seen: list[str] = []
 
     def once(record: logging.LogRecord) -> bool:
@@ -1618,18 +1615,7 @@ def test_a_users_filter_on_our_logger_sees_a_held_record_once(
         MapMsg(START_NS + 2_000_000_000, fr079[0], topic="/b", bad_length=True),
     ]
     built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps, scans_per_map=0)
-    said: list[str] = []
-
-    class Said(logging.Handler):
-        def emit(self, record: logging.LogRecord) -> None:
-            said.append(record.getMessage())
-
-    handler = Said(logging.WARNING)
-    logger.addHandler(handler)
-    try:
-        process_log(built.path, progress=False)
-    finally:
-        logger.removeHandler(handler)
+    said = _said_by_session(built.path, loggers=(logger.name,))
     assert [x[:16] for x in said] == ["/b: map data has"], said
     assert len(seen) == 1, seen
 
@@ -1641,7 +1627,6 @@ def test_a_held_record_says_its_arguments_as_they_were_when_logged(
     (a list here) was said as it had become, not as it was logged."""
     import logging
 
-    from rose_logs.session import process_log
     from rose_logs.session.analysis import SnapshotAnalyser
 
     analyse = SnapshotAnalyser._analyse
@@ -1656,18 +1641,7 @@ def test_a_held_record_says_its_arguments_as_they_were_when_logged(
     built = build_log(
         tmp_path / "in.mcap", "mcap-ros2", [MapMsg(START_NS + 1, fr079[0])], scans_per_map=0
     )
-    said: list[str] = []
-
-    class Said(logging.Handler):
-        def emit(self, record: logging.LogRecord) -> None:
-            said.append(record.getMessage())
-
-    handler = Said(logging.WARNING)
-    logging.getLogger("rose").addHandler(handler)
-    try:
-        process_log(built.path, progress=False)
-    finally:
-        logging.getLogger("rose").removeHandler(handler)
+    said = _said_by_session(built.path, loggers=("rose",))
     assert said == ["state ['as logged']"], said
 
 
@@ -1710,7 +1684,6 @@ def test_a_held_record_is_said_as_the_loggers_level_let_it_through_when_logged(
     it is not, although both are said (or not) after the change."""
     import logging
 
-    from rose_logs.session import process_log
     from rose_logs.session.analysis import SnapshotAnalyser
 
     analyse = SnapshotAnalyser._analyse
@@ -1727,17 +1700,8 @@ def test_a_held_record_is_said_as_the_loggers_level_let_it_through_when_logged(
     built = build_log(
         tmp_path / "in.mcap", "mcap-ros2", [MapMsg(START_NS + 1, fr079[0])], scans_per_map=0
     )
-    said: list[str] = []
-
-    class Said(logging.Handler):
-        def emit(self, record: logging.LogRecord) -> None:
-            said.append(record.getMessage())
-
-    handler = Said(logging.WARNING)
-    logging.getLogger("rose").addHandler(handler)
     try:
-        process_log(built.path, progress=False)
+        said = _said_by_session(built.path, loggers=("rose",))
     finally:
-        logging.getLogger("rose").removeHandler(handler)
         step.setLevel(logging.NOTSET)
     assert said == ["before the level was raised"], said
