@@ -496,6 +496,49 @@ def test_a_row_of_free_standing_boxes_goes_whole() -> None:
     assert cleaning.kept[[0, -1], :].all() and cleaning.kept[:, [0, -1]].all()
 
 
+@pytest.mark.parametrize("angle", [0.0, 30.0])
+def test_a_box_in_a_turned_corridor_goes_as_unturned(angle: float) -> None:
+    """A scanned box (0.8 m x 0.6 m, unseen inside) standing free in a corridor 1.2 m wide: the
+    guard does not count a loose piece whose box is under a region it protects (1 m2), but the box
+    was the grid's: turned by 30 degrees with the map it is 1.3 m2, the box counted, and the guard
+    kept it (unturned it went). Its box along the map's directions counts too now."""
+    cells = 220
+    grid = np.full((cells, cells), -1, dtype=np.int8)
+    turn = np.radians(angle)
+    rotation = np.array([[np.cos(turn), -np.sin(turn)], [np.sin(turn), np.cos(turn)]])
+
+    def polygon(corners: list[tuple[float, float]]) -> npt.NDArray[np.int32]:
+        return np.round(np.array(corners) / RES @ rotation.T + cells / 2).astype(np.int32)
+
+    corridor = polygon([(-4, -0.6), (4, -0.6), (4, 0.6), (-4, 0.6)])
+    cv2.fillPoly(grid, [corridor], 0)
+    cv2.polylines(grid, [corridor], isClosed=True, color=100, thickness=1)
+    box = polygon([(-0.4, -0.3), (0.4, -0.3), (0.4, 0.3), (-0.4, 0.3)])
+    cv2.fillPoly(grid, [box], -1)
+    cv2.polylines(grid, [box], isClosed=True, color=100, thickness=1)
+    faces = np.zeros(grid.shape, dtype=np.uint8)
+    cv2.polylines(faces, [box], isClosed=True, color=1, thickness=1)
+    faces_mask = faces.view(bool) & (grid == 100)
+    cleaning = clean(grid, rose.analyze(grid), resolution_m=RES)
+    assert not cleaning.kept[faces_mask].any()
+    assert cleaning.kept[(grid == 100) & ~faces_mask].all()
+
+
+def test_a_piece_seen_from_one_side_is_not_seen_round() -> None:
+    """A stretch of wall at the explored edge (unknown behind it and beyond its ends) is seen from
+    one side: its ring is free for less than half, and the guard keeps counting it whatever its
+    box. Seen from all round, it is free-standing."""
+    from rose.cleaning_rules.objects import _Pieces
+
+    occupied = np.zeros((30, 40), dtype=bool)
+    occupied[15, 10:30] = True
+    unknown = np.zeros(occupied.shape, dtype=bool)
+    unknown[16:, :] = unknown[:, :10] = unknown[:, 30:] = True  # behind it and beyond its ends
+    pieces = _Pieces.of(occupied, join_px=1)
+    assert not pieces.seen_round(occupied, unknown).any()
+    assert np.array_equal(pieces.seen_round(occupied, np.zeros_like(unknown)), occupied)
+
+
 def test_topology_guard_restores_a_wall_hole_whose_opening_meets_another() -> None:
     """A removed box below a wall hole opens a patch of its own that nearly meets the hole's: cells
     between the two belong to both rings, and the hole must still be seen joining the two rooms."""

@@ -259,7 +259,11 @@ def _wall_cells(
             corner_px=length_px(_CORNER_MAX_M, res) if p.max_bridge_m > 0 else 0.0,
             corner_depth_px=length_px(_CORNER_DEPTH_M, res),
         )
-        pieces_job = beside.submit(_Pieces.of, occupied, join_px=1) if p.loose_pieces else None
+        pieces_job = (
+            beside.submit(_Pieces.of, occupied, join_px=1, directions=directions)
+            if p.loose_pieces
+            else None
+        )
         runs = directional_runs(
             occupied,
             directions,
@@ -377,7 +381,18 @@ def _wall_cells(
         # does not count them as obstacles of the input. Only those whose box is smaller than a
         # region the guard protects, though: they can enclose nothing it would count (a closed
         # free-standing room of 1.3 m x 1.3 m was removed whole, its inside opened).
-        guard_obstacles = occupied & ~pieces.loose(keep, max_box_area_px=min_region_px)
+        loose = pieces.loose(keep, max_box_area_px=min_region_px)
+        # The box is the grid's: furniture turned with the map has a box up to twice as large as
+        # unturned, and was counted. Boxes along the map's directions count as well, for pieces
+        # seen from more than one side (a wall's step at the explored edge, unknown behind it, is
+        # seen from one: the guard keeps counting it).
+        turned = (
+            pieces.loose(keep, max_box_area_px=min_region_px, max_frame_area_px=min_region_px)
+            & ~loose
+        )
+        if turned.any():
+            loose |= pieces.seen_round(turned, unknown)
+        guard_obstacles = occupied & ~loose
     guarded = topology_guard(
         guard_obstacles,
         keep,

@@ -430,9 +430,21 @@ class _Pieces:
     owners: npt.NDArray[np.integer]  # the joined piece of each of them
     diagonals: npt.NDArray[np.float64]  # of each joined piece's bounding box, cells
     box_areas: npt.NDArray[np.float64]  # of the same boxes, cells
+    # The smaller of each box's area and that of its box along a dominant direction of the map,
+    # cells (a piece's box in the map's own frame: the grid's box of a piece turned with the map
+    # is up to twice as large).
+    frame_areas: npt.NDArray[np.float64]
 
     @classmethod
-    def of(cls, occupied: npt.NDArray[np.bool_], *, join_px: int) -> _Pieces:
+    def of(
+        cls,
+        occupied: npt.NDArray[np.bool_],
+        *,
+        join_px: int,
+        directions: npt.NDArray[np.float64] | None = None,
+    ) -> _Pieces:
+        """The pieces of ``occupied``; with ``directions`` (the map's dominant directions) their
+        boxes along those directions too (:attr:`frame_areas`)."""
         import cv2
 
         grown = occupied
@@ -451,21 +463,59 @@ class _Pieces:
         left, top = np.maximum(x - grow, 0), np.maximum(y - grow, 0)
         width = (np.minimum(x + width + grow, cols) - left).astype(np.float64)
         height = (np.minimum(y + height + grow, rows) - top).astype(np.float64)
-        return cls(occupied, labels, cells, owners, np.hypot(width, height), width * height)
+        areas = width * height
+        framed = areas
+        if directions is not None and directions.size:
+            along = _frame_box_areas(
+                cells // cols, cells % cols, owners, count, directions, join_px
+            )
+            framed = np.minimum(areas, along)
+        return cls(occupied, labels, cells, owners, np.hypot(width, height), areas, framed)
 
     def loose(
         self,
         anchored: npt.NDArray[np.bool_],
         max_extent_px: float = math.inf,
         max_box_area_px: float = math.inf,
+        max_frame_area_px: float = 0,
     ) -> npt.NDArray[np.bool_]:
         """Occupied cells of pieces with no ``anchored`` cell whose (joined) bounding box has a
-        diagonal shorter than ``max_extent_px`` and an area under ``max_box_area_px``."""
-        attached = (self.diagonals >= max_extent_px) | (self.box_areas >= max_box_area_px)
+        diagonal shorter than ``max_extent_px`` and an area under ``max_box_area_px``, or whose
+        box along the map's directions (:attr:`frame_areas`) is under ``max_frame_area_px``."""
+        attached = (self.diagonals >= max_extent_px) | (
+            (self.box_areas >= max_box_area_px) & (self.frame_areas >= max_frame_area_px)
+        )
         attached[self.owners[anchored.reshape(-1)[self.cells]]] = True
         attached[0] = True
         out = np.zeros(self.occupied.shape, dtype=bool)
         out.reshape(-1)[self.cells] = ~attached[self.owners]
+        return out
+
+    def seen_round(
+        self, cells: npt.NDArray[np.bool_], unknown: npt.NDArray[np.bool_]
+    ) -> npt.NDArray[np.bool_]:
+        """Cells of ``cells`` (occupied cells, some of the pieces') in pieces whose ring (the cells
+        next to their ``cells``, not occupied) is free for more than half: seen from more than one
+        side, as furniture standing in a room is, not one face of a wall with unknown space
+        behind."""
+        out = np.zeros(cells.shape, dtype=bool)
+        if not cells.any():
+            return out
+        import cv2
+
+        box = _padded_box(cells, 1)
+        inner = cells[box]
+        ring = cv2.dilate(inner.view(np.uint8), np.ones((3, 3), np.uint8)).view(bool)
+        ring &= ~self.occupied[box]
+        # The ring lies in the pieces as joined (grown by at least one cell), so it bears their
+        # labels.
+        labels = self.labels[box]
+        count = self.diagonals.size
+        around = np.bincount(labels[ring], minlength=count)
+        free = np.bincount(labels[ring & ~unknown[box]], minlength=count)
+        seen = 2 * free > around
+        seen[0] = False
+        out[box] = inner & seen[labels]
         return out
 
     def around_free(
@@ -515,3 +565,34 @@ class _Pieces:
         # Looked up at the occupied cells (``cells`` are some of them).
         out.reshape(-1)[self.cells] = enclosing[self.owners] & cells.reshape(-1)[self.cells]
         return out
+
+
+def _frame_box_areas(
+    rows: npt.NDArray[np.intp],
+    cols: npt.NDArray[np.intp],
+    owners: npt.NDArray[np.integer],
+    count: int,
+    directions: npt.NDArray[np.float64],
+    join_px: int,
+) -> npt.NDArray[np.float64]:
+    """The area of each piece's box along each of ``directions`` (the cells at ``rows``, ``cols``
+    owned by ``owners``, grown by ``join_px``), the smallest of them; infinite for a label that owns
+    no cell."""
+    out = np.full(count, np.inf)
+    order = np.argsort(owners, kind="stable")
+    owned = owners[order]
+    if owned.size == 0:
+        return out
+    starts = np.flatnonzero(np.r_[True, owned[1:] != owned[:-1]])
+    ids = owned[starts]
+    r = rows[order].astype(np.float64)
+    c = cols[order].astype(np.float64)
+    for angle in directions:
+        cos, sin = math.cos(angle), math.sin(angle)
+        along = c * cos + r * sin
+        across = r * cos - c * sin
+        width = np.maximum.reduceat(along, starts) - np.minimum.reduceat(along, starts)
+        height = np.maximum.reduceat(across, starts) - np.minimum.reduceat(across, starts)
+        areas = (width + 1 + 2 * join_px) * (height + 1 + 2 * join_px)
+        out[ids] = np.minimum(out[ids], areas)
+    return out
