@@ -77,6 +77,7 @@ def rerun_sink(
     derived from the input's full path and content (:func:`rose_logs.rerun.recording_id_for`).
     ``shown_as``: the recording's name in errors (the user's path, when ``rrd_path`` is where it is
     staged)."""
+    _check_files_for_rerun(shown_as or rrd_path or connect or "Rerun viewer")  # before it loads
     from rose_logs.rerun import RerunSink, recording_id_for  # rerun loads only when used
     from rose_logs.rerun.paths import entity_root_for_topic
     from rose_logs.rerun.viewer import ViewerNotStarted, viewer_unreachable
@@ -124,6 +125,61 @@ def rerun_sink(
         where = shown_as or rrd_path or connect or "Rerun viewer"
         msg = f"{where}: cannot open the Rerun recording ({err})"
         raise LogWriteError(msg) from err
+
+
+#: Open files Rerun's native side needs beyond ours (its runtime's epoll, event and signal pipes,
+#: the recording, the sockets): with fewer, it panics and aborts the process (exit 134, a Rust
+#: backtrace, the session's temporary outputs left behind) or fails in warnings.
+RERUN_FILES = 8
+
+
+def _open_files() -> int | None:
+    """How many files this process has open (None: not known here)."""
+    for folder in ("/proc/self/fd", "/dev/fd"):
+        try:
+            return sum(1 for _ in Path(folder).iterdir()) - 1  # less the listing's own
+        except FileNotFoundError:
+            continue
+        except OSError:  # EMFILE: no file left to list them with, all are open
+            return _soft_open_files_limit()
+    return None
+
+
+def _soft_open_files_limit() -> int | None:
+    try:
+        import resource
+    except ImportError:  # Windows
+        return None
+    soft = resource.getrlimit(resource.RLIMIT_NOFILE)[0]
+    return None if soft == resource.RLIM_INFINITY else int(soft)
+
+
+def _check_files_for_rerun(where: object) -> None:
+    """Refuse, in one line and before Rerun loads, a limit of open files (``ulimit -n``) that leaves
+    Rerun fewer than :data:`RERUN_FILES`, after raising the soft limit towards the hard one."""
+    try:
+        import resource
+    except ImportError:  # Windows
+        return
+    opened = _open_files()
+    if opened is None:
+        return
+    soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+    if soft == resource.RLIM_INFINITY or soft - opened >= RERUN_FILES:
+        return
+    wanted = opened + RERUN_FILES
+    if hard == resource.RLIM_INFINITY or hard >= wanted:
+        try:
+            resource.setrlimit(resource.RLIMIT_NOFILE, (wanted, hard))
+        except (OSError, ValueError):
+            pass
+        else:
+            return
+    msg = (
+        f"{where}: cannot open the Rerun recording (too few open files allowed: {opened} open of "
+        f"at most {soft}, ulimit -n; Rerun needs about {RERUN_FILES} more)"
+    )
+    raise LogWriteError(msg)
 
 
 def prepare_output(

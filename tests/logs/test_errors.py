@@ -1303,3 +1303,44 @@ def test_an_aborted_log_whose_close_fails_releases_its_file(
     else:
         assert handle.closed
     assert backend.writer is None
+
+
+def test_too_few_open_files_for_rerun_is_one_line_before_rerun_loads(
+    tmp_path: Path, mcap_log: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Under ``ulimit -n 8`` loading Rerun panicked in its native runtime: the process aborted
+    (exit 134, a Rust backtrace) and left the session's temporary outputs. Now: one line naming
+    the recording, before Rerun loads, and nothing left."""
+    resource = pytest.importorskip("resource")
+    import rose_logs.session.sinks as sinks
+
+    opened = sinks._open_files()
+    if opened is None:
+        pytest.skip("the number of open files is not known here")
+    limits = (opened + 2, opened + 2)  # `ulimit -n` sets both
+    monkeypatch.setattr(resource, "getrlimit", lambda _which: limits)
+    raised: list[object] = []
+    monkeypatch.setattr(resource, "setrlimit", lambda *args: raised.append(args))
+    existing = tmp_path / "s.rrd"
+    existing.write_bytes(b"old")
+    with pytest.raises(LogWriteError) as err:
+        process_log(mcap_log, output_path=tmp_path / "o.mcap", rrd_path=existing, force=True)
+    message = f"error: {err.value}"
+    _assert_one_line_error(message, f"{existing}: cannot open the Rerun recording (too few open")
+    assert raised == []
+    assert existing.read_bytes() == b"old"
+    assert _leftovers(tmp_path, {"in.mcap", "s.rrd"}) == []
+
+
+def test_too_few_open_files_for_rerun_raises_the_soft_limit_when_the_hard_one_allows(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    resource = pytest.importorskip("resource")
+    import rose_logs.session.sinks as sinks
+
+    monkeypatch.setattr(sinks, "_open_files", lambda: 10)
+    monkeypatch.setattr(resource, "getrlimit", lambda _which: (12, 4096))
+    raised: list[object] = []
+    monkeypatch.setattr(resource, "setrlimit", lambda *args: raised.append(args))
+    sinks._check_files_for_rerun("r.rrd")
+    assert raised == [(resource.RLIMIT_NOFILE, (10 + sinks.RERUN_FILES, 4096))]
