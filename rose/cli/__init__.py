@@ -47,6 +47,7 @@ __all__ = [
     "input_name",
     "main",
     "non_negative_float",
+    "out_of_memory",
     "params_from_args",
     "positive_float",
     "result_summary",
@@ -184,8 +185,10 @@ def _run(argv: Sequence[str] | None) -> int:
             stdout_errors_named(),
         ):
             return int(args.func(args))
-    except (RoseError, OSError, MemoryError, RecursionError) as err:
+    except (RoseError, OSError, MemoryError, RecursionError, RuntimeError, ImportError) as err:
         reraise_interrupt_behind(err)  # a signal inside a library: exit 130 / 143, not "error"
+        if isinstance(err, RuntimeError | ImportError) and not out_of_memory(err):
+            raise
         if isinstance(err, OSError) and stdout_closed(err):  # `| head`: stop quietly
             return EXIT_BROKEN_PIPE
         if args.debug:
@@ -260,6 +263,18 @@ class _InputNamed(logging.Filter):
         return True
 
 
+def out_of_memory(err: BaseException) -> bool:
+    """Whether ``err`` is the memory (address space, ``ulimit -v``) running out where Python does not
+    say MemoryError: a thread whose stack cannot be mapped, a native library loaded on demand that
+    cannot be (both were a traceback)."""
+    if isinstance(err, RuntimeError):
+        return str(err) == "can't start new thread"
+    if isinstance(err, ImportError):
+        text = str(err)
+        return "failed to map segment" in text or "cannot allocate memory" in text.lower()
+    return False
+
+
 def input_name(args: object) -> str | None:
     """The input a command was given (``input``, ``map``, ``log`` or the first of ``maps``), for errors."""
     for name in ("input", "map", "log"):
@@ -285,6 +300,10 @@ def _error_text(err: BaseException, *, where: str | None = None) -> str:
         return short(f"{prefix}{err.strerror or err}")
     if isinstance(err, MemoryError):
         return short(f"{prefix}out of memory (lower --max-cells?)")
+    if isinstance(err, RuntimeError):  # out_of_memory: a thread's stack
+        return short(f"{prefix}out of memory (a thread could not start)")
+    if isinstance(err, ImportError):  # out_of_memory: a native library
+        return short(f"{prefix}out of memory (library {err.name or err.path} could not be loaded)")
     if isinstance(err, RecursionError):
         return short(f"{prefix}input nested too deeply")
     if type(err) is RoseError and where is not None and where not in str(err):

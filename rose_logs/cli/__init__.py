@@ -14,7 +14,14 @@ import logging
 import os
 import sys
 
-from rose.cli import CommandParser, LevelFormatter, error_text, input_name, logging_routed
+from rose.cli import (
+    CommandParser,
+    LevelFormatter,
+    error_text,
+    input_name,
+    logging_routed,
+    out_of_memory,
+)
 from rose.console import (
     EXIT_BROKEN_PIPE,
     print_any_file_name,
@@ -185,8 +192,18 @@ def _run(argv: list[str] | None) -> int:
         command_parser.print_usage(sys.stderr)
         print(f"{command_parser.prog}: error: {error_text(err)}", file=sys.stderr)  # as argparse
         return 2
-    except (LogError, RoseError, OSError, MemoryError, RecursionError) as err:
+    except (
+        LogError,
+        RoseError,
+        OSError,
+        MemoryError,
+        RecursionError,
+        RuntimeError,
+        ImportError,
+    ) as err:
         reraise_interrupt_behind(err)  # a signal inside a library: exit 130 / 143, not "error"
+        if isinstance(err, RuntimeError | ImportError) and not out_of_memory(err):
+            raise
         if isinstance(err, OSError) and stdout_closed(err):  # `| head`: stop quietly
             return EXIT_BROKEN_PIPE
         if args.debug:

@@ -1344,3 +1344,40 @@ def test_too_few_open_files_for_rerun_raises_the_soft_limit_when_the_hard_one_al
     monkeypatch.setattr(resource, "setrlimit", lambda *args: raised.append(args))
     sinks._check_files_for_rerun("r.rrd")
     assert raised == [(resource.RLIMIT_NOFILE, (10 + sinks.RERUN_FILES, 4096))]
+
+
+@pytest.mark.parametrize(
+    ("raised", "said"),
+    [
+        (RuntimeError("can't start new thread"), "out of memory (a thread could not start)"),
+        (
+            ImportError("/x/cv2.abi3.so: failed to map segment from shared object", name="cv2"),
+            "out of memory (library cv2 could not be loaded)",
+        ),
+    ],
+)
+def test_address_space_running_out_is_one_line(
+    tmp_path: Path, mcap_log: Path, monkeypatch: pytest.MonkeyPatch, capsys, raised, said
+) -> None:
+    """Under ``ulimit -v`` a thread that cannot start, or a native library loaded on demand that
+    cannot be mapped, was a traceback: now one line, exit 1, nothing left."""
+
+    def fail(*_: object, **__: object) -> None:
+        raise raised
+
+    monkeypatch.setattr("rose_logs.session.process_log", fail)
+    out = tmp_path / "o.mcap"
+    assert main(["process", str(mcap_log), "-o", str(out)]) == 1
+    _assert_one_line_error(capsys.readouterr().err, said)
+    assert _leftovers(tmp_path, {"in.mcap"}) == []
+
+
+def test_other_runtime_and_import_errors_stay_tracebacks(
+    mcap_log: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    def fail(*_: object, **__: object) -> None:
+        raise RuntimeError("a bug")
+
+    monkeypatch.setattr("rose_logs.session.process_log", fail)
+    with pytest.raises(RuntimeError, match="a bug"):
+        main(["process", str(mcap_log), "--no-output"])
