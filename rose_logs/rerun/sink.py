@@ -180,6 +180,18 @@ def _layout_of(
     )
 
 
+class _RecordingStream(rr.RecordingStream):
+    """Rerun's recording stream, whose finaliser skips a stream that never got its native recording.
+
+    Rerun's ``__del__`` reads ``self.inner``: when the native side fails to start (no thread left
+    for its batcher under ``ulimit -v``), the error's one line was followed by Rerun's "Exception
+    ignored in RecordingStream.__del__ ... AttributeError: ... no attribute 'inner'" traceback."""
+
+    def __del__(self) -> None:
+        if "inner" in self.__dict__:
+            super().__del__()
+
+
 def _batcher_config() -> rr.ChunkBatcherConfig:
     """Rerun's batching thresholds from the environment, with a smaller flush size unless set."""
     if "RERUN_FLUSH_NUM_BYTES" in os.environ:
@@ -243,7 +255,7 @@ class RerunSink:
             self.tmp = self.rrd_path.with_name(f".{self.rrd_path.name}.rose-tmp")
         self.live = spawn or connect is not None
         self.start_ns = int(start_ns)
-        self.recording = rr.RecordingStream(
+        self.recording = _RecordingStream(
             APPLICATION_ID, recording_id=recording_id, batcher_config=_batcher_config()
         )
         self.recording.set_log_time_enabled(False)

@@ -1381,3 +1381,26 @@ def test_other_runtime_and_import_errors_stay_tracebacks(
     monkeypatch.setattr("rose_logs.session.process_log", fail)
     with pytest.raises(RuntimeError, match="a bug"):
         main(["process", str(mcap_log), "--no-output"])
+
+
+def test_rerun_failing_to_start_says_one_line_and_no_finaliser_traceback(
+    tmp_path: Path, mcap_log: Path, monkeypatch: pytest.MonkeyPatch, capsys
+) -> None:
+    """Rerun's native recording failing to start (no thread for its batcher under ``ulimit -v``):
+    its RecordingStream finaliser then printed "Exception ignored ... no attribute 'inner'"."""
+    import gc
+
+    import rerun_bindings
+
+    def fail(**_: object) -> None:
+        raise RuntimeError("Failed to spawn the underlying batcher")
+
+    monkeypatch.setattr(rerun_bindings, "new_recording", fail)
+    unraisable: list[object] = []
+    monkeypatch.setattr(sys, "unraisablehook", unraisable.append)
+    code = main(["process", str(mcap_log), "--no-output", "--rrd", str(tmp_path / "r.rrd")])
+    gc.collect()
+    assert code == 1
+    _assert_one_line_error(capsys.readouterr().err, "r.rrd: cannot open the Rerun recording")
+    assert unraisable == []
+    assert _leftovers(tmp_path, {"in.mcap"}) == []
