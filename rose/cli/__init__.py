@@ -51,6 +51,7 @@ __all__ = [
     "params_from_args",
     "positive_float",
     "result_summary",
+    "unexpected",
 ]
 
 
@@ -187,7 +188,7 @@ def _run(argv: Sequence[str] | None) -> int:
             return int(args.func(args))
     except (RoseError, OSError, MemoryError, RecursionError, RuntimeError, ImportError) as err:
         reraise_interrupt_behind(err)  # a signal inside a library: exit 130 / 143, not "error"
-        if isinstance(err, RuntimeError | ImportError) and not out_of_memory(err):
+        if unexpected(err):
             raise
         if isinstance(err, OSError) and stdout_closed(err):  # `| head`: stop quietly
             return EXIT_BROKEN_PIPE
@@ -263,11 +264,22 @@ class _InputNamed(logging.Filter):
         return True
 
 
+def unexpected(err: BaseException) -> bool:
+    """Whether ``err``, caught as a RuntimeError or ImportError, is a bug to show as a traceback:
+    not the memory running out (:func:`out_of_memory`), nor a RecursionError (a RuntimeError
+    too: an input nested too deeply)."""
+    return (
+        isinstance(err, RuntimeError | ImportError)
+        and not isinstance(err, RecursionError)
+        and not out_of_memory(err)
+    )
+
+
 def out_of_memory(err: BaseException) -> bool:
     """Whether ``err`` is the memory (address space, ``ulimit -v``) running out where Python does not
     say MemoryError: a thread whose stack cannot be mapped, a native library loaded on demand that
     cannot be (both were a traceback)."""
-    if isinstance(err, RuntimeError):
+    if type(err) is RuntimeError:
         return str(err) == "can't start new thread"
     if isinstance(err, ImportError):
         text = str(err)
@@ -300,12 +312,12 @@ def _error_text(err: BaseException, *, where: str | None = None) -> str:
         return short(f"{prefix}{err.strerror or err}")
     if isinstance(err, MemoryError):
         return short(f"{prefix}out of memory (lower --max-cells?)")
+    if isinstance(err, RecursionError):  # (a RuntimeError too: asked first)
+        return short(f"{prefix}input nested too deeply")
     if isinstance(err, RuntimeError):  # out_of_memory: a thread's stack
         return short(f"{prefix}out of memory (a thread could not start)")
     if isinstance(err, ImportError):  # out_of_memory: a native library
         return short(f"{prefix}out of memory (library {err.name or err.path} could not be loaded)")
-    if isinstance(err, RecursionError):
-        return short(f"{prefix}input nested too deeply")
     if type(err) is RoseError and where is not None and where not in str(err):
         return short(f"{prefix}{err}")
     return short(err)

@@ -20,7 +20,7 @@ from rose.cli import (
     error_text,
     input_name,
     logging_routed,
-    out_of_memory,
+    unexpected,
 )
 from rose.console import (
     EXIT_BROKEN_PIPE,
@@ -202,7 +202,7 @@ def _run(argv: list[str] | None) -> int:
         ImportError,
     ) as err:
         reraise_interrupt_behind(err)  # a signal inside a library: exit 130 / 143, not "error"
-        if isinstance(err, RuntimeError | ImportError) and not out_of_memory(err):
+        if unexpected(err):
             raise
         if isinstance(err, OSError) and stdout_closed(err):  # `| head`: stop quietly
             return EXIT_BROKEN_PIPE

@@ -1404,3 +1404,18 @@ def test_rerun_failing_to_start_says_one_line_and_no_finaliser_traceback(
     _assert_one_line_error(capsys.readouterr().err, "r.rrd: cannot open the Rerun recording")
     assert unraisable == []
     assert _leftovers(tmp_path, {"in.mcap"}) == []
+
+
+def test_a_recursion_error_is_still_an_input_nested_too_deeply(
+    tmp_path: Path, mcap_log: Path, monkeypatch: pytest.MonkeyPatch, capsys
+) -> None:
+    """A RecursionError is a RuntimeError too: once RuntimeErrors that are not the memory running
+    out were shown as tracebacks, it was one (and said "out of memory" before that), not the
+    one-line "input nested too deeply"."""
+
+    def fail(*_: object, **__: object) -> None:
+        raise RecursionError("maximum recursion depth exceeded")
+
+    monkeypatch.setattr("rose_logs.session.process_log", fail)
+    assert main(["process", str(mcap_log), "-o", str(tmp_path / "o.mcap")]) == 1
+    _assert_one_line_error(capsys.readouterr().err, "input nested too deeply")
