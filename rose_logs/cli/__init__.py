@@ -137,7 +137,7 @@ class _OncePerMessage(logging.Filter):
         self._seen: set[str] = set()
 
     def filter(self, record: logging.LogRecord) -> bool:
-        from rose_logs.session.analysis import ANALYSED_TOPIC
+        from rose_logs.session.held_logs import ANALYSED_TOPIC
 
         message = record.getMessage()
         topic = ANALYSED_TOPIC.get()

@@ -50,17 +50,16 @@ from rose_logs.errors import EmptyMapError, LogReadError, LogWriteError, MapMess
 from rose_logs.formats import LogFormat
 from rose_logs.frames import quaternion_tilt
 from rose_logs.reader import LogReader
-from rose_logs.session.analysis import (
-    SnapshotAnalyser,
-    SnapshotAnalysis,
+from rose_logs.session.analysis import SnapshotAnalyser, SnapshotAnalysis
+from rose_logs.session.breaks import BreakDetector, BreakParams, BreakScore, DetectedBreak
+from rose_logs.session.checks import check_arguments
+from rose_logs.session.held_logs import (
     call_held,
     held_by,
     held_log_records,
     said_at_once,
     say_held,
 )
-from rose_logs.session.breaks import BreakDetector, BreakParams, BreakScore, DetectedBreak
-from rose_logs.session.checks import check_arguments
 from rose_logs.session.records import Skips, returned_text, snapshot_record
 from rose_logs.session.report import (
     BreakEvent,
