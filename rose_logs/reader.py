@@ -628,8 +628,10 @@ class LogReader:
 
     def _read_from(self, backend: object) -> Path:
         """The file a failure reading messages through ``backend`` is about: a ROS 2 bag folder's
-        storage file when it has one (its error named the folder, not the damaged file), else
-        the log."""
+        storage file when it has one (its error named the folder, not the damaged file), or the
+        file of a split bag read file by file whose reading failed, else the log."""
+        if isinstance(backend, McapFilesReadBackend) and backend.failed_file is not None:
+            return backend.failed_file
         sole = backend.sole_storage_file() if isinstance(backend, RosbagsReadBackend) else None
         return sole if sole is not None else self.path
 

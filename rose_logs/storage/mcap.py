@@ -628,6 +628,8 @@ class McapFilesReadBackend:
         ]
         self.start_ns = min((start for start, _ in ranges), default=0)
         self.end_ns = max((end for _, end in ranges), default=0)
+        #: The file whose reading failed, if one did: the error is about it, not the folder.
+        self.failed_file: Path | None = None
 
     def messages(self, topics: set[str] | None) -> Iterator[RawMessage]:
         yield from merged_by_log_time(
@@ -646,6 +648,9 @@ class McapFilesReadBackend:
                 yield RawMessage(
                     ours[m.channel.id], m.log_time_ns, m.data, m.publish_time_ns, m.sequence
                 )
+        except Exception:
+            self.failed_file = part.path
+            raise
         finally:
             self.skipped_chunks.extend(
                 dataclasses.replace(chunk, file=part.path) for chunk in part.skipped_chunks

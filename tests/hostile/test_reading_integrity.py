@@ -1338,6 +1338,27 @@ def test_info_says_the_counts_of_a_split_mcap_bag_read_file_by_file_are_declared
     assert code == EXIT_SALVAGED and "(declared)" not in out
 
 
+def test_a_damaged_chunk_of_a_split_mcap_bag_read_file_by_file_is_said_of_its_file(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A split bag read file by file (its second file's summary damaged: rosbags cannot open the
+    bag, the file reads record by record, nothing lost) whose first file has a damaged chunk:
+    without --salvage the error named the bag folder ("bag: corrupt or truncated log (crc
+    validation failed in Chunk ...)"), not which of its files; it names the file."""
+    bag = tmp_path / "bag"
+    first, second = _split_mcap_bag_folder(bag)
+    data = bytearray(second.read_bytes())
+    data[_data_end(second) + 30] ^= 0xFF  # in its summary
+    second.write_bytes(bytes(data))
+    data = bytearray(first.read_bytes())
+    data[_chunk_starts(first)[1] + 1_000] ^= 0xFF
+    first.write_bytes(bytes(data))
+    code, _, err = _run(capsys, "process", bag, "--no-output", "-q")
+    assert code == 1 and err.splitlines()[-1].startswith(f"error: {first}: corrupt"), err
+    code, _, err = _run(capsys, "process", bag, "--no-output", "-q", "--salvage")
+    assert code == EXIT_SALVAGED and f"{first}: skipped a damaged chunk" in err, err
+
+
 @pytest.mark.parametrize("storage", ["mcap", "db3"])
 def test_a_split_bag_whose_files_are_listed_out_of_time_order_reads_in_log_time_order(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], storage: str
