@@ -16,7 +16,7 @@ from urllib.parse import quote
 
 from rose_logs.storage.records import normalize_msgtype
 
-__all__ = ["storage_types", "type_mismatches"]
+__all__ = ["storage_types", "storage_types_by_file", "type_mismatches"]
 
 
 def _sqlite_types(path: Path) -> dict[str, str]:
@@ -55,14 +55,32 @@ def storage_types(folder: Path, *, skip: Collection[str] = ()) -> dict[str, str]
         If a storage file cannot be read (the caller reports a corrupt log).
     """
     types: dict[str, str] = {}
+    for _, stored in storage_types_by_file(folder, skip=skip):
+        types.update(stored)
+    return types
+
+
+def storage_types_by_file(
+    folder: Path, *, skip: Collection[str] = ()
+) -> list[tuple[Path, dict[str, str]]]:
+    """Each storage file of a ROS 2 bag folder (but those named in ``skip``) with its topic ->
+    message type, in name order: a split bag's files are checked each on its own (merged, a
+    later file's type of a topic hid an earlier one's).
+
+    Raises
+    ------
+    sqlite3.Error, OSError, mcap errors
+        If a storage file cannot be read (the caller reports a corrupt log).
+    """
+    files: list[tuple[Path, dict[str, str]]] = []
     for path in sorted(folder.iterdir()):
         if path.name in skip:
             continue
         if path.suffix == ".db3":
-            types.update(_sqlite_types(path))
+            files.append((path, _sqlite_types(path)))
         elif path.suffix == ".mcap":
-            types.update(_mcap_types(path))
-    return types
+            files.append((path, _mcap_types(path)))
+    return files
 
 
 def type_mismatches(declared: dict[str, str], stored: dict[str, str]) -> list[str]:

@@ -183,11 +183,20 @@ class RosbagsReadBackend:
 
     def _check_types(self) -> None:
         """Refuse a bag folder whose metadata.yaml declares other types than its storage records."""
-        from rose_logs.storage.integrity import storage_types, type_mismatches
+        from rose_logs.storage.integrity import storage_types_by_file, type_mismatches
 
         declared = {c.topic: c.msgtype for c in self.channels}
         skip = {path.name for path, _ in self.unopened}
-        problems = type_mismatches(declared, storage_types(self.path, skip=skip))
+        files = storage_types_by_file(self.path, skip=skip)
+        # Each file on its own: a split bag's first file of another type was not seen (rosbags
+        # then skips its messages, said as a damaged log), a later file's type hid it.
+        problems = list(
+            dict.fromkeys(
+                f"{problem} in {path.name}" if len(files) > 1 else problem
+                for path, stored in files
+                for problem in type_mismatches(declared, stored)
+            )
+        )
         if problems:
             msg = (
                 f"{self.path}: metadata.yaml disagrees with the storage ({'; '.join(problems[:3])})"

@@ -1028,6 +1028,29 @@ def test_metadata_type_disagreeing_with_storage_is_an_error(
     assert "metadata.yaml disagrees with the storage" in err and "/scan" in err
 
 
+@pytest.mark.parametrize("which", [0, 1])
+def test_a_split_bag_file_of_another_type_than_metadata_is_an_error_naming_it(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], which: int
+) -> None:
+    """A bag split over two .db3 files, one of which stores /map as another type than
+    metadata.yaml says: the storage's types were merged over the files, the later file's hiding
+    the earlier's, so a first file of another type passed and rosbags skipped its maps, said as
+    a damaged log ("read 1 of 3 messages the log declares"). Each file is checked, the error
+    names it."""
+    import sqlite3
+
+    bag = tmp_path / "bag"
+    files = _split_db3_bag(bag, "none")
+    with contextlib.closing(sqlite3.connect(files[which])) as db:
+        db.execute("UPDATE topics SET type = 'std_msgs/msg/String' WHERE name = '/map'")
+        db.commit()
+    for salvage in ([], ["--salvage"]):
+        code, _, err = _run(capsys, "info", bag, *salvage)
+        assert code == 1 and len(err.splitlines()) == 1, err
+        assert err.startswith(f"error: {bag}: metadata.yaml disagrees with the storage (/map: ")
+        assert f"the storage std_msgs/msg/String in {files[which].name})" in err, err
+
+
 def test_info_counts_an_mcap_without_statistics(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
