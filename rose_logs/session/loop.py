@@ -657,7 +657,11 @@ class _Loop:
             if isinstance(head, _Copy):
                 self._write(head)
             elif isinstance(head, _Said):
+                # Out of the queue first: saying may fail part way (a program's filter raising, a
+                # second Ctrl-C), and what the queue still holds is said again as the run ends.
+                self.queue.popleft()
                 say_held(head.records)
+                continue
             elif self.in_flight > limit or head.future.done():
                 self.in_flight -= 1
                 self._finish(head)

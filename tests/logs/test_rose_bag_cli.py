@@ -1676,6 +1676,53 @@ def test_a_session_failing_as_it_says_what_it_held_ends_its_threads(
     assert left == [], left
 
 
+def test_a_session_failing_part_way_through_what_it_read_says_none_of_it_twice(
+    tmp_path: Path, monkeypatch, fr079
+) -> None:
+    """What the session said reading a map (its cells out of range, its origin tilted), held
+    behind the slow analysis of the map before it, then said: a program's filter raising on the
+    second record failed the session, and what was still queued was said as the run ended, the
+    first record again, so it was said twice."""
+    import logging
+    import math
+    import time
+
+    from rose_logs.session.analysis import SnapshotAnalyser
+
+    analyse = SnapshotAnalyser._analyse
+
+    def slow(self, snapshot):
+        if snapshot.topic == "/a":
+            time.sleep(0.5)
+        return analyse(self, snapshot)
+
+    def refuse(record: logging.LogRecord) -> bool:
+        if "tilted" in record.getMessage():
+            raise RuntimeError("the filter failed")
+        return True
+
+    monkeypatch.setattr(SnapshotAnalyser, "_analyse", slow)
+    logger = logging.getLogger("rose_logs.session.loop")
+    monkeypatch.setattr(logger, "filters", [refuse])
+    grid = fr079[0].copy()
+    grid[0, 0] = 120  # out of range
+    half = math.radians(10) / 2
+    maps = [
+        MapMsg(START_NS + 1_000_000_000, fr079[0], topic="/a"),
+        MapMsg(
+            START_NS + 2_000_000_000,
+            grid,
+            topic="/b",
+            orientation_xyzw=(math.sin(half), 0.0, 0.0, math.cos(half)),
+        ),
+    ]
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps, scans_per_map=0)
+    said: list[str] = []
+    with pytest.raises(RuntimeError, match="the filter failed"):
+        _said_by_session(built.path, loggers=(logger.name,), into=said)
+    assert [x for x in said if "outside -1..100" in x] == [said[0]], said
+
+
 def test_a_held_record_is_said_as_the_loggers_level_let_it_through_when_logged(
     tmp_path: Path, monkeypatch, fr079
 ) -> None:
