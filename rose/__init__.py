@@ -13,14 +13,17 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+from rose.entry import blas_threads_within_address_limit as _blas_threads_within_address_limit
 from rose.entry import hold_start_signals as _hold_start_signals
 from rose.entry import run_as as _run_as
 from rose.lazy import lazy_exports
 
 # `python -m rose.cli` / `python -m rose_logs.cli`: a Ctrl-C while the command loads exits 130 (see
-# rose.entry). This package loads first in both, and here before anything else of it.
+# rose.entry). This package loads first in both, and here before anything else of it (and before
+# numpy, for OpenBLAS under an address-space limit).
 if _run_as("rose.cli") or _run_as("rose_logs.cli"):
     _hold_start_signals()
+    _blas_threads_within_address_limit()
 
 if TYPE_CHECKING:
     from rose.cleaning import CleanParams, CleanResult, clean

@@ -22,7 +22,14 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     from types import FrameType
 
-__all__ = ["hold_start_signals", "raise_held_start_signal", "rose", "rose_bag", "run_as"]
+__all__ = [
+    "blas_threads_within_address_limit",
+    "hold_start_signals",
+    "raise_held_start_signal",
+    "rose",
+    "rose_bag",
+    "run_as",
+]
 
 #: The handlers the hold replaced (signal number -> handler), while it lasts.
 _replaced: dict[int, Any] = {}
@@ -82,9 +89,32 @@ def run_as(module: str) -> bool:
     return orig[-len(argv)] in (module, f"-m{module}")
 
 
+def blas_threads_within_address_limit() -> None:
+    """Under a limit of the address space (``ulimit -v``), OpenBLAS (numpy's, scipy's, OpenCV's)
+    runs one thread, unless ``OPENBLAS_NUM_THREADS`` says otherwise; a command calls this before
+    numpy loads (OpenBLAS reads it as it loads).
+
+    As it loads, OpenBLAS starts a thread per core and maps a buffer for each: a thread that could
+    not start made it raise SIGINT (the run said "interrupted", exit 130, where it was out of
+    memory), and a buffer that could not be mapped made it retry for ever (the run hung, deaf to
+    Ctrl-C and SIGTERM, at limits some hundreds of MB wide and wider with more cores). With one
+    thread the commands run under lower limits, or say that they are out of memory (OpenBLAS can
+    still hang where even its one buffer does not fit). Without a limit nothing changes."""
+    import os
+
+    try:
+        import resource
+    except ImportError:  # Windows
+        return
+    soft, _ = resource.getrlimit(resource.RLIMIT_AS)
+    if soft != resource.RLIM_INFINITY:
+        os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+
 def rose() -> None:
     """The ``rose`` console script."""
     hold_start_signals()
+    blas_threads_within_address_limit()
     from rose.cli import console
 
     console()
@@ -93,6 +123,7 @@ def rose() -> None:
 def rose_bag() -> None:
     """The ``rose-bag`` console script."""
     hold_start_signals()
+    blas_threads_within_address_limit()
     from rose_logs.cli import console
 
     console()

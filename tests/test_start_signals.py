@@ -4,6 +4,7 @@ imports the packages keeps Python's own handling."""
 
 from __future__ import annotations
 
+import ast
 import os
 import signal
 import subprocess
@@ -119,3 +120,66 @@ def test_a_signal_ignored_at_start_stays_ignored(tmp_path: Path) -> None:
     )
     assert done.returncode == 1
     assert done.stderr.startswith("error: missing.mcap")
+
+
+# Says, as the process ends, how many threads each OpenBLAS loaded runs.
+_BLAS_THREADS_HOOK = """
+import atexit, sys
+
+def _say():
+    from threadpoolctl import threadpool_info
+
+    counts = [i["num_threads"] for i in threadpool_info() if i["internal_api"] == "openblas"]
+    print("openblas threads", counts, file=sys.stderr)
+
+atexit.register(_say)
+"""
+
+
+def _address_limit(limit: int) -> None:
+    import resource
+
+    resource.setrlimit(resource.RLIMIT_AS, (limit, resource.RLIM_INFINITY))
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="no ulimit -v")
+@pytest.mark.skipif((os.cpu_count() or 1) < 2, reason="OpenBLAS runs one thread anyway")
+@pytest.mark.parametrize("start", ["-m", "console script"])
+def test_under_an_address_space_limit_openblas_runs_one_thread(tmp_path: Path, start: str) -> None:
+    """Under ``ulimit -v``, OpenBLAS started a thread per core as numpy and scipy loaded, each
+    with a buffer mapped: a thread that could not start made it raise SIGINT (``rose-bag process``
+    said "interrupted, nothing written", exit 130, under ulimit -v 350000 on two cores), a buffer
+    that could not be mapped made it retry for ever (the run hung at 600000, deaf to SIGTERM).
+    The commands hold it to one thread under a limit; without one, or with OPENBLAS_NUM_THREADS
+    set, nothing changes."""
+    pytest.importorskip("threadpoolctl")
+    (tmp_path / "sitecustomize.py").write_text(_BLAS_THREADS_HOOK)
+    sample = ROOT / "sample_data" / "fr079_session.mcap"
+    if start == "-m":
+        argv = [sys.executable, "-m", "rose_logs.cli", "info", str(sample)]
+    else:
+        code = "import sys; from rose.entry import rose_bag; sys.argv[0] = 'rose-bag'; rose_bag()"
+        argv = [sys.executable, "-c", code, "info", str(sample)]
+    base = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    env = {**base, "PYTHONPATH": os.pathsep.join([str(tmp_path), str(ROOT)])}
+
+    def threads(limit: int | None, extra: dict[str, str] | None = None) -> list[int]:
+        done = subprocess.run(
+            argv,
+            capture_output=True,
+            text=True,
+            env={**env, **(extra or {})},
+            cwd=tmp_path,
+            preexec_fn=None if limit is None else lambda: _address_limit(limit),
+            timeout=120,
+        )
+        assert done.returncode == 0, done.stderr
+        said = done.stderr.strip().splitlines()[-1]
+        assert said.startswith("openblas threads ["), done.stderr
+        counts: list[int] = ast.literal_eval(said.removeprefix("openblas threads "))
+        return counts
+
+    limited = threads(16 << 30)  # far more than the command needs
+    assert limited and set(limited) == {1}, limited
+    assert max(threads(None)) > 1
+    assert max(threads(16 << 30, {"OPENBLAS_NUM_THREADS": "2"})) > 1
