@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import heapq
 import io
@@ -662,6 +663,19 @@ class McapFilesReadBackend:
             part.close()
 
 
+@contextlib.contextmanager
+def _compression_memory_as_memory_error() -> Iterator[None]:
+    """zstd failing to allocate as it compresses a chunk (``ZstdError: cannot compress: Allocation
+    error : not enough memory``, the address space running out) raised as the MemoryError it is,
+    which the commands say in one line ("out of memory"): it was a traceback."""
+    try:
+        yield
+    except Exception as err:
+        if type(err).__name__ == "ZstdError" and "not enough memory" in str(err):
+            raise MemoryError(str(err)) from err
+        raise
+
+
 class McapWriteBackend(WriteBackend):
     """Bare MCAP output, ``ros1`` or ``ros2`` profile.
 
@@ -724,10 +738,12 @@ class McapWriteBackend(WriteBackend):
     def write(
         self, handle: int, log_time_ns: int, data: bytes | memoryview, publish_ns: int, seq: int
     ) -> None:
-        self.writer.add_message(self.channels[handle], log_time_ns, data, publish_ns, seq)
+        with _compression_memory_as_memory_error():  # a chunk is compressed as it fills
+            self.writer.add_message(self.channels[handle], log_time_ns, data, publish_ns, seq)
 
     def close(self) -> None:
-        self.writer.finish()
+        with _compression_memory_as_memory_error():  # the last chunk
+            self.writer.finish()
         if self.stream is not None:
             self.stream.close()
             self.stream = None

@@ -1372,6 +1372,24 @@ def test_address_space_running_out_is_one_line(
     assert _leftovers(tmp_path, {"in.mcap"}) == []
 
 
+def test_zstd_out_of_memory_writing_the_output_is_one_line(
+    tmp_path: Path, mcap_log: Path, monkeypatch: pytest.MonkeyPatch, capsys
+) -> None:
+    """Under ``ulimit -v`` zstd failing to allocate as the MCAP output's chunk was compressed
+    (``ZstdError: cannot compress: Allocation error : not enough memory``) was a traceback: now
+    one line, exit 1, nothing left."""
+    import zstandard
+
+    def fail(*_: object, **__: object) -> bytes:
+        raise zstandard.ZstdError("cannot compress: Allocation error : not enough memory")
+
+    monkeypatch.setattr(zstandard, "compress", fail)
+    out = tmp_path / "o.mcap"
+    assert main(["process", str(mcap_log), "-o", str(out)]) == 1
+    _assert_one_line_error(capsys.readouterr().err, "out of memory")
+    assert _leftovers(tmp_path, {"in.mcap"}) == []
+
+
 def test_other_runtime_and_import_errors_stay_tracebacks(
     mcap_log: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
