@@ -185,18 +185,24 @@ class RosbagsReadBackend:
         """Refuse a bag folder whose metadata.yaml declares other types than its storage records."""
         from rose_logs.storage.integrity import storage_types_by_file, type_mismatches
 
-        declared = {c.topic: c.msgtype for c in self.channels}
+        kinds: dict[str, list[str]] = {}
+        for channel in self.channels:
+            kinds.setdefault(channel.topic, []).append(channel.msgtype)
         skip = {path.name for path, _ in self.unopened}
         files = storage_types_by_file(self.path, skip=skip)
         # Each file on its own: a split bag's first file of another type was not seen (rosbags
-        # then skips its messages, said as a damaged log), a later file's type hid it.
-        problems = list(
-            dict.fromkeys(
-                f"{problem} in {path.name}" if len(files) > 1 else problem
-                for path, stored in files
-                for problem in type_mismatches(declared, stored)
-            )
-        )
+        # then skips its messages, said as a damaged log), a later file's type hid it. A topic
+        # listed with several types agrees with any of them.
+        problems: list[str] = []
+        for path, stored in files:
+            declared = {
+                topic: next((k for k in listed if k == stored.get(topic)), listed[-1])
+                for topic, listed in kinds.items()
+            }
+            for problem in type_mismatches(declared, stored):
+                problem = f"{problem} in {path.name}" if len(files) > 1 else problem
+                if problem not in problems:
+                    problems.append(problem)
         if problems:
             msg = (
                 f"{self.path}: metadata.yaml disagrees with the storage ({'; '.join(problems[:3])})"

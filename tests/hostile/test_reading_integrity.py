@@ -1051,6 +1051,36 @@ def test_a_split_bag_file_of_another_type_than_metadata_is_an_error_naming_it(
         assert f"the storage std_msgs/msg/String in {files[which].name})" in err, err
 
 
+def test_a_split_bag_topic_listed_with_each_files_type_is_no_disagreement(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A topic metadata.yaml lists twice, with the type of each file of a split bag that stores
+    it: checked file by file against the topic's last type only, the first file would disagree."""
+    import copy
+    import sqlite3
+
+    import yaml
+
+    bag = tmp_path / "bag"
+    files = _split_db3_bag(bag, "none")
+    with contextlib.closing(sqlite3.connect(files[1])) as db:
+        db.execute("UPDATE topics SET type = 'std_msgs/msg/String' WHERE name = '/map'")
+        db.commit()
+    meta = bag / "metadata.yaml"
+    data = yaml.safe_load(meta.read_text())
+    topics = data["rosbag2_bagfile_information"]["topics_with_message_count"]
+    listed = next(t for t in topics if t["topic_metadata"]["name"] == "/map")
+    other = copy.deepcopy(listed)  # (no YAML aliases: shared objects would be written as such)
+    other["topic_metadata"]["type"] = "std_msgs/msg/String"
+    other["topic_metadata"].pop("type_description_hash", None)
+    listed["message_count"], other["message_count"] = 2, 1  # the maps of each file
+    topics.append(other)
+    meta.write_text(yaml.safe_dump(data))
+    code, out, err = _run(capsys, "info", bag)
+    assert code == 0 and "disagrees" not in err, err
+    assert "nav_msgs/msg/OccupancyGrid, std_msgs/msg/String" in out
+
+
 def test_info_counts_an_mcap_without_statistics(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
