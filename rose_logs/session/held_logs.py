@@ -71,8 +71,10 @@ def _record_held_by_its_logger(*args: Any, **kwargs: Any) -> logging.LogRecord:
     later (a module imported on an analysis thread); the logger that makes a record is filtered
     here before it handles it, whichever it is."""
     record = _made_record(*args, **kwargs)
-    if _HELD.get() is not None and record.name.partition(".")[0] in _HELD_ROOTS:
-        logger = logging.getLogger(record.name)
+    # A record's name may be anything (logging.makeLogRecord({}) makes one named None).
+    name = record.name
+    if _HELD.get() is not None and isinstance(name, str) and name.partition(".")[0] in _HELD_ROOTS:
+        logger = logging.getLogger(name)
         if _HOLD not in logger.filters:
             with _HOLD_LOCK:
                 if _HOLD not in logger.filters:

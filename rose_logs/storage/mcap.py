@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import heapq
 import io
@@ -663,17 +662,13 @@ class McapFilesReadBackend:
             part.close()
 
 
-@contextlib.contextmanager
-def _compression_memory_as_memory_error() -> Iterator[None]:
+def _as_memory_error(err: Exception) -> Exception:
     """zstd failing to allocate as it compresses a chunk (``ZstdError: cannot compress: Allocation
-    error : not enough memory``, the address space running out) raised as the MemoryError it is,
-    which the commands say in one line ("out of memory"): it was a traceback."""
-    try:
-        yield
-    except Exception as err:
-        if type(err).__name__ == "ZstdError" and "not enough memory" in str(err):
-            raise MemoryError(str(err)) from err
-        raise
+    error : not enough memory``, the address space running out) as the MemoryError it is, which
+    the commands say in one line ("out of memory"): it was a traceback. Any other error as it is."""
+    if type(err).__name__ == "ZstdError" and "not enough memory" in str(err):
+        return MemoryError(str(err))
+    return err
 
 
 class McapWriteBackend(WriteBackend):
@@ -738,12 +733,17 @@ class McapWriteBackend(WriteBackend):
     def write(
         self, handle: int, log_time_ns: int, data: bytes | memoryview, publish_ns: int, seq: int
     ) -> None:
-        with _compression_memory_as_memory_error():  # a chunk is compressed as it fills
+        # A chunk is compressed as it fills. A try, not a context manager: once per message.
+        try:
             self.writer.add_message(self.channels[handle], log_time_ns, data, publish_ns, seq)
+        except Exception as err:
+            raise _as_memory_error(err) from err
 
     def close(self) -> None:
-        with _compression_memory_as_memory_error():  # the last chunk
-            self.writer.finish()
+        try:
+            self.writer.finish()  # the last chunk
+        except Exception as err:
+            raise _as_memory_error(err) from err
         if self.stream is not None:
             self.stream.close()
             self.stream = None

@@ -1620,6 +1620,19 @@ def test_a_users_filter_on_our_logger_sees_a_held_record_once(
     assert len(seen) == 1, seen
 
 
+def test_a_record_made_from_a_dict_while_records_are_held_is_made() -> None:
+    """``logging.makeLogRecord`` (a socket server's way of rebuilding records) makes a record
+    named None before it fills it in: while a session held records, our record factory read that
+    name as a string and raised AttributeError in the program's own code."""
+    import logging
+
+    from rose_logs.session.held_logs import held_log_records
+
+    with held_log_records():
+        record = logging.makeLogRecord({"name": "rose.x", "msg": "hello"})
+    assert (record.name, record.getMessage()) == ("rose.x", "hello")
+
+
 def test_a_held_record_says_its_arguments_as_they_were_when_logged(
     tmp_path: Path, monkeypatch, fr079
 ) -> None:
