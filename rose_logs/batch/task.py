@@ -541,6 +541,14 @@ def process_recording(
         except (LogError, RoseError, ValueError) as err:
             result = error_result(recording, key, options, str(err))
             break
+        except MemoryError:
+            # Not stored either, and no traceback: the machine ran short (other workers, a
+            # limit), which says nothing lasting about the recording; a re-run does it again.
+            _LOG.warning("%s: out of memory", recording.uri)
+            text = "out of memory (fewer --workers, or a lower --max-cells?)"
+            result = error_result(recording, key, options, text)
+            lasting = False
+            break
         except Exception as err:  # never crash a batch on one recording
             _LOG.exception("%s: unexpected error", recording.uri)
             result = error_result(recording, key, options, f"{type(err).__name__}: {err}")

@@ -1768,6 +1768,38 @@ def test_a_full_disk_under_a_db3_output_is_an_io_error_retried_not_the_recording
     assert again.status == "ok"
 
 
+def test_a_recording_out_of_memory_is_one_line_and_tried_again(
+    fleet: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    """A MemoryError was the recording's stored "unexpected error" with a traceback in the log:
+    memory running short says nothing lasting about a recording, so the next run tries it again."""
+    import logging
+
+    import rose
+
+    real = rose.analyze
+    short_of_memory = {"on": True}
+
+    def analyze(*args: object, **kwargs: object) -> object:
+        if short_of_memory["on"]:
+            raise MemoryError
+        return real(*args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(rose, "analyze", analyze)
+    out = tmp_path / "out"
+    options = RecordingOptions(retries=0)
+    recording = fleet / "robot_a" / "later.db3"
+    with caplog.at_level(logging.WARNING):
+        (row,) = run_batch([recording], out, options=options).results
+    assert row.status == "error" and row.error.endswith(
+        ": out of memory (fewer --workers, or a lower --max-cells?)"
+    )
+    assert not any(r.exc_info for r in caplog.records), "no traceback"
+    short_of_memory["on"] = False  # memory to spare now: tried again, not a stored failure
+    (again,) = run_batch([recording], out, options=options).results
+    assert again.status == "ok"
+
+
 def test_the_redone_scan_reads_only_results_of_other_settings(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
