@@ -55,7 +55,12 @@ Two methods, chosen by name:
        not an object) or holds a solid square 0.25 m across (a column as drawn maps show it). Like object faces, it goes even where the paper's labelling calls it
        structure (so ``kept`` need not contain the paper's structure). Pieces attached to no kept
        wall and smaller than ``min_region_m2`` (they can enclose no region the guard protects) do
-       not count as obstacles for the guard.
+       not count as obstacles for the guard; nor do scanned objects that stand close to others
+       (joined with them across a gap into a larger piece), judged one by one: an 8-connected
+       piece with no kept cell within the join's reach (three cells), a box under
+       ``min_region_m2``, and its faces around an unseen inside (along grid rows or columns,
+       on two lines or more, two of its cells with at least 0.3 m of unknown cells between
+       them, reaching an object's pocket: wider than a wall's core).
     6. *walls between two doors*: a piece none of the above kept, along a dominant direction at
        most 0.3 m thick and twice as long, with known free space beyond each end for at most
        1.2 m and then a kept wall in line for at least 0.3 m, stays, whatever the paper's

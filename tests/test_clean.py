@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from typing import TypeVar
@@ -494,6 +495,43 @@ def test_a_row_of_free_standing_boxes_goes_whole() -> None:
     cleaning = clean(grid, rose.analyze(grid), resolution_m=0.05)
     assert not cleaning.kept[45:80, 25:175].any()
     assert cleaning.kept[[0, -1], :].all() and cleaning.kept[:, [0, -1]].all()
+
+
+def test_scanned_boxes_side_by_side_are_judged_one_by_one() -> None:
+    """Two scanned boxes (0.8 m x 0.6 m, unseen insides) 0.1 m apart across a corridor 2.1 m wide,
+    0.2 m from each wall: joined across their gap they make one piece of over 1 m2, which the guard
+    counted as an obstacle of the input, and it kept both boxes for the passage they close. Each
+    is an object with its faces around its unseen inside, standing apart from the walls: judged
+    alone, they go. A notch of one line between two hits of a ragged piece is no inside."""
+    from rose.cleaning_rules.objects import _objects_among_others, _Pieces
+
+    grid = np.full((160, 120), -1, dtype=np.int8)
+    grid[10:150, 20:64] = 0
+    grid[10:150, [19, 64]] = 100
+    grid[[9, 150], 19:65] = 100
+    for left in (24, 42):
+        grid[74:86, left : left + 16] = 100
+        grid[75:85, left + 1 : left + 15] = -1
+    cleaning = clean(grid, rose.analyze(grid), resolution_m=0.05)
+    assert not cleaning.kept[74:86, 24:58].any()
+    assert cleaning.kept[10:150, [19, 64]].all() and cleaning.kept[[9, 150], 19:65].all()
+
+    occupied = np.zeros((30, 30), dtype=bool)
+    occupied[5, 5:20] = occupied[6:12, 5] = occupied[6:12, 19] = True  # a hook, open below
+    unknown = np.zeros(occupied.shape, dtype=bool)
+    unknown[6, 6:19] = True  # unseen on one line only
+    judged = functools.partial(
+        _objects_among_others,
+        _Pieces.of(occupied, join_px=0),
+        np.zeros(occupied.shape, dtype=bool),
+        np.zeros(occupied.shape, dtype=bool),
+        reach_px=3,
+        max_box_area_px=400.0,
+        inside_px=6.0,
+    )
+    assert not judged(unknown, unknown).any()
+    unknown[6:12, 6:19] = True  # its inside, over six lines
+    assert np.array_equal(judged(unknown, unknown), occupied)
 
 
 @pytest.mark.parametrize("angle", [0.0, 30.0])

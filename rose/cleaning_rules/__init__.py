@@ -42,6 +42,7 @@ from rose.cleaning_rules.objects import (
     _between_doors,
     _free_standing,
     _grow_within,
+    _objects_among_others,
     _partitions,
     _Pieces,
     _pocket_faces,
@@ -87,6 +88,11 @@ DESIGN_RESOLUTION_M = 0.05
 #: band), and each hidden stretch at least ``_BRIDGE_ANCHOR_M`` long (shorter ones are the notches of
 #: a staircase, beside the wall, not a wall hidden behind furniture).
 _STAGGERED_ANCHOR_M = 2 * _BRIDGE_ANCHOR_M
+
+#: Pieces of occupied cells are joined across gaps of up to twice this many cells (a scanned
+#: wall's dropouts, an object's faces broken by a cell or two): the free-standing pieces, the
+#: walls between doors and the guard's loose pieces.
+_PIECES_JOIN_PX = 1
 
 
 def wall_cells(
@@ -260,10 +266,12 @@ def _wall_cells(
             corner_depth_px=length_px(_CORNER_DEPTH_M, res),
         )
         pieces_job = (
-            beside.submit(_Pieces.of, occupied, join_px=1, directions=directions)
+            beside.submit(_Pieces.of, occupied, join_px=_PIECES_JOIN_PX, directions=directions)
             if p.loose_pieces
             else None
         )
+        # The same pieces not joined across gaps, for the guard's objects judged alone.
+        apart_job = beside.submit(_Pieces.of, occupied, join_px=0) if p.loose_pieces else None
         runs = directional_runs(
             occupied,
             directions,
@@ -370,7 +378,7 @@ def _wall_cells(
         )
     min_region_px = length_px(p.min_region_m2, res**2)
     guard_obstacles = occupied
-    if pieces_job is not None:
+    if pieces_job is not None and apart_job is not None:
         keep &= ~dropped
         # A wall between two doors: a piece nothing kept (too short for a run) that continues
         # kept walls in line across a door at each end.
@@ -392,6 +400,21 @@ def _wall_cells(
         )
         if turned.any():
             loose |= pieces.seen_round(turned, unknown)
+        # Scanned objects standing close together (a row or cluster of boxes, gaps of a cell or
+        # two between them) join into pieces whose box is too large, and the guard kept each of
+        # them for the passages between its neighbours: an object with its faces around an
+        # unseen inside wider than a wall's core, and no kept wall within the join's reach, is
+        # judged alone.
+        loose |= _objects_among_others(
+            apart_job.result(),
+            loose,
+            keep,
+            unknown,
+            pockets,
+            reach_px=2 * _PIECES_JOIN_PX + 1,
+            max_box_area_px=min_region_px,
+            inside_px=length_px(_THIN_WALL_M, res),
+        )
         guard_obstacles = occupied & ~loose
     guarded = topology_guard(
         guard_obstacles,

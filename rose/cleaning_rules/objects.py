@@ -1,5 +1,6 @@
 """Scanned objects and pieces: faces around unknown pockets, free-standing pieces, partitions seen from
-both sides, and the wall stubs attached to kept walls.
+both sides, the wall stubs attached to kept walls, and the objects the topology guard judges one by
+one.
 
 Part of the ``"walls"`` cleaning's rules (:mod:`rose.cleaning_rules`); masks of shape ``(rows, cols)``
 in the grid's cell space (row 0 at the map origin), lengths in cells.
@@ -565,6 +566,99 @@ class _Pieces:
         # Looked up at the occupied cells (``cells`` are some of them).
         out.reshape(-1)[self.cells] = enclosing[self.owners] & cells.reshape(-1)[self.cells]
         return out
+
+
+def _objects_among_others(
+    pieces: _Pieces,
+    loose: npt.NDArray[np.bool_],
+    anchored: npt.NDArray[np.bool_],
+    unknown: npt.NDArray[np.bool_],
+    pockets: npt.NDArray[np.bool_],
+    *,
+    reach_px: int,
+    max_box_area_px: float,
+    inside_px: float,
+) -> npt.NDArray[np.bool_]:
+    """Occupied cells of scanned objects standing apart from kept walls, each judged alone even
+    where it stands close to others.
+
+    ``pieces`` are the 8-connected pieces of the occupied cells, not joined across gaps. An object
+    is a piece, none of whose cells is ``loose`` already, with a bounding box under
+    ``max_box_area_px``, its faces around an unseen inside (along grid rows, or along grid
+    columns, two of its cells with at least ``inside_px`` cells between them, all unknown:
+    nothing seen between two faces, on two lines or more, and some of them in an object
+    ``pocket``), and no ``anchored`` cell within ``reach_px`` cells (Chebyshev) of it.
+
+    Joined across gaps of a cell or two (as the guard's loose pieces are), boxes standing close
+    together make one piece whose box is too large to be loose, and the guard kept each of them
+    for the passages between its neighbours. Judged alone, each is an object: a scanner sees it
+    as faces around its unseen inside, and an inside at least 0.3 m across (``_THIN_WALL_M``) is
+    no wall's core. On two lines or more: between two hits of a ragged piece at the explored
+    edge an unknown stretch on one line is a notch, not an inside (Freiburg 079 stage 3 lost 83
+    cells of its explored edge with one line). docs/cleaning.md has the measurements.
+    """
+    out = np.zeros(loose.shape, dtype=bool)
+    count = pieces.box_areas.size
+    if count <= 1 or not pockets.any():
+        return out
+    small = pieces.box_areas < max_box_area_px
+    small[0] = False
+    small[pieces.owners[loose.reshape(-1)[pieces.cells]]] = False
+    chosen = small[pieces.owners]
+    cells = pieces.cells[chosen]
+    owners = pieces.owners[chosen]
+    if cells.size < 2:
+        return out
+    unseen = unknown.reshape(-1)
+    pocket = pockets.reshape(-1)
+    cols = loose.shape[1]
+    good = np.zeros(count, dtype=bool)
+    for step in (1, cols):
+        # The pieces' cells in order along each row (``step`` 1) or column (``step`` cols); two
+        # in a row of the same piece with ``inside_px`` cells or more between them, none of
+        # the piece's, may be two faces with its inside between them.
+        if step == 1:
+            line, flat, owner = cells // cols, cells, owners
+        else:
+            order = np.lexsort((cells // cols, cells % cols))
+            flat, owner = cells[order], owners[order]
+            line = flat % cols
+        gap = (flat[1:] - flat[:-1]) // step - 1
+        pair = np.flatnonzero(
+            (line[1:] == line[:-1]) & (owner[1:] == owner[:-1]) & (gap >= inside_px)
+        )
+        if pair.size == 0:
+            continue
+        length = gap[pair]
+        which = np.repeat(np.arange(pair.size), length)
+        first = np.repeat(flat[pair] + step - step * (np.cumsum(length) - length), length)
+        between = first + step * np.arange(int(length.sum()))
+        all_unseen = np.bincount(which, unseen[between], pair.size) == length
+        in_pocket = np.bincount(which, pocket[between], pair.size) > 0
+        # Lines (not pairs) with such a stretch, per piece.
+        lines = line.max() + 1
+        across = np.bincount(
+            np.unique(owner[pair][all_unseen].astype(np.int64) * lines + line[pair][all_unseen])
+            // lines,
+            minlength=count,
+        )
+        reaching = np.zeros(count, dtype=bool)
+        reaching[owner[pair][all_unseen & in_pocket]] = True
+        good |= reaching & (across >= 2)
+    good[0] = False
+    if not good.any():
+        return out
+    out.reshape(-1)[cells[good[owners]]] = True
+    # No anchored cell within reach: looked at on the objects' box only (a few of the cells).
+    import cv2
+
+    box = _padded_box(out, reach_px)
+    size = 2 * reach_px + 1
+    near = cv2.dilate(anchored[box].view(np.uint8), np.ones((size, size), np.uint8)).view(bool)
+    good[np.unique(pieces.labels[box][near & out[box]])] = False
+    good[0] = False
+    out[box] &= good[pieces.labels[box]]
+    return out
 
 
 def _frame_box_areas(
