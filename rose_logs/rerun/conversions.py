@@ -345,20 +345,24 @@ def score_classes(levels: int = DISPLAY_LEVELS) -> list[tuple[int, str, tuple[in
     return classes
 
 
-def _pooled_rows(array: npt.NDArray[np.float32], factor: int) -> npt.NDArray[np.float32]:
-    """Maximum over blocks of ``factor`` consecutive rows (the last block may be shorter)."""
-    if factor == 1:
-        return array
-    n = array.shape[0]
-    full = n // factor * factor
-    # Row slices' element-wise maximum: numpy's max over the block axis of a reshaped view is a
-    # strided reduction (both halves of a 1000 x 501 spectrum, factor 3: 0.14 vs 0.10 ms).
-    pooled = array[0:full:factor].copy()
-    for k in range(1, factor):
-        np.maximum(pooled, array[k:full:factor], out=pooled)
-    if full < n:
-        pooled = np.concatenate([pooled, array[full:].max(axis=0, keepdims=True)])
-    return pooled
+def _block_rows(
+    blocks: npt.NDArray[np.intp], factor: int, first: int, last: int
+) -> list[npt.NDArray[np.intp]]:
+    """Rows of blocks ``blocks`` of ``factor`` consecutive rows counted from row ``first``, the
+    ``j``-th row of every block in the ``j``-th array; a block cut short by row ``last``
+    (inclusive) repeats it (a maximum over the block is the same)."""
+    starts = first + blocks * factor
+    return [np.minimum(starts + j, last) for j in range(factor)]
+
+
+def _max_of(
+    array: npt.NDArray[np.float32], rows: list[npt.NDArray[np.intp]], axis: int = 0
+) -> npt.NDArray[np.float32]:
+    """Element-wise maximum of ``array``'s rows (``axis`` 0) or columns (1) ``rows[j]`` over j."""
+    out = array[:, rows[0]] if axis else array[rows[0]]
+    for more in rows[1:]:
+        np.maximum(out, array[:, more] if axis else array[more], out=out)
+    return out
 
 
 def display_spectrum(
@@ -400,25 +404,30 @@ def display_spectrum(
     bins = np.arange(half + 1)
     # Max-pool by the integer number of spectrum cells per display pixel (thin spectral lines
     # survive), then take the pooled cell of each display pixel's frequency (nearest): display
-    # pixel b from the centre is b / size cycles per cell on either axis.
+    # pixel b from the centre is b / size cycles per cell on either axis. Only the blocks that are
+    # taken are pooled, straight from the spectrum (rows then columns).
     f_rows = max(1, rows_p // size)
-    # Rows: v = r / rows_p for r <= rows_p / 2 (v >= 0), else (r - rows_p) / rows_p (v < 0).
-    positive = _pooled_rows(spectrum_half[: half_rows + 1], f_rows)
+    # Rows: v = r / rows_p for r <= rows_p / 2 (v >= 0), else (r - rows_p) / rows_p (v < 0): the
+    # non-negative half pooled from row 0 to half_rows, the negative from half_rows to the end.
     m_pos = np.minimum(np.rint(bins * rows_p / size).astype(np.intp), half_rows)
-    negative = _pooled_rows(spectrum_half[half_rows:], f_rows)
     m_neg = np.clip(np.rint(bins[1:] * rows_p / size).astype(np.intp), 1, rows_p - half_rows)
     # Display row i holds v = (half - i) / size: +v up.
-    rows_binned = np.concatenate(
-        [positive[m_pos // f_rows][::-1], negative[(rows_p - m_neg - half_rows) // f_rows]]
+    positive = _block_rows((m_pos // f_rows)[::-1], f_rows, 0, half_rows)
+    negative = _block_rows((rows_p - m_neg - half_rows) // f_rows, f_rows, half_rows, rows_p - 1)
+    rows_binned = _max_of(
+        spectrum_half, [np.concatenate(pair) for pair in zip(positive, negative, strict=True)]
     )  # (size + 1, cols_p // 2 + 1)
-    # Columns, on the small transpose: u = k / cols_p -> display columns half .. size.
+    # Columns: u = k / cols_p -> display columns half .. size.
     f_cols = max(1, cols_p // size)
-    columns = _pooled_rows(np.ascontiguousarray(rows_binned.T), f_cols)
     k = np.minimum(np.rint(bins * cols_p / size).astype(np.intp), spectrum_half.shape[1] - 1)
-    # Display columns half .. size, one per row (a copy, worked in place); the left half (u < 0) is
-    # their point mirror about the centre pixel, so the log, the stretch and the quantisation run on
-    # this half alone.
-    right = columns[k // f_cols]
+    # Display columns half .. size (a copy, worked in place); the left half (u < 0) is their point
+    # mirror about the centre pixel, so the log, the stretch and the quantisation run on this half
+    # alone.
+    right = _max_of(
+        rows_binned,
+        _block_rows(k // f_cols, f_cols, 0, spectrum_half.shape[1] - 1),
+        axis=1,
+    )  # (size + 1, half + 1)
     # log(1 + a): numpy's float32 log is vectorised, its log1p is not (6x slower); amplitudes are
     # >= 0 and the result is quantised to 8 bits, so log1p's extra precision near 0 is invisible.
     right += np.float32(1.0)
@@ -431,7 +440,7 @@ def display_spectrum(
         return image
     right -= np.float32(floor)
     right *= np.float32(1.0 / (top - floor))
-    image[:, half:] = quantise_unit(right, levels=levels).T
+    image[:, half:] = quantise_unit(right, levels=levels)
     image[:, :half] = image[::-1, :half:-1]
     return image
 
