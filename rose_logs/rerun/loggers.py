@@ -50,12 +50,17 @@ def _curve_style(peaks: int) -> tuple[pa.Array, pa.Array]:
     return colors.as_arrow_array(), radii.as_arrow_array()
 
 
-def segmentation_image(image: npt.NDArray[np.uint8]) -> rr.SegmentationImage:
-    """``rr.SegmentationImage(image)`` (class ids, image row order) without its copies
-    (:func:`~rose_logs.rerun.arrow.image_buffer`)."""
-    return rr.SegmentationImage.from_fields(
-        buffer=arrow.image_buffer(image), format=arrow.u8_format(image)
+def segmentation_image(image: npt.NDArray[np.uint8]) -> list[rr.DescribedComponentBatch]:
+    """The components of ``rr.SegmentationImage(image)`` (class ids, image row order) without its
+    copies (:func:`~rose_logs.rerun.arrow.image_buffer`)."""
+    return arrow.described(
+        rr.SegmentationImage, buffer=arrow.image_buffer(image), format=arrow.u8_format(image)
     )
+
+
+#: Components logged unchanged again and again, converted once (:func:`arrow.batches`).
+_CLEAR = arrow.batches(rr.Clear(recursive=False))
+_CLEAR_RECURSIVE = arrow.batches(rr.Clear(recursive=True))
 
 
 def view_origin_m(snapshot: MapSnapshot) -> tuple[float, float]:
@@ -247,12 +252,15 @@ class TopicLogger:
         self.score_legend_placement: rr.Transform3D | None = None
         # By placement_terms: Rerun's Transform3D cost about 0.1 ms to build, three times per
         # snapshot, and a snapshot's images share placements, as do snapshots of a map that did
-        # not grow. Dropped when full (a growing map moves its placements on).
-        self._placements: dict[tuple[tuple[float, float], float, float], rr.Transform3D] = {}
+        # not grow. Kept as its components (arrow.batches). Dropped when full (a growing map
+        # moves its placements on).
+        self._placements: dict[
+            tuple[tuple[float, float], float, float], list[rr.DescribedComponentBatch]
+        ] = {}
 
     def _image_placement(
         self, snapshot: MapSnapshot, window: conv.Window | None = None, factor: int = 1
-    ) -> rr.Transform3D:
+    ) -> list[rr.DescribedComponentBatch]:
         """Rerun's transform of ``snapshot``'s images of ``window`` in this topic's views, pooled
         ``factor`` times (:func:`placement_terms`)."""
         terms = placement_terms(snapshot, self._origin_for(snapshot), window, factor)
@@ -260,12 +268,12 @@ class TopicLogger:
         if placement is None:
             if len(self._placements) >= _PLACEMENTS_KEPT:
                 self._placements.clear()
-            placement = self._placements[terms] = placement_transform(*terms)
+            placement = self._placements[terms] = arrow.batches(placement_transform(*terms))
         return placement
 
     def _pooled_placement(
         self, snapshot: MapSnapshot, window: conv.Window, factor: int
-    ) -> rr.Transform3D:
+    ) -> list[rr.DescribedComponentBatch]:
         """The transform of ``window``'s images pooled ``factor`` times (:func:`conv.pool_classes`)."""
         return self._image_placement(snapshot, conv.pooled_window(window, factor), factor)
 
@@ -502,7 +510,8 @@ class TopicLogger:
         )[0, :2]
         self.recording.log(
             self.paths.grid,
-            rr.GridMap(
+            arrow.described(
+                rr.GridMap,
                 data=arrow.image_buffer(image),
                 format=arrow.u8_format(image, color_model="L"),
                 cell_size=float(snapshot.resolution_m),
@@ -556,8 +565,8 @@ class TopicLogger:
         rec, paths = self.recording, self.paths
         directions = np.asarray(result.dominant_directions, dtype=np.float64)
         if directions.size == 0:
-            rec.log(paths.cell_directions, rr.Clear(recursive=False))
-            rec.log(paths.metric_directions, rr.Clear(recursive=False))
+            rec.log(paths.cell_directions, _CLEAR)
+            rec.log(paths.metric_directions, _CLEAR)
             self._metric_labels, self._metric_labels_hidden = None, False
             return
         rows, cols = snapshot.grid.shape
@@ -569,20 +578,29 @@ class TopicLogger:
         yaw = snapshot.origin_yaw_rad
         map_labels = [f"walls {d:.1f}°" for d in map_frame_deg(directions, yaw_rad=yaw, digits=1)]
         # Colours, sizes and the label switch are static (log_static).
+        labels = arrow.texts(map_labels)
         rec.log(
             paths.cell_directions,
-            rr.LineStrips2D.from_fields(strips=arrow.strips(conv.cells_to_pixels(segments, rows))),
-            rr.Points2D.from_fields(
-                positions=arrow.points(conv.cells_to_pixels(anchors, rows)), labels=map_labels
+            arrow.described(
+                rr.LineStrips2D, strips=arrow.strips(conv.cells_to_pixels(segments, rows))
+            ),
+            arrow.described(
+                rr.Points2D,
+                positions=arrow.points(conv.cells_to_pixels(anchors, rows)),
+                labels=labels,
             ),
             self._image_placement(snapshot),
         )
         origin = self._origin_for(snapshot)
         rec.log(
             paths.metric_directions,
-            rr.LineStrips3D.from_fields(strips=arrow.strips(metric_m(snapshot, segments, origin))),
-            rr.Points3D.from_fields(
-                positions=arrow.points(metric_m(snapshot, anchors, origin)), labels=map_labels
+            arrow.described(
+                rr.LineStrips3D, strips=arrow.strips(metric_m(snapshot, segments, origin))
+            ),
+            arrow.described(
+                rr.Points3D,
+                positions=arrow.points(metric_m(snapshot, anchors, origin)),
+                labels=labels,
             ),
         )
         self._metric_labels, self._metric_labels_hidden = map_labels, False
@@ -596,8 +614,8 @@ class TopicLogger:
         """
         rec, paths = self.recording, self.paths
         if len(walls) == 0:
-            rec.log(paths.metric_walls, rr.Clear(recursive=False))
-            rec.log(paths.cell_walls, rr.Clear(recursive=False))
+            rec.log(paths.metric_walls, _CLEAR)
+            rec.log(paths.cell_walls, _CLEAR)
             return
         ends_m = map_to_metric_m(walls.endpoints_m, self._origin_for(snapshot))
         height_m = overlay_z_m(snapshot, layer=2)
@@ -660,8 +678,8 @@ class TopicLogger:
             rec.log(paths.score_legend, self.score_legend_placement)
         rec.log(
             paths.score_bar,
-            rr.Points2D.from_fields(positions=arrow.points(positions), labels=labels),
-            rr.LineStrips2D.from_fields(strips=arrow.strips(tick)),
+            arrow.described(rr.Points2D, positions=arrow.points(positions), labels=labels),
+            arrow.described(rr.LineStrips2D, strips=arrow.strips(tick)),
         )
 
     def _bar_under(self, snapshot: MapSnapshot, occupied: conv.OccupiedCells) -> rr.Transform3D:
@@ -705,11 +723,12 @@ class TopicLogger:
         half_width = result.params.mask_half_width_px * size / max(result.padded_shape)
         self.recording.log(
             self.paths.spectrum,
-            rr.DepthImage.from_fields(
-                buffer=arrow.image_buffer(image), format=arrow.u8_format(image)
+            arrow.described(
+                rr.DepthImage, buffer=arrow.image_buffer(image), format=arrow.u8_format(image)
             ),
             # The strips' width is the kept half-width at display scale (at least a line).
-            rr.LineStrips2D.from_fields(
+            arrow.described(
+                rr.LineStrips2D,
                 strips=arrow.strips(conv.spectrum_strip_segments(directions, size=size)),
                 radii=max(half_width, 0.75),
             ),
@@ -744,7 +763,8 @@ class TopicLogger:
         strips = conv.threshold_strips(level, plot.threshold_label_deg)
         rec.log(
             paths.amplitude_threshold,
-            rr.LineStrips2D.from_fields(
+            arrow.described(
+                rr.LineStrips2D,
                 strips=strips,
                 labels=[f"t = {plot.threshold:g}"] + [""] * (len(strips) - 1),
             ),
@@ -752,17 +772,20 @@ class TopicLogger:
         colors, radii = _curve_style(len(plot.peak_labels))
         rec.log(
             paths.amplitude_curve,
-            rr.LineStrips2D.from_fields(
+            arrow.described(
+                rr.LineStrips2D,
                 strips=arrow.strips([plot.curve, *plot.prominence_bars]),
                 colors=colors,
                 radii=radii,
             ),
-            rr.Points2D.from_fields(positions=arrow.points(plot.peaks)),
+            arrow.described(rr.Points2D, positions=arrow.points(plot.peaks)),
         )
         rec.log(
             paths.amplitude_peak_labels,
-            rr.Points2D.from_fields(
-                positions=arrow.points(plot.label_anchors), labels=plot.peak_labels
+            arrow.described(
+                rr.Points2D,
+                positions=arrow.points(plot.label_anchors),
+                labels=arrow.texts(plot.peak_labels),
             ),
         )
 
@@ -775,7 +798,10 @@ class TopicLogger:
         if judged is None:
             judged = w_judges(result.occupied_count)
         w = float(result.structure_score) if judged else math.nan
-        self.recording.log(self.paths.w, rr.Scalars([w, self.trust_level, self.failure_level]))
+        self.recording.log(
+            self.paths.w,
+            arrow.described(rr.Scalars, scalars=[w, self.trust_level, self.failure_level]),
+        )
 
     def log_break_score(
         self, snapshot: MapSnapshot, verdict: BreakScore, threshold_m: float
@@ -785,12 +811,12 @@ class TopicLogger:
         cleared otherwise). While the region is drawn, the metric view's direction labels are
         hidden (:meth:`_show_metric_labels`)."""
         rec, paths = self.recording, self.paths
-        rec.log(paths.break_score, rr.Scalars(float(verdict.score_m)))
-        rec.log(paths.break_threshold, rr.Scalars(float(threshold_m)))
+        rec.log(paths.break_score, arrow.described(rr.Scalars, scalars=float(verdict.score_m)))
+        rec.log(paths.break_threshold, arrow.described(rr.Scalars, scalars=float(threshold_m)))
         region = verdict.region_m if verdict.broken else None
         self._show_metric_labels(region is None)
         if region is None:
-            rec.log(paths.break_region, rr.Clear(recursive=True))  # its label too
+            rec.log(paths.break_region, _CLEAR_RECURSIVE)  # its label too
             return
         x0, y0, x1, y1 = region
         z = overlay_z_m(snapshot, layer=3)
@@ -823,7 +849,9 @@ class TopicLogger:
         if self._metric_labels is None or show != self._metric_labels_hidden:
             return
         labels = self._metric_labels if show else []
-        self.recording.log(self.paths.metric_directions, rr.Points3D.from_fields(labels=labels))
+        self.recording.log(
+            self.paths.metric_directions, arrow.described(rr.Points3D, labels=arrow.texts(labels))
+        )
         self._metric_labels_hidden = not show
 
     def log_break(self, score: float | None, text: str, *, failure: bool = False) -> None:

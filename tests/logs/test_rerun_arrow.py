@@ -102,3 +102,69 @@ def test_amplitude_curve_style_matches_rerun() -> None:
     colors, radii = _curve_style(3)
     assert colors.equals(expected.colors.as_arrow_array())
     assert radii.equals(expected.radii.as_arrow_array())
+
+
+def _logged(components) -> list[tuple[str, object]]:
+    """What ``rr.log`` sends of ``components`` (an archetype or a list of described batches)."""
+    batches = (
+        components.as_component_batches()
+        if hasattr(components, "as_component_batches")
+        else components
+    )
+    return [(str(b.component_descriptor()), b.as_arrow_array()) for b in batches]
+
+
+@pytest.mark.parametrize(
+    ("archetype", "fields"),
+    [
+        (rr.Points2D, {"positions": [(1.0, 2.0), (3.0, 4.5)], "labels": ["walls 12.5°", ""]}),
+        (rr.Points3D, {"labels": []}),
+        (rr.LineStrips2D, {"strips": [[(0.0, 1.0), (2.0, 3.0)]], "radii": 0.75}),
+        (rr.Scalars, {"scalars": [0.25, float("nan"), 1.5]}),
+        (rr.Scalars, {"scalars": 2.0}),
+        (
+            rr.GridMap,
+            {
+                "data": np.arange(6, dtype=np.uint8).tobytes(),
+                "format": rr.components.ImageFormat(
+                    width=3, height=2, color_model="L", channel_datatype="U8"
+                ),
+                "cell_size": 0.05,
+                "translation": [1.0, -2.0, 0.5],
+                "quaternion": rr.Quaternion(xyzw=[0.0, 0.0, 0.6, 0.8]),
+            },
+        ),
+    ],
+)
+def test_described_components_are_the_archetypes(archetype, fields) -> None:
+    """Logged without building the archetype, the components are the archetype's: its descriptors,
+    its arrays (values converted by its own conversions, Arrow arrays taken as they are)."""
+    expected = _logged(archetype.from_fields(**fields))
+    ours = _logged(arrow.described(archetype, **fields))
+    assert [name for name, _ in ours] == [name for name, _ in expected]
+    # (str: an Arrow NaN is not equal to itself)
+    assert all(
+        a.type == b.type and str(a) == str(b) for (_, a), (_, b) in zip(ours, expected, strict=True)
+    )
+    # Arrow input of the component's type is passed through.
+    as_arrow = {name.split(":")[-1]: array for name, array in expected}
+    again = _logged(arrow.described(archetype, **as_arrow))
+    assert all(a is b for (_, a), (_, b) in zip(again, expected, strict=True))
+    assert arrow.texts(["a", "b°"]).equals(rr.components.TextBatch(["a", "b°"]).as_arrow_array())
+
+
+def test_batches_are_the_archetypes_components() -> None:
+    placement = rr.Transform3D(
+        translation=[1.0, 2.0, 0.0],
+        rotation=rr.RotationAxisAngle(axis=[0.0, 0.0, 1.0], radians=0.3),
+        scale=[0.5, 0.5, 1.0],
+    )
+    ours, expected = _logged(arrow.batches(placement)), _logged(placement)
+    assert [n for n, _ in ours] == [n for n, _ in expected]
+    assert all(a.equals(b) for (_, a), (_, b) in zip(ours, expected, strict=True))
+    clear, expected_clear = (
+        _logged(arrow.batches(rr.Clear(recursive=True))),
+        _logged(rr.Clear(recursive=True)),
+    )
+    assert [n for n, _ in clear] == [n for n, _ in expected_clear]
+    assert all(a.equals(b) for (_, a), (_, b) in zip(clear, expected_clear, strict=True))

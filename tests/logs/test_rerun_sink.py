@@ -562,10 +562,7 @@ def test_images_go_to_rerun_without_copies_and_as_rerun_would_send_them(tmp_path
     from rose_logs.snapshots import MapSnapshot
 
     image = np.random.default_rng(0).integers(0, 6, size=(7, 5), dtype=np.uint8)
-    ours = {
-        str(b.component_descriptor()): b.as_arrow_array()
-        for b in segmentation_image(image).as_component_batches()
-    }
+    ours = {str(b.component_descriptor()): b.as_arrow_array() for b in segmentation_image(image)}
     rerun_s = {
         str(b.component_descriptor()): b.as_arrow_array()
         for b in rr.SegmentationImage(image).as_component_batches()
