@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Callable
+from typing import TypeVar
 
 import numpy as np
 import numpy.typing as npt
@@ -61,6 +63,91 @@ def segmentation_image(image: npt.NDArray[np.uint8]) -> list[rr.DescribedCompone
 #: Components logged unchanged again and again, converted once (:func:`arrow.batches`).
 _CLEAR = arrow.batches(rr.Clear(recursive=False))
 _CLEAR_RECURSIVE = arrow.batches(rr.Clear(recursive=True))
+
+
+# What most snapshots of a session log again with the same values (a grid's cell size and place,
+# the detector's threshold, the amplitude plot's threshold line, the colour bar's labels),
+# converted once per value: Arrow arrays are immutable, so one is shared by every log call.
+
+_Components = TypeVar("_Components")
+
+
+def _by_value(convert: Callable[..., _Components], maxsize: int = 64) -> Callable[..., _Components]:
+    """``convert`` remembered by the exact values of its arguments (their ``repr``: 0.0 and -0.0
+    are two values, as they are two labels and two bit patterns; ``lru_cache`` took them for one)."""
+    cache: dict[str, _Components] = {}
+
+    @functools.wraps(convert)
+    def cached(*args: object) -> _Components:
+        key = repr(args)
+        found = cache.get(key)
+        if found is None:
+            if len(cache) >= maxsize:
+                cache.clear()
+            found = cache[key] = convert(*args)
+        return found
+
+    return cached
+
+
+@_by_value
+def _grid_placement(
+    cell_size: float, translation: tuple[float, float, float], yaw_rad: float
+) -> list[rr.DescribedComponentBatch]:
+    """The GridMap's cell size, translation and rotation (a quaternion of ``yaw_rad``)."""
+    return arrow.described(
+        rr.GridMap,
+        cell_size=cell_size,
+        translation=list(translation),
+        quaternion=rr.Quaternion(xyzw=yaw_to_quaternion(yaw_rad)),
+    )
+
+
+@_by_value
+def _scalar(value: float) -> list[rr.DescribedComponentBatch]:
+    """``rr.Scalars(value)``'s components."""
+    return arrow.described(rr.Scalars, scalars=value)
+
+
+@_by_value
+def _amplitude_threshold(
+    level: float, label_deg: float, threshold: float
+) -> list[rr.DescribedComponentBatch]:
+    """The prominence threshold's line at ``level``, in pieces around its label at ``label_deg``."""
+    strips = conv.threshold_strips(level, label_deg)
+    return arrow.described(
+        rr.LineStrips2D,
+        strips=strips,
+        labels=[f"t = {threshold:g}"] + [""] * (len(strips) - 1),
+    )
+
+
+@_by_value
+def _score_bar(threshold: float | None) -> list[rr.DescribedComponentBatch]:
+    """The colour bar's labels (scale; the ROSE threshold, None: none) and the threshold's tick."""
+    levels = style.DISPLAY_LEVELS
+
+    def u_of(score: float) -> float:
+        return levels * float(conv.score_to_unit(np.array([score]))[0])
+
+    # In the bar's pixels (levels x 2): the labels keep their places when the session ends and
+    # the bar moves under the final map (:meth:`TopicLogger.log_final_placement`).
+    positions = [
+        (u_of(style.SCORE_DISPLAY_MIN), _BAR_LABELS_BELOW_PX),
+        (u_of(1.0), _BAR_LABELS_BELOW_PX),
+    ]
+    labels = [f"score ≤ {style.SCORE_DISPLAY_MIN:g}", "1 (best cell)"]  # lower ones clipped
+    tick = np.empty((0, 2, 2))
+    if threshold is not None:
+        at = u_of(threshold)
+        positions.append((at, _BAR_THRESHOLD_LABEL_PX))
+        labels.append(f"threshold {threshold:.2f}")
+        # A tick across the bar, from above it (where the label is) to its lower edge.
+        tick = np.array([[(at, -0.6), (at, 2.0)]])
+    return [
+        *arrow.described(rr.Points2D, positions=arrow.points(positions), labels=labels),
+        *arrow.described(rr.LineStrips2D, strips=arrow.strips(tick)),
+    ]
 
 
 def view_origin_m(snapshot: MapSnapshot) -> tuple[float, float]:
@@ -514,13 +601,11 @@ class TopicLogger:
                 rr.GridMap,
                 data=arrow.image_buffer(image),
                 format=arrow.u8_format(image, color_model="L"),
-                cell_size=float(snapshot.resolution_m),
-                translation=[
-                    float(corner[0]),
-                    float(corner[1]),
-                    float(snapshot.origin_position_m[2]),
-                ],
-                quaternion=rr.Quaternion(xyzw=yaw_to_quaternion(snapshot.origin_yaw_rad)),
+            ),
+            _grid_placement(
+                float(snapshot.resolution_m),
+                (float(corner[0]), float(corner[1]), float(snapshot.origin_position_m[2])),
+                float(snapshot.origin_yaw_rad),
             ),
         )
 
@@ -648,25 +733,6 @@ class TopicLogger:
         threshold) of the colour bar and, ``live``, its placement under the occupied cells."""
         rec, paths = self.recording, self.paths
         occupied = occupied or conv.occupied_cells(result, conv.image_window(snapshot.grid))
-        levels = style.DISPLAY_LEVELS
-
-        def u_of(score: float) -> float:
-            return levels * float(conv.score_to_unit(np.array([score]))[0])
-
-        # In the bar's pixels (levels x 2): the labels keep their places when the session ends and
-        # the bar moves under the final map (:meth:`log_final_placement`).
-        positions = [
-            (u_of(style.SCORE_DISPLAY_MIN), _BAR_LABELS_BELOW_PX),
-            (u_of(1.0), _BAR_LABELS_BELOW_PX),
-        ]
-        labels = [f"score ≤ {style.SCORE_DISPLAY_MIN:g}", "1 (best cell)"]  # lower ones clipped
-        tick = np.empty((0, 2, 2))
-        if math.isfinite(result.threshold):
-            at = u_of(result.threshold)
-            positions.append((at, _BAR_THRESHOLD_LABEL_PX))
-            labels.append(f"threshold {result.threshold:.2f}")
-            # A tick across the bar, from above it (where the label is) to its lower edge.
-            tick = np.array([[(at, -0.6), (at, 2.0)]])
         factor = conv.display_factor(occupied.window, self.scores_max_px)
         rec.log(
             paths.cell_scores,
@@ -676,11 +742,8 @@ class TopicLogger:
         if self.live:
             self.score_legend_placement = self._bar_under(snapshot, occupied)
             rec.log(paths.score_legend, self.score_legend_placement)
-        rec.log(
-            paths.score_bar,
-            arrow.described(rr.Points2D, positions=arrow.points(positions), labels=labels),
-            arrow.described(rr.LineStrips2D, strips=arrow.strips(tick)),
-        )
+        threshold = float(result.threshold)
+        rec.log(paths.score_bar, _score_bar(threshold if math.isfinite(threshold) else None))
 
     def _bar_under(self, snapshot: MapSnapshot, occupied: conv.OccupiedCells) -> rr.Transform3D:
         """The colour bar's placement under the occupied cells' box (a SLAM map's grid is mostly
@@ -760,14 +823,9 @@ class TopicLogger:
                 static=True,
             )
             self._threshold_logged = True
-        strips = conv.threshold_strips(level, plot.threshold_label_deg)
         rec.log(
             paths.amplitude_threshold,
-            arrow.described(
-                rr.LineStrips2D,
-                strips=strips,
-                labels=[f"t = {plot.threshold:g}"] + [""] * (len(strips) - 1),
-            ),
+            _amplitude_threshold(level, plot.threshold_label_deg, plot.threshold),
         )
         colors, radii = _curve_style(len(plot.peak_labels))
         rec.log(
@@ -812,7 +870,7 @@ class TopicLogger:
         hidden (:meth:`_show_metric_labels`)."""
         rec, paths = self.recording, self.paths
         rec.log(paths.break_score, arrow.described(rr.Scalars, scalars=float(verdict.score_m)))
-        rec.log(paths.break_threshold, arrow.described(rr.Scalars, scalars=float(threshold_m)))
+        rec.log(paths.break_threshold, _scalar(float(threshold_m)))
         region = verdict.region_m if verdict.broken else None
         self._show_metric_labels(region is None)
         if region is None:
