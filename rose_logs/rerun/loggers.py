@@ -736,7 +736,7 @@ class TopicLogger:
         factor = conv.display_factor(occupied.window, self.scores_max_px)
         rec.log(
             paths.cell_scores,
-            segmentation_image(conv.pool_scores(conv.masked_score_image(result, occupied), factor)),
+            segmentation_image(conv.pooled_score_image(result, occupied, factor)),
             self._pooled_placement(snapshot, occupied.window, factor),
         )
         if self.live:

@@ -366,6 +366,24 @@ def test_pooled_scores_show_the_lowest_score_of_a_block_and_stay_transparent_els
     assert_array_equal(conv.pool_scores(image, 2), [[2, 0], [0, 17]])
 
 
+@pytest.mark.parametrize("factor", [1, 2, 3, 7])
+@pytest.mark.parametrize("levels", [2, 32, 255])
+def test_pooled_score_image_is_the_masked_image_pooled(plan, factor: int, levels: int) -> None:
+    """Pooled from the occupied cells alone, the scores view's image is pixel for pixel the
+    window's full image pooled (the lowest level of each block, 0 where no cell is occupied),
+    on a window whose sides are not multiples of the factor (padded on top and on the right)."""
+    grid, result = plan
+    x0, y0, x1, y1 = conv.image_window(grid)
+    window = (x0 - 3, y0 - 1, x1, y1)  # 113 x 71 cells: neither side a multiple of a factor
+    assert all((x1 - x0 + 3) % f and (y1 - y0 + 1) % f for f in (2, 3, 7))
+    occupied = conv.occupied_cells(result, window)
+    expected = conv.pool_scores(conv.masked_score_image(result, occupied, levels=levels), factor)
+    pooled = conv.pooled_score_image(result, occupied, factor, levels=levels)
+    assert pooled.dtype == np.uint8
+    assert_array_equal(pooled, expected)
+    assert pooled.any() and not pooled.all()
+
+
 def test_the_display_factor_keeps_maps_up_to_the_limit_whole() -> None:
     assert conv.display_factor((0, 0, 1024, 700)) == 1
     assert conv.display_factor((10, 10, 1035, 700)) == 2  # 1025 cells across
