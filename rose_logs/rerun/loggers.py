@@ -106,7 +106,12 @@ def _grid_placement(
 @_by_value
 def _scalar(value: float) -> list[rr.DescribedComponentBatch]:
     """``rr.Scalars(value)``'s components."""
-    return arrow.described(rr.Scalars, scalars=value)
+    return arrow.described(rr.Scalars, scalars=arrow.floats(value))
+
+
+#: The break region's style (its outline's and its label's colour and width).
+_BREAK_COLOR = rr.components.ColorBatch(style.BREAK_COLOR).as_arrow_array()
+_BREAK_RADIUS = rr.components.RadiusBatch(rr.Radius.ui_points(2.5)).as_arrow_array()
 
 
 @_by_value
@@ -858,7 +863,9 @@ class TopicLogger:
         w = float(result.structure_score) if judged else math.nan
         self.recording.log(
             self.paths.w,
-            arrow.described(rr.Scalars, scalars=[w, self.trust_level, self.failure_level]),
+            arrow.described(
+                rr.Scalars, scalars=arrow.floats([w, self.trust_level, self.failure_level])
+            ),
         )
 
     def log_break_score(
@@ -869,7 +876,10 @@ class TopicLogger:
         cleared otherwise). While the region is drawn, the metric view's direction labels are
         hidden (:meth:`_show_metric_labels`)."""
         rec, paths = self.recording, self.paths
-        rec.log(paths.break_score, arrow.described(rr.Scalars, scalars=float(verdict.score_m)))
+        rec.log(
+            paths.break_score,
+            arrow.described(rr.Scalars, scalars=arrow.floats(float(verdict.score_m))),
+        )
         rec.log(paths.break_threshold, _scalar(float(threshold_m)))
         region = verdict.region_m if verdict.broken else None
         self._show_metric_labels(region is None)
@@ -884,18 +894,24 @@ class TopicLogger:
         )
         rec.log(
             paths.break_region,
-            rr.LineStrips3D([corners], colors=style.BREAK_COLOR, radii=rr.Radius.ui_points(2.5)),
+            arrow.described(
+                rr.LineStrips3D,
+                strips=arrow.strips(corners[np.newaxis]),
+                radii=_BREAK_RADIUS,
+                colors=_BREAK_COLOR,
+            ),
         )
         # On the middle of the region's south edge: Rerun centres a label below its point, so it
         # hangs under the region (on the strip's middle it covered a region of a metre or two).
         rec.log(
             paths.break_label,
-            rr.Points3D(
-                (corners[0:1] + corners[1:2]) / 2,
-                colors=style.BREAK_COLOR,
-                radii=rr.Radius.ui_points(2.5),
+            arrow.described(
+                rr.Points3D,
+                positions=arrow.points((corners[0:1] + corners[1:2]) / 2),
+                radii=_BREAK_RADIUS,
+                colors=_BREAK_COLOR,
                 # As the event and the summary say it (1.25 m read "1.3 m" beside them).
-                labels=[f"break: {verdict.score_m:.2f} m of map contradicted"],
+                labels=arrow.texts([f"break: {verdict.score_m:.2f} m of map contradicted"]),
             ),
         )
 

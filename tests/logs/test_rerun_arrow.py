@@ -151,6 +151,10 @@ def test_described_components_are_the_archetypes(archetype, fields) -> None:
     again = _logged(arrow.described(archetype, **as_arrow))
     assert all(a is b for (_, a), (_, b) in zip(again, expected, strict=True))
     assert arrow.texts(["a", "b°"]).equals(rr.components.TextBatch(["a", "b°"]).as_arrow_array())
+    for value in ([0.25, float("nan"), -0.0], 2.0):
+        expected_scalars = rr.components.ScalarBatch(value).as_arrow_array()
+        assert arrow.floats(value).type == expected_scalars.type
+        assert str(arrow.floats(value)) == str(expected_scalars)
 
 
 def test_batches_are_the_archetypes_components() -> None:
