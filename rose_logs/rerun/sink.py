@@ -292,6 +292,7 @@ class RerunSink:
                 failure_level=failure_level,
                 trust_level=trust_level,
                 live=self.live,
+                start_ns=self.start_ns,
             )
             for topic in topics
         }
@@ -495,7 +496,9 @@ class RerunSink:
         self._break_top[snapshot.topic] = top
 
         self._submit_at(
-            snapshot, index, lambda: topic_logger.log_break_score(snapshot, verdict, threshold_m)
+            snapshot,
+            index,
+            lambda: topic_logger.log_break_score(snapshot, verdict, threshold_m, index=index),
         )
 
     def event(

@@ -218,3 +218,81 @@ def test_the_metric_views_direction_labels_give_way_to_a_break_region(tmp_path: 
     named = [f"walls {d:.1f}°" for d in np.degrees(result.dominant_directions)]
     assert len(named) == 2
     assert labels == {1: named, 2: [], 4: named}
+
+
+def _region_shown(path: Path, entity: str) -> dict[str, dict[object, bool]]:
+    """Per timeline, whether the viewer shows the break region at each time a row was logged at:
+    the latest row at or before it (ties: the row logged last) is an outline, not a clear."""
+    rows = [
+        row
+        for chunk in rerun_chunk.RrdReader(path).stream().to_chunks()
+        if not chunk.is_static and chunk.entity_path == entity
+        for row in chunk.to_record_batch().to_pylist()
+    ]
+    shown: dict[str, dict[object, bool]] = {}
+    for timeline in (TIMELINE, SEQUENCE_TIMELINE):
+        ordered = sorted(rows, key=lambda r: (r[timeline], r["rerun.controls.RowId"]))
+        shown[timeline] = {}
+        for row in ordered:  # the last row at a time decides there
+            shown[timeline][row[timeline]] = "LineStrips3D:strips" in row
+    return shown
+
+
+def _latest_at(shown: dict[object, bool], at: object) -> bool:
+    times = [t for t in shown if t <= at]
+    return bool(times) and shown[max(times)]
+
+
+@pytest.mark.parametrize(
+    "snapshots",
+    [
+        # (log time, broken), in the order they are logged
+        "q10 q20 b30 q40 q50 b60 b70 q80 q90",  # in log-time order
+        "q10 q20 q30 b15 q40 q25 b22 q50",  # a break drawn before clears left out
+        "q10 q20 b20 q30 b5",  # a break at the time of a clear left out
+        "q10 b5 q11 q12",  # the last logged (sequence order) is the break
+        "q10 b20 q15 q25 q26",  # the latest in time is the break
+        "q10 b20 q30 q25 q40",  # a clear logged back in time
+        "q30 q30 q30 b10 q20 q40 b15 q50 q50 b50 q5",
+    ],
+)
+def test_the_break_region_is_cleared_when_a_break_ends_and_stays_cleared(
+    tmp_path: Path, snapshots: str
+) -> None:
+    """The region is cleared when a break ends, and not again while none is drawn: at every
+    snapshot's time, on the time and sequence timelines alike, the viewer shows the region where
+    a recording that clears it at every quiet snapshot does (log times may go back: a bag is
+    read in file order)."""
+    from rose_logs.rerun import TopicLogger, set_snapshot_time
+
+    paths = EntityPaths("map")
+    quiet = BreakScore(0.5, False, False, 0, None, 0.5)
+    broken = BreakScore(3.0, True, True, 0, (1.0, 2.0, 1.4, 2.5), 3.0)
+    logged = [(int(word[1:]), broken if word[0] == "b" else quiet) for word in snapshots.split()]
+    found: dict[str, dict[str, dict[object, bool]]] = {}
+    for name, start_ns in (("every", None), ("ends", 0)):
+        path = tmp_path / f"{name}.rrd"
+        recording = rr.RecordingStream("rose_bag_test", recording_id=name)
+        recording.set_log_time_enabled(False)
+        recording.save(path)
+        logger = TopicLogger(recording, paths, start_ns=start_ns)
+        for index, (t, verdict) in enumerate(logged):
+            t_ns = t * 1_000_000_000
+            set_snapshot_time(recording, log_time_ns=t_ns, start_ns=0, index=index)
+            logger.log_break_score(_snapshot(t_ns), verdict, 1.25, index=index)
+        recording.flush()
+        recording.disconnect()
+        found[name] = _region_shown(path, f"/{paths.break_region}")
+    for timeline in (TIMELINE, SEQUENCE_TIMELINE):
+        every, ends = found["every"][timeline], found["ends"][timeline]
+        for at in every:
+            assert _latest_at(ends, at) == _latest_at(every, at), (timeline, at)
+    if snapshots.startswith("q10 q20 b30"):  # in order: cleared first and where a break ends
+        assert sorted(found["ends"][SEQUENCE_TIMELINE].items()) == [
+            (0, False),  # q10
+            (2, True),  # b30
+            (3, False),  # q40
+            (5, True),  # b60
+            (6, True),  # b70
+            (7, False),  # q80
+        ]
