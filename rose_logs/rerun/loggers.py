@@ -7,8 +7,6 @@ converted by :mod:`rose_logs.rerun.conversions` (north up, image row order).
 
 from __future__ import annotations
 
-import array
-import bisect
 import functools
 import math
 from collections.abc import Callable
@@ -311,10 +309,6 @@ class TopicLogger:
         The colour bar is placed under each snapshot's map (as a viewer streamed to shows it).
         False: it is placed once, under the final map, by :meth:`log_final_placement` (a saved
         recording, whose scores view frames the final map).
-    start_ns : int or None, default None
-        0 of the session timeline (:func:`set_snapshot_time`): with it, the break region is
-        cleared only when a break ends (:meth:`log_break_score`); None: at every snapshot
-        without a break.
     display_max_px : int, default ``style.DISPLAY_MAX_PX``
         Longest side of the segmentation and cell-score images: a larger map is shown pooled
         (:func:`conv.display_factor`); the metric view's grid stays at full resolution.
@@ -330,12 +324,10 @@ class TopicLogger:
         failure_level: float = FAILURE_LEVEL,
         trust_level: float = TRUST_LEVEL,
         live: bool = True,
-        start_ns: int | None = None,
         display_max_px: int = style.DISPLAY_MAX_PX,
         scores_max_px: int = style.SCORES_DISPLAY_MAX_PX,
     ) -> None:
         self.recording = recording
-        self.start_ns = start_ns
         self.live = live
         self.display_max_px = display_max_px
         self.scores_max_px = min(scores_max_px, display_max_px)
@@ -348,16 +340,6 @@ class TopicLogger:
         # whether the break region's label has them hidden (log_break_score).
         self._metric_labels: list[str] | None = None
         self._metric_labels_hidden = False
-        # The break region's clears (log_break_score): the latest log time of a break score;
-        # whether the region was last logged cleared, in the order of the log calls (what the
-        # sequence timeline's latest-at finds) and at the latest log time (the time timelines');
-        # the log time and index (-1: none) of each clear left out since, as the region stood
-        # cleared: in log-time order (left out in order only), 16 bytes each.
-        self._break_latest_ns: int | None = None
-        self._region_cleared_last = False
-        self._region_cleared_latest = False
-        self._left_out_ns = array.array("q")
-        self._left_out_index = array.array("q")
         # Of the last snapshot (``live``), else of the session's end (log_final_placement).
         self.score_legend_placement: rr.Transform3D | None = None
         # By placement_terms: Rerun's Transform3D cost about 0.1 ms to build, three times per
@@ -887,18 +869,12 @@ class TopicLogger:
         )
 
     def log_break_score(
-        self,
-        snapshot: MapSnapshot,
-        verdict: BreakScore,
-        threshold_m: float,
-        *,
-        index: int | None = None,
+        self, snapshot: MapSnapshot, verdict: BreakScore, threshold_m: float
     ) -> None:
         """The break detector's score and threshold, and its region while the snapshot is broken
         (a rectangle in the metric view's metres, from the view origin, just above the grid map;
         cleared otherwise). While the region is drawn, the metric view's direction labels are
-        hidden (:meth:`_show_metric_labels`). ``index``: the snapshot's, as the recording's time
-        was set (:func:`set_snapshot_time`)."""
+        hidden (:meth:`_show_metric_labels`)."""
         rec, paths = self.recording, self.paths
         rec.log(
             paths.break_score,
@@ -907,16 +883,9 @@ class TopicLogger:
         rec.log(paths.break_threshold, _scalar(float(threshold_m)))
         region = verdict.region_m if verdict.broken else None
         self._show_metric_labels(region is None)
-        at = (int(snapshot.log_time_ns), index)
-        in_order = self._break_latest_ns is None or at[0] >= self._break_latest_ns
-        self._break_latest_ns = at[0] if in_order else self._break_latest_ns
         if region is None:
-            self._clear_break_region(at, in_order=in_order)
+            rec.log(paths.break_region, _CLEAR_RECURSIVE)  # its label too
             return
-        self._before_break_region(at, in_order=in_order)
-        self._region_cleared_last = False
-        if in_order:
-            self._region_cleared_latest = False
         x0, y0, x1, y1 = region
         z = overlay_z_m(snapshot, layer=3)
         corners = map_to_metric_m(
@@ -945,50 +914,6 @@ class TopicLogger:
                 labels=arrow.texts([f"break: {verdict.score_m:.2f} m of map contradicted"]),
             ),
         )
-
-    def _clear_break_region(self, at: tuple[int, int | None], *, in_order: bool) -> None:
-        """Clear the break region (and its label) at ``at`` (log time, index), or leave the clear
-        out where every timeline's latest-at finds a clear already: the region was last logged
-        cleared, both in the order of the log calls (the sequence timeline's order) and at the
-        latest log time (the time timelines'), and ``at`` is no earlier than any break score
-        logged before. A clear left out is remembered: a region drawn later at an earlier log
-        time (a bag read in file order) would show at its time (:meth:`_before_break_region`)."""
-        if (
-            self.start_ns is not None
-            and in_order
-            and self._region_cleared_last
-            and self._region_cleared_latest
-        ):
-            self._left_out_ns.append(at[0])
-            self._left_out_index.append(-1 if at[1] is None else at[1])
-            return
-        self.recording.log(self.paths.break_region, _CLEAR_RECURSIVE)  # its label too
-        self._region_cleared_last = True
-        if in_order:
-            self._region_cleared_latest = True
-
-    def _before_break_region(self, at: tuple[int, int | None], *, in_order: bool) -> None:
-        """Before the region is drawn at ``at``: a clear left out at the same log time would be
-        newer than the region if logged later (dropped: the region, drawn after it, wins there);
-        drawn at an earlier log time than clears left out, the region would show at theirs: they
-        are logged now, each at its own time."""
-        times, indexes = self._left_out_ns, self._left_out_index
-        same = bisect.bisect_left(times, at[0])  # in log-time order: the tail is at or after
-        later = bisect.bisect_right(times, at[0])
-        relog = list(zip(times[later:], indexes[later:], strict=True))
-        del times[same:], indexes[same:]
-        if in_order or not relog:
-            return
-        assert self.start_ns is not None  # nothing is left out without it
-        for log_time_ns, index in relog:
-            set_snapshot_time(
-                self.recording,
-                log_time_ns=log_time_ns,
-                start_ns=self.start_ns,
-                index=None if index < 0 else index,
-            )
-            self.recording.log(self.paths.break_region, _CLEAR_RECURSIVE)
-        set_snapshot_time(self.recording, log_time_ns=at[0], start_ns=self.start_ns, index=at[1])
 
     def _show_metric_labels(self, show: bool) -> None:
         """Show or hide the metric view's direction labels (their lines stay). The break region's

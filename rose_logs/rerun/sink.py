@@ -292,7 +292,6 @@ class RerunSink:
                 failure_level=failure_level,
                 trust_level=trust_level,
                 live=self.live,
-                start_ns=self.start_ns,
             )
             for topic in topics
         }
@@ -496,9 +495,7 @@ class RerunSink:
         self._break_top[snapshot.topic] = top
 
         self._submit_at(
-            snapshot,
-            index,
-            lambda: topic_logger.log_break_score(snapshot, verdict, threshold_m, index=index),
+            snapshot, index, lambda: topic_logger.log_break_score(snapshot, verdict, threshold_m)
         )
 
     def event(
