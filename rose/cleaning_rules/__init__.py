@@ -17,6 +17,7 @@ as straight runs and lines), :mod:`~rose.cleaning_rules.bridges` (hidden walls b
 from __future__ import annotations
 
 import math
+from concurrent.futures import Future
 from typing import TYPE_CHECKING, TypeVar
 
 import numpy as np
@@ -244,12 +245,12 @@ def _wall_cells(
 
     unknown = occupancy == UNKNOWN
     with _beside() as beside:
-        # The side thread, in turn: the wide unknown space (wanted once the lines are found), the
-        # fronts (once the bridges are drawn) and the pieces (by the object rules), while this
-        # thread finds the runs, the lines and the bridges: the two threads' shares of the work
-        # up to the fronts are about even (the bridges' columns, on the side thread, waited there
-        # behind the fronts).
-        near_job = beside.submit(_near_wide_unknown, unknown, res, p)
+        # The side thread, in turn: the fronts (wanted once the bridges are drawn) and the pieces
+        # (by the object rules), while this thread finds the runs, the lines, the wide unknown
+        # space and the bridges: the two threads' shares of the work up to the fronts are about
+        # even (with the wide unknown space on the side thread, ahead of the fronts, this thread
+        # waited 6-10 ms for them on the 20 ray-cast benchmark maps, median; the bridges'
+        # columns, on the side thread, waited there behind the fronts).
         # Furniture flush against a wall: its hidden wall line is drawn, as the bridges' are.
         fronts_job = beside.submit(
             _flush_fronts,
@@ -282,7 +283,7 @@ def _wall_cells(
         # the runs are walls already, and leaving them out of Hough's input makes it 1.2-3x
         # cheaper.
         lines = runs | straight_lines(occupied & ~runs, min_length_px=length_px(p.min_run_m, res))
-        near_outside = near_job.result()
+        near_outside = _near_wide_unknown(unknown, res, p)  # (for the free-standing pieces too)
         keep = occupied & (structure | near_outside) | lines
         completed = np.zeros(occupied.shape, dtype=bool)
         sealed_off = completed  # what closes scanned objects and the building, as walls or not
@@ -319,6 +320,8 @@ def _wall_cells(
         completed = completed | front_lines
         sealed_off = sealed_off | front_lines
         sealed = bool(sealed_off.any())
+        near_job: Future[npt.NDArray[np.bool_]] = Future()
+        near_job.set_result(near_outside)
         if sealed:
             # The sealed cells separate the room from the unknown beyond them: furniture faces
             # in front are no longer next to the outside (a cabinet's inside, open through the
