@@ -494,8 +494,10 @@ def _walls_cleaning(
         occupancy, result, resolution_m=resolution_m, params=params
     )
     occupied = result.occupied
-    kept = occupied & (walls | (result.structure & ~dropped))
-    removed = occupied & ~kept
+    kept = np.greater(result.structure, dropped)  # structure & ~dropped, one pass
+    kept |= walls
+    kept &= occupied
+    removed = np.greater(occupied, kept)
     cleaned = occupancy.copy()
     cleaned[removed] = result.params.clutter_cell_value
     cleaned[completed] = OCCUPIED
