@@ -335,9 +335,11 @@ def _wall_cells(
         dropped_job = None
         if pieces_job is not None:
             # Free-standing pieces need neither the object faces nor the attached pieces: they
-            # go beside them, after the wide unknown space they need (the same thread, in turn).
-            pieces = pieces_job.result()
-            dropped_job = beside.submit(_free_standing, pieces, lines, near_job, unknown, res, p)
+            # go beside them, after the pieces and the wide unknown space they need (the same
+            # thread, in turn: this one does not wait for the pieces here).
+            dropped_job = beside.submit(
+                _free_standing, pieces_job, lines, near_job, unknown, res, p
+            )
         faces = np.zeros(occupied.shape, dtype=bool)
         pockets = faces
         if p.object_pocket_m2 > 0:
@@ -389,6 +391,7 @@ def _wall_cells(
     min_region_px = length_px(p.min_region_m2, res**2)
     guard_obstacles = occupied
     if pieces_job is not None and apart_job is not None:
+        pieces = pieces_job.result()
         np.greater(keep, dropped, out=keep)
         # A wall between two doors: a piece nothing kept (too short for a run) that continues
         # kept walls in line across a door at each end.

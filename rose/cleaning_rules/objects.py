@@ -85,19 +85,20 @@ _DOOR_ANCHOR_M = 0.3
 
 
 def _free_standing(
-    pieces: _Pieces,
+    pieces_job: Future[_Pieces],
     lines: npt.NDArray[np.bool_],
     near_outside: Future[npt.NDArray[np.bool_]],
     unknown: npt.NDArray[np.bool_],
     res: float,
     p: CleanParams,
 ) -> npt.NDArray[np.bool_]:
-    """Occupied cells of free-standing pieces: no cell on a run or ``lines`` or near wide unknown
-    (``near_outside``, a job submitted before this one) even across a gap of up to two cells, and
-    a joined box with a diagonal shorter than a wall run: clutter, whatever the paper's labelling
-    says."""
+    """Occupied cells of free-standing pieces (``pieces_job``'s): no cell on a run or ``lines`` or
+    near wide unknown (``near_outside``; both jobs submitted before this one) even across a gap of
+    up to two cells, and a joined box with a diagonal shorter than a wall run: clutter, whatever
+    the paper's labelling says."""
     import cv2
 
+    pieces = pieces_job.result()
     occupied = pieces.occupied
     anchored = lines | (occupied & near_outside.result())
     # A solid square (0.25 m) is a drawn column or wall, not the faces a scanner sees of an object.
