@@ -317,6 +317,14 @@ def _fronts_rows(
         )
         # This side as "below": the rows reversed for the other (views, no copies).
         view, written = (code, out) if sign == 1 else (code[::-1], out[::-1])
+        # Most candidates fail _front_at's depth test (a front no deeper than a wall face: the
+        # room reaches the line): those found so on all of them at once are not asked one by one.
+        view_rows = rows[chosen] if sign == 1 else height - 1 - rows[chosen]
+        chosen = chosen[
+            ~_shallow_in_gap(
+                view, view_rows, end_left[chosen] + 1, end_right[chosen], span, face, slack
+            )
+        ]
         for i in chosen.tolist():
             row = int(rows[i]) if sign == 1 else height - 1 - int(rows[i])
             _front_at(
@@ -334,6 +342,56 @@ def _fronts_rows(
                 shallowest=corner_depth + 2 * slack if chained[i] else 0,
                 parallel=bool(chained[i]),
             )
+
+
+def _shallow_in_gap(
+    code: npt.NDArray[np.uint8],
+    rows: npt.NDArray[np.int64],
+    col0: npt.NDArray[np.int64],
+    col1: npt.NDArray[np.int64],
+    span: int,
+    face: int,
+    slack: int,
+) -> npt.NDArray[np.bool_]:
+    """Which candidate gaps ``rows, col0:col1`` of ``code`` (the furniture below the line) fail
+    :func:`_front_at`'s depth test (its front, in some column, no deeper than a wall face: ``face``
+    cells, ``face + 2 * slack`` straightened), worked out for all at once as :func:`_front_at` does
+    it for one, on the free cells within that depth: :func:`_front_at` returns False for each of
+    them (there or at an earlier test) and writes nothing."""
+    height, width = code.shape
+    limit = face + 2 * slack
+    length = col1 - col0
+    if rows.size == 0 or span <= limit or int(length.min()) <= 0:
+        return np.zeros(rows.size, dtype=bool)
+    below_rows = np.minimum(span, height - 1 - rows)  # rows of _front_at's ``below``
+    along = np.arange(int(length.max()))
+    cols = np.minimum(col0[:, None] + along, width - 1)
+    depth = np.arange(limit + 1)
+    at_rows = np.clip(rows[:, None] + 1 + depth, 0, height - 1)
+    free = code[at_rows[:, :, None], cols[:, None, :]] == 1  # (gap, depth, column)
+    free &= (depth < below_rows[:, None])[:, :, None]
+    # The slits: free cells of the first slack + 1 rows with a cell that is not free behind them
+    # (when ``below`` has that row).
+    has_behind = (below_rows > 1 + slack)[:, None, None]
+    slits = free[:, : slack + 1] & ~free[:, slack + 1 : slack + 2] & has_behind
+    unslit = free.copy()
+    unslit[:, : slack + 1] &= ~slits
+    first, stop = np.zeros(rows.size, dtype=np.int64), length.copy()
+    if not slack:
+        shallow = unslit
+    else:
+        # The gap's ends move in where free space reaches within a wall face (raw depths).
+        at_face = free[:, : face + 1].any(axis=1)
+        gaps = np.arange(rows.size)
+        for _ in range(slack + 1):
+            first += (stop - first > 1) & at_face[gaps, first]
+            stop -= (stop - first > 1) & at_face[gaps, stop - 1]
+        inside = (along >= first[:, None]) & (along < stop[:, None])
+        # The slits are taken out when they are in half the columns or more.
+        many = 2 * np.count_nonzero(slits.any(axis=1) & inside, axis=1) >= stop - first
+        shallow = np.where(many[:, None, None], unslit, free)
+    inside = (along >= first[:, None]) & (along < stop[:, None])
+    return (shallow.any(axis=1) & inside).any(axis=1)
 
 
 def _beam_along(
