@@ -31,6 +31,7 @@ and orientation, ``offset_px`` places the earlier grid in the later one.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -365,14 +366,16 @@ _MAX_CLUSTERS = 64
 
 
 def _on_long_walls(
-    walls: npt.NDArray[np.bool_],
+    grid: npt.NDArray[np.int8],
+    occupied_threshold: int,
     rows: npt.NDArray[np.intp],
     cols: npt.NDArray[np.intp],
     min_extent_px: int,
     bridge_px: int,
 ) -> npt.NDArray[np.bool_]:
-    """Whether each cell ``(rows[i], cols[i])`` of ``walls`` (bool, shape (rows, cols); the cells
-    are walls) lies on a long wall (:func:`_long_walls`), shape (cells,).
+    """Whether each cell ``(rows[i], cols[i])`` of the walls of ``grid`` (int8, shape (rows, cols);
+    walls: ``grid >= occupied_threshold``, the cells are walls) lies on a long wall
+    (:func:`_long_walls`), shape (cells,). The walls are read in the boxes below only.
 
     Each cell's wall is labelled in a box reaching ``reach = min_extent_px + bridge_px`` cells beyond
     it (or to the grid's edge); any such box gives the same answer, the whole grid's included. A
@@ -390,7 +393,7 @@ def _on_long_walls(
     import cv2
 
     reach = min_extent_px + bridge_px
-    shape = walls.shape
+    shape = grid.shape
 
     def box_around(at: npt.NDArray[np.intp]) -> tuple[int, int, int, int]:
         """The bounding box of the cells ``at`` (indices into rows and cols) plus the reach."""
@@ -420,44 +423,145 @@ def _on_long_walls(
             boxes = grouped
     on_long = np.zeros(rows.size, dtype=bool)
     for (r0, r1, c0, c1), at in boxes:
-        on_long[at] = _long_at(
-            walls[r0:r1, c0:c1], rows[at] - r0, cols[at] - c0, min_extent_px, bridge_px
-        )
+        walls = grid[r0:r1, c0:c1] >= occupied_threshold
+        on_long[at] = _long_at(walls, rows[at] - r0, cols[at] - c0, min_extent_px, bridge_px)
     return on_long
+
+
+#: Gathering a cell's window costs about this many times a cell of a dilation (OpenCV's, of a
+#: box around the cells; 2.4 vs 0.5 ns): :func:`_far_cells` gathers when that is cheaper.
+_GATHER_COST = 5
+
+
+def _far_cells(
+    grid: npt.NDArray[np.int8],
+    candidates: npt.NDArray[np.bool_],
+    bounds: tuple[int, int, int, int],
+    radius_px: int,
+    cells: Callable[[npt.NDArray[np.int8]], npt.NDArray[np.bool_]],
+    *,
+    outside: bool = False,
+) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.intp]]:
+    """Rows and columns of the cells of ``candidates`` (bool, the cells of ``bounds``, ``(row0,
+    row1, col0, col1)``, ends exclusive, in ``grid``) with no True cell of ``cells(grid)`` within
+    ``radius_px`` (chessboard distance; ``outside`` the grid counts as ``outside``).
+
+    Few candidates (a few dozen among hundreds of thousands of cells in their box): each one's
+    window gathered, its rows and columns clipped to the grid (a clipped index is the window's cell
+    at the grid's edge: the window's cells in the grid are read, and only they). Many: the box
+    plus the radius dilated (:func:`_dilate_square`). Alike, cell for cell.
+    """
+    b0, b1, c0, c1 = bounds
+    t0, t1, u0, u1 = _grown(bounds, radius_px, grid.shape)
+    side = 2 * radius_px + 1
+    if np.count_nonzero(candidates) * side * side * _GATHER_COST >= (t1 - t0) * (u1 - u0):
+        dilated = _dilate_square(cells(grid[t0:t1, u0:u1]), radius_px, outside=outside)
+        return _cells_of(candidates > dilated[b0 - t0 : b1 - t0, c0 - u0 : c1 - u0], b0, c0)
+    rows, cols = _cells_of(candidates, b0, c0)
+    height, width = grid.shape
+    reach = np.arange(-radius_px, radius_px + 1)
+    at_rows = np.clip(rows[:, None] + reach, 0, height - 1) * width
+    at_cols = np.clip(cols[:, None] + reach, 0, width - 1)
+    at = (at_rows[:, :, None] + at_cols[:, None, :]).reshape(rows.size, -1)
+    near = np.any(cells(grid.reshape(-1).take(at)), axis=1)
+    if outside:  # windows reaching past the grid's edge
+        near |= (rows < radius_px) | (rows >= height - radius_px)
+        near |= (cols < radius_px) | (cols >= width - radius_px)
+    return rows[~near], cols[~near]
+
+
+def _changed_rows(
+    placed: npt.NDArray[np.int8], later: npt.NDArray[np.int8]
+) -> tuple[int, int] | None:
+    """``(row0, row1)`` (end exclusive): rows holding every cell where ``placed`` and ``later``
+    (int8, one shape) differ; None when they are equal.
+
+    Every candidate is such a cell (a wall turned free, a rise of at least a point), and two
+    snapshots of a session differ in a part of the grid (a fifth to a half of it, 30 s apart):
+    the candidates are looked for in those rows. The grids' bytes are compared 8 at a time (as
+    64-bit words: 28 us for 1000 x 1000 cells, 37 cell by cell), the first differing word found
+    from the start and the last by blocks from the end (``argmax`` stops at the first True; a
+    reversed one reads the whole array). Rows, not a box: row bands are contiguous, and the
+    candidates' own box is found in them.
+    """
+    cols = later.shape[1]
+    if not (placed.flags.c_contiguous and later.flags.c_contiguous):
+        bounds = true_bounds(placed != later)
+        return None if bounds is None else (bounds[0], bounds[1])
+    flat_p, flat_l = placed.reshape(-1), later.reshape(-1)
+    n = later.size // 8 * 8
+    words = flat_p[:n].view(np.uint64) != flat_l[:n].view(np.uint64)
+    lo, hi = later.size, -1  # first and last cell that may differ
+    first = int(words.argmax()) if words.size else 0
+    if words.size and words[first]:
+        lo = 8 * first
+        end, size = words.size, _WORD_BLOCK
+        while True:  # ends at the first differing word at the latest
+            start = max(end - size, first)
+            block = words[start:end]
+            if block.any():
+                hi = 8 * (end - 1 - int(block[::-1].argmax())) + 7
+                break
+            end, size = start, 2 * size  # a few blocks, however many equal words
+    tail = np.flatnonzero(flat_p[n:] != flat_l[n:])  # the last size % 8 cells
+    if tail.size:
+        lo, hi = min(lo, n + int(tail[0])), n + int(tail[-1])
+    if hi < 0:
+        return None
+    return lo // cols, hi // cols + 1
+
+
+#: Words first read from the end of the grids by :func:`_changed_rows` (then twice as many, and
+#: so on).
+_WORD_BLOCK = 2048
+
+
+def _in_box(
+    candidates: npt.NDArray[np.bool_], box: tuple[int, int, int, int]
+) -> tuple[tuple[int, int, int, int], npt.NDArray[np.bool_]] | None:
+    """The bounding box of ``candidates`` (a mask of the cells of ``box``, ``(row0, row1, col0,
+    col1)``, ends exclusive) in the grid's cells, and the mask cut to it; None when it has none."""
+    inner = true_bounds(candidates)
+    if inner is None:
+        return None
+    i0, i1, j0, j1 = inner
+    bounds = (i0 + box[0], i1 + box[0], j0 + box[2], j1 + box[2])
+    return bounds, candidates[i0:i1, j0:j1]
 
 
 def _erased_cells(
     placed: npt.NDArray[np.int8],
     later: npt.NDArray[np.int8],
+    changed: tuple[int, int] | None,
     tolerance_px: int,
     occupied_threshold: int,
     free_threshold: int,
     min_extent_px: int = 0,
     bridge_px: int = 0,
-    walls: npt.NDArray[np.bool_] | None = None,
 ) -> _Cells:
     """Erased cells in ``later``'s cells (``placed``: the earlier grid in ``later``'s cells,
-    :func:`placed_grid`; both int8, one shape; ``walls``: ``placed >= occupied_threshold`` when
-    known)."""
-    if walls is None:
-        walls = placed >= occupied_threshold
-    # Known free in the later grid (0..free_threshold) in one comparison: read as unsigned bytes,
-    # -1..-128 are 255..128, above every threshold (0..100).
-    candidates = later.view(np.uint8) <= free_threshold
-    candidates &= walls
-    bounds = true_bounds(candidates)
-    if bounds is None:
+    :func:`placed_grid`; both int8, one shape; ``changed``: :func:`_changed_rows` of them)."""
+    if changed is None:
         return _NO_CELLS
+    # Known free in the later grid (0..free_threshold) in one comparison: read as unsigned bytes,
+    # -1..-128 are 255..128, above every threshold (0..100). A wall earlier: a changed cell.
+    g0, g1 = changed
+    candidates = later[g0:g1].view(np.uint8) <= free_threshold
+    candidates &= placed[g0:g1] >= occupied_threshold
+    found = _in_box(candidates, (g0, g1, 0, later.shape[1]))
+    if found is None:
+        return _NO_CELLS
+    bounds, candidates = found
     # Only candidates can be erased: the box is their bounding box plus the tolerance (and plus
     # the wall extent when walls must be long, where they are seen whole).
     box = _grown(bounds, max(tolerance_px, min_extent_px + bridge_px), later.shape)
-    # Walls within the tolerance of a candidate lie in its bounding box plus the tolerance.
-    t0, t1, u0, u1 = _grown(bounds, tolerance_px, later.shape)
-    near_wall = _dilate_square(later[t0:t1, u0:u1] >= occupied_threshold, tolerance_px)
-    # A candidate and not near a wall.
-    rows, cols = _cells_of(candidates[t0:t1, u0:u1] > near_wall, t0, u0)
+    # A candidate and not near a wall: walls within the tolerance of a candidate lie in its
+    # bounding box plus the tolerance.
+    rows, cols = _far_cells(
+        later, candidates, bounds, tolerance_px, lambda cells: cells >= occupied_threshold
+    )
     if min_extent_px > 1 and rows.size:
-        on_long = _on_long_walls(walls, rows, cols, min_extent_px, bridge_px)
+        on_long = _on_long_walls(placed, occupied_threshold, rows, cols, min_extent_px, bridge_px)
         rows, cols = rows[on_long], cols[on_long]
     return _Cells(rows, cols, box)
 
@@ -476,6 +580,7 @@ def _placed(
 def _risen_cells(
     placed: npt.NDArray[np.int8],
     later: npt.NDArray[np.int8],
+    changed: tuple[int, int] | None,
     rise_points: int,
     rise_margin_px: int,
     free_threshold: int,
@@ -483,45 +588,50 @@ def _risen_cells(
     bridge_px: int,
 ) -> _Cells:
     """Risen cells in ``later``'s cells (``placed``: the earlier grid in ``later``'s cells,
-    :func:`placed_grid`; both int8, one shape)."""
-    if rise_points > 100:  # off
+    :func:`placed_grid`; both int8, one shape; ``changed``: :func:`_changed_rows` of them)."""
+    if rise_points > 100 or changed is None:  # off, or nothing rose
         return _NO_CELLS
     # Known free earlier (0..free_threshold) and known later (0..100, so unknown -1 never rises,
     # nor values outside the ROS range) in one comparison each: read as unsigned bytes, -1..-128
     # are 255..128. On those cells the difference lies in -50..100: int8 holds it (elsewhere it may
-    # wrap, and is masked out).
-    candidates = np.subtract(later, placed) >= rise_points
-    candidates &= placed.view(np.uint8) <= free_threshold
-    candidates &= later.view(np.uint8) <= 100
-    bounds = true_bounds(candidates)
-    if bounds is None:
+    # wrap, and is masked out). A rise is a changed cell.
+    g0, g1 = changed
+    later_c, placed_c = later[g0:g1], placed[g0:g1]
+    candidates = np.subtract(later_c, placed_c) >= rise_points
+    candidates &= placed_c.view(np.uint8) <= free_threshold
+    candidates &= later_c.view(np.uint8) <= 100
+    found = _in_box(candidates, (g0, g1, 0, later.shape[1]))
+    if found is None:
         return _NO_CELLS
+    bounds, candidates = found
     box = _grown(bounds, max(rise_margin_px, min_extent_px + bridge_px), later.shape)
     # Deep in free space: no earlier cell that is not known free (wall, unknown, uncertain; nor the
     # grid's edge) within the margin, so that walls seen a cell off and the frontier of exploration
     # do not count. Those cells lie in the candidates' bounding box plus the margin, which reaches
     # beyond every candidate unless the grid ends first: only the grid's own edge is within the
     # reach of `outside`.
-    t0, t1, u0, u1 = _grown(bounds, rise_margin_px, later.shape)
-    not_free = placed[t0:t1, u0:u1].view(np.uint8) > free_threshold
-    near_other = _dilate_square(not_free, rise_margin_px, outside=True)
-    risen = candidates[t0:t1, u0:u1] > near_other  # a candidate, not near another cell
+    rows, cols = _far_cells(  # a candidate, not near another cell
+        placed,
+        candidates,
+        bounds,
+        rise_margin_px,
+        lambda cells: cells.view(np.uint8) > free_threshold,
+        outside=True,
+    )
     if min_extent_px > 1:
         # Pieces are made of risen cells only (gaps bridged): their box, a bridge wider, is enough
         # and often far smaller than the candidates' (scattered single cells everywhere).
-        piece_bounds = true_bounds(risen)
-        if piece_bounds is None:
+        if not rows.size:
             return _Cells(_NO_CELLS.rows, _NO_CELLS.cols, box)
-        pr0, pr1, pc0, pc1 = piece_bounds  # in the cells of `risen` (the margin box's)
+        p0, p1, q0, q1 = int(rows.min()), int(rows.max()) + 1, int(cols.min()), int(cols.max()) + 1
         # The pieces' box a bridge wider, in the grid's cells (the bridging reaches past the
         # margin when it is narrower).
-        grid_bounds = (pr0 + t0, pr1 + t0, pc0 + u0, pc1 + u0)
-        r0, r1, c0, c1 = _grown(grid_bounds, bridge_px + 1, later.shape)
+        r0, r1, c0, c1 = _grown((p0, p1, q0, q1), bridge_px + 1, later.shape)
         near = np.zeros((r1 - r0, c1 - c0), dtype=bool)
-        near[pr0 + t0 - r0 : pr1 + t0 - r0, pc0 + u0 - c0 : pc1 + u0 - c0] = risen[pr0:pr1, pc0:pc1]
+        near[rows - r0, cols - c0] = True
         pieces = _long_walls(near, min_extent_px, bridge_px)
         return _Cells(*_cells_of(pieces, r0, c0), box)
-    return _Cells(*_cells_of(risen, t0, u0), box)
+    return _Cells(rows, cols, box)
 
 
 def _union_box(*boxes: tuple[int, int, int, int] | None) -> tuple[int, int, int, int] | None:
@@ -570,9 +680,11 @@ def risen_evidence(
         rise_margin_px,
         free_threshold=free_threshold,
     )
+    placed = _placed(earlier, later, offset_px)
     cells = _risen_cells(
-        _placed(earlier, later, offset_px),
+        placed,
         later,
+        _changed_rows(placed, later),
         rise_points,
         rise_margin_px,
         free_threshold,
@@ -613,9 +725,11 @@ def erased_walls(
         occupied_threshold=occupied_threshold,
         free_threshold=free_threshold,
     )
+    placed = _placed(earlier, later, offset_px)
     cells = _erased_cells(
-        _placed(earlier, later, offset_px),
+        placed,
         later,
+        _changed_rows(placed, later),
         tolerance_px,
         occupied_threshold,
         free_threshold,
@@ -640,6 +754,7 @@ def contradicted_walls(
     rise_points: int = 15,
     rise_margin_px: int = 4,
     tile_origin_px: tuple[int, int] = (0, 0),
+    established_px: int | None = None,
 ) -> WallContradiction:
     """What of ``earlier`` ``later`` contradicts: erased walls and risen evidence (module notes).
 
@@ -679,6 +794,10 @@ def contradicted_walls(
         ``(row, col)`` of a ``later`` cell that is a tile's first (any cell of the lattice, inside
         the grid or not): the map frame's origin keeps the tiles, so the score and region, of grids
         of one map alike however they grew.
+    established_px : int, optional
+        The occupied cells of ``earlier`` (at ``occupied_threshold``) when the caller counted them
+        already (a detector compares one trusted grid with several later ones); taken as given.
+        Counted when None.
 
     Returns
     -------
@@ -711,23 +830,27 @@ def contradicted_walls(
         msg = f"window_px must be an integer >= 1, got {window_px!r}"
         raise RoseError(msg)
     _require_cell(tile_origin_px, "tile_origin_px")
-    earlier_walls = earlier >= occupied_threshold
-    established = int(np.count_nonzero(earlier_walls))
+    if established_px is not None and not (integer_number(established_px) and established_px >= 0):
+        msg = f"established_px must be an integer >= 0 or None, got {established_px!r}"
+        raise RoseError(msg)
+    if established_px is None:
+        established_px = int(np.count_nonzero(earlier >= occupied_threshold))
     placed = _placed(earlier, later, offset_px)
+    changed = _changed_rows(placed, later)
     erased = _erased_cells(
         placed,
         later,
+        changed,
         tolerance_px,
         occupied_threshold,
         free_threshold,
         min_extent_px,
         bridge_px,
-        # The earlier grid's walls are the placed ones when it lies on the later grid.
-        walls=earlier_walls if placed is earlier else None,
     )
     risen = _risen_cells(
         placed,
         later,
+        changed,
         rise_points,
         rise_margin_px,
         free_threshold,
@@ -737,7 +860,7 @@ def contradicted_walls(
     erased_px, risen_px = int(erased.rows.size), int(risen.rows.size)
     box = _union_box(erased.box, risen.box)
     if erased_px + risen_px == 0 or box is None:
-        return WallContradiction(0, 0, 0, 0, established, None, tile_px, window_px)
+        return WallContradiction(0, 0, 0, 0, established_px, None, tile_px, window_px)
     # Erased cells were walls earlier and risen ones free: no cell is both.
     contradicted = _Cells(
         np.concatenate([erased.rows, risen.rows]), np.concatenate([erased.cols, risen.cols]), box
@@ -754,5 +877,5 @@ def contradicted_walls(
     rows, cols = rows[inside], cols[inside]
     region = (int(rows.min()), int(cols.min()), int(rows.max()), int(cols.max()))
     return WallContradiction(
-        erased_px, risen_px, int(tiles.sum()), peak, established, region, tile_px, window_px
+        erased_px, risen_px, int(tiles.sum()), peak, established_px, region, tile_px, window_px
     )

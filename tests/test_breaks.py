@@ -7,6 +7,7 @@ import numpy.typing as npt
 import pytest
 from scipy import ndimage
 
+from rose import breaks
 from rose.breaks import contradicted_walls, erased_walls, risen_evidence
 from rose.errors import RoseError
 from tests.synthetic import floor_plan
@@ -303,3 +304,37 @@ def test_erased_and_risen_cells_match_a_whole_grid_reference(seed: int) -> None:
         assert (found.erased_px, found.risen_px) == (erased.sum(), risen.sum())
         rows, cols = np.nonzero(erased | risen)
         assert found.contradicted_tiles == len(set(zip(rows // 4, cols // 4, strict=True)))
+
+
+@pytest.mark.parametrize("gather_cost", [0, 10**9])
+def test_windows_gathered_or_dilated_alike(
+    monkeypatch: pytest.MonkeyPatch, gather_cost: int
+) -> None:
+    # Few candidates' windows are gathered, many looked up in a dilated box: either way, the
+    # reference's cells.
+    monkeypatch.setattr(breaks, "_GATHER_COST", gather_cost)
+    for seed in range(2):
+        test_erased_and_risen_cells_match_a_whole_grid_reference(seed)
+
+
+def test_changed_rows_hold_every_changed_cell() -> None:
+    # By 8-byte words and blocks from the end: every differing cell within the rows (a word may
+    # reach one row further); None for equal grids; tiny or not contiguous grids alike.
+    rng = np.random.default_rng(0)
+    for _ in range(300):
+        h, w = (int(v) for v in rng.integers(1, 50, 2))
+        a = rng.integers(-1, 101, (h, 2 * w)).astype(np.int8)[:, :: 1 + int(rng.integers(0, 2))]
+        b = a.copy()
+        for _ in range(int(rng.integers(0, 4))):
+            r, c = int(rng.integers(0, h)), int(rng.integers(0, b.shape[1]))
+            b[r, c] = 5 if b[r, c] != 5 else 6
+        changed = np.flatnonzero((a != b).any(axis=1))
+        found = breaks._changed_rows(a, b)
+        if changed.size == 0:
+            assert found is None
+        else:
+            assert found is not None
+            assert found[0] <= changed[0] < changed[-1] + 1 <= found[1]
+            flat = np.flatnonzero(a != b)  # C order, as the words are read
+            cols = a.shape[1]
+            assert found[0] >= (flat[0] - 7) // cols and found[1] <= (flat[-1] + 7) // cols + 1

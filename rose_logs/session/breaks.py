@@ -36,6 +36,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import math
+import weakref
 from dataclasses import dataclass
 from typing import Any
 
@@ -410,6 +411,10 @@ class BreakDetector:
         self._too_fine_said: set[str] = set()  # topics warned of maps too fine to check
         # Per topic, its state before its last update (withdraw_last puts it back).
         self._before: dict[str, _TopicState | None] = {}
+        # Occupied cells of the snapshots seen (grids are read-only): counted once per snapshot,
+        # not at every comparison with it (a trusted snapshot or anchor is compared with several
+        # later ones). Held as long as the snapshot is.
+        self._wall_cells: weakref.WeakKeyDictionary[MapSnapshot, int] = weakref.WeakKeyDictionary()
 
     def update(self, snapshot: MapSnapshot) -> BreakScore:
         """Score the next snapshot of ``snapshot.topic`` and update the topic's state."""
@@ -638,7 +643,15 @@ class BreakDetector:
 
     def _blank(self, snapshot: MapSnapshot) -> bool:
         """Whether ``snapshot`` has no wall at all (a blank map establishes nothing)."""
-        return not bool((snapshot.grid >= self.params.occupied_threshold).any())
+        return self._walls_of(snapshot) == 0
+
+    def _walls_of(self, snapshot: MapSnapshot) -> int:
+        """Occupied cells of ``snapshot`` (at ``occupied_threshold``), counted once."""
+        count = self._wall_cells.get(snapshot)
+        if count is None:
+            count = int(np.count_nonzero(snapshot.grid >= self.params.occupied_threshold))
+            self._wall_cells[snapshot] = count
+        return count
 
     def _rounding(self, resolution_m: float) -> float:
         """How far (cells) an origin may lie off the trusted grid's cells to be placed to the
@@ -709,4 +722,5 @@ class BreakDetector:
             rise_points=p.rise_points,
             rise_margin_px=round(p.rise_margin_m / res),
             tile_origin_px=_frame_origin_px(snapshot),
+            established_px=self._walls_of(trusted),
         )
