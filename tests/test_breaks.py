@@ -317,9 +317,9 @@ def test_windows_gathered_or_dilated_alike(
         test_erased_and_risen_cells_match_a_whole_grid_reference(seed)
 
 
-def test_changed_rows_hold_every_changed_cell() -> None:
-    # By 8-byte words and blocks from the end: every differing cell within the rows (a word may
-    # reach one row further); None for equal grids; tiny or not contiguous grids alike.
+def test_changed_words_hold_every_changed_cell() -> None:
+    # By 8-byte words: the words' cells are the grids', and those that differ are every cell that
+    # differs; grids that are equal, tiny (a tail word only), or not contiguous alike.
     rng = np.random.default_rng(0)
     for _ in range(300):
         h, w = (int(v) for v in rng.integers(1, 50, 2))
@@ -328,13 +328,16 @@ def test_changed_rows_hold_every_changed_cell() -> None:
         for _ in range(int(rng.integers(0, 4))):
             r, c = int(rng.integers(0, h)), int(rng.integers(0, b.shape[1]))
             b[r, c] = 5 if b[r, c] != 5 else 6
-        changed = np.flatnonzero((a != b).any(axis=1))
-        found = breaks._changed_rows(a, b)
-        if changed.size == 0:
-            assert found is None
-        else:
-            assert found is not None
-            assert found[0] <= changed[0] < changed[-1] + 1 <= found[1]
-            flat = np.flatnonzero(a != b)  # C order, as the words are read
-            cols = a.shape[1]
-            assert found[0] >= (flat[0] - 7) // cols and found[1] <= (flat[-1] + 7) // cols + 1
+        changed = breaks._changed_words(a, b)
+        if not (a != b).any():
+            assert changed is None
+            continue
+        assert changed is not None
+        cols = a.shape[1]
+        rows, cols_ = changed.cells(np.ones(changed.placed.shape, dtype=bool), cols)
+        inside = rows < a.shape[0]  # the tail word's filling lies past the grid
+        assert np.array_equal(changed.placed.reshape(-1)[inside], a[rows[inside], cols_[inside]])
+        assert np.array_equal(changed.later.reshape(-1)[inside], b[rows[inside], cols_[inside]])
+        found = changed.cells(changed.placed != changed.later, cols)
+        expected = np.nonzero(a != b)
+        assert np.array_equal(found[0], expected[0]) and np.array_equal(found[1], expected[1])
