@@ -44,6 +44,7 @@ from rose.limits import integer_number, pair_of
 
 __all__ = [
     "MAX_KERNEL_PX",
+    "EarlierGridMemo",
     "WallContradiction",
     "contradicted_walls",
     "erased_walls",
@@ -118,6 +119,65 @@ class _Cells(NamedTuple):
 
 
 _NO_CELLS = _Cells(np.zeros(0, dtype=np.intp), np.zeros(0, dtype=np.intp), None)
+
+
+class EarlierGridMemo:
+    """What :func:`contradicted_walls` found of an earlier grid alone, kept for its next
+    comparisons of that grid: a detector compares its trusted snapshot, and its anchor, with many
+    later ones, whose erased cells are mostly the same. Whether cells of its walls lie on long walls
+    (each cell's wall is measured once: flood fills or labelling, :func:`_on_long_walls`), and from
+    its second comparison on, the cells near one that is not known free (the risen cells' margin:
+    one dilation of the whole grid, then read at the candidates).
+
+    One per earlier grid, which must not change meanwhile; forgotten when given another grid (by
+    identity), another placement (the later grid's shape, the offset) or other parameters.
+    """
+
+    def __init__(self) -> None:
+        self._grid: npt.NDArray[np.int8] | None = None
+        self._key: tuple[object, ...] = ()
+        self._uses = 0  # comparisons with this grid and key
+        # Flat indices of the cells (in the later grid's cells; ascending) and their verdicts.
+        self._cells = np.zeros(0, dtype=np.intp)
+        self._long = np.zeros(0, dtype=bool)
+        self._near_other: npt.NDArray[np.bool_] | None = None
+
+    def _use(self, grid: npt.NDArray[np.int8], key: tuple[object, ...]) -> None:
+        """Start over unless the memo is of ``grid`` (the earlier grid) and ``key`` already."""
+        if grid is not self._grid or key != self._key:
+            self._grid, self._key, self._uses = grid, key, 0
+            self._cells, self._long = self._cells[:0], self._long[:0]
+            self._near_other = None
+        self._uses += 1
+
+    def _near_other_cells(
+        self, placed: npt.NDArray[np.int8], free_threshold: int, rise_margin_px: int
+    ) -> npt.NDArray[np.bool_] | None:
+        """Cells of the whole (placed) grid within ``rise_margin_px`` of one that is not known
+        free, or of the grid's edge (:func:`_risen_cells`); None at the first comparison (a box
+        around the candidates costs less, when the grid is compared once)."""
+        if self._near_other is None and self._uses >= 2:
+            not_free = placed.view(np.uint8) > free_threshold
+            self._near_other = _dilate_square(not_free, rise_margin_px, outside=True)
+        return self._near_other
+
+    def _look_up(self, cells: npt.NDArray[np.intp]) -> tuple[npt.NDArray[np.bool_], ...]:
+        """For the flat indices ``cells``: whether each is known, and its verdict (False where
+        not known)."""
+        at = np.searchsorted(self._cells, cells)
+        known = np.zeros(cells.size, dtype=bool)
+        inside = at < self._cells.size
+        known[inside] = self._cells[at[inside]] == cells[inside]
+        verdict = np.zeros(cells.size, dtype=bool)
+        verdict[known] = self._long[at[known]]
+        return known, verdict
+
+    def _add(self, cells: npt.NDArray[np.intp], verdicts: npt.NDArray[np.bool_]) -> None:
+        """Keep the verdicts of the flat indices ``cells`` (none of them known yet)."""
+        merged = np.concatenate([self._cells, cells])
+        order = np.argsort(merged, kind="stable")
+        self._cells = merged[order]
+        self._long = np.concatenate([self._long, verdicts])[order]
 
 
 def _mask(shape: tuple[int, int], cells: _Cells) -> npt.NDArray[np.bool_]:
@@ -417,10 +477,12 @@ def _far_cells(
     cells: Callable[[npt.NDArray[np.int8]], npt.NDArray[np.bool_]],
     *,
     outside: bool = False,
+    near_map: npt.NDArray[np.bool_] | None = None,
 ) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.intp]]:
     """The cells ``(rows[i], cols[i])`` of ``grid`` (int8, shape (rows, cols); ``rows`` ascending)
     with no True cell of ``cells(grid)`` within ``radius_px`` (chessboard distance; ``outside``
-    the grid counts as ``outside``), as rows and columns.
+    the grid counts as ``outside``), as rows and columns; ``near_map``: the whole grid's answer
+    when known (read at the cells).
 
     Few cells (a few dozen among hundreds of thousands in their box): each one's window gathered,
     its rows and columns clipped to the grid (a clipped index is the window's cell at the grid's
@@ -433,7 +495,9 @@ def _far_cells(
         grid.shape,
     )
     side = 2 * radius_px + 1
-    if rows.size * side * side * _GATHER_COST >= (t1 - t0) * (u1 - u0):
+    if near_map is not None:
+        near = near_map[rows, cols]
+    elif rows.size * side * side * _GATHER_COST >= (t1 - t0) * (u1 - u0):
         dilated = _dilate_square(cells(grid[t0:t1, u0:u1]), radius_px, outside=outside)
         near = dilated[rows - t0, cols - u0]
     else:
@@ -506,9 +570,12 @@ def _erased_cells(
     free_threshold: int,
     min_extent_px: int = 0,
     bridge_px: int = 0,
+    memo: EarlierGridMemo | None = None,
 ) -> _Cells:
     """Erased cells in ``later``'s cells (``placed``: the earlier grid in ``later``'s cells,
-    :func:`placed_grid`; both int8, one shape; ``changed``: :func:`_changed_words` of them)."""
+    :func:`placed_grid`; both int8, one shape; ``changed``: :func:`_changed_words` of them;
+    ``memo``: the long walls found in comparisons before, of the grid ``placed`` places, kept up
+    to date)."""
     if changed is None:
         return _NO_CELLS
     # Known free in the later grid (0..free_threshold) in one comparison: read as unsigned bytes,
@@ -528,14 +595,24 @@ def _erased_cells(
         later, rows, cols, tolerance_px, lambda cells: cells >= occupied_threshold
     )
     if min_extent_px > 1 and rows.size:
-        on_long = _on_long_walls(
-            lambda r0, r1, c0, c1: placed[r0:r1, c0:c1] >= occupied_threshold,
-            later.shape,
-            rows,
-            cols,
-            min_extent_px,
-            bridge_px,
-        )
+        # A cell's verdict is its wall's in the whole grid, whichever cells are looked up with it.
+        cells = rows * later.shape[1] + cols
+        if memo is not None:
+            known, on_long = memo._look_up(cells)
+        else:
+            known, on_long = np.zeros(rows.size, dtype=bool), np.zeros(rows.size, dtype=bool)
+        new = ~known
+        if new.any():
+            on_long[new] = _on_long_walls(
+                lambda r0, r1, c0, c1: placed[r0:r1, c0:c1] >= occupied_threshold,
+                later.shape,
+                rows[new],
+                cols[new],
+                min_extent_px,
+                bridge_px,
+            )
+            if memo is not None:
+                memo._add(cells[new], on_long[new])
         rows, cols = rows[on_long], cols[on_long]
     return _Cells(rows, cols, box)
 
@@ -560,9 +637,11 @@ def _risen_cells(
     free_threshold: int,
     min_extent_px: int,
     bridge_px: int,
+    memo: EarlierGridMemo | None = None,
 ) -> _Cells:
     """Risen cells in ``later``'s cells (``placed``: the earlier grid in ``later``'s cells,
-    :func:`placed_grid`; both int8, one shape; ``changed``: :func:`_changed_words` of them)."""
+    :func:`placed_grid`; both int8, one shape; ``changed``: :func:`_changed_words` of them;
+    ``memo``: what comparisons before found of the grid ``placed`` places)."""
     if rise_points > 100 or changed is None:  # off, or nothing rose
         return _NO_CELLS
     # Known free earlier (0..free_threshold) and known later (0..100, so unknown -1 never rises,
@@ -589,6 +668,9 @@ def _risen_cells(
         rise_margin_px,
         lambda cells: cells.view(np.uint8) > free_threshold,
         outside=True,
+        near_map=(
+            None if memo is None else memo._near_other_cells(placed, free_threshold, rise_margin_px)
+        ),
     )
     if min_extent_px > 1:
         # Pieces are made of risen cells only (gaps bridged), looked up as erased walls are, in
@@ -734,6 +816,7 @@ def contradicted_walls(
     rise_margin_px: int = 4,
     tile_origin_px: tuple[int, int] = (0, 0),
     established_px: int | None = None,
+    memo: EarlierGridMemo | None = None,
 ) -> WallContradiction:
     """What of ``earlier`` ``later`` contradicts: erased walls and risen evidence (module notes).
 
@@ -777,6 +860,11 @@ def contradicted_walls(
         The occupied cells of ``earlier`` (at ``occupied_threshold``) when the caller counted them
         already (a detector compares one trusted grid with several later ones); taken as given.
         Counted when None.
+    memo : EarlierGridMemo, optional
+        What comparisons before found of ``earlier`` alone (which of its wall cells lie on long
+        walls; the cells near one not known free), kept up to date: one memo per earlier grid (a
+        memo of another grid, placement or parameters starts over), so that a detector's
+        comparisons of one trusted grid measure each of its walls once.
 
     Returns
     -------
@@ -816,6 +904,19 @@ def contradicted_walls(
         established_px = int(np.count_nonzero(earlier >= occupied_threshold))
     placed = _placed(earlier, later, offset_px)
     changed = _changed_words(placed, later)
+    if memo is not None:
+        memo._use(
+            earlier,
+            (
+                later.shape,
+                tuple(offset_px),
+                occupied_threshold,
+                free_threshold,
+                rise_margin_px,
+                min_extent_px,
+                bridge_px,
+            ),
+        )
     erased = _erased_cells(
         placed,
         later,
@@ -825,6 +926,7 @@ def contradicted_walls(
         free_threshold,
         min_extent_px,
         bridge_px,
+        memo,
     )
     risen = _risen_cells(
         placed,
@@ -835,6 +937,7 @@ def contradicted_walls(
         free_threshold,
         min_extent_px,
         bridge_px,
+        memo,
     )
     erased_px, risen_px = int(erased.rows.size), int(risen.rows.size)
     box = _union_box(erased.box, risen.box)

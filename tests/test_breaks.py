@@ -341,3 +341,31 @@ def test_changed_words_hold_every_changed_cell() -> None:
         found = changed.cells(changed.placed != changed.later, cols)
         expected = np.nonzero(a != b)
         assert np.array_equal(found[0], expected[0]) and np.array_equal(found[1], expected[1])
+
+
+def test_earlier_grid_memo_gives_the_same_verdicts() -> None:
+    # A memo kept over comparisons of one earlier grid with several later ones (and then another
+    # earlier grid, another offset) changes no result.
+    rng = np.random.default_rng(5)
+    memo = breaks.EarlierGridMemo()
+    erased = 0
+    for _ in range(3):
+        earlier = np.full((90, 120), 0, dtype=np.int8)
+        for _ in range(25):
+            r, c, n = int(rng.integers(0, 90)), int(rng.integers(0, 120)), int(rng.integers(1, 50))
+            if rng.random() < 0.5:
+                earlier[r, c : c + n] = 100
+            else:
+                earlier[r : r + n, c] = 100
+        for offset in ((0, 0), (0, 0), (2, -3), (2, -3)):
+            for _ in range(3):
+                later = earlier.copy()
+                erase = rng.integers(0, later.size, later.size // 6)
+                later.flat[erase] = 0
+                rise = rng.integers(0, later.size, later.size // 50)
+                later.flat[rise] = rng.integers(0, 101, rise.size)
+                kw = {"offset_px": offset, "min_extent_px": 12, "tolerance_px": 1}
+                expected = contradicted_walls(earlier, later, **kw)
+                assert contradicted_walls(earlier, later, memo=memo, **kw) == expected
+                erased += expected.erased_px
+    assert erased > 0  # the memo was used

@@ -42,7 +42,7 @@ from typing import Any
 
 import numpy as np
 
-from rose.breaks import MAX_KERNEL_PX, WallContradiction, contradicted_walls
+from rose.breaks import MAX_KERNEL_PX, EarlierGridMemo, WallContradiction, contradicted_walls
 from rose.errors import RoseError
 from rose.limits import finite_number, integer_number
 from rose_logs.snapshots import MapSnapshot
@@ -415,6 +415,12 @@ class BreakDetector:
         # not at every comparison with it (a trusted snapshot or anchor is compared with several
         # later ones). Held as long as the snapshot is.
         self._wall_cells: weakref.WeakKeyDictionary[MapSnapshot, int] = weakref.WeakKeyDictionary()
+        # What the comparisons found of each trusted snapshot and anchor alone (its long walls,
+        # the cells near its cells not known free: rose.breaks.EarlierGridMemo), for its next
+        # comparisons with later snapshots.
+        self._memos: weakref.WeakKeyDictionary[MapSnapshot, EarlierGridMemo] = (
+            weakref.WeakKeyDictionary()
+        )
 
     def update(self, snapshot: MapSnapshot) -> BreakScore:
         """Score the next snapshot of ``snapshot.topic`` and update the topic's state."""
@@ -723,4 +729,5 @@ class BreakDetector:
             rise_margin_px=round(p.rise_margin_m / res),
             tile_origin_px=_frame_origin_px(snapshot),
             established_px=self._walls_of(trusted),
+            memo=self._memos.setdefault(trusted, EarlierGridMemo()),
         )
