@@ -161,7 +161,9 @@ class EarlierGridMemo:
             self._near_other = _dilate_square(not_free, rise_margin_px, outside=True)
         return self._near_other
 
-    def _look_up(self, cells: npt.NDArray[np.intp]) -> tuple[npt.NDArray[np.bool_], ...]:
+    def _look_up(
+        self, cells: npt.NDArray[np.intp]
+    ) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
         """For the flat indices ``cells``: whether each is known, and its verdict (False where
         not known)."""
         at = np.searchsorted(self._cells, cells)
