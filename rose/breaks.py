@@ -124,10 +124,12 @@ _NO_CELLS = _Cells(np.zeros(0, dtype=np.intp), np.zeros(0, dtype=np.intp), None)
 class EarlierGridMemo:
     """What :func:`contradicted_walls` found of an earlier grid alone, kept for its next
     comparisons of that grid: a detector compares its trusted snapshot, and its anchor, with many
-    later ones, whose erased cells are mostly the same. Whether cells of its walls lie on long walls
-    (each cell's wall is measured once: flood fills or labelling, :func:`_on_long_walls`), and from
-    its second comparison on, the cells near one that is not known free (the risen cells' margin:
-    one dilation of the whole grid, then read at the candidates).
+    later ones, whose erased cells are mostly the same. The grid placed in the later grid's cells
+    (:func:`placed_grid`, when it is not the grid itself); whether cells of its walls lie on long
+    walls (each cell's wall is measured once: flood fills or labelling, :func:`_on_long_walls`);
+    from its second comparison on, the cells near one that is not known free (the risen cells'
+    margin: one dilation of the whole grid, then read at the candidates, when they are too many to
+    look at their windows).
 
     One per earlier grid, which must not change meanwhile; forgotten when given another grid (by
     identity), another placement (the later grid's shape, the offset) or other parameters.
@@ -141,22 +143,28 @@ class EarlierGridMemo:
         self._cells = np.zeros(0, dtype=np.intp)
         self._long = np.zeros(0, dtype=bool)
         self._near_other: npt.NDArray[np.bool_] | None = None
+        self._placed: npt.NDArray[np.int8] | None = None  # the grid in the later grid's cells
 
     def _use(self, grid: npt.NDArray[np.int8], key: tuple[object, ...]) -> None:
         """Start over unless the memo is of ``grid`` (the earlier grid) and ``key`` already."""
         if grid is not self._grid or key != self._key:
             self._grid, self._key, self._uses = grid, key, 0
             self._cells, self._long = self._cells[:0], self._long[:0]
-            self._near_other = None
+            self._near_other = self._placed = None
         self._uses += 1
 
     def _near_other_cells(
-        self, placed: npt.NDArray[np.int8], free_threshold: int, rise_margin_px: int
+        self,
+        placed: npt.NDArray[np.int8],
+        free_threshold: int,
+        rise_margin_px: int,
+        build: bool,
     ) -> npt.NDArray[np.bool_] | None:
         """Cells of the whole (placed) grid within ``rise_margin_px`` of one that is not known
-        free, or of the grid's edge (:func:`_risen_cells`); None at the first comparison (a box
-        around the candidates costs less, when the grid is compared once)."""
-        if self._near_other is None and self._uses >= 2:
+        free, or of the grid's edge (:func:`_risen_cells`), made if ``build`` (a box would be
+        dilated otherwise); None until then, and at the first comparison (a box around the
+        candidates costs less, when the grid is compared once)."""
+        if self._near_other is None and build and self._uses >= 2:
             not_free = placed.view(np.uint8) > free_threshold
             self._near_other = _dilate_square(not_free, rise_margin_px, outside=True)
         return self._near_other
@@ -479,12 +487,13 @@ def _far_cells(
     cells: Callable[[npt.NDArray[np.int8]], npt.NDArray[np.bool_]],
     *,
     outside: bool = False,
-    near_map: npt.NDArray[np.bool_] | None = None,
+    near_map: Callable[[bool], npt.NDArray[np.bool_] | None] | None = None,
 ) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.intp]]:
     """The cells ``(rows[i], cols[i])`` of ``grid`` (int8, shape (rows, cols); ``rows`` ascending)
     with no True cell of ``cells(grid)`` within ``radius_px`` (chessboard distance; ``outside``
-    the grid counts as ``outside``), as rows and columns; ``near_map``: the whole grid's answer
-    when known (read at the cells).
+    the grid counts as ``outside``), as rows and columns. ``near_map(build)``: the whole grid's
+    answer when known (read at the cells), made first if ``build`` and it is worth it (asked so
+    where a box would be dilated).
 
     Few cells (a few dozen among hundreds of thousands in their box): each one's window gathered,
     its rows and columns clipped to the grid (a clipped index is the window's cell at the grid's
@@ -497,9 +506,11 @@ def _far_cells(
         grid.shape,
     )
     side = 2 * radius_px + 1
-    if near_map is not None:
-        near = near_map[rows, cols]
-    elif rows.size * side * side * _GATHER_COST >= (t1 - t0) * (u1 - u0):
+    dilate = rows.size * side * side * _GATHER_COST >= (t1 - t0) * (u1 - u0)
+    whole = None if near_map is None else near_map(dilate)
+    if whole is not None:
+        near = whole[rows, cols]
+    elif dilate:
         dilated = _dilate_square(cells(grid[t0:t1, u0:u1]), radius_px, outside=outside)
         near = dilated[rows - t0, cols - u0]
     else:
@@ -671,7 +682,9 @@ def _risen_cells(
         lambda cells: cells.view(np.uint8) > free_threshold,
         outside=True,
         near_map=(
-            None if memo is None else memo._near_other_cells(placed, free_threshold, rise_margin_px)
+            None
+            if memo is None
+            else lambda build: memo._near_other_cells(placed, free_threshold, rise_margin_px, build)
         ),
     )
     if min_extent_px > 1:
@@ -904,9 +917,9 @@ def contradicted_walls(
         raise RoseError(msg)
     if established_px is None:
         established_px = int(np.count_nonzero(earlier >= occupied_threshold))
-    placed = _placed(earlier, later, offset_px)
-    changed = _changed_words(placed, later)
-    if memo is not None:
+    if memo is None:
+        placed = _placed(earlier, later, offset_px)
+    else:
         memo._use(
             earlier,
             (
@@ -919,6 +932,10 @@ def contradicted_walls(
                 bridge_px,
             ),
         )
+        if memo._placed is None:
+            memo._placed = _placed(earlier, later, offset_px)
+        placed = memo._placed
+    changed = _changed_words(placed, later)
     erased = _erased_cells(
         placed,
         later,
