@@ -160,7 +160,10 @@ def test_under_an_address_space_limit_openblas_runs_one_thread(tmp_path: Path, s
     else:
         code = "import sys; from rose.entry import rose_bag; sys.argv[0] = 'rose-bag'; rose_bag()"
         argv = [sys.executable, "-c", code, "info", str(sample)]
-    base = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    # OpenBLAS also reads OMP_NUM_THREADS (and GOTO_NUM_THREADS), which a batch test run before in
+    # this process may have set (tune_worker_process): none of them here.
+    blas = {"OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "GOTO_NUM_THREADS"}
+    base = {k: v for k, v in os.environ.items() if k not in blas}
     env = {**base, "PYTHONPATH": os.pathsep.join([str(tmp_path), str(ROOT)])}
 
     def threads(limit: int | None, extra: dict[str, str] | None = None) -> list[int]:
