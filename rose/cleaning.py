@@ -30,12 +30,15 @@ Two methods, chosen by name:
     2 and 3, without being drawn. Longer furniture flush against a wall (up to 5 m, its front a
     straight run a scan cannot tell from a wall) is found by its shape along walls at any angle to
     the grid (read straightened there too): a stretch of unknown cells on a wall's line between two
-    stretches of that wall facing the room, with a front face 0.15-1 m in front of it and an unseen inside behind the
-    front; the line is drawn, the front and sides go, and a wall meeting the front stays. Furniture
-    in a room's corner (on maps whose walls lie along the grid's axes) is found the same way with
-    the other wall's line as the second end: a wall's visible stretch of at least 0.5 m, its line
-    hidden up to 5 m on to a perpendicular wall that runs on from the furniture's front, the front
-    straight and 0.3-1 m from the line; both hidden lines are drawn.
+    stretches of that wall facing the room, each holding a cell of a wall kept on its own merits
+    (the paper's structure, rules 1 and 2) or joined to one within ``attach_reach_m`` (a door
+    frame's stub; two blobs of clutter in line in a room are neither), with a front face 0.15-1 m
+    in front of it and an unseen inside behind the front; the line is drawn, the front and sides
+    go, and a wall meeting the front stays. Furniture in a room's corner (on maps whose walls lie
+    along the grid's axes) is found the same way with the other wall's line as the second end: a
+    wall's visible stretch of at least 0.5 m, its line hidden up to 5 m on to a perpendicular wall
+    that runs on from the furniture's front, the front straight and 0.3-1 m from the line; both
+    hidden lines are drawn.
 
     Three rules then tell wall pieces from objects the way a scanner sees them:
 

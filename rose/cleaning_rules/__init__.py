@@ -245,27 +245,12 @@ def _wall_cells(
 
     unknown = occupancy == UNKNOWN
     with _beside() as beside:
-        # The side thread, in turn: the fronts (wanted once the bridges are drawn) and the pieces
-        # (by the object rules), while this thread finds the runs, the lines, the wide unknown
-        # space and the bridges: the two threads' shares of the work up to the fronts are about
-        # even (with the wide unknown space on the side thread, ahead of the fronts, this thread
-        # waited 6-10 ms for them on the 20 ray-cast benchmark maps, median; the bridges'
-        # columns, on the side thread, waited there behind the fronts).
-        # Furniture flush against a wall: its hidden wall line is drawn, as the bridges' are.
-        fronts_job = beside.submit(
-            _flush_fronts,
-            occupied,
-            unknown,
-            directions,
-            max_len_px=length_px(_FRONT_MAX_M, res) if p.max_bridge_m > 0 else 0.0,
-            max_depth_px=length_px(_FRONT_DEPTH_M, res),
-            anchor_px=length_px(_BRIDGE_ANCHOR_M, res),
-            face_px=length_px(_FRONT_FACE_M, res),
-            crossing_px=length_px(_FRONT_CROSSING_M, res),
-            wall_px=length_px(p.min_run_m, res),
-            corner_px=length_px(_CORNER_MAX_M, res) if p.max_bridge_m > 0 else 0.0,
-            corner_depth_px=length_px(_CORNER_DEPTH_M, res),
-        )
+        # The side thread, in turn: the pieces (by the object rules) and the fronts (wanted once
+        # the bridges are drawn; they read the walls kept on their own, so they start once this
+        # thread has found the runs, the lines and the wide unknown space), while this thread
+        # finds those and the bridges (with the wide unknown space on the side thread, ahead of
+        # the fronts, this thread waited 6-10 ms for them on the 20 ray-cast benchmark maps,
+        # median; the bridges' columns, on the side thread, waited there behind the fronts).
         pieces_job = (
             beside.submit(_Pieces.of, occupied, join_px=_PIECES_JOIN_PX, directions=directions)
             if p.loose_pieces
@@ -290,6 +275,25 @@ def _wall_cells(
         lines |= runs
         near_outside = _near_wide_unknown(unknown, res, p)  # (for the free-standing pieces too)
         keep = _kept_walls(occupied, structure, near_outside, lines)
+        # Furniture flush against a wall: its hidden wall line is drawn, as the bridges' are,
+        # between two stretches of walls kept on their own or joined to one as attached pieces
+        # are (a door frame's stub between a cabinet and a doorway); clutter in line in a room,
+        # standing apart from the walls, is neither.
+        fronts_job = beside.submit(
+            _flush_fronts,
+            occupied,
+            unknown,
+            directions,
+            max_len_px=length_px(_FRONT_MAX_M, res) if p.max_bridge_m > 0 else 0.0,
+            max_depth_px=length_px(_FRONT_DEPTH_M, res),
+            anchor_px=length_px(_BRIDGE_ANCHOR_M, res),
+            face_px=length_px(_FRONT_FACE_M, res),
+            crossing_px=length_px(_FRONT_CROSSING_M, res),
+            wall_px=length_px(p.min_run_m, res),
+            corner_px=length_px(_CORNER_MAX_M, res) if p.max_bridge_m > 0 else 0.0,
+            corner_depth_px=length_px(_CORNER_DEPTH_M, res),
+            walls=_grow_within(keep, occupied, round(length_px(p.attach_reach_m, res))),
+        )
         completed = np.zeros(occupied.shape, dtype=bool)
         sealed_off = completed  # what closes scanned objects and the building, as walls or not
         if p.max_bridge_m > 0:

@@ -69,6 +69,7 @@ def _flush_fronts(
     wall_px: float,
     corner_px: float = 0.0,
     corner_depth_px: float = 0.0,
+    walls: npt.NDArray[np.bool_] | None = None,
 ) -> tuple[
     npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_]
 ]:
@@ -79,6 +80,10 @@ def _flush_fronts(
     up to half of them free, and free cells a single beam saw running along the line count as
     unknown: :func:`_beam_along`) between two occupied stretches of at least ``anchor_px`` cells on
     one line that face free space on the same side (most of their last ``anchor_px`` cells within ``face_px`` of it),
+    and, with ``walls``, each hold a cell of ``walls`` (the walls kept on their own merits and the
+    occupied cells joined to them as attached pieces are, a door frame's stub: two blobs of
+    clutter in line in a room, with a box beyond the gap between them, are no wall's two
+    stretches),
     where every cell of the stretch has, on that side, more than ``face_px`` and at most
     ``max_depth_px`` occupied or unknown cells before free space, an occupied one last (a front
     face). That is a wall running on behind an object that stands against it: the line is the
@@ -106,8 +111,10 @@ def _flush_fronts(
         return lines, fronts, insides, stubs
     box = _padded_box(occupied, math.ceil(max_depth_px) + 4)
     r0, c0 = box[0].start, box[1].start
-    # 0 unknown (also beyond the rotated image), 1 free, 2 occupied.
+    # 0 unknown (also beyond the rotated image), 1 free, 2 occupied, 3 a wall kept on its own.
     code = (~unknown[box]).view(np.uint8) + occupied[box].view(np.uint8)
+    if walls is not None:
+        code += (walls[box] & occupied[box]).view(np.uint8)
 
     def fronts_of(rotated: npt.NDArray[np.uint8], turned: bool) -> npt.NDArray[np.uint8]:
         out = np.zeros(rotated.shape, dtype=np.uint8)  # bit 0 line, 1 front, 2 inside, 3 wall
@@ -138,6 +145,7 @@ def _flush_fronts(
                 # Corners only along the grid's axes (see _CORNER_MAX_M).
                 corner_len=0 if turned else round(corner_px),
                 corner_depth=round(corner_depth_px),
+                walls=walls is not None,
             )
         return out
 
@@ -163,12 +171,15 @@ def _flush_fronts(
 
 
 def _straightened(code: npt.NDArray[np.uint8]) -> npt.NDArray[np.uint8]:
-    """``code`` (0 unknown, 1 free, 2 occupied) with every cell a row above or below an occupied
-    one occupied, and then the holes of one or two cells along the rows between occupied cells (a
-    morphological closing along the rows): a staircase of one or two rows becomes a solid band."""
+    """``code`` (0 unknown, 1 free, 2 occupied, 3 a wall kept) with every cell a row above or below
+    an occupied one occupied, and then the holes of one or two cells along the rows between
+    occupied cells (a morphological closing along the rows): a staircase of one or two rows
+    becomes a solid band. The grown cells take the highest of their neighbours' codes (a kept
+    wall's band is a kept wall's, at its ends too but where the closing's erosion meets an
+    object's cell)."""
     import cv2
 
-    _, occupied = cv2.threshold(code, 1, 2, cv2.THRESH_BINARY)
+    _, occupied = cv2.threshold(code, 1, 0, cv2.THRESH_TOZERO)
     # A closing by three cells along the rows fills exactly the holes of one or two cells between
     # occupied cells; at the first and last columns, where OpenCV's border lets it fill a hole
     # open to the edge, the cells stay as grown (no hole there is between two occupied cells).
@@ -195,10 +206,12 @@ def _fronts_rows(
     slack: int = 0,
     corner_len: int = 0,
     corner_depth: int = 0,
+    walls: bool = False,
 ) -> None:
-    """:func:`_flush_fronts` along the rows of ``code`` (0 unknown, 1 free, 2 occupied), the
-    furniture below or above the line; bits 0 (line), 1 (front), 2 (inside) and 3 (a wall meeting
-    the object) set in ``out``. With ``corner_len``, also furniture in a room's corner
+    """:func:`_flush_fronts` along the rows of ``code`` (0 unknown, 1 free, 2 occupied, 3 a wall
+    kept on its own), the furniture below or above the line; bits 0 (line), 1 (front), 2 (inside)
+    and 3 (a wall meeting the object) set in ``out``. With ``walls``, a gap's two anchoring
+    stretches each hold a cell coded 3. With ``corner_len``, also furniture in a room's corner
     (:func:`_corners_rows`), its hidden line at most that long and its front at least
     ``corner_depth`` cells from the line.
 
@@ -251,6 +264,14 @@ def _fronts_rows(
     anchor_left = left[starts][chain]  # the chain's first wall end (last cell of its stretch)
     anchor_right = left[ends][chain] + 1  # its last (first cell of its stretch)
     anchored = ~short[anchor_left] & ~short[anchor_right]
+    if walls:
+        # A wall's two visible stretches are walls the cleaning keeps on their own (the paper's
+        # structure, runs and lines, next to the wide unknown) or joined to one (a door frame's
+        # stub): in a room, blobs of clutter in line (0.3-0.4 m each, longer than an anchor) with
+        # a box beyond the gap between them read as a wall's stretches and its front, and a line
+        # of wall was drawn across the room.
+        kept_run = np.bincount(run_id, weights=flat_code[cells] == 3)[run_id] > 0
+        anchored &= kept_run[anchor_left] & kept_run[anchor_right]
     anchored &= cells[anchor_right] - cells[anchor_left] - 1 <= max_len
     left, anchor_left, anchor_right = left[anchored], anchor_left[anchored], anchor_right[anchored]
     span = max_depth + 1
@@ -443,7 +464,7 @@ def _front_at(
     # free cells between unseen ones across it (the outside beyond, the furniture's inside before),
     # saw no opening: such cells count as unseen (:func:`_beam_along`).
     on_line = code[row, col0:col1]
-    if row + 1 >= height or (on_line == 2).any():
+    if row + 1 >= height or (on_line >= 2).any():
         return False
     free_cols = np.flatnonzero(on_line == 1)
     if 2 * free_cols.size > on_line.size:  # (rare: only then are the beams looked at)
