@@ -258,6 +258,8 @@ def _wall_cells(
         )
         # The same pieces not joined across gaps, for the guard's objects judged alone.
         apart_job = beside.submit(_Pieces.of, occupied, join_px=0) if p.loose_pieces else None
+        # (for the free-standing pieces too)
+        first_near_job = beside.submit(_near_wide_unknown, unknown, res, p)
         runs = directional_runs(
             occupied,
             directions,
@@ -273,8 +275,9 @@ def _wall_cells(
             np.greater(occupied, runs), min_length_px=length_px(p.min_run_m, res)
         )
         lines |= runs
-        near_outside = _near_wide_unknown(unknown, res, p)  # (for the free-standing pieces too)
+        near_outside = first_near_job.result()
         keep = _kept_walls(occupied, structure, near_outside, lines)
+        reach_px = round(length_px(p.attach_reach_m, res))
         # Furniture flush against a wall: its hidden wall line is drawn, as the bridges' are,
         # between two stretches of walls kept on their own or joined to one as attached pieces
         # are (a door frame's stub between a cabinet and a doorway); clutter in line in a room,
@@ -292,7 +295,8 @@ def _wall_cells(
             wall_px=length_px(p.min_run_m, res),
             corner_px=length_px(_CORNER_MAX_M, res) if p.max_bridge_m > 0 else 0.0,
             corner_depth_px=length_px(_CORNER_DEPTH_M, res),
-            walls=_grow_within(keep, occupied, round(length_px(p.attach_reach_m, res))),
+            # Grown here: ``keep`` changes in place later, while the side thread may still run.
+            walls=_grow_within(keep, occupied, reach_px),
         )
         completed = np.zeros(occupied.shape, dtype=bool)
         sealed_off = completed  # what closes scanned objects and the building, as walls or not
@@ -371,7 +375,7 @@ def _wall_cells(
             # reach, through occupied cells that are not object faces (nor fronts).
             through = np.greater(occupied, faces)
             np.greater(through, fronts, out=through)
-            attached = _grow_within(keep, through, round(length_px(p.attach_reach_m, res)))
+            attached = _grow_within(keep, through, reach_px)
             np.greater(attached, keep, out=attached)
             keep |= attached
             # Partitions: pieces seen from both sides (free space across them within a wall's
