@@ -40,7 +40,6 @@ _OVERLAY_HEIGHT_FRACTION = 0.005
 _MIN_OVERLAY_HEIGHT_M = 0.02
 _AXIS_TICKS_DEG = (0.0, 45.0, 90.0, 135.0, 180.0)
 _AXIS_TICKS_S = (0.0, 0.5, 1.0)
-_PLACEMENTS_KEPT = 8
 
 
 @functools.lru_cache(maxsize=16)
@@ -107,6 +106,16 @@ def _grid_placement(
 def _scalar(value: float) -> list[rr.DescribedComponentBatch]:
     """``rr.Scalars(value)``'s components."""
     return arrow.described(rr.Scalars, scalars=arrow.floats(value))
+
+
+@_by_value
+def _placement(
+    translation: tuple[float, float], angle: float, scale: float
+) -> list[rr.DescribedComponentBatch]:
+    """:func:`placement_transform`'s components: Rerun's Transform3D cost about 0.1 ms to build,
+    three times per snapshot, and a snapshot's images share placements, as do snapshots of a map
+    that did not grow."""
+    return arrow.batches(placement_transform(translation, angle, scale))
 
 
 #: The break region's style (its outline's and its label's colour and width).
@@ -342,26 +351,13 @@ class TopicLogger:
         self._metric_labels_hidden = False
         # Of the last snapshot (``live``), else of the session's end (log_final_placement).
         self.score_legend_placement: rr.Transform3D | None = None
-        # By placement_terms: Rerun's Transform3D cost about 0.1 ms to build, three times per
-        # snapshot, and a snapshot's images share placements, as do snapshots of a map that did
-        # not grow. Kept as its components (arrow.batches). Dropped when full (a growing map
-        # moves its placements on).
-        self._placements: dict[
-            tuple[tuple[float, float], float, float], list[rr.DescribedComponentBatch]
-        ] = {}
 
     def _image_placement(
         self, snapshot: MapSnapshot, window: conv.Window | None = None, factor: int = 1
     ) -> list[rr.DescribedComponentBatch]:
         """Rerun's transform of ``snapshot``'s images of ``window`` in this topic's views, pooled
         ``factor`` times (:func:`placement_terms`)."""
-        terms = placement_terms(snapshot, self._origin_for(snapshot), window, factor)
-        placement = self._placements.get(terms)
-        if placement is None:
-            if len(self._placements) >= _PLACEMENTS_KEPT:
-                self._placements.clear()
-            placement = self._placements[terms] = arrow.batches(placement_transform(*terms))
-        return placement
+        return _placement(*placement_terms(snapshot, self._origin_for(snapshot), window, factor))
 
     def _pooled_placement(
         self, snapshot: MapSnapshot, window: conv.Window, factor: int

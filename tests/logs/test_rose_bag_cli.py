@@ -1034,6 +1034,22 @@ def _warning_kinds(stderr: str) -> list[str]:
     return [next((k for w, k in _WARNING_WORDS.items() if w in line), line) for line in lines]
 
 
+def _read_scans_slowly(monkeypatch: pytest.MonkeyPatch, seconds: float) -> None:
+    """Make the session pause ``seconds`` at every /scan message it reads (the analyses run ahead)."""
+    import time
+
+    from rose_logs.session.loop import _Loop
+
+    step = _Loop._step
+
+    def slow_reading(self, message):  # type: ignore[no-untyped-def]
+        if message.channel.topic == "/scan":
+            time.sleep(seconds)
+        return step(self, message)
+
+    monkeypatch.setattr(_Loop, "_step", slow_reading)
+
+
 def _said_by_session(
     log: Path, loggers: tuple[str, ...] = ("rose", "rose_logs"), into: list[str] | None = None
 ) -> list[str]:
@@ -1105,9 +1121,8 @@ def test_warnings_said_while_reading_wait_for_the_analyses_before_them(
     import time
 
     from rose_logs.session.analysis import SnapshotAnalyser
-    from rose_logs.session.loop import _Loop
 
-    analyse, step = SnapshotAnalyser._analyse, _Loop._step
+    analyse = SnapshotAnalyser._analyse
 
     def slow_analysis(self, snapshot):
         if snapshot.topic == "/a" and slow == "analysis":
@@ -1116,13 +1131,9 @@ def test_warnings_said_while_reading_wait_for_the_analyses_before_them(
             logging.getLogger("rose.a_module_loaded_later").warning("said by /c's analysis")
         return analyse(self, snapshot)
 
-    def slow_reading(self, message):
-        if message.channel.topic == "/scan" and slow == "reading":
-            time.sleep(0.5)
-        return step(self, message)
-
     monkeypatch.setattr(SnapshotAnalyser, "_analyse", slow_analysis)
-    monkeypatch.setattr(_Loop, "_step", slow_reading)
+    if slow == "reading":
+        _read_scans_slowly(monkeypatch, 0.5)
     maps = [
         MapMsg(START_NS + 1_000_000_000, fr079[0], resolution_m=1e-5, topic="/a"),
         MapMsg(START_NS + 2_000_000_000, fr079[0], topic="/b", bad_length=True),
@@ -1174,9 +1185,8 @@ def test_the_reasons_of_skipped_maps_are_in_log_order(
 
     import rose
     from rose_logs.session.analysis import SnapshotAnalyser
-    from rose_logs.session.loop import _Loop
 
-    analyse, step = SnapshotAnalyser._analyse, _Loop._step
+    analyse = SnapshotAnalyser._analyse
 
     def failing(self, snapshot):
         if snapshot.topic == "/a":
@@ -1185,13 +1195,9 @@ def test_the_reasons_of_skipped_maps_are_in_log_order(
             raise rose.RoseError("too thin")
         return analyse(self, snapshot)
 
-    def slow_reading(self, message):
-        if message.channel.topic == "/scan" and slow == "reading":
-            time.sleep(0.3)
-        return step(self, message)
-
     monkeypatch.setattr(SnapshotAnalyser, "_analyse", failing)
-    monkeypatch.setattr(_Loop, "_step", slow_reading)
+    if slow == "reading":
+        _read_scans_slowly(monkeypatch, 0.3)
     maps = [
         MapMsg(START_NS + 1_000_000_000, fr079[0], topic="/a"),
         MapMsg(START_NS + 2_000_000_000, fr079[0], topic="/b", bad_length=True),
