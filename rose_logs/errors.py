@@ -2,7 +2,19 @@
 
 from __future__ import annotations
 
-__all__ = ["EmptyMapError", "LogError", "LogReadError", "LogWriteError", "MapMessageError"]
+import errno
+
+from rose.signals import reraise_interrupt_behind
+
+__all__ = [
+    "EmptyMapError",
+    "LogError",
+    "LogReadError",
+    "LogWriteError",
+    "MapMessageError",
+    "as_memory_error",
+    "reraise_unless_damage",
+]
 
 
 class LogError(Exception):
@@ -29,3 +41,27 @@ class EmptyMapError(MapMessageError):
 
     The session copies it through unprocessed and counts it apart from malformed messages.
     """
+
+
+def as_memory_error(err: BaseException) -> BaseException:
+    """``err`` as the MemoryError it is when it says the machine ran out of memory in other words
+    (zstd's ``Allocation error : not enough memory``, an OSError ENOMEM from ``mmap``), which the
+    commands say in one line ("out of memory"); any other error as it is."""
+    if isinstance(err, OSError) and err.errno == errno.ENOMEM:
+        return MemoryError(str(err))
+    if type(err).__name__ == "ZstdError" and "not enough memory" in str(err):
+        return MemoryError(str(err))
+    return err
+
+
+def reraise_unless_damage(err: BaseException) -> None:
+    """Raise what a library's failure to read a log is when it is not damage of the log: an
+    interrupt that landed inside the library, or memory running out (``ulimit -v``, a small
+    machine). Read as damage, memory running out was said "corrupt or truncated log", and
+    ``--salvage`` skipped the chunk it happened in as damaged: a sound file called broken."""
+    reraise_interrupt_behind(err)
+    memory = as_memory_error(err)
+    if isinstance(memory, MemoryError):
+        if memory is err:
+            raise err
+        raise memory from err

@@ -37,8 +37,7 @@ from types import TracebackType
 from typing import Self
 
 from rose.limits import short
-from rose.signals import reraise_interrupt_behind
-from rose_logs.errors import LogError, LogReadError
+from rose_logs.errors import LogError, LogReadError, reraise_unless_damage
 from rose_logs.formats import LogFormat, detect_format, mcap_cut_short
 from rose_logs.storage.connections import QosStyle
 from rose_logs.storage.mcap import (
@@ -82,7 +81,7 @@ def _opened(backend: McapStreamReadBackend | Ros1StreamReadBackend) -> bool:
         backend.open()
     except Exception as err:
         backend.close()
-        reraise_interrupt_behind(err)
+        reraise_unless_damage(err)
         return False
     return True
 
@@ -222,7 +221,7 @@ class LogReader:
             backend.open()
         except Exception as err:  # library errors of every kind: wrap at the boundary
             backend.close()
-            reraise_interrupt_behind(err)
+            reraise_unless_damage(err)
             salvaged: (
                 McapStreamReadBackend
                 | McapFilesReadBackend
@@ -332,7 +331,7 @@ class LogReader:
                     probe.open()
                 except Exception as failure:  # this file is a damaged one
                     probe.close()
-                    reraise_interrupt_behind(failure)
+                    reraise_unless_damage(failure)
                     probes.append((storage, None, failure))
                 else:
                     probes.append((storage, probe, None))
@@ -398,7 +397,7 @@ class LogReader:
             backend.open()
         except Exception as failure:  # another damage: the first error stands
             backend.close()
-            reraise_interrupt_behind(failure)
+            reraise_unless_damage(failure)
             return None
         files = len(backend.storage_readers())
         if not backend.unopened or len(backend.unopened) >= files or not self.salvage:
@@ -443,7 +442,7 @@ class LogReader:
             )
         except Exception as failure:  # the index is damaged too, or the file went away
             backend.close()
-            reraise_interrupt_behind(failure)
+            reraise_unless_damage(failure)
             said = isinstance(err, LogError)  # an error of ours, which says what is wrong
             if isinstance(failure, IndexDamage) and failure.in_index and not (self.salvage or said):
                 msg = f"{self.path}: {damaged_index(str(failure), through_chunk_infos=False)}"
@@ -609,7 +608,7 @@ class LogReader:
                 self.read_count += 1
                 yield message
         except (LogError, Exception) as err:
-            reraise_interrupt_behind(err)  # a signal inside the library, not a corrupt log
+            reraise_unless_damage(err)  # a signal inside the library, not a corrupt log
             error = err if isinstance(err, LogError) else _corrupt(self._read_from(backend), err)
             if not self.salvage:
                 if isinstance(err, LogError):

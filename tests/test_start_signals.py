@@ -186,3 +186,30 @@ def test_under_an_address_space_limit_openblas_runs_one_thread(tmp_path: Path, s
     assert limited and set(limited) == {1}, limited
     assert max(threads(None)) > 1
     assert max(threads(16 << 30, {"OPENBLAS_NUM_THREADS": "2"})) > 1
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="no ulimit -v")
+def test_under_an_address_space_limit_scipys_openblas_loads_before_the_work() -> None:
+    """Loaded on demand by the first analysis, when the log's buffers and the session's threads
+    already took the address space, scipy's OpenBLAS could not map its buffer and retried for
+    ever: ``rose-bag process`` hung at 100 % CPU under ``ulimit -v 400000`` on 1000 x 1000 maps.
+    Under a limit the commands load it first; without one, start-up stays light."""
+    code = (
+        "import sys; from rose.entry import blas_threads_within_address_limit; "
+        "blas_threads_within_address_limit(); print('scipy.special' in sys.modules)"
+    )
+
+    def loaded(limit: int | None) -> bool:
+        done = subprocess.run(
+            [sys.executable, "-c", code],
+            capture_output=True,
+            text=True,
+            env={**os.environ, "PYTHONPATH": str(ROOT)},
+            preexec_fn=None if limit is None else lambda: _address_limit(limit),
+            timeout=120,
+        )
+        assert done.returncode == 0, done.stderr
+        return done.stdout.strip() == "True"
+
+    assert loaded(16 << 30)
+    assert not loaded(None)

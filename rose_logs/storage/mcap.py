@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any, BinaryIO
 
 from rose.limits import short
-from rose_logs.errors import LogReadError
+from rose_logs.errors import LogReadError, as_memory_error, reraise_unless_damage
 from rose_logs.formats import MCAP_MAGIC
 from rose_logs.storage.base import WriteBackend
 from rose_logs.storage.connections import (
@@ -306,6 +306,7 @@ class McapReadBackend:
             try:
                 messages = self._messages_of(item, wanted, strict=not skip_damaged)
             except Exception as err:  # any library error: this chunk is damaged
+                reraise_unless_damage(err)
                 if not skip_damaged:
                     raise
                 reason = short(str(err) or type(err).__name__, 120)
@@ -454,6 +455,7 @@ class McapStreamReadBackend(McapReadBackend):
             except StopIteration:
                 break
             except Exception as err:  # the damaged end: any library error, stop there
+                reraise_unless_damage(err)
                 reason = str(err) or type(err).__name__
                 self.damage = f"unreadable from byte {offset} of {size}: {short(reason, 120)}"
                 self._damage_at = offset
@@ -662,15 +664,6 @@ class McapFilesReadBackend:
             part.close()
 
 
-def _as_memory_error(err: Exception) -> Exception:
-    """zstd failing to allocate as it compresses a chunk (``ZstdError: cannot compress: Allocation
-    error : not enough memory``, the address space running out) as the MemoryError it is, which
-    the commands say in one line ("out of memory"): it was a traceback. Any other error as it is."""
-    if type(err).__name__ == "ZstdError" and "not enough memory" in str(err):
-        return MemoryError(str(err))
-    return err
-
-
 class McapWriteBackend(WriteBackend):
     """Bare MCAP output, ``ros1`` or ``ros2`` profile.
 
@@ -737,13 +730,13 @@ class McapWriteBackend(WriteBackend):
         try:
             self.writer.add_message(self.channels[handle], log_time_ns, data, publish_ns, seq)
         except Exception as err:
-            raise _as_memory_error(err) from err
+            raise as_memory_error(err) from err
 
     def close(self) -> None:
         try:
             self.writer.finish()  # the last chunk
         except Exception as err:
-            raise _as_memory_error(err) from err
+            raise as_memory_error(err) from err
         if self.stream is not None:
             self.stream.close()
             self.stream = None

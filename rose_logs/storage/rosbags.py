@@ -14,8 +14,7 @@ from pathlib import Path, PurePath
 from typing import Any, Literal
 
 from rose.limits import short
-from rose.signals import reraise_interrupt_behind
-from rose_logs.errors import LogReadError
+from rose_logs.errors import LogReadError, reraise_unless_damage
 from rose_logs.formats import LogFormat
 from rose_logs.storage.base import WriteBackend
 from rose_logs.storage.connections import (
@@ -231,6 +230,7 @@ class RosbagsReadBackend:
                     raise LogReadError(self._damaged_row(conn.topic, timestamp, data))
                 yield RawMessage(by_conn[id(conn)], int(timestamp), data, int(timestamp))
         except Exception as err:
+            reraise_unless_damage(err)
             problem = self._failed_read(err) if self.format == "ros1" else None
             if problem is None:
                 raise
@@ -256,7 +256,7 @@ class RosbagsReadBackend:
             return None
         if damaged is not None:
             return damaged
-        if isinstance(err, OSError | MemoryError):
+        if isinstance(err, OSError):
             return None
         problem = f"an index entry does not match the message it points to: {rosbags_text(err)}"
         return damaged_index(problem, through_chunk_infos=True)
@@ -371,7 +371,7 @@ class RosbagsReadBackend:
                 read += 1
                 yield RawMessage(ours[int(conn.id)], int(timestamp), data, int(timestamp))
         except Exception as err:
-            reraise_interrupt_behind(err)
+            reraise_unless_damage(err)
             files = len(self.storage_readers())
             if not salvage and files < 2:
                 raise
@@ -404,7 +404,7 @@ class RosbagsReadBackend:
             indexed = True
         except Exception as err:  # its index is damaged: rosbags' reading stands
             inner.close()
-            reraise_interrupt_behind(err)
+            reraise_unless_damage(err)
             indexed = False
         if not indexed:
             yield from self._rosbags_file(storage, path, topics, salvage=salvage)
@@ -484,7 +484,7 @@ class _TolerantStorage:
         except Exception as err:
             with contextlib.suppress(Exception):
                 self.inner.close()
-            reraise_interrupt_behind(err)
+            reraise_unless_damage(err)
             why = library_text(err).replace(f" {self.path}", "")  # (the error names it)
             self.unopened.append((Path(self.path), why))
             self.inner = None

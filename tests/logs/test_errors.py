@@ -1390,6 +1390,61 @@ def test_zstd_out_of_memory_writing_the_output_is_one_line(
     assert _leftovers(tmp_path, {"in.mcap"}) == []
 
 
+def _zstd_out_of_memory() -> Exception:
+    import zstandard
+
+    return zstandard.ZstdError("cannot decompress: Allocation error : not enough memory")
+
+
+@pytest.mark.parametrize("salvage", [False, True], ids=["plain", "salvage"])
+@pytest.mark.parametrize("raised", [MemoryError, _zstd_out_of_memory], ids=["MemoryError", "zstd"])
+def test_memory_running_out_while_reading_is_not_a_corrupt_log(
+    tmp_path: Path, mcap_log: Path, monkeypatch: pytest.MonkeyPatch, capsys, salvage, raised
+) -> None:
+    """Memory running out as a chunk of a sound log was read (``ulimit -v``) was said "corrupt or
+    truncated log; --salvage keeps what can be read", and ``--salvage`` skipped the chunk as
+    damaged and went on: a sound file called broken, or maps lost without a word of why. Now
+    "out of memory", one line, exit 1, nothing written, salvaging or not."""
+
+    def fail(*_: object, **__: object) -> None:
+        raise raised()
+
+    monkeypatch.setattr("mcap.stream_reader.breakup_chunk", fail)
+    out = tmp_path / "o.mcap"
+    argv = ["process", str(mcap_log), "-o", str(out)] + (["--salvage"] if salvage else [])
+    assert main(argv) == 1
+    err = capsys.readouterr().err
+    _assert_one_line_error(err, "in.mcap", "out of memory")
+    assert "corrupt" not in err
+    assert _leftovers(tmp_path, {"in.mcap"}) == []
+
+
+@pytest.mark.parametrize("kind", ["ros1", "db3"])
+def test_memory_running_out_while_reading_a_rosbags_log_is_not_a_corrupt_log(
+    tmp_path: Path, capsys, fr079, monkeypatch: pytest.MonkeyPatch, kind: str
+) -> None:
+    """As above, for the logs rosbags reads (a ROS 1 bag, a ROS 2 sqlite3 bag)."""
+    import rosbags.rosbag1
+    import rosbags.rosbag2
+
+    built = build_log(log_path(tmp_path, kind), kind, session_maps(fr079[:2]))
+
+    def fail(*_: object, **__: object) -> None:
+        raise MemoryError
+
+    reader = rosbags.rosbag1.Reader if kind == "ros1" else rosbags.rosbag2.Reader
+    monkeypatch.setattr(reader, "messages", fail)
+    # A ROS 1 bag salvaged is read chunk by chunk by our own reader.
+    monkeypatch.setattr("rose_logs.storage.ros1_stream.chunk_messages", fail)
+    for salvage in ([], ["--salvage"]):
+        out = log_path(tmp_path, kind, "out")
+        code, _, err = _run(capsys, "process", built.path, "-o", out, *salvage)
+        assert code == 1, err
+        _assert_one_line_error(err, built.path.name, "out of memory")
+        assert "corrupt" not in err
+        assert _leftovers(tmp_path, {built.path.name}) == []
+
+
 def test_other_runtime_and_import_errors_stay_tracebacks(
     mcap_log: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
