@@ -78,6 +78,8 @@ def rerun_sink(
     ``shown_as``: the recording's name in errors (the user's path, when ``rrd_path`` is where it is
     staged)."""
     _check_files_for_rerun(shown_as or rrd_path or connect or "Rerun viewer")  # before it loads
+    if rrd_path is not None:
+        _check_file_size_for_rerun(shown_as or rrd_path)
     from rose_logs.rerun import RerunSink, recording_id_for  # rerun loads only when used
     from rose_logs.rerun.paths import entity_root_for_topic
     from rose_logs.rerun.viewer import ViewerNotStarted, viewer_unreachable
@@ -182,6 +184,34 @@ def _check_files_for_rerun(where: object) -> None:
     raise LogWriteError(msg)
 
 
+#: The fewest bytes a recording file may be allowed to grow to (``ulimit -f``): its header and
+#: static data. Under a limit that its first write passes, a larger recording fails as it grows,
+#: in one line; under one that its first write fails (``ulimit -f 1``), Rerun waited for its
+#: dead file writer for ever and the run hung, deaf to SIGTERM.
+MIN_RECORDING_BYTES = 64 * 1024
+
+
+def _check_file_size_for_rerun(where: object) -> None:
+    """Refuse, in one line, a limit of the size of written files below :data:`MIN_RECORDING_BYTES`."""
+    limit = _file_size_limit()
+    if limit is not None and limit < MIN_RECORDING_BYTES:
+        msg = (
+            f"{where}: cannot write the Rerun recording (files written are limited to {limit} "
+            "bytes, ulimit -f)"
+        )
+        raise LogWriteError(msg)
+
+
+def _file_size_limit() -> int | None:
+    """The soft limit of the size of written files in bytes (``ulimit -f``); None when none."""
+    try:
+        import resource
+    except ImportError:  # Windows
+        return None
+    soft, _ = resource.getrlimit(resource.RLIMIT_FSIZE)
+    return None if soft == resource.RLIM_INFINITY else int(soft)
+
+
 def prepare_output(
     writer: LogWriter | None,
     channels: Sequence[Channel],
@@ -268,9 +298,16 @@ def rerun_failure(rrd_path: Path | str | None, connect: str | None, err: BaseExc
     """One line for a Rerun recording that could not be finished, naming where it was going."""
     if rrd_path is not None:
         # Rerun says only that its file writer stopped; a full disk is the usual reason.
-        return f"{rrd_path}: cannot write the Rerun recording ({short(err, 160)}{_full(Path(rrd_path))})"
+        why = f"{short(err, 160)}{_full(Path(rrd_path))}{_limited()}"
+        return f"{rrd_path}: cannot write the Rerun recording ({why})"
     viewer = f"the Rerun viewer at {connect}" if connect is not None else "the spawned Rerun viewer"
     return f"cannot stream to {viewer}; is it running? ({short(err, 160)})"
+
+
+def _limited() -> str:
+    """``"; files written are limited to 2048000 bytes (ulimit -f)"`` under such a limit, else ``""``."""
+    limit = _file_size_limit()
+    return "" if limit is None else f"; files written are limited to {limit} bytes (ulimit -f)"
 
 
 def _full(path: Path) -> str:

@@ -1332,6 +1332,38 @@ def test_too_few_open_files_for_rerun_is_one_line_before_rerun_loads(
     assert _leftovers(tmp_path, {"in.mcap", "s.rrd"}) == []
 
 
+@pytest.mark.skipif(sys.platform == "win32", reason="no ulimit -f")
+@pytest.mark.parametrize(
+    ("limit", "said"),
+    [
+        # Its first write failed: Rerun waited for its dead file writer for ever (a hang, deaf to
+        # SIGTERM); now refused before it starts.
+        (1024, "files written are limited to 1024 bytes, ulimit -f"),
+        # It failed as it grew: said, but not why.
+        (64 * 1024, "files written are limited to 65536 bytes (ulimit -f)"),
+    ],
+)
+def test_a_file_size_limit_too_small_for_the_recording_is_one_line(
+    tmp_path: Path, mcap_log: Path, limit: int, said: str
+) -> None:
+    import resource
+
+    existing = tmp_path / "s.rrd"
+    existing.write_bytes(b"old")
+    argv = ["process", str(mcap_log), "--no-output", "--rrd", str(existing), "--force"]
+    done = subprocess.run(
+        [sys.executable, "-m", "rose_logs.cli", *argv],
+        capture_output=True,
+        text=True,
+        preexec_fn=lambda: resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit)),
+        timeout=120,
+    )
+    assert done.returncode == 1, done.stderr
+    _assert_one_line_error(done.stderr, f"{existing}: cannot write the Rerun recording (", said)
+    assert existing.read_bytes() == b"old"
+    assert _leftovers(tmp_path, {"in.mcap", "s.rrd"}) == []
+
+
 def test_too_few_open_files_for_rerun_raises_the_soft_limit_when_the_hard_one_allows(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
