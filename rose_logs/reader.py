@@ -652,7 +652,8 @@ class LogReader:
             )
             self._lose(problem)
         skipped.clear()
-        if isinstance(backend, RosbagsReadBackend):  # files of a split bag read part way
+        if isinstance(backend, RosbagsReadBackend | McapFilesReadBackend):
+            # files of a split bag read part way
             for problem in backend.damaged_files:
                 self._lose(problem)
             backend.damaged_files.clear()

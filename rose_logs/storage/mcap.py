@@ -33,6 +33,7 @@ from rose_logs.storage.records import (
     merged_by_log_time,
     normalize_msgtype,
     parse_latching,
+    read_part_way,
     ros1_msgtype,
 )
 
@@ -582,7 +583,8 @@ class McapFilesReadBackend:
     index counts what its index declares, one read record by record what was read
     (:attr:`counts_declared`). With :attr:`skip_damaged_chunks` (``--salvage``) each indexed
     file skips the chunks that cannot be read, said in :attr:`skipped_chunks` with the file they
-    are in.
+    are in, and a file whose reading fails part way is said in :attr:`damaged_files`, the other
+    files read on.
     """
 
     def __init__(self, parts: list[McapReadBackend]) -> None:
@@ -632,6 +634,9 @@ class McapFilesReadBackend:
         self.end_ns = max((end for _, end in ranges), default=0)
         #: The file whose reading failed, if one did: the error is about it, not the folder.
         self.failed_file: Path | None = None
+        #: ``--salvage``: each file that could not be read to its end, in words (as
+        #: :attr:`~rose_logs.storage.rosbags.RosbagsReadBackend.damaged_files`).
+        self.damaged_files: list[str] = []
 
     def messages(self, topics: set[str] | None) -> Iterator[RawMessage]:
         yield from merged_by_log_time(
@@ -643,16 +648,25 @@ class McapFilesReadBackend:
         self, part: McapReadBackend, ours: dict[int, Channel], topics: set[str] | None
     ) -> Iterator[RawMessage]:
         """The messages of the file ``part`` as our channels (``ours``: of each of its channel
-        ids), its skipped chunks said in :attr:`skipped_chunks`."""
+        ids), its skipped chunks said in :attr:`skipped_chunks`. A failure part way (damage the
+        chunk reader does not skip: a file without chunks, a damaged record after its data) is
+        raised naming the file, or with ``--salvage`` said in :attr:`damaged_files`: raised, it
+        ended the merge, and the other files' later messages were lost with it."""
         part.skip_damaged_chunks = self.skip_damaged_chunks
+        read = 0
         try:
             for m in part.messages(topics):
+                read += 1
                 yield RawMessage(
                     ours[m.channel.id], m.log_time_ns, m.data, m.publish_time_ns, m.sequence
                 )
-        except Exception:
-            self.failed_file = part.path
-            raise
+        except Exception as err:
+            reraise_unless_damage(err)
+            if not self.skip_damaged_chunks or len(self.parts) < 2:
+                self.failed_file = part.path
+                raise
+            why = str(err).removeprefix(f"{part.path}: ") or type(err).__name__
+            self.damaged_files.append(read_part_way(part.path, read, why))
         finally:
             self.skipped_chunks.extend(
                 dataclasses.replace(chunk, file=part.path) for chunk in part.skipped_chunks

@@ -8,8 +8,11 @@ from __future__ import annotations
 import heapq
 from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 
 from rosbags.interfaces import Qos
+
+from rose.limits import short
 
 __all__ = [
     "Channel",
@@ -17,6 +20,7 @@ __all__ = [
     "merged_by_log_time",
     "normalize_msgtype",
     "parse_latching",
+    "read_part_way",
     "ros1_msgtype",
 ]
 
@@ -145,3 +149,14 @@ def merged_by_log_time(files: Iterable[Iterator[RawMessage]]) -> Iterator[RawMes
 
 def _log_time(message: RawMessage) -> int:
     return message.log_time_ns
+
+
+def read_part_way(path: Path, read: int, why: str) -> str:
+    """The loss of the storage file ``path`` of a split bag whose reading failed (``why``) after
+    ``read`` of its messages, under ``--salvage``, which reads the bag's other files on."""
+    kept = (
+        f"cannot be read past its first {read} messages"
+        if read
+        else "none of its messages can be read"
+    )
+    return f"{path}: {kept} ({short(why, 120)}); the bag's other files are read"

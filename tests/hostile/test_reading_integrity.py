@@ -1412,6 +1412,91 @@ def test_a_damaged_chunk_of_a_split_mcap_bag_read_file_by_file_is_said_of_its_fi
     assert code == EXIT_SALVAGED and f"{first}: skipped a damaged chunk" in err, err
 
 
+def _without_chunks_damaged_part_way(path: Path) -> int:
+    """Rewrite the MCAP file ``path`` without chunks (its messages in the data section, its
+    summary intact) with the length of its middle message record damaged (longer than the
+    file): it opens through its summary and its reading fails part way, in no chunk a
+    salvaging reader could skip. Returns the messages before the damage."""
+    import struct
+
+    from mcap.reader import make_reader
+    from mcap.writer import Writer as McapWriter
+
+    source = make_reader(io.BytesIO(path.read_bytes()))
+    summary = source.get_summary()
+    assert summary is not None
+    out = io.BytesIO()
+    writer = McapWriter(out, use_chunking=False)
+    header = source.get_header()
+    writer.start(profile=header.profile, library=header.library)
+    for _, schema in sorted(summary.schemas.items()):
+        writer.register_schema(schema.name, schema.encoding, schema.data)
+    for _, channel in sorted(summary.channels.items()):
+        writer.register_channel(
+            channel.topic, channel.message_encoding, channel.schema_id, dict(channel.metadata)
+        )
+    starts = []
+    for _, channel, message in source.iter_messages(log_time_order=True):
+        starts.append(out.tell())
+        writer.add_message(
+            channel.id, message.log_time, message.data, message.publish_time, message.sequence
+        )
+    writer.finish()
+    data = bytearray(out.getvalue())
+    middle = len(starts) // 2
+    assert data[starts[middle]] == 0x05  # a message record: opcode, then its length
+    data[starts[middle] + 1 : starts[middle] + 9] = struct.pack("<Q", len(data))
+    path.write_bytes(bytes(data))
+    return middle
+
+
+@pytest.mark.parametrize("other", ["summary", "cut"])
+def test_salvage_reads_the_other_files_of_a_split_mcap_bag_one_of_which_fails_part_way(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], other: str
+) -> None:
+    """A split bag whose first file fails part way (a file without chunks whose middle record
+    is damaged: no chunk to skip), its second read file by file (its summary damaged, nothing
+    lost; or cut short): --salvage stopped the whole merge there, the second file's messages
+    lost unsaid (its loss even said "kept the 155 messages before it"). The first file's loss
+    names it and the second file is read, in log-time order; without --salvage it is an error
+    naming the first file."""
+    bag = tmp_path / "bag"
+    first, second = _split_mcap_bag_folder(bag)
+    before = _without_chunks_damaged_part_way(first)
+    data = bytearray(second.read_bytes())
+    if other == "summary":  # rosbags cannot open the bag; the file reads record by record
+        data[_data_end(second) + 30] ^= 0xFF
+    else:
+        data = data[: len(data) * 3 // 4]
+    second.write_bytes(bytes(data))
+    expected = []
+    for storage in (first, second):
+        with LogReader(storage, salvage=True) as reader:
+            expected += [(m.channel.topic, m.log_time_ns, bytes(m.data)) for m in reader.messages()]
+            assert reader.read_count == (before if storage == first else reader.message_count)
+    with LogReader(bag, salvage=True) as reader:
+        read = [(m.channel.topic, m.log_time_ns, bytes(m.data)) for m in reader.messages()]
+        losses = list(reader.losses)
+    assert read == expected and len(read) > before
+    assert [t for _, t, _ in read] == sorted(t for _, t, _ in read)
+    said = f"{first}: cannot be read past its first {before} messages ("
+    assert any(loss.startswith(said) for loss in losses), losses
+    assert all(loss.startswith((f"{first}: ", f"{second}: ", f"{bag}: read ")) for loss in losses)
+    report = tmp_path / "r.json"
+    code, _, err = _run(capsys, "process", bag, "--no-output", "-q", "--salvage", "--json", report)
+    assert code == EXIT_SALVAGED and "error:" not in err, err
+    salvaged = json.loads(report.read_text())
+    assert salvaged["message_count"] == len(read) and salvaged["losses"] == losses
+    assert salvaged["end_ns"] == max(t for _, t, _ in read)
+    code, out, _ = _run(capsys, "info", bag, "--salvage")
+    assert code == EXIT_SALVAGED and f"{first}: cannot be read past its first " in out
+    if other == "summary":  # (a file cut short is refused as it opens, naming that file)
+        code, _, err = _run(capsys, "process", bag, "--no-output", "-q")
+        (error,) = [line for line in err.splitlines() if not line.startswith("warning: ")]
+        assert code == 1 and error.startswith(f"error: {first}: corrupt or truncated "), err
+        assert "--salvage" in error
+
+
 @pytest.mark.parametrize("storage", ["mcap", "db3"])
 def test_a_split_bag_whose_files_are_listed_out_of_time_order_reads_in_log_time_order(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], storage: str
