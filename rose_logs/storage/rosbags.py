@@ -26,7 +26,13 @@ from rose_logs.storage.connections import (
     warn_no_definition,
 )
 from rose_logs.storage.mcap import McapReadBackend, SkippedChunk
-from rose_logs.storage.records import Channel, RawMessage, merged_by_log_time, normalize_msgtype
+from rose_logs.storage.records import (
+    Channel,
+    RawMessage,
+    merged_by_log_time,
+    normalize_msgtype,
+    read_part_way,
+)
 
 __all__ = ["Ros1WriteBackend", "Ros2WriteBackend", "RosbagsReadBackend", "mcap_storage_files"]
 
@@ -383,12 +389,7 @@ class RosbagsReadBackend:
                     "it and reads the others"
                 )
                 raise LogReadError(msg) from err
-            kept = (
-                f"cannot be read past its first {read} messages"
-                if read
-                else "none of its messages can be read"
-            )
-            self.damaged_files.append(f"{path}: {kept} ({why}); the bag's other files are read")
+            self.damaged_files.append(read_part_way(path, read, why))
 
     def _mcap_file_around_damaged_chunks(
         self, storage: Any, path: Path, topics: set[str] | None, *, salvage: bool
@@ -396,7 +397,9 @@ class RosbagsReadBackend:
         """The messages of one MCAP file ``path`` of this bag folder (rosbags' reader of it:
         ``storage``), skipping its damaged chunks; read by rosbags when its index does not read
         (:meth:`_rosbags_file`, up to the damage, said with ``salvage``: a bag of several files,
-        whose others are read)."""
+        whose others are read). A failure part way that is no damaged chunk (a file without
+        chunks) is said in :attr:`damaged_files` too with ``salvage``: raised, it ended the
+        merge, and the other files' later messages were lost with it."""
         ours = self._storage_channels_ours(storage)
         inner = McapReadBackend(path)
         try:
@@ -412,6 +415,7 @@ class RosbagsReadBackend:
         # The file's channel id of each of the inner reader's channels.
         file_ids = {channel.id: file_id for file_id, channel in inner._by_id.items()}
         inner.skip_damaged_chunks = True
+        read = 0
         try:
             for message in inner.messages(topics):
                 channel = ours.get(file_ids.get(message.channel.id, -1))
@@ -419,7 +423,13 @@ class RosbagsReadBackend:
                     continue
                 # The log time as publish time, as rosbags gives it: the same output either way.
                 time_ns = message.log_time_ns
+                read += 1
                 yield RawMessage(channel, time_ns, message.data, time_ns)
+        except Exception as err:
+            reraise_unless_damage(err)
+            if not salvage:
+                raise
+            self.damaged_files.append(read_part_way(path, read, library_text(err)))
         finally:
             self.skipped_chunks.extend(
                 dataclasses.replace(chunk, file=inner.path) for chunk in inner.skipped_chunks

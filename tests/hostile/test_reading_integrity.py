@@ -1450,23 +1450,23 @@ def _without_chunks_damaged_part_way(path: Path) -> int:
     return middle
 
 
-@pytest.mark.parametrize("other", ["summary", "cut"])
+@pytest.mark.parametrize("other", ["intact", "summary", "cut"])
 def test_salvage_reads_the_other_files_of_a_split_mcap_bag_one_of_which_fails_part_way(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], other: str
 ) -> None:
     """A split bag whose first file fails part way (a file without chunks whose middle record
-    is damaged: no chunk to skip), its second read file by file (its summary damaged, nothing
-    lost; or cut short): --salvage stopped the whole merge there, the second file's messages
-    lost unsaid (its loss even said "kept the 155 messages before it"). The first file's loss
-    names it and the second file is read, in log-time order; without --salvage it is an error
-    naming the first file."""
+    is damaged: no chunk to skip), its second intact (the bag opens in rosbags) or read file by
+    file (its summary damaged, nothing lost; or cut short): --salvage stopped the whole merge
+    there, the second file's messages lost unsaid (the loss named the bag, or said of the cut
+    file "kept the 155 messages before it"). The first file's loss names it and the second
+    file is read, in log-time order; without --salvage it is an error naming the first file."""
     bag = tmp_path / "bag"
     first, second = _split_mcap_bag_folder(bag)
     before = _without_chunks_damaged_part_way(first)
     data = bytearray(second.read_bytes())
     if other == "summary":  # rosbags cannot open the bag; the file reads record by record
         data[_data_end(second) + 30] ^= 0xFF
-    else:
+    elif other == "cut":
         data = data[: len(data) * 3 // 4]
     second.write_bytes(bytes(data))
     expected = []
@@ -1490,7 +1490,7 @@ def test_salvage_reads_the_other_files_of_a_split_mcap_bag_one_of_which_fails_pa
     assert salvaged["end_ns"] == max(t for _, t, _ in read)
     code, out, _ = _run(capsys, "info", bag, "--salvage")
     assert code == EXIT_SALVAGED and f"{first}: cannot be read past its first " in out
-    if other == "summary":  # (a file cut short is refused as it opens, naming that file)
+    if other != "cut":  # (a file cut short is refused as it opens, naming that file)
         code, _, err = _run(capsys, "process", bag, "--no-output", "-q")
         (error,) = [line for line in err.splitlines() if not line.startswith("warning: ")]
         assert code == 1 and error.startswith(f"error: {first}: corrupt or truncated "), err
