@@ -50,8 +50,12 @@ def run(args: argparse.Namespace) -> int:
             t: {"sizes": {}, "res": set(), "frames": set(), "bad": 0} for t in map_topics
         }
         read: dict[str, int] = dict.fromkeys(map_topics, 0)  # what the map topics hold
-        for message in reader.messages(topics=map_topics):
+        # --salvage reads every topic, as process --salvage does: read for the map topics alone,
+        # a loss counted and said only theirs (a split bag's file lost part way held /scan too).
+        for message in reader.messages(topics=None if args.salvage else map_topics):
             topic = message.channel.topic
+            if topic not in read:
+                continue
             read[topic] += 1
             if message.channel.msgtype != "nav_msgs/msg/OccupancyGrid":
                 continue
@@ -73,8 +77,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"format       {reader.format} ({reader.serialization})")
         declared = " (declared)" if reader.losses and reader.counts_declared else ""
         # The map topics as read (an index can undercount them: a warning says so), the other
-        # topics as declared (info reads no other topic). After a loss the counts stay as
-        # declared, and the loss says how many were read.
+        # topics as declared (only --salvage reads them, to count their losses). After a loss
+        # the counts stay as declared, and the loss says how many were read.
         if reader.losses:
             read = {}
         total = reader.message_count + sum(read.values())
