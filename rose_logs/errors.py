@@ -13,6 +13,7 @@ __all__ = [
     "LogWriteError",
     "MapMessageError",
     "as_memory_error",
+    "memory_short",
     "reraise_unless_damage",
 ]
 
@@ -54,14 +55,36 @@ def as_memory_error(err: BaseException) -> BaseException:
     return err
 
 
+#: Address space that must still be free for a failed allocation to be damage, not memory running
+#: out: a length field damaged to terabytes makes a library ask for more than any machine has.
+MEMORY_PROBE_BYTES = 256 * 2**20
+
+
 def reraise_unless_damage(err: BaseException) -> None:
     """Raise what a library's failure to read a log is when it is not damage of the log: an
     interrupt that landed inside the library, or memory running out (``ulimit -v``, a small
     machine). Read as damage, memory running out was said "corrupt or truncated log", and
-    ``--salvage`` skipped the chunk it happened in as damaged: a sound file called broken."""
+    ``--salvage`` skipped the chunk it happened in as damaged: a sound file called broken.
+
+    A failed allocation with :data:`MEMORY_PROBE_BYTES` still free is damage (a damaged length,
+    rosbags reading a record of 2**40 bytes): said "out of memory", it was misread the other way.
+    """
     reraise_interrupt_behind(err)
     memory = as_memory_error(err)
-    if isinstance(memory, MemoryError):
+    if isinstance(memory, MemoryError) and memory_short():
         if memory is err:
             raise err
         raise memory from err
+
+
+def memory_short(probe_bytes: int = MEMORY_PROBE_BYTES) -> bool:
+    """Whether ``probe_bytes`` of address space can no longer be had (mapped, not touched: no
+    memory is used, and the probe is given back at once)."""
+    import mmap
+
+    try:
+        probe = mmap.mmap(-1, probe_bytes)
+    except (OSError, ValueError, MemoryError):
+        return True
+    probe.close()
+    return False

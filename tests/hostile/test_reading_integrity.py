@@ -1413,11 +1413,11 @@ def test_a_damaged_chunk_of_a_split_mcap_bag_read_file_by_file_is_said_of_its_fi
     assert code == EXIT_SALVAGED and f"{first}: skipped a damaged chunk" in err, err
 
 
-def _without_chunks_damaged_part_way(path: Path) -> int:
+def _without_chunks_damaged_part_way(path: Path, length: int | None = None) -> int:
     """Rewrite the MCAP file ``path`` without chunks (its messages in the data section, its
-    summary intact) with the length of its middle message record damaged (longer than the
-    file): it opens through its summary and its reading fails part way, in no chunk a
-    salvaging reader could skip. Returns the messages before the damage."""
+    summary intact) with the length of its middle message record damaged (``length``, else the
+    file's: longer than the file): it opens through its summary and its reading fails part way,
+    in no chunk a salvaging reader could skip. Returns the messages before the damage."""
     import struct
 
     from mcap.reader import make_reader
@@ -1446,7 +1446,8 @@ def _without_chunks_damaged_part_way(path: Path) -> int:
     data = bytearray(out.getvalue())
     middle = len(starts) // 2
     assert data[starts[middle]] == 0x05  # a message record: opcode, then its length
-    data[starts[middle] + 1 : starts[middle] + 9] = struct.pack("<Q", len(data))
+    damaged = len(data) if length is None else length
+    data[starts[middle] + 1 : starts[middle] + 9] = struct.pack("<Q", damaged)
     path.write_bytes(bytes(data))
     return middle
 
@@ -1496,6 +1497,22 @@ def test_salvage_reads_the_other_files_of_a_split_mcap_bag_one_of_which_fails_pa
         (error,) = [line for line in err.splitlines() if not line.startswith("warning: ")]
         assert code == 1 and error.startswith(f"error: {first}: corrupt or truncated "), err
         assert "--salvage" in error
+
+
+def test_a_record_length_damaged_to_terabytes_is_damage_not_memory_running_out(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A split bag whose first file's middle record claims 2**40 bytes: rosbags asks for them,
+    and the MemoryError was said "out of memory (lower --max-cells?)", naming the folder. It is
+    a corrupt file, named; --salvage reads around it."""
+    bag = tmp_path / "bag"
+    first, _ = _split_mcap_bag_folder(bag)
+    _without_chunks_damaged_part_way(first, length=2**40)
+    code, _, err = _run(capsys, "process", bag, "--no-output", "-q")
+    (error,) = [line for line in err.splitlines() if not line.startswith("warning: ")]
+    assert code == 1 and error.startswith(f"error: {first}: corrupt or truncated "), err
+    code, _, err = _run(capsys, "process", bag, "--no-output", "-q", "--salvage")
+    assert code == EXIT_SALVAGED and f"{first}: cannot be read past its first " in err, err
 
 
 @pytest.mark.parametrize("storage", ["mcap", "db3"])

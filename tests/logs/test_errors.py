@@ -1442,6 +1442,7 @@ def test_memory_running_out_while_reading_is_not_a_corrupt_log(
         raise raised()
 
     monkeypatch.setattr("mcap.stream_reader.breakup_chunk", fail)
+    monkeypatch.setattr("rose_logs.errors.memory_short", lambda: True)
     out = tmp_path / "o.mcap"
     argv = ["process", str(mcap_log), "-o", str(out)] + (["--salvage"] if salvage else [])
     assert main(argv) == 1
@@ -1449,6 +1450,39 @@ def test_memory_running_out_while_reading_is_not_a_corrupt_log(
     _assert_one_line_error(err, "in.mcap", "out of memory")
     assert "corrupt" not in err
     assert _leftovers(tmp_path, {"in.mcap"}) == []
+
+
+def test_an_allocation_failing_with_memory_to_spare_is_damage(
+    tmp_path: Path, mcap_log: Path, monkeypatch: pytest.MonkeyPatch, capsys
+) -> None:
+    """A length field damaged to terabytes fails its allocation on any machine: that is a
+    corrupt log (rosbags reading a record of 2**40 bytes was said "out of memory")."""
+
+    def fail(*_: object, **__: object) -> None:
+        raise MemoryError
+
+    monkeypatch.setattr("mcap.stream_reader.breakup_chunk", fail)
+    monkeypatch.setattr("rose_logs.errors.memory_short", lambda: False)
+    code, _, err = _run(capsys, "process", mcap_log, "-o", tmp_path / "o.mcap")
+    assert code == 1
+    _assert_one_line_error(err, "in.mcap", "corrupt or truncated log")
+    assert _leftovers(tmp_path, {"in.mcap"}) == []
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="no ulimit -v")
+def test_memory_is_short_under_a_tight_address_space_limit_only() -> None:
+    code = (
+        "import resource, sys; from rose_logs.errors import memory_short; "
+        "print(memory_short()); "
+        "used = int(open('/proc/self/status').read().split('VmSize:')[1].split()[0]) * 1024; "
+        "resource.setrlimit(resource.RLIMIT_AS, (used + (64 << 20), resource.RLIM_INFINITY)); "
+        "print(memory_short())"
+    )
+    if not Path("/proc/self/status").exists():
+        pytest.skip("no /proc here")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["False", "True"]
 
 
 @pytest.mark.parametrize("kind", ["ros1", "db3"])
@@ -1466,6 +1500,7 @@ def test_memory_running_out_while_reading_a_rosbags_log_is_not_a_corrupt_log(
 
     reader = rosbags.rosbag1.Reader if kind == "ros1" else rosbags.rosbag2.Reader
     monkeypatch.setattr(reader, "messages", fail)
+    monkeypatch.setattr("rose_logs.errors.memory_short", lambda: True)
     # A ROS 1 bag salvaged is read chunk by chunk by our own reader.
     monkeypatch.setattr("rose_logs.storage.ros1_stream.chunk_messages", fail)
     for salvage in ([], ["--salvage"]):
