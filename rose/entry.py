@@ -99,13 +99,8 @@ def blas_threads_within_address_limit() -> None:
     memory), and a buffer that could not be mapped made it retry for ever (the run hung, deaf to
     Ctrl-C and SIGTERM, at limits some hundreds of MB wide and wider with more cores). With one
     thread the commands run under lower limits, or say that they are out of memory (OpenBLAS can
-    still hang where even its one buffer does not fit). Without a limit nothing changes.
-
-    Under a limit scipy's OpenBLAS (a library of its own, beside numpy's) is also loaded now, while
-    the address space is at its emptiest: loaded on demand by the first analysis, with the log's
-    buffers and the session's threads already mapped, its buffer did not fit, and ``rose-bag
-    process`` hung at 100 % CPU (``ulimit -v 400000``, 1000 x 1000 maps); loaded first, the run
-    completes or says that it is out of memory."""
+    still hang where even its one buffer does not fit, see :func:`load_blas_before_work`). Without
+    a limit nothing changes."""
     import os
 
     try:
@@ -115,11 +110,35 @@ def blas_threads_within_address_limit() -> None:
     soft, _ = resource.getrlimit(resource.RLIMIT_AS)
     if soft != resource.RLIM_INFINITY:
         os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-        import contextlib
 
-        # An import that fails here fails again where the command needs it, said in its words.
-        with contextlib.suppress(Exception):
-            import scipy.fft  # noqa: F401  (scipy.special, which it loads, brings the OpenBLAS)
+
+#: Address space that must be free for scipy's OpenBLAS to load (its buffer is 32 MiB).
+BLAS_LOAD_BYTES = 64 * 2**20
+
+
+def load_blas_before_work() -> None:
+    """Under a limit of the address space, load scipy's OpenBLAS (a library of its own, beside
+    numpy's) now, for a command about to analyse maps; MemoryError when it would not fit.
+
+    Loaded on demand by the first analysis, with the log's buffers and the session's threads
+    already mapped, its buffer did not fit, and OpenBLAS retried for ever: ``rose-bag process``
+    hung at 100 % CPU (``ulimit -v 400000``, 1000 x 1000 maps). Loaded before the work, the run
+    completes or says that it is out of memory. Only the commands that analyse call this: loaded
+    by every command, it hung ``--version`` and ``info`` under limits where they ran."""
+    try:
+        import resource
+    except ImportError:  # Windows
+        return
+
+    from rose.limits import memory_short
+
+    soft, _ = resource.getrlimit(resource.RLIMIT_AS)
+    if soft == resource.RLIM_INFINITY or "scipy.special" in sys.modules:
+        return
+    if memory_short(BLAS_LOAD_BYTES):
+        msg = "no room left to load scipy's OpenBLAS"
+        raise MemoryError(msg)
+    import scipy.fft  # noqa: F401  (scipy.special, which it loads, brings the OpenBLAS)
 
 
 def rose() -> None:

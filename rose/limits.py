@@ -14,6 +14,7 @@
 - :func:`regular_file_problem`: an input that is no regular file (a FIFO or device would block
   or never end).
 - :func:`short`: an error text cut to one line of at most :data:`MAX_MESSAGE_CHARS` characters.
+- :func:`memory_short`: whether some address space can no longer be had (``ulimit -v``).
 """
 
 from __future__ import annotations
@@ -451,3 +452,16 @@ def regular_file_problem(path: str | os.PathLike[str], *, missing: str) -> str |
     except OSError as err:
         return f"cannot read ({err.strerror or err})"
     return None if stat.S_ISREG(mode) else "not a regular file"
+
+
+def memory_short(probe_bytes: int) -> bool:
+    """Whether ``probe_bytes`` of address space can no longer be had (mapped, not touched: no
+    memory is used, and the probe is given back at once)."""
+    import mmap
+
+    try:
+        probe = mmap.mmap(-1, probe_bytes)
+    except (OSError, ValueError, MemoryError):
+        return True
+    probe.close()
+    return False

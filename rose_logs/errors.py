@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import errno
 
+from rose.limits import memory_short
 from rose.signals import reraise_interrupt_behind
 
 __all__ = [
@@ -12,10 +13,16 @@ __all__ = [
     "LogReadError",
     "LogWriteError",
     "MapMessageError",
+    "OutOfMemory",
     "as_memory_error",
-    "memory_short",
     "reraise_unless_damage",
 ]
+
+
+class OutOfMemory(MemoryError):
+    """Memory that ran out as a log was read, told from damage once (:func:`reraise_unless_damage`):
+    asked again where the error is caught again, after the unwinding freed buffers, the answer
+    could change."""
 
 
 class LogError(Exception):
@@ -70,21 +77,9 @@ def reraise_unless_damage(err: BaseException) -> None:
     rosbags reading a record of 2**40 bytes): said "out of memory", it was misread the other way.
     """
     reraise_interrupt_behind(err)
+    if isinstance(err, OutOfMemory | ImportError):
+        # A library that cannot be loaded (``failed to map segment``) is no damage of the log.
+        raise err
     memory = as_memory_error(err)
-    if isinstance(memory, MemoryError) and memory_short():
-        if memory is err:
-            raise err
-        raise memory from err
-
-
-def memory_short(probe_bytes: int = MEMORY_PROBE_BYTES) -> bool:
-    """Whether ``probe_bytes`` of address space can no longer be had (mapped, not touched: no
-    memory is used, and the probe is given back at once)."""
-    import mmap
-
-    try:
-        probe = mmap.mmap(-1, probe_bytes)
-    except (OSError, ValueError, MemoryError):
-        return True
-    probe.close()
-    return False
+    if isinstance(memory, MemoryError) and memory_short(MEMORY_PROBE_BYTES):
+        raise OutOfMemory(str(memory)) from err

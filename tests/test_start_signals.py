@@ -193,15 +193,27 @@ def test_under_an_address_space_limit_scipys_openblas_loads_before_the_work() ->
     """Loaded on demand by the first analysis, when the log's buffers and the session's threads
     already took the address space, scipy's OpenBLAS could not map its buffer and retried for
     ever: ``rose-bag process`` hung at 100 % CPU under ``ulimit -v 400000`` on 1000 x 1000 maps.
-    Under a limit the commands load it first; without one, start-up stays light."""
+    Under a limit the analysing commands load it before the work, or say they are out of memory
+    where it would not fit (a load that may never end is not tried); start-up does not load it
+    (loaded by every command, it hung ``--version`` and ``info`` at limits where they ran)."""
     code = (
-        "import sys; from rose.entry import blas_threads_within_address_limit; "
-        "blas_threads_within_address_limit(); print('scipy.special' in sys.modules)"
+        "import resource, sys\n"
+        "from rose.entry import blas_threads_within_address_limit, load_blas_before_work\n"
+        "blas_threads_within_address_limit()\n"
+        "print('scipy.special' in sys.modules)\n"
+        "if len(sys.argv) > 1:\n"
+        "    used = int(open('/proc/self/status').read().split('VmSize:')[1].split()[0]) << 10\n"
+        "    resource.setrlimit(resource.RLIMIT_AS, (used + (16 << 20), resource.RLIM_INFINITY))\n"
+        "try:\n"
+        "    load_blas_before_work()\n"
+        "except MemoryError:\n"
+        "    print('MemoryError')\n"
+        "print('scipy.special' in sys.modules)\n"
     )
 
-    def loaded(limit: int | None) -> bool:
+    def run(limit: int | None, *, tight: bool = False) -> list[str]:
         done = subprocess.run(
-            [sys.executable, "-c", code],
+            [sys.executable, "-c", code, *(["tight"] if tight else [])],
             capture_output=True,
             text=True,
             env={**os.environ, "PYTHONPATH": str(ROOT)},
@@ -209,7 +221,9 @@ def test_under_an_address_space_limit_scipys_openblas_loads_before_the_work() ->
             timeout=120,
         )
         assert done.returncode == 0, done.stderr
-        return done.stdout.strip() == "True"
+        return done.stdout.split()
 
-    assert loaded(16 << 30)
-    assert not loaded(None)
+    assert run(16 << 30) == ["False", "True"]
+    assert run(None) == ["False", "False"]
+    if Path("/proc/self/status").exists():
+        assert run(16 << 30, tight=True) == ["False", "MemoryError", "False"]

@@ -375,10 +375,12 @@ def _process(
     outputs: Any,
     on_outputs_ready: Callable[[], None] | None = None,
 ) -> Any:
+    from rose.entry import load_blas_before_work
     from rose_logs.session import process_log
     from rose_logs.session.breaks import BreakParams
 
     hold_opencv_to_one_thread()
+    load_blas_before_work()
     rose_params = params_from_args(args)
     return process_log(
         args.input,

@@ -30,6 +30,9 @@ def _sqlite_types(path: Path) -> dict[str, str]:
 
 
 def _mcap_types(path: Path) -> dict[str, str]:
+    from rose_logs.storage.mcap import load_decompressors
+
+    load_decompressors()
     from mcap.reader import SeekingReader
 
     with path.open("rb") as stream:

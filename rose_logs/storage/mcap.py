@@ -44,6 +44,7 @@ __all__ = [
     "McapStreamReadBackend",
     "McapWriteBackend",
     "SkippedChunk",
+    "load_decompressors",
 ]
 
 _LOG = logging.getLogger(__name__)
@@ -141,6 +142,7 @@ class McapReadBackend:
         self.skipped_chunks: list[SkippedChunk] = []
 
     def open(self) -> None:
+        load_decompressors()
         from mcap.reader import SeekingReader
 
         self.stream = self.path.open("rb")
@@ -441,6 +443,7 @@ class McapStreamReadBackend(McapReadBackend):
         :attr:`damage`), or as many as :meth:`open` read (a recording still being written has
         more by the second pass, which must hand out what the first one counted; counted in
         records, since a chunk's records all come at the file position after the chunk)."""
+        load_decompressors()
         from mcap.stream_reader import StreamReader
 
         assert self.stream is not None
@@ -676,6 +679,16 @@ class McapFilesReadBackend:
     def close(self) -> None:
         for part in self.parts:
             part.close()
+
+
+def load_decompressors() -> None:
+    """Load zstd and lz4 before ``mcap``'s reader loads them, as any import: it loads each in a
+    ``try`` and reads without one that failed (a native library that could not be mapped under
+    ``ulimit -v``), and every chunk compressed with it was "unsupported compression": a sound log
+    said corrupt, its chunks skipped by ``--salvage``. Failing here, it is the ImportError it is
+    ("out of memory (library zstandard could not be loaded)")."""
+    import lz4.frame  # type: ignore[import-untyped]  # noqa: F401
+    import zstandard  # noqa: F401
 
 
 class McapWriteBackend(WriteBackend):

@@ -429,7 +429,8 @@ class RosbagsReadBackend:
             reraise_unless_damage(err)
             if not salvage:
                 raise
-            self.damaged_files.append(read_part_way(path, read, library_text(err)))
+            why = library_text(err).removeprefix(f"{path}: ")
+            self.damaged_files.append(read_part_way(path, read, why))
         finally:
             self.skipped_chunks.extend(
                 dataclasses.replace(chunk, file=inner.path) for chunk in inner.skipped_chunks

@@ -1442,7 +1442,7 @@ def test_memory_running_out_while_reading_is_not_a_corrupt_log(
         raise raised()
 
     monkeypatch.setattr("mcap.stream_reader.breakup_chunk", fail)
-    monkeypatch.setattr("rose_logs.errors.memory_short", lambda: True)
+    monkeypatch.setattr("rose_logs.errors.memory_short", lambda _bytes: True)
     out = tmp_path / "o.mcap"
     argv = ["process", str(mcap_log), "-o", str(out)] + (["--salvage"] if salvage else [])
     assert main(argv) == 1
@@ -1462,21 +1462,46 @@ def test_an_allocation_failing_with_memory_to_spare_is_damage(
         raise MemoryError
 
     monkeypatch.setattr("mcap.stream_reader.breakup_chunk", fail)
-    monkeypatch.setattr("rose_logs.errors.memory_short", lambda: False)
+    monkeypatch.setattr("rose_logs.errors.memory_short", lambda _bytes: False)
     code, _, err = _run(capsys, "process", mcap_log, "-o", tmp_path / "o.mcap")
     assert code == 1
     _assert_one_line_error(err, "in.mcap", "corrupt or truncated log")
     assert _leftovers(tmp_path, {"in.mcap"}) == []
 
 
+@pytest.mark.parametrize("salvage", [False, True], ids=["plain", "salvage"])
+def test_a_decompressor_that_cannot_be_loaded_is_no_damage(
+    tmp_path: Path, mcap_log: Path, salvage: bool
+) -> None:
+    """zstd's library failing to load (``failed to map segment`` under ``ulimit -v``): mcap reads
+    on without it, and every chunk of a sound log was "unsupported compression type zstandard",
+    a corrupt log (``--salvage`` skipped them all, exit 4). Now the library's failure, one line."""
+    code = (
+        "import sys\n"
+        "class Refuse:\n"
+        "    def find_spec(self, name, path=None, target=None):\n"
+        "        if name == 'zstandard':\n"
+        "            raise ImportError('zstandard: failed to map segment', name='zstandard')\n"
+        "sys.meta_path.insert(0, Refuse())\n"
+        "from rose_logs.cli import main\n"
+        "sys.exit(main(sys.argv[1:]))\n"
+    )
+    argv = ["info", str(mcap_log)] + (["--salvage"] if salvage else [])
+    done = subprocess.run(
+        [sys.executable, "-c", code, *argv], capture_output=True, text=True, timeout=120
+    )
+    assert done.returncode == 1, done.stdout + done.stderr
+    _assert_one_line_error(done.stderr, "out of memory (library zstandard could not be loaded)")
+
+
 @pytest.mark.skipif(sys.platform == "win32", reason="no ulimit -v")
 def test_memory_is_short_under_a_tight_address_space_limit_only() -> None:
     code = (
-        "import resource, sys; from rose_logs.errors import memory_short; "
-        "print(memory_short()); "
+        "import resource, sys; from rose.limits import memory_short; "
+        "print(memory_short(256 << 20)); "
         "used = int(open('/proc/self/status').read().split('VmSize:')[1].split()[0]) * 1024; "
         "resource.setrlimit(resource.RLIMIT_AS, (used + (64 << 20), resource.RLIM_INFINITY)); "
-        "print(memory_short())"
+        "print(memory_short(256 << 20))"
     )
     if not Path("/proc/self/status").exists():
         pytest.skip("no /proc here")
@@ -1500,7 +1525,7 @@ def test_memory_running_out_while_reading_a_rosbags_log_is_not_a_corrupt_log(
 
     reader = rosbags.rosbag1.Reader if kind == "ros1" else rosbags.rosbag2.Reader
     monkeypatch.setattr(reader, "messages", fail)
-    monkeypatch.setattr("rose_logs.errors.memory_short", lambda: True)
+    monkeypatch.setattr("rose_logs.errors.memory_short", lambda _bytes: True)
     # A ROS 1 bag salvaged is read chunk by chunk by our own reader.
     monkeypatch.setattr("rose_logs.storage.ros1_stream.chunk_messages", fail)
     for salvage in ([], ["--salvage"]):
