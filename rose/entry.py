@@ -103,13 +103,19 @@ def blas_threads_within_address_limit() -> None:
     a limit nothing changes."""
     import os
 
+    if address_space_limited():
+        os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+
+def address_space_limited() -> bool:
+    """Whether this process runs under a limit of its address space (``ulimit -v``; never on
+    Windows, which has none)."""
     try:
         import resource
     except ImportError:  # Windows
-        return
+        return False
     soft, _ = resource.getrlimit(resource.RLIMIT_AS)
-    if soft != resource.RLIM_INFINITY:
-        os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+    return bool(soft != resource.RLIM_INFINITY)
 
 
 #: Address space that must be free for scipy's OpenBLAS to load (its buffer is 32 MiB).
@@ -125,15 +131,9 @@ def load_blas_before_work() -> None:
     hung at 100 % CPU (``ulimit -v 400000``, 1000 x 1000 maps). Loaded before the work, the run
     completes or says that it is out of memory. Only the commands that analyse call this: loaded
     by every command, it hung ``--version`` and ``info`` under limits where they ran."""
-    try:
-        import resource
-    except ImportError:  # Windows
-        return
-
     from rose.limits import memory_short
 
-    soft, _ = resource.getrlimit(resource.RLIMIT_AS)
-    if soft == resource.RLIM_INFINITY or "scipy.special" in sys.modules:
+    if not address_space_limited() or "scipy.special" in sys.modules:
         return
     if memory_short(BLAS_LOAD_BYTES):
         msg = "no room left to load scipy's OpenBLAS"
