@@ -598,7 +598,7 @@ class RerunSink:
             try:
                 self.recording.flush(timeout_sec=_FLUSH_STEP_S)
             except RuntimeError:
-                size = self._file_size()
+                size = self.written_bytes()
                 stalled = stalled + 1 if size <= last_size else 0
                 if stalled >= _STALL_STEPS:
                     raise
@@ -612,7 +612,8 @@ class RerunSink:
             self._flush_failed = False
             return
 
-    def _file_size(self) -> int:
+    def written_bytes(self) -> int:
+        """Bytes of the recording's file written so far (0 without a file or once it is gone)."""
         try:
             return 0 if self.tmp is None else self.tmp.stat().st_size
         except OSError:

@@ -367,7 +367,9 @@ def _run_session(
                 try:
                     rerun.close()
                 except (RuntimeError, OSError) as err:  # e.g. the disk filled up, no viewer
-                    raise LogWriteError(rerun_failure(rrd_path, connect, err)) from err
+                    raise LogWriteError(
+                        rerun_failure(rrd_path, connect, err, written=rerun.written_bytes())
+                    ) from err
         except BaseException:
             if writer is not None:
                 writer.abort()

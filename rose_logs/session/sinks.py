@@ -294,20 +294,36 @@ def _no_display() -> bool:
     return not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
 
 
-def rerun_failure(rrd_path: Path | str | None, connect: str | None, err: BaseException) -> str:
-    """One line for a Rerun recording that could not be finished, naming where it was going."""
+def rerun_failure(
+    rrd_path: Path | str | None,
+    connect: str | None,
+    err: BaseException,
+    *,
+    written: int | None = None,
+) -> str:
+    """One line for a Rerun recording that could not be finished, naming where it was going
+    (``written``: bytes of its partial file, None when unknown)."""
     if rrd_path is not None:
         # Rerun says only that its file writer stopped; a full disk is the usual reason.
-        why = f"{short(err, 160)}{_full(Path(rrd_path))}{_limited()}"
+        why = f"{short(err, 160)}{_full(Path(rrd_path))}{_limited(written)}"
         return f"{rrd_path}: cannot write the Rerun recording ({why})"
     viewer = f"the Rerun viewer at {connect}" if connect is not None else "the spawned Rerun viewer"
     return f"cannot stream to {viewer}; is it running? ({short(err, 160)})"
 
 
-def _limited() -> str:
-    """``"; files written are limited to 2048000 bytes (ulimit -f)"`` under such a limit, else ``""``."""
+#: A partial recording this close to ``ulimit -f`` (or closer) stopped at the limit: the kernel
+#: fills a file up to it before the write that would pass it fails.
+_AT_LIMIT_BYTES = 1 << 20
+
+
+def _limited(written: int | None) -> str:
+    """``"; files written are limited to 2048000 bytes (ulimit -f)"`` when a partial file of
+    ``written`` bytes (None: unknown) reached such a limit, else ``""`` (a recording that failed
+    far below a generous limit failed for another reason)."""
     limit = _file_size_limit()
-    return "" if limit is None else f"; files written are limited to {limit} bytes (ulimit -f)"
+    if limit is None or (written is not None and written < limit - _AT_LIMIT_BYTES):
+        return ""
+    return f"; files written are limited to {limit} bytes (ulimit -f)"
 
 
 def _full(path: Path) -> str:

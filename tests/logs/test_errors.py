@@ -1364,6 +1364,19 @@ def test_a_file_size_limit_too_small_for_the_recording_is_one_line(
     assert _leftovers(tmp_path, {"in.mcap", "s.rrd"}) == []
 
 
+@pytest.mark.parametrize(("written", "named"), [(10**6, False), (10**12, True), (None, True)])
+def test_a_file_size_limit_is_named_only_when_the_recording_reached_it(
+    monkeypatch: pytest.MonkeyPatch, written: int | None, named: bool
+) -> None:
+    """A recording that failed far below a generous ``ulimit -f`` failed for another reason: the
+    limit was named whenever one was set, sending users after the wrong cause."""
+    import rose_logs.session.sinks as sinks
+
+    monkeypatch.setattr(sinks, "_file_size_limit", lambda: 10**12)
+    said = sinks.rerun_failure("r.rrd", None, RuntimeError("writer stopped"), written=written)
+    assert ("limited to 1000000000000 bytes (ulimit -f)" in said) is named, said
+
+
 def test_too_few_open_files_for_rerun_raises_the_soft_limit_when_the_hard_one_allows(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
