@@ -35,7 +35,7 @@ def add_parser(subparsers: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from rose_logs.errors import MapMessageError
+    from rose_logs.errors import EmptyMapError, MapMessageError
     from rose_logs.reader import LogReader
     from rose_logs.session import find_map_topics
     from rose_logs.session.topics import publishers
@@ -47,7 +47,8 @@ def run(args: argparse.Namespace) -> int:
         channels = reader.channels
         map_topics = find_map_topics(channels)
         stats: dict[str, dict[str, Any]] = {
-            t: {"sizes": {}, "res": set(), "frames": set(), "bad": 0} for t in map_topics
+            t: {"sizes": {}, "res": set(), "frames": set(), "bad": 0, "empty": 0}
+            for t in map_topics
         }
         read: dict[str, int] = dict.fromkeys(map_topics, 0)  # what the map topics hold
         # --salvage reads every topic, as process --salvage does: read for the map topics alone,
@@ -66,8 +67,9 @@ def run(args: argparse.Namespace) -> int:
                     topic=topic,
                     log_time_ns=message.log_time_ns,
                 )
-            except MapMessageError:
-                stats[topic]["bad"] += 1
+            except MapMessageError as err:
+                # A map of no cells is a valid message (process counts it as empty), not a bad one.
+                stats[topic]["empty" if isinstance(err, EmptyMapError) else "bad"] += 1
                 continue
             stats[topic]["sizes"].setdefault((snap.shape[1], snap.shape[0]), None)  # as they came
             stats[topic]["last"] = (snap.shape[1], snap.shape[0])
@@ -152,5 +154,7 @@ def _print_map_topic(topic: str, s: dict[str, Any], nodes: Sequence[str]) -> Non
         print(f"  frame        {', '.join(frames)}")
     if s["bad"]:
         print(f"  malformed    {s['bad']}")
-    if not sizes and not s["bad"]:
+    if s["empty"]:
+        print(f"  empty        {s['empty']}")
+    if not sizes and not s["bad"] and not s["empty"]:
         print("  no messages  (declared only: not a map of the session)")

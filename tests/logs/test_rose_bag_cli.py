@@ -109,6 +109,26 @@ def test_info_counts_map_topics_as_read_when_the_index_undercounts_them(
     assert "messages     6\n" in out and re.search(r"/map\s+6\s", out)
 
 
+def test_info_counts_empty_maps_as_empty_not_malformed(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A map of no cells is valid (process counts it as empty); info called it malformed."""
+    maps = [
+        MapMsg(START_NS + 1_000_000_000, np.zeros((0, 0), dtype=np.int8)),
+        MapMsg(START_NS + 2_000_000_000, np.zeros((30, 40), dtype=np.int8)),
+        MapMsg(START_NS + 3_000_000_000, np.zeros((30, 40), dtype=np.int8), bad_length=True),
+    ]
+    path = build_log(tmp_path / "in.mcap", "mcap-ros2", maps, scans_per_map=0).path
+    assert main(["info", str(path)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert "  empty        1" in lines and "  malformed    1" in lines
+    only_empty = build_log(tmp_path / "empty.mcap", "mcap-ros2", maps[:1], scans_per_map=0).path
+    assert main(["info", str(only_empty)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert "  empty        1" in lines
+    assert not any(line.startswith(("  malformed", "  no messages")) for line in lines)
+
+
 def test_a_topic_named_with_a_newline_stays_on_its_line_in_the_summaries(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
