@@ -191,6 +191,12 @@ def _marker(types: Any, serialization: str, snapshot: MapSnapshot, **fields: Any
     return types["visualization_msgs/msg/Marker"](**common)
 
 
+def _height_m(snapshot: MapSnapshot, above_m: float) -> float:
+    """z in the map frame, metres, ``above_m`` over the grid: RViz draws a map at its origin's z
+    (a floor of a multi-storey map), and markers at z near 0 were drawn floors below it."""
+    return snapshot.origin_position_m[2] + above_m
+
+
 def _line_list_marker(
     types: Any,
     serialization: str,
@@ -200,11 +206,13 @@ def _line_list_marker(
     points_xy_m: npt.NDArray[np.float64],
     color: Any,
 ) -> Any:
-    """A ``LINE_LIST`` marker through ``points_xy_m`` (shape (2N, 2), metres, map frame), at z 0.05 m.
+    """A ``LINE_LIST`` marker through ``points_xy_m`` (shape (2N, 2), metres, map frame), 0.05 m
+    above the grid (its origin's z).
 
     The line width is three cells, at least 0.05 m.
     """
     point = types["geometry_msgs/msg/Point"]
+    z = _height_m(snapshot, 0.05)
     return _marker(
         types,
         serialization,
@@ -215,7 +223,7 @@ def _line_list_marker(
             x=max(3.0 * snapshot.resolution_m, 0.05), y=0.0, z=0.0
         ),
         color=color,
-        points=[point(x=float(x), y=float(y), z=0.05) for x, y in points_xy_m],
+        points=[point(x=float(x), y=float(y), z=z) for x, y in points_xy_m],
     )
 
 
@@ -228,10 +236,11 @@ def encode_walls(
 ) -> bytes:
     """Serialise the dominant directions (and wall segments) as a ``visualization_msgs/MarkerArray``.
 
-    All markers are in the map's frame. Marker 0 (``LINE_LIST``): a line through the grid centre
-    along each dominant direction (none when the map has no structure). Marker 1
-    (``TEXT_VIEW_FACING``): ``"W = 0.123"`` at the grid centre. Marker 2 (``LINE_LIST``, only when
-    ``walls`` is given): the wall segments, ``walls.line_list_m``.
+    All markers are in the map's frame, above the grid (its origin's z). Marker 0 (``LINE_LIST``):
+    a line through the grid centre along each dominant direction (none when the map has no
+    structure). Marker 1 (``TEXT_VIEW_FACING``): ``"W = 0.123"`` 1 m above the grid centre.
+    Marker 2 (``LINE_LIST``, only when ``walls`` is given): the wall segments,
+    ``walls.line_list_m``.
     """
     types = typestore_for(serialization).types
     lines = wall_line_endpoints(snapshot, result)
@@ -253,7 +262,7 @@ def encode_walls(
         snapshot,
         id=1,
         type=9,  # TEXT_VIEW_FACING
-        pose=_pose(types, (cx, cy, 1.0), (0.0, 0.0, 0.0, 1.0)),
+        pose=_pose(types, (cx, cy, _height_m(snapshot, 1.0)), (0.0, 0.0, 0.0, 1.0)),
         scale=vec(x=0.0, y=0.0, z=max(20.0 * res, 0.5)),
         color=rgba(r=1.0, g=1.0, b=1.0, a=0.9),
         points=[],

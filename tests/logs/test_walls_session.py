@@ -86,3 +86,34 @@ def test_walls_follow_the_occupied_threshold_rose_uses(fr079: list[npt.NDArray[n
     )
     assert analysis.walls is not None and len(expected.endpoints_px) > 10
     np.testing.assert_array_equal(analysis.walls.endpoints_px, expected.endpoints_px)
+
+
+@pytest.mark.parametrize("serialization", ["ros1", "cdr"])
+def test_markers_are_drawn_above_a_map_raised_by_its_origin(
+    serialization: str, fr079: list[npt.NDArray[np.int8]]
+) -> None:
+    """A map whose origin has a z (a floor of a multi-storey map) is drawn there by RViz: the
+    markers were at z 0.05 m and 1 m whatever the map's height, 10 m below this one."""
+    from rose_logs.derived import encode_walls
+    from rose_logs.snapshots import MapSnapshot
+
+    grid = fr079[-1]
+    snapshot = MapSnapshot(
+        topic="/map",
+        log_time_ns=0,
+        stamp_ns=0,
+        frame_id="map",
+        grid=grid,
+        resolution_m=0.05,
+        origin_position_m=(1.0, 2.0, 10.0),
+    )
+    result = rose.analyze(grid)
+    placed = rose.OccupancyMap(grid=grid, resolution_m=0.05, origin_xy_m=(1.0, 2.0))
+    walls = rose.extract_walls(placed, result)
+    store = typestore_for(serialization)
+    deserialize = store.deserialize_ros1 if serialization == "ros1" else store.deserialize_cdr
+    raw = encode_walls(snapshot, result, walls, serialization=serialization)
+    lines, text, segments = deserialize(raw, "visualization_msgs/msg/MarkerArray").markers
+    assert lines.points and segments.points
+    assert {p.z for p in lines.points} == {p.z for p in segments.points} == {10.05}
+    assert text.pose.position.z == 11.0
