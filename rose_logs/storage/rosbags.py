@@ -636,7 +636,7 @@ class _RosbagsWriteBackend(WriteBackend):
     def add(self, channel: Channel) -> int:
         msgdef, digest = definitions(channel, self.ros_version)
         return self._dedup(
-            (channel.topic, channel.msgtype),
+            lambda existing: self._same(existing, channel, msgdef, digest),
             lambda: self._add_connection(channel, msgdef, digest),
         )
 
@@ -644,7 +644,12 @@ class _RosbagsWriteBackend(WriteBackend):
         """Register ``channel`` with the rosbags writer; return the new connection."""
         raise NotImplementedError
 
-    def _dedup(self, conn_args: tuple[Any, ...], create: Callable[[], Any]) -> int:
+    def _same(self, existing: Any, channel: Channel, msgdef: str, digest: str) -> bool:
+        """Whether the rosbags connection ``existing`` is the one :meth:`_add_connection` would
+        add for ``channel``, in every argument rosbags compares to refuse it twice."""
+        raise NotImplementedError
+
+    def _dedup(self, same: Callable[[Any], bool], create: Callable[[], Any]) -> int:
         from rosbags.rosbag1 import WriterError as Ros1WriterError
         from rosbags.rosbag2 import WriterError as Ros2WriterError
 
@@ -653,9 +658,11 @@ class _RosbagsWriteBackend(WriteBackend):
         except (Ros1WriterError, Ros2WriterError) as err:
             if "once" not in str(err):  # "Connection(s) can only be added once ..."
                 raise
-            # The same connection twice (a ROS 1 node that reconnected): share the existing one.
+            # The same connection twice (a ROS 1 node that reconnected, channels of a merged MCAP
+            # file): share the one alike in every argument, not the first of its topic and type,
+            # which may be another publisher's or of other QoS (its messages were moved there).
             for existing in list(self.connections):
-                if (existing.topic, existing.msgtype) == conn_args:
+                if same(existing):
                     self.connections.append(existing)
                     return len(self.connections) - 1
             raise
@@ -715,6 +722,14 @@ class Ros1WriteBackend(_RosbagsWriteBackend):
             latching=channel.latching,
         )
 
+    def _same(self, existing: Any, channel: Channel, msgdef: str, digest: str) -> bool:
+        return (
+            (existing.topic, existing.msgtype) == (channel.topic, channel.msgtype)
+            and (existing.msgdef.data, existing.digest) == (msgdef, digest)
+            and (existing.ext.callerid, existing.ext.latching)
+            == (channel.callerid, channel.latching)
+        )
+
 
 class Ros2WriteBackend(_RosbagsWriteBackend):
     ros_version = 2
@@ -752,6 +767,14 @@ class Ros2WriteBackend(_RosbagsWriteBackend):
             )
         finally:
             storage.__dict__.pop("add_msgtype", None)
+
+    def _same(self, existing: Any, channel: Channel, msgdef: str, digest: str) -> bool:
+        # rosbags tells ROS 2 connections apart by topic, type, serialisation and QoS.
+        return (
+            (existing.topic, existing.msgtype) == (channel.topic, channel.msgtype)
+            and existing.ext.serialization_format == channel.message_encoding
+            and list(existing.ext.offered_qos_profiles) == offered_qos(channel)
+        )
 
 
 def _add_type_without_definition(storage: Any, connection: Any) -> None:

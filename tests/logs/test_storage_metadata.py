@@ -458,6 +458,58 @@ def test_a_map_topic_with_two_publishers_is_said_to_be_one_session(
     assert not [r for r in caplog.records if "publishers" in r.getMessage()]
 
 
+@pytest.mark.parametrize("serialization", ["ros1", "cdr"])
+def test_a_connection_given_twice_keeps_its_messages_on_its_own(
+    tmp_path: Path, serialization: str
+) -> None:
+    """Channels alike in every way (a merged MCAP file, a ROS 1 node that reconnected) are one
+    connection of a rosbags output: the second's messages went to the first connection of their
+    topic and type, another publisher's (ROS 1) or one of other QoS (ROS 2)."""
+    from mcap.writer import Writer
+    from rosbags.highlevel import AnyReader
+
+    from rose_logs.storage.connections import default_qos
+
+    store = get_typestore(Stores.ROS1_NOETIC if serialization == "ros1" else Stores.ROS2_HUMBLE)
+    ros1 = serialization == "ros1"
+    if ros1:
+        msgdef, md5 = store.generate_msgdef(MAP_TYPE)
+        name, encoding = "nav_msgs/OccupancyGrid", "ros1msg"
+        metas = [
+            {"callerid": node, "latching": "1", "md5sum": md5}
+            for node in ("/map_server", "/slam", "/slam")
+        ]
+    else:
+        msgdef, _ = store.generate_msgdef(MAP_TYPE, ros_version=2)
+        name, encoding = MAP_TYPE, "ros2msg"
+        metas = [
+            {"offered_qos_profiles": qos_yaml([qos])}
+            for qos in (default_qos(), transient_local_qos(), transient_local_qos())
+        ]
+    maps = [data for _t, topic, data in _messages(serialization) if topic == "/map"]
+    src = tmp_path / "in.mcap"
+    with src.open("wb") as f:
+        writer = Writer(f)
+        writer.start(profile="ros1" if ros1 else "ros2", library="tests")
+        schema = writer.register_schema(name, encoding, msgdef.encode())
+        ids = [writer.register_channel("/map", serialization, schema, m) for m in metas]
+        for k in range(6):  # channel k % 3
+            writer.add_message(ids[k % 3], T0_NS + k * 10**9, maps[k % 2], T0_NS + k * 10**9, k)
+        writer.finish()
+    out = tmp_path / ("out.bag" if ros1 else "out")
+    process_log(src, output_path=out, output_format="ros1" if ros1 else "db3")
+
+    def publisher(ext: Any) -> str:
+        if ros1:
+            return str(ext.callerid)
+        return str(ext.offered_qos_profiles[0].durability.name)
+
+    with AnyReader([out]) as reader:
+        got = [publisher(c.ext) for c, _t, _d in reader.messages() if c.topic == "/map"]
+    first, second = ("/map_server", "/slam") if ros1 else ("VOLATILE", "TRANSIENT_LOCAL")
+    assert got == [first, second, second] * 2
+
+
 @pytest.mark.parametrize(
     ("change", "said"),
     [
