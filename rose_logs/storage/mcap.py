@@ -402,6 +402,7 @@ def _channels(
             latching=parse_latching(ch.metadata.get("latching")),
             metadata=dict(ch.metadata),
             schema_name=name,
+            schema_data=data,
         )
         channels.append(channel)
         by_id[channel_id] = channel
@@ -616,6 +617,7 @@ class McapFilesReadBackend:
                     channel.schema_name,
                     channel.msgdef_encoding,
                     channel.msgdef,
+                    channel.schema_data,
                     tuple(sorted(channel.metadata.items())),
                 )
                 firsts.setdefault(key, channel)
@@ -705,7 +707,7 @@ class McapWriteBackend(WriteBackend):
         self.qos_style = qos_style
         self.stream: BinaryIO | None = None
         self.writer: Any = None
-        self.schemas: dict[tuple[str, str, str], int] = {}
+        self.schemas: dict[tuple[str, str, bytes], int] = {}
         self.channels: list[int] = []
 
     def open(self) -> None:
@@ -720,18 +722,22 @@ class McapWriteBackend(WriteBackend):
     def add(self, channel: Channel) -> int:
         ros1 = channel.message_encoding == "ros1"
         if channel.schema_name or channel.message_encoding not in {"ros1", "cdr"}:
-            name, encoding, data = channel.schema_name, channel.msgdef_encoding, channel.msgdef
+            name, encoding = channel.schema_name, channel.msgdef_encoding
+            # The bytes as stored: a binary schema (protobuf's) read as text lost its bytes that
+            # are no UTF-8, and its channel could no longer be decoded.
+            data = channel.schema_data or channel.msgdef.encode("utf-8")
         else:
-            data, _digest = definitions(channel, 1 if ros1 else 2)
+            text, _digest = definitions(channel, 1 if ros1 else 2)
             name = ros1_msgtype(channel.msgtype) if ros1 else channel.msgtype
             encoding = "ros1msg" if ros1 else (channel.msgdef_encoding or "ros2msg")
-            if not data:  # no definition known (see definitions): a schema without encoding
+            if not text:  # no definition known (see definitions): a schema without encoding
                 encoding = ""
                 warn_no_definition(channel)
+            data = text.encode("utf-8")
         key = (name, encoding, data)
         schema_id = self.schemas.get(key)
         if schema_id is None:
-            schema_id = self.writer.register_schema(name, encoding, data.encode("utf-8"))
+            schema_id = self.writer.register_schema(name, encoding, data)
             self.schemas[key] = schema_id
         metadata = dict(channel.metadata)
         if not metadata and ros1:

@@ -91,6 +91,9 @@ class Channel:
         other formats.
     schema_name : str
         MCAP schema name as stored (``pkg/Name`` or ``pkg/msg/Name``); ``""`` for other formats.
+    schema_data : bytes
+        MCAP schema data as stored, copied as it is: a protobuf or flatbuffer schema is binary, no
+        text (``msgdef`` is its UTF-8 reading); ``b""`` for other formats.
     """
 
     id: int
@@ -106,6 +109,7 @@ class Channel:
     offered_qos_profiles: tuple[Qos, ...] = ()
     metadata: Mapping[str, str] = field(default_factory=dict)
     schema_name: str = ""
+    schema_data: bytes = b""
 
 
 @dataclass(frozen=True, slots=True, eq=False)

@@ -458,6 +458,39 @@ def test_a_map_topic_with_two_publishers_is_said_to_be_one_session(
     assert not [r for r in caplog.records if "publishers" in r.getMessage()]
 
 
+def test_a_binary_schema_of_another_encoding_is_copied_byte_for_byte(tmp_path: Path) -> None:
+    """A protobuf channel beside the maps: its schema, a FileDescriptorSet, is binary. Read as
+    text and written back, its bytes that are no UTF-8 became U+FFFD and the channel could no
+    longer be decoded."""
+    from mcap.reader import make_reader
+    from mcap.writer import Writer
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    msgdef, _ = store.generate_msgdef(MAP_TYPE, ros_version=2)
+    # A FileDescriptorSet's start: field 1 with a two-byte varint length (0x95 0x01).
+    descriptor = b"\x0a\x95\x01\x0a\x1fgoogle/protobuf/timestamp.proto\xff\xfe"
+    src = tmp_path / "in.mcap"
+    with src.open("wb") as f:
+        writer = Writer(f)
+        writer.start(profile="ros2", library="tests")
+        schema = writer.register_schema(MAP_TYPE, "ros2msg", msgdef.encode())
+        maps = writer.register_channel("/map", "cdr", schema, {})
+        proto = writer.register_schema("google.protobuf.Timestamp", "protobuf", descriptor)
+        stamps = writer.register_channel("/stamp", "protobuf", proto, {})
+        for seq, (t_ns, topic, data) in enumerate(_messages("cdr")):
+            if topic == "/map":
+                writer.add_message(maps, t_ns, data, t_ns, seq)
+                writer.add_message(stamps, t_ns, b"\x08\x96\x01", t_ns, seq)
+        writer.finish()
+    out = tmp_path / "out.mcap"
+    process_log(src, output_path=out)
+    with out.open("rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None
+    copied = [s for s in summary.schemas.values() if s.encoding == "protobuf"]
+    assert [(s.name, s.data) for s in copied] == [("google.protobuf.Timestamp", descriptor)]
+
+
 @pytest.mark.parametrize("serialization", ["ros1", "cdr"])
 def test_a_connection_given_twice_keeps_its_messages_on_its_own(
     tmp_path: Path, serialization: str
