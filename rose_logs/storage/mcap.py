@@ -736,7 +736,9 @@ class McapWriteBackend(WriteBackend):
             data = text.encode("utf-8")
         key = (name, encoding, data)
         schema_id = self.schemas.get(key)
-        if schema_id is None:
+        if not any(key):  # a channel without schema (schema id 0, e.g. self-describing JSON)
+            schema_id = 0
+        elif schema_id is None:
             schema_id = self.writer.register_schema(name, encoding, data)
             self.schemas[key] = schema_id
         metadata = dict(channel.metadata)

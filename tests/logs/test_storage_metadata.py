@@ -458,10 +458,10 @@ def test_a_map_topic_with_two_publishers_is_said_to_be_one_session(
     assert not [r for r in caplog.records if "publishers" in r.getMessage()]
 
 
-def test_a_binary_schema_of_another_encoding_is_copied_byte_for_byte(tmp_path: Path) -> None:
+def test_schemas_of_other_encodings_are_copied_as_stored(tmp_path: Path) -> None:
     """A protobuf channel beside the maps: its schema, a FileDescriptorSet, is binary. Read as
     text and written back, its bytes that are no UTF-8 became U+FFFD and the channel could no
-    longer be decoded."""
+    longer be decoded. A JSON channel without schema got an empty schema record."""
     from mcap.reader import make_reader
     from mcap.writer import Writer
 
@@ -477,10 +477,12 @@ def test_a_binary_schema_of_another_encoding_is_copied_byte_for_byte(tmp_path: P
         maps = writer.register_channel("/map", "cdr", schema, {})
         proto = writer.register_schema("google.protobuf.Timestamp", "protobuf", descriptor)
         stamps = writer.register_channel("/stamp", "protobuf", proto, {})
+        notes = writer.register_channel("/notes", "json", 0, {})  # no schema (id 0)
         for seq, (t_ns, topic, data) in enumerate(_messages("cdr")):
             if topic == "/map":
                 writer.add_message(maps, t_ns, data, t_ns, seq)
                 writer.add_message(stamps, t_ns, b"\x08\x96\x01", t_ns, seq)
+                writer.add_message(notes, t_ns, b'{"note": 1}', t_ns, seq)
         writer.finish()
     out = tmp_path / "out.mcap"
     process_log(src, output_path=out)
@@ -489,6 +491,9 @@ def test_a_binary_schema_of_another_encoding_is_copied_byte_for_byte(tmp_path: P
     assert summary is not None
     copied = [s for s in summary.schemas.values() if s.encoding == "protobuf"]
     assert [(s.name, s.data) for s in copied] == [("google.protobuf.Timestamp", descriptor)]
+    # A channel without schema stays one, not one with an empty schema record.
+    assert [c.schema_id for c in summary.channels.values() if c.topic == "/notes"] == [0]
+    assert all(s.name for s in summary.schemas.values())
 
 
 @pytest.mark.parametrize("serialization", ["ros1", "cdr"])
