@@ -34,7 +34,7 @@ import re
 from collections.abc import Collection, Iterable, Iterator
 from pathlib import Path
 from types import TracebackType
-from typing import Self
+from typing import Any, Self
 
 from rose.limits import short
 from rose_logs.errors import LogError, LogReadError, reraise_unless_damage
@@ -572,6 +572,25 @@ class LogReader:
         if isinstance(backend, McapFilesReadBackend):
             return backend.counts_declared
         return not isinstance(backend, McapStreamReadBackend | Ros1StreamReadBackend)
+
+    def file_records(self) -> list[Any]:
+        """A bare MCAP file's metadata and attachment records (``mcap.records.Metadata`` and
+        ``Attachment``; none for other logs): they belong to no channel, and an MCAP output
+        copies them. Records that cannot be read are left out with a warning (the messages are
+        what the log is read for)."""
+        backend = self._open_backend
+        if not isinstance(backend, McapReadBackend):
+            return []
+        try:
+            return backend.file_records()
+        except Exception as err:
+            reraise_unless_damage(err)
+            _LOG.warning(
+                "%s: its metadata and attachment records cannot be read (%s): not copied",
+                self.path,
+                short(err, 160),
+            )
+            return []
 
     @property
     def serialization(self) -> str:

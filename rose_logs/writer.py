@@ -360,6 +360,33 @@ class LogWriter:
             msg = f"{self.path}: cannot write ({err.strerror or short(err, 160)})"
             raise LogWriteError(msg) from err
 
+    def add_file_records(self, records: Sequence[Any]) -> None:
+        """Copy an MCAP file's metadata and attachment records (:meth:`LogReader.file_records`):
+        an MCAP output keeps them; the other formats have no place for them (a warning says so).
+
+        Raises
+        ------
+        LogWriteError
+            If they cannot be written.
+        """
+        backend = self._require_open()
+        if not records:
+            return
+        if not isinstance(backend, McapWriteBackend):
+            _LOG.warning(
+                "%s: the input's %d MCAP metadata / attachment record(s) are not copied (a %s "
+                "log has no place for them)",
+                self.path,
+                len(records),
+                self.format,
+            )
+            return
+        try:
+            backend.add_file_records(records)
+        except OSError as err:  # a full disk, an I/O error: name the output, not the temporary
+            msg = f"{self.path}: cannot write ({err.strerror or short(err, 160)})"
+            raise LogWriteError(msg) from err
+
     def write(self, topic: str, log_time_ns: int, message: Any) -> None:
         """Write a message on ``topic``: serialised bytes as they are, a typestore object serialised.
 

@@ -312,6 +312,8 @@ def _run_session(
             handles, derived = prepare_output(
                 writer, channels, map_topics, input_path, replace=replace_rose_topics
             )
+            if writer is not None:  # an MCAP file's records of no channel (a URDF attached...)
+                writer.add_file_records(reader.file_records())
             if rrd_path is not None or spawn or connect is not None:
                 # Signals held until `rerun` is bound: an interrupt in between would leave Rerun's
                 # writer running, to create its file after the abort removed the folder around it.

@@ -9,7 +9,7 @@ import itertools
 import logging
 import struct
 import zlib
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, BinaryIO
@@ -185,6 +185,13 @@ class McapReadBackend:
         if first is not None and last is not None:
             self._times = (int(first), int(last))
         return counts
+
+    def file_records(self) -> list[Any]:
+        """The file's metadata and attachment records (``mcap.records.Metadata`` and
+        ``Attachment``), through its summary's indexes: they belong to no channel, and an MCAP
+        output copies them."""
+        assert self.reader is not None
+        return [*self.reader.iter_metadata(), *self.reader.iter_attachments()]
 
     def messages(self, topics: set[str] | None) -> Iterator[RawMessage]:
         if self.skip_damaged_chunks:
@@ -438,6 +445,7 @@ class McapStreamReadBackend(McapReadBackend):
         self._held_bytes = 0  # memory the messages would take to sort them
         self._order_said = False
         self._damage_at = -1  # where the first record that cannot be read starts
+        self._file_records: list[Any] = []  # metadata and attachments of the data section
 
     def _records(self) -> Iterator[Any]:
         """Records from the start of the file up to the first unreadable one (which sets
@@ -471,8 +479,8 @@ class McapStreamReadBackend(McapReadBackend):
             self._end = read
 
     def open(self) -> None:
+        from mcap.records import Attachment, DataEnd, Footer, Header, Message, Metadata, Schema
         from mcap.records import Channel as McapChannel
-        from mcap.records import DataEnd, Footer, Header, Message, Schema
 
         self.stream = self.path.open("rb")
         schemas: dict[int, Any] = {}
@@ -499,6 +507,8 @@ class McapStreamReadBackend(McapReadBackend):
                 self._held_bytes += len(record.data) + _HELD_OVERHEAD
                 first = record.log_time if first is None else min(first, record.log_time)
                 last = record.log_time if last is None else max(last, record.log_time)
+            elif isinstance(record, Metadata | Attachment):
+                self._file_records.append(record)
             elif isinstance(record, Footer):
                 footer = True
         if footer and self.damage:  # e.g. the closing magic bytes missing: every record read
@@ -524,6 +534,10 @@ class McapStreamReadBackend(McapReadBackend):
         self.channels, self._by_id, self.qos_style = _channels(mcap_channels, schemas, counts)
         if first is not None and last is not None:
             self.start_ns, self.end_ns = int(first), int(last)
+
+    def file_records(self) -> list[Any]:
+        """The metadata and attachment records :meth:`open` read (those before any damage)."""
+        return list(self._file_records)
 
     def _damaged_footer(self) -> bool:
         """Whether the first record that cannot be read is where the footer belongs, before the
@@ -757,6 +771,25 @@ class McapWriteBackend(WriteBackend):
         )
         self.channels.append(channel_id)
         return len(self.channels) - 1
+
+    def add_file_records(self, records: Sequence[Any]) -> None:
+        """Copy an input MCAP file's metadata and attachment records (:meth:`McapReadBackend.file_records`)."""
+        from mcap.records import Attachment, Metadata
+
+        try:
+            for record in records:
+                if isinstance(record, Metadata):
+                    self.writer.add_metadata(record.name, dict(record.metadata))
+                elif isinstance(record, Attachment):
+                    self.writer.add_attachment(
+                        record.create_time,
+                        record.log_time,
+                        record.name,
+                        record.media_type,
+                        record.data,
+                    )
+        except Exception as err:
+            raise as_memory_error(err) from err
 
     def write(
         self, handle: int, log_time_ns: int, data: bytes | memoryview, publish_ns: int, seq: int

@@ -496,6 +496,52 @@ def test_schemas_of_other_encodings_are_copied_as_stored(tmp_path: Path) -> None
     assert all(s.name for s in summary.schemas.values())
 
 
+def test_an_mcap_files_metadata_and_attachments_are_copied(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """Records of no channel (a robot's name, an attached URDF) were left out of the output."""
+    import logging
+
+    from mcap.reader import make_reader
+    from mcap.writer import Writer
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    msgdef, _ = store.generate_msgdef(MAP_TYPE, ros_version=2)
+    src = tmp_path / "in.mcap"
+    with src.open("wb") as f:
+        writer = Writer(f)
+        writer.start(profile="ros2", library="tests")
+        schema = writer.register_schema(MAP_TYPE, "ros2msg", msgdef.encode())
+        maps = writer.register_channel("/map", "cdr", schema, {})
+        for seq, (t_ns, topic, data) in enumerate(_messages("cdr")):
+            if topic == "/map":
+                writer.add_message(maps, t_ns, data, t_ns, seq)
+        writer.add_metadata("robot", {"name": "r2", "serial": "42"})
+        writer.add_attachment(T0_NS, T0_NS + 1, "robot.urdf", "text/xml", b"<robot/>\xff")
+        writer.finish()
+
+    def records(path: Path) -> tuple[list[Any], list[Any]]:
+        with path.open("rb") as f:
+            reader = make_reader(f)
+            return (
+                [(m.name, m.metadata) for m in reader.iter_metadata()],
+                [
+                    (a.create_time, a.log_time, a.name, a.media_type, a.data)
+                    for a in reader.iter_attachments()
+                ],
+            )
+
+    out = tmp_path / "out.mcap"
+    process_log(src, output_path=out)
+    assert records(out) == records(src) != ([], [])
+    with caplog.at_level(logging.WARNING):  # a bag folder has no place for them: said
+        process_log(src, output_path=tmp_path / "out_db3", output_format="db3")
+    assert any(
+        "2 MCAP metadata / attachment record(s) are not copied" in r.getMessage()
+        for r in caplog.records
+    )
+
+
 @pytest.mark.parametrize("serialization", ["ros1", "cdr"])
 def test_a_connection_given_twice_keeps_its_messages_on_its_own(
     tmp_path: Path, serialization: str
