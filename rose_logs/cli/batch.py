@@ -387,7 +387,7 @@ def _exit_code(report: Any, args: argparse.Namespace) -> int:
 def _gate_failures(args: argparse.Namespace, report: Any) -> list[str]:
     """Why the requested gates fail, each gate once (empty: they pass or none was asked for)."""
     from rose_logs.batch.sources import printable
-    from rose_logs.session.report import w_judges
+    from rose_logs.session.report import row_judged, w_judges
 
     reasons = []
     ok = [r for r in report.results if r.status == "ok"]
@@ -415,9 +415,14 @@ def _gate_failures(args: argparse.Namespace, report: Any) -> list[str]:
             )
     for r in ok:
         analysed = {s["topic"] for s in r.snapshots}
-        judged = {s["topic"] for s in r.snapshots if w_judges(s["occupied"])}
+        # As process judges them: a map W cannot read (a solid block, a thin strip: degenerate)
+        # is no judged map, however many occupied cells it has.
+        judged = {s["topic"] for s in r.snapshots if row_judged(s)}
+        unreadable = {
+            s["topic"] for s in r.snapshots if w_judges(s["occupied"]) and s.get("degenerate")
+        }
         reasons += [
             f"{printable(r.uri)}: {why}"
-            for why in unjudged_topics(args, r.map_topics, analysed, judged)
+            for why in unjudged_topics(args, r.map_topics, analysed, judged, unreadable)
         ]
     return reasons
