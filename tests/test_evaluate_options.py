@@ -344,3 +344,22 @@ def test_help_says_logs_takes_paths(capsys: pytest.CaptureFixture[str]) -> None:
         main(["evaluate", "--help"])
     help_text = " ".join(capsys.readouterr().out.split())
     assert "paths to CARMEN logs anywhere" in help_text
+
+
+def test_a_log_named_with_a_space_gets_a_working_link_and_its_report_is_replaceable(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A log named `my log.log`: the report linked `(map_my log.png)`, which Markdown ends at the
+    space, and `--force` refused the report it wrote itself ("a directory this command did not
+    write"): its map's name was no report file's."""
+    monkeypatch.setenv("ROSE_DATA_DIR", str(tmp_path / "nope"))  # no data set needed
+    log = tmp_path / "my log (2).log.gz"
+    shutil.copy(REPO_DATA / LOGS_SUBDIR / "csail-corrected.head400.log.gz", log)
+    out = tmp_path / "report"
+    argv = ["evaluate", str(out), "--maps", "", "--no-plots", "--sizes", "2", "--counts", "20"]
+    argv += ["--logs", str(log)]
+    assert main(argv) == 0
+    assert (out / "map_my log (2).png").is_file()
+    text = (out / "report.md").read_text()
+    assert "[map_my log (2).png](map_my%20log%20%282%29.png)" in text
+    assert main([*argv, "--force"]) == 0

@@ -362,7 +362,9 @@ def is_report_folder(path: Path) -> bool:
             title = fh.read(64)
     except OSError:
         return False
-    kinds = re.compile(r"[\w.+-]+\.(?:csv|png|md)")
+    # Any name of those kinds: a log's own name is in its map's (`map_my log.png`), and a report
+    # of `--logs "my log.log"` was no report of ours to replace.
+    kinds = re.compile(r".+\.(?:csv|png|md)", re.DOTALL)
     return title.startswith(b"# ROSE evaluation") and all(
         e.is_file(follow_symlinks=False) and kinds.fullmatch(e.name) for e in entries
     )

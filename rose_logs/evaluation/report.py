@@ -12,6 +12,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+from urllib.parse import quote
 
 import numpy as np
 
@@ -404,7 +405,10 @@ def _setup_section(
         "",
     ]
     if map_images:
-        lines += ["Rasterised maps: " + ", ".join(f"[{m}]({m})" for m in map_images), ""]
+        # A log's name may hold a space or brackets (`my log.log`): the link's target is
+        # percent-encoded, or Markdown ends it there.
+        links = ", ".join(f"[{m}]({quote(m)})" for m in map_images)
+        lines += ["Rasterised maps: " + links, ""]
     return lines
 
 
