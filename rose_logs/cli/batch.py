@@ -250,6 +250,11 @@ def run(args: argparse.Namespace) -> int:
             "more); it is ignored here",
             file=sys.stderr,
         )
+    if args.out == "-":
+        # Standard output to every other command: refused as theirs are (`convert LOG -`), not
+        # made into a folder named '-' in the current one.
+        msg = "-: a folder output cannot go to a stream or device"
+        raise BatchError(msg)
     storage_options = dict(args.storage_option)
     inputs = list(args.inputs)
     for path in args.from_list:

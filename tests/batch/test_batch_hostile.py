@@ -676,3 +676,16 @@ def test_an_output_that_is_a_file_is_named_so(
     (out / "results").symlink_to(tmp_path / "gone")
     assert main(["batch", str(fleet / "robot_a" / "run.mcap"), "-o", str(out), "-q"]) == 1
     assert "results: not a folder" in capsys.readouterr().err
+
+
+def test_an_output_of_standard_output_is_refused_as_by_the_other_commands(
+    fleet: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`-o -` made a folder named '-' in the current one; `convert LOG -` and `evaluate -` refuse
+    it, as a folder output cannot go to standard output."""
+    monkeypatch.chdir(tmp_path)
+    assert main(["batch", str(fleet / "robot_a" / "run.mcap"), "-o", "-", "-q"]) == 1
+    captured = capsys.readouterr()
+    assert captured.err.strip() == "error: -: a folder output cannot go to a stream or device"
+    assert captured.out == ""
+    assert not (tmp_path / "-").exists()
