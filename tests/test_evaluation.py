@@ -245,6 +245,19 @@ def test_correlation_of_perfectly_anticorrelated_runs() -> None:
     assert exp3.n_all == 8
 
 
+def test_seeds_apart_by_2_31_derive_different_maps() -> None:
+    """`--seed 5` and `--seed 2147483653` (both accepted, 0..2**32-1) made the same clutter maps
+    and drifted trajectories: the base seed was folded into 0..2**31-1. Seeds below 2**31 derive
+    what they did (the CSV's seed of `--seed 5`'s first csail run)."""
+    from rose_logs.evaluation.experiments import _seed
+
+    parts = ("csail-corrected.head400", "square", 4, 20)
+    assert _seed(5, *parts) == 1073809819
+    assert _seed(5 + 2**31, *parts) != _seed(5, *parts)
+    assert _seed(5 + 2**31, "drift", 1.0, 0) != _seed(5, "drift", 1.0, 0)
+    assert 0 <= _seed(2**32 - 1, *parts) < 2**32
+
+
 def test_evaluate_parser_builds_config() -> None:
     from rose_logs.cli.evaluate import config_from_args
 
