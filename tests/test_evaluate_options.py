@@ -363,3 +363,18 @@ def test_a_log_named_with_a_space_gets_a_working_link_and_its_report_is_replacea
     text = (out / "report.md").read_text()
     assert "[map_my log (2).png](map_my%20log%20%282%29.png)" in text
     assert main([*argv, "--force"]) == 0
+
+
+def test_the_report_says_experiment_4_does_not_derive_its_seeds_from_seed(tmp_path: Path) -> None:
+    """The setup said every drifted trajectory derives its seed from --seed; experiment 4's sessions
+    are drifted with the seeds 0 .. --break-seeds - 1 whatever it is."""
+    import csv
+
+    out = tmp_path / "report"
+    argv = ["evaluate", str(out), "--maps-dir", str(REPO_DATA), "--maps", "", "--no-plots"]
+    argv += ["--logs", "csail-corrected.head400.log.gz", "--sizes", "2", "--counts", "20"]
+    assert main([*argv, "--break-seeds", "1", "--seed", "7"]) == 0
+    with (out / "exp4_breaks_sessions.csv").open() as fh:
+        assert {row["seed"] for row in csv.DictReader(fh)} == {"0"}
+    setup = next(line for line in (out / "report.md").open() if line.startswith("- Seed: 7 "))
+    assert "experiment 4 drifts with the seeds 0, 1, ..." in setup

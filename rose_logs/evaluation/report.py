@@ -384,8 +384,10 @@ def _setup_section(
         "",
         "## Setup",
         "",
-        f"- Seed: {config.seed} (each clutter map and drifted trajectory derives its own seed from it; "
-        "seeds are in the CSV files)",
+        # Experiment 4's sessions are drifted with the seeds 0 .. --break-seeds - 1 whatever --seed.
+        f"- Seed: {config.seed} (each clutter map and drifted trajectory of experiments 1 and 2 "
+        "derives its own seed from it; experiment 4 drifts with the seeds 0, 1, ...; seeds are in "
+        "the CSV files)",
         f"- Versions: {_versions()}",
         f"- Run time: {run_s:.1f} s in total; "
         + "; ".join(f"{k} {v:.1f} s" for k, v in timings.items()),
