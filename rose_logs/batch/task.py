@@ -7,6 +7,7 @@ tests call it directly. It never raises for a bad recording: the result then has
 from __future__ import annotations
 
 import dataclasses
+import errno
 import hashlib
 import json
 import logging
@@ -704,6 +705,11 @@ def _attempt(
                 text = text.replace(str(rrd), store.uri(f"rrd/{recording.name}.rrd"))
             if _output_failure(err):  # a full disk under OUT: not the recording's, retried
                 raise OSError(err.__cause__.errno, text) from err  # type: ignore[union-attr]
+            failed = _input_failure(err)
+            if failed is not None:  # the disk or network under the recording: retried too
+                raise OSError(
+                    failed.errno, f"cannot read the recording ({failed.strerror or failed})"
+                ) from err
             return error_result(recording, key, options, text, log_format=_format_of(local))
         cleaned_uri = None if cleaned is None else store.put(cleaned, f"cleaned/{cleaned_name}")
         rrd_uri = None if rrd is None else store.put(rrd, f"rrd/{recording.name}.rrd")
@@ -751,6 +757,29 @@ def _output_failure(err: BaseException) -> bool:
         and isinstance(cause, OSError)
         and cause.errno is not None
     )
+
+
+#: Errors of the storage or network under a recording (a failing disk, a network file system that
+#: went away), not of its content: retried, and not stored, as an I/O error under OUT is.
+_INPUT_IO_ERRNOS = frozenset(
+    getattr(errno, name)
+    for name in ("EIO", "ESTALE", "ETIMEDOUT", "ENOTCONN", "ECONNRESET", "EREMOTEIO")
+    if hasattr(errno, name)
+)
+
+
+def _input_failure(err: BaseException) -> OSError | None:
+    """The I/O error of the storage under a recording that ``err`` (a read error) was raised from,
+    None when it is damage of the recording. The readers call any library error damage: an EIO
+    read from a network file system was stored as "corrupt or truncated" and never tried again."""
+    seen = set()
+    cause = err.__cause__ or err.__context__
+    while cause is not None and id(cause) not in seen:  # (a chain may loop back)
+        if isinstance(cause, OSError) and cause.errno in _INPUT_IO_ERRNOS:
+            return cause
+        seen.add(id(cause))
+        cause = cause.__cause__ or cause.__context__
+    return None
 
 
 def _break_params(options: RecordingOptions) -> BreakParams | None:

@@ -1773,6 +1773,43 @@ def test_storage_options_are_read_as_json_except_credentials(
     assert _storage_option(given) == read
 
 
+def test_an_io_error_reading_a_recording_is_retried_not_stored_as_damage(
+    fleet: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """An EIO under a local recording (a failing disk, a network file system) came out of the
+    reader as "corrupt or truncated", stored: no later run tried it again. As an I/O error under
+    OUT, it is retried and not stored."""
+    import errno
+
+    import rose_logs.session
+    from rose_logs.errors import LogReadError
+
+    real = rose_logs.session.process_log
+    calls = {"n": 0, "failing": True}
+
+    def flaky(*args: object, **kwargs: object) -> object:
+        calls["n"] += 1
+        if not calls["failing"]:
+            return real(*args, **kwargs)  # type: ignore[arg-type]
+        try:
+            raise OSError(errno.EIO, "Input/output error")
+        except OSError as err:
+            msg = "run.mcap: corrupt or truncated MCAP file ([Errno 5] Input/output error)"
+            raise LogReadError(msg) from err
+
+    monkeypatch.setattr(rose_logs.session, "process_log", flaky)
+    monkeypatch.setattr("time.sleep", lambda seconds: None)
+    out = tmp_path / "out"
+    recording = fleet / "robot_a" / "run.mcap"
+    (row,) = run_batch([recording], out, options=RecordingOptions(retries=1)).results
+    assert calls["n"] == 2 and row.status == "error"
+    assert row.error == f"{recording}: I/O error: cannot read the recording (Input/output error)"
+    assert not list(out.glob("results/*.json"))
+    calls["failing"] = False  # the disk is back: done again, not a stored failure
+    (again,) = run_batch([recording], out, options=RecordingOptions(retries=1)).results
+    assert again.status == "ok" and calls["n"] == 3
+
+
 def test_a_full_disk_under_a_db3_output_is_an_io_error_retried_not_the_recordings(
     fleet: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
