@@ -20,7 +20,7 @@ from rose.errors import OutputError
 from rose.outputs import is_bag_folder, refuse_output_in_bag_folder
 from rose_logs.batch.errors import BatchError
 from rose_logs.batch.sources import Recording, cleaned_log_name, discover, distinct_name
-from rose_logs.batch.store import OutputStore, is_local, storage_errors
+from rose_logs.batch.store import OutputStore, expand_user, is_local, storage_errors
 from rose_logs.batch.task import (
     RESULTS_DIR,
     RecordingOptions,
@@ -512,7 +512,7 @@ def _outside(recordings: tuple[Recording, ...], store: OutputStore) -> tuple[Rec
         return os.path.realpath(uri.removeprefix("file://")) if local else uri
 
     if store.local:
-        root = where(str(Path(root).expanduser()))
+        root = where(str(expand_user(root)))
     prefix = root.rstrip("/") + "/"
     inside = [where(r.uri).startswith(prefix) for r in recordings]
     kept = tuple(r for r, i in zip(recordings, inside, strict=True) if not i)

@@ -24,7 +24,7 @@ from rose.outputs import (
     is_bag_metadata,
 )
 from rose_logs.batch.errors import BatchError
-from rose_logs.batch.store import filesystem, is_local, storage_errors
+from rose_logs.batch.store import expand_user, filesystem, is_local, storage_errors
 from rose_logs.formats import ACTIVE_BAG, FORMATS, processed_name
 
 __all__ = [
@@ -301,7 +301,7 @@ def _expand(item: str, storage_options: Mapping[str, Any] | None) -> Iterable[Re
         raise BatchError(msg)
     local = is_local(item)
     if local:
-        item = _without_dot_dot(str(Path(item.removeprefix("file://")).expanduser().absolute()))
+        item = _without_dot_dot(str(expand_user(item.removeprefix("file://")).absolute()))
     fs, path = filesystem(item, _options(item, storage_options))
     protocol = None if local else fsspec.utils.get_protocol(item)
     try:

@@ -21,7 +21,7 @@ from rose.errors import OutputError
 from rose.outputs import OutputSet, left_behind, process_tag, temporary_name
 from rose_logs.batch.errors import BatchError
 
-__all__ = ["OutputStore", "filesystem", "is_local", "join_uri", "storage_errors"]
+__all__ = ["OutputStore", "expand_user", "filesystem", "is_local", "join_uri", "storage_errors"]
 
 _LOG = logging.getLogger(__name__)
 
@@ -41,6 +41,16 @@ def is_local(uri: str) -> bool:
 
 #: What a URL scheme may be made of (RFC 3986).
 _SCHEME = re.compile(r"[A-Za-z][A-Za-z0-9+.-]*")
+
+
+def expand_user(path: str) -> Path:
+    """``path`` with a leading ``~`` or ``~user`` expanded, as a shell expands it; one naming no
+    user (a folder named ``~old`` here, a list's line) stays as written, as in a shell
+    (``Path.expanduser`` raised RuntimeError: a traceback)."""
+    try:
+        return Path(path).expanduser()
+    except RuntimeError:
+        return Path(path)
 
 
 def join_uri(base: str, *parts: str) -> str:
@@ -179,9 +189,7 @@ class OutputStore:
     def __init__(self, root: str, storage_options: Mapping[str, Any] | None = None) -> None:
         self.local = is_local(str(root))
         # Absolute, so that workers with another working directory write to the same place.
-        self.root = (
-            str(Path(_strip_file(str(root))).expanduser().absolute()) if self.local else str(root)
-        )
+        self.root = str(expand_user(_strip_file(str(root))).absolute()) if self.local else str(root)
         self.storage_options = dict(storage_options or {})
         if self.local:
             self.fs: Any = None

@@ -143,6 +143,27 @@ def test_folders_are_searched_recursively_and_a_bag_folder_is_one_recording(flee
     )
 
 
+def test_a_name_starting_with_a_tilde_of_no_user_is_taken_as_written(
+    fleet: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`~old/run.mcap` (a folder named so here, or a list's line) and `-o ~old/out` were a
+    RuntimeError traceback ("Could not determine home directory"): as in a shell, a `~user` of no
+    user stays as written."""
+    import shutil
+
+    monkeypatch.chdir(tmp_path)
+    folder = tmp_path / "~rose-bag-no-such-user"
+    folder.mkdir()
+    shutil.copy(fleet / "robot_b" / "nested" / "small.mcap", folder / "run.mcap")
+    listing = tmp_path / "inputs.txt"
+    listing.write_text("~rose-bag-no-such-user/run.mcap\n")
+    out = "~rose-bag-no-such-user/out"
+    assert main(["batch", "~rose-bag-no-such-user/run.mcap", "-o", out, "-q"]) == 0
+    assert main(["batch", "--from-list", str(listing), "-o", out, "-q", "--force"]) == 0
+    (row,) = read_rows(folder / "out" / "recordings.parquet")
+    assert row["uri"] == str(folder / "run.mcap") and row["status"] == "ok"
+
+
 def test_a_dangling_link_in_a_folder_is_an_error_row_not_a_stopped_batch(
     fleet: Path, tmp_path: Path
 ) -> None:
