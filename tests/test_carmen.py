@@ -600,6 +600,26 @@ def test_convert_refuses_a_map_file_clashing_with_the_session_before_ray_casting
     assert sorted(p.name for p in tmp_path.iterdir()) == ["log.txt"]
 
 
+def test_convert_to_a_bag_folder_with_a_map_file_in_a_symlink_loop_is_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A --map-file that is a symlink loop beside a bag folder output was a RuntimeError traceback
+    ("Symlink loop from ..."), as it is one line beside a file output."""
+    from rose_logs.cli import main
+
+    path = tmp_path / "log.txt"
+    path.write_text("FLASER 3 1.0 2.0 3.0 0.5 -0.5 0.1 0.5 -0.5 0.1 12.5 host 12.5\n")
+    monkeypatch.chdir(tmp_path)
+    Path("a.yaml").symlink_to("b.yaml")
+    Path("b.yaml").symlink_to("a.yaml")
+    assert main(["convert", str(path), "bag", "--map-file", "a.yaml", "-q"]) == 1
+    err = capsys.readouterr().err
+    assert (
+        err.startswith("error: a.yaml: ") and "Symlink loop" in err and len(err.splitlines()) == 1
+    )
+    assert not Path("bag").exists()
+
+
 @pytest.mark.parametrize("value", ["+-5", "-+7", "--3", "+" + "9" * 60 + "-"])
 def test_convert_max_scans_with_two_signs_is_no_integer(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], value: str

@@ -378,3 +378,22 @@ def test_the_report_says_experiment_4_does_not_derive_its_seeds_from_seed(tmp_pa
         assert {row["seed"] for row in csv.DictReader(fh)} == {"0"}
     setup = next(line for line in (out / "report.md").open() if line.startswith("- Seed: 7 "))
     assert "experiment 4 drifts with the seeds 0, 1, ..." in setup
+
+
+def test_a_log_or_report_folder_in_a_symlink_loop_is_one_line(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`--logs ./loop` and a report folder that is a symlink loop were RuntimeError tracebacks
+    ("Symlink loop from ..."): one line each, nothing written."""
+    monkeypatch.setenv("ROSE_DATA_DIR", str(tmp_path / "nope"))  # no data set needed
+    monkeypatch.chdir(tmp_path)
+    Path("loop").symlink_to("loop2")
+    Path("loop2").symlink_to("loop")
+    for argv, problem in (
+        (["evaluate", "report", "--maps", "", "--logs", "./loop"], "loop: cannot read"),
+        (["evaluate", "loop", "--maps", "", "--logs", ""], "loop: not a usable output path"),
+    ):
+        assert main(argv) == 1
+        (line,) = [x for x in capsys.readouterr().err.splitlines() if not x.startswith("warning")]
+        assert line.startswith(f"error: {problem}"), line
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["loop", "loop2"]

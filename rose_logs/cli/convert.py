@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import math
+import os
 import sys
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -221,9 +222,11 @@ def _check_apart(folder: Path, files: tuple[Path, ...]) -> None:
     """Refuse a ``--map-file`` YAML or image that is the session's bag folder or lies inside it."""
     from rose.errors import OutputError
 
-    here = folder.resolve()
+    # realpath, not resolve: a symlink loop raised a RuntimeError (a traceback); the output check
+    # names it.
+    here = Path(os.path.realpath(folder))
     for path in files:
-        there = Path(path).resolve()
+        there = Path(os.path.realpath(path))
         if there == here or here in there.parents:
             also = "(each needs a file of its own)" if there == here else f"(also inside {folder})"
             msg = f"{path}: given for two outputs {also}"

@@ -83,7 +83,13 @@ def _same_file(a: Path, b: Path) -> bool:
     try:
         return a.samefile(b)
     except OSError:
-        return a.resolve() == b.resolve()
+        return _resolved(a) == _resolved(b)
+
+
+def _resolved(path: Path | str) -> Path:
+    """``path`` resolved as ``Path.resolve`` does, also a symlink loop (which it raised as a
+    RuntimeError, a traceback; the output and input checks then say what is wrong)."""
+    return Path(os.path.realpath(path))
 
 
 def _map_names(value: str) -> tuple[str, ...]:
@@ -286,9 +292,9 @@ def run(args: argparse.Namespace) -> int:
     # through a file stays an error of the output check.
     # Nor inside a ROS 2 bag folder (a recording; `-o bag --force` would delete the report with it).
     refuse_output_in_bag_folder(args.out_dir, "OUT_DIR", what="report folder", inputs=inputs)
-    parent = Path(args.out_dir).resolve().parent
+    parent = _resolved(args.out_dir).parent
     made: list[Path] = []  # the folders this run made, deepest first
-    if not any(parent.is_relative_to(Path(i).resolve()) for i in inputs):
+    if not any(parent.is_relative_to(_resolved(i)) for i in inputs):
         made = _make_folders(parent)
     try:
         with OutputSet(inputs=inputs, force=args.force, ends_run=True) as outputs:
