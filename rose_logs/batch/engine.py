@@ -551,7 +551,9 @@ def _refuse_out_in_a_bag(root: str, bag_folders: Sequence[str]) -> None:
                 "folder): the batch would write into its input; choose another -o"
             )
             raise BatchError(msg)
-    if is_bag_folder(root):
+    # A folder: is_bag_folder takes what it cannot read for a bag, and a symlink loop there was
+    # said to have a metadata.yaml (OutputStore.prepare says what it is).
+    if Path(root).is_dir() and is_bag_folder(root):
         msg = (
             f"{root}: the output folder is a ROS 2 bag folder (it has metadata.yaml): the batch "
             "would write its tables into a recording; choose another -o"

@@ -689,3 +689,15 @@ def test_an_output_of_standard_output_is_refused_as_by_the_other_commands(
     assert captured.err.strip() == "error: -: a folder output cannot go to a stream or device"
     assert captured.out == ""
     assert not (tmp_path / "-").exists()
+
+
+def test_an_output_in_a_symlink_loop_is_not_called_a_bag_folder(
+    fleet: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`-o loop` (a symlink loop) was refused as "a ROS 2 bag folder (it has metadata.yaml)"."""
+    out = tmp_path / "loop"
+    out.symlink_to(tmp_path / "loop2")
+    (tmp_path / "loop2").symlink_to(out)
+    assert main(["batch", str(fleet / "robot_a" / "run.mcap"), "-o", str(out), "-q"]) == 1
+    err = capsys.readouterr().err
+    assert err.strip() == f"error: {out}: not a folder (the output of a batch is a folder)"
