@@ -16,6 +16,7 @@ __all__ = [
     "OutOfMemory",
     "as_memory_error",
     "reraise_unless_damage",
+    "storage_failure",
 ]
 
 
@@ -62,6 +63,28 @@ def as_memory_error(err: BaseException) -> BaseException:
     return err
 
 
+#: Errors of the storage or network under a file (a failing disk, a network file system that went
+#: away), not of its content: never damage of a log, and worth trying again.
+STORAGE_ERRNOS = frozenset(
+    getattr(errno, name)
+    for name in ("EIO", "ESTALE", "ETIMEDOUT", "ENOTCONN", "ECONNRESET", "EREMOTEIO")
+    if hasattr(errno, name)
+)
+
+
+def storage_failure(err: BaseException) -> OSError | None:
+    """The I/O error of the storage under a file (:data:`STORAGE_ERRNOS`) that ``err`` is or was
+    raised from, None when there is none."""
+    seen = set()
+    cause: BaseException | None = err
+    while cause is not None and id(cause) not in seen:  # (a chain may loop back)
+        if isinstance(cause, OSError) and cause.errno in STORAGE_ERRNOS:
+            return cause
+        seen.add(id(cause))
+        cause = cause.__cause__ or cause.__context__
+    return None
+
+
 #: Address space that must still be free for a failed allocation to be damage, not memory running
 #: out: a length field damaged to terabytes makes a library ask for more than any machine has.
 MEMORY_PROBE_BYTES = 256 * 2**20
@@ -79,6 +102,10 @@ def reraise_unless_damage(err: BaseException) -> None:
     reraise_interrupt_behind(err)
     if isinstance(err, OutOfMemory | ImportError):
         # A library that cannot be loaded (``failed to map segment``) is no damage of the log.
+        raise err
+    if storage_failure(err) is not None:
+        # A failing disk or network file system: said "corrupt or truncated", and ``--salvage``
+        # skipped the chunk being read as damaged, a sound file called broken.
         raise err
     memory = as_memory_error(err)
     if isinstance(memory, MemoryError) and memory_short(MEMORY_PROBE_BYTES):

@@ -7,7 +7,6 @@ tests call it directly. It never raises for a bad recording: the result then has
 from __future__ import annotations
 
 import dataclasses
-import errno
 import hashlib
 import json
 import logging
@@ -33,7 +32,7 @@ from rose_logs.batch.errors import BatchError
 from rose_logs.batch.recording_log import RecordingWarnings, collecting
 from rose_logs.batch.sources import Recording, cleaned_log_name, printable
 from rose_logs.batch.store import OutputStore, filesystem, is_local, work_folder_prefix
-from rose_logs.errors import LogError, LogWriteError
+from rose_logs.errors import LogError, LogWriteError, storage_failure
 from rose_logs.formats import LogFormat, detect_format
 from rose_logs.session.report import row_judged
 
@@ -705,7 +704,7 @@ def _attempt(
                 text = text.replace(str(rrd), store.uri(f"rrd/{recording.name}.rrd"))
             if _output_failure(err):  # a full disk under OUT: not the recording's, retried
                 raise OSError(err.__cause__.errno, text) from err  # type: ignore[union-attr]
-            failed = _input_failure(err)
+            failed = storage_failure(err)
             if failed is not None:  # the disk or network under the recording: retried too
                 raise OSError(
                     failed.errno, f"cannot read the recording ({failed.strerror or failed})"
@@ -757,29 +756,6 @@ def _output_failure(err: BaseException) -> bool:
         and isinstance(cause, OSError)
         and cause.errno is not None
     )
-
-
-#: Errors of the storage or network under a recording (a failing disk, a network file system that
-#: went away), not of its content: retried, and not stored, as an I/O error under OUT is.
-_INPUT_IO_ERRNOS = frozenset(
-    getattr(errno, name)
-    for name in ("EIO", "ESTALE", "ETIMEDOUT", "ENOTCONN", "ECONNRESET", "EREMOTEIO")
-    if hasattr(errno, name)
-)
-
-
-def _input_failure(err: BaseException) -> OSError | None:
-    """The I/O error of the storage under a recording that ``err`` (a read error) was raised from,
-    None when it is damage of the recording. The readers call any library error damage: an EIO
-    read from a network file system was stored as "corrupt or truncated" and never tried again."""
-    seen = set()
-    cause = err.__cause__ or err.__context__
-    while cause is not None and id(cause) not in seen:  # (a chain may loop back)
-        if isinstance(cause, OSError) and cause.errno in _INPUT_IO_ERRNOS:
-            return cause
-        seen.add(id(cause))
-        cause = cause.__cause__ or cause.__context__
-    return None
 
 
 def _break_params(options: RecordingOptions) -> BreakParams | None:

@@ -1597,3 +1597,57 @@ def test_a_recursion_error_is_still_an_input_nested_too_deeply(
     monkeypatch.setattr("rose_logs.session.process_log", fail)
     assert main(["process", str(mcap_log), "-o", str(tmp_path / "o.mcap")]) == 1
     _assert_one_line_error(capsys.readouterr().err, "input nested too deeply")
+
+
+@pytest.mark.parametrize("salvage", [False, True])
+def test_an_io_error_of_the_storage_under_a_log_is_no_damage(
+    tmp_path: Path,
+    mcap_log: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    salvage: bool,
+) -> None:
+    """An EIO from a failing disk or a network file system part way through a sound log was
+    "corrupt or truncated MCAP file", and ``--salvage`` kept what came before it as from a
+    damaged file (exit 4): now one line naming the file and the I/O error, exit 1, no output."""
+    import errno
+
+    real_open = Path.open
+    fail_from = mcap_log.stat().st_size // 2
+
+    class FailingDisk:
+        def __init__(self, stream) -> None:  # type: ignore[no-untyped-def]
+            self.stream = stream
+
+        def __getattr__(self, name: str) -> object:
+            return getattr(self.stream, name)
+
+        def __enter__(self) -> FailingDisk:
+            return self
+
+        def __exit__(self, *_: object) -> None:
+            self.stream.close()
+
+        def _check(self) -> None:
+            if self.stream.tell() >= fail_from:
+                raise OSError(errno.EIO, "Input/output error")
+
+        def read(self, size: int = -1) -> bytes:
+            self._check()
+            return self.stream.read(size)
+
+        def readinto(self, buffer) -> int:  # type: ignore[no-untyped-def]
+            self._check()
+            return self.stream.readinto(buffer)
+
+    def failing_open(path: Path, mode: str = "r", *args: object, **kwargs: object) -> object:
+        stream = real_open(path, mode, *args, **kwargs)  # type: ignore[call-overload]
+        return FailingDisk(stream) if path == mcap_log and "b" in mode else stream
+
+    monkeypatch.setattr(Path, "open", failing_open)
+    out = tmp_path / "o.mcap"
+    code, _, err = _run(capsys, "process", mcap_log, "-o", out, *(["--salvage"] * salvage))
+    assert code == 1, err
+    _assert_one_line_error(err, f"{mcap_log}: ", "Input/output error")
+    assert "corrupt" not in err and "damage" not in err
+    assert not out.exists()
