@@ -213,6 +213,40 @@ _TAB_AFTER_COLON = re.compile(
     re.MULTILINE,
 )
 
+#: A quoted scalar on one line: a tab in it is content, never a separator.
+_QUOTED = r"\"(?:[^\"\\\n]|\\.)*\"|'(?:[^'\n]|'')*'"
+
+#: The other tabs yaml-cpp reads as spaces between two tokens of a line and PyYAML refuses: before
+#: the line's end, a comment or a key's colon (dropped there), and after a block sequence's dash (a tab between two
+#: words of a value is part of it for yaml-cpp, and stays). Quoted scalars and one-line flow
+#: collections (``[1,<TAB>2,<TAB>0]``) are matched whole, so that their tabs are judged apart.
+_TAB_BETWEEN_TOKENS = re.compile(
+    rf"(?P<quoted>{_QUOTED})"
+    rf"|(?P<flow>[\[{{](?:{_QUOTED}|[^\[\]{{}}\"'\n])*[\]}}])"
+    r"|^(?P<dash>[ ]*-)[ \t]*\t[ \t]*"
+    r"|(?<=\S)(?P<colon>[ \t]*\t[ \t]*)(?=:[ \t]|:\r?$)"
+    r"|(?<=\S)[ \t]*\t[ \t]*(?=\r?$|#)",
+    re.MULTILINE,
+)
+
+#: Inside a flow collection, the tabs beside its indicators (``[ ] { } ,``); quoted scalars kept.
+_TAB_IN_FLOW = re.compile(
+    rf"(?P<quoted>{_QUOTED})|(?<=[\[{{,])[ \t]*\t[ \t]*|[ \t]*\t[ \t]*(?=[\]}},])"
+)
+
+
+def _tab_as_space(match: re.Match[str]) -> str:
+    """A match of :data:`_TAB_BETWEEN_TOKENS` or :data:`_TAB_IN_FLOW` as yaml-cpp reads it."""
+    if match["quoted"] is not None:
+        return match["quoted"]
+    flow = match.groupdict().get("flow")
+    if flow is not None:
+        return _TAB_IN_FLOW.sub(_tab_as_space, flow)
+    if match.groupdict().get("colon") is not None:
+        return ""  # `key<TAB>:`, as `key:` (and a tab after the colon is then read as one after it)
+    dash = match.groupdict().get("dash")
+    return " " if dash is None else f"{dash} "
+
 
 def load_yaml(text: str | bytes) -> Any:
     """Parse ``text`` as YAML with the limits above (floats with an exponent, ``5e-2``, as YAML 1.2
@@ -237,10 +271,15 @@ def load_yaml(text: str | bytes) -> Any:
         try:
             return yaml.load(text, Loader=_StrictLoader)
         except yaml.scanner.ScannerError as err:
-            # yaml-cpp (map_server's) takes a tab after "key:" as a space; PyYAML refuses it.
-            if "'\\t'" not in str(err.problem) or not _TAB_AFTER_COLON.search(text):
+            # yaml-cpp (map_server's) takes a tab between two tokens of a line (after "key:",
+            # before a comment, at the line's end, in [1,<TAB>2]) as a space; PyYAML refuses it.
+            if "'\\t'" not in str(err.problem):
                 raise
-            return yaml.load(_TAB_AFTER_COLON.sub(r"\1: ", text), Loader=_StrictLoader)
+            spaced = _TAB_BETWEEN_TOKENS.sub(_tab_as_space, text)
+            spaced = _TAB_AFTER_COLON.sub(r"\1: ", spaced)
+            if spaced == text:
+                raise
+            return yaml.load(spaced, Loader=_StrictLoader)
     except yaml.YAMLError as err:
         problem = short(getattr(err, "problem", None) or err, 120)
         mark = getattr(err, "problem_mark", None)

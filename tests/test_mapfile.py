@@ -275,6 +275,40 @@ def test_a_tab_after_a_colon_reads_as_yaml_cpp_reads_it(tmp_path: Path) -> None:
         rose.load_map(bad)
 
 
+@pytest.mark.parametrize(
+    "text",
+    [
+        "image: m.pgm\t\nresolution: 0.05 \t\norigin: [1, 2, 0]\t\n",  # at the end of a line
+        "image: m.pgm\t# the map\nresolution: 0.05 \t# metres\norigin: [1, 2, 0]\n",  # a comment
+        "image: m.pgm\nresolution: 0.05\norigin: [1,\t2,\t0]\n",  # in a flow sequence
+        "image: m.pgm\nresolution: 0.05\norigin: [\t1, 2, 0\t]\n",
+        'image: "m.pgm"\t\nresolution\t: 0.05\norigin: [1, 2, 0]\n',  # before a key's colon
+        "image: m.pgm\nresolution: 0.05\norigin:\n  -\t1\n  -\t2\n  -\t0\n",  # after a dash
+    ],
+)
+def test_tabs_between_tokens_read_as_yaml_cpp_reads_them(tmp_path: Path, text: str) -> None:
+    """map_server (yaml-cpp) takes any tab between two tokens of a line as a space (a tab-aligned
+    comment, a trailing tab, ``[1,<TAB>2,<TAB>0]``); PyYAML refused these files."""
+    cv2.imwrite(str(tmp_path / "m.pgm"), np.array([[0, 254]], dtype=np.uint8))
+    loaded = rose.load_map(write_yaml(tmp_path / "m.yaml", text))
+    assert (loaded.image_path, loaded.resolution_m) == (tmp_path / "m.pgm", 0.05)
+    assert (loaded.origin_xy_m, loaded.origin_yaw_rad) == ((1.0, 2.0), 0.0)
+
+
+def test_a_tab_inside_a_plain_value_is_not_read_as_a_space(tmp_path: Path) -> None:
+    """yaml-cpp keeps a tab between two words of a value (a file name ``m<TAB>x.pgm``): the file
+    stays refused rather than read as naming ``m x.pgm``."""
+    from rose.limits import load_yaml
+
+    with pytest.raises(ValueError, match="'\\\\t' that cannot start any token on line 1"):
+        load_yaml("image: m\tx.pgm\t\nresolution: 0.05\n")
+    # A tab in a quoted value is content, beside a tab the retry reads as a space.
+    assert load_yaml('image: "m,\tx.pgm"\t# c\norigin: [1,\t"a,\tb"]\n') == {
+        "image": "m,\tx.pgm",
+        "origin": [1, "a,\tb"],
+    }
+
+
 def _two_cell_map(folder: Path, keys: str) -> Path:
     """A map of two cells (occupied, free) whose YAML holds ``image`` and then ``keys``."""
     cv2.imwrite(str(folder / "m.pgm"), np.array([[0, 254]], dtype=np.uint8))
