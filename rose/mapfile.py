@@ -15,6 +15,7 @@ so rows are flipped at this boundary.
 
 from __future__ import annotations
 
+import codecs
 import logging
 import math
 import os
@@ -395,9 +396,42 @@ def _binary_pnm_length(head: bytes) -> int | None:
     return end + 1 + rows * row_bytes
 
 
+def _yaml_text(data: bytes) -> str | bytes:
+    """A map YAML's bytes as text when they are UTF-32 or UTF-16, told by the first bytes as YAML
+    1.2 (section 5.2) and map_server's yaml-cpp tell them: a byte order mark, or the zero bytes of
+    a first ASCII character (Windows PowerShell 5 writes UTF-16 with a mark); else the bytes as
+    they are, for :func:`rose.limits.load_yaml` to read as UTF-8.
+
+    Raises
+    ------
+    ValueError
+        If the bytes are no text of the encoding their start announces.
+    """
+    head = data[:4]
+    if head in (codecs.BOM_UTF32_BE, codecs.BOM_UTF32_LE):
+        encoding = "utf-32"  # the codec reads the mark and drops it
+    elif head[:3] == b"\0\0\0":
+        encoding = "utf-32-be"
+    elif len(head) == 4 and head[1:] == b"\0\0\0":
+        encoding = "utf-32-le"
+    elif head[:2] in (codecs.BOM_UTF16_BE, codecs.BOM_UTF16_LE):
+        encoding = "utf-16"
+    elif head[:1] == b"\0":
+        encoding = "utf-16-be"
+    elif head[1:2] == b"\0":
+        encoding = "utf-16-le"
+    else:
+        return data
+    try:
+        return data.decode(encoding)
+    except UnicodeDecodeError as err:
+        msg = f"not {encoding[:6].upper()} text"
+        raise ValueError(msg) from err
+
+
 def _load_yaml_map(path: Path, max_cells: int | None) -> OccupancyMap:
     try:
-        meta = load_yaml(_read_bytes(path, MAX_YAML_BYTES))
+        meta = load_yaml(_yaml_text(_read_bytes(path, MAX_YAML_BYTES)))
     except ValueError as err:
         msg = f"{path}: not a readable YAML file ({err})"
         raise MapFileError(msg) from err

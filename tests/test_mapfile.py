@@ -309,6 +309,29 @@ def test_a_tab_inside_a_plain_value_is_not_read_as_a_space(tmp_path: Path) -> No
     }
 
 
+@pytest.mark.parametrize(
+    "encoding",
+    ["utf-16", "utf-16-le", "utf-16-be", "utf-32", "utf-32-le", "utf-32-be", "utf-8-sig"],
+)
+def test_a_map_yaml_in_utf16_or_utf32_reads_as_yaml_cpp_reads_it(
+    tmp_path: Path, encoding: str
+) -> None:
+    """YAML's encodings are told by the first bytes (a byte order mark, or the zero bytes of a
+    first ASCII character; YAML 1.2, section 5.2), as map_server's yaml-cpp tells them: a map
+    YAML that Windows PowerShell 5 wrote with ``>`` (UTF-16 with a mark) was "not UTF-8 text"."""
+    cv2.imwrite(str(tmp_path / "m.pgm"), np.array([[0, 254]], dtype=np.uint8))
+    text = "image: m.pgm\r\nresolution: 0.05\r\norigin: [1, 2, 0]\r\n"
+    path = tmp_path / "m.yaml"
+    path.write_bytes(text.encode(encoding))
+    loaded = rose.load_map(path)
+    assert (loaded.resolution_m, loaded.origin_xy_m) == (0.05, (1.0, 2.0))
+    assert loaded.grid.tolist() == [[100, 0]]
+    # Bytes that are no text of the encoding their start announces are refused, naming it.
+    path.write_bytes(b"\xff\xfei\x00m\x00\x00\xd8")  # UTF-16 with an unpaired surrogate
+    with pytest.raises(MapFileError, match="not a readable YAML file \\(not UTF-16 text\\)"):
+        rose.load_map(path)
+
+
 def _two_cell_map(folder: Path, keys: str) -> Path:
     """A map of two cells (occupied, free) whose YAML holds ``image`` and then ``keys``."""
     cv2.imwrite(str(folder / "m.pgm"), np.array([[0, 254]], dtype=np.uint8))
