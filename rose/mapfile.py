@@ -26,7 +26,7 @@ import zlib
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 import numpy as np
 import numpy.typing as npt
@@ -1193,7 +1193,7 @@ def save_map(
         "occupied_thresh": DEFAULT_OCCUPIED_THRESH,
         "free_thresh": DEFAULT_FREE_THRESH,
     }
-    text = yaml.safe_dump(meta, sort_keys=False, default_flow_style=None)
+    text = yaml.dump(meta, Dumper=_MapYamlDumper, sort_keys=False, default_flow_style=None)
     own = outputs is None
     target = OutputSet(force=True) if outputs is None else outputs
     for source in occupancy_map.input_files:  # a map read from files never replaces them
@@ -1208,6 +1208,18 @@ def save_map(
     if own:
         target.commit()
     return image_path
+
+
+class _MapYamlDumper(yaml.SafeDumper):
+    """The safe dumper, writing a next-line character and a no-break space in a quoted name as
+    ``\\x85`` and ``\\xA0``: map_server's yaml-cpp reads PyYAML's ``\\N`` and ``\\_`` as the single
+    bytes 0x85 and 0xA0 (no UTF-8, a name no file has); both read the ``\\x`` escapes alike."""
+
+    ESCAPE_REPLACEMENTS: ClassVar[dict[str, str]] = {
+        char: escape
+        for char, escape in yaml.SafeDumper.ESCAPE_REPLACEMENTS.items()
+        if char not in ("\x85", "\xa0")
+    }
 
 
 def map_output_problem(path: str | Path) -> str | None:

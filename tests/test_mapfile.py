@@ -1291,6 +1291,22 @@ def test_a_saved_map_needs_a_utf8_name_its_yaml_can_hold(tmp_path: Path) -> None
     assert sorted(p.name for p in folder.iterdir()) == ["real.yaml"]
 
 
+@pytest.mark.parametrize(
+    ("stem", "escaped"), [("map\u00a0v2", "map\\xA0v2"), ("a\u0085b", "a\\x85b")]
+)
+def test_a_saved_maps_image_name_is_escaped_as_map_server_reads_it(
+    tmp_path: Path, stem: str, escaped: str
+) -> None:
+    """map_server's yaml-cpp reads the escapes PyYAML writes for a no-break space and a next-line
+    character (``"map\\_v2.pgm"``, ``\\N``) as the single bytes 0xA0 and 0x85, no UTF-8: a name no
+    file has (a no-break space comes with a name pasted from a web page, or typed with
+    Option-space). Both read ``\\xA0`` and ``\\x85`` as the characters."""
+    image = rose.save_map(tmp_path / f"{stem}.yaml", OccupancyMap(grid=np.zeros((2, 2), np.int8)))
+    assert image == tmp_path / f"{stem}.pgm"
+    assert (tmp_path / f"{stem}.yaml").read_text().startswith(f'image: "{escaped}.pgm"\n')
+    assert rose.load_map(tmp_path / f"{stem}.yaml").image_path == image
+
+
 def test_load_map_takes_bytes_paths_and_refuses_cell_limits_that_are_no_limit() -> None:
     path = repo_data(f"{FR079_DIR}/map15.yaml")
     assert rose.load_map(os.fsencode(path)).grid.shape == rose.load_map(path).grid.shape
