@@ -214,25 +214,30 @@ _TAB_AFTER_COLON = re.compile(
     re.MULTILINE,
 )
 
+#: A whole run of spaces and tabs holding a tab, taken without backtracking (possessive: a run of
+#: a million blanks was tried at every split, for hours).
+_BLANKS_WITH_TAB = r"(?=[ \t]*\t)[ \t]++"
+
 #: A quoted scalar on one line: a tab in it is content, never a separator.
 _QUOTED = r"\"(?:[^\"\\\n]|\\.)*\"|'(?:[^'\n]|'')*'"
 
 #: The other tabs yaml-cpp reads as spaces between two tokens of a line and PyYAML refuses: before
-#: the line's end, a comment or a key's colon (dropped there), and after a block sequence's dash (a tab between two
-#: words of a value is part of it for yaml-cpp, and stays). Quoted scalars and one-line flow
-#: collections (``[1,<TAB>2,<TAB>0]``) are matched whole, so that their tabs are judged apart.
+#: the line's end, a comment or a key's colon (dropped there), and after a block sequence's dash
+#: (a tab between two words of a value is part of it for yaml-cpp, and stays). Quoted scalars and
+#: one-line flow collections (``[1,<TAB>2,<TAB>0]``) are matched whole, their tabs judged apart.
 _TAB_BETWEEN_TOKENS = re.compile(
     rf"(?P<quoted>{_QUOTED})"
     rf"|(?P<flow>[\[{{](?:{_QUOTED}|[^\[\]{{}}\"'\n])*[\]}}])"
-    r"|^(?P<dash>[ ]*-)[ \t]*\t[ \t]*"
-    r"|(?<=\S)(?P<colon>[ \t]*\t[ \t]*)(?=:[ \t]|:\r?$)"
-    r"|(?<=\S)[ \t]*\t[ \t]*(?=\r?$|#)",
+    rf"|^(?P<dash>[ ]*+-){_BLANKS_WITH_TAB}"
+    rf"|(?<=\S)(?P<colon>{_BLANKS_WITH_TAB})(?=:[ \t]|:\r?$)"
+    rf"|(?<=\S){_BLANKS_WITH_TAB}(?=\r?$|#)",
     re.MULTILINE,
 )
 
 #: Inside a flow collection, the tabs beside its indicators (``[ ] { } ,``); quoted scalars kept.
 _TAB_IN_FLOW = re.compile(
-    rf"(?P<quoted>{_QUOTED})|(?<=[\[{{,])[ \t]*\t[ \t]*|[ \t]*\t[ \t]*(?=[\]}},])"
+    rf"(?P<quoted>{_QUOTED})|(?<=[\[{{,]){_BLANKS_WITH_TAB}"
+    rf"|(?<![ \t]){_BLANKS_WITH_TAB}(?=[\]}},])"
 )
 
 

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import contextlib
 import struct
+import time
 import zlib
 from pathlib import Path
 
@@ -34,6 +36,24 @@ def test_hostile_yaml_is_refused_without_expanding(text: str, match: str) -> Non
     with pytest.raises(ValueError, match=match) as info:
         load_yaml(text)
     assert len(str(info.value)) < 200
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        "image: a" + " \t" * 100_000 + "x\n",  # blanks between words: no separator, refused
+        "image: a" + " " * 200_000 + "\tx\n",
+        "origin: [0" + "\t " * 100_000 + "x\n",
+        "origin: [0, 1" + " \t" * 100_000 + "]\n",
+    ],
+)
+def test_long_runs_of_blanks_with_tabs_are_read_in_linear_time(text: str) -> None:
+    """The tabs read as spaces (yaml-cpp's separators) are found in one pass: a run of 200,000
+    blanks took minutes, a run of a million (within the 1 MiB a map YAML may hold) hours."""
+    started = time.perf_counter()
+    with contextlib.suppress(ValueError):
+        load_yaml(text)
+    assert time.perf_counter() - started < 10
 
 
 def test_plain_yaml_still_loads() -> None:
