@@ -218,8 +218,9 @@ _TAB_AFTER_COLON = re.compile(
 #: a million blanks was tried at every split, for hours).
 _BLANKS_WITH_TAB = r"(?=[ \t]*\t)[ \t]++"
 
-#: A quoted scalar on one line: a tab in it is content, never a separator.
-_QUOTED = r"\"(?:[^\"\\\n]|\\.)*\"|'(?:[^'\n]|'')*'"
+#: A quoted scalar on one line: a tab in it is content, never a separator. Its quote starts a
+#: token (an apostrophe inside a word, ``it's.pgm``, starts none).
+_QUOTED = r"(?<![^\s\[{,:])(?:\"(?:[^\"\\\n]|\\.)*\"|'(?:[^'\n]|'')*')"
 
 #: The other tabs yaml-cpp reads as spaces between two tokens of a line and PyYAML refuses: before
 #: the line's end, a comment or a key's colon (dropped there), and after a block sequence's dash

@@ -307,6 +307,8 @@ def test_a_tab_inside_a_plain_value_is_not_read_as_a_space(tmp_path: Path) -> No
         "image": "m,\tx.pgm",
         "origin": [1, "a,\tb"],
     }
+    # An apostrophe inside a word quotes nothing: the tab after the name is a separator.
+    assert load_yaml("image: o'brien.pgm\t# O'Brien's office\n") == {"image": "o'brien.pgm"}
 
 
 @pytest.mark.parametrize(
