@@ -5,9 +5,10 @@
   1-9 million cells), decoding a map image some more, so the default 1e8 cells (10,000 x 10,000) needs
   about 4 GB; the ``"walls"`` cleaning doubles that (``rose clean`` of 16 million cells peaked at
   1.2 GB, ``rose score`` at 0.58 GB), and triples it again on maps of 0.1 to under 0.15 m per
-  cell, which it cleans on cells split 2 x 2 (3.7 GB for those 16 million cells at 0.1 m). Sizes are checked before anything of
-  that size is allocated: image headers before decoding, width x height of map messages before analysis,
-  the grid extent of ``rose-bag convert`` before ray casting.
+  cell, which it cleans on cells split 2 x 2 (3.7 GB for those 16 million cells at 0.1 m). Sizes
+  are checked before anything of that size is allocated: image headers before decoding, width x
+  height of map messages before analysis, the grid extent of ``rose-bag convert`` before ray
+  casting.
 - :func:`load_yaml`: YAML without aliases (a 1 KB "billion laughs" file cannot expand), at most
   :data:`MAX_YAML_BYTES` long and :data:`MAX_YAML_DEPTH` levels deep.
 - :func:`image_shape`: the size an image header declares (PNG, PNM, BMP, JPEG, TIFF, WebP), read
