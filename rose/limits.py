@@ -123,11 +123,26 @@ def cell_limit(value: object) -> int | None:
 
 
 def check_cells(rows: int, cols: int, max_cells: int | None) -> str | None:
-    """None if a ``rows x cols`` grid is within ``max_cells`` (None: no limit), else the reason."""
-    if max_cells is None or rows * cols <= max_cells:
+    """None if a ``rows x cols`` grid is within ``max_cells`` (None: no limit) as ROSE works on it
+    (a side under :data:`rose.params.MIN_PADDED_SIDE` padded to it for the spectrum), else the
+    reason."""
+    if max_cells is None:
         return None
+    # (Imported here: the command line's start-up reads this module without numpy.)
+    from rose.params import min_padded_side
+
+    shortest = min_padded_side((rows, cols))
+    worked = max(rows, shortest) * max(cols, shortest)
+    if worked <= max_cells:
+        return None
+    # A strip of 1 x 5,000,000 cells took 2.5 GB, padded to 16 x 5,000,000 under the limit.
+    padded = (
+        ""
+        if worked == rows * cols
+        else f", padded to {worked:,} for the spectrum (no side under {shortest} cells),"
+    )
     return (
-        f"{cols} x {rows} = {rows * cols:,} cells exceeds the limit of {max_cells:,} "
+        f"{cols} x {rows} = {rows * cols:,} cells{padded} exceeds the limit of {max_cells:,} "
         "(--max-cells; ROSE needs about 35 bytes per cell, its walls cleaning about 75)"
     )
 

@@ -117,6 +117,13 @@ def make_params(params: RoseParams | None = None, **overrides: Any) -> RoseParam
 #: as having no direction while its transpose had one); padding it to this costs next to nothing.
 MIN_PADDED_SIDE = 16
 
+
+def min_padded_side(shape: tuple[int, int]) -> int:
+    """Shortest side, cells, a map of ``shape`` ``(rows, cols)`` is zero-padded to for its spectrum:
+    :data:`MIN_PADDED_SIDE` when its longer side reaches it, else 1."""
+    return MIN_PADDED_SIDE if max(shape) >= MIN_PADDED_SIDE else 1
+
+
 #: Largest spectrum length a parameter takes, cells (a map of 1e6 cells a side has 1e12 cells).
 MAX_SPECTRUM_PX = 1e6
 

@@ -13,7 +13,7 @@ import scipy.fft
 
 from rose.errors import RoseError
 from rose.limits import shape_problem
-from rose.params import MIN_PADDED_SIDE
+from rose.params import MIN_PADDED_SIDE, min_padded_side
 
 __all__ = ["MIN_PADDED_SIDE", "full_amplitude_spectrum", "half_spectrum", "padded_shape"]
 
@@ -32,7 +32,7 @@ def padded_shape(shape: tuple[int, int]) -> tuple[int, int]:
     if problem is not None:
         msg = f"padded_shape: shape {problem}"
         raise RoseError(msg)
-    shortest = MIN_PADDED_SIDE if max(shape) >= MIN_PADDED_SIDE else 1
+    shortest = min_padded_side(shape)
     rows = scipy.fft.next_fast_len(max(shape[0], shortest), real=True)
     cols = scipy.fft.next_fast_len(max(shape[1], shortest, 2), real=True)
     while cols % 2:

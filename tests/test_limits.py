@@ -80,6 +80,15 @@ def test_check_cells() -> None:
     assert "exceeds the limit" in (check_cells(10, 11, 100) or "")
 
 
+def test_check_cells_counts_the_cells_of_a_thin_strip_padded_for_its_spectrum() -> None:
+    """A strip of 1 x 5,000,000 cells was within a limit of 10**7 and took 2.5 GB: ROSE pads a
+    side under 16 cells to 16 (80,000,000 cells). A strip under 16 cells long is not padded."""
+    said = check_cells(1, 5_000_000, 10**7) or ""
+    assert "padded to 80,000,000" in said and "exceeds the limit of 10,000,000" in said
+    assert check_cells(5_000_000, 1, 8 * 10**7) is None
+    assert check_cells(1, 15, 15) is None
+
+
 @pytest.mark.parametrize("data", [_png(40_000, 40_000), b"P5\n50000 50000\n255\n" + bytes(64)])
 def test_huge_image_header_is_refused_before_decoding(tmp_path: Path, data: bytes) -> None:
     path = tmp_path / "m.png"
