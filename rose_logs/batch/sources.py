@@ -203,6 +203,7 @@ def discover(
         inputs = [inputs]
     unique: dict[str, Recording] = {}
     problems: list[str] = []  # every input that names nothing, not only the first
+    empty: list[str] = []  # folders searched in vain, said when other inputs hold recordings
     for item in inputs:
         try:
             with storage_errors(str(item)):
@@ -211,6 +212,8 @@ def discover(
             # which line of which list
             problems.append(f"{err} ({item.where})" if isinstance(item, ListedInput) else str(err))
             continue
+        if not expanded:
+            empty.append(f"{item} ({item.where})" if isinstance(item, ListedInput) else str(item))
         for recording in expanded:
             # One file under two spellings (``a/../a/x.mcap``, a symlink) is one recording: the
             # first spelling names it.
@@ -236,6 +239,8 @@ def discover(
     if not found:
         msg = f"no recording found in {', '.join(str(i) for i in inputs) or 'the inputs'}"
         raise BatchError(msg)
+    for item in empty:  # (a folder of the wrong robot, a typo'd date went unnoticed)
+        _LOG.warning("%s: no recording found in it", item)
     return tuple(sorted(found.values()))
 
 

@@ -143,6 +143,20 @@ def test_folders_are_searched_recursively_and_a_bag_folder_is_one_recording(flee
     )
 
 
+def test_a_folder_without_recordings_among_other_inputs_is_warned_about(
+    fleet: Path, tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """A folder holding no recording passed without a word when other inputs held some (alone it
+    stops the batch, as a pattern that matches nothing does): a mistyped robot's folder went
+    unnoticed."""
+    empty = tmp_path / "robot_z"
+    empty.mkdir()
+    with caplog.at_level("WARNING", logger="rose_logs"):
+        recordings = discover([fleet / "robot_a", empty])
+    assert [r.name for r in recordings] == ["robot_a/later.db3", "robot_a/run.mcap"]
+    assert [r.getMessage() for r in caplog.records] == [f"{empty}: no recording found in it"]
+
+
 def test_a_name_starting_with_a_tilde_of_no_user_is_taken_as_written(
     fleet: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
