@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -11,6 +10,7 @@ import numpy as np
 
 from rose.errors import RoseError
 from rose.grid import FREE, UNKNOWN
+from rose.limits import finite_number
 
 __all__ = ["ClutterValue", "RoseParams", "ThresholdMode", "make_params"]
 
@@ -69,10 +69,13 @@ class RoseParams:
     seed: int = 0
 
     def __post_init__(self) -> None:
-        # numpy scalars (np.int64(65), np.float32(0.3)) as the Python numbers they stand for.
+        # numpy scalars (np.int64(65), np.float32(0.3), np.str_("gmm")) as the Python values they
+        # stand for; float(), as .item() leaves a np.longdouble one (refused as no number).
         for f in dataclasses.fields(self):
             value = getattr(self, f.name)
-            if isinstance(value, np.integer | np.floating):
+            if isinstance(value, np.floating):
+                object.__setattr__(self, f.name, float(value))
+            elif isinstance(value, np.integer | np.str_):
                 object.__setattr__(self, f.name, value.item())
         problems = _problems(self)
         if problems:
@@ -144,10 +147,10 @@ def _problems(p: RoseParams) -> list[str]:
     ]
     if wrong_type:
         return wrong_type
-    not_finite = [
+    not_finite = [  # (an int too large for a float is not finite: math.isfinite overflowed)
         f"{name} must be finite, got {getattr(p, name)!r}"
         for name in numbers
-        if not math.isfinite(getattr(p, name))
+        if not finite_number(getattr(p, name))
     ]
     if not_finite:
         return not_finite
@@ -176,11 +179,13 @@ def _problems(p: RoseParams) -> list[str]:
         )
     if not 1 <= p.occupied_threshold <= 100:
         problems.append(f"occupied_threshold must be in 1..100, got {p.occupied_threshold}")
-    if p.threshold_mode not in ("gmm", "fixed"):
+    # Strings first: `in` compares an array elementwise (a ValueError, or an array accepted, which
+    # made the params unhashable).
+    if not (isinstance(p.threshold_mode, str) and p.threshold_mode in ("gmm", "fixed")):
         problems.append(f"threshold_mode must be 'gmm' or 'fixed', got {p.threshold_mode!r}")
     if not 0.0 <= p.fixed_threshold <= 1.0:
         problems.append(f"fixed_threshold must be in [0, 1], got {p.fixed_threshold}")
-    if p.clutter_value not in ("free", "unknown"):
+    if not (isinstance(p.clutter_value, str) and p.clutter_value in ("free", "unknown")):
         problems.append(f"clutter_value must be 'free' or 'unknown', got {p.clutter_value!r}")
     # Fewer fit the mixture on a handful of quantiles: 10 put the threshold at 0.99 on real maps,
     # every cell clutter (100: within 0.05 of the default's).

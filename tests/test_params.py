@@ -143,3 +143,38 @@ def test_a_numpy_resolution_is_a_python_float_in_the_cleaning() -> None:
     single = rose.clean(grid, result, resolution_m=np.float32(0.05))
     exact = rose.clean(grid, result, resolution_m=float(np.float32(0.05)))
     assert single.cleaned.tobytes() == exact.cleaned.tobytes()
+
+
+@pytest.mark.parametrize(
+    ("field", "value", "message"),
+    [
+        # A ValueError from numpy's truth value, not an error naming the field.
+        ("threshold_mode", np.array(["gmm", "fixed"]), "threshold_mode must be 'gmm' or 'fixed'"),
+        ("clutter_value", np.array([]), "clutter_value must be 'free' or 'unknown'"),
+        # Accepted, and the params could then not be hashed (a frozen dataclass holding an array).
+        ("clutter_value", np.array(["free"]), "clutter_value must be 'free' or 'unknown'"),
+        ("threshold_mode", np.array("gmm"), "threshold_mode must be 'gmm' or 'fixed'"),
+        # An OverflowError from math.isfinite: an int too large for a float is not finite.
+        ("peak_prominence", 10**400, "peak_prominence must be finite"),
+    ],
+)
+def test_modes_and_huge_numbers_fail_with_an_error_naming_the_field(
+    field: str, value: object, message: str
+) -> None:
+    with pytest.raises(RoseError) as info:
+        RoseParams(**{field: value})  # type: ignore[arg-type]
+    assert str(info.value).startswith(message)
+
+
+def test_numpy_strings_and_long_doubles_are_python_values() -> None:
+    """A np.longdouble was refused as "must be a number" (its .item() is a np.longdouble, not a
+    float), where CleanParams and WallParams take it."""
+    params = RoseParams(
+        fixed_threshold=np.longdouble(0.25),
+        threshold_mode=np.str_("fixed"),
+        clutter_value=np.str_("unknown"),
+    )
+    assert type(params.fixed_threshold) is float and params.fixed_threshold == 0.25
+    assert type(params.threshold_mode) is str and type(params.clutter_value) is str
+    same = RoseParams(fixed_threshold=0.25, threshold_mode="fixed", clutter_value="unknown")
+    assert params == same and hash(params) == hash(same)
