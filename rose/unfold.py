@@ -86,7 +86,6 @@ def frequency_grid(
     return u_grid.copy(), v_grid.copy()
 
 
-@functools.lru_cache(maxsize=8)
 def direction_bins(
     shape: tuple[int, int], *, angular_resolution_deg: float, min_radius_px: float
 ) -> DirectionBins:
@@ -94,7 +93,7 @@ def direction_bins(
 
     A spectrum line at angle ``psi`` comes from image lines at ``psi + pi/2``; cells between
     ``min_radius_px`` and the Nyquist circle (half the longer side) take part, so every direction sees
-    the same radial range.
+    the same radial range. Cached by value (read-only: shared by every call with the same values).
 
     Raises
     ------
@@ -114,6 +113,18 @@ def direction_bins(
     if not (finite_number(min_radius_px) and min_radius_px >= 0):
         msg = f"min_radius_px must be a finite number >= 0, got {min_radius_px!r}"
         raise RoseError(msg)
+    # The cache's keys as Python numbers, checked: a shape given as a list or an array (which the
+    # other stages take) is unhashable, and one entry serves equal values of any type.
+    return _direction_bins(
+        (int(shape[0]), int(shape[1])), float(angular_resolution_deg), float(min_radius_px)
+    )
+
+
+@functools.lru_cache(maxsize=8)
+def _direction_bins(
+    shape: tuple[int, int], angular_resolution_deg: float, min_radius_px: float
+) -> DirectionBins:
+    """:func:`direction_bins` of checked Python values."""
     n_bins = max(1, round(180.0 / angular_resolution_deg))
     step = math.pi / n_bins
     u, v = frequency_grid(shape)

@@ -254,3 +254,18 @@ def test_the_stage_functions_refuse_what_failed_deep_inside_or_passed_silently()
     assert full_amplitude_spectrum(amplitude, (16, 16)).shape == (16, 16)
     assert find_direction_peaks(curve, prominence_fraction=0.0).indices.tolist() == [0]
     assert padded_shape((0, 0)) == (1, 2)
+
+
+def test_direction_bins_take_a_shape_as_the_other_stages_do() -> None:
+    """direction_bins' cache took its arguments as keys: a shape given as a list or an array
+    (padded_shape, half_spectrum and structure_mask take both) was a TypeError, 'unhashable
+    type'."""
+    from rose.unfold import direction_bins
+
+    expected = direction_bins((16, 20), angular_resolution_deg=0.5, min_radius_px=4.0)
+    for shape in ([16, 20], np.array([16, 20]), (np.int64(16), np.int32(20))):
+        bins = direction_bins(shape, angular_resolution_deg=0.5, min_radius_px=4)  # type: ignore[arg-type]
+        np.testing.assert_array_equal(bins.cell_index, expected.cell_index)
+        np.testing.assert_array_equal(bins.counts, expected.counts)
+    with pytest.raises(rose.RoseError, match="shape"):
+        direction_bins([16], angular_resolution_deg=0.5, min_radius_px=4)  # type: ignore[arg-type]
