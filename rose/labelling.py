@@ -11,8 +11,10 @@ import numpy as np
 import numpy.typing as npt
 
 __all__ = [
+    "FLOOD_FILL_MAX_SIDE",
     "component_areas",
     "components",
+    "fill_from_corner",
     "label_boxes",
     "label_type",
     "labels_looked_up",
@@ -91,6 +93,25 @@ def components(
         mask.view(np.uint8), None, connectivity, label_type(mask, connectivity)
     )
     return int(count), np.asarray(labels)
+
+
+#: Longest side of an image OpenCV's flood fill fills right: it keeps the coordinates of its
+#: segments in 16 bits (``cv::FFillSegment``), so on a wider or taller image it leaves cells it
+#: should reach unfilled (and reports a wrong bounding box). Checked with OpenCV 5.1.
+FLOOD_FILL_MAX_SIDE = 65536
+
+
+def fill_from_corner(image: npt.NDArray[np.uint8], connectivity: int) -> None:
+    """Set to 0, in place, the cells of ``image`` (uint8 0 / 1, shape (rows, cols), 1 at (0, 0))
+    that paths of 1-cells (4- or 8-connected) join to its cell (0, 0): OpenCV's flood fill from
+    there, labelled instead on images with a side over :data:`FLOOD_FILL_MAX_SIDE` cells."""
+    import cv2
+
+    if max(image.shape) <= FLOOD_FILL_MAX_SIDE:
+        cv2.floodFill(image, None, (0, 0), 0, flags=connectivity)
+        return
+    _, labels = components(image, connectivity)
+    image[labels == labels[0, 0]] = 0
 
 
 def component_areas(labels: npt.NDArray[np.integer], count: int) -> npt.NDArray[np.float64]:

@@ -17,7 +17,13 @@ import rose
 from rose.cleaning import MIN_CLEAN_RESOLUTION_M, CleanParams, clean
 from rose.cleaning_rules import directional_runs, passable, straight_lines, wide_unknown
 from rose.errors import RoseError
-from rose.labelling import components, label_boxes, label_type
+from rose.labelling import (
+    FLOOD_FILL_MAX_SIDE,
+    components,
+    fill_from_corner,
+    label_boxes,
+    label_type,
+)
 
 RES = 0.05
 
@@ -1529,3 +1535,36 @@ def test_the_chamfer_disc_is_cached_by_the_radius_and_its_type() -> None:
     np.testing.assert_array_equal(as_float, _chamfer_disc.__wrapped__(radius))
     np.testing.assert_array_equal(wide_first, _chamfer_disc.__wrapped__(np.float64(radius)))
     assert np.count_nonzero(as_float) != np.count_nonzero(wide_first)
+
+
+@pytest.mark.parametrize("connectivity", [4, 8])
+def test_the_fill_from_a_corner_reaches_every_cell_of_an_image_of_any_size(
+    connectivity: int,
+) -> None:
+    """OpenCV's flood fill keeps its coordinates in 16 bits: past 65,536 cells it left cells
+    unfilled behind a turn (157 of them here at 70,000 columns)."""
+    for shape in ((20, FLOOD_FILL_MAX_SIDE + 4464), (FLOOD_FILL_MAX_SIDE + 4464, 20)):
+        image = np.ones(shape, np.uint8)
+        walls = image if shape[0] == 20 else image.T
+        walls[0:19, -10] = 0  # two walls, the way round them at the bottom, then at the top
+        walls[1:20, -5] = 0
+        fill_from_corner(image, connectivity)
+        assert not image.any()
+
+
+def test_a_map_wider_than_opencvs_flood_fill_is_cleaned_alike_at_both_ends() -> None:
+    """A map of 24 x 66,000 cells (a 3.3 km corridor at 5 cm) failed with a ValueError ('operands
+    could not be broadcast') in the free-standing pieces' rule: OpenCV's flood fill, whose
+    coordinates are 16 bits, left the outside past column 65,536 unfilled."""
+    cols = 66_000
+    grid = np.zeros((24, cols), np.int8)
+    for col in (10, 30, cols - 60, cols - 30):  # small rooms: a ring around known free space
+        grid[8:13, col : col + 5] = 100
+        grid[9:12, col + 1 : col + 4] = 0
+    for col in (50, cols - 90):  # furniture: solid blobs
+        grid[9:12, col : col + 3] = 100
+    got = clean(grid, resolution_m=RES)
+    first, last = got.kept[:, :100], got.kept[:, -100:]
+    assert first.sum() == last.sum() == 32  # both rings at each end, no blob
+    np.testing.assert_array_equal(first[:, 50:53], False)
+    np.testing.assert_array_equal(last[:, 10:13], False)

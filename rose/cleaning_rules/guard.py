@@ -20,6 +20,7 @@ from rose.cleaning_rules.masks import (
 from rose.labelling import (
     component_areas,
     components,
+    fill_from_corner,
     label_boxes,
     labels_looked_up,
 )
@@ -259,7 +260,7 @@ def _in_pieces(
         # outside; any other cell not of the patch lies in a hole.
         inside = np.ones((height + 2, width + 2), dtype=np.uint8)
         inside[1:-1, 1:-1] = patches[y : y + height, x : x + width] != label
-        cv2.floodFill(inside, None, (0, 0), 0, flags=8)
+        fill_from_corner(inside, 8)  # (OpenCV's flood fill, right on any size)
         judged[label] = bool(inside.any())
     return judged
 

@@ -29,6 +29,7 @@ from rose.cleaning_rules.runs import _run_cells, _runs
 from rose.labelling import (
     component_areas,
     components,
+    fill_from_corner,
     label_boxes,
     labels_looked_up,
     labels_wanted,
@@ -536,10 +537,13 @@ class _Pieces:
         # it: what stays unflooded of the other cells are the holes (one pass; no labelling
         # unless a hole holds known free space).
         box = _padded_box(cells, 1)
-        image = cv2.copyMakeBorder(
-            (~cells[box]).view(np.uint8), 1, 1, 1, 1, cv2.BORDER_CONSTANT, value=1
+        image = np.asarray(  # (uint8 as it is: typed for fill_from_corner, no copy)
+            cv2.copyMakeBorder(
+                (~cells[box]).view(np.uint8), 1, 1, 1, 1, cv2.BORDER_CONSTANT, value=1
+            ),
+            dtype=np.uint8,
         )
-        cv2.floodFill(image, None, (0, 0), 0, flags=4)
+        fill_from_corner(image, 4)  # (OpenCV's flood fill, right on any size)
         holes = image[1:-1, 1:-1].view(bool)
         # Then only the holes' box matters, a cell wider (their rim): they are few cells, often in
         # a few places of the pieces' box. (Holes never reach its edge: their rim lies in it.)
