@@ -4,6 +4,11 @@ Instead of resampling the spectrum onto a polar grid pixel by pixel, every half-
 assigned once to a direction bin; the per-direction amplitude is then one ``np.add.reduceat`` over
 the cells grouped by bin. The assignment depends only on the padded shape and the binning parameters,
 so it is cached.
+
+Each half-plane cell stands for itself and its point-symmetric mirror ``(-u, -v)`` (same amplitude,
+same orientation), except in the columns ``u = 0`` and ``u = Nyquist``, which hold both cells of each
+pair ``(v, -v)``: there only one of them takes part, so every direction's mean weighs its cells as
+the full spectrum's does.
 """
 
 from __future__ import annotations
@@ -39,8 +44,9 @@ class DirectionBins(ReadOnlyArrays):
     centres : ndarray of float64, shape (B,)
         Wall orientation at the centre of each bin, radians in ``[0, pi)``; bin 0 is centred on 0.
     cell_index : ndarray of intp, shape (M,)
-        Flat indices into the half-plane of the cells that take part (inside the annulus), grouped
-        by bin (bin 0's cells first, each bin's in flat order).
+        Flat indices into the half-plane of the cells that take part (inside the annulus; in the
+        columns u = 0 and u = Nyquist, which hold both cells of each mirrored pair, one of them),
+        grouped by bin (bin 0's cells first, each bin's in flat order).
     bin_index : ndarray of int32, shape (M,)
         Bin of each of those cells (non-decreasing).
     bin_starts : ndarray of intp, shape (B,)
@@ -93,7 +99,8 @@ def direction_bins(
 
     A spectrum line at angle ``psi`` comes from image lines at ``psi + pi/2``; cells between
     ``min_radius_px`` and the Nyquist circle (half the longer side) take part, so every direction sees
-    the same radial range. Cached by value (read-only: shared by every call with the same values).
+    the same radial range, each once for itself and its mirror (module notes). Cached by value
+    (read-only: shared by every call with the same values).
 
     Raises
     ------
@@ -131,6 +138,15 @@ def _direction_bins(
     radius = np.hypot(u, v)
     outer = max(shape) / 2.0
     inside = (radius >= min_radius_px) & (radius <= outer)
+    # One cell of each mirrored pair in the columns u = 0 and u = Nyquist (module notes): the rows
+    # whose mirror row is lower are left out. Both counted, the cells on the v axis weighed twice
+    # in their bins' means, and a map turned by 90 degrees read another curve at 0 and 90 degrees
+    # (8 % apart on Bormann's lab_ipa, which found a third direction only when turned).
+    rows = shape[0]
+    mirrored = np.arange(rows) > (-np.arange(rows)) % rows
+    inside[mirrored, 0] = False
+    if shape[1] % 2 == 0:
+        inside[mirrored, -1] = False
     cell_index = np.flatnonzero(inside)
     wall_angle = np.arctan2(v.ravel()[cell_index], u.ravel()[cell_index]) + math.pi / 2
     bin_index = np.rint(wall_angle / step).astype(np.intp) % n_bins
