@@ -39,7 +39,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rose.errors import RoseError
-from rose.labelling import components, label_boxes
+from rose.labelling import FLOOD_FILL_MAX_SIDE, components, label_boxes
 from rose.limits import integer_number, pair_of
 
 __all__ = [
@@ -386,7 +386,9 @@ def _long_at(
     """
     import cv2
 
-    if rows.size > _MAX_FILLS:
+    # (OpenCV's flood fill goes wrong on a side over FLOOD_FILL_MAX_SIDE: it filled a short piece
+    # 65,536 columns away as part of a long wall.)
+    if rows.size > _MAX_FILLS or max(walls.shape) > FLOOD_FILL_MAX_SIDE:
         keep, labels = _long_labels(walls, min_extent_px, bridge_px)
         return keep[labels[rows, cols]]
     joined = _bridged(walls, bridge_px)

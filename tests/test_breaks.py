@@ -369,3 +369,17 @@ def test_earlier_grid_memo_gives_the_same_verdicts() -> None:
                 assert contradicted_walls(earlier, later, memo=memo, **kw) == expected
                 erased += expected.erased_px
     assert erased > 0  # the memo was used
+
+
+def test_a_short_piece_a_flood_fills_length_away_from_a_long_wall_stays_short() -> None:
+    """OpenCV's flood fill keeps its coordinates in 16 bits: from a long wall past column 65,536
+    it filled the rows beside columns 65,536 to the left too, and a short piece there (6 cells)
+    was read as part of the long wall, an erased wall."""
+    cols = 66_100
+    earlier = np.zeros((40, cols), np.int8)
+    earlier[10, 66_000:66_030] = 100  # a long wall past column 65,536
+    earlier[11, 470:476] = 100  # a short piece 65,536 columns to its left
+    earlier[30, 1000:65_000:900] = 100  # 72 specks: the cells are looked up in one box
+    erased = erased_walls(earlier, np.zeros_like(earlier))
+    assert erased[10].sum() == 30
+    assert not erased[11].any()
