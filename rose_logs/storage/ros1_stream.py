@@ -680,16 +680,26 @@ def _indexed_messages(
             item = next(_record_items(_OP_MESSAGE, *record))
             if not isinstance(item, tuple) or item[0] != conn:
                 return None
-            # A damaged data length ends the record early or late: the next record (read in
-            # full, not only where the index points) would not start where this one ends.
-            if view.tell() < len(content):  # its header is enough (not a map's megabyte)
-                after = _fields(_read_block(view, len(content), "header"))
-                if _op(after) not in (_OP_MESSAGE, _OP_CONNECTION):
-                    return None
+            if not record_follows(view, len(content)):
+                return None
             messages.append(item)
     except _Damage:
         return None
     return messages
+
+
+def record_follows(view: BinaryIO, size: int) -> bool:
+    """Whether a message or connection record starts where ``view`` (a chunk's data of ``size``
+    bytes, just past a message record) is, or the data ends there. A damaged data length ends the
+    record early or late: the next record (read in full, not only where the index points) would
+    not start where this one ends. ``view`` is left past that record's header."""
+    if view.tell() >= size:
+        return view.tell() == size
+    try:  # its header is enough (not a map's megabyte)
+        after = _fields(_read_block(view, size, "header"))
+        return _op(after) in (_OP_MESSAGE, _OP_CONNECTION)
+    except _Damage:
+        return False
 
 
 def chunk_messages(

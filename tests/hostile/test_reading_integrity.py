@@ -695,16 +695,11 @@ def test_a_ros1_bag_whose_chunk_info_is_damaged_is_said_so_and_read_record_by_re
     assert _messages(log, salvage=True) == _in_file_order(bag)
 
 
-def test_salvage_through_the_index_data_still_sees_a_damaged_record_length(
-    tmp_path: Path, ros1_bags: dict[str, Path]
-) -> None:
-    """A flipped bit in a located message record's data length (an uncompressed chunk) gave that
-    message cut short, with no loss said, once records were read where the index data points: the
-    record after it must start where it ends, else the chunk is read record by record, which
-    finds the damage, and it is skipped and said, as before."""
+def _damage_a_message_length(bag: Path, out: Path, flip: int) -> int:
+    """A copy of ``bag`` (uncompressed chunks) with the data length of the first message record
+    of its middle chunk xor ``flip`` (0x08: 8 bytes off); the chunk's position."""
     import struct
 
-    bag = ros1_bags["none"]
     data = bytearray(bag.read_bytes())
     chunks = _chunk_infos(bag)
     pos = chunks[len(chunks) // 2][0]
@@ -712,14 +707,51 @@ def test_salvage_through_the_index_data_still_sees_a_damaged_record_length(
     entries = _index_data_after(data, pos)
     at = min(struct.unpack_from("<I", data, a)[0] for a, _, _ in entries)  # its first message
     length_at = content_at + at + 4 + struct.unpack_from("<I", data, content_at + at)[0]
-    data[length_at] ^= 0x08  # 8 bytes off
+    data[length_at] ^= flip
+    out.write_bytes(bytes(data))
+    return pos
+
+
+def test_salvage_through_the_index_data_still_sees_a_damaged_record_length(
+    tmp_path: Path, ros1_bags: dict[str, Path]
+) -> None:
+    """A flipped bit in a located message record's data length (an uncompressed chunk) gave that
+    message cut short, with no loss said, once records were read where the index data points: the
+    record after it must start where it ends, else the chunk is read record by record, which
+    finds the damage, and it is skipped and said, as before."""
+    bag = ros1_bags["none"]
     log = tmp_path / "in.bag"
-    log.write_bytes(bytes(data))
+    _damage_a_message_length(bag, log, 0x08)
     whole = {(t, bytes(d)) for t, _, d in _messages(bag)}
     with LogReader(log, salvage=True) as reader:
         kept = [(m.channel.topic, bytes(m.data)) for m in reader.messages()]
         assert any("skipped a damaged chunk" in loss for loss in reader.losses), reader.losses
     assert set(kept) <= whole  # nothing cut short
+
+
+@pytest.mark.parametrize("flip", [0x08, 0xFF])
+def test_a_damaged_message_record_length_is_an_error_not_a_message_cut_short(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], ros1_bags: dict[str, Path], flip: int
+) -> None:
+    """A damaged data length of a message record (an uncompressed chunk, the index intact): read
+    without --salvage, rosbags gave that message cut short (a map then skipped as malformed, a
+    scan copied cut short into the output) and process exited 0, while --salvage said the chunk
+    damaged. The record after it must start where it ends: an error naming the chunk."""
+    bag = ros1_bags["none"]
+    log = tmp_path / "in.bag"
+    pos = _damage_a_message_length(bag, log, flip)
+    whole = {(t, bytes(d)) for t, _, d in _messages(bag)}
+    read = []
+    with (
+        pytest.raises(LogReadError, match=f"the chunk at byte {pos} of "),
+        LogReader(log) as reader,
+    ):
+        read.extend((m.channel.topic, bytes(m.data)) for m in reader.messages())
+    assert set(read) <= whole  # nothing cut short was handed out
+    out = tmp_path / "out.bag"
+    code, _, err = _run(capsys, "process", log, "-o", out, "-q")
+    assert code == 1 and len(err.splitlines()) == 1 and not out.exists(), err
+    assert err.startswith(f"error: {log}: the chunk at byte {pos} of "), err
 
 
 @pytest.mark.parametrize("compression", ["none", "bz2"])
