@@ -381,6 +381,27 @@ def _chunk_items(content: bytes) -> Iterator[_Connection | tuple[int, int, bytes
 _OP_INDEX_DATA = 0x04
 
 
+def _bag_header(
+    stream: BinaryIO, size: int, first_chunk: int | None
+) -> tuple[dict[str, bytes], bytes] | None:
+    """The bag header record (``stream`` is past the magic line), ``stream`` left after it.
+
+    ``first_chunk``: where the index places the first chunk. The header's data is padding (to
+    byte 4109 in a bag rosbag wrote): when its length is damaged (past the file, or ending past
+    that chunk), the walk goes on from that chunk, as it does past a damaged chunk, instead of
+    failing at the bag's first record (``--salvage`` said the bag could not be read, though its
+    index and every chunk were intact). None: a damaged length is damage (the first error)."""
+    if first_chunk is None:
+        return _read_record(stream, size)
+    fields = _fields(_read_block(stream, size, "header"))
+    raw = stream.read(4)
+    (length,) = struct.unpack("<I", raw) if len(raw) == 4 else (size,)
+    if stream.tell() + length > first_chunk:
+        stream.seek(first_chunk)
+        return fields, b""
+    return fields, stream.read(length)
+
+
 def unindexed_messages(
     path: Path,
     listed: dict[int, dict[int, int]],
@@ -413,7 +434,8 @@ def unindexed_messages(
     with path.open("rb") as stream:
         stream.readline()  # the magic line (checked by whoever opened the bag)
         try:
-            header = _read_record(stream, size)
+            first_chunk = starts[0] if skip_damaged_chunks and starts else None
+            header = _bag_header(stream, size, first_chunk)
             index_pos = _uint(header[0], "index_pos", "<Q") if header is not None else 0
             chunk: dict[int, int] | None = None
             chunk_at = -1  # where the chunk ``chunk`` counts the index entries of starts
@@ -555,13 +577,16 @@ def read_index(path: Path) -> BagIndex:
             if stream.read(len(_MAGIC)) != _MAGIC:
                 msg = "not a ROS bag 2.0 file"
                 raise _Damage(msg)
-            header = _read_record(stream, size)
-            if header is None:
+            if stream.tell() >= size:
                 msg = "no bag header"
                 raise _Damage(msg)
-            index_pos = _uint(header[0], "index_pos", "<Q")
-            conn_count = _uint(header[0], "conn_count", "<I")
-            chunk_count = _uint(header[0], "chunk_count", "<I")
+            header = _fields(_read_block(stream, size, "header"))
+            # Its data is padding, which rosbags does not read either: a damaged length of it is
+            # no damage of the index (unindexed_messages walks on from the first chunk).
+            stream.seek(4, io.SEEK_CUR)
+            index_pos = _uint(header, "index_pos", "<Q")
+            conn_count = _uint(header, "conn_count", "<I")
+            chunk_count = _uint(header, "chunk_count", "<I")
             if not stream.tell() <= index_pos < size:
                 msg = f"the bag header places its index at byte {index_pos}, outside the file"
                 raise _Damage(msg)

@@ -858,6 +858,30 @@ def test_a_ros1_bag_whose_header_misplaces_its_index_is_read_whole_and_loses_not
     assert _messages(odd, salvage=True) == _in_file_order(bag)
 
 
+@pytest.mark.parametrize("length", [0x40000000, 4096 + 1000])
+def test_a_ros1_bag_whose_header_padding_length_is_damaged_is_salvaged_whole(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], ros1_bag: tuple[Path, list], length: int
+) -> None:
+    """The data length of the bag header record (its padding) damaged, past the file or into the
+    first chunk, the index and every chunk intact: --salvage said "--salvage reads the bag record
+    by record" and exited 1. It reads the bag through its index and loses nothing; without
+    --salvage, one error line."""
+    import struct
+
+    bag, _ = ros1_bag
+    data = bytearray(bag.read_bytes())
+    header_length = struct.unpack_from("<I", data, 13)[0]
+    struct.pack_into("<I", data, 13 + 4 + header_length, length)
+    odd = tmp_path / "odd.bag"
+    odd.write_bytes(bytes(data))
+    code, _, err = _run(capsys, "process", odd, "--no-output", "-q")
+    assert code == 1 and len(err.splitlines()) == 1 and str(odd) in err, err
+    code, _, err = _run(capsys, "process", odd, "--no-output", "-q", "--salvage")
+    assert code == 0, err  # a warning, but no message is lost
+    assert "read chunk by chunk through its chunk infos" in err
+    assert _messages(odd, salvage=True) == _messages(bag)
+
+
 @pytest.mark.parametrize(
     "damage",
     [
