@@ -112,10 +112,33 @@ class RosbagsReadBackend:
             if self.path.is_dir():
                 self._check_types()
                 self._warn_unlisted_storage(information)
-        if sum(c.message_count for c in channels):
+        from_storage = self.path.is_dir() and self._times_from_storage()  # a ROS 2 bag folder
+        if not from_storage and any(c.message_count for c in channels):
             self.start_ns = int(self.reader.start_time)
             # rosbags reports the end as "1 ns after the last message"
             self.end_ns = max(self.start_ns, int(self.reader.end_time) - 1)
+
+    def _times_from_storage(self) -> bool:
+        """Take the time range of a bag folder as its storage files hold it: their first and
+        last message's timestamps, which rosbags reads from each file when it opens it (a SQLite
+        file's messages table, an MCAP file's statistics), as for a bare file. rosbags gives the
+        range metadata.yaml states (starting_time, duration): one that lies shifted every session
+        time of the report (a starting_time of 2020 put the snapshots of a 2023 recording at
+        +100000005 s), one past 2**63 made a traceback. False (nothing taken) when no file
+        states a range (MCAP files without statistics): metadata.yaml's stands."""
+        starts: list[int] = []
+        ends: list[int] = []
+        for storage in self.storage_readers():
+            meta = getattr(storage, "metadata", None)  # none: a file that did not open (salvage)
+            start: Any = getattr(meta, "start_time", None)
+            end: Any = getattr(meta, "end_time", None)
+            if _valid_time(start) and _valid_time(end) and start < end:  # (an empty file: no)
+                starts.append(start)
+                ends.append(end - 1)  # "1 ns after the last message", as above
+        if not starts:
+            return False
+        self.start_ns, self.end_ns = min(starts), max(ends)
+        return True
 
     def _tolerate_unopened_files(self) -> None:
         """Make rosbags' reader of this bag folder open its SQLite files as

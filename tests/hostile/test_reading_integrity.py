@@ -1085,6 +1085,39 @@ def test_metadata_type_disagreeing_with_storage_is_an_error(
     assert "metadata.yaml disagrees with the storage" in err and "/scan" in err
 
 
+@pytest.mark.parametrize("fmt", ["db3", "mcap-dir"])
+@pytest.mark.parametrize(
+    "starting_time",
+    [1_600_000_000_000_000_000, 10**23, -(10**20)],
+)
+def test_a_bag_folder_whose_metadata_misstates_its_start_reports_its_messages_times(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], starting_time: int, fmt: str
+) -> None:
+    """metadata.yaml's starting_time (with its duration) was taken for the bag's time range: one
+    that lies gave a time range of 2020 for a recording of 2023 and snapshots at +100000005 s,
+    one past the years a date can hold a traceback (info and process). The range is the one the
+    storage holds (its first and last message), as for a bare storage file."""
+    log = tmp_path / "bag"
+    write_session(log, fmt)
+    with LogReader(storage_file(log)) as reader:
+        span = reader.start_ns, reader.end_ns
+    meta = log / "metadata.yaml"
+    text = meta.read_text()
+    declared = f"nanoseconds_since_epoch: {span[0]}"
+    assert declared in text
+    meta.write_text(text.replace(declared, f"nanoseconds_since_epoch: {starting_time}"))
+    with LogReader(log) as reader:
+        assert (reader.start_ns, reader.end_ns) == span
+    report = tmp_path / "r.json"
+    code, _, err = _run(capsys, "process", log, "--no-output", "-q", "--json", report)
+    assert code == 0, err
+    data = json.loads(report.read_text())
+    assert (data["start_ns"], data["end_ns"]) == span
+    assert all(0 <= s["time_s"] <= (span[1] - span[0]) / 1e9 for s in data["snapshots"])
+    code, out, err = _run(capsys, "info", log)
+    assert code == 0 and "time range   2023-11-14 " in out, err
+
+
 @pytest.mark.parametrize("which", [0, 1])
 def test_a_split_bag_file_of_another_type_than_metadata_is_an_error_naming_it(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], which: int
