@@ -24,6 +24,7 @@ import queue
 import struct
 import sys
 import threading
+import time
 import uuid
 import weakref
 from collections.abc import Callable, Sequence
@@ -43,6 +44,7 @@ from rose_logs.rerun.loggers import TopicLogger, cells_to_map_m, set_snapshot_ti
 from rose_logs.rerun.paths import EntityPaths, entity_root_for_topic
 from rose_logs.rerun.viewer import (
     SPAWNED_VIEWER,
+    ViewerLost,
     ViewerNotStarted,
     grpc_url,
     viewer_unreachable,
@@ -595,9 +597,14 @@ class RerunSink:
         self._flush_failed = True
         last_size, stalled = -1, 0
         while True:
+            started = time.monotonic()
             try:
                 self.recording.flush(timeout_sec=_FLUSH_STEP_S)
-            except RuntimeError:
+            except RuntimeError as err:
+                if self._viewer_refused(time.monotonic() - started):
+                    # Nothing waits on a dead writer: abort() may disconnect and release it.
+                    self._flush_failed = False
+                    raise ViewerLost(str(err)) from err
                 size = self.written_bytes()
                 stalled = stalled + 1 if size <= last_size else 0
                 if stalled >= _STALL_STEPS:
@@ -611,6 +618,21 @@ class RerunSink:
                 raise
             self._flush_failed = False
             return
+
+    def _viewer_refused(self, waited_s: float) -> bool:
+        """Whether a flush that failed after ``waited_s`` seconds failed for the live viewer alone:
+        at once (a viewer that went away refuses at once; a dead file writer, or a stalled
+        viewer, only ever times out), with the recording's file, if any, whole. With ``--rrd``
+        too, the viewer's failure was said to be the recording's file that could not be written."""
+        if not self.live or waited_s >= _FLUSH_STEP_S / 2:
+            return False
+        if self.tmp is None:
+            return True
+        try:
+            _require_whole_stream(self.tmp)
+        except OSError:
+            return False
+        return True
 
     def written_bytes(self) -> int:
         """Bytes of the recording's file written so far (0 without a file or once it is gone)."""

@@ -10,6 +10,7 @@ import urllib.parse
 
 __all__ = [
     "SPAWNED_VIEWER",
+    "ViewerLost",
     "ViewerNotStarted",
     "grpc_url",
     "viewer_endpoint",
@@ -61,6 +62,11 @@ SPAWNED_VIEWER = "127.0.0.1:9876"
 
 class ViewerNotStarted(RuntimeError):
     """The viewer :class:`RerunSink` spawned is not listening (it could not open a window)."""
+
+
+class ViewerLost(RuntimeError):
+    """The live viewer a recording streamed to went away (closed, killed) before the recording
+    was finished; its file, if any, was written whole."""
 
 
 def viewer_unreachable(address: str) -> str | None:

@@ -302,8 +302,11 @@ def rerun_failure(
     written: int | None = None,
 ) -> str:
     """One line for a Rerun recording that could not be finished, naming where it was going
-    (``written``: bytes of its partial file, None when unknown)."""
-    if rrd_path is not None:
+    (``written``: bytes of its partial file, None when unknown; a
+    :class:`~rose_logs.rerun.viewer.ViewerLost` names the viewer, the file being whole)."""
+    from rose_logs.rerun.viewer import ViewerLost  # no Rerun import
+
+    if rrd_path is not None and not isinstance(err, ViewerLost):
         # Rerun says only that its file writer stopped; a full disk is the usual reason.
         why = f"{short(err, 160)}{_full(Path(rrd_path))}{_limited(written)}"
         return f"{rrd_path}: cannot write the Rerun recording ({why})"

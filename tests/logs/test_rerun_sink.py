@@ -1185,6 +1185,47 @@ def test_a_recording_that_filled_its_disk_says_so(
         process_log(SAMPLE, rrd_path=str(tmp_path / "run.rrd"))
 
 
+def test_a_viewer_that_went_away_is_named_not_the_recording_file(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """--rrd with --connect: a viewer closed during the session failed the run as
+    "run.rrd: cannot write the Rerun recording (gRPC connection severed ...)", though the file was
+    written whole; and the recording was then never released, which made the process exit 1
+    whatever it went on to do (a program calling process_log, exit status 0 asked)."""
+    import socket
+    import threading
+
+    from rose_logs.errors import LogWriteError
+    from rose_logs.rerun import sink as sink_module
+
+    monkeypatch.setattr(sink_module, "_STALLED", [])
+    # A "viewer" that accepts the probe and every connection, and closes it at once.
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen(16)
+    port = server.getsockname()[1]
+
+    def refuse() -> None:
+        while True:
+            try:
+                connection, _ = server.accept()
+            except OSError:  # closed: the test is over
+                return
+            connection.close()
+
+    threading.Thread(target=refuse, daemon=True).start()
+    try:
+        with pytest.raises(LogWriteError) as caught:
+            process_log(SAMPLE, rrd_path=tmp_path / "run.rrd", connect=str(port))
+    finally:
+        server.close()
+    assert str(caught.value).startswith(
+        f"cannot stream to the Rerun viewer at {port}; is it running? ("
+    )
+    assert sink_module._STALLED == []  # released: the process keeps its own exit status
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_a_recording_that_cannot_be_opened_is_named_as_given(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
