@@ -49,3 +49,23 @@ def test_a_map_example_runs_and_writes_a_loadable_map(
     # Cleaning removes occupied cells and never invents free space out of unknown.
     assert (written.grid >= 65).sum() < (original.grid >= 65).sum()
     assert ((original.grid == -1) & (written.grid == 0)).sum() == 0
+
+
+def test_the_web_viewer_address_opens_the_recording() -> None:
+    """``rerun --serve-web`` serves its viewer at :9090 and the recording over gRPC at :9876: the
+    browser address must name the latter (``?url=``), as Rerun prints it; the README's bare
+    ``http://127.0.0.1:9090`` opened Rerun's welcome page. And ``rerun --serve-grpc`` shows
+    nothing: it was offered as "a viewer to stream to"."""
+    import urllib.parse
+
+    from rose_logs.rerun.viewer import grpc_url
+
+    text = README.read_text(encoding="utf-8")
+    section = text[text.index("### Looking at a session in Rerun") :]
+    section = section[: section.index("\n### ")]
+    addresses = re.findall(r"https?://127\.0\.0\.1:9090\S*", section)
+    assert addresses
+    wanted = f"/?url={urllib.parse.quote(grpc_url('9876'), safe='')}"
+    assert all(address.rstrip("`,.)").endswith(wanted) for address in addresses), addresses
+    for line in section.splitlines():
+        assert not ("--serve-grpc" in line and "a viewer to stream to" in line), line
