@@ -97,9 +97,7 @@ def session_times_ns(rrd_path: Path) -> list[int]:
     """Sorted distinct ``session_time`` values (ns) of the recording's snapshots."""
     from rerun.chunk import RrdReader
 
-    if not Path(rrd_path).is_file():
-        msg = f"{rrd_path}: no such recording"
-        raise ScreenshotError(msg)
+    _check_recording(rrd_path)
     times: set[int] = set()
     try:
         with warnings.catch_warnings():
@@ -116,6 +114,45 @@ def session_times_ns(rrd_path: Path) -> list[int]:
         msg = f"{rrd_path}: not a readable Rerun recording ({short(str(err), 120)})"
         raise ScreenshotError(msg) from err
     return sorted(times)
+
+
+def _check_recording(rrd_path: Path) -> None:
+    """ScreenshotError unless ``rrd_path`` is a file (a folder was said to be no such recording)."""
+    path = Path(rrd_path)
+    if path.is_file():
+        return
+    why = "is a folder, not a recording" if path.is_dir() else "no such recording"
+    msg = f"{rrd_path}: {why}"
+    raise ScreenshotError(msg)
+
+
+def _not_a_folder(path: Path) -> ScreenshotError:
+    """The error for an ``--out`` that is, or goes through, the file ``path``."""
+    return ScreenshotError(f"{path}: not a folder (--out names the folder for the PNGs)")
+
+
+def _check_out_dir(out_dir: Path) -> None:
+    """ScreenshotError when ``out_dir``, or the nearest of its folders that exists, is a file."""
+    for folder in (out_dir, *out_dir.parents):
+        if folder.exists():
+            if not folder.is_dir():
+                raise _not_a_folder(folder)
+            return
+
+
+def _make_out_dir(out_dir: Path) -> bool:
+    """Create the PNGs' folder ``out_dir`` if needed; whether it was created. ScreenshotError, in
+    one line naming it, when it cannot be (a file of that name said only "[Errno 17] File
+    exists")."""
+    created = not out_dir.exists()
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except (FileExistsError, NotADirectoryError) as err:
+        raise _not_a_folder(out_dir) from err
+    except OSError as err:
+        msg = f"{out_dir}: cannot create the folder for the PNGs ({err.strerror or err})"
+        raise ScreenshotError(msg) from err
+    return created
 
 
 def _free_port() -> int:
@@ -244,10 +281,13 @@ def take_screenshots(
     Raises
     ------
     ScreenshotError
-        If Chromium, Playwright or ``rerun`` is missing or does not start.
+        If Chromium, Playwright or ``rerun`` is missing or does not start, ``rrd_path`` is no
+        file, or ``out_dir`` is no folder (a file) or cannot be created.
     rose.OutputError
         If two shots have one name or a PNG's place is taken by a folder (before anything starts).
     """
+    _check_recording(rrd_path)  # the arguments first, then what is installed
+    _check_out_dir(out_dir)
     try:
         from playwright.sync_api import Error as PlaywrightError
         from playwright.sync_api import sync_playwright
@@ -258,9 +298,6 @@ def take_screenshots(
     if browser_path is None:
         msg = "no Chromium found (apt-get install chromium, or set ROSE_CHROMIUM)"
         raise ScreenshotError(msg)
-    if not Path(rrd_path).is_file():
-        msg = f"{rrd_path}: no such recording"
-        raise ScreenshotError(msg)
     if time_points is None:
         time_points = len(session_times_ns(Path(rrd_path)))
     if time_points < 1:
@@ -270,8 +307,7 @@ def take_screenshots(
     from rose.outputs import OutputSet
 
     paths = [out_dir / f"{prefix}{name}.png" for name, _ in steps]
-    created = not out_dir.exists()
-    out_dir.mkdir(parents=True, exist_ok=True)
+    created = _make_out_dir(out_dir)
     try:
         # Refused before the viewer starts (two shots of one name, a folder in the way), not
         # after all the browser's work.

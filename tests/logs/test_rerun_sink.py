@@ -945,6 +945,34 @@ def test_the_screenshot_tool_says_in_one_line_what_it_cannot_read(
     assert not (tmp_path / "shots").exists()
 
 
+def test_the_screenshot_tool_names_an_out_that_is_no_folder_and_a_folder_given_as_recording(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--out`` naming a file said "error: [Errno 17] File exists: '...'" (after starting
+    nothing, but naming no problem); a folder given as the recording, "no such recording"."""
+    import rerun as rr
+
+    from rose_logs.rerun.screenshots import main as screenshots
+
+    rrd = tmp_path / "s.rrd"
+    recording = _recording_at_zero(rrd)
+    recording.log(f"/{PATHS.w}", rr.Scalars(0.1))
+    recording.flush()
+    recording.disconnect()
+    taken = tmp_path / "notes.txt"
+    taken.write_text("kept")
+    for given, out, said in (
+        (rrd, taken, f"{taken}: not a folder (--out names the folder for the PNGs)"),
+        (rrd, taken / "shots", f"{taken}: not a folder"),
+        (tmp_path, tmp_path / "shots", f"{tmp_path}: is a folder, not a recording"),
+    ):
+        assert screenshots([str(given), "--out", str(out)]) == 1
+        err = capsys.readouterr().err
+        assert err.startswith(f"error: {said}") and err.count("\n") == 1, err
+    assert taken.read_text() == "kept"
+    assert not (tmp_path / "shots").exists()
+
+
 @pytest.mark.parametrize(
     "option",
     [("--time", "inf"), ("--time", "1e300"), ("--time", "-2"), ("--width", "0")],
