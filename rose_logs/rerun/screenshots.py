@@ -185,7 +185,9 @@ def _serve(rrd_path: Path) -> Iterator[tuple[int, int]]:
     web_port, grpc_port = _free_port(), _free_port()
     command = [
         rerun_exe,
-        str(rrd_path),
+        # Absolute: rerun read a name starting with "-" (a path gives "./-x.rrd" as "-x.rrd") as
+        # an option, and exited.
+        str(Path(rrd_path).absolute()),
         "--serve-web",
         "--bind",
         "127.0.0.1",

@@ -973,6 +973,41 @@ def test_the_screenshot_tool_names_an_out_that_is_no_folder_and_a_folder_given_a
     assert not (tmp_path / "shots").exists()
 
 
+def test_the_screenshot_tool_serves_a_recording_whose_name_starts_with_a_dash(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``./-run.rrd`` (a Path gives it as ``-run.rrd``) went to ``rerun`` as an option: "rerun
+    exited with code 2 before serving the web viewer"."""
+    import subprocess
+
+    from rose_logs.rerun import screenshots
+
+    recording = tmp_path / "-run.rrd"
+    recording.write_bytes(b"")
+    monkeypatch.chdir(tmp_path)
+    started: list[list[str]] = []
+
+    class Exited:
+        pid = 2**30  # above any pid_max: no process group of that id to signal
+        returncode = 2
+
+        def __init__(self, command: list[str], **kwargs: object) -> None:
+            started.append(command)
+
+        def poll(self) -> int:
+            return 2
+
+        def wait(self, timeout: float | None = None) -> int:
+            return 2
+
+    monkeypatch.setattr(subprocess, "Popen", Exited)
+    monkeypatch.setattr(screenshots.os, "killpg", lambda pid, sig: None)
+    with pytest.raises(screenshots.ScreenshotError), screenshots._serve(Path("./-run.rrd")):
+        pass
+    given = started[0][1]
+    assert not given.startswith("-") and Path(given).samefile(recording)
+
+
 @pytest.mark.parametrize(
     "option",
     [("--time", "inf"), ("--time", "1e300"), ("--time", "-2"), ("--width", "0")],
