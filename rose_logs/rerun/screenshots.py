@@ -182,12 +182,36 @@ def _serve(rrd_path: Path) -> Iterator[tuple[int, int]]:
     if rerun_exe is None:
         msg = "the rerun executable (from rerun-sdk) is not on PATH"
         raise ScreenshotError(msg)
+    with contextlib.ExitStack() as stack:
+        yield from _serve_as_rrd(rerun_exe, _named_rrd(Path(rrd_path), stack))
+
+
+def _named_rrd(rrd_path: Path, stack: contextlib.ExitStack) -> Path:
+    """``rrd_path``, absolute, or a link to it named ``.rrd`` (in a folder ``stack`` removes).
+
+    ``rerun`` picks how to open a file by its suffix: a recording under another name
+    (``rose-bag process --rrd run.bin`` writes one, with a warning) loaded as nothing, and every
+    PNG showed the viewer's welcome page. Absolute: a name starting with "-" (a Path gives
+    ``./-x.rrd`` as ``-x.rrd``) was read as an option, and rerun exited."""
+    path = rrd_path.absolute()
+    if path.suffix == ".rrd":
+        return path
+    folder = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="rose-rrd-")))
+    link = folder / "recording.rrd"
+    try:
+        link.symlink_to(path)
+    except OSError as err:  # no symbolic links here (Windows without the right)
+        msg = f"{rrd_path}: rerun opens recordings named .rrd only; rename it ({err})"
+        raise ScreenshotError(msg) from err
+    return link
+
+
+def _serve_as_rrd(rerun_exe: str, rrd_path: Path) -> Iterator[tuple[int, int]]:
+    """:func:`_serve` of the ``.rrd``-named, absolute ``rrd_path``."""
     web_port, grpc_port = _free_port(), _free_port()
     command = [
         rerun_exe,
-        # Absolute: rerun read a name starting with "-" (a path gives "./-x.rrd" as "-x.rrd") as
-        # an option, and exited.
-        str(Path(rrd_path).absolute()),
+        str(rrd_path),
         "--serve-web",
         "--bind",
         "127.0.0.1",

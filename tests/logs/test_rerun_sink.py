@@ -973,19 +973,23 @@ def test_the_screenshot_tool_names_an_out_that_is_no_folder_and_a_folder_given_a
     assert not (tmp_path / "shots").exists()
 
 
-def test_the_screenshot_tool_serves_a_recording_whose_name_starts_with_a_dash(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+@pytest.mark.parametrize("name", ["-run.rrd", "run.bin", "-run"])
+def test_the_screenshot_tool_serves_a_recording_named_with_a_dash_or_no_rrd_suffix(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, name: str
 ) -> None:
     """``./-run.rrd`` (a Path gives it as ``-run.rrd``) went to ``rerun`` as an option: "rerun
-    exited with code 2 before serving the web viewer"."""
+    exited with code 2 before serving the web viewer". A recording not named ``.rrd`` (``rose-bag
+    process --rrd run.bin`` writes one, with a warning): rerun, which picks how to open a file by
+    its suffix, loaded nothing, and the PNGs showed its welcome page (exit 0)."""
     import subprocess
 
     from rose_logs.rerun import screenshots
 
-    recording = tmp_path / "-run.rrd"
+    recording = tmp_path / name
     recording.write_bytes(b"")
     monkeypatch.chdir(tmp_path)
     started: list[list[str]] = []
+    served: list[Path] = []
 
     class Exited:
         pid = 2**30  # above any pid_max: no process group of that id to signal
@@ -993,6 +997,7 @@ def test_the_screenshot_tool_serves_a_recording_whose_name_starts_with_a_dash(
 
         def __init__(self, command: list[str], **kwargs: object) -> None:
             started.append(command)
+            served.append(Path(command[1]).resolve())
 
         def poll(self) -> int:
             return 2
@@ -1002,10 +1007,13 @@ def test_the_screenshot_tool_serves_a_recording_whose_name_starts_with_a_dash(
 
     monkeypatch.setattr(subprocess, "Popen", Exited)
     monkeypatch.setattr(screenshots.os, "killpg", lambda pid, sig: None)
-    with pytest.raises(screenshots.ScreenshotError), screenshots._serve(Path("./-run.rrd")):
+    with pytest.raises(screenshots.ScreenshotError), screenshots._serve(Path(f"./{name}")):
         pass
     given = started[0][1]
-    assert not given.startswith("-") and Path(given).samefile(recording)
+    assert not given.startswith("-") and given.endswith(".rrd")
+    assert served == [recording.resolve()]
+    if not name.endswith(".rrd"):  # a link, gone with the server
+        assert not Path(given).exists()
 
 
 @pytest.mark.parametrize(
