@@ -24,7 +24,7 @@ __all__ = ["TopicLayout", "default_blueprint", "segmentation_title"]
 
 _FOV_Y_RAD = math.radians(55.0)  # the 3D view's default vertical field of view
 _ASSUMED_ASPECT = 1.3  # width / height of the metric view in the default layout
-_GRID_HEIGHT_M = 0.05  # the metric grid's plane, just above the map (z = 0 in the map frame)
+_GRID_HEIGHT_M = 0.05  # the metric grid's plane, just above the map (TopicLayout.height_m)
 _ONE_TIME_POINT_SIZE = 5.0  # a one-time topic's plotted values, wider than the time cursor
 
 
@@ -42,6 +42,11 @@ class TopicLayout:
     view_origin_m : tuple of float
         Map-frame point at the views' 0, the 2D views' and the metric view's
         (:func:`rose_logs.rerun.loggers.view_origin_m`).
+    height_m : float
+        Map-frame height of the maps (their first snapshot's origin z, metres): the metric view's
+        grid floats just above it and its camera looks down at it. A floor of a multi-storey map
+        lies at its origin's z; at z = 0 the grid was hidden under the map and the camera, that
+        much nearer, cut the map off.
     has_events : bool
         Whether the topic has break events (the events view is shown only then).
     has_walls : bool
@@ -64,6 +69,7 @@ class TopicLayout:
     root: str
     bounds_m: tuple[float, float, float, float] | None = None
     view_origin_m: tuple[float, float] = (0.0, 0.0)
+    height_m: float = 0.0
     has_events: bool = False
     has_walls: bool = False
     walls_cleaning: bool = True
@@ -104,8 +110,8 @@ def _metric_eye(layout: TopicLayout) -> rrb.EyeControls3D | None:
     height = 1.05 * max(half_y / tan_half, half_x / (tan_half * _ASSUMED_ASPECT))
     return rrb.EyeControls3D(
         kind=rrb.Eye3DKind.Orbital,
-        position=[cx, cy, height],
-        look_target=[cx, cy, 0.0],
+        position=[cx, cy, layout.height_m + height],
+        look_target=[cx, cy, layout.height_m],
         eye_up=[0.0, 1.0, 0.0],
     )
 
@@ -159,7 +165,7 @@ def _topic_container(layout: TopicLayout) -> rrb.Container:
         line_grid=rrb.LineGrid3D(
             visible=True,
             spacing=spacing,
-            plane=rr.components.Plane3D((0.0, 0.0, 1.0), distance=_GRID_HEIGHT_M),
+            plane=rr.components.Plane3D((0.0, 0.0, 1.0), distance=layout.height_m + _GRID_HEIGHT_M),
             stroke_width=1.0,
             color=(90, 90, 90, 110),
         ),

@@ -165,9 +165,11 @@ def _layout_of(
     view_origin: tuple[float, float] | None,
     has_walls: bool = False,
     walls_cleaning: bool = True,
+    height_m: float = 0.0,
 ) -> TopicLayout:
     """Layout of a topic framed on ``bounds_m``, the known part of every map of the session so far
-    (``view_origin``: the 2D views' 0, see :func:`rose_logs.rerun.loggers.view_origin_m`)."""
+    (``view_origin``: the 2D views' 0, see :func:`rose_logs.rerun.loggers.view_origin_m`;
+    ``height_m``: the maps' height in the map frame, their first origin's z, metres)."""
     if bounds_m is None:
         return TopicLayout(
             root, has_events=has_events, has_walls=has_walls, walls_cleaning=walls_cleaning
@@ -176,6 +178,7 @@ def _layout_of(
         root,
         bounds_m=bounds_m,
         view_origin_m=view_origin if view_origin is not None else (0.0, 0.0),
+        height_m=height_m,
         has_events=has_events,
         has_walls=has_walls,
         walls_cleaning=walls_cleaning,
@@ -298,6 +301,8 @@ class RerunSink:
             for topic in topics
         }
         self._latest: dict[str, MapSnapshot] = {}
+        # Per topic, its first map's origin z (metres): where the metric view looks.
+        self._height_m: dict[str, float] = dict.fromkeys(topics, 0.0)
         # Per topic, what its last snapshot showed (result, walls, cleaning), held weakly: an
         # analysis reused for an unchanged map is the same objects (see RerunSink.snapshot).
         self._shown: dict[str, tuple[weakref.ref[object] | None, ...]] = {}
@@ -408,6 +413,7 @@ class RerunSink:
         first = previous is None
         if first:  # here, not on the logging thread: the layout sent below uses it
             topic_logger.view_origin_m = view_origin_m(snapshot)
+            self._height_m[snapshot.topic] = float(snapshot.origin_position_m[2])
         self._latest[snapshot.topic] = snapshot
         if walls is not None:
             self._has_walls[snapshot.topic] = True
@@ -563,6 +569,7 @@ class RerunSink:
                 view_origin=logger.view_origin_m,
                 has_walls=self._has_walls[topic],
                 walls_cleaning=self._walls_cleaning[topic],
+                height_m=self._height_m[topic],
             )
             for topic, logger in self.loggers.items()
         )

@@ -1152,6 +1152,50 @@ def test_an_all_unknown_session_is_framed_by_its_grid(
     assert _metric_eye(layout) is not None
 
 
+def test_the_metric_view_looks_at_a_raised_map_with_its_grid_above_it(
+    tmp_path: Path, sent_layouts: list[tuple[object, ...]]
+) -> None:
+    """A map whose origin is 5 m up (a floor of a multi-storey map; the grid map is drawn there)
+    was looked at as if at z = 0: the camera 5 m nearer cut the map off, and the metric grid, at
+    z = 0.05 m, was hidden under it."""
+    import dataclasses
+
+    import rerun.blueprint as rrb
+
+    import rose
+    from rose_logs.rerun import sink as sink_module
+    from rose_logs.rerun.blueprint import _metric_eye, _topic_container
+    from rose_logs.snapshots import MapSnapshot
+
+    grid = np.full((40, 60), -1, dtype=np.int8)
+    grid[5:35, 5:55] = 0
+    grid[5, 5:55] = grid[34, 5:55] = 100
+    snapshot = MapSnapshot("/map", 1, 1, "map", grid, 0.1, (5.0, 7.0, 5.0), (0.0, 0.0, 0.0, 1.0))
+    sink = sink_module.RerunSink(
+        rrd_path=tmp_path / "x.rrd", topics=("/map",), recording_id="x", start_ns=0
+    )
+    sink.snapshot(snapshot, rose.analyze(grid), 0, None)
+    sink.close()
+    (layout,) = sent_layouts[-1]
+    eye = _metric_eye(layout)
+    assert eye is not None
+    ((*_, eye_z),) = eye.position.pa_array.to_pylist()
+    ((*_, target_z),) = eye.look_target.pa_array.to_pylist()
+    on_the_ground = _metric_eye(dataclasses.replace(layout, height_m=0.0))
+    assert on_the_ground is not None
+    ((*_, ground_eye_z),) = on_the_ground.position.pa_array.to_pylist()
+    assert target_z == pytest.approx(5.0)
+    assert eye_z == pytest.approx(5.0 + ground_eye_z)  # as far above the map as at z = 0
+    (metric,) = [
+        view
+        for view in _topic_container(layout).contents[0].contents[1].contents
+        if isinstance(view, rrb.Spatial3DView)
+    ]
+    ((*normal, distance),) = metric.properties["LineGrid3D"].plane.pa_array.to_pylist()
+    assert normal == [0.0, 0.0, 1.0]
+    assert 5.0 < distance < 5.0 + 0.1  # just above the map
+
+
 def test_the_w_plot_shows_both_guide_lines_under_a_low_failure_level(
     tmp_path: Path, sent_layouts: list[tuple[object, ...]], fr079
 ) -> None:
