@@ -10,6 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import numpy.typing as npt
 
 from rose_logs.derived import encode_cleaned
 from rose_logs.reader import LogReader
@@ -90,11 +91,19 @@ def make_fleet(root: Path) -> list[Path]:
 def big_map_recording(destination: Path, *, side: int, log_times_ns: tuple[int, ...] = ()) -> Path:
     """One ``side`` x ``side`` map (walls every 40 cells) in an MCAP file: analysing it needs memory.
     ``log_times_ns``: the map again at each of these log times, after the first."""
-    from rose_logs.snapshots import MapSnapshot
-
     grid = np.zeros((side, side), dtype=np.int8)
     grid[::40, :] = 100
     grid[:, ::40] = 100
+    return map_recording(destination, grid, log_times_ns=log_times_ns)
+
+
+def map_recording(
+    destination: Path, grid: npt.NDArray[np.int8], *, log_times_ns: tuple[int, ...] = ()
+) -> Path:
+    """``grid`` (cells of 0.05 m) as the one map of an MCAP file, latched on ``/map``;
+    ``log_times_ns``: the map again at each of these log times, after the first."""
+    from rose_logs.snapshots import MapSnapshot
+
     start_ns = 1_700_000_000_000_000_000
     snapshot = MapSnapshot(
         topic=MAP_TOPIC,

@@ -82,26 +82,9 @@ def test_a_gate_cannot_judge_a_recording_of_maps_w_cannot_read(
     """A solid block (degenerate: W does not read it) fails the gate as in `process`: batch
     counted its 10,000 occupied cells as a judged map and passed --fail-above 0.4."""
     import numpy as np
-    from fleet import MAP_TOPIC
+    from fleet import map_recording
 
-    from rose_logs.derived import encode_cleaned
-    from rose_logs.snapshots import MapSnapshot
-    from rose_logs.writer import open_output
-
-    log = tmp_path / "solid.mcap"
-    grid = np.full((100, 100), 100, dtype=np.int8)
-    start_ns = 1_700_000_000_000_000_000
-    snapshot = MapSnapshot(
-        topic=MAP_TOPIC,
-        log_time_ns=start_ns,
-        stamp_ns=start_ns,
-        frame_id="map",
-        grid=grid,
-        resolution_m=0.05,
-    )
-    with open_output(log, "mcap", serialization="cdr") as out:
-        out.add_topic(MAP_TOPIC, "nav_msgs/msg/OccupancyGrid", latching=True)
-        out.write(MAP_TOPIC, start_ns, encode_cleaned(snapshot, grid, serialization="cdr"))
+    log = map_recording(tmp_path / "solid.mcap", np.full((100, 100), 100, dtype=np.int8))
     assert main(["process", str(log), "--no-output", "-q", "--fail-above", "0.4"]) == 3
     expected = (
         f"error: {log}: /map: no map had 20 or more occupied cells in a form W reads (a solid "

@@ -458,23 +458,29 @@ def test_a_map_topic_with_two_publishers_is_said_to_be_one_session(
     assert not [r for r in caplog.records if "publishers" in r.getMessage()]
 
 
+def _ros2_mcap_writer(stream: Any) -> tuple[Any, int]:
+    """An ``mcap`` Writer started on ``stream`` (ROS 2 profile) and the id of its ``/map`` channel
+    (CDR ``nav_msgs/msg/OccupancyGrid``)."""
+    from mcap.writer import Writer
+
+    msgdef, _ = get_typestore(Stores.ROS2_HUMBLE).generate_msgdef(MAP_TYPE, ros_version=2)
+    writer = Writer(stream)
+    writer.start(profile="ros2", library="tests")
+    schema = writer.register_schema(MAP_TYPE, "ros2msg", msgdef.encode())
+    return writer, writer.register_channel("/map", "cdr", schema, {})
+
+
 def test_schemas_of_other_encodings_are_copied_as_stored(tmp_path: Path) -> None:
     """A protobuf channel beside the maps: its schema, a FileDescriptorSet, is binary. Read as
     text and written back, its bytes that are no UTF-8 became U+FFFD and the channel could no
     longer be decoded. A JSON channel without schema got an empty schema record."""
     from mcap.reader import make_reader
-    from mcap.writer import Writer
 
-    store = get_typestore(Stores.ROS2_HUMBLE)
-    msgdef, _ = store.generate_msgdef(MAP_TYPE, ros_version=2)
     # A FileDescriptorSet's start: field 1 with a two-byte varint length (0x95 0x01).
     descriptor = b"\x0a\x95\x01\x0a\x1fgoogle/protobuf/timestamp.proto\xff\xfe"
     src = tmp_path / "in.mcap"
     with src.open("wb") as f:
-        writer = Writer(f)
-        writer.start(profile="ros2", library="tests")
-        schema = writer.register_schema(MAP_TYPE, "ros2msg", msgdef.encode())
-        maps = writer.register_channel("/map", "cdr", schema, {})
+        writer, maps = _ros2_mcap_writer(f)
         proto = writer.register_schema("google.protobuf.Timestamp", "protobuf", descriptor)
         stamps = writer.register_channel("/stamp", "protobuf", proto, {})
         notes = writer.register_channel("/notes", "json", 0, {})  # no schema (id 0)
@@ -503,16 +509,10 @@ def test_an_mcap_files_metadata_and_attachments_are_copied(
     import logging
 
     from mcap.reader import make_reader
-    from mcap.writer import Writer
 
-    store = get_typestore(Stores.ROS2_HUMBLE)
-    msgdef, _ = store.generate_msgdef(MAP_TYPE, ros_version=2)
     src = tmp_path / "in.mcap"
     with src.open("wb") as f:
-        writer = Writer(f)
-        writer.start(profile="ros2", library="tests")
-        schema = writer.register_schema(MAP_TYPE, "ros2msg", msgdef.encode())
-        maps = writer.register_channel("/map", "cdr", schema, {})
+        writer, maps = _ros2_mcap_writer(f)
         for seq, (t_ns, topic, data) in enumerate(_messages("cdr")):
             if topic == "/map":
                 writer.add_message(maps, t_ns, data, t_ns, seq)
