@@ -97,8 +97,10 @@ def components(
 
 #: Longest side of an image OpenCV's flood fill fills right: it keeps the coordinates of its
 #: segments in 16 bits (``cv::FFillSegment``), so on a wider or taller image it leaves cells it
-#: should reach unfilled (and reports a wrong bounding box). Checked with OpenCV 5.1.
-FLOOD_FILL_MAX_SIDE = 65536
+#: should reach unfilled (and reports a wrong bounding box). A side of exactly 65,536 cells is
+#: already too long: a segment ending at the last column stores 65,536 as the column past it,
+#: read as 0 (the rows beyond it were never filled). Checked with OpenCV 5.1.
+FLOOD_FILL_MAX_SIDE = 65535
 
 
 def fill_from_corner(image: npt.NDArray[np.uint8], connectivity: int) -> None:

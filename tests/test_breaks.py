@@ -383,3 +383,17 @@ def test_a_short_piece_a_flood_fills_length_away_from_a_long_wall_stays_short() 
     erased = erased_walls(earlier, np.zeros_like(earlier))
     assert erased[10].sum() == 30
     assert not erased[11].any()
+
+
+def test_a_piece_joined_to_a_wall_ending_at_column_65535_is_part_of_it() -> None:
+    """On a grid of exactly 65,536 columns, OpenCV's flood fill from a wall that ends at the last
+    column did not go on to the next row (the column past the wall, 65,536, read as 0 in its 16
+    bits): a short piece joined to that long wall was read as short, no erased wall."""
+    cols = 65_536
+    earlier = np.zeros((40, cols), np.int8)
+    earlier[10, cols - 30 :] = 100  # a long wall up to the last column
+    earlier[11, cols - 36 : cols - 30] = 100  # a short piece joined to it (8-connected)
+    earlier[30, 0:65_000:900] = 100  # 73 specks: the cells are looked up in one box
+    erased = erased_walls(earlier, np.zeros_like(earlier), bridge_px=0)
+    assert erased[10].sum() == 30
+    assert erased[11].sum() == 6

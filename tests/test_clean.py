@@ -1568,3 +1568,15 @@ def test_a_map_wider_than_opencvs_flood_fill_is_cleaned_alike_at_both_ends() -> 
     assert first.sum() == last.sum() == 32  # both rings at each end, no blob
     np.testing.assert_array_equal(first[:, 50:53], False)
     np.testing.assert_array_equal(last[:, 10:13], False)
+
+
+@pytest.mark.parametrize("connectivity", [4, 8])
+def test_the_fill_from_a_corner_fills_an_image_of_exactly_65536_cells_a_side(
+    connectivity: int,
+) -> None:
+    """A segment reaching the last of 65,536 columns stores the column past it (65,536) in 16
+    bits, as 0: OpenCV's flood fill then left every row beyond the first unfilled."""
+    for shape in ((3, 65_536), (65_536, 3)):
+        image = np.ones(shape, np.uint8)
+        fill_from_corner(image, connectivity)
+        assert not image.any()
