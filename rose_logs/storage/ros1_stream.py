@@ -387,19 +387,34 @@ def _bag_header(
     """The bag header record (``stream`` is past the magic line), ``stream`` left after it.
 
     ``first_chunk``: where the index places the first chunk. The header's data is padding (to
-    byte 4109 in a bag rosbag wrote): when its length is damaged (past the file, or ending past
-    that chunk), the walk goes on from that chunk, as it does past a damaged chunk, instead of
-    failing at the bag's first record (``--salvage`` said the bag could not be read, though its
-    index and every chunk were intact). None: a damaged length is damage (the first error)."""
+    byte 4109 in a bag rosbag wrote): when its length is damaged (past the file, ending past
+    that chunk, or ending short of it inside the padding, where no record starts), the walk goes
+    on from that chunk, as it does past a damaged chunk, instead of failing at the bag's first
+    record (``--salvage`` said the bag could not be read, though its index and every chunk were
+    intact). None: a damaged length is damage (the first error)."""
     if first_chunk is None:
         return _read_record(stream, size)
     fields = _fields(_read_block(stream, size, "header"))
     raw = stream.read(4)
     (length,) = struct.unpack("<I", raw) if len(raw) == 4 else (size,)
-    if stream.tell() + length > first_chunk:
+    end = stream.tell() + length
+    if end > first_chunk or (end < first_chunk and not _record_at(stream, end, first_chunk)):
         stream.seek(first_chunk)
         return fields, b""
     return fields, stream.read(length)
+
+
+def _record_at(stream: BinaryIO, at: int, end: int) -> bool:
+    """Whether a chunk or index data record (what lies between the bag header and the index)
+    starts at byte ``at``, its header ending by byte ``end``; ``stream`` is left where it was."""
+    was = stream.tell()
+    try:
+        stream.seek(at)
+        return _op(_fields(_read_block(stream, end, "header"))) in (_OP_CHUNK, _OP_INDEX_DATA)
+    except _Damage:
+        return False
+    finally:
+        stream.seek(was)
 
 
 def unindexed_messages(

@@ -858,12 +858,12 @@ def test_a_ros1_bag_whose_header_misplaces_its_index_is_read_whole_and_loses_not
     assert _messages(odd, salvage=True) == _in_file_order(bag)
 
 
-@pytest.mark.parametrize("length", [0x40000000, 4096 + 1000])
+@pytest.mark.parametrize("length", [0x40000000, 4096 + 1000, 100, 0])
 def test_a_ros1_bag_whose_header_padding_length_is_damaged_is_salvaged_whole(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], ros1_bag: tuple[Path, list], length: int
 ) -> None:
-    """The data length of the bag header record (its padding) damaged, past the file or into the
-    first chunk, the index and every chunk intact: --salvage said "--salvage reads the bag record
+    """The data length of the bag header record (its padding) damaged, past the file, into the
+    first chunk or short of it (inside the padding), the index and every chunk intact: --salvage said "--salvage reads the bag record
     by record" and exited 1. It reads the bag through its index and loses nothing; without
     --salvage, one error line."""
     import struct
