@@ -42,6 +42,7 @@ from rose_logs.formats import LogFormat, detect_format, mcap_cut_short
 from rose_logs.storage.connections import QosStyle
 from rose_logs.storage.mcap import (
     DamagedSummaryError,
+    FileRecords,
     McapFilesReadBackend,
     McapReadBackend,
     McapStreamReadBackend,
@@ -573,24 +574,39 @@ class LogReader:
             return backend.counts_declared
         return not isinstance(backend, McapStreamReadBackend | Ros1StreamReadBackend)
 
-    def file_records(self) -> list[Any]:
+    def file_records(self) -> FileRecords:
         """A bare MCAP file's metadata and attachment records (``mcap.records.Metadata`` and
-        ``Attachment``; none for other logs): they belong to no channel, and an MCAP output
-        copies them. Records that cannot be read are left out with a warning (the messages are
-        what the log is read for)."""
+        ``Attachment``; none for other logs), read one at a time as they are iterated: they
+        belong to no channel, and an MCAP output copies them. Records that cannot be read are
+        left out with a warning (the messages are what the log is read for)."""
         backend = self._open_backend
         if not isinstance(backend, McapReadBackend):
-            return []
+            return FileRecords(0, lambda: iter(()))
         try:
-            return backend.file_records()
+            records = backend.file_records()
         except Exception as err:
-            reraise_unless_damage(err)
-            _LOG.warning(
-                "%s: its metadata and attachment records cannot be read (%s): not copied",
-                self.path,
-                short(err, 160),
-            )
-            return []
+            self._unreadable_file_records(err)
+            return FileRecords(0, lambda: iter(()))
+        return FileRecords(len(records), lambda: self._readable(records))
+
+    def _readable(self, records: Iterable[Any]) -> Iterator[Any]:
+        """``records`` up to the first that cannot be read (said in a warning)."""
+        read = 0
+        try:
+            for record in records:
+                read += 1
+                yield record
+        except Exception as err:
+            self._unreadable_file_records(err, read)
+
+    def _unreadable_file_records(self, err: Exception, read: int = 0) -> None:
+        reraise_unless_damage(err)
+        _LOG.warning(
+            "%s: its metadata and attachment records cannot be read (%s): %s",
+            self.path,
+            short(err, 160),
+            f"those after the first {read} not copied" if read else "not copied",
+        )
 
     @property
     def serialization(self) -> str:

@@ -47,7 +47,7 @@ from rose_logs.errors import LogWriteError
 from rose_logs.formats import FORMATS, LogFormat
 from rose_logs.storage.base import WriteBackend
 from rose_logs.storage.connections import QosStyle, default_qos, offered_qos, transient_local_qos
-from rose_logs.storage.mcap import McapWriteBackend
+from rose_logs.storage.mcap import FileRecords, McapWriteBackend
 from rose_logs.storage.records import Channel
 from rose_logs.storage.rosbags import Ros1WriteBackend, Ros2WriteBackend
 from rose_logs.storage.typesys import msgdef_for, typestore_for
@@ -360,9 +360,10 @@ class LogWriter:
             msg = f"{self.path}: cannot write ({err.strerror or short(err, 160)})"
             raise LogWriteError(msg) from err
 
-    def add_file_records(self, records: Sequence[Any]) -> None:
-        """Copy an MCAP file's metadata and attachment records (:meth:`LogReader.file_records`):
-        an MCAP output keeps them; the other formats have no place for them (a warning says so).
+    def add_file_records(self, records: FileRecords) -> None:
+        """Copy an MCAP file's metadata and attachment records (:meth:`LogReader.file_records`,
+        read one at a time): an MCAP output keeps them; the other formats have no place for them
+        (a warning says so).
 
         Raises
         ------

@@ -9,7 +9,7 @@ import itertools
 import logging
 import struct
 import zlib
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, BinaryIO
@@ -123,6 +123,22 @@ class SkippedChunk:
     file: Path | None = None
 
 
+class FileRecords:
+    """An MCAP file's metadata and attachment records: how many (``len``), and the records, read
+    one at a time as they are iterated (an attachment may be a map or a point cloud of a gigabyte:
+    all of them read at once, or held through a session, took that memory)."""
+
+    def __init__(self, count: int, read: Callable[[], Iterator[Any]]) -> None:
+        self._count = count
+        self._read = read
+
+    def __len__(self) -> int:
+        return self._count
+
+    def __iter__(self) -> Iterator[Any]:
+        return self._read()
+
+
 class McapReadBackend:
     """Bare MCAP files (ros1 or ros2 profile) through the ``mcap`` package."""
 
@@ -186,12 +202,18 @@ class McapReadBackend:
             self._times = (int(first), int(last))
         return counts
 
-    def file_records(self) -> list[Any]:
+    def file_records(self) -> FileRecords:
         """The file's metadata and attachment records (``mcap.records.Metadata`` and
         ``Attachment``), through its summary's indexes: they belong to no channel, and an MCAP
         output copies them."""
-        assert self.reader is not None
-        return [*self.reader.iter_metadata(), *self.reader.iter_attachments()]
+        reader = self.reader
+        assert reader is not None
+        summary = reader.get_summary()
+        count = 0 if summary is None else len(summary.metadata_indexes)
+        count += 0 if summary is None else len(summary.attachment_indexes)
+        return FileRecords(
+            count, lambda: itertools.chain(reader.iter_metadata(), reader.iter_attachments())
+        )
 
     def messages(self, topics: set[str] | None) -> Iterator[RawMessage]:
         if self.skip_damaged_chunks:
@@ -445,7 +467,9 @@ class McapStreamReadBackend(McapReadBackend):
         self._held_bytes = 0  # memory the messages would take to sort them
         self._order_said = False
         self._damage_at = -1  # where the first record that cannot be read starts
-        self._file_records: list[Any] = []  # metadata and attachments of the data section
+        self._metadata: list[Any] = []  # metadata records of the data section
+        self._attachments_at: list[int] = []  # where its attachment records start (not held)
+        self._record_at = -1  # where the record _records handed out last starts
 
     def _records(self) -> Iterator[Any]:
         """Records from the start of the file up to the first unreadable one (which sets
@@ -474,6 +498,7 @@ class McapStreamReadBackend(McapReadBackend):
                 self._damage_at = offset
                 break
             read += 1
+            self._record_at = offset
             yield record
         if self._end is None:
             self._end = read
@@ -507,8 +532,11 @@ class McapStreamReadBackend(McapReadBackend):
                 self._held_bytes += len(record.data) + _HELD_OVERHEAD
                 first = record.log_time if first is None else min(first, record.log_time)
                 last = record.log_time if last is None else max(last, record.log_time)
-            elif isinstance(record, Metadata | Attachment):
-                self._file_records.append(record)
+            elif isinstance(record, Metadata):
+                self._metadata.append(record)
+            elif isinstance(record, Attachment):
+                # Read again when copied: an attachment (a map, a point cloud) may be large.
+                self._attachments_at.append(self._record_at)
             elif isinstance(record, Footer):
                 footer = True
         if footer and self.damage:  # e.g. the closing magic bytes missing: every record read
@@ -535,9 +563,23 @@ class McapStreamReadBackend(McapReadBackend):
         if first is not None and last is not None:
             self.start_ns, self.end_ns = int(first), int(last)
 
-    def file_records(self) -> list[Any]:
-        """The metadata and attachment records :meth:`open` read (those before any damage)."""
-        return list(self._file_records)
+    def file_records(self) -> FileRecords:
+        """The metadata and attachment records :meth:`open` read (those before any damage); the
+        attachments read again, one at a time."""
+        return FileRecords(
+            len(self._metadata) + len(self._attachments_at), self._metadata_and_attachments
+        )
+
+    def _metadata_and_attachments(self) -> Iterator[Any]:
+        from mcap.stream_reader import StreamReader
+
+        yield from self._metadata
+        assert self.stream is not None
+        for offset in self._attachments_at:
+            self.stream.seek(offset)
+            size = self.path.stat().st_size
+            reader = StreamReader(self.stream, skip_magic=True, record_size_limit=max(size, 1))
+            yield next(reader.records)
 
     def _damaged_footer(self) -> bool:
         """Whether the first record that cannot be read is where the footer belongs, before the
@@ -772,12 +814,12 @@ class McapWriteBackend(WriteBackend):
         self.channels.append(channel_id)
         return len(self.channels) - 1
 
-    def add_file_records(self, records: Sequence[Any]) -> None:
+    def add_file_records(self, records: Iterable[Any]) -> None:
         """Copy an input MCAP file's metadata and attachment records (:meth:`McapReadBackend.file_records`)."""
         from mcap.records import Attachment, Metadata
 
-        try:
-            for record in records:
+        for record in records:  # (read one at a time: errors of the reading are not ours)
+            try:
                 if isinstance(record, Metadata):
                     self.writer.add_metadata(record.name, dict(record.metadata))
                 elif isinstance(record, Attachment):
@@ -788,8 +830,8 @@ class McapWriteBackend(WriteBackend):
                         record.media_type,
                         record.data,
                     )
-        except Exception as err:
-            raise as_memory_error(err) from err
+            except Exception as err:
+                raise as_memory_error(err) from err
 
     def write(
         self, handle: int, log_time_ns: int, data: bytes | memoryview, publish_ns: int, seq: int

@@ -679,3 +679,54 @@ def test_a_type_missing_on_either_side_is_named_so() -> None:
     assert type_mismatches({"/map": ""}, {"/map": "nav_msgs/msg/OccupancyGrid"}) == [
         "/map: metadata.yaml says no type, the storage nav_msgs/msg/OccupancyGrid"
     ]
+
+
+@pytest.mark.parametrize("summary", [True, False])
+def test_attachments_are_copied_one_at_a_time(tmp_path: Path, summary: bool) -> None:
+    """An MCAP file's attachments (a map, a point cloud: a gigabyte each) were all read into
+    memory at once to be copied, and a file without summary held them through the session: the
+    peak was their sum. They are read one at a time as they are written."""
+    import tracemalloc
+
+    from mcap.reader import make_reader
+    from mcap.writer import IndexType, Writer
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    msgdef, _ = store.generate_msgdef(MAP_TYPE, ros_version=2)
+    size, count = 16 * 2**20, 8
+    src = tmp_path / "in.mcap"
+    with src.open("wb") as f:
+        options: dict[str, Any] = (
+            {}
+            if summary
+            else {
+                "use_summary_offsets": False,
+                "use_statistics": False,
+                "index_types": IndexType.NONE,
+                "repeat_channels": False,
+                "repeat_schemas": False,
+            }
+        )
+        writer = Writer(f, **options)
+        writer.start(profile="ros2", library="tests")
+        schema = writer.register_schema(MAP_TYPE, "ros2msg", msgdef.encode())
+        maps = writer.register_channel("/map", "cdr", schema, {})
+        for seq, (t_ns, topic, data) in enumerate(_messages("cdr")):
+            if topic == "/map":
+                writer.add_message(maps, t_ns, data, t_ns, seq)
+        for k in range(count):
+            writer.add_attachment(
+                T0_NS, T0_NS, f"part{k}.bin", "application/octet-stream", bytes([k]) * size
+            )
+        writer.finish()
+    out = tmp_path / "out.mcap"
+    tracemalloc.start()
+    try:
+        process_log(src, output_path=out)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < count * size / 2, f"{peak / 2**20:.0f} MiB"
+    with out.open("rb") as f:
+        attached = [(a.name, len(a.data), a.data[:1]) for a in make_reader(f).iter_attachments()]
+    assert attached == [(f"part{k}.bin", size, bytes([k])) for k in range(count)]
