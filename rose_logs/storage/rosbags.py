@@ -254,11 +254,12 @@ class RosbagsReadBackend:
         if len(self.storage_readers()) > 1:  # a split bag: its files merged by log time
             yield from self._file_by_file(topics, salvage=self.skip_damaged_chunks)
             return
+        ended = self._ros1_record_ended() if self.format == "ros1" else None
         try:
             for conn, timestamp, data in self.reader.messages(connections=conns or ()):
                 if not isinstance(data, bytes | memoryview) or not _valid_time(timestamp):
                     raise LogReadError(self._damaged_row(conn.topic, timestamp, data))
-                if self.format == "ros1" and not self._ros1_record_ended():
+                if ended is not None and not ended():
                     msg = f"{self.path}: a message record's data length is damaged"
                     raise LogReadError(msg)  # _failed_read names the chunk
                 yield RawMessage(by_conn[id(conn)], int(timestamp), data, int(timestamp))
@@ -270,19 +271,29 @@ class RosbagsReadBackend:
             msg = f"{self.path}: {problem}"
             raise LogReadError(msg) from err
 
-    def _ros1_record_ended(self) -> bool:
-        """Whether the message rosbags just read from a ROS 1 bag's chunk ends where the chunk's
-        next record starts (or the chunk does). rosbags reads as many bytes as a message record's
-        data length says: a damaged length gave the message cut short (or with the next record's
-        bytes), no error, where ``--salvage`` said the chunk damaged (:func:`record_follows`)."""
+    def _ros1_record_ended(self) -> Callable[[], bool]:
+        """A check of whether the message rosbags just read from a ROS 1 bag's chunk ends where
+        the chunk's next record starts (or the chunk does). rosbags reads as many bytes as a
+        message record's data length says: a damaged length gave the message cut short (or with
+        the next record's bytes), no error, where ``--salvage`` said the chunk damaged
+        (:func:`record_follows`). Made once per reading, each chunk's size taken once: it runs
+        for every message."""
         from rose_logs.storage.ros1_stream import record_follows
 
-        current = getattr(self.reader, "current_chunk", None)  # rosbags' (pinned below 0.12)
-        chunk = current[1] if isinstance(current, tuple) and len(current) == 2 else None
-        if not isinstance(chunk, io.BytesIO):
-            return True  # another rosbags: unchecked, as before
-        # rosbags seeks to each message's index offset before reading it: the position is free.
-        return record_follows(chunk, chunk.getbuffer().nbytes)
+        sized: list[Any] = [None, 0]  # the chunk last checked (held: its id stays its own), size
+
+        def ended() -> bool:
+            current = getattr(self.reader, "current_chunk", None)  # rosbags' (pinned below 0.12)
+            chunk = current[1] if isinstance(current, tuple) and len(current) == 2 else None
+            if not isinstance(chunk, io.BytesIO):
+                return True  # another rosbags: unchecked, as before
+            if chunk is not sized[0]:
+                sized[0], sized[1] = chunk, chunk.getbuffer().nbytes
+            # rosbags seeks to each message's index offset before reading it: the position is
+            # free.
+            return record_follows(chunk, sized[1])
+
+        return ended
 
     def _failed_read(self, err: Exception) -> str | None:
         """Why rosbags failed (``err``) to read a ROS 1 bag's messages, in words: the first chunk

@@ -754,6 +754,49 @@ def test_a_damaged_message_record_length_is_an_error_not_a_message_cut_short(
     assert err.startswith(f"error: {log}: the chunk at byte {pos} of "), err
 
 
+def test_the_check_that_each_message_record_ends_where_the_next_starts_is_cheap(
+    ros1_bags: dict[str, Path], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The check after every message rosbags reads (76a819b) parsed the next record's header into
+    a dict of fields and took the chunk's size from a new buffer view each time: reading a bag of
+    small messages took twice as long (300,000 of 4 bytes: 2.9 s for 1.4 s). It reads the op
+    alone, each chunk's size once; and it still says what the fields would."""
+    import struct
+
+    from rose_logs.storage import ros1_stream
+
+    parsed = []
+    fields = ros1_stream._fields
+    monkeypatch.setattr(ros1_stream, "_fields", lambda block: parsed.append(1) or fields(block))
+    read = len(_messages(ros1_bags["none"]))
+    assert read and len(parsed) < read / 2, (len(parsed), read)
+
+    def field(name: bytes, value: bytes) -> bytes:
+        return struct.pack("<I", len(name) + 1 + len(value)) + name + b"=" + value
+
+    for block in (
+        field(b"op", b"\x02") + field(b"conn", b"\0\0\0\0"),
+        field(b"conn", b"\0\0\0\0") + field(b"op", b"\x07"),
+        field(b"op", b"\x02") + field(b"op", b"\x05"),  # the last one, as the fields' dict
+        field(b"op", b"\x02\x02"),
+        field(b"opx", b"\x02"),
+        field(b"conn", b"1"),
+        field(b"op", b"\x02") + b"\x01\x00",
+        field(b"op", b"\x02") + struct.pack("<I", 9) + b"op",
+        field(b"op", b"\x02") + struct.pack("<I", 2) + b"op",
+        b"",
+    ):
+        try:
+            expected: int | None = ros1_stream._op(fields(block))
+        except ros1_stream._Damage:
+            expected = None
+        try:
+            op: int | None = ros1_stream._header_op(block)
+        except ros1_stream._Damage:
+            op = None
+        assert op == expected, block
+
+
 @pytest.mark.parametrize("compression", ["none", "bz2"])
 def test_salvage_reads_an_intact_ros1_bag_as_rosbags_orders_it(
     ros1_bags: dict[str, Path], compression: str
