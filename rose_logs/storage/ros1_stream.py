@@ -31,6 +31,7 @@ from pathlib import Path
 from typing import Any, BinaryIO
 
 from rose.limits import short
+from rose_logs.errors import storage_failure
 from rose_logs.storage.connections import QosStyle
 from rose_logs.storage.mcap import SkippedChunk
 from rose_logs.storage.records import Channel, RawMessage, normalize_msgtype
@@ -800,6 +801,9 @@ def chunk_messages(
         except ValueError as err:
             if skipped is None:
                 raise
+            failed = storage_failure(err)
+            if failed is not None:  # the disk under the bag failed, not its chunk: no damage
+                raise failed from err
             skipped.append(
                 SkippedChunk(item.pos, index.size, short(str(err), 120), item.start_ns, item.end_ns)
             )
