@@ -1599,82 +1599,11 @@ def test_a_recursion_error_is_still_an_input_nested_too_deeply(
     _assert_one_line_error(capsys.readouterr().err, "input nested too deeply")
 
 
-@pytest.mark.parametrize("salvage", [False, True])
-def test_an_io_error_of_the_storage_under_a_log_is_no_damage(
-    tmp_path: Path,
-    mcap_log: Path,
-    monkeypatch: pytest.MonkeyPatch,
-    capsys: pytest.CaptureFixture[str],
-    salvage: bool,
-) -> None:
-    """An EIO from a failing disk or a network file system part way through a sound log was
-    "corrupt or truncated MCAP file", and ``--salvage`` kept what came before it as from a
-    damaged file (exit 4): now one line naming the file and the I/O error, exit 1, no output."""
+def _failing_disk(monkeypatch: pytest.MonkeyPatch, path: Path, start: int, end: int) -> None:
+    """Reads of ``path`` (opened binary through ``Path.open``) at offsets ``start`` to ``end`` fail
+    with EIO, as on a failing disk or a network file system that went away."""
     import errno
 
-    real_open = Path.open
-    fail_from = mcap_log.stat().st_size // 2
-
-    class FailingDisk:
-        def __init__(self, stream) -> None:  # type: ignore[no-untyped-def]
-            self.stream = stream
-
-        def __getattr__(self, name: str) -> object:
-            return getattr(self.stream, name)
-
-        def __enter__(self) -> FailingDisk:
-            return self
-
-        def __exit__(self, *_: object) -> None:
-            self.stream.close()
-
-        def _check(self) -> None:
-            if self.stream.tell() >= fail_from:
-                raise OSError(errno.EIO, "Input/output error")
-
-        def read(self, size: int = -1) -> bytes:
-            self._check()
-            return self.stream.read(size)
-
-        def readinto(self, buffer) -> int:  # type: ignore[no-untyped-def]
-            self._check()
-            return self.stream.readinto(buffer)
-
-    def failing_open(path: Path, mode: str = "r", *args: object, **kwargs: object) -> object:
-        stream = real_open(path, mode, *args, **kwargs)  # type: ignore[call-overload]
-        return FailingDisk(stream) if path == mcap_log and "b" in mode else stream
-
-    monkeypatch.setattr(Path, "open", failing_open)
-    out = tmp_path / "o.mcap"
-    code, _, err = _run(capsys, "process", mcap_log, "-o", out, *(["--salvage"] * salvage))
-    assert code == 1, err
-    _assert_one_line_error(err, f"{mcap_log}: ", "Input/output error")
-    assert "corrupt" not in err and "damage" not in err
-    assert not out.exists()
-
-
-@pytest.mark.parametrize("salvage", [False, True])
-def test_an_io_error_under_a_ros1_bags_chunks_is_no_damage(
-    tmp_path: Path,
-    fr079,
-    monkeypatch: pytest.MonkeyPatch,
-    capsys: pytest.CaptureFixture[str],
-    salvage: bool,
-) -> None:
-    """The ROS 1 sibling of the test above: with --salvage, a ROS 1 bag's chunks are read through
-    its index by read_chunk, which took an EIO there for a chunk that does not read, skipped it
-    as damaged and exited 4 with the messages around it. One line, exit 1, no output."""
-    import errno
-    import struct
-
-    from rose_logs.storage.ros1_stream import read_index
-
-    bag = build_log(tmp_path / "in.bag", "ros1", session_maps(fr079[:2])).path
-    data = bag.read_bytes()
-    chunk = read_index(bag).chunks[-1].pos  # the data of the last chunk does not read
-    header_end = chunk + 4 + struct.unpack_from("<I", data, chunk)[0]
-    start = header_end + 4  # (rosbags reads every chunk's header, and its index data, on open)
-    end = start + struct.unpack_from("<I", data, header_end)[0]
     real_open = Path.open
 
     class FailingDisk:
@@ -1702,11 +1631,56 @@ def test_an_io_error_under_a_ros1_bags_chunks_is_no_damage(
             self._check()
             return self.stream.readinto(buffer)
 
-    def failing_open(path: Path, mode: str = "r", *args: object, **kwargs: object) -> object:
-        stream = real_open(path, mode, *args, **kwargs)  # type: ignore[call-overload]
-        return FailingDisk(stream) if path == bag and "b" in mode else stream
+    def failing_open(opened: Path, mode: str = "r", *args: object, **kwargs: object) -> object:
+        stream = real_open(opened, mode, *args, **kwargs)  # type: ignore[call-overload]
+        return FailingDisk(stream) if opened == path and "b" in mode else stream
 
     monkeypatch.setattr(Path, "open", failing_open)
+
+
+@pytest.mark.parametrize("salvage", [False, True])
+def test_an_io_error_of_the_storage_under_a_log_is_no_damage(
+    tmp_path: Path,
+    mcap_log: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    salvage: bool,
+) -> None:
+    """An EIO from a failing disk or a network file system part way through a sound log was
+    "corrupt or truncated MCAP file", and ``--salvage`` kept what came before it as from a
+    damaged file (exit 4): now one line naming the file and the I/O error, exit 1, no output."""
+
+    _failing_disk(monkeypatch, mcap_log, mcap_log.stat().st_size // 2, mcap_log.stat().st_size)
+    out = tmp_path / "o.mcap"
+    code, _, err = _run(capsys, "process", mcap_log, "-o", out, *(["--salvage"] * salvage))
+    assert code == 1, err
+    _assert_one_line_error(err, f"{mcap_log}: ", "Input/output error")
+    assert "corrupt" not in err and "damage" not in err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("salvage", [False, True])
+def test_an_io_error_under_a_ros1_bags_chunks_is_no_damage(
+    tmp_path: Path,
+    fr079,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    salvage: bool,
+) -> None:
+    """The ROS 1 sibling of the test above: with --salvage, a ROS 1 bag's chunks are read through
+    its index by read_chunk, which took an EIO there for a chunk that does not read, skipped it
+    as damaged and exited 4 with the messages around it. One line, exit 1, no output."""
+    import struct
+
+    from rose_logs.storage.ros1_stream import read_index
+
+    bag = build_log(tmp_path / "in.bag", "ros1", session_maps(fr079[:2])).path
+    data = bag.read_bytes()
+    chunk = read_index(bag).chunks[-1].pos  # the data of the last chunk does not read
+    header_end = chunk + 4 + struct.unpack_from("<I", data, chunk)[0]
+    start = header_end + 4  # (rosbags reads every chunk's header, and its index data, on open)
+    end = start + struct.unpack_from("<I", data, header_end)[0]
+    _failing_disk(monkeypatch, bag, start, end)
     out = tmp_path / "o.bag"
     code, _, err = _run(capsys, "process", bag, "-o", out, *(["--salvage"] * salvage))
     assert code == 1, err
