@@ -245,17 +245,18 @@ def _region_hit(
     the correct map keeps as walls, and risen evidence where the correct map is free."""
     p = detector.params
     res = current.resolution_m
+    cells = p.in_cells(res)
     pieces = {
-        "min_extent_px": round(p.min_wall_m / res),
-        "bridge_px": round(p.bridge_m / res),
+        "min_extent_px": cells.min_extent_px,
+        "bridge_px": cells.bridge_px,
         "free_threshold": p.free_threshold,
     }
     walls = {
-        "tolerance_px": round(p.tolerance_m / res),
+        "tolerance_px": cells.tolerance_px,
         "occupied_threshold": p.occupied_threshold,
         **pieces,
     }
-    rises = {"rise_points": p.rise_points, "rise_margin_px": round(p.rise_margin_m / res), **pieces}
+    rises = {"rise_points": p.rise_points, "rise_margin_px": cells.rise_margin_px, **pieces}
     from_trusted, from_truth = _offset(trusted, current), _offset(truth, current)
     erased = erased_walls(trusted.grid, current.grid, offset_px=from_trusted, **walls)
     lost = erased_walls(truth.grid, current.grid, offset_px=from_truth, **walls)

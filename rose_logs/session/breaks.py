@@ -38,7 +38,7 @@ import logging
 import math
 import weakref
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -58,6 +58,18 @@ __all__ = [
 ]
 
 _LOG = logging.getLogger(__name__)
+
+
+class BreakLengthsPx(NamedTuple):
+    """:class:`BreakParams`' lengths in cells of one resolution (:meth:`BreakParams.in_cells`),
+    named as :func:`rose.breaks.contradicted_walls` takes them."""
+
+    tolerance_px: int
+    min_extent_px: int
+    bridge_px: int
+    tile_px: int
+    window_px: int
+    rise_margin_px: int
 
 
 class BreakParamsError(RoseError, ValueError):
@@ -118,6 +130,25 @@ class BreakParams:
         it."""
         free = min(cls.free_threshold, occupied_threshold - 1)
         return cls(occupied_threshold=occupied_threshold, free_threshold=free, **overrides)
+
+    def in_cells(self, resolution_m: float) -> BreakLengthsPx:
+        """The lengths in cells of ``resolution_m`` metres, to the nearest cell; a positive
+        tolerance or rise margin is at least one cell: a wall that moves by less than a cell
+        still hops to the next cell when it lay near a cell's edge (at 0.5 m per cell the 0.2 m
+        margin rounded to none, and a wall redrawn 0.2 m over was a 4 m break)."""
+
+        def near(length_m: float) -> int:
+            cells = round(length_m / resolution_m)
+            return max(cells, 1) if length_m > 0 else cells
+
+        return BreakLengthsPx(
+            tolerance_px=near(self.tolerance_m),
+            min_extent_px=round(self.min_wall_m / resolution_m),
+            bridge_px=round(self.bridge_m / resolution_m),
+            tile_px=max(round(self.tile_m / resolution_m), 1),
+            window_px=max(round(self.window_m / resolution_m), 1),
+            rise_margin_px=near(self.rise_margin_m),
+        )
 
     def __post_init__(self) -> None:
         for name, value in dataclasses.asdict(self).items():
@@ -622,15 +653,14 @@ class BreakDetector:
         from rose.breaks import erased_walls, placed_grid, risen_evidence
 
         p = self.params
-        res = snapshot.resolution_m
-        extent, bridge = round(p.min_wall_m / res), round(p.bridge_m / res)
+        cells = p.in_cells(snapshot.resolution_m)
         contradicted = erased_walls(
             trusted.grid,
             snapshot.grid,
             offset_px=trusted_offset,
-            tolerance_px=round(p.tolerance_m / res),
-            min_extent_px=extent,
-            bridge_px=bridge,
+            tolerance_px=cells.tolerance_px,
+            min_extent_px=cells.min_extent_px,
+            bridge_px=cells.bridge_px,
             occupied_threshold=p.occupied_threshold,
             free_threshold=p.free_threshold,
         ) | risen_evidence(
@@ -638,9 +668,9 @@ class BreakDetector:
             snapshot.grid,
             offset_px=trusted_offset,
             rise_points=p.rise_points,
-            rise_margin_px=round(p.rise_margin_m / res),
-            min_extent_px=extent,
-            bridge_px=bridge,
+            rise_margin_px=cells.rise_margin_px,
+            min_extent_px=cells.min_extent_px,
+            bridge_px=cells.bridge_px,
             free_threshold=p.free_threshold,
         )
         known = placed_grid(anchor.grid, snapshot.grid.shape, anchor_offset) >= 0
@@ -713,20 +743,14 @@ class BreakDetector:
     ) -> WallContradiction:
         """:func:`rose.breaks.contradicted_walls` with this detector's parameters in cells."""
         p = self.params
-        res = snapshot.resolution_m
         return contradicted_walls(
             trusted.grid,
             snapshot.grid,
             offset_px=offset_px,
-            tolerance_px=round(p.tolerance_m / res),
-            min_extent_px=round(p.min_wall_m / res),
-            bridge_px=round(p.bridge_m / res),
-            tile_px=max(round(p.tile_m / res), 1),
-            window_px=max(round(p.window_m / res), 1),
+            **p.in_cells(snapshot.resolution_m)._asdict(),
             occupied_threshold=p.occupied_threshold,
             free_threshold=p.free_threshold,
             rise_points=p.rise_points,
-            rise_margin_px=round(p.rise_margin_m / res),
             tile_origin_px=_frame_origin_px(snapshot),
             established_px=self._walls_of(trusted),
             memo=self._memos.setdefault(trusted, EarlierGridMemo()),

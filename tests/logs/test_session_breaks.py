@@ -12,7 +12,7 @@ from scipy import ndimage
 
 from rose_logs.session.breaks import BreakDetector, BreakParams, DetectedBreak
 from rose_logs.snapshots import MapSnapshot
-from tests.synthetic import floor_plan, right_half_drifted
+from tests.synthetic import floor_plan, right_half_drifted, ros_floor_plan
 
 RES = 0.05
 
@@ -167,6 +167,32 @@ def test_on_coarse_cells_an_origin_off_the_cells_is_not_compared(plan) -> None:
     assert off.incomparable_with == 0 and not off.broken
     on = detector.update(_snap(plan, 2, res=0.5, origin=(-5.0 + 0.04 + 0.5 * 3, -3.0)))
     assert on.trusted_index == 1 and on.incomparable_with is None
+
+
+@pytest.mark.parametrize("res", [0.5, 1.0])
+def test_on_coarse_cells_a_wall_hopping_one_cell_is_no_break(res: float) -> None:
+    """The 0.2 m rise margin rounded to no cell from 0.4 m per cell, the 0.3 m tolerance from 0.6 m:
+    the walls of one building rasterised 0.2 m apart (some hop a cell) scored 4 m at 0.5 m per
+    cell, 20 m at 1 m. A positive margin or tolerance is a cell at least; a section turned by 8
+    degrees still breaks."""
+    fine = ros_floor_plan(size=(600, 800))  # 0.05 m cells: 30 x 40 m
+    k = round(res / 0.05)
+
+    def coarse(grid: npt.NDArray[np.int8]) -> npt.NDArray[np.int8]:
+        blocks = grid.reshape(grid.shape[0] // k, k, grid.shape[1] // k, k)
+        return np.where((blocks == 100).any(axis=(1, 3)), 100, 0).astype(np.int8)
+
+    turned = fine.copy()
+    turned[:, 400:] = ndimage.rotate(fine, 8.0, reshape=False, order=0, cval=0)[:, 400:]
+    detector = BreakDetector()
+    verdicts = [
+        detector.update(_snap(coarse(g), t, res=res))
+        for t, g in enumerate([fine, np.roll(fine, 4, axis=1), fine, turned])
+    ]
+    assert [v.score_m for v in verdicts[:3]] == [0.0, 0.0, 0.0]
+    assert verdicts[3].broken
+    assert BreakParams().in_cells(res)[:1] == (1,)
+    assert BreakParams().in_cells(0.05) == (6, 20, 2, 5, 200, 4)  # fine cells as before
 
 
 def test_topics_are_independent(plan, broken) -> None:
