@@ -20,7 +20,9 @@ blobs that come and go do not count):
 A break contradicts the map along whole walls. So contradicted cells are counted by the tiles of
 ``tile_px`` cells they touch (a length along the walls, in tile sides), the score is the most such
 tiles inside one square window of ``window_px`` cells, and the region is where that window's
-contradicted cells lie.
+contradicted cells lie. Tiles are laid on the lattice phase that needs the fewest of them there
+(a wall a few cells thick across a tile boundary is not counted twice), so the score depends
+neither on where the grid's origin lies nor on the grid's orientation.
 
 Global W (:mod:`rose.directions`) stays the paper's score of the whole map; on maps that break
 mid-session it barely moves, because the intact part of the map dominates the spectrum.
@@ -69,10 +71,12 @@ class WallContradiction:
     risen_px : int
         Cells deep in the earlier grid's free space where the later grid's evidence rose.
     contradicted_tiles : int
-        Tiles of ``tile_px`` x ``tile_px`` cells holding at least one erased or risen cell.
+        Tiles of ``tile_px`` x ``tile_px`` cells holding at least one erased or risen cell (on the
+        lattice phase of ``peak_tiles``).
     peak_tiles : int
-        The most such tiles in one window of ``window_px`` x ``window_px`` cells: the break score in
-        tiles (times ``tile_px`` times the resolution it is a wall length in metres).
+        The most such tiles in one window of ``window_px`` x ``window_px`` cells, on the lattice
+        phase where that is fewest: the break score in tiles (times ``tile_px`` times the
+        resolution it is a wall length in metres).
     established_px : int
         Occupied cells of the earlier grid.
     region_px : tuple of int or None
@@ -224,6 +228,41 @@ def _densest_window(tiles: npt.NDArray[np.bool_], side: int) -> tuple[int, int, 
     sums = c[side_r:, side_c:] - c[:-side_r, side_c:] - c[side_r:, :-side_c] + c[:-side_r, :-side_c]
     i, j = np.unravel_index(int(np.argmax(sums)), sums.shape)
     return int(sums[i, j]), int(i), int(j)
+
+
+#: Lattice phases tried along each axis at most (:func:`_fewest_tiles`): every phase of tiles up to
+#: this many cells a side (0.25 m tiles down to 1 cm cells), every few cells beyond.
+_MAX_PHASES = 25
+
+
+def _fewest_tiles(
+    cells: _Cells,
+    box: tuple[int, int, int, int],
+    tile_px: int,
+    side: int,
+    origin: tuple[int, int],
+) -> tuple[int, int, int, int]:
+    """The densest window of ``side`` x ``side`` tiles (:func:`_densest_window`) on the lattice
+    phase that needs the fewest tiles there: ``(peak, tiles, row, col)``, the window's tiles, all
+    flagged tiles of that phase and the later-grid cell of the window's first tile. ``cells`` lie
+    in ``box`` (:func:`_tiles`); phases are tried from the lattice through ``origin``, and the
+    first of equal peaks is kept.
+
+    On one fixed lattice a wall two or three cells thick that lies across a tile boundary touched
+    twice the tiles of one inside a row of tiles: the score of the same map doubled with its
+    origin's absolute value modulo a tile (a correct growing map broke at some origins, not at
+    others). The fewest tiles over the phases do not depend on the origin, nor on the map's
+    orientation, and measure a thick wall by its length."""
+    step = -(-tile_px // _MAX_PHASES)
+    best: tuple[int, int, int, int] | None = None
+    for dr in range(0, tile_px, step):
+        for dc in range(0, tile_px, step):
+            tiles, tr, tc = _tiles(cells, box, tile_px, (origin[0] + dr, origin[1] + dc))
+            peak, wi, wj = _densest_window(tiles, side)
+            if best is None or peak < best[0]:
+                best = (peak, int(np.count_nonzero(tiles)), tr + wi * tile_px, tc + wj * tile_px)
+    assert best is not None  # tile_px >= 1: one phase at least
+    return best
 
 
 def _require_cell(value: object, name: str) -> None:
@@ -870,9 +909,10 @@ def contradicted_walls(
         Risen cells count only farther than this (chessboard distance) from every cell of
         ``earlier`` that is not known free (wall, unknown, uncertain).
     tile_origin_px : tuple of int
-        ``(row, col)`` of a ``later`` cell that is a tile's first (any cell of the lattice, inside
-        the grid or not): the map frame's origin keeps the tiles, so the score and region, of grids
-        of one map alike however they grew.
+        ``(row, col)`` of a ``later`` cell (inside the grid or not) that the lattice phases are
+        tried from (the score is the fewest tiles over the phases; of equal ones, the first from
+        there places the region): the map frame's origin, so that the region of grids of one map
+        stays where it was however they grew.
     established_px : int, optional
         The occupied cells of ``earlier`` (at ``occupied_threshold``) when the caller counted them
         already (a detector compares one trusted grid with several later ones); taken as given.
@@ -969,16 +1009,14 @@ def contradicted_walls(
         np.concatenate([erased.rows, risen.rows]), np.concatenate([erased.cols, risen.cols]), box
     )
     origin = (int(tile_origin_px[0]), int(tile_origin_px[1]))
-    tiles, tr, tc = _tiles(contradicted, box, tile_px, origin)
     side = max(-(-window_px // tile_px), 1)
-    peak, wi, wj = _densest_window(tiles, side)
+    peak, total, wr0, wc0 = _fewest_tiles(contradicted, box, tile_px, side, origin)
     # The contradicted cells inside the window, in later-grid cells.
-    wr0, wc0 = tr + wi * tile_px, tc + wj * tile_px
     rows, cols = contradicted.rows, contradicted.cols
     inside = (rows >= wr0) & (rows < wr0 + side * tile_px)
     inside &= (cols >= wc0) & (cols < wc0 + side * tile_px)
     rows, cols = rows[inside], cols[inside]
     region = (int(rows.min()), int(cols.min()), int(rows.max()), int(cols.max()))
     return WallContradiction(
-        erased_px, risen_px, int(tiles.sum()), peak, established_px, region, tile_px, window_px
+        erased_px, risen_px, total, peak, established_px, region, tile_px, window_px
     )

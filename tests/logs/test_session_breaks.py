@@ -195,6 +195,27 @@ def test_on_coarse_cells_a_wall_hopping_one_cell_is_no_break(res: float) -> None
     assert BreakParams().in_cells(0.05) == (6, 20, 2, 5, 200, 4)  # fine cells as before
 
 
+def test_the_score_does_not_depend_on_the_origins_absolute_value() -> None:
+    """Tiles on one lattice through the frame's origin counted a three-cell-thick wall twice where
+    it lay across a tile boundary: a 1.1 m line scored 3 m or 1.25 m as the origin moved by a
+    cell (on the real Freiburg 079 maps growing, a correct session broke at 12 of 25 origins a
+    cell apart). On the lattice phase with the fewest tiles it scores 1.25 m at every origin, and
+    the same turned by 90 degrees."""
+    room = np.zeros((200, 200), dtype=np.int8)
+    room[[0, -1], :] = room[:, [0, -1]] = 100
+    later = room.copy()
+    later[99:102, 89:111] = 80  # risen evidence: 1.1 m long, 0.15 m thick
+    scores = set()
+    for shift in range(5):
+        for turn in range(2):
+            detector = BreakDetector()
+            origin = (-5.0 + shift * RES, -5.0 + 2 * shift * RES)
+            detector.update(_snap(np.rot90(room, turn).copy(), 0, origin=origin))
+            verdict = detector.update(_snap(np.rot90(later, turn).copy(), 1, origin=origin))
+            scores.add(round(verdict.score_m, 6))
+    assert scores == {1.25}
+
+
 def test_topics_are_independent(plan, broken) -> None:
     detector = BreakDetector(BreakParams(threshold_m=1.0))
     detector.update(_snap(plan, 0, topic="/a"))
