@@ -66,7 +66,9 @@ class SnapshotRecord:
     break_region_m : tuple of float or None
         ``(x_min, y_min, x_max, y_max)`` of those contradicted cells, map frame, metres.
     break_detected : bool
-        The break detector marks this snapshot broken (``break_score_m`` at or above its threshold).
+        The break detector marks this snapshot broken (``break_score_m`` at or above its threshold;
+        at or above twice it when the score is against the anchor, so a snapshot returning to the
+        anchor's map may score above the threshold unbroken).
     clean_method : str
         How ``<map>/rose/cleaned`` was made (``"walls"`` or ``"paper"``, see :func:`rose.cleaning.clean`).
     removed_count, kept_count : int
