@@ -224,6 +224,9 @@ class BreakScore:
     threshold_m : float or None
         The threshold the verdict was judged at when not the detector's: twice it, against the
         anchor (an anchor's break or a return). None otherwise.
+    incomparable_why : str
+        With ``incomparable_with``: what differs, e.g. ``"cell size 0.1 m, trusted 0.05 m"``
+        (else empty).
     """
 
     score_m: float
@@ -236,6 +239,7 @@ class BreakScore:
     returned_from: int | None = None
     returned_from_m: float = 0.0
     threshold_m: float | None = None
+    incomparable_why: str = ""
 
 
 @dataclass(frozen=True)
@@ -336,27 +340,36 @@ def _rotation_between(a: MapSnapshot, b: MapSnapshot) -> float:
     return 2.0 * math.acos(min(1.0, cosine))
 
 
-def _offset_px(
+def _placement(
     trusted: MapSnapshot, snapshot: MapSnapshot, *, rounding: float = 0.01
-) -> tuple[int, int] | None:
+) -> tuple[int, int] | str:
     """``(row, col)`` of the trusted grid's cell (0, 0) in the new grid, to the nearest cell when
-    at most ``rounding`` cells off it (:meth:`BreakDetector._rounding`); None if not comparable
-    (another cell size, frame or orientation, or an origin further off the cells).
+    at most ``rounding`` cells off it (:meth:`BreakDetector._rounding`); else what keeps the two
+    apart (another cell size, frame or orientation, or an origin further off the cells) as the
+    session's warning says it, "cell size 0.1 m, trusted 0.05 m" (it listed the four causes,
+    whichever it was).
 
     On fine cells any fraction is rounded: a node whose origin moved by millimetres between maps
     made every snapshot incomparable, the detector blind (a 7.6 m ghost wall passed)."""
     res = snapshot.resolution_m
-    if trusted.resolution_m != res or not res > 0 or trusted.frame_id != snapshot.frame_id:
-        return None
+    if trusted.resolution_m != res:
+        return (
+            f"cell size {metres_text(snapshot.resolution_decimal_m)} m, trusted "
+            f"{metres_text(trusted.resolution_decimal_m)} m"
+        )
+    if trusted.frame_id != snapshot.frame_id:
+        return f"frame {snapshot.frame_id!r}, trusted {trusted.frame_id!r}"
     # A turn that moves the grids' farthest cell by less than the rounding is no turn: a heading
     # re-estimated at each publish (microradians) made every snapshot incomparable, the detector
     # blind, as an origin moving by millimetres did.
     extent = math.hypot(*trusted.shape) + math.hypot(*snapshot.shape)
-    if _rotation_between(trusted, snapshot) * extent > max(rounding, _SAME_ROTATION_RAD):
-        return None
+    turn = _rotation_between(trusted, snapshot)
+    if turn * extent > max(rounding, _SAME_ROTATION_RAD):
+        return f"origin turned by {math.degrees(turn):.3g} degrees"
     row, col = _cells_of(snapshot, trusted.origin_position_m[0], trusted.origin_position_m[1])
-    if abs(col - round(col)) > rounding or abs(row - round(row)) > rounding:
-        return None
+    off = max(abs(col - round(col)), abs(row - round(row)))
+    if off > rounding:
+        return f"origin {off:.2f} cell off the trusted grid's cells"
     return round(row), round(col)
 
 
@@ -464,13 +477,16 @@ class BreakDetector:
             self._state[topic] = _TopicState.start(index, snapshot, self._blank(snapshot))
             return _CLEAR
         trusted = None if state is None else state.trusted
-        offset = None if trusted is None else self._offset(trusted[1], snapshot)
+        placed = None if trusted is None else self._placement(trusted[1], snapshot)
+        offset = None if isinstance(placed, str) else placed
         if state is None or trusted is None or offset is None or state.blank:
             self._state[topic] = _TopicState.start(index, snapshot, self._blank(snapshot))
-            if trusted is not None and offset is None:
+            if trusted is not None and isinstance(placed, str):
                 # Said by the session once the snapshot stays (one whose analysis fails is
                 # withdrawn, and the next is compared with the trusted one again).
-                return dataclasses.replace(_CLEAR, incomparable_with=trusted[0])
+                return dataclasses.replace(
+                    _CLEAR, incomparable_with=trusted[0], incomparable_why=placed
+                )
             return _CLEAR
         verdict = self._score(trusted, snapshot, offset)
         from_anchor = False
@@ -616,7 +632,11 @@ class BreakDetector:
         )
 
     def _offset(self, trusted: MapSnapshot, snapshot: MapSnapshot) -> tuple[int, int] | None:
-        return _offset_px(trusted, snapshot, rounding=self._rounding(snapshot.resolution_decimal_m))
+        placed = self._placement(trusted, snapshot)
+        return None if isinstance(placed, str) else placed
+
+    def _placement(self, trusted: MapSnapshot, snapshot: MapSnapshot) -> tuple[int, int] | str:
+        return _placement(trusted, snapshot, rounding=self._rounding(snapshot.resolution_decimal_m))
 
     def _score(
         self, against: tuple[int, MapSnapshot], snapshot: MapSnapshot, offset: tuple[int, int]

@@ -863,12 +863,12 @@ class _Loop:
         verdict = pending.verdict.result()[0]
         if verdict.incomparable_with is not None:
             _LOG.warning(
-                "%s: the map %s is not comparable with trusted snapshot %d (another cell size, "
-                "frame or orientation, or an origin off its cells): the break detector starts "
-                "again from it, and a break across the change is not seen",
+                "%s: the map %s is not comparable with trusted snapshot %d (%s): the break "
+                "detector starts again from it, and a break across the change is not seen",
                 topic,
                 self._at(snapshot.log_time_ns),
                 verdict.incomparable_with,
+                verdict.incomparable_why,
             )
         returned = returned_text(verdict)
         if returned is not None:
@@ -929,8 +929,8 @@ class _Loop:
             # In the viewer too: the break score falls to 0 there, which read as a recovery. Short
             # enough for the events view, which cuts a line (at about 140 characters) unwrapped.
             restart = (
-                "break detector restarted: cell size, frame, orientation or origin differs from "
-                f"snapshot {verdict.incomparable_with}; a break across the change is not seen"
+                f"break detector restarted ({verdict.incomparable_why}; trusted snapshot "
+                f"{verdict.incomparable_with}): a break across the change is not seen"
             )
             rerun.event(snapshot, restart, index, None)
         if returned is not None:

@@ -102,8 +102,10 @@ def test_a_detector_restart_is_an_event_in_the_recording(tmp_path: Path, fr079) 
     process_log(built.path, rrd_path=tmp_path / "s.rrd")
     events = _temporal_rows(tmp_path / "s.rrd")[f"/{EntityPaths('map').events}"]
     texts = [next(v for k, v in row.items() if k.endswith("text"))[0] for row in events]
+    # What differs, and from which snapshot (it listed the four causes, whichever it was).
     restart = (
-        "break detector restarted: cell size, frame, orientation or origin differs from snapshot 0"
+        "break detector restarted (cell size 0.1 m, trusted 0.05 m; trusted snapshot 0): a break "
+        "across the change is not seen"
     )
     restarts = [t for t in texts if t.startswith(restart)]
     # Whole in the events view, which cuts a line at about 140 characters (it was 166).

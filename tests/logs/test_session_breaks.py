@@ -400,6 +400,32 @@ def test_a_snapshot_not_comparable_says_which_trusted_snapshot(plan) -> None:
     assert detector.update(_snap(plan, 30, res=RES * 2)).trusted_index == 1
 
 
+def test_a_snapshot_not_comparable_says_what_differs(plan) -> None:
+    """The session's warning listed four causes ("another cell size, frame or orientation, or an
+    origin off its cells") whichever it was: two publishers of 0.05 and 0.1 m maps on one topic
+    warned at every map without saying so. The verdict says which, as the warning does."""
+    turn = math.radians(2.0)
+    xyzw = (0.0, 0.0, math.sin(turn / 2), math.cos(turn / 2))
+    changes = {
+        "cell size 0.1 m, trusted 0.05 m": _snap(plan, 1, res=0.1),
+        "frame 'odom', trusted 'map'": dataclasses.replace(_snap(plan, 1), frame_id="odom"),
+        "origin turned by 2 degrees": dataclasses.replace(
+            _snap(plan, 1), origin_orientation_xyzw=xyzw
+        ),
+        "origin 0.30 cell off the trusted grid's cells": _snap(
+            plan, 1, res=0.5, origin=(-5.0 + 0.15, -3.0)
+        ),
+    }
+    for why, snapshot in changes.items():
+        detector = BreakDetector()
+        detector.update(_snap(plan, 0, res=0.5 if "cell off" in why else RES))
+        verdict = detector.update(snapshot)
+        assert (verdict.incomparable_with, verdict.incomparable_why) == (0, why)
+    same = BreakDetector()
+    same.update(_snap(plan, 0))
+    assert same.update(_snap(plan, 1)).incomparable_why == ""
+
+
 def test_maps_too_fine_for_the_detector_are_not_checked_and_say_so(
     plan, broken, caplog: pytest.LogCaptureFixture
 ) -> None:
