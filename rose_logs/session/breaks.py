@@ -49,6 +49,7 @@ from rose_logs.snapshots import MapSnapshot
 
 __all__ = [
     "BreakDetector",
+    "BreakLengthsPx",
     "BreakParams",
     "BreakParamsError",
     "BreakScore",
