@@ -87,7 +87,8 @@ class BreakParams:
     threshold_m : float
         Contradicted length (metres, in one window) from which a snapshot is broken.
     tolerance_m : float
-        A wall that moved by at most this much (metres) is not erased.
+        A wall that moved by at most this much (metres) is not erased; a cell at least when
+        positive (:meth:`in_cells`).
     min_wall_m : float
         Only pieces at least this long (connected cells, gaps up to ``bridge_m`` bridged) count, of
         established walls and of risen evidence; people and furniture blobs do not.
@@ -106,7 +107,7 @@ class BreakParams:
         evidence (101: off, erased walls only).
     rise_margin_m : float
         Risen evidence counts only farther than this from every cell that was not known free
-        (walls, unknown, uncertain), metres.
+        (walls, unknown, uncertain), metres; a cell at least when positive (:meth:`in_cells`).
     anchor_s : float
         How far behind (log time, seconds) the anchor, the older trusted snapshot every snapshot is
         also compared with, may fall before it moves up (module notes); ``inf``: no anchor.
