@@ -355,10 +355,10 @@ def _placement(
     made every snapshot incomparable, the detector blind (a 7.6 m ghost wall passed)."""
     res = snapshot.resolution_m
     if trusted.resolution_m != res:
-        return (
-            f"cell size {metres_text(snapshot.resolution_decimal_m)} m, trusted "
-            f"{metres_text(trusted.resolution_decimal_m)} m"
-        )
+        now, then = (metres_text(s.resolution_decimal_m) for s in (snapshot, trusted))
+        if now == then:  # a float32 and a float64 0.05 (a map made in Python): tell them apart
+            now, then = repr(res), repr(trusted.resolution_m)
+        return f"cell size {now} m, trusted {then} m"
     if trusted.frame_id != snapshot.frame_id:
         return f"frame {snapshot.frame_id!r}, trusted {trusted.frame_id!r}"
     # A turn that moves the grids' farthest cell by less than the rounding is no turn: a heading

@@ -408,6 +408,9 @@ def test_a_snapshot_not_comparable_says_what_differs(plan) -> None:
     xyzw = (0.0, 0.0, math.sin(turn / 2), math.cos(turn / 2))
     changes = {
         "cell size 0.1 m, trusted 0.05 m": _snap(plan, 1, res=0.1),
+        f"cell size {float(np.float32(RES))!r} m, trusted 0.05 m": _snap(
+            plan, 1, res=float(np.float32(RES))
+        ),
         "frame 'odom', trusted 'map'": dataclasses.replace(_snap(plan, 1), frame_id="odom"),
         "origin turned by 2 degrees": dataclasses.replace(
             _snap(plan, 1), origin_orientation_xyzw=xyzw
