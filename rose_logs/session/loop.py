@@ -96,6 +96,14 @@ _LOG = logging.getLogger(__name__)
 #: Origins tilted less than this out of the x-y plane (float noise in a quaternion) are flat.
 _FLAT_TILT_RAD = math.radians(0.1)
 
+#: Bytes of input messages held behind running analyses at most: past it, the reading waits for the
+#: analysis at the queue's head. Without a bound, a camera's images read while a large map was
+#: analysed were all held in memory (600 MB of them behind one 2400 x 2400 map: 1.46 GB at peak).
+_MAX_HELD_BYTES = 256 * 2**20
+#: What a held message costs beyond its data (its queue item and numbers, about 270 bytes): held
+#: 40-byte messages take seven times their data.
+_HELD_ITEM_BYTES = 256
+
 
 def process_log(
     input_path: Path,
@@ -521,6 +529,7 @@ class _Loop:
         self.queue: deque[_Copy | _Said | _Pending] = deque()
         self.said_while_reading: list[logging.LogRecord] = []  # held, see _step
         self.in_flight = 0
+        self.held_bytes = 0  # what the _Copy items in the queue hold (bounded: _MAX_HELD_BYTES)
         self.executor: Executor | None = None
         self.detection: Executor | None = None
         # Per topic, the analysis of its last snapshot submitted (see _detect).
@@ -641,6 +650,7 @@ class _Loop:
         )
         if held:
             self.queue.append(item)
+            self.held_bytes += len(item.data) + _HELD_ITEM_BYTES
         else:
             self._write(item)
 
@@ -655,18 +665,24 @@ class _Loop:
         )
 
     def _drain(self, limit: int) -> None:
-        """Write what is ready, in log order; wait for analyses while more than ``limit`` are out."""
+        """Write what is ready, in log order; wait for analyses while more than ``limit`` are out,
+        or while the messages held behind them exceed :data:`_MAX_HELD_BYTES`."""
         while self.queue:
             head = self.queue[0]
             if isinstance(head, _Copy):
                 self._write(head)
+                self.held_bytes -= len(head.data) + _HELD_ITEM_BYTES
             elif isinstance(head, _Said):
                 # Out of the queue first: saying may fail part way (a program's filter raising, a
                 # second Ctrl-C), and what the queue still holds is said again as the run ends.
                 self.queue.popleft()
                 say_held(head.records)
                 continue
-            elif self.in_flight > limit or head.future.done():
+            elif (
+                self.in_flight > limit
+                or self.held_bytes > _MAX_HELD_BYTES  # memory: wait for the analysis
+                or head.future.done()
+            ):
                 self.in_flight -= 1
                 self._finish(head)
             else:

@@ -168,6 +168,53 @@ def test_output_does_not_depend_on_analysis_timing(
     assert tree_bytes(steady) == tree_bytes(jittered)
 
 
+def test_messages_held_behind_a_slow_analysis_are_bounded(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Messages read while a map is analysed wait in memory to be written after its results; past
+    a bound the reading waits for the analysis (a camera's images behind a large map were all held).
+    Here the analysis finishes only when the session waits for it; the output is the same bytes."""
+    import threading
+
+    from synthetic import ros_floor_plan
+
+    import rose_logs.session.loop as loop
+    from rose_logs.session.analysis import SnapshotAnalyser
+
+    maps = session_maps([ros_floor_plan((120, 160))])
+    built = build_log(log_path(tmp_path, "mcap-ros2"), "mcap-ros2", maps, scans_per_map=40)
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    unbounded, bounded = tmp_path / "a" / "out.mcap", tmp_path / "b" / "out.mcap"
+    process_log(built.path, output_path=unbounded)
+
+    cap = 4000  # bytes: about five scans
+    monkeypatch.setattr(loop, "_MAX_HELD_BYTES", cap)
+    waited_for = threading.Event()
+    analyse, finish, step = SnapshotAnalyser.analyse, loop._Loop._finish, loop._Loop._step
+    held: list[int] = []
+
+    def when_waited_for(self, snapshot):  # type: ignore[no-untyped-def]
+        assert waited_for.wait(30), "the session never waited for the analysis"
+        return analyse(self, snapshot)
+
+    def waits(self, pending):  # type: ignore[no-untyped-def]
+        waited_for.set()
+        return finish(self, pending)
+
+    def reads(self, message):  # type: ignore[no-untyped-def]
+        step(self, message)
+        held.append(sum(len(i.data) for i in self.queue if isinstance(i, loop._Copy)))
+
+    monkeypatch.setattr(SnapshotAnalyser, "analyse", when_waited_for)
+    monkeypatch.setattr(loop._Loop, "_finish", waits)
+    monkeypatch.setattr(loop._Loop, "_step", reads)
+    process_log(built.path, output_path=bounded)
+    largest = max(len(data) for _, data in read_all(built.path)["/scan"])
+    assert 0 < max(held) <= cap + largest  # unbounded: all 40 scans (31 kB)
+    assert tree_bytes(unbounded) == tree_bytes(bounded)
+
+
 @pytest.mark.parametrize(
     ("src", "fmt", "suffix"),
     [("mcap-ros2", "db3", ""), ("db3", "mcap", ".mcap"), ("ros1", "mcap", ".mcap")],
