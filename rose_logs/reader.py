@@ -58,6 +58,7 @@ from rose_logs.storage.ros1_stream import (
 )
 from rose_logs.storage.rosbags import (
     RosbagsReadBackend,
+    bag_custom_data,
     library_text,
     mcap_storage_files,
     rosbags_text,
@@ -573,6 +574,14 @@ class LogReader:
         if isinstance(backend, McapFilesReadBackend):
             return backend.counts_declared
         return not isinstance(backend, McapStreamReadBackend | Ros1StreamReadBackend)
+
+    @property
+    def custom_data(self) -> dict[str, str]:
+        """A ROS 2 bag folder's ``custom_data`` (its metadata.yaml's key-value text, ``ros2 bag
+        record --custom-data``); empty for other logs, and for a bag without any."""
+        if self.format not in ("db3", "mcap-dir"):
+            return {}
+        return bag_custom_data(self.path)
 
     def file_records(self) -> FileRecords:
         """A bare MCAP file's metadata and attachment records (``mcap.records.Metadata`` and

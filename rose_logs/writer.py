@@ -33,7 +33,7 @@ import contextlib
 import logging
 import os
 import shutil
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from types import TracebackType
 from typing import Any, Self
@@ -387,6 +387,23 @@ class LogWriter:
         except OSError as err:  # a full disk, an I/O error: name the output, not the temporary
             msg = f"{self.path}: cannot write ({err.strerror or short(err, 160)})"
             raise LogWriteError(msg) from err
+
+    def add_custom_data(self, data: Mapping[str, str]) -> None:
+        """Copy a ROS 2 bag's ``custom_data`` (:attr:`LogReader.custom_data`): a ROS 2 bag output
+        keeps it in its metadata.yaml; the other formats have no place for it (a warning says so).
+        """
+        backend = self._require_open()
+        if not data:
+            return
+        if not isinstance(backend, Ros2WriteBackend):
+            _LOG.warning(
+                "%s: the input bag's custom_data (%s) is not copied (a %s log has no place for it)",
+                self.path,
+                short(", ".join(data), 80),
+                self.format,
+            )
+            return
+        backend.set_custom_data(data)
 
     def write(self, topic: str, log_time_ns: int, message: Any) -> None:
         """Write a message on ``topic``: serialised bytes as they are, a typestore object serialised.

@@ -322,6 +322,7 @@ def _run_session(
             )
             if writer is not None:  # an MCAP file's records of no channel (a URDF attached...)
                 writer.add_file_records(reader.file_records())
+                writer.add_custom_data(reader.custom_data)  # and a ROS 2 bag's own key-values
             if rrd_path is not None or spawn or connect is not None:
                 # Signals held until `rerun` is bound: an interrupt in between would leave Rerun's
                 # writer running, to create its file after the abort removed the folder around it.

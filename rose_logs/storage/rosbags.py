@@ -10,7 +10,7 @@ import io
 import logging
 import os
 import re
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path, PurePath
 from typing import Any, Literal
 
@@ -35,7 +35,13 @@ from rose_logs.storage.records import (
     read_part_way,
 )
 
-__all__ = ["Ros1WriteBackend", "Ros2WriteBackend", "RosbagsReadBackend", "mcap_storage_files"]
+__all__ = [
+    "Ros1WriteBackend",
+    "Ros2WriteBackend",
+    "RosbagsReadBackend",
+    "bag_custom_data",
+    "mcap_storage_files",
+]
 
 _LOG = logging.getLogger(__name__)
 _HOT_JOURNAL = bytes.fromhex("d9d505f920a163d7")  # a rollback journal's header while it is live
@@ -622,6 +628,26 @@ def _bag_information(path: Path) -> dict[str, Any] | None:
     return information if isinstance(information, dict) else None
 
 
+def bag_custom_data(path: Path) -> dict[str, str]:
+    """``custom_data`` of the ROS 2 bag folder ``path``'s metadata.yaml (``ros2 bag record
+    --custom-data``: text the user attached to the bag), in its order; empty when it has none (a
+    file, metadata that does not read). Values as spelled (rosbag2 reads them as text: ``true``,
+    ``042`` or a date are no bool, number or date)."""
+    import yaml
+
+    if not path.is_dir() or _bag_information(path) is None:  # (read within the YAML limits)
+        return {}
+    try:
+        text = (path / "metadata.yaml").read_bytes().decode("utf-8")
+        data = yaml.load(text, Loader=yaml.BaseLoader)["rosbag2_bagfile_information"]
+        data = data["custom_data"]
+    except (OSError, ValueError, KeyError, TypeError, yaml.YAMLError):
+        return {}
+    if not isinstance(data, dict):  # null: none
+        return {}
+    return {str(key): value for key, value in data.items() if isinstance(value, str)}
+
+
 def mcap_storage_files(path: Path) -> list[Path]:
     """The MCAP storage files the ROS 2 bag folder ``path``'s metadata.yaml lists, in its order,
     as rosbags finds them (by name, in the folder); none when one of them is no plain MCAP file
@@ -799,6 +825,11 @@ class Ros2WriteBackend(_RosbagsWriteBackend):
         version: Literal[8, 9] = 8 if self.qos_style == "v8" else 9
         self.writer = Writer(self.path, version=version, storage_plugin=plugin)
         self.writer.open()
+
+    def set_custom_data(self, data: Mapping[str, str]) -> None:
+        """Key-value text for the bag's metadata.yaml ``custom_data`` (:func:`bag_custom_data`)."""
+        for key, value in data.items():
+            self.writer.set_custom_data(key, value)
 
     def _add_connection(self, channel: Channel, msgdef: str, digest: str) -> Any:
         storage = self.writer.storage

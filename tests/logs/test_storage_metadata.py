@@ -542,6 +542,40 @@ def test_an_mcap_files_metadata_and_attachments_are_copied(
     )
 
 
+@pytest.mark.parametrize("plugin", ["SQLITE3", "MCAP"])
+def test_a_bags_custom_data_is_copied(
+    tmp_path: Path, plugin: str, caplog: pytest.LogCaptureFixture
+) -> None:
+    """``ros2 bag record --custom-data`` (a robot's name, a run's id) was left out of the output
+    bag's metadata.yaml without a word; values are text as spelled (rosbag2 reads no types)."""
+    import logging
+
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    src = tmp_path / "in"
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    with Writer(src, version=9, storage_plugin=StoragePlugin[plugin]) as writer:
+        writer.set_custom_data("robot", "r2")
+        writer.set_custom_data("run", "2026-12-06")
+        maps = writer.add_connection("/map", MAP_TYPE, typestore=store)
+        for t_ns, topic, data in _messages("cdr"):
+            if topic == "/map":
+                writer.write(maps, t_ns, data)
+    metadata = src / "metadata.yaml"  # as rosbag2 (yaml-cpp) spells them: unquoted
+    metadata.write_text(metadata.read_text().replace("'2026-12-06'", "2026-12-06") + "\n")
+
+    def custom_data(bag: Path) -> Any:
+        info = yaml.load((bag / "metadata.yaml").read_text(), Loader=yaml.BaseLoader)
+        return info["rosbag2_bagfile_information"]["custom_data"]
+
+    out = tmp_path / "out"
+    process_log(src, output_path=out)
+    assert custom_data(out) == custom_data(src) == {"robot": "r2", "run": "2026-12-06"}
+    with caplog.at_level(logging.WARNING):  # an MCAP file has no place for it: said
+        process_log(src, output_path=tmp_path / "out.mcap")
+    assert any("custom_data (robot, run) is not copied" in r.getMessage() for r in caplog.records)
+
+
 @pytest.mark.parametrize("serialization", ["ros1", "cdr"])
 def test_a_connection_given_twice_keeps_its_messages_on_its_own(
     tmp_path: Path, serialization: str
