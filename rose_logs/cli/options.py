@@ -87,7 +87,8 @@ def add_topic_argument(parser: Any) -> None:
         default=None,
         dest="topics",
         type=topic_arg,
-        help="map topic to analyse (repeatable; default: every OccupancyGrid topic)",
+        help="map topic to analyse (repeatable; default: every OccupancyGrid topic with messages, "
+        "costmaps left out unless the log has no other)",
     )
 
 

@@ -974,6 +974,16 @@ def test_process_help_gives_the_break_detectors_own_default(capsys) -> None:
     assert f"break (default {BreakParams().threshold_m:g})" in help_text
 
 
+@pytest.mark.parametrize("command", ["process", "batch"])
+def test_the_topic_options_help_says_costmaps_are_left_out(command: str, capsys) -> None:
+    """--topic's default left out costmaps and topics without messages, and its help said every
+    OccupancyGrid topic."""
+    with pytest.raises(SystemExit):
+        main([command, "--help"])
+    help_text = " ".join(capsys.readouterr().out.split())
+    assert "default: every OccupancyGrid topic with messages, costmaps left out" in help_text
+
+
 def test_info_spells_types_as_the_log_does(tmp_path: Path, capsys, fr079) -> None:
     """A ROS 1 bag's types are pkg/Name (info showed the ROS 2 spelling)."""
     built = build_log(tmp_path / "in.bag", "ros1", session_maps(fr079[:1]))
