@@ -60,7 +60,7 @@ from rose_logs.session.held_logs import (
     said_at_once,
     say_held,
 )
-from rose_logs.session.records import Skips, returned_text, snapshot_record
+from rose_logs.session.records import WARN_FIRST, Skips, returned_text, snapshot_record
 from rose_logs.session.report import (
     BreakEvent,
     SessionReport,
@@ -521,6 +521,7 @@ class _Loop:
         # Per topic: whether W of its last judged snapshot was above the failure level.
         self.w_above: dict[str, bool] = {}
         self.broken: dict[str, bool] = {}  # per topic: whether its last snapshot was broken
+        self.restarts: dict[str, int] = {}  # per topic: maps the break detector restarted at
         self.records: list[SnapshotRecord] = []
         self.breaks: list[BreakEvent] = []
         self.skips = Skips(_LOG)
@@ -580,6 +581,7 @@ class _Loop:
                         self._finish_sessions()
                         bar.update(pending)
                         self.skips.warn_rest()
+                        self._warn_more_restarts()
         finally:
             try:
                 # Interrupted or failed: what was read is said still, not the unfinished analyses.
@@ -594,6 +596,17 @@ class _Loop:
                     pool.shutdown(wait=True, cancel_futures=True)
                     detection.shutdown(wait=True, cancel_futures=True)
                 bar.close()
+
+    def _warn_more_restarts(self) -> None:
+        """One line per topic for the break detector's restarts past the first few warned."""
+        for topic, restarts in self.restarts.items():
+            if restarts > WARN_FIRST:
+                _LOG.warning(
+                    "%s: %d more maps not comparable with their trusted snapshot: the break "
+                    "detector started again from each",
+                    topic,
+                    restarts - WARN_FIRST,
+                )
 
     def _is_map(self, channel: Channel) -> bool:
         return channel.topic in self.map_topics and channel.msgtype == MAP_TYPE
@@ -879,14 +892,19 @@ class _Loop:
         self.analysed[topic] = index + 1
         verdict = pending.verdict.result()[0]
         if verdict.incomparable_with is not None:
-            _LOG.warning(
-                "%s: the map %s is not comparable with trusted snapshot %d (%s): the break "
-                "detector starts again from it, and a break across the change is not seen",
-                topic,
-                self._at(snapshot.log_time_ns),
-                verdict.incomparable_with,
-                verdict.incomparable_why,
-            )
+            # Two publishers of one topic at other cell sizes or frames restart it at every map:
+            # the first few said, the rest counted (a one-hour session said it 3,600 times).
+            restarts = self.restarts.get(topic, 0) + 1
+            self.restarts[topic] = restarts
+            if restarts <= WARN_FIRST:
+                _LOG.warning(
+                    "%s: the map %s is not comparable with trusted snapshot %d (%s): the break "
+                    "detector starts again from it, and a break across the change is not seen",
+                    topic,
+                    self._at(snapshot.log_time_ns),
+                    verdict.incomparable_with,
+                    verdict.incomparable_why,
+                )
         returned = returned_text(verdict)
         if returned is not None:
             # A broken topic coming back is the end of its break; otherwise a drift the detector

@@ -13,10 +13,11 @@ from rose_logs.session.breaks import BreakScore
 from rose_logs.session.report import SnapshotRecord
 from rose_logs.snapshots import MapSnapshot
 
-__all__ = ["Skips", "cleaning_counts", "returned_text", "snapshot_record"]
+__all__ = ["WARN_FIRST", "Skips", "cleaning_counts", "returned_text", "snapshot_record"]
 
-_WARN_FIRST = 3
-"""Map messages skipped for one reason that get a warning each; the rest are counted in one line."""
+WARN_FIRST = 3
+"""Warnings of one kind (map messages skipped for one reason, a topic's break detector restarted)
+said one by one; the rest are counted in one line at the end of the session."""
 
 
 class Skips:
@@ -37,7 +38,7 @@ class Skips:
         self.by_reason[reason] = count
         at = (at_ns, read)
         self._first[reason] = min(self._first.get(reason, at), at)
-        if count <= _WARN_FIRST:
+        if count <= WARN_FIRST:
             self._log.log(_level_of(reason), "%s, copied unprocessed", text)
 
     def _in_log_order(self) -> list[tuple[str, int]]:
@@ -48,11 +49,11 @@ class Skips:
 
     def warn_rest(self) -> None:
         for reason, count in self._in_log_order():
-            if count > _WARN_FIRST:
+            if count > WARN_FIRST:
                 self._log.log(
                     _level_of(reason),
                     "%d more map messages %s, copied unprocessed",
-                    count - _WARN_FIRST,
+                    count - WARN_FIRST,
                     reason,
                 )
 

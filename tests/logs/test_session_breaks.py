@@ -503,6 +503,31 @@ def test_the_session_warns_of_a_map_the_detector_cannot_compare_once_it_stays(
         assert "trusted snapshot 0" in said[0] and "trusted snapshot 1" in said[1]
 
 
+def test_a_topic_restarting_at_every_map_is_warned_of_a_few_times_then_counted(
+    tmp_path, caplog: pytest.LogCaptureFixture, fr079
+) -> None:
+    """Two publishers of one topic at 0.05 and 0.1 m per cell restart the detector at every map:
+    a warning each flooded the terminal (3,600 lines for a one-hour session at 1 Hz). The first
+    few are said, the rest in one line at the end."""
+    import dataclasses
+
+    from rose_logs.session import process_log
+    from rose_logs.session.records import WARN_FIRST
+    from tests.logs.conftest import build_log, session_maps
+
+    maps = session_maps([fr079[0]] * (WARN_FIRST + 4))
+    maps = [dataclasses.replace(m, resolution_m=0.1) if i % 2 else m for i, m in enumerate(maps)]
+    with caplog.at_level("WARNING"):
+        report = process_log(build_log(tmp_path / "in.mcap", "mcap-ros2", maps).path)
+    assert len(report.records) == WARN_FIRST + 4  # every map analysed; 6 restarts
+    said = [r.getMessage() for r in caplog.records if "not comparable" in r.getMessage()]
+    assert len(said) == WARN_FIRST + 1
+    assert said[-1] == (
+        "/map: 3 more maps not comparable with their trusted snapshot: the break detector "
+        "started again from each"
+    )
+
+
 def test_a_drift_too_slow_to_break_between_snapshots_breaks_against_the_anchor(plan) -> None:
     """Half the map moves 0.1 m per snapshot, within the 0.3 m tolerance of the snapshot before:
     compared with the last trusted snapshot only, it never broke (1 m off after ten snapshots).
