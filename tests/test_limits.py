@@ -80,6 +80,22 @@ def test_check_cells() -> None:
     assert "exceeds the limit" in (check_cells(10, 11, 100) or "")
 
 
+def test_a_grid_over_the_limit_says_what_a_cell_costs_as_the_help_does() -> None:
+    """The error of a grid over --max-cells said the walls cleaning needs "about 75" bytes per
+    cell, where the option's help (and the README) had learned it takes about 230 on maps of 0.1
+    to under 0.15 m per cell: the figure a user sizes --max-cells by was a third too small."""
+    import argparse
+
+    from rose.cli.options import add_limit_arguments
+
+    parser = argparse.ArgumentParser()
+    add_limit_arguments(parser)
+    helps = " ".join(a.help or "" for a in parser._actions if "--max-cells" in a.option_strings)
+    said = check_cells(10, 11, 100) or ""
+    assert "230 on maps of 0.1 to under 0.15 m per cell" in said
+    assert said[said.index("ROSE needs") : -1] in " ".join(helps.split())
+
+
 def test_check_cells_counts_the_cells_of_a_thin_strip_padded_for_its_spectrum() -> None:
     """A strip of 1 x 5,000,000 cells was within a limit of 10**7 and took 2.5 GB: ROSE pads a
     side under 16 cells to 16 (80,000,000 cells). A strip under 16 cells long is not padded."""

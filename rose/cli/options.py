@@ -20,7 +20,7 @@ from rose.directions import (
 )
 from rose.errors import RoseError
 from rose.grid import as_occupancy_grid
-from rose.limits import DEFAULT_MAX_CELLS
+from rose.limits import DEFAULT_MAX_CELLS, MEMORY_PER_CELL
 from rose.mapfile import (
     DEFAULT_RESOLUTION_M,
     MAX_RESOLUTION_M,
@@ -268,8 +268,7 @@ def add_limit_arguments(parser: argparse.ArgumentParser) -> None:
         default=DEFAULT_MAX_CELLS,
         metavar="N",
         help="refuse grids of more than N cells, checked before allocating "
-        "(default %(default).0e; ROSE needs about 35 bytes per cell, its walls cleaning "
-        "about 75, or 230 on maps of 0.1 to 0.15 m per cell)",
+        f"(default %(default).0e; {MEMORY_PER_CELL})",
     )
 
 
