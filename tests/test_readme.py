@@ -69,3 +69,19 @@ def test_the_web_viewer_address_opens_the_recording() -> None:
     assert all(address.rstrip("`,.)").endswith(wanted) for address in addresses), addresses
     for line in section.splitlines():
         assert not ("--serve-grpc" in line and "a viewer to stream to" in line), line
+
+
+def test_the_padded_shapes_the_readme_gives_are_padded_shapes() -> None:
+    """The README said only a side under 16 cells is padded, where every side is padded up to a
+    fast FFT length (its own example: 736 x 1152 -> 750 x 1152): each shape it gives is checked."""
+    from rose.spectrum import padded_shape
+
+    text = " ".join(README.read_text(encoding="utf-8").split())
+    given = re.findall(r"(\d+) x (\d+) -> (\d+) x (\d+)", text)
+    given += [
+        (a, b, c, d) for c, d, a, b in re.findall(r"(\d+) x (\d+) for a (\d+) x (\d+) map", text)
+    ]
+    assert len(given) >= 2, given
+    for rows, cols, padded_rows, padded_cols in given:
+        assert padded_shape((int(rows), int(cols))) == (int(padded_rows), int(padded_cols))
+    assert "only a side under 16 cells is padded" not in text
