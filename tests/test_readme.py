@@ -85,3 +85,19 @@ def test_the_padded_shapes_the_readme_gives_are_padded_shapes() -> None:
     for rows, cols, padded_rows, padded_cols in given:
         assert padded_shape((int(rows), int(cols))) == (int(padded_rows), int(padded_cols))
     assert "only a side under 16 cells is padded" not in text
+
+
+def test_the_bag_folder_files_the_readme_names_are_those_written(tmp_path: Path) -> None:
+    """The README said a ROS 2 output's storage file is "named as rosbag2 names its files", which
+    adds a split index (``out.db3_0.db3``); the file is named after the folder alone, as the rosbags
+    library names it. The names the README gives are those written."""
+    from rose_logs import open_output
+
+    text = " ".join(README.read_text(encoding="utf-8").split())
+    said = re.search(r"`-o (\S+)` makes `\1/` with `metadata.yaml` and `(\S+)`", text)
+    assert said is not None
+    folder, storage = said.groups()
+    assert "named as rosbag2 names" not in text
+    with open_output(tmp_path / folder, "db3", serialization="cdr"):
+        pass
+    assert sorted(p.name for p in (tmp_path / folder).iterdir()) == ["metadata.yaml", storage]
