@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import re
 import shutil
 from pathlib import Path
@@ -101,3 +102,26 @@ def test_the_bag_folder_files_the_readme_names_are_those_written(tmp_path: Path)
     with open_output(tmp_path / folder, "db3", serialization="cdr"):
         pass
     assert sorted(p.name for p in (tmp_path / folder).iterdir()) == ["metadata.yaml", storage]
+
+
+def test_degenerate_is_given_whatever_the_count_of_occupied_cells(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The README said `degenerate` is null for "a map of fewer than 20 occupied cells too", but a
+    map outside ROSE's domain is said to be so whatever its count (a 10 x 10 map of 5 occupied
+    cells: a side under 16 cells); inside the domain, a map of 5 has none."""
+    import numpy as np
+
+    from rose.cli import main
+
+    text = " ".join(README.read_text(encoding="utf-8").split())
+    assert "(null for the others, a map of fewer than 20 occupied cells too" not in text
+    for side in (10, 40):
+        grid = np.zeros((side, side), np.int8)
+        grid[4, 2:7] = 100  # 5 occupied cells
+        rose.save_map(tmp_path / f"m{side}.yaml", rose.OccupancyMap(grid, 0.05, (0.0, 0.0), 0.0))
+    assert main(["score", "--json", str(tmp_path / "m10.yaml"), str(tmp_path / "m40.yaml")]) == 0
+    small, large = json.loads(capsys.readouterr().out)
+    assert small["occupied_cells"] == large["occupied_cells"] == 5
+    assert small["degenerate"] is not None and "a side of 10 cells" in small["degenerate"]
+    assert large["degenerate"] is None
