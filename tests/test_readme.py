@@ -70,6 +70,11 @@ def test_the_web_viewer_address_opens_the_recording() -> None:
     assert all(address.rstrip("`,.)").endswith(wanted) for address in addresses), addresses
     for line in section.splitlines():
         assert not ("--serve-grpc" in line and "a viewer to stream to" in line), line
+    # Rerun 0.41 prints http://127.0.0.1:9090?url=rerun%2Bhttp%3A%2F%2Flocalhost%3A9876%2Fproxy:
+    # the README's address is not "as it prints it", and says how it differs.
+    flat = " ".join(section.split())
+    assert "as `rerun --serve-web` prints it" not in flat
+    assert "prints it with `localhost`" in flat
 
 
 def test_the_padded_shapes_the_readme_gives_are_padded_shapes() -> None:
