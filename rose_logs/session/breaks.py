@@ -335,11 +335,14 @@ _SAME_ROTATION_RAD = 1e-6
 
 
 def _rotation_between(a: MapSnapshot, b: MapSnapshot) -> float:
-    """Angle (radians) of the rotation between two snapshots' origin orientations."""
-    qa = np.asarray(a.origin_orientation_xyzw, dtype=np.float64)
-    qb = np.asarray(b.origin_orientation_xyzw, dtype=np.float64)
-    cosine = abs(float(qa @ qb)) / float(np.linalg.norm(qa) * np.linalg.norm(qb))
-    return 2.0 * math.acos(min(1.0, cosine))
+    """Angle (radians, 0..pi) between two snapshots' origin yaws.
+
+    A grid is placed flat, turned by its origin's yaw (a tilted origin is taken so, as Nav2 takes
+    it, and as :func:`_cells_of` places the cells): a tilt alone moves no cell. The whole
+    quaternions were compared, so a map whose origin's roll changed (or was tilted in one snapshot)
+    restarted the detector, and a break across it went unseen."""
+    turn = (a.origin_yaw_rad - b.origin_yaw_rad) % math.tau
+    return min(turn, math.tau - turn)
 
 
 def _placement(

@@ -278,6 +278,28 @@ def test_a_heading_jittering_by_microradians_is_still_compared(plan, broken) -> 
     assert restarted.update(yawed(broken, 1, math.radians(0.25))).trusted_index is None
 
 
+def test_an_origin_tilted_out_of_the_plane_alone_is_still_compared(plan, broken) -> None:
+    """A map origin tilted out of the x-y plane is taken flat, turned by its yaw (as Nav2 takes it,
+    and as the README says): a tilt alone moves no cell. The whole quaternions were compared, so a
+    snapshot whose origin's roll changed restarted the detector and its break went unseen."""
+
+    def placed(grid: npt.NDArray[np.int8], t: int, roll: float, yaw: float) -> MapSnapshot:
+        # Roll about x, then yaw about z: q = q_yaw * q_roll.
+        cr, sr = math.cos(roll / 2), math.sin(roll / 2)
+        cy, sy = math.cos(yaw / 2), math.sin(yaw / 2)
+        xyzw = (cy * sr, sy * sr, sy * cr, cy * cr)
+        return dataclasses.replace(_snap(grid, t), origin_orientation_xyzw=xyzw)
+
+    detector = BreakDetector(BreakParams(threshold_m=1.0))
+    detector.update(placed(plan, 0, 0.0, 0.3))
+    verdict = detector.update(placed(broken, 1, math.radians(5), 0.3))
+    assert verdict.trusted_index == 0 and verdict.broken and verdict.incomparable_with is None
+    # Another yaw, tilted or not, is another placement: the comparison restarts.
+    restarted = BreakDetector(BreakParams(threshold_m=1.0))
+    restarted.update(placed(plan, 0, math.radians(5), 0.3))
+    assert restarted.update(placed(broken, 1, math.radians(5), 0.4)).incomparable_with == 0
+
+
 def test_break_parameters_can_follow_roses_occupied_threshold() -> None:
     assert BreakParams.following(40) == BreakParams(occupied_threshold=40, free_threshold=39)
     assert BreakParams.following(80, threshold_m=2.0) == BreakParams(
