@@ -759,6 +759,27 @@ def test_hidden_walls_are_completed_only_next_to_what_was_removed() -> None:
     assert clean(grid, result, resolution_m=0.05, params=far).completed_count == 30
 
 
+def test_a_doorway_beside_a_box_that_hides_part_of_it_stays_open() -> None:
+    """A 0.9 m doorway into unexplored space, unknown across, a box against the wall hiding its
+    first 0.25 m: the hidden wall line was drawn on within 0.5 m of the box, over 0.75 m of the
+    doorway in plain view of the room, and closed it for the robot."""
+    grid = np.full((160, 200), -1, np.int8)
+    grid[10:60, 10:190] = 0  # the mapped room
+    grid[8:10, 8:192] = grid[60:62, 8:192] = 100
+    grid[8:62, 8:10] = grid[8:62, 190:192] = 100
+    grid[60:62, 90:108] = -1  # the doorway, unknown, unexplored space beyond it
+    grid[53:60, 76:94] = -1  # a box against the wall: its inside unseen, ...
+    grid[52, 75:95] = grid[52:60, 75] = grid[52:60, 94] = 100  # ... its front and sides
+    cleaned = clean(grid, rose.analyze(grid), resolution_m=RES)
+    assert cleaned.removed[52, 76:94].all()  # the box goes
+    room, beyond = (30, 100), (100, 100)
+    assert not separated_pairs(grid >= 65, room, beyond)
+    assert not separated_pairs(cleaned.cleaned >= 65, room, beyond)
+    # Behind the box the line is still drawn; not in front of the room's free space.
+    assert cleaned.completed[60:62, 90:94].any()
+    assert not cleaned.completed[60:62, 95:108].any()
+
+
 def test_a_cabinet_against_a_stepped_wall_goes_and_the_wall_behind_it_is_drawn() -> None:
     """The wall behind a scanned cabinet is unknown; its two visible ends one cell apart across the
     line (a scanned wall's staircase) anchored no hidden wall, so removing the cabinet opened the

@@ -24,7 +24,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rose.cleaning_rules.beside import _beside
-from rose.cleaning_rules.bridges import _bridges
+from rose.cleaning_rules.bridges import _bridges, _in_plain_view
 from rose.cleaning_rules.fronts import (
     _CORNER_DEPTH_M,
     _CORNER_MAX_M,
@@ -299,6 +299,8 @@ def _wall_cells(
             # Grown here: ``keep`` changes in place later, while the side thread may still run.
             walls=_grow_within(keep, occupied, reach_px),
         )
+        free = unknown | occupied  # known cells that are not occupied
+        np.logical_not(free, out=free)
         completed = np.zeros(occupied.shape, dtype=bool)
         sealed_off = completed  # what closes scanned objects and the building, as walls or not
         if p.max_bridge_m > 0:
@@ -323,10 +325,14 @@ def _wall_cells(
             # Only next to what goes (within a cabinet's depth): a bridge network reaching into
             # unexplored space or across racks is no wall hidden behind removed clutter.
             removed = np.greater(occupied, keep)
-            sealed_off = _near(
-                _touching(bridges, removed), removed, round(length_px(p.hidden_wall_reach_m, res))
-            )
+            hidden_reach = round(length_px(p.hidden_wall_reach_m, res))
+            sealed_off = _near(_touching(bridges, removed), removed, hidden_reach)
             completed = sealed_off & wall_lines
+            # Not drawn where nothing hides it from the room and unexplored space lies beyond: a
+            # doorway beside a box that hides part of it was closed for a robot by the line
+            # drawn on within the box's reach. (Between two mapped rooms the line is drawn as
+            # before: both sides seen, nothing beyond.)
+            np.greater(completed, _in_plain_view(completed, free, near_outside), out=completed)
         # Furniture against a wall (a cabinet, a counter: its front a straight run when 2 m or
         # longer): the wall line hidden behind it is drawn, its front and sides go, and the walls
         # that meet it stay.
@@ -369,8 +375,6 @@ def _wall_cells(
         object_faces |= fronts
         np.greater(keep, object_faces, out=keep)
         keep |= front_walls  # walls meeting furniture fronts: kept, attach to them
-        free = unknown | occupied  # known cells that are not occupied
-        np.logical_not(free, out=free)
         if p.attach_reach_m > 0:
             # Wall stubs, door frames, corners: occupied cells joined to a kept wall within the
             # reach, through occupied cells that are not object faces (nor fronts).

@@ -10,7 +10,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rose.cleaning_rules.frames import _frames, in_rotated_frame
-from rose.cleaning_rules.masks import _bounds, _nonzero_flat
+from rose.cleaning_rules.masks import _bounds, _nonzero_flat, _padded_box
 from rose.cleaning_rules.runs import (
     _close_runs,
     _covered,
@@ -47,6 +47,37 @@ def bridge_gaps(
     """
     (bridges,) = _bridges(walls, fillable, directions, max_gap_px, (min_anchor_px,))
     return bridges
+
+
+#: Cells a hidden wall line is thick at most (staggered ends are joined by lines up to three
+#: cells thick): what lies within this many cells less one of a cell of it in plain view of the
+#: room, along the line's cells, is in view too (the line's far rows are seen through its near
+#: row).
+_LINE_THICKNESS_PX = 3
+
+
+def _in_plain_view(
+    lines: npt.NDArray[np.bool_], free: npt.NDArray[np.bool_], open_unknown: npt.NDArray[np.bool_]
+) -> npt.NDArray[np.bool_]:
+    """Cells of hidden wall ``lines`` that nothing hides: the line's cells next to (8-connected) a
+    ``free`` cell and to ``open_unknown`` (within the unknown margin of wide unknown space), and
+    the line's cells within two cells of them (across a line up to three cells thick). Such a
+    stretch is an opening into unexplored space seen from the room (a doorway), not a wall
+    hidden behind furniture."""
+    import cv2
+
+    out = np.zeros(lines.shape, dtype=bool)
+    if not lines.any():
+        return out
+    box = _padded_box(lines, _LINE_THICKNESS_PX)
+    ring = np.ones((3, 3), np.uint8)
+    beside_free = cv2.dilate(free[box].view(np.uint8), ring).view(bool)
+    seen = lines[box] & beside_free & open_unknown[box]
+    if seen.any():
+        side = 2 * (_LINE_THICKNESS_PX - 1) + 1
+        grown = cv2.dilate(seen.view(np.uint8), np.ones((side, side), np.uint8)).view(bool)
+        out[box] = grown & lines[box]
+    return out
 
 
 def _bridges(
