@@ -1601,3 +1601,40 @@ def test_the_fill_from_a_corner_fills_an_image_of_exactly_65536_cells_a_side(
         image = np.ones(shape, np.uint8)
         fill_from_corner(image, connectivity)
         assert not image.any()
+
+
+def test_a_turned_frames_reach_for_furniture_fronts_leaves_out_the_corner_length(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Corners are looked for in unturned frames only, yet their 5 m were in the reach every piece
+    of a long thin map turned at an angle was cut with, on each side (a tenth to a fifth of the
+    cleaning of a 1 x 20,000 strip). Neither the reach nor what the rule finds depends on it."""
+    import rose.cleaning_rules.fronts as fronts_module
+
+    reaches: list[int] = []
+    turn = fronts_module.in_rotated_frame
+
+    def recorded(source, angle, work, *, reach_px):  # type: ignore[no-untyped-def]
+        reaches.append(reach_px)
+        return turn(source, angle, work, reach_px=reach_px)
+
+    monkeypatch.setattr(fronts_module, "in_rotated_frame", recorded)
+    grid, _, _ = closed_building(23.0)
+    occupied, unknown = grid >= 65, grid == -1
+    directions = rose.analyze(grid).dominant_directions
+    lengths = {
+        "max_len_px": 100.0,
+        "max_depth_px": 20.0,
+        "anchor_px": 5.0,
+        "face_px": 3.0,
+        "crossing_px": 6.0,
+        "wall_px": 40.0,
+        "corner_depth_px": 6.0,
+    }
+    found = [
+        fronts_module._flush_fronts(occupied, unknown, directions, corner_px=corner, **lengths)
+        for corner in (0.0, 100.0)
+    ]
+    assert len(set(reaches)) == 1
+    for without, with_corners in zip(*found, strict=True):
+        np.testing.assert_array_equal(without, with_corners)

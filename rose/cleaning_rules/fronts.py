@@ -149,10 +149,12 @@ def _flush_fronts(
             )
         return out
 
-    # A hidden line with its anchors on either side, or a corner's, and the front before it.
-    reach = round(max_len_px + corner_px + max_depth_px) + 4 * max(
-        1, round(anchor_px), round(wall_px)
-    )
+    # A hidden line with its anchors on either side and the front before it: the farthest the rule
+    # looks in a frame turned in pieces (in_rotated_frame's only use of the reach). Corners are
+    # looked for in unturned frames only: their length in the reach grew every piece of a thin
+    # strip turned at an angle by as much on each side (a 1 x 20,000 strip of specks, nine
+    # directions: clean() 3.0-3.6 s with it, 2.7-2.8 s without; same cells).
+    reach = round(max_len_px + max_depth_px) + 4 * max(1, round(anchor_px), round(wall_px))
     for angle in _frames(directions):
         out, _ = in_rotated_frame(code, angle, fronts_of, reach_px=reach)
         if not out.any():  # nothing, or what was found fell between the cells sampled back
