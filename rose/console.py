@@ -19,6 +19,7 @@ __all__ = [
     "buffer_unbuffered_stdout",
     "flush_stdout",
     "print_any_file_name",
+    "stderr_discarded",
     "stderr_is_terminal",
     "stdout_closed",
     "stdout_discarded",
@@ -176,16 +177,35 @@ def stdout_discarded() -> Iterator[None]:
     descriptors 1 and 2 are taken by /dev/null first, standard error's alone too (``2>&-``): Rerun's
     native warnings go to descriptor 2."""
     _occupy_closed_descriptors()
-    if sys.stdout is not None:
+    with _discarded_if_missing("stdout"):
+        yield
+
+
+@contextlib.contextmanager
+def stderr_discarded() -> Iterator[None]:
+    """Run a command whose process has no standard error (``pythonw``, or started with it closed,
+    ``2>&-``: ``sys.stderr`` is None) with what it says there discarded. ``print(..., file=None)``
+    writes to standard output: its ``error:`` and ``warning:`` lines, and the summary that
+    ``--json -`` sends off standard output, went into the data there (a report that no longer
+    parsed). The CLIs' ``main`` wraps the whole run in it, the interrupt's line included."""
+    with _discarded_if_missing("stderr"):
+        yield
+
+
+@contextlib.contextmanager
+def _discarded_if_missing(name: str) -> Iterator[None]:
+    """While the block runs, ``sys.<name>`` (``stdout``, ``stderr``) is a :class:`_Discarded`
+    stream if it is None; None again afterwards (an in-process caller's as it was)."""
+    if getattr(sys, name) is not None:
         yield
         return
     discard = _Discarded()
-    sys.stdout = discard
+    setattr(sys, name, discard)
     try:
         yield
     finally:
-        if sys.stdout is discard:
-            sys.stdout = None
+        if getattr(sys, name) is discard:
+            setattr(sys, name, None)
 
 
 def _occupy_closed_descriptors() -> None:

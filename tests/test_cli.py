@@ -1084,3 +1084,24 @@ def test_score_says_clutter_value_has_no_effect_on_it() -> None:
     assert "--clutter-value {free,unknown} no effect here: this command writes no map" in score_help
     clean_help = " ".join(commands["clean"].format_help().split())
     assert "what clutter cells become in the cleaned map (default free)" in clean_help
+
+
+def test_without_a_standard_error_nothing_meant_for_it_goes_into_standard_output(
+    cluttered_map: Path,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """Started with standard error closed (``2>&-``, ``pythonw``: sys.stderr is None), ``print(...,
+    file=sys.stderr)`` writes to standard output: `rose score --json good bad` put its `error:`
+    lines before the JSON there, which then did not parse."""
+    import sys
+
+    bad = tmp_path / "bad.pgm"
+    bad.write_bytes(b"not an image")
+    monkeypatch.setattr(sys, "stderr", None)
+    assert main(["score", "--json", str(cluttered_map), str(bad)]) == 1
+    assert sys.stderr is None  # as it was
+    records = json.loads(capsys.readouterr().out)
+    assert [r["map"] for r in records] == [str(cluttered_map), str(bad)]
+    assert "error" in records[1]

@@ -20,6 +20,7 @@ from rose import __version__
 from rose.console import (
     EXIT_BROKEN_PIPE,
     print_any_file_name,
+    stderr_discarded,
     stdout_closed,
     stdout_discarded,
     stdout_errors_named,
@@ -154,7 +155,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     0 success, 1 error (one line ``error: <file>: <problem>`` on stderr, no output written), 2 usage
     error, 130 / 143 / 129 interrupted by SIGINT / SIGTERM / SIGHUP (temporary files removed).
     """
-    with signal_handlers_kept():  # an in-process caller keeps its own handlers
+    # An in-process caller keeps its own handlers; without a standard error, what the command
+    # says there goes nowhere (not into its standard output).
+    with signal_handlers_kept(), stderr_discarded():
         install_signal_handlers()
         return run_interruptible(lambda: _run(argv))
 

@@ -25,6 +25,7 @@ from rose.cli import (
 from rose.console import (
     EXIT_BROKEN_PIPE,
     print_any_file_name,
+    stderr_discarded,
     stdout_closed,
     stdout_discarded,
     stdout_errors_named,
@@ -157,7 +158,9 @@ def main(argv: list[str] | None = None) -> int:
     ``--fail-on-break`` gate, 4 ``--salvage`` with messages lost, 130 / 143 / 129 interrupted by
     SIGINT / SIGTERM / SIGHUP, 141 standard output closed early.
     """
-    with signal_handlers_kept():  # an in-process caller keeps its own handlers
+    # An in-process caller keeps its own handlers; without a standard error, what the command
+    # says there goes nowhere (not into its standard output).
+    with signal_handlers_kept(), stderr_discarded():
         install_signal_handlers()
         return run_interruptible(lambda: _run(argv))
 

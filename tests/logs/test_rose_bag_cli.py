@@ -536,6 +536,20 @@ def test_a_closed_standard_output_ends_quietly_with_141(
     assert capsys.readouterr().err == ""
 
 
+def test_without_a_standard_error_the_summary_stays_out_of_the_report(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Started with standard error closed (``2>&-``: sys.stderr is None), the summary that
+    ``--json -`` sends to standard error, and the failed gate's `error:` line, were printed to
+    standard output after the report (``print(file=None)``): the JSON there no longer parsed."""
+    monkeypatch.setattr(sys, "stderr", None)
+    argv = ["process", str(SAMPLE), "--no-output", "--json", "-", "-q", "--fail-above", "0.01"]
+    assert main(argv) == EXIT_GATE
+    assert sys.stderr is None  # as it was
+    report = json.loads(capsys.readouterr().out)
+    assert len(report["gates"]["failed"]) == 1
+
+
 class _PipeClosingMidWrite(_ClosedPipe):
     """A reader that leaves after 1,000 bytes: the write that spans that point takes part of its
     data and reports the count (as an unbuffered stream does, ``python -u``), the next breaks."""
