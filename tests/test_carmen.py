@@ -631,3 +631,21 @@ def test_convert_max_scans_with_two_signs_is_no_integer(
         main(["convert", "x.log", str(tmp_path / "s.mcap"), f"--max-scans={value}"])
     assert stop.value.code == 2
     assert f"expected an integer >= 1, got {value[:40]!r}" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("resolution", ["1e-300", "5e-324"])
+def test_convert_at_cells_too_small_to_count_is_the_max_cells_error(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], resolution: str
+) -> None:
+    """`--resolution 1e-300` was an OverflowError traceback (a count of cells of 600 digits
+    formatted as a float), 5e-324 another (infinitely many cells per side): the --max-cells
+    error, which names the extent, as at 1e-6."""
+    from rose_logs.cli import main
+
+    path = tmp_path / "log.txt"
+    path.write_text("FLASER 3 1.0 2.0 3.0 0.5 -0.5 0.1 0.5 -0.5 0.1 12.5 host 12.5\n")
+    assert main(["convert", str(path), str(tmp_path / "s.mcap"), "--resolution", resolution]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith(f"error: {path}: the map could have over 1e+300 cells (")
+    assert "more than --max-cells 100,000,000" in err and len(err.splitlines()) == 1
+    assert not (tmp_path / "s.mcap").exists()

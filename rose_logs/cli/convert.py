@@ -262,6 +262,10 @@ def _scan_progress(total: int, *, enabled: bool) -> Iterator[Callable[[int, int]
         yield update
 
 
+#: A count of cells said only as "over" this: beyond it a count is no float (and no map).
+_UNCOUNTED_CELLS = 1e300
+
+
 def _check_extent(log: CarmenLog, args: argparse.Namespace) -> None:
     """Refuse, before any allocation, a map larger than ``--max-cells`` (poses far apart, tiny cells)."""
     import numpy as np  # not at the CLI's start-up
@@ -283,10 +287,14 @@ def _check_extent(log: CarmenLog, args: argparse.Namespace) -> None:
         )
         raise LogReadError(msg)
     span = poses.max(axis=0) - poses.min(axis=0) + 2 * reach
-    cells = math.prod(math.ceil(float(v) / args.resolution) for v in span)
+    # Cells per side: past a float's range on tiny cells (--resolution 5e-324), or their product
+    # is (1e-300: an int of 600 digits, which the message could not format as a float).
+    sides = (float(v) / args.resolution for v in span)
+    cells = math.prod(math.ceil(n) if math.isfinite(n) else math.inf for n in sides)
     if cells > args.max_cells:
+        count = f"up to {cells:.3g}" if cells < _UNCOUNTED_CELLS else f"over {_UNCOUNTED_CELLS:g}"
         msg = (
-            f"{args.log}: the map could have up to {cells:.3g} cells ({span[0]:.4g} x {span[1]:.4g} m "
+            f"{args.log}: the map could have {count} cells ({span[0]:.4g} x {span[1]:.4g} m "
             f"at {args.resolution:g} m: the poses' span and --max-range {args.max_range:g} m plus "
             f"10 m on every side), more than --max-cells {args.max_cells:,}"
         )
