@@ -9,7 +9,6 @@ import logging
 import os
 import re
 import signal
-import sys
 import time
 from collections.abc import Callable, Collection, Iterator, Mapping, Sequence
 from dataclasses import dataclass
@@ -252,7 +251,9 @@ def run_batch(
             # Created once the engine is ready: a scheduler that cannot be reached leaves no folder.
             store.prepare(folders=(RESULTS_DIR,))
             bar.slots = slots
-            with _console_beside(bar):
+            from rose_logs.session.held_logs import said_above_bar  # (with the session's code)
+
+            with said_above_bar(bar.bar is not None):
                 for result in run(todo, store, options, storage_options, keys):
                     finished[result.uri] = result
                     bar.update(result)
@@ -717,28 +718,6 @@ def _collect(
     except OSError as err:
         _LOG.warning("%s: cannot store the error result (%s)", rec.uri, err)
     return result
-
-
-@contextlib.contextmanager
-def _console_beside(bar: _Progress) -> Iterator[None]:
-    """While the bar is shown, lines logged to the console by ``rose`` and ``rose_logs`` go above
-    it instead of through it."""
-    loggers = [logging.getLogger(name) for name in ("rose", "rose_logs")]
-    on_console = [
-        logger
-        for logger in loggers
-        if any(
-            isinstance(h, logging.StreamHandler) and h.stream in (sys.stdout, sys.stderr)
-            for h in logger.handlers
-        )
-    ]
-    if bar.bar is None or not on_console:
-        yield
-        return
-    from tqdm.contrib.logging import logging_redirect_tqdm
-
-    with logging_redirect_tqdm(loggers=on_console):
-        yield
 
 
 class _Progress:

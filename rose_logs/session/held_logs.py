@@ -4,13 +4,15 @@ A session analyses snapshots and scores breaks on threads that run ahead of its 
 they log (a topic's maps too fine for the walls cleaning or the break detector, ROSE found no
 dominant direction), said as it came, came in another order from run to run, in ``rose-bag
 batch``'s tables too. So it is held (:func:`held_log_records`, :func:`call_held`) and the session
-says it (:func:`say_held`) when it takes the snapshot's results, in log order.
+says it (:func:`say_held`) when it takes the snapshot's results, in log order. While a progress
+bar is drawn, what is said goes above it (:func:`said_above_bar`).
 """
 
 from __future__ import annotations
 
 import contextlib
 import logging
+import sys
 import threading
 from collections.abc import Callable, Iterator, Sequence
 from contextvars import ContextVar
@@ -21,6 +23,7 @@ __all__ = [
     "call_held",
     "held_by",
     "held_log_records",
+    "said_above_bar",
     "said_at_once",
     "say_held",
 ]
@@ -144,3 +147,26 @@ def said_at_once() -> Iterator[None]:
         yield
     finally:
         _HELD.reset(token)
+
+
+@contextlib.contextmanager
+def said_above_bar(shown: bool) -> Iterator[None]:
+    """While a progress bar is ``shown`` on the console, what ``rose`` and ``rose_logs`` log to
+    standard output or error goes above it (tqdm's ``write``), the bar drawn again under it: said
+    as it came, a line began where the bar's ended (``52%|...| 125/240 msg [...]warning: ...``)."""
+    loggers = [logging.getLogger(name) for name in _HELD_ROOTS]
+    on_console = [
+        logger
+        for logger in loggers
+        if any(
+            isinstance(h, logging.StreamHandler) and h.stream in (sys.stdout, sys.stderr)
+            for h in logger.handlers
+        )
+    ]
+    if not shown or not on_console:
+        yield
+        return
+    from tqdm.contrib.logging import logging_redirect_tqdm
+
+    with logging_redirect_tqdm(loggers=on_console):  # (the handlers' filters go with them)
+        yield

@@ -57,6 +57,7 @@ from rose_logs.session.held_logs import (
     call_held,
     held_by,
     held_log_records,
+    said_above_bar,
     said_at_once,
     say_held,
 )
@@ -555,47 +556,53 @@ class _Loop:
         # One thread, first in first out: the break detector sees the snapshots in log order.
         detection = threads_in_this_context(1, "rose-breaks")
         self.executor, self.detection = pool, detection
-        try:
-            # An interrupt is taken between two messages, not where it lands: raised inside the
-            # futures' bookkeeping (a Future's lock held by this thread), it left an analysis thread
-            # waiting on that lock for ever and the run hung at Ctrl-C (1 in about 20). A second
-            # one ends the run at once (a slow read or write holds the first).
-            # What the session says while it reads (the reader's losses, a skipped or tilted
-            # map) is held too, and said after the snapshots before it (see _step): said at once,
-            # it came before or after their analyses' warnings as the threads kept up.
-            with signals_deferred(second_ends=True) as held, held_log_records() as said:
-                self.said_while_reading = said
-                for message in self.reader.messages():
-                    if held:  # raised as the block ends
-                        break
-                    self._step(message)
-                    pending += 1
-                    # Every 64 messages, and at every map (a log of maps alone moved in big jumps).
-                    if pending >= 64 or self._is_map(message.channel):
-                        bar.update(pending)
-                        pending = 0
-                else:
-                    self._queue_said()
-                    with said_at_once():
-                        self._drain(0)
-                        self._finish_sessions()
-                        bar.update(pending)
-                        self.skips.warn_rest()
-                        self._warn_more_restarts()
-        finally:
+        # Lines logged while the bar is drawn go above it, also those said as the run ends.
+        with said_above_bar(not bar.disable):
             try:
-                # Interrupted or failed: what was read is said still, not the unfinished analyses.
-                said_last = [
-                    r for item in self.queue if isinstance(item, _Said) for r in item.records
-                ]
-                said_last += self.said_while_reading
-                self.said_while_reading = []
-                say_held(said_last)
-            finally:  # saying may fail too (a program's filter, a second Ctrl-C): the threads end
-                with signals_deferred(second_ends=True):  # while the threads finish: as above
-                    pool.shutdown(wait=True, cancel_futures=True)
-                    detection.shutdown(wait=True, cancel_futures=True)
-                bar.close()
+                # An interrupt is taken between two messages, not where it lands: raised inside
+                # the futures' bookkeeping (a Future's lock held by this thread), it left an
+                # analysis thread waiting on that lock for ever and the run hung at Ctrl-C (1 in
+                # about 20). A second one ends the run at once (a slow read or write holds the
+                # first). What the session says while it reads (the reader's losses, a skipped or
+                # tilted map) is held too, and said after the snapshots before it (see _step):
+                # said at once, it came before or after their analyses' warnings as the threads
+                # kept up.
+                with signals_deferred(second_ends=True) as held, held_log_records() as said:
+                    self.said_while_reading = said
+                    for message in self.reader.messages():
+                        if held:  # raised as the block ends
+                            break
+                        self._step(message)
+                        pending += 1
+                        # Every 64 messages, and at every map (a log of maps alone moved in big
+                        # jumps).
+                        if pending >= 64 or self._is_map(message.channel):
+                            bar.update(pending)
+                            pending = 0
+                    else:
+                        self._queue_said()
+                        with said_at_once():
+                            self._drain(0)
+                            self._finish_sessions()
+                            bar.update(pending)
+                            self.skips.warn_rest()
+                            self._warn_more_restarts()
+            finally:
+                try:
+                    # Interrupted or failed: what was read is said still, not the unfinished
+                    # analyses.
+                    said_last = [
+                        r for item in self.queue if isinstance(item, _Said) for r in item.records
+                    ]
+                    said_last += self.said_while_reading
+                    self.said_while_reading = []
+                    say_held(said_last)
+                # Saying may fail too (a program's filter, a second Ctrl-C): the threads end.
+                finally:
+                    with signals_deferred(second_ends=True):  # while the threads finish: as above
+                        pool.shutdown(wait=True, cancel_futures=True)
+                        detection.shutdown(wait=True, cancel_futures=True)
+                    bar.close()
 
     def _warn_more_restarts(self) -> None:
         """One line per topic for the break detector's restarts past the first few warned."""

@@ -1815,3 +1815,29 @@ def test_a_held_record_is_said_as_the_loggers_level_let_it_through_when_logged(
     finally:
         step.setLevel(logging.NOTSET)
     assert said == ["before the level was raised"], said
+
+
+def test_a_warning_said_while_the_progress_bar_is_drawn_goes_above_it(
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    fr079: list[np.ndarray],
+) -> None:
+    """On a terminal, `process` wrote a warning said mid-session where the bar's line ended
+    (``52%|...| 125/240 msg [...]warning: /map: map data has ...``); `batch` put its lines above
+    its bar already. Each line now starts a line of its own, the bar drawn again under it."""
+    import rose_logs.cli.process
+
+    maps = [
+        MapMsg(START_NS + 1_000_000_000, fr079[0]),
+        MapMsg(START_NS + 2_000_000_000, fr079[1], bad_length=True),
+        MapMsg(START_NS + 3_000_000_000, fr079[2]),
+    ]
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps)
+    monkeypatch.setattr(rose_logs.cli.process, "stderr_is_terminal", lambda: True)
+    assert main(["process", str(built.path), "--no-output"]) == 0
+    err = capsys.readouterr().err
+    assert "msg [" in err  # the bar was drawn
+    pieces = re.split(r"[\r\n]", err)
+    said = [p for p in pieces if "warning:" in p]
+    assert len(said) == 1 and said[0].startswith("warning: /map: map data has"), said
