@@ -649,3 +649,22 @@ def test_convert_at_cells_too_small_to_count_is_the_max_cells_error(
     assert err.startswith(f"error: {path}: the map could have over 1e+300 cells (")
     assert "more than --max-cells 100,000,000" in err and len(err.splitlines()) == 1
     assert not (tmp_path / "s.mcap").exists()
+
+
+def test_convert_says_a_warning_above_its_progress_bar(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """On a terminal, the nominal-speed clock's warning (said once the bar was drawn) was written
+    where the bar's line ended (``0%|...| 0/28 [...]warning: ...``); it goes above the bar."""
+    import re
+
+    import rose_logs.cli.convert
+    from rose_logs.cli import main
+
+    monkeypatch.setattr(rose_logs.cli.convert, "stderr_is_terminal", lambda: True)
+    log = repo_data(f"{CARMEN_DIR}/csail-corrected.head400.log.gz")  # stamps of six digits
+    assert main(["convert", str(log), str(tmp_path / "s.mcap"), "--max-scans", "5"]) == 0
+    err = capsys.readouterr().err
+    assert "scan/s]" in err  # the bar was drawn
+    said = [piece for piece in re.split(r"[\r\n]", err) if "warning:" in piece]
+    assert len(said) == 1 and said[0].startswith(f"warning: {log}: the log's timestamps"), said

@@ -249,12 +249,15 @@ def _warn_of_suffix(args: argparse.Namespace) -> None:
 @contextlib.contextmanager
 def _scan_progress(total: int, *, enabled: bool) -> Iterator[Callable[[int, int], None]]:
     """A progress bar over the ``total`` scans on stderr (ray casting a long log takes a while),
-    gone when done."""
+    gone when done; what is logged meanwhile goes above it."""
     from tqdm import tqdm
 
-    with tqdm(
-        total=total, unit="scan", disable=not enabled, dynamic_ncols=True, leave=False
-    ) as bar:
+    from rose_logs.session.held_logs import said_above_bar
+
+    with (
+        tqdm(total=total, unit="scan", disable=not enabled, dynamic_ncols=True, leave=False) as bar,
+        said_above_bar(enabled),
+    ):
 
         def update(done: int, _total: int) -> None:  # the total is known from the start
             bar.update(done - bar.n)
