@@ -1105,3 +1105,20 @@ def test_without_a_standard_error_nothing_meant_for_it_goes_into_standard_output
     records = json.loads(capsys.readouterr().out)
     assert [r["map"] for r in records] == [str(cluttered_map), str(bad)]
     assert "error" in records[1]
+
+
+def test_the_top_level_help_lists_the_exit_codes() -> None:
+    """The exit codes a script acts on (3 a failed gate, 4 a salvaged log, 130 / 143 an
+    interrupt, 141 a reader that left) were in the README only: `--help` said none."""
+    from rose.cli import build_parser as rose_parser
+    from rose_logs.cli import EXIT_GATE, EXIT_SALVAGED
+    from rose_logs.cli import build_parser as rose_bag_parser
+
+    rose_help = rose_parser().format_help()
+    rose_bag_help = rose_bag_parser().format_help()
+    for text in (rose_help, rose_bag_help):
+        codes = [line.split()[0] for line in text.split("exit status:\n")[1].splitlines()]
+        assert codes[:3] == ["0", "1", "2"] and codes[-2:] == ["130", "141"], codes
+    assert f"\n  {EXIT_GATE}    --fail-above or --fail-on-break gate failed\n" in rose_bag_help
+    assert f"\n  {EXIT_SALVAGED}    --salvage with messages lost" in rose_bag_help
+    assert "gate" not in rose_help  # `rose` has none

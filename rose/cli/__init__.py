@@ -61,6 +61,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="rose",
         description="ROSE structure extraction and decluttering for map files.",
+        epilog=exit_status_text(),
+        formatter_class=argparse.RawDescriptionHelpFormatter,  # the epilog's lines as they are
         allow_abbrev=False,
     )
     parser.add_argument("--debug", action="store_true", help="show tracebacks")
@@ -80,6 +82,20 @@ def build_parser() -> argparse.ArgumentParser:
             "--debug", action="store_true", default=argparse.SUPPRESS, help="show tracebacks"
         )
     return parser
+
+
+def exit_status_text(*extra: str) -> str:
+    """The exit codes, as the top-level ``--help`` lists them for scripts: those every command
+    shares, with a command's ``extra`` lines (``"3    ..."``) after the usage error's."""
+    lines = [
+        "0    success",
+        "1    error, said in one line on stderr: error: <file>: <problem>",
+        "2    usage error",
+        *extra,
+        "130  interrupted: Ctrl-C (SIGINT); 143 SIGTERM, 129 SIGHUP",
+        "141  standard output closed early (| head)",
+    ]
+    return "exit status:\n" + "\n".join(f"  {line}" for line in lines)
 
 
 class CommandParser(argparse.ArgumentParser):

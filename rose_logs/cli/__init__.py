@@ -18,6 +18,7 @@ from rose.cli import (
     CommandParser,
     LevelFormatter,
     error_text,
+    exit_status_text,
     input_name,
     logging_routed,
     unexpected,
@@ -61,6 +62,11 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="rose-bag",
         description="ROSE structure extraction and decluttering of occupancy-grid maps in robot logs.",
+        epilog=exit_status_text(
+            f"{EXIT_GATE}    --fail-above or --fail-on-break gate failed",
+            f"{EXIT_SALVAGED}    --salvage with messages lost: the outputs hold what could be read",
+        ),
+        formatter_class=argparse.RawDescriptionHelpFormatter,  # the epilog's lines as they are
         allow_abbrev=False,
     )
     parser.add_argument(
