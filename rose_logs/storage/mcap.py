@@ -224,9 +224,39 @@ class McapReadBackend:
         if chunks is not None:
             yield from self._chunk_by_chunk(chunks, wanted)
             return
+        if not self.reader.get_summary().chunk_indexes and (
+            record_by_record := self._record_by_record()
+        ):
+            try:
+                yield from record_by_record.messages(topics)
+            finally:
+                record_by_record.close()
+            return
         by_id = self._by_id
         for _schema, ch, msg in self.reader.iter_messages(topics=topics, log_time_order=True):
             yield RawMessage(by_id[ch.id], msg.log_time, msg.data, msg.publish_time, msg.sequence)
+
+    def _record_by_record(self) -> McapStreamReadBackend | None:
+        """This file read record by record (:class:`McapStreamReadBackend`, our channels), when
+        its summary indexes no chunk: written without chunks (rosbag2's ``fastwrite`` preset) or
+        without a chunk index. Its messages stream in file order when that is log-time order, as
+        recorders write them, and are sorted in memory up to :data:`MAX_SORTED_BYTES` when not.
+        The library's reader sorted every message of such a file in memory before the first (a
+        560 MB file took 720 MB). None when a record does not read (the library's reader says
+        what is wrong, as before)."""
+        stream = McapStreamReadBackend(self.path)
+        try:
+            stream.open()
+        except Exception as err:
+            stream.close()
+            reraise_unless_damage(err)
+            return None
+        if not stream.complete:
+            stream.close()
+            return None
+        # The summary's channels, the ones this reader announced, not the data section's copies.
+        stream._by_id = {cid: ch for cid, ch in self._by_id.items() if cid in stream._by_id}
+        return stream
 
     def _wanted(self, topics: set[str] | None) -> set[int]:
         """MCAP channel ids of ``topics`` (every channel we know when None)."""

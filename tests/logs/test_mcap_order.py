@@ -2,24 +2,36 @@
 
 from __future__ import annotations
 
+import tracemalloc
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 from mcap.reader import make_reader
-from mcap.writer import Writer
+from mcap.writer import IndexType, Writer
 
 from rose_logs.storage.mcap import McapReadBackend
 
 
-def _write(path: Path, times: list[int], channels: list[int], chunk_size: int) -> None:
+def _write(
+    path: Path,
+    times: list[int],
+    channels: list[int],
+    chunk_size: int,
+    size: int = 4,
+    **options: Any,
+) -> None:
+    """Messages of ``size`` bytes (their number first) at ``times`` on ``/t0`` .. ``/t2``;
+    ``options``: the writer's (no chunks, no chunk index)."""
     with path.open("wb") as stream:
-        writer = Writer(stream, chunk_size=chunk_size)
+        writer = Writer(stream, chunk_size=chunk_size, **options)
         writer.start(profile="", library="test")
         schema = writer.register_schema(name="raw", encoding="", data=b"")
         ids = [writer.register_channel(f"/t{c}", "raw", schema) for c in range(3)]
         for i, (t, c) in enumerate(zip(times, channels, strict=True)):
-            writer.add_message(ids[c], log_time=t, data=i.to_bytes(4, "little"), publish_time=t)
+            data = i.to_bytes(4, "little").ljust(size, b"x")
+            writer.add_message(ids[c], log_time=t, data=data, publish_time=t)
         writer.finish()
 
 
@@ -113,3 +125,50 @@ def test_chunk_indexes_with_wrong_times_still_read_in_the_librarys_order(
             assert ours == library
     finally:
         backend.close()
+
+
+#: Files whose summary indexes no chunk: written without chunks (rosbag2's ``fastwrite``), or
+#: chunked without a chunk index.
+NO_CHUNK_INDEX = [{"use_chunking": False}, {"index_types": IndexType.NONE}]
+
+
+@pytest.mark.parametrize("options", NO_CHUNK_INDEX, ids=["no-chunks", "no-chunk-index"])
+@pytest.mark.parametrize("seed", range(8))
+def test_files_without_a_chunk_index_read_in_the_librarys_order(
+    tmp_path: Path, seed: int, options: dict[str, Any]
+) -> None:
+    """Read record by record, in the library's order: in file order when that is log-time
+    order, sorted (stably) when not."""
+    rng = np.random.default_rng(2000 + seed)
+    n = int(rng.integers(1, 300))
+    times = np.cumsum(rng.integers(0, 3, n)) if seed % 2 else rng.integers(0, 50, n)
+    path = tmp_path / "flat.mcap"
+    _write(path, [int(t) + 1000 for t in times], rng.integers(0, 3, n).tolist(), 200, **options)
+    for topics in (None, {"/t0"}, {"/t1", "/t2"}):
+        assert _our_order(path, topics)[0] == _library_order(path, topics)
+
+
+@pytest.mark.parametrize("options", NO_CHUNK_INDEX, ids=["no-chunks", "no-chunk-index"])
+def test_files_without_a_chunk_index_stream_in_constant_memory(
+    tmp_path: Path, options: dict[str, Any]
+) -> None:
+    """Messages in log-time order are handed out as they are read: the library's reader sorted
+    every message of such a file in memory before the first (a 560 MB file took 720 MB)."""
+    path = tmp_path / "flat.mcap"
+    n, size = 200, 100_000  # 20 MB
+    _write(path, list(range(1000, 1000 + n)), [i % 3 for i in range(n)], 1 << 20, size, **options)
+    backend = McapReadBackend(path)
+    backend.open()
+    tracemalloc.start()
+    try:
+        read = 0
+        for message in backend.messages(None):
+            assert int.from_bytes(bytes(message.data[:4]), "little") == read
+            read += 1
+            del message
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+        backend.close()
+    assert read == n
+    assert peak < 6 << 20  # a chunk of 1 MiB and its messages: not the file's 20 MB
