@@ -21,6 +21,7 @@ import rose
 from rose_logs.reader import LogReader
 from rose_logs.session import process_log
 from rose_logs.snapshots import decode_map
+from rose_logs.storage.rosbags import Ros1WriteBackend
 from rose_logs.storage.typesys import MAP_TYPE, typestore_for
 
 
@@ -73,6 +74,33 @@ def test_round_trip_copies_everything_and_adds_derived_topics(
         assert [m.type for m in walls.markers] == [5, 9]
         assert len(walls.markers[0].points) == 2 * expected.dominant_directions.size
         assert walls.markers[0].header.frame_id == "map"
+
+
+def test_ros1_output_holds_only_the_filling_chunks_index_entries(tmp_path: Path, fr079) -> None:
+    """rosbags kept every message's index entry (time, place) of every chunk written until the
+    bag closed, memory growing with the session's messages (150 MB at 1.2 million); only the
+    counts of the chunks written are needed, for the chunk infos at the end."""
+    built = build_log(
+        log_path(tmp_path, "ros1"), "ros1", session_maps(fr079[:2]), scans_per_map=300
+    )
+    out = tmp_path / "out.bag"
+    backend = Ros1WriteBackend(out)
+    backend.open()
+    backend.writer.chunk_threshold = 64 * 1024  # many chunks of a small log
+    held = 0
+    with LogReader(built.path) as reader:
+        handles = {channel.id: backend.add(channel) for channel in reader.channels}
+        for m in reader.messages():
+            backend.write(handles[m.channel.id], m.log_time_ns, m.data, m.publish_time_ns, 0)
+            entries = [e for c in backend.writer.chunks for e in c.connections.values()]
+            held = max(held, sum(len(e) for e in entries if isinstance(e, list)))
+        written, count = len(backend.writer.chunks) - 1, reader.message_count
+        backend.close()
+    assert written >= 3
+    assert held < count / 2  # the filling chunk's, not the bag's
+    assert read_all(out) == read_all(built.path)  # rosbags reads the index back, counts checked
+    with LogReader(out) as copy:
+        assert copy.message_count == count
 
 
 @pytest.mark.parametrize("kind", ["ros1", "db3", "mcap-ros2", "mcap-ros1"])
