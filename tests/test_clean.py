@@ -780,6 +780,27 @@ def test_a_doorway_beside_a_box_that_hides_part_of_it_stays_open() -> None:
     assert not cleaned.completed[60:62, 95:108].any()
 
 
+@pytest.mark.parametrize("shadow", [1, 4])
+def test_an_outer_wall_unseen_beside_a_cabinet_is_drawn_and_stays_closed(shadow: int) -> None:
+    """The outer wall behind a cabinet is unseen, and so is a stretch of it beside the cabinet
+    (under a robot's width, the corner the cabinet shadows): that stretch faces the room's free
+    space and the unexplored outside, as a doorway does, but is none. It was left undrawn, with
+    two cells more along the line: 0.35 m gaps in the outer wall once the cabinet went."""
+    grid = np.full((160, 200), -1, np.int8)
+    grid[10:60, 10:190] = 0  # the mapped room
+    grid[8:10, 8:192] = grid[60:62, 8:192] = 100
+    grid[8:62, 8:10] = grid[8:62, 190:192] = 100
+    grid[53:60, 76:94] = -1  # a cabinet against the outer wall: its inside unseen, ...
+    grid[52, 75:95] = grid[52:60, 75] = grid[52:60, 94] = 100  # ... its front and sides
+    grid[60:62, 75 - shadow : 95 + shadow] = -1  # the wall behind it and beside it unseen
+    cleaned = clean(grid, rose.analyze(grid), resolution_m=RES)
+    assert cleaned.removed[52, 76:94].all()  # the cabinet goes
+    assert cleaned.completed[60, 75 - shadow : 95 + shadow].all()  # the whole line is drawn
+    room, outside = (30, 100), (100, 100)
+    assert separated_pairs(grid >= 65, room, outside)
+    assert separated_pairs(cleaned.cleaned >= 65, room, outside)
+
+
 def test_a_cabinet_against_a_stepped_wall_goes_and_the_wall_behind_it_is_drawn() -> None:
     """The wall behind a scanned cabinet is unknown; its two visible ends one cell apart across the
     line (a scanned wall's staircase) anchored no hidden wall, so removing the cabinet opened the

@@ -331,8 +331,12 @@ def _wall_cells(
             # Not drawn where nothing hides it from the room and unexplored space lies beyond: a
             # doorway beside a box that hides part of it was closed for a robot by the line
             # drawn on within the box's reach. (Between two mapped rooms the line is drawn as
-            # before: both sides seen, nothing beyond.)
-            np.greater(completed, _in_plain_view(completed, free, near_outside), out=completed)
+            # before: both sides seen, nothing beyond.) Only openings wider than the robot: an
+            # unseen stretch of outer wall beside a cabinet is no doorway.
+            in_view = _in_plain_view(
+                completed, free, near_outside, 2 * length_px(p.robot_radius_m, res) + 1
+            )
+            np.greater(completed, in_view, out=completed)
         # Furniture against a wall (a cabinet, a counter: its front a straight run when 2 m or
         # longer): the wall line hidden behind it is drawn, its front and sides go, and the walls
         # that meet it stay.

@@ -57,13 +57,18 @@ _LINE_THICKNESS_PX = 3
 
 
 def _in_plain_view(
-    lines: npt.NDArray[np.bool_], free: npt.NDArray[np.bool_], open_unknown: npt.NDArray[np.bool_]
+    lines: npt.NDArray[np.bool_],
+    free: npt.NDArray[np.bool_],
+    open_unknown: npt.NDArray[np.bool_],
+    min_opening_px: float,
 ) -> npt.NDArray[np.bool_]:
     """Cells of hidden wall ``lines`` that nothing hides: the line's cells next to (8-connected) a
-    ``free`` cell and to ``open_unknown`` (within the unknown margin of wide unknown space), and
-    the line's cells within two cells of them (across a line up to three cells thick). Such a
+    ``free`` cell and to ``open_unknown`` (within the unknown margin of wide unknown space), in
+    pieces (8-connected) whose bounding box's longer side is at least ``min_opening_px`` cells,
+    and the line's cells within two cells of them (across a line up to three cells thick). Such a
     stretch is an opening into unexplored space seen from the room (a doorway), not a wall
-    hidden behind furniture."""
+    hidden behind furniture. A shorter one is no opening a robot could use (the unseen corner
+    of an outer wall beside a cabinet): left undrawn, it opened the wall once the cabinet went."""
     import cv2
 
     out = np.zeros(lines.shape, dtype=bool)
@@ -73,6 +78,13 @@ def _in_plain_view(
     ring = np.ones((3, 3), np.uint8)
     beside_free = cv2.dilate(free[box].view(np.uint8), ring).view(bool)
     seen = lines[box] & beside_free & open_unknown[box]
+    if not seen.any():
+        return out
+    _, labels, stats, _ = cv2.connectedComponentsWithStats(seen.view(np.uint8), connectivity=8)
+    extent = np.maximum(stats[:, cv2.CC_STAT_WIDTH], stats[:, cv2.CC_STAT_HEIGHT])
+    wide = extent >= min_opening_px
+    wide[0] = False  # the background
+    seen = wide[labels]
     if seen.any():
         side = 2 * (_LINE_THICKNESS_PX - 1) + 1
         grown = cv2.dilate(seen.view(np.uint8), np.ones((side, side), np.uint8)).view(bool)
