@@ -44,7 +44,7 @@ import numpy as np
 
 from rose.breaks import MAX_KERNEL_PX, EarlierGridMemo, WallContradiction, contradicted_walls
 from rose.errors import RoseError
-from rose.limits import finite_number, integer_number
+from rose.limits import finite_number, integer_number, short
 from rose_logs.snapshots import MapSnapshot
 
 __all__ = [
@@ -334,6 +334,10 @@ _CLEAR = BreakScore(0.0, False, False, None, None, 0.0)
 _SAME_ROTATION_RAD = 1e-6
 
 
+#: Characters of a frame id said at most in why two snapshots are not comparable.
+_FRAME_CHARS = 40
+
+
 def _rotation_between(a: MapSnapshot, b: MapSnapshot) -> float:
     """Angle (radians, 0..pi) between two snapshots' origin yaws.
 
@@ -363,7 +367,10 @@ def _placement(
             now, then = repr(res), repr(trusted.resolution_m)
         return f"cell size {now} m, trusted {then} m"
     if trusted.frame_id != snapshot.frame_id:
-        return f"frame {snapshot.frame_id!r}, trusted {trusted.frame_id!r}"
+        # Cut: a frame id is the publisher's text (thousands of characters made a warning and
+        # a Rerun event of as many, which the events view cuts at about 140, losing what it says).
+        now, then = (short(repr(s.frame_id), _FRAME_CHARS) for s in (snapshot, trusted))
+        return f"frame {now}, trusted {then}"
     # A turn that moves the grids' farthest cell by less than the rounding is no turn: a heading
     # re-estimated at each publish (microradians) made every snapshot incomparable, the detector
     # blind, as an origin moving by millimetres did.

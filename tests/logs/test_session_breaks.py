@@ -451,6 +451,18 @@ def test_a_snapshot_not_comparable_says_what_differs(plan) -> None:
     assert same.update(_snap(plan, 1)).incomparable_why == ""
 
 
+def test_why_not_comparable_cuts_a_long_frame_id(plan) -> None:
+    """A frame id is the publisher's text: one of 5,000 characters made the restart warning and
+    its Rerun event (cut at about 140 characters in the events view) as long."""
+    detector = BreakDetector()
+    detector.update(_snap(plan, 0))
+    verdict = detector.update(dataclasses.replace(_snap(plan, 1), frame_id="odom_" * 1000))
+    assert verdict.incomparable_with == 0
+    assert verdict.incomparable_why.startswith("frame 'odom_odom_")
+    assert verdict.incomparable_why.endswith("..., trusted 'map'")
+    assert len(verdict.incomparable_why) <= 70
+
+
 def test_maps_too_fine_for_the_detector_are_not_checked_and_say_so(
     plan, broken, caplog: pytest.LogCaptureFixture
 ) -> None:
