@@ -243,7 +243,8 @@ class McapReadBackend:
         recorders write them, and are sorted in memory up to :data:`MAX_SORTED_BYTES` when not.
         The library's reader sorted every message of such a file in memory before the first (a
         560 MB file took 720 MB). None when a record does not read (the library's reader says
-        what is wrong, as before)."""
+        what is wrong, as before) or when the messages are out of order and too many to sort
+        (the library's reader sorts them, as before: the file is valid, its summary whole)."""
         stream = McapStreamReadBackend(self.path)
         try:
             stream.open()
@@ -251,7 +252,7 @@ class McapReadBackend:
             stream.close()
             reraise_unless_damage(err)
             return None
-        if not stream.complete:
+        if not stream.complete or not stream.sorted_by_time:
             stream.close()
             return None
         # The summary's channels, the ones this reader announced, not the data section's copies.

@@ -172,3 +172,21 @@ def test_files_without_a_chunk_index_stream_in_constant_memory(
         backend.close()
     assert read == n
     assert peak < 6 << 20  # a chunk of 1 MiB and its messages: not the file's 20 MB
+
+
+@pytest.mark.parametrize("options", NO_CHUNK_INDEX, ids=["no-chunks", "no-chunk-index"])
+def test_files_without_a_chunk_index_too_large_to_sort_are_still_read(
+    tmp_path: Path, options: dict[str, Any], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Out of order and over the in-memory sort's bound, such a file (valid, its summary whole)
+    is read by the library's reader, as before the record-by-record reading: not refused as a
+    file without a summary is (which has nothing else to be read by)."""
+    from rose_logs.storage import mcap
+
+    monkeypatch.setattr(mcap, "MAX_SORTED_BYTES", 1000)
+    path = tmp_path / "flat.mcap"
+    n = 60
+    _write(
+        path, [1000 + (7 * i) % 13 for i in range(n)], [i % 3 for i in range(n)], 200, 50, **options
+    )
+    assert _our_order(path, None)[0] == _library_order(path, None)
