@@ -25,7 +25,7 @@ import heapq
 import io
 import itertools
 import struct
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, BinaryIO
@@ -44,6 +44,7 @@ __all__ = [
     "Ros1StreamReadBackend",
     "chunk_messages",
     "damaged_index",
+    "decompressed_sizes",
     "first_damaged_chunk",
     "read_index",
     "unindexed_messages",
@@ -727,6 +728,26 @@ def _indexed_messages(
     except _Damage:
         return None
     return messages
+
+
+def decompressed_sizes(
+    path: Path, index: BagIndex, chunks: Iterable[ChunkInfo]
+) -> list[int] | None:
+    """Bytes of each of ``chunks``' data once decompressed (its chunk record header's ``size``;
+    a chunk's stored bytes can be a hundredth of it, a map's zeros in bz2); None when a chunk's
+    header does not read. Only the headers are read."""
+    sizes = []
+    try:
+        with path.open("rb") as stream:
+            for chunk in chunks:
+                stream.seek(chunk.pos)
+                fields = _fields(_read_block(stream, index.chunk_end(chunk), "header"))
+                if _op(fields) != _OP_CHUNK:
+                    return None
+                sizes.append(_uint(fields, "size", "<I"))
+    except (_Damage, OSError):
+        return None
+    return sizes
 
 
 def record_follows(view: BinaryIO, size: int) -> bool:

@@ -48,8 +48,8 @@ if TYPE_CHECKING:
     from rose_logs.storage.ros1_stream import BagIndex
 
 _LOG = logging.getLogger(__name__)
-#: Most stored bytes of ROS 1 chunks overlapping in time that are read at once to read each chunk
-#: once (see RosbagsReadBackend._ros1_index_if_chunks_overlap); beyond, rosbags' reading.
+#: Most bytes of ROS 1 chunks (decompressed) overlapping in time that are held at once to read each
+#: chunk once (see RosbagsReadBackend._ros1_index_if_chunks_overlap); beyond, rosbags' reading.
 MAX_OVERLAP_BYTES = 256 * 2**20
 _HOT_JOURNAL = bytes.fromhex("d9d505f920a163d7")  # a rollback journal's header while it is live
 
@@ -368,12 +368,12 @@ class RosbagsReadBackend:
         """The index of a ROS 1 bag whose chunks (those holding ``conns``) overlap in time, as a
         bag written topic after topic (a merge script) has them, to read it chunk by chunk
         (:meth:`_through_chunk_infos`); None when they follow each other, as a recorder writes
-        them, or would hold more than :data:`MAX_OVERLAP_BYTES` at once.
+        them, or would hold more than :data:`MAX_OVERLAP_BYTES` decompressed at once.
 
         rosbags reads in log-time order through every message's index entry and keeps one
         chunk decompressed: where chunks overlap it decompressed a chunk again at nearly every
         message (5,000 scans and 5,000 strings in bz2 chunks: 275 s, against 3 s read once)."""
-        from rose_logs.storage.ros1_stream import IndexDamage, read_index
+        from rose_logs.storage.ros1_stream import IndexDamage, decompressed_sizes, read_index
 
         wanted = {conn.id for conn in (conns or self.reader.connections)}
         infos = sorted(
@@ -386,10 +386,23 @@ class RosbagsReadBackend:
         )
         if all(a.end_time <= b.start_time for a, b in itertools.pairwise(infos)):
             return None
-        # The chunks read and not yet handed out at once, their stored (compressed) bytes.
+        try:
+            index = read_index(self.path)
+        except IndexDamage:  # rosbags read it: read as rosbags does
+            return None
+        chunks = [
+            chunk
+            for chunk in index.chunks
+            if any(n and conn in wanted for conn, n in chunk.counts.items())
+        ]
+        # What is held is decompressed: a bz2 chunk of a map's zeros stores a hundredth of it.
+        sizes = decompressed_sizes(self.path, index, chunks)
+        if sizes is None:
+            return None  # rosbags' reading says what is wrong, as before
+        # The chunks read and not yet handed out at once, their decompressed bytes.
         events = sorted(
-            [(info.start_time, 0, self.reader.chunks[info.pos].datasize) for info in infos]
-            + [(info.end_time, 1, -self.reader.chunks[info.pos].datasize) for info in infos]
+            [(chunk.start_ns, 0, size) for chunk, size in zip(chunks, sizes, strict=True)]
+            + [(chunk.end_ns, 1, -size) for chunk, size in zip(chunks, sizes, strict=True)]
         )
         held = peak = 0
         for _time, _order, size in events:
@@ -397,10 +410,7 @@ class RosbagsReadBackend:
             peak = max(peak, held)
         if peak > MAX_OVERLAP_BYTES:
             return None  # rosbags' reading: slow, in constant memory
-        try:
-            return read_index(self.path)
-        except IndexDamage:  # rosbags read it: read as rosbags does
-            return None
+        return index
 
     def _mcap_around_damaged_chunks(self, topics: set[str] | None) -> Iterator[RawMessage]:
         """A ROS 2 bag folder's messages read from its MCAP files as a bare MCAP file is salvaged

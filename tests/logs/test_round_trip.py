@@ -241,6 +241,49 @@ def test_a_ros1_bag_written_topic_after_topic_reads_each_chunk_once(
     assert got == [(t, START_NS + 1000 * i + k) for i in range(300) for k, t in enumerate(topics)]
 
 
+def _topic_after_topic_bag(path: Path, texts: int, text: str, *, bz2: bool) -> None:
+    """A ROS 1 bag as a merge script writes it: ``texts`` strings ``text`` on ``/a`` (1000 ns
+    apart), then as many on ``/b`` (1 ns after each), two per chunk of 4 kB (``text`` of 3000
+    bytes): its chunks overlap in time."""
+    from rosbags.rosbag1 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS1_NOETIC)
+    string = store.types["std_msgs/msg/String"]
+    writer = Writer(path)
+    if bz2:
+        writer.set_compression(Writer.CompressionFormat.BZ2)
+    writer.chunk_threshold = 4096
+    with writer:
+        for k, topic in enumerate(("/a", "/b")):
+            conn = writer.add_connection(topic, "std_msgs/msg/String", typestore=store)
+            for i in range(texts):
+                data = store.serialize_ros1(string(data=text), "std_msgs/msg/String")
+                writer.write(conn, START_NS + 1000 * i + k, data)
+
+
+def test_overlapping_ros1_chunks_are_bounded_by_their_decompressed_bytes(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The chunks held at once to read each once are counted decompressed, as they are held:
+    bz2 chunks of zeros store a hundredth of their bytes, and counted stored they passed a bound
+    their messages exceeded many times over (rosbags' reading, in constant memory, beyond)."""
+    from rose_logs.storage import rosbags as rosbags_storage
+
+    path = tmp_path / "merged.bag"
+    _topic_after_topic_bag(path, 20, "0" * 3000, bz2=True)
+    monkeypatch.setattr(rosbags_storage, "MAX_OVERLAP_BYTES", 5000)  # not one chunk read
+    backend = rosbags_storage.RosbagsReadBackend(path, "ros1")
+    backend.open()
+    try:
+        assert sum(c.datasize for c in backend.reader.chunks.values()) < 5000  # 6 kB each, read
+        assert backend._ros1_index_if_chunks_overlap(None) is None  # rosbags' reading
+        monkeypatch.setattr(rosbags_storage, "MAX_OVERLAP_BYTES", 50_000)  # a few chunks
+        assert backend._ros1_index_if_chunks_overlap(None) is not None
+    finally:
+        backend.close()
+
+
 def test_messages_held_behind_a_slow_analysis_are_bounded(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
