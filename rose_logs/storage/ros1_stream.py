@@ -40,6 +40,7 @@ __all__ = [
     "BagIndex",
     "ChunkInfo",
     "IndexDamage",
+    "IndexMismatch",
     "Ros1IndexedReadBackend",
     "Ros1StreamReadBackend",
     "chunk_messages",
@@ -654,15 +655,27 @@ def _chunk_info(fields: dict[str, bytes], data: bytes, index_pos: int) -> ChunkI
     return ChunkInfo(pos, times[0], times[1], counts)
 
 
+class IndexMismatch(ValueError):
+    """A chunk's index data records do not match the messages they point to (a strict reading,
+    as rosbags', refuses the bag)."""
+
+
 def read_chunk(
-    stream: BinaryIO, index: BagIndex, chunk: ChunkInfo, conns: set[int] | None = None
+    stream: BinaryIO,
+    index: BagIndex,
+    chunk: ChunkInfo,
+    conns: set[int] | None = None,
+    *,
+    strict: bool = False,
 ) -> list[tuple[int, int, bytes]]:
     """The ``(connection id, time ns, data)`` messages of the chunk ``chunk``, in file order: all
     of them, or at least those of the connections ``conns``.
 
     With ``conns``, the chunk's index data records (after it in the file) locate their messages,
     and only those are parsed (a map among thousands of scans); when they are missing or disagree
-    with the chunk, every record is parsed instead.
+    with the chunk, every record is parsed instead, or, ``strict``, :class:`IndexMismatch` is
+    raised (what rosbags reads through is damaged: a flipped byte in a message's time gave it
+    another time, silently).
 
     Raises
     ------
@@ -681,6 +694,9 @@ def read_chunk(
             located = _indexed_messages(stream, end, chunk, conns, content)
             if located is not None:
                 return located
+            if strict:
+                msg = f"in the chunk at byte {chunk.pos} of {index.size}"
+                raise IndexMismatch(msg)
         return [item for item in _chunk_items(content) if not isinstance(item, _Connection)]
     except (_Damage, OSError) as err:
         raise ValueError(str(err)) from err
@@ -694,7 +710,7 @@ def _indexed_messages(
     records are missing, damaged, or do not match the chunk info's counts or the records they
     point to."""
     wanted = {conn for conn, n in chunk.counts.items() if n and conn in conns}
-    offsets: list[tuple[int, int]] = []
+    offsets: list[tuple[int, int, int]] = []  # where, connection id, time (ns)
     seen: set[int] = set()
     try:
         while wanted - seen:
@@ -708,19 +724,22 @@ def _indexed_messages(
                 if conn in seen or count != chunk.counts[conn] or len(data) != 12 * count:
                     return None
                 seen.add(conn)
-                offsets.extend((offset, conn) for _, _, offset in struct.iter_unpack("<III", data))
+                offsets.extend(
+                    (offset, conn, sec * 1_000_000_000 + nsec)
+                    for sec, nsec, offset in struct.iter_unpack("<III", data)
+                )
         offsets.sort()
         if any(a[0] == b[0] for a, b in itertools.pairwise(offsets)):
             return None  # two entries at one record: a damaged offset
         messages = []
         view = io.BytesIO(content)
-        for offset, conn in offsets:
+        for offset, conn, time_ns in offsets:
             view.seek(offset)
             record = _read_record(view, len(content))
             if record is None or _op(record[0]) != _OP_MESSAGE:
                 return None
             item = next(_record_items(_OP_MESSAGE, *record))
-            if not isinstance(item, tuple) or item[0] != conn:
+            if not isinstance(item, tuple) or item[:2] != (conn, time_ns):
                 return None
             if not record_follows(view, len(content)):
                 return None
@@ -802,7 +821,8 @@ def chunk_messages(
 
     Each chunk is read when its first message's time comes (memory: the chunks that overlap in
     time, one for a recording). ``skipped``: a chunk that cannot be read is said there and skipped;
-    None: its ValueError is raised.
+    None: its ValueError is raised, also where the index entries do not match the messages, as
+    rosbags refuses them (:class:`IndexMismatch`).
     """
     rank = {c.conn: k for k, c in enumerate(index.connections)}
     tie = len(rank)  # messages of a connection the index does not list: left out (counted short)
@@ -818,7 +838,7 @@ def chunk_messages(
             yield item
             continue
         try:
-            messages = read_chunk(stream, index, item, conns)
+            messages = read_chunk(stream, index, item, conns, strict=skipped is None)
         except ValueError as err:
             if skipped is None:
                 raise

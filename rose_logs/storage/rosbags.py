@@ -320,6 +320,7 @@ class RosbagsReadBackend:
         of the system (the first error stands)."""
         from rose_logs.storage.ros1_stream import (
             IndexDamage,
+            IndexMismatch,
             damaged_index,
             first_damaged_chunk,
             read_index,
@@ -333,7 +334,9 @@ class RosbagsReadBackend:
             return damaged
         if isinstance(err, OSError):
             return None
-        problem = f"an index entry does not match the message it points to: {rosbags_text(err)}"
+        # Our chunk by chunk reading's (overlapping chunks) says where, in its own words.
+        where = str(err) if isinstance(err, IndexMismatch) else rosbags_text(err)
+        problem = f"an index entry does not match the message it points to: {where}"
         return damaged_index(problem, through_chunk_infos=True)
 
     def _around_damaged_chunks(self, conns: list[Any] | None) -> Iterator[RawMessage]:

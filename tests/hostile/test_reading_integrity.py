@@ -618,7 +618,8 @@ def _first_index_entries(data: bytes, chunk_pos: int) -> int:
     ("damage", "said"),
     [
         ("length", "an assertion in rosbags failed"),  # rosbags fails to open the bag
-        ("time", "an index entry does not match the message it points to: an assertion in "),
+        # rosbags' assertion, or where, read chunk by chunk (this bag's chunks overlap in time).
+        ("time", "an index entry does not match the message it points to: "),
         ("offset", "an index entry does not match the message it points to: "),
     ],
 )

@@ -284,6 +284,23 @@ def test_overlapping_ros1_chunks_are_bounded_by_their_decompressed_bytes(
         backend.close()
 
 
+def test_overlapping_ros1_chunks_with_a_damaged_message_time_are_refused(tmp_path: Path) -> None:
+    """A message whose time no longer matches its index entry (a flipped byte) is the damage
+    rosbags refuses ("the bag's index is damaged"), read chunk by chunk too: that reading took
+    the message's own time, handing it out at another time and place, silently."""
+    from rose_logs.errors import LogReadError
+
+    path = tmp_path / "merged.bag"
+    _topic_after_topic_bag(path, 6, "x" * 3000, bz2=False)
+    data = bytearray(path.read_bytes())
+    # The time of a message of /b in its record header (sec, nsec): nsec's low byte.
+    at = data.index(b"time=", data.index(b"x" * 3000, data.index(b"topic=/b"))) + len(b"time=") + 4
+    data[at] ^= 0x10
+    path.write_bytes(data)
+    with LogReader(path) as reader, pytest.raises(LogReadError, match="index is damaged"):
+        list(reader.messages())
+
+
 def test_messages_held_behind_a_slow_analysis_are_bounded(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
