@@ -840,11 +840,11 @@ def chunk_messages(
         try:
             messages = read_chunk(stream, index, item, conns, strict=skipped is None)
         except ValueError as err:
-            if skipped is None:
-                raise
             failed = storage_failure(err)
             if failed is not None:  # the disk under the bag failed, not its chunk: no damage
                 raise failed from err
+            if skipped is None:
+                raise
             skipped.append(
                 SkippedChunk(item.pos, index.size, short(str(err), 120), item.start_ns, item.end_ns)
             )

@@ -1968,3 +1968,26 @@ def _read_alike_with_and_without_salvage(bag: Path) -> list[tuple[int, int, byte
             assert not reader.losses
     assert read[0] == read[1]
     return read[0]
+
+
+def test_an_io_error_under_overlapping_ros1_chunks_is_no_damage(
+    tmp_path: Path,
+    ros1_bags: dict[str, Path],
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """This bag's chunks overlap in time, so it is read chunk by chunk: an EIO of the disk under
+    a chunk came out of the reader as a bare ValueError, a traceback (rosbags' reading said it
+    in one line). One line naming the file and the I/O error, exit 1, no output."""
+    import errno
+
+    from rose_logs.storage import ros1_stream
+
+    def failing_disk(*_: object, **__: object) -> bytes:
+        raise OSError(errno.EIO, "Input/output error")
+
+    monkeypatch.setattr(ros1_stream, "_decompress", failing_disk)  # where a chunk's data is read
+    bag, out = ros1_bags["none"], tmp_path / "o.bag"
+    code, _, err = _run(capsys, "process", bag, "-o", out, "-q")
+    assert (code, err) == (1, f"error: {bag}: Input/output error\n")
+    assert not out.exists()
