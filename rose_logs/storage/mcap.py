@@ -257,6 +257,9 @@ class McapReadBackend:
             return None
         # The summary's channels, the ones this reader announced, not the data section's copies.
         stream._by_id = {cid: ch for cid, ch in self._by_id.items() if cid in stream._by_id}
+        # A valid file, out of order: sorted without a warning, as the library's reader did (the
+        # warning is a file without a summary's, whose order nothing else vouches for).
+        stream._order_said = True
         return stream
 
     def _wanted(self, topics: set[str] | None) -> set[int]:

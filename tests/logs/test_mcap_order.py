@@ -190,3 +190,16 @@ def test_files_without_a_chunk_index_too_large_to_sort_are_still_read(
         path, [1000 + (7 * i) % 13 for i in range(n)], [i % 3 for i in range(n)], 200, 50, **options
     )
     assert _our_order(path, None)[0] == _library_order(path, None)
+
+
+@pytest.mark.parametrize("options", NO_CHUNK_INDEX, ids=["no-chunks", "no-chunk-index"])
+def test_files_without_a_chunk_index_out_of_order_are_sorted_without_a_warning(
+    tmp_path: Path, options: dict[str, Any], caplog: pytest.LogCaptureFixture
+) -> None:
+    """Such a file is valid (its summary whole): sorted in memory as the library's reader did,
+    silently, not with the warning of a file without a summary ("messages not in log-time order,
+    no index"), said again at every reading."""
+    path = tmp_path / "flat.mcap"
+    _write(path, [1005, 1003, 1009, 1001], [0, 1, 2, 0], 200, **options)
+    assert [t for _, t, _ in _our_order(path, None)[0]] == [1001, 1003, 1005, 1009]
+    assert not caplog.records
