@@ -16,7 +16,7 @@ import sys
 import threading
 from collections.abc import Callable, Iterator, Sequence
 from contextvars import ContextVar
-from typing import Any, TypeVar
+from typing import Any, TextIO, TypeVar
 
 __all__ = [
     "ANALYSED_TOPIC",
@@ -153,20 +153,39 @@ def said_at_once() -> Iterator[None]:
 def said_above_bar(shown: bool) -> Iterator[None]:
     """While a progress bar is ``shown`` on the console, what ``rose`` and ``rose_logs`` log to
     standard output or error goes above it (tqdm's ``write``), the bar drawn again under it: said
-    as it came, a line began where the bar's ended (``52%|...| 125/240 msg [...]warning: ...``)."""
-    loggers = [logging.getLogger(name) for name in _HELD_ROOTS]
-    on_console = [
-        logger
-        for logger in loggers
-        if any(
-            isinstance(h, logging.StreamHandler) and h.stream in (sys.stdout, sys.stderr)
-            for h in logger.handlers
+    as it came, a line began where the bar's ended (``52%|...| 125/240 msg [...]warning: ...``).
+
+    The handlers stay, only their stream is wrapped: tqdm's ``logging_redirect_tqdm`` put one
+    handler of its own in their place, without their level, and (tqdm 4.66 and before) without their
+    filters (``rose-bag``'s once per message: the library's lines said at every snapshot)."""
+    handlers = [
+        handler
+        for handler in dict.fromkeys(  # (one handler may serve both)
+            h for name in _HELD_ROOTS for h in logging.getLogger(name).handlers
         )
+        if isinstance(handler, logging.StreamHandler) and handler.stream in (sys.stdout, sys.stderr)
     ]
-    if not shown or not on_console:
+    if not shown or not handlers:
         yield
         return
-    from tqdm.contrib.logging import logging_redirect_tqdm
-
-    with logging_redirect_tqdm(loggers=on_console):  # (the handlers' filters go with them)
+    streams = [handler.setStream(_AboveBar(handler.stream)) for handler in handlers]
+    try:
         yield
+    finally:
+        for handler, stream in zip(handlers, streams, strict=True):
+            handler.setStream(stream)
+
+
+class _AboveBar:
+    """A console stream whose lines are written above the progress bars drawn on it."""
+
+    def __init__(self, stream: TextIO) -> None:
+        self.stream = stream
+
+    def write(self, text: str) -> None:
+        from tqdm import tqdm
+
+        tqdm.write(text, file=self.stream, end="")  # the bars cleared, then drawn again
+
+    def flush(self) -> None:
+        self.stream.flush()

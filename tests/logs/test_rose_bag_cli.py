@@ -1841,3 +1841,38 @@ def test_a_warning_said_while_the_progress_bar_is_drawn_goes_above_it(
     pieces = re.split(r"[\r\n]", err)
     said = [p for p in pieces if "warning:" in p]
     assert len(said) == 1 and said[0].startswith("warning: /map: map data has"), said
+
+
+def test_lines_said_above_the_bar_keep_their_handlers_level_and_filters(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """While the bar is drawn, the console handlers stay, their stream wrapped: tqdm's redirect
+    put a handler of its own in their place, without their level, and (tqdm 4.66 and before)
+    without their filters: rose-bag's once-per-message filter of the library's lines, lost for
+    process's whole session."""
+    import logging
+
+    from tqdm import tqdm
+
+    from rose_logs.session.held_logs import said_above_bar
+
+    logger = logging.getLogger("rose.test_above_bar")
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setLevel(logging.WARNING)
+    handler.addFilter(lambda record: "hidden" not in record.getMessage())
+    root = logging.getLogger("rose")
+    root.addHandler(handler)
+    old_level = root.level
+    root.setLevel(logging.INFO)
+    try:
+        with tqdm(total=2, file=sys.stderr) as bar, said_above_bar(True):
+            bar.update(1)
+            logger.info("below the handler's level")
+            logger.warning("hidden by its filter")
+            logger.warning("said")
+        assert handler.stream is sys.stderr  # as it was
+    finally:
+        root.removeHandler(handler)
+        root.setLevel(old_level)
+    said = [line for line in re.split(r"[\r\n]", capsys.readouterr().err) if line.strip()]
+    assert [line for line in said if "|" not in line] == ["said"], said
