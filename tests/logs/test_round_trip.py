@@ -301,6 +301,35 @@ def test_overlapping_ros1_chunks_with_a_damaged_message_time_are_refused(tmp_pat
         list(reader.messages())
 
 
+def test_overlapping_ros1_chunks_with_a_damaged_chunk_info_time_read_in_rosbags_order(
+    tmp_path: Path,
+) -> None:
+    """A chunk info whose start time is later than its chunk's messages (a flipped byte in the
+    index; rosbags orders by the messages' index entries alone and reads the bag as it was): read
+    chunk by chunk, that chunk was read at its info's time, its messages handed out late, out of
+    log-time order, silently. Such a bag is read as rosbags reads it."""
+    import struct
+
+    from rosbags.rosbag1 import Reader
+
+    from rose_logs.storage.ros1_stream import read_index
+
+    path = tmp_path / "merged.bag"
+    _topic_after_topic_bag(path, 6, "x" * 3000, bz2=False)
+    index = read_index(path)
+    data = bytearray(path.read_bytes())
+    # The start time of the last chunk info (one of /b's): 1.5 us later, past /a's next message.
+    at = data.rindex(b"start_time=", index.index_pos) + len(b"start_time=") + 4
+    struct.pack_into("<I", data, at, struct.unpack_from("<I", data, at)[0] + 1500)
+    path.write_bytes(data)
+    with Reader(path) as reader:
+        expected = [(c.topic, t, bytes(d)) for c, t, d in reader.messages()]
+    with LogReader(path) as ours:
+        got = [(m.channel.topic, m.log_time_ns, bytes(m.data)) for m in ours.messages()]
+    assert got == expected
+    assert [t for _, t, _ in got] == sorted(t for _, t, _ in got)
+
+
 def test_messages_held_behind_a_slow_analysis_are_bounded(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
