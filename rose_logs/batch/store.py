@@ -168,8 +168,17 @@ def work_folder_prefix() -> str:
 
 
 #: Seconds without a change after which the work folder of a dead process of this host is
-#: removed (see :meth:`OutputStore.remove_dead_work`).
+#: removed where the process tag is the host's name alone (no PID namespace: a process of another
+#: container may have that pid); see :func:`_dead_work_idle_s`.
 _DEAD_WORK_IDLE_S = 60.0
+
+
+def _dead_work_idle_s() -> float:
+    """Seconds a dead process's work folder must stay unchanged before it goes: none where
+    :func:`rose.outputs.process_tag` names the PID namespace (Linux), whose dead pid is dead for
+    good, so that an interrupted batch removes its workers' folders as it ends (they stayed, with
+    their partial logs, until a run a minute later); :data:`_DEAD_WORK_IDLE_S` elsewhere."""
+    return 0.0 if "_pidns" in process_tag() else _DEAD_WORK_IDLE_S
 
 
 _WORK_RE = re.compile(r"^rose-batch-(?P<host>[A-Za-z0-9._]+)-(?P<pid>\d+)-[A-Za-z0-9_]+$")
@@ -448,10 +457,11 @@ class OutputStore:
     def remove_dead_work(self) -> None:
         """Remove the work folders (:func:`work_folder_prefix`) in the staging folder that no
         process works in: a worker killed by a signal left its folder behind, and no later run
-        removed it. A folder goes when nothing in it changed for a minute and its process, of this
-        host, is gone; or when nothing in it changed for a day (a folder of another host, of a
-        process in another PID namespace, or of an older rose-bag: a live process's pid cannot be
-        told from there, and a live batch's folder was deleted under it)."""
+        removed it. A folder goes when its process, of this host, is gone (where the process tag
+        names no PID namespace, also unchanged for a minute: :func:`_dead_work_idle_s`); or when
+        nothing in it changed for a day (a folder of another host, of a process in another PID
+        namespace, or of an older rose-bag: a live process's pid cannot be told from there, and a
+        live batch's folder was deleted under it)."""
         staging = Path(_strip_file(self.root)) / ".staging"
         try:
             entries = [e for e in os.scandir(staging) if e.name.startswith("rose-batch-")]
@@ -461,7 +471,7 @@ class OutputStore:
             match = _WORK_RE.match(entry.name)
             path = Path(entry.path)
             tag, pid = (match["host"], int(match["pid"])) if match else (None, None)
-            if left_behind(path, tag, pid, dead_idle_s=_DEAD_WORK_IDLE_S):
+            if left_behind(path, tag, pid, dead_idle_s=_dead_work_idle_s()):
                 with contextlib.suppress(OSError):
                     shutil.rmtree(path)
 

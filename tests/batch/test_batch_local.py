@@ -1672,9 +1672,11 @@ def test_the_batch_gate_decides_as_process_on_a_w_near_the_level(tmp_path: Path)
 
 def test_work_folders_of_dead_workers_are_removed_by_the_next_run(tmp_path: Path) -> None:
     """A worker killed by a signal left its work folder in OUT/.staging, and no later run removed
-    it. A run removes the folders of dead processes of this host untouched for a minute, and any
-    untouched for a day; not a live process's, nor a folder changed lately whose pid this host
-    cannot vouch for (a batch in another PID namespace lost its folder mid-recording)."""
+    it. A run removes the folders of dead processes of this host (at once where the process tag
+    names the PID namespace, as on Linux: an interrupted batch's workers' partial logs stayed
+    until a run a minute later; else untouched for a minute), and any untouched for a day; not a
+    live process's, nor a folder changed lately whose pid this host cannot vouch for (a batch in
+    another PID namespace lost its folder mid-recording)."""
     import subprocess
     import sys
     import time
@@ -1696,9 +1698,10 @@ def test_work_folders_of_dead_workers_are_removed_by_the_next_run(tmp_path: Path
     now = time.time()
     folders = {  # name: (seconds since its last change, removed)
         f"rose-batch-{host}-{dead_pid}-dead_idle": (120, True),
-        f"rose-batch-{host}-{dead_pid}-dead_busy": (5, False),
+        f"rose-batch-{host}-{dead_pid}-dead_busy": (5, "_pidns" in host),
         f"rose-batch-{host}-{os.getpid()}-alive_idle": (120, False),
         f"rose-batch-otherhost-{dead_pid}-elsewhere": (3600, False),
+        f"rose-batch-otherhost-{dead_pid}-elsewhere_busy": (5, False),
         f"rose-batch-otherhost-{dead_pid}-elsewhere_old": (2 * 86400, True),
         "rose-batch-k3j9xyz_": (2 * 86400, True),  # an older rose-bag's name
     }
