@@ -523,6 +523,8 @@ class _Loop:
         self.w_above: dict[str, bool] = {}
         self.broken: dict[str, bool] = {}  # per topic: whether its last snapshot was broken
         self.restarts: dict[str, int] = {}  # per topic: maps the break detector restarted at
+        # Per topic: the first restart past WARN_FIRST, where Rerun's event counting the rest goes.
+        self.unshown_restart: dict[str, tuple[MapSnapshot, int, BreakScore]] = {}
         self.records: list[SnapshotRecord] = []
         self.breaks: list[BreakEvent] = []
         self.skips = Skips(_LOG)
@@ -605,15 +607,25 @@ class _Loop:
                     bar.close()
 
     def _warn_more_restarts(self) -> None:
-        """One line per topic for the break detector's restarts past the first few warned."""
+        """One line per topic for the break detector's restarts past the first few warned, and
+        in Rerun one event at the first of them counting them all."""
         for topic, restarts in self.restarts.items():
             if restarts > WARN_FIRST:
+                more = restarts - WARN_FIRST
                 _LOG.warning(
                     "%s: %d more maps not comparable with their trusted snapshot: the break "
                     "detector started again from each",
                     topic,
-                    restarts - WARN_FIRST,
+                    more,
                 )
+                if self.rerun is not None and topic in self.unshown_restart:
+                    snapshot, index, verdict = self.unshown_restart[topic]
+                    maps = "1 more map" if more == 1 else f"{more} more maps"
+                    text = (
+                        f"break detector restarted at {maps} from here (here: "
+                        f"{verdict.incomparable_why}): a break across a change is not seen"
+                    )
+                    self.rerun.event(snapshot, text, index, None)
 
     def _is_map(self, channel: Channel) -> bool:
         return channel.topic in self.map_topics and channel.msgtype == MAP_TYPE
@@ -974,13 +986,19 @@ class _Loop:
         )
         rerun.break_score(snapshot, verdict, index, self._threshold_in_force(verdict))
         if verdict.incomparable_with is not None:
-            # In the viewer too: the break score falls to 0 there, which read as a recovery. Short
-            # enough for the events view, which cuts a line (at about 140 characters) unwrapped.
-            restart = (
-                f"break detector restarted ({verdict.incomparable_why}; trusted snapshot "
-                f"{verdict.incomparable_with}): a break across the change is not seen"
-            )
-            rerun.event(snapshot, restart, index, None)
+            # In the viewer too: the break score falls to 0 there, which read as a recovery. The
+            # first few as the log's warnings (_finish counted this one); the rest in one event
+            # at the end of the session (a restart at every map made 3,600 events in an hour).
+            # Short enough for the events view, which cuts a line (at about 140 characters).
+            restarts = self.restarts[snapshot.topic]
+            if restarts <= WARN_FIRST:
+                restart = (
+                    f"break detector restarted ({verdict.incomparable_why}; trusted snapshot "
+                    f"{verdict.incomparable_with}): a break across the change is not seen"
+                )
+                rerun.event(snapshot, restart, index, None)
+            elif restarts == WARN_FIRST + 1:
+                self.unshown_restart[snapshot.topic] = (snapshot, index, verdict)
         if returned is not None:
             rerun.event(snapshot, returned, index, None)
 

@@ -112,6 +112,39 @@ def test_a_detector_restart_is_an_event_in_the_recording(tmp_path: Path, fr079) 
     assert restarts and all(len(t) <= 140 for t in restarts)
 
 
+def test_a_topic_restarting_at_every_map_has_a_few_restart_events_then_one_counting(
+    tmp_path: Path, fr079
+) -> None:
+    """Two publishers of one topic at 0.05 and 0.1 m per cell restart the detector at every map:
+    the log's warnings were the first few and a count, but the recording had an event each
+    (3,600 for a one-hour session at 1 Hz). The first few are events, then one counts the rest,
+    at the first of them."""
+    import dataclasses
+
+    from conftest import build_log, session_maps
+
+    from rose_logs.session import process_log
+    from rose_logs.session.records import WARN_FIRST
+
+    maps = session_maps([fr079[0]] * (WARN_FIRST + 6))
+    maps = [dataclasses.replace(m, resolution_m=0.1) if i % 2 else m for i, m in enumerate(maps)]
+    process_log(
+        build_log(tmp_path / "in.mcap", "mcap-ros2", maps).path, rrd_path=tmp_path / "s.rrd"
+    )
+    events = _temporal_rows(tmp_path / "s.rrd")[f"/{EntityPaths('map').events}"]
+    texts = [
+        next(v for k, v in row.items() if k.endswith("text"))[0]
+        for row in sorted(events, key=lambda r: r[TIMELINE])
+    ]
+    restarts = [t for t in texts if t.startswith("break detector restarted")]
+    assert len(restarts) == WARN_FIRST + 1  # 8 restarts: 3 said, 5 counted
+    assert restarts[-1] == (
+        "break detector restarted at 5 more maps from here (here: cell size 0.05 m, trusted "
+        "0.1 m): a break across a change is not seen"
+    )
+    assert all(len(t) <= 140 for t in restarts)
+
+
 @pytest.fixture(scope="module")
 def session_end_break(tmp_path_factory: pytest.TempPathFactory) -> tuple[DetectedBreak, dict]:
     """A drift in a session too short for the anchor's schedule (seven maps in 0.6 s, the right
