@@ -47,7 +47,8 @@ import socket
 import stat
 import sys
 import time
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
+from contextvars import ContextVar
 from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
@@ -63,6 +64,7 @@ __all__ = [
     "STDOUT",
     "OutputSet",
     "StagedOutput",
+    "committed_outputs",
     "counted",
     "is_bag_folder",
     "is_bag_metadata",
@@ -95,11 +97,27 @@ _MAX_TAG_CHARS = 24 + 1 + 8 + 6 + 10
 _MAX_OUTPUT_NAME_BYTES = 255 - (len(".") + len(".rose-tmp-") + _MAX_TAG_CHARS + 1 + 7 + 1 + 8)
 #: Whether os.access can ask with the effective user and group ids (faccessat's AT_EACCESS).
 _EFFECTIVE_IDS = os.access in os.supports_effective_ids
+#: The outputs committed inside :func:`committed_outputs` (None outside it).
+_COMMITTED: ContextVar[list[Path] | None] = ContextVar("rose_committed_outputs", default=None)
 #: A temporary of rose-bag 0.1 before the process tags: ``.NAME.rose-<kind>-<pid>-<random>``.
 _OLD_TEMP_RE = re.compile(r"^\..+\.rose-(?:tmp|old)-\d+-[0-9a-f]+$")
 
 
 # -- text ---------------------------------------------------------------------------------------------
+@contextlib.contextmanager
+def committed_outputs() -> Iterator[list[Path]]:
+    """While the block runs, collect the outputs every :class:`OutputSet` commits, as the user
+    named them (standard output left out). The commands print their summary after their files
+    stand: a summary that cannot be written (``> /dev/full``) is an error whose line names these
+    as complete (it read as if nothing had been written)."""
+    committed: list[Path] = []
+    token = _COMMITTED.set(committed)
+    try:
+        yield committed
+    finally:
+        _COMMITTED.reset(token)
+
+
 def counted(n: int, noun: str) -> str:
     """``n`` and ``noun``, plural but for one: ``1 scan``, ``0 scans``, ``2 map snapshots``."""
     return f"{n} {noun}" + ("" if n == 1 else "s")
@@ -862,6 +880,9 @@ class OutputSet:
                 if staged.stage is not None:
                     _remove_tree(staged.stage)
             self._done = True
+            committed = _COMMITTED.get()
+            if committed is not None:
+                committed.extend(o.path for o in self._outputs if not o.to_stdout)
 
     def _undo(self, placed: list[StagedOutput], backups: list[tuple[StagedOutput, Path]]) -> None:
         for staged in placed:

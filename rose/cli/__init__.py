@@ -14,6 +14,7 @@ import logging
 import re
 import sys
 from collections.abc import Iterator, Mapping, Sequence
+from pathlib import Path
 from typing import Any, NoReturn
 
 from rose import __version__
@@ -26,7 +27,7 @@ from rose.console import (
     stdout_errors_named,
 )
 from rose.entry import raise_held_start_signal
-from rose.errors import RoseError
+from rose.errors import RoseError, StdoutError
 from rose.limits import short, visible
 from rose.signals import (
     install_signal_handlers,
@@ -168,7 +169,8 @@ def __getattr__(name: str) -> Any:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the ``rose`` command; return the exit code.
 
-    0 success, 1 error (one line ``error: <file>: <problem>`` on stderr, no output written), 2 usage
+    0 success, 1 error (one line ``error: <file>: <problem>`` on stderr, no output written; but
+    standard output failing after the files were written says they are complete), 2 usage
     error, 130 / 143 / 129 interrupted by SIGINT / SIGTERM / SIGHUP (temporary files removed).
     """
     # An in-process caller keeps its own handlers; without a standard error, what the command
@@ -194,12 +196,14 @@ def _run(argv: Sequence[str] | None) -> int:
     # Not for `rose score`'s several maps: the first one's name would be wrong for the others.
     single = input_name(args) if getattr(args, "maps", None) is None else None
     handler.addFilter(_InputNamed(single))
+    written: list[Path] = []  # the files the command committed (an error after them names them)
     try:
-        from rose.outputs import refuse_closed_stdout  # loaded with the commands already
+        from rose.outputs import committed_outputs, refuse_closed_stdout  # loaded already
 
         if _needs_stdout(args):  # else, without a standard output, its summary goes nowhere
             refuse_closed_stdout()
         with (
+            committed_outputs() as written,
             stdout_discarded(),
             logging_routed({"": handler}, logging.WARNING),
             stdout_errors_named(),
@@ -213,7 +217,7 @@ def _run(argv: Sequence[str] | None) -> int:
             return EXIT_BROKEN_PIPE
         if args.debug:
             raise
-        print(f"error: {error_text(err, where=input_name(args))}", file=sys.stderr)
+        print(f"error: {error_text(err, where=input_name(args), written=written)}", file=sys.stderr)
         return 1
 
 
@@ -316,11 +320,25 @@ def input_name(args: object) -> str | None:
     return str(maps[0]) if maps else None
 
 
-def error_text(err: BaseException, *, where: str | None = None) -> str:
+def error_text(
+    err: BaseException, *, where: str | None = None, written: Sequence[Path] = ()
+) -> str:
     """One short line for an error: OS errors with their file name; the algorithm's own errors
     (:class:`RoseError` itself, which know no file) prefixed with ``where`` (the command's input);
-    file and log errors as they are (they name their file)."""
+    file and log errors as they are (they name their file). Standard output failing after the
+    command's files were ``written`` (its summary, printed after them) names them as complete."""
+    if isinstance(err, StdoutError) and written:
+        names = ", ".join(str(path) for path in written[:_NAMED_WRITTEN])
+        if len(written) > _NAMED_WRITTEN:
+            names += f" and {len(written) - _NAMED_WRITTEN} more"
+        return visible(
+            short(f"{err}; the outputs are complete ({names}): only the summary is lost")
+        )
     return visible(_error_text(err, where=where))
+
+
+#: Outputs named in an error after they were written (a batch writes thousands).
+_NAMED_WRITTEN = 4
 
 
 def _error_text(err: BaseException, *, where: str | None = None) -> str:

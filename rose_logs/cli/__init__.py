@@ -13,6 +13,7 @@ import contextlib
 import logging
 import os
 import sys
+from pathlib import Path
 
 from rose.cli import (
     CommandParser,
@@ -160,7 +161,8 @@ class _OncePerMessage(logging.Filter):
 def main(argv: list[str] | None = None) -> int:
     """Run ``rose-bag`` with ``argv`` (default ``sys.argv[1:]``); returns the exit code.
 
-    0 success, 1 error (one line on stderr, nothing written), 2 usage error, 3 ``--fail-above`` or
+    0 success, 1 error (one line on stderr, nothing written; but standard output failing after the
+    files were written says they are complete), 2 usage error, 3 ``--fail-above`` or
     ``--fail-on-break`` gate, 4 ``--salvage`` with messages lost, 130 / 143 / 129 interrupted by
     SIGINT / SIGTERM / SIGHUP, 141 standard output closed early.
     """
@@ -188,13 +190,19 @@ def _run(argv: list[str] | None) -> int:
     args = parse_args(parser, argv)
 
     check_params(getattr(args, "command_parser", parser), args)
+    written: list[Path] = []  # the files the command committed (an error after them names them)
     try:
-        from rose.outputs import refuse_closed_stdout  # loaded with the commands already
+        from rose.outputs import committed_outputs, refuse_closed_stdout  # loaded already
 
         if _needs_stdout(args):  # else, without a standard output, its summary goes nowhere
             refuse_closed_stdout()
         # Standard output's errors name it, not the input.
-        with stdout_discarded(), _logging(args.debug), stdout_errors_named():
+        with (
+            committed_outputs() as written,
+            stdout_discarded(),
+            _logging(args.debug),
+            stdout_errors_named(),
+        ):
             return int(args.func(args))
     except UsageError as err:
         command_parser = getattr(args, "command_parser", parser)
@@ -217,7 +225,7 @@ def _run(argv: list[str] | None) -> int:
             return EXIT_BROKEN_PIPE
         if args.debug:
             raise
-        print(f"error: {error_text(err, where=input_name(args))}", file=sys.stderr)
+        print(f"error: {error_text(err, where=input_name(args), written=written)}", file=sys.stderr)
         return 1
 
 

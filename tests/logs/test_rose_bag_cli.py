@@ -633,7 +633,7 @@ class _FullDevice(_ClosedPipe):
         ["rose-bag", "process", "{sample}", "--no-output", "--json", "-"],
         ["rose", "score", "{map15}"],
         ["rose", "score", "{map15}", "--json"],
-        ["rose", "clean", "{map15}", "-o", "{tmp}/c.yaml"],
+        ["rose", "clean", "{map15}", "-o", "{tmp}/c.yaml", "--json", "-"],
         ["rose", "walls", "{map15}", "--geojson", "-"],
     ],
 )
@@ -653,6 +653,48 @@ def test_a_full_standard_output_is_named_not_the_input(
     assert code == 1
     err = capsys.readouterr().err.splitlines()
     assert err[-1] == "error: standard output: cannot write (No space left on device)", err
+
+
+@pytest.mark.parametrize(
+    ("argv", "written"),
+    [
+        (
+            [
+                "rose-bag",
+                "process",
+                "{sample}",
+                "-q",
+                "-o",
+                "{tmp}/o.mcap",
+                "--json",
+                "{tmp}/r.json",
+            ],
+            ["r.json", "o.mcap"],
+        ),
+        (["rose", "clean", "{map15}", "-o", "{tmp}/c.yaml"], ["c.pgm", "c.yaml"]),
+    ],
+)
+def test_a_full_standard_output_after_the_files_says_they_are_complete(
+    argv: list[str],
+    written: list[str],
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """The summary is printed after the outputs stand: failing (``> /dev/full``) it said only
+    `standard output: cannot write`, exit 1, which read as if nothing had been written."""
+    import rose.cli
+
+    monkeypatch.setattr(sys, "stdout", _FullDevice())
+    command, *args = (a.format(sample=SAMPLE, map15=MAP15, tmp=tmp_path) for a in argv)
+    code = main(args) if command == "rose-bag" else rose.cli.main(args)
+    assert code == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(written)
+    names = ", ".join(str(tmp_path / name) for name in written)
+    assert capsys.readouterr().err.splitlines()[-1] == (
+        "error: standard output: cannot write (No space left on device); the outputs are "
+        f"complete ({names}): only the summary is lost"
+    )
 
 
 def _run_buffered(command: list[str], stdout: Any) -> subprocess.CompletedProcess[str]:
