@@ -285,7 +285,10 @@ def test_score_scores_every_good_map_and_reports_the_bad_ones(
     assert errors[0].startswith(f"error: {missing}: ")
     assert errors[-1] == "error: 1 of 2 maps could not be scored"
     assert main(["score", "--json", str(cluttered_map), str(missing)]) == 1
-    records = json.loads(capsys.readouterr().out)
+    captured = capsys.readouterr()
+    records = json.loads(captured.out)
+    # The count as without --json (the README's "a last one counting them").
+    assert captured.err.strip().splitlines()[-1] == "error: 1 of 2 maps could not be scored"
     assert [r["map"] for r in records] == [str(cluttered_map), str(missing)]
     assert "structure_score" in records[0] and "error" not in records[0]
     assert records[1]["error"].startswith(f"{missing}: ")

@@ -57,6 +57,7 @@ def run(args: argparse.Namespace) -> int:
     failed = sum("error" in r for r in records)
     if args.json:
         print(json_text(records), end="")
+        _say_failed(failed, len(records))
         return 1 if failed else 0
     scored = [r for r in records if "error" not in r]
     if scored:
@@ -80,9 +81,15 @@ def run(args: argparse.Namespace) -> int:
                 degenerate=r["degenerate"],
             )
             print(f"* {r['map']}: {reading}")
-    if failed and len(records) > 1:  # one map: its own error line says it all
-        print(f"error: {failed} of {len(records)} maps could not be scored", file=sys.stderr)
+    _say_failed(failed, len(records))
     return 1 if failed else 0
+
+
+def _say_failed(failed: int, maps: int) -> None:
+    """The last ``error:`` line of several maps some of which failed: how many (with ``--json``
+    too, where it was left out and the lines above it were the only count)."""
+    if failed and maps > 1:  # one map: its own error line says it all
+        print(f"error: {failed} of {maps} maps could not be scored", file=sys.stderr)
 
 
 def _score(path: Path, args: argparse.Namespace, params: RoseParams) -> dict[str, Any]:
