@@ -21,6 +21,7 @@ class StdoutError(OutputError):
     """Standard output cannot be written (a full disk, an I/O error): the message names standard
     output, not the command's input, as ``standard output: cannot write (<reason>)``."""
 
-    def __init__(self, reason: str) -> None:
-        super().__init__(f"standard output: cannot write ({reason})")
+    def __init__(self, reason: str, *, after: str = "") -> None:
+        # ``after``: what it means for the run's files (``; out.mcap not written``).
+        super().__init__(f"standard output: cannot write ({reason}){after}")
         self.reason = reason

@@ -73,6 +73,7 @@ __all__ = [
     "json_text",
     "left_behind",
     "newest_change",
+    "outputs_named",
     "process_alive",
     "process_tag",
     "refuse_closed_stdout",
@@ -116,6 +117,13 @@ def committed_outputs() -> Iterator[list[Path]]:
         yield committed
     finally:
         _COMMITTED.reset(token)
+
+
+def outputs_named(paths: list[Path], most: int = 4) -> str:
+    """``a.yaml, a.pgm``: the first ``most`` of ``paths`` and how many more (a batch writes
+    thousands), for a line that says what became of a run's outputs."""
+    names = ", ".join(str(path) for path in paths[:most])
+    return names + (f" and {len(paths) - most} more" if len(paths) > most else "")
 
 
 def counted(n: int, noun: str) -> str:
@@ -839,6 +847,16 @@ class OutputSet:
                 raise OutputError(msg)
         try:
             self._write_streams()
+        except StdoutError as err:
+            self.abort()
+            if not files:
+                raise
+            # Said: a failing summary after the files reads the same, and those stand (see
+            # committed_outputs).
+            names = outputs_named([staged.path for staged in files])
+            raise StdoutError(
+                err.reason, after=f"; the outputs were not written ({names})"
+            ) from err
         except BaseException:
             self.abort()
             raise

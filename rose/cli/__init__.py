@@ -328,17 +328,13 @@ def error_text(
     file and log errors as they are (they name their file). Standard output failing after the
     command's files were ``written`` (its summary, printed after them) names them as complete."""
     if isinstance(err, StdoutError) and written:
-        names = ", ".join(str(path) for path in written[:_NAMED_WRITTEN])
-        if len(written) > _NAMED_WRITTEN:
-            names += f" and {len(written) - _NAMED_WRITTEN} more"
+        from rose.outputs import outputs_named  # loaded with the commands already
+
+        names = outputs_named(list(written))
         return visible(
             short(f"{err}; the outputs are complete ({names}): only the summary is lost")
         )
     return visible(_error_text(err, where=where))
-
-
-#: Outputs named in an error after they were written (a batch writes thousands).
-_NAMED_WRITTEN = 4
 
 
 def _error_text(err: BaseException, *, where: str | None = None) -> str:

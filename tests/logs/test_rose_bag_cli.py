@@ -633,7 +633,6 @@ class _FullDevice(_ClosedPipe):
         ["rose-bag", "process", "{sample}", "--no-output", "--json", "-"],
         ["rose", "score", "{map15}"],
         ["rose", "score", "{map15}", "--json"],
-        ["rose", "clean", "{map15}", "-o", "{tmp}/c.yaml", "--json", "-"],
         ["rose", "walls", "{map15}", "--geojson", "-"],
     ],
 )
@@ -694,6 +693,40 @@ def test_a_full_standard_output_after_the_files_says_they_are_complete(
     assert capsys.readouterr().err.splitlines()[-1] == (
         "error: standard output: cannot write (No space left on device); the outputs are "
         f"complete ({names}): only the summary is lost"
+    )
+
+
+@pytest.mark.parametrize(
+    ("argv", "staged"),
+    [
+        (
+            ["rose-bag", "process", "{sample}", "-q", "-o", "{tmp}/o.mcap", "--json", "-"],
+            ["o.mcap"],
+        ),
+        (["rose", "clean", "{map15}", "-o", "{tmp}/c.yaml", "--json", "-"], ["c.pgm", "c.yaml"]),
+    ],
+)
+def test_a_full_standard_output_before_the_files_says_they_are_not_written(
+    argv: list[str],
+    staged: list[str],
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """An output ``-`` is written before the files are placed: failing, it leaves none, and the
+    line said only `standard output: cannot write`, as when the files were written before the
+    summary failed (the test above): which it was could not be told."""
+    import rose.cli
+
+    monkeypatch.setattr(sys, "stdout", _FullDevice())
+    command, *args = (a.format(sample=SAMPLE, map15=MAP15, tmp=tmp_path) for a in argv)
+    code = main(args) if command == "rose-bag" else rose.cli.main(args)
+    assert code == 1
+    assert list(tmp_path.iterdir()) == []
+    names = ", ".join(str(tmp_path / name) for name in staged)
+    assert capsys.readouterr().err.splitlines()[-1] == (
+        "error: standard output: cannot write (No space left on device); the outputs were not "
+        f"written ({names})"
     )
 
 
