@@ -273,6 +273,19 @@ def load_map(
     return OccupancyMap(grid=grid, resolution_m=resolution, source=path, image_path=path)
 
 
+def _refuse_image_named_yaml(path: Path, data: bytes) -> None:
+    """Raise if the file ``path`` (its bytes ``data``), read as a map YAML by its name, is an
+    image by its content (``map.png`` renamed ``map.yaml``): it said only "not a readable YAML
+    file (not UTF-8 text)". The other way round is said as well (:func:`load_map`)."""
+    kind = image_kind(data)
+    if kind is not None:
+        msg = (
+            f"{short(path, 200)}: not a map YAML but a {kind} image by its content: name it "
+            "as an image (.pgm, .png) to read it as a bare one"
+        )
+        raise MapFileError(msg)
+
+
 def _head_of(path: Path) -> bytes:
     """The first bytes of ``path`` (at most a map YAML's limit), or none if it cannot be read."""
     try:
@@ -431,11 +444,18 @@ def _yaml_text(data: bytes) -> str | bytes:
 
 def _load_yaml_map(path: Path, max_cells: int | None) -> OccupancyMap:
     try:
-        meta = load_yaml(_yaml_text(_read_bytes(path, MAX_YAML_BYTES)))
+        data = _read_bytes(path, MAX_YAML_BYTES)
+    except MapFileError:  # too large for a map YAML: an image (its head says), or said so
+        _refuse_image_named_yaml(path, _head_of(path))
+        raise
+    try:
+        meta = load_yaml(_yaml_text(data))
     except ValueError as err:
+        _refuse_image_named_yaml(path, data)
         msg = f"{path}: not a readable YAML file ({err})"
         raise MapFileError(msg) from err
     if not isinstance(meta, dict):
+        _refuse_image_named_yaml(path, data)  # an ASCII PGM (P2) reads as a YAML string
         msg = f"{path}: expected a YAML mapping with 'image' and 'resolution' (and 'origin')"
         raise MapFileError(msg)
     image_name = _field(meta, "image", str, path)

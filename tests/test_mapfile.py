@@ -1364,3 +1364,23 @@ def test_a_map_yaml_named_as_no_yaml_says_so(tmp_path: Path, name: str) -> None:
     (tmp_path / "notes.txt").write_text("images: none here\n")
     with pytest.raises(MapFileError, match="not a readable image"):
         rose.load_map(tmp_path / "notes.txt")
+
+
+@pytest.mark.parametrize("image", ["m.pgm", "ascii.pgm", "m.png"])
+def test_an_image_named_as_a_yaml_says_so(tmp_path: Path, image: str) -> None:
+    """An image under a .yaml name is read as a map YAML by its name: it said "not a readable YAML
+    file (not UTF-8 text)" (a binary image) or "expected a YAML mapping" (an ASCII PGM, a YAML
+    string), of a file the user knows to be an image."""
+    import cv2
+
+    rose.save_map(tmp_path / "m.yaml", rose.OccupancyMap(grid=np.zeros((4, 4), dtype=np.int8)))
+    (tmp_path / "ascii.pgm").write_text("P2\n# a comment\n4 4\n255\n" + "254 " * 16 + "\n")
+    cv2.imwrite(str(tmp_path / "m.png"), np.full((4, 4), 254, dtype=np.uint8))
+    (tmp_path / "map.yaml").write_bytes((tmp_path / image).read_bytes())
+    kind = "PNG" if image.endswith(".png") else "PNM"
+    with pytest.raises(MapFileError, match=rf"not a map YAML but a {kind} image by its content"):
+        rose.load_map(tmp_path / "map.yaml")
+    # Other files that are no map YAML keep saying so.
+    (tmp_path / "notes.yaml").write_text("just words\n")
+    with pytest.raises(MapFileError, match="expected a YAML mapping"):
+        rose.load_map(tmp_path / "notes.yaml")
