@@ -726,6 +726,13 @@ def bag_custom_data(path: Path) -> dict[str, str]:
     information = _bag_information(path) if path.is_dir() else None  # within the YAML limits
     if information is None or not information.get("custom_data"):
         return {}  # most bags: metadata.yaml not parsed a second time (3,000 topics: 1.3 s)
+    parsed = information["custom_data"]
+    if isinstance(parsed, dict) and all(
+        isinstance(item, str) for pair in parsed.items() for item in pair
+    ):
+        # Keys and values all read as text: their spelling, as the text parse would give it
+        # (a scalar read as text is its own spelling, quotes and escapes taken as both take them).
+        return dict(parsed)
     try:
         text = (path / "metadata.yaml").read_bytes().decode("utf-8")
         data = yaml.load(text, Loader=yaml.BaseLoader)["rosbag2_bagfile_information"]

@@ -800,3 +800,39 @@ def test_a_bags_metadata_is_parsed_once_per_run(
     with LogReader(src) as reader:
         assert reader.custom_data == {}
     assert parsed.count("metadata") == 2
+
+
+@pytest.mark.parametrize(("value", "text_parses"), [("r2", 0), ("2026-12-06", 1)])
+def test_custom_data_read_as_text_is_not_parsed_again(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, value: str, text_parses: int
+) -> None:
+    """A bag with custom_data had its metadata.yaml parsed a second time, every value as text
+    (3,000 topics: 1.3 s), also when the first parse read them all as text already, spelled as
+    they are; only a value read as something else (a date, a number) needs it."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    src = tmp_path / "in"
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    with Writer(src, version=9, storage_plugin=StoragePlugin.SQLITE3) as writer:
+        writer.set_custom_data("robot", value)
+        maps = writer.add_connection("/map", MAP_TYPE, typestore=store)
+        for t_ns, topic, data in _messages("cdr"):
+            if topic == "/map":
+                writer.write(maps, t_ns, data)
+    metadata = src / "metadata.yaml"  # as rosbag2 (yaml-cpp) spells them: unquoted
+    metadata.write_text(metadata.read_text().replace(f"'{value}'", value))
+    as_text: list[object] = []
+    load = yaml.load
+
+    def counted(stream: Any, Loader: Any) -> Any:
+        if Loader is yaml.BaseLoader:
+            as_text.append(stream)
+        return load(stream, Loader=Loader)
+
+    monkeypatch.setattr(yaml, "load", counted)
+    out = tmp_path / "out"
+    process_log(src, output_path=out)
+    assert len(as_text) == text_parses
+    monkeypatch.undo()
+    copied = yaml.load((out / "metadata.yaml").read_text(), Loader=yaml.BaseLoader)
+    assert copied["rosbag2_bagfile_information"]["custom_data"] == {"robot": value}
