@@ -507,7 +507,8 @@ def load_grid_map(
     metric: bool = True,
 ) -> OccupancyMap:
     """:func:`rose.load_map`, with the grid checked as ROSE will read it, so that a map whose values
-    are no occupancy (a ``mode: raw`` image with grey values above 100) fails naming the file.
+    are no occupancy fails naming the file (a ``mode: raw`` image's grey values above 100 are no
+    such values: load_map reads them as unknown, as Nav2 does).
 
     ``resolution_m`` sets the cell size of a bare image (``--resolution``); without it a bare image
     gets :data:`rose.mapfile.DEFAULT_RESOLUTION_M`, and a warning on stderr when the command works
