@@ -85,7 +85,7 @@ def short(text: object, limit: int = MAX_MESSAGE_CHARS) -> str:
         return line
     longest = limit // 3
     line = " ".join(
-        _middle_out(word, longest) if "/" in word and len(word) > longest else word
+        _middle_out(word, longest) if _names_a_file(word) and len(word) > longest else word
         for word in line.split(" ")
     )
     if len(line) <= limit:
@@ -96,9 +96,18 @@ def short(text: object, limit: int = MAX_MESSAGE_CHARS) -> str:
     return line[:cut] + "..."
 
 
+def _names_a_file(word: str) -> bool:
+    """Whether ``word`` of a message is a file name: a path, or a name that starts the message's
+    ``NAME: problem`` (a 250-character name in the working folder, no slash: cut at the end of the
+    line, it took the problem with it)."""
+    return "/" in word or word.endswith(":")
+
+
 def _middle_out(path: str, length: int) -> str:
     """``path`` in ``length`` characters: its start, ``...`` and its last component (or that
-    component's end, when it alone is too long)."""
+    component's end, when it alone is too long); a name without folders keeps its start and end."""
+    if "/" not in path:
+        return path[: length // 2 - 2] + "..." + path[-(length - length // 2 - 1) :]
     folder, slash, base = path.rpartition("/")
     tail = slash + (base if len(base) < length - 20 else base[-(length - 20) :])
     return folder[: length - len(tail) - 3] + "..." + tail

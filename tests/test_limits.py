@@ -175,3 +175,15 @@ def test_short_cuts_between_words_and_keeps_a_deep_path_whole() -> None:
     text = short("the map could not be read because " + "very " * 100 + "long: detail")
     assert len(text) <= 300 and text.endswith(" very...")
     assert len(short("x" * 10_000)) == 300  # one enormous word: cut inside it
+
+
+def test_short_keeps_the_problem_after_a_long_name_without_folders() -> None:
+    """`rose clean m.yaml -o <300 a's>.yaml` said `error: aaaa...` and no more: a name in the
+    working folder has no slash, so it was not shortened as a path is, and the cut at the line's
+    end took the problem (`File name too long`) with it. It keeps its start and its end."""
+    name = "a" * 300 + ".yaml"
+    text = short(f"{name}: File name too long")
+    assert len(text) <= 300 and text.endswith("a.yaml: File name too long")
+    assert text.startswith("aaaa") and "..." in text
+    # A long word that names no file (no slash, not the line's "NAME:") is cut as before.
+    assert short("x: " + "y" * 400).endswith("y...")
