@@ -8,11 +8,10 @@
 
 from __future__ import annotations
 
-import hashlib
 import os
 import stat
 from pathlib import Path, PurePath
-from typing import Any, Literal
+from typing import Literal
 
 from rose.limits import MAX_YAML_BYTES, load_yaml, short
 from rose.outputs import is_bag_folder
@@ -24,7 +23,6 @@ __all__ = [
     "LogFormat",
     "detect_format",
     "format_from_path",
-    "load_bag_metadata",
     "mcap_cut_short",
     "processed_name",
     "unknown_suffix_warning",
@@ -39,31 +37,6 @@ _ROS1_MAGIC = b"#ROSBAG V2.0\n"
 #: The bytes every MCAP file begins and, complete, ends with.
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 _SQLITE_MAGIC = b"SQLite format 3\x00"
-
-
-#: The metadata.yaml parsed last: (the digest of its bytes, what they hold).
-_LAST_METADATA: tuple[bytes, Any] | None = None
-
-
-def load_bag_metadata(text: bytes) -> Any:
-    """A ROS 2 bag's metadata.yaml (its bytes ``text``) as :func:`rose.limits.load_yaml` parses
-    it; the last one parsed is kept, by its bytes' digest: a bag's is read by the format's check,
-    the reader's opening and its ``custom_data`` (3,000 topics: 1.3 s a parse, three times).
-    Shared: callers do not change what it returns.
-
-    Raises
-    ------
-    ValueError
-        As :func:`rose.limits.load_yaml` (nothing is kept then).
-    """
-    global _LAST_METADATA
-    digest = hashlib.blake2b(text, digest_size=32).digest()
-    last = _LAST_METADATA
-    if last is not None and last[0] == digest:
-        return last[1]
-    parsed = load_yaml(text)
-    _LAST_METADATA = (digest, parsed)
-    return parsed
 
 
 def mcap_cut_short(path: Path) -> bool:
@@ -159,7 +132,7 @@ def _folder_format(path: Path) -> LogFormat:
         msg = f"{meta}: cannot read ({err.strerror or err})"
         raise LogReadError(msg) from err
     try:
-        parsed = load_bag_metadata(text)  # refuses alias bombs and deep nesting before rosbags does
+        parsed = load_yaml(text)  # refuses alias bombs and deep nesting before rosbags parses it
     except ValueError as err:
         msg = f"{meta}: {err}"
         raise LogReadError(msg) from err

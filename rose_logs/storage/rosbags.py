@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any, Literal
 
 from rose.limits import short
 from rose_logs.errors import LogReadError, reraise_unless_damage
-from rose_logs.formats import LogFormat, load_bag_metadata
+from rose_logs.formats import LogFormat
 from rose_logs.storage.base import WriteBackend
 from rose_logs.storage.connections import (
     QosStyle,
@@ -707,8 +707,10 @@ def _stored(value: object) -> str:
 def _bag_information(path: Path) -> dict[str, Any] | None:
     """``rosbag2_bagfile_information`` of the ROS 2 bag folder ``path``'s metadata.yaml (None: no
     folder, or none that reads as a mapping)."""
+    from rose.limits import load_yaml
+
     try:
-        information = load_bag_metadata((path / "metadata.yaml").read_bytes())[
+        information = load_yaml((path / "metadata.yaml").read_bytes())[
             "rosbag2_bagfile_information"
         ]
     except (OSError, ValueError, KeyError, TypeError):

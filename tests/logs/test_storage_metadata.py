@@ -766,42 +766,6 @@ def test_attachments_are_copied_one_at_a_time(tmp_path: Path, summary: bool) -> 
     assert attached == [(f"part{k}.bin", size, bytes([k])) for k in range(count)]
 
 
-def test_a_bags_metadata_is_parsed_once_per_run(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    """metadata.yaml was parsed by the format's check, again by the reader's opening and, writing
-    a bag folder, a third time for its custom_data (3,000 topics: 1.3 s a parse); once now, and
-    again when its bytes change."""
-    from rosbags.rosbag2 import StoragePlugin, Writer
-
-    import rose.limits
-    import rose_logs.formats
-
-    src = tmp_path / "in"
-    store = get_typestore(Stores.ROS2_HUMBLE)
-    with Writer(src, version=9, storage_plugin=StoragePlugin.SQLITE3) as writer:
-        maps = writer.add_connection("/map", MAP_TYPE, typestore=store)
-        for t_ns, topic, data in _messages("cdr"):
-            if topic == "/map":
-                writer.write(maps, t_ns, data)
-    parsed: list[str] = []
-    load_yaml = rose_logs.formats.load_yaml
-
-    def counted(text: str | bytes) -> Any:
-        parsed.append("metadata" if "rosbag2_bagfile_information" in str(text) else "other")
-        return load_yaml(text)
-
-    for module in (rose.limits, rose_logs.formats):  # (the name is imported)
-        monkeypatch.setattr(module, "load_yaml", counted)
-    process_log(src, output_path=tmp_path / "out")
-    assert parsed.count("metadata") == 1
-    with (src / "metadata.yaml").open("a") as file:  # other bytes: parsed again
-        file.write("\n")
-    with LogReader(src) as reader:
-        assert reader.custom_data == {}
-    assert parsed.count("metadata") == 2
-
-
 @pytest.mark.parametrize(("value", "text_parses"), [("r2", 0), ("2026-12-06", 1)])
 def test_custom_data_read_as_text_is_not_parsed_again(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, value: str, text_parses: int
