@@ -26,7 +26,9 @@ Two methods, chosen by name:
     walls; not where the line is in plain view of the room with wide unknown space beyond it,
     next to a free cell and within ``unknown_margin_m`` of it in a stretch at least
     ``2 * robot_radius_m`` plus a cell long, nor within two cells of such a cell along the line:
-    a doorway beside furniture, not a hidden wall). Wall ends up to a cell apart across the line (a scanned wall's staircase, a wall at an
+    a doorway beside furniture, not a hidden wall; nor behind an object standing in a doorway,
+    the gap between the wall ends seen through beside it on both sides, whose removal the topology
+    guard then lets open the doorway). Wall ends up to a cell apart across the line (a scanned wall's staircase, a wall at an
     angle to the grid) are joined too, by a line up to three cells thick, when each is a stretch of
     at least 0.5 m within a band three cells wide and the hidden stretch is at least 0.25 m long.
     Such lines between any two kept cells also *seal*: they close the insides of objects for rules

@@ -801,6 +801,69 @@ def test_an_outer_wall_unseen_beside_a_cabinet_is_drawn_and_stays_closed(shadow:
     assert separated_pairs(cleaned.cleaned >= 65, room, outside)
 
 
+def _room_with_a_box_in_a_doorway(
+    door: tuple[int, int], left: int, width: int, front: int, depth: int
+) -> npt.NDArray[np.int8]:
+    """A room (rows 10-59 free) whose outer wall (rows 60-61) has a doorway (columns ``door``,
+    end excluded) into unexplored space, and a box standing in it (columns ``left`` to
+    ``left + width - 1``, rows ``front`` to ``front + depth - 1``), as a scanner in the room maps
+    it: the box's front and sides, its inside unknown, the gaps beside it seen through (free, and
+    beyond the wall line too)."""
+    grid = np.full((160, 220), -1, np.int8)
+    grid[10:60, 10:210] = 0  # the mapped room
+    grid[8:10, 8:212] = grid[60:62, 8:212] = 100
+    grid[8:62, 8:10] = grid[8:62, 210:212] = 100
+    grid[60:72, door[0] : door[1]] = 0  # the doorway, seen through
+    right, back = left + width - 1, front + depth
+    grid[front + 1 : back, left + 1 : right] = -1  # the box's inside, unseen
+    grid[front, left : right + 1] = 100  # its front ...
+    grid[front:back, left] = grid[front:back, right] = 100  # ... and sides (seen through the gaps)
+    return grid
+
+
+@pytest.mark.parametrize(
+    ("door", "left", "width", "front", "depth"),
+    [
+        ((90, 108), 95, 8, 56, 10),  # a 0.4 m box in the middle of a 0.9 m doorway
+        ((90, 108), 94, 10, 56, 10),
+        ((90, 108), 96, 8, 56, 10),  # off the middle
+        ((86, 124), 91, 28, 50, 20),  # larger than a loose piece: the guard kept it
+        ((88, 122), 93, 24, 44, 26),  # deep: the furniture-front rule drew the line
+    ],
+)
+def test_a_doorway_with_a_box_standing_in_it_stays_open(
+    door: tuple[int, int], left: int, width: int, front: int, depth: int
+) -> None:
+    """A box standing in a doorway, the gaps beside it seen through and each narrower than the
+    robot: the hidden wall line was drawn across the box's inside between the doorway's two wall
+    ends (or kept by the topology guard, the box counted as a wall of the input), and once the
+    box went the gaps beside the line were as narrow as before: the doorway stayed closed for the
+    0.15 m robot."""
+    grid = _room_with_a_box_in_a_doorway(door, left, width, front, depth)
+    room, beyond = (30, 100), (68, (door[0] + door[1]) // 2)
+    assert separated_pairs(grid >= 65, room, beyond)  # the box blocks it
+    cleaned = clean(grid, rose.analyze(grid), resolution_m=RES)
+    assert cleaned.removed[front, left : left + width].all()  # the box goes
+    assert not cleaned.completed[front : front + depth, door[0] - 2 : door[1] + 2].any()
+    assert not separated_pairs(cleaned.cleaned >= 65, room, beyond)
+
+
+def test_a_cabinet_against_a_plain_wall_still_gets_the_wall_line_behind_it() -> None:
+    """The other side of the doorway test above: a cabinet of the same depth against the plain
+    wall, the wall behind it unseen, gets its hidden wall line and the room stays closed."""
+    grid = np.full((160, 200), -1, np.int8)
+    grid[10:60, 10:190] = 0  # the mapped room
+    grid[8:10, 8:192] = grid[60:62, 8:192] = 100
+    grid[8:62, 8:10] = grid[8:62, 190:192] = 100
+    grid[56, 80:100] = grid[56:60, 80] = grid[56:60, 99] = 100  # the cabinet's front and sides
+    grid[57:62, 81:99] = -1  # its inside and the wall behind it, unseen
+    cleaned = clean(grid, rose.analyze(grid), resolution_m=RES)
+    assert cleaned.removed[56, 81:99].all()  # the cabinet goes
+    assert cleaned.completed[60, 81:99].all()  # the wall behind it is drawn
+    room, outside = (30, 100), (100, 100)
+    assert separated_pairs(cleaned.cleaned >= 65, room, outside)
+
+
 def test_a_cabinet_against_a_stepped_wall_goes_and_the_wall_behind_it_is_drawn() -> None:
     """The wall behind a scanned cabinet is unknown; its two visible ends one cell apart across the
     line (a scanned wall's staircase) anchored no hidden wall, so removing the cabinet opened the

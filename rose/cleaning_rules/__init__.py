@@ -24,7 +24,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rose.cleaning_rules.beside import _beside
-from rose.cleaning_rules.bridges import _bridges, _in_plain_view
+from rose.cleaning_rules.bridges import _bridges, _in_openings, _in_plain_view
 from rose.cleaning_rules.fronts import (
     _CORNER_DEPTH_M,
     _CORNER_MAX_M,
@@ -303,13 +303,16 @@ def _wall_cells(
         np.logical_not(free, out=free)
         completed = np.zeros(occupied.shape, dtype=bool)
         sealed_off = completed  # what closes scanned objects and the building, as walls or not
+        standing_in_doorways = completed
         if p.max_bridge_m > 0:
             # Unknown cells between collinear kept walls. Those between wall ends become the wall
             # line hidden behind furniture; all of them seal what they close off (an object's
             # inside between its faces, a cabinet's open back) but are not drawn as walls.
+            # Bridged over every cell that is not occupied, the unknown ones kept below: the free
+            # ones tell a gap seen through (a doorway) from a wall hidden behind furniture.
             bridges, wall_lines, staggered = _bridges(
                 keep,
-                unknown,
+                np.logical_not(occupied),
                 directions,
                 length_px(p.max_bridge_m, res),
                 (1, length_px(_BRIDGE_ANCHOR_M, res)),
@@ -322,6 +325,9 @@ def _wall_cells(
             # the ends in one row of the rotated frame: a staircase at 30 or 45 degrees breaks that).
             bridges |= staggered
             wall_lines |= staggered
+            spans = bridges.copy()
+            bridges &= unknown
+            wall_lines &= unknown
             # Only next to what goes (within a cabinet's depth): a bridge network reaching into
             # unexplored space or across racks is no wall hidden behind removed clutter.
             removed = np.greater(occupied, keep)
@@ -343,6 +349,20 @@ def _wall_cells(
         front_lines, fronts, inside, front_walls = fronts_job.result()
         completed = completed | front_lines
         sealed_off = sealed_off | front_lines
+        if p.max_bridge_m > 0:
+            # Neither line is drawn behind a box standing in a doorway, the gap seen through on
+            # both sides of it: drawn, it left the gaps beside it, narrower than a robot, once
+            # the box went.
+            in_doorways, standing_in_doorways = _in_openings(
+                completed,
+                spans,
+                free,
+                unknown,
+                removed,
+                occupied,
+                2 * length_px(p.robot_radius_m, res) + 1,
+            )
+            np.greater(completed, in_doorways, out=completed)
         sealed = bool(sealed_off.any())
         near_job: Future[npt.NDArray[np.bool_]] = Future()
         near_job.set_result(near_outside)
@@ -444,6 +464,10 @@ def _wall_cells(
             inside_px=length_px(_THIN_WALL_M, res),
         )
         guard_obstacles = np.greater(occupied, loose)
+    if standing_in_doorways.any():
+        # An object standing in a doorway seen through on both sides of it kept the doorway
+        # closed in the input; without it the doorway is open, as the scans through it show.
+        guard_obstacles = np.greater(guard_obstacles, standing_in_doorways)
     guarded = topology_guard(
         guard_obstacles,
         keep,

@@ -10,7 +10,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rose.cleaning_rules.frames import _frames, in_rotated_frame
-from rose.cleaning_rules.masks import _bounds, _nonzero_flat, _padded_box
+from rose.cleaning_rules.masks import _bounds, _neighbour_columns, _nonzero_flat, _padded_box
 from rose.cleaning_rules.runs import (
     _close_runs,
     _covered,
@@ -23,6 +23,7 @@ from rose.cleaning_rules.runs import (
     _run_cells,
     _runs,
 )
+from rose.labelling import components, label_boxes
 
 
 def bridge_gaps(
@@ -89,6 +90,198 @@ def _in_plain_view(
         side = 2 * (_LINE_THICKNESS_PX - 1) + 1
         grown = cv2.dilate(seen.view(np.uint8), np.ones((side, side), np.uint8)).view(bool)
         out[box] = grown & lines[box]
+    return out
+
+
+def _in_openings(
+    lines: npt.NDArray[np.bool_],
+    spans: npt.NDArray[np.bool_],
+    free: npt.NDArray[np.bool_],
+    unknown: npt.NDArray[np.bool_],
+    removed: npt.NDArray[np.bool_],
+    occupied: npt.NDArray[np.bool_],
+    robot_px: float,
+) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
+    """Cells of hidden wall ``lines`` that stand in a doorway seen through: pieces of the line
+    (8-connected, joined through the gap's unseen cells and their object's sides: the
+    ``removed`` cells next to ``spans`` within two cells of the line) with a stretch of the gap
+    seen through beside the object on two sides.
+
+    ``spans`` are the cells between the wall ends the lines join, whatever they are (not
+    ``occupied``). A stretch of its ``free`` cells (8-connected) with no ``unknown`` cell of it
+    among their 8 neighbours is seen through when it parts two regions of the cells that are
+    neither occupied nor spans (8-connected, in its box 3 cells wider): scans went across the
+    wall line there, the room on one side, free or unexplored space on the other. Free cells in
+    front of a wall that steps back by a cell or two meet the wall behind them, not a region
+    beyond; a free cell in front of an unseen wall touches the unseen line. A piece between two
+    such stretches is the unseen back of something standing in a doorway, a box whose sides
+    left the gaps beside it narrower than a robot: drawn, the line closed the doorway once the
+    box went. A cabinet against a wall has wall, seen or unseen, on at least one side of it.
+    Both stretches must be narrower than ``robot_px`` cells along the line (a wider one is a
+    passage beside the object already) and lie on the piece's line, one past each end of it.
+    Masks of shape ``(rows, cols)``.
+
+    Returns
+    -------
+    lines : ndarray of bool, shape (rows, cols)
+        The cells of ``lines`` not to draw.
+    objects : ndarray of bool, shape (rows, cols)
+        The ``removed`` pieces (8-connected) whose sides those are: what stood in the doorway,
+        no obstacle the topology guard should keep the doorway closed by.
+    """
+    import cv2
+
+    out = np.zeros(lines.shape, dtype=bool)
+    objects = np.zeros(lines.shape, dtype=bool)
+    if not lines.any():
+        return out, objects
+    box = _padded_box(lines | spans, _LINE_THICKNESS_PX + 2)
+    ring = np.ones((3, 3), np.uint8)
+    span, line = spans[box], lines[box]
+    unseen = cv2.dilate((span & unknown[box]).view(np.uint8), ring).view(bool)
+    through = np.greater(span & free[box], unseen)
+    if not through.any():
+        return out, objects
+    beside_span = cv2.dilate(span.view(np.uint8), ring).view(bool)
+    # The object's sides: removed cells beside the gap and within two cells of the line (a side
+    # a cell or two thick; farther on, removed cells chain other clutter to it).
+    near_line = cv2.dilate(line.view(np.uint8), np.ones((5, 5), np.uint8)).view(bool)
+    sides = removed[box] & beside_span & near_line
+    if not np.any(cv2.dilate(sides.view(np.uint8), ring).view(bool) & through):
+        return out, objects  # (no gap seen through beside an object: nearly every map)
+    # A piece of the line joined with its object's sides and the rest of the gap's unseen cells
+    # (a line drawn in two halves is one object's back).
+    pieces = line | sides | (span & unknown[box])
+    count, labels = components(pieces)
+    stretches, gaps = components(through)
+    # Every (piece, stretch) pair that touches at a side of the object: its cells and the
+    # stretch labels of their 8 neighbours (the sides' cells are few). A stretch that meets only
+    # the line itself is no gap beside an object (fills across a room, between pieces in line,
+    # meet the unseen insides of what stands in it).
+    cells = _nonzero_flat(np.ascontiguousarray(sides).view(np.uint8))
+    padded = np.pad(gaps, 1)  # (the neighbours of a cell on the box's edge)
+    rows, cols = np.divmod(cells, pieces.shape[1])
+    around = _neighbour_columns(padded, (rows + 1) * padded.shape[1] + cols + 1)
+    own = labels.reshape(-1)[cells].astype(np.int64)
+    pairs = np.concatenate([own * stretches + column for column in around])
+    pairs = np.unique(pairs[np.concatenate(around) > 0])
+    piece_of, stretch_of = np.divmod(pairs, stretches)
+    # Only pieces with two stretches beside them need theirs looked at (few: each in its box).
+    two = np.bincount(piece_of, minlength=count) >= 2
+    candidates = np.unique(stretch_of[two[piece_of]])
+    if candidates.size == 0:
+        return out, objects
+    open_cells = ~(occupied[box] | span | line)
+    seen = np.zeros(stretches, dtype=bool)
+    seen[candidates] = _parting(gaps, stretches, candidates, open_cells, _LINE_THICKNESS_PX)
+    by_seen = seen[stretch_of]
+    piece_of, stretch_of = piece_of[by_seen], stretch_of[by_seen]
+    wanted = np.zeros(count, dtype=bool)
+    two = np.bincount(piece_of, minlength=count) >= 2
+    two[0] = False
+    if not two.any():
+        return out, objects
+    # And the stretches lie on the piece's line, one past each of its ends, each narrower than
+    # the robot (``robot_px`` cells, its width and a cell): the doorway's gaps on either side of
+    # what stands in it, which the line left closed, not gaps around clutter that meets the line
+    # nor free cells on a line across a room.
+    line_cells = _nonzero_flat(np.ascontiguousarray(line).view(np.uint8))
+    line_owner = labels.reshape(-1)[line_cells]
+    gap_cells = _nonzero_flat(np.ascontiguousarray(through).view(np.uint8))
+    gap_owner = gaps.reshape(-1)[gap_cells]
+    width = line.shape[1]
+    for piece in np.flatnonzero(two).tolist():
+        ends = [np.divmod(gap_cells[gap_owner == g], width) for g in stretch_of[piece_of == piece]]
+        wanted[piece] = _on_both_ends(
+            np.divmod(line_cells[line_owner == piece], width), ends, robot_px
+        )
+    if not wanted.any():
+        return out, objects
+    out[box] = wanted[labels] & line
+    # The whole object, not only its sides beside the gap (labelled over the map: it may reach
+    # past the gaps' box, and this is rare), when it lies within the doorway's reach: the box of
+    # its line piece and the gaps, as much again on every side. Removed cells joined to it
+    # farther on are other clutter the guard still judges.
+    count, pieces_removed = components(removed)
+    removed_cells = _nonzero_flat(np.ascontiguousarray(removed).view(np.uint8))
+    extents = label_boxes(pieces_removed, removed_cells, count)
+    standing = np.zeros(count, dtype=bool)
+    side_cells = _nonzero_flat(np.ascontiguousarray(sides).view(np.uint8))
+    side_owner = labels.reshape(-1)[side_cells]
+    for piece in np.flatnonzero(wanted).tolist():
+        mine = np.concatenate(
+            [line_cells[line_owner == piece], side_cells[side_owner == piece]]
+            + [gap_cells[gap_owner == g] for g in stretch_of[piece_of == piece]]
+        )
+        rows, cols = np.divmod(mine, width)
+        reach = max(int(rows.max() - rows.min()), int(cols.max() - cols.min())) + 1
+        r0, r1 = rows.min() + box[0].start - reach, rows.max() + box[0].start + reach
+        c0, c1 = cols.min() + box[1].start - reach, cols.max() + box[1].start + reach
+        side_rows, side_cols = np.divmod(side_cells[side_owner == piece], width)
+        owners = np.unique(pieces_removed[side_rows + box[0].start, side_cols + box[1].start])
+        x, y, w, h = (extents[owners, i] for i in range(4))
+        inside = (y >= r0) & (y + h - 1 <= r1) & (x >= c0) & (x + w - 1 <= c1)
+        standing[owners[inside]] = True
+    standing[0] = False
+    objects = standing[pieces_removed]
+    return out, objects
+
+
+def _on_both_ends(
+    piece: tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]],
+    stretches: list[tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]],
+    max_length_px: float,
+) -> bool:
+    """Whether, of the ``stretches`` (rows, cols of each), one lies past each end of the straight
+    ``piece`` (rows, cols) along its long axis (its cells' principal axis), centred within
+    ``_LINE_THICKNESS_PX - 1`` cells of that axis and shorter along it than ``max_length_px``
+    cells."""
+    if piece[0].size < 2:
+        return False
+    points = np.stack(piece, axis=1).astype(np.float64)
+    centre = points.mean(axis=0)
+    _, vectors = np.linalg.eigh(np.cov(points, rowvar=False))
+    axis = vectors[:, -1]  # (eigenvalues ascending: the long axis last)
+    sides = set()
+    for rows, cols in stretches:
+        offset = np.array([rows.mean(), cols.mean()]) - centre
+        if abs(offset[0] * axis[1] - offset[1] * axis[0]) > _LINE_THICKNESS_PX - 1:
+            continue
+        # Its length on the axis itself (its cells within a cell and a half of it): at an angle
+        # to the grid a band three cells thick reaches farther along the line at its edges.
+        cells = np.stack([rows, cols], axis=1) - centre
+        on_axis = np.abs(cells[:, 0] * axis[1] - cells[:, 1] * axis[0]) <= 1.5
+        along = cells[on_axis] @ axis
+        if along.size and along.max() - along.min() + 1 < max_length_px:
+            sides.add(bool(offset @ axis > 0))
+    return len(sides) == 2
+
+
+def _parting(
+    labels: npt.NDArray[np.integer],
+    count: int,
+    wanted: npt.NDArray[np.int64],
+    open_cells: npt.NDArray[np.bool_],
+    pad: int,
+) -> npt.NDArray[np.bool_]:
+    """For each label of ``wanted`` (of ``labels``, an 8-connected labelling, ``count`` labels with
+    the background): whether its cells touch (8-connected) two or more regions of ``open_cells``
+    (8-connected) in the label's bounding box ``pad`` cells wider, clipped to the image."""
+    import cv2
+
+    out = np.zeros(wanted.size, dtype=bool)
+    height, width = labels.shape
+    cells = _nonzero_flat(np.ascontiguousarray(labels > 0).view(np.uint8))
+    boxes = label_boxes(labels, cells, count)[wanted]
+    ring = np.ones((3, 3), np.uint8)
+    # (The labels looked at are few: a doorway's two gaps per object standing in one.)
+    for i, (label, (x, y, w, h)) in enumerate(zip(wanted.tolist(), boxes.tolist(), strict=True)):
+        r0, r1 = max(y - pad, 0), min(y + h + pad, height)
+        c0, c1 = max(x - pad, 0), min(x + w + pad, width)
+        mine = labels[r0:r1, c0:c1] == label
+        _, regions = components(open_cells[r0:r1, c0:c1])
+        beside = cv2.dilate(mine.view(np.uint8), ring).view(bool)
+        out[i] = np.count_nonzero(np.unique(regions[beside & ~mine])) >= 2
     return out
 
 
