@@ -1722,3 +1722,29 @@ def test_a_turned_frames_reach_for_furniture_fronts_leaves_out_the_corner_length
     assert len(set(reaches)) == 1
     for without, with_corners in zip(*found, strict=True):
         np.testing.assert_array_equal(without, with_corners)
+
+
+def test_a_gaps_right_end_is_read_for_a_beam_only_when_its_left_end_is_unseen(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A gap between furniture and a wall is a hidden line only when both its ends are unseen; the
+    beams along the line were looked for at the free right ends of every gap, also of those whose
+    left end the room had seen already. The cells found are the same."""
+    import rose.cleaning_rules.fronts as fronts_module
+
+    asked: list[tuple[int, int]] = []
+    beam = fronts_module._beam_along
+
+    def recorded(code, rows, cols):  # type: ignore[no-untyped-def]
+        asked.extend(zip(rows.tolist(), cols.tolist(), strict=True))
+        return beam(code, rows, cols)
+
+    # One row: a seen gap (free at its left end), then an unseen one, then a gap unseen at its left
+    # end and free at its right.
+    code = np.ones((3, 20), np.uint8)  # a room around it
+    code[1] = [2, 1, 1, 1, 2, 0, 0, 0, 2, 0, 1, 1, 2, 2, 2, 2, 2, 2, 2, 2]
+    out = np.zeros(code.shape, np.uint8)
+    monkeypatch.setattr(fronts_module, "_beam_along", recorded)
+    fronts_module._fronts_rows(code, out, 10, 4, 1, 1, 1, 1)
+    # The left ends once each (the seen gap's, free), the right end of the third gap only.
+    assert asked == [(1, 1), (1, 11)]

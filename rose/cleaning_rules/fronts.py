@@ -239,14 +239,15 @@ def _fronts_rows(
     # Gaps between consecutive occupied cells of one row, unseen at both ends (unknown, or a beam
     # that ran along the line: :func:`_beam_along`).
     left = np.flatnonzero(same_row & (step > 1) & (step - 1 <= max_len))
-    unseen = np.ones(left.size, dtype=bool)
-    for end in (cells[left] + 1, cells[left + 1] - 1):
+    # The right end only of the gaps whose left end is unseen: most gaps lie between a room's
+    # walls and furniture, seen at both ends, and the beams were looked for at both.
+    for side in (0, 1):
+        end = cells[left + side] + (1 - 2 * side)
         end_code = flat_code[end]
         free_end = np.flatnonzero(end_code == 1)  # (few: looked at alone)
         end_unseen = end_code == 0
         end_unseen[free_end] = _beam_along(code, *np.divmod(end[free_end], width))
-        unseen &= end_unseen
-    left = left[unseen]
+        left = left[end_unseen]
     # (Straightened: a band's wall stretches twice as long, as the staggered bridges' ends: a face
     # across the line at an angle makes short stretches in a band too.)
     run_anchor = anchor if slack == 0 else 2 * anchor
