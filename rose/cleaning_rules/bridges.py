@@ -23,7 +23,7 @@ from rose.cleaning_rules.runs import (
     _run_cells,
     _runs,
 )
-from rose.labelling import components, label_boxes
+from rose.labelling import components, label_boxes, labels_looked_up
 
 
 def bridge_gaps(
@@ -81,11 +81,13 @@ def _in_plain_view(
     seen = lines[box] & beside_free & open_unknown[box]
     if not seen.any():
         return out
-    _, labels, stats, _ = cv2.connectedComponentsWithStats(seen.view(np.uint8), connectivity=8)
-    extent = np.maximum(stats[:, cv2.CC_STAT_WIDTH], stats[:, cv2.CC_STAT_HEIGHT])
-    wide = extent >= min_opening_px
+    # The plain labelling and the boxes of the few seen cells: OpenCV's statistics visit every
+    # cell of the box again (4.8 ms a call on the benchmark maps, a fortieth of the cleaning).
+    count, labels = components(seen)
+    _, _, width, height = label_boxes(labels, _nonzero_flat(seen.view(np.uint8)), count).T
+    wide = np.maximum(width, height) >= min_opening_px
     wide[0] = False  # the background
-    seen = wide[labels]
+    seen = labels_looked_up(wide, labels)
     if seen.any():
         side = 2 * (_LINE_THICKNESS_PX - 1) + 1
         grown = cv2.dilate(seen.view(np.uint8), np.ones((side, side), np.uint8)).view(bool)
