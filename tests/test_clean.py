@@ -1780,3 +1780,31 @@ def test_hidden_lines_in_plain_view_are_boxed_without_opencvs_statistics(
         np.testing.assert_array_equal(
             _in_plain_view(lines, free, open_unknown, opening), grown & lines
         )
+
+
+def test_the_guard_lists_the_rings_once_for_an_opening_judged_whole_and_in_pieces(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A long opening is judged whole and cut in pieces: the pieces hold the patches' cells, so
+    their rings are the same cells. They were found twice (a dilation and a listing of the guard's
+    box each); now once, with the same cells restored."""
+    import rose.cleaning_rules.guard as guard_module
+
+    listed = []
+    ring_cells = guard_module._ring_cells
+
+    def recorded(opened):  # type: ignore[no-untyped-def]
+        listed.append(opened.copy())
+        return ring_cells(opened)
+
+    monkeypatch.setattr(guard_module, "_ring_cells", recorded)
+    occupied = np.zeros((60, 320), dtype=bool)
+    occupied[30, :] = True  # a wall between a corridor and a room, a door at each end
+    occupied[30, 5:15] = occupied[30, 285:295] = False
+    keep = occupied.copy()
+    keep[30, 20:280] = False  # 13 m of it removed: judged in pieces too
+    restore = guard_module.topology_guard(
+        occupied, keep, radius_px=3.0, window_px=10, min_region_px=400.0
+    )
+    assert restore[30, 20:280].all()
+    assert len(listed) == 1

@@ -126,8 +126,11 @@ def topology_guard(
     linked_cells = _nonzero_flat(linked.view(np.uint8))
     boxes = label_boxes(patches, linked_cells, count)
     on_patch = patches.reshape(-1)[opened_cells]
+    # The rings of the patches and of their pieces below: the same cells (cut, the patches keep
+    # their cells), listed once.
+    ring = _ring_cells(linked)
     seeds = _separating_cells(
-        patches, count, boxes, linked, on_patch, blocking, window_px, min_region_px
+        patches, count, boxes, ring, on_patch, blocking, window_px, min_region_px
     )
     # A long opening is also judged in pieces: judged whole, its window spanned rooms that a door
     # somewhere in it joined anyway, and a wall erased along metres between a corridor and a room
@@ -149,7 +152,7 @@ def topology_guard(
             cut,
             cut_count,
             label_boxes(cut, linked_cells, cut_count),
-            linked,
+            ring,
             on_piece,
             blocking,
             window_px,
@@ -190,7 +193,7 @@ def _separating_cells(
     patches: npt.NDArray[np.integer],
     count: int,
     boxes: npt.NDArray[np.int64],
-    linked: npt.NDArray[np.bool_],
+    ring: npt.NDArray[np.intp],
     on_patch: npt.NDArray[np.integer],
     blocking: npt.NDArray[np.uint8],
     window_px: int,
@@ -199,11 +202,11 @@ def _separating_cells(
     only: npt.NDArray[np.bool_] | None = None,
 ) -> npt.NDArray[np.bool_]:
     """Which opened cells (``on_patch``: the patch of each) lie in a patch that joins two regions of
-    its window (:func:`_separating_patches`). Patches ringed by formerly passable cells alone (a
-    free-standing object) are not looked at; with ``only`` (per label), exactly those patches are,
-    however ringed."""
-    ring_cells, ring_patches = _rings(patches, linked, count)
-    formerly = blocking[np.divmod(ring_cells, linked.shape[1])] == 0
+    its window (:func:`_separating_patches`); ``ring``: the cells around the patches
+    (:func:`_ring_cells`). Patches ringed by formerly passable cells alone (a free-standing object)
+    are not looked at; with ``only`` (per label), exactly those patches are, however ringed."""
+    ring_cells, ring_patches = _rings(patches, ring, count)
+    formerly = blocking[np.divmod(ring_cells, patches.shape[1])] == 0
     blocked = np.bincount(on_patch, minlength=count) > 0
     if only is None:
         walled = np.zeros(count, dtype=bool)
@@ -304,12 +307,22 @@ def _drawn_box(
     return box, image
 
 
+def _ring_cells(opened: npt.NDArray[np.bool_]) -> npt.NDArray[np.intp]:
+    """Flat indices (ascending) of the cells outside ``opened`` (C-contiguous) with an 8-neighbour
+    in it: the rings of its patches, however labelled (:func:`_rings`)."""
+    import cv2
+
+    grown = cv2.dilate(opened.view(np.uint8), np.ones((3, 3), np.uint8))
+    # grown & ~opened in one pass, listed by OpenCV.
+    return _nonzero_flat(np.greater(grown, opened.view(np.uint8)).view(np.uint8))
+
+
 def _rings(
-    patches: npt.NDArray[np.integer], opened: npt.NDArray[np.bool_], count: int
+    patches: npt.NDArray[np.integer], cells: npt.NDArray[np.intp], count: int
 ) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.int64]]:
-    """The ring of every patch (``count`` labels, 0 the background): each cell outside ``opened``
-    with an 8-neighbour in a patch, once per patch it touches (a cell between two patches is in
-    both rings).
+    """The ring of every patch (``count`` labels, 0 the background): each of the ring ``cells``
+    (:func:`_ring_cells` of the patches' cells) with an 8-neighbour in a patch, once per patch it
+    touches (a cell between two patches is in both rings).
 
     Returns
     -------
@@ -318,11 +331,6 @@ def _rings(
     labels : ndarray of int64, shape (N,)
         The patch of each entry.
     """
-    import cv2
-
-    grown = cv2.dilate(opened.view(np.uint8), np.ones((3, 3), np.uint8))
-    # grown & ~opened in one pass, listed by OpenCV (``opened`` is C-contiguous).
-    cells = _nonzero_flat(np.greater(grown, opened.view(np.uint8)).view(np.uint8))
     # The labels of every ring cell's 8 neighbours (ring cells are few next to the whole image).
     around = _neighbour_columns(patches, cells)
     top = around[0].copy()
