@@ -1808,3 +1808,24 @@ def test_the_guard_lists_the_rings_once_for_an_opening_judged_whole_and_in_piece
     )
     assert restore[30, 20:280].all()
     assert len(listed) == 1
+
+
+def test_the_pieces_apart_reuse_the_joined_pieces_list_of_occupied_cells() -> None:
+    """The occupied cells were listed for the pieces joined across gaps and again for the same
+    pieces apart (a pass over the cleaning's window); the second takes the first's list, with the
+    same pieces."""
+    from concurrent.futures import Future
+
+    from rose.cleaning_rules import _apart_pieces
+    from rose.cleaning_rules.objects import _Pieces
+
+    rng = np.random.default_rng(3)
+    occupied = rng.random((50, 70)) < 0.2
+    joined = _Pieces.of(occupied, join_px=1)
+    job: Future[_Pieces] = Future()
+    job.set_result(joined)
+    apart = _apart_pieces(occupied, job)
+    assert apart.cells is joined.cells
+    alone = _Pieces.of(occupied, join_px=0)
+    for field in ("labels", "cells", "owners", "diagonals", "box_areas", "frame_areas"):
+        np.testing.assert_array_equal(getattr(apart, field), getattr(alone, field))

@@ -257,8 +257,11 @@ def _wall_cells(
             if p.loose_pieces
             else None
         )
-        # The same pieces not joined across gaps, for the guard's objects judged alone.
-        apart_job = beside.submit(_Pieces.of, occupied, join_px=0) if p.loose_pieces else None
+        # The same pieces not joined across gaps, for the guard's objects judged alone (the
+        # occupied cells as the joined pieces listed them: the same thread, in turn).
+        apart_job = (
+            beside.submit(_apart_pieces, occupied, pieces_job) if pieces_job is not None else None
+        )
         # (for the free-standing pieces too)
         first_near_job = beside.submit(_near_wide_unknown, unknown, res, p)
         runs = directional_runs(
@@ -481,6 +484,12 @@ def _wall_cells(
     # (Object faces a partition keeps are walls, not dropped.)
     gone = dropped | object_faces
     return kept, guarded, completed, np.greater(gone, kept, out=gone)
+
+
+def _apart_pieces(occupied: npt.NDArray[np.bool_], joined: Future[_Pieces]) -> _Pieces:
+    """The 8-connected pieces of ``occupied`` not joined across gaps, their cells listed as the
+    ``joined`` pieces of the same cells listed them."""
+    return _Pieces.of(occupied, join_px=0, cells=joined.result().cells)
 
 
 def _kept_walls(

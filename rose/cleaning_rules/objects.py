@@ -445,9 +445,11 @@ class _Pieces:
         *,
         join_px: int,
         directions: npt.NDArray[np.float64] | None = None,
+        cells: npt.NDArray[np.intp] | None = None,
     ) -> _Pieces:
         """The pieces of ``occupied``; with ``directions`` (the map's dominant directions) their
-        boxes along those directions too (:attr:`frame_areas`)."""
+        boxes along those directions too (:attr:`frame_areas`). ``cells``: the flat indices of the
+        occupied cells, ascending, when listed already (other pieces' :attr:`cells`)."""
         import cv2
 
         grown = occupied
@@ -455,7 +457,8 @@ class _Pieces:
             kernel = np.ones((3, 3), np.uint8)
             grown = cv2.dilate(occupied.view(np.uint8), kernel, iterations=join_px).view(bool)
         count, labels = components(grown)
-        cells = _nonzero_flat(np.ascontiguousarray(occupied).view(np.uint8))
+        if cells is None:
+            cells = _nonzero_flat(np.ascontiguousarray(occupied).view(np.uint8))
         owners = labels.reshape(-1)[cells]
         # A joined piece is its occupied cells grown by ``join_px`` (clipped by the image), and so
         # is its box: boxed from the occupied cells (fewer than the grown ones). The background's
