@@ -86,9 +86,9 @@ class RosbagsReadBackend:
         if self.format == "db3":
             self._refuse_unmerged_wal()
         if self.format == "ros1":
-            from rosbags.rosbag1 import Reader as Reader1
+            from rose_logs.storage.ros1_index import LazyIndexReader
 
-            self.reader = Reader1(self.path)
+            self.reader = LazyIndexReader(self.path)
         else:
             from rosbags.rosbag2 import Reader as Reader2
 
@@ -421,14 +421,9 @@ class RosbagsReadBackend:
         """Whether each of ``infos`` (rosbags' chunk infos) spans the times of the index entries
         (of the connections ``wanted``) in its chunk: the chunk by chunk reading reads a chunk at
         its info's start time, and a later one (a flipped byte in the index) handed its messages
-        out late, out of order, where rosbags orders by the entries alone. One pass over the
-        entries rosbags holds (its internals, pinned below 0.12)."""
-        spans: dict[int, tuple[int, int]] = {}
-        indexes = self.reader.indexes
-        for cid in wanted:
-            for entry in indexes.get(cid, ()):
-                first, last = spans.get(entry.chunk_pos, (entry.time, entry.time))
-                spans[entry.chunk_pos] = (min(first, entry.time), max(last, entry.time))
+        out late, out of order, where rosbags orders by the entries alone. From the spans the
+        reader noted as it opened the bag (:meth:`LazyIndexReader.entry_spans`)."""
+        spans = self.reader.entry_spans(wanted)
         return all(
             info.start_time <= first and last <= info.end_time
             for info in infos

@@ -330,6 +330,120 @@ def test_overlapping_ros1_chunks_with_a_damaged_chunk_info_time_read_in_rosbags_
     assert [t for _, t, _ in got] == sorted(t for _, t, _ in got)
 
 
+def _strings_bag(
+    path: Path,
+    times: list[int],
+    topics: list[int],
+    *,
+    compression: str = "",
+    chunk_threshold: int = 4096,
+) -> None:
+    """A ROS 1 bag of short strings, the ``i``-th on ``/t<topics[i]>`` at ``START_NS +
+    times[i]``, written in that order in chunks of ``chunk_threshold`` bytes (``compression``:
+    ``BZ2``, ``LZ4``, none)."""
+    from rosbags.rosbag1 import Writer
+
+    writer = Writer(path)
+    if compression:
+        writer.set_compression(getattr(Writer.CompressionFormat, compression))
+    writer.chunk_threshold = chunk_threshold
+    with writer:
+        conns = {
+            k: writer.add_connection(f"/t{k}", "std_msgs/msg/String", msgdef="string data", md5sum="992ce8a1687cec8c8bd883ec73ca41d1")
+            for k in sorted(set(topics))
+        }  # fmt: skip
+        for i, (time, topic) in enumerate(zip(times, topics, strict=True)):
+            text = f"{i}".encode()
+            writer.write(conns[topic], START_NS + time, len(text).to_bytes(4, "little") + text)
+
+
+def test_ros1_reading_holds_the_index_entries_of_the_chunks_being_read(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """rosbags' reader read every message's index entry when it opened a bag and held them all
+    (about 175 bytes a message: 254 MB for `info` of 1.2 million messages); each chunk's are
+    now read when its messages are, and dropped once handed out: memory does not grow with the
+    bag."""
+    import tracemalloc
+    import weakref
+
+    from rose_logs.storage.ros1_stream import read_index
+
+    n = 20_000
+    path = tmp_path / "many.bag"
+    _strings_bag(path, list(range(n)), [i % 3 for i in range(n)], chunk_threshold=16 * 1024)
+    with LogReader(path) as reader:  # (what a first reading imports is not counted)
+        next(iter(reader.messages()))
+    tracemalloc.start()
+    try:
+        with LogReader(path) as reader:
+            opened = tracemalloc.get_traced_memory()[0]
+            counts = [channel.message_count for channel in reader.channels]
+    finally:
+        tracemalloc.stop()
+    assert counts == [n // 3 + (k < n % 3) for k in range(3)]
+    assert opened < 512 * 1024  # rosbags held 3 MB of index entries here
+
+    from rose_logs.storage.ros1_index import LazyIndexReader
+
+    class Entries(list):  # type: ignore[type-arg]  # (a list that can be watched)
+        __hash__ = object.__hash__
+
+    alive: weakref.WeakSet[Entries] = weakref.WeakSet()
+    read_entries = LazyIndexReader._read_entries
+
+    def watched(self: LazyIndexReader, chunk: object) -> Entries:
+        entries = Entries(read_entries(self, chunk))  # type: ignore[arg-type]
+        alive.add(entries)
+        return entries
+
+    monkeypatch.setattr(LazyIndexReader, "_read_entries", watched)
+    held = read = 0
+    with LogReader(path) as reader:
+        for _ in reader.messages():
+            held = max(held, sum(len(entries) for entries in alive))
+            read += 1
+    assert read == n
+    assert len(read_index(path).chunks) >= 20
+    assert 0 < held < n / 5  # a chunk's of each topic, about: not the bag's
+
+
+@pytest.mark.parametrize("seed", range(8))
+@pytest.mark.parametrize("overlap_bytes", [None, 0])
+def test_ros1_messages_come_in_rosbags_order(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, seed: int, overlap_bytes: int | None
+) -> None:
+    """The index entries read chunk by chunk give the messages rosbags' reader gives (holding
+    them all), in its order: log time, then the connection's place, the chunk info's, the
+    entry's. Times repeat across topics and chunks, chunks overlap (written out of order; read
+    each once, or with ``overlap_bytes`` 0 through the entries as rosbags does), topic subsets."""
+    from rosbags.rosbag1 import Reader
+
+    from rose_logs.storage import rosbags as rosbags_storage
+
+    if overlap_bytes is not None:
+        monkeypatch.setattr(rosbags_storage, "MAX_OVERLAP_BYTES", overlap_bytes)
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 600))
+    times = np.cumsum(rng.integers(0, 3, n)) if seed % 2 else rng.integers(0, 80, n)
+    path = tmp_path / "random.bag"
+    compression = ["", "BZ2", "LZ4"][seed % 3]
+    threshold = int(rng.integers(200, 3000))
+    _strings_bag(path, [int(t) for t in times], rng.integers(0, 4, n).tolist(), compression=compression, chunk_threshold=threshold)  # fmt: skip
+    for topics in (None, {"/t0"}, {"/t1", "/t3"}):
+        with Reader(path) as reader:
+            conns = [c for c in reader.connections if topics is None or c.topic in topics]
+            expected = [(c.topic, t, bytes(d)) for c, t, d in reader.messages(conns)]
+            counts = {c.topic: c.msgcount for c in reader.connections}
+        with LogReader(path) as ours:
+            got = [
+                (m.channel.topic, m.log_time_ns, bytes(m.data))
+                for m in ours.messages(topics=topics)
+            ]
+            assert {c.topic: c.message_count for c in ours.channels} == counts
+        assert got == expected
+
+
 def test_messages_held_behind_a_slow_analysis_are_bounded(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
