@@ -864,6 +864,30 @@ def test_a_cabinet_against_a_plain_wall_still_gets_the_wall_line_behind_it() -> 
     assert separated_pairs(cleaned.cleaned >= 65, room, outside)
 
 
+@pytest.mark.parametrize("depths", [(3, 6), (4, 9)])
+def test_a_cabinet_between_two_recesses_in_the_wall_keeps_the_room_closed(
+    depths: tuple[int, int],
+) -> None:
+    """A cabinet against the wall, the wall stepping back beside it into a recess 0.25 m wide
+    on each side (closed pockets, walled all round), the wall behind the cabinet unseen: the
+    recesses' mouths on the wall line were taken for gaps seen through (each parted the room
+    from the recess), so the line behind the cabinet was left undrawn as if the cabinet stood
+    in a doorway, it went, and the room opened onto the unexplored space behind the wall."""
+    grid = np.full((160, 220), -1, np.int8)
+    grid[10:60, 10:210] = 0  # the mapped room
+    grid[8:10, 8:212] = grid[60:62, 8:212] = 100
+    grid[8:62, 8:10] = grid[8:62, 210:212] = 100
+    for (c0, c1), depth in zip([(80, 85), (105, 110)], depths, strict=True):
+        grid[60 : 62 + depth, c0 - 1 : c1 + 1] = 100  # the recess's walls ...
+        grid[60 : 61 + depth, c0:c1] = 0  # ... and its mouth and inside, seen
+    grid[56, 85:105] = grid[56:60, 85] = grid[56:60, 104] = 100  # the cabinet's front and sides
+    grid[57:62, 86:104] = -1  # its inside and the wall behind it, unseen
+    cleaned = clean(grid, rose.analyze(grid), resolution_m=RES)
+    room, outside = (30, 100), (100, 100)
+    assert separated_pairs(grid >= 65, room, outside)
+    assert separated_pairs(cleaned.cleaned >= 65, room, outside)
+
+
 def test_a_cabinet_against_a_stepped_wall_goes_and_the_wall_behind_it_is_drawn() -> None:
     """The wall behind a scanned cabinet is unknown; its two visible ends one cell apart across the
     line (a scanned wall's staircase) anchored no hidden wall, so removing the cabinet opened the

@@ -6,6 +6,8 @@ in the grid's cell space (row 0 at the map origin), lengths in cells.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import numpy.typing as npt
 
@@ -112,10 +114,12 @@ def _in_openings(
     ``spans`` are the cells between the wall ends the lines join, whatever they are (not
     ``occupied``). A stretch of its ``free`` cells (8-connected) with no ``unknown`` cell of it
     among their 8 neighbours is seen through when it parts two regions of the cells that are
-    neither occupied nor spans (8-connected, in its box 3 cells wider): scans went across the
-    wall line there, the room on one side, free or unexplored space on the other. Free cells in
-    front of a wall that steps back by a cell or two meet the wall behind them, not a region
-    beyond; a free cell in front of an unseen wall touches the unseen line. A piece between two
+    neither occupied nor spans (8-connected, in its box ``robot_px`` cells wider), each region
+    reaching that box's edge: scans went across the wall line there, the room on one side, free
+    or unexplored space on the other. Free cells in front of a wall that steps back by a cell or
+    two meet the wall behind them, not a region beyond; a recess closed within a robot's width
+    of the line (a wall stepping back beside a cabinet) is a pocket, not space beyond; a free
+    cell in front of an unseen wall touches the unseen line. A piece between two
     such stretches is the unseen back of something standing in a doorway, a box whose sides
     left the gaps beside it narrower than a robot: drawn, the line closed the doorway once the
     box went. A cabinet against a wall has wall, seen or unseen, on at least one side of it.
@@ -137,7 +141,8 @@ def _in_openings(
     objects = np.zeros(lines.shape, dtype=bool)
     if not lines.any():
         return out, objects
-    box = _padded_box(lines | spans, _LINE_THICKNESS_PX + 2)
+    reach = max(math.ceil(robot_px), _LINE_THICKNESS_PX)  # (how far a gap's regions are seen)
+    box = _padded_box(lines | spans, reach + 2)
     ring = np.ones((3, 3), np.uint8)
     span, line = spans[box], lines[box]
     unseen = cv2.dilate((span & unknown[box]).view(np.uint8), ring).view(bool)
@@ -175,7 +180,7 @@ def _in_openings(
         return out, objects
     open_cells = ~(occupied[box] | span | line)
     seen = np.zeros(stretches, dtype=bool)
-    seen[candidates] = _parting(gaps, stretches, candidates, open_cells, _LINE_THICKNESS_PX)
+    seen[candidates] = _parting(gaps, stretches, candidates, open_cells, reach)
     by_seen = seen[stretch_of]
     piece_of, stretch_of = piece_of[by_seen], stretch_of[by_seen]
     wanted = np.zeros(count, dtype=bool)
@@ -268,7 +273,9 @@ def _parting(
 ) -> npt.NDArray[np.bool_]:
     """For each label of ``wanted`` (of ``labels``, an 8-connected labelling, ``count`` labels with
     the background): whether its cells touch (8-connected) two or more regions of ``open_cells``
-    (8-connected) in the label's bounding box ``pad`` cells wider, clipped to the image."""
+    (8-connected) in the label's bounding box ``pad`` cells wider, clipped to the image, that
+    each reach that box's edge. A region closed within the box is a pocket (a recess in a wall
+    beside the label, walled all round): no space beyond the line that scans went across to."""
     import cv2
 
     out = np.zeros(wanted.size, dtype=bool)
@@ -283,7 +290,9 @@ def _parting(
         mine = labels[r0:r1, c0:c1] == label
         _, regions = components(open_cells[r0:r1, c0:c1])
         beside = cv2.dilate(mine.view(np.uint8), ring).view(bool)
-        out[i] = np.count_nonzero(np.unique(regions[beside & ~mine])) >= 2
+        touching = np.unique(regions[beside & ~mine])
+        edge = np.concatenate([regions[0], regions[-1], regions[:, 0], regions[:, -1]])
+        out[i] = np.count_nonzero(np.isin(touching[touching > 0], edge)) >= 2
     return out
 
 
