@@ -4,13 +4,15 @@ rosbags' :class:`~rosbags.rosbag1.Reader` reads the index data records after eve
 opens a bag and keeps an entry (time, chunk, offset) for every message, about 175 bytes each:
 memory that grows with the bag (1.2 million messages: 254 MB to say what the bag holds).
 :class:`LazyIndexReader` opens the bag the same way, every record read and checked by rosbags'
-own code, but keeps only, for each index data record, where it is and the span of its times; a
-connection's entries of a chunk are read again (rosbags' code too) when its reading reaches that
-chunk, and dropped once handed out. Messages come in rosbags' order (log time, then the
-connection's place in the list asked for, then the chunk's place in the index, then the entry's
-place in its index data), read and checked by rosbags' :meth:`~rosbags.rosbag1.Reader.messages`.
-Memory: the connections, the chunk infos, a few numbers per index data record, and the entries
-of the chunks being read (one chunk's for a recording whose chunks follow each other in time).
+own code, but keeps only, for each connection and chunk, where its index data record is, how many
+entries it holds and the span of their times (five numbers in arrays: 40 bytes, less than one
+entry of rosbags' even where a chunk holds a single message of the connection); a connection's
+entries of a chunk are read again (rosbags' code too) when its reading reaches that chunk, and
+dropped once handed out. Messages come in rosbags' order (log time, then the connection's place
+in the list asked for, then the chunk's place in the index, then the entry's place in its index
+data), read and checked by rosbags' :meth:`~rosbags.rosbag1.Reader.messages`. Memory: the
+connections, the chunk infos, five numbers per connection and chunk, and the entries of the chunks
+being read (one chunk's for a recording whose chunks follow each other in time).
 
 Relies on rosbags' internals (``read_chunk``, ``read_index_data``, ``indexes``; pinned below
 0.12), as the rest of the storage layer does.
@@ -20,9 +22,8 @@ from __future__ import annotations
 
 import heapq
 import itertools
-from collections import defaultdict
+from array import array
 from collections.abc import Iterator
-from dataclasses import dataclass, field
 from operator import itemgetter
 from pathlib import Path
 from typing import Any, cast
@@ -35,19 +36,31 @@ __all__ = ["LazyIndexReader"]
 _BY_TIME = itemgetter(0)  # IndexData's time (it compares by time alone, in Python: slow)
 
 
-@dataclass
-class _Entries:
-    """Where the index entries of one connection in one chunk are: the index data records
-    (``offsets``, bytes of the file, in the order rosbags reads them) after the chunk at byte
-    ``pos``, the ``k``-th of the index's chunk infos; how many entries they hold (``count``), and
-    their earliest and latest time (``first``, ``last``, ns)."""
+class _Found(dict[int, list[IndexData]]):
+    """What rosbags' ``read_index_data`` fills: the entries of a record by its connection id."""
 
-    k: int
-    pos: int
-    count: int = 0
-    first: int = 2**64
-    last: int = -1
-    offsets: list[int] = field(default_factory=list)
+    def __missing__(self, conn: int) -> list[IndexData]:
+        listed: list[IndexData] = []
+        self[conn] = listed
+        return listed
+
+
+class _Notes:
+    """Where one connection's index entries are: a row per chunk that holds some, in the index's
+    order, giving the chunk info's place in it (``k``), the number of entries (``count``), their
+    earliest and latest time (``first``, ``last``, ns) and the byte offset of the index data
+    record after the chunk (``at``); more records of it after that chunk (a damaged or unusual
+    index, rosbags reads them all in this order) are in ``more``, by row."""
+
+    __slots__ = ("at", "count", "first", "k", "last", "more")
+
+    def __init__(self) -> None:
+        self.k = array("q")
+        self.count = array("q")
+        self.first = array("q")
+        self.last = array("q")
+        self.at = array("q")
+        self.more: dict[int, list[int]] = {}
 
 
 class LazyIndexReader(Reader):
@@ -58,8 +71,7 @@ class LazyIndexReader(Reader):
     def __init__(self, path: Path) -> None:
         super().__init__(path)
         self._chunk_k = -1  # the chunk info whose chunk open() read last
-        self._found: dict[tuple[int, int], _Entries] = {}  # by (chunk info, connection id)
-        self.chunk_entries: dict[int, list[_Entries]] = {}  # by connection id
+        self._notes: dict[int, _Notes] = {}  # by connection id
 
     def read_chunk(self) -> Any:
         """rosbags' reading of a chunk record's header; open() reads one per chunk info, in the
@@ -72,33 +84,38 @@ class LazyIndexReader(Reader):
         ``pos``), noted without its entries (``indexes``, rosbags' lists of them, stay empty)."""
         assert self.bio is not None
         at = self.bio.tell()
-        found: defaultdict[int, list[IndexData]] = defaultdict(list)
+        found = _Found()
         super().read_index_data(pos, found)
         ((conn, entries),) = found.items()  # one connection a record
-        # A connection may have several records after a chunk (a damaged or unusual index):
-        # rosbags reads them all, in this order.
-        noted = self._found.setdefault((self._chunk_k, conn), _Entries(self._chunk_k, pos))
-        noted.offsets.append(at)
-        if entries:
-            times = [entry[0] for entry in entries]
-            noted.count += len(times)
-            noted.first = min(noted.first, min(times))
-            noted.last = max(noted.last, max(times))
+        if not entries:
+            return
+        first = min(map(_BY_TIME, entries))
+        last = max(map(_BY_TIME, entries))
+        notes = self._notes.get(conn)
+        if notes is None:
+            notes = self._notes[conn] = _Notes()
+        row = len(notes.k) - 1
+        if row >= 0 and notes.k[row] == self._chunk_k:  # another record of it after this chunk
+            notes.count[row] += len(entries)
+            notes.first[row] = min(notes.first[row], first)
+            notes.last[row] = max(notes.last[row], last)
+            notes.more.setdefault(row, []).append(at)
+            return
+        notes.k.append(self._chunk_k)
+        notes.count.append(len(entries))
+        notes.first.append(first)
+        notes.last.append(last)
+        notes.at.append(at)
 
     def open(self) -> None:
         """Open the bag as rosbags does (its errors), keeping where each chunk's entries are."""
         self._chunk_k = -1
-        self._found = {}
+        self._notes = {}
         super().open()
-        by_conn: dict[int, list[_Entries]] = {}
-        for (_, conn), noted in self._found.items():
-            if noted.count:
-                by_conn.setdefault(conn, []).append(noted)
-        self._found = {}
-        self.chunk_entries = by_conn
         # As rosbags: a connection's count is that of its index entries.
+        notes = self._notes
         self.connections = [
-            conn._replace(msgcount=sum(e.count for e in by_conn.get(conn.id, ())))
+            conn._replace(msgcount=sum(notes[conn.id].count) if conn.id in notes else 0)
             for conn in self.connections
         ]
         # rosbags' messages() only iterates them (heapq.merge), lazily.
@@ -111,48 +128,72 @@ class LazyIndexReader(Reader):
         """The earliest and latest time (ns) of the index entries of the connections ``conns``
         in each chunk (by its byte position) that holds some."""
         spans: dict[int, tuple[int, int]] = {}
+        infos = self.chunk_infos
         for conn in conns:
-            for e in self.chunk_entries.get(conn, ()):
-                first, last = spans.get(e.pos, (e.first, e.last))
-                spans[e.pos] = (min(first, e.first), max(last, e.last))
+            notes = self._notes.get(conn)
+            if notes is None:
+                continue
+            for k, first, last in zip(notes.k, notes.first, notes.last, strict=True):
+                pos = infos[k].pos
+                was = spans.get(pos)
+                spans[pos] = (
+                    (first, last) if was is None else (min(was[0], first), max(was[1], last))
+                )
         return spans
 
-    def _read_entries(self, chunk: _Entries) -> list[IndexData]:
-        """The index entries of ``chunk`` (one connection's in one chunk), read again by
+    def _read_entries(self, notes: _Notes, row: int) -> list[IndexData]:
+        """The index entries of ``notes``' ``row`` (one connection's in one chunk), read again by
         rosbags' code, in time order (stable: as rosbags sorts them)."""
         assert self.bio is not None
-        found: defaultdict[int, list[IndexData]] = defaultdict(list)
-        for at in chunk.offsets:
+        pos = self.chunk_infos[notes.k[row]].pos
+        found = _Found()
+        for at in (notes.at[row], *notes.more.get(row, ())):
             self.bio.seek(at)
-            super().read_index_data(chunk.pos, found)
-        entries = [entry for listed in found.values() for entry in listed]
-        if len(entries) != chunk.count:  # the file changed under the reader
-            msg = f"the index data after the chunk at byte {chunk.pos} changed while reading"
+            super().read_index_data(pos, found)
+        if len(found) == 1:
+            (entries,) = found.values()
+        else:  # the file changed under the reader (its count says so below)
+            entries = [entry for listed in found.values() for entry in listed]
+        if len(entries) != notes.count[row]:  # the file changed under the reader
+            msg = f"the index data after the chunk at byte {pos} changed while reading"
             raise ReaderError(msg)
-        return sorted(entries, key=_BY_TIME)
+        entries.sort(key=_BY_TIME)
+        return entries
 
     def entries(self, conn: int) -> Iterator[IndexData]:
         """Connection ``conn``'s index entries in rosbags' order (time, then chunk info, then
         place in the index data), each chunk's read when the first of them is due."""
-        chunks = sorted(self.chunk_entries.get(conn, ()), key=lambda e: (e.first, e.k))
-        if all((a.last, a.k) < (b.first, b.k) for a, b in itertools.pairwise(chunks)):
-            # Each chunk's entries all come before the next's (a recording): no merge needed,
-            # which cost about a microsecond an entry.
-            for chunk in chunks:
-                yield from self._read_entries(chunk)
+        notes = self._notes.get(conn)
+        if notes is None:
             return
-        # (time, chunk info, place in it (-1: the chunk's entries not read yet), what)
-        queue: list[tuple[int, int, int, Any]] = [(e.first, e.k, -1, e) for e in chunks]
+        first, last = notes.first, notes.last
+        # Rows are in the index's order: sorted stably by time, ties stay in it.
+        rows = sorted(range(len(first)), key=first.__getitem__)
+        if all(
+            last[a] < first[b] or (last[a] == first[b] and a < b)
+            for a, b in itertools.pairwise(rows)
+        ):
+            # Each chunk's entries all come before the next's (a recording): no merge needed.
+            for row in rows:
+                yield from self._read_entries(notes, row)
+            return
+        yield from self._merged(notes, rows)
+
+    def _merged(self, notes: _Notes, rows: list[int]) -> Iterator[IndexData]:
+        """The entries of ``notes``' ``rows`` (sorted by their first time) merged in rosbags'
+        order, where chunks overlap in time: each chunk's read when its first entry is due."""
+        # (time, row (the index's order), place in it (-1: the chunk's entries not read yet), what)
+        queue: list[tuple[int, int, int, Any]] = [(notes.first[r], r, -1, None) for r in rows]
         heapq.heapify(queue)
         while queue:
-            _, k, j, item = queue[0]
+            _, row, j, listed = queue[0]
             if j < 0:
-                listed = self._read_entries(item)
-                heapq.heapreplace(queue, (listed[0][0], k, 0, listed))
+                listed = self._read_entries(notes, row)
+                heapq.heapreplace(queue, (listed[0][0], row, 0, listed))
                 continue
-            entry = item[j]
-            if j + 1 < len(item):
-                heapq.heapreplace(queue, (item[j + 1][0], k, j + 1, item))
+            entry = listed[j]
+            if j + 1 < len(listed):
+                heapq.heapreplace(queue, (listed[j + 1][0], row, j + 1, listed))
             else:
                 heapq.heappop(queue)
             yield entry
