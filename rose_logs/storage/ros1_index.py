@@ -20,6 +20,7 @@ Relies on rosbags' internals (``read_chunk``, ``read_index_data``, ``indexes``; 
 
 from __future__ import annotations
 
+import bisect
 import heapq
 import itertools
 from array import array
@@ -181,7 +182,9 @@ class LazyIndexReader(Reader):
 
     def _merged(self, notes: _Notes, rows: list[int]) -> Iterator[IndexData]:
         """The entries of ``notes``' ``rows`` (sorted by their first time) merged in rosbags'
-        order, where chunks overlap in time: each chunk's read when its first entry is due."""
+        order, where chunks overlap in time: each chunk's read when its first entry is due, its
+        entries handed out in runs, up to the first that another chunk's entry precedes (chunks
+        that overlap at their ends only: a heap step a run, not an entry)."""
         # (time, row (the index's order), place in it (-1: the chunk's entries not read yet), what)
         queue: list[tuple[int, int, int, Any]] = [(notes.first[r], r, -1, None) for r in rows]
         heapq.heapify(queue)
@@ -191,12 +194,23 @@ class LazyIndexReader(Reader):
                 listed = self._read_entries(notes, row)
                 heapq.heapreplace(queue, (listed[0][0], row, 0, listed))
                 continue
-            entry = listed[j]
-            if j + 1 < len(listed):
-                heapq.heapreplace(queue, (listed[j + 1][0], row, j + 1, listed))
+            end = j + 1
+            if len(queue) == 1:
+                end = len(listed)
+            elif end < len(listed):  # does the next entry come before the other chunks' next?
+                other = queue[1] if len(queue) == 2 or queue[1] < queue[2] else queue[2]
+                time = listed[end][0]
+                if time < other[0] or (time == other[0] and row < other[1]):  # ties: index order
+                    cut = bisect.bisect_right if row < other[1] else bisect.bisect_left
+                    end = cut(listed, other[0], lo=end, key=_BY_TIME)
+            if end == j + 1:
+                yield listed[j]
+            else:
+                yield from itertools.islice(listed, j, end)
+            if end < len(listed):
+                heapq.heapreplace(queue, (listed[end][0], row, end, listed))
             else:
                 heapq.heappop(queue)
-            yield entry
 
 
 class _ConnectionEntries:

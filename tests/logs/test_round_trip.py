@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 from pathlib import Path
 
 import numpy as np
@@ -439,6 +440,53 @@ def test_ros1_reading_holds_less_than_rosbags_where_chunks_hold_few_messages_of_
         assert counts == [n // topics] * topics
     assert chunks >= n / topics / 2  # a message or two of each topic a chunk
     assert held[LazyIndexReader] < 0.8 * held[Reader]
+
+
+def test_ros1_chunks_overlapping_at_their_ends_are_merged_a_run_at_a_time(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A topic whose chunks overlap in time only at their ends (stamps a little out of order, as
+    a recording stamped by its messages' headers has them), read in rosbags' order (its chunks
+    overlapping would hold more than MAX_OVERLAP_BYTES at once, here 0), was merged entry by
+    entry through a heap in Python: 1.2 million such messages read in 6.3 s of CPU, rosbags'
+    reader in 5.5 s. Each chunk's entries now go out in runs, up to the first that another
+    chunk's precedes: a few heap steps a chunk. Same messages in rosbags' order (ties at the
+    ends included)."""
+    import heapq
+
+    from rosbags.rosbag1 import Reader
+
+    from rose_logs.storage import ros1_index
+    from rose_logs.storage import rosbags as rosbags_storage
+
+    monkeypatch.setattr(rosbags_storage, "MAX_OVERLAP_BYTES", 0)
+
+    n = 3000
+    path = tmp_path / "jitter.bag"
+    times = [3 * i + 7 * (i % 5) for i in range(n)]  # each 5 messages a little out of order
+    _strings_bag(path, times, [0] * n, chunk_threshold=2048)
+    with Reader(path) as reader:
+        infos = sorted(reader.chunk_infos, key=lambda info: info.start_time)
+        expected = [(t, bytes(d)) for _, t, d in reader.messages()]
+    assert len(infos) > 20
+    assert all(a.end_time > b.start_time for a, b in itertools.pairwise(infos))  # overlap
+
+    steps = 0
+
+    class Counted:  # heapq, its steps counted
+        def __getattr__(self, name: str) -> object:
+            def step(*args: object) -> object:
+                nonlocal steps
+                steps += 1
+                return getattr(heapq, name)(*args)
+
+            return step
+
+    monkeypatch.setattr(ros1_index, "heapq", Counted())
+    with LogReader(path) as ours:
+        got = [(m.log_time_ns, bytes(m.data)) for m in ours.messages()]
+    assert got == expected
+    assert steps < n / 5  # were about n (one an entry)
 
 
 @pytest.mark.parametrize("seed", range(8))
