@@ -7,8 +7,8 @@ memory that grows with the bag (1.2 million messages: 254 MB to say what the bag
 own code, but keeps only, for each connection and chunk, where its index data record is, how many
 entries it holds and the span of their times (five numbers in arrays: 40 bytes, less than one
 entry of rosbags' even where a chunk holds a single message of the connection); a connection's
-entries of a chunk are read again (rosbags' code too) when its reading reaches that chunk, and
-dropped once handed out. Messages come in rosbags' order (log time, then the connection's place
+entries of a chunk are read again when its reading reaches that chunk (unpacked in one go where
+the record is as noted, else by rosbags' code, for its error), and dropped once handed out. Messages come in rosbags' order (log time, then the connection's place
 in the list asked for, then the chunk's place in the index, then the entry's place in its index
 data), read and checked by rosbags' :meth:`~rosbags.rosbag1.Reader.messages`. Memory: the
 connections, the chunk infos, five numbers per connection and chunk, and the entries of the chunks
@@ -23,6 +23,7 @@ from __future__ import annotations
 import bisect
 import heapq
 import itertools
+import struct
 from array import array
 from collections.abc import Iterator
 from operator import itemgetter
@@ -35,6 +36,9 @@ from rosbags.rosbag1.reader import IndexData
 __all__ = ["LazyIndexReader"]
 
 _BY_TIME = itemgetter(0)  # IndexData's time (it compares by time alone, in Python: slow)
+_INDEX_HEADER = 55  # bytes of an index data record before its entries (rosbags reads as many)
+_UINT32 = struct.Struct("<I")
+_ENTRY = struct.Struct("<III")  # an index entry: seconds, nanoseconds, offset in the chunk
 
 
 class _Found(dict[int, list[IndexData]]):
@@ -143,10 +147,30 @@ class LazyIndexReader(Reader):
         return spans
 
     def _read_entries(self, notes: _Notes, row: int) -> list[IndexData]:
-        """The index entries of ``notes``' ``row`` (one connection's in one chunk), read again by
-        rosbags' code, in time order (stable: as rosbags sorts them)."""
+        """The index entries of ``notes``' ``row`` (one connection's in one chunk), read again,
+        in time order (stable: as rosbags sorts them)."""
         assert self.bio is not None
         pos = self.chunk_infos[notes.k[row]].pos
+        count = notes.count[row]
+        layout = self.index_data_header_offsets  # (conn, count), rosbags' from the first record
+        if layout is not None and row not in notes.more:
+            # One record, read and checked by rosbags' code when the bag opened: unpacked in one
+            # go (rosbags' reading of it, an entry at a time, took most of the time where a
+            # chunk holds a message or two of each of many topics). A record unlike what was
+            # noted goes through rosbags' code below, for its error.
+            self.bio.seek(notes.at[row])
+            raw = self.bio.read(_INDEX_HEADER + 12 * count)
+            if (
+                len(raw) == _INDEX_HEADER + 12 * count
+                and _UINT32.unpack_from(raw, layout[1])[0] == count
+                and _UINT32.unpack_from(raw, _INDEX_HEADER - 4)[0] == 12 * count
+            ):
+                entries = [
+                    IndexData(sec * 10**9 + nsec, pos, offset)
+                    for sec, nsec, offset in _ENTRY.iter_unpack(memoryview(raw)[_INDEX_HEADER:])
+                ]
+                entries.sort(key=_BY_TIME)
+                return entries
         found = _Found()
         for at in (notes.at[row], *notes.more.get(row, ())):
             self.bio.seek(at)
