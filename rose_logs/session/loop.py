@@ -674,24 +674,19 @@ class _Loop:
             return
         # Held until the analyses before it are written (the output's order never depends on
         # timing): then a copy of its data, which the reader's buffer does not outlive.
-        if not self.queue:  # written at once, as most messages are: no item made for it
-            self.writer.write_raw(
-                handle,
-                message.log_time_ns,
-                message.data,
-                publish_time_ns=message.publish_time_ns,
-                sequence=message.sequence,
-            )
-            return
+        held = bool(self.queue)
         item = _Copy(
             handle,
             message.log_time_ns,
-            bytes(message.data),
+            bytes(message.data) if held else message.data,
             message.publish_time_ns,
             message.sequence,
         )
-        self.queue.append(item)
-        self.held_bytes += len(item.data) + _HELD_ITEM_BYTES
+        if held:
+            self.queue.append(item)
+            self.held_bytes += len(item.data) + _HELD_ITEM_BYTES
+        else:
+            self._write(item)
 
     def _write(self, item: _Copy) -> None:
         assert self.writer is not None
