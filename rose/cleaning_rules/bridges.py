@@ -165,12 +165,12 @@ def _in_openings(
     # stretch labels of their 8 neighbours (the sides' cells are few). A stretch that meets only
     # the line itself is no gap beside an object (fills across a room, between pieces in line,
     # meet the unseen insides of what stands in it).
-    cells = _nonzero_flat(np.ascontiguousarray(sides).view(np.uint8))
+    side_cells = _nonzero_flat(np.ascontiguousarray(sides).view(np.uint8))
     padded = np.pad(gaps, 1)  # (the neighbours of a cell on the box's edge)
-    rows, cols = np.divmod(cells, pieces.shape[1])
+    rows, cols = np.divmod(side_cells, pieces.shape[1])
     around = _neighbour_columns(padded, (rows + 1) * padded.shape[1] + cols + 1)
-    own = labels.reshape(-1)[cells].astype(np.int64)
-    pairs = np.concatenate([own * stretches + column for column in around])
+    side_owner = labels.reshape(-1)[side_cells]
+    pairs = np.concatenate([side_owner.astype(np.int64) * stretches + column for column in around])
     pairs = np.unique(pairs[np.concatenate(around) > 0])
     piece_of, stretch_of = np.divmod(pairs, stretches)
     # Only pieces with two stretches beside them need theirs looked at (few: each in its box).
@@ -213,8 +213,6 @@ def _in_openings(
     removed_cells = _nonzero_flat(np.ascontiguousarray(removed).view(np.uint8))
     extents = label_boxes(pieces_removed, removed_cells, count)
     standing = np.zeros(count, dtype=bool)
-    side_cells = _nonzero_flat(np.ascontiguousarray(sides).view(np.uint8))
-    side_owner = labels.reshape(-1)[side_cells]
     for piece in np.flatnonzero(wanted).tolist():
         mine = np.concatenate(
             [line_cells[line_owner == piece], side_cells[side_owner == piece]]
