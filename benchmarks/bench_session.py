@@ -275,6 +275,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--keep", type=Path, default=None, help="work here and keep the files")
     args = parser.parse_args(argv)
     keep_arrays_on_heap()  # as the rose-bag command does: measure what its users get
+    os.environ.setdefault("RUST_LOG", "off")  # as rose-bag does: no native WARN lines in the report
     cv2.setNumThreads(1)  # as `rose-bag process` does (rose_logs/cli/process.py)
 
     work = args.keep or Path(tempfile.mkdtemp(prefix="rose-bench-"))
