@@ -25,3 +25,6 @@ class StdoutError(OutputError):
         # ``after``: what it means for the run's files (``; out.mcap not written``).
         super().__init__(f"standard output: cannot write ({reason}){after}")
         self.reason = reason
+        # The exit code when it cut the summary of a run that had decided another than 0 (a
+        # failed gate, a salvage): set by the command (rose_logs.cli.options.summary_then_verdict).
+        self.exit_code = 1

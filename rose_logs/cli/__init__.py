@@ -33,7 +33,7 @@ from rose.console import (
     stdout_errors_named,
 )
 from rose.entry import raise_held_start_signal
-from rose.errors import RoseError
+from rose.errors import RoseError, StdoutError
 from rose.signals import (
     install_signal_handlers,
     reraise_interrupt_behind,
@@ -162,9 +162,10 @@ def main(argv: list[str] | None = None) -> int:
     """Run ``rose-bag`` with ``argv`` (default ``sys.argv[1:]``); returns the exit code.
 
     0 success, 1 error (one line on stderr, nothing written; but standard output failing after the
-    files were written says they are complete), 2 usage error, 3 ``--fail-above`` or
-    ``--fail-on-break`` gate, 4 ``--salvage`` with messages lost, 130 / 143 / 129 interrupted by
-    SIGINT / SIGTERM / SIGHUP, 141 standard output closed early.
+    files were written says they are complete, and leaves a gate's or salvage's code as it was),
+    2 usage error, 3 ``--fail-above`` or ``--fail-on-break`` gate, 4 ``--salvage`` with messages
+    lost, 130 / 143 / 129 interrupted by SIGINT / SIGTERM / SIGHUP, 141 standard output closed
+    early.
     """
     # An in-process caller keeps its own handlers; without a standard error, what the command
     # says there goes nowhere (not into its standard output).
@@ -226,7 +227,8 @@ def _run(argv: list[str] | None) -> int:
         if args.debug:
             raise
         print(f"error: {error_text(err, where=input_name(args), written=written)}", file=sys.stderr)
-        return 1
+        # The summary failed after the run decided its exit code (a gate, a salvage): kept.
+        return err.exit_code if isinstance(err, StdoutError) else 1
 
 
 def console() -> None:

@@ -20,6 +20,7 @@ from rose_logs.cli.options import (
     add_session_arguments,
     add_topic_argument,
     hold_opencv_to_one_thread,
+    summary_then_verdict,
     unjudged_topics,
 )
 
@@ -300,8 +301,7 @@ def run(args: argparse.Namespace) -> int:
             "failed": _gate_failures(args, report),
         },
     )
-    _print_summary(report)
-    return _exit_code(report, args)
+    return summary_then_verdict(lambda: _print_summary(report), lambda: _exit_code(report, args))
 
 
 def _print_summary(report: Any) -> None:

@@ -7,13 +7,16 @@ The ROSE tuning options themselves are defined once in :mod:`rose.cli.options` a
 from __future__ import annotations
 
 import argparse
-from collections.abc import Collection, Iterable
+import sys
+from collections.abc import Callable, Collection, Iterable
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
 from rose.cli.options import add_limit_arguments, fraction, names_folder, positive_float
+from rose.console import EXIT_BROKEN_PIPE, stdout_closed
 from rose.directions import FAILURE_LEVEL
+from rose.errors import StdoutError
 from rose_logs.cli import EXIT_GATE, EXIT_SALVAGED, UsageError
 
 __all__ = [
@@ -26,6 +29,7 @@ __all__ = [
     "duration_text",
     "hold_opencv_to_one_thread",
     "output_log_path",
+    "summary_then_verdict",
     "topic_arg",
     "unjudged_topics",
     "utc_text",
@@ -157,6 +161,30 @@ def add_gate_arguments(parser: Any, *, scope: str) -> None:
         help=f"exit {EXIT_GATE} if the break detector finds a break in any {scope} "
         "(map-quality gate)",
     )
+
+
+def summary_then_verdict(summary: Callable[[], None], verdict: Callable[[], int]) -> int:
+    """Print a run's ``summary`` on standard output (its files stand by then), then say its
+    ``verdict`` (the failed gates' ``error:`` lines, the salvage's ``warning:``, on stderr) and
+    return the exit code the verdict returns.
+
+    Standard output failing in the summary does not lose the verdict: it is said all the same,
+    and its exit code, when not 0, stands (a pipeline acting on the gate's 3 or the salvage's 4
+    got 1 or 141, and no line naming the failed gates). The failure is still an error line
+    (``> /dev/full``: the run exits 1 where the verdict was 0) or, for a reader that left
+    (``| head``), quiet (141 where it was 0).
+    """
+    try:
+        summary()
+        sys.stdout.flush()  # failing at the command's end, it came after the verdict's code
+    except StdoutError as err:
+        err.exit_code = verdict() or err.exit_code
+        raise
+    except BrokenPipeError as err:
+        if not stdout_closed(err):  # not standard output's: an error of its own
+            raise
+        return verdict() or EXIT_BROKEN_PIPE
+    return verdict()
 
 
 def unjudged_topics(

@@ -29,6 +29,7 @@ from rose_logs.cli.options import (
     duration_text,
     hold_opencv_to_one_thread,
     output_log_path,
+    summary_then_verdict,
     unjudged_topics,
     utc_text,
 )
@@ -319,21 +320,24 @@ def run(args: argparse.Namespace) -> int:
             }
             outputs.fill(json_out, json_text(data).encode("utf-8"))
     out = sys.stderr if outputs.uses_stdout else sys.stdout
-    _print_summary(report, out)
-    # Failed gates are named even when the salvage decides the exit code (4).
-    # One line each, whatever the input's name holds (a newline split the line, an escape
-    # sequence drove the terminal).
-    for reason in failed:
-        print(f"error: {short(visible(f'{args.input}: {reason}'))}", file=sys.stderr)
-    if report.losses:
-        # Each loss was warned about when the reader met it (a long session shows it at once).
-        text = (
-            f"{args.input}: damaged input ({len(report.losses)} problem(s) above), outputs hold "
-            f"only what could be read (--salvage, exit {EXIT_SALVAGED})"
-        )
-        print(f"warning: {short(visible(text))}", file=sys.stderr)
-        return EXIT_SALVAGED
-    return EXIT_GATE if failed else 0
+
+    def verdict() -> int:
+        # Failed gates are named even when the salvage decides the exit code (4).
+        # One line each, whatever the input's name holds (a newline split the line, an escape
+        # sequence drove the terminal).
+        for reason in failed:
+            print(f"error: {short(visible(f'{args.input}: {reason}'))}", file=sys.stderr)
+        if report.losses:
+            # Each loss was warned about when the reader met it (a long session shows it at once).
+            text = (
+                f"{args.input}: damaged input ({len(report.losses)} problem(s) above), outputs "
+                f"hold only what could be read (--salvage, exit {EXIT_SALVAGED})"
+            )
+            print(f"warning: {short(visible(text))}", file=sys.stderr)
+            return EXIT_SALVAGED
+        return EXIT_GATE if failed else 0
+
+    return summary_then_verdict(lambda: _print_summary(report, out), verdict)
 
 
 def _gate_failures(args: argparse.Namespace, report: Any) -> list[str]:

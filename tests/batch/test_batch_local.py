@@ -95,6 +95,29 @@ def test_a_gate_cannot_judge_a_recording_of_maps_w_cannot_read(
     assert expected in capsys.readouterr().err.splitlines()
 
 
+def test_a_lost_summary_keeps_the_gates_exit_code(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`batch ... --fail-above 0.4 > /dev/full` exited 1: the tables were written, the gate
+    failed (3), and only the summary was lost; the gate's exit code now stands."""
+    import io
+    import sys
+
+    import numpy as np
+    from fleet import map_recording
+
+    class FullDevice(io.StringIO):
+        def write(self, text: str) -> int:
+            raise OSError(28, "No space left on device")
+
+    log = map_recording(tmp_path / "solid.mcap", np.full((100, 100), 100, dtype=np.int8))
+    monkeypatch.setattr(sys, "stdout", FullDevice())
+    assert main(["batch", str(log), "-o", str(tmp_path / "out"), "-q", "--fail-above", "0.4"]) == 3
+    err = capsys.readouterr().err.splitlines()
+    assert err[-2].startswith(f"error: {log}: /map: no map had 20"), err
+    assert err[-1].startswith("error: standard output: cannot write"), err
+
+
 def test_an_unreadable_stored_result_is_redone_and_named_under_out(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

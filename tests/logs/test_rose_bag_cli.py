@@ -696,6 +696,30 @@ def test_a_full_standard_output_after_the_files_says_they_are_complete(
     )
 
 
+@pytest.mark.parametrize("stdout", [_FullDevice, _ClosedPipe])
+def test_a_lost_summary_keeps_the_gates_exit_code_and_lines(
+    stdout: type[io.StringIO],
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """`process --fail-above 0.1 --json r.json > /dev/full` (or `| head -1`) exited 1 (141) with
+    the report written: a pipeline acting on the gate's 3 lost it, and the line naming the
+    failed gate was never said (with unbuffered output the summary's first line failed)."""
+    monkeypatch.setattr(sys, "stdout", stdout())
+    report = tmp_path / "r.json"
+    argv = ["process", str(SAMPLE), "-q", "--no-output", "--json", str(report)]
+    code = main([*argv, "--fail-above", "0.1"])
+    assert code == EXIT_GATE
+    assert json.loads(report.read_text())["gates"]["failed"]
+    err = capsys.readouterr().err.splitlines()
+    assert any(line.startswith(f"error: {SAMPLE}: W = ") for line in err), err
+    if stdout is _FullDevice:  # the summary's loss is said, the outputs complete
+        assert err[-1].endswith(f"the outputs are complete ({report}): only the summary is lost")
+        # No gate failed: the lost summary is the error (exit 1), as before.
+        assert main([*argv, "--force"]) == 1
+
+
 @pytest.mark.parametrize(
     ("argv", "staged"),
     [
