@@ -78,12 +78,16 @@ def short(text: object, limit: int = MAX_MESSAGE_CHARS) -> str:
     """``text`` as one line of at most ``limit`` characters: whitespace runs made single spaces,
     then, if still too long, file names longer than a third of the limit (deep folders) lose the
     middle of their folders, keeping their start and their file's name, so that what is said after
-    them still shows; then, if still too long, the line is cut after its last whole word that fits,
+    them still shows (a name with spaces, as the message's ``NAME: problem`` starts, too); then, if still too long, the line is cut after its last whole word that fits,
     with ``...`` (a cut in the middle of a word read like another word: "--salvage (pro...")."""
     line = " ".join(str(text).split())
     if len(line) <= limit:
         return line
     longest = limit // 3
+    name, colon, problem = line.partition(": ")
+    if colon and " " in name and len(name) > longest and _names_a_file_with_spaces(name):
+        # Its words, each short, were kept whole, and the cut at the line's end took the problem.
+        line = _middle_out(name, longest) + colon + problem
     line = " ".join(
         _middle_out(word, longest) if _names_a_file(word) and len(word) > longest else word
         for word in line.split(" ")
@@ -101,6 +105,13 @@ def _names_a_file(word: str) -> bool:
     ``NAME: problem`` (a 250-character name in the working folder, no slash: cut at the end of the
     line, it took the problem with it)."""
     return "/" in word or word.endswith(":")
+
+
+def _names_a_file_with_spaces(text: str) -> bool:
+    """Whether ``text``, the start of a message up to its first ``: `` and holding spaces, is a file
+    name (``/data/my runs/first run.mcap``, ``first run of the day.mcap``): it has a folder or a
+    suffix. A sentence before a colon is neither, and is cut as any text."""
+    return "/" in text or re.search(r"\.[A-Za-z0-9]{1,10}$", text) is not None
 
 
 def _middle_out(path: str, length: int) -> str:

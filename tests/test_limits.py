@@ -187,3 +187,20 @@ def test_short_keeps_the_problem_after_a_long_name_without_folders() -> None:
     assert text.startswith("aaaa") and "..." in text
     # A long word that names no file (no slash, not the line's "NAME:") is cut as before.
     assert short("x: " + "y" * 400).endswith("y...")
+
+
+def test_short_keeps_the_problem_after_a_long_name_with_spaces() -> None:
+    """A name of over 100 characters holding spaces was several short words, none shortened as a
+    file name: the cut at the line's end took the problem (all of it past 300 characters)."""
+    problem = "not a log: " + "the problem text goes on " * 20
+    for name in (
+        "/data/my runs/" + "first run of the day " * 13 + ".mcap",
+        "my run " * 40 + ".bag",
+    ):
+        text = short(f"{name}: {problem}")
+        assert len(text) <= 300 and text.endswith("...")
+        said, _, rest = text.partition(": ")
+        assert len(said) <= 100 and "..." in said and said.endswith(name[-10:]), said
+        assert rest.startswith("not a log: the problem text goes on the problem text goes on")
+    # A sentence before the colon (no folder, no suffix) is cut as any text, as before.
+    assert short("the map could not be read " + "very " * 100 + "long: detail").endswith(" very...")
