@@ -195,7 +195,19 @@ def select_topics(
                 if owner is not None:
                     msg += f" (it updates {owner}: pass --topic {owner})"
                 raise LogReadError(msg)
-        return tuple(dict.fromkeys(topics))
+        named = tuple(dict.fromkeys(topics))
+        # Named, it is analysed (a gate fails on it: it cannot vouch for it), but its summary's
+        # "snapshots 0" passed without a word beside the named maps the log holds (named alone,
+        # or with others as empty, the run is an error that says so).
+        declared_only = default_map_topics(channels)[1]
+        empty = [t for t in named if t in declared_only]
+        for topic in empty if len(empty) < len(named) else ():
+            _LOG.warning(
+                "%s: named with --topic, but the log declares it and holds no message on it: "
+                "nothing to analyse (a gate asked for fails on it)",
+                topic,
+            )
+        return named
     if not found:
         names = ", ".join(sorted({c.topic for c in channels})) or "none"
         msg = f"{path}: no nav_msgs/OccupancyGrid topic (topics: {names})"

@@ -407,6 +407,24 @@ def test_a_map_topic_declared_but_never_published_is_no_map_of_the_session(
     assert section.startswith("  no messages")
 
 
+def test_a_map_topic_declared_only_and_named_with_topic_is_warned_of(
+    tmp_path: Path, capsys, fr079
+) -> None:
+    """`-t /map -t /robot2/map`, the second declared but never published: the summary said
+    "snapshots 0" for it, exit 0, without a word (named alone, it is an error)."""
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", session_maps(fr079[:2]))
+    log = _with_declared_map(built.path, tmp_path / "declared.mcap", "/robot2/map")
+    code, _, err = _run(capsys, "process", log, "--no-output", "-t", "/map", "-t", "/robot2/map")
+    assert code == 0
+    assert (
+        "warning: /robot2/map: named with --topic, but the log declares it and holds no message "
+        "on it: nothing to analyse (a gate asked for fails on it)" in err.splitlines()
+    )
+    # The gate cannot vouch for a map it was asked to judge and never saw.
+    args = ("--no-output", "-t", "/map", "-t", "/robot2/map", "--fail-above", "0.9")
+    assert _run(capsys, "process", log, *args)[0] == 3
+
+
 def test_a_log_whose_map_topic_holds_no_message_says_so(tmp_path: Path, capsys) -> None:
     """It said "no map message on /map could be analysed (none)"."""
     from rose_logs.writer import open_output
