@@ -1125,3 +1125,17 @@ def test_the_top_level_help_lists_the_exit_codes() -> None:
     assert f"\n  {EXIT_GATE}    --fail-above or --fail-on-break gate failed\n" in rose_bag_help
     assert f"\n  {EXIT_SALVAGED}    --salvage with messages lost" in rose_bag_help
     assert "gate" not in rose_help  # `rose` has none
+
+
+def test_a_lost_summary_line_keeps_its_end_with_long_output_names() -> None:
+    """Four long output names (a batch's tables in a deep folder) filled the 300 characters:
+    the cut took "only the summary is lost"; fewer are named (and how many more)."""
+    from rose.cli import error_text
+    from rose.errors import StdoutError
+
+    folder = "/home/someone/projects/fleet-health/2024-06-01/nightly-run/out"
+    names = ("recordings.parquet", "snapshots.parquet", "summary.json", "report.md", "w.png")
+    written = [Path(f"{folder}/{name}") for name in names]
+    line = error_text(StdoutError("No space left on device"), written=written)
+    assert len(line) <= 300 and line.endswith("and 3 more): only the summary is lost"), line
+    assert line.startswith("standard output: cannot write (No space left on device); the ")

@@ -28,7 +28,7 @@ from rose.console import (
 )
 from rose.entry import raise_held_start_signal
 from rose.errors import RoseError, StdoutError
-from rose.limits import short, visible
+from rose.limits import MAX_MESSAGE_CHARS, short, visible
 from rose.signals import (
     install_signal_handlers,
     reraise_interrupt_behind,
@@ -330,10 +330,16 @@ def error_text(
     if isinstance(err, StdoutError) and written:
         from rose.outputs import outputs_named  # loaded with the commands already
 
-        names = outputs_named(list(written))
-        return visible(
-            short(f"{err}; the outputs are complete ({names}): only the summary is lost")
-        )
+        # Fewer names where four long ones would fill the line: its cut took "only the summary
+        # is lost" (a batch's four tables in a deep folder).
+        for most in (4, 3, 2, 1):
+            line = (
+                f"{err}; the outputs are complete ({outputs_named(list(written), most)}): "
+                "only the summary is lost"
+            )
+            if len(" ".join(line.split())) <= MAX_MESSAGE_CHARS:
+                break
+        return visible(short(line))
     return visible(_error_text(err, where=where))
 
 
