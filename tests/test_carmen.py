@@ -119,6 +119,23 @@ def test_convert_says_when_the_drift_starts_after_the_log(
     assert "warning" not in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("option", [["--drift-start", "0.2"], ["--drift-seed", "3"]])
+def test_convert_warns_of_drift_options_without_a_level(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], option: list[str]
+) -> None:
+    """--drift-start / --drift-seed alone change nothing: said, not silently ignored."""
+    from rose_logs.cli import main
+
+    good = "FLASER 3 1.0 2.0 3.0 0.5 -0.5 0.1 0.5 -0.5 0.1 12.5 host 12.5\n"
+    path = tmp_path / "log.txt"
+    path.write_text(good + good.replace("12.5", "13.0"))
+    argv = ["convert", str(path), str(tmp_path / "s.mcap")]
+    assert main([*argv, *option]) == 0
+    assert "take effect with --drift-level only" in capsys.readouterr().err
+    assert main([*argv, *option, "--drift-level", "1", "--force"]) == 0
+    assert "warning" not in capsys.readouterr().err
+
+
 def test_convert_warns_of_an_output_suffix_that_names_no_format(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -234,7 +234,8 @@ def _check_apart(folder: Path, files: tuple[Path, ...]) -> None:
 
 
 def _warn_of_suffix(args: argparse.Namespace) -> None:
-    """Warn on stderr of an output suffix that names no format, or another than ``--format``."""
+    """Warn on stderr of an output suffix that names no format, or another than ``--format``,
+    and of drift options given without a drift level."""
     warning = (
         suffix_mismatch_warning(args.output, args.fmt)
         if args.fmt
@@ -244,6 +245,14 @@ def _warn_of_suffix(args: argparse.Namespace) -> None:
         warning is not None
     ):  # a typo (out.mcpa), or --format ros1 -o x.mcap, should not pass unnoticed
         print(warning, file=sys.stderr)
+    if args.drift_level == 0 and (args.drift_start != 0 or args.drift_seed != 0):
+        # Without a level the poses are the corrected ones: a user who meant a drifted session
+        # would otherwise get a correct one and take it for drifted.
+        print(
+            f"warning: {args.log}: --drift-start and --drift-seed take effect with --drift-level "
+            "only: the session has the corrected poses, no drift",
+            file=sys.stderr,
+        )
 
 
 @contextlib.contextmanager
