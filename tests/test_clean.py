@@ -254,6 +254,42 @@ def test_a_long_thin_map_at_an_angle_is_turned_in_pieces_with_the_whole_frames_r
         assert np.array_equal(getattr(in_pieces, name), getattr(whole, name)), name
 
 
+def test_a_thin_strip_is_turned_in_pieces_that_turn_fewer_cells_with_the_same_result(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A strip one cell thin turned 17 degrees in pieces: each piece's window also turns a reach
+    of cells on either end and around it, so pieces of two reaches (as before) turned about 30 %
+    more cells than longer ones (a 1 x 100,000 strip of specks: clean() 5.7 -> 4.1-4.4 s). What the
+    work finds is the same."""
+    from rose.cleaning_rules import frames
+
+    rng = np.random.default_rng(5)
+    source = (rng.random((1, 20_000)) < 0.3).astype(np.uint8)
+    angle, reach = math.radians(17.0), 63
+
+    def work(rotated: npt.NDArray[np.uint8], _turned: bool) -> npt.NDArray[np.uint8]:
+        # A closing along the rows with a line of half a reach: looks that far along them.
+        closed = cv2.morphologyEx(rotated, cv2.MORPH_CLOSE, np.ones((1, reach // 2), np.uint8))
+        return np.asarray(closed, dtype=np.uint8)
+
+    turned: list[int] = []
+    real = frames._turned_and_back
+
+    def recorded(source, angle, work, frame):  # type: ignore[no-untyped-def]
+        turned.append(frame[1][0] * frame[1][1])
+        return real(source, angle, work, frame)
+
+    monkeypatch.setattr(frames, "_turned_and_back", recorded)
+    found, _ = frames.in_rotated_frame(source, angle, work, reach_px=reach)
+    assert sum(turned) < 500 * source.size
+    turned.clear()
+    monkeypatch.setattr(frames, "_CORE_REACHES", (2,))  # pieces of two reaches
+    before, _ = frames.in_rotated_frame(source, angle, work, reach_px=reach)
+    assert sum(turned) > 580 * source.size
+    assert found.any()
+    np.testing.assert_array_equal(found, before)
+
+
 @pytest.mark.parametrize("column", [450, 750])
 def test_a_strip_of_a_real_map_at_an_angle_cleans_in_pieces_as_whole(
     monkeypatch: pytest.MonkeyPatch, column: int
