@@ -112,7 +112,9 @@ def in_rotated_frame(
     turned in pieces along its length, each with ``reach_px`` cells of the source on either side
     (the farthest a rule looks), into the window of the whole frame around it with ``reach_px``
     more on every side (:func:`_piece_frame`), and each piece's own cells kept: what a rule finds
-    there is what it finds in the whole.
+    there is what it finds in the whole, up to OpenCV's fixed-point sampling (``warpAffine``
+    rounds a window's cells a little differently from the whole frame's: a few cells in ten
+    thousand of a one-cell strip differ, with ``work`` returning its input).
     """
     if _along_an_axis(angle):
         return work(np.ascontiguousarray(source), False), False
