@@ -98,6 +98,8 @@ class RosbagsReadBackend:
         self.reader.open()
         if self.format == "ros1":
             self._check_ros1_index()
+        else:
+            self._read_sqlite_unsorted()
         channels: list[Channel] = []
         for conn in self.reader.connections:
             ext = conn.ext
@@ -130,6 +132,20 @@ class RosbagsReadBackend:
             self.start_ns = int(self.reader.start_time)
             # rosbags reports the end as "1 ns after the last message"
             self.end_ns = max(self.start_ns, int(self.reader.end_time) - 1)
+
+    def _read_sqlite_unsorted(self) -> None:
+        """Make rosbags' readers of this bag's SQLite files read a file without an index of its
+        messages' times in its rows' order where that is their time order, rather than have
+        SQLite sort the whole table (:func:`~rose_logs.storage.sqlite_order.ordered_messages`)."""
+        from rosbags.rosbag2.storage_sqlite3 import Sqlite3Reader
+
+        from rose_logs.storage.sqlite_order import ordered_messages
+
+        storages = self.storage_readers() if self.path.is_dir() else [self.reader.storage]
+        for storage in storages:
+            inner = getattr(storage, "inner", storage)  # (a _TolerantStorage's)
+            if isinstance(inner, Sqlite3Reader):  # this instance's, which rosbags' Reader calls
+                vars(inner)["messages"] = functools.partial(ordered_messages, inner)
 
     def _times_from_storage(self) -> bool:
         """Take the time range of a bag folder as its storage files hold it: their first and

@@ -685,6 +685,83 @@ def test_a_sqlite_row_that_holds_no_message_is_named_as_damage_of_the_input(
     assert out.is_file() == bool(before)
 
 
+def _strings_db3(path: Path, times: list[int], topics: list[int], *, index: bool) -> None:
+    """A ROS 2 bag folder (SQLite) of short strings, the ``i``-th on ``/t<topics[i]>`` at ``T0_NS
+    + times[i]``, inserted in that order; without rosbag2's ``timestamp_idx`` unless ``index``."""
+    import contextlib
+    import sqlite3
+
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    with Writer(path, version=9, storage_plugin=StoragePlugin.SQLITE3) as writer:
+        conns = {
+            k: writer.add_connection(f"/t{k}", "std_msgs/msg/String", typestore=store)
+            for k in sorted(set(topics))
+        }
+        for i, (time, topic) in enumerate(zip(times, topics, strict=True)):
+            text = f"{i}".encode()
+            data = b"\x00\x01\x00\x00" + (len(text) + 1).to_bytes(4, "little") + text + b"\x00"
+            writer.write(conns[topic], T0_NS + time, data)
+    if not index:
+        (storage,) = path.glob("*.db3")
+        with contextlib.closing(sqlite3.connect(storage)) as db:
+            db.execute("DROP INDEX timestamp_idx")
+            db.commit()
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_a_sqlite_bag_without_its_time_index_is_read_in_row_order_not_sorted(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, seed: int
+) -> None:
+    """A SQLite bag without rosbag2's index of its messages' times (older rosbag2, or an index
+    dropped): rosbags' query ``ORDER BY timestamp`` had SQLite sort every wanted row, data
+    included, in a temporary B-tree (300,000 messages of 1 kB: 318 MB on the temporary disk)
+    before the first message. Rows inserted in time order are read in the table's order, in the
+    order the sort gave (ties too: in the order SQLite's plan scans them); rows out of order are
+    sorted as before. Same messages and order as rosbags' reading, with and without the index,
+    for topic subsets."""
+    from rosbags.rosbag2 import Reader
+    from rosbags.rosbag2.storage_sqlite3 import Sqlite3Reader
+
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 400))
+    topics = rng.integers(0, 6, n).tolist()
+    order = seed % 3  # 0: in time order (ties); 1: each topic in order, not the whole; 2: random
+    times = np.cumsum(rng.integers(0, 3, n))
+    if order == 1:
+        times = times + np.asarray(topics) * 7  # each topic's shifted: later than others' after
+    elif order == 2:
+        times = rng.integers(0, 80, n)
+    sorted_query = 0
+    sorts = Sqlite3Reader.messages
+
+    def counted(self: Any, *args: Any, **kwargs: Any) -> Any:
+        nonlocal sorted_query
+        sorted_query += 1
+        return sorts(self, *args, **kwargs)
+
+    for index in (True, False):
+        bag = tmp_path / f"bag-{index}"
+        _strings_db3(bag, [int(t) for t in times], topics, index=index)
+        # Up to four topics SQLite scans the table once per topic, else once (SQLite 3.4x).
+        for wanted in (None, {"/t0"}, {"/t1", "/t3"}, {f"/t{k}" for k in range(5)}):
+            with Reader(bag) as reader:
+                conns = [c for c in reader.connections if wanted is None or c.topic in wanted]
+                expected = [(c.topic, t, bytes(d)) for c, t, d in reader.messages(conns)]
+            monkeypatch.setattr(Sqlite3Reader, "messages", counted)
+            sorted_query = 0
+            with LogReader(bag) as ours:
+                got = [
+                    (m.channel.topic, m.log_time_ns, bytes(m.data))
+                    for m in ours.messages(topics=wanted)
+                ]
+            monkeypatch.setattr(Sqlite3Reader, "messages", sorts)
+            assert got == expected
+            if not index and order == 0 and expected:  # read in row order: nothing sorted
+                assert sorted_query == 0
+
+
 def test_a_storage_file_listed_twice_in_metadata_is_refused_not_read_twice(
     tmp_path: Path, fr079: list[npt.NDArray[np.int8]], capsys: pytest.CaptureFixture[str]
 ) -> None:
