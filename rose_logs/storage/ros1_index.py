@@ -3,8 +3,10 @@
 rosbags' :class:`~rosbags.rosbag1.Reader` reads the index data records after every chunk when it
 opens a bag and keeps an entry (time, chunk, offset) for every message, about 175 bytes each:
 memory that grows with the bag (1.2 million messages: 254 MB to say what the bag holds).
-:class:`LazyIndexReader` opens the bag the same way, every record read and checked by rosbags'
-own code, but keeps only, for each connection and chunk, where its index data record is, how many
+:class:`LazyIndexReader` opens the bag the same way, every record read with rosbags' checks
+(rosbags' own code reads the first, which gives the records' layout, and any that fails them,
+for its error; the others are noted from their bytes, no entry made of each of their entries),
+but keeps only, for each connection and chunk, where its index data record is, how many
 entries it holds and the span of their times (five numbers in arrays: 40 bytes, less than one
 entry of rosbags' even where a chunk holds a single message of the connection); a connection's
 entries of a chunk are read again when its reading reaches that chunk (unpacked in one go where
@@ -39,6 +41,7 @@ _BY_TIME = itemgetter(0)  # IndexData's time (it compares by time alone, in Pyth
 _INDEX_HEADER = 55  # bytes of an index data record before its entries (rosbags reads as many)
 _UINT32 = struct.Struct("<I")
 _ENTRY = struct.Struct("<III")  # an index entry: seconds, nanoseconds, offset in the chunk
+_TIME = struct.Struct("<II")  # its time
 
 
 class _Found(dict[int, list[IndexData]]):
@@ -85,29 +88,47 @@ class LazyIndexReader(Reader):
         return super().read_chunk()
 
     def read_index_data(self, pos: int, indexes: dict[int, list[IndexData]]) -> None:
-        """rosbags' reading of the index data record where the file is (after the chunk at
-        ``pos``), noted without its entries (``indexes``, rosbags' lists of them, stay empty)."""
-        assert self.bio is not None
-        at = self.bio.tell()
-        found = _Found()
-        super().read_index_data(pos, found)
-        ((conn, entries),) = found.items()  # one connection a record
-        if not entries:
+        """The index data record where the file is (after the chunk at ``pos``) read as rosbags
+        reads it (its checks and errors), noted without its entries (``indexes``, rosbags'
+        lists of them, stay empty)."""
+        bio = self.bio
+        assert bio is not None
+        at = bio.tell()
+        layout = self.index_data_header_offsets  # (conn, count), rosbags' from the first record
+        noted = None
+        if layout is not None:
+            # rosbags' checks of a record after the first, without making an entry of each of
+            # its index entries (most of open()'s time where chunks hold a message or two of
+            # each of many topics): its length fits its count, its bytes are there.
+            head = bio.read(_INDEX_HEADER)
+            if len(head) == _INDEX_HEADER:
+                count = _UINT32.unpack_from(head, layout[1])[0]
+                size = _UINT32.unpack_from(head, _INDEX_HEADER - 4)[0]
+                body = bio.read(size) if size == 12 * count else b""
+                if len(body) == size == 12 * count:
+                    noted = (_UINT32.unpack_from(head, layout[0])[0], count, _span(body))
+        if noted is None:  # the first record, or one rosbags' code fails on: it says what
+            bio.seek(at)
+            found = _Found()
+            super().read_index_data(pos, found)
+            ((conn, entries),) = found.items()  # one connection a record
+            times = list(map(_BY_TIME, entries))
+            noted = (conn, len(entries), (min(times), max(times)) if times else (0, 0))
+        conn, count, (first, last) = noted
+        if not count:
             return
-        first = min(map(_BY_TIME, entries))
-        last = max(map(_BY_TIME, entries))
         notes = self._notes.get(conn)
         if notes is None:
             notes = self._notes[conn] = _Notes()
         row = len(notes.k) - 1
         if row >= 0 and notes.k[row] == self._chunk_k:  # another record of it after this chunk
-            notes.count[row] += len(entries)
+            notes.count[row] += count
             notes.first[row] = min(notes.first[row], first)
             notes.last[row] = max(notes.last[row], last)
             notes.more.setdefault(row, []).append(at)
             return
         notes.k.append(self._chunk_k)
-        notes.count.append(len(entries))
+        notes.count.append(count)
         notes.first.append(first)
         notes.last.append(last)
         notes.at.append(at)
@@ -235,6 +256,16 @@ class LazyIndexReader(Reader):
                 heapq.heapreplace(queue, (listed[end][0], row, end, listed))
             else:
                 heapq.heappop(queue)
+
+
+def _span(entries: bytes) -> tuple[int, int]:
+    """The earliest and latest time (ns) of an index data record's ``entries`` (12 bytes each:
+    seconds, nanoseconds, offset), as rosbags reckons them; (0, 0) for none."""
+    if len(entries) == 12:
+        sec, nsec = _TIME.unpack_from(entries)
+        return sec * 10**9 + nsec, sec * 10**9 + nsec
+    times = [sec * 10**9 + nsec for sec, nsec, _ in _ENTRY.iter_unpack(entries)]
+    return (min(times), max(times)) if times else (0, 0)
 
 
 class _ConnectionEntries:
