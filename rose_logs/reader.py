@@ -584,12 +584,14 @@ class LogReader:
         return bag_custom_data(self.path)
 
     def file_records(self) -> FileRecords:
-        """A bare MCAP file's metadata and attachment records (``mcap.records.Metadata`` and
-        ``Attachment``; none for other logs), read one at a time as they are iterated: they
-        belong to no channel, and an MCAP output copies them. Records that cannot be read are
-        left out with a warning (the messages are what the log is read for)."""
+        """An MCAP file's metadata and attachment records (``mcap.records.Metadata`` and
+        ``Attachment``), or those of a ROS 2 bag folder's MCAP files, one file's after the
+        other's (none for other logs; rosbag2's own record of the bag's metadata left out), read
+        one at a time as they are iterated: they belong to no channel, and an MCAP output copies
+        them. Records that cannot be read are left out with a warning (the messages are what
+        the log is read for)."""
         backend = self._open_backend
-        if not isinstance(backend, McapReadBackend):
+        if not isinstance(backend, McapReadBackend | McapFilesReadBackend | RosbagsReadBackend):
             return FileRecords(0, lambda: iter(()))
         try:
             records = backend.file_records()

@@ -374,12 +374,18 @@ class LogWriter:
         if not records:
             return
         if not isinstance(backend, McapWriteBackend):
+            # (A mcap-dir bag's files could hold them, but rosbags' writer has no way to add
+            # them: copying them would take writing the MCAP format by hand.)
+            why = (
+                "rosbags' writer of a mcap-dir bag cannot add them"
+                if self.format == "mcap-dir"
+                else f"a {self.format} log has no place for them"
+            )
             _LOG.warning(
-                "%s: the input's %d MCAP metadata / attachment record(s) are not copied (a %s "
-                "log has no place for them)",
+                "%s: the input's %d MCAP metadata / attachment record(s) are not copied (%s)",
                 self.path,
                 len(records),
-                self.format,
+                why,
             )
             return
         try:

@@ -138,6 +138,71 @@ class FileRecords:
     def __iter__(self) -> Iterator[Any]:
         return self._read()
 
+    @classmethod
+    def joined(cls, parts: list[FileRecords]) -> FileRecords:
+        """The records of several files (a split bag's), one file's after the other's."""
+        return cls(sum(map(len, parts)), lambda: itertools.chain.from_iterable(parts))
+
+
+#: The name of the metadata record rosbag2 (and rosbags) writes into each MCAP file of a bag:
+#: the bag's metadata.yaml as it was then (its topics, counts and files). It is not copied: in
+#: another log it describes the input, not that log, and a bag output's writer writes its own.
+ROSBAG2_METADATA = "rosbag2"
+
+
+def _not_bookkeeping(records: Iterable[Any]) -> Iterator[Any]:
+    """``records`` without rosbag2's metadata record (:data:`ROSBAG2_METADATA`)."""
+    from mcap.records import Metadata
+
+    return (r for r in records if not (isinstance(r, Metadata) and r.name == ROSBAG2_METADATA))
+
+
+def _indexed_records(reader: Any) -> FileRecords:
+    """The metadata and attachment records an MCAP file's summary indexes (``reader``: an
+    ``mcap`` SeekingReader of it whose file stays open while they are read), but rosbag2's
+    bookkeeping record."""
+    summary = reader.get_summary()
+    if summary is None:
+        return FileRecords(0, lambda: iter(()))
+    metadata = sum(index.name != ROSBAG2_METADATA for index in summary.metadata_indexes)
+    return FileRecords(
+        metadata + len(summary.attachment_indexes),
+        lambda: itertools.chain(
+            _not_bookkeeping(reader.iter_metadata()), reader.iter_attachments()
+        ),
+    )
+
+
+def storage_file_records(path: Path) -> FileRecords:
+    """The metadata and attachment records of the MCAP storage file ``path`` of a ROS 2 bag
+    folder (which rosbags reads: no reader of ours holds it open), but rosbag2's bookkeeping
+    record: counted through its summary's indexes, else (a file without a summary, which rosbags
+    reads all the same) by a pass over its records, chunks left compressed; the file is opened
+    again to read them, one at a time."""
+    from mcap.reader import SeekingReader
+    from mcap.records import Attachment, Metadata
+    from mcap.stream_reader import StreamReader
+
+    size = path.stat().st_size
+    with path.open("rb") as stream:
+        reader = SeekingReader(stream, record_size_limit=max(size, 1))
+        if reader.get_summary() is not None:
+            count = len(_indexed_records(reader))
+        else:
+            stream.seek(0)
+            records = StreamReader(stream, emit_chunks=True, record_size_limit=max(size, 1))
+            found = (r for r in records.records if isinstance(r, Attachment | Metadata))
+            count = sum(1 for _ in _not_bookkeeping(found))
+
+    def read() -> Iterator[Any]:
+        with path.open("rb") as stream:
+            reader = SeekingReader(stream, record_size_limit=max(size, 1))
+            yield from _not_bookkeeping(
+                itertools.chain(reader.iter_metadata(), reader.iter_attachments())
+            )
+
+    return FileRecords(count, read)
+
 
 class McapReadBackend:
     """Bare MCAP files (ros1 or ros2 profile) through the ``mcap`` package."""
@@ -204,16 +269,10 @@ class McapReadBackend:
 
     def file_records(self) -> FileRecords:
         """The file's metadata and attachment records (``mcap.records.Metadata`` and
-        ``Attachment``), through its summary's indexes: they belong to no channel, and an MCAP
-        output copies them."""
-        reader = self.reader
-        assert reader is not None
-        summary = reader.get_summary()
-        count = 0 if summary is None else len(summary.metadata_indexes)
-        count += 0 if summary is None else len(summary.attachment_indexes)
-        return FileRecords(
-            count, lambda: itertools.chain(reader.iter_metadata(), reader.iter_attachments())
-        )
+        ``Attachment``), through its summary's indexes, but rosbag2's bookkeeping record
+        (:data:`ROSBAG2_METADATA`): they belong to no channel, and an MCAP output copies them."""
+        assert self.reader is not None
+        return _indexed_records(self.reader)
 
     def messages(self, topics: set[str] | None) -> Iterator[RawMessage]:
         if self.skip_damaged_chunks:
@@ -598,16 +657,18 @@ class McapStreamReadBackend(McapReadBackend):
             self.start_ns, self.end_ns = int(first), int(last)
 
     def file_records(self) -> FileRecords:
-        """The metadata and attachment records :meth:`open` read (those before any damage); the
-        attachments read again, one at a time."""
+        """The metadata and attachment records :meth:`open` read (those before any damage), but
+        rosbag2's bookkeeping record; the attachments read again, one at a time."""
+        metadata = list(_not_bookkeeping(self._metadata))
         return FileRecords(
-            len(self._metadata) + len(self._attachments_at), self._metadata_and_attachments
+            len(metadata) + len(self._attachments_at),
+            lambda: self._metadata_and_attachments(metadata),
         )
 
-    def _metadata_and_attachments(self) -> Iterator[Any]:
+    def _metadata_and_attachments(self, metadata: list[Any]) -> Iterator[Any]:
         from mcap.stream_reader import StreamReader
 
-        yield from self._metadata
+        yield from metadata
         assert self.stream is not None
         for offset in self._attachments_at:
             self.stream.seek(offset)
@@ -767,6 +828,11 @@ class McapFilesReadBackend:
                 dataclasses.replace(chunk, file=part.path) for chunk in part.skipped_chunks
             )
             part.skipped_chunks.clear()
+
+    def file_records(self) -> FileRecords:
+        """The metadata and attachment records of the files, one file's after the other's
+        (:meth:`McapReadBackend.file_records`)."""
+        return FileRecords.joined([part.file_records() for part in self.parts])
 
     def close(self) -> None:
         for part in self.parts:

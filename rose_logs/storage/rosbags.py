@@ -27,7 +27,12 @@ from rose_logs.storage.connections import (
     require_definition,
     warn_no_definition,
 )
-from rose_logs.storage.mcap import McapReadBackend, SkippedChunk
+from rose_logs.storage.mcap import (
+    FileRecords,
+    McapReadBackend,
+    SkippedChunk,
+    storage_file_records,
+)
 from rose_logs.storage.records import (
     Channel,
     RawMessage,
@@ -494,6 +499,15 @@ class RosbagsReadBackend:
         in metadata.yaml's order). With ``salvage``, a file that fails part way is said in
         :attr:`damaged_files` and the other files are read (rosbags' reading stopped there: a
         damaged first file lost the whole bag); else its error is raised."""
+        yield from merged_by_log_time(
+            self._rosbags_file(storage, path, topics, salvage=salvage)
+            for storage, path in self._storage_files()
+        )
+
+    def _storage_files(self) -> list[tuple[Any, Path]]:
+        """rosbags' reader of each storage file of this bag folder (:meth:`storage_readers`)
+        and the file in the folder it reads (the one compressed, ``x.mcap.zstd``, where it reads
+        a temporary decompressed copy)."""
         information = _bag_information(self.path) or {}
         names = [str(name) for name in information.get("relative_file_paths") or ()]
         files = []
@@ -503,8 +517,21 @@ class RosbagsReadBackend:
                 (n for n in names if PurePath(n).name in (stored, f"{stored}.zstd")), stored
             )
             files.append((storage, self.path / PurePath(name).name))
-        yield from merged_by_log_time(
-            self._rosbags_file(storage, path, topics, salvage=salvage) for storage, path in files
+        return files
+
+    def file_records(self) -> FileRecords:
+        """The metadata and attachment records of this bag folder's MCAP files (none for other
+        bags), one file's after the other's, but rosbag2's bookkeeping record
+        (:func:`storage_file_records`): as a bare MCAP file's (:meth:`McapReadBackend.file_records`).
+        A file that did not open (``--salvage``) holds none."""
+        if self.format != "mcap-dir":
+            return FileRecords(0, lambda: iter(()))
+        return FileRecords.joined(
+            [
+                storage_file_records(Path(storage.path))  # (the decompressed copy, if any)
+                for storage, _ in self._storage_files()
+                if getattr(storage, "inner", storage) is not None  # (see _TolerantStorage)
+            ]
         )
 
     def _rosbags_file(

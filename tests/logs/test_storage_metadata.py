@@ -542,6 +542,114 @@ def test_an_mcap_files_metadata_and_attachments_are_copied(
     )
 
 
+def _mcap_file_again(
+    path: Path, plain: bytes, keep: Any, records: int, *, summary: bool = True
+) -> None:
+    """``path`` written again from the MCAP file ``plain`` (rosbags' storage file of a bag):
+    its messages whose log time ``keep`` keeps, its metadata records (rosbag2's) and ``records``
+    metadata and attachment records of our own after them (``summary`` False: a file without
+    one)."""
+    import io
+
+    from mcap.reader import make_reader
+    from mcap.writer import IndexType, Writer
+
+    reader = make_reader(io.BytesIO(plain))
+    found = reader.get_summary()
+    assert found is not None
+    options: dict[str, Any] = {}
+    if not summary:
+        options = {
+            "use_summary_offsets": False,
+            "use_statistics": False,
+            "index_types": IndexType.NONE,
+            "repeat_channels": False,
+            "repeat_schemas": False,
+        }
+    with path.open("wb") as f:
+        writer = Writer(f, **options)
+        writer.start(profile="ros2", library="tests")
+        schemas = {
+            s.id: writer.register_schema(s.name, s.encoding, s.data) for s in found.schemas.values()
+        }
+        channels = {
+            c.id: writer.register_channel(
+                c.topic, c.message_encoding, schemas[c.schema_id], c.metadata
+            )
+            for c in found.channels.values()
+        }
+        for _, channel, message in reader.iter_messages():
+            if keep(message.log_time):
+                writer.add_message(
+                    channels[channel.id], message.log_time, message.data, message.log_time
+                )
+        for metadata in reader.iter_metadata():
+            writer.add_metadata(metadata.name, metadata.metadata)
+        for k in range(records):
+            writer.add_metadata(f"{path.stem}-{k}", {"robot": "r2"})
+            writer.add_attachment(T0_NS, T0_NS, f"{path.stem}-{k}.urdf", "text/xml", b"<robot/>")
+        writer.finish()
+
+
+def _records_of(path: Path) -> tuple[list[str], list[str]]:
+    """The names of the MCAP file ``path``'s metadata and attachment records."""
+    from mcap.reader import make_reader
+
+    with path.open("rb") as f:
+        reader = make_reader(f)
+        return [m.name for m in reader.iter_metadata()], [a.name for a in reader.iter_attachments()]
+
+
+@pytest.mark.parametrize("layout", ["one file", "split", "split, no summary"])
+def test_a_bag_folders_mcap_metadata_and_attachments_are_copied(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture, layout: str
+) -> None:
+    """A ROS 2 bag folder of MCAP storage lost its MCAP files' metadata and attachment records
+    without a word (a bare MCAP file's went into an MCAP output, or a warning said why not).
+    Now the same; rosbag2's own record of the bag's metadata (one in each file) is not copied:
+    it describes the input bag, and a bag output's writer writes its own."""
+    import logging
+
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    src = tmp_path / "in"
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    with Writer(src, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        maps = writer.add_connection("/map", MAP_TYPE, typestore=store)
+        for t_ns, topic, data in _messages("cdr"):
+            if topic == "/map":
+                writer.write(maps, t_ns, data)
+    whole = src / "in.mcap"
+    plain = whole.read_bytes()
+    if layout == "one file":
+        _mcap_file_again(whole, plain, lambda t: True, 1)
+        files = [whole]
+    else:  # at half its time, as rosbag2's --max-bag-duration
+        whole.unlink()
+        files = [src / "in_0.mcap", src / "in_1.mcap"]
+        _mcap_file_again(files[0], plain, lambda t: t < T0_NS + 500_000_000, 1)
+        _mcap_file_again(
+            files[1], plain, lambda t: t >= T0_NS + 500_000_000, 2, summary=layout == "split"
+        )
+        meta = src / "metadata.yaml"
+        listed = "".join(f"  - {f.name}\n" for f in files)
+        meta.write_text(meta.read_text().replace("  - in.mcap\n", listed))
+    ours = [name for f in files for name in _records_of(f)[0] if name != "rosbag2"]
+    assert [_records_of(f)[0][0] for f in files] == ["rosbag2"] * len(files)
+
+    out = tmp_path / "out.mcap"
+    process_log(src, output_path=out)
+    assert _records_of(out) == (ours, [f"{name}.urdf" for name in ours])
+    with caplog.at_level(logging.WARNING):  # rosbags' writer has no way to add them: said once
+        process_log(src, output_path=tmp_path / "out_dir", output_format="mcap-dir")
+    said = [r.getMessage() for r in caplog.records if "are not copied" in r.getMessage()]
+    assert len(said) == 1 and f"{2 * len(ours)} MCAP metadata / attachment" in said[0]
+    assert _records_of(tmp_path / "out_dir" / "out_dir.mcap") == (["rosbag2"], [])
+    # A storage file read alone: its rosbag2 record is not copied either.
+    process_log(files[0], output_path=tmp_path / "alone.mcap")
+    assert _records_of(tmp_path / "alone.mcap")[0] == [f"{files[0].stem}-0"]
+
+
 @pytest.mark.parametrize("plugin", ["SQLITE3", "MCAP"])
 def test_a_bags_custom_data_is_copied(
     tmp_path: Path, plugin: str, caplog: pytest.LogCaptureFixture
