@@ -40,6 +40,7 @@ from rose.limits import short
 from rose_logs.errors import LogError, LogReadError, reraise_unless_damage
 from rose_logs.formats import LogFormat, detect_format, mcap_cut_short
 from rose_logs.storage.connections import QosStyle
+from rose_logs.storage.integrity import FileState
 from rose_logs.storage.mcap import (
     DamagedSummaryError,
     FileRecords,
@@ -203,6 +204,7 @@ class LogReader:
         self.losses: list[str] = []
         self.read_count = 0
         self._backend: _Backend | None = None
+        self._state: FileState | None = None  # the log file as opened (none: a folder)
 
     # -- lifecycle -------------------------------------------------------------------------------
     def open(self) -> None:
@@ -219,11 +221,13 @@ class LogReader:
             if self.format == "mcap"
             else RosbagsReadBackend(self.path, self.format)
         )
+        self._state = FileState.of(self.path)
         try:
             backend.open()
         except Exception as err:  # library errors of every kind: wrap at the boundary
             backend.close()
             reraise_unless_damage(err)
+            self._refuse_if_changed(err)
             salvaged: (
                 McapStreamReadBackend
                 | McapFilesReadBackend
@@ -647,6 +651,7 @@ class LogReader:
         wanted = None if names is None else set(names)
         counts: dict[int, int] = {}
         self.read_count = 0
+        changed = True  # until the file is seen unchanged: its skipped chunks are no losses
         try:
             for message in backend.messages(wanted):
                 key = message.channel.id
@@ -655,6 +660,7 @@ class LogReader:
                 yield message
         except (LogError, Exception) as err:
             reraise_unless_damage(err)  # a signal inside the library, not a corrupt log
+            changed = self._refuse_if_changed(err)
             error = err if isinstance(err, LogError) else _corrupt(self._read_from(backend), err)
             if not self.salvage:
                 if isinstance(err, LogError):
@@ -667,9 +673,28 @@ class LogReader:
             problem = f"{short(error, 200)}; stopped after {self.read_count} messages"
             self._lose(problem)
             return
+        else:
+            # Read to the end, salvaged or not: what was read may mix two files' bytes.
+            changed = self._refuse_if_changed(None)
         finally:
-            self._note_skipped_chunks(backend)
+            if not changed:
+                self._note_skipped_chunks(backend)
         self._check_counts(counts, wanted)
+
+    def _refuse_if_changed(self, err: BaseException | None) -> bool:
+        """Raise an error saying the log file changed while it was read (overwritten, cut
+        short, replaced: :meth:`FileState.changed`), caused by ``err`` (the failure it made, or
+        None: a read to the end), when it did; False when it did not. Its reading failed as
+        damage (or ``--salvage`` kept what it could of two files' bytes), which the log is not.
+        """
+        how = None if self._state is None else self._state.changed()
+        if how is None:
+            return False
+        msg = (
+            f"{self.path}: the file changed while it was read ({how}: another program writes "
+            "it?); read it again once it no longer changes"
+        )
+        raise LogReadError(msg) from err
 
     def _read_from(self, backend: object) -> Path:
         """The file a failure reading messages through ``backend`` is about: a ROS 2 bag folder's

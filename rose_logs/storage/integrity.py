@@ -1,4 +1,5 @@
 """Cross-checks of a ROS 2 bag folder: does ``metadata.yaml`` agree with the storage files it describes?
+And did a log file change while it was read (:class:`FileState`)?
 
 rosbags takes topic names and types from ``metadata.yaml``; a file that declares ``/scan`` as
 ``nav_msgs/msg/OccupancyGrid`` would make every scan a malformed map. The storage files record the
@@ -9,6 +10,8 @@ detected here and reported as a corrupt log. Storage files are opened read-only 
 
 from __future__ import annotations
 
+import dataclasses
+import os
 import sqlite3
 from collections.abc import Collection
 from pathlib import Path
@@ -16,7 +19,7 @@ from urllib.parse import quote
 
 from rose_logs.storage.records import normalize_msgtype
 
-__all__ = ["storage_types", "storage_types_by_file", "type_mismatches"]
+__all__ = ["FileState", "storage_types", "storage_types_by_file", "type_mismatches"]
 
 
 def _sqlite_types(path: Path) -> dict[str, str]:
@@ -93,3 +96,61 @@ def type_mismatches(declared: dict[str, str], stored: dict[str, str]) -> list[st
         for topic, kind in sorted(declared.items())
         if topic in stored and normalize_msgtype(kind) != stored[topic]
     ]
+
+
+#: Bytes of a log file's start, and of its end as it was, compared to tell it changed: a ROS 1
+#: bag's header record (4096 bytes) holds where its index is, an MCAP file's end its summary.
+_COMPARED = 4096
+
+
+@dataclasses.dataclass(frozen=True)
+class FileState:
+    """What a log file was when it was opened, to tell whether another program changed it
+    while it was read (:meth:`changed`): overwritten, truncated or replaced, its reading
+    fails as damage (or salvages another file's bytes), which the log is not. A file that only
+    grew (a recording still being written, its start and what was its end unchanged) has not
+    changed."""
+
+    path: Path
+    device: int
+    inode: int
+    size: int  # bytes
+    mtime_ns: int  # its last modification, ns since the epoch
+    head: bytes  # its first :data:`_COMPARED` bytes
+    tail: bytes  # its last :data:`_COMPARED` bytes, at :attr:`size`
+
+    @classmethod
+    def of(cls, path: Path) -> FileState | None:
+        """The state of the regular file ``path`` now (None: a folder, or no file to read)."""
+        if not path.is_file():  # (a FIFO is not opened: that would wait for a writer)
+            return None
+        try:
+            with path.open("rb") as stream:
+                info = os.fstat(stream.fileno())
+                head = stream.read(_COMPARED)
+                stream.seek(max(info.st_size - _COMPARED, 0))
+                tail = stream.read(_COMPARED)
+        except OSError:
+            return None
+        return cls(path, info.st_dev, info.st_ino, info.st_size, info.st_mtime_ns, head, tail)
+
+    def changed(self) -> str | None:
+        """How the file changed since this state, in words (None: it did not, or only grew)."""
+        now = FileState.of(self.path)
+        if now is None:
+            return "it is gone"
+        if (now.device, now.inode) != (self.device, self.inode):
+            return "another file took its name"
+        if now.size < self.size:
+            return f"cut from {self.size:,} to {now.size:,} bytes"
+        if now.size == self.size and now.mtime_ns == self.mtime_ns:
+            return None
+        # Grown, or written in place: compared at its ends (a file written over by another
+        # differs there; one only touched, or a byte changed inside, is taken as unchanged).
+        try:
+            with self.path.open("rb") as stream:
+                stream.seek(max(self.size - _COMPARED, 0))
+                tail = stream.read(len(self.tail))
+        except OSError:
+            return "it can no longer be read"
+        return "written over" if now.head != self.head or tail != self.tail else None

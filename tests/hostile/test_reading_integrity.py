@@ -342,6 +342,61 @@ def _in_file_order(bag: Path) -> list[tuple[str, int, bytes]]:
     return streamed
 
 
+def _other_bag(path: Path) -> bytes:
+    """The bytes of another ROS 1 bag (strings on ``/other``, written by rosbags)."""
+    from rosbags.rosbag1 import Writer
+
+    with Writer(path) as writer:
+        conn = writer.add_connection("/other", "std_msgs/msg/String", msgdef="string data", md5sum="992ce8a1687cec8c8bd883ec73ca41d1")  # fmt: skip
+        for i in range(2000):
+            writer.write(conn, 10**18 + i, (5).to_bytes(4, "little") + b"other")
+    return path.read_bytes()
+
+
+@pytest.mark.parametrize("salvage", [False, True])
+@pytest.mark.parametrize("change", ["written over", "cut", "replaced"])
+def test_a_ros1_bag_changed_while_read_is_said_so_not_damaged(
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    ros1_bag: tuple[Path, list[tuple[int, int]]],
+    change: str,
+    salvage: bool,
+) -> None:
+    """A bag overwritten, cut short or replaced by another program while it was read was said
+    to be damaged ("the bag's index is damaged", "corrupt or truncated log"), and --salvage
+    lost its chunks one by one as damaged (exit 4, or kept the other file's messages): now an
+    error that says the file changed while it was read."""
+    bag = tmp_path / "s.bag"
+    shutil.copyfile(ros1_bag[0], bag)
+    whole = bag.read_bytes()
+    other = _other_bag(tmp_path / "other.bag")
+    with LogReader(bag, salvage=salvage) as reader, pytest.raises(LogReadError) as raised:
+        for n, _ in enumerate(reader.messages()):
+            if n == 20:
+                if change == "written over":
+                    with bag.open("r+b") as stream:
+                        stream.write(other)
+                elif change == "cut":
+                    os.truncate(bag, len(whole) // 2)
+                else:
+                    (tmp_path / "other.bag").replace(bag)
+    said = str(raised.value)
+    assert said.startswith(f"{bag}: the file changed while it was read ("), said
+    assert "damaged" not in said and not reader.losses
+    # Left alone, the same bag reads whole; one that only grew (a recording still being
+    # written) is read as before.
+    shutil.copyfile(ros1_bag[0], bag)
+    assert len(_messages(bag)) == sum(n for _, n in ros1_bag[1])
+    active = tmp_path / "s.bag.active"
+    active.write_bytes(whole[: len(whole) // 2])
+    with LogReader(active, salvage=True) as reader:
+        for n, _ in enumerate(reader.messages()):
+            if n == 20:
+                with active.open("ab") as stream:
+                    stream.write(whole[len(whole) // 2 :])
+        assert n > 20 and len(reader.losses) == 1, reader.losses
+
+
 def test_salvage_keeps_the_complete_chunks_of_a_truncated_ros1_bag(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], ros1_bag: tuple[Path, list]
 ) -> None:
