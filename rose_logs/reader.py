@@ -715,6 +715,13 @@ class LogReader:
             return
         skipped = backend.skipped_chunks
         for chunk in skipped:
+            if chunk.one_message:
+                self._lose(
+                    f"{chunk.file or self.path}: skipped a message of the chunk at byte "
+                    f"{chunk.offset} of {chunk.file_size} ({chunk.reason}): it is lost, the "
+                    "chunk's other messages are read"
+                )
+                continue
             first, last = ((t - self.start_ns) / 1e9 for t in (chunk.start_ns, chunk.end_ns))
             problem = (
                 f"{chunk.file or self.path}: skipped a damaged chunk at byte {chunk.offset} of {chunk.file_size} "

@@ -112,7 +112,8 @@ def _check_summary_crc(stream: BinaryIO, size: int) -> None:
 
 @dataclass(frozen=True)
 class SkippedChunk:
-    """A chunk of an indexed MCAP file that could not be read, skipped by ``--salvage``."""
+    """A chunk of an indexed MCAP file or ROS 1 bag that could not be read, skipped by
+    ``--salvage`` (or one message of it, :attr:`one_message`)."""
 
     offset: int  # byte of the file where it starts
     file_size: int  # bytes
@@ -121,6 +122,9 @@ class SkippedChunk:
     end_ns: int
     #: The MCAP file it is in, when that is not the log named (a ROS 2 bag folder's storage file).
     file: Path | None = None
+    #: One message of the chunk skipped, not the chunk (a ROS 1 message whose time is damaged:
+    #: ``reason`` says which; the chunk's other messages are read).
+    one_message: bool = False
 
 
 class FileRecords:

@@ -826,8 +826,11 @@ def chunk_messages(
     """
     rank = {c.conn: k for k, c in enumerate(index.connections)}
     tie = len(rank)  # messages of a connection the index does not list: left out (counted short)
+    topics = {c.conn: c.topic for c in index.connections}
+    # A chunk is read at its start (its end, where a damaged start comes after it): a start
+    # damaged to a later time handed its messages out after the later chunks', out of order.
     queue: list[tuple[int, int, int, int, Any]] = [
-        (chunk.start_ns, -1, k, -1, chunk)
+        (min(chunk.start_ns, chunk.end_ns), -1, k, -1, chunk)
         for k, chunk in enumerate(index.chunks)
         if any(n and conn in conns for conn, n in chunk.counts.items())
     ]
@@ -850,8 +853,29 @@ def chunk_messages(
             )
             continue
         for at, message in enumerate(messages):
-            if message[0] in conns:
-                heapq.heappush(queue, (message[1], rank.get(message[0], tie), k, at, message))
+            if message[0] not in conns:
+                continue
+            if skipped is not None and _outside(item, message[1]):
+                reason = (
+                    f"a message on {topics.get(message[0], '?')} at {message[1]} ns, outside "
+                    f"the chunk's {item.start_ns}..{item.end_ns} ns: its time is damaged"
+                )
+                skipped.append(
+                    SkippedChunk(
+                        item.pos, index.size, reason, message[1], message[1], one_message=True
+                    )
+                )
+                continue
+            heapq.heappush(queue, (message[1], rank.get(message[0], tie), k, at, message))
+
+
+def _outside(chunk: ChunkInfo, time_ns: int) -> bool:
+    """Whether a message of ``chunk`` at ``time_ns`` lies outside the chunk's times, so that its
+    time is damaged: a writer gives a chunk the times of its first and last message (a flipped
+    bit gave a message of 2106 in a session of 2023, whose snapshots then spanned 83 years;
+    without ``--salvage`` its index entry disagrees with it, and rosbags' reading refuses it).
+    A chunk whose own times are damaged (its start after its end) judges none."""
+    return chunk.start_ns <= chunk.end_ns and not chunk.start_ns <= time_ns <= chunk.end_ns
 
 
 def first_damaged_chunk(path: Path, index: BagIndex, *, headers_only: bool) -> str | None:

@@ -137,6 +137,47 @@ class RosbagsReadBackend:
             self.start_ns = int(self.reader.start_time)
             # rosbags reports the end as "1 ns after the last message"
             self.end_ns = max(self.start_ns, int(self.reader.end_time) - 1)
+        if self.format == "ros1":
+            self._ros1_times_from_entries()
+
+    def _ros1_entry_spans(self) -> dict[int, tuple[int, int]]:
+        """The first and last message time (ns) of each chunk of this ROS 1 bag (by its byte
+        position), as its index entries (every connection's) give them."""
+        return self.reader.entry_spans({int(conn.id) for conn in self.reader.connections})
+
+    def _ros1_times_from_entries(self) -> None:
+        """Take a ROS 1 bag's time range from its chunk infos (rosbags' range) and its index
+        entries together: a bag's writer gives a chunk's info the times of its first and last
+        message, which its entries hold too; where they disagree (said), a time damaged in one
+        of them is left out (:func:`agreed_span`): a chunk info's end damaged to 2106 made a
+        session of seconds span 83 years."""
+        spans = self._ros1_entry_spans()
+        damaged = []
+        starts: list[int] = []
+        ends: list[int] = []
+        for info in self.reader.chunk_infos:
+            listed = (int(info.start_time), int(info.end_time) - 1)  # rosbags adds 1 ns
+            entries = spans.get(info.pos)
+            if entries is not None and entries != listed:
+                damaged.append((info.pos, listed, entries))
+            if entries is not None or listed[0] <= listed[1]:  # (a chunk of no message: no)
+                first, last = agreed_span(listed, entries, widest=False)
+                starts.append(first)
+                ends.append(last)
+        if not damaged or not starts:
+            return
+        pos, listed, entries = damaged[0]
+        _LOG.warning(
+            "%s: the chunk info of %d chunk(s) gives other times than its messages' index "
+            "entries (the chunk at byte %d: %d..%d ns, its entries %d..%d ns): a chunk's time "
+            "range is taken where they agree",
+            self.path,
+            len(damaged),
+            pos,
+            *listed,
+            *entries,
+        )
+        self.start_ns, self.end_ns = min(starts), max(ends)
 
     def _read_sqlite_unsorted(self) -> None:
         """Make rosbags' readers of this bag's SQLite files read a file without an index of its
@@ -382,6 +423,15 @@ class RosbagsReadBackend:
         where the chunks that cannot be read are said, None: an error)."""
         from rose_logs.storage.ros1_stream import chunk_messages
 
+        # Each chunk's times as its info or its index entries give them, a time damaged in one
+        # of them left out (:func:`agreed_span`): a chunk is read at its start, and a message
+        # outside its times has a damaged time.
+        spans = self._ros1_entry_spans()
+        chunks = []
+        for chunk in index.chunks:
+            first, last = agreed_span((chunk.start_ns, chunk.end_ns), spans.get(chunk.pos))
+            chunks.append(dataclasses.replace(chunk, start_ns=first, end_ns=last))
+        index = dataclasses.replace(index, chunks=tuple(chunks))
         by_id = {conn.id: self._by_conn[id(conn)] for conn in self.reader.connections}
         wanted = {conn.id for conn in (conns or self.reader.connections)}
         with self.path.open("rb") as stream:
@@ -700,6 +750,24 @@ class _TolerantStorage:
 
     def __getattr__(self, name: str) -> Any:  # anything else rosbags asks of its storage
         return getattr(self.inner, name)
+
+
+def agreed_span(
+    listed: tuple[int, int], entries: tuple[int, int] | None, *, widest: bool = True
+) -> tuple[int, int]:
+    """The times (first, last, ns) of a ROS 1 chunk from its chunk info's (``listed``) and its
+    index entries' (``entries``; None: none noted), which a writer makes the same: either one
+    whose start comes after its end is damaged and left out; of two that differ, ``widest``
+    spans both (no message of either is judged outside it: reading), else the times both hold
+    (a time damaged in one is left out: the log's range), or the entries' where they share
+    none."""
+    spans = [span for span in (listed, entries) if span is not None and span[0] <= span[1]]
+    if not spans:
+        return listed
+    if widest:
+        return min(first for first, _ in spans), max(last for _, last in spans)
+    first, last = max(first for first, _ in spans), min(last for _, last in spans)
+    return (first, last) if first <= last else spans[-1]
 
 
 def library_text(err: BaseException) -> str:

@@ -397,6 +397,88 @@ def test_a_ros1_bag_changed_while_read_is_said_so_not_damaged(
         assert n > 20 and len(reader.losses) == 1, reader.losses
 
 
+#: A time of 2106 (its seconds' high bits flipped), in a ROS 1 record's 8 bytes.
+_FAR_TIME = (0xFFFFFF00).to_bytes(4, "little") + bytes(4)
+
+
+def _ros1_bag_with_a_far_time(path: Path, where: str) -> list[int]:
+    """A ROS 1 bag of 400 strings on two topics, 10 ms apart, in 11 chunks, with one time
+    damaged to 2106 (``where``: the second chunk's info's start or end time, the time of its
+    first message's record, or that message's index entry); returns the messages' times."""
+    import struct
+
+    from rosbags.rosbag1 import Writer
+
+    from rose_logs.storage.ros1_stream import _read_record, read_index
+
+    times = [10**18 + i * 10**7 for i in range(400)]
+    writer = Writer(path)
+    writer.chunk_threshold = 2000
+    with writer:
+        conns = [
+            writer.add_connection(
+                f"/t{k}",
+                "std_msgs/msg/String",
+                msgdef="string data",
+                md5sum="992ce8a1687cec8c8bd883ec73ca41d1",
+            )
+            for k in range(2)
+        ]
+        for i, time in enumerate(times):
+            writer.write(conns[i % 2], time, (3).to_bytes(4, "little") + b"abc")
+    data = bytearray(path.read_bytes())
+    index = read_index(path)
+    chunk = index.chunks[1]
+    if where.startswith("info"):
+        name = b"start_time=" if where == "info start" else b"end_time="
+        at = data.find(name, data.find(name, index.index_pos) + 1) + len(name)  # the 2nd info
+    elif where == "message":
+        at = data.find(b"time=", chunk.pos + 1) + len(b"time=")
+    else:  # the first entry of the index data record after the chunk
+        stream = io.BytesIO(bytes(data))
+        stream.seek(chunk.pos)
+        _read_record(stream, len(data))
+        at = stream.tell() + 4 + struct.unpack_from("<I", data, stream.tell())[0] + 4
+    data[at : at + 8] = _FAR_TIME
+    path.write_bytes(bytes(data))
+    return times
+
+
+@pytest.mark.parametrize("salvage", [False, True])
+@pytest.mark.parametrize("where", ["info start", "info end", "message", "index entry"])
+def test_a_ros1_time_damaged_to_a_far_future_is_left_out_not_taken(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture, where: str, salvage: bool
+) -> None:
+    """A bit flipped in a ROS 1 time: a chunk info's end of 2106 made a session of 4 s span 83
+    years (with or without --salvage), a chunk info's start of 2106 had --salvage hand that
+    chunk's messages out last, out of order, and a message's own time of 2106 was taken by
+    --salvage, unsaid (a snapshot 83 years on). A chunk's times are now those its info and its
+    index entries agree on (said when they differ), and --salvage skips a message outside its
+    chunk's times as damaged, said as a loss."""
+    import logging
+
+    bag = tmp_path / "t.bag"
+    times = _ros1_bag_with_a_far_time(bag, where)
+    with caplog.at_level(logging.WARNING), LogReader(bag, salvage=salvage) as reader:
+        try:
+            read = [m.log_time_ns for m in reader.messages()]
+        except LogReadError as err:  # the index entry disagrees with its message: as before
+            assert where in ("message", "index entry") and not salvage
+            assert "an index entry does not match the message it points to" in str(err)
+            return
+        assert (reader.start_ns, reader.end_ns) == (times[0], times[-1])
+        losses = reader.losses
+    assert read == sorted(read)
+    if where == "message":  # skipped, said
+        assert len(read) == len(times) - 1 and set(read) < set(times)
+        assert losses[0].startswith(f"{bag}: skipped a message of the chunk at byte ")
+        assert "at 4294967040000000000 ns, outside the chunk's" in losses[0]
+    else:  # its message read, at its time
+        assert read == times and not losses
+    if where != "message":  # the chunk info and the index entries disagree: said
+        assert "gives other times than its messages' index entries" in caplog.text
+
+
 def test_salvage_keeps_the_complete_chunks_of_a_truncated_ros1_bag(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], ros1_bag: tuple[Path, list]
 ) -> None:
