@@ -161,13 +161,15 @@ def _not_bookkeeping(records: Iterable[Any]) -> Iterator[Any]:
     return (r for r in records if not (isinstance(r, Metadata) and r.name == ROSBAG2_METADATA))
 
 
-def _indexed_records(reader: Any) -> FileRecords:
-    """The metadata and attachment records an MCAP file's summary indexes (``reader``: an
-    ``mcap`` SeekingReader of it whose file stays open while they are read), but rosbag2's
-    bookkeeping record."""
+def _indexed_records(reader: Any, path: Path) -> FileRecords:
+    """The metadata and attachment records of the MCAP file ``path`` (``reader``: an ``mcap``
+    SeekingReader of it whose file stays open while they are read), but rosbag2's bookkeeping
+    record: through its summary's indexes, else by a pass over its records
+    (:func:`_records_by_pass`). The indexes are optional: a file written without them (a
+    summary of statistics alone, or no summary) had its records left out without a word."""
     summary = reader.get_summary()
-    if summary is None:
-        return FileRecords(0, lambda: iter(()))
+    if _unindexed_records(summary):
+        return FileRecords(sum(1 for _ in _records_by_pass(path)), lambda: _records_by_pass(path))
     metadata = sum(index.name != ROSBAG2_METADATA for index in summary.metadata_indexes)
     return FileRecords(
         metadata + len(summary.attachment_indexes),
@@ -177,33 +179,45 @@ def _indexed_records(reader: Any) -> FileRecords:
     )
 
 
-def storage_file_records(path: Path) -> FileRecords:
-    """The metadata and attachment records of the MCAP storage file ``path`` of a ROS 2 bag
-    folder (which rosbags reads: no reader of ours holds it open), but rosbag2's bookkeeping
-    record: counted through its summary's indexes, else (a file without a summary, which rosbags
-    reads all the same) by a pass over its records, chunks left compressed; the file is opened
-    again to read them, one at a time."""
-    from mcap.reader import SeekingReader
+def _unindexed_records(summary: Any) -> bool:
+    """Whether an MCAP file of the ``summary`` (None: none) may hold metadata or attachment
+    records its summary does not index: its statistics count more than it indexes, or it
+    indexes none and has no statistics to say there are none."""
+    if summary is None:
+        return True
+    indexed = len(summary.metadata_indexes) + len(summary.attachment_indexes)
+    stats = summary.statistics
+    if stats is None:
+        return indexed == 0
+    return int(stats.metadata_count) + int(stats.attachment_count) > indexed
+
+
+def _records_by_pass(path: Path) -> Iterator[Any]:
+    """The metadata and attachment records of the MCAP file ``path`` but rosbag2's, found by a
+    pass over its records (its chunks, which hold none, left compressed), one at a time."""
     from mcap.records import Attachment, Metadata
     from mcap.stream_reader import StreamReader
 
     size = path.stat().st_size
     with path.open("rb") as stream:
-        reader = SeekingReader(stream, record_size_limit=max(size, 1))
-        if reader.get_summary() is not None:
-            count = len(_indexed_records(reader))
-        else:
-            stream.seek(0)
-            records = StreamReader(stream, emit_chunks=True, record_size_limit=max(size, 1))
-            found = (r for r in records.records if isinstance(r, Attachment | Metadata))
-            count = sum(1 for _ in _not_bookkeeping(found))
+        records = StreamReader(stream, emit_chunks=True, record_size_limit=max(size, 1)).records
+        yield from _not_bookkeeping(r for r in records if isinstance(r, Attachment | Metadata))
+
+
+def storage_file_records(path: Path) -> FileRecords:
+    """The metadata and attachment records of the MCAP storage file ``path`` of a ROS 2 bag
+    folder (which rosbags reads: no reader of ours holds it open), but rosbag2's bookkeeping
+    record (:func:`_indexed_records`); the file is opened again to read them, one at a time."""
+    from mcap.reader import SeekingReader
+
+    size = path.stat().st_size
+    with path.open("rb") as stream:
+        count = len(_indexed_records(SeekingReader(stream, record_size_limit=max(size, 1)), path))
 
     def read() -> Iterator[Any]:
         with path.open("rb") as stream:
             reader = SeekingReader(stream, record_size_limit=max(size, 1))
-            yield from _not_bookkeeping(
-                itertools.chain(reader.iter_metadata(), reader.iter_attachments())
-            )
+            yield from _indexed_records(reader, path)
 
     return FileRecords(count, read)
 
@@ -276,7 +290,7 @@ class McapReadBackend:
         ``Attachment``), through its summary's indexes, but rosbag2's bookkeeping record
         (:data:`ROSBAG2_METADATA`): they belong to no channel, and an MCAP output copies them."""
         assert self.reader is not None
-        return _indexed_records(self.reader)
+        return _indexed_records(self.reader, self.path)
 
     def messages(self, topics: set[str] | None) -> Iterator[RawMessage]:
         if self.skip_damaged_chunks:

@@ -542,6 +542,37 @@ def test_an_mcap_files_metadata_and_attachments_are_copied(
     )
 
 
+@pytest.mark.parametrize("summary", ["statistics only", "none"])
+def test_metadata_and_attachments_an_mcap_summary_does_not_index_are_copied(
+    tmp_path: Path, summary: str
+) -> None:
+    """The summary's metadata and attachment indexes are optional (a writer's index_types): a
+    file written without them had its records left out of the output without a word, though its
+    statistics counted them."""
+    from mcap.writer import IndexType, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    src = tmp_path / "in.mcap"
+    msgdef, _ = get_typestore(Stores.ROS2_HUMBLE).generate_msgdef(MAP_TYPE, ros_version=2)
+    options: dict[str, Any] = {"index_types": IndexType.CHUNK | IndexType.MESSAGE}
+    if summary == "none":
+        options.update(use_statistics=False, use_summary_offsets=False, index_types=IndexType.NONE)
+    with src.open("wb") as f:
+        writer = Writer(f, **options)
+        writer.start(profile="ros2", library="tests")
+        schema = writer.register_schema(MAP_TYPE, "ros2msg", msgdef.encode())
+        maps = writer.register_channel("/map", "cdr", schema, {})
+        for seq, (t_ns, topic, data) in enumerate(_messages("cdr")):
+            if topic == "/map":
+                writer.add_message(maps, t_ns, data, t_ns, seq)
+        writer.add_metadata("robot", {"name": "r2"})
+        writer.add_attachment(T0_NS, T0_NS, "robot.urdf", "text/xml", b"<robot/>")
+        writer.finish()
+    out = tmp_path / "out.mcap"
+    process_log(src, output_path=out)
+    assert _records_of(out) == (["robot"], ["robot.urdf"])
+
+
 def _mcap_file_again(
     path: Path, plain: bytes, keep: Any, records: int, *, summary: bool = True
 ) -> None:
