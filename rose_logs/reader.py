@@ -710,7 +710,11 @@ class LogReader:
         ROS 2 bag it read part way, as losses (each said once)."""
         if not isinstance(
             backend,
-            McapReadBackend | McapFilesReadBackend | RosbagsReadBackend | Ros1IndexedReadBackend,
+            McapReadBackend
+            | McapFilesReadBackend
+            | RosbagsReadBackend
+            | Ros1IndexedReadBackend
+            | Ros1StreamReadBackend,
         ):
             return
         skipped = backend.skipped_chunks

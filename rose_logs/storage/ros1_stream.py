@@ -255,6 +255,9 @@ class Ros1StreamReadBackend(_Ros1FileBackend):
         self.damage = ""
         self.complete = False
         self._end: int | None = None  # where open() stopped: messages() stops there too
+        #: Messages whose time disagrees with their index entry's, left out (:meth:`_timed`).
+        self.mistimed = 0
+        self.skipped_chunks: list[SkippedChunk] = []
 
     def _items(self) -> Iterator[_Connection | tuple[int, int, bytes]]:
         """Connections and ``(conn, time ns, data)`` messages in file order, complete chunks only,
@@ -282,7 +285,10 @@ class Ros1StreamReadBackend(_Ros1FileBackend):
                     # out, without keeping its records (a chunk may hold millions of tiny ones).
                     for item in _chunk_items(content):
                         _count_connection(item, known)
-                    items: Iterator[_Connection | tuple[int, int, bytes]] = _chunk_items(content)
+                    entries = _entries_after(self.stream, size)
+                    items: Iterator[_Connection | tuple[int, int, bytes]] = self._timed(
+                        content, entries, offset, size
+                    )
                 else:
                     # Chunk infos come only in the index section after the last chunk (index data
                     # records follow every chunk, so they prove nothing).
@@ -297,13 +303,39 @@ class Ros1StreamReadBackend(_Ros1FileBackend):
                 return
             yield from items
         self._end = size
-        self.complete = indexed
+        self.complete = indexed and not self.mistimed
         if not self.damage:
             self.damage = (
                 "the bag's index is damaged or misplaced; every record was read"
                 if indexed
                 else "no index at the end (the recording was not closed)"
             )
+
+    def _timed(
+        self, content: bytes, entries: dict[tuple[int, int], int], pos: int, size: int
+    ) -> Iterator[_Connection | tuple[int, int, bytes]]:
+        """The items of a chunk (its ``content``, at byte ``pos`` of ``size``) but its messages
+        whose time disagrees with their index entry's (``entries``, :func:`_entries_after`): a
+        bit flipped in one of them (a message of 2106 in a session of 2023, which then spanned
+        83 years), said in :attr:`skipped_chunks` (as the chunk reader says a message outside
+        its chunk's times) and counted in :attr:`mistimed`."""
+        for at, item in _chunk_items_at(content):
+            if not isinstance(item, _Connection):
+                listed = entries.get((item[0], at), item[1])
+                if listed != item[1]:
+                    if self._end is None:  # open()'s pass
+                        self.mistimed += 1
+                    else:  # messages()': said once it is read
+                        channel = self._by_conn.get(item[0])
+                        reason = (
+                            f"a message on {channel.topic if channel else '?'} at {item[1]} ns, "
+                            f"its index entry says {listed} ns: its time is damaged"
+                        )
+                        self.skipped_chunks.append(
+                            SkippedChunk(pos, size, reason, item[1], item[1], one_message=True)
+                        )
+                    continue
+            yield item
 
     def open(self) -> None:
         self.stream = self.path.open("rb")
@@ -372,13 +404,44 @@ def _record_items(
 
 def _chunk_items(content: bytes) -> Iterator[_Connection | tuple[int, int, bytes]]:
     """The connections and messages inside a decompressed chunk."""
+    for _, item in _chunk_items_at(content):
+        yield item
+
+
+def _chunk_items_at(content: bytes) -> Iterator[tuple[int, _Connection | tuple[int, int, bytes]]]:
+    """The connections and messages inside a decompressed chunk, each with the byte of
+    ``content`` where its record starts (what an index entry gives)."""
     stream = io.BytesIO(content)
     while True:
+        at = stream.tell()
         record = _read_record(stream, len(content))
         if record is None:
             return
         fields, data = record
-        yield from _record_items(_op(fields), fields, data)
+        for item in _record_items(_op(fields), fields, data):
+            yield at, item
+
+
+def _entries_after(stream: BinaryIO, size: int) -> dict[tuple[int, int], int]:
+    """The time (ns) of each message the index data records at ``stream`` (after a chunk)
+    give, by its connection and its byte in the chunk; ``stream`` is left after them, at the
+    first other record (or one that does not read, which the walk then reads as before)."""
+    entries: dict[tuple[int, int], int] = {}
+    while True:
+        at = stream.tell()
+        try:
+            record = _read_record(stream, size)
+            if record is None or _op(record[0]) != _OP_INDEX_DATA:
+                stream.seek(at)
+                return entries
+            fields, data = record
+            conn = _uint(fields, "conn", "<I")
+        except _Damage:
+            stream.seek(at)
+            return entries
+        whole = len(data) - len(data) % 12
+        for sec, nsec, offset in struct.iter_unpack("<III", data[:whole]):
+            entries[(conn, offset)] = sec * 1_000_000_000 + nsec
 
 
 _OP_INDEX_DATA = 0x04

@@ -479,6 +479,30 @@ def test_a_ros1_time_damaged_to_a_far_future_is_left_out_not_taken(
         assert "gives other times than its messages' index entries" in caplog.text
 
 
+def test_salvage_of_a_ros1_bag_without_index_skips_a_message_whose_time_is_damaged(
+    tmp_path: Path,
+) -> None:
+    """A recording that was not closed (no index at its end), read record by record by
+    --salvage: a message whose time was damaged to 2106 was kept without a word (the session
+    spanned 83 years). Its time disagrees with its index entry after its chunk: it is skipped,
+    said as a loss."""
+    from rose_logs.storage.ros1_stream import read_index
+
+    whole = tmp_path / "t.bag"
+    times = _ros1_bag_with_a_far_time(whole, "message")
+    active = tmp_path / "t.bag.active"
+    active.write_bytes(whole.read_bytes()[: read_index(whole).index_pos])
+    with LogReader(active, salvage=True) as reader:
+        read = [m.log_time_ns for m in reader.messages()]
+        assert (reader.start_ns, reader.end_ns) == (times[0], times[-1])
+        losses = reader.losses
+    assert len(read) == len(times) - 1 and set(read) < set(times)
+    assert "kept the 399 messages before it" in losses[0]
+    assert losses[1].startswith(f"{active}: skipped a message of the chunk at byte ")
+    assert "at 4294967040000000000 ns, its index entry says" in losses[1]
+    assert len(losses) == 2
+
+
 def test_salvage_keeps_the_complete_chunks_of_a_truncated_ros1_bag(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], ros1_bag: tuple[Path, list]
 ) -> None:
