@@ -227,7 +227,9 @@ class LogReader:
         except Exception as err:  # library errors of every kind: wrap at the boundary
             backend.close()
             reraise_unless_damage(err)
-            self._refuse_if_changed(err)
+            how = self._changed_how()
+            if how is not None:
+                raise self._changed_error(how) from err
             salvaged: (
                 McapStreamReadBackend
                 | McapFilesReadBackend
@@ -651,7 +653,7 @@ class LogReader:
         wanted = None if names is None else set(names)
         counts: dict[int, int] = {}
         self.read_count = 0
-        changed = True  # until the file is seen unchanged: its skipped chunks are no losses
+        how: str | None = None  # how the file changed under the reader: nothing is a loss
         try:
             for message in backend.messages(wanted):
                 key = message.channel.id
@@ -660,7 +662,9 @@ class LogReader:
                 yield message
         except (LogError, Exception) as err:
             reraise_unless_damage(err)  # a signal inside the library, not a corrupt log
-            changed = self._refuse_if_changed(err)
+            how = self._changed_how()
+            if how is not None:
+                raise self._changed_error(how) from err
             error = err if isinstance(err, LogError) else _corrupt(self._read_from(backend), err)
             if not self.salvage:
                 if isinstance(err, LogError):
@@ -675,26 +679,27 @@ class LogReader:
             return
         else:
             # Read to the end, salvaged or not: what was read may mix two files' bytes.
-            changed = self._refuse_if_changed(None)
+            how = self._changed_how()
+            if how is not None:
+                raise self._changed_error(how)
         finally:
-            if not changed:
+            if how is None:  # (also when the caller stopped early, or was interrupted)
                 self._note_skipped_chunks(backend)
         self._check_counts(counts, wanted)
 
-    def _refuse_if_changed(self, err: BaseException | None) -> bool:
-        """Raise an error saying the log file changed while it was read (overwritten, cut
-        short, replaced: :meth:`FileState.changed`), caused by ``err`` (the failure it made, or
-        None: a read to the end), when it did; False when it did not. Its reading failed as
-        damage (or ``--salvage`` kept what it could of two files' bytes), which the log is not.
-        """
-        how = None if self._state is None else self._state.changed()
-        if how is None:
-            return False
-        msg = (
+    def _changed_how(self) -> str | None:
+        """How the log file changed since it was opened (overwritten, cut short, replaced:
+        :meth:`FileState.changed`), None when it did not (or it is a folder)."""
+        return None if self._state is None else self._state.changed()
+
+    def _changed_error(self, how: str) -> LogReadError:
+        """The error for a log file that changed (``how``) while it was read: its reading
+        failed as damage (or ``--salvage`` kept what it could of two files' bytes), which the
+        log is not."""
+        return LogReadError(
             f"{self.path}: the file changed while it was read ({how}: another program writes "
             "it?); read it again once it no longer changes"
         )
-        raise LogReadError(msg) from err
 
     def _read_from(self, backend: object) -> Path:
         """The file a failure reading messages through ``backend`` is about: a ROS 2 bag folder's

@@ -479,6 +479,22 @@ def test_a_ros1_time_damaged_to_a_far_future_is_left_out_not_taken(
         assert "gives other times than its messages' index entries" in caplog.text
 
 
+def test_a_reading_stopped_early_still_says_what_salvage_skipped(tmp_path: Path) -> None:
+    """A reading stopped before its end (a caller that breaks off, an interrupted session)
+    says what --salvage skipped so far, as before the check that the file did not change under
+    the reader (which left it unsaid)."""
+    bag = tmp_path / "t.bag"
+    _ros1_bag_with_a_far_time(bag, "message")
+    with LogReader(bag, salvage=True) as reader:
+        messages = reader.messages()
+        for n, _ in enumerate(messages):
+            if n == 300:  # well past the second chunk, whose message was skipped
+                break
+        messages.close()
+        assert len(reader.losses) == 1
+        assert reader.losses[0].startswith(f"{bag}: skipped a message of the chunk at byte ")
+
+
 def test_salvage_of_a_ros1_bag_without_index_skips_a_message_whose_time_is_damaged(
     tmp_path: Path,
 ) -> None:
