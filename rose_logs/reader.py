@@ -688,8 +688,8 @@ class LogReader:
         self._check_counts(counts, wanted)
 
     def _changed_how(self) -> str | None:
-        """How the log file changed since it was opened (overwritten, cut short, replaced:
-        :meth:`FileState.changed`), None when it did not (or it is a folder)."""
+        """How the log file changed since it was opened (overwritten, written to, cut short,
+        replaced: :meth:`FileState.changed`), None when it did not (or it is a folder)."""
         return None if self._state is None else self._state.changed()
 
     def _changed_error(self, how: str) -> LogReadError:

@@ -135,7 +135,9 @@ class FileState:
         return cls(path, info.st_dev, info.st_ino, info.st_size, info.st_mtime_ns, head, tail)
 
     def changed(self) -> str | None:
-        """How the file changed since this state, in words (None: it did not, or only grew)."""
+        """How the file changed since this state, in words (None: it did not, or only grew).
+        A write inside it, its size and ends as they were, shows in its modification time
+        alone: a ROS 1 bag has no checksum, and a map's bytes written over read as a map."""
         now = FileState.of(self.path)
         if now is None:
             return "it is gone"
@@ -146,11 +148,13 @@ class FileState:
         if now.size == self.size and now.mtime_ns == self.mtime_ns:
             return None
         # Grown, or written in place: compared at its ends (a file written over by another
-        # differs there; one only touched, or a byte changed inside, is taken as unchanged).
+        # differs there; one that grew, a recording still being written, does not).
         try:
             with self.path.open("rb") as stream:
                 stream.seek(max(self.size - _COMPARED, 0))
                 tail = stream.read(len(self.tail))
         except OSError:
             return "it can no longer be read"
-        return "written over" if now.head != self.head or tail != self.tail else None
+        if now.head != self.head or tail != self.tail:
+            return "written over"
+        return "written to" if now.size == self.size else None

@@ -354,7 +354,7 @@ def _other_bag(path: Path) -> bytes:
 
 
 @pytest.mark.parametrize("salvage", [False, True])
-@pytest.mark.parametrize("change", ["written over", "cut", "replaced"])
+@pytest.mark.parametrize("change", ["written over", "written to", "cut", "replaced"])
 def test_a_ros1_bag_changed_while_read_is_said_so_not_damaged(
     tmp_path: Path,
     capsys: pytest.CaptureFixture[str],
@@ -376,6 +376,10 @@ def test_a_ros1_bag_changed_while_read_is_said_so_not_damaged(
                 if change == "written over":
                     with bag.open("r+b") as stream:
                         stream.write(other)
+                elif change == "written to":  # inside, its size and ends as they were
+                    with bag.open("r+b") as stream:
+                        stream.seek(len(whole) // 2)
+                        stream.write(bytes(range(256)) * 80)
                 elif change == "cut":
                     os.truncate(bag, len(whole) // 2)
                 else:
