@@ -204,7 +204,7 @@ class LogReader:
         self.losses: list[str] = []
         self.read_count = 0
         self._backend: _Backend | None = None
-        self._state: FileState | None = None  # the log file as opened (none: a folder)
+        self._states: list[FileState] = []  # the log's files as opened
 
     # -- lifecycle -------------------------------------------------------------------------------
     def open(self) -> None:
@@ -221,15 +221,15 @@ class LogReader:
             if self.format == "mcap"
             else RosbagsReadBackend(self.path, self.format)
         )
-        self._state = FileState.of(self.path)
+        self._states = FileState.of_log(self.path)
         try:
             backend.open()
         except Exception as err:  # library errors of every kind: wrap at the boundary
             backend.close()
             reraise_unless_damage(err)
-            how = self._changed_how()
-            if how is not None:
-                raise self._changed_error(how) from err
+            changed = self._changed()
+            if changed is not None:
+                raise LogReadError(changed) from err
             salvaged: (
                 McapStreamReadBackend
                 | McapFilesReadBackend
@@ -653,7 +653,7 @@ class LogReader:
         wanted = None if names is None else set(names)
         counts: dict[int, int] = {}
         self.read_count = 0
-        how: str | None = None  # how the file changed under the reader: nothing is a loss
+        changed: str | None = None  # a file changed under the reader: nothing is a loss
         try:
             for message in backend.messages(wanted):
                 key = message.channel.id
@@ -662,9 +662,9 @@ class LogReader:
                 yield message
         except (LogError, Exception) as err:
             reraise_unless_damage(err)  # a signal inside the library, not a corrupt log
-            how = self._changed_how()
-            if how is not None:
-                raise self._changed_error(how) from err
+            changed = self._changed()
+            if changed is not None:
+                raise LogReadError(changed) from err
             error = err if isinstance(err, LogError) else _corrupt(self._read_from(backend), err)
             if not self.salvage:
                 if isinstance(err, LogError):
@@ -679,27 +679,28 @@ class LogReader:
             return
         else:
             # Read to the end, salvaged or not: what was read may mix two files' bytes.
-            how = self._changed_how()
-            if how is not None:
-                raise self._changed_error(how)
+            changed = self._changed()
+            if changed is not None:
+                raise LogReadError(changed)
         finally:
-            if how is None:  # (also when the caller stopped early, or was interrupted)
+            if changed is None:  # (also when the caller stopped early, or was interrupted)
                 self._note_skipped_chunks(backend)
         self._check_counts(counts, wanted)
 
-    def _changed_how(self) -> str | None:
-        """How the log file changed since it was opened (overwritten, written to, cut short,
-        replaced: :meth:`FileState.changed`), None when it did not (or it is a folder)."""
-        return None if self._state is None else self._state.changed()
-
-    def _changed_error(self, how: str) -> LogReadError:
-        """The error for a log file that changed (``how``) while it was read: its reading
-        failed as damage (or ``--salvage`` kept what it could of two files' bytes), which the
+    def _changed(self) -> str | None:
+        """The error for a file of the log (the log, a bag folder's storage file or metadata)
+        that changed since it was opened (overwritten, written to, cut short, replaced:
+        :meth:`FileState.changed`), None when none did. Its reading failed as damage (or
+        ``--salvage`` kept what it could of two files' bytes, or it read as sound), which the
         log is not."""
-        return LogReadError(
-            f"{self.path}: the file changed while it was read ({how}: another program writes "
-            "it?); read it again once it no longer changes"
-        )
+        for state in self._states:
+            how = state.changed()
+            if how is not None:
+                return (
+                    f"{state.path}: the file changed while it was read ({how}: another program "
+                    "writes it?); read it again once it no longer changes"
+                )
+        return None
 
     def _read_from(self, backend: object) -> Path:
         """The file a failure reading messages through ``backend`` is about: a ROS 2 bag folder's

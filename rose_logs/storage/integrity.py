@@ -101,6 +101,8 @@ def type_mismatches(declared: dict[str, str], stored: dict[str, str]) -> list[st
 #: Bytes of a log file's start, and of its end as it was, compared to tell it changed: a ROS 1
 #: bag's header record (4096 bytes) holds where its index is, an MCAP file's end its summary.
 _COMPARED = 4096
+#: The names of a ROS 2 bag folder's storage files end so.
+_STORAGE = (".db3", ".mcap", ".db3.zstd", ".mcap.zstd")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -133,6 +135,24 @@ class FileState:
         except OSError:
             return None
         return cls(path, info.st_dev, info.st_ino, info.st_size, info.st_mtime_ns, head, tail)
+
+    @classmethod
+    def of_log(cls, path: Path) -> list[FileState]:
+        """The state of the log ``path``'s files now: the file, or a ROS 2 bag folder's storage
+        files and metadata.yaml."""
+        if not path.is_dir():
+            state = cls.of(path)
+            return [] if state is None else [state]
+        try:
+            names = sorted(entry.name for entry in path.iterdir())
+        except OSError:
+            return []
+        return [
+            state
+            for name in names
+            if name == "metadata.yaml" or name.endswith(_STORAGE)
+            if (state := cls.of(path / name)) is not None
+        ]
 
     def changed(self) -> str | None:
         """How the file changed since this state, in words (None: it did not, or only grew).

@@ -483,6 +483,25 @@ def test_a_ros1_time_damaged_to_a_far_future_is_left_out_not_taken(
         assert "gives other times than its messages' index entries" in caplog.text
 
 
+@pytest.mark.parametrize("fmt", ["db3", "mcap-dir"])
+def test_a_bag_folders_storage_file_changed_while_read_is_said_so(tmp_path: Path, fmt: str) -> None:
+    """A ROS 2 bag folder's storage file cut short while it was read was said to be a corrupt
+    log ("disk I/O error", "Truncated record"), and one written into read as sound: the error
+    now names the file and says it changed while it was read."""
+    bag = tmp_path / "bag"
+    write_session(bag, fmt)
+    storage = storage_file(bag)
+    whole = storage.read_bytes()
+    for salvage in (False, True):
+        storage.write_bytes(whole)
+        with LogReader(bag, salvage=salvage) as reader, pytest.raises(LogReadError) as raised:
+            for n, _ in enumerate(reader.messages()):
+                if n == 2:
+                    os.truncate(storage, storage.stat().st_size // 2)
+        assert str(raised.value).startswith(f"{storage}: the file changed while it was read (cut")
+        assert not reader.losses
+
+
 def test_a_reading_stopped_early_still_says_what_salvage_skipped(tmp_path: Path) -> None:
     """A reading stopped before its end (a caller that breaks off, an interrupted session)
     says what --salvage skipped so far, as before the check that the file did not change under
