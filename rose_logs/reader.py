@@ -644,7 +644,8 @@ class LogReader:
         Raises
         ------
         LogReadError
-            If the log turns out to be truncated or corrupt while reading.
+            If the log turns out to be truncated or corrupt while reading, or a file of it
+            changed while it was read (another program wrote to it).
         TypeError
             If ``topics`` is neither a topic name nor names (str), on the first message asked for.
         """
