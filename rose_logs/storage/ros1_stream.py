@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import bisect
 import bz2
+import dataclasses
 import heapq
 import io
 import itertools
@@ -642,6 +643,28 @@ class BagIndex:
         return self.starts[after] if after < len(self.starts) else self.index_pos
 
 
+def entry_spans(stream: BinaryIO, index: BagIndex) -> dict[int, tuple[int, int]]:
+    """The first and last message time (ns) of each chunk of ``index`` (by its byte position)
+    as the index data records after it give them (their entries' times); none for a chunk
+    whose record or records do not read. The chunks' data is skipped, not read."""
+    spans: dict[int, tuple[int, int]] = {}
+    for chunk in index.chunks:
+        end = index.chunk_end(chunk)
+        try:
+            stream.seek(chunk.pos)
+            _read_block(stream, end, "header")
+            raw = stream.read(4)
+            if len(raw) < 4:
+                continue
+            stream.seek(struct.unpack("<I", raw)[0], io.SEEK_CUR)
+        except (_Damage, OSError):
+            continue
+        times = _entries_after(stream, end).values()
+        if times:
+            spans[chunk.pos] = (min(times), max(times))
+    return spans
+
+
 def read_index(path: Path) -> BagIndex:
     """The index of the ROS 1 bag ``path`` (its records read, not the chunks they point to).
 
@@ -932,6 +955,24 @@ def chunk_messages(
             heapq.heappush(queue, (message[1], rank.get(message[0], tie), k, at, message))
 
 
+def agreed_span(
+    listed: tuple[int, int], entries: tuple[int, int] | None, *, widest: bool = True
+) -> tuple[int, int]:
+    """The times (first, last, ns) of a ROS 1 chunk from its chunk info's (``listed``) and its
+    index entries' (``entries``; None: none noted), which a writer makes the same: either one
+    whose start comes after its end is damaged and left out; of two that differ, ``widest``
+    spans both (no message of either is judged outside it: reading), else the times both hold
+    (a time damaged in one is left out: the log's range), or the entries' where they share
+    none."""
+    spans = [span for span in (listed, entries) if span is not None and span[0] <= span[1]]
+    if not spans:
+        return listed
+    if widest:
+        return min(first for first, _ in spans), max(last for _, last in spans)
+    first, last = max(first for first, _ in spans), min(last for _, last in spans)
+    return (first, last) if first <= last else spans[-1]
+
+
 def _outside(chunk: ChunkInfo, time_ns: int) -> bool:
     """Whether a message of ``chunk`` at ``time_ns`` lies outside the chunk's times, so that its
     time is damaged: a writer gives a chunk the times of its first and last message (a flipped
@@ -1011,10 +1052,22 @@ class Ros1IndexedReadBackend(_Ros1FileBackend):
             channels.append(channel)
             self._by_conn[c.conn] = channel
         self.channels = tuple(channels)
-        timed = [c for c in index.chunks if any(c.counts.values())]
+        # Each chunk's times as its info or its index entries give them, a time damaged in one
+        # of them left out (:func:`agreed_span`; as the reading through rosbags' index does).
+        spans = entry_spans(self.stream, index)
+        timed = [
+            (agreed_span((c.start_ns, c.end_ns), spans.get(c.pos), widest=False), c)
+            for c in index.chunks
+            if any(c.counts.values())
+        ]
         if timed:
-            self.start_ns = min(c.start_ns for c in timed)
-            self.end_ns = max(c.end_ns for c in timed)
+            self.start_ns = min(first for (first, _), _ in timed)
+            self.end_ns = max(last for (_, last), _ in timed)
+        chunks = []
+        for chunk in index.chunks:
+            first, last = agreed_span((chunk.start_ns, chunk.end_ns), spans.get(chunk.pos))
+            chunks.append(dataclasses.replace(chunk, start_ns=first, end_ns=last))
+        self.index = dataclasses.replace(index, chunks=tuple(chunks))
 
     def messages(self, topics: set[str] | None) -> Iterator[RawMessage]:
         assert self.stream is not None and self.index is not None

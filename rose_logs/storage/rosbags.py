@@ -151,6 +151,8 @@ class RosbagsReadBackend:
         message, which its entries hold too; where they disagree (said), a time damaged in one
         of them is left out (:func:`agreed_span`): a chunk info's end damaged to 2106 made a
         session of seconds span 83 years."""
+        from rose_logs.storage.ros1_stream import agreed_span
+
         spans = self._ros1_entry_spans()
         damaged = []
         starts: list[int] = []
@@ -421,7 +423,7 @@ class RosbagsReadBackend:
         """A ROS 1 bag's messages (of ``conns``, all when None) read chunk by chunk through its
         ``index``, in rosbags' order, each chunk read once (:func:`chunk_messages`; ``skipped``:
         where the chunks that cannot be read are said, None: an error)."""
-        from rose_logs.storage.ros1_stream import chunk_messages
+        from rose_logs.storage.ros1_stream import agreed_span, chunk_messages
 
         # Each chunk's times as its info or its index entries give them, a time damaged in one
         # of them left out (:func:`agreed_span`): a chunk is read at its start, and a message
@@ -750,24 +752,6 @@ class _TolerantStorage:
 
     def __getattr__(self, name: str) -> Any:  # anything else rosbags asks of its storage
         return getattr(self.inner, name)
-
-
-def agreed_span(
-    listed: tuple[int, int], entries: tuple[int, int] | None, *, widest: bool = True
-) -> tuple[int, int]:
-    """The times (first, last, ns) of a ROS 1 chunk from its chunk info's (``listed``) and its
-    index entries' (``entries``; None: none noted), which a writer makes the same: either one
-    whose start comes after its end is damaged and left out; of two that differ, ``widest``
-    spans both (no message of either is judged outside it: reading), else the times both hold
-    (a time damaged in one is left out: the log's range), or the entries' where they share
-    none."""
-    spans = [span for span in (listed, entries) if span is not None and span[0] <= span[1]]
-    if not spans:
-        return listed
-    if widest:
-        return min(first for first, _ in spans), max(last for _, last in spans)
-    first, last = max(first for first, _ in spans), min(last for _, last in spans)
-    return (first, last) if first <= last else spans[-1]
 
 
 def library_text(err: BaseException) -> str:

@@ -483,6 +483,31 @@ def test_a_ros1_time_damaged_to_a_far_future_is_left_out_not_taken(
         assert "gives other times than its messages' index entries" in caplog.text
 
 
+@pytest.mark.parametrize("where", ["info start", "info end"])
+def test_a_ros1_chunk_info_time_damaged_beside_a_damaged_chunk_is_left_out(
+    tmp_path: Path, where: str
+) -> None:
+    """A bag that rosbags cannot open (a chunk's record damaged), which --salvage reads
+    through its own reading of the index, took its time range from the chunk infos alone: a
+    chunk info's end of 2106 beside the damaged chunk made a session of 4 s span 83 years (and
+    a start of 2106 read that chunk last). It now takes a chunk's times as its info and the
+    index entries after it agree on, as the reading through rosbags does."""
+    from rose_logs.storage.ros1_stream import Ros1IndexedReadBackend, read_index
+
+    bag = tmp_path / "t.bag"
+    times = _ros1_bag_with_a_far_time(bag, where)
+    data = bytearray(bag.read_bytes())
+    data[read_index(bag).chunks[4].pos + 5] ^= 0xFF  # another chunk's record header
+    bag.write_bytes(bytes(data))
+    with LogReader(bag, salvage=True) as reader:
+        read = [m.log_time_ns for m in reader.messages()]
+        assert isinstance(reader._open_backend, Ros1IndexedReadBackend)
+        assert (reader.start_ns, reader.end_ns) == (times[0], times[-1])
+        losses = reader.losses
+    assert read == sorted(read) and 300 < len(read) < len(times)
+    assert "skipped a damaged chunk at byte" in losses[0]
+
+
 @pytest.mark.parametrize("fmt", ["db3", "mcap-dir"])
 def test_a_bag_folders_storage_file_changed_while_read_is_said_so(tmp_path: Path, fmt: str) -> None:
     """A ROS 2 bag folder's storage file cut short while it was read was said to be a corrupt
