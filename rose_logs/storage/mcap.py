@@ -149,32 +149,41 @@ class FileRecords:
 
 
 #: The name of the metadata record rosbag2 (and rosbags) writes into each MCAP file of a bag:
-#: the bag's metadata.yaml as it was then (its topics, counts and files). It is not copied: in
-#: another log it describes the input, not that log, and a bag output's writer writes its own.
+#: the bag's metadata.yaml as it was then. rosbag2 reads a bare MCAP file's format version (how
+#: its channels spell QoS), ``custom_data``, ROS distribution and message compression from it
+#: (its counts and files from the summary): an MCAP output keeps one, the first file's of a
+#: split bag (the files' records say the same of those).
 ROSBAG2_METADATA = "rosbag2"
 
 
-def _not_bookkeeping(records: Iterable[Any]) -> Iterator[Any]:
-    """``records`` without rosbag2's metadata record (:data:`ROSBAG2_METADATA`)."""
+def _not_bookkeeping(records: Iterable[Any], *, keep: bool) -> Iterator[Any]:
+    """``records``, without rosbag2's metadata record (:data:`ROSBAG2_METADATA`) unless ``keep``."""
     from mcap.records import Metadata
 
+    if keep:
+        return iter(records)
     return (r for r in records if not (isinstance(r, Metadata) and r.name == ROSBAG2_METADATA))
 
 
-def _indexed_records(reader: Any, path: Path) -> FileRecords:
+def _indexed_records(reader: Any, path: Path, *, bookkeeping: bool = True) -> FileRecords:
     """The metadata and attachment records of the MCAP file ``path`` (``reader``: an ``mcap``
-    SeekingReader of it whose file stays open while they are read), but rosbag2's bookkeeping
-    record: through its summary's indexes, else by a pass over its records
+    SeekingReader of it whose file stays open while they are read), rosbag2's bookkeeping record
+    only with ``bookkeeping``: through its summary's indexes, else by a pass over its records
     (:func:`_records_by_pass`). The indexes are optional: a file written without them (a
     summary of statistics alone, or no summary) had its records left out without a word."""
     summary = reader.get_summary()
     if _unindexed_records(summary):
-        return FileRecords(sum(1 for _ in _records_by_pass(path)), lambda: _records_by_pass(path))
-    metadata = sum(index.name != ROSBAG2_METADATA for index in summary.metadata_indexes)
+        return FileRecords(
+            sum(1 for _ in _records_by_pass(path, bookkeeping=bookkeeping)),
+            lambda: _records_by_pass(path, bookkeeping=bookkeeping),
+        )
+    metadata = sum(
+        bookkeeping or index.name != ROSBAG2_METADATA for index in summary.metadata_indexes
+    )
     return FileRecords(
         metadata + len(summary.attachment_indexes),
         lambda: itertools.chain(
-            _not_bookkeeping(reader.iter_metadata()), reader.iter_attachments()
+            _not_bookkeeping(reader.iter_metadata(), keep=bookkeeping), reader.iter_attachments()
         ),
     )
 
@@ -192,32 +201,36 @@ def _unindexed_records(summary: Any) -> bool:
     return int(stats.metadata_count) + int(stats.attachment_count) > indexed
 
 
-def _records_by_pass(path: Path) -> Iterator[Any]:
-    """The metadata and attachment records of the MCAP file ``path`` but rosbag2's, found by a
-    pass over its records (its chunks, which hold none, left compressed), one at a time."""
+def _records_by_pass(path: Path, *, bookkeeping: bool) -> Iterator[Any]:
+    """The metadata and attachment records of the MCAP file ``path`` (rosbag2's only with
+    ``bookkeeping``), found by a pass over its records (its chunks, which hold none, left
+    compressed), one at a time."""
     from mcap.records import Attachment, Metadata
     from mcap.stream_reader import StreamReader
 
     size = path.stat().st_size
     with path.open("rb") as stream:
         records = StreamReader(stream, emit_chunks=True, record_size_limit=max(size, 1)).records
-        yield from _not_bookkeeping(r for r in records if isinstance(r, Attachment | Metadata))
+        found = (r for r in records if isinstance(r, Attachment | Metadata))
+        yield from _not_bookkeeping(found, keep=bookkeeping)
 
 
-def storage_file_records(path: Path) -> FileRecords:
+def storage_file_records(path: Path, *, bookkeeping: bool) -> FileRecords:
     """The metadata and attachment records of the MCAP storage file ``path`` of a ROS 2 bag
-    folder (which rosbags reads: no reader of ours holds it open), but rosbag2's bookkeeping
-    record (:func:`_indexed_records`); the file is opened again to read them, one at a time."""
+    folder (which rosbags reads: no reader of ours holds it open), rosbag2's bookkeeping record
+    only with ``bookkeeping`` (:func:`_indexed_records`); the file is opened again to read
+    them, one at a time."""
     from mcap.reader import SeekingReader
 
     size = path.stat().st_size
     with path.open("rb") as stream:
-        count = len(_indexed_records(SeekingReader(stream, record_size_limit=max(size, 1)), path))
+        reader = SeekingReader(stream, record_size_limit=max(size, 1))
+        count = len(_indexed_records(reader, path, bookkeeping=bookkeeping))
 
     def read() -> Iterator[Any]:
         with path.open("rb") as stream:
             reader = SeekingReader(stream, record_size_limit=max(size, 1))
-            yield from _indexed_records(reader, path)
+            yield from _indexed_records(reader, path, bookkeeping=bookkeeping)
 
     return FileRecords(count, read)
 
@@ -285,12 +298,13 @@ class McapReadBackend:
             self._times = (int(first), int(last))
         return counts
 
-    def file_records(self) -> FileRecords:
+    def file_records(self, *, bookkeeping: bool = True) -> FileRecords:
         """The file's metadata and attachment records (``mcap.records.Metadata`` and
-        ``Attachment``), through its summary's indexes, but rosbag2's bookkeeping record
-        (:data:`ROSBAG2_METADATA`): they belong to no channel, and an MCAP output copies them."""
+        ``Attachment``), through its summary's indexes (rosbag2's bookkeeping record,
+        :data:`ROSBAG2_METADATA`, only with ``bookkeeping``): they belong to no channel, and an
+        MCAP output copies them."""
         assert self.reader is not None
-        return _indexed_records(self.reader, self.path)
+        return _indexed_records(self.reader, self.path, bookkeeping=bookkeeping)
 
     def messages(self, topics: set[str] | None) -> Iterator[RawMessage]:
         if self.skip_damaged_chunks:
@@ -674,10 +688,11 @@ class McapStreamReadBackend(McapReadBackend):
         if first is not None and last is not None:
             self.start_ns, self.end_ns = int(first), int(last)
 
-    def file_records(self) -> FileRecords:
-        """The metadata and attachment records :meth:`open` read (those before any damage), but
-        rosbag2's bookkeeping record; the attachments read again, one at a time."""
-        metadata = list(_not_bookkeeping(self._metadata))
+    def file_records(self, *, bookkeeping: bool = True) -> FileRecords:
+        """The metadata and attachment records :meth:`open` read (those before any damage;
+        rosbag2's bookkeeping record only with ``bookkeeping``); the attachments read again, one
+        at a time."""
+        metadata = list(_not_bookkeeping(self._metadata, keep=bookkeeping))
         return FileRecords(
             len(metadata) + len(self._attachments_at),
             lambda: self._metadata_and_attachments(metadata),
@@ -849,8 +864,10 @@ class McapFilesReadBackend:
 
     def file_records(self) -> FileRecords:
         """The metadata and attachment records of the files, one file's after the other's
-        (:meth:`McapReadBackend.file_records`)."""
-        return FileRecords.joined([part.file_records() for part in self.parts])
+        (:meth:`McapReadBackend.file_records`), rosbag2's bookkeeping record the first file's."""
+        return FileRecords.joined(
+            [part.file_records(bookkeeping=i == 0) for i, part in enumerate(self.parts)]
+        )
 
     def close(self) -> None:
         for part in self.parts:

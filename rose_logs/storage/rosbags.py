@@ -573,17 +573,18 @@ class RosbagsReadBackend:
 
     def file_records(self) -> FileRecords:
         """The metadata and attachment records of this bag folder's MCAP files (none for other
-        bags), one file's after the other's, but rosbag2's bookkeeping record
+        bags), one file's after the other's, rosbag2's bookkeeping record the first file's
         (:func:`storage_file_records`): as a bare MCAP file's (:meth:`McapReadBackend.file_records`).
         A file that did not open (``--salvage``) holds none."""
         if self.format != "mcap-dir":
             return FileRecords(0, lambda: iter(()))
+        opened = [
+            Path(storage.path)  # (the decompressed copy, if any)
+            for storage, _ in self._storage_files()
+            if getattr(storage, "inner", storage) is not None  # (see _TolerantStorage)
+        ]
         return FileRecords.joined(
-            [
-                storage_file_records(Path(storage.path))  # (the decompressed copy, if any)
-                for storage, _ in self._storage_files()
-                if getattr(storage, "inner", storage) is not None  # (see _TolerantStorage)
-            ]
+            [storage_file_records(path, bookkeeping=i == 0) for i, path in enumerate(opened)]
         )
 
     def _rosbags_file(

@@ -622,6 +622,14 @@ def _mcap_file_again(
         writer.finish()
 
 
+def _bookkeeping_of(path: Path) -> dict[str, str]:
+    """The MCAP file ``path``'s first ``rosbag2`` metadata record (rosbag2's of its bag)."""
+    from mcap.reader import make_reader
+
+    with path.open("rb") as f:
+        return next(m.metadata for m in make_reader(f).iter_metadata() if m.name == "rosbag2")
+
+
 def _records_of(path: Path) -> tuple[list[str], list[str]]:
     """The names of the MCAP file ``path``'s metadata and attachment records."""
     from mcap.reader import make_reader
@@ -637,8 +645,9 @@ def test_a_bag_folders_mcap_metadata_and_attachments_are_copied(
 ) -> None:
     """A ROS 2 bag folder of MCAP storage lost its MCAP files' metadata and attachment records
     without a word (a bare MCAP file's went into an MCAP output, or a warning said why not).
-    Now the same; rosbag2's own record of the bag's metadata (one in each file) is not copied:
-    it describes the input bag, and a bag output's writer writes its own."""
+    Now the same; of rosbag2's own record of the bag's metadata (one in each file) the first
+    file's only: rosbag2 reads a bare MCAP file's format version (its QoS spelling) and
+    custom_data from it, and the files' records say the same of those."""
     import logging
 
     from rosbags.rosbag2 import StoragePlugin, Writer
@@ -670,15 +679,16 @@ def test_a_bag_folders_mcap_metadata_and_attachments_are_copied(
 
     out = tmp_path / "out.mcap"
     process_log(src, output_path=out)
-    assert _records_of(out) == (ours, [f"{name}.urdf" for name in ours])
+    assert _records_of(out) == (["rosbag2", *ours], [f"{name}.urdf" for name in ours])
+    assert _bookkeeping_of(out) == _bookkeeping_of(files[0])
     with caplog.at_level(logging.WARNING):  # rosbags' writer has no way to add them: said once
         process_log(src, output_path=tmp_path / "out_dir", output_format="mcap-dir")
     said = [r.getMessage() for r in caplog.records if "are not copied" in r.getMessage()]
-    assert len(said) == 1 and f"{2 * len(ours)} MCAP metadata / attachment" in said[0]
-    assert _records_of(tmp_path / "out_dir" / "out_dir.mcap") == (["rosbag2"], [])
-    # A storage file read alone: its rosbag2 record is not copied either.
+    assert len(said) == 1 and f"{2 * len(ours) + 1} MCAP metadata / attachment" in said[0]
+    assert _records_of(tmp_path / "out_dir" / "out_dir.mcap") == (["rosbag2"], [])  # its own
+    # A storage file read alone: its records, rosbag2's too, as any MCAP file's.
     process_log(files[0], output_path=tmp_path / "alone.mcap")
-    assert _records_of(tmp_path / "alone.mcap")[0] == [f"{files[0].stem}-0"]
+    assert _records_of(tmp_path / "alone.mcap")[0] == ["rosbag2", f"{files[0].stem}-0"]
 
 
 @pytest.mark.parametrize("plugin", ["SQLITE3", "MCAP"])
