@@ -132,8 +132,9 @@ def _in_openings(
     lines : ndarray of bool, shape (rows, cols)
         The cells of ``lines`` not to draw.
     objects : ndarray of bool, shape (rows, cols)
-        The ``removed`` pieces (8-connected) whose sides those are: what stood in the doorway,
-        no obstacle the topology guard should keep the doorway closed by.
+        The ``occupied`` pieces (8-connected) whose sides those are, each within the doorway's
+        reach: what stood in the doorway, no obstacle the topology guard should keep the
+        doorway closed by.
     """
     import cv2
 
@@ -207,11 +208,13 @@ def _in_openings(
     out[box] = wanted[labels] & line
     # The whole object, not only its sides beside the gap (labelled over the map: it may reach
     # past the gaps' box, and this is rare), when it lies within the doorway's reach: the box of
-    # its line piece and the gaps, as much again on every side. Removed cells joined to it
-    # farther on are other clutter the guard still judges.
-    count, pieces_removed = components(removed)
-    removed_cells = _nonzero_flat(np.ascontiguousarray(removed).view(np.uint8))
-    extents = label_boxes(pieces_removed, removed_cells, count)
+    # its line piece and the gaps, as much again on every side. Its occupied cells, not only
+    # those removed so far: its front, kept here as the paper's structure and removed later as
+    # an object face, was an obstacle the guard kept the doorway closed by. A piece joined to a
+    # wall reaches past the doorway and is not taken.
+    count, pieces_occupied = components(occupied)
+    occupied_cells = _nonzero_flat(np.ascontiguousarray(occupied).view(np.uint8))
+    extents = label_boxes(pieces_occupied, occupied_cells, count)
     standing = np.zeros(count, dtype=bool)
     for piece in np.flatnonzero(wanted).tolist():
         mine = np.concatenate(
@@ -223,12 +226,12 @@ def _in_openings(
         r0, r1 = rows.min() + box[0].start - reach, rows.max() + box[0].start + reach
         c0, c1 = cols.min() + box[1].start - reach, cols.max() + box[1].start + reach
         side_rows, side_cols = np.divmod(side_cells[side_owner == piece], width)
-        owners = np.unique(pieces_removed[side_rows + box[0].start, side_cols + box[1].start])
+        owners = np.unique(pieces_occupied[side_rows + box[0].start, side_cols + box[1].start])
         x, y, w, h = (extents[owners, i] for i in range(4))
         inside = (y >= r0) & (y + h - 1 <= r1) & (x >= c0) & (x + w - 1 <= c1)
         standing[owners[inside]] = True
     standing[0] = False
-    objects = standing[pieces_removed]
+    objects = standing[pieces_occupied]
     return out, objects
 
 
