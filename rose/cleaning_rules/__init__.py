@@ -471,6 +471,10 @@ def _wall_cells(
         # An object standing in a doorway seen through on both sides of it kept the doorway
         # closed in the input; without it the doorway is open, as the scans through it show.
         guard_obstacles = np.greater(guard_obstacles, standing_in_doorways)
+        # Nor is it kept, but where it lies on a straight line: its cells by the wall line and
+        # the unexplored space beyond (near wide unknown, a wall's end attached to them) were
+        # kept and left the doorway too narrow for the robot at an angle to the grid.
+        np.greater(keep, np.greater(standing_in_doorways, lines), out=keep)
     guarded = topology_guard(
         guard_obstacles,
         keep,
