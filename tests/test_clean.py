@@ -869,6 +869,11 @@ def _room_with_a_box_in_a_doorway(
         # structure) and removed later as object faces, counted as the guard's obstacles: it
         # kept them and the doorway closed.
         ((90, 113), 95, 15, 58, 13),
+        # A box 0.1 m from a door edge: its side there joined the wall's straight run (a cell
+        # of tolerance), was kept and counted as no side of an object; shallow and deep.
+        ((90, 104), 92, 8, 56, 10),
+        ((90, 104), 92, 8, 52, 16),
+        ((90, 108), 91, 14, 58, 8),
     ],
 )
 def test_a_doorway_with_a_box_standing_in_it_stays_open(

@@ -471,10 +471,11 @@ def _wall_cells(
         # An object standing in a doorway seen through on both sides of it kept the doorway
         # closed in the input; without it the doorway is open, as the scans through it show.
         guard_obstacles = np.greater(guard_obstacles, standing_in_doorways)
-        # Nor is it kept, but where it lies on a straight line: its cells by the wall line and
-        # the unexplored space beyond (near wide unknown, a wall's end attached to them) were
-        # kept and left the doorway too narrow for the robot at an angle to the grid.
-        np.greater(keep, np.greater(standing_in_doorways, lines), out=keep)
+        # Nor is it kept: its cells by the wall line and the unexplored space beyond (near wide
+        # unknown, a wall's end attached to them; within two cells of a door edge, on the wall's
+        # run by the run's cell of tolerance) were kept and left the doorway too narrow for the
+        # robot. (It is a piece of its own, the wall's cells are not among them.)
+        np.greater(keep, standing_in_doorways, out=keep)
     guarded = topology_guard(
         guard_obstacles,
         keep,
@@ -485,8 +486,10 @@ def _wall_cells(
         min_region_px=min_region_px,
     )
     kept = keep | guarded
-    # (Object faces a partition keeps are walls, not dropped.)
+    # (Object faces a partition keeps are walls, not dropped.) What stands in a doorway goes
+    # even where the paper calls it structure.
     gone = dropped | object_faces
+    gone |= standing_in_doorways
     return kept, guarded, completed, np.greater(gone, kept, out=gone)
 
 

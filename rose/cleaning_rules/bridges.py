@@ -155,7 +155,15 @@ def _in_openings(
     # a cell or two thick; farther on, removed cells chain other clutter to it).
     near_line = cv2.dilate(line.view(np.uint8), np.ones((5, 5), np.uint8)).view(bool)
     sides = removed[box] & beside_span & near_line
-    if not np.any(cv2.dilate(sides.view(np.uint8), ring).view(bool) & through):
+    near_through = cv2.dilate(through.view(np.uint8), ring).view(bool)
+    # A box within two cells of a door edge: its side there joins the wall's straight run (the
+    # runs' cell of tolerance) and is kept, not removed. Such kept cells are its sides too when
+    # their occupied piece is small (lies within the reach of the line beside it), unlike the
+    # wall end a hidden line meets.
+    kept_sides = np.greater(occupied[box], removed[box]) & beside_span & near_line & near_through
+    if kept_sides.any():
+        sides |= _small_pieces(kept_sides, occupied[box], line, through)
+    if not np.any(sides & near_through):
         return out, objects  # (no gap seen through beside an object: nearly every map)
     # A piece of the line joined with its object's sides and the rest of the gap's unseen cells
     # (a line drawn in two halves is one object's back).
@@ -233,6 +241,41 @@ def _in_openings(
     standing[0] = False
     objects = standing[pieces_occupied]
     return out, objects
+
+
+def _small_pieces(
+    cells: npt.NDArray[np.bool_],
+    occupied: npt.NDArray[np.bool_],
+    line: npt.NDArray[np.bool_],
+    through: npt.NDArray[np.bool_],
+) -> npt.NDArray[np.bool_]:
+    """The ``cells`` whose piece of ``occupied`` (8-connected) lies within the reach of the piece of
+    ``line`` beside them (within two cells) with the gaps seen through (``through``) beside its
+    object: the bounding box of the line's cells grown by three cells (a side's cells, and the
+    gaps next to them) and of those gaps, as much again on every side (as the objects standing
+    in a doorway, :func:`_in_openings`). A wall's end reaches farther. Masks of shape
+    ``(rows, cols)``; ``cells`` are few."""
+    import cv2
+
+    out = np.zeros(cells.shape, dtype=bool)
+    count, pieces = components(occupied)
+    piece_boxes = label_boxes(pieces, _nonzero_flat(occupied.view(np.uint8)), count)
+    grown = cv2.dilate(line.view(np.uint8), np.ones((7, 7), np.uint8)).view(bool) | through
+    reach_count, reaches = components(grown)
+    reach_boxes = label_boxes(reaches, _nonzero_flat(grown.view(np.uint8)), reach_count)
+    width = cells.shape[1]
+    for cell in _nonzero_flat(cells.view(np.uint8)).tolist():
+        row, col = divmod(cell, width)
+        x, y, w, h = piece_boxes[pieces[row, col]].tolist()
+        rx, ry, rw, rh = reach_boxes[reaches[row, col]].tolist()
+        reach = max(rw, rh)
+        out[row, col] = (
+            rx - reach <= x
+            and x + w <= rx + rw + reach
+            and ry - reach <= y
+            and y + h <= ry + rh + reach
+        )
+    return out
 
 
 def _on_both_ends(
