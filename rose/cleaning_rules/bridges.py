@@ -286,7 +286,8 @@ def _on_both_ends(
     """Whether, of the ``stretches`` (rows, cols of each), one lies past each end of the straight
     ``piece`` (rows, cols) along its long axis (its cells' principal axis), centred within
     ``_LINE_THICKNESS_PX - 1`` cells of that axis and shorter along it than ``max_length_px``
-    cells."""
+    cells (measured from its end next to the piece, as far as its cells on the axis follow on
+    without a break of more than a cell and a half)."""
     if piece[0].size < 2:
         return False
     points = np.stack(piece, axis=1).astype(np.float64)
@@ -302,9 +303,19 @@ def _on_both_ends(
         # to the grid a band three cells thick reaches farther along the line at its edges.
         cells = np.stack([rows, cols], axis=1) - centre
         on_axis = np.abs(cells[:, 0] * axis[1] - cells[:, 1] * axis[0]) <= 1.5
-        along = cells[on_axis] @ axis
-        if along.size and along.max() - along.min() + 1 < max_length_px:
-            sides.add(bool(offset @ axis > 0))
+        past = bool(offset @ axis > 0)
+        along = np.sort(cells[on_axis] @ axis)
+        if not along.size:
+            continue
+        # From its end next to the piece, as far as its cells on the axis follow on without a
+        # break: at an angle to the grid the free notches of the wall's staircase beside the
+        # gap join it (8-connected) and reach on along the line.
+        steps = np.diff(along) if past else -np.diff(along[::-1])
+        breaks = np.flatnonzero(steps > 1.5)
+        cells_in = along.size if breaks.size == 0 else int(breaks[0]) + 1
+        span = along[:cells_in] if past else along[::-1][:cells_in]
+        if abs(float(span[-1] - span[0])) + 1 < max_length_px:
+            sides.add(past)
     return len(sides) == 2
 
 
