@@ -923,6 +923,26 @@ def test_a_doorway_with_a_box_standing_in_it_stays_open_at_an_angle(
     assert not separated_pairs(cleaned.cleaned >= 65, room, beyond)
 
 
+@pytest.mark.parametrize("slit", [3, 4])
+def test_a_wall_stretch_flush_between_two_slits_seen_through_stays(slit: int) -> None:
+    """A 1 m stretch of the outer wall, flush with its faces, its core unseen, between two slits
+    seen through (free, and free space beyond), each narrower than the robot: cell for cell the
+    gaps beside a box standing in a doorway, but nothing stands out of the wall. It was taken for
+    such a box, went, and opened the wall 1.3 m wide."""
+    grid = np.full((160, 220), -1, np.int8)
+    grid[10:60, 10:210] = 0  # the mapped room
+    grid[8:10, 8:212] = grid[60:62, 8:212] = 100
+    grid[8:62, 8:10] = grid[8:62, 210:212] = 100
+    left, right = 95 + slit, 115 + slit  # the wall stretch (columns), the slits either side
+    grid[60:72, 95 : right + slit] = 0  # the slits, seen through, and the space beyond
+    grid[60, left:right] = grid[61, left] = grid[61, right - 1] = 100  # its face and ends
+    grid[61, left + 1 : right - 1] = grid[62:72, left:right] = -1  # its core, unseen behind
+    room, beyond = (30, 100), (110, 110)
+    assert separated_pairs(grid >= 65, room, beyond)
+    cleaned = clean(grid, rose.analyze(grid), resolution_m=RES)
+    assert separated_pairs(cleaned.cleaned >= 65, room, beyond)
+
+
 def test_a_cabinet_against_a_plain_wall_still_gets_the_wall_line_behind_it() -> None:
     """The other side of the doorway test above: a cabinet of the same depth against the plain
     wall, the wall behind it unseen, gets its hidden wall line and the room stays closed."""

@@ -108,8 +108,9 @@ def _in_openings(
 ) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
     """Cells of hidden wall ``lines`` that stand in a doorway seen through: pieces of the line
     (8-connected, joined through the gap's unseen cells and their object's sides: the
-    ``removed`` cells next to ``spans`` within two cells of the line) with a stretch of the gap
-    seen through beside the object on two sides.
+    ``removed`` cells next to ``spans`` within two cells of the line, and the kept ones there of a
+    small piece, :func:`_small_pieces`) with a stretch of the gap seen through beside the object
+    on two sides.
 
     ``spans`` are the cells between the wall ends the lines join, whatever they are (not
     ``occupied``). A stretch of its ``free`` cells (8-connected) with no ``unknown`` cell of it
@@ -133,8 +134,8 @@ def _in_openings(
         The cells of ``lines`` not to draw.
     objects : ndarray of bool, shape (rows, cols)
         The ``occupied`` pieces (8-connected) whose sides those are, each within the doorway's
-        reach: what stood in the doorway, no obstacle the topology guard should keep the
-        doorway closed by.
+        reach and standing out of the wall's band by more than a cell: what stood in the
+        doorway, no obstacle the topology guard should keep the doorway closed by.
     """
     import cv2
 
@@ -237,7 +238,20 @@ def _in_openings(
         owners = np.unique(pieces_occupied[side_rows + box[0].start, side_cols + box[1].start])
         x, y, w, h = (extents[owners, i] for i in range(4))
         inside = (y >= r0) & (y + h - 1 <= r1) & (x >= c0) & (x + w - 1 <= c1)
-        standing[owners[inside]] = True
+        # And it stands out of the wall's band (the gaps beside it lie across the wall's
+        # thickness) by more than a cell: a stretch of wall flush with the wall's faces between
+        # two narrow gaps seen through, its core unseen, is no box (it went, and the wall opened).
+        line_rows, line_cols = np.divmod(line_cells[line_owner == piece], width)
+        centre, axis = _axis(line_rows, line_cols)
+        gap_rows, gap_cols = np.divmod(
+            np.concatenate([gap_cells[gap_owner == g] for g in stretch_of[piece_of == piece]]),
+            width,
+        )
+        band = _across(gap_rows, gap_cols, centre, axis)
+        for owner in owners[inside].tolist():
+            own_rows, own_cols = np.nonzero(pieces_occupied[r0 : r1 + 1, c0 : c1 + 1] == owner)
+            off = _across(own_rows + r0 - box[0].start, own_cols + c0 - box[1].start, centre, axis)
+            standing[owner] = off.min() < band.min() - 1 or off.max() > band.max() + 1
     standing[0] = False
     objects = standing[pieces_occupied]
     return out, objects
@@ -278,6 +292,27 @@ def _small_pieces(
     return out
 
 
+def _axis(
+    rows: npt.NDArray[np.int64], cols: npt.NDArray[np.int64]
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    """The centre (row, col) and the long axis (a unit vector, row and col) of the cells
+    ``rows, cols`` (two or more): their principal axis."""
+    points = np.stack([rows, cols], axis=1).astype(np.float64)
+    _, vectors = np.linalg.eigh(np.cov(points, rowvar=False))
+    return points.mean(axis=0), vectors[:, -1]  # (eigenvalues ascending: the long axis last)
+
+
+def _across(
+    rows: npt.NDArray[np.int64],
+    cols: npt.NDArray[np.int64],
+    centre: npt.NDArray[np.float64],
+    axis: npt.NDArray[np.float64],
+) -> npt.NDArray[np.float64]:
+    """Signed distances (cells) of the cells ``rows, cols`` from the line through ``centre``
+    along ``axis`` (of :func:`_axis`)."""
+    return (rows - centre[0]) * axis[1] - (cols - centre[1]) * axis[0]
+
+
 def _on_both_ends(
     piece: tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]],
     stretches: list[tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]],
@@ -290,10 +325,7 @@ def _on_both_ends(
     without a break of more than a cell and a half)."""
     if piece[0].size < 2:
         return False
-    points = np.stack(piece, axis=1).astype(np.float64)
-    centre = points.mean(axis=0)
-    _, vectors = np.linalg.eigh(np.cov(points, rowvar=False))
-    axis = vectors[:, -1]  # (eigenvalues ascending: the long axis last)
+    centre, axis = _axis(*piece)
     sides = set()
     for rows, cols in stretches:
         offset = np.array([rows.mean(), cols.mean()]) - centre
