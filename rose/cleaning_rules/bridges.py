@@ -109,8 +109,9 @@ def _in_openings(
     """Cells of hidden wall ``lines`` that stand in a doorway seen through: pieces of the line
     (8-connected, joined through the gap's unseen cells and their object's sides: the
     ``removed`` cells next to ``spans`` within two cells of the line, and the kept ones there of a
-    small piece, :func:`_small_pieces`) with a stretch of the gap seen through beside the object
-    on two sides.
+    small piece beside a line piece with a stretch seen through on one side so far,
+    :func:`_small_pieces`) with a stretch of the gap seen through beside the object on two
+    sides.
 
     ``spans`` are the cells between the wall ends the lines join, whatever they are (not
     ``occupied``). A stretch of its ``free`` cells (8-connected) with no ``unknown`` cell of it
@@ -157,32 +158,37 @@ def _in_openings(
     near_line = cv2.dilate(line.view(np.uint8), np.ones((5, 5), np.uint8)).view(bool)
     sides = removed[box] & beside_span & near_line
     near_through = cv2.dilate(through.view(np.uint8), ring).view(bool)
+    if not np.any(sides & near_through):
+        return out, objects  # (no gap seen through beside an object: nearly every map)
+    stretches, gaps = components(through)
+    unseen_span = span & unknown[box]
+    count, labels, side_cells, side_owner, piece_of, stretch_of = _side_pairs(
+        line, sides, unseen_span, gaps, stretches
+    )
     # A box within two cells of a door edge: its side there joins the wall's straight run (the
     # runs' cell of tolerance) and is kept, not removed. Such kept cells are its sides too when
     # their occupied piece is small (lies within the reach of the line beside it), unlike the
-    # wall end a hidden line meets.
+    # wall end a hidden line meets. Only beside a piece with a gap on one side so far (the
+    # other gap is beside the kept side).
     kept_sides = np.greater(occupied[box], removed[box]) & beside_span & near_line & near_through
-    if kept_sides.any():
-        sides |= _small_pieces(kept_sides, occupied[box], line, through)
-    if not np.any(sides & near_through):
-        return out, objects  # (no gap seen through beside an object: nearly every map)
-    # A piece of the line joined with its object's sides and the rest of the gap's unseen cells
-    # (a line drawn in two halves is one object's back).
-    pieces = line | sides | (span & unknown[box])
-    count, labels = components(pieces)
-    stretches, gaps = components(through)
-    # Every (piece, stretch) pair that touches at a side of the object: its cells and the
-    # stretch labels of their 8 neighbours (the sides' cells are few). A stretch that meets only
-    # the line itself is no gap beside an object (fills across a room, between pieces in line,
-    # meet the unseen insides of what stands in it).
-    side_cells = _nonzero_flat(np.ascontiguousarray(sides).view(np.uint8))
-    padded = np.pad(gaps, 1)  # (the neighbours of a cell on the box's edge)
-    rows, cols = np.divmod(side_cells, pieces.shape[1])
-    around = _neighbour_columns(padded, (rows + 1) * padded.shape[1] + cols + 1)
-    side_owner = labels.reshape(-1)[side_cells]
-    pairs = np.concatenate([side_owner.astype(np.int64) * stretches + column for column in around])
-    pairs = np.unique(pairs[np.concatenate(around) > 0])
-    piece_of, stretch_of = np.divmod(pairs, stretches)
+    one = np.bincount(piece_of, minlength=count) == 1
+    one[0] = False
+    if one.any() and kept_sides.any():
+        small, owner = _small_pieces(
+            kept_sides, occupied[box], labels, one, math.ceil(robot_px) + 1
+        )
+        if small.size:
+            # Joined to the piece beside them (a cell or two from it, across the run's band).
+            sides.reshape(-1)[small] = True
+            labels.reshape(-1)[small] = owner
+            side_cells = np.concatenate([side_cells, small])
+            side_owner = np.concatenate([side_owner, owner.astype(side_owner.dtype)])
+            more_pieces, more_stretches = _pairs(small, owner, gaps, stretches)
+            pairs = np.unique(
+                np.concatenate([piece_of, more_pieces]) * stretches
+                + np.concatenate([stretch_of, more_stretches])
+            )
+            piece_of, stretch_of = np.divmod(pairs, stretches)
     # Only pieces with two stretches beside them need theirs looked at (few: each in its box).
     two = np.bincount(piece_of, minlength=count) >= 2
     candidates = np.unique(stretch_of[two[piece_of]])
@@ -257,39 +263,107 @@ def _in_openings(
     return out, objects
 
 
+def _side_pairs(
+    line: npt.NDArray[np.bool_],
+    sides: npt.NDArray[np.bool_],
+    unseen_span: npt.NDArray[np.bool_],
+    gaps: npt.NDArray[np.integer],
+    stretches: int,
+) -> tuple[
+    int,
+    npt.NDArray[np.integer],
+    npt.NDArray[np.intp],
+    npt.NDArray[np.integer],
+    npt.NDArray[np.int64],
+    npt.NDArray[np.int64],
+]:
+    """For :func:`_in_openings`: the pieces of the ``line`` joined with its object's ``sides`` and
+    the gap's ``unseen_span`` cells (a line drawn in two halves is one object's back), their count
+    and labels, the sides' cells (flat indices) and their pieces, and every (piece, stretch) pair
+    that touches at a side (the stretch labels, ``gaps``, of the sides' 8 neighbours; the sides'
+    cells are few). A stretch that meets only the line itself is no gap beside an object (fills
+    across a room, between pieces in line, meet the unseen insides of what stands in it)."""
+    pieces = line | sides | unseen_span
+    count, labels = components(pieces)
+    side_cells = _nonzero_flat(np.ascontiguousarray(sides).view(np.uint8))
+    side_owner = labels.reshape(-1)[side_cells]
+    piece_of, stretch_of = _pairs(side_cells, side_owner, gaps, stretches)
+    return count, labels, side_cells, side_owner, piece_of, stretch_of
+
+
+def _pairs(
+    cells: npt.NDArray[np.intp],
+    owners: npt.NDArray[np.integer],
+    gaps: npt.NDArray[np.integer],
+    stretches: int,
+) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]:
+    """The distinct (owner, stretch) pairs of the ``cells`` (flat indices into ``gaps``) with their
+    ``owners`` and the stretch labels (``gaps``, ``stretches`` labels) of their 8 neighbours."""
+    padded = np.pad(gaps, 1)  # (the neighbours of a cell on the box's edge)
+    rows, cols = np.divmod(cells, gaps.shape[1])
+    around = _neighbour_columns(padded, (rows + 1) * padded.shape[1] + cols + 1)
+    pairs = np.concatenate([owners.astype(np.int64) * stretches + column for column in around])
+    pairs = np.unique(pairs[np.concatenate(around) > 0])
+    piece_of, stretch_of = np.divmod(pairs, stretches)
+    return piece_of, stretch_of
+
+
 def _small_pieces(
     cells: npt.NDArray[np.bool_],
     occupied: npt.NDArray[np.bool_],
-    line: npt.NDArray[np.bool_],
-    through: npt.NDArray[np.bool_],
-) -> npt.NDArray[np.bool_]:
-    """The ``cells`` whose piece of ``occupied`` (8-connected) lies within the reach of the piece of
-    ``line`` beside them (within two cells) with the gaps seen through (``through``) beside its
-    object: the bounding box of the line's cells grown by three cells (a side's cells, and the
-    gaps next to them) and of those gaps, as much again on every side (as the objects standing
-    in a doorway, :func:`_in_openings`). A wall's end reaches farther. Masks of shape
-    ``(rows, cols)``; ``cells`` are few."""
-    import cv2
+    labels: npt.NDArray[np.integer],
+    wanted: npt.NDArray[np.bool_],
+    margin: int,
+) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.int64]]:
+    """The ``cells`` whose piece of ``occupied`` (8-connected) lies within the reach of a
+    ``wanted`` piece of ``labels`` within two cells of them: that piece's bounding box ``margin``
+    cells wider on every side (the gaps beside its object), as much again on every side (as the
+    objects standing in a doorway, :func:`_in_openings`). A wall's end reaches farther. Each piece
+    of ``occupied`` is labelled in that window only (such cells are on most maps: labelled over
+    the whole box, twice, they cost 6 ms a map). Masks of shape ``(rows, cols)``.
 
-    out = np.zeros(cells.shape, dtype=bool)
-    count, pieces = components(occupied)
-    piece_boxes = label_boxes(pieces, _nonzero_flat(occupied.view(np.uint8)), count)
-    grown = cv2.dilate(line.view(np.uint8), np.ones((7, 7), np.uint8)).view(bool) | through
-    reach_count, reaches = components(grown)
-    reach_boxes = label_boxes(reaches, _nonzero_flat(grown.view(np.uint8)), reach_count)
-    width = cells.shape[1]
-    for cell in _nonzero_flat(cells.view(np.uint8)).tolist():
-        row, col = divmod(cell, width)
-        x, y, w, h = piece_boxes[pieces[row, col]].tolist()
-        rx, ry, rw, rh = reach_boxes[reaches[row, col]].tolist()
-        reach = max(rw, rh)
-        out[row, col] = (
-            rx - reach <= x
-            and x + w <= rx + rw + reach
-            and ry - reach <= y
-            and y + h <= ry + rh + reach
-        )
-    return out
+    Returns the flat indices of those cells and, for each, the wanted piece it is beside."""
+    height, width = cells.shape
+    at = _nonzero_flat(np.ascontiguousarray(cells).view(np.uint8))
+    found: list[npt.NDArray[np.intp]] = []
+    owners: list[npt.NDArray[np.int64]] = []
+    rows, cols = np.divmod(at, width)
+    # The wanted pieces within two cells of each cell (5 x 5 windows clipped by the box).
+    around = np.stack(
+        [
+            labels[np.clip(rows + dr, 0, height - 1), np.clip(cols + dc, 0, width - 1)]
+            for dr in range(-2, 3)
+            for dc in range(-2, 3)
+        ]
+    )
+    around = np.where(wanted[around], around, 0)
+    pieces = np.unique(around[around > 0])
+    boxes = label_boxes(labels, _nonzero_flat(np.greater(labels, 0).view(np.uint8)), wanted.size)
+    for piece in pieces.tolist():
+        near = (around == piece).any(axis=0)
+        x, y, w, h = boxes[piece].tolist()
+        x, y, w, h = x - margin, y - margin, w + 2 * margin, h + 2 * margin
+        reach = max(w, h)
+        # The window one cell wider than the reach: a piece touching its edge reaches past it.
+        r0, r1 = max(y - reach - 1, 0), min(y + h + reach + 1, height)
+        c0, c1 = max(x - reach - 1, 0), min(x + w + reach + 1, width)
+        _, local = components(occupied[r0:r1, c0:c1])
+        # The labels on the window's edges within the box (at the box's edge the window ends
+        # with it, as the whole box's labelling did).
+        edges = [local[0]] if r0 > 0 else []
+        edges += [local[-1]] if r1 < height else []
+        edges += [local[:, 0]] if c0 > 0 else []
+        edges += [local[:, -1]] if c1 < width else []
+        mine = local[rows[near] - r0, cols[near] - c0]
+        small = ~np.isin(mine, np.concatenate(edges)) if edges else np.ones(mine.size, bool)
+        mine_small = at[near][small]
+        found.append(mine_small)
+        owners.append(np.full(mine_small.size, piece, dtype=np.int64))
+    if not found:
+        return np.zeros(0, dtype=np.intp), np.zeros(0, dtype=np.int64)
+    # A cell beside two pieces: the first (its side in either).
+    flat, first = np.unique(np.concatenate(found), return_index=True)
+    return flat, np.concatenate(owners)[first]
 
 
 def _axis(
