@@ -316,14 +316,22 @@ class Ros1StreamReadBackend(_Ros1FileBackend):
         self, content: bytes, entries: dict[tuple[int, int], int], pos: int, size: int
     ) -> Iterator[_Connection | tuple[int, int, bytes]]:
         """The items of a chunk (its ``content``, at byte ``pos`` of ``size``) but its messages
-        whose time disagrees with their index entry's (``entries``, :func:`_entries_after`): a
-        bit flipped in one of them (a message of 2106 in a session of 2023, which then spanned
-        83 years), said in :attr:`skipped_chunks` (as the chunk reader says a message outside
-        its chunk's times) and counted in :attr:`mistimed`."""
+        whose time is damaged: one that disagrees with its index entry's (``entries``,
+        :func:`_entries_after`) and lies farther than that entry's time from the times of the
+        chunk's messages that agree with theirs (a bit flipped in the message, 2106 in a session
+        of 2023, which then spanned 83 years), said in :attr:`skipped_chunks` (as the chunk
+        reader says a message outside its chunk's times) and counted in :attr:`mistimed`. A
+        message whose entry is the damaged one is kept, as the indexed reading keeps it."""
+        agreed: tuple[int, int] | None = None  # found at the first disagreement
         for at, item in _chunk_items_at(content):
             if not isinstance(item, _Connection):
                 listed = entries.get((item[0], at), item[1])
                 if listed != item[1]:
+                    if agreed is None:
+                        agreed = _agreed_times(content, entries) or (listed, listed)
+                    if _off(item[1], agreed) <= _off(listed, agreed):  # the entry is damaged
+                        yield item
+                        continue
                     if self._end is None:  # open()'s pass
                         self.mistimed += 1
                     else:  # messages()': said once it is read
@@ -421,6 +429,22 @@ def _chunk_items_at(content: bytes) -> Iterator[tuple[int, _Connection | tuple[i
         fields, data = record
         for item in _record_items(_op(fields), fields, data):
             yield at, item
+
+
+def _agreed_times(content: bytes, entries: dict[tuple[int, int], int]) -> tuple[int, int] | None:
+    """The earliest and latest time (ns) of the messages inside a decompressed chunk whose time
+    is their index entry's (``entries``, :func:`_entries_after`); None: no such message."""
+    times = [
+        item[1]
+        for at, item in _chunk_items_at(content)
+        if not isinstance(item, _Connection) and entries.get((item[0], at)) == item[1]
+    ]
+    return (min(times), max(times)) if times else None
+
+
+def _off(time_ns: int, span: tuple[int, int]) -> int:
+    """How far ``time_ns`` lies outside ``span`` (first, last, ns): 0 within it."""
+    return max(span[0] - time_ns, time_ns - span[1], 0)
 
 
 def _entries_after(stream: BinaryIO, size: int) -> dict[tuple[int, int], int]:

@@ -543,23 +543,29 @@ def test_a_reading_stopped_early_still_says_what_salvage_skipped(tmp_path: Path)
         assert reader.losses[0].startswith(f"{bag}: skipped a message of the chunk at byte ")
 
 
+@pytest.mark.parametrize("where", ["message", "index entry"])
 def test_salvage_of_a_ros1_bag_without_index_skips_a_message_whose_time_is_damaged(
-    tmp_path: Path,
+    tmp_path: Path, where: str
 ) -> None:
     """A recording that was not closed (no index at its end), read record by record by
     --salvage: a message whose time was damaged to 2106 was kept without a word (the session
     spanned 83 years). Its time disagrees with its index entry after its chunk: it is skipped,
-    said as a loss."""
+    said as a loss. Where the entry is the damaged one (the message's time beside its chunk's
+    others), the message was skipped as well, though the indexed reading keeps it: it is kept."""
     from rose_logs.storage.ros1_stream import read_index
 
     whole = tmp_path / "t.bag"
-    times = _ros1_bag_with_a_far_time(whole, "message")
+    times = _ros1_bag_with_a_far_time(whole, where)
     active = tmp_path / "t.bag.active"
     active.write_bytes(whole.read_bytes()[: read_index(whole).index_pos])
     with LogReader(active, salvage=True) as reader:
         read = [m.log_time_ns for m in reader.messages()]
         assert (reader.start_ns, reader.end_ns) == (times[0], times[-1])
         losses = reader.losses
+    if where == "index entry":
+        assert read == times
+        assert len(losses) == 1 and "kept the 400 messages before it" in losses[0]
+        return
     assert len(read) == len(times) - 1 and set(read) < set(times)
     assert "kept the 399 messages before it" in losses[0]
     assert losses[1].startswith(f"{active}: skipped a message of the chunk at byte ")
