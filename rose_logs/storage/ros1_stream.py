@@ -986,15 +986,18 @@ def agreed_span(
     index entries' (``entries``; None: none noted), which a writer makes the same: either one
     whose start comes after its end is damaged and left out; of two that differ, ``widest``
     spans both (no message of either is judged outside it: reading), else the times both hold
-    (a time damaged in one is left out: the log's range), or the entries' where they share
-    none."""
+    (a time damaged in one is left out: the log's range), or the chunk info's where they differ
+    at both ends: one damaged time of the info moves one of its ends only, while an entry
+    damaged past the other end (the chunk's first message's, to 2106) moves both of the
+    entries' (the times both hold then lacked the chunk's first message)."""
     spans = [span for span in (listed, entries) if span is not None and span[0] <= span[1]]
     if not spans:
         return listed
     if widest:
         return min(first for first, _ in spans), max(last for _, last in spans)
-    first, last = max(first for first, _ in spans), min(last for _, last in spans)
-    return (first, last) if first <= last else spans[-1]
+    if len(spans) == 2 and spans[0][0] != spans[1][0] and spans[0][1] != spans[1][1]:
+        return listed
+    return max(first for first, _ in spans), min(last for _, last in spans)
 
 
 def _outside(chunk: ChunkInfo, time_ns: int) -> bool:

@@ -405,10 +405,11 @@ def test_a_ros1_bag_changed_while_read_is_said_so_not_damaged(
 _FAR_TIME = (0xFFFFFF00).to_bytes(4, "little") + bytes(4)
 
 
-def _ros1_bag_with_a_far_time(path: Path, where: str) -> list[int]:
+def _ros1_bag_with_a_far_time(path: Path, where: str, chunk_k: int = 1) -> list[int]:
     """A ROS 1 bag of 400 strings on two topics, 10 ms apart, in 11 chunks, with one time
-    damaged to 2106 (``where``: the second chunk's info's start or end time, the time of its
-    first message's record, or that message's index entry); returns the messages' times."""
+    damaged to 2106 (``where``: the ``chunk_k``-th chunk's info's start or end time, the time
+    of its first message's record, or that message's index entry); returns the messages'
+    times."""
     import struct
 
     from rosbags.rosbag1 import Writer
@@ -432,10 +433,13 @@ def _ros1_bag_with_a_far_time(path: Path, where: str) -> list[int]:
             writer.write(conns[i % 2], time, (3).to_bytes(4, "little") + b"abc")
     data = bytearray(path.read_bytes())
     index = read_index(path)
-    chunk = index.chunks[1]
+    chunk = index.chunks[chunk_k]
     if where.startswith("info"):
         name = b"start_time=" if where == "info start" else b"end_time="
-        at = data.find(name, data.find(name, index.index_pos) + 1) + len(name)  # the 2nd info
+        at = index.index_pos
+        for _ in range(chunk_k + 1):  # the chunk's info
+            at = data.find(name, at + 1)
+        at += len(name)
     elif where == "message":
         at = data.find(b"time=", chunk.pos + 1) + len(b"time=")
     else:  # the first entry of the index data record after the chunk
@@ -448,21 +452,24 @@ def _ros1_bag_with_a_far_time(path: Path, where: str) -> list[int]:
     return times
 
 
+@pytest.mark.parametrize("chunk_k", [1, 0])
 @pytest.mark.parametrize("salvage", [False, True])
 @pytest.mark.parametrize("where", ["info start", "info end", "message", "index entry"])
 def test_a_ros1_time_damaged_to_a_far_future_is_left_out_not_taken(
-    tmp_path: Path, caplog: pytest.LogCaptureFixture, where: str, salvage: bool
+    tmp_path: Path, caplog: pytest.LogCaptureFixture, where: str, salvage: bool, chunk_k: int
 ) -> None:
     """A bit flipped in a ROS 1 time: a chunk info's end of 2106 made a session of 4 s span 83
     years (with or without --salvage), a chunk info's start of 2106 had --salvage hand that
     chunk's messages out last, out of order, and a message's own time of 2106 was taken by
     --salvage, unsaid (a snapshot 83 years on). A chunk's times are now those its info and its
     index entries agree on (said when they differ), and --salvage skips a message outside its
-    chunk's times as damaged, said as a loss."""
+    chunk's times as damaged, said as a loss. In the first chunk (``chunk_k`` 0), its first
+    message's index entry of 2106 moved both ends of the entries' times: the log started at
+    the second message, after the first."""
     import logging
 
     bag = tmp_path / "t.bag"
-    times = _ros1_bag_with_a_far_time(bag, where)
+    times = _ros1_bag_with_a_far_time(bag, where, chunk_k)
     with caplog.at_level(logging.WARNING), LogReader(bag, salvage=salvage) as reader:
         try:
             read = [m.log_time_ns for m in reader.messages()]
