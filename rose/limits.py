@@ -78,20 +78,30 @@ def short(text: object, limit: int = MAX_MESSAGE_CHARS) -> str:
     """``text`` as one line of at most ``limit`` characters: whitespace runs made single spaces,
     then, if still too long, file names longer than a third of the limit (deep folders) lose the
     middle of their folders, keeping their start and their file's name, so that what is said after
-    them still shows (a name with spaces, as the message's ``NAME: problem`` starts, too); then, if still too long, the line is cut after its last whole word that fits,
-    with ``...`` (a cut in the middle of a word read like another word: "--salvage (pro...")."""
+    them still shows; then, if still too long, a name with spaces that starts the message's
+    ``NAME: problem`` is shortened so as one name; then, if still too long, the line is cut after
+    its last whole word that fits, with ``...`` (a cut in the middle of a word read like another
+    word: "--salvage (pro...")."""
     line = " ".join(str(text).split())
     if len(line) <= limit:
         return line
     longest = limit // 3
-    name, colon, problem = line.partition(": ")
-    if colon and " " in name and len(name) > longest and _names_a_file_with_spaces(name):
-        # Its words, each short, were kept whole, and the cut at the line's end took the problem.
-        line = _middle_out(name, longest) + colon + problem
     line = " ".join(
         _middle_out(word, longest) if _names_a_file(word) and len(word) > longest else word
         for word in line.split(" ")
     )
+    name, colon, problem = line.partition(": ")
+    if (
+        len(line) > limit
+        and colon
+        and " " in name
+        and len(name) > longest
+        and _names_a_file_with_spaces(name)
+    ):
+        # Its words, each short, were kept whole, and the cut at the line's end took the problem.
+        # (Only then: a sentence before the colon naming files, "two logs named 'x' (/a/x.log,
+        # /b/x.log)", is its words' business, and made one name it said a single file.)
+        line = _middle_out(name, longest) + colon + problem
     if len(line) <= limit:
         return line
     cut = line.rfind(" ", 0, limit - 2)  # the space before "..." may fall at limit - 3
