@@ -893,6 +893,23 @@ def test_a_doorway_with_a_box_standing_in_it_stays_open(
     assert not separated_pairs(cleaned.cleaned >= 65, room, beyond)
 
 
+@pytest.mark.parametrize("transposed", [False, True])
+def test_a_doorway_with_a_box_standing_in_it_near_the_maps_first_row_cleans(
+    transposed: bool,
+) -> None:
+    """The wide box of the doorway test above, the map upside down (or turned to its first
+    column): the doorway's reach began before the map's first row, and the window of it taken
+    to judge the box (a slice from a negative row) held none of the box's cells: clean() raised
+    ValueError (a zero-size reduction). It cleans as the map the right way up."""
+    upright = _room_with_a_box_in_a_doorway((86, 124), 91, 28, 50, 20)
+    grid = np.flipud(upright)
+    grid = np.ascontiguousarray(grid.T if transposed else grid)
+    cleaned = clean(grid, rose.analyze(grid), resolution_m=RES)
+    expected = clean(upright, rose.analyze(upright), resolution_m=RES).removed
+    expected = np.flipud(expected)
+    np.testing.assert_array_equal(cleaned.removed, expected.T if transposed else expected)
+
+
 @pytest.mark.parametrize(
     ("angle", "door", "left", "width", "front", "depth"),
     [

@@ -255,8 +255,10 @@ def _in_openings(
         )
         band = _across(gap_rows, gap_cols, centre, axis)
         for owner in owners[inside].tolist():
-            own_rows, own_cols = np.nonzero(pieces_occupied[r0 : r1 + 1, c0 : c1 + 1] == owner)
-            off = _across(own_rows + r0 - box[0].start, own_cols + c0 - box[1].start, centre, axis)
+            # (Its own box: the reach's may start before the map's first row or column.)
+            ox, oy, ow, oh = extents[owner].tolist()
+            own_rows, own_cols = np.nonzero(pieces_occupied[oy : oy + oh, ox : ox + ow] == owner)
+            off = _across(own_rows + oy - box[0].start, own_cols + ox - box[1].start, centre, axis)
             standing[owner] = off.min() < band.min() - 1 or off.max() > band.max() + 1
     standing[0] = False
     objects = standing[pieces_occupied]
