@@ -684,6 +684,13 @@ def entry_spans(stream: BinaryIO, index: BagIndex) -> dict[int, tuple[int, int]]
         except (_Damage, OSError):
             continue
         times = _entries_after(stream, end).values()
+        try:
+            # Where they stopped: the next chunk, or the index. A record of them that does not
+            # read leaves the chunk's entries partly known: their span (a connection's last
+            # message left out) would cut the chunk's times short.
+            _read_record(stream, end)
+        except (_Damage, OSError):
+            continue
         if times:
             spans[chunk.pos] = (min(times), max(times))
     return spans

@@ -408,8 +408,8 @@ _FAR_TIME = (0xFFFFFF00).to_bytes(4, "little") + bytes(4)
 def _ros1_bag_with_a_far_time(path: Path, where: str, chunk_k: int = 1) -> list[int]:
     """A ROS 1 bag of 400 strings on two topics, 10 ms apart, in 11 chunks, with one time
     damaged to 2106 (``where``: the ``chunk_k``-th chunk's info's start or end time, the time
-    of its first message's record, or that message's index entry); returns the messages'
-    times."""
+    of its first message's record, or that message's index entry; ``none``: none); returns the
+    messages' times."""
     import struct
 
     from rosbags.rosbag1 import Writer
@@ -431,6 +431,8 @@ def _ros1_bag_with_a_far_time(path: Path, where: str, chunk_k: int = 1) -> list[
         ]
         for i, time in enumerate(times):
             writer.write(conns[i % 2], time, (3).to_bytes(4, "little") + b"abc")
+    if where == "none":
+        return times
     data = bytearray(path.read_bytes())
     index = read_index(path)
     chunk = index.chunks[chunk_k]
@@ -513,6 +515,36 @@ def test_a_ros1_chunk_info_time_damaged_beside_a_damaged_chunk_is_left_out(
         losses = reader.losses
     assert read == sorted(read) and 300 < len(read) < len(times)
     assert "skipped a damaged chunk at byte" in losses[0]
+
+
+def test_a_ros1_chunks_index_data_record_damaged_leaves_its_times_as_its_info_gives_them(
+    tmp_path: Path,
+) -> None:
+    """A bag that rosbags cannot open (a chunk's record damaged), read by --salvage through its
+    own reading of the index, whose last chunk's index data record of /t1 does not read: the
+    entries of /t0 alone gave that chunk's times, and the log ended at its last /t0 message,
+    10 ms before its last message (read, at its time). A chunk whose entries are not all read
+    has its info's times."""
+    import struct
+
+    from rose_logs.storage.ros1_stream import Ros1IndexedReadBackend, _read_record, read_index
+
+    bag = tmp_path / "t.bag"
+    times = _ros1_bag_with_a_far_time(bag, "none")  # (no time damaged)
+    data = bytearray(bag.read_bytes())
+    index = read_index(bag)
+    stream = io.BytesIO(bytes(data))
+    stream.seek(index.chunks[-1].pos)
+    _read_record(stream, len(data))  # the chunk
+    _read_record(stream, len(data))  # its index data record of /t0
+    data[stream.tell() : stream.tell() + 4] = struct.pack("<I", 10**6)  # /t1's header length
+    data[index.chunks[4].pos + 5] ^= 0xFF  # another chunk's record header
+    bag.write_bytes(bytes(data))
+    with LogReader(bag, salvage=True) as reader:
+        read = [m.log_time_ns for m in reader.messages()]
+        assert isinstance(reader._open_backend, Ros1IndexedReadBackend)
+        assert (reader.start_ns, reader.end_ns) == (times[0], times[-1])
+    assert read[-1] == times[-1]
 
 
 @pytest.mark.parametrize("fmt", ["db3", "mcap-dir"])
