@@ -101,6 +101,8 @@ def type_mismatches(declared: dict[str, str], stored: dict[str, str]) -> list[st
 #: Bytes of a log file's start, and of its end as it was, compared to tell it changed: a ROS 1
 #: bag's header record (4096 bytes) holds where its index is, an MCAP file's end its summary.
 _COMPARED = 4096
+#: How an SQLite database file begins (a ``.db3`` bag's storage file, whatever its name).
+_SQLITE_MAGIC = b"SQLite format 3\x00"
 #: The names of a ROS 2 bag folder's storage files end so.
 _STORAGE = (".db3", ".mcap", ".db3.zstd", ".mcap.zstd")
 
@@ -111,7 +113,9 @@ class FileState:
     while it was read (:meth:`changed`): overwritten, truncated or replaced, its reading
     fails as damage (or salvages another file's bytes), which the log is not. A file that only
     grew (a recording still being written, its start and what was its end unchanged) has not
-    changed."""
+    changed. Nor has an SQLite database (a ``.db3`` storage file) that was written to: its
+    writers and readers share SQLite's locks, so a recording writing it (rosbag2 rewrites its
+    header at every transaction) is read as a consistent database."""
 
     path: Path
     device: int
@@ -165,6 +169,8 @@ class FileState:
             return "another file took its name"
         if now.size < self.size:
             return f"cut from {self.size:,} to {now.size:,} bytes"
+        if self.head.startswith(_SQLITE_MAGIC) and now.head.startswith(_SQLITE_MAGIC):
+            return None  # (written under SQLite's locks: a live recording's transactions)
         if now.size == self.size and now.mtime_ns == self.mtime_ns:
             return None
         # Grown, or written in place: compared at its ends (a file written over by another

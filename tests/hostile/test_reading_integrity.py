@@ -566,6 +566,32 @@ def test_a_bag_folders_storage_file_changed_while_read_is_said_so(tmp_path: Path
         assert not reader.losses
 
 
+def test_a_db3_a_recording_writes_to_while_read_is_read(tmp_path: Path) -> None:
+    """A .db3 bag being recorded is written in place (SQLite rewrites its header at every
+    transaction) under SQLite's locks, which keep a reader's view consistent: it was refused as
+    "written over"; it is read, the messages as they were when the reading began."""
+    import sqlite3
+
+    bag = tmp_path / "bag"
+    write_session(bag, "db3")
+    storage = storage_file(bag)
+    with LogReader(bag) as reader:
+        expected = [(m.channel.topic, m.log_time_ns, bytes(m.data)) for m in reader.messages()]
+    with LogReader(bag) as reader:
+        got = []
+        for n, m in enumerate(reader.messages()):
+            got.append((m.channel.topic, m.log_time_ns, bytes(m.data)))
+            if n == 2:  # a recorder's transaction: one more message (the reading's view has none)
+                with sqlite3.connect(storage) as db:
+                    db.execute(
+                        "INSERT INTO messages (topic_id, timestamp, data) "
+                        "SELECT topic_id, timestamp + 1, data FROM messages LIMIT 1"
+                    )
+                    db.execute("PRAGMA user_version = 7")  # the header rewritten
+    assert got[:3] == expected[:3] and len(got) >= len(expected)
+    assert not reader.losses
+
+
 def test_a_reading_stopped_early_still_says_what_salvage_skipped(tmp_path: Path) -> None:
     """A reading stopped before its end (a caller that breaks off, an interrupted session)
     says what --salvage skipped so far, as before the check that the file did not change under
