@@ -436,17 +436,24 @@ def _wall_cells(
         # A wall between two doors: a piece nothing kept (too short for a run) that continues
         # kept walls in line across a door at each end.
         keep |= _between_doors(pieces, pieces.loose(keep), keep, free, directions, res)
+        # Furniture a hidden wall line is drawn behind (next to the line, which meets a kept
+        # wall) stands against that wall, not in the room: counted as the guard's obstacle as a piece joined to a kept wall
+        # is. A cabinet whose corner shadows part it from the wall it stands against is no piece
+        # of that wall; ignored, it went although the line behind it was drawn only in part
+        # (its middle out of the hidden wall's reach of the cells removed so far) and the wall
+        # opened. (Where the line is whole, its removal opens nothing the guard restores.)
+        anchored = _beside_lines(keep, occupied, completed)
         # Pieces attached to no kept wall at all are furniture standing in the room: the guard
         # does not count them as obstacles of the input. Only those whose box is smaller than a
         # region the guard protects, though: they can enclose nothing it would count (a closed
         # free-standing room of 1.3 m x 1.3 m was removed whole, its inside opened).
-        loose = pieces.loose(keep, max_box_area_px=min_region_px)
+        loose = pieces.loose(anchored, max_box_area_px=min_region_px)
         # The box is the grid's: furniture turned with the map has a box up to twice as large as
         # unturned, and was counted. Boxes along the map's directions count as well, for pieces
         # seen from more than one side (a wall's step at the explored edge, unknown behind it, is
         # seen from one: the guard keeps counting it).
         turned = np.greater(
-            pieces.loose(keep, max_box_area_px=min_region_px, max_frame_area_px=min_region_px),
+            pieces.loose(anchored, max_box_area_px=min_region_px, max_frame_area_px=min_region_px),
             loose,
         )
         if turned.any():
@@ -459,7 +466,7 @@ def _wall_cells(
         loose |= _objects_among_others(
             apart_job.result(),
             loose,
-            keep,
+            anchored,
             unknown,
             pockets,
             reach_px=2 * _PIECES_JOIN_PX + 1,
@@ -497,6 +504,28 @@ def _apart_pieces(occupied: npt.NDArray[np.bool_], joined: Future[_Pieces]) -> _
     """The 8-connected pieces of ``occupied`` not joined across gaps, their cells listed as the
     ``joined`` pieces of the same cells listed them."""
     return _Pieces.of(occupied, join_px=0, cells=joined.result().cells)
+
+
+def _beside_lines(
+    keep: npt.NDArray[np.bool_],
+    occupied: npt.NDArray[np.bool_],
+    lines: npt.NDArray[np.bool_],
+) -> npt.NDArray[np.bool_]:
+    """``keep`` and the ``occupied`` cells next to (8-connected) a piece of ``lines`` (the hidden
+    wall lines drawn, 8-connected pieces) within two cells of a ``keep`` cell: the cells that
+    anchor a piece to the building, through the wall line it stands in front of. (A piece of line
+    that meets nothing kept is no wall's: a line drawn across the inside of a box standing in a
+    doorway, between its sides.) Returns ``keep`` itself when no such line; a new array otherwise."""
+    import cv2
+
+    lines = _touching(lines, keep)
+    if not lines.any():
+        return keep
+    anchored = keep.copy()
+    box = _padded_box(lines, 1)  # (the lines' box only: a few objects in a large map)
+    beside = cv2.dilate(lines[box].view(np.uint8), np.ones((3, 3), np.uint8)).view(bool)
+    anchored[box] |= occupied[box] & beside
+    return anchored
 
 
 def _kept_walls(
