@@ -22,7 +22,8 @@ Two methods, chosen by name:
     unknown cells on the straight line between the ends of two kept walls along a dominant direction
     (wall stretches of at least 0.25 m running along the gap, not an object's side faces across
     it), at most ``max_bridge_m`` apart, next to a removed piece and within ``hidden_wall_reach_m``
-    of it, become walls (``completed``; thin lines only, never the space between two parallel
+    of it (or, where such a stretch closes a hole between two pieces of the line, of cells the
+    later rules remove: a cabinet's front), become walls (``completed``; thin lines only, never the space between two parallel
     walls; not where the line is in plain view of the room with wide unknown space beyond it,
     next to a free cell and within ``unknown_margin_m`` of it in a stretch at least
     ``2 * robot_radius_m`` plus a cell long, nor within two cells of such a cell along the line:
@@ -160,7 +161,8 @@ class CleanParams:
         never, and no furniture flush against a wall is taken out either).
     hidden_wall_reach_m : float
         Hidden walls are completed only within this distance (chessboard) of removed cells: the
-        depth of the furniture they hide behind.
+        depth of the furniture they hide behind (a hole between two pieces of a drawn line also
+        within it of cells removed by the later rules).
     attach_reach_m : float
         Occupied cells joined to a kept wall within this distance (through occupied cells that are
         not object faces) are kept: wall stubs, door frames, corners; also partitions (module

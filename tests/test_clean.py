@@ -862,6 +862,30 @@ def test_a_cabinet_its_shadows_part_from_the_wall_keeps_the_room_closed(
     assert separated_pairs(cleaned.cleaned >= 65, room, outside)
 
 
+@pytest.mark.parametrize("depth", [4, 9])
+def test_a_cabinet_its_shadows_part_from_the_wall_goes_and_the_whole_line_is_drawn(
+    depth: int,
+) -> None:
+    """The cabinet of the test above, within the hidden wall's reach of the line: the line's
+    middle, out of reach of its sides (removed when the line was drawn), is within reach of its
+    front (removed later, a free-standing piece once the line sealed its inside). Drawn in two
+    pieces with a 0.4 m hole, the guard kept the whole cabinet; the hole is closed now, and the
+    cabinet goes."""
+    grid = np.full((160, 220), -1, np.int8)
+    grid[10:60, 10:210] = 0  # the mapped room
+    grid[8:10, 8:212] = grid[60:62, 8:212] = 100
+    grid[8:62, 8:10] = grid[8:62, 210:212] = 100
+    left, right, front = 101, 132, 60 - depth
+    grid[front + 1 : 62, left + 1 : right] = -1  # its inside and the wall behind it, unseen
+    grid[front, left : right + 1] = 100  # its front ...
+    grid[front:60, left] = grid[front:60, right] = 100  # ... and sides
+    grid[60:62, left - 3 : right + 4] = -1  # the wall unseen beside it too (its shadows)
+    cleaned = clean(grid, rose.analyze(grid), resolution_m=RES)
+    assert cleaned.removed[front, left : right + 1].all()  # the cabinet goes
+    assert cleaned.completed[60:62, left - 3 : right + 4].all()  # the whole line is drawn
+    assert separated_pairs(cleaned.cleaned >= 65, (30, 100), (100, 100))
+
+
 def _room_with_a_box_in_a_doorway(
     door: tuple[int, int], left: int, width: int, front: int, depth: int
 ) -> npt.NDArray[np.int8]:

@@ -24,7 +24,7 @@ import numpy as np
 import numpy.typing as npt
 
 from rose.cleaning_rules.beside import _beside
-from rose.cleaning_rules.bridges import _bridges, _in_openings, _in_plain_view
+from rose.cleaning_rules.bridges import _bridges, _in_openings, _in_plain_view, _pairs
 from rose.cleaning_rules.fronts import (
     _CORNER_DEPTH_M,
     _CORNER_MAX_M,
@@ -35,7 +35,14 @@ from rose.cleaning_rules.fronts import (
     _flush_fronts,
 )
 from rose.cleaning_rules.guard import passable, topology_guard
-from rose.cleaning_rules.masks import _bounds, _near, _padded_box, _touching, length_px
+from rose.cleaning_rules.masks import (
+    _bounds,
+    _near,
+    _nonzero_flat,
+    _padded_box,
+    _touching,
+    length_px,
+)
 from rose.cleaning_rules.objects import (
     _PARTITION_MIN_M,
     _THIN_WALL_M,
@@ -51,6 +58,7 @@ from rose.cleaning_rules.objects import (
 from rose.cleaning_rules.outside import _near_wide_unknown, wide_unknown
 from rose.cleaning_rules.runs import directional_runs, straight_lines
 from rose.grid import UNKNOWN, blocks_any
+from rose.labelling import components
 
 if TYPE_CHECKING:
     from rose.cleaning import CleanParams
@@ -307,6 +315,7 @@ def _wall_cells(
         completed = np.zeros(occupied.shape, dtype=bool)
         sealed_off = completed  # what closes scanned objects and the building, as walls or not
         standing_in_doorways = completed
+        unreached = completed  # hidden lines out of reach of the cells removed so far
         if p.max_bridge_m > 0:
             # Unknown cells between collinear kept walls. Those between wall ends become the wall
             # line hidden behind furniture; all of them seal what they close off (an object's
@@ -335,8 +344,11 @@ def _wall_cells(
             # unexplored space or across racks is no wall hidden behind removed clutter.
             removed = np.greater(occupied, keep)
             hidden_reach = round(length_px(p.hidden_wall_reach_m, res))
-            sealed_off = _near(_touching(bridges, removed), removed, hidden_reach)
+            touching = _touching(bridges, removed)
+            sealed_off = _near(touching, removed, hidden_reach)
             completed = sealed_off & wall_lines
+            # (Within reach of what goes later, they are drawn at the end: _reached_later.)
+            unreached = np.greater(touching & wall_lines, completed)
             # Not drawn where nothing hides it from the room and unexplored space lies beyond: a
             # doorway beside a box that hides part of it was closed for a robot by the line
             # drawn on within the box's reach. (Between two mapped rooms the line is drawn as
@@ -366,6 +378,7 @@ def _wall_cells(
                 2 * length_px(p.robot_radius_m, res) + 1,
             )
             np.greater(completed, in_doorways, out=completed)
+            unreached = np.greater(unreached, _touching(unreached, in_doorways))
         sealed = bool(sealed_off.any())
         near_job: Future[npt.NDArray[np.bool_]] = Future()
         near_job.set_result(near_outside)
@@ -483,6 +496,16 @@ def _wall_cells(
         # run by the run's cell of tolerance) were kept and left the doorway too narrow for the
         # robot. (It is a piece of its own, the wall's cells are not among them.)
         np.greater(keep, standing_in_doorways, out=keep)
+    if unreached.any():
+        completed = completed | _reached_later(
+            unreached,
+            completed,
+            np.greater(occupied, keep | removed),
+            free,
+            near_outside,
+            reach_px=hidden_reach,
+            robot_px=2 * length_px(p.robot_radius_m, res) + 1,
+        )
     guarded = topology_guard(
         guard_obstacles,
         keep,
@@ -504,6 +527,47 @@ def _apart_pieces(occupied: npt.NDArray[np.bool_], joined: Future[_Pieces]) -> _
     """The 8-connected pieces of ``occupied`` not joined across gaps, their cells listed as the
     ``joined`` pieces of the same cells listed them."""
     return _Pieces.of(occupied, join_px=0, cells=joined.result().cells)
+
+
+def _reached_later(
+    unreached: npt.NDArray[np.bool_],
+    completed: npt.NDArray[np.bool_],
+    gone_later: npt.NDArray[np.bool_],
+    free: npt.NDArray[np.bool_],
+    open_unknown: npt.NDArray[np.bool_],
+    *,
+    reach_px: int,
+    robot_px: float,
+) -> npt.NDArray[np.bool_]:
+    """Cells of the hidden wall lines left ``unreached`` (touching removed cells, but out of reach
+    of them when the lines were drawn) within ``reach_px`` of the cells ``gone_later`` (removed
+    after the lines were drawn: a cabinet's front, the paper's structure, goes as a free-standing
+    piece or object face once the line seals its inside), in pieces (8-connected) that join two
+    pieces of the ``completed`` line (a hole in it), and not in plain view
+    (:func:`_in_plain_view` of the lines with them, ``free``, ``open_unknown``, ``robot_px``).
+    Measured from the sides alone, the line behind a cabinet wider than twice the reach was drawn
+    at its ends only and left the wall open in its middle. Masks of shape ``(rows, cols)``."""
+    out = np.zeros(unreached.shape, dtype=bool)
+    if not gone_later.any() or not completed.any():
+        return out
+    near = _near(unreached, gone_later, reach_px)
+    if not near.any():
+        return out
+    # Only what closes a hole: pieces of them between two pieces of the line drawn (a line drawn
+    # on past its end, or thicker, closes nothing). The drawn pieces labelled whole (in a box
+    # holding them all): cut by a smaller box, one piece could read as two.
+    box = _padded_box(near | completed, 1)
+    count, pieces = components(near[box])
+    drawn_count, drawn = components(completed[box])
+    cells = _nonzero_flat(np.ascontiguousarray(near[box]).view(np.uint8))
+    piece_of, _ = _pairs(cells, pieces.reshape(-1)[cells], drawn, drawn_count)
+    joining = np.bincount(piece_of, minlength=count) >= 2
+    joining[0] = False
+    out[box] = joining[pieces]
+    if not out.any():
+        return out
+    np.greater(out, _in_plain_view(completed | out, free, open_unknown, robot_px), out=out)
+    return out
 
 
 def _beside_lines(
