@@ -1133,7 +1133,7 @@ def test_a_lost_summary_line_keeps_its_end_with_long_output_names() -> None:
     from rose.cli import error_text
     from rose.errors import StdoutError
 
-    folder = "/home/someone/projects/fleet-health/2024-06-01/nightly-run/out"
+    folder = "/srv/someone/projects/fleet-health/2024-06-01/nightly-run/out"
     names = ("recordings.parquet", "snapshots.parquet", "summary.json", "report.md", "w.png")
     written = [Path(f"{folder}/{name}") for name in names]
     line = error_text(StdoutError("No space left on device"), written=written)

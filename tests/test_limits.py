@@ -206,10 +206,10 @@ def test_short_keeps_the_problem_after_a_long_name_with_spaces() -> None:
     assert short("the map could not be read " + "very " * 100 + "long: detail").endswith(" very...")
     # A sentence before the colon naming long files, their words shortened enough: each file
     # said, as before (made one name, it named a single log).
-    folder = "/home/user/experiments/2026-12-06/warehouse-run-with-the-new-lidar/" + "x" * 40
+    folder = "/srv/user/experiments/2026-12-06/warehouse-run-with-the-new-lidar/" + "x" * 40
     text = short(
         f"two logs named 'final' ({folder}/a/final.log, {folder}/b/final.log): their maps and "
         "tables would take the same names"
     )
-    assert text.startswith("two logs named 'final' (/home/user/") and text.count("final.log") == 2
+    assert text.startswith("two logs named 'final' (/srv/user/") and text.count("final.log") == 2
     assert text.endswith("would take the same names"), text
