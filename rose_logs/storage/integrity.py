@@ -113,9 +113,10 @@ class FileState:
     while it was read (:meth:`changed`): overwritten, truncated or replaced, its reading
     fails as damage (or salvages another file's bytes), which the log is not. A file that only
     grew (a recording still being written, its start and what was its end unchanged) has not
-    changed. Nor has an SQLite database (a ``.db3`` storage file) that was written to: its
-    writers and readers share SQLite's locks, so a recording writing it (rosbag2 rewrites its
-    header at every transaction) is read as a consistent database."""
+    changed. An SQLite database (a ``.db3`` storage file) written to has: rosbags reads it
+    ``immutable``, without SQLite's locks, so a recording's transactions (rosbag2 rewrites its
+    header at each) change the pages under the reading (read as 'database disk image is
+    malformed', or messages missing and out of order)."""
 
     path: Path
     device: int
@@ -169,8 +170,6 @@ class FileState:
             return "another file took its name"
         if now.size < self.size:
             return f"cut from {self.size:,} to {now.size:,} bytes"
-        if self.head.startswith(_SQLITE_MAGIC) and now.head.startswith(_SQLITE_MAGIC):
-            return None  # (written under SQLite's locks: a live recording's transactions)
         if now.size == self.size and now.mtime_ns == self.mtime_ns:
             return None
         # Grown, or written in place: compared at its ends (a file written over by another
@@ -182,5 +181,8 @@ class FileState:
         except OSError:
             return "it can no longer be read"
         if now.head != self.head or tail != self.tail:
+            if self.head.startswith(_SQLITE_MAGIC) and now.head.startswith(_SQLITE_MAGIC):
+                # (Each transaction rewrites the header: a recording, or a database copied over.)
+                return "written to as an SQLite database"
             return "written over"
         return "written to" if now.size == self.size else None
