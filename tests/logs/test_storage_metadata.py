@@ -550,21 +550,13 @@ def test_metadata_and_attachments_an_mcap_summary_does_not_index_are_copied(
     file written without them had its records left out of the output without a word, though its
     statistics counted them."""
     from mcap.writer import IndexType, Writer
-    from rosbags.typesys import Stores, get_typestore
 
     src = tmp_path / "in.mcap"
-    msgdef, _ = get_typestore(Stores.ROS2_HUMBLE).generate_msgdef(MAP_TYPE, ros_version=2)
     options: dict[str, Any] = {"index_types": IndexType.CHUNK | IndexType.MESSAGE}
     if summary == "none":
         options.update(use_statistics=False, use_summary_offsets=False, index_types=IndexType.NONE)
     with src.open("wb") as f:
-        writer = Writer(f, **options)
-        writer.start(profile="ros2", library="tests")
-        schema = writer.register_schema(MAP_TYPE, "ros2msg", msgdef.encode())
-        maps = writer.register_channel("/map", "cdr", schema, {})
-        for seq, (t_ns, topic, data) in enumerate(_messages("cdr")):
-            if topic == "/map":
-                writer.add_message(maps, t_ns, data, t_ns, seq)
+        writer = _ros2_maps_mcap(Writer(f, **options))
         writer.add_metadata("robot", {"name": "r2"})
         writer.add_attachment(T0_NS, T0_NS, "robot.urdf", "text/xml", b"<robot/>")
         writer.finish()
@@ -620,6 +612,19 @@ def _mcap_file_again(
             writer.add_metadata(f"{path.stem}-{k}", {"robot": "r2"})
             writer.add_attachment(T0_NS, T0_NS, f"{path.stem}-{k}.urdf", "text/xml", b"<robot/>")
         writer.finish()
+
+
+def _ros2_maps_mcap(writer: Any) -> Any:
+    """``writer`` (an ``mcap`` Writer, not started) started as a ROS 2 MCAP file holding the
+    test log's ``/map`` messages; the caller adds records and finishes it."""
+    msgdef, _ = get_typestore(Stores.ROS2_HUMBLE).generate_msgdef(MAP_TYPE, ros_version=2)
+    writer.start(profile="ros2", library="tests")
+    schema = writer.register_schema(MAP_TYPE, "ros2msg", msgdef.encode())
+    maps = writer.register_channel("/map", "cdr", schema, {})
+    for seq, (t_ns, topic, data) in enumerate(_messages("cdr")):
+        if topic == "/map":
+            writer.add_message(maps, t_ns, data, t_ns, seq)
+    return writer
 
 
 def _bookkeeping_of(path: Path) -> dict[str, str]:
@@ -951,8 +956,6 @@ def test_attachments_are_copied_one_at_a_time(tmp_path: Path, summary: bool) -> 
     from mcap.reader import make_reader
     from mcap.writer import IndexType, Writer
 
-    store = get_typestore(Stores.ROS2_HUMBLE)
-    msgdef, _ = store.generate_msgdef(MAP_TYPE, ros_version=2)
     size, count = 16 * 2**20, 8
     src = tmp_path / "in.mcap"
     with src.open("wb") as f:
@@ -967,13 +970,7 @@ def test_attachments_are_copied_one_at_a_time(tmp_path: Path, summary: bool) -> 
                 "repeat_schemas": False,
             }
         )
-        writer = Writer(f, **options)
-        writer.start(profile="ros2", library="tests")
-        schema = writer.register_schema(MAP_TYPE, "ros2msg", msgdef.encode())
-        maps = writer.register_channel("/map", "cdr", schema, {})
-        for seq, (t_ns, topic, data) in enumerate(_messages("cdr")):
-            if topic == "/map":
-                writer.add_message(maps, t_ns, data, t_ns, seq)
+        writer = _ros2_maps_mcap(Writer(f, **options))
         for k in range(count):
             writer.add_attachment(
                 T0_NS, T0_NS, f"part{k}.bin", "application/octet-stream", bytes([k]) * size
