@@ -886,17 +886,14 @@ def test_a_cabinet_its_shadows_part_from_the_wall_goes_and_the_whole_line_is_dra
     assert separated_pairs(cleaned.cleaned >= 65, (30, 100), (100, 100))
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="known: turned 45 degrees, the shadows are left undrawn as in plain view, the line "
-    "meets no kept wall and the cabinet goes as a loose piece (docs/cleaning.md, 2026-12-06)",
-)
 def test_a_cabinet_its_shadows_part_from_the_wall_keeps_the_room_closed_turned() -> None:
     """The cabinet of the tests above (1.6 m wide, 0.45 m deep), its shadows 5 cells, turned 45
     degrees (nearest-neighbour sampling). The shadows, 0.35 m along the line, were left undrawn
     (in plain view of the room, unexplored beyond), so the line drawn behind the cabinet met no
     kept wall; and it ran two cells from the cabinet's turned sides, not next to them: the
-    cabinet stayed a loose piece, went, and the room opened onto the outside."""
+    cabinet stayed a loose piece, went, and the room opened onto the outside. The line is the
+    furniture-front rule's, drawn only between stretches of kept wall: it anchors what stands
+    within two cells of it now."""
     grid = np.full((160, 220), -1, np.int8)
     grid[10:60, 10:210] = 0  # the mapped room
     grid[8:10, 8:212] = grid[60:62, 8:212] = 100

@@ -455,7 +455,12 @@ def _wall_cells(
         # of that wall; ignored, it went although the line behind it was drawn only in part
         # (its middle out of the hidden wall's reach of the cells removed so far) and the wall
         # opened. (Where the line is whole, its removal opens nothing the guard restores.)
-        anchored = _beside_lines(keep, occupied, completed)
+        # The furniture-front rule's lines anchor what stands within two cells of them, whatever
+        # they meet: that rule draws a line only behind furniture between two stretches of kept
+        # wall, and a cabinet at 45 degrees, its corner shadows left undrawn as in plain view,
+        # has a line that meets no kept wall, two cells from its turned sides (the straightened
+        # band of a staircase wall): ignored, it went and the room opened.
+        anchored = _beside_lines(keep, occupied, completed, completed & front_lines)
         # Pieces attached to no kept wall at all are furniture standing in the room: the guard
         # does not count them as obstacles of the input. Only those whose box is smaller than a
         # region the guard protects, though: they can enclose nothing it would count (a closed
@@ -574,21 +579,29 @@ def _beside_lines(
     keep: npt.NDArray[np.bool_],
     occupied: npt.NDArray[np.bool_],
     lines: npt.NDArray[np.bool_],
+    front_lines: npt.NDArray[np.bool_],
 ) -> npt.NDArray[np.bool_]:
     """``keep`` and the ``occupied`` cells next to (8-connected) a piece of ``lines`` (the hidden
-    wall lines drawn, 8-connected pieces) within two cells of a ``keep`` cell: the cells that
+    wall lines drawn, 8-connected pieces) within two cells of a ``keep`` cell, or within two cells
+    (chessboard) of ``front_lines`` (those among them the furniture-front rule drew): the cells that
     anchor a piece to the building, through the wall line it stands in front of. (A piece of line
     that meets nothing kept is no wall's: a line drawn across the inside of a box standing in a
-    doorway, between its sides.) Returns ``keep`` itself when no such line; a new array otherwise."""
+    doorway, between its sides; the front rule draws no such line.) Returns ``keep`` itself when
+    no such line; a new array otherwise. Masks of shape ``(rows, cols)``."""
     import cv2
 
     lines = _touching(lines, keep)
-    if not lines.any():
+    if not lines.any() and not front_lines.any():
         return keep
     anchored = keep.copy()
-    box = _padded_box(lines, 1)  # (the lines' box only: a few objects in a large map)
-    beside = cv2.dilate(lines[box].view(np.uint8), np.ones((3, 3), np.uint8)).view(bool)
-    anchored[box] |= occupied[box] & beside
+    # (a front line in a frame at an angle lies in the straightened band of a staircase wall,
+    # up to two cells from the furniture's sides)
+    for drawn, reach in ((lines, 1), (front_lines, 2)):
+        if drawn.any():
+            box = _padded_box(drawn, reach)  # (the lines' box only: a few objects in a large map)
+            side = 2 * reach + 1
+            beside = cv2.dilate(drawn[box].view(np.uint8), np.ones((side, side), np.uint8))
+            anchored[box] |= occupied[box] & beside.view(bool)
     return anchored
 
 
