@@ -988,6 +988,10 @@ _MIRRORED = pytest.mark.xfail(
             ((90, 104), 92, 8, 56, 10),
             ((90, 108), 93, 4, 56, 10),
             ((90, 114), 94, 14, 52, 16),
+            # Its line across the inside, 2 x 2 cells, has no long axis: the eigen solver's
+            # pick ran along the columns, across the wall when the map was transposed, and the
+            # box was found upright only.
+            ((90, 104), 94, 4, 56, 10),
         ]
         for turn in ("left-right", "transposed")
     ]

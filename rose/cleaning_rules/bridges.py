@@ -248,11 +248,11 @@ def _in_openings(
         # thickness) by more than a cell: a stretch of wall flush with the wall's faces between
         # two narrow gaps seen through, its core unseen, is no box (it went, and the wall opened).
         line_rows, line_cols = np.divmod(line_cells[line_owner == piece], width)
-        centre, axis = _axis(line_rows, line_cols)
         gap_rows, gap_cols = np.divmod(
             np.concatenate([gap_cells[gap_owner == g] for g in stretch_of[piece_of == piece]]),
             width,
         )
+        centre, axis = _axis(line_rows, line_cols, (gap_rows, gap_cols))
         band = _across(gap_rows, gap_cols, centre, axis)
         for owner in owners[inside].tolist():
             # (Its own box: the reach's may start before the map's first row or column.)
@@ -369,12 +369,21 @@ def _small_pieces(
 
 
 def _axis(
-    rows: npt.NDArray[np.int64], cols: npt.NDArray[np.int64]
+    rows: npt.NDArray[np.int64],
+    cols: npt.NDArray[np.int64],
+    around: tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]] | None = None,
 ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
     """The centre (row, col) and the long axis (a unit vector, row and col) of the cells
-    ``rows, cols`` (two or more): their principal axis."""
+    ``rows, cols`` (two or more): their principal axis. Cells spread alike every way (a square
+    piece, 2 x 2 across a box's inside two cells wide) have none: then the axis is that of them
+    with the cells ``around`` them (rows, cols: the gaps beside a line piece), when given. (The
+    solver's pick for equal spreads is its first unit vector, along the columns whichever way
+    the wall ran: a box in a doorway was found upright and missed transposed.)"""
     points = np.stack([rows, cols], axis=1).astype(np.float64)
-    _, vectors = np.linalg.eigh(np.cov(points, rowvar=False))
+    spreads, vectors = np.linalg.eigh(np.cov(points, rowvar=False))
+    if around is not None and around[0].size and spreads[1] - spreads[0] <= 1e-9 * spreads[1]:
+        more = np.stack(around, axis=1).astype(np.float64)
+        _, vectors = np.linalg.eigh(np.cov(np.concatenate([points, more]), rowvar=False))
     return points.mean(axis=0), vectors[:, -1]  # (eigenvalues ascending: the long axis last)
 
 
@@ -401,7 +410,15 @@ def _on_both_ends(
     without a break of more than a cell and a half)."""
     if piece[0].size < 2:
         return False
-    centre, axis = _axis(*piece)
+    around = (
+        (
+            np.concatenate([rows for rows, _ in stretches]),
+            np.concatenate([cols for _, cols in stretches]),
+        )
+        if stretches
+        else None
+    )
+    centre, axis = _axis(*piece, around)
     sides = set()
     for rows, cols in stretches:
         offset = np.array([rows.mean(), cols.mean()]) - centre
