@@ -11,7 +11,7 @@ import math
 import numpy as np
 import numpy.typing as npt
 
-from rose.cleaning_rules.frames import _frames, in_rotated_frame
+from rose.cleaning_rules.frames import FrameNeeds, _frames, in_rotated_frame
 from rose.cleaning_rules.masks import _bounds, _neighbour_columns, _nonzero_flat, _padded_box
 from rose.cleaning_rules.runs import (
     _close_runs,
@@ -543,12 +543,24 @@ def _crop_fills(
 ) -> npt.NDArray[np.uint8]:
     """:func:`_frame_fills` of ``crop`` rotated by ``angle`` (:func:`in_rotated_frame`), back in the crop's
     cells: an image of ``crop``'s shape, one bit per output."""
+    # Nothing is filled without two wall cells on a line within ``length`` of each other (any
+    # anchor's closing fills between two), or a wall cell within ``length`` of the image's edge
+    # (OpenCV's closing fills from it to the edge); the staggered fills need an anchor's run in
+    # the walls grown across the line (two grown cells when the anchor is a single cell).
+    pairs = [(0, length)]
+    runs = []
+    if stagger is not None:
+        if stagger[0] > 1:
+            runs.append((1, stagger[0]))
+        else:
+            pairs.append((1, length))
     fills, _ = in_rotated_frame(
         crop.view(np.uint8),
         angle,
         lambda rotated, _turned: _frame_fills(rotated, length, anchors, stagger),
         # A fill and its anchors on either side; a staggered fill's longer anchors.
         reach_px=length + 2 * max(anchors + ([stagger[0]] if stagger else [])) + 2,
+        needs=FrameNeeds(runs=tuple(runs), pairs=tuple(pairs), edge_px=length + 1),
     )
     return fills
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
@@ -102,8 +103,121 @@ FrameWork = Callable[[npt.NDArray[np.uint8], bool], npt.NDArray[np.uint8]]
 rotated image's shape (uint8), sampled back into the source's cells by :func:`in_rotated_frame`."""
 
 
+@dataclass(frozen=True)
+class FrameNeeds:
+    """What a rule's work (:data:`FrameWork`) needs in a turned image to find anything: on an image
+    with none of it, the work returns zeros. Lengths in cells of the turned image; the work's
+    cells are those of at least ``cell_from``.
+
+    Attributes
+    ----------
+    runs : tuple of (grown_px, length_px)
+        A run of ``length_px`` cells along a row or a column of the image grown by ``grown_px``
+        (a square of ``2 * grown_px + 1`` cells).
+    pairs : tuple of (grown_px, gap_px)
+        Two cells of different source cells on one row or column of the image grown by
+        ``grown_px``, at most ``gap_px`` cells on from one to the next.
+    edge_px : int
+        A cell within this many cells of the image's edge, along its rows or columns (a closing
+        with OpenCV's borders fills from a cell to the edge).
+    cell_from : int
+        The least value of the cells the work reads as occupied.
+    """
+
+    runs: tuple[tuple[int, int], ...] = ()
+    pairs: tuple[tuple[int, int], ...] = ()
+    edge_px: int = 0
+    cell_from: int = 1
+
+
+#: How far (Euclidean, cells) a cell of a turned image lies from its source cell's centre turned:
+#: nearest-neighbour sampling takes the source cell within half a cell along each axis (half a
+#: diagonal, 0.71), OpenCV's fixed-point coordinates a thousandth of a cell more.
+_SAMPLED_WITHIN_PX = 0.75
+
+
+def _cells_that_may_find(
+    source: npt.NDArray[np.uint8], frame: Frame, needs: FrameNeeds
+) -> npt.NDArray[np.intp]:
+    """The (row, col) of each cell of ``source`` (shape ``(2, M)``) that may take part in what
+    ``needs`` asks for once turned into ``frame`` (:func:`_rotate`); a turned image of any subset
+    of the source's cells (the same points shifted by whole cells: a piece's window,
+    :func:`_piece_frame`) without one of them holds none of it, but by that window's own edges.
+
+    Worked out on the source's cells turned exactly, each the centre of a disc of
+    ``_SAMPLED_WITHIN_PX`` holding the turned image's cells sampled from it: a row of the image
+    (and, swapped, a column), grown by the work's growth, holds cells only of the discs so grown
+    that reach it; a run along it needs their centres in a chain without a gap wider than the
+    growth and the discs leave, a pair two of them in one chain."""
+    rows, cols = np.nonzero(source >= needs.cell_from)
+    if rows.size == 0:
+        return np.stack([rows, cols])
+    matrix, (width, height) = frame
+    u = matrix[0, 0] * cols + matrix[0, 1] * rows + matrix[0, 2]
+    v = matrix[1, 0] * cols + matrix[1, 1] * rows + matrix[1, 2]
+    r = _SAMPLED_WITHIN_PX
+    may = np.zeros(rows.size, dtype=bool)
+    for along, across, extent in ((u, v, width), (v, u, height)):
+        if may.all():
+            break
+        # The cells in order along (for _in_chains), their flags back in the source's order.
+        by_along = np.argsort(along)
+        along, across = along[by_along], across[by_along]
+        here = np.zeros(rows.size, dtype=bool)
+        if needs.edge_px > 0:
+            here |= along - r <= needs.edge_px + 1
+            here |= along + r >= extent - 2 - needs.edge_px
+        for grown, length in needs.runs:
+            reach = grown + r
+            here |= _in_chains(along, across, reach, 2 * reach + 1, min_span=length - 1 - 2 * reach)
+        for grown, gap in needs.pairs:
+            reach = grown + r
+            here |= _in_chains(along, across, reach, gap + 2 * reach, min_points=2)
+        may[by_along] |= here
+    return np.stack([rows[may], cols[may]])
+
+
+def _in_chains(
+    along: npt.NDArray[np.float64],
+    across: npt.NDArray[np.float64],
+    reach: float,
+    gap: float,
+    *,
+    min_span: float = 0.0,
+    min_points: int = 1,
+) -> npt.NDArray[np.bool_]:
+    """Which points (shape ``(N,)``, in order ``along``) lie in a chain spanning at least
+    ``min_span`` with at least ``min_points`` points: on a line (integer ``across``), the points
+    within ``reach`` of it in order ``along``, steps of at most ``gap``."""
+    low = np.ceil(across - reach).astype(np.int64)
+    count = np.floor(across + reach).astype(np.int64) - low + 1  # lines per point
+    point = np.repeat(np.arange(along.size), count)
+    line = (
+        np.repeat(low, count) + np.arange(point.size) - np.repeat(np.cumsum(count) - count, count)
+    )
+    # In order by line, then along it: the points come in order along, and a stable sort by line
+    # keeps that order (16-bit keys take numpy's radix sort; a thin strip's lines follow its
+    # points nearly in order, which numpy's timsort finds).
+    key = line - low.min()
+    order = np.argsort(key.astype(np.uint16) if key.max() < 1 << 16 else key, kind="stable")
+    line, at, point = line[order], along[point][order], point[order]
+    starts = np.ones(at.size, dtype=bool)
+    starts[1:] = (line[1:] != line[:-1]) | (np.diff(at) > gap)
+    first = np.flatnonzero(starts)
+    last = np.append(first[1:], at.size) - 1
+    chosen = (at[last] - at[first] >= min_span) & (last - first + 1 >= min_points)
+    inside = np.zeros(along.size, dtype=bool)
+    inside[point[np.repeat(chosen, last - first + 1)]] = True
+    return inside
+
+
 def in_rotated_frame(
-    source: npt.NDArray[np.uint8], angle: float, work: FrameWork, *, reach_px: int
+    source: npt.NDArray[np.uint8],
+    angle: float,
+    work: FrameWork,
+    *,
+    reach_px: int,
+    needs: FrameNeeds | None = None,
 ) -> tuple[npt.NDArray[np.uint8], bool]:
     """``work`` done on ``source`` turned so that ``angle`` lies along the columns (:func:`_rotate`),
     its output back in ``source``'s cells (nearest-neighbour), and whether it was turned.
@@ -114,7 +228,10 @@ def in_rotated_frame(
     more on every side (:func:`_piece_frame`), and each piece's own cells kept: what a rule finds
     there is what it finds in the whole, up to OpenCV's fixed-point sampling (``warpAffine``
     rounds a window's cells a little differently from the whole frame's: a few cells in ten
-    thousand of a one-cell strip differ, with ``work`` returning its input).
+    thousand of a one-cell strip differ, with ``work`` returning its input). With ``needs`` (what
+    the work needs to find anything), a piece none of whose cells may take part in it
+    (:func:`_cells_that_may_find`) is not turned: its cells stay zeros, as the work would have
+    returned them. Its ``edge_px`` must be at most ``reach_px - 3`` (else every piece is turned).
     """
     if _along_an_axis(angle):
         return work(np.ascontiguousarray(source), False), False
@@ -128,10 +245,19 @@ def in_rotated_frame(
     along = source.T if wide else source
     length, short = along.shape
     core = _piece_core(short, length, reach_px, angle)
+    # A thin strip's spurious directions: most pieces hold nothing the work looks for along them
+    # (no run, no two cells on a line), and turning them cost about the reach per cell. The cells
+    # that may take part are found on the whole frame once; a piece's window edges lie
+    # ``reach_px`` beyond its cells but where they are the whole frame's.
+    wanted = None
+    if needs is not None and needs.edge_px + 3 <= reach_px:
+        wanted = np.sort(_cells_that_may_find(source, whole, needs)[1 if wide else 0])
     out = np.zeros(along.shape, dtype=np.uint8)
     for start in range(0, length, core):
         stop = min(start + core, length)
         low, high = max(start - reach_px, 0), min(stop + reach_px, length)
+        if wanted is not None and np.searchsorted(wanted, low) == np.searchsorted(wanted, high):
+            continue  # the work would return zeros
         piece = np.ascontiguousarray(along[low:high].T if wide else along[low:high])
         frame = _piece_frame(whole, (low, 0) if wide else (0, low), piece.shape, reach_px)
         back = _turned_and_back(piece, angle, work, frame)

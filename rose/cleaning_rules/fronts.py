@@ -12,7 +12,7 @@ import math
 import numpy as np
 import numpy.typing as npt
 
-from rose.cleaning_rules.frames import _frames, in_rotated_frame
+from rose.cleaning_rules.frames import FrameNeeds, _frames, in_rotated_frame
 from rose.cleaning_rules.masks import _bounds, _nonzero_flat, _padded_box
 
 #: Furniture fronts (:func:`_flush_fronts`): the longest wall line hidden behind furniture against
@@ -155,8 +155,12 @@ def _flush_fronts(
     # strip turned at an angle by as much on each side (a 1 x 20,000 strip of specks, nine
     # directions: clean() 3.0-3.6 s with it, 2.7-2.8 s without; same cells).
     reach = round(max_len_px + max_depth_px) + 4 * max(1, round(anchor_px), round(wall_px))
+    # In a turned frame (no corners) nothing is found without a gap's anchors: occupied runs of
+    # an anchor along a line, of two anchors straightened (which grows the cells by at most one).
+    anchor = max(1, round(anchor_px))
+    needs = FrameNeeds(runs=((0, anchor), (1, 2 * anchor)), cell_from=2)
     for angle in _frames(directions):
-        out, _ = in_rotated_frame(code, angle, fronts_of, reach_px=reach)
+        out, _ = in_rotated_frame(code, angle, fronts_of, reach_px=reach, needs=needs)
         if not out.any():  # nothing, or what was found fell between the cells sampled back
             continue
         # Only where something was found (a few objects in a large map).

@@ -12,7 +12,7 @@ import math
 import numpy as np
 import numpy.typing as npt
 
-from rose.cleaning_rules.frames import _frames, in_rotated_frame
+from rose.cleaning_rules.frames import FrameNeeds, _frames, in_rotated_frame
 from rose.cleaning_rules.masks import _bounds, _flat_index, _nonzero_flat, _padded_box
 
 
@@ -80,7 +80,12 @@ def _runs_in_frame(
         return runs
 
     runs, turned = in_rotated_frame(
-        crop.view(np.uint8), angle, runs_of, reach_px=length + 2 * tolerance_px + 2
+        crop.view(np.uint8),
+        angle,
+        runs_of,
+        reach_px=length + 2 * tolerance_px + 2,
+        # Nothing without a run of ``length`` cells along a line of the grown image.
+        needs=FrameNeeds(runs=((tolerance_px, length),)),
     )
     # 0 or 1 in every cell: read as booleans without a copy.
     if not turned:
