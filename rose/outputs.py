@@ -7,7 +7,8 @@ Every command of ``rose`` and ``rose-bag`` writes its outputs through one :class
   nor another output of the same run; an existing output needs ``force``; a file output never replaces
   a directory, and a folder output (a ROS 2 bag) replaces an existing directory only if that directory
   is a ROS 2 bag itself (``metadata.yaml`` and no sub-folder), so ``-o SOME_DIR --force`` never deletes
-  an unrelated folder.
+  an unrelated folder; an existing *empty* folder holds nothing to overwrite, and a folder output
+  fills it without ``force``.
 - **staging**: each output is written inside its own hidden folder next to the target,
   ``.NAME.rose-tmp-<tag>-<pid>-<random>/NAME`` (:func:`process_tag`), unique per run (two concurrent runs never share a temporary);
   an output given as ``-``, or an existing non-regular target such as ``/dev/stdout``, ``/dev/null`` or
@@ -593,6 +594,7 @@ class OutputSet:
         self.clean_stale = clean_stale
         self._inputs: list[tuple[Path, Path]] = []
         self._outputs: list[StagedOutput] = []
+        self._emptied: list[StagedOutput] = []  # placed over an empty folder (see commit)
         self._done = False
         for path in inputs:
             self.add_input(path)
@@ -765,6 +767,8 @@ class OutputSet:
             return
         # What --force would not replace either is said first (no advice to use it in vain).
         is_dir = target.is_dir()
+        if directory and is_dir and _is_empty_folder(target):
+            return  # nothing to overwrite (`mkdir out && rose-bag evaluate out`): no --force needed
         if is_dir and not directory:
             msg = f"{path}: is a directory, not replacing it with a file"
             raise OutputError(msg)
@@ -871,6 +875,19 @@ class OutputSet:
             placed: list[StagedOutput] = []
             try:
                 for staged in files:
+                    if staged.directory and _is_empty_folder(staged.target):
+                        # Replaced by the rename itself, which fails (ENOTEMPTY) if a file was put
+                        # in it meanwhile: never moved aside and deleted with what it then holds.
+                        try:
+                            self._place(staged)
+                        except OSError as err:
+                            if err.errno not in (errno.ENOTEMPTY, errno.EEXIST):
+                                raise
+                            msg = f"{staged.path}: appeared while writing, not replacing it"
+                            raise OutputError(msg) from err
+                        placed.append(staged)
+                        self._emptied.append(staged)
+                        continue
                     if os.path.lexists(staged.target):
                         if not self.force:
                             msg = f"{staged.path}: appeared while writing, not replacing it"
@@ -905,6 +922,9 @@ class OutputSet:
     def _undo(self, placed: list[StagedOutput], backups: list[tuple[StagedOutput, Path]]) -> None:
         for staged in placed:
             _remove_tree(staged.target)
+            if staged in self._emptied:  # the empty folder it replaced comes back
+                with contextlib.suppress(OSError):
+                    staged.target.mkdir()
         for staged, backup in backups:
             with contextlib.suppress(OSError):
                 backup.rename(staged.target)
@@ -967,6 +987,17 @@ class OutputSet:
             self.commit()
         else:
             self.abort()
+
+
+def _is_empty_folder(path: Path) -> bool:
+    """Whether ``path`` is a directory (not a symlink to one) with no entry at all."""
+    if not path.is_dir() or path.is_symlink():
+        return False
+    try:
+        with os.scandir(path) as entries:
+            return next(entries, None) is None
+    except OSError:
+        return False
 
 
 def _is_regular_or_dir(path: Path) -> bool:

@@ -136,6 +136,11 @@ def test_a_missing_data_folder_is_named_and_an_empty_report_folder_is_replaceabl
     argv = ["evaluate", str(empty), "--no-plots", "--logs", "", "--maps", "", "--force"]
     assert main([*argv, "--maps-dir", str(tmp_path)]) == 0  # was refused: not a report folder
     assert (empty / "report.md").is_file()
+    # Without --force too: an empty folder holds nothing to overwrite (was "exists already").
+    shutil.rmtree(empty)
+    empty.mkdir()
+    assert main([*argv[:-1], "--maps-dir", str(tmp_path)]) == 0
+    assert (empty / "report.md").is_file()
 
 
 def test_force_replaces_only_a_folder_that_holds_an_evaluation_report_alone(

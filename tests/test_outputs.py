@@ -538,6 +538,31 @@ def test_a_folder_with_some_other_metadata_yaml_is_no_bag(tmp_path: Path) -> Non
     assert staged.path == tmp_path / "clean.yaml"
 
 
+def test_an_empty_folder_is_filled_by_a_folder_output_without_force(tmp_path: Path) -> None:
+    """`mkdir out && rose-bag evaluate out` was refused ("exists already (--force replaces
+    it)"), though an empty folder holds nothing to overwrite. One filled while the run wrote is
+    never moved aside and deleted: the commit fails and the file stays."""
+    out = tmp_path / "out"
+    out.mkdir()
+    with OutputSet() as outputs:
+        staged = outputs.stage(out, directory=True)
+        assert staged.temp is not None
+        staged.temp.mkdir()
+        (staged.temp / "a.txt").write_text("new")
+    assert [p.name for p in out.iterdir()] == ["a.txt"]
+    again = tmp_path / "again"
+    again.mkdir()
+    outputs = OutputSet()
+    staged = outputs.stage(again, directory=True)
+    assert staged.temp is not None
+    staged.temp.mkdir()
+    (again / "notes.txt").write_text("mine")  # put there while the run wrote
+    with pytest.raises(OutputError, match="again: appeared while writing, not replacing it"):
+        outputs.commit()
+    assert [p.name for p in again.iterdir()] == ["notes.txt"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["again", "out"]  # no temporaries left
+
+
 def test_force_never_replaces_a_folder_whose_metadata_yaml_is_another_tools(
     tmp_path: Path,
 ) -> None:
