@@ -86,6 +86,7 @@ def test_nothing_to_evaluate_is_said(tmp_path: Path, capsys: pytest.CaptureFixtu
     # Both lists empty (an unset shell variable?) ran every experiment on nothing and reported
     # empty tables silently; one empty list alone skips that part, as documented.
     out = tmp_path / "report"
+    (tmp_path / "data").mkdir()  # the data folder never holds the report
     args = [
         "evaluate",
         str(out),
@@ -95,7 +96,7 @@ def test_nothing_to_evaluate_is_said(tmp_path: Path, capsys: pytest.CaptureFixtu
         "--maps",
         "",
         "--maps-dir",
-        str(tmp_path),
+        str(tmp_path / "data"),
     ]
     assert main(args) == 0
     assert "--logs and --maps are both empty: no experiment runs" in capsys.readouterr().err
@@ -133,14 +134,34 @@ def test_a_missing_data_folder_is_named_and_an_empty_report_folder_is_replaceabl
     assert err == f"error: {tmp_path / 'a_file'}: is a file, not a data folder (--maps-dir)"
     empty = tmp_path / "empty"
     empty.mkdir()
+    data = tmp_path / "data"
+    data.mkdir()
     argv = ["evaluate", str(empty), "--no-plots", "--logs", "", "--maps", "", "--force"]
-    assert main([*argv, "--maps-dir", str(tmp_path)]) == 0  # was refused: not a report folder
+    assert main([*argv, "--maps-dir", str(data)]) == 0  # was refused: not a report folder
     assert (empty / "report.md").is_file()
     # Without --force too: an empty folder holds nothing to overwrite (was "exists already").
     shutil.rmtree(empty)
     empty.mkdir()
-    assert main([*argv[:-1], "--maps-dir", str(tmp_path)]) == 0
+    assert main([*argv[:-1], "--maps-dir", str(data)]) == 0
     assert (empty / "report.md").is_file()
+
+
+def test_a_report_of_no_experiment_is_never_written_into_the_data_folder(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """With nothing to read from it (`--logs '' --maps ''`) the data folder was no input: the
+    report went into $ROSE_DATA_DIR (or --maps-dir), which is read, never written."""
+    data = tmp_path / "data"
+    data.mkdir()
+    monkeypatch.setenv("ROSE_DATA_DIR", str(data))
+    argv = ["--no-plots", "--logs", "", "--maps", ""]
+    for extra in ([], ["--maps-dir", str(data)]):
+        assert main(["evaluate", str(data / "report"), *argv, *extra]) == 1
+        err = capsys.readouterr().err
+        assert err.endswith(f"refusing to write inside the input {data}\n"), err
+        assert list(data.iterdir()) == []
+    monkeypatch.setenv("ROSE_DATA_DIR", str(tmp_path / "nope"))  # none found: nothing to protect
+    assert main(["evaluate", str(tmp_path / "report"), *argv]) == 0
 
 
 def test_force_replaces_only_a_folder_that_holds_an_evaluation_report_alone(
@@ -153,16 +174,18 @@ def test_force_replaces_only_a_folder_that_holds_an_evaluation_report_alone(
     (mine / "report.md").write_text("# My thesis\n")
     (mine / "chapters" / "ch1.tex").write_text("\\chapter{One}\n")
     argv = ["evaluate", str(mine), "--no-plots", "--logs", "", "--maps", "", "--force"]
-    assert main([*argv, "--maps-dir", str(tmp_path)]) == 1
-    assert "thesis" in capsys.readouterr().err
+    data = tmp_path / "data"
+    data.mkdir()
+    assert main([*argv, "--maps-dir", str(data)]) == 1
+    assert "thesis: is a directory this command did not write" in capsys.readouterr().err
     assert (mine / "chapters" / "ch1.tex").is_file()
     assert (mine / "report.md").read_text() == "# My thesis\n"
     report = tmp_path / "report"
     report.mkdir()
-    assert main([*argv[:1], str(report), *argv[2:], "--maps-dir", str(tmp_path)]) == 0
-    assert main([*argv[:1], str(report), *argv[2:], "--maps-dir", str(tmp_path)]) == 0  # again
+    assert main([*argv[:1], str(report), *argv[2:], "--maps-dir", str(data)]) == 0
+    assert main([*argv[:1], str(report), *argv[2:], "--maps-dir", str(data)]) == 0  # again
     (report / "notes.txt").write_text("mine")
-    assert main([*argv[:1], str(report), *argv[2:], "--maps-dir", str(tmp_path)]) == 1
+    assert main([*argv[:1], str(report), *argv[2:], "--maps-dir", str(data)]) == 1
     assert (report / "notes.txt").read_text() == "mine"
 
 

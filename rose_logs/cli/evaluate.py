@@ -280,8 +280,16 @@ def run(args: argparse.Namespace) -> int:
     # (`--maps-dir dat`) was taken silently.
     _refuse_missing_log_files(args, config)
     reads = bool(config.data_logs or config.benchmark_maps)
-    data_root = config.data_root if reads or config.maps_dir is not None else None
-    inputs = [data_root] if data_root is not None and reads else []
+    if reads or config.maps_dir is not None:
+        data_root: Path | None = config.data_root
+    else:  # nothing read from it, but a data folder found is never written into either
+        try:
+            data_root = config.data_root
+        except DataSetError:
+            data_root = None
+    # Protected even when no experiment reads it (`--logs '' --maps ''`, or logs given as paths):
+    # the report of such a run was written into $ROSE_DATA_DIR.
+    inputs = [data_root] if data_root is not None else []
     # And the sub-folders read, each in its own right: one may be a symlink out of the data folder
     # (a shared copy of the benchmark), and the report was written inside its target.
     inputs += [config.logs_dir] if config.data_logs else []
