@@ -32,7 +32,7 @@ import logging
 import os
 import re
 from collections.abc import Collection, Iterable, Iterator
-from pathlib import Path
+from pathlib import Path, PurePath
 from types import TracebackType
 from typing import Any, Self
 
@@ -108,9 +108,32 @@ def _corrupt(path: Path, err: BaseException) -> LogReadError:
             f"{path}: its metadata.yaml lacks the key {short(missing.group(1), 80)!r} that "
             "rosbag2 metadata holds (written by hand, or cut short?)"
         )
+    absent = _MISSING_FILES.search(str(err))
+    if absent is not None:  # rosbags's words: "Some database files are missing: ['/a/b.db3']"
+        names = _listed_names(absent.group(1))
+        files, are = ("files", "are") if len(names) > 1 else ("file", "is")
+        return LogReadError(
+            f"{path}: storage {files} {short(', '.join(names), 120)}, listed in its "
+            f"metadata.yaml, {are} missing (moved or deleted?)"
+        )
     return LogReadError(f"{path}: corrupt or truncated log ({short(library_text(err), 160)})")
 
 
+def _listed_names(text: str) -> list[str]:
+    """The file names in rosbags's list of paths (a Python list's repr; as it is if it is none)."""
+    import ast
+
+    try:
+        paths = ast.literal_eval(text)
+    except (ValueError, SyntaxError, MemoryError, RecursionError):
+        return [text]
+    if not isinstance(paths, list) or not paths:
+        return [text]
+    return [PurePath(str(p)).name for p in paths]
+
+
+#: rosbags's error for a storage file that metadata.yaml lists and the folder lacks.
+_MISSING_FILES = re.compile(r"Some database files are missing: (\[.*\])")
 #: rosbags's error for a ``metadata.yaml`` version it does not know.
 _NEWER_BAG = re.compile(r"Rosbag2 version (\d+) not supported")
 #: rosbags's error for a ``metadata.yaml`` without a key it reads.

@@ -1722,6 +1722,24 @@ def test_a_metadata_yaml_without_a_key_rosbags_reads_is_said_so_in_our_words(
         )
 
 
+def test_a_storage_file_missing_from_a_bag_folder_is_said_so_in_our_words(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`info bag` said `corrupt or truncated log (Some database files are missing:
+    ['/full/path/run_0.db3'])`: nothing is corrupt, a file the metadata lists is gone."""
+    bag = tmp_path / "run"
+    assert main(["process", str(SAMPLE), "--format", "db3", "-o", str(bag), "-q"]) == 0
+    stored = next(bag.glob("*.db3"))
+    stored.unlink()
+    capsys.readouterr()
+    for command in (["info"], ["process", "--no-output"]):
+        assert main([command[0], str(bag), *command[1:]]) == 1
+        assert capsys.readouterr().err == (
+            f"error: {bag}: storage file {stored.name}, listed in its metadata.yaml, is missing "
+            "(moved or deleted?)\n"
+        )
+
+
 def test_a_bag_of_a_newer_rosbag2_version_is_said_so_in_our_words(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
