@@ -588,8 +588,11 @@ def error_result(
     """A result saying that ``recording`` (of ``log_format``, when known) failed with ``message``
     (one line, starting with the recording's URI like every error row)."""
     line = " ".join(str(message).split()) or "unknown error"
-    if not line.startswith(recording.uri):
-        line = f"{recording.uri}: {line}"
+    # The name spelled as the line spells it: one with a newline, a tab or two spaces in a row
+    # (`new\nrun.bag`) was put before the message again, its newline breaking the one line.
+    spelled = " ".join(recording.uri.split())
+    if not line.startswith(spelled):
+        line = f"{spelled}: {line}"
     return RecordingResult(
         uri=recording.uri,
         name=recording.name,

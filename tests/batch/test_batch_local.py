@@ -210,6 +210,23 @@ def test_a_dangling_link_in_a_folder_is_an_error_row_not_a_stopped_batch(
     assert rows["fleet/robot_a/run.mcap"].status == "ok"
 
 
+def test_an_error_row_names_a_recording_with_odd_spaces_once(tmp_path: Path) -> None:
+    """A name with a newline or two spaces in a row was named twice in its error row, the
+    first time with its newline (a row of two lines): the message's spaces were collapsed
+    before it was compared with the name."""
+    fleet = tmp_path / "fleet"
+    fleet.mkdir()
+    for name in ("new\nline.bag", "two  spaces.bag"):
+        (fleet / name).write_bytes(b"garbage")
+    result = run_batch([fleet], tmp_path / "out")
+    errors = sorted(row.error for row in result.results)
+    assert all("\n" not in error for error in errors)
+    assert errors == [
+        f"{fleet}/new line.bag: not a ROS 1 bag, ROS 2 bag or MCAP file (unrecognised header)",
+        f"{fleet}/two spaces.bag: not a ROS 1 bag, ROS 2 bag or MCAP file (unrecognised header)",
+    ]
+
+
 def test_one_input_as_a_string_or_path_is_one_input(fleet: Path, tmp_path: Path) -> None:
     """discover('x.mcap') took each character for an input, discover(Path) was a TypeError (as
     run_batch, they are one input); options as a dict was an AttributeError deep inside."""
