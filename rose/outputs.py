@@ -386,6 +386,11 @@ def _no_folder(path: Path | str, parent: Path) -> str:
     ``notes.txt/out.mcap`` said the folder did not exist)."""
     if parent.exists():
         return f"{path}: {parent} is a file, not a folder"
+    # A missing folder under a file (`evaluate run.mcap/a/report`) is not one to make: the file
+    # is the problem, not the folder.
+    above = next((p for p in parent.parents if os.path.lexists(p)), None)
+    if above is not None and above.exists() and not above.is_dir():
+        return f"{path}: {above} is a file, not a folder"
     return f"{path}: folder {parent} does not exist"
 
 

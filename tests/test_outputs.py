@@ -651,6 +651,11 @@ def test_an_output_under_a_file_says_the_file_is_no_folder(tmp_path: Path) -> No
             call(tmp_path / "notes.txt" / "out.json")
     with pytest.raises(OutputError, match=r"folder .*missing does not exist"):
         OutputSet().stage(tmp_path / "missing" / "out.json")
+    # Deeper under the file too (`evaluate notes.txt/a/report`): said the folder notes.txt/a
+    # did not exist, as if making it would do.
+    for call in (OutputSet().check, OutputSet().stage):
+        with pytest.raises(OutputError, match=r"notes\.txt is a file, not a folder"):
+            call(tmp_path / "notes.txt" / "a" / "b" / "out.json", directory=True)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.txt"]
 
 
