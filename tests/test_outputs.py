@@ -561,6 +561,20 @@ def test_an_empty_folder_is_filled_by_a_folder_output_without_force(tmp_path: Pa
         outputs.commit()
     assert [p.name for p in again.iterdir()] == ["notes.txt"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["again", "out"]  # no temporaries left
+    # A set that fails after the folder was filled leaves it empty again, as it was.
+    last = tmp_path / "last"
+    last.mkdir()
+    outputs = OutputSet()
+    staged = outputs.stage(last, directory=True)
+    assert staged.temp is not None
+    staged.temp.mkdir()
+    outputs.write_bytes(tmp_path / "f.txt", b"new")
+    (tmp_path / "f.txt").write_text("mine")  # appears while the run writes: the set fails
+    with pytest.raises(OutputError, match=r"f\.txt: appeared while writing"):
+        outputs.commit()
+    assert last.is_dir() and not any(last.iterdir())
+    assert (tmp_path / "f.txt").read_text() == "mine"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["again", "f.txt", "last", "out"]
 
 
 def test_force_never_replaces_a_folder_whose_metadata_yaml_is_another_tools(
