@@ -504,6 +504,11 @@ def _load_yaml_map(path: Path, max_cells: int | None) -> OccupancyMap:
     if not image_name or "\0" in image_name:
         msg = f"{path}: 'image' must name a file"
         raise MapFileError(msg)
+    if image_name.endswith(("/", os.sep, "/.")):
+        # Path() drops a last slash or '.' ("m.pgm/" read m.pgm); the map servers open the name as
+        # written, which fails: a map that loads here must load there.
+        msg = f"{path}: its image {short(repr(image_name), 120)} is named as a folder (a last '/')"
+        raise MapFileError(msg)
     image_path = Path(image_name)
     if not image_path.is_absolute():
         image_path = path.parent / image_path

@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
+import re
 import struct
 import zlib
 from collections.abc import Callable
@@ -1337,6 +1338,19 @@ def test_an_image_name_with_spaces_around_it_is_shown_quoted(tmp_path: Path) -> 
     (tmp_path / "spaced.yaml").write_text(text)
     with pytest.raises(MapFileError, match=r"the name 'depot\.pgm ' has spaces or line breaks"):
         rose.load_map(tmp_path / "spaced.yaml")
+
+
+def test_an_image_name_ending_with_a_slash_is_refused(tmp_path: Path) -> None:
+    """'image: depot.pgm/' (or 'depot.pgm/.') loaded depot.pgm (Path drops them); map_server fails."""
+    grid = np.zeros((4, 4), dtype=np.int8)
+    rose.save_map(tmp_path / "depot.yaml", rose.OccupancyMap(grid=grid))
+    for name in ("depot.pgm/", "depot.pgm/."):
+        text = (tmp_path / "depot.yaml").read_text().replace("image: depot.pgm", f"image: {name}")
+        (tmp_path / "slashed.yaml").write_text(text)
+        with pytest.raises(
+            MapFileError, match=rf"its image '{re.escape(name)}' is named as a folder"
+        ):
+            rose.load_map(tmp_path / "slashed.yaml")
 
 
 def test_an_image_named_by_a_url_is_said_to_be_one(tmp_path: Path) -> None:
