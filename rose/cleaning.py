@@ -65,8 +65,9 @@ Two methods, chosen by name:
        structure (so ``kept`` need not contain the paper's structure). Pieces attached to no kept
        wall and smaller than ``min_region_m2`` (they can enclose no region the guard protects) do
        not count as obstacles for the guard, unless a drawn hidden wall line that meets a kept
-       wall runs next to them (furniture against that wall, its corner shadows parting it from
-       the wall); nor do scanned objects that stand close to others
+       wall runs next to them, or a line the furniture-front rule drew runs within two cells of
+       them (furniture against that wall, its corner shadows parting it from the wall); nor do
+       scanned objects that stand close to others
        (joined with them across a gap into a larger piece), judged one by one: an 8-connected
        piece with no kept cell within the join's reach (three cells), a box under
        ``min_region_m2``, and its faces around an unseen inside (along grid rows or columns,
@@ -175,8 +176,9 @@ class CleanParams:
         Remove free-standing pieces (no cell on a run or near wide unknown, even across a gap of up
         to two cells; a joined box with a diagonal under ``min_run_m``; not closed around known
         free space) even where the paper calls them structure, and let the guard ignore pieces
-        attached to no kept wall (nor next to a drawn hidden wall line meeting one) that are
-        smaller than ``min_region_m2``.
+        attached to no kept wall (nor next to a drawn hidden wall line meeting one, nor within
+        two cells of a line the furniture-front rule drew) that are smaller than
+        ``min_region_m2``.
     """
 
     min_run_m: float = 2.0
