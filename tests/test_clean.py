@@ -979,6 +979,10 @@ def _room_with_a_box_in_a_doorway(
         ((90, 104), 92, 8, 56, 10),
         ((90, 104), 92, 8, 52, 16),
         ((90, 108), 91, 14, 58, 8),
+        # A 0.15 m box, its inside a cell wide: the line piece across it is 1 x 2 cells, longest
+        # across the wall, and no gap lay past its ends along that axis: the line was drawn.
+        ((90, 102), 94, 3, 56, 10),
+        ((90, 104), 95, 3, 56, 10),
     ],
 )
 def test_a_doorway_with_a_box_standing_in_it_stays_open(

@@ -375,15 +375,20 @@ def _axis(
 ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
     """The centre (row, col) and the long axis (a unit vector, row and col) of the cells
     ``rows, cols`` (two or more): their principal axis. Cells spread alike every way (a square
-    piece, 2 x 2 across a box's inside two cells wide) have none: then the axis is that of them
-    with the cells ``around`` them (rows, cols: the gaps beside a line piece), when given. (The
-    solver's pick for equal spreads is its first unit vector, along the columns whichever way
-    the wall ran: a box in a doorway was found upright and missed transposed.)"""
+    piece, 2 x 2 across a box's inside two cells wide) have none, and cells no longer along it
+    than a line is thick (``_LINE_THICKNESS_PX``: 1 x 2 across an inside a cell wide) have
+    none of their own: then the axis is that of them with the cells ``around`` them (rows,
+    cols: the gaps beside a line piece), when given. (The solver's pick for equal spreads is
+    its first unit vector, along the columns whichever way the wall ran: a box in a doorway was
+    found upright and missed transposed; a line piece across a wall is longest across it.)"""
     points = np.stack([rows, cols], axis=1).astype(np.float64)
     spreads, vectors = np.linalg.eigh(np.cov(points, rowvar=False))
-    if around is not None and around[0].size and spreads[1] - spreads[0] <= 1e-9 * spreads[1]:
-        more = np.stack(around, axis=1).astype(np.float64)
-        _, vectors = np.linalg.eigh(np.cov(np.concatenate([points, more]), rowvar=False))
+    if around is not None and around[0].size:
+        along = points @ vectors[:, -1]
+        stubby = float(along.max() - along.min()) + 1 <= _LINE_THICKNESS_PX
+        if stubby or spreads[1] - spreads[0] <= 1e-9 * spreads[1]:
+            more = np.stack(around, axis=1).astype(np.float64)
+            _, vectors = np.linalg.eigh(np.cov(np.concatenate([points, more]), rowvar=False))
     return points.mean(axis=0), vectors[:, -1]  # (eigenvalues ascending: the long axis last)
 
 
