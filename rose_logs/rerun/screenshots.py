@@ -5,9 +5,9 @@
 Serves the recording with ``rerun REC.rrd --serve-web`` bound to 127.0.0.1 only (free ports), opens the
 web viewer in Chromium (Debian's ``/usr/bin/chromium`` driven by Playwright, software WebGL through
 SwiftShader, a fresh profile, no network beyond loopback), and saves one PNG of the default layout per
-requested snapshot (the page loads once and opens on the first time point; the time cursor is moved
-with the viewer's own key, Ctrl+Right for the next time point, wrapping from the last to the first, so
-every shot shows exactly a snapshot). Needs the
+requested snapshot, once the picture stops changing (the page loads once and opens on the first
+time point; the time cursor is moved with the viewer's own key, Ctrl+Right for the next time point,
+wrapping from the last to the first, so every shot shows exactly a snapshot). Needs the
 ``screenshots`` extra (``pip install '.[screenshots]'``) and ``apt-get install chromium``.
 """
 
@@ -256,6 +256,7 @@ def _viewer_url(web_port: int, grpc_port: int) -> str:
 
 
 _SETTLE_MS = 4000  # time for the viewer to redraw after the time cursor moved
+_STEADY_GAP_MS = 2000  # between two screenshots that must be alike for a shot to count as drawn
 _KEY_GAP_MS = 200
 _NEXT_FRAMES_JS = "() => new Promise(r => requestAnimationFrame(() => requestAnimationFrame(r)))"
 
@@ -267,6 +268,27 @@ def _press(page: Any, key: str) -> None:
     page.evaluate(_NEXT_FRAMES_JS)
     page.wait_for_timeout(_KEY_GAP_MS)
     page.evaluate(_NEXT_FRAMES_JS)
+
+
+def _steady_screenshot(page: Any, name: str, timeout_s: float) -> bytes:
+    """A screenshot of ``page`` once two taken ``_STEADY_GAP_MS`` apart are alike (the last one
+    after ``timeout_s`` seconds, with a warning). A fixed wait alone was not enough: on a busy
+    machine the viewer had not loaded the recording when the first shot was taken (its W plot
+    and amplitude plot empty, no direction lines, "87.5 s latency" in its top bar), and the PNG
+    was saved as if it showed the snapshot."""
+    deadline = time.monotonic() + timeout_s
+    previous = page.screenshot()
+    while True:
+        page.wait_for_timeout(_STEADY_GAP_MS)
+        current = page.screenshot()
+        if current == previous:
+            return bytes(current)
+        if time.monotonic() >= deadline:
+            _LOG.warning(
+                "%s: the viewer was still drawing after %g s; saved as it was", name, timeout_s
+            )
+            return bytes(current)
+        previous = current
 
 
 def take_screenshots(
@@ -298,7 +320,8 @@ def take_screenshots(
     width, height : int
         Browser viewport, CSS pixels.
     load_s : float
-        Seconds the viewer gets to load before each shot.
+        Seconds the viewer gets to load before the first shot; then every shot waits until the
+        picture stops changing (two screenshots 2 s apart alike), at most ``4 * load_s`` more.
     chromium : Path, optional
         Browser executable; default :func:`chromium_path`.
     prefix : str
@@ -379,7 +402,8 @@ def take_screenshots(
                         _press(page, "Control+ArrowRight")
                     position = target
                 page.wait_for_timeout(_SETTLE_MS)
-                taken.append((name, step, page.screenshot()))
+                # Until the viewer has drawn everything (it may still be loading the recording).
+                taken.append((name, step, _steady_screenshot(page, name, 4 * load_s)))
                 _LOG.info("took %s", name)
         finally:
             context.close()

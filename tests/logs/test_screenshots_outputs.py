@@ -122,3 +122,26 @@ def test_shots_that_cannot_be_written_are_refused_before_the_viewer_starts(
     assert screenshots.main([str(rrd), "--out", str(out), "--at", "end"]) == 1
     err = capsys.readouterr().err
     assert err.startswith(f"error: {out / 'end.png'}: ") and "Traceback" not in err
+
+
+@pytest.mark.usefixtures("stand_in_browser")
+def test_a_shot_waits_until_the_viewer_has_drawn_the_recording(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A fixed wait took the first shot while a busy machine's viewer was still loading (empty
+    plots, no direction lines) and saved it as the snapshot: a shot is taken once the picture
+    stops changing."""
+    monkeypatch.setattr(screenshots, "_serve", _served)
+    frames = iter([b"loading 1", b"loading 2", b"drawn", b"drawn", b"end", b"end"])
+    monkeypatch.setattr(_Page, "screenshot", lambda self: next(frames))
+    rrd = tmp_path / "s.rrd"
+    rrd.write_bytes(b"")
+    shots = screenshots.take_screenshots(
+        rrd,
+        tmp_path / "shots",
+        steps=[("start", 0), ("end", None)],
+        time_points=3,
+        chromium=Path(sys.executable),
+        load_s=60,
+    )
+    assert [shot.path.read_bytes() for shot in shots] == [b"drawn", b"end"]
