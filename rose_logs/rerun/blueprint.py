@@ -78,11 +78,18 @@ class TopicLayout:
     one_time_window_s: float | None = None
 
 
+#: The plots' value axes reach this fraction of their top below 0: values of 0 (a break score
+#: that is 0 most of a session) lay on the plot's lower edge, half cut off and hidden by the time
+#: axis, and read as no data.
+_BELOW_ZERO = 0.05
+
+
 def _value_axis(top: float | None) -> rrb.ScalarAxis | None:
-    """A y axis from 0 to ``top`` plus 15 % (None: Rerun fits the data, lines at the top edge hide)."""
+    """A y axis from a little below 0 (:data:`_BELOW_ZERO`) to ``top`` plus 15 % (None: Rerun fits
+    the data, lines at the top edge hide)."""
     if top is None or not math.isfinite(top) or top <= 0:
         return None
-    return rrb.ScalarAxis(range=(0.0, 1.15 * top))
+    return rrb.ScalarAxis(range=(-_BELOW_ZERO * top, 1.15 * top))
 
 
 def _grid_spacing_m(bounds_m: tuple[float, float, float, float] | None) -> float:

@@ -1528,3 +1528,15 @@ def test_the_scores_view_gets_an_image_about_its_size(tmp_path: Path) -> None:
 
     assert SCORES_DISPLAY_MAX_PX / 2 < longest(PATHS.cell_scores) <= SCORES_DISPLAY_MAX_PX
     assert DISPLAY_MAX_PX / 2 < longest(PATHS.segmentation) <= DISPLAY_MAX_PX
+
+
+@pytest.mark.parametrize("top", [0.4, 1.25, 22.0])
+def test_the_plots_show_values_of_zero_above_their_lower_edge(top: float) -> None:
+    """The break score is 0 most of a session: on an axis starting at 0 its line lay on the plot's
+    lower edge, under the time axis, and its zero stretches looked like no data."""
+    from rose_logs.rerun.blueprint import _value_axis
+
+    axis = _value_axis(top)
+    assert axis is not None
+    ((low, high),) = axis.range.pa_array.to_pylist()
+    assert low < -0.02 * top and high > top
