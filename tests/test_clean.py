@@ -397,6 +397,31 @@ def test_straight_lines_do_not_depend_on_where_the_cells_lie() -> None:
     assert straight_lines(row, min_length_px=40)[2, 5:46].all()
 
 
+@pytest.mark.xfail(
+    strict=True,
+    reason="known: straight_lines' probabilistic Hough transform runs on the whole map, every "
+    "cell votes in one shuffled order, so cells far away change a wall's segments; searching each "
+    "group of cells alone fixed this but kept more clutter (docs/cleaning.md, 2026-12-06)",
+)
+def test_walls_kept_in_a_room_do_not_depend_on_specks_in_the_next_room() -> None:
+    # A wall at an angle and clutter in one room, specks 2.5-7 m away in the next: the walls
+    # cleaning keeps a different set of cells in the first room with the specks (15 of 16 random
+    # scenes; this one by 94 cells). A user expects a speck in another room to change nothing here.
+    rng = np.random.default_rng(1)
+    grid = np.zeros((160, 300), np.int8)
+    grid[[0, -1], :] = grid[:, [0, -1]] = grid[:, 150] = 100
+    grid[70:90, 150] = 0  # a doorway between the rooms
+    wall = np.zeros(grid.shape, np.uint8)
+    cv2.line(wall, (20, 20), (86, 94), 1, 1)  # 5 m at 48 degrees
+    grid[wall.view(bool)] = 100
+    grid[10:140, 10:140][rng.random((130, 130)) < 0.03] = 100
+    specked = grid.copy()
+    specked[20:140:6, 200:290:6][rng.random((20, 15)) < 0.6] = 100
+    kept = clean(grid, rose.analyze(grid), resolution_m=0.05).kept
+    kept_specked = clean(specked, rose.analyze(specked), resolution_m=0.05).kept
+    assert np.array_equal(kept[:, :150], kept_specked[:, :150])
+
+
 def test_wide_unknown_drops_narrow_shadows() -> None:
     grid = np.zeros((100, 100), np.int8)
     grid[:, :30] = -1  # wide unknown
