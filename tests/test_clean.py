@@ -1119,6 +1119,39 @@ def test_a_doorway_with_a_box_standing_in_it_stays_open_at_an_angle(
     assert not separated_pairs(cleaned.cleaned >= 65, room, beyond)
 
 
+@pytest.mark.parametrize("stub", [5, 6])
+@pytest.mark.parametrize("turn", ["upright", "left-right"])
+def test_a_doorway_with_a_box_beside_a_cabinet_and_a_door_frame_stub_stays_open(
+    stub: int, turn: str
+) -> None:
+    """A 2.5 m cabinet against the wall (its inside and the wall behind it unseen), a door
+    frame stub of ``stub`` cells, then a 0.9 m doorway with a 0.5 m box standing in it (its
+    inside unknown, open at the back): the cabinet's front, a kept run, was bridged to the box's
+    side on the front's row, a stretch of free cells seen through. The gap between the stub and
+    the box looked closed off from the room by it (a pocket, no space beyond) and the line
+    across the box's inside was drawn: the doorway stayed closed once the box went."""
+    grid = np.full((120, 280), -1, np.int8)
+    grid[30:80, 30:250] = 0  # the room
+    grid[28:30, 28:252] = grid[80:82, 28:252] = 100
+    grid[28:82, 28:30] = grid[28:82, 250:252] = 100
+    grid[74, 100:150] = 100  # the cabinet's front ...
+    grid[74:80, 100] = grid[74:80, 149] = 100  # ... and sides
+    grid[75:82, 101:149] = -1  # its inside and the wall behind it, unseen
+    door = (150 + stub, 150 + stub + 18)
+    grid[80:92, door[0] : door[1]] = 0  # the doorway, seen through
+    left = door[0] + 3
+    grid[70, left : left + 10] = 100  # the box's front ...
+    grid[70:82, left] = grid[70:82, left + 9] = 100  # ... and sides
+    grid[71:82, left + 1 : left + 9] = -1  # its inside, unseen
+    room, beyond = (50, 140), (88, (door[0] + door[1]) // 2)
+    if turn == "left-right":
+        grid = np.ascontiguousarray(grid[:, ::-1])
+        room, beyond = (50, 279 - 140), (88, 279 - beyond[1])
+    assert separated_pairs(grid >= 65, room, beyond)  # the box blocks it
+    cleaned = clean(grid, rose.analyze(grid), resolution_m=RES)
+    assert not separated_pairs(cleaned.cleaned >= 65, room, beyond)
+
+
 @pytest.mark.parametrize("slit", [3, 4])
 def test_a_wall_stretch_flush_between_two_slits_seen_through_stays(slit: int) -> None:
     """A 1 m stretch of the outer wall, flush with its faces, its core unseen, between two slits

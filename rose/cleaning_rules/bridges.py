@@ -460,7 +460,9 @@ def _parting(
     the background): whether its cells touch (8-connected) two or more regions of ``open_cells``
     (8-connected) in the label's bounding box ``pad`` cells wider, clipped to the image, that
     each reach that box's edge. A region closed within the box is a pocket (a recess in a wall
-    beside the label, walled all round): no space beyond the line that scans went across to."""
+    beside the label, walled all round): no space beyond the line that scans went across to;
+    unless another label (another stretch seen through) lies between it and a region that
+    reaches the edge, which it then counts as (:func:`_pockets_seen_into`)."""
     import cv2
 
     out = np.zeros(wanted.size, dtype=bool)
@@ -472,13 +474,50 @@ def _parting(
     for i, (label, (x, y, w, h)) in enumerate(zip(wanted.tolist(), boxes.tolist(), strict=True)):
         r0, r1 = max(y - pad, 0), min(y + h + pad, height)
         c0, c1 = max(x - pad, 0), min(x + w + pad, width)
-        mine = labels[r0:r1, c0:c1] == label
-        _, regions = components(open_cells[r0:r1, c0:c1])
+        window = labels[r0:r1, c0:c1]
+        mine = window == label
+        count_here, regions = components(open_cells[r0:r1, c0:c1])
         beside = cv2.dilate(mine.view(np.uint8), ring).view(bool)
         touching = np.unique(regions[beside & ~mine])
+        touching = touching[touching > 0]
         edge = np.concatenate([regions[0], regions[-1], regions[:, 0], regions[:, -1]])
-        out[i] = np.count_nonzero(np.isin(touching[touching > 0], edge)) >= 2
+        reaching = np.zeros(count_here, dtype=bool)
+        reaching[edge] = True
+        reaching[0] = False
+        groups = {int(r) for r in touching if reaching[r]}
+        if not reaching[touching].all():
+            groups |= _pockets_seen_into(window, label, regions, reaching, touching, ring)
+        out[i] = len(groups) >= 2
     return out
+
+
+def _pockets_seen_into(
+    window: npt.NDArray[np.integer],
+    label: int,
+    regions: npt.NDArray[np.integer],
+    reaching: npt.NDArray[np.bool_],
+    touching: npt.NDArray[np.integer],
+    ring: npt.NDArray[np.uint8],
+) -> set[int]:
+    """For :func:`_parting`: the regions reaching the window's edge (of ``regions``, ``reaching``)
+    that a closed region of ``touching`` is joined to across another stretch seen through (a
+    label of ``window`` other than ``label``): such a region is no pocket, scans went into it
+    across that stretch (a bridge of free cells from a cabinet's front to a box beside a doorway
+    closed the gap between them off from the room). Its region beyond that stretch is the
+    one it belongs to."""
+    import cv2
+
+    found: set[int] = set()
+    pockets = touching[~reaching[touching]]
+    # Only the stretches beside such a pocket (a window holds many, a pocket few).
+    near = cv2.dilate(np.isin(regions, pockets).view(np.uint8), ring).view(bool)
+    others = np.unique(window[near & (window > 0) & (window != label)])
+    for other in others.tolist():
+        beside = cv2.dilate((window == other).view(np.uint8), ring).view(bool)
+        across = np.unique(regions[beside])
+        if np.isin(pockets, across).any():
+            found.update(int(r) for r in across if reaching[r])
+    return found
 
 
 def _bridges(
