@@ -1008,6 +1008,12 @@ def _room_with_a_box_in_a_doorway(
         # across the wall, and no gap lay past its ends along that axis: the line was drawn.
         ((90, 102), 94, 3, 56, 10),
         ((90, 104), 95, 3, 56, 10),
+        # A box standing in front of the doorway, inside the room, its open back on the row
+        # above the wall: the bridges drew a line across its inside on that row (from a wall
+        # end to the box's kept side), all of it unseen, the doorway's one stretch seen through
+        # running along beside it, and the line closed the doorway's mouth once the box went.
+        ((90, 102), 94, 7, 50, 10),
+        ((90, 108), 95, 8, 54, 6),
     ],
 )
 def test_a_doorway_with_a_box_standing_in_it_stays_open(

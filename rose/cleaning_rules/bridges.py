@@ -189,30 +189,44 @@ def _in_openings(
                 + np.concatenate([stretch_of, more_stretches])
             )
             piece_of, stretch_of = np.divmod(pairs, stretches)
+    line_cells = _nonzero_flat(np.ascontiguousarray(line).view(np.uint8))
+    line_owner = labels.reshape(-1)[line_cells]
+    gap_cells = _nonzero_flat(np.ascontiguousarray(through).view(np.uint8))
+    gap_owner = gaps.reshape(-1)[gap_cells]
+    width = line.shape[1]
+    # Or one stretch runs along the piece's line cells, beside each of them, and on past both of
+    # its ends: the wall line behind the piece is seen through (a box standing in front of a
+    # doorway, its back's unseen row bridged from a wall end beside the doorway's free cells):
+    # drawn, the line closed the doorway's mouth once the box went.
+    along = np.array(
+        [
+            _alongside(
+                np.divmod(line_cells[line_owner == piece], width),
+                np.divmod(gap_cells[gap_owner == stretch], width),
+            )
+            for piece, stretch in zip(piece_of.tolist(), stretch_of.tolist(), strict=True)
+        ],
+        dtype=bool,
+    )
     # Only pieces with two stretches beside them need theirs looked at (few: each in its box).
     two = np.bincount(piece_of, minlength=count) >= 2
-    candidates = np.unique(stretch_of[two[piece_of]])
+    candidates = np.unique(stretch_of[two[piece_of] | along])
     if candidates.size == 0:
         return out, objects
     open_cells = ~(occupied[box] | span | line)
     seen = np.zeros(stretches, dtype=bool)
     seen[candidates] = _parting(gaps, stretches, candidates, open_cells, reach)
     by_seen = seen[stretch_of]
-    piece_of, stretch_of = piece_of[by_seen], stretch_of[by_seen]
+    piece_of, stretch_of, along = piece_of[by_seen], stretch_of[by_seen], along[by_seen]
     wanted = np.zeros(count, dtype=bool)
+    wanted[piece_of[along]] = True
     two = np.bincount(piece_of, minlength=count) >= 2
     two[0] = False
-    if not two.any():
-        return out, objects
+    two &= ~wanted
     # And the stretches lie on the piece's line, one past each of its ends, each narrower than
     # the robot (``robot_px`` cells, its width and a cell): the doorway's gaps on either side of
     # what stands in it, which the line left closed, not gaps around clutter that meets the line
     # nor free cells on a line across a room.
-    line_cells = _nonzero_flat(np.ascontiguousarray(line).view(np.uint8))
-    line_owner = labels.reshape(-1)[line_cells]
-    gap_cells = _nonzero_flat(np.ascontiguousarray(through).view(np.uint8))
-    gap_owner = gaps.reshape(-1)[gap_cells]
-    width = line.shape[1]
     for piece in np.flatnonzero(two).tolist():
         ends = [np.divmod(gap_cells[gap_owner == g], width) for g in stretch_of[piece_of == piece]]
         wanted[piece] = _on_both_ends(
@@ -374,14 +388,20 @@ def _axis(
     around: tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]] | None = None,
 ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
     """The centre (row, col) and the long axis (a unit vector, row and col) of the cells
-    ``rows, cols`` (two or more): their principal axis. Cells spread alike every way (a square
-    piece, 2 x 2 across a box's inside two cells wide) have none, and cells no longer along it
-    than a line is thick (``_LINE_THICKNESS_PX``: 1 x 2 across an inside a cell wide) have
-    none of their own: then the axis is that of them with the cells ``around`` them (rows,
-    cols: the gaps beside a line piece), when given. (The solver's pick for equal spreads is
-    its first unit vector, along the columns whichever way the wall ran: a box in a doorway was
-    found upright and missed transposed; a line piece across a wall is longest across it.)"""
+    ``rows, cols`` (two or more, or one with ``around``): their principal axis. Cells spread
+    alike every way (a square piece, 2 x 2 across a box's inside two cells wide) have none, and
+    cells no longer along it than a line is thick (``_LINE_THICKNESS_PX``: 1 x 2 across an
+    inside a cell wide) have none of their own, nor has a single cell: then the axis is that of
+    them with the cells ``around`` them (rows, cols: the gaps beside a line piece), when given.
+    (The solver's pick for equal spreads is its first unit vector, along the columns whichever
+    way the wall ran: a box in a doorway was found upright and missed transposed; a line piece
+    across a wall is longest across it.)"""
     points = np.stack([rows, cols], axis=1).astype(np.float64)
+    if points.shape[0] < 2 and around is not None:
+        # (A single cell: the axis of the cells around it with it.)
+        more = np.concatenate([points, np.stack(around, axis=1).astype(np.float64)])
+        _, vectors = np.linalg.eigh(np.cov(more, rowvar=False))
+        return points.mean(axis=0), vectors[:, -1]
     spreads, vectors = np.linalg.eigh(np.cov(points, rowvar=False))
     if around is not None and around[0].size:
         along = points @ vectors[:, -1]
@@ -401,6 +421,35 @@ def _across(
     """Signed distances (cells) of the cells ``rows, cols`` from the line through ``centre``
     along ``axis`` (of :func:`_axis`)."""
     return (rows - centre[0]) * axis[1] - (cols - centre[1]) * axis[0]
+
+
+def _alongside(
+    piece: tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]],
+    stretch: tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]],
+) -> bool:
+    """Whether the ``stretch`` (rows, cols) lies beside every cell of the line ``piece`` (rows,
+    cols), within ``_LINE_THICKNESS_PX - 1`` cells (across a line up to that thick), and has
+    cells past both ends of the piece along its long axis (:func:`_axis`): the wall line is
+    seen through behind the whole piece, not only at its ends."""
+    if piece[0].size == 0 or stretch[0].size == 0:
+        return False
+    near = _LINE_THICKNESS_PX - 1
+    if (
+        stretch[0].min() > piece[0].min() + near
+        or stretch[0].max() < piece[0].max() - near
+        or stretch[1].min() > piece[1].min() + near
+        or stretch[1].max() < piece[1].max() - near
+    ):
+        return False  # (most pairs: the stretch is beside one end of the piece only)
+    rows, cols = (np.subtract.outer(p, s) for p, s in zip(piece, stretch, strict=True))
+    if not (np.maximum(np.abs(rows), np.abs(cols)).min(axis=1) <= near).all():
+        return False
+    if piece[0].size + stretch[0].size < 3:
+        return False  # (a cell beside a cell: no stretch past both ends)
+    centre, axis = _axis(*piece, stretch)
+    ends = (np.stack(piece, axis=1) - centre) @ axis
+    past = (np.stack(stretch, axis=1) - centre) @ axis
+    return bool(past.min() < ends.min() and past.max() > ends.max())
 
 
 def _on_both_ends(
