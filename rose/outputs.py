@@ -8,7 +8,7 @@ Every command of ``rose`` and ``rose-bag`` writes its outputs through one :class
   a directory, and a folder output (a ROS 2 bag) replaces an existing directory only if that directory
   is a ROS 2 bag itself (``metadata.yaml`` and no sub-folder), so ``-o SOME_DIR --force`` never deletes
   an unrelated folder; an existing *empty* folder holds nothing to overwrite, and a folder output
-  fills it without ``force``.
+  fills it without ``force``; the current folder, or one that holds it, is never replaced.
 - **staging**: each output is written inside its own hidden folder next to the target,
   ``.NAME.rose-tmp-<tag>-<pid>-<random>/NAME`` (:func:`process_tag`), unique per run (two concurrent runs never share a temporary);
   an output given as ``-``, or an existing non-regular target such as ``/dev/stdout``, ``/dev/null`` or
@@ -772,6 +772,11 @@ class OutputSet:
             return
         # What --force would not replace either is said first (no advice to use it in vain).
         is_dir = target.is_dir()
+        if directory and is_dir and _holds_working_folder(target):
+            # A folder output replaces the folder by a rename: the shell's (and this process's)
+            # current folder would be a deleted one, the output beside it under the same name.
+            msg = f"{path}: is the current folder or holds it, not replacing it (cd out of it)"
+            raise OutputError(msg)
         if directory and is_dir and _is_empty_folder(target):
             return  # nothing to overwrite (`mkdir out && rose-bag evaluate out`): no --force needed
         if is_dir and not directory:
@@ -992,6 +997,15 @@ class OutputSet:
             self.commit()
         else:
             self.abort()
+
+
+def _holds_working_folder(path: Path) -> bool:
+    """Whether ``path`` (resolved) is this process's current folder or a folder that holds it."""
+    try:
+        cwd = Path.cwd().resolve()
+    except OSError:  # the current folder was deleted: nothing to protect
+        return False
+    return path == cwd or path in cwd.parents
 
 
 def _is_empty_folder(path: Path) -> bool:

@@ -577,6 +577,27 @@ def test_an_empty_folder_is_filled_by_a_folder_output_without_force(tmp_path: Pa
     assert sorted(p.name for p in tmp_path.iterdir()) == ["again", "f.txt", "last", "out"]
 
 
+def test_a_folder_output_never_replaces_the_current_folder(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`mkdir o && cd o && rose-bag evaluate . --logs '' --maps ''` renamed the report onto the
+    empty current folder: the shell was left in a deleted folder (`ls` empty), the report beside
+    it. The current folder, or one that holds it (an earlier report with --force), is refused."""
+    here = tmp_path / "o"
+    here.mkdir()
+    monkeypatch.chdir(here)
+    for given in (".", here):
+        with pytest.raises(OutputError, match="is the current folder or holds it"):
+            OutputSet().stage(given, directory=True)
+    report = tmp_path / "report"
+    (report / "figures").mkdir(parents=True)
+    monkeypatch.chdir(report / "figures")
+    with pytest.raises(OutputError, match=r"^\.\.: is the current folder or holds it"):
+        OutputSet(force=True).stage("..", directory=True, replaceable=lambda _: True)
+    assert here.is_dir() and (report / "figures").is_dir()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["o", "report"]  # no temporaries
+
+
 def test_force_never_replaces_a_folder_whose_metadata_yaml_is_another_tools(
     tmp_path: Path,
 ) -> None:
