@@ -777,6 +777,10 @@ class OutputSet:
             # current folder would be a deleted one, the output beside it under the same name.
             msg = f"{path}: is the current folder or holds it, not replacing it (cd out of it)"
             raise OutputError(msg)
+        if directory and is_dir and os.path.ismount(target):
+            # Replaced by a rename, which a mount point refuses (EBUSY) once the work is done.
+            msg = f"{path}: is a mount point, not replacing it (give a new folder inside it)"
+            raise OutputError(msg)
         if directory and is_dir and _is_empty_folder(target):
             return  # nothing to overwrite (`mkdir out && rose-bag evaluate out`): no --force needed
         if is_dir and not directory:

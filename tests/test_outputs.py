@@ -598,6 +598,21 @@ def test_a_folder_output_never_replaces_the_current_folder(
     assert sorted(p.name for p in tmp_path.iterdir()) == ["o", "report"]  # no temporaries
 
 
+def test_a_folder_output_never_replaces_a_mount_point(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`rose-bag evaluate /mnt/usb` on an empty mounted drive ran every experiment, then failed to
+    rename the report onto the mount point, naming its temporary ('.../.usb.rose-tmp-.../usb:
+    cannot commit the outputs (Device or resource busy)'). Refused before the work now."""
+    usb = tmp_path / "usb"
+    usb.mkdir()
+    real = os.path.ismount
+    monkeypatch.setattr(os.path, "ismount", lambda p: Path(p) == usb or real(p))
+    with pytest.raises(OutputError, match=r"usb: is a mount point, not replacing it"):
+        OutputSet().stage(usb, directory=True)
+    assert [p.name for p in tmp_path.iterdir()] == ["usb"]
+
+
 def test_force_never_replaces_a_folder_whose_metadata_yaml_is_another_tools(
     tmp_path: Path,
 ) -> None:
