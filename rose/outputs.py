@@ -599,7 +599,8 @@ class OutputSet:
         self.clean_stale = clean_stale
         self._inputs: list[tuple[Path, Path]] = []
         self._outputs: list[StagedOutput] = []
-        self._emptied: list[StagedOutput] = []  # placed over an empty folder (see commit)
+        # Placed over an empty folder, with that folder's status (see commit).
+        self._emptied: list[tuple[StagedOutput, os.stat_result]] = []
         self._done = False
         for path in inputs:
             self.add_input(path)
@@ -892,6 +893,10 @@ class OutputSet:
                     if staged.directory and _is_empty_folder(staged.target):
                         # Replaced by the rename itself, which fails (ENOTEMPTY) if a file was put
                         # in it meanwhile: never moved aside and deleted with what it then holds.
+                        # The folder made for the output (a group's shared one) keeps its mode.
+                        status = staged.target.stat()
+                        if staged.temp is not None:
+                            _take_status(staged.temp, status)
                         try:
                             self._place(staged)
                         except OSError as err:
@@ -900,7 +905,7 @@ class OutputSet:
                             msg = f"{staged.path}: appeared while writing, not replacing it"
                             raise OutputError(msg) from err
                         placed.append(staged)
-                        self._emptied.append(staged)
+                        self._emptied.append((staged, status))
                         continue
                     if os.path.lexists(staged.target):
                         if not self.force:
@@ -936,9 +941,11 @@ class OutputSet:
     def _undo(self, placed: list[StagedOutput], backups: list[tuple[StagedOutput, Path]]) -> None:
         for staged in placed:
             _remove_tree(staged.target)
-            if staged in self._emptied:  # the empty folder it replaced comes back
-                with contextlib.suppress(OSError):
-                    staged.target.mkdir()
+            for emptied, status in self._emptied:
+                if emptied is staged:  # the empty folder it replaced comes back, as it was
+                    with contextlib.suppress(OSError):
+                        staged.target.mkdir()
+                        _take_status(staged.target, status)
         for staged, backup in backups:
             with contextlib.suppress(OSError):
                 backup.rename(staged.target)
@@ -1001,6 +1008,20 @@ class OutputSet:
             self.commit()
         else:
             self.abort()
+
+
+def _take_status(path: Path, status: os.stat_result) -> None:
+    """Gives the folder ``path`` the permission bits (setgid too) and, where allowed, the owner
+    and group of ``status`` (an empty folder an output replaces): not its ACLs or attributes."""
+    # Another user's folder: its group only; a group this user is not in: as made. Before the
+    # mode: a change of owner or group clears the setgid bit.
+    for owner in (status.st_uid, -1):
+        try:
+            os.chown(path, owner, status.st_gid)
+            break
+        except OSError:
+            continue
+    path.chmod(stat.S_IMODE(status.st_mode))
 
 
 def _holds_working_folder(path: Path) -> bool:

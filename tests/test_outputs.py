@@ -7,6 +7,7 @@ import math
 import os
 import shutil
 import signal
+import stat
 import subprocess
 import sys
 import time
@@ -544,12 +545,14 @@ def test_an_empty_folder_is_filled_by_a_folder_output_without_force(tmp_path: Pa
     never moved aside and deleted: the commit fails and the file stays."""
     out = tmp_path / "out"
     out.mkdir()
+    out.chmod(0o2770)  # made for the output, shared with a group: filled, it keeps its mode
     with OutputSet() as outputs:
         staged = outputs.stage(out, directory=True)
         assert staged.temp is not None
         staged.temp.mkdir()
         (staged.temp / "a.txt").write_text("new")
     assert [p.name for p in out.iterdir()] == ["a.txt"]
+    assert stat.S_IMODE(out.stat().st_mode) == 0o2770
     again = tmp_path / "again"
     again.mkdir()
     outputs = OutputSet()
@@ -564,6 +567,7 @@ def test_an_empty_folder_is_filled_by_a_folder_output_without_force(tmp_path: Pa
     # A set that fails after the folder was filled leaves it empty again, as it was.
     last = tmp_path / "last"
     last.mkdir()
+    last.chmod(0o2750)  # a group's folder: it keeps its mode, filled or put back
     outputs = OutputSet()
     staged = outputs.stage(last, directory=True)
     assert staged.temp is not None
@@ -573,6 +577,7 @@ def test_an_empty_folder_is_filled_by_a_folder_output_without_force(tmp_path: Pa
     with pytest.raises(OutputError, match=r"f\.txt: appeared while writing"):
         outputs.commit()
     assert last.is_dir() and not any(last.iterdir())
+    assert stat.S_IMODE(last.stat().st_mode) == 0o2750
     assert (tmp_path / "f.txt").read_text() == "mine"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["again", "f.txt", "last", "out"]
 
