@@ -783,7 +783,12 @@ class OutputSet:
             msg = f"{path}: is a mount point, not replacing it (give a new folder inside it)"
             raise OutputError(msg)
         if directory and is_dir and _is_empty_folder(target):
-            return  # nothing to overwrite (`mkdir out && rose-bag evaluate out`): no --force needed
+            # Nothing to overwrite (`mkdir out && rose-bag evaluate out`): no --force needed. But
+            # filled by a rename, a folder this user may not write in would be written all the same.
+            if not os.access(target, os.W_OK | os.X_OK):
+                msg = f"{path}: folder not writable (permission denied)"
+                raise OutputError(msg)
+            return
         if is_dir and not directory:
             msg = f"{path}: is a directory, not replacing it with a file"
             raise OutputError(msg)

@@ -582,6 +582,21 @@ def test_an_empty_folder_is_filled_by_a_folder_output_without_force(tmp_path: Pa
     assert sorted(p.name for p in tmp_path.iterdir()) == ["again", "f.txt", "last", "out"]
 
 
+def test_an_empty_folder_this_user_may_not_write_in_is_not_filled(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """An empty folder without write permission (`chmod a-w out`) was filled all the same: the
+    rename into its parent replaced it, and (since it keeps the folder's mode) left a read-only
+    folder whose report the undo of a failed set could not remove."""
+    out = tmp_path / "out"
+    out.mkdir()
+    real = os.access
+    monkeypatch.setattr(os, "access", lambda p, mode, **kw: Path(p) != out and real(p, mode))
+    with pytest.raises(OutputError, match=r"out: folder not writable \(permission denied\)"):
+        OutputSet().stage(out, directory=True)
+    assert [p.name for p in tmp_path.iterdir()] == ["out"]
+
+
 def test_a_folder_output_never_replaces_the_current_folder(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
