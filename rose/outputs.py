@@ -601,6 +601,8 @@ class OutputSet:
         self._outputs: list[StagedOutput] = []
         # Placed over an empty folder, with that folder's status (see commit).
         self._emptied: list[tuple[StagedOutput, os.stat_result]] = []
+        # Folder outputs over a folder empty when staged: nothing there for --force to replace.
+        self._empty_when_staged: set[Path] = set()
         self._done = False
         for path in inputs:
             self.add_input(path)
@@ -711,6 +713,8 @@ class OutputSet:
             self._outputs.append(staged)
             return staged
         self._check_existing(path, target, directory=directory, replaceable=replaceable)
+        if directory and _is_empty_folder(target):
+            self._empty_when_staged.add(target)
         parent = target.parent
         if not parent.is_dir():
             raise OutputError(_no_folder(path, parent))
@@ -913,6 +917,11 @@ class OutputSet:
                         self._emptied.append((staged, status))
                         continue
                     if os.path.lexists(staged.target):
+                        if staged.target in self._empty_when_staged:
+                            # Its files are someone's, put there while the run wrote: --force
+                            # replaces what was checked as replaceable, and an empty folder was.
+                            msg = f"{staged.path}: got files while writing, not replacing it"
+                            raise OutputError(msg)
                         if not self.force:
                             msg = f"{staged.path}: appeared while writing, not replacing it"
                             raise OutputError(msg)

@@ -560,7 +560,19 @@ def test_an_empty_folder_is_filled_by_a_folder_output_without_force(tmp_path: Pa
     assert staged.temp is not None
     staged.temp.mkdir()
     (again / "notes.txt").write_text("mine")  # put there while the run wrote
-    with pytest.raises(OutputError, match="again: appeared while writing, not replacing it"):
+    with pytest.raises(OutputError, match="again: got files while writing, not replacing it"):
+        outputs.commit()
+    assert [p.name for p in again.iterdir()] == ["notes.txt"]
+    # With --force too: it licenses replacing a folder checked as replaceable (an earlier
+    # report), and the empty one was; the file put in it meanwhile was deleted with it.
+    (again / "notes.txt").unlink()
+    outputs = OutputSet(force=True)
+    staged = outputs.stage(again, directory=True, replaceable=lambda p: (p / "r.md").exists())
+    assert staged.temp is not None
+    staged.temp.mkdir()
+    (staged.temp / "r.md").write_text("report")
+    (again / "notes.txt").write_text("mine")
+    with pytest.raises(OutputError, match="again: got files while writing, not replacing it"):
         outputs.commit()
     assert [p.name for p in again.iterdir()] == ["notes.txt"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["again", "out"]  # no temporaries left
