@@ -897,8 +897,11 @@ class OutputSet:
         with signals_deferred() as held:
             backups: list[tuple[StagedOutput, Path]] = []
             placed: list[StagedOutput] = []
+            # The output an error names (the rename's own file names are the hidden temporary's).
+            placing: StagedOutput | None = None
             try:
                 for staged in files:
+                    placing = staged
                     if staged.directory and _is_empty_folder(staged.target):
                         # Replaced by the rename itself, which fails (ENOTEMPTY) if a file was put
                         # in it meanwhile: never moved aside and deleted with what it then holds.
@@ -933,7 +936,7 @@ class OutputSet:
             except BaseException as err:
                 self._undo(placed, backups)
                 if isinstance(err, OSError):
-                    target = err.filename or "output"
+                    target = placing.path if placing is not None else err.filename or "output"
                     msg = f"{target}: cannot commit the outputs ({err.strerror or err})"
                     raise OutputError(msg) from err
                 raise

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import errno
 import json
 import math
 import os
@@ -607,6 +608,29 @@ def test_an_empty_folder_this_user_may_not_write_in_is_not_filled(
     with pytest.raises(OutputError, match=r"out: folder not writable \(permission denied\)"):
         OutputSet().stage(out, directory=True)
     assert [p.name for p in tmp_path.iterdir()] == ["out"]
+
+
+def test_an_output_that_cannot_be_placed_is_named_as_given(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A rename that failed at commit (EBUSY: a bind-mounted folder, EXDEV, EACCES) was reported
+    with the rename's source, the hidden temporary ('.../.out.rose-tmp-<tag>-<pid>-<random>/out:
+    cannot commit the outputs ...'): the output is named as the user gave it."""
+    outputs = OutputSet()
+    staged = outputs.stage(tmp_path / "out", directory=True)
+    assert staged.temp is not None
+    staged.temp.mkdir()
+
+    def busy(self: Path, target: Path) -> None:
+        raise OSError(errno.EBUSY, "Device or resource busy", str(self), str(target))
+
+    monkeypatch.setattr(Path, "rename", busy)
+    with pytest.raises(OutputError) as raised:
+        outputs.commit()
+    assert (
+        str(raised.value)
+        == f"{tmp_path / 'out'}: cannot commit the outputs (Device or resource busy)"
+    )
 
 
 def test_a_folder_output_never_replaces_the_current_folder(
