@@ -603,6 +603,8 @@ class OutputSet:
         self._emptied: list[tuple[StagedOutput, os.stat_result]] = []
         # Folder outputs over a folder empty when staged: nothing there for --force to replace.
         self._empty_when_staged: set[Path] = set()
+        # What each folder output's ``replaceable`` was, to check the folder again at commit.
+        self._replaceable: dict[Path, Callable[[Path], bool] | None] = {}
         self._done = False
         for path in inputs:
             self.add_input(path)
@@ -715,6 +717,8 @@ class OutputSet:
         self._check_existing(path, target, directory=directory, replaceable=replaceable)
         if directory and _is_empty_folder(target):
             self._empty_when_staged.add(target)
+        if directory:
+            self._replaceable[target] = replaceable
         parent = target.parent
         if not parent.is_dir():
             raise OutputError(_no_folder(path, parent))
@@ -928,6 +932,15 @@ class OutputSet:
                         if not self.force:
                             msg = f"{staged.path}: appeared while writing, not replacing it"
                             raise OutputError(msg)
+                        if staged.directory:
+                            # Checked when staged; files put in it since (a note, another log)
+                            # would go with it: the same checks again, on what it holds now.
+                            self._check_existing(
+                                staged.path,
+                                staged.target,
+                                directory=True,
+                                replaceable=self._replaceable.get(staged.target),
+                            )
                         backup = staged.target.with_name(temporary_name(staged.target.name, "old"))
                         staged.target.rename(backup)
                         backups.append((staged, backup))

@@ -147,6 +147,26 @@ def test_force_replaces_a_bag_folder_only_when_it_holds_nothing_else(tmp_path: P
     outputs.abort()
 
 
+def test_force_checks_a_bag_folder_again_when_it_replaces_it(tmp_path: Path) -> None:
+    """A bag folder may be replaced when the run starts; a file put in it while the run wrote (notes,
+    another log) went with it at commit, though the same file there at the start was refused."""
+    bag = tmp_path / "bag"
+    bag.mkdir()
+    (bag / "metadata.yaml").write_text("relative_file_paths:\n- bag_0.db3\n")
+    (bag / "bag_0.db3").write_bytes(b"x")
+    outputs = OutputSet(force=True)
+    staged = outputs.stage(bag, directory=True)
+    staged.temp.mkdir()
+    (staged.temp / "metadata.yaml").write_text("new")
+    (bag / "notes.txt").write_text("mine")
+    with pytest.raises(OutputError, match=r"holds other files too \(notes.txt\)"):
+        outputs.commit()
+    outputs.abort()
+    assert sorted(p.name for p in bag.iterdir()) == ["bag_0.db3", "metadata.yaml", "notes.txt"]
+    assert (bag / "metadata.yaml").read_text().startswith("relative_file_paths")
+    assert _leftovers(tmp_path) == []
+
+
 def test_force_replaces_only_bag_folders(tmp_path: Path) -> None:
     photos = tmp_path / "photos"
     photos.mkdir()
