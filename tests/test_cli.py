@@ -294,6 +294,35 @@ def test_score_scores_every_good_map_and_reports_the_bad_ones(
     assert records[1]["error"].startswith(f"{missing}: ")
 
 
+def test_names_with_newlines_and_tabs_keep_the_tables_and_summaries_one_line_each(
+    cluttered_map: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A map file named with a newline or a tab (valid names) printed raw broke `rose score`'s
+    table into extra rows and `rose clean`'s summary and warnings into extra lines: such names
+    are printed escaped (``\\n``, ``\\t``), as the error lines and `rose-bag info` print them."""
+    image = cluttered_map.with_suffix(".pgm")
+    odd = tmp_path / "nl\nx.pgm"
+    tabbed = tmp_path / "tab\tb.pgm"
+    odd.write_bytes(image.read_bytes())
+    tabbed.write_bytes(image.read_bytes())
+    assert main(["score", str(odd), str(tabbed)]) == 0
+    rows = capsys.readouterr().out.splitlines()
+    assert len(rows) == 3 and rows[0].startswith("map ")
+    assert rows[1].startswith(f"{tmp_path}/nl\\nx.pgm ")
+    assert rows[2].startswith(f"{tmp_path}/tab\\tb.pgm ")
+    out = tmp_path / "o\nut.yaml"
+    report = tmp_path / "r\n.txt"
+    assert main(["clean", str(odd), "-o", str(out), "--json", str(report)]) == 0
+    captured = capsys.readouterr()
+    labels = ("map ", "W ", "directions ", "threshold ", "occupied ", "method ", "removed ")
+    labels += ("kept ", "completed ", "written ", "time ")
+    assert [line.split(" ")[0] + " " for line in captured.out.splitlines()] == list(labels)
+    assert "nl\\nx.pgm" in captured.out and "o\\nut.yaml + o\\nut.pgm + " in captured.out
+    warnings = captured.err.splitlines()
+    assert len(warnings) == 2 and all(w.startswith("warning: ") for w in warnings)
+    assert out.is_file()  # the file itself under its real name
+
+
 def test_directions_are_reported_in_the_map_frame(
     cluttered_map: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -25,6 +25,7 @@ from rose.cli.options import (
 )
 from rose.directions import degenerate_input
 from rose.errors import MapFileError
+from rose.limits import visible
 from rose.mapfile import SAVED_OCCUPIED_FROM, OccupancyMap, map_image_path, save_map
 from rose.outputs import STDOUT, OutputSet, refuse_output_in_bag_folder, suffix_warning
 
@@ -83,7 +84,7 @@ def run(args: argparse.Namespace) -> int:
     # After the checks: a refused output is refused alone, not warned about first.
     warning = suffix_warning(args.json, ".json", "a JSON report")
     if warning is not None:
-        print(warning, file=sys.stderr)
+        print(visible(warning), file=sys.stderr)
     from rose.pipeline import analyze  # scipy: loaded by the command, not by the parser
 
     started = time.perf_counter()
@@ -136,7 +137,9 @@ def run(args: argparse.Namespace) -> int:
         degenerate=degenerate,
     )
     lines = [
-        f"map          {args.map}  ({cols} x {rows} cells, {source.resolution_m:g} m/cell)",
+        # Names escaped (a newline or tab in a file name broke the summary's lines).
+        f"map          {visible(str(args.map))}  "
+        f"({cols} x {rows} cells, {source.resolution_m:g} m/cell)",
         f"W            {result.structure_score:.3f}  ({w_reading})",
         f"directions   {directions}",
         f"threshold    {f'{threshold:.6f}' if threshold is not None and math.isfinite(threshold) else 'n/a'}",
@@ -152,8 +155,13 @@ def run(args: argparse.Namespace) -> int:
         f"the paper's labelling, {cleaning.guarded_count} by the gap guard)",
         f"completed    {cells(cleaning.completed_count, 'unknown')} made walls (wall lines "
         "hidden behind what the rules took for clutter)",
-        f"written      {args.output} + {_beside(image_path, Path(args.output))}"
-        + (f" + {args.json}" if args.json is not None and not outputs.uses_stdout else ""),
+        f"written      {visible(str(args.output))} + "
+        + visible(_beside(image_path, Path(args.output)))
+        + (
+            f" + {visible(str(args.json))}"
+            if args.json is not None and not outputs.uses_stdout
+            else ""
+        ),
         f"time         {elapsed * 1000:.0f} ms",
     ]
     print("\n".join(lines), file=out)

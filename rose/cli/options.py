@@ -20,7 +20,7 @@ from rose.directions import (
 )
 from rose.errors import RoseError
 from rose.grid import as_occupancy_grid
-from rose.limits import DEFAULT_MAX_CELLS, MEMORY_PER_CELL
+from rose.limits import DEFAULT_MAX_CELLS, MEMORY_PER_CELL, visible
 from rose.mapfile import (
     DEFAULT_RESOLUTION_M,
     MAX_RESOLUTION_M,
@@ -528,8 +528,8 @@ def load_grid_map(
         raise RoseError(msg) from err
     if resolution_assumed(path, resolution_m) and metric:
         print(
-            f"warning: {path}: no map YAML, assuming {DEFAULT_RESOLUTION_M:g} m/cell "
-            "(set it with --resolution)",
+            f"warning: {visible(str(path))}: no map YAML, assuming "
+            f"{DEFAULT_RESOLUTION_M:g} m/cell (set it with --resolution)",
             file=sys.stderr,
         )
     return occupancy_map

@@ -23,6 +23,7 @@ from rose.cli.options import (
 )
 from rose.directions import degenerate_input
 from rose.errors import RoseError
+from rose.limits import visible
 from rose.outputs import json_text
 from rose.params import RoseParams
 from rose.signals import reraise_interrupt_behind
@@ -61,7 +62,9 @@ def run(args: argparse.Namespace) -> int:
         return 1 if failed else 0
     scored = [r for r in records if "error" not in r]
     if scored:
-        width = max(len("map"), *(len(r["map"]) for r in scored))
+        # A name with a newline or tab (a valid file name) printed raw broke the table's rows.
+        names = {id(r): visible(r["map"]) for r in scored}
+        width = max(len("map"), *(len(name) for name in names.values()))
         print(
             f"{'map':<{width}}  {'W':>6}   {'directions (deg)':<24}  {'occupied':>9}  {'clutter':>8}"
         )
@@ -71,7 +74,7 @@ def run(args: argparse.Namespace) -> int:
         for r in scored:
             dirs = ", ".join(f"{d:.2f}" for d in r["dominant_directions_deg"]) or "none"
             mark = " " if r["has_structure"] is True else "*"
-            print(f"{r['map']:<{width}}  {r['structure_score']:6.3f}{mark}  {dirs:<24}  "
+            print(f"{names[id(r)]:<{width}}  {r['structure_score']:6.3f}{mark}  {dirs:<24}  "
                   f"{r['occupied_cells']:>9}  {r['clutter_cells']:>8}")  # fmt: skip
         for r in unjudged:
             reading = verdict(
@@ -80,7 +83,7 @@ def run(args: argparse.Namespace) -> int:
                 has_structure=r["has_structure"] is not False,
                 degenerate=r["degenerate"],
             )
-            print(f"* {r['map']}: {reading}")
+            print(f"* {names[id(r)]}: {reading}")
     _say_failed(failed, len(records))
     return 1 if failed else 0
 

@@ -17,6 +17,7 @@ from rose.cli.options import (
     verdict,
 )
 from rose.directions import degenerate_input, fold_deg
+from rose.limits import visible
 from rose.outputs import (
     OutputSet,
     counted,
@@ -98,7 +99,7 @@ def run(args: argparse.Namespace, *, stdout: TextIO | None = None) -> int:
         suffix_warning(args.svg, ".svg", "an SVG drawing"),
     ):
         if warning is not None:
-            print(warning, file=sys.stderr)
+            print(visible(warning), file=sys.stderr)
     # scipy and the wall extraction: loaded by the command, not by the parser.
     from rose.pipeline import analyze
     from rose.walls import WallParams, extract_walls, extract_walls_hough
@@ -124,10 +125,10 @@ def run(args: argparse.Namespace, *, stdout: TextIO | None = None) -> int:
         out = sys.stderr
     out.write(format_walls_table(walls))
     if note is not None:
-        out.write(f"note: {args.map}: {note}\n")
+        out.write(f"note: {visible(str(args.map))}: {note}\n")
     for path in (args.geojson, args.svg):
         if path is not None and str(path) != "-":  # on standard output, the data says it itself
-            out.write(f"wrote {path}\n")
+            out.write(f"wrote {visible(str(path))}\n")
     return 0
 
 
