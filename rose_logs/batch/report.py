@@ -5,9 +5,11 @@ from __future__ import annotations
 import contextlib
 import importlib.util
 import io
+import re
 import threading
 from typing import TYPE_CHECKING, Any
 
+from rose.limits import visible
 from rose.outputs import counted
 from rose_logs.batch.sources import printable
 from rose_logs.session.report import row_judged
@@ -25,8 +27,19 @@ def _fmt(value: float | None) -> str:
     return "-" if value is None else f"{value:.3f}"
 
 
+#: Characters Markdown (GitHub's, with its tables, strikethrough and inline HTML) reads as markup
+#: in a table cell: a name such as ``run*2*``, ``[a](b)``, ``<img ...>`` or one with a backtick
+#: rendered as emphasis, a link, HTML or code instead of as spelled.
+_MARKUP = str.maketrans({c: f"\\{c}" for c in "\\`*[]<>|~&"})
+#: An underscore that can open or close emphasis (``_a_``): one not between two letters or digits
+#: (``robot_b``, most file names, is left as it is, readable in the raw file).
+_EMPHASIS_UNDERSCORE = re.compile(r"(?<![^\W_])_|_(?![^\W_])")
+
+
 def _cell(text: str) -> str:
-    return text.replace("|", "\\|").replace("\n", " ")
+    """``text`` as one table cell that renders as spelled: characters that do not print escaped
+    (:func:`~rose.limits.visible`: a newline as ``\\n``), then markup backslash-escaped."""
+    return _EMPHASIS_UNDERSCORE.sub(r"\\_", visible(text).translate(_MARKUP))
 
 
 def markdown(report: BatchReport, summary: dict[str, Any], *, figure: bool) -> str:
@@ -133,7 +146,9 @@ def _losses_section(rows: list[dict[str, Any]]) -> list[str]:
     ]
     for r in hit:
         skipped = (
-            f"{r['skipped_messages']} ({r['skipped_reasons']})" if r["skipped_messages"] else "-"
+            _cell(f"{r['skipped_messages']} ({r['skipped_reasons']})")
+            if r["skipped_messages"]
+            else "-"
         )
         lost = "; ".join(r["losses"]) or "-"
         # A salvaged recording's loss is also said as a warning: once is enough.

@@ -1144,6 +1144,22 @@ def test_one_input_given_as_a_string_is_one_input(tmp_path: Path) -> None:
     assert [r.uri for r in report.results] == [str(log)]
 
 
+def test_report_md_shows_names_as_spelled_not_as_markdown(tmp_path: Path) -> None:
+    """report.md escaped only ``|`` and newlines in its cells: a recording named with ``*``,
+    ``_``, ``[..](..)``, ``<html>``, a backtick or a newline rendered as emphasis, a link, HTML
+    or code (and a newline broke its row); each such character is now backslash-escaped, a
+    newline written ``\\n``."""
+    from fleet import copy_recording
+
+    name = "a_*b*_[l](x)<i>`c`~d~&amp;|\nz.mcap"
+    log = copy_recording(tmp_path / name, "mcap", max_maps=1)
+    run_batch([log], tmp_path / "out")
+    text = (tmp_path / "out" / "report.md").read_text(encoding="utf-8")
+    (row,) = [line for line in text.splitlines() if "&amp;" in line]
+    escaped = r"a\_\*b\*\_\[l\](x)\<i\>\`c\`\~d\~\&amp;\|\\nz.mcap"
+    assert row.startswith(f"| {escaped} | mcap | ok | ")
+
+
 def test_a_file_name_that_is_not_utf8_is_processed_and_tabled(fleet: Path, tmp_path: Path) -> None:
     # Linux file names are bytes: Python keeps undecodable ones as surrogates, which Parquet and
     # uuid5 refuse (the whole batch failed writing its tables).
@@ -1164,7 +1180,8 @@ def test_a_file_name_that_is_not_utf8_is_processed_and_tabled(fleet: Path, tmp_p
     assert rows[0]["snapshots"] > 0
     assert read_rows(out / "snapshots.parquet")[0]["uri"] == rows[0]["uri"]
     assert (out / "cleaned" / "odd" / name).is_file()  # the output keeps the real name
-    assert "r\\xffbot.mcap" in (out / "report.md").read_text(encoding="utf-8")
+    # (its backslash escaped in report.md, which renders it as r\xffbot.mcap)
+    assert "r\\\\xffbot.mcap" in (out / "report.md").read_text(encoding="utf-8")
 
 
 def test_without_matplotlib_the_report_says_why_it_has_no_figure(
