@@ -10,8 +10,9 @@ from __future__ import annotations
 
 import os
 import stat
+from dataclasses import dataclass
 from pathlib import Path, PurePath
-from typing import Literal
+from typing import Any, Literal
 
 from rose.limits import MAX_YAML_BYTES, load_yaml, short
 from rose.outputs import is_bag_folder
@@ -20,11 +21,13 @@ from rose_logs.errors import LogReadError
 __all__ = [
     "FORMATS",
     "MCAP_MAGIC",
+    "BagMetadata",
     "LogFormat",
     "detect_format",
     "format_from_path",
     "mcap_cut_short",
     "processed_name",
+    "read_format",
     "unknown_suffix_warning",
 ]
 
@@ -54,8 +57,30 @@ def mcap_cut_short(path: Path) -> bool:
         return False
 
 
+@dataclass(frozen=True)
+class BagMetadata:
+    """A ROS 2 bag folder's ``metadata.yaml`` as :func:`read_format` read and checked it, for every
+    later use of it (the reader's checks, its storage files, ``custom_data``): parsing it is slow
+    (a 3,000-topic bag's 0.8 MB: seconds), and read again it could be another file's."""
+
+    data: bytes  # the file's bytes (at most :data:`~rose.limits.MAX_YAML_BYTES`)
+    information: dict[str, Any]  # its ``rosbag2_bagfile_information``, parsed within the limits
+
+
 def detect_format(path: Path) -> LogFormat:
     """Storage format of ``path`` from its content (magic bytes, ``metadata.yaml``).
+
+    Raises
+    ------
+    LogReadError
+        If ``path`` does not exist, cannot be read or is no supported log.
+    """
+    return read_format(path)[0]
+
+
+def read_format(path: Path) -> tuple[LogFormat, BagMetadata | None]:
+    """:func:`detect_format`'s format, and for a ROS 2 bag folder its ``metadata.yaml`` as read
+    for it (None for a file): pass it on rather than read the file again.
 
     Raises
     ------
@@ -76,11 +101,11 @@ def detect_format(path: Path) -> LogFormat:
         msg = f"{path}: cannot read ({err.strerror})"
         raise LogReadError(msg) from err
     if head.startswith(_ROS1_MAGIC):
-        return "ros1"
+        return "ros1", None
     if head.startswith(MCAP_MAGIC):
-        return "mcap"
+        return "mcap", None
     if head.startswith(_SQLITE_MAGIC):
-        return "db3"
+        return "db3", None
     what = "empty file" if not head else "unrecognised header"
     msg = f"{path}: not a ROS 1 bag, ROS 2 bag or MCAP file ({what})"
     carmen_words = (b"FLASER", b"ODOM", b"PARAM", b"ROBOTLASER", b"RAWLASER", b"TRUEPOS")
@@ -106,7 +131,7 @@ def _mode(path: Path) -> int:
         raise LogReadError(msg) from err
 
 
-def _folder_format(path: Path) -> LogFormat:
+def _folder_format(path: Path) -> tuple[LogFormat, BagMetadata]:
     """A ROS 2 bag folder: every entry a regular file, ``metadata.yaml`` within the YAML limits."""
     meta = path / "metadata.yaml"
     try:
@@ -150,7 +175,8 @@ def _folder_format(path: Path) -> LogFormat:
     if twice:
         msg = f"{path}: metadata.yaml lists the storage file {twice[0]} more than once"
         raise LogReadError(msg)
-    return "mcap-dir" if info.get("storage_identifier") == "mcap" else "db3"
+    fmt: LogFormat = "mcap-dir" if info.get("storage_identifier") == "mcap" else "db3"
+    return fmt, BagMetadata(text, info)
 
 
 #: Fields of ``rosbag2_bagfile_information`` that rosbags computes with, and their YAML types.

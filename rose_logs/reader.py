@@ -38,7 +38,7 @@ from typing import Any, Self
 
 from rose.limits import short
 from rose_logs.errors import LogError, LogReadError, reraise_unless_damage
-from rose_logs.formats import LogFormat, detect_format, mcap_cut_short
+from rose_logs.formats import LogFormat, mcap_cut_short, read_format
 from rose_logs.storage.connections import QosStyle
 from rose_logs.storage.integrity import FileState
 from rose_logs.storage.mcap import (
@@ -222,12 +222,16 @@ class LogReader:
             msg = f"salvage must be True or False, got {salvage!r}"
             raise TypeError(msg)
         self.path = Path(os.fsdecode(path))
-        self.format: LogFormat = detect_format(self.path)
+        # The files' states before metadata.yaml is read: a change after it (which rosbags, opening
+        # the bag, would read as another bag than the one checked here) is then seen.
+        self._states = FileState.of_log(self.path)  # the log's files as read
+        # A bag folder's metadata.yaml, read here once for everything after (parsing is slow).
+        self.format: LogFormat
+        self.format, self._metadata = read_format(self.path)
         self.salvage = salvage
         self.losses: list[str] = []
         self.read_count = 0
         self._backend: _Backend | None = None
-        self._states: list[FileState] = []  # the log's files as opened
 
     # -- lifecycle -------------------------------------------------------------------------------
     def open(self) -> None:
@@ -242,9 +246,8 @@ class LogReader:
         backend = (
             McapReadBackend(self.path)
             if self.format == "mcap"
-            else RosbagsReadBackend(self.path, self.format)
+            else RosbagsReadBackend(self.path, self.format, metadata=self._metadata)
         )
-        self._states = FileState.of_log(self.path)
         try:
             backend.open()
         except Exception as err:  # library errors of every kind: wrap at the boundary
@@ -281,6 +284,10 @@ class LogReader:
             or isinstance(backend, RosbagsReadBackend | McapFilesReadBackend)
         ):
             backend.skip_damaged_chunks = True
+        changed = self._changed()
+        if changed is not None:  # metadata.yaml rewritten after it was read: rosbags read another
+            backend.close()
+            raise LogReadError(changed)
         self._backend = backend
 
     def _unreadable(
@@ -350,7 +357,7 @@ class LogReader:
         when one is missing (rosbags says which)."""
         if isinstance(err, LogError):
             return None
-        files = mcap_storage_files(self.path)
+        files = mcap_storage_files(self.path, self._metadata)
         if not all(storage.is_file() for storage in files):
             return None  # rosbags' error names the files that are missing
         probes: list[tuple[Path, McapReadBackend | None, BaseException | None]] = []
@@ -423,7 +430,9 @@ class LogReader:
         None when that is not why (the first error stands), or no file opens."""
         if isinstance(err, LogError) or not self.path.is_dir():
             return None
-        backend = RosbagsReadBackend(self.path, self.format, skip_unopened=True)
+        backend = RosbagsReadBackend(
+            self.path, self.format, metadata=self._metadata, skip_unopened=True
+        )
         try:
             backend.open()
         except Exception as failure:  # another damage: the first error stands
@@ -610,7 +619,7 @@ class LogReader:
         record --custom-data``); empty for other logs, and for a bag without any."""
         if self.format not in ("db3", "mcap-dir"):
             return {}
-        return bag_custom_data(self.path)
+        return bag_custom_data(self._metadata)
 
     def file_records(self) -> FileRecords:
         """An MCAP file's metadata and attachment records (``mcap.records.Metadata`` and

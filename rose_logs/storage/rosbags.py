@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING, Any, Literal
 
 from rose.limits import short
 from rose_logs.errors import LogReadError, reraise_unless_damage
-from rose_logs.formats import LogFormat
+from rose_logs.formats import BagMetadata, LogFormat
 from rose_logs.storage.base import WriteBackend
 from rose_logs.storage.connections import (
     QosStyle,
@@ -64,9 +64,19 @@ class RosbagsReadBackend:
 
     profile = ""
 
-    def __init__(self, path: Path, fmt: LogFormat, *, skip_unopened: bool = False) -> None:
+    def __init__(
+        self,
+        path: Path,
+        fmt: LogFormat,
+        *,
+        metadata: BagMetadata | None = None,
+        skip_unopened: bool = False,
+    ) -> None:
         self.path = path
         self.format = fmt
+        #: A bag folder's metadata.yaml as :func:`~rose_logs.formats.read_format` read it (None:
+        #: a file): what its checks, storage files and ``custom_data`` are taken from.
+        self.metadata = metadata
         #: ``--salvage``, a ROS 2 bag folder of several SQLite files: a file that does not open
         #: (its header or tables damaged) is noted in :attr:`unopened` (its path, why) and read
         #: as holding nothing, and the bag opens with the others (else it is an error).
@@ -127,7 +137,7 @@ class RosbagsReadBackend:
             self._by_conn[id(conn)] = channel
         self.channels = tuple(channels)
         if self.format != "ros1":
-            information = _bag_information(self.path)  # read once, for both
+            information = self.metadata.information if self.metadata else None
             self.qos_style = _bag_qos_style(information)
             if self.path.is_dir():
                 self._check_types()
@@ -513,7 +523,7 @@ class RosbagsReadBackend:
         as without ``--salvage``, up to the damage (in a split bag, the other files are read); a
         bag whose messages are compressed one by one is read by rosbags, file by file when there
         are several."""
-        files = mcap_storage_files(self.path)
+        files = mcap_storage_files(self.path, self.metadata)
         storages = self.storage_readers()
         if not files or len(files) != len(storages):
             if len(storages) > 1:  # messages compressed one by one: rosbags reads each file
@@ -531,9 +541,9 @@ class RosbagsReadBackend:
         """The one storage file of this bag folder, as its metadata.yaml lists it (None: a bare
         file, or a bag of several files or of none that reads): an error reading such a bag is
         about that file."""
-        if not self.path.is_dir():
+        if not self.path.is_dir() or self.metadata is None:
             return None
-        names = (_bag_information(self.path) or {}).get("relative_file_paths")
+        names = self.metadata.information.get("relative_file_paths")
         if not isinstance(names, list) or len(names) != 1:
             return None
         return self.path / PurePath(str(names[0])).name
@@ -560,7 +570,7 @@ class RosbagsReadBackend:
         """rosbags' reader of each storage file of this bag folder (:meth:`storage_readers`)
         and the file in the folder it reads (the one compressed, ``x.mcap.zstd``, where it reads
         a temporary decompressed copy)."""
-        information = _bag_information(self.path) or {}
+        information = self.metadata.information if self.metadata else {}
         names = [str(name) for name in information.get("relative_file_paths") or ()]
         files = []
         for storage in self.storage_readers():
@@ -795,57 +805,44 @@ def _stored(value: object) -> str:
     return f"a {type(value).__name__}"
 
 
-def _bag_information(path: Path) -> dict[str, Any] | None:
-    """``rosbag2_bagfile_information`` of the ROS 2 bag folder ``path``'s metadata.yaml (None: no
-    folder, or none that reads as a mapping)."""
-    from rose.limits import load_yaml
-
-    try:
-        information = load_yaml((path / "metadata.yaml").read_bytes())[
-            "rosbag2_bagfile_information"
-        ]
-    except (OSError, ValueError, KeyError, TypeError):
-        return None
-    return information if isinstance(information, dict) else None
-
-
-def bag_custom_data(path: Path) -> dict[str, str]:
-    """``custom_data`` of the ROS 2 bag folder ``path``'s metadata.yaml (``ros2 bag record
-    --custom-data``: text the user attached to the bag), in its order; empty when it has none (a
-    file, metadata that does not read). Values as spelled (rosbag2 reads them as text: ``true``,
-    ``042`` or a date are no bool, number or date)."""
+def bag_custom_data(metadata: BagMetadata | None) -> dict[str, str]:
+    """``custom_data`` of a ROS 2 bag folder's metadata.yaml (``metadata``, as
+    :func:`~rose_logs.formats.read_format` read it; None: a file) (``ros2 bag record
+    --custom-data``: text the user attached to the bag), in its order; empty when it has none.
+    Values as spelled (rosbag2 reads them as text: ``true``, ``042`` or a date are no bool,
+    number or date)."""
     import yaml
 
-    information = _bag_information(path) if path.is_dir() else None  # within the YAML limits
-    if information is None or not information.get("custom_data"):
+    if metadata is None or not metadata.information.get("custom_data"):
         return {}  # most bags: metadata.yaml not parsed a second time (3,000 topics: 1.3 s)
-    parsed = information["custom_data"]
+    parsed = metadata.information["custom_data"]
     if isinstance(parsed, dict) and all(
         isinstance(item, str) for pair in parsed.items() for item in pair
     ):
         # Keys and values all read as text: their spelling, as the text parse would give it
         # (a scalar read as text is its own spelling, quotes and escapes taken as both take them).
         return dict(parsed)
-    try:
-        text = (path / "metadata.yaml").read_bytes().decode("utf-8")
+    try:  # the bytes read once (the file now may be another's), parsed as text
+        text = metadata.data.decode("utf-8")
         data = yaml.load(text, Loader=yaml.BaseLoader)["rosbag2_bagfile_information"]
         data = data["custom_data"]
-    except (OSError, ValueError, KeyError, TypeError, yaml.YAMLError):
+    except (ValueError, KeyError, TypeError, yaml.YAMLError):
         return {}
     if not isinstance(data, dict):  # null: none
         return {}
     return {str(key): value for key, value in data.items() if isinstance(value, str)}
 
 
-def mcap_storage_files(path: Path) -> list[Path]:
-    """The MCAP storage files the ROS 2 bag folder ``path``'s metadata.yaml lists, in its order,
+def mcap_storage_files(path: Path, metadata: BagMetadata | None) -> list[Path]:
+    """The MCAP storage files the ROS 2 bag folder ``path``'s metadata.yaml (``metadata``, as
+    :func:`~rose_logs.formats.read_format` read it; None: a file) lists, in its order,
     as rosbags finds them (by name, in the folder); none when one of them is no plain MCAP file
     (a whole file compressed, ``.mcap.zstd``), when its messages are compressed one by one
     (compression mode "message": the file's messages are zstd data, which rosbags decompresses),
     or the list does not read."""
-    information = _bag_information(path)
-    if information is None:
+    if metadata is None:
         return []
+    information = metadata.information
     mode = str(information.get("compression_mode") or "").lower()
     if mode not in ("", "none"):
         return []

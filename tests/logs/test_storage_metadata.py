@@ -1023,3 +1023,41 @@ def test_custom_data_read_as_text_is_not_parsed_again(
     monkeypatch.undo()
     copied = yaml.load((out / "metadata.yaml").read_text(), Loader=yaml.BaseLoader)
     assert copied["rosbag2_bagfile_information"]["custom_data"] == {"robot": value}
+
+
+def test_a_bag_folders_metadata_is_read_once_and_a_rewrite_after_it_is_seen(
+    tmp_path: Path,
+) -> None:
+    """metadata.yaml was parsed up to three times a run (the format check, the reader's open,
+    custom_data; seconds each for a 3,000-topic bag), each time from the file as it then was: a
+    rewrite between the reads gave the reader two views of one bag (its format from one file,
+    its checks and rosbags' reading from another; custom_data asked after the reading from a
+    third). Now it is read once, when the reader is made, and a rewrite after that is an error
+    saying the file changed, not a mix."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    from rose_logs.errors import LogReadError
+
+    src = tmp_path / "in"
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    with Writer(src, version=9, storage_plugin=StoragePlugin.SQLITE3) as writer:
+        writer.set_custom_data("run", "2026-12-06")  # read as a date: parsed again as text
+        maps = writer.add_connection("/map", MAP_TYPE, typestore=store)
+        for t_ns, topic, data in _messages("cdr"):
+            if topic == "/map":
+                writer.write(maps, t_ns, data)
+    metadata = src / "metadata.yaml"
+    original = metadata.read_text().replace("'2026-12-06'", "2026-12-06")  # as rosbag2 spells it
+    metadata.write_text(original)
+    rewritten = original.replace("2026-12-06", "2027-01-01")
+    # Read, then metadata.yaml rewritten: custom_data is the bag's as it was read.
+    with LogReader(src) as reader:
+        assert sum(1 for _ in reader.messages()) > 0
+        metadata.write_text(rewritten + "\n")
+        assert reader.custom_data == {"run": "2026-12-06"}
+    # Rewritten between the reader's making and its opening: said, not read as a mix.
+    metadata.write_text(original)
+    reader = LogReader(src)
+    metadata.write_text(rewritten + "\n")
+    with pytest.raises(LogReadError, match=r"metadata\.yaml: the file changed while it was read"):
+        reader.open()
