@@ -11,7 +11,7 @@ from typing import Any
 
 from rose.cli.options import add_param_arguments, location, params_from_args
 from rose.console import stderr_is_terminal
-from rose.limits import short
+from rose.limits import short, visible
 from rose_logs.cli.options import (
     EXIT_GATE,
     EXIT_SALVAGED,
@@ -325,7 +325,7 @@ def _print_summary(report: Any) -> None:
         print(f"salvaged     {salvaged} (damaged, kept what could be read)", file=out)
     print(f"broken maps  {sum(bool(r['broke']) for r in rows)}", file=out)
     print(f"snapshots    {sum(r['snapshots'] for r in rows)}", file=out)
-    print(f"output       {report.out}", file=out)
+    print(f"output       {visible(str(report.out))}", file=out)
     print(f"elapsed      {report.elapsed_s:.2f} s", file=out)
     from rose_logs.batch.report import plotting_available
 

@@ -141,6 +141,24 @@ def test_a_topic_named_with_a_newline_stays_on_its_line_in_the_summaries(
     assert "\nmap topic    /ma\\np\n" in capsys.readouterr().out
 
 
+def test_a_log_named_with_a_newline_stays_on_its_line_in_the_summaries(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """info's ``file`` line and process's ``input`` / ``output`` lines printed the name raw: a
+    newline in it split the line (topics and error lines were escaped already)."""
+    grid = np.full((30, 40), -1, dtype=np.int8)
+    maps = [MapMsg(START_NS + 5_000_000_000, grid)]
+    path = build_log(tmp_path / "i\nn.mcap", "mcap-ros2", maps, scans_per_map=0).path
+    assert main(["info", str(path)]) == 0
+    assert capsys.readouterr().out.startswith(f"file         {tmp_path}/i\\nn.mcap\nformat ")
+    out = tmp_path / "o\nut.mcap"
+    assert main(["process", str(path), "-o", str(out), "-q"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].startswith(f"input        {tmp_path}/i\\nn.mcap (mcap, ")
+    assert f"output       {tmp_path}/o\\nut.mcap" in lines
+    assert out.is_file()
+
+
 def test_info_shows_a_maps_sizes_in_the_order_they_came(tmp_path: Path, capsys) -> None:
     """Eight sizes: the first three and the last three as they came (the six smallest hid a
     growing map's final size)."""
