@@ -180,7 +180,9 @@ def figure_png(report: BatchReport) -> bytes | None:
             )
             name = printable(result.name)  # matplotlib refuses a non-UTF-8 file name's surrogates
             label = name if len(topics) == 1 else f"{name} {topic}"
-            series.append((label, rows))
+            # A name with two dollars is mathtext to matplotlib: drawn as a formula, or, not one
+            # (`r$\x$.mcap`), an error that lost the whole report; escaped, it shows as spelled.
+            series.append((label.replace("$", r"\$"), rows))
     if not series:
         return None
     level = report.failure_level

@@ -1160,6 +1160,22 @@ def test_report_md_shows_names_as_spelled_not_as_markdown(tmp_path: Path) -> Non
     assert row.startswith(f"| {escaped} | mcap | ok | ")
 
 
+def test_a_broken_recording_named_with_dollars_keeps_the_report(
+    fleet: Path, tmp_path: Path
+) -> None:
+    """A broken recording is named in the figure's legend, where matplotlib reads text between
+    two dollars as a formula: ``r$\\x$.mcap`` raised its parse error out of the batch (no
+    tables, no report), ``s$1_2$`` was drawn as a formula. The label's dollars are escaped."""
+    folder = tmp_path / "odd"
+    folder.mkdir()
+    (folder / "r$\\x$.mcap").write_bytes((fleet / "robot_b" / "run.mcap").read_bytes())
+    out = tmp_path / "out"
+    report = run_batch([folder], out)
+    assert [r.row()["broke"] for r in report.results] == [True]
+    assert (out / "w_over_time.png").is_file()
+    assert "r$\\\\x$.mcap" in (out / "report.md").read_text(encoding="utf-8")
+
+
 def test_a_file_name_that_is_not_utf8_is_processed_and_tabled(fleet: Path, tmp_path: Path) -> None:
     # Linux file names are bytes: Python keeps undecodable ones as surrogates, which Parquet and
     # uuid5 refuse (the whole batch failed writing its tables).
