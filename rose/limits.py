@@ -134,14 +134,21 @@ def _middle_out(path: str, length: int) -> str:
     return folder[: length - len(tail) - 3] + "..." + tail
 
 
-def visible(text: str) -> str:
+def visible(text: str, *, keep_undecodable: bool = False) -> str:
     """``text`` with the characters that do not print written as escapes (``\\n``, ``\\x1b``,
     ``\\xa0``: controls, and spaces other than the plain one), for names printed in a table: a
     topic named with a newline stays on its line, an escape sequence cannot drive the terminal,
-    and an invisible space shows. Other text (accents too) is unchanged."""
+    and an invisible space shows. Other text (accents too) is unchanged. With
+    ``keep_undecodable``, a file name's bytes that are not UTF-8 (Python's surrogates U+DC80 ..
+    U+DCFF) are kept, for standard output, which prints them as the bytes they are."""
     if text.isprintable():
         return text
-    return "".join(c if c.isprintable() else c.encode("unicode_escape").decode() for c in text)
+    return "".join(
+        c
+        if c.isprintable() or (keep_undecodable and "\udc80" <= c <= "\udcff")
+        else c.encode("unicode_escape").decode()
+        for c in text
+    )
 
 
 def cell_limit(value: object) -> int | None:

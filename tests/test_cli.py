@@ -323,6 +323,17 @@ def test_names_with_newlines_and_tabs_keep_the_tables_and_summaries_one_line_eac
     assert out.is_file()  # the file itself under its real name
 
 
+def test_a_name_that_is_not_utf8_is_printed_as_its_bytes(
+    cluttered_map: Path, tmp_path: Path, capsysbinary: pytest.CaptureFixture[bytes]
+) -> None:
+    """The table escapes names that do not print, but a name that is not UTF-8 is printed as its
+    bytes on standard output (the README), not as the \\udcXX escapes of the error lines."""
+    undecodable = tmp_path / os.fsdecode(b"r\xffx.pgm")
+    undecodable.write_bytes(cluttered_map.with_suffix(".pgm").read_bytes())
+    assert main(["score", str(undecodable)]) == 0
+    assert os.fsencode(tmp_path) + b"/r\xffx.pgm " in capsysbinary.readouterr().out
+
+
 def test_directions_are_reported_in_the_map_frame(
     cluttered_map: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

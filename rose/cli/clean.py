@@ -138,7 +138,7 @@ def run(args: argparse.Namespace) -> int:
     )
     lines = [
         # Names escaped (a newline or tab in a file name broke the summary's lines).
-        f"map          {visible(str(args.map))}  "
+        f"map          {visible(str(args.map), keep_undecodable=True)}  "
         f"({cols} x {rows} cells, {source.resolution_m:g} m/cell)",
         f"W            {result.structure_score:.3f}  ({w_reading})",
         f"directions   {directions}",
@@ -155,10 +155,10 @@ def run(args: argparse.Namespace) -> int:
         f"the paper's labelling, {cleaning.guarded_count} by the gap guard)",
         f"completed    {cells(cleaning.completed_count, 'unknown')} made walls (wall lines "
         "hidden behind what the rules took for clutter)",
-        f"written      {visible(str(args.output))} + "
-        + visible(_beside(image_path, Path(args.output)))
+        f"written      {visible(str(args.output), keep_undecodable=True)} + "
+        + visible(_beside(image_path, Path(args.output)), keep_undecodable=True)
         + (
-            f" + {visible(str(args.json))}"
+            f" + {visible(str(args.json), keep_undecodable=True)}"
             if args.json is not None and not outputs.uses_stdout
             else ""
         ),

@@ -63,7 +63,7 @@ def run(args: argparse.Namespace) -> int:
     scored = [r for r in records if "error" not in r]
     if scored:
         # A name with a newline or tab (a valid file name) printed raw broke the table's rows.
-        names = {id(r): visible(r["map"]) for r in scored}
+        names = {id(r): visible(r["map"], keep_undecodable=True) for r in scored}
         width = max(len("map"), *(len(name) for name in names.values()))
         print(
             f"{'map':<{width}}  {'W':>6}   {'directions (deg)':<24}  {'occupied':>9}  {'clutter':>8}"

@@ -125,10 +125,10 @@ def run(args: argparse.Namespace, *, stdout: TextIO | None = None) -> int:
         out = sys.stderr
     out.write(format_walls_table(walls))
     if note is not None:
-        out.write(f"note: {visible(str(args.map))}: {note}\n")
+        out.write(f"note: {visible(str(args.map), keep_undecodable=True)}: {note}\n")
     for path in (args.geojson, args.svg):
         if path is not None and str(path) != "-":  # on standard output, the data says it itself
-            out.write(f"wrote {visible(str(path))}\n")
+            out.write(f"wrote {visible(str(path), keep_undecodable=True)}\n")
     return 0
 
 

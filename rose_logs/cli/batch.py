@@ -325,7 +325,7 @@ def _print_summary(report: Any) -> None:
         print(f"salvaged     {salvaged} (damaged, kept what could be read)", file=out)
     print(f"broken maps  {sum(bool(r['broke']) for r in rows)}", file=out)
     print(f"snapshots    {sum(r['snapshots'] for r in rows)}", file=out)
-    print(f"output       {visible(str(report.out))}", file=out)
+    print(f"output       {visible(str(report.out), keep_undecodable=True)}", file=out)
     print(f"elapsed      {report.elapsed_s:.2f} s", file=out)
     from rose_logs.batch.report import plotting_available
 

@@ -76,7 +76,7 @@ def run(args: argparse.Namespace) -> int:
             stats[topic]["res"].add(snap.resolution_decimal_m)
             stats[topic]["frames"].add(snap.frame_id)
         # Names escaped as the topics' are: a newline in a file name split the line.
-        print(f"file         {visible(str(args.input))}")
+        print(f"file         {visible(str(args.input), keep_undecodable=True)}")
         print(f"format       {reader.format} ({reader.serialization})")
         declared = " (declared)" if reader.losses and reader.counts_declared else ""
         # The map topics as read (an index can undercount them: a warning says so), the other
@@ -98,9 +98,9 @@ def run(args: argparse.Namespace) -> int:
         if not map_topics:
             print("\nno nav_msgs/OccupancyGrid topic")
         if reader.losses:
-            print(f"\nlosses       {visible(reader.losses[0])}")
+            print(f"\nlosses       {visible(reader.losses[0], keep_undecodable=True)}")
             for loss in reader.losses[1:]:
-                print(f"             {visible(loss)}")
+                print(f"             {visible(loss, keep_undecodable=True)}")
             return EXIT_SALVAGED
     return 0
 

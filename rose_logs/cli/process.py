@@ -103,7 +103,7 @@ def add_parser(subparsers: Any) -> None:
 def _print_summary(report: Any, out: TextIO) -> None:
     start = report.start_ns
     print(
-        f"input        {visible(str(report.input_path))} ({report.input_format}, {report.message_count} messages)",
+        f"input        {visible(str(report.input_path), keep_undecodable=True)} ({report.input_format}, {report.message_count} messages)",
         file=out,
     )
     print(
@@ -112,9 +112,9 @@ def _print_summary(report: Any, out: TextIO) -> None:
         file=out,
     )
     if report.output_path is not None:
-        print(f"output       {visible(str(report.output_path))}", file=out)
+        print(f"output       {visible(str(report.output_path), keep_undecodable=True)}", file=out)
     if report.rrd_path is not None:
-        print(f"rerun        {visible(str(report.rrd_path))}", file=out)
+        print(f"rerun        {visible(str(report.rrd_path), keep_undecodable=True)}", file=out)
     for topic in report.map_topics:
         records = report.records_of(topic)
         print(f"\nmap topic    {visible(topic)}", file=out)
@@ -162,9 +162,9 @@ def _print_summary(report: Any, out: TextIO) -> None:
             file=out,
         )
     if report.losses:  # --salvage: what could not be read
-        print(f"\nlosses       {visible(report.losses[0])}", file=out)
+        print(f"\nlosses       {visible(report.losses[0], keep_undecodable=True)}", file=out)
         for loss in report.losses[1:]:
-            print(f"             {visible(loss)}", file=out)
+            print(f"             {visible(loss, keep_undecodable=True)}", file=out)
     print(f"\nelapsed      {report.elapsed_s:.2f} s", file=out)
 
 

@@ -159,6 +159,20 @@ def test_a_log_named_with_a_newline_stays_on_its_line_in_the_summaries(
     assert out.is_file()
 
 
+def test_info_prints_a_name_that_is_not_utf8_as_its_bytes(
+    tmp_path: Path, capsysbinary: pytest.CaptureFixture[bytes]
+) -> None:
+    """Names that do not print are escaped, but bytes that are not UTF-8 are printed as they are
+    on standard output (the README)."""
+    grid = np.full((30, 40), -1, dtype=np.int8)
+    maps = [MapMsg(START_NS + 5_000_000_000, grid)]
+    raw = tmp_path / os.fsdecode(b"r\xffx.mcap")
+    build_log(raw, "mcap-ros2", maps, scans_per_map=0)
+    assert main(["info", str(raw)]) == 0
+    expected = b"file         " + os.fsencode(raw) + b"\nformat "
+    assert capsysbinary.readouterr().out.startswith(expected)
+
+
 def test_info_shows_a_maps_sizes_in_the_order_they_came(tmp_path: Path, capsys) -> None:
     """Eight sizes: the first three and the last three as they came (the six smallest hid a
     growing map's final size)."""
