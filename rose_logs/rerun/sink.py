@@ -5,8 +5,9 @@
 Rerun encodes, compresses and writes on its own threads too. Static data is logged once when the
 recording opens; the layout (:mod:`rose_logs.rerun.blueprint`) is sent when it is known: at the end of
 a saved recording (so it can frame the final map and show the events view only when there are events),
-and to a live viewer when the recording opens, then again at each topic's first map and at its first
-event (a break, W rising above the failure level, the break detector restarting).
+and to a live viewer when the recording opens, then again at each topic's first map, whenever its
+maps outgrow the views (framed with room to grow, :data:`_LIVE_MARGIN`), and at its first event (a
+break, W rising above the failure level, the break detector restarting).
 """
 
 from __future__ import annotations
@@ -155,6 +156,37 @@ def _union(a: Box | None, b: Box | None) -> Box | None:
     if a is None or b is None:
         return a or b
     return (min(a[0], b[0]), min(a[1], b[1]), max(a[2], b[2]), max(a[3], b[3]))
+
+
+#: A live viewer's views frame the known part of the maps this much wider on every side (times its
+#: larger side): a growing SLAM map ran out of the views, which were framed on its first map only,
+#: and re-sending the layout resets what a user zoomed or panned, so it is re-sent only when the
+#: maps outgrow that frame (a map growing from 5 m to 50 m: about 6 times).
+_LIVE_MARGIN = 0.25
+
+
+def _contains(outer: Box | None, inner: Box | None) -> bool:
+    """Whether ``inner`` lies inside ``outer`` (a missing ``inner`` does; a missing ``outer`` holds
+    nothing)."""
+    if inner is None:
+        return True
+    if outer is None:
+        return False
+    return (
+        outer[0] <= inner[0]
+        and outer[1] <= inner[1]
+        and inner[2] <= outer[2]
+        and inner[3] <= outer[3]
+    )
+
+
+def _widened(box: Box | None, margin: float) -> Box | None:
+    """``box`` with ``margin`` times its larger side added on every side (square boxes of a
+    one-cell map stay small but not empty)."""
+    if box is None:
+        return None
+    pad = margin * max(box[2] - box[0], box[3] - box[1])
+    return (box[0] - pad, box[1] - pad, box[2] + pad, box[3] + pad)
 
 
 def _layout_of(
@@ -325,7 +357,10 @@ class RerunSink:
         # Both guide lines in view: a --failure-level under the trust level cut the trust off.
         self._w_top: dict[str, float] = dict.fromkeys(topics, max(failure_level, trust_level))
         self._break_top: dict[str, float] = dict.fromkeys(topics, 0.0)
-        self._sent_key: tuple[tuple[str, bool, bool, bool, bool], ...] | None = None
+        # Live: what the views of each topic frame in the layout sent last (the known maps widened
+        # by _LIVE_MARGIN); the layout is sent again once a map outgrows it.
+        self._live_frame_m: dict[str, Box | None] = dict.fromkeys(topics)
+        self._sent_key: tuple[tuple[str, bool, bool, bool, bool, Box | None], ...] | None = None
         try:
             self.recording.set_sinks(*sinks)
             self._start(threaded=threaded)
@@ -464,7 +499,13 @@ class RerunSink:
                 snapshot, result, walls, cleaning, window=window, judged=judged
             ),
         )
-        if self.live and first:
+        if self.live and not _contains(
+            self._live_frame_m[snapshot.topic], self._framed_m(snapshot.topic)
+        ):
+            # The topic's first map, or a map grown out of the views: frame it, with room to grow.
+            self._live_frame_m[snapshot.topic] = _widened(
+                self._framed_m(snapshot.topic), _LIVE_MARGIN
+            )
             self._send_blueprint()
 
     def _submit_at(self, snapshot: MapSnapshot, index: int, log: Callable[[], None]) -> None:
@@ -556,6 +597,7 @@ class RerunSink:
                 self._has_events[topic],
                 self._has_walls[topic],
                 self._walls_cleaning[topic],
+                self._live_frame_m[topic],
             )
             for topic in self.loggers
         )
@@ -564,7 +606,10 @@ class RerunSink:
         layouts = tuple(
             _layout_of(
                 logger.paths.root,
-                self._framed_m(topic),
+                # A live viewer's views: room to grow; the final layout frames the maps exactly.
+                self._framed_m(topic)
+                if self._closing or not self.live
+                else self._live_frame_m[topic] or self._framed_m(topic),
                 has_events=self._has_events[topic],
                 view_origin=logger.view_origin_m,
                 has_walls=self._has_walls[topic],

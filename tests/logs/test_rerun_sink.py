@@ -917,6 +917,42 @@ def test_the_views_frame_every_map_of_the_session_when_the_origin_moves(
             assert ry - y1 - 1e-6 <= y <= ry - y0 + 1e-6, (snapshot.origin_position_m, y)
 
 
+def test_a_live_viewer_gets_the_layout_again_when_a_growing_map_outgrows_its_views(
+    tmp_path: Path, sent_layouts: list[tuple[object, ...]]
+) -> None:
+    """Live, the layout went out at the topic's first map only: a SLAM map growing from there ran
+    out of the segmentation and metric views (Freiburg 101 streamed with --connect). It is sent
+    again when a map outgrows what the views frame, with room to grow so that this is rare (a
+    re-sent layout resets the user's zoom); the final layout frames the maps exactly."""
+    import rose
+    from rose_logs.rerun import sink as sink_module
+
+    sink = sink_module.RerunSink(
+        rrd_path=tmp_path / "x.rrd", topics=("/map",), recording_id="x", start_ns=0
+    )
+    sink.live = True  # as with --connect, without a viewer to connect to
+    sizes = (20, 22, 24, 60, 62, 200)  # known square of n x n cells at the grid's corner
+    snapshots = []
+    for n in sizes:
+        grid = np.full((200, 200), -1, dtype=np.int8)
+        grid[:n, :n] = 0
+        grid[0, :n] = grid[n - 1, :n] = grid[:n, 0] = grid[:n, n - 1] = 100
+        snapshots.append(_yawed(grid, 0.0, (0.0, 0.0)))
+    for index, snapshot in enumerate(snapshots):
+        sink.snapshot(snapshot, rose.analyze(snapshot.grid), index, None)
+        (layout,) = sent_layouts[-1]
+        assert layout.bounds_m is not None
+        x0, y0, x1, y1 = _known_box(snapshot)
+        bx0, by0, bx1, by1 = layout.bounds_m
+        assert bx0 <= x0 and by0 <= y0 and x1 <= bx1 and y1 <= by1, (index, layout.bounds_m)
+    # At the first map (20), then only where the maps outgrew the frame: 60 and 200 (24 fits in
+    # the 20's widened frame, 62 in the 60's).
+    assert len(sent_layouts) == 3
+    sink.close()
+    (final,) = sent_layouts[-1]
+    assert final.bounds_m == pytest.approx(_known_box(snapshots[-1]))
+
+
 def test_rerun_batches_small_chunks_unless_the_environment_says_otherwise(monkeypatch) -> None:
     """Rerun's 2 MiB default held several snapshots' images in memory at once; a user's own
     RERUN_FLUSH_NUM_BYTES still decides."""
