@@ -515,19 +515,36 @@ def direction_segments_cells(
     return np.stack([centre - half_length * unit, centre + half_length * unit], axis=1)
 
 
-def direction_label_positions(
-    segments: npt.NDArray[np.float64], *, fraction: float = 0.8
-) -> npt.NDArray[np.float64]:
-    """Where to put each direction's label: ``fraction`` of the way from the centre to its second end.
+#: Lines at least this steep on screen (radians from horizontal) get their label under their
+#: lower end: Rerun draws a point's label under the point, and a steeper line went on down
+#: through it ("walls 86.3°" in both map views). A flatter line leaves the label sideways.
+STEEP_LINE_RAD = math.radians(20.0)
 
-    Labels at the centre would all overlap (every line passes through it).
+
+def direction_label_positions(
+    segments: npt.NDArray[np.float64], *, fraction: float = 0.8, yaw_rad: float = 0.0
+) -> npt.NDArray[np.float64]:
+    """Where to put each direction's label (Rerun draws it under the point): labels at the centre
+    would all overlap (every line passes through it).
+
+    A line steeper than :data:`STEEP_LINE_RAD` on screen (the views show the map frame north up:
+    the grid frame turned by ``yaw_rad``) has its label at its lower end, where no line runs below
+    it; a flatter one ``fraction`` of the way from the centre to its second end.
 
     Returns
     -------
     ndarray of float64, shape (K, 2)
+        In the coordinates of ``segments`` (``[k, end, (x, y)]``, the grid frame, y up).
     """
     centre = segments.mean(axis=1)
-    return centre + fraction * (segments[:, 1] - centre)
+    run = segments[:, 1] - centre
+    # The second end's height over the centre on screen, and its distance from it.
+    cos_yaw, sin_yaw = math.cos(yaw_rad), math.sin(yaw_rad)
+    rise = sin_yaw * run[:, 0] + cos_yaw * run[:, 1]
+    length = np.linalg.norm(run, axis=1)
+    steep = np.abs(rise) >= math.sin(STEEP_LINE_RAD) * length
+    lower = np.where(rise > 0, -1.0, 1.0)[:, None]  # towards the end lower on screen
+    return np.where(steep[:, None], centre + lower * run, centre + fraction * run)
 
 
 def known_bounds_cells(grid: npt.NDArray[np.int8]) -> tuple[int, int, int, int] | None:

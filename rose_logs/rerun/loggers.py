@@ -646,7 +646,8 @@ class TopicLogger:
         """Dominant directions across the mapped area (the occupied cells' box), over the
         segmentation and in metres.
 
-        Each direction is labelled once, near its line's end (all lines cross at the centre).
+        Each direction is labelled once, near its line's end (all lines cross at the centre), a
+        steep line's under its lower end (:func:`conv.direction_label_positions`).
         """
         rec, paths = self.recording, self.paths
         directions = np.asarray(result.dominant_directions, dtype=np.float64)
@@ -658,10 +659,10 @@ class TopicLogger:
         rows, cols = snapshot.grid.shape
         bounds = (occupied or conv.occupied_cells(result)).bounds
         segments = conv.direction_segments_cells(directions, (rows, cols), bounds=bounds)
-        anchors = conv.direction_label_positions(segments)
         # Both views show the map frame (placement_terms): a map whose origin has a yaw shows its
         # walls that much further round than the grid does (as the JSON report gives them).
         yaw = snapshot.origin_yaw_rad
+        anchors = conv.direction_label_positions(segments, yaw_rad=yaw)
         map_labels = [f"walls {d:.1f}°" for d in map_frame_deg(directions, yaw_rad=yaw, digits=1)]
         # Colours, sizes and the label switch are static (log_static).
         labels = arrow.texts(map_labels)

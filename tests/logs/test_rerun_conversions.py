@@ -143,6 +143,26 @@ def test_direction_labels_do_not_meet_at_the_centre() -> None:
     assert np.all(np.linalg.norm(anchors - centre, axis=1) > 30.0)
 
 
+@pytest.mark.parametrize("yaw_deg", [0.0, 30.0, -90.0])
+def test_a_steep_direction_line_has_its_label_under_its_lower_end(yaw_deg: float) -> None:
+    """Rerun draws a label under its point: at 0.8 of the way to a line's upper end, a near-vertical
+    line ran on down through its label ("walls 86.3°" in both map views). Steep on screen (north
+    up, the grid turned by the yaw): the label hangs under the line's lower end; flat: as before."""
+    yaw = math.radians(yaw_deg)
+    grid_deg = np.array([86.3, 176.2, 45.0]) - yaw_deg
+    segments = conv.direction_segments_cells(np.radians(grid_deg), (100, 200))
+    anchors = conv.direction_label_positions(segments, yaw_rad=yaw)
+
+    def screen_up(points: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+        return math.sin(yaw) * points[..., 0] + math.cos(yaw) * points[..., 1]
+
+    for k in (0, 2):  # steep: at the end lower on screen, nothing of the line below the label
+        lowest = segments[k, np.argmin(screen_up(segments[k]))]
+        assert_allclose(anchors[k], lowest, atol=1e-9)
+    centre = segments[1].mean(axis=0)  # flat: 0.8 of the way to the second end
+    assert_allclose(anchors[1], centre + 0.8 * (segments[1, 1] - centre), atol=1e-9)
+
+
 def test_cells_to_pixels_flips_rows() -> None:
     pixels = conv.cells_to_pixels(np.array([[3.0, 0.0], [3.0, 10.0]]), 10)
     assert_allclose(pixels, [[3.0, 10.0], [3.0, 0.0]])
