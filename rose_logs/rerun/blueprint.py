@@ -206,7 +206,8 @@ def _topic_container(layout: TopicLayout) -> rrb.Container:
         },
     )
     amplitude = rrb.Spatial2DView(
-        name="cumulative amplitude s per wall direction, peaks (p: prominence), threshold t",
+        # (The title's length fits a third of 1600 pixels.)
+        name="cumulative amplitude s per direction; peaks kept if bar (prominence p) passes t",
         origin=f"/{paths.amplitude_view}",
         # Above s = 1: the peaks' labels hang over them (conversions.PEAK_LABEL_LIFT).
         visual_bounds=rrb.VisualBounds2D(x_range=(-22.0, 198.0), y_range=(-1.36 * h, 44.0)),

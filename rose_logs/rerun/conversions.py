@@ -16,11 +16,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from dataclasses import field as dataclasses_field
 
 import numpy as np
 import numpy.typing as npt
 
-from rose.directions import map_frame_deg
+from rose.directions import local_maxima, map_frame_deg, peak_prominences
 from rose.grid import blocks_max, true_bounds
 from rose.result import RoseResult
 from rose_logs.rerun.style import (
@@ -668,6 +669,53 @@ def threshold_strips(level: float, label_deg: float) -> list[list[tuple[float, f
     return strips
 
 
+#: Half the width (degrees) of the tick on each peak's bar at its base + t, the height the bar must
+#: reach for the peak to be kept.
+THRESHOLD_TICK_DEG = 4.0
+#: How far (degrees) the labelled tick reaches to one side of its bar: its label ("t = 0.5", about
+#: 40 degrees wide at the default layout, centred on the tick) stands clear of the bar.
+THRESHOLD_LABELLED_TICK_DEG = 56.0
+
+
+def _candidate_peaks(
+    scaled: npt.NDArray[np.float64], threshold: float
+) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.float64]]:
+    """Bins and prominences (units of ``s``) of the local maxima of the circular ``scaled`` curve
+    that rise to ``threshold`` or above: the peaks a reader could take for dominant, as
+    :func:`rose.directions.find_direction_peaks` finds them before it compares prominences."""
+    n = scaled.size
+    tripled = np.concatenate([scaled, scaled, scaled])
+    peaks = local_maxima(tripled)
+    peaks = peaks[(peaks >= n) & (peaks < 2 * n)]
+    peaks = peaks[tripled[peaks] >= threshold]
+    return (peaks - n).astype(np.intp), peak_prominences(tripled, peaks)
+
+
+def threshold_ticks(
+    bars: npt.NDArray[np.float64], threshold_height: float
+) -> list[list[tuple[float, float]]]:
+    """The prominence threshold as a tick on each bar (shape (K, 2, 2), ``[k, (top, base), (x,
+    y)]``, plot units) at its base + ``threshold_height`` (plot units, up): a peak is kept when its
+    bar reaches above its tick. The first bar's tick (the most prominent peak's) reaches
+    :data:`THRESHOLD_LABELLED_TICK_DEG` to the side with more room, so that its label (Rerun
+    centres a strip's label on it) stands off the bar. Empty without bars."""
+    ticks: list[list[tuple[float, float]]] = []
+    xs = bars[:, 0, 0]
+    for k, (x, base) in enumerate(bars[:, 1].tolist()):
+        level = base - threshold_height
+        left, right = x - THRESHOLD_TICK_DEG, x + THRESHOLD_TICK_DEG
+        if k == 0:
+            others = np.delete(xs, k)
+            room_right = min([180.0 - x, *(others[others > x] - x).tolist()])
+            room_left = min([x, *(x - others[others < x]).tolist()])
+            if room_right >= room_left:
+                right = min(x + THRESHOLD_LABELLED_TICK_DEG, 180.0)
+            else:
+                left = max(x - THRESHOLD_LABELLED_TICK_DEG, 0.0)
+        ticks.append([(max(left, 0.0), level), (min(right, 180.0), level)])
+    return ticks
+
+
 @dataclass(frozen=True)
 class AmplitudePlot:
     """The scaled cumulative amplitude as plot geometry (x: degrees, y: ``-AMPLITUDE_PLOT_HEIGHT * s``).
@@ -680,6 +728,13 @@ class AmplitudePlot:
         Each dominant direction at its refined angle and its bin's ``s``.
     prominence_bars : ndarray of float64, shape (K, 2, 2)
         Vertical segments from each peak down by its prominence (to its base).
+    rejected_bars : ndarray of float64, shape (R, 2, 2)
+        The same for the local maxima that rise above ``s = t`` but are not kept (their prominence
+        is below ``t``): a line at ``s = t`` showed them crossing it as if they were dominant.
+    threshold_strips : list of list of (float, float)
+        The threshold ``t`` as drawn: a tick on every bar at its base + ``t`` (the first, labelled,
+        longer: :func:`threshold_ticks`); without any bar (a flat curve, ``t`` above 1), a line
+        at ``s = t`` in pieces around its label (:func:`threshold_strips`).
     peak_labels : list of str
     label_anchors : ndarray of float64, shape (K, 2)
         Where each peak's label hangs (Rerun draws a label under its point): above the peak, so
@@ -699,6 +754,10 @@ class AmplitudePlot:
     label_anchors: npt.NDArray[np.float64]
     threshold: float
     threshold_label_deg: float = THRESHOLD_LABEL_DEG
+    rejected_bars: npt.NDArray[np.float64] = dataclasses_field(
+        default_factory=lambda: np.empty((0, 2, 2))
+    )
+    threshold_strips: list[list[tuple[float, float]]] = dataclasses_field(default_factory=list)
 
 
 def amplitude_plot(result: RoseResult, *, yaw_rad: float = 0.0) -> AmplitudePlot:
@@ -729,6 +788,29 @@ def amplitude_plot(result: RoseResult, *, yaw_rad: float = 0.0) -> AmplitudePlot
     peaks = np.stack([peak_deg, -height * peak_s], axis=-1)
     prominence = np.asarray(result.peak_prominences, dtype=np.float64)
     bars = np.stack([peaks, np.stack([peak_deg, -height * (peak_s - prominence)], axis=-1)], axis=1)
+    threshold = float(result.params.peak_prominence)
+    candidates, candidate_prominence = _candidate_peaks(scaled, threshold)
+    rejected = ~np.isin(candidates, peaks_idx)
+    rejected_deg = _folded_deg(
+        np.asarray(result.direction_bins, dtype=np.float64)[candidates[rejected]] + yaw_rad
+    )
+    rejected_s = scaled[candidates[rejected]]
+    rejected_bars = np.stack(
+        [
+            np.stack([rejected_deg, -height * rejected_s], axis=-1),
+            np.stack(
+                [rejected_deg, -height * (rejected_s - candidate_prominence[rejected])], axis=-1
+            ),
+        ],
+        axis=1,
+    ).reshape(-1, 2, 2)
+    label_deg = threshold_label_deg(peak_deg)
+    every_bar = np.concatenate([bars, rejected_bars])
+    ticks = (
+        threshold_ticks(every_bar, height * threshold)
+        if every_bar.size
+        else threshold_strips(-height * threshold, label_deg)
+    )
     # Short: the view is a third of the window wide, and two peaks 90° apart are a quarter of it
     # apart ("3.0° (prominence 0.71)" covered "100.0° (prominence 1.00)"). The view's title says
     # what p is.
@@ -744,6 +826,8 @@ def amplitude_plot(result: RoseResult, *, yaw_rad: float = 0.0) -> AmplitudePlot
         prominence_bars=bars,
         peak_labels=labels,
         label_anchors=_label_anchors(peaks),
-        threshold=float(result.params.peak_prominence),
-        threshold_label_deg=threshold_label_deg(peak_deg),
+        threshold=threshold,
+        threshold_label_deg=label_deg,
+        rejected_bars=rejected_bars,
+        threshold_strips=ticks,
     )

@@ -42,12 +42,15 @@ _AXIS_TICKS_DEG = (0.0, 45.0, 90.0, 135.0, 180.0)
 _AXIS_TICKS_S = (0.0, 0.5, 1.0)
 
 
-@functools.lru_cache(maxsize=16)
-def _curve_style(peaks: int) -> tuple[pa.Array, pa.Array]:
-    """Colours and radii of the amplitude curve and its ``peaks`` prominence bars, converted once
-    per number of peaks (Arrow arrays are immutable: shared by every log call)."""
-    colors = rr.components.ColorBatch([style.CURVE_COLOR] + [style.PEAK_COLOR] * peaks)
-    radii = rr.components.RadiusBatch(rr.Radius.ui_points([1.5] + [1.0] * peaks))
+@functools.lru_cache(maxsize=64)
+def _curve_style(peaks: int, rejected: int = 0) -> tuple[pa.Array, pa.Array]:
+    """Colours and radii of the amplitude curve, its ``peaks`` prominence bars and the
+    ``rejected`` peaks' (grey), converted once per count (Arrow arrays are immutable: shared by
+    every log call)."""
+    colors = rr.components.ColorBatch(
+        [style.CURVE_COLOR] + [style.PEAK_COLOR] * peaks + [style.REJECTED_PEAK_COLOR] * rejected
+    )
+    radii = rr.components.RadiusBatch(rr.Radius.ui_points([1.5] + [1.0] * (peaks + rejected)))
     return colors.as_arrow_array(), radii.as_arrow_array()
 
 
@@ -123,15 +126,14 @@ _BREAK_COLOR = rr.components.ColorBatch(style.BREAK_COLOR).as_arrow_array()
 _BREAK_RADIUS = rr.components.RadiusBatch(rr.Radius.ui_points(2.5)).as_arrow_array()
 
 
-@_by_value
 def _amplitude_threshold(
-    level: float, label_deg: float, threshold: float
+    strips: list[list[tuple[float, float]]], threshold: float
 ) -> list[rr.DescribedComponentBatch]:
-    """The prominence threshold's line at ``level``, in pieces around its label at ``label_deg``."""
-    strips = conv.threshold_strips(level, label_deg)
+    """The prominence threshold's ``strips`` (:attr:`conv.AmplitudePlot.threshold_strips`), the
+    first labelled with its value."""
     return arrow.described(
         rr.LineStrips2D,
-        strips=strips,
+        strips=arrow.strips(np.asarray(strips, dtype=np.float64).reshape(-1, 2, 2)),
         labels=[f"t = {threshold:g}"] + [""] * (len(strips) - 1),
     )
 
@@ -803,18 +805,18 @@ class TopicLogger:
         """The scaled cumulative amplitude ``s`` per map-frame direction (ROSE's grid-frame
         directions turned by the origin's ``yaw_rad``), its peaks and prominences.
 
-        One entity: the curve and a vertical bar per peak (its prominence, down from the peak) as
-        line strips, the labelled peaks as points. The prominence threshold is a parameter of the
-        session (its style is static), its label placed clear of the peaks
-        (:func:`conv.threshold_label_deg`): at 22.5° it stood on the bar of a building turned by
-        20°.
+        One entity: the curve and a vertical bar per peak (its prominence, down from the peak to
+        its base) as line strips, the labelled peaks as points; grey bars for the peaks that rise
+        above ``s = t`` but are not kept. The prominence threshold ``t`` is a tick on each bar at
+        its base + ``t``, which a kept peak's bar passes (:func:`conv.threshold_ticks`): a line
+        at ``s = t`` showed a bump on a high base crossing it as if it were dominant. Its style is
+        static (a parameter of the session).
         """
         rec, paths = self.recording, self.paths
         plot = conv.amplitude_plot(result, yaw_rad=yaw_rad)
-        level = -style.AMPLITUDE_PLOT_HEIGHT * plot.threshold
         if not self._threshold_logged:
-            # The line's style is static (a parameter of the session); its pieces are logged with
-            # each snapshot: its label stands where no peak's bar runs through it.
+            # The ticks' style is static (a parameter of the session); they are logged with each
+            # snapshot, on its peaks' bars.
             rec.log(
                 paths.amplitude_threshold,
                 rr.LineStrips2D.from_fields(
@@ -827,14 +829,14 @@ class TopicLogger:
             self._threshold_logged = True
         rec.log(
             paths.amplitude_threshold,
-            _amplitude_threshold(level, plot.threshold_label_deg, plot.threshold),
+            _amplitude_threshold(plot.threshold_strips, plot.threshold),
         )
-        colors, radii = _curve_style(len(plot.peak_labels))
+        colors, radii = _curve_style(len(plot.peak_labels), len(plot.rejected_bars))
         rec.log(
             paths.amplitude_curve,
             arrow.described(
                 rr.LineStrips2D,
-                strips=arrow.strips([plot.curve, *plot.prominence_bars]),
+                strips=arrow.strips([plot.curve, *plot.prominence_bars, *plot.rejected_bars]),
                 colors=colors,
                 radii=radii,
             ),

@@ -27,6 +27,7 @@ __all__ = [
     "FAILURE_COLOR",
     "GUIDE_LINE_WIDTH",
     "PEAK_COLOR",
+    "REJECTED_PEAK_COLOR",
     "SCORES_DISPLAY_MAX_PX",
     "SCORE_DISPLAY_MIN",
     "SPECTRUM_DISPLAY_PX",
@@ -70,6 +71,8 @@ DIRECTION_COLOR: Final = (200, 0, 160)
 #: alpha), so that the structure cells beside them show.
 WALL_COLOR: Final = (0, 130, 60, 140)
 PEAK_COLOR: Final = (220, 40, 40)
+#: The prominence bars of peaks that are not kept (their prominence is below the threshold).
+REJECTED_PEAK_COLOR: Final = (150, 150, 150)
 W_COLOR: Final = (20, 90, 220)
 BREAK_COLOR: Final = (230, 30, 30)
 """The break detector's region on the map (red, like the levels a map must stay under)."""

@@ -412,6 +412,57 @@ def test_the_display_factor_keeps_maps_up_to_the_limit_whole() -> None:
         conv.display_factor((0, 0, 5, 5), max_px=0)
 
 
+def test_the_threshold_is_drawn_on_each_peaks_bar_at_its_base_plus_t(plan) -> None:
+    """t was a line at s = t: a bump on a high base crossed it as if it were dominant (near 178°
+    in the Freiburg 101 session's last map). Each peak above s = t now has its prominence bar
+    (kept: red, others: grey) and a tick at its base + t, which only a kept peak's bar passes."""
+    _, result = plan
+    n = len(result.direction_bins)
+    degrees = np.degrees(np.asarray(result.direction_bins))
+    # Dominant peaks at bin n/2 (s = 1) and, from 3/4 of the way on, on a plateau at 0.6 (0.95);
+    # beside the second, on the plateau, a bump to 0.7: above t = 0.5, its prominence (0.1) not.
+    curve = np.zeros(n)
+    curve[n // 2] = 1.0
+    curve[3 * n // 4 :] = 0.6
+    second, bump = 3 * n // 4 + n // 16, 3 * n // 4 + n // 8
+    curve[second], curve[bump] = 0.95, 0.7
+    made = dataclasses.replace(
+        result,
+        cumulative_amplitude=curve,
+        dominant_directions=np.asarray(result.direction_bins)[[n // 2, second]],
+        peak_indices=np.array([n // 2, second]),
+        peak_prominences=np.array([1.0, 0.95]),
+    )
+    plot = conv.amplitude_plot(made)
+    h = style.AMPLITUDE_PLOT_HEIGHT
+    t = plot.threshold
+    assert t == pytest.approx(0.5)
+    assert plot.rejected_bars.shape == (1, 2, 2)
+    assert_allclose(plot.rejected_bars[0, :, 0], degrees[bump])
+    assert_allclose(-plot.rejected_bars[0, :, 1] / h, [0.7, 0.6])  # top, base
+    # A tick per bar at its base + t: above the grey bar's top, below the kept peak's.
+    kept_tick, _, rejected_tick = plot.threshold_strips
+    assert [y for _, y in kept_tick] == pytest.approx([-h * t] * 2)
+    assert [y for _, y in rejected_tick] == pytest.approx([-h * (0.6 + t)] * 2)
+    assert plot.prominence_bars[0, 0, 1] < kept_tick[0][1]  # the kept bar passes its tick
+    assert plot.rejected_bars[0, 0, 1] > rejected_tick[0][1]  # the grey one stops below it
+    # The labelled (first) tick reaches to the side with more room, its label off the bar.
+    x = plot.prominence_bars[0, 0, 0]
+    (x0, _), (x1, _) = kept_tick
+    assert x0 < x < x1 and min(x - x0, x1 - x) <= conv.THRESHOLD_TICK_DEG
+    assert max(x - x0, x1 - x) == pytest.approx(conv.THRESHOLD_LABELLED_TICK_DEG)
+    # A flat curve has no bar: the threshold stays a line at s = t.
+    flat = dataclasses.replace(
+        made,
+        cumulative_amplitude=np.ones(n),
+        dominant_directions=np.empty(0),
+        peak_indices=np.empty(0, dtype=np.intp),
+        peak_prominences=np.empty(0),
+    )
+    strips = conv.amplitude_plot(flat).threshold_strips
+    assert sum(b[0] - a[0] for a, b in strips) == pytest.approx(180.0)
+
+
 @pytest.mark.parametrize(
     ("peaks", "expected"),
     [
