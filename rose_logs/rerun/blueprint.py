@@ -104,12 +104,27 @@ def _grid_spacing_m(bounds_m: tuple[float, float, float, float] | None) -> float
     return next(step * decade for step in (1.0, 2.0, 5.0, 10.0) if span / (step * decade) <= 15)
 
 
+#: Room under the map in the segmentation and metric views, as a fraction of the map's height (at
+#: least a quarter of its width): a steep direction line's label hangs under its lower end
+#: (conversions.direction_label_positions), and on a map taller than its view it was cut off at
+#: the view's lower edge (the metric view's entirely).
+_LABEL_ROOM = 0.08
+
+
+def _label_room_m(bounds_m: tuple[float, float, float, float]) -> float:
+    """Metres of :data:`_LABEL_ROOM` under the box ``bounds_m``."""
+    x_min, y_min, x_max, y_max = bounds_m
+    return _LABEL_ROOM * max(y_max - y_min, 0.25 * (x_max - x_min))
+
+
 def _metric_eye(layout: TopicLayout) -> rrb.EyeControls3D | None:
-    """A camera straight above the map centre, high enough for the map to fill the view (the
-    metric view's metres: the map frame's less the view origin)."""
+    """A camera straight above the map centre, high enough for the map and the room under it for
+    a label (:data:`_LABEL_ROOM`) to fill the view (the metric view's metres: the map frame's less
+    the view origin)."""
     if layout.bounds_m is None:
         return None
     x_min, y_min, x_max, y_max = layout.bounds_m
+    y_min -= _label_room_m(layout.bounds_m)  # the map frame's y points north, up in the view
     rx, ry = layout.view_origin_m
     cx, cy = (x_min + x_max) / 2 - rx, (y_min + y_max) / 2 - ry
     half_x, half_y = max((x_max - x_min) / 2, 0.5), max((y_max - y_min) / 2, 0.5)
@@ -162,7 +177,7 @@ def _topic_container(layout: TopicLayout) -> rrb.Container:
             root, has_walls=layout.has_walls, walls_cleaning=layout.walls_cleaning
         ),
         origin=f"/{paths.cells}",
-        visual_bounds=_north_up_bounds(layout),
+        visual_bounds=_north_up_bounds(layout, below=_LABEL_ROOM),  # and a label under the map
     )
     spacing = _grid_spacing_m(layout.bounds_m)
     metric = rrb.Spatial3DView(

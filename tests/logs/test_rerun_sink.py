@@ -1232,6 +1232,33 @@ def test_the_metric_view_looks_at_a_raised_map_with_its_grid_above_it(
     assert 5.0 < distance < 5.0 + 0.1  # just above the map
 
 
+def test_a_tall_maps_views_leave_room_under_it_for_a_steep_lines_label() -> None:
+    """A steep direction line's label hangs under the line's lower end: on the sample map turned
+    upright (taller than its views) "walls 93.8°" was cut in half at the segmentation's lower edge
+    and left out of the metric view (screenshot tool). Both views frame room under the map."""
+    import math
+
+    import rerun.blueprint as rrb
+
+    from rose_logs.rerun.blueprint import TopicLayout, _metric_eye, _topic_container
+
+    box = (0.0, 0.0, 20.0, 60.0)  # map frame, metres: 20 m wide, 60 m tall, view origin 0
+    layout = TopicLayout("map", bounds_m=box)
+    segmentation = _topic_container(layout).contents[0].contents[0]
+    assert isinstance(segmentation, rrb.Spatial2DView)
+    ((y_range,),) = [
+        [r["y_range"] for r in segmentation.properties["VisualBounds2D"].range.pa_array.to_pylist()]
+    ]
+    # The views' y points south: the map's south edge (y 0) is at 0, and at least a label's
+    # room (5 % of a tall map's height) more is in view under it.
+    assert y_range[1] >= 0.0 + 0.05 * 60.0
+    eye = _metric_eye(layout)
+    assert eye is not None
+    ((_, eye_y, eye_z),) = eye.position.pa_array.to_pylist()
+    # The camera's view reaches (vertical field of view 55°) that much south of the map too.
+    assert eye_y - eye_z * math.tan(math.radians(55.0) / 2) <= -0.05 * 60.0
+
+
 def test_the_w_plot_shows_both_guide_lines_under_a_low_failure_level(
     tmp_path: Path, sent_layouts: list[tuple[object, ...]], fr079
 ) -> None:
