@@ -1158,6 +1158,34 @@ def test_a_doorway_with_a_box_beside_a_cabinet_and_a_door_frame_stub_stays_open(
     assert not separated_pairs(cleaned.cleaned >= 65, room, beyond)
 
 
+def test_a_long_line_with_a_stretch_seen_through_alongside_is_judged_in_little_memory() -> None:
+    """The rule above (:func:`_alongside`) compared every cell of a line piece with every cell of
+    the stretch beside it: 3 million pairs, about 0.1 GB, for a 50 m line along a 150 m doorway
+    stretch (0.5 GB and 11 s at 100 m and 300 m). The stretch's cells grown on a raster of the
+    piece's box give the same answers in a few MB."""
+    import tracemalloc
+
+    from rose.cleaning_rules.bridges import _alongside
+
+    length = 1000
+    piece = (np.full(length, 100, np.int64), np.arange(length, dtype=np.int64) + 10)
+
+    def stretch(row: int, first: int, last: int) -> tuple[npt.NDArray[np.int64], ...]:
+        cols = np.arange(first, last + 1, dtype=np.int64)
+        return np.full(cols.size, row, np.int64), cols
+
+    tracemalloc.start()
+    try:
+        assert _alongside(piece, stretch(102, 0, 3 * length))  # two cells off, past both ends
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 16_000_000
+    assert not _alongside(piece, stretch(103, 0, 3 * length))  # three cells off
+    assert not _alongside(piece, stretch(101, 10, 3 * length))  # not past the first end
+    assert not _alongside(piece, stretch(101, 0, length + 8))  # not past the last end
+
+
 @pytest.mark.parametrize("slit", [3, 4])
 def test_a_wall_stretch_flush_between_two_slits_seen_through_stays(slit: int) -> None:
     """A 1 m stretch of the outer wall, flush with its faces, its core unseen, between two slits
