@@ -1033,6 +1033,25 @@ def test_a_doorway_with_a_box_standing_in_it_stays_open(
     assert not separated_pairs(cleaned.cleaned >= 65, room, beyond)
 
 
+@pytest.mark.parametrize("turn", ["upright", "left-right", "transposed"])
+def test_a_box_in_front_of_a_doorway_joined_to_its_wall_end_goes(turn: str) -> None:
+    """A 0.25 m box standing in front of a 0.4 m doorway, inside the room, its left side on the
+    door's left wall end (one piece with the wall): the line across its back, the doorway's free
+    cells seen through beside it, was left undrawn, but the box, joined to the wall, was not
+    taken as standing in the doorway; its inside opened onto the doorway (no pocket) and the
+    whole box was kept. The line is drawn for it as before, and it goes."""
+    grid = _room_with_a_box_in_a_doorway((106, 114), 105, 5, 54, 6)
+    box = np.zeros(grid.shape, dtype=bool)
+    box[54, 105:110] = box[54:59, 105] = box[54:59, 109] = True  # (not the cells on the wall)
+    if turn == "left-right":
+        grid, box = grid[:, ::-1], box[:, ::-1]
+    elif turn == "transposed":
+        grid, box = grid.T, box.T
+    grid = np.ascontiguousarray(grid)
+    cleaned = clean(grid, rose.analyze(grid), resolution_m=RES)
+    assert cleaned.removed[box].all()
+
+
 _MIRRORED = pytest.mark.xfail(
     strict=True,
     reason="known: the bridges fill from the walls' last row or column to their box's edge (OpenCV's "

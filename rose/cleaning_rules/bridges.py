@@ -223,6 +223,7 @@ def _in_openings(
     two = np.bincount(piece_of, minlength=count) >= 2
     two[0] = False
     two &= ~wanted
+    alongside = wanted.copy()
     # And the stretches lie on the piece's line, one past each of its ends, each narrower than
     # the robot (``robot_px`` cells, its width and a cell): the doorway's gaps on either side of
     # what stands in it, which the line left closed, not gaps around clutter that meets the line
@@ -234,7 +235,6 @@ def _in_openings(
         )
     if not wanted.any():
         return out, objects
-    out[box] = wanted[labels] & line
     # The whole object, not only its sides beside the gap (labelled over the map: it may reach
     # past the gaps' box, and this is rare), when it lies within the doorway's reach: the box of
     # its line piece and the gaps, as much again on every side. Its occupied cells, not only
@@ -274,9 +274,40 @@ def _in_openings(
             own_rows, own_cols = np.nonzero(pieces_occupied[oy : oy + oh, ox : ox + ow] == owner)
             off = _across(own_rows + oy - box[0].start, own_cols + ox - box[1].start, centre, axis)
             standing[owner] = off.min() < band.min() - 1 or off.max() > band.max() + 1
+        if alongside[piece] and _on_the_wall(
+            pieces_occupied, owners[~inside], (r0, r1, c0, c1), box, centre, axis, band
+        ):
+            # An object joined to the wall the doorway is in (a box whose side stands on the
+            # door's wall end) is not taken: without the line across its back its inside opened
+            # onto the doorway, no pocket, and the whole box was kept. Drawn, it goes.
+            wanted[piece] = False
     standing[0] = False
+    out[box] = wanted[labels] & line
     objects = standing[pieces_occupied]
     return out, objects
+
+
+def _on_the_wall(
+    pieces: npt.NDArray[np.integer],
+    owners: npt.NDArray[np.integer],
+    window: tuple[int, int, int, int],
+    box: tuple[slice, slice],
+    centre: npt.NDArray[np.float64],
+    axis: npt.NDArray[np.float64],
+    band: npt.NDArray[np.float64],
+) -> bool:
+    """For :func:`_in_openings`: whether any of the occupied ``pieces`` labelled ``owners`` has
+    cells within ``window`` (first and last row, first and last column of the map, clipped to
+    it) and within ``band`` (offsets across the line through ``centre`` along ``axis``, in the
+    cells of ``box``): a wall the gap is in, not only something standing in front of it."""
+    owners = owners[owners > 0]  # (not the background)
+    if owners.size == 0:
+        return False
+    r0, r1 = max(window[0], 0), min(window[1] + 1, pieces.shape[0])
+    c0, c1 = max(window[2], 0), min(window[3] + 1, pieces.shape[1])
+    rows, cols = np.nonzero(np.isin(pieces[r0:r1, c0:c1], owners))
+    off = _across(rows + r0 - box[0].start, cols + c0 - box[1].start, centre, axis)
+    return bool(np.any((off >= band.min()) & (off <= band.max())))
 
 
 def _side_pairs(
