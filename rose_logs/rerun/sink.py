@@ -499,13 +499,10 @@ class RerunSink:
                 snapshot, result, walls, cleaning, window=window, judged=judged
             ),
         )
-        if self.live and not _contains(
-            self._live_frame_m[snapshot.topic], self._framed_m(snapshot.topic)
-        ):
+        framed = self._framed_m(snapshot.topic)
+        if self.live and not _contains(self._live_frame_m[snapshot.topic], framed):
             # The topic's first map, or a map grown out of the views: frame it, with room to grow.
-            self._live_frame_m[snapshot.topic] = _widened(
-                self._framed_m(snapshot.topic), _LIVE_MARGIN
-            )
+            self._live_frame_m[snapshot.topic] = _widened(framed, _LIVE_MARGIN)
             self._send_blueprint()
 
     def _submit_at(self, snapshot: MapSnapshot, index: int, log: Callable[[], None]) -> None:
