@@ -149,8 +149,11 @@ def inverse_to_map(
 ) -> npt.NDArray[np.float32]:
     """``irfft2`` of a half-plane spectrum (overwritten: used as the transform's buffer) of the
     padded shape, cropped to the map's ``shape`` (a view, as :func:`nominal_reference_map`)."""
-    padded_rows = restricted.shape[0]
     padded_cols = 2 * (restricted.shape[1] - 1)
-    # overwrite_x: the column pass runs in `restricted` itself, one map-sized buffer fewer.
-    reference = scipy.fft.irfft2(restricted, s=(padded_rows, padded_cols), overwrite_x=True)
+    # irfft2 in two passes: the column pass in `restricted` itself (overwrite_x: one map-sized
+    # buffer fewer), then the rows. scipy's irfft2 does the same passes but took 7.7 ms of CPU
+    # against 4.3-4.9 ms for 1000 x 1000 (and `analyze` 34 -> 17-18 ms per Freiburg 079 stage on a
+    # loaded 2-core machine); the results differ by float32 rounding (3e-7 of a cell score).
+    columns_done = scipy.fft.ifft(restricted, axis=0, overwrite_x=True)
+    reference = scipy.fft.irfft(columns_done, n=padded_cols, axis=1, overwrite_x=True)
     return reference[: shape[0], : shape[1]]
