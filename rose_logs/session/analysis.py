@@ -19,9 +19,46 @@ from rose.walls.segments import WallSet
 from rose_logs.session.held_logs import ANALYSED_TOPIC, call_held
 from rose_logs.snapshots import MapSnapshot
 
-__all__ = ["SnapshotAnalyser", "SnapshotAnalysis", "same_placed_grid"]
+__all__ = [
+    "CellCounts",
+    "SnapshotAnalyser",
+    "SnapshotAnalysis",
+    "cell_counts",
+    "same_placed_grid",
+]
 
 _LOG = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class CellCounts:
+    """A snapshot's cells as its record counts them: occupied and clutter cells, and the cells its
+    cleaning removed, kept, rescued and completed (0 when it was not cleaned).
+
+    Counted on the analysis's thread: each count is a pass over the grid, which the session's own
+    thread (reading, writing and finishing every snapshot in turn) would otherwise make.
+    """
+
+    occupied: int
+    clutter: int
+    removed: int = 0
+    kept: int = 0
+    rescued: int = 0
+    completed: int = 0
+
+
+def cell_counts(result: RoseResult, cleaning: CleanResult | None) -> CellCounts:
+    """The :class:`CellCounts` of an analysis and its cleaning (None: not cleaned)."""
+    if cleaning is None:
+        return CellCounts(result.occupied_count, result.clutter_count)
+    return CellCounts(
+        result.occupied_count,
+        result.clutter_count,
+        removed=cleaning.removed_count,
+        kept=cleaning.kept_count,
+        rescued=cleaning.rescued_count,
+        completed=cleaning.completed_count,
+    )
 
 
 @dataclass(frozen=True)
@@ -35,6 +72,7 @@ class SnapshotAnalysis:
     cleaning: CleanResult | None = None
     seconds: float = 0.0
     degenerate: str | None = None
+    counts: CellCounts | None = None  # None: not counted yet (see snapshot_record)
     #: What the analysis logged, kept back to be said in log order (:func:`say_held`); not part of
     #: what the analysis is (equality, repr).
     log_records: tuple[logging.LogRecord, ...] = dataclasses.field(
@@ -100,9 +138,15 @@ class SnapshotAnalyser:
             method = "paper"
         cleaning = clean(snapshot.grid, result, method=method, resolution_m=snapshot.resolution_m)
         degenerate = degenerate_input(snapshot.grid, result.occupied)
+        counts = cell_counts(result, cleaning)
         seconds = time.perf_counter() - started
         return SnapshotAnalysis(
-            result, walls, cleaning=cleaning, seconds=seconds, degenerate=degenerate
+            result,
+            walls,
+            cleaning=cleaning,
+            seconds=seconds,
+            degenerate=degenerate,
+            counts=counts,
         )
 
     def _say_too_fine(self, topic: str) -> None:

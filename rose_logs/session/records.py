@@ -8,7 +8,7 @@ from typing import Any
 
 from rose.cleaning import CleanResult
 from rose.directions import map_frame_deg
-from rose_logs.session.analysis import SnapshotAnalysis
+from rose_logs.session.analysis import CellCounts, SnapshotAnalysis, cell_counts
 from rose_logs.session.breaks import BreakScore
 from rose_logs.session.report import SnapshotRecord
 from rose_logs.snapshots import MapSnapshot
@@ -82,6 +82,7 @@ def snapshot_record(
 ) -> SnapshotRecord:
     """The report's record of one snapshot (``seconds`` filled in by the caller)."""
     result = analysis.result
+    counts = analysis.counts or cell_counts(result, analysis.cleaning)
     height, width = snapshot.shape
     return SnapshotRecord(
         topic=snapshot.topic,
@@ -96,8 +97,8 @@ def snapshot_record(
             map_frame_deg(result.dominant_directions, yaw_rad=snapshot.origin_yaw_rad)
         ),
         threshold=float(result.threshold),
-        occupied_count=result.occupied_count,
-        clutter_count=result.clutter_count,
+        occupied_count=counts.occupied,
+        clutter_count=counts.clutter,
         seconds=0.0,
         reused=reused,
         from_update=from_update,
@@ -105,20 +106,20 @@ def snapshot_record(
         break_region_m=verdict.region_m,
         break_detected=verdict.broken,
         degenerate=analysis.degenerate,
-        **cleaning_counts(analysis.cleaning),
+        **cleaning_counts(analysis.cleaning, counts),
     )
 
 
-def cleaning_counts(cleaning: CleanResult | None) -> dict[str, Any]:
+def cleaning_counts(cleaning: CleanResult | None, counts: CellCounts) -> dict[str, Any]:
     """The record's fields of a snapshot's cleaning (none when it was not cleaned)."""
     if cleaning is None:
         return {}
     return {
         "clean_method": cleaning.method,
-        "removed_count": cleaning.removed_count,
-        "kept_count": cleaning.kept_count,
-        "rescued_count": cleaning.rescued_count,
-        "completed_count": cleaning.completed_count,
+        "removed_count": counts.removed,
+        "kept_count": counts.kept,
+        "rescued_count": counts.rescued,
+        "completed_count": counts.completed,
     }
 
 
