@@ -66,7 +66,11 @@ Two methods, chosen by name:
        wall and smaller than ``min_region_m2`` (they can enclose no region the guard protects) do
        not count as obstacles for the guard, unless a drawn hidden wall line that meets a kept
        wall runs next to them, or a line the furniture-front rule drew runs within two cells of
-       them (furniture against that wall, its corner shadows parting it from the wall); nor do
+       them (furniture against that wall, its corner shadows parting it from the wall), or they
+       hide an undrawn hidden wall line (unseen cells between two kept wall ends, not in plain
+       view of the room): every cell of it farther than ``robot_radius_m`` from a kept wall lies
+       within a robot's width (``2 * robot_radius_m`` plus a cell) of the piece's convex hull (a
+       cabinet a few cells off an outer wall unseen behind it); nor do
        scanned objects that stand close to others
        (joined with them across a gap into a larger piece), judged one by one: an 8-connected
        piece with no kept cell within the join's reach (three cells), a box under
@@ -177,8 +181,8 @@ class CleanParams:
         to two cells; a joined box with a diagonal under ``min_run_m``; not closed around known
         free space) even where the paper calls them structure, and let the guard ignore pieces
         attached to no kept wall (nor next to a drawn hidden wall line meeting one, nor within
-        two cells of a line the furniture-front rule drew) that are smaller than
-        ``min_region_m2``.
+        two cells of a line the furniture-front rule drew, nor hiding an undrawn hidden wall
+        line from the room) that are smaller than ``min_region_m2``.
     """
 
     min_run_m: float = 2.0

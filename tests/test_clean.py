@@ -967,6 +967,68 @@ def test_a_cabinet_its_shadows_part_from_the_wall_keeps_the_room_closed_turned()
     assert separated_pairs(cleaned.cleaned >= 65, room, outside)
 
 
+@pytest.mark.parametrize(
+    ("cabinet", "off", "far_room", "angle", "mirrored", "transposed"),
+    [
+        ((32, 9), 3, False, 45.0, False, False),
+        ((32, 9), 3, False, 0.0, False, False),
+        ((24, 6), 2, True, 0.0, False, False),
+        ((24, 6), 2, True, 0.0, True, False),
+        ((24, 6), 2, True, 0.0, False, True),
+    ],
+)
+def test_a_cabinet_off_an_unseen_outer_wall_keeps_the_room_closed(
+    cabinet: tuple[int, int],
+    off: int,
+    far_room: bool,
+    angle: float,
+    mirrored: bool,
+    transposed: bool,
+) -> None:
+    """A cabinet (``cabinet`` = width, depth in cells; open at the back) standing ``off`` cells
+    (0.1-0.15 m) off the outer wall, the gap behind it and the wall behind it and for three cells
+    beside it unseen: only the cabinet closes the room (a mapped room far beyond the wall, or
+    none). Its inside sealed by the bridges between its sides, it went as an object's faces (or a
+    free-standing piece); the wall line behind it, a bridge between the two wall ends that touched
+    nothing removed, was not drawn, the guard took the cabinet for furniture standing in the room
+    and the room opened onto the outside (upright with the room beyond, at 45 degrees without).
+    A piece hiding such an undrawn line from the room (every cell of it a robot could cross
+    within a robot's width of the piece's convex hull) counts as the guard's obstacle now."""
+    grid = np.full((160, 220), -1, np.int8)
+    grid[10:60, 10:210] = 0  # the mapped room
+    grid[8:10, 8:212] = grid[60:62, 8:212] = 100
+    grid[8:62, 8:10] = grid[8:62, 210:212] = 100
+    if far_room:
+        grid[130:140, 20:200] = 0  # a room mapped 3.4 m beyond the wall ...
+        grid[140:142, 20:200] = 100  # ... and its wall
+    width, depth = cabinet
+    left, right, back = 101, 101 + width - 1, 60 - off  # its sides end a row before ``back``
+    front = back - depth
+    grid[front + 1 : 62, left + 1 : right] = -1  # its inside, the gap and the wall, unseen
+    grid[front, left : right + 1] = 100  # its front ...
+    grid[front:back, left] = grid[front:back, right] = 100  # ... and sides
+    grid[back:62, left - 3 : right + 4] = -1  # the gap and the wall unseen beside it too
+    room, outside = (30, 100), (100, 100)
+    if mirrored:
+        grid = grid[:, ::-1]
+        room, outside = (room[0], 219 - room[1]), (outside[0], 219 - outside[1])
+    if transposed:
+        grid = grid.T
+        room, outside = (room[1], room[0]), (outside[1], outside[0])
+    grid = np.ascontiguousarray(grid)
+    rows, cols = grid.shape
+    turn = cv2.getRotationMatrix2D((cols / 2, rows / 2), angle, 1.0)
+    codes = (grid.astype(np.int16) + 1).astype(np.uint8)  # (unknown 0, as the border)
+    turned = cv2.warpAffine(codes, turn, (cols, rows), flags=cv2.INTER_NEAREST, borderValue=0)
+    grid = (turned.astype(np.int16) - 1).astype(np.int8)
+    room, outside = (
+        (round(y), round(x)) for x, y in (turn @ [c, r, 1.0] for r, c in [room, outside])
+    )
+    assert separated_pairs(grid >= 65, room, outside)
+    cleaned = clean(grid, rose.analyze(grid), resolution_m=RES)
+    assert separated_pairs(cleaned.cleaned >= 65, room, outside)
+
+
 def _room_with_a_box_in_a_doorway(
     door: tuple[int, int], left: int, width: int, front: int, depth: int
 ) -> npt.NDArray[np.int8]:

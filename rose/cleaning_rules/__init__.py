@@ -58,7 +58,7 @@ from rose.cleaning_rules.objects import (
 from rose.cleaning_rules.outside import _near_wide_unknown, wide_unknown
 from rose.cleaning_rules.runs import directional_runs, straight_lines
 from rose.grid import UNKNOWN, blocks_any
-from rose.labelling import components
+from rose.labelling import components, label_boxes
 
 if TYPE_CHECKING:
     from rose.cleaning import CleanParams
@@ -316,6 +316,7 @@ def _wall_cells(
         sealed_off = completed  # what closes scanned objects and the building, as walls or not
         standing_in_doorways = completed
         unreached = completed  # hidden lines out of reach of the cells removed so far
+        undrawn = completed  # hidden wall lines left undrawn, hidden from the room
         if p.max_bridge_m > 0:
             # Unknown cells between collinear kept walls. Those between wall ends become the wall
             # line hidden behind furniture; all of them seal what they close off (an object's
@@ -358,6 +359,13 @@ def _wall_cells(
                 completed, free, near_outside, 2 * length_px(p.robot_radius_m, res) + 1
             )
             np.greater(completed, in_view, out=completed)
+            # The rest of the wall lines, undrawn: nothing removed next to them so far.
+            undrawn = np.greater(
+                wall_lines,
+                _in_plain_view(
+                    wall_lines, free, near_outside, 2 * length_px(p.robot_radius_m, res) + 1
+                ),
+            )
         # Furniture against a wall (a cabinet, a counter: its front a straight run when 2 m or
         # longer): the wall line hidden behind it is drawn, its front and sides go, and the walls
         # that meet it stay.
@@ -378,6 +386,7 @@ def _wall_cells(
                 2 * length_px(p.robot_radius_m, res) + 1,
             )
             np.greater(completed, in_doorways, out=completed)
+            np.greater(undrawn, in_doorways | completed, out=undrawn)
             unreached = np.greater(unreached, _touching(unreached, in_doorways))
         sealed = bool(sealed_off.any())
         near_job: Future[npt.NDArray[np.bool_]] = Future()
@@ -461,6 +470,26 @@ def _wall_cells(
         # has a line that meets no kept wall, two cells from its turned sides (the straightened
         # band of a staircase wall): ignored, it went and the room opened.
         anchored = _beside_lines(keep, occupied, completed, completed & front_lines)
+        # Furniture that hid a wall line left undrawn (an unseen stretch of wall between two kept
+        # wall ends, out of the room's plain view, as long as a robot is wide at least) closed the
+        # room with that wall before: it counts as the guard's obstacle too, when every cell of
+        # the line a robot's centre could cross (farther than its radius from a kept wall) lies
+        # closer than a robot's width to the piece's convex hull. A cabinet 0.1-0.15 m off an
+        # outer wall unseen behind it went (as an object's faces or a free-standing piece), no
+        # line was drawn (nothing removed touched it) and the room opened. (Any piece within a
+        # robot's width of such a line kept clutter on the benchmark's logs: boxes in front of
+        # part of a line, two of them shadowing it, a box before holes in a ragged wall.)
+        robot_px = math.floor(2 * length_px(p.robot_radius_m, res) + 1)
+        undrawn = _long_pieces(undrawn, robot_px)
+        if undrawn.any():
+            anchored = anchored | _hiding(
+                occupied,
+                pieces.labels,
+                undrawn,
+                keep,
+                reach_px=robot_px,
+                radius_px=math.floor(length_px(p.robot_radius_m, res)),
+            )
         # Pieces attached to no kept wall at all are furniture standing in the room: the guard
         # does not count them as obstacles of the input. Only those whose box is smaller than a
         # region the guard protects, though: they can enclose nothing it would count (a closed
@@ -572,6 +601,79 @@ def _reached_later(
     if not out.any():
         return out
     np.greater(out, _in_plain_view(completed | out, free, open_unknown, robot_px), out=out)
+    return out
+
+
+def _long_pieces(mask: npt.NDArray[np.bool_], min_extent_px: int) -> npt.NDArray[np.bool_]:
+    """The pieces (8-connected) of ``mask`` whose bounding box's longer side is at least
+    ``min_extent_px`` cells (a new array). Masks of shape ``(rows, cols)``."""
+    out = np.zeros(mask.shape, dtype=bool)
+    if not mask.any():
+        return out
+    box = _padded_box(mask, 0)  # (the lines' box only: a few in a large map)
+    count, labels = components(mask[box])
+    cells = _nonzero_flat(np.ascontiguousarray(mask[box]).view(np.uint8))
+    _, _, width, height = label_boxes(labels, cells, count).T
+    long = np.maximum(width, height) >= min_extent_px
+    long[0] = False  # the background
+    out[box] = long[labels]
+    return out
+
+
+def _hiding(
+    occupied: npt.NDArray[np.bool_],
+    labels: npt.NDArray[np.integer],
+    lines: npt.NDArray[np.bool_],
+    walls: npt.NDArray[np.bool_],
+    *,
+    reach_px: int,
+    radius_px: int,
+) -> npt.NDArray[np.bool_]:
+    """The ``occupied`` cells of the pieces (``labels``, 0 none) whose convex hull (of their cells
+    in the line piece's box) lies within ``reach_px`` (chessboard distance) of every cell of a
+    piece (8-connected) of ``lines`` that is farther than ``radius_px`` from ``walls`` (where a
+    robot's centre could cross the line were it open; a line piece with no such cell is no way
+    through): what hides that stretch from the room. A new array; each line piece is looked at in
+    its own box, ``reach_px`` wider (a few lines in a large map). Masks of shape
+    ``(rows, cols)``."""
+    import cv2
+
+    out = np.zeros(occupied.shape, dtype=bool)
+    box = _padded_box(lines, reach_px)
+    count, line_labels = components(lines[box])
+    cells = _nonzero_flat(np.ascontiguousarray(lines[box]).view(np.uint8))
+    x, y, width, height = label_boxes(line_labels, cells, count).T.tolist()
+    kernel = np.ones((2 * reach_px + 1, 2 * reach_px + 1), np.uint8)
+    disc = np.ones((2 * radius_px + 1, 2 * radius_px + 1), np.uint8)
+    rows, cols = line_labels.shape
+    for index in range(1, count):
+        r0, c0 = max(y[index] - reach_px, 0), max(x[index] - reach_px, 0)
+        r1 = min(y[index] + height[index] + reach_px, rows)
+        c1 = min(x[index] + width[index] + reach_px, cols)
+        at = (
+            slice(box[0].start + r0, box[0].start + r1),
+            slice(box[1].start + c0, box[1].start + c1),
+        )
+        line = line_labels[r0:r1, c0:c1] == index
+        beside_walls = cv2.dilate(walls[at].view(np.uint8), disc).view(bool)
+        np.greater(line, beside_walls, out=line)
+        if not line.any():
+            continue
+        near = cv2.dilate(line.view(np.uint8), kernel).view(bool)
+        pieces = labels[at] * occupied[at]
+        for piece in np.unique(pieces[near]).tolist():
+            if piece == 0:
+                continue
+            own = pieces == piece
+            # The piece's convex hull: a cabinet open at the back hides the line behind its
+            # inside too, not only behind its sides' ends.
+            hull = np.zeros(own.shape, dtype=np.uint8)
+            ys, xs = np.nonzero(own)
+            points = np.stack([xs, ys], axis=1).astype(np.int32)
+            cv2.fillConvexPoly(hull, cv2.convexHull(points), 1)
+            covered = cv2.dilate(hull, kernel).view(bool)
+            if not np.greater(line, covered).any():
+                out[at] |= own
     return out
 
 
