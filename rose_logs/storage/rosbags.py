@@ -98,6 +98,8 @@ class RosbagsReadBackend:
         self.damaged_files: list[str] = []
 
     def open(self) -> None:
+        if self.path.is_dir():
+            self._refuse_folder_storage()
         if self.format == "db3":
             self._refuse_unmerged_wal()
         if self.format == "ros1":
@@ -236,6 +238,24 @@ class RosbagsReadBackend:
         unopened = self.unopened
         plugins["sqlite3"] = lambda path: _TolerantStorage(plain(path), unopened)
         storage.STORAGE_PLUGINS = plugins
+
+    def _refuse_folder_storage(self) -> None:
+        """Refuse a bag folder whose metadata.yaml lists a storage file that is a folder (a copy
+        that made one of the file's name, a path mixed up): SQLite said "disk I/O error" and the
+        MCAP reader "Is a directory", both read as "corrupt or truncated log"."""
+        paths = (
+            None if self.metadata is None else self.metadata.information.get("relative_file_paths")
+        )
+        if not isinstance(paths, list):
+            return  # read and judged by rosbags
+        for name in paths:
+            storage = self.path / PurePath(str(name)).name  # as rosbags finds it: by its name
+            if storage.is_dir():
+                msg = (
+                    f"{storage}: a folder, not a file, where the bag's metadata.yaml lists a "
+                    "storage file"
+                )
+                raise LogReadError(msg)
 
     def _refuse_unmerged_wal(self) -> None:
         """Refuse a SQLite bag with writes beside its database file, left by a recorder that did

@@ -934,6 +934,34 @@ def test_a_storage_file_listed_twice_in_metadata_is_refused_not_read_twice(
     assert err == f"error: {bag}: metadata.yaml lists the storage file {files[0]} more than once\n"
 
 
+@pytest.mark.parametrize("kind", ["db3", "mcap-dir"])
+@pytest.mark.parametrize("salvage", [False, True])
+def test_a_storage_file_that_is_a_folder_is_named_so(
+    tmp_path: Path,
+    fr079: list[npt.NDArray[np.int8]],
+    capsys: pytest.CaptureFixture[str],
+    kind: str,
+    salvage: bool,
+) -> None:
+    """A storage file that metadata.yaml lists but is a folder read "corrupt or truncated log
+    (... disk I/O error)" (SQLite) or "(... Is a directory.)" (MCAP): it is named, as a folder."""
+    from conftest import build_log, session_maps
+
+    from rose_logs.cli import main
+
+    bag = build_log(tmp_path / "in", kind, session_maps(fr079[:2]), scans_per_map=0).path
+    (storage,) = (p for p in bag.iterdir() if p.name != "metadata.yaml")
+    storage.unlink()
+    storage.mkdir()
+    args = ["process", str(bag), "--no-output", "-q"] + (["--salvage"] if salvage else [])
+    assert main(args) == 1
+    err = capsys.readouterr().err
+    assert err == (
+        f"error: {storage}: a folder, not a file, where the bag's metadata.yaml lists a "
+        "storage file\n"
+    )
+
+
 def test_a_type_missing_on_either_side_is_named_so() -> None:
     """A storage topic with an empty type read "..., the storage )"."""
     from rose_logs.storage.integrity import type_mismatches
