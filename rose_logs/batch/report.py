@@ -42,8 +42,11 @@ def _cell(text: str) -> str:
     return _EMPHASIS_UNDERSCORE.sub(r"\\_", visible(text).translate(_MARKUP))
 
 
-def markdown(report: BatchReport, summary: dict[str, Any], *, figure: bool) -> str:
-    """The report: counts, the figure, broken recordings, failed recordings, every recording."""
+def markdown(
+    report: BatchReport, summary: dict[str, Any], *, figure: bool, not_drawn: str | None = None
+) -> str:
+    """The report: counts, the figure, broken recordings, failed recordings, every recording.
+    ``not_drawn``: why the figure could not be drawn (said instead of it)."""
     rows = [r.row() for r in report.results]
     level = report.failure_level
     lines = [
@@ -56,7 +59,9 @@ def markdown(report: BatchReport, summary: dict[str, Any], *, figure: bool) -> s
     ]
     if report.interrupted:
         lines += ["**Interrupted:** recordings not finished are missing from this report.", ""]
-    if not figure and summary["snapshots"] and not plotting_available():
+    if not figure and not_drawn is not None:
+        lines += [f"No figure: it could not be drawn ({_cell(not_drawn)}).", ""]
+    elif not figure and summary["snapshots"] and not plotting_available():
         lines += ["No figure: matplotlib is not installed (`pip install 'rose-bag[plots]'`).", ""]
     if figure:
         lines += [

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Any
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from rose.limits import short, visible
 from rose_logs.batch.sources import printable
 from rose_logs.batch.store import OutputStore
 from rose_logs.batch.task import RecordingOptions, package_version
@@ -157,6 +158,21 @@ def summary(report: BatchReport, options: RecordingOptions) -> dict[str, Any]:
     }
 
 
+def _drawn_figure(report: BatchReport) -> tuple[bytes | None, str | None]:
+    """``w_over_time.png`` (None: nothing to draw, or no matplotlib) and, when drawing it failed,
+    why, in one line (the figure then None): a figure is not worth the batch's tables and report,
+    which a user's matplotlib settings (``text.usetex`` without LaTeX) or a matplotlib error on
+    odd data lost entirely."""
+    from rose_logs.batch.report import figure_png
+
+    try:
+        return figure_png(report), None
+    except Exception as err:  # matplotlib's errors of every kind (interrupts pass)
+        first = next((line for line in str(err).splitlines() if line.strip()), "")
+        reason = f"{type(err).__name__}: {first.strip()}" if first else type(err).__name__
+        return None, short(visible(reason), 200)
+
+
 def write_outputs(
     store: OutputStore,
     report: BatchReport,
@@ -175,12 +191,18 @@ def write_outputs(
     BatchError
         If a file cannot be written (the message names it); none of them is replaced then.
     """
-    from rose_logs.batch.report import figure_png, markdown
+    from rose_logs.batch.report import markdown
 
     payload = summary(report, options)
     if gates is not None:
         payload["gates"] = dict(gates)
-    png = figure_png(report)
+    png, not_drawn = _drawn_figure(report)
+    if not_drawn is not None:
+        _LOG.warning(
+            "%s: not drawn (%s); the tables and report.md are written without it",
+            store.uri("w_over_time.png"),
+            not_drawn,
+        )
     files = {
         "recordings.parquet": _parquet_bytes(recordings_table(report)),
         "snapshots.parquet": _parquet_bytes(snapshots_table(report)),
@@ -190,7 +212,9 @@ def write_outputs(
     }
     if png is not None:
         files["w_over_time.png"] = png
-    files["report.md"] = markdown(report, payload, figure=png is not None).encode()
+    files["report.md"] = markdown(
+        report, payload, figure=png is not None, not_drawn=not_drawn
+    ).encode()
     store.write_set(files)
     if png is None:  # no W to draw: an earlier run's figure would describe other recordings
         store.remove("w_over_time.png")

@@ -1215,6 +1215,40 @@ def test_without_matplotlib_the_report_says_why_it_has_no_figure(
     assert not (out / "w_over_time.png").exists()
 
 
+def test_a_figure_that_cannot_be_drawn_leaves_the_tables_and_report(
+    fleet: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A user's matplotlib settings with ``text.usetex`` and no LaTeX installed made drawing
+    ``w_over_time.png`` raise (RuntimeError): the whole batch output was lost (no tables, no
+    report, an earlier run's left in place). The figure is left out, a warning naming it says
+    why, and report.md neither links it nor leaves an earlier run's beside it."""
+    matplotlib = pytest.importorskip("matplotlib")
+    out = tmp_path / "out"
+    assert main(["batch", str(fleet / "robot_a"), "-o", str(out), "-q"]) == 0
+    assert (out / "w_over_time.png").is_file()
+    capsys.readouterr()
+    monkeypatch.setitem(matplotlib.rcParams, "text.usetex", True)
+    no_latex = tmp_path / "bin"  # (latex not found, also where it is installed)
+    no_latex.mkdir()
+    monkeypatch.setenv("PATH", str(no_latex))
+    assert main(["batch", str(fleet / "robot_a"), "-o", str(out), "-q", "--force"]) == 0
+    err = capsys.readouterr().err
+    monkeypatch.undo()
+    figure = out / "w_over_time.png"
+    (line,) = [line for line in err.splitlines() if "w_over_time.png" in line]
+    assert line.startswith(f"warning: {figure}: not drawn (RuntimeError: ")
+    assert "latex could not be found" in line
+    text = (out / "report.md").read_text(encoding="utf-8")
+    assert "](w_over_time.png)" not in text
+    assert "No figure: it could not be drawn (RuntimeError: " in text
+    assert not figure.exists()
+    rows = read_rows(out / "recordings.parquet")
+    assert len(rows) == 2
+    assert all(r["status"] == "ok" for r in rows)
+    assert read_rows(out / "snapshots.parquet")
+    assert json.loads((out / "summary.json").read_text())["recordings"] == 2
+
+
 def test_the_report_figure_leaves_the_callers_matplotlib_backend_alone(tmp_path: Path) -> None:
     """run_batch called from a notebook must not switch the user's plotting backend."""
     matplotlib = pytest.importorskip("matplotlib")
