@@ -662,6 +662,7 @@ def _attempt(
     key: str,
     said: RecordingWarnings,
 ) -> RecordingResult:
+    from rose_logs.reader import LogReader
     from rose_logs.session import process_log
 
     with tempfile.TemporaryDirectory(prefix=work_folder_prefix(), dir=store.staging_dir()) as tmp:
@@ -674,13 +675,18 @@ def _attempt(
         rrd = work / "recording.rrd" if options.rrd else None
         if cleaned is not None:
             cleaned.parent.mkdir()
+        reader: LogReader | None = None
         try:
+            # Made here, for the session: its format is the cleaned log's, and a bag folder's
+            # metadata.yaml, read for it, is not read again (seconds for thousands of topics).
+            reader = LogReader(local, salvage=options.salvage)
             report = process_log(
                 local,
+                reader=reader,
                 output_path=cleaned,
                 # The cleaned log mirrors the input, also one whose suffix is not its format (an
                 # MCAP file named .bag): the suffix would ask for a conversion no log gets.
-                output_format=_format_of(local) if cleaned is not None else None,
+                output_format=reader.format if cleaned is not None else None,
                 topics=options.topics,
                 params=options.params,
                 failure_level=options.failure_level,
@@ -712,7 +718,8 @@ def _attempt(
                 raise OSError(
                     failed.errno, f"cannot read the recording ({failed.strerror or failed})"
                 ) from err
-            return error_result(recording, key, options, text, log_format=_format_of(local))
+            fmt = _format_of(local) if reader is None else reader.format
+            return error_result(recording, key, options, text, log_format=fmt)
         cleaned_uri = None if cleaned is None else store.put(cleaned, f"cleaned/{cleaned_name}")
         rrd_uri = None if rrd is None else store.put(rrd, f"rrd/{recording.name}.rrd")
     level = options.failure_level

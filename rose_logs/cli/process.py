@@ -7,7 +7,7 @@ import statistics
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
 from rose.cli.options import (
     add_param_arguments,
@@ -33,6 +33,9 @@ from rose_logs.cli.options import (
     unjudged_topics,
     utc_text,
 )
+
+if TYPE_CHECKING:
+    from rose_logs.reader import LogReader
 
 __all__ = ["add_parser", "run"]
 
@@ -236,18 +239,33 @@ def _print_break(report: Any, topic: str, out: Any) -> None:
     )
 
 
-def _output_format(args: argparse.Namespace) -> str | None:
-    """The format the output log named by ``-o`` is written in; None when the input cannot be read
-    (its own error comes later)."""
+def _input_reader(args: argparse.Namespace) -> LogReader | None:
+    """The input's :class:`~rose_logs.reader.LogReader` (not opened) when the output log named
+    by ``-o`` is written in the input's format (no ``--format``, no suffix naming one), which
+    must be known before the session: the session reads with it, and a ROS 2 bag folder's
+    metadata.yaml is read once (seconds for thousands of topics). None when not needed, or when
+    the input cannot be read (the session says why)."""
     from rose_logs.errors import LogReadError
-    from rose_logs.formats import detect_format, format_from_path
+    from rose_logs.formats import format_from_path
+    from rose_logs.reader import LogReader
+
+    if args.output is None or args.fmt or format_from_path(Path(args.output)) is not None:
+        return None
+    try:
+        return LogReader(args.input, salvage=args.salvage)
+    except LogReadError:
+        return None
+
+
+def _output_format(args: argparse.Namespace, reader: LogReader | None) -> str | None:
+    """The format the output log named by ``-o`` is written in (``reader``: the input's, from
+    :func:`_input_reader`); None when the input cannot be read (its own error comes later)."""
+    from rose_logs.formats import format_from_path
 
     if args.output is None:
         return None
-    try:
-        return args.fmt or format_from_path(Path(args.output)) or detect_format(args.input)
-    except LogReadError:
-        return None
+    fmt = args.fmt or format_from_path(Path(args.output))
+    return fmt or (None if reader is None else reader.format)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -267,7 +285,8 @@ def run(args: argparse.Namespace) -> int:
             viewer_endpoint(args.connect)
         except ValueError as err:
             raise UsageError(f"argument --connect: {err}") from err
-    args.output = output_log_path(args.output, _output_format(args))
+    reader = _input_reader(args)
+    args.output = output_log_path(args.output, _output_format(args, reader))
     output = None if args.no_output else (args.output or default_output_path(args.input, args.fmt))
     for path, option, what in (
         (args.output, "-o", "output log"),
@@ -297,7 +316,7 @@ def run(args: argparse.Namespace) -> int:
         # the warnings are said once the session has accepted every output (the log's format
         # against the input's messages too: `--format ros1 -o y.mcap` of a ROS 2 log warned of
         # the suffix, then was refused).
-        folder = _output_format(args) in ("db3", "mcap-dir")
+        folder = _output_format(args, reader) in ("db3", "mcap-dir")
         outputs.check(args.output, directory=folder)
         outputs.check(None if folder else args.output, args.rrd, args.json_path)
 
@@ -308,7 +327,7 @@ def run(args: argparse.Namespace) -> int:
     progress = not args.quiet and stderr_is_terminal()
     with outputs:  # the log, the recording and the report: all committed, or none
         json_out = None if args.json_path is None else outputs.stage(args.json_path)
-        report = _process(args, output, progress, outputs, say_warnings)
+        report = _process(args, output, progress, outputs, say_warnings, reader)
         failed = _gate_failures(args, report)
         if json_out is not None:
             data = report.to_json()
@@ -378,6 +397,7 @@ def _process(
     progress: bool,
     outputs: Any,
     on_outputs_ready: Callable[[], None] | None = None,
+    reader: LogReader | None = None,
 ) -> Any:
     from rose.entry import load_blas_before_work
     from rose_logs.session import process_log
@@ -409,4 +429,5 @@ def _process(
         salvage=args.salvage,
         replace_rose_topics=args.replace_rose_topics,
         max_cells=args.max_cells,
+        reader=reader,
     )

@@ -130,6 +130,7 @@ def process_log(
     max_cells: int | None = DEFAULT_MAX_CELLS,
     analysis_threads: int = 2,
     replace_rose_topics: bool = False,
+    reader: LogReader | None = None,
 ) -> SessionReport:
     """Run ROSE over every map snapshot of a log; write the output log and Rerun recording.
 
@@ -197,6 +198,11 @@ def process_log(
         analysed now or not): leave them all out of the output log and write the analysed maps'
         anew (the output of the log as it was before). False: such an input is refused for an
         output log (it would hold results of two runs, made with two sets of options).
+    reader : LogReader, optional
+        The input's reader, made by the caller of ``input_path`` with ``salvage`` and not opened,
+        whose :attr:`~rose_logs.reader.LogReader.format` it used already (to choose
+        ``output_format``): a ROS 2 bag folder's metadata.yaml, which it holds as read, is not read
+        again (seconds for thousands of topics). Default: a reader made here.
 
     Returns
     -------
@@ -233,10 +239,15 @@ def process_log(
         max_cells=max_cells,
         clean_method=clean_method,
     )
+    if reader is not None and (
+        not isinstance(reader, LogReader) or (reader.path, reader.salvage) != (input_path, salvage)
+    ):
+        msg = "reader must be a LogReader of input_path, made with the same salvage"
+        raise rose.RoseError(msg)
     own_outputs = outputs is None
     outputs = OutputSet(force=force) if outputs is None else outputs
     outputs.add_input(input_path)
-    reader = LogReader(input_path, salvage=salvage)
+    reader = LogReader(input_path, salvage=salvage) if reader is None else reader
     rrd_temp: Path | None = None
     try:
         if rrd_path is not None:

@@ -901,8 +901,10 @@ def test_a_session_refuses_arguments_of_the_wrong_kind_before_any_work(
 ) -> None:
     """on_snapshot=5 failed after the first snapshot was analysed ('int' object is not
     callable), output_path=5 in pathlib, outputs=5 with an AttributeError, salvage="no"
-    salvaged; each is now a RoseError naming the argument, and nothing is written."""
+    salvaged; each is now a RoseError naming the argument, and nothing is written. (A reader
+    the caller made, ``reader``, must be of the input and its ``salvage``.)"""
     import rose
+    from rose_logs.reader import LogReader
 
     out = tmp_path / "o.mcap"
     for kwargs, words in (
@@ -912,6 +914,11 @@ def test_a_session_refuses_arguments_of_the_wrong_kind_before_any_work(
         ({"output_path": out, "rrd_path": 5}, "rrd_path must be a file name"),
         ({"output_path": out, "outputs": 5}, "outputs must be a rose.outputs.OutputSet"),
         ({"output_path": out, "salvage": "no"}, "salvage must be True or False"),
+        ({"output_path": out, "reader": 5}, "reader must be a LogReader of input_path"),
+        (
+            {"output_path": out, "reader": LogReader(mcap_log, salvage=True)},
+            "reader must be a LogReader of input_path, made with the same salvage",
+        ),
     ):
         with pytest.raises(rose.RoseError, match=words):
             process_log(mcap_log, **kwargs)  # type: ignore[arg-type]

@@ -1089,3 +1089,76 @@ def test_a_bag_folders_metadata_is_read_once_and_a_rewrite_after_it_is_seen(
     metadata.write_text(rewritten + "\n")
     with pytest.raises(LogReadError, match=r"metadata\.yaml: the file changed while it was read"):
         reader.open()
+
+
+def rewritten_after_its_first_parse(monkeypatch: pytest.MonkeyPatch, metadata: Path) -> None:
+    """Act as a program that rewrites ``metadata`` (a new file of one more line put in its place)
+    as soon as rose-bag has parsed it once: every later read gets the new file."""
+    import rose_logs.formats
+
+    parse = rose_logs.formats.load_yaml
+    done: list[bool] = []
+
+    def parse_then_rewrite(text: bytes) -> Any:
+        parsed = parse(text)
+        if not done:
+            done.append(True)
+            new = metadata.with_name("metadata.yaml.new")
+            new.write_bytes(metadata.read_bytes() + b"# rewritten\n")
+            new.replace(metadata)
+        return parsed
+
+    monkeypatch.setattr(rose_logs.formats, "load_yaml", parse_then_rewrite)
+
+
+def test_process_reads_the_input_metadata_once_for_the_output_format_and_the_reading(
+    tmp_path: Path,
+    fr079: list[npt.NDArray[np.int8]],
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """``rose-bag process BAG -o OUT`` (no suffix naming a format: OUT in the input's) read the
+    bag's metadata.yaml for the output's format, then again for the reading (seconds each for a
+    bag of thousands of topics), and a rewrite in between went unseen: the output's format was
+    taken from one file, the messages from another. Now the reader that chose the format reads
+    the bag, and a rewrite after its one read is said."""
+    from conftest import build_log, session_maps
+
+    from rose_logs.cli import main
+
+    bag = build_log(tmp_path / "in", "db3", session_maps(fr079[:2]), scans_per_map=0).path
+    meta = (bag / "metadata.yaml").absolute()
+    for out in (tmp_path / "out", tmp_path / "out.mcpa"):  # (the second: a suffix warning too)
+        rewritten_after_its_first_parse(monkeypatch, meta)
+        assert main(["process", str(bag), "-o", str(out), "-q"]) == 1
+        err = capsys.readouterr().err
+        assert f"error: {meta}: the file changed while it was read" in err
+        assert not out.exists()
+        monkeypatch.undo()
+        meta.write_bytes(meta.read_bytes().replace(b"# rewritten\n", b""))
+        assert main(["process", str(bag), "-o", str(out), "-q"]) == 0
+        assert (out / "metadata.yaml").is_file()  # a bag folder, as the input
+
+
+def test_batch_cleaned_reads_a_bags_metadata_once(
+    tmp_path: Path, fr079: list[npt.NDArray[np.int8]], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``rose-bag batch --cleaned`` read each bag folder's metadata.yaml for the cleaned log's
+    format, then again for the reading (seconds each for thousands of topics), a rewrite in
+    between unseen. Now the reader that gave the format reads the bag: a rewrite after its one
+    read is the recording's error."""
+    from conftest import build_log, session_maps
+
+    from rose_logs.batch import RecordingOptions, run_batch
+
+    bag = build_log(tmp_path / "in", "db3", session_maps(fr079[:2]), scans_per_map=0).path
+    meta = (bag / "metadata.yaml").absolute()
+    rewritten_after_its_first_parse(monkeypatch, meta)
+    report = run_batch([bag], tmp_path / "out", options=RecordingOptions(cleaned=True))
+    (result,) = report.results
+    assert result.status == "error"
+    assert result.format == "db3"
+    assert f"{meta}: the file changed while it was read" in (result.error or "")
+    monkeypatch.undo()
+    report = run_batch([bag], tmp_path / "out", options=RecordingOptions(cleaned=True), force=True)
+    assert [r.status for r in report.results] == ["ok"]
