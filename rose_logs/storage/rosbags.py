@@ -325,6 +325,14 @@ class RosbagsReadBackend:
         for channel in self.channels:
             kinds.setdefault(channel.topic, []).append(channel.msgtype)
         skip = {path.name for path, _ in self.unopened}
+        # Only the storage files rosbags reads, those metadata.yaml lists (by name): an unlisted
+        # one (a split's last file written after the metadata, cut short by a recorder that did
+        # not close) is warned about and not read, and made the whole bag "corrupt or truncated".
+        information = self.metadata.information if self.metadata else None
+        paths = None if information is None else information.get("relative_file_paths")
+        if isinstance(paths, list):
+            listed = {PurePath(str(name)).name for name in paths}
+            skip |= {entry.name for entry in self.path.iterdir() if entry.name not in listed}
         files = storage_types_by_file(self.path, skip=skip)
         # Each file on its own: a split bag's first file of another type was not seen (rosbags
         # then skips its messages, said as a damaged log), a later file's type hid it. A topic

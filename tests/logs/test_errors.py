@@ -1195,6 +1195,29 @@ def test_a_storage_file_its_metadata_does_not_list_is_warned_about(
     assert "storage file bag_9.db3 is not listed in metadata.yaml" in err
 
 
+@pytest.mark.parametrize("kind", ["cut short", "not a database", "a folder"])
+def test_a_damaged_storage_file_its_metadata_does_not_list_is_warned_about_not_read(
+    tmp_path: Path, capsys, fr079, kind: str
+) -> None:
+    """The last file of a split bag, written after its metadata.yaml and cut short by a recorder
+    that did not close (or any unlisted file of a storage suffix that is no database): rose-bag
+    reads only the listed files, but checked the types of every file in the folder and called
+    the whole bag "corrupt or truncated log (database disk image is malformed)"."""
+    folder = build_log(tmp_path / "bag", "db3", session_maps(fr079[:2])).path
+    storage = next(folder.glob("*.db3"))
+    extra = folder / "bag_9.db3"
+    if kind == "cut short":
+        extra.write_bytes(storage.read_bytes()[: storage.stat().st_size // 2])
+    elif kind == "not a database":
+        extra.write_bytes(b"\x00" * 4096)
+    else:
+        extra.mkdir()
+    code, _, err = _run(capsys, "process", folder, "--no-output", "-q")
+    assert code == 0, err
+    assert "storage file bag_9.db3 is not listed in metadata.yaml" in err
+    assert "corrupt" not in err
+
+
 def test_control_characters_of_a_topic_name_do_not_reach_the_terminal(
     tmp_path: Path, capsys, fr079
 ) -> None:
