@@ -18,14 +18,28 @@ import rerun.blueprint as rrb
 from rerun.encodings import EntityPathLike
 
 from rose_logs.rerun import style
+from rose_logs.rerun.conversions import score_bar_width
 from rose_logs.rerun.paths import SESSION_TIMELINE, EntityPaths
 
-__all__ = ["TopicLayout", "default_blueprint", "segmentation_title"]
+__all__ = [
+    "METRIC_VIEW_PX",
+    "SEGMENTATION_VIEW_PX",
+    "TopicLayout",
+    "default_blueprint",
+    "metric_framed",
+    "segmentation_framed",
+    "segmentation_title",
+]
 
 _FOV_Y_RAD = math.radians(55.0)  # the 3D view's default vertical field of view
 _ASSUMED_ASPECT = 1.3  # width / height of the metric view in the default layout
 _GRID_HEIGHT_M = 0.05  # the metric grid's plane, just above the map (TopicLayout.height_m)
 _ONE_TIME_POINT_SIZE = 5.0  # a one-time topic's plotted values, wider than the time cursor
+#: Screen pixels (width, height) of the segmentation and metric views at the default layout in a
+#: 1600 x 1000 window (the screenshot tool's): what a label a fixed number of pixels wide covers
+#: of the map there (conversions.direction_label_positions).
+SEGMENTATION_VIEW_PX = (955.0, 535.0)
+METRIC_VIEW_PX = (478.0, 345.0)
 
 
 @dataclass(frozen=True)
@@ -117,6 +131,28 @@ def _label_room_m(bounds_m: tuple[float, float, float, float]) -> float:
     return _LABEL_ROOM * max(y_max - y_min, 0.25 * (x_max - x_min))
 
 
+def _margin(width: float, height: float) -> float:
+    """The 2D views' margin around a ``width`` x ``height`` box (each side, same units)."""
+    return 0.03 * max(width, height)
+
+
+def segmentation_framed(width: float, height: float) -> tuple[float, float]:
+    """``(width, height)`` the segmentation view frames around a known box ``width`` x ``height``
+    (north up, any units): its margins and the room for a label under it
+    (:func:`_north_up_bounds`)."""
+    margin = _margin(width, height)
+    return width + 2 * margin, height + 2 * margin + _LABEL_ROOM * max(height, 0.25 * width)
+
+
+def metric_framed(width: float, height: float) -> tuple[float, float]:
+    """``(width, height)`` the metric view shows of the map plane around a known box ``width`` x
+    ``height`` (north up, any units), at its assumed aspect (:func:`_metric_eye`)."""
+    room = _LABEL_ROOM * max(height, 0.25 * width)
+    # The camera's height is 1.05 max(...) / tan(fov / 2): it sees 2 tan(fov / 2) that high.
+    seen = 1.05 * max(height + room, width / _ASSUMED_ASPECT)
+    return _ASSUMED_ASPECT * seen, seen
+
+
 def _metric_eye(layout: TopicLayout) -> rrb.EyeControls3D | None:
     """A camera straight above the map centre, high enough for the map and the room under it for
     a label (:data:`_LABEL_ROOM`) to fill the view (the metric view's metres: the map frame's less
@@ -138,19 +174,25 @@ def _metric_eye(layout: TopicLayout) -> rrb.EyeControls3D | None:
     )
 
 
-def _north_up_bounds(layout: TopicLayout, *, below: float = 0.0) -> rrb.VisualBounds2D | None:
+def _north_up_bounds(
+    layout: TopicLayout, *, below: float = 0.0, bar: bool = False
+) -> rrb.VisualBounds2D | None:
     """The known box of ``layout`` in the 2D views' north-up frame (x east, y south, metres from
     its view origin: :func:`rose_logs.rerun.loggers.placement_terms`), with a margin, and
     ``below`` times its height (at least a quarter of its width, as the colour bar's size:
-    :func:`rose_logs.rerun.loggers.bar_placement`) more under it."""
+    :func:`rose_logs.rerun.loggers.bar_placement`) more under it; ``bar``: as wide as the colour
+    bar at least (a tall map's is wider than the map)."""
     if layout.bounds_m is None:
         return None
     x0, y0, x1, y1 = layout.bounds_m
     rx, ry = layout.view_origin_m
-    margin = 0.03 * max(x1 - x0, y1 - y0)
+    margin = _margin(x1 - x0, y1 - y0)
     extra = below * max(y1 - y0, 0.25 * (x1 - x0))
+    spill = 0.0  # how far the bar reaches out of the box on either side
+    if bar:
+        spill = max(score_bar_width(x1 - x0, max(y1 - y0, 0.25 * (x1 - x0))) - (x1 - x0), 0.0) / 2
     return rrb.VisualBounds2D(
-        x_range=(x0 - rx - margin, x1 - rx + margin),
+        x_range=(x0 - rx - margin - spill, x1 - rx + margin + spill),
         y_range=(ry - y1 - margin, ry - y0 + margin + extra),
     )
 
@@ -196,7 +238,7 @@ def _topic_container(layout: TopicLayout) -> rrb.Container:
     scores = rrb.Spatial2DView(
         name="scores of occupied cells",
         origin=f"/{paths.scores_view}",
-        visual_bounds=_north_up_bounds(layout, below=0.45),  # and the colour bar
+        visual_bounds=_north_up_bounds(layout, below=0.45, bar=True),  # and the colour bar
     )
     w_plot = _session_plot(
         # (As long as fits a third of 1600 pixels: a longer title was cut.)

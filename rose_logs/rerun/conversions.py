@@ -56,6 +56,9 @@ _VIRIDIS = np.array(
 )
 
 __all__ = [
+    "DIRECTION_LABEL_CLEARANCE_PX",
+    "DIRECTION_LABEL_WIDTH_PX",
+    "SCORE_BAR_MIN_WIDTH",
     "AmplitudePlot",
     "OccupiedCells",
     "amplitude_plot",
@@ -73,11 +76,13 @@ __all__ = [
     "pooled_score_image",
     "pooled_window",
     "quantise_unit",
+    "score_bar_width",
     "score_classes",
     "score_levels",
     "score_to_unit",
     "segmentation_image",
     "spectrum_strip_segments",
+    "view_units_per_px",
 ]
 
 
@@ -516,36 +521,86 @@ def direction_segments_cells(
     return np.stack([centre - half_length * unit, centre + half_length * unit], axis=1)
 
 
-#: Lines at least this steep on screen (radians from horizontal) get their label under their
-#: lower end: Rerun draws a point's label under the point, and a steeper line went on down
-#: through it ("walls 86.3°" in both map views). A flatter line leaves the label sideways.
-STEEP_LINE_RAD = math.radians(20.0)
-
-
 def direction_label_positions(
-    segments: npt.NDArray[np.float64], *, fraction: float = 0.8, yaw_rad: float = 0.0
+    segments: npt.NDArray[np.float64],
+    *,
+    yaw_rad: float = 0.0,
+    x_range: tuple[float, float] | None = None,
+    label_width: float = 0.0,
+    clearance: float = 0.0,
 ) -> npt.NDArray[np.float64]:
-    """Where to put each direction's label (Rerun draws it under the point): labels at the centre
-    would all overlap (every line passes through it).
+    """Where to put each direction's label; Rerun draws a label under its point, centred, a fixed
+    number of screen pixels wide (labels at the centre would all overlap: every line passes there).
 
-    A line steeper than :data:`STEEP_LINE_RAD` on screen (the views show the map frame north up:
-    the grid frame turned by ``yaw_rad``) has its label at its lower end, where no line runs below
-    it; a flatter one ``fraction`` of the way from the centre to its second end.
+    Each label hangs under its line's lower end on screen (the views show the map frame north up:
+    the grid frame turned by ``yaw_rad``), where no part of the line is lower, so the line stays
+    above the label whatever its direction. The point is ``clearance`` times the cosine of the
+    line's slope below that end (a flat line ran along the label's top edge, and at 0.8 of the way
+    to an end a line a few degrees from flat ran down through its label; a steep one leaves
+    nothing above the label but its end) and, horizontally, out from the end by half the label's
+    width ``label_width`` times that cosine (a flat line's label beside its end, off the map: on a
+    map narrower than a label, a label centred under the end reached over the other lines) unless
+    the label would reach out of ``x_range`` (what the view shows, on screen): then just inside
+    it (a flat line ends at the side of a wide map, and half its label hung out of the view). ``label_width``, ``clearance`` and ``x_range`` are in the units of ``segments`` (cells:
+    a view's pixels times its cells per pixel, :func:`view_units_per_px`).
+
+    Parameters
+    ----------
+    segments : ndarray of float64, shape (K, 2, 2)
+        ``[k, end, (x, y)]``, grid frame, y up (:func:`direction_segments_cells`).
+    x_range : tuple of float, optional
+        ``(left, right)`` on screen: x of the grid frame turned by ``yaw_rad``. None: anywhere.
 
     Returns
     -------
     ndarray of float64, shape (K, 2)
-        In the coordinates of ``segments`` (``[k, end, (x, y)]``, the grid frame, y up).
+        In the coordinates of ``segments``.
     """
-    centre = segments.mean(axis=1)
-    run = segments[:, 1] - centre
-    # The second end's height over the centre on screen, and its distance from it.
     cos_yaw, sin_yaw = math.cos(yaw_rad), math.sin(yaw_rad)
-    rise = sin_yaw * run[:, 0] + cos_yaw * run[:, 1]
+    turn = np.array([[cos_yaw, -sin_yaw], [sin_yaw, cos_yaw]])  # grid frame -> screen (y up)
+    ends = np.asarray(segments, dtype=np.float64).reshape(-1, 2, 2) @ turn.T  # (K, 2, 2)
+    lower = np.argmin(ends[:, :, 1], axis=1)  # the end lower on screen (the first if level)
+    end = ends[np.arange(len(ends)), lower]  # (K, 2)
+    run = ends[:, 1] - ends[:, 0]
     length = np.linalg.norm(run, axis=1)
-    steep = np.abs(rise) >= math.sin(STEEP_LINE_RAD) * length
-    lower = np.where(rise > 0, -1.0, 1.0)[:, None]  # towards the end lower on screen
-    return np.where(steep[:, None], centre + lower * run, centre + fraction * run)
+    # cos(slope) on screen: 1 for a level line, 0 for an upright one.
+    level = np.divide(np.abs(run[:, 0]), length, out=np.ones_like(length), where=length > 0)
+    # Out from the map by as much of half a label as the line is level: a flat line's label
+    # beside its end, off the map (on a map narrower than a label, centred under the end, it
+    # reached over the other lines), a steep one's under its end.
+    out = np.sign(end[:, 0] - ends.mean(axis=1)[:, 0])
+    x = end[:, 0] + out * level * label_width / 2
+    if x_range is not None:
+        left, right = x_range[0] + label_width / 2, x_range[1] - label_width / 2
+        x = np.full_like(x, (left + right) / 2) if left > right else np.clip(x, left, right)
+    anchors = np.stack([x, end[:, 1] - clearance * level], axis=-1)
+    return anchors @ turn  # back to the grid frame (turn is orthonormal)
+
+
+#: The direction labels' size and room in a map view at the default layout (a 1600 x 1000 window,
+#: as the screenshot tool's): "walls 176.2°" is 81 screen pixels wide, and the line (1.5 points)
+#: and the label's point (3 points) need about 8 pixels between them to stay apart.
+DIRECTION_LABEL_WIDTH_PX = 90.0
+DIRECTION_LABEL_CLEARANCE_PX = 8.0
+
+
+#: The colour bar is at least this fraction of its size (the box's height, at least a quarter of
+#: its width) wide: at 0.6 of a tall map's width its end labels, each about 80 screen pixels wide
+#: and centred on its ends, overlapped ("score ≤ -0.5" over "1 (best cell)", the sample map turned
+#: upright); the scores view shows about 230 pixels per size there (345 / 1.51), 170 for the bar.
+SCORE_BAR_MIN_WIDTH = 0.75
+
+
+def score_bar_width(width: float, size: float) -> float:
+    """Width of the colour bar under a box ``width`` wide, of size ``size`` (same units): 0.6 of
+    the box's width, at least :data:`SCORE_BAR_MIN_WIDTH` of its size."""
+    return max(0.6 * width, SCORE_BAR_MIN_WIDTH * size)
+
+
+def view_units_per_px(framed: tuple[float, float], view_px: tuple[float, float]) -> float:
+    """Units (cells, metres) per screen pixel of a view ``view_px`` (width, height) pixels that
+    shows a box ``framed`` (width, height) whole: Rerun fits it keeping its aspect."""
+    return max(framed[0] / view_px[0], framed[1] / view_px[1])
 
 
 def known_bounds_cells(grid: npt.NDArray[np.int8]) -> tuple[int, int, int, int] | None:

@@ -25,6 +25,12 @@ from rose.walls.segments import cells_to_metres
 from rose_logs.frames import yaw_to_quaternion
 from rose_logs.rerun import arrow, style
 from rose_logs.rerun import conversions as conv
+from rose_logs.rerun.blueprint import (
+    METRIC_VIEW_PX,
+    SEGMENTATION_VIEW_PX,
+    metric_framed,
+    segmentation_framed,
+)
 from rose_logs.rerun.paths import SEQUENCE_TIMELINE, SESSION_TIMELINE, TIMELINE, EntityPaths
 from rose_logs.session.breaks import BreakScore
 from rose_logs.session.report import w_judges
@@ -279,6 +285,10 @@ def overlay_z_m(snapshot: MapSnapshot, *, layer: int) -> float:
     return float(snapshot.origin_position_m[2]) + layer * step
 
 
+#: Screen pixels a direction's label keeps from a map view's left and right edges.
+_VIEW_EDGE_PX = 6.0
+
+
 #: The colour bar's height, as a fraction of the occupied cells' box height (its size), and its
 #: labels' places in its pixels (it is 2 pixels high): the scale and best-cell labels 0.09 size
 #: under it, the threshold's 0.2 size above it, between the bar and the cells.
@@ -291,17 +301,20 @@ def bar_placement(
     box: tuple[float, float, float, float], *, min_size_m: float = 0.0
 ) -> rr.Transform3D:
     """The colour bar's placement (metres per bar pixel) under ``box`` = (west, north, east, south),
-    the 2D views' north-up metres (y south), 0.6 of its width wide, its labels clear of the box.
+    the 2D views' north-up metres (y south), centred, :func:`conv.score_bar_width` wide (0.6 of
+    the box's width; a tall box's wider than the box, for its end labels to stay apart), its labels
+    clear of the box.
 
     Every vertical length is a fraction of one size, so that the labels' places in the bar's pixels
     hold whatever the box (a thin map's bar is sized by its width)."""
     west, north, east, south = box
     width = east - west
     size = max(south - north, 0.25 * width, min_size_m)
+    bar = conv.score_bar_width(width, size)
     # Far enough below for the threshold's label to sit between the cells and the bar.
     return rr.Transform3D(
-        translation=[west + 0.2 * width, south + 0.22 * size, 0.0],
-        scale=[0.6 * width / style.DISPLAY_LEVELS, _BAR_HEIGHT * size / 2, 1.0],
+        translation=[(west + east - bar) / 2, south + 0.22 * size, 0.0],
+        scale=[bar / style.DISPLAY_LEVELS, _BAR_HEIGHT * size / 2, 1.0],
     )
 
 
@@ -463,7 +476,10 @@ class TopicLogger:
         as static components: each snapshot then sends only what changes. Rerun's Python archetypes
         cost about 4x more to build with these fields than without (~180 against ~45 us each)."""
         rec, paths = self.recording, self.paths
-        line, point = rr.Radius.ui_points(1.5), rr.Radius.ui_points(3.0)
+        line = rr.Radius.ui_points(1.5)
+        # The directions' labels without a dot: their points lie off the lines, under or beside
+        # an end (conv.direction_label_positions), where a dot marked nothing of the line.
+        point = 0.0
         direction = style.DIRECTION_COLOR
         static: list[tuple[str, list[rr.AsComponents]]] = [
             (paths.grid, [rr.GridMap.from_fields(colormap=rr.components.Colormap.RvizMap)]),
@@ -648,8 +664,10 @@ class TopicLogger:
         """Dominant directions across the mapped area (the occupied cells' box), over the
         segmentation and in metres.
 
-        Each direction is labelled once, near its line's end (all lines cross at the centre), a
-        steep line's under its lower end (:func:`conv.direction_label_positions`).
+        Each direction is labelled once, under its line's lower end on screen (all lines cross at
+        the centre), clear of the line and within the lines' box in each view, whose scale at the
+        default layout is worked out from the snapshot's known box (the views frame the session's:
+        the same for the last map of a growing one) (:func:`conv.direction_label_positions`).
         """
         rec, paths = self.recording, self.paths
         directions = np.asarray(result.dominant_directions, dtype=np.float64)
@@ -659,12 +677,31 @@ class TopicLogger:
             self._metric_labels, self._metric_labels_hidden = None, False
             return
         rows, cols = snapshot.grid.shape
-        bounds = (occupied or conv.occupied_cells(result)).bounds
+        occupied = occupied or conv.occupied_cells(result)
+        bounds = occupied.bounds
         segments = conv.direction_segments_cells(directions, (rows, cols), bounds=bounds)
         # Both views show the map frame (placement_terms): a map whose origin has a yaw shows its
         # walls that much further round than the grid does (as the JSON report gives them).
         yaw = snapshot.origin_yaw_rad
-        anchors = conv.direction_label_positions(segments, yaw_rad=yaw)
+        x0, y0, x1, y1 = occupied.window
+        turn = np.array([[math.cos(yaw), -math.sin(yaw)], [math.sin(yaw), math.cos(yaw)]])
+        known = np.array([[x0, y0], [x1, y0], [x0, y1], [x1, y1]], dtype=np.float64) @ turn.T
+        width, height = (float(v) for v in np.ptp(known, axis=0))  # on screen, cells
+        middle = float(known[:, 0].min() + known[:, 0].max()) / 2  # the views centre it across
+
+        def anchors_in(framed: tuple[float, float], view_px: tuple[float, float]) -> np.ndarray:
+            per_px = conv.view_units_per_px(framed, view_px)  # cells per screen pixel
+            half = per_px * (view_px[0] / 2 - _VIEW_EDGE_PX)  # what the view shows across
+            return conv.direction_label_positions(
+                segments,
+                yaw_rad=yaw,
+                x_range=(middle - half, middle + half),
+                label_width=conv.DIRECTION_LABEL_WIDTH_PX * per_px,
+                clearance=conv.DIRECTION_LABEL_CLEARANCE_PX * per_px,
+            )
+
+        anchors = anchors_in(segmentation_framed(width, height), SEGMENTATION_VIEW_PX)
+        metric_anchors = anchors_in(metric_framed(width, height), METRIC_VIEW_PX)
         map_labels = [f"walls {d:.1f}°" for d in map_frame_deg(directions, yaw_rad=yaw, digits=1)]
         # Colours, sizes and the label switch are static (log_static).
         labels = arrow.texts(map_labels)
@@ -688,7 +725,7 @@ class TopicLogger:
             ),
             arrow.described(
                 rr.Points3D,
-                positions=arrow.points(metric_m(snapshot, anchors, origin)),
+                positions=arrow.points(metric_m(snapshot, metric_anchors, origin)),
                 labels=labels,
             ),
         )

@@ -143,24 +143,62 @@ def test_direction_labels_do_not_meet_at_the_centre() -> None:
     assert np.all(np.linalg.norm(anchors - centre, axis=1) > 30.0)
 
 
+def _on_screen(points: npt.NDArray[np.float64], yaw: float) -> npt.NDArray[np.float64]:
+    """Grid-frame points ``(..., 2)`` as the views show them: turned by ``yaw``, y up."""
+    c, s = math.cos(yaw), math.sin(yaw)
+    return np.stack(
+        [c * points[..., 0] - s * points[..., 1], s * points[..., 0] + c * points[..., 1]], axis=-1
+    )
+
+
 @pytest.mark.parametrize("yaw_deg", [0.0, 30.0, -90.0])
-def test_a_steep_direction_line_has_its_label_under_its_lower_end(yaw_deg: float) -> None:
-    """Rerun draws a label under its point: at 0.8 of the way to a line's upper end, a near-vertical
-    line ran on down through its label ("walls 86.3°" in both map views). Steep on screen (north
-    up, the grid turned by the yaw): the label hangs under the line's lower end; flat: as before."""
+@pytest.mark.parametrize("shape", [(100, 200), (300, 40), (20, 20)])
+def test_no_direction_line_runs_through_its_own_label(
+    yaw_deg: float, shape: tuple[int, int]
+) -> None:
+    """Rerun draws a label under its point, centred, a fixed number of pixels wide. At 0.8 of the
+    way to a line's end, a steep line ran down through its label ("walls 86.3°") and a line a few
+    degrees from flat grazed or crossed it ("walls 176.2°" in the metric view, "walls 3.7°" on the
+    sample map turned upright). For every direction, on a wide, a tall and a square map at any
+    yaw, the line stays above the label's top edge over the label's width, a flat line by the
+    clearance; the labels stay in what the view shows."""
     yaw = math.radians(yaw_deg)
-    grid_deg = np.array([86.3, 176.2, 45.0]) - yaw_deg
-    segments = conv.direction_segments_cells(np.radians(grid_deg), (100, 200))
-    anchors = conv.direction_label_positions(segments, yaw_rad=yaw)
+    width, clearance = 30.0, 3.0  # cells, as a view's label pixels make them
+    segments = conv.direction_segments_cells(np.radians(np.arange(0.0, 180.0, 0.5)), shape)
+    screen = _on_screen(segments, yaw)
+    middle = float(screen[..., 0].mean())
+    view = (middle - 150.0, middle + 150.0)
+    anchors = _on_screen(
+        conv.direction_label_positions(
+            segments, yaw_rad=yaw, x_range=view, label_width=width, clearance=clearance
+        ),
+        yaw,
+    )
+    for (a, b), (x, y) in zip(screen, anchors, strict=True):
+        assert view[0] - 1e-9 <= x - width / 2 and x + width / 2 <= view[1] + 1e-9
+        # The line's points over the label's width, finely sampled.
+        t = np.linspace(0.0, 1.0, 4001)[:, None]
+        line = a + t * (b - a)
+        over = line[np.abs(line[:, 0] - x) <= width / 2]
+        if over.size == 0:
+            continue
+        lowest = over[:, 1].min()
+        slope = math.degrees(math.atan2(abs(b[1] - a[1]), abs(b[0] - a[0])))
+        assert lowest >= y - 1e-9, (slope, lowest, y)
+        if slope < 20.0:  # flat: a line along the label's top edge touched it
+            assert lowest >= y + clearance * math.cos(math.radians(slope)) - 1e-9
 
-    def screen_up(points: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
-        return math.sin(yaw) * points[..., 0] + math.cos(yaw) * points[..., 1]
 
-    for k in (0, 2):  # steep: at the end lower on screen, nothing of the line below the label
-        lowest = segments[k, np.argmin(screen_up(segments[k]))]
-        assert_allclose(anchors[k], lowest, atol=1e-9)
-    centre = segments[1].mean(axis=0)  # flat: 0.8 of the way to the second end
-    assert_allclose(anchors[1], centre + 0.8 * (segments[1, 1] - centre), atol=1e-9)
+def test_a_flat_lines_label_stands_beside_its_lower_end_and_a_steep_ones_under_it() -> None:
+    """The label of a flat line is beside its lower end, off the map (a narrow map's label
+    centred under the end reached over the other lines); a steep one's under its lower end."""
+    segments = conv.direction_segments_cells(np.radians([2.0, 90.0]), (300, 40))
+    anchors = conv.direction_label_positions(segments, label_width=30.0, clearance=3.0)
+    flat_end = segments[0, np.argmin(segments[0, :, 1])]  # the lower end: at x = 0
+    assert anchors[0, 0] == pytest.approx(flat_end[0] - 15.0 * math.cos(math.radians(2.0)))
+    assert anchors[0, 1] == pytest.approx(flat_end[1] - 3.0 * math.cos(math.radians(2.0)))
+    steep_end = segments[1, np.argmin(segments[1, :, 1])]
+    assert_allclose(anchors[1], steep_end, atol=1e-9)  # cos(90 deg) = 0: no room needed
 
 
 def test_cells_to_pixels_flips_rows() -> None:

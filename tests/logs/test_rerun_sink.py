@@ -835,6 +835,7 @@ def test_the_score_colour_bar_lies_under_the_map_whatever_its_yaw(tmp_path: Path
     import rose
     from rose_logs.rerun import TopicLogger
     from rose_logs.rerun.sink import _layout_of
+    from rose_logs.rerun.style import DISPLAY_LEVELS
 
     grid = fr079[0]
     snapshot = _yawed(grid, math.pi / 2, (10.0, -4.0))
@@ -847,6 +848,7 @@ def test_the_score_colour_bar_lies_under_the_map_whatever_its_yaw(tmp_path: Path
     recording.disconnect()
     (legend,) = _read(rrd).rows(PATHS.score_legend)
     left, top, _ = legend["Transform3D:translation"][0]
+    bar = legend["Transform3D:scale"][0][0] * DISPLAY_LEVELS  # metres
     # The scores view frames the known part north up, with room below (blueprint._north_up_bounds).
     layout = _layout_of(
         "map", _known_box(snapshot), has_events=False, view_origin=logger.view_origin_m
@@ -854,7 +856,8 @@ def test_the_score_colour_bar_lies_under_the_map_whatever_its_yaw(tmp_path: Path
     assert layout.bounds_m is not None
     x0, y0, x1, y1 = layout.bounds_m
     rx, ry = layout.view_origin_m
-    assert x0 - rx < left < x1 - rx  # under the map, not beside it
+    # Under the map, not beside it (turned upright, the map is narrower than its bar).
+    assert x0 - rx < left + bar / 2 < x1 - rx
     assert ry - y0 < top < ry - y0 + 0.45 * (y1 - y0)  # below its south edge, inside the view
 
 
@@ -1165,6 +1168,38 @@ def test_the_colour_bar_lies_under_its_box_and_inside_the_scores_view() -> None:
         assert west < left and left + scale_x * DISPLAY_LEVELS < east
         assert south < top and view_top < north
         assert top + _BAR_LABELS_BELOW_PX * scale_y < view_bottom, box
+
+
+@pytest.mark.parametrize("aspect", [8.0, 3.0, 1.0, 0.33, 0.05])
+def test_the_colour_bars_end_labels_stay_apart_on_a_map_of_any_aspect(aspect: float) -> None:
+    """On a map much taller than wide (the sample map turned upright) the bar was 0.6 of the map's
+    width, about 45 pixels in the scores view at the default layout, and its end labels ("score ≤
+    -0.5", "1 (best cell)", about 80 pixels wide each, centred on the bar's ends) were written over
+    each other. At any aspect their centres are at least 100 pixels apart there, and the bar and
+    its labels are inside the view's bounds."""
+    from rose_logs.rerun.blueprint import _north_up_bounds
+    from rose_logs.rerun.loggers import bar_placement
+    from rose_logs.rerun.sink import TopicLayout
+    from rose_logs.rerun.style import DISPLAY_LEVELS
+
+    view_px = (478.0, 345.0)  # the scores view at the default layout (1600 x 1000 window)
+    height = 40.0
+    box = (0.0, -height, height / aspect, 0.0)  # map frame, view origin 0: x east, y north
+    west, north, east, south = box[0], -box[3], box[2], -box[1]  # the views' y points south
+    placement = bar_placement((west, north, east, south))
+    ((left, _, _),) = placement.translation.pa_array.to_pylist()
+    ((scale_x, _, _),) = placement.scale.pa_array.to_pylist()
+    bounds = _north_up_bounds(TopicLayout("map", bounds_m=box), below=0.45, bar=True)
+    assert bounds is not None
+    ((x_range, y_range),) = [
+        (r["x_range"], r["y_range"]) for r in bounds.range.pa_array.to_pylist()
+    ]
+    # Rerun fits the bounds in the view, keeping their aspect.
+    px_per_m = min(view_px[0] / (x_range[1] - x_range[0]), view_px[1] / (y_range[1] - y_range[0]))
+    bar_m = scale_x * DISPLAY_LEVELS
+    assert bar_m * px_per_m >= 100.0
+    assert x_range[0] <= left and left + bar_m <= x_range[1]
+    assert left + bar_m / 2 == pytest.approx((west + east) / 2)  # centred under the map
 
 
 def test_an_all_unknown_session_is_framed_by_its_grid(
