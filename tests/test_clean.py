@@ -351,6 +351,21 @@ def test_directional_runs_keep_long_lines_only() -> None:
     assert not runs[40].any()
 
 
+def _turned(
+    grid: npt.NDArray[np.int8], angle: float, *cells: tuple[int, int]
+) -> tuple[npt.NDArray[np.int8], list[tuple[int, int]]]:
+    """``grid`` turned by ``angle`` degrees about its centre with nearest-neighbour sampling (as
+    the benchmark turns its maps; what comes in from outside unknown), and where ``cells``
+    (row, column) land."""
+    grid = np.ascontiguousarray(grid)
+    rows, cols = grid.shape
+    turn = cv2.getRotationMatrix2D((cols / 2, rows / 2), angle, 1.0)
+    codes = (grid.astype(np.int16) + 1).astype(np.uint8)  # (unknown 0, as the border)
+    turned = cv2.warpAffine(codes, turn, (cols, rows), flags=cv2.INTER_NEAREST, borderValue=0)
+    landed = [(round(y), round(x)) for x, y in (turn @ [c, r, 1.0] for r, c in cells)]
+    return (turned.astype(np.int16) - 1).astype(np.int8), landed
+
+
 def _bent_wall(angle_deg: float, bow_px: float, length_px: int = 60) -> npt.NDArray[np.bool_]:
     """A wall one cell thick, ``length_px`` long at ``angle_deg`` to the rows, bowed ``bow_px``
     cells at its middle (a SLAM map's wall bends a cell or two over a few metres)."""
@@ -954,14 +969,7 @@ def test_a_cabinet_its_shadows_part_from_the_wall_keeps_the_room_closed_turned()
     grid[front, left : right + 1] = 100  # its front ...
     grid[front:60, left] = grid[front:60, right] = 100  # ... and sides
     grid[60:62, left - 5 : right + 6] = -1  # the wall unseen beside it too (its shadows)
-    height, width = grid.shape
-    turn = cv2.getRotationMatrix2D((width / 2, height / 2), 45.0, 1.0)
-    codes = (grid.astype(np.int16) + 1).astype(np.uint8)  # (unknown 0, as the border)
-    turned = cv2.warpAffine(codes, turn, (width, height), flags=cv2.INTER_NEAREST, borderValue=0)
-    grid = (turned.astype(np.int16) - 1).astype(np.int8)
-    room, outside = (
-        (round(y), round(x)) for x, y in (turn @ [c, r, 1.0] for r, c in [(30, 100), (110, 110)])
-    )
+    grid, (room, outside) = _turned(grid, 45.0, (30, 100), (110, 110))
     assert separated_pairs(grid >= 65, room, outside)
     cleaned = clean(grid, rose.analyze(grid), resolution_m=RES)
     assert separated_pairs(cleaned.cleaned >= 65, room, outside)
@@ -1015,15 +1023,7 @@ def test_a_cabinet_off_an_unseen_outer_wall_keeps_the_room_closed(
     if transposed:
         grid = grid.T
         room, outside = (room[1], room[0]), (outside[1], outside[0])
-    grid = np.ascontiguousarray(grid)
-    rows, cols = grid.shape
-    turn = cv2.getRotationMatrix2D((cols / 2, rows / 2), angle, 1.0)
-    codes = (grid.astype(np.int16) + 1).astype(np.uint8)  # (unknown 0, as the border)
-    turned = cv2.warpAffine(codes, turn, (cols, rows), flags=cv2.INTER_NEAREST, borderValue=0)
-    grid = (turned.astype(np.int16) - 1).astype(np.int8)
-    room, outside = (
-        (round(y), round(x)) for x, y in (turn @ [c, r, 1.0] for r, c in [room, outside])
-    )
+    grid, (room, outside) = _turned(grid, angle, room, outside)
     assert separated_pairs(grid >= 65, room, outside)
     cleaned = clean(grid, rose.analyze(grid), resolution_m=RES)
     assert separated_pairs(cleaned.cleaned >= 65, room, outside)
@@ -1193,14 +1193,7 @@ def test_a_doorway_with_a_box_standing_in_it_stays_open_at_an_angle(
     """The doorway test above turned (nearest-neighbour sampling): a 0.35 m box in a 0.75 m
     doorway, 0.15-0.2 m from one edge, which stayed closed for the 0.15 m robot."""
     grid = _room_with_a_box_in_a_doorway(door, left, width, front, depth)
-    height, width = grid.shape
-    turn = cv2.getRotationMatrix2D((width / 2, height / 2), angle, 1.0)
-    codes = (grid.astype(np.int16) + 1).astype(np.uint8)  # (unknown 0, as the border)
-    turned = cv2.warpAffine(codes, turn, (width, height), flags=cv2.INTER_NEAREST, borderValue=0)
-    grid = (turned.astype(np.int16) - 1).astype(np.int8)
-    room, beyond = (
-        (round(y), round(x)) for x, y in (turn @ [c, r, 1.0] for r, c in [(30, 100), (110, 110)])
-    )
+    grid, (room, beyond) = _turned(grid, angle, (30, 100), (110, 110))
     assert separated_pairs(grid >= 65, room, beyond)  # the box blocks it
     cleaned = clean(grid, rose.analyze(grid), resolution_m=RES)
     assert not separated_pairs(cleaned.cleaned >= 65, room, beyond)
