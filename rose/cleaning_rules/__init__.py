@@ -480,7 +480,6 @@ def _wall_cells(
         # robot's width of such a line kept clutter on the benchmark's logs: boxes in front of
         # part of a line, two of them shadowing it, a box before holes in a ragged wall.)
         robot_px = math.floor(2 * length_px(p.robot_radius_m, res) + 1)
-        undrawn = _long_pieces(undrawn, robot_px)
         if undrawn.any():
             anchored = anchored | _hiding(
                 occupied,
@@ -604,22 +603,6 @@ def _reached_later(
     return out
 
 
-def _long_pieces(mask: npt.NDArray[np.bool_], min_extent_px: int) -> npt.NDArray[np.bool_]:
-    """The pieces (8-connected) of ``mask`` whose bounding box's longer side is at least
-    ``min_extent_px`` cells (a new array). Masks of shape ``(rows, cols)``."""
-    out = np.zeros(mask.shape, dtype=bool)
-    if not mask.any():
-        return out
-    box = _padded_box(mask, 0)  # (the lines' box only: a few in a large map)
-    count, labels = components(mask[box])
-    cells = _nonzero_flat(np.ascontiguousarray(mask[box]).view(np.uint8))
-    _, _, width, height = label_boxes(labels, cells, count).T
-    long = np.maximum(width, height) >= min_extent_px
-    long[0] = False  # the background
-    out[box] = long[labels]
-    return out
-
-
 def _hiding(
     occupied: npt.NDArray[np.bool_],
     labels: npt.NDArray[np.integer],
@@ -633,7 +616,8 @@ def _hiding(
     in the line piece's box) lies within ``reach_px`` (chessboard distance) of every cell of a
     piece (8-connected) of ``lines`` that is farther than ``radius_px`` from ``walls`` (where a
     robot's centre could cross the line were it open; a line piece with no such cell is no way
-    through): what hides that stretch from the room. A new array; each line piece is looked at in
+    through, nor one whose box is shorter than ``reach_px`` on both sides, a robot's width):
+    what hides that stretch from the room. A new array; each line piece is looked at in
     its own box, ``reach_px`` wider (a few lines in a large map). Masks of shape
     ``(rows, cols)``."""
     import cv2
@@ -647,6 +631,8 @@ def _hiding(
     disc = np.ones((2 * radius_px + 1, 2 * radius_px + 1), np.uint8)
     rows, cols = line_labels.shape
     for index in range(1, count):
+        if max(width[index], height[index]) < reach_px:  # narrower than a robot: no way through
+            continue
         r0, c0 = max(y[index] - reach_px, 0), max(x[index] - reach_px, 0)
         r1 = min(y[index] + height[index] + reach_px, rows)
         c1 = min(x[index] + width[index] + reach_px, cols)
