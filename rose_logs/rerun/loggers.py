@@ -289,6 +289,50 @@ def overlay_z_m(snapshot: MapSnapshot, *, layer: int) -> float:
 _VIEW_EDGE_PX = 6.0
 
 
+def direction_label_anchors(
+    segments: npt.NDArray[np.float64],
+    *,
+    yaw_rad: float,
+    window: tuple[float, float, float, float],
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    """The direction labels' points in the segmentation and the metric view.
+
+    Each view's scale at the default layout is worked out from the known box ``window``
+    ``(x0, y0, x1, y1)`` (cells, grid frame), which the views frame north up (the grid turned by
+    ``yaw_rad``) (:func:`conv.direction_label_positions`).
+
+    Returns
+    -------
+    tuple of ndarray of float64, shape (K, 2)
+        Segmentation and metric views' points, grid-frame cells as ``segments`` (K, 2, 2).
+    """
+    x0, y0, x1, y1 = window
+    turn = np.array(
+        [[math.cos(yaw_rad), -math.sin(yaw_rad)], [math.sin(yaw_rad), math.cos(yaw_rad)]]
+    )
+    known = np.array([[x0, y0], [x1, y0], [x0, y1], [x1, y1]], dtype=np.float64) @ turn.T
+    width, height = (float(v) for v in np.ptp(known, axis=0))  # on screen, cells
+    middle = float(known[:, 0].min() + known[:, 0].max()) / 2  # the views centre it across
+
+    def anchors_in(
+        framed: tuple[float, float], view_px: tuple[float, float]
+    ) -> npt.NDArray[np.float64]:
+        per_px = conv.view_units_per_px(framed, view_px)  # cells per screen pixel
+        half = per_px * (view_px[0] / 2 - _VIEW_EDGE_PX)  # what the view shows across
+        return conv.direction_label_positions(
+            segments,
+            yaw_rad=yaw_rad,
+            x_range=(middle - half, middle + half),
+            label_width=conv.DIRECTION_LABEL_WIDTH_PX * per_px,
+            clearance=conv.DIRECTION_LABEL_CLEARANCE_PX * per_px,
+        )
+
+    return (
+        anchors_in(segmentation_framed(width, height), SEGMENTATION_VIEW_PX),
+        anchors_in(metric_framed(width, height), METRIC_VIEW_PX),
+    )
+
+
 #: The colour bar's height, as a fraction of the occupied cells' box height (its size), and its
 #: labels' places in its pixels (it is 2 pixels high): the scale and best-cell labels 0.09 size
 #: under it, the threshold's 0.2 size above it, between the bar and the cells.
@@ -683,25 +727,9 @@ class TopicLogger:
         # Both views show the map frame (placement_terms): a map whose origin has a yaw shows its
         # walls that much further round than the grid does (as the JSON report gives them).
         yaw = snapshot.origin_yaw_rad
-        x0, y0, x1, y1 = occupied.window
-        turn = np.array([[math.cos(yaw), -math.sin(yaw)], [math.sin(yaw), math.cos(yaw)]])
-        known = np.array([[x0, y0], [x1, y0], [x0, y1], [x1, y1]], dtype=np.float64) @ turn.T
-        width, height = (float(v) for v in np.ptp(known, axis=0))  # on screen, cells
-        middle = float(known[:, 0].min() + known[:, 0].max()) / 2  # the views centre it across
-
-        def anchors_in(framed: tuple[float, float], view_px: tuple[float, float]) -> np.ndarray:
-            per_px = conv.view_units_per_px(framed, view_px)  # cells per screen pixel
-            half = per_px * (view_px[0] / 2 - _VIEW_EDGE_PX)  # what the view shows across
-            return conv.direction_label_positions(
-                segments,
-                yaw_rad=yaw,
-                x_range=(middle - half, middle + half),
-                label_width=conv.DIRECTION_LABEL_WIDTH_PX * per_px,
-                clearance=conv.DIRECTION_LABEL_CLEARANCE_PX * per_px,
-            )
-
-        anchors = anchors_in(segmentation_framed(width, height), SEGMENTATION_VIEW_PX)
-        metric_anchors = anchors_in(metric_framed(width, height), METRIC_VIEW_PX)
+        anchors, metric_anchors = direction_label_anchors(
+            segments, yaw_rad=yaw, window=occupied.window
+        )
         map_labels = [f"walls {d:.1f}°" for d in map_frame_deg(directions, yaw_rad=yaw, digits=1)]
         # Colours, sizes and the label switch are static (log_static).
         labels = arrow.texts(map_labels)
