@@ -18,28 +18,69 @@ import rerun.blueprint as rrb
 from rerun.encodings import EntityPathLike
 
 from rose_logs.rerun import style
-from rose_logs.rerun.conversions import score_bar_width
+from rose_logs.rerun.conversions import (
+    DIRECTION_LABEL_CLEARANCE_PX,
+    DIRECTION_LABEL_EDGE_PX,
+    DIRECTION_LABEL_HEIGHT_PX,
+    score_bar_width,
+)
 from rose_logs.rerun.paths import SESSION_TIMELINE, EntityPaths
 
 __all__ = [
-    "METRIC_VIEW_PX",
-    "SEGMENTATION_VIEW_PX",
+    "LABEL_WINDOWS_PX",
     "TopicLayout",
     "default_blueprint",
-    "metric_framed",
-    "segmentation_framed",
+    "metric_frame",
+    "metric_view_px",
+    "segmentation_frame",
     "segmentation_title",
+    "segmentation_view_px",
 ]
 
 _FOV_Y_RAD = math.radians(55.0)  # the 3D view's default vertical field of view
-_ASSUMED_ASPECT = 1.3  # width / height of the metric view in the default layout
 _GRID_HEIGHT_M = 0.05  # the metric grid's plane, just above the map (TopicLayout.height_m)
 _ONE_TIME_POINT_SIZE = 5.0  # a one-time topic's plotted values, wider than the time cursor
-#: Screen pixels (width, height) of the segmentation and metric views at the default layout in a
-#: 1600 x 1000 window (the screenshot tool's): what a label a fixed number of pixels wide covers
-#: of the map there (conversions.direction_label_positions).
-SEGMENTATION_VIEW_PX = (955.0, 535.0)
-METRIC_VIEW_PX = (478.0, 345.0)
+
+#: Browser windows (width, height, CSS pixels) the map views' direction labels are laid out for,
+#: from a 4:3 1024 x 768 screen to a 16:9 1920 x 1080 one (a laptop's 1280 x 720 among them):
+#: Rerun draws a label a fixed number of screen pixels in size, and how much of the map a label
+#: covers depends on the window. Labels are sized and kept apart for the smallest scale of these
+#: (the most cells per pixel), placed in what every one of them shows
+#: (:func:`rose_logs.rerun.loggers.direction_label_anchors`).
+LABEL_WINDOWS_PX = (
+    (1024.0, 768.0),
+    (1280.0, 720.0),
+    (1366.0, 768.0),
+    (1440.0, 900.0),
+    (1600.0, 1000.0),
+    (1920.0, 1080.0),
+)
+
+
+def segmentation_view_px(window_px: tuple[float, float]) -> tuple[float, float]:
+    """Screen pixels ``(width, height)`` of the segmentation view in the default layout of a
+    ``window_px`` window (no events view): 3/5 of its width, 3/5 of its height less the viewer's
+    bars and the view's title (measured at 1024 x 768, 1280 x 720 and 1600 x 1000: 613 x 396,
+    767 x 366, 955 x 535), 2 pixels less: labels sized for a view a pixel larger than it was
+    overlapped by that much."""
+    return 0.6 * window_px[0] - 7.0, 0.6 * window_px[1] - 67.0
+
+
+def metric_view_px(window_px: tuple[float, float]) -> tuple[float, float]:
+    """Screen pixels ``(width, height)`` of the metric view in the default layout of a
+    ``window_px`` window (no events view; measured as :func:`segmentation_view_px`: 305 x 254,
+    383 x 232, 478 x 345, less 2 pixels)."""
+    return 0.3 * window_px[0] - 4.0, 0.4 * window_px[1] - 57.0
+
+
+#: Width / height of the metric view its camera frames the map for: the narrowest of
+#: :data:`LABEL_WINDOWS_PX` (1024 x 768, 1.21). At the 1.3 of a 1600 x 1000 window the map was cut
+#: off at both sides of a 1024 x 768 one.
+_ASSUMED_ASPECT = min(w / h for w, h in map(metric_view_px, LABEL_WINDOWS_PX))
+
+#: Screen pixels a label under a map takes: its clearance from the line, its height, the view's
+#: edge under it.
+_LABEL_ROOM_PX = DIRECTION_LABEL_CLEARANCE_PX + DIRECTION_LABEL_HEIGHT_PX + DIRECTION_LABEL_EDGE_PX
 
 
 @dataclass(frozen=True)
@@ -118,49 +159,79 @@ def _grid_spacing_m(bounds_m: tuple[float, float, float, float] | None) -> float
     return next(step * decade for step in (1.0, 2.0, 5.0, 10.0) if span / (step * decade) <= 15)
 
 
-#: Room under the map in the segmentation and metric views, as a fraction of the map's height (at
-#: least a quarter of its width): a steep direction line's label hangs under its lower end
-#: (conversions.direction_label_positions), and on a map taller than its view it was cut off at
-#: the view's lower edge (the metric view's entirely).
-_LABEL_ROOM = 0.08
-
-
-def _label_room_m(bounds_m: tuple[float, float, float, float]) -> float:
-    """Metres of :data:`_LABEL_ROOM` under the box ``bounds_m``."""
-    x_min, y_min, x_max, y_max = bounds_m
-    return _LABEL_ROOM * max(y_max - y_min, 0.25 * (x_max - x_min))
-
-
 def _margin(width: float, height: float) -> float:
     """The 2D views' margin around a ``width`` x ``height`` box (each side, same units)."""
     return 0.03 * max(width, height)
 
 
-def segmentation_framed(width: float, height: float) -> tuple[float, float]:
-    """``(width, height)`` the segmentation view frames around a known box ``width`` x ``height``
-    (north up, any units): its margins and the room for a label under it
-    (:func:`_north_up_bounds`)."""
+def _segmentation_room(width: float, height: float) -> float:
+    """Room under a ``width`` x ``height`` box (any units) in the segmentation view for a
+    direction's label (:data:`_LABEL_ROOM_PX`) in every window of :data:`LABEL_WINDOWS_PX`: a
+    steep line's label hangs under its lower end (a fixed 0.08 of a tall map's height left it
+    about 26 pixels at 1280 x 720, against 38 it takes).
+
+    The view fits the box, its margins and the room; the room must be the label's pixels times
+    the view's units per pixel, ``max(framed width / view width, framed height / view height)``,
+    where the framed height holds the room itself (solved for it)."""
     margin = _margin(width, height)
-    return width + 2 * margin, height + 2 * margin + _LABEL_ROOM * max(height, 0.25 * width)
+    rooms = [
+        max(
+            _LABEL_ROOM_PX * (width + 2 * margin) / view_w,
+            _LABEL_ROOM_PX * (height + 2 * margin) / max(view_h - _LABEL_ROOM_PX, 1.0),
+        )
+        for view_w, view_h in map(segmentation_view_px, LABEL_WINDOWS_PX)
+    ]
+    return max(rooms)
 
 
-def metric_framed(width: float, height: float) -> tuple[float, float]:
-    """``(width, height)`` the metric view shows of the map plane around a known box ``width`` x
-    ``height`` (north up, any units), at its assumed aspect (:func:`_metric_eye`)."""
-    room = _LABEL_ROOM * max(height, 0.25 * width)
-    # The camera's height is 1.05 max(...) / tan(fov / 2): it sees 2 tan(fov / 2) that high.
+def _metric_room(width: float, height: float) -> float:
+    """Room under a ``width`` x ``height`` box (any units) in the metric view for a direction's
+    label in every window of :data:`LABEL_WINDOWS_PX` (as :func:`_segmentation_room`; the camera
+    sees ``1.05 max(height + room, width / aspect)`` high on the view's height). A fixed 0.08 of
+    the map's height cut a tall map's "walls 86.2°" off at the view's lower edge at 1280 x 720."""
+    rooms = [
+        1.05
+        * _LABEL_ROOM_PX
+        * max(
+            width / (_ASSUMED_ASPECT * view_h),
+            height / max(view_h - 1.05 * _LABEL_ROOM_PX, 1.0),
+        )
+        for _, view_h in map(metric_view_px, LABEL_WINDOWS_PX)
+    ]
+    return max(rooms)
+
+
+def segmentation_frame(width: float, height: float) -> tuple[float, float, float, float]:
+    """``(left, bottom, right, top)`` the segmentation view frames around a known box ``width``
+    x ``height`` (north up, y up, any units; from the box's lower left corner): its margins and
+    the room for a label under it (:func:`_north_up_bounds`). The view shows at least that in
+    any window (it fits the frame, keeping its aspect)."""
+    margin = _margin(width, height)
+    return -margin, -margin - _segmentation_room(width, height), width + margin, height + margin
+
+
+def metric_frame(width: float, height: float) -> tuple[float, float, float, float]:
+    """``(left, bottom, right, top)`` the metric view shows of the map plane around a known box
+    ``width`` x ``height`` (as :func:`segmentation_frame`) in a window of the narrowest view of
+    :data:`LABEL_WINDOWS_PX` (a wider one shows more at the sides) (:func:`_metric_eye`)."""
+    room = _metric_room(width, height)
+    # The camera's height is 1.05 max(...) / tan(fov / 2): it sees 2 tan(fov / 2) that high,
+    # centred on the box and the room under it.
     seen = 1.05 * max(height + room, width / _ASSUMED_ASPECT)
-    return _ASSUMED_ASPECT * seen, seen
+    middle = (height - room) / 2
+    half_width = _ASSUMED_ASPECT * seen / 2
+    return width / 2 - half_width, middle - seen / 2, width / 2 + half_width, middle + seen / 2
 
 
 def _metric_eye(layout: TopicLayout) -> rrb.EyeControls3D | None:
     """A camera straight above the map centre, high enough for the map and the room under it for
-    a label (:data:`_LABEL_ROOM`) to fill the view (the metric view's metres: the map frame's less
-    the view origin)."""
+    a label (:func:`_metric_room`) to fill the view (the metric view's metres: the map frame's
+    less the view origin)."""
     if layout.bounds_m is None:
         return None
     x_min, y_min, x_max, y_max = layout.bounds_m
-    y_min -= _label_room_m(layout.bounds_m)  # the map frame's y points north, up in the view
+    # The map frame's y points north, up in the view.
+    y_min -= _metric_room(x_max - x_min, y_max - y_min)
     rx, ry = layout.view_origin_m
     cx, cy = (x_min + x_max) / 2 - rx, (y_min + y_max) / 2 - ry
     half_x, half_y = max((x_max - x_min) / 2, 0.5), max((y_max - y_min) / 2, 0.5)
@@ -175,19 +246,22 @@ def _metric_eye(layout: TopicLayout) -> rrb.EyeControls3D | None:
 
 
 def _north_up_bounds(
-    layout: TopicLayout, *, below: float = 0.0, bar: bool = False
+    layout: TopicLayout, *, below: float = 0.0, bar: bool = False, label: bool = False
 ) -> rrb.VisualBounds2D | None:
     """The known box of ``layout`` in the 2D views' north-up frame (x east, y south, metres from
     its view origin: :func:`rose_logs.rerun.loggers.placement_terms`), with a margin, and
     ``below`` times its height (at least a quarter of its width, as the colour bar's size:
     :func:`rose_logs.rerun.loggers.bar_placement`) more under it; ``bar``: as wide as the colour
-    bar at least (a tall map's is wider than the map)."""
+    bar at least (a tall map's is wider than the map); ``label``: room for a direction's label
+    under it (:func:`_segmentation_room`)."""
     if layout.bounds_m is None:
         return None
     x0, y0, x1, y1 = layout.bounds_m
     rx, ry = layout.view_origin_m
     margin = _margin(x1 - x0, y1 - y0)
     extra = below * max(y1 - y0, 0.25 * (x1 - x0))
+    if label:
+        extra += _segmentation_room(x1 - x0, y1 - y0)
     spill = 0.0  # how far the bar reaches out of the box on either side
     if bar:
         spill = max(score_bar_width(x1 - x0, max(y1 - y0, 0.25 * (x1 - x0))) - (x1 - x0), 0.0) / 2
@@ -219,7 +293,7 @@ def _topic_container(layout: TopicLayout) -> rrb.Container:
             root, has_walls=layout.has_walls, walls_cleaning=layout.walls_cleaning
         ),
         origin=f"/{paths.cells}",
-        visual_bounds=_north_up_bounds(layout, below=_LABEL_ROOM),  # and a label under the map
+        visual_bounds=_north_up_bounds(layout, label=True),  # and a label under the map
     )
     spacing = _grid_spacing_m(layout.bounds_m)
     metric = rrb.Spatial3DView(

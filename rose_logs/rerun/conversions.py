@@ -57,6 +57,8 @@ _VIRIDIS = np.array(
 
 __all__ = [
     "DIRECTION_LABEL_CLEARANCE_PX",
+    "DIRECTION_LABEL_EDGE_PX",
+    "DIRECTION_LABEL_HEIGHT_PX",
     "DIRECTION_LABEL_WIDTH_PX",
     "SCORE_BAR_MIN_WIDTH",
     "AmplitudePlot",
@@ -82,6 +84,7 @@ __all__ = [
     "score_to_unit",
     "segmentation_image",
     "spectrum_strip_segments",
+    "spread_labels",
     "view_units_per_px",
 ]
 
@@ -526,7 +529,9 @@ def direction_label_positions(
     *,
     yaw_rad: float = 0.0,
     x_range: tuple[float, float] | None = None,
+    y_range: tuple[float, float] | None = None,
     label_width: float = 0.0,
+    label_height: float = 0.0,
     clearance: float = 0.0,
 ) -> npt.NDArray[np.float64]:
     """Where to put each direction's label; Rerun draws a label under its point, centred, a fixed
@@ -541,15 +546,20 @@ def direction_label_positions(
     width ``label_width`` times that cosine (a flat line's label beside its end, off the map: on a
     map narrower than a label, a label centred under the end reached over the other lines) unless
     the label would reach out of ``x_range`` (what the view shows, on screen): then just inside
-    it (a flat line ends at the side of a wide map, and half its label hung out of the view). ``label_width``, ``clearance`` and ``x_range`` are in the units of ``segments`` (cells:
-    a view's pixels times its cells per pixel, :func:`view_units_per_px`).
+    it (a flat line ends at the side of a wide map, and half its label hung out of the view).
+
+    With ``label_height``, labels are then kept off each other and off the lines
+    (:func:`spread_labels`): two nearly parallel steep lines (80 and 100 degrees) hung their
+    labels one over the other under the map. Sizes and ranges are in the units of ``segments``
+    (cells: a view's pixels times its cells per pixel, :func:`view_units_per_px`).
 
     Parameters
     ----------
     segments : ndarray of float64, shape (K, 2, 2)
         ``[k, end, (x, y)]``, grid frame, y up (:func:`direction_segments_cells`).
-    x_range : tuple of float, optional
-        ``(left, right)`` on screen: x of the grid frame turned by ``yaw_rad``. None: anywhere.
+    x_range, y_range : tuple of float, optional
+        ``(left, right)`` and ``(bottom, top)`` of what the view shows, on screen: the grid frame
+        turned by ``yaw_rad``, y up. None: anywhere.
 
     Returns
     -------
@@ -574,14 +584,221 @@ def direction_label_positions(
         left, right = x_range[0] + label_width / 2, x_range[1] - label_width / 2
         x = np.full_like(x, (left + right) / 2) if left > right else np.clip(x, left, right)
     anchors = np.stack([x, end[:, 1] - clearance * level], axis=-1)
+    if label_height > 0:
+        view = None
+        if x_range is not None and y_range is not None:
+            view = (x_range[0], y_range[0], x_range[1], y_range[1])
+        anchors = spread_labels(anchors, ends, (label_width, label_height), view=view)
     return anchors @ turn  # back to the grid frame (turn is orthonormal)
 
 
-#: The direction labels' size and room in a map view at the default layout (a 1600 x 1000 window,
-#: as the screenshot tool's): "walls 176.2°" is 81 screen pixels wide, and the line (1.5 points)
-#: and the label's point (3 points) need about 8 pixels between them to stay apart.
+#: Without a view, :func:`spread_labels` tries places as far as three labels' widths and heights
+#: either way.
+_SPREAD_REACH = 3
+_SPREAD_BATCH = 256
+
+
+def spread_labels(
+    anchors: npt.NDArray[np.float64],
+    lines: npt.NDArray[np.float64],
+    size: tuple[float, float],
+    *,
+    view: tuple[float, float, float, float] | None = None,
+) -> npt.NDArray[np.float64]:
+    """Labels kept apart. First, labels under every line (a steep line's, under the map) that
+    would overlap stand side by side, in the order of their own places across, centred where
+    they were (:func:`_side_by_side`): three steep lines at 80, 90 and 100 degrees keep their
+    labels in a row under the map in their ends' order. Then each label in turn goes to the place
+    nearest its own (its own first) where its box overlaps no label placed before it, no line runs
+    through it and it stays in ``view``; a label with no such place keeps its own.
+
+    A label at ``(x, y)`` covers ``x - width / 2 .. x + width / 2`` across and ``y - height .. y``
+    (Rerun hangs it under its point). Places tried: steps of a quarter of its width across and of
+    half its height up and down, over the whole view (a map's lines can fill it but under the
+    map). On screen, y up; any units.
+
+    Parameters
+    ----------
+    anchors : ndarray of float64, shape (K, 2)
+        The labels' own places.
+    lines : ndarray of float64, shape (L, 2, 2)
+        Segments no label may cover.
+    size : tuple of float
+        ``(width, height)`` of a label.
+    view : tuple of float, optional
+        ``(left, bottom, right, top)`` the labels must stay in.
+
+    Returns
+    -------
+    ndarray of float64, shape (K, 2)
+    """
+    width, height = size
+    result = np.array(anchors, dtype=np.float64).reshape(-1, 2)
+    if len(result) == 0 or width <= 0 or height <= 0:
+        return result
+    step_x, step_y = width / 4, height / 2
+    near = 4 * _SPREAD_REACH  # steps: three widths across, six half heights up and down
+    reaches = [(near, 2 * _SPREAD_REACH)]
+    if view is not None:
+        # Then as far as the far side of the view (a map's lines can fill it but under the
+        # map), at most 400 steps either way (a guard: a label is some pixels of a view).
+        reaches.append(
+            (
+                min(math.ceil((view[2] - view[0]) / step_x), 400),
+                min(math.ceil((view[3] - view[1]) / step_y), 400),
+            )
+        )
+    segments = np.asarray(lines, dtype=np.float64).reshape(-1, 2, 2)
+    tol = 1e-9 * max(width, height, 1.0)
+    placed: list[npt.NDArray[np.float64]] = []
+
+    def boxes_at(points: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+        """Label boxes ``(C, 4)``: left, bottom, right, top, of labels at ``points`` (C, 2)."""
+        x, y = points[:, 0], points[:, 1]
+        return np.stack([x - width / 2, y - height, x + width / 2, y], axis=-1)
+
+    def first_free(boxes: npt.NDArray[np.float64]) -> int | None:
+        """The first of ``boxes`` in the view, off the labels placed and off every line."""
+        free = np.ones(len(boxes), dtype=bool)
+        if view is not None:
+            free &= (boxes[:, 0] >= view[0] - tol) & (boxes[:, 2] <= view[2] + tol)
+            free &= (boxes[:, 1] >= view[1] - tol) & (boxes[:, 3] <= view[3] + tol)
+        for box in placed:
+            free &= ~_overlapping(boxes, box, tol)
+        free[free] = ~_crossed(boxes[free], segments, tol)
+        return int(np.argmax(free)) if free.any() else None
+
+    steps: dict[tuple[int, int], npt.NDArray[np.float64]] = {}  # this call's offsets by reach
+
+    def nearest_free(point: npt.NDArray[np.float64]) -> npt.NDArray[np.float64] | None:
+        """The free place nearest ``point`` (2,), trying a few hundred at a time: a whole view
+        holds thousands."""
+        for reach in reaches:
+            if reach not in steps:
+                steps[reach] = _nearest_first(reach, (step_x, step_y))
+            for start in range(0, len(steps[reach]), _SPREAD_BATCH):
+                candidates = point + steps[reach][start : start + _SPREAD_BATCH]
+                best = first_free(boxes_at(candidates))
+                if best is not None:
+                    return candidates[best]
+        return None
+
+    result = _side_by_side(result, segments, width, view)
+    for k in range(len(result)):
+        # Its own place first: nearly always free, and then no other place is even made.
+        if first_free(boxes_at(result[k : k + 1])) is None:
+            moved = nearest_free(result[k])
+            if moved is not None:
+                result[k] = moved
+        placed.append(boxes_at(result[k : k + 1])[0])
+    return result
+
+
+def _side_by_side(
+    anchors: npt.NDArray[np.float64],
+    lines: npt.NDArray[np.float64],
+    width: float,
+    view: tuple[float, float, float, float] | None,
+) -> npt.NDArray[np.float64]:
+    """``anchors`` (K, 2) with those under every one of ``lines`` (L, 2, 2) moved across so that
+    no two of them overlap: overlapping neighbours form a group, laid out ``width`` apart in their
+    order across, centred on their own places' mean, and kept in ``view`` across (groups that then
+    overlap merge)."""
+    result = anchors.copy()
+    if len(lines) == 0:
+        return result
+    floor = float(lines[..., 1].min())
+    row = np.flatnonzero(result[:, 1] <= floor + 1e-9 * max(abs(floor), 1.0))
+    if len(row) < 2:
+        return result
+    row = row[np.argsort(result[row, 0], kind="stable")]
+    own = result[row, 0].copy()
+    groups: list[list[int]] = []  # positions in ``row``
+
+    def lay_out(group: list[int]) -> npt.NDArray[np.float64]:
+        half = (len(group) - 1) / 2 * width  # from the group's centre to its outer labels'
+        centre = float(own[group].mean())
+        if view is not None:  # the whole group in view, if it fits
+            low, high = view[0] + width / 2 + half, view[2] - width / 2 - half
+            centre = min(max(centre, low), high) if low <= high else (low + high) / 2
+        return np.linspace(centre - half, centre + half, len(group), dtype=np.float64)
+
+    for i in range(len(row)):
+        groups.append([i])
+        # Merge back while the last group reaches into the one before it.
+        while len(groups) > 1:
+            before, last = lay_out(groups[-2]), lay_out(groups[-1])
+            if last[0] - before[-1] >= width * (1 - 1e-9):
+                break
+            groups[-2:] = [groups[-2] + groups[-1]]
+    for group in groups:
+        result[row[group], 0] = lay_out(group)
+    return result
+
+
+def _nearest_first(reach: tuple[int, int], step: tuple[float, float]) -> npt.NDArray[np.float64]:
+    """Offsets ``(C, 2)`` up to ``reach`` steps of ``step`` either way across and up, nearest
+    first ((0, 0) leads; a stable sort keeps the grid's order among equal distances)."""
+    dx, dy = (
+        v.ravel()
+        for v in np.meshgrid(
+            np.arange(-reach[0], reach[0] + 1) * step[0],
+            np.arange(-reach[1], reach[1] + 1) * step[1],
+        )
+    )
+    order = np.argsort(np.hypot(dx, dy), kind="stable")
+    return np.stack([dx[order], dy[order]], axis=-1)
+
+
+def _overlapping(
+    boxes: npt.NDArray[np.float64], box: npt.NDArray[np.float64], tol: float
+) -> npt.NDArray[np.bool_]:
+    """Whether each of ``boxes`` (C, 4: left, bottom, right, top) shares some area with ``box``
+    (boxes that only touch do not)."""
+    return (
+        (boxes[:, 0] < box[2] - tol)
+        & (box[0] < boxes[:, 2] - tol)
+        & (boxes[:, 1] < box[3] - tol)
+        & (box[1] < boxes[:, 3] - tol)
+    )
+
+
+def _crossed(
+    boxes: npt.NDArray[np.float64], lines: npt.NDArray[np.float64], tol: float
+) -> npt.NDArray[np.bool_]:
+    """Whether some of ``lines`` (L, 2, 2) runs through the inside of each of ``boxes`` (C, 4):
+    each segment clipped to each box shrunk by ``tol`` (Liang-Barsky) keeps some length (a line
+    ending on a box's edge, as a steep line at its label's top, does not)."""
+    if len(lines) == 0:
+        return np.zeros(len(boxes), dtype=bool)
+    start = lines[np.newaxis, :, 0]  # (1, L, 2)
+    run = lines[np.newaxis, :, 1] - lines[np.newaxis, :, 0]
+    low = boxes[:, np.newaxis, :2] + tol  # (C, 1, 2)
+    high = boxes[:, np.newaxis, 2:] - tol
+    enter = np.zeros((len(boxes), len(lines)))
+    leave = np.ones_like(enter)
+    inside = np.ones_like(enter, dtype=bool)
+    for axis in (0, 1):
+        d = np.broadcast_to(run[..., axis], enter.shape)
+        a = low[..., axis] - start[..., axis]  # (C, L): the box's sides from the start
+        b = high[..., axis] - start[..., axis]
+        along = np.abs(d) <= tol
+        # Parallel to this axis: through the box only strictly between its two sides.
+        inside &= ~along | ((a < 0) & (b > 0))
+        safe = np.where(along, 1.0, d)
+        t0, t1 = a / safe, b / safe
+        enter = np.where(along, enter, np.maximum(enter, np.minimum(t0, t1)))
+        leave = np.where(along, leave, np.minimum(leave, np.maximum(t0, t1)))
+    return np.any(inside & (leave - enter > 1e-9), axis=1)
+
+
+#: The direction labels' size and room in a map view, screen pixels: "walls 176.2°" is 81 wide
+#: and its box 23 high from 1 pixel under its point (Rerun 0.41); the line (1.5 points) and the
+#: label need about 8 pixels between them to stay apart; labels keep 6 pixels from a view's edges.
 DIRECTION_LABEL_WIDTH_PX = 90.0
+DIRECTION_LABEL_HEIGHT_PX = 24.0
 DIRECTION_LABEL_CLEARANCE_PX = 8.0
+DIRECTION_LABEL_EDGE_PX = 6.0
 
 
 #: The colour bar is at least this fraction of its size (the box's height, at least a quarter of

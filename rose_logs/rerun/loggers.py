@@ -26,10 +26,11 @@ from rose_logs.frames import yaw_to_quaternion
 from rose_logs.rerun import arrow, style
 from rose_logs.rerun import conversions as conv
 from rose_logs.rerun.blueprint import (
-    METRIC_VIEW_PX,
-    SEGMENTATION_VIEW_PX,
-    metric_framed,
-    segmentation_framed,
+    LABEL_WINDOWS_PX,
+    metric_frame,
+    metric_view_px,
+    segmentation_frame,
+    segmentation_view_px,
 )
 from rose_logs.rerun.paths import SEQUENCE_TIMELINE, SESSION_TIMELINE, TIMELINE, EntityPaths
 from rose_logs.session.breaks import BreakScore
@@ -285,10 +286,6 @@ def overlay_z_m(snapshot: MapSnapshot, *, layer: int) -> float:
     return float(snapshot.origin_position_m[2]) + layer * step
 
 
-#: Screen pixels a direction's label keeps from a map view's left and right edges.
-_VIEW_EDGE_PX = 6.0
-
-
 def direction_label_anchors(
     segments: npt.NDArray[np.float64],
     *,
@@ -297,9 +294,16 @@ def direction_label_anchors(
 ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
     """The direction labels' points in the segmentation and the metric view.
 
-    Each view's scale at the default layout is worked out from the known box ``window``
-    ``(x0, y0, x1, y1)`` (cells, grid frame), which the views frame north up (the grid turned by
-    ``yaw_rad``) (:func:`conv.direction_label_positions`).
+    The views frame the known box ``window`` ``(x0, y0, x1, y1)`` (cells, grid frame) north up
+    (the grid turned by ``yaw_rad``) and room under it (:func:`segmentation_frame`,
+    :func:`metric_frame`). Rerun's labels are a fixed number of screen pixels in size: in cells
+    they are taken at the most cells per pixel of the windows of :data:`LABEL_WINDOWS_PX` (the
+    smallest view), so that labels kept off their lines and each other there stay so in a larger
+    window, and placed in what every one of those windows shows (the frame, and more across or
+    up where all the views are wider or taller than it) (:func:`conv.direction_label_positions`).
+    A label is further from its line's end in a large window than in a small one (up to about
+    twice as far at 1920 x 1080 as at 1024 x 768). (The scale came from a 1600 x 1000 window: in
+    a 1024 x 768 one a label beside a flat line's end hung out of the view.)
 
     Returns
     -------
@@ -311,25 +315,42 @@ def direction_label_anchors(
         [[math.cos(yaw_rad), -math.sin(yaw_rad)], [math.sin(yaw_rad), math.cos(yaw_rad)]]
     )
     known = np.array([[x0, y0], [x1, y0], [x0, y1], [x1, y1]], dtype=np.float64) @ turn.T
-    width, height = (float(v) for v in np.ptp(known, axis=0))  # on screen, cells
-    middle = float(known[:, 0].min() + known[:, 0].max()) / 2  # the views centre it across
+    corner = known.min(axis=0)  # on screen, cells
+    width, height = (float(v) for v in np.ptp(known, axis=0))
 
     def anchors_in(
-        framed: tuple[float, float], view_px: tuple[float, float]
+        frame: tuple[float, float, float, float],
+        view_px: Callable[[tuple[float, float]], tuple[float, float]],
     ) -> npt.NDArray[np.float64]:
-        per_px = conv.view_units_per_px(framed, view_px)  # cells per screen pixel
-        half = per_px * (view_px[0] / 2 - _VIEW_EDGE_PX)  # what the view shows across
+        left, bottom, right, top = frame
+        framed = (right - left, top - bottom)
+        centre = corner + np.array([left + right, bottom + top]) / 2
+        views = [view_px(w) for w in LABEL_WINDOWS_PX]
+        scales = [conv.view_units_per_px(framed, view) for view in views]
+        per_px = max(scales)  # cells per screen pixel in the smallest view
+        # What every window shows: at least the frame, more across (or up) where the view's
+        # aspect is wider (taller) than the frame's.
+        half = (
+            np.min(
+                [np.multiply(view, scale) for view, scale in zip(views, scales, strict=True)],
+                axis=0,
+            )
+            / 2
+        )
+        half -= conv.DIRECTION_LABEL_EDGE_PX * per_px
         return conv.direction_label_positions(
             segments,
             yaw_rad=yaw_rad,
-            x_range=(middle - half, middle + half),
+            x_range=(centre[0] - half[0], centre[0] + half[0]),
+            y_range=(centre[1] - half[1], centre[1] + half[1]),
             label_width=conv.DIRECTION_LABEL_WIDTH_PX * per_px,
+            label_height=conv.DIRECTION_LABEL_HEIGHT_PX * per_px,
             clearance=conv.DIRECTION_LABEL_CLEARANCE_PX * per_px,
         )
 
     return (
-        anchors_in(segmentation_framed(width, height), SEGMENTATION_VIEW_PX),
-        anchors_in(metric_framed(width, height), METRIC_VIEW_PX),
+        anchors_in(segmentation_frame(width, height), segmentation_view_px),
+        anchors_in(metric_frame(width, height), metric_view_px),
     )
 
 
@@ -709,9 +730,10 @@ class TopicLogger:
         segmentation and in metres.
 
         Each direction is labelled once, under its line's lower end on screen (all lines cross at
-        the centre), clear of the line and within the lines' box in each view, whose scale at the
-        default layout is worked out from the snapshot's known box (the views frame the session's:
-        the same for the last map of a growing one) (:func:`conv.direction_label_positions`).
+        the centre), clear of the lines and of the other labels and in view in each view, in any
+        window from 1024 x 768 to 1920 x 1080; the views' scale is worked out from the snapshot's
+        known box (the views frame the session's: the same for the last map of a growing one)
+        (:func:`direction_label_anchors`).
         """
         rec, paths = self.recording, self.paths
         directions = np.asarray(result.dominant_directions, dtype=np.float64)

@@ -201,6 +201,67 @@ def test_a_flat_lines_label_stands_beside_its_lower_end_and_a_steep_ones_under_i
     assert_allclose(anchors[1], steep_end, atol=1e-9)  # cos(90 deg) = 0: no room needed
 
 
+@pytest.mark.parametrize("shape", [(100, 200), (300, 60)])
+@pytest.mark.parametrize(
+    "directions_deg", [(80.0, 100.0), (85.0, 95.0, 90.0), (5.0, 10.0), (170.0, 175.0, 2.0)]
+)
+def test_labels_of_nearly_parallel_lines_keep_apart(
+    shape: tuple[int, int], directions_deg: tuple[float, ...]
+) -> None:
+    """Two nearly parallel steep lines (80 and 100 degrees) end close together under the map, and
+    two nearly flat ones (5 and 10 degrees) at one side of a narrow map: their labels hung one over
+    the other. On a wide and a tall map, no two labels' boxes overlap, no line runs through a
+    label and every label stays in the view."""
+    width, height, clearance = 30.0, 8.0, 3.0  # cells, as a view's label pixels make them
+    segments = conv.direction_segments_cells(np.radians(directions_deg), shape)
+    rows, cols = shape
+    x_range, y_range = (-60.0, cols + 60.0), (-40.0, rows + 10.0)
+    anchors = conv.direction_label_positions(
+        segments,
+        x_range=x_range,
+        y_range=y_range,
+        label_width=width,
+        label_height=height,
+        clearance=clearance,
+    )
+    boxes = np.stack(
+        [
+            anchors[:, 0] - width / 2,
+            anchors[:, 1] - height,
+            anchors[:, 0] + width / 2,
+            anchors[:, 1],
+        ],
+        axis=-1,
+    )
+    for k, (left, bottom, right, top) in enumerate(boxes):
+        assert x_range[0] <= left and right <= x_range[1] and y_range[0] <= bottom
+        assert top <= y_range[1]
+        for other in boxes[:k]:
+            apart = right <= other[0] or other[2] <= left or top <= other[1] or other[3] <= bottom
+            assert apart, (directions_deg, boxes)
+        t = np.linspace(0.0, 1.0, 4001)[:, None]
+        for a, b in segments:
+            line = a + t * (b - a)
+            inside = (
+                (line[:, 0] > left + 1e-6)
+                & (line[:, 0] < right - 1e-6)
+                & (line[:, 1] > bottom + 1e-6)
+                & (line[:, 1] < top - 1e-6)
+            )
+            assert not inside.any(), (directions_deg, k)
+
+
+def test_a_lines_label_stays_at_its_place_when_nothing_is_in_its_way() -> None:
+    """Keeping labels apart moves none that is clear: each label of two lines 90 degrees apart
+    stays at its line's end."""
+    segments = conv.direction_segments_cells(np.radians([0.0, 90.0]), (100, 200))
+    spread = conv.direction_label_positions(
+        segments, label_width=30.0, label_height=8.0, clearance=3.0
+    )
+    alone = conv.direction_label_positions(segments, label_width=30.0, clearance=3.0)
+    assert_allclose(spread, alone)
+
+
 def test_cells_to_pixels_flips_rows() -> None:
     pixels = conv.cells_to_pixels(np.array([[3.0, 0.0], [3.0, 10.0]]), 10)
     assert_allclose(pixels, [[3.0, 10.0], [3.0, 0.0]])

@@ -3,12 +3,14 @@ the .rrd with Rerun's own reader."""
 
 from __future__ import annotations
 
+import math
 import shutil
 from collections import Counter, defaultdict
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import numpy.typing as npt
 import pytest
 
 from rose.directions import FAILURE_LEVEL, TRUST_LEVEL
@@ -21,6 +23,7 @@ from rose_logs.rerun import (
     grpc_url,
     recording_id_for,
 )
+from rose_logs.rerun import conversions as conv
 from rose_logs.session import process_log
 
 rerun_chunk = pytest.importorskip("rerun.chunk")
@@ -1638,3 +1641,116 @@ def test_the_plots_show_values_of_zero_above_their_lower_edge(top: float) -> Non
     assert axis is not None
     ((low, high),) = axis.range.pa_array.to_pylist()
     assert low < -0.02 * top and high > top
+
+
+#: The segmentation and metric views' screen pixels (width, height) in the default layout of a
+#: browser window (width, height), measured on the screenshot tool's pictures (no events view).
+_VIEWS_IN_WINDOW_PX = {
+    (1024, 768): ((613.0, 396.0), (305.0, 254.0)),
+    (1280, 720): ((767.0, 366.0), (383.0, 232.0)),
+    (1600, 1000): ((955.0, 535.0), (478.0, 345.0)),
+}
+#: A direction's label on screen from its point (Rerun 0.41, "walls 176.2°" with room to spare):
+#: centred across, from 1 to 24 pixels under it.
+_LABEL_PX = (90.0, 1.0, 24.0)
+
+
+def _label_trouble(
+    anchors_px: npt.NDArray[np.float64],
+    lines_px: npt.NDArray[np.float64],
+    shown_px: tuple[float, float, float, float],
+) -> list[str]:
+    """What a user would see wrong with labels at ``anchors_px`` (K, 2) over the lines
+    ``lines_px`` (K, 2, 2) in a view showing ``shown_px`` (left, top, right, bottom), screen
+    pixels, y down: a label cut off at the view's edge, over another or crossed by a line."""
+    half, top, bottom = _LABEL_PX[0] / 2, _LABEL_PX[1], _LABEL_PX[2]
+    boxes = [(x - half, y + top, x + half, y + bottom) for x, y in anchors_px]
+    trouble = []
+    for k, (left, upper, right, lower) in enumerate(boxes):
+        if left < shown_px[0] or upper < shown_px[1] or right > shown_px[2] or lower > shown_px[3]:
+            trouble.append(f"label {k} cut off: {(left, upper, right, lower)} in {shown_px}")
+        for j in range(k):
+            other = boxes[j]
+            tol = 1e-6  # labels side by side touch
+            if (
+                left < other[2] - tol
+                and other[0] < right - tol
+                and upper < other[3] - tol
+                and other[1] < lower - tol
+            ):
+                trouble.append(f"labels {j} and {k} overlap")
+        t = np.linspace(0.0, 1.0, 2001)[:, None]
+        for j, (a, b) in enumerate(lines_px):
+            points = a + t * (b - a)
+            inside = (
+                (points[:, 0] > left + 0.5)
+                & (points[:, 0] < right - 0.5)
+                & (points[:, 1] > upper + 0.5)
+                & (points[:, 1] < lower - 0.5)
+            )
+            if inside.any():
+                trouble.append(f"line {j} crosses label {k}")
+    return trouble
+
+
+@pytest.mark.parametrize("window", sorted(_VIEWS_IN_WINDOW_PX))
+@pytest.mark.parametrize("size_cells", [(1000, 420), (420, 1000)])
+@pytest.mark.parametrize("directions_deg", [(176.2, 86.3), (2.0, 92.0), (80.0, 100.0)])
+def test_direction_labels_hold_in_small_and_large_windows(
+    window: tuple[int, int], size_cells: tuple[int, int], directions_deg: tuple[float, ...]
+) -> None:
+    """Rerun draws a label a fixed number of screen pixels in size; the labels' room was worked
+    out for a 1600 x 1000 window, and at 1024 x 768 "walls 176.2°" (the sample session) hung out
+    of the segmentation view and over the map's end in the metric view, cut off at its edge; two
+    nearly parallel steep lines (80 and 100 degrees) hung their labels over each other. In each
+    window, on a wide and a tall map, in both map views (the segmentation fitted to its bounds,
+    the metric view as its camera sees it), no label is cut off, over another or crossed by a
+    line."""
+    from rose_logs.rerun.blueprint import TopicLayout, _metric_eye, _topic_container
+    from rose_logs.rerun.loggers import direction_label_anchors
+
+    resolution = 0.05
+    cols, rows = size_cells
+    segments = conv.direction_segments_cells(np.radians(directions_deg), (rows, cols))
+    anchors, metric_anchors = direction_label_anchors(
+        segments, yaw_rad=0.0, window=(0.0, 0.0, float(cols), float(rows))
+    )
+    # Map origin and view origin at 0: the segmentation's metres are x east, y south; the metric
+    # view's x east, y north.
+    layout = TopicLayout("map", bounds_m=(0.0, 0.0, cols * resolution, rows * resolution))
+    segmentation_px, metric_px = _VIEWS_IN_WINDOW_PX[window]
+
+    segmentation = _topic_container(layout).contents[0].contents[0]
+    ((x_range, y_range),) = [
+        (r["x_range"], r["y_range"])
+        for r in segmentation.properties["VisualBounds2D"].range.pa_array.to_pylist()
+    ]
+    # Rerun fits the bounds in the view keeping their aspect, centred.
+    px_per_m = min(
+        segmentation_px[0] / (x_range[1] - x_range[0]),
+        segmentation_px[1] / (y_range[1] - y_range[0]),
+    )
+    centre = np.array([sum(x_range) / 2, sum(y_range) / 2])
+
+    def on_segmentation(cells: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+        metres = np.stack([cells[..., 0], -cells[..., 1]], axis=-1) * resolution
+        return (metres - centre) * px_per_m + np.array(segmentation_px) / 2
+
+    shown = (0.0, 0.0, *segmentation_px)
+    trouble = _label_trouble(on_segmentation(anchors), on_segmentation(segments), shown)
+    assert not trouble, ("segmentation", trouble)
+
+    eye = _metric_eye(layout)
+    assert eye is not None
+    ((eye_x, eye_y, eye_z),) = eye.position.pa_array.to_pylist()
+    # Straight down, vertical field of view 55 degrees: the view's height sees this many metres.
+    metric_px_per_m = metric_px[1] / (2 * eye_z * math.tan(math.radians(55.0) / 2))
+
+    def on_metric(cells: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
+        metres = cells * resolution - np.array([eye_x, eye_y])
+        metres[..., 1] *= -1  # north up on screen
+        return metres * metric_px_per_m + np.array(metric_px) / 2
+
+    shown = (0.0, 0.0, *metric_px)
+    trouble = _label_trouble(on_metric(metric_anchors), on_metric(segments), shown)
+    assert not trouble, ("metric", trouble)
