@@ -659,6 +659,8 @@ def spread_labels(
 
     def first_free(boxes: npt.NDArray[np.float64]) -> int | None:
         """The first of ``boxes`` in the view, off the labels placed and off every line."""
+        if len(boxes) == 1:  # a label's own place: in plain floats (numpy's calls cost more)
+            return 0 if _free_box(boxes[0].tolist(), placed, segments, view, tol) else None
         free = np.ones(len(boxes), dtype=bool)
         if view is not None:
             free &= (boxes[:, 0] >= view[0] - tol) & (boxes[:, 2] <= view[2] + tol)
@@ -761,6 +763,52 @@ def _overlapping(
         & (boxes[:, 1] < box[3] - tol)
         & (box[1] < boxes[:, 3] - tol)
     )
+
+
+def _free_box(
+    box: list[float],
+    placed: list[npt.NDArray[np.float64]],
+    lines: npt.NDArray[np.float64],
+    view: tuple[float, float, float, float] | None,
+    tol: float,
+) -> bool:
+    """One label box (left, bottom, right, top) in ``view``, off the ``placed`` boxes and off every
+    one of ``lines`` (L, 2, 2): :func:`_overlapping` and :func:`_crossed` for a single box."""
+    left, bottom, right, top = box
+    if view is not None and not (
+        left >= view[0] - tol
+        and right <= view[2] + tol
+        and bottom >= view[1] - tol
+        and top <= view[3] + tol
+    ):
+        return False
+    for other in placed:
+        o_left, o_bottom, o_right, o_top = other.tolist()
+        if (
+            left < o_right - tol
+            and o_left < right - tol
+            and bottom < o_top - tol
+            and o_bottom < top - tol
+        ):
+            return False
+    low, high = (left + tol, bottom + tol), (right - tol, top - tol)
+    for (x0, y0), (x1, y1) in lines.tolist():
+        enter, leave = 0.0, 1.0
+        for start, d, a_side, b_side in (
+            (x0, x1 - x0, low[0], high[0]),
+            (y0, y1 - y0, low[1], high[1]),
+        ):
+            a, b = a_side - start, b_side - start
+            if abs(d) <= tol:  # parallel to this axis: through only strictly between its sides
+                if not (a < 0 < b):
+                    enter, leave = 1.0, 0.0
+                    break
+                continue
+            t0, t1 = a / d, b / d
+            enter, leave = max(enter, min(t0, t1)), min(leave, max(t0, t1))
+        if leave - enter > 1e-9:
+            return False
+    return True
 
 
 def _crossed(

@@ -584,3 +584,41 @@ def test_the_threshold_label_stands_clear_of_the_peaks(peaks: list[float], expec
     assert np.mean([x for x, _ in strips[0]]) == pytest.approx(label)
     assert sum(b[0] - a[0] for a, b in strips) == pytest.approx(180.0)
     assert {y for strip in strips for _, y in strip} == {-45.0}
+
+
+def test_a_single_label_place_is_judged_as_a_batch_of_places_is() -> None:
+    """A label's own place is checked in plain floats (the common case: nearly always free), the
+    other places in numpy batches; both must call the same places free: in view, off the labels
+    placed and off every line (a line along an axis, one ending on an edge, boxes that touch)."""
+    rng = np.random.default_rng(7)
+    tol = 1e-9
+    free_count = 0
+    for trial in range(3000):
+        xs, ys = np.sort(rng.uniform(0, 10, 2)), np.sort(rng.uniform(0, 10, 2))
+        box = np.array([xs[0], ys[0], xs[1], ys[1]])
+        lines = rng.uniform(-2, 12, (int(rng.integers(0, 4)), 2, 2))
+        if len(lines) and trial % 3 == 0:
+            lines[0, 1, trial % 2] = lines[0, 0, trial % 2]  # along an axis
+        if len(lines) and trial % 5 == 0:
+            lines[0, 1] = box[2], box[3]  # ending on the box's corner
+        placed = []
+        if trial % 2:
+            px, py = np.sort(rng.uniform(0, 10, 2)), np.sort(rng.uniform(0, 10, 2))
+            placed.append(np.array([px[0], py[0], px[1], py[1]]))
+        if trial % 7 == 0:
+            placed.append(np.array([box[2], box[1], box[2] + 1, box[3]]))  # touching only
+        view = (0.0, 0.0, 10.0, 10.0) if trial % 4 else None
+        batch = True
+        if view is not None:
+            batch = bool(
+                box[0] >= view[0] - tol
+                and box[2] <= view[2] + tol
+                and box[1] >= view[1] - tol
+                and box[3] <= view[3] + tol
+            )
+        for other in placed:
+            batch = batch and not conv._overlapping(box[np.newaxis], other, tol)[0]
+        batch = batch and not conv._crossed(box[np.newaxis], lines, tol)[0]
+        assert conv._free_box(box.tolist(), placed, lines, view, tol) == batch, trial
+        free_count += batch
+    assert 300 < free_count < 2700  # both answers occur often
