@@ -122,9 +122,10 @@ def _fields(block: bytes) -> dict[str, bytes]:
     return fields
 
 
-def _read_block(stream: BinaryIO, end: int, what: str) -> bytes:
+def _read_block(stream: BinaryIO, end: int, what: str, at: int | None = None) -> bytes:
     """A length-prefixed block (a record's header or data) that must end by byte ``end`` and hold
-    at most :data:`_MAX_RECORD_BYTES` (checked before it is read)."""
+    at most :data:`_MAX_RECORD_BYTES` (checked before it is read). ``at``: the stream's position,
+    where the caller knows it (a file's ``tell()`` is a system call)."""
     raw = stream.read(4)
     if len(raw) < 4:
         msg = f"the file ends inside a record's {what} length"
@@ -133,7 +134,7 @@ def _read_block(stream: BinaryIO, end: int, what: str) -> bytes:
     if length > _MAX_RECORD_BYTES:
         msg = f"a record's {what} of {length} bytes, more than any chunk"
         raise _Damage(msg)
-    if stream.tell() + length > end:
+    if (stream.tell() if at is None else at + 4) + length > end:
         msg = f"a record's {what} ({length} bytes) runs past the end"
         raise _Damage(msg)
     block = stream.read(length)
@@ -545,16 +546,23 @@ def unindexed_messages(
             index_pos = _uint(header[0], "index_pos", "<Q") if header is not None else 0
             chunk: dict[int, int] | None = None
             chunk_at = -1  # where the chunk ``chunk`` counts the index entries of starts
-            while stream.tell() < index_pos:
-                at = stream.tell()
-                following = starts[bisect.bisect_right(starts, at) :]
+            # The position is followed here, not asked of the file (tell() is a system call, and
+            # this runs for every record: a chunk and an index data record per topic in it).
+            at = stream.tell()
+            while at < index_pos:
+                # The next listed chunk's place (a bisection: a slice of the places after each
+                # record cost a copy per record, chunks x records on a bag of many topics).
+                after = bisect.bisect_right(starts, at)
+                following = min(starts[after], index_pos) if after < len(starts) else index_pos
                 # A chunk's record ends before the next listed chunk, or the index.
-                bound = min([*following[:1], index_pos]) if at in listed else index_pos
+                bound = following if at in listed else index_pos
                 try:
-                    fields = _fields(_read_block(stream, bound, "header"))
+                    block = _read_block(stream, bound, "header", at)
+                    fields = _fields(block)
                     raw = stream.read(4)
                     (length,) = struct.unpack("<I", raw) if len(raw) == 4 else (index_pos,)
-                    if stream.tell() + length > bound:
+                    data_at = at + 4 + len(block) + len(raw)  # where stream.tell() is
+                    if data_at + length > bound:
                         if at in listed:
                             msg = f"a chunk at byte {at} runs past the next record"
                             raise _Damage(msg)
@@ -569,7 +577,7 @@ def unindexed_messages(
                     elif op == _OP_INDEX_DATA and chunk is not None:
                         conn = _uint(fields, "conn", "<I")
                         chunk[conn] = chunk.get(conn, 0) + _uint(fields, "count", "<I")
-                    stream.seek(length, io.SEEK_CUR)
+                    at = stream.seek(data_at + length)
                 except _Damage:
                     owner = at if at in listed else chunk_at if chunk is not None else None
                     if not skip_damaged_chunks or owner is None:
@@ -577,7 +585,7 @@ def unindexed_messages(
                     # A damaged chunk, or index entries of one: what its chunk info counts.
                     found[owner] = dict(listed[owner])
                     chunk = None
-                    stream.seek(min([*following[:1], index_pos]))
+                    at = stream.seek(following)
         except _PastIndex as err:
             return str(err)
         except _Damage as err:
