@@ -14,6 +14,7 @@ from rose_logs.storage.records import Channel, normalize_msgtype
 from rose_logs.storage.typesys import msgdef_for
 
 __all__ = [
+    "KnownDefinitions",
     "QosStyle",
     "default_qos",
     "definitions",
@@ -90,6 +91,28 @@ def definitions(channel: Channel, ros_version: int) -> tuple[str, str]:
         return msgdef_for(channel.msgtype, serialization)
     except TypesysError:  # a type rosbags does not know either (a custom type)
         return "", ""
+
+
+class KnownDefinitions:
+    """:func:`definitions` of one writer's channels, each input definition worked out once: a log's
+    topics share a few types, and where the input has a definition without its digest (a ROS 2
+    MCAP file's schemas) each was parsed into a new typestore and hashed, 0.6 ms a topic."""
+
+    def __init__(self) -> None:
+        self._known: dict[tuple[str, str, str, str, int], tuple[str, str]] = {}
+
+    def __call__(self, channel: Channel, ros_version: int) -> tuple[str, str]:
+        """``definitions(channel, ros_version)``, from the fields it reads."""
+        key = (
+            channel.msgtype,
+            channel.msgdef,
+            channel.msgdef_encoding,
+            channel.digest,
+            ros_version,
+        )
+        if key not in self._known:
+            self._known[key] = definitions(channel, ros_version)
+        return self._known[key]
 
 
 def warn_no_definition(channel: Channel) -> None:

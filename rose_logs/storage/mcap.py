@@ -19,9 +19,9 @@ from rose_logs.errors import LogReadError, as_memory_error, reraise_unless_damag
 from rose_logs.formats import MCAP_MAGIC
 from rose_logs.storage.base import WriteBackend
 from rose_logs.storage.connections import (
+    KnownDefinitions,
     QosStyle,
     default_qos,
-    definitions,
     offered_qos,
     qos_style,
     qos_yaml,
@@ -900,6 +900,10 @@ class McapWriteBackend(WriteBackend):
         self.writer: Any = None
         self.schemas: dict[tuple[str, str, bytes], int] = {}
         self.channels: list[int] = []
+        # QoS profiles -> their YAML text: a YAML dump a channel took most of the time to add
+        # a channel (most channels of a log share one or two profiles).
+        self.qos_texts: dict[tuple[Any, ...], str] = {}
+        self.definitions = KnownDefinitions()
 
     def open(self) -> None:
         from mcap.writer import Writer
@@ -918,7 +922,7 @@ class McapWriteBackend(WriteBackend):
             # are no UTF-8, and its channel could no longer be decoded.
             data = channel.schema_data or channel.msgdef.encode("utf-8")
         else:
-            text, _digest = definitions(channel, 1 if ros1 else 2)
+            text, _digest = self.definitions(channel, 1 if ros1 else 2)
             name = ros1_msgtype(channel.msgtype) if ros1 else channel.msgtype
             encoding = "ros1msg" if ros1 else (channel.msgdef_encoding or "ros2msg")
             if not text:  # no definition known (see definitions): a schema without encoding
@@ -941,8 +945,10 @@ class McapWriteBackend(WriteBackend):
             if channel.digest:
                 metadata["md5sum"] = channel.digest
         elif channel.message_encoding == "cdr" and "offered_qos_profiles" not in metadata:
-            profiles = offered_qos(channel) or [default_qos()]
-            metadata["offered_qos_profiles"] = qos_yaml(profiles, style=self.qos_style)
+            profiles = tuple(offered_qos(channel) or [default_qos()])
+            if profiles not in self.qos_texts:
+                self.qos_texts[profiles] = qos_yaml(profiles, style=self.qos_style)
+            metadata["offered_qos_profiles"] = self.qos_texts[profiles]
         channel_id = self.writer.register_channel(
             channel.topic, channel.message_encoding, schema_id, metadata
         )

@@ -20,8 +20,8 @@ from rose_logs.errors import LogReadError, reraise_unless_damage
 from rose_logs.formats import BagMetadata, LogFormat
 from rose_logs.storage.base import WriteBackend
 from rose_logs.storage.connections import (
+    KnownDefinitions,
     QosStyle,
-    definitions,
     offered_qos,
     qos_style,
     require_definition,
@@ -917,6 +917,39 @@ def _sqlite_as_os_errors() -> Iterator[None]:
         raise OSError(number, os.strerror(number)) from err
 
 
+class _IndexedConnections(list[Any]):
+    """A rosbags writer's ``connections`` (rosbags internals, pinned below 0.12) whose two scans
+    are answered from indexes, so that neither grows with the topics.
+
+    rosbags' ``write`` checks each message's connection is ``in`` the list (a scan of the
+    connections before it, per message) and ``add_connection`` compares the new connection with
+    every one added (a scan per connection: quadratic in the topics). Membership is by identity
+    first (the connections the writer returned), anything else compared as a list does; while
+    :attr:`topic` is set, iteration gives that topic's connections only, the only ones rosbags'
+    check can find alike (it compares the topic too). Only ``append`` is indexed: rosbags' writers
+    add connections with it and remove none.
+    """
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._ids: set[int] = set()  # the items are held by the list, so their ids stay theirs
+        self._by_topic: dict[str, list[Any]] = {}
+        self.topic: str | None = None
+
+    def append(self, item: Any) -> None:
+        super().append(item)
+        self._ids.add(id(item))
+        self._by_topic.setdefault(item.topic, []).append(item)
+
+    def __contains__(self, item: object) -> bool:
+        return id(item) in self._ids or super().__contains__(item)
+
+    def __iter__(self) -> Iterator[Any]:
+        if self.topic is None:
+            return super().__iter__()
+        return iter(self._by_topic.get(self.topic, ()))
+
+
 class _RosbagsWriteBackend(WriteBackend):
     ros_version: int
 
@@ -924,9 +957,10 @@ class _RosbagsWriteBackend(WriteBackend):
         self.path = path
         self.writer: Any = None
         self.connections: list[Any] = []
+        self.definitions = KnownDefinitions()
 
     def add(self, channel: Channel) -> int:
-        msgdef, digest = definitions(channel, self.ros_version)
+        msgdef, digest = self.definitions(channel, self.ros_version)
         return self._dedup(
             lambda existing: self._same(existing, channel, msgdef, digest),
             lambda: self._add_connection(channel, msgdef, digest),
@@ -940,6 +974,12 @@ class _RosbagsWriteBackend(WriteBackend):
         """Whether the rosbags connection ``existing`` is the one :meth:`_add_connection` would
         add for ``channel``, in every argument rosbags compares to refuse it twice."""
         raise NotImplementedError
+
+    def _index_connections(self) -> None:
+        """Give the opened rosbags writer an :class:`_IndexedConnections` (it has none yet)."""
+        if self.writer.connections:
+            raise RuntimeError("the rosbags writer holds connections already")
+        self.writer.connections = _IndexedConnections()
 
     def _dedup(self, same: Callable[[Any], bool], create: Callable[[], Any]) -> int:
         from rosbags.rosbag1 import WriterError as Ros1WriterError
@@ -1003,6 +1043,7 @@ class Ros1WriteBackend(_RosbagsWriteBackend):
 
         self.writer = Writer(self.path)
         self.writer.open()
+        self._index_connections()
         self._chunks_written = 0
 
     def write(
@@ -1026,14 +1067,18 @@ class Ros1WriteBackend(_RosbagsWriteBackend):
 
     def _add_connection(self, channel: Channel, msgdef: str, digest: str) -> Any:
         require_definition(channel, msgdef)
-        return self.writer.add_connection(
-            channel.topic,
-            channel.msgtype,
-            msgdef=msgdef,
-            md5sum=digest,
-            callerid=channel.callerid,
-            latching=channel.latching,
-        )
+        self.writer.connections.topic = channel.topic  # rosbags' check of it alone
+        try:
+            return self.writer.add_connection(
+                channel.topic,
+                channel.msgtype,
+                msgdef=msgdef,
+                md5sum=digest,
+                callerid=channel.callerid,
+                latching=channel.latching,
+            )
+        finally:
+            self.writer.connections.topic = None
 
     def _same(self, existing: Any, channel: Channel, msgdef: str, digest: str) -> bool:
         return (
@@ -1060,6 +1105,7 @@ class Ros2WriteBackend(_RosbagsWriteBackend):
         version: Literal[8, 9] = 8 if self.qos_style == "v8" else 9
         self.writer = Writer(self.path, version=version, storage_plugin=plugin)
         self.writer.open()
+        self._index_connections()
 
     def set_custom_data(self, data: Mapping[str, str]) -> None:
         """Key-value text for the bag's metadata.yaml ``custom_data`` (:func:`bag_custom_data`)."""
@@ -1074,6 +1120,7 @@ class Ros2WriteBackend(_RosbagsWriteBackend):
             # without fields whose hash then mismatches (they refuse the bag): store none instead,
             # as Humble's rosbag2 does.
             storage.add_msgtype = functools.partial(_add_type_without_definition, storage)
+        self.writer.connections.topic = channel.topic  # rosbags' check of it alone
         try:
             return self.writer.add_connection(
                 channel.topic,
@@ -1084,6 +1131,7 @@ class Ros2WriteBackend(_RosbagsWriteBackend):
                 offered_qos_profiles=offered_qos(channel),
             )
         finally:
+            self.writer.connections.topic = None
             storage.__dict__.pop("add_msgtype", None)
 
     def _same(self, existing: Any, channel: Channel, msgdef: str, digest: str) -> bool:

@@ -195,11 +195,20 @@ def build_log(
     maps: Sequence[MapMsg],
     *,
     scans_per_map: int = 3,
+    small_topics: int = 0,
 ) -> BuiltLog:
-    """Write a log of ``kind`` (a key of ``FORMATS``) with ``maps`` and LaserScan traffic on ``/scan``."""
+    """Write a log of ``kind`` (a key of ``FORMATS``) with ``maps`` and LaserScan traffic on ``/scan``,
+    and ``small_topics`` topics of small std_msgs messages (a robot's sensors and diagnostics: Int32,
+    String in turn), a message on each after every map."""
     fmt, serialization = FORMATS[kind]
     store = typestore(serialization)
     records: list[tuple[int, str, str, bytes]] = []  # (t, topic, msgtype, data)
+    for seq, m in enumerate(maps):
+        for i in range(small_topics):
+            msgtype = ("std_msgs/msg/Int32", "std_msgs/msg/String")[i % 2]
+            msg = store.types[msgtype](seq + i if i % 2 == 0 else f"ok {seq}")
+            data = _serialize(store, serialization, msg, msgtype)
+            records.append((m.t_ns + 1000 * (i + 1), f"/robot/sensor_{i:04d}", msgtype, data))
     for seq, m in enumerate(maps, start=1):
         msgtype, data = _map_message(store, serialization, m, seq)
         records.append((m.t_ns, m.topic, msgtype, data))
