@@ -610,7 +610,8 @@ def spread_labels(
     they were (:func:`_side_by_side`): three steep lines at 80, 90 and 100 degrees keep their
     labels in a row under the map in their ends' order. Then each label in turn goes to the place
     nearest its own (its own first) where its box overlaps no label placed before it, no line runs
-    through it and it stays in ``view``; a label with no such place keeps its own.
+    through it and it stays in ``view``; a label with no such place keeps its own, moved into
+    ``view`` (centred in it if larger).
 
     A label at ``(x, y)`` covers ``x - width / 2 .. x + width / 2`` across and ``y - height .. y``
     (Rerun hangs it under its point). Places tried: steps of a quarter of its width across and of
@@ -690,10 +691,31 @@ def spread_labels(
         # Its own place first: nearly always free, and then no other place is even made.
         if first_free(boxes_at(result[k : k + 1])) is None:
             moved = nearest_free(result[k])
-            if moved is not None:
-                result[k] = moved
+            # No free place: at least in view (a row of labels side by side wider than the view
+            # left its outer ones out of it, cut off or not drawn at all).
+            result[k] = _into_view(result[k], size, view) if moved is None else moved
         placed.append(boxes_at(result[k : k + 1])[0])
     return result
+
+
+def _into_view(
+    point: npt.NDArray[np.float64],
+    size: tuple[float, float],
+    view: tuple[float, float, float, float] | None,
+) -> npt.NDArray[np.float64]:
+    """A label's point ``(x, y)`` moved the least that its box (``size``: width, height, hung
+    under the point) is in ``view`` (left, bottom, right, top); centred in it along an axis the
+    label is larger than it along. None: ``point`` as it is."""
+    if view is None:
+        return point
+    width, height = size
+    moved = point.copy()
+    for axis, low, high in (
+        (0, view[0] + width / 2, view[2] - width / 2),
+        (1, view[1] + height, view[3]),
+    ):
+        moved[axis] = (low + high) / 2 if low > high else min(max(moved[axis], low), high)
+    return moved
 
 
 def _side_by_side(

@@ -622,3 +622,29 @@ def test_a_single_label_place_is_judged_as_a_batch_of_places_is() -> None:
         assert conv._free_box(box.tolist(), placed, lines, view, tol) == batch, trial
         free_count += batch
     assert 300 < free_count < 2700  # both answers occur often
+
+
+@pytest.mark.parametrize("label_width", [300.0, 1500.0])
+def test_labels_with_no_free_place_stay_in_the_view(label_width: float) -> None:
+    """Eight directions on a wide map: their steep lines' labels, side by side under the map, make
+    a row wider than the view, and the outer labels, with no free place left, hung out of it
+    (cut off, or not drawn at all); a label wider than the view hung out on one side. Every label
+    stays in the view: centred in it across if it is wider, else wholly inside it."""
+    segments = conv.direction_segments_cells(np.radians(np.arange(8) * 22.5 + 1.0), (420, 1000))
+    x_range, y_range, height = (-20.0, 1020.0), (-100.0, 500.0), 60.0
+    anchors = conv.direction_label_positions(
+        segments,
+        x_range=x_range,
+        y_range=y_range,
+        label_width=label_width,
+        label_height=height,
+        clearance=10.0,
+    )
+    half = label_width / 2
+    if label_width > x_range[1] - x_range[0]:
+        assert_allclose(anchors[:, 0], sum(x_range) / 2)
+    else:
+        assert np.all(anchors[:, 0] - half >= x_range[0] - 1e-9)
+        assert np.all(anchors[:, 0] + half <= x_range[1] + 1e-9)
+    assert np.all(anchors[:, 1] - height >= y_range[0] - 1e-9)
+    assert np.all(anchors[:, 1] <= y_range[1] + 1e-9)
