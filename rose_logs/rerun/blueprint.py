@@ -28,6 +28,7 @@ from rose_logs.rerun.paths import SESSION_TIMELINE, EntityPaths
 
 __all__ = [
     "LABEL_WINDOWS_PX",
+    "METRIC_MIN_HALF_M",
     "TopicLayout",
     "default_blueprint",
     "metric_frame",
@@ -72,6 +73,12 @@ def metric_view_px(window_px: tuple[float, float]) -> tuple[float, float]:
     383 x 232, 478 x 345, less 2 pixels)."""
     return 0.3 * window_px[0] - 4.0, 0.4 * window_px[1] - 57.0
 
+
+#: Metres the metric view's camera frames at least either side of the map's centre (a map of
+#: a few cells is not seen from a few centimetres up); the direction labels' scale there
+#: (:func:`metric_frame`) holds the same floor: without it, on a map under about a metre two
+#: labels were placed for a view twice as close and overlapped.
+METRIC_MIN_HALF_M = 0.5
 
 #: Width / height of the metric view its camera frames the map for: the narrowest of
 #: :data:`LABEL_WINDOWS_PX` (1024 x 768, 1.21). At the 1.3 of a 1600 x 1000 window the map was cut
@@ -210,14 +217,18 @@ def segmentation_frame(width: float, height: float) -> tuple[float, float, float
     return -margin, -margin - _segmentation_room(width, height), width + margin, height + margin
 
 
-def metric_frame(width: float, height: float) -> tuple[float, float, float, float]:
+def metric_frame(
+    width: float, height: float, *, min_half: float = 0.0
+) -> tuple[float, float, float, float]:
     """``(left, bottom, right, top)`` the metric view shows of the map plane around a known box
     ``width`` x ``height`` (as :func:`segmentation_frame`) in a window of the narrowest view of
-    :data:`LABEL_WINDOWS_PX` (a wider one shows more at the sides) (:func:`_metric_eye`)."""
+    :data:`LABEL_WINDOWS_PX` (a wider one shows more at the sides) (:func:`_metric_eye`);
+    ``min_half``: :data:`METRIC_MIN_HALF_M` in the units of the box (the camera frames at least
+    that either side of its centre)."""
     room = _metric_room(width, height)
     # The camera's height is 1.05 max(...) / tan(fov / 2): it sees 2 tan(fov / 2) that high,
     # centred on the box and the room under it.
-    seen = 1.05 * max(height + room, width / _ASSUMED_ASPECT)
+    seen = 1.05 * max(height + room, 2 * min_half, max(width, 2 * min_half) / _ASSUMED_ASPECT)
     middle = (height - room) / 2
     half_width = _ASSUMED_ASPECT * seen / 2
     return width / 2 - half_width, middle - seen / 2, width / 2 + half_width, middle + seen / 2
@@ -234,7 +245,8 @@ def _metric_eye(layout: TopicLayout) -> rrb.EyeControls3D | None:
     y_min -= _metric_room(x_max - x_min, y_max - y_min)
     rx, ry = layout.view_origin_m
     cx, cy = (x_min + x_max) / 2 - rx, (y_min + y_max) / 2 - ry
-    half_x, half_y = max((x_max - x_min) / 2, 0.5), max((y_max - y_min) / 2, 0.5)
+    half_x = max((x_max - x_min) / 2, METRIC_MIN_HALF_M)
+    half_y = max((y_max - y_min) / 2, METRIC_MIN_HALF_M)
     tan_half = math.tan(_FOV_Y_RAD / 2)
     height = 1.05 * max(half_y / tan_half, half_x / (tan_half * _ASSUMED_ASPECT))
     return rrb.EyeControls3D(

@@ -27,6 +27,7 @@ from rose_logs.rerun import arrow, style
 from rose_logs.rerun import conversions as conv
 from rose_logs.rerun.blueprint import (
     LABEL_WINDOWS_PX,
+    METRIC_MIN_HALF_M,
     metric_frame,
     metric_view_px,
     segmentation_frame,
@@ -291,16 +292,19 @@ def direction_label_anchors(
     *,
     yaw_rad: float,
     window: tuple[float, float, float, float],
+    resolution_m: float,
 ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
     """The direction labels' points in the segmentation and the metric view.
 
     The views frame the known box ``window`` ``(x0, y0, x1, y1)`` (cells, grid frame) north up
     (the grid turned by ``yaw_rad``) and room under it (:func:`segmentation_frame`,
-    :func:`metric_frame`). Rerun's labels are a fixed number of screen pixels in size: in cells
-    they are taken at the most cells per pixel of the windows of :data:`LABEL_WINDOWS_PX` (the
-    smallest view), so that labels kept off their lines and each other there stay so in a larger
-    window, and placed in what every one of those windows shows (the frame, and more across or
-    up where all the views are wider or taller than it) (:func:`conv.direction_label_positions`).
+    :func:`metric_frame`; the metric view at least :data:`METRIC_MIN_HALF_M` either side of its
+    centre, ``resolution_m`` metres per cell). Rerun's labels are a fixed number of screen pixels
+    in size: in cells they are taken at the most cells per pixel of the windows of
+    :data:`LABEL_WINDOWS_PX` (the smallest view), so that labels kept off their lines and each
+    other there stay so in a larger window, and placed in what every one of those windows shows
+    (the frame, and more across or up where all the views are wider or taller than it)
+    (:func:`conv.direction_label_positions`).
     A label is further from its line's end in a large window than in a small one (up to about
     twice as far at 1920 x 1080 as at 1024 x 768). (The scale came from a 1600 x 1000 window: in
     a 1024 x 768 one a label beside a flat line's end hung out of the view.)
@@ -350,7 +354,9 @@ def direction_label_anchors(
 
     return (
         anchors_in(segmentation_frame(width, height), segmentation_view_px),
-        anchors_in(metric_frame(width, height), metric_view_px),
+        anchors_in(
+            metric_frame(width, height, min_half=METRIC_MIN_HALF_M / resolution_m), metric_view_px
+        ),
     )
 
 
@@ -750,7 +756,7 @@ class TopicLogger:
         # walls that much further round than the grid does (as the JSON report gives them).
         yaw = snapshot.origin_yaw_rad
         anchors, metric_anchors = direction_label_anchors(
-            segments, yaw_rad=yaw, window=occupied.window
+            segments, yaw_rad=yaw, window=occupied.window, resolution_m=snapshot.resolution_m
         )
         map_labels = [f"walls {d:.1f}°" for d in map_frame_deg(directions, yaw_rad=yaw, digits=1)]
         # Colours, sizes and the label switch are static (log_static).

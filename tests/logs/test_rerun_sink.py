@@ -1694,7 +1694,7 @@ def _label_trouble(
 
 
 @pytest.mark.parametrize("window", sorted(_VIEWS_IN_WINDOW_PX))
-@pytest.mark.parametrize("size_cells", [(1000, 420), (420, 1000)])
+@pytest.mark.parametrize("size_cells", [(1000, 420), (420, 1000), (12, 8)])
 @pytest.mark.parametrize("directions_deg", [(176.2, 86.3), (2.0, 92.0), (80.0, 100.0)])
 def test_direction_labels_hold_in_small_and_large_windows(
     window: tuple[int, int], size_cells: tuple[int, int], directions_deg: tuple[float, ...]
@@ -1702,10 +1702,11 @@ def test_direction_labels_hold_in_small_and_large_windows(
     """Rerun draws a label a fixed number of screen pixels in size; the labels' room was worked
     out for a 1600 x 1000 window, and at 1024 x 768 "walls 176.2°" (the sample session) hung out
     of the segmentation view and over the map's end in the metric view, cut off at its edge; two
-    nearly parallel steep lines (80 and 100 degrees) hung their labels over each other. In each
-    window, on a wide and a tall map, in both map views (the segmentation fitted to its bounds,
-    the metric view as its camera sees it), no label is cut off, over another or crossed by a
-    line."""
+    nearly parallel steep lines (80 and 100 degrees) hung their labels over each other; on a map
+    under a metre (the metric camera frames at least a metre) labels were placed for a view twice
+    as close and overlapped. In each window, on a wide, a tall and a small map, in both map views
+    (the segmentation fitted to its bounds, the metric view as its camera sees it), no label is
+    cut off, over another or crossed by a line."""
     from rose_logs.rerun.blueprint import TopicLayout, _metric_eye, _topic_container
     from rose_logs.rerun.loggers import direction_label_anchors
 
@@ -1713,7 +1714,7 @@ def test_direction_labels_hold_in_small_and_large_windows(
     cols, rows = size_cells
     segments = conv.direction_segments_cells(np.radians(directions_deg), (rows, cols))
     anchors, metric_anchors = direction_label_anchors(
-        segments, yaw_rad=0.0, window=(0.0, 0.0, float(cols), float(rows))
+        segments, yaw_rad=0.0, window=(0.0, 0.0, float(cols), float(rows)), resolution_m=resolution
     )
     # Map origin and view origin at 0: the segmentation's metres are x east, y south; the metric
     # view's x east, y north.
