@@ -975,6 +975,16 @@ class _RosbagsWriteBackend(WriteBackend):
         add for ``channel``, in every argument rosbags compares to refuse it twice."""
         raise NotImplementedError
 
+    @contextlib.contextmanager
+    def _checked_alone(self, topic: str) -> Iterator[None]:
+        """While rosbags adds a connection of ``topic``, its check for the same connection added
+        twice sees that topic's connections alone (:class:`_IndexedConnections`)."""
+        self.writer.connections.topic = topic
+        try:
+            yield
+        finally:
+            self.writer.connections.topic = None
+
     def _index_connections(self) -> None:
         """Give the opened rosbags writer an :class:`_IndexedConnections` (it has none yet)."""
         if self.writer.connections:
@@ -1067,8 +1077,7 @@ class Ros1WriteBackend(_RosbagsWriteBackend):
 
     def _add_connection(self, channel: Channel, msgdef: str, digest: str) -> Any:
         require_definition(channel, msgdef)
-        self.writer.connections.topic = channel.topic  # rosbags' check of it alone
-        try:
+        with self._checked_alone(channel.topic):
             return self.writer.add_connection(
                 channel.topic,
                 channel.msgtype,
@@ -1077,8 +1086,6 @@ class Ros1WriteBackend(_RosbagsWriteBackend):
                 callerid=channel.callerid,
                 latching=channel.latching,
             )
-        finally:
-            self.writer.connections.topic = None
 
     def _same(self, existing: Any, channel: Channel, msgdef: str, digest: str) -> bool:
         return (
@@ -1120,18 +1127,17 @@ class Ros2WriteBackend(_RosbagsWriteBackend):
             # without fields whose hash then mismatches (they refuse the bag): store none instead,
             # as Humble's rosbag2 does.
             storage.add_msgtype = functools.partial(_add_type_without_definition, storage)
-        self.writer.connections.topic = channel.topic  # rosbags' check of it alone
         try:
-            return self.writer.add_connection(
-                channel.topic,
-                channel.msgtype,
-                msgdef=msgdef,
-                rihs01=digest or "RIHS01_" + "0" * 64,
-                serialization_format=channel.message_encoding,
-                offered_qos_profiles=offered_qos(channel),
-            )
+            with self._checked_alone(channel.topic):
+                return self.writer.add_connection(
+                    channel.topic,
+                    channel.msgtype,
+                    msgdef=msgdef,
+                    rihs01=digest or "RIHS01_" + "0" * 64,
+                    serialization_format=channel.message_encoding,
+                    offered_qos_profiles=offered_qos(channel),
+                )
         finally:
-            self.writer.connections.topic = None
             storage.__dict__.pop("add_msgtype", None)
 
     def _same(self, existing: Any, channel: Channel, msgdef: str, digest: str) -> bool:
