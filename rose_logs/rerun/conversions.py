@@ -15,6 +15,7 @@ unknown space that would cost as much to send as its map. Cell ``(x, y)`` is the
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from dataclasses import field as dataclasses_field
 
@@ -664,17 +665,20 @@ def spread_labels(
         )
     segments = np.asarray(lines, dtype=np.float64).reshape(-1, 2, 2)
     tol = 1e-9 * max(width, height, 1.0)
-    placed: list[npt.NDArray[np.float64]] = []
+    placed: list[list[float]] = []  # the boxes of the labels placed, as boxes_at's rows
 
     def boxes_at(points: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
         """Label boxes ``(C, 4)``: left, bottom, right, top, of labels at ``points`` (C, 2)."""
         x, y = points[:, 0], points[:, 1]
         return np.stack([x - width / 2, y - height, x + width / 2, y], axis=-1)
 
+    def box_at(point: npt.NDArray[np.float64]) -> list[float]:
+        """The label box at ``point`` (2,), as a row of :func:`boxes_at`, in plain floats."""
+        x, y = float(point[0]), float(point[1])
+        return [x - width / 2, y - height, x + width / 2, y]
+
     def first_free(boxes: npt.NDArray[np.float64]) -> int | None:
         """The first of ``boxes`` in the view, off the labels placed and off every line."""
-        if len(boxes) == 1:  # a label's own place: in plain floats (numpy's calls cost more)
-            return 0 if _free_box(boxes[0].tolist(), placed, segments, view, tol) else None
         free = np.ones(len(boxes), dtype=bool)
         if view is not None:
             free &= (boxes[:, 0] >= view[0] - tol) & (boxes[:, 2] <= view[2] + tol)
@@ -703,13 +707,14 @@ def spread_labels(
 
     result = _side_by_side(result, segments, width, view)
     for k in range(len(result)):
-        # Its own place first: nearly always free, and then no other place is even made.
-        if first_free(boxes_at(result[k : k + 1])) is None:
+        # Its own place first: nearly always free, and then no other place is even made (one
+        # box: in plain floats, numpy's calls cost more than the arithmetic).
+        if not _free_box(box_at(result[k]), placed, segments, view, tol):
             moved = nearest_free(result[k])
             # No free place: at least in view (a row of labels side by side wider than the view
             # left its outer ones out of it, cut off or not drawn at all).
             result[k] = _into_view(result[k], size, view) if moved is None else moved
-        placed.append(boxes_at(result[k : k + 1])[0])
+        placed.append(box_at(result[k]))
     return result
 
 
@@ -790,7 +795,7 @@ def _nearest_first(reach: tuple[int, int], step: tuple[float, float]) -> npt.NDA
 
 
 def _overlapping(
-    boxes: npt.NDArray[np.float64], box: npt.NDArray[np.float64], tol: float
+    boxes: npt.NDArray[np.float64], box: Sequence[float] | npt.NDArray[np.float64], tol: float
 ) -> npt.NDArray[np.bool_]:
     """Whether each of ``boxes`` (C, 4: left, bottom, right, top) shares some area with ``box``
     (boxes that only touch do not)."""
@@ -804,7 +809,7 @@ def _overlapping(
 
 def _free_box(
     box: list[float],
-    placed: list[npt.NDArray[np.float64]],
+    placed: list[list[float]],
     lines: npt.NDArray[np.float64],
     view: tuple[float, float, float, float] | None,
     tol: float,
@@ -819,8 +824,7 @@ def _free_box(
         and top <= view[3] + tol
     ):
         return False
-    for other in placed:
-        o_left, o_bottom, o_right, o_top = other.tolist()
+    for o_left, o_bottom, o_right, o_top in placed:
         if (
             left < o_right - tol
             and o_left < right - tol
