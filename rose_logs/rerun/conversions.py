@@ -549,9 +549,9 @@ def direction_label_positions(
     the label would reach out of ``x_range`` (what the view shows, on screen): then just inside
     it (a flat line ends at the side of a wide map, and half its label hung out of the view).
 
-    With ``label_height``, labels are then kept off each other and off the lines
-    (:func:`spread_labels`): two nearly parallel steep lines (80 and 100 degrees) hung their
-    labels one over the other under the map. Sizes and ranges are in the units of ``segments``
+    With ``label_height``, up to :data:`SPREAD_MAX_LABELS` labels are then kept off each other
+    and off the lines (:func:`spread_labels`): two nearly parallel steep lines (80 and 100
+    degrees) hung their labels one over the other under the map. Sizes and ranges are in the units of ``segments``
     (cells: a view's pixels times its cells per pixel, :func:`view_units_per_px`).
 
     Parameters
@@ -624,8 +624,9 @@ def spread_labels(
 
     A label at ``(x, y)`` covers ``x - width / 2 .. x + width / 2`` across and ``y - height .. y``
     (Rerun hangs it under its point). Places tried: steps of a quarter of its width across and of
-    half its height up and down, over the whole view (a map's lines can fill it but under the
-    map). On screen, y up; any units.
+    half its height up and down, three widths either way; then over the whole view (a map's lines
+    can fill it but under the map), in steps of at least a 40th of its width and a 24th of its
+    height. On screen, y up; any units.
 
     Parameters
     ----------
