@@ -29,6 +29,8 @@ from rose_logs.rerun.paths import SESSION_TIMELINE, EntityPaths
 __all__ = [
     "LABEL_WINDOWS_PX",
     "METRIC_MIN_HALF_M",
+    "METRIC_VIEWS_PX",
+    "SEGMENTATION_VIEWS_PX",
     "TopicLayout",
     "default_blueprint",
     "metric_frame",
@@ -58,21 +60,50 @@ LABEL_WINDOWS_PX = (
 )
 
 
-def segmentation_view_px(window_px: tuple[float, float]) -> tuple[float, float]:
+def segmentation_view_px(
+    window_px: tuple[float, float], *, events: bool = False
+) -> tuple[float, float]:
     """Screen pixels ``(width, height)`` of the segmentation view in the default layout of a
-    ``window_px`` window (no events view): 3/5 of its width, 3/5 of its height less the viewer's
-    bars and the view's title (measured at 1024 x 768, 1280 x 720 and 1600 x 1000: 613 x 396,
-    767 x 366, 955 x 535), 2 pixels less: labels sized for a view a pixel larger than it was
-    overlapped by that much."""
-    return 0.6 * window_px[0] - 7.0, 0.6 * window_px[1] - 67.0
+    ``window_px`` window ``(w, h)``: 3/5 of its width, 3/5 of its height less the viewer's bars
+    and the view's title, at least 2 pixels less than measured (labels sized for a view a pixel
+    larger than it was overlapped by that much). ``events``: with the events view under the maps
+    (the left column's rows 3 / 2 / 1), half the height less the bars and the title.
+
+    Measured in the web viewer with the view filled edge to edge by one colour, at 1024 x 768,
+    1280 x 720, 1366 x 768, 1440 x 900, 1600 x 1000, 1920 x 1080: 614, 767, 819, 863, 959, 1151
+    wide; 393, 364, 393, 472, 532, 580 high (``0.6 h - 67.6``; read off screenshots of the sample
+    map, 396 and 366 at the first two, and at 1280 x 720 labels laid out for 365 touched); with
+    the events view 323, 299, 323, 389, 439, 479 high (``0.5 h - 61``)."""
+    if events:
+        return 0.6 * window_px[0] - 7.0, 0.5 * window_px[1] - 63.0
+    return 0.6 * window_px[0] - 7.0, 0.6 * window_px[1] - 70.0
 
 
-def metric_view_px(window_px: tuple[float, float]) -> tuple[float, float]:
+def metric_view_px(window_px: tuple[float, float], *, events: bool = False) -> tuple[float, float]:
     """Screen pixels ``(width, height)`` of the metric view in the default layout of a
-    ``window_px`` window (no events view; measured as :func:`segmentation_view_px`: 305 x 254,
-    383 x 232, 478 x 345, less 2 pixels)."""
+    ``window_px`` window ``(w, h)``, ``events`` as :func:`segmentation_view_px`: 3/10 of the width,
+    2/5 of the height (with the events view a third) less the bars and the title, at least 2
+    pixels less than measured (as there: 306, 383, 409, 431, 479, 575 wide; 253, 234, 253, 306,
+    346, 378 high; with the events view 205, 189, 205, 249, 283, 309, ``h / 3 - 50.3``)."""
+    if events:
+        return 0.3 * window_px[0] - 4.0, window_px[1] / 3.0 - 53.0
     return 0.3 * window_px[0] - 4.0, 0.4 * window_px[1] - 57.0
 
+
+#: The segmentation views' pixels ``(width, height)`` the direction labels are laid out for: in
+#: every window of :data:`LABEL_WINDOWS_PX`, without and with the events view. Both, for every
+#: snapshot: the events view comes with a session's first break, after snapshots were logged
+#: (a live viewer), and a saved recording's layout shows it at every time (labels laid out for
+#: the taller views touched each other under the map at 1024 x 768 and 1280 x 720).
+SEGMENTATION_VIEWS_PX = tuple(
+    segmentation_view_px(window, events=events)
+    for events in (False, True)
+    for window in LABEL_WINDOWS_PX
+)
+#: The metric views' pixels the labels are laid out for (as :data:`SEGMENTATION_VIEWS_PX`).
+METRIC_VIEWS_PX = tuple(
+    metric_view_px(window, events=events) for events in (False, True) for window in LABEL_WINDOWS_PX
+)
 
 #: Metres the metric view's camera frames at least either side of the map's centre (a map of
 #: a few cells is not seen from a few centimetres up); the direction labels' scale there
@@ -81,9 +112,10 @@ def metric_view_px(window_px: tuple[float, float]) -> tuple[float, float]:
 METRIC_MIN_HALF_M = 0.5
 
 #: Width / height of the metric view its camera frames the map for: the narrowest of
-#: :data:`LABEL_WINDOWS_PX` (1024 x 768, 1.21). At the 1.3 of a 1600 x 1000 window the map was cut
-#: off at both sides of a 1024 x 768 one.
-_ASSUMED_ASPECT = min(w / h for w, h in map(metric_view_px, LABEL_WINDOWS_PX))
+#: :data:`METRIC_VIEWS_PX` (1024 x 768 without the events view, 1.21; with it the views are
+#: wider, and the camera's vertical field of view shows the same height). At the 1.3 of a
+#: 1600 x 1000 window the map was cut off at both sides of a 1024 x 768 one.
+_ASSUMED_ASPECT = min(w / h for w, h in METRIC_VIEWS_PX)
 
 #: Screen pixels a label under a map takes: its clearance from the line, its height, the view's
 #: edge under it.
@@ -173,7 +205,7 @@ def _margin(width: float, height: float) -> float:
 
 def _segmentation_room(width: float, height: float) -> float:
     """Room under a ``width`` x ``height`` box (any units) in the segmentation view for a
-    direction's label (:data:`_LABEL_ROOM_PX`) in every window of :data:`LABEL_WINDOWS_PX`: a
+    direction's label (:data:`_LABEL_ROOM_PX`) in every view of :data:`SEGMENTATION_VIEWS_PX`: a
     steep line's label hangs under its lower end (a fixed 0.08 of a tall map's height left it
     about 26 pixels at 1280 x 720, against 38 it takes).
 
@@ -186,14 +218,14 @@ def _segmentation_room(width: float, height: float) -> float:
             _LABEL_ROOM_PX * (width + 2 * margin) / view_w,
             _LABEL_ROOM_PX * (height + 2 * margin) / max(view_h - _LABEL_ROOM_PX, 1.0),
         )
-        for view_w, view_h in map(segmentation_view_px, LABEL_WINDOWS_PX)
+        for view_w, view_h in SEGMENTATION_VIEWS_PX
     ]
     return max(rooms)
 
 
 def _metric_room(width: float, height: float) -> float:
     """Room under a ``width`` x ``height`` box (any units) in the metric view for a direction's
-    label in every window of :data:`LABEL_WINDOWS_PX` (as :func:`_segmentation_room`; the camera
+    label in every view of :data:`METRIC_VIEWS_PX` (as :func:`_segmentation_room`; the camera
     sees ``1.05 max(height + room, width / aspect)`` high on the view's height). A fixed 0.08 of
     the map's height cut a tall map's "walls 86.2°" off at the view's lower edge at 1280 x 720."""
     rooms = [
@@ -203,7 +235,7 @@ def _metric_room(width: float, height: float) -> float:
             width / (_ASSUMED_ASPECT * view_h),
             height / max(view_h - 1.05 * _LABEL_ROOM_PX, 1.0),
         )
-        for _, view_h in map(metric_view_px, LABEL_WINDOWS_PX)
+        for _, view_h in METRIC_VIEWS_PX
     ]
     return max(rooms)
 

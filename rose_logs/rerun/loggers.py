@@ -26,12 +26,11 @@ from rose_logs.frames import yaw_to_quaternion
 from rose_logs.rerun import arrow, style
 from rose_logs.rerun import conversions as conv
 from rose_logs.rerun.blueprint import (
-    LABEL_WINDOWS_PX,
     METRIC_MIN_HALF_M,
+    METRIC_VIEWS_PX,
+    SEGMENTATION_VIEWS_PX,
     metric_frame,
-    metric_view_px,
     segmentation_frame,
-    segmentation_view_px,
 )
 from rose_logs.rerun.paths import SEQUENCE_TIMELINE, SESSION_TIMELINE, TIMELINE, EntityPaths
 from rose_logs.session.breaks import BreakScore
@@ -300,11 +299,12 @@ def direction_label_anchors(
     (the grid turned by ``yaw_rad``) and room under it (:func:`segmentation_frame`,
     :func:`metric_frame`; the metric view at least :data:`METRIC_MIN_HALF_M` either side of its
     centre, ``resolution_m`` metres per cell). Rerun's labels are a fixed number of screen pixels
-    in size: in cells they are taken at the most cells per pixel of the windows of
-    :data:`LABEL_WINDOWS_PX` (the smallest view), so that labels kept off their lines and each
-    other there stay so in a larger window, and placed in what every one of those windows shows
-    (the frame, and more across or up where all the views are wider or taller than it)
-    (:func:`conv.direction_label_positions`).
+    in size: in cells they are taken at the most cells per pixel of the views of
+    :data:`SEGMENTATION_VIEWS_PX` / :data:`METRIC_VIEWS_PX` (the smallest view: each window of
+    :data:`~rose_logs.rerun.blueprint.LABEL_WINDOWS_PX`, with the events view under the maps and
+    without), so that labels kept off their lines and each other there stay so in a larger view,
+    and placed in what every one of those views shows (the frame, and more across or up where all
+    the views are wider or taller than it) (:func:`conv.direction_label_positions`).
     A label is further from its line's end in a large window than in a small one (up to about
     twice as far at 1920 x 1080 as at 1024 x 768). (The scale came from a 1600 x 1000 window: in
     a 1024 x 768 one a label beside a flat line's end hung out of the view.)
@@ -323,39 +323,33 @@ def direction_label_anchors(
     width, height = (float(v) for v in np.ptp(known, axis=0))
 
     def anchors_in(
-        frame: tuple[float, float, float, float],
-        view_px: Callable[[tuple[float, float]], tuple[float, float]],
+        frame: tuple[float, float, float, float], views: tuple[tuple[float, float], ...]
     ) -> npt.NDArray[np.float64]:
         left, bottom, right, top = frame
-        framed = (right - left, top - bottom)
+        framed_w, framed_h = right - left, top - bottom
         centre = corner + np.array([left + right, bottom + top]) / 2
-        views = [view_px(w) for w in LABEL_WINDOWS_PX]
-        scales = [conv.view_units_per_px(framed, view) for view in views]
+        # Plain floats: a dozen views, each a few operations (numpy's per-call cost is more).
+        scales = [max(framed_w / w, framed_h / h) for w, h in views]  # conv.view_units_per_px
         per_px = max(scales)  # cells per screen pixel in the smallest view
-        # What every window shows: at least the frame, more across (or up) where the view's
-        # aspect is wider (taller) than the frame's.
-        half = (
-            np.min(
-                [np.multiply(view, scale) for view, scale in zip(views, scales, strict=True)],
-                axis=0,
-            )
-            / 2
-        )
-        half -= conv.DIRECTION_LABEL_EDGE_PX * per_px
+        # What every view shows: at least the frame, more across (or up) where the view's aspect
+        # is wider (taller) than the frame's.
+        edge = conv.DIRECTION_LABEL_EDGE_PX * per_px
+        half_w = min(w * scale for (w, _), scale in zip(views, scales, strict=True)) / 2 - edge
+        half_h = min(h * scale for (_, h), scale in zip(views, scales, strict=True)) / 2 - edge
         return conv.direction_label_positions(
             segments,
             yaw_rad=yaw_rad,
-            x_range=(centre[0] - half[0], centre[0] + half[0]),
-            y_range=(centre[1] - half[1], centre[1] + half[1]),
+            x_range=(centre[0] - half_w, centre[0] + half_w),
+            y_range=(centre[1] - half_h, centre[1] + half_h),
             label_width=conv.DIRECTION_LABEL_WIDTH_PX * per_px,
             label_height=conv.DIRECTION_LABEL_HEIGHT_PX * per_px,
             clearance=conv.DIRECTION_LABEL_CLEARANCE_PX * per_px,
         )
 
     return (
-        anchors_in(segmentation_frame(width, height), segmentation_view_px),
+        anchors_in(segmentation_frame(width, height), SEGMENTATION_VIEWS_PX),
         anchors_in(
-            metric_frame(width, height, min_half=METRIC_MIN_HALF_M / resolution_m), metric_view_px
+            metric_frame(width, height, min_half=METRIC_MIN_HALF_M / resolution_m), METRIC_VIEWS_PX
         ),
     )
 

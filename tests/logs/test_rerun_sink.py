@@ -1644,11 +1644,27 @@ def test_the_plots_show_values_of_zero_above_their_lower_edge(top: float) -> Non
 
 
 #: The segmentation and metric views' screen pixels (width, height) in the default layout of a
-#: browser window (width, height), measured on the screenshot tool's pictures (no events view).
+#: browser window (width, height), no events view, measured in the web viewer with both views
+#: filled edge to edge by one colour (the forty-ninth session's, read off the screenshot tool's
+#: pictures of the sample map, were 613 x 396, 767 x 366, 955 x 535; 305 x 254, 383 x 232,
+#: 478 x 345).
 _VIEWS_IN_WINDOW_PX = {
-    (1024, 768): ((613.0, 396.0), (305.0, 254.0)),
-    (1280, 720): ((767.0, 366.0), (383.0, 232.0)),
-    (1600, 1000): ((955.0, 535.0), (478.0, 345.0)),
+    (1024, 768): ((614.0, 393.0), (306.0, 253.0)),
+    (1280, 720): ((767.0, 364.0), (383.0, 234.0)),
+    (1366, 768): ((819.0, 393.0), (409.0, 253.0)),
+    (1440, 900): ((863.0, 472.0), (431.0, 306.0)),
+    (1600, 1000): ((959.0, 532.0), (479.0, 346.0)),
+    (1920, 1080): ((1151.0, 580.0), (575.0, 378.0)),
+}
+#: The same with the events view under the maps (a session with breaks: the left column's rows
+#: 3 / 2 / 1).
+_VIEWS_WITH_EVENTS_IN_WINDOW_PX = {
+    (1024, 768): ((614.0, 323.0), (306.0, 205.0)),
+    (1280, 720): ((767.0, 299.0), (383.0, 189.0)),
+    (1366, 768): ((819.0, 323.0), (409.0, 205.0)),
+    (1440, 900): ((863.0, 389.0), (431.0, 249.0)),
+    (1600, 1000): ((959.0, 439.0), (479.0, 283.0)),
+    (1920, 1080): ((1151.0, 479.0), (575.0, 309.0)),
 }
 #: A direction's label on screen from its point (Rerun 0.41, "walls 176.2°" with room to spare):
 #: centred across, from 1 to 24 pixels under it.
@@ -1693,11 +1709,15 @@ def _label_trouble(
     return trouble
 
 
+@pytest.mark.parametrize("events", [False, True], ids=["no-events", "events"])
 @pytest.mark.parametrize("window", sorted(_VIEWS_IN_WINDOW_PX))
 @pytest.mark.parametrize("size_cells", [(1000, 420), (420, 1000), (12, 8)])
 @pytest.mark.parametrize("directions_deg", [(176.2, 86.3), (2.0, 92.0), (80.0, 100.0)])
 def test_direction_labels_hold_in_small_and_large_windows(
-    window: tuple[int, int], size_cells: tuple[int, int], directions_deg: tuple[float, ...]
+    window: tuple[int, int],
+    size_cells: tuple[int, int],
+    directions_deg: tuple[float, ...],
+    events: bool,
 ) -> None:
     """Rerun draws a label a fixed number of screen pixels in size; the labels' room was worked
     out for a 1600 x 1000 window, and at 1024 x 768 "walls 176.2°" (the sample session) hung out
@@ -1706,7 +1726,12 @@ def test_direction_labels_hold_in_small_and_large_windows(
     under a metre (the metric camera frames at least a metre) labels were placed for a view twice
     as close and overlapped. In each window, on a wide, a tall and a small map, in both map views
     (the segmentation fitted to its bounds, the metric view as its camera sees it), no label is
-    cut off, over another or crossed by a line."""
+    cut off, over another or crossed by a line. With an events view under the maps (a session
+    with breaks) the map views are shorter (at 1024 x 768 the metric view 205 pixels high, not
+    253): labels laid out for the taller views (80 and 100 degrees) overlapped at 1024 x 768 to
+    1366 x 768; they hold in both layouts, since the events view appears with the first break,
+    after snapshots were logged (and at 1280 x 720 without it, laid out for a view a pixel taller
+    than it is, they touched)."""
     from rose_logs.rerun.blueprint import TopicLayout, _metric_eye, _topic_container
     from rose_logs.rerun.loggers import direction_label_anchors
 
@@ -1718,8 +1743,11 @@ def test_direction_labels_hold_in_small_and_large_windows(
     )
     # Map origin and view origin at 0: the segmentation's metres are x east, y south; the metric
     # view's x east, y north.
-    layout = TopicLayout("map", bounds_m=(0.0, 0.0, cols * resolution, rows * resolution))
-    segmentation_px, metric_px = _VIEWS_IN_WINDOW_PX[window]
+    layout = TopicLayout(
+        "map", bounds_m=(0.0, 0.0, cols * resolution, rows * resolution), has_events=events
+    )
+    views = _VIEWS_WITH_EVENTS_IN_WINDOW_PX if events else _VIEWS_IN_WINDOW_PX
+    segmentation_px, metric_px = views[window]
 
     segmentation = _topic_container(layout).contents[0].contents[0]
     ((x_range, y_range),) = [
