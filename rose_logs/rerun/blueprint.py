@@ -94,7 +94,7 @@ def metric_view_px(window_px: tuple[float, float], *, events: bool = False) -> t
 #: every window of :data:`LABEL_WINDOWS_PX`, without and with the events view. Both, for every
 #: snapshot: the events view comes with a session's first break, after snapshots were logged
 #: (a live viewer), and a saved recording's layout shows it at every time (labels laid out for
-#: the taller views touched each other under the map at 1024 x 768 and 1280 x 720).
+#: the taller views overlapped under the map from 1024 x 768 to 1366 x 768).
 SEGMENTATION_VIEWS_PX = tuple(
     segmentation_view_px(window, events=events)
     for events in (False, True)
