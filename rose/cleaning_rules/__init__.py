@@ -55,7 +55,7 @@ from rose.cleaning_rules.objects import (
     _Pieces,
     _pocket_faces,
 )
-from rose.cleaning_rules.outside import _near_wide_unknown, wide_unknown
+from rose.cleaning_rules.outside import _near_wide_unknown, unexplored_outside, wide_unknown
 from rose.cleaning_rules.runs import directional_runs, straight_lines
 from rose.grid import UNKNOWN, blocks_any
 from rose.labelling import components, label_boxes
@@ -452,6 +452,7 @@ def _wall_cells(
         )
     min_region_px = length_px(p.min_region_m2, res**2)
     guard_obstacles = occupied
+    edge_returns: npt.NDArray[np.bool_] | None = None
     if pieces_job is not None and apart_job is not None:
         pieces = pieces_job.result()
         np.greater(keep, dropped, out=keep)
@@ -519,6 +520,15 @@ def _wall_cells(
             max_box_area_px=min_region_px,
             inside_px=length_px(_THIN_WALL_M, res),
         )
+        # A piece at the explored edge, unexplored space that reaches the map's edge behind it,
+        # closed the known space off from the unknown in the input, with the other pieces there
+        # (the scattered ends of a SLAM map's rays into a room seen through its door): counted.
+        if loose.any():
+            apart = apart_job.result()
+            returns = loose & apart.loose(anchored, max_extent_px=robot_px)
+            if returns.any():
+                edge_returns = apart.facing(returns, unexplored_outside(unknown))
+                loose = np.greater(loose, edge_returns)
         guard_obstacles = np.greater(occupied, loose)
     if standing_in_doorways.any():
         # An object standing in a doorway seen through on both sides of it kept the doorway
@@ -547,6 +557,7 @@ def _wall_cells(
         radius_px=length_px(p.robot_radius_m, res),
         window_px=max(1, round(length_px(p.guard_window_m, res))),
         min_region_px=min_region_px,
+        off_grid=edge_returns,
     )
     kept = keep | guarded
     # (Object faces a partition keeps are walls, not dropped.) What stands in a doorway goes

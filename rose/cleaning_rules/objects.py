@@ -524,6 +524,26 @@ class _Pieces:
         out[box] = inner & seen[labels]
         return out
 
+    def facing(
+        self, cells: npt.NDArray[np.bool_], space: npt.NDArray[np.bool_]
+    ) -> npt.NDArray[np.bool_]:
+        """Cells of ``cells`` (occupied cells, some of the pieces') in pieces one of whose
+        ``cells`` is next to (8-connected) a cell of ``space``."""
+        out = np.zeros(cells.shape, dtype=bool)
+        if not cells.any():
+            return out
+        import cv2
+
+        box = _padded_box(cells, 1)
+        inner = cells[box]
+        near = cv2.dilate(space[box].view(np.uint8), np.ones((3, 3), np.uint8)).view(bool)
+        labels = self.labels[box]
+        facing = np.zeros(self.diagonals.size, dtype=bool)
+        facing[labels[inner & near]] = True
+        facing[0] = False
+        out[box] = inner & facing[labels]
+        return out
+
     def around_free(
         self, cells: npt.NDArray[np.bool_], known: npt.NDArray[np.bool_]
     ) -> npt.NDArray[np.bool_]:

@@ -134,3 +134,23 @@ def _chamfer_disc(radius: float) -> npt.NDArray[np.uint8]:
     disc = np.ascontiguousarray((distance <= radius)[::-1, ::-1]).view(np.uint8)
     disc.flags.writeable = False
     return disc
+
+
+def unexplored_outside(unknown: npt.NDArray[np.bool_]) -> npt.NDArray[np.bool_]:
+    """Unknown cells joined to the grid's edge by unknown space at least three cells wide (the
+    space beyond the explored part of the map), and the unknown cells next to them: not a shadow
+    enclosed by what was seen, nor one that unseen specks in free space (single missed cells
+    between rays) join to the outside."""
+    import cv2
+
+    from rose.labelling import fill_from_corner
+
+    kernel = np.ones((3, 3), np.uint8)
+    # A frame of unknown around the grid joins every unknown cell on the edge (three cells wide,
+    # so the opening keeps it); the flood from the frame's corner clears what it reaches.
+    framed = cv2.copyMakeBorder(unknown.view(np.uint8), 3, 3, 3, 3, cv2.BORDER_CONSTANT, value=1)
+    wide = np.asarray(cv2.morphologyEx(framed, cv2.MORPH_OPEN, kernel), dtype=np.uint8)
+    reached = wide.copy()
+    fill_from_corner(reached, 4)
+    outside = np.greater(wide, reached)
+    return (cv2.dilate(outside.view(np.uint8), kernel).view(bool) & framed.view(bool))[3:-3, 3:-3]
