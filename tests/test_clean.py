@@ -1083,16 +1083,6 @@ def _flipped(
     return grid, list(cells)
 
 
-_BACKED_BY_THE_OUTSIDE = pytest.mark.xfail(
-    strict=True,
-    reason="known: loose pieces are not the guard's obstacles, and no hidden wall line is drawn "
-    "behind them (an unseen stretch longer than max_bridge_m, or a wall holed every 3 cells: no "
-    "anchor); counting pieces whose unseen back reaches the outside fixes these but keeps "
-    "ray-cast furniture that stands the same way (docs/cleaning.md, 2026-12-07)",
-)
-
-
-@_BACKED_BY_THE_OUTSIDE
 @pytest.mark.parametrize("way", ["upright", "mirrored", "transposed"])
 @pytest.mark.parametrize(
     ("width", "off", "box_left"),
@@ -1118,7 +1108,6 @@ def test_a_cabinet_and_a_box_off_an_unseen_outer_wall_keep_the_room_closed(
     assert separated_pairs(cleaned.cleaned >= 65, room, outside)
 
 
-@_BACKED_BY_THE_OUTSIDE
 @pytest.mark.parametrize("way", ["upright", "mirrored", "transposed"])
 @pytest.mark.parametrize(("box", "off"), [((6, 5), 3), ((10, 8), 2), ((24, 9), 1)])
 def test_a_box_off_a_holed_outer_wall_keeps_the_room_closed(

@@ -214,6 +214,23 @@ def test_floors_on_ray_cast_furniture(fr101_case: CleaningCase) -> None:
     assert summary["walls"].gaps_worst <= 2
 
 
+@needs_logs
+def test_furniture_at_an_open_explored_edge_goes() -> None:
+    """A box ray-cast near the explored edge of Freiburg 079 turned by 30 degrees (seed 1), where
+    free space meets the unexplored space along metres with no wall seen. Loose pieces backed by
+    the outside count as the guard's obstacles when a kept straight wall is within a robot's
+    width; counted near any kept cell (the returns along that edge are kept as the building's
+    edge), the box was kept, closing nothing (35 of its cells)."""
+    from rose_logs.evaluation.raycast import raycast_case
+
+    case = raycast_case(LOGS / "freiburg-079-corrected.log.gz", seed=1, rotation_deg=30.0)
+    cleaned = clean(case.grid, rose.analyze(case.grid), resolution_m=case.resolution_m)
+    near_edge = (slice(30, 85), slice(150, 210))
+    clutter = case.clutter[near_edge]
+    assert np.count_nonzero(clutter) >= 30  # the box is there
+    assert not np.any(cleaned.kept[near_edge] & clutter)
+
+
 def test_a_coarse_map_is_cleaned_on_cells_of_the_design_size() -> None:
     # The same building and furniture ray-cast at 0.1 m per cell: the rules' whole-cell tolerances
     # would span twice the metres there. Measured on 0.1 m cells as they are: 0.94 / 0.75 / 0.86

@@ -47,6 +47,7 @@ from rose.cleaning_rules.objects import (
     _PARTITION_MIN_M,
     _THIN_WALL_M,
     _THIN_WALL_MIN_CELLS,
+    _backed_by_outside,
     _between_doors,
     _free_standing,
     _grow_within,
@@ -55,7 +56,12 @@ from rose.cleaning_rules.objects import (
     _Pieces,
     _pocket_faces,
 )
-from rose.cleaning_rules.outside import _near_wide_unknown, unexplored_outside, wide_unknown
+from rose.cleaning_rules.outside import (
+    _near_wide_unknown,
+    _wide_and_near,
+    unexplored_outside,
+    wide_unknown,
+)
 from rose.cleaning_rules.runs import directional_runs, straight_lines
 from rose.grid import UNKNOWN, blocks_any
 from rose.labelling import components, label_boxes
@@ -271,7 +277,7 @@ def _wall_cells(
             beside.submit(_apart_pieces, occupied, pieces_job) if pieces_job is not None else None
         )
         # (for the free-standing pieces too)
-        first_near_job = beside.submit(_near_wide_unknown, unknown, res, p)
+        first_near_job = beside.submit(_wide_and_near, unknown, res, p)
         runs = directional_runs(
             occupied,
             directions,
@@ -287,7 +293,7 @@ def _wall_cells(
             np.greater(occupied, runs), min_length_px=length_px(p.min_run_m, res)
         )
         lines |= runs
-        near_outside = first_near_job.result()
+        outside, near_outside = first_near_job.result()
         keep = _kept_walls(occupied, structure, near_outside, lines)
         reach_px = round(length_px(p.attach_reach_m, res))
         # Furniture flush against a wall: its hidden wall line is drawn, as the bridges' are,
@@ -452,7 +458,9 @@ def _wall_cells(
         )
     min_region_px = length_px(p.min_region_m2, res**2)
     guard_obstacles = occupied
-    edge_returns: npt.NDArray[np.bool_] | None = None
+    # Loose pieces two rules below count as the guard's obstacles (returns at the explored edge,
+    # pieces backed by the outside): they must not move the guard's cuts (its ``off_grid``).
+    counted_loose: npt.NDArray[np.bool_] | None = None
     if pieces_job is not None and apart_job is not None:
         pieces = pieces_job.result()
         np.greater(keep, dropped, out=keep)
@@ -527,8 +535,18 @@ def _wall_cells(
             apart = apart_job.result()
             returns = loose & apart.loose(anchored, max_extent_px=robot_px)
             if returns.any():
-                edge_returns = apart.facing(returns, unexplored_outside(unknown))
-                loose = np.greater(loose, edge_returns)
+                counted_loose = apart.facing(returns, unexplored_outside(unknown))
+                loose = np.greater(loose, counted_loose)
+        # A piece off an outer wall whose line runs on past it, unseen behind it, the outside
+        # within a robot's width of its back (a cabinet and a box side by side, 2 m or more: no
+        # hidden line drawn): counted too, and kept off the cuts' grid as the returns are.
+        if loose.any():
+            backed = _backed_by_outside(
+                apart_job.result(), loose, unknown, outside, keep & lines, robot_px=robot_px
+            )
+            if backed.any():
+                counted_loose = backed if counted_loose is None else counted_loose | backed
+                loose = np.greater(loose, backed)
         guard_obstacles = np.greater(occupied, loose)
     if standing_in_doorways.any():
         # An object standing in a doorway seen through on both sides of it kept the doorway
@@ -557,7 +575,7 @@ def _wall_cells(
         radius_px=length_px(p.robot_radius_m, res),
         window_px=max(1, round(length_px(p.guard_window_m, res))),
         min_region_px=min_region_px,
-        off_grid=edge_returns,
+        off_grid=counted_loose,
     )
     kept = keep | guarded
     # (Object faces a partition keeps are walls, not dropped.) What stands in a doorway goes

@@ -20,6 +20,7 @@ from rose.cleaning_rules.masks import (
     _any_of_8,
     _bounds,
     _cells_box,
+    _dilate,
     _flat_index,
     _nonzero_flat,
     _padded_box,
@@ -389,6 +390,42 @@ def _pocket_faces(
 
 #: The 8 neighbours of a cell, not the cell itself.
 _RING = np.array([[1, 1, 1], [1, 0, 1], [1, 1, 1]], np.uint8)
+
+
+def _backed_by_outside(
+    pieces: _Pieces,
+    loose: npt.NDArray[np.bool_],
+    unknown: npt.NDArray[np.bool_],
+    outside: npt.NDArray[np.bool_],
+    straight_walls: npt.NDArray[np.bool_],
+    *,
+    robot_px: int,
+) -> npt.NDArray[np.bool_]:
+    """Cells of ``loose`` (pieces of ``pieces``) in pieces between the room and the outside where a
+    wall runs on past them: within ``robot_px`` cells of ``straight_walls`` (kept cells on straight
+    runs), and next to ``unknown`` cells within ``robot_px`` steps (through unknown cells) of
+    ``outside`` (the wide unknown space).
+
+    The wall behind them was not seen, and no hidden line was drawn there (an unseen stretch longer
+    than a bridge, behind a cabinet and a box side by side; a wall holed too often for a bridge's
+    anchor): they kept the room apart from the outside. Kept cells that are no straight wall (the
+    returns along an open explored edge, kept as the building's edge) do not count: a box standing
+    there closes nothing."""
+    none = np.zeros(loose.shape, dtype=bool)
+    if not straight_walls.any() or not outside.any():
+        return none
+    near_walls = pieces.facing(loose, _dilate(straight_walls, robot_px))
+    if not near_walls.any():
+        return near_walls
+    # The unknown cells a robot's width from the outside, grown only within ``robot_px + 1``
+    # cells of the candidates (a path of ``robot_px`` steps from a cell next to them stays
+    # there): grown over the whole grid, every unseen shadow and object inside was a cell to
+    # look at.
+    box = _padded_box(near_walls, robot_px + 2)
+    around = _dilate(near_walls[box], robot_px + 1)
+    behind = none.copy()
+    behind[box] = _grow_within(outside[box] & around, unknown[box] & around, robot_px)
+    return pieces.facing(near_walls, behind)
 
 
 def _grow_within(

@@ -25,18 +25,26 @@ def _near_wide_unknown(
 ) -> npt.NDArray[np.bool_]:
     """Cells within ``p.unknown_margin_m`` of wide unknown space (:func:`wide_unknown`): exact at
     the known cells, the only ones read (the occupied cells among them)."""
+    return _wide_and_near(unknown, res, p)[1]
+
+
+def _wide_and_near(
+    unknown: npt.NDArray[np.bool_], res: float, p: CleanParams
+) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
+    """The wide unknown space (the outside: :func:`wide_unknown` of ``p.open_unknown_width_m``)
+    and :func:`_near_wide_unknown`, from one opening of the unknown cells."""
     outside = _wide(unknown, length_px(p.open_unknown_width_m, 2 * res))
     radius = round(length_px(p.unknown_margin_m, res))
     known = ~unknown
     if not known.any():
-        return outside
+        return outside, outside
     # Dilated on the known cells' box only (``radius`` wider): the grid is padded with unknown
     # cells as wide as the wide-unknown disc, and at 1 mm per cell the margin's 301-cell disc over
     # the padded grid took 2.6 s for a 100 x 100 map.
     near = outside.copy()
     box = _padded_box(known, radius)
     near[box] = _dilate(outside[box], radius)
-    return near
+    return outside, near
 
 
 def wide_unknown(occupancy: npt.NDArray[np.int8], *, radius_px: float) -> npt.NDArray[np.bool_]:
