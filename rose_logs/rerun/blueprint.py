@@ -19,22 +19,33 @@ from rerun.encodings import EntityPathLike
 
 from rose_logs.rerun import style
 from rose_logs.rerun.conversions import (
+    AMPLITUDE_X_RANGE,
+    AMPLITUDE_Y_BOTTOM,
     DIRECTION_LABEL_CLEARANCE_PX,
     DIRECTION_LABEL_EDGE_PX,
     DIRECTION_LABEL_HEIGHT_PX,
+    DIRECTION_LABEL_WIDTH_PX,
+    SCORE_BAR_ROOM_PX,
+    PeakLabelBoxes,
+    peak_label_boxes,
     score_bar_width,
 )
 from rose_logs.rerun.paths import SESSION_TIMELINE, EntityPaths
 
 __all__ = [
+    "AMPLITUDE_VIEWS_PX",
     "LABEL_WINDOWS_PX",
     "METRIC_MIN_HALF_M",
     "METRIC_VIEWS_PX",
+    "PEAK_LABEL_BOXES",
+    "SCORES_VIEWS_PX",
     "SEGMENTATION_VIEWS_PX",
     "TopicLayout",
+    "amplitude_view_px",
     "default_blueprint",
     "metric_frame",
     "metric_view_px",
+    "scores_units_per_px",
     "segmentation_frame",
     "segmentation_title",
     "segmentation_view_px",
@@ -104,6 +115,53 @@ SEGMENTATION_VIEWS_PX = tuple(
 METRIC_VIEWS_PX = tuple(
     metric_view_px(window, events=events) for events in (False, True) for window in LABEL_WINDOWS_PX
 )
+
+
+def amplitude_view_px(window_px: tuple[float, float]) -> tuple[float, float]:
+    """Screen pixels ``(width, height)`` of the amplitude view in the default layout of a
+    ``window_px`` window ``(w, h)``: 2/5 of its width, 2.3 / 9.6 of its height less the viewer's
+    bars, less the view's title (the right column's rows 2.5 / 1.8 / 2.3 / 3.0, with or without the
+    events view, which is in the left column), at least 2 pixels less than measured (as
+    :func:`segmentation_view_px`; the views' separators on screenshots at 1024 x 768, 1280 x 720
+    and 1920 x 1080: 409 x 140, 512 x 129, 768 x 216)."""
+    return 0.4 * window_px[0] - 4.0, 2.3 / 9.6 * (window_px[1] - 67.0) - 30.0
+
+
+#: The amplitude views' pixels its peaks' labels are laid out for, one per window of
+#: :data:`LABEL_WINDOWS_PX`.
+AMPLITUDE_VIEWS_PX = tuple(amplitude_view_px(window) for window in LABEL_WINDOWS_PX)
+#: The peaks' label boxes in the amplitude plot's units, for those views, and the view's top
+#: (worked out once: every snapshot's labels are placed with them,
+#: :func:`rose_logs.rerun.conversions.amplitude_plot`). Sized for 1600 x 1000, labels 20° apart
+#: were written over each other at 1024 x 768, and a peak at 0° had its label over the y axis's.
+PEAK_LABEL_BOXES: PeakLabelBoxes = peak_label_boxes(AMPLITUDE_VIEWS_PX)
+
+
+#: The scores view's pixels the colour bar is laid out for: the metric view's twin (the two share
+#: the left column's second row), with and without the events view in every window.
+SCORES_VIEWS_PX = METRIC_VIEWS_PX
+
+
+#: The narrowest and the lowest of :data:`SCORES_VIEWS_PX` (the lowest less the colour bar's room):
+#: a box's units per pixel are largest in them (worked out once: the bar is placed per snapshot).
+_SCORES_MIN_W = min(w for w, _ in SCORES_VIEWS_PX)
+_SCORES_MIN_H = max(min(h for _, h in SCORES_VIEWS_PX) - SCORE_BAR_ROOM_PX, 1.0)
+
+
+def scores_units_per_px(width: float, height: float) -> float:
+    """Units per screen pixel of the scores view at its smallest (the most of
+    :data:`SCORES_VIEWS_PX`) framing a box ``width`` x ``height`` (any units) with its margins
+    and the colour bar under it (:data:`~rose_logs.rerun.conversions.SCORE_BAR_ROOM_PX`, solved
+    for it, as :func:`_segmentation_room`), as wide as the bar and its labels out of its ends:
+    the bar and its labels are laid out in pixels at this scale
+    (:func:`rose_logs.rerun.loggers.bar_placement`), so they hold in every window."""
+    margin = _margin(width, height)
+    per_px = max((width + 2 * margin) / _SCORES_MIN_W, (height + 2 * margin) / _SCORES_MIN_H)
+    # A narrow map's bar and labels are wider than the map (at this scale; every view is more
+    # than the bar and a label wide, so the scale they need is no larger than this one).
+    across = score_bar_width(width, per_px) + DIRECTION_LABEL_WIDTH_PX * per_px + 2 * margin
+    return max(per_px, across / _SCORES_MIN_W)
+
 
 #: Metres the metric view's camera frames at least either side of the map's centre (a map of
 #: a few cells is not seen from a few centimetres up); the direction labels' scale there
@@ -290,25 +348,28 @@ def _metric_eye(layout: TopicLayout) -> rrb.EyeControls3D | None:
 
 
 def _north_up_bounds(
-    layout: TopicLayout, *, below: float = 0.0, bar: bool = False, label: bool = False
+    layout: TopicLayout, *, bar: bool = False, label: bool = False
 ) -> rrb.VisualBounds2D | None:
     """The known box of ``layout`` in the 2D views' north-up frame (x east, y south, metres from
-    its view origin: :func:`rose_logs.rerun.loggers.placement_terms`), with a margin, and
-    ``below`` times its height (at least a quarter of its width, as the colour bar's size:
-    :func:`rose_logs.rerun.loggers.bar_placement`) more under it; ``bar``: as wide as the colour
-    bar at least (a tall map's is wider than the map); ``label``: room for a direction's label
-    under it (:func:`_segmentation_room`)."""
+    its view origin: :func:`rose_logs.rerun.loggers.placement_terms`), with a margin; ``bar``:
+    and the colour bar and its labels under it, as wide as they are
+    (:func:`scores_units_per_px`, :func:`rose_logs.rerun.loggers.bar_placement`); ``label``: room
+    for a direction's label under it (:func:`_segmentation_room`)."""
     if layout.bounds_m is None:
         return None
     x0, y0, x1, y1 = layout.bounds_m
     rx, ry = layout.view_origin_m
-    margin = _margin(x1 - x0, y1 - y0)
-    extra = below * max(y1 - y0, 0.25 * (x1 - x0))
+    width, height = x1 - x0, y1 - y0
+    margin = _margin(width, height)
+    extra = 0.0
     if label:
-        extra += _segmentation_room(x1 - x0, y1 - y0)
-    spill = 0.0  # how far the bar reaches out of the box on either side
+        extra += _segmentation_room(width, height)
+    spill = 0.0  # how far the bar's labels reach out of the box on either side
     if bar:
-        spill = max(score_bar_width(x1 - x0, max(y1 - y0, 0.25 * (x1 - x0))) - (x1 - x0), 0.0) / 2
+        per_px = scores_units_per_px(width, height)
+        extra += SCORE_BAR_ROOM_PX * per_px
+        reach = score_bar_width(width, per_px) + DIRECTION_LABEL_WIDTH_PX * per_px
+        spill = max(reach - width, 0.0) / 2
     return rrb.VisualBounds2D(
         x_range=(x0 - rx - margin - spill, x1 - rx + margin + spill),
         y_range=(ry - y1 - margin, ry - y0 + margin + extra),
@@ -329,7 +390,6 @@ def segmentation_title(root: str, *, has_walls: bool = False, walls_cleaning: bo
 def _topic_container(layout: TopicLayout) -> rrb.Container:
     paths = EntityPaths(layout.root)
     root = paths.root
-    h = style.AMPLITUDE_PLOT_HEIGHT
     # The topic in the first view's title only: in the others' it cut their legends off (a
     # long topic name); the topic's tab names it too.
     segmentation = rrb.Spatial2DView(
@@ -356,7 +416,7 @@ def _topic_container(layout: TopicLayout) -> rrb.Container:
     scores = rrb.Spatial2DView(
         name="scores of occupied cells",
         origin=f"/{paths.scores_view}",
-        visual_bounds=_north_up_bounds(layout, below=0.45, bar=True),  # and the colour bar
+        visual_bounds=_north_up_bounds(layout, bar=True),  # and the colour bar
     )
     w_plot = _session_plot(
         # (As long as fits a third of 1600 pixels: a longer title was cut.)
@@ -384,8 +444,10 @@ def _topic_container(layout: TopicLayout) -> rrb.Container:
         # (The title's length fits a third of 1600 pixels.)
         name="cumulative amplitude s per direction; peaks kept if bar (prominence p) passes t",
         origin=f"/{paths.amplitude_view}",
-        # Above s = 1: the peaks' labels hang over them (conversions.PEAK_LABEL_LIFT).
-        visual_bounds=rrb.VisualBounds2D(x_range=(-22.0, 198.0), y_range=(-1.36 * h, 44.0)),
+        # Above s = 1 room for a peak's label in every window (PEAK_LABEL_BOXES).
+        visual_bounds=rrb.VisualBounds2D(
+            x_range=AMPLITUDE_X_RANGE, y_range=(PEAK_LABEL_BOXES.top, AMPLITUDE_Y_BOTTOM)
+        ),
     )
     spectrum = rrb.Spatial2DView(
         name="log amplitude spectrum, kept strips (magenta)",

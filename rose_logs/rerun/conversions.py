@@ -57,13 +57,20 @@ _VIRIDIS = np.array(
 )
 
 __all__ = [
+    "AMPLITUDE_X_RANGE",
+    "AMPLITUDE_Y_BOTTOM",
     "DIRECTION_LABEL_CLEARANCE_PX",
     "DIRECTION_LABEL_EDGE_PX",
     "DIRECTION_LABEL_HEIGHT_PX",
     "DIRECTION_LABEL_WIDTH_PX",
-    "SCORE_BAR_MIN_WIDTH",
+    "SCORE_BAR_HEIGHT_PX",
+    "SCORE_BAR_LABELS_GAP_PX",
+    "SCORE_BAR_MIN_PX",
+    "SCORE_BAR_ROOM_PX",
+    "SCORE_BAR_TOP_PX",
     "AmplitudePlot",
     "OccupiedCells",
+    "PeakLabelBoxes",
     "amplitude_plot",
     "colour_levels",
     "direction_label_positions",
@@ -74,6 +81,7 @@ __all__ = [
     "known_bounds_cells",
     "masked_score_image",
     "occupied_cells",
+    "peak_label_boxes",
     "pool_classes",
     "pool_scores",
     "pooled_score_image",
@@ -891,17 +899,32 @@ DIRECTION_LABEL_CLEARANCE_PX = 8.0
 DIRECTION_LABEL_EDGE_PX = 6.0
 
 
-#: The colour bar is at least this fraction of its size (the box's height, at least a quarter of
-#: its width) wide: at 0.6 of a tall map's width its end labels, each about 80 screen pixels wide
-#: and centred on its ends, overlapped ("score ≤ -0.5" over "1 (best cell)", the sample map turned
-#: upright); the scores view shows about 230 pixels per size there (345 / 1.51), 170 for the bar.
-SCORE_BAR_MIN_WIDTH = 0.75
+#: The colour bar under the cells in the scores view, screen pixels, in the smallest view of the
+#: layout (:func:`rose_logs.rerun.blueprint.scores_units_per_px`): the threshold's label (a
+#: direction label's size) 4 under the cells' box, the bar's top 31 under it, the bar 8 high, the
+#: scale's labels 4 under it and 6 from the view's lower edge. As fractions of the map's height
+#: (0.45 of it under the map) the labels were cut at the view's lower edge on a tall map at
+#: 1024 x 768 with the events view and at 1280 x 720.
+SCORE_BAR_TOP_PX = 31.0
+SCORE_BAR_HEIGHT_PX = 8.0
+SCORE_BAR_LABELS_GAP_PX = 4.0
+SCORE_BAR_ROOM_PX = (
+    SCORE_BAR_TOP_PX
+    + SCORE_BAR_HEIGHT_PX
+    + SCORE_BAR_LABELS_GAP_PX
+    + DIRECTION_LABEL_HEIGHT_PX
+    + DIRECTION_LABEL_EDGE_PX
+)
+#: The bar is at least this many pixels wide: its end labels ("score ≤ -0.5", "1 (best cell)",
+#: about 80 pixels each) are centred on its ends and keep 8 pixels apart; they, and the
+#: threshold's label, reach half a label's width (:data:`DIRECTION_LABEL_WIDTH_PX`) out of its ends.
+SCORE_BAR_MIN_PX = DIRECTION_LABEL_WIDTH_PX + 8.0
 
 
-def score_bar_width(width: float, size: float) -> float:
-    """Width of the colour bar under a box ``width`` wide, of size ``size`` (same units): 0.6 of
-    the box's width, at least :data:`SCORE_BAR_MIN_WIDTH` of its size."""
-    return max(0.6 * width, SCORE_BAR_MIN_WIDTH * size)
+def score_bar_width(width: float, per_px: float) -> float:
+    """Width of the colour bar under a box ``width`` wide in a view of ``per_px`` units per screen
+    pixel (same units): 0.6 of the box's width, at least :data:`SCORE_BAR_MIN_PX` pixels."""
+    return max(0.6 * width, SCORE_BAR_MIN_PX * per_px)
 
 
 def view_units_per_px(framed: tuple[float, float], view_px: tuple[float, float]) -> float:
@@ -958,33 +981,171 @@ def _folded_deg(angles_rad: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
     return folded
 
 
-#: How far above its peak (in units of ``s``) a peak's label hangs: a label is about a fifth of
-#: the plot's height tall.
-PEAK_LABEL_LIFT = 0.24
-#: The leftmost centre of a peak's label (degrees): a label is about 65 degrees wide at the default
-#: layout, and the y axis's labels stand left of 0.
-PEAK_LABEL_MIN_DEG = 36.0
-#: Centres of two labels at about the same height are at least this far apart (degrees): a label
-#: is 65-72 degrees wide at the default layout ("176.2° p 1.00").
-PEAK_LABEL_WIDTH_DEG = 72.0
-#: Labels whose anchors are less than this apart in ``s`` share a row and are spread along it.
-PEAK_LABEL_HEIGHT_S = 0.22
+#: The peaks' labels in the amplitude view, screen pixels: "100.0° p 0.67" is 85 wide and its box
+#: 22 high (Rerun 0.41, as the direction labels); the box keeps 6 pixels above its peak's centre
+#: (the dot is 4 points), and 6 from the view's edges; the y axis's tick labels ("0.5", centred
+#: 9 units left of the axis) reach 16 pixels right of their centre.
+PEAK_LABEL_WIDTH_PX = 90.0
+PEAK_LABEL_HEIGHT_PX = 24.0
+PEAK_LABEL_CLEARANCE_PX = 6.0
+PEAK_LABEL_EDGE_PX = 6.0
+AXIS_LABEL_HALF_PX = 16.0
+#: The amplitude view's frame, plot units: x across the axis and its tick labels (degrees), y
+#: from under the axis's labels (``+``, down on screen); its top is worked out for the labels
+#: (:func:`peak_label_boxes`).
+AMPLITUDE_X_RANGE = (-22.0, 198.0)
+AMPLITUDE_Y_BOTTOM = 44.0
+#: Where the y axis's tick labels are centred (x, plot units).
+AMPLITUDE_AXIS_LABEL_X = -9.0
 
 
-def _label_anchors(peaks: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
-    """Where the labels of ``peaks`` (shape (K, 2), plot units) hang: above each peak, right of the
-    y axis and its tick labels (a peak at 0° hung its label over "s" and "1"), and, from left to
-    right, each at least a label's width right of the labels at about its height (peaks at 0° and
-    90° of equal height wrote their labels over each other)."""
+@dataclass(frozen=True)
+class PeakLabelBoxes:
+    """The peaks' labels as boxes in the amplitude plot's units (x degrees; y ``-height * s``,
+    down on screen), at the most units per pixel of the views they are laid out for
+    (:func:`peak_label_boxes`), so that labels apart there stay apart in a larger view.
+
+    Attributes
+    ----------
+    width, height : float
+        A label's box.
+    clearance : float
+        From the lower edge of a label's box up to its peak (or any peak under it).
+    x_min, x_max : float
+        Leftmost and rightmost centre of a label: right of the y axis's tick labels, in what every
+        view shows (more than its frame across: the views are wider than the frame).
+    y_min : float
+        Highest top of a label's box (the frame's top and its edge).
+    top : float
+        The frame's top (the view's visual bounds): room for a label over a peak at ``s = 1``.
+    """
+
+    width: float
+    height: float
+    clearance: float
+    x_min: float
+    x_max: float
+    y_min: float
+    top: float
+
+
+def peak_label_boxes(views_px: Sequence[tuple[float, float]]) -> PeakLabelBoxes:
+    """The peaks' label boxes for amplitude views of ``views_px`` (width, height, screen pixels).
+
+    The view frames :data:`AMPLITUDE_X_RANGE` across and from its top to
+    :data:`AMPLITUDE_Y_BOTTOM`, the top a label's room above ``s = 1``; Rerun fits the frame
+    keeping its aspect, so the units per pixel are ``max(frame width / view width, frame height
+    / view height)``, the room itself in the frame's height (solved for it)."""
     height = AMPLITUDE_PLOT_HEIGHT
-    x = np.maximum(peaks[:, 0], PEAK_LABEL_MIN_DEG)
-    y = peaks[:, 1] - height * PEAK_LABEL_LIFT
-    order = np.argsort(x, kind="stable").tolist()
-    for n, i in enumerate(order):
-        for j in order[:n]:
-            if abs(y[i] - y[j]) < height * PEAK_LABEL_HEIGHT_S:
-                x[i] = max(x[i], x[j] + PEAK_LABEL_WIDTH_DEG)
-    return np.stack([x, y], axis=-1)
+    room_px = PEAK_LABEL_CLEARANCE_PX + PEAK_LABEL_HEIGHT_PX + PEAK_LABEL_EDGE_PX
+    span_x = AMPLITUDE_X_RANGE[1] - AMPLITUDE_X_RANGE[0]
+    per_px = max(
+        max(span_x / w for w, _ in views_px),
+        max((AMPLITUDE_Y_BOTTOM + height) / max(h - room_px, 1.0) for _, h in views_px),
+    )
+    top = -height - room_px * per_px
+    span_y = AMPLITUDE_Y_BOTTOM - top
+    # What every view shows across: at least the frame, more where the view is wider.
+    shown = min(w * max(span_x / w, span_y / h) for w, h in views_px)
+    centre = (AMPLITUDE_X_RANGE[0] + AMPLITUDE_X_RANGE[1]) / 2
+    width = PEAK_LABEL_WIDTH_PX * per_px
+    return PeakLabelBoxes(
+        width=width,
+        height=PEAK_LABEL_HEIGHT_PX * per_px,
+        clearance=PEAK_LABEL_CLEARANCE_PX * per_px,
+        x_min=AMPLITUDE_AXIS_LABEL_X + (AXIS_LABEL_HALF_PX + 2.0) * per_px + width / 2,
+        x_max=centre + shown / 2 - PEAK_LABEL_EDGE_PX * per_px - width / 2,
+        y_min=top + PEAK_LABEL_EDGE_PX * per_px,
+        top=top,
+    )
+
+
+#: Peaks this near 0° (degrees) are labelled over the curve's other end, at 180°, where it rises
+#: to them again.
+PEAK_LABEL_WRAP_DEG = 10.0
+
+
+def _label_anchors(
+    peaks: npt.NDArray[np.float64], boxes: PeakLabelBoxes
+) -> npt.NDArray[np.float64]:
+    """Where the labels of ``peaks`` (shape (K, 2), plot units) hang (the top centre of each
+    label's box: Rerun draws a label under its point): over its peak (a peak near 0° over the
+    curve's other end at 180°), clear of it, in the view and right of the y axis's tick labels
+    (a peak at 0° hung its label over "s" and "1"), and clear of the labels placed before it
+    (left to right, or the highest peaks' first: what moves them least) and of every peak's bar (a box may not reach below a peak's top within its
+    width). Where that is taken, the nearest free place beside the labels and bars in the way or
+    right of the plot in the same row, else a row higher, else lower; peaks 20° apart wrote
+    their labels over each other in a small window (a label is 90-130 degrees wide at 1280 x
+    720, 72 at 1600 x 1000: laid out for the widest, :class:`PeakLabelBoxes`)."""
+    b = boxes
+    half = b.width / 2
+    xs, ys = peaks[:, 0].tolist(), peaks[:, 1].tolist()  # plain floats: a few labels
+    # A peak too near 0° for its label (the y axis's labels are there) is also at 180°, where the
+    # curve rises to it again: its label goes over that end (held at x_min it stood over a peak
+    # at 90° and read as that peak's).
+    wants = [
+        x + 180.0 if x < min(b.x_min, PEAK_LABEL_WRAP_DEG) and x + 180.0 <= b.x_max else x
+        for x in xs
+    ]
+    targets = [
+        (min(max(x, b.x_min), b.x_max), max(y - b.clearance - b.height, b.y_min))
+        for x, y in zip(wants, ys, strict=True)
+    ]
+
+    def free(x: float, y: float, placed: list[tuple[float, float]]) -> bool:
+        if not b.x_min - 1e-9 <= x <= b.x_max + 1e-9:
+            return False
+        for px, py in placed:
+            if abs(px - x) < b.width - 1e-9 and abs(py - y) < b.height - 1e-9:
+                return False
+        bottom = y + b.height + b.clearance
+        return all(
+            not (abs(peak_x - x) < half - 1e-9 and bottom > peak_y + 1e-9)
+            for peak_x, peak_y in zip(xs, ys, strict=True)
+        )
+
+    def place(order: list[int]) -> tuple[float, list[tuple[float, float]]]:
+        """The labels placed one by one in ``order``, and how far they are from their targets."""
+        placed: list[tuple[float, float]] = []  # (centre x, top y) of the boxes placed
+        out = [(0.0, 0.0)] * len(xs)
+        moved = 0.0
+        for i in order:
+            want_x, want_y = targets[i]
+            best: tuple[float, float, float] | None = None
+            if free(want_x, want_y, placed):  # the usual case: over its peak
+                best = (0.0, want_x, want_y)
+            # Rows from over the peak upwards, then (no room above) downwards.
+            rows = [want_y - r * b.height for r in range(len(xs) + 1)]
+            rows = [y for y in rows if y >= b.y_min - 1e-9] or [want_y]
+            rows += [want_y + r * b.height for r in range(1, len(xs) + 1)]
+            for y in rows if best is None else ():
+                # Beside a label or a peak's bar in the way, or right of the plot (past 180
+                # degrees nothing is drawn under a label).
+                candidates = [want_x, b.x_max]
+                for px, _ in placed:
+                    candidates += [px + b.width, px - b.width]
+                for peak_x in xs:
+                    candidates += [peak_x + half + b.clearance / 3, peak_x - half - b.clearance / 3]
+                for x in candidates:
+                    cost = abs(x - want_x) + abs(y - want_y)
+                    if (best is None or cost < best[0]) and free(x, y, placed):
+                        best = (cost, x, y)
+                if best is not None:
+                    break
+            cost, x, y = (0.0, want_x, want_y) if best is None else best
+            moved += cost
+            placed.append((x, y))
+            out[i] = (x, y)
+        return moved, out
+
+    # Left to right, and (when that moved a label) the highest peaks first, whose labels have
+    # the top row only: the layout that moves them least.
+    moved, out = place(sorted(range(len(xs)), key=lambda k: wants[k]))
+    if moved > 0.0:
+        other = place(sorted(range(len(xs)), key=lambda k: (ys[k], wants[k])))
+        if other[0] < moved:
+            moved, out = other
+    return np.array(out, dtype=np.float64).reshape(-1, 2)
 
 
 #: Where the prominence threshold's label ("t = 0.5", about 40 degrees wide at the default layout)
@@ -1122,10 +1283,17 @@ class AmplitudePlot:
     threshold_strips: list[list[tuple[float, float]]] = dataclasses_field(default_factory=list)
 
 
-def amplitude_plot(result: RoseResult, *, yaw_rad: float = 0.0) -> AmplitudePlot:
+def amplitude_plot(
+    result: RoseResult, *, yaw_rad: float = 0.0, label_boxes: PeakLabelBoxes | None = None
+) -> AmplitudePlot:
     """Plot geometry of the paper's scaled scores ``s = (A - min) / (max - min)`` per direction, in
     map-frame degrees: ROSE's grid-frame directions turned by the origin's ``yaw_rad``, as the map
-    views and every report label them."""
+    views and every report label them. ``label_boxes``: the peaks' label boxes (None: the default
+    layout's, :data:`rose_logs.rerun.blueprint.PEAK_LABEL_BOXES`)."""
+    if label_boxes is None:
+        from rose_logs.rerun import blueprint  # (it imports this module)
+
+        label_boxes = blueprint.PEAK_LABEL_BOXES
     amplitude = np.asarray(result.cumulative_amplitude, dtype=np.float64)
     low, high = (float(amplitude.min()), float(amplitude.max())) if amplitude.size else (0.0, 0.0)
     span = high - low
@@ -1187,7 +1355,7 @@ def amplitude_plot(result: RoseResult, *, yaw_rad: float = 0.0) -> AmplitudePlot
         peaks=peaks,
         prominence_bars=bars,
         peak_labels=labels,
-        label_anchors=_label_anchors(peaks),
+        label_anchors=_label_anchors(peaks, label_boxes),
         threshold=threshold,
         threshold_label_deg=label_deg,
         rejected_bars=rejected_bars,

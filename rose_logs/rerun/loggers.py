@@ -28,8 +28,10 @@ from rose_logs.rerun import conversions as conv
 from rose_logs.rerun.blueprint import (
     METRIC_MIN_HALF_M,
     METRIC_VIEWS_PX,
+    PEAK_LABEL_BOXES,
     SEGMENTATION_VIEWS_PX,
     metric_frame,
+    scores_units_per_px,
     segmentation_frame,
 )
 from rose_logs.rerun.paths import SEQUENCE_TIMELINE, SESSION_TIMELINE, TIMELINE, EntityPaths
@@ -354,32 +356,31 @@ def direction_label_anchors(
     )
 
 
-#: The colour bar's height, as a fraction of the occupied cells' box height (its size), and its
-#: labels' places in its pixels (it is 2 pixels high): the scale and best-cell labels 0.09 size
-#: under it, the threshold's 0.2 size above it, between the bar and the cells.
-_BAR_HEIGHT = 0.035
-_BAR_LABELS_BELOW_PX = 2.0 + 0.09 / (_BAR_HEIGHT / 2)
-_BAR_THRESHOLD_LABEL_PX = -0.2 / (_BAR_HEIGHT / 2)
+#: The colour bar's labels' places in its pixels (it is 2 pixels high, each
+#: ``conv.SCORE_BAR_HEIGHT_PX / 2`` screen pixels at the layout's smallest scale): the scale and
+#: best-cell labels ``conv.SCORE_BAR_LABELS_GAP_PX`` under it, the threshold's above it, its box
+#: (1 to 24 pixels under its point) 3 pixels clear of the bar, between the bar and the cells.
+_BAR_PX = conv.SCORE_BAR_HEIGHT_PX / 2
+_BAR_LABELS_BELOW_PX = 2.0 + conv.SCORE_BAR_LABELS_GAP_PX / _BAR_PX
+_BAR_THRESHOLD_LABEL_PX = -(conv.DIRECTION_LABEL_HEIGHT_PX + 3.0) / _BAR_PX
 
 
-def bar_placement(
-    box: tuple[float, float, float, float], *, min_size_m: float = 0.0
-) -> rr.Transform3D:
+def bar_placement(box: tuple[float, float, float, float]) -> rr.Transform3D:
     """The colour bar's placement (metres per bar pixel) under ``box`` = (west, north, east, south),
     the 2D views' north-up metres (y south), centred, :func:`conv.score_bar_width` wide (0.6 of
-    the box's width; a tall box's wider than the box, for its end labels to stay apart), its labels
-    clear of the box.
+    the box's width, and wide enough for its end labels to stay apart), its labels clear of the
+    box.
 
-    Every vertical length is a fraction of one size, so that the labels' places in the bar's pixels
-    hold whatever the box (a thin map's bar is sized by its width)."""
+    Laid out in screen pixels at the scores view's smallest scale for that box
+    (:func:`scores_units_per_px`, the scale the view's frame leaves room for), so that the labels'
+    places in the bar's pixels hold whatever the box and they stay in view in every window."""
     west, north, east, south = box
     width = east - west
-    size = max(south - north, 0.25 * width, min_size_m)
-    bar = conv.score_bar_width(width, size)
-    # Far enough below for the threshold's label to sit between the cells and the bar.
+    per_px = scores_units_per_px(width, south - north)
+    bar = conv.score_bar_width(width, per_px)
     return rr.Transform3D(
-        translation=[(west + east - bar) / 2, south + 0.22 * size, 0.0],
-        scale=[bar / style.DISPLAY_LEVELS, _BAR_HEIGHT * size / 2, 1.0],
+        translation=[(west + east - bar) / 2, south + conv.SCORE_BAR_TOP_PX * per_px, 0.0],
+        scale=[bar / style.DISPLAY_LEVELS, _BAR_PX * per_px, 1.0],
     )
 
 
@@ -847,26 +848,19 @@ class TopicLogger:
             self._origin_for(snapshot),
         )
         (west, north), (east, south) = corners.min(axis=0), corners.max(axis=0)
-        return bar_placement(
-            (west, north, east, south), min_size_m=10.0 * float(snapshot.resolution_m)
-        )
+        return bar_placement((west, north, east, south))
 
-    def log_final_placement(
-        self, bounds_m: tuple[float, float, float, float] | None, *, min_size_m: float = 0.0
-    ) -> None:
+    def log_final_placement(self, bounds_m: tuple[float, float, float, float] | None) -> None:
         """Place the colour bar under the session's known box ``bounds_m`` (map frame, metres: the
         box the scores view frames), at every time. Under the last map, a map that shrank, moved
-        or changed its cell size had a bar too small for its labels, which covered it.
-        ``min_size_m``: as under each snapshot (ten of the last snapshot's cells)."""
+        or changed its cell size had a bar too small for its labels, which covered it."""
         # Only where no placement was logged per snapshot (not ``live``): the web viewer kept
         # those over a static one logged after them.
         if bounds_m is None or self.view_origin_m is None:
             return
         x0, y0, x1, y1 = bounds_m
         rx, ry = self.view_origin_m
-        self.score_legend_placement = bar_placement(
-            (x0 - rx, ry - y1, x1 - rx, ry - y0), min_size_m=min_size_m
-        )
+        self.score_legend_placement = bar_placement((x0 - rx, ry - y1, x1 - rx, ry - y0))
         self.recording.log(self.paths.score_legend, self.score_legend_placement, static=True)
 
     def log_spectrum(self, result: RoseResult) -> None:
@@ -900,7 +894,7 @@ class TopicLogger:
         static (a parameter of the session).
         """
         rec, paths = self.recording, self.paths
-        plot = conv.amplitude_plot(result, yaw_rad=yaw_rad)
+        plot = conv.amplitude_plot(result, yaw_rad=yaw_rad, label_boxes=PEAK_LABEL_BOXES)
         if not self._threshold_logged:
             # The ticks' style is static (a parameter of the session); they are logged with each
             # snapshot, on its peaks' bars.

@@ -700,11 +700,7 @@ class RerunSink:
         self._closing = True  # the final layout frames every map of the session
         if not self.live:  # a live viewer placed the bar with each map
             for topic, logger in self.loggers.items():
-                latest = self._latest.get(topic)
-                logger.log_final_placement(
-                    self._framed_m(topic),
-                    min_size_m=10.0 * float(latest.resolution_m) if latest is not None else 0.0,
-                )
+                logger.log_final_placement(self._framed_m(topic))
         self._send_blueprint()
         self._flush()
         self.recording.disconnect()

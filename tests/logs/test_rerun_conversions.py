@@ -11,8 +11,8 @@ import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
 import rose
+from rose_logs.rerun import blueprint, style
 from rose_logs.rerun import conversions as conv
-from rose_logs.rerun import style
 
 
 def _plan(shape: tuple[int, int] = (80, 120), *, angle_deg: float = 0.0) -> npt.NDArray[np.int8]:
@@ -291,19 +291,22 @@ def test_amplitude_plot_scales_to_unit_and_marks_peaks(plan) -> None:
         height * result.peak_prominences,
     )
     assert plot.threshold == result.params.peak_prominence
-    # Each label hangs above its peak, clear of the bar running down from it and of the curve
-    # (Rerun draws a label under its point; the bar went through the label).
-    shift = plot.label_anchors[:, 0] - np.maximum(plot.peaks[:, 0], 36.0)
-    assert np.all((shift >= 0.0) & (shift < 35.0))  # over the peak, or spread right of it
-    lift = (plot.peaks[:, 1] - plot.label_anchors[:, 1]) / height
-    assert np.all(lift >= 0.2)
-    # ... and inside the plot's view (blueprint: y from -1.36 * height).
-    assert np.all(plot.label_anchors[:, 1] > -1.36 * height)
+    # Each label hangs in the view, right of the y axis's labels, its box (under its point) clear
+    # of every peak's dot and bar (the bar went through the label); every window's: the labels'
+    # places there, tests/logs/test_rerun_label_windows.py.
+    boxes = blueprint.PEAK_LABEL_BOXES
+    x, y = plot.label_anchors[:, 0], plot.label_anchors[:, 1]
+    assert np.all((x >= boxes.x_min - 1e-9) & (x <= boxes.x_max + 1e-9) & (y >= boxes.y_min - 1e-9))
+    for peak_x, peak_y in plot.peaks.tolist():
+        over = np.abs(x - peak_x) < boxes.width / 2
+        assert np.all(y[over] + boxes.height + boxes.clearance <= peak_y + 1e-9)
 
 
 def test_labels_of_peaks_of_equal_height_do_not_cover_each_other(plan) -> None:
-    """Peaks at 0 and 90 degrees of equal height wrote their labels over each other (the 0-degree
-    label is held right of the y axis, 54 degrees from the other: a label is about 70 wide)."""
+    """Peaks at 0 and 90 degrees of equal height wrote their labels over each other; a label is
+    90 to 130 degrees wide in a small window. The 0-degree label stands over the curve's end at
+    180 degrees (the y axis's labels are at 0), a label's width from the other; peaks far apart
+    keep theirs over them when there is room (here labels 70 degrees wide)."""
     _, result = plan
     top = int(np.argmax(result.cumulative_amplitude))
     even = dataclasses.replace(
@@ -312,17 +315,17 @@ def test_labels_of_peaks_of_equal_height_do_not_cover_each_other(plan) -> None:
         peak_indices=np.array([top, top]),
         peak_prominences=np.array([1.0, 1.0]),
     )
-    anchors = conv.amplitude_plot(even).label_anchors
+    boxes = conv.PeakLabelBoxes(
+        width=70.0, height=20.0, clearance=4.0, x_min=36.0, x_max=250.0, y_min=-130.0, top=-135.0
+    )
+    anchors = conv.amplitude_plot(even, label_boxes=boxes).label_anchors
+    # 90 degrees over its peak; 0 degrees over the curve's other end (180), clear of the axis.
+    assert anchors[0, 0] == 90.0 and anchors[1, 0] == 180.0
     assert anchors[0, 1] == anchors[1, 1]
-    assert anchors[1, 0] == 36.0  # 0 degrees, right of the axis
-    assert anchors[0, 0] - anchors[1, 0] >= 70.0  # 90 degrees, a label's width right of it
-    assert anchors[0, 0] - 90.0 < 35.0  # still over its peak
-    # Peaks far apart, or at other heights, keep their labels over them.
     apart = dataclasses.replace(even, dominant_directions=np.radians([170.0, 10.0]))
-    assert_allclose(conv.amplitude_plot(apart).label_anchors[:, 0], [170.0, 36.0])
-    low = int(np.argmin(result.cumulative_amplitude))
-    stepped = dataclasses.replace(even, peak_indices=np.array([top, low]))
-    assert_allclose(conv.amplitude_plot(stepped).label_anchors[:, 0], [90.0, 36.0])
+    assert_allclose(
+        conv.amplitude_plot(apart, label_boxes=boxes).label_anchors[:, 0], [170.0, 36.0]
+    )
 
 
 @pytest.mark.parametrize("yaw_deg", [30.0, -95.0, 0.3, -90.0, 90.0])

@@ -1165,7 +1165,7 @@ def test_the_colour_bar_lies_under_its_box_and_inside_the_scores_view() -> None:
         placement = bar_placement((west, north, east, south))
         ((left, top, _),) = placement.translation.pa_array.to_pylist()
         ((scale_x, scale_y, _),) = placement.scale.pa_array.to_pylist()
-        bounds = _north_up_bounds(TopicLayout("map", bounds_m=box), below=0.45)
+        bounds = _north_up_bounds(TopicLayout("map", bounds_m=box), bar=True)
         assert bounds is not None
         ((view_top, view_bottom),) = [r["y_range"] for r in bounds.range.pa_array.to_pylist()]
         assert west < left and left + scale_x * DISPLAY_LEVELS < east
@@ -1192,7 +1192,7 @@ def test_the_colour_bars_end_labels_stay_apart_on_a_map_of_any_aspect(aspect: fl
     placement = bar_placement((west, north, east, south))
     ((left, _, _),) = placement.translation.pa_array.to_pylist()
     ((scale_x, _, _),) = placement.scale.pa_array.to_pylist()
-    bounds = _north_up_bounds(TopicLayout("map", bounds_m=box), below=0.45, bar=True)
+    bounds = _north_up_bounds(TopicLayout("map", bounds_m=box), bar=True)
     assert bounds is not None
     ((x_range, y_range),) = [
         (r["x_range"], r["y_range"]) for r in bounds.range.pa_array.to_pylist()
