@@ -1080,6 +1080,7 @@ def _label_anchors(
     b = boxes
     half = b.width / 2
     xs, ys = peaks[:, 0].tolist(), peaks[:, 1].tolist()  # plain floats: a few labels
+    peaks_xy = list(zip(xs, ys, strict=True))
     # A peak too near 0° for its label (the y axis's labels are there) is also at 180°, where the
     # curve rises to it again: its label goes over that end (held at x_min it stood over a peak
     # at 90° and read as that peak's).
@@ -1099,10 +1100,10 @@ def _label_anchors(
             if abs(px - x) < b.width - 1e-9 and abs(py - y) < b.height - 1e-9:
                 return False
         bottom = y + b.height + b.clearance
-        return all(
-            not (abs(peak_x - x) < half - 1e-9 and bottom > peak_y + 1e-9)
-            for peak_x, peak_y in zip(xs, ys, strict=True)
-        )
+        for peak_x, peak_y in peaks_xy:  # (a loop: a generator cost more than the test)
+            if abs(peak_x - x) < half - 1e-9 and bottom > peak_y + 1e-9:
+                return False
+        return True
 
     def place(order: list[int]) -> tuple[float, list[tuple[float, float]]]:
         """The labels placed one by one in ``order``, and how far they are from their targets."""
