@@ -1094,8 +1094,9 @@ def test_a_cabinet_and_a_box_off_an_unseen_outer_wall_keep_the_room_closed(
     """A cabinet 1.2-1.6 m wide (open at the back) and a box 0.3 m x 0.25 m 0.25 m beside it
     (gaps narrower than a robot), both ``off`` cells off the outer wall, the wall unseen behind
     both and for 3 cells beyond: one unseen stretch, longer than a hidden wall line is drawn
-    across (2 m), and only the two pieces closed the room. Both go as loose pieces (the box
-    alone or both), which the guard does not count, and the room opens onto the outside."""
+    across (2 m), and only the two pieces closed the room. Both went as loose pieces (the box
+    alone or both), which the guard did not count, and the room opened onto the outside. Backed
+    by the outside, next to a kept straight wall, they count now."""
     grid = _closed_room_seen_from_inside()
     back = 60 - off
     _scanned_object(grid, 101, width, back, 9)
@@ -1115,8 +1116,9 @@ def test_a_box_off_a_holed_outer_wall_keeps_the_room_closed(
 ) -> None:
     """An outer wall with a one-cell hole through it every 3 cells (narrower than a robot; no
     stretch of it long enough to anchor a hidden wall line) and a box ``off`` cells off it, the
-    wall unseen behind the box and for 3 cells beside it: only the box closed the room. It goes
-    as a loose piece and the room opens onto the outside."""
+    wall unseen behind the box and for 3 cells beside it: only the box closed the room. It went
+    as a loose piece and the room opened onto the outside; backed by the outside, next to a kept
+    straight wall, it counts now."""
     grid = _closed_room_seen_from_inside()
     grid[60:62, 12:208:3] = -1  # the holes
     width, depth = box
@@ -1166,7 +1168,7 @@ def test_scattered_returns_at_the_explored_edge_keep_the_room_closed(
     small pieces with gaps narrower than a robot between them, attached to no kept wall and not
     next to wide unknown space (the rays cut it into narrow wedges). The guard took them for
     furniture standing in the room, they went, and the room opened onto the unexplored space (a
-    public gmapping map does so)."""
+    public gmapping map did so). Next to the unexplored outside, they count now."""
     grid, room, outside = _room_seen_out_through_a_gap(step_deg, return_px, shift)
     if transposed:
         grid, room, outside = grid.T, room[::-1], outside[::-1]
