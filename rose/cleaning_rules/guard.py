@@ -150,15 +150,21 @@ def topology_guard(
     # the grid): obstacles a rule adds far away (the returns at the explored edge) must not move it.
     grid_corner = (box[0].start, box[1].start)
     if off_grid is not None and off_grid.any():
-        opened_on_grid = (
+        # Those cells are opened cells too, whose discs lie in the working box: dilated there,
+        # not over the whole map (cells off ``opened``, at the box's edge, miss what lies beyond).
+        opened_on_grid = opened & (
             _disc_maximum(
-                np.add(np.greater(before, off_grid).view(np.uint8), after.view(np.uint8)), radius_px
+                np.add(
+                    np.greater(before[box], off_grid[box]).view(np.uint8),
+                    after[box].view(np.uint8),
+                ),
+                radius_px,
             )
             == 1
         )
         if opened_on_grid.any():
             on_grid_box = _padded_box(opened_on_grid, window_px + reach + 2)
-            grid_corner = (on_grid_box[0].start, on_grid_box[1].start)
+            grid_corner = (box[0].start + on_grid_box[0].start, box[1].start + on_grid_box[1].start)
     cut_count, cut = _cut_long_patches(
         patches,
         boxes,
