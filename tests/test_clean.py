@@ -1659,6 +1659,51 @@ def test_a_partition_under_the_attach_reach_plus_the_minimum_stays_whole(length:
     assert cleaning.kept[80, 11 : 11 + length].all()
 
 
+@pytest.mark.parametrize("length", [8, 9, 10])
+def test_a_partition_between_the_attach_reach_and_the_minimum_stays_whole(length: int) -> None:
+    """A partition 0.4-0.5 m long meeting a wall: the attach rule keeps its first 0.3 m (and a
+    cell), and the rest, too short for the partition rule, was cut off: the piece ended 0.35 m
+    from the wall whatever its length, neither kept as a wall nor removed as clutter."""
+    grid = np.full((160, 240), -1, np.int8)
+    grid[10:150, 10:230] = 0
+    grid[10, 10:230] = grid[149, 10:230] = grid[10:150, 10] = grid[10:150, 229] = 100
+    grid[80, 11 : 11 + length] = 100  # one cell thick, from the left wall
+    for r, c in ((30, 40), (100, 60), (60, 200)):  # scanned boxes: faces, unknown inside
+        grid[r : r + 9, c : c + 9] = 100
+        grid[r + 1 : r + 8, c + 1 : c + 8] = -1
+    cleaning = clean(grid, rose.analyze(grid), resolution_m=0.05)
+    assert cleaning.kept[80, 11 : 11 + length].all()
+
+
+@pytest.mark.parametrize(
+    ("res", "stub_m", "thick"), [(0.05, 0.4, 2), (0.05, 1.8, 1), (0.025, 0.6, 1), (0.025, 1.8, 2)]
+)
+@pytest.mark.parametrize("transposed", [False, True])
+def test_a_wall_stub_keeps_its_free_end(
+    res: float, stub_m: float, thick: int, transposed: bool
+) -> None:
+    """Wall stubs standing out of the walls into a room (door frames, the end of a wall at a
+    doorway): ROSE's scores fade towards a wall's free end, and the last 2-7 cells of every stub
+    (5-18 cm, the doorway wider than it is) went as clutter, beyond the attach rule's reach from
+    the kept part and too short for a partition on their own."""
+    n = round(10 / res)
+    grid = np.zeros((n, n), np.int8)
+    grid[:thick, :] = grid[-thick:, :] = grid[:, :thick] = grid[:, -thick:] = 100
+    grid[n // 2 : n // 2 + thick, :] = 100  # a wall across the middle, with a 0.9 m door
+    grid[n // 2 : n // 2 + thick, n // 3 : n // 3 + round(0.9 / res)] = 0
+    stubs = np.zeros(grid.shape, dtype=bool)
+    length = round(stub_m / res)
+    for k, col in enumerate((n // 6, n // 2, 5 * n // 6)):
+        stubs[n // 2 + thick : n // 2 + thick + length, col : col + thick] = True
+        stubs[thick : thick + length, col + 3 * k : col + 3 * k + thick] = True
+    grid[stubs] = 100
+    if transposed:
+        grid, stubs = np.ascontiguousarray(grid.T), stubs.T
+    result = rose.analyze(grid)
+    assert result.clutter[stubs].any()  # the paper calls their ends clutter
+    assert clean(grid, result, resolution_m=res).kept[stubs].all()
+
+
 def test_object_faces_a_partition_keeps_are_not_reported_dropped() -> None:
     """wall_cells' ``dropped`` (removed whatever the paper says) held the faces of a thick wall
     that the partitions keep, so the same cells were both kept and dropped."""

@@ -278,7 +278,8 @@ def _partitions(
     attached: npt.NDArray[np.bool_] | None = None,
 ) -> npt.NDArray[np.bool_]:
     """Occupied cells not in ``walls`` (the candidates) in 8-connected pieces of thin cells that
-    touch ``walls`` and span at least ``min_length_px`` cells, with the candidates next to them.
+    touch ``walls`` and span at least ``min_length_px`` cells, or are straight and hold
+    ``attached`` cells, with the candidates next to them.
 
     Thin cells (:func:`_thin_runs`) are the candidates and ``cores`` cells (unknown pockets: an
     object's inside or a thick wall's unseen core) on a run of occupied and core cells at most
@@ -286,7 +287,11 @@ def _partitions(
     an unseen core. ``free``: known cells that are not occupied (a probabilistic grid's free space
     is 0..20, not only 0). ``attached``: cells of ``walls`` the attach rule kept (within its reach
     of a wall); thin ones count towards a piece's length, so that a partition 0.5 m long stays
-    whole, not only its first ``attach_reach_m``."""
+    whole, not only its first ``attach_reach_m``. A shorter piece that holds some of them is kept
+    whole too when it is straight (no wider than ``max_thickness_px`` across): the attach rule keeps
+    its first ``attach_reach_m`` anyway, and the rest alone was cut off it (a wall stub's end,
+    where the paper's scores fade; a door frame 5-18 cm short). A round bin against a wall is
+    not straight: the attach rule keeps its side at the wall, as before."""
     import cv2
 
     out = np.zeros(occupied.shape, dtype=bool)
@@ -317,6 +322,12 @@ def _partitions(
     owners = labels.reshape(-1)[at]
     boxes = label_boxes(labels, at, count)
     long_enough = np.maximum(boxes[:, 2], boxes[:, 3]) >= min_length_px
+    if attached is not None:
+        partly = np.zeros(count, dtype=bool)
+        partly[owners[attached[box].reshape(-1)[at]]] = True
+        partly[0] = False
+        np.greater(partly, long_enough, out=partly)
+        long_enough |= _straight_pieces(at, owners, partly, labels.shape[1], max_thickness_px)
     # Pieces with a cell on or next to (4-neighbours) a wall: the walls dilated by the cross (on
     # the box only), looked up at the pieces' cells.
     near_walls = cv2.dilate(walls[box].view(np.uint8), _CROSS).view(bool).reshape(-1)[at]
@@ -333,6 +344,35 @@ def _partitions(
     beside = _cross(cells, labels.shape)
     pieces[beside] |= candidates[beside]
     out[box] = pieces
+    return out
+
+
+def _straight_pieces(
+    at: npt.NDArray[np.intp],
+    owners: npt.NDArray[np.int32],
+    wanted: npt.NDArray[np.bool_],
+    width: int,
+    max_thickness_px: float,
+) -> npt.NDArray[np.bool_]:
+    """Which labelled pieces are straight: the ``wanted`` ones (bool per label) whose cells (flat
+    indices ``at`` into an image ``width`` cells wide, labels ``owners``) fit in a rectangle at any
+    angle at most ``max_thickness_px`` cells across (the rectangle of the cells' centres plus a
+    cell)."""
+    import cv2
+
+    out = np.zeros(wanted.shape, dtype=bool)
+    if not wanted.any():
+        return out
+    mine = wanted[owners]
+    cells, labels = at[mine], owners[mine]
+    order = np.argsort(labels, kind="stable")
+    cells, labels = cells[order], labels[order]
+    starts = np.flatnonzero(np.r_[True, labels[1:] != labels[:-1]])
+    row, col = np.divmod(cells, width)
+    points = np.stack([col, row], axis=1).astype(np.float32)
+    for start, end in zip(starts, np.r_[starts[1:], len(cells)], strict=True):
+        (_, _), (w, h), _ = cv2.minAreaRect(points[start:end])
+        out[labels[start]] = min(w, h) + 1 <= max_thickness_px
     return out
 
 
