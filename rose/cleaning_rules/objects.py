@@ -349,7 +349,7 @@ def _partitions(
 
 def _straight_pieces(
     at: npt.NDArray[np.intp],
-    owners: npt.NDArray[np.int32],
+    owners: npt.NDArray[np.integer],
     wanted: npt.NDArray[np.bool_],
     width: int,
     max_thickness_px: float,
