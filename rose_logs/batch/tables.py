@@ -94,6 +94,7 @@ SNAPSHOT_SCHEMA = pa.schema(
         ("removed", pa.int64()),
         ("kept", pa.int64()),
         ("rescued", pa.int64()),
+        ("guarded", pa.int64()),
         ("completed", pa.int64()),
         ("degenerate", pa.string()),
     ]

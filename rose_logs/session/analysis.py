@@ -33,7 +33,8 @@ _LOG = logging.getLogger(__name__)
 @dataclass(frozen=True)
 class CellCounts:
     """A snapshot's cells as its record counts them: occupied and clutter cells, and the cells its
-    cleaning removed, kept, rescued and completed (0 when it was not cleaned).
+    cleaning removed, kept, rescued, kept by its topology guard alone and completed (0 when it was
+    not cleaned).
 
     Counted on the analysis's thread: each count is a pass over the grid, which the session's own
     thread (reading, writing and finishing every snapshot in turn) would otherwise make.
@@ -44,6 +45,7 @@ class CellCounts:
     removed: int = 0
     kept: int = 0
     rescued: int = 0
+    guarded: int = 0
     completed: int = 0
 
 
@@ -57,6 +59,7 @@ def cell_counts(result: RoseResult, cleaning: CleanResult | None) -> CellCounts:
         removed=cleaning.removed_count,
         kept=cleaning.kept_count,
         rescued=cleaning.rescued_count,
+        guarded=cleaning.guarded_count,
         completed=cleaning.completed_count,
     )
 

@@ -119,6 +119,7 @@ def cleaning_counts(cleaning: CleanResult | None, counts: CellCounts) -> dict[st
         "removed_count": counts.removed,
         "kept_count": counts.kept,
         "rescued_count": counts.rescued,
+        "guarded_count": counts.guarded,
         "completed_count": counts.completed,
     }
 

@@ -75,6 +75,9 @@ class SnapshotRecord:
         Occupied cells the cleaning removed / kept.
     rescued_count : int
         Kept cells the paper's labelling calls clutter.
+    guarded_count : int
+        Kept cells the cleaning's topology guard alone put back (removed, they opened a gap a robot
+        could pass; 0 for the paper's labelling).
     completed_count : int
         Unknown cells the cleaning made walls (wall lines hidden behind what its rules took for
         clutter, also where the topology guard put that clutter back).
@@ -105,6 +108,7 @@ class SnapshotRecord:
     removed_count: int = 0
     kept_count: int = 0
     rescued_count: int = 0
+    guarded_count: int = 0
     completed_count: int = 0
     degenerate: str | None = None
 
@@ -144,6 +148,7 @@ class SnapshotRecord:
             "removed": self.removed_count,
             "kept": self.kept_count,
             "rescued": self.rescued_count,
+            "guarded": self.guarded_count,
             "completed": self.completed_count,
             "degenerate": self.degenerate,
         }

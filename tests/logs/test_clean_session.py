@@ -43,6 +43,7 @@ def test_cleaned_topic_follows_the_method(
     assert record["removed"] == expected.removed_count
     assert record["kept"] == expected.kept_count
     assert record["kept"] + record["removed"] == record["occupied"]
+    assert record["guarded"] == expected.guarded_count
     # Unknown cells made walls are counted too: the cleaned map's walls are kept + completed.
     assert record["completed"] == expected.completed_count
     assert int(np.count_nonzero(cleaned >= 65)) == record["kept"] + record["completed"]
