@@ -1690,6 +1690,44 @@ def test_a_wall_stub_keeps_its_free_end(
     assert clean(grid, result, resolution_m=res).kept[stubs].all()
 
 
+def _room_with_stubs(
+    res: float, stub_m: float, thick: int, unseen: tuple[int, int, int, int]
+) -> tuple[npt.NDArray[np.int8], npt.NDArray[np.bool_]]:
+    """A 10 m room split by a wall with a door, three wall stubs ``stub_m`` long and ``thick``
+    cells thick standing on its bottom wall, and beside each an unseen patch of ``unseen`` =
+    (first row above the wall, rows, column offset from the stub's left side, columns)."""
+    n = round(10 / res)
+    grid = np.zeros((n, n), np.int8)
+    grid[:2, :] = grid[-2:, :] = grid[:, :2] = grid[:, -2:] = 100
+    grid[n // 2 : n // 2 + 2, :] = 100
+    grid[n // 2 : n // 2 + 2, n // 3 : n // 3 + round(0.9 / res)] = 0
+    stubs = np.zeros(grid.shape, dtype=bool)
+    row, rows, offset, cols = unseen
+    for col in (n // 6, n // 2, 5 * n // 6):
+        stubs[2 : 2 + round(stub_m / res), col : col + thick] = True
+        grid[2 + row : 2 + row + rows, col + offset : col + offset + cols] = -1
+    grid[stubs] = 100
+    return grid, stubs
+
+
+@pytest.mark.parametrize(("stub_m", "row"), [(1.0, 6), (1.0, 8), (1.2, 8), (1.5, 6)])
+def test_a_wall_stub_beside_an_unseen_patch_keeps_its_end(stub_m: float, row: int) -> None:
+    """A 2 x 2 unseen patch a cell beside a stub 3 cells thick (a door jamb, the paper's clutter),
+    near where the attach rule's 0.3 m reach ends: beside the patch the free space is no room (the
+    sliver guard), so the stub's runs there are not thin, and all of it beyond the patch went (a
+    doorway 0.8 m wide on a public map read 1.2 m)."""
+    grid, stubs = _room_with_stubs(0.05, stub_m, 3, (row, 2, -3, 2))
+    assert clean(grid, rose.analyze(grid), resolution_m=0.05).kept[stubs].all()
+
+
+def test_a_partition_whose_foot_is_unseen_stays() -> None:
+    """A partition 1.8 m long, one cell thick, free on both sides, with an unseen corner 0.3 m wide
+    at its foot: the run across the foot is 7 cells (the limit 6), so its thin cells stopped short
+    of the wall it stands on and the whole partition went (a home's on a public map)."""
+    grid, stubs = _room_with_stubs(0.05, 1.8, 1, (0, 2, 1, 6))
+    assert clean(grid, rose.analyze(grid), resolution_m=0.05).kept[stubs].all()
+
+
 def test_object_faces_a_partition_keeps_are_not_reported_dropped() -> None:
     """wall_cells' ``dropped`` (removed whatever the paper says) held the faces of a thick wall
     that the partitions keep, so the same cells were both kept and dropped."""
