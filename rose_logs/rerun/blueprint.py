@@ -18,9 +18,8 @@ import rerun.blueprint as rrb
 from rerun.encodings import EntityPathLike
 
 from rose_logs.rerun import style
+from rose_logs.rerun.amplitude_layout import AmplitudeFrame, amplitude_frame
 from rose_logs.rerun.conversions import (
-    AMPLITUDE_X_RANGE,
-    AMPLITUDE_Y_BOTTOM,
     DIRECTION_LABEL_CLEARANCE_PX,
     DIRECTION_LABEL_EDGE_PX,
     DIRECTION_LABEL_HEIGHT_PX,
@@ -33,6 +32,7 @@ from rose_logs.rerun.conversions import (
 from rose_logs.rerun.paths import SESSION_TIMELINE, EntityPaths
 
 __all__ = [
+    "AMPLITUDE_FRAME",
     "AMPLITUDE_VIEWS_PX",
     "LABEL_WINDOWS_PX",
     "METRIC_MIN_HALF_M",
@@ -130,11 +130,15 @@ def amplitude_view_px(window_px: tuple[float, float]) -> tuple[float, float]:
 #: The amplitude views' pixels its peaks' labels are laid out for, one per window of
 #: :data:`LABEL_WINDOWS_PX`.
 AMPLITUDE_VIEWS_PX = tuple(amplitude_view_px(window) for window in LABEL_WINDOWS_PX)
-#: The peaks' label boxes in the amplitude plot's units, for those views, and the view's top
-#: (worked out once: every snapshot's labels are placed with them,
-#: :func:`rose_logs.rerun.conversions.amplitude_plot`). Sized for 1600 x 1000, labels 20° apart
-#: were written over each other at 1024 x 768, and a peak at 0° had its label over the y axis's.
-PEAK_LABEL_BOXES: PeakLabelBoxes = peak_label_boxes(AMPLITUDE_VIEWS_PX)
+#: The amplitude view's frame and axis labels for those views (worked out once): in a frame 2:1
+#: fitted by its height, the axis labels overlapped each other and the threshold's label below
+#: 1600 x 1000 ("0" on "0°", "s" on "1", "135°" on "180°", the degrees on the axis's title).
+AMPLITUDE_FRAME: AmplitudeFrame = amplitude_frame(AMPLITUDE_VIEWS_PX)
+#: The peaks' label boxes in the amplitude plot's units, for those views (every snapshot's labels
+#: are placed with them, :func:`rose_logs.rerun.conversions.amplitude_plot`). Sized for
+#: 1600 x 1000, labels 20° apart were written over each other at 1024 x 768, and a peak at 0°
+#: had its label over the y axis's.
+PEAK_LABEL_BOXES: PeakLabelBoxes = peak_label_boxes(AMPLITUDE_FRAME)
 
 
 #: The scores view's pixels the colour bar is laid out for: the metric view's twin (the two share
@@ -444,9 +448,9 @@ def _topic_container(layout: TopicLayout) -> rrb.Container:
         # (The title's length fits a third of 1600 pixels.)
         name="cumulative amplitude s per direction; peaks kept if bar (prominence p) passes t",
         origin=f"/{paths.amplitude_view}",
-        # Above s = 1 room for a peak's label in every window (PEAK_LABEL_BOXES).
+        # Room for the axes' and the peaks' labels in every window (AMPLITUDE_FRAME).
         visual_bounds=rrb.VisualBounds2D(
-            x_range=AMPLITUDE_X_RANGE, y_range=(PEAK_LABEL_BOXES.top, AMPLITUDE_Y_BOTTOM)
+            x_range=AMPLITUDE_FRAME.x_range, y_range=AMPLITUDE_FRAME.y_range
         ),
     )
     spectrum = rrb.Spatial2DView(

@@ -25,6 +25,15 @@ import numpy.typing as npt
 from rose.directions import local_maxima, map_frame_deg, peak_prominences
 from rose.grid import blocks_max, true_bounds
 from rose.result import RoseResult
+from rose_logs.rerun.amplitude_layout import (
+    LABEL_BOTTOM_PX,
+    LABEL_GAP_PX,
+    LABEL_TOP_PX,
+    PEAK_LABEL_CLEARANCE_PX,
+    PEAK_LABEL_PX,
+    AmplitudeFrame,
+    label_width_px,
+)
 from rose_logs.rerun.style import (
     AMPLITUDE_PLOT_HEIGHT,
     CLASS_CLUTTER,
@@ -57,8 +66,6 @@ _VIRIDIS = np.array(
 )
 
 __all__ = [
-    "AMPLITUDE_X_RANGE",
-    "AMPLITUDE_Y_BOTTOM",
     "DIRECTION_LABEL_CLEARANCE_PX",
     "DIRECTION_LABEL_EDGE_PX",
     "DIRECTION_LABEL_HEIGHT_PX",
@@ -981,24 +988,6 @@ def _folded_deg(angles_rad: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
     return folded
 
 
-#: The peaks' labels in the amplitude view, screen pixels: "100.0° p 0.67" is 85 wide and its box
-#: 22 high (Rerun 0.41, as the direction labels); the box keeps 6 pixels above its peak's centre
-#: (the dot is 4 points), and 6 from the view's edges; the y axis's tick labels ("0.5", centred
-#: 9 units left of the axis) reach 16 pixels right of their centre.
-PEAK_LABEL_WIDTH_PX = 90.0
-PEAK_LABEL_HEIGHT_PX = 24.0
-PEAK_LABEL_CLEARANCE_PX = 6.0
-PEAK_LABEL_EDGE_PX = 6.0
-AXIS_LABEL_HALF_PX = 16.0
-#: The amplitude view's frame, plot units: x across the axis and its tick labels (degrees), y
-#: from under the axis's labels (``+``, down on screen); its top is worked out for the labels
-#: (:func:`peak_label_boxes`).
-AMPLITUDE_X_RANGE = (-22.0, 198.0)
-AMPLITUDE_Y_BOTTOM = 44.0
-#: Where the y axis's tick labels are centred (x, plot units).
-AMPLITUDE_AXIS_LABEL_X = -9.0
-
-
 @dataclass(frozen=True)
 class PeakLabelBoxes:
     """The peaks' labels as boxes in the amplitude plot's units (x degrees; y ``-height * s``,
@@ -1012,12 +1001,12 @@ class PeakLabelBoxes:
     clearance : float
         From the lower edge of a label's box up to its peak (or any peak under it).
     x_min, x_max : float
-        Leftmost and rightmost centre of a label: right of the y axis's tick labels, in what every
+        Leftmost and rightmost centre of a label: right of the s axis's tick labels, in what every
         view shows (more than its frame across: the views are wider than the frame).
     y_min : float
         Highest top of a label's box (the frame's top and its edge).
     top : float
-        The frame's top (the view's visual bounds): room for a label over a peak at ``s = 1``.
+        The frame's top (the view's visual bounds).
     """
 
     width: float
@@ -1029,34 +1018,22 @@ class PeakLabelBoxes:
     top: float
 
 
-def peak_label_boxes(views_px: Sequence[tuple[float, float]]) -> PeakLabelBoxes:
-    """The peaks' label boxes for amplitude views of ``views_px`` (width, height, screen pixels).
-
-    The view frames :data:`AMPLITUDE_X_RANGE` across and from its top to
-    :data:`AMPLITUDE_Y_BOTTOM`, the top a label's room above ``s = 1``; Rerun fits the frame
-    keeping its aspect, so the units per pixel are ``max(frame width / view width, frame height
-    / view height)``, the room itself in the frame's height (solved for it)."""
-    height = AMPLITUDE_PLOT_HEIGHT
-    room_px = PEAK_LABEL_CLEARANCE_PX + PEAK_LABEL_HEIGHT_PX + PEAK_LABEL_EDGE_PX
-    span_x = AMPLITUDE_X_RANGE[1] - AMPLITUDE_X_RANGE[0]
-    per_px = max(
-        max(span_x / w for w, _ in views_px),
-        max((AMPLITUDE_Y_BOTTOM + height) / max(h - room_px, 1.0) for _, h in views_px),
-    )
-    top = -height - room_px * per_px
-    span_y = AMPLITUDE_Y_BOTTOM - top
-    # What every view shows across: at least the frame, more where the view is wider.
-    shown = min(w * max(span_x / w, span_y / h) for w, h in views_px)
-    centre = (AMPLITUDE_X_RANGE[0] + AMPLITUDE_X_RANGE[1]) / 2
-    width = PEAK_LABEL_WIDTH_PX * per_px
+def peak_label_boxes(frame: AmplitudeFrame) -> PeakLabelBoxes:
+    """The peaks' label boxes in the amplitude view's ``frame`` (:func:`amplitude_frame`): labels
+    :data:`~rose_logs.rerun.amplitude_layout.PEAK_LABEL_PX` wide at its units per pixel, kept
+    :data:`~rose_logs.rerun.amplitude_layout.LABEL_GAP_PX` off the s axis's labels and the
+    view's edges."""
+    per_px = frame.per_px
+    width = PEAK_LABEL_PX * per_px
+    edge = LABEL_GAP_PX * per_px
     return PeakLabelBoxes(
         width=width,
-        height=PEAK_LABEL_HEIGHT_PX * per_px,
+        height=(LABEL_BOTTOM_PX - LABEL_TOP_PX) * per_px,
         clearance=PEAK_LABEL_CLEARANCE_PX * per_px,
-        x_min=AMPLITUDE_AXIS_LABEL_X + (AXIS_LABEL_HALF_PX + 2.0) * per_px + width / 2,
-        x_max=centre + shown / 2 - PEAK_LABEL_EDGE_PX * per_px - width / 2,
-        y_min=top + PEAK_LABEL_EDGE_PX * per_px,
-        top=top,
+        x_min=frame.axis_labels_right + edge + width / 2,
+        x_max=frame.shown_right - edge - width / 2,
+        y_min=frame.y_range[0] + edge,
+        top=frame.y_range[0],
     )
 
 
@@ -1196,9 +1173,6 @@ def threshold_strips(level: float, label_deg: float) -> list[list[tuple[float, f
 #: Half the width (degrees) of the tick on each peak's bar at its base + t, the height the bar must
 #: reach for the peak to be kept.
 THRESHOLD_TICK_DEG = 4.0
-#: How far (degrees) the labelled tick reaches to one side of its bar: its label ("t = 0.5", about
-#: 40 degrees wide at the default layout, centred on the tick) stands clear of the bar.
-THRESHOLD_LABELLED_TICK_DEG = 56.0
 
 
 def _candidate_peaks(
@@ -1216,27 +1190,41 @@ def _candidate_peaks(
 
 
 def threshold_ticks(
-    bars: npt.NDArray[np.float64], threshold_height: float
+    bars: npt.NDArray[np.float64],
+    threshold_height: float,
+    *,
+    label_width: float = 0.0,
+    left: float = -math.inf,
+    right: float = math.inf,
 ) -> list[list[tuple[float, float]]]:
     """The prominence threshold as a tick on each bar (shape (K, 2, 2), ``[k, (top, base), (x,
     y)]``, plot units) at its base + ``threshold_height`` (plot units, up): a peak is kept when its
-    bar reaches above its tick. The first bar's tick (the most prominent peak's) reaches
-    :data:`THRESHOLD_LABELLED_TICK_DEG` to the side with more room, so that its label (Rerun
-    centres a strip's label on it) stands off the bar. Empty without bars."""
+    bar reaches above its tick. Empty without bars.
+
+    The first bar's tick (the most prominent peak's) carries the threshold's label, which Rerun
+    centres on the strip: the label, ``label_width`` wide with its gaps, stands beside the bar on
+    the side with more room (left only if it fits right of ``left``, and of the s axis at 0),
+    within ``left`` .. ``right`` (the s axis's labels' edge, what every view shows), and the tick
+    reaches from the bar to past it. A tick of a fixed 56 degrees put the label over "0.5" at the
+    s axis in a small window, where the label is 60 degrees wide."""
     ticks: list[list[tuple[float, float]]] = []
     xs = bars[:, 0, 0]
     for k, (x, base) in enumerate(bars[:, 1].tolist()):
         level = base - threshold_height
-        left, right = x - THRESHOLD_TICK_DEG, x + THRESHOLD_TICK_DEG
+        low, high = x - THRESHOLD_TICK_DEG, x + THRESHOLD_TICK_DEG
         if k == 0:
             others = np.delete(xs, k)
             room_right = min([180.0 - x, *(others[others > x] - x).tolist()])
             room_left = min([x, *(x - others[others < x]).tolist()])
-            if room_right >= room_left:
-                right = min(x + THRESHOLD_LABELLED_TICK_DEG, 180.0)
-            else:
-                left = max(x - THRESHOLD_LABELLED_TICK_DEG, 0.0)
-        ticks.append([(max(left, 0.0), level), (min(right, 180.0), level)])
+            half = label_width / 2
+            centre = x - half
+            if room_right >= room_left or centre - half < max(left, 0.0):
+                centre = min(max(x, left) + half, right - half)
+            reach = abs(centre - x) + THRESHOLD_TICK_DEG
+            low, high = centre - reach, centre + reach
+        else:
+            low, high = max(low, 0.0), min(high, 180.0)
+        ticks.append([(low, level), (high, level)])
     return ticks
 
 
@@ -1335,10 +1323,20 @@ def amplitude_plot(
         ],
         axis=1,
     ).reshape(-1, 2, 2)
-    label_deg = threshold_label_deg(peak_deg)
+    # The threshold's label in pixels: its box and gaps at the boxes' units per pixel, between
+    # the s axis's labels and what every view shows.
+    per_px = label_boxes.width / PEAK_LABEL_PX
+    label_width = (label_width_px(f"t = {threshold:g}") + 2 * LABEL_GAP_PX) * per_px
+    left, right = (
+        label_boxes.x_min - label_boxes.width / 2,
+        label_boxes.x_max + label_boxes.width / 2,
+    )
+    label_deg = max(threshold_label_deg(peak_deg), left + label_width / 2)
     every_bar = np.concatenate([bars, rejected_bars])
     ticks = (
-        threshold_ticks(every_bar, height * threshold)
+        threshold_ticks(
+            every_bar, height * threshold, label_width=label_width, left=left, right=right
+        )
         if every_bar.size
         else threshold_strips(-height * threshold, label_deg)
     )

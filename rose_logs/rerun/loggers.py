@@ -25,7 +25,9 @@ from rose.walls.segments import cells_to_metres
 from rose_logs.frames import yaw_to_quaternion
 from rose_logs.rerun import arrow, style
 from rose_logs.rerun import conversions as conv
+from rose_logs.rerun.amplitude_layout import S_TICKS, X_TICKS_DEG
 from rose_logs.rerun.blueprint import (
+    AMPLITUDE_FRAME,
     METRIC_MIN_HALF_M,
     METRIC_VIEWS_PX,
     PEAK_LABEL_BOXES,
@@ -47,8 +49,6 @@ __all__ = ["TopicLogger", "set_snapshot_time"]
 #: two of its sides). Seen from above, the height moves nothing in the picture.
 _OVERLAY_HEIGHT_FRACTION = 0.005
 _MIN_OVERLAY_HEIGHT_M = 0.02
-_AXIS_TICKS_DEG = (0.0, 45.0, 90.0, 135.0, 180.0)
-_AXIS_TICKS_S = (0.0, 0.5, 1.0)
 
 
 @functools.lru_cache(maxsize=64)
@@ -606,23 +606,26 @@ class TopicLogger:
             rec.log(entity, *archetypes, static=True)
 
     def _log_amplitude_axes(self) -> None:
-        rec, paths = self.recording, self.paths
-        h = style.AMPLITUDE_PLOT_HEIGHT
-        ticks = [[(x, 0.0), (x, 3.0)] for x in _AXIS_TICKS_DEG]
-        ticks += [[(0.0, -h * s), (-3.0, -h * s)] for s in _AXIS_TICKS_S]
+        """The amplitude plot's axes, ticks and labels (static), laid out in pixels for every
+        window (:data:`AMPLITUDE_FRAME`)."""
+        rec, paths, frame = self.recording, self.paths, AMPLITUDE_FRAME
+        h, tick = style.AMPLITUDE_PLOT_HEIGHT, frame.tick
+        ticks = [[(x, 0.0), (x, tick)] for x in X_TICKS_DEG]
+        ticks += [[(0.0, -h * s), (-tick, -h * s)] for s in S_TICKS]
         ticks += [[(0.0, 0.0), (180.0, 0.0)], [(0.0, 0.0), (0.0, -h * 1.05)]]
         rec.log(
             paths.amplitude_axes,
             rr.LineStrips2D(ticks, colors=style.AXIS_COLOR, radii=rr.Radius.ui_points(1.0)),
             static=True,
         )
-        positions = [(x, 9.0) for x in _AXIS_TICKS_DEG] + [(-9.0, -h * s) for s in _AXIS_TICKS_S]
-        labels = [f"{x:g}°" for x in _AXIS_TICKS_DEG] + [f"{s:g}" for s in _AXIS_TICKS_S]
-        positions += [(90.0, 22.0), (-9.0, -h * 1.18)]
-        labels += ["wall direction, map frame (deg)", "s"]
         rec.log(
             paths.amplitude_axis_labels,
-            rr.Points2D(positions, labels=labels, colors=style.AXIS_COLOR, radii=0.0),
+            rr.Points2D(
+                list(frame.label_positions),
+                labels=list(frame.labels),
+                colors=style.AXIS_COLOR,
+                radii=0.0,
+            ),
             static=True,
         )
 

@@ -95,5 +95,7 @@ SCORE_DISPLAY_MIN: Final = -0.5
 """Cell score at the bottom of the score colour map (the best occupied cell scores 1)."""
 SPECTRUM_DISPLAY_PX: Final = 256
 """The spectrum image is ``SPECTRUM_DISPLAY_PX + 1`` pixels square, DC at the centre pixel."""
-AMPLITUDE_PLOT_HEIGHT: Final = 90.0
-"""Height, in plot units, of s = 1 in the cumulative amplitude plot (its width is 180 degrees)."""
+AMPLITUDE_PLOT_HEIGHT: Final = 60.0
+"""Height, in plot units, of s = 1 in the cumulative amplitude plot (its width is 180 degrees):
+a third of its width, as the view is 3 to 4 times wider than high and its labels take some 70
+pixels of its height (at 90 the plot used a third of the view's width)."""

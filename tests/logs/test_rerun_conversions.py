@@ -13,6 +13,7 @@ from numpy.testing import assert_allclose, assert_array_equal
 import rose
 from rose_logs.rerun import blueprint, style
 from rose_logs.rerun import conversions as conv
+from rose_logs.rerun.amplitude_layout import LABEL_GAP_PX, label_width_px
 
 
 def _plan(shape: tuple[int, int] = (80, 120), *, angle_deg: float = 0.0) -> npt.NDArray[np.int8]:
@@ -548,11 +549,15 @@ def test_the_threshold_is_drawn_on_each_peaks_bar_at_its_base_plus_t(plan) -> No
     assert [y for _, y in rejected_tick] == pytest.approx([-h * (0.6 + t)] * 2)
     assert plot.prominence_bars[0, 0, 1] < kept_tick[0][1]  # the kept bar passes its tick
     assert plot.rejected_bars[0, 0, 1] > rejected_tick[0][1]  # the grey one stops below it
-    # The labelled (first) tick reaches to the side with more room, its label off the bar.
+    # The labelled (first) tick reaches from its bar to past its label (Rerun centres a strip's
+    # label on it), on the side with more room (left: 90 degrees to the axis, 56 to the other
+    # bar); the label is off the bar by half its width and a gap (pixels at the layout's scale).
     x = plot.prominence_bars[0, 0, 0]
     (x0, _), (x1, _) = kept_tick
-    assert x0 < x < x1 and min(x - x0, x1 - x) <= conv.THRESHOLD_TICK_DEG
-    assert max(x - x0, x1 - x) == pytest.approx(conv.THRESHOLD_LABELLED_TICK_DEG)
+    assert x0 < x < x1 and min(x - x0, x1 - x) <= conv.THRESHOLD_TICK_DEG + 1e-9
+    per_px = blueprint.AMPLITUDE_FRAME.per_px
+    half = (label_width_px(f"t = {t:g}") / 2 + LABEL_GAP_PX) * per_px
+    assert x - (x0 + x1) / 2 == pytest.approx(half)
     # A flat curve has no bar: the threshold stays a line at s = t.
     flat = dataclasses.replace(
         made,

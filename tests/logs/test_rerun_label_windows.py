@@ -67,7 +67,9 @@ def _inside(box: tuple[float, float, float, float], view_px: tuple[float, float]
 
 
 def _apart(a: tuple[float, float, float, float], b: tuple[float, float, float, float]) -> bool:
-    return a[2] <= b[0] or b[2] <= a[0] or a[3] <= b[1] or b[3] <= a[1]
+    """Boxes apart or touching (to a millionth of a pixel: labels laid out a width apart)."""
+    tol = 1e-6
+    return a[2] <= b[0] + tol or b[2] <= a[0] + tol or a[3] <= b[1] + tol or b[3] <= a[1] + tol
 
 
 def _scores_view_px(window: tuple[float, float], events: bool) -> tuple[float, float]:
@@ -123,7 +125,8 @@ def test_the_colour_bars_labels_are_whole_and_apart_in_every_window(
 
 def _amplitude_view_px(window: tuple[float, float]) -> tuple[float, float]:
     """The amplitude view's pixels (409 x 140 measured at 1024 x 768: the right column's third
-    row of 2.5 / 1.8 / 2.3 / 3.0, less a 28-pixel title), 2 less."""
+    row of 2.5 / 1.8 / 2.3 / 3.0, less a 28-pixel title), 2 less. The same with the events view,
+    which is in the left column."""
     w, h = window
     return 0.4 * w - 4.0, 2.3 / 9.6 * (h - 67.0) - 30.0
 
@@ -151,6 +154,105 @@ def _result_with_peaks(peaks: list[tuple[float, float]]) -> rose.RoseResult:
     )
 
 
+#: The windows the amplitude view's labels are checked in: the layout's six and 1280 x 800.
+AMPLITUDE_WINDOWS = (*blueprint.LABEL_WINDOWS_PX, (1280.0, 800.0))
+
+
+def _text_px(text: str) -> float:
+    """A label's box width (pixels), measured boxes rounded up: 14 of padding, 3.8 a narrow
+    character, 10.5 an m or w, 7.3 any other ("0.5" measured 30, "135°" 39, "t = 0.5" 50,
+    "wall direction, map frame (deg)" 195)."""
+    narrow, wide = set(" .,:;()ilrtfj"), set("mw")
+    return 14.0 + sum(3.8 if c in narrow else 10.5 if c in wide else 7.3 for c in text)
+
+
+def _text_box(anchor_px: tuple[float, float], text: str) -> tuple[float, float, float, float]:
+    """``text``'s box (left, top, right, bottom, pixels) under its point."""
+    x, y = anchor_px
+    half = _text_px(text) / 2
+    return x - half, y + LABEL_TOP, x + half, y + LABEL_BOTTOM
+
+
+class _Recording:
+    """Stands in for a Rerun recording: keeps what is logged."""
+
+    def __init__(self) -> None:
+        self.logged: list[tuple[str, tuple[object, ...]]] = []
+
+    def log(self, entity: str, *archetypes: object, static: bool = False) -> None:
+        self.logged.append((entity, archetypes))
+
+
+def _axis_labels() -> list[tuple[float, float, str]]:
+    """The amplitude plot's axis labels as the logger logs them: ``(x, y, text)``, plot units."""
+    recording = _Recording()
+    paths = loggers.EntityPaths("map")
+    logger = loggers.TopicLogger(recording, paths)  # type: ignore[arg-type]
+    logger._log_amplitude_axes()
+    ((points,),) = [a for entity, a in recording.logged if entity == paths.amplitude_axis_labels]
+    positions = points.positions.pa_array.to_pylist()
+    texts = points.labels.pa_array.to_pylist()
+    return [(x, y, text) for (x, y), text in zip(positions, texts, strict=True)]
+
+
+def _amplitude_bounds(events: bool) -> tuple[tuple[float, float], tuple[float, float]]:
+    layout = blueprint.TopicLayout("map", bounds_m=(0.0, 0.0, 10.0, 10.0), has_events=events)
+    return _bounds(_view(blueprint._topic_container(layout), "cumulative amplitude"))
+
+
+@pytest.mark.parametrize("events", [False, True])
+def test_the_amplitude_axis_labels_are_whole_and_apart_in_every_window(events: bool) -> None:
+    """In a frame fitted by its height (2:1, the view 3 to 4 times wider than high) the axis
+    labels overlapped below 1600 x 1000: "0" on "0°", "s" on "1", "135°" on "180°" and the
+    degrees on the axis's title. In every window, with and without the events view: each inside
+    the view and apart from the others."""
+    bounds = _amplitude_bounds(events)
+    labels = _axis_labels()
+    for window in AMPLITUDE_WINDOWS:
+        view_px = _amplitude_view_px(window)
+        scale, x0, y0 = _to_px(bounds, view_px)
+        boxes = [_text_box(((x - x0) * scale, (y - y0) * scale), t) for x, y, t in labels]
+        for k, box in enumerate(boxes):
+            assert _inside(box, view_px), (window, labels[k][2], box, view_px)
+            for j in range(k + 1, len(boxes)):
+                assert _apart(box, boxes[j]), (window, labels[k][2], labels[j][2])
+
+
+@pytest.mark.parametrize("events", [False, True])
+@pytest.mark.parametrize(
+    "peaks",
+    [
+        [(3.0, 1.0), (93.0, 0.8)],  # a building square to the map: the first bar at the s axis
+        [(15.0, 1.0), (105.0, 0.6)],
+        [(30.0, 1.0)],
+        [(86.3, 0.97), (176.2, 1.0)],  # the sample session
+        [(176.2, 1.0), (86.3, 0.97)],
+        [(178.0, 1.0), (2.0, 0.9)],
+        [(90.0, 1.0), (95.0, 0.9)],
+        [],  # a flat curve: the threshold is a line at s = t
+    ],
+)
+def test_the_threshold_label_is_off_the_axis_labels_in_every_window(
+    peaks: list[tuple[float, float]], events: bool
+) -> None:
+    """The label "t = 0.5" stood centred 28 degrees beside the first bar, whatever the window: by a peak
+    near 0 degrees it lay over the s axis's "0.5" below 1600 x 1000. In every window, with and
+    without the events view: inside the view and apart from every axis label."""
+    plot = conv.amplitude_plot(_result_with_peaks(peaks))
+    (a, level), (b, _) = plot.threshold_strips[0]  # Rerun centres a strip's label on it
+    text = f"t = {plot.threshold:g}"
+    bounds = _amplitude_bounds(events)
+    labels = _axis_labels()
+    for window in AMPLITUDE_WINDOWS:
+        view_px = _amplitude_view_px(window)
+        scale, x0, y0 = _to_px(bounds, view_px)
+        box = _text_box((((a + b) / 2 - x0) * scale, (level - y0) * scale), text)
+        assert _inside(box, view_px), (window, box, view_px)
+        for x, y, label in labels:
+            other = _text_box(((x - x0) * scale, (y - y0) * scale), label)
+            assert _apart(box, other), (window, label)
+
+
 @pytest.mark.parametrize(
     "peaks",
     [
@@ -167,21 +269,21 @@ def test_the_peaks_labels_are_whole_and_apart_in_every_window(
     """Peaks 20 degrees apart wrote their labels ("80.0° p 1.00", "100.0° p 0.91") over each
     other at 1024 x 768 and 1280 x 720, where a label is 90 to 130 degrees wide (laid out for 72);
     a peak at 0 degrees hung its label over the y axis's "s" and "1". In every window: each label
-    inside the view, apart from the others, clear of the y axis's tick labels (16 pixels right of
-    their centre) and of every peak's dot (4 pixels) and bar."""
+    inside the view, apart from the others, clear of the axis labels and of every peak's dot
+    (4 pixels) and bar."""
     result = _result_with_peaks(peaks)
     plot = conv.amplitude_plot(result)
-    layout = blueprint.TopicLayout("map", bounds_m=(0.0, 0.0, 10.0, 10.0))
-    view = _view(blueprint._topic_container(layout), "cumulative amplitude")
-    bounds = _bounds(view)
-    for window in WINDOWS:
+    bounds = _amplitude_bounds(False)
+    axis_labels = _axis_labels()
+    for window in AMPLITUDE_WINDOWS:
         view_px = _amplitude_view_px(window)
         scale, x0, y0 = _to_px(bounds, view_px)
         boxes = [_box(((x - x0) * scale, (y - y0) * scale)) for x, y in plot.label_anchors.tolist()]
-        axis_right = (-9.0 - x0) * scale + 16.0
         for k, label in enumerate(boxes):
             assert _inside(label, view_px), (window, plot.peak_labels[k], label, view_px)
-            assert label[0] >= axis_right, (window, plot.peak_labels[k])
+            for x, y, text in axis_labels:
+                other = _text_box(((x - x0) * scale, (y - y0) * scale), text)
+                assert _apart(label, other), (window, plot.peak_labels[k], text)
             for x, y in plot.peaks.tolist():  # no peak's dot or bar (down from it) under it
                 peak_x, peak_y = (x - x0) * scale, (y - y0) * scale
                 assert not (label[0] < peak_x < label[2] and label[3] > peak_y - 4.0), (
