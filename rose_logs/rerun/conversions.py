@@ -1046,14 +1046,22 @@ def _label_anchors(
     peaks: npt.NDArray[np.float64], boxes: PeakLabelBoxes
 ) -> npt.NDArray[np.float64]:
     """Where the labels of ``peaks`` (shape (K, 2), plot units) hang (the top centre of each
-    label's box: Rerun draws a label under its point): over its peak (a peak near 0° over the
-    curve's other end at 180°), clear of it, in the view and right of the y axis's tick labels
-    (a peak at 0° hung its label over "s" and "1"), and clear of the labels placed before it
-    (left to right, or the highest peaks' first: what moves them least) and of every peak's bar (a box may not reach below a peak's top within its
-    width). Where that is taken, the nearest free place beside the labels and bars in the way or
-    right of the plot in the same row, else a row higher, else lower; peaks 20° apart wrote
-    their labels over each other in a small window (a label is 90-130 degrees wide at 1280 x
-    720, 72 at 1600 x 1000: laid out for the widest, :class:`PeakLabelBoxes`)."""
+    label's box: Rerun draws a label under its point).
+
+    Each label stands over its peak, clear of it (a peak near 0° over the curve's other end at
+    180°: the s axis's labels are at 0), in the view and right of the s axis's labels. Labels
+    that would overlap across (peaks less than a label's width apart: 104 degrees at 1280 x 720)
+    stand side by side in their peaks' order, the group centred on its peaks' mean (in the view),
+    in the row over its highest peak. So two close peaks' labels each stand over their own peak
+    in the smallest view (a label's width apart there), and within 45 (k - 1) pixels across in a
+    view k times larger; and the labels move as their peaks do: a peak moving by ``d`` moves its
+    group's labels by at most ``d`` across, the row follows the group's highest peak. Before,
+    they were placed one by one, in the order (left to right or highest first) that moved them
+    least: the second a label's width away (150 pixels at 1920 x 1080), and the two swapped
+    places when the peaks' heights crossed. Only a label whose place is taken (by another group's
+    label, or over a bar of a peak outside its group) goes to the nearest free place beside the
+    labels and bars in the way or right of the plot, in the same row, else a row higher, else
+    lower."""
     b = boxes
     half = b.width / 2
     xs, ys = peaks[:, 0].tolist(), peaks[:, 1].tolist()  # plain floats: a few labels
@@ -1082,47 +1090,55 @@ def _label_anchors(
                 return False
         return True
 
-    def place(order: list[int]) -> tuple[float, list[tuple[float, float]]]:
-        """The labels placed one by one in ``order``, and how far they are from their targets."""
-        placed: list[tuple[float, float]] = []  # (centre x, top y) of the boxes placed
-        out = [(0.0, 0.0)] * len(xs)
-        moved = 0.0
-        for i in order:
-            want_x, want_y = targets[i]
-            best: tuple[float, float, float] | None = None
-            if free(want_x, want_y, placed):  # the usual case: over its peak
-                best = (0.0, want_x, want_y)
-            # Rows from over the peak upwards, then (no room above) downwards.
-            rows = [want_y - r * b.height for r in range(len(xs) + 1)]
-            rows = [y for y in rows if y >= b.y_min - 1e-9] or [want_y]
-            rows += [want_y + r * b.height for r in range(1, len(xs) + 1)]
-            for y in rows if best is None else ():
-                # Beside a label or a peak's bar in the way, or right of the plot (past 180
-                # degrees nothing is drawn under a label).
-                candidates = [want_x, b.x_max]
-                for px, _ in placed:
-                    candidates += [px + b.width, px - b.width]
-                for peak_x in xs:
-                    candidates += [peak_x + half + b.clearance / 3, peak_x - half - b.clearance / 3]
-                for x in candidates:
-                    cost = abs(x - want_x) + abs(y - want_y)
-                    if (best is None or cost < best[0]) and free(x, y, placed):
-                        best = (cost, x, y)
-                if best is not None:
-                    break
-            cost, x, y = (0.0, want_x, want_y) if best is None else best
-            moved += cost
-            placed.append((x, y))
-            out[i] = (x, y)
-        return moved, out
+    def nearest_free(i: int, placed: list[tuple[float, float]]) -> tuple[float, float]:
+        """The free place nearest label ``i``'s target: rows from over its peak upwards, then
+        (no room above) downwards; beside a label or a peak's bar in the way, or right of the
+        plot (past 180 degrees nothing is drawn under a label)."""
+        want_x, want_y = targets[i]
+        rows = [want_y - r * b.height for r in range(len(xs) + 1)]
+        rows = [y for y in rows if y >= b.y_min - 1e-9] or [want_y]
+        rows += [want_y + r * b.height for r in range(1, len(xs) + 1)]
+        for y in rows:
+            candidates = [want_x, b.x_max]
+            for px, _ in placed:
+                candidates += [px + b.width, px - b.width]
+            for peak_x in xs:
+                candidates += [peak_x + half + b.clearance / 3, peak_x - half - b.clearance / 3]
+            best: tuple[float, float] | None = None
+            for x in candidates:
+                cost = abs(x - want_x)
+                if (best is None or cost < best[0]) and free(x, y, placed):
+                    best = (cost, x)
+            if best is not None:
+                return best[1], y
+        return want_x, want_y
 
-    # Left to right, and (when that moved a label) the highest peaks first, whose labels have
-    # the top row only: the layout that moves them least.
-    moved, out = place(sorted(range(len(xs)), key=lambda k: wants[k]))
-    if moved > 0.0:
-        other = place(sorted(range(len(xs)), key=lambda k: (ys[k], wants[k])))
-        if other[0] < moved:
-            moved, out = other
+    def lay_out(group: list[int]) -> list[tuple[float, float]]:
+        """A group's labels side by side, centred on their targets' mean, in view if they fit,
+        in the row over the group's highest peak."""
+        spread = (len(group) - 1) / 2 * b.width  # from the group's centre to its outer labels
+        centre = sum(targets[i][0] for i in group) / len(group)
+        low, high = b.x_min + spread, b.x_max - spread
+        centre = min(max(centre, low), high) if low <= high else (low + high) / 2
+        y = min(targets[i][1] for i in group)
+        return [(centre - spread + j * b.width, y) for j in range(len(group))]
+
+    order = sorted(range(len(xs)), key=lambda k: (targets[k][0], k))
+    groups: list[list[int]] = []
+    for i in order:
+        groups.append([i])
+        # Merge back while the last group reaches into the one before it.
+        while len(groups) > 1:
+            before, last = lay_out(groups[-2]), lay_out(groups[-1])
+            if last[0][0] - before[-1][0] >= b.width * (1 - 1e-9):
+                break
+            groups[-2:] = [groups[-2] + groups[-1]]
+    out = [(0.0, 0.0)] * len(xs)
+    placed: list[tuple[float, float]] = []
+    for group in groups:
+        for i, (x, y) in zip(group, lay_out(group), strict=True):
+            out[i] = (x, y) if free(x, y, placed) else nearest_free(i, placed)
+            placed.append(out[i])
     return np.array(out, dtype=np.float64).reshape(-1, 2)
 
 

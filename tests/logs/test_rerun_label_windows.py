@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+import numpy.typing as npt
 import pytest
 import rerun.blueprint as rrb
 
@@ -292,3 +293,92 @@ def test_the_peaks_labels_are_whole_and_apart_in_every_window(
                 )
             for other in boxes[k + 1 :]:
                 assert _apart(label, other), (window, plot.peak_labels)
+
+
+def _peaks_px(
+    plot: conv.AmplitudePlot, bounds: tuple[tuple[float, float], tuple[float, float]], view_px
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], float]:
+    """``(peaks, anchors, scale)``: the peaks and their labels' points in the view's pixels."""
+    scale, x0, y0 = _to_px(bounds, view_px)
+    origin = np.array([x0, y0])
+    return (plot.peaks - origin) * scale, (plot.label_anchors - origin) * scale, scale
+
+
+@pytest.mark.parametrize("heights", [(1.0, 0.9), (0.85, 1.0)])
+@pytest.mark.parametrize("centre", [100.0, 130.0, 168.0])
+@pytest.mark.parametrize("apart", [5.0, 10.0, 15.0, 20.0])
+def test_close_peaks_labels_stand_by_their_own_peaks_in_every_window(
+    apart: float, centre: float, heights: tuple[float, float]
+) -> None:
+    """Two peaks 5 to 20 degrees apart: the second label stood a label's width away from its
+    peak, 90 pixels at 1280 x 720 and 150 at 1920 x 1080, or right of the plot. Laid out side by
+    side over the pair, each label's box is over its own peak in the smallest view and at most
+    32 pixels across from it in the largest (a label is 90 pixels wide in every view, and the
+    pair's two places a label's width apart at the smallest view's scale: 1.7 times that at
+    1920 x 1080, 45 x 0.7); its lower edge between 4 and 26 pixels over the higher peak's
+    centre (its dot is 4 across; the clearance and a box's height, laid out at the smallest
+    scale, are 29 x 0.7 pixels more at the largest). Pairs left of about 95 degrees have no
+    room for two labels side by side between the s axis's labels and them: there the right
+    label stands a label's width right of the left one (test below)."""
+    peaks = [(centre - apart / 2, heights[0]), (centre + apart / 2, heights[1])]
+    plot = conv.amplitude_plot(_result_with_peaks(peaks))
+    bounds = _amplitude_bounds(False)
+    for window in AMPLITUDE_WINDOWS:
+        peaks_px, anchors_px, _ = _peaks_px(plot, bounds, _amplitude_view_px(window))
+        highest = float(peaks_px[:, 1].min())
+        for (peak_x, _), (x, y) in zip(peaks_px.tolist(), anchors_px.tolist(), strict=True):
+            left, _, right, bottom = _box((x, y))
+            across = max(left - peak_x, peak_x - right, 0.0)
+            assert across <= 32.0, (window, peaks, across)
+            assert 4.0 <= highest - bottom <= 26.0, (window, peaks, highest - bottom)
+
+
+@pytest.mark.parametrize("centre", [40.0, 70.0])
+def test_close_peaks_labels_near_the_s_axis_stand_side_by_side(centre: float) -> None:
+    """Left of about 95 degrees two labels do not fit side by side around their peaks right of
+    the s axis's labels: the left label stands over its peak, the right one beside it, both in
+    the row over the higher peak, in every window (a limit, not a wish)."""
+    peaks = [(centre - 5.0, 1.0), (centre + 5.0, 0.9)]
+    plot = conv.amplitude_plot(_result_with_peaks(peaks))
+    bounds = _amplitude_bounds(False)
+    for window in AMPLITUDE_WINDOWS:
+        peaks_px, anchors_px, _ = _peaks_px(plot, bounds, _amplitude_view_px(window))
+        (left_x, left_y), (right_x, right_y) = anchors_px.tolist()
+        assert abs(left_x - peaks_px[0, 0]) <= 45.0 and left_y == pytest.approx(right_y)
+        assert _apart(_box((left_x, left_y)), _box((right_x, right_y))), window
+        assert right_x - left_x <= 91.0 * 1.7, window
+
+
+@pytest.mark.parametrize("apart", [6.0, 14.0])
+def test_close_peaks_labels_move_as_little_as_their_peaks_between_snapshots(apart: float) -> None:
+    """Snapshots whose two close peaks drift by half a degree and trade heights (1.0 / 0.9 to
+    0.9 / 1.0): the labels jumped a label's width (over 100 pixels) when the heights crossed, as
+    the layout that moved them least flipped from left-to-right to highest-first. Side by side
+    over the pair, a label moves across at most as far as the pair's peaks (it follows their
+    mean) and up or down at most as far as the higher peak (its row is over it): the bound
+    checked is that, and half a pixel, between every two consecutive snapshots in every
+    window."""
+    bounds = _amplitude_bounds(False)
+    steps = 11
+    plots = [
+        conv.amplitude_plot(
+            _result_with_peaks(
+                [
+                    (120.0 + 0.5 * k, 1.0 - 0.01 * k),
+                    (120.0 + apart + 0.5 * k, 0.9 + 0.01 * k),
+                ]
+            )
+        )
+        for k in range(steps)
+    ]
+    for window in AMPLITUDE_WINDOWS:
+        view_px = _amplitude_view_px(window)
+        before = _peaks_px(plots[0], bounds, view_px)
+        for plot in plots[1:]:
+            after = _peaks_px(plot, bounds, view_px)
+            moved_x = float(np.abs(after[0][:, 0] - before[0][:, 0]).max())
+            moved_top = abs(float(after[0][:, 1].min() - before[0][:, 1].min()))
+            label_moved = np.abs(after[1] - before[1])
+            assert label_moved[:, 0].max() <= moved_x + 0.5, (window, label_moved, moved_x)
+            assert label_moved[:, 1].max() <= moved_top + 0.5, (window, label_moved, moved_top)
+            before = after
