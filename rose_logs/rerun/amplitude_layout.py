@@ -43,9 +43,11 @@ S_TICKS = (0.0, 0.5, 1.0)
 X_TITLE = "wall direction, map frame"
 #: The peaks' labels (``"100.0° p 0.67"``: 85 pixels measured) are laid out this wide.
 PEAK_LABEL_PX = 90.0
-#: Room over a peak for its label: the box keeps 6 pixels above the peak's centre (the dot is 4
-#: points).
-PEAK_LABEL_CLEARANCE_PX = 6.0
+#: Room over a peak for its label, from the peak's centre (the dot is 4 points) to the box: the
+#: box over a peak at s = 1 ends half a pixel above the s axis's labels ("s = 1" is centred on
+#: its tick), so that it may stand over them (with 6, labels there kept right of them: two close
+#: peaks left of 95 degrees had no room side by side).
+PEAK_LABEL_CLEARANCE_PX = (LABEL_TOP_PX + LABEL_BOTTOM_PX) / 2 + 0.5
 
 _NARROW = frozenset(" .,:;()ilrtfj")
 _WIDE = frozenset("mw")
@@ -73,11 +75,13 @@ class AmplitudeFrame:
     label_positions : tuple of (float, float)
         Each axis label's point (its box hangs under it, centred across).
     labels : tuple of str
-        The tick labels (``"0°"``, ...; ``"0"``, ``"0.5"``, ``"1"``), ``"s"`` and :data:`X_TITLE`.
+        The tick labels (``"0°"``, ...; ``"0"``, ``"0.5"``, ``"s = 1"``) and :data:`X_TITLE`.
     tick : float
         The ticks' length (x ticks down from the axis, s ticks left of it).
     axis_labels_right : float
         x of the s axis's labels' right edge: a label right of it (and a gap) is off them.
+    axis_labels_top : float
+        y of the s axis's labels' top: a label whose box ends above it is off them.
     shown_right : float
         The rightmost x every view shows.
     """
@@ -89,6 +93,7 @@ class AmplitudeFrame:
     labels: tuple[str, ...]
     tick: float
     axis_labels_right: float
+    axis_labels_top: float
     shown_right: float
 
 
@@ -96,9 +101,10 @@ def amplitude_frame(views_px: Sequence[tuple[float, float]]) -> AmplitudeFrame:
     """The amplitude view's frame for views of ``views_px`` (width, height, screen pixels).
 
     Around the plot (180 degrees by :data:`~rose_logs.rerun.style.AMPLITUDE_PLOT_HEIGHT`), in
-    pixels: left of it the s axis's labels, centred on their ticks and apart across from the
-    ``"0°"`` under the axis; above it a peak's label over a peak at ``s = 1`` and ``"s"`` over
-    ``"1"``; under it the degrees' labels, :data:`X_TITLE` beside them right of 180 degrees.
+    pixels: left of it the s axis's labels (``"0"``, ``"0.5"``, ``"s = 1"``), centred on their
+    ticks and apart across from the ``"0°"`` under the axis; above it a peak's label over a peak
+    at ``s = 1``; under it the degrees' labels, :data:`X_TITLE` beside them right of 180
+    degrees.
     Rerun fits the frame keeping its aspect, so the units per pixel are the most over the views
     of ``max(frame width / view width, frame height / view height)``, the rooms in pixels (solved
     for it). The degrees are labelled every 45 where those labels are apart, else every 90."""
@@ -106,8 +112,9 @@ def amplitude_frame(views_px: Sequence[tuple[float, float]]) -> AmplitudeFrame:
         msg = "views_px must name at least one view"
         raise ValueError(msg)
     height = AMPLITUDE_PLOT_HEIGHT
-    s_labels = [f"{s:g}" for s in S_TICKS]
-    s_width = max(label_width_px(text) for text in [*s_labels, "s"])
+    # The axis is named on its top label ("s" over "1" cost the plot 5 of its 55 pixels).
+    s_labels = [f"{s:g}" for s in S_TICKS[:-1]] + [f"s = {S_TICKS[-1]:g}"]
+    s_width = max(label_width_px(text) for text in s_labels)
     # The s labels' centre left of the axis: off its ticks, and across from "0°" (centred on the
     # axis, under it) though "0" is level with it.
     centre_px = max(
@@ -118,12 +125,12 @@ def amplitude_frame(views_px: Sequence[tuple[float, float]]) -> AmplitudeFrame:
     last = f"{X_TICKS_DEG[-1]:g}°"
     title_px = label_width_px(X_TITLE)
     right_px = label_width_px(last) / 2 + LABEL_GAP_PX + title_px + LABEL_GAP_PX
-    # Above s = 1: "1" is centred on its tick (half a box over it), "s" over "1"; a peak's label
-    # over the peak. Under the axis: a row of labels hanging from the ticks' ends.
+    # Above s = 1: "s = 1" is centred on its tick (half a box over it); a peak's label over the
+    # peak (its point a box's height over the box's lower edge). Under the axis: a row of labels
+    # hanging from the ticks' ends.
     half_box = (LABEL_TOP_PX + LABEL_BOTTOM_PX) / 2
-    s_top_px = half_box + LABEL_GAP_PX + (LABEL_BOTTOM_PX - LABEL_TOP_PX)
     peak_top_px = PEAK_LABEL_CLEARANCE_PX + (LABEL_BOTTOM_PX - LABEL_TOP_PX)
-    top_px = max(s_top_px, peak_top_px) + LABEL_GAP_PX
+    top_px = max(half_box, peak_top_px) + LABEL_GAP_PX
     bottom_px = AXIS_TICK_PX + LABEL_BOTTOM_PX + LABEL_GAP_PX
     per_px = max(
         max(180.0 / max(w - left_px - right_px, 1.0) for w, _ in views_px),
@@ -146,9 +153,6 @@ def amplitude_frame(views_px: Sequence[tuple[float, float]]) -> AmplitudeFrame:
     # A point half a box over its tick: Rerun hangs the box under the point.
     positions += [(x_s, -height * s - half_box * per_px) for s in S_TICKS]
     labels += s_labels
-    one_top = -height - (half_box - LABEL_TOP_PX) * per_px
-    positions.append((x_s, one_top - (LABEL_GAP_PX + LABEL_BOTTOM_PX) * per_px))
-    labels.append("s")
     title_x = 180.0 + (label_width_px(last) / 2 + LABEL_GAP_PX + title_px / 2) * per_px
     positions.append((title_x, tick))
     labels.append(X_TITLE)
@@ -160,5 +164,6 @@ def amplitude_frame(views_px: Sequence[tuple[float, float]]) -> AmplitudeFrame:
         labels=tuple(labels),
         tick=tick,
         axis_labels_right=x_s + s_width / 2 * per_px,
+        axis_labels_top=-height - (half_box - LABEL_TOP_PX) * per_px,
         shown_right=shown_right,
     )

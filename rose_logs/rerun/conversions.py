@@ -1007,6 +1007,9 @@ class PeakLabelBoxes:
         Highest top of a label's box (the frame's top and its edge).
     top : float
         The frame's top (the view's visual bounds).
+    high_row, x_min_high : float
+        A label whose point is at ``high_row`` or higher ends above the s axis's labels: its
+        leftmost centre is ``x_min_high`` (in view), not ``x_min``. Default: no such row.
     """
 
     width: float
@@ -1016,6 +1019,12 @@ class PeakLabelBoxes:
     x_max: float
     y_min: float
     top: float
+    high_row: float = -math.inf
+    x_min_high: float = -math.inf
+
+    def left_limit(self, y: float) -> float:
+        """The leftmost centre of a label whose point is at ``y``."""
+        return self.x_min if y > self.high_row + 1e-9 else min(self.x_min_high, self.x_min)
 
 
 def peak_label_boxes(frame: AmplitudeFrame) -> PeakLabelBoxes:
@@ -1034,6 +1043,9 @@ def peak_label_boxes(frame: AmplitudeFrame) -> PeakLabelBoxes:
         x_max=frame.shown_right - edge - width / 2,
         y_min=frame.y_range[0] + edge,
         top=frame.y_range[0],
+        # Rerun hangs a box from 1 to 24 pixels under its point.
+        high_row=frame.axis_labels_top - LABEL_BOTTOM_PX * per_px,
+        x_min_high=frame.x_range[0] + edge + width / 2,
     )
 
 
@@ -1073,13 +1085,11 @@ def _label_anchors(
         x + 180.0 if x < min(b.x_min, PEAK_LABEL_WRAP_DEG) and x + 180.0 <= b.x_max else x
         for x in xs
     ]
-    targets = [
-        (min(max(x, b.x_min), b.x_max), max(y - b.clearance - b.height, b.y_min))
-        for x, y in zip(wants, ys, strict=True)
-    ]
+    over = [max(y - b.clearance - b.height, b.y_min) for y in ys]  # each peak's row
+    targets = [(min(max(x, b.left_limit(y)), b.x_max), y) for x, y in zip(wants, over, strict=True)]
 
     def free(x: float, y: float, placed: list[tuple[float, float]]) -> bool:
-        if not b.x_min - 1e-9 <= x <= b.x_max + 1e-9:
+        if not b.left_limit(y) - 1e-9 <= x <= b.x_max + 1e-9:
             return False
         for px, py in placed:
             if abs(px - x) < b.width - 1e-9 and abs(py - y) < b.height - 1e-9:
@@ -1099,7 +1109,7 @@ def _label_anchors(
         rows = [y for y in rows if y >= b.y_min - 1e-9] or [want_y]
         rows += [want_y + r * b.height for r in range(1, len(xs) + 1)]
         for y in rows:
-            candidates = [want_x, b.x_max]
+            candidates = [want_x, b.x_max, b.left_limit(y)]
             for px, _ in placed:
                 candidates += [px + b.width, px - b.width]
             for peak_x in xs:
@@ -1117,10 +1127,12 @@ def _label_anchors(
         """A group's labels side by side, centred on their targets' mean, in view if they fit,
         in the row over the group's highest peak."""
         spread = (len(group) - 1) / 2 * b.width  # from the group's centre to its outer labels
-        centre = sum(targets[i][0] for i in group) / len(group)
-        low, high = b.x_min + spread, b.x_max - spread
-        centre = min(max(centre, low), high) if low <= high else (low + high) / 2
         y = min(targets[i][1] for i in group)
+        # Their own places' mean: a peak near the s axis wants a place a row over the highest
+        # peak may have over its labels.
+        centre = sum(min(max(wants[i], b.left_limit(y)), b.x_max) for i in group) / len(group)
+        low, high = b.left_limit(y) + spread, b.x_max - spread
+        centre = min(max(centre, low), high) if low <= high else (low + high) / 2
         return [(centre - spread + j * b.width, y) for j in range(len(group))]
 
     order = sorted(range(len(xs)), key=lambda k: (targets[k][0], k))
