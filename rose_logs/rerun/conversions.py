@@ -1061,12 +1061,14 @@ def _label_anchors(
     label's box: Rerun draws a label under its point).
 
     Each label stands over its peak, clear of it (a peak near 0° over the curve's other end at
-    180°: the s axis's labels are at 0), in the view and right of the s axis's labels. Labels
-    that would overlap across (peaks less than a label's width apart: 104 degrees at 1280 x 720)
+    180°: the s axis's labels are at 0), in the view and right of the s axis's labels, or over
+    them in the row over a peak at s = 1 (the box ends above them). Labels that would overlap
+    across (peaks less than a label's width apart: 101 degrees at 1280 x 720)
     stand side by side in their peaks' order, the group centred on its peaks' mean (in the view),
     in the row over its highest peak. So two close peaks' labels each stand over their own peak
     in the smallest view (a label's width apart there), and within 45 (k - 1) pixels across in a
-    view k times larger; and the labels move as their peaks do: a peak moving by ``d`` moves its
+    view k times larger (pairs from about 55 degrees on: further left the s axis's labels leave
+    no room for both around them); and the labels move as their peaks do: a peak moving by ``d`` moves its
     group's labels by at most ``d`` across, the row follows the group's highest peak. Before,
     they were placed one by one, in the order (left to right or highest first) that moved them
     least: the second a label's width away (150 pixels at 1920 x 1080), and the two swapped
