@@ -284,8 +284,8 @@ def _partitions(
     attached: npt.NDArray[np.bool_] | None = None,
 ) -> npt.NDArray[np.bool_]:
     """Occupied cells not in ``walls`` (the candidates) in 8-connected pieces of thin cells that
-    touch ``walls`` and span at least ``min_length_px`` cells, or are straight and hold
-    ``attached`` cells, with the candidates next to them.
+    meet ``walls`` (:func:`_meeting_walls`) and span at least ``min_length_px`` cells, or are
+    straight and hold or touch ``attached`` cells, with the candidates next to them.
 
     Thin cells (:func:`_thin_runs`) are the candidates and ``cores`` cells (unknown pockets: an
     object's inside or a thick wall's unseen core) on a run of occupied and core cells at most
@@ -293,8 +293,8 @@ def _partitions(
     an unseen core. ``free``: known cells that are not occupied (a probabilistic grid's free space
     is 0..20, not only 0). ``attached``: cells of ``walls`` the attach rule kept (within its reach
     of a wall); thin ones count towards a piece's length, so that a partition 0.5 m long stays
-    whole, not only its first ``attach_reach_m``. A shorter piece that holds some of them is kept
-    whole too when it is straight (no wider than ``max_thickness_px`` across): the attach rule keeps
+    whole, not only its first ``attach_reach_m``. A shorter piece that holds or touches some of
+    them is kept whole too when it is straight (no wider than ``max_thickness_px`` across): the attach rule keeps
     its first ``attach_reach_m`` anyway, and the rest alone was cut off it (a wall stub's end,
     where the paper's scores fade; a door frame 5-18 cm short). A round bin against a wall is
     not straight: the attach rule keeps its side at the wall, as before."""
@@ -367,17 +367,29 @@ def _straight_pieces(
     out = np.zeros(wanted.shape, dtype=bool)
     if not wanted.any():
         return out
+    cells, labels, starts, ends = _cells_by_piece(at, owners, wanted)
+    row, col = np.divmod(cells, width)
+    points = np.stack([col, row], axis=1).astype(np.float32)
+    for start, end in zip(starts, ends, strict=True):
+        (_, _), (w, h), _ = cv2.minAreaRect(points[start:end])
+        out[labels[start]] = min(w, h) + 1 <= max_thickness_px
+    return out
+
+
+def _cells_by_piece(
+    at: npt.NDArray[np.intp], owners: npt.NDArray[np.integer], wanted: npt.NDArray[np.bool_]
+) -> tuple[
+    npt.NDArray[np.intp], npt.NDArray[np.integer], npt.NDArray[np.intp], npt.NDArray[np.intp]
+]:
+    """The cells ``at`` of the ``wanted`` pieces (bool per label of ``owners``) grouped by piece:
+    ``(cells, labels, starts, ends)``, piece ``k``'s cells ``cells[starts[k]:ends[k]]``, its label
+    ``labels[starts[k]]``; pieces in label order, cells in their order in ``at``."""
     mine = wanted[owners]
     cells, labels = at[mine], owners[mine]
     order = np.argsort(labels, kind="stable")
     cells, labels = cells[order], labels[order]
     starts = np.flatnonzero(np.r_[True, labels[1:] != labels[:-1]])
-    row, col = np.divmod(cells, width)
-    points = np.stack([col, row], axis=1).astype(np.float32)
-    for start, end in zip(starts, np.r_[starts[1:], len(cells)], strict=True):
-        (_, _), (w, h), _ = cv2.minAreaRect(points[start:end])
-        out[labels[start]] = min(w, h) + 1 <= max_thickness_px
-    return out
+    return cells, labels, starts, np.r_[starts[1:], len(cells)]
 
 
 def _meeting_walls(
@@ -404,12 +416,7 @@ def _meeting_walls(
         return met
     walls = walls.copy()
     walls.reshape(-1)[at[(eligible & met)[owners]]] = True
-    mine = pending[owners]
-    cells, labels = at[mine], owners[mine]
-    order = np.argsort(labels, kind="stable")
-    cells, labels = cells[order], labels[order]
-    starts = np.flatnonzero(np.r_[True, labels[1:] != labels[:-1]])
-    ends = np.r_[starts[1:], len(cells)]
+    cells, labels, starts, ends = _cells_by_piece(at, owners, pending)
     rows, cols = np.divmod(cells, walls.shape[1])
     margin = _MEETING_PX + 1
     reach_square = np.ones((2 * margin + 1, 2 * margin + 1), np.uint8)
