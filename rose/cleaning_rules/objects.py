@@ -137,11 +137,7 @@ def _between_doors(
     in_removed = removed.reshape(-1)[pieces.cells]
     if directions.size == 0 or not in_removed.any():
         return out
-    cells = pieces.cells[in_removed]
-    owners = pieces.owners[in_removed]
-    order = np.argsort(owners, kind="stable")
-    cells, owners = cells[order], owners[order]
-    starts = np.flatnonzero(np.r_[True, owners[1:] != owners[:-1]])
+    cells, _, starts, _ = _cells_by_piece(pieces.cells, pieces.owners, in_removed)
     rows, cols = np.divmod(cells, removed.shape[1])
     door = max(2, math.ceil(length_px(_DOOR_MAX_M, res)))
     anchor = max(2, math.ceil(length_px(_DOOR_ANCHOR_M, res)))
@@ -367,7 +363,7 @@ def _straight_pieces(
     out = np.zeros(wanted.shape, dtype=bool)
     if not wanted.any():
         return out
-    cells, labels, starts, ends = _cells_by_piece(at, owners, wanted)
+    cells, labels, starts, ends = _cells_by_piece(at, owners, wanted[owners])
     row, col = np.divmod(cells, width)
     points = np.stack([col, row], axis=1).astype(np.float32)
     for start, end in zip(starts, ends, strict=True):
@@ -377,15 +373,14 @@ def _straight_pieces(
 
 
 def _cells_by_piece(
-    at: npt.NDArray[np.intp], owners: npt.NDArray[np.integer], wanted: npt.NDArray[np.bool_]
+    at: npt.NDArray[np.intp], owners: npt.NDArray[np.integer], chosen: npt.NDArray[np.bool_]
 ) -> tuple[
     npt.NDArray[np.intp], npt.NDArray[np.integer], npt.NDArray[np.intp], npt.NDArray[np.intp]
 ]:
-    """The cells ``at`` of the ``wanted`` pieces (bool per label of ``owners``) grouped by piece:
+    """The ``chosen`` cells of ``at`` (bool per cell; labels ``owners``) grouped by piece:
     ``(cells, labels, starts, ends)``, piece ``k``'s cells ``cells[starts[k]:ends[k]]``, its label
     ``labels[starts[k]]``; pieces in label order, cells in their order in ``at``."""
-    mine = wanted[owners]
-    cells, labels = at[mine], owners[mine]
+    cells, labels = at[chosen], owners[chosen]
     order = np.argsort(labels, kind="stable")
     cells, labels = cells[order], labels[order]
     starts = np.flatnonzero(np.r_[True, labels[1:] != labels[:-1]])
@@ -416,7 +411,7 @@ def _meeting_walls(
         return met
     walls = walls.copy()
     walls.reshape(-1)[at[(eligible & met)[owners]]] = True
-    cells, labels, starts, ends = _cells_by_piece(at, owners, pending)
+    cells, labels, starts, ends = _cells_by_piece(at, owners, pending[owners])
     rows, cols = np.divmod(cells, walls.shape[1])
     margin = _MEETING_PX + 1
     reach_square = np.ones((2 * margin + 1, 2 * margin + 1), np.uint8)
