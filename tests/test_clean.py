@@ -1720,6 +1720,17 @@ def test_a_wall_stub_beside_an_unseen_patch_keeps_its_end(stub_m: float, row: in
     assert clean(grid, rose.analyze(grid), resolution_m=0.05).kept[stubs].all()
 
 
+@pytest.mark.parametrize(
+    ("stub_m", "row"), [(0.6, 6), (0.6, 8), (0.8, 8), (0.8, 12), (1.2, 18), (1.5, 26)]
+)
+def test_a_wall_stub_keeps_its_short_end_beyond_an_unseen_patch(stub_m: float, row: int) -> None:
+    """As above, with the patch further up: the end beyond it is under 0.5 m (too short for a
+    partition) and the patch's rows part it from the stub's kept foot, so it touched nothing kept
+    and went (27-81 of each scene's cells)."""
+    grid, stubs = _room_with_stubs(0.05, stub_m, 3, (row, 2, -3, 2))
+    assert clean(grid, rose.analyze(grid), resolution_m=0.05).kept[stubs].all()
+
+
 def test_a_partition_whose_foot_is_unseen_stays() -> None:
     """A partition 1.8 m long, one cell thick, free on both sides, with an unseen corner 0.3 m wide
     at its foot: the run across the foot is 7 cells (the limit 6), so its thin cells stopped short

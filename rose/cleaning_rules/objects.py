@@ -325,9 +325,7 @@ def _partitions(
     boxes = label_boxes(labels, at, count)
     long_enough = np.maximum(boxes[:, 2], boxes[:, 3]) >= min_length_px
     if attached is not None:
-        # Holding attached cells or next to one (4-neighbours): a wall stub's end may meet the
-        # attached part across a row that is no thin run (free space beside it only next to an
-        # unknown pocket, which the sliver guard does not count).
+        # Holding attached cells or next to one (4-neighbours): the attach rule kept part of it.
         partly = np.zeros(count, dtype=bool)
         near_attached = cv2.dilate(attached[box].view(np.uint8), _CROSS).view(bool)
         partly[owners[near_attached.reshape(-1)[at]]] = True
@@ -335,6 +333,21 @@ def _partitions(
         np.greater(partly, long_enough, out=partly)
         long_enough |= _straight_pieces(at, owners, partly, labels.shape[1], max_thickness_px)
     wanted = long_enough & _meeting_walls(walls[box], occupied[box], at, owners, long_enough)
+    if attached is not None:
+        # Across the rows by a pocket only: there the free side does not count (the sliver
+        # guard), so they are no thin run. Elsewhere a piece parted from the kept ones is
+        # furniture beside them (joined across any occupied cells, it kept 30-degree clutter
+        # 0.852 -> 0.847 on the benchmark).
+        by_pockets = cv2.dilate(cores[box].view(np.uint8), np.ones((5, 5), np.uint8)).view(bool)
+        wanted |= _continued(
+            attached[box],
+            occupied[box] & by_pockets,
+            at,
+            owners,
+            wanted,
+            labels.shape[1],
+            max_thickness_px,
+        )
     candidates = candidates[box]
     cells = at[wanted[owners] & candidates.reshape(-1)[at]]
     pieces = np.zeros(sided.shape, dtype=bool)
@@ -370,6 +383,110 @@ def _straight_pieces(
         (_, _), (w, h), _ = cv2.minAreaRect(points[start:end])
         out[labels[start]] = min(w, h) + 1 <= max_thickness_px
     return out
+
+
+def _continued(
+    attached: npt.NDArray[np.bool_],
+    through: npt.NDArray[np.bool_],
+    at: npt.NDArray[np.intp],
+    owners: npt.NDArray[np.integer],
+    wanted: npt.NDArray[np.bool_],
+    width: int,
+    max_thickness_px: float,
+) -> npt.NDArray[np.bool_]:
+    """Which labelled pieces (cells ``at``, flat indices into an image ``width`` cells wide,
+    labels ``owners``) not ``wanted`` continue a kept stub: joined through up to
+    :data:`_MEETING_PX` ``through`` cells to ``attached`` cells or to a piece kept so
+    (``wanted``, or continuing one), and straight together with what they are joined to nearby
+    (:func:`_straight_pieces`'s test on both). A stub's end beyond an unknown pocket beside it:
+    the rows by the pocket are no thin run (its free side does not count there), so the end was
+    a piece of its own, too short for a partition and touching nothing kept. A round bin's far
+    face, joined to its kept near face round its inside, is no stub's end: not in line."""
+    import cv2
+
+    out = np.zeros(wanted.shape, dtype=bool)
+    seeds = attached.copy()
+    seeds.reshape(-1)[at[wanted[owners]]] = True
+    left = ~wanted
+    left[0] = False
+    cells, labels, starts, ends = _cells_by_piece(at, owners, left[owners])
+    rows, cols = np.divmod(cells, width)
+    margin = _MEETING_PX + 1
+    steps = through.view(np.uint8)
+    grown_from = seeds
+    while True:
+        # Only the pieces joined to a seed (the new ones after the first round) through at
+        # least one of the ``through`` cells: those touching one were judged by the caller.
+        # Each is then looked at in its own window.
+        reach = grown_from.view(np.uint8)
+        joined = np.zeros(reach.shape, dtype=np.uint8)
+        for _ in range(_MEETING_PX):
+            reach = np.bitwise_and(cv2.dilate(reach, _SQUARE), steps)
+            joined |= reach
+        near_seeds = cv2.dilate(joined, _CROSS).view(bool)[rows, cols]
+        close = np.zeros(len(starts), dtype=bool)
+        close[np.searchsorted(starts, np.flatnonzero(near_seeds), side="right") - 1] = True
+        found = []
+        for k in np.flatnonzero(close):
+            label = labels[starts[k]]
+            if not left[label]:
+                continue
+            r, c = rows[starts[k] : ends[k]], cols[starts[k] : ends[k]]
+            alone = _width_of(r, c)
+            if alone > max_thickness_px:  # bent: no straighter with more cells
+                left[label] = False
+                continue
+            # The piece's window with a thin wall's width to spare (the seed's cells in line with
+            # it) beyond the joining cells' reach.
+            span = math.ceil(max_thickness_px) + margin
+            r0, c0 = max(int(r.min()) - span, 0), max(int(c.min()) - span, 0)
+            window = (slice(r0, int(r.max()) + span + 1), slice(c0, int(c.max()) + span + 1))
+            piece = np.zeros(seeds[window].shape, dtype=np.uint8)
+            piece[r - r0, c - c0] = 1
+            reach = piece
+            for _ in range(_MEETING_PX):  # 8-connected steps through ``through`` cells
+                reach = np.bitwise_or(
+                    np.bitwise_and(cv2.dilate(reach, _SQUARE), through[window].view(np.uint8)),
+                    piece,
+                )
+            near = cv2.dilate(reach, _CROSS).view(bool) & seeds[window]
+            if not near.any():
+                continue
+            # The seed cells joined to the piece: their 8-connected parts in the window.
+            count, parts = components(seeds[window])
+            touched = np.zeros(count, dtype=bool)
+            touched[parts[near]] = True
+            touched[0] = False
+            seed = touched[parts]
+            # In line: no wider together than the wider of the two alone (a cell to spare for
+            # a staircase), within a thin wall's width. A stub's end continues its kept foot; a
+            # cabinet's side meets the kept face it stands at an angle to.
+            line = _width(seed | piece.view(bool) | (reach > 0))
+            if line <= min(max(_width(seed), alone) + 1, max_thickness_px):
+                found.append(k)
+        if not found:
+            return out
+        grown_from = np.zeros(seeds.shape, dtype=bool)
+        for k in found:
+            label = labels[starts[k]]
+            out[label] = True
+            left[label] = False
+            grown_from[rows[starts[k] : ends[k]], cols[starts[k] : ends[k]]] = True
+        seeds |= grown_from
+
+
+def _width(mask: npt.NDArray[np.bool_]) -> float:
+    """:func:`_width_of` the ``True`` cells of ``mask``."""
+    return _width_of(*np.nonzero(mask))
+
+
+def _width_of(row: npt.NDArray[np.integer], col: npt.NDArray[np.integer]) -> float:
+    """Width of the cells at ``row``, ``col``: the narrower side of the smallest rectangle at any
+    angle around their centres, plus a cell (cells)."""
+    import cv2
+
+    (_, _), (w, h), _ = cv2.minAreaRect(np.stack([col, row], axis=1).astype(np.float32))
+    return float(min(w, h)) + 1.0
 
 
 def _cells_by_piece(
@@ -445,6 +562,8 @@ def _meeting_walls(
 
 #: The 4-neighbours and the cell itself: a 3 x 3 elliptic kernel.
 _CROSS = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], np.uint8)
+#: The 8-neighbours and the cell itself.
+_SQUARE = np.ones((3, 3), np.uint8)
 
 
 def _cross(
