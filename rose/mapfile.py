@@ -539,7 +539,19 @@ def _load_yaml_map(path: Path, max_cells: int | None) -> OccupancyMap:
         free_thresh=free_thresh,
         as_map_server=True,
     )
+    saved_unknown = _saved_unknown_read_as_free(pixels, mode, bool(negate), free_thresh)
     _warn_of_usual_values(path, meta)  # once the map reads: an error comes alone
+    if saved_unknown is not None:
+        grid[np.flipud(saved_unknown)] = UNKNOWN
+        _LOG.warning(
+            "%s: %d cells of grey %d, map_saver's unknown, read as unknown: with free_thresh %g "
+            "map_server reads them as free (Nav2's map_saver wrote free_thresh 0.25 until 2025); "
+            "free_thresh: 0.196 in the YAML reads them as unknown there too",
+            path,
+            int(np.count_nonzero(saved_unknown)),
+            SAVED_UNKNOWN,
+            free_thresh,
+        )
     return OccupancyMap(
         grid=grid,
         resolution_m=resolution,
@@ -548,6 +560,41 @@ def _load_yaml_map(path: Path, max_cells: int | None) -> OccupancyMap:
         source=path,
         image_path=image_path,
     )
+
+
+def _saved_unknown_read_as_free(
+    pixels: npt.NDArray[np.uint8], mode: MapMode, negate: bool, free_thresh: float
+) -> npt.NDArray[np.bool_] | None:
+    """The pixels (top row first) of map_saver's unknown grey, :data:`SAVED_UNKNOWN`, where a map
+    YAML's thresholds read that grey as free; None where they do not, or where the image holds no
+    such unknown.
+
+    Nav2's map_saver wrote unknown cells as grey 205 with ``free_thresh: 0.25`` until 2025, and
+    205 is an occupancy of 0.196: map_server reads it back as free. Every unexplored cell is then
+    free space, every outer wall a thin line with free space on both sides, and the walls cleaning
+    took them for loose pieces. A grey that is map_saver's unknown stands out: a spike at 205 in
+    the image's histogram (a trinary image's only grey; many times the pixels of 204 and 206 in an
+    image of many greys), not one level among its neighbours in a continuous image.
+    """
+    if mode != "trinary" or negate or pixels.shape[2] not in (1, 3):
+        return None  # (alpha counts in the grey: an opaque 205 is no longer 205)
+    if free_thresh <= 1.0 - SAVED_UNKNOWN / 255.0:  # image_to_grid's occ: free below free_thresh
+        return None
+    first = pixels[:, :, 0]
+    grey = first == SAVED_UNKNOWN
+    if pixels.shape[2] == 3:  # the same value in all three channels
+        grey &= (pixels[:, :, 1] == SAVED_UNKNOWN) & (pixels[:, :, 2] == SAVED_UNKNOWN)
+    count = int(np.count_nonzero(grey))
+    if count == 0:
+        return None
+    counts = np.bincount(first.reshape(-1), minlength=256)
+    beside = int(counts[SAVED_UNKNOWN - 1] + counts[SAVED_UNKNOWN + 1])
+    return grey if count >= _SAVED_UNKNOWN_SPIKE * beside else None
+
+
+#: How many times the pixels of its two neighbouring greys map_saver's unknown grey must hold to
+#: be read as unknown (:func:`_saved_unknown_read_as_free`).
+_SAVED_UNKNOWN_SPIKE = 10
 
 
 def _warn_of_usual_values(path: Path, meta: dict[str, Any]) -> None:

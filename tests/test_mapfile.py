@@ -437,6 +437,60 @@ def test_a_grey_value_on_a_threshold_reads_as_in_nav2(tmp_path: Path) -> None:
     )
 
 
+_NAV2_SAVED = (
+    "image: m.pgm\nmode: trinary\nresolution: 0.05\norigin: [0, 0, 0]\nnegate: 0\n"
+    "occupied_thresh: 0.65\nfree_thresh: 0.25\n"
+)
+"""The YAML Nav2's map_saver wrote until 2025: grey 205 (its unknown) reads as free under it."""
+
+
+def test_map_savers_unknown_grey_reads_as_unknown_where_the_yaml_reads_it_as_free(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """A room saved by Nav2's map_saver: walls 0, free 254, unexplored 205, free_thresh 0.25, which
+    map_server reads back as free (0.196 < 0.25). Read so, every unexplored cell was free space and
+    the walls cleaning took outer walls for loose pieces (a living room's west wall went whole)."""
+    image = np.full((40, 60), 205, np.uint8)
+    image[10:30, 10:50] = 254
+    image[10, 10:50] = image[29, 10:50] = image[10:30, 10] = image[10:30, 49] = 0
+    cv2.imwrite(str(tmp_path / "m.pgm"), image)
+    path = write_yaml(tmp_path / "m.yaml", _NAV2_SAVED)
+    with caplog.at_level("WARNING", logger="rose"):
+        grid = rose.load_map(path).grid
+    np.testing.assert_array_equal(grid == -1, np.flipud(image == 205))
+    np.testing.assert_array_equal(grid == 0, np.flipud(image == 254))
+    assert [r.getMessage() for r in caplog.records] == [
+        f"{path}: 1600 cells of grey 205, map_saver's unknown, read as unknown: with free_thresh "
+        "0.25 map_server reads them as free (Nav2's map_saver wrote free_thresh 0.25 until 2025); "
+        "free_thresh: 0.196 in the YAML reads them as unknown there too"
+    ]
+    # The same image in colour (three equal channels) too.
+    cv2.imwrite(str(tmp_path / "c.png"), np.dstack([image] * 3))
+    coloured = write_yaml(tmp_path / "c.yaml", _NAV2_SAVED.replace("m.pgm", "c.png"))
+    np.testing.assert_array_equal(rose.load_map(coloured).grid, grid)
+
+
+def test_grey_205_of_a_continuous_image_reads_as_map_server_reads_it(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """In an image of every grey (a probability map shown in trinary mode), 205 is one level among
+    its neighbours, not map_saver's unknown: free at free_thresh 0.25, as 204 and 206 are; nor is
+    it read otherwise when the thresholds read it as unknown already (0.196) or negate is set."""
+    image = np.tile(np.arange(256, dtype=np.uint8), (4, 1))
+    cv2.imwrite(str(tmp_path / "m.pgm"), image)
+    with caplog.at_level("WARNING", logger="rose"):
+        grid = rose.load_map(write_yaml(tmp_path / "m.yaml", _NAV2_SAVED)).grid
+        assert (grid[:, 204:207] == 0).all()
+        flat = np.full((4, 8), 205, np.uint8)
+        flat[:, :2] = 254
+        cv2.imwrite(str(tmp_path / "f.pgm"), flat)
+        negated = _NAV2_SAVED.replace("m.pgm", "f.pgm").replace("negate: 0", "negate: 1")
+        assert (rose.load_map(write_yaml(tmp_path / "n.yaml", negated)).grid[:, 2:] == 100).all()
+        ros1 = _NAV2_SAVED.replace("m.pgm", "f.pgm").replace("0.25", "0.196")
+        assert (rose.load_map(write_yaml(tmp_path / "r.yaml", ros1)).grid[:, 2:] == -1).all()
+    assert caplog.records == []
+
+
 def test_scale_and_raw_modes(tmp_path: Path) -> None:
     image = np.array([[0, 100, 254]], dtype=np.uint8)
     cv2.imwrite(str(tmp_path / "m.pgm"), image)
