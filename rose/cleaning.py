@@ -50,7 +50,15 @@ Two methods, chosen by name:
 
     3. *object faces*: occupied cells around a small enclosed unknown pocket (less than
        ``object_pocket_m2``, the sealing lines counting as its boundary) are the faces of a
-       scanned object, whose inside stays unknown; they go unless they lie on a straight run;
+       scanned object, whose inside stays unknown; they go unless they lie on a straight run,
+       or have the unexplored outside right behind them (with ``loose_pieces``): unknown space
+       joined to the map's edge through space at least three cells wide that crosses no drawn
+       line, next to them or within ``unknown_margin_m`` through their wall, in an 8-connected
+       piece at least ``min_run_m`` across, farther than ``hidden_wall_reach_m`` from a drawn
+       line and farther than three guard windows through that space from where a robot in the
+       room could drive up to it (the explored edge). Such a cell stays even when the paper calls
+       it clutter: a step of an outer wall, its unseen core 0.2-0.3 m deep in front of the wide
+       unknown, read as an object's faces once sealing lines closed its back, went whole;
     4. *attached pieces*: occupied cells joined to a kept wall within ``attach_reach_m`` (through
        occupied cells that are not object faces) stay: wall stubs, door frames, corners; and so do
        *partitions*, pieces seen from both sides (known free space across them along a grid row

@@ -2473,37 +2473,33 @@ def test_the_pieces_apart_from_the_joined_pieces_list_are_the_pieces_alone() -> 
 
 def _outer_wall_step() -> npt.NDArray[np.int8]:
     """A room (0.05 m cells) whose outer wall steps 0.3 m into it for 1 m, unknown behind the
-    step (the wall's unseen core, 0.2 m deep, then the outside); a stretch of the wall west of
-    the step ends at the explored edge, where the room meets the unexplored outside (a real lab
-    map at 0.02 m, ECN's, lost such a step whole: docs/cleaning.md, 2026-12-07)."""
+    step (the wall's unseen core, 0.2 m deep, then the outside); west of the step a thick stretch
+    of the outer wall, 0.95 m long, its west end at the explored edge, where the room meets the
+    unexplored outside (a real lab map at 0.02 m, ECN's, lost such a step whole:
+    docs/cleaning.md, 2026-12-07)."""
     g = np.full((120, 200), -1, np.int8)
-    g[42:112, 40:192] = 0  # the room
-    g[40:42, 55:61] = 100  # a stretch of the outer wall, its west end at the explored edge
-    g[38:52, 40:55] = -1  # the unexplored outside reaching into the room there
+    g[42:112, 20:192] = 0  # the room
+    g[40:46, 40:59] = 100  # a thick stretch of the outer wall, 0.2 m short of the step
+    g[38:52, 20:40] = -1  # the unexplored outside reaching into the room west of it
     g[36:38, 81:192] = 100  # the outer wall on east of the step, 0.2 m further out
     g[38:42, 81:192] = 0
     g[42:48, 61:83] = -1  # behind the step: unseen
     g[46:48, 63:83] = 100  # the step's face
     g[36:48, 81:83] = 100  # its east side, down to the wall
     g[40:48, 63:65] = 100  # its west side
-    g[112:114, 40:192] = 100  # north wall
+    g[112:114, 20:192] = 100  # north wall
     g[36:114, 190:192] = 100  # east wall
-    g[60:114, 38:40] = 100  # west wall (its north part)
+    g[52:114, 18:20] = 100  # west wall (its north part)
     return g
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="known: the step is clutter to the paper, 0.2 m short of the wide unknown, its back sealed "
-    "as an object's inside, and the guard's window joins the room to the outside at the explored "
-    "edge nearby; a rule keeping it (branch wip/backed-by-outside) cost ray-cast clutter removed "
-    "at 30 degrees 0.852 -> 0.848 (docs/cleaning.md, 2026-12-07)",
-)
 def test_an_outer_walls_step_with_the_outside_behind_it_stays() -> None:
     g = _outer_wall_step()
     step = np.zeros(g.shape, dtype=bool)
     step[40:48, 63:83] = g[40:48, 63:83] == 100
     cleaned = clean(g, rose.analyze(g), resolution_m=0.05)
-    # Every cell of the step has unknown space behind it that reaches the outside with no line
-    # drawn between: removed, the room opens onto the outside for 1 m.
+    # Every cell of the step has unknown space behind it that reaches the outside, no line drawn
+    # between, and the room meets that outside only 2 m away through it (round the stretch): a
+    # wall. (Before, the inner face of its east side went, an object's face around the sealed
+    # space behind the step.)
     assert np.array_equal(cleaned.kept & step, step)

@@ -57,6 +57,7 @@ from rose.cleaning_rules.objects import (
     _pocket_faces,
 )
 from rose.cleaning_rules.outside import (
+    _backing_outside,
     _near_wide_unknown,
     _wide_and_near,
     unexplored_outside,
@@ -428,7 +429,36 @@ def _wall_cells(
             faces[box] &= ~beside_lines.view(bool)
         object_faces = np.greater(faces, lines)
         object_faces |= fronts
+        # Occupied cells with the outside right behind them (no drawn line between): removed,
+        # they open the room onto it. Kept whatever the object rules and the paper say: a step
+        # of an outer wall (ECN's lab map), 0.2-0.3 m in front of the wide unknown, its back
+        # sealed off as an object's inside, went whole, and the guard's window saw the room
+        # meet the outside round the next wall's end. Only in pieces 2 m or more across, not
+        # within a cabinet's depth of a drawn line, and not within three guard windows (through
+        # the unknown) of where the room meets that unknown at a robot's scale: objects at the
+        # explored edge and at a wall's end have the outside behind them too (measured with
+        # ``bench_cleaning.py``: docs/cleaning.md, 2026-12-07).
+        backed = (
+            np.zeros(occupied.shape, dtype=bool)
+            if apart_job is None
+            else _backing_outside(
+                occupied,
+                unknown,
+                completed | unreached,
+                apart_job.result(),
+                free,
+                np.greater(keep, object_faces),
+                pockets,
+                radius_px=length_px(p.robot_radius_m, res),
+                edge_reach_px=round(length_px(3 * p.guard_window_m, res)),
+                depth_px=max(1, round(length_px(p.unknown_margin_m, res))),
+                min_extent_px=length_px(p.min_run_m, res),
+                line_reach_px=round(length_px(p.hidden_wall_reach_m, res)),
+            )
+        )
+        np.greater(object_faces, backed, out=object_faces)
         np.greater(keep, object_faces, out=keep)
+        keep |= backed
         keep |= front_walls  # walls meeting furniture fronts: kept, attach to them
         if p.attach_reach_m > 0:
             # Wall stubs, door frames, corners: occupied cells joined to a kept wall within the
