@@ -198,9 +198,17 @@ def _backing_outside(
     import cv2
 
     from rose.cleaning_rules.masks import _near, _nonzero_flat
-    from rose.cleaning_rules.objects import _grow_within
     from rose.labelling import components, fill_from_corner
 
+    # The cells it could keep first (a few), filtered before the passes over the window.
+    backed = np.greater(occupied, kept)
+    cells = _nonzero_flat(backed.view(np.uint8))
+    short = pieces.diagonals[pieces.labels.reshape(-1)[cells]] < min_extent_px
+    backed.reshape(-1)[cells[short]] = False
+    if drawn.any() and backed.any():
+        np.greater(backed, _near(backed, drawn, line_reach_px), out=backed)
+    if not backed.any():
+        return backed
     cross = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
     behind = np.greater(unknown, drawn).view(np.uint8)
     framed = cv2.copyMakeBorder(behind, 3, 3, 3, 3, cv2.BORDER_CONSTANT, value=1)
@@ -212,27 +220,25 @@ def _backing_outside(
     beyond = np.greater(wide, reached)[3:-3, 3:-3]
     ring = cv2.dilate(beyond.view(np.uint8), cross).view(bool) & behind.view(bool)
     touching = cv2.dilate(ring.view(np.uint8), cross).view(bool) & occupied
-    # Into the wall (its thickness), not through cells next to an object's inside (a pocket
-    # off the outside that no free cell touches): a cabinet's sides meet the outer wall.
-    inner = np.greater(pockets, ring)
-    if inner.any():
-        count, labels = components(inner, connectivity=4)
-        seen = np.zeros(count, dtype=bool)
-        seen[labels[cv2.dilate(free.view(np.uint8), cross).view(bool) & inner]] = True
-        seen[0] = True
-        inner = np.logical_not(seen[labels])
-    through = np.greater(occupied, cv2.dilate(inner.view(np.uint8), cross).view(bool))
-    through |= touching
-    backed = _grow_within(touching, through, depth_px - 1)
-    np.greater(backed, kept, out=backed)
-    if not backed.any():
-        return backed
-    # (looked up at those few cells, not over the window)
-    cells = _nonzero_flat(backed.view(np.uint8))
-    short = pieces.diagonals[pieces.labels.reshape(-1)[cells]] < min_extent_px
-    backed.reshape(-1)[cells[short]] = False
-    if drawn.any() and backed.any():
-        np.greater(backed, _near(backed, drawn, line_reach_px), out=backed)
+    if depth_px > 1:
+        # Into the wall (its thickness), not through cells next to an object's inside (a
+        # pocket off the outside that no free cell touches): a cabinet's sides meet the outer
+        # wall.
+        inner = np.greater(pockets, ring)
+        if inner.any():
+            count, labels = components(inner, connectivity=4)
+            seen = np.zeros(count, dtype=bool)
+            seen[labels[cv2.dilate(free.view(np.uint8), cross).view(bool) & inner]] = True
+            seen[0] = True
+            inner = np.logical_not(seen[labels])
+        through = np.greater(occupied, cv2.dilate(inner.view(np.uint8), cross).view(bool))
+        through |= touching
+        square = np.ones((3, 3), np.uint8)
+        grown = touching.view(np.uint8)
+        for _ in range(depth_px - 1):  # 8-connected steps through ``through``
+            grown = np.bitwise_and(cv2.dilate(grown, square), through.view(np.uint8))
+        touching = grown.view(bool)
+    backed &= touching
     if not backed.any():
         return backed
     # An object at a wall's end at the explored edge has the outside behind it too, but the room
