@@ -188,12 +188,13 @@ def _backing_outside(
     and the unknown cells next to them (every step 4-connected: a diagonal line closes as a
     straight one does). The cells: those next to it and within ``depth_px - 1`` steps
     (8-connected) of these through occupied cells next to no cell of an object's inside (a
-    component of ``pockets`` off the outside that no ``free`` cell touches), in pieces of ``pieces`` (8-connected) whose box
-    has a diagonal of ``min_extent_px`` or more (the building's walls, not an object), farther than
-    ``line_reach_px`` (chessboard) from a ``drawn`` cell (furniture whose wall line was drawn),
-    and farther than ``edge_reach_px`` steps through that unknown from a ``free`` cell that a
-    disc of ``radius_px`` centred there keeps off every occupied cell (where the room meets the
-    outside already at a robot's scale: the explored edge).
+    component of ``pockets`` off the outside that no ``free`` cell touches); in pieces of
+    ``pieces`` (8-connected) whose box has a diagonal of ``min_extent_px`` or more (the
+    building's walls, not an object); farther than ``line_reach_px`` (chessboard) from a
+    ``drawn`` cell (furniture whose wall line was drawn); and farther than ``edge_reach_px``
+    steps through the unknown cells off ``drawn`` from a ``free`` cell that a disc of
+    ``radius_px`` centred there keeps off every occupied cell (where the room meets the outside
+    already at a robot's scale: the explored edge).
     """
     import cv2
 
