@@ -495,9 +495,11 @@ def _load_yaml_map(path: Path, max_cells: int | None) -> OccupancyMap:
     if problem is not None:
         msg = f"{path}: 'resolution' {problem}"
         raise MapFileError(msg)
-    if not 0.0 <= free_thresh < occupied_thresh <= 1.0:
+    # Equal thresholds load in the map servers (one public map has 0.5 and 0.5): a grey is then
+    # occupied above, free below, unknown on them.
+    if not 0.0 <= free_thresh <= occupied_thresh <= 1.0:
         msg = (
-            f"{path}: need 0 <= free_thresh < occupied_thresh <= 1, "
+            f"{path}: need 0 <= free_thresh <= occupied_thresh <= 1, "
             f"got free_thresh={free_thresh}, occupied_thresh={occupied_thresh}"
         )
         raise MapFileError(msg)
@@ -1162,9 +1164,10 @@ def image_to_grid(
     if mode == "scale":
         # As Nav2: a pixel not fully opaque is unknown whatever its colour; one in between the
         # thresholds gets rint(100 * ratio) (ROS 1: 1 + 98 * ratio).
-        ratio = (occ - free_thresh) / (occupied_thresh - free_thresh)
         between = (occ <= occupied_thresh) & (occ >= free_thresh)
-        grid[between] = np.rint(100.0 * ratio[between]).astype(np.int8)
+        if occupied_thresh > free_thresh:  # (equal, the greys on them stay unknown)
+            ratio = (occ[between] - free_thresh) / (occupied_thresh - free_thresh)
+            grid[between] = np.rint(100.0 * ratio).astype(np.int8)
         if has_alpha:
             grid[image[:, :, -1] != 255] = UNKNOWN
     return np.flipud(grid).copy()

@@ -491,6 +491,21 @@ def test_grey_205_of_a_continuous_image_reads_as_map_server_reads_it(
     assert caplog.records == []
 
 
+@pytest.mark.parametrize("mode", ["trinary", "scale"])
+def test_equal_thresholds_load_as_in_the_map_servers(tmp_path: Path, mode: str) -> None:
+    """free_thresh equal to occupied_thresh (a public map has 0.5 and 0.5) loads in the map
+    servers; it was refused ("need free_thresh < occupied_thresh"). Greys above are occupied,
+    below free; nothing is in between (scale mode divided by their difference)."""
+    image = np.array([[0, 100, 127, 128, 200, 254]], dtype=np.uint8)
+    cv2.imwrite(str(tmp_path / "m.pgm"), image)
+    text = (
+        f"image: m.pgm\nmode: {mode}\nresolution: 0.05\norigin: [0, 0, 0]\nnegate: 0\n"
+        "occupied_thresh: 0.5\nfree_thresh: 0.5\n"
+    )
+    grid = rose.load_map(write_yaml(tmp_path / "m.yaml", text)).grid
+    np.testing.assert_array_equal(grid[0], [100, 100, 100, 0, 0, 0])
+
+
 def test_scale_and_raw_modes(tmp_path: Path) -> None:
     image = np.array([[0, 100, 254]], dtype=np.uint8)
     cv2.imwrite(str(tmp_path / "m.pgm"), image)
