@@ -281,7 +281,8 @@ def _partitions(
 ) -> npt.NDArray[np.bool_]:
     """Occupied cells not in ``walls`` (the candidates) in 8-connected pieces of thin cells that
     meet ``walls`` (:func:`_meeting_walls`) and span at least ``min_length_px`` cells, or are
-    straight and hold or touch ``attached`` cells, with the candidates next to them.
+    straight and hold or touch ``attached`` cells, or continue such a piece across an unknown
+    pocket beside it (:func:`_continued`), with the candidates next to them.
 
     Thin cells (:func:`_thin_runs`) are the candidates and ``cores`` cells (unknown pockets: an
     object's inside or a thick wall's unseen core) on a run of occupied and core cells at most
@@ -325,7 +326,9 @@ def _partitions(
     boxes = label_boxes(labels, at, count)
     long_enough = np.maximum(boxes[:, 2], boxes[:, 3]) >= min_length_px
     if attached is not None:
-        # Holding attached cells or next to one (4-neighbours): the attach rule kept part of it.
+        # Holding attached cells or next to one (4-neighbours): a wall stub's end may meet the
+        # attached part across a row that is no thin run (free space beside it only next to an
+        # unknown pocket, which the sliver guard does not count).
         partly = np.zeros(count, dtype=bool)
         near_attached = cv2.dilate(attached[box].view(np.uint8), _CROSS).view(bool)
         partly[owners[near_attached.reshape(-1)[at]]] = True
@@ -371,17 +374,13 @@ def _straight_pieces(
     indices ``at`` into an image ``width`` cells wide, labels ``owners``) fit in a rectangle at any
     angle at most ``max_thickness_px`` cells across (the rectangle of the cells' centres plus a
     cell)."""
-    import cv2
-
     out = np.zeros(wanted.shape, dtype=bool)
     if not wanted.any():
         return out
     cells, labels, starts, ends = _cells_by_piece(at, owners, wanted[owners])
     row, col = np.divmod(cells, width)
-    points = np.stack([col, row], axis=1).astype(np.float32)
     for start, end in zip(starts, ends, strict=True):
-        (_, _), (w, h), _ = cv2.minAreaRect(points[start:end])
-        out[labels[start]] = min(w, h) + 1 <= max_thickness_px
+        out[labels[start]] = _width_of(row[start:end], col[start:end]) <= max_thickness_px
     return out
 
 
@@ -397,8 +396,9 @@ def _continued(
     """Which labelled pieces (cells ``at``, flat indices into an image ``width`` cells wide,
     labels ``owners``) not ``wanted`` continue a kept stub: joined through up to
     :data:`_MEETING_PX` ``through`` cells to ``attached`` cells or to a piece kept so
-    (``wanted``, or continuing one), and straight together with what they are joined to nearby
-    (:func:`_straight_pieces`'s test on both). A stub's end beyond an unknown pocket beside it:
+    (``wanted``, or continuing one), and in line with what they are joined to nearby: the two
+    together no wider (:func:`_width_of`) than the wider of them alone plus a cell, nor than
+    ``max_thickness_px``. A stub's end beyond an unknown pocket beside it:
     the rows by the pocket are no thin run (its free side does not count there), so the end was
     a piece of its own, too short for a partition and touching nothing kept. A round bin's far
     face, joined to its kept near face round its inside, is no stub's end: not in line."""
