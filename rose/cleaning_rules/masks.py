@@ -31,6 +31,26 @@ def _nonzero_flat(image: npt.NDArray[np.uint8]) -> npt.NDArray[np.int64]:
     return points[:, 1] * image.shape[1] + points[:, 0]
 
 
+def _grown_through(
+    start: npt.NDArray[np.bool_] | npt.NDArray[np.uint8],
+    through: npt.NDArray[np.bool_] | npt.NDArray[np.uint8],
+    steps: int,
+) -> npt.NDArray[np.uint8]:
+    """``start`` grown ``steps`` 8-connected steps into ``through`` cells (0/1 uint8, same shape):
+    after each step only cells of ``through`` remain (``start``'s own cells too); after none,
+    ``start`` as it is."""
+    import cv2
+
+    grown, cells = start.view(np.uint8), through.view(np.uint8)
+    for _ in range(steps):
+        grown = np.bitwise_and(cv2.dilate(grown, _SQUARE), cells)
+    return grown
+
+
+#: The 8-neighbours and the cell itself.
+_SQUARE = np.ones((3, 3), np.uint8)
+
+
 def _touching(pieces: npt.NDArray[np.bool_], other: npt.NDArray[np.bool_]) -> npt.NDArray[np.bool_]:
     """The 8-connected components of ``pieces`` within two cells of ``other``."""
     out = np.zeros(pieces.shape, dtype=bool)

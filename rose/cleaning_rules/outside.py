@@ -198,7 +198,7 @@ def _backing_outside(
     """
     import cv2
 
-    from rose.cleaning_rules.masks import _near, _nonzero_flat
+    from rose.cleaning_rules.masks import _grown_through, _near, _nonzero_flat
     from rose.labelling import components, fill_from_corner
 
     # The cells it could keep first (a few), filtered before the passes over the window.
@@ -234,11 +234,7 @@ def _backing_outside(
             inner = np.logical_not(seen[labels])
         through = np.greater(occupied, cv2.dilate(inner.view(np.uint8), cross).view(bool))
         through |= touching
-        square = np.ones((3, 3), np.uint8)
-        grown = touching.view(np.uint8)
-        for _ in range(depth_px - 1):  # 8-connected steps through ``through``
-            grown = np.bitwise_and(cv2.dilate(grown, square), through.view(np.uint8))
-        touching = grown.view(bool)
+        touching = _grown_through(touching, through, depth_px - 1).view(bool)
     backed &= touching
     if not backed.any():
         return backed
