@@ -393,13 +393,16 @@ def take_screenshots(
             for name, step in steps:
                 target = time_points - 1 if step is None else step
                 # The viewer opens a recording at its first time point; Ctrl+Right steps to the
-                # next one and wraps from the last to the first (Home / End do not reach the web
-                # viewer's time panel).
-                moves = (target - position) % time_points
-                if moves:
+                # next one and wraps from the last to the first, Ctrl+Left steps back and wraps
+                # from the first to the last (Home / End do not reach the web viewer's time
+                # panel). The shorter way round: a step takes seconds on a software rasteriser.
+                forward = (target - position) % time_points
+                backward = (position - target) % time_points
+                if forward:
                     page.locator("canvas").first.focus(timeout=4 * load_s * 1000)
-                    for _ in range(moves):
-                        _press(page, "Control+ArrowRight")
+                    key = "Control+ArrowRight" if forward <= backward else "Control+ArrowLeft"
+                    for _ in range(min(forward, backward)):
+                        _press(page, key)
                     position = target
                 page.wait_for_timeout(_SETTLE_MS)
                 # Until the viewer has drawn everything (it may still be loading the recording).

@@ -145,3 +145,36 @@ def test_a_shot_waits_until_the_viewer_has_drawn_the_recording(
         load_s=60,
     )
     assert [shot.path.read_bytes() for shot in shots] == [b"drawn", b"end"]
+
+
+@pytest.mark.usefixtures("stand_in_browser")
+def test_each_shot_is_reached_the_shorter_way_round_the_timeline(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The viewer opens at the first time point and its time keys wrap at both ends. A step takes
+    seconds on a software rasteriser: the last of 14 snapshots was reached by 13 steps forward
+    (about 50 s in the pixel test), one step back from the first reaches it too."""
+    monkeypatch.setattr(screenshots, "_serve", _served)
+    monkeypatch.setattr(_Page, "screenshot", lambda self: b"\x89PNG fake")
+    pressed: list[tuple[int, str]] = []  # (shot being reached, key)
+    shots_taken: list[int] = []
+    monkeypatch.setattr(
+        screenshots,
+        "_steady_screenshot",
+        lambda page, name, timeout_s: shots_taken.append(len(shots_taken)) or b"\x89PNG fake",
+    )
+    monkeypatch.setattr(
+        screenshots, "_press", lambda page, key: pressed.append((len(shots_taken), key))
+    )
+    rrd = tmp_path / "s.rrd"
+    rrd.write_bytes(b"")
+    screenshots.take_screenshots(
+        rrd,
+        tmp_path / "shots",
+        steps=[("start", 0), ("end", None), ("middle", 7), ("later", 9)],
+        time_points=14,
+        chromium=Path(sys.executable),
+        load_s=0,
+    )
+    right, left = "Control+ArrowRight", "Control+ArrowLeft"
+    assert pressed == [(1, left)] + [(2, left)] * 6 + [(3, right)] * 2
