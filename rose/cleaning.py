@@ -360,15 +360,30 @@ _MAX_CELLS_OF = {
 }
 
 
+def rules_cells_text(resolution_m: float) -> str:
+    """How the walls rules take a map's cells of ``resolution_m`` metres, for people: "split in 2 x
+    2", "joined in 5 x 5", or "as they are"."""
+    from rose.cleaning_rules import coarsening, refinement
+
+    split, merge = refinement(resolution_m), coarsening(resolution_m)
+    if split > 1:
+        return f"split in {split} x {split}"
+    if merge > 1:
+        return f"joined in {merge} x {merge}"
+    return "as they are"
+
+
 def _check_cells(p: CleanParams, resolution_m: float) -> None:
     """Refuse lengths of ``p`` that span more cells than :data:`_MAX_CELLS_OF` allows, in the cells
-    the rules work on for a map of ``resolution_m`` (split for coarse maps: module notes)."""
-    from rose.cleaning_rules import refinement
+    the rules work on for a map of ``resolution_m`` (split for coarse maps, joined for fine ones:
+    module notes)."""
+    from rose.cleaning_rules import rules_cell_m
 
-    split = refinement(resolution_m)
-    cell_m = resolution_m / split
+    cell_m = rules_cell_m(resolution_m)
     cells = f"{cell_m:g} m per cell" + (
-        f" (the map's {resolution_m:g} m cells split in {split} x {split})" if split > 1 else ""
+        f" (the map's {resolution_m:g} m cells {rules_cells_text(resolution_m)})"
+        if cell_m != resolution_m
+        else ""
     )
     problems = [
         f"{name} {getattr(p, name):g} m is {getattr(p, name) / cell_m:.3g} cells at {cells} "

@@ -793,6 +793,10 @@ def test_bad_lengths_and_resolutions_are_rose_errors_before_any_work() -> None:
     with pytest.raises(RoseError, match=r"1\.5e\+03 cells at 0\.05 m per cell \(the map's 0\.1 m"):
         clean(grid, resolution_m=0.1, params=CleanParams(open_unknown_width_m=75))
     assert clean(grid, resolution_m=0.15, params=CleanParams(open_unknown_width_m=75)).kept.any()
+    # ... and a 0.01 m map's joined in 5 x 5 (15 m: 300 cells, not 1,500).
+    with pytest.raises(RoseError, match=r"1\.5e\+03 cells at 0\.05 m per cell \(the map's 0\.01 m"):
+        clean(grid, resolution_m=0.01, params=CleanParams(open_unknown_width_m=75))
+    assert clean(grid, resolution_m=0.01, params=CleanParams(open_unknown_width_m=15)).kept.any()
     with pytest.raises(RoseError, match="must be a CleanParams, got dict"):
         clean(grid, resolution_m=0.05, params={"min_run_m": 1})  # type: ignore[arg-type]
     # The defaults pass at every resolution the cleaning takes.

@@ -375,6 +375,11 @@ def test_a_bare_image_takes_its_resolution_from_the_option(
     # 0.1 m cells are twice the rules' design size: cleaned on the cells split in 2 x 2.
     assert summary["rules_cell_m"] == 0.05
     assert "split in 2 x 2" in said.out
+    # 0.025 m cells are half of it: cleaned on the cells joined in 2 x 2.
+    argv = ["clean", str(image), "-o", str(tmp_path / "f.yaml"), "--resolution", "0.025"]
+    assert main([*argv, "--json", str(report), "--force"]) == 0
+    assert json.loads(report.read_text())["rules_cell_m"] == 0.05
+    assert "joined in 2 x 2" in capsys.readouterr().out
     assert rose.load_map(tmp_path / "b.yaml").resolution_m == pytest.approx(0.1)
     # The cleaning's lengths are metres: at 0.1 m per cell it keeps another set of cells.
     a, b = (rose.load_map(tmp_path / n).grid for n in ("a.yaml", "b.yaml"))

@@ -9,7 +9,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from rose.cleaning import CLEAN_METHODS, CleanResult, clean
+from rose.cleaning import CLEAN_METHODS, CleanResult, clean, rules_cells_text
 from rose.cli.options import (
     add_map_arguments,
     add_param_arguments,
@@ -103,12 +103,13 @@ def run(args: argparse.Namespace) -> int:
     )
     summary.update(cleaning_summary(cleaning))
     summary["resolution_m"] = source.resolution_m
-    # The walls rules work on cells of the size they were designed for: a coarse map's are split.
-    from rose.cleaning_rules import refinement  # loaded by the cleaning already
+    # The walls rules work on cells of the size they were designed for: a coarse map's are split,
+    # a fine one's joined.
+    from rose.cleaning_rules import rules_cell_m  # loaded by the cleaning already
 
     walls = cleaning.method == "walls"
-    split = refinement(source.resolution_m) if walls else 1
-    summary["rules_cell_m"] = source.resolution_m / split if walls else None
+    cell_m = rules_cell_m(source.resolution_m) if walls else source.resolution_m
+    summary["rules_cell_m"] = cell_m if walls else None
     # The rules' lengths are metres: a result at an assumed cell size says so.
     summary["resolution_assumed"] = resolution_assumed(args.map, args.resolution)
     summary["input"] = str(args.map)
@@ -146,8 +147,9 @@ def run(args: argparse.Namespace) -> int:
         f"occupied     {cells(result.occupied_count)}",
         f"method       {cleaning.method}"
         + (
-            f" (on the map's cells split in {split} x {split}, the size the rules were made for)"
-            if split > 1
+            f" (on the map's cells {rules_cells_text(source.resolution_m)}, the size the rules "
+            "were made for)"
+            if cell_m != source.resolution_m
             else ""
         ),
         f"removed      {cells(cleaning.removed_count)} ({share:.1%}), set to {params.clutter_value}",
