@@ -106,7 +106,10 @@ cells (a run's cell of tolerance, the straight lines' one-cell band, a wall face
 with cells from 0.1 m to under 0.15 m is cleaned on its cells split in 2 x 2 (its lengths in
 metres read at half its cell size), the ROSE masks split with them; a cell is kept or completed
 when any of its parts is, removed when none is kept. Coarser maps are cleaned as they are (split
-further, more of their clutter went but more robot-sized gaps opened).
+further, more of their clutter went but more robot-sized gaps opened). A map with cells of 0.025 m
+or less is cleaned on blocks of its cells joined up to 0.05 m (2 x 2 at 0.025 m, 5 x 5 at 0.01 m):
+a block is occupied when any of its cells is, and what the rules decide for it holds for each of
+its cells (on its own cells a scanned wall's wobble broke its runs, and thin walls went).
 
 Everything is deterministic (OpenCV morphology, labelling and its probabilistic Hough transform,
 which seeds itself) and never modifies the input.
@@ -341,7 +344,7 @@ class CleanResult(ReadOnlyArrays):
 
 
 #: Longest of the ``"walls"`` cleaning's lengths, in the cells the rules work on (the map's, split
-#: in 2 x 2 from 0.1 m to under 0.15 m per cell): the robot disc
+#: in 2 x 2 from 0.1 m to under 0.15 m per cell, joined up to 0.05 m from 0.025 m down): the robot disc
 #: and the unknown margin are dilations costing the square of their radius per cell (a 1000-cell
 #: robot radius ran for minutes), the guard's windows the square of their margin per opened patch.
 #: The wide unknown width pads the cleaning's window by as much on every side: 100 m at 5 cm per
