@@ -2507,3 +2507,41 @@ def test_an_outer_walls_step_with_the_outside_behind_it_stays() -> None:
     # wall. (Before, the inner face of its east side went, an object's face around the sealed
     # space behind the step.)
     assert np.array_equal(cleaned.kept & step, step)
+
+
+def _dashed_wall_scene() -> npt.NDArray[np.int8]:
+    """A lab (rows 10-49) and a room above it (rows 51-79) parted by a dashed wall on row 50 (the
+    room's walls, the lab's east of it): its dashes kept as a run up to col 52, then after a gap of
+    three cells more dashes (cols 56-66, none longer than 0.2 m), then a slot of free cells seen
+    from the lab under a wall (cols 67-76). No gap in it lets a 0.15 m-radius robot through."""
+    grid = np.full((120, 140), -1, dtype=np.int8)
+    grid[10:50, 10:130] = 0  # the lab
+    grid[51:80, 10:70] = 0  # the room
+    grid[9, 10:130] = grid[10:50, 9] = grid[10:50, 130] = 100
+    grid[80, 9:71] = grid[51:80, 9] = grid[51:81, 70] = 100
+    dashes = "KK.K.K.KK.KKKKKK.KK.KKK.KK.K.KKKK.K.KK.KK.K...x.xxx..xxxx"
+    grid[50, 10 : 10 + len(dashes)] = [100 if c in "Kx" else 0 for c in dashes]
+    end = 10 + len(dashes)
+    grid[50, end : end + 10] = 0  # the slot
+    grid[51, end + 3 : end + 10] = 100  # the wall over it
+    grid[50, end + 10 : 130] = 100
+    return grid
+
+
+def test_the_dashes_of_a_dashed_wall_past_the_last_one_kept_keep_the_room_closed() -> None:
+    """A real map's dashed wall (HV_monitoring HVLab2, 0.05 m) lost its last 0.55 m of dashes, too
+    short for a run and attached to no kept wall: the guard took them for furniture, not an
+    obstacle of the input, and a 3.5 m² room was joined to the lab. A piece in line with a kept
+    wall across a gap narrower than a robot closes that wall: the guard counts it."""
+    grid = _dashed_wall_scene()
+    cleaned = clean(grid, rose.analyze(grid), resolution_m=0.05)
+    dashes = (grid == 100) & (np.arange(grid.shape[1]) >= 56)[None, :]
+    dashes[:50] = dashes[51:] = False
+    dashes[50, 67:] = False
+    assert np.count_nonzero(dashes) == 8
+    assert cleaned.kept[dashes].all()
+    # For the robot (a disc of 3 cells: 0.15 m) the room stays apart from the lab.
+    _, regions = cv2.connectedComponents(
+        passable(cleaned.cleaned == 100, 3).view(np.uint8), connectivity=8
+    )
+    assert regions[65, 40] != regions[30, 40]  # the room and the lab

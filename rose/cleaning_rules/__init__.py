@@ -49,6 +49,7 @@ from rose.cleaning_rules.objects import (
     _THIN_WALL_MIN_CELLS,
     _backed_by_outside,
     _between_doors,
+    _closing_walls,
     _free_standing,
     _grow_within,
     _objects_among_others,
@@ -610,6 +611,17 @@ def _wall_cells(
             max_box_area_px=min_region_px,
             inside_px=length_px(_THIN_WALL_M, res),
         )
+        # A piece that continues a kept wall in line across a gap narrower than a robot (a dashed
+        # wall's dashes past the last one kept) closed that wall for a robot: counted as the
+        # guard's obstacle, not as furniture.
+        if loose.any():
+            np.greater(
+                loose,
+                _closing_walls(
+                    apart_job.result(), loose, keep, free, directions, res, robot_px=robot_px
+                ),
+                out=loose,
+            )
         # A piece at the explored edge, unexplored space that reaches the map's edge behind it,
         # closed the known space off from the unknown in the input, with the other pieces there
         # (the scattered ends of a SLAM map's rays into a room seen through its door): counted.

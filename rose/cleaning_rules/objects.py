@@ -88,6 +88,10 @@ _SOLID_MIN_M = 0.25
 _DOOR_MAX_M = 1.2
 
 
+#: Dashes followed one after another from a kept wall (:func:`_closing_walls`).
+_DASHES_MAX = 8
+
+
 #: Wall in line beyond a door that makes a piece between two doors a wall (metres,
 #: :func:`_between_doors`): a stretch a table's edge lined up with a wall rarely continues.
 _DOOR_ANCHOR_M = 0.3
@@ -128,22 +132,77 @@ def _between_doors(
     res: float,
 ) -> npt.NDArray[np.bool_]:
     """Cells of the pieces of ``removed`` (whole pieces of ``pieces``) that continue a wall across
-    two doors: along a dominant direction at most ``_THIN_WALL_M`` thick and at least 4 cells and
-    twice as long as thick, with known ``free`` cells beyond each end for at most
-    ``_DOOR_MAX_M`` and then ``walls`` in line for ``_DOOR_ANCHOR_M``. A pier between two doors
-    of a partition is such a piece; furniture rarely lines up with walls at both ends across
-    doorways (``bench_cleaning.py``: no furniture cell of the benchmarks kept by it; with pieces
-    as long as thick, 52 cells of office_e's chairs were)."""
+    two doors: :func:`_in_line` with known ``free`` cells beyond each end for at most
+    ``_DOOR_MAX_M``. A pier between two doors of a partition is such a piece; furniture rarely
+    lines up with walls at both ends across doorways (``bench_cleaning.py``: no furniture cell of
+    the benchmarks kept by it; with pieces as long as thick, 52 cells of office_e's chairs were)."""
+    door = max(2, math.ceil(length_px(_DOOR_MAX_M, res)))
+    return _in_line(
+        pieces, removed, walls, free, directions, res, gap_px=door, ends=2, dashed=False
+    )
+
+
+def _closing_walls(
+    pieces: _Pieces,
+    loose: npt.NDArray[np.bool_],
+    walls: npt.NDArray[np.bool_],
+    free: npt.NDArray[np.bool_],
+    directions: npt.NDArray[np.float64],
+    res: float,
+    *,
+    robot_px: int,
+) -> npt.NDArray[np.bool_]:
+    """Cells of the pieces of ``loose`` that continue a wall across a gap a robot cannot pass
+    (:func:`_in_line` with free cells beyond one end for fewer than ``robot_px``, the wall dashed
+    or not, the piece a dash of any length), one dash after another: a dashed wall's dashes past
+    the last one kept. The topology guard counts them as obstacles of the input, not as
+    furniture: taken for furniture, a dashed wall's last 0.55 m went and joined a 3.5 m² room to a
+    lab (a real map at 0.05 m, docs/cleaning.md, 2026-12-07)."""
+    found = np.zeros(loose.shape, dtype=bool)
+    for _ in range(_DASHES_MAX):
+        more = _in_line(
+            pieces,
+            np.greater(loose, found),
+            walls | found,
+            free,
+            directions,
+            res,
+            gap_px=robot_px - 1,
+            ends=1,
+            dashed=True,
+        )
+        if not more.any():
+            break
+        found |= more
+    return found
+
+
+def _in_line(
+    pieces: _Pieces,
+    removed: npt.NDArray[np.bool_],
+    walls: npt.NDArray[np.bool_],
+    free: npt.NDArray[np.bool_],
+    directions: npt.NDArray[np.float64],
+    res: float,
+    *,
+    gap_px: int,
+    ends: int,
+    dashed: bool,
+) -> npt.NDArray[np.bool_]:
+    """Cells of the pieces of ``removed`` (whole pieces of ``pieces``) along a dominant direction at
+    most ``_THIN_WALL_M`` thick and at least 4 cells and twice as long as thick, with known
+    ``free`` cells beyond ``ends`` of their ends (1: either, 2: both) for at most ``gap_px`` cells
+    and then ``walls`` in line for ``_DOOR_ANCHOR_M``: every cell of it, or with ``dashed`` half
+    of them (a dashed wall's dashes and gaps)."""
     out = np.zeros(removed.shape, dtype=bool)
     in_removed = removed.reshape(-1)[pieces.cells]
-    if directions.size == 0 or not in_removed.any():
+    if directions.size == 0 or not in_removed.any() or gap_px < 1:
         return out
     cells, _, starts, _ = _cells_by_piece(pieces.cells, pieces.owners, in_removed)
     rows, cols = np.divmod(cells, removed.shape[1])
-    door = max(2, math.ceil(length_px(_DOOR_MAX_M, res)))
     anchor = max(2, math.ceil(length_px(_DOOR_ANCHOR_M, res)))
     thin = max(_THIN_WALL_MIN_CELLS, length_px(_THIN_WALL_M, res))
-    steps = np.arange(1, door + anchor + 1, dtype=np.float64)
+    steps = np.arange(1, gap_px + anchor + 1, dtype=np.float64)
     kept = np.zeros(starts.size, dtype=bool)
     for angle in directions:
         along = np.array([math.cos(angle), math.sin(angle)])  # (col, row): the wall's direction
@@ -155,15 +214,26 @@ def _between_doors(
         middle = np.add.reduceat(n, starts) / np.diff(np.r_[starts, n.size])
         # (A hair of slack: the projections of cells on a grid axis carry rounding errors.)
         length = high - low + 1 + 1e-6
-        candidate = (width <= thin + 1e-6) & (length >= np.maximum(2 * width, 4)) & ~kept
+        # (A dash may be as short as a cell, but no thicker than long.)
+        shortest = np.maximum(width, 1) if dashed else np.maximum(2 * width, 4)
+        candidate = (width <= thin + 1e-6) & (length >= shortest) & ~kept
         if not candidate.any():
             continue
-        both = np.ones(int(candidate.sum()), dtype=bool)
+        found = np.zeros(int(candidate.sum()), dtype=np.intp)
         for end, sign in ((high[candidate], 1.0), (low[candidate], -1.0)):
-            both &= _door_then_wall(
-                end, middle[candidate], sign * steps, along, across, walls, free, door, anchor
+            found += _door_then_wall(
+                end,
+                middle[candidate],
+                sign * steps,
+                along,
+                across,
+                walls,
+                free,
+                gap_px,
+                anchor,
+                min_hits=-(-anchor // 2) if dashed else anchor,
             )
-        kept[np.flatnonzero(candidate)[both]] = True
+        kept[np.flatnonzero(candidate)[found >= ends]] = True
     if kept.any():
         lengths = np.diff(np.r_[starts, cells.size])
         out.reshape(-1)[cells[np.repeat(kept, lengths)]] = True
@@ -180,10 +250,12 @@ def _door_then_wall(
     free: npt.NDArray[np.bool_],
     door: int,
     anchor: int,
+    *,
+    min_hits: int,
 ) -> npt.NDArray[np.bool_]:
     """For pieces ending at ``end`` (along the wall direction) on the line ``middle`` (across it):
     whether the cells past the end (``steps`` cells on, signed) are free for at most ``door`` cells
-    and then ``walls`` for ``anchor`` cells or more, within a cell of the line."""
+    and then ``walls`` in ``min_hits`` of the next ``anchor`` cells, within a cell of the line."""
     t = end[:, None, None] + steps[None, :, None]  # (pieces, steps, 3 lines)
     s = middle[:, None, None] + np.array([-1.0, 0.0, 1.0])[None, None, :]
     col = np.rint(t * along[0] + s * across[0]).astype(np.intp)
@@ -200,7 +272,7 @@ def _door_then_wall(
     after = (np.arange(steps.size)[None, :] >= hit[:, None]) & (
         np.arange(steps.size)[None, :] < hit[:, None] + anchor
     )
-    anchored = np.sum(wall & after, axis=1) >= anchor
+    anchored = np.sum(wall & after, axis=1) >= min_hits
     return reached & clear & anchored
 
 
