@@ -297,6 +297,10 @@ def test_cells_of_half_a_design_cell_or_less_are_joined_up_to_the_design_size() 
     sizes = (0.001, 0.01, 0.0125, 0.02, 0.025, 0.0251, 0.03, 0.05, 0.1)
     assert [coarsening(r) for r in sizes] == [50, 5, 4, 2, 2, 1, 1, 1, 1]
     assert coarsening(DESIGN_RESOLUTION_M / 2) == 2
+    # As a map message carries them (float32): 0.025 is a hair more, 0.1 too.
+    assert coarsening(float(np.float32(0.025))) == 2
+    assert coarsening(float(np.float32(0.01))) == 5
+    assert refinement(float(np.float32(0.1))) == 2
     # The rules' cells: never larger than a design cell from below, split or joined.
     assert [round(rules_cell_m(r), 6) for r in (0.01, 0.02, 0.025, 0.03, 0.05, 0.1, 0.2)] == [
         0.05,

@@ -210,7 +210,13 @@ def refinement(resolution_m: float) -> int:
     they were (0.2 m: median 2, worst 7, against none): where one cell holds a wall and the object against it, no
     split tells them apart, and unsplit the rules keep such cells.
     """
-    return 2 if math.floor(resolution_m / DESIGN_RESOLUTION_M + 1e-9) == 2 else 1
+    return 2 if math.floor(resolution_m / DESIGN_RESOLUTION_M + _FLOAT32_SLACK) == 2 else 1
+
+
+#: Slack in the ratios of cell sizes above: a ROS map message carries its resolution as a float32
+#: (relative error up to 6e-8), and 0.025 m read from one is 0.0250000004 m, which made the ratio
+#: to the design size 1.99999997 and left such maps' cells unjoined in ``rose-bag process``.
+_FLOAT32_SLACK = 1e-6
 
 
 def coarsening(resolution_m: float) -> int:
@@ -224,7 +230,8 @@ def coarsening(resolution_m: float) -> int:
     / 0.955, gaps 0 (0), 2.9 times. A real office map at 0.025 m lost 54 % of its occupied cells,
     thin walls among them, and loses 25 % joined (docs/cleaning.md, 2026-12-07).
     """
-    return max(1, math.floor(DESIGN_RESOLUTION_M / resolution_m + 1e-9))
+    # (A map message's resolution is a float32: 0.025 arrives as 0.0250000004, a hair more.)
+    return max(1, math.floor(DESIGN_RESOLUTION_M / resolution_m + _FLOAT32_SLACK))
 
 
 def rules_cell_m(resolution_m: float) -> float:

@@ -49,6 +49,23 @@ def test_cleaned_topic_follows_the_method(
     assert int(np.count_nonzero(cleaned >= 65)) == record["kept"] + record["completed"]
 
 
+def test_a_fine_map_in_a_log_cleans_as_its_map_file_does(
+    tmp_path: Path, fr079: list[npt.NDArray[np.int8]]
+) -> None:
+    """A map message carries its resolution as a float32: 0.025 m arrives as 0.0250000004 m, and
+    the session cleaned such a map on its own cells while `rose clean` joined them in 2 x 2 (the
+    cells the rules were made for): the same map, two cleanings."""
+    grid = fr079[-1]
+    maps = [MapMsg(START_NS + 5_000_000_000, grid, resolution_m=0.025)]
+    built = build_log(tmp_path / "in.mcap", "mcap-ros2", maps)
+    out = tmp_path / "out.mcap"
+    report = process_log(built.path, output_path=out)
+    expected = rose.clean(grid, resolution_m=0.025)
+    (cleaned,) = _cleaned(out)
+    np.testing.assert_array_equal(cleaned, expected.cleaned)
+    assert report.to_json()["snapshots"][0]["removed"] == expected.removed_count
+
+
 def test_cli_clean_method_option(tmp_path: Path, fr079: list[npt.NDArray[np.int8]]) -> None:
     built = build_log(tmp_path / "in.mcap", "mcap-ros2", session_maps(fr079[-1:]))
     report = tmp_path / "r.json"
