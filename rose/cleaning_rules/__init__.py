@@ -200,6 +200,13 @@ def wall_cells(
     return walls, guarded, completed, dropped
 
 
+#: Slack in the ratios of cell sizes (:func:`refinement`, :func:`coarsening`): a ROS map message
+#: carries its resolution as a float32 (relative error up to 6e-8), and 0.025 m read from one is
+#: 0.0250000004 m, which made the ratio to the design size 1.99999997 and left such maps' cells
+#: unjoined in ``rose-bag process``.
+_FLOAT32_SLACK = 1e-6
+
+
 def refinement(resolution_m: float) -> int:
     """How many times finer than ``resolution_m`` (metres per cell) the cells the walls rules
     clean a map on are, along each axis: 2 for cells of two design cells to under three
@@ -211,12 +218,6 @@ def refinement(resolution_m: float) -> int:
     split tells them apart, and unsplit the rules keep such cells.
     """
     return 2 if math.floor(resolution_m / DESIGN_RESOLUTION_M + _FLOAT32_SLACK) == 2 else 1
-
-
-#: Slack in the ratios of cell sizes above: a ROS map message carries its resolution as a float32
-#: (relative error up to 6e-8), and 0.025 m read from one is 0.0250000004 m, which made the ratio
-#: to the design size 1.99999997 and left such maps' cells unjoined in ``rose-bag process``.
-_FLOAT32_SLACK = 1e-6
 
 
 def coarsening(resolution_m: float) -> int:
