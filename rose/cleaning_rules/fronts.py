@@ -111,10 +111,14 @@ def _flush_fronts(
         return lines, fronts, insides, stubs
     box = _padded_box(occupied, math.ceil(max_depth_px) + 4)
     r0, c0 = box[0].start, box[1].start
-    # 0 unknown (also beyond the rotated image), 1 free, 2 occupied, 3 a wall kept on its own.
-    code = (~unknown[box]).view(np.uint8) + occupied[box].view(np.uint8)
+    # 0 unknown (also beyond the rotated image), 1 free, 2 occupied, 3 a wall kept on its own
+    # (known, plus occupied, plus kept; into one image, no boolean temporaries; C order for
+    # OpenCV's output whatever the masks' order).
+    occupied_box = occupied[box].view(np.uint8)
+    code = np.bitwise_xor(unknown[box].view(np.uint8), np.uint8(1), order="C")
+    cv2.add(code, occupied_box, dst=code)
     if walls is not None:
-        code += (walls[box] & occupied[box]).view(np.uint8)
+        cv2.add(code, cv2.bitwise_and(walls[box].view(np.uint8), occupied_box), dst=code)
 
     def fronts_of(rotated: npt.NDArray[np.uint8], turned: bool) -> npt.NDArray[np.uint8]:
         out = np.zeros(rotated.shape, dtype=np.uint8)  # bit 0 line, 1 front, 2 inside, 3 wall
@@ -159,6 +163,8 @@ def _flush_fronts(
     # an anchor along a line, of two anchors straightened (which grows the cells by at most one).
     anchor = max(1, round(anchor_px))
     needs = FrameNeeds(runs=((0, anchor), (1, 2 * anchor)), cell_from=2)
+    # The box of what was found in every frame (the stubs taken out of the fronts there).
+    top, bottom, first, last = shape[0], 0, shape[1], 0
     for angle in _frames(directions):
         out, _ = in_rotated_frame(code, angle, fronts_of, reach_px=reach, needs=needs)
         if not out.any():  # nothing, or what was found fell between the cells sampled back
@@ -167,13 +173,21 @@ def _flush_fronts(
         y0, y1, x0, x1 = _bounds(out.view(bool))
         out = out[y0:y1, x0:x1]
         found = (slice(r0 + y0, r0 + y1), slice(c0 + x0, c0 + x1))
+        top, bottom = min(top, r0 + y0), max(bottom, r0 + y1)
+        first, last = min(first, c0 + x0), max(last, c0 + x1)
         line = (out & 1).view(bool) & unknown[found]
         lines[found] |= line
         stub = (out >> 3).view(bool) & occupied[found]
         stubs[found] |= stub
         fronts[found] |= (out >> 1 & 1).view(bool) & occupied[found] & ~line & ~stub
         insides[found] |= (out >> 2 & 1).view(bool) & unknown[found] & ~line
-    return lines, fronts & ~stubs, insides, stubs
+    if top < bottom:
+        np.greater(
+            fronts[top:bottom, first:last],
+            stubs[top:bottom, first:last],
+            out=fronts[top:bottom, first:last],
+        )  # (fronts & ~stubs)
+    return lines, fronts, insides, stubs
 
 
 def _straightened(code: npt.NDArray[np.uint8]) -> npt.NDArray[np.uint8]:
@@ -239,7 +253,8 @@ def _fronts_rows(
     new_run = np.ones(cells.size, dtype=bool)
     new_run[1:] = (step != 1) | ~same_row
     run_id = np.cumsum(new_run) - 1
-    run_len = np.bincount(run_id)[run_id]
+    # Per run, looked up by run where wanted (a few gaps' ends: not spread over every cell).
+    run_len = np.bincount(run_id)
     # Gaps between consecutive occupied cells of one row, unseen at both ends (unknown, or a beam
     # that ran along the line: :func:`_beam_along`).
     left = np.flatnonzero(same_row & (step > 1) & (step - 1 <= max_len))
@@ -261,36 +276,38 @@ def _fronts_rows(
     # long stretches at its two ends (the wall line visible on both sides of the row), at most
     # ``max_len`` apart as one gap's anchors: each gap of it is then checked as a gap between
     # those anchors (a single gap between two long stretches is a chain of one).
-    short = run_len < run_anchor
+    short = (run_len < run_anchor)[run_id[left]]  # the stretch left of each gap
+    short_right = (run_len < run_anchor)[run_id[left + 1]]  # and right of it
     # Gap k continues gap k - 1's chain when they share a short stretch.
     joined = np.zeros(left.size, dtype=bool)
-    joined[1:] = (run_id[left[1:]] == run_id[left[:-1] + 1]) & short[left[1:]]
+    joined[1:] = (run_id[left[1:]] == run_id[left[:-1] + 1]) & short[1:]
     starts = np.flatnonzero(~joined)
     chain = np.cumsum(~joined) - 1
     ends = np.append(starts[1:], left.size)[: starts.size] - 1
     anchor_left = left[starts][chain]  # the chain's first wall end (last cell of its stretch)
     anchor_right = left[ends][chain] + 1  # its last (first cell of its stretch)
-    anchored = ~short[anchor_left] & ~short[anchor_right]
+    anchored = ~short[starts][chain] & ~short_right[ends][chain]
     if walls:
         # A wall's two visible stretches are walls the cleaning keeps on their own (the paper's
         # structure, runs and lines, next to the wide unknown) or joined to one (a door frame's
         # stub): in a room, blobs of clutter in line (0.3-0.4 m each, longer than an anchor) with
         # a box beyond the gap between them read as a wall's stretches and its front, and a line
         # of wall was drawn across the room.
-        kept_run = np.bincount(run_id, weights=flat_code[cells] == 3)[run_id] > 0
-        anchored &= kept_run[anchor_left] & kept_run[anchor_right]
+        kept_run = np.zeros(run_len.size, dtype=bool)
+        kept_run[run_id[flat_code[cells] == 3]] = True
+        anchored &= kept_run[run_id[anchor_left]] & kept_run[run_id[anchor_right]]
     anchored &= cells[anchor_right] - cells[anchor_left] - 1 <= max_len
     left, anchor_left, anchor_right = left[anchored], anchor_left[anchored], anchor_right[anchored]
     span = max_depth + 1
     if corner_len > 0 and slack == 0:
         # One wall end is weaker evidence than two: its visible stretch must be twice an anchor
         # (as a staggered bridge's ends), longer than the steps of a wall at 45 degrees.
-        last = np.append(new_run[1:], True)
+        first = np.flatnonzero(new_run)
         long_run = run_len >= 2 * anchor
         _corners_rows(
             code,
             out,
-            (cells[last & long_run], cells[new_run & long_run]),
+            (cells[np.append(first[1:], cells.size)[long_run] - 1], cells[first[long_run]]),
             corner_len,
             corner_depth,
             span,
@@ -306,7 +323,8 @@ def _fronts_rows(
         at_rows: npt.NDArray[np.int64], at_cols: npt.NDArray[np.int64]
     ) -> npt.NDArray[np.bool_]:
         # Free cells looked up where wanted (rows past the edges read the edge's).
-        return code[np.clip(at_rows, 0, height - 1), at_cols] == 1
+        # (np.minimum and np.maximum: a third of np.clip's cost on these few cells)
+        return code[np.minimum(np.maximum(at_rows, 0), height - 1), at_cols] == 1
 
     rows = cells[left] // width
     end_left, end_right = cells[left] % width, cells[left + 1] % width
@@ -395,7 +413,7 @@ def _shallow_in_gap(
     along = np.arange(int(length.max()))
     cols = np.minimum(col0[:, None] + along, width - 1)
     depth = np.arange(limit + 1)
-    at_rows = np.clip(rows[:, None] + 1 + depth, 0, height - 1)
+    at_rows = np.minimum(np.maximum(rows[:, None] + 1 + depth, 0), height - 1)
     free = code[at_rows[:, :, None], cols[:, None, :]] == 1  # (gap, depth, column)
     free &= (depth < below_rows[:, None])[:, :, None]
     # The slits: free cells of the first slack + 1 rows with a cell that is not free behind them
@@ -430,13 +448,23 @@ def _beam_along(
     diagonally beside it there (a beam crossing the row leaves one); cells of the first and last
     rows are not read so."""
     height, width = code.shape
-    up, down = np.clip(rows - 1, 0, height - 1), np.clip(rows + 1, 0, height - 1)
-    left, right = np.clip(cols - 1, 0, width - 1), np.clip(cols + 1, 0, width - 1)
     beam = (code[rows, cols] == 1) & (rows > 0) & (rows < height - 1)
-    beam &= (code[up, cols] == 0) & (code[down, cols] == 0)
-    for side in (up, down):
-        beam &= (code[side, left] != 1) & (code[side, right] != 1)
-    return beam
+    # The tests in turn, each on the cells the ones before left (most free cells have a free
+    # cell above or below them: few are left for the diagonals).
+    at = np.flatnonzero(beam)
+    row, col = rows[at], cols[at]
+    for test in range(3):
+        if test == 0:
+            keep = (code[row - 1, col] == 0) & (code[row + 1, col] == 0)
+        else:
+            side = row + (2 * test - 3)  # the row above, then the row below
+            keep = (code[side, np.maximum(col - 1, 0)] != 1) & (
+                code[side, np.minimum(col + 1, width - 1)] != 1
+            )
+        at, row, col = at[keep], row[keep], col[keep]
+    out = np.zeros(rows.size, dtype=bool)
+    out[at] = True
+    return out
 
 
 def _front_at(
@@ -523,8 +551,9 @@ def _front_at(
     front = _median(d[~deep])
     if front < shallowest:
         return False
-    farther = np.concatenate([[False], d > front + face, [False]])
-    edges = np.flatnonzero(np.diff(farther.view(np.int8)))
+    farther = np.zeros(d.size + 2, dtype=np.int8)
+    farther[1:-1] = d > front + face
+    edges = np.flatnonzero(farther[1:] != farther[:-1])
     starts, ends = edges[::2], edges[1::2]
     walls = ends - starts <= crossing
     stubs = np.zeros(d.size, dtype=bool)
@@ -541,12 +570,12 @@ def _front_at(
     # columns of ten (a scan leaves single holes in a front). Walls at an angle to the grid are
     # staircases once rotated onto the rows: :func:`_flush_fronts` reads them straightened too.
     cols = np.arange(col0, col1)[~deep]
-    if (code[row + d[~deep], cols] >= 2).mean() < _FRONT_FACE_SHARE:
+    if np.count_nonzero(code[row + d[~deep], cols] >= 2) / cols.size < _FRONT_FACE_SHARE:
         return False
     # An inside a scanner did not see, behind the front: a solid piece reaching from the wall
     # into the room is the wall's own stub or pilaster (no scan sees into furniture).
     behind = code[row + 1 : row + 1 + front, col0:col1][:, ~deep]
-    if not (behind == 0).any(axis=0).mean() >= 0.5:
+    if 2 * np.count_nonzero((behind == 0).any(axis=0)) < behind.shape[1]:
         return False
     out[row, col0:col1] |= 1
     # The object: the gap's columns and its side faces (up to ``face`` columns beyond each end,
@@ -624,17 +653,24 @@ def _corners_rows(
             # its last ``anchor`` cells), and the furniture starts right beyond it (free space
             # there no nearer than the shallowest front, but for a cell of a scan's noise, and no
             # farther than the deepest).
-            across = np.clip(
-                rows[:, None, None] + sign * np.arange(1, face + 1)[:, None], 0, height - 1
+            across = np.minimum(
+                np.maximum(rows[:, None, None] + sign * np.arange(1, face + 1)[:, None], 0),
+                height - 1,
             )
-            along = np.clip(beyond[:, None] - step * np.arange(1, anchor + 1), 0, width - 1)
+            along = np.minimum(
+                np.maximum(beyond[:, None] - step * np.arange(1, anchor + 1), 0), width - 1
+            )
             facing = (code[across, along[:, None, :]] == 1).any(axis=1).sum(axis=1)
-            down = np.clip(rows[:, None] + sign * np.arange(1, span + 1), 0, height - 1)
+            down = np.minimum(
+                np.maximum(rows[:, None] + sign * np.arange(1, span + 1), 0), height - 1
+            )
             free = code[down, beyond[:, None]] == 1
             depth = np.where(free.any(axis=1), free.argmax(axis=1), span)
             # The line runs on unseen for more than an anchor's length (the furniture's width, at
             # least: :func:`_corner_at`): on the Bormann maps, nearly half the candidates are not.
-            ahead = np.clip(beyond[:, None] + step * np.arange(anchor + 1), 0, width - 1)
+            ahead = np.minimum(
+                np.maximum(beyond[:, None] + step * np.arange(anchor + 1), 0), width - 1
+            )
             unseen = (code[rows[:, None], ahead] == 0).all(axis=1)
             chosen = (
                 (2 * facing >= anchor)
