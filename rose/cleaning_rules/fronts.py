@@ -423,11 +423,12 @@ def _shallow_in_gap(
     slits = free[:, : slack + 1] & ~free[:, slack + 1 : slack + 2] & has_behind
     unslit = free.copy()
     unslit[:, : slack + 1] &= ~slits
-    first, stop = np.zeros(rows.size, dtype=np.int64), length.copy()
     if not slack:
         shallow = unslit
+        inside = along < length[:, None]  # the gap's columns
     else:
         # The gap's ends move in where free space reaches within a wall face (raw depths).
+        first, stop = np.zeros(rows.size, dtype=np.int64), length.copy()
         at_face = free[:, : face + 1].any(axis=1)
         gaps = np.arange(rows.size)
         for _ in range(slack + 1):
@@ -437,7 +438,6 @@ def _shallow_in_gap(
         # The slits are taken out when they are in half the columns or more.
         many = 2 * np.count_nonzero(slits.any(axis=1) & inside, axis=1) >= stop - first
         shallow = np.where(many[:, None, None], unslit, free)
-    inside = (along >= first[:, None]) & (along < stop[:, None])
     return (shallow.any(axis=1) & inside).any(axis=1)
 
 
@@ -511,8 +511,10 @@ def _front_at(
     on_line = code[row, col0:col1]
     if row + 1 >= height or (on_line >= 2).any():
         return False
-    free_cols = np.flatnonzero(on_line == 1)
-    if 2 * free_cols.size > on_line.size:  # (rare: only then are the beams looked at)
+    if (
+        2 * np.count_nonzero(on_line == 1) > on_line.size
+    ):  # (rare: only then are the beams looked at)
+        free_cols = np.flatnonzero(on_line == 1)
         seen = ~_beam_along(code, np.full(free_cols.size, row), col0 + free_cols)
         if 2 * np.count_nonzero(seen) > on_line.size:
             return False
@@ -551,14 +553,16 @@ def _front_at(
     if d.min() <= face + 2 * slack:
         return False
     deep = d > max_depth
-    if deep.all():
+    shallow = ~deep
+    if not shallow.any():
         return False
     # A wall meeting the object: columns reaching farther than the front (the depth most
     # columns share) by more than a wall face, in a stretch no wider than a wall (a partition
     # ending on a cabinet's front, or crossing the hidden line between two objects), not at the
     # ends. Wider stretches are a deeper object, refused when they reach beyond the depth limit
     # (unless the front itself lies within a wall face of it: then they are not told apart).
-    front = _median(d[~deep])
+    reached = d[shallow]  # the front's depth in each column that has one
+    front = _median(reached)
     if front < shallowest:
         return False
     farther = np.zeros(d.size + 2, dtype=np.int8)
@@ -579,12 +583,12 @@ def _front_at(
     # The last cell before free space is occupied: a front face, not a shadow's edge, in nine
     # columns of ten (a scan leaves single holes in a front). Walls at an angle to the grid are
     # staircases once rotated onto the rows: :func:`_flush_fronts` reads them straightened too.
-    cols = np.arange(col0, col1)[~deep]
-    if np.count_nonzero(code[row + d[~deep], cols] >= 2) / cols.size < _FRONT_FACE_SHARE:
+    cols = np.arange(col0, col1)[shallow]
+    if np.count_nonzero(code[row + reached, cols] >= 2) / cols.size < _FRONT_FACE_SHARE:
         return False
     # An inside a scanner did not see, behind the front: a solid piece reaching from the wall
     # into the room is the wall's own stub or pilaster (no scan sees into furniture).
-    behind = code[row + 1 : row + 1 + front, col0:col1][:, ~deep]
+    behind = code[row + 1 : row + 1 + front, col0:col1][:, shallow]
     if 2 * np.count_nonzero((behind == 0).any(axis=0)) < behind.shape[1]:
         return False
     out[row, col0:col1] |= 1
