@@ -346,9 +346,18 @@ def _pairs(
 ) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]:
     """The distinct (owner, stretch) pairs of the ``cells`` (flat indices into ``gaps``) with their
     ``owners`` and the stretch labels (``gaps``, ``stretches`` labels) of their 8 neighbours."""
-    padded = np.pad(gaps, 1)  # (the neighbours of a cell on the box's edge)
     rows, cols = np.divmod(cells, gaps.shape[1])
-    around = _neighbour_columns(padded, (rows + 1) * padded.shape[1] + cols + 1)
+    if cells.size == 0 or (
+        rows.min() > 0
+        and rows.max() < gaps.shape[0] - 1
+        and cols.min() > 0
+        and cols.max() < gaps.shape[1] - 1
+    ):
+        # (No cell on the box's edge, nearly always: no padded copy of the labels.)
+        around = _neighbour_columns(gaps, cells)
+    else:
+        padded = np.pad(gaps, 1)  # (the neighbours of a cell on the box's edge)
+        around = _neighbour_columns(padded, (rows + 1) * padded.shape[1] + cols + 1)
     pairs = np.concatenate([owners.astype(np.int64) * stretches + column for column in around])
     pairs = np.unique(pairs[np.concatenate(around) > 0])
     piece_of, stretch_of = np.divmod(pairs, stretches)
@@ -376,13 +385,20 @@ def _small_pieces(
     owners: list[npt.NDArray[np.int64]] = []
     rows, cols = np.divmod(at, width)
     # The wanted pieces within two cells of each cell (5 x 5 windows clipped by the box).
-    around = np.stack(
-        [
-            labels[np.clip(rows + dr, 0, height - 1), np.clip(cols + dc, 0, width - 1)]
-            for dr in range(-2, 3)
-            for dc in range(-2, 3)
-        ]
-    )
+    offsets = [(dr, dc) for dr in range(-2, 3) for dc in range(-2, 3)]
+    if at.size and (
+        rows.min() > 1 and rows.max() < height - 2 and cols.min() > 1 and cols.max() < width - 2
+    ):
+        # No cell within two of the box's edge (nearly always): flat offsets, no clipping.
+        flat_labels = labels.reshape(-1)
+        around = np.stack([flat_labels[at + (dr * width + dc)] for dr, dc in offsets])
+    else:
+        around = np.stack(
+            [
+                labels[np.clip(rows + dr, 0, height - 1), np.clip(cols + dc, 0, width - 1)]
+                for dr, dc in offsets
+            ]
+        )
     around = np.where(wanted[around], around, 0)
     pieces = np.unique(around[around > 0])
     boxes = label_boxes(labels, _nonzero_flat(np.greater(labels, 0).view(np.uint8)), wanted.size)
@@ -394,7 +410,7 @@ def _small_pieces(
         # The window one cell wider than the reach: a piece touching its edge reaches past it.
         r0, r1 = max(y - reach - 1, 0), min(y + h + reach + 1, height)
         c0, c1 = max(x - reach - 1, 0), min(x + w + reach + 1, width)
-        _, local = components(occupied[r0:r1, c0:c1])
+        local_count, local = components(occupied[r0:r1, c0:c1])
         # The labels on the window's edges within the box (at the box's edge the window ends
         # with it, as the whole box's labelling did).
         edges = [local[0]] if r0 > 0 else []
@@ -402,7 +418,11 @@ def _small_pieces(
         edges += [local[:, 0]] if c0 > 0 else []
         edges += [local[:, -1]] if c1 < width else []
         mine = local[rows[near] - r0, cols[near] - c0]
-        small = ~np.isin(mine, np.concatenate(edges)) if edges else np.ones(mine.size, bool)
+        # (A flag per label, not ``np.isin``'s sort of the edges' labels.)
+        on_edge = np.zeros(local_count, dtype=bool)
+        if edges:
+            on_edge[np.concatenate(edges)] = True
+        small = ~on_edge[mine]
         mine_small = at[near][small]
         found.append(mine_small)
         owners.append(np.full(mine_small.size, piece, dtype=np.int64))
@@ -601,7 +621,10 @@ def _pockets_seen_into(
     found: set[int] = set()
     pockets = touching[~reaching[touching]]
     # Only the stretches beside such a pocket (a window holds many, a pocket few).
-    near = cv2.dilate(np.isin(regions, pockets).view(np.uint8), ring).view(bool)
+    # (A flag per region looked up, not ``np.isin`` over the window.)
+    is_pocket = np.zeros(len(reaching), dtype=bool)
+    is_pocket[pockets] = True
+    near = cv2.dilate(labels_looked_up(is_pocket, regions).view(np.uint8), ring).view(bool)
     others = np.unique(window[near & (window > 0) & (window != label)])
     for other in others.tolist():
         beside = cv2.dilate((window == other).view(np.uint8), ring).view(bool)
