@@ -323,9 +323,13 @@ def _cut_long_patches(
     tiles = tile_rows * (int(tile_cols.max()) + 1) + tile_cols
     key = owner[in_long].astype(np.int64) * (int(tiles.max()) + 1) + tiles
     _, piece = np.unique(key, return_inverse=True)
-    out = patches.astype(np.int32, copy=True)
-    out.reshape(-1)[cut_cells] = len(boxes) + piece.astype(np.int32)
-    return len(boxes) + int(piece.max()) + 1, out
+    cut_count = len(boxes) + int(piece.max()) + 1
+    # The labels' own type when the pieces' labels fit in it (16 bits nearly always: a copy, no
+    # conversion to 32 bits; the rings read either alike).
+    fits = cut_count <= np.iinfo(patches.dtype).max + 1
+    out = patches.copy() if fits else patches.astype(np.int32)
+    out.reshape(-1)[cut_cells] = len(boxes) + piece.astype(out.dtype)
+    return cut_count, out
 
 
 def _drawn_box(
