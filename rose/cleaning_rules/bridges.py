@@ -145,10 +145,18 @@ def _in_openings(
     if not lines.any():
         return out, objects
     reach = max(math.ceil(robot_px), _LINE_THICKNESS_PX)  # (how far a gap's regions are seen)
-    box = _padded_box(lines | spans, reach + 2)
+    box = _padded_box(lines, reach + 2)
+    if spans.any():
+        # (The box of both, from the two boxes: no mask of the union made.)
+        (r0, r1), (c0, c1) = ((b.start, b.stop) for b in _padded_box(spans, reach + 2))
+        box = (
+            slice(min(box[0].start, r0), max(box[0].stop, r1)),
+            slice(min(box[1].start, c0), max(box[1].stop, c1)),
+        )
     ring = np.ones((3, 3), np.uint8)
     span, line = spans[box], lines[box]
-    unseen = cv2.dilate((span & unknown[box]).view(np.uint8), ring).view(bool)
+    unseen_span = span & unknown[box]
+    unseen = cv2.dilate(unseen_span.view(np.uint8), ring).view(bool)
     through = np.greater(span & free[box], unseen)
     if not through.any():
         return out, objects
@@ -156,12 +164,12 @@ def _in_openings(
     # The object's sides: removed cells beside the gap and within two cells of the line (a side
     # a cell or two thick; farther on, removed cells chain other clutter to it).
     near_line = cv2.dilate(line.view(np.uint8), np.ones((5, 5), np.uint8)).view(bool)
-    sides = removed[box] & beside_span & near_line
+    beside_span &= near_line  # (beside the gap and near the line, for the kept sides too)
+    sides = removed[box] & beside_span
     near_through = cv2.dilate(through.view(np.uint8), ring).view(bool)
     if not np.any(sides & near_through):
         return out, objects  # (no gap seen through beside an object: nearly every map)
     stretches, gaps = components(through)
-    unseen_span = span & unknown[box]
     count, labels, side_cells, side_owner, piece_of, stretch_of = _side_pairs(
         line, sides, unseen_span, gaps, stretches
     )
@@ -170,9 +178,13 @@ def _in_openings(
     # their occupied piece is small (lies within the reach of the line beside it), unlike the
     # wall end a hidden line meets. Only beside a piece with a gap on one side so far (the
     # other gap is beside the kept side).
-    kept_sides = np.greater(occupied[box], removed[box]) & beside_span & near_line & near_through
     one = np.bincount(piece_of, minlength=count) == 1
     one[0] = False
+    kept_sides = (
+        np.greater(occupied[box], removed[box]) & beside_span & near_through
+        if one.any()
+        else np.zeros(0, dtype=bool)  # (not looked at)
+    )
     if one.any() and kept_sides.any():
         small, owner = _small_pieces(
             kept_sides, occupied[box], labels, one, math.ceil(robot_px) + 1
