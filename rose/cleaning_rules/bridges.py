@@ -227,7 +227,7 @@ def _in_openings(
         return out, objects
     open_cells = ~(occupied[box] | span | line)
     seen = np.zeros(stretches, dtype=bool)
-    seen[candidates] = _parting(gaps, stretches, candidates, open_cells, reach)
+    seen[candidates] = _parting(gaps, stretches, candidates, open_cells, reach, cells=gap_cells)
     by_seen = seen[stretch_of]
     piece_of, stretch_of, along = piece_of[by_seen], stretch_of[by_seen], along[by_seen]
     wanted = np.zeros(count, dtype=bool)
@@ -413,7 +413,11 @@ def _small_pieces(
         )
     around = np.where(wanted[around], around, 0)
     pieces = np.unique(around[around > 0])
-    boxes = label_boxes(labels, _nonzero_flat(np.greater(labels, 0).view(np.uint8)), wanted.size)
+    # The boxes of those pieces only, from their cells (few next to all the labelled ones).
+    labelled = _nonzero_flat(np.greater(labels, 0).view(np.uint8))
+    chosen = np.zeros(wanted.size, dtype=bool)
+    chosen[pieces] = True
+    boxes = label_boxes(labels, labelled[chosen[labels.reshape(-1)[labelled]]], wanted.size)
     for piece in pieces.tolist():
         near = (around == piece).any(axis=0)
         x, y, w, h = boxes[piece].tolist()
@@ -578,6 +582,8 @@ def _parting(
     wanted: npt.NDArray[np.int64],
     open_cells: npt.NDArray[np.bool_],
     pad: int,
+    *,
+    cells: npt.NDArray[np.intp] | None = None,
 ) -> npt.NDArray[np.bool_]:
     """For each label of ``wanted`` (of ``labels``, an 8-connected labelling, ``count`` labels with
     the background): whether its cells touch (8-connected) two or more regions of ``open_cells``
@@ -585,13 +591,18 @@ def _parting(
     each reach that box's edge. A region closed within the box is a pocket (a recess in a wall
     beside the label, walled all round): no space beyond the line that scans went across to;
     unless another label (another stretch seen through) lies between it and a region that
-    reaches the edge, which it then counts as (:func:`_pockets_seen_into`)."""
+    reaches the edge, which it then counts as (:func:`_pockets_seen_into`). ``cells``: the
+    labelled cells' flat indices, ascending, when the caller has them (else listed here)."""
     import cv2
 
     out = np.zeros(wanted.size, dtype=bool)
     height, width = labels.shape
-    cells = _nonzero_flat(np.ascontiguousarray(labels > 0).view(np.uint8))
-    boxes = label_boxes(labels, cells, count)[wanted]
+    if cells is None:
+        cells = _nonzero_flat(np.ascontiguousarray(labels > 0).view(np.uint8))
+    # The boxes of the wanted labels only, from their cells (few next to all the labelled ones).
+    chosen = np.zeros(count, dtype=bool)
+    chosen[wanted] = True
+    boxes = label_boxes(labels, cells[chosen[labels.reshape(-1)[cells]]], count)[wanted]
     ring = np.ones((3, 3), np.uint8)
     # (The labels looked at are few: a doorway's two gaps per object standing in one.)
     for i, (label, (x, y, w, h)) in enumerate(zip(wanted.tolist(), boxes.tolist(), strict=True)):
@@ -608,7 +619,8 @@ def _parting(
         reaching[edge] = True
         reaching[0] = False
         groups = {int(r) for r in touching if reaching[r]}
-        if not reaching[touching].all():
+        if len(groups) < 2 and not reaching[touching].all():
+            # (Two regions reaching the edge decide already: the pockets only add regions.)
             groups |= _pockets_seen_into(window, label, regions, reaching, touching, ring)
         out[i] = len(groups) >= 2
     return out
