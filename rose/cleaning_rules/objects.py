@@ -489,12 +489,23 @@ def _continued(
     points = _centres(rows, cols)  # (made once, as in _straight_pieces)
     margin = _MEETING_PX + 1
     grown_from = seeds
+    grow_box = (slice(0, seeds.shape[0]), slice(0, seeds.shape[1]))
     while True:
         # Only the pieces joined to a seed (the new ones after the first round) through at
         # least one of the ``through`` cells: those touching one were judged by the caller.
         # Each is then looked at in its own window.
-        joined = _grown_through(grown_from, through, _MEETING_PX)
-        close = _pieces_with(starts, cv2.dilate(joined, _CROSS).view(bool)[rows, cols])
+        joined = _grown_through(grown_from, through[grow_box], _MEETING_PX)
+        reached = cv2.dilate(joined, _CROSS).view(bool)
+        top, left_col = grow_box[0].start, grow_box[1].start
+        in_box = (
+            (rows >= top)
+            & (rows < grow_box[0].stop)
+            & (cols >= left_col)
+            & (cols < grow_box[1].stop)
+        )
+        hits = np.zeros(rows.shape, dtype=bool)
+        hits[in_box] = reached[rows[in_box] - top, cols[in_box] - left_col]
+        close = _pieces_with(starts, hits)
         found = []
         for k in np.flatnonzero(close):
             label = labels[starts[k]]
@@ -531,13 +542,21 @@ def _continued(
                 found.append(k)
         if not found:
             return out
-        grown_from = np.zeros(seeds.shape, dtype=bool)
         for k in found:
             label = labels[starts[k]]
             out[label] = True
             left[label] = False
-            grown_from[rows[starts[k] : ends[k]], cols[starts[k] : ends[k]]] = True
-        seeds |= grown_from
+        # The next round grows from the pieces found only: within the joining cells' reach and
+        # the cross (a cell) of them, on their box that much wider, not over the whole image.
+        new_rows = np.concatenate([rows[starts[k] : ends[k]] for k in found])
+        new_cols = np.concatenate([cols[starts[k] : ends[k]] for k in found])
+        seeds[new_rows, new_cols] = True
+        grow_box = _cells_box(new_rows, new_cols, seeds.shape, margin)
+        grown_from = np.zeros(
+            (grow_box[0].stop - grow_box[0].start, grow_box[1].stop - grow_box[1].start),
+            dtype=bool,
+        )
+        grown_from[new_rows - grow_box[0].start, new_cols - grow_box[1].start] = True
 
 
 def _window_around(
