@@ -132,8 +132,9 @@ def topology_guard(
     # The rings of the patches and of their pieces below: the same cells (cut, the patches keep
     # their cells), listed once.
     ring = _ring_cells(linked)
+    rings = _rings(patches, ring, count)
     seeds = _separating_cells(
-        patches, count, boxes, ring, on_patch, blocking, window_px, min_region_px
+        patches, count, boxes, rings, on_patch, blocking, window_px, min_region_px
     )
     # A long opening is also judged in pieces: judged whole, its window spanned rooms that a door
     # somewhere in it joined anyway, and a wall erased along metres between a corridor and a room
@@ -177,11 +178,15 @@ def topology_guard(
         parent = np.zeros(cut_count, dtype=np.int64)
         parent[on_piece] = on_patch
         judged = _in_pieces(patches, linked, boxes, blocking, np.unique(parent[count:]))
+        # Only the pieces are judged, and their rings are within those of the patches cut: the
+        # ring cells beside a long patch are looked at again, not all of them.
+        long = np.maximum(boxes[:, 2], boxes[:, 3]) > 4 * window_px
+        long[0] = False
         pieces = _separating_cells(
             cut,
             cut_count,
             label_boxes(cut, linked_cells, cut_count),
-            ring,
+            _rings(cut, np.unique(rings[0][long[rings[1]]]), cut_count),
             on_piece,
             blocking,
             window_px,
@@ -222,7 +227,7 @@ def _separating_cells(
     patches: npt.NDArray[np.integer],
     count: int,
     boxes: npt.NDArray[np.int64],
-    ring: npt.NDArray[np.intp],
+    rings: tuple[npt.NDArray[np.intp], npt.NDArray[np.int64]],
     on_patch: npt.NDArray[np.integer],
     blocking: npt.NDArray[np.uint8],
     window_px: int,
@@ -231,10 +236,11 @@ def _separating_cells(
     only: npt.NDArray[np.bool_] | None = None,
 ) -> npt.NDArray[np.bool_]:
     """Which opened cells (``on_patch``: the patch of each) lie in a patch that joins two regions of
-    its window (:func:`_separating_patches`); ``ring``: the cells around the patches
-    (:func:`_ring_cells`). Patches ringed by formerly passable cells alone (a free-standing object)
-    are not looked at; with ``only`` (per label), exactly those patches are, however ringed."""
-    ring_cells, ring_patches = _rings(patches, ring, count)
+    its window (:func:`_separating_patches`); ``rings``: the cells around the patches and their
+    patch (:func:`_rings`; with ``only``, those of the patches in it suffice). Patches ringed by
+    formerly passable cells alone (a free-standing object) are not looked at; with ``only`` (per
+    label), exactly those patches are, however ringed."""
+    ring_cells, ring_patches = rings
     formerly = blocking[np.divmod(ring_cells, patches.shape[1])] == 0
     blocked = np.bincount(on_patch, minlength=count) > 0
     if only is None:
