@@ -156,18 +156,21 @@ def _in_openings(
     ring = np.ones((3, 3), np.uint8)
     span, line = spans[box], lines[box]
     unseen_span = span & unknown[box]
-    unseen = cv2.dilate(unseen_span.view(np.uint8), ring).view(bool)
-    through = np.greater(span & free[box], unseen)
+    # (Masks of the box made in place or into one scratch image where they can: each new one
+    # is a fresh allocation the kernel fills page by page.)
+    scratch = cv2.dilate(unseen_span.view(np.uint8), ring)  # next to an unseen span cell
+    through = span & free[box]
+    np.greater(through, scratch.view(bool), out=through)
     if not through.any():
         return out, objects
     beside_span = cv2.dilate(span.view(np.uint8), ring).view(bool)
     # The object's sides: removed cells beside the gap and within two cells of the line (a side
     # a cell or two thick; farther on, removed cells chain other clutter to it).
-    near_line = cv2.dilate(line.view(np.uint8), np.ones((5, 5), np.uint8)).view(bool)
-    beside_span &= near_line  # (beside the gap and near the line, for the kept sides too)
+    cv2.dilate(line.view(np.uint8), np.ones((5, 5), np.uint8), dst=scratch)  # near the line
+    beside_span &= scratch.view(bool)  # (beside the gap and near the line: for the kept sides too)
     sides = removed[box] & beside_span
     near_through = cv2.dilate(through.view(np.uint8), ring).view(bool)
-    if not np.any(sides & near_through):
+    if not np.logical_and(sides, near_through, out=scratch.view(bool)).any():
         return out, objects  # (no gap seen through beside an object: nearly every map)
     stretches, gaps = components(through)
     count, labels, side_cells, side_owner, piece_of, stretch_of = _side_pairs(
@@ -180,11 +183,11 @@ def _in_openings(
     # other gap is beside the kept side).
     one = np.bincount(piece_of, minlength=count) == 1
     one[0] = False
-    kept_sides = (
-        np.greater(occupied[box], removed[box]) & beside_span & near_through
-        if one.any()
-        else np.zeros(0, dtype=bool)  # (not looked at)
-    )
+    kept_sides = np.zeros(0, dtype=bool)  # (not looked at)
+    if one.any():
+        kept_sides = np.greater(occupied[box], removed[box])
+        kept_sides &= beside_span
+        kept_sides &= near_through
     if one.any() and kept_sides.any():
         small, owner = _small_pieces(
             kept_sides, occupied[box], labels, one, math.ceil(robot_px) + 1
@@ -225,7 +228,9 @@ def _in_openings(
     candidates = np.unique(stretch_of[two[piece_of] | along])
     if candidates.size == 0:
         return out, objects
-    open_cells = ~(occupied[box] | span | line)
+    open_cells = occupied[box] | span
+    open_cells |= line
+    np.logical_not(open_cells, out=open_cells)
     seen = np.zeros(stretches, dtype=bool)
     seen[candidates] = _parting(gaps, stretches, candidates, open_cells, reach, cells=gap_cells)
     by_seen = seen[stretch_of]
