@@ -710,14 +710,17 @@ def _bridges(
     # The filled cells are few: looked up and drawn one by one, only the open fillable ones.
     cells = _nonzero_flat(found)
     rows, cols = np.divmod(cells, found.shape[1])
-    rows += r0
-    cols += c0
+    # Flat indices into the map's masks (C-contiguous here: a flat lookup costs less than a pair
+    # of index arrays).
+    flat = (rows + r0) * walls.shape[1] + (cols + c0)
     fill_bits = found.reshape(-1)[cells]
-    wanted = np.greater(fillable[rows, cols], walls[rows, cols])  # fillable & ~walls
-    rows, cols, fill_bits = rows[wanted], cols[wanted], fill_bits[wanted]
+    fillable_flat = np.ascontiguousarray(fillable).reshape(-1)
+    walls_flat = np.ascontiguousarray(walls).reshape(-1)
+    wanted = np.greater(fillable_flat[flat], walls_flat[flat])  # fillable & ~walls
+    flat, fill_bits = flat[wanted], fill_bits[wanted]
     for bit, out in enumerate(outs):
         on = (fill_bits & np.uint8(1 << bit)) != 0
-        out[rows[on], cols[on]] = True
+        out.reshape(-1)[flat[on]] = True
     return outs
 
 
