@@ -900,10 +900,34 @@ class _Pieces:
         """Cells of ``cells`` (occupied cells, some of the pieces') in pieces one of whose
         ``cells`` is next to (8-connected) a cell of ``space``."""
         out = np.zeros(cells.shape, dtype=bool)
-        if not cells.any():
+        # The cells are few (a few hundred, spread over most of the image): listed once, their
+        # neighbours and labels are looked up by flat offsets, not in passes over their box
+        # (0.57 against about 0.1 ms per call on the session maps).
+        at = _nonzero_flat(np.ascontiguousarray(cells).view(np.uint8))
+        if at.size == 0:
             return out
+        rows, cols = cells.shape
+        if at[0] < cols or at[-1] >= (rows - 1) * cols or not _off_sides(at, cols):
+            return self._facing_on_box(cells, space)
+        flat = np.ascontiguousarray(space).reshape(-1)
+        near = flat[at - cols - 1]
+        for offset in (-cols, -cols + 1, -1, 0, 1, cols - 1, cols, cols + 1):
+            near |= flat[at + offset]
+        owners = self.labels.reshape(-1)[at]
+        facing = np.zeros(self.diagonals.size, dtype=bool)
+        facing[owners[near]] = True
+        facing[0] = False
+        out.reshape(-1)[at] = facing[owners]
+        return out
+
+    def _facing_on_box(
+        self, cells: npt.NDArray[np.bool_], space: npt.NDArray[np.bool_]
+    ) -> npt.NDArray[np.bool_]:
+        """:meth:`facing` in passes over the box of ``cells`` (some on the image's edge, where
+        the flat offsets would wrap)."""
         import cv2
 
+        out = np.zeros(cells.shape, dtype=bool)
         box = _padded_box(cells, 1)
         inner = cells[box]
         near = cv2.dilate(space[box].view(np.uint8), np.ones((3, 3), np.uint8)).view(bool)
@@ -964,6 +988,13 @@ class _Pieces:
         # Looked up at the occupied cells (``cells`` are some of them).
         out.reshape(-1)[self.cells] = enclosing[self.owners] & cells.reshape(-1)[self.cells]
         return out
+
+
+def _off_sides(at: npt.NDArray[np.intp], cols: int) -> bool:
+    """Whether none of the cells at the flat indices ``at`` (of an image ``cols`` wide) lies in
+    the first or last column: their 8 neighbours are then flat offsets that do not wrap."""
+    column = at % cols
+    return bool(column.min() > 0 and column.max() < cols - 1)
 
 
 def _objects_among_others(
