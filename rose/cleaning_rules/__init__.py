@@ -727,7 +727,10 @@ def _reached_later(
     piece_of, _ = _pairs(cells, pieces.reshape(-1)[cells], drawn, drawn_count)
     joining = np.bincount(piece_of, minlength=count) >= 2
     joining[0] = False
-    out[box] = joining[pieces]
+    # Looked up at the near cells only (listed above), not at every label of the box.
+    found = np.zeros(pieces.shape, dtype=bool)
+    found.reshape(-1)[cells] = joining[pieces.reshape(-1)[cells]]
+    out[box] = found
     if not out.any():
         return out
     np.greater(out, _in_plain_view(completed | out, free, open_unknown, robot_px), out=out)

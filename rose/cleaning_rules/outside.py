@@ -275,7 +275,7 @@ def _backing_outside(
         # backed one, and the cross around its cells): a few cells, whose pockets are judged
         # alone (labelling every pocket cost half a millisecond per session map).
         square = np.ones((2 * depth_px + 1, 2 * depth_px + 1), np.uint8)
-        relevant = cv2.dilate(backed.view(np.uint8), square)
+        relevant = np.asarray(cv2.dilate(backed.view(np.uint8), square), dtype=np.uint8)
         np.bitwise_and(relevant, cv2.dilate(touching.view(np.uint8), square), out=relevant)
         np.bitwise_and(relevant, inner.view(np.uint8), out=relevant)
         inner = _unseen_pockets(inner, relevant, free)
