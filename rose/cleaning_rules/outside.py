@@ -209,6 +209,46 @@ def _unseen_pockets(
     return out
 
 
+def _side_by_side(
+    cells: npt.NDArray[np.int64], shape: tuple[int, int], pad: int, gap: int
+) -> tuple[list[tuple[tuple[slice, slice], tuple[slice, slice], npt.NDArray[np.int64]]], int]:
+    """The cells at the flat indices ``cells`` (at least one, of a mask of ``shape``) in groups,
+    each with its box (the group's bounding box ``pad`` cells wider, clipped to the mask), where
+    that box lies in an image of the boxes side by side, ``gap`` columns apart and top-aligned,
+    and the group's cells; and the width of that image. One group, its box the image, when the
+    boxes side by side would not be smaller than all the cells' box.
+
+    Groups: the cells in 8-connected blocks of ``pad`` x ``pad`` cells holding one."""
+    from rose.cleaning_rules.masks import _cells_box
+    from rose.labelling import components
+
+    rows, cols = np.divmod(cells, shape[1])
+    whole = _cells_box(rows, cols, shape, pad)
+    width = whole[1].stop - whole[1].start
+    one = [(whole, (slice(0, whole[0].stop - whole[0].start), slice(0, width)), cells)]
+    side = max(pad, 1)
+    blocks = np.zeros((shape[0] // side + 1, shape[1] // side + 1), dtype=np.uint8)
+    blocks[rows // side, cols // side] = 1
+    count, labels = components(blocks)
+    if count <= 2:
+        return one, width
+    group = labels[rows // side, cols // side]
+    order = np.argsort(group, kind="stable")
+    starts = np.flatnonzero(np.r_[True, np.diff(group[order]) != 0])
+    boxes = []
+    left = 0
+    height = 0
+    for members in np.split(cells[order], starts[1:]):
+        box = _cells_box(*np.divmod(members, shape[1]), shape, pad)
+        box_rows, box_cols = box[0].stop - box[0].start, box[1].stop - box[1].start
+        boxes.append((box, (slice(0, box_rows), slice(left, left + box_cols)), members))
+        left += box_cols + gap
+        height = max(height, box_rows)
+    if height * left >= (whole[0].stop - whole[0].start) * width:
+        return one, width
+    return boxes, left - gap
+
+
 def _backing_outside(
     occupied: npt.NDArray[np.bool_],
     unknown: npt.NDArray[np.bool_],
@@ -288,9 +328,27 @@ def _backing_outside(
     # An object at a wall's end at the explored edge has the outside behind it too, but the room
     # meets that outside nearby: its removal opens nothing new (the freiburg-101 box at 30
     # degrees, 0.85-1.25 m through the unknown from such a place; ECN lab's step 1.8 m).
-    box = _padded_box(backed, edge_reach_px + math.ceil(radius_px) + 2)
-    open_free = np.greater(free[box], _dilate(occupied[box], math.ceil(radius_px)))
-    room_side = behind[box]
+    # A backed cell's answer depends on the cells within ``pad`` of it only (a free cell at most
+    # ``edge_reach_px + 2`` steps away, the occupied cells within the robot's radius of that
+    # one): the backed cells, in a few groups along the walls, are looked at on their groups'
+    # boxes set side by side (a fifth of their common box on the session maps).
+    pad = edge_reach_px + math.ceil(radius_px) + 2
+    cells = _nonzero_flat(backed.view(np.uint8))
+    gap = math.ceil(radius_px) + 2  # (no dilation below reaches a neighbour's box across it)
+    boxes, canvas_cols = _side_by_side(cells, backed.shape, pad, gap)
+    if len(boxes) == 1:
+        box, _, _ = boxes[0]
+        free_c, occupied_c, room_side = free[box], occupied[box], behind[box]
+    else:
+        height = max(box[0].stop - box[0].start for box, _, _ in boxes)
+        free_c = np.zeros((height, canvas_cols), dtype=bool)
+        occupied_c = np.zeros((height, canvas_cols), dtype=bool)
+        room_side = np.zeros((height, canvas_cols), dtype=np.uint8)
+        for box, at, _ in boxes:
+            free_c[at] = free[box]
+            occupied_c[at] = occupied[box]
+            room_side[at] = behind[box]
+    open_free = np.greater(free_c, _dilate(occupied_c, math.ceil(radius_px)))
     reached = np.bitwise_and(cv2.dilate(open_free.view(np.uint8), cross), room_side)
     for step in range(edge_reach_px):
         grown = np.bitwise_and(cv2.dilate(reached, cross), room_side)
@@ -299,5 +357,8 @@ def _backing_outside(
             break
         reached = grown
     at_edge = cv2.dilate(reached, cross).view(bool)
-    np.greater(backed[box], at_edge, out=backed[box])
+    for box, at, members in boxes:
+        row, col = np.divmod(members, backed.shape[1])
+        edge = at_edge[row - box[0].start + at[0].start, col - box[1].start + at[1].start]
+        backed.reshape(-1)[members[edge]] = False
     return backed
