@@ -234,17 +234,28 @@ def _side_by_side(
         return one, width
     group = labels[rows // side, cols // side]
     order = np.argsort(group, kind="stable")
-    starts = np.flatnonzero(np.r_[True, np.diff(group[order]) != 0])
+    starts = np.flatnonzero(np.r_[True, group[order][1:] != group[order][:-1]])
+    row, col = rows[order], cols[order]
+    # (Each group's bounding box, ``pad`` wider and clipped, as _cells_box makes it.)
+    top = np.maximum(np.minimum.reduceat(row, starts) - pad, 0).tolist()
+    bottom = np.minimum(np.maximum.reduceat(row, starts) + 1 + pad, shape[0]).tolist()
+    first = np.maximum(np.minimum.reduceat(col, starts) - pad, 0).tolist()
+    last = np.minimum(np.maximum.reduceat(col, starts) + 1 + pad, shape[1]).tolist()
+    members = np.split(cells[order], starts[1:])
     boxes = []
     left = 0
-    height = 0
-    for members in np.split(cells[order], starts[1:]):
-        box = _cells_box(*np.divmod(members, shape[1]), shape, pad)
-        box_rows, box_cols = box[0].stop - box[0].start, box[1].stop - box[1].start
-        boxes.append((box, (slice(0, box_rows), slice(left, left + box_cols)), members))
+    for index in range(starts.size):
+        box_cols = last[index] - first[index]
+        boxes.append(
+            (
+                (slice(top[index], bottom[index]), slice(first[index], last[index])),
+                (slice(0, bottom[index] - top[index]), slice(left, left + box_cols)),
+                members[index],
+            )
+        )
         left += box_cols + gap
-        height = max(height, box_rows)
-    if height * left >= (whole[0].stop - whole[0].start) * width:
+    height = max(b - t for b, t in zip(bottom, top, strict=True))
+    if height * (left - gap) >= (whole[0].stop - whole[0].start) * width:
         return one, width
     return boxes, left - gap
 
