@@ -1246,17 +1246,22 @@ def threshold_strips(level: float, label_deg: float) -> list[list[tuple[float, f
 THRESHOLD_TICK_DEG = 4.0
 
 
-def _candidate_peaks(
-    scaled: npt.NDArray[np.float64], threshold: float
+def _rejected_peaks(
+    scaled: npt.NDArray[np.float64], threshold: float, kept: npt.NDArray[np.intp]
 ) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.float64]]:
     """Bins and prominences (units of ``s``) of the local maxima of the circular ``scaled`` curve
-    that rise to ``threshold`` or above: the peaks a reader could take for dominant, as
-    :func:`rose.directions.find_direction_peaks` finds them before it compares prominences."""
+    that rise to ``threshold`` or above, as :func:`rose.directions.find_direction_peaks` finds
+    them before it compares prominences, less the ``kept`` peaks' bins: the peaks a reader could
+    take for dominant that are not. Prominences are worked out for those alone (each peak's is
+    its own; most snapshots have none left)."""
     n = scaled.size
     tripled = np.concatenate([scaled, scaled, scaled])
     peaks = local_maxima(tripled)
     peaks = peaks[(peaks >= n) & (peaks < 2 * n)]
     peaks = peaks[tripled[peaks] >= threshold]
+    # Plain Python sets: np.isin's set-up cost more than comparing a handful of bins.
+    known = set(kept.tolist())
+    peaks = peaks[np.array([peak - n not in known for peak in peaks.tolist()], dtype=bool)]
     return (peaks - n).astype(np.intp), peak_prominences(tripled, peaks)
 
 
@@ -1379,18 +1384,15 @@ def amplitude_plot(
     prominence = np.asarray(result.peak_prominences, dtype=np.float64)
     bars = np.stack([peaks, np.stack([peak_deg, -height * (peak_s - prominence)], axis=-1)], axis=1)
     threshold = float(result.params.peak_prominence)
-    candidates, candidate_prominence = _candidate_peaks(scaled, threshold)
-    rejected = ~np.isin(candidates, peaks_idx)
+    rejected, rejected_prominence = _rejected_peaks(scaled, threshold, peaks_idx)
     rejected_deg = _folded_deg(
-        np.asarray(result.direction_bins, dtype=np.float64)[candidates[rejected]] + yaw_rad
+        np.asarray(result.direction_bins, dtype=np.float64)[rejected] + yaw_rad
     )
-    rejected_s = scaled[candidates[rejected]]
+    rejected_s = scaled[rejected]
     rejected_bars = np.stack(
         [
             np.stack([rejected_deg, -height * rejected_s], axis=-1),
-            np.stack(
-                [rejected_deg, -height * (rejected_s - candidate_prominence[rejected])], axis=-1
-            ),
+            np.stack([rejected_deg, -height * (rejected_s - rejected_prominence)], axis=-1),
         ],
         axis=1,
     ).reshape(-1, 2, 2)
