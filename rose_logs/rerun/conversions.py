@@ -78,6 +78,7 @@ __all__ = [
     "AmplitudePlot",
     "OccupiedCells",
     "PeakLabelBoxes",
+    "ScreenEnds",
     "amplitude_plot",
     "colour_levels",
     "direction_label_positions",
@@ -98,6 +99,7 @@ __all__ = [
     "score_classes",
     "score_levels",
     "score_to_unit",
+    "screen_ends",
     "segmentation_image",
     "spectrum_strip_segments",
     "spread_labels",
@@ -140,16 +142,25 @@ def image_window(grid: npt.NDArray[np.int8]) -> Window:
 
 
 def occupied_cells(result: RoseResult, window: Window | None = None) -> OccupiedCells:
-    """:class:`OccupiedCells` of ``result`` (one pass over the occupied mask), indexed for images
-    of ``window`` (default: the whole grid), which must hold every occupied cell."""
+    """:class:`OccupiedCells` of ``result`` (the occupied mask's rows of ``window`` searched, the
+    rest only counted), indexed for images of ``window`` (default: the whole grid), which must
+    hold every occupied cell."""
     rows, cols = result.occupied.shape
     x0, y0, x1, y1 = window = window or (0, 0, cols, rows)
-    grid_index = np.flatnonzero(result.occupied)
+    # The window's rows alone (a contiguous band, a quarter to a third of a SLAM map's grid); a
+    # count over the grid says whether any occupied cell lies outside them (fast: no indices).
+    band = result.occupied[max(y0, 0) : max(y1, 0)]
+    grid_index = np.flatnonzero(band)
     row, col = np.divmod(grid_index, cols)
+    row += max(y0, 0)
+    grid_index += max(y0, 0) * cols
     bounds = None
-    if grid_index.size:
+    outside = grid_index.size != np.count_nonzero(result.occupied)
+    if grid_index.size or outside:
+        if outside:  # found by the whole mask, for the message
+            row, col = np.divmod(np.flatnonzero(result.occupied), cols)
         bounds = (int(col.min()), int(row[0]), int(col.max()) + 1, int(row[-1]) + 1)
-        if bounds[0] < x0 or bounds[1] < y0 or bounds[2] > x1 or bounds[3] > y1:
+        if outside or bounds[0] < x0 or bounds[2] > x1:
             msg = f"window {window} does not hold the occupied cells' box {bounds}"
             raise ValueError(msg)
     return OccupiedCells(grid_index, (y1 - 1 - row) * (x1 - x0) + (col - x0), bounds, window)
@@ -581,6 +592,49 @@ def direction_segments_cells(
     return np.stack([centre - half_length * unit, centre + half_length * unit], axis=1)
 
 
+@dataclass(frozen=True)
+class ScreenEnds:
+    """The direction lines' ends on screen, what :func:`direction_label_positions` needs of them
+    whatever the view (:func:`screen_ends`).
+
+    Attributes
+    ----------
+    turn : ndarray of float64, shape (2, 2)
+        Grid frame -> screen (y up): the rotation by the origin's yaw.
+    ends : ndarray of float64, shape (K, 2, 2)
+        The segments' ends on screen.
+    end : ndarray of float64, shape (K, 2)
+        Each line's end lower on screen (the first if level).
+    level : ndarray of float64, shape (K,)
+        cos(slope) on screen: 1 for a level line, 0 for an upright one.
+    out : ndarray of float64, shape (K,)
+        -1, 0 or 1: the side of the lower end from the line's middle, along x.
+    """
+
+    turn: npt.NDArray[np.float64]
+    ends: npt.NDArray[np.float64]
+    end: npt.NDArray[np.float64]
+    level: npt.NDArray[np.float64]
+    out: npt.NDArray[np.float64]
+
+
+def screen_ends(segments: npt.NDArray[np.float64], *, yaw_rad: float = 0.0) -> ScreenEnds:
+    """:class:`ScreenEnds` of ``segments`` (K, 2, 2), grid frame, turned by ``yaw_rad``."""
+    cos_yaw, sin_yaw = math.cos(yaw_rad), math.sin(yaw_rad)
+    turn = np.array([[cos_yaw, -sin_yaw], [sin_yaw, cos_yaw]])  # grid frame -> screen (y up)
+    ends = np.asarray(segments, dtype=np.float64).reshape(-1, 2, 2) @ turn.T  # (K, 2, 2)
+    lower = np.argmin(ends[:, :, 1], axis=1)  # the end lower on screen (the first if level)
+    end = ends[np.arange(len(ends)), lower]  # (K, 2)
+    run = ends[:, 1] - ends[:, 0]
+    length = np.linalg.norm(run, axis=1)
+    level = np.divide(np.abs(run[:, 0]), length, out=np.ones_like(length), where=length > 0)
+    # Out from the map by as much of half a label as the line is level: a flat line's label
+    # beside its end, off the map (on a map narrower than a label, centred under the end, it
+    # reached over the other lines), a steep one's under its end.
+    out = np.sign(end[:, 0] - ends.mean(axis=1)[:, 0])
+    return ScreenEnds(turn, ends, end, level, out)
+
+
 def direction_label_positions(
     segments: npt.NDArray[np.float64],
     *,
@@ -590,6 +644,7 @@ def direction_label_positions(
     label_width: float = 0.0,
     label_height: float = 0.0,
     clearance: float = 0.0,
+    screen: ScreenEnds | None = None,
 ) -> npt.NDArray[np.float64]:
     """Where to put each direction's label; Rerun draws a label under its point, centred, a fixed
     number of screen pixels wide (labels at the centre would all overlap: every line passes there).
@@ -617,25 +672,17 @@ def direction_label_positions(
     x_range, y_range : tuple of float, optional
         ``(left, right)`` and ``(bottom, top)`` of what the view shows, on screen: the grid frame
         turned by ``yaw_rad``, y up. None: anywhere.
+    screen : ScreenEnds, optional
+        ``screen_ends(segments, yaw_rad=yaw_rad)``, when the caller has it (the views of one
+        snapshot share it).
 
     Returns
     -------
     ndarray of float64, shape (K, 2)
         In the coordinates of ``segments``.
     """
-    cos_yaw, sin_yaw = math.cos(yaw_rad), math.sin(yaw_rad)
-    turn = np.array([[cos_yaw, -sin_yaw], [sin_yaw, cos_yaw]])  # grid frame -> screen (y up)
-    ends = np.asarray(segments, dtype=np.float64).reshape(-1, 2, 2) @ turn.T  # (K, 2, 2)
-    lower = np.argmin(ends[:, :, 1], axis=1)  # the end lower on screen (the first if level)
-    end = ends[np.arange(len(ends)), lower]  # (K, 2)
-    run = ends[:, 1] - ends[:, 0]
-    length = np.linalg.norm(run, axis=1)
-    # cos(slope) on screen: 1 for a level line, 0 for an upright one.
-    level = np.divide(np.abs(run[:, 0]), length, out=np.ones_like(length), where=length > 0)
-    # Out from the map by as much of half a label as the line is level: a flat line's label
-    # beside its end, off the map (on a map narrower than a label, centred under the end, it
-    # reached over the other lines), a steep one's under its end.
-    out = np.sign(end[:, 0] - ends.mean(axis=1)[:, 0])
+    geometry = screen or screen_ends(segments, yaw_rad=yaw_rad)
+    ends, end, level, out = geometry.ends, geometry.end, geometry.level, geometry.out
     x = end[:, 0] + out * level * label_width / 2
     if x_range is not None:
         left, right = x_range[0] + label_width / 2, x_range[1] - label_width / 2
@@ -646,7 +693,7 @@ def direction_label_positions(
         if x_range is not None and y_range is not None:
             view = (x_range[0], y_range[0], x_range[1], y_range[1])
         anchors = spread_labels(anchors, ends, (label_width, label_height), view=view)
-    return anchors @ turn  # back to the grid frame (turn is orthonormal)
+    return anchors @ geometry.turn  # back to the grid frame (turn is orthonormal)
 
 
 #: Without a view, :func:`spread_labels` tries places as far as three labels' widths and heights

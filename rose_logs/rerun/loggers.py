@@ -323,6 +323,7 @@ def direction_label_anchors(
     known = np.array([[x0, y0], [x1, y0], [x0, y1], [x1, y1]], dtype=np.float64) @ turn.T
     corner = known.min(axis=0)  # on screen, cells
     width, height = (float(v) for v in np.ptp(known, axis=0))
+    screen = conv.screen_ends(segments, yaw_rad=yaw_rad)  # the same in both views
 
     def anchors_in(
         frame: tuple[float, float, float, float], views: tuple[tuple[float, float], ...]
@@ -346,6 +347,7 @@ def direction_label_anchors(
             label_width=conv.DIRECTION_LABEL_WIDTH_PX * per_px,
             label_height=conv.DIRECTION_LABEL_HEIGHT_PX * per_px,
             clearance=conv.DIRECTION_LABEL_CLEARANCE_PX * per_px,
+            screen=screen,
         )
 
     return (
@@ -663,6 +665,8 @@ class TopicLogger:
         self.log_cell_scores(snapshot, result, occupied)
         self.log_spectrum(result)
         self.log_amplitude(result, yaw_rad=snapshot.origin_yaw_rad)
+        if judged is None:  # the occupied cells are counted already (a pass over the mask less)
+            judged = w_judges(occupied.grid_index.size)
         self.log_structure_score(result, judged=judged)
         if walls is not None:
             self.log_walls(snapshot, walls)
