@@ -126,12 +126,17 @@ class OccupiedCells:
         when there are none: the walls bound what was mapped.
     window : Window
         The part of the grid the images cover (the whole grid unless given).
+    row, col : ndarray of intp, shape (N,)
+        Grid row and column of each cell (``divmod(grid_index, cols)``), kept for the images'
+        pooling (an integer division of every index less).
     """
 
     grid_index: npt.NDArray[np.intp]
     image_index: npt.NDArray[np.intp]
     bounds: tuple[int, int, int, int] | None
     window: Window
+    row: npt.NDArray[np.intp]
+    col: npt.NDArray[np.intp]
 
 
 def image_window(grid: npt.NDArray[np.int8]) -> Window:
@@ -147,15 +152,15 @@ def occupied_cells(result: RoseResult, window: Window | None = None) -> Occupied
     hold every occupied cell."""
     rows, cols = result.occupied.shape
     x0, y0, x1, y1 = window = window or (0, 0, cols, rows)
-    # The window's rows alone (a contiguous band, a quarter to a third of a SLAM map's grid); a
-    # count over the grid says whether any occupied cell lies outside them (fast: no indices).
-    band = result.occupied[max(y0, 0) : max(y1, 0)]
-    grid_index = np.flatnonzero(band)
+    # The window's rows alone (a contiguous band, a quarter to a third of a SLAM map's grid); the
+    # other rows are only checked for an occupied cell (fast: no indices).
+    low, high = max(y0, 0), max(y1, y0, 0)
+    grid_index = np.flatnonzero(result.occupied[low:high])
     row, col = np.divmod(grid_index, cols)
-    row += max(y0, 0)
-    grid_index += max(y0, 0) * cols
+    row += low
+    grid_index += low * cols
     bounds = None
-    outside = grid_index.size != np.count_nonzero(result.occupied)
+    outside = bool(result.occupied[:low].any() or result.occupied[high:].any())
     if grid_index.size or outside:
         if outside:  # found by the whole mask, for the message
             row, col = np.divmod(np.flatnonzero(result.occupied), cols)
@@ -163,7 +168,8 @@ def occupied_cells(result: RoseResult, window: Window | None = None) -> Occupied
         if outside or bounds[0] < x0 or bounds[2] > x1:
             msg = f"window {window} does not hold the occupied cells' box {bounds}"
             raise ValueError(msg)
-    return OccupiedCells(grid_index, (y1 - 1 - row) * (x1 - x0) + (col - x0), bounds, window)
+    image_index = (y1 - 1 - row) * (x1 - x0) + (col - x0)
+    return OccupiedCells(grid_index, image_index, bounds, window, row, col)
 
 
 def segmentation_image(
@@ -405,10 +411,11 @@ def pooled_score_image(
     rows, cols = y1 - y0, x1 - x0
     top = -rows % factor  # padding rows on top, as _padded
     pooled_rows, pooled_cols = (rows + top) // factor, -(-cols // factor)
-    row, col = np.divmod(cells.image_index, cols)
-    row += top
+    # The image row and column of each cell (as divmod(image_index, cols) gives them).
+    row = (y1 - 1 + top) - cells.row
     row //= factor
     row *= pooled_cols
+    col = cells.col - x0
     col //= factor
     row += col
     level = _score_ids(result.cell_scores.ravel()[cells.grid_index], levels)
