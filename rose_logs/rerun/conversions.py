@@ -79,6 +79,7 @@ __all__ = [
     "OccupiedCells",
     "PeakLabelBoxes",
     "ScreenEnds",
+    "SpectrumPooling",
     "amplitude_plot",
     "colour_levels",
     "direction_label_positions",
@@ -101,6 +102,7 @@ __all__ = [
     "score_to_unit",
     "screen_ends",
     "segmentation_image",
+    "spectrum_pooling",
     "spectrum_strip_segments",
     "spread_labels",
     "view_units_per_px",
@@ -477,12 +479,67 @@ def _median(values: npt.NDArray[np.float32]) -> float:
     return float(np.mean(middle))
 
 
+@dataclass(frozen=True)
+class SpectrumPooling:
+    """The spectrum rows and columns :func:`display_spectrum` pools into each display pixel, for
+    one spectrum shape and display size (:func:`spectrum_pooling`).
+
+    Attributes
+    ----------
+    padded_shape : tuple of int
+        ``(rows_padded, cols_padded)``.
+    half_cols : int
+        Columns of the half spectrum.
+    size : int
+        The display size.
+    rows : list of ndarray of intp, shape (size + 1,)
+        The ``j``-th row of each display row's block, one array per ``j``.
+    cols : list of ndarray of intp, shape (size // 2 + 1,)
+        The ``j``-th column of each right-half display column's block, one array per ``j``.
+    """
+
+    padded_shape: tuple[int, int]
+    half_cols: int
+    size: int
+    rows: list[npt.NDArray[np.intp]]
+    cols: list[npt.NDArray[np.intp]]
+
+
+def spectrum_pooling(
+    padded_shape: tuple[int, int], half_cols: int, *, size: int = SPECTRUM_DISPLAY_PX
+) -> SpectrumPooling:
+    """:class:`SpectrumPooling` of a ``padded_shape`` spectrum's half (``half_cols`` columns) shown
+    ``size + 1`` pixels square (``size`` even)."""
+    rows_p, cols_p = padded_shape
+    half, half_rows = size // 2, rows_p // 2
+    bins = np.arange(half + 1)
+    # Max-pool by the integer number of spectrum cells per display pixel (thin spectral lines
+    # survive), then take the pooled cell of each display pixel's frequency (nearest): display
+    # pixel b from the centre is b / size cycles per cell on either axis. Only the blocks that are
+    # taken are pooled, straight from the spectrum (rows then columns).
+    f_rows = max(1, rows_p // size)
+    # Rows: v = r / rows_p for r <= rows_p / 2 (v >= 0), else (r - rows_p) / rows_p (v < 0): the
+    # non-negative half pooled from row 0 to half_rows, the negative from half_rows to the end.
+    m_pos = np.minimum(np.rint(bins * rows_p / size).astype(np.intp), half_rows)
+    m_neg = np.clip(np.rint(bins[1:] * rows_p / size).astype(np.intp), 1, rows_p - half_rows)
+    # Display row i holds v = (half - i) / size: +v up.
+    positive = _block_rows((m_pos // f_rows)[::-1], f_rows, 0, half_rows)
+    negative = _block_rows((rows_p - m_neg - half_rows) // f_rows, f_rows, half_rows, rows_p - 1)
+    rows = [np.concatenate(pair) for pair in zip(positive, negative, strict=True)]
+    # Columns: u = k / cols_p -> display columns half .. size.
+    f_cols = max(1, cols_p // size)
+    k = np.minimum(np.rint(bins * cols_p / size).astype(np.intp), half_cols - 1)
+    cols = _block_rows(k // f_cols, f_cols, 0, half_cols - 1)
+    return SpectrumPooling((int(rows_p), int(cols_p)), int(half_cols), size, rows, cols)
+
+
 def display_spectrum(
     spectrum_half: npt.NDArray[np.float32],
     padded_shape: tuple[int, int],
     *,
     size: int = SPECTRUM_DISPLAY_PX,
     levels: int = DISPLAY_LEVELS,
+    pooling: SpectrumPooling | None = None,
 ) -> npt.NDArray[np.uint8]:
     """Log-amplitude spectrum at display resolution, square, DC at the centre pixel.
 
@@ -502,6 +559,9 @@ def display_spectrum(
     levels : int
         Grey levels, see :func:`quantise_unit`. The log amplitude is stretched from its median (the
         noise floor, shown darkest) to its maximum.
+    pooling : SpectrumPooling, optional
+        ``spectrum_pooling(padded_shape, spectrum_half.shape[1], size=size)``, when the caller
+        keeps it (a session's spectra keep their shape).
 
     Returns
     -------
@@ -514,37 +574,20 @@ def display_spectrum(
     if not 2 <= levels <= 255:
         msg = f"levels must be in 2..255, got {levels}"
         raise ValueError(msg)
-    rows_p, cols_p = padded_shape
-    half, half_rows = size // 2, rows_p // 2
-    bins = np.arange(half + 1)
-    # Max-pool by the integer number of spectrum cells per display pixel (thin spectral lines
-    # survive), then take the pooled cell of each display pixel's frequency (nearest): display
-    # pixel b from the centre is b / size cycles per cell on either axis. Only the blocks that are
-    # taken are pooled, straight from the spectrum (rows then columns).
-    f_rows = max(1, rows_p // size)
-    # Rows: v = r / rows_p for r <= rows_p / 2 (v >= 0), else (r - rows_p) / rows_p (v < 0): the
-    # non-negative half pooled from row 0 to half_rows, the negative from half_rows to the end.
-    m_pos = np.minimum(np.rint(bins * rows_p / size).astype(np.intp), half_rows)
-    m_neg = np.rint(bins[1:] * rows_p / size).astype(np.intp)
-    np.maximum(m_neg, 1, out=m_neg)  # np.clip's argument checks cost more than the clipping
-    np.minimum(m_neg, rows_p - half_rows, out=m_neg)
-    # Display row i holds v = (half - i) / size: +v up.
-    positive = _block_rows((m_pos // f_rows)[::-1], f_rows, 0, half_rows)
-    negative = _block_rows((rows_p - m_neg - half_rows) // f_rows, f_rows, half_rows, rows_p - 1)
-    rows_binned = _max_of(
-        spectrum_half, [np.concatenate(pair) for pair in zip(positive, negative, strict=True)]
-    )  # (size + 1, cols_p // 2 + 1)
-    # Columns: u = k / cols_p -> display columns half .. size.
-    f_cols = max(1, cols_p // size)
-    k = np.minimum(np.rint(bins * cols_p / size).astype(np.intp), spectrum_half.shape[1] - 1)
+    half_cols = spectrum_half.shape[1]
+    if pooling is None:
+        pooling = spectrum_pooling(padded_shape, half_cols, size=size)
+    want = (tuple(padded_shape), half_cols, size)
+    made_for = (pooling.padded_shape, pooling.half_cols, pooling.size)
+    if made_for != want:
+        msg = f"pooling is for (padded shape, columns, size) {made_for}, got {want}"
+        raise ValueError(msg)
+    half = size // 2
+    rows_binned = _max_of(spectrum_half, pooling.rows)  # (size + 1, cols_p // 2 + 1)
     # Display columns half .. size (a copy, worked in place); the left half (u < 0) is their point
     # mirror about the centre pixel, so the log, the stretch and the quantisation run on this half
     # alone.
-    right = _max_of(
-        rows_binned,
-        _block_rows(k // f_cols, f_cols, 0, spectrum_half.shape[1] - 1),
-        axis=1,
-    )  # (size + 1, half + 1)
+    right = _max_of(rows_binned, pooling.cols, axis=1)  # (size + 1, half + 1)
     # log(1 + a): numpy's float32 log is vectorised, its log1p is not (6x slower); amplitudes are
     # >= 0 and the result is quantised to 8 bits, so log1p's extra precision near 0 is invisible.
     right += np.float32(1.0)

@@ -434,6 +434,8 @@ class TopicLogger:
         self._metric_labels_hidden = False
         # Of the last snapshot (``live``), else of the session's end (log_final_placement).
         self.score_legend_placement: rr.Transform3D | None = None
+        # The spectrum image's pooling of the latest spectrum shape (a session's keep theirs).
+        self._spectrum_pooling: conv.SpectrumPooling | None = None
 
     def _image_placement(
         self, snapshot: MapSnapshot, window: conv.Window | None = None, factor: int = 1
@@ -877,7 +879,14 @@ class TopicLogger:
     def log_spectrum(self, result: RoseResult) -> None:
         """The log amplitude spectrum (display resolution) with the kept strip of every direction."""
         size = style.SPECTRUM_DISPLAY_PX
-        image = conv.display_spectrum(result.spectrum_half, result.padded_shape, size=size)
+        shape, half_cols = tuple(result.padded_shape), result.spectrum_half.shape[1]
+        pooling = self._spectrum_pooling
+        if pooling is None or (pooling.padded_shape, pooling.half_cols) != (shape, half_cols):
+            pooling = conv.spectrum_pooling(result.padded_shape, half_cols, size=size)
+            self._spectrum_pooling = pooling
+        image = conv.display_spectrum(
+            result.spectrum_half, result.padded_shape, size=size, pooling=pooling
+        )
         directions = np.asarray(result.dominant_directions, dtype=np.float64)
         half_width = result.params.mask_half_width_px * size / max(result.padded_shape)
         self.recording.log(
