@@ -229,7 +229,7 @@ def north_up_m(
     snapshot: MapSnapshot, cells: npt.NDArray[np.float64], view_origin: tuple[float, float]
 ) -> npt.NDArray[np.float64]:
     """Continuous grid-frame cells ``(..., 2)`` -> the 2D views' north-up metres ``(..., 2)``."""
-    xy = cells_to_map_m(snapshot, cells)[..., :2]
+    xy = _cells_to_map_xy(snapshot, cells)
     return np.stack([xy[..., 0] - view_origin[0], view_origin[1] - xy[..., 1]], axis=-1)
 
 
@@ -268,14 +268,23 @@ def cells_to_map_m(
 ) -> npt.NDArray[np.float64]:
     """Continuous grid-frame cells ``(..., 2)`` (0 = a cell's corner) -> map-frame metres ``(..., 3)``,
     just above the grid (ROS maps are planar: the origin's yaw places them)."""
-    xy = cells_to_metres(
+    xy = _cells_to_map_xy(snapshot, cells)
+    out = np.empty((*xy.shape[:-1], 3))
+    out[..., :2] = xy
+    out[..., 2] = overlay_z_m(snapshot, layer=1)
+    return out
+
+
+def _cells_to_map_xy(
+    snapshot: MapSnapshot, cells: npt.NDArray[np.float64]
+) -> npt.NDArray[np.float64]:
+    """:func:`cells_to_map_m`'s map-frame x and y ``(..., 2)``."""
+    return cells_to_metres(
         np.asarray(cells, dtype=np.float64) - 0.5,  # cells_to_metres counts from cell centres
         resolution_m=float(snapshot.resolution_m),
         origin_xy_m=(float(snapshot.origin_position_m[0]), float(snapshot.origin_position_m[1])),
         origin_yaw_rad=snapshot.origin_yaw_rad,
     )
-    height = overlay_z_m(snapshot, layer=1)
-    return np.concatenate([xy, np.full((*xy.shape[:-1], 1), height)], axis=-1)
 
 
 def overlay_z_m(snapshot: MapSnapshot, *, layer: int) -> float:
@@ -855,13 +864,14 @@ class TopicLogger:
         unknown), north up in the view's metres whatever the origin's yaw."""
         rows, cols = snapshot.grid.shape
         x0, y0, x1, y1 = occupied.bounds or (0, 0, cols, rows)
-        corners = north_up_m(
-            snapshot,
-            np.array([[x0, y0], [x1, y0], [x0, y1], [x1, y1]], float),
-            self._origin_for(snapshot),
-        )
-        (west, north), (east, south) = corners.min(axis=0), corners.max(axis=0)
-        return bar_placement((west, north, east, south))
+        # north_up_m's corners, its last steps in plain floats (four points: numpy's calls cost
+        # more than the arithmetic, which is the same).
+        rx, ry = self._origin_for(snapshot)
+        corners = _cells_to_map_xy(
+            snapshot, np.array([[x0, y0], [x1, y0], [x0, y1], [x1, y1]], float)
+        ).tolist()
+        xs, ys = [x - rx for x, _ in corners], [ry - y for _, y in corners]
+        return bar_placement((min(xs), min(ys), max(xs), max(ys)))
 
     def log_final_placement(self, bounds_m: tuple[float, float, float, float] | None) -> None:
         """Place the colour bar under the session's known box ``bounds_m`` (map frame, metres: the
