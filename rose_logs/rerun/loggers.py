@@ -385,13 +385,30 @@ def bar_placement(box: tuple[float, float, float, float]) -> rr.Transform3D:
     Laid out in screen pixels at the scores view's smallest scale for that box
     (:func:`scores_units_per_px`, the scale the view's frame leaves room for), so that the labels'
     places in the bar's pixels hold whatever the box and they stay in view in every window."""
+    translation, scale = _bar_terms(box)
+    return rr.Transform3D(translation=translation, scale=scale)
+
+
+def _bar_terms(box: tuple[float, float, float, float]) -> tuple[list[float], list[float]]:
+    """:func:`bar_placement`'s translation and scale."""
     west, north, east, south = box
     width = east - west
     per_px = scores_units_per_px(width, south - north)
     bar = conv.score_bar_width(width, per_px)
-    return rr.Transform3D(
-        translation=[(west + east - bar) / 2, south + conv.SCORE_BAR_TOP_PX * per_px, 0.0],
-        scale=[bar / style.DISPLAY_LEVELS, _BAR_PX * per_px, 1.0],
+    return (
+        [(west + east - bar) / 2, south + conv.SCORE_BAR_TOP_PX * per_px, 0.0],
+        [bar / style.DISPLAY_LEVELS, _BAR_PX * per_px, 1.0],
+    )
+
+
+def _bar_components(box: tuple[float, float, float, float]) -> list[rr.DescribedComponentBatch]:
+    """:func:`bar_placement`'s components, without building the Transform3D (its translation and
+    scale are Rerun's float32 triples, the type of :func:`arrow.points` of 3D points)."""
+    translation, scale = _bar_terms(box)
+    return arrow.described(
+        rr.Transform3D,
+        translation=arrow.points([translation], dims=3),
+        scale=arrow.points([scale], dims=3),
     )
 
 
@@ -442,7 +459,7 @@ class TopicLogger:
         self._metric_labels: list[str] | None = None
         self._metric_labels_hidden = False
         # Of the last snapshot (``live``), else of the session's end (log_final_placement).
-        self.score_legend_placement: rr.Transform3D | None = None
+        self.score_legend_placement: list[rr.DescribedComponentBatch] | None = None
         # The spectrum image's pooling of the latest spectrum shape (a session's keep theirs).
         self._spectrum_pooling: conv.SpectrumPooling | None = None
 
@@ -859,7 +876,9 @@ class TopicLogger:
         threshold = float(result.threshold)
         rec.log(paths.score_bar, _score_bar(threshold if math.isfinite(threshold) else None))
 
-    def _bar_under(self, snapshot: MapSnapshot, occupied: conv.OccupiedCells) -> rr.Transform3D:
+    def _bar_under(
+        self, snapshot: MapSnapshot, occupied: conv.OccupiedCells
+    ) -> list[rr.DescribedComponentBatch]:
         """The colour bar's placement under the occupied cells' box (a SLAM map's grid is mostly
         unknown), north up in the view's metres whatever the origin's yaw."""
         rows, cols = snapshot.grid.shape
@@ -871,7 +890,7 @@ class TopicLogger:
             snapshot, np.array([[x0, y0], [x1, y0], [x0, y1], [x1, y1]], float)
         ).tolist()
         xs, ys = [x - rx for x, _ in corners], [ry - y for _, y in corners]
-        return bar_placement((min(xs), min(ys), max(xs), max(ys)))
+        return _bar_components((min(xs), min(ys), max(xs), max(ys)))
 
     def log_final_placement(self, bounds_m: tuple[float, float, float, float] | None) -> None:
         """Place the colour bar under the session's known box ``bounds_m`` (map frame, metres: the
@@ -883,7 +902,7 @@ class TopicLogger:
             return
         x0, y0, x1, y1 = bounds_m
         rx, ry = self.view_origin_m
-        self.score_legend_placement = bar_placement((x0 - rx, ry - y1, x1 - rx, ry - y0))
+        self.score_legend_placement = _bar_components((x0 - rx, ry - y1, x1 - rx, ry - y0))
         self.recording.log(self.paths.score_legend, self.score_legend_placement, static=True)
 
     def log_spectrum(self, result: RoseResult) -> None:
