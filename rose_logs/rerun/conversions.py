@@ -1445,6 +1445,16 @@ class AmplitudePlot:
     threshold_strips: list[list[tuple[float, float]]] = dataclasses_field(default_factory=list)
 
 
+def _bars(
+    x: npt.NDArray[np.float64], top: npt.NDArray[np.float64], base: npt.NDArray[np.float64]
+) -> npt.NDArray[np.float64]:
+    """Vertical bars ``(K, 2, 2)`` at ``x`` from ``top`` down to ``base`` (each (K,))."""
+    bars = np.empty((len(x), 2, 2))
+    bars[:, :, 0] = x[:, np.newaxis]
+    bars[:, 0, 1], bars[:, 1, 1] = top, base
+    return bars
+
+
 def amplitude_plot(
     result: RoseResult, *, yaw_rad: float = 0.0, label_boxes: PeakLabelBoxes | None = None
 ) -> AmplitudePlot:
@@ -1470,29 +1480,29 @@ def amplitude_plot(
         wrap = in_order[-1] + (in_order[0] - in_order[-1]) * (180.0 - degrees[-1]) / gap
         degrees, in_order = np.insert(degrees, 0, 0.0), np.insert(in_order, 0, wrap)
     height = AMPLITUDE_PLOT_HEIGHT
-    curve = np.stack(
-        [np.append(degrees, 180.0), -height * np.append(in_order, in_order[:1])], axis=-1
-    )
+    # The small arrays below are filled in place: np.stack and np.append cost more than the
+    # arithmetic (a few dozen values), and more again in a logging thread whose code is cold.
+    curve = np.empty((len(degrees) + 1, 2))  # closed at 180 degrees with its first value
+    curve[:-1, 0], curve[-1, 0] = degrees, 180.0
+    curve[:-1, 1], curve[-1:, 1] = -height * in_order, -height * in_order[:1]
     peaks_idx = np.asarray(result.peak_indices, dtype=np.intp)
     peak_s = scaled[peaks_idx]
     directions = np.asarray(result.dominant_directions, dtype=np.float64)
     peak_deg = _folded_deg(directions + yaw_rad)
-    peaks = np.stack([peak_deg, -height * peak_s], axis=-1)
     prominence = np.asarray(result.peak_prominences, dtype=np.float64)
-    bars = np.stack([peaks, np.stack([peak_deg, -height * (peak_s - prominence)], axis=-1)], axis=1)
+    bars = _bars(peak_deg, -height * peak_s, -height * (peak_s - prominence))
+    peaks = bars[:, 0].copy()
     threshold = float(result.params.peak_prominence)
     rejected, rejected_prominence = _rejected_peaks(scaled, threshold, peaks_idx)
-    rejected_deg = _folded_deg(
-        np.asarray(result.direction_bins, dtype=np.float64)[rejected] + yaw_rad
-    )
-    rejected_s = scaled[rejected]
-    rejected_bars = np.stack(
-        [
-            np.stack([rejected_deg, -height * rejected_s], axis=-1),
-            np.stack([rejected_deg, -height * (rejected_s - rejected_prominence)], axis=-1),
-        ],
-        axis=1,
-    ).reshape(-1, 2, 2)
+    rejected_bars = np.empty((0, 2, 2))
+    if rejected.size:  # seldom: most snapshots keep every peak above the threshold
+        rejected_deg = _folded_deg(
+            np.asarray(result.direction_bins, dtype=np.float64)[rejected] + yaw_rad
+        )
+        rejected_s = scaled[rejected]
+        rejected_bars = _bars(
+            rejected_deg, -height * rejected_s, -height * (rejected_s - rejected_prominence)
+        )
     # The threshold's label in pixels: its box and gaps at the boxes' units per pixel, between
     # the s axis's labels and what every view shows.
     per_px = label_boxes.width / PEAK_LABEL_PX
