@@ -635,11 +635,12 @@ def direction_segments_cells(
     centre = np.array([(x0 + x1) / 2.0, (y0 + y1) / 2.0])
     half_box = np.array([(x1 - x0) / 2.0, (y1 - y0) / 2.0])
     theta = np.asarray(directions_rad, dtype=np.float64)
-    unit = np.stack([np.cos(theta), np.sin(theta)], axis=-1)  # (K, 2)
+    unit = np.empty((*theta.shape, 2))  # (K, 2)
+    unit[..., 0], unit[..., 1] = np.cos(theta), np.sin(theta)
     with np.errstate(divide="ignore"):
         reach = half_box / np.abs(unit)  # inf along an axis the line is parallel to
     half_length = reach.min(axis=1, keepdims=True)
-    return np.stack([centre - half_length * unit, centre + half_length * unit], axis=1)
+    return _through(centre, half_length * unit)
 
 
 @dataclass(frozen=True)
@@ -676,12 +677,13 @@ def screen_ends(segments: npt.NDArray[np.float64], *, yaw_rad: float = 0.0) -> S
     lower = np.argmin(ends[:, :, 1], axis=1)  # the end lower on screen (the first if level)
     end = ends[np.arange(len(ends)), lower]  # (K, 2)
     run = ends[:, 1] - ends[:, 0]
-    length = np.linalg.norm(run, axis=1)
+    # np.linalg.norm's and mean's own arithmetic, without their Python wrappers.
+    length = np.sqrt(np.add.reduce(run * run, axis=1))
     level = np.divide(np.abs(run[:, 0]), length, out=np.ones_like(length), where=length > 0)
     # Out from the map by as much of half a label as the line is level: a flat line's label
     # beside its end, off the map (on a map narrower than a label, centred under the end, it
     # reached over the other lines), a steep one's under its end.
-    out = np.sign(end[:, 0] - ends.mean(axis=1)[:, 0])
+    out = np.sign(end[:, 0] - np.add.reduce(ends[:, :, 0], axis=1) / 2)
     return ScreenEnds(turn, ends, end, level, out)
 
 
@@ -1092,7 +1094,11 @@ def known_bounds_cells(grid: npt.NDArray[np.int8]) -> tuple[int, int, int, int] 
 
 def cells_to_pixels(points: npt.NDArray[np.float64], rows: int) -> npt.NDArray[np.float64]:
     """Grid-frame cell coordinates ``(..., (x, y))`` -> image pixels ``(..., (u, v))``, ``v = rows - y``."""
-    return np.stack([points[..., 0], rows - points[..., 1]], axis=-1)
+    v = rows - points[..., 1]
+    # Filled in place: np.stack's checks cost more than these few values' arithmetic.
+    pixels = np.empty((*v.shape, 2), dtype=np.result_type(points.dtype, v.dtype))
+    pixels[..., 0], pixels[..., 1] = points[..., 0], v
+    return pixels
 
 
 def spectrum_strip_segments(
@@ -1109,9 +1115,21 @@ def spectrum_strip_segments(
     """
     centre = size / 2 + 0.5
     theta = np.asarray(directions_rad, dtype=np.float64) + math.pi / 2
-    unit = np.stack([np.cos(theta), -np.sin(theta)], axis=-1)
+    unit = np.empty((*theta.shape, 2))
+    unit[..., 0], unit[..., 1] = np.cos(theta), -np.sin(theta)
     reach = (size / 2 + 0.5) / np.maximum(np.abs(unit).max(axis=1, keepdims=True), 1e-12)
-    return np.stack([centre - reach * unit, centre + reach * unit], axis=1)
+    return _through(centre, reach * unit)
+
+
+def _through(
+    centre: float | npt.NDArray[np.float64], half: npt.NDArray[np.float64]
+) -> npt.NDArray[np.float64]:
+    """Segments ``(K, 2, 2)`` from ``centre - half`` to ``centre + half`` (``half`` (K, 2)),
+    filled in place (np.stack costs more than the arithmetic)."""
+    segments = np.empty((len(half), 2, 2))
+    np.subtract(centre, half, out=segments[:, 0])
+    np.add(centre, half, out=segments[:, 1])
+    return segments
 
 
 #: Degrees this close below 180 are 0 (far below the 0.1-degree labels; float noise of a yaw).
