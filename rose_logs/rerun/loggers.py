@@ -330,8 +330,9 @@ def direction_label_anchors(
         [[math.cos(yaw_rad), -math.sin(yaw_rad)], [math.sin(yaw_rad), math.cos(yaw_rad)]]
     )
     known = np.array([[x0, y0], [x1, y0], [x0, y1], [x1, y1]], dtype=np.float64) @ turn.T
-    corner = known.min(axis=0)  # on screen, cells
-    width, height = (float(v) for v in np.ptp(known, axis=0))
+    low, high = known.min(axis=0), known.max(axis=0)  # on screen, cells
+    corner_x, corner_y = low.tolist()
+    width, height = (high - low).tolist()  # np.ptp's arithmetic
     screen = conv.screen_ends(segments, yaw_rad=yaw_rad)  # the same in both views
 
     def anchors_in(
@@ -339,7 +340,8 @@ def direction_label_anchors(
     ) -> npt.NDArray[np.float64]:
         left, bottom, right, top = frame
         framed_w, framed_h = right - left, top - bottom
-        centre = corner + np.array([left + right, bottom + top]) / 2
+        # Plain floats, as numpy's corner + [left + right, bottom + top] / 2 (the same arithmetic).
+        centre = (corner_x + (left + right) / 2, corner_y + (bottom + top) / 2)
         # Plain floats: a dozen views, each a few operations (numpy's per-call cost is more).
         scales = [max(framed_w / w, framed_h / h) for w, h in views]  # conv.view_units_per_px
         per_px = max(scales)  # cells per screen pixel in the smallest view
@@ -712,9 +714,9 @@ class TopicLogger:
         image = snapshot.grid[y0:y1, x0:x1].view(np.uint8)[::-1].copy()
         # Flat, turned by the origin's yaw: where the session takes a grid to lie (a tilted origin
         # is warned about), and where the overlays (cells_to_map_m) are drawn.
-        corner = metric_m(
-            snapshot, np.array([[x0, y0]], dtype=np.float64), self._origin_for(snapshot)
-        )[0, :2]
+        # metric_m's x and y of the corner (its last steps in plain floats: the same arithmetic).
+        rx, ry = self._origin_for(snapshot)
+        cx, cy = _cells_to_map_xy(snapshot, np.array([[x0, y0]], dtype=np.float64))[0].tolist()
         self.recording.log(
             self.paths.grid,
             arrow.described(
@@ -724,7 +726,7 @@ class TopicLogger:
             ),
             _grid_placement(
                 float(snapshot.resolution_m),
-                (float(corner[0]), float(corner[1]), float(snapshot.origin_position_m[2])),
+                (cx - rx, cy - ry, float(snapshot.origin_position_m[2])),
                 float(snapshot.origin_yaw_rad),
             ),
         )
