@@ -58,11 +58,16 @@ def image_buffer(image: npt.NDArray[np.uint8]) -> pa.ListArray:
 # logging thread whose code and data are cold at each snapshot (strips, points and images took a
 # tenth of a snapshot's logging). The buffers are made here, of the right dtype and layout.
 
-_ITEM_TYPES = {np.dtype(np.uint8): pa.uint8(), np.dtype(np.float32): pa.float32()}
+_ITEM_TYPES = {
+    np.dtype(np.uint8): pa.uint8(),
+    np.dtype(np.float32): pa.float32(),
+    np.dtype(np.float64): pa.float64(),
+}
 
 
-def _values(flat: npt.NDArray[np.uint8] | npt.NDArray[np.float32]) -> pa.Array:
-    """A contiguous 1-D uint8 or float32 array as an Arrow array without nulls, sharing memory."""
+def _values(flat: npt.NDArray[np.uint8] | npt.NDArray[np.floating]) -> pa.Array:
+    """A contiguous 1-D uint8, float32 or float64 array as an Arrow array without nulls, sharing
+    memory."""
     return pa.Array.from_buffers(_ITEM_TYPES[flat.dtype], flat.size, [None, pa.py_buffer(flat)])
 
 
@@ -137,7 +142,7 @@ def strips(
 def floats(values: float | Sequence[float]) -> pa.DoubleArray:
     """A float or floats as Rerun's Scalar array (float64): its conversion checks and re-wraps
     them in Python, about 20 us a call."""
-    return pa.array(np.asarray(values, dtype=np.float64).reshape(-1))
+    return _values(np.ascontiguousarray(values, dtype=np.float64).reshape(-1))
 
 
 def texts(values: Sequence[str]) -> pa.StringArray:
