@@ -738,8 +738,12 @@ def direction_label_positions(
     x = end[:, 0] + out * level * label_width / 2
     if x_range is not None:
         left, right = x_range[0] + label_width / 2, x_range[1] - label_width / 2
-        x = np.full_like(x, (left + right) / 2) if left > right else np.clip(x, left, right)
-    anchors = np.stack([x, end[:, 1] - clearance * level], axis=-1)
+        if left > right:
+            x = np.full_like(x, (left + right) / 2)
+        else:  # np.clip's arithmetic without its wrapper (two labels: the wrapper cost more)
+            np.minimum(np.maximum(x, left, out=x), right, out=x)
+    anchors = np.empty((len(x), 2))
+    anchors[:, 0], anchors[:, 1] = x, end[:, 1] - clearance * level
     if label_height > 0 and len(anchors) <= SPREAD_MAX_LABELS:
         view = None
         if x_range is not None and y_range is not None:
