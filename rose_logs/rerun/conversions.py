@@ -158,7 +158,9 @@ def occupied_cells(result: RoseResult, window: Window | None = None) -> Occupied
     # other rows are only checked for an occupied cell (fast: no indices).
     low, high = max(y0, 0), max(y1, y0, 0)
     grid_index = np.flatnonzero(result.occupied[low:high])
-    row, col = np.divmod(grid_index, cols)
+    # divmod's values (the indices are >= 0), by floor division by a scalar: half its time.
+    row = grid_index // cols
+    col = grid_index - row * cols
     row += low
     grid_index += low * cols
     bounds = None
