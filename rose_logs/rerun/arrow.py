@@ -29,6 +29,7 @@ __all__ = [
     "floats",
     "image_buffer",
     "points",
+    "radii",
     "strips",
     "texts",
     "u8_format",
@@ -143,6 +144,12 @@ def floats(values: float | Sequence[float]) -> pa.DoubleArray:
     """A float or floats as Rerun's Scalar array (float64): its conversion checks and re-wraps
     them in Python, about 20 us a call."""
     return _values(np.ascontiguousarray(values, dtype=np.float64).reshape(-1))
+
+
+def radii(values: float | Sequence[float]) -> pa.FloatArray:
+    """A radius or radii (scene units; Rerun's ui points are negative) as Rerun's Radius array
+    (float32), without its conversion."""
+    return _values(np.ascontiguousarray(values, dtype=np.float32).reshape(-1))
 
 
 def texts(values: Sequence[str]) -> pa.StringArray:

@@ -143,7 +143,7 @@ def _amplitude_threshold(
     return arrow.described(
         rr.LineStrips2D,
         strips=arrow.strips(np.asarray(strips, dtype=np.float64).reshape(-1, 2, 2)),
-        labels=[f"t = {threshold:g}"] + [""] * (len(strips) - 1),
+        labels=arrow.texts([f"t = {threshold:g}"] + [""] * (len(strips) - 1)),
     )
 
 
@@ -929,7 +929,7 @@ class TopicLogger:
             arrow.described(
                 rr.LineStrips2D,
                 strips=arrow.strips(conv.spectrum_strip_segments(directions, size=size)),
-                radii=max(half_width, 0.75),
+                radii=arrow.radii(max(half_width, 0.75)),
             ),
         )
 
