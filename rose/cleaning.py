@@ -500,7 +500,9 @@ def _paper_labelling(
     # mask for the three empty ones: a session holds several results at once, and these copies
     # were a sixth of its memory (about 5 MB per 1000 x 1000 snapshot).
     cleaned = occupancy.copy()
-    cleaned[result.clutter] = result.params.clutter_cell_value
+    # copyto's mask: half the time of an assignment through a boolean index (which first lists
+    # the mask's cells), the same cells set.
+    np.copyto(cleaned, result.params.clutter_cell_value, where=result.clutter)
     if np.array_equal(cleaned, result.cleaned):  # the result was computed on ``occupancy``
         cleaned = result.cleaned
     nothing = np.zeros(occupancy.shape, dtype=bool)

@@ -9,6 +9,7 @@ from concurrent.futures import Executor, Future
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
 import rose
 from rose.cleaning import MIN_CLEAN_RESOLUTION_M, CleanMethod, CleanResult, clean
@@ -51,16 +52,26 @@ class CellCounts:
 
 def cell_counts(result: RoseResult, cleaning: CleanResult | None) -> CellCounts:
     """The :class:`CellCounts` of an analysis and its cleaning (None: not cleaned)."""
+    occupied, clutter = result.occupied_count, result.clutter_count
     if cleaning is None:
-        return CellCounts(result.occupied_count, result.clutter_count)
+        return CellCounts(occupied, clutter)
+    # Each mask counted once (the CleanResult's *_count, by the mask's identity): the paper
+    # labelling's removed and kept masks are the result's own, its three empty ones one array.
+    counted = {id(result.occupied): occupied, id(result.clutter): clutter}
+
+    def count(mask: npt.NDArray[np.bool_]) -> int:
+        if id(mask) not in counted:
+            counted[id(mask)] = int(np.count_nonzero(mask))
+        return counted[id(mask)]
+
     return CellCounts(
-        result.occupied_count,
-        result.clutter_count,
-        removed=cleaning.removed_count,
-        kept=cleaning.kept_count,
-        rescued=cleaning.rescued_count,
-        guarded=cleaning.guarded_count,
-        completed=cleaning.completed_count,
+        occupied,
+        clutter,
+        removed=count(cleaning.removed),
+        kept=count(cleaning.kept),
+        rescued=count(cleaning.rescued),
+        guarded=count(cleaning.guarded),
+        completed=count(cleaning.completed),
     )
 
 
