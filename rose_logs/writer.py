@@ -36,7 +36,7 @@ import shutil
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from types import TracebackType
-from typing import Any, Self
+from typing import Any, NoReturn, Self
 
 from rosbags.interfaces import Qos
 
@@ -344,21 +344,25 @@ class LogWriter:
         """
         backend = self._require_open()
         latest = _LATEST_NS.get(self.format, 2**63 - 1)
-        for name, value in (("log time", log_time_ns), ("publish time", publish_time_ns)):
-            if value is not None and not 0 <= int(value) <= latest:
-                msg = f"{self.path}: {name} {value} ns is outside what {self.format} stores (0..{latest})"
-                raise LogWriteError(msg)
+        # Each time converted once, checked in turn (a call per message, no tuple of pairs).
+        log_ns = int(log_time_ns)
+        if not 0 <= log_ns <= latest:
+            self._outside("log time", log_time_ns, latest)
+        if publish_time_ns is None:
+            publish_ns = log_ns
+        else:
+            publish_ns = int(publish_time_ns)
+            if not 0 <= publish_ns <= latest:
+                self._outside("publish time", publish_time_ns, latest)
         try:
-            backend.write(
-                handle,
-                int(log_time_ns),
-                data,
-                int(log_time_ns if publish_time_ns is None else publish_time_ns),
-                sequence,
-            )
+            backend.write(handle, log_ns, data, publish_ns, sequence)
         except OSError as err:  # a full disk, an I/O error: name the output, not the temporary
             msg = f"{self.path}: cannot write ({err.strerror or short(err, 160)})"
             raise LogWriteError(msg) from err
+
+    def _outside(self, name: str, value: int, latest: int) -> NoReturn:
+        msg = f"{self.path}: {name} {value} ns is outside what {self.format} stores (0..{latest})"
+        raise LogWriteError(msg)
 
     def add_file_records(self, records: FileRecords) -> None:
         """Copy an MCAP file's metadata and attachment records (:meth:`LogReader.file_records`,
