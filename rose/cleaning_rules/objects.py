@@ -159,11 +159,14 @@ def _closing_walls(
     furniture: taken for furniture, a dashed wall's last 0.55 m went and joined a 3.5 m² room to a
     lab (a real map at 0.05 m, docs/cleaning.md, 2026-12-07)."""
     found = np.zeros(loose.shape, dtype=bool)
+    # Until a dash is found, ``loose & ~found`` is ``loose`` and ``walls | found`` is ``walls``:
+    # no full-map copies for the first round, nearly always the only one.
+    removed, anchors = loose, walls
     for _ in range(_DASHES_MAX):
-        more = _in_line(
+        more = _in_line_cells(
             pieces,
-            np.greater(loose, found),
-            walls | found,
+            removed,
+            anchors,
             free,
             directions,
             res,
@@ -171,9 +174,10 @@ def _closing_walls(
             ends=1,
             dashed=True,
         )
-        if not more.any():
+        if more.size == 0:
             break
-        found |= more
+        found.reshape(-1)[more] = True
+        removed, anchors = np.greater(loose, found), walls | found
     return found
 
 
@@ -193,16 +197,40 @@ def _in_line(
     most ``_THIN_WALL_M`` thick and at least 4 cells and twice as long as thick, with known
     ``free`` cells beyond ``ends`` of their ends (1: either, 2: both) for at most ``gap_px`` cells
     and then ``walls`` in line for ``_DOOR_ANCHOR_M``: every cell of it, or with ``dashed`` half
-    of them (a dashed wall's dashes and gaps)."""
+    of them (a dashed wall's dashes and gaps). A mask of :func:`_in_line_cells`."""
     out = np.zeros(removed.shape, dtype=bool)
+    out.reshape(-1)[
+        _in_line_cells(
+            pieces, removed, walls, free, directions, res, gap_px=gap_px, ends=ends, dashed=dashed
+        )
+    ] = True
+    return out
+
+
+def _in_line_cells(
+    pieces: _Pieces,
+    removed: npt.NDArray[np.bool_],
+    walls: npt.NDArray[np.bool_],
+    free: npt.NDArray[np.bool_],
+    directions: npt.NDArray[np.float64],
+    res: float,
+    *,
+    gap_px: int,
+    ends: int,
+    dashed: bool,
+) -> npt.NDArray[np.intp]:
+    """Flat indices (C order) of the cells :func:`_in_line` finds, piece by piece."""
     in_removed = removed.reshape(-1)[pieces.cells]
     if directions.size == 0 or not in_removed.any() or gap_px < 1:
-        return out
-    cells, _, starts, _ = _cells_by_piece(pieces.cells, pieces.owners, in_removed)
+        return np.empty(0, dtype=np.intp)
+    cells, _, starts, stops = _cells_by_piece(pieces.cells, pieces.owners, in_removed)
+    sizes = stops - starts
     rows, cols = np.divmod(cells, removed.shape[1])
     anchor = max(2, math.ceil(length_px(_DOOR_ANCHOR_M, res)))
     thin = max(_THIN_WALL_MIN_CELLS, length_px(_THIN_WALL_M, res))
     steps = np.arange(1, gap_px + anchor + 1, dtype=np.float64)
+    # The masks read by flat index at the cells looked at (C order; a copy only for another one).
+    walls_flat, free_flat = walls.reshape(-1), free.reshape(-1)
     kept = np.zeros(starts.size, dtype=bool)
     for angle in directions:
         along = np.array([math.cos(angle), math.sin(angle)])  # (col, row): the wall's direction
@@ -211,60 +239,78 @@ def _in_line(
         n = cols * across[0] + rows * across[1]
         low, high = np.minimum.reduceat(a, starts), np.maximum.reduceat(a, starts)
         width = np.maximum.reduceat(n, starts) - np.minimum.reduceat(n, starts) + 1
-        middle = np.add.reduceat(n, starts) / np.diff(np.r_[starts, n.size])
         # (A hair of slack: the projections of cells on a grid axis carry rounding errors.)
         length = high - low + 1 + 1e-6
         # (A dash may be as short as a cell, but no thicker than long.)
         shortest = np.maximum(width, 1) if dashed else np.maximum(2 * width, 4)
-        candidate = (width <= thin + 1e-6) & (length >= shortest) & ~kept
-        if not candidate.any():
+        candidate = np.flatnonzero((width <= thin + 1e-6) & (length >= shortest) & ~kept)
+        if candidate.size == 0:
             continue
-        found = np.zeros(int(candidate.sum()), dtype=np.intp)
-        for end, sign in ((high[candidate], 1.0), (low[candidate], -1.0)):
-            found += _door_then_wall(
-                end,
-                middle[candidate],
-                sign * steps,
-                along,
-                across,
-                walls,
-                free,
-                gap_px,
-                anchor,
-                min_hits=-(-anchor // 2) if dashed else anchor,
-            )
-        kept[np.flatnonzero(candidate)[found >= ends]] = True
-    if kept.any():
-        lengths = np.diff(np.r_[starts, cells.size])
-        out.reshape(-1)[cells[np.repeat(kept, lengths)]] = True
-    return out
+        middle = np.add.reduceat(n, starts)[candidate] / sizes[candidate]
+        # Both ends in one look: beyond the high end forwards, beyond the low end backwards.
+        found = _door_then_wall(
+            np.concatenate([high[candidate], low[candidate]]),
+            np.concatenate([middle, middle]),
+            steps,
+            np.repeat([True, False], candidate.size),
+            along,
+            across,
+            walls_flat,
+            free_flat,
+            walls.shape,
+            gap_px,
+            anchor,
+            min_hits=-(-anchor // 2) if dashed else anchor,
+        )
+        hits = found[: candidate.size].astype(np.intp) + found[candidate.size :]
+        kept[candidate[hits >= ends]] = True
+    if not kept.any():
+        return np.empty(0, dtype=np.intp)
+    return cells[np.repeat(kept, sizes)]
 
 
 def _door_then_wall(
     end: npt.NDArray[np.float64],
     middle: npt.NDArray[np.float64],
     steps: npt.NDArray[np.float64],
+    forwards: npt.NDArray[np.bool_],
     along: npt.NDArray[np.float64],
     across: npt.NDArray[np.float64],
     walls: npt.NDArray[np.bool_],
     free: npt.NDArray[np.bool_],
+    shape: tuple[int, int],
     door: int,
     anchor: int,
     *,
     min_hits: int,
 ) -> npt.NDArray[np.bool_]:
     """For pieces ending at ``end`` (along the wall direction) on the line ``middle`` (across it):
-    whether the cells past the end (``steps`` cells on, signed) are free for at most ``door`` cells
-    and then ``walls`` in ``min_hits`` of the next ``anchor`` cells, within a cell of the line."""
-    t = end[:, None, None] + steps[None, :, None]  # (pieces, steps, 3 lines)
-    s = middle[:, None, None] + np.array([-1.0, 0.0, 1.0])[None, None, :]
-    col = np.rint(t * along[0] + s * across[0]).astype(np.intp)
-    row = np.rint(t * along[1] + s * across[1]).astype(np.intp)
-    rows, cols = walls.shape
-    inside = (row >= 0) & (row < rows) & (col >= 0) & (col < cols)
-    row, col = np.where(inside, row, 0), np.where(inside, col, 0)
-    wall = (walls[row, col] & inside).any(axis=2)
-    open_ = (free[row, col] & inside)[:, :, 1]
+    whether the cells past the end (``steps`` cells on, forwards or backwards along the direction
+    as ``forwards`` says) are free for at most ``door`` cells and then ``walls`` in ``min_hits``
+    of the next ``anchor`` cells, within a cell of the line. ``walls`` and ``free``: masks of
+    ``shape`` flattened (C order)."""
+    # (end - steps is end + -steps, exactly.)
+    t = np.where(forwards[:, None], end[:, None] + steps, end[:, None] - steps)[:, :, None]
+    s = middle[:, None, None] + np.array([-1.0, 0.0, 1.0])
+    col = t * along[0] + s * across[0]
+    row = t * along[1] + s * across[1]
+    np.rint(col, out=col)
+    np.rint(row, out=row)
+    rows, cols = shape
+    # The flat index worked out in floats (whole numbers far below 2**53: exact), converted once.
+    flat = row * cols
+    flat += col
+    at = flat.astype(np.intp)
+    inside: npt.NDArray[np.bool_] | None = None
+    if not (row.min() >= 0 and row.max() < rows and col.min() >= 0 and col.max() < cols):
+        inside = (row >= 0) & (row < rows) & (col >= 0) & (col < cols)
+        at[~inside] = 0
+    on_wall = walls[at]
+    open_ = free[at[:, :, 1]]
+    if inside is not None:
+        on_wall &= inside
+        open_ &= inside[:, :, 1]
+    wall = on_wall[:, :, 0] | on_wall[:, :, 1] | on_wall[:, :, 2]
     hit = np.argmax(wall, axis=1)
     reached = wall.any(axis=1) & (hit >= 1) & (hit <= door)
     before = np.arange(steps.size)[None, :] < hit[:, None]
