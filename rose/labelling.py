@@ -138,17 +138,28 @@ def label_boxes(
 
     OpenCV's labelling with statistics costs 3-5x the plain labelling on the cleaning's and the
     break detector's images (it visits every pixel again); the labelled cells are a tenth of them.
+    The cells are sorted by label (stable: a radix sort for 16-bit labels) and reduced label by
+    label, the rows from the flat indices' extremes: about a tenth cheaper than four of numpy's
+    ``ufunc.at`` on the large calls (10,000 cells; the small ones cost the same).
     """
-    rows, cols = np.divmod(cells, labels.shape[1])
+    boxes = np.zeros((count, 4), dtype=np.int64)
     owner = labels.reshape(-1)[cells]
-    low_r = np.full(count, np.iinfo(np.int64).max, dtype=np.int64)
-    low_c = low_r.copy()
-    high_r = np.full(count, -1, dtype=np.int64)
-    high_c = high_r.copy()
-    np.minimum.at(low_r, owner, rows)
-    np.minimum.at(low_c, owner, cols)
-    np.maximum.at(high_r, owner, rows)
-    np.maximum.at(high_c, owner, cols)
-    empty = high_r < 0
-    low_r[empty] = low_c[empty] = 0
-    return np.stack([low_c, low_r, high_c + 1 - low_c, high_r + 1 - low_r], axis=1)
+    if owner.size == 0:
+        return boxes
+    order = np.argsort(owner, kind="stable")
+    owned = owner[order]
+    flat = cells[order]
+    cols = flat % labels.shape[1]
+    starts = np.flatnonzero(owned[1:] != owned[:-1])
+    starts += 1
+    starts = np.concatenate(([0], starts))
+    ids = owned[starts]
+    # A row is the flat index divided by the width, which keeps the order: the rows' extremes
+    # are those of the flat indices, divided (no rows worked out cell by cell).
+    low_r = np.minimum.reduceat(flat, starts) // labels.shape[1]
+    low_c = np.minimum.reduceat(cols, starts)
+    boxes[ids, 0] = low_c
+    boxes[ids, 1] = low_r
+    boxes[ids, 2] = np.maximum.reduceat(cols, starts) + 1 - low_c
+    boxes[ids, 3] = np.maximum.reduceat(flat, starts) // labels.shape[1] + 1 - low_r
+    return boxes
