@@ -159,25 +159,20 @@ def _closing_walls(
     furniture: taken for furniture, a dashed wall's last 0.55 m went and joined a 3.5 m² room to a
     lab (a real map at 0.05 m, docs/cleaning.md, 2026-12-07)."""
     found = np.zeros(loose.shape, dtype=bool)
-    # Until a dash is found, ``loose & ~found`` is ``loose`` and ``walls | found`` is ``walls``:
-    # no full-map copies for the first round, nearly always the only one.
-    removed, anchors = loose, walls
-    for _ in range(_DASHES_MAX):
-        more = _in_line_cells(
+    found.reshape(-1)[
+        _in_line_cells(
             pieces,
-            removed,
-            anchors,
+            loose,
+            walls,
             free,
             directions,
             res,
             gap_px=robot_px - 1,
             ends=1,
             dashed=True,
+            rounds=_DASHES_MAX,
         )
-        if more.size == 0:
-            break
-        found.reshape(-1)[more] = True
-        removed, anchors = np.greater(loose, found), walls | found
+    ] = True
     return found
 
 
@@ -218,8 +213,15 @@ def _in_line_cells(
     gap_px: int,
     ends: int,
     dashed: bool,
+    rounds: int = 1,
 ) -> npt.NDArray[np.intp]:
-    """Flat indices (C order) of the cells :func:`_in_line` finds, piece by piece."""
+    """Flat indices (C order) of the cells :func:`_in_line` finds, piece by piece; with ``rounds``
+    more than one, again and again (at most ``rounds`` times, until a round finds nothing) with
+    the cells found so far among the ``walls`` and no longer among the ``removed`` cells.
+
+    The pieces' geometry along each direction is worked out once: the pieces left in a round are
+    the same cells, in the same order, as in the first. The cells found are read by flat index
+    with the walls, not merged into a full-map copy of them each round."""
     in_removed = removed.reshape(-1)[pieces.cells]
     if directions.size == 0 or not in_removed.any() or gap_px < 1:
         return np.empty(0, dtype=np.intp)
@@ -231,7 +233,8 @@ def _in_line_cells(
     steps = np.arange(1, gap_px + anchor + 1, dtype=np.float64)
     # The masks read by flat index at the cells looked at (C order; a copy only for another one).
     walls_flat, free_flat = walls.reshape(-1), free.reshape(-1)
-    kept = np.zeros(starts.size, dtype=bool)
+    # Per direction: the direction, across it, and each piece's ends, line and shape test.
+    frames = []
     for angle in directions:
         along = np.array([math.cos(angle), math.sin(angle)])  # (col, row): the wall's direction
         across = np.array([-along[1], along[0]])
@@ -243,30 +246,44 @@ def _in_line_cells(
         length = high - low + 1 + 1e-6
         # (A dash may be as short as a cell, but no thicker than long.)
         shortest = np.maximum(width, 1) if dashed else np.maximum(2 * width, 4)
-        candidate = np.flatnonzero((width <= thin + 1e-6) & (length >= shortest) & ~kept)
-        if candidate.size == 0:
-            continue
-        middle = np.add.reduceat(n, starts)[candidate] / sizes[candidate]
-        # Both ends in one look: beyond the high end forwards, beyond the low end backwards.
-        found = _door_then_wall(
-            np.concatenate([high[candidate], low[candidate]]),
-            np.concatenate([middle, middle]),
-            steps,
-            np.repeat([True, False], candidate.size),
-            along,
-            across,
-            walls_flat,
-            free_flat,
-            walls.shape,
-            gap_px,
-            anchor,
-            min_hits=-(-anchor // 2) if dashed else anchor,
-        )
-        hits = found[: candidate.size].astype(np.intp) + found[candidate.size :]
-        kept[candidate[hits >= ends]] = True
-    if not kept.any():
+        shaped = (width <= thin + 1e-6) & (length >= shortest)
+        middle = np.add.reduceat(n, starts) / sizes
+        frames.append((along, across, low, high, shaped, middle))
+    pending = np.ones(starts.size, dtype=bool)  # pieces not found in an earlier round
+    found_flat: npt.NDArray[np.bool_] | None = None  # the cells found so far, flat
+    for _ in range(rounds):
+        kept = np.zeros(starts.size, dtype=bool)
+        for along, across, low, high, shaped, middle in frames:
+            candidate = np.flatnonzero(shaped & pending & ~kept)
+            if candidate.size == 0:
+                continue
+            # Both ends in one look: beyond the high end forwards, beyond the low end backwards.
+            found = _door_then_wall(
+                np.concatenate([high[candidate], low[candidate]]),
+                np.tile(middle[candidate], 2),
+                steps,
+                np.repeat([True, False], candidate.size),
+                along,
+                across,
+                walls_flat,
+                free_flat,
+                walls.shape,
+                gap_px,
+                anchor,
+                min_hits=-(-anchor // 2) if dashed else anchor,
+                also=found_flat,
+            )
+            hits = found[: candidate.size].astype(np.intp) + found[candidate.size :]
+            kept[candidate[hits >= ends]] = True
+        if not kept.any():
+            break
+        pending &= ~kept
+        if found_flat is None:
+            found_flat = np.zeros(walls_flat.size, dtype=bool)
+        found_flat[cells[np.repeat(kept, sizes)]] = True
+    if found_flat is None:
         return np.empty(0, dtype=np.intp)
-    return cells[np.repeat(kept, sizes)]
+    return cells[np.repeat(~pending, sizes)]
 
 
 def _door_then_wall(
@@ -283,12 +300,13 @@ def _door_then_wall(
     anchor: int,
     *,
     min_hits: int,
+    also: npt.NDArray[np.bool_] | None = None,
 ) -> npt.NDArray[np.bool_]:
     """For pieces ending at ``end`` (along the wall direction) on the line ``middle`` (across it):
     whether the cells past the end (``steps`` cells on, forwards or backwards along the direction
     as ``forwards`` says) are free for at most ``door`` cells and then ``walls`` in ``min_hits``
     of the next ``anchor`` cells, within a cell of the line. ``walls`` and ``free``: masks of
-    ``shape`` flattened (C order)."""
+    ``shape`` flattened (C order); ``also``: more wall cells, the same way (or None)."""
     # (end - steps is end + -steps, exactly.)
     t = np.where(forwards[:, None], end[:, None] + steps, end[:, None] - steps)[:, :, None]
     s = middle[:, None, None] + np.array([-1.0, 0.0, 1.0])
@@ -306,6 +324,8 @@ def _door_then_wall(
         inside = (row >= 0) & (row < rows) & (col >= 0) & (col < cols)
         at[~inside] = 0
     on_wall = walls[at]
+    if also is not None:
+        on_wall |= also[at]
     open_ = free[at[:, :, 1]]
     if inside is not None:
         on_wall &= inside
