@@ -158,22 +158,18 @@ def _closing_walls(
     the last one kept. The topology guard counts them as obstacles of the input, not as
     furniture: taken for furniture, a dashed wall's last 0.55 m went and joined a 3.5 m² room to a
     lab (a real map at 0.05 m, docs/cleaning.md, 2026-12-07)."""
-    found = np.zeros(loose.shape, dtype=bool)
-    found.reshape(-1)[
-        _in_line_cells(
-            pieces,
-            loose,
-            walls,
-            free,
-            directions,
-            res,
-            gap_px=robot_px - 1,
-            ends=1,
-            dashed=True,
-            rounds=_DASHES_MAX,
-        )
-    ] = True
-    return found
+    return _in_line(
+        pieces,
+        loose,
+        walls,
+        free,
+        directions,
+        res,
+        gap_px=robot_px - 1,
+        ends=1,
+        dashed=True,
+        rounds=_DASHES_MAX,
+    )
 
 
 def _in_line(
@@ -187,16 +183,27 @@ def _in_line(
     gap_px: int,
     ends: int,
     dashed: bool,
+    rounds: int = 1,
 ) -> npt.NDArray[np.bool_]:
     """Cells of the pieces of ``removed`` (whole pieces of ``pieces``) along a dominant direction at
     most ``_THIN_WALL_M`` thick and at least 4 cells and twice as long as thick, with known
     ``free`` cells beyond ``ends`` of their ends (1: either, 2: both) for at most ``gap_px`` cells
     and then ``walls`` in line for ``_DOOR_ANCHOR_M``: every cell of it, or with ``dashed`` half
-    of them (a dashed wall's dashes and gaps). A mask of :func:`_in_line_cells`."""
+    of them (a dashed wall's dashes and gaps); ``rounds``: see :func:`_in_line_cells`. A mask of
+    :func:`_in_line_cells`."""
     out = np.zeros(removed.shape, dtype=bool)
     out.reshape(-1)[
         _in_line_cells(
-            pieces, removed, walls, free, directions, res, gap_px=gap_px, ends=ends, dashed=dashed
+            pieces,
+            removed,
+            walls,
+            free,
+            directions,
+            res,
+            gap_px=gap_px,
+            ends=ends,
+            dashed=dashed,
+            rounds=rounds,
         )
     ] = True
     return out
