@@ -712,13 +712,13 @@ class _Loop:
         )
 
     def _drains(self, limit: int) -> bool:
-        """Whether :meth:`_drain` would take the queue's head (else it returns at once): the
-        same conditions as its loop's first turn."""
+        """Whether :meth:`_drain` takes the queue's head now (a held message or what was said,
+        or an analysis done or waited for), else it stops."""
         head = self.queue[0]
         return (
             not isinstance(head, _Pending)
             or self.in_flight > limit
-            or self.held_bytes > _MAX_HELD_BYTES
+            or self.held_bytes > _MAX_HELD_BYTES  # memory: wait for the analysis
             or head.future.done()
         )
 
@@ -736,11 +736,7 @@ class _Loop:
                 self.queue.popleft()
                 say_held(head.records)
                 continue
-            elif (
-                self.in_flight > limit
-                or self.held_bytes > _MAX_HELD_BYTES  # memory: wait for the analysis
-                or head.future.done()
-            ):
+            elif self._drains(limit):
                 self.in_flight -= 1
                 self._finish(head)
             else:
