@@ -189,49 +189,17 @@ def _in_line(
     most ``_THIN_WALL_M`` thick and at least 4 cells and twice as long as thick, with known
     ``free`` cells beyond ``ends`` of their ends (1: either, 2: both) for at most ``gap_px`` cells
     and then ``walls`` in line for ``_DOOR_ANCHOR_M``: every cell of it, or with ``dashed`` half
-    of them (a dashed wall's dashes and gaps); ``rounds``: see :func:`_in_line_cells`. A mask of
-    :func:`_in_line_cells`."""
-    out = np.zeros(removed.shape, dtype=bool)
-    out.reshape(-1)[
-        _in_line_cells(
-            pieces,
-            removed,
-            walls,
-            free,
-            directions,
-            res,
-            gap_px=gap_px,
-            ends=ends,
-            dashed=dashed,
-            rounds=rounds,
-        )
-    ] = True
-    return out
-
-
-def _in_line_cells(
-    pieces: _Pieces,
-    removed: npt.NDArray[np.bool_],
-    walls: npt.NDArray[np.bool_],
-    free: npt.NDArray[np.bool_],
-    directions: npt.NDArray[np.float64],
-    res: float,
-    *,
-    gap_px: int,
-    ends: int,
-    dashed: bool,
-    rounds: int = 1,
-) -> npt.NDArray[np.intp]:
-    """Flat indices (C order) of the cells :func:`_in_line` finds, piece by piece; with ``rounds``
-    more than one, again and again (at most ``rounds`` times, until a round finds nothing) with
-    the cells found so far among the ``walls`` and no longer among the ``removed`` cells.
+    of them (a dashed wall's dashes and gaps). With ``rounds`` more than one, again and again (at
+    most ``rounds`` times, until a round finds nothing) with the cells found so far among the
+    ``walls`` and no longer among the ``removed`` cells.
 
     The pieces' geometry along each direction is worked out once: the pieces left in a round are
     the same cells, in the same order, as in the first. The cells found are read by flat index
     with the walls, not merged into a full-map copy of them each round."""
+    out = np.zeros(removed.shape, dtype=bool)
     in_removed = removed.reshape(-1)[pieces.cells]
     if directions.size == 0 or not in_removed.any() or gap_px < 1:
-        return np.empty(0, dtype=np.intp)
+        return out
     cells, _, starts, stops = _cells_by_piece(pieces.cells, pieces.owners, in_removed)
     sizes = stops - starts
     rows, cols = np.divmod(cells, removed.shape[1])
@@ -288,9 +256,9 @@ def _in_line_cells(
         if found_flat is None:
             found_flat = np.zeros(walls_flat.size, dtype=bool)
         found_flat[cells[np.repeat(kept, sizes)]] = True
-    if found_flat is None:
-        return np.empty(0, dtype=np.intp)
-    return cells[np.repeat(~pending, sizes)]
+    if found_flat is not None:
+        out.reshape(-1)[cells[np.repeat(~pending, sizes)]] = True
+    return out
 
 
 def _door_then_wall(
