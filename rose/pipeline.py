@@ -80,11 +80,12 @@ def analyze(
         # The spectrum is the largest array here: freed before the inverse transform makes its
         # output (sessions run two analyses at once, and their peaks add up).
         del spectrum
-        reference = inverse_to_map(restricted, occupancy.shape)
+        # Only the rows from the first to the last occupied one are scored: the inverse transform
+        # skips the rows above and below (a SLAM map's unknown margins, often most of its rows).
+        band = _occupied_rows(occupied)
+        reference = inverse_to_map(restricted, occupancy.shape, rows=band)
         del restricted
-        cell_scores, threshold = _scale_and_threshold(
-            reference, occupied, p, in_place=shape == occupancy.shape
-        )
+        cell_scores, threshold = _scale_and_threshold(reference, occupied, band, p)
         structure = occupied & (cell_scores > threshold)
         clutter = occupied & ~structure
     else:
@@ -116,25 +117,30 @@ def analyze(
     )
 
 
+def _occupied_rows(occupied: npt.NDArray[np.bool_]) -> slice:
+    """The rows from the first to the last that holds an occupied cell (``occupied`` has one)."""
+    rows = np.flatnonzero(occupied.any(axis=1))
+    return slice(int(rows[0]), int(rows[-1]) + 1)
+
+
 def _scale_and_threshold(
     reference: npt.NDArray[np.float32],
     occupied: npt.NDArray[np.bool_],
+    band: slice,
     p: RoseParams,
-    *,
-    in_place: bool,
 ) -> tuple[npt.NDArray[np.float32], float]:
     """Scale the nominal reference map so the best occupied cell scores 1; pick the threshold.
 
-    ``in_place``: ``reference`` is the whole (unpadded) transform, scaled where it is; otherwise a
-    crop of a padded one, copied as it is scaled (the crop and the scaling in one pass).
+    ``reference``: the map's rows ``band`` (every occupied cell lies in them). Returns the scores
+    of the whole map, shape ``occupied.shape``, 0 on the rows outside ``band``.
     """
-    occupied_scores = reference[occupied]
+    occupied_scores = reference[occupied[band]]
     top = float(occupied_scores.max())
     scale = 1.0 / top if top > 0 else 1.0
-    if in_place and reference.dtype == np.float32 and reference.flags.c_contiguous:
-        cell_scores = np.multiply(reference, np.float32(scale), out=reference)
-    else:
-        cell_scores = np.multiply(reference, np.float32(scale), dtype=np.float32)
+    cell_scores = np.empty(occupied.shape, dtype=np.float32)
+    cell_scores[: band.start] = 0.0
+    cell_scores[band.stop :] = 0.0
+    np.multiply(reference, np.float32(scale), out=cell_scores[band], dtype=np.float32)
     if p.threshold_mode == "fixed":
         return cell_scores, p.fixed_threshold
     threshold = gmm_threshold(occupied_scores * np.float32(scale), max_samples=p.max_gmm_samples)

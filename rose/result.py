@@ -42,8 +42,9 @@ class RoseResult(ReadOnlyArrays):
         Prominence of each peak as a fraction of ``max - min`` of the cumulative amplitude.
     cell_scores : ndarray of float32, shape (rows, cols)
         Nominal reference map (the structure-only reconstruction), scaled so that the largest occupied
-        cell scores 1. Defined on every cell; only occupied cells are classified. All 0 when
-        ``has_structure`` is False.
+        cell scores 1. Defined on the rows from the first to the last that holds an occupied cell
+        (only occupied cells are classified); 0 on the rows above and below them, where the
+        inverse transform is not computed. All 0 when ``has_structure`` is False.
     threshold : float
         Score above which an occupied cell is structure (same scale as ``cell_scores``); NaN when no
         cell was classified; ``-inf`` when the mixture finds one population (every occupied cell is

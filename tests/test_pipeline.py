@@ -10,6 +10,8 @@ from synthetic import add_clutter, floor_plan
 
 import rose
 from rose import RoseError
+from rose.scoring import nominal_reference_map, structure_mask
+from rose.spectrum import half_spectrum, padded_shape
 
 
 def angular_error_deg(found: np.ndarray, expected: list[float]) -> float:
@@ -169,6 +171,29 @@ def test_fixed_threshold_mode() -> None:
     assert result.threshold == 0.3
     scores = result.cell_scores
     assert np.all(scores[result.clutter] <= 0.3) and np.all(scores[result.structure] > 0.3)
+
+
+def test_cell_scores_are_the_reference_map_over_the_occupied_rows_and_0_beyond() -> None:
+    """The rows from the first to the last occupied one hold the nominal reference map (as the
+    stages give it, scaled); the margins above and below are 0 (not transformed)."""
+    plan = np.where(floor_plan(), 100, 0).astype(np.int8)
+    margin = np.full((40, plan.shape[1]), -1, dtype=np.int8)
+    grid = np.vstack([margin, plan, margin[:25]])
+    result = rose.analyze(grid)
+    rows = np.flatnonzero(result.occupied.any(axis=1))
+    first, last = int(rows[0]), int(rows[-1]) + 1
+    assert first >= 40 and last <= 40 + plan.shape[0]
+    assert not result.cell_scores[:first].any() and not result.cell_scores[last:].any()
+    shape = padded_shape(grid.shape)
+    mask = structure_mask(
+        shape, result.dominant_directions, half_width_px=result.params.mask_half_width_px
+    )
+    whole = nominal_reference_map(half_spectrum(result.occupied, shape), mask, grid.shape)
+    top = whole[result.occupied].max()
+    np.testing.assert_allclose(
+        result.cell_scores[first:last], whole[first:last] / top, rtol=0, atol=1e-6
+    )
+    assert result.cell_scores[result.occupied].max() == pytest.approx(1.0, abs=1e-6)
 
 
 def test_unknown_cells_are_never_occupied() -> None:
