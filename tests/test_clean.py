@@ -1412,6 +1412,23 @@ def test_a_long_line_with_a_stretch_seen_through_alongside_is_judged_in_little_m
     assert not _alongside(piece, stretch(101, 0, length + 8))  # not past the last end
 
 
+def test_free_space_sealed_row_after_row_is_no_gap_seen_through_on_a_wall_line() -> None:
+    """A corridor 1.35 m wide bridged across between its side walls row after row: the spans'
+    free cells are one stretch as wide as the corridor. Beside a line piece in the wall across
+    the corridor's end it read as the wall line seen through past both ends of the piece, and
+    the end wall went as a box standing in a doorway: the corridor opened onto the unexplored
+    outside (a real office map). A stretch on the line, a cell or two across, still is one."""
+    from rose.cleaning_rules.bridges import _alongside
+
+    piece = (np.array([10]), np.array([20]))  # one cell of a hidden line in the end wall
+    rows, cols = np.mgrid[10:25, 8:35]
+    floor = ~((rows == 10) & (cols == 20))
+    assert not _alongside(piece, (rows[floor], cols[floor]))
+    on_line = np.r_[15:20, 21:26]
+    assert _alongside(piece, (np.full(on_line.size, 10), on_line))
+    assert _alongside(piece, (np.r_[np.full(5, 10), np.full(5, 11)], np.r_[15:20, 21:26]))
+
+
 @pytest.mark.parametrize("slit", [3, 4])
 def test_a_wall_stretch_flush_between_two_slits_seen_through_stays(slit: int) -> None:
     """A 1 m stretch of the outer wall, flush with its faces, its core unseen, between two slits

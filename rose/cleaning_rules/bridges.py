@@ -500,9 +500,10 @@ def _alongside(
     stretch: tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]],
 ) -> bool:
     """Whether the ``stretch`` (rows, cols) lies beside every cell of the line ``piece`` (rows,
-    cols), within ``_LINE_THICKNESS_PX - 1`` cells (across a line up to that thick), and has
-    cells past both ends of the piece along its long axis (:func:`_axis`): the wall line is
-    seen through behind the whole piece, not only at its ends."""
+    cols), within ``_LINE_THICKNESS_PX - 1`` cells (across a line up to that thick), on the
+    piece's line (no cell farther across it than that), and has cells past both ends of the
+    piece along its long axis (:func:`_axis`): the wall line is seen through behind the whole
+    piece, not only at its ends."""
     import cv2
 
     if piece[0].size == 0 or stretch[0].size == 0:
@@ -530,6 +531,13 @@ def _alongside(
     if piece[0].size + stretch[0].size < 3:
         return False  # (a cell beside a cell: no stretch past both ends)
     centre, axis = _axis(*piece, stretch)
+    # On the line, too: every stretch cell within ``near`` cells across it of the piece's cells.
+    # Free space that sealing spans cover row after row (a corridor bridged across between its
+    # side walls) is one stretch as wide as the room: it lies beside a line piece in a wall
+    # across the corridor's end, and that wall was taken for a box in a doorway and went.
+    off_piece, off_stretch = _across(*piece, centre, axis), _across(*stretch, centre, axis)
+    if off_stretch.min() < off_piece.min() - near or off_stretch.max() > off_piece.max() + near:
+        return False
     ends = (np.stack(piece, axis=1) - centre) @ axis
     past = (np.stack(stretch, axis=1) - centre) @ axis
     return bool(past.min() < ends.min() and past.max() > ends.max())
