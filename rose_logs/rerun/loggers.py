@@ -326,14 +326,12 @@ def direction_label_anchors(
         Segmentation and metric views' points, grid-frame cells as ``segments`` (K, 2, 2).
     """
     x0, y0, x1, y1 = window
-    turn = np.array(
-        [[math.cos(yaw_rad), -math.sin(yaw_rad)], [math.sin(yaw_rad), math.cos(yaw_rad)]]
-    )
-    known = np.array([[x0, y0], [x1, y0], [x0, y1], [x1, y1]], dtype=np.float64) @ turn.T
+    screen = conv.screen_ends(segments, yaw_rad=yaw_rad)  # the same in both views
+    # The window's corners on screen, turned as the lines' ends are (the grid frame -> screen).
+    known = np.array([[x0, y0], [x1, y0], [x0, y1], [x1, y1]], dtype=np.float64) @ screen.turn.T
     low, high = known.min(axis=0), known.max(axis=0)  # on screen, cells
     corner_x, corner_y = low.tolist()
     width, height = (high - low).tolist()  # np.ptp's arithmetic
-    screen = conv.screen_ends(segments, yaw_rad=yaw_rad)  # the same in both views
 
     def anchors_in(
         frame: tuple[float, float, float, float], views: tuple[tuple[float, float], ...]
