@@ -23,7 +23,10 @@ Two methods, chosen by name:
     (wall stretches of at least 0.25 m running along the gap, not an object's side faces across
     it), at most ``max_bridge_m`` apart, next to a removed piece and within ``hidden_wall_reach_m``
     of it (or, where such a stretch closes a hole between two pieces of the line, of cells the
-    later rules remove: a cabinet's front), become walls (``completed``; thin lines only, never the space between two parallel
+    later rules remove: a cabinet's front; or, last, where the line closes the shadow of a removed
+    piece: a pocket of unknown cells of at most ``min_region_m2``, next to free cells and to a
+    removed cell, that the line parts from the rest of the unknown space), become walls
+    (``completed``; thin lines only, never the space between two parallel
     walls; not where the line is in plain view of the room with wide unknown space beyond it,
     next to a free cell and within ``unknown_margin_m`` of it in a stretch at least
     ``2 * robot_radius_m`` plus a cell long, nor within two cells of such a cell along the line:

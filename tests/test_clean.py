@@ -886,6 +886,53 @@ def test_hidden_walls_are_completed_only_next_to_what_was_removed() -> None:
     assert clean(grid, result, resolution_m=0.05, params=far).completed_count == 30
 
 
+def test_a_hidden_line_is_drawn_where_it_closes_the_shadow_of_something_removed() -> None:
+    """``_closing_lines``: a line piece next to a pocket of unknown cells that it closes, seen into
+    from free space and next to a removed cell, is drawn; not when the pocket reaches the image's
+    edge, is larger than the limit, or has no removed cell or no free cell next to it."""
+    from rose.cleaning_rules import _closing_lines
+
+    unknown = np.zeros((40, 40), dtype=bool)
+    unknown[:, :10] = True  # the outside, to the image's edge
+    unknown[10:20, 12:20] = True  # the shadow, closed by ...
+    undrawn = np.zeros((40, 40), dtype=bool)
+    undrawn[10:20, 11] = True  # ... the line between it and the outside
+    unknown[10:20, 10] = True  # (the wall's unseen stretch: the line's own cells are unknown)
+    unknown[undrawn] = True
+    removed = np.zeros((40, 40), dtype=bool)
+    removed[15, 20] = True  # the object's face, removed
+    occupied = np.zeros((40, 40), dtype=bool)
+    occupied[9, 10:21] = occupied[20, 10:21] = True  # its sides and the walls' ends
+    occupied[10:15, 20] = occupied[16:20, 20] = True
+    occupied |= removed
+    free = ~(unknown | occupied)
+    free[10:20, 20] = False
+    none = np.zeros((40, 40), dtype=bool)
+
+    def drawn(**changes: object) -> npt.NDArray[np.bool_]:
+        args: dict[str, object] = {
+            "undrawn": undrawn,
+            "completed": none,
+            "unknown": unknown,
+            "free": free,
+            "removed": removed,
+            "max_pocket_px": 400.0,
+        }
+        args.update(changes)
+        return _closing_lines(**args)  # type: ignore[arg-type]
+
+    # No free cell next to the shadow yet: the object's faces close it all round.
+    assert not drawn().any()
+    seen_into = free.copy()
+    seen_into[18:20, 20] = True  # a gap in its side: the room sees into the shadow
+    assert np.array_equal(drawn(free=seen_into), undrawn)
+    assert not drawn(free=seen_into, removed=none).any()
+    assert not drawn(free=seen_into, max_pocket_px=79.0).any()  # the shadow: 80 cells
+    reaching = unknown.copy()
+    reaching[20:, 15] = True  # the shadow reaches the image's edge
+    assert not drawn(free=seen_into & ~reaching, unknown=reaching).any()
+
+
 def test_a_doorway_beside_a_box_that_hides_part_of_it_stays_open() -> None:
     """A 0.9 m doorway into unexplored space, unknown across, a box against the wall hiding its
     first 0.25 m: the hidden wall line was drawn on within 0.5 m of the box, over 0.75 m of the

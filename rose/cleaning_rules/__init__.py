@@ -669,6 +669,20 @@ def _wall_cells(
             reach_px=hidden_reach,
             robot_px=2 * length_px(p.robot_radius_m, res) + 1,
         )
+    if undrawn.any():
+        # A hidden wall line left undrawn that closes the shadow of something removed (a pocket
+        # of unseen space seen into from the room): drawn. Nothing removed touched it, so it was
+        # left open, and the shadow led through it out of the room (an object standing off the
+        # wall, the stretch it hid unseen). Drawn last, seen only by the guard: the rules above
+        # read drawn lines as what furniture stands against, and drawn earlier they changed
+        # what they kept far from any such shadow (ray ends beyond the building's edge).
+        # (Within reach of what was removed, as the lines drawn above.)
+        gone = np.greater(occupied, keep)
+        completed = completed | _near(
+            _closing_lines(undrawn, completed, unknown, free, gone, min_region_px),
+            gone,
+            hidden_reach,
+        )
     guarded = topology_guard(
         guard_obstacles,
         keep,
@@ -685,6 +699,65 @@ def _wall_cells(
     gone = dropped | object_faces
     gone |= standing_in_doorways
     return kept, guarded, completed, np.greater(gone, kept, out=gone)
+
+
+def _closing_lines(
+    undrawn: npt.NDArray[np.bool_],
+    completed: npt.NDArray[np.bool_],
+    unknown: npt.NDArray[np.bool_],
+    free: npt.NDArray[np.bool_],
+    removed: npt.NDArray[np.bool_],
+    max_pocket_px: float,
+) -> npt.NDArray[np.bool_]:
+    """The pieces (8-connected) of the ``undrawn`` hidden wall lines that close a shadow: a pocket
+    of ``unknown`` cells (4-connected, the undrawn and ``completed`` lines its boundary too) of at
+    most ``max_pocket_px`` cells, not reaching the image's edge, next to a piece of them, to
+    ``free`` cells and to ``removed`` cells (8-neighbours). Masks of shape ``(rows, cols)``.
+
+    Such a pocket is the unseen space behind something removed, seen into from the room and
+    closed by the line: the shadow an object standing off a wall casts on it. Undrawn, the shadow
+    led through the unseen stretch of wall to whatever lies beyond, and removing the object
+    opened the room there (a tree in a room's corner, 0.25 m off an outer wall).
+    """
+    cols = undrawn.shape[1]
+    count, pockets = components(np.greater(unknown, undrawn | completed), connectivity=4)
+    flat = pockets.reshape(-1)
+    # Every cell looked at below is off the image's edge (a pocket wanted does not reach it):
+    # its 8 neighbours are its flat index plus these.
+    steps = np.array([-cols - 1, -cols, -cols + 1, -1, 1, cols - 1, cols, cols + 1])
+
+    def next_to(cells: npt.NDArray[np.int64]) -> npt.NDArray[np.bool_]:
+        """Flags of the pockets with a cell among the neighbours of the flat indices ``cells``."""
+        flags = np.zeros(count, dtype=bool)
+        flags[flat[(cells[:, None] + steps).reshape(-1)]] = True
+        return flags
+
+    wanted = next_to(_cells_off_the_edge(undrawn))
+    for edge in (pockets[0], pockets[-1], pockets[:, 0], pockets[:, -1]):
+        wanted[edge] = False
+    wanted[0] = False  # (no unknown cell, or a line's)
+    wanted &= next_to(_cells_off_the_edge(removed))
+    if not wanted.any():
+        return np.zeros(undrawn.shape, dtype=bool)
+    # The few pockets left: their size, and whether a free cell is next to one.
+    cells = _nonzero_flat(wanted[pockets].view(np.uint8))
+    own = flat[cells]
+    wanted &= np.bincount(own, minlength=count) <= max_pocket_px
+    beside_free = np.zeros(count, dtype=bool)
+    beside_free[own[free.reshape(-1)[cells[:, None] + steps].any(axis=1)]] = True
+    wanted &= beside_free
+    if not wanted.any():
+        return np.zeros(undrawn.shape, dtype=bool)
+    shadows = np.zeros(undrawn.shape, dtype=bool)
+    shadows.reshape(-1)[cells[wanted[own]]] = True
+    return _touching(undrawn, shadows)
+
+
+def _cells_off_the_edge(mask: npt.NDArray[np.bool_]) -> npt.NDArray[np.int64]:
+    """Flat indices (ascending) of the True cells of ``mask`` that are not on its edge."""
+    cells = _nonzero_flat(np.ascontiguousarray(mask).view(np.uint8))
+    row, col = np.divmod(cells, mask.shape[1])
+    return cells[(row > 0) & (row < mask.shape[0] - 1) & (col > 0) & (col < mask.shape[1] - 1)]
 
 
 def _apart_pieces(occupied: npt.NDArray[np.bool_], joined: Future[_Pieces]) -> _Pieces:
