@@ -169,7 +169,7 @@ def test_the_real_maps_get_no_degenerate_input_caveat() -> None:
             decode_map(m.data, serialization=reader.serialization, topic="/map", log_time_ns=0).grid
             for m in reader.messages(topics={"/map"})
         ]
-    assert len(grids) == 36
+    assert len(grids) == 37
     threshold = rose.RoseParams().occupied_threshold
     caveats = [degenerate_input(g, g >= threshold) for g in grids]
     assert caveats == [None] * len(grids)
