@@ -38,6 +38,7 @@ from rose.cleaning_rules.guard import passable, topology_guard
 from rose.cleaning_rules.masks import (
     _bounds,
     _near,
+    _neighbour_columns,
     _nonzero_flat,
     _padded_box,
     _touching,
@@ -719,45 +720,35 @@ def _closing_lines(
     led through the unseen stretch of wall to whatever lies beyond, and removing the object
     opened the room there (a tree in a room's corner, 0.25 m off an outer wall).
     """
-    cols = undrawn.shape[1]
     count, pockets = components(np.greater(unknown, undrawn | completed), connectivity=4)
-    flat = pockets.reshape(-1)
-    # Every cell looked at below is off the image's edge (a pocket wanted does not reach it):
-    # its 8 neighbours are its flat index plus these.
-    steps = np.array([-cols - 1, -cols, -cols + 1, -1, 1, cols - 1, cols, cols + 1])
 
-    def next_to(cells: npt.NDArray[np.int64]) -> npt.NDArray[np.bool_]:
-        """Flags of the pockets with a cell among the neighbours of the flat indices ``cells``."""
+    def next_to(mask: npt.NDArray[np.bool_]) -> npt.NDArray[np.bool_]:
+        """Flags of the pockets with a cell next to one of ``mask``'s (few) cells."""
         flags = np.zeros(count, dtype=bool)
-        flags[flat[(cells[:, None] + steps).reshape(-1)]] = True
+        cells = _nonzero_flat(np.ascontiguousarray(mask).view(np.uint8))
+        for labels in _neighbour_columns(pockets, cells):
+            flags[labels] = True
         return flags
 
-    wanted = next_to(_cells_off_the_edge(undrawn))
+    wanted = next_to(undrawn)
     for edge in (pockets[0], pockets[-1], pockets[:, 0], pockets[:, -1]):
         wanted[edge] = False
     wanted[0] = False  # (no unknown cell, or a line's)
-    wanted &= next_to(_cells_off_the_edge(removed))
+    wanted &= next_to(removed)
     if not wanted.any():
         return np.zeros(undrawn.shape, dtype=bool)
     # The few pockets left: their size, and whether a free cell is next to one.
     cells = _nonzero_flat(wanted[pockets].view(np.uint8))
-    own = flat[cells]
+    own = pockets.reshape(-1)[cells]
     wanted &= np.bincount(own, minlength=count) <= max_pocket_px
     beside_free = np.zeros(count, dtype=bool)
-    beside_free[own[free.reshape(-1)[cells[:, None] + steps].any(axis=1)]] = True
+    beside_free[own[np.logical_or.reduce(_neighbour_columns(free.view(np.uint8), cells))]] = True
     wanted &= beside_free
     if not wanted.any():
         return np.zeros(undrawn.shape, dtype=bool)
     shadows = np.zeros(undrawn.shape, dtype=bool)
     shadows.reshape(-1)[cells[wanted[own]]] = True
     return _touching(undrawn, shadows)
-
-
-def _cells_off_the_edge(mask: npt.NDArray[np.bool_]) -> npt.NDArray[np.int64]:
-    """Flat indices (ascending) of the True cells of ``mask`` that are not on its edge."""
-    cells = _nonzero_flat(np.ascontiguousarray(mask).view(np.uint8))
-    row, col = np.divmod(cells, mask.shape[1])
-    return cells[(row > 0) & (row < mask.shape[0] - 1) & (col > 0) & (col < mask.shape[1] - 1)]
 
 
 def _apart_pieces(occupied: npt.NDArray[np.bool_], joined: Future[_Pieces]) -> _Pieces:
