@@ -677,11 +677,12 @@ def _wall_cells(
         # wall, the stretch it hid unseen). Drawn last, seen only by the guard: the rules above
         # read drawn lines as what furniture stands against, and drawn earlier they changed
         # what they kept far from any such shadow (ray ends beyond the building's edge).
-        # (Within reach of what was removed, as the lines drawn above.)
-        gone = np.greater(occupied, keep)
+        # Within reach of what goes, as the lines drawn above. (Undrawn lines come from the
+        # bridges only, which set that reach.)
+        unkept = np.greater(occupied, keep)
         completed = completed | _near(
-            _closing_lines(undrawn, completed, unknown, free, gone, min_region_px),
-            gone,
+            _closing_lines(undrawn, completed, unknown, free, unkept, min_region_px),
+            unkept,
             hidden_reach,
         )
     guarded = topology_guard(
