@@ -886,51 +886,48 @@ def test_hidden_walls_are_completed_only_next_to_what_was_removed() -> None:
     assert clean(grid, result, resolution_m=0.05, params=far).completed_count == 30
 
 
+def _shadow_behind_an_object(
+    *, seen_into: bool, to_the_edge: bool = False
+) -> tuple[npt.NDArray[np.bool_], ...]:
+    """``(undrawn, unknown, free, removed)``, 40 x 40: an object's face (column 20, rows 10-19, a
+    removed cell among them) before its shadow (columns 12-19), which an undrawn line (column 11)
+    parts from a wall's unseen stretch (column 10) and the outside beyond it (columns 0-9); the
+    walls' ends above and below (rows 9 and 20). ``seen_into``: the face ends two cells short,
+    free space beside the shadow; ``to_the_edge``: the shadow runs on to the image's edge."""
+    unknown = np.zeros((40, 40), dtype=bool)
+    unknown[:, :10] = unknown[10:20, 10:20] = True
+    undrawn = np.zeros((40, 40), dtype=bool)
+    undrawn[10:20, 11] = True
+    occupied = np.zeros((40, 40), dtype=bool)
+    occupied[9, 10:21] = occupied[20, 10:21] = True
+    occupied[10 : 18 if seen_into else 20, 20] = True
+    if to_the_edge:
+        occupied[20, 15] = False
+        unknown[20:, 15] = True
+    removed = np.zeros((40, 40), dtype=bool)
+    removed[15, 20] = True
+    return undrawn, unknown, ~(unknown | occupied), removed
+
+
 def test_a_hidden_line_is_drawn_where_it_closes_the_shadow_of_something_removed() -> None:
     """``_closing_lines``: a line piece next to a pocket of unknown cells that it closes, seen into
-    from free space and next to a removed cell, is drawn; not when the pocket reaches the image's
-    edge, is larger than the limit, or has no removed cell or no free cell next to it."""
+    from free space and next to a removed cell, is drawn; not when the pocket has no free cell or
+    no removed cell next to it, is larger than the limit, or reaches the image's edge."""
     from rose.cleaning_rules import _closing_lines
 
-    unknown = np.zeros((40, 40), dtype=bool)
-    unknown[:, :10] = True  # the outside, to the image's edge
-    unknown[10:20, 12:20] = True  # the shadow, closed by ...
-    undrawn = np.zeros((40, 40), dtype=bool)
-    undrawn[10:20, 11] = True  # ... the line between it and the outside
-    unknown[10:20, 10] = True  # (the wall's unseen stretch: the line's own cells are unknown)
-    unknown[undrawn] = True
-    removed = np.zeros((40, 40), dtype=bool)
-    removed[15, 20] = True  # the object's face, removed
-    occupied = np.zeros((40, 40), dtype=bool)
-    occupied[9, 10:21] = occupied[20, 10:21] = True  # its sides and the walls' ends
-    occupied[10:15, 20] = occupied[16:20, 20] = True
-    occupied |= removed
-    free = ~(unknown | occupied)
-    free[10:20, 20] = False
     none = np.zeros((40, 40), dtype=bool)
 
-    def drawn(**changes: object) -> npt.NDArray[np.bool_]:
-        args: dict[str, object] = {
-            "undrawn": undrawn,
-            "completed": none,
-            "unknown": unknown,
-            "free": free,
-            "removed": removed,
-            "max_pocket_px": 400.0,
-        }
-        args.update(changes)
-        return _closing_lines(**args)  # type: ignore[arg-type]
+    def drawn(scene: tuple[npt.NDArray[np.bool_], ...], **changes: object) -> npt.NDArray[np.bool_]:
+        undrawn, unknown, free, removed = scene
+        args: dict[str, object] = {"removed": removed, "max_pocket_px": 400.0, **changes}
+        return _closing_lines(undrawn, none, unknown, free, **args)  # type: ignore[arg-type]
 
-    # No free cell next to the shadow yet: the object's faces close it all round.
-    assert not drawn().any()
-    seen_into = free.copy()
-    seen_into[18:20, 20] = True  # a gap in its side: the room sees into the shadow
-    assert np.array_equal(drawn(free=seen_into), undrawn)
-    assert not drawn(free=seen_into, removed=none).any()
-    assert not drawn(free=seen_into, max_pocket_px=79.0).any()  # the shadow: 80 cells
-    reaching = unknown.copy()
-    reaching[20:, 15] = True  # the shadow reaches the image's edge
-    assert not drawn(free=seen_into & ~reaching, unknown=reaching).any()
+    seen = _shadow_behind_an_object(seen_into=True)
+    assert np.array_equal(drawn(seen), seen[0])
+    assert not drawn(_shadow_behind_an_object(seen_into=False)).any()  # faces all round
+    assert not drawn(seen, removed=none).any()
+    assert not drawn(seen, max_pocket_px=79.0).any()  # the shadow: 80 cells
+    assert not drawn(_shadow_behind_an_object(seen_into=True, to_the_edge=True)).any()
 
 
 def test_a_doorway_beside_a_box_that_hides_part_of_it_stays_open() -> None:
