@@ -16,7 +16,8 @@ Two methods, chosen by name:
     2. lies within ``unknown_margin_m`` of *wide* unknown space: unknown cells a disc of diameter
        ``open_unknown_width_m`` fits in. Walls separate the known building from the unknown outside
        and from unexplored rooms; the narrow shadows a scanner leaves behind furniture, and the
-       insides of scanned objects, are not wide.
+       insides of scanned objects, are not wide (an object whose unseen inside is wider reads as
+       an unexplored room, and its faces stay).
 
     Furniture against a wall hides the wall behind it; so that removing it does not open the wall,
     unknown cells on the straight line between the ends of two kept walls along a dominant direction
@@ -36,7 +37,8 @@ Two methods, chosen by name:
     angle to the grid) are joined too, by a line up to three cells thick, when each is a stretch of
     at least 0.5 m within a band three cells wide and the hidden stretch is at least 0.25 m long.
     Such lines between any two kept cells also *seal*: they close the insides of objects for rules
-    2 and 3, without being drawn. Longer furniture flush against a wall (up to 5 m, its front a
+    2 and 3, without being drawn; and rule 2's margin is not measured across a drawn line (the
+    sides of a cabinet by the unseen wall behind it stood within the margin of the outside). Longer furniture flush against a wall (up to 5 m, its front a
     straight run a scan cannot tell from a wall) is found by its shape along walls at any angle to
     the grid (read straightened there too): a stretch of unknown cells on a wall's line between two
     stretches of that wall facing the room, each holding a cell of a wall kept on its own merits

@@ -463,8 +463,11 @@ def _wall_cells(
         if sealed:
             # The sealed cells separate the room from the unknown beyond them: furniture faces
             # in front are no longer next to the outside (a cabinet's inside, open through the
-            # unscanned wall behind it, made its faces look like the building's edge).
-            near_job = beside.submit(_near_wide_unknown, np.greater(unknown, sealed_off), res, p)
+            # unscanned wall behind it, made its faces look like the building's edge). Nor
+            # within the margin of the outside across a drawn line (a copy: drawn on below).
+            near_job = beside.submit(
+                _near_wide_unknown, np.greater(unknown, sealed_off), res, p, completed.copy()
+            )
         dropped_job = None
         if pieces_job is not None:
             # Free-standing pieces need neither the object faces nor the attached pieces: they

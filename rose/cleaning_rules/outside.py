@@ -22,18 +22,29 @@ if TYPE_CHECKING:
 
 
 def _near_wide_unknown(
-    unknown: npt.NDArray[np.bool_], res: float, p: CleanParams
+    unknown: npt.NDArray[np.bool_],
+    res: float,
+    p: CleanParams,
+    blocked: npt.NDArray[np.bool_] | None = None,
 ) -> npt.NDArray[np.bool_]:
     """Cells within ``p.unknown_margin_m`` of wide unknown space (:func:`wide_unknown`): exact at
-    the known cells, the only ones read (the occupied cells among them)."""
-    return _wide_and_near(unknown, res, p)[1]
+    the known cells, the only ones read (the occupied cells among them). With ``blocked``, only
+    those reached from it without crossing a blocked cell (:func:`_wide_and_near`)."""
+    return _wide_and_near(unknown, res, p, blocked)[1]
 
 
 def _wide_and_near(
-    unknown: npt.NDArray[np.bool_], res: float, p: CleanParams
+    unknown: npt.NDArray[np.bool_],
+    res: float,
+    p: CleanParams,
+    blocked: npt.NDArray[np.bool_] | None = None,
 ) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
     """The wide unknown space (the outside: :func:`wide_unknown` of ``p.open_unknown_width_m``)
-    and :func:`_near_wide_unknown`, from one opening of the unknown cells."""
+    and :func:`_near_wide_unknown`, from one opening of the unknown cells.
+
+    ``blocked`` cells (known free space, wall lines drawn or sealing) are not crossed on the way
+    from the outside: a cell with mapped floor or a drawn line between it and the outside is not
+    at the building's edge."""
     outside = _wide(unknown, length_px(p.open_unknown_width_m, 2 * res))
     radius = round(length_px(p.unknown_margin_m, res))
     known = ~unknown
@@ -45,7 +56,28 @@ def _wide_and_near(
     near = outside.copy()
     box = _padded_box(known, radius)
     near[box] = _dilate(outside[box], radius)
+    if blocked is not None and radius > 0 and blocked[box].any():
+        # Reached in steps to the four neighbours (a diagonal line stops them), as many as the
+        # disc's steps at most: a cabinet's side against an unseen wall whose line is drawn, or a
+        # box standing out through a doorway onto the floor seen beyond it, stood within the
+        # margin of the outside, and was kept as the building's edge.
+        near[box] &= _reached(outside[box], np.logical_not(blocked[box]), 2 * radius)
     return outside, near
+
+
+def _reached(
+    start: npt.NDArray[np.bool_], passable: npt.NDArray[np.bool_], steps: int
+) -> npt.NDArray[np.bool_]:
+    """Cells reached from ``start`` in at most ``steps`` steps to a 4-neighbour, each onto a
+    ``passable`` cell."""
+    import cv2
+
+    cross = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
+    step = passable.view(np.uint8)
+    reached = start.view(np.uint8)
+    for _ in range(steps):
+        reached = np.bitwise_and(cv2.dilate(reached, cross), step)
+    return reached.view(bool) | start
 
 
 def wide_unknown(occupancy: npt.NDArray[np.int8], *, radius_px: float) -> npt.NDArray[np.bool_]:
@@ -65,23 +97,48 @@ def wide_unknown(occupancy: npt.NDArray[np.int8], *, radius_px: float) -> npt.ND
 
 
 def _wide(unknown: npt.NDArray[np.bool_], radius_px: float) -> npt.NDArray[np.bool_]:
-    """:func:`wide_unknown` of the ``unknown`` cells."""
-    import cv2
-
+    """:func:`wide_unknown` of the ``unknown`` cells: the union of the openings on the four grids of
+    2 x 2 blocks (:func:`_wide_on_blocks`), which does not depend on where the cells start."""
     if not unknown.any():
         return unknown.copy()
-    # On a grid of 2 x 2 blocks (a block is unknown when all its cells are): a quarter of the work,
-    # and only ever less unknown space, never more. An odd last row or column is repeated (a block
-    # of it alone). Rows are paired first, then the byte pairs of every paired row are read as one
-    # uint16: a tenth of the cost of four strided slices.
+    # One grid of blocks loses up to a block of the wide space where an edge cuts its blocks, and
+    # which edges it cuts depended on where the map's known cells start: a wall at 45 degrees on
+    # the explored edge lay within the wall margin of it or not by that (docs/cleaning.md,
+    # 2026-12-07). Each grid's blocks fit where another's stop short.
+    wide = _wide_on_blocks(unknown, radius_px, shift=(0, 0))
+    for shift in ((0, 1), (1, 0), (1, 1)):
+        wide |= _wide_on_blocks(unknown, radius_px, shift=shift)
+    return wide
+
+
+def _wide_on_blocks(
+    unknown: npt.NDArray[np.bool_], radius_px: float, *, shift: tuple[int, int]
+) -> npt.NDArray[np.bool_]:
+    """The opening of the ``unknown`` cells by a disc of ``radius_px``, worked out on 2 x 2 blocks
+    whose grid starts ``shift`` (rows, columns: 0 or 1 each) cells before the first row and
+    column, unknown there as beyond every edge: only ever less unknown space than the cells' own
+    opening, never more."""
+    import cv2
+
+    # A block is unknown when all its cells are: a quarter of the work. An odd last row or column
+    # is repeated (a block of it alone). Rows are paired first, then the byte pairs of every paired
+    # row are read as one uint16: a tenth of the cost of four strided slices.
     rows, cols = unknown.shape
-    half = rows // 2
-    pairs = np.empty((half + rows % 2, cols + cols % 2), dtype=bool)
-    np.logical_and(unknown[0 : 2 * half : 2], unknown[1 : 2 * half : 2], out=pairs[:half, :cols])
-    if rows % 2:
-        pairs[half, :cols] = unknown[-1]
-    if cols % 2:
-        pairs[:, cols] = pairs[:, cols - 1]
+    down, right = shift
+    body = unknown[down:]
+    half = body.shape[0] // 2
+    width = cols + right
+    pairs = np.empty((down + half + body.shape[0] % 2, width + width % 2), dtype=bool)
+    pairs[:, :right] = True
+    if down:
+        pairs[0, right:width] = unknown[0]  # paired with the unknown row before the grid
+    np.logical_and(
+        body[0 : 2 * half : 2], body[1 : 2 * half : 2], out=pairs[down : down + half, right:width]
+    )
+    if body.shape[0] % 2:
+        pairs[-1, right:width] = body[-1]
+    if width % 2:
+        pairs[:, width] = pairs[:, width - 1]
     blocks = pairs.view(np.uint16) == 0x0101
     radius = radius_px / 2
     disc = _chamfer_disc(radius) if radius < _MORPHOLOGY_MAX_RADIUS else None
@@ -103,7 +160,7 @@ def _wide(unknown: npt.NDArray[np.bool_], radius_px: float) -> npt.NDArray[np.bo
     # Back to cells: every block value twice along the row (a uint16 of two equal bytes), then every
     # row twice (ten times cheaper than OpenCV's nearest-neighbour resize).
     wide = np.repeat((near.astype(np.uint16) * np.uint16(0x0101)).view(np.uint8), 2, axis=0)
-    return wide[:rows, :cols].view(bool) & unknown
+    return wide[down : down + rows, right : right + cols].view(bool) & unknown
 
 
 #: Most cells of the disc (:func:`_chamfer_disc`) that :func:`_wide` erodes and dilates by rather
