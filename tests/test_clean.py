@@ -1025,6 +1025,23 @@ def test_an_outer_wall_unseen_beside_a_cabinet_is_drawn_and_stays_closed(shadow:
     assert separated_pairs(cleaned.cleaned >= 65, room, outside)
 
 
+def _cabinet_at_an_unseen_wall(
+    left: int, right: int, front: int, *, shadow: int
+) -> npt.NDArray[np.int8]:
+    """A room (rows 10-59 free) whose outer wall (rows 60-61) is unseen behind a cabinet (columns
+    ``left`` to ``right``, its front on row ``front``, its sides down to the wall, its inside
+    unseen) and for ``shadow`` cells beside it (the cabinet's corner shadows)."""
+    grid = np.full((160, 220), -1, np.int8)
+    grid[10:60, 10:210] = 0  # the mapped room
+    grid[8:10, 8:212] = grid[60:62, 8:212] = 100
+    grid[8:62, 8:10] = grid[8:62, 210:212] = 100
+    grid[front + 1 : 62, left + 1 : right] = -1  # its inside and the wall behind it, unseen
+    grid[front, left : right + 1] = 100  # its front ...
+    grid[front:60, left] = grid[front:60, right] = 100  # ... and sides
+    grid[60:62, left - shadow : right + shadow + 1] = -1  # the wall unseen beside it too
+    return grid
+
+
 @pytest.mark.parametrize(("width", "depth"), [(32, 9), (30, 12), (32, 4)])
 def test_a_cabinet_its_shadows_part_from_the_wall_keeps_the_room_closed(
     width: int, depth: int
@@ -1035,15 +1052,7 @@ def test_a_cabinet_its_shadows_part_from_the_wall_keeps_the_room_closed(
     front, the paper's structure, went later), its middle 0.4-0.5 m left out; the guard did not
     count the loose cabinet as an obstacle, it went, and the room opened onto the outside.
     Next to a drawn line that meets a kept wall, it now counts."""
-    grid = np.full((160, 220), -1, np.int8)
-    grid[10:60, 10:210] = 0  # the mapped room
-    grid[8:10, 8:212] = grid[60:62, 8:212] = 100
-    grid[8:62, 8:10] = grid[8:62, 210:212] = 100
-    left, right, front = 101, 101 + width - 1, 60 - depth
-    grid[front + 1 : 62, left + 1 : right] = -1  # its inside and the wall behind it, unseen
-    grid[front, left : right + 1] = 100  # its front ...
-    grid[front:60, left] = grid[front:60, right] = 100  # ... and sides
-    grid[60:62, left - 3 : right + 4] = -1  # the wall unseen beside it too (its shadows)
+    grid = _cabinet_at_an_unseen_wall(101, 101 + width - 1, 60 - depth, shadow=3)
     cleaned = clean(grid, rose.analyze(grid), resolution_m=RES)
     room, outside = (30, 100), (100, 100)
     assert separated_pairs(grid >= 65, room, outside)
@@ -1059,15 +1068,8 @@ def test_a_cabinet_its_shadows_part_from_the_wall_goes_and_the_whole_line_is_dra
     front (removed later, a free-standing piece once the line sealed its inside). Drawn in two
     pieces with a 0.4 m hole, the guard kept the whole cabinet; the hole is closed now, and the
     cabinet goes."""
-    grid = np.full((160, 220), -1, np.int8)
-    grid[10:60, 10:210] = 0  # the mapped room
-    grid[8:10, 8:212] = grid[60:62, 8:212] = 100
-    grid[8:62, 8:10] = grid[8:62, 210:212] = 100
     left, right, front = 101, 132, 60 - depth
-    grid[front + 1 : 62, left + 1 : right] = -1  # its inside and the wall behind it, unseen
-    grid[front, left : right + 1] = 100  # its front ...
-    grid[front:60, left] = grid[front:60, right] = 100  # ... and sides
-    grid[60:62, left - 3 : right + 4] = -1  # the wall unseen beside it too (its shadows)
+    grid = _cabinet_at_an_unseen_wall(left, right, front, shadow=3)
     cleaned = clean(grid, rose.analyze(grid), resolution_m=RES)
     assert cleaned.removed[front, left : right + 1].all()  # the cabinet goes
     assert cleaned.completed[60:62, left - 3 : right + 4].all()  # the whole line is drawn
@@ -1079,15 +1081,8 @@ def test_a_cabinet_cleans_the_same_wherever_the_map_starts() -> None:
     between it and the map's first known cell: the cells kept must not change. The wide unknown
     space was found on one grid of 2 x 2 blocks counted from the map's first known cells, and the
     cabinet went at two of the four places that grid could start and stayed at the others."""
-    grid = np.full((160, 220), -1, np.int8)
-    grid[10:60, 10:210] = 0  # the mapped room
-    grid[8:10, 8:212] = grid[60:62, 8:212] = 100
-    grid[8:62, 8:10] = grid[8:62, 210:212] = 100
     left, right, front = 101, 132, 51
-    grid[front + 1 : 62, left + 1 : right] = -1  # its inside and the wall behind it, unseen
-    grid[front, left : right + 1] = 100  # its front ...
-    grid[front:60, left] = grid[front:60, right] = 100  # ... and sides
-    grid[60:62, left - 3 : right + 4] = -1  # the wall unseen beside it too (its shadows)
+    grid = _cabinet_at_an_unseen_wall(left, right, front, shadow=3)
     result = rose.analyze(grid)
     kept = []
     for down, right_by in ((0, 0), (1, 0), (0, 1), (1, 1)):
@@ -1118,15 +1113,7 @@ def test_a_cabinet_its_shadows_part_from_the_wall_keeps_the_room_closed_turned()
     cabinet stayed a loose piece, went, and the room opened onto the outside. The line is the
     furniture-front rule's, drawn only between stretches of kept wall: it anchors what stands
     within two cells of it now."""
-    grid = np.full((160, 220), -1, np.int8)
-    grid[10:60, 10:210] = 0  # the mapped room
-    grid[8:10, 8:212] = grid[60:62, 8:212] = 100
-    grid[8:62, 8:10] = grid[8:62, 210:212] = 100
-    left, right, front = 101, 132, 51
-    grid[front + 1 : 62, left + 1 : right] = -1  # its inside and the wall behind it, unseen
-    grid[front, left : right + 1] = 100  # its front ...
-    grid[front:60, left] = grid[front:60, right] = 100  # ... and sides
-    grid[60:62, left - 5 : right + 6] = -1  # the wall unseen beside it too (its shadows)
+    grid = _cabinet_at_an_unseen_wall(101, 132, 51, shadow=5)
     grid, (room, outside) = _turned(grid, 45.0, (30, 100), (110, 110))
     assert separated_pairs(grid >= 65, room, outside)
     cleaned = clean(grid, rose.analyze(grid), resolution_m=RES)
