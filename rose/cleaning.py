@@ -38,9 +38,10 @@ Two methods, chosen by name:
     at least 0.5 m within a band three cells wide and the hidden stretch is at least 0.25 m long.
     Such lines between any two kept cells also *seal*: they close the insides of objects for rules
     2 and 3, without being drawn; and rule 2's margin is not measured across a drawn line (the
-    sides of a cabinet by the unseen wall behind it stood within the margin of the outside). Longer furniture flush against a wall (up to 5 m, its front a
-    straight run a scan cannot tell from a wall) is found by its shape along walls at any angle to
-    the grid (read straightened there too): a stretch of unknown cells on a wall's line between two
+    sides of a cabinet by the unseen wall behind it stood within the margin of the outside).
+    Longer furniture flush against a wall (up to 5 m, its front a straight run a scan cannot tell
+    from a wall) is found by its shape along walls at any angle to the grid (read straightened
+    there too): a stretch of unknown cells on a wall's line between two
     stretches of that wall facing the room, each holding a cell of a wall kept on its own merits
     (the paper's structure, rules 1 and 2) or joined to one within ``attach_reach_m`` (a door
     frame's stub; two blobs of clutter in line in a room are neither), with a front face 0.15-1 m

@@ -42,9 +42,10 @@ def _wide_and_near(
     """The wide unknown space (the outside: :func:`wide_unknown` of ``p.open_unknown_width_m``)
     and :func:`_near_wide_unknown`, from one opening of the unknown cells.
 
-    ``blocked`` cells (known free space, wall lines drawn or sealing) are not crossed on the way
-    from the outside: a cell with mapped floor or a drawn line between it and the outside is not
-    at the building's edge."""
+    ``blocked`` cells (the wall lines drawn so far) are not crossed on the way from the outside:
+    a cell with a drawn line between it and the outside is not at the building's edge. (Blocking
+    the sealing lines or the mapped floor too opened rooms of real maps whose edge walls stand
+    among scattered ray returns: docs/cleaning.md, 2026-12-07.)"""
     outside = _wide(unknown, length_px(p.open_unknown_width_m, 2 * res))
     radius = round(length_px(p.unknown_margin_m, res))
     known = ~unknown
@@ -58,9 +59,8 @@ def _wide_and_near(
     near[box] = _dilate(outside[box], radius)
     if blocked is not None and radius > 0 and blocked[box].any():
         # Reached in steps to the four neighbours (a diagonal line stops them), as many as the
-        # disc's steps at most: a cabinet's side against an unseen wall whose line is drawn, or a
-        # box standing out through a doorway onto the floor seen beyond it, stood within the
-        # margin of the outside, and was kept as the building's edge.
+        # disc's steps at most: a cabinet's side against an unseen wall whose line is drawn stood
+        # within the margin of the outside beyond that line, and was kept as the building's edge.
         near[box] &= _reached(outside[box], np.logical_not(blocked[box]), 2 * radius)
     return outside, near
 
