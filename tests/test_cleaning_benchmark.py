@@ -240,8 +240,8 @@ def test_furniture_at_an_open_explored_edge_goes() -> None:
         ("freiburg-101-corrected.log.gz", 2021, 0.1, (0.9, 0.7, 0.8)),
         # Ray-cast at 0.025 m per cell: a scanned wall's cell of wobble is half the rules'
         # tolerance there. Measured on the cells as they are: 0.913 / 0.884 / 0.689, no robot gap;
-        # joined in 2 x 2: 0.998 / 0.956 / 0.866, none. Precision depends on where the 2 x 2
-        # blocks fall: 0.950 with the map's known cells starting a row further down, else
+        # joined in 2 x 2: 0.998 / 0.956 / 0.866, none. Precision depends on where the joined
+        # 2 x 2 blocks fall: 0.950 with the map's known cells starting a row further down, else
         # 0.858-0.868 (a box beyond a wall in unexplored space, its faces next to the wide
         # unknown space, kept as the building's edge; docs/cleaning.md, 2026-12-07).
         ("aces-corrected.log.gz", 1, 0.025, (0.95, 0.85, 0.85)),

@@ -464,7 +464,9 @@ def _wall_cells(
             # The sealed cells separate the room from the unknown beyond them: furniture faces
             # in front are no longer next to the outside (a cabinet's inside, open through the
             # unscanned wall behind it, made its faces look like the building's edge). Nor
-            # within the margin of the outside across a drawn line (a copy: drawn on below).
+            # within the margin of the outside across a drawn line, for the walls kept and the
+            # free-standing pieces' anchors (a copy of the lines: the side thread reads it while
+            # this one goes on).
             near_job = beside.submit(
                 _near_wide_unknown, np.greater(unknown, sealed_off), res, p, completed.copy()
             )

@@ -98,7 +98,8 @@ def wide_unknown(occupancy: npt.NDArray[np.int8], *, radius_px: float) -> npt.ND
 
 def _wide(unknown: npt.NDArray[np.bool_], radius_px: float) -> npt.NDArray[np.bool_]:
     """:func:`wide_unknown` of the ``unknown`` cells: the union of the openings on the four grids of
-    2 x 2 blocks (:func:`_wide_on_blocks`), which does not depend on where the cells start."""
+    2 x 2 blocks (:func:`_wide_on_blocks`), which does not depend on where the cells start: the
+    opening of the cells by the blocks' disc scaled to cells."""
     if not unknown.any():
         return unknown.copy()
     # One grid of blocks loses up to a block of the wide space where an edge cuts its blocks, and
@@ -116,8 +117,9 @@ def _wide_on_blocks(
 ) -> npt.NDArray[np.bool_]:
     """The opening of the ``unknown`` cells by a disc of ``radius_px``, worked out on 2 x 2 blocks
     whose grid starts ``shift`` (rows, columns: 0 or 1 each) cells before the first row and
-    column, unknown there as beyond every edge: only ever less unknown space than the cells' own
-    opening, never more."""
+    column, unknown there as beyond every edge. Close to the cells' own opening by the disc, not
+    equal: the blocks' disc, scaled to cells, is even-sided, and a region about as deep as the
+    disc can fit it where it does not fit the cells' disc."""
     import cv2
 
     # A block is unknown when all its cells are: a quarter of the work. An odd last row or column
