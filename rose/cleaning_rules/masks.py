@@ -35,20 +35,26 @@ def _grown_through(
     start: npt.NDArray[np.bool_] | npt.NDArray[np.uint8],
     through: npt.NDArray[np.bool_] | npt.NDArray[np.uint8],
     steps: int,
+    *,
+    connectivity: int = 8,
 ) -> npt.NDArray[np.uint8]:
-    """``start`` grown ``steps`` 8-connected steps into ``through`` cells (0/1 uint8, same shape):
-    after each step only cells of ``through`` remain (``start``'s own cells too); after none,
-    ``start`` as it is."""
+    """``start`` grown ``steps`` steps to the 8 (or 4) neighbours into ``through`` cells (0/1
+    uint8, same shape): after each step only cells of ``through`` remain (``start``'s own cells
+    too); after none, ``start`` as it is."""
     import cv2
 
+    step = _SQUARE if connectivity == 8 else _CROSS
     grown, cells = start.view(np.uint8), through.view(np.uint8)
     for _ in range(steps):
-        grown = np.bitwise_and(cv2.dilate(grown, _SQUARE), cells)
+        grown = np.bitwise_and(cv2.dilate(grown, step), cells)
     return grown
 
 
 #: The 8-neighbours and the cell itself.
 _SQUARE = np.ones((3, 3), np.uint8)
+
+#: The 4-neighbours and the cell itself.
+_CROSS = np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]], np.uint8)
 
 
 def _touching(pieces: npt.NDArray[np.bool_], other: npt.NDArray[np.bool_]) -> npt.NDArray[np.bool_]:

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
-from rose.cleaning_rules.masks import _dilate, _padded_box, length_px
+from rose.cleaning_rules.masks import _dilate, _grown_through, _padded_box, length_px
 from rose.grid import UNKNOWN
 
 if TYPE_CHECKING:
@@ -61,23 +61,10 @@ def _wide_and_near(
         # Reached in steps to the four neighbours (a diagonal line stops them), as many as the
         # disc's steps at most: a cabinet's side against an unseen wall whose line is drawn stood
         # within the margin of the outside beyond that line, and was kept as the building's edge.
-        near[box] &= _reached(outside[box], np.logical_not(blocked[box]), 2 * radius)
+        passable = np.logical_not(blocked[box])
+        reached = _grown_through(outside[box], passable, 2 * radius, connectivity=4)
+        near[box] &= reached.view(bool) | outside[box]
     return outside, near
-
-
-def _reached(
-    start: npt.NDArray[np.bool_], passable: npt.NDArray[np.bool_], steps: int
-) -> npt.NDArray[np.bool_]:
-    """Cells reached from ``start`` in at most ``steps`` steps to a 4-neighbour, each onto a
-    ``passable`` cell."""
-    import cv2
-
-    cross = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
-    step = passable.view(np.uint8)
-    reached = start.view(np.uint8)
-    for _ in range(steps):
-        reached = np.bitwise_and(cv2.dilate(reached, cross), step)
-    return reached.view(bool) | start
 
 
 def wide_unknown(occupancy: npt.NDArray[np.int8], *, radius_px: float) -> npt.NDArray[np.bool_]:
@@ -352,7 +339,7 @@ def _backing_outside(
     """
     import cv2
 
-    from rose.cleaning_rules.masks import _grown_through, _near, _nonzero_flat
+    from rose.cleaning_rules.masks import _near, _nonzero_flat
     from rose.labelling import fill_from_corner
 
     # The cells it could keep first (a few), filtered before the passes over the window.
