@@ -197,7 +197,9 @@ class LogWriter:
             self._drop_stage()
             if isinstance(err, LogWriteError | OutputError):
                 raise LogWriteError(str(err)) from err
-            if isinstance(err, Exception):
+            # Out of memory is said as such, as while writing (the MCAP writer's thread compresses
+            # chunks as they fill: its error can come out of the last call).
+            if isinstance(err, Exception) and not isinstance(err, MemoryError):
                 msg = f"{self.path}: cannot finish output ({short(err, 160)})"
                 raise LogWriteError(msg) from err
             raise

@@ -17,7 +17,6 @@ import contextlib
 import contextvars
 import dataclasses
 import hashlib
-import io
 import logging
 import math
 import os
@@ -54,6 +53,7 @@ from rose_logs.session.analysis import same_placed_grid
 from rose_logs.session.breaks import BreakScore
 from rose_logs.session.report import w_judges
 from rose_logs.snapshots import MapSnapshot
+from rose_logs.storage.records import read_at
 
 __all__ = ["APPLICATION_ID", "RerunSink", "recording_id_for"]
 
@@ -744,12 +744,12 @@ def _require_whole_stream(path: Path) -> None:
         # Unbuffered reads of the headers alone (a buffered file read 8 KiB at every seek).
         with path.open("rb", buffering=0) as f:
             size = os.fstat(f.fileno()).st_size
-            if _read_at(f, len(_STREAM_MAGIC), 0) != _STREAM_MAGIC:
+            if read_at(f, len(_STREAM_MAGIC), 0) != _STREAM_MAGIC:
                 msg = "not a Rerun recording stream (no RRF2 header)"
                 raise OSError(msg)
             at = _STREAM_HEADER_BYTES
             while at < size:
-                header = _read_at(f, _MESSAGE_HEADER.size, at)
+                header = read_at(f, _MESSAGE_HEADER.size, at)
                 if len(header) < _MESSAGE_HEADER.size:
                     break
                 at += _MESSAGE_HEADER.size + _MESSAGE_HEADER.unpack(header)[1]
@@ -761,11 +761,3 @@ def _require_whole_stream(path: Path) -> None:
     if at != size:
         msg = f"incomplete: its last message is cut short at byte {size} (a full disk?)"
         raise OSError(msg)
-
-
-def _read_at(f: io.RawIOBase, count: int, offset: int) -> bytes:
-    """``count`` bytes of the unbuffered file ``f`` from ``offset`` (one system call on POSIX)."""
-    if hasattr(os, "pread"):
-        return os.pread(f.fileno(), count, offset)
-    f.seek(offset)  # (Windows has no pread)
-    return bytes(f.read(count) or b"")

@@ -7,14 +7,16 @@ import heapq
 import io
 import itertools
 import logging
+import os
 import struct
 import zlib
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Generator, Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, BinaryIO
 
 from rose.limits import short
+from rose.threads import threads_in_this_context
 from rose_logs.errors import LogReadError, as_memory_error, reraise_unless_damage
 from rose_logs.formats import MCAP_MAGIC
 from rose_logs.storage.base import WriteBackend
@@ -33,6 +35,7 @@ from rose_logs.storage.records import (
     merged_by_log_time,
     normalize_msgtype,
     parse_latching,
+    read_at,
     read_part_way,
     ros1_msgtype,
 )
@@ -404,12 +407,13 @@ class McapReadBackend:
         logged at time 0) hands over to the library's merge from that chunk on, which up to there
         gave the same messages."""
         by_id = self._by_id
-        for k, index in enumerate(chunks):
-            messages = self._messages_of(index, wanted, strict=True)
+        ahead = self._read_ahead(chunks, wanted)
+        for k, (index, messages) in enumerate(zip(chunks, ahead, strict=True)):
             times = [m.log_time for m in messages]
             if times and not (
                 index.message_start_time <= min(times) and max(times) <= index.message_end_time
             ):
+                ahead.close()  # (the merge reads the chunks after this one itself)
                 offset = index.chunk_start_offset
                 yield from self._merge(
                     [(m.log_time, offset, at, m) for at, m in enumerate(messages)]
@@ -426,6 +430,26 @@ class McapReadBackend:
                 yield RawMessage(
                     by_id[m.channel_id], m.log_time, m.data, m.publish_time, m.sequence
                 )
+
+    def _read_ahead(self, chunks: list[Any], wanted: set[int]) -> Generator[list[Any]]:
+        """:meth:`_messages_of` each of ``chunks`` in turn (strict), the next one read meanwhile by a
+        thread of its own: reading the file, decompressing and checking a chunk (native, outside
+        the interpreter's lock) overlap with the caller's work on the one before. A chunk's error
+        is raised when its turn comes, as read in turn. Without ``os.pread`` (Windows), in turn."""
+        if not hasattr(os, "pread") or len(chunks) < 2:
+            for index in chunks:
+                yield self._messages_of(index, wanted, strict=True)
+            return
+        pool = threads_in_this_context(1, "rose-mcap-reader")
+        try:
+            coming = pool.submit(self._messages_of, chunks[0], wanted, strict=True)
+            for k in range(len(chunks)):
+                current = coming
+                if k + 1 < len(chunks):
+                    coming = pool.submit(self._messages_of, chunks[k + 1], wanted, strict=True)
+                yield current.result()
+        finally:
+            pool.shutdown(wait=True, cancel_futures=True)
 
     def _messages_of(self, index: Any, wanted: set[int], *, strict: bool) -> list[Any]:
         """The messages of the channels ``wanted`` in the chunk ``index`` points to, in file
@@ -487,8 +511,7 @@ class McapReadBackend:
 
         assert self.stream is not None
         offset = index.chunk_start_offset
-        self.stream.seek(offset)
-        raw = self.stream.read(min(index.chunk_length, self._size - offset))
+        raw = read_at(self.stream, min(index.chunk_length, self._size - offset), offset)
         if len(raw) < 9 or raw[0] != _CHUNK_OPCODE:
             msg = "no chunk record where the index points"
             raise ValueError(msg)
@@ -906,10 +929,10 @@ class McapWriteBackend(WriteBackend):
         self.definitions = KnownDefinitions()
 
     def open(self) -> None:
-        from mcap.writer import Writer
+        from rose_logs.storage.mcap_writer import ThreadedMcapWriter
 
         self.stream = self.path.open("wb")
-        self.writer = Writer(self.stream)
+        self.writer = ThreadedMcapWriter(self.stream)
         self.writer.start(
             profile="ros1" if self.serialization == "ros1" else "ros2", library="rose-bag"
         )
@@ -993,6 +1016,10 @@ class McapWriteBackend(WriteBackend):
             self.stream = None
 
     def abort(self) -> None:
-        stream, self.stream, self.writer = self.stream, None, None
-        if stream is not None:
-            stream.close()
+        stream, self.stream, writer, self.writer = self.stream, None, self.writer, None
+        try:
+            if writer is not None:
+                writer.abort()
+        finally:
+            if stream is not None:
+                stream.close()

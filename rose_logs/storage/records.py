@@ -6,9 +6,11 @@ Also the two spellings of a ROS message type name (ROS 1 ``pkg/Name``, ROS 2 ``p
 from __future__ import annotations
 
 import heapq
+import os
 from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import BinaryIO
 
 from rosbags.interfaces import Qos
 
@@ -20,6 +22,7 @@ __all__ = [
     "merged_by_log_time",
     "normalize_msgtype",
     "parse_latching",
+    "read_at",
     "read_part_way",
     "ros1_msgtype",
 ]
@@ -153,6 +156,16 @@ def merged_by_log_time(files: Iterable[Iterator[RawMessage]]) -> Iterator[RawMes
 
 def _log_time(message: RawMessage) -> int:
     return message.log_time_ns
+
+
+def read_at(f: BinaryIO, count: int, offset: int) -> bytes:
+    """``count`` bytes of the file ``f`` from ``offset`` (fewer at its end). On POSIX one system
+    call that leaves the file's position as it was (threads may read one file so); elsewhere
+    (Windows has no pread) a seek and a read."""
+    if hasattr(os, "pread"):
+        return os.pread(f.fileno(), count, offset)
+    f.seek(offset)
+    return bytes(f.read(count) or b"")
 
 
 def read_part_way(path: Path, read: int, why: str) -> str:
