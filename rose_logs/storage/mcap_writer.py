@@ -3,11 +3,12 @@
 ``mcap.writer.Writer`` builds each message record in about a dozen Python calls and compresses,
 checksums and writes each full chunk (1 MiB, zstd) in the caller's thread. In ``rose-bag
 process`` that caller is the session's main thread, which also reads the log and hands the maps
-to the analyses: the chunks' zstd and CRC took about a third of its time (one-hour benchmark
-session), while the analyses waited for their next map. Here a message record is one
-``struct.pack``, and each full chunk is compressed, checksummed and written by one thread of its
-own, in order, while the caller reads on. The file is the library's (the same records in the same
-order, compressed by the same call): ``tests/logs/test_mcap_writer.py`` compares the two.
+to the analyses: the chunks' zstd and CRC took about a third of its time. Here a message record is
+one ``struct.pack``, and each full chunk is compressed, checksummed and written by one thread of
+its own, in order, while the caller reads on: a log whose copying outweighs its maps (camera
+images) is processed 20-25 % faster (docs/measurements.md, fifty-eighth session). The file is the
+library's (the same records in the same order, compressed by the same call):
+``tests/logs/test_mcap_writer.py`` compares the two.
 """
 
 from __future__ import annotations
@@ -40,11 +41,10 @@ from mcap.records import (
 )
 
 from rose.threads import threads_in_this_context
+from rose_logs.formats import MCAP_MAGIC
 
-__all__ = ["MCAP_MAGIC_BYTES", "ThreadedMcapWriter"]
+__all__ = ["ThreadedMcapWriter"]
 
-#: An MCAP file's first and last eight bytes.
-MCAP_MAGIC_BYTES = b"\x89MCAP0\r\n"
 #: A message record's opcode, length, channel id, sequence, log time and publish time.
 _MESSAGE_HEADER = struct.Struct("<BQHIQQ")
 _MESSAGE_FIELDS_BYTES = 2 + 4 + 8 + 8
@@ -103,7 +103,7 @@ class ThreadedMcapWriter:
         """The magic and the header record."""
         builder = RecordBuilder()
         Header(profile, library).write(builder)
-        record = MCAP_MAGIC_BYTES + builder.end()
+        record = MCAP_MAGIC + builder.end()
         self._submit(lambda: self._write(record))
 
     def register_schema(self, name: str, encoding: str, data: bytes) -> int:
@@ -337,7 +337,7 @@ class ThreadedMcapWriter:
         Footer(
             summary_start=summary_start, summary_offset_start=offsets_start, summary_crc=crc
         ).write(builder)
-        self._write(summary + builder.end() + MCAP_MAGIC_BYTES)
+        self._write(summary + builder.end() + MCAP_MAGIC)
 
     def _write(self, data: bytes) -> None:
         self._stream.write(data)
