@@ -18,7 +18,6 @@ import numpy.typing as npt
 
 from rose.cleaning_rules.masks import (
     _any_of_8,
-    _bounds,
     _cells_box,
     _dilate,
     _flat_index,
@@ -34,7 +33,6 @@ from rose.labelling import (
     fill_from_corner,
     label_boxes,
     labels_looked_up,
-    labels_wanted,
 )
 
 if TYPE_CHECKING:
@@ -492,10 +490,21 @@ def _straight_pieces(
     if not wanted.any():
         return out
     cells, labels, starts, ends = _cells_by_piece(at, owners, wanted[owners])
-    # The centres of all the pieces' cells made once: made piece by piece they cost as much as
-    # the rectangles (about 180 pieces a map).
-    points = _centres(*np.divmod(cells, width))
-    for start, end in zip(starts.tolist(), ends.tolist(), strict=True):
+    if cells.size == 0:
+        return out
+    rows, cols = np.divmod(cells, width)
+    # A piece whose centres' axis-aligned box has an area at most ``(max_thickness_px - 1)**2``
+    # is straight without OpenCV's rectangle: the smallest-area rectangle is no larger, and its
+    # narrower side at most the square root of its area (a hundredth to spare for its float32
+    # sums). Most pieces are (about 150 of 180 a map).
+    span = np.maximum.reduceat(rows, starts) - np.minimum.reduceat(rows, starts)
+    span *= np.maximum.reduceat(cols, starts) - np.minimum.reduceat(cols, starts)
+    sure = span * 1.01 <= (max_thickness_px - 1) ** 2
+    out[labels[starts[sure]]] = True
+    # The centres of the other pieces' cells made once: made piece by piece they cost as much as
+    # the rectangles.
+    points = _centres(rows, cols)
+    for start, end in zip(starts[~sure].tolist(), ends[~sure].tolist(), strict=True):
         out[labels[start]] = _centres_width(points[start:end]) <= max_thickness_px
     return out
 
@@ -526,8 +535,13 @@ def _continued(
     left = ~wanted
     left[0] = False
     cells, labels, starts, ends = _cells_by_piece(at, owners, left[owners])
+    if cells.size == 0:  # (no piece to continue one)
+        return out
     rows, cols = np.divmod(cells, width)
     points = _centres(rows, cols)  # (made once, as in _straight_pieces)
+    # The pieces' boxes at once: a piece's own four reductions cost more than all of these.
+    low_rows, low_cols = np.minimum.reduceat(rows, starts), np.minimum.reduceat(cols, starts)
+    high_rows, high_cols = np.maximum.reduceat(rows, starts), np.maximum.reduceat(cols, starts)
     margin = _MEETING_PX + 1
     grown_from = seeds
     grow_box = (slice(0, seeds.shape[0]), slice(0, seeds.shape[1]))
@@ -559,7 +573,13 @@ def _continued(
                 continue
             # The piece's window with a thin wall's width to spare (the seed's cells in line with
             # it) beyond the joining cells' reach.
-            r0, c0, window = _window_around(r, c, math.ceil(max_thickness_px) + margin)
+            r0, c0, window = _window_of(
+                int(low_rows[k]),
+                int(high_rows[k]),
+                int(low_cols[k]),
+                int(high_cols[k]),
+                math.ceil(max_thickness_px) + margin,
+            )
             piece = np.zeros(seeds[window].shape, dtype=np.uint8)
             piece[r - r0, c - c0] = 1
             reach = _grown_through(piece, through[window], _MEETING_PX) | piece
@@ -575,7 +595,7 @@ def _continued(
             # In line: no wider together than the wider of the two alone (a cell to spare for
             # a staircase), within a thin wall's width. A stub's end continues its kept foot; a
             # cabinet's side meets the kept face it stands at an angle to.
-            line = _width(seed | piece.view(bool) | (reach > 0))
+            line = _width(seed | reach.view(bool))  # (the piece is within its reach)
             # (The seed's own width only when the piece's alone does not decide.)
             if line <= max_thickness_px and (
                 line <= alone + 1 or line <= max(_width(seed), alone) + 1
@@ -605,8 +625,16 @@ def _window_around(
 ) -> tuple[int, int, tuple[slice, slice]]:
     """``(r0, c0, window)``: the box of the cells at ``rows``, ``cols`` with ``pad`` cells more on
     every side (clipped at 0; slicing clips the far side), its first row and column."""
-    r0, c0 = max(int(rows.min()) - pad, 0), max(int(cols.min()) - pad, 0)
-    return r0, c0, (slice(r0, int(rows.max()) + pad + 1), slice(c0, int(cols.max()) + pad + 1))
+    return _window_of(int(rows.min()), int(rows.max()), int(cols.min()), int(cols.max()), pad)
+
+
+def _window_of(
+    low_row: int, high_row: int, low_col: int, high_col: int, pad: int
+) -> tuple[int, int, tuple[slice, slice]]:
+    """:func:`_window_around` cells whose rows are ``low_row..high_row`` and columns
+    ``low_col..high_col``."""
+    r0, c0 = max(low_row - pad, 0), max(low_col - pad, 0)
+    return r0, c0, (slice(r0, high_row + pad + 1), slice(c0, high_col + pad + 1))
 
 
 def _pieces_with(
@@ -688,6 +716,8 @@ def _meeting_walls(
     margin = _MEETING_PX + 1
     reach_square = np.ones((2 * margin + 1, 2 * margin + 1), np.uint8)
     left = np.arange(len(starts))
+    # (The pieces left as flags: numpy's setdiff1d of the ones found sorted them every round.)
+    alive = np.ones(len(starts), dtype=bool)
     while left.size:
         # Most pieces are far from every wall: only those with a wall within the margin are
         # looked at, each in its own small window (a growth over the whole image per round cost
@@ -706,7 +736,8 @@ def _meeting_walls(
         for k in found:
             met[labels[starts[k]]] = True
             walls[rows[starts[k] : ends[k]], cols[starts[k] : ends[k]]] = True
-        left = np.setdiff1d(left, found)
+        alive[found] = False
+        left = np.flatnonzero(alive)
     return met
 
 
@@ -741,15 +772,26 @@ def _pocket_faces(
     ``max_area_px``: the inside of a scanned object, or the unseen core of a thick wall."""
     import cv2
 
-    cells = unknown & ~sealing
+    cells = np.greater(unknown, sealing)
     if not cells.any() or not occupied.any():
         return np.zeros(occupied.shape, dtype=bool), np.zeros(occupied.shape, dtype=bool)
     count, labels = components(cells, connectivity=4)
     pocket = component_areas(labels, count) < max_area_px
     pocket[0] = False
-    # Unknown cells are most of the image here: a lookup at every cell (0, the background, is no
-    # pocket) is a third of the cost of one at the unknown cells only (labels_wanted).
-    pockets = labels_looked_up(pocket, labels).view(np.uint8)
+    large = np.flatnonzero(~pocket[1:]) + 1
+    if large.size <= _FEW_LARGE:
+        # The unknown cells without the few large regions (2-4 on the session maps: the outside
+        # and unexplored rooms), compared one by one: half the cost of the lookup. (Not by
+        # OpenCV's compare with a number: on an image of 4 x 1 cells it reads the number as a
+        # 4-vector.)
+        kept = cells.copy()
+        for label in large.tolist():
+            np.greater(kept, labels == label, out=kept)
+        pockets = kept.view(np.uint8)
+    else:
+        # Unknown cells are most of the image here: a lookup at every cell (0, the background, is
+        # no pocket) is a third of the cost of one at the unknown cells only (labels_wanted).
+        pockets = labels_looked_up(pocket, labels).view(np.uint8)
     # The occupied cells with a pocket among their 8 neighbours: the pockets dilated by the ring
     # around a cell (half the cost of looking the neighbours' labels up at the occupied cells).
     faces = cv2.dilate(pockets, _RING).view(bool) & occupied
@@ -760,6 +802,11 @@ def _pocket_faces(
     for edge in ((0, slice(None)), (-1, slice(None)), (slice(None), 0), (slice(None), -1)):
         faces[edge] |= pockets[edge].view(bool) & occupied[edge]
     return faces, pockets.view(bool)
+
+
+#: Large unknown regions (:func:`_pocket_faces`) taken off the unknown cells one by one, at most
+#: (two passes of OpenCV's each); more take a lookup of every label.
+_FEW_LARGE = 8
 
 
 #: The 8 neighbours of a cell, not the cell itself.
@@ -1035,33 +1082,49 @@ class _Pieces:
             dtype=np.uint8,
         )
         fill_from_corner(image, 4)  # (OpenCV's flood fill, right on any size)
-        holes = image[1:-1, 1:-1].view(bool)
-        # Then only the holes' box matters, a cell wider (their rim): they are few cells, often in
-        # a few places of the pieces' box. (Holes never reach its edge: their rim lies in it.)
-        top, bottom, left, right = _bounds(holes)
-        if bottom == top:
+        # The holes are few cells (up to about 150 on the session maps) spread over much of the
+        # pieces' box: listed, and labelled on a compact image of them (:func:`_compacted`), not
+        # over their box (0.27 ms a call). Their rim lies in the box (holes never reach its edge:
+        # the frame's flood would have reached them), so their 8 neighbours are in the image.
+        hole = _nonzero_flat(image)
+        if hole.size == 0:
             return out
-        inner = (slice(top - 1, bottom + 1), slice(left - 1, right + 1))
-        around = tuple(
-            slice(outer.start + part.start, outer.start + part.stop)
-            for outer, part in zip(box, inner, strict=True)
-        )
-        holes = holes[inner]
-        free_holes = holes & known[around] & ~self.occupied[around]
+        row, col = np.divmod(hole, image.shape[1])
+        row += box[0].start - 1
+        col += box[1].start - 1
+        free_holes = known[row, col] & ~self.occupied[row, col]
         if not free_holes.any():
             return out
-        count, parts = components(holes, connectivity=4)
+        small_row, rows_used = _compacted(row)
+        small_col, cols_used = _compacted(col)
+        small = np.zeros((rows_used, cols_used), dtype=np.uint8)
+        small[small_row, small_col] = 1
+        count, parts = components(small, connectivity=4)
+        part = parts[small_row, small_col]
         wanted = np.zeros(count, dtype=bool)
-        wanted[parts[free_holes]] = True
+        wanted[part[free_holes]] = True
         wanted[0] = False
-        hole_cells = labels_wanted(wanted, parts, holes)
-        rim = cv2.dilate(hole_cells.view(np.uint8), np.ones((3, 3), np.uint8)).view(bool)
+        in_wanted = wanted[part]
+        # The rim: the cells of ``cells`` among the wanted holes' 8 neighbours.
+        offsets = np.array([-1, -1, -1, 0, 0, 1, 1, 1]), np.array([-1, 0, 1, -1, 1, -1, 0, 1])
+        rim = row[in_wanted, None] + offsets[0], col[in_wanted, None] + offsets[1]
         enclosing = np.zeros(self.diagonals.size, dtype=bool)
-        enclosing[self.labels[around][rim & cells[around]]] = True
+        enclosing[self.labels[rim][cells[rim]]] = True
         enclosing[0] = False
         # Looked up at the occupied cells (``cells`` are some of them).
         out.reshape(-1)[self.cells] = enclosing[self.owners] & cells.reshape(-1)[self.cells]
         return out
+
+
+def _compacted(values: npt.NDArray[np.integer]) -> tuple[npt.NDArray[np.intp], int]:
+    """Each of ``values`` (rows or columns of some cells) renumbered from 0, the values in use in
+    their order with one unused value kept between two that are not consecutive, and how many
+    numbers that takes: cells placed so in a small image are 4- and 8-neighbours exactly when they
+    were."""
+    used, index = np.unique(values, return_inverse=True)
+    compact = np.arange(used.size)
+    compact[1:] += np.cumsum(np.diff(used) > 1)
+    return compact[index], int(compact[-1]) + 1
 
 
 def _off_sides(at: npt.NDArray[np.intp], cols: int) -> bool:
