@@ -7,6 +7,7 @@ in the grid's cell space (row 0 at the map origin), lengths in cells.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 import numpy.typing as npt
@@ -155,10 +156,11 @@ def _in_openings(
         )
     ring = np.ones((3, 3), np.uint8)
     span, line = spans[box], lines[box]
-    unseen_span = span & unknown[box]
     # (Masks of the box made in place or into one scratch image where they can: each new one
-    # is a fresh allocation the kernel fills page by page.)
-    scratch = cv2.dilate(unseen_span.view(np.uint8), ring)  # next to an unseen span cell
+    # is a fresh allocation the kernel fills page by page, on the benchmark maps several times
+    # the cost of the pass itself.)
+    pieces = span & unknown[box]  # the unseen span cells; the line and its sides join them below
+    scratch = cv2.dilate(pieces.view(np.uint8), ring)  # next to an unseen span cell
     through = span & free[box]
     np.greater(through, scratch.view(bool), out=through)
     if not through.any():
@@ -168,13 +170,17 @@ def _in_openings(
     # a cell or two thick; farther on, removed cells chain other clutter to it).
     cv2.dilate(line.view(np.uint8), np.ones((5, 5), np.uint8), dst=scratch)  # near the line
     beside_span &= scratch.view(bool)  # (beside the gap and near the line: for the kept sides too)
-    sides = removed[box] & beside_span
-    near_through = cv2.dilate(through.view(np.uint8), ring).view(bool)
-    if not np.logical_and(sides, near_through, out=scratch.view(bool)).any():
+    # (Listed from the removed cells: no image of the sides.)
+    side_cells = _nonzero_flat(removed[box].view(np.uint8))
+    side_cells = side_cells[beside_span.reshape(-1)[side_cells]]
+    near_through = cv2.dilate(through.view(np.uint8), ring, dst=scratch).view(bool)
+    # Only the sides beside a gap seen through have a stretch among their neighbours.
+    beside_gap = near_through.reshape(-1)[side_cells]
+    if not beside_gap.any():
         return out, objects  # (no gap seen through beside an object: nearly every map)
     stretches, gaps = components(through)
-    count, labels, side_cells, side_owner, piece_of, stretch_of = _side_pairs(
-        line, sides, unseen_span, gaps, stretches
+    count, labels, side_owner, piece_of, stretch_of = _side_pairs(
+        line, side_cells, beside_gap, pieces, gaps, stretches
     )
     # A box within two cells of a door edge: its side there joins the wall's straight run (the
     # runs' cell of tolerance) and is kept, not removed. Such kept cells are its sides too when
@@ -185,16 +191,16 @@ def _in_openings(
     one[0] = False
     kept_sides = np.zeros(0, dtype=bool)  # (not looked at)
     if one.any():
-        kept_sides = np.greater(occupied[box], removed[box])
-        kept_sides &= beside_span
+        kept_sides = beside_span  # (in place: only a scratch image from here on)
         kept_sides &= near_through
+        kept_sides &= occupied[box]
+        np.greater(kept_sides, removed[box], out=kept_sides)
     if one.any() and kept_sides.any():
         small, owner = _small_pieces(
-            kept_sides, occupied[box], labels, one, math.ceil(robot_px) + 1
+            kept_sides, occupied[box], labels, pieces, one, math.ceil(robot_px) + 1
         )
         if small.size:
             # Joined to the piece beside them (a cell or two from it, across the run's band).
-            sides.reshape(-1)[small] = True
             labels.reshape(-1)[small] = owner
             side_cells = np.concatenate([side_cells, small])
             side_owner = np.concatenate([side_owner, owner.astype(side_owner.dtype)])
@@ -204,10 +210,11 @@ def _in_openings(
                 + np.concatenate([stretch_of, more_stretches])
             )
             piece_of, stretch_of = np.divmod(pairs, stretches)
-    line_cells = _nonzero_flat(np.ascontiguousarray(line).view(np.uint8))
-    line_owner = labels.reshape(-1)[line_cells]
-    gap_cells = _nonzero_flat(np.ascontiguousarray(through).view(np.uint8))
-    gap_owner = gaps.reshape(-1)[gap_cells]
+    line_cells = _nonzero_flat(line.view(np.uint8))  # (OpenCV lists a view's cells as well)
+    gap_cells = _nonzero_flat(through.view(np.uint8))
+    # Each piece's and stretch's cells looked up by label (not one pass over all per lookup).
+    line_of = _by_label(line_cells, labels.reshape(-1)[line_cells], count)
+    gap_of = _by_label(gap_cells, gaps.reshape(-1)[gap_cells], stretches)
     width = line.shape[1]
     # Or one stretch runs along the piece's line cells, beside each of them, and on past both of
     # its ends: the wall line behind the piece is seen through (a box standing in front of a
@@ -216,8 +223,8 @@ def _in_openings(
     along = np.array(
         [
             _alongside(
-                np.divmod(line_cells[line_owner == piece], width),
-                np.divmod(gap_cells[gap_owner == stretch], width),
+                np.divmod(line_of(piece), width),
+                np.divmod(gap_of(stretch), width),
             )
             for piece, stretch in zip(piece_of.tolist(), stretch_of.tolist(), strict=True)
         ],
@@ -228,7 +235,7 @@ def _in_openings(
     candidates = np.unique(stretch_of[two[piece_of] | along])
     if candidates.size == 0:
         return out, objects
-    open_cells = occupied[box] | span
+    open_cells = np.logical_or(occupied[box], span, out=beside_span)  # (no longer needed)
     open_cells |= line
     np.logical_not(open_cells, out=open_cells)
     seen = np.zeros(stretches, dtype=bool)
@@ -246,10 +253,8 @@ def _in_openings(
     # what stands in it, which the line left closed, not gaps around clutter that meets the line
     # nor free cells on a line across a room.
     for piece in np.flatnonzero(two).tolist():
-        ends = [np.divmod(gap_cells[gap_owner == g], width) for g in stretch_of[piece_of == piece]]
-        wanted[piece] = _on_both_ends(
-            np.divmod(line_cells[line_owner == piece], width), ends, robot_px
-        )
+        ends = [np.divmod(gap_of(g), width) for g in stretch_of[piece_of == piece]]
+        wanted[piece] = _on_both_ends(np.divmod(line_of(piece), width), ends, robot_px)
     if not wanted.any():
         return out, objects
     # The whole object, not only its sides beside the gap (labelled over the map: it may reach
@@ -264,8 +269,8 @@ def _in_openings(
     standing = np.zeros(count, dtype=bool)
     for piece in np.flatnonzero(wanted).tolist():
         mine = np.concatenate(
-            [line_cells[line_owner == piece], side_cells[side_owner == piece]]
-            + [gap_cells[gap_owner == g] for g in stretch_of[piece_of == piece]]
+            [line_of(piece), side_cells[side_owner == piece]]
+            + [gap_of(g) for g in stretch_of[piece_of == piece]]
         )
         rows, cols = np.divmod(mine, width)
         reach = max(int(rows.max() - rows.min()), int(cols.max() - cols.min())) + 1
@@ -278,9 +283,9 @@ def _in_openings(
         # And it stands out of the wall's band (the gaps beside it lie across the wall's
         # thickness) by more than a cell: a stretch of wall flush with the wall's faces between
         # two narrow gaps seen through, its core unseen, is no box (it went, and the wall opened).
-        line_rows, line_cols = np.divmod(line_cells[line_owner == piece], width)
+        line_rows, line_cols = np.divmod(line_of(piece), width)
         gap_rows, gap_cols = np.divmod(
-            np.concatenate([gap_cells[gap_owner == g] for g in stretch_of[piece_of == piece]]),
+            np.concatenate([gap_of(g) for g in stretch_of[piece_of == piece]]),
             width,
         )
         centre, axis = _axis(line_rows, line_cols, (gap_rows, gap_cols))
@@ -302,6 +307,17 @@ def _in_openings(
     out[box] = wanted[labels] & line
     objects = standing[pieces_occupied]
     return out, objects
+
+
+def _by_label(
+    cells: npt.NDArray[np.int64], owners: npt.NDArray[np.integer], count: int
+) -> Callable[[int], npt.NDArray[np.int64]]:
+    """The ``cells`` of each label (of ``count``) by their ``owners``, in their order: the lookup
+    of a label's cells (``cells[owners == label]``), the cells grouped once by a stable sort."""
+    order = np.argsort(owners, kind="stable")
+    grouped = cells[order]
+    starts = np.searchsorted(owners[order], np.arange(count + 1)).tolist()
+    return lambda label: grouped[starts[label] : starts[label + 1]]
 
 
 def _on_the_wall(
@@ -329,30 +345,33 @@ def _on_the_wall(
 
 def _side_pairs(
     line: npt.NDArray[np.bool_],
-    sides: npt.NDArray[np.bool_],
-    unseen_span: npt.NDArray[np.bool_],
+    side_cells: npt.NDArray[np.int64],
+    beside_gap: npt.NDArray[np.bool_],
+    pieces: npt.NDArray[np.bool_],
     gaps: npt.NDArray[np.integer],
     stretches: int,
 ) -> tuple[
     int,
     npt.NDArray[np.integer],
-    npt.NDArray[np.intp],
     npt.NDArray[np.integer],
     npt.NDArray[np.int64],
     npt.NDArray[np.int64],
 ]:
-    """For :func:`_in_openings`: the pieces of the ``line`` joined with its object's ``sides`` and
-    the gap's ``unseen_span`` cells (a line drawn in two halves is one object's back), their count
-    and labels, the sides' cells (flat indices) and their pieces, and every (piece, stretch) pair
-    that touches at a side (the stretch labels, ``gaps``, of the sides' 8 neighbours; the sides'
-    cells are few). A stretch that meets only the line itself is no gap beside an object (fills
-    across a room, between pieces in line, meet the unseen insides of what stands in it)."""
-    pieces = line | sides | unseen_span
+    """For :func:`_in_openings`: the pieces of the ``line`` joined with its object's sides (their
+    cells, flat indices ascending: ``side_cells``; ``beside_gap``: which of them have a cell seen
+    through, ``gaps > 0``, among their 8 neighbours) and the gap's unseen span cells (``pieces``,
+    joined with the others in place: a line drawn in two halves is one object's back), their count
+    and labels, the sides' pieces, and every (piece, stretch) pair that touches at a side (the
+    stretch labels, ``gaps``, of the sides' 8 neighbours; the sides' cells are few). A stretch
+    that meets only the line itself is no gap beside an object (fills across a room, between
+    pieces in line, meet the unseen insides of what stands in it)."""
+    pieces |= line
+    pieces.reshape(-1)[side_cells] = True
     count, labels = components(pieces)
-    side_cells = _nonzero_flat(np.ascontiguousarray(sides).view(np.uint8))
     side_owner = labels.reshape(-1)[side_cells]
-    piece_of, stretch_of = _pairs(side_cells, side_owner, gaps, stretches)
-    return count, labels, side_cells, side_owner, piece_of, stretch_of
+    # (Only the sides beside a gap: the others' neighbours are no stretch.)
+    piece_of, stretch_of = _pairs(side_cells[beside_gap], side_owner[beside_gap], gaps, stretches)
+    return count, labels, side_owner, piece_of, stretch_of
 
 
 def _pairs(
@@ -385,6 +404,7 @@ def _small_pieces(
     cells: npt.NDArray[np.bool_],
     occupied: npt.NDArray[np.bool_],
     labels: npt.NDArray[np.integer],
+    labelled: npt.NDArray[np.bool_],
     wanted: npt.NDArray[np.bool_],
     margin: int,
 ) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.int64]]:
@@ -393,7 +413,9 @@ def _small_pieces(
     cells wider on every side (the gaps beside its object), as much again on every side (as the
     objects standing in a doorway, :func:`_in_openings`). A wall's end reaches farther. Each piece
     of ``occupied`` is labelled in that window only (such cells are on most maps: labelled over
-    the whole box, twice, they cost 6 ms a map). Masks of shape ``(rows, cols)``.
+    the whole box, twice, they cost 6 ms a map). ``labelled``: the mask ``labels`` labels (its
+    cells list those with a label, a pass over bytes, not over labels). Masks of shape
+    ``(rows, cols)``.
 
     Returns the flat indices of those cells and, for each, the wanted piece it is beside."""
     height, width = cells.shape
@@ -419,10 +441,12 @@ def _small_pieces(
     around = np.where(wanted[around], around, 0)
     pieces = np.unique(around[around > 0])
     # The boxes of those pieces only, from their cells (few next to all the labelled ones).
-    labelled = _nonzero_flat(np.greater(labels, 0).view(np.uint8))
+    labelled_cells = _nonzero_flat(labelled.view(np.uint8))
     chosen = np.zeros(wanted.size, dtype=bool)
     chosen[pieces] = True
-    boxes = label_boxes(labels, labelled[chosen[labels.reshape(-1)[labelled]]], wanted.size)
+    boxes = label_boxes(
+        labels, labelled_cells[chosen[labels.reshape(-1)[labelled_cells]]], wanted.size
+    )
     for piece in pieces.tolist():
         near = (around == piece).any(axis=0)
         x, y, w, h = boxes[piece].tolist()
