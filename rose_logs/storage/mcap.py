@@ -408,28 +408,32 @@ class McapReadBackend:
         gave the same messages."""
         by_id = self._by_id
         ahead = self._read_ahead(chunks, wanted)
-        for k, (index, messages) in enumerate(zip(chunks, ahead, strict=True)):
-            times = [m.log_time for m in messages]
-            if times and not (
-                index.message_start_time <= min(times) and max(times) <= index.message_end_time
-            ):
-                ahead.close()  # (the merge reads the chunks after this one itself)
-                offset = index.chunk_start_offset
-                yield from self._merge(
-                    [(m.log_time, offset, at, m) for at, m in enumerate(messages)]
-                    + [
-                        (c.message_start_time, c.chunk_start_offset, -1, c) for c in chunks[k + 1 :]
-                    ],
-                    wanted,
-                    skip_damaged=False,
-                )
-                return
-            if any(a > b for a, b in itertools.pairwise(times)):
-                messages.sort(key=lambda m: m.log_time)
-            for m in messages:
-                yield RawMessage(
-                    by_id[m.channel_id], m.log_time, m.data, m.publish_time, m.sequence
-                )
+        try:
+            for k, (index, messages) in enumerate(zip(chunks, ahead, strict=True)):
+                times = [m.log_time for m in messages]
+                if times and not (
+                    index.message_start_time <= min(times) and max(times) <= index.message_end_time
+                ):
+                    ahead.close()  # (the merge reads the chunks after this one itself)
+                    offset = index.chunk_start_offset
+                    yield from self._merge(
+                        [(m.log_time, offset, at, m) for at, m in enumerate(messages)]
+                        + [
+                            (c.message_start_time, c.chunk_start_offset, -1, c)
+                            for c in chunks[k + 1 :]
+                        ],
+                        wanted,
+                        skip_damaged=False,
+                    )
+                    return
+                if any(a > b for a, b in itertools.pairwise(times)):
+                    messages.sort(key=lambda m: m.log_time)
+                for m in messages:
+                    yield RawMessage(
+                        by_id[m.channel_id], m.log_time, m.data, m.publish_time, m.sequence
+                    )
+        finally:
+            ahead.close()  # its thread ends with the reading, however it ends
 
     def _read_ahead(self, chunks: list[Any], wanted: set[int]) -> Generator[list[Any]]:
         """:meth:`_messages_of` each of ``chunks`` in turn (strict), the next one read meanwhile by a
