@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import heapq
 import io
@@ -438,15 +439,21 @@ class McapReadBackend:
     def _read_ahead(self, chunks: list[Any], wanted: set[int]) -> Generator[list[Any]]:
         """:meth:`_messages_of` each of ``chunks`` in turn (strict), the next one read meanwhile by a
         thread of its own: reading the file, decompressing and checking a chunk (native, outside
-        the interpreter's lock) overlap with the caller's work on the one before. A chunk's error
-        is raised when its turn comes, as read in turn. Without ``os.pread`` (Windows), in turn."""
+        the interpreter's lock; the records' split is Python) overlap with the caller's work on the
+        one before. A chunk's error is raised when its turn comes, as read in turn. Without
+        ``os.pread`` (Windows), or where no thread can start, in turn."""
         if not hasattr(os, "pread") or len(chunks) < 2:
             for index in chunks:
                 yield self._messages_of(index, wanted, strict=True)
             return
         pool = threads_in_this_context(1, "rose-mcap-reader")
         try:
-            coming = pool.submit(self._messages_of, chunks[0], wanted, strict=True)
+            try:
+                coming = pool.submit(self._messages_of, chunks[0], wanted, strict=True)
+            except RuntimeError:  # "can't start new thread": read in turn (a sound log)
+                for index in chunks:
+                    yield self._messages_of(index, wanted, strict=True)
+                return
             for k in range(len(chunks)):
                 current = coming
                 if k + 1 < len(chunks):
@@ -1012,8 +1019,14 @@ class McapWriteBackend(WriteBackend):
 
     def close(self) -> None:
         try:
-            self.writer.finish()  # the last chunk
+            self.writer.finish()  # the last chunks
         except Exception as err:
+            # The file is dropped by the caller: closed here, or, deleted, it held its disk space
+            # as long as the error lived (the writer's thread makes a full disk show here often).
+            stream, self.stream = self.stream, None
+            if stream is not None:
+                with contextlib.suppress(OSError):
+                    stream.close()
             raise as_memory_error(err) from err
         if self.stream is not None:
             self.stream.close()

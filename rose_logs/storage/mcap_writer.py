@@ -50,8 +50,9 @@ _MESSAGE_HEADER = struct.Struct("<BQHIQQ")
 _MESSAGE_FIELDS_BYTES = 2 + 4 + 8 + 8
 #: The footer's opcode, length, summary start and summary offsets' start: what its CRC covers.
 _FOOTER_START = struct.Struct("<BQQQ")
-#: Full chunks handed to the writing thread and not yet written: the caller waits beyond this.
-#: Two keep the thread busy while bounding what they hold (a chunk is 1-3 MiB before zstd).
+#: Full chunks handed to the writing thread and not yet written beyond the one being written:
+#: the caller waits for more. Two keep the thread busy while bounding what they hold (a chunk is
+#: a little over ``chunk_size``, or one message larger than that).
 _QUEUED_CHUNKS = 2
 
 
@@ -60,9 +61,12 @@ class ThreadedMcapWriter:
     statistics, summary offsets and CRCs, no data-section CRC), the same calls and the same bytes.
 
     Chunks reach ``stream`` from a thread of their own, in the order of the calls; an error there
-    (a full disk) is raised by the next call. The records between chunks (metadata, attachments)
-    and the summary are written by the caller once the chunks before them are. ``stream`` must be
-    at its start, and not be written by anyone else. Not thread-safe: one caller.
+    (a full disk) is raised by a later call that hands over a chunk, by :meth:`add_metadata`,
+    :meth:`add_attachment` or :meth:`finish`. Where no thread can start (a thread limit, no
+    memory for its stack), they are written by the caller. The records between chunks (metadata,
+    attachments) and the summary are written by the caller once the chunks before them are.
+    ``stream`` must be buffered (every write whole), at its start, and written by no one else. Not
+    thread-safe: one caller.
     """
 
     def __init__(self, stream: BinaryIO, *, chunk_size: int = 1024 * 1024) -> None:
@@ -173,7 +177,7 @@ class ThreadedMcapWriter:
             )
         )
         self._pieces.append(body)
-        self._chunk_bytes += 9 + _MESSAGE_FIELDS_BYTES + len(body)
+        self._chunk_bytes += _MESSAGE_HEADER.size + len(body)
         self._maybe_finish_chunk()
 
     def add_metadata(self, name: str, data: dict[str, str]) -> None:
@@ -345,9 +349,13 @@ class ThreadedMcapWriter:
 
     def _submit(self, job: Callable[[], None]) -> None:
         """Queue ``job`` on the writing thread; raise the error of a job done, if any; wait while
-        more than :data:`_QUEUED_CHUNKS` are queued."""
+        more than :data:`_QUEUED_CHUNKS` are queued. Run it here if the thread cannot start."""
         self._wait(_QUEUED_CHUNKS)
-        self._queued.append(self._pool.submit(job))
+        try:
+            self._queued.append(self._pool.submit(job))
+        except RuntimeError:  # "can't start new thread" (the only start is the first submit)
+            self._wait(0)
+            job()
 
     def _wait(self, most: int) -> None:
         queued = self._queued

@@ -158,14 +158,27 @@ def _log_time(message: RawMessage) -> int:
     return message.log_time_ns
 
 
+#: The most bytes one ``os.pread`` is asked for (Linux returns at most 0x7ffff000).
+_PREAD_MOST = 2**30
+
+
 def read_at(f: BinaryIO, count: int, offset: int) -> bytes:
     """``count`` bytes of the file ``f`` from ``offset`` (fewer at its end). On POSIX one system
     call that leaves the file's position as it was (threads may read one file so); elsewhere
     (Windows has no pread) a seek and a read."""
-    if hasattr(os, "pread"):
-        return os.pread(f.fileno(), count, offset)
-    f.seek(offset)
-    return bytes(f.read(count) or b"")
+    if not hasattr(os, "pread"):
+        f.seek(offset)
+        return bytes(f.read(count) or b"")
+    # One call reads at most 2 GiB (Linux; macOS refuses more): a chunk that large, read in parts.
+    parts = []
+    while count > 0:
+        part = os.pread(f.fileno(), min(count, _PREAD_MOST), offset)
+        if not part:
+            break
+        parts.append(part)
+        count -= len(part)
+        offset += len(part)
+    return parts[0] if len(parts) == 1 else b"".join(parts)
 
 
 def read_part_way(path: Path, read: int, why: str) -> str:

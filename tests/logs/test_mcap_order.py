@@ -205,22 +205,24 @@ def test_files_without_a_chunk_index_out_of_order_are_sorted_without_a_warning(
     assert not caplog.records
 
 
-def _reading_threads() -> list[str]:
+def _reading_threads() -> set[Any]:
+    """The readers' threads alive (other tests' readers may still be ending theirs)."""
     import threading
 
-    return [t.name for t in threading.enumerate() if t.name.startswith("rose-mcap-reader")]
+    return {t for t in threading.enumerate() if t.name.startswith("rose-mcap-reader")}
 
 
 def test_a_damaged_chunk_read_ahead_fails_in_its_turn(tmp_path: Path) -> None:
     """The next chunk is read while the caller works on one: a chunk that cannot be read is said
     when its turn comes, after every message before it, as when chunks were read in turn; the
     reading thread ends with the error."""
+    before = _reading_threads()
     path = tmp_path / "damaged.mcap"
     _write(path, list(range(1000, 1300)), [i % 3 for i in range(300)], chunk_size=200, size=64)
     backend = McapReadBackend(path)
     backend.open()
     indexes = backend.reader.get_summary().chunk_indexes
-    before = sum(len(backend._read_chunk(index)) for index in indexes[:5])
+    earlier = sum(len(backend._read_chunk(index)) for index in indexes[:5])
     backend.close()
     data = bytearray(path.read_bytes())
     # The sixth chunk's uncompressed CRC (after its opcode, length, times and size).
@@ -235,11 +237,12 @@ def test_a_damaged_chunk_read_ahead_fails_in_its_turn(tmp_path: Path) -> None:
                 read.append(message.log_time_ns)
     finally:
         backend.close()
-    assert read == list(range(1000, 1000 + before))
-    assert _reading_threads() == []
+    assert read == list(range(1000, 1000 + earlier))
+    assert _reading_threads() <= before
 
 
 def test_the_reading_thread_ends_when_the_reader_stops_early(tmp_path: Path) -> None:
+    before = _reading_threads()
     path = tmp_path / "long.mcap"
     _write(path, list(range(1000, 1500)), [0] * 500, chunk_size=200)
     backend = McapReadBackend(path)
@@ -247,8 +250,8 @@ def test_the_reading_thread_ends_when_the_reader_stops_early(tmp_path: Path) -> 
     try:
         messages = backend.messages(None)
         assert [next(messages).log_time_ns for _ in range(3)] == [1000, 1001, 1002]
-        assert _reading_threads()  # the next chunk is being read
+        assert _reading_threads() > before  # the next chunk is being read
         messages.close()  # type: ignore[attr-defined]
-        assert _reading_threads() == []
+        assert _reading_threads() <= before
     finally:
         backend.close()

@@ -75,6 +75,13 @@ def test_the_library_reads_every_message_back_with_its_checksums(tmp_path: Path)
     assert read == sent
 
 
+def _writing_threads() -> set[Any]:
+    """The writers' threads alive (other tests' writers may still be ending theirs)."""
+    import threading
+
+    return {t for t in threading.enumerate() if t.name.startswith("rose-mcap-writer")}
+
+
 class _FullDisk(io.RawIOBase):
     """A stream that takes ``room`` bytes, then fails as a full disk does."""
 
@@ -93,6 +100,7 @@ class _FullDisk(io.RawIOBase):
 
 
 def test_a_write_that_fails_on_its_thread_is_raised_by_the_writers_next_calls() -> None:
+    before = _writing_threads()
     writer = ThreadedMcapWriter(_FullDisk(50_000), chunk_size=10_000)  # type: ignore[arg-type]
     writer.start()
     channel = writer.register_channel("/a", "cdr", 0, {})
@@ -102,10 +110,11 @@ def test_a_write_that_fails_on_its_thread_is_raised_by_the_writers_next_calls() 
             writer.add_message(channel, t, noise, t, 0)
         writer.finish()
     writer.abort()  # what the caller does next: no error, the thread ends
-    assert writer._pool._shutdown
+    assert _writing_threads() <= before  # this writer's ended
 
 
 def test_finish_raises_a_failed_last_chunk_and_ends_the_thread() -> None:
+    before = _writing_threads()
     writer = ThreadedMcapWriter(_FullDisk(1_000))  # type: ignore[arg-type]
     writer.start()
     channel = writer.register_channel("/a", "cdr", 0, {})
@@ -114,4 +123,90 @@ def test_finish_raises_a_failed_last_chunk_and_ends_the_thread() -> None:
     )  # one chunk, written at finish
     with pytest.raises(OSError, match="No space left"):
         writer.finish()
-    assert writer._pool._shutdown
+    assert _writing_threads() <= before  # this writer's ended
+
+
+class _NoThreads:
+    """A thread pool whose thread cannot start (``ulimit -u``, no memory for its stack)."""
+
+    def __init__(self, *_: object) -> None:
+        pass
+
+    def submit(self, *_: object, **__: object) -> Any:
+        raise RuntimeError("can't start new thread")
+
+    def shutdown(self, *_: object, **__: object) -> None:
+        pass
+
+
+def test_without_a_thread_the_caller_writes_the_same_file(monkeypatch: pytest.MonkeyPatch) -> None:
+    import rose_logs.storage.mcap_writer as mcap_writer
+
+    monkeypatch.setattr(mcap_writer, "threads_in_this_context", _NoThreads)
+    ours, theirs = io.BytesIO(), io.BytesIO()
+    _session(ThreadedMcapWriter(ours), 0)
+    _session(Writer(theirs), 0)
+    assert ours.getvalue() == theirs.getvalue()
+
+
+def test_without_a_thread_a_sound_file_is_read_in_turn(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The chunk read ahead needs a thread: where none can start, the file is read as it was,
+    not called corrupt ("can't start new thread" read as damage)."""
+    import rose_logs.storage.mcap as storage_mcap
+    from rose_logs.storage.mcap import McapReadBackend
+
+    path = tmp_path / "sound.mcap"
+    with path.open("wb") as stream:
+        _session(Writer(stream, chunk_size=50_000), 1, big=20_000)
+    backend = McapReadBackend(path)
+    backend.open()
+    try:
+        ahead = [(m.log_time_ns, bytes(m.data)) for m in backend.messages(None)]
+        monkeypatch.setattr(storage_mcap, "threads_in_this_context", _NoThreads)
+        in_turn = [(m.log_time_ns, bytes(m.data)) for m in backend.messages(None)]
+    finally:
+        backend.close()
+    assert len(ahead) > 100
+    assert in_turn == ahead
+
+
+def test_reading_at_an_offset_reads_all_in_parts(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """One ``pread`` returns at most 2 GiB on Linux: a larger chunk is read in parts (here parts of
+    7 bytes stand for them)."""
+    import rose_logs.storage.records as records
+
+    path = tmp_path / "data.bin"
+    data = bytes(range(256)) * 4
+    path.write_bytes(data)
+    monkeypatch.setattr(records, "_PREAD_MOST", 7)
+    with path.open("rb") as f:
+        assert records.read_at(f, 1000, 10) == data[10:1010]
+        assert records.read_at(f, 5000, 1000) == data[1000:]  # fewer at the end
+
+
+def test_an_mcap_output_whose_finish_fails_is_closed(tmp_path: Path) -> None:
+    """A full disk met by the writer's thread comes out of ``close``: the output's file is closed
+    there too (deleted, it held its disk space while the error lived)."""
+    from rose_logs.errors import LogWriteError
+    from rose_logs.writer import open_output
+
+    out = open_output(tmp_path / "o.mcap", "mcap")
+    out.open()
+    out.add_topic("/chatter", "std_msgs/msg/String")
+    out.write("/chatter", 1, out.typestore.types["std_msgs/msg/String"](data="hi"))
+    backend = out._backend
+    assert backend is not None
+    stream = backend.stream  # type: ignore[attr-defined]
+
+    def full_disk() -> None:
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    backend.writer.finish = full_disk  # type: ignore[attr-defined]
+    with pytest.raises(LogWriteError, match="No space left"):
+        out.close()
+    assert stream.closed
+    assert list(tmp_path.iterdir()) == []
