@@ -163,14 +163,14 @@ _PREAD_MOST = 2**30
 
 
 def read_at(f: BinaryIO, count: int, offset: int) -> bytes:
-    """``count`` bytes of the file ``f`` from ``offset`` (fewer at its end). On POSIX one system
-    call that leaves the file's position as it was (threads may read one file so); elsewhere
-    (Windows has no pread) a seek and a read."""
+    """``count`` bytes of the file ``f`` from ``offset`` (fewer at its end). On POSIX ``pread``
+    calls that leave the file's position as it was (threads may read one file so): one, up to
+    1 GiB; elsewhere (Windows has no pread) a seek and a read."""
     if not hasattr(os, "pread"):
         f.seek(offset)
         return bytes(f.read(count) or b"")
     # One call reads at most 2 GiB (Linux; macOS refuses more): a chunk that large, read in parts.
-    parts = []
+    parts: list[bytes] = []
     while count > 0:
         part = os.pread(f.fileno(), min(count, _PREAD_MOST), offset)
         if not part:
