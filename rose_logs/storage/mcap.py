@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import functools
 import heapq
 import io
 import itertools
@@ -442,22 +443,20 @@ class McapReadBackend:
         the interpreter's lock; the records' split is Python) overlap with the caller's work on the
         one before. A chunk's error is raised when its turn comes, as read in turn. Without
         ``os.pread`` (Windows), or where no thread can start, in turn."""
-        if not hasattr(os, "pread") or len(chunks) < 2:
-            for index in chunks:
-                yield self._messages_of(index, wanted, strict=True)
-            return
-        pool = threads_in_this_context(1, "rose-mcap-reader")
+        read = functools.partial(self._messages_of, wanted=wanted, strict=True)
+        pool = threads_in_this_context(1, "rose-mcap-reader")  # (its thread starts on a submit)
         try:
-            try:
-                coming = pool.submit(self._messages_of, chunks[0], wanted, strict=True)
-            except RuntimeError:  # "can't start new thread": read in turn (a sound log)
-                for index in chunks:
-                    yield self._messages_of(index, wanted, strict=True)
+            coming = None
+            if hasattr(os, "pread") and len(chunks) > 1:
+                with contextlib.suppress(RuntimeError):  # "can't start new thread": in turn
+                    coming = pool.submit(read, chunks[0])
+            if coming is None:
+                yield from map(read, chunks)
                 return
             for k in range(len(chunks)):
                 current = coming
                 if k + 1 < len(chunks):
-                    coming = pool.submit(self._messages_of, chunks[k + 1], wanted, strict=True)
+                    coming = pool.submit(read, chunks[k + 1])
                 yield current.result()
         finally:
             pool.shutdown(wait=True, cancel_futures=True)
