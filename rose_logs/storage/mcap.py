@@ -13,6 +13,7 @@ import os
 import struct
 import zlib
 from collections.abc import Callable, Generator, Iterable, Iterator
+from concurrent.futures import Future
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, BinaryIO
@@ -442,22 +443,25 @@ class McapReadBackend:
         thread of its own: reading the file, decompressing and checking a chunk (native, outside
         the interpreter's lock; the records' split is Python) overlap with the caller's work on the
         one before. A chunk's error is raised when its turn comes, as read in turn. Without
-        ``os.pread`` (Windows), or where no thread can start, in turn."""
+        ``os.pread`` (Windows), or where no thread can start, in turn.
+
+        The thread starts only when the second chunk is asked for (it reads the third while the
+        caller's thread reads the second): a split bag's files merged by log time are each asked
+        for their first message at once, and a thread and a chunk read ahead for each of a hundred
+        files that follow each other in time were a hundred of each before the first message."""
         read = functools.partial(self._messages_of, wanted=wanted, strict=True)
+        threaded = hasattr(os, "pread")
         pool = threads_in_this_context(1, "rose-mcap-reader")  # (its thread starts on a submit)
         try:
-            coming = None
-            if hasattr(os, "pread") and len(chunks) > 1:
-                with contextlib.suppress(RuntimeError):  # "can't start new thread": in turn
-                    coming = pool.submit(read, chunks[0])
-            if coming is None:
-                yield from map(read, chunks)
-                return
-            for k in range(len(chunks)):
-                current = coming
-                if k + 1 < len(chunks):
-                    coming = pool.submit(read, chunks[k + 1])
-                yield current.result()
+            ahead: Future[list[Any]] | None = None  # the chunk read ahead, if one is
+            for k, index in enumerate(chunks):
+                coming = None
+                if threaded and 0 < k < len(chunks) - 1:
+                    with contextlib.suppress(RuntimeError):  # "can't start new thread": in turn
+                        coming = pool.submit(read, chunks[k + 1])
+                current = ahead.result() if ahead is not None else read(index)
+                ahead = coming
+                yield current
         finally:
             pool.shutdown(wait=True, cancel_futures=True)
 

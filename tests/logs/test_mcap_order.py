@@ -249,9 +249,40 @@ def test_the_reading_thread_ends_when_the_reader_stops_early(tmp_path: Path) -> 
     backend.open()
     try:
         messages = backend.messages(None)
-        assert [next(messages).log_time_ns for _ in range(3)] == [1000, 1001, 1002]
-        assert _reading_threads() > before  # the next chunk is being read
+        per_chunk = len(backend._read_chunk(backend.reader.get_summary().chunk_indexes[0]))
+        # Into the second chunk: the third is being read meanwhile.
+        times = [next(messages).log_time_ns for _ in range(per_chunk + 2)]
+        assert times == list(range(1000, 1000 + per_chunk + 2))
+        assert _reading_threads() > before
         messages.close()  # type: ignore[attr-defined]
         assert _reading_threads() <= before
     finally:
         backend.close()
+
+
+def test_files_merged_by_log_time_read_ahead_one_at_a_time(tmp_path: Path) -> None:
+    """A split bag's files are merged by log time, each asked for its first message at once: a
+    file starts reading ahead (a thread, a chunk held) only once it is read past its first chunk,
+    so files that follow each other in time take one thread at a time, not one each."""
+    from rose_logs.storage.records import merged_by_log_time
+
+    before = _reading_threads()
+    backends = []
+    for k in range(8):
+        path = tmp_path / f"split_{k}.mcap"
+        _write(path, list(range(1000 * (k + 1), 1000 * (k + 1) + 60)), [0] * 60, chunk_size=200)
+        backend = McapReadBackend(path)
+        backend.open()
+        assert len(backend.reader.get_summary().chunk_indexes) > 3
+        backends.append(backend)
+    try:
+        most, times = 0, []
+        for message in merged_by_log_time(b.messages(None) for b in backends):
+            times.append(message.log_time_ns)
+            most = max(most, len(_reading_threads() - before))
+    finally:
+        for backend in backends:
+            backend.close()
+    assert times == [1000 * (k + 1) + i for k in range(8) for i in range(60)]
+    assert most == 1  # read ahead (one file at a time), but not eight threads at once
+    assert _reading_threads() <= before
