@@ -275,7 +275,9 @@ class LogReader:
             if salvaged is None and self.salvage:
                 salvaged = self._salvage_stream()
             if salvaged is None:
-                if isinstance(err, LogError):
+                # Ours say what is wrong, naming the file; a damaged summary's says only that
+                # (record by record, the file did not read to its end either).
+                if isinstance(err, LogError) and not isinstance(err, DamagedSummaryError):
                     raise
                 raise self._unreadable(err) from err
             backend = salvaged

@@ -287,6 +287,39 @@ def test_a_damaged_mcap_summary_is_seen_and_read_around(
     assert read_all(damaged) == read_all(built.path)
 
 
+def test_bytes_inserted_in_an_mcap_name_the_file_and_salvage_keeps_the_start(
+    tmp_path: Path,
+) -> None:
+    """Bytes inserted in the data section move the summary away from where the footer points:
+    its CRC fails, and record by record the file does not read to its end either. The error was
+    the CRC's alone, naming no file and no remedy (also under --salvage); now it names the file,
+    and --salvage keeps the messages before the damage."""
+    from mcap.reader import make_reader
+
+    from rose_logs.reader import LogReader
+
+    sample = Path(__file__).resolve().parents[2] / "sample_data" / "fr079_session.mcap"
+    with sample.open("rb") as stream:
+        chunks = make_reader(stream).get_summary().chunk_indexes
+    assert len(chunks) > 1
+    last = max(chunk.chunk_start_offset for chunk in chunks)  # before the last chunk
+    data = bytearray(sample.read_bytes())
+    data[last:last] = data[last : last + 100]
+    damaged = tmp_path / "inserted.mcap"
+    damaged.write_bytes(bytes(data))
+    with pytest.raises(LogReadError) as raised, LogReader(damaged):
+        pass
+    said = str(raised.value)
+    assert said.startswith(f"{damaged}: ") and "--salvage" in said and "\n" not in said
+    with LogReader(damaged, salvage=True) as reader:
+        assert len(reader.losses) == 1 and reader.losses[0].startswith(f"{damaged}: ")
+        times = [m.log_time_ns for m in reader.messages()]
+    with LogReader(sample) as reader:
+        whole = [m.log_time_ns for m in reader.messages()]
+    assert 0 < len(times) < len(whole)
+    assert times == whole[: len(times)]
+
+
 def test_salvage_too_large_to_sort_keeps_every_message_in_file_order(
     tmp_path: Path, fr079, monkeypatch: pytest.MonkeyPatch
 ) -> None:
