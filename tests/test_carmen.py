@@ -588,6 +588,38 @@ def test_gzip_with_bytes_after_it_is_said_so(tmp_path: Path) -> None:
         read_carmen_log(path)
 
 
+def test_damaged_gzip_data_is_said_so(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A damaged byte inside the compressed data makes zlib's own error ("invalid distance too
+    far back"), which is no OSError: ``rose-bag convert`` ended in a traceback (found by fuzzing)."""
+    import gzip
+    import zlib
+
+    from real_data import CARMEN_DIR, repo_data
+
+    from rose_logs.cli import main
+
+    data = bytearray(repo_data(f"{CARMEN_DIR}/freiburg-079-corrected.head400.log.gz").read_bytes())
+    path = tmp_path / "log.gz"
+    for at in range(100, len(data) - 8):  # the first damage zlib itself refuses
+        damaged = data.copy()
+        damaged[at] ^= 0xFF
+        try:
+            gzip.decompress(bytes(damaged))
+        except zlib.error:
+            path.write_bytes(bytes(damaged))
+            break
+        except Exception:  # a CRC or length error: the gzip layer's, not zlib's; try on
+            continue
+    else:
+        pytest.fail("no damage zlib refuses")
+    with pytest.raises(CarmenFormatError, match=r"^\S+log\.gz: corrupt gzip data \(Error -3"):
+        read_carmen_log(path)
+    assert main(["convert", str(path), str(tmp_path / "s.mcap")]) == 1
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and err.startswith(f"error: {path}: corrupt gzip data")
+    assert not (tmp_path / "s.mcap").exists()
+
+
 def test_convert_refuses_a_map_file_clashing_with_the_session_before_ray_casting(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:

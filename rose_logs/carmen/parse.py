@@ -22,6 +22,7 @@ from __future__ import annotations
 import gzip
 import logging
 import math
+import zlib
 from collections import Counter
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
@@ -319,7 +320,7 @@ def _why_no_scans(path: Path, log: CarmenLog) -> str:
         try:
             with gzip.open(path, "rb") as unpacked:
                 head = unpacked.read(4096)
-        except (OSError, EOFError):
+        except (OSError, EOFError, zlib.error):
             head = b""
     if b"\0" in head:  # text logs hold no NUL byte
         return "not a CARMEN log (binary data, no FLASER scan)"
@@ -372,7 +373,9 @@ def read_carmen_log(path: str | Path, *, max_scans: int | None = None) -> Carmen
     check_carmen_file(path)
     try:
         log = parse_carmen_lines(_open_lines(path), path=path, max_scans=max_scans)
-    except gzip.BadGzipFile as err:  # an OSError whose words ("Not a gzipped file") mislead
+    # BadGzipFile: an OSError whose words ("Not a gzipped file") mislead; zlib.error: damaged
+    # compressed data ("invalid distance too far back"), which is no OSError at all.
+    except (gzip.BadGzipFile, zlib.error) as err:
         msg = (
             f"{path}: corrupt gzip data ({err}): bytes that are no gzip member follow or "
             "interrupt the compressed log (zcat may read the part before them)"
