@@ -130,3 +130,18 @@ def test_degenerate_is_given_whatever_the_count_of_occupied_cells(
     assert small["occupied_cells"] == large["occupied_cells"] == 5
     assert small["degenerate"] is not None and "a side of 10 cells" in small["degenerate"]
     assert large["degenerate"] is None
+
+
+def _github_anchor(heading: str) -> str:
+    """The anchor GitHub gives a heading: lower case, spaces to hyphens, other punctuation gone."""
+    return re.sub(r"[^\w\- ]", "", heading.strip().lower()).replace(" ", "-")
+
+
+def test_the_readmes_links_to_its_sections_lead_somewhere() -> None:
+    """The contents line and every ``(#anchor)`` link name a heading of the README."""
+    text = README.read_text(encoding="utf-8")
+    prose = re.sub(r"^```.*?^```", "", text, flags=re.M | re.S)  # a shell comment is no heading
+    anchors = {_github_anchor(h) for h in re.findall(r"^#{1,6} (.+)$", prose, re.M)}
+    links = re.findall(r"\]\(#([^)]+)\)", text)
+    assert len(links) >= 10  # the contents line
+    assert [link for link in links if link not in anchors] == []
