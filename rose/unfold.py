@@ -134,8 +134,12 @@ def _direction_bins(
     """:func:`direction_bins` of checked Python values."""
     n_bins = max(1, round(180.0 / angular_resolution_deg))
     step = math.pi / n_bins
-    u, v = frequency_grid(shape)
-    radius = np.hypot(u, v)
+    # Worked out once per padded shape: a SLAM map that grows gets a new one every few snapshots
+    # (the fast FFT lengths lie a few percent apart), and its analysis then paid this twice over.
+    # So no full grids of u and v (each cell's from its row and column), and the cells grouped by
+    # bin with a radix sort of 16-bit bins: the same bins as the plain computation, bit for bit.
+    u, v = frequency_axes(shape)
+    radius = np.hypot(u[np.newaxis, :], v[:, np.newaxis])
     outer = max(shape) / 2.0
     inside = (radius >= min_radius_px) & (radius <= outer)
     # One cell of each mirrored pair in the columns u = 0 and u = Nyquist (module notes): the rows
@@ -148,24 +152,29 @@ def _direction_bins(
     if shape[1] % 2 == 0:
         inside[mirrored, -1] = False
     cell_index = np.flatnonzero(inside)
-    wall_angle = np.arctan2(v.ravel()[cell_index], u.ravel()[cell_index]) + math.pi / 2
-    bin_index = np.rint(wall_angle / step).astype(np.intp) % n_bins
-    counts = np.bincount(bin_index, minlength=n_bins).astype(np.float64)
+    row_of, column_of = np.divmod(cell_index, u.size)
+    wall_angle = np.arctan2(v[row_of], u[column_of]) + math.pi / 2
+    bins = np.rint(wall_angle / step).astype(np.int32)
+    # arctan2 lies in [-pi, pi], so the bins in [-n_bins / 2, 3 n_bins / 2]: taken modulo n_bins.
+    bins[bins >= n_bins] -= n_bins
+    bins[bins < 0] += n_bins
+    counts = np.bincount(bins, minlength=n_bins)
     # Grouped by bin, in flat order within each: a bin's sum is then one contiguous reduction
     # (np.add.reduceat: half the time of np.bincount; its pairwise summation rounds differently
-    # by an ulp at most, the results of the data set's maps are bit-identical).
-    order = np.argsort(bin_index, kind="stable")
-    # Bin numbers fit in 32 bits (ANGULAR_RESOLUTION_RANGE_DEG): half the memory of intp, held
-    # per shape in the cache.
-    cell_index, sorted_bins = cell_index[order], bin_index[order].astype(np.int32)
-    starts = np.searchsorted(sorted_bins, np.arange(n_bins))
+    # by an ulp at most, the results of the data set's maps are bit-identical). Bins fit in 16 bits
+    # (ANGULAR_RESOLUTION_RANGE_DEG: at most 18,000), for which numpy's stable sort is a radix sort.
+    key = bins.astype(np.int16) if n_bins <= np.iinfo(np.int16).max else bins
+    order = np.argsort(key, kind="stable")
+    starts = np.zeros(n_bins, dtype=np.intp)
+    np.cumsum(counts[:-1], out=starts[1:])
     return seal(
         DirectionBins(
             centres=np.arange(n_bins, dtype=np.float64) * step,
-            cell_index=cell_index,
-            bin_index=sorted_bins,
+            cell_index=cell_index[order],
+            # 32 bits: half the memory of intp, held per shape in the cache.
+            bin_index=np.repeat(np.arange(n_bins, dtype=np.int32), counts),
             bin_starts=starts,
-            counts=counts,
+            counts=counts.astype(np.float64),
             radius_span_px=max(outer - min_radius_px, 0.0),
         )
     )

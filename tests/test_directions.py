@@ -189,6 +189,39 @@ def test_per_direction_sums_are_those_of_a_bincount(shape: tuple[int, int]) -> N
     assert_allclose(got[filled], expected, rtol=1e-12)
 
 
+@pytest.mark.parametrize(
+    ("shape", "resolution_deg", "min_radius_px"),
+    [((750, 1152), 0.25, 3.0), ((1, 1), 0.25, 0.0), ((17, 33), 0.01, 0.0), ((64, 40), 30.0, 4.0)],
+)
+def test_direction_bins_are_the_plain_computations(
+    shape: tuple[int, int], resolution_deg: float, min_radius_px: float
+) -> None:
+    """The bins are worked out without full frequency grids and sorted by a 16-bit radix sort
+    (a growing SLAM map needs them for a new padded shape every few snapshots): every cell in the
+    very bin, and in the very order, of the plain computation, which W and the labels rest on."""
+    import math
+
+    from rose.unfold import direction_bins, frequency_grid
+
+    bins = direction_bins(shape, angular_resolution_deg=resolution_deg, min_radius_px=min_radius_px)
+    n_bins = max(1, round(180.0 / resolution_deg))
+    u, v = frequency_grid(shape)
+    radius = np.hypot(u, v)
+    inside = (radius >= min_radius_px) & (radius <= max(shape) / 2.0)
+    mirrored = np.arange(shape[0]) > (-np.arange(shape[0])) % shape[0]
+    inside[mirrored, 0] = False
+    if shape[1] % 2 == 0:
+        inside[mirrored, -1] = False
+    cells = np.flatnonzero(inside)
+    angle = np.arctan2(v.ravel()[cells], u.ravel()[cells]) + math.pi / 2
+    plain = np.rint(angle / (math.pi / n_bins)).astype(np.intp) % n_bins
+    order = np.argsort(plain, kind="stable")
+    assert np.array_equal(bins.cell_index, cells[order])
+    assert np.array_equal(bins.bin_index, plain[order])
+    assert np.array_equal(bins.counts, np.bincount(plain, minlength=n_bins))
+    assert np.array_equal(bins.bin_starts, np.searchsorted(plain[order], np.arange(n_bins)))
+
+
 def test_one_decimal_views_round_the_reported_direction() -> None:
     """The same wall read 176.2 in the tables (one decimal of the reported 176.15) and 176.1 in
     Rerun (one decimal of the exact 176.1499...): every view rounds the reported value."""
