@@ -24,6 +24,7 @@ import pyarrow as pa
 import rerun as rr
 
 __all__ = [
+    "axis_angle",
     "batches",
     "described",
     "floats",
@@ -111,6 +112,25 @@ def points(positions: npt.ArrayLike, *, dims: int = 2) -> pa.FixedSizeListArray:
     return pa.Array.from_buffers(
         POSITION_TYPES[width], len(flat), [None], children=[_values(flat.reshape(-1))]
     )
+
+
+#: Rerun's RotationAxisAngle type: a Vec3D axis and an angle in radians (float32).
+AXIS_ANGLE_TYPE = pa.struct(
+    [
+        pa.field("axis", POSITION_TYPES[3], nullable=False),
+        pa.field("angle", pa.float32(), nullable=False),
+    ]
+)
+
+
+def axis_angle(axis: Sequence[float], radians: float) -> pa.StructArray:
+    """One rotation about ``axis`` by ``radians`` as Rerun's RotationAxisAngle array.
+
+    A transform built by Rerun (``rr.Transform3D``, ``rr.RotationAxisAngle``) took about 0.1 ms of
+    conversions: three per snapshot of a map that grows, whose images move with every snapshot."""
+    axis_array = points(np.asarray([axis], dtype=np.float32), dims=3)
+    angle = _values(np.array([radians], dtype=np.float32))
+    return pa.Array.from_buffers(AXIS_ANGLE_TYPE, 1, [None], children=[axis_array, angle])
 
 
 def strips(

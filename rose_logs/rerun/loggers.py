@@ -124,10 +124,15 @@ def _scalar(value: float) -> list[rr.DescribedComponentBatch]:
 def _placement(
     translation: tuple[float, float], angle: float, scale: float
 ) -> list[rr.DescribedComponentBatch]:
-    """:func:`placement_transform`'s components: Rerun's Transform3D cost about 0.1 ms to build,
-    three times per snapshot, and a snapshot's images share placements, as do snapshots of a map
-    that did not grow."""
-    return arrow.batches(placement_transform(translation, angle, scale))
+    """:func:`placement_transform`'s components, built as Arrow arrays (Rerun's Transform3D cost
+    about 0.1 ms to build, three times per snapshot of a map that grows); a snapshot's images
+    share placements, as do snapshots of a map that did not grow."""
+    return arrow.described(
+        rr.Transform3D,
+        translation=arrow.points([[*translation, 0.0]], dims=3),
+        rotation_axis_angle=arrow.axis_angle((0.0, 0.0, 1.0), angle),
+        scale=arrow.points([[scale, scale, 1.0]], dims=3),
+    )
 
 
 #: The break region's style (its outline's and its label's colour and width).
