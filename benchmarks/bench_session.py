@@ -2,7 +2,8 @@
 
 The session: ``--snapshots`` maps (default 720, one hour at one map every 5 s) of ``--size`` x ``--size``
 cells, cut from the Freiburg 079 exploration stages map2 .. map15 in order (each snapshot differs from
-the previous one, so no result is reused), plus ``sensor_msgs/LaserScan`` traffic at ``--scan-hz`` and, with ``--camera-hz``, 640 x 480 RGB
+the previous one, so no result is reused; with ``--growing`` each cut around its known cells, the grid
+growing as a SLAM map's does), plus ``sensor_msgs/LaserScan`` traffic at ``--scan-hz`` and, with ``--camera-hz``, 640 x 480 RGB
 ``sensor_msgs/Image`` messages (a log whose copying outweighs its maps: ``--snapshots 10 --period 10
 --camera-hz 30`` is 3,000 images, 0.9 GB).
 
@@ -12,7 +13,7 @@ their ratio. Prints numbers, asserts nothing.
 
 Usage::
 
-    python benchmarks/bench_session.py [--snapshots 720] [--size 1000] [--rrd] [--walls]
+    python benchmarks/bench_session.py [--snapshots 720] [--size 1000] [--growing] [--rrd] [--walls]
         [--clean-method walls|paper] [--format mcap] [--camera-hz 0] [--keep DIR]
 
 With ``--rrd`` it also prints the recording's size and the Rerun loggers' own cost per snapshot.
@@ -133,6 +134,42 @@ def stages(size: int) -> list[np.ndarray]:
     return out
 
 
+#: Unknown cells around a growing map's known ones, as SLAM maps keep a margin (2 m at 0.05 m).
+GROWING_MARGIN = 40
+
+
+def growing_maps(snapshots: int) -> list[tuple[np.ndarray, tuple[int, int]]]:
+    """The 14 exploration stages as a SLAM map that grows: each snapshot's grid is its stage cut to
+    a box around the known cells (and ``GROWING_MARGIN`` of unknown), the box growing smoothly
+    from one stage's to the next over the snapshots of a stage, so the grid's shape changes by a
+    few cells every ten snapshots or so (64 shapes in 720, about 400 x 900 cells), as the maps
+    slam_toolbox or Cartographer publish change theirs. With
+    each grid, where its cell (0, 0) lies in the stage's (rows, columns): its origin moves with
+    it, so a cell stays where it is in the map frame."""
+    grids = [rose.load_map(MAPS / f"map{n}.yaml").grid for n in range(2, 16)]
+    boxes = []
+    for grid in grids:
+        rows, cols = np.nonzero(grid >= 0)
+        boxes.append(np.array([rows.min(), cols.min(), rows.max() + 1, cols.max() + 1]))
+    out = []
+    for i in range(snapshots):
+        at = i * len(grids) / snapshots
+        stage = min(int(at), len(grids) - 1)
+        toward = boxes[min(stage + 1, len(grids) - 1)]
+        r0, c0, r1, c1 = np.rint(boxes[stage] + (at - stage) * (toward - boxes[stage])).astype(int)
+        grid = grids[stage]
+        canvas = np.full(
+            (r1 - r0 + 2 * GROWING_MARGIN, c1 - c0 + 2 * GROWING_MARGIN), -1, dtype=np.int8
+        )
+        # The known part of the box (a box grown toward the next stage may reach beyond this one's
+        # cells: unknown there).
+        canvas[
+            GROWING_MARGIN : GROWING_MARGIN + r1 - r0, GROWING_MARGIN : GROWING_MARGIN + c1 - c0
+        ] = grid[r0:r1, c0:c1]
+        out.append((canvas, (int(r0) - GROWING_MARGIN, int(c0) - GROWING_MARGIN)))
+    return out
+
+
 def build(
     path: Path,
     fmt: str,
@@ -142,9 +179,11 @@ def build(
     period_s: float,
     scan_hz: float,
     camera_hz: float = 0.0,
+    growing: bool = False,
 ) -> int:
-    """Write the session; returns the number of messages."""
-    maps = stages(size)
+    """Write the session; returns the number of messages. ``growing``: a map that grows
+    (:func:`growing_maps`), one grid per snapshot, instead of the stages at ``size`` x ``size``."""
+    maps = growing_maps(snapshots) if growing else [(grid, (0, 0)) for grid in stages(size)]
     period_ns = round(period_s * 1e9)
     scan_ns = round(1e9 / scan_hz) if scan_hz > 0 else 0
     camera_ns = round(1e9 / camera_hz) if camera_hz > 0 else 0
@@ -162,11 +201,14 @@ def build(
         image = rng.integers(0, 40, (480, 640, 3), dtype=np.uint8)
         for i in range(snapshots):
             t_map = START_NS + (i + 1) * period_ns
-            grid = maps[min(i * len(maps) // snapshots, len(maps) - 1)].copy()
-            grid[i % size, 0] = (
-                100 - grid[i % size, 0] if grid[i % size, 0] >= 0 else 0
-            )  # always differs
-            snap = MapSnapshot("/map", t_map, t_map, "map", grid, 0.05, (-25.0, -25.0, 0.0))
+            stage, (row0, col0) = maps[
+                i if growing else min(i * len(maps) // snapshots, len(maps) - 1)
+            ]
+            grid = stage.copy()
+            row = i % grid.shape[0]
+            grid[row, 0] = 100 - grid[row, 0] if grid[row, 0] >= 0 else 0  # always differs
+            origin = (-25.0 + 0.05 * col0, -25.0 + 0.05 * row0, 0.0)  # row 0 = the origin's
+            snap = MapSnapshot("/map", t_map, t_map, "map", grid, 0.05, origin)
             # In log-time order, as a recorder writes: the interval's scans and images, then its
             # map.
             interval = range(t_map - period_ns, t_map)
@@ -309,6 +351,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--clean-method", choices=("walls", "paper"), default="walls", help="how maps are cleaned"
     )
+    parser.add_argument(
+        "--growing",
+        action="store_true",
+        help="a map that grows (its grid cut around its known cells, a new shape every ten "
+        "snapshots or so) instead of the stages at --size x --size",
+    )
     parser.add_argument("--keep", type=Path, default=None, help="work here and keep the files")
     args = parser.parse_args(argv)
     keep_arrays_on_heap()  # as the rose-bag command does: measure what its users get
@@ -332,6 +380,7 @@ def main(argv: list[str] | None = None) -> int:
                     "period_s": args.period,
                     "scan_hz": args.scan_hz,
                     "camera_hz": args.camera_hz,
+                    "growing": args.growing,
                 },
             )
         build_s = time.perf_counter() - t0
@@ -352,8 +401,14 @@ def main(argv: list[str] | None = None) -> int:
         n = len(report.records)
         analysed = sum(not r.reused for r in report.records)
         print(f"cpu cores          {os.cpu_count()}")
+        sizes = sorted({(r.height, r.width) for r in report.records}, key=lambda hw: hw[0] * hw[1])
+        grids = (
+            f"{len(sizes)} grid shapes, {sizes[0][0]} x {sizes[0][1]} .. {sizes[-1][0]} x {sizes[-1][1]}"
+            if args.growing
+            else f"{args.size} x {args.size}"
+        )
         print(
-            f"session            {args.format}, {n} snapshots of {args.size} x {args.size}, "
+            f"session            {args.format}, {n} snapshots of {grids}, "
             f"{messages} messages, {size_mb:.1f} MB, {args.snapshots * args.period / 60:.0f} min of log "
             f"(built in {build_s:.1f} s)"
         )
