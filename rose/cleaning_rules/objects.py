@@ -191,9 +191,11 @@ def _in_line(
     most ``rounds`` times, until a round finds nothing) with the cells found so far among the
     ``walls`` and no longer among the ``removed`` cells.
 
-    The pieces' geometry along each direction is worked out once: the pieces left in a round are
-    the same cells, in the same order, as in the first. The cells found are read by flat index
-    with the walls, not merged into a full-map copy of them each round."""
+    The pieces' geometry along each direction is worked out once, and so are the cells past
+    their ends and what ``walls`` and ``free`` hold there (:class:`_Rays`): the pieces left in a
+    round are the same cells, in the same order, as in the first, and only the cells found so far
+    change between rounds. They are read by flat index with the walls, not merged into a full-map
+    copy of them each round."""
     out = np.zeros(removed.shape, dtype=bool)
     in_removed = removed.reshape(-1)[pieces.cells]
     if directions.size == 0 or not in_removed.any() or gap_px < 1:
@@ -206,7 +208,8 @@ def _in_line(
     steps = np.arange(1, gap_px + anchor + 1, dtype=np.float64)
     # The masks read by flat index at the cells looked at (C order; a copy only for another one).
     walls_flat, free_flat = walls.reshape(-1), free.reshape(-1)
-    # Per direction: the direction, across it, and each piece's ends, line and shape test.
+    # Per direction: the pieces of the right shape, where each one's row of rays is (-1: none),
+    # and the rays past both ends of each (beyond the high end forwards, the low end backwards).
     frames = []
     for angle in directions:
         along = np.array([math.cos(angle), math.sin(angle)])  # (col, row): the wall's direction
@@ -219,28 +222,38 @@ def _in_line(
         length = high - low + 1 + 1e-6
         # (A dash may be as short as a cell, but no thicker than long.)
         shortest = np.maximum(width, 1) if dashed else np.maximum(2 * width, 4)
-        shaped = (width <= thin + 1e-6) & (length >= shortest)
-        middle = np.add.reduceat(n, starts) / sizes
-        frames.append((along, across, low, high, shaped, middle))
+        shaped = np.flatnonzero((width <= thin + 1e-6) & (length >= shortest))
+        if shaped.size == 0:
+            continue
+        row_of = np.full(starts.size, -1, dtype=np.intp)
+        row_of[shaped] = np.arange(shaped.size)
+        middle = np.add.reduceat(n, starts)[shaped] / sizes[shaped]
+        rays = _Rays.past(
+            np.concatenate([high[shaped], low[shaped]]),
+            np.tile(middle, 2),
+            steps,
+            np.repeat([True, False], shaped.size),
+            along,
+            across,
+            walls_flat,
+            free_flat,
+            walls.shape,
+        )
+        frames.append((row_of, shaped.size, rays))
     pending = np.ones(starts.size, dtype=bool)  # pieces not found in an earlier round
     found_flat: npt.NDArray[np.bool_] | None = None  # the cells found so far, flat
     for _ in range(rounds):
         kept = np.zeros(starts.size, dtype=bool)
-        for along, across, low, high, shaped, middle in frames:
-            candidate = np.flatnonzero(shaped & pending & ~kept)
+        for row_of, shaped_count, rays in frames:
+            candidate = np.flatnonzero((row_of >= 0) & pending & ~kept)
             if candidate.size == 0:
                 continue
-            # Both ends in one look: beyond the high end forwards, beyond the low end backwards.
+            # Both ends in one look: the high ends' rays first, then the low ends'.
+            slots = row_of[candidate]
             found = _door_then_wall(
-                np.concatenate([high[candidate], low[candidate]]),
-                np.tile(middle[candidate], 2),
-                steps,
-                np.repeat([True, False], candidate.size),
-                along,
-                across,
-                walls_flat,
-                free_flat,
-                walls.shape,
+                rays
+                if slots.size == shaped_count  # (all of them, in order)
+                else rays.picked(np.concatenate([slots, slots + shaped_count])),
                 gap_px,
                 anchor,
                 min_hits=-(-anchor // 2) if dashed else anchor,
@@ -259,57 +272,95 @@ def _in_line(
     return out
 
 
+@dataclass(frozen=True)
+class _Rays:
+    """Rays of cells past pieces' ends, each ``steps`` cells along the wall direction and three
+    cells across it (the line and a cell either side): their flat indices ``at`` (0 off the
+    grid), shape ``(N, steps, 3)``; which are ``walls`` cells (``on_wall``, not off the grid);
+    which cells of the line are ``free`` (``open_``, shape ``(N, steps)``); and which are on the
+    grid (``inside``; None when all are)."""
+
+    at: npt.NDArray[np.intp]
+    inside: npt.NDArray[np.bool_] | None
+    on_wall: npt.NDArray[np.bool_]
+    open_: npt.NDArray[np.bool_]
+
+    @classmethod
+    def past(
+        cls,
+        end: npt.NDArray[np.float64],
+        middle: npt.NDArray[np.float64],
+        steps: npt.NDArray[np.float64],
+        forwards: npt.NDArray[np.bool_],
+        along: npt.NDArray[np.float64],
+        across: npt.NDArray[np.float64],
+        walls: npt.NDArray[np.bool_],
+        free: npt.NDArray[np.bool_],
+        shape: tuple[int, int],
+    ) -> _Rays:
+        """The rays past pieces ending at ``end`` (along the wall direction) on the line
+        ``middle`` (across it), forwards or backwards along the direction as ``forwards`` says.
+        ``walls`` and ``free``: masks of ``shape`` flattened (C order)."""
+        # (end - steps is end + -steps, exactly.)
+        t = np.where(forwards[:, None], end[:, None] + steps, end[:, None] - steps)[:, :, None]
+        s = middle[:, None, None] + np.array([-1.0, 0.0, 1.0])
+        col = t * along[0] + s * across[0]
+        row = t * along[1] + s * across[1]
+        np.rint(col, out=col)
+        np.rint(row, out=row)
+        rows, cols = shape
+        # The flat index worked out in floats (whole numbers far below 2**53: exact), converted
+        # once.
+        flat = row * cols
+        flat += col
+        at = flat.astype(np.intp)
+        inside: npt.NDArray[np.bool_] | None = None
+        if not (row.min() >= 0 and row.max() < rows and col.min() >= 0 and col.max() < cols):
+            inside = (row >= 0) & (row < rows) & (col >= 0) & (col < cols)
+            at[~inside] = 0
+        on_wall = walls[at]
+        open_ = free[at[:, :, 1]]
+        if inside is not None:
+            on_wall &= inside
+            open_ &= inside[:, :, 1]
+        return cls(at, inside, on_wall, open_)
+
+    def picked(self, index: npt.NDArray[np.intp]) -> _Rays:
+        """The rays at ``index``, in that order."""
+        return _Rays(
+            self.at[index],
+            None if self.inside is None else self.inside[index],
+            self.on_wall[index],
+            self.open_[index],
+        )
+
+
 def _door_then_wall(
-    end: npt.NDArray[np.float64],
-    middle: npt.NDArray[np.float64],
-    steps: npt.NDArray[np.float64],
-    forwards: npt.NDArray[np.bool_],
-    along: npt.NDArray[np.float64],
-    across: npt.NDArray[np.float64],
-    walls: npt.NDArray[np.bool_],
-    free: npt.NDArray[np.bool_],
-    shape: tuple[int, int],
+    rays: _Rays,
     door: int,
     anchor: int,
     *,
     min_hits: int,
     also: npt.NDArray[np.bool_] | None = None,
 ) -> npt.NDArray[np.bool_]:
-    """For pieces ending at ``end`` (along the wall direction) on the line ``middle`` (across it):
-    whether the cells past the end (``steps`` cells on, forwards or backwards along the direction
-    as ``forwards`` says) are free for at most ``door`` cells and then ``walls`` in ``min_hits``
-    of the next ``anchor`` cells, within a cell of the line. ``walls`` and ``free``: masks of
-    ``shape`` flattened (C order); ``also``: more wall cells, the same way (or None)."""
-    # (end - steps is end + -steps, exactly.)
-    t = np.where(forwards[:, None], end[:, None] + steps, end[:, None] - steps)[:, :, None]
-    s = middle[:, None, None] + np.array([-1.0, 0.0, 1.0])
-    col = t * along[0] + s * across[0]
-    row = t * along[1] + s * across[1]
-    np.rint(col, out=col)
-    np.rint(row, out=row)
-    rows, cols = shape
-    # The flat index worked out in floats (whole numbers far below 2**53: exact), converted once.
-    flat = row * cols
-    flat += col
-    at = flat.astype(np.intp)
-    inside: npt.NDArray[np.bool_] | None = None
-    if not (row.min() >= 0 and row.max() < rows and col.min() >= 0 and col.max() < cols):
-        inside = (row >= 0) & (row < rows) & (col >= 0) & (col < cols)
-        at[~inside] = 0
-    on_wall = walls[at]
+    """For each of the ``rays`` past a piece's end: whether its line's cells are free for at most
+    ``door`` cells and then wall cells (of the ray's walls, or of ``also``: more wall cells, a
+    flattened mask as theirs, or None) in ``min_hits`` of the next ``anchor`` cells, within a
+    cell of the line."""
+    on_wall = rays.on_wall
     if also is not None:
-        on_wall |= also[at]
-    open_ = free[at[:, :, 1]]
-    if inside is not None:
-        on_wall &= inside
-        open_ &= inside[:, :, 1]
+        more = also[rays.at]
+        if rays.inside is not None:
+            more &= rays.inside
+        on_wall = on_wall | more
     wall = on_wall[:, :, 0] | on_wall[:, :, 1] | on_wall[:, :, 2]
+    size = wall.shape[1]
     hit = np.argmax(wall, axis=1)
     reached = wall.any(axis=1) & (hit >= 1) & (hit <= door)
-    before = np.arange(steps.size)[None, :] < hit[:, None]
-    clear = np.all(open_ | ~before, axis=1)
-    after = (np.arange(steps.size)[None, :] >= hit[:, None]) & (
-        np.arange(steps.size)[None, :] < hit[:, None] + anchor
+    before = np.arange(size)[None, :] < hit[:, None]
+    clear = np.all(rays.open_ | ~before, axis=1)
+    after = (np.arange(size)[None, :] >= hit[:, None]) & (
+        np.arange(size)[None, :] < hit[:, None] + anchor
     )
     anchored = np.sum(wall & after, axis=1) >= min_hits
     return reached & clear & anchored
