@@ -541,25 +541,36 @@ def _walls_cleaning(
 ) -> CleanResult:
     """The ``"walls"`` method (module notes) on ``occupancy`` (int8 ROS grid), cells of
     ``resolution_m`` metres, starting from ``result`` (which found structure)."""
-    from rose.cleaning_rules import wall_cells
+    from rose.cleaning_rules import wall_cells_in_window
 
-    walls, guarded, completed, dropped = wall_cells(
+    window, (walls_in, guarded_in, completed_in, dropped_in) = wall_cells_in_window(
         occupancy, result, resolution_m=resolution_m, params=params
     )
-    occupied = result.occupied
-    kept = np.greater(result.structure, dropped)  # structure & ~dropped, one pass
-    kept |= walls
-    kept &= occupied
-    removed = np.greater(occupied, kept)
+    # Beyond the window no cell is occupied, and the rules' masks are all False there: every mask
+    # is worked out within it, into fresh zeros (their pages mapped only where written), instead
+    # of in passes over the whole grid.
+    kept, removed, rescued, guarded, completed = (
+        np.zeros(occupancy.shape, dtype=bool) for _ in range(5)
+    )
+    occupied = result.occupied[window]
+    kept_in = kept[window]
+    np.greater(result.structure[window], dropped_in, out=kept_in)  # structure & ~dropped
+    kept_in |= walls_in
+    kept_in &= occupied
+    removed_in = np.greater(occupied, kept_in, out=removed[window])
+    np.logical_and(kept_in, result.clutter[window], out=rescued[window])
+    np.logical_and(guarded_in, result.clutter[window], out=guarded[window])
+    completed[window] = completed_in
     cleaned = occupancy.copy()
-    cleaned[removed] = result.params.clutter_cell_value
-    cleaned[completed] = OCCUPIED
+    # copyto's mask: no list of the mask's cells first, as an assignment through it makes.
+    np.copyto(cleaned[window], result.params.clutter_cell_value, where=removed_in)
+    np.copyto(cleaned[window], OCCUPIED, where=completed_in)
     if _LOG.isEnabledFor(logging.DEBUG):  # the counts cost map-sized passes
         _LOG.debug(
             "walls cleaning: %d cells kept (%d rescued, %d by the guard), %d removed, %d completed",
             int(np.count_nonzero(kept)),
-            int(np.count_nonzero(kept & result.clutter)),
-            int(np.count_nonzero(guarded & result.clutter)),
+            int(np.count_nonzero(rescued)),
+            int(np.count_nonzero(guarded)),
             int(np.count_nonzero(removed)),
             int(np.count_nonzero(completed)),
         )
@@ -569,8 +580,8 @@ def _walls_cleaning(
             method="walls",
             kept=kept,
             removed=removed,
-            rescued=kept & result.clutter,
-            guarded=guarded & result.clutter,
+            rescued=rescued,
+            guarded=guarded,
             completed=completed,
             resolution_m=resolution_m,
             params=params,

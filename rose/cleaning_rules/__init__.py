@@ -87,6 +87,7 @@ __all__ = [
     "straight_lines",
     "topology_guard",
     "wall_cells",
+    "wall_cells_in_window",
     "wide_unknown",
 ]
 
@@ -142,9 +143,33 @@ def wall_cells(
         Object faces and occupied cells of free-standing pieces: removed even where the paper
         calls them structure.
     """
+    window, outs = wall_cells_in_window(occupancy, result, resolution_m=resolution_m, params=params)
+    # Made after the rules, whose own arrays are the cleaning's peak memory.
+    masks = _nothing_kept(occupancy.shape)
+    for mask, out in zip(masks, outs, strict=True):
+        mask[window] = out
+    return masks
+
+
+def wall_cells_in_window(
+    occupancy: npt.NDArray[np.int8],
+    result: RoseResult,
+    *,
+    resolution_m: float,
+    params: CleanParams,
+) -> tuple[
+    tuple[slice, slice],
+    tuple[
+        npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_]
+    ],
+]:
+    """:func:`wall_cells`' four masks on the window of the grid outside which all of them are
+    False (the known cells' bounding box, padded; empty when no cell is occupied): the window
+    (rows, columns) and the masks of its shape. The caller's own work on the masks can stay
+    within the window too (a session map's window is often a third of the grid)."""
     p = params
     if not result.occupied.any():
-        return _nothing_kept(occupancy.shape)
+        return (slice(0, 0), slice(0, 0)), _nothing_kept((0, 0))
     # Coarse maps are cleaned on their cells split, fine ones on blocks of them joined: both at
     # about the design size (``res``); at most one of ``factor`` and ``merge`` is over 1.
     factor = refinement(resolution_m)
@@ -192,13 +217,7 @@ def wall_cells(
         ]
         for out in _joined_outputs(outs, factor)
     )
-    # Made after the rules, whose own arrays are the cleaning's peak memory.
-    walls, guarded, completed, dropped = _nothing_kept(occupancy.shape)
-    walls[window] = kept
-    guarded[window] = restored
-    completed[window] = added
-    dropped[window] = removed
-    return walls, guarded, completed, dropped
+    return window, (kept, restored, added, removed)
 
 
 #: Slack in the ratios of cell sizes (:func:`refinement`, :func:`coarsening`): a ROS map message
