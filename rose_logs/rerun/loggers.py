@@ -124,9 +124,10 @@ def _scalar(value: float) -> list[rr.DescribedComponentBatch]:
 def _placement(
     translation: tuple[float, float], angle: float, scale: float
 ) -> list[rr.DescribedComponentBatch]:
-    """:func:`placement_transform`'s components, built as Arrow arrays (Rerun's Transform3D cost
-    about 0.1 ms to build, three times per snapshot of a map that grows); a snapshot's images
-    share placements, as do snapshots of a map that did not grow."""
+    """The components of the transform that places pixels by :func:`placement_terms`' terms
+    (translation in x-y, rotation about z, scale in x-y), built as Arrow arrays (Rerun's
+    Transform3D cost about 0.1 ms to build, three times per snapshot of a map that grows); a
+    snapshot's images share placements, as do snapshots of a map that did not grow."""
     return arrow.described(
         rr.Transform3D,
         translation=arrow.points([[*translation, 0.0]], dims=3),
@@ -199,7 +200,7 @@ def placement_terms(
     :func:`~conv.pooled_window`): in metres of the map frame from ``view_origin``
     (:func:`view_origin_m`), north up (x east, y south: 2D views draw y downwards). Returns
     ``(translation, rotation angle (radians, about z), scale)``: a pixel ``p`` lands at
-    ``translation + R(angle) (scale * p)`` (:func:`placement_transform` makes it Rerun's transform).
+    ``translation + R(angle) (scale * p)`` (:func:`_placement` makes it Rerun's transform).
 
     Every snapshot lands where it lies in the map, so a map that grows, moves its origin or changes
     resolution during a session stays in place in the views (in pixels, each grid size had its own
@@ -217,17 +218,6 @@ def placement_terms(
         -(oy - view_origin[1]) - res * (s * x0 + c * y1),
     )
     return translation, -yaw, res * factor
-
-
-def placement_transform(
-    translation: tuple[float, float], angle: float, scale: float
-) -> rr.Transform3D:
-    """The transform of :func:`placement_terms`' terms."""
-    return rr.Transform3D(
-        translation=[*translation, 0.0],
-        rotation=rr.RotationAxisAngle(axis=[0.0, 0.0, 1.0], radians=angle),
-        scale=[scale, scale, 1.0],
-    )
 
 
 def north_up_m(

@@ -177,7 +177,16 @@ def test_batches_are_the_archetypes_components() -> None:
 def test_image_placements_are_rerun_transforms(rng) -> None:
     """A map that grows moves its images with every snapshot: their placements are built as
     Arrow arrays (Rerun's Transform3D took about 0.1 ms each), the very components Rerun makes."""
-    from rose_logs.rerun.loggers import _placement, placement_transform
+    from rose_logs.rerun.loggers import _placement
+
+    def placement_transform(
+        translation: tuple[float, float], angle: float, scale: float
+    ) -> rr.Transform3D:
+        return rr.Transform3D(
+            translation=[*translation, 0.0],
+            rotation=rr.RotationAxisAngle(axis=[0.0, 0.0, 1.0], radians=angle),
+            scale=[scale, scale, 1.0],
+        )
 
     for translation, angle, scale in [((1.5, -2.25), 0.3, 0.05), ((0.0, 0.0), -0.0, 1.0)] + [
         ((float(x), float(y)), float(a), float(s))
