@@ -11,7 +11,6 @@ import itertools
 import logging
 import os
 import struct
-import zlib
 from collections.abc import Callable, Generator, Iterable, Iterator
 from concurrent.futures import Future
 from dataclasses import dataclass
@@ -93,6 +92,8 @@ def _check_summary_crc(stream: BinaryIO, size: int) -> None:
     The CRC covers the summary section and the footer up to the CRC itself; the ``mcap`` package's
     reader does not check it, and a damaged index or count then read as a wrong one.
     """
+    from isal.isal_zlib import crc32
+
     footer = _footer(stream, size)
     if footer is None:
         return  # no footer where a complete file has it (cut short?): the reader says what is wrong
@@ -106,7 +107,7 @@ def _check_summary_crc(stream: BinaryIO, size: int) -> None:
         block = stream.read(min(left, 1 << 20))
         if not block:
             return  # shorter than it says: the reader says what is wrong
-        actual = zlib.crc32(block, actual)
+        actual = crc32(block, actual)
         left -= len(block)
     if actual != crc:
         msg = (
@@ -114,6 +115,27 @@ def _check_summary_crc(stream: BinaryIO, size: int) -> None:
             f"the footer says {crc:#010x}"
         )
         raise DamagedSummaryError(msg)
+
+
+def _chunk_records(chunk: Any) -> list[Any]:
+    """The records of ``chunk`` (an ``mcap`` Chunk record), its CRC checked: the library's
+    ``breakup_chunk(chunk, validate_crc=True)``, with ISA-L's CRC-32 for zstd chunks.
+
+    The library's check takes zlib's CRC-32, 17 times slower (0.2 ms a MiB; the one-hour session
+    reads 740 MiB). Raises what the library raises: its ``CRCValidationError``, zstandard's error
+    on damaged data.
+    """
+    import zstandard
+    from isal.isal_zlib import crc32
+    from mcap.stream_reader import CRCValidationError, breakup_chunk
+
+    if chunk.compression != "zstd":
+        return breakup_chunk(chunk, validate_crc=True)
+    data = zstandard.decompress(chunk.data, chunk.uncompressed_size)
+    actual = crc32(data)
+    if chunk.uncompressed_crc != 0 and actual != chunk.uncompressed_crc:
+        raise CRCValidationError(expected=chunk.uncompressed_crc, actual=actual, record=chunk)
+    return breakup_chunk(dataclasses.replace(chunk, compression="", data=data))
 
 
 @dataclass(frozen=True)
@@ -521,7 +543,6 @@ class McapReadBackend:
         record (a length of 2**60 would have been read from the file)."""
         from mcap.data_stream import ReadDataStream
         from mcap.records import Chunk, Message
-        from mcap.stream_reader import breakup_chunk
 
         assert self.stream is not None
         offset = index.chunk_start_offset
@@ -530,7 +551,7 @@ class McapReadBackend:
             msg = "no chunk record where the index points"
             raise ValueError(msg)
         chunk = Chunk.read(ReadDataStream(io.BytesIO(raw[9:])))
-        return [r for r in breakup_chunk(chunk, validate_crc=True) if isinstance(r, Message)]
+        return [r for r in _chunk_records(chunk) if isinstance(r, Message)]
 
     def _around_damaged_chunks(self, topics: set[str] | None) -> Iterator[RawMessage]:
         """:meth:`messages` through the chunk index, skipping the chunks that cannot be read.
@@ -917,6 +938,7 @@ def load_decompressors() -> None:
     ``ulimit -v``), and every chunk compressed with it was "unsupported compression": a sound log
     said corrupt, its chunks skipped by ``--salvage``. Failing here, it is the ImportError it is
     ("out of memory (library zstandard could not be loaded)")."""
+    import isal.isal_zlib  # noqa: F401  (our CRC-32 of the chunks)
     import lz4.frame  # type: ignore[import-untyped]  # noqa: F401
     import zstandard  # noqa: F401
 

@@ -7,20 +7,21 @@ to the analyses: the chunks' zstd and CRC took about a third of its time. Here a
 one ``struct.pack``, and each full chunk is compressed, checksummed and written by one thread of
 its own, in order, while the caller reads on: a log whose copying outweighs its maps (camera
 images) is processed 20-25 % faster (docs/measurements.md, fifty-eighth session). The file is the
-library's (the same records in the same order, compressed by the same call):
+library's (the same records in the same order, compressed by the same call; the same CRC-32,
+by ISA-L's faster code):
 ``tests/logs/test_mcap_writer.py`` compares the two.
 """
 
 from __future__ import annotations
 
 import struct
-import zlib
 from collections import deque
 from collections.abc import Callable
 from concurrent.futures import Future
 from typing import BinaryIO
 
 import zstandard
+from isal.isal_zlib import crc32
 from mcap.data_stream import RecordBuilder
 from mcap.opcode import Opcode
 from mcap.records import (
@@ -282,7 +283,7 @@ class ThreadedMcapWriter:
             data=compressed,
             message_start_time=start,
             message_end_time=end,
-            uncompressed_crc=zlib.crc32(data),
+            uncompressed_crc=crc32(data),
             uncompressed_size=len(data),
         ).write(builder)
         chunk_record = builder.end()
@@ -334,9 +335,9 @@ class ThreadedMcapWriter:
         for offset in offsets:
             offset.write(builder)
         summary = builder.end()
-        crc = zlib.crc32(
+        crc = crc32(
             _FOOTER_START.pack(Opcode.FOOTER, 8 + 8 + 4, summary_start, offsets_start),
-            zlib.crc32(summary),
+            crc32(summary),
         )
         Footer(
             summary_start=summary_start, summary_offset_start=offsets_start, summary_crc=crc

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import tracemalloc
 from pathlib import Path
 from typing import Any
@@ -9,7 +10,9 @@ from typing import Any
 import numpy as np
 import pytest
 from mcap.reader import make_reader
-from mcap.writer import IndexType, Writer
+from mcap.records import Chunk
+from mcap.stream_reader import StreamReader
+from mcap.writer import CompressionType, IndexType, Writer
 
 from rose_logs.storage.mcap import McapReadBackend
 
@@ -239,6 +242,33 @@ def test_a_damaged_chunk_read_ahead_fails_in_its_turn(tmp_path: Path) -> None:
         backend.close()
     assert read == list(range(1000, 1000 + earlier))
     assert _reading_threads() <= before
+
+
+@pytest.mark.parametrize(
+    "compression", [CompressionType.ZSTD, CompressionType.LZ4, CompressionType.NONE]
+)
+def test_a_chunk_reads_as_the_library_reads_it_and_a_wrong_crc_fails(
+    tmp_path: Path, compression: CompressionType
+) -> None:
+    """Our chunk reading (zstd chunks checked with ISA-L's CRC-32) gives the library's records
+    for every compression, and fails on a chunk whose data is intact but whose CRC is not."""
+    from mcap.stream_reader import CRCValidationError, breakup_chunk
+
+    from rose_logs.storage.mcap import _chunk_records
+
+    path = tmp_path / "chunks.mcap"
+    _write(path, list(range(1000, 1100)), [i % 3 for i in range(100)], 300, compression=compression)
+    with path.open("rb") as stream:
+        chunks = [r for r in StreamReader(stream, emit_chunks=True).records if isinstance(r, Chunk)]
+    assert len(chunks) > 3
+    for chunk in chunks:
+        assert chunk.uncompressed_crc != 0
+        assert _chunk_records(chunk) == breakup_chunk(chunk, validate_crc=True)
+        wrong = dataclasses.replace(chunk, uncompressed_crc=chunk.uncompressed_crc ^ 1)
+        with pytest.raises(CRCValidationError):
+            _chunk_records(wrong)
+        unchecked = dataclasses.replace(chunk, uncompressed_crc=0)  # 0: no CRC written
+        assert _chunk_records(unchecked) == breakup_chunk(chunk)
 
 
 def test_the_reading_thread_ends_when_the_reader_stops_early(tmp_path: Path) -> None:
