@@ -123,6 +123,29 @@ def test_score_does_not_claim_structure_in_a_degenerate_map(
     ]
 
 
+def test_the_note_under_the_table_gives_the_reason_the_json_gives(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A 10 x 10 map of 5 occupied cells is outside ROSE's domain (a side under 16 cells) and has
+    fewer than 20 occupied cells: the table's note said the count, the JSON's `degenerate` the
+    side. The note now gives the cause first, as the JSON; inside the domain it gives the count."""
+    paths = []
+    for side in (10, 40):
+        grid = np.zeros((side, side), np.int8)
+        grid[4, 2:7] = 100
+        paths.append(tmp_path / f"m{side}.yaml")
+        rose.save_map(paths[-1], rose.OccupancyMap(grid=grid, resolution_m=0.05))
+    assert main(["score", "--json", *map(str, paths)]) == 0
+    small, _ = json.loads(capsys.readouterr().out)
+    assert main(["score", *map(str, paths)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[-2:] == [
+        f"* {paths[0]}: {small['degenerate']}: W says nothing about this map",
+        f"* {paths[1]}: only 5 occupied cells (fewer than 20): W says nothing about this map",
+    ]
+    assert small["degenerate"].startswith("a side of 10 cells")
+
+
 @pytest.mark.parametrize(
     ("grid", "caveat"),
     [

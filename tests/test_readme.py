@@ -132,6 +132,26 @@ def test_degenerate_is_given_whatever_the_count_of_occupied_cells(
     assert large["degenerate"] is None
 
 
+def test_the_solid_blocks_the_readme_gives_read_as_it_says() -> None:
+    """A solid map's W and labels follow the grid's shape; the README gave 100 x 100 "no clutter"
+    and 100 x 101 "97 %" long after they read the other way round (all clutter, none)."""
+    import numpy as np
+
+    text = " ".join(README.read_text(encoding="utf-8").split())
+    w = re.search(r"a (\d+) x (\d+) block reads W = ([\d.]+)", text)
+    labels = re.search(
+        r"a (\d+) x (\d+) block has every cell labelled clutter and a (\d+) x (\d+) block none",
+        text,
+    )
+    assert w is not None and labels is not None
+    rows, cols, said = int(w[1]), int(w[2]), w[3]
+    assert f"{rose.analyze(np.full((rows, cols), 100, np.int8)).structure_score:.3f}" == said
+    all_clutter = rose.analyze(np.full((int(labels[1]), int(labels[2])), 100, np.int8))
+    assert all_clutter.clutter_count == all_clutter.occupied_count > 0
+    none = rose.analyze(np.full((int(labels[3]), int(labels[4])), 100, np.int8))
+    assert none.clutter_count == 0 < none.occupied_count
+
+
 def _github_anchor(heading: str) -> str:
     """The anchor GitHub gives a heading: lower case, spaces to hyphens, other punctuation gone."""
     return re.sub(r"[^\w\- ]", "", heading.strip().lower()).replace(" ", "-")

@@ -473,13 +473,15 @@ def verdict(
         return f"{degenerate}: W says nothing about this map; {nothing_labelled}"
     if not has_structure:
         return nothing_labelled
+    # The cause first here too: a 10 x 10 map of 5 occupied cells read "only 5 occupied cells" in
+    # the table and "a side of 10 cells" in JSON.
+    if degenerate is not None:
+        return f"{degenerate}: W says nothing about this map"
     if occupied_cells is not None and not w_judges(occupied_cells):
         return (
             f"only {cells(occupied_cells, 'occupied')} (fewer than {MIN_JUDGED_CELLS}): "
             "W says nothing about this map"
         )
-    if degenerate is not None:
-        return f"{degenerate}: W says nothing about this map"
     if score < TRUST_LEVEL:
         return "structured: decluttering can be trusted"
     if score <= FAILURE_LEVEL:
