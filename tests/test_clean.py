@@ -150,6 +150,41 @@ def test_a_map_cropped_tight_against_its_wall_cleans_as_with_a_margin_of_unknown
         assert cleaned.kept[40:68, 80:82].all(), tight.shape
 
 
+@pytest.mark.parametrize("cell_m", [0.05, 0.025])
+@pytest.mark.parametrize("pad", [(1, 0), (3, 5), (7, 2)])
+def test_a_map_that_grows_up_or_left_cleans_its_cells_as_before(
+    pad: tuple[int, int], cell_m: float
+) -> None:
+    """A SLAM map grows at its top and left by rows and columns of unknown cells, its origin moving
+    with them: the cells it had clean the same, given the same ROSE labels (the labels themselves
+    follow the padded FFT shape, as the method does). The rules' windows, cut grids and joined
+    blocks are placed by the known cells, not by where the grid starts (read at 0.025 m, the map
+    is cleaned on 2 x 2 blocks of its cells)."""
+    grid = rose.load_map(
+        repo_data("rose2_aislabunimi/Freiburg_Building_079_partial/map15.yaml")
+    ).grid
+    result = rose.analyze(grid)
+    before = clean(grid, result, resolution_m=cell_m)
+    rows, cols = pad
+    grown = np.pad(grid, ((rows, 0), (cols, 0)), constant_values=-1)
+
+    def padded(mask: npt.NDArray[np.generic], value: object = False) -> npt.NDArray[np.generic]:
+        return np.pad(mask, ((rows, 0), (cols, 0)), constant_values=value)
+
+    same_labels = dataclasses.replace(
+        result,
+        occupied=padded(result.occupied),
+        structure=padded(result.structure),
+        clutter=padded(result.clutter),
+        cleaned=padded(result.cleaned, -1),
+        cell_scores=padded(result.cell_scores, 0.0),
+    )
+    after = clean(grown, same_labels, resolution_m=cell_m)
+    for name in ("kept", "removed", "guarded", "completed"):
+        assert np.array_equal(getattr(after, name)[rows:, cols:], getattr(before, name)), name
+    assert before.removed.any() and before.completed.any()
+
+
 def test_result_shapes_partition_and_counts() -> None:
     grid, _, _ = closed_building()
     result = rose.analyze(grid)
