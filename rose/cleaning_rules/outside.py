@@ -93,6 +93,10 @@ def _wide(unknown: npt.NDArray[np.bool_], radius_px: float) -> npt.NDArray[np.bo
     # which edges it cuts depended on where the map's known cells start: a wall at 45 degrees on
     # the explored edge lay within the wall margin of it or not by that (docs/cleaning.md,
     # 2026-12-07). Each grid's blocks fit where another's stop short.
+    radius = radius_px / 2
+    disc = _chamfer_disc(radius) if radius < _MORPHOLOGY_MAX_RADIUS else None
+    if disc is not None and 0 < int(np.count_nonzero(disc)) <= _MORPHOLOGY_MAX_CELLS:
+        return _wide_on_all_blocks(unknown, disc)
     wide = _wide_on_blocks(unknown, radius_px, shift=(0, 0))
     for shift in ((0, 1), (1, 0), (1, 1)):
         wide |= _wide_on_blocks(unknown, radius_px, shift=shift)
@@ -150,6 +154,37 @@ def _wide_on_blocks(
     # row twice (ten times cheaper than OpenCV's nearest-neighbour resize).
     wide = np.repeat((near.astype(np.uint16) * np.uint16(0x0101)).view(np.uint8), 2, axis=0)
     return wide[down : down + rows, right : right + cols].view(bool) & unknown
+
+
+def _wide_on_all_blocks(
+    unknown: npt.NDArray[np.bool_], disc: npt.NDArray[np.uint8]
+) -> npt.NDArray[np.bool_]:
+    """The union of :func:`_wide_on_blocks` over its four grids of blocks (erosion and dilation
+    by ``disc``), at once: the same cells, at about half the cost.
+
+    The 2 x 2 blocks starting at every cell of the ``unknown`` cells framed by a row and a column
+    of unknown cells on each side (those before the grid are the shifted grids' unknown row and
+    column, those after it make a last block of an odd row or column alone) hold the four grids
+    of blocks as their four classes of (row, column) parity. ``disc`` spread to every other cell
+    across and along reads only cells of a block's own class, so one erosion and one dilation by
+    it are the four grids' (OpenCV's borders as theirs: unknown beyond the image for the erosion,
+    nothing for the dilation). A cell lies in the block starting at it, or a row, a column, or
+    both before it, in one grid each."""
+    import cv2
+
+    framed = cv2.copyMakeBorder(unknown.view(np.uint8), 1, 1, 1, 1, cv2.BORDER_CONSTANT, value=1)
+    blocks = np.logical_and(framed[:-1].view(bool), framed[1:].view(bool))
+    blocks = np.logical_and(blocks[:, :-1], blocks[:, 1:])  # (rows + 1, cols + 1), from -1
+    side = disc.shape[0]
+    spread = np.zeros((2 * side - 1, 2 * side - 1), np.uint8)
+    spread[::2, ::2] = disc
+    core = cv2.erode(blocks.view(np.uint8), spread)
+    if not core.any():
+        return np.zeros(unknown.shape, dtype=bool)
+    near = np.asarray(cv2.dilate(core, spread), dtype=np.uint8).view(bool)
+    wide = np.logical_or(near[:-1], near[1:])
+    wide = np.logical_or(wide[:, :-1], wide[:, 1:])
+    return np.logical_and(wide, unknown, out=wide)
 
 
 #: Most cells of the disc (:func:`_chamfer_disc`) that :func:`_wide` erodes and dilates by rather
