@@ -473,6 +473,24 @@ def test_walls_kept_in_a_room_do_not_depend_on_specks_in_the_next_room() -> None
     assert np.array_equal(kept[:, :150], kept_specked[:, :150])
 
 
+@pytest.mark.parametrize("seed", range(4))
+def test_the_wide_unknown_space_of_the_four_block_grids_at_once_is_theirs(seed: int) -> None:
+    """Opening the unknown cells on the blocks that start at every cell (one erosion and one
+    dilation) gives the union of the four grids of 2 x 2 blocks opened one by one."""
+    from rose.cleaning_rules.outside import _chamfer_disc, _wide_on_all_blocks, _wide_on_blocks
+
+    rng = np.random.default_rng(seed)
+    for _ in range(60):
+        shape = tuple(int(n) for n in rng.integers(1, 60, size=2))
+        unknown = rng.random(shape) < rng.uniform(0.5, 0.97)
+        radius_px = float(rng.uniform(0.5, 16))
+        expected = np.zeros(shape, dtype=bool)
+        for shift in ((0, 0), (0, 1), (1, 0), (1, 1)):
+            expected |= _wide_on_blocks(unknown, radius_px, shift=shift)
+        got = _wide_on_all_blocks(unknown, _chamfer_disc(radius_px / 2))
+        assert np.array_equal(got, expected), (shape, radius_px)
+
+
 def test_wide_unknown_drops_narrow_shadows() -> None:
     grid = np.zeros((100, 100), np.int8)
     grid[:, :30] = -1  # wide unknown
